@@ -1,0 +1,387 @@
+/* kinemesh — animate any triangle mesh from captured human motion.
+ *
+ * The one public header. C11, no third-party types: solver objects are opaque.
+ *
+ * Conventions (read once, they hold everywhere):
+ *  - Every fallible call returns km_status (KM_OK == 0) and, when `err` is not NULL,
+ *    fills it with a message for the user naming the file, line/byte and what was expected.
+ *  - Arrays are plain, row-major, owned by whoever allocated them. Positions are
+ *    `double V[#V*3]` (x0 y0 z0 x1 ...), triangles `int32_t F[#F*3]`. Dense matrices with
+ *    several columns (eigenvectors, right-hand sides) are column-major: column c of an
+ *    n-row matrix starts at X + c*n.
+ *  - Units: metres inside the library.
+ *  - Laplacian sign: L is negative semidefinite, rows sum to zero (L_ii = -sum_j L_ij).
+ *    System matrices are built from -L plus constraints so they are SPD.
+ *  - Frees take the address of what they free and set it to NULL; freeing NULL is a no-op.
+ *  - The library never prints. Install a logger with km_set_logger() to see its messages.
+ */
+#ifndef KINEMESH_H
+#define KINEMESH_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define KM_VERSION_MAJOR 0
+#define KM_VERSION_MINOR 1
+#define KM_VERSION_PATCH 0
+const char *km_version(void);
+
+/* ---------------------------------------------------------------- errors */
+
+typedef enum km_status {
+  KM_OK = 0,
+  KM_ERR_IO,              /* cannot open / read / write a file */
+  KM_ERR_PARSE,           /* file content is not what its format says */
+  KM_ERR_INVALID,         /* bad argument or option */
+  KM_ERR_DEGENERATE_MESH, /* mesh cannot support the operation (zero area, no faces...) */
+  KM_ERR_NOT_POSDEF,      /* Cholesky met a non-positive-definite matrix */
+  KM_ERR_NO_CONVERGENCE,  /* an iterative method did not converge */
+  KM_ERR_NOMEM,
+  KM_ERR_CANCELLED,       /* a progress callback asked to stop */
+  KM_ERR_UNSUPPORTED,     /* valid input using a feature kinemesh does not handle */
+  KM_ERR_STALE,           /* a cache does not match its inputs (version, checksum, mesh) */
+} km_status;
+
+typedef struct km_error {
+  km_status status;
+  char message[1024];
+} km_error;
+
+/* Stable name of a status ("KM_ERR_PARSE"). Never NULL. */
+const char *km_status_name(km_status s);
+
+/* ---------------------------------------------------------------- logging & progress */
+
+typedef enum km_log_level { KM_LOG_DEBUG = 0, KM_LOG_INFO, KM_LOG_WARN, KM_LOG_ERROR } km_log_level;
+typedef void (*km_log_fn)(km_log_level level, const char *message, void *user);
+/* Installs the process-wide logger (NULL silences the library, the default). */
+void km_set_logger(km_log_fn fn, void *user);
+
+/* Called by long operations with fraction in [0,1] and a short stage name.
+ * Return false to cancel: the operation then returns KM_ERR_CANCELLED. */
+typedef bool (*km_progress_fn)(double fraction, const char *stage, void *user);
+typedef struct km_progress {
+  km_progress_fn fn; /* NULL: no reports */
+  void *user;
+} km_progress;
+
+/* ---------------------------------------------------------------- meshes */
+
+typedef struct km_mesh {
+  double *V;      /* #V*3 positions */
+  int32_t *F;     /* #F*3 triangles, 0-based */
+  size_t n_vertices;
+  size_t n_faces; /* 0 for a point cloud */
+} km_mesh;
+
+typedef enum km_mesh_format {
+  KM_FORMAT_AUTO = 0, /* from the file extension */
+  KM_FORMAT_OBJ,
+  KM_FORMAT_PLY,
+  KM_FORMAT_OFF,
+} km_mesh_format;
+
+typedef enum km_ply_encoding {
+  KM_PLY_BINARY_LE = 0, /* default */
+  KM_PLY_BINARY_BE,
+  KM_PLY_ASCII,
+} km_ply_encoding;
+
+typedef struct km_mesh_write_options {
+  km_mesh_format format;  /* 0: from extension */
+  km_ply_encoding ply;    /* 0: binary little endian */
+} km_mesh_write_options;
+
+/* Allocates a mesh with uninitialised V and F of the given sizes. */
+km_status km_mesh_alloc(size_t n_vertices, size_t n_faces, km_mesh *out, km_error *err);
+/* Deep copy. */
+km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err);
+/* Frees V and F and zeroes the struct. */
+void km_mesh_free(km_mesh *m);
+
+/* Reads OBJ / PLY (ascii, binary LE/BE) / OFF. Vertex order and count are exactly those of
+ * the file; polygons are fan-triangulated (0,i,i+1). A PLY without faces reads as a point
+ * cloud (n_faces == 0). Errors name `path` and the line (text) or byte offset (binary). */
+km_status km_mesh_read(const char *path, km_mesh *out, km_error *err);
+/* Same from memory; `name` is used in error messages. format must not be AUTO unless
+ * `name` has an extension. */
+km_status km_mesh_parse(const void *data, size_t size, km_mesh_format format, const char *name,
+                        km_mesh *out, km_error *err);
+/* Writes atomically (temporary file, then rename). Coordinates are written exactly
+ * (%.17g in text formats, raw doubles in binary PLY), so reading back is bit for bit. */
+km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_options *opt,
+                        km_error *err);
+
+/* Topology and extent. Edges are undirected vertex pairs used by at least one face.
+ * A component is a set of faces connected through shared vertices; vertices used by no
+ * face are counted as isolated, not as components. A face is degenerate when two of its
+ * indices are equal or its area is below 1e-14 * bbox_diagonal^2. */
+typedef struct km_mesh_info {
+  size_t vertices, faces;
+  size_t edges;
+  size_t boundary_edges;    /* used by exactly one face */
+  size_t nonmanifold_edges; /* used by three or more faces */
+  size_t nonmanifold_vertices; /* faces around the vertex form more than one fan */
+  size_t components;
+  size_t isolated_vertices;
+  size_t degenerate_faces;
+  int64_t euler_characteristic; /* V - E + F over non-isolated vertices */
+  double bbox_min[3], bbox_max[3];
+} km_mesh_info;
+km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *err);
+
+/* Length of the bounding-box diagonal (0 for an empty mesh). */
+double km_bbox_diagonal(const double *V, size_t n_vertices);
+
+/* Vertex-vertex adjacency in CSR form: neighbours of v are
+ * adj[offsets[v] .. offsets[v+1]), sorted ascending. offsets has #V+1 entries.
+ * Both arrays are allocated by the call; free them with free(). */
+km_status km_adjacency_list(const km_mesh *m, int32_t **offsets, int32_t **adj, km_error *err);
+
+/* Primitive meshes for tests and examples (closed, manifold, consistently oriented
+ * outward). icosphere: 10*4^subdiv+2 vertices on a sphere of `radius`. */
+km_status km_icosphere(int subdivisions, double radius, km_mesh *out, km_error *err);
+/* Open rectangular grid in the z=0 plane, (nx+1)*(ny+1) vertices over [0,sx]x[0,sy]. */
+km_status km_grid(int nx, int ny, double sx, double sy, km_mesh *out, km_error *err);
+/* Closed capped cylinder along +z from z=0 to z=length: `rings`+1 rings of `segments`
+ * vertices each plus two cap centres. */
+km_status km_cylinder(int segments, int rings, double radius, double length, km_mesh *out,
+                      km_error *err);
+
+/* ---------------------------------------------------------------- sparse matrices */
+
+/* Sparse matrix (compressed columns, int32 indices, double values, sorted, no duplicates).
+ * Symmetric matrices are stored with both triangles. Backed by CHOLMOD. */
+typedef struct km_sparse km_sparse;
+
+/* Builds an n_rows x n_cols matrix from triplets; duplicate (i,j) entries are summed. */
+km_status km_sparse_from_triplets(size_t n_rows, size_t n_cols, size_t nnz, const int32_t *rows,
+                                  const int32_t *cols, const double *values, km_sparse **out,
+                                  km_error *err);
+/* Diagonal matrix. */
+km_status km_sparse_diagonal(size_t n, const double *diag, km_sparse **out, km_error *err);
+/* C = alpha*A + beta*B (same shape). */
+km_status km_sparse_add(double alpha, const km_sparse *A, double beta, const km_sparse *B,
+                        km_sparse **out, km_error *err);
+size_t km_sparse_rows(const km_sparse *A);
+size_t km_sparse_cols(const km_sparse *A);
+size_t km_sparse_nnz(const km_sparse *A);
+/* Read-only view of the CSC arrays: col_ptr has cols+1 entries. */
+void km_sparse_csc(const km_sparse *A, const int32_t **col_ptr, const int32_t **row_idx,
+                   const double **values);
+/* A(i,j), 0 when not stored. */
+double km_sparse_coeff(const km_sparse *A, size_t i, size_t j);
+/* Y = A X for X column-major cols x k, Y rows x k. Y must not alias X. */
+void km_sparse_mul(const km_sparse *A, size_t k, const double *X, double *Y);
+void km_sparse_free(km_sparse **A);
+
+/* Sparse Cholesky of a symmetric positive-definite matrix (CHOLMOD).
+ * analyze once per pattern, factorize whenever the values change, solve many times.
+ * solve does not allocate (workspace is kept in the object) and is not thread-safe on one
+ * object. */
+typedef struct km_cholesky km_cholesky;
+km_status km_cholesky_analyze(const km_sparse *A, km_cholesky **out, km_error *err);
+/* A must have the pattern given to analyze. KM_ERR_NOT_POSDEF when it is not SPD. */
+km_status km_cholesky_factorize(km_cholesky *c, const km_sparse *A, km_error *err);
+/* X = A^-1 B, B and X column-major n x nrhs (may alias). */
+km_status km_cholesky_solve(km_cholesky *c, size_t nrhs, const double *B, double *X,
+                            km_error *err);
+size_t km_cholesky_size(const km_cholesky *c);
+void km_cholesky_free(km_cholesky **c);
+
+/* ---------------------------------------------------------------- geometric operators */
+
+/* Cotangent Laplacian, #V x #V: L_ij = (cot a_ij + cot b_ij)/2 for each edge, L_ii = -sum.
+ * Cotangents are clamped to [-1e5, 1e5] (zero-angle / near-degenerate triangles) and a
+ * face with zero area contributes nothing, so the matrix stays finite. Obtuse triangles
+ * give negative weights, as the continuous operator does. */
+km_status km_cotmatrix(const km_mesh *m, km_sparse **L, km_error *err);
+/* Uniform (graph) Laplacian: L_ij = 1 for each edge, L_ii = -degree. */
+km_status km_uniform_laplacian(const km_mesh *m, km_sparse **L, km_error *err);
+
+typedef enum km_mass_type {
+  KM_MASS_VORONOI = 0, /* mixed Voronoi areas (Meyer et al. 2003): obtuse triangles split 1/2,1/4,1/4 */
+  KM_MASS_BARYCENTRIC, /* a third of each incident triangle's area */
+} km_mass_type;
+/* Lumped (diagonal) mass matrix. Isolated vertices get a tiny positive mass so M stays
+ * invertible. */
+km_status km_massmatrix(const km_mesh *m, km_mass_type type, km_sparse **M, km_error *err);
+
+typedef enum km_normal_weighting {
+  KM_NORMALS_AREA = 0, /* face normals weighted by area */
+  KM_NORMALS_ANGLE,    /* weighted by the incident angle (Thürmer & Wüthrich) */
+} km_normal_weighting;
+/* Unit per-vertex normals, N #V*3. A vertex with no non-degenerate face gets (0,0,0). */
+km_status km_vertex_normals(const km_mesh *m, km_normal_weighting w, double *N, km_error *err);
+
+/* For every vertex, the neighbour whose edge defines its local frame's tangent. Chosen once
+ * on a reference mesh (the lowest-index neighbour) and reused for every pose of the same
+ * connectivity, so frames correspond across poses. ref #V; isolated vertices get -1. */
+km_status km_frame_neighbors(const km_mesh *m, int32_t *ref, km_error *err);
+/* Local orthonormal frames: frames #V*9, per vertex the rows n (normal), t (edge to ref
+ * projected on the tangent plane, normalised), b = n x t. Right-handed. */
+km_status km_local_frames(const km_mesh *m, const double *N, const int32_t *ref, double *frames,
+                          km_error *err);
+
+/* ---------------------------------------------------------------- eigenfields */
+
+typedef struct km_eigs_options {
+  double sigma;     /* shift; 0: a small negative shift relative to the spectrum scale */
+  double tol;       /* ARPACK tolerance; 0: 1e-10 */
+  int max_iter;     /* 0: 1000 */
+  int ncv;          /* Lanczos vectors; 0: min(n, max(2k+1, 20)) */
+  km_progress progress;
+} km_eigs_options;
+/* The k smallest eigenpairs of -L phi = lambda M phi (L symmetric NSD, M diagonal SPD) by
+ * ARPACK in shift-invert mode on a CHOLMOD factor of (-L - sigma M). evals ascending (k),
+ * evecs column-major #V x k, M-orthonormal. Either output may be NULL. */
+km_status km_eigs(const km_sparse *L, const km_sparse *M, int k, const km_eigs_options *opt,
+                  double *evals, double *evecs, km_error *err);
+
+/* ---------------------------------------------------------------- skeletons & takes */
+
+#define KM_KINECT1_JOINTS 20
+/* Kinect v1 joint order: HipCenter, Spine, ShoulderCenter, Head, ShoulderLeft, ElbowLeft,
+ * WristLeft, HandLeft, ShoulderRight, ElbowRight, WristRight, HandRight, HipLeft, KneeLeft,
+ * AnkleLeft, FootLeft, HipRight, KneeRight, AnkleRight, FootRight. */
+const char *km_kinect1_joint_name(int j);
+/* Parent of joint j in the Kinect v1 hierarchy (-1 for HipCenter). */
+int km_kinect1_joint_parent(int j);
+/* Index of a Kinect v1 joint by name (case-sensitive), -1 when unknown. */
+int km_kinect1_joint_index(const char *name);
+
+typedef struct km_skeleton {
+  size_t n_joints;
+  char **names;     /* n_joints strings */
+  int32_t *parents; /* -1 for a root; parents[j] < j */
+  double *rest;     /* n_joints*3 rest positions */
+} km_skeleton;
+void km_skeleton_free(km_skeleton *s);
+
+/* A motion take: joint positions per frame (the form trackers deliver). A joint missing in a
+ * frame is NaN. */
+typedef struct km_take {
+  size_t n_frames, n_joints;
+  double fps;
+  char **joint_names;  /* n_joints */
+  int32_t *parents;    /* n_joints, -1 for roots; may be NULL when unknown */
+  double *positions;   /* n_frames * n_joints * 3 */
+} km_take;
+void km_take_free(km_take *t);
+/* kinemesh take JSON:
+ * {"format":"kinemesh-take","version":1,"fps":30,"units":"m","joints":["HipCenter",...],
+ *  "parents":[-1,0,...],"frames":[[x,y,z, x,y,z, ...], ...]}   (null = missing joint) */
+km_status km_take_read(const char *path, km_take *out, km_error *err);
+km_status km_take_write(const char *path, const km_take *t, km_error *err);
+
+/* Linear blend skinning. Each vertex has up to 4 influences. */
+#define KM_SKIN_INFLUENCES 4
+typedef struct km_skin {
+  size_t n_vertices;
+  int32_t *joints;  /* n_vertices*4, -1 for an unused slot */
+  double *weights;  /* n_vertices*4, summing to 1 */
+} km_skin;
+void km_skin_free(km_skin *s);
+
+/* Per-joint rigid transforms (row-major 3x4: [R | t]) that take the rest skeleton to the
+ * given joint positions: each joint's rotation is the minimal rotation of its rest bone
+ * direction(s) onto the posed ones (no twist), composed down the hierarchy. NaN positions
+ * keep the rest-relative transform of the parent. transforms: n_joints*12. */
+km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *positions,
+                                          double *transforms, km_error *err);
+/* out = sum_k w_k T_{j_k} v for each rest vertex. out #V*3 may not alias rest. */
+km_status km_lbs(const double *rest, size_t n_vertices, const km_skin *skin,
+                 const double *transforms, size_t n_joints, double *out, km_error *err);
+
+/* ---------------------------------------------------------------- procedural character */
+
+typedef struct km_character_options {
+  size_t target_vertices; /* 0: 20000. Output within +-10%. 2,000 .. 1,000,000 */
+  uint64_t seed;          /* small per-subject variation of proportions; 0 is valid */
+  double height;          /* metres; 0: 1.75 */
+  double girth;           /* limb thickness factor; 0: 1.0 */
+  double belly;           /* belly size factor; 0: 0 (none), 1: pronounced */
+  km_progress progress;
+} km_character_options;
+
+#define KM_CHARACTER_LANDMARKS 16
+typedef struct km_landmark {
+  char name[32];
+  char mirror[32]; /* name of the left/right counterpart (itself on the mid-line) */
+  int32_t vertex;
+} km_landmark;
+
+typedef struct km_character {
+  km_mesh mesh;          /* closed, manifold, one component */
+  km_skeleton skeleton;  /* the 20 Kinect v1 joints at rest */
+  km_skin skin;          /* LBS weights over the skeleton's joints */
+  km_landmark landmarks[KM_CHARACTER_LANDMARKS];
+} km_character;
+void km_character_free(km_character *c);
+
+/* Generates a humanoid as an implicit surface around a skeleton, polygonised so that its
+ * vertex count is target_vertices +-10%. Equal options (shape, seed) give equal meshes;
+ * different shapes with the same target_vertices give different meshes which are NOT
+ * guaranteed to share connectivity (use km_character_pose / LBS on one mesh for that). */
+km_status km_character_generate(const km_character_options *opt, km_character *out,
+                                km_error *err);
+/* Rig sidecar (<mesh>.rig.json): skeleton, skin, landmarks, and a default puppetry rig
+ * (handles at head, hands, feet mapped to the matching Kinect joints). */
+km_status km_character_write_rig(const char *path, const km_character *c, km_error *err);
+/* Reads the skeleton, skin and landmarks of a rig sidecar (mesh not touched). */
+km_status km_character_read_rig(const char *path, size_t n_vertices, km_character *out,
+                                km_error *err);
+
+typedef enum km_motion_kind { KM_MOTION_WALK = 0, KM_MOTION_WAVE, KM_MOTION_KUNGFU } km_motion_kind;
+/* A take of the 20 Kinect v1 joints at 30 Hz for skeleton s (the character's rest skeleton),
+ * frames >= 1. Deterministic. */
+km_status km_motion_generate(const km_skeleton *s, km_motion_kind kind, size_t frames,
+                             km_take *out, km_error *err);
+
+/* ---------------------------------------------------------------- animation output */
+
+typedef enum km_anim_format {
+  KM_ANIM_AUTO = 0, /* from the path: .glb, .pc2, else a directory */
+  KM_ANIM_GLB,
+  KM_ANIM_PC2,
+  KM_ANIM_OBJ_DIR,
+  KM_ANIM_PLY_DIR,
+} km_anim_format;
+
+typedef struct km_anim_options {
+  km_anim_format format; /* 0: from the path (a directory gets per-frame .obj) */
+  double fps;            /* 0: 30 */
+  size_t key_every;      /* glb: one morph target every k frames (0/1: every frame) */
+} km_anim_options;
+
+/* Streams an animation of a fixed-connectivity mesh to disk. Nothing appears at `path`
+ * until close succeeds (a temporary is renamed); free without close discards it. */
+typedef struct km_anim_writer km_anim_writer;
+km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_anim_options *opt,
+                              km_anim_writer **out, km_error *err);
+/* Appends one frame: V is #V*3 positions in metres. */
+km_status km_anim_writer_push(km_anim_writer *w, const double *V, km_error *err);
+km_status km_anim_writer_close(km_anim_writer **w, km_error *err);
+void km_anim_writer_free(km_anim_writer **w);
+
+typedef struct km_anim_info {
+  km_anim_format format;
+  size_t frames;   /* frames in the file (morph targets for glb) */
+  size_t vertices;
+  size_t faces;    /* 0 for pc2 */
+  double fps;
+  double duration; /* seconds */
+} km_anim_info;
+km_status km_anim_info_read(const char *path, km_anim_info *out, km_error *err);
+/* Reads all frames of a .pc2 (frames*vertices*3 doubles, allocated; free()). */
+km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* KINEMESH_H */

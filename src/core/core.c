@@ -1,0 +1,204 @@
+#include "internal.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+const char *km_version(void) { return "0.1.0"; }
+
+const char *km_status_name(km_status s) {
+  switch (s) {
+  case KM_OK: return "KM_OK";
+  case KM_ERR_IO: return "KM_ERR_IO";
+  case KM_ERR_PARSE: return "KM_ERR_PARSE";
+  case KM_ERR_INVALID: return "KM_ERR_INVALID";
+  case KM_ERR_DEGENERATE_MESH: return "KM_ERR_DEGENERATE_MESH";
+  case KM_ERR_NOT_POSDEF: return "KM_ERR_NOT_POSDEF";
+  case KM_ERR_NO_CONVERGENCE: return "KM_ERR_NO_CONVERGENCE";
+  case KM_ERR_NOMEM: return "KM_ERR_NOMEM";
+  case KM_ERR_CANCELLED: return "KM_ERR_CANCELLED";
+  case KM_ERR_UNSUPPORTED: return "KM_ERR_UNSUPPORTED";
+  case KM_ERR_STALE: return "KM_ERR_STALE";
+  }
+  return "KM_ERR_UNKNOWN";
+}
+
+km_status km__fail(km_error *err, km_status status, const char *fmt, ...) {
+  if (err) {
+    err->status = status;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(err->message, sizeof err->message, fmt, ap);
+    va_end(ap);
+  }
+  return status;
+}
+
+km_status km__wrap(km_error *err, km_status s, const char *fmt, ...) {
+  if (!err) return s;
+  char prefix[512];
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(prefix, sizeof prefix, fmt, ap);
+  va_end(ap);
+  char old[sizeof err->message];
+  memcpy(old, err->message, sizeof old);
+  old[sizeof old - 1] = '\0';
+  snprintf(err->message, sizeof err->message, "%s: %s", prefix, old);
+  err->status = s;
+  return s;
+}
+
+static km_log_fn g_log_fn;
+static void *g_log_user;
+
+void km_set_logger(km_log_fn fn, void *user) {
+  g_log_fn = fn;
+  g_log_user = user;
+}
+
+void km__log(km_log_level level, const char *fmt, ...) {
+  if (!g_log_fn) return;
+  char buf[1024];
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(buf, sizeof buf, fmt, ap);
+  va_end(ap);
+  g_log_fn(level, buf, g_log_user);
+}
+
+bool km__progress(const km_progress *p, double fraction, const char *stage) {
+  if (!p || !p->fn) return true;
+  return p->fn(fraction < 0 ? 0 : fraction > 1 ? 1 : fraction, stage, p->user);
+}
+
+void *km__malloc(size_t count, size_t size) {
+  if (size && count > SIZE_MAX / size) return NULL;
+  size_t n = count * size;
+  return malloc(n ? n : 1);
+}
+
+void *km__calloc(size_t count, size_t size) {
+  if (size && count > SIZE_MAX / size) return NULL;
+  return calloc(count ? count : 1, size ? size : 1);
+}
+
+km_status km__atomic_open(km__atomic_file *af, const char *path, km_error *err) {
+  memset(af, 0, sizeof *af);
+  size_t n = strlen(path);
+  af->path = malloc(n + 1);
+  af->tmp_path = malloc(n + 32);
+  if (!af->path || !af->tmp_path) {
+    km__atomic_abort(af);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  }
+  memcpy(af->path, path, n + 1);
+  snprintf(af->tmp_path, n + 32, "%s.tmp.%ld", path, (long)getpid());
+  af->f = fopen(af->tmp_path, "wb");
+  if (!af->f) {
+    km_status s = km__fail(err, KM_ERR_IO, "%s: cannot open for writing: %s", path, strerror(errno));
+    free(af->path);
+    free(af->tmp_path);
+    memset(af, 0, sizeof *af);
+    return s;
+  }
+  return KM_OK;
+}
+
+km_status km__atomic_commit(km__atomic_file *af, km_error *err) {
+  if (!af->f) return km__fail(err, KM_ERR_INVALID, "atomic file already closed");
+  int bad = ferror(af->f) || fflush(af->f) != 0;
+  if (!bad) (void)fsync(fileno(af->f));
+  bad |= fclose(af->f) != 0;
+  af->f = NULL;
+  km_status s = KM_OK;
+  if (bad) {
+    s = km__fail(err, KM_ERR_IO, "%s: write failed: %s", af->path, strerror(errno));
+    remove(af->tmp_path);
+  } else if (rename(af->tmp_path, af->path) != 0) {
+    s = km__fail(err, KM_ERR_IO, "%s: cannot rename temporary into place: %s", af->path,
+                 strerror(errno));
+    remove(af->tmp_path);
+  }
+  free(af->path);
+  free(af->tmp_path);
+  af->path = af->tmp_path = NULL;
+  return s;
+}
+
+void km__atomic_abort(km__atomic_file *af) {
+  if (af->f) {
+    fclose(af->f);
+    af->f = NULL;
+    if (af->tmp_path) remove(af->tmp_path);
+  }
+  free(af->path);
+  free(af->tmp_path);
+  af->path = af->tmp_path = NULL;
+}
+
+km_status km__read_file(const char *path, char **data, size_t *size, km_error *err) {
+  *data = NULL;
+  *size = 0;
+  FILE *f = fopen(path, "rb");
+  if (!f) return km__fail(err, KM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+  size_t cap = 1 << 16, n = 0;
+  char *buf = malloc(cap + 1);
+  if (!buf) {
+    fclose(f);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  }
+  for (;;) {
+    size_t got = fread(buf + n, 1, cap - n, f);
+    n += got;
+    if (n < cap) break;
+    char *nb = realloc(buf, cap * 2 + 1);
+    if (!nb) {
+      free(buf);
+      fclose(f);
+      return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+    }
+    buf = nb;
+    cap *= 2;
+  }
+  int rerr = ferror(f);
+  fclose(f);
+  if (rerr) {
+    free(buf);
+    return km__fail(err, KM_ERR_IO, "%s: read error", path);
+  }
+  buf[n] = '\0';
+  *data = buf;
+  *size = n;
+  return KM_OK;
+}
+
+void km__extension(const char *path, char *out, size_t out_size) {
+  if (!out_size) return;
+  out[0] = '\0';
+  const char *slash = strrchr(path, '/');
+  const char *base = slash ? slash + 1 : path;
+  const char *dot = strrchr(base, '.');
+  if (!dot || dot == base) return;
+  size_t i = 0;
+  for (const char *p = dot + 1; *p && i + 1 < out_size; ++p) out[i++] = (char)tolower((unsigned char)*p);
+  out[i] = '\0';
+}
+
+double km__now(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+uint64_t km__fnv1a(uint64_t h, const void *data, size_t size) {
+  const unsigned char *p = data;
+  for (size_t i = 0; i < size; ++i) {
+    h ^= p[i];
+    h *= 0x100000001b3ULL;
+  }
+  return h;
+}

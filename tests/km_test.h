@@ -1,0 +1,78 @@
+/* Minimal test harness: CHECK records a failure and continues; the test's main returns
+ * km_test_finish(), which prints "N passed, M failed" and is non-zero on any failure. */
+#ifndef KM_TEST_H
+#define KM_TEST_H
+
+#include "kinemesh.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+static int km_test_passed, km_test_failed;
+
+#define CHECK(cond)                                                                        \
+  do {                                                                                     \
+    if (cond) {                                                                            \
+      ++km_test_passed;                                                                    \
+    } else {                                                                               \
+      ++km_test_failed;                                                                    \
+      fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond);             \
+    }                                                                                      \
+  } while (0)
+
+#define CHECK_MSG(cond, ...)                                                               \
+  do {                                                                                     \
+    if (cond) {                                                                            \
+      ++km_test_passed;                                                                    \
+    } else {                                                                               \
+      ++km_test_failed;                                                                    \
+      fprintf(stderr, "%s:%d: CHECK failed: %s: ", __FILE__, __LINE__, #cond);             \
+      fprintf(stderr, __VA_ARGS__);                                                        \
+      fputc('\n', stderr);                                                                 \
+    }                                                                                      \
+  } while (0)
+
+#define CHECK_NEAR(a, b, tol)                                                              \
+  CHECK_MSG(fabs((double)(a) - (double)(b)) <= (tol), "%.17g vs %.17g (tol %g)", (double)(a),  \
+            (double)(b), (double)(tol))
+
+/* Tests pass KM_E as the error argument; CHECK_OK prints its message on failure. */
+static km_error km_test_err;
+#define KM_E (&km_test_err)
+#define CHECK_OK(expr)                                                                     \
+  do {                                                                                     \
+    km_test_err.message[0] = '\0';                                                        \
+    km_status s_ = (expr);                                                                 \
+    CHECK_MSG(s_ == KM_OK, "%s -> %s: %s", #expr, km_status_name(s_), km_test_err.message); \
+  } while (0)
+/* Status must be exactly `st`. */
+#define CHECK_STATUS(expr, st)                                                             \
+  do {                                                                                     \
+    km_test_err.message[0] = '\0';                                                        \
+    km_status s_ = (expr);                                                                 \
+    CHECK_MSG(s_ == (st), "%s -> %s (wanted %s): %s", #expr, km_status_name(s_),           \
+              km_status_name(st), km_test_err.message);                                    \
+  } while (0)
+
+static inline int km_test_finish(const char *name) {
+  printf("%s: %d passed, %d failed\n", name, km_test_passed, km_test_failed);
+  return km_test_failed ? 1 : 0;
+}
+
+/* Path of a file in ../shared/data, or NULL (with a SKIP line) when it is absent. */
+static inline const char *km_test_shared(const char *rel, char *buf, size_t n) {
+  snprintf(buf, n, "%s/%s", KM_SHARED_DATA, rel);
+  struct stat st;
+  if (stat(buf, &st) != 0) {
+    printf("SKIP: %s not found (../shared/data is absent in this checkout)\n", buf);
+    return NULL;
+  }
+  return buf;
+}
+
+#define KM_TEST_SKIP 77
+
+#endif

@@ -1,0 +1,59 @@
+#include "internal.h"
+#include "km_test.h"
+
+#include <unistd.h>
+
+static void test_atomic_file(void) {
+  const char *path = "test_core_atomic.txt";
+  remove(path);
+  km__atomic_file af;
+  CHECK_OK(km__atomic_open(&af, path, KM_E));
+  fputs("hello", af.f);
+  /* Nothing is visible at the final path before commit. */
+  CHECK(access(path, F_OK) != 0);
+  CHECK_OK(km__atomic_commit(&af, KM_E));
+  char *data = NULL;
+  size_t n = 0;
+  CHECK_OK(km__read_file(path, &data, &n, KM_E));
+  CHECK(n == 5 && data && memcmp(data, "hello", 5) == 0);
+  free(data);
+
+  /* An aborted write leaves the previous file untouched and no temporary behind. */
+  CHECK_OK(km__atomic_open(&af, path, KM_E));
+  fputs("garbage", af.f);
+  char tmp[512];
+  snprintf(tmp, sizeof tmp, "%s", af.tmp_path);
+  km__atomic_abort(&af);
+  CHECK(access(tmp, F_OK) != 0);
+  CHECK_OK(km__read_file(path, &data, &n, KM_E));
+  CHECK(n == 5);
+  free(data);
+  remove(path);
+
+  /* A directory that does not exist is a clear IO error naming the path. */
+  CHECK_STATUS(km__atomic_open(&af, "no/such/dir/x.txt", KM_E), KM_ERR_IO);
+  CHECK(strstr(km_test_err.message, "no/such/dir/x.txt") != NULL);
+}
+
+static void test_errors(void) {
+  km_error e = {0};
+  CHECK(km__fail(&e, KM_ERR_PARSE, "f.obj:%d: expected %s", 3, "a number") == KM_ERR_PARSE);
+  CHECK(e.status == KM_ERR_PARSE);
+  CHECK(strcmp(e.message, "f.obj:3: expected a number") == 0);
+  km__wrap(&e, KM_ERR_PARSE, "loading mesh");
+  CHECK(strcmp(e.message, "loading mesh: f.obj:3: expected a number") == 0);
+  CHECK(km__fail(NULL, KM_ERR_IO, "ignored") == KM_ERR_IO);
+  CHECK(strcmp(km_status_name(KM_ERR_NOT_POSDEF), "KM_ERR_NOT_POSDEF") == 0);
+  char ext[8];
+  km__extension("dir.v2/Mesh.PLY", ext, sizeof ext);
+  CHECK(strcmp(ext, "ply") == 0);
+  km__extension("dir.v2/noext", ext, sizeof ext);
+  CHECK(ext[0] == '\0');
+  CHECK(km__malloc(SIZE_MAX / 2, 4) == NULL);
+}
+
+int main(void) {
+  test_atomic_file();
+  test_errors();
+  return km_test_finish("test_core");
+}
