@@ -381,6 +381,247 @@ km_status km_anim_info_read(const char *path, km_anim_info *out, km_error *err);
 /* Reads all frames of a .pc2 (frames*vertices*3 doubles, allocated; free()). */
 km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_error *err);
 
+/* ---- avatar pose transfer, pose recognition, key-pose morphing */
+
+/* Pose transfer by locally encoded Laplacian offsets (Lifkooee et al. 2019): a source mesh S
+ * (the avatar) takes the pose of a template mesh T of the same connectivity. Offline:
+ * offsets Delta = L X_S, per-vertex frames F(v) (normal, tangent from a fixed neighbour edge,
+ * their cross product) and pose-invariant coordinates W_i = F_S(v_i)^T Delta_i. Online: the
+ * landmark vertices are fixed at their targets, the rest solves
+ *   (-L)_ff x_f = -(F W)_f + L_fc x_c          (eq. 7, symmetric elimination form)
+ * with F = frames of T at first, then frames of the previous solution, until positions and
+ * frames settle. The factor of (-L)_ff is computed once per landmark set. */
+typedef enum km_laplacian_kind {
+  KM_LAPLACIAN_UNIFORM = 0, /* graph Laplacian, the paper's eq. 2 */
+  KM_LAPLACIAN_COTAN,       /* cotangent weights of the source mesh */
+} km_laplacian_kind;
+
+typedef enum km_transfer_align {
+  /* T's landmark positions scaled about the origin by sqrt(area(S)/area(T)); the scale
+   * is pose-invariant (surface area barely changes with pose), T's placement is kept. */
+  KM_TRANSFER_ALIGN_SCALE = 0,
+  /* Umeyama similarity (rotation, translation, scale) of T's landmarks onto the source's rest
+   * landmarks: places the result where S stands. Only sensible when T's pose is close to
+   * S's (the fit mixes pose and size otherwise). */
+  KM_TRANSFER_ALIGN_SIMILARITY,
+} km_transfer_align;
+
+typedef struct km_transfer_options {
+  km_laplacian_kind laplacian; /* 0: uniform */
+  km_transfer_align align;     /* how landmark targets come from a template; 0: scale */
+  int max_iterations;          /* solves per transfer; 0: 10 */
+  double tolerance; /* stop when the largest vertex move between two solves is below
+                       tolerance * bbox diagonal of S and the largest frame entry change is
+                       below tolerance; 0: 1e-4 */
+} km_transfer_options;
+
+typedef struct km_transfer km_transfer;
+
+/* Offline stage. source: the avatar at rest (closed or open triangle mesh, #V vertices).
+ * landmarks: n_landmarks distinct vertex ids, >= 3 (fewer leaves the Laplacian rank
+ * deficient up to a rotation: KM_ERR_INVALID). The object keeps copies of what it needs. */
+km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks,
+                                 size_t n_landmarks, const km_transfer_options *opt,
+                                 km_transfer **out, km_error *err);
+
+typedef struct km_transfer_stats {
+  int iterations;         /* linear solves done */
+  bool converged;         /* tolerance met before max_iterations */
+  double position_change; /* last iteration's largest vertex move / bbox diagonal */
+  double frame_change;    /* last iteration's largest frame entry change */
+  double frames_ms;       /* time in normals + frames, all iterations */
+  double solve_ms;        /* time in right-hand sides + triangular solves, all iterations */
+  double total_ms;        /* whole call */
+} km_transfer_stats;
+
+/* Online stage. All arrays are #V*3 (or n_landmarks*3 for targets), row-major.
+ *  template_V  positions of T (same connectivity as S); its frames start the iteration.
+ *              May be NULL when warm_start is given.
+ *  targets     landmark positions in precompute order; NULL: from template_V's landmark
+ *              vertices through the options' align mode (template_V then required).
+ *  warm_start  a previous result (e.g. the last key pose); its frames start the iteration
+ *              when template_V is NULL. Ignored otherwise. May be NULL.
+ *  V_out       result, may alias warm_start but not template_V.
+ *  stats       may be NULL.
+ * Does not allocate. Not thread-safe on one object. */
+km_status km_transfer_solve(km_transfer *t, const double *template_V, const double *targets,
+                            const double *warm_start, double *V_out, km_transfer_stats *stats,
+                            km_error *err);
+size_t km_transfer_vertices(const km_transfer *t);
+size_t km_transfer_landmarks(const km_transfer *t);
+/* Landmark targets the solver would use for template_V (n_landmarks*3). */
+km_status km_transfer_targets(const km_transfer *t, const double *template_V, double *targets,
+                              km_error *err);
+/* Offline timings of precompute: Laplacian + offsets + frames, and symbolic + numeric
+ * Cholesky, in milliseconds. Either may be NULL. */
+void km_transfer_precompute_ms(const km_transfer *t, double *laplacian_ms, double *cholesky_ms);
+void km_transfer_free(km_transfer **t);
+
+/* Least-squares similarity dst ~ s R src + t (Umeyama 1991; SVD by LAPACKE), n >= 3 points,
+ * weights (n, >= 0) may be NULL for equal weights. R row-major 3x3, proper rotation.
+ * KM_ERR_DEGENERATE_MESH when the source points are all coincident. */
+km_status km_similarity_fit(const double *src, const double *dst, const double *weights,
+                            size_t n, double *s, double R[9], double t[3], km_error *err);
+/* Total triangle area (for pose-invariant size ratios). */
+double km_surface_area(const km_mesh *m);
+
+/* Landmark files. LM.json: {"landmarks":[{"name":"head","vertex":411,"mirror":"head"},...]};
+ * a character rig sidecar (*.rig.json) carries the same array and is accepted as is.
+ * Every mirror must name a landmark of the file (itself on the mid-line). Reads at most
+ * `capacity` landmarks (more: KM_ERR_PARSE); n_vertices > 0 checks vertex ids. */
+#define KM_POSE_MAX_LANDMARKS 32
+km_status km_landmarks_read(const char *path, size_t n_vertices, km_landmark *out,
+                            size_t capacity, size_t *n, km_error *err);
+km_status km_landmarks_write(const char *path, const km_landmark *lm, size_t n, km_error *err);
+
+/* Pose descriptor (eq. 4). For n landmarks the candidate features are all angles
+ * angle(i, j, k) at landmark j between segments j->i and j->k, i < k, i, k != j:
+ * n (n-1) (n-2) / 2 of them (1,680 for 16 landmarks), in the order j major, then i, then k.
+ * A feature is stored as its triple {i, j, k}. */
+size_t km_pose_candidate_count(size_t n_landmarks);
+/* The triple of candidate feature f. */
+void km_pose_candidate(size_t n_landmarks, size_t f, int32_t triple[3]);
+/* Angles in radians [0, pi] of the given triples for landmark positions P (n*3);
+ * a zero-length segment gives pi/2. */
+void km_pose_angles(const double *P, const int32_t *triples, size_t n_features, double *out);
+
+typedef enum km_svm_kernel { KM_SVM_RBF = 0, KM_SVM_LINEAR } km_svm_kernel;
+
+/* How the paper's left/right mirroring is used (section 3.2.1): "when an angle (i,j,k) is
+ * observed, also add an instance of (m(i),m(j),m(k))". */
+typedef enum km_pose_mirror {
+  /* default: the feature-selection trees see every sample twice, as measured and mirrored
+   * (same class), so the selected angles are not biased to the side the data moves most;
+   * the SVM is trained on the samples as measured, so left and right variants of a pose
+   * may be distinct classes. */
+  KM_POSE_MIRROR_SELECTION = 0,
+  KM_POSE_MIRROR_ALL,  /* also add mirrored samples to the SVM training set (same class) */
+  KM_POSE_MIRROR_NONE, /* no mirroring */
+} km_pose_mirror;
+
+typedef struct km_posedb_options {
+  size_t features;       /* d, selected angles; 0: 60 (capped by the candidate count) */
+  int tree_max_depth;    /* CART depth limit; 0: 16 */
+  km_pose_mirror mirror; /* 0: mirrored samples in feature selection only */
+  km_svm_kernel kernel;  /* 0: RBF */
+  double svm_c;          /* 0: 10 */
+  double svm_gamma;      /* RBF gamma on features scaled to [-1,1]; 0: 1/d */
+  int cv_folds;          /* k-fold cross-validation when no groups are given; 0: 5, 1: none */
+  km_progress progress;
+} km_posedb_options;
+
+typedef struct km_posedb km_posedb;
+
+typedef struct km_posedb_report {
+  size_t samples, classes, features;
+  double cv_accuracy; /* correct / total over held-out folds (eq. 8 with one-vs-rest counts is
+                         1 - 2 e / (N K) and always higher; the stricter figure is kept);
+                         -1 when no cross-validation ran */
+  size_t cv_folds;    /* folds used (groups: one per group) */
+  double build_ms;
+} km_posedb_report;
+
+/* Builds a pose database from n_meshes meshes of one connectivity (point clouds are fine when
+ * only recognition is wanted). labels[i] in [0, n_classes) is the pose class of mesh i;
+ * class_names (n_classes, may be NULL) label them; groups (may be NULL) give the subject of
+ * each mesh so that cross-validation leaves one subject out at a time. landmarks (n >= 4,
+ * with mirrors) are vertex ids on the meshes. Feature selection is CART (Gini) over all
+ * candidate angles, classification libsvm, template choice nearest neighbour inside the class.
+ * The database keeps a copy of the meshes as templates. report may be NULL. */
+km_status km_posedb_build(const km_mesh *meshes, size_t n_meshes, const int32_t *labels,
+                          size_t n_classes, const char *const *class_names,
+                          const int32_t *groups, const km_landmark *landmarks,
+                          size_t n_landmarks, const km_posedb_options *opt, km_posedb **out,
+                          km_posedb_report *report, km_error *err);
+
+typedef struct km_pose_match {
+  int32_t label;         /* predicted class */
+  size_t template_index; /* nearest database mesh of that class */
+  double distance;       /* descriptor distance to it (scaled features) */
+  double ms;             /* descriptor + SVM + nearest neighbour time */
+} km_pose_match;
+
+/* Recognises the pose given by landmark positions P (n_landmarks*3, database order). */
+km_status km_posedb_query(const km_posedb *db, const double *P, km_pose_match *out,
+                          km_error *err);
+/* Single-file database (binary, versioned: "KMPOSEDB" magic, version, JSON header, raw
+ * little-endian arrays, FNV-1a checksum). The SVM is retrained on load from the stored
+ * templates (deterministic, milliseconds for thousands of samples). */
+km_status km_posedb_save(const km_posedb *db, const char *path, km_error *err);
+km_status km_posedb_load(const char *path, km_posedb **out, km_error *err);
+size_t km_posedb_size(const km_posedb *db);
+size_t km_posedb_classes(const km_posedb *db);
+const char *km_posedb_class_name(const km_posedb *db, size_t c); /* "" when unnamed */
+int32_t km_posedb_label(const km_posedb *db, size_t i);
+size_t km_posedb_landmark_count(const km_posedb *db);
+const km_landmark *km_posedb_landmarks(const km_posedb *db);
+/* Template i as a mesh view (V, F owned by the database; do not free). */
+void km_posedb_template(const km_posedb *db, size_t i, km_mesh *view);
+/* Selected features: d triples (d*3 ints, owned by the database), best first. */
+const int32_t *km_posedb_features(const km_posedb *db, size_t *d);
+/* The build report (cv figures as stored; samples/classes/features of this database). */
+void km_posedb_info(const km_posedb *db, km_posedb_report *report);
+void km_posedb_free(km_posedb **db);
+
+/* Decision tree (CART, Gini impurity) over dense features, exposed for tests and tools.
+ * X row-major n_samples x n_features, y in [0, n_classes). importance (n_features, may be
+ * NULL): total weighted impurity decrease per feature, normalised to sum 1. */
+typedef struct km_cart km_cart;
+km_status km_cart_fit(const double *X, const int32_t *y, size_t n_samples, size_t n_features,
+                      size_t n_classes, int max_depth, km_cart **out, double *importance,
+                      km_error *err);
+int32_t km_cart_predict(const km_cart *tree, const double *x);
+size_t km_cart_nodes(const km_cart *tree);
+void km_cart_free(km_cart **tree);
+
+/* Tracked landmark sequences (TRACK).
+ * JSON: {"fps":30,"landmarks":["head",...],"frames":[[x,y,z, ...], ...]} with 3 numbers per
+ *       landmark per frame (null: not tracked in that frame -> NaN).
+ * CSV:  first line the landmark names separated by commas; then one frame per line with
+ *       3 numbers per landmark (x,y,z in landmark order), comma-separated; empty field: NaN.
+ *       fps 30. Format by extension (.json / .csv). Units: metres. */
+typedef struct km_track {
+  size_t n_frames, n_landmarks;
+  double fps;
+  char (*names)[32]; /* n_landmarks */
+  double *positions; /* n_frames * n_landmarks * 3 */
+} km_track;
+km_status km_track_read(const char *path, km_track *out, km_error *err);
+km_status km_track_write(const char *path, const km_track *t, km_error *err);
+void km_track_free(km_track *t);
+
+/* Linear interpolation out = (1-a) A + a B of two key poses (n*3 values); out may alias. */
+void km_pose_lerp(const double *A, const double *B, size_t n_vertices, double a, double *out);
+
+typedef struct km_avatar_options {
+  size_t key_every;    /* k: recognise + transfer every k frames, interpolate between; 0: 1 */
+  double track_scale;  /* avatar size / tracked body size; 0: from the first key frame
+                          (sqrt(area(avatar)/area(template)) / Umeyama scale template->track) */
+  km_progress progress;
+} km_avatar_options;
+
+typedef struct km_avatar_stats {
+  size_t frames, key_frames;
+  double recognition_ms, transfer_ms; /* totals over key frames */
+  double iterations_mean;
+  double max_frame_ms; /* slowest key frame, recognition + transfer */
+} km_avatar_stats;
+
+/* Called once per output frame, in order; returning non-OK stops the run with that status. */
+typedef km_status (*km_avatar_frame_fn)(size_t frame, const double *V, void *user,
+                                        km_error *err);
+
+/* Motion generation (section 3.5): every k-th track frame (and the last) is recognised in db,
+ * its template transferred onto the avatar with the tracked landmarks (scaled to the avatar)
+ * as targets, and frames in between are linear interpolations of consecutive key poses, so
+ * there is one output frame per track frame. t must be precomputed on the avatar with the
+ * landmark vertices in the database's landmark order; the track's landmarks are matched to
+ * the database's by name (or taken in order when the track has no names). A key frame with
+ * an untracked (NaN) landmark repeats the previous key pose. */
+km_status km_avatar_animate(km_transfer *t, const km_posedb *db, const km_track *track,
+                            const km_avatar_options *opt, km_avatar_frame_fn fn, void *user,
+                            km_avatar_stats *stats, km_error *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,0 +1,525 @@
+/* Pose transfer by locally encoded Laplacian offsets (Lifkooee et al. 2019, section 3.4).
+ *
+ * Offline: Delta = L X_S; W_i = F_S(v_i)^T Delta_i with F rows (n, t, b) as built by
+ * km_local_frames (so W_i = (n.Delta, t.Delta, b.Delta)). The paper's L (eq. 2) is our -L
+ * (header convention: L negative semidefinite); both are symmetric, and removing the landmark
+ * rows AND columns (eq. 7) keeps the system symmetric. We factor the symmetric positive
+ * definite block A = (-L)_ff once and solve
+ *     A x_f = -(F W)_f + L_fc x_c
+ * for the three coordinates in one 3-column solve. That is the "symmetric elimination" form:
+ * the landmark rows (whose equations are dropped, the landmark being known) never enter,
+ * so no normal equations are needed and the conditioning is that of L itself.
+ *
+ * Online: frames start as T's (or a warm start's), then are recomputed on each solution until
+ * positions and frames settle (the paper's final algorithm). */
+#include "deform/offsets.h"
+
+#include <lapacke.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct km_transfer {
+  size_t n, nf, nc;
+  km_transfer_options opt;
+  km_mesh mesh;      /* source connectivity; V is the working buffer for frame evaluation */
+  double *rest;      /* #V*3 source positions */
+  double *W;         /* #V*3 local offsets */
+  int32_t *ref;      /* frame neighbours */
+  int32_t *lm;       /* nc landmark vertex ids, precompute order */
+  int32_t *free_of;  /* vertex -> free index or -1 */
+  int32_t *free_vtx; /* free index -> vertex */
+  /* L_fc in compressed form: for landmark c, entries (free row, value). */
+  int32_t *lfc_ptr, *lfc_row;
+  double *lfc_val;
+  km_cholesky *chol;
+  double *rhs;        /* nf*3 column-major */
+  double *N;          /* #V*3 normals scratch */
+  double *frames;     /* #V*9 current frames */
+  double *frames_new; /* #V*9 */
+  double *prev;       /* #V*3 previous solution */
+  double *tgt;        /* nc*3 targets scratch */
+  double area, diag;
+  double laplacian_ms, cholesky_ms;
+};
+
+double km_surface_area(const km_mesh *m) {
+  if (!m || !m->V || !m->F) return 0;
+  double a = 0;
+  for (size_t f = 0; f < m->n_faces; ++f) {
+    const int32_t *t = m->F + 3 * f;
+    if (t[0] < 0 || t[1] < 0 || t[2] < 0 || (size_t)t[0] >= m->n_vertices ||
+        (size_t)t[1] >= m->n_vertices || (size_t)t[2] >= m->n_vertices)
+      continue;
+    const double *p = m->V + 3 * (size_t)t[0], *q = m->V + 3 * (size_t)t[1],
+                 *r = m->V + 3 * (size_t)t[2];
+    double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+    double v[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+    double c[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    a += 0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+  }
+  return a;
+}
+
+km_status km_similarity_fit(const double *src, const double *dst, const double *weights, size_t n,
+                            double *s, double R[9], double t[3], km_error *err) {
+  if (!src || !dst || !s || !R || !t)
+    return km__fail(err, KM_ERR_INVALID, "km_similarity_fit: NULL argument");
+  if (n < 3) return km__fail(err, KM_ERR_INVALID, "km_similarity_fit: %zu points, need >= 3", n);
+  double wsum = 0, ms[3] = {0, 0, 0}, md[3] = {0, 0, 0};
+  for (size_t i = 0; i < n; ++i) {
+    double w = weights ? weights[i] : 1.0;
+    if (!(w >= 0) || !isfinite(w))
+      return km__fail(err, KM_ERR_INVALID, "km_similarity_fit: weight %zu is %g, expected >= 0", i,
+                      w);
+    for (int c = 0; c < 3; ++c) {
+      if (!isfinite(src[3 * i + c]) || !isfinite(dst[3 * i + c]))
+        return km__fail(err, KM_ERR_INVALID, "km_similarity_fit: point %zu is not finite", i);
+      ms[c] += w * src[3 * i + c];
+      md[c] += w * dst[3 * i + c];
+    }
+    wsum += w;
+  }
+  if (!(wsum > 0)) return km__fail(err, KM_ERR_INVALID, "km_similarity_fit: all weights are 0");
+  for (int c = 0; c < 3; ++c)
+    ms[c] /= wsum, md[c] /= wsum;
+  /* Sigma = sum w (d - md)(s - ms)^T / wsum, var_s = sum w |s - ms|^2 / wsum. */
+  double S[9] = {0}, var = 0;
+  for (size_t i = 0; i < n; ++i) {
+    double w = (weights ? weights[i] : 1.0) / wsum;
+    double a[3], b[3];
+    for (int c = 0; c < 3; ++c)
+      a[c] = src[3 * i + c] - ms[c], b[c] = dst[3 * i + c] - md[c];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        S[3 * r + c] += w * b[r] * a[c];
+    var += w * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+  }
+  if (!(var > 0))
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "km_similarity_fit: the %zu source points coincide", n);
+  double U[9], VT[9], D[3], superb[2], A[9];
+  memcpy(A, S, sizeof A);
+  lapack_int info = LAPACKE_dgesvd(LAPACK_ROW_MAJOR, 'A', 'A', 3, 3, A, 3, D, U, 3, VT, 3, superb);
+  if (info != 0)
+    return km__fail(err, KM_ERR_NO_CONVERGENCE, "km_similarity_fit: SVD failed (info %d)",
+                    (int)info);
+  double detU = U[0] * (U[4] * U[8] - U[5] * U[7]) - U[1] * (U[3] * U[8] - U[5] * U[6]) +
+                U[2] * (U[3] * U[7] - U[4] * U[6]);
+  double detV = VT[0] * (VT[4] * VT[8] - VT[5] * VT[7]) - VT[1] * (VT[3] * VT[8] - VT[5] * VT[6]) +
+                VT[2] * (VT[3] * VT[7] - VT[4] * VT[6]);
+  double sg[3] = {1, 1, detU * detV < 0 ? -1 : 1};
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      double v = 0;
+      for (int k = 0; k < 3; ++k)
+        v += U[3 * r + k] * sg[k] * VT[3 * k + c];
+      R[3 * r + c] = v;
+    }
+  *s = (D[0] * sg[0] + D[1] * sg[1] + D[2] * sg[2]) / var;
+  for (int r = 0; r < 3; ++r)
+    t[r] = md[r] - *s * (R[3 * r] * ms[0] + R[3 * r + 1] * ms[1] + R[3 * r + 2] * ms[2]);
+  return KM_OK;
+}
+
+void km_transfer_free(km_transfer **tp) {
+  if (!tp || !*tp) return;
+  km_transfer *t = *tp;
+  km_mesh_free(&t->mesh);
+  free(t->rest);
+  free(t->W);
+  free(t->ref);
+  free(t->lm);
+  free(t->free_of);
+  free(t->free_vtx);
+  free(t->lfc_ptr);
+  free(t->lfc_row);
+  free(t->lfc_val);
+  km_cholesky_free(&t->chol);
+  free(t->rhs);
+  free(t->N);
+  free(t->frames);
+  free(t->frames_new);
+  free(t->prev);
+  free(t->tgt);
+  free(t);
+  *tp = NULL;
+}
+
+/* Frames of positions V (the connectivity is the source's) into `frames`. */
+static km_status frames_of(km_transfer *t, const double *V, double *frames, km_error *err) {
+  double *keep = t->mesh.V;
+  t->mesh.V = (double *)V;
+  km_status s = km_vertex_normals(&t->mesh, KM_NORMALS_AREA, t->N, err);
+  if (!s) s = km_local_frames(&t->mesh, t->N, t->ref, frames, err);
+  t->mesh.V = keep;
+  return s;
+}
+
+km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks,
+                                 size_t n_landmarks, const km_transfer_options *opt,
+                                 km_transfer **out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_transfer_precompute: out is NULL");
+  *out = NULL;
+  if (!source || !source->V || !source->F || source->n_faces == 0)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "km_transfer_precompute: the source must be a triangle mesh with faces");
+  if (!landmarks && n_landmarks)
+    return km__fail(err, KM_ERR_INVALID, "km_transfer_precompute: landmarks is NULL");
+  if (n_landmarks < 3)
+    return km__fail(err, KM_ERR_INVALID,
+                    "km_transfer_precompute: %zu landmark(s) given, at least 3 are needed: with "
+                    "fewer the constrained Laplacian cannot fix the avatar's rotation (the paper "
+                    "requires more than 2)",
+                    n_landmarks);
+  size_t n = source->n_vertices;
+  if (n_landmarks >= n)
+    return km__fail(err, KM_ERR_INVALID,
+                    "km_transfer_precompute: %zu landmarks for %zu vertices: at least one vertex "
+                    "must be free",
+                    n_landmarks, n);
+  km_transfer_options o = opt ? *opt : (km_transfer_options){0};
+  if (o.max_iterations <= 0) o.max_iterations = 10;
+  if (!(o.tolerance > 0)) o.tolerance = 1e-4;
+  if (o.laplacian != KM_LAPLACIAN_UNIFORM && o.laplacian != KM_LAPLACIAN_COTAN)
+    return km__fail(err, KM_ERR_INVALID, "km_transfer_precompute: unknown Laplacian kind %d",
+                    (int)o.laplacian);
+  if (o.align != KM_TRANSFER_ALIGN_SCALE && o.align != KM_TRANSFER_ALIGN_SIMILARITY)
+    return km__fail(err, KM_ERR_INVALID, "km_transfer_precompute: unknown align mode %d",
+                    (int)o.align);
+
+  km_transfer *t = calloc(1, sizeof *t);
+  if (!t) return km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: out of memory");
+  t->n = n;
+  t->nc = n_landmarks;
+  t->nf = n - n_landmarks;
+  t->opt = o;
+  km_status s = km_mesh_copy(source, &t->mesh, err);
+  if (s) {
+    free(t);
+    return s;
+  }
+  t->rest = km__malloc(n * 3, sizeof(double));
+  t->W = km__malloc(n * 3, sizeof(double));
+  t->ref = km__malloc(n, sizeof(int32_t));
+  t->lm = km__malloc(n_landmarks, sizeof(int32_t));
+  t->free_of = km__malloc(n, sizeof(int32_t));
+  t->free_vtx = km__malloc(t->nf, sizeof(int32_t));
+  t->rhs = km__malloc(t->nf * 3, sizeof(double));
+  t->N = km__malloc(n * 3, sizeof(double));
+  t->frames = km__malloc(n * 9, sizeof(double));
+  t->frames_new = km__malloc(n * 9, sizeof(double));
+  t->prev = km__malloc(n * 3, sizeof(double));
+  t->tgt = km__malloc(n_landmarks * 3, sizeof(double));
+  t->lfc_ptr = km__calloc(n_landmarks + 1, sizeof(int32_t));
+  double *colmaj = km__malloc(n * 3, sizeof(double)), *delta = km__malloc(n * 3, sizeof(double));
+  km_sparse *L = NULL, *A = NULL;
+  int32_t *ti = NULL, *tj = NULL;
+  double *tv = NULL;
+  if (!t->rest || !t->W || !t->ref || !t->lm || !t->free_of || !t->free_vtx || !t->rhs || !t->N ||
+      !t->frames || !t->frames_new || !t->prev || !t->tgt || !t->lfc_ptr || !colmaj || !delta) {
+    s = km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: out of memory (%zu vertices)", n);
+    goto fail;
+  }
+  memcpy(t->rest, source->V, n * 3 * sizeof(double));
+  for (size_t i = 0; i < n * 3; ++i)
+    if (!isfinite(t->rest[i])) {
+      s = km__fail(err, KM_ERR_INVALID, "km_transfer_precompute: vertex %zu is not finite", i / 3);
+      goto fail;
+    }
+  for (size_t v = 0; v < n; ++v)
+    t->free_of[v] = 0;
+  for (size_t c = 0; c < n_landmarks; ++c) {
+    int32_t v = landmarks[c];
+    if (v < 0 || (size_t)v >= n) {
+      s = km__fail(err, KM_ERR_INVALID,
+                   "km_transfer_precompute: landmark %zu is vertex %d, expected 0..%zu", c, (int)v,
+                   n - 1);
+      goto fail;
+    }
+    if (t->free_of[v] < 0) {
+      s = km__fail(err, KM_ERR_INVALID,
+                   "km_transfer_precompute: vertex %d is given twice as a landmark", (int)v);
+      goto fail;
+    }
+    t->free_of[v] = -1 - (int32_t)c;
+    t->lm[c] = v;
+  }
+  /* free_of: >= 0 free index, < 0 encodes the landmark slot as -1 - c. */
+  size_t k = 0;
+  for (size_t v = 0; v < n; ++v)
+    if (t->free_of[v] >= 0) {
+      t->free_vtx[k] = (int32_t)v;
+      t->free_of[v] = (int32_t)k++;
+    }
+  t->diag = km_bbox_diagonal(t->rest, n);
+  t->area = km_surface_area(source);
+  if (!(t->diag > 0) || !(t->area > 0)) {
+    s = km__fail(err, KM_ERR_DEGENERATE_MESH, "km_transfer_precompute: the source has zero extent");
+    goto fail;
+  }
+
+  double t0 = km__now();
+  s = o.laplacian == KM_LAPLACIAN_COTAN ? km_cotmatrix(source, &L, err)
+                                        : km_uniform_laplacian(source, &L, err);
+  if (s) goto fail;
+  for (size_t v = 0; v < n; ++v)
+    for (int c = 0; c < 3; ++c)
+      colmaj[c * n + v] = t->rest[3 * v + c];
+  km_sparse_mul(L, 3, colmaj, delta);
+  s = km_frame_neighbors(source, t->ref, err);
+  if (!s) s = frames_of(t, t->rest, t->frames, err);
+  if (s) goto fail;
+  for (size_t v = 0; v < n; ++v) {
+    const double *F = t->frames + 9 * v;
+    double d[3] = {delta[v], delta[n + v], delta[2 * n + v]};
+    for (int r = 0; r < 3; ++r)
+      t->W[3 * v + r] = F[3 * r] * d[0] + F[3 * r + 1] * d[1] + F[3 * r + 2] * d[2];
+  }
+
+  /* Split L into A = -(L_ff) (triplets) and L_fc (per landmark column). */
+  const int32_t *cp, *ri;
+  const double *val;
+  km_sparse_csc(L, &cp, &ri, &val);
+  size_t nnz = km_sparse_nnz(L);
+  ti = km__malloc(nnz, sizeof *ti);
+  tj = km__malloc(nnz, sizeof *tj);
+  tv = km__malloc(nnz, sizeof *tv);
+  size_t nlfc = 0;
+  for (size_t j = 0; j < n; ++j)
+    if (t->free_of[j] < 0)
+      for (int32_t p = cp[j]; p < cp[j + 1]; ++p)
+        if (t->free_of[ri[p]] >= 0) ++nlfc;
+  t->lfc_row = km__malloc(nlfc ? nlfc : 1, sizeof(int32_t));
+  t->lfc_val = km__malloc(nlfc ? nlfc : 1, sizeof(double));
+  if (!ti || !tj || !tv || !t->lfc_row || !t->lfc_val) {
+    s = km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: out of memory (%zu entries)", nnz);
+    goto fail;
+  }
+  size_t m = 0;
+  for (size_t j = 0; j < n; ++j) {
+    int32_t fj = t->free_of[j];
+    if (fj < 0) continue;
+    for (int32_t p = cp[j]; p < cp[j + 1]; ++p) {
+      int32_t fi = t->free_of[ri[p]];
+      if (fi < 0) continue;
+      ti[m] = fi, tj[m] = fj, tv[m] = -val[p];
+      ++m;
+    }
+  }
+  size_t q = 0;
+  for (size_t c = 0; c < n_landmarks; ++c) {
+    int32_t j = t->lm[c];
+    t->lfc_ptr[c] = (int32_t)q;
+    for (int32_t p = cp[j]; p < cp[j + 1]; ++p) {
+      int32_t fi = t->free_of[ri[p]];
+      if (fi < 0) continue;
+      t->lfc_row[q] = fi;
+      t->lfc_val[q] = val[p];
+      ++q;
+    }
+  }
+  t->lfc_ptr[n_landmarks] = (int32_t)q;
+  double t1 = km__now();
+  t->laplacian_ms = (t1 - t0) * 1e3;
+  s = km_sparse_from_triplets(t->nf, t->nf, m, ti, tj, tv, &A, err);
+  if (!s) s = km_cholesky_analyze(A, &t->chol, err);
+  if (!s) s = km_cholesky_factorize(t->chol, A, err);
+  if (s == KM_ERR_NOT_POSDEF) {
+    s = km__wrap(err, s,
+                 "km_transfer_precompute: the constrained Laplacian is singular: every connected "
+                 "component of the source needs at least one landmark");
+    goto fail;
+  }
+  if (s) goto fail;
+  t->cholesky_ms = (km__now() - t1) * 1e3;
+  km_sparse_free(&L);
+  km_sparse_free(&A);
+  free(ti);
+  free(tj);
+  free(tv);
+  free(colmaj);
+  free(delta);
+  *out = t;
+  return KM_OK;
+fail:
+  km_sparse_free(&L);
+  km_sparse_free(&A);
+  free(ti);
+  free(tj);
+  free(tv);
+  free(colmaj);
+  free(delta);
+  km_transfer_free(&t);
+  return s;
+}
+
+size_t km_transfer_vertices(const km_transfer *t) { return t ? t->n : 0; }
+/* mesh.V holds the source positions again whenever no frames_of() call is running. */
+const km_mesh *km__transfer_source(const km_transfer *t) { return t ? &t->mesh : NULL; }
+const int32_t *km__transfer_landmark_ids(const km_transfer *t) { return t ? t->lm : NULL; }
+double km__transfer_area(const km_transfer *t) { return t ? t->area : 0; }
+size_t km_transfer_landmarks(const km_transfer *t) { return t ? t->nc : 0; }
+
+void km_transfer_precompute_ms(const km_transfer *t, double *laplacian_ms, double *cholesky_ms) {
+  if (laplacian_ms) *laplacian_ms = t ? t->laplacian_ms : 0;
+  if (cholesky_ms) *cholesky_ms = t ? t->cholesky_ms : 0;
+}
+
+km_status km_transfer_targets(const km_transfer *t, const double *T, double *targets,
+                              km_error *err) {
+  if (!t || !T || !targets)
+    return km__fail(err, KM_ERR_INVALID, "km_transfer_targets: NULL argument");
+  for (size_t c = 0; c < t->nc; ++c)
+    for (int d = 0; d < 3; ++d)
+      targets[3 * c + d] = T[3 * (size_t)t->lm[c] + d];
+  if (t->opt.align == KM_TRANSFER_ALIGN_SIMILARITY) {
+    /* targets holds T's landmarks; fit them onto the source's rest landmarks. */
+    double restlm[3 * KM_POSE_MAX_LANDMARKS], *rl = restlm;
+    double *heap = NULL;
+    if (t->nc > KM_POSE_MAX_LANDMARKS) {
+      heap = km__malloc(t->nc * 3, sizeof(double));
+      if (!heap) return km__fail(err, KM_ERR_NOMEM, "km_transfer_targets: out of memory");
+      rl = heap;
+    }
+    for (size_t c = 0; c < t->nc; ++c)
+      for (int d = 0; d < 3; ++d)
+        rl[3 * c + d] = t->rest[3 * (size_t)t->lm[c] + d];
+    double sc, R[9], tr[3];
+    km_status s = km_similarity_fit(targets, rl, NULL, t->nc, &sc, R, tr, err);
+    free(heap);
+    if (s) return km__wrap(err, s, "km_transfer_targets: aligning the template's landmarks");
+    /* Umeyama's scale mixes pose and size; the area ratio is pose-invariant. */
+    km_mesh tm = t->mesh;
+    tm.V = (double *)T;
+    double at = km_surface_area(&tm);
+    if (at > 0) sc = sqrt(t->area / at);
+    for (size_t c = 0; c < t->nc; ++c) {
+      double p[3] = {targets[3 * c], targets[3 * c + 1], targets[3 * c + 2]};
+      for (int r = 0; r < 3; ++r)
+        targets[3 * c + r] =
+            sc * (R[3 * r] * p[0] + R[3 * r + 1] * p[1] + R[3 * r + 2] * p[2]) + tr[r];
+    }
+    /* Re-centre: the translation was fitted for Umeyama's scale. */
+    double cs[3] = {0, 0, 0}, cd[3] = {0, 0, 0};
+    for (size_t c = 0; c < t->nc; ++c)
+      for (int d = 0; d < 3; ++d)
+        cs[d] += targets[3 * c + d], cd[d] += t->rest[3 * (size_t)t->lm[c] + d];
+    for (size_t c = 0; c < t->nc; ++c)
+      for (int d = 0; d < 3; ++d)
+        targets[3 * c + d] += (cd[d] - cs[d]) / (double)t->nc;
+  } else {
+    km_mesh tm = t->mesh;
+    tm.V = (double *)T;
+    double at = km_surface_area(&tm);
+    if (!(at > 0))
+      return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                      "km_transfer_targets: the template has zero area");
+    double sc = sqrt(t->area / at);
+    for (size_t i = 0; i < t->nc * 3; ++i)
+      targets[i] *= sc;
+  }
+  return KM_OK;
+}
+
+km_status km_transfer_solve(km_transfer *t, const double *T, const double *targets,
+                            const double *warm_start, double *V_out, km_transfer_stats *stats,
+                            km_error *err) {
+  double t_start = km__now();
+  if (stats) memset(stats, 0, sizeof *stats);
+  if (!t || !V_out) return km__fail(err, KM_ERR_INVALID, "km_transfer_solve: NULL argument");
+  if (!T && !warm_start)
+    return km__fail(
+        err, KM_ERR_INVALID,
+        "km_transfer_solve: give a template or a warm start to take the first frames from");
+  if (!targets && !T)
+    return km__fail(err, KM_ERR_INVALID,
+                    "km_transfer_solve: landmark targets are needed when there is no template");
+  if (T == V_out)
+    return km__fail(err, KM_ERR_INVALID, "km_transfer_solve: V_out aliases the template");
+  size_t n = t->n, nf = t->nf, nc = t->nc;
+  km_status s;
+  if (!targets) {
+    s = km_transfer_targets(t, T, t->tgt, err);
+    if (s) return s;
+  } else {
+    memcpy(t->tgt, targets, nc * 3 * sizeof(double));
+  }
+  for (size_t i = 0; i < nc * 3; ++i)
+    if (!isfinite(t->tgt[i]))
+      return km__fail(err, KM_ERR_INVALID, "km_transfer_solve: landmark target %zu is not finite",
+                      i / 3);
+  double tf = km__now();
+  s = frames_of(t, T ? T : warm_start, t->frames, err);
+  if (s) return s;
+  double frames_s = km__now() - tf, solve_s = 0;
+  int it = 0;
+  bool converged = false;
+  double dx = INFINITY, dF = INFINITY;
+  for (it = 0; it < t->opt.max_iterations; ++it) {
+    double ts = km__now();
+    for (size_t f = 0; f < nf; ++f) {
+      size_t v = (size_t)t->free_vtx[f];
+      const double *F = t->frames + 9 * v, *w = t->W + 3 * v;
+      for (int c = 0; c < 3; ++c)
+        t->rhs[c * nf + f] = -(F[c] * w[0] + F[3 + c] * w[1] + F[6 + c] * w[2]);
+    }
+    for (size_t c = 0; c < nc; ++c)
+      for (int32_t p = t->lfc_ptr[c]; p < t->lfc_ptr[c + 1]; ++p) {
+        size_t f = (size_t)t->lfc_row[p];
+        double l = t->lfc_val[p];
+        t->rhs[f] += l * t->tgt[3 * c];
+        t->rhs[nf + f] += l * t->tgt[3 * c + 1];
+        t->rhs[2 * nf + f] += l * t->tgt[3 * c + 2];
+      }
+    s = km_cholesky_solve(t->chol, 3, t->rhs, t->rhs, err);
+    if (s) return s;
+    if (it > 0) memcpy(t->prev, V_out, n * 3 * sizeof(double));
+    for (size_t f = 0; f < nf; ++f) {
+      size_t v = (size_t)t->free_vtx[f];
+      V_out[3 * v] = t->rhs[f];
+      V_out[3 * v + 1] = t->rhs[nf + f];
+      V_out[3 * v + 2] = t->rhs[2 * nf + f];
+    }
+    for (size_t c = 0; c < nc; ++c)
+      memcpy(V_out + 3 * (size_t)t->lm[c], t->tgt + 3 * c, 3 * sizeof(double));
+    double te = km__now();
+    solve_s += te - ts;
+    s = frames_of(t, V_out, t->frames_new, err);
+    if (s) return s;
+    dF = 0;
+    for (size_t i = 0; i < n * 9; ++i) {
+      double d = fabs(t->frames_new[i] - t->frames[i]);
+      if (d > dF) dF = d;
+    }
+    double *sw = t->frames;
+    t->frames = t->frames_new;
+    t->frames_new = sw;
+    if (it > 0) {
+      double m2 = 0;
+      for (size_t v = 0; v < n; ++v) {
+        double a = V_out[3 * v] - t->prev[3 * v], b = V_out[3 * v + 1] - t->prev[3 * v + 1],
+               c = V_out[3 * v + 2] - t->prev[3 * v + 2];
+        double d2 = a * a + b * b + c * c;
+        if (d2 > m2) m2 = d2;
+      }
+      dx = sqrt(m2) / t->diag;
+    }
+    frames_s += km__now() - te;
+    if (it > 0 && dx < t->opt.tolerance && dF < t->opt.tolerance) {
+      converged = true;
+      ++it;
+      break;
+    }
+  }
+  if (stats) {
+    stats->iterations = it;
+    stats->converged = converged;
+    stats->position_change = dx;
+    stats->frame_change = dF;
+    stats->frames_ms = frames_s * 1e3;
+    stats->solve_ms = solve_s * 1e3;
+    stats->total_ms = (km__now() - t_start) * 1e3;
+  }
+  return KM_OK;
+}

@@ -1,0 +1,14 @@
+/* Private access to a km_transfer's source (for motion generation in src/pose/morph.c). */
+#ifndef KM_DEFORM_OFFSETS_H
+#define KM_DEFORM_OFFSETS_H
+
+#include "internal.h"
+
+/* The source mesh (rest positions, connectivity) the transfer was precomputed on. */
+const km_mesh *km__transfer_source(const km_transfer *t);
+/* Landmark vertex ids in precompute order (km_transfer_landmarks of them). */
+const int32_t *km__transfer_landmark_ids(const km_transfer *t);
+/* Surface area of the source. */
+double km__transfer_area(const km_transfer *t);
+
+#endif

@@ -1,0 +1,34 @@
+/* Private pieces of pose recognition shared by src/pose/*.c. */
+#ifndef KM_POSE_POSE_H
+#define KM_POSE_POSE_H
+
+#include "internal.h"
+
+/* Mirror map m[i] = index of landmark i's counterpart, from the names. */
+km_status km__landmark_mirrors(const km_landmark *lm, size_t n, int32_t *m, km_error *err);
+
+/* A trained recogniser: selected angle triples, feature scaling, SVM. */
+typedef struct km__pose_model {
+  size_t n_landmarks, d, n_classes;
+  int32_t *triples; /* d*3 */
+  double *lo, *hi;  /* d, training range per feature (scaled to [-1,1]) */
+  void *svm;        /* struct svm_model* */
+  void *nodes;      /* struct svm_node storage the model points into */
+  double *y;        /* libsvm labels storage */
+  void *xptr;       /* struct svm_node** rows */
+} km__pose_model;
+
+/* P: n_samples poses, each n_landmarks*3 positions. y: labels. */
+km_status km__pose_model_train(const double *P, const int32_t *y, size_t n_samples,
+                               size_t n_classes, const km_landmark *lm, size_t n_landmarks,
+                               const km_posedb_options *opt, const int32_t *fixed_triples,
+                               size_t fixed_d, km__pose_model *out, km_error *err);
+/* Scaled descriptor of one pose (d values) into x. */
+void km__pose_model_features(const km__pose_model *m, const double *P, double *x);
+int32_t km__pose_model_predict_scaled(const km__pose_model *m, const double *x);
+void km__pose_model_free(km__pose_model *m);
+
+/* Normalised options with defaults filled in. */
+km_posedb_options km__posedb_defaults(const km_posedb_options *opt, size_t n_landmarks);
+
+#endif
