@@ -46,7 +46,8 @@ static void make_frame(const km_mesh *rest, int k, double *V) {
 
 static double *all_frames(const km_mesh *rest) {
   double *all = malloc(FRAMES * rest->n_vertices * 3 * sizeof(double));
-  for (int k = 0; k < FRAMES; ++k) make_frame(rest, k, all + (size_t)k * rest->n_vertices * 3);
+  for (int k = 0; k < FRAMES; ++k)
+    make_frame(rest, k, all + (size_t)k * rest->n_vertices * 3);
   return all;
 }
 
@@ -116,13 +117,14 @@ static int jint(const cJSON *o, const char *k) {
 /* Float data of accessor a (checked to lie inside the BIN chunk), count*components floats. */
 static const unsigned char *glb_accessor(const glb *g, int a, size_t *count, int *comps) {
   const cJSON *acc = cJSON_GetArrayItem(cJSON_GetObjectItem(g->json, "accessors"), a);
-  const cJSON *bv = cJSON_GetArrayItem(cJSON_GetObjectItem(g->json, "bufferViews"),
-                                       jint(acc, "bufferView"));
+  const cJSON *bv =
+      cJSON_GetArrayItem(cJSON_GetObjectItem(g->json, "bufferViews"), jint(acc, "bufferView"));
   if (!acc || !bv) return NULL;
   *count = (size_t)jint(acc, "count");
   const char *type = cJSON_GetStringValue(cJSON_GetObjectItem(acc, "type"));
   *comps = type && strcmp(type, "VEC3") == 0 ? 3 : 1;
-  size_t off = (size_t)jint(bv, "byteOffset") + (size_t)(jint(acc, "byteOffset") > 0 ? jint(acc, "byteOffset") : 0);
+  size_t off = (size_t)jint(bv, "byteOffset") +
+               (size_t)(jint(acc, "byteOffset") > 0 ? jint(acc, "byteOffset") : 0);
   size_t len = (size_t)jint(bv, "byteLength");
   CHECK(len >= *count * *comps * 4);
   CHECK(off + len <= g->bin_len);
@@ -159,7 +161,8 @@ static void check_minmax(const glb *g, int a) {
 }
 
 /* Full structural check, then every key frame reconstructed as rest + displacement. */
-static void check_glb(const char *path, const km_mesh *rest, const double *frames, size_t key_every) {
+static void check_glb(const char *path, const km_mesh *rest, const double *frames,
+                      size_t key_every) {
   glb g;
   if (!glb_load(path, &g)) {
     CHECK(!"glb loads");
@@ -170,8 +173,10 @@ static void check_glb(const char *path, const km_mesh *rest, const double *frame
   CHECK(strcmp(cJSON_GetStringValue(cJSON_GetObjectItem(asset, "version")), "2.0") == 0);
   CHECK(strcmp(cJSON_GetStringValue(cJSON_GetObjectItem(asset, "generator")), "kinemesh") == 0);
   const cJSON *bv;
-  cJSON_ArrayForEach(bv, cJSON_GetObjectItem(j, "bufferViews")) CHECK(jint(bv, "byteOffset") % 4 == 0);
-  CHECK(jint(cJSON_GetArrayItem(cJSON_GetObjectItem(j, "buffers"), 0), "byteLength") <= (int)g.bin_len);
+  cJSON_ArrayForEach(bv, cJSON_GetObjectItem(j, "bufferViews"))
+      CHECK(jint(bv, "byteOffset") % 4 == 0);
+  CHECK(jint(cJSON_GetArrayItem(cJSON_GetObjectItem(j, "buffers"), 0), "byteLength") <=
+        (int)g.bin_len);
 
   const cJSON *mesh = cJSON_GetArrayItem(cJSON_GetObjectItem(j, "meshes"), 0);
   const cJSON *prim = cJSON_GetArrayItem(cJSON_GetObjectItem(mesh, "primitives"), 0);
@@ -183,13 +188,15 @@ static void check_glb(const char *path, const km_mesh *rest, const double *frame
   const unsigned char *ip = glb_accessor(&g, a_idx, &n, &c);
   CHECK(ip && n == rest->n_faces * 3);
   if (ip)
-    for (size_t i = 0; i < n && i < rest->n_faces * 3; ++i) CHECK(u32(ip + 4 * i) == (uint32_t)rest->F[i]);
+    for (size_t i = 0; i < n && i < rest->n_faces * 3; ++i)
+      CHECK(u32(ip + 4 * i) == (uint32_t)rest->F[i]);
   const unsigned char *pp = glb_accessor(&g, a_pos, &n, &c);
   CHECK(pp && n == rest->n_vertices && c == 3);
   check_minmax(&g, a_pos);
 
   size_t keys[FRAMES + 1];
-  for (size_t k = 0; k < FRAMES; k += key_every) keys[nk_expected++] = k;
+  for (size_t k = 0; k < FRAMES; k += key_every)
+    keys[nk_expected++] = k;
   if (keys[nk_expected - 1] != FRAMES - 1) keys[nk_expected++] = FRAMES - 1;
   const cJSON *targets = cJSON_GetObjectItem(prim, "targets");
   CHECK((size_t)cJSON_GetArraySize(targets) == nk_expected);
@@ -207,7 +214,8 @@ static void check_glb(const char *path, const km_mesh *rest, const double *frame
   const unsigned char *tp = glb_accessor(&g, jint(smp, "input"), &n, &c);
   CHECK(tp && n == nk_expected);
   if (tp)
-    for (size_t k = 0; k < n && k < nk_expected; ++k) CHECK_NEAR(f32(tp + 4 * k), keys[k] / FPS, 1e-6);
+    for (size_t k = 0; k < n && k < nk_expected; ++k)
+      CHECK_NEAR(f32(tp + 4 * k), keys[k] / FPS, 1e-6);
   check_minmax(&g, jint(smp, "input"));
   const unsigned char *wp = glb_accessor(&g, jint(smp, "output"), &n, &c);
   CHECK(wp && n == nk_expected * nk_expected);
@@ -350,7 +358,8 @@ static void test_dirs(const km_mesh *rest, const double *frames) {
   CHECK_OK(km__read_file("test_anim_obj/frame_000007.obj", &data, &size, KM_E));
   if (data) {
     const char *v = data;
-    for (int i = 0; i <= 5 && v; ++i) v = strstr(v + 1, "\nv ");
+    for (int i = 0; i <= 5 && v; ++i)
+      v = strstr(v + 1, "\nv ");
     double x, y, z;
     CHECK(v && sscanf(v, "\nv %lf %lf %lf", &x, &y, &z) == 3);
     const double *want = frames + (7 * rest->n_vertices + 5) * 3;
@@ -438,8 +447,10 @@ static void test_failures(const km_mesh *rest, const double *frames) {
     CHECK_OK(km_anim_info_read(paths[p], &info, KM_E));
     CHECK(info.frames == 1);
     /* Closing with no frames fails and publishes nothing. */
-    if (p < 2) remove(paths[p]);
-    else rm_dir(paths[p]);
+    if (p < 2)
+      remove(paths[p]);
+    else
+      rm_dir(paths[p]);
     CHECK_OK(km_anim_writer_open(paths[p], rest, NULL, &w, KM_E));
     CHECK_STATUS(km_anim_writer_close(&w, KM_E), KM_ERR_INVALID);
     CHECK(!dir_has_prefix("test_anim_fail"));
@@ -488,7 +499,28 @@ static void test_point_cloud(const km_mesh *rest, const double *frames) {
   remove("test_anim_pc.glb");
 }
 
+/* More keys than vertices (a tetrahedron, 70 frames): buffers sized by keys, not vertices. */
+static void test_many_keys(void) {
+  double V[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}, X[12];
+  int32_t F[12] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+  km_mesh m = {V, F, 4, 4};
+  km_anim_writer *w = NULL;
+  CHECK_OK(km_anim_writer_open("test_anim_tet.glb", &m, NULL, &w, KM_E));
+  for (int k = 0; k < 70; ++k) {
+    for (int i = 0; i < 12; ++i)
+      X[i] = V[i] + 0.01 * k * (i % 3 == 1);
+    CHECK_OK(km_anim_writer_push(w, X, KM_E));
+  }
+  CHECK_OK(km_anim_writer_close(&w, KM_E));
+  km_anim_info info;
+  CHECK_OK(km_anim_info_read("test_anim_tet.glb", &info, KM_E));
+  CHECK(info.frames == 70 && info.vertices == 4 && info.faces == 4);
+  CHECK_NEAR(info.duration, 69 / 30.0, 1e-6);
+  remove("test_anim_tet.glb");
+}
+
 int main(void) {
+  test_many_keys();
   km_mesh rest;
   make_rest(&rest);
   double *frames = all_frames(&rest);

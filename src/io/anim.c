@@ -20,7 +20,8 @@
 static void put_f64le(unsigned char *p, double d) {
   uint64_t u;
   memcpy(&u, &d, 8);
-  for (int i = 0; i < 8; ++i) p[i] = (unsigned char)(u >> (8 * i));
+  for (int i = 0; i < 8; ++i)
+    p[i] = (unsigned char)(u >> (8 * i));
 }
 
 static char *dup_str(const char *s) {
@@ -36,7 +37,8 @@ static int frame_file_kind(const char *name) {
   if (strncmp(name, "frame_", 6) != 0) return 0;
   const char *p = name + 6;
   size_t digits = 0;
-  while (*p >= '0' && *p <= '9') ++p, ++digits;
+  while (*p >= '0' && *p <= '9')
+    ++p, ++digits;
   if (digits < 6) return 0;
   if (strcmp(p, ".obj") == 0) return 1;
   if (strcmp(p, ".ply") == 0) return 2;
@@ -135,12 +137,12 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   const size_t nv = rest->n_vertices, nf = rest->n_faces;
   for (size_t i = 0; i < nf * 3; ++i)
     if (rest->F[i] < 0 || (size_t)rest->F[i] >= nv)
-      return km__fail(err, KM_ERR_INVALID, "%s: face %zu references vertex %ld of %zu", path,
-                      i / 3, (long)rest->F[i], nv);
+      return km__fail(err, KM_ERR_INVALID, "%s: face %zu references vertex %ld of %zu", path, i / 3,
+                      (long)rest->F[i], nv);
   for (size_t i = 0; i < nv * 3; ++i)
     if (!(fabs(rest->V[i]) <= FLT_MAX))
-      return km__fail(err, KM_ERR_INVALID, "%s: rest vertex %zu has a non-finite coordinate",
-                      path, i / 3);
+      return km__fail(err, KM_ERR_INVALID, "%s: rest vertex %zu has a non-finite coordinate", path,
+                      i / 3);
 
   km_anim_options o = opt ? *opt : (km_anim_options){0};
   if (o.fps == 0) o.fps = 30;
@@ -196,8 +198,7 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     if ((s = km__atomic_open(&w->af, path, err)) != KM_OK) goto fail;
     w->keys = tmpfile();
     if (!w->keys) {
-      s = km__fail(err, KM_ERR_IO, "%s: cannot create a temporary file: %s", path,
-                   strerror(errno));
+      s = km__fail(err, KM_ERR_IO, "%s: cannot create a temporary file: %s", path, strerror(errno));
       goto fail;
     }
     minmax_init(w->rest_minmax);
@@ -224,8 +225,7 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     if (!w->tmp_dir) goto nomem;
     snprintf(w->tmp_dir, n, "%s.tmp.%ld", path, (long)getpid());
     if (mkdir(w->tmp_dir, 0777) != 0) {
-      s = km__fail(err, KM_ERR_IO, "%s: cannot create directory: %s", w->tmp_dir,
-                   strerror(errno));
+      s = km__fail(err, KM_ERR_IO, "%s: cannot create directory: %s", w->tmp_dir, strerror(errno));
       free(w->tmp_dir);
       w->tmp_dir = NULL; /* not ours: never remove it */
       goto fail;
@@ -249,7 +249,8 @@ fail:
 /* ---------------------------------------------------------------- per-format frame output */
 
 static km_status push_pc2(km_anim_writer *w, const double *V, km_error *err) {
-  for (size_t i = 0; i < w->n_vertices * 3; ++i) km__put_f32le(w->bytes + 4 * i, (float)V[i]);
+  for (size_t i = 0; i < w->n_vertices * 3; ++i)
+    km__put_f32le(w->bytes + 4 * i, (float)V[i]);
   if (fwrite(w->bytes, 12, w->n_vertices, w->af.f) != w->n_vertices) {
     w->failed = true;
     return km__fail(err, KM_ERR_IO, "%s: write failed at frame %zu: %s", w->path, w->frames,
@@ -329,12 +330,14 @@ static km_status push_dir(km_anim_writer *w, const double *V, km_error *err) {
             w->frames, w->fps, nv);
     if (nf) fprintf(f, "element face %zu\nproperty list uchar int vertex_indices\n", nf);
     fputs("end_header\n", f);
-    for (size_t i = 0; i < nv * 3; ++i) put_f64le(w->bytes + 8 * i, V[i]);
+    for (size_t i = 0; i < nv * 3; ++i)
+      put_f64le(w->bytes + 8 * i, V[i]);
     fwrite(w->bytes, 24, nv, f);
     for (size_t i = 0; i < nf; ++i) {
       unsigned char *p = w->bytes + 13 * i;
       p[0] = 3;
-      for (int k = 0; k < 3; ++k) km__put_u32le(p + 1 + 4 * k, (uint32_t)w->F[3 * i + k]);
+      for (int k = 0; k < 3; ++k)
+        km__put_u32le(p + 1 + 4 * k, (uint32_t)w->F[3 * i + k]);
     }
     fwrite(w->bytes, 13, nf, f);
   } else {
@@ -395,8 +398,8 @@ static km_status close_dir(km_anim_writer *w, km_error *err) {
   struct stat st;
   if (stat(w->path, &st) != 0) {
     if (rename(w->tmp_dir, w->path) != 0)
-      return km__fail(err, KM_ERR_IO, "%s: cannot rename %s into place: %s", w->path,
-                      w->tmp_dir, strerror(errno));
+      return km__fail(err, KM_ERR_IO, "%s: cannot rename %s into place: %s", w->path, w->tmp_dir,
+                      strerror(errno));
   } else {
     /* Replace an earlier animation: move it aside, move the new one in, then delete the old
      * frame files. Re-checked here because the directory may have changed since open. */
@@ -471,8 +474,8 @@ static km_status pc2_header(FILE *f, const char *path, km_anim_info *info, km_er
   uint64_t want = PC2_HEADER + (uint64_t)np * (uint64_t)ns * 12;
   if (size < 0 || (uint64_t)size != want)
     return km__fail(err, KM_ERR_PARSE,
-                    "%s: file is %ld bytes, header (%d points x %d samples) needs %llu", path,
-                    size, np, ns, (unsigned long long)want);
+                    "%s: file is %ld bytes, header (%d points x %d samples) needs %llu", path, size,
+                    np, ns, (unsigned long long)want);
   if (fseek(f, PC2_HEADER, SEEK_SET) != 0)
     return km__fail(err, KM_ERR_IO, "%s: cannot seek: %s", path, strerror(errno));
   memset(info, 0, sizeof *info);
@@ -511,7 +514,8 @@ km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_
       return km__fail(err, KM_ERR_IO, "%s: read error in frame %zu", path, k);
     }
     double *o = out + k * tmp.vertices * 3;
-    for (size_t i = 0; i < tmp.vertices * 3; ++i) o[i] = km__get_f32le(buf + 4 * i);
+    for (size_t i = 0; i < tmp.vertices * 3; ++i)
+      o[i] = km__get_f32le(buf + 4 * i);
   }
   free(buf);
   fclose(f);
@@ -552,10 +556,12 @@ static km_status frame_file_info(const char *fp, int kind, km_anim_info *info, k
     } else if (line[0] == 'f' && (line[1] == ' ' || line[1] == '\t')) {
       size_t corners = 0;
       for (char *p = line + 1; *p;) {
-        while (*p == ' ' || *p == '\t') ++p;
+        while (*p == ' ' || *p == '\t')
+          ++p;
         if (!*p || *p == '\n' || *p == '\r') break;
         ++corners;
-        while (*p && *p != ' ' && *p != '\t' && *p != '\n') ++p;
+        while (*p && *p != ' ' && *p != '\t' && *p != '\n')
+          ++p;
       }
       if (corners >= 3) nf += corners - 2; /* fan triangulation, as km_mesh_read does */
     }

@@ -33,23 +33,23 @@ struct km_anim_writer {
   km_anim_format format;
   char *path;
   size_t n_vertices, n_faces;
-  double *rest;  /* copy of the rest positions */
-  int32_t *F;    /* copy of the rest faces */
+  double *rest; /* copy of the rest positions */
+  int32_t *F;   /* copy of the rest faces */
   double fps;
   size_t key_every;
-  size_t frames; /* frames accepted so far */
-  bool failed;   /* an I/O error happened: close refuses to publish */
-  float *fbuf;   /* one frame as float32 (glb) */
+  size_t frames;        /* frames accepted so far */
+  bool failed;          /* an I/O error happened: close refuses to publish */
+  float *fbuf;          /* one frame as float32 (glb) */
   unsigned char *bytes; /* one frame encoded (pc2, ply) */
   /* pc2: the output itself, streamed to its temporary. */
   km__atomic_file af;
   /* glb: key-frame displacements, float32, in an anonymous temporary file. */
   FILE *keys;
   size_t n_keys;
-  size_t *key_frame;  /* frame index of each stored key */
-  float *key_minmax;  /* 6 per key: min xyz, max xyz of the displacement */
+  size_t *key_frame; /* frame index of each stored key */
+  float *key_minmax; /* 6 per key: min xyz, max xyz of the displacement */
   size_t key_cap;
-  float *last;        /* the latest frame's displacement (glb), for the closing key */
+  float *last; /* the latest frame's displacement (glb), for the closing key */
   float last_minmax[6];
   float rest_minmax[6];
   /* directories: frames are written into tmp_dir, renamed into place on close. */

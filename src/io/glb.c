@@ -21,7 +21,8 @@
 
 static cJSON *num_array(const float *v, int n) {
   cJSON *a = cJSON_CreateArray();
-  for (int i = 0; a && i < n; ++i) cJSON_AddItemToArray(a, cJSON_CreateNumber((double)v[i]));
+  for (int i = 0; a && i < n; ++i)
+    cJSON_AddItemToArray(a, cJSON_CreateNumber((double)v[i]));
   return a;
 }
 
@@ -90,7 +91,8 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
 
   float *times = km__malloc(nk, sizeof *times);
   if (!times) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
-  for (size_t k = 0; k < nk; ++k) times[k] = (float)((double)w->key_frame[k] / w->fps);
+  for (size_t k = 0; k < nk; ++k)
+    times[k] = (float)((double)w->key_frame[k] / w->fps);
 
   cJSON *root = cJSON_CreateObject();
   cJSON *asset = cJSON_AddObjectToObject(root, "asset");
@@ -126,8 +128,8 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   cJSON *names = cJSON_CreateArray();
   for (size_t k = 0; k < nk; ++k) {
     const float *mm = w->key_minmax + 6 * k;
-    int a = add_view_accessor(views, accessors, off, pos_len, GL_ARRAY_BUFFER, GL_FLOAT, nv,
-                              "VEC3", mm, mm + 3, 3);
+    int a = add_view_accessor(views, accessors, off, pos_len, GL_ARRAY_BUFFER, GL_FLOAT, nv, "VEC3",
+                              mm, mm + 3, 3);
     off += pos_len;
     cJSON *t = cJSON_CreateObject();
     cJSON_AddNumberToObject(t, "POSITION", a);
@@ -139,7 +141,8 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   cJSON *mesh = cJSON_CreateObject();
   cJSON_AddItemToArray(cJSON_AddArrayToObject(mesh, "primitives"), prim);
   cJSON *weights0 = cJSON_AddArrayToObject(mesh, "weights");
-  for (size_t k = 0; k < nk; ++k) cJSON_AddItemToArray(weights0, cJSON_CreateNumber(0));
+  for (size_t k = 0; k < nk; ++k)
+    cJSON_AddItemToArray(weights0, cJSON_CreateNumber(0));
   cJSON_AddItemToObject(cJSON_AddObjectToObject(mesh, "extras"), "targetNames", names);
   cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "meshes"), mesh);
 
@@ -207,34 +210,40 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     size_t chunk = nv, done = 0;
     while (s == KM_OK && done < nf * 3) {
       size_t n = nf * 3 - done < chunk ? nf * 3 - done : chunk;
-      for (size_t i = 0; i < n; ++i) km__put_u32le(b + 4 * i, (uint32_t)w->F[done + i]);
+      for (size_t i = 0; i < n; ++i)
+        km__put_u32le(b + 4 * i, (uint32_t)w->F[done + i]);
       s = write_all(w, af.f, b, 4 * n, err);
       done += n;
     }
   }
   if (s == KM_OK) {
-    for (size_t i = 0; i < nv * 3; ++i) km__put_f32le(b + 4 * i, (float)w->rest[i]);
+    for (size_t i = 0; i < nv * 3; ++i)
+      km__put_f32le(b + 4 * i, (float)w->rest[i]);
     s = write_all(w, af.f, b, nv * 12, err);
   }
   if (s == KM_OK && fseek(w->keys, 0, SEEK_SET) != 0)
     s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the key-frame temporary", w->path);
   for (size_t k = 0; s == KM_OK && k < nk; ++k) {
     if (fread(w->fbuf, sizeof *w->fbuf, nv * 3, w->keys) != nv * 3) {
-      s = km__fail(err, KM_ERR_IO, "%s: cannot read key frame %zu back from its temporary",
-                   w->path, k);
+      s = km__fail(err, KM_ERR_IO, "%s: cannot read key frame %zu back from its temporary", w->path,
+                   k);
       break;
     }
-    for (size_t i = 0; i < nv * 3; ++i) km__put_f32le(b + 4 * i, w->fbuf[i]);
+    for (size_t i = 0; i < nv * 3; ++i)
+      km__put_f32le(b + 4 * i, w->fbuf[i]);
     s = write_all(w, af.f, b, nv * 12, err);
   }
-  if (s == KM_OK) {
-    for (size_t k = 0; k < nk; ++k) km__put_f32le(b + 4 * k, times[k]);
-    s = write_all(w, af.f, b, 4 * nk, err);
-  }
-  free(times);
-  /* One-hot weights, one row of nk per key. */
+  /* Key times, then one-hot weights (one row of nk per key), through a row buffer: there
+   * can be more keys than vertices. */
   unsigned char *row = s == KM_OK ? calloc(nk, 4) : NULL;
   if (s == KM_OK && !row) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+  if (s == KM_OK) {
+    for (size_t k = 0; k < nk; ++k)
+      km__put_f32le(row + 4 * k, times[k]);
+    s = write_all(w, af.f, row, 4 * nk, err);
+    memset(row, 0, 4 * nk);
+  }
+  free(times);
   for (size_t k = 0; s == KM_OK && k < nk; ++k) {
     km__put_f32le(row + 4 * k, 1.0f);
     s = write_all(w, af.f, row, 4 * nk, err);
@@ -275,16 +284,16 @@ km_status km__glb_info(const char *path, km_anim_info *out, km_error *err) {
   km_status s = KM_OK;
   char *json = NULL;
   if (got < sizeof h)
-    s = km__fail(err, KM_ERR_PARSE, "%s: byte %zu: truncated glb header (20 bytes expected)",
-                 path, got);
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte %zu: truncated glb header (20 bytes expected)", path,
+                 got);
   else if (km__get_u32le(h) != GLB_MAGIC)
     s = km__fail(err, KM_ERR_PARSE, "%s: byte 0: not a glTF binary (magic is not 'glTF')", path);
   else if (km__get_u32le(h + 4) != 2)
     s = km__fail(err, KM_ERR_UNSUPPORTED, "%s: byte 4: glb version %u, expected 2", path,
                  km__get_u32le(h + 4));
   else if (size < 0 || km__get_u32le(h + 8) != (uint64_t)size)
-    s = km__fail(err, KM_ERR_PARSE, "%s: byte 8: header length %u but the file has %ld bytes",
-                 path, km__get_u32le(h + 8), size);
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte 8: header length %u but the file has %ld bytes", path,
+                 km__get_u32le(h + 8), size);
   else if (km__get_u32le(h + 16) != GLB_JSON)
     s = km__fail(err, KM_ERR_PARSE, "%s: byte 16: first chunk is not JSON", path);
   else if ((uint64_t)km__get_u32le(h + 12) > (uint64_t)size - 20)
@@ -337,8 +346,10 @@ km_status km__glb_info(const char *path, km_anim_info *out, km_error *err) {
    * assuming evenly spaced keys. */
   const cJSON *ex = get_path(get_path(get_path(root, "asset", -1), "extras", -1), "kinemesh", -1);
   const cJSON *fps = get_path(ex, "fps", -1);
-  const cJSON *input = get_path(get_path(get_path(root, "animations", 0), "samplers", 0), "input", -1);
-  const cJSON *in_acc = cJSON_IsNumber(input) ? cJSON_GetArrayItem(accessors, input->valueint) : NULL;
+  const cJSON *input =
+      get_path(get_path(get_path(root, "animations", 0), "samplers", 0), "input", -1);
+  const cJSON *in_acc =
+      cJSON_IsNumber(input) ? cJSON_GetArrayItem(accessors, input->valueint) : NULL;
   const cJSON *tmax = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(in_acc, "max"), 0);
   double n_in = 0;
   if (cJSON_IsNumber(tmax)) out->duration = tmax->valuedouble;
