@@ -325,9 +325,13 @@ typedef struct km_character {
 void km_character_free(km_character *c);
 
 /* Generates a humanoid as an implicit surface around a skeleton, polygonised so that its
- * vertex count is target_vertices +-10%. Equal options (shape, seed) give equal meshes;
- * different shapes with the same target_vertices give different meshes which are NOT
- * guaranteed to share connectivity (use km_character_pose / LBS on one mesh for that). */
+ * vertex count is target_vertices +-10%. Equal options (shape, seed) give equal meshes.
+ * All subjects of one target_vertices SHARE CONNECTIVITY (same F, same vertex count and
+ * order, same landmark vertex ids): the canonical subject (seed 0, height 1.75, girth 1,
+ * belly 0) is polygonised at that resolution and every other shape is obtained by carrying
+ * its vertices to the new skeleton's primitives (bone lengths, offsets, radii), projecting
+ * them onto the new implicit surface (Newton steps along the field gradient). Skeleton and
+ * skin are the new subject's. */
 km_status km_character_generate(const km_character_options *opt, km_character *out,
                                 km_error *err);
 /* Rig sidecar (<mesh>.rig.json): skeleton, skin, landmarks, and a default puppetry rig

@@ -68,6 +68,7 @@ typedef struct body {
   double hand_tip[2][3], toe_tip[2][3], head_top[3];
   double lo[3], hi[3]; /* bounding box of the primitives */
   double height;
+  int belly_index; /* index of the belly primitive, -1 when there is none */
   /* Cull grid: per cell, the primitives that can change the field there. */
   double co[3], cs;
   int cn[3];
@@ -248,7 +249,9 @@ static void build_body(body *b, const km_character_options *o, double min_r) {
   set3(a, -0.085, hc_y - 0.03, 0);
   set3(c, 0.085, hc_y - 0.03, 0);
   add_prim(b, a, 0.105 * g, c, 0.105 * g, J_HIP_C);
+  b->belly_index = -1;
   if (bel > 0) {
+    b->belly_index = b->np;
     set3(a, 0, hc_y + 0.12, 0.02 + 0.06 * bel);
     add_prim(b, a, (0.10 + 0.06 * bel) * g, a, (0.10 + 0.06 * bel) * g, J_HIP_C);
   }
@@ -523,23 +526,10 @@ static km_status count_at(const km_character_options *o, double h, size_t *n, km
   return st;
 }
 
-km_status km_character_generate(const km_character_options *opt, km_character *out, km_error *err) {
-  if (!out) return km__fail(err, KM_ERR_INVALID, "km_character_generate: out is NULL");
-  memset(out, 0, sizeof *out);
-  km_character_options o = {0};
-  if (opt) o = *opt;
-  if (!o.target_vertices) o.target_vertices = 20000;
-  if (o.height == 0) o.height = 1.75;
-  if (o.girth == 0) o.girth = 1.0;
-  if (o.target_vertices < 2000 || o.target_vertices > 1000000)
-    return km__fail(err, KM_ERR_INVALID, "character: target_vertices %zu is outside 2000..1000000",
-                    o.target_vertices);
-  if (!(o.height >= 0.1 && o.height <= 10))
-    return km__fail(err, KM_ERR_INVALID, "character: height %g m is outside 0.1..10", o.height);
-  if (!(o.girth >= 0.5 && o.girth <= 2.0))
-    return km__fail(err, KM_ERR_INVALID, "character: girth %g is outside 0.5..2", o.girth);
-  if (!(o.belly >= 0 && o.belly <= 2.0))
-    return km__fail(err, KM_ERR_INVALID, "character: belly %g is outside 0..2", o.belly);
+/* Polygonises the body of options o (already validated) directly; h_out gets the cell size. */
+static km_status generate_direct(const km_character_options *opt, km_character *out, double *h_out,
+                                 km_error *err) {
+  km_character_options o = *opt;
 
   /* Vertex count ~ area / h^2: measure at a cheap resolution, rescale, correct. */
   double T = (double)o.target_vertices;
@@ -597,6 +587,172 @@ km_status km_character_generate(const km_character_options *opt, km_character *o
   }
   free(b->mask);
   free(b);
+  if (st != KM_OK) km_character_free(out);
+  if (h_out) *h_out = h;
+  return st;
+}
+
+/* ---------------------------------------------------------------- shape transfer
+ *
+ * Every subject is the canonical one (seed 0, 1.75 m, girth 1, no belly) polygonised at the
+ * requested resolution and mapped onto its own implicit surface, so all subjects of one
+ * target_vertices share connectivity (pose transfer and pose databases need that):
+ *  1. each vertex is carried by the primitives near it (soft weights on their distance):
+ *     for a primitive, the vertex's axial parameter along the canonical segment and its
+ *     radial offset (rotated by the minimal rotation between the two segment directions and
+ *     scaled by the ratio of the radii there) give its place around the new segment, so
+ *     bone-length, offset and thickness changes move it consistently (a per-primitive
+ *     form of LBS from the canonical skeleton to the new one);
+ *  2. a few Newton steps along the field gradient put it on the new surface;
+ *  Vertex count and order never change. A tangential relaxation afterwards (km__surface_relax)
+ *  was tried and dropped: the mapping is smooth, so triangle quality stays the canonical
+ *  mesh's, while the uniform relaxation pulls finger and toe tips inwards (1-2 cm at 5k
+ *  vertices) and breaks the character's left/right symmetry checks. */
+
+static double seg_param(const prim *q, const double x[3], double c[3]) {
+  double t = 0;
+  if (q->l2 > 0) {
+    t = ((x[0] - q->a[0]) * q->ba[0] + (x[1] - q->a[1]) * q->ba[1] + (x[2] - q->a[2]) * q->ba[2]) *
+        q->il2;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+  }
+  for (int k = 0; k < 3; ++k)
+    c[k] = q->a[k] + t * (q->l2 > 0 ? q->ba[k] : 0);
+  return t;
+}
+
+/* Minimal rotation taking unit u onto unit v, applied to r. */
+static void rotate_min(const double u[3], const double v[3], const double r[3], double out[3]) {
+  double c = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+  double w[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+  if (c < -0.999999) {
+    for (int k = 0; k < 3; ++k)
+      out[k] = r[k];
+    return;
+  }
+  /* Rodrigues with k = w/|w|, sin = |w|, cos = c: R r = r c + (w x r) + w (w.r)/(1+c). */
+  double wxr[3] = {w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]};
+  double wr = w[0] * r[0] + w[1] * r[1] + w[2] * r[2];
+  for (int k = 0; k < 3; ++k)
+    out[k] = r[k] * c + wxr[k] + w[k] * wr / (1 + c);
+}
+
+static void map_vertex(const body *bc, const body *bn, const double x[3], double out[3]) {
+  double d[MAX_PRIMS], dmin = DBL_MAX;
+  for (int i = 0; i < bc->np; ++i) {
+    d[i] = prim_sdf(&bc->p[i], x);
+    if (d[i] < dmin) dmin = d[i];
+  }
+  double sig = bc->k > 0 ? bc->k : 0.03, acc[3] = {0, 0, 0}, wsum = 0;
+  for (int i = 0; i < bc->np; ++i) {
+    double e = (d[i] - dmin) / sig;
+    if (e > 8) continue;
+    double w = exp(-e);
+    int j = i + (bn->belly_index >= 0 && i >= bn->belly_index ? 1 : 0);
+    const prim *p = &bc->p[i], *q = &bn->p[j];
+    double c[3], cn[3], r[3], rr[3];
+    double t = seg_param(p, x, c);
+    for (int k = 0; k < 3; ++k) {
+      r[k] = x[k] - c[k];
+      cn[k] = q->a[k] + t * (q->l2 > 0 ? q->ba[k] : 0);
+    }
+    double ru = p->r1 + t * (p->r2 - p->r1), rv = q->r1 + t * (q->r2 - q->r1);
+    double rho = ru > 0 ? rv / ru : 1;
+    if (p->l2 > 0 && q->l2 > 0) {
+      double lu = sqrt(p->l2), lv = sqrt(q->l2);
+      double u[3] = {p->ba[0] / lu, p->ba[1] / lu, p->ba[2] / lu};
+      double v[3] = {q->ba[0] / lv, q->ba[1] / lv, q->ba[2] / lv};
+      rotate_min(u, v, r, rr);
+    } else {
+      memcpy(rr, r, sizeof rr);
+    }
+    for (int k = 0; k < 3; ++k)
+      acc[k] += w * (cn[k] + rho * rr[k]);
+    wsum += w;
+  }
+  for (int k = 0; k < 3; ++k)
+    out[k] = acc[k] / wsum;
+}
+
+static void project_newton(const body *b, double x[3], double eps) {
+  for (int it = 0; it < 8; ++it) {
+    double f0 = body_field((void *)b, x), g[3];
+    if (fabs(f0) < 1e-9 * b->height) return;
+    for (int k = 0; k < 3; ++k) {
+      double p[3] = {x[0], x[1], x[2]}, m[3] = {x[0], x[1], x[2]};
+      p[k] += eps;
+      m[k] -= eps;
+      g[k] = (body_field((void *)b, p) - body_field((void *)b, m)) / (2 * eps);
+    }
+    double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+    if (g2 < 1e-12) return;
+    for (int k = 0; k < 3; ++k)
+      x[k] -= f0 * g[k] / g2;
+  }
+}
+
+static bool is_canonical(const km_character_options *o) {
+  return o->seed == 0 && o->height == 1.75 && o->girth == 1.0 && o->belly == 0;
+}
+
+km_status km_character_generate(const km_character_options *opt, km_character *out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_character_generate: out is NULL");
+  memset(out, 0, sizeof *out);
+  km_character_options o = {0};
+  if (opt) o = *opt;
+  if (!o.target_vertices) o.target_vertices = 20000;
+  if (o.height == 0) o.height = 1.75;
+  if (o.girth == 0) o.girth = 1.0;
+  if (o.target_vertices < 2000 || o.target_vertices > 1000000)
+    return km__fail(err, KM_ERR_INVALID, "character: target_vertices %zu is outside 2000..1000000",
+                    o.target_vertices);
+  if (!(o.height >= 0.1 && o.height <= 10))
+    return km__fail(err, KM_ERR_INVALID, "character: height %g m is outside 0.1..10", o.height);
+  if (!(o.girth >= 0.5 && o.girth <= 2.0))
+    return km__fail(err, KM_ERR_INVALID, "character: girth %g is outside 0.5..2", o.girth);
+  if (!(o.belly >= 0 && o.belly <= 2.0))
+    return km__fail(err, KM_ERR_INVALID, "character: belly %g is outside 0..2", o.belly);
+  if (is_canonical(&o)) return generate_direct(&o, out, NULL, err);
+
+  km_character_options c = o;
+  c.seed = 0, c.height = 1.75, c.girth = 1.0, c.belly = 0;
+  double h = 0;
+  km_status st = generate_direct(&c, out, &h, err);
+  if (st != KM_OK) return st;
+  body *bc = malloc(sizeof *bc), *bn = malloc(sizeof *bn);
+  if (!bc || !bn) {
+    free(bc);
+    free(bn);
+    km_character_free(out);
+    return km__fail(err, KM_ERR_NOMEM, "character: out of memory");
+  }
+  build_body(bc, &c, 0.6 * h);
+  bc->mask = NULL;
+  build_body(bn, &o, 0.6 * h * o.height / 1.75);
+  st = build_cull(bn, err);
+  if (st == KM_OK && !km__progress(&o.progress, 0.9, "character: shape transfer"))
+    st = km__fail(err, KM_ERR_CANCELLED, "character: cancelled");
+  if (st == KM_OK) {
+    km_mesh *m = &out->mesh;
+    double eps = 1e-6 * o.height;
+#pragma omp parallel for schedule(static)
+    for (size_t v = 0; v < m->n_vertices; ++v) {
+      double x[3];
+      map_vertex(bc, bn, m->V + 3 * v, x);
+      project_newton(bn, x, eps);
+      memcpy(m->V + 3 * v, x, sizeof x);
+    }
+  }
+  if (st == KM_OK) {
+    km_mesh *m = &out->mesh;
+    memcpy(out->skeleton.rest, bn->joints, sizeof bn->joints);
+    compute_skin(bn, m, &out->skin);
+    /* Landmarks keep the canonical vertex ids: same connectivity, same landmark vertices. */
+    km__progress(&o.progress, 1.0, "character: done");
+  }
+  free(bn->mask);
+  free(bc);
+  free(bn);
   if (st != KM_OK) km_character_free(out);
   return st;
 }

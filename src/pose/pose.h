@@ -1,4 +1,4 @@
-/* Private pieces of pose recognition shared by src/pose/*.c. */
+/* Private pieces of pose recognition shared by the src/pose sources. */
 #ifndef KM_POSE_POSE_H
 #define KM_POSE_POSE_H
 
