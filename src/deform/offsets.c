@@ -39,6 +39,10 @@ struct km_transfer {
   double *frames_new; /* #V*9 */
   double *prev;       /* #V*3 previous solution */
   double *tgt;        /* nc*3 targets scratch */
+  /* Edge encoding: per free vertex i (row f) its neighbours j with weight w_ij and the edge
+   * expressed in both end frames, E_ij = F_S(i)(x_j - x_i), E_ji = F_S(j)(x_i - x_j). */
+  int32_t *e_ptr, *e_nbr;
+  double *e_w, *e_ij, *e_ji;
   double area, diag;
   double laplacian_ms, cholesky_ms;
 };
@@ -142,6 +146,11 @@ void km_transfer_free(km_transfer **tp) {
   free(t->frames_new);
   free(t->prev);
   free(t->tgt);
+  free(t->e_ptr);
+  free(t->e_nbr);
+  free(t->e_w);
+  free(t->e_ij);
+  free(t->e_ji);
   free(t);
   *tp = NULL;
 }
@@ -184,6 +193,9 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
   if (o.laplacian != KM_LAPLACIAN_UNIFORM && o.laplacian != KM_LAPLACIAN_COTAN)
     return km__fail(err, KM_ERR_INVALID, "km_transfer_precompute: unknown Laplacian kind %d",
                     (int)o.laplacian);
+  if (o.encoding != KM_OFFSETS_VERTEX && o.encoding != KM_OFFSETS_EDGE)
+    return km__fail(err, KM_ERR_INVALID, "km_transfer_precompute: unknown offset encoding %d",
+                    (int)o.encoding);
   if (o.align != KM_TRANSFER_ALIGN_SCALE && o.align != KM_TRANSFER_ALIGN_SIMILARITY)
     return km__fail(err, KM_ERR_INVALID, "km_transfer_precompute: unknown align mode %d",
                     (int)o.align);
@@ -320,6 +332,43 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
     }
   }
   t->lfc_ptr[n_landmarks] = (int32_t)q;
+  if (o.encoding == KM_OFFSETS_EDGE) {
+    size_t ne = 0;
+    for (size_t f = 0; f < t->nf; ++f) {
+      size_t i = (size_t)t->free_vtx[f];
+      for (int32_t p = cp[i]; p < cp[i + 1]; ++p)
+        if ((size_t)ri[p] != i) ++ne;
+    }
+    t->e_ptr = km__malloc(t->nf + 1, sizeof(int32_t));
+    t->e_nbr = km__malloc(ne ? ne : 1, sizeof(int32_t));
+    t->e_w = km__malloc(ne ? ne : 1, sizeof(double));
+    t->e_ij = km__malloc(ne ? ne * 3 : 1, sizeof(double));
+    t->e_ji = km__malloc(ne ? ne * 3 : 1, sizeof(double));
+    if (!t->e_ptr || !t->e_nbr || !t->e_w || !t->e_ij || !t->e_ji) {
+      s = km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: out of memory (%zu edges)", ne);
+      goto fail;
+    }
+    size_t e = 0;
+    for (size_t f = 0; f < t->nf; ++f) {
+      size_t i = (size_t)t->free_vtx[f];
+      t->e_ptr[f] = (int32_t)e;
+      for (int32_t p = cp[i]; p < cp[i + 1]; ++p) {
+        size_t j = (size_t)ri[p];
+        if (j == i) continue;
+        const double *xi = t->rest + 3 * i, *xj = t->rest + 3 * j;
+        const double *Fi = t->frames + 9 * i, *Fj = t->frames + 9 * j;
+        double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};
+        for (int r = 0; r < 3; ++r) {
+          t->e_ij[3 * e + r] = Fi[3 * r] * d[0] + Fi[3 * r + 1] * d[1] + Fi[3 * r + 2] * d[2];
+          t->e_ji[3 * e + r] = -(Fj[3 * r] * d[0] + Fj[3 * r + 1] * d[1] + Fj[3 * r + 2] * d[2]);
+        }
+        t->e_nbr[e] = (int32_t)j;
+        t->e_w[e] = val[p];
+        ++e;
+      }
+    }
+    t->e_ptr[t->nf] = (int32_t)e;
+  }
   double t1 = km__now();
   t->laplacian_ms = (t1 - t0) * 1e3;
   s = km_sparse_from_triplets(t->nf, t->nf, m, ti, tj, tv, &A, err);
@@ -458,11 +507,29 @@ km_status km_transfer_solve(km_transfer *t, const double *T, const double *targe
   double dx = INFINITY, dF = INFINITY;
   for (it = 0; it < t->opt.max_iterations; ++it) {
     double ts = km__now();
-    for (size_t f = 0; f < nf; ++f) {
-      size_t v = (size_t)t->free_vtx[f];
-      const double *F = t->frames + 9 * v, *w = t->W + 3 * v;
-      for (int c = 0; c < 3; ++c)
-        t->rhs[c * nf + f] = -(F[c] * w[0] + F[3 + c] * w[1] + F[6 + c] * w[2]);
+    if (t->e_ptr) {
+      /* Each edge rebuilt from both end frames: e*_ij = (F(i)^T E_ij - F(j)^T E_ji) / 2. */
+      for (size_t f = 0; f < nf; ++f) {
+        const double *Fi = t->frames + 9 * (size_t)t->free_vtx[f];
+        double acc[3] = {0, 0, 0};
+        for (int32_t e = t->e_ptr[f]; e < t->e_ptr[f + 1]; ++e) {
+          const double *Fj = t->frames + 9 * (size_t)t->e_nbr[e], *a = t->e_ij + 3 * e,
+                       *b = t->e_ji + 3 * e;
+          double w = 0.5 * t->e_w[e];
+          for (int c = 0; c < 3; ++c)
+            acc[c] += w * (Fi[c] * a[0] + Fi[3 + c] * a[1] + Fi[6 + c] * a[2] -
+                           (Fj[c] * b[0] + Fj[3 + c] * b[1] + Fj[6 + c] * b[2]));
+        }
+        for (int c = 0; c < 3; ++c)
+          t->rhs[c * nf + f] = -acc[c];
+      }
+    } else {
+      for (size_t f = 0; f < nf; ++f) {
+        size_t v = (size_t)t->free_vtx[f];
+        const double *F = t->frames + 9 * v, *w = t->W + 3 * v;
+        for (int c = 0; c < 3; ++c)
+          t->rhs[c * nf + f] = -(F[c] * w[0] + F[3 + c] * w[1] + F[6 + c] * w[2]);
+      }
     }
     for (size_t c = 0; c < nc; ++c)
       for (int32_t p = t->lfc_ptr[c]; p < t->lfc_ptr[c + 1]; ++p) {
