@@ -11,8 +11,26 @@
 #include <string.h>
 
 enum {
-  KP_HIPC = 0, KP_SPINE, KP_SHC, KP_HEAD, KP_SHL, KP_ELL, KP_WRL, KP_HAL, KP_SHR, KP_ELR, KP_WRR,
-  KP_HAR, KP_HIPL, KP_KNL, KP_ANL, KP_FOL, KP_HIPR, KP_KNR, KP_ANR, KP_FOR
+  KP_HIPC = 0,
+  KP_SPINE,
+  KP_SHC,
+  KP_HEAD,
+  KP_SHL,
+  KP_ELL,
+  KP_WRL,
+  KP_HAL,
+  KP_SHR,
+  KP_ELR,
+  KP_WRR,
+  KP_HAR,
+  KP_HIPL,
+  KP_KNL,
+  KP_ANL,
+  KP_FOL,
+  KP_HIPR,
+  KP_KNR,
+  KP_ANR,
+  KP_FOR
 };
 
 /* A rotation of one joint: axis (world axes at rest, 0=x 1=y 2=z) and degrees. */
@@ -34,15 +52,28 @@ static const kp_pose kp_poses[] = {
     {"t_pose", {{0}}, 0},
     {"a_pose", {{KP_SHL, 2, -45}, {KP_SHR, 2, 45}}, 2},
     {"arms_up", {{KP_SHL, 2, 80}, {KP_SHR, 2, -80}}, 2},
-    {"squat", {{KP_HIPL, 0, -80}, {KP_HIPR, 0, -80}, {KP_KNL, 0, 100}, {KP_KNR, 0, 100},
-               {KP_SHL, 1, -80}, {KP_SHR, 1, 80}}, 6},
+    {"squat",
+     {{KP_HIPL, 0, -80},
+      {KP_HIPR, 0, -80},
+      {KP_KNL, 0, 100},
+      {KP_KNR, 0, 100},
+      {KP_SHL, 1, -80},
+      {KP_SHR, 1, 80}},
+     6},
     {"kick", {{KP_HIPR, 0, -80}, {KP_SHL, 2, -30}, {KP_SHR, 2, 30}}, 3},
     {"punch", {{KP_SHR, 1, 90}, {KP_SHL, 2, -60}, {KP_ELL, 1, -90}}, 3},
     {"wave", {{KP_SHR, 2, -70}, {KP_ELR, 2, -60}, {KP_SHL, 2, -60}}, 3},
-    {"sit", {{KP_HIPL, 0, -90}, {KP_HIPR, 0, -90}, {KP_KNL, 0, 90}, {KP_KNR, 0, 90},
-             {KP_SHL, 2, -60}, {KP_SHR, 2, 60}}, 6},
-    {"lunge", {{KP_HIPL, 0, -60}, {KP_KNL, 0, 70}, {KP_HIPR, 0, 25}, {KP_SHL, 2, -50},
-               {KP_SHR, 2, 50}}, 5},
+    {"sit",
+     {{KP_HIPL, 0, -90},
+      {KP_HIPR, 0, -90},
+      {KP_KNL, 0, 90},
+      {KP_KNR, 0, 90},
+      {KP_SHL, 2, -60},
+      {KP_SHR, 2, 60}},
+     6},
+    {"lunge",
+     {{KP_HIPL, 0, -60}, {KP_KNL, 0, 70}, {KP_HIPR, 0, 25}, {KP_SHL, 2, -50}, {KP_SHR, 2, 50}},
+     5},
     {"bow", {{KP_SPINE, 0, 50}, {KP_SHL, 2, -70}, {KP_SHR, 2, 70}}, 3},
 };
 #define KP_N_POSES ((int)(sizeof kp_poses / sizeof kp_poses[0]))
@@ -63,8 +94,8 @@ static void kp_mul(const double A[9], const double B[9], double C[9]) {
 
 /* Per-joint transforms (3x4 row-major) of pose p with every angle scaled by (1 + jitter[k])
  * for rotation k (jitter may be NULL). posed_joints (20*3) may be NULL. */
-static void kp_transforms(const km_skeleton *s, const kp_pose *p, const double *jitter,
-                          double *T, double *posed_joints) {
+static void kp_transforms(const km_skeleton *s, const kp_pose *p, const double *jitter, double *T,
+                          double *posed_joints) {
   size_t n = s->n_joints;
   double G[KM_KINECT1_JOINTS][9], P[KM_KINECT1_JOINTS][3];
   for (size_t j = 0; j < n && j < KM_KINECT1_JOINTS; ++j) {
@@ -86,12 +117,14 @@ static void kp_transforms(const km_skeleton *s, const kp_pose *p, const double *
       const double *rp = s->rest + 3 * pa;
       double d[3] = {rj[0] - rp[0], rj[1] - rp[1], rj[2] - rp[2]};
       for (int i = 0; i < 3; ++i)
-        P[j][i] = P[pa][i] + G[pa][3 * i] * d[0] + G[pa][3 * i + 1] * d[1] + G[pa][3 * i + 2] * d[2];
+        P[j][i] =
+            P[pa][i] + G[pa][3 * i] * d[0] + G[pa][3 * i + 1] * d[1] + G[pa][3 * i + 2] * d[2];
     }
     double *t = T + 12 * j;
     for (int i = 0; i < 3; ++i) {
       t[4 * i] = G[j][3 * i], t[4 * i + 1] = G[j][3 * i + 1], t[4 * i + 2] = G[j][3 * i + 2];
-      t[4 * i + 3] = P[j][i] - (G[j][3 * i] * rj[0] + G[j][3 * i + 1] * rj[1] + G[j][3 * i + 2] * rj[2]);
+      t[4 * i + 3] =
+          P[j][i] - (G[j][3 * i] * rj[0] + G[j][3 * i + 1] * rj[1] + G[j][3 * i + 2] * rj[2]);
     }
     if (posed_joints) memcpy(posed_joints + 3 * j, P[j], 3 * sizeof(double));
   }

@@ -47,7 +47,8 @@ static void test_similarity(void) {
   for (int i = 0; i < 6; ++i)
     for (int r = 0; r < 3; ++r)
       dst[3 * i + r] = s0 * (R0[3 * r] * src[3 * i] + R0[3 * r + 1] * src[3 * i + 1] +
-                             R0[3 * r + 2] * src[3 * i + 2]) + t0[r];
+                             R0[3 * r + 2] * src[3 * i + 2]) +
+                       t0[r];
   double s, R[9], t[3];
   CHECK_OK(km_similarity_fit(src, dst, NULL, 6, &s, R, t, KM_E));
   CHECK_NEAR(s, s0, 1e-12);
@@ -241,8 +242,9 @@ static int test_faust(void) {
           rel += fabs(sqrt(lb) / sqrt(la) - 1);
         }
       rel /= (double)(u.n_faces * 3);
-      printf("  FAUST 010 -> pose of 001 (cross subject): mean relative edge-length change %.2f%%\n",
-             rel * 100);
+      printf(
+          "  FAUST 010 -> pose of 001 (cross subject): mean relative edge-length change %.2f%%\n",
+          rel * 100);
       CHECK(rel < 0.1);
       km_transfer_free(&tu);
     }

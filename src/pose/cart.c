@@ -25,26 +25,18 @@ struct km_cart {
 };
 
 typedef struct fit_ctx {
-  const double *X;
+  const double *X;      /* row-major n x stride */
+  size_t stride;        /* columns of X */
+  const int32_t *order; /* per column of X, the n samples sorted by value */
+  const int32_t *cols;  /* the nf columns the tree may use */
   const int32_t *y;
   size_t n, nf, nc;
   int max_depth;
-  double *imp;
+  double *imp; /* nf */
   km_cart *tree;
-  /* scratch */
-  struct pair {
-    double v;
-    int32_t i;
-  } * pairs;
+  int32_t *mark; /* n: node id a sample belongs to */
   size_t *cnt_left, *cnt_node;
 } fit_ctx;
-
-static int cmp_pair(const void *a, const void *b) {
-  const struct pair *p = a, *q = b;
-  if (p->v < q->v) return -1;
-  if (p->v > q->v) return 1;
-  return (p->i > q->i) - (p->i < q->i);
-}
 
 static double gini(const size_t *cnt, size_t nc, size_t tot) {
   if (!tot) return 0;
@@ -69,12 +61,15 @@ static int32_t new_node(km_cart *t) {
   return (int32_t)t->n_nodes++;
 }
 
-/* idx: the node's samples (reordered in place into left | right). Returns node id or -1 on
- * out-of-memory. */
+/* Grows the node whose samples are idx[0..m) (all with mark == id). Split search walks each
+ * column's presorted order and skips samples of other nodes: O(n) per column and node, no
+ * sorting after the one presort. Returns the node id, or -1 when out of memory. */
 static int32_t grow(fit_ctx *c, int32_t *idx, size_t m, int depth) {
   int32_t id = new_node(c->tree);
   if (id < 0) return -1;
-  size_t *cnt = c->cnt_node;
+  for (size_t a = 0; a < m; ++a)
+    c->mark[idx[a]] = id;
+  size_t *cnt = c->cnt_node, *cl = c->cnt_left;
   memset(cnt, 0, c->nc * sizeof *cnt);
   for (size_t a = 0; a < m; ++a)
     ++cnt[c->y[idx[a]]];
@@ -85,50 +80,52 @@ static int32_t grow(fit_ctx *c, int32_t *idx, size_t m, int depth) {
   double g = gini(cnt, c->nc, m);
   if (g <= 0 || m < 2 || (c->max_depth > 0 && depth >= c->max_depth)) return id;
 
-  double best_gain = 1e-12;
+  double best_gain = 1e-12, best_thr = 0, best_gap = 0, sr0 = 0;
   int32_t best_f = -1;
-  double best_thr = 0;
-  size_t *cl = c->cnt_left;
-  /* Right counts are node counts minus left counts, so only the left side is tracked. */
-  size_t *tot = malloc(c->nc * sizeof *tot);
-  if (!tot) return -1;
-  memcpy(tot, cnt, c->nc * sizeof *tot);
+  for (size_t k = 0; k < c->nc; ++k)
+    sr0 += (double)cnt[k] * (double)cnt[k];
   for (size_t f = 0; f < c->nf; ++f) {
-    for (size_t a = 0; a < m; ++a) {
-      c->pairs[a].v = c->X[(size_t)idx[a] * c->nf + f];
-      c->pairs[a].i = idx[a];
-    }
-    qsort(c->pairs, m, sizeof *c->pairs, cmp_pair);
-    if (!(c->pairs[0].v < c->pairs[m - 1].v)) continue;
+    size_t col = (size_t)c->cols[f];
+    const int32_t *ord = c->order + col * c->n;
     memset(cl, 0, c->nc * sizeof *cl);
-    double sl = 0; /* sum of squared left counts, kept incrementally */
-    double sr = 0;
-    for (size_t k = 0; k < c->nc; ++k)
-      sr += (double)tot[k] * (double)tot[k];
-    for (size_t a = 0; a + 1 < m; ++a) {
-      size_t k = (size_t)c->y[c->pairs[a].i];
-      sl += 2.0 * (double)cl[k] + 1;
-      double r = (double)(tot[k] - cl[k]);
-      sr -= 2.0 * r - 1;
-      ++cl[k];
-      if (!(c->pairs[a].v < c->pairs[a + 1].v)) continue;
-      double nl = (double)(a + 1), nr = (double)(m - a - 1);
-      double gl = 1 - sl / (nl * nl), gr = 1 - sr / (nr * nr);
-      double gain = g - (nl * gl + nr * gr) / (double)m;
-      if (gain > best_gain) {
-        best_gain = gain;
-        best_f = (int32_t)f;
-        best_thr = 0.5 * (c->pairs[a].v + c->pairs[a + 1].v);
+    double sl = 0, sr = sr0, prev_v = 0;
+    double range =
+        c->X[(size_t)ord[c->n - 1] * c->stride + col] - c->X[(size_t)ord[0] * c->stride + col];
+    if (!(range > 0)) continue;
+    size_t seen = 0;
+    for (size_t q = 0; q < c->n && seen < m; ++q) {
+      int32_t i = ord[q];
+      if (c->mark[i] != id) continue;
+      double v = c->X[(size_t)i * c->stride + col];
+      if (seen > 0 && prev_v < v) {
+        /* split between the previous sample and this one */
+        double nl = (double)seen, nr = (double)(m - seen);
+        double gain = g - (nl * (1 - sl / (nl * nl)) + nr * (1 - sr / (nr * nr))) / (double)m;
+        /* Equal gains (common: many angles separate the same classes) go to the widest gap
+         * (radians: all columns are angles), the split most likely to hold on new data. */
+        double gap = v - prev_v;
+        if (gain > best_gain + 1e-12 ||
+            (gain > best_gain - 1e-12 && best_f >= 0 && gap > best_gap)) {
+          best_gain = gain;
+          best_gap = gap;
+          best_f = (int32_t)f;
+          best_thr = 0.5 * (prev_v + v);
+        }
       }
+      size_t k = (size_t)c->y[i];
+      sl += 2.0 * (double)cl[k] + 1;
+      sr -= 2.0 * (double)(cnt[k] - cl[k]) - 1;
+      ++cl[k];
+      ++seen;
+      prev_v = v;
     }
   }
-  free(tot);
   if (best_f < 0) return id;
   if (c->imp) c->imp[best_f] += best_gain * (double)m;
-  /* Partition idx by the split. */
+  size_t col = (size_t)c->cols[best_f];
   size_t lo = 0, hi = m;
   while (lo < hi) {
-    if (c->X[(size_t)idx[lo] * c->nf + (size_t)best_f] <= best_thr)
+    if (c->X[(size_t)idx[lo] * c->stride + col] <= best_thr)
       ++lo;
     else {
       --hi;
@@ -142,11 +139,81 @@ static int32_t grow(fit_ctx *c, int32_t *idx, size_t m, int depth) {
   int32_t r = grow(c, idx + lo, m - lo, depth + 1);
   if (r < 0) return -1;
   cart_node *nd = &c->tree->nodes[id];
-  nd->feature = best_f;
+  nd->feature = (int32_t)col;
   nd->threshold = best_thr;
   nd->left = l;
   nd->right = r;
   return id;
+}
+
+typedef struct sort_ctx_item {
+  double v;
+  int32_t i;
+} sort_ctx_item;
+static int cmp_item(const void *a, const void *b) {
+  const sort_ctx_item *p = a, *q = b;
+  if (p->v < q->v) return -1;
+  if (p->v > q->v) return 1;
+  return (p->i > q->i) - (p->i < q->i);
+}
+
+km_status km__cart_presort(const double *X, size_t n, size_t stride, int32_t *order,
+                           km_error *err) {
+  sort_ctx_item *it = km__malloc(n ? n : 1, sizeof *it);
+  if (!it) return km__fail(err, KM_ERR_NOMEM, "CART: out of memory");
+  for (size_t f = 0; f < stride; ++f) {
+    for (size_t i = 0; i < n; ++i)
+      it[i] = (sort_ctx_item){X[i * stride + f], (int32_t)i};
+    qsort(it, n, sizeof *it, cmp_item);
+    for (size_t i = 0; i < n; ++i)
+      order[f * n + i] = it[i].i;
+  }
+  free(it);
+  return KM_OK;
+}
+
+km_status km__cart_fit_presorted(const double *X, size_t stride, const int32_t *order,
+                                 const int32_t *cols, size_t n_cols, const int32_t *y,
+                                 size_t n_samples, size_t n_classes, int max_depth, km_cart **out,
+                                 double *importance, km_error *err) {
+  *out = NULL;
+  km_cart *t = calloc(1, sizeof *t);
+  fit_ctx c = {X,         stride,    order,      cols, y,    n_samples, n_cols,
+               n_classes, max_depth, importance, t,    NULL, NULL,      NULL};
+  int32_t *idx = km__malloc(n_samples, sizeof *idx);
+  c.mark = km__malloc(n_samples, sizeof *c.mark);
+  c.cnt_left = km__malloc(n_classes, sizeof(size_t));
+  c.cnt_node = km__malloc(n_classes, sizeof(size_t));
+  km_status s = KM_OK;
+  if (!t || !idx || !c.mark || !c.cnt_left || !c.cnt_node) {
+    s = km__fail(err, KM_ERR_NOMEM, "km_cart_fit: out of memory");
+    goto done;
+  }
+  t->n_features = stride;
+  t->n_classes = n_classes;
+  if (importance) memset(importance, 0, n_cols * sizeof *importance);
+  for (size_t i = 0; i < n_samples; ++i)
+    idx[i] = (int32_t)i;
+  if (grow(&c, idx, n_samples, 0) < 0) {
+    s = km__fail(err, KM_ERR_NOMEM, "km_cart_fit: out of memory");
+    goto done;
+  }
+  if (importance) {
+    double sum = 0;
+    for (size_t f = 0; f < n_cols; ++f)
+      sum += importance[f];
+    if (sum > 0)
+      for (size_t f = 0; f < n_cols; ++f)
+        importance[f] /= sum;
+  }
+done:
+  free(idx);
+  free(c.mark);
+  free(c.cnt_left);
+  free(c.cnt_node);
+  if (s) km_cart_free(&t);
+  *out = t;
+  return s;
 }
 
 km_status km_cart_fit(const double *X, const int32_t *y, size_t n_samples, size_t n_features,
@@ -156,7 +223,8 @@ km_status km_cart_fit(const double *X, const int32_t *y, size_t n_samples, size_
   *out = NULL;
   if (!X || !y || n_samples == 0 || n_features == 0 || n_classes == 0)
     return km__fail(err, KM_ERR_INVALID, "km_cart_fit: empty or NULL training set");
-  if (n_samples > INT32_MAX) return km__fail(err, KM_ERR_INVALID, "km_cart_fit: too many samples");
+  if (n_samples > INT32_MAX || n_features > INT32_MAX)
+    return km__fail(err, KM_ERR_INVALID, "km_cart_fit: too many samples or features");
   for (size_t i = 0; i < n_samples; ++i)
     if (y[i] < 0 || (size_t)y[i] >= n_classes)
       return km__fail(err, KM_ERR_INVALID, "km_cart_fit: label %zu is %d, expected 0..%zu", i,
@@ -165,41 +233,19 @@ km_status km_cart_fit(const double *X, const int32_t *y, size_t n_samples, size_
     if (!isfinite(X[i]))
       return km__fail(err, KM_ERR_INVALID, "km_cart_fit: sample %zu feature %zu is not finite",
                       i / n_features, i % n_features);
-  km_cart *t = calloc(1, sizeof *t);
-  fit_ctx c = {X, y, n_samples, n_features, n_classes, max_depth, importance, t, NULL, NULL, NULL};
-  int32_t *idx = km__malloc(n_samples, sizeof *idx);
-  c.pairs = km__malloc(n_samples, sizeof *c.pairs);
-  c.cnt_left = km__malloc(n_classes, sizeof(size_t));
-  c.cnt_node = km__malloc(n_classes, sizeof(size_t));
+  int32_t *order = km__malloc(n_samples * n_features, sizeof *order);
+  int32_t *cols = km__malloc(n_features, sizeof *cols);
   km_status s = KM_OK;
-  if (!t || !idx || !c.pairs || !c.cnt_left || !c.cnt_node) {
-    s = km__fail(err, KM_ERR_NOMEM, "km_cart_fit: out of memory");
-    goto done;
-  }
-  t->n_features = n_features;
-  t->n_classes = n_classes;
-  if (importance) memset(importance, 0, n_features * sizeof *importance);
-  for (size_t i = 0; i < n_samples; ++i)
-    idx[i] = (int32_t)i;
-  if (grow(&c, idx, n_samples, 0) < 0) {
-    s = km__fail(err, KM_ERR_NOMEM, "km_cart_fit: out of memory");
-    goto done;
-  }
-  if (importance) {
-    double sum = 0;
+  if (!order || !cols) s = km__fail(err, KM_ERR_NOMEM, "km_cart_fit: out of memory");
+  if (!s) s = km__cart_presort(X, n_samples, n_features, order, err);
+  if (!s) {
     for (size_t f = 0; f < n_features; ++f)
-      sum += importance[f];
-    if (sum > 0)
-      for (size_t f = 0; f < n_features; ++f)
-        importance[f] /= sum;
+      cols[f] = (int32_t)f;
+    s = km__cart_fit_presorted(X, n_features, order, cols, n_features, y, n_samples, n_classes,
+                               max_depth, out, importance, err);
   }
-done:
-  free(idx);
-  free(c.pairs);
-  free(c.cnt_left);
-  free(c.cnt_node);
-  if (s) km_cart_free(&t);
-  *out = t;
+  free(order);
+  free(cols);
   return s;
 }
 

@@ -62,15 +62,15 @@ static km_status select_features(const double *P, const int32_t *y, size_t n, si
                                  int32_t *sel, km_error *err) {
   size_t F = km_pose_candidate_count(nl), rows = augment ? 2 * n : n, d = o->features;
   int32_t *all = km__malloc(F * 3, sizeof *all);
-  double *A = km__malloc(rows * F, sizeof *A); /* all candidate angles */
-  double *X = km__malloc(rows * F, sizeof *X); /* the columns still available */
+  double *A = km__malloc(rows * F, sizeof *A);          /* all candidate angles */
+  int32_t *order = km__malloc(rows * F, sizeof *order); /* presorted columns */
   int32_t *yy = km__malloc(rows, sizeof *yy), *cols = km__malloc(F, sizeof *cols);
   double *imp = km__malloc(F, sizeof *imp);
   ranked *rk = km__malloc(F, sizeof *rk);
   double *Pm = km__malloc(nl * 3, sizeof *Pm);
   bool *used = km__calloc(F, sizeof *used);
   km_status s = KM_OK;
-  if (!all || !A || !X || !yy || !cols || !imp || !rk || !Pm || !used) {
+  if (!all || !A || !order || !yy || !cols || !imp || !rk || !Pm || !used) {
     s = km__fail(err, KM_ERR_NOMEM, "pose feature selection: out of memory (%zu x %zu)", rows, F);
     goto done;
   }
@@ -86,17 +86,17 @@ static km_status select_features(const double *P, const int32_t *y, size_t n, si
       yy[n + i] = y[i];
     }
   }
+  s = km__cart_presort(A, rows, F, order, err);
+  if (s) goto done;
   size_t got = 0;
   while (got < d) {
     size_t m = 0;
     for (size_t f = 0; f < F; ++f)
       if (!used[f]) cols[m++] = (int32_t)f;
     if (m == 0) break;
-    for (size_t r = 0; r < rows; ++r)
-      for (size_t c = 0; c < m; ++c)
-        X[r * m + c] = A[r * F + (size_t)cols[c]];
     km_cart *tree = NULL;
-    s = km_cart_fit(X, yy, rows, m, nc, o->tree_max_depth, &tree, imp, err);
+    s = km__cart_fit_presorted(A, F, order, cols, m, yy, rows, nc, o->tree_max_depth, &tree, imp,
+                               err);
     km_cart_free(&tree);
     if (s) goto done;
     size_t k = 0;
@@ -128,7 +128,7 @@ static km_status select_features(const double *P, const int32_t *y, size_t n, si
 done:
   free(all);
   free(A);
-  free(X);
+  free(order);
   free(yy);
   free(cols);
   free(imp);

@@ -28,6 +28,15 @@ void km__pose_model_features(const km__pose_model *m, const double *P, double *x
 int32_t km__pose_model_predict_scaled(const km__pose_model *m, const double *x);
 void km__pose_model_free(km__pose_model *m);
 
+/* CART pieces for repeated trees over shrinking column sets (cart.c): presort every column of
+ * X (n x stride) once into order (stride x n), then fit on the columns listed in cols;
+ * importance has n_cols entries (in cols order). */
+km_status km__cart_presort(const double *X, size_t n, size_t stride, int32_t *order, km_error *err);
+km_status km__cart_fit_presorted(const double *X, size_t stride, const int32_t *order,
+                                 const int32_t *cols, size_t n_cols, const int32_t *y,
+                                 size_t n_samples, size_t n_classes, int max_depth, km_cart **out,
+                                 double *importance, km_error *err);
+
 /* Normalised options with defaults filled in. */
 km_posedb_options km__posedb_defaults(const km_posedb_options *opt, size_t n_landmarks);
 
