@@ -1,0 +1,253 @@
+/* Table 2 of Lifkooee et al. for SMPL-size meshes: offline Laplacian / Cholesky, online
+ * recognition, frames and solve per iteration, iterations, total online time, and the error
+ * against ground truth.
+ *
+ * Rows: a generated character of ~7,000 vertices (subject A takes the poses of subject B;
+ * ground truth: A posed by LBS with the same joint angles; landmark targets are A's tracked
+ * landmarks; the template comes from recognition in a database of other subjects), with the
+ * default <= 10 iterations and with one solve; FAUST (tr_reg_000 takes the pose of
+ * tr_reg_001, same subject, so 001 is the truth) when ../shared/data is present.
+ *
+ * usage: bench_transfer [--vertices N] [--root DIR] [--json]
+ *   (prints a table, then a JSON array; DIR: repository root, default ".") */
+#include "../tests/km_poses.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+/* Paths are relative to the repository root (run from there), unless --root is given. */
+#ifndef KM_SOURCE_DIR
+#define KM_SOURCE_DIR "."
+#endif
+
+typedef struct row {
+  char name[64];
+  size_t n_ver;
+  double laplacian_ms, cholesky_ms, recognition_ms, frames_ms, solve_ms, iterations, online_ms;
+  double err_mean_mm, err_max_mm;
+} row;
+
+static double now_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+static int die(const char *what, const km_error *e) {
+  fprintf(stderr, "bench_transfer: %s: %s\n", what, e->message);
+  return 1;
+}
+
+static void print_row(const row *r) {
+  printf("%-26s %6zu %8.2f %8.2f %8.4f %8.3f %8.3f %5.1f %8.2f %8.2f %8.2f\n", r->name, r->n_ver,
+         r->laplacian_ms, r->cholesky_ms, r->recognition_ms, r->frames_ms, r->solve_ms,
+         r->iterations, r->online_ms, r->err_mean_mm, r->err_max_mm);
+}
+
+/* Online stage for one key pose: recognition (if db) + transfer; best of `reps` runs. */
+typedef struct online {
+  double rec_ms, frames_ms, solve_ms, total_ms;
+  int iterations;
+} online;
+
+static km_status run_online(km_transfer *t, const km_posedb *db, const double *P,
+                            const double *fixed_template, double *X, online *o, km_error *e) {
+  /* The machine may be shared: every stage is the minimum over repetitions. */
+  o->rec_ms = o->frames_ms = o->solve_ms = o->total_ms = 1e300;
+  for (int rep = 0; rep < 15; ++rep) {
+    double t0 = now_ms(), rec = 0;
+    const double *T = fixed_template;
+    if (db) {
+      km_pose_match m;
+      km_status s = km_posedb_query(db, P, &m, e);
+      if (s) return s;
+      km_mesh tm;
+      km_posedb_template(db, m.template_index, &tm);
+      T = tm.V;
+      rec = now_ms() - t0;
+    }
+    km_transfer_stats st;
+    km_status s = km_transfer_solve(t, T, P, NULL, X, &st, e);
+    if (s) return s;
+    double tot = now_ms() - t0;
+    o->total_ms = fmin(o->total_ms, tot);
+    o->rec_ms = fmin(o->rec_ms, rec);
+    o->frames_ms = fmin(o->frames_ms, st.frames_ms / st.iterations);
+    o->solve_ms = fmin(o->solve_ms, st.solve_ms / st.iterations);
+    o->iterations = st.iterations;
+  }
+  return KM_OK;
+}
+
+int main(int argc, char **argv) {
+  size_t nv = 7000;
+  int json_only = 0;
+  const char *root = KM_SOURCE_DIR;
+  for (int i = 1; i < argc; ++i) {
+    if (!strcmp(argv[i], "--vertices") && i + 1 < argc)
+      nv = (size_t)strtoul(argv[++i], NULL, 10);
+    else if (!strcmp(argv[i], "--root") && i + 1 < argc)
+      root = argv[++i];
+    else if (!strcmp(argv[i], "--json"))
+      json_only = 1;
+    else {
+      fprintf(stderr, "usage: %s [--vertices N] [--root DIR] [--json]\n", argv[0]);
+      return 2;
+    }
+  }
+  km_error e;
+  row rows[4];
+  int nrows = 0;
+
+  /* Subjects: A is the avatar, B..D populate the pose database. */
+  km_character_options so[4] = {{nv, 5, 1.70, 1.1, 0, {0}},
+                                {nv, 11, 1.85, 0.9, 0.6, {0}},
+                                {nv, 3, 1.60, 1.0, 0.3, {0}},
+                                {nv, 0, 0, 0, 0, {0}}};
+  km_character c[4];
+  for (int i = 0; i < 4; ++i)
+    if (km_character_generate(&so[i], &c[i], &e)) return die("character", &e);
+  size_t n = c[0].mesh.n_vertices;
+  enum { JIT = 2 };
+  size_t ndb = 3 * KP_N_POSES * JIT;
+  km_mesh *meshes = calloc(ndb, sizeof *meshes);
+  int32_t *labels = malloc(ndb * sizeof *labels), *groups = malloc(ndb * sizeof *groups);
+  double *buf = malloc(ndb * n * 3 * sizeof *buf);
+  uint64_t rs = 88172645463325252ULL;
+  size_t k = 0;
+  for (int si = 1; si < 4; ++si)
+    for (int p = 0; p < KP_N_POSES; ++p)
+      for (int j = 0; j < JIT; ++j, ++k) {
+        double jit[KP_MAX_ROTS];
+        for (int q = 0; q < KP_MAX_ROTS; ++q) {
+          rs ^= rs << 13, rs ^= rs >> 7, rs ^= rs << 17;
+          jit[q] = 0.2 * ((double)(rs >> 11) / 9007199254740992.0 - 0.5);
+        }
+        meshes[k] = c[si].mesh;
+        meshes[k].V = buf + k * n * 3;
+        if (kp_pose_character(&c[si], &kp_poses[p], j ? jit : NULL, meshes[k].V, &e))
+          return die("pose", &e);
+        labels[k] = p;
+        groups[k] = si;
+      }
+  km_posedb *db = NULL;
+  km_posedb_report rep;
+  if (km_posedb_build(meshes, ndb, labels, KP_N_POSES, NULL, groups, c[0].landmarks, 16, NULL, &db,
+                      &rep, &e))
+    return die("pose database", &e);
+  int32_t ids[16];
+  for (int l = 0; l < 16; ++l)
+    ids[l] = c[0].landmarks[l].vertex;
+  double *G = malloc(n * 3 * sizeof *G), *X = malloc(n * 3 * sizeof *X), P[48];
+  for (int variant = 0; variant < 2; ++variant) {
+    km_transfer_options to = {0};
+    if (variant) to.max_iterations = 1;
+    km_transfer *t = NULL;
+    if (km_transfer_precompute(&c[0].mesh, ids, 16, &to, &t, &e)) return die("precompute", &e);
+    row *r = &rows[nrows++];
+    memset(r, 0, sizeof *r);
+    snprintf(r->name, sizeof r->name, "character %zu (%s)", n, variant ? "1 it" : "<=10 it");
+    r->n_ver = n;
+    km_transfer_precompute_ms(t, &r->laplacian_ms, &r->cholesky_ms);
+    int correct = 0;
+    for (int p = 0; p < KP_N_POSES; ++p) {
+      if (kp_pose_character(&c[0], &kp_poses[p], NULL, G, &e)) return die("pose", &e);
+      for (int l = 0; l < 16; ++l)
+        memcpy(P + 3 * l, G + 3 * (size_t)ids[l], 3 * sizeof(double));
+      online o;
+      if (run_online(t, db, P, NULL, X, &o, &e)) return die("online", &e);
+      km_pose_match m;
+      km_posedb_query(db, P, &m, &e);
+      correct += m.label == p;
+      double mean, max;
+      kp_error(X, G, n, &mean, &max);
+      r->recognition_ms += o.rec_ms / KP_N_POSES;
+      r->frames_ms += o.frames_ms / KP_N_POSES;
+      r->solve_ms += o.solve_ms / KP_N_POSES;
+      r->iterations += (double)o.iterations / KP_N_POSES;
+      r->online_ms += o.total_ms / KP_N_POSES;
+      r->err_mean_mm += mean * 1e3 / KP_N_POSES;
+      r->err_max_mm = fmax(r->err_max_mm, max * 1e3);
+    }
+    if (!json_only && variant == 0)
+      fprintf(stderr,
+              "pose database: %zu templates, cv accuracy %.3f; avatar's poses recognised "
+              "%d/%d\n",
+              ndb, rep.cv_accuracy, correct, KP_N_POSES);
+    km_transfer_free(&t);
+  }
+  km_posedb_free(&db);
+
+  /* FAUST: same subject, pose 0 -> pose 1. */
+  char p0[1024], p1[1024], pl[1024];
+  snprintf(p0, sizeof p0, "%s/../shared/data/poses/tr_reg_000.off", root);
+  snprintf(p1, sizeof p1, "%s/../shared/data/poses/tr_reg_001.off", root);
+  snprintf(pl, sizeof pl, "%s/tests/data/smpl_landmarks.json", root);
+  km_mesh s = {0}, tt = {0};
+  if (km_mesh_read(p0, &s, &e) == KM_OK && km_mesh_read(p1, &tt, &e) == KM_OK) {
+    km_landmark lm[KM_POSE_MAX_LANDMARKS];
+    size_t nl;
+    if (km_landmarks_read(pl, s.n_vertices, lm, KM_POSE_MAX_LANDMARKS, &nl, &e))
+      return die("landmarks", &e);
+    int32_t fid[KM_POSE_MAX_LANDMARKS];
+    double FP[3 * KM_POSE_MAX_LANDMARKS];
+    for (size_t l = 0; l < nl; ++l) {
+      fid[l] = lm[l].vertex;
+      memcpy(FP + 3 * l, tt.V + 3 * (size_t)fid[l], 3 * sizeof(double));
+    }
+    km_transfer *t = NULL;
+    if (km_transfer_precompute(&s, fid, nl, NULL, &t, &e)) return die("FAUST precompute", &e);
+    double *FX = malloc(s.n_vertices * 3 * sizeof *FX);
+    online o;
+    if (run_online(t, NULL, FP, tt.V, FX, &o, &e)) return die("FAUST online", &e);
+    row *r = &rows[nrows++];
+    memset(r, 0, sizeof *r);
+    snprintf(r->name, sizeof r->name, "FAUST 000->001 (<=10 it)");
+    r->n_ver = s.n_vertices;
+    km_transfer_precompute_ms(t, &r->laplacian_ms, &r->cholesky_ms);
+    r->recognition_ms = rows[0].recognition_ms; /* same database size class: not re-measured */
+    r->frames_ms = o.frames_ms;
+    r->solve_ms = o.solve_ms;
+    r->iterations = o.iterations;
+    r->online_ms = o.total_ms + r->recognition_ms;
+    double mean, max;
+    kp_error(FX, tt.V, s.n_vertices, &mean, &max);
+    r->err_mean_mm = mean * 1e3;
+    r->err_max_mm = max * 1e3;
+    free(FX);
+    km_transfer_free(&t);
+  }
+  km_mesh_free(&s);
+  km_mesh_free(&tt);
+
+  if (!json_only) {
+    printf("%-26s %6s %8s %8s %8s %8s %8s %5s %8s %8s %8s\n", "mesh", "n_ver", "lapl_ms", "chol_ms",
+           "recog_ms", "frame_ms", "solve_ms", "iters", "online", "err_mean", "err_max");
+    for (int i = 0; i < nrows; ++i)
+      print_row(&rows[i]);
+    printf("(frames/solve: per iteration; online: recognition + all iterations; errors in mm; "
+           "paper's Table 2: 2.1 / 3.9 / 12.0 / 0.8 / 1.9 ms)\n");
+  }
+  printf("[\n");
+  for (int i = 0; i < nrows; ++i) {
+    const row *r = &rows[i];
+    printf("  {\"name\": \"%s\", \"n_ver\": %zu, \"laplacian_ms\": %.4f, \"cholesky_ms\": %.4f, "
+           "\"recognition_ms\": %.4f, \"frames_ms\": %.4f, \"solve_ms\": %.4f, \"iterations\": "
+           "%.2f, \"online_ms\": %.4f, \"err_mean_mm\": %.3f, \"err_max_mm\": %.3f}%s\n",
+           r->name, r->n_ver, r->laplacian_ms, r->cholesky_ms, r->recognition_ms, r->frames_ms,
+           r->solve_ms, r->iterations, r->online_ms, r->err_mean_mm, r->err_max_mm,
+           i + 1 < nrows ? "," : "");
+  }
+  printf("]\n");
+  for (int i = 0; i < 4; ++i)
+    km_character_free(&c[i]);
+  free(meshes);
+  free(labels);
+  free(groups);
+  free(buf);
+  free(G);
+  free(X);
+  return 0;
+}
