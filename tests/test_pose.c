@@ -424,6 +424,40 @@ static void test_database(subject *s, const char *tmpdir) {
   km_posedb_free(&db);
 }
 
+static void test_landmark_files(const km_character *c, const char *tmpdir) {
+  char path[1024];
+  km_landmark lm[KM_POSE_MAX_LANDMARKS];
+  size_t n = 0;
+  /* A rig sidecar carries the same "landmarks" array. */
+  snprintf(path, sizeof path, "%s/c.rig.json", tmpdir);
+  CHECK_OK(km_character_write_rig(path, c, KM_E));
+  CHECK_OK(km_landmarks_read(path, c->mesh.n_vertices, lm, KM_POSE_MAX_LANDMARKS, &n, KM_E));
+  CHECK(n == 16);
+  for (size_t i = 0; i < n && i < 16; ++i)
+    CHECK(lm[i].vertex == c->landmarks[i].vertex && !strcmp(lm[i].name, c->landmarks[i].name) &&
+          !strcmp(lm[i].mirror, c->landmarks[i].mirror));
+  remove(path);
+  /* LM.json round trip. */
+  snprintf(path, sizeof path, "%s/LM.json", tmpdir);
+  CHECK_OK(km_landmarks_write(path, c->landmarks, 16, KM_E));
+  km_landmark lm2[KM_POSE_MAX_LANDMARKS];
+  CHECK_OK(km_landmarks_read(path, 0, lm2, KM_POSE_MAX_LANDMARKS, &n, KM_E));
+  CHECK(n == 16 && memcmp(lm, lm2, 16 * sizeof *lm) == 0);
+  /* Vertex out of range for the mesh, too many for the capacity, a mirror that is missing. */
+  CHECK_STATUS(km_landmarks_read(path, 10, lm2, KM_POSE_MAX_LANDMARKS, &n, KM_E), KM_ERR_PARSE);
+  CHECK_STATUS(km_landmarks_read(path, 0, lm2, 8, &n, KM_E), KM_ERR_PARSE);
+  FILE *f = fopen(path, "w");
+  fputs("{\"landmarks\":[{\"name\":\"a\",\"vertex\":1,\"mirror\":\"b\"}]}", f);
+  fclose(f);
+  CHECK_STATUS(km_landmarks_read(path, 0, lm2, KM_POSE_MAX_LANDMARKS, &n, KM_E), KM_ERR_PARSE);
+  CHECK(strstr(km_test_err.message, "\"b\"") != NULL);
+  f = fopen(path, "w");
+  fputs("{\"landmarks\":[{\"name\":\"a\",\"vertex\":-1}]", f);
+  fclose(f);
+  CHECK_STATUS(km_landmarks_read(path, 0, lm2, KM_POSE_MAX_LANDMARKS, &n, KM_E), KM_ERR_PARSE);
+  remove(path);
+}
+
 int main(void) {
   char tmpdir[] = "/tmp/km_test_pose_XXXXXX";
   if (!mkdtemp(tmpdir)) return 1;
@@ -439,6 +473,7 @@ int main(void) {
                   memcmp(s[i].c.mesh.F, s[0].c.mesh.F, s[0].c.mesh.n_faces * 12) == 0 &&
                   s[i].c.landmarks[5].vertex == s[0].c.landmarks[5].vertex,
               "subject %d does not share subject 0's connectivity", i);
+  test_landmark_files(&s[2].c, tmpdir);
   test_database(s, tmpdir);
   for (int i = 0; i < N_SUBJECTS; ++i)
     km_character_free(&s[i].c);
