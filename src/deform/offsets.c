@@ -192,26 +192,29 @@ static double frames_of(km_transfer *t, const double *V, double *frames, const d
       o[0] += c[0], o[1] += c[1], o[2] += c[2];
     }
   }
+  /* Two square roots per vertex: |e| is only compared (squared), b = n x t is unit already. */
+#pragma omp parallel for schedule(static) reduction(max : change) if (n > 50000)
   for (size_t i = 0; i < n; ++i) {
     double *fr = frames + 9 * i, *nn = fr, *tt = fr + 3, *b = fr + 6;
     const double *ni = N + 3 * i;
-    double ln = sqrt(ni[0] * ni[0] + ni[1] * ni[1] + ni[2] * ni[2]);
-    if (ln > 0 && isfinite(ln)) {
-      nn[0] = ni[0] / ln, nn[1] = ni[1] / ln, nn[2] = ni[2] / ln;
+    double ln2 = ni[0] * ni[0] + ni[1] * ni[1] + ni[2] * ni[2];
+    if (ln2 > 0 && isfinite(ln2)) {
+      double il = 1 / sqrt(ln2);
+      nn[0] = ni[0] * il, nn[1] = ni[1] * il, nn[2] = ni[2] * il;
     } else {
       nn[0] = 0, nn[1] = 0, nn[2] = 1;
     }
-    double e[3] = {0, 0, 0}, le = 0;
+    double e[3] = {0, 0, 0}, le2 = 0;
     int32_t r = t->ref[i];
     if (r >= 0) {
       const double *p = V + 3 * i, *q = V + 3 * (size_t)r;
       e[0] = q[0] - p[0], e[1] = q[1] - p[1], e[2] = q[2] - p[2];
-      le = sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+      le2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
     }
     double d = e[0] * nn[0] + e[1] * nn[1] + e[2] * nn[2];
     tt[0] = e[0] - d * nn[0], tt[1] = e[1] - d * nn[1], tt[2] = e[2] - d * nn[2];
-    double lt = sqrt(tt[0] * tt[0] + tt[1] * tt[1] + tt[2] * tt[2]);
-    if (!(le > 0) || !isfinite(lt) || !(lt > 1e-12 * le)) {
+    double lt2 = tt[0] * tt[0] + tt[1] * tt[1] + tt[2] * tt[2];
+    if (!(le2 > 0) || !isfinite(lt2) || !(lt2 > 1e-24 * le2)) {
       /* Degenerate edge: the axis least aligned with n, as km_local_frames does. */
       int ax = 0;
       for (int c = 1; c < 3; ++c)
@@ -220,14 +223,13 @@ static double frames_of(km_transfer *t, const double *V, double *frames, const d
       a[ax] = 1;
       d = nn[ax];
       tt[0] = a[0] - d * nn[0], tt[1] = a[1] - d * nn[1], tt[2] = a[2] - d * nn[2];
-      lt = sqrt(tt[0] * tt[0] + tt[1] * tt[1] + tt[2] * tt[2]);
+      lt2 = tt[0] * tt[0] + tt[1] * tt[1] + tt[2] * tt[2];
     }
-    tt[0] /= lt, tt[1] /= lt, tt[2] /= lt;
+    double it = 1 / sqrt(lt2);
+    tt[0] *= it, tt[1] *= it, tt[2] *= it;
     b[0] = nn[1] * tt[2] - nn[2] * tt[1];
     b[1] = nn[2] * tt[0] - nn[0] * tt[2];
     b[2] = nn[0] * tt[1] - nn[1] * tt[0];
-    double lb = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
-    b[0] /= lb, b[1] /= lb, b[2] /= lb;
     if (old)
       for (int k = 0; k < 9; ++k) {
         double dd = fabs(fr[k] - old[9 * i + k]);
@@ -616,6 +618,7 @@ km_status km_transfer_solve(km_transfer *t, const double *T, const double *targe
     double ts = km__now();
     if (t->e_ptr) {
       /* Each edge rebuilt from both end frames: e*_ij = (F(i)^T E_ij - F(j)^T E_ji) / 2. */
+#pragma omp parallel for schedule(static) if (nf > 50000)
       for (size_t f = 0; f < nf; ++f) {
         size_t v = (size_t)t->free_vtx[f];
         const double *Fi = t->frames + 9 * v, *w = t->W + 3 * v;

@@ -109,9 +109,10 @@ km_status km_landmarks_read(const char *path, size_t n_vertices, km_landmark *ou
     double v = vx->valuedouble;
     if (!(v >= 0) || v != floor(v) || v > 2147483647.0 ||
         (n_vertices > 0 && v >= (double)n_vertices)) {
+      km__fail(err, KM_ERR_PARSE, "%s: landmark %zu (\"%.40s\"): vertex %g is not in 0..%zu", path,
+               i, nm->valuestring, v, n_vertices ? n_vertices - 1 : (size_t)INT32_MAX);
       cJSON_Delete(root);
-      return km__fail(err, KM_ERR_PARSE, "%s: landmark %zu (\"%s\"): vertex %g is not in 0..%zu",
-                      path, i, nm->valuestring, v, n_vertices ? n_vertices - 1 : (size_t)INT32_MAX);
+      return KM_ERR_PARSE;
     }
     if (strlen(nm->valuestring) >= sizeof out[i].name ||
         (cJSON_IsString(mr) && strlen(mr->valuestring) >= sizeof out[i].mirror)) {
