@@ -250,6 +250,39 @@ static int test_faust(void) {
     }
     km_transfer_free(&tr);
   }
+  /* SMPL-generated bodies (Neural Pose Transfer demo meshes): identity 13 takes the pose of
+   * identity 14 (targets: 14's landmarks scaled by the area ratio). No ground truth. */
+  char q0[1024], q1[1024];
+  if (km_test_shared("poses/npt_13_643.obj", q0, sizeof q0) &&
+      km_test_shared("poses/npt_14_664.obj", q1, sizeof q1)) {
+    km_mesh a = {0}, b = {0};
+    CHECK_OK(km_mesh_read(q0, &a, KM_E));
+    CHECK_OK(km_mesh_read(q1, &b, KM_E));
+    km_transfer *tn = NULL;
+    if (a.n_vertices == n && b.n_vertices == n)
+      CHECK_OK(km_transfer_precompute(&a, ids, nl, NULL, &tn, KM_E));
+    if (tn) {
+      CHECK_OK(km_transfer_solve(tn, b.V, NULL, NULL, X, NULL, KM_E));
+      double rel = 0;
+      for (size_t f = 0; f < a.n_faces; ++f)
+        for (int e = 0; e < 3; ++e) {
+          int32_t i = a.F[3 * f + e], j = a.F[3 * f + (e + 1) % 3];
+          double la = 0, lb = 0;
+          for (int k = 0; k < 3; ++k) {
+            la += (a.V[3 * i + k] - a.V[3 * j + k]) * (a.V[3 * i + k] - a.V[3 * j + k]);
+            lb += (X[3 * i + k] - X[3 * j + k]) * (X[3 * i + k] - X[3 * j + k]);
+          }
+          rel += fabs(sqrt(lb) / sqrt(la) - 1);
+        }
+      rel /= (double)(a.n_faces * 3);
+      printf("  SMPL npt_13 -> pose of npt_14: mean relative edge-length change %.2f%%\n",
+             rel * 100);
+      CHECK(rel < 0.1);
+      km_transfer_free(&tn);
+    }
+    km_mesh_free(&a);
+    km_mesh_free(&b);
+  }
   free(X);
   km_mesh_free(&s);
   km_mesh_free(&t);
