@@ -402,12 +402,14 @@ typedef enum km_laplacian_kind {
 } km_laplacian_kind;
 
 typedef enum km_transfer_align {
-  /* T's landmark positions scaled about the origin by sqrt(area(S)/area(T)); the scale
-   * is pose-invariant (surface area barely changes with pose), T's placement is kept. */
+  /* T's landmark positions scaled about the origin by size(S)/size(T), T's placement kept.
+   * size = sum of edge-graph geodesic distances from landmark 0 to the other landmarks:
+   * pose-invariant and, unlike the surface area, insensitive to girth and belly. */
   KM_TRANSFER_ALIGN_SCALE = 0,
   /* Umeyama similarity (rotation, translation, scale) of T's landmarks onto the source's rest
-   * landmarks: places the result where S stands. Only sensible when T's pose is close to
-   * S's (the fit mixes pose and size otherwise). */
+   * landmarks (scale replaced by the geodesic size ratio): places the result where S
+   * stands. Only sensible when T's pose is close to S's rest pose (the fit mixes pose and
+   * placement otherwise). */
   KM_TRANSFER_ALIGN_SIMILARITY,
 } km_transfer_align;
 
@@ -469,7 +471,8 @@ km_status km_transfer_solve(km_transfer *t, const double *template_V, const doub
                             km_error *err);
 size_t km_transfer_vertices(const km_transfer *t);
 size_t km_transfer_landmarks(const km_transfer *t);
-/* Landmark targets the solver would use for template_V (n_landmarks*3). */
+/* Landmark targets the solver would use for template_V (n_landmarks*3). Uses the object's
+ * scratch (one Dijkstra): not thread-safe on one object, does not allocate. */
 km_status km_transfer_targets(const km_transfer *t, const double *template_V, double *targets,
                               km_error *err);
 /* Offline timings of precompute: Laplacian + offsets + frames, and symbolic + numeric
@@ -616,7 +619,8 @@ void km_pose_lerp(const double *A, const double *B, size_t n_vertices, double a,
 typedef struct km_avatar_options {
   size_t key_every;    /* k: recognise + transfer every k frames, interpolate between; 0: 1 */
   double track_scale;  /* avatar size / tracked body size; 0: from the first key frame
-                          (sqrt(area(avatar)/area(template)) / Umeyama scale template->track) */
+                          (size(avatar)/size(template) as in KM_TRANSFER_ALIGN_SCALE, over the
+                          Umeyama scale template->track) */
   km_progress progress;
 } km_avatar_options;
 

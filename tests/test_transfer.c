@@ -110,7 +110,8 @@ static void test_identity(const km_character *a) {
 }
 
 /* B's pose onto A against A posed the same way by LBS. Landmark targets are A's own posed
- * landmarks (the paper's setting: the tracked user is the avatar's subject) or B's, scaled. */
+ * landmarks (the paper's setting: the tracked user is the avatar's subject) or B's, scaled
+ * by the geodesic size ratio (template targets: B's proportions, so a larger error). */
 static void test_cross_subject(const km_character *a, const km_character *b) {
   size_t n = a->mesh.n_vertices;
   CHECK(b->mesh.n_vertices == n);
@@ -175,7 +176,7 @@ static void test_cross_subject(const km_character *a, const km_character *b) {
   CHECK_MSG(sum[1] < sum[3], "one template-guided solve %g vs iterated landmark-only %g", sum[1],
             sum[3]);
   CHECK_MSG(sum[0] < sum[2], "edge encoding %g not better than vertex encoding %g", sum[0], sum[2]);
-  CHECK_MSG(sum[5] <= 0.04 * height, "template-target transfer error %g m", sum[5]);
+  CHECK_MSG(sum[5] <= 0.02 * height, "template-target transfer error %g m", sum[5]);
   for (int k = 0; k < 4; ++k)
     km_transfer_free(&t[k]);
   free(T);
@@ -251,7 +252,7 @@ static int test_faust(void) {
     km_transfer_free(&tr);
   }
   /* SMPL-generated bodies (Neural Pose Transfer demo meshes): identity 13 takes the pose of
-   * identity 14 (targets: 14's landmarks scaled by the area ratio). No ground truth. */
+   * identity 14 (targets: 14's landmarks scaled by the geodesic size ratio). No ground truth. */
   char q0[1024], q1[1024];
   if (km_test_shared("poses/npt_13_643.obj", q0, sizeof q0) &&
       km_test_shared("poses/npt_14_664.obj", q1, sizeof q1)) {

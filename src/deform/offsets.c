@@ -53,6 +53,11 @@ struct km_transfer {
    * vertex f in e_ptr[f] .. e_ptr[f+1]. */
   int32_t *e_ptr, *e_nbr;
   double *e_b;
+  /* Size of a pose of this connectivity: edge-graph geodesic distances from landmark 0 to the
+   * other landmarks, summed (Dijkstra; scratch kept here so solves do not allocate). */
+  int32_t *adj_ptr, *adj, *hp, *hpos;
+  double *dist;
+  double geo;
   double area, diag;
   double laplacian_ms, cholesky_ms;
 };
@@ -165,6 +170,11 @@ void km_transfer_free(km_transfer **tp) {
   free(t->e_ptr);
   free(t->e_nbr);
   free(t->e_b);
+  free(t->adj_ptr);
+  free(t->adj);
+  free(t->hp);
+  free(t->hpos);
+  free(t->dist);
   free(t);
   *tp = NULL;
 }
@@ -237,6 +247,75 @@ static double frames_of(km_transfer *t, const double *V, double *frames, const d
       }
   }
   return change;
+}
+
+/* Sum of edge-graph geodesic distances from landmark 0 to the other landmarks on positions V
+ * (Dijkstra with a binary heap, stopped once every landmark is settled). Pose-invariant as far
+ * as edge lengths are, and unlike the surface area it hardly depends on girth: it measures
+ * the skeleton's lengths. */
+static double landmark_geodesics(const km_transfer *tc, const double *V) {
+  km_transfer *t = (km_transfer *)tc; /* scratch only */
+  size_t n = t->n, hn = 0, left = t->nc;
+  for (size_t v = 0; v < n; ++v)
+    t->dist[v] = INFINITY, t->hpos[v] = -1;
+  int32_t src = t->lm[0];
+  t->dist[src] = 0;
+  t->hp[hn++] = src;
+  t->hpos[src] = 0;
+  /* landmarks are marked by a negative free_of (see precompute) */
+  while (hn > 0 && left > 0) {
+    int32_t u = t->hp[0];
+    t->hpos[u] = -2; /* settled */
+    t->hp[0] = t->hp[--hn];
+    if (hn) t->hpos[t->hp[0]] = 0;
+    for (size_t i = 0;;) { /* sift down */
+      size_t l = 2 * i + 1, r = l + 1, m = i;
+      if (l < hn && t->dist[t->hp[l]] < t->dist[t->hp[m]]) m = l;
+      if (r < hn && t->dist[t->hp[r]] < t->dist[t->hp[m]]) m = r;
+      if (m == i) break;
+      int32_t a = t->hp[i];
+      t->hp[i] = t->hp[m], t->hp[m] = a;
+      t->hpos[t->hp[i]] = (int32_t)i, t->hpos[t->hp[m]] = (int32_t)m;
+      i = m;
+    }
+    if (t->free_of[u] < 0) --left;
+    const double *pu = V + 3 * (size_t)u;
+    for (int32_t q = t->adj_ptr[u]; q < t->adj_ptr[u + 1]; ++q) {
+      int32_t w = t->adj[q];
+      if (t->hpos[w] == -2) continue;
+      const double *pw = V + 3 * (size_t)w;
+      double d =
+          t->dist[u] + sqrt((pw[0] - pu[0]) * (pw[0] - pu[0]) + (pw[1] - pu[1]) * (pw[1] - pu[1]) +
+                            (pw[2] - pu[2]) * (pw[2] - pu[2]));
+      if (!(d < t->dist[w])) continue;
+      t->dist[w] = d;
+      size_t i = t->hpos[w] < 0 ? hn++ : (size_t)t->hpos[w];
+      t->hp[i] = w;
+      while (i > 0) { /* sift up */
+        size_t p = (i - 1) / 2;
+        if (!(t->dist[t->hp[p]] > t->dist[t->hp[i]])) break;
+        int32_t a = t->hp[i];
+        t->hp[i] = t->hp[p], t->hp[p] = a;
+        t->hpos[t->hp[i]] = (int32_t)i;
+        i = p;
+      }
+      t->hpos[t->hp[i]] = (int32_t)i;
+    }
+  }
+  double sum = 0;
+  for (size_t c = 1; c < t->nc; ++c)
+    sum += t->dist[t->lm[c]];
+  return sum;
+}
+
+/* Size of the source over the size of template positions T (1 when undefined). */
+static double size_ratio(const km_transfer *t, const double *T) {
+  double g = landmark_geodesics(t, T);
+  if (g > 0 && isfinite(g) && t->geo > 0 && isfinite(t->geo)) return t->geo / g;
+  km_mesh tm = t->mesh;
+  tm.V = (double *)T;
+  double at = km_surface_area(&tm);
+  return at > 0 ? sqrt(t->area / at) : 1;
 }
 
 km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks,
@@ -412,6 +491,25 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
     }
   }
   t->lfc_ptr[n_landmarks] = (int32_t)q;
+  t->adj_ptr = km__malloc(n + 1, sizeof(int32_t));
+  t->adj = km__malloc(nnz ? nnz : 1, sizeof(int32_t));
+  t->hp = km__malloc(n, sizeof(int32_t));
+  t->hpos = km__malloc(n, sizeof(int32_t));
+  t->dist = km__malloc(n, sizeof(double));
+  if (!t->adj_ptr || !t->adj || !t->hp || !t->hpos || !t->dist) {
+    s = km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: out of memory (%zu vertices)", n);
+    goto fail;
+  }
+  {
+    size_t a = 0;
+    for (size_t j = 0; j < n; ++j) {
+      t->adj_ptr[j] = (int32_t)a;
+      for (int32_t p = cp[j]; p < cp[j + 1]; ++p)
+        if ((size_t)ri[p] != j) t->adj[a++] = ri[p];
+    }
+    t->adj_ptr[n] = (int32_t)a;
+  }
+  t->geo = landmark_geodesics(t, t->rest);
   if (o.encoding == KM_OFFSETS_EDGE) {
     size_t ne = 0;
     for (size_t f = 0; f < t->nf; ++f) {
@@ -518,6 +616,7 @@ size_t km_transfer_vertices(const km_transfer *t) { return t ? t->n : 0; }
 const km_mesh *km__transfer_source(const km_transfer *t) { return t ? &t->mesh : NULL; }
 const int32_t *km__transfer_landmark_ids(const km_transfer *t) { return t ? t->lm : NULL; }
 double km__transfer_area(const km_transfer *t) { return t ? t->area : 0; }
+double km__transfer_size_ratio(const km_transfer *t, const double *T) { return size_ratio(t, T); }
 size_t km_transfer_landmarks(const km_transfer *t) { return t ? t->nc : 0; }
 
 void km_transfer_precompute_ms(const km_transfer *t, double *laplacian_ms, double *cholesky_ms) {
@@ -548,11 +647,8 @@ km_status km_transfer_targets(const km_transfer *t, const double *T, double *tar
     km_status s = km_similarity_fit(targets, rl, NULL, t->nc, &sc, R, tr, err);
     free(heap);
     if (s) return km__wrap(err, s, "km_transfer_targets: aligning the template's landmarks");
-    /* Umeyama's scale mixes pose and size; the area ratio is pose-invariant. */
-    km_mesh tm = t->mesh;
-    tm.V = (double *)T;
-    double at = km_surface_area(&tm);
-    if (at > 0) sc = sqrt(t->area / at);
+    /* Umeyama's scale mixes pose and size; the geodesic ratio is pose-invariant. */
+    sc = size_ratio(t, T);
     for (size_t c = 0; c < t->nc; ++c) {
       double p[3] = {targets[3 * c], targets[3 * c + 1], targets[3 * c + 2]};
       for (int r = 0; r < 3; ++r)
@@ -568,13 +664,7 @@ km_status km_transfer_targets(const km_transfer *t, const double *T, double *tar
       for (int d = 0; d < 3; ++d)
         targets[3 * c + d] += (cd[d] - cs[d]) / (double)t->nc;
   } else {
-    km_mesh tm = t->mesh;
-    tm.V = (double *)T;
-    double at = km_surface_area(&tm);
-    if (!(at > 0))
-      return km__fail(err, KM_ERR_DEGENERATE_MESH,
-                      "km_transfer_targets: the template has zero area");
-    double sc = sqrt(t->area / at);
+    double sc = size_ratio(t, T);
     for (size_t i = 0; i < t->nc * 3; ++i)
       targets[i] *= sc;
   }

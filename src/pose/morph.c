@@ -89,8 +89,8 @@ km_status km_avatar_animate(km_transfer *t, const km_posedb *db, const km_track 
           km__wrap(err, s, "km_avatar_animate: frame %zu: sizing the track", kf);
           goto done;
         }
-        double at = km_surface_area(&T);
-        scale = at > 0 && su > 0 ? sqrt(km__transfer_area(t) / at) / su : 1;
+        double r = km__transfer_size_ratio(t, T.V);
+        scale = su > 0 ? r / su : 1;
       }
       for (size_t a = 0; a < nl * 3; ++a)
         tg[a] = scale * P[a];
