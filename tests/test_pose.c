@@ -115,6 +115,33 @@ static void test_toy_classification(void) {
     correct += m.label == i % C && km_posedb_label(db, m.template_index) == m.label;
   }
   CHECK_MSG(correct == 50, "%d of 50 toy poses recognised", correct);
+  /* Linear kernel, mirrored SVM training, no mirroring. */
+  for (int variant = 0; variant < 3; ++variant) {
+    km_posedb_options ov = o;
+    ov.kernel = variant == 0 ? KM_SVM_LINEAR : KM_SVM_RBF;
+    ov.mirror = variant == 1   ? KM_POSE_MIRROR_ALL
+                : variant == 2 ? KM_POSE_MIRROR_NONE
+                               : KM_POSE_MIRROR_SELECTION;
+    ov.cv_folds = 1;
+    km_posedb *dv = NULL;
+    km_posedb_report rv;
+    CHECK_OK(km_posedb_build(meshes, C * PER, labels, C, NULL, NULL, lm, 16, &ov, &dv, &rv, KM_E));
+    CHECK(rv.cv_accuracy == -1 && rv.cv_folds == 0);
+    int ok = 0;
+    for (int i = 0; i < 20 && dv; ++i) {
+      double P[48];
+      toy_pose(i % C, P);
+      km_pose_match m;
+      CHECK_OK(km_posedb_query(dv, P, &m, KM_E));
+      /* Mirrored training merges a class with its mirror image (here class 2k+1 lifts the
+       * mirror of what class 2k lifts), so only the pair must be right. */
+      ok += variant == 1
+                ? (m.label ^ 1) == (i % C ^ 1) || m.label == (i % C ^ 1) || m.label == i % C
+                : m.label == i % C;
+    }
+    CHECK_MSG(ok == 20, "variant %d: %d of 20", variant, ok);
+    km_posedb_free(&dv);
+  }
   /* Errors: bad label, mirror naming a missing landmark, NaN query. */
   labels[3] = C;
   km_posedb *bad = NULL;
