@@ -174,7 +174,7 @@ static const km_character_options subject_opts[] = {
 };
 #define N_SUBJECTS 6
 #define N_TRAIN 4
-#define JITTERS 3
+#define JITTERS 2
 
 static void pose_sample(const km_character *c, int cls, double *V) {
   double jit[KP_MAX_ROTS];
