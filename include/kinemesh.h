@@ -426,8 +426,8 @@ typedef struct km_bvh_info {
  * degrees, right-handed. Channels may come in any order; 0..6 per joint, each at most once.
  * Axes are kept as in the file (BVH is y up by convention). fps = 1/Frame Time, snapped to
  * the nearest integer when within 0.01. opt and info may be NULL. */
-km_status km_bvh_read(const char *path, const km_bvh_options *opt, km_take *out,
-                      km_bvh_info *info, km_error *err);
+km_status km_bvh_read(const char *path, const km_bvh_options *opt, km_take *out, km_bvh_info *info,
+                      km_error *err);
 
 /* Holt double exponential smoothing of joint positions (paper eq. 4) with the extra knobs of
  * the Kinect SDK (NUI_TRANSFORM_SMOOTH_PARAMETERS). Per joint, with raw sample x:
