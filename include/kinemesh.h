@@ -519,9 +519,10 @@ void km_rig_free(km_rig *rig);
  * where p^0 is the joint's first valid (non-NaN) position. That is eq. 7 accumulated over
  * frames: H^t = M S^t with S^t the eq. 6 increments, and sum_t d^t telescopes to p^t - p^0; M
  * is stored sparsely as the map list (M_ij = scale_e, with the axis mask per entry). s maps
- * performer size to character size: by default the mesh's bounding-box height (y) over the
- * first valid frame's skeleton height (kinect1: Head to the lower foot; otherwise the y
- * extent of the valid joints), replacing eq. 5's screen-size ratio. Handles no map drives are
+ * performer size to character size: by default the mesh's bounding-box height (y; its largest
+ * extent if the mesh is flat in y) over the first valid frame's skeleton height (kinect1: Head
+ * to the lower foot; otherwise the y extent of the valid joints), replacing eq. 5's
+ * screen-size ratio. Handles no map drives are
  * anchors (target = rest centroid). If a joint a handle needs is NaN, the handle keeps its
  * last target. */
 typedef struct km_retarget_options {
