@@ -85,7 +85,7 @@ static void test_csv_real(void) {
     CHECK(label_bad == 0);
     CHECK(label_nonzero > 0 && label_nonzero < t.n_frames);
     free(labels);
-    km__take_clear(&t);
+    km_take_free(&t);
   }
 }
 
@@ -111,7 +111,7 @@ static void test_csv_handmade(void) {
   CHECK_MSG(wrong == 0, "%zu wrong coordinates", wrong);
   CHECK(labels && labels[0] == 4 && labels[1] == 5 && labels[2] == 6);
   free(labels);
-  km__take_clear(&t);
+  km_take_free(&t);
 
   /* Without a label column and without the labels output. */
   const char *nolabel = "test_motion_io_nolabel.csv";
@@ -125,7 +125,7 @@ static void test_csv_handmade(void) {
   write_text(nolabel, text);
   CHECK_OK(km_kinect_csv_read(nolabel, &t, NULL, KM_E));
   CHECK(t.n_frames == 1 && J(&t, 0, 7)[1] == 7.0 && J(&t, 0, 7)[0] == -1.0);
-  km__take_clear(&t);
+  km_take_free(&t);
   remove(nolabel);
 }
 
@@ -215,12 +215,12 @@ static void test_bvh_two_joint(void) {
   CHECK(near3(J(&t, 2, 1), 0, 1, 0, tol));
   CHECK_MSG(near3(J(&t, 2, 2), 2, 1, 0, tol), "%g %g %g", J(&t, 2, 2)[0], J(&t, 2, 2)[1],
             J(&t, 2, 2)[2]);
-  km__take_clear(&t);
+  km_take_free(&t);
 
   /* Default: end sites dropped. */
   CHECK_OK(km_bvh_read(path, NULL, &t, NULL, KM_E));
   CHECK(t.n_joints == 2);
-  km__take_clear(&t);
+  km_take_free(&t);
 
   /* Channel order matters and is honoured: the same angles listed X then Z give R = Rx Rz, so
    * the child lands at Rx (0,1,0) = (0,0,1); positions listed Z X Y still mean (x,y,z). */
@@ -238,7 +238,7 @@ static void test_bvh_two_joint(void) {
   /* B: Ry(90) Rz(90) applied to (0,2,0): Rz -> (-2,0,0), Ry -> (0,0,2). */
   CHECK_MSG(near3(J(&t, 1, 2), 1, 0, 2, tol), "%g %g %g", J(&t, 1, 2)[0], J(&t, 1, 2)[1],
             J(&t, 1, 2)[2]);
-  km__take_clear(&t);
+  km_take_free(&t);
   remove(alt);
 }
 
@@ -342,7 +342,7 @@ static void test_bvh_cmu(void) {
   /* Hips of a standing/walking adult about a metre above the toes. */
   double hip_h = J(&t, 0, (size_t)hips)[1] - J(&t, 0, (size_t)ltoe)[1];
   CHECK_MSG(hip_h > 0.7 && hip_h < 1.2, "hip height %g", hip_h);
-  km__take_clear(&t);
+  km_take_free(&t);
 
   /* The rotation convention checked on real data: in this walk the lower toe tip stays near
    * the floor in every frame (reading the channels as extrinsic lifts it by 1.5 m). */
@@ -363,12 +363,12 @@ static void test_bvh_cmu(void) {
     hi = fmax(hi, y);
   }
   CHECK_MSG(hi - lo < 0.15, "lowest toe between %g and %g m", lo, hi);
-  km__take_clear(&t);
+  km_take_free(&t);
 
   /* Auto units recognise the CMU skeleton. */
   CHECK_OK(km_bvh_read(path, NULL, &t, &info, KM_E));
   CHECK(info.units_to_m == KM_BVH_CMU_UNITS);
-  km__take_clear(&t);
+  km_take_free(&t);
 
   /* An unknown skeleton in unknown units is scaled to a 1.7 m rest height: rename the CMU
    * joints so the file no longer looks like CMU. */
@@ -386,7 +386,7 @@ static void test_bvh_cmu(void) {
   CHECK_NEAR(info.rest_height, 1.7, 1e-9);
   CHECK(t.n_frames == 994);
   remove(renamed);
-  km__take_clear(&t);
+  km_take_free(&t);
 }
 
 int main(void) {

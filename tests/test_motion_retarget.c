@@ -344,7 +344,7 @@ static void test_pipeline(void) {
   km_filter_free(&f);
   km_rig_free(&rig);
   free_mesh(&m);
-  km__take_clear(&t);
+  km_take_free(&t);
 }
 
 int main(void) {

@@ -49,7 +49,7 @@ static km_status parse_header(const char *path, const char *line, const char *en
                       "%s:1: header has more than %d joint names (expected the 20 Kinect v1 "
                       "joints separated by ';')",
                       path, KM_KINECT1_JOINTS);
-    int j = km__kinect1_index(name);
+    int j = km_kinect1_joint_index(name);
     if (j < 0)
       return km__fail(err, KM_ERR_PARSE,
                       "%s:1: header column %d: '%s' is not a Kinect v1 joint name (expected "
@@ -126,7 +126,7 @@ km_status km_kinect_csv_read(const char *path, km_take *out, int32_t **labels, k
         if (!parse_number(&q, eol, &v[k])) {
           st = km__fail(err, KM_ERR_PARSE,
                         "%s:%zu: field %d (%s): expected 3 finite numbers \"x y z\", got %s", path,
-                        line_no, c + 1, km__kinect1_names[column_joint[c]],
+                        line_no, c + 1, km_kinect1_joint_name(column_joint[c)],
                         k == 0 ? "none" : (k == 1 ? "1" : "2"));
           goto fail;
         }
@@ -144,7 +144,7 @@ km_status km_kinect_csv_read(const char *path, km_take *out, int32_t **labels, k
           st = km__fail(err, KM_ERR_PARSE,
                         "%s:%zu: field %d (%s): expected ';' after 3 numbers (20 joints \"x y z\" "
                         "separated by ';', then the action label)",
-                        path, line_no, c + 1, km__kinect1_names[column_joint[c]]);
+                        path, line_no, c + 1, km_kinect1_joint_name(column_joint[c)]);
           goto fail;
         }
         ++q;
@@ -189,12 +189,12 @@ km_status km_kinect_csv_read(const char *path, km_take *out, int32_t **labels, k
   data = NULL;
 
   for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
-    names[j] = km__strdup(km__kinect1_names[j]);
+    names[j] = km__strdup(km_kinect1_joint_name(j));
     if (!names[j]) {
       st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
       goto fail;
     }
-    parents[j] = km__kinect1_parents[j];
+    parents[j] = km_kinect1_joint_parent(j);
   }
   if (frames > 0 && frames < n_lines) {
     double *shrunk = realloc(pos, frames * KM_KINECT1_JOINTS * 3 * sizeof(double));

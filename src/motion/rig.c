@@ -473,7 +473,7 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     }
     int jidx = -1;
     if (out->skeleton == KM_RIG_KINECT1) {
-      jidx = km__kinect1_index(mj->valuestring);
+      jidx = km_kinect1_joint_index(mj->valuestring);
     } else {
       for (size_t k = 0; k < n_joint_names && jidx < 0; ++k)
         if (joint_names[k] && strcmp(joint_names[k], mj->valuestring) == 0) jidx = (int)k;
