@@ -52,7 +52,12 @@ static double median(double *t, int n) {
   return t[n / 2];
 }
 
+static void logger(km_log_level level, const char *msg, void *user) {
+  if (getenv("KM_BENCH_LOG")) fprintf(stderr, "%s\n", msg);
+}
+
 int main(int argc, char **argv) {
+  km_set_logger(logger, NULL);
   const char *path = argc > 1 ? argv[1] : KM_BENCH_DEFAULT;
   int k = argc > 2 ? atoi(argv[2]) : 9;
   km_mesh m;
