@@ -3,29 +3,13 @@
  * faces), so no triplet list is materialised. */
 #include "internal.h"
 #include "linalg/sparse.h"
-#include "mesh/mesh_check.h"
+#include "mesh/mesh_args.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define KM_COT_CLAMP 1e5
-
-km_status km__check_mesh(const km_mesh *m, const char *who, km_error *err) {
-  if (!m) return km__fail(err, KM_ERR_INVALID, "%s: mesh is NULL", who);
-  if ((m->n_vertices && !m->V) || (m->n_faces && !m->F))
-    return km__fail(err, KM_ERR_INVALID, "%s: mesh has NULL arrays", who);
-  if (m->n_vertices > INT32_MAX || m->n_faces > INT32_MAX / 3)
-    return km__fail(err, KM_ERR_INVALID, "%s: mesh too large for int32 indices", who);
-  for (size_t f = 0; f < m->n_faces; ++f)
-    for (int c = 0; c < 3; ++c) {
-      int32_t v = m->F[3 * f + c];
-      if (v < 0 || (size_t)v >= m->n_vertices)
-        return km__fail(err, KM_ERR_INVALID, "%s: face %zu references vertex %d, expected 0..%zu",
-                        who, f, (int)v, m->n_vertices ? m->n_vertices - 1 : 0);
-    }
-  return KM_OK;
-}
 
 static inline void sub3(const double *a, const double *b, double *o) {
   o[0] = a[0] - b[0];
@@ -123,7 +107,7 @@ static km_status assemble(const km_mesh *m, const double *w, const unsigned char
 km_status km_cotmatrix(const km_mesh *m, km_sparse **L, km_error *err) {
   if (!L) return km__fail(err, KM_ERR_INVALID, "km_cotmatrix: L is NULL");
   *L = NULL;
-  km_status s = km__check_mesh(m, "km_cotmatrix", err);
+  km_status s = km__mesh_check_faces(m, "km_cotmatrix", err);
   if (s) return s;
   double *w = km__malloc(m->n_faces, 3 * sizeof *w);
   unsigned char *keep = km__malloc(m->n_faces, 1);
@@ -145,7 +129,7 @@ km_status km_cotmatrix(const km_mesh *m, km_sparse **L, km_error *err) {
 km_status km_uniform_laplacian(const km_mesh *m, km_sparse **L, km_error *err) {
   if (!L) return km__fail(err, KM_ERR_INVALID, "km_uniform_laplacian: L is NULL");
   *L = NULL;
-  km_status s = km__check_mesh(m, "km_uniform_laplacian", err);
+  km_status s = km__mesh_check_faces(m, "km_uniform_laplacian", err);
   if (s) return s;
   double *w = km__malloc(m->n_faces, 3 * sizeof *w);
   unsigned char *keep = km__malloc(m->n_faces, 1);
@@ -184,7 +168,7 @@ km_status km_uniform_laplacian(const km_mesh *m, km_sparse **L, km_error *err) {
 km_status km_massmatrix(const km_mesh *m, km_mass_type type, km_sparse **M, km_error *err) {
   if (!M) return km__fail(err, KM_ERR_INVALID, "km_massmatrix: M is NULL");
   *M = NULL;
-  km_status s = km__check_mesh(m, "km_massmatrix", err);
+  km_status s = km__mesh_check_faces(m, "km_massmatrix", err);
   if (s) return s;
   if (type != KM_MASS_VORONOI && type != KM_MASS_BARYCENTRIC)
     return km__fail(err, KM_ERR_INVALID, "km_massmatrix: unknown mass type %d", (int)type);
