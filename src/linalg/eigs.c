@@ -249,12 +249,13 @@ km_status km_eigs(const km_sparse *L, const km_sparse *M, int k, const km_eigs_o
     return km__fail(err, KM_ERR_CANCELLED, "km_eigs: cancelled");
   if (n <= (size_t)2 * k + 1 || n <= 20) return eigs_dense(L, M, k, evals, evecs, err);
 
-  /* Default shift: -1e-3 times trace(-L) / (n trace(M)), the mean diagonal of M^-1 (-L) over
-   * n. On a well-shaped mesh that is ~3.5 / area, the order of the first non-zero
-   * eigenvalue, so sigma sits well below the spectrum (K SPD although -L is singular) yet
-   * close enough to 0 that 1/(lambda - sigma) separates the wanted eigenvalues well. The
-   * constant mode gets K-eigenvalue |sigma| M_ii, about 1e-3/n of the diagonal of -L: far
-   * above rounding (1e-16) even at 1M vertices, so the factorisation stays accurate. */
+  /* Default shift: -1e-3 * trace(-L) / (n trace(M)). trace(-L)/trace(M) is roughly the mean
+   * eigenvalue of M^-1 (-L) (~3.5 n / area on a well-shaped mesh: cot weights sum to ~3.5 per
+   * vertex), so dividing by n gives ~3.5 / area, the order of the first non-zero eigenvalue
+   * (2/r^2 = 8 pi / area on a sphere), so sigma sits well below the spectrum (K SPD although -L is
+   * singular) yet close enough to 0 that 1/(lambda - sigma) separates the wanted eigenvalues well.
+   * The constant mode gets K-eigenvalue |sigma| M_ii, about 1e-3/n of the diagonal of -L: far above
+   * rounding (1e-16) even at 1M vertices, so the factorisation stays accurate. */
   double sigma = opt->sigma;
   if (sigma == 0) {
     double trL = -diag_sum(L), trM = diag_sum(M);
