@@ -126,7 +126,7 @@ km_status km_kinect_csv_read(const char *path, km_take *out, int32_t **labels, k
         if (!parse_number(&q, eol, &v[k])) {
           st = km__fail(err, KM_ERR_PARSE,
                         "%s:%zu: field %d (%s): expected 3 finite numbers \"x y z\", got %s", path,
-                        line_no, c + 1, km_kinect1_joint_name(column_joint[c)],
+                        line_no, c + 1, km_kinect1_joint_name(column_joint[c]),
                         k == 0 ? "none" : (k == 1 ? "1" : "2"));
           goto fail;
         }
@@ -144,7 +144,7 @@ km_status km_kinect_csv_read(const char *path, km_take *out, int32_t **labels, k
           st = km__fail(err, KM_ERR_PARSE,
                         "%s:%zu: field %d (%s): expected ';' after 3 numbers (20 joints \"x y z\" "
                         "separated by ';', then the action label)",
-                        path, line_no, c + 1, km_kinect1_joint_name(column_joint[c)]);
+                        path, line_no, c + 1, km_kinect1_joint_name(column_joint[c]));
           goto fail;
         }
         ++q;
