@@ -3,6 +3,7 @@
 #include "kinemesh.h"
 
 #include <math.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <time.h>
@@ -44,6 +45,14 @@ static void quality(const km_mesh *m, double *min_angle, double *frac5, double *
   *min_area = amin;
 }
 
+static double t_stage;
+static bool on_progress(double fraction, const char *stage, void *user) {
+  double t = now();
+  if (user) fprintf(stderr, "  %5.2f s  %.2f %s\n", t - t_stage, fraction, stage);
+  t_stage = t;
+  return true;
+}
+
 int main(int argc, char **argv) {
   size_t targets[16] = {2000, 20000, 100000, 1000000};
   int nt = 4;
@@ -55,6 +64,9 @@ int main(int argc, char **argv) {
   for (int i = 0; i < nt; ++i) {
     km_character_options o = {0};
     o.target_vertices = targets[i];
+    o.progress.fn = on_progress;
+    o.progress.user = getenv("BENCH_VERBOSE");
+    t_stage = now();
     km_character c;
     km_error e;
     double t0 = now();

@@ -219,9 +219,11 @@ static void build_body(body *b, const km_character_options *o, double min_r) {
   set3(J + 3 * J_WRIST_L, sh_x + 0.53 * fa, arm_y, 0);
   set3(J + 3 * J_HAND_L, sh_x + 0.61 * fa, arm_y, 0);
   set3(J + 3 * J_HIP_L, 0.09, hip_y, 0);
-  set3(J + 3 * J_KNEE_L, 0.11, knee_y, 0);
-  set3(J + 3 * J_ANKLE_L, 0.13, ankle_y, -0.01);
-  set3(J + 3 * J_FOOT_L, 0.13, 0.04, 0.10);
+  /* Thick legs stand wider so that they stay apart below the crotch. */
+  double spread = g > 1 ? g - 1 : 0;
+  set3(J + 3 * J_KNEE_L, 0.11 + 0.07 * spread, knee_y, 0);
+  set3(J + 3 * J_ANKLE_L, 0.13 + 0.09 * spread, ankle_y, -0.01);
+  set3(J + 3 * J_FOOT_L, 0.13 + 0.09 * spread, 0.04, 0.10);
   for (int j = J_SHOULDER_L; j <= J_HAND_L; ++j) {
     memcpy(J + 3 * (j + 4), J + 3 * j, 3 * sizeof *J);
     J[3 * (j + 4)] = -J[3 * j];
@@ -248,9 +250,15 @@ static void build_body(body *b, const km_character_options *o, double min_r) {
   set3(a, -0.085, hc_y - 0.03, 0);
   set3(c, 0.085, hc_y - 0.03, 0);
   add_prim(b, a, 0.105 * g, c, 0.105 * g, J_HIP_C);
+  /* Fills the top of the V between the thighs, whose crease is too sharp to mesh well. */
+  set3(a, 0, hc_y - 0.09, -0.01);
+  add_prim(b, a, 0.075 * g, a, 0.075 * g, J_HIP_C);
   if (bel > 0) {
-    set3(a, 0, hc_y + 0.12, 0.02 + 0.06 * bel);
-    add_prim(b, a, (0.10 + 0.06 * bel) * g, a, (0.10 + 0.06 * bel) * g, J_HIP_C);
+    /* Grows forward more than down, and stays above the crotch: a belly that reached the
+     * thighs would close a handle between them. */
+    double r = 0.09 + 0.055 * bel;
+    set3(a, 0, hc_y + 0.06 + 0.8 * r, 0.015 + 0.065 * bel);
+    add_prim(b, a, r, a, r, J_HIP_C);
   }
   set3(a, 0, sc_y - 0.04, 0);
   set3(c, 0, head_y - 0.06 * fh, 0.005);
@@ -280,16 +288,25 @@ static void build_body(body *b, const km_character_options *o, double min_r) {
     set3(b->toe_tip[side], fo[0], 0.035, fo[2] + 0.075);
     add_prim(b, fo, 0.04, b->toe_tip[side], 0.033, J_FOOT_L + o4);
   }
-  /* Scale to the requested height (head top to sole), then sit the soles on y = 0. */
-  double top = -DBL_MAX, bot = DBL_MAX;
-  for (int i = 0; i < b->np; ++i) {
-    const prim *q = &b->p[i];
-    top = fmax(top, fmax(q->a[1] + q->r1, q->b[1] + q->r2));
-    bot = fmin(bot, fmin(q->a[1] - q->r1, q->b[1] - q->r2));
+  /* Scale to the requested height (head top to sole), then sit the soles on y = 0. The radius
+   * floor is applied in design units first so that it cannot push the soles below 0. */
+  double top = -DBL_MAX, bot = DBL_MAX, sc = 1;
+  for (int pass = 0; pass < 2; ++pass) {
+    top = -DBL_MAX;
+    bot = DBL_MAX;
+    for (int i = 0; i < b->np; ++i) {
+      prim *q = &b->p[i];
+      if (pass) {
+        q->r1 = fmax(q->r1, min_r / sc);
+        q->r2 = fmax(q->r2, min_r / sc);
+      }
+      top = fmax(top, fmax(q->a[1] + q->r1, q->b[1] + q->r2));
+      bot = fmin(bot, fmin(q->a[1] - q->r1, q->b[1] - q->r2));
+    }
+    sc = o->height / (top - bot);
   }
-  double sc = o->height / (top - bot);
   b->height = o->height;
-  b->k = 0.03 * sc;
+  b->k = fmax(0.03 * sc, 0.8 * min_r);
   for (int i = 0; i < b->np; ++i) {
     prim *q = &b->p[i];
     q->a[1] -= bot;
@@ -298,8 +315,8 @@ static void build_body(body *b, const km_character_options *o, double min_r) {
       q->a[k] *= sc;
       q->b[k] *= sc;
     }
-    q->r1 = fmax(q->r1 * sc, min_r);
-    q->r2 = fmax(q->r2 * sc, min_r);
+    q->r1 *= sc;
+    q->r2 *= sc;
     prim_finish(q);
   }
   double *pts[KM_KINECT1_JOINTS + 5];
@@ -515,7 +532,7 @@ static km_status alloc_skin(km_skin *s, size_t n, km_error *err) {
 static km_status count_at(const km_character_options *o, double h, size_t *n, km_error *err) {
   body *b = malloc(sizeof *b);
   if (!b) return km__fail(err, KM_ERR_NOMEM, "character: out of memory");
-  build_body(b, o, 0.6 * h);
+  build_body(b, o, 1.0 * h);
   km_status st = build_cull(b, err);
   if (st == KM_OK) st = km__polygonize_count(body_field, b, b->lo, b->hi, h, n, err);
   free(b->mask);
@@ -536,8 +553,8 @@ km_status km_character_generate(const km_character_options *opt, km_character *o
                     o.target_vertices);
   if (!(o.height >= 0.1 && o.height <= 10))
     return km__fail(err, KM_ERR_INVALID, "character: height %g m is outside 0.1..10", o.height);
-  if (!(o.girth >= 0.5 && o.girth <= 2.0))
-    return km__fail(err, KM_ERR_INVALID, "character: girth %g is outside 0.5..2", o.girth);
+  if (!(o.girth >= 0.5 && o.girth <= 1.6))
+    return km__fail(err, KM_ERR_INVALID, "character: girth %g is outside 0.5..1.6", o.girth);
   if (!(o.belly >= 0 && o.belly <= 2.0))
     return km__fail(err, KM_ERR_INVALID, "character: belly %g is outside 0..2", o.belly);
 
@@ -564,7 +581,7 @@ km_status km_character_generate(const km_character_options *opt, km_character *o
   memset(b, 0, sizeof *b);
   for (int attempt = 0; attempt < 3; ++attempt) {
     free(b->mask);
-    build_body(b, &o, 0.6 * h);
+    build_body(b, &o, 1.0 * h);
     if ((st = build_cull(b, err)) != KM_OK) break;
     if (!km__progress(&o.progress, 0.35, "character: polygonise")) {
       st = km__fail(err, KM_ERR_CANCELLED, "character: cancelled");

@@ -69,7 +69,8 @@ static void set_edge(unsigned char e[2], int a, int b) {
 
 /* Orients triangle (e0,e1,e2) so that its normal (computed on edge midpoints, which never
  * degenerate) points from the inside corners to the outside ones. */
-static void orient(unsigned char tri[3][2], const int *in, int nin, const int *out, int nout) {
+static void orient(tet_case *tc, int t, const int *in, int nin, const int *out, int nout) {
+  unsigned char(*tri)[2] = tc->e[t];
   double m[3][3], ci[3] = {0, 0, 0}, co[3] = {0, 0, 0}, p[3];
   for (int v = 0; v < 3; ++v)
     edge_mid(tri[v][0], tri[v][1], m[v]);
@@ -121,7 +122,7 @@ static void build_cases(tet_case cases[6][16]) {
         tc->ntri = 1;
         for (int v = 0; v < 3; ++v)
           set_edge(tc->e[0][v], lone[0], rest[v]);
-        orient(tc->e[0], in, nin, out, nout);
+        orient(tc, 0, in, nin, out, nout);
       } else {
         /* Quad ac, ad, bd, bc (cyclic) split into two triangles. */
         int a = in[0], b = in[1], cc = out[0], d = out[1];
@@ -134,7 +135,7 @@ static void build_cases(tet_case cases[6][16]) {
         memcpy(tc->e[0][0], q[0], 2);
         memcpy(tc->e[0][1], q[1], 2);
         memcpy(tc->e[0][2], q[2], 2);
-        orient(tc->e[0], in, nin, out, nout);
+        orient(tc, 0, in, nin, out, nout);
         bool flipped = tc->e[0][1][0] != q[1][0] || tc->e[0][1][1] != q[1][1];
         memcpy(tc->e[1][0], q[0], 2);
         memcpy(tc->e[1][1], flipped ? q[3] : q[2], 2);
@@ -501,17 +502,36 @@ static void gradient(km__field_fn f, void *user, const double p[3], double f0, d
   }
 }
 
+/* One Newton step of q towards the zero set; g receives the gradient at the start point. */
+static void newton_step(km__field_fn f, void *user, double q[3], double eps, double g[3]) {
+  double fq = f(user, q);
+  gradient(f, user, q, fq, eps, g);
+  double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+  if (g2 < 1e-12) return;
+  for (int k = 0; k < 3; ++k)
+    q[k] -= fq * g[k] / g2;
+}
+
 void km__surface_relax(km_mesh *m, km__field_fn f, void *user, int iterations, double eps) {
   size_t nv = m->n_vertices, nf = m->n_faces;
   double *sum = km__malloc(nv * 3, sizeof *sum);
   int32_t *cnt = km__malloc(nv, sizeof *cnt);
   double *nV = km__malloc(nv * 3, sizeof *nV);
-  if (!sum || !cnt || !nV) {
+  double *G = km__malloc(nv * 3, sizeof *G);
+  if (!sum || !cnt || !nV || !G) {
     /* Relaxation only improves quality; without memory the mesh stays as it is. */
     free(sum);
     free(cnt);
     free(nV);
+    free(G);
     return;
+  }
+  /* The normal of the tangent plane is the gradient met by the previous Newton step: the
+   * vertex moved by a fraction of an edge since, and this halves the field evaluations. */
+#pragma omp parallel for schedule(static)
+  for (size_t i = 0; i < nv; ++i) {
+    const double *p = m->V + 3 * i;
+    gradient(f, user, p, f(user, p), eps, G + 3 * i);
   }
   for (int it = 0; it < iterations; ++it) {
     memset(sum, 0, nv * 3 * sizeof *sum);
@@ -529,33 +549,27 @@ void km__surface_relax(km_mesh *m, km__field_fn f, void *user, int iterations, d
         ++cnt[b];
       }
     }
+    bool last = it == iterations - 1;
 #pragma omp parallel for schedule(static)
     for (size_t i = 0; i < nv; ++i) {
-      double *p = m->V + 3 * i, q[3], g[3], d[3];
+      const double *p = m->V + 3 * i;
+      double *g = G + 3 * i, q[3], d[3];
       if (!cnt[i]) {
         memcpy(nV + 3 * i, p, sizeof q);
         continue;
       }
-      double f0 = f(user, p);
-      gradient(f, user, p, f0, eps, g);
-      double gn = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+      double gn2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
       for (int k = 0; k < 3; ++k)
         d[k] = sum[3 * i + k] / cnt[i] - p[k];
-      if (gn > 1e-12) {
-        double dn = (d[0] * g[0] + d[1] * g[1] + d[2] * g[2]) / (gn * gn);
+      if (gn2 > 1e-12) {
+        double dn = (d[0] * g[0] + d[1] * g[1] + d[2] * g[2]) / gn2;
         for (int k = 0; k < 3; ++k)
           d[k] -= dn * g[k];
       }
       for (int k = 0; k < 3; ++k)
         q[k] = p[k] + 0.5 * d[k];
-      for (int newton = 0; newton < 2; ++newton) {
-        double fq = f(user, q);
-        gradient(f, user, q, fq, eps, g);
-        double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
-        if (g2 < 1e-12) break;
-        for (int k = 0; k < 3; ++k)
-          q[k] -= fq * g[k] / g2;
-      }
+      newton_step(f, user, q, eps, g);
+      if (last) newton_step(f, user, q, eps, g);
       memcpy(nV + 3 * i, q, sizeof q);
     }
     memcpy(m->V, nV, nv * 3 * sizeof *nV);
@@ -563,4 +577,5 @@ void km__surface_relax(km_mesh *m, km__field_fn f, void *user, int iterations, d
   free(sum);
   free(cnt);
   free(nV);
+  free(G);
 }
