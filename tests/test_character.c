@@ -302,6 +302,21 @@ static void test_errors(void) {
       "\"weights\":[0.5,0,0,0]},\"landmarks\":[]}",
       "{\"format\":\"kinemesh-rig\",\"version\":1,\"vertices\":1,\"joints\":[{\"name\":\"A\","
       "\"parent\":3,\"rest\":[0,0,0]}]}",
+      "{\"format\":\"kinemesh-rig\",\"version\":1,\"vertices\":1,\"joints\":[{\"name\":\"A\","
+      "\"parent\":-1,\"rest\":[0,0,0]}],\"skin\":{\"influences\":4,\"joints\":[0,-1,-1,-1],"
+      "\"weights\":[1,\"x\",0,0]},\"landmarks\":[]}",
+      "{\"format\":\"kinemesh-rig\",\"version\":1,\"vertices\":1,\"joints\":[{\"name\":\"A\","
+      "\"parent\":-1,\"rest\":[0,0,0]}],\"skin\":{\"influences\":4,\"joints\":[0,-1,-1],"
+      "\"weights\":[1,0,0,0]},\"landmarks\":[]}",
+      "{\"format\":\"kinemesh-rig\",\"version\":1,\"vertices\":1,\"joints\":[{\"name\":\"A\","
+      "\"parent\":-1,\"rest\":[0,0,0]}],\"skin\":{\"influences\":4,\"joints\":[0,-1,-1,-1,0],"
+      "\"weights\":[1,0,0,0]},\"landmarks\":[]}",
+      "{\"format\":\"kinemesh-rig\",\"version\":1,\"vertices\":1,\"joints\":[{\"name\":\"A\","
+      "\"parent\":-1,\"rest\":[0,0,0]}],\"skin\":{\"influences\":4,\"joints\":[1,-1,-1,-1],"
+      "\"weights\":[1,0,0,0]},\"landmarks\":[]}",
+      "{\"format\":\"kinemesh-rig\",\"version\":1,\"vertices\":1,\"joints\":[{\"name\":\"A\","
+      "\"parent\":-1,\"rest\":[0,0,0]}],\"skin\":{\"influences\":4,\"joints\":[0,-1,-1,-1],"
+      "\"weights\":[1,0,0,0]},\"landmarks\":[]}",
   };
   for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i) {
     FILE *f = fopen("test_character_bad.rig.json", "wb");
@@ -309,6 +324,7 @@ static void test_errors(void) {
     fclose(f);
     CHECK_STATUS(km_character_read_rig("test_character_bad.rig.json", 1, &r, KM_E), KM_ERR_PARSE);
     CHECK(strstr(km_test_err.message, "test_character_bad.rig.json") != NULL);
+    printf("  expected error: %s\n", km_test_err.message);
     CHECK(r.skeleton.names == NULL && r.skin.weights == NULL);
   }
   remove("test_character_bad.rig.json");

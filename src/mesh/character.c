@@ -715,6 +715,130 @@ static bool json_int(const cJSON *o, double lo, double hi, long *out) {
   return true;
 }
 
+/* The skin arrays hold 8 numbers per vertex: as cJSON items (64 bytes each) a 1M-vertex rig
+ * would take over 500 MB. They are located with a small structural scan (strings and nesting
+ * only), read with strtod, and blanked to [] before cJSON parses the rest. Anything the scan
+ * does not recognise falls back to the plain cJSON path. */
+static size_t js_ws(const char *s, size_t i, size_t n) {
+  while (i < n && (s[i] == ' ' || s[i] == '\t' || s[i] == '\n' || s[i] == '\r'))
+    ++i;
+  return i;
+}
+
+static size_t js_string_end(const char *s, size_t i, size_t n) {
+  for (++i; i < n; ++i) {
+    if (s[i] == '\\')
+      ++i;
+    else if (s[i] == '"')
+      return i + 1;
+  }
+  return SIZE_MAX;
+}
+
+static size_t js_value_end(const char *s, size_t i, size_t n) {
+  if (i >= n) return SIZE_MAX;
+  if (s[i] == '"') return js_string_end(s, i, n);
+  if (s[i] == '{' || s[i] == '[') {
+    int depth = 0;
+    while (i < n) {
+      char c = s[i];
+      if (c == '"') {
+        i = js_string_end(s, i, n);
+        if (i == SIZE_MAX) return SIZE_MAX;
+        continue;
+      }
+      if (c == '{' || c == '[') ++depth;
+      if (c == '}' || c == ']') {
+        if (--depth == 0) return i + 1;
+      }
+      ++i;
+    }
+    return SIZE_MAX;
+  }
+  while (i < n && !strchr(",}] \t\r\n", s[i]))
+    ++i;
+  return i;
+}
+
+/* Span [*vb, *ve) of member `key` of the object starting at s[obj] == '{'. */
+static bool js_member(const char *s, size_t obj, size_t n, const char *key, size_t *vb,
+                      size_t *ve) {
+  if (obj >= n || s[obj] != '{') return false;
+  size_t i = obj + 1, klen = strlen(key);
+  for (;;) {
+    i = js_ws(s, i, n);
+    if (i >= n || s[i] != '"') return false;
+    size_t ke = js_string_end(s, i, n);
+    if (ke == SIZE_MAX) return false;
+    bool match = ke - i - 2 == klen && !memcmp(s + i + 1, key, klen);
+    i = js_ws(s, ke, n);
+    if (i >= n || s[i] != ':') return false;
+    i = js_ws(s, i + 1, n);
+    size_t e = js_value_end(s, i, n);
+    if (e == SIZE_MAX) return false;
+    if (match) {
+      *vb = i;
+      *ve = e;
+      return true;
+    }
+    i = js_ws(s, e, n);
+    if (i >= n || s[i] != ',') return false;
+    ++i;
+  }
+}
+
+/* Reads the number array at [b, e) (s NUL-terminated past e) into out[cap]. Returns the count,
+ * or SIZE_MAX with *bad the byte offset of a malformed entry or the entry past cap. */
+static size_t js_numbers(const char *s, size_t b, size_t e, double *out, size_t cap, size_t *bad) {
+  size_t i = js_ws(s, b + 1, e), n = 0;
+  if (i < e && s[i] == ']') return 0;
+  for (;;) {
+    char *end = NULL;
+    double v = strtod(s + i, &end);
+    if (end == s + i || (size_t)(end - s) > e || n >= cap) {
+      *bad = i;
+      return SIZE_MAX;
+    }
+    out[n++] = v;
+    i = js_ws(s, (size_t)(end - s), e);
+    if (i < e && s[i] == ']') return n;
+    if (i >= e || s[i] != ',') {
+      *bad = i;
+      return SIZE_MAX;
+    }
+    i = js_ws(s, i + 1, e);
+  }
+}
+
+typedef struct fast_skin {
+  bool found;
+  double *joints, *weights; /* as read, validated later */
+  size_t nj, nw;            /* counts, SIZE_MAX when malformed */
+  size_t bad_j, bad_w;      /* byte offsets of the malformed entries */
+} fast_skin;
+
+static bool fast_skin_extract(char *data, size_t size, size_t cap, fast_skin *fs) {
+  memset(fs, 0, sizeof *fs);
+  size_t root = js_ws(data, 0, size), sb, se, jb, je, wb, we;
+  if (!js_member(data, root, size, "skin", &sb, &se)) return true;
+  if (!js_member(data, sb, se, "joints", &jb, &je) || data[jb] != '[') return true;
+  if (!js_member(data, sb, se, "weights", &wb, &we) || data[wb] != '[') return true;
+  fs->joints = km__malloc(cap ? cap : 1, sizeof *fs->joints);
+  fs->weights = km__malloc(cap ? cap : 1, sizeof *fs->weights);
+  if (!fs->joints || !fs->weights) {
+    free(fs->joints);
+    free(fs->weights);
+    return false;
+  }
+  fs->nj = js_numbers(data, jb, je, fs->joints, cap, &fs->bad_j);
+  fs->nw = js_numbers(data, wb, we, fs->weights, cap, &fs->bad_w);
+  /* Blank the arrays (same length, so byte offsets of later errors stay right). */
+  memset(data + jb + 1, ' ', je - jb - 2);
+  memset(data + wb + 1, ' ', we - wb - 2);
+  fs->found = true;
+  return true;
+}
+
 km_status km_character_read_rig(const char *path, size_t n_vertices, km_character *out,
                                 km_error *err) {
   if (!path || !out) return km__fail(err, KM_ERR_INVALID, "read rig: NULL argument");
@@ -722,11 +846,19 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
   size_t size = 0;
   km_status st = km__read_file(path, &data, &size, err);
   if (st != KM_OK) return st;
+  fast_skin fs;
+  size_t cap = n_vertices <= SIZE_MAX / KM_SKIN_INFLUENCES ? n_vertices * KM_SKIN_INFLUENCES : 0;
+  if (!fast_skin_extract(data, size, cap, &fs)) {
+    free(data);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  }
   const char *end = NULL;
   cJSON *root = cJSON_ParseWithLengthOpts(data, size, &end, 0);
   if (!root) {
     size_t at = end && end >= data ? (size_t)(end - data) : 0;
     free(data);
+    free(fs.joints);
+    free(fs.weights);
     return km__fail(err, KM_ERR_PARSE, "%s: invalid JSON near byte %zu", path, at);
   }
   free(data);
@@ -798,25 +930,49 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
       infl != KM_SKIN_INFLUENCES)
     FAIL("%s: \"skin\".\"influences\" must be %d", path, KM_SKIN_INFLUENCES);
   size_t ne = n_vertices * KM_SKIN_INFLUENCES;
-  if (!cJSON_IsArray(sj) || (size_t)cJSON_GetArraySize(sj) != ne)
-    FAIL("%s: \"skin\".\"joints\" must have %zu entries (vertices x %d)", path, ne,
-         KM_SKIN_INFLUENCES);
-  if (!cJSON_IsArray(sw) || (size_t)cJSON_GetArraySize(sw) != ne)
-    FAIL("%s: \"skin\".\"weights\" must have %zu entries (vertices x %d)", path, ne,
-         KM_SKIN_INFLUENCES);
-  if ((st = alloc_skin(&skin, n_vertices, err)) != KM_OK) goto done;
-  size_t i = 0;
-  cJSON_ArrayForEach(it, sj) {
-    long v;
-    if (!json_int(it, -1, nj - 1, &v))
-      FAIL("%s: \"skin\".\"joints\"[%zu] must be -1 or a joint index < %d", path, i, nj);
-    skin.joints[i++] = (int32_t)v;
+  if (fs.found) {
+    if (fs.nj == SIZE_MAX)
+      FAIL("%s: byte %zu: \"skin\".\"joints\" must be %zu numbers (vertices x %d)", path, fs.bad_j,
+           ne, KM_SKIN_INFLUENCES);
+    if (fs.nw == SIZE_MAX)
+      FAIL("%s: byte %zu: \"skin\".\"weights\" must be %zu numbers (vertices x %d)", path, fs.bad_w,
+           ne, KM_SKIN_INFLUENCES);
+    if (fs.nj != ne || fs.nw != ne)
+      FAIL("%s: \"skin\" has %zu joints and %zu weights, expected %zu (vertices x %d)", path, fs.nj,
+           fs.nw, ne, KM_SKIN_INFLUENCES);
+  } else {
+    if (!cJSON_IsArray(sj) || (size_t)cJSON_GetArraySize(sj) != ne)
+      FAIL("%s: \"skin\".\"joints\" must have %zu entries (vertices x %d)", path, ne,
+           KM_SKIN_INFLUENCES);
+    if (!cJSON_IsArray(sw) || (size_t)cJSON_GetArraySize(sw) != ne)
+      FAIL("%s: \"skin\".\"weights\" must have %zu entries (vertices x %d)", path, ne,
+           KM_SKIN_INFLUENCES);
   }
-  i = 0;
-  cJSON_ArrayForEach(it, sw) {
-    if (!cJSON_IsNumber(it) || !(it->valuedouble >= 0 && it->valuedouble <= 1.0001))
-      FAIL("%s: \"skin\".\"weights\"[%zu] must be a number in [0,1]", path, i);
-    skin.weights[i++] = it->valuedouble;
+  if ((st = alloc_skin(&skin, n_vertices, err)) != KM_OK) goto done;
+  if (fs.found) {
+    for (size_t i = 0; i < ne; ++i) {
+      double v = fs.joints[i], w = fs.weights[i];
+      if (!(v >= -1 && v <= nj - 1) || v != floor(v))
+        FAIL("%s: \"skin\".\"joints\"[%zu] must be -1 or a joint index < %d", path, i, nj);
+      if (!(w >= 0 && w <= 1.0001))
+        FAIL("%s: \"skin\".\"weights\"[%zu] must be a number in [0,1]", path, i);
+      skin.joints[i] = (int32_t)v;
+      skin.weights[i] = w;
+    }
+  } else {
+    size_t i = 0;
+    cJSON_ArrayForEach(it, sj) {
+      long v;
+      if (!json_int(it, -1, nj - 1, &v))
+        FAIL("%s: \"skin\".\"joints\"[%zu] must be -1 or a joint index < %d", path, i, nj);
+      skin.joints[i++] = (int32_t)v;
+    }
+    i = 0;
+    cJSON_ArrayForEach(it, sw) {
+      if (!cJSON_IsNumber(it) || !(it->valuedouble >= 0 && it->valuedouble <= 1.0001))
+        FAIL("%s: \"skin\".\"weights\"[%zu] must be a number in [0,1]", path, i);
+      skin.weights[i++] = it->valuedouble;
+    }
   }
   for (size_t v = 0; v < n_vertices; ++v) {
     double sum = 0;
@@ -849,6 +1005,8 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
     ++l;
   }
 #undef FAIL
+  free(fs.joints);
+  free(fs.weights);
   free_skeleton(&out->skeleton);
   free_skin(&out->skin);
   out->skeleton = sk;
@@ -857,6 +1015,8 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
   cJSON_Delete(root);
   return KM_OK;
 done:
+  free(fs.joints);
+  free(fs.weights);
   free_skeleton(&sk);
   free_skin(&skin);
   cJSON_Delete(root);
