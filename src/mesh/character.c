@@ -595,6 +595,10 @@ km_status km_character_generate(const km_character_options *opt, km_character *o
     if (fabs(ratio - 1) < 0.08) break;
     h *= sqrt(ratio);
   }
+  if (st == KM_OK && fabs((double)out->mesh.n_vertices / T - 1) > 0.1)
+    st = km__fail(err, KM_ERR_NO_CONVERGENCE,
+                  "character: %zu vertices after 3 polygonisations, target %zu +-10%%",
+                  out->mesh.n_vertices, o.target_vertices);
   if (st == KM_OK && !km__progress(&o.progress, 0.6, "character: relax"))
     st = km__fail(err, KM_ERR_CANCELLED, "character: cancelled");
   if (st == KM_OK) km__surface_relax(&out->mesh, body_field, b, 6, 1e-6 * o.height);
@@ -619,6 +623,20 @@ km_status km_character_generate(const km_character_options *opt, km_character *o
 }
 
 /* ---------------------------------------------------------------- rig sidecar */
+
+/* A JSON string literal (names come from files read back, so they may need escapes). */
+static void write_json_string(FILE *f, const char *s) {
+  fputc('"', f);
+  for (const unsigned char *p = (const unsigned char *)s; *p; ++p) {
+    if (*p == '"' || *p == '\\')
+      fprintf(f, "\\%c", *p);
+    else if (*p < 0x20)
+      fprintf(f, "\\u%04x", *p);
+    else
+      fputc(*p, f);
+  }
+  fputc('"', f);
+}
 
 static int find_landmark(const km_character *c, const char *name) {
   for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i)
@@ -671,14 +689,10 @@ km_status km_character_write_rig(const char *path, const km_character *c, km_err
           "\"skeleton\":\"kinect1\",\n\"joints\":[",
           n);
   for (size_t j = 0; j < sk->n_joints; ++j) {
-    /* Names are plain identifiers; escape through cJSON anyway. */
-    cJSON *item = cJSON_CreateStringReference(sk->names[j]);
-    char *name = item ? cJSON_PrintUnformatted(item) : NULL;
-    cJSON_Delete(item);
-    fprintf(f, "%s\n{\"name\":%s,\"parent\":%d,\"rest\":[%.9g,%.9g,%.9g]}", j ? "," : "",
-            name ? name : "\"\"", (int)sk->parents[j], sk->rest[3 * j], sk->rest[3 * j + 1],
-            sk->rest[3 * j + 2]);
-    free(name);
+    fputs(j ? ",\n{\"name\":" : "\n{\"name\":", f);
+    write_json_string(f, sk->names[j]);
+    fprintf(f, ",\"parent\":%d,\"rest\":[%.17g,%.17g,%.17g]}", (int)sk->parents[j], sk->rest[3 * j],
+            sk->rest[3 * j + 1], sk->rest[3 * j + 2]);
   }
   fprintf(f, "],\n\"skin\":{\"influences\":%d,\"joints\":[", KM_SKIN_INFLUENCES);
   for (size_t i = 0; i < n * KM_SKIN_INFLUENCES; ++i)
@@ -692,9 +706,13 @@ km_status km_character_write_rig(const char *path, const km_character *c, km_err
       fprintf(f, i ? ",%.7g" : "%.7g", w);
   }
   fputs("]},\n\"landmarks\":[", f);
-  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i)
-    fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%d,\"mirror\":\"%s\"}", i ? "," : "",
-            c->landmarks[i].name, (int)c->landmarks[i].vertex, c->landmarks[i].mirror);
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    fputs(i ? ",\n{\"name\":" : "\n{\"name\":", f);
+    write_json_string(f, c->landmarks[i].name);
+    fprintf(f, ",\"vertex\":%d,\"mirror\":", (int)c->landmarks[i].vertex);
+    write_json_string(f, c->landmarks[i].mirror);
+    fputc('}', f);
+  }
   fputs("],\n\"handles\":[", f);
   for (int h = 0; h < 5; ++h)
     fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%ld,\"radius\":%.6g}", h ? "," : "",
@@ -1007,8 +1025,7 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
 #undef FAIL
   free(fs.joints);
   free(fs.weights);
-  free_skeleton(&out->skeleton);
-  free_skin(&out->skin);
+  /* Overwritten, not freed: out may hold only a mesh with the rest uninitialised. */
   out->skeleton = sk;
   out->skin = skin;
   memcpy(out->landmarks, lm, sizeof lm);

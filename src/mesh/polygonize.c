@@ -160,9 +160,9 @@ static void grid_setup(grid *g, const double lo[3], const double hi[3], double h
 }
 
 /* Values of one block, or NULL when the block is provably on one side of the surface or has
- * no sign change. */
+ * no sign change (or, with *nomem set, when memory ran out). */
 static double *block_values(const grid *g, int64_t bx, int64_t by, int64_t bz, km__field_fn f,
-                            void *user) {
+                            void *user, int *nomem) {
   double h = g->h;
   double c[3] = {g->o[0] + ((double)bx * B + 0.5 * B) * h, g->o[1] + ((double)by * B + 0.5 * B) * h,
                  g->o[2] + ((double)bz * B + 0.5 * B) * h};
@@ -170,7 +170,10 @@ static double *block_values(const grid *g, int64_t bx, int64_t by, int64_t bz, k
   double half_diag = 0.5 * B * h * sqrt(3.0);
   if (fabs(fc) > half_diag + h) return NULL;
   double *v = malloc(sizeof(double) * BP * BP * BP);
-  if (!v) return NULL;
+  if (!v) {
+    *nomem = 1;
+    return NULL;
+  }
   double tiny = 1e-9 * h;
   int npos = 0, nneg = 0;
   for (int k = 0; k < BP; ++k)
@@ -194,17 +197,23 @@ static double *block_values(const grid *g, int64_t bx, int64_t by, int64_t bz, k
   return v;
 }
 
+static void free_blocks(double **blocks, int64_t n);
+
 /* Evaluates all blocks in parallel. blocks[b] is NULL for skipped blocks. Returns false on a
- * failed allocation (a block that could not be allocated is indistinguishable from a skipped
- * one, so allocation failures are tracked separately). */
+ * failed allocation: a missing block would leave a hole, so it is never silently skipped. */
 static bool evaluate_blocks(const grid *g, km__field_fn f, void *user, double ***out) {
   int64_t nblocks = g->nb[0] * g->nb[1] * g->nb[2];
   double **blocks = km__calloc((size_t)nblocks, sizeof *blocks);
   if (!blocks) return false;
-#pragma omp parallel for schedule(dynamic, 16)
+  int nomem = 0;
+#pragma omp parallel for schedule(dynamic, 16) reduction(| : nomem)
   for (int64_t b = 0; b < nblocks; ++b) {
     int64_t bx = b % g->nb[0], by = (b / g->nb[0]) % g->nb[1], bz = b / (g->nb[0] * g->nb[1]);
-    blocks[b] = block_values(g, bx, by, bz, f, user);
+    blocks[b] = block_values(g, bx, by, bz, f, user, &nomem);
+  }
+  if (nomem) {
+    free_blocks(blocks, nblocks);
+    return false;
   }
   *out = blocks;
   return true;
@@ -224,10 +233,10 @@ km_status km__polygonize_count(km__field_fn f, void *user, const double lo[3], c
   int64_t nblocks = g.nb[0] * g.nb[1] * g.nb[2];
   size_t total = 0;
   int nomem = 0;
-#pragma omp parallel for schedule(dynamic, 16) reduction(+ : total, nomem)
+#pragma omp parallel for schedule(dynamic, 16) reduction(+ : total) reduction(| : nomem)
   for (int64_t b = 0; b < nblocks; ++b) {
     int64_t bx = b % g.nb[0], by = (b / g.nb[0]) % g.nb[1], bz = b / (g.nb[0] * g.nb[1]);
-    double *v = block_values(&g, bx, by, bz, f, user);
+    double *v = block_values(&g, bx, by, bz, f, user, &nomem);
     if (!v) continue;
     size_t cnt = 0;
     /* Edges owned by points of this block: p -> p + d, d in {0,1}^3 \ 0. */
@@ -243,9 +252,8 @@ km_status km__polygonize_count(km__field_fn f, void *user, const double lo[3], c
     total += cnt;
     free(v);
   }
-  (void)nomem;
   *n_vertices = total;
-  (void)err;
+  if (nomem) return km__fail(err, KM_ERR_NOMEM, "polygonise: out of memory (h = %g)", h);
   return KM_OK;
 }
 
