@@ -601,7 +601,18 @@ km_status km_character_generate(const km_character_options *opt, km_character *o
                   out->mesh.n_vertices, o.target_vertices);
   if (st == KM_OK && !km__progress(&o.progress, 0.6, "character: relax"))
     st = km__fail(err, KM_ERR_CANCELLED, "character: cancelled");
-  if (st == KM_OK) km__surface_relax(&out->mesh, body_field, b, 6, 1e-6 * o.height);
+  if (st == KM_OK) {
+    /* Relax, flip to Delaunay (removes most obtuse triangles, which give negative cotangent
+     * weights later), relax again for the new connectivity. */
+    double t0 = km__now();
+    km__surface_relax(&out->mesh, body_field, b, 4, 1e-6 * o.height);
+    double t1 = km__now();
+    size_t flips = km__delaunay_flips(&out->mesh, 8);
+    double t2 = km__now();
+    km__surface_relax(&out->mesh, body_field, b, 3, 1e-6 * o.height);
+    km__log(KM_LOG_DEBUG, "character: relax %.3f s, %zu edge flips %.3f s, relax %.3f s", t1 - t0,
+            flips, t2 - t1, km__now() - t2);
+  }
   if (st == KM_OK) st = alloc_skeleton(&out->skeleton, err);
   if (st == KM_OK) {
     memcpy(out->skeleton.rest, b->joints, sizeof b->joints);

@@ -587,3 +587,146 @@ void km__surface_relax(km_mesh *m, km__field_fn f, void *user, int iterations, d
   free(nV);
   free(G);
 }
+
+/* ---------------------------------------------------------------- edge flips
+ * Half-edge h = 3f + k runs from F[3f+k] to F[3f+(k+1)%3]; opp[h] is its twin. */
+
+static int32_t he_target(const int32_t *F, size_t h) { return F[3 * (h / 3) + (h % 3 + 1) % 3]; }
+static size_t he_prev(size_t h) { return 3 * (h / 3) + (h % 3 + 2) % 3; }
+
+/* Walks the half-edges leaving the source of h; returns the valence, or -1 when `probe`
+ * is a neighbour. */
+static int ring(const int32_t *F, const size_t *opp, size_t h, int32_t probe) {
+  size_t start = h;
+  int n = 0;
+  do {
+    if (he_target(F, h) == probe) return -1;
+    h = opp[he_prev(h)];
+    if (++n > 10000) return -1; /* not a disk: refuse */
+  } while (h != start);
+  return n;
+}
+
+static void tri_normal(const double *V, int32_t a, int32_t b, int32_t c, double n[3]) {
+  const double *p = V + 3 * (size_t)a, *q = V + 3 * (size_t)b, *r = V + 3 * (size_t)c;
+  double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+  double w[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+  n[0] = u[1] * w[2] - u[2] * w[1];
+  n[1] = u[2] * w[0] - u[0] * w[2];
+  n[2] = u[0] * w[1] - u[1] * w[0];
+}
+
+static double angle_at(const double *V, int32_t at, int32_t x, int32_t y) {
+  const double *p = V + 3 * (size_t)at, *q = V + 3 * (size_t)x, *r = V + 3 * (size_t)y;
+  double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+  double w[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+  double c[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
+               u[0] * w[0] + u[1] * w[1] + u[2] * w[2]);
+}
+
+static double dot3(const double a[3], const double b[3]) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+size_t km__delaunay_flips(km_mesh *m, int max_passes) {
+  size_t nf = m->n_faces, nh = 3 * nf, flips = 0;
+  int32_t *F = m->F;
+  const double *V = m->V;
+  size_t nv = m->n_vertices;
+  /* Twins through half-edges bucketed by source vertex (linear; valences are small). */
+  size_t *opp = km__malloc(nh, sizeof *opp);
+  size_t *start = km__calloc(nv + 1, sizeof *start);
+  size_t *out = km__malloc(nh, sizeof *out);
+  if (!opp || !start || !out) {
+    free(opp);
+    free(start);
+    free(out);
+    return 0;
+  }
+  for (size_t h = 0; h < nh; ++h)
+    ++start[F[h] + 1];
+  for (size_t v = 0; v < nv; ++v)
+    start[v + 1] += start[v];
+  for (size_t h = 0; h < nh; ++h)
+    out[start[F[h]]++] = h;
+  for (size_t v = nv; v > 0; --v)
+    start[v] = start[v - 1];
+  start[0] = 0;
+  bool ok = true;
+  for (size_t h = 0; h < nh && ok; ++h) {
+    int32_t a = F[h], b = he_target(F, h);
+    size_t found = SIZE_MAX;
+    int count = 0;
+    for (size_t i = start[b]; i < start[b + 1]; ++i)
+      if (he_target(F, out[i]) == a) {
+        found = out[i];
+        ++count;
+      }
+    /* Closed manifold: each directed edge has exactly one reverse (duplicates of a->b would
+     * show up as two reverses of b->a). */
+    if (count != 1) ok = false;
+    opp[h] = found;
+  }
+  free(start);
+  free(out);
+  if (!ok) {
+    free(opp);
+    return 0;
+  }
+  const double coplanar = cos(30.0 * M_PI / 180.0);
+  for (int pass = 0; pass < max_passes; ++pass) {
+    size_t pass_flips = 0;
+    for (size_t e = 0; e < nh; ++e) {
+      size_t t = opp[e];
+      if (t < e) continue;
+      size_t f = e / 3, g = t / 3;
+      int k = (int)(e % 3), mm = (int)(t % 3);
+      int32_t a = F[3 * f + k], b = F[3 * f + (k + 1) % 3], c = F[3 * f + (k + 2) % 3];
+      int32_t d = F[3 * g + (mm + 2) % 3];
+      if (c == d) continue;
+      if (angle_at(V, c, a, b) + angle_at(V, d, a, b) <= M_PI + 1e-9) continue;
+      double nf1[3], ng1[3];
+      tri_normal(V, a, b, c, nf1);
+      tri_normal(V, b, a, d, ng1);
+      double lf = sqrt(dot3(nf1, nf1)), lg = sqrt(dot3(ng1, ng1));
+      if (lf == 0 || lg == 0 || dot3(nf1, ng1) < coplanar * lf * lg) continue;
+      double n1[3], n2[3],
+          sum[3] = {nf1[0] / lf + ng1[0] / lg, nf1[1] / lf + ng1[1] / lg,
+                    nf1[2] / lf + ng1[2] / lg};
+      tri_normal(V, d, b, c, n1);
+      tri_normal(V, c, a, d, n2);
+      double l1 = sqrt(dot3(n1, n1)), l2 = sqrt(dot3(n2, n2));
+      if (l1 <= 1e-12 * (lf + lg) || l2 <= 1e-12 * (lf + lg)) continue;
+      if (dot3(n1, sum) < 0.5 * l1 || dot3(n2, sum) < 0.5 * l2) continue;
+      size_t h_bc = 3 * f + (size_t)(k + 1) % 3, h_ca = 3 * f + (size_t)(k + 2) % 3;
+      size_t h_ad = 3 * g + (size_t)(mm + 1) % 3, h_db = 3 * g + (size_t)(mm + 2) % 3;
+      /* New edge must not exist; a and b keep valence >= 3. */
+      if (ring(F, opp, h_ca, d) < 0) continue;
+      int va = ring(F, opp, h_ad, -1), vb = ring(F, opp, h_bc, -1);
+      if (va <= 3 || vb <= 3) continue;
+      size_t o_bc = opp[h_bc], o_ca = opp[h_ca], o_ad = opp[h_ad], o_db = opp[h_db];
+      F[3 * f] = d;
+      F[3 * f + 1] = b;
+      F[3 * f + 2] = c;
+      F[3 * g] = c;
+      F[3 * g + 1] = a;
+      F[3 * g + 2] = d;
+      opp[3 * f] = o_db;
+      opp[o_db] = 3 * f;
+      opp[3 * f + 1] = o_bc;
+      opp[o_bc] = 3 * f + 1;
+      opp[3 * f + 2] = 3 * g + 2;
+      opp[3 * g + 2] = 3 * f + 2;
+      opp[3 * g] = o_ca;
+      opp[o_ca] = 3 * g;
+      opp[3 * g + 1] = o_ad;
+      opp[o_ad] = 3 * g + 1;
+      ++pass_flips;
+    }
+    flips += pass_flips;
+    if (!pass_flips) break;
+  }
+  free(opp);
+  return flips;
+}
