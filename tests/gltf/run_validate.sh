@@ -10,9 +10,9 @@ command -v node >/dev/null || { echo "FAIL: node not found (scripts/deps.sh inst
 [ -d "$HERE/node_modules/gltf-validator" ] || { echo "FAIL: $HERE/node_modules/gltf-validator missing (run scripts/deps.sh)"; exit 1; }
 rm -rf "$WORK" && mkdir -p "$WORK"
 "$BIN" gen character --vertices 2000 -o "$WORK/c.obj"
-"$BIN" gen motion --kind wave --frames 12 --rig "$WORK/c.rig.json" -o "$WORK/t.json"
+"$BIN" gen motion --kind wave --frames 12 --character "$WORK/c.obj" -o "$WORK/t.json"
 "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" -o "$WORK/every.glb"
 "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --key-every 4 -o "$WORK/keys.glb"
 for f in every keys; do node "$HERE/validate.mjs" "$WORK/$f.glb"; done
-"$BIN" info --json "$WORK/every.glb" | grep -q '"frames": *12' || { echo "FAIL: info does not report 12 frames"; exit 1; }
+"$BIN" info --json "$WORK/every.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames"; exit 1; }
 echo "gltf_validator: 3 passed, 0 failed"
