@@ -18,16 +18,16 @@ struct km_arap {
   size_t n, n_free, n_hv;
   int iterations;
   double tolerance, diag;
-  double *P;          /* n*3 rest */
-  int32_t *adj_off;   /* n+1 */
-  int32_t *adj;       /* neighbours */
-  double *w;          /* cot weights (L_ij) */
-  int32_t *map;       /* vertex -> free index, or -(handle vertex index)-1 */
-  int32_t *h_v;       /* n_hv */
+  double *P;        /* n*3 rest */
+  int32_t *adj_off; /* n+1 */
+  int32_t *adj;     /* neighbours */
+  double *w;        /* cot weights (L_ij) */
+  int32_t *map;     /* vertex -> free index, or -(handle vertex index)-1 */
+  int32_t *h_v;     /* n_hv */
   km_cholesky *chol;
-  double *X;          /* n*3 current (warm start) */
-  double *R;          /* n*9 */
-  double *B;          /* n_free*3 column-major rhs / solution */
+  double *X; /* n*3 current (warm start) */
+  double *R; /* n*9 */
+  double *B; /* n_free*3 column-major rhs / solution */
 };
 
 void km_arap_free(km_arap **pa) {
@@ -47,9 +47,9 @@ void km_arap_free(km_arap **pa) {
   *pa = NULL;
 }
 
-km_status km_arap_precompute(const km_mesh *rest, size_t n_handles,
-                             const int32_t *handle_offsets, const int32_t *handle_vertices,
-                             const km_arap_options *opt, km_arap **out, km_error *err) {
+km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_t *handle_offsets,
+                             const int32_t *handle_vertices, const km_arap_options *opt,
+                             km_arap **out, km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "arap: out is NULL");
   *out = NULL;
   if (!rest || !rest->V || !rest->F || rest->n_vertices < 3 || rest->n_faces < 1)
@@ -82,7 +82,6 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles,
   a->n_hv = nhv;
   a->iterations = o.iterations;
   a->tolerance = o.tolerance;
-  a->diag = km_bbox_diagonal(rest->V, n);
   km_status s = KM_OK;
   km_sparse *L = NULL, *A = NULL;
   int32_t *ti = NULL, *tj = NULL;
@@ -95,8 +94,22 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles,
   a->adj_off = km__calloc(n + 1, sizeof(int32_t));
   if (!a->P || !a->X || !a->R || !a->map || !a->h_v || !a->adj_off) goto nomem;
   memcpy(a->P, rest->V, n * 3 * sizeof(double));
+  {
+    /* bounding-box diagonal, the scale of the tolerance */
+    double lo[3], hi[3];
+    memcpy(lo, rest->V, sizeof lo);
+    memcpy(hi, rest->V, sizeof hi);
+    for (size_t v = 0; v < n; ++v)
+      for (int c = 0; c < 3; ++c) {
+        lo[c] = fmin(lo[c], rest->V[3 * v + c]);
+        hi[c] = fmax(hi[c], rest->V[3 * v + c]);
+      }
+    a->diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                   (hi[2] - lo[2]) * (hi[2] - lo[2]));
+  }
   memcpy(a->X, rest->V, n * 3 * sizeof(double));
-  for (size_t v = 0; v < n; ++v) a->map[v] = 0;
+  for (size_t v = 0; v < n; ++v)
+    a->map[v] = 0;
   for (size_t i = 0; i < nhv; ++i) {
     int32_t v = handle_vertices[i];
     if (v < 0 || (size_t)v >= n || a->map[v] != 0) {
@@ -124,7 +137,8 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles,
         a->adj_off[j + 1]++;
         ++nnz;
       }
-  for (size_t j = 0; j < n; ++j) a->adj_off[j + 1] += a->adj_off[j];
+  for (size_t j = 0; j < n; ++j)
+    a->adj_off[j + 1] += a->adj_off[j];
   a->adj = km__malloc(nnz ? nnz : 1, sizeof(int32_t));
   a->w = km__malloc(nnz ? nnz : 1, sizeof(double));
   if (!a->adj || !a->w) goto nomem;
@@ -197,7 +211,8 @@ static void local_step(km_arap *a) {
         e1[c] = X[3 * i + c] - X[3 * j + c];
       }
       for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) S[r * 3 + c] += w * e1[r] * e0[c];
+        for (int c = 0; c < 3; ++c)
+          S[r * 3 + c] += w * e1[r] * e0[c];
     }
     km__nearest_rotation3(S, a->R + 9 * i);
   }
@@ -232,9 +247,11 @@ km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_err
                        (Ri[r * 3 + 2] + Rj[r * 3 + 2]) * e0[2]);
         int32_t fj = a->map[j];
         if (fj < 0) /* eliminated handle: L_ij x_j moves to the right-hand side */
-          for (int r = 0; r < 3; ++r) b[r] += a->w[k] * a->X[3 * j + r];
+          for (int r = 0; r < 3; ++r)
+            b[r] += a->w[k] * a->X[3 * j + r];
       }
-      for (int r = 0; r < 3; ++r) B[fi + r * nf] = b[r];
+      for (int r = 0; r < 3; ++r)
+        B[fi + r * nf] = b[r];
     }
     km_status s = km_cholesky_solve(a->chol, 3, B, B, err);
     if (s) return km__wrap(err, s, "arap solve");

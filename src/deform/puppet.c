@@ -41,13 +41,15 @@
 #define KM_PUPPET_ENDIAN 0x01020304u
 #define KM_PUPPET_HEADER 64u
 
-/* mu = KM_PUPPET_RIDGE * trace(K)/#unknowns. W has an exact null space (adding a transform to
- * every isoline of one field and subtracting w_f/w_g of it from another leaves X unchanged,
- * 4(n_e-1) directions per coordinate) that neither L nor the handles see, so U^T U is
- * singular without it. The ridge pulls those directions (which do not change X) and the
- * barely determined ones to the identity; 1e-7 keeps the Cholesky well conditioned while
- * moving rigid handle motions by ~1e-7 relative (measured in tests/test_deform.c). */
-#define KM_PUPPET_RIDGE 1e-7
+/* mu = KM_PUPPET_RIDGE * trace(U^T U)/#unknowns. W has an exact null space (adding a
+ * transform to every isoline of one field and subtracting w_f/w_g of it from another leaves X
+ * unchanged: 4(n_e-1) directions per coordinate) that neither L nor the handles see, so
+ * U^T U is singular without it. Null-space directions do not move X, so the ridge only has to
+ * keep dpotrf away from round-off (>> 1e-16 relative); anything larger biases the smooth,
+ * weakly determined modes toward the identity. Measured on the rigid-motion test (icosphere,
+ * three small handles, 0.6 rad): ridge 1e-7 -> 1.7e-3 of the diagonal off rigid, 1e-9 ->
+ * 1.9e-5, 1e-11 -> 2e-7; the bending deviation from ARAP did not change. */
+#define KM_PUPPET_RIDGE 1e-11
 
 struct km_puppet {
   /* ---- model (depends on the mesh and fields/isolines/crossed_per_isoline) */
@@ -56,14 +58,14 @@ struct km_puppet {
   size_t nr, nd, n_isolines; /* 4 n_iso n_e, 3 n_iso n_e, n_iso n_e */
   double center[3], scale;
   uint64_t mesh_hash;
-  double *P;       /* n*3 rest, world units */
-  double *Pn;      /* n*3 rest, normalised: (p - center)/scale */
-  float *Pf;       /* n*3 float copy of Pn (full-resolution evaluation only) */
-  double *wfield;  /* ne, sum 1 */
-  double *iso;     /* ne*niso iso-values, ascending per field */
+  double *P;        /* n*3 rest, world units */
+  double *Pn;       /* n*3 rest, normalised: (p - center)/scale */
+  float *Pf;        /* n*3 float copy of Pn (full-resolution evaluation only) */
+  double *wfield;   /* ne, sum 1 */
+  double *iso;      /* ne*niso iso-values, ascending per field */
   uint8_t *bracket; /* n*ne (vertex-major): lower isoline k, 0 <= k <= niso-2 */
-  double *tpar;    /* n*ne interpolation parameter in [0,1] */
-  float *tparf;    /* n*ne float copy */
+  double *tpar;     /* n*ne interpolation parameter in [0,1] */
+  float *tparf;     /* n*ne float copy */
   size_t ntri;
   int32_t *tri_v;   /* ntri*3 vertex ids of the crossed triangles */
   int32_t *tri_iso; /* ntri isoline id f*niso+k, ascending */
@@ -72,10 +74,10 @@ struct km_puppet {
   double *tri_F0;   /* ntri*9 rest frames */
   double *tri_a;    /* ntri area weights */
   size_t ncv;
-  int32_t *cv;   /* vertices of the crossed triangles */
-  double *cv_x;  /* ncv*3 their current positions (workspace) */
-  double *K0;    /* nr*nr  W^T L^T L W */
-  double *G;     /* nr*nd  W^T L^T W_d */
+  int32_t *cv;  /* vertices of the crossed triangles */
+  double *cv_x; /* ncv*3 their current positions (workspace) */
+  double *K0;   /* nr*nr  W^T L^T L W */
+  double *G;    /* nr*nd  W^T L^T W_d */
   double trK0;
   /* ---- solve settings */
   int iterations;
@@ -85,7 +87,7 @@ struct km_puppet {
   size_t n_handles, n_hv;
   int32_t *h_off, *h_v;
   double wc2, mu;
-  double *K;     /* nr*nr Cholesky factor (upper) of U^T U + mu li */
+  double *K;     /* nr*nr Cholesky factor (upper) of U^T U + mu I */
   double *KinvG; /* nr*nd */
   /* ---- state / workspace (solve does not allocate) */
   double *dR, *dR0, *dRnew; /* nr*3 */
@@ -140,8 +142,7 @@ static km_status check_options(const km_puppet_options *o, km_error *err) {
   if (o->fields < 1 || o->fields > 32)
     return km__fail(err, KM_ERR_INVALID, "puppet: fields must be 1..32 (got %d)", o->fields);
   if (o->isolines < 2 || o->isolines > 64)
-    return km__fail(err, KM_ERR_INVALID, "puppet: isolines must be 2..64 (got %d)",
-                    o->isolines);
+    return km__fail(err, KM_ERR_INVALID, "puppet: isolines must be 2..64 (got %d)", o->isolines);
   if (o->iterations < 0 || o->iterations > 1000)
     return km__fail(err, KM_ERR_INVALID, "puppet: iterations must be 0..1000 (got %d)",
                     o->iterations);
@@ -162,8 +163,7 @@ static km_status check_mesh(const km_mesh *m, km_error *err) {
     return km__fail(err, KM_ERR_INVALID, "puppet: mesh too large for int32 indices");
   for (size_t i = 0; i < m->n_vertices * 3; ++i)
     if (!isfinite(m->V[i]))
-      return km__fail(err, KM_ERR_INVALID, "puppet: vertex %zu has a non-finite coordinate",
-                      i / 3);
+      return km__fail(err, KM_ERR_INVALID, "puppet: vertex %zu has a non-finite coordinate", i / 3);
   for (size_t i = 0; i < m->n_faces * 3; ++i)
     if (m->F[i] < 0 || (size_t)m->F[i] >= m->n_vertices)
       return km__fail(err, KM_ERR_INVALID,
@@ -175,12 +175,13 @@ static km_status check_mesh(const km_mesh *m, km_error *err) {
 void km_puppet_free(km_puppet **pp) {
   if (!pp || !*pp) return;
   km_puppet *p = *pp;
-  void *ptrs[] = {p->P,      p->Pn,   p->Pf,     p->wfield, p->iso,    p->bracket, p->tpar,
-                  p->tparf,  p->tri_v, p->tri_iso, p->iso_off, p->tri_lv, p->tri_F0, p->tri_a,
-                  p->cv,     p->cv_x, p->K0,     p->G,      p->h_off,  p->h_v,     p->K,
-                  p->KinvG,  p->dR,   p->dR0,    p->dRnew,  p->dRd,    p->quat,    p->A,
-                  p->D};
-  for (size_t i = 0; i < sizeof ptrs / sizeof ptrs[0]; ++i) free(ptrs[i]);
+  void *ptrs[] = {p->P,      p->Pn,    p->Pf,    p->wfield,  p->iso,     p->bracket,
+                  p->tpar,   p->tparf, p->tri_v, p->tri_iso, p->iso_off, p->tri_lv,
+                  p->tri_F0, p->tri_a, p->cv,    p->cv_x,    p->K0,      p->G,
+                  p->h_off,  p->h_v,   p->K,     p->KinvG,   p->dR,      p->dR0,
+                  p->dRnew,  p->dRd,   p->quat,  p->A,       p->D};
+  for (size_t i = 0; i < sizeof ptrs / sizeof ptrs[0]; ++i)
+    free(ptrs[i]);
   free(p);
   *pp = NULL;
 }
@@ -220,14 +221,16 @@ static km_status alloc_model(km_puppet *p, const km_mesh *m, const km_puppet_opt
   p->quat = km__calloc(p->n_isolines * 4, sizeof(double));
   p->A = km__calloc(p->n_isolines * 12, sizeof(float));
   p->D = km__calloc(p->n_isolines * 12, sizeof(float));
-  if (!p->P || !p->Pn || !p->Pf || !p->wfield || !p->iso || !p->bracket || !p->tpar ||
-      !p->tparf || !p->iso_off || !p->K0 || !p->G || !p->K || !p->KinvG || !p->dR || !p->dR0 ||
-      !p->dRnew || !p->dRd || !p->quat || !p->A || !p->D)
+  if (!p->P || !p->Pn || !p->Pf || !p->wfield || !p->iso || !p->bracket || !p->tpar || !p->tparf ||
+      !p->iso_off || !p->K0 || !p->G || !p->K || !p->KinvG || !p->dR || !p->dR0 || !p->dRnew ||
+      !p->dRd || !p->quat || !p->A || !p->D)
     return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory for a %zu-vertex model", n);
-  for (size_t i = 0; i < p->n_isolines; ++i) p->quat[i * 4] = 1;
+  for (size_t i = 0; i < p->n_isolines; ++i)
+    p->quat[i * 4] = 1;
   memcpy(p->P, m->V, n * 3 * sizeof(double));
   double lo[3], hi[3];
-  for (int c = 0; c < 3; ++c) lo[c] = hi[c] = m->V[c];
+  for (int c = 0; c < 3; ++c)
+    lo[c] = hi[c] = m->V[c];
   for (size_t v = 0; v < n; ++v)
     for (int c = 0; c < 3; ++c) {
       double x = m->V[v * 3 + c];
@@ -255,10 +258,13 @@ static km_status alloc_model(km_puppet *p, const km_mesh *m, const km_puppet_opt
  * shared by precompute and load. tri_v/tri_iso must be set and validated. */
 static km_status finish_model(km_puppet *p, km_error *err) {
   size_t n = p->n;
-  for (size_t i = 0; i < n * (size_t)p->ne; ++i) p->tparf[i] = (float)p->tpar[i];
+  for (size_t i = 0; i < n * (size_t)p->ne; ++i)
+    p->tparf[i] = (float)p->tpar[i];
   memset(p->iso_off, 0, (p->n_isolines + 1) * sizeof(int32_t));
-  for (size_t t = 0; t < p->ntri; ++t) p->iso_off[p->tri_iso[t] + 1]++;
-  for (size_t i = 0; i < p->n_isolines; ++i) p->iso_off[i + 1] += p->iso_off[i];
+  for (size_t t = 0; t < p->ntri; ++t)
+    p->iso_off[p->tri_iso[t] + 1]++;
+  for (size_t i = 0; i < p->n_isolines; ++i)
+    p->iso_off[i + 1] += p->iso_off[i];
   size_t nt = p->ntri ? p->ntri : 1;
   p->tri_lv = km__malloc(nt * 3, sizeof(int32_t));
   p->tri_F0 = km__malloc(nt * 9, sizeof(double));
@@ -266,10 +272,10 @@ static km_status finish_model(km_puppet *p, km_error *err) {
   int32_t *local = km__malloc(n, sizeof(int32_t));
   if (!p->tri_lv || !p->tri_F0 || !p->tri_a || !local) {
     free(local);
-    return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory for %zu crossed triangles",
-                    p->ntri);
+    return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory for %zu crossed triangles", p->ntri);
   }
-  for (size_t v = 0; v < n; ++v) local[v] = -1;
+  for (size_t v = 0; v < n; ++v)
+    local[v] = -1;
   size_t ncv = 0;
   for (size_t t = 0; t < p->ntri * 3; ++t)
     if (local[p->tri_v[t]] < 0) local[p->tri_v[t]] = (int32_t)ncv++;
@@ -283,7 +289,8 @@ static km_status finish_model(km_puppet *p, km_error *err) {
   for (size_t v = 0; v < n; ++v)
     if (local[v] >= 0) p->cv[local[v]] = (int32_t)v;
   for (size_t t = 0; t < p->ntri; ++t) {
-    for (int k = 0; k < 3; ++k) p->tri_lv[t * 3 + k] = local[p->tri_v[t * 3 + k]];
+    for (int k = 0; k < 3; ++k)
+      p->tri_lv[t * 3 + k] = local[p->tri_v[t * 3 + k]];
     const double *a = p->Pn + 3 * p->tri_v[t * 3], *b = p->Pn + 3 * p->tri_v[t * 3 + 1],
                  *c = p->Pn + 3 * p->tri_v[t * 3 + 2];
     p->tri_a[t] = 0.5 * km__tri_frame(a, b, c, p->tri_F0 + t * 9);
@@ -354,7 +361,8 @@ static km_status place_isolines(km_puppet *p, const double *evecs, const double 
     double acc = 0;
     for (int k = 0; k < p->niso; ++k) {
       double target = total * (k + 0.5) / p->niso;
-      while (j + 1 < n && acc + vm[j].mass < target) acc += vm[j++].mass;
+      while (j + 1 < n && acc + vm[j].mass < target)
+        acc += vm[j++].mass;
       iso[k] = vm[j].value;
     }
     /* strictly increasing iso-values keep the brackets well defined */
@@ -405,7 +413,8 @@ static km_status select_crossed(km_puppet *p, const km_mesh *m, const double *ev
     int32_t *list = NULL;
     size_t *fill = NULL;
     if (pass == 1) {
-      for (size_t i = 0; i < nI; ++i) cnt[i + 1] += cnt[i];
+      for (size_t i = 0; i < nI; ++i)
+        cnt[i + 1] += cnt[i];
       list = km__malloc(cnt[nI] ? cnt[nI] : 1, sizeof(int32_t));
       fill = km__calloc(nI, sizeof(size_t));
       if (!list || !fill) {
@@ -438,7 +447,8 @@ static km_status select_crossed(km_puppet *p, const km_mesh *m, const double *ev
       free(fill);
       /* farthest-point sampling per isoline */
       size_t cap = (size_t)p->ncross, total = 0;
-      for (size_t li = 0; li < nI; ++li) total += cnt[li + 1] - cnt[li] < cap ? cnt[li + 1] - cnt[li] : cap;
+      for (size_t li = 0; li < nI; ++li)
+        total += cnt[li + 1] - cnt[li] < cap ? cnt[li + 1] - cnt[li] : cap;
       p->ntri = total;
       p->tri_v = km__malloc(total ? total * 3 : 3, sizeof(int32_t));
       p->tri_iso = km__malloc(total ? total : 1, sizeof(int32_t));
@@ -523,7 +533,8 @@ static km_status assemble_reduced(km_puppet *p, const km_sparse *L, const double
     free(touched);
     return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory assembling the reduced system");
   }
-  for (size_t i = 0; i < (size_t)nthreads * nI; ++i) stamp[i] = -1;
+  for (size_t i = 0; i < (size_t)nthreads * nI; ++i)
+    stamp[i] = -1;
 #ifdef _OPENMP
 #pragma omp parallel num_threads(nthreads)
 #endif
@@ -556,9 +567,11 @@ static km_status assemble_reduced(km_puppet *p, const km_sparse *L, const double
             if (st[li] != (int32_t)i) {
               st[li] = (int32_t)i;
               tl[nt++] = (int32_t)li;
-              for (int k = 0; k < 4; ++k) acc[li * 4 + k] = 0;
+              for (int k = 0; k < 4; ++k)
+                acc[li * 4 + k] = 0;
             }
-            for (int k = 0; k < 4; ++k) acc[li * 4 + k] += a * p4[k];
+            for (int k = 0; k < 4; ++k)
+              acc[li * 4 + k] += a * p4[k];
           }
         }
       }
@@ -578,7 +591,8 @@ static km_status assemble_reduced(km_puppet *p, const km_sparse *L, const double
           const double *vb = acc + (size_t)tl[b] * 4;
           double *Kb = Kt + (size_t)tl[a] * 4 + (size_t)tl[b] * 4 * nr;
           for (int c = 0; c < 4; ++c)
-            for (int r = 0; r < 4; ++r) Kb[r + c * nr] += va[r] * vb[c];
+            for (int r = 0; r < 4; ++r)
+              Kb[r + c * nr] += va[r] * vb[c];
         }
       }
       /* W_d row i: isolines of i, coefficient w_f alpha delta0_i[j] */
@@ -597,7 +611,8 @@ static km_status assemble_reduced(km_puppet *p, const km_sparse *L, const double
             for (int x = 0; x < nt; ++x) {
               const double *va = acc + (size_t)tl[x] * 4;
               double *g = Gc + (size_t)tl[x] * 4;
-              for (int r = 0; r < 4; ++r) g[r] += va[r] * cj;
+              for (int r = 0; r < 4; ++r)
+                g[r] += va[r] * cj;
             }
           }
         }
@@ -606,8 +621,10 @@ static km_status assemble_reduced(km_puppet *p, const km_sparse *L, const double
   }
   for (int t = 0; t < nthreads; ++t) {
     const double *Kt = bufK + (size_t)t * nr * nr, *Gt = bufG + (size_t)t * nr * nd;
-    for (size_t i = 0; i < nr * nr; ++i) p->K0[i] += Kt[i];
-    for (size_t i = 0; i < nr * nd; ++i) p->G[i] += Gt[i];
+    for (size_t i = 0; i < nr * nr; ++i)
+      p->K0[i] += Kt[i];
+    for (size_t i = 0; i < nr * nd; ++i)
+      p->G[i] += Gt[i];
   }
   /* mirror: blocks (I <= J) were filled, both triangles of the diagonal blocks included */
   for (size_t c = 0; c < nr; ++c)
@@ -623,11 +640,12 @@ static km_status assemble_reduced(km_puppet *p, const km_sparse *L, const double
 
 static void finish_trace(km_puppet *p) {
   p->trK0 = 0;
-  for (size_t i = 0; i < p->nr; ++i) p->trK0 += p->K0[i + i * p->nr];
+  for (size_t i = 0; i < p->nr; ++i)
+    p->trK0 += p->K0[i + i * p->nr];
 }
 
-km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt,
-                               km_puppet **out, km_error *err) {
+km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt, km_puppet **out,
+                               km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "puppet: out is NULL");
   *out = NULL;
   km_puppet_options o;
@@ -674,7 +692,8 @@ km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt
     const double *e = evecs + (size_t)(f + 1) * n;
     double xi[3] = {0, 0, 0};
     for (size_t v = 0; v < n; ++v)
-      for (int c = 0; c < 3; ++c) xi[c] += mass[v] * p->Pn[v * 3 + c] * e[v];
+      for (int c = 0; c < 3; ++c)
+        xi[c] += mass[v] * p->Pn[v * 3 + c] * e[v];
     p->wfield[f] = sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
     if (!isfinite(p->wfield[f])) p->wfield[f] = 0;
     wsum += p->wfield[f];
@@ -692,10 +711,12 @@ km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt
   if (!km__progress(&o.progress, 0.8, "reduced system")) goto cancel;
   /* delta0 = L Pn (rest Laplacian coordinates, normalised units) */
   for (size_t v = 0; v < n; ++v)
-    for (int c = 0; c < 3; ++c) cm[v + c * n] = p->Pn[v * 3 + c];
+    for (int c = 0; c < 3; ++c)
+      cm[v + c * n] = p->Pn[v * 3 + c];
   km_sparse_mul(L, 3, cm, delta0 /* column-major, transposed below */);
   for (size_t v = 0; v < n; ++v)
-    for (int c = 0; c < 3; ++c) cm[v * 3 + c] = delta0[v + c * n];
+    for (int c = 0; c < 3; ++c)
+      cm[v * 3 + c] = delta0[v + c * n];
   if ((s = assemble_reduced(p, L, cm, err))) goto fail;
   finish_trace(p);
   if (!km__progress(&o.progress, 1.0, "done")) goto cancel;
@@ -744,8 +765,7 @@ static size_t pad8(size_t x) { return (x + 7) / 8 * 8; }
 static size_t payload_size(const km_puppet *p) {
   size_t n = p->n, ne = p->ne;
   return 4 * 8 + pad8(ne * 8) + pad8(p->n_isolines * 8) + pad8(n * ne) + pad8(n * ne * 8) + 8 +
-         pad8(p->ntri * 12) + pad8(p->ntri * 4) + pad8(p->nr * p->nr * 8) +
-         pad8(p->nr * p->nd * 8);
+         pad8(p->ntri * 12) + pad8(p->ntri * 4) + pad8(p->nr * p->nr * 8) + pad8(p->nr * p->nd * 8);
 }
 
 km_status km_puppet_save(const km_puppet *p, const char *path, km_error *err) {
@@ -822,10 +842,10 @@ km_status km_puppet_load(const char *path, const km_mesh *rest, const km_puppet_
   if ((s = km__read_file(path, &data, &size, err))) return s;
   const unsigned char *b = (const unsigned char *)data;
   km_puppet *p = NULL;
-#define STALE(...)                                                                         \
-  do {                                                                                     \
-    s = km__fail(err, KM_ERR_STALE, __VA_ARGS__);                                          \
-    goto done;                                                                             \
+#define STALE(...)                                                                                 \
+  do {                                                                                             \
+    s = km__fail(err, KM_ERR_STALE, __VA_ARGS__);                                                  \
+    goto done;                                                                                     \
   } while (0)
   if (size < KM_PUPPET_HEADER + 8)
     STALE("%s: truncated puppet cache (%zu bytes, a header alone is %u)", path, size,
@@ -835,14 +855,13 @@ km_status km_puppet_load(const char *path, const km_mesh *rest, const km_puppet_
   uint32_t u32[2];
   memcpy(u32, b + 8, 8);
   if (u32[0] != KM_PUPPET_FORMAT)
-    STALE("%s: puppet cache format %u, this build reads format %u", path, u32[0],
-          KM_PUPPET_FORMAT);
+    STALE("%s: puppet cache format %u, this build reads format %u", path, u32[0], KM_PUPPET_FORMAT);
   if (u32[1] != KM_PUPPET_ENDIAN) STALE("%s: puppet cache written on another byte order", path);
   uint64_t psize;
   memcpy(&psize, b + 56, 8);
   if (psize > size || size != KM_PUPPET_HEADER + psize + 8)
-    STALE("%s: truncated or padded puppet cache (%zu bytes, header announces %llu)", path,
-          size, (unsigned long long)(KM_PUPPET_HEADER + (psize > size ? 0 : psize) + 8));
+    STALE("%s: truncated or padded puppet cache (%zu bytes, header announces %llu)", path, size,
+          (unsigned long long)(KM_PUPPET_HEADER + (psize > size ? 0 : psize) + 8));
   uint64_t sum;
   memcpy(&sum, b + size - 8, 8);
   if (hash_words(KM__FNV_SEED, b, size - 8) != sum)
@@ -925,6 +944,34 @@ done:
 
 /* ------------------------------------------------------------------ handles */
 
+/* K += w_c^2 W_Phi^T W_Phi */
+static void add_handle_terms(const km_puppet *p, double *K) {
+  size_t nr = p->nr, nhv = p->n_hv;
+  const int32_t *hv = p->h_v;
+  double wc2 = p->wc2;
+  for (size_t i = 0; i < nhv; ++i) {
+    size_t v = (size_t)hv[i];
+    const double *pv = p->Pn + 3 * v;
+    double p4[4] = {pv[0], pv[1], pv[2], 1};
+    size_t idx[256]; /* 2 isolines x 4 coefficients x at most 32 fields */
+    double val[256];
+    int m = 0;
+    for (int f = 0; f < p->ne; ++f) {
+      size_t I0;
+      double a0, a1;
+      w_entry(p, v, f, &I0, &a0, &a1);
+      for (int s = 0; s < 2; ++s)
+        for (int k = 0; k < 4; ++k) {
+          idx[m] = (I0 + s) * 4 + k;
+          val[m++] = (s ? a1 : a0) * p4[k];
+        }
+    }
+    for (int a = 0; a < m; ++a)
+      for (int b2 = 0; b2 < m; ++b2)
+        K[idx[a] + idx[b2] * nr] += wc2 * val[a] * val[b2];
+  }
+}
+
 km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *handle_offsets,
                                 const int32_t *handle_vertices, km_error *err) {
   if (!p) return km__fail(err, KM_ERR_INVALID, "puppet: NULL model");
@@ -937,8 +984,7 @@ km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *h
       return km__fail(err, KM_ERR_INVALID, "puppet: handle_offsets[0] must be 0");
     for (size_t h = 0; h < n_handles; ++h)
       if (handle_offsets[h + 1] < handle_offsets[h])
-        return km__fail(err, KM_ERR_INVALID, "puppet: handle_offsets decreases at handle %zu",
-                        h);
+        return km__fail(err, KM_ERR_INVALID, "puppet: handle_offsets decreases at handle %zu", h);
     nhv = (size_t)handle_offsets[n_handles];
     if (nhv > p->n)
       return km__fail(err, KM_ERR_INVALID, "puppet: %zu handle vertices for %zu vertices", nhv,
@@ -969,7 +1015,8 @@ km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *h
   }
   free(seen);
   off[0] = 0;
-  for (size_t h = 0; h < n_handles; ++h) off[h + 1] = handle_offsets[h + 1];
+  for (size_t h = 0; h < n_handles; ++h)
+    off[h + 1] = handle_offsets[h + 1];
   free(p->h_off);
   free(p->h_v);
   p->h_off = off;
@@ -995,38 +1042,28 @@ km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *h
     }
   }
   p->wc2 = nhv ? p->handle_weight * p->handle_weight * (p->trK0 > 0 ? p->trK0 : 1) / trH : 0;
-  double wc2 = p->wc2;
-  for (size_t i = 0; i < nhv; ++i) {
-    size_t v = (size_t)hv[i];
-    const double *pv = p->Pn + 3 * v;
-    double p4[4] = {pv[0], pv[1], pv[2], 1};
-    size_t idx[256]; /* 2 isolines x 4 coefficients x at most 32 fields */
-    double val[256];
-    int m = 0;
-    for (int f = 0; f < p->ne; ++f) {
-      size_t I0;
-      double a0, a1;
-      w_entry(p, v, f, &I0, &a0, &a1);
-      for (int s = 0; s < 2; ++s)
-        for (int k = 0; k < 4; ++k) {
-          idx[m] = (I0 + s) * 4 + k;
-          val[m++] = (s ? a1 : a0) * p4[k];
-        }
-    }
-    for (int a = 0; a < m; ++a)
-      for (int b2 = 0; b2 < m; ++b2) K[idx[a] + idx[b2] * nr] += wc2 * val[a] * val[b2];
-  }
+  add_handle_terms(p, K);
   double tr = 0;
-  for (size_t i = 0; i < nr; ++i) tr += K[i + i * nr];
-  p->mu = KM_PUPPET_RIDGE * (tr > 0 ? tr / (double)nr : 1);
-  for (size_t i = 0; i < nr; ++i) K[i + i * nr] += p->mu;
-  lapack_int info = LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'U', (lapack_int)nr, K, (lapack_int)nr);
+  for (size_t i = 0; i < nr; ++i)
+    tr += K[i + i * nr];
+  /* the ridge is retried 100x larger if the factorisation meets round-off trouble */
+  lapack_int info = 1;
+  for (double ridge = KM_PUPPET_RIDGE; info != 0 && ridge < 1e-4; ridge *= 100) {
+    if (ridge > KM_PUPPET_RIDGE) {
+      memcpy(K, p->K0, nr * nr * sizeof(double));
+      add_handle_terms(p, K);
+    }
+    p->mu = ridge * (tr > 0 ? tr / (double)nr : 1);
+    for (size_t i = 0; i < nr; ++i)
+      K[i + i * nr] += p->mu;
+    info = LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'U', (lapack_int)nr, K, (lapack_int)nr);
+  }
   if (info != 0)
     return km__fail(err, KM_ERR_NOT_POSDEF,
                     "puppet: reduced system not positive definite (dpotrf info %d)", (int)info);
   memcpy(p->KinvG, p->G, nr * p->nd * sizeof(double));
-  info = LAPACKE_dpotrs(LAPACK_COL_MAJOR, 'U', (lapack_int)nr, (lapack_int)p->nd, K,
-                        (lapack_int)nr, p->KinvG, (lapack_int)nr);
+  info = LAPACKE_dpotrs(LAPACK_COL_MAJOR, 'U', (lapack_int)nr, (lapack_int)p->nd, K, (lapack_int)nr,
+                        p->KinvG, (lapack_int)nr);
   if (info != 0)
     return km__fail(err, KM_ERR_NOT_POSDEF, "puppet: dpotrs failed (info %d)", (int)info);
   p->have_handles = true;
@@ -1059,7 +1096,8 @@ static inline void eval_vertex(const km_puppet *p, const double *dR, size_t v, d
     w_entry(p, v, f, &I0, &a0, &a1);
     const double *r0 = dR + I0 * 4, *r1 = r0 + 4;
     for (int c = 0; c < 3; ++c)
-      for (int j = 0; j < 4; ++j) m[c * 4 + j] += a0 * r0[j + c * nr] + a1 * r1[j + c * nr];
+      for (int j = 0; j < 4; ++j)
+        m[c * 4 + j] += a0 * r0[j + c * nr] + a1 * r1[j + c * nr];
   }
   for (int c = 0; c < 3; ++c)
     x[c] = pv[c] + m[c * 4] * p4[0] + m[c * 4 + 1] * p4[1] + m[c * 4 + 2] * p4[2] + m[c * 4 + 3];
@@ -1070,7 +1108,8 @@ static inline void eval_vertex(const km_puppet *p, const double *dR, size_t v, d
  * isoline takes their area-weighted quaternion mean (signs aligned to its previous
  * rotation). dRd receives rotation - identity in R_d's layout. */
 static void update_rotations(km_puppet *p) {
-  for (size_t i = 0; i < p->ncv; ++i) eval_vertex(p, p->dR, (size_t)p->cv[i], p->cv_x + 3 * i);
+  for (size_t i = 0; i < p->ncv; ++i)
+    eval_vertex(p, p->dR, (size_t)p->cv[i], p->cv_x + 3 * i);
   size_t nd = p->nd;
   for (size_t li = 0; li < p->n_isolines; ++li) {
     double *qp = p->quat + 4 * li;
@@ -1089,15 +1128,18 @@ static void update_rotations(km_puppet *p) {
       km__quat_from_rot3(R, q);
       double dot = q[0] * qp[0] + q[1] * qp[1] + q[2] * qp[2] + q[3] * qp[3];
       double w = dot < 0 ? -p->tri_a[t] : p->tri_a[t];
-      for (int k = 0; k < 4; ++k) qs[k] += w * q[k];
+      for (int k = 0; k < 4; ++k)
+        qs[k] += w * q[k];
     }
     double len = sqrt(qs[0] * qs[0] + qs[1] * qs[1] + qs[2] * qs[2] + qs[3] * qs[3]);
     if (len > 1e-300)
-      for (int k = 0; k < 4; ++k) qp[k] = qs[k] / len;
+      for (int k = 0; k < 4; ++k)
+        qp[k] = qs[k] / len;
     double R[9];
     km__rot3_from_quat(qp, R);
     for (int c = 0; c < 3; ++c)
-      for (int j = 0; j < 3; ++j) p->dRd[li * 3 + j + c * nd] = R[c * 3 + j] - (c == j);
+      for (int j = 0; j < 3; ++j)
+        p->dRd[li * 3 + j + c * nd] = R[c * 3 + j] - (c == j);
   }
 }
 
@@ -1110,11 +1152,13 @@ static void eval_full(km_puppet *p, double *V) {
   for (size_t li = 0; li < nI; ++li) {
     double ws = p->wfield[li / (size_t)niso] * p->scale;
     for (int c = 0; c < 3; ++c)
-      for (int j = 0; j < 4; ++j) p->A[li * 12 + c * 4 + j] = (float)(ws * p->dR[li * 4 + j + c * nr]);
+      for (int j = 0; j < 4; ++j)
+        p->A[li * 12 + c * 4 + j] = (float)(ws * p->dR[li * 4 + j + c * nr]);
   }
   for (size_t li = 0; li < nI; ++li)
     for (int q = 0; q < 12; ++q)
-      p->D[li * 12 + q] = ((int)(li % (size_t)niso) == niso - 1) ? 0 : p->A[(li + 1) * 12 + q] - p->A[li * 12 + q];
+      p->D[li * 12 + q] =
+          ((int)(li % (size_t)niso) == niso - 1) ? 0 : p->A[(li + 1) * 12 + q] - p->A[li * 12 + q];
   const float *A = p->A, *D = p->D, *Pf = p->Pf, *tf = p->tparf;
   const uint8_t *br = p->bracket;
   const double *P = p->P;
@@ -1130,12 +1174,13 @@ static void eval_full(km_puppet *p, double *V) {
       size_t li = (size_t)f * niso + b[f];
       const float *a = A + li * 12, *d = D + li * 12;
       float tv = t[f];
-      for (int q = 0; q < 12; ++q) m[q] += a[q] + tv * d[q];
+      for (int q = 0; q < 12; ++q)
+        m[q] += a[q] + tv * d[q];
     }
     const float *pf = Pf + 3 * v;
     for (int c = 0; c < 3; ++c)
-      V[3 * v + c] = P[3 * v + c] +
-                     (double)(m[c * 4] * pf[0] + m[c * 4 + 1] * pf[1] + m[c * 4 + 2] * pf[2] + m[c * 4 + 3]);
+      V[3 * v + c] = P[3 * v + c] + (double)(m[c * 4] * pf[0] + m[c * 4 + 1] * pf[1] +
+                                             m[c * 4 + 2] * pf[2] + m[c * 4 + 3]);
   }
 }
 
@@ -1146,8 +1191,8 @@ km_status km_puppet_solve(km_puppet *p, const double *targets, double *V_out, km
   if (p->n_hv && !targets) return km__fail(err, KM_ERR_INVALID, "puppet solve: targets is NULL");
   for (size_t i = 0; i < p->n_hv * 3; ++i)
     if (!isfinite(targets[i]))
-      return km__fail(err, KM_ERR_INVALID, "puppet solve: target of handle vertex %zu is not finite",
-                      i / 3);
+      return km__fail(err, KM_ERR_INVALID,
+                      "puppet solve: target of handle vertex %zu is not finite", i / 3);
   size_t nr = p->nr;
   /* b = w_c^2 W_Phi^T (C - P_Phi), then dR0 = K^-1 b: the rotation-free part of the solve */
   memset(p->dR0, 0, nr * 3 * sizeof(double));
@@ -1168,8 +1213,8 @@ km_status km_puppet_solve(km_puppet *p, const double *targets, double *V_out, km
         }
     }
   }
-  lapack_int info = LAPACKE_dpotrs(LAPACK_COL_MAJOR, 'U', (lapack_int)nr, 3, p->K,
-                                   (lapack_int)nr, p->dR0, (lapack_int)nr);
+  lapack_int info = LAPACKE_dpotrs(LAPACK_COL_MAJOR, 'U', (lapack_int)nr, 3, p->K, (lapack_int)nr,
+                                   p->dR0, (lapack_int)nr);
   if (info != 0) return km__fail(err, KM_ERR_INVALID, "puppet solve: dpotrs info %d", (int)info);
   int it = 0;
   double change = 0;

@@ -85,7 +85,8 @@ static inline void km__sym_eig3(double *S, double *ev, double *V) {
       }
   for (int c = 0; c < 3; ++c) {
     ev[c] = d[o[c]];
-    for (int r = 0; r < 3; ++r) V[r * 3 + c] = v[r * 3 + o[c]];
+    for (int r = 0; r < 3; ++r)
+      V[r * 3 + c] = v[r * 3 + o[c]];
   }
 }
 
@@ -95,8 +96,8 @@ static inline void km__nearest_rotation3(const double *A, double *R) {
   double S[9];
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
-      S[i * 3 + j] = A[0 * 3 + i] * A[0 * 3 + j] + A[1 * 3 + i] * A[1 * 3 + j] +
-                     A[2 * 3 + i] * A[2 * 3 + j];
+      S[i * 3 + j] =
+          A[0 * 3 + i] * A[0 * 3 + j] + A[1 * 3 + i] * A[1 * 3 + j] + A[2 * 3 + i] * A[2 * 3 + j];
   double ev[3], V[9];
   km__sym_eig3(S, ev, V);
   double v1[3] = {V[0], V[3], V[6]}, v2[3] = {V[1], V[4], V[7]}, v3[3];
@@ -111,11 +112,13 @@ static inline void km__nearest_rotation3(const double *A, double *R) {
     return;
   }
   double d = km__dot3(u1, u2);
-  for (int r = 0; r < 3; ++r) u2[r] -= d * u1[r];
+  for (int r = 0; r < 3; ++r)
+    u2[r] -= d * u1[r];
   if (km__normalize3(u2) <= 1e-12 * sqrt(fabs(ev[0])) + 1e-300) km__any_perp3(u1, u2);
   km__cross3(u1, u2, u3);
   for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) R[i * 3 + j] = u1[i] * v1[j] + u2[i] * v2[j] + u3[i] * v3[j];
+    for (int j = 0; j < 3; ++j)
+      R[i * 3 + j] = u1[i] * v1[j] + u2[i] * v2[j] + u3[i] * v3[j];
 }
 
 /* Unit quaternion (w,x,y,z) of rotation R (Shepperd's method, stable for every angle). */
@@ -164,8 +167,7 @@ static inline void km__rot3_from_quat(const double *q, double *R) {
 
 /* Orthonormal frame of triangle (a,b,c) as rows: t (unit edge a->b), n x t, n (unit normal).
  * Returns twice the area (0: degenerate, frame undefined). */
-static inline double km__tri_frame(const double *a, const double *b, const double *c,
-                                   double *F) {
+static inline double km__tri_frame(const double *a, const double *b, const double *c, double *F) {
   double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
   double e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
   double n[3];

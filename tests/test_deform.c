@@ -1,0 +1,388 @@
+/* Reduced isoline puppet solver and full ARAP reference: rest reproduction, rigid motions,
+ * bending, cache round trip and staleness, handle changes without eigen-decomposition, and
+ * the reduced-vs-full deviation. */
+#include "km_test.h"
+
+#include <stdint.h>
+#include <unistd.h>
+
+#include "internal.h" /* km__now */
+
+/* Local stand-ins (kept independent of the mesh I/O module). */
+static void mesh_release(km_mesh *m) {
+  free(m->V);
+  free(m->F);
+  memset(m, 0, sizeof *m);
+}
+
+static double bbox_diag(const double *V, size_t n) {
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t v = 0; v < n; ++v)
+    for (int c = 0; c < 3; ++c)
+      lo[c] = fmin(lo[c], V[3 * v + c]), hi[c] = fmax(hi[c], V[3 * v + c]);
+  return n ? sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                  (hi[2] - lo[2]) * (hi[2] - lo[2]))
+           : 0;
+}
+
+/* Handles of a bar along z: vertices with z < lo (anchor) and z > hi (pulled). */
+static void bar_handles(const km_mesh *m, double lo, double hi, int32_t *off, int32_t *hv,
+                        size_t *nhv) {
+  size_t k = 0;
+  off[0] = 0;
+  for (size_t v = 0; v < m->n_vertices; ++v)
+    if (m->V[3 * v + 2] < lo) hv[k++] = (int32_t)v;
+  off[1] = (int32_t)k;
+  for (size_t v = 0; v < m->n_vertices; ++v)
+    if (m->V[3 * v + 2] > hi) hv[k++] = (int32_t)v;
+  off[2] = (int32_t)k;
+  *nhv = k;
+}
+
+static double max_dev(const double *A, const double *B, size_t n) {
+  double m = 0;
+  for (size_t i = 0; i < n; ++i) {
+    double d = sqrt((A[3 * i] - B[3 * i]) * (A[3 * i] - B[3 * i]) +
+                    (A[3 * i + 1] - B[3 * i + 1]) * (A[3 * i + 1] - B[3 * i + 1]) +
+                    (A[3 * i + 2] - B[3 * i + 2]) * (A[3 * i + 2] - B[3 * i + 2]));
+    m = d > m ? d : m;
+  }
+  return m;
+}
+
+static double mean_dev(const double *A, const double *B, size_t n) {
+  double s = 0;
+  for (size_t i = 0; i < n; ++i)
+    s += sqrt((A[3 * i] - B[3 * i]) * (A[3 * i] - B[3 * i]) +
+              (A[3 * i + 1] - B[3 * i + 1]) * (A[3 * i + 1] - B[3 * i + 1]) +
+              (A[3 * i + 2] - B[3 * i + 2]) * (A[3 * i + 2] - B[3 * i + 2]));
+  return s / (double)n;
+}
+
+static bool all_finite(const double *X, size_t n) {
+  for (size_t i = 0; i < n; ++i)
+    if (!isfinite(X[i])) return false;
+  return true;
+}
+
+/* rotation about axis (unit) by angle, row-major */
+static void rot_axis(const double *u, double a, double *R) {
+  double c = cos(a), s = sin(a), t = 1 - c;
+  R[0] = t * u[0] * u[0] + c, R[1] = t * u[0] * u[1] - s * u[2], R[2] = t * u[0] * u[2] + s * u[1];
+  R[3] = t * u[0] * u[1] + s * u[2], R[4] = t * u[1] * u[1] + c, R[5] = t * u[1] * u[2] - s * u[0];
+  R[6] = t * u[0] * u[2] - s * u[1], R[7] = t * u[1] * u[2] + s * u[0], R[8] = t * u[2] * u[2] + c;
+}
+
+static void rigid(const double *R, const double *t, const double *x, double *y) {
+  for (int r = 0; r < 3; ++r)
+    y[r] = R[r * 3] * x[0] + R[r * 3 + 1] * x[1] + R[r * 3 + 2] * x[2] + t[r];
+}
+
+/* Rest reproduction and rigid motion on one mesh with the given handles. */
+static void check_invariants(const char *name, const km_mesh *m, size_t nh, const int32_t *off,
+                             const int32_t *hv) {
+  size_t n = m->n_vertices, nhv = (size_t)off[nh];
+  double diag = bbox_diag(m->V, n);
+  km_puppet *p = NULL;
+  km_puppet_options o = {0};
+  o.iterations = 30;
+  o.tolerance = 1e-12;
+  CHECK_OK(km_puppet_precompute(m, &o, &p, KM_E));
+  if (!p) return;
+  CHECK_OK(km_puppet_set_handles(p, nh, off, hv, KM_E));
+  double *T = malloc(nhv * 3 * sizeof(double)), *X = malloc(n * 3 * sizeof(double)),
+         *Y = malloc(n * 3 * sizeof(double));
+  for (size_t i = 0; i < nhv; ++i)
+    memcpy(T + 3 * i, m->V + 3 * (size_t)hv[i], 3 * sizeof(double));
+  CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+  double e = max_dev(X, m->V, n) / diag;
+  CHECK_MSG(e <= 1e-9, "%s: rest reproduction error %g of the diagonal", name, e);
+
+  /* every handle moved by one rigid motion: the mesh follows rigidly */
+  double u[3] = {1 / sqrt(3.0), 1 / sqrt(3.0), 1 / sqrt(3.0)}, R[9],
+         t[3] = {0.1 * diag, -0.05 * diag, 0.2 * diag};
+  rot_axis(u, 0.6, R);
+  for (size_t i = 0; i < nhv; ++i)
+    rigid(R, t, m->V + 3 * (size_t)hv[i], T + 3 * i);
+  for (size_t v = 0; v < n; ++v)
+    rigid(R, t, m->V + 3 * v, Y + 3 * v);
+  km_puppet_reset(p);
+  CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+  CHECK(all_finite(X, n * 3));
+  double er = max_dev(X, Y, n) / diag, em = mean_dev(X, Y, n) / diag;
+  printf("%s: rigid motion: reduced max %.3g mean %.3g of the diagonal\n", name, er, em);
+  CHECK_MSG(er <= 1e-4, "%s: rigid motion error %g", name, er);
+
+  /* ARAP: same two properties */
+  km_arap *a = NULL;
+  km_arap_options ao = {.iterations = 400, .tolerance = 1e-300}; /* slow from rest */
+  CHECK_OK(km_arap_precompute(m, nh, off, hv, &ao, &a, KM_E));
+  if (a) {
+    CHECK_OK(km_arap_solve(a, T, X, KM_E));
+    er = max_dev(X, Y, n) / diag;
+    printf("%s: rigid motion: ARAP max %.3g of the diagonal\n", name, er);
+    CHECK_MSG(er <= 1e-6, "%s: ARAP rigid motion error %g", name, er);
+    km_arap_free(&a);
+  }
+  free(T);
+  free(X);
+  free(Y);
+  km_puppet_free(&p);
+}
+
+static void test_invariants(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_icosphere(3, 1.0, &m, KM_E));
+  /* three handles of ~10 vertices around three far-apart points */
+  int32_t off[4] = {0}, hv[64];
+  size_t k = 0;
+  double c[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, -1}};
+  for (int h = 0; h < 3; ++h) {
+    for (size_t v = 0; v < m.n_vertices; ++v) {
+      const double *x = m.V + 3 * v;
+      double d = (x[0] - c[h][0]) * (x[0] - c[h][0]) + (x[1] - c[h][1]) * (x[1] - c[h][1]) +
+                 (x[2] - c[h][2]) * (x[2] - c[h][2]);
+      if (d < 0.04 && k < 64) hv[k++] = (int32_t)v;
+    }
+    off[h + 1] = (int32_t)k;
+  }
+  CHECK(k > 9);
+  check_invariants("icosphere", &m, 3, off, hv);
+  mesh_release(&m);
+
+  CHECK_OK(km_cylinder(16, 30, 0.1, 1.0, &m, KM_E));
+  int32_t *bh = malloc(m.n_vertices * sizeof(int32_t)), boff[3];
+  size_t nhv;
+  bar_handles(&m, 0.04, 0.96, boff, bh, &nhv);
+  check_invariants("cylinder", &m, 2, boff, bh);
+  free(bh);
+  mesh_release(&m);
+}
+
+/* Bend a bar: anchor the bottom, pull the top sideways; compare with full ARAP. */
+static void test_bend(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_cylinder(24, 60, 0.08, 1.0, &m, KM_E));
+  size_t n = m.n_vertices, nhv;
+  double diag = bbox_diag(m.V, n);
+  int32_t *hv = malloc(n * sizeof(int32_t)), off[3];
+  bar_handles(&m, 0.03, 0.97, off, hv, &nhv);
+  double t0 = km__now();
+  km_puppet *p = NULL;
+  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
+  double t_pre = km__now() - t0;
+  if (!p) return;
+  t0 = km__now();
+  CHECK_OK(km_puppet_set_handles(p, 2, off, hv, KM_E));
+  double t_set = km__now() - t0;
+  printf("bend: precompute %.3f s, set_handles %.4f s\n", t_pre, t_set);
+
+  km_arap *a = NULL;
+  km_arap_options ao = {.iterations = 10};
+  CHECK_OK(km_arap_precompute(&m, 2, off, hv, &ao, &a, KM_E));
+  double *T = malloc(nhv * 3 * sizeof(double)), *X = malloc(n * 3 * sizeof(double)),
+         *Y = malloc(n * 3 * sizeof(double));
+  const int frames = 10;
+  double pull = 0.35;
+  for (int f = 1; f <= frames; ++f) {
+    double s = pull * f / frames;
+    for (size_t i = 0; i < nhv; ++i) {
+      memcpy(T + 3 * i, m.V + 3 * (size_t)hv[i], 3 * sizeof(double));
+      if ((int32_t)i >= off[1]) T[3 * i] += s;
+    }
+    CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+    if (a) CHECK_OK(km_arap_solve(a, T, Y, KM_E));
+  }
+  CHECK(all_finite(X, 3 * n));
+  CHECK(all_finite(Y, 3 * n));
+  /* anchored handle stays, pulled handle follows */
+  double anchor = 0, pulled = 0;
+  for (int32_t i = 0; i < off[2]; ++i) {
+    double d = sqrt((X[3 * hv[i]] - T[3 * i]) * (X[3 * hv[i]] - T[3 * i]) +
+                    (X[3 * hv[i] + 1] - T[3 * i + 1]) * (X[3 * hv[i] + 1] - T[3 * i + 1]) +
+                    (X[3 * hv[i] + 2] - T[3 * i + 2]) * (X[3 * hv[i] + 2] - T[3 * i + 2]));
+    if (i < off[1])
+      anchor = fmax(anchor, d);
+    else
+      pulled = fmax(pulled, d);
+  }
+  printf("bend: anchored handle max error %.3g, pulled handle max error %.3g (pull %.2f, "
+         "diagonal %.3f)\n",
+         anchor, pulled, pull, diag);
+  CHECK_MSG(anchor < 0.01 * diag, "anchor moved %g", anchor);
+  CHECK_MSG(pulled < 0.1 * pull, "pulled handle off by %g", pulled);
+  /* smooth bend: the mean x displacement of each ring increases monotonically along the bar */
+  int rings = 61, segs = 24;
+  double prev = -1;
+  int mono = 1;
+  for (int r = 0; r < rings; ++r) {
+    double sx = 0;
+    for (int k = 0; k < segs; ++k)
+      sx += X[3 * (r * segs + k)] - m.V[3 * (r * segs + k)];
+    sx /= segs;
+    if (sx < prev - 1e-4 * pull) mono = 0;
+    prev = sx;
+  }
+  CHECK_MSG(mono, "ring displacements are not monotonic along the bar");
+  if (a) {
+    double md = mean_dev(X, Y, n) / diag, xd = max_dev(X, Y, n) / diag;
+    printf("bend: reduced vs full ARAP deviation: mean %.4f max %.4f of the diagonal\n", md, xd);
+    CHECK_MSG(md <= 0.02, "mean deviation %g > 2%% of the diagonal", md);
+  }
+  km_puppet_info info;
+  km_puppet_info_get(p, &info);
+  CHECK(info.crossed_triangles > 0 && info.unknowns == 320 && info.handle_vertices == nhv);
+  /* changing handles keeps working and does not need a new precompute */
+  int32_t off1[2] = {0, off[1]};
+  CHECK_OK(km_puppet_set_handles(p, 1, off1, hv, KM_E));
+  CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+  CHECK(all_finite(X, 3 * n));
+  /* bad handles */
+  int32_t badv[2] = {0, 0}, boff[2] = {0, 2};
+  CHECK_STATUS(km_puppet_set_handles(p, 1, boff, badv, KM_E), KM_ERR_INVALID);
+  badv[1] = (int32_t)n;
+  CHECK_STATUS(km_puppet_set_handles(p, 1, boff, badv, KM_E), KM_ERR_INVALID);
+  km_arap_free(&a);
+  km_puppet_free(&p);
+  free(T);
+  free(X);
+  free(Y);
+  free(hv);
+  mesh_release(&m);
+}
+
+/* Changing the handle set costs a 320x320 Cholesky, not an eigen-decomposition. */
+static void test_handle_change_cost(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_icosphere(5, 1.0, &m, KM_E));
+  size_t n = m.n_vertices;
+  double t0 = km__now();
+  km_puppet *p = NULL;
+  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
+  double t_pre = km__now() - t0;
+  int32_t *hv = malloc(n * sizeof(int32_t)), off[3] = {0};
+  size_t k = 0;
+  for (size_t v = 0; v < n; ++v)
+    if (m.V[3 * v + 2] > 0.95) hv[k++] = (int32_t)v;
+  off[1] = (int32_t)k;
+  for (size_t v = 0; v < n; ++v)
+    if (m.V[3 * v] > 0.95) hv[k++] = (int32_t)v;
+  off[2] = (int32_t)k;
+  double t_set = 1e9;
+  for (int rep = 0; rep < 3 && p; ++rep) {
+    t0 = km__now();
+    CHECK_OK(km_puppet_set_handles(p, 1 + rep % 2, off, hv, KM_E));
+    t_set = fmin(t_set, km__now() - t0);
+  }
+  printf("handles: %zu vertices: precompute %.3f s, set_handles %.4f s\n", n, t_pre, t_set);
+  CHECK_MSG(t_set < 0.1 * t_pre, "set_handles %.4f s vs precompute %.3f s", t_set, t_pre);
+  km_puppet_free(&p);
+  free(hv);
+  mesh_release(&m);
+}
+
+static void test_cache(void) {
+  km_mesh m = {0}, m2 = {0};
+  CHECK_OK(km_cylinder(12, 20, 0.1, 1.0, &m, KM_E));
+  size_t n = m.n_vertices, nhv;
+  int32_t *hv = malloc(n * sizeof(int32_t)), off[3];
+  bar_handles(&m, 0.04, 0.96, off, hv, &nhv);
+  km_puppet *p = NULL, *q = NULL;
+  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
+  char path[256];
+  snprintf(path, sizeof path, "test_deform_%d.kmp", (int)getpid());
+  CHECK_OK(km_puppet_save(p, path, KM_E));
+  CHECK_OK(km_puppet_load(path, &m, NULL, &q, KM_E));
+  double *T = malloc(nhv * 3 * sizeof(double)), *X = malloc(n * 3 * sizeof(double)),
+         *Y = malloc(n * 3 * sizeof(double));
+  for (size_t i = 0; i < nhv; ++i) {
+    memcpy(T + 3 * i, m.V + 3 * (size_t)hv[i], 3 * sizeof(double));
+    if ((int32_t)i >= off[1]) T[3 * i + 1] += 0.2;
+  }
+  if (p && q) {
+    CHECK_OK(km_puppet_set_handles(p, 2, off, hv, KM_E));
+    CHECK_OK(km_puppet_set_handles(q, 2, off, hv, KM_E));
+    CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+    CHECK_OK(km_puppet_solve(q, T, Y, KM_E));
+    CHECK(memcmp(X, Y, n * 3 * sizeof(double)) == 0);
+  }
+  km_puppet_free(&q);
+  /* different parameters */
+  km_puppet_options o = {.isolines = 12};
+  CHECK_STATUS(km_puppet_load(path, &m, &o, &q, KM_E), KM_ERR_STALE);
+  CHECK(q == NULL);
+  /* different mesh: one coordinate nudged, and another mesh altogether */
+  m2.n_vertices = m.n_vertices, m2.n_faces = m.n_faces;
+  m2.V = malloc(m.n_vertices * 3 * sizeof(double));
+  m2.F = malloc(m.n_faces * 3 * sizeof(int32_t));
+  memcpy(m2.V, m.V, m.n_vertices * 3 * sizeof(double));
+  memcpy(m2.F, m.F, m.n_faces * 3 * sizeof(int32_t));
+  m2.V[5] += 1e-12;
+  CHECK_STATUS(km_puppet_load(path, &m2, NULL, &q, KM_E), KM_ERR_STALE);
+  mesh_release(&m2);
+  CHECK_OK(km_icosphere(2, 1.0, &m2, KM_E));
+  CHECK_STATUS(km_puppet_load(path, &m2, NULL, &q, KM_E), KM_ERR_STALE);
+  mesh_release(&m2);
+  /* corrupt one byte (header, payload and checksum regions), truncate */
+  FILE *f = fopen(path, "rb");
+  CHECK(f != NULL);
+  if (f) {
+    fseek(f, 0, SEEK_END);
+    long size = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    unsigned char *buf = malloc((size_t)size);
+    CHECK(fread(buf, 1, (size_t)size, f) == (size_t)size);
+    fclose(f);
+    long where[] = {3, 40, 100, size / 2, size - 3};
+    for (size_t w = 0; w < sizeof where / sizeof where[0]; ++w) {
+      buf[where[w]] ^= 0x10;
+      f = fopen(path, "wb");
+      fwrite(buf, 1, (size_t)size, f);
+      fclose(f);
+      CHECK_STATUS(km_puppet_load(path, &m, NULL, &q, KM_E), KM_ERR_STALE);
+      CHECK(q == NULL);
+      buf[where[w]] ^= 0x10;
+    }
+    long cuts[] = {0, 10, 64, size / 3, size - 1};
+    for (size_t w = 0; w < sizeof cuts / sizeof cuts[0]; ++w) {
+      f = fopen(path, "wb");
+      fwrite(buf, 1, (size_t)cuts[w], f);
+      fclose(f);
+      CHECK_STATUS(km_puppet_load(path, &m, NULL, &q, KM_E), KM_ERR_STALE);
+      CHECK(q == NULL);
+    }
+    free(buf);
+  }
+  remove(path);
+  CHECK_STATUS(km_puppet_load(path, &m, NULL, &q, KM_E), KM_ERR_IO);
+  km_puppet_free(&p);
+  free(T);
+  free(X);
+  free(Y);
+  free(hv);
+  mesh_release(&m);
+}
+
+static void test_errors(void) {
+  km_puppet *p = NULL;
+  km_mesh m = {0};
+  CHECK_STATUS(km_puppet_precompute(NULL, NULL, &p, KM_E), KM_ERR_INVALID);
+  CHECK_OK(km_icosphere(1, 1.0, &m, KM_E));
+  km_puppet_options o = {.isolines = 1};
+  CHECK_STATUS(km_puppet_precompute(&m, &o, &p, KM_E), KM_ERR_INVALID);
+  m.F[4] = (int32_t)m.n_vertices;
+  CHECK_STATUS(km_puppet_precompute(&m, NULL, &p, KM_E), KM_ERR_INVALID);
+  CHECK(p == NULL);
+  mesh_release(&m);
+  km_puppet_free(&p); /* NULL: no-op */
+  km_arap_free(NULL);
+}
+
+int main(void) {
+  test_errors();
+  test_invariants();
+  test_bend();
+  test_handle_change_cost();
+  test_cache();
+  return km_test_finish("test_deform");
+}
