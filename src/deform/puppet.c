@@ -76,8 +76,14 @@ struct km_puppet {
   size_t ncv;
   int32_t *cv;  /* vertices of the crossed triangles */
   double *cv_x; /* ncv*3 their current positions (workspace) */
-  double *K0;   /* nr*nr  W^T L^T L W */
-  double *G;    /* nr*nd  W^T L^T W_d */
+  /* compact copies for the crossed vertices (the per-iteration loop would otherwise miss
+   * the cache on every scattered vertex) */
+  uint8_t *cv_br; /* ncv*ne */
+  float *cv_t;    /* ncv*ne */
+  float *cv_pf;   /* ncv*3 */
+  double *cv_pn;  /* ncv*3 */
+  double *K0;     /* nr*nr  W^T L^T L W */
+  double *G;      /* nr*nd  W^T L^T W_d */
   double trK0;
   /* ---- solve settings */
   int iterations;
@@ -88,6 +94,7 @@ struct km_puppet {
   int32_t *h_off, *h_v;
   double wc2, mu;
   double *K;     /* nr*nr Cholesky factor (upper) of U^T U + mu I */
+  double *Kt;    /* its transpose (lower), so both substitutions run as contiguous axpys */
   double *KinvG; /* nr*nd */
   /* ---- state / workspace (solve does not allocate) */
   double *dR, *dR0, *dRnew; /* nr*3 */
@@ -175,11 +182,11 @@ static km_status check_mesh(const km_mesh *m, km_error *err) {
 void km_puppet_free(km_puppet **pp) {
   if (!pp || !*pp) return;
   km_puppet *p = *pp;
-  void *ptrs[] = {p->P,      p->Pn,    p->Pf,    p->wfield,  p->iso,     p->bracket,
-                  p->tpar,   p->tparf, p->tri_v, p->tri_iso, p->iso_off, p->tri_lv,
-                  p->tri_F0, p->tri_a, p->cv,    p->cv_x,    p->K0,      p->G,
-                  p->h_off,  p->h_v,   p->K,     p->KinvG,   p->dR,      p->dR0,
-                  p->dRnew,  p->dRd,   p->quat,  p->A,       p->D};
+  void *ptrs[] = {p->P,     p->Pn,    p->Pf,      p->wfield,  p->iso,    p->bracket, p->tpar,
+                  p->tparf, p->tri_v, p->tri_iso, p->iso_off, p->tri_lv, p->tri_F0,  p->tri_a,
+                  p->cv,    p->cv_x,  p->K0,      p->G,       p->h_off,  p->h_v,     p->K,
+                  p->KinvG, p->dR,    p->dR0,     p->dRnew,   p->dRd,    p->quat,    p->A,
+                  p->D,     p->cv_br, p->cv_t,    p->cv_pf,   p->cv_pn,  p->Kt};
   for (size_t i = 0; i < sizeof ptrs / sizeof ptrs[0]; ++i)
     free(ptrs[i]);
   free(p);
@@ -213,17 +220,21 @@ static km_status alloc_model(km_puppet *p, const km_mesh *m, const km_puppet_opt
   p->K0 = km__calloc(p->nr * p->nr, sizeof(double));
   p->G = km__calloc(p->nr * p->nd, sizeof(double));
   p->K = km__calloc(p->nr * p->nr, sizeof(double));
+  p->Kt = km__calloc(p->nr * p->nr, sizeof(double));
   p->KinvG = km__calloc(p->nr * p->nd, sizeof(double));
   p->dR = km__calloc(p->nr * 3, sizeof(double));
   p->dR0 = km__calloc(p->nr * 3, sizeof(double));
   p->dRnew = km__calloc(p->nr * 3, sizeof(double));
   p->dRd = km__calloc(p->nd * 3, sizeof(double));
   p->quat = km__calloc(p->n_isolines * 4, sizeof(double));
-  p->A = km__calloc(p->n_isolines * 12, sizeof(float));
-  p->D = km__calloc(p->n_isolines * 12, sizeof(float));
+  /* 64-byte aligned, 16 lanes per isoline: one AVX-512 register (or 2 AVX / 4 SSE) */
+  p->A = aligned_alloc(64, p->n_isolines * 16 * sizeof(float));
+  p->D = aligned_alloc(64, p->n_isolines * 16 * sizeof(float));
+  if (p->A) memset(p->A, 0, p->n_isolines * 16 * sizeof(float));
+  if (p->D) memset(p->D, 0, p->n_isolines * 16 * sizeof(float));
   if (!p->P || !p->Pn || !p->Pf || !p->wfield || !p->iso || !p->bracket || !p->tpar || !p->tparf ||
-      !p->iso_off || !p->K0 || !p->G || !p->K || !p->KinvG || !p->dR || !p->dR0 || !p->dRnew ||
-      !p->dRd || !p->quat || !p->A || !p->D)
+      !p->iso_off || !p->K0 || !p->G || !p->K || !p->Kt || !p->KinvG || !p->dR || !p->dR0 ||
+      !p->dRnew || !p->dRd || !p->quat || !p->A || !p->D)
     return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory for a %zu-vertex model", n);
   for (size_t i = 0; i < p->n_isolines; ++i)
     p->quat[i * 4] = 1;
@@ -286,8 +297,23 @@ static km_status finish_model(km_puppet *p, km_error *err) {
     free(local);
     return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
   }
+  p->cv_br = km__malloc((ncv ? ncv : 1) * (size_t)p->ne, 1);
+  p->cv_t = km__malloc((ncv ? ncv : 1) * (size_t)p->ne, sizeof(float));
+  p->cv_pf = km__malloc((ncv ? ncv : 1) * 3, sizeof(float));
+  p->cv_pn = km__malloc((ncv ? ncv : 1) * 3, sizeof(double));
+  if (!p->cv_br || !p->cv_t || !p->cv_pf || !p->cv_pn) {
+    free(local);
+    return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
+  }
   for (size_t v = 0; v < n; ++v)
-    if (local[v] >= 0) p->cv[local[v]] = (int32_t)v;
+    if (local[v] >= 0) {
+      size_t i = (size_t)local[v], ne = (size_t)p->ne;
+      p->cv[i] = (int32_t)v;
+      memcpy(p->cv_br + i * ne, p->bracket + v * ne, ne);
+      memcpy(p->cv_t + i * ne, p->tparf + v * ne, ne * sizeof(float));
+      memcpy(p->cv_pf + i * 3, p->Pf + v * 3, 3 * sizeof(float));
+      memcpy(p->cv_pn + i * 3, p->Pn + v * 3, 3 * sizeof(double));
+    }
   for (size_t t = 0; t < p->ntri; ++t) {
     for (int k = 0; k < 3; ++k)
       p->tri_lv[t * 3 + k] = local[p->tri_v[t * 3 + k]];
@@ -1061,6 +1087,9 @@ km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *h
   if (info != 0)
     return km__fail(err, KM_ERR_NOT_POSDEF,
                     "puppet: reduced system not positive definite (dpotrf info %d)", (int)info);
+  for (size_t c = 0; c < nr; ++c)
+    for (size_t r = 0; r < nr; ++r)
+      p->Kt[r + c * nr] = r >= c ? K[c + r * nr] : 0;
   memcpy(p->KinvG, p->G, nr * p->nd * sizeof(double));
   info = LAPACKE_dpotrs(LAPACK_COL_MAJOR, 'U', (lapack_int)nr, (lapack_int)p->nd, K, (lapack_int)nr,
                         p->KinvG, (lapack_int)nr);
@@ -1083,24 +1112,72 @@ void km_puppet_reset(km_puppet *p) {
 
 /* ------------------------------------------------------------------ solve */
 
-/* Normalised position of vertex v under R = I + dR (double, used on the handful of crossed
- * triangles' vertices). */
-static inline void eval_vertex(const km_puppet *p, const double *dR, size_t v, double *x) {
-  const double *pv = p->Pn + 3 * v;
-  double p4[4] = {pv[0], pv[1], pv[2], 1};
-  double m[12] = {0};
-  size_t nr = p->nr;
-  for (int f = 0; f < p->ne; ++f) {
-    size_t I0;
-    double a0, a1;
-    w_entry(p, v, f, &I0, &a0, &a1);
-    const double *r0 = dR + I0 * 4, *r1 = r0 + 4;
+/* The per-frame kernels are compiled for AVX-512, AVX2+FMA and baseline x86-64 and picked
+ * at load time (GCC/clang function multi-versioning), because the project builds for
+ * baseline x86-64 (SSE2, no FMA) where the X = W R loop runs ~3x slower. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 12
+#define KM__SIMD_CLONES                                                                            \
+  __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default"),                     \
+                 optimize("fp-contract=fast")))
+#else
+#define KM__SIMD_CLONES
+#endif
+
+/* X = W R runs on one thread below this many vertices: on the 2-core target a parallel
+ * region costs more than it saves around 50k vertices once anything else runs (a preempted
+ * worker stalls the frame by a scheduler tick); above it the loop is memory-bound and the
+ * second core's bandwidth pays. */
+#define KM_PUPPET_PARALLEL 150000
+
+typedef float km__v16sf __attribute__((vector_size(64)));
+
+/* Per-isoline tables of the current dR, 16 float lanes per isoline (rows c at lanes
+ * 4c..4c+3, column j): A = w_f scale dT_fk and D = A_f,k+1 - A_fk, so a vertex's transform is
+ * sum_f A[b_f] + t_f D[b_f]: one vector multiply-add per field. */
+static void build_tables(km_puppet *p) {
+  size_t nr = p->nr, nI = p->n_isolines;
+  int niso = p->niso;
+  for (size_t li = 0; li < nI; ++li) {
+    double ws = p->wfield[li / (size_t)niso] * p->scale;
     for (int c = 0; c < 3; ++c)
       for (int j = 0; j < 4; ++j)
-        m[c * 4 + j] += a0 * r0[j + c * nr] + a1 * r1[j + c * nr];
+        p->A[li * 16 + c * 4 + j] = (float)(ws * p->dR[li * 4 + j + c * nr]);
   }
-  for (int c = 0; c < 3; ++c)
-    x[c] = pv[c] + m[c * 4] * p4[0] + m[c * 4 + 1] * p4[1] + m[c * 4 + 2] * p4[2] + m[c * 4 + 3];
+  for (size_t li = 0; li < nI; ++li)
+    for (int q = 0; q < 12; ++q)
+      p->D[li * 16 + q] =
+          ((int)(li % (size_t)niso) == niso - 1) ? 0 : p->A[(li + 1) * 16 + q] - p->A[li * 16 + q];
+}
+
+/* Blended (world-scaled) displacement transform of a vertex with brackets b and parameters
+ * t, rows at lanes 0-3, 4-7, 8-11. */
+static inline void blend16(const km_puppet *p, const uint8_t *b, const float *t, km__v16sf *out) {
+  const int ne = p->ne, niso = p->niso;
+  const km__v16sf *A = (const km__v16sf *)p->A, *D = (const km__v16sf *)p->D;
+  km__v16sf m = {0};
+  for (int f = 0; f < ne; ++f) {
+    size_t li = (size_t)f * niso + b[f];
+    m += A[li] + t[f] * D[li];
+  }
+  *out = m;
+}
+
+/* Normalised positions of the crossed triangles' vertices under R = I + dR. Float carries
+ * only the displacement, as in eval_range (rotations come out to ~1e-7). */
+KM__SIMD_CLONES
+static void eval_crossed(const km_puppet *p) {
+  double inv = 1.0 / p->scale;
+  size_t ne = (size_t)p->ne;
+  for (size_t i = 0; i < p->ncv; ++i) {
+    km__v16sf m;
+    blend16(p, p->cv_br + i * ne, p->cv_t + i * ne, &m);
+    const float *pf = p->cv_pf + 3 * i;
+    const double *pv = p->cv_pn + 3 * i;
+    double *x = p->cv_x + 3 * i;
+    x[0] = pv[0] + inv * (double)(m[0] * pf[0] + m[1] * pf[1] + m[2] * pf[2] + m[3]);
+    x[1] = pv[1] + inv * (double)(m[4] * pf[0] + m[5] * pf[1] + m[6] * pf[2] + m[7]);
+    x[2] = pv[2] + inv * (double)(m[8] * pf[0] + m[9] * pf[1] + m[10] * pf[2] + m[11]);
+  }
 }
 
 /* Isoline rotations from the current dR: every sampled crossed triangle gives the rotation
@@ -1108,8 +1185,7 @@ static inline void eval_vertex(const km_puppet *p, const double *dR, size_t v, d
  * isoline takes their area-weighted quaternion mean (signs aligned to its previous
  * rotation). dRd receives rotation - identity in R_d's layout. */
 static void update_rotations(km_puppet *p) {
-  for (size_t i = 0; i < p->ncv; ++i)
-    eval_vertex(p, p->dR, (size_t)p->cv[i], p->cv_x + 3 * i);
+  eval_crossed(p);
   size_t nd = p->nd;
   for (size_t li = 0; li < p->n_isolines; ++li) {
     double *qp = p->quat + 4 * li;
@@ -1143,45 +1219,78 @@ static void update_rotations(km_puppet *p) {
   }
 }
 
-/* X = P + scale * W dR, in float on pre-multiplied per-isoline tables (A = w_f scale dT_fk,
- * D = A_k+1 - A_k): the rest part stays exact in double, and float only carries the
- * displacement (relative error ~1e-7 of the displacement). */
-static void eval_full(km_puppet *p, double *V) {
-  size_t nr = p->nr, nI = p->n_isolines;
-  int ne = p->ne, niso = p->niso;
-  for (size_t li = 0; li < nI; ++li) {
-    double ws = p->wfield[li / (size_t)niso] * p->scale;
-    for (int c = 0; c < 3; ++c)
-      for (int j = 0; j < 4; ++j)
-        p->A[li * 12 + c * 4 + j] = (float)(ws * p->dR[li * 4 + j + c * nr]);
-  }
-  for (size_t li = 0; li < nI; ++li)
-    for (int q = 0; q < 12; ++q)
-      p->D[li * 12 + q] =
-          ((int)(li % (size_t)niso) == niso - 1) ? 0 : p->A[(li + 1) * 12 + q] - p->A[li * 12 + q];
-  const float *A = p->A, *D = p->D, *Pf = p->Pf, *tf = p->tparf;
-  const uint8_t *br = p->bracket;
-  const double *P = p->P;
-  ptrdiff_t n = (ptrdiff_t)p->n;
-#ifdef _OPENMP
-#pragma omp parallel for schedule(static) if (n > 16384)
-#endif
-  for (ptrdiff_t v = 0; v < n; ++v) {
-    float m[12] = {0};
-    const uint8_t *b = br + (size_t)v * ne;
-    const float *t = tf + (size_t)v * ne;
-    for (int f = 0; f < ne; ++f) {
-      size_t li = (size_t)f * niso + b[f];
-      const float *a = A + li * 12, *d = D + li * 12;
-      float tv = t[f];
-      for (int q = 0; q < 12; ++q)
-        m[q] += a[q] + tv * d[q];
+/* X = (K)^-1 B for the 3 columns of B (nr x 3, column-major, in place) with the upper factor
+ * U (K = U^T U). Hand-written rather than LAPACKE_dpotrs: the pthread OpenBLAS wakes its
+ * worker threads for every call, and on a 2-core machine they then fight the OpenMP X = W R
+ * loop (7 ms per frame instead of 1); these 320x320 substitutions take ~50 us in place. */
+KM__SIMD_CLONES
+static void chol_solve3(const double *U, const double *Ut, size_t nr, double *B) {
+  for (int c = 0; c < 3; ++c) {
+    double *y = B + (size_t)c * nr;
+    for (size_t j = 0; j < nr; ++j) { /* U^T y = b, column j of U^T below the diagonal */
+      const double *l = Ut + j * nr;
+      double x = y[j] / l[j];
+      y[j] = x;
+      for (size_t i = j + 1; i < nr; ++i)
+        y[i] -= x * l[i];
     }
-    const float *pf = Pf + 3 * v;
-    for (int c = 0; c < 3; ++c)
-      V[3 * v + c] = P[3 * v + c] + (double)(m[c * 4] * pf[0] + m[c * 4 + 1] * pf[1] +
-                                             m[c * 4 + 2] * pf[2] + m[c * 4 + 3]);
+    for (size_t j = nr; j-- > 0;) { /* U x = y, column j of U above the diagonal */
+      const double *u = U + j * nr;
+      double x = y[j] / u[j];
+      y[j] = x;
+      for (size_t i = 0; i < j; ++i)
+        y[i] -= x * u[i];
+    }
   }
+}
+
+/* out = base + KinvG * dRd (nr x nd times nd x 3), axpy form so it vectorises. */
+KM__SIMD_CLONES
+static void apply_rotations(const double *KinvG, size_t nr, size_t nd, const double *dRd,
+                            const double *base, double *out) {
+  memcpy(out, base, nr * 3 * sizeof(double));
+  for (size_t d = 0; d < nd; ++d) {
+    const double *g = KinvG + d * nr;
+    for (int c = 0; c < 3; ++c) {
+      double s = dRd[d + (size_t)c * nd];
+      if (s == 0) continue;
+      double *o = out + (size_t)c * nr;
+      for (size_t i = 0; i < nr; ++i)
+        o[i] += s * g[i];
+    }
+  }
+}
+
+/* X = P + scale * W dR for vertices [v0, v1), in float on the pre-multiplied per-isoline
+ * tables: the rest part stays exact in double and float only carries the displacement
+ * (relative error ~1e-7 of the displacement; the rigid-motion test bounds it). One 16-lane
+ * vector holds a blended 3x4 transform, so a field costs one load-multiply-add pair. */
+KM__SIMD_CLONES
+static void eval_range(const km_puppet *p, double *V, size_t v0, size_t v1) {
+  const float *Pf = p->Pf;
+  const double *P = p->P;
+  for (size_t v = v0; v < v1; ++v) {
+    km__v16sf m;
+    blend16(p, p->bracket + v * (size_t)p->ne, p->tparf + v * (size_t)p->ne, &m);
+    const float *pf = Pf + 3 * v;
+    V[3 * v + 0] = P[3 * v + 0] + (double)(m[0] * pf[0] + m[1] * pf[1] + m[2] * pf[2] + m[3]);
+    V[3 * v + 1] = P[3 * v + 1] + (double)(m[4] * pf[0] + m[5] * pf[1] + m[6] * pf[2] + m[7]);
+    V[3 * v + 2] = P[3 * v + 2] + (double)(m[8] * pf[0] + m[9] * pf[1] + m[10] * pf[2] + m[11]);
+  }
+}
+
+static void eval_full(km_puppet *p, double *V) {
+  build_tables(p);
+  size_t n = p->n;
+#ifdef _OPENMP
+#pragma omp parallel if (n > KM_PUPPET_PARALLEL)
+  {
+    size_t nt = (size_t)omp_get_num_threads(), id = (size_t)omp_get_thread_num();
+    eval_range(p, V, n * id / nt, n * (id + 1) / nt);
+  }
+#else
+  eval_range(p, V, 0, n);
+#endif
 }
 
 km_status km_puppet_solve(km_puppet *p, const double *targets, double *V_out, km_error *err) {
@@ -1213,17 +1322,14 @@ km_status km_puppet_solve(km_puppet *p, const double *targets, double *V_out, km
         }
     }
   }
-  lapack_int info = LAPACKE_dpotrs(LAPACK_COL_MAJOR, 'U', (lapack_int)nr, 3, p->K, (lapack_int)nr,
-                                   p->dR0, (lapack_int)nr);
-  if (info != 0) return km__fail(err, KM_ERR_INVALID, "puppet solve: dpotrs info %d", (int)info);
+  chol_solve3(p->K, p->Kt, nr, p->dR0);
   int it = 0;
   double change = 0;
   if (p->iterations == 0) memcpy(p->dR, p->dR0, nr * 3 * sizeof(double));
   for (; it < p->iterations; ++it) {
+    build_tables(p);
     update_rotations(p);
-    memcpy(p->dRnew, p->dR0, nr * 3 * sizeof(double));
-    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, (int)nr, 3, (int)p->nd, 1.0, p->KinvG,
-                (int)nr, p->dRd, (int)p->nd, 1.0, p->dRnew, (int)nr);
+    apply_rotations(p->KinvG, nr, p->nd, p->dRd, p->dR0, p->dRnew);
     double num = 0, den = 0;
     for (size_t i = 0; i < nr * 3; ++i) {
       double d = p->dRnew[i] - p->dR[i];
