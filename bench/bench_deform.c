@@ -1,7 +1,8 @@
 /* Puppet deformation benchmark (Wu, Lu & Song, Table 1 columns).
  *
  *   bench_deform MESH [--handles N] [--frames F] [--full-frames G] [--cache PATH]
- *                     [--iterations K] [--threads T]
+ *                     [--iterations K] [--threads T] [--crossed C] [--handle-weight W]
+ *                     [--arap-iterations A]
  *
  * MESH is an OBJ/OFF/PLY path, or "icosphere:S" (10*4^S+2 vertices) / "cylinder:SEG:RINGS".
  * N handles (default 5) are seeded by farthest-point sampling; each takes the vertices
@@ -154,12 +155,15 @@ int main(int argc, char **argv) {
   if (argc < 2) {
     fprintf(stderr,
             "usage: %s MESH|icosphere:S|cylinder:SEG:RINGS [--handles N] [--frames F] "
-            "[--full-frames G] [--cache PATH] [--iterations K] [--threads T]\n",
+            "[--full-frames G] [--cache PATH] [--iterations K] [--threads T] [--crossed C] "
+                    "[--handle-weight W] [--arap-iterations A]\n",
             argv[0]);
     return 2;
   }
   const char *mesh_path = argv[1], *cache = NULL;
-  int nh = 5, frames = 60, full_frames = -1, iterations = 0;
+  int nh = 5, frames = 60, full_frames = -1, iterations = 0, crossed = 0, arap_iterations = 0;
+  double handle_weight = 0;
+  int fields = 0, isolines = 0;
   for (int i = 2; i + 1 < argc; i += 2) {
     if (!strcmp(argv[i], "--handles"))
       nh = atoi(argv[i + 1]);
@@ -171,6 +175,16 @@ int main(int argc, char **argv) {
       cache = argv[i + 1];
     else if (!strcmp(argv[i], "--iterations"))
       iterations = atoi(argv[i + 1]);
+    else if (!strcmp(argv[i], "--arap-iterations"))
+      arap_iterations = atoi(argv[i + 1]);
+    else if (!strcmp(argv[i], "--fields"))
+      fields = atoi(argv[i + 1]);
+    else if (!strcmp(argv[i], "--isolines"))
+      isolines = atoi(argv[i + 1]);
+    else if (!strcmp(argv[i], "--crossed"))
+      crossed = atoi(argv[i + 1]);
+    else if (!strcmp(argv[i], "--handle-weight"))
+      handle_weight = atof(argv[i + 1]);
 #ifdef _OPENMP
     else if (!strcmp(argv[i], "--threads"))
       omp_set_num_threads(atoi(argv[i + 1]));
@@ -203,6 +217,10 @@ int main(int argc, char **argv) {
 
   km_puppet_options po = {0};
   po.iterations = iterations;
+  po.crossed_per_isoline = crossed;
+  po.fields = fields;
+  po.isolines = isolines;
+  po.handle_weight = handle_weight;
   km_puppet *p = NULL;
   double t = now();
   if (km_puppet_precompute(&m, &po, &p, &e)) return die("precompute", &e);
@@ -231,7 +249,8 @@ int main(int argc, char **argv) {
   double tfull_pre = 0;
   if (full_frames > 0) {
     t = now();
-    if (km_arap_precompute(&m, (size_t)nh, off, hv, NULL, &a, &e)) return die("arap", &e);
+    km_arap_options ao = {.iterations = arap_iterations};
+    if (km_arap_precompute(&m, (size_t)nh, off, hv, &ao, &a, &e)) return die("arap", &e);
     tfull_pre = now() - t;
   }
   double *T = malloc(nhv * 3 * sizeof(double)), *X = malloc(n * 3 * sizeof(double)),
@@ -240,6 +259,7 @@ int main(int argc, char **argv) {
          *tf = malloc((size_t)frames * sizeof(double));
   double dev_sum = 0, dev_max = 0;
   int iters_sum = 0;
+  double handle_err = 0;
   for (int f = 0; f < frames; ++f) {
     targets_at(&m, nh, off, hv, f, diag, T);
     t = now();
@@ -248,6 +268,12 @@ int main(int argc, char **argv) {
     km_puppet_info info;
     km_puppet_info_get(p, &info);
     iters_sum += info.last_iterations;
+    for (size_t i = 0; i < nhv; ++i) {
+      const double *x = X + 3 * (size_t)hv[i], *y = T + 3 * i;
+      handle_err += sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) +
+                         (x[2] - y[2]) * (x[2] - y[2])) /
+                    (double)nhv / frames / diag;
+    }
     if (f < full_frames) {
       t = now();
       if (km_arap_solve(a, T, Y, &e)) return die("arap solve", &e);
@@ -274,6 +300,8 @@ int main(int argc, char **argv) {
          info.crossed_triangles, t1, t1c, tset * 1e3, median(t4, (size_t)frames) * 1e3, fm,
          full_frames > 0 ? dev_sum / full_frames / diag : NAN,
          full_frames > 0 ? dev_max / diag : NAN, (double)iters_sum / frames);
+  printf("# puppet handle vertices' mean distance to their targets: %.5f of the diagonal\n",
+         handle_err);
   printf("# %zu handle vertices (%zu per handle), %d frames (%d with the full solver, ARAP "
          "precompute %.2f s)\n",
          nhv, per, frames, full_frames, tfull_pre);

@@ -398,9 +398,10 @@ typedef struct km_puppet_options {
   int isolines;         /* n_iso isolines per field; 0: 10 (2 .. 64) */
   int iterations;       /* dual-Laplacian rotation updates per solve; 0: 4 */
   double tolerance;     /* stop earlier when |dR| / |R - I| < tolerance; 0: 1e-4 */
-  double handle_weight; /* relative handle weight w_c (1: handle and Laplacian terms have
-                           equal trace); 0: 10 */
-  int crossed_per_isoline; /* crossed triangles sampled per isoline for rotations; 0: 16 */
+  double handle_weight; /* relative handle weight w_c (1: the handle and Laplacian terms of
+                           U^T U have equal trace); 0: 1. Handles are soft: larger follows
+                           them closer and bends the rest more */
+  int crossed_per_isoline; /* crossed triangles sampled per isoline for rotations; 0: 10 */
   km_progress progress;
 } km_puppet_options;
 

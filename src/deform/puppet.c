@@ -141,8 +141,8 @@ static void resolve_options(const km_puppet_options *opt, km_puppet_options *o) 
   if (o->isolines == 0) o->isolines = 10;
   if (o->iterations == 0) o->iterations = 4;
   if (o->tolerance == 0) o->tolerance = 1e-4;
-  if (o->handle_weight == 0) o->handle_weight = 10;
-  if (o->crossed_per_isoline == 0) o->crossed_per_isoline = 16;
+  if (o->handle_weight == 0) o->handle_weight = 1;
+  if (o->crossed_per_isoline == 0) o->crossed_per_isoline = 10;
 }
 
 static km_status check_options(const km_puppet_options *o, km_error *err) {
@@ -338,18 +338,6 @@ static inline void w_entry(const km_puppet *p, size_t v, int f, size_t *i0, doub
 
 /* ------------------------------------------------------------------ precompute */
 
-static int cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return x < y ? -1 : x > y;
-}
-
-typedef struct {
-  double value, mass;
-} val_mass;
-static int cmp_val_mass(const void *a, const void *b) {
-  return cmp_double(&((const val_mass *)a)->value, &((const val_mass *)b)->value);
-}
-
 /* Diagonal of a (diagonal) sparse matrix. */
 static void sparse_diag(const km_sparse *A, double *d) {
   const int32_t *cp, *ri;
@@ -363,36 +351,26 @@ static void sparse_diag(const km_sparse *A, double *d) {
   }
 }
 
-/* Iso-values by mass quantiles: isoline k sits at cumulative area (k+1/2)/n_iso of the
- * field, so every isoline controls the same surface area. Evenly spaced values (the other
- * reading of Au et al.) crowd isolines onto the thin extremities where eigenfunctions peak
- * and leave the body with two or three; quantiles gave a lower deviation from full ARAP in
- * our bending tests (see the report in tests/test_deform.c). */
-static km_status place_isolines(km_puppet *p, const double *evecs, const double *mass,
-                                km_error *err) {
+/* Iso-values evenly spaced over the field's range with half-step margins,
+ * min + (k + 1/2) (max - min) / n_iso, so the end isolines still cross triangles (an isoline
+ * exactly at the extreme is a single vertex and would carry no rotation). We also tried mass
+ * quantiles (every isoline controls the same area): on armadillo (43k) and horse (48k) with 5
+ * moving handles, even spacing deviated less from full ARAP (mean 2.27% vs 2.45% and 2.72% vs
+ * 2.89% of the diagonal; max 10% vs 18% on the horse): the extremities, where eigenfunctions
+ * peak, are exactly where handles sit and need the isolines. */
+static km_status place_isolines(km_puppet *p, const double *evecs, km_error *err) {
   size_t n = p->n;
-  val_mass *vm = km__malloc(n, sizeof *vm);
-  if (!vm) return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
+  (void)err;
   for (int f = 0; f < p->ne; ++f) {
     const double *e = evecs + (size_t)(f + 1) * n;
-    double total = 0;
-    for (size_t v = 0; v < n; ++v) {
-      vm[v].value = e[v];
-      vm[v].mass = mass[v] > 0 ? mass[v] : 0;
-      total += vm[v].mass;
+    double lo = e[0], hi = e[0];
+    for (size_t v = 1; v < n; ++v) {
+      lo = e[v] < lo ? e[v] : lo;
+      hi = e[v] > hi ? e[v] : hi;
     }
-    qsort(vm, n, sizeof *vm, cmp_val_mass);
     double *iso = p->iso + (size_t)f * p->niso;
-    size_t j = 0;
-    double acc = 0;
-    for (int k = 0; k < p->niso; ++k) {
-      double target = total * (k + 0.5) / p->niso;
-      while (j + 1 < n && acc + vm[j].mass < target)
-        acc += vm[j++].mass;
-      iso[k] = vm[j].value;
-    }
-    /* strictly increasing iso-values keep the brackets well defined */
-    double range = vm[n - 1].value - vm[0].value;
+    for (int k = 0; k < p->niso; ++k) iso[k] = lo + (hi - lo) * (k + 0.5) / p->niso;
+    double range = hi - lo;
     for (int k = 1; k < p->niso; ++k)
       if (iso[k] <= iso[k - 1]) iso[k] = iso[k - 1] + 1e-9 * (range > 0 ? range : 1);
     for (size_t v = 0; v < n; ++v) {
@@ -422,7 +400,6 @@ static km_status place_isolines(km_puppet *p, const double *evecs, const double 
       p->tpar[v * p->ne + f] = t;
     }
   }
-  free(vm);
   return KM_OK;
 }
 
@@ -731,7 +708,7 @@ km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt
       s = km__fail(err, KM_ERR_DEGENERATE_MESH, "puppet: eigenvectors are not finite");
       goto fail;
     }
-  if ((s = place_isolines(p, evecs, mass, err))) goto fail;
+  if ((s = place_isolines(p, evecs, err))) goto fail;
   if ((s = select_crossed(p, rest, evecs, err))) goto fail;
   if ((s = finish_model(p, err))) goto fail;
   if (!km__progress(&o.progress, 0.8, "reduced system")) goto cancel;
