@@ -156,7 +156,7 @@ int main(int argc, char **argv) {
     fprintf(stderr,
             "usage: %s MESH|icosphere:S|cylinder:SEG:RINGS [--handles N] [--frames F] "
             "[--full-frames G] [--cache PATH] [--iterations K] [--threads T] [--crossed C] "
-                    "[--handle-weight W] [--arap-iterations A]\n",
+            "[--handle-weight W] [--arap-iterations A]\n",
             argv[0]);
     return 2;
   }

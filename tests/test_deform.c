@@ -8,23 +8,6 @@
 
 #include "internal.h" /* km__now */
 
-/* Local stand-ins (kept independent of the mesh I/O module). */
-static void mesh_release(km_mesh *m) {
-  free(m->V);
-  free(m->F);
-  memset(m, 0, sizeof *m);
-}
-
-static double bbox_diag(const double *V, size_t n) {
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (size_t v = 0; v < n; ++v)
-    for (int c = 0; c < 3; ++c)
-      lo[c] = fmin(lo[c], V[3 * v + c]), hi[c] = fmax(hi[c], V[3 * v + c]);
-  return n ? sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                  (hi[2] - lo[2]) * (hi[2] - lo[2]))
-           : 0;
-}
-
 /* Handles of a bar along z: vertices with z < lo (anchor) and z > hi (pulled). */
 static void bar_handles(const km_mesh *m, double lo, double hi, int32_t *off, int32_t *hv,
                         size_t *nhv) {
@@ -82,7 +65,7 @@ static void rigid(const double *R, const double *t, const double *x, double *y) 
 static void check_invariants(const char *name, const km_mesh *m, size_t nh, const int32_t *off,
                              const int32_t *hv) {
   size_t n = m->n_vertices, nhv = (size_t)off[nh];
-  double diag = bbox_diag(m->V, n);
+  double diag = km_bbox_diagonal(m->V, n);
   km_puppet *p = NULL;
   km_puppet_options o = {0};
   o.iterations = 30;
@@ -148,7 +131,7 @@ static void test_invariants(void) {
   }
   CHECK(k > 9);
   check_invariants("icosphere", &m, 3, off, hv);
-  mesh_release(&m);
+  km_mesh_free(&m);
 
   CHECK_OK(km_cylinder(16, 30, 0.1, 1.0, &m, KM_E));
   int32_t *bh = malloc(m.n_vertices * sizeof(int32_t)), boff[3];
@@ -156,7 +139,7 @@ static void test_invariants(void) {
   bar_handles(&m, 0.04, 0.96, boff, bh, &nhv);
   check_invariants("cylinder", &m, 2, boff, bh);
   free(bh);
-  mesh_release(&m);
+  km_mesh_free(&m);
 }
 
 /* Bend a bar: anchor the bottom, pull the top sideways; compare with full ARAP. */
@@ -164,7 +147,7 @@ static void test_bend(void) {
   km_mesh m = {0};
   CHECK_OK(km_cylinder(24, 60, 0.08, 1.0, &m, KM_E));
   size_t n = m.n_vertices, nhv;
-  double diag = bbox_diag(m.V, n);
+  double diag = km_bbox_diagonal(m.V, n);
   int32_t *hv = malloc(n * sizeof(int32_t)), off[3];
   bar_handles(&m, 0.03, 0.97, off, hv, &nhv);
   double t0 = km__now();
@@ -248,7 +231,7 @@ static void test_bend(void) {
   free(X);
   free(Y);
   free(hv);
-  mesh_release(&m);
+  km_mesh_free(&m);
 }
 
 /* Changing the handle set costs a 320x320 Cholesky, not an eigen-decomposition. */
@@ -278,7 +261,7 @@ static void test_handle_change_cost(void) {
   CHECK_MSG(t_set < 0.1 * t_pre, "set_handles %.4f s vs precompute %.3f s", t_set, t_pre);
   km_puppet_free(&p);
   free(hv);
-  mesh_release(&m);
+  km_mesh_free(&m);
 }
 
 static void test_cache(void) {
@@ -312,17 +295,13 @@ static void test_cache(void) {
   CHECK_STATUS(km_puppet_load(path, &m, &o, &q, KM_E), KM_ERR_STALE);
   CHECK(q == NULL);
   /* different mesh: one coordinate nudged, and another mesh altogether */
-  m2.n_vertices = m.n_vertices, m2.n_faces = m.n_faces;
-  m2.V = malloc(m.n_vertices * 3 * sizeof(double));
-  m2.F = malloc(m.n_faces * 3 * sizeof(int32_t));
-  memcpy(m2.V, m.V, m.n_vertices * 3 * sizeof(double));
-  memcpy(m2.F, m.F, m.n_faces * 3 * sizeof(int32_t));
+  CHECK_OK(km_mesh_copy(&m, &m2, KM_E));
   m2.V[5] += 1e-12;
   CHECK_STATUS(km_puppet_load(path, &m2, NULL, &q, KM_E), KM_ERR_STALE);
-  mesh_release(&m2);
+  km_mesh_free(&m2);
   CHECK_OK(km_icosphere(2, 1.0, &m2, KM_E));
   CHECK_STATUS(km_puppet_load(path, &m2, NULL, &q, KM_E), KM_ERR_STALE);
-  mesh_release(&m2);
+  km_mesh_free(&m2);
   /* corrupt one byte (header, payload and checksum regions), truncate */
   FILE *f = fopen(path, "rb");
   CHECK(f != NULL);
@@ -360,7 +339,110 @@ static void test_cache(void) {
   free(X);
   free(Y);
   free(hv);
-  mesh_release(&m);
+  km_mesh_free(&m);
+}
+
+/* A real scan (decimated armadillo, 864 vertices): two far-apart handles, one pulled and
+ * turned; finite, anchored, close to full ARAP, and the cache reloads it. */
+static int test_real_mesh(void) {
+  char buf[1024];
+  const char *path = km_test_shared("meshes/armadillo_1k.off", buf, sizeof buf);
+  if (!path) return KM_TEST_SKIP;
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_read(path, &m, KM_E));
+  size_t n = m.n_vertices;
+  if (n < 100) return 0;
+  double diag = km_bbox_diagonal(m.V, n);
+  /* handle 0: 40 vertices nearest the lowest vertex, handle 1: 40 nearest the highest */
+  size_t lo = 0, hi = 0;
+  for (size_t v = 0; v < n; ++v) {
+    if (m.V[3 * v + 1] < m.V[3 * lo + 1]) lo = v;
+    if (m.V[3 * v + 1] > m.V[3 * hi + 1]) hi = v;
+  }
+  int32_t off[3] = {0, 40, 80}, hv[80];
+  unsigned char *taken = calloc(n, 1);
+  size_t seeds[2] = {lo, hi};
+  for (int h = 0; h < 2; ++h)
+    for (int c = 0; c < 40; ++c) {
+      size_t bi = 0;
+      double bd = INFINITY;
+      for (size_t v = 0; v < n; ++v) {
+        if (taken[v]) continue;
+        const double *x = m.V + 3 * v, *y = m.V + 3 * seeds[h];
+        double d = (x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) +
+                   (x[2] - y[2]) * (x[2] - y[2]);
+        if (d < bd) bd = d, bi = v;
+      }
+      taken[bi] = 1;
+      hv[h * 40 + c] = (int32_t)bi;
+    }
+  free(taken);
+  km_puppet *p = NULL;
+  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
+  km_arap *a = NULL;
+  CHECK_OK(km_arap_precompute(&m, 2, off, hv, NULL, &a, KM_E));
+  if (!p || !a) {
+    km_puppet_free(&p);
+    km_arap_free(&a);
+    km_mesh_free(&m);
+    return 0;
+  }
+  CHECK_OK(km_puppet_set_handles(p, 2, off, hv, KM_E));
+  double T[240], *X = malloc(n * 3 * sizeof(double)), *Y = malloc(n * 3 * sizeof(double));
+  double u[3] = {0, 0, 1}, R[9], c[3] = {0, 0, 0};
+  for (int i = 40; i < 80; ++i)
+    for (int k = 0; k < 3; ++k)
+      c[k] += m.V[3 * (size_t)hv[i] + k] / 40;
+  double dsum = 0, dmax = 0;
+  for (int f = 1; f <= 8; ++f) {
+    rot_axis(u, 0.05 * f, R);
+    for (int i = 0; i < 80; ++i) {
+      const double *x = m.V + 3 * (size_t)hv[i];
+      if (i < 40) {
+        memcpy(T + 3 * i, x, 3 * sizeof(double));
+        continue;
+      }
+      double d[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]}, t[3] = {0.015 * f * diag, 0, 0};
+      rigid(R, t, d, T + 3 * i);
+      for (int k = 0; k < 3; ++k)
+        T[3 * i + k] += c[k];
+    }
+    CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+    CHECK_OK(km_arap_solve(a, T, Y, KM_E));
+    dsum += mean_dev(X, Y, n) / diag / 8;
+    dmax = fmax(dmax, max_dev(X, Y, n) / diag);
+  }
+  CHECK(all_finite(X, 3 * n));
+  double anchor = 0;
+  for (int i = 0; i < 40; ++i)
+    anchor = fmax(anchor,
+                  sqrt(pow(X[3 * hv[i]] - T[3 * i], 2) + pow(X[3 * hv[i] + 1] - T[3 * i + 1], 2) +
+                       pow(X[3 * hv[i] + 2] - T[3 * i + 2], 2)));
+  printf("armadillo_1k: reduced vs ARAP mean %.4f max %.4f of the diagonal, anchor error %.2g\n",
+         dsum, dmax, anchor / diag);
+  CHECK_MSG(dsum <= 0.03, "mean deviation %g", dsum);
+  CHECK_MSG(anchor <= 0.01 * diag, "anchor moved %g", anchor / diag);
+  /* cache round trip on a real mesh */
+  char cpath[256];
+  snprintf(cpath, sizeof cpath, "test_deform_real_%d.kmp", (int)getpid());
+  CHECK_OK(km_puppet_save(p, cpath, KM_E));
+  km_puppet *q = NULL;
+  CHECK_OK(km_puppet_load(cpath, &m, NULL, &q, KM_E));
+  remove(cpath);
+  if (q) {
+    CHECK_OK(km_puppet_set_handles(q, 2, off, hv, KM_E));
+    km_puppet_reset(p);
+    CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+    CHECK_OK(km_puppet_solve(q, T, Y, KM_E));
+    CHECK(memcmp(X, Y, n * 3 * sizeof(double)) == 0);
+  }
+  km_puppet_free(&q);
+  km_puppet_free(&p);
+  km_arap_free(&a);
+  free(X);
+  free(Y);
+  km_mesh_free(&m);
+  return 0;
 }
 
 static void test_errors(void) {
@@ -373,7 +455,7 @@ static void test_errors(void) {
   m.F[4] = (int32_t)m.n_vertices;
   CHECK_STATUS(km_puppet_precompute(&m, NULL, &p, KM_E), KM_ERR_INVALID);
   CHECK(p == NULL);
-  mesh_release(&m);
+  km_mesh_free(&m);
   km_puppet_free(&p); /* NULL: no-op */
   km_arap_free(NULL);
 }
@@ -384,5 +466,6 @@ int main(void) {
   test_bend();
   test_handle_change_cost();
   test_cache();
+  test_real_mesh();
   return km_test_finish("test_deform");
 }

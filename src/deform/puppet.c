@@ -369,7 +369,8 @@ static km_status place_isolines(km_puppet *p, const double *evecs, km_error *err
       hi = e[v] > hi ? e[v] : hi;
     }
     double *iso = p->iso + (size_t)f * p->niso;
-    for (int k = 0; k < p->niso; ++k) iso[k] = lo + (hi - lo) * (k + 0.5) / p->niso;
+    for (int k = 0; k < p->niso; ++k)
+      iso[k] = lo + (hi - lo) * (k + 0.5) / p->niso;
     double range = hi - lo;
     for (int k = 1; k < p->niso; ++k)
       if (iso[k] <= iso[k - 1]) iso[k] = iso[k - 1] + 1e-9 * (range > 0 ? range : 1);
