@@ -94,19 +94,7 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_
   a->adj_off = km__calloc(n + 1, sizeof(int32_t));
   if (!a->P || !a->X || !a->R || !a->map || !a->h_v || !a->adj_off) goto nomem;
   memcpy(a->P, rest->V, n * 3 * sizeof(double));
-  {
-    /* bounding-box diagonal, the scale of the tolerance */
-    double lo[3], hi[3];
-    memcpy(lo, rest->V, sizeof lo);
-    memcpy(hi, rest->V, sizeof hi);
-    for (size_t v = 0; v < n; ++v)
-      for (int c = 0; c < 3; ++c) {
-        lo[c] = fmin(lo[c], rest->V[3 * v + c]);
-        hi[c] = fmax(hi[c], rest->V[3 * v + c]);
-      }
-    a->diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                   (hi[2] - lo[2]) * (hi[2] - lo[2]));
-  }
+  a->diag = km_bbox_diagonal(rest->V, n);
   memcpy(a->X, rest->V, n * 3 * sizeof(double));
   for (size_t v = 0; v < n; ++v)
     a->map[v] = 0;
