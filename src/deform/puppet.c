@@ -60,7 +60,6 @@ struct km_puppet {
   uint64_t mesh_hash;
   double *P;        /* n*3 rest, world units */
   double *Pn;       /* n*3 rest, normalised: (p - center)/scale */
-  float *Pf;        /* n*3 float copy of Pn (full-resolution evaluation only) */
   double *wfield;   /* ne, sum 1 */
   double *iso;      /* ne*niso iso-values, ascending per field */
   uint8_t *bracket; /* n*ne (vertex-major): lower isoline k, 0 <= k <= niso-2 */
@@ -182,11 +181,11 @@ static km_status check_mesh(const km_mesh *m, km_error *err) {
 void km_puppet_free(km_puppet **pp) {
   if (!pp || !*pp) return;
   km_puppet *p = *pp;
-  void *ptrs[] = {p->P,     p->Pn,    p->Pf,      p->wfield,  p->iso,    p->bracket, p->tpar,
-                  p->tparf, p->tri_v, p->tri_iso, p->iso_off, p->tri_lv, p->tri_F0,  p->tri_a,
-                  p->cv,    p->cv_x,  p->K0,      p->G,       p->h_off,  p->h_v,     p->K,
-                  p->KinvG, p->dR,    p->dR0,     p->dRnew,   p->dRd,    p->quat,    p->A,
-                  p->D,     p->cv_br, p->cv_t,    p->cv_pf,   p->cv_pn,  p->Kt};
+  void *ptrs[] = {p->P,     p->Pn,      p->wfield,  p->iso,    p->bracket, p->tpar,  p->tparf,
+                  p->tri_v, p->tri_iso, p->iso_off, p->tri_lv, p->tri_F0,  p->tri_a, p->cv,
+                  p->cv_x,  p->K0,      p->G,       p->h_off,  p->h_v,     p->K,     p->KinvG,
+                  p->dR,    p->dR0,     p->dRnew,   p->dRd,    p->quat,    p->A,     p->D,
+                  p->cv_br, p->cv_t,    p->cv_pf,   p->cv_pn,  p->Kt};
   for (size_t i = 0; i < sizeof ptrs / sizeof ptrs[0]; ++i)
     free(ptrs[i]);
   free(p);
@@ -210,7 +209,6 @@ static km_status alloc_model(km_puppet *p, const km_mesh *m, const km_puppet_opt
   size_t n = p->n, ne = p->ne;
   p->P = km__malloc(n * 3, sizeof(double));
   p->Pn = km__malloc(n * 3, sizeof(double));
-  p->Pf = km__malloc(n * 3, sizeof(float));
   p->wfield = km__malloc(ne, sizeof(double));
   p->iso = km__malloc(p->n_isolines, sizeof(double));
   p->bracket = km__malloc(n * ne, 1);
@@ -232,7 +230,7 @@ static km_status alloc_model(km_puppet *p, const km_mesh *m, const km_puppet_opt
   p->D = aligned_alloc(64, p->n_isolines * 16 * sizeof(float));
   if (p->A) memset(p->A, 0, p->n_isolines * 16 * sizeof(float));
   if (p->D) memset(p->D, 0, p->n_isolines * 16 * sizeof(float));
-  if (!p->P || !p->Pn || !p->Pf || !p->wfield || !p->iso || !p->bracket || !p->tpar || !p->tparf ||
+  if (!p->P || !p->Pn || !p->wfield || !p->iso || !p->bracket || !p->tpar || !p->tparf ||
       !p->iso_off || !p->K0 || !p->G || !p->K || !p->Kt || !p->KinvG || !p->dR || !p->dR0 ||
       !p->dRnew || !p->dRd || !p->quat || !p->A || !p->D)
     return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory for a %zu-vertex model", n);
@@ -259,7 +257,6 @@ static km_status alloc_model(km_puppet *p, const km_mesh *m, const km_puppet_opt
   for (size_t v = 0; v < n; ++v)
     for (int c = 0; c < 3; ++c) {
       p->Pn[v * 3 + c] = (m->V[v * 3 + c] - p->center[c]) / p->scale;
-      p->Pf[v * 3 + c] = (float)p->Pn[v * 3 + c];
     }
   p->mesh_hash = mesh_hash(m);
   return KM_OK;
@@ -311,7 +308,8 @@ static km_status finish_model(km_puppet *p, km_error *err) {
       p->cv[i] = (int32_t)v;
       memcpy(p->cv_br + i * ne, p->bracket + v * ne, ne);
       memcpy(p->cv_t + i * ne, p->tparf + v * ne, ne * sizeof(float));
-      memcpy(p->cv_pf + i * 3, p->Pf + v * 3, 3 * sizeof(float));
+      for (int c = 0; c < 3; ++c)
+        p->cv_pf[i * 3 + c] = (float)p->Pn[v * 3 + c];
       memcpy(p->cv_pn + i * 3, p->Pn + v * 3, 3 * sizeof(double));
     }
   for (size_t t = 0; t < p->ntri; ++t) {
@@ -1245,12 +1243,14 @@ static void apply_rotations(const double *KinvG, size_t nr, size_t nd, const dou
  * vector holds a blended 3x4 transform, so a field costs one load-multiply-add pair. */
 KM__SIMD_CLONES
 static void eval_range(const km_puppet *p, double *V, size_t v0, size_t v1) {
-  const float *Pf = p->Pf;
   const double *P = p->P;
+  const double c0 = p->center[0], c1 = p->center[1], c2 = p->center[2], inv = 1 / p->scale;
   for (size_t v = v0; v < v1; ++v) {
     km__v16sf m;
     blend16(p, p->bracket + v * (size_t)p->ne, p->tparf + v * (size_t)p->ne, &m);
-    const float *pf = Pf + 3 * v;
+    /* normalised rest position from P itself: one memory stream less than a float copy */
+    const float pf[3] = {(float)((P[3 * v] - c0) * inv), (float)((P[3 * v + 1] - c1) * inv),
+                         (float)((P[3 * v + 2] - c2) * inv)};
     V[3 * v + 0] = P[3 * v + 0] + (double)(m[0] * pf[0] + m[1] * pf[1] + m[2] * pf[2] + m[3]);
     V[3 * v + 1] = P[3 * v + 1] + (double)(m[4] * pf[0] + m[5] * pf[1] + m[6] * pf[2] + m[7]);
     V[3 * v + 2] = P[3 * v + 2] + (double)(m[8] * pf[0] + m[9] * pf[1] + m[10] * pf[2] + m[11]);
