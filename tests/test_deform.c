@@ -445,6 +445,12 @@ static int test_real_mesh(void) {
   return 0;
 }
 
+static bool cancel_at_half(double fraction, const char *stage, void *user) {
+  (void)stage;
+  ++*(int *)user;
+  return fraction < 0.5;
+}
+
 static void test_errors(void) {
   km_puppet *p = NULL;
   km_mesh m = {0};
@@ -455,6 +461,59 @@ static void test_errors(void) {
   m.F[4] = (int32_t)m.n_vertices;
   CHECK_STATUS(km_puppet_precompute(&m, NULL, &p, KM_E), KM_ERR_INVALID);
   CHECK(p == NULL);
+  km_mesh_free(&m);
+  /* progress reports and cancellation */
+  CHECK_OK(km_icosphere(2, 1.0, &m, KM_E));
+  int calls = 0;
+  km_puppet_options oc = {.progress = {cancel_at_half, &calls}};
+  CHECK_STATUS(km_puppet_precompute(&m, &oc, &p, KM_E), KM_ERR_CANCELLED);
+  CHECK(p == NULL && calls > 0);
+  /* solve before set_handles, NaN targets */
+  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
+  double *X = malloc(m.n_vertices * 3 * sizeof(double)), T[3] = {NAN, 0, 0};
+  CHECK_STATUS(km_puppet_solve(p, T, X, KM_E), KM_ERR_INVALID);
+  int32_t off[2] = {0, 1}, hv[1] = {0};
+  CHECK_OK(km_puppet_set_handles(p, 1, off, hv, KM_E));
+  CHECK_STATUS(km_puppet_solve(p, T, X, KM_E), KM_ERR_INVALID);
+  km_puppet_free(&p);
+  /* ARAP: no handle, bad handle, a component without a handle */
+  km_arap *a = NULL;
+  CHECK_STATUS(km_arap_precompute(&m, 0, off, hv, NULL, &a, KM_E), KM_ERR_INVALID);
+  hv[0] = -1;
+  CHECK_STATUS(km_arap_precompute(&m, 1, off, hv, NULL, &a, KM_E), KM_ERR_INVALID);
+  CHECK(a == NULL);
+  km_mesh two = {0};
+  CHECK_OK(km_mesh_alloc(m.n_vertices * 2, m.n_faces * 2, &two, KM_E));
+  for (size_t i = 0; i < m.n_vertices * 3; ++i) {
+    two.V[i] = m.V[i];
+    two.V[m.n_vertices * 3 + i] = m.V[i] + (i % 3 == 0 ? 3.0 : 0.0);
+  }
+  for (size_t i = 0; i < m.n_faces * 3; ++i) {
+    two.F[i] = m.F[i];
+    two.F[m.n_faces * 3 + i] = m.F[i] + (int32_t)m.n_vertices;
+  }
+  hv[0] = 0;
+  km_status st = km_arap_precompute(&two, 1, off, hv, NULL, &a, KM_E);
+  CHECK_MSG(st != KM_OK && a == NULL, "a component without handle must fail (%s)",
+            km_status_name(st));
+  km_mesh_free(&two);
+  /* an isolated vertex (used by no face) stays where it is */
+  CHECK_OK(km_mesh_alloc(m.n_vertices + 1, m.n_faces, &two, KM_E));
+  memcpy(two.V, m.V, m.n_vertices * 3 * sizeof(double));
+  memcpy(two.F, m.F, m.n_faces * 3 * sizeof(int32_t));
+  two.V[m.n_vertices * 3] = 5, two.V[m.n_vertices * 3 + 1] = 6, two.V[m.n_vertices * 3 + 2] = 7;
+  CHECK_OK(km_arap_precompute(&two, 1, off, hv, NULL, &a, KM_E));
+  if (a) {
+    double *Y = malloc(two.n_vertices * 3 * sizeof(double)),
+           T0[3] = {two.V[0] + 0.1, two.V[1], two.V[2]};
+    CHECK_OK(km_arap_solve(a, T0, Y, KM_E));
+    CHECK(all_finite(Y, two.n_vertices * 3));
+    CHECK(Y[m.n_vertices * 3] == 5 && Y[m.n_vertices * 3 + 2] == 7);
+    free(Y);
+    km_arap_free(&a);
+  }
+  km_mesh_free(&two);
+  free(X);
   km_mesh_free(&m);
   km_puppet_free(&p); /* NULL: no-op */
   km_arap_free(NULL);

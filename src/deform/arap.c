@@ -30,6 +30,37 @@ struct km_arap {
   double *B; /* n_free*3 column-major rhs / solution */
 };
 
+static int32_t uf_find(int32_t *parent, int32_t x) {
+  while (parent[x] != x) {
+    parent[x] = parent[parent[x]];
+    x = parent[x];
+  }
+  return x;
+}
+
+/* -L_ff is only semidefinite when a connected component holds no handle vertex, and CHOLMOD
+ * may still "factor" it with a round-off pivot, so check the topology instead (union-find
+ * over the faces). Returns the first unanchored vertex or -1. */
+static int32_t unanchored_vertex(const km_mesh *m, const int32_t *map, int32_t *parent) {
+  size_t n = m->n_vertices;
+  for (size_t v = 0; v < n; ++v)
+    parent[v] = (int32_t)v;
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int k = 1; k < 3; ++k) {
+      int32_t a = uf_find(parent, m->F[3 * f]), b = uf_find(parent, m->F[3 * f + k]);
+      if (a != b) parent[a] = b;
+    }
+  unsigned char *anchored = calloc(n, 1);
+  if (!anchored) return -1;
+  for (size_t v = 0; v < n; ++v)
+    if (map[v] < 0 && map[v] != INT32_MIN) anchored[uf_find(parent, (int32_t)v)] = 1;
+  int32_t bad = -1;
+  for (size_t f = 0; f < m->n_faces * 3 && bad < 0; ++f)
+    if (!anchored[uf_find(parent, m->F[f])]) bad = m->F[f];
+  free(anchored);
+  return bad;
+}
+
 void km_arap_free(km_arap **pa) {
   if (!pa || !*pa) return;
   km_arap *a = *pa;
@@ -108,11 +139,30 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_
     a->map[v] = -(int32_t)i - 1;
     a->h_v[i] = v;
   }
+  /* vertices used by no face have no Laplacian row: they stay where they are (INT32_MIN) */
+  unsigned char *used = km__calloc(n, 1);
+  if (!used) goto nomem;
+  for (size_t i = 0; i < rest->n_faces * 3; ++i)
+    used[rest->F[i]] = 1;
   size_t nfree = 0;
   for (size_t v = 0; v < n; ++v)
-    if (a->map[v] == 0) a->map[v] = (int32_t)nfree++;
+    if (a->map[v] == 0) a->map[v] = used[v] ? (int32_t)nfree++ : INT32_MIN;
+  free(used);
   a->n_free = nfree;
 
+  {
+    int32_t *parent = km__malloc(n, sizeof(int32_t));
+    if (!parent) goto nomem;
+    int32_t bad = unanchored_vertex(rest, a->map, parent);
+    free(parent);
+    if (bad >= 0) {
+      s = km__fail(err, KM_ERR_INVALID,
+                   "arap: the connected component of vertex %d has no handle vertex (its "
+                   "position would be undetermined)",
+                   (int)bad);
+      goto fail;
+    }
+  }
   if ((s = km_cotmatrix(rest, &L, err))) goto fail;
   const int32_t *cp, *ri;
   const double *lx;
