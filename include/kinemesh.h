@@ -548,6 +548,81 @@ double km_retarget_scale(const km_retarget *r);
 /* Forgets reference positions (and the auto scale): the next valid frame is the new rest. */
 void km_retarget_reset(km_retarget *r);
 void km_retarget_free(km_retarget **r);
+/* ---- deformation: reduced isoline model (puppetry) and full reference solver */
+
+/* Handles (both solvers): handle h owns handle_vertices[handle_offsets[h] ..
+ * handle_offsets[h+1]) (offsets: n_handles+1 entries, offsets[0] == 0, non-decreasing).
+ * A vertex may appear in at most one handle. Targets are absolute positions, one xyz per
+ * handle vertex in handle_vertices order (handle_offsets[n_handles]*3 doubles). */
+
+/* Reduced isoline model of Wu, Lu & Song (after Au et al. 2006/2007): n_e propagation fields
+ * (the first non-constant eigenvectors of -L phi = lambda M phi), n_iso isolines per field,
+ * one affine 3x4 transform per isoline as the unknowns (4*n_iso*n_e per coordinate).
+ * Precompute depends on the mesh only (not on handles) and can be cached on disk. */
+typedef struct km_puppet km_puppet;
+typedef struct km_puppet_options {
+  int fields;           /* n_e propagation fields; 0: 8 (1 .. 32) */
+  int isolines;         /* n_iso isolines per field; 0: 10 (2 .. 64) */
+  int iterations;       /* dual-Laplacian rotation updates per solve; 0: 4 */
+  double tolerance;     /* stop earlier when |dR| / |R - I| < tolerance; 0: 1e-4 */
+  double handle_weight; /* relative handle weight w_c (1: the handle and Laplacian terms of
+                           U^T U have equal trace); 0: 1. Handles are soft: larger follows
+                           them closer and bends the rest more */
+  int crossed_per_isoline; /* crossed triangles sampled per isoline for rotations; 0: 10 */
+  km_progress progress;
+} km_puppet_options;
+
+/* Builds the reduced model of `rest` (closed or open triangle mesh, >= 4 vertices).
+ * Only fields, isolines and crossed_per_isoline shape the model (and the cache key); the
+ * other options are solve settings. */
+km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt,
+                               km_puppet **out, km_error *err);
+/* Writes the model atomically: magic, format version, parameters, hash of the rest mesh,
+ * payload, checksum (native little-endian doubles). */
+km_status km_puppet_save(const km_puppet *p, const char *path, km_error *err);
+/* Reads a model saved for exactly this rest mesh and these options. KM_ERR_STALE (with the
+ * reason) when the file is from another version, mesh or parameter set, truncated or
+ * corrupted: the caller then precomputes again. KM_ERR_IO when it cannot be read. */
+km_status km_puppet_load(const char *path, const km_mesh *rest, const km_puppet_options *opt,
+                         km_puppet **out, km_error *err);
+/* Sets the handle set (milliseconds: a 4*n_iso*n_e dense Cholesky; no eigen-decomposition).
+ * The warm start of the previous solve is kept. */
+km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *handle_offsets,
+                                const int32_t *handle_vertices, km_error *err);
+/* One frame: targets as described above; V_out #V*3 deformed positions. Does not allocate.
+ * Warm-started from the previous solve. */
+km_status km_puppet_solve(km_puppet *p, const double *targets, double *V_out, km_error *err);
+/* Forgets the warm start (the next solve starts from the rest pose). */
+void km_puppet_reset(km_puppet *p);
+
+typedef struct km_puppet_info {
+  size_t vertices;
+  int fields, isolines;
+  size_t unknowns;           /* 4*n_iso*n_e per coordinate */
+  size_t crossed_triangles;  /* n_tri: triangles whose rotations drive the update */
+  size_t handles, handle_vertices;
+  int last_iterations;       /* rotation updates done by the last solve */
+  double last_change;        /* its last relative update |dR| / |R - I| */
+} km_puppet_info;
+void km_puppet_info_get(const km_puppet *p, km_puppet_info *out);
+void km_puppet_free(km_puppet **p);
+
+/* Full-space as-rigid-as-possible deformation (Sorkine & Alexa 2007), the quality
+ * reference: cotangent weights, handle vertices eliminated (hard constraints), a CHOLMOD
+ * factor of the free part of -L, per-vertex rotations by a closed-form 3x3 polar
+ * decomposition. Every connected component needs at least one handle vertex. */
+typedef struct km_arap km_arap;
+typedef struct km_arap_options {
+  int iterations;   /* local/global iterations per solve; 0: 4 */
+  double tolerance; /* stop earlier when the largest vertex move < tolerance * bbox diagonal;
+                       0: 1e-6 */
+} km_arap_options;
+km_status km_arap_precompute(const km_mesh *rest, size_t n_handles,
+                             const int32_t *handle_offsets, const int32_t *handle_vertices,
+                             const km_arap_options *opt, km_arap **out, km_error *err);
+/* Warm-started from the previous solve (the rest pose at first). V_out #V*3. */
+km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_error *err);
+void km_arap_free(km_arap **a);
 
 #ifdef __cplusplus
 }
