@@ -330,8 +330,9 @@ void km_character_free(km_character *c);
  * order, same landmark vertex ids): the canonical subject (seed 0, height 1.75, girth 1,
  * belly 0) is polygonised at that resolution and every other shape is obtained by carrying
  * its vertices to the new skeleton's primitives (bone lengths, offsets, radii), projecting
- * them onto the new implicit surface (Newton steps along the field gradient). Skeleton and
- * skin are the new subject's. */
+ * them onto the new implicit surface (Newton steps along the field gradient) and relaxing
+ * them tangentially, in a few steps through intermediate bodies. Skeleton and skin are the
+ * new subject's. Costs about twice a direct polygonisation. */
 km_status km_character_generate(const km_character_options *opt, km_character *out,
                                 km_error *err);
 /* Rig sidecar (<mesh>.rig.json): skeleton, skin, landmarks, and a default puppetry rig
@@ -384,6 +385,249 @@ typedef struct km_anim_info {
 km_status km_anim_info_read(const char *path, km_anim_info *out, km_error *err);
 /* Reads all frames of a .pc2 (frames*vertices*3 doubles, allocated; free()). */
 km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_error *err);
+
+/* ---- motion input, filtering, retargeting (puppetry) */
+
+/* Kinect v1 skeleton recording as CSV (the PRECOG dataset layout): a header line of the 20
+ * joint names separated by ';', then one line per frame of 20 "x y z" triples separated by
+ * ';' and an optional 21st field holding an integer action label. Columns are matched to
+ * joints by their header names, so any column order works; the take always has the 20 Kinect
+ * v1 joints in KM_KINECT1 order with their parents, fps 30, metres.
+ * Axes: Kinect skeleton space is right-handed, camera at the origin, y up, z the depth
+ * towards the performer, who therefore faces -z. kinemesh characters face +z, so every point
+ * is rotated 180 degrees about y: (x, y, z) -> (-x, y, -z). That is a rotation, not a mirror:
+ * the performer's left hand stays the character's left (+x). The origin stays at the sensor.
+ * A joint at exactly (0,0,0) (the SDK's "not tracked") becomes NaN (missing).
+ * labels: optional (NULL to skip); receives a malloc'ed array of n_frames action labels
+ * (0 when the file has no label field); free() it. */
+km_status km_kinect_csv_read(const char *path, km_take *out, int32_t **labels, km_error *err);
+
+/* Metres per unit of the CMU mocap BVH files (cgspeed conversion): 1 unit = 1/0.45 inch. */
+#define KM_BVH_CMU_UNITS (0.0254 / 0.45)
+
+typedef struct km_bvh_options {
+  /* Metres per BVH unit (BVH has no units). 0: auto from the rest skeleton's height h (y
+   * extent of the offsets, end sites included): 1 when 1 <= h <= 2.5 (metres), 0.01 when
+   * 100 <= h <= 250 (centimetres), KM_BVH_CMU_UNITS for the CMU skeleton (joints LHipJoint,
+   * RHipJoint and lowerback), otherwise 1.7/h (unknown units: a 1.7 m rest height). */
+  double units_to_m;
+  /* false (default): End Site blocks are dropped. true: each becomes an extra joint named
+   * "<parent>_End" (fingertips, head top, toe tips). */
+  bool end_sites;
+} km_bvh_options;
+
+typedef struct km_bvh_info {
+  double units_to_m;  /* the factor applied */
+  double rest_height; /* rest skeleton height in metres (after scaling) */
+  size_t n_channels;  /* numbers per frame */
+} km_bvh_info;
+
+/* Reads a BVH motion file into joint world positions per frame (forward kinematics).
+ * Joints are in file order (depth first, parents[j] < j, -1 for a ROOT).
+ * Each joint's local transform is translate(t) * R, where t is its OFFSET with any
+ * X/Y/Zposition channels replacing the matching components (so a root's position channels
+ * are absolute, as exporters write them), and R is the product of the rotation channels in
+ * the order listed (intrinsic): "Zrotation Xrotation Yrotation" gives R = Rz*Rx*Ry, angles in
+ * degrees, right-handed. Channels may come in any order; 0..6 per joint, each at most once.
+ * Axes are kept as in the file (BVH is y up by convention). fps = 1/Frame Time, snapped to
+ * the nearest integer when within 0.01. opt and info may be NULL. */
+km_status km_bvh_read(const char *path, const km_bvh_options *opt, km_take *out, km_bvh_info *info,
+                      km_error *err);
+
+/* Holt double exponential smoothing of joint positions (paper eq. 4) with the extra knobs of
+ * the Kinect SDK (NUI_TRANSFORM_SMOOTH_PARAMETERS). Per joint, with raw sample x:
+ *   x' = x, or lerp(prev_level, x, d/jitter_radius) when d = |x - prev_level| <= jitter_radius
+ *   level = (1 - smoothing) x' + smoothing (prev_level + prev_trend)
+ *   trend = trend_gain (level - prev_level) + (1 - trend_gain) prev_trend
+ *   out   = level + prediction * trend, pulled back to within max_deviation of x.
+ * So eq. 4's beta = 1 - smoothing and gamma = trend. The first good sample initialises
+ * level = x, trend = 0 (eq. 4 with p^0 = p^1). */
+typedef struct km_filter_options {
+  double smoothing;     /* Kinect fSmoothing in [0,1): more = smoother, laggier.
+                           0: 0.5. KM_FILTER_ZERO (any negative): no smoothing (raw) */
+  double trend;         /* gamma, Kinect fCorrection, in [0,1]. 0: 0.5.
+                           KM_FILTER_ZERO (any negative): no trend (single exponential) */
+  double prediction;    /* frames of trend added to the output (Kinect fPrediction). 0: none */
+  double jitter_radius; /* metres (Kinect fJitterRadius). 0: off */
+  double max_deviation; /* metres (Kinect fMaxDeviationRadius). 0: off */
+} km_filter_options;
+#define KM_FILTER_ZERO (-1.0)
+
+typedef struct km_filter km_filter;
+km_status km_filter_create(size_t n_joints, const km_filter_options *opt, km_filter **out,
+                           km_error *err);
+/* One frame: raw and filtered are n_joints*3 (may alias). A NaN raw joint (missing) does not
+ * touch the joint's state and outputs its last filtered value; before the joint's first good
+ * sample it outputs NaN. */
+void km_filter_push(km_filter *f, const double *raw, double *filtered);
+/* Forgets all history (as if just created). */
+void km_filter_reset(km_filter *f);
+void km_filter_free(km_filter **f);
+
+/* Puppetry rig (JSON):
+ * { "skeleton": "kinect1" | "bvh",                       (default kinect1)
+ *   "handles": [ {"name": "head", "vertex": 1234, "radius": 0.05},  geodesic ball
+ *                {"name": "tail", "vertices": [10, 11, 12]},        explicit list
+ *                {"name": "base", "center": [0, 0, 0], "radius": 0.1} ],  Euclidean ball
+ *   "map": [ {"handle": "head", "joint": "Head", "axes": "xyz", "scale": 1.0} ],
+ *   "filter": {"smoothing": 0.5, "trend": 0.5, "prediction": 0, "jitter_radius": 0,
+ *              "max_deviation": 0} }
+ * Other keys are ignored. "vertex"+"radius" takes every vertex whose shortest path along mesh
+ * edges from the seed is <= radius (Dijkstra, so it stays on the seed's connected region and
+ * does not jump to a nearby other limb; radius 0 or absent: the seed alone; a mesh without
+ * faces falls back to Euclidean distance). "axes" is a non-empty subset of "xyz"; "scale"
+ * defaults to 1. In "filter", an explicit 0 for smoothing or trend means zero. Several map
+ * entries may drive one handle (their displacements add up: a row of eq. 7's M with several
+ * ones) and one joint may drive several handles. Errors name the rig file and the handle or
+ * joint: unknown joint (kinect1: the 20 Kinect v1 names; bvh: the joint_names given),
+ * unknown or duplicate handle, empty handle, a vertex in two handles, vertex id out of range,
+ * bad axes. */
+typedef enum km_rig_skeleton { KM_RIG_KINECT1 = 0, KM_RIG_BVH } km_rig_skeleton;
+
+typedef struct km_rig_handle {
+  char name[64];
+  int32_t *vertices; /* sorted ascending, no duplicates */
+  size_t n_vertices;
+} km_rig_handle;
+
+#define KM_AXIS_X 1u
+#define KM_AXIS_Y 2u
+#define KM_AXIS_Z 4u
+typedef struct km_rig_map {
+  int32_t handle; /* index into handles */
+  int32_t joint;  /* index into the take's joints (KM_KINECT1 order for kinect1) */
+  uint32_t axes;  /* KM_AXIS_* mask of the displacement components kept */
+  double scale;   /* per-map factor on top of the performer-to-character scale */
+} km_rig_map;
+
+typedef struct km_rig {
+  km_rig_skeleton skeleton;
+  km_rig_handle *handles;
+  size_t n_handles;
+  km_rig_map *maps;
+  size_t n_maps;
+  km_filter_options filter;
+} km_rig;
+
+/* Parses a rig and resolves its handles on `mesh`. joint_names/n_joint_names: the take's
+ * joints, needed for "bvh" rigs (ignored for kinect1, whose names are fixed). */
+km_status km_rig_read(const char *path, const km_mesh *mesh, const char *const *joint_names,
+                      size_t n_joint_names, km_rig *out, km_error *err);
+/* Same from memory; `name` is used in error messages. */
+km_status km_rig_parse(const char *json, size_t size, const char *name, const km_mesh *mesh,
+                       const char *const *joint_names, size_t n_joint_names, km_rig *out,
+                       km_error *err);
+void km_rig_free(km_rig *rig);
+
+/* Retargeting (paper eq. 5-7). Per frame, handle h's target is
+ *   target_h = rest_centroid_h + s * sum_{maps e on h} scale_e * mask_e (p_j(e) - p_j(e)^0)
+ * where p^0 is the joint's first valid (non-NaN) position. That is eq. 7 accumulated over
+ * frames: H^t = M S^t with S^t the eq. 6 increments, and sum_t d^t telescopes to p^t - p^0; M
+ * is stored sparsely as the map list (M_ij = scale_e, with the axis mask per entry). s maps
+ * performer size to character size: by default the mesh's bounding-box height (y; its largest
+ * extent if the mesh is flat in y) over the first valid frame's skeleton height (kinect1: Head
+ * to the lower foot; otherwise the y extent of the valid joints), replacing eq. 5's
+ * screen-size ratio. Handles no map drives are
+ * anchors (target = rest centroid). If a joint a handle needs is NaN, the handle keeps its
+ * last target. */
+typedef struct km_retarget_options {
+  double scale; /* performer-to-character factor s; 0: automatic (above) */
+} km_retarget_options;
+
+typedef struct km_retarget km_retarget;
+/* n_joints: joints per frame in what will be pushed (20 for kinect1). The rig's vertex ids
+ * must be valid for `rest`, which must be the mesh the rig was resolved on. */
+km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_joints,
+                             const km_retarget_options *opt, km_retarget **out, km_error *err);
+/* One frame of (filtered) joints, n_joints*3, NaN = not valid yet. Writes n_handles*3 targets
+ * into handle_targets (may be NULL). */
+void km_retarget_push(km_retarget *r, const double *joints, double *handle_targets);
+/* Per-vertex targets of the last push: for every handle in order, every vertex of it in
+ * order, rest position + the handle's displacement. out: km_retarget_vertex_count()*3. */
+void km_retarget_vertex_targets(const km_retarget *r, double *out);
+size_t km_retarget_vertex_count(const km_retarget *r);
+/* Rest centroids of the handles, n_handles*3. */
+const double *km_retarget_rest_centroids(const km_retarget *r);
+/* The performer-to-character factor in use; NaN while auto and no valid frame seen yet. */
+double km_retarget_scale(const km_retarget *r);
+/* Forgets reference positions (and the auto scale): the next valid frame is the new rest. */
+void km_retarget_reset(km_retarget *r);
+void km_retarget_free(km_retarget **r);
+/* ---- deformation: reduced isoline model (puppetry) and full reference solver */
+
+/* Handles (both solvers): handle h owns handle_vertices[handle_offsets[h] ..
+ * handle_offsets[h+1]) (offsets: n_handles+1 entries, offsets[0] == 0, non-decreasing).
+ * A vertex may appear in at most one handle. Targets are absolute positions, one xyz per
+ * handle vertex in handle_vertices order (handle_offsets[n_handles]*3 doubles). */
+
+/* Reduced isoline model of Wu, Lu & Song (after Au et al. 2006/2007): n_e propagation fields
+ * (the first non-constant eigenvectors of -L phi = lambda M phi), n_iso isolines per field,
+ * one affine 3x4 transform per isoline as the unknowns (4*n_iso*n_e per coordinate).
+ * Precompute depends on the mesh only (not on handles) and can be cached on disk. */
+typedef struct km_puppet km_puppet;
+typedef struct km_puppet_options {
+  int fields;           /* n_e propagation fields; 0: 8 (1 .. 32) */
+  int isolines;         /* n_iso isolines per field; 0: 10 (2 .. 64) */
+  int iterations;       /* dual-Laplacian rotation updates per solve; 0: 4 */
+  double tolerance;     /* stop earlier when |dR| / |R - I| < tolerance; 0: 1e-4 */
+  double handle_weight; /* relative handle weight w_c (1: the handle and Laplacian terms of
+                           U^T U have equal trace); 0: 1. Handles are soft: larger follows
+                           them closer and bends the rest more */
+  int crossed_per_isoline; /* crossed triangles sampled per isoline for rotations; 0: 10 */
+  km_progress progress;
+} km_puppet_options;
+
+/* Builds the reduced model of `rest` (closed or open triangle mesh, >= 4 vertices).
+ * Only fields, isolines and crossed_per_isoline shape the model (and the cache key); the
+ * other options are solve settings. */
+km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt,
+                               km_puppet **out, km_error *err);
+/* Writes the model atomically: magic, format version, parameters, hash of the rest mesh,
+ * payload, checksum (native little-endian doubles). */
+km_status km_puppet_save(const km_puppet *p, const char *path, km_error *err);
+/* Reads a model saved for exactly this rest mesh and these options. KM_ERR_STALE (with the
+ * reason) when the file is from another version, mesh or parameter set, truncated or
+ * corrupted: the caller then precomputes again. KM_ERR_IO when it cannot be read. */
+km_status km_puppet_load(const char *path, const km_mesh *rest, const km_puppet_options *opt,
+                         km_puppet **out, km_error *err);
+/* Sets the handle set (milliseconds: a 4*n_iso*n_e dense Cholesky; no eigen-decomposition).
+ * The warm start of the previous solve is kept. */
+km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *handle_offsets,
+                                const int32_t *handle_vertices, km_error *err);
+/* One frame: targets as described above; V_out #V*3 deformed positions. Does not allocate.
+ * Warm-started from the previous solve. */
+km_status km_puppet_solve(km_puppet *p, const double *targets, double *V_out, km_error *err);
+/* Forgets the warm start (the next solve starts from the rest pose). */
+void km_puppet_reset(km_puppet *p);
+
+typedef struct km_puppet_info {
+  size_t vertices;
+  int fields, isolines;
+  size_t unknowns;           /* 4*n_iso*n_e per coordinate */
+  size_t crossed_triangles;  /* n_tri: triangles whose rotations drive the update */
+  size_t handles, handle_vertices;
+  int last_iterations;       /* rotation updates done by the last solve */
+  double last_change;        /* its last relative update |dR| / |R - I| */
+} km_puppet_info;
+void km_puppet_info_get(const km_puppet *p, km_puppet_info *out);
+void km_puppet_free(km_puppet **p);
+
+/* Full-space as-rigid-as-possible deformation (Sorkine & Alexa 2007), the quality
+ * reference: cotangent weights, handle vertices eliminated (hard constraints), a CHOLMOD
+ * factor of the free part of -L, per-vertex rotations by a closed-form 3x3 polar
+ * decomposition. Every connected component needs at least one handle vertex. */
+typedef struct km_arap km_arap;
+typedef struct km_arap_options {
+  int iterations;   /* local/global iterations per solve; 0: 4 */
+  double tolerance; /* stop earlier when the largest vertex move < tolerance * bbox diagonal;
+                       0: 1e-6 */
+} km_arap_options;
+km_status km_arap_precompute(const km_mesh *rest, size_t n_handles,
+                             const int32_t *handle_offsets, const int32_t *handle_vertices,
+                             const km_arap_options *opt, km_arap **out, km_error *err);
+/* Warm-started from the previous solve (the rest pose at first). V_out #V*3. */
+km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_error *err);
+void km_arap_free(km_arap **a);
 
 /* ---- avatar pose transfer, pose recognition, key-pose morphing */
 

@@ -5,15 +5,30 @@ set -euo pipefail
 PKGS=(build-essential cmake pkg-config
       libsuitesparse-dev libarpack2-dev liblapacke-dev libopenblas-dev
       libembree-dev libcjson-dev libsvm-dev liblbfgs-dev
-      liblo-dev liblo-tools libwebsockets-dev gnuplot-nox)
+      liblo-dev liblo-tools libwebsockets-dev gnuplot-nox
+      nodejs npm)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
-[ ${#missing[@]} -eq 0 ] && exit 0
-echo "kinemesh: installing missing packages: ${missing[*]}"
-SUDO=""
-[ "$(id -u)" -ne 0 ] && SUDO="sudo"
-export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -q
-$SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+# Debian's nodejs/npm are skipped when another node installation is already on PATH.
+if command -v node >/dev/null 2>&1 && command -v npm >/dev/null 2>&1; then
+  keep=()
+  for p in "${missing[@]}"; do [ "$p" = nodejs ] || [ "$p" = npm ] || keep+=("$p"); done
+  missing=("${keep[@]}")
+fi
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "kinemesh: installing missing packages: ${missing[*]}"
+  SUDO=""
+  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -q
+  $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+# npm packages used by the test suite (Khronos glTF validator), pinned by package-lock.json.
+here=$(cd "$(dirname "$0")/.." && pwd)
+if [ ! -d "$here/tests/gltf/node_modules/gltf-validator" ]; then
+  echo "kinemesh: installing npm packages for tests/gltf"
+  (cd "$here/tests/gltf" && npm ci --no-audit --no-fund --loglevel=error)
+fi

@@ -342,6 +342,16 @@ static void rm_dir(const char *dir) {
   rmdir(dir);
 }
 
+static bool dir_has_prefix(const char *prefix) {
+  DIR *d = opendir(".");
+  struct dirent *e;
+  bool found = false;
+  while ((e = readdir(d)) != NULL)
+    if (strncmp(e->d_name, prefix, strlen(prefix)) == 0) found = true;
+  closedir(d);
+  return found;
+}
+
 static void test_dirs(const km_mesh *rest, const double *frames) {
   const char *dir = "test_anim_obj";
   rm_dir(dir);
@@ -402,16 +412,14 @@ static void test_dirs(const km_mesh *rest, const double *frames) {
   CHECK(access("test_anim_ply/notes.txt", F_OK) == 0);
   rm_dir(dir);
   rm_dir(pdir);
-}
-
-static bool dir_has_prefix(const char *prefix) {
-  DIR *d = opendir(".");
-  struct dirent *e;
-  bool found = false;
-  while ((e = readdir(d)) != NULL)
-    if (strncmp(e->d_name, prefix, strlen(prefix)) == 0) found = true;
-  closedir(d);
-  return found;
+  /* A trailing slash names the same directory (the temporary must not go inside it). */
+  o.format = KM_ANIM_AUTO;
+  CHECK_OK(write_anim("test_anim_slash/", rest, &o, frames));
+  CHECK_OK(km_anim_info_read("test_anim_slash", &info, KM_E));
+  CHECK(info.frames == FRAMES && info.format == KM_ANIM_OBJ_DIR);
+  rm_dir("test_anim_slash");
+  CHECK(!dir_has_prefix("test_anim_slash"));
+  CHECK(!dir_has_prefix("test_anim_obj"));
 }
 
 static void test_failures(const km_mesh *rest, const double *frames) {

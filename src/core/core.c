@@ -44,10 +44,11 @@ km_status km__wrap(km_error *err, km_status s, const char *fmt, ...) {
   va_start(ap, fmt);
   vsnprintf(prefix, sizeof prefix, fmt, ap);
   va_end(ap);
-  char old[sizeof err->message];
-  memcpy(old, err->message, sizeof old);
-  old[sizeof old - 1] = '\0';
-  snprintf(err->message, sizeof err->message, "%s: %s", prefix, old);
+  /* Built in a larger buffer, then cut to fit: the end of a long message is what gets lost. */
+  char joined[sizeof prefix + sizeof err->message + 2];
+  snprintf(joined, sizeof joined, "%s: %.*s", prefix, (int)sizeof err->message - 1, err->message);
+  memcpy(err->message, joined, sizeof err->message - 1);
+  err->message[sizeof err->message - 1] = '\0';
   err->status = s;
   return s;
 }

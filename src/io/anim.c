@@ -161,6 +161,9 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   w->fps = o.fps;
   w->key_every = o.key_every;
   w->path = dup_str(path);
+  /* "out/frames/" must not put the temporary directory inside the destination. */
+  for (size_t n = w->path ? strlen(w->path) : 0; n > 1 && w->path[n - 1] == '/'; --n)
+    w->path[n - 1] = '\0';
   w->rest = km__malloc(nv * 3, sizeof *w->rest);
   w->F = km__malloc(nf * 3, sizeof *w->F);
   if (!w->path || !w->rest || !w->F) goto nomem;
@@ -172,7 +175,7 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   case KM_ANIM_PC2: {
     w->bytes = km__malloc(nv, 12);
     if (!w->bytes) goto nomem;
-    if ((s = km__atomic_open(&w->af, path, err)) != KM_OK) goto fail;
+    if ((s = km__atomic_open(&w->af, w->path, err)) != KM_OK) goto fail;
     unsigned char h[PC2_HEADER] = "POINTCACHE2";
     km__put_u32le(h + 12, 1);
     km__put_u32le(h + 16, (uint32_t)nv);
@@ -195,7 +198,7 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     /* Key frames can outgrow memory (1M vertices x hundreds of frames), so they wait in an
      * anonymous temporary file that disappears with the process. */
     /* The output's temporary is created now so a bad path fails here, not after the run. */
-    if ((s = km__atomic_open(&w->af, path, err)) != KM_OK) goto fail;
+    if ((s = km__atomic_open(&w->af, w->path, err)) != KM_OK) goto fail;
     w->keys = tmpfile();
     if (!w->keys) {
       s = km__fail(err, KM_ERR_IO, "%s: cannot create a temporary file: %s", path, strerror(errno));
@@ -213,17 +216,17 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   case KM_ANIM_OBJ_DIR:
   case KM_ANIM_PLY_DIR: {
     struct stat st;
-    if (stat(path, &st) == 0) {
+    if (stat(w->path, &st) == 0) {
       if (!S_ISDIR(st.st_mode)) {
         s = km__fail(err, KM_ERR_IO, "%s: exists and is not a directory", path);
         goto fail;
       }
-      if ((s = check_replaceable_dir(path, err)) != KM_OK) goto fail;
+      if ((s = check_replaceable_dir(w->path, err)) != KM_OK) goto fail;
     }
-    size_t n = strlen(path) + 32;
+    size_t n = strlen(w->path) + 32;
     w->tmp_dir = malloc(n);
     if (!w->tmp_dir) goto nomem;
-    snprintf(w->tmp_dir, n, "%s.tmp.%ld", path, (long)getpid());
+    snprintf(w->tmp_dir, n, "%s.tmp.%ld", w->path, (long)getpid());
     if (mkdir(w->tmp_dir, 0777) != 0) {
       s = km__fail(err, KM_ERR_IO, "%s: cannot create directory: %s", w->tmp_dir, strerror(errno));
       free(w->tmp_dir);

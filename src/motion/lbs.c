@@ -98,8 +98,9 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
   int32_t *kids = km__malloc(n, sizeof *kids);
   double *P = km__malloc(n, 3 * sizeof *P);
   double *dir = km__malloc(n, 6 * sizeof *dir); /* rest and posed unit child directions */
-  if (!first || !kids || !P || !dir) {
-    free(first), free(kids), free(P), free(dir);
+  double *dd = km__malloc(n, 6 * sizeof *dd);   /* the same, split for kabsch() */
+  if (!first || !kids || !P || !dir || !dd) {
+    free(first), free(kids), free(P), free(dir), free(dd);
     return km__fail(err, KM_ERR_NOMEM, "out of memory");
   }
   for (size_t j = 0; j < n; ++j)
@@ -109,7 +110,7 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
   {
     int32_t *fill = km__malloc(n + 1, sizeof *fill);
     if (!fill) {
-      free(first), free(kids), free(P), free(dir);
+      free(first), free(kids), free(P), free(dir), free(dd);
       return km__fail(err, KM_ERR_NOMEM, "out of memory");
     }
     memcpy(fill, first, (n + 1) * sizeof *fill);
@@ -152,16 +153,12 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
       bool done = false;
       if (m >= 2) {
         /* Kabsch wants the two sets as separate arrays. */
-        double *dd = km__malloc((size_t)m, 6 * sizeof *dd);
-        if (dd) {
-          for (int k = 0; k < m; ++k)
-            for (int i = 0; i < 3; ++i) {
-              dd[3 * k + i] = dir[6 * k + i];
-              dd[3 * m + 3 * k + i] = dir[6 * k + 3 + i];
-            }
-          done = kabsch(m, dd, dd + 3 * m, R);
-          free(dd);
-        }
+        for (int k = 0; k < m; ++k)
+          for (int i = 0; i < 3; ++i) {
+            dd[3 * k + i] = dir[6 * k + i];
+            dd[3 * m + 3 * k + i] = dir[6 * k + 3 + i];
+          }
+        done = kabsch(m, dd, dd + 3 * m, R);
       }
       if (!done && m >= 1) {
         double a[3], Rm[9];
@@ -183,7 +180,7 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
       T[4 * i + 3] = P[3 * j + i] - Rr[i];
     }
   }
-  free(first), free(kids), free(P), free(dir);
+  free(first), free(kids), free(P), free(dir), free(dd);
   return KM_OK;
 }
 

@@ -1,0 +1,66 @@
+/* Shared pieces of the kinemesh command-line tool. The CLI is a thin layer: it parses
+ * options, calls the library, and turns km_error / progress into terminal output. */
+#ifndef KM_CLI_H
+#define KM_CLI_H
+
+#include "kinemesh.h"
+
+#include <stdio.h>
+
+typedef struct km_cli_verb {
+  const char *name;
+  const char *summary;
+  int (*run)(int argc, char **argv); /* argv[0] is the verb */
+} km_cli_verb;
+
+typedef enum km_cli_kind {
+  KM_OPT_STRING,
+  KM_OPT_INT,
+  KM_OPT_SIZE,
+  KM_OPT_DOUBLE,
+  KM_OPT_FLAG
+} km_cli_kind;
+
+typedef struct km_cli_opt {
+  const char *name; /* long name without dashes, e.g. "vertices" */
+  char short_name;  /* 0 when none */
+  km_cli_kind kind;
+  void *dst; /* const char **, int *, size_t *, double *, bool * */
+  const char *help;
+} km_cli_opt;
+
+/* Parses argv[1..] into opts; positional arguments go into pos (at most max_pos, count in
+ * *n_pos). Prints usage and returns 0 for --help, returns -1 after printing an error,
+ * 1 when parsing succeeded. `usage` is the one-line synopsis. */
+int km_cli_parse(int argc, char **argv, const km_cli_opt *opts, size_t n_opts, const char **pos,
+                 int max_pos, int *n_pos, const char *usage, const char *description);
+
+/* Prints "kinemesh <verb>: <message>" for a library error and returns the exit status 1. */
+int km_cli_fail(const char *verb, const km_error *err);
+/* Same for a message of the CLI itself. Returns 1 (2 for usage errors). */
+int km_cli_error(const char *verb, const char *fmt, ...);
+
+void km_cli_install_logger(void);
+
+/* Monotonic seconds, for the timing lines verbs print. */
+double km_cli_now(void);
+
+/* "char.obj" -> "char.rig.json": the rig sidecar next to a mesh. Caller frees. */
+char *km_cli_rig_path(const char *mesh_path);
+
+/* A progress reporter for long operations: a bar on a terminal, plain lines otherwise. */
+km_progress km_cli_progress(const char *label);
+void km_cli_progress_done(void);
+
+/* Exit codes */
+#define KM_EXIT_OK 0
+#define KM_EXIT_FAIL 1
+#define KM_EXIT_USAGE 2
+
+int km_cli_info(int argc, char **argv);
+int km_cli_convert(int argc, char **argv);
+int km_cli_eigen(int argc, char **argv);
+int km_cli_gen(int argc, char **argv);
+int km_cli_pose(int argc, char **argv);
+
+#endif

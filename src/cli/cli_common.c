@@ -1,0 +1,217 @@
+#include "cli.h"
+
+#include <errno.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+static void print_usage(FILE *f, const km_cli_opt *opts, size_t n_opts, const char *usage,
+                        const char *description) {
+  fprintf(f, "usage: %s\n", usage);
+  if (description) fprintf(f, "\n%s\n", description);
+  if (n_opts) fprintf(f, "\noptions:\n");
+  for (size_t i = 0; i < n_opts; ++i) {
+    char left[64];
+    const char *arg = opts[i].kind == KM_OPT_FLAG     ? ""
+                      : opts[i].kind == KM_OPT_STRING ? " VALUE"
+                      : opts[i].kind == KM_OPT_DOUBLE ? " X"
+                                                      : " N";
+    if (opts[i].short_name)
+      snprintf(left, sizeof left, "-%c, --%s%s", opts[i].short_name, opts[i].name, arg);
+    else
+      snprintf(left, sizeof left, "    --%s%s", opts[i].name, arg);
+    fprintf(f, "  %-26s %s\n", left, opts[i].help);
+  }
+  fprintf(f, "  %-26s %s\n", "-h, --help", "show this help");
+}
+
+static int set_value(const km_cli_opt *o, const char *v, const char *usage) {
+  char *end = NULL;
+  errno = 0;
+  switch (o->kind) {
+  case KM_OPT_STRING: *(const char **)o->dst = v; return 1;
+  case KM_OPT_INT: {
+    long x = strtol(v, &end, 10);
+    if (errno || !*v || *end || x < -2147483647L || x > 2147483647L) break;
+    *(int *)o->dst = (int)x;
+    return 1;
+  }
+  case KM_OPT_SIZE: {
+    if (*v == '-') break;
+    unsigned long long x = strtoull(v, &end, 10);
+    if (errno || !*v || *end) break;
+    *(size_t *)o->dst = (size_t)x;
+    return 1;
+  }
+  case KM_OPT_DOUBLE: {
+    double x = strtod(v, &end);
+    if (errno || !*v || *end || x != x) break;
+    *(double *)o->dst = x;
+    return 1;
+  }
+  case KM_OPT_FLAG: *(bool *)o->dst = true; return 1;
+  }
+  fprintf(stderr, "kinemesh: option --%s: '%s' is not a valid %s\n(usage: %s)\n", o->name, v,
+          o->kind == KM_OPT_DOUBLE ? "number" : "non-negative integer", usage);
+  return -1;
+}
+
+int km_cli_parse(int argc, char **argv, const km_cli_opt *opts, size_t n_opts, const char **pos,
+                 int max_pos, int *n_pos, const char *usage, const char *description) {
+  *n_pos = 0;
+  bool only_pos = false;
+  for (int i = 1; i < argc; ++i) {
+    const char *a = argv[i];
+    if (!only_pos && (!strcmp(a, "-h") || !strcmp(a, "--help"))) {
+      print_usage(stdout, opts, n_opts, usage, description);
+      return 0;
+    }
+    if (!only_pos && !strcmp(a, "--")) {
+      only_pos = true;
+      continue;
+    }
+    if (!only_pos && a[0] == '-' && a[1] != '\0' && !(a[1] >= '0' && a[1] <= '9')) {
+      const km_cli_opt *o = NULL;
+      const char *inline_val = NULL;
+      if (a[1] == '-') {
+        const char *name = a + 2;
+        const char *eq = strchr(name, '=');
+        size_t len = eq ? (size_t)(eq - name) : strlen(name);
+        for (size_t k = 0; k < n_opts; ++k)
+          if (strlen(opts[k].name) == len && !strncmp(opts[k].name, name, len)) o = &opts[k];
+        if (eq) inline_val = eq + 1;
+      } else if (a[2] == '\0') {
+        for (size_t k = 0; k < n_opts; ++k)
+          if (opts[k].short_name == a[1]) o = &opts[k];
+      }
+      if (!o) {
+        fprintf(stderr, "kinemesh: unknown option '%s'\n\n", a);
+        print_usage(stderr, opts, n_opts, usage, description);
+        return -1;
+      }
+      if (o->kind == KM_OPT_FLAG) {
+        if (inline_val) {
+          fprintf(stderr, "kinemesh: option --%s takes no value\n", o->name);
+          return -1;
+        }
+        *(bool *)o->dst = true;
+        continue;
+      }
+      const char *v = inline_val;
+      if (!v) {
+        if (i + 1 >= argc) {
+          fprintf(stderr, "kinemesh: option --%s needs a value\n(usage: %s)\n", o->name, usage);
+          return -1;
+        }
+        v = argv[++i];
+      }
+      if (set_value(o, v, usage) < 0) return -1;
+      continue;
+    }
+    if (*n_pos >= max_pos) {
+      fprintf(stderr, "kinemesh: unexpected argument '%s'\n(usage: %s)\n", a, usage);
+      return -1;
+    }
+    pos[(*n_pos)++] = a;
+  }
+  return 1;
+}
+
+int km_cli_fail(const char *verb, const km_error *err) {
+  km_cli_progress_done();
+  fprintf(stderr, "kinemesh %s: error: %s\n", verb,
+          err && err->message[0] ? err->message : "unknown error");
+  return KM_EXIT_FAIL;
+}
+
+int km_cli_error(const char *verb, const char *fmt, ...) {
+  km_cli_progress_done();
+  fprintf(stderr, "kinemesh %s: error: ", verb);
+  va_list ap;
+  va_start(ap, fmt);
+  vfprintf(stderr, fmt, ap);
+  va_end(ap);
+  fputc('\n', stderr);
+  return KM_EXIT_FAIL;
+}
+
+static void stderr_logger(km_log_level level, const char *msg, void *user) {
+  (void)user;
+  static const char *names[] = {"debug", "info", "warning", "error"};
+  if (level == KM_LOG_DEBUG && !getenv("KINEMESH_DEBUG")) return;
+  km_cli_progress_done();
+  fprintf(stderr, "kinemesh: %s: %s\n", names[level], msg);
+}
+
+void km_cli_install_logger(void) { km_set_logger(stderr_logger, NULL); }
+
+/* Progress: on a terminal a redrawn bar; otherwise a line per stage and per 25%. */
+static struct {
+  const char *label;
+  char stage[64];
+  int last_quarter;
+  bool active, tty;
+} g_prog;
+
+static bool progress_cb(double f, const char *stage, void *user) {
+  (void)user;
+  if (!stage) stage = "";
+  bool new_stage = strncmp(g_prog.stage, stage, sizeof g_prog.stage - 1) != 0;
+  if (new_stage) {
+    snprintf(g_prog.stage, sizeof g_prog.stage, "%s", stage);
+    g_prog.last_quarter = -1;
+  }
+  if (g_prog.tty) {
+    int width = 30, filled = (int)(f * width + 0.5);
+    char bar[64];
+    for (int i = 0; i < width; ++i)
+      bar[i] = i < filled ? '#' : '.';
+    bar[width] = '\0';
+    fprintf(stderr, "\r%s [%s] %3d%% %-24.24s", g_prog.label, bar, (int)(f * 100 + 0.5), stage);
+    g_prog.active = true;
+  } else {
+    int q = (int)(f * 4);
+    if (new_stage || q > g_prog.last_quarter) {
+      fprintf(stderr, "%s: %s %d%%\n", g_prog.label, stage, (int)(f * 100 + 0.5));
+      g_prog.last_quarter = q;
+    }
+  }
+  fflush(stderr);
+  return true;
+}
+
+km_progress km_cli_progress(const char *label) {
+  g_prog.label = label;
+  g_prog.stage[0] = '\0';
+  g_prog.last_quarter = -1;
+  g_prog.tty = isatty(2) != 0;
+  km_progress p = {progress_cb, NULL};
+  return p;
+}
+
+void km_cli_progress_done(void) {
+  if (g_prog.active) {
+    fputc('\n', stderr);
+    g_prog.active = false;
+  }
+}
+
+double km_cli_now(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+char *km_cli_rig_path(const char *mesh_path) {
+  size_t n = strlen(mesh_path);
+  const char *slash = strrchr(mesh_path, '/');
+  const char *dot = strrchr(mesh_path, '.');
+  size_t stem = (dot && (!slash || dot > slash)) ? (size_t)(dot - mesh_path) : n;
+  char *out = malloc(stem + 10);
+  if (!out) return NULL;
+  memcpy(out, mesh_path, stem);
+  memcpy(out + stem, ".rig.json", 10);
+  return out;
+}

@@ -1,0 +1,248 @@
+/* Verbs that make the built-in default: gen character, gen motion; and pose (LBS playback). */
+#include "cli.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* --shape takes a preset name or key=value pairs: "stocky", "height=1.6,girth=1.3,belly=0.6". */
+static int parse_shape(const char *shape, km_character_options *co) {
+  static const struct {
+    const char *name;
+    double height, girth, belly;
+  } presets[] = {
+      {"default", 1.75, 1.0, 0.0}, {"tall", 1.92, 0.9, 0.0}, {"short", 1.58, 1.05, 0.1},
+      {"stocky", 1.70, 1.3, 0.5},  {"slim", 1.80, 0.8, 0.0}, {"belly", 1.74, 1.1, 1.0},
+  };
+  for (size_t i = 0; i < sizeof presets / sizeof presets[0]; ++i)
+    if (!strcmp(shape, presets[i].name)) {
+      co->height = presets[i].height;
+      co->girth = presets[i].girth;
+      co->belly = presets[i].belly;
+      return 0;
+    }
+  char buf[256];
+  snprintf(buf, sizeof buf, "%s", shape);
+  for (char *tok = strtok(buf, ","); tok; tok = strtok(NULL, ",")) {
+    char *eq = strchr(tok, '=');
+    if (!eq) return -1;
+    *eq = '\0';
+    char *end;
+    double v = strtod(eq + 1, &end);
+    if (*end || !(v == v)) return -1;
+    if (!strcmp(tok, "height"))
+      co->height = v;
+    else if (!strcmp(tok, "girth"))
+      co->girth = v;
+    else if (!strcmp(tok, "belly"))
+      co->belly = v;
+    else
+      return -1;
+  }
+  return 0;
+}
+
+static int gen_character(int argc, char **argv) {
+  size_t vertices = 20000;
+  size_t seed = 0;
+  const char *shape = NULL, *out = NULL;
+  const km_cli_opt opts[] = {
+      {"vertices", 'n', KM_OPT_SIZE, &vertices,
+       "target vertex count, 2000..1000000 (+-10%, default 20000)"},
+      {"seed", 0, KM_OPT_SIZE, &seed, "per-subject variation of proportions (default 0)"},
+      {"shape", 0, KM_OPT_STRING, &shape,
+       "preset (default, tall, short, stocky, slim, belly) or height=M,girth=F,belly=B"},
+      {"output", 'o', KM_OPT_STRING, &out,
+       "output mesh (.obj/.ply/.off); rig goes to <stem>.rig.json"},
+  };
+  const char *pos[1];
+  int n_pos;
+  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
+                       "kinemesh gen character [--vertices N] [--seed S] [--shape ...] -o char.obj",
+                       "A closed, manifold humanoid around a Kinect v1 skeleton (T-pose, y up,\n"
+                       "facing +z, metres), with a rig sidecar: skeleton, LBS weights, 16\n"
+                       "landmarks and a default puppetry rig (head, hands, feet).");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (!out) return km_cli_error("gen character", "-o OUTPUT is required");
+  km_character_options co = {0};
+  co.target_vertices = vertices;
+  co.seed = seed;
+  if (shape && parse_shape(shape, &co) != 0)
+    return km_cli_error("gen character",
+                        "--shape '%s': expected a preset (default, tall, short, "
+                        "stocky, slim, belly) or height=M,girth=F,belly=B",
+                        shape);
+  co.progress = km_cli_progress("character");
+  km_error err = {0};
+  km_character c = {0};
+  double t0 = km_cli_now();
+  if (km_character_generate(&co, &c, &err) != KM_OK) return km_cli_fail("gen character", &err);
+  double t1 = km_cli_now();
+  km_cli_progress_done();
+  int rc = KM_EXIT_OK;
+  char *rig = km_cli_rig_path(out);
+  if (!rig)
+    rc = km_cli_error("gen character", "out of memory");
+  else if (km_mesh_write(out, &c.mesh, NULL, &err) != KM_OK ||
+           km_character_write_rig(rig, &c, &err) != KM_OK)
+    rc = km_cli_fail("gen character", &err);
+  else
+    fprintf(stderr, "kinemesh gen character: %zu vertices, %zu triangles in %.2f s -> %s, %s\n",
+            c.mesh.n_vertices, c.mesh.n_faces, t1 - t0, out, rig);
+  free(rig);
+  km_character_free(&c);
+  return rc;
+}
+
+/* The rest skeleton a take is made for: the character's (mesh + its rig sidecar), or the
+ * canonical character's when none is given. */
+static km_status rest_skeleton(const char *mesh, const char *rig, km_character *c, km_error *err) {
+  if (!mesh) {
+    km_character_options co = {0};
+    co.target_vertices = 2000;
+    return km_character_generate(&co, c, err);
+  }
+  char *rig_path = rig ? NULL : km_cli_rig_path(mesh);
+  km_status s = km_mesh_read(mesh, &c->mesh, err);
+  if (s == KM_OK) s = km_character_read_rig(rig ? rig : rig_path, c->mesh.n_vertices, c, err);
+  free(rig_path);
+  return s;
+}
+
+static int gen_motion(int argc, char **argv) {
+  const char *kind = "kungfu", *out = NULL, *rig = NULL, *character = NULL;
+  size_t frames = 150;
+  const km_cli_opt opts[] = {
+      {"kind", 0, KM_OPT_STRING, &kind, "walk, wave or kungfu (default kungfu)"},
+      {"frames", 'f', KM_OPT_SIZE, &frames, "number of frames at 30 Hz (default 150)"},
+      {"character", 'c', KM_OPT_STRING, &character,
+       "character mesh whose skeleton to use (default: the canonical one)"},
+      {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <character stem>.rig.json)"},
+      {"output", 'o', KM_OPT_STRING, &out, "output take (.json)"},
+  };
+  const char *pos[1];
+  int n_pos;
+  int r = km_cli_parse(
+      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
+      "kinemesh gen motion --kind walk|wave|kungfu --frames F [--character CHAR] -o take.json",
+      "A skeleton take of the 20 Kinect v1 joints (metres, 30 Hz) for a character.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (!out) return km_cli_error("gen motion", "-o OUTPUT is required");
+  km_motion_kind mk;
+  if (!strcmp(kind, "walk"))
+    mk = KM_MOTION_WALK;
+  else if (!strcmp(kind, "wave"))
+    mk = KM_MOTION_WAVE;
+  else if (!strcmp(kind, "kungfu"))
+    mk = KM_MOTION_KUNGFU;
+  else
+    return km_cli_error("gen motion", "--kind must be walk, wave or kungfu, not '%s'", kind);
+  if (frames < 1) return km_cli_error("gen motion", "--frames must be at least 1");
+  km_error err = {0};
+  km_character c = {0};
+  km_take t = {0};
+  int rc = KM_EXIT_OK;
+  if (rest_skeleton(character, rig, &c, &err) != KM_OK ||
+      km_motion_generate(&c.skeleton, mk, frames, &t, &err) != KM_OK ||
+      km_take_write(out, &t, &err) != KM_OK)
+    rc = km_cli_fail("gen motion", &err);
+  else
+    fprintf(stderr, "kinemesh gen motion: %s, %zu frames at %g Hz -> %s\n", kind, t.n_frames, t.fps,
+            out);
+  km_take_free(&t);
+  km_character_free(&c);
+  return rc;
+}
+
+int km_cli_gen(int argc, char **argv) {
+  if (argc >= 2 && !strcmp(argv[1], "character")) return gen_character(argc - 1, argv + 1);
+  if (argc >= 2 && !strcmp(argv[1], "motion")) return gen_motion(argc - 1, argv + 1);
+  FILE *f = (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) ? stdout : stderr;
+  fprintf(f, "usage: kinemesh gen character [options] -o char.obj\n"
+             "       kinemesh gen motion --kind walk|wave|kungfu --frames F -o take.json\n"
+             "(kinemesh gen character --help, kinemesh gen motion --help for options)\n");
+  return f == stdout ? KM_EXIT_OK : KM_EXIT_USAGE;
+}
+
+/* Poses a skinned character along a take by linear blend skinning: the rig's skeleton is
+ * driven by the take's joint positions (matched by name). */
+int km_cli_pose(int argc, char **argv) {
+  const char *mesh = NULL, *rig = NULL, *motion = NULL, *out = NULL;
+  double fps = 0;
+  size_t key_every = 0;
+  const km_cli_opt opts[] = {
+      {"mesh", 0, KM_OPT_STRING, &mesh, "skinned mesh (from kinemesh gen character)"},
+      {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames (default 1)"},
+      {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <mesh stem>.rig.json)"},
+      {"motion", 0, KM_OPT_STRING, &motion, "take (.json) with the rig's joint names"},
+      {"fps", 0, KM_OPT_DOUBLE, &fps, "frame rate of the output (default: the take's)"},
+      {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory"},
+  };
+  const char *pos[1];
+  int n_pos;
+  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
+                       "kinemesh pose --mesh MESH [--rig RIG] --motion TAKE -o OUT",
+                       "Linear-blend-skinning playback of a take on a rigged character.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (!mesh || !motion || !out) return km_cli_error("pose", "--mesh, --motion and -o are required");
+  km_error err = {0};
+  km_character c = {0};
+  km_take t = {0};
+  km_anim_writer *w = NULL;
+  double *pos_frame = NULL, *xf = NULL, *V = NULL;
+  int *map = NULL;
+  int rc = KM_EXIT_FAIL;
+  char *rig_path = rig ? NULL : km_cli_rig_path(mesh);
+  if (km_mesh_read(mesh, &c.mesh, &err) != KM_OK ||
+      km_character_read_rig(rig ? rig : rig_path, c.mesh.n_vertices, &c, &err) != KM_OK ||
+      km_take_read(motion, &t, &err) != KM_OK)
+    goto fail;
+  size_t nj = c.skeleton.n_joints;
+  map = malloc(sizeof(int) * nj);
+  pos_frame = malloc(sizeof(double) * 3 * nj);
+  xf = malloc(sizeof(double) * 12 * nj);
+  V = malloc(sizeof(double) * 3 * c.mesh.n_vertices);
+  if (!map || !pos_frame || !xf || !V) {
+    rc = km_cli_error("pose", "out of memory");
+    goto done;
+  }
+  for (size_t j = 0; j < nj; ++j) {
+    map[j] = -1;
+    for (size_t k = 0; k < t.n_joints; ++k)
+      if (!strcmp(c.skeleton.names[j], t.joint_names[k])) map[j] = (int)k;
+  }
+  km_anim_options ao = {0};
+  ao.fps = fps > 0 ? fps : t.fps;
+  ao.key_every = key_every;
+  if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
+  km_progress prog = km_cli_progress("pose");
+  for (size_t f = 0; f < t.n_frames; ++f) {
+    for (size_t j = 0; j < nj; ++j)
+      for (int a = 0; a < 3; ++a)
+        pos_frame[3 * j + a] =
+            map[j] < 0 ? NAN : t.positions[(f * t.n_joints + (size_t)map[j]) * 3 + a];
+    if (km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err) != KM_OK ||
+        km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK ||
+        km_anim_writer_push(w, V, &err) != KM_OK)
+      goto fail;
+    prog.fn((double)(f + 1) / (double)t.n_frames, "skinning", NULL);
+  }
+  if (km_anim_writer_close(&w, &err) != KM_OK) goto fail;
+  km_cli_progress_done();
+  fprintf(stderr, "kinemesh pose: %zu frames of %zu vertices -> %s\n", t.n_frames,
+          c.mesh.n_vertices, out);
+  rc = KM_EXIT_OK;
+  goto done;
+fail:
+  rc = km_cli_fail("pose", &err);
+done:
+  km_anim_writer_free(&w);
+  free(rig_path);
+  free(map);
+  free(pos_frame);
+  free(xf);
+  free(V);
+  km_take_free(&t);
+  km_character_free(&c);
+  return rc;
+}

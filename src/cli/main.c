@@ -1,0 +1,43 @@
+/* kinemesh <verb>: a thin command-line layer over libkinemesh. */
+#include "cli.h"
+
+#include <stdio.h>
+#include <string.h>
+
+static const km_cli_verb VERBS[] = {
+    {"info", "print topology counts and extent of a mesh, or describe a .glb/.pc2", km_cli_info},
+    {"convert", "convert a mesh between OBJ, PLY and OFF (by extension)", km_cli_convert},
+    {"eigen", "smallest eigenvalues of the cotangent Laplacian (ARPACK shift-invert)",
+     km_cli_eigen},
+    {"gen", "generate a procedural character (gen character) or a motion take (gen motion)",
+     km_cli_gen},
+    {"pose", "pose a character by linear blend skinning along a take and write an animation",
+     km_cli_pose},
+};
+
+static void usage(FILE *f) {
+  fprintf(f, "kinemesh %s — animate any triangle mesh from captured human motion\n\n",
+          km_version());
+  fprintf(
+      f, "usage: kinemesh <verb> [options]   (kinemesh <verb> --help for its options)\n\nverbs:\n");
+  for (size_t i = 0; i < sizeof VERBS / sizeof VERBS[0]; ++i)
+    fprintf(f, "  %-10s %s\n", VERBS[i].name, VERBS[i].summary);
+}
+
+int main(int argc, char **argv) {
+  km_cli_install_logger();
+  if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") ||
+      !strcmp(argv[1], "help")) {
+    usage(argc < 2 ? stderr : stdout);
+    return argc < 2 ? 2 : 0;
+  }
+  if (!strcmp(argv[1], "--version")) {
+    printf("kinemesh %s\n", km_version());
+    return 0;
+  }
+  for (size_t i = 0; i < sizeof VERBS / sizeof VERBS[0]; ++i)
+    if (!strcmp(argv[1], VERBS[i].name)) return VERBS[i].run(argc - 1, argv + 1);
+  fprintf(stderr, "kinemesh: unknown verb '%s'\n\n", argv[1]);
+  usage(stderr);
+  return 2;
+}

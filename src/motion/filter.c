@@ -1,0 +1,121 @@
+/* Holt double exponential joint filter (paper eq. 4) with the Kinect SDK's jitter, prediction
+ * and max-deviation stages (NUI_TRANSFORM_SMOOTH_PARAMETERS). See km_filter_options. */
+#include "motion/motion.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct joint_state {
+  double level[3], trend[3], out[3];
+  bool valid; /* has seen a good sample */
+} joint_state;
+
+struct km_filter {
+  size_t n;
+  double smoothing, trend, prediction, jitter, max_dev;
+  joint_state *s;
+};
+
+static double option(double v, double def) { return v == 0 ? def : (v < 0 ? 0.0 : v); }
+
+km_status km_filter_create(size_t n_joints, const km_filter_options *opt, km_filter **out,
+                           km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_filter_create: out is NULL");
+  *out = NULL;
+  km_filter_options o = opt ? *opt : (km_filter_options){0};
+  double sm = option(o.smoothing, 0.5), tr = option(o.trend, 0.5);
+  if (!(sm < 1.0))
+    return km__fail(err, KM_ERR_INVALID,
+                    "filter smoothing must be in [0,1) (1 would freeze the joints), got %g", sm);
+  if (!(tr <= 1.0))
+    return km__fail(err, KM_ERR_INVALID, "filter trend must be in [0,1], got %g", tr);
+  if (!(o.prediction >= 0) || !isfinite(o.prediction) || !(o.jitter_radius >= 0) ||
+      !isfinite(o.jitter_radius) || !(o.max_deviation >= 0) || !isfinite(o.max_deviation))
+    return km__fail(err, KM_ERR_INVALID,
+                    "filter prediction, jitter_radius and max_deviation must be finite and >= 0 "
+                    "(got %g, %g, %g)",
+                    o.prediction, o.jitter_radius, o.max_deviation);
+  km_filter *f = calloc(1, sizeof *f);
+  if (!f) return km__fail(err, KM_ERR_NOMEM, "km_filter_create: out of memory");
+  f->s = km__calloc(n_joints ? n_joints : 1, sizeof *f->s);
+  if (!f->s) {
+    free(f);
+    return km__fail(err, KM_ERR_NOMEM, "km_filter_create: out of memory (%zu joints)", n_joints);
+  }
+  f->n = n_joints;
+  f->smoothing = sm;
+  f->trend = tr;
+  f->prediction = o.prediction;
+  f->jitter = o.jitter_radius;
+  f->max_dev = o.max_deviation;
+  *out = f;
+  return KM_OK;
+}
+
+static double dist3(const double a[3], const double b[3]) {
+  double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+  return sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+void km_filter_push(km_filter *f, const double *raw, double *filtered) {
+  for (size_t j = 0; j < f->n; ++j) {
+    joint_state *s = &f->s[j];
+    double x[3] = {raw[3 * j], raw[3 * j + 1], raw[3 * j + 2]};
+    double *o = filtered + 3 * j;
+    if (!isfinite(x[0]) || !isfinite(x[1]) || !isfinite(x[2])) {
+      /* Missing: the state is left alone so the trend is not polluted; hold the output. */
+      for (int k = 0; k < 3; ++k)
+        o[k] = s->valid ? s->out[k] : NAN;
+      continue;
+    }
+    if (!s->valid) {
+      for (int k = 0; k < 3; ++k) {
+        s->level[k] = x[k];
+        s->trend[k] = 0;
+      }
+      s->valid = true;
+    } else {
+      double in[3] = {x[0], x[1], x[2]};
+      if (f->jitter > 0) {
+        double d = dist3(x, s->level);
+        if (d <= f->jitter) {
+          double a = d / f->jitter; /* small moves are damped proportionally */
+          for (int k = 0; k < 3; ++k)
+            in[k] = s->level[k] + a * (x[k] - s->level[k]);
+        }
+      }
+      for (int k = 0; k < 3; ++k) {
+        double prev = s->level[k];
+        /* Written as lerps so that a constant input is reproduced bit for bit. */
+        double lv = in[k] + f->smoothing * ((prev + s->trend[k]) - in[k]);
+        s->trend[k] += f->trend * ((lv - prev) - s->trend[k]);
+        s->level[k] = lv;
+      }
+    }
+    double y[3];
+    for (int k = 0; k < 3; ++k)
+      y[k] = s->level[k] + f->prediction * s->trend[k];
+    if (f->max_dev > 0) {
+      double d = dist3(y, x);
+      if (d > f->max_dev) {
+        double a = f->max_dev / d;
+        for (int k = 0; k < 3; ++k)
+          y[k] = x[k] + a * (y[k] - x[k]);
+      }
+    }
+    for (int k = 0; k < 3; ++k)
+      o[k] = s->out[k] = y[k];
+  }
+}
+
+void km_filter_reset(km_filter *f) {
+  if (f) memset(f->s, 0, f->n * sizeof *f->s);
+}
+
+void km_filter_free(km_filter **f) {
+  if (!f || !*f) return;
+  free((*f)->s);
+  free(*f);
+  *f = NULL;
+}

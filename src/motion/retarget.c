@@ -1,0 +1,207 @@
+/* Joint motion to handle targets (paper eq. 5-7), see km_retarget_create. */
+#include "motion/motion.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct km_retarget {
+  size_t n_handles, n_joints, n_maps, n_hv;
+  km_rig_map *maps;  /* sorted by handle */
+  size_t *map_start; /* n_handles+1: maps of handle h are [map_start[h], map_start[h+1]) */
+  size_t *hv_start;  /* n_handles+1, into hv_rest */
+  double *hv_rest;   /* rest positions of the handle vertices, handle by handle */
+  double *centroid;  /* n_handles*3 */
+  double *disp;      /* n_handles*3, current displacement */
+  double *ref;       /* n_joints*3, first valid position, NaN until seen */
+  bool kinect1;
+  bool auto_scale;
+  double scale; /* NaN while auto and unknown */
+  double mesh_height;
+};
+
+static int cmp_map(const void *a, const void *b) {
+  const km_rig_map *x = a, *y = b;
+  return (x->handle > y->handle) - (x->handle < y->handle);
+}
+
+void km_retarget_free(km_retarget **r) {
+  if (!r || !*r) return;
+  km_retarget *t = *r;
+  free(t->maps);
+  free(t->map_start);
+  free(t->hv_start);
+  free(t->hv_rest);
+  free(t->centroid);
+  free(t->disp);
+  free(t->ref);
+  free(t);
+  *r = NULL;
+}
+
+void km_retarget_reset(km_retarget *r) {
+  if (!r) return;
+  for (size_t i = 0; i < 3 * r->n_joints; ++i)
+    r->ref[i] = NAN;
+  memset(r->disp, 0, 3 * r->n_handles * sizeof(double));
+  if (r->auto_scale) r->scale = NAN;
+}
+
+km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_joints,
+                             const km_retarget_options *opt, km_retarget **out, km_error *err) {
+  if (!rig || !rest || !out)
+    return km__fail(err, KM_ERR_INVALID, "km_retarget_create: NULL argument");
+  *out = NULL;
+  km_retarget_options o = opt ? *opt : (km_retarget_options){0};
+  if (!(o.scale >= 0) || !isfinite(o.scale))
+    return km__fail(err, KM_ERR_INVALID, "retarget scale must be >= 0 (0: automatic), got %g",
+                    o.scale);
+  if (rig->skeleton == KM_RIG_KINECT1 && n_joints != KM_KINECT1_JOINTS)
+    return km__fail(err, KM_ERR_INVALID,
+                    "a kinect1 rig needs frames of the %d Kinect v1 joints, got %zu joints",
+                    KM_KINECT1_JOINTS, n_joints);
+  if (rig->n_handles == 0) return km__fail(err, KM_ERR_INVALID, "the rig has no handles");
+  for (size_t e = 0; e < rig->n_maps; ++e) {
+    const km_rig_map *m = &rig->maps[e];
+    if (m->handle < 0 || (size_t)m->handle >= rig->n_handles || m->joint < 0 ||
+        (size_t)m->joint >= n_joints)
+      return km__fail(err, KM_ERR_INVALID,
+                      "rig map %zu: handle %d / joint %d out of range (%zu handles, %zu joints)", e,
+                      (int)m->handle, (int)m->joint, rig->n_handles, n_joints);
+  }
+  size_t n_hv = 0;
+  for (size_t h = 0; h < rig->n_handles; ++h) {
+    const km_rig_handle *rh = &rig->handles[h];
+    if (rh->n_vertices == 0)
+      return km__fail(err, KM_ERR_INVALID, "rig handle '%s' has no vertices", rh->name);
+    for (size_t k = 0; k < rh->n_vertices; ++k)
+      if (rh->vertices[k] < 0 || (size_t)rh->vertices[k] >= rest->n_vertices)
+        return km__fail(err, KM_ERR_INVALID,
+                        "rig handle '%s': vertex %d out of range (mesh has %zu vertices)", rh->name,
+                        (int)rh->vertices[k], rest->n_vertices);
+    n_hv += rh->n_vertices;
+  }
+
+  km_retarget *r = calloc(1, sizeof *r);
+  if (!r) return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
+  r->n_handles = rig->n_handles;
+  r->n_joints = n_joints;
+  r->n_maps = rig->n_maps;
+  r->n_hv = n_hv;
+  r->maps = km__malloc(rig->n_maps ? rig->n_maps : 1, sizeof *r->maps);
+  r->map_start = km__calloc(rig->n_handles + 1, sizeof(size_t));
+  r->hv_start = km__calloc(rig->n_handles + 1, sizeof(size_t));
+  r->hv_rest = km__malloc(n_hv, 3 * sizeof(double));
+  r->centroid = km__calloc(rig->n_handles, 3 * sizeof(double));
+  r->disp = km__calloc(rig->n_handles, 3 * sizeof(double));
+  r->ref = km__malloc(n_joints ? n_joints : 1, 3 * sizeof(double));
+  if (!r->maps || !r->map_start || !r->hv_start || !r->hv_rest || !r->centroid || !r->disp ||
+      !r->ref) {
+    km_retarget_free(&r);
+    return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
+  }
+  if (rig->n_maps) memcpy(r->maps, rig->maps, rig->n_maps * sizeof *r->maps);
+  qsort(r->maps, r->n_maps, sizeof *r->maps, cmp_map);
+  for (size_t e = 0; e < r->n_maps; ++e)
+    ++r->map_start[r->maps[e].handle + 1];
+  for (size_t h = 0; h < r->n_handles; ++h)
+    r->map_start[h + 1] += r->map_start[h];
+
+  size_t k = 0;
+  for (size_t h = 0; h < r->n_handles; ++h) {
+    const km_rig_handle *rh = &rig->handles[h];
+    r->hv_start[h] = k;
+    double c[3] = {0, 0, 0};
+    for (size_t i = 0; i < rh->n_vertices; ++i, ++k) {
+      const double *p = rest->V + 3 * (size_t)rh->vertices[i];
+      for (int d = 0; d < 3; ++d) {
+        r->hv_rest[3 * k + d] = p[d];
+        c[d] += p[d];
+      }
+    }
+    for (int d = 0; d < 3; ++d)
+      r->centroid[3 * h + d] = c[d] / (double)rh->n_vertices;
+  }
+  r->hv_start[r->n_handles] = k;
+
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t v = 0; v < rest->n_vertices; ++v)
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = fmin(lo[d], rest->V[3 * v + d]);
+      hi[d] = fmax(hi[d], rest->V[3 * v + d]);
+    }
+  double ext_max = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+  r->mesh_height = hi[1] - lo[1];
+  /* A mesh lying flat in y (a sheet, a grid) has no height; its largest extent stands in. */
+  if (!(r->mesh_height > 1e-9 * ext_max)) r->mesh_height = ext_max;
+  r->kinect1 = rig->skeleton == KM_RIG_KINECT1;
+  r->auto_scale = o.scale == 0;
+  r->scale = r->auto_scale ? NAN : o.scale;
+  km_retarget_reset(r);
+  *out = r;
+  return KM_OK;
+}
+
+static bool valid3(const double *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }
+
+/* Performer height in a frame: Head to the lower foot for Kinect, else the y extent of the
+ * valid joints. NaN when it cannot be measured. */
+static double skeleton_height(const km_retarget *r, const double *J) {
+  if (r->kinect1) {
+    enum { HEAD = 3, FOOT_L = 15, FOOT_R = 19 };
+    const double *h = J + 3 * HEAD, *fl = J + 3 * FOOT_L, *fr = J + 3 * FOOT_R;
+    if (valid3(h) && (valid3(fl) || valid3(fr))) {
+      double foot = valid3(fl) && valid3(fr) ? fmin(fl[1], fr[1]) : valid3(fl) ? fl[1] : fr[1];
+      if (h[1] - foot > 0) return h[1] - foot;
+    }
+  }
+  double lo = INFINITY, hi = -INFINITY;
+  for (size_t j = 0; j < r->n_joints; ++j)
+    if (valid3(J + 3 * j)) {
+      lo = fmin(lo, J[3 * j + 1]);
+      hi = fmax(hi, J[3 * j + 1]);
+    }
+  return hi > lo ? hi - lo : NAN;
+}
+
+void km_retarget_push(km_retarget *r, const double *joints, double *handle_targets) {
+  for (size_t j = 0; j < r->n_joints; ++j)
+    if (!isfinite(r->ref[3 * j]) && valid3(joints + 3 * j))
+      memcpy(r->ref + 3 * j, joints + 3 * j, 3 * sizeof(double));
+  if (!isfinite(r->scale)) {
+    double h = skeleton_height(r, joints);
+    if (h > 1e-6) r->scale = r->mesh_height / h;
+  }
+  if (isfinite(r->scale)) {
+    for (size_t h = 0; h < r->n_handles; ++h) {
+      size_t a = r->map_start[h], b = r->map_start[h + 1];
+      if (a == b) continue; /* anchor */
+      double d[3] = {0, 0, 0};
+      bool ok = true;
+      for (size_t e = a; e < b && ok; ++e) {
+        const km_rig_map *m = &r->maps[e];
+        const double *p = joints + 3 * (size_t)m->joint, *p0 = r->ref + 3 * (size_t)m->joint;
+        ok = valid3(p) && valid3(p0);
+        for (int c = 0; ok && c < 3; ++c)
+          if (m->axes & (1u << c)) d[c] += m->scale * (p[c] - p0[c]);
+      }
+      if (!ok) continue; /* a joint is not valid: the handle keeps its last target */
+      for (int c = 0; c < 3; ++c)
+        r->disp[3 * h + c] = r->scale * d[c];
+    }
+  }
+  if (handle_targets)
+    for (size_t i = 0; i < 3 * r->n_handles; ++i)
+      handle_targets[i] = r->centroid[i] + r->disp[i];
+}
+
+void km_retarget_vertex_targets(const km_retarget *r, double *out) {
+  for (size_t h = 0; h < r->n_handles; ++h)
+    for (size_t k = r->hv_start[h]; k < r->hv_start[h + 1]; ++k)
+      for (int c = 0; c < 3; ++c)
+        out[3 * k + c] = r->hv_rest[3 * k + c] + r->disp[3 * h + c];
+}
+
+size_t km_retarget_vertex_count(const km_retarget *r) { return r->n_hv; }
+const double *km_retarget_rest_centroids(const km_retarget *r) { return r->centroid; }
+double km_retarget_scale(const km_retarget *r) { return r->scale; }

@@ -1,0 +1,533 @@
+/* Puppetry rig: JSON parsing (cJSON) and handle resolution on a mesh (see km_rig_parse). */
+#include "motion/motion.h"
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int cmp_i32(const void *a, const void *b) {
+  int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
+  return (x > y) - (x < y);
+}
+
+/* Sorts and removes duplicates; returns the new length. */
+static size_t sort_unique(int32_t *v, size_t n) {
+  if (n == 0) return 0;
+  qsort(v, n, sizeof *v, cmp_i32);
+  size_t m = 1;
+  for (size_t i = 1; i < n; ++i)
+    if (v[i] != v[m - 1]) v[m++] = v[i];
+  return m;
+}
+
+void km_rig_free(km_rig *rig) {
+  if (!rig) return;
+  for (size_t h = 0; h < rig->n_handles; ++h)
+    free(rig->handles[h].vertices);
+  free(rig->handles);
+  free(rig->maps);
+  memset(rig, 0, sizeof *rig);
+}
+
+/* ---- geodesic balls: Dijkstra over mesh edges with a binary heap.
+ * Hand-written: none of the linked libraries offers a graph shortest-path routine, and the
+ * search stops at the radius so it only touches the ball. */
+
+typedef struct heap_item {
+  double d;
+  int32_t v;
+} heap_item;
+
+typedef struct geodesic {
+  int32_t *offsets, *adj; /* CSR, neighbours may repeat (one entry per face edge) */
+  double *dist;           /* INFINITY when untouched */
+  int32_t *touched;
+  size_t n_touched;
+  heap_item *heap;
+  size_t heap_n, heap_cap;
+} geodesic;
+
+static void geodesic_free(geodesic *g) {
+  free(g->offsets);
+  free(g->adj);
+  free(g->dist);
+  free(g->touched);
+  free(g->heap);
+  memset(g, 0, sizeof *g);
+}
+
+static bool geodesic_init(geodesic *g, const km_mesh *m) {
+  memset(g, 0, sizeof *g);
+  size_t n = m->n_vertices;
+  g->offsets = km__calloc(n + 1, sizeof(int32_t));
+  g->adj = km__malloc(m->n_faces, 6 * sizeof(int32_t));
+  g->dist = km__malloc(n, sizeof(double));
+  g->touched = km__malloc(n, sizeof(int32_t));
+  if (!g->offsets || (!g->adj && m->n_faces) || !g->dist || !g->touched) {
+    geodesic_free(g);
+    return false;
+  }
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int k = 0; k < 3; ++k)
+      g->offsets[m->F[3 * f + k] + 1] += 2;
+  for (size_t v = 0; v < n; ++v)
+    g->offsets[v + 1] += g->offsets[v];
+  int32_t *fill = km__malloc(n ? n : 1, sizeof(int32_t));
+  if (!fill) {
+    geodesic_free(g);
+    return false;
+  }
+  memcpy(fill, g->offsets, n * sizeof(int32_t));
+  for (size_t f = 0; f < m->n_faces; ++f) {
+    const int32_t *t = m->F + 3 * f;
+    for (int k = 0; k < 3; ++k) {
+      int32_t a = t[k], b = t[(k + 1) % 3];
+      g->adj[fill[a]++] = b;
+      g->adj[fill[b]++] = a;
+    }
+  }
+  free(fill);
+  for (size_t v = 0; v < n; ++v)
+    g->dist[v] = INFINITY;
+  return true;
+}
+
+static bool heap_push(geodesic *g, double d, int32_t v) {
+  if (g->heap_n == g->heap_cap) {
+    size_t cap = g->heap_cap ? g->heap_cap * 2 : 256;
+    heap_item *h = realloc(g->heap, cap * sizeof *h);
+    if (!h) return false;
+    g->heap = h;
+    g->heap_cap = cap;
+  }
+  size_t i = g->heap_n++;
+  while (i > 0) {
+    size_t p = (i - 1) / 2;
+    if (g->heap[p].d <= d) break;
+    g->heap[i] = g->heap[p];
+    i = p;
+  }
+  g->heap[i] = (heap_item){d, v};
+  return true;
+}
+
+static heap_item heap_pop(geodesic *g) {
+  heap_item top = g->heap[0], last = g->heap[--g->heap_n];
+  size_t i = 0, n = g->heap_n;
+  for (;;) {
+    size_t c = 2 * i + 1;
+    if (c >= n) break;
+    if (c + 1 < n && g->heap[c + 1].d < g->heap[c].d) ++c;
+    if (g->heap[c].d >= last.d) break;
+    g->heap[i] = g->heap[c];
+    i = c;
+  }
+  if (n) g->heap[i] = last;
+  return top;
+}
+
+/* Vertices within edge-path distance `radius` of `seed`, into a malloc'ed list. */
+static bool geodesic_ball(geodesic *g, const double *V, int32_t seed, double radius, int32_t **out,
+                          size_t *n_out) {
+  g->heap_n = 0;
+  g->n_touched = 0;
+  bool ok = heap_push(g, 0.0, seed);
+  g->dist[seed] = 0.0;
+  g->touched[g->n_touched++] = seed;
+  while (ok && g->heap_n) {
+    heap_item it = heap_pop(g);
+    if (it.d > g->dist[it.v]) continue; /* stale entry */
+    const double *p = V + 3 * (size_t)it.v;
+    for (int32_t e = g->offsets[it.v]; e < g->offsets[it.v + 1]; ++e) {
+      int32_t w = g->adj[e];
+      const double *q = V + 3 * (size_t)w;
+      double dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
+      double d = it.d + sqrt(dx * dx + dy * dy + dz * dz);
+      if (d <= radius && d < g->dist[w]) {
+        if (g->dist[w] == INFINITY) g->touched[g->n_touched++] = w;
+        g->dist[w] = d;
+        if (!heap_push(g, d, w)) ok = false;
+      }
+    }
+  }
+  int32_t *list = ok ? km__malloc(g->n_touched, sizeof(int32_t)) : NULL;
+  if (list) memcpy(list, g->touched, g->n_touched * sizeof(int32_t));
+  for (size_t i = 0; i < g->n_touched; ++i)
+    g->dist[g->touched[i]] = INFINITY;
+  *out = list;
+  *n_out = list ? g->n_touched : 0;
+  return list != NULL;
+}
+
+/* ---- JSON helpers */
+
+static bool json_int(const cJSON *j, double lo, double hi, int64_t *out) {
+  if (!cJSON_IsNumber(j)) return false;
+  double v = j->valuedouble;
+  if (!(v >= lo && v <= hi) || v != floor(v)) return false;
+  *out = (int64_t)v;
+  return true;
+}
+
+static bool json_finite(const cJSON *j, double *out) {
+  if (!cJSON_IsNumber(j) || !isfinite(j->valuedouble)) return false;
+  *out = j->valuedouble;
+  return true;
+}
+
+/* Line number of a byte offset, for cJSON syntax errors. */
+static size_t line_of(const char *text, size_t offset) {
+  size_t line = 1;
+  for (size_t i = 0; i < offset; ++i)
+    line += text[i] == '\n';
+  return line;
+}
+
+static int find_handle(const km_rig *rig, const char *name) {
+  for (size_t h = 0; h < rig->n_handles; ++h)
+    if (strcmp(rig->handles[h].name, name) == 0) return (int)h;
+  return -1;
+}
+
+static km_status parse_axes(const char *s, uint32_t *mask) {
+  uint32_t m = 0;
+  if (!*s) return KM_ERR_PARSE;
+  for (const char *p = s; *p; ++p) {
+    uint32_t bit = *p == 'x' ? KM_AXIS_X : *p == 'y' ? KM_AXIS_Y : *p == 'z' ? KM_AXIS_Z : 0;
+    if (!bit || (m & bit)) return KM_ERR_PARSE;
+    m |= bit;
+  }
+  *mask = m;
+  return KM_OK;
+}
+
+static km_status parse_filter(const char *name, const cJSON *jf, km_filter_options *fo,
+                              km_error *err) {
+  memset(fo, 0, sizeof *fo);
+  if (!jf) return KM_OK;
+  if (!cJSON_IsObject(jf))
+    return km__fail(err, KM_ERR_PARSE, "%s: \"filter\" must be an object", name);
+  static const char *const keys[5] = {"smoothing", "trend", "prediction", "jitter_radius",
+                                      "max_deviation"};
+  double *dst[5] = {&fo->smoothing, &fo->trend, &fo->prediction, &fo->jitter_radius,
+                    &fo->max_deviation};
+  for (int k = 0; k < 5; ++k) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(jf, keys[k]);
+    if (!v) continue;
+    double x;
+    bool ok = json_finite(v, &x) && x >= 0 && (k != 0 || x < 1) && (k != 1 || x <= 1);
+    if (!ok)
+      return km__fail(err, KM_ERR_PARSE, "%s: filter.%s: expected a number in %s", name, keys[k],
+                      k == 0   ? "[0,1)"
+                      : k == 1 ? "[0,1]"
+                               : "[0,inf)");
+    /* In the options struct 0 means "default"; an explicit 0 in the file means zero. */
+    *dst[k] = (x == 0 && k < 2) ? KM_FILTER_ZERO : x;
+  }
+  return KM_OK;
+}
+
+km_status km_rig_parse(const char *json, size_t size, const char *name, const km_mesh *mesh,
+                       const char *const *joint_names, size_t n_joint_names, km_rig *out,
+                       km_error *err) {
+  if (!name) name = "rig";
+  if (!json || !mesh || !out) return km__fail(err, KM_ERR_INVALID, "%s: NULL argument", name);
+  memset(out, 0, sizeof *out);
+  if (mesh->n_vertices > INT32_MAX)
+    return km__fail(err, KM_ERR_INVALID, "%s: mesh has too many vertices", name);
+  const size_t nv = mesh->n_vertices;
+  for (size_t i = 0; i < 3 * mesh->n_faces; ++i)
+    if (mesh->F[i] < 0 || (size_t)mesh->F[i] >= nv)
+      return km__fail(err, KM_ERR_INVALID, "%s: mesh face %zu has vertex index %d out of range",
+                      name, i / 3, (int)mesh->F[i]);
+
+  const char *end = NULL;
+  cJSON *root = cJSON_ParseWithLengthOpts(json, size, &end, false);
+  if (!root) {
+    size_t off = end && end >= json && end <= json + size ? (size_t)(end - json) : 0;
+    return km__fail(err, KM_ERR_PARSE, "%s:%zu: invalid JSON (byte %zu)", name, line_of(json, off),
+                    off);
+  }
+  km_status st = KM_OK;
+  int32_t *owner = NULL;
+  geodesic geo = {0};
+  bool geo_ready = false;
+  if (!cJSON_IsObject(root)) {
+    st = km__fail(err, KM_ERR_PARSE, "%s: expected a JSON object at the top level", name);
+    goto done;
+  }
+  const cJSON *js = cJSON_GetObjectItemCaseSensitive(root, "skeleton");
+  out->skeleton = KM_RIG_KINECT1;
+  if (js) {
+    if (cJSON_IsString(js) && strcmp(js->valuestring, "kinect1") == 0) {
+      out->skeleton = KM_RIG_KINECT1;
+    } else if (cJSON_IsString(js) && strcmp(js->valuestring, "bvh") == 0) {
+      out->skeleton = KM_RIG_BVH;
+    } else {
+      st = km__fail(err, KM_ERR_PARSE, "%s: \"skeleton\": expected \"kinect1\" or \"bvh\"", name);
+      goto done;
+    }
+  }
+  if (out->skeleton == KM_RIG_BVH && (!joint_names || n_joint_names == 0)) {
+    st = km__fail(err, KM_ERR_INVALID,
+                  "%s: a \"bvh\" rig needs the take's joint names to resolve its map", name);
+    goto done;
+  }
+
+  const cJSON *jh = cJSON_GetObjectItemCaseSensitive(root, "handles");
+  if (!cJSON_IsArray(jh) || cJSON_GetArraySize(jh) == 0) {
+    st = km__fail(err, KM_ERR_PARSE, "%s: expected a non-empty \"handles\" array", name);
+    goto done;
+  }
+  size_t nh = (size_t)cJSON_GetArraySize(jh);
+  out->handles = km__calloc(nh, sizeof *out->handles);
+  owner = km__malloc(nv ? nv : 1, sizeof(int32_t));
+  if (!out->handles || !owner) {
+    st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+    goto done;
+  }
+  for (size_t v = 0; v < nv; ++v)
+    owner[v] = -1;
+
+  const cJSON *h;
+  size_t hi = 0;
+  cJSON_ArrayForEach(h, jh) {
+    km_rig_handle *rh = &out->handles[hi];
+    const cJSON *jn = cJSON_GetObjectItemCaseSensitive(h, "name");
+    if (!cJSON_IsObject(h) || !cJSON_IsString(jn) || !jn->valuestring[0] ||
+        strlen(jn->valuestring) >= sizeof rh->name) {
+      st = km__fail(err, KM_ERR_PARSE,
+                    "%s: handles[%zu]: expected an object with a \"name\" (1..63 characters)", name,
+                    hi);
+      goto done;
+    }
+    const char *hn = jn->valuestring;
+    if (find_handle(out, hn) >= 0) {
+      st = km__fail(err, KM_ERR_PARSE, "%s: handle '%s' is defined twice", name, hn);
+      goto done;
+    }
+    snprintf(rh->name, sizeof rh->name, "%s", hn);
+    ++out->n_handles; /* counted now so km_rig_free releases its vertices on failure */
+    const cJSON *jv = cJSON_GetObjectItemCaseSensitive(h, "vertex");
+    const cJSON *jl = cJSON_GetObjectItemCaseSensitive(h, "vertices");
+    const cJSON *jc = cJSON_GetObjectItemCaseSensitive(h, "center");
+    const cJSON *jr = cJSON_GetObjectItemCaseSensitive(h, "radius");
+    if ((jv != NULL) + (jl != NULL) + (jc != NULL) != 1) {
+      st = km__fail(err, KM_ERR_PARSE,
+                    "%s: handle '%s': expected exactly one of \"vertex\" (+\"radius\"), "
+                    "\"vertices\" or \"center\"+\"radius\"",
+                    name, hn);
+      goto done;
+    }
+    double radius = 0;
+    if (jr && (!json_finite(jr, &radius) || radius < 0)) {
+      st = km__fail(err, KM_ERR_PARSE, "%s: handle '%s': \"radius\" must be a number >= 0", name,
+                    hn);
+      goto done;
+    }
+    if (jv) {
+      int64_t seed;
+      if (!json_int(jv, -1e18, 1e18, &seed)) {
+        st =
+            km__fail(err, KM_ERR_PARSE, "%s: handle '%s': \"vertex\" must be an integer", name, hn);
+        goto done;
+      }
+      if (seed < 0 || (uint64_t)seed >= nv) {
+        st = km__fail(err, KM_ERR_INVALID,
+                      "%s: handle '%s': vertex %lld out of range (mesh has %zu vertices)", name, hn,
+                      (long long)seed, nv);
+        goto done;
+      }
+      if (radius > 0 && mesh->n_faces > 0) {
+        if (!geo_ready) {
+          if (!geodesic_init(&geo, mesh)) {
+            st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+            goto done;
+          }
+          geo_ready = true;
+        }
+        if (!geodesic_ball(&geo, mesh->V, (int32_t)seed, radius, &rh->vertices, &rh->n_vertices)) {
+          st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+          goto done;
+        }
+      } else {
+        /* Point cloud (no edges) or radius 0: Euclidean ball around the seed. */
+        const double *c = mesh->V + 3 * (size_t)seed;
+        rh->vertices = km__malloc(nv, sizeof(int32_t));
+        if (!rh->vertices) {
+          st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+          goto done;
+        }
+        for (size_t v = 0; v < nv; ++v) {
+          const double *p = mesh->V + 3 * v;
+          double d2 = (p[0] - c[0]) * (p[0] - c[0]) + (p[1] - c[1]) * (p[1] - c[1]) +
+                      (p[2] - c[2]) * (p[2] - c[2]);
+          if ((int64_t)v == seed || (radius > 0 && d2 <= radius * radius))
+            rh->vertices[rh->n_vertices++] = (int32_t)v;
+        }
+      }
+    } else if (jl) {
+      size_t n = cJSON_IsArray(jl) ? (size_t)cJSON_GetArraySize(jl) : 0;
+      if (!cJSON_IsArray(jl)) {
+        st =
+            km__fail(err, KM_ERR_PARSE, "%s: handle '%s': \"vertices\" must be an array", name, hn);
+        goto done;
+      }
+      rh->vertices = km__malloc(n ? n : 1, sizeof(int32_t));
+      if (!rh->vertices) {
+        st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+        goto done;
+      }
+      const cJSON *e;
+      size_t k = 0;
+      cJSON_ArrayForEach(e, jl) {
+        int64_t v;
+        if (!json_int(e, -1e18, 1e18, &v)) {
+          st = km__fail(err, KM_ERR_PARSE,
+                        "%s: handle '%s': vertices[%zu] must be an integer vertex id", name, hn, k);
+          goto done;
+        }
+        if (v < 0 || (uint64_t)v >= nv) {
+          st = km__fail(err, KM_ERR_INVALID,
+                        "%s: handle '%s': vertex %lld out of range (mesh has %zu vertices)", name,
+                        hn, (long long)v, nv);
+          goto done;
+        }
+        rh->vertices[k++] = (int32_t)v;
+      }
+      rh->n_vertices = k;
+    } else {
+      double c[3];
+      bool ok = cJSON_IsArray(jc) && cJSON_GetArraySize(jc) == 3;
+      for (int k = 0; ok && k < 3; ++k)
+        ok = json_finite(cJSON_GetArrayItem(jc, k), &c[k]);
+      if (!ok || !jr) {
+        st = km__fail(err, KM_ERR_PARSE,
+                      "%s: handle '%s': expected \"center\": [x, y, z] and a \"radius\"", name, hn);
+        goto done;
+      }
+      rh->vertices = km__malloc(nv ? nv : 1, sizeof(int32_t));
+      if (!rh->vertices) {
+        st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+        goto done;
+      }
+      for (size_t v = 0; v < nv; ++v) {
+        const double *p = mesh->V + 3 * v;
+        double d2 = (p[0] - c[0]) * (p[0] - c[0]) + (p[1] - c[1]) * (p[1] - c[1]) +
+                    (p[2] - c[2]) * (p[2] - c[2]);
+        if (d2 <= radius * radius) rh->vertices[rh->n_vertices++] = (int32_t)v;
+      }
+    }
+    rh->n_vertices = sort_unique(rh->vertices, rh->n_vertices);
+    if (rh->n_vertices == 0) {
+      st = km__fail(err, KM_ERR_INVALID, "%s: handle '%s' selects no vertex", name, hn);
+      goto done;
+    }
+    if (rh->n_vertices < nv / 4 + 1) { /* give back the over-allocation of ball scans */
+      int32_t *s = realloc(rh->vertices, rh->n_vertices * sizeof(int32_t));
+      if (s) rh->vertices = s;
+    }
+    for (size_t k = 0; k < rh->n_vertices; ++k) {
+      int32_t v = rh->vertices[k];
+      if (owner[v] >= 0) {
+        st = km__fail(err, KM_ERR_INVALID,
+                      "%s: handles '%s' and '%s' overlap (vertex %d is in both); a vertex may "
+                      "belong to one handle only",
+                      name, out->handles[owner[v]].name, hn, (int)v);
+        goto done;
+      }
+      owner[v] = (int32_t)hi;
+    }
+    ++hi;
+  }
+
+  const cJSON *jm = cJSON_GetObjectItemCaseSensitive(root, "map");
+  if (jm && !cJSON_IsArray(jm)) {
+    st = km__fail(err, KM_ERR_PARSE, "%s: \"map\" must be an array", name);
+    goto done;
+  }
+  size_t nm = jm ? (size_t)cJSON_GetArraySize(jm) : 0;
+  out->maps = km__calloc(nm ? nm : 1, sizeof *out->maps);
+  if (!out->maps) {
+    st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+    goto done;
+  }
+  const cJSON *m;
+  size_t mi = 0;
+  cJSON_ArrayForEach(m, jm) {
+    const cJSON *mh = cJSON_GetObjectItemCaseSensitive(m, "handle");
+    const cJSON *mj = cJSON_GetObjectItemCaseSensitive(m, "joint");
+    if (!cJSON_IsObject(m) || !cJSON_IsString(mh) || !cJSON_IsString(mj)) {
+      st = km__fail(err, KM_ERR_PARSE,
+                    "%s: map[%zu]: expected an object with \"handle\" and \"joint\" strings", name,
+                    mi);
+      goto done;
+    }
+    km_rig_map *rm = &out->maps[mi];
+    int hidx = find_handle(out, mh->valuestring);
+    if (hidx < 0) {
+      st = km__fail(err, KM_ERR_PARSE, "%s: map[%zu]: unknown handle '%s'", name, mi,
+                    mh->valuestring);
+      goto done;
+    }
+    int jidx = -1;
+    if (out->skeleton == KM_RIG_KINECT1) {
+      jidx = km_kinect1_joint_index(mj->valuestring);
+    } else {
+      for (size_t k = 0; k < n_joint_names && jidx < 0; ++k)
+        if (joint_names[k] && strcmp(joint_names[k], mj->valuestring) == 0) jidx = (int)k;
+    }
+    if (jidx < 0) {
+      st = km__fail(err, KM_ERR_PARSE, "%s: map[%zu] (handle '%s'): unknown %s joint '%s'%s", name,
+                    mi, mh->valuestring, out->skeleton == KM_RIG_KINECT1 ? "Kinect v1" : "take",
+                    mj->valuestring,
+                    out->skeleton == KM_RIG_KINECT1
+                        ? " (expected e.g. Head, HandLeft, FootRight; names are case-sensitive)"
+                        : "");
+      goto done;
+    }
+    rm->handle = hidx;
+    rm->joint = jidx;
+    rm->axes = KM_AXIS_X | KM_AXIS_Y | KM_AXIS_Z;
+    const cJSON *ma = cJSON_GetObjectItemCaseSensitive(m, "axes");
+    if (ma && (!cJSON_IsString(ma) || parse_axes(ma->valuestring, &rm->axes) != KM_OK)) {
+      st = km__fail(err, KM_ERR_PARSE,
+                    "%s: map[%zu] (handle '%s', joint '%s'): bad \"axes\" (expected a non-empty "
+                    "combination of x, y, z such as \"xyz\" or \"xz\")",
+                    name, mi, mh->valuestring, mj->valuestring);
+      goto done;
+    }
+    rm->scale = 1.0;
+    const cJSON *ms = cJSON_GetObjectItemCaseSensitive(m, "scale");
+    if (ms && !json_finite(ms, &rm->scale)) {
+      st = km__fail(err, KM_ERR_PARSE,
+                    "%s: map[%zu] (handle '%s', joint '%s'): \"scale\" must be a number", name, mi,
+                    mh->valuestring, mj->valuestring);
+      goto done;
+    }
+    ++mi;
+  }
+  out->n_maps = mi;
+  st = parse_filter(name, cJSON_GetObjectItemCaseSensitive(root, "filter"), &out->filter, err);
+
+done:
+  cJSON_Delete(root);
+  free(owner);
+  if (geo_ready) geodesic_free(&geo);
+  if (st != KM_OK) km_rig_free(out);
+  return st;
+}
+
+km_status km_rig_read(const char *path, const km_mesh *mesh, const char *const *joint_names,
+                      size_t n_joint_names, km_rig *out, km_error *err) {
+  if (!path || !out) return km__fail(err, KM_ERR_INVALID, "km_rig_read: NULL argument");
+  memset(out, 0, sizeof *out);
+  char *data = NULL;
+  size_t size = 0;
+  km_status st = km__read_file(path, &data, &size, err);
+  if (st != KM_OK) return st;
+  st = km_rig_parse(data, size, path, mesh, joint_names, n_joint_names, out, err);
+  free(data);
+  return st;
+}

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# ctest: makes a small animation with the kinemesh CLI (character, take, LBS playback) and
+# checks the .glb with the Khronos glTF validator (npm gltf-validator, installed by
+# scripts/deps.sh). Fails when node or the validator is missing: it is part of the set-up.
+set -euo pipefail
+BIN=$1
+WORK=$2
+HERE=$(cd "$(dirname "$0")" && pwd)
+command -v node >/dev/null || { echo "FAIL: node not found (scripts/deps.sh installs it)"; exit 1; }
+[ -d "$HERE/node_modules/gltf-validator" ] || { echo "FAIL: $HERE/node_modules/gltf-validator missing (run scripts/deps.sh)"; exit 1; }
+rm -rf "$WORK" && mkdir -p "$WORK"
+"$BIN" gen character --vertices 2000 -o "$WORK/c.obj"
+"$BIN" gen motion --kind wave --frames 12 --character "$WORK/c.obj" -o "$WORK/t.json"
+"$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" -o "$WORK/every.glb"
+"$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --key-every 4 -o "$WORK/keys.glb"
+for f in every keys; do node "$HERE/validate.mjs" "$WORK/$f.glb"; done
+"$BIN" info --json "$WORK/every.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames"; exit 1; }
+echo "gltf_validator: 3 passed, 0 failed"

@@ -1,0 +1,171 @@
+/* End-to-end checks of the kinemesh command-line tool: exit codes, JSON keys, messages. */
+#include "km_test.h"
+
+#include <cjson/cJSON.h>
+#include <sys/wait.h>
+
+/* Runs a shell command, captures stdout+stderr into *out (caller frees); returns exit code. */
+static int run(const char *cmd, char **out) {
+  char full[4096];
+  snprintf(full, sizeof full, "%s 2>&1", cmd);
+  FILE *p = popen(full, "r");
+  if (!p) return -1;
+  size_t cap = 1 << 16, n = 0;
+  char *buf = malloc(cap);
+  size_t got;
+  while ((got = fread(buf + n, 1, cap - n - 1, p)) > 0) {
+    n += got;
+    if (cap - n < 2) buf = realloc(buf, cap *= 2);
+  }
+  buf[n] = '\0';
+  int st = pclose(p);
+  if (out)
+    *out = buf;
+  else
+    free(buf);
+  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+static cJSON *run_json(const char *cmd, int *code) {
+  char *out = NULL;
+  *code = run(cmd, &out);
+  cJSON *j = cJSON_Parse(out);
+  if (!j) fprintf(stderr, "not JSON from `%s`:\n%s\n", cmd, out);
+  free(out);
+  return j;
+}
+
+static double num(const cJSON *o, const char *k) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
+  return cJSON_IsNumber(v) ? v->valuedouble : NAN;
+}
+
+static void test_help_and_usage(void) {
+  char *out = NULL;
+  CHECK(run(KM_CLI " --help", &out) == 0);
+  CHECK(strstr(out, "eigen") && strstr(out, "convert") && strstr(out, "info"));
+  free(out);
+  CHECK(run(KM_CLI " eigen --help", &out) == 0);
+  CHECK(strstr(out, "-k") != NULL);
+  free(out);
+  CHECK(run(KM_CLI " frobnicate", NULL) == 2);
+  CHECK(run(KM_CLI " info --no-such-option x.obj", NULL) == 2);
+}
+
+static void test_info_json(void) {
+  int code;
+  cJSON *j = run_json(KM_CLI " info --json " KM_TEST_DATA "/tetra.obj", &code);
+  CHECK(code == 0 && j);
+  if (j) {
+    const char *keys[] = {"vertices",          "faces",      "boundary_edges",
+                          "nonmanifold_edges", "components", "isolated_vertices",
+                          "degenerate_faces",  "bbox_min",   "bbox_max"};
+    for (size_t i = 0; i < sizeof keys / sizeof keys[0]; ++i)
+      CHECK_MSG(cJSON_GetObjectItemCaseSensitive(j, keys[i]) != NULL, "key %s", keys[i]);
+    CHECK(num(j, "vertices") == 4 && num(j, "faces") == 4);
+    CHECK(num(j, "boundary_edges") == 0 && num(j, "components") == 1);
+    CHECK(cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(j, "bbox_max")) == 3);
+    cJSON_Delete(j);
+  }
+}
+
+static void test_bad_input(void) {
+  /* A truncated / garbage file: non-zero exit and a message naming the file. */
+  FILE *f = fopen("cli_bad.obj", "w");
+  fputs("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", f);
+  fclose(f);
+  char *out = NULL;
+  CHECK(run(KM_CLI " info cli_bad.obj", &out) == 1);
+  CHECK_MSG(strstr(out, "cli_bad.obj:4") != NULL, "message: %s", out);
+  free(out);
+  CHECK(run(KM_CLI " info does_not_exist.ply", &out) == 1);
+  CHECK(strstr(out, "does_not_exist.ply") != NULL);
+  free(out);
+  /* convert must not leave a half-written output when the input is bad. */
+  remove("cli_out.ply");
+  CHECK(run(KM_CLI " convert cli_bad.obj cli_out.ply", NULL) == 1);
+  FILE *g = fopen("cli_out.ply", "r");
+  CHECK(g == NULL);
+  if (g) fclose(g);
+  remove("cli_bad.obj");
+}
+
+static void test_convert_roundtrip(void) {
+  CHECK(run(KM_CLI " convert " KM_TEST_DATA "/tetra.obj cli_a.ply", NULL) == 0);
+  CHECK(run(KM_CLI " convert cli_a.ply cli_b.off", NULL) == 0);
+  CHECK(run(KM_CLI " convert cli_b.off cli_c.obj", NULL) == 0);
+  km_mesh a = {0}, c = {0};
+  CHECK_OK(km_mesh_read(KM_TEST_DATA "/tetra.obj", &a, KM_E));
+  CHECK_OK(km_mesh_read("cli_c.obj", &c, KM_E));
+  CHECK(a.n_vertices == c.n_vertices && a.n_faces == c.n_faces);
+  if (a.n_vertices == c.n_vertices && a.n_faces == c.n_faces) {
+    CHECK(memcmp(a.V, c.V, sizeof(double) * 3 * a.n_vertices) == 0);
+    CHECK(memcmp(a.F, c.F, sizeof(int32_t) * 3 * a.n_faces) == 0);
+  }
+  km_mesh_free(&a);
+  km_mesh_free(&c);
+  remove("cli_a.ply");
+  remove("cli_b.off");
+  remove("cli_c.obj");
+}
+
+static void test_eigen_sphere(void) {
+  km_mesh s = {0};
+  CHECK_OK(km_icosphere(3, 1.0, &s, KM_E));
+  CHECK_OK(km_mesh_write("cli_sphere.off", &s, NULL, KM_E));
+  km_mesh_free(&s);
+  int code;
+  cJSON *j = run_json(KM_CLI " eigen cli_sphere.off -k 9 --json", &code);
+  CHECK(code == 0 && j);
+  const cJSON *ev = j ? cJSON_GetObjectItemCaseSensitive(j, "eigenvalues") : NULL;
+  CHECK(cJSON_GetArraySize(ev) == 9);
+  if (cJSON_GetArraySize(ev) == 9) {
+    double v[9];
+    for (int i = 0; i < 9; ++i)
+      v[i] = cJSON_GetArrayItem(ev, i)->valuedouble;
+    CHECK(fabs(v[0]) < 1e-6);
+    for (int i = 1; i < 4; ++i)
+      CHECK_NEAR(v[i], 2.0, 0.05);
+    for (int i = 4; i < 9; ++i)
+      CHECK_NEAR(v[i], 6.0, 0.15);
+    for (int i = 1; i < 9; ++i)
+      CHECK(v[i] >= v[i - 1]);
+  }
+  cJSON_Delete(j);
+  remove("cli_sphere.off");
+}
+
+static void test_gen_and_pose(void) {
+  CHECK(run(KM_CLI " gen character --vertices 3000 --shape stocky -o cli_char.obj", NULL) == 0);
+  int code;
+  cJSON *j = run_json(KM_CLI " info --json cli_char.obj", &code);
+  CHECK(code == 0 && j);
+  if (j) {
+    CHECK(num(j, "vertices") >= 2700 && num(j, "vertices") <= 3300);
+    CHECK(num(j, "boundary_edges") == 0 && num(j, "nonmanifold_edges") == 0);
+    CHECK(num(j, "components") == 1 && num(j, "degenerate_faces") == 0);
+    cJSON_Delete(j);
+  }
+  CHECK(run(KM_CLI " gen character --vertices 3000 --shape bogus -o cli_x.obj", NULL) == 1);
+  CHECK(run(KM_CLI " gen motion --kind walk --frames 7 --character cli_char.obj -o cli_take.json",
+            NULL) == 0);
+  CHECK(run(KM_CLI " gen motion --kind moonwalk --frames 7 -o cli_x.json", NULL) == 1);
+  CHECK(run(KM_CLI " pose --mesh cli_char.obj --motion cli_take.json -o cli_anim.pc2", NULL) == 0);
+  j = run_json(KM_CLI " info --json cli_anim.pc2", &code);
+  CHECK(code == 0 && j && num(j, "frames") == 7);
+  cJSON_Delete(j);
+  remove("cli_char.obj");
+  remove("cli_char.rig.json");
+  remove("cli_take.json");
+  remove("cli_anim.pc2");
+}
+
+int main(void) {
+  test_help_and_usage();
+  test_info_json();
+  test_bad_input();
+  test_convert_roundtrip();
+  test_eigen_sphere();
+  test_gen_and_pose();
+  return km_test_finish("test_cli");
+}

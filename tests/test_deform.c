@@ -1,0 +1,530 @@
+/* Reduced isoline puppet solver and full ARAP reference: rest reproduction, rigid motions,
+ * bending, cache round trip and staleness, handle changes without eigen-decomposition, and
+ * the reduced-vs-full deviation. */
+#include "km_test.h"
+
+#include <stdint.h>
+#include <unistd.h>
+
+#include "internal.h" /* km__now */
+
+/* Handles of a bar along z: vertices with z < lo (anchor) and z > hi (pulled). */
+static void bar_handles(const km_mesh *m, double lo, double hi, int32_t *off, int32_t *hv,
+                        size_t *nhv) {
+  size_t k = 0;
+  off[0] = 0;
+  for (size_t v = 0; v < m->n_vertices; ++v)
+    if (m->V[3 * v + 2] < lo) hv[k++] = (int32_t)v;
+  off[1] = (int32_t)k;
+  for (size_t v = 0; v < m->n_vertices; ++v)
+    if (m->V[3 * v + 2] > hi) hv[k++] = (int32_t)v;
+  off[2] = (int32_t)k;
+  *nhv = k;
+}
+
+static double max_dev(const double *A, const double *B, size_t n) {
+  double m = 0;
+  for (size_t i = 0; i < n; ++i) {
+    double d = sqrt((A[3 * i] - B[3 * i]) * (A[3 * i] - B[3 * i]) +
+                    (A[3 * i + 1] - B[3 * i + 1]) * (A[3 * i + 1] - B[3 * i + 1]) +
+                    (A[3 * i + 2] - B[3 * i + 2]) * (A[3 * i + 2] - B[3 * i + 2]));
+    m = d > m ? d : m;
+  }
+  return m;
+}
+
+static double mean_dev(const double *A, const double *B, size_t n) {
+  double s = 0;
+  for (size_t i = 0; i < n; ++i)
+    s += sqrt((A[3 * i] - B[3 * i]) * (A[3 * i] - B[3 * i]) +
+              (A[3 * i + 1] - B[3 * i + 1]) * (A[3 * i + 1] - B[3 * i + 1]) +
+              (A[3 * i + 2] - B[3 * i + 2]) * (A[3 * i + 2] - B[3 * i + 2]));
+  return s / (double)n;
+}
+
+static bool all_finite(const double *X, size_t n) {
+  for (size_t i = 0; i < n; ++i)
+    if (!isfinite(X[i])) return false;
+  return true;
+}
+
+/* rotation about axis (unit) by angle, row-major */
+static void rot_axis(const double *u, double a, double *R) {
+  double c = cos(a), s = sin(a), t = 1 - c;
+  R[0] = t * u[0] * u[0] + c, R[1] = t * u[0] * u[1] - s * u[2], R[2] = t * u[0] * u[2] + s * u[1];
+  R[3] = t * u[0] * u[1] + s * u[2], R[4] = t * u[1] * u[1] + c, R[5] = t * u[1] * u[2] - s * u[0];
+  R[6] = t * u[0] * u[2] - s * u[1], R[7] = t * u[1] * u[2] + s * u[0], R[8] = t * u[2] * u[2] + c;
+}
+
+static void rigid(const double *R, const double *t, const double *x, double *y) {
+  for (int r = 0; r < 3; ++r)
+    y[r] = R[r * 3] * x[0] + R[r * 3 + 1] * x[1] + R[r * 3 + 2] * x[2] + t[r];
+}
+
+/* Rest reproduction and rigid motion on one mesh with the given handles. */
+static void check_invariants(const char *name, const km_mesh *m, size_t nh, const int32_t *off,
+                             const int32_t *hv) {
+  size_t n = m->n_vertices, nhv = (size_t)off[nh];
+  double diag = km_bbox_diagonal(m->V, n);
+  km_puppet *p = NULL;
+  km_puppet_options o = {0};
+  o.iterations = 30;
+  o.tolerance = 1e-12;
+  CHECK_OK(km_puppet_precompute(m, &o, &p, KM_E));
+  if (!p) return;
+  CHECK_OK(km_puppet_set_handles(p, nh, off, hv, KM_E));
+  double *T = malloc(nhv * 3 * sizeof(double)), *X = malloc(n * 3 * sizeof(double)),
+         *Y = malloc(n * 3 * sizeof(double));
+  for (size_t i = 0; i < nhv; ++i)
+    memcpy(T + 3 * i, m->V + 3 * (size_t)hv[i], 3 * sizeof(double));
+  CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+  double e = max_dev(X, m->V, n) / diag;
+  CHECK_MSG(e <= 1e-9, "%s: rest reproduction error %g of the diagonal", name, e);
+
+  /* every handle moved by one rigid motion: the mesh follows rigidly */
+  double u[3] = {1 / sqrt(3.0), 1 / sqrt(3.0), 1 / sqrt(3.0)}, R[9],
+         t[3] = {0.1 * diag, -0.05 * diag, 0.2 * diag};
+  rot_axis(u, 0.6, R);
+  for (size_t i = 0; i < nhv; ++i)
+    rigid(R, t, m->V + 3 * (size_t)hv[i], T + 3 * i);
+  for (size_t v = 0; v < n; ++v)
+    rigid(R, t, m->V + 3 * v, Y + 3 * v);
+  km_puppet_reset(p);
+  CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+  CHECK(all_finite(X, n * 3));
+  double er = max_dev(X, Y, n) / diag, em = mean_dev(X, Y, n) / diag;
+  printf("%s: rigid motion: reduced max %.3g mean %.3g of the diagonal\n", name, er, em);
+  CHECK_MSG(er <= 1e-4, "%s: rigid motion error %g", name, er);
+
+  /* ARAP: same two properties */
+  km_arap *a = NULL;
+  km_arap_options ao = {.iterations = 400, .tolerance = 1e-300}; /* slow from rest */
+  CHECK_OK(km_arap_precompute(m, nh, off, hv, &ao, &a, KM_E));
+  if (a) {
+    CHECK_OK(km_arap_solve(a, T, X, KM_E));
+    er = max_dev(X, Y, n) / diag;
+    printf("%s: rigid motion: ARAP max %.3g of the diagonal\n", name, er);
+    CHECK_MSG(er <= 1e-6, "%s: ARAP rigid motion error %g", name, er);
+    km_arap_free(&a);
+  }
+  free(T);
+  free(X);
+  free(Y);
+  km_puppet_free(&p);
+}
+
+static void test_invariants(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_icosphere(3, 1.0, &m, KM_E));
+  /* three handles of ~10 vertices around three far-apart points */
+  int32_t off[4] = {0}, hv[64];
+  size_t k = 0;
+  double c[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, -1}};
+  for (int h = 0; h < 3; ++h) {
+    for (size_t v = 0; v < m.n_vertices; ++v) {
+      const double *x = m.V + 3 * v;
+      double d = (x[0] - c[h][0]) * (x[0] - c[h][0]) + (x[1] - c[h][1]) * (x[1] - c[h][1]) +
+                 (x[2] - c[h][2]) * (x[2] - c[h][2]);
+      if (d < 0.04 && k < 64) hv[k++] = (int32_t)v;
+    }
+    off[h + 1] = (int32_t)k;
+  }
+  CHECK(k > 9);
+  check_invariants("icosphere", &m, 3, off, hv);
+  km_mesh_free(&m);
+
+  CHECK_OK(km_cylinder(16, 30, 0.1, 1.0, &m, KM_E));
+  int32_t *bh = malloc(m.n_vertices * sizeof(int32_t)), boff[3];
+  size_t nhv;
+  bar_handles(&m, 0.04, 0.96, boff, bh, &nhv);
+  check_invariants("cylinder", &m, 2, boff, bh);
+  free(bh);
+  km_mesh_free(&m);
+}
+
+/* Bend a bar: anchor the bottom, pull the top sideways; compare with full ARAP. */
+static void test_bend(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_cylinder(24, 60, 0.08, 1.0, &m, KM_E));
+  size_t n = m.n_vertices, nhv;
+  double diag = km_bbox_diagonal(m.V, n);
+  int32_t *hv = malloc(n * sizeof(int32_t)), off[3];
+  bar_handles(&m, 0.03, 0.97, off, hv, &nhv);
+  double t0 = km__now();
+  km_puppet *p = NULL;
+  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
+  double t_pre = km__now() - t0;
+  if (!p) return;
+  t0 = km__now();
+  CHECK_OK(km_puppet_set_handles(p, 2, off, hv, KM_E));
+  double t_set = km__now() - t0;
+  printf("bend: precompute %.3f s, set_handles %.4f s\n", t_pre, t_set);
+
+  km_arap *a = NULL;
+  km_arap_options ao = {.iterations = 10};
+  CHECK_OK(km_arap_precompute(&m, 2, off, hv, &ao, &a, KM_E));
+  double *T = malloc(nhv * 3 * sizeof(double)), *X = malloc(n * 3 * sizeof(double)),
+         *Y = malloc(n * 3 * sizeof(double));
+  const int frames = 10;
+  double pull = 0.35;
+  for (int f = 1; f <= frames; ++f) {
+    double s = pull * f / frames;
+    for (size_t i = 0; i < nhv; ++i) {
+      memcpy(T + 3 * i, m.V + 3 * (size_t)hv[i], 3 * sizeof(double));
+      if ((int32_t)i >= off[1]) T[3 * i] += s;
+    }
+    CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+    if (a) CHECK_OK(km_arap_solve(a, T, Y, KM_E));
+  }
+  CHECK(all_finite(X, 3 * n));
+  CHECK(all_finite(Y, 3 * n));
+  /* anchored handle stays, pulled handle follows */
+  double anchor = 0, pulled = 0;
+  for (int32_t i = 0; i < off[2]; ++i) {
+    double d = sqrt((X[3 * hv[i]] - T[3 * i]) * (X[3 * hv[i]] - T[3 * i]) +
+                    (X[3 * hv[i] + 1] - T[3 * i + 1]) * (X[3 * hv[i] + 1] - T[3 * i + 1]) +
+                    (X[3 * hv[i] + 2] - T[3 * i + 2]) * (X[3 * hv[i] + 2] - T[3 * i + 2]));
+    if (i < off[1])
+      anchor = fmax(anchor, d);
+    else
+      pulled = fmax(pulled, d);
+  }
+  printf("bend: anchored handle max error %.3g, pulled handle max error %.3g (pull %.2f, "
+         "diagonal %.3f)\n",
+         anchor, pulled, pull, diag);
+  CHECK_MSG(anchor < 0.01 * diag, "anchor moved %g", anchor);
+  CHECK_MSG(pulled < 0.1 * pull, "pulled handle off by %g", pulled);
+  /* smooth bend: the mean x displacement of each ring increases monotonically along the bar */
+  int rings = 61, segs = 24;
+  double prev = -1;
+  int mono = 1;
+  for (int r = 0; r < rings; ++r) {
+    double sx = 0;
+    for (int k = 0; k < segs; ++k)
+      sx += X[3 * (r * segs + k)] - m.V[3 * (r * segs + k)];
+    sx /= segs;
+    if (sx < prev - 1e-4 * pull) mono = 0;
+    prev = sx;
+  }
+  CHECK_MSG(mono, "ring displacements are not monotonic along the bar");
+  if (a) {
+    double md = mean_dev(X, Y, n) / diag, xd = max_dev(X, Y, n) / diag;
+    printf("bend: reduced vs full ARAP deviation: mean %.4f max %.4f of the diagonal\n", md, xd);
+    CHECK_MSG(md <= 0.02, "mean deviation %g > 2%% of the diagonal", md);
+  }
+  km_puppet_info info;
+  km_puppet_info_get(p, &info);
+  CHECK(info.crossed_triangles > 0 && info.unknowns == 320 && info.handle_vertices == nhv);
+  /* changing handles keeps working and does not need a new precompute */
+  int32_t off1[2] = {0, off[1]};
+  CHECK_OK(km_puppet_set_handles(p, 1, off1, hv, KM_E));
+  CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+  CHECK(all_finite(X, 3 * n));
+  /* bad handles */
+  int32_t badv[2] = {0, 0}, boff[2] = {0, 2};
+  CHECK_STATUS(km_puppet_set_handles(p, 1, boff, badv, KM_E), KM_ERR_INVALID);
+  badv[1] = (int32_t)n;
+  CHECK_STATUS(km_puppet_set_handles(p, 1, boff, badv, KM_E), KM_ERR_INVALID);
+  km_arap_free(&a);
+  km_puppet_free(&p);
+  free(T);
+  free(X);
+  free(Y);
+  free(hv);
+  km_mesh_free(&m);
+}
+
+/* Changing the handle set costs a 320x320 Cholesky, not an eigen-decomposition. */
+static void test_handle_change_cost(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_icosphere(5, 1.0, &m, KM_E));
+  size_t n = m.n_vertices;
+  double t0 = km__now();
+  km_puppet *p = NULL;
+  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
+  double t_pre = km__now() - t0;
+  int32_t *hv = malloc(n * sizeof(int32_t)), off[3] = {0};
+  size_t k = 0;
+  for (size_t v = 0; v < n; ++v)
+    if (m.V[3 * v + 2] > 0.95) hv[k++] = (int32_t)v;
+  off[1] = (int32_t)k;
+  for (size_t v = 0; v < n; ++v)
+    if (m.V[3 * v] > 0.95) hv[k++] = (int32_t)v;
+  off[2] = (int32_t)k;
+  double t_set = 1e9;
+  for (int rep = 0; rep < 3 && p; ++rep) {
+    t0 = km__now();
+    CHECK_OK(km_puppet_set_handles(p, 1 + rep % 2, off, hv, KM_E));
+    t_set = fmin(t_set, km__now() - t0);
+  }
+  printf("handles: %zu vertices: precompute %.3f s, set_handles %.4f s\n", n, t_pre, t_set);
+  CHECK_MSG(t_set < 0.1 * t_pre, "set_handles %.4f s vs precompute %.3f s", t_set, t_pre);
+  km_puppet_free(&p);
+  free(hv);
+  km_mesh_free(&m);
+}
+
+static void test_cache(void) {
+  km_mesh m = {0}, m2 = {0};
+  CHECK_OK(km_cylinder(12, 20, 0.1, 1.0, &m, KM_E));
+  size_t n = m.n_vertices, nhv;
+  int32_t *hv = malloc(n * sizeof(int32_t)), off[3];
+  bar_handles(&m, 0.04, 0.96, off, hv, &nhv);
+  km_puppet *p = NULL, *q = NULL;
+  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
+  char path[256];
+  snprintf(path, sizeof path, "test_deform_%d.kmp", (int)getpid());
+  CHECK_OK(km_puppet_save(p, path, KM_E));
+  CHECK_OK(km_puppet_load(path, &m, NULL, &q, KM_E));
+  double *T = malloc(nhv * 3 * sizeof(double)), *X = malloc(n * 3 * sizeof(double)),
+         *Y = malloc(n * 3 * sizeof(double));
+  for (size_t i = 0; i < nhv; ++i) {
+    memcpy(T + 3 * i, m.V + 3 * (size_t)hv[i], 3 * sizeof(double));
+    if ((int32_t)i >= off[1]) T[3 * i + 1] += 0.2;
+  }
+  if (p && q) {
+    CHECK_OK(km_puppet_set_handles(p, 2, off, hv, KM_E));
+    CHECK_OK(km_puppet_set_handles(q, 2, off, hv, KM_E));
+    CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+    CHECK_OK(km_puppet_solve(q, T, Y, KM_E));
+    CHECK(memcmp(X, Y, n * 3 * sizeof(double)) == 0);
+  }
+  km_puppet_free(&q);
+  /* different parameters */
+  km_puppet_options o = {.isolines = 12};
+  CHECK_STATUS(km_puppet_load(path, &m, &o, &q, KM_E), KM_ERR_STALE);
+  CHECK(q == NULL);
+  /* different mesh: one coordinate nudged, and another mesh altogether */
+  CHECK_OK(km_mesh_copy(&m, &m2, KM_E));
+  m2.V[5] += 1e-12;
+  CHECK_STATUS(km_puppet_load(path, &m2, NULL, &q, KM_E), KM_ERR_STALE);
+  km_mesh_free(&m2);
+  CHECK_OK(km_icosphere(2, 1.0, &m2, KM_E));
+  CHECK_STATUS(km_puppet_load(path, &m2, NULL, &q, KM_E), KM_ERR_STALE);
+  km_mesh_free(&m2);
+  /* corrupt one byte (header, payload and checksum regions), truncate */
+  FILE *f = fopen(path, "rb");
+  CHECK(f != NULL);
+  if (f) {
+    fseek(f, 0, SEEK_END);
+    long size = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    unsigned char *buf = malloc((size_t)size);
+    CHECK(fread(buf, 1, (size_t)size, f) == (size_t)size);
+    fclose(f);
+    long where[] = {3, 40, 100, size / 2, size - 3};
+    for (size_t w = 0; w < sizeof where / sizeof where[0]; ++w) {
+      buf[where[w]] ^= 0x10;
+      f = fopen(path, "wb");
+      fwrite(buf, 1, (size_t)size, f);
+      fclose(f);
+      CHECK_STATUS(km_puppet_load(path, &m, NULL, &q, KM_E), KM_ERR_STALE);
+      CHECK(q == NULL);
+      buf[where[w]] ^= 0x10;
+    }
+    long cuts[] = {0, 10, 64, size / 3, size - 1};
+    for (size_t w = 0; w < sizeof cuts / sizeof cuts[0]; ++w) {
+      f = fopen(path, "wb");
+      fwrite(buf, 1, (size_t)cuts[w], f);
+      fclose(f);
+      CHECK_STATUS(km_puppet_load(path, &m, NULL, &q, KM_E), KM_ERR_STALE);
+      CHECK(q == NULL);
+    }
+    free(buf);
+  }
+  remove(path);
+  CHECK_STATUS(km_puppet_load(path, &m, NULL, &q, KM_E), KM_ERR_IO);
+  km_puppet_free(&p);
+  free(T);
+  free(X);
+  free(Y);
+  free(hv);
+  km_mesh_free(&m);
+}
+
+/* A real scan (decimated armadillo, 864 vertices): two far-apart handles, one pulled and
+ * turned; finite, anchored, close to full ARAP, and the cache reloads it. */
+static int test_real_mesh(void) {
+  char buf[1024];
+  const char *path = km_test_shared("meshes/armadillo_1k.off", buf, sizeof buf);
+  if (!path) return KM_TEST_SKIP;
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_read(path, &m, KM_E));
+  size_t n = m.n_vertices;
+  if (n < 100) return 0;
+  double diag = km_bbox_diagonal(m.V, n);
+  /* handle 0: 40 vertices nearest the lowest vertex, handle 1: 40 nearest the highest */
+  size_t lo = 0, hi = 0;
+  for (size_t v = 0; v < n; ++v) {
+    if (m.V[3 * v + 1] < m.V[3 * lo + 1]) lo = v;
+    if (m.V[3 * v + 1] > m.V[3 * hi + 1]) hi = v;
+  }
+  int32_t off[3] = {0, 40, 80}, hv[80];
+  unsigned char *taken = calloc(n, 1);
+  size_t seeds[2] = {lo, hi};
+  for (int h = 0; h < 2; ++h)
+    for (int c = 0; c < 40; ++c) {
+      size_t bi = 0;
+      double bd = INFINITY;
+      for (size_t v = 0; v < n; ++v) {
+        if (taken[v]) continue;
+        const double *x = m.V + 3 * v, *y = m.V + 3 * seeds[h];
+        double d = (x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) +
+                   (x[2] - y[2]) * (x[2] - y[2]);
+        if (d < bd) bd = d, bi = v;
+      }
+      taken[bi] = 1;
+      hv[h * 40 + c] = (int32_t)bi;
+    }
+  free(taken);
+  km_puppet *p = NULL;
+  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
+  km_arap *a = NULL;
+  CHECK_OK(km_arap_precompute(&m, 2, off, hv, NULL, &a, KM_E));
+  if (!p || !a) {
+    km_puppet_free(&p);
+    km_arap_free(&a);
+    km_mesh_free(&m);
+    return 0;
+  }
+  CHECK_OK(km_puppet_set_handles(p, 2, off, hv, KM_E));
+  double T[240], *X = malloc(n * 3 * sizeof(double)), *Y = malloc(n * 3 * sizeof(double));
+  double u[3] = {0, 0, 1}, R[9], c[3] = {0, 0, 0};
+  for (int i = 40; i < 80; ++i)
+    for (int k = 0; k < 3; ++k)
+      c[k] += m.V[3 * (size_t)hv[i] + k] / 40;
+  double dsum = 0, dmax = 0;
+  for (int f = 1; f <= 8; ++f) {
+    rot_axis(u, 0.05 * f, R);
+    for (int i = 0; i < 80; ++i) {
+      const double *x = m.V + 3 * (size_t)hv[i];
+      if (i < 40) {
+        memcpy(T + 3 * i, x, 3 * sizeof(double));
+        continue;
+      }
+      double d[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]}, t[3] = {0.015 * f * diag, 0, 0};
+      rigid(R, t, d, T + 3 * i);
+      for (int k = 0; k < 3; ++k)
+        T[3 * i + k] += c[k];
+    }
+    CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+    CHECK_OK(km_arap_solve(a, T, Y, KM_E));
+    dsum += mean_dev(X, Y, n) / diag / 8;
+    dmax = fmax(dmax, max_dev(X, Y, n) / diag);
+  }
+  CHECK(all_finite(X, 3 * n));
+  double anchor = 0;
+  for (int i = 0; i < 40; ++i)
+    anchor = fmax(anchor,
+                  sqrt(pow(X[3 * hv[i]] - T[3 * i], 2) + pow(X[3 * hv[i] + 1] - T[3 * i + 1], 2) +
+                       pow(X[3 * hv[i] + 2] - T[3 * i + 2], 2)));
+  printf("armadillo_1k: reduced vs ARAP mean %.4f max %.4f of the diagonal, anchor error %.2g\n",
+         dsum, dmax, anchor / diag);
+  CHECK_MSG(dsum <= 0.03, "mean deviation %g", dsum);
+  CHECK_MSG(anchor <= 0.01 * diag, "anchor moved %g", anchor / diag);
+  /* cache round trip on a real mesh */
+  char cpath[256];
+  snprintf(cpath, sizeof cpath, "test_deform_real_%d.kmp", (int)getpid());
+  CHECK_OK(km_puppet_save(p, cpath, KM_E));
+  km_puppet *q = NULL;
+  CHECK_OK(km_puppet_load(cpath, &m, NULL, &q, KM_E));
+  remove(cpath);
+  if (q) {
+    CHECK_OK(km_puppet_set_handles(q, 2, off, hv, KM_E));
+    km_puppet_reset(p);
+    CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+    CHECK_OK(km_puppet_solve(q, T, Y, KM_E));
+    CHECK(memcmp(X, Y, n * 3 * sizeof(double)) == 0);
+  }
+  km_puppet_free(&q);
+  km_puppet_free(&p);
+  km_arap_free(&a);
+  free(X);
+  free(Y);
+  km_mesh_free(&m);
+  return 0;
+}
+
+static bool cancel_at_half(double fraction, const char *stage, void *user) {
+  (void)stage;
+  ++*(int *)user;
+  return fraction < 0.5;
+}
+
+static void test_errors(void) {
+  km_puppet *p = NULL;
+  km_mesh m = {0};
+  CHECK_STATUS(km_puppet_precompute(NULL, NULL, &p, KM_E), KM_ERR_INVALID);
+  CHECK_OK(km_icosphere(1, 1.0, &m, KM_E));
+  km_puppet_options o = {.isolines = 1};
+  CHECK_STATUS(km_puppet_precompute(&m, &o, &p, KM_E), KM_ERR_INVALID);
+  m.F[4] = (int32_t)m.n_vertices;
+  CHECK_STATUS(km_puppet_precompute(&m, NULL, &p, KM_E), KM_ERR_INVALID);
+  CHECK(p == NULL);
+  km_mesh_free(&m);
+  /* progress reports and cancellation */
+  CHECK_OK(km_icosphere(2, 1.0, &m, KM_E));
+  int calls = 0;
+  km_puppet_options oc = {.progress = {cancel_at_half, &calls}};
+  CHECK_STATUS(km_puppet_precompute(&m, &oc, &p, KM_E), KM_ERR_CANCELLED);
+  CHECK(p == NULL && calls > 0);
+  /* solve before set_handles, NaN targets */
+  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
+  double *X = malloc(m.n_vertices * 3 * sizeof(double)), T[3] = {NAN, 0, 0};
+  CHECK_STATUS(km_puppet_solve(p, T, X, KM_E), KM_ERR_INVALID);
+  int32_t off[2] = {0, 1}, hv[1] = {0};
+  CHECK_OK(km_puppet_set_handles(p, 1, off, hv, KM_E));
+  CHECK_STATUS(km_puppet_solve(p, T, X, KM_E), KM_ERR_INVALID);
+  km_puppet_free(&p);
+  /* ARAP: no handle, bad handle, a component without a handle */
+  km_arap *a = NULL;
+  CHECK_STATUS(km_arap_precompute(&m, 0, off, hv, NULL, &a, KM_E), KM_ERR_INVALID);
+  hv[0] = -1;
+  CHECK_STATUS(km_arap_precompute(&m, 1, off, hv, NULL, &a, KM_E), KM_ERR_INVALID);
+  CHECK(a == NULL);
+  km_mesh two = {0};
+  CHECK_OK(km_mesh_alloc(m.n_vertices * 2, m.n_faces * 2, &two, KM_E));
+  for (size_t i = 0; i < m.n_vertices * 3; ++i) {
+    two.V[i] = m.V[i];
+    two.V[m.n_vertices * 3 + i] = m.V[i] + (i % 3 == 0 ? 3.0 : 0.0);
+  }
+  for (size_t i = 0; i < m.n_faces * 3; ++i) {
+    two.F[i] = m.F[i];
+    two.F[m.n_faces * 3 + i] = m.F[i] + (int32_t)m.n_vertices;
+  }
+  hv[0] = 0;
+  km_status st = km_arap_precompute(&two, 1, off, hv, NULL, &a, KM_E);
+  CHECK_MSG(st != KM_OK && a == NULL, "a component without handle must fail (%s)",
+            km_status_name(st));
+  km_mesh_free(&two);
+  /* an isolated vertex (used by no face) stays where it is */
+  CHECK_OK(km_mesh_alloc(m.n_vertices + 1, m.n_faces, &two, KM_E));
+  memcpy(two.V, m.V, m.n_vertices * 3 * sizeof(double));
+  memcpy(two.F, m.F, m.n_faces * 3 * sizeof(int32_t));
+  two.V[m.n_vertices * 3] = 5, two.V[m.n_vertices * 3 + 1] = 6, two.V[m.n_vertices * 3 + 2] = 7;
+  CHECK_OK(km_arap_precompute(&two, 1, off, hv, NULL, &a, KM_E));
+  if (a) {
+    double *Y = malloc(two.n_vertices * 3 * sizeof(double)),
+           T0[3] = {two.V[0] + 0.1, two.V[1], two.V[2]};
+    CHECK_OK(km_arap_solve(a, T0, Y, KM_E));
+    CHECK(all_finite(Y, two.n_vertices * 3));
+    CHECK(Y[m.n_vertices * 3] == 5 && Y[m.n_vertices * 3 + 2] == 7);
+    free(Y);
+    km_arap_free(&a);
+  }
+  km_mesh_free(&two);
+  free(X);
+  km_mesh_free(&m);
+  km_puppet_free(&p); /* NULL: no-op */
+  km_arap_free(NULL);
+}
+
+int main(void) {
+  test_errors();
+  test_invariants();
+  test_bend();
+  test_handle_change_cost();
+  test_cache();
+  test_real_mesh();
+  return km_test_finish("test_deform");
+}

@@ -1,0 +1,213 @@
+/* Double exponential joint filter (paper eq. 4 + Kinect SDK knobs). */
+#include "km_test.h"
+
+static uint64_t rng = 0x9e3779b97f4a7c15ULL;
+static double uniform(void) { /* xorshift64*, deterministic */
+  rng ^= rng >> 12;
+  rng ^= rng << 25;
+  rng ^= rng >> 27;
+  return (double)((rng * 2685821657736338717ULL) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+static void test_constant(void) {
+  /* Constant input is reproduced bit for bit, whatever the options. */
+  km_filter_options opts[] = {
+      {0},
+      {.smoothing = 0.3, .trend = 0.7},
+      {.smoothing = 0.9,
+       .trend = 0.1,
+       .prediction = 2,
+       .jitter_radius = 0.05,
+       .max_deviation = 0.04},
+  };
+  for (size_t o = 0; o < 3; ++o) {
+    km_filter *f = NULL;
+    CHECK_OK(km_filter_create(2, &opts[o], &f, KM_E));
+    const double raw[6] = {0.1234567, -1.7, 2.9, 1e-3, 0.3, -0.7};
+    double out[6];
+    size_t diff = 0;
+    for (int t = 0; t < 100; ++t) {
+      km_filter_push(f, raw, out);
+      for (int k = 0; k < 6; ++k)
+        diff += out[k] != raw[k];
+    }
+    CHECK_MSG(diff == 0, "options %zu: %zu values changed", o, diff);
+    km_filter_free(&f);
+    CHECK(f == NULL);
+  }
+  km_filter_free(NULL); /* no-op */
+}
+
+static void test_ramp(void) {
+  /* Holt's method has a linear trend as a fixed point: after warm-up the error vanishes. */
+  const double v[3] = {0.01, -0.02, 0.005}; /* metres per frame */
+  km_filter *f = NULL, *single = NULL;
+  CHECK_OK(km_filter_create(1, NULL, &f, KM_E));
+  km_filter_options no_trend = {.trend = KM_FILTER_ZERO};
+  CHECK_OK(km_filter_create(1, &no_trend, &single, KM_E));
+  double err_early = 0, err_late = 0, lag_single = 0;
+  for (int t = 0; t < 300; ++t) {
+    double raw[3], out[3], out1[3];
+    for (int k = 0; k < 3; ++k)
+      raw[k] = 1.0 + v[k] * t;
+    km_filter_push(f, raw, out);
+    km_filter_push(single, raw, out1);
+    double e = 0, e1 = 0;
+    for (int k = 0; k < 3; ++k) {
+      e = fmax(e, fabs(out[k] - raw[k]));
+      e1 = fmax(e1, fabs(out1[k] - raw[k]));
+    }
+    if (t == 5) err_early = e;
+    if (t >= 250) err_late = fmax(err_late, e);
+    if (t == 299) lag_single = e1;
+  }
+  CHECK_MSG(err_early > 1e-3, "early error %g (warm-up should show)", err_early);
+  CHECK_MSG(err_late < 1e-9, "late error %g", err_late);
+  /* Without the trend term (single exponential smoothing) the lag stays at s/(1-s) * step. */
+  CHECK_NEAR(lag_single, 0.02, 1e-9);
+  km_filter_free(&f);
+  km_filter_free(&single);
+
+  /* prediction = 1 frame: the output leads the raw input by one step once locked on. */
+  km_filter_options pred = {.prediction = 1};
+  CHECK_OK(km_filter_create(1, &pred, &f, KM_E));
+  double lead = 0;
+  for (int t = 0; t < 300; ++t) {
+    double raw[3] = {v[0] * t, v[1] * t, v[2] * t}, out[3];
+    km_filter_push(f, raw, out);
+    lead = out[0] - raw[0];
+  }
+  CHECK_NEAR(lead, v[0], 1e-9);
+  km_filter_free(&f);
+
+  /* No smoothing: raw passes through exactly. */
+  km_filter_options raw_opt = {.smoothing = KM_FILTER_ZERO};
+  CHECK_OK(km_filter_create(1, &raw_opt, &f, KM_E));
+  size_t diff = 0;
+  for (int t = 0; t < 50; ++t) {
+    double raw[3] = {uniform(), uniform(), uniform()}, out[3];
+    km_filter_push(f, raw, out);
+    for (int k = 0; k < 3; ++k)
+      diff += out[k] != raw[k];
+  }
+  CHECK(diff == 0);
+  km_filter_free(&f);
+}
+
+static void test_missing(void) {
+  km_filter *f = NULL, *g = NULL;
+  CHECK_OK(km_filter_create(2, NULL, &f, KM_E));
+  CHECK_OK(km_filter_create(2, NULL, &g, KM_E));
+  double out[6], outg[6];
+  /* Joint 1 never seen yet: NaN; joint 0 fine. */
+  double raw0[6] = {0, 0, 0, NAN, NAN, NAN};
+  km_filter_push(f, raw0, out);
+  CHECK(out[0] == 0 && isnan(out[3]) && isnan(out[4]) && isnan(out[5]));
+  km_filter_reset(f);
+
+  /* f sees a ramp with a 7-frame gap on joint 0; g sees the same ramp with the gap frames
+   * simply left out. A missing joint must leave the state untouched, so both agree after. */
+  int tf = 0;
+  size_t held_wrong = 0, mismatch = 0;
+  for (int t = 0; t < 60; ++t) {
+    double raw[6] = {0.02 * t, 1, 0.5 * sin(0.1 * t), 1, 1, 1};
+    bool gap = t >= 20 && t < 27;
+    double in[6];
+    memcpy(in, raw, sizeof in);
+    if (gap) in[0] = in[1] = in[2] = NAN;
+    double before[3] = {out[0], out[1], out[2]};
+    km_filter_push(f, in, out);
+    if (gap) {
+      held_wrong += out[0] != before[0] || out[1] != before[1] || out[2] != before[2];
+      continue;
+    }
+    km_filter_push(g, raw, outg);
+    ++tf;
+    for (int k = 0; k < 6; ++k)
+      mismatch += out[k] != outg[k];
+  }
+  CHECK_MSG(held_wrong == 0, "output not held during the gap (%zu)", held_wrong);
+  CHECK_MSG(mismatch == 0, "gap corrupted the state (%zu values differ)", mismatch);
+  CHECK(tf == 53);
+  /* Infinite values count as missing too. */
+  double inf_in[6] = {INFINITY, 0, 0, 1, 1, 1}, prev0 = out[0];
+  km_filter_push(f, inf_in, out);
+  CHECK(out[0] == prev0);
+  km_filter_free(&f);
+  km_filter_free(&g);
+}
+
+static double noise_rms(const km_filter_options *o, double amp) {
+  km_filter *f = NULL;
+  if (km_filter_create(1, o, &f, NULL) != KM_OK) return NAN;
+  rng = 12345;
+  double s2 = 0;
+  int n = 0;
+  for (int t = 0; t < 2000; ++t) {
+    double raw[3] = {0.3 + amp * (2 * uniform() - 1), 1.2 + amp * (2 * uniform() - 1),
+                     -2 + amp * (2 * uniform() - 1)},
+           out[3];
+    km_filter_push(f, raw, out);
+    if (t >= 100) {
+      s2 += pow(out[0] - 0.3, 2) + pow(out[1] - 1.2, 2) + pow(out[2] + 2, 2);
+      ++n;
+    }
+  }
+  km_filter_free(&f);
+  return sqrt(s2 / n);
+}
+
+static void test_jitter(void) {
+  /* 5 mm noise on a still joint: the jitter radius (5 cm) damps it far more than the
+   * double exponential alone. */
+  km_filter_options plain = {0}, jit = {.jitter_radius = 0.05};
+  double r_plain = noise_rms(&plain, 0.005), r_jit = noise_rms(&jit, 0.005);
+  double r_raw = 0.005; /* uniform in [-a,a]: a^2/3 per axis, 3 axes */
+  CHECK_MSG(r_plain < r_raw && r_jit < 0.5 * r_plain && r_jit < 0.25 * r_raw,
+            "raw %g plain %g jitter %g", r_raw, r_plain, r_jit);
+
+  /* Large moves pass the jitter stage: a 1 m jump is followed (the last millimetre converges
+   * slowly, as in the SDK, because it falls inside the jitter radius). */
+  km_filter *f = NULL;
+  CHECK_OK(km_filter_create(1, &jit, &f, KM_E));
+  double a[3] = {0, 0, 0}, b[3] = {1, 0, 0}, out[3];
+  km_filter_push(f, a, out);
+  for (int t = 0; t < 100; ++t)
+    km_filter_push(f, b, out);
+  CHECK_NEAR(out[0], 1.0, 1e-3);
+  km_filter_free(&f);
+
+  /* max_deviation bounds the distance to the raw sample even with aggressive prediction. */
+  km_filter_options dev = {.smoothing = 0.9, .prediction = 5, .max_deviation = 0.04};
+  CHECK_OK(km_filter_create(1, &dev, &f, KM_E));
+  double worst = 0;
+  for (int t = 0; t < 200; ++t) {
+    double raw[3] = {0.5 * sin(0.2 * t), 0.05 * t, 0}, o[3];
+    km_filter_push(f, raw, o);
+    worst = fmax(worst, sqrt(pow(o[0] - raw[0], 2) + pow(o[1] - raw[1], 2) + pow(o[2], 2)));
+  }
+  CHECK_MSG(worst <= 0.04 + 1e-12, "deviation %g", worst);
+  km_filter_free(&f);
+}
+
+static void test_options(void) {
+  km_filter *f = NULL;
+  km_filter_options bad[] = {{.smoothing = 1.0},
+                             {.trend = 1.5},
+                             {.prediction = -1},
+                             {.jitter_radius = NAN},
+                             {.max_deviation = -0.1}};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
+    CHECK_STATUS(km_filter_create(3, &bad[i], &f, KM_E), KM_ERR_INVALID);
+    CHECK(f == NULL);
+  }
+}
+
+int main(void) {
+  test_constant();
+  test_ramp();
+  test_missing();
+  test_jitter();
+  test_options();
+  return km_test_finish("test_motion_filter");
+}
