@@ -1,0 +1,391 @@
+/* Verbs of capability 2 (avatar pose transfer, Lifkooee et al. 2019):
+ *   kinemesh transfer SOURCE TEMPLATE -o OUT        pose transfer between meshes of one
+ * connectivity kinemesh posedb build CLASS=MESH... -o DB       pose database (CART + SVM),
+ * cross-validated kinemesh posedb query DB TRACK                  recognise every frame of a TRACK
+ * file kinemesh avatar AVATAR DB TRACK -o ANIM         motion generation (key poses + morphing)
+ * Landmarks come from --landmarks LM.json or the mesh's rig sidecar (<stem>.rig.json).
+ * Lead: declare these four in cli.h and add them to the verb table in main.c. */
+#include "cli.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+int km_cli_transfer(int argc, char **argv);
+int km_cli_posedb(int argc, char **argv);
+int km_cli_avatar(int argc, char **argv);
+
+/* Landmarks for a mesh: --landmarks file, else the rig sidecar next to the mesh. */
+static km_status load_landmarks(const char *lm_path, const char *mesh_path, size_t n_vertices,
+                                km_landmark *lm, size_t *n, km_error *err) {
+  if (lm_path) return km_landmarks_read(lm_path, n_vertices, lm, KM_POSE_MAX_LANDMARKS, n, err);
+  char *rig = km_cli_rig_path(mesh_path);
+  if (!rig) {
+    err->status = KM_ERR_NOMEM;
+    snprintf(err->message, sizeof err->message, "out of memory");
+    return KM_ERR_NOMEM;
+  }
+  km_status s = km_landmarks_read(rig, n_vertices, lm, KM_POSE_MAX_LANDMARKS, n, err);
+  free(rig);
+  return s;
+}
+
+int km_cli_transfer(int argc, char **argv) {
+  const char *out = NULL, *lm_path = NULL, *encoding = "edge", *laplacian = "uniform",
+             *align = "scale";
+  int iterations = 0;
+  const km_cli_opt opts[] = {
+      {"output", 'o', KM_OPT_STRING, &out, "output mesh (.obj/.ply/.off)"},
+      {"landmarks", 'l', KM_OPT_STRING, &lm_path,
+       "LM.json with the landmark vertices (default: SOURCE's rig sidecar)"},
+      {"iterations", 'i', KM_OPT_INT, &iterations, "maximum solves (default 10)"},
+      {"encoding", 0, KM_OPT_STRING, &encoding,
+       "edge (default) or vertex (the paper's eq. 3 verbatim)"},
+      {"laplacian", 0, KM_OPT_STRING, &laplacian, "uniform (default, eq. 2) or cotan"},
+      {"align", 0, KM_OPT_STRING, &align,
+       "scale (default: TEMPLATE's landmarks scaled to SOURCE's size) or similarity"},
+  };
+  const char *pos[2];
+  int n_pos;
+  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 2, &n_pos,
+                       "kinemesh transfer SOURCE TEMPLATE -o OUT [--landmarks LM.json]",
+                       "SOURCE (the avatar) takes the pose of TEMPLATE (same connectivity) by\n"
+                       "locally encoded Laplacian offsets; landmark vertices follow TEMPLATE's,\n"
+                       "scaled to SOURCE's size.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (n_pos != 2) return km_cli_error("transfer", "expected SOURCE and TEMPLATE meshes");
+  if (!out) return km_cli_error("transfer", "-o OUTPUT is required");
+  km_transfer_options to = {0};
+  to.max_iterations = iterations;
+  if (!strcmp(encoding, "vertex"))
+    to.encoding = KM_OFFSETS_VERTEX;
+  else if (strcmp(encoding, "edge"))
+    return km_cli_error("transfer", "--encoding must be edge or vertex, not '%s'", encoding);
+  if (!strcmp(laplacian, "cotan"))
+    to.laplacian = KM_LAPLACIAN_COTAN;
+  else if (strcmp(laplacian, "uniform"))
+    return km_cli_error("transfer", "--laplacian must be uniform or cotan, not '%s'", laplacian);
+  if (!strcmp(align, "similarity"))
+    to.align = KM_TRANSFER_ALIGN_SIMILARITY;
+  else if (strcmp(align, "scale"))
+    return km_cli_error("transfer", "--align must be scale or similarity, not '%s'", align);
+  km_error err = {0};
+  km_mesh s = {0}, t = {0}, o = {0};
+  km_transfer *tr = NULL;
+  km_landmark lm[KM_POSE_MAX_LANDMARKS];
+  size_t nl = 0;
+  int32_t ids[KM_POSE_MAX_LANDMARKS];
+  int rc = KM_EXIT_OK;
+  if (km_mesh_read(pos[0], &s, &err) || km_mesh_read(pos[1], &t, &err) ||
+      load_landmarks(lm_path, pos[0], s.n_vertices, lm, &nl, &err)) {
+    rc = km_cli_fail("transfer", &err);
+    goto done;
+  }
+  if (t.n_vertices != s.n_vertices || t.n_faces != s.n_faces ||
+      memcmp(t.F, s.F, s.n_faces * 3 * sizeof(int32_t)) != 0) {
+    rc = km_cli_error("transfer",
+                      "%s (%zu vertices, %zu faces) does not share the connectivity of %s (%zu "
+                      "vertices, %zu faces)",
+                      pos[1], t.n_vertices, t.n_faces, pos[0], s.n_vertices, s.n_faces);
+    goto done;
+  }
+  for (size_t i = 0; i < nl; ++i)
+    ids[i] = lm[i].vertex;
+  double t0 = km_cli_now();
+  km_transfer_stats st;
+  if (km_transfer_precompute(&s, ids, nl, &to, &tr, &err) || km_mesh_copy(&s, &o, &err) ||
+      km_transfer_solve(tr, t.V, NULL, NULL, o.V, &st, &err) ||
+      km_mesh_write(out, &o, NULL, &err)) {
+    rc = km_cli_fail("transfer", &err);
+    goto done;
+  }
+  double lap, chol;
+  km_transfer_precompute_ms(tr, &lap, &chol);
+  fprintf(stderr,
+          "kinemesh transfer: %zu vertices, %zu landmarks; offline %.1f ms (Laplacian %.1f, "
+          "Cholesky %.1f); online %.2f ms, %d iterations (frames %.3f, solve %.3f ms each) in "
+          "%.2f s -> %s\n",
+          s.n_vertices, nl, lap + chol, lap, chol, st.total_ms, st.iterations,
+          st.frames_ms / st.iterations, st.solve_ms / st.iterations, km_cli_now() - t0, out);
+done:
+  km_transfer_free(&tr);
+  km_mesh_free(&s);
+  km_mesh_free(&t);
+  km_mesh_free(&o);
+  return rc;
+}
+
+/* posedb build CLASS=MESH[@GROUP]... */
+static int posedb_build(int argc, char **argv) {
+  const char *out = NULL, *lm_path = NULL, *kernel = "rbf";
+  size_t features = 60;
+  int folds = 0;
+  const km_cli_opt opts[] = {
+      {"output", 'o', KM_OPT_STRING, &out, "output database (.kmposedb)"},
+      {"landmarks", 'l', KM_OPT_STRING, &lm_path,
+       "LM.json with 16 landmark vertices and mirrors (default: the first mesh's rig sidecar)"},
+      {"features", 'd', KM_OPT_SIZE, &features, "selected angles d (default 60)"},
+      {"kernel", 0, KM_OPT_STRING, &kernel, "rbf (default) or linear"},
+      {"folds", 0, KM_OPT_INT, &folds,
+       "k-fold cross-validation when no @GROUP is given (default 5, 1: none)"},
+  };
+  enum { MAX_POS = 100000 };
+  const char **pos = malloc(MAX_POS * sizeof *pos);
+  if (!pos) return km_cli_error("posedb build", "out of memory");
+  int n_pos;
+  int r = km_cli_parse(
+      argc, argv, opts, sizeof opts / sizeof opts[0], pos, MAX_POS, &n_pos,
+      "kinemesh posedb build CLASS=MESH[@GROUP]... -o db.kmposedb [--landmarks LM.json]",
+      "A pose database from meshes of one connectivity labelled with pose classes (GROUP: the\n"
+      "subject, for leave-one-subject-out cross-validation). Prints the cross-validated\n"
+      "accuracy for the chosen number of features.");
+  if (r <= 0) {
+    free(pos);
+    return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  }
+  int rc = KM_EXIT_OK;
+  km_error err = {0};
+  size_t n = (size_t)n_pos, nc = 0;
+  km_mesh *meshes = calloc(n ? n : 1, sizeof *meshes);
+  int32_t *labels = malloc((n ? n : 1) * sizeof *labels), *groups = malloc((n ? n : 1) * 4);
+  char **names = calloc(n ? n : 1, sizeof *names);
+  bool have_groups = false;
+  km_posedb *db = NULL;
+  km_landmark lm[KM_POSE_MAX_LANDMARKS];
+  size_t nl = 0;
+  if (!out || n < 2) {
+    rc = km_cli_error("posedb build", "need -o OUTPUT and at least two CLASS=MESH arguments");
+    goto done;
+  }
+  if (!meshes || !labels || !groups || !names) {
+    rc = km_cli_error("posedb build", "out of memory");
+    goto done;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    char buf[4096];
+    snprintf(buf, sizeof buf, "%s", pos[i]);
+    char *eq = strchr(buf, '=');
+    if (!eq || eq == buf) {
+      rc = km_cli_error("posedb build", "argument %zu '%s': expected CLASS=MESH[@GROUP]", i + 1,
+                        pos[i]);
+      goto done;
+    }
+    *eq = '\0';
+    char *path = eq + 1, *at = strrchr(path, '@');
+    groups[i] = 0;
+    if (at) {
+      *at = '\0';
+      groups[i] = atoi(at + 1);
+      have_groups = true;
+    }
+    size_t c = 0;
+    while (c < nc && strcmp(names[c], buf))
+      ++c;
+    if (c == nc) names[nc++] = strdup(buf);
+    labels[i] = (int32_t)c;
+    if (km_mesh_read(path, &meshes[i], &err)) {
+      rc = km_cli_fail("posedb build", &err);
+      goto done;
+    }
+    if (i == 0) {
+      if (load_landmarks(lm_path, path, meshes[0].n_vertices, lm, &nl, &err)) {
+        rc = km_cli_fail("posedb build", &err);
+        goto done;
+      }
+    }
+  }
+  km_posedb_options po = {0};
+  po.features = features;
+  po.cv_folds = folds;
+  po.kernel = !strcmp(kernel, "linear") ? KM_SVM_LINEAR : KM_SVM_RBF;
+  po.progress = km_cli_progress("posedb");
+  km_posedb_report rep;
+  if (km_posedb_build(meshes, n, labels, nc, (const char *const *)names,
+                      have_groups ? groups : NULL, lm, nl, &po, &db, &rep, &err) ||
+      km_posedb_save(db, out, &err)) {
+    km_cli_progress_done();
+    rc = km_cli_fail("posedb build", &err);
+    goto done;
+  }
+  km_cli_progress_done();
+  fprintf(stderr,
+          "kinemesh posedb build: %zu meshes, %zu classes, d = %zu; cross-validated accuracy "
+          "%.3f over %zu folds; %.0f ms -> %s\n",
+          rep.samples, rep.classes, rep.features, rep.cv_accuracy, rep.cv_folds, rep.build_ms, out);
+done:
+  for (size_t i = 0; i < n; ++i) {
+    if (meshes) km_mesh_free(&meshes[i]);
+    if (names) free(names[i]);
+  }
+  free(meshes);
+  free(labels);
+  free(groups);
+  free(names);
+  free(pos);
+  km_posedb_free(&db);
+  return rc;
+}
+
+/* Track landmark index of each database landmark, by name. */
+static int map_track(const km_posedb *db, const km_track *t, int32_t *map, const char *verb) {
+  size_t nl = km_posedb_landmark_count(db);
+  const km_landmark *lm = km_posedb_landmarks(db);
+  for (size_t a = 0; a < nl; ++a) {
+    map[a] = -1;
+    for (size_t b = 0; b < t->n_landmarks; ++b)
+      if (!strcmp(t->names[b], lm[a].name)) map[a] = (int32_t)b;
+    if (map[a] < 0) return km_cli_error(verb, "the track has no landmark '%s'", lm[a].name);
+  }
+  return KM_EXIT_OK;
+}
+
+static int posedb_query(int argc, char **argv) {
+  const km_cli_opt opts[] = {{"landmarks", 'l', KM_OPT_STRING, NULL, "unused"}};
+  const char *pos[2];
+  int n_pos;
+  int r = km_cli_parse(argc, argv, opts, 0, pos, 2, &n_pos, "kinemesh posedb query DB TRACK",
+                       "Recognises the pose of every frame of a TRACK file (.json/.csv) and\n"
+                       "prints frame, class, template and time.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (n_pos != 2) return km_cli_error("posedb query", "expected DB and TRACK");
+  km_error err = {0};
+  km_posedb *db = NULL;
+  km_track t = {0};
+  int rc = KM_EXIT_OK;
+  int32_t map[KM_POSE_MAX_LANDMARKS];
+  if (km_posedb_load(pos[0], &db, &err) || km_track_read(pos[1], &t, &err)) {
+    rc = km_cli_fail("posedb query", &err);
+    goto done;
+  }
+  if ((rc = map_track(db, &t, map, "posedb query")) != KM_EXIT_OK) goto done;
+  size_t nl = km_posedb_landmark_count(db);
+  double P[3 * KM_POSE_MAX_LANDMARKS], ms = 0;
+  size_t done_frames = 0;
+  printf("frame,class,template,distance,ms\n");
+  for (size_t f = 0; f < t.n_frames; ++f) {
+    for (size_t a = 0; a < nl; ++a)
+      memcpy(P + 3 * a, t.positions + (f * t.n_landmarks + (size_t)map[a]) * 3, 3 * sizeof(double));
+    km_pose_match m;
+    if (km_posedb_query(db, P, &m, &err)) {
+      printf("%zu,,,,\n", f); /* untracked landmark: no answer for this frame */
+      continue;
+    }
+    const char *cn = km_posedb_class_name(db, (size_t)m.label);
+    printf("%zu,%s,%zu,%.6g,%.4f\n", f, *cn ? cn : "?", m.template_index, m.distance, m.ms);
+    ms += m.ms;
+    ++done_frames;
+  }
+  fprintf(stderr, "kinemesh posedb query: %zu of %zu frames recognised, %.4f ms per query\n",
+          done_frames, t.n_frames, done_frames ? ms / done_frames : 0.0);
+done:
+  km_posedb_free(&db);
+  km_track_free(&t);
+  return rc;
+}
+
+int km_cli_posedb(int argc, char **argv) {
+  if (argc >= 2 && !strcmp(argv[1], "build")) return posedb_build(argc - 1, argv + 1);
+  if (argc >= 2 && !strcmp(argv[1], "query")) return posedb_query(argc - 1, argv + 1);
+  fprintf(argc >= 2 && strcmp(argv[1], "-h") && strcmp(argv[1], "--help") ? stderr : stdout,
+          "usage: kinemesh posedb build CLASS=MESH[@GROUP]... -o db.kmposedb\n"
+          "       kinemesh posedb query DB TRACK\n");
+  return argc >= 2 && (!strcmp(argv[1], "-h") || !strcmp(argv[1], "--help")) ? KM_EXIT_OK
+                                                                             : KM_EXIT_USAGE;
+}
+
+typedef struct avatar_sink {
+  km_anim_writer *w;
+  km_progress prog;
+  size_t frames;
+} avatar_sink;
+
+static km_status push_frame(size_t frame, const double *V, void *user, km_error *err) {
+  avatar_sink *s = user;
+  km_status st = km_anim_writer_push(s->w, V, err);
+  if (s->prog.fn) s->prog.fn((double)(frame + 1) / (double)s->frames, "avatar", s->prog.user);
+  return st;
+}
+
+int km_cli_avatar(int argc, char **argv) {
+  const char *out = NULL, *lm_path = NULL;
+  size_t key_every = 1;
+  double scale = 0;
+  const km_cli_opt opts[] = {
+      {"output", 'o', KM_OPT_STRING, &out, "output animation (.glb, .pc2, or a directory)"},
+      {"landmarks", 'l', KM_OPT_STRING, &lm_path,
+       "LM.json with the avatar's landmark vertices (default: AVATAR's rig sidecar)"},
+      {"key-every", 'k', KM_OPT_SIZE, &key_every,
+       "recognise + transfer every k-th frame, interpolate between (default 1)"},
+      {"scale", 0, KM_OPT_DOUBLE, &scale,
+       "avatar size / tracked body size (default: estimated at the first key frame)"},
+  };
+  const char *pos[3];
+  int n_pos;
+  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 3, &n_pos,
+                       "kinemesh avatar AVATAR DB TRACK -o anim.glb [--key-every K]",
+                       "Drives AVATAR (same connectivity as DB's templates) from a TRACK of\n"
+                       "landmark positions: key poses are recognised in DB and transferred, the\n"
+                       "frames in between interpolated; one output frame per track frame.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (n_pos != 3) return km_cli_error("avatar", "expected AVATAR, DB and TRACK");
+  if (!out) return km_cli_error("avatar", "-o OUTPUT is required");
+  km_error err = {0};
+  km_mesh avatar = {0};
+  km_posedb *db = NULL;
+  km_track t = {0};
+  km_transfer *tr = NULL;
+  avatar_sink sink = {0};
+  int rc = KM_EXIT_OK;
+  km_landmark lm[KM_POSE_MAX_LANDMARKS];
+  size_t nl = 0;
+  int32_t ids[KM_POSE_MAX_LANDMARKS];
+  if (km_mesh_read(pos[0], &avatar, &err) || km_posedb_load(pos[1], &db, &err) ||
+      km_track_read(pos[2], &t, &err) ||
+      load_landmarks(lm_path, pos[0], avatar.n_vertices, lm, &nl, &err)) {
+    rc = km_cli_fail("avatar", &err);
+    goto done;
+  }
+  /* The avatar's landmark vertices in the database's landmark order, by name. */
+  size_t dnl = km_posedb_landmark_count(db);
+  const km_landmark *dlm = km_posedb_landmarks(db);
+  for (size_t a = 0; a < dnl; ++a) {
+    ids[a] = -1;
+    for (size_t b = 0; b < nl; ++b)
+      if (!strcmp(lm[b].name, dlm[a].name)) ids[a] = lm[b].vertex;
+    if (ids[a] < 0) {
+      rc = km_cli_error("avatar", "the avatar has no landmark '%s' (the database's)", dlm[a].name);
+      goto done;
+    }
+  }
+  double t0 = km_cli_now();
+  km_anim_options ao = {0};
+  ao.fps = t.fps;
+  km_avatar_options vo = {0};
+  vo.key_every = key_every;
+  vo.track_scale = scale;
+  km_avatar_stats st;
+  sink.prog = km_cli_progress("avatar");
+  sink.frames = t.n_frames;
+  if (km_transfer_precompute(&avatar, ids, dnl, NULL, &tr, &err) ||
+      km_anim_writer_open(out, &avatar, &ao, &sink.w, &err) ||
+      km_avatar_animate(tr, db, &t, &vo, push_frame, &sink, &st, &err) ||
+      km_anim_writer_close(&sink.w, &err)) {
+    km_cli_progress_done();
+    rc = km_cli_fail("avatar", &err);
+    goto done;
+  }
+  km_cli_progress_done();
+  fprintf(stderr,
+          "kinemesh avatar: %zu frames, %zu key poses (recognition %.3f ms, transfer %.2f ms, "
+          "%.1f iterations each; slowest key frame %.2f ms) in %.2f s -> %s\n",
+          st.frames, st.key_frames, st.key_frames ? st.recognition_ms / st.key_frames : 0.0,
+          st.key_frames ? st.transfer_ms / st.key_frames : 0.0, st.iterations_mean, st.max_frame_ms,
+          km_cli_now() - t0, out);
+done:
+  km_anim_writer_free(&sink.w);
+  km_transfer_free(&tr);
+  km_posedb_free(&db);
+  km_track_free(&t);
+  km_mesh_free(&avatar);
+  return rc;
+}
