@@ -590,6 +590,19 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
     }
   }
   t->cholesky_ms = (km__now() - t1) * 1e3;
+  {
+    /* One solve now makes CHOLMOD allocate its solve workspace here, not in the first
+     * km_transfer_solve (which promises not to allocate). */
+    memset(t->rhs, 0, t->nf * 3 * sizeof(double));
+    cholmod_dense b;
+    memset(&b, 0, sizeof b);
+    b.nrow = t->nf, b.ncol = 3, b.nzmax = t->nf * 3, b.d = t->nf, b.x = t->rhs;
+    b.xtype = CHOLMOD_REAL, b.dtype = CHOLMOD_DOUBLE;
+    if (!cholmod_solve2(CHOLMOD_A, t->factor, &b, NULL, &t->cX, NULL, &t->cY, &t->cE, &t->cc)) {
+      s = km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: CHOLMOD solve workspace");
+      goto fail;
+    }
+  }
   km_sparse_free(&L);
   km_sparse_free(&A);
   free(ti);
