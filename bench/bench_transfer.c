@@ -197,27 +197,50 @@ int main(int argc, char **argv) {
       fid[l] = lm[l].vertex;
       memcpy(FP + 3 * l, tt.V + 3 * (size_t)fid[l], 3 * sizeof(double));
     }
+    /* A small FAUST database for the recognition time: registrations by pose index. */
+    const char *fdb[5] = {"tr_reg_000.off", "tr_reg_010.off", "tr_reg_001.off", "tr_reg_025.ply",
+                          "tr_reg_095.ply"};
+    const int32_t flab[5] = {0, 0, 1, 2, 2};
+    km_mesh fm[5];
+    memset(fm, 0, sizeof fm);
+    km_posedb *fdbp = NULL;
+    int nfm = 0;
+    for (int i = 0; i < 5; ++i) {
+      char fp[1100];
+      snprintf(fp, sizeof fp, "%s/../shared/data/poses/%s", root, fdb[i]);
+      if (km_mesh_read(fp, &fm[nfm], &e) == KM_OK) ++nfm;
+    }
+    km_posedb_options fo = {0};
+    fo.cv_folds = 1;
+    if (nfm == 5 &&
+        km_posedb_build(fm, 5, flab, 3, NULL, NULL, lm, nl, &fo, &fdbp, NULL, &e) != KM_OK)
+      return die("FAUST database", &e);
+    for (int i = 0; i < nfm; ++i)
+      km_mesh_free(&fm[i]);
     km_transfer *t = NULL;
     if (km_transfer_precompute(&s, fid, nl, NULL, &t, &e)) return die("FAUST precompute", &e);
     double *FX = malloc(s.n_vertices * 3 * sizeof *FX);
     online o;
-    if (run_online(t, NULL, FP, tt.V, FX, &o, &e)) return die("FAUST online", &e);
+    /* With the database the template is whatever recognition picks (tr_reg_001 itself when
+     * it recognises pose 1); without it, tr_reg_001. */
+    if (run_online(t, fdbp, FP, tt.V, FX, &o, &e)) return die("FAUST online", &e);
     row *r = &rows[nrows++];
     memset(r, 0, sizeof *r);
     snprintf(r->name, sizeof r->name, "FAUST 000->001 (<=10 it)");
     r->n_ver = s.n_vertices;
     km_transfer_precompute_ms(t, &r->laplacian_ms, &r->cholesky_ms);
-    r->recognition_ms = rows[0].recognition_ms; /* same database size class: not re-measured */
+    r->recognition_ms = o.rec_ms;
     r->frames_ms = o.frames_ms;
     r->solve_ms = o.solve_ms;
     r->iterations = o.iterations;
-    r->online_ms = o.total_ms + r->recognition_ms;
+    r->online_ms = o.total_ms;
     double mean, max;
     kp_error(FX, tt.V, s.n_vertices, &mean, &max);
     r->err_mean_mm = mean * 1e3;
     r->err_max_mm = max * 1e3;
     free(FX);
     km_transfer_free(&t);
+    km_posedb_free(&fdbp);
   }
   km_mesh_free(&s);
   km_mesh_free(&tt);

@@ -694,7 +694,8 @@ typedef struct km_transfer_stats {
   int iterations;         /* linear solves done */
   bool converged;         /* tolerance met before max_iterations */
   double position_change; /* last iteration's largest vertex move / bbox diagonal */
-  double frame_change;    /* last iteration's largest frame entry change */
+  double frame_change;    /* largest frame entry change at the last frame update (frames are not
+                             recomputed after the last allowed solve) */
   double frames_ms;       /* time in normals + frames, all iterations */
   double solve_ms;        /* time in right-hand sides + triangular solves, all iterations */
   double total_ms;        /* whole call */

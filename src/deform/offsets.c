@@ -27,6 +27,11 @@
 #include "linalg/sparse.h"
 
 #include <lapacke.h>
+/* Above this many vertices the per-iteration loops (frames, right-hand side) run on OpenMP
+ * threads: at 7k vertices two free cores take 10 iterations from ~5.8 to ~4.6 ms. */
+#ifndef KM__OMP_MIN
+#define KM__OMP_MIN 5000
+#endif
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -214,7 +219,7 @@ static double frames_of(km_transfer *t, const double *V, double *frames, const d
     }
   }
   /* Two square roots per vertex: |e| is only compared (squared), b = n x t is unit already. */
-#pragma omp parallel for schedule(static) reduction(max : change) if (n > 50000)
+#pragma omp parallel for schedule(static) reduction(max : change) if (n > KM__OMP_MIN)
   for (size_t i = 0; i < n; ++i) {
     double *fr = frames + 9 * i, *nn = fr, *tt = fr + 3, *b = fr + 6;
     const double *ni = N + 3 * i;
@@ -730,7 +735,7 @@ km_status km_transfer_solve(km_transfer *t, const double *T, const double *targe
     double ts = km__now();
     if (t->e_ptr) {
       /* Each edge rebuilt from both end frames: e*_ij = (F(i)^T E_ij - F(j)^T E_ji) / 2. */
-#pragma omp parallel for schedule(static) if (nf > 50000)
+#pragma omp parallel for schedule(static) if (nf > KM__OMP_MIN)
       for (size_t f = 0; f < nf; ++f) {
         size_t v = (size_t)t->free_vtx[f];
         const double *Fi = t->frames + 9 * v, *w = t->W + 3 * v;
@@ -786,10 +791,14 @@ km_status km_transfer_solve(km_transfer *t, const double *T, const double *targe
       memcpy(V_out + 3 * (size_t)t->lm[c], t->tgt + 3 * c, 3 * sizeof(double));
     double te = km__now();
     solve_s += te - ts;
-    dF = frames_of(t, V_out, t->frames_new, t->frames);
-    double *sw = t->frames;
-    t->frames = t->frames_new;
-    t->frames_new = sw;
+    bool last = it + 1 == t->opt.max_iterations;
+    if (!last) {
+      /* After the last allowed solve the frames would only feed the convergence test. */
+      dF = frames_of(t, V_out, t->frames_new, t->frames);
+      double *sw = t->frames;
+      t->frames = t->frames_new;
+      t->frames_new = sw;
+    }
     if (it > 0) {
       double m2 = 0;
       for (size_t v = 0; v < n; ++v) {
@@ -801,7 +810,7 @@ km_status km_transfer_solve(km_transfer *t, const double *T, const double *targe
       dx = sqrt(m2) / t->diag;
     }
     frames_s += km__now() - te;
-    if (it > 0 && dx < t->opt.tolerance && dF < t->opt.tolerance) {
+    if (!last && it > 0 && dx < t->opt.tolerance && dF < t->opt.tolerance) {
       converged = true;
       ++it;
       break;
