@@ -78,6 +78,13 @@ static void test_errors(const km_character *a) {
   CHECK_OK(km_transfer_precompute(&a->mesh, lm_ids, 3, NULL, &t, KM_E));
   double *out = malloc(a->mesh.n_vertices * 3 * sizeof *out);
   CHECK_STATUS(km_transfer_solve(t, NULL, NULL, NULL, out, NULL, KM_E), KM_ERR_INVALID);
+  double *bad = malloc(a->mesh.n_vertices * 3 * sizeof *bad);
+  memcpy(bad, a->mesh.V, a->mesh.n_vertices * 3 * sizeof *bad);
+  bad[100] = NAN;
+  CHECK_STATUS(km_transfer_solve(t, bad, NULL, NULL, out, NULL, KM_E), KM_ERR_INVALID);
+  double tg[9] = {0, 0, 0, 1, 0, 0, INFINITY, 0, 0};
+  CHECK_STATUS(km_transfer_solve(t, a->mesh.V, tg, NULL, out, NULL, KM_E), KM_ERR_INVALID);
+  free(bad);
   km_transfer_free(&t);
   CHECK(t == NULL);
   km_transfer_free(&t);

@@ -725,8 +725,13 @@ km_status km_transfer_solve(km_transfer *t, const double *T, const double *targe
     if (!isfinite(t->tgt[i]))
       return km__fail(err, KM_ERR_INVALID, "km_transfer_solve: landmark target %zu is not finite",
                       i / 3);
+  const double *F0 = T ? T : warm_start;
+  for (size_t i = 0; i < n * 3; ++i)
+    if (!isfinite(F0[i]))
+      return km__fail(err, KM_ERR_INVALID, "km_transfer_solve: %s vertex %zu is not finite",
+                      T ? "template" : "warm start", i / 3);
   double tf = km__now();
-  frames_of(t, T ? T : warm_start, t->frames, NULL);
+  frames_of(t, F0, t->frames, NULL);
   double frames_s = km__now() - tf, solve_s = 0;
   int it = 0;
   bool converged = false;

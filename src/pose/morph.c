@@ -21,6 +21,8 @@ km_status km_avatar_animate(km_transfer *t, const km_posedb *db, const km_track 
   if (stats) memset(stats, 0, sizeof *stats);
   if (!t || !db || !track || !track->positions || (!track->names && track->n_landmarks))
     return km__fail(err, KM_ERR_INVALID, "km_avatar_animate: NULL argument");
+  if (track->n_frames == 0 || track->n_landmarks == 0)
+    return km__fail(err, KM_ERR_INVALID, "km_avatar_animate: the track has no frames or landmarks");
   km_avatar_options o = opt ? *opt : (km_avatar_options){0};
   size_t k = o.key_every ? o.key_every : 1;
   size_t nl = km_posedb_landmark_count(db), n = km_transfer_vertices(t);
