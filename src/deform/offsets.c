@@ -28,9 +28,11 @@
 
 #include <lapacke.h>
 /* Above this many vertices the per-iteration loops (frames, right-hand side) run on OpenMP
- * threads: at 7k vertices two free cores take 10 iterations from ~5.8 to ~4.6 ms. */
+ * threads. Not lower: at 7k vertices two free cores take 10 iterations from ~5.8 to ~4.6 ms,
+ * but on a busy machine the threads' barriers made the same call 38 ms (measured), and a
+ * real-time loop must not have such outliers. */
 #ifndef KM__OMP_MIN
-#define KM__OMP_MIN 5000
+#define KM__OMP_MIN 50000
 #endif
 #include <math.h>
 #include <stdlib.h>
