@@ -2,28 +2,7 @@
  * cache life cycle (build, reuse, corruption detected and rebuilt), and the demo. */
 #include "km_test.h"
 
-#include <sys/wait.h>
 #include <unistd.h>
-
-static int run(const char *cmd, char **out) {
-  char full[8192];
-  snprintf(full, sizeof full, "%s 2>&1", cmd);
-  FILE *p = popen(full, "r");
-  if (!p) return -1;
-  size_t cap = 1 << 16, n = 0, got;
-  char *buf = malloc(cap);
-  while ((got = fread(buf + n, 1, cap - n - 1, p)) > 0) {
-    n += got;
-    if (cap - n < 2) buf = realloc(buf, cap *= 2);
-  }
-  buf[n] = '\0';
-  int st = pclose(p);
-  if (out)
-    *out = buf;
-  else
-    free(buf);
-  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
 
 static bool all_finite(const double *x, size_t n) {
   for (size_t i = 0; i < n; ++i)
@@ -35,12 +14,12 @@ static void test_real_mesh_real_skeleton(const char *mesh_src, const char *csv) 
   /* The mesh is copied into the build tree so its cache lands there, not in ../shared. */
   char cmd[8192], *out = NULL;
   snprintf(cmd, sizeof cmd, "cp '%s' puppet_a1k.off && rm -f puppet_a1k.off.kmcache", mesh_src);
-  CHECK(run(cmd, NULL) == 0);
+  CHECK(km_test_run(cmd, NULL) == 0);
   const char *rig_path = KM_TEST_DATA "/armadillo_1k.rig.json";
   snprintf(cmd, sizeof cmd,
            KM_CLI " animate --mesh puppet_a1k.off --rig %s --motion '%s' -o puppet_a1k.pc2",
            rig_path, csv);
-  CHECK(run(cmd, &out) == 0);
+  CHECK(km_test_run(cmd, &out) == 0);
   CHECK_MSG(strstr(out, "t1 (s)") != NULL, "first run precomputes: %s", out);
   free(out);
 
@@ -101,10 +80,10 @@ static void test_real_mesh_real_skeleton(const char *mesh_src, const char *csv) 
   }
 
   /* Second run loads the cache (t~1) and gives the same animation bit for bit. */
-  CHECK(run(KM_CLI " animate --mesh puppet_a1k.off --rig " KM_TEST_DATA
-                   "/armadillo_1k.rig.json --motion '" KM_SHARED_DATA
-                   "/skeleton/precog_Seq1_1.csv' -o puppet_a1k_2.pc2",
-            &out) == 0);
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_a1k.off --rig " KM_TEST_DATA
+                           "/armadillo_1k.rig.json --motion '" KM_SHARED_DATA
+                           "/skeleton/precog_Seq1_1.csv' -o puppet_a1k_2.pc2",
+                    &out) == 0);
   CHECK_MSG(strstr(out, "cache loaded") != NULL, "second run loads the cache: %s", out);
   free(out);
   double *frames2 = NULL;
@@ -126,10 +105,10 @@ static void test_real_mesh_real_skeleton(const char *mesh_src, const char *csv) 
     fputc(c ^ 0x5a, f);
     fclose(f);
   }
-  CHECK(run(KM_CLI " animate --mesh puppet_a1k.off --rig " KM_TEST_DATA
-                   "/armadillo_1k.rig.json --motion '" KM_SHARED_DATA
-                   "/skeleton/precog_Seq1_1.csv' -o puppet_a1k_3.pc2",
-            &out) == 0);
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_a1k.off --rig " KM_TEST_DATA
+                           "/armadillo_1k.rig.json --motion '" KM_SHARED_DATA
+                           "/skeleton/precog_Seq1_1.csv' -o puppet_a1k_3.pc2",
+                    &out) == 0);
   CHECK_MSG(strstr(out, "rebuilding") != NULL, "corrupt cache reported: %s", out);
   free(out);
   frames2 = NULL;
@@ -138,18 +117,18 @@ static void test_real_mesh_real_skeleton(const char *mesh_src, const char *csv) 
         memcmp(frames, frames2, sizeof(double) * info.frames * info.vertices * 3) == 0);
   free(frames2);
   /* ... and the rebuilt cache is good again. */
-  CHECK(run(KM_CLI " animate --mesh puppet_a1k.off --rig " KM_TEST_DATA
-                   "/armadillo_1k.rig.json --motion '" KM_SHARED_DATA
-                   "/skeleton/precog_Seq1_1.csv' -o puppet_a1k_4.pc2",
-            &out) == 0);
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_a1k.off --rig " KM_TEST_DATA
+                           "/armadillo_1k.rig.json --motion '" KM_SHARED_DATA
+                           "/skeleton/precog_Seq1_1.csv' -o puppet_a1k_4.pc2",
+                    &out) == 0);
   CHECK(strstr(out, "cache loaded") != NULL);
   free(out);
 
   /* The full reference solver runs on the same input. */
-  CHECK(run(KM_CLI " animate --solver full --mesh puppet_a1k.off --rig " KM_TEST_DATA
-                   "/armadillo_1k.rig.json --motion '" KM_SHARED_DATA
-                   "/skeleton/precog_Seq1_1.csv' -o puppet_a1k_full.pc2",
-            NULL) == 0);
+  CHECK(km_test_run(KM_CLI " animate --solver full --mesh puppet_a1k.off --rig " KM_TEST_DATA
+                           "/armadillo_1k.rig.json --motion '" KM_SHARED_DATA
+                           "/skeleton/precog_Seq1_1.csv' -o puppet_a1k_full.pc2",
+                    NULL) == 0);
   CHECK_OK(km_pc2_read("puppet_a1k_full.pc2", &frames2, &info2, KM_E));
   CHECK(info2.frames == take.n_frames && frames2 &&
         all_finite(frames2, info2.frames * info2.vertices * 3));
@@ -159,42 +138,45 @@ static void test_real_mesh_real_skeleton(const char *mesh_src, const char *csv) 
   km_rig_free(&rig);
   km_mesh_free(&m);
   km_take_free(&take);
-  run("rm -f puppet_a1k*", NULL);
+  km_test_run("rm -f puppet_a1k*", NULL);
 }
 
 static void test_bad_rig_and_motion(void) {
   char *out = NULL;
-  CHECK(run(KM_CLI " gen character --vertices 2000 -o puppet_c.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2000 -o puppet_c.obj", NULL) == 0);
   FILE *f = fopen("puppet_bad.rig.json", "w");
   fputs("{\"skeleton\":\"kinect1\",\"handles\":[{\"name\":\"h\",\"vertex\":3,\"radius\":0.05}],"
         "\"map\":[{\"handle\":\"h\",\"joint\":\"Tail\",\"axes\":\"xyz\"}]}",
         f);
   fclose(f);
-  CHECK(run(KM_CLI " gen motion --frames 5 -o puppet_t.json", NULL) == 0);
-  CHECK(run(KM_CLI " animate --mesh puppet_c.obj --rig puppet_bad.rig.json --motion puppet_t.json "
-                   "-o puppet_x.glb",
-            &out) == 1);
+  CHECK(km_test_run(KM_CLI " gen motion --frames 5 -o puppet_t.json", NULL) == 0);
+  CHECK(km_test_run(KM_CLI
+                    " animate --mesh puppet_c.obj --rig puppet_bad.rig.json --motion puppet_t.json "
+                    "-o puppet_x.glb",
+                    &out) == 1);
   CHECK_MSG(strstr(out, "puppet_bad.rig.json") && strstr(out, "Tail"), "%s", out);
   free(out);
   CHECK(access("puppet_x.glb", F_OK) != 0);
-  CHECK(run(KM_CLI " animate --mesh puppet_c.obj --motion no_such_take.json -o puppet_x.glb",
-            &out) == 1);
+  CHECK(km_test_run(KM_CLI
+                    " animate --mesh puppet_c.obj --motion no_such_take.json -o puppet_x.glb",
+                    &out) == 1);
   CHECK(strstr(out, "no_such_take.json") != NULL);
   free(out);
-  run("rm -f puppet_c.* puppet_bad.rig.json puppet_t.json", NULL);
+  km_test_run("rm -f puppet_c.* puppet_bad.rig.json puppet_t.json", NULL);
 }
 
 static void test_demo(void) {
   char *out = NULL;
-  CHECK(run("rm -rf puppet_demo && mkdir puppet_demo && cd puppet_demo && bash " KM_TEST_DATA
-            "/../../scripts/demo.sh " KM_CLI,
-            &out) == 0);
+  CHECK(
+      km_test_run("rm -rf puppet_demo && mkdir puppet_demo && cd puppet_demo && bash " KM_TEST_DATA
+                  "/../../scripts/demo.sh " KM_CLI,
+                  &out) == 0);
   CHECK_MSG(strstr(out, "out/demo.glb") != NULL && strstr(out, "t4 (ms)") != NULL, "%s", out);
   free(out);
   km_anim_info info;
   CHECK_OK(km_anim_info_read("puppet_demo/out/demo.glb", &info, KM_E));
   CHECK(info.frames == 150 && info.vertices > 18000 && info.fps == 30);
-  run("rm -rf puppet_demo", NULL);
+  km_test_run("rm -rf puppet_demo", NULL);
 }
 
 int main(void) {
