@@ -344,7 +344,9 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
 
 typedef enum km_motion_kind { KM_MOTION_WALK = 0, KM_MOTION_WAVE, KM_MOTION_KUNGFU } km_motion_kind;
 /* A take of the 20 Kinect v1 joints at 30 Hz for skeleton s (the character's rest skeleton),
- * frames >= 1. Deterministic. */
+ * frames >= 1. Deterministic. Like a tracked performer it starts in the rest (T) pose — the
+ * calibration pose puppetry measures displacements from — holds it 0.2 s and blends into
+ * the motion over the next 0.5 s. */
 km_status km_motion_generate(const km_skeleton *s, km_motion_kind kind, size_t frames,
                              km_take *out, km_error *err);
 
@@ -525,11 +527,16 @@ void km_rig_free(km_rig *rig);
  * frames: H^t = M S^t with S^t the eq. 6 increments, and sum_t d^t telescopes to p^t - p^0; M
  * is stored sparsely as the map list (M_ij = scale_e, with the axis mask per entry). s maps
  * performer size to character size: by default the mesh's bounding-box height (y; its largest
- * extent if the mesh is flat in y) over the first valid frame's skeleton height (kinect1: Head
- * to the lower foot; otherwise the y extent of the valid joints), replacing eq. 5's
+ * extent if the mesh is flat in y) over the first valid frame's performer stature (kinect1:
+ * the Head-to-lower-foot joint span / KM_KINECT1_SPAN_OF_STATURE, since the Head joint sits
+ * at the head's centre and the foot joints above the soles; otherwise the y extent of the
+ * valid joints), replacing eq. 5's
  * screen-size ratio. Handles no map drives are
  * anchors (target = rest centroid). If a joint a handle needs is NaN, the handle keeps its
  * last target. */
+/* Kinect v1 Head-to-foot joint span as a fraction of stature (anthropometric head-centre and
+ * foot-joint heights: 0.937 and 0.023 of stature on kinemesh's procedural character). */
+#define KM_KINECT1_SPAN_OF_STATURE 0.91
 typedef struct km_retarget_options {
   double scale; /* performer-to-character factor s; 0: automatic (above) */
 } km_retarget_options;

@@ -7,7 +7,7 @@ OUT=out
 mkdir -p "$OUT"
 "$BIN" gen character --vertices 20000 -o "$OUT/character.obj"
 "$BIN" gen motion --kind kungfu --frames 150 --character "$OUT/character.obj" -o "$OUT/kungfu.json"
-"$BIN" pose --mesh "$OUT/character.obj" --motion "$OUT/kungfu.json" -o "$OUT/demo.glb"
+"$BIN" animate --mesh "$OUT/character.obj" --motion "$OUT/kungfu.json" -o "$OUT/demo.glb"
 "$BIN" info "$OUT/demo.glb"
 echo
 echo "Result: $(pwd)/$OUT/demo.glb  (glTF 2.0 binary, morph-target animation;"

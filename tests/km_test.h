@@ -13,48 +13,48 @@
 
 static int km_test_passed, km_test_failed;
 
-#define CHECK(cond)                                                                        \
-  do {                                                                                     \
-    if (cond) {                                                                            \
-      ++km_test_passed;                                                                    \
-    } else {                                                                               \
-      ++km_test_failed;                                                                    \
-      fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond);             \
-    }                                                                                      \
+#define CHECK(cond)                                                                                \
+  do {                                                                                             \
+    if (cond) {                                                                                    \
+      ++km_test_passed;                                                                            \
+    } else {                                                                                       \
+      ++km_test_failed;                                                                            \
+      fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond);                     \
+    }                                                                                              \
   } while (0)
 
-#define CHECK_MSG(cond, ...)                                                               \
-  do {                                                                                     \
-    if (cond) {                                                                            \
-      ++km_test_passed;                                                                    \
-    } else {                                                                               \
-      ++km_test_failed;                                                                    \
-      fprintf(stderr, "%s:%d: CHECK failed: %s: ", __FILE__, __LINE__, #cond);             \
-      fprintf(stderr, __VA_ARGS__);                                                        \
-      fputc('\n', stderr);                                                                 \
-    }                                                                                      \
+#define CHECK_MSG(cond, ...)                                                                       \
+  do {                                                                                             \
+    if (cond) {                                                                                    \
+      ++km_test_passed;                                                                            \
+    } else {                                                                                       \
+      ++km_test_failed;                                                                            \
+      fprintf(stderr, "%s:%d: CHECK failed: %s: ", __FILE__, __LINE__, #cond);                     \
+      fprintf(stderr, __VA_ARGS__);                                                                \
+      fputc('\n', stderr);                                                                         \
+    }                                                                                              \
   } while (0)
 
-#define CHECK_NEAR(a, b, tol)                                                              \
-  CHECK_MSG(fabs((double)(a) - (double)(b)) <= (tol), "%.17g vs %.17g (tol %g)", (double)(a),  \
+#define CHECK_NEAR(a, b, tol)                                                                      \
+  CHECK_MSG(fabs((double)(a) - (double)(b)) <= (tol), "%.17g vs %.17g (tol %g)", (double)(a),      \
             (double)(b), (double)(tol))
 
 /* Tests pass KM_E as the error argument; CHECK_OK prints its message on failure. */
 static km_error km_test_err;
 #define KM_E (&km_test_err)
-#define CHECK_OK(expr)                                                                     \
-  do {                                                                                     \
-    km_test_err.message[0] = '\0';                                                        \
-    km_status s_ = (expr);                                                                 \
-    CHECK_MSG(s_ == KM_OK, "%s -> %s: %s", #expr, km_status_name(s_), km_test_err.message); \
+#define CHECK_OK(expr)                                                                             \
+  do {                                                                                             \
+    km_test_err.message[0] = '\0';                                                                 \
+    km_status s_ = (expr);                                                                         \
+    CHECK_MSG(s_ == KM_OK, "%s -> %s: %s", #expr, km_status_name(s_), km_test_err.message);        \
   } while (0)
 /* Status must be exactly `st`. */
-#define CHECK_STATUS(expr, st)                                                             \
-  do {                                                                                     \
-    km_test_err.message[0] = '\0';                                                        \
-    km_status s_ = (expr);                                                                 \
-    CHECK_MSG(s_ == (st), "%s -> %s (wanted %s): %s", #expr, km_status_name(s_),           \
-              km_status_name(st), km_test_err.message);                                    \
+#define CHECK_STATUS(expr, st)                                                                     \
+  do {                                                                                             \
+    km_test_err.message[0] = '\0';                                                                 \
+    km_status s_ = (expr);                                                                         \
+    CHECK_MSG(s_ == (st), "%s -> %s (wanted %s): %s", #expr, km_status_name(s_),                   \
+              km_status_name(st), km_test_err.message);                                            \
   } while (0)
 
 static inline int km_test_finish(const char *name) {
@@ -74,5 +74,33 @@ static inline const char *km_test_shared(const char *rel, char *buf, size_t n) {
 }
 
 #define KM_TEST_SKIP 77
+
+#include <sys/wait.h>
+
+/* Runs a shell command with stderr folded into stdout; *out (if given) receives the output
+ * (caller frees). Returns the exit status, -1 when the command could not run. */
+static inline int km_test_run(const char *cmd, char **out) {
+  char full[8192];
+  snprintf(full, sizeof full, "%s 2>&1", cmd);
+  FILE *p = popen(full, "r");
+  if (!p) return -1;
+  size_t cap = 1 << 16, n = 0, got;
+  char *buf = malloc(cap);
+  while (buf && (got = fread(buf + n, 1, cap - n - 1, p)) > 0) {
+    n += got;
+    if (cap - n < 2) {
+      char *nb = realloc(buf, cap *= 2);
+      if (!nb) free(buf);
+      buf = nb;
+    }
+  }
+  if (buf) buf[n] = '\0';
+  int st = pclose(p);
+  if (out)
+    *out = buf;
+  else
+    free(buf);
+  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
 
 #endif

@@ -2,33 +2,10 @@
 #include "km_test.h"
 
 #include <cjson/cJSON.h>
-#include <sys/wait.h>
-
-/* Runs a shell command, captures stdout+stderr into *out (caller frees); returns exit code. */
-static int run(const char *cmd, char **out) {
-  char full[4096];
-  snprintf(full, sizeof full, "%s 2>&1", cmd);
-  FILE *p = popen(full, "r");
-  if (!p) return -1;
-  size_t cap = 1 << 16, n = 0;
-  char *buf = malloc(cap);
-  size_t got;
-  while ((got = fread(buf + n, 1, cap - n - 1, p)) > 0) {
-    n += got;
-    if (cap - n < 2) buf = realloc(buf, cap *= 2);
-  }
-  buf[n] = '\0';
-  int st = pclose(p);
-  if (out)
-    *out = buf;
-  else
-    free(buf);
-  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
 
 static cJSON *run_json(const char *cmd, int *code) {
   char *out = NULL;
-  *code = run(cmd, &out);
+  *code = km_test_run(cmd, &out);
   cJSON *j = cJSON_Parse(out);
   if (!j) fprintf(stderr, "not JSON from `%s`:\n%s\n", cmd, out);
   free(out);
@@ -42,14 +19,14 @@ static double num(const cJSON *o, const char *k) {
 
 static void test_help_and_usage(void) {
   char *out = NULL;
-  CHECK(run(KM_CLI " --help", &out) == 0);
+  CHECK(km_test_run(KM_CLI " --help", &out) == 0);
   CHECK(strstr(out, "eigen") && strstr(out, "convert") && strstr(out, "info"));
   free(out);
-  CHECK(run(KM_CLI " eigen --help", &out) == 0);
+  CHECK(km_test_run(KM_CLI " eigen --help", &out) == 0);
   CHECK(strstr(out, "-k") != NULL);
   free(out);
-  CHECK(run(KM_CLI " frobnicate", NULL) == 2);
-  CHECK(run(KM_CLI " info --no-such-option x.obj", NULL) == 2);
+  CHECK(km_test_run(KM_CLI " frobnicate", NULL) == 2);
+  CHECK(km_test_run(KM_CLI " info --no-such-option x.obj", NULL) == 2);
 }
 
 static void test_info_json(void) {
@@ -75,15 +52,15 @@ static void test_bad_input(void) {
   fputs("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", f);
   fclose(f);
   char *out = NULL;
-  CHECK(run(KM_CLI " info cli_bad.obj", &out) == 1);
+  CHECK(km_test_run(KM_CLI " info cli_bad.obj", &out) == 1);
   CHECK_MSG(strstr(out, "cli_bad.obj:4") != NULL, "message: %s", out);
   free(out);
-  CHECK(run(KM_CLI " info does_not_exist.ply", &out) == 1);
+  CHECK(km_test_run(KM_CLI " info does_not_exist.ply", &out) == 1);
   CHECK(strstr(out, "does_not_exist.ply") != NULL);
   free(out);
   /* convert must not leave a half-written output when the input is bad. */
   remove("cli_out.ply");
-  CHECK(run(KM_CLI " convert cli_bad.obj cli_out.ply", NULL) == 1);
+  CHECK(km_test_run(KM_CLI " convert cli_bad.obj cli_out.ply", NULL) == 1);
   FILE *g = fopen("cli_out.ply", "r");
   CHECK(g == NULL);
   if (g) fclose(g);
@@ -91,9 +68,9 @@ static void test_bad_input(void) {
 }
 
 static void test_convert_roundtrip(void) {
-  CHECK(run(KM_CLI " convert " KM_TEST_DATA "/tetra.obj cli_a.ply", NULL) == 0);
-  CHECK(run(KM_CLI " convert cli_a.ply cli_b.off", NULL) == 0);
-  CHECK(run(KM_CLI " convert cli_b.off cli_c.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " convert " KM_TEST_DATA "/tetra.obj cli_a.ply", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " convert cli_a.ply cli_b.off", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " convert cli_b.off cli_c.obj", NULL) == 0);
   km_mesh a = {0}, c = {0};
   CHECK_OK(km_mesh_read(KM_TEST_DATA "/tetra.obj", &a, KM_E));
   CHECK_OK(km_mesh_read("cli_c.obj", &c, KM_E));
@@ -136,7 +113,8 @@ static void test_eigen_sphere(void) {
 }
 
 static void test_gen_and_pose(void) {
-  CHECK(run(KM_CLI " gen character --vertices 3000 --shape stocky -o cli_char.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 3000 --shape stocky -o cli_char.obj", NULL) ==
+        0);
   int code;
   cJSON *j = run_json(KM_CLI " info --json cli_char.obj", &code);
   CHECK(code == 0 && j);
@@ -146,11 +124,13 @@ static void test_gen_and_pose(void) {
     CHECK(num(j, "components") == 1 && num(j, "degenerate_faces") == 0);
     cJSON_Delete(j);
   }
-  CHECK(run(KM_CLI " gen character --vertices 3000 --shape bogus -o cli_x.obj", NULL) == 1);
-  CHECK(run(KM_CLI " gen motion --kind walk --frames 7 --character cli_char.obj -o cli_take.json",
-            NULL) == 0);
-  CHECK(run(KM_CLI " gen motion --kind moonwalk --frames 7 -o cli_x.json", NULL) == 1);
-  CHECK(run(KM_CLI " pose --mesh cli_char.obj --motion cli_take.json -o cli_anim.pc2", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 3000 --shape bogus -o cli_x.obj", NULL) == 1);
+  CHECK(km_test_run(KM_CLI
+                    " gen motion --kind walk --frames 7 --character cli_char.obj -o cli_take.json",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen motion --kind moonwalk --frames 7 -o cli_x.json", NULL) == 1);
+  CHECK(km_test_run(KM_CLI " pose --mesh cli_char.obj --motion cli_take.json -o cli_anim.pc2",
+                    NULL) == 0);
   j = run_json(KM_CLI " info --json cli_anim.pc2", &code);
   CHECK(code == 0 && j && num(j, "frames") == 7);
   cJSON_Delete(j);

@@ -225,8 +225,9 @@ static void test_retarget(void) {
   standing(Jt);
   Jt[33] = Jt[34] = Jt[35] = NAN;
   km_retarget_push(r, Jt, T);
-  /* Auto scale: mesh height 2 m over skeleton height (Head 1.6 - feet 0). */
-  CHECK_NEAR(km_retarget_scale(r), 2.0 / 1.6, 1e-12);
+  /* Auto scale: mesh height 2 m over the stature of a skeleton whose Head-to-feet joint span
+   * is 1.6 m. */
+  CHECK_NEAR(km_retarget_scale(r), 2.0 / (1.6 / KM_KINECT1_SPAN_OF_STATURE), 1e-12);
   size_t moved = 0;
   for (int k = 0; k < 12; ++k)
     moved += T[k] != c[k];
@@ -239,7 +240,7 @@ static void test_retarget(void) {
   Jt[3 * 19 + 0] += 0.4, Jt[3 * 19 + 1] += 0.5, Jt[3 * 19 + 2] += 0.6;
   Jt[3 * 11 + 2] += 0.7;
   km_retarget_push(r, Jt, T);
-  const double s = 2.0 / 1.6;
+  const double s = 2.0 / (1.6 / KM_KINECT1_SPAN_OF_STATURE);
   CHECK_NEAR(T[0], c[0] + s * 2 * 0.1, 1e-12); /* per-map scale 2 */
   CHECK_NEAR(T[1], c[1] + s * 2 * 0.2, 1e-12);
   CHECK_NEAR(T[2], c[2] + s * 2 * 0.3, 1e-12);

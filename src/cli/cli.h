@@ -40,6 +40,9 @@ int km_cli_fail(const char *verb, const km_error *err);
 /* Same for a message of the CLI itself. Returns 1 (2 for usage errors). */
 int km_cli_error(const char *verb, const char *fmt, ...);
 
+/* Fills a km_error from the CLI side (for helpers that return km_status). */
+km_status km_cli_set_error(km_error *err, km_status s, const char *fmt, ...);
+
 void km_cli_install_logger(void);
 
 /* Monotonic seconds, for the timing lines verbs print. */
@@ -62,5 +65,16 @@ int km_cli_convert(int argc, char **argv);
 int km_cli_eigen(int argc, char **argv);
 int km_cli_gen(int argc, char **argv);
 int km_cli_pose(int argc, char **argv);
+int km_cli_precompute(int argc, char **argv);
+int km_cli_animate(int argc, char **argv);
+int km_cli_bench(int argc, char **argv);
+
+/* Puppetry helpers shared by animate, bench and live. */
+char *km_cli_cache_path(const char *mesh_path); /* MESH.kmcache, caller frees */
+km_status km_cli_puppet_open(const km_mesh *mesh, const km_puppet_options *po, const char *cache,
+                             bool verbose, km_puppet **out, bool *loaded, double *seconds,
+                             km_error *err);
+km_status km_cli_read_motion(const char *path, km_take *t, km_error *err);
+double km_cli_median(double *v, size_t n); /* sorts v */
 
 #endif

@@ -215,3 +215,14 @@ char *km_cli_rig_path(const char *mesh_path) {
   memcpy(out + stem, ".rig.json", 10);
   return out;
 }
+
+km_status km_cli_set_error(km_error *err, km_status s, const char *fmt, ...) {
+  if (err) {
+    err->status = s;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(err->message, sizeof err->message, fmt, ap);
+    va_end(ap);
+  }
+  return s;
+}

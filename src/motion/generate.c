@@ -46,6 +46,9 @@ enum {
 };
 
 #define DEG (M_PI / 180.0)
+/* Seconds the take holds the rest pose, then blends into the motion (smoothstep). */
+#define KM__LEAD_HOLD 0.2
+#define KM__LEAD_BLEND 0.5
 
 typedef struct arm_pose {
   double down, pitch, cross, flex, up;
@@ -341,6 +344,15 @@ km_status km_motion_generate(const km_skeleton *s, km_motion_kind kind, size_t f
     case KM_MOTION_WALK: walk_pose(t, leg_length, &p); break;
     case KM_MOTION_WAVE: wave_pose(t, &p); break;
     default: kungfu_pose(t, &p); break;
+    }
+    /* Calibration lead-in: a tracked performer starts in the rest pose (puppetry measures joint
+     * displacements from the first frame), holds it briefly and blends into the motion. */
+    double u = (t - KM__LEAD_HOLD) / KM__LEAD_BLEND;
+    if (u < 1) {
+      u = u < 0 ? 0 : u * u * (3 - 2 * u);
+      body_pose rest_pose;
+      memset(&rest_pose, 0, sizeof rest_pose);
+      lerp_pose(&rest_pose, &p, u, &p);
     }
     pose_to_positions(rest, side_arm, side_leg, foot_min, &p, out->positions + f * NJ * 3);
   }

@@ -144,15 +144,15 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
 
 static bool valid3(const double *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }
 
-/* Performer height in a frame: Head to the lower foot for Kinect, else the y extent of the
- * valid joints. NaN when it cannot be measured. */
+/* Performer stature in a frame: the Head-to-lower-foot joint span scaled up to the whole
+ * body for Kinect, else the y extent of the valid joints. NaN when it cannot be measured. */
 static double skeleton_height(const km_retarget *r, const double *J) {
   if (r->kinect1) {
     enum { HEAD = 3, FOOT_L = 15, FOOT_R = 19 };
     const double *h = J + 3 * HEAD, *fl = J + 3 * FOOT_L, *fr = J + 3 * FOOT_R;
     if (valid3(h) && (valid3(fl) || valid3(fr))) {
       double foot = valid3(fl) && valid3(fr) ? fmin(fl[1], fr[1]) : valid3(fl) ? fl[1] : fr[1];
-      if (h[1] - foot > 0) return h[1] - foot;
+      if (h[1] - foot > 0) return (h[1] - foot) / KM_KINECT1_SPAN_OF_STATURE;
     }
   }
   double lo = INFINITY, hi = -INFINITY;
