@@ -55,6 +55,7 @@ struct km_puppet {
   /* ---- model (depends on the mesh and fields/isolines/crossed_per_isoline) */
   size_t n, nf;
   int ne, niso, ncross;
+  km_puppet_energy energy;
   size_t nr, nd, n_isolines; /* 4 n_iso n_e, 3 n_iso n_e, n_iso n_e */
   double center[3], scale;
   uint64_t mesh_hash;
@@ -140,7 +141,7 @@ static void resolve_options(const km_puppet_options *opt, km_puppet_options *o) 
   if (o->isolines == 0) o->isolines = 10;
   if (o->iterations == 0) o->iterations = 4;
   if (o->tolerance == 0) o->tolerance = 1e-4;
-  if (o->handle_weight == 0) o->handle_weight = 1;
+  if (o->handle_weight == 0) o->handle_weight = o->energy == KM_PUPPET_ENERGY_ARAP ? 3 : 1;
   if (o->crossed_per_isoline == 0) o->crossed_per_isoline = 10;
 }
 
@@ -155,6 +156,8 @@ static km_status check_options(const km_puppet_options *o, km_error *err) {
   if (!(o->tolerance >= 0) || !(o->handle_weight > 0) || !isfinite(o->handle_weight))
     return km__fail(err, KM_ERR_INVALID,
                     "puppet: tolerance must be >= 0 and handle_weight > 0 and finite");
+  if (o->energy != KM_PUPPET_ENERGY_LAPLACIAN && o->energy != KM_PUPPET_ENERGY_ARAP)
+    return km__fail(err, KM_ERR_INVALID, "puppet: unknown energy %d", (int)o->energy);
   if (o->crossed_per_isoline < 1 || o->crossed_per_isoline > 1000000)
     return km__fail(err, KM_ERR_INVALID, "puppet: crossed_per_isoline must be >= 1 (got %d)",
                     o->crossed_per_isoline);
@@ -200,6 +203,7 @@ static km_status alloc_model(km_puppet *p, const km_mesh *m, const km_puppet_opt
   p->ne = o->fields;
   p->niso = o->isolines;
   p->ncross = o->crossed_per_isoline;
+  p->energy = o->energy;
   p->n_isolines = (size_t)p->ne * p->niso;
   p->nr = 4 * p->n_isolines;
   p->nd = 3 * p->n_isolines;
@@ -640,6 +644,162 @@ static km_status assemble_reduced(km_puppet *p, const km_sparse *L, const double
   return KM_OK;
 }
 
+/* The reduced as-rigid-as-possible energy (energy = KM_PUPPET_ENERGY_ARAP):
+ *     sum_ij w_ij |(x_i - x_j) - R_ij (p_i - p_j)|^2,  x = W R,  R_ij = (R_i + R_j)/2
+ * with the vertex rotations R_v interpolated from the isolines' rotations exactly like the
+ * Laplacian coordinates' in the paper's energy (W_delta). Its normal equations are
+ *     W^T (-L) W R = W^T B R_delta,   b_i = sum_j w_ij/2 (R_i + R_j)(p_i - p_j),
+ * both sides precomputed: K0 = W^T (-L) W and G = W^T B, so the solve is unchanged. This is
+ * the first-order (membrane) energy of the full ARAP reference, where the paper's
+ * |L X - delta|^2 is second order (thin-plate-like): it bends handles' surroundings
+ * differently, which is most of the paper model's deviation from ARAP. */
+static km_status assemble_reduced_arap(km_puppet *p, const km_sparse *L, km_error *err) {
+  const int32_t *cp, *ri;
+  const double *lx;
+  km_sparse_csc(L, &cp, &ri, &lx);
+  size_t nr = p->nr, nd = p->nd, nI = p->n_isolines, n = p->n;
+  int nthreads = 1;
+#ifdef _OPENMP
+  nthreads = omp_get_max_threads();
+  if (nthreads > 8) nthreads = 8;
+  if (n < 20000) nthreads = 1;
+#endif
+  size_t T = (size_t)nthreads;
+  double *bufK = km__calloc(T * nr * nr, sizeof(double));
+  double *bufG = km__calloc(T * nr * nd, sizeof(double));
+  double *scratch = km__calloc(T * nr, sizeof(double));
+  double *gscr = km__calloc(T * nI * 3, sizeof(double));
+  int32_t *stamp = km__malloc(T * nI * 2, sizeof(int32_t));
+  int32_t *touched = km__malloc(T * nI * 2, sizeof(int32_t));
+  if (!bufK || !bufG || !scratch || !gscr || !stamp || !touched) {
+    free(bufK);
+    free(bufG);
+    free(scratch);
+    free(gscr);
+    free(stamp);
+    free(touched);
+    return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory assembling the reduced system");
+  }
+  for (size_t i = 0; i < T * nI * 2; ++i)
+    stamp[i] = -1;
+#ifdef _OPENMP
+#pragma omp parallel num_threads(nthreads)
+#endif
+  {
+    int tid = 0;
+#ifdef _OPENMP
+    tid = omp_get_thread_num();
+#endif
+    double *Kt = bufK + (size_t)tid * nr * nr, *Gt = bufG + (size_t)tid * nr * nd;
+    double *acc = scratch + (size_t)tid * nr, *g = gscr + (size_t)tid * nI * 3;
+    int32_t *st = stamp + (size_t)tid * nI * 2, *tl = touched + (size_t)tid * nI * 2;
+    int32_t *sg = st + nI, *tg = tl + nI;
+#ifdef _OPENMP
+#pragma omp for schedule(static)
+#endif
+    for (ptrdiff_t ii = 0; ii < (ptrdiff_t)n; ++ii) {
+      size_t i = (size_t)ii;
+      int nt = 0, ng = 0;
+      const double *pi = p->Pn + 3 * i;
+      for (int32_t q = cp[i]; q < cp[i + 1]; ++q) {
+        size_t j = (size_t)ri[q];
+        double l = lx[q];
+        const double *pj = p->Pn + 3 * j;
+        double p4[4] = {pj[0], pj[1], pj[2], 1};
+        double e[3] = {pi[0] - pj[0], pi[1] - pj[1], pi[2] - pj[2]};
+        for (int f = 0; f < p->ne; ++f) {
+          size_t I0, Ii;
+          double a0, a1, b0, b1;
+          w_entry(p, j, f, &I0, &a0, &a1);
+          w_entry(p, i, f, &Ii, &b0, &b1);
+          for (int s2 = 0; s2 < 2; ++s2) {
+            /* (L W)_i */
+            size_t li = I0 + s2;
+            double a = l * (s2 ? a1 : a0);
+            if (st[li] != (int32_t)i) {
+              st[li] = (int32_t)i;
+              tl[nt++] = (int32_t)li;
+              for (int k = 0; k < 4; ++k)
+                acc[li * 4 + k] = 0;
+            }
+            for (int k = 0; k < 4; ++k)
+              acc[li * 4 + k] += a * p4[k];
+            if (j == i) continue;
+            /* B_i: w_ij/2 (c_i + c_j) (p_i - p_j), the c_j part on j's isolines ... */
+            double cj = 0.5 * l * (s2 ? a1 : a0);
+            if (sg[li] != (int32_t)i) {
+              sg[li] = (int32_t)i;
+              tg[ng++] = (int32_t)li;
+              for (int k = 0; k < 3; ++k)
+                g[li * 3 + k] = 0;
+            }
+            for (int k = 0; k < 3; ++k)
+              g[li * 3 + k] += cj * e[k];
+            /* ... and the c_i part on i's */
+            size_t lk = Ii + s2;
+            double ci = 0.5 * l * (s2 ? b1 : b0);
+            if (sg[lk] != (int32_t)i) {
+              sg[lk] = (int32_t)i;
+              tg[ng++] = (int32_t)lk;
+              for (int k = 0; k < 3; ++k)
+                g[lk * 3 + k] = 0;
+            }
+            for (int k = 0; k < 3; ++k)
+              g[lk * 3 + k] += ci * e[k];
+          }
+        }
+      }
+      /* K0 += W_i^T (-(LW)_i), G += W_i^T B_i */
+      double p4[4] = {pi[0], pi[1], pi[2], 1};
+      for (int f = 0; f < p->ne; ++f) {
+        size_t Ii;
+        double b0, b1;
+        w_entry(p, i, f, &Ii, &b0, &b1);
+        for (int s2 = 0; s2 < 2; ++s2) {
+          double c = s2 ? b1 : b0;
+          if (c == 0) continue;
+          for (int k = 0; k < 4; ++k) {
+            double wv = c * p4[k];
+            size_t r = (Ii + s2) * 4 + k;
+            for (int x = 0; x < nt; ++x) {
+              const double *va = acc + (size_t)tl[x] * 4;
+              double *kc = Kt + r + (size_t)tl[x] * 4 * nr;
+              for (int m = 0; m < 4; ++m)
+                kc[(size_t)m * nr] -= wv * va[m];
+            }
+            for (int x = 0; x < ng; ++x) {
+              const double *gv = g + (size_t)tg[x] * 3;
+              double *gc = Gt + r + (size_t)tg[x] * 3 * nr;
+              for (int m = 0; m < 3; ++m)
+                gc[(size_t)m * nr] += wv * gv[m];
+            }
+          }
+        }
+      }
+    }
+  }
+  for (int t = 0; t < nthreads; ++t) {
+    const double *Kt = bufK + (size_t)t * nr * nr, *Gt = bufG + (size_t)t * nr * nd;
+    for (size_t i = 0; i < nr * nr; ++i)
+      p->K0[i] += Kt[i];
+    for (size_t i = 0; i < nr * nd; ++i)
+      p->G[i] += Gt[i];
+  }
+  /* symmetric in exact arithmetic; make it so in floating point for dpotrf */
+  for (size_t c = 0; c < nr; ++c)
+    for (size_t r = c + 1; r < nr; ++r) {
+      double v = 0.5 * (p->K0[r + c * nr] + p->K0[c + r * nr]);
+      p->K0[r + c * nr] = p->K0[c + r * nr] = v;
+    }
+  free(bufK);
+  free(bufG);
+  free(scratch);
+  free(gscr);
+  free(stamp);
+  free(touched);
+  return KM_OK;
+}
+
 static void finish_trace(km_puppet *p) {
   p->trK0 = 0;
   for (size_t i = 0; i < p->nr; ++i)
@@ -719,7 +879,11 @@ km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt
   for (size_t v = 0; v < n; ++v)
     for (int c = 0; c < 3; ++c)
       cm[v * 3 + c] = delta0[v + c * n];
-  if ((s = assemble_reduced(p, L, cm, err))) goto fail;
+  if (o.energy == KM_PUPPET_ENERGY_ARAP)
+    s = assemble_reduced_arap(p, L, err);
+  else
+    s = assemble_reduced(p, L, cm, err);
+  if (s) goto fail;
   finish_trace(p);
   if (!km__progress(&o.progress, 1.0, "done")) goto cancel;
   km_sparse_free(&L);
@@ -782,7 +946,7 @@ km_status km_puppet_save(const km_puppet *p, const char *path, km_error *err) {
   memcpy(hdr + 8, u32, 8);
   uint64_t sizes[2] = {p->n, p->nf};
   memcpy(hdr + 16, sizes, 16);
-  int32_t params[4] = {p->ne, p->niso, p->ncross, 0};
+  int32_t params[4] = {p->ne, p->niso, p->ncross, (int32_t)p->energy};
   memcpy(hdr + 32, params, 16);
   memcpy(hdr + 48, &p->mesh_hash, 8);
   uint64_t ps = psize;
@@ -874,10 +1038,12 @@ km_status km_puppet_load(const char *path, const km_mesh *rest, const km_puppet_
   memcpy(sizes, b + 16, 16);
   memcpy(params, b + 32, 16);
   memcpy(&mh, b + 48, 8);
-  if (params[0] != o.fields || params[1] != o.isolines || params[2] != o.crossed_per_isoline)
-    STALE("%s: puppet cache built with fields=%d isolines=%d crossed_per_isoline=%d, wanted "
-          "%d/%d/%d",
-          path, params[0], params[1], params[2], o.fields, o.isolines, o.crossed_per_isoline);
+  if (params[0] != o.fields || params[1] != o.isolines || params[2] != o.crossed_per_isoline ||
+      params[3] != (int32_t)o.energy)
+    STALE("%s: puppet cache built with fields=%d isolines=%d crossed_per_isoline=%d energy=%d, "
+          "wanted %d/%d/%d/%d",
+          path, params[0], params[1], params[2], params[3], o.fields, o.isolines,
+          o.crossed_per_isoline, (int)o.energy);
   if (sizes[0] != rest->n_vertices || sizes[1] != rest->n_faces || mh != mesh_hash(rest))
     STALE("%s: puppet cache is for another mesh (%llu vertices, %llu faces, or different "
           "positions)",
