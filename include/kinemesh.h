@@ -391,7 +391,9 @@ km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_
 /* Reduced isoline model of Wu, Lu & Song (after Au et al. 2006/2007): n_e propagation fields
  * (the first non-constant eigenvectors of -L phi = lambda M phi), n_iso isolines per field,
  * one affine 3x4 transform per isoline as the unknowns (4*n_iso*n_e per coordinate).
- * Precompute depends on the mesh only (not on handles) and can be cached on disk. */
+ * Precompute depends on the mesh only (not on handles) and can be cached on disk. Meant for
+ * one connected component: with several (or unreferenced vertices) the first eigenvectors
+ * are component indicators and the fields degrade. A km_puppet is not thread-safe. */
 typedef struct km_puppet km_puppet;
 typedef enum km_puppet_energy {
   KM_PUPPET_ENERGY_LAPLACIAN = 0, /* the paper's eq. 8-9: |L X - rotated rest Laplacian|^2 */

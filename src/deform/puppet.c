@@ -21,8 +21,20 @@
  * coordinates. Because that is linear in R_d, W^T L^T W_d is precomputed (the paper's
  * W^T L^T W_delta) and a rotation update costs a 320x240 product, independent of #V.
  * The price: a vertex's rotation is a linear blend of rotation matrices, which shortens its
- * Laplacian coordinate slightly where neighbouring isolines disagree a lot (exact length
- * would need an O(#V) pass per iteration). The isoline rotations themselves are exact. */
+ * Laplacian coordinate slightly where neighbouring isolines disagree (exact length would need
+ * an O(#V) pass per iteration). Measured with such an exact pass (blend, renormalise to the
+ * rest length, W^T L^T delta per iteration): armadillo, 5 moving handles, deviation from
+ * full ARAP 2.370% vs 2.365% of the diagonal, i.e. no loss; so the solve stays independent
+ * of #V. The isoline rotations themselves are exact (quaternion mean of the frames of their
+ * sampled crossed triangles; a Kabsch fit over the same triangles gave the same deviation).
+ *
+ * energy = KM_PUPPET_ENERGY_ARAP swaps the Laplacian term for the reduced ARAP energy on the
+ * same unknowns and rotations (assemble_reduced_arap): not in the paper, it follows the
+ * full ARAP reference more closely (armadillo 1.6% vs 2.4%, horse 2.2% vs 2.8%).
+ *
+ * Cache: the solve needs W (stored structured: bracket + parameter per vertex and field, and
+ * w_f), the crossed triangles, W^T L^T L W and W^T L^T W_delta; LW itself (~100 nonzeros per
+ * vertex) is only an intermediate of those two products, so it is not stored. */
 #include "internal.h"
 
 #include "deform/rot3.h"
