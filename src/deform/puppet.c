@@ -1277,11 +1277,12 @@ void km_puppet_reset(km_puppet *p) {
 #define KM__SIMD_CLONES
 #endif
 
-/* X = W R runs on one thread below this many vertices: on the 2-core target a parallel
- * region costs more than it saves around 50k vertices once anything else runs (a preempted
- * worker stalls the frame by a scheduler tick); above it the loop is memory-bound and the
- * second core's bandwidth pays. */
-#define KM_PUPPET_PARALLEL 150000
+/* X = W R runs on one thread below this many vertices. Measured on the shared 2-core
+ * machine (load ~3-4 from other jobs), 1M vertices: one thread 10.4 ms per frame; two
+ * threads 26 ms wall for 12.3 ms of CPU, because the parallel region's join waits until the
+ * other thread gets a core back. One thread already meets the 16 ms budget up to ~1.5M
+ * vertices, so the threads are kept for meshes beyond that (set OMP_NUM_THREADS to taste). */
+#define KM_PUPPET_PARALLEL 1500000
 
 typedef float km__v16sf __attribute__((vector_size(64)));
 
