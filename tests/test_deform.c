@@ -61,9 +61,13 @@ static void rigid(const double *R, const double *t, const double *x, double *y) 
     y[r] = R[r * 3] * x[0] + R[r * 3 + 1] * x[1] + R[r * 3 + 2] * x[2] + t[r];
 }
 
-/* Rest reproduction and rigid motion on one mesh with the given handles. */
-static void check_invariants(const char *name, km_puppet_energy energy, const km_mesh *m, size_t nh,
-                             const int32_t *off, const int32_t *hv) {
+/* Rest reproduction and rigid motion on one mesh with the given handles. rigid_tol: allowed
+ * rigid-motion error of the puppet (fraction of the diagonal); arap_tol: of the full ARAP
+ * reference, < 0 to skip it (a flat plate converges very slowly from rest: its isometric
+ * bends cost ARAP almost nothing). */
+static void check_invariants(const char *name, km_puppet_energy energy, double rigid_tol,
+                             double arap_tol, const km_mesh *m, size_t nh, const int32_t *off,
+                             const int32_t *hv) {
   size_t n = m->n_vertices, nhv = (size_t)off[nh];
   double diag = km_bbox_diagonal(m->V, n);
   km_puppet *p = NULL;
@@ -96,17 +100,17 @@ static void check_invariants(const char *name, km_puppet_energy energy, const km
   CHECK(all_finite(X, n * 3));
   double er = max_dev(X, Y, n) / diag, em = mean_dev(X, Y, n) / diag;
   printf("%s: rigid motion: reduced max %.3g mean %.3g of the diagonal\n", name, er, em);
-  CHECK_MSG(er <= 1e-4, "%s: rigid motion error %g", name, er);
+  CHECK_MSG(er <= rigid_tol, "%s: rigid motion error %g", name, er);
 
   /* ARAP: same two properties */
   km_arap *a = NULL;
   km_arap_options ao = {.iterations = 400, .tolerance = 1e-300}; /* slow from rest */
-  CHECK_OK(km_arap_precompute(m, nh, off, hv, &ao, &a, KM_E));
+  if (arap_tol >= 0) CHECK_OK(km_arap_precompute(m, nh, off, hv, &ao, &a, KM_E));
   if (a) {
     CHECK_OK(km_arap_solve(a, T, X, KM_E));
     er = max_dev(X, Y, n) / diag;
     printf("%s: rigid motion: ARAP max %.3g of the diagonal\n", name, er);
-    CHECK_MSG(er <= 1e-6, "%s: ARAP rigid motion error %g", name, er);
+    CHECK_MSG(er <= arap_tol, "%s: ARAP rigid motion error %g", name, er);
     km_arap_free(&a);
   }
   free(T);
@@ -132,16 +136,33 @@ static void test_invariants(void) {
     off[h + 1] = (int32_t)k;
   }
   CHECK(k > 9);
-  check_invariants("icosphere", KM_PUPPET_ENERGY_LAPLACIAN, &m, 3, off, hv);
-  check_invariants("icosphere/arap", KM_PUPPET_ENERGY_ARAP, &m, 3, off, hv);
+  check_invariants("icosphere", KM_PUPPET_ENERGY_LAPLACIAN, 1e-4, 1e-6, &m, 3, off, hv);
+  check_invariants("icosphere/arap", KM_PUPPET_ENERGY_ARAP, 1e-4, 1e-6, &m, 3, off, hv);
+  km_mesh_free(&m);
+
+  /* an open, planar mesh: the transforms' z column is undetermined (the ridge handles it) */
+  CHECK_OK(km_grid(30, 6, 1.0, 0.2, &m, KM_E));
+  {
+    int32_t goff[3] = {0}, *gh = malloc(m.n_vertices * sizeof(int32_t));
+    size_t g = 0;
+    for (size_t v = 0; v < m.n_vertices; ++v)
+      if (m.V[3 * v] < 0.05) gh[g++] = (int32_t)v;
+    goff[1] = (int32_t)g;
+    for (size_t v = 0; v < m.n_vertices; ++v)
+      if (m.V[3 * v] > 0.95) gh[g++] = (int32_t)v;
+    goff[2] = (int32_t)g;
+    check_invariants("grid", KM_PUPPET_ENERGY_LAPLACIAN, 1e-3, -1, &m, 2, goff, gh);
+    check_invariants("grid/arap", KM_PUPPET_ENERGY_ARAP, 1e-3, -1, &m, 2, goff, gh);
+    free(gh);
+  }
   km_mesh_free(&m);
 
   CHECK_OK(km_cylinder(16, 30, 0.1, 1.0, &m, KM_E));
   int32_t *bh = malloc(m.n_vertices * sizeof(int32_t)), boff[3];
   size_t nhv;
   bar_handles(&m, 0.04, 0.96, boff, bh, &nhv);
-  check_invariants("cylinder", KM_PUPPET_ENERGY_LAPLACIAN, &m, 2, boff, bh);
-  check_invariants("cylinder/arap", KM_PUPPET_ENERGY_ARAP, &m, 2, boff, bh);
+  check_invariants("cylinder", KM_PUPPET_ENERGY_LAPLACIAN, 1e-4, 1e-6, &m, 2, boff, bh);
+  check_invariants("cylinder/arap", KM_PUPPET_ENERGY_ARAP, 1e-4, 1e-6, &m, 2, boff, bh);
   free(bh);
   km_mesh_free(&m);
 }
