@@ -1399,20 +1399,39 @@ static void chol_solve3(const double *U, const double *Ut, size_t nr, double *B)
   }
 }
 
-/* out = base + KinvG * dRd (nr x nd times nd x 3), axpy form so it vectorises. */
+/* out = base + KinvG * dRd (nr x nd times nd x 3). Register-blocked over 8 rows with the 3
+ * right-hand sides as accumulators, so KinvG (600 kB, L2-resident) streams through once and
+ * `out` is written once (an axpy loop re-reads and re-writes it 720 times: 3x slower). */
+typedef double km__v8df_u __attribute__((vector_size(64), aligned(8)));
 KM__SIMD_CLONES
 static void apply_rotations(const double *KinvG, size_t nr, size_t nd, const double *dRd,
                             const double *base, double *out) {
-  memcpy(out, base, nr * 3 * sizeof(double));
-  for (size_t d = 0; d < nd; ++d) {
-    const double *g = KinvG + d * nr;
-    for (int c = 0; c < 3; ++c) {
-      double s = dRd[d + (size_t)c * nd];
-      if (s == 0) continue;
-      double *o = out + (size_t)c * nr;
-      for (size_t i = 0; i < nr; ++i)
-        o[i] += s * g[i];
+  const double *s0 = dRd, *s1 = dRd + nd, *s2 = dRd + 2 * nd;
+  size_t i0 = 0;
+  for (; i0 + 8 <= nr; i0 += 8) {
+    km__v8df_u a0 = {0}, a1 = {0}, a2 = {0};
+    for (size_t d = 0; d < nd; ++d) {
+      km__v8df_u g = *(const km__v8df_u *)(KinvG + d * nr + i0);
+      a0 += g * s0[d];
+      a1 += g * s1[d];
+      a2 += g * s2[d];
     }
+    for (int k = 0; k < 8; ++k) {
+      out[i0 + k] = base[i0 + k] + a0[k];
+      out[nr + i0 + k] = base[nr + i0 + k] + a1[k];
+      out[2 * nr + i0 + k] = base[2 * nr + i0 + k] + a2[k];
+    }
+  }
+  for (; i0 < nr; ++i0) {
+    double a[3] = {0, 0, 0};
+    for (size_t d = 0; d < nd; ++d) {
+      double g = KinvG[d * nr + i0];
+      a[0] += g * s0[d];
+      a[1] += g * s1[d];
+      a[2] += g * s2[d];
+    }
+    for (int c = 0; c < 3; ++c)
+      out[(size_t)c * nr + i0] = base[(size_t)c * nr + i0] + a[c];
   }
 }
 
