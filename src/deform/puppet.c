@@ -820,6 +820,11 @@ static void finish_trace(km_puppet *p) {
     p->trK0 += p->K0[i + i * p->nr];
 }
 
+static bool eigs_progress(double fraction, const char *stage, void *user) {
+  const km_progress *outer = user;
+  return km__progress(outer, 0.05 + 0.65 * fraction, stage);
+}
+
 km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt, km_puppet **out,
                                km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "puppet: out is NULL");
@@ -853,7 +858,10 @@ km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt
   }
   if (!km__progress(&o.progress, 0.05, "eigenvectors")) goto cancel;
   km_eigs_options eo = {0};
-  eo.progress = o.progress;
+  if (o.progress.fn) { /* eigs reports 0..1 of its own: mapped into this call's 0.05..0.7 */
+    eo.progress.fn = eigs_progress;
+    eo.progress.user = &o.progress;
+  }
   if ((s = km_eigs(L, M, k, &eo, evals, evecs, err))) {
     km__wrap(err, s, "puppet: propagation fields");
     goto fail;
