@@ -39,7 +39,6 @@
 
 #include "deform/rot3.h"
 
-#include <cblas.h>
 #include <lapacke.h>
 #include <math.h>
 #include <stdlib.h>
@@ -75,6 +74,10 @@ struct km_puppet {
   double *Pn;       /* n*3 rest, normalised: (p - center)/scale */
   double *wfield;   /* ne, sum 1 */
   double *iso;      /* ne*niso iso-values, ascending per field */
+  /* Vertex-major on purpose: the X = W R kernel reads one vertex's n_e brackets and
+   * parameters from one or two cache lines and vectorises over the 12 entries of the blended
+   * transform (one 16-lane vector per field), which needs no gathers; a field-major
+   * (structure-of-arrays) layout would vectorise over vertices and need 24 gathers per field. */
   uint8_t *bracket; /* n*ne (vertex-major): lower isoline k, 0 <= k <= niso-2 */
   double *tpar;     /* n*ne interpolation parameter in [0,1] */
   float *tparf;     /* n*ne float copy */
