@@ -172,6 +172,7 @@ int main(int argc, char **argv) {
   int nh = 5, frames = 60, full_frames = -1, iterations = 0, crossed = 0, arap_iterations = 0;
   double handle_weight = 0;
   int fields = 0, isolines = 0;
+  km_puppet_energy energy = KM_PUPPET_ENERGY_LAPLACIAN;
   for (int i = 2; i + 1 < argc; i += 2) {
     if (!strcmp(argv[i], "--handles"))
       nh = atoi(argv[i + 1]);
@@ -185,6 +186,8 @@ int main(int argc, char **argv) {
       iterations = atoi(argv[i + 1]);
     else if (!strcmp(argv[i], "--arap-iterations"))
       arap_iterations = atoi(argv[i + 1]);
+    else if (!strcmp(argv[i], "--energy"))
+      energy = !strcmp(argv[i + 1], "arap") ? KM_PUPPET_ENERGY_ARAP : KM_PUPPET_ENERGY_LAPLACIAN;
     else if (!strcmp(argv[i], "--fields"))
       fields = atoi(argv[i + 1]);
     else if (!strcmp(argv[i], "--isolines"))
@@ -227,6 +230,7 @@ int main(int argc, char **argv) {
   po.iterations = iterations;
   po.crossed_per_isoline = crossed;
   po.fields = fields;
+  po.energy = energy;
   po.isolines = isolines;
   po.handle_weight = handle_weight;
   km_puppet *p = NULL;

@@ -565,23 +565,31 @@ void km_retarget_free(km_retarget **r);
 /* Reduced isoline model of Wu, Lu & Song (after Au et al. 2006/2007): n_e propagation fields
  * (the first non-constant eigenvectors of -L phi = lambda M phi), n_iso isolines per field,
  * one affine 3x4 transform per isoline as the unknowns (4*n_iso*n_e per coordinate).
- * Precompute depends on the mesh only (not on handles) and can be cached on disk. */
+ * Precompute depends on the mesh only (not on handles) and can be cached on disk. Meant for
+ * one connected component: with several (or unreferenced vertices) the first eigenvectors
+ * are component indicators and the fields degrade. A km_puppet is not thread-safe. */
 typedef struct km_puppet km_puppet;
+typedef enum km_puppet_energy {
+  KM_PUPPET_ENERGY_LAPLACIAN = 0, /* the paper's eq. 8-9: |L X - rotated rest Laplacian|^2 */
+  KM_PUPPET_ENERGY_ARAP,          /* reduced ARAP (membrane) energy, same unknowns/rotations */
+} km_puppet_energy;
 typedef struct km_puppet_options {
   int fields;           /* n_e propagation fields; 0: 8 (1 .. 32) */
   int isolines;         /* n_iso isolines per field; 0: 10 (2 .. 64) */
   int iterations;       /* dual-Laplacian rotation updates per solve; 0: 4 */
   double tolerance;     /* stop earlier when |dR| / |R - I| < tolerance; 0: 1e-4 */
   double handle_weight; /* relative handle weight w_c (1: the handle and Laplacian terms of
-                           U^T U have equal trace); 0: 1. Handles are soft: larger follows
-                           them closer and bends the rest more */
+                           U^T U have equal trace); 0: 1 (Laplacian energy) or 3 (ARAP
+                           energy). Handles are soft: larger follows them closer and
+                           bends the rest more */
   int crossed_per_isoline; /* crossed triangles sampled per isoline for rotations; 0: 10 */
+  km_puppet_energy energy; /* 0: the paper's Laplacian energy */
   km_progress progress;
 } km_puppet_options;
 
 /* Builds the reduced model of `rest` (closed or open triangle mesh, >= 4 vertices).
- * Only fields, isolines and crossed_per_isoline shape the model (and the cache key); the
- * other options are solve settings. */
+ * Only fields, isolines, crossed_per_isoline and energy shape the model (and the cache key);
+ * the other options are solve settings. */
 km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt,
                                km_puppet **out, km_error *err);
 /* Writes the model atomically: magic, format version, parameters, hash of the rest mesh,
