@@ -321,7 +321,7 @@ static void test_cache(void) {
   /* different parameters */
   km_puppet_options o = {.isolines = 12};
   CHECK_STATUS(km_puppet_load(path, &m, &o, &q, KM_E), KM_ERR_STALE);
-  km_puppet_options oe = {.energy = KM_PUPPET_ENERGY_ARAP};
+  km_puppet_options oe = {.energy = KM_PUPPET_ENERGY_LAPLACIAN};
   CHECK_STATUS(km_puppet_load(path, &m, &oe, &q, KM_E), KM_ERR_STALE);
   CHECK(q == NULL);
   /* different mesh: one coordinate nudged, and another mesh altogether */

@@ -76,5 +76,7 @@ km_status km_cli_puppet_open(const km_mesh *mesh, const km_puppet_options *po, c
                              km_error *err);
 km_status km_cli_read_motion(const char *path, km_take *t, km_error *err);
 double km_cli_median(double *v, size_t n); /* sorts v */
+/* --energy laplacian|arap; prints the error and returns non-zero when unknown. */
+int km_cli_parse_energy(const char *verb, const char *s, km_puppet_energy *e);
 
 #endif

@@ -48,7 +48,7 @@
 #endif
 
 #define KM_PUPPET_MAGIC "KMPUPPET"
-#define KM_PUPPET_FORMAT 1u
+#define KM_PUPPET_FORMAT 2u /* 2: energy enum renumbered (ARAP = 0) */
 #define KM_PUPPET_ENDIAN 0x01020304u
 #define KM_PUPPET_HEADER 64u
 
