@@ -57,12 +57,13 @@ static int read_flat(const cJSON *a, double *joints) {
     if (cJSON_IsNull(v)) continue;
     if (!cJSON_IsNumber(v) || !isfinite(v->valuedouble)) return -1;
     joints[k] = v->valuedouble;
-    n += k % 3 == 2;
   }
   /* A joint counts only when all three of its numbers are present. */
   for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
     if (isnan(joints[3 * j]) || isnan(joints[3 * j + 1]) || isnan(joints[3 * j + 2]))
       joints[3 * j] = joints[3 * j + 1] = joints[3 * j + 2] = NAN;
+    else
+      ++n;
   return n;
 }
 
