@@ -838,6 +838,22 @@ static int handle_post(km__live *l, struct lws *wsi, http_pss *p) {
   p->post = NULL;
   p->post_len = p->post_cap = 0;
   size_t n_handles = nr.rig.n_handles;
+  /* GET /rig and /handles answer with the saved rig from now on, even before the deform
+   * thread has switched to it. */
+  char *hj = handles_json(&nr.rig), *text = malloc(nr.len + 1);
+  if (hj && text) {
+    memcpy(text, nr.text, nr.len + 1);
+    pthread_mutex_lock(&l->st_mu);
+    free(l->rig_text);
+    free(l->handles_json);
+    l->rig_text = text;
+    l->rig_len = nr.len;
+    l->handles_json = hj;
+    pthread_mutex_unlock(&l->st_mu);
+  } else {
+    free(hj);
+    free(text);
+  }
   pthread_mutex_lock(&l->in_mu);
   if (l->has_pending) {
     km_rig_free(&l->pending.rig);

@@ -91,8 +91,8 @@ try {
   const hs = await (await fetch(`${url}handles`)).json();
   const hh = h && hs.handles.find((x) => x.name === h.name);
   check(hh && hh.vertices.includes(pending), `server resolved the new handle (${hh ? hh.vertices.length : 0} vertices)`);
-  const st = await status(http);
-  check(h && st.handles[h.name] !== undefined, '/status reports the new handle');
+  const st = await waitFor(async () => { const x = await status(http); return h && x.handles[h.name] !== undefined && x; }, 3000);
+  check(st, '/status reports the new handle (the deformation switched to the new rig)');
 
   // The deformation keeps running with the new rig.
   const f0 = (await status(http)).frames_out;
