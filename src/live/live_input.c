@@ -5,7 +5,6 @@
 #include "internal.h"
 
 #include <cjson/cJSON.h>
-#include <lo/lo.h>
 #include <math.h>
 #include <string.h>
 
@@ -106,18 +105,36 @@ int km__live_parse_json(const char *data, size_t size, double *joints) {
 /* ---------------------------------------------------------------- OSC */
 
 static bool is_num(char t) { return t == 'f' || t == 'd' || t == 'i' || t == 'h'; }
-static double num(char t, const lo_arg *a) {
+/* liblo's argument pointers point into the message, 4-byte aligned, while lo_arg (a union
+ * with int64 and double) wants 8: read through memcpy instead of the union. */
+static double num(char t, const void *a) {
   switch (t) {
-  case 'f': return a->f;
-  case 'd': return a->d;
-  case 'i': return a->i;
-  default: return (double)a->h;
+  case 'f': {
+    float f;
+    memcpy(&f, a, sizeof f);
+    return f;
+  }
+  case 'd': {
+    double d;
+    memcpy(&d, a, sizeof d);
+    return d;
+  }
+  case 'i': {
+    int32_t i;
+    memcpy(&i, a, sizeof i);
+    return i;
+  }
+  default: {
+    int64_t h;
+    memcpy(&h, a, sizeof h);
+    return (double)h;
+  }
   }
 }
 
 km__live_osc_kind km__live_parse_osc(const char *path, const char *types, void *const *argv_,
                                      int argc, km__live_osc_joint *out) {
-  lo_arg *const *argv = (lo_arg *const *)argv_;
+  const void *const *argv = (const void *const *)argv_;
   if (!path || !types || argc < 0 || (int)strlen(types) != argc) return KM_LIVE_OSC_BAD;
   out->timestamp = NAN;
   out->user = 0;
@@ -129,7 +146,7 @@ km__live_osc_kind km__live_parse_osc(const char *path, const char *types, void *
       return KM_LIVE_OSC_BAD;
     for (int k = 3; k < argc; ++k)
       if (!is_num(types[k])) return KM_LIVE_OSC_BAD;
-    int j = km__live_joint_index(&argv[0]->s);
+    int j = km__live_joint_index((const char *)argv[0]);
     if (j == -1) return KM_LIVE_OSC_BAD;
     double x = num(types[3], argv[3]), y = num(types[4], argv[4]), z = num(types[5], argv[5]);
     if (!isfinite(x) || !isfinite(y) || !isfinite(z) || !isfinite(num(types[6], argv[6])))
@@ -168,7 +185,8 @@ km__live_osc_kind km__live_parse_osc(const char *path, const char *types, void *
     out->p[0] = -x;
     out->p[1] = y;
     out->p[2] = -z;
-    if (argc == 4 && !strcmp(&argv[3]->s, "NotTracked")) out->p[0] = out->p[1] = out->p[2] = NAN;
+    if (argc == 4 && !strcmp((const char *)argv[3], "NotTracked"))
+      out->p[0] = out->p[1] = out->p[2] = NAN;
     return KM_LIVE_OSC_JOINT;
   }
   /* OSCeleton's /new_user, /new_skel, /lost_user and anything else a bridge sends. */

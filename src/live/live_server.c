@@ -916,6 +916,7 @@ static int cb_http(struct lws *wsi, enum lws_callback_reasons reason, void *user
     return 0;
   }
   case LWS_CALLBACK_HTTP_BODY:
+    if (!len || !in) return 0;
     if (p->post_len + len > MAX_POST) {
       p->post_too_big = true;
       return 0;
