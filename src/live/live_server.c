@@ -982,11 +982,16 @@ static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, 
     }
     return 0;
   }
-  case LWS_CALLBACK_ESTABLISHED:
+  case LWS_CALLBACK_ESTABLISHED: {
     memset(p, 0, sizeof *p);
+    /* Room for about one frame in the kernel: with the default (autotuned to megabytes) a
+     * slow page would have several old frames queued in the socket, defeating latest-wins. */
+    int fd = lws_get_socket_fd(wsi), sz = (int)(l->frame_size + 65536);
+    if (fd >= 0) setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &sz, sizeof sz);
     atomic_fetch_add(&l->clients, 1);
     lws_callback_on_writable(wsi);
     return 0;
+  }
   case LWS_CALLBACK_CLOSED:
     atomic_fetch_sub(&l->clients, 1);
     free(p->buf);

@@ -94,6 +94,15 @@ try {
   const st = await waitFor(async () => { const x = await status(http); return h && x.handles[h.name] !== undefined && x; }, 3000);
   check(st, '/status reports the new handle (the deformation switched to the new rig)');
 
+  // Remove a handle in the panel and save again.
+  const nBefore = rigAfter.handles.length;
+  await page.click('#handles li:has-text("foot_left") button.remove');
+  await page.click('#save');
+  await page.waitForFunction(() => window.kmLive.saved >= 2, null, { timeout: 10000 });
+  const rig2 = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
+  check(rig2.handles.length === nBefore - 1 && !rig2.handles.some((x) => x.name === 'foot_left') &&
+    !rig2.map.some((x) => x.handle === 'foot_left'), 'removed foot_left: handle and map entry gone from the rig on disk');
+
   // The deformation keeps running with the new rig.
   const f0 = (await status(http)).frames_out;
   await page.click('#replay');

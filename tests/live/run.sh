@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# ctest driver for live mode: run.sh e2e|osc|garbage KINEMESH WORKDIR
+# ctest driver for live mode: run.sh e2e|e2e_quantize|osc|garbage KINEMESH WORKDIR
 # Generates a small character and take, starts `kinemesh live` on loopback with random free
 # ports (retrying when a port is taken), runs the matching node script against it, stops the
 # server with SIGTERM and checks it exits cleanly. Skips (77) only when a tool the set-up
@@ -12,7 +12,7 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
 command -v node >/dev/null || { echo "FAIL: node not found (scripts/deps.sh installs it)"; exit 1; }
 [ -d "$ROOT/web/node_modules/playwright-core" ] || { echo "FAIL: web/node_modules missing (run scripts/deps.sh)"; exit 1; }
-if [ "$MODE" = e2e ] && ! command -v chromium >/dev/null; then echo "SKIP: chromium not installed"; exit 77; fi
+if [ "${MODE#e2e}" != "$MODE" ] && ! command -v chromium >/dev/null; then echo "SKIP: chromium not installed"; exit 77; fi
 if [ "$MODE" = osc ] && ! command -v oscsend >/dev/null; then echo "SKIP: oscsend (liblo-tools) not installed"; exit 77; fi
 rm -rf "$WORK" && mkdir -p "$WORK"
 "$BIN" gen character --vertices 3000 -o "$WORK/c.obj" >/dev/null 2>&1 || { echo "FAIL: gen character"; exit 1; }
@@ -22,6 +22,7 @@ rm -rf "$WORK" && mkdir -p "$WORK"
 EXTRA=()
 case $MODE in
   e2e) EXTRA=(--replay "$WORK/t.json" --no-autoplay) ;;
+  e2e_quantize) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
   osc) EXTRA=(--record "$WORK/rec.json") ;;
   garbage) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
 esac
@@ -47,7 +48,7 @@ done
 cleanup() { [ -n "$PID" ] && kill -9 $PID 2>/dev/null; }
 trap cleanup EXIT
 
-timeout 90 node "$HERE/$MODE.mjs" "$HTTP" "$OSC" "$UDP" "$WORK"
+timeout 90 node "$HERE/${MODE%_quantize}.mjs" "$HTTP" "$OSC" "$UDP" "$WORK"
 rc=$?
 kill -0 $PID 2>/dev/null || { echo "FAIL: the server died"; cat "$WORK/server.err"; exit 1; }
 kill -TERM $PID
