@@ -559,9 +559,9 @@ static void pack_frame(km__live *l, unsigned char *dst, const double *filt, uint
     uint16_t *q = (uint16_t *)(void *)out;
     for (size_t v = 0; v < n; ++v)
       for (int a = 0; a < 3; ++a) {
-        /* >= 0 by construction; +0.5 and truncation rounds (lrintf is 5x slower here) */
-        uint32_t u = (uint32_t)(((float)V[3 * v + a] - lo[a]) * sc[a] + 0.5f);
-        q[3 * v + a] = (uint16_t)(u > 65535u ? 65535u : u);
+        /* +0.5 and truncation rounds (lrintf is 5x slower here) */
+        float x = ((float)V[3 * v + a] - lo[a]) * sc[a] + 0.5f;
+        q[3 * v + a] = x >= 0 ? (x < 65535.0f ? (uint16_t)x : 65535u) : 0; /* NaN -> 0 */
       }
   } else {
     float *p = (float *)(void *)out;
