@@ -68,6 +68,7 @@ int km_cli_pose(int argc, char **argv);
 int km_cli_precompute(int argc, char **argv);
 int km_cli_animate(int argc, char **argv);
 int km_cli_bench(int argc, char **argv);
+int km_cli_live(int argc, char **argv);
 
 /* Puppetry helpers shared by animate, bench and live. */
 char *km_cli_cache_path(const char *mesh_path); /* MESH.kmcache, caller frees */
