@@ -68,6 +68,9 @@ int km_cli_pose(int argc, char **argv);
 int km_cli_precompute(int argc, char **argv);
 int km_cli_animate(int argc, char **argv);
 int km_cli_bench(int argc, char **argv);
+int km_cli_bench_live(int argc, char **argv);
+/* "<CPU model>, <n> cores" for benchmark headers. */
+void km_cli_machine(char *out, size_t n);
 int km_cli_live(int argc, char **argv);
 
 /* Puppetry helpers shared by animate, bench and live. */

@@ -6,7 +6,7 @@
  * socket (median, p99), the client-side latency from datagram sent to frame received, the
  * stage medians, and the frames per second the client sustained. Without --mesh a procedural
  * character of --vertices is generated (its rig and reduced model cached under /tmp). */
-#include "kinemesh.h"
+#include "cli.h"
 #include "live/live.h"
 
 #include <arpa/inet.h>
@@ -204,7 +204,7 @@ static void *server_main(void *arg) {
   return NULL;
 }
 
-int main(int argc, char **argv) {
+int km_cli_bench_live(int argc, char **argv) {
   const char *mesh_path = NULL;
   size_t vertices = 60000, frames = 1200;
   double rate = 240;
@@ -223,9 +223,11 @@ int main(int argc, char **argv) {
     else if (!strcmp(argv[i], "--lws-client"))
       lws_client = true;
     else {
-      fprintf(stderr, "usage: bench_live [--mesh MESH] [--vertices N] [--frames N] [--rate HZ] "
-                      "[--quantize]\n");
-      return 2;
+      FILE *uf = (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) ? stdout : stderr;
+      fprintf(uf,
+              "usage: kinemesh bench live [--mesh MESH] [--vertices N] [--frames N] [--rate HZ] "
+              "[--quantize]\n");
+      return uf == stdout ? 0 : 2;
     }
   }
   if (frames < 10 || frames > MAX_FRAMES - 10 || rate <= 0) {
@@ -406,6 +408,11 @@ int main(int argc, char **argv) {
     if (q >= 1 && q <= frames) e2e[ne++] = 1e3 * (c.recv_t[q] - send_t[q]);
   }
   double fps = nr > 1 ? (double)(nr - 1) / (c.last_t - c.first_t) : 0;
+  {
+    char machine[320];
+    km_cli_machine(machine, sizeof machine);
+    printf("kinemesh bench live — %s\n", machine);
+  }
   printf("bench_live: %zu vertices, %s frames, %zu input frames at %.0f/s over %.2f s, %s "
          "client\n",
          mesh.n_vertices, quantize ? "uint16" : "float32", frames, rate, send_end - start,
