@@ -1,0 +1,142 @@
+/* km_cholesky: CHOLMOD analyse / factorise / solve. The symmetric matrix (stored with both
+ * triangles) is handed to CHOLMOD as stype = -1, so only its lower triangle is read.
+ *
+ * Supernodal vs simplicial is left to CHOLMOD's default (CHOLMOD_AUTO, supernodal when
+ * flops/nnz(L) >= 40): on mesh Laplacians (43k vertices) supernodal factorisation was faster
+ * and single right-hand-side solves were within a few percent of simplicial, see
+ * bench/bench_eigen.c. BLAS threads are OpenBLAS's business (process-wide); we do not
+ * change them. */
+#include "internal.h"
+#include "linalg/sparse.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+struct km_cholesky {
+  cholmod_common cc;
+  cholmod_factor *L;
+  cholmod_dense *X, *Y, *E; /* solve2 workspace, kept between solves */
+  size_t n;
+  size_t nnz;
+  int32_t *Ap, *Ai; /* pattern given to analyze, to reject a different one */
+  bool factorized;
+};
+
+static km_status cholmod_status(km_error *err, const cholmod_common *cc, const char *what) {
+  if (cc->status == CHOLMOD_OUT_OF_MEMORY || cc->status == CHOLMOD_TOO_LARGE)
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory (CHOLMOD status %d)", what, cc->status);
+  return km__fail(err, KM_ERR_INVALID, "%s: CHOLMOD failed with status %d", what, cc->status);
+}
+
+/* A lower-triangle view of A without copying: same arrays, stype -1 (upper entries are
+ * ignored by CHOLMOD). */
+static cholmod_sparse lower_view(const km_sparse *A) {
+  cholmod_sparse v = *km__sparse_cholmod(A);
+  v.stype = -1;
+  return v;
+}
+
+km_status km_cholesky_analyze(const km_sparse *A, km_cholesky **out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_cholesky_analyze: out is NULL");
+  *out = NULL;
+  if (!A) return km__fail(err, KM_ERR_INVALID, "km_cholesky_analyze: matrix is NULL");
+  size_t n = km_sparse_rows(A);
+  if (n != km_sparse_cols(A))
+    return km__fail(err, KM_ERR_INVALID, "km_cholesky_analyze: matrix is %zu x %zu, not square", n,
+                    km_sparse_cols(A));
+  km_cholesky *c = calloc(1, sizeof *c);
+  if (!c) return km__fail(err, KM_ERR_NOMEM, "km_cholesky_analyze: out of memory");
+  km__cholmod_start(&c->cc);
+  /* Simplicial LDL' (CHOLMOD's default form) succeeds on indefinite matrices with non-zero
+   * pivots; LL' fails at the first non-positive pivot, which is the SPD check we promise. */
+  c->cc.final_ll = 1;
+  c->n = n;
+  c->nnz = km_sparse_nnz(A);
+  const int32_t *p, *i;
+  km_sparse_csc(A, &p, &i, NULL);
+  c->Ap = km__malloc(n + 1, sizeof *c->Ap);
+  c->Ai = km__malloc(c->nnz, sizeof *c->Ai);
+  if (!c->Ap || !c->Ai) {
+    km_cholesky_free(&c);
+    return km__fail(err, KM_ERR_NOMEM, "km_cholesky_analyze: out of memory");
+  }
+  memcpy(c->Ap, p, (n + 1) * sizeof *p);
+  memcpy(c->Ai, i, c->nnz * sizeof *i);
+  cholmod_sparse v = lower_view(A);
+  c->L = cholmod_analyze(&v, &c->cc);
+  if (!c->L || c->cc.status != CHOLMOD_OK) {
+    km_status s = cholmod_status(err, &c->cc, "km_cholesky_analyze");
+    km_cholesky_free(&c);
+    return s;
+  }
+  *out = c;
+  return KM_OK;
+}
+
+km_status km_cholesky_factorize(km_cholesky *c, const km_sparse *A, km_error *err) {
+  if (!c || !A) return km__fail(err, KM_ERR_INVALID, "km_cholesky_factorize: NULL argument");
+  const int32_t *p, *i;
+  km_sparse_csc(A, &p, &i, NULL);
+  if (km_sparse_rows(A) != c->n || km_sparse_cols(A) != c->n || km_sparse_nnz(A) != c->nnz ||
+      memcmp(p, c->Ap, (c->n + 1) * sizeof *p) != 0 || memcmp(i, c->Ai, c->nnz * sizeof *i) != 0)
+    return km__fail(err, KM_ERR_INVALID,
+                    "km_cholesky_factorize: the matrix does not have the sparsity pattern given "
+                    "to km_cholesky_analyze (%zu x %zu, %zu entries)",
+                    c->n, c->n, c->nnz);
+  c->factorized = false;
+  cholmod_sparse v = lower_view(A);
+  int ok = cholmod_factorize(&v, c->L, &c->cc);
+  if (c->cc.status == CHOLMOD_NOT_POSDEF)
+    return km__fail(err, KM_ERR_NOT_POSDEF,
+                    "km_cholesky_factorize: the %zu x %zu matrix is not positive definite: "
+                    "factorisation broke down at column %zu",
+                    c->n, c->n, (size_t)c->L->minor);
+  if (!ok || c->cc.status != CHOLMOD_OK)
+    return cholmod_status(err, &c->cc, "km_cholesky_factorize");
+  c->factorized = true;
+  return KM_OK;
+}
+
+km_status km_cholesky_solve(km_cholesky *c, size_t nrhs, const double *B, double *X,
+                            km_error *err) {
+  if (!c) return km__fail(err, KM_ERR_INVALID, "km_cholesky_solve: NULL factor");
+  if (!c->factorized)
+    return km__fail(err, KM_ERR_INVALID, "km_cholesky_solve: no successful factorisation");
+  if (nrhs == 0 || c->n == 0) return KM_OK;
+  if (!B || !X) return km__fail(err, KM_ERR_INVALID, "km_cholesky_solve: NULL B or X");
+  if (nrhs > SIZE_MAX / c->n)
+    return km__fail(err, KM_ERR_INVALID, "km_cholesky_solve: %zu right-hand sides overflow", nrhs);
+  /* Shallow dense header over the caller's B; solve2 writes into c->X, reused across calls
+   * with the same nrhs, and Y/E are its kept workspace, so steady-state solves allocate
+   * nothing. Copying out afterwards makes B == X aliasing safe. */
+  cholmod_dense b;
+  memset(&b, 0, sizeof b);
+  b.nrow = c->n;
+  b.ncol = nrhs;
+  b.nzmax = c->n * nrhs;
+  b.d = c->n;
+  b.x = (void *)B;
+  b.xtype = CHOLMOD_REAL;
+  b.dtype = CHOLMOD_DOUBLE;
+  if (!cholmod_solve2(CHOLMOD_A, c->L, &b, NULL, &c->X, NULL, &c->Y, &c->E, &c->cc) ||
+      c->cc.status != CHOLMOD_OK)
+    return cholmod_status(err, &c->cc, "km_cholesky_solve");
+  memcpy(X, c->X->x, c->n * nrhs * sizeof *X);
+  return KM_OK;
+}
+
+size_t km_cholesky_size(const km_cholesky *c) { return c ? c->n : 0; }
+
+void km_cholesky_free(km_cholesky **c) {
+  if (!c || !*c) return;
+  km_cholesky *f = *c;
+  cholmod_free_factor(&f->L, &f->cc);
+  cholmod_free_dense(&f->X, &f->cc);
+  cholmod_free_dense(&f->Y, &f->cc);
+  cholmod_free_dense(&f->E, &f->cc);
+  cholmod_finish(&f->cc);
+  free(f->Ap);
+  free(f->Ai);
+  free(f);
+  *c = NULL;
+}
