@@ -1,0 +1,228 @@
+/* Mesh allocation, format dispatch for reading/writing, and the number helpers shared by
+ * the text parsers. */
+#include "mesh_io.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <locale.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+km_status km_mesh_alloc(size_t n_vertices, size_t n_faces, km_mesh *out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_mesh_alloc: out is NULL");
+  memset(out, 0, sizeof *out);
+  if (n_vertices > INT32_MAX)
+    return km__fail(err, KM_ERR_INVALID, "km_mesh_alloc: %zu vertices exceed the int32 index range",
+                    n_vertices);
+  /* Allocate at least one element so that an empty mesh still has valid pointers. */
+  out->V = km__malloc(n_vertices ? n_vertices * 3 : 1, sizeof(double));
+  out->F = km__malloc(n_faces ? n_faces : 1, 3 * sizeof(int32_t));
+  if (!out->V || !out->F) {
+    km_mesh_free(out);
+    return km__fail(err, KM_ERR_NOMEM, "km_mesh_alloc: out of memory for %zu vertices, %zu faces",
+                    n_vertices, n_faces);
+  }
+  out->n_vertices = n_vertices;
+  out->n_faces = n_faces;
+  return KM_OK;
+}
+
+km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err) {
+  if (!src || !out) return km__fail(err, KM_ERR_INVALID, "km_mesh_copy: NULL argument");
+  km_mesh tmp;
+  km_status s = km_mesh_alloc(src->n_vertices, src->n_faces, &tmp, err);
+  if (s) return s;
+  if (src->n_vertices) memcpy(tmp.V, src->V, src->n_vertices * 3 * sizeof(double));
+  if (src->n_faces) memcpy(tmp.F, src->F, src->n_faces * 3 * sizeof(int32_t));
+  *out = tmp;
+  return KM_OK;
+}
+
+void km_mesh_free(km_mesh *m) {
+  if (!m) return;
+  free(m->V);
+  free(m->F);
+  memset(m, 0, sizeof *m);
+}
+
+static km_status format_from_name(const char *name, km_mesh_format *fmt, km_error *err) {
+  char ext[16];
+  km__extension(name ? name : "", ext, sizeof ext);
+  if (!strcmp(ext, "obj"))
+    *fmt = KM_FORMAT_OBJ;
+  else if (!strcmp(ext, "ply"))
+    *fmt = KM_FORMAT_PLY;
+  else if (!strcmp(ext, "off"))
+    *fmt = KM_FORMAT_OFF;
+  else
+    return km__fail(err, KM_ERR_UNSUPPORTED,
+                    "%s: unknown mesh extension '%s' (expected .obj, .ply or .off)",
+                    name ? name : "(unnamed)", ext);
+  return KM_OK;
+}
+
+km_status km_mesh_parse(const void *data, size_t size, km_mesh_format format, const char *name,
+                        km_mesh *out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_mesh_parse: out is NULL");
+  memset(out, 0, sizeof *out);
+  if (!data && size) return km__fail(err, KM_ERR_INVALID, "km_mesh_parse: data is NULL");
+  if (!name) name = "(memory)";
+  if (format == KM_FORMAT_AUTO) {
+    km_status s = format_from_name(name, &format, err);
+    if (s) return s;
+  }
+  const char *d = data ? data : "";
+  switch (format) {
+  case KM_FORMAT_OBJ: return km__obj_parse(d, size, name, out, err);
+  case KM_FORMAT_PLY: return km__ply_parse(d, size, name, out, err);
+  case KM_FORMAT_OFF: return km__off_parse(d, size, name, out, err);
+  default: return km__fail(err, KM_ERR_INVALID, "%s: unknown mesh format %d", name, (int)format);
+  }
+}
+
+km_status km_mesh_read(const char *path, km_mesh *out, km_error *err) {
+  if (!path || !out) return km__fail(err, KM_ERR_INVALID, "km_mesh_read: NULL argument");
+  memset(out, 0, sizeof *out);
+  km_mesh_format fmt;
+  km_status s = format_from_name(path, &fmt, err);
+  if (s) return s;
+  char *data = NULL;
+  size_t size = 0;
+  s = km__read_file(path, &data, &size, err);
+  if (s) return s;
+  double t0 = km__now();
+  s = km_mesh_parse(data, size, fmt, path, out, err);
+  free(data);
+  if (!s)
+    km__log(KM_LOG_DEBUG, "%s: %zu vertices, %zu faces in %.3f s", path, out->n_vertices,
+            out->n_faces, km__now() - t0);
+  return s;
+}
+
+static km_status check_mesh(const char *path, const km_mesh *m, km_error *err) {
+  if (!m) return km__fail(err, KM_ERR_INVALID, "%s: mesh is NULL", path);
+  if ((m->n_vertices && !m->V) || (m->n_faces && !m->F))
+    return km__fail(err, KM_ERR_INVALID, "%s: mesh has counts but NULL arrays", path);
+  if (m->n_vertices > INT32_MAX)
+    return km__fail(err, KM_ERR_INVALID, "%s: %zu vertices exceed the int32 index range", path,
+                    m->n_vertices);
+  for (size_t i = 0; i < m->n_faces * 3; ++i)
+    if (m->F[i] < 0 || (size_t)m->F[i] >= m->n_vertices)
+      return km__fail(err, KM_ERR_INVALID, "%s: face %zu has vertex index %d outside [0, %zu)",
+                      path, i / 3, (int)m->F[i], m->n_vertices);
+  return KM_OK;
+}
+
+km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_options *opt,
+                        km_error *err) {
+  if (!path) return km__fail(err, KM_ERR_INVALID, "km_mesh_write: path is NULL");
+  km_status s = check_mesh(path, m, err);
+  if (s) return s;
+  km_mesh_format fmt = opt ? opt->format : KM_FORMAT_AUTO;
+  km_ply_encoding enc = opt ? opt->ply : KM_PLY_BINARY_LE;
+  if (fmt == KM_FORMAT_AUTO) {
+    s = format_from_name(path, &fmt, err);
+    if (s) return s;
+  }
+  if (fmt != KM_FORMAT_OBJ && fmt != KM_FORMAT_PLY && fmt != KM_FORMAT_OFF)
+    return km__fail(err, KM_ERR_INVALID, "%s: unknown mesh format %d", path, (int)fmt);
+  if (enc != KM_PLY_BINARY_LE && enc != KM_PLY_BINARY_BE && enc != KM_PLY_ASCII)
+    return km__fail(err, KM_ERR_INVALID, "%s: unknown PLY encoding %d", path, (int)enc);
+  km__atomic_file af;
+  s = km__atomic_open(&af, path, err);
+  if (s) return s;
+  /* Writers only fail through the FILE error state, which commit reports. */
+  if (fmt == KM_FORMAT_OBJ)
+    km__obj_write(af.f, m);
+  else if (fmt == KM_FORMAT_PLY)
+    km__ply_write(af.f, m, enc);
+  else
+    km__off_write(af.f, m);
+  return km__atomic_commit(&af, err);
+}
+
+/* ---------------------------------------------------------------- number helpers */
+
+/* Text formats are locale-independent: a process that called setlocale(LC_ALL, "de_DE")
+ * must still read "0.5" as one half. */
+static locale_t g_c_locale;
+static pthread_once_t g_c_locale_once = PTHREAD_ONCE_INIT;
+static void make_c_locale(void) { g_c_locale = newlocale(LC_ALL_MASK, "C", (locale_t)0); }
+
+bool km__parse_double(const char *s, size_t len, double *out) {
+  /* strtod needs a terminated string and the input buffer is not; tokens are short. */
+  char buf[512];
+  if (len == 0 || len >= sizeof buf) return false;
+  memcpy(buf, s, len);
+  buf[len] = '\0';
+  pthread_once(&g_c_locale_once, make_c_locale);
+  char *end;
+  double x = g_c_locale ? strtod_l(buf, &end, g_c_locale) : strtod(buf, &end);
+  if (end != buf + len || !isfinite(x)) return false;
+  *out = x;
+  return true;
+}
+
+bool km__parse_int64(const char *s, size_t len, int64_t *out) {
+  size_t i = 0;
+  bool neg = false;
+  if (i < len && (s[i] == '+' || s[i] == '-')) neg = s[i++] == '-';
+  if (i == len) return false;
+  uint64_t v = 0;
+  for (; i < len; ++i) {
+    unsigned d = (unsigned)(unsigned char)s[i] - '0';
+    if (d > 9) return false;
+    if (v > (UINT64_C(1) << 62)) return false; /* far beyond any index; avoids overflow */
+    v = v * 10 + d;
+  }
+  if (v > (uint64_t)INT64_MAX) return false;
+  *out = neg ? -(int64_t)v : (int64_t)v;
+  return true;
+}
+
+int km__format_double(char *buf, size_t n, double x) {
+  pthread_once(&g_c_locale_once, make_c_locale);
+  locale_t old = g_c_locale ? uselocale(g_c_locale) : (locale_t)0;
+  int len = snprintf(buf, n, "%.17g", x);
+  if (g_c_locale) uselocale(old);
+  return len;
+}
+
+void km__quote_token(const char *s, size_t len, char *out, size_t out_size) {
+  size_t o = 0;
+  if (out_size < 8) {
+    if (out_size) out[0] = '\0';
+    return;
+  }
+  out[o++] = '\'';
+  for (size_t i = 0; i < len && o + 6 < out_size; ++i) {
+    if (i == 40) {
+      out[o++] = '.', out[o++] = '.', out[o++] = '.';
+      break;
+    }
+    unsigned char c = (unsigned char)s[i];
+    if (isprint(c))
+      out[o++] = (char)c;
+    else
+      o += (size_t)snprintf(out + o, out_size - o, "\\x%02x", c);
+  }
+  out[o++] = '\'';
+  out[o] = '\0';
+}
+
+bool km__tris_reserve(km__tris *t, size_t n_tris) {
+  if (n_tris <= t->cap) return true;
+  size_t cap = t->cap ? t->cap : 64;
+  while (cap < n_tris) {
+    if (cap > SIZE_MAX / 2) return false;
+    cap *= 2;
+  }
+  if (cap > SIZE_MAX / (3 * sizeof(int32_t))) return false;
+  int32_t *nf = realloc(t->F, cap * 3 * sizeof(int32_t));
+  if (!nf) return false;
+  t->F = nf;
+  t->cap = cap;
+  return true;
+}

@@ -1,0 +1,46 @@
+/* Private helpers shared by the mesh readers and writers (src/mesh/). */
+#ifndef KM_MESH_IO_H
+#define KM_MESH_IO_H
+
+#include "internal.h"
+
+#include <stdint.h>
+
+/* Each parser reads `size` bytes at `data` (not necessarily NUL-terminated) and on success
+ * fills `out` (which the caller has zeroed). `name` is used in error messages. */
+km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh *out,
+                        km_error *err);
+km_status km__ply_parse(const char *data, size_t size, const char *name, km_mesh *out,
+                        km_error *err);
+km_status km__off_parse(const char *data, size_t size, const char *name, km_mesh *out,
+                        km_error *err);
+
+km_status km__obj_write(FILE *f, const km_mesh *m);
+km_status km__ply_write(FILE *f, const km_mesh *m, km_ply_encoding enc);
+km_status km__off_write(FILE *f, const km_mesh *m);
+
+/* Parses a whole token as a finite double, locale-independently (strtod in the "C" locale,
+ * correctly rounded). False for anything else (garbage, trailing characters, NaN, inf,
+ * overflow). */
+bool km__parse_double(const char *s, size_t len, double *out);
+/* Parses a whole token as a decimal integer with an optional sign. False on garbage or
+ * overflow of int64. */
+bool km__parse_int64(const char *s, size_t len, int64_t *out);
+/* Writes %.17g of x into buf (always with '.' as decimal point), returns its length. */
+int km__format_double(char *buf, size_t n, double x);
+
+/* Shows at most ~40 bytes of a token in an error message, escaping non-printables. */
+void km__quote_token(const char *s, size_t len, char *out, size_t out_size);
+
+/* Growable triangle array used by the readers (amortised doubling, no per-face malloc). */
+typedef struct km__tris {
+  int32_t *F;
+  size_t n, cap; /* in triangles */
+} km__tris;
+bool km__tris_reserve(km__tris *t, size_t n_tris);
+
+static inline bool km__is_space(char c) {
+  return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
+}
+
+#endif

@@ -1,0 +1,292 @@
+/* Mesh statistics (km_mesh_info_compute), bounding box and vertex adjacency.
+ *
+ * Edges are found by sorting packed (min,max) vertex pairs. A radix sort is used instead of
+ * qsort: the keys are plain 64-bit integers and 8 byte-passes beat a comparison sort's
+ * indirect calls by ~5x at a million faces. No dependency in the project offers one. */
+#include "internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* LSD radix sort of n 64-bit keys using tmp (n entries) as scratch. Passes whose byte is the
+ * same for every key are skipped, so small meshes only pay for the bytes they use. */
+static void radix_sort_u64(uint64_t *a, uint64_t *tmp, size_t n) {
+  uint64_t *src = a, *dst = tmp;
+  for (int shift = 0; shift < 64; shift += 8) {
+    size_t count[256] = {0};
+    for (size_t i = 0; i < n; ++i)
+      ++count[(src[i] >> shift) & 0xff];
+    if (n && count[(src[0] >> shift) & 0xff] == n) continue;
+    size_t sum = 0;
+    for (int b = 0; b < 256; ++b) {
+      size_t c = count[b];
+      count[b] = sum;
+      sum += c;
+    }
+    for (size_t i = 0; i < n; ++i)
+      dst[count[(src[i] >> shift) & 0xff]++] = src[i];
+    uint64_t *t = src;
+    src = dst;
+    dst = t;
+  }
+  if (src != a) memcpy(a, src, n * sizeof *a);
+}
+
+static km_status check_faces(const km_mesh *m, const char *fn, km_error *err) {
+  if (!m) return km__fail(err, KM_ERR_INVALID, "%s: mesh is NULL", fn);
+  if ((m->n_vertices && !m->V) || (m->n_faces && !m->F))
+    return km__fail(err, KM_ERR_INVALID, "%s: mesh has counts but NULL arrays", fn);
+  if (m->n_vertices > INT32_MAX)
+    return km__fail(err, KM_ERR_INVALID, "%s: %zu vertices exceed the int32 index range", fn,
+                    m->n_vertices);
+  for (size_t i = 0; i < m->n_faces * 3; ++i)
+    if (m->F[i] < 0 || (size_t)m->F[i] >= m->n_vertices)
+      return km__fail(err, KM_ERR_INVALID, "%s: face %zu has vertex index %d outside [0, %zu)", fn,
+                      i / 3, (int)m->F[i], m->n_vertices);
+  return KM_OK;
+}
+
+/* Appends the distinct undirected edges of face f as packed (min<<32 | max) keys: a face
+ * with a repeated index uses each of its remaining edges once, and never a self-edge. */
+static size_t face_edges(const int32_t *t, uint64_t *keys) {
+  size_t n = 0;
+  for (int k = 0; k < 3; ++k) {
+    uint32_t a = (uint32_t)t[k], b = (uint32_t)t[(k + 1) % 3];
+    if (a == b) continue;
+    if (a > b) {
+      uint32_t x = a;
+      a = b;
+      b = x;
+    }
+    uint64_t key = (uint64_t)a << 32 | b;
+    bool dup = false;
+    for (size_t j = 0; j < n; ++j)
+      dup |= keys[j] == key;
+    if (!dup) keys[n++] = key;
+  }
+  return n;
+}
+
+static int32_t uf_find(int32_t *parent, int32_t x) {
+  while (parent[x] != x) {
+    parent[x] = parent[parent[x]];
+    x = parent[x];
+  }
+  return x;
+}
+
+static void uf_union(int32_t *parent, int32_t a, int32_t b) {
+  a = uf_find(parent, a);
+  b = uf_find(parent, b);
+  if (a != b) parent[a < b ? b : a] = a < b ? a : b;
+}
+
+double km_bbox_diagonal(const double *V, size_t n_vertices) {
+  if (!V || !n_vertices) return 0.0;
+  double lo[3] = {V[0], V[1], V[2]}, hi[3] = {V[0], V[1], V[2]};
+  for (size_t i = 1; i < n_vertices; ++i)
+    for (int k = 0; k < 3; ++k) {
+      double x = V[3 * i + (size_t)k];
+      if (x < lo[k]) lo[k] = x;
+      if (x > hi[k]) hi[k] = x;
+    }
+  double dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
+  return sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_mesh_info_compute: out is NULL");
+  km_status s = check_faces(m, "km_mesh_info_compute", err);
+  if (s) return s;
+  memset(out, 0, sizeof *out);
+  size_t nv = m->n_vertices, nf = m->n_faces;
+  out->vertices = nv;
+  out->faces = nf;
+  if (nv) {
+    for (int k = 0; k < 3; ++k)
+      out->bbox_min[k] = out->bbox_max[k] = m->V[k];
+    for (size_t i = 1; i < nv; ++i)
+      for (int k = 0; k < 3; ++k) {
+        double x = m->V[3 * i + (size_t)k];
+        if (x < out->bbox_min[k]) out->bbox_min[k] = x;
+        if (x > out->bbox_max[k]) out->bbox_max[k] = x;
+      }
+  }
+
+  uint64_t *keys = km__malloc(nf ? nf * 3 : 1, sizeof *keys);
+  uint64_t *tmp = km__malloc(nf ? nf * 3 : 1, sizeof *tmp);
+  int32_t *parent = km__malloc(nv ? nv : 1, sizeof *parent);
+  int32_t *vf_off = km__calloc(nv + 1, sizeof *vf_off);
+  int32_t *vf = km__malloc(nf ? nf * 3 : 1, sizeof *vf);
+  int32_t *local = km__malloc(nv ? nv : 1, sizeof *local);
+  int32_t *lparent = km__malloc(nf ? nf * 3 : 1, sizeof *lparent);
+  int32_t *touched = km__malloc(nf ? nf * 3 : 1, sizeof *touched);
+  if (!keys || !tmp || !parent || !vf_off || !vf || !local || !lparent || !touched ||
+      nf * 3 > INT32_MAX) {
+    s = km__fail(err, nf * 3 > INT32_MAX ? KM_ERR_UNSUPPORTED : KM_ERR_NOMEM,
+                 "km_mesh_info_compute: cannot allocate for %zu vertices, %zu faces", nv, nf);
+    goto done;
+  }
+
+  /* Edges: sorted keys, each run is one edge used by (run length) faces. */
+  size_t nk = 0;
+  for (size_t f = 0; f < nf; ++f)
+    nk += face_edges(m->F + 3 * f, keys + nk);
+  radix_sort_u64(keys, tmp, nk);
+  for (size_t i = 0; i < nk;) {
+    size_t j = i + 1;
+    while (j < nk && keys[j] == keys[i])
+      ++j;
+    out->edges++;
+    if (j - i == 1)
+      out->boundary_edges++;
+    else if (j - i >= 3)
+      out->nonmanifold_edges++;
+    i = j;
+  }
+
+  /* Components (union-find through shared vertices), isolated vertices. */
+  for (size_t v = 0; v < nv; ++v)
+    parent[v] = (int32_t)v;
+  for (size_t f = 0; f < nf; ++f) {
+    const int32_t *t = m->F + 3 * f;
+    uf_union(parent, t[0], t[1]);
+    uf_union(parent, t[0], t[2]);
+    vf_off[t[0] + 1]++, vf_off[t[1] + 1]++, vf_off[t[2] + 1]++;
+  }
+  size_t used = 0;
+  for (size_t v = 0; v < nv; ++v) {
+    if (vf_off[v + 1] == 0)
+      out->isolated_vertices++;
+    else {
+      ++used;
+      if (uf_find(parent, (int32_t)v) == (int32_t)v) out->components++;
+    }
+  }
+  out->euler_characteristic = (int64_t)used - (int64_t)out->edges + (int64_t)nf;
+
+  /* Degenerate faces. */
+  double diag = km_bbox_diagonal(m->V, nv);
+  double min_area = 1e-14 * diag * diag;
+  for (size_t f = 0; f < nf; ++f) {
+    const int32_t *t = m->F + 3 * f;
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
+      out->degenerate_faces++;
+      continue;
+    }
+    const double *a = m->V + 3 * (size_t)t[0], *b = m->V + 3 * (size_t)t[1],
+                 *c = m->V + 3 * (size_t)t[2];
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double cx = u[1] * w[2] - u[2] * w[1], cy = u[2] * w[0] - u[0] * w[2],
+           cz = u[0] * w[1] - u[1] * w[0];
+    double area = 0.5 * sqrt(cx * cx + cy * cy + cz * cz);
+    if (!(area >= min_area) || area == 0.0) out->degenerate_faces++;
+  }
+
+  /* Non-manifold vertices: the faces around v are fans joined where they share an edge
+   * (v,w); equivalently, components of v's link graph whose edges are the opposite sides
+   * (u,w) of the incident faces. Faces with a repeated index form no wedge and are left out. */
+  for (size_t v = 0; v < nv; ++v)
+    vf_off[v + 1] += vf_off[v];
+  for (size_t f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) {
+      int32_t v = m->F[3 * f + (size_t)k];
+      vf[vf_off[v]++] = (int32_t)f;
+    }
+  for (size_t v = nv; v > 0; --v)
+    vf_off[v] = vf_off[v - 1];
+  vf_off[0] = 0;
+  for (size_t v = 0; v < nv; ++v)
+    local[v] = -1;
+  for (size_t v = 0; v < nv; ++v) {
+    int32_t n_local = 0;
+    for (int32_t i = vf_off[v]; i < vf_off[v + 1]; ++i) {
+      const int32_t *t = m->F + 3 * (size_t)vf[i];
+      if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
+      int32_t opp[2], no = 0;
+      for (int k = 0; k < 3; ++k)
+        if (t[k] != (int32_t)v) opp[no++] = t[k];
+      for (int k = 0; k < 2; ++k)
+        if (local[opp[k]] < 0) {
+          local[opp[k]] = n_local;
+          lparent[n_local] = n_local;
+          touched[n_local++] = opp[k];
+        }
+      uf_union(lparent, local[opp[0]], local[opp[1]]);
+    }
+    int32_t fans = 0;
+    for (int32_t i = 0; i < n_local; ++i) {
+      if (uf_find(lparent, i) == i) ++fans;
+      local[touched[i]] = -1;
+    }
+    if (fans > 1) out->nonmanifold_vertices++;
+  }
+
+done:
+  free(keys);
+  free(tmp);
+  free(parent);
+  free(vf_off);
+  free(vf);
+  free(local);
+  free(lparent);
+  free(touched);
+  return s;
+}
+
+km_status km_adjacency_list(const km_mesh *m, int32_t **offsets, int32_t **adj, km_error *err) {
+  if (!offsets || !adj) return km__fail(err, KM_ERR_INVALID, "km_adjacency_list: NULL output");
+  *offsets = NULL;
+  *adj = NULL;
+  km_status s = check_faces(m, "km_adjacency_list", err);
+  if (s) return s;
+  size_t nv = m->n_vertices, nf = m->n_faces;
+  if (nf > INT32_MAX / 6)
+    return km__fail(err, KM_ERR_UNSUPPORTED,
+                    "km_adjacency_list: %zu faces exceed the int32 "
+                    "offset range",
+                    nf);
+  /* Both directions of every edge as (from<<32 | to): sorting groups rows and orders each
+   * row's neighbours at once; duplicates (shared edges) become adjacent and are dropped. */
+  uint64_t *keys = km__malloc(nf ? nf * 6 : 1, sizeof *keys);
+  uint64_t *tmp = km__malloc(nf ? nf * 6 : 1, sizeof *tmp);
+  int32_t *off = km__calloc(nv + 1, sizeof *off);
+  if (!keys || !tmp || !off) {
+    free(keys);
+    free(tmp);
+    free(off);
+    return km__fail(err, KM_ERR_NOMEM, "km_adjacency_list: out of memory for %zu faces", nf);
+  }
+  size_t nk = 0;
+  uint64_t e[3];
+  for (size_t f = 0; f < nf; ++f) {
+    size_t ne = face_edges(m->F + 3 * f, e);
+    for (size_t j = 0; j < ne; ++j) {
+      keys[nk++] = e[j];
+      keys[nk++] = (e[j] << 32) | (e[j] >> 32);
+    }
+  }
+  radix_sort_u64(keys, tmp, nk);
+  size_t nu = 0;
+  for (size_t i = 0; i < nk; ++i)
+    if (i == 0 || keys[i] != keys[i - 1]) keys[nu++] = keys[i];
+  free(tmp);
+  int32_t *a = km__malloc(nu ? nu : 1, sizeof *a);
+  if (!a) {
+    free(keys);
+    free(off);
+    return km__fail(err, KM_ERR_NOMEM, "km_adjacency_list: out of memory");
+  }
+  for (size_t i = 0; i < nu; ++i) {
+    off[(keys[i] >> 32) + 1]++;
+    a[i] = (int32_t)(keys[i] & 0xffffffffu);
+  }
+  for (size_t v = 0; v < nv; ++v)
+    off[v + 1] += off[v];
+  free(keys);
+  *offsets = off;
+  *adj = a;
+  return KM_OK;
+}

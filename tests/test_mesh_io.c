@@ -1,0 +1,513 @@
+/* Mesh readers and writers: every format and encoding, exact vertex order, bit-exact round
+ * trips, precise error messages, robustness on truncated and corrupted input, real data. */
+#include "internal.h"
+#include "km_test.h"
+
+#include <float.h>
+#include <stdint.h>
+
+static char *load(const char *rel, size_t *n) {
+  char path[1024];
+  snprintf(path, sizeof path, "%s/%s", KM_TEST_DATA, rel);
+  char *d = NULL;
+  CHECK_OK(km__read_file(path, &d, n, KM_E));
+  return d;
+}
+
+static bool faces_valid(const km_mesh *m) {
+  for (size_t i = 0; i < m->n_faces * 3; ++i)
+    if (m->F[i] < 0 || (size_t)m->F[i] >= m->n_vertices) return false;
+  return m->V != NULL && m->F != NULL;
+}
+
+static bool face_is(const km_mesh *m, size_t f, int a, int b, int c) {
+  return f < m->n_faces && m->F[3 * f] == a && m->F[3 * f + 1] == b && m->F[3 * f + 2] == c;
+}
+
+static bool vertex_is(const km_mesh *m, size_t v, double x, double y, double z) {
+  return v < m->n_vertices && m->V[3 * v] == x && m->V[3 * v + 1] == y && m->V[3 * v + 2] == z;
+}
+
+static void test_obj_forms(void) {
+  char path[1024];
+  snprintf(path, sizeof path, "%s/mixed.obj", KM_TEST_DATA);
+  km_mesh m;
+  CHECK_OK(km_mesh_read(path, &m, KM_E));
+  CHECK(m.n_vertices == 7);
+  CHECK(m.n_faces == 6);
+  /* Colours after v are ignored; CRLF is fine. */
+  CHECK(vertex_is(&m, 0, 0, 0, 0));
+  CHECK(vertex_is(&m, 1, 1, 0, 0));
+  CHECK(vertex_is(&m, 3, 0, 1, 0));
+  CHECK(vertex_is(&m, 6, 1, 1, 1.5));
+  /* Quad fan (0,i,i+1) with i/t/n and i//n forms. */
+  CHECK(face_is(&m, 0, 0, 1, 2));
+  CHECK(face_is(&m, 1, 0, 2, 3));
+  /* Negative indices relative to the 7 vertices read so far. */
+  CHECK(face_is(&m, 2, 4, 5, 6));
+  /* Pentagon. */
+  CHECK(face_is(&m, 3, 4, 5, 6));
+  CHECK(face_is(&m, 4, 4, 6, 2));
+  CHECK(face_is(&m, 5, 4, 2, 1));
+  km_mesh_free(&m);
+  CHECK(m.V == NULL && m.F == NULL && m.n_vertices == 0);
+}
+
+static void test_ply_ascii(void) {
+  size_t n;
+  char *d = load("ascii.ply", &n);
+  km_mesh m;
+  CHECK_OK(km_mesh_parse(d, n, KM_FORMAT_AUTO, "ascii.ply", &m, KM_E));
+  CHECK(m.n_vertices == 5 && m.n_faces == 4);
+  CHECK(vertex_is(&m, 0, 0, 0, 0));
+  CHECK(vertex_is(&m, 1, 1.5, 0, 0));
+  CHECK(vertex_is(&m, 3, 0, 1, -3));
+  CHECK(vertex_is(&m, 4, 0.25, 0.125, 1));
+  CHECK(face_is(&m, 0, 0, 1, 2));
+  CHECK(face_is(&m, 1, 0, 2, 3));
+  CHECK(face_is(&m, 2, 0, 3, 4));
+  CHECK(face_is(&m, 3, 4, 3, 1));
+  km_mesh_free(&m);
+  free(d);
+}
+
+static void test_ply_binary(void) {
+  size_t n;
+  char *d = load("tet_le.ply", &n);
+  km_mesh m;
+  CHECK_OK(km_mesh_parse(d, n, KM_FORMAT_PLY, "tet_le.ply", &m, KM_E));
+  CHECK(m.n_vertices == 4 && m.n_faces == 4);
+  CHECK(vertex_is(&m, 0, 0, 0, 0));
+  CHECK(vertex_is(&m, 1, 1, 0, 0));
+  CHECK(vertex_is(&m, 3, 0, 0, 1));
+  CHECK(face_is(&m, 0, 0, 2, 1));
+  CHECK(face_is(&m, 3, 1, 2, 3));
+  km_mesh_free(&m);
+  free(d);
+
+  /* Big endian, face element before vertex element, mixed scalar types. */
+  d = load("quad_be.ply", &n);
+  CHECK_OK(km_mesh_parse(d, n, KM_FORMAT_PLY, "quad_be.ply", &m, KM_E));
+  CHECK(m.n_vertices == 5 && m.n_faces == 3);
+  CHECK(vertex_is(&m, 0, 0.1, 0, 0));
+  CHECK(vertex_is(&m, 2, 1, 1, 0));
+  CHECK(m.n_vertices == 5 && signbit(m.V[9]) && m.V[9] == 0.0); /* -0.0 kept */
+  CHECK(vertex_is(&m, 4, 0.5, -2, 70000));
+  CHECK(face_is(&m, 0, 0, 1, 2));
+  CHECK(face_is(&m, 1, 0, 2, 3));
+  CHECK(face_is(&m, 2, 0, 3, 4));
+  km_mesh_free(&m);
+  free(d);
+
+  /* Point cloud: no face element. */
+  const char pc[] = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                    "property float z\nend_header\n1 2 3\n4 5 6\n";
+  CHECK_OK(km_mesh_parse(pc, sizeof pc - 1, KM_FORMAT_PLY, "pc.ply", &m, KM_E));
+  CHECK(m.n_vertices == 2 && m.n_faces == 0 && vertex_is(&m, 1, 4, 5, 6));
+  km_mesh_free(&m);
+}
+
+static void test_off(void) {
+  size_t n;
+  char *d = load("poly.off", &n);
+  km_mesh m;
+  CHECK_OK(km_mesh_parse(d, n, KM_FORMAT_OFF, "poly.off", &m, KM_E));
+  CHECK(m.n_vertices == 6 && m.n_faces == 5);
+  CHECK(vertex_is(&m, 3, 0.5, 1.5, 0));
+  CHECK(vertex_is(&m, 4, -0.5, 1, 0));
+  CHECK(face_is(&m, 0, 0, 1, 2));
+  CHECK(face_is(&m, 1, 0, 2, 3));
+  CHECK(face_is(&m, 2, 0, 3, 4));
+  CHECK(face_is(&m, 3, 0, 1, 5));
+  CHECK(face_is(&m, 4, 1, 2, 5));
+  km_mesh_free(&m);
+  free(d);
+
+  d = load("coff_sameline.off", &n);
+  CHECK_OK(km_mesh_parse(d, n, KM_FORMAT_OFF, "c.off", &m, KM_E));
+  CHECK(m.n_vertices == 4 && m.n_faces == 2);
+  CHECK(vertex_is(&m, 3, 0, 0, 1));
+  CHECK(face_is(&m, 1, 0, 2, 3));
+  km_mesh_free(&m);
+  free(d);
+}
+
+/* Doubles whose text form is easy to get wrong. */
+static const double k_tricky[] = {0.1,
+                                  1e-300,
+                                  -0.0,
+                                  1.0 / 3.0,
+                                  5e-324,
+                                  2.2250738585072009e-308,
+                                  DBL_MAX,
+                                  -DBL_MIN,
+                                  123456789.123456789,
+                                  3.141592653589793,
+                                  1e300,
+                                  -2.5e-310,
+                                  0.0,
+                                  -1.0 / 7.0,
+                                  6.02214076e23};
+
+static bool same_bits(const km_mesh *a, const km_mesh *b) {
+  return a->n_vertices == b->n_vertices && a->n_faces == b->n_faces &&
+         memcmp(a->V, b->V, a->n_vertices * 3 * sizeof(double)) == 0 &&
+         (a->n_faces == 0 || memcmp(a->F, b->F, a->n_faces * 3 * sizeof(int32_t)) == 0);
+}
+
+static void round_trip(size_t n_faces) {
+  size_t nt = sizeof k_tricky / sizeof k_tricky[0];
+  km_mesh orig;
+  CHECK_OK(km_mesh_alloc(nt, n_faces, &orig, KM_E));
+  for (size_t i = 0; i < nt * 3; ++i)
+    orig.V[i] = k_tricky[(i * 7) % nt] * (i % 2 ? -1 : 1);
+  for (size_t f = 0; f < n_faces; ++f)
+    for (int k = 0; k < 3; ++k)
+      orig.F[3 * f + (size_t)k] = (int32_t)((f + (size_t)k * 3) % nt);
+
+  /* OBJ -> PLY (LE, BE, ascii) -> OFF -> OBJ, each read back and compared bit for bit. */
+  const char *paths[] = {"rt_a.obj", "rt_b.ply", "rt_c.ply", "rt_d.ply", "rt_e.off", "rt_f.obj"};
+  const km_ply_encoding enc[] = {0, KM_PLY_BINARY_LE, KM_PLY_BINARY_BE, KM_PLY_ASCII, 0, 0};
+  km_mesh cur;
+  CHECK_OK(km_mesh_copy(&orig, &cur, KM_E));
+  for (int i = 0; i < 6; ++i) {
+    km_mesh_write_options opt = {KM_FORMAT_AUTO, enc[i]};
+    CHECK_OK(km_mesh_write(paths[i], &cur, &opt, KM_E));
+    km_mesh next;
+    CHECK_OK(km_mesh_read(paths[i], &next, KM_E));
+    CHECK_MSG(same_bits(&orig, &next), "round trip through %s with %zu faces", paths[i], n_faces);
+    km_mesh_free(&cur);
+    cur = next;
+    remove(paths[i]);
+  }
+  km_mesh_free(&cur);
+
+  /* The PLY writer's declared layout: doubles and `list uchar int`, BE when asked. */
+  km_mesh_write_options be = {KM_FORMAT_PLY, KM_PLY_BINARY_BE};
+  CHECK_OK(km_mesh_write("rt_be.bin", &orig, &be, KM_E));
+  char *d = NULL;
+  size_t n = 0;
+  CHECK_OK(km__read_file("rt_be.bin", &d, &n, KM_E));
+  if (d) {
+    CHECK(strstr(d, "format binary_big_endian 1.0\n") != NULL);
+    CHECK(strstr(d, "property double x\n") != NULL);
+    CHECK((n_faces != 0) == (strstr(d, "property list uchar int vertex_indices\n") != NULL));
+    const char *body = strstr(d, "end_header\n") + 11;
+    unsigned char first[8];
+    uint64_t bits;
+    memcpy(&bits, &orig.V[0], 8);
+    for (int k = 0; k < 8; ++k)
+      first[k] = (unsigned char)(bits >> (56 - 8 * k));
+    CHECK(memcmp(body, first, 8) == 0);
+    CHECK(n == (size_t)(body - d) + nt * 24 + n_faces * 13);
+  }
+  free(d);
+  remove("rt_be.bin");
+  km_mesh_free(&orig);
+}
+
+static void test_round_trip(void) {
+  round_trip(9);
+  round_trip(0); /* point cloud */
+}
+
+/* The call must fail with `st` and a message naming `name` followed by `where` (":3" or
+ * ": byte 123"), plus `what` somewhere. */
+static void expect_fail(const char *text, size_t len, km_mesh_format fmt, const char *name,
+                        km_status st, const char *where, const char *what) {
+  km_mesh m;
+  char *copy = malloc(len ? len : 1); /* exact-size buffer: ASan sees any overread */
+  memcpy(copy, text, len);
+  CHECK_STATUS(km_mesh_parse(copy, len, fmt, name, &m, KM_E), st);
+  char loc[256];
+  snprintf(loc, sizeof loc, "%s%s", name, where);
+  CHECK_MSG(strstr(km_test_err.message, loc) != NULL, "message '%s' should name '%s'",
+            km_test_err.message, loc);
+  if (what)
+    CHECK_MSG(strstr(km_test_err.message, what) != NULL, "message '%s' should say '%s'",
+              km_test_err.message, what);
+  CHECK(m.V == NULL && m.F == NULL);
+  free(copy);
+}
+#define EXPECT_FAIL(s, fmt, name, st, where, what)                                                 \
+  expect_fail(s, sizeof(s) - 1, fmt, name, st, where, what)
+
+static void test_bad_obj(void) {
+  EXPECT_FAIL("v 0 0 0\nv 1 0 0\nf 1 2 3\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE,
+              ":3:", "out of range");
+  EXPECT_FAIL("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 0 1 2\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE,
+              ":4:", "out of range");
+  EXPECT_FAIL("v 0 0 0\nv 1 0 0\nv 1 1 0\nf -1 -2 -4\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE,
+              ":4:", "out of range");
+  EXPECT_FAIL("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 x 3\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE,
+              ":4:", "'x'");
+  EXPECT_FAIL("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1/2/3/4 2 3\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE,
+              ":4:", "face vertex");
+  EXPECT_FAIL("v 0 0 0\r\nv 1 nan 0\r\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE, ":2:", "'nan'");
+  EXPECT_FAIL("v 0 0 0\nv 1 0 inf\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE, ":2:", "finite");
+  EXPECT_FAIL("v 0 0 0\nv 1 0 1e999\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE, ":2:", "finite");
+  EXPECT_FAIL("v 0 0 0\nv 1 0x 0\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE, ":2:", "coordinate y");
+  EXPECT_FAIL("v 0 0 0\nv 1 0\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE, ":2:", "3 coordinates");
+  EXPECT_FAIL("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE,
+              ":4:", "at least 3");
+  EXPECT_FAIL("# nothing\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE, ":", "'v'");
+  EXPECT_FAIL("v 0 0 0\n\x7f\x45\x4c\x46\x02\x01\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE,
+              ":2:", "keyword");
+}
+
+static void test_bad_ply(void) {
+  const char *hdr = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+                    "property float y\nproperty float z\nelement face 1\n"
+                    "property list uchar int vertex_indices\nend_header\n";
+  size_t hl = strlen(hdr);
+  unsigned char buf[256];
+  memcpy(buf, hdr, hl);
+  float xyz[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  memcpy(buf + hl, xyz, sizeof xyz); /* the test host is little endian (checked below) */
+  unsigned char face[13] = {3, 0, 0, 0, 0, 1, 0, 0, 0, 7, 0, 0, 0};
+  memcpy(buf + hl + 36, face, 13);
+  uint32_t one = 1;
+  unsigned char host_le;
+  memcpy(&host_le, &one, 1);
+  if (host_le) {
+    char where[64];
+    /* Index 7 of 3 vertices: the byte offset of that index. */
+    snprintf(where, sizeof where, ": byte %zu:", hl + 36 + 9);
+    expect_fail((char *)buf, hl + 49, KM_FORMAT_PLY, "b.ply", KM_ERR_PARSE, where, "out of range");
+    /* Truncated in the middle of the face list. */
+    buf[hl + 45] = 2;
+    snprintf(where, sizeof where, ": byte %zu:", hl + 45);
+    expect_fail((char *)buf, hl + 47, KM_FORMAT_PLY, "b.ply", KM_ERR_PARSE, where, "end of file");
+    /* NaN coordinate in a binary body. */
+    float nan = NAN;
+    memcpy(buf + hl + 4, &nan, 4);
+    snprintf(where, sizeof where, ": byte %zu:", hl + 4);
+    expect_fail((char *)buf, hl + 49, KM_FORMAT_PLY, "b.ply", KM_ERR_PARSE, where, "finite");
+  }
+  /* A header claiming 2^31 vertices in a tiny file fails on the header line, without
+   * allocating 48 GB (ASan would abort on such an allocation). */
+  EXPECT_FAIL("ply\nformat binary_little_endian 1.0\nelement vertex 2147483648\nproperty float x\n"
+              "property float y\nproperty float z\nend_header\n0123456789",
+              KM_FORMAT_PLY, "h.ply", KM_ERR_PARSE, ":3:", "cannot fit");
+  EXPECT_FAIL("ply\nformat binary_little_endian 1.0\nelement vertex 2147483647\nproperty float x\n"
+              "property float y\nproperty float z\nend_header\n0123456789",
+              KM_FORMAT_PLY, "h.ply", KM_ERR_PARSE, ":3:", "cannot fit");
+  EXPECT_FAIL("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+              "property float z\nelement face 99999999999\nproperty list uchar int vertex_indices\n"
+              "end_header\n0 0 0\n",
+              KM_FORMAT_PLY, "h.ply", KM_ERR_PARSE, ":7:", "cannot fit");
+  /* Ascii: wrong counts (fewer lines than declared), bad number, index out of range. */
+  EXPECT_FAIL("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+              "property float z\nend_header\n0.0 0.0 0.0\n1.0 0.0 0.0\n",
+              KM_FORMAT_PLY, "c.ply", KM_ERR_PARSE, ":10:", "end of file");
+  EXPECT_FAIL("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+              "property float z\nend_header\n0 0 0\n1 0 0\n",
+              KM_FORMAT_PLY, "c.ply", KM_ERR_PARSE, ":3:", "cannot fit");
+  EXPECT_FAIL("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+              "property float z\nend_header\n0 0 0\n1 zero 0\n",
+              KM_FORMAT_PLY, "c.ply", KM_ERR_PARSE, ":9:", "'zero'");
+  EXPECT_FAIL("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+              "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+              "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n",
+              KM_FORMAT_PLY, "c.ply", KM_ERR_PARSE, ":13:", "out of range");
+  /* Header problems. */
+  EXPECT_FAIL("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+              "end_header\n0 0\n",
+              KM_FORMAT_PLY, "d.ply", KM_ERR_PARSE, ":3:", "x, y and z");
+  EXPECT_FAIL("ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\n", KM_FORMAT_PLY, "d.ply",
+              KM_ERR_PARSE, ":4:", "'quad'");
+  EXPECT_FAIL("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n", KM_FORMAT_PLY, "d.ply",
+              KM_ERR_PARSE, ":5:", "end_header");
+  EXPECT_FAIL("\x89PNG\r\n\x1a\n\0\0\0\rIHDR", KM_FORMAT_PLY, "g.ply", KM_ERR_PARSE,
+              ":1:", "'ply'");
+}
+
+static void test_bad_off(void) {
+  EXPECT_FAIL("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", KM_FORMAT_OFF, "e.off", KM_ERR_PARSE,
+              ":6:", "'3'");
+  EXPECT_FAIL("OFF\n3 1 0\n0.0 0.0 0.0\n1.0 0.0 0.0\n0.0 1.0 0.0\n", KM_FORMAT_OFF, "e.off",
+              KM_ERR_PARSE, ":5:", "end of file");
+  EXPECT_FAIL("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n", KM_FORMAT_OFF, "e.off", KM_ERR_PARSE,
+              ":2:", "cannot fit");
+  EXPECT_FAIL("OFF\n3000000000 1 0\n0 0 0\n", KM_FORMAT_OFF, "e.off", KM_ERR_PARSE,
+              ":2:", "cannot fit");
+  EXPECT_FAIL("OFF\n2 0 0\n0 0 0\n0 nan 0\n", KM_FORMAT_OFF, "e.off", KM_ERR_PARSE, ":4:", "'nan'");
+  EXPECT_FAIL("OFF\n3 1\n0.0 0.0 0.0\n1.0 0.0 0.0\n0.0 1.0 0.0\n2 0 1\n", KM_FORMAT_OFF, "e.off",
+              KM_ERR_PARSE, ":6:", "at least 3");
+  EXPECT_FAIL("\x7f\x45LF\x02\x01\x01\0\0\0", KM_FORMAT_OFF, "e.off", KM_ERR_PARSE, ":1:", "'OFF'");
+  EXPECT_FAIL("v 1 2 3\n", KM_FORMAT_AUTO, "noext", KM_ERR_UNSUPPORTED, "", "extension");
+}
+
+/* Every prefix of every sample file, and deterministic byte corruptions, must give either an
+ * error or a mesh whose indices are all in range: never a crash or an out-of-bounds read. */
+static void test_truncation_and_corruption(void) {
+  const char *files[] = {"mixed.obj",   "ascii.ply", "tet_le.ply",
+                         "quad_be.ply", "poly.off",  "coff_sameline.off"};
+  const km_mesh_format fmts[] = {KM_FORMAT_OBJ, KM_FORMAT_PLY, KM_FORMAT_PLY,
+                                 KM_FORMAT_PLY, KM_FORMAT_OFF, KM_FORMAT_OFF};
+  uint64_t rng = 0x9e3779b97f4a7c15ULL;
+  for (int fi = 0; fi < 6; ++fi) {
+    size_t n;
+    char *d = load(files[fi], &n);
+    if (!d) continue;
+    size_t ok = 0, bad = 0, invalid = 0, unnamed = 0;
+    for (size_t len = 0; len <= n; ++len) {
+      char *p = malloc(len ? len : 1);
+      memcpy(p, d, len);
+      km_mesh m;
+      km_error e = {0};
+      km_status s = km_mesh_parse(p, len, fmts[fi], files[fi], &m, &e);
+      if (s == KM_OK) {
+        ++ok;
+        invalid += !faces_valid(&m);
+        km_mesh_free(&m);
+      } else {
+        ++bad;
+        unnamed += strstr(e.message, files[fi]) == NULL;
+      }
+      free(p);
+    }
+    CHECK_MSG(invalid == 0 && unnamed == 0, "%s: %zu invalid meshes, %zu unnamed errors", files[fi],
+              invalid, unnamed);
+    CHECK_MSG(ok >= 1 && bad >= 1, "%s: %zu ok, %zu errors", files[fi], ok, bad);
+    invalid = 0;
+    for (int trial = 0; trial < 300; ++trial) {
+      char *p = malloc(n);
+      memcpy(p, d, n);
+      for (int k = 0; k < 1 + trial % 4; ++k) {
+        rng = rng * 6364136223846793005ULL + 1442695040888963407ULL;
+        p[(rng >> 33) % n] = (char)(rng >> 17);
+      }
+      km_mesh m;
+      if (km_mesh_parse(p, n, fmts[fi], files[fi], &m, NULL) == KM_OK) {
+        invalid += !faces_valid(&m);
+        km_mesh_free(&m);
+      }
+      free(p);
+    }
+    CHECK_MSG(invalid == 0, "%s: %zu corrupted inputs gave invalid meshes", files[fi], invalid);
+    free(d);
+  }
+}
+
+/* ---------------------------------------------------------------- real data */
+
+static double median5(double *t) {
+  for (int i = 0; i < 5; ++i)
+    for (int j = i + 1; j < 5; ++j)
+      if (t[j] < t[i]) {
+        double x = t[i];
+        t[i] = t[j];
+        t[j] = x;
+      }
+  return t[2];
+}
+
+static bool read_shared(const char *rel, km_mesh *m, size_t nv, size_t nf) {
+  char buf[1024];
+  const char *path = km_test_shared(rel, buf, sizeof buf);
+  if (!path) return false;
+  double t[5];
+  for (int i = 0; i < 5; ++i) {
+    double t0 = km__now();
+    CHECK_OK(km_mesh_read(path, m, KM_E));
+    t[i] = km__now() - t0;
+    if (i < 4) km_mesh_free(m);
+  }
+  printf("%s: %zu vertices, %zu faces, read median %.1f ms\n", rel, m->n_vertices, m->n_faces,
+         1e3 * median5(t));
+  CHECK_MSG(m->n_vertices == nv && m->n_faces == nf, "%s: %zu/%zu, expected %zu/%zu", rel,
+            m->n_vertices, m->n_faces, nv, nf);
+  CHECK(faces_valid(m));
+  return true;
+}
+
+/* Parses the first and last `v` lines of an OBJ independently of the reader. */
+static void obj_first_last(const char *data, double first[3], double last[3]) {
+  const char *p = data, *line_v = NULL, *first_v = NULL;
+  while (*p) {
+    if (p[0] == 'v' && p[1] == ' ') {
+      if (!first_v) first_v = p;
+      line_v = p;
+    }
+    const char *nl = strchr(p, '\n');
+    if (!nl) break;
+    p = nl + 1;
+  }
+  CHECK(first_v && sscanf(first_v, "v %lf %lf %lf", &first[0], &first[1], &first[2]) == 3);
+  CHECK(line_v && sscanf(line_v, "v %lf %lf %lf", &last[0], &last[1], &last[2]) == 3);
+}
+
+static int test_shared(void) {
+  km_mesh m;
+  int found = 0;
+  if (read_shared("meshes/armadillo.obj", &m, 43243, 86482)) {
+    ++found;
+    char buf[1024], *d = NULL;
+    size_t n;
+    km_test_shared("meshes/armadillo.obj", buf, sizeof buf);
+    CHECK_OK(km__read_file(buf, &d, &n, KM_E));
+    double first[3] = {0}, last[3] = {0};
+    if (d) obj_first_last(d, first, last);
+    CHECK(vertex_is(&m, 0, first[0], first[1], first[2]));
+    CHECK(vertex_is(&m, m.n_vertices - 1, last[0], last[1], last[2]));
+    free(d);
+    km_mesh_free(&m);
+  }
+  if (read_shared("meshes/horse.ply", &m, 48485, 96966)) {
+    ++found;
+    /* First and last vertex straight from the file bytes (float x y z nx ny nz, LE). */
+    char buf[1024], *d = NULL;
+    size_t n;
+    km_test_shared("meshes/horse.ply", buf, sizeof buf);
+    CHECK_OK(km__read_file(buf, &d, &n, KM_E));
+    const char *body = d ? strstr(d, "end_header\n") : NULL;
+    CHECK(body != NULL);
+    if (body) {
+      body += 11;
+      for (int which = 0; which < 2; ++which) {
+        size_t v = which ? m.n_vertices - 1 : 0;
+        for (int k = 0; k < 3; ++k) {
+          const unsigned char *b = (const unsigned char *)body + v * 24 + (size_t)k * 4;
+          uint32_t u =
+              (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
+          float f;
+          memcpy(&f, &u, 4);
+          CHECK(m.V[3 * v + (size_t)k] == (double)f);
+        }
+      }
+    }
+    free(d);
+    km_mesh_free(&m);
+  }
+  if (read_shared("meshes/dino.off", &m, 14070, 28136)) {
+    ++found;
+    CHECK(vertex_is(&m, 0, -0.102994, -0.0814559, 0.379478));
+    km_mesh_free(&m);
+  }
+  if (read_shared("poses/tr_reg_025.ply", &m, 6890, 13776)) {
+    ++found;
+    km_mesh_free(&m);
+  }
+  if (read_shared("pointclouds/dfaust_50002_light_hopping_loose/00000080.ply", &m, 100000, 0)) {
+    ++found;
+    km_mesh_free(&m);
+  }
+  return found;
+}
+
+int main(void) {
+  test_obj_forms();
+  test_ply_ascii();
+  test_ply_binary();
+  test_off();
+  test_round_trip();
+  test_bad_obj();
+  test_bad_ply();
+  test_bad_off();
+  test_truncation_and_corruption();
+  int found = test_shared();
+  int rc = km_test_finish("test_mesh_io");
+  if (rc == 0 && found == 0) return KM_TEST_SKIP;
+  return rc;
+}

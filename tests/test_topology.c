@@ -1,0 +1,277 @@
+/* km_mesh_info_compute, km_bbox_diagonal and km_adjacency_list on hand-made meshes whose
+ * counts are known by construction, and against brute-force recounts on random meshes. */
+#include "internal.h"
+#include "km_test.h"
+
+static km_mesh make(size_t nv, const double *V, size_t nf, const int32_t *F) {
+  km_mesh m;
+  CHECK_OK(km_mesh_alloc(nv, nf, &m, KM_E));
+  if (nv) memcpy(m.V, V, nv * 3 * sizeof(double));
+  if (nf) memcpy(m.F, F, nf * 3 * sizeof(int32_t));
+  return m;
+}
+
+static km_mesh_info info_of(const km_mesh *m) {
+  km_mesh_info info;
+  memset(&info, 0xff, sizeof info);
+  CHECK_OK(km_mesh_info_compute(m, &info, KM_E));
+  return info;
+}
+
+static void test_tetrahedron(void) {
+  const double V[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  const int32_t F[] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+  km_mesh m = make(4, V, 4, F);
+  km_mesh_info i = info_of(&m);
+  CHECK(i.vertices == 4 && i.faces == 4);
+  CHECK(i.edges == 6);
+  CHECK(i.boundary_edges == 0 && i.nonmanifold_edges == 0 && i.nonmanifold_vertices == 0);
+  CHECK(i.components == 1 && i.isolated_vertices == 0 && i.degenerate_faces == 0);
+  CHECK(i.euler_characteristic == 2);
+  CHECK(i.bbox_min[0] == 0 && i.bbox_min[1] == 0 && i.bbox_min[2] == 0);
+  CHECK(i.bbox_max[0] == 1 && i.bbox_max[1] == 1 && i.bbox_max[2] == 1);
+  CHECK_NEAR(km_bbox_diagonal(m.V, m.n_vertices), sqrt(3.0), 1e-15);
+
+  int32_t *off = NULL, *adj = NULL;
+  CHECK_OK(km_adjacency_list(&m, &off, &adj, KM_E));
+  if (off && adj) {
+    CHECK(off[0] == 0 && off[4] == 12);
+    for (int v = 0; v < 4; ++v) {
+      CHECK(off[v + 1] - off[v] == 3);
+      int k = off[v];
+      for (int w = 0; w < 4; ++w)
+        if (w != v) CHECK(adj[k++] == w); /* every other vertex, ascending */
+    }
+  }
+  free(off);
+  free(adj);
+  km_mesh_free(&m);
+}
+
+static void test_open_square_and_extras(void) {
+  /* Two triangles forming a unit square, plus an isolated vertex and a degenerate
+   * (collinear) face on a separate strip. */
+  const double V[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 5, 5, 5, 2, 0, 0, 3, 0, 0, 4, 0, 0};
+  const int32_t F[] = {0, 1, 2, 0, 2, 3};
+  km_mesh m = make(4, V, 2, F);
+  km_mesh_info i = info_of(&m);
+  CHECK(i.edges == 5 && i.boundary_edges == 4 && i.nonmanifold_edges == 0);
+  CHECK(i.components == 1 && i.euler_characteristic == 1 && i.degenerate_faces == 0);
+  km_mesh_free(&m);
+
+  m = make(5, V, 2, F); /* vertex 4 unused */
+  i = info_of(&m);
+  CHECK(i.isolated_vertices == 1 && i.components == 1);
+  CHECK(i.euler_characteristic == 1); /* isolated vertex not counted */
+  CHECK(i.bbox_max[2] == 5);          /* but it is part of the extent */
+  km_mesh_free(&m);
+
+  const int32_t F2[] = {0, 1, 2, 0, 2, 3, 5, 6, 7, 1, 1, 2};
+  m = make(8, V, 4, F2);
+  i = info_of(&m);
+  CHECK(i.degenerate_faces == 2); /* collinear (zero area) and repeated index */
+  CHECK(i.components == 2);       /* the square (with face 1,1,2) and the collinear strip */
+  CHECK(i.isolated_vertices == 1);
+  km_mesh_free(&m);
+}
+
+static void test_nonmanifold(void) {
+  /* Bowtie: two triangles sharing only vertex 0. */
+  const double V[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, -1, 0, 0, -1, -1, 0, 0, 0, 1};
+  const int32_t bow[] = {0, 1, 2, 0, 3, 4};
+  km_mesh m = make(5, V, 2, bow);
+  km_mesh_info i = info_of(&m);
+  CHECK(i.nonmanifold_vertices == 1);
+  CHECK(i.nonmanifold_edges == 0 && i.boundary_edges == 6 && i.components == 1);
+  km_mesh_free(&m);
+
+  /* Three triangles on edge (0,1): one non-manifold edge; the fans around 0 and 1 stay
+   * edge-connected, so no non-manifold vertex. */
+  const int32_t fin[] = {0, 1, 2, 1, 0, 3, 0, 1, 5};
+  m = make(6, V, 3, fin);
+  i = info_of(&m);
+  CHECK(i.nonmanifold_edges == 1);
+  CHECK(i.edges == 7 && i.boundary_edges == 6);
+  CHECK(i.nonmanifold_vertices == 0);
+  CHECK(i.isolated_vertices == 1 && i.components == 1);
+  km_mesh_free(&m);
+
+  /* A vertex on a boundary with two separate fans also counts. */
+  const int32_t two[] = {0, 1, 2, 0, 2, 5, 0, 3, 4};
+  m = make(6, V, 3, two);
+  i = info_of(&m);
+  CHECK(i.nonmanifold_vertices == 1);
+  km_mesh_free(&m);
+}
+
+static void test_grid(void) {
+  /* n x n quads split in two: known counts for any n. */
+  const int n = 7;
+  km_mesh m;
+  CHECK_OK(km_mesh_alloc((size_t)((n + 1) * (n + 1)), (size_t)(2 * n * n), &m, KM_E));
+  for (int y = 0; y <= n; ++y)
+    for (int x = 0; x <= n; ++x) {
+      double *p = m.V + 3 * (y * (n + 1) + x);
+      p[0] = x, p[1] = y, p[2] = 0;
+    }
+  int32_t *f = m.F;
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      int32_t a = y * (n + 1) + x, b = a + 1, c = a + n + 2, d = a + n + 1;
+      f[0] = a, f[1] = b, f[2] = c, f[3] = a, f[4] = c, f[5] = d;
+      f += 6;
+    }
+  km_mesh_info i = info_of(&m);
+  CHECK(i.edges == (size_t)(2 * n * (n + 1) + n * n));
+  CHECK(i.boundary_edges == (size_t)(4 * n));
+  CHECK(i.euler_characteristic == 1 && i.components == 1 && i.nonmanifold_vertices == 0);
+
+  int32_t *off = NULL, *adj = NULL;
+  CHECK_OK(km_adjacency_list(&m, &off, &adj, KM_E));
+  if (off && adj) {
+    CHECK((size_t)off[m.n_vertices] == 2 * i.edges);
+    CHECK(off[0 + 1] - off[0] == 3); /* corner (0,0): right, up, diagonal */
+    int inner = 2 * (n + 1) + 3;
+    CHECK(off[inner + 1] - off[inner] == 6);
+  }
+  free(off);
+  free(adj);
+  km_mesh_free(&m);
+}
+
+/* Brute-force recount (O(F^2)) of edges and non-manifold vertices on random small meshes. */
+static void test_random_against_brute_force(void) {
+  uint64_t rng = 12345;
+#define RNG() (rng = rng * 6364136223846793005ULL + 1442695040888963407ULL, (uint32_t)(rng >> 33))
+  for (int trial = 0; trial < 200; ++trial) {
+    size_t nv = 4 + RNG() % 10, nf = 1 + RNG() % 14;
+    km_mesh m;
+    CHECK_OK(km_mesh_alloc(nv, nf, &m, KM_E));
+    for (size_t k = 0; k < nv * 3; ++k)
+      m.V[k] = (double)(RNG() % 1000) / 100.0;
+    for (size_t k = 0; k < nf * 3; ++k)
+      m.F[k] = (int32_t)(RNG() % nv);
+    km_mesh_info i = info_of(&m);
+
+    /* Edges: distinct unordered pairs (a != b) over all face sides. */
+    size_t edges = 0, boundary = 0, nonman = 0;
+    for (size_t a = 0; a < nv; ++a)
+      for (size_t b = a + 1; b < nv; ++b) {
+        size_t uses = 0;
+        for (size_t f = 0; f < nf; ++f) {
+          const int32_t *t = m.F + 3 * f;
+          bool ha = t[0] == (int32_t)a || t[1] == (int32_t)a || t[2] == (int32_t)a;
+          bool hb = t[0] == (int32_t)b || t[1] == (int32_t)b || t[2] == (int32_t)b;
+          uses += ha && hb;
+        }
+        if (uses) ++edges;
+        if (uses == 1) ++boundary;
+        if (uses >= 3) ++nonman;
+      }
+    CHECK(i.edges == edges && i.boundary_edges == boundary && i.nonmanifold_edges == nonman);
+
+    /* Non-manifold vertices: flood fill over proper faces around v, joined by shared (v,w). */
+    size_t nmv = 0;
+    for (size_t v = 0; v < nv; ++v) {
+      int comp[64];
+      size_t fans = 0;
+      for (size_t f = 0; f < nf; ++f)
+        comp[f] = -1;
+      for (size_t f = 0; f < nf; ++f) {
+        const int32_t *t = m.F + 3 * f;
+        bool proper = t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
+        bool has = t[0] == (int32_t)v || t[1] == (int32_t)v || t[2] == (int32_t)v;
+        if (!proper || !has || comp[f] >= 0) continue;
+        comp[f] = (int)fans;
+        for (bool grew = true; grew;) {
+          grew = false;
+          for (size_t g = 0; g < nf; ++g) {
+            const int32_t *u = m.F + 3 * g;
+            bool pg = u[0] != u[1] && u[1] != u[2] && u[0] != u[2];
+            bool hg = u[0] == (int32_t)v || u[1] == (int32_t)v || u[2] == (int32_t)v;
+            if (!pg || !hg || comp[g] >= 0) continue;
+            for (size_t h = 0; h < nf && comp[g] < 0; ++h) {
+              if (comp[h] != (int)fans) continue;
+              const int32_t *w = m.F + 3 * h;
+              for (int a = 0; a < 3; ++a)
+                for (int b = 0; b < 3; ++b)
+                  if (w[a] == u[b] && w[a] != (int32_t)v) comp[g] = (int)fans, grew = true;
+            }
+          }
+        }
+        ++fans;
+      }
+      nmv += fans > 1;
+    }
+    CHECK_MSG(i.nonmanifold_vertices == nmv, "trial %d: %zu vs brute force %zu", trial,
+              i.nonmanifold_vertices, nmv);
+
+    int32_t *off = NULL, *adj = NULL;
+    CHECK_OK(km_adjacency_list(&m, &off, &adj, KM_E));
+    if (off && adj) {
+      CHECK((size_t)off[nv] == 2 * edges);
+      bool sorted = true;
+      for (size_t v = 0; v < nv; ++v)
+        for (int32_t k = off[v] + 1; k < off[v + 1]; ++k)
+          sorted &= adj[k - 1] < adj[k];
+      CHECK(sorted);
+    }
+    free(off);
+    free(adj);
+    km_mesh_free(&m);
+  }
+}
+
+static void test_invalid(void) {
+  const double V[] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  const int32_t F[] = {0, 1, 3};
+  km_mesh m = make(3, V, 1, F);
+  km_mesh_info i;
+  CHECK_STATUS(km_mesh_info_compute(&m, &i, KM_E), KM_ERR_INVALID);
+  CHECK(strstr(km_test_err.message, "index 3") != NULL);
+  int32_t *off = NULL, *adj = NULL;
+  CHECK_STATUS(km_adjacency_list(&m, &off, &adj, KM_E), KM_ERR_INVALID);
+  CHECK(off == NULL && adj == NULL);
+  km_mesh_free(&m);
+
+  km_mesh empty = {0};
+  i = info_of(&empty);
+  CHECK(i.vertices == 0 && i.edges == 0 && i.components == 0 && i.euler_characteristic == 0);
+  CHECK(km_bbox_diagonal(NULL, 0) == 0.0);
+}
+
+static void test_shared_armadillo(void) {
+  char buf[1024];
+  const char *path = km_test_shared("meshes/armadillo.obj", buf, sizeof buf);
+  if (!path) return;
+  km_mesh m;
+  CHECK_OK(km_mesh_read(path, &m, KM_E));
+  double t0 = km__now();
+  km_mesh_info i = info_of(&m);
+  double t1 = km__now();
+  int32_t *off = NULL, *adj = NULL;
+  CHECK_OK(km_adjacency_list(&m, &off, &adj, KM_E));
+  printf(
+      "armadillo: info %.1f ms, adjacency %.1f ms; E=%zu boundary=%zu components=%zu euler=%lld\n",
+      1e3 * (t1 - t0), 1e3 * (km__now() - t1), i.edges, i.boundary_edges, i.components,
+      (long long)i.euler_characteristic);
+  if (off) CHECK((size_t)off[m.n_vertices] == 2 * i.edges);
+  /* Every face edge 1..3 uses: 3F = sum over edges of uses >= 2E - boundary. */
+  CHECK(3 * i.faces >= 2 * i.edges - i.boundary_edges);
+  CHECK(i.euler_characteristic ==
+        (int64_t)(i.vertices - i.isolated_vertices) - (int64_t)i.edges + (int64_t)i.faces);
+  free(off);
+  free(adj);
+  km_mesh_free(&m);
+}
+
+int main(void) {
+  test_tetrahedron();
+  test_open_square_and_extras();
+  test_nonmanifold();
+  test_grid();
+  test_random_against_brute_force();
+  test_invalid();
+  test_shared_armadillo();
+  return km_test_finish("test_topology");
+}
