@@ -1,0 +1,847 @@
+/* The procedural humanoid: kinemesh's built-in default input.
+ *
+ * Convention: metres, y up, the character faces +z, T-pose with the arms straight along x,
+ * feet soles at y = 0, centred on x = z = 0. "Left" joints are the character's own left,
+ * which is the +x side (facing +z with y up, the right hand points to -x).
+ *
+ * The surface is the zero set of a smooth union (quadratic smooth-min, which keeps the
+ * 1-Lipschitz bound of the exact round-cone distances) of tapered capsules around the
+ * Kinect v1 skeleton, polygonised by marching tetrahedra (polygonize.c). Each primitive
+ * belongs to one joint (the joint whose bone to its child it surrounds; leaf joints own the
+ * end blobs), which gives the skin weights directly. */
+#include "polygonize.h"
+
+#include <cjson/cJSON.h>
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Local copies of the Kinect v1 tables: the public km_kinect1_* functions live in the
+ * skeleton module; kept static here so this file links on its own (lead: dedupe). */
+static const char *const joint_names[KM_KINECT1_JOINTS] = {
+    "HipCenter",  "Spine",     "ShoulderCenter", "Head",          "ShoulderLeft",
+    "ElbowLeft",  "WristLeft", "HandLeft",       "ShoulderRight", "ElbowRight",
+    "WristRight", "HandRight", "HipLeft",        "KneeLeft",      "AnkleLeft",
+    "FootLeft",   "HipRight",  "KneeRight",      "AnkleRight",    "FootRight"};
+static const int joint_parents[KM_KINECT1_JOINTS] = {-1, 0,  1, 2,  2,  4,  5, 6,  2,  8,
+                                                     9,  10, 0, 12, 13, 14, 0, 16, 17, 18};
+
+enum {
+  J_HIP_C = 0,
+  J_SPINE,
+  J_SHOULDER_C,
+  J_HEAD,
+  J_SHOULDER_L,
+  J_ELBOW_L,
+  J_WRIST_L,
+  J_HAND_L,
+  J_SHOULDER_R,
+  J_ELBOW_R,
+  J_WRIST_R,
+  J_HAND_R,
+  J_HIP_L,
+  J_KNEE_L,
+  J_ANKLE_L,
+  J_FOOT_L,
+  J_HIP_R,
+  J_KNEE_R,
+  J_ANKLE_R,
+  J_FOOT_R
+};
+
+#define MAX_PRIMS 40
+#define CULL_ALL UINT64_MAX
+
+typedef struct prim {
+  double a[3], b[3], r1, r2;
+  /* Precomputed round-cone terms (Quilez' exact distance to a round cone). */
+  double ba[3], l2, rr, a2, il2;
+  int joint;
+} prim;
+
+typedef struct body {
+  prim p[MAX_PRIMS];
+  int np;
+  double k; /* smooth-min blend radius */
+  double joints[KM_KINECT1_JOINTS * 3];
+  double hand_tip[2][3], toe_tip[2][3], head_top[3];
+  double lo[3], hi[3]; /* bounding box of the primitives */
+  double height;
+  /* Cull grid: per cell, the primitives that can change the field there. */
+  double co[3], cs;
+  int cn[3];
+  uint64_t *mask;
+} body;
+
+static void prim_finish(prim *q) {
+  for (int k = 0; k < 3; ++k)
+    q->ba[k] = q->b[k] - q->a[k];
+  q->l2 = q->ba[0] * q->ba[0] + q->ba[1] * q->ba[1] + q->ba[2] * q->ba[2];
+  q->rr = q->r1 - q->r2;
+  /* A cone whose cap swallows the other end is a sphere. */
+  if (q->l2 <= q->rr * q->rr * 1.0001 || q->l2 < 1e-18) {
+    if (q->r2 > q->r1) memcpy(q->a, q->b, sizeof q->a), q->r1 = q->r2;
+    q->l2 = 0;
+    return;
+  }
+  q->a2 = q->l2 - q->rr * q->rr;
+  q->il2 = 1.0 / q->l2;
+}
+
+static double prim_sdf(const prim *q, const double p[3]) {
+  double pa[3] = {p[0] - q->a[0], p[1] - q->a[1], p[2] - q->a[2]};
+  if (q->l2 == 0) return sqrt(pa[0] * pa[0] + pa[1] * pa[1] + pa[2] * pa[2]) - q->r1;
+  double y = pa[0] * q->ba[0] + pa[1] * q->ba[1] + pa[2] * q->ba[2];
+  double z = y - q->l2;
+  double w[3];
+  for (int k = 0; k < 3; ++k)
+    w[k] = pa[k] * q->l2 - q->ba[k] * y;
+  double x2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+  double y2 = y * y * q->l2, z2 = z * z * q->l2;
+  double kk = (q->rr > 0 ? 1 : q->rr < 0 ? -1 : 0) * q->rr * q->rr * x2;
+  double sz = z > 0 ? 1 : z < 0 ? -1 : 0, sy = y > 0 ? 1 : y < 0 ? -1 : 0;
+  if (sz * q->a2 * z2 > kk) return sqrt(x2 + z2) * q->il2 - q->r2;
+  if (sy * q->a2 * y2 < kk) return sqrt(x2 + y2) * q->il2 - q->r1;
+  return (sqrt(x2 * q->a2 * q->il2) + y * q->rr) * q->il2 - q->r1;
+}
+
+static double smin(double a, double b, double k) {
+  double h = k - fabs(a - b);
+  double m = a < b ? a : b;
+  return h > 0 ? m - 0.25 * h * h / k : m;
+}
+
+static uint64_t cull_mask(const body *b, const double p[3]) {
+  if (!b->mask) return CULL_ALL;
+  int c[3];
+  for (int k = 0; k < 3; ++k) {
+    double t = (p[k] - b->co[k]) / b->cs;
+    if (!(t >= 0) || t >= b->cn[k]) return CULL_ALL;
+    c[k] = (int)t;
+  }
+  return b->mask[c[0] + b->cn[0] * (c[1] + b->cn[1] * c[2])];
+}
+
+static double body_field(void *user, const double p[3]) {
+  const body *b = user;
+  uint64_t m = cull_mask(b, p);
+  double r = prim_sdf(&b->p[0], p);
+  for (int i = 1; i < b->np; ++i)
+    if (m >> i & 1) r = smin(r, prim_sdf(&b->p[i], p), b->k);
+  return r;
+}
+
+/* Primitive i can be skipped in a cell when, everywhere in it, it is at least k above an
+ * earlier primitive: the smooth-min fold then returns the running value unchanged, so the
+ * culled field is bit-identical to the full one. */
+static km_status build_cull(body *b, km_error *err) {
+  b->cs = 0.04 * b->height;
+  double margin = 0.15 * b->height;
+  size_t n = 1;
+  for (int k = 0; k < 3; ++k) {
+    b->co[k] = b->lo[k] - margin;
+    b->cn[k] = (int)ceil((b->hi[k] - b->lo[k] + 2 * margin) / b->cs);
+    n *= (size_t)b->cn[k];
+  }
+  b->mask = km__malloc(n, sizeof *b->mask);
+  if (!b->mask) return km__fail(err, KM_ERR_NOMEM, "character: out of memory");
+  double R = 0.5 * sqrt(3.0) * b->cs;
+  for (int z = 0; z < b->cn[2]; ++z)
+    for (int y = 0; y < b->cn[1]; ++y)
+      for (int x = 0; x < b->cn[0]; ++x) {
+        double c[3] = {b->co[0] + (x + 0.5) * b->cs, b->co[1] + (y + 0.5) * b->cs,
+                       b->co[2] + (z + 0.5) * b->cs};
+        uint64_t m = 1;
+        double best_upper = prim_sdf(&b->p[0], c) + R;
+        for (int i = 1; i < b->np; ++i) {
+          double d = prim_sdf(&b->p[i], c);
+          if (d - R < best_upper + b->k) m |= (uint64_t)1 << i;
+          if (d + R < best_upper) best_upper = d + R;
+        }
+        b->mask[x + b->cn[0] * (y + b->cn[1] * z)] = m;
+      }
+  return KM_OK;
+}
+
+/* splitmix64: per-seed proportions. */
+static double rnd_factor(uint64_t *s, double spread) {
+  uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  z ^= z >> 31;
+  double u = (double)(z >> 11) / 9007199254740992.0; /* [0,1) */
+  return 1.0 + spread * (2 * u - 1);
+}
+
+static void set3(double *d, double x, double y, double z) {
+  d[0] = x;
+  d[1] = y;
+  d[2] = z;
+}
+
+static void add_prim(body *b, const double a[3], double r1, const double c[3], double r2,
+                     int joint) {
+  prim *q = &b->p[b->np++];
+  memcpy(q->a, a, sizeof q->a);
+  memcpy(q->b, c, sizeof q->b);
+  q->r1 = r1;
+  q->r2 = r2;
+  q->joint = joint;
+}
+
+/* Builds the primitives. Proportions are designed for a 1.75 m subject, then scaled so that
+ * head top to sole is opt height. min_r: radius floor (coarse grids must not cut wrists). */
+static void build_body(body *b, const km_character_options *o, double min_r) {
+  memset(b, 0, sizeof *b);
+  uint64_t s = o->seed;
+  double fl = 1, fa = 1, fs = 1, fh = 1, ft = 1, fr = 1;
+  if (o->seed) {
+    fl = rnd_factor(&s, 0.05);
+    fa = rnd_factor(&s, 0.05);
+    fs = rnd_factor(&s, 0.06);
+    fh = rnd_factor(&s, 0.04);
+    ft = rnd_factor(&s, 0.05);
+    fr = rnd_factor(&s, 0.08);
+  }
+  double g = o->girth * fr, bel = o->belly;
+  double *J = b->joints;
+  /* Left side (+x); the right side is mirrored below. */
+  double ankle_y = 0.085, knee_y = ankle_y + 0.41 * fl, hip_y = knee_y + 0.42 * fl;
+  set3(J + 3 * J_HIP_C, 0, hip_y + 0.03, 0);
+  set3(J + 3 * J_SPINE, 0, J[3 * J_HIP_C + 1] + 0.23 * ft, 0);
+  set3(J + 3 * J_SHOULDER_C, 0, J[3 * J_SPINE + 1] + 0.26 * ft, 0);
+  double sc_y = J[3 * J_SHOULDER_C + 1];
+  set3(J + 3 * J_HEAD, 0, sc_y + 0.19 * fh, 0);
+  double sh_x = 0.19 * fs, arm_y = sc_y - 0.02;
+  set3(J + 3 * J_SHOULDER_L, sh_x, arm_y, 0);
+  set3(J + 3 * J_ELBOW_L, sh_x + 0.28 * fa, arm_y, 0);
+  set3(J + 3 * J_WRIST_L, sh_x + 0.53 * fa, arm_y, 0);
+  set3(J + 3 * J_HAND_L, sh_x + 0.61 * fa, arm_y, 0);
+  set3(J + 3 * J_HIP_L, 0.09, hip_y, 0);
+  set3(J + 3 * J_KNEE_L, 0.11, knee_y, 0);
+  set3(J + 3 * J_ANKLE_L, 0.13, ankle_y, -0.01);
+  set3(J + 3 * J_FOOT_L, 0.13, 0.04, 0.10);
+  for (int j = J_SHOULDER_L; j <= J_HAND_L; ++j) {
+    memcpy(J + 3 * (j + 4), J + 3 * j, 3 * sizeof *J);
+    J[3 * (j + 4)] = -J[3 * j];
+  }
+  for (int j = J_HIP_L; j <= J_FOOT_L; ++j) {
+    memcpy(J + 3 * (j + 4), J + 3 * j, 3 * sizeof *J);
+    J[3 * (j + 4)] = -J[3 * j];
+  }
+  double hc_y = J[3 * J_HIP_C + 1], sp_y = J[3 * J_SPINE + 1], head_y = J[3 * J_HEAD + 1];
+  double a[3], c[3];
+  /* Torso: three side-by-side tapered capsules per segment give a wider-than-deep section. */
+  for (int side = -1; side <= 1; ++side) {
+    double rc = side ? 1.0 : 1.08;
+    set3(a, side * 0.065, hc_y + 0.02, 0.0);
+    set3(c, side * 0.07, sp_y, 0.005);
+    add_prim(b, a, 0.105 * rc * g, c, 0.1 * rc * g, J_HIP_C);
+  }
+  for (int side = -1; side <= 1; ++side) {
+    double rc = side ? 1.0 : 1.08;
+    set3(a, side * 0.07, sp_y, 0.005);
+    set3(c, side * 0.085 * fs, sc_y - 0.07, 0.0);
+    add_prim(b, a, 0.1 * rc * g, c, 0.1 * rc * g, J_SPINE);
+  }
+  set3(a, -0.085, hc_y - 0.03, 0);
+  set3(c, 0.085, hc_y - 0.03, 0);
+  add_prim(b, a, 0.105 * g, c, 0.105 * g, J_HIP_C);
+  if (bel > 0) {
+    set3(a, 0, hc_y + 0.12, 0.02 + 0.06 * bel);
+    add_prim(b, a, (0.10 + 0.06 * bel) * g, a, (0.10 + 0.06 * bel) * g, J_HIP_C);
+  }
+  set3(a, 0, sc_y - 0.04, 0);
+  set3(c, 0, head_y - 0.06 * fh, 0.005);
+  add_prim(b, a, 0.06 * g, c, 0.05 * g, J_SHOULDER_C);
+  set3(a, 0, head_y - 0.035 * fh, 0.02 * fh);
+  set3(c, 0, head_y + 0.01 * fh, 0);
+  add_prim(b, a, 0.08 * fh, c, 0.10 * fh, J_HEAD);
+  set3(b->head_top, 0, head_y + 0.11 * fh, 0);
+  for (int side = 0; side < 2; ++side) {
+    int o4 = side * 4;
+    double sx = side ? -1 : 1;
+    const double *sh = J + 3 * (J_SHOULDER_L + o4), *el = J + 3 * (J_ELBOW_L + o4),
+                 *wr = J + 3 * (J_WRIST_L + o4), *ha = J + 3 * (J_HAND_L + o4);
+    set3(a, sx * 0.05, sc_y - 0.02, 0);
+    add_prim(b, a, 0.065 * g, sh, 0.055 * g, J_SHOULDER_C);
+    add_prim(b, sh, 0.052 * g, el, 0.04 * g, J_SHOULDER_L + o4);
+    add_prim(b, el, 0.04 * g, wr, 0.03 * g, J_ELBOW_L + o4);
+    add_prim(b, wr, 0.032 * g, ha, 0.038 * g, J_WRIST_L + o4);
+    set3(b->hand_tip[side], ha[0] + sx * 0.075 * fa, ha[1], ha[2]);
+    add_prim(b, ha, 0.038 * g, b->hand_tip[side], 0.025 * g, J_HAND_L + o4);
+    const double *hi = J + 3 * (J_HIP_L + o4), *kn = J + 3 * (J_KNEE_L + o4),
+                 *an = J + 3 * (J_ANKLE_L + o4), *fo = J + 3 * (J_FOOT_L + o4);
+    add_prim(b, hi, 0.085 * g, kn, 0.055 * g, J_HIP_L + o4);
+    add_prim(b, kn, 0.05 * g, an, 0.035 * g, J_KNEE_L + o4);
+    set3(a, an[0], 0.045, -0.045);
+    add_prim(b, a, 0.045, fo, 0.04, J_ANKLE_L + o4);
+    set3(b->toe_tip[side], fo[0], 0.035, fo[2] + 0.075);
+    add_prim(b, fo, 0.04, b->toe_tip[side], 0.033, J_FOOT_L + o4);
+  }
+  /* Scale to the requested height (head top to sole), then sit the soles on y = 0. */
+  double top = -DBL_MAX, bot = DBL_MAX;
+  for (int i = 0; i < b->np; ++i) {
+    const prim *q = &b->p[i];
+    top = fmax(top, fmax(q->a[1] + q->r1, q->b[1] + q->r2));
+    bot = fmin(bot, fmin(q->a[1] - q->r1, q->b[1] - q->r2));
+  }
+  double sc = o->height / (top - bot);
+  b->height = o->height;
+  b->k = 0.03 * sc;
+  for (int i = 0; i < b->np; ++i) {
+    prim *q = &b->p[i];
+    q->a[1] -= bot;
+    q->b[1] -= bot;
+    for (int k = 0; k < 3; ++k) {
+      q->a[k] *= sc;
+      q->b[k] *= sc;
+    }
+    q->r1 = fmax(q->r1 * sc, min_r);
+    q->r2 = fmax(q->r2 * sc, min_r);
+    prim_finish(q);
+  }
+  double *pts[KM_KINECT1_JOINTS + 5];
+  int npts = 0;
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+    pts[npts++] = J + 3 * j;
+  pts[npts++] = b->hand_tip[0];
+  pts[npts++] = b->hand_tip[1];
+  pts[npts++] = b->toe_tip[0];
+  pts[npts++] = b->toe_tip[1];
+  pts[npts++] = b->head_top;
+  for (int i = 0; i < npts; ++i) {
+    pts[i][1] -= bot;
+    for (int k = 0; k < 3; ++k)
+      pts[i][k] *= sc;
+  }
+  for (int k = 0; k < 3; ++k) {
+    b->lo[k] = DBL_MAX;
+    b->hi[k] = -DBL_MAX;
+  }
+  for (int i = 0; i < b->np; ++i) {
+    const prim *q = &b->p[i];
+    double r = fmax(q->r1, q->r2);
+    for (int k = 0; k < 3; ++k) {
+      b->lo[k] = fmin(b->lo[k], fmin(q->a[k], q->b[k]) - r);
+      b->hi[k] = fmax(b->hi[k], fmax(q->a[k], q->b[k]) + r);
+    }
+  }
+}
+
+/* ---------------------------------------------------------------- skin and landmarks */
+
+/* Weight of joint j from how far the vertex is from j's primitives compared with the nearest
+ * primitive: within `band` of the nearest surface, falling off quadratically. */
+static void compute_skin(const body *b, const km_mesh *m, km_skin *skin) {
+  double band = 0.035 * b->height;
+  size_t n = m->n_vertices;
+#pragma omp parallel for schedule(static)
+  for (size_t v = 0; v < n; ++v) {
+    double d[KM_KINECT1_JOINTS];
+    for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+      d[j] = DBL_MAX;
+    double dmin = DBL_MAX;
+    for (int i = 0; i < b->np; ++i) {
+      double x = prim_sdf(&b->p[i], m->V + 3 * v);
+      int j = b->p[i].joint;
+      if (x < d[j]) d[j] = x;
+      if (x < dmin) dmin = x;
+    }
+    int32_t jj[KM_SKIN_INFLUENCES];
+    double ww[KM_SKIN_INFLUENCES];
+    int cnt = 0;
+    for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
+      double t = (d[j] - dmin) / band;
+      if (t >= 1) continue;
+      double w = (1 - t) * (1 - t);
+      /* Keep the 4 largest (insertion into a sorted list; ties keep the lower joint). */
+      int pos = cnt < KM_SKIN_INFLUENCES ? cnt : KM_SKIN_INFLUENCES;
+      while (pos > 0 && ww[pos - 1] < w)
+        --pos;
+      if (pos >= KM_SKIN_INFLUENCES) continue;
+      int last = cnt < KM_SKIN_INFLUENCES ? cnt : KM_SKIN_INFLUENCES - 1;
+      for (int q = last; q > pos; --q) {
+        ww[q] = ww[q - 1];
+        jj[q] = jj[q - 1];
+      }
+      ww[pos] = w;
+      jj[pos] = j;
+      if (cnt < KM_SKIN_INFLUENCES) ++cnt;
+    }
+    double sum = 0;
+    for (int q = 0; q < cnt; ++q)
+      sum += ww[q];
+    for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
+      skin->joints[4 * v + q] = q < cnt ? jj[q] : -1;
+      skin->weights[4 * v + q] = q < cnt ? ww[q] / sum : 0.0;
+    }
+  }
+}
+
+static int32_t nearest_vertex(const km_mesh *m, const double p[3]) {
+  double best = DBL_MAX;
+  int32_t bi = 0;
+  for (size_t v = 0; v < m->n_vertices; ++v) {
+    const double *q = m->V + 3 * v;
+    double d = (q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) +
+               (q[2] - p[2]) * (q[2] - p[2]);
+    if (d < best) {
+      best = d;
+      bi = (int32_t)v;
+    }
+  }
+  return bi;
+}
+
+typedef struct landmark_def {
+  const char *name, *mirror;
+} landmark_def;
+static const landmark_def landmark_defs[KM_CHARACTER_LANDMARKS] = {
+    {"head", "head"},
+    {"neck", "neck"},
+    {"shoulder_left", "shoulder_right"},
+    {"shoulder_right", "shoulder_left"},
+    {"elbow_left", "elbow_right"},
+    {"elbow_right", "elbow_left"},
+    {"hand_left", "hand_right"},
+    {"hand_right", "hand_left"},
+    {"chest", "chest"},
+    {"pelvis", "pelvis"},
+    {"hip_left", "hip_right"},
+    {"hip_right", "hip_left"},
+    {"knee_left", "knee_right"},
+    {"knee_right", "knee_left"},
+    {"foot_left", "foot_right"},
+    {"foot_right", "foot_left"}};
+
+/* Landmarks are the surface vertices nearest to points on the primitives' surfaces, so they
+ * are defined for any shape and resolution. */
+static void compute_landmarks(const body *b, const km_mesh *m, km_landmark *lm) {
+  const double *J = b->joints;
+  double s = b->height / 1.75, t[KM_CHARACTER_LANDMARKS][3];
+  const double *hd = J + 3 * J_HEAD, *sc = J + 3 * J_SHOULDER_C, *sp = J + 3 * J_SPINE,
+               *hc = J + 3 * J_HIP_C;
+  set3(t[0], 0, hd[1], hd[2] + 0.1 * s);
+  set3(t[1], 0, 0.5 * (sc[1] + hd[1]) - 0.03 * s, 0.055 * s);
+  set3(t[8], 0, sp[1] + 0.6 * (sc[1] - sp[1]), 0.115 * s);
+  set3(t[9], 0, hc[1] - 0.03 * s, 0.105 * s);
+  for (int side = 0; side < 2; ++side) {
+    int o4 = 4 * side;
+    double sx = side ? -1 : 1;
+    const double *sh = J + 3 * (J_SHOULDER_L + o4), *el = J + 3 * (J_ELBOW_L + o4),
+                 *hi = J + 3 * (J_HIP_L + o4), *kn = J + 3 * (J_KNEE_L + o4);
+    set3(t[2 + side], sh[0], sh[1] + 0.055 * s, sh[2]);
+    set3(t[4 + side], el[0], el[1] + 0.04 * s, el[2]);
+    const double *ht = b->hand_tip[side], *tt = b->toe_tip[side];
+    set3(t[6 + side], ht[0] + sx * 0.025 * s, ht[1], ht[2]);
+    set3(t[10 + side], hi[0] + sx * 0.1 * s, hi[1], hi[2]);
+    set3(t[12 + side], kn[0], kn[1], kn[2] + 0.055 * s);
+    set3(t[14 + side], tt[0], tt[1], tt[2] + 0.033 * s);
+  }
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    memset(&lm[i], 0, sizeof lm[i]);
+    snprintf(lm[i].name, sizeof lm[i].name, "%s", landmark_defs[i].name);
+    snprintf(lm[i].mirror, sizeof lm[i].mirror, "%s", landmark_defs[i].mirror);
+    lm[i].vertex = nearest_vertex(m, t[i]);
+  }
+}
+
+/* ---------------------------------------------------------------- public API */
+
+static void free_strings(char **s, size_t n) {
+  if (!s) return;
+  for (size_t i = 0; i < n; ++i)
+    free(s[i]);
+  free(s);
+}
+
+/* Local frees: km_mesh_free / km_skeleton_free / km_skin_free belong to other modules. */
+static void free_skeleton(km_skeleton *s) {
+  free_strings(s->names, s->n_joints);
+  free(s->parents);
+  free(s->rest);
+  memset(s, 0, sizeof *s);
+}
+
+static void free_skin(km_skin *s) {
+  free(s->joints);
+  free(s->weights);
+  memset(s, 0, sizeof *s);
+}
+
+void km_character_free(km_character *c) {
+  if (!c) return;
+  free(c->mesh.V);
+  free(c->mesh.F);
+  memset(&c->mesh, 0, sizeof c->mesh);
+  free_skeleton(&c->skeleton);
+  free_skin(&c->skin);
+  memset(c->landmarks, 0, sizeof c->landmarks);
+}
+
+static km_status alloc_skeleton(km_skeleton *s, km_error *err) {
+  memset(s, 0, sizeof *s);
+  s->n_joints = KM_KINECT1_JOINTS;
+  s->names = km__calloc(KM_KINECT1_JOINTS, sizeof *s->names);
+  s->parents = km__malloc(KM_KINECT1_JOINTS, sizeof *s->parents);
+  s->rest = km__malloc(KM_KINECT1_JOINTS * 3, sizeof *s->rest);
+  bool ok = s->names && s->parents && s->rest;
+  for (int j = 0; ok && j < KM_KINECT1_JOINTS; ++j) {
+    s->names[j] = strdup(joint_names[j]);
+    ok = s->names[j] != NULL;
+    s->parents[j] = joint_parents[j];
+  }
+  if (!ok) {
+    free_skeleton(s);
+    return km__fail(err, KM_ERR_NOMEM, "character: out of memory");
+  }
+  return KM_OK;
+}
+
+static km_status alloc_skin(km_skin *s, size_t n, km_error *err) {
+  s->n_vertices = n;
+  s->joints = km__malloc(n * KM_SKIN_INFLUENCES, sizeof *s->joints);
+  s->weights = km__malloc(n * KM_SKIN_INFLUENCES, sizeof *s->weights);
+  if (!s->joints || !s->weights) {
+    free_skin(s);
+    return km__fail(err, KM_ERR_NOMEM, "character: out of memory (%zu vertices)", n);
+  }
+  return KM_OK;
+}
+
+/* Vertex count of the polygonisation at cell size h (radius floor tied to h). */
+static km_status count_at(const km_character_options *o, double h, size_t *n, km_error *err) {
+  body *b = malloc(sizeof *b);
+  if (!b) return km__fail(err, KM_ERR_NOMEM, "character: out of memory");
+  build_body(b, o, 0.6 * h);
+  km_status st = build_cull(b, err);
+  if (st == KM_OK) st = km__polygonize_count(body_field, b, b->lo, b->hi, h, n, err);
+  free(b->mask);
+  free(b);
+  return st;
+}
+
+km_status km_character_generate(const km_character_options *opt, km_character *out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_character_generate: out is NULL");
+  memset(out, 0, sizeof *out);
+  km_character_options o = {0};
+  if (opt) o = *opt;
+  if (!o.target_vertices) o.target_vertices = 20000;
+  if (o.height == 0) o.height = 1.75;
+  if (o.girth == 0) o.girth = 1.0;
+  if (o.target_vertices < 2000 || o.target_vertices > 1000000)
+    return km__fail(err, KM_ERR_INVALID, "character: target_vertices %zu is outside 2000..1000000",
+                    o.target_vertices);
+  if (!(o.height >= 0.1 && o.height <= 10))
+    return km__fail(err, KM_ERR_INVALID, "character: height %g m is outside 0.1..10", o.height);
+  if (!(o.girth >= 0.5 && o.girth <= 2.0))
+    return km__fail(err, KM_ERR_INVALID, "character: girth %g is outside 0.5..2", o.girth);
+  if (!(o.belly >= 0 && o.belly <= 2.0))
+    return km__fail(err, KM_ERR_INVALID, "character: belly %g is outside 0..2", o.belly);
+
+  /* Vertex count ~ area / h^2: measure at a cheap resolution, rescale, correct. */
+  double T = (double)o.target_vertices;
+  double s = o.height / 1.75;
+  size_t probe = o.target_vertices < 20000 ? o.target_vertices : 20000;
+  double h = s * sqrt(3.6 / (double)probe);
+  size_t n = 0;
+  km_status st = KM_OK;
+  for (int it = 0; it < 6; ++it) {
+    double want = it == 0 ? (double)probe : T;
+    if ((st = count_at(&o, h, &n, err)) != KM_OK) return st;
+    if (n == 0) return km__fail(err, KM_ERR_DEGENERATE_MESH, "character: empty surface");
+    double ratio = (double)n / want;
+    h *= sqrt(ratio);
+    if (!km__progress(&o.progress, 0.05 * (it + 1), "character: resolution"))
+      return km__fail(err, KM_ERR_CANCELLED, "character: cancelled");
+    if (it > 0 && fabs(ratio - 1) < 0.02) break;
+  }
+
+  body *b = malloc(sizeof *b);
+  if (!b) return km__fail(err, KM_ERR_NOMEM, "character: out of memory");
+  memset(b, 0, sizeof *b);
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    free(b->mask);
+    build_body(b, &o, 0.6 * h);
+    if ((st = build_cull(b, err)) != KM_OK) break;
+    if (!km__progress(&o.progress, 0.35, "character: polygonise")) {
+      st = km__fail(err, KM_ERR_CANCELLED, "character: cancelled");
+      break;
+    }
+    free(out->mesh.V);
+    free(out->mesh.F);
+    st = km__polygonize(body_field, b, b->lo, b->hi, h, &out->mesh, err);
+    if (st != KM_OK) break;
+    double ratio = (double)out->mesh.n_vertices / T;
+    if (fabs(ratio - 1) < 0.08) break;
+    h *= sqrt(ratio);
+  }
+  if (st == KM_OK && !km__progress(&o.progress, 0.6, "character: relax"))
+    st = km__fail(err, KM_ERR_CANCELLED, "character: cancelled");
+  if (st == KM_OK) km__surface_relax(&out->mesh, body_field, b, 6, 1e-6 * o.height);
+  if (st == KM_OK) st = alloc_skeleton(&out->skeleton, err);
+  if (st == KM_OK) {
+    memcpy(out->skeleton.rest, b->joints, sizeof b->joints);
+    st = alloc_skin(&out->skin, out->mesh.n_vertices, err);
+  }
+  if (st == KM_OK && !km__progress(&o.progress, 0.85, "character: skin"))
+    st = km__fail(err, KM_ERR_CANCELLED, "character: cancelled");
+  if (st == KM_OK) {
+    compute_skin(b, &out->mesh, &out->skin);
+    compute_landmarks(b, &out->mesh, out->landmarks);
+    km__log(KM_LOG_INFO, "character: %zu vertices, %zu faces (target %zu, cell %.4g m)",
+            out->mesh.n_vertices, out->mesh.n_faces, o.target_vertices, h);
+    km__progress(&o.progress, 1.0, "character: done");
+  }
+  free(b->mask);
+  free(b);
+  if (st != KM_OK) km_character_free(out);
+  return st;
+}
+
+/* ---------------------------------------------------------------- rig sidecar */
+
+static int find_landmark(const km_character *c, const char *name) {
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i)
+    if (!strcmp(c->landmarks[i].name, name)) return i;
+  return -1;
+}
+
+/* Streams the JSON with fprintf: a cJSON tree of 8M numbers for a 1M-vertex skin would cost
+ * gigabytes. Weights are written with 7 significant digits. */
+km_status km_character_write_rig(const char *path, const km_character *c, km_error *err) {
+  if (!path || !c) return km__fail(err, KM_ERR_INVALID, "write rig: NULL argument");
+  const km_mesh *m = &c->mesh;
+  const km_skeleton *sk = &c->skeleton;
+  size_t n = m->n_vertices;
+  if (!n || !m->V || sk->n_joints == 0 || !sk->names || !sk->parents || !sk->rest)
+    return km__fail(err, KM_ERR_INVALID, "%s: character has no mesh or skeleton", path);
+  if (c->skin.n_vertices != n || !c->skin.joints || !c->skin.weights)
+    return km__fail(err, KM_ERR_INVALID, "%s: skin has %zu vertices, mesh has %zu", path,
+                    c->skin.n_vertices, n);
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i)
+    if (c->landmarks[i].vertex < 0 || (size_t)c->landmarks[i].vertex >= n)
+      return km__fail(err, KM_ERR_INVALID, "%s: landmark %s has vertex %d outside 0..%zu", path,
+                      c->landmarks[i].name, (int)c->landmarks[i].vertex, n - 1);
+  /* Handles: top of the head (highest vertex), finger tips and toe tips (landmarks). */
+  size_t top = 0;
+  double ymin = DBL_MAX, ymax = -DBL_MAX;
+  for (size_t v = 0; v < n; ++v) {
+    double y = m->V[3 * v + 1];
+    if (y > ymax) ymax = y, top = v;
+    if (y < ymin) ymin = y;
+  }
+  double radius = 0.07 * (ymax - ymin);
+  static const char *const handle_names[5] = {"head", "hand_left", "hand_right", "foot_left",
+                                              "foot_right"};
+  static const char *const handle_joints[5] = {"Head", "HandLeft", "HandRight", "FootLeft",
+                                               "FootRight"};
+  long handle_vertex[5];
+  handle_vertex[0] = (long)top;
+  for (int h = 1; h < 5; ++h) {
+    int li = find_landmark(c, handle_names[h]);
+    handle_vertex[h] = li >= 0 ? c->landmarks[li].vertex : (long)top;
+  }
+
+  km__atomic_file af;
+  km_status st = km__atomic_open(&af, path, err);
+  if (st != KM_OK) return st;
+  FILE *f = af.f;
+  fprintf(f,
+          "{\"format\":\"kinemesh-rig\",\"version\":1,\"units\":\"m\",\"vertices\":%zu,"
+          "\"skeleton\":\"kinect1\",\n\"joints\":[",
+          n);
+  for (size_t j = 0; j < sk->n_joints; ++j) {
+    /* Names are plain identifiers; escape through cJSON anyway. */
+    cJSON *item = cJSON_CreateStringReference(sk->names[j]);
+    char *name = item ? cJSON_PrintUnformatted(item) : NULL;
+    cJSON_Delete(item);
+    fprintf(f, "%s\n{\"name\":%s,\"parent\":%d,\"rest\":[%.9g,%.9g,%.9g]}", j ? "," : "",
+            name ? name : "\"\"", (int)sk->parents[j], sk->rest[3 * j], sk->rest[3 * j + 1],
+            sk->rest[3 * j + 2]);
+    free(name);
+  }
+  fprintf(f, "],\n\"skin\":{\"influences\":%d,\"joints\":[", KM_SKIN_INFLUENCES);
+  for (size_t i = 0; i < n * KM_SKIN_INFLUENCES; ++i)
+    fprintf(f, i ? ",%d" : "%d", (int)c->skin.joints[i]);
+  fputs("],\n\"weights\":[", f);
+  for (size_t i = 0; i < n * KM_SKIN_INFLUENCES; ++i) {
+    double w = c->skin.weights[i];
+    if (w == 0)
+      fputs(i ? ",0" : "0", f);
+    else
+      fprintf(f, i ? ",%.7g" : "%.7g", w);
+  }
+  fputs("]},\n\"landmarks\":[", f);
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i)
+    fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%d,\"mirror\":\"%s\"}", i ? "," : "",
+            c->landmarks[i].name, (int)c->landmarks[i].vertex, c->landmarks[i].mirror);
+  fputs("],\n\"handles\":[", f);
+  for (int h = 0; h < 5; ++h)
+    fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%ld,\"radius\":%.6g}", h ? "," : "",
+            handle_names[h], handle_vertex[h], radius);
+  fputs("],\n\"map\":[", f);
+  for (int h = 0; h < 5; ++h)
+    fprintf(f, "%s\n{\"handle\":\"%s\",\"joint\":\"%s\",\"axes\":\"xyz\",\"scale\":1.0}",
+            h ? "," : "", handle_names[h], handle_joints[h]);
+  fputs("],\n\"filter\":{\"smoothing\":0.5,\"trend\":0.5}}\n", f);
+  return km__atomic_commit(&af, err);
+}
+
+static bool json_int(const cJSON *o, double lo, double hi, long *out) {
+  if (!cJSON_IsNumber(o)) return false;
+  double v = o->valuedouble;
+  if (!(v >= lo && v <= hi) || v != floor(v)) return false;
+  *out = (long)v;
+  return true;
+}
+
+km_status km_character_read_rig(const char *path, size_t n_vertices, km_character *out,
+                                km_error *err) {
+  if (!path || !out) return km__fail(err, KM_ERR_INVALID, "read rig: NULL argument");
+  char *data = NULL;
+  size_t size = 0;
+  km_status st = km__read_file(path, &data, &size, err);
+  if (st != KM_OK) return st;
+  const char *end = NULL;
+  cJSON *root = cJSON_ParseWithLengthOpts(data, size, &end, 0);
+  if (!root) {
+    size_t at = end && end >= data ? (size_t)(end - data) : 0;
+    free(data);
+    return km__fail(err, KM_ERR_PARSE, "%s: invalid JSON near byte %zu", path, at);
+  }
+  free(data);
+  km_skeleton sk = {0};
+  km_skin skin = {0};
+  km_landmark lm[KM_CHARACTER_LANDMARKS];
+  memset(lm, 0, sizeof lm);
+#define FAIL(...)                                                                                  \
+  do {                                                                                             \
+    st = km__fail(err, KM_ERR_PARSE, __VA_ARGS__);                                                 \
+    goto done;                                                                                     \
+  } while (0)
+  const cJSON *fmt = cJSON_GetObjectItemCaseSensitive(root, "format");
+  if (!cJSON_IsString(fmt) || strcmp(fmt->valuestring, "kinemesh-rig"))
+    FAIL("%s: \"format\" is not \"kinemesh-rig\"", path);
+  long ver = 0, nv = 0;
+  if (!json_int(cJSON_GetObjectItemCaseSensitive(root, "version"), 1, 1e9, &ver) || ver != 1)
+    FAIL("%s: unsupported \"version\" (expected 1)", path);
+  if (!json_int(cJSON_GetObjectItemCaseSensitive(root, "vertices"), 0, 2147483647.0, &nv))
+    FAIL("%s: \"vertices\" is missing or not a non-negative integer", path);
+  if ((size_t)nv != n_vertices) {
+    st = km__fail(err, KM_ERR_STALE, "%s: rig is for %ld vertices, the mesh has %zu", path, nv,
+                  n_vertices);
+    goto done;
+  }
+  const cJSON *joints = cJSON_GetObjectItemCaseSensitive(root, "joints");
+  int nj = cJSON_GetArraySize(joints);
+  if (!cJSON_IsArray(joints) || nj < 1 || nj > 1000)
+    FAIL("%s: \"joints\" must be an array of 1..1000 joints", path);
+  sk.n_joints = (size_t)nj;
+  sk.names = km__calloc((size_t)nj, sizeof *sk.names);
+  sk.parents = km__malloc((size_t)nj, sizeof *sk.parents);
+  sk.rest = km__malloc((size_t)nj * 3, sizeof *sk.rest);
+  if (!sk.names || !sk.parents || !sk.rest) {
+    st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+    goto done;
+  }
+  int j = 0;
+  const cJSON *it;
+  cJSON_ArrayForEach(it, joints) {
+    const cJSON *name = cJSON_GetObjectItemCaseSensitive(it, "name");
+    const cJSON *rest = cJSON_GetObjectItemCaseSensitive(it, "rest");
+    long par;
+    if (!cJSON_IsString(name)) FAIL("%s: joint %d has no \"name\" string", path, j);
+    if (!json_int(cJSON_GetObjectItemCaseSensitive(it, "parent"), -1, j - 1, &par))
+      FAIL("%s: joint %d (%s): \"parent\" must be -1 or an earlier joint", path, j,
+           name->valuestring);
+    if (!cJSON_IsArray(rest) || cJSON_GetArraySize(rest) != 3)
+      FAIL("%s: joint %d (%s): \"rest\" must be [x,y,z]", path, j, name->valuestring);
+    for (int k = 0; k < 3; ++k) {
+      const cJSON *x = cJSON_GetArrayItem(rest, k);
+      if (!cJSON_IsNumber(x) || !isfinite(x->valuedouble))
+        FAIL("%s: joint %d (%s): \"rest\" must hold 3 finite numbers", path, j, name->valuestring);
+      sk.rest[3 * j + k] = x->valuedouble;
+    }
+    sk.names[j] = strdup(name->valuestring);
+    if (!sk.names[j]) {
+      st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+      goto done;
+    }
+    sk.parents[j] = (int32_t)par;
+    ++j;
+  }
+  const cJSON *sn = cJSON_GetObjectItemCaseSensitive(root, "skin");
+  const cJSON *sj = cJSON_GetObjectItemCaseSensitive(sn, "joints");
+  const cJSON *sw = cJSON_GetObjectItemCaseSensitive(sn, "weights");
+  long infl = 0;
+  if (!json_int(cJSON_GetObjectItemCaseSensitive(sn, "influences"), 1, 64, &infl) ||
+      infl != KM_SKIN_INFLUENCES)
+    FAIL("%s: \"skin\".\"influences\" must be %d", path, KM_SKIN_INFLUENCES);
+  size_t ne = n_vertices * KM_SKIN_INFLUENCES;
+  if (!cJSON_IsArray(sj) || (size_t)cJSON_GetArraySize(sj) != ne)
+    FAIL("%s: \"skin\".\"joints\" must have %zu entries (vertices x %d)", path, ne,
+         KM_SKIN_INFLUENCES);
+  if (!cJSON_IsArray(sw) || (size_t)cJSON_GetArraySize(sw) != ne)
+    FAIL("%s: \"skin\".\"weights\" must have %zu entries (vertices x %d)", path, ne,
+         KM_SKIN_INFLUENCES);
+  if ((st = alloc_skin(&skin, n_vertices, err)) != KM_OK) goto done;
+  size_t i = 0;
+  cJSON_ArrayForEach(it, sj) {
+    long v;
+    if (!json_int(it, -1, nj - 1, &v))
+      FAIL("%s: \"skin\".\"joints\"[%zu] must be -1 or a joint index < %d", path, i, nj);
+    skin.joints[i++] = (int32_t)v;
+  }
+  i = 0;
+  cJSON_ArrayForEach(it, sw) {
+    if (!cJSON_IsNumber(it) || !(it->valuedouble >= 0 && it->valuedouble <= 1.0001))
+      FAIL("%s: \"skin\".\"weights\"[%zu] must be a number in [0,1]", path, i);
+    skin.weights[i++] = it->valuedouble;
+  }
+  for (size_t v = 0; v < n_vertices; ++v) {
+    double sum = 0;
+    for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
+      size_t e = v * KM_SKIN_INFLUENCES + (size_t)q;
+      if (skin.joints[e] < 0) skin.weights[e] = 0;
+      sum += skin.weights[e];
+    }
+    if (fabs(sum - 1) > 1e-4) FAIL("%s: skin weights of vertex %zu sum to %g, not 1", path, v, sum);
+  }
+  const cJSON *lms = cJSON_GetObjectItemCaseSensitive(root, "landmarks");
+  if (!cJSON_IsArray(lms) || cJSON_GetArraySize(lms) != KM_CHARACTER_LANDMARKS)
+    FAIL("%s: \"landmarks\" must be an array of %d landmarks", path, KM_CHARACTER_LANDMARKS);
+  int l = 0;
+  cJSON_ArrayForEach(it, lms) {
+    const cJSON *name = cJSON_GetObjectItemCaseSensitive(it, "name");
+    const cJSON *mir = cJSON_GetObjectItemCaseSensitive(it, "mirror");
+    long v;
+    if (!cJSON_IsString(name) || strlen(name->valuestring) >= sizeof lm[l].name)
+      FAIL("%s: landmark %d: \"name\" must be a string of at most 31 bytes", path, l);
+    if (!cJSON_IsString(mir) || strlen(mir->valuestring) >= sizeof lm[l].mirror)
+      FAIL("%s: landmark %d (%s): \"mirror\" must be a string of at most 31 bytes", path, l,
+           name->valuestring);
+    if (!json_int(cJSON_GetObjectItemCaseSensitive(it, "vertex"), 0, (double)n_vertices - 1, &v))
+      FAIL("%s: landmark %d (%s): \"vertex\" must be an index below %zu", path, l,
+           name->valuestring, n_vertices);
+    snprintf(lm[l].name, sizeof lm[l].name, "%s", name->valuestring);
+    snprintf(lm[l].mirror, sizeof lm[l].mirror, "%s", mir->valuestring);
+    lm[l].vertex = (int32_t)v;
+    ++l;
+  }
+#undef FAIL
+  free_skeleton(&out->skeleton);
+  free_skin(&out->skin);
+  out->skeleton = sk;
+  out->skin = skin;
+  memcpy(out->landmarks, lm, sizeof lm);
+  cJSON_Delete(root);
+  return KM_OK;
+done:
+  free_skeleton(&sk);
+  free_skin(&skin);
+  cJSON_Delete(root);
+  return st;
+}
