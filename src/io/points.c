@@ -72,11 +72,13 @@ static km_status parse_xyz(const char *text, size_t size, const char *name, km_p
     buf[len] = '\0';
     p = eol + 1;
     char *c = buf;
-    while (*c && isspace((unsigned char)*c)) ++c;
+    while (*c && isspace((unsigned char)*c))
+      ++c;
     if (!*c || *c == '#') continue;
     double v[3];
     for (int k = 0; k < 3; ++k) {
-      while (*c && (isspace((unsigned char)*c) || *c == ',')) ++c;
+      while (*c && (isspace((unsigned char)*c) || *c == ','))
+        ++c;
       char *e;
       errno = 0;
       v[k] = strtod(c, &e);
@@ -164,8 +166,8 @@ static km_status parse_pcd(const char *data, size_t size, const char *name, km_p
       int k = 0;
       while ((tok = strtok_r(NULL, " \t", &save))) {
         if (k >= nf)
-          return km__fail(err, KM_ERR_PARSE, "%s:%zu: %s has more entries than FIELDS (%d)",
-                          name, line, key, nf);
+          return km__fail(err, KM_ERR_PARSE, "%s:%zu: %s has more entries than FIELDS (%d)", name,
+                          line, key, nf);
         if (key[0] == 'S') {
           int s = atoi(tok);
           if (s != 1 && s != 2 && s != 4 && s != 8)
@@ -174,8 +176,7 @@ static km_status parse_pcd(const char *data, size_t size, const char *name, km_p
           f[k].size = s;
         } else if (key[0] == 'T') {
           if (strlen(tok) != 1 || !strchr("FIU", tok[0]))
-            return km__fail(err, KM_ERR_PARSE, "%s:%zu: TYPE %s is not F, I or U", name, line,
-                            tok);
+            return km__fail(err, KM_ERR_PARSE, "%s:%zu: TYPE %s is not F, I or U", name, line, tok);
           f[k].type = tok[0];
         } else {
           char *e;
@@ -187,11 +188,14 @@ static km_status parse_pcd(const char *data, size_t size, const char *name, km_p
         ++k;
       }
       if (k != nf)
-        return km__fail(err, KM_ERR_PARSE, "%s:%zu: %s has %d entries, FIELDS has %d", name,
-                        line, key, k, nf);
-      if (key[0] == 'S') n_size = k;
-      else if (key[0] == 'T') n_type = k;
-      else n_count = k;
+        return km__fail(err, KM_ERR_PARSE, "%s:%zu: %s has %d entries, FIELDS has %d", name, line,
+                        key, k, nf);
+      if (key[0] == 'S')
+        n_size = k;
+      else if (key[0] == 'T')
+        n_type = k;
+      else
+        n_count = k;
     } else if (!strcmp(key, "WIDTH") || !strcmp(key, "HEIGHT") || !strcmp(key, "POINTS")) {
       tok = strtok_r(NULL, " \t", &save);
       char *e;
@@ -199,9 +203,12 @@ static km_status parse_pcd(const char *data, size_t size, const char *name, km_p
       if (!tok || *e || tok[0] == '-')
         return km__fail(err, KM_ERR_PARSE, "%s:%zu: %s needs a non-negative integer", name, line,
                         key);
-      if (key[0] == 'W') width = (size_t)v, have_width = true;
-      else if (key[0] == 'H') height = (size_t)v;
-      else points = (size_t)v, have_points = true;
+      if (key[0] == 'W')
+        width = (size_t)v, have_width = true;
+      else if (key[0] == 'H')
+        height = (size_t)v;
+      else
+        points = (size_t)v, have_points = true;
     } else if (!strcmp(key, "VIEWPOINT")) {
       continue; /* sensor pose: the points are kept in the file's frame */
     } else if (!strcmp(key, "DATA")) {
@@ -218,8 +225,10 @@ static km_status parse_pcd(const char *data, size_t size, const char *name, km_p
     return km__fail(err, KM_ERR_PARSE, "%s: SIZE/TYPE must list all %d FIELDS", name, nf);
   (void)n_count;
   if (!have_points) {
-    if (!have_width) return km__fail(err, KM_ERR_PARSE, "%s: header has neither POINTS nor WIDTH", name);
-    if (height && width > SIZE_MAX / height) return km__fail(err, KM_ERR_PARSE, "%s: WIDTH*HEIGHT overflows", name);
+    if (!have_width)
+      return km__fail(err, KM_ERR_PARSE, "%s: header has neither POINTS nor WIDTH", name);
+    if (height && width > SIZE_MAX / height)
+      return km__fail(err, KM_ERR_PARSE, "%s: WIDTH*HEIGHT overflows", name);
     points = width * height;
   }
   int ix[3] = {-1, -1, -1};
@@ -253,11 +262,12 @@ static km_status parse_pcd(const char *data, size_t size, const char *name, km_p
     return KM_OK;
   }
   if (!strcmp(mode, "binary_compressed"))
-    return km__fail(err, KM_ERR_UNSUPPORTED, "%s:%zu: DATA binary_compressed (LZF) is not supported",
-                    name, line);
+    return km__fail(err, KM_ERR_UNSUPPORTED,
+                    "%s:%zu: DATA binary_compressed (LZF) is not supported", name, line);
   if (strcmp(mode, "ascii"))
-    return km__fail(err, KM_ERR_PARSE, "%s:%zu: DATA '%s' is not ascii, binary or binary_compressed",
-                    name, line, mode);
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s:%zu: DATA '%s' is not ascii, binary or binary_compressed", name, line,
+                    mode);
   /* ascii: a record needs at least 2 bytes per column, which bounds POINTS. */
   if (points > (size - header_bytes) / (2 * cols) + 1)
     return km__fail(err, KM_ERR_PARSE, "%s:%zu: POINTS %zu cannot fit in %zu bytes of data", name,
@@ -275,13 +285,15 @@ static km_status parse_pcd(const char *data, size_t size, const char *name, km_p
     double v[3] = {0, 0, 0};
     const char *c = p;
     for (size_t col = 0; col < cols; ++col) {
-      while (c < eol && (*c == ' ' || *c == '\t' || *c == '\r')) ++c;
+      while (c < eol && (*c == ' ' || *c == '\t' || *c == '\r'))
+        ++c;
       if (c >= eol)
         return km__fail(err, KM_ERR_PARSE, "%s:%zu: expected %zu values, found %zu", name, line,
                         cols, col);
       char tmp[64];
       size_t l = 0;
-      while (c < eol && !isspace((unsigned char)*c) && l < sizeof tmp - 1) tmp[l++] = *c++;
+      while (c < eol && !isspace((unsigned char)*c) && l < sizeof tmp - 1)
+        tmp[l++] = *c++;
       tmp[l] = '\0';
       for (int a = 0; a < 3; ++a) {
         if (col == f[ix[a]].column) {
@@ -302,13 +314,16 @@ static km_status parse_pcd(const char *data, size_t size, const char *name, km_p
 
 km_status km_points_parse(const void *data, size_t size, const char *name, km_points *out,
                           km_error *err) {
-  if (!data || !name || !out) return km__fail(err, KM_ERR_INVALID, "km_points_parse: NULL argument");
+  if (!data || !name || !out)
+    return km__fail(err, KM_ERR_INVALID, "km_points_parse: NULL argument");
   memset(out, 0, sizeof *out);
   char ext[16];
   km__extension(name, ext, sizeof ext);
   km_status s;
-  if (!strcmp(ext, "ply")) s = parse_ply(data, size, name, out, err);
-  else if (!strcmp(ext, "pcd")) s = parse_pcd(data, size, name, out, err);
+  if (!strcmp(ext, "ply"))
+    s = parse_ply(data, size, name, out, err);
+  else if (!strcmp(ext, "pcd"))
+    s = parse_pcd(data, size, name, out, err);
   else if (!strcmp(ext, "xyz") || !strcmp(ext, "txt") || !strcmp(ext, "pts"))
     s = parse_xyz(data, size, name, out, err);
   else
@@ -330,7 +345,8 @@ km_status km_points_read(const char *path, km_points *out, km_error *err) {
 }
 
 km_status km_points_write_ply(const char *path, const double *P, size_t n, km_error *err) {
-  if (!path || (!P && n)) return km__fail(err, KM_ERR_INVALID, "km_points_write_ply: NULL argument");
+  if (!path || (!P && n))
+    return km__fail(err, KM_ERR_INVALID, "km_points_write_ply: NULL argument");
   km__atomic_file af;
   km_status s = km__atomic_open(&af, path, err);
   if (s) return s;
@@ -341,7 +357,8 @@ km_status km_points_write_ply(const char *path, const double *P, size_t n, km_er
   float buf[3 * 1024];
   for (size_t i = 0; i < n; i += 1024) {
     size_t m = n - i < 1024 ? n - i : 1024;
-    for (size_t k = 0; k < 3 * m; ++k) buf[k] = (float)P[3 * i + k];
+    for (size_t k = 0; k < 3 * m; ++k)
+      buf[k] = (float)P[3 * i + k];
     fwrite(buf, sizeof(float), 3 * m, af.f);
   }
   return km__atomic_commit(&af, err);
@@ -350,8 +367,8 @@ km_status km_points_write_ply(const char *path, const double *P, size_t n, km_er
 static bool is_point_ext(const char *name) {
   char ext[16];
   km__extension(name, ext, sizeof ext);
-  return !strcmp(ext, "ply") || !strcmp(ext, "pcd") || !strcmp(ext, "xyz") ||
-         !strcmp(ext, "txt") || !strcmp(ext, "pts");
+  return !strcmp(ext, "ply") || !strcmp(ext, "pcd") || !strcmp(ext, "xyz") || !strcmp(ext, "txt") ||
+         !strcmp(ext, "pts");
 }
 
 static int cmp_str(const void *a, const void *b) {
@@ -360,13 +377,15 @@ static int cmp_str(const void *a, const void *b) {
 
 void km_paths_free(char ***paths, size_t n) {
   if (!paths || !*paths) return;
-  for (size_t i = 0; i < n; ++i) free((*paths)[i]);
+  for (size_t i = 0; i < n; ++i)
+    free((*paths)[i]);
   free(*paths);
   *paths = NULL;
 }
 
 km_status km_point_frames_list(const char *pattern, char ***paths, size_t *n, km_error *err) {
-  if (!pattern || !paths || !n) return km__fail(err, KM_ERR_INVALID, "km_point_frames_list: NULL argument");
+  if (!pattern || !paths || !n)
+    return km__fail(err, KM_ERR_INVALID, "km_point_frames_list: NULL argument");
   *paths = NULL;
   *n = 0;
   struct stat st;
@@ -374,7 +393,8 @@ km_status km_point_frames_list(const char *pattern, char ***paths, size_t *n, km
   size_t count = 0;
   if (stat(pattern, &st) == 0 && S_ISDIR(st.st_mode)) {
     DIR *d = opendir(pattern);
-    if (!d) return km__fail(err, KM_ERR_IO, "%s: cannot open directory: %s", pattern, strerror(errno));
+    if (!d)
+      return km__fail(err, KM_ERR_IO, "%s: cannot open directory: %s", pattern, strerror(errno));
     size_t cap = 0;
     struct dirent *e;
     while ((e = readdir(d))) {

@@ -59,7 +59,8 @@ static size_t cast(RTCScene scene, const cam *cams, int nc, double spacing, doub
     for (size_t pix = 0; pix < npix; ++pix) {
       double u = k->u0 + spacing * (double)(pix % nu), v = k->v0 + spacing * (double)(pix / nu);
       double d[3];
-      for (int a = 0; a < 3; ++a) d[a] = k->fwd[a] + u * k->right[a] + v * k->up[a];
+      for (int a = 0; a < 3; ++a)
+        d[a] = k->fwd[a] + u * k->right[a] + v * k->up[a];
       normalize(d);
       struct RTCRayHit rh;
       memset(&rh, 0, sizeof rh);
@@ -80,7 +81,8 @@ static size_t cast(RTCScene scene, const cam *cams, int nc, double spacing, doub
       if (hit) {
         double g[3] = {0, 0, 0};
         if (sigma > 0) gauss3(seed ^ ((uint64_t)c << 40) ^ (uint64_t)pix * 0x9e3779b1ULL, g);
-        for (int a = 0; a < 3; ++a) hit[3 * pix + a] = k->o[a] + rh.ray.tfar * d[a] + sigma * g[a];
+        for (int a = 0; a < 3; ++a)
+          hit[3 * pix + a] = k->o[a] + rh.ray.tfar * d[a] + sigma * g[a];
       }
     }
     for (size_t pix = 0; pix < npix; ++pix) {
@@ -105,12 +107,14 @@ km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, 
   double sigma = o.noise_mm < 0 ? 0 : (o.noise_mm == 0 ? 2.0 : o.noise_mm) * 1e-3;
   double dist = o.distance > 0 ? o.distance : 3.0;
   double height = o.height != 0 ? o.height : 0.3;
-  if (!posed->n_faces) return km__fail(err, KM_ERR_DEGENERATE_MESH, "km_capture_frame: mesh has no faces");
+  if (!posed->n_faces)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH, "km_capture_frame: mesh has no faces");
   RTCDevice dev = km__embree_device(err);
   if (!dev) return KM_ERR_UNSUPPORTED;
   for (size_t i = 0; i < 3 * posed->n_faces; ++i)
     if (posed->F[i] < 0 || (size_t)posed->F[i] >= posed->n_vertices)
-      return km__fail(err, KM_ERR_INVALID, "km_capture_frame: face index %d out of range", posed->F[i]);
+      return km__fail(err, KM_ERR_INVALID, "km_capture_frame: face index %d out of range",
+                      posed->F[i]);
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (size_t i = 0; i < posed->n_vertices; ++i)
     for (int a = 0; a < 3; ++a) {
@@ -129,8 +133,10 @@ km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, 
     rtcReleaseScene(scene);
     return km__fail(err, KM_ERR_NOMEM, "Embree: cannot allocate buffers");
   }
-  for (size_t i = 0; i < 3 * posed->n_vertices; ++i) vb[i] = (float)posed->V[i];
-  for (size_t i = 0; i < 3 * posed->n_faces; ++i) ib[i] = (unsigned)posed->F[i];
+  for (size_t i = 0; i < 3 * posed->n_vertices; ++i)
+    vb[i] = (float)posed->V[i];
+  for (size_t i = 0; i < 3 * posed->n_faces; ++i)
+    ib[i] = (unsigned)posed->F[i];
   rtcCommitGeometry(g);
   rtcAttachGeometry(scene, g);
   rtcReleaseGeometry(g);
@@ -145,7 +151,8 @@ km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, 
     k->o[0] = ctr[0] + dist * sin(ang);
     k->o[1] = ctr[1] + height;
     k->o[2] = ctr[2] + dist * cos(ang);
-    for (int a = 0; a < 3; ++a) k->fwd[a] = ctr[a] - k->o[a];
+    for (int a = 0; a < 3; ++a)
+      k->fwd[a] = ctr[a] - k->o[a];
     normalize(k->fwd);
     double upw[3] = {0, 1, 0};
     k->right[0] = k->fwd[1] * upw[2] - k->fwd[2] * upw[1];
@@ -157,7 +164,8 @@ km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, 
     k->up[2] = k->right[0] * k->fwd[1] - k->right[1] * k->fwd[0];
     k->u0 = k->v0 = INFINITY, k->u1 = k->v1 = -INFINITY;
     for (int corner = 0; corner < 8; ++corner) {
-      double p[3] = {corner & 1 ? hi[0] : lo[0], corner & 2 ? hi[1] : lo[1], corner & 4 ? hi[2] : lo[2]};
+      double p[3] = {corner & 1 ? hi[0] : lo[0], corner & 2 ? hi[1] : lo[1],
+                     corner & 4 ? hi[2] : lo[2]};
       double d[3] = {p[0] - k->o[0], p[1] - k->o[1], p[2] - k->o[2]};
       double z = d[0] * k->fwd[0] + d[1] * k->fwd[1] + d[2] * k->fwd[2];
       if (z < 1e-6) z = 1e-6; /* bbox reaching behind the camera: clamp */
@@ -172,7 +180,8 @@ km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, 
   /* A probe at coarse spacing measures how much of the view the subject fills; the final
    * spacing then gives about `target` hits in total. */
   double area = 0;
-  for (int c = 0; c < nc; ++c) area += (cams[c].u1 - cams[c].u0) * (cams[c].v1 - cams[c].v0);
+  for (int c = 0; c < nc; ++c)
+    area += (cams[c].u1 - cams[c].u0) * (cams[c].v1 - cams[c].v0);
   double spacing = sqrt(area / (double)target);
   size_t probe = cast(scene, cams, nc, spacing * 2, 0, 0, NULL, 0);
   if (probe) spacing = spacing * 2 * sqrt((double)probe / (double)target);
@@ -190,9 +199,9 @@ km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, 
 }
 
 km_status km_capture_simulate(const km_character *c, const km_take *take,
-                              const km_capture_options *opt, const char *out_dir,
-                              km_error *err) {
-  if (!c || !take || !out_dir) return km__fail(err, KM_ERR_INVALID, "km_capture_simulate: NULL argument");
+                              const km_capture_options *opt, const char *out_dir, km_error *err) {
+  if (!c || !take || !out_dir)
+    return km__fail(err, KM_ERR_INVALID, "km_capture_simulate: NULL argument");
   if (take->n_joints != c->skeleton.n_joints)
     return km__fail(err, KM_ERR_INVALID, "km_capture_simulate: take has %zu joints, skeleton %zu",
                     take->n_joints, c->skeleton.n_joints);

@@ -31,18 +31,22 @@ void km__eig3(const double A[9], double evals[3], double evecs[9]) {
   }
   /* a is column-major: column c = eigenvector c; store row-major with vectors as columns */
   for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) evecs[3 * r + c] = a[3 * c + r];
+    for (int c = 0; c < 3; ++c)
+      evecs[3 * r + c] = a[3 * c + r];
 }
 
 /* ---------------------------------------------------------------- closest point on triangle */
 
-static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static double dot3(const double *a, const double *b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
 
 /* Ericson, Real-Time Collision Detection 5.1.5: Voronoi regions of the triangle. */
-double km__closest_on_triangle(const double *p, const double *a, const double *b,
-                               const double *c, double *w) {
+double km__closest_on_triangle(const double *p, const double *a, const double *b, const double *c,
+                               double *w) {
   double ab[3], ac[3], ap[3];
-  for (int k = 0; k < 3; ++k) ab[k] = b[k] - a[k], ac[k] = c[k] - a[k], ap[k] = p[k] - a[k];
+  for (int k = 0; k < 3; ++k)
+    ab[k] = b[k] - a[k], ac[k] = c[k] - a[k], ap[k] = p[k] - a[k];
   double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
   double u, v, t;
   if (d1 <= 0 && d2 <= 0) {
@@ -50,7 +54,8 @@ double km__closest_on_triangle(const double *p, const double *a, const double *b
     goto done;
   }
   double bp[3];
-  for (int k = 0; k < 3; ++k) bp[k] = p[k] - b[k];
+  for (int k = 0; k < 3; ++k)
+    bp[k] = p[k] - b[k];
   double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
   if (d3 >= 0 && d4 <= d3) {
     u = 0, v = 1, t = 0;
@@ -63,7 +68,8 @@ double km__closest_on_triangle(const double *p, const double *a, const double *b
     goto done;
   }
   double cp[3];
-  for (int k = 0; k < 3; ++k) cp[k] = p[k] - c[k];
+  for (int k = 0; k < 3; ++k)
+    cp[k] = p[k] - c[k];
   double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
   if (d6 >= 0 && d5 <= d6) {
     u = 0, v = 0, t = 1;
@@ -92,7 +98,8 @@ double km__closest_on_triangle(const double *p, const double *a, const double *b
 done:
   w[0] = u, w[1] = v, w[2] = t;
   double q[3], d2s = 0;
-  for (int k = 0; k < 3; ++k) q[k] = u * a[k] + v * b[k] + t * c[k] - p[k], d2s += q[k] * q[k];
+  for (int k = 0; k < 3; ++k)
+    q[k] = u * a[k] + v * b[k] + t * c[k] - p[k], d2s += q[k] * q[k];
   return d2s;
 }
 
@@ -170,7 +177,8 @@ km_status km__surface_create(const double *V, size_t nv, const int32_t *F, size_
     free(s);
     return km__fail(err, KM_ERR_NOMEM, "Embree: cannot allocate buffers");
   }
-  for (size_t i = 0; i < 3 * nf; ++i) ib[i] = (unsigned)F[i];
+  for (size_t i = 0; i < 3 * nf; ++i)
+    ib[i] = (unsigned)F[i];
   fill_vb(s);
   rtcSetGeometryPointQueryFunction(s->geom, closest_cb);
   rtcCommitGeometry(s->geom);
@@ -289,7 +297,8 @@ static bool knn_cb(struct RTCPointQueryFunctionArguments *args) {
 km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err) {
   RTCDevice dev = km__embree_device(err);
   if (!dev) return KM_ERR_UNSUPPORTED;
-  if (k < 1 || (size_t)k > n) return km__fail(err, KM_ERR_INVALID, "knn: k=%d with %zu points", k, n);
+  if (k < 1 || (size_t)k > n)
+    return km__fail(err, KM_ERR_INVALID, "knn: k=%d with %zu points", k, n);
   knn_geom g = {P};
   RTCScene scene = rtcNewScene(dev);
   RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_USER);
@@ -313,7 +322,8 @@ km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err)
       struct RTCPointQueryContext ctx;
       rtcInitPointQueryContext(&ctx);
       rtcPointQuery(scene, &pq, &ctx, NULL, &q);
-      for (int j = q.count; j < k; ++j) idx[(size_t)k * i + j] = (int32_t)i;
+      for (int j = q.count; j < k; ++j)
+        idx[(size_t)k * i + j] = (int32_t)i;
     }
   }
   rtcReleaseScene(scene);
@@ -323,14 +333,17 @@ km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err)
 static void covariance(const double *P, const int32_t *ids, size_t m, double c[3], double C[9]) {
   c[0] = c[1] = c[2] = 0;
   for (size_t j = 0; j < m; ++j)
-    for (int a = 0; a < 3; ++a) c[a] += P[3 * (size_t)ids[j] + a];
-  for (int a = 0; a < 3; ++a) c[a] /= (double)(m ? m : 1);
+    for (int a = 0; a < 3; ++a)
+      c[a] += P[3 * (size_t)ids[j] + a];
+  for (int a = 0; a < 3; ++a)
+    c[a] /= (double)(m ? m : 1);
   memset(C, 0, 9 * sizeof *C);
   for (size_t j = 0; j < m; ++j) {
     const double *p = P + 3 * (size_t)ids[j];
     double d[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
     for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) C[3 * a + b] += d[a] * d[b];
+      for (int b = 0; b < 3; ++b)
+        C[3 * a + b] += d[a] * d[b];
   }
 }
 
@@ -383,7 +396,8 @@ static void cluster_rec(cluster_ctx *cx, size_t lo, size_t hi, int depth) {
     while (i < j) {
       const double *p = cx->P + 3 * (size_t)cx->ids[i];
       double d = (p[0] - c[0]) * ax[0] + (p[1] - c[1]) * ax[1] + (p[2] - c[2]) * ax[2];
-      if (d < 0) ++i;
+      if (d < 0)
+        ++i;
       else {
         --j;
         int32_t t = cx->ids[i];
@@ -432,11 +446,15 @@ km_status km__cluster_points(const double *P, size_t n, size_t target, int32_t *
     cx.max_size = (size_t)(2.0 * (double)n / (double)target) + 1;
     cx.max_var = sqrt(lo * hi);
     cx.n_reps = 0;
-    for (size_t i = 0; i < n; ++i) cx.ids[i] = (int32_t)i;
+    for (size_t i = 0; i < n; ++i)
+      cx.ids[i] = (int32_t)i;
     cluster_rec(&cx, 0, n, 0);
-    if (cx.n_reps > target * 11 / 10) lo = cx.max_var;
-    else if (cx.n_reps < target * 9 / 10) hi = cx.max_var;
-    else break;
+    if (cx.n_reps > target * 11 / 10)
+      lo = cx.max_var;
+    else if (cx.n_reps < target * 9 / 10)
+      hi = cx.max_var;
+    else
+      break;
   }
   free(cx.ids);
   *reps = cx.reps;
@@ -450,26 +468,31 @@ km_status km_absolute_orientation(const double *A, const double *B, size_t n, bo
                                   double R[9], double t[3], double *s, km_error *err) {
   if (!A || !B || !R || !t || (with_scale && !s))
     return km__fail(err, KM_ERR_INVALID, "km_absolute_orientation: NULL argument");
-  if (n < 3) return km__fail(err, KM_ERR_INVALID, "km_absolute_orientation: need >= 3 pairs, got %zu", n);
+  if (n < 3)
+    return km__fail(err, KM_ERR_INVALID, "km_absolute_orientation: need >= 3 pairs, got %zu", n);
   double ca[3] = {0}, cb[3] = {0};
   for (size_t i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k) ca[k] += A[3 * i + k], cb[k] += B[3 * i + k];
-  for (int k = 0; k < 3; ++k) ca[k] /= (double)n, cb[k] /= (double)n;
+    for (int k = 0; k < 3; ++k)
+      ca[k] += A[3 * i + k], cb[k] += B[3 * i + k];
+  for (int k = 0; k < 3; ++k)
+    ca[k] /= (double)n, cb[k] /= (double)n;
   double S[9] = {0}, sa = 0;
   for (size_t i = 0; i < n; ++i) {
     double a[3], b[3];
-    for (int k = 0; k < 3; ++k) a[k] = A[3 * i + k] - ca[k], b[k] = B[3 * i + k] - cb[k];
+    for (int k = 0; k < 3; ++k)
+      a[k] = A[3 * i + k] - ca[k], b[k] = B[3 * i + k] - cb[k];
     for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) S[3 * r + c] += a[r] * b[c];
+      for (int c = 0; c < 3; ++c)
+        S[3 * r + c] += a[r] * b[c];
     sa += dot3(a, a);
   }
   /* Horn's symmetric 4x4 N; its top eigenvector is the unit quaternion of the rotation. */
   double Sxx = S[0], Sxy = S[1], Sxz = S[2], Syx = S[3], Syy = S[4], Syz = S[5], Szx = S[6],
          Szy = S[7], Szz = S[8];
-  double N[16] = {Sxx + Syy + Szz, Syz - Szy,        Szx - Sxz,        Sxy - Syx,
-                  Syz - Szy,       Sxx - Syy - Szz,  Sxy + Syx,        Szx + Sxz,
-                  Szx - Sxz,       Sxy + Syx,        -Sxx + Syy - Szz, Syz + Szy,
-                  Sxy - Syx,       Szx + Sxz,        Syz + Szy,        -Sxx - Syy + Szz};
+  double N[16] = {Sxx + Syy + Szz, Syz - Szy,       Szx - Sxz,        Sxy - Syx,
+                  Syz - Szy,       Sxx - Syy - Szz, Sxy + Syx,        Szx + Sxz,
+                  Szx - Sxz,       Sxy + Syx,       -Sxx + Syy - Szz, Syz + Szy,
+                  Sxy - Syx,       Szx + Sxz,       Syz + Szy,        -Sxx - Syy + Szz};
   double w[4];
   if (LAPACKE_dsyev(LAPACK_COL_MAJOR, 'V', 'U', 4, N, 4, w) != 0)
     return km__fail(err, KM_ERR_NO_CONVERGENCE, "km_absolute_orientation: dsyev failed");
@@ -493,8 +516,10 @@ km_status km_absolute_orientation(const double *A, const double *B, size_t n, bo
     double num = 0;
     for (size_t i = 0; i < n; ++i) {
       double a[3], b[3];
-      for (int k = 0; k < 3; ++k) a[k] = A[3 * i + k] - ca[k], b[k] = B[3 * i + k] - cb[k];
-      for (int r = 0; r < 3; ++r) num += b[r] * (R[3 * r] * a[0] + R[3 * r + 1] * a[1] + R[3 * r + 2] * a[2]);
+      for (int k = 0; k < 3; ++k)
+        a[k] = A[3 * i + k] - ca[k], b[k] = B[3 * i + k] - cb[k];
+      for (int r = 0; r < 3; ++r)
+        num += b[r] * (R[3 * r] * a[0] + R[3 * r + 1] * a[1] + R[3 * r + 2] * a[2]);
     }
     sc = num / sa;
     *s = sc;

@@ -22,8 +22,8 @@ void km__surface_closest(const km__surface *s, const double *Q, size_t n, double
 void km__surface_free(km__surface **s);
 
 /* Closest point on triangle (a,b,c) to p: barycentrics w (3), returns squared distance. */
-double km__closest_on_triangle(const double *p, const double *a, const double *b,
-                               const double *c, double *w);
+double km__closest_on_triangle(const double *p, const double *a, const double *b, const double *c,
+                               double *w);
 
 /* k nearest neighbours (the point itself included) of every point: idx n*k. */
 km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err);

@@ -21,12 +21,14 @@ static void mat_mul(const double *A, const double *B, double *C) {
 }
 static void mat_vec(const double *A, const double *x, double *y) {
   double t[3];
-  for (int r = 0; r < 3; ++r) t[r] = A[3 * r] * x[0] + A[3 * r + 1] * x[1] + A[3 * r + 2] * x[2];
+  for (int r = 0; r < 3; ++r)
+    t[r] = A[3 * r] * x[0] + A[3 * r + 1] * x[1] + A[3 * r + 2] * x[2];
   memcpy(y, t, sizeof t);
 }
 static void mat_tvec(const double *A, const double *x, double *y) {
   double t[3];
-  for (int c = 0; c < 3; ++c) t[c] = A[c] * x[0] + A[3 + c] * x[1] + A[6 + c] * x[2];
+  for (int c = 0; c < 3; ++c)
+    t[c] = A[c] * x[0] + A[3 + c] * x[1] + A[6 + c] * x[2];
   memcpy(y, t, sizeof t);
 }
 static void cross(const double *a, const double *b, double *c) {
@@ -38,9 +40,12 @@ static void rodrigues(const double *r, double *R) {
   double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0}, K2[9];
   mat_mul(K, K, K2);
   double a, b;
-  if (th < 1e-6) a = 1 - th * th / 6, b = 0.5 - th * th / 24;
-  else a = sin(th) / th, b = (1 - cos(th)) / (th * th);
-  for (int i = 0; i < 9; ++i) R[i] = (i % 4 == 0) + a * K[i] + b * K2[i];
+  if (th < 1e-6)
+    a = 1 - th * th / 6, b = 0.5 - th * th / 24;
+  else
+    a = sin(th) / th, b = (1 - cos(th)) / (th * th);
+  for (int i = 0; i < 9; ++i)
+    R[i] = (i % 4 == 0) + a * K[i] + b * K2[i];
 }
 /* Right Jacobian of SO(3): exp(r + d) ~ exp(r) exp(Jr(r) d). */
 static void right_jacobian(const double *r, double *J) {
@@ -48,9 +53,12 @@ static void right_jacobian(const double *r, double *J) {
   double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0}, K2[9];
   mat_mul(K, K, K2);
   double a, b;
-  if (th < 1e-5) a = 0.5 - th * th / 24, b = 1.0 / 6 - th * th / 120;
-  else a = (1 - cos(th)) / (th * th), b = (th - sin(th)) / (th * th * th);
-  for (int i = 0; i < 9; ++i) J[i] = (i % 4 == 0) - a * K[i] + b * K2[i];
+  if (th < 1e-5)
+    a = 0.5 - th * th / 24, b = 1.0 / 6 - th * th / 120;
+  else
+    a = (1 - cos(th)) / (th * th), b = (th - sin(th)) / (th * th * th);
+  for (int i = 0; i < 9; ++i)
+    J[i] = (i % 4 == 0) - a * K[i] + b * K2[i];
 }
 
 /* ---------------------------------------------------------------- the reconstructor */
@@ -58,34 +66,34 @@ static void right_jacobian(const double *r, double *J) {
 struct km_recon {
   km_recon_options o;
   size_t nv, nf, nj, ne;
-  km_mesh tmpl;         /* template (copied) */
-  int32_t *parents;     /* nj */
-  double *tmpl_joints;  /* nj*3 template rest joints */
-  km_skin skin;         /* copied */
+  km_mesh tmpl;        /* template (copied) */
+  int32_t *parents;    /* nj */
+  double *tmpl_joints; /* nj*3 template rest joints */
+  km_skin skin;        /* copied */
   char **names;
-  int32_t *edges;       /* ne*2, i < j */
-  int32_t *face_edges;  /* nf*3: edge index of (v0,v1), (v1,v2), (v2,v0) */
+  int32_t *edges;      /* ne*2, i < j */
+  int32_t *face_edges; /* nf*3: edge index of (v0,v1), (v1,v2), (v2,v0) */
   /* affine solver: 4 unknowns per vertex and coordinate, 3 right-hand sides sharing one
    * CHOLMOD factor of the 4#V x 4#V SPD matrix */
   cholmod_common cc;
   cholmod_sparse *M;
   cholmod_factor *L;
-  double *blocks;       /* (nv + ne) * 16 accumulators: diagonal blocks then edge blocks */
-  int64_t *block_pos;   /* (nv + ne) * 16 positions in M->x (-1: lower triangle) */
-  double *rhs;          /* 4nv*3 */
-  double *sol;          /* 4nv*3 */
+  double *blocks;     /* (nv + ne) * 16 accumulators: diagonal blocks then edge blocks */
+  int64_t *block_pos; /* (nv + ne) * 16 positions in M->x (-1: lower triangle) */
+  double *rhs;        /* 4nv*3 */
+  double *sol;        /* 4nv*3 */
   /* registration state */
   bool have_base;
-  double *base;         /* nv*3 registered first frame (template for later frames) */
-  double *base_joints;  /* nj*3 */
+  double *base;                  /* nv*3 registered first frame (template for later frames) */
+  double *base_joints;           /* nj*3 */
   double *Lrot, *Lprev, *Lprev2; /* nj*9 local rotations relative to base */
   double troot[3], tprev[3], tprev2[3];
   size_t frame;
-  double *global;       /* nv*3 LBS-only surface */
-  double *surface;      /* nv*3 refined */
-  double *joints;       /* nj*3 current joints */
-  double *G;            /* nj*12 current joint transforms (world, from base) */
-  double *work;         /* nv*3 scratch */
+  double *global;  /* nv*3 LBS-only surface */
+  double *surface; /* nv*3 refined */
+  double *joints;  /* nj*3 current joints */
+  double *G;       /* nj*12 current joint transforms (world, from base) */
+  double *work;    /* nv*3 scratch */
   km__surface *query;
   double err_hist[8];
   size_t n_hist;
@@ -127,8 +135,10 @@ static int64_t find_edge(const km_recon *r, int32_t i, int32_t j) {
   while (lo < hi) {
     size_t m = (lo + hi) / 2;
     const int32_t *e = r->edges + 2 * m;
-    if (e[0] < i || (e[0] == i && e[1] < j)) lo = m + 1;
-    else hi = m;
+    if (e[0] < i || (e[0] == i && e[1] < j))
+      lo = m + 1;
+    else
+      hi = m;
   }
   if (lo < r->ne && r->edges[2 * lo] == i && r->edges[2 * lo + 1] == j) return (int64_t)lo;
   return -1;
@@ -164,7 +174,8 @@ static km_status build_system(km_recon *r, km_error *err) {
   /* column block j holds row blocks i <= j: edges (i, j) with i < j, then the diagonal */
   size_t *cnt = calloc(nv, sizeof *cnt);
   if (!cnt) return km__fail(err, KM_ERR_NOMEM, "out of memory");
-  for (size_t k = 0; k < ne; ++k) ++cnt[e[2 * k + 1]];
+  for (size_t k = 0; k < ne; ++k)
+    ++cnt[e[2 * k + 1]];
   size_t n = 4 * nv;
   size_t nnz = 16 * ne + 10 * nv;
   r->M = cholmod_allocate_sparse(n, n, nnz, 1, 1, 1, CHOLMOD_REAL, &r->cc);
@@ -183,7 +194,8 @@ static km_status build_system(km_recon *r, km_error *err) {
   size_t pos = 0;
   for (size_t j = 0; j < nv; ++j) {
     colstart[j] = pos;
-    for (int c = 0; c < 4; ++c) pos += 4 * cnt[j] + (size_t)c + 1;
+    for (int c = 0; c < 4; ++c)
+      pos += 4 * cnt[j] + (size_t)c + 1;
   }
   colstart[nv] = pos;
   /* edges sorted by (i, j): for a fixed j, its i's come in ascending order as k increases */
@@ -192,7 +204,8 @@ static km_status build_system(km_recon *r, km_error *err) {
     size_t slot = fill[j]++;
     for (int c = 0; c < 4; ++c) {
       size_t colbase = colstart[j];
-      for (int cc2 = 0; cc2 < c; ++cc2) colbase += 4 * cnt[j] + (size_t)cc2 + 1;
+      for (int cc2 = 0; cc2 < c; ++cc2)
+        colbase += 4 * cnt[j] + (size_t)cc2 + 1;
       for (int rr = 0; rr < 4; ++rr) {
         size_t p = colbase + 4 * slot + (size_t)rr;
         Mi[p] = (int)(4 * i + (size_t)rr);
@@ -222,7 +235,8 @@ static km_status build_system(km_recon *r, km_error *err) {
   free(fill);
   memset(r->M->x, 0, pos * sizeof(double));
   for (size_t j = 0; j < nv; ++j)
-    for (int c = 0; c < 4; ++c) ((double *)r->M->x)[r->block_pos[16 * j + 5 * c]] = 1;
+    for (int c = 0; c < 4; ++c)
+      ((double *)r->M->x)[r->block_pos[16 * j + 5 * c]] = 1;
   r->L = cholmod_analyze(r->M, &r->cc);
   if (!r->L || r->cc.status != CHOLMOD_OK)
     return km__fail(err, KM_ERR_NOMEM, "CHOLMOD analyze failed (status %d)", r->cc.status);
@@ -241,7 +255,8 @@ void km_recon_free(km_recon **rp) {
   free(r->skin.joints);
   free(r->skin.weights);
   if (r->names)
-    for (size_t j = 0; j < r->nj; ++j) free(r->names[j]);
+    for (size_t j = 0; j < r->nj; ++j)
+      free(r->names[j]);
   free(r->names);
   free(r->edges);
   free(r->face_edges);
@@ -294,7 +309,8 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
                       c->skeleton.parents[j]);
   for (size_t i = 0; i < 4 * m->n_vertices; ++i)
     if (c->skin.joints[i] >= (int32_t)nj)
-      return km__fail(err, KM_ERR_INVALID, "km_recon_create: skin joint %d out of range", c->skin.joints[i]);
+      return km__fail(err, KM_ERR_INVALID, "km_recon_create: skin joint %d out of range",
+                      c->skin.joints[i]);
   km_recon *r = calloc(1, sizeof *r);
   if (!r) return km__fail(err, KM_ERR_NOMEM, "out of memory");
   cholmod_start(&r->cc);
@@ -338,7 +354,8 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   memcpy(r->parents, c->skeleton.parents, nj * sizeof *r->parents);
   memcpy(r->tmpl_joints, c->skeleton.rest, nj * 3 * sizeof(double));
   for (size_t j = 0; j < nj; ++j)
-    r->names[j] = strdup(c->skeleton.names && c->skeleton.names[j] ? c->skeleton.names[j] : "joint");
+    r->names[j] =
+        strdup(c->skeleton.names && c->skeleton.names[j] ? c->skeleton.names[j] : "joint");
   memcpy(r->skin.joints, c->skin.joints, nv * 4 * sizeof(int32_t));
   memcpy(r->skin.weights, c->skin.weights, nv * 4 * sizeof(double));
   memcpy(r->surface, m->V, nv * 3 * sizeof(double));
@@ -390,8 +407,8 @@ static int cmp_double(const void *a, const void *b) {
  * treated as outliers), zero beyond 4c, and zero where the point normal (if given) and the
  * face normal are more than 60 degrees apart (a point on the inner thigh must not pull the
  * other leg). Returns the sum of weights. */
-static double correspond(km_recon *r, const double *X, const double *Q, const double *NQ,
-                         size_t n, double max_dist) {
+static double correspond(km_recon *r, const double *X, const double *Q, const double *NQ, size_t n,
+                         double max_dist) {
   km__surface_update(r->query, X);
   km__surface_closest(r->query, Q, n, max_dist, r->ptri, r->pbary, r->pdist);
   size_t m = 0;
@@ -412,8 +429,10 @@ static double correspond(km_recon *r, const double *X, const double *Q, const do
       w = 1.0 / ((1 + q * q) * (1 + q * q));
       if (NQ) {
         const int32_t *t = r->tmpl.F + 3 * (size_t)r->ptri[i];
-        const double *a = X + 3 * (size_t)t[0], *b = X + 3 * (size_t)t[1], *cc = X + 3 * (size_t)t[2];
-        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]}, fn[3];
+        const double *a = X + 3 * (size_t)t[0], *b = X + 3 * (size_t)t[1],
+                     *cc = X + 3 * (size_t)t[2];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+               v[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]}, fn[3];
         cross(u, v, fn);
         double l = sqrt(fn[0] * fn[0] + fn[1] * fn[1] + fn[2] * fn[2]);
         const double *pn = NQ + 3 * i;
@@ -433,20 +452,23 @@ static double correspond(km_recon *r, const double *X, const double *Q, const do
  *   + w_s/ne sum_edges |A_i - A_j|_F^2 + w_id/nv sum |A_i - [I 0]|_F^2
  * for fixed correspondences: one linear least-squares (Gauss-Newton) step. The tiny w_id
  * keeps the system SPD where neither data nor features reach. X receives the result. */
-static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, size_t nq,
-                              double wd, const km_recon_feature *feat, size_t nfeat, double wf,
-                              double *X, km_error *err) {
+static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, size_t nq, double wd,
+                              const km_recon_feature *feat, size_t nfeat, double wf, double *X,
+                              km_error *err) {
   size_t nv = r->nv, ne = r->ne;
   double c[3] = {0, 0, 0};
   for (size_t i = 0; i < nv; ++i)
-    for (int a = 0; a < 3; ++a) c[a] += Vb[3 * i + a];
-  for (int a = 0; a < 3; ++a) c[a] /= (double)nv;
+    for (int a = 0; a < 3; ++a)
+      c[a] += Vb[3 * i + a];
+  for (int a = 0; a < 3; ++a)
+    c[a] /= (double)nv;
   memset(r->blocks, 0, (nv + ne) * 16 * sizeof(double));
   memset(r->rhs, 0, 4 * nv * 3 * sizeof(double));
   size_t n4 = 4 * nv;
 #define H(i, k) ((k) < 3 ? Vb[3 * (size_t)(i) + (k)] - c[k] : 1.0)
   double wsum = 0;
-  for (size_t p = 0; p < nq; ++p) wsum += r->pw[p];
+  for (size_t p = 0; p < nq; ++p)
+    wsum += r->pw[p];
   if (wd > 0 && wsum > 0) {
     double scale = wd / wsum;
     for (size_t p = 0; p < nq; ++p) {
@@ -457,16 +479,19 @@ static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, si
       const double *be = r->pbary + 3 * p;
       double J[3][4];
       for (int b = 0; b < 3; ++b)
-        for (int k = 0; k < 4; ++k) J[b][k] = be[b] * H(t[b], k);
+        for (int k = 0; k < 4; ++k)
+          J[b][k] = be[b] * H(t[b], k);
       for (int b = 0; b < 3; ++b) {
         for (int k = 0; k < 4; ++k)
-          for (int a = 0; a < 3; ++a) r->rhs[a * n4 + 4 * (size_t)t[b] + k] += w * J[b][k] * (Q[3 * p + a] - c[a]);
+          for (int a = 0; a < 3; ++a)
+            r->rhs[a * n4 + 4 * (size_t)t[b] + k] += w * J[b][k] * (Q[3 * p + a] - c[a]);
         for (int b2 = 0; b2 < 3; ++b2) {
           if (t[b] == t[b2]) {
             if (b2 != b) continue;
             double *B = r->blocks + 16 * (size_t)t[b];
             for (int k = 0; k < 4; ++k)
-              for (int l = 0; l < 4; ++l) B[4 * k + l] += w * J[b][k] * J[b][l];
+              for (int l = 0; l < 4; ++l)
+                B[4 * k + l] += w * J[b][k] * J[b][l];
           } else if (t[b] < t[b2]) {
             /* edge block stores rows of the smaller vertex, columns of the larger */
             int ek = (b2 == (b + 1) % 3) ? b : b2;
@@ -474,7 +499,8 @@ static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, si
             if (e < 0) continue;
             double *B = r->blocks + 16 * (nv + (size_t)e);
             for (int k = 0; k < 4; ++k)
-              for (int l = 0; l < 4; ++l) B[4 * k + l] += w * J[b][k] * J[b2][l];
+              for (int l = 0; l < 4; ++l)
+                B[4 * k + l] += w * J[b][k] * J[b2][l];
           }
         }
       }
@@ -487,8 +513,10 @@ static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, si
       if (v < 0 || (size_t)v >= nv) continue;
       double *B = r->blocks + 16 * (size_t)v;
       for (int a = 0; a < 4; ++a) {
-        for (int b = 0; b < 4; ++b) B[4 * a + b] += w * H(v, a) * H(v, b);
-        for (int d = 0; d < 3; ++d) r->rhs[d * n4 + 4 * (size_t)v + a] += w * H(v, a) * (feat[k].point[d] - c[d]);
+        for (int b = 0; b < 4; ++b)
+          B[4 * a + b] += w * H(v, a) * H(v, b);
+        for (int d = 0; d < 3; ++d)
+          r->rhs[d * n4 + 4 * (size_t)v + a] += w * H(v, a) * (feat[k].point[d] - c[d]);
       }
     }
   }
@@ -517,8 +545,13 @@ static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, si
   if (!cholmod_factorize(r->M, r->L, &r->cc) || r->cc.status != CHOLMOD_OK)
     return km__fail(err, r->cc.status == CHOLMOD_NOT_POSDEF ? KM_ERR_NOT_POSDEF : KM_ERR_NOMEM,
                     "affine registration: CHOLMOD factorization failed (status %d)", r->cc.status);
-  cholmod_dense B = {.nrow = n4, .ncol = 3, .nzmax = n4 * 3, .d = n4, .x = r->rhs,
-                     .xtype = CHOLMOD_REAL, .dtype = CHOLMOD_DOUBLE};
+  cholmod_dense B = {.nrow = n4,
+                     .ncol = 3,
+                     .nzmax = n4 * 3,
+                     .d = n4,
+                     .x = r->rhs,
+                     .xtype = CHOLMOD_REAL,
+                     .dtype = CHOLMOD_DOUBLE};
   cholmod_dense *Xs = cholmod_solve(CHOLMOD_A, r->L, &B, &r->cc);
   if (!Xs) return km__fail(err, KM_ERR_NOMEM, "affine registration: CHOLMOD solve failed");
   memcpy(r->sol, Xs->x, n4 * 3 * sizeof(double));
@@ -535,12 +568,15 @@ static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, si
 }
 
 /* Affine map of a point by the solved A of vertex i (for carrying joints along). */
-static void affine_apply(const km_recon *r, const double *Vb, size_t i, const double *p, double *out) {
+static void affine_apply(const km_recon *r, const double *Vb, size_t i, const double *p,
+                         double *out) {
   size_t nv = r->nv, n4 = 4 * nv;
   double c[3] = {0, 0, 0};
   for (size_t k = 0; k < nv; ++k)
-    for (int a = 0; a < 3; ++a) c[a] += Vb[3 * k + a];
-  for (int a = 0; a < 3; ++a) c[a] /= (double)nv;
+    for (int a = 0; a < 3; ++a)
+      c[a] += Vb[3 * k + a];
+  for (int a = 0; a < 3; ++a)
+    c[a] /= (double)nv;
   double h[4] = {p[0] - c[0], p[1] - c[1], p[2] - c[2], 1};
   for (int a = 0; a < 3; ++a) {
     const double *A = r->sol + (size_t)a * n4 + 4 * i;
@@ -552,27 +588,30 @@ static void affine_apply(const km_recon *r, const double *Vb, size_t i, const do
 
 /* World transforms G_j (3x4) taking base positions to posed ones, from local rotations
  * L_j and root translation t: W_j = W_parent L_j, c_j = c_parent + W_parent (J_j - J_parent). */
-static void forward_kinematics(const km_recon *r, const double *Lrot, const double *t,
-                               double *W, double *cj, double *G) {
+static void forward_kinematics(const km_recon *r, const double *Lrot, const double *t, double *W,
+                               double *cj, double *G) {
   const double *J = r->base_joints;
   for (size_t j = 0; j < r->nj; ++j) {
     int32_t p = r->parents[j];
     if (p < 0) {
       memcpy(W + 9 * j, Lrot + 9 * j, 9 * sizeof(double));
-      for (int a = 0; a < 3; ++a) cj[3 * j + a] = J[3 * j + a] + t[a];
+      for (int a = 0; a < 3; ++a)
+        cj[3 * j + a] = J[3 * j + a] + t[a];
     } else {
       mat_mul(W + 9 * (size_t)p, Lrot + 9 * j, W + 9 * j);
       double d[3] = {J[3 * j] - J[3 * (size_t)p], J[3 * j + 1] - J[3 * (size_t)p + 1],
                      J[3 * j + 2] - J[3 * (size_t)p + 2]};
       mat_vec(W + 9 * (size_t)p, d, d);
-      for (int a = 0; a < 3; ++a) cj[3 * j + a] = cj[3 * (size_t)p + a] + d[a];
+      for (int a = 0; a < 3; ++a)
+        cj[3 * j + a] = cj[3 * (size_t)p + a] + d[a];
     }
     /* G_j x = W_j (x - J_j) + c_j */
     double *Gj = G + 12 * j;
     double WJ[3];
     mat_vec(W + 9 * j, J + 3 * j, WJ);
     for (int rr = 0; rr < 3; ++rr) {
-      for (int cc = 0; cc < 3; ++cc) Gj[4 * rr + cc] = W[9 * j + 3 * rr + cc];
+      for (int cc = 0; cc < 3; ++cc)
+        Gj[4 * rr + cc] = W[9 * j + 3 * rr + cc];
       Gj[4 * rr + 3] = cj[3 * j + rr] - WJ[rr];
     }
   }
@@ -588,7 +627,8 @@ static void lbs_apply(const km_recon *r, const double *G, const double *Vb, doub
       double w = r->skin.weights[4 * i + k];
       if (j < 0 || w == 0) continue;
       const double *g = G + 12 * (size_t)j;
-      for (int a = 0; a < 3; ++a) x[a] += w * (g[4 * a] * v[0] + g[4 * a + 1] * v[1] + g[4 * a + 2] * v[2] + g[4 * a + 3]);
+      for (int a = 0; a < 3; ++a)
+        x[a] += w * (g[4 * a] * v[0] + g[4 * a + 1] * v[1] + g[4 * a + 2] * v[2] + g[4 * a + 3]);
     }
     memcpy(X + 3 * i, x, sizeof x);
   }
@@ -642,7 +682,8 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
              be[2] * pc->X[3 * (size_t)t[2] + a] - pc->Q[3 * p + a];
     E += w * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
     for (int b = 0; b < 3; ++b)
-      for (int a = 0; a < 3; ++a) pc->gv[3 * (size_t)t[b] + a] += 2 * w * be[b] * e[a];
+      for (int a = 0; a < 3; ++a)
+        pc->gv[3 * (size_t)t[b] + a] += 2 * w * be[b] * e[a];
   }
   /* per joint: a_k = sum w (G_k v) x g_v, b_k = sum w g_v */
   double *acc = pc->acc; /* nj*6 */
@@ -657,21 +698,26 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
       if (j < 0 || w == 0) continue;
       const double *G = pc->G + 12 * (size_t)j;
       double y[3], yx[3];
-      for (int a = 0; a < 3; ++a) y[a] = G[4 * a] * v[0] + G[4 * a + 1] * v[1] + G[4 * a + 2] * v[2] + G[4 * a + 3];
+      for (int a = 0; a < 3; ++a)
+        y[a] = G[4 * a] * v[0] + G[4 * a + 1] * v[1] + G[4 * a + 2] * v[2] + G[4 * a + 3];
       cross(y, gvi, yx);
-      for (int a = 0; a < 3; ++a) acc[6 * (size_t)j + a] += w * yx[a], acc[6 * (size_t)j + 3 + a] += w * gvi[a];
+      for (int a = 0; a < 3; ++a)
+        acc[6 * (size_t)j + a] += w * yx[a], acc[6 * (size_t)j + 3 + a] += w * gvi[a];
     }
   }
   /* subtree sums, children after parents */
   for (size_t j = nj; j-- > 1;) {
     int32_t p = r->parents[j];
-    for (int a = 0; a < 6; ++a) acc[6 * (size_t)p + a] += acc[6 * j + a];
+    for (int a = 0; a < 6; ++a)
+      acc[6 * (size_t)p + a] += acc[6 * j + a];
   }
-  for (int a = 0; a < 3; ++a) g[a] = acc[3 + a];
+  for (int a = 0; a < 3; ++a)
+    g[a] = acc[3 + a];
   for (size_t j = 0; j < nj; ++j) {
     double cb[3], gphi[3], Jr[9], tmp[3];
     cross(pc->cj + 3 * j, acc + 6 * j + 3, cb);
-    for (int a = 0; a < 3; ++a) gphi[a] = acc[6 * j + a] - cb[a];
+    for (int a = 0; a < 3; ++a)
+      gphi[a] = acc[6 * j + a] - cb[a];
     mat_tvec(pc->W + 9 * j, gphi, tmp);
     right_jacobian(x + 3 + 3 * j, Jr);
     mat_tvec(Jr, tmp, g + 3 + 3 * j);
@@ -753,9 +799,11 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
       rodrigues(x + 3 + 3 * j, E);
       mat_mul(Lcur + 9 * j, E, Lcur + 9 * j);
     }
-    for (int a = 0; a < 3; ++a) tcur[a] += x[a];
+    for (int a = 0; a < 3; ++a)
+      tcur[a] += x[a];
     /* first-order accumulation of the deviation from the prediction */
-    for (int k = 0; k < n; ++k) xoff[k] += x[k];
+    for (int k = 0; k < n; ++k)
+      xoff[k] += x[k];
   }
   memcpy(r->Lrot, Lcur, nj * 9 * sizeof(double));
   memcpy(r->troot, tcur, sizeof tcur);
@@ -773,11 +821,11 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
 /* ---------------------------------------------------------------- per-frame driver */
 
 typedef struct frame_data {
-  const double *P;   /* full points */
+  const double *P; /* full points */
   size_t n;
-  double *N;         /* normals of P */
-  double *C;         /* coarse points */
-  double *CN;        /* coarse normals */
+  double *N;  /* normals of P */
+  double *C;  /* coarse points */
+  double *CN; /* coarse normals */
   size_t nc;
 } frame_data;
 
@@ -787,7 +835,8 @@ static void frame_data_free(frame_data *fd) {
   free(fd->CN);
 }
 
-static km_status frame_prepare(km_recon *r, const double *P, size_t n, frame_data *fd, km_error *err) {
+static km_status frame_prepare(km_recon *r, const double *P, size_t n, frame_data *fd,
+                               km_error *err) {
   memset(fd, 0, sizeof *fd);
   fd->P = P;
   fd->n = n;
@@ -827,7 +876,8 @@ static km_status frame_prepare(km_recon *r, const double *P, size_t n, frame_dat
 }
 
 /* Mean and max point-to-surface distance (mm) over all points. */
-static void frame_error(km_recon *r, const frame_data *fd, const double *X, km_recon_frame_stats *st) {
+static void frame_error(km_recon *r, const frame_data *fd, const double *X,
+                        km_recon_frame_stats *st) {
   km__surface_update(r->query, X);
   km__surface_closest(r->query, fd->P, fd->n, 0, r->ptri, NULL, r->pdist);
   double sum = 0, mx = 0;
@@ -864,10 +914,10 @@ static km_status refine(km_recon *r, const frame_data *fd, const double *Vb, int
   return KM_OK;
 }
 
-km_status km_recon_first_frame(km_recon *r, const double *P, size_t n,
-                               const km_recon_feature *feat, size_t nfeat,
-                               km_recon_frame_stats *st, km_error *err) {
-  if (!r || (!P && n) || (!feat && nfeat)) return km__fail(err, KM_ERR_INVALID, "km_recon_first_frame: NULL argument");
+km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_recon_feature *feat,
+                               size_t nfeat, km_recon_frame_stats *st, km_error *err) {
+  if (!r || (!P && n) || (!feat && nfeat))
+    return km__fail(err, KM_ERR_INVALID, "km_recon_first_frame: NULL argument");
   double t0 = km__now();
   km_recon_frame_stats local = {0};
   if (!st) st = &local;
@@ -905,19 +955,23 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n,
   } else {
     /* No correspondences: the subject is assumed upright like the template (y up); match
      * centroids and heights. */
-    double cp[3] = {0}, ct[3] = {0}, plo = INFINITY, phi = -INFINITY, tlo = INFINITY, thi = -INFINITY;
+    double cp[3] = {0}, ct[3] = {0}, plo = INFINITY, phi = -INFINITY, tlo = INFINITY,
+           thi = -INFINITY;
     for (size_t i = 0; i < n; ++i) {
-      for (int a = 0; a < 3; ++a) cp[a] += P[3 * i + a] / (double)n;
+      for (int a = 0; a < 3; ++a)
+        cp[a] += P[3 * i + a] / (double)n;
       plo = fmin(plo, P[3 * i + 1]), phi = fmax(phi, P[3 * i + 1]);
     }
     for (size_t i = 0; i < nv; ++i) {
-      for (int a = 0; a < 3; ++a) ct[a] += r->tmpl.V[3 * i + a] / (double)nv;
+      for (int a = 0; a < 3; ++a)
+        ct[a] += r->tmpl.V[3 * i + a] / (double)nv;
       tlo = fmin(tlo, r->tmpl.V[3 * i + 1]), thi = fmax(thi, r->tmpl.V[3 * i + 1]);
     }
     sc = (thi > tlo && phi > plo) ? (phi - plo) / (thi - tlo) : 1;
     memset(R, 0, sizeof R);
     R[0] = R[4] = R[8] = 1;
-    for (int a = 0; a < 3; ++a) t[a] = cp[a] - sc * ct[a];
+    for (int a = 0; a < 3; ++a)
+      t[a] = cp[a] - sc * ct[a];
   }
   double *V1 = km__malloc(nv, 3 * sizeof(double));
   if (!V1) {
@@ -926,11 +980,13 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n,
   }
   for (size_t i = 0; i < nv; ++i) {
     mat_vec(R, r->tmpl.V + 3 * i, V1 + 3 * i);
-    for (int a = 0; a < 3; ++a) V1[3 * i + a] = sc * V1[3 * i + a] + t[a];
+    for (int a = 0; a < 3; ++a)
+      V1[3 * i + a] = sc * V1[3 * i + a] + t[a];
   }
   for (size_t j = 0; j < nj; ++j) {
     mat_vec(R, r->tmpl_joints + 3 * j, r->base_joints + 3 * j);
-    for (int a = 0; a < 3; ++a) r->base_joints[3 * j + a] = sc * r->base_joints[3 * j + a] + t[a];
+    for (int a = 0; a < 3; ++a)
+      r->base_joints[3 * j + a] = sc * r->base_joints[3 * j + a] + t[a];
   }
   memcpy(r->base, V1, nv * 3 * sizeof(double));
   /* 2. pose: the skeletal step on the aligned template (the subject need not stand exactly
@@ -959,7 +1015,8 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n,
   memcpy(V1, r->global, nv * 3 * sizeof(double));
   if (nfeat) {
     /* feature term alone is linear: one solve */
-    for (size_t i = 0; i < n; ++i) r->pw[i] = 0;
+    for (size_t i = 0; i < n; ++i)
+      r->pw[i] = 0;
     s = affine_solve(r, V1, fd.C, 0, 0, feat, nfeat, r->o.w_feature, r->surface, err);
     ++st->iterations;
     if (s) goto fail;
@@ -977,11 +1034,13 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n,
           double q[3];
           affine_apply(r, V1, i, r->joints + 3 * j, q);
           double w = r->skin.weights[4 * i + k];
-          for (int a = 0; a < 3; ++a) acc[a] += w * q[a];
+          for (int a = 0; a < 3; ++a)
+            acc[a] += w * q[a];
           wsum += w;
         }
     if (wsum > 0)
-      for (int a = 0; a < 3; ++a) r->joints[3 * j + a] = acc[a] / wsum;
+      for (int a = 0; a < 3; ++a)
+        r->joints[3 * j + a] = acc[a] / wsum;
   }
   memcpy(r->base, r->surface, nv * 3 * sizeof(double));
   memcpy(r->base_joints, r->joints, nj * 3 * sizeof(double));
@@ -1015,7 +1074,8 @@ fail:
 km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_frame_stats *st,
                               km_error *err) {
   if (!r || (!P && n)) return km__fail(err, KM_ERR_INVALID, "km_recon_next_frame: NULL argument");
-  if (!r->have_base) return km__fail(err, KM_ERR_INVALID, "km_recon_next_frame: register the first frame first");
+  if (!r->have_base)
+    return km__fail(err, KM_ERR_INVALID, "km_recon_next_frame: register the first frame first");
   double t0 = km__now();
   km_recon_frame_stats local = {0};
   if (!st) st = &local;
@@ -1029,19 +1089,22 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   for (size_t j = 0; j < nj; ++j) {
     double D[9], Pt[9];
     for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) Pt[3 * a + b] = r->Lprev2[9 * j + 3 * b + a];
+      for (int b = 0; b < 3; ++b)
+        Pt[3 * a + b] = r->Lprev2[9 * j + 3 * b + a];
     mat_mul(Pt, r->Lprev + 9 * j, D);
     mat_mul(r->Lprev + 9 * j, D, Lpred + 9 * j);
   }
   double tpred[3];
-  for (int a = 0; a < 3; ++a) tpred[a] = 2 * r->tprev[a] - r->tprev2[a];
+  for (int a = 0; a < 3; ++a)
+    tpred[a] = 2 * r->tprev[a] - r->tprev2[a];
   frame_data fd;
   km_status s = frame_prepare(r, P, n, &fd, err);
   km_status fs = KM_OK;
   if (s) {
     fs = s;
   } else {
-    st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations, &fs);
+    st->iterations +=
+        skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations, &fs);
   }
   if (fs != KM_OK) {
     /* carried by the skeleton prediction */
@@ -1060,14 +1123,16 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
     frame_error(r, &fd, r->surface, st);
     /* a frame far worse than the recent ones did not converge: carry it by the skeleton */
     double ref = 0;
-    for (size_t k = 0; k < r->n_hist; ++k) ref += r->err_hist[k] / (double)r->n_hist;
+    for (size_t k = 0; k < r->n_hist; ++k)
+      ref += r->err_hist[k] / (double)r->n_hist;
     if (fs == KM_OK && r->n_hist >= 3 && st->mean_mm > 4 * ref + 5) {
       fs = KM_ERR_NO_CONVERGENCE;
       memcpy(r->surface, r->global, nv * 3 * sizeof(double));
       frame_error(r, &fd, r->surface, st);
     }
     if (fs == KM_OK) {
-      if (r->n_hist < 8) r->err_hist[r->n_hist++] = st->mean_mm;
+      if (r->n_hist < 8)
+        r->err_hist[r->n_hist++] = st->mean_mm;
       else {
         memmove(r->err_hist, r->err_hist + 1, 7 * sizeof(double));
         r->err_hist[7] = st->mean_mm;
