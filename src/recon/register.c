@@ -427,7 +427,7 @@ static double correspond(km_recon *r, const double *X, const double *Q, const do
     if (r->ptri[i] >= 0 && r->pdist[i] < 4 * c) {
       double q = r->pdist[i] / c;
       w = 1.0 / ((1 + q * q) * (1 + q * q));
-      if (NQ) {
+      {
         const int32_t *t = r->tmpl.F + 3 * (size_t)r->ptri[i];
         const double *a = X + 3 * (size_t)t[0], *b = X + 3 * (size_t)t[1],
                      *cc = X + 3 * (size_t)t[2];
@@ -435,8 +435,11 @@ static double correspond(km_recon *r, const double *X, const double *Q, const do
                v[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]}, fn[3];
         cross(u, v, fn);
         double l = sqrt(fn[0] * fn[0] + fn[1] * fn[1] + fn[2] * fn[2]);
-        const double *pn = NQ + 3 * i;
-        if (l > 0 && fabs(fn[0] * pn[0] + fn[1] * pn[1] + fn[2] * pn[2]) < 0.5 * l) w = 0;
+        for (int a = 0; a < 3; ++a) r->pnormal[3 * i + a] = l > 0 ? fn[a] / l : 0;
+        if (NQ) {
+          const double *pn = NQ + 3 * i;
+          if (l > 0 && fabs(fn[0] * pn[0] + fn[1] * pn[1] + fn[2] * pn[2]) < 0.5 * l) w = 0;
+        }
       }
     }
     r->pw[i] = w;
@@ -617,8 +620,9 @@ static void forward_kinematics(const km_recon *r, const double *Lrot, const doub
   }
 }
 
+/* Serial on purpose: called once per L-BFGS evaluation on a few thousand vertices, where an
+ * OpenMP fork/join costs more than the work. */
 static void lbs_apply(const km_recon *r, const double *G, const double *Vb, double *X) {
-#pragma omp parallel for schedule(static)
   for (size_t i = 0; i < r->nv; ++i) {
     double x[3] = {0, 0, 0};
     const double *v = Vb + 3 * i;
@@ -636,6 +640,8 @@ static void lbs_apply(const km_recon *r, const double *G, const double *Vb, doub
 
 /* ---------------------------------------------------------------- skeleton: L-BFGS */
 
+#define PLANE_MU 0.1
+
 typedef struct pose_ctx {
   km_recon *r;
   const double *Q; /* points */
@@ -646,6 +652,10 @@ typedef struct pose_ctx {
   double *Lrot, *W, *cj, *G, *X, *gv, *acc; /* scratch */
   double lambda;
   const double *xoff; /* n: parameters accumulated in earlier rounds (prediction offset) */
+  const km_recon_feature *feat;
+  size_t nfeat;
+  double wf;
+  bool use_data;
   int evals;
 } pose_ctx;
 
@@ -671,7 +681,16 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
   lbs_apply(r, pc->G, r->base, pc->X);
   memset(pc->gv, 0, nv * 3 * sizeof(double));
   double E = 0, s = 1.0 / (pc->wsum > 0 ? pc->wsum : 1);
-  for (size_t p = 0; p < pc->nq; ++p) {
+  for (size_t k = 0; k < pc->nfeat; ++k) {
+    size_t v = (size_t)pc->feat[k].vertex;
+    double w = pc->wf / (double)pc->nfeat;
+    for (int a = 0; a < 3; ++a) {
+      double e = pc->X[3 * v + a] - pc->feat[k].point[a];
+      E += w * e * e;
+      pc->gv[3 * v + a] += 2 * w * e;
+    }
+  }
+  for (size_t p = 0; pc->use_data && p < pc->nq; ++p) {
     double w = r->pw[p] * s;
     if (w <= 0) continue;
     const int32_t *t = r->tmpl.F + 3 * (size_t)r->ptri[p];
@@ -680,10 +699,15 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
     for (int a = 0; a < 3; ++a)
       e[a] = be[0] * pc->X[3 * (size_t)t[0] + a] + be[1] * pc->X[3 * (size_t)t[1] + a] +
              be[2] * pc->X[3 * (size_t)t[2] + a] - pc->Q[3 * p + a];
-    E += w * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+    /* point-to-plane plus a little point-to-point (the face normal is frozen with the
+     * correspondence): converges in far fewer rounds than point-to-point alone */
+    const double *nn = r->pnormal + 3 * p;
+    double en = nn[0] * e[0] + nn[1] * e[1] + nn[2] * e[2];
+    E += w * (en * en + PLANE_MU * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]));
+    double ge[3];
+    for (int a = 0; a < 3; ++a) ge[a] = 2 * w * (en * nn[a] + PLANE_MU * e[a]);
     for (int b = 0; b < 3; ++b)
-      for (int a = 0; a < 3; ++a)
-        pc->gv[3 * (size_t)t[b] + a] += 2 * w * be[b] * e[a];
+      for (int a = 0; a < 3; ++a) pc->gv[3 * (size_t)t[b] + a] += be[b] * ge[a];
   }
   /* per joint: a_k = sum w (G_k v) x g_v, b_k = sum w g_v */
   double *acc = pc->acc; /* nj*6 */
@@ -736,7 +760,9 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
 /* Estimates the pose for points Q (with normals NQ) starting from (Lref, tref). Returns the
  * L-BFGS iterations used; the pose ends in r->Lrot / r->troot, LBS surface in r->global. */
 static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t nq,
-                        const double *Lref, const double *tref, int outer, km_status *status) {
+                        const double *Lref, const double *tref, int outer,
+                        const km_recon_feature *feat, size_t nfeat, bool use_data,
+                        km_status *status) {
   size_t nj = r->nj, nv = r->nv;
   int n = (int)(3 + 3 * nj);
   lbfgsfloatval_t *x = lbfgs_malloc(n);
@@ -751,7 +777,8 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
     *status = KM_ERR_NOMEM;
     return 0;
   }
-  pose_ctx pc = {.r = r, .Q = Q, .nq = nq, .lambda = r->o.w_pose, .xoff = xoff};
+  pose_ctx pc = {.r = r, .Q = Q, .nq = nq, .lambda = r->o.w_pose, .xoff = xoff,
+                 .feat = feat, .nfeat = nfeat, .wf = r->o.w_feature, .use_data = use_data};
   pc.Lrot = scratch;
   pc.W = pc.Lrot + nj * 9;
   pc.cj = pc.W + nj * 9;
@@ -765,7 +792,7 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
   *status = KM_OK;
   lbfgs_parameter_t par;
   lbfgs_parameter_init(&par);
-  par.max_iterations = 40;
+  par.max_iterations = use_data ? 60 : 300;
   par.epsilon = 1e-6;
   par.past = 3;
   par.delta = 1e-7;
@@ -779,13 +806,35 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
     pose_from_params(&pc, x);
     lbs_apply(r, pc.G, r->base, pc.X);
     memcpy(r->work, pc.X, nv * 3 * sizeof(double));
-    pc.wsum = correspond(r, r->work, Q, NQ, nq, 0.3);
+    pc.wsum = use_data ? correspond(r, r->work, Q, NQ, nq, 0.3) : 1;
     if (pc.wsum <= 0) {
       *status = KM_ERR_NO_CONVERGENCE;
       break;
     }
     lbfgsfloatval_t fx;
+    if (getenv("KM_GRADCHECK")) {
+      double *gg = malloc(n * sizeof(double)), *g2 = malloc(n * sizeof(double));
+      for (int k = 0; k < n; ++k) x[k] = 0.05 * sin(k * 1.7);
+      pose_evaluate(&pc, x, gg, n, 0);
+      double maxrel = 0;
+      for (int k = 0; k < n; ++k) {
+        double h = 1e-6, xk = x[k];
+        x[k] = xk + h;
+        double ep = pose_evaluate(&pc, x, g2, n, 0);
+        x[k] = xk - h;
+        double em = pose_evaluate(&pc, x, g2, n, 0);
+        x[k] = xk;
+        double fd = (ep - em) / (2 * h);
+        double rel = fabs(fd - gg[k]) / (fabs(fd) + fabs(gg[k]) + 1e-12);
+        if (rel > maxrel) maxrel = rel;
+        if (rel > 1e-4) fprintf(stderr, "grad %d: fd %g an %g\n", k, fd, gg[k]);
+      }
+      fprintf(stderr, "gradcheck max rel %g\n", maxrel);
+      free(gg), free(g2);
+      memset(x, 0, (size_t)n * sizeof *x);
+    }
     int ret = lbfgs(n, x, &fx, pose_evaluate, NULL, &pc, &par);
+    if (getenv("KM_DEBUG_FEAT")) fprintf(stderr, "lbfgs ret %d fx %g evals %d\n", ret, fx, pc.evals);
     if (ret < 0 && ret != LBFGSERR_MAXIMUMITERATION && ret != LBFGSERR_ROUNDING_ERROR &&
         ret != LBFGSERR_MAXIMUMLINESEARCH && ret != LBFGSERR_MINIMUMSTEP &&
         ret != LBFGSERR_MAXIMUMSTEP && ret != LBFGSERR_WIDTHTOOSMALL) {
@@ -807,6 +856,20 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
   }
   memcpy(r->Lrot, Lcur, nj * 9 * sizeof(double));
   memcpy(r->troot, tcur, sizeof tcur);
+  if (getenv("KM_DEBUG_FEAT") && nfeat) {
+    memset(x, 0, (size_t)n * sizeof *x);
+    pc.Lref = Lcur;
+    pc.tref = tcur;
+    pose_from_params(&pc, x);
+    lbs_apply(r, pc.G, r->base, pc.X);
+    for (size_t k = 0; k < nfeat; ++k) {
+      size_t v = (size_t)feat[k].vertex;
+      double d = 0;
+      for (int a = 0; a < 3; ++a) d += (pc.X[3 * v + a] - feat[k].point[a]) * (pc.X[3 * v + a] - feat[k].point[a]);
+      fprintf(stderr, "%.0f ", sqrt(d) * 1e3);
+    }
+    fprintf(stderr, " (feature errors mm, data %d, iters %d)\n", use_data, iters);
+  }
   double *W = pc.W, *cj = pc.cj;
   forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
   memcpy(r->joints, cj, nj * 3 * sizeof(double));
@@ -946,7 +1009,9 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
       memcpy(A + 3 * k, r->tmpl.V + 3 * (size_t)feat[k].vertex, 3 * sizeof(double));
       memcpy(B + 3 * k, feat[k].point, 3 * sizeof(double));
     }
-    s = km_absolute_orientation(A, B, nfeat, true, R, t, &sc, err);
+    /* rigid only here: with the subject in another pose than the template, a scale from
+     * unposed landmarks is biased (arms out vs. arms in); scale comes after posing */
+    s = km_absolute_orientation(A, B, nfeat, false, R, t, NULL, err);
     free(A), free(B);
     if (s) {
       frame_data_free(&fd);
@@ -1004,7 +1069,40 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     return km__fail(err, KM_ERR_NOMEM, "out of memory");
   }
   memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
-  st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, r->o.skeleton_iterations, &ps);
+  /* Features drive the pose first (the subject may stand far from the template's pose);
+   * the similarity is then re-estimated against the posed landmarks, which removes the bias
+   * a pose difference puts into Horn's scale and rotation; then features and data. */
+  if (nfeat >= 3) {
+    double *A = km__malloc(nfeat, 3 * sizeof(double)), *B = km__malloc(nfeat, 3 * sizeof(double));
+    for (int pass = 0; pass < 3 && A && B; ++pass) {
+      ps = KM_OK;
+      st->iterations +=
+          skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, 2, feat, nfeat, false, &ps);
+      if (ps != KM_OK) break;
+      memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
+      for (size_t k = 0; k < nfeat; ++k) {
+        memcpy(A + 3 * k, r->global + 3 * (size_t)feat[k].vertex, 3 * sizeof(double));
+        memcpy(B + 3 * k, feat[k].point, 3 * sizeof(double));
+      }
+      double R2[9], t2[3], s2 = 1;
+      if (km_absolute_orientation(A, B, nfeat, true, R2, t2, &s2, NULL) != KM_OK) break;
+      /* the similarity goes into the unposed base; the root offset follows it */
+      for (size_t i = 0; i < nv; ++i) {
+        mat_vec(R2, r->base + 3 * i, r->base + 3 * i);
+        for (int a = 0; a < 3; ++a) r->base[3 * i + a] = s2 * r->base[3 * i + a] + t2[a];
+      }
+      for (size_t j = 0; j < nj; ++j) {
+        mat_vec(R2, r->base_joints + 3 * j, r->base_joints + 3 * j);
+        for (int a = 0; a < 3; ++a) r->base_joints[3 * j + a] = s2 * r->base_joints[3 * j + a] + t2[a];
+      }
+      mat_vec(R2, r->troot, zero);
+      for (int a = 0; a < 3; ++a) zero[a] *= s2;
+    }
+    free(A), free(B);
+    ps = KM_OK;
+  }
+  st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, r->o.skeleton_iterations, feat,
+                                 nfeat, true, &ps);
   free(Lid);
   if (ps != KM_OK) {
     /* keep the aligned template */
@@ -1026,7 +1124,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
   if (s) goto fail;
   /* 4. the registered surface is the template for the rest: joints carried by the skinned
    * vertices' affine maps */
-  for (size_t j = 0; j < nj; ++j) {
+  for (size_t j = 0; j < nj && !getenv("KM_NOCARRY"); ++j) {
     double acc[3] = {0, 0, 0}, wsum = 0;
     for (size_t i = 0; i < nv; ++i)
       for (int k = 0; k < 4; ++k)
@@ -1104,7 +1202,8 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
     fs = s;
   } else {
     st->iterations +=
-        skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations, &fs);
+        skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations, NULL, 0,
+                     true, &fs);
   }
   if (fs != KM_OK) {
     /* carried by the skeleton prediction */
