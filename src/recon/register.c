@@ -113,7 +113,7 @@ static void opt_defaults(km_recon_options *o) {
   if (o->w_data <= 0) o->w_data = 1;
   if (o->w_feature <= 0) o->w_feature = 10;
   if (o->w_smooth <= 0) o->w_smooth = 0.05;
-  if (o->w_pose <= 0) o->w_pose = 1e-3;
+  if (o->w_pose <= 0) o->w_pose = 1e-5;
   if (o->outlier_scale <= 0) o->outlier_scale = 3;
   if (o->filter_radius == 0) o->filter_radius = 2;
   if (o->filter_sigma <= 0) o->filter_sigma = 1;
@@ -762,7 +762,7 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
 static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t nq,
                         const double *Lref, const double *tref, int outer,
                         const km_recon_feature *feat, size_t nfeat, bool use_data,
-                        km_status *status) {
+                        double lambda, km_status *status) {
   size_t nj = r->nj, nv = r->nv;
   int n = (int)(3 + 3 * nj);
   lbfgsfloatval_t *x = lbfgs_malloc(n);
@@ -777,7 +777,7 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
     *status = KM_ERR_NOMEM;
     return 0;
   }
-  pose_ctx pc = {.r = r, .Q = Q, .nq = nq, .lambda = r->o.w_pose, .xoff = xoff,
+  pose_ctx pc = {.r = r, .Q = Q, .nq = nq, .lambda = lambda, .xoff = xoff,
                  .feat = feat, .nfeat = nfeat, .wf = r->o.w_feature, .use_data = use_data};
   pc.Lrot = scratch;
   pc.W = pc.Lrot + nj * 9;
@@ -1077,7 +1077,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     for (int pass = 0; pass < 3 && A && B; ++pass) {
       ps = KM_OK;
       st->iterations +=
-          skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, 2, feat, nfeat, false, &ps);
+          skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, 2, feat, nfeat, false, 100 * r->o.w_pose, &ps);
       if (ps != KM_OK) break;
       memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
       for (size_t k = 0; k < nfeat; ++k) {
@@ -1101,8 +1101,9 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     free(A), free(B);
     ps = KM_OK;
   }
+  /* with features the fitted pose is trusted: data refines it under a stronger tie */
   st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, r->o.skeleton_iterations, feat,
-                                 nfeat, true, &ps);
+                                 nfeat, true, nfeat >= 3 ? 100 * r->o.w_pose : r->o.w_pose, &ps);
   free(Lid);
   if (ps != KM_OK) {
     /* keep the aligned template */
@@ -1203,7 +1204,7 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   } else {
     st->iterations +=
         skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations, NULL, 0,
-                     true, &fs);
+                     true, r->o.w_pose, &fs);
   }
   if (fs != KM_OK) {
     /* carried by the skeleton prediction */
