@@ -181,7 +181,8 @@ int main(int argc, char **argv) {
       for (size_t j = 0; j < take.n_joints; ++j) {
         double d = 0;
         for (int a = 0; a < 3; ++a) {
-          double x = rep.joints[(f * take.n_joints + j) * 3 + a] - take.positions[(f * take.n_joints + j) * 3 + a];
+          double x = rep.joints[(f * take.n_joints + j) * 3 + a] -
+                     take.positions[(f * take.n_joints + j) * 3 + a];
           d += x * x;
         }
         if (sqrt(d) > we) we = sqrt(d), worst = (int)j;

@@ -314,6 +314,7 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   km_recon *r = calloc(1, sizeof *r);
   if (!r) return km__fail(err, KM_ERR_NOMEM, "out of memory");
   cholmod_start(&r->cc);
+  r->cc.print = 0; /* the library never prints; failures come back as km_status */
   r->cc.supernodal = CHOLMOD_AUTO;
   r->o = opt ? *opt : (km_recon_options){0};
   opt_defaults(&r->o);
@@ -403,12 +404,13 @@ static int cmp_double(const void *a, const void *b) {
 }
 
 /* Closest points of Q (n) on surface X, then robust weights: Geman-McClure with scale
- * c = outlier_scale * 1.4826 * median residual (floored at 3 mm so sensor noise is never
- * treated as outliers), zero beyond 4c, and zero where the point normal (if given) and the
- * face normal are more than 60 degrees apart (a point on the inner thigh must not pull the
- * other leg). Returns the sum of weights. */
+ * c = outlier_scale * 1.4826 * median residual, floored (at 3 mm in the end, so sensor noise
+ * is never treated as outliers; larger in early rounds, so a limb that moved far while the
+ * rest stood still is not mistaken for outliers), zero beyond 4c, and zero where the point normal
+ * (if given) and the face normal are more than 60 degrees apart (a point on the inner thigh must
+ * not pull the other leg). Returns the sum of weights. */
 static double correspond(km_recon *r, const double *X, const double *Q, const double *NQ, size_t n,
-                         double max_dist) {
+                         double max_dist, double floor) {
   km__surface_update(r->query, X);
   km__surface_closest(r->query, Q, n, max_dist, r->ptri, r->pbary, r->pdist);
   size_t m = 0;
@@ -420,7 +422,7 @@ static double correspond(km_recon *r, const double *X, const double *Q, const do
     med = r->pw[m / 2];
   }
   double c = r->o.outlier_scale * 1.4826 * med;
-  if (c < 0.003) c = 0.003;
+  if (c < floor) c = floor;
   double wsum = 0;
   for (size_t i = 0; i < n; ++i) {
     double w = 0;
@@ -435,7 +437,8 @@ static double correspond(km_recon *r, const double *X, const double *Q, const do
                v[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]}, fn[3];
         cross(u, v, fn);
         double l = sqrt(fn[0] * fn[0] + fn[1] * fn[1] + fn[2] * fn[2]);
-        for (int a = 0; a < 3; ++a) r->pnormal[3 * i + a] = l > 0 ? fn[a] / l : 0;
+        for (int a = 0; a < 3; ++a)
+          r->pnormal[3 * i + a] = l > 0 ? fn[a] / l : 0;
         if (NQ) {
           const double *pn = NQ + 3 * i;
           if (l > 0 && fabs(fn[0] * pn[0] + fn[1] * pn[1] + fn[2] * pn[2]) < 0.5 * l) w = 0;
@@ -705,9 +708,11 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
     double en = nn[0] * e[0] + nn[1] * e[1] + nn[2] * e[2];
     E += w * (en * en + PLANE_MU * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]));
     double ge[3];
-    for (int a = 0; a < 3; ++a) ge[a] = 2 * w * (en * nn[a] + PLANE_MU * e[a]);
+    for (int a = 0; a < 3; ++a)
+      ge[a] = 2 * w * (en * nn[a] + PLANE_MU * e[a]);
     for (int b = 0; b < 3; ++b)
-      for (int a = 0; a < 3; ++a) pc->gv[3 * (size_t)t[b] + a] += be[b] * ge[a];
+      for (int a = 0; a < 3; ++a)
+        pc->gv[3 * (size_t)t[b] + a] += be[b] * ge[a];
   }
   /* per joint: a_k = sum w (G_k v) x g_v, b_k = sum w g_v */
   double *acc = pc->acc; /* nj*6 */
@@ -761,8 +766,8 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
  * L-BFGS iterations used; the pose ends in r->Lrot / r->troot, LBS surface in r->global. */
 static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t nq,
                         const double *Lref, const double *tref, int outer,
-                        const km_recon_feature *feat, size_t nfeat, bool use_data,
-                        double lambda, km_status *status) {
+                        const km_recon_feature *feat, size_t nfeat, bool use_data, double lambda,
+                        km_status *status) {
   size_t nj = r->nj, nv = r->nv;
   int n = (int)(3 + 3 * nj);
   lbfgsfloatval_t *x = lbfgs_malloc(n);
@@ -777,8 +782,15 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
     *status = KM_ERR_NOMEM;
     return 0;
   }
-  pose_ctx pc = {.r = r, .Q = Q, .nq = nq, .lambda = lambda, .xoff = xoff,
-                 .feat = feat, .nfeat = nfeat, .wf = r->o.w_feature, .use_data = use_data};
+  pose_ctx pc = {.r = r,
+                 .Q = Q,
+                 .nq = nq,
+                 .lambda = lambda,
+                 .xoff = xoff,
+                 .feat = feat,
+                 .nfeat = nfeat,
+                 .wf = r->o.w_feature,
+                 .use_data = use_data};
   pc.Lrot = scratch;
   pc.W = pc.Lrot + nj * 9;
   pc.cj = pc.W + nj * 9;
@@ -806,7 +818,7 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
     pose_from_params(&pc, x);
     lbs_apply(r, pc.G, r->base, pc.X);
     memcpy(r->work, pc.X, nv * 3 * sizeof(double));
-    pc.wsum = use_data ? correspond(r, r->work, Q, NQ, nq, 0.3) : 1;
+    pc.wsum = use_data ? correspond(r, r->work, Q, NQ, nq, 0.3, fmax(0.003, ldexp(0.1, -it))) : 1;
     if (pc.wsum <= 0) {
       *status = KM_ERR_NO_CONVERGENCE;
       break;
@@ -814,7 +826,8 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
     lbfgsfloatval_t fx;
     if (getenv("KM_GRADCHECK")) {
       double *gg = malloc(n * sizeof(double)), *g2 = malloc(n * sizeof(double));
-      for (int k = 0; k < n; ++k) x[k] = 0.05 * sin(k * 1.7);
+      for (int k = 0; k < n; ++k)
+        x[k] = 0.05 * sin(k * 1.7);
       pose_evaluate(&pc, x, gg, n, 0);
       double maxrel = 0;
       for (int k = 0; k < n; ++k) {
@@ -834,7 +847,8 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
       memset(x, 0, (size_t)n * sizeof *x);
     }
     int ret = lbfgs(n, x, &fx, pose_evaluate, NULL, &pc, &par);
-    if (getenv("KM_DEBUG_FEAT")) fprintf(stderr, "lbfgs ret %d fx %g evals %d\n", ret, fx, pc.evals);
+    if (getenv("KM_DEBUG_FEAT"))
+      fprintf(stderr, "lbfgs ret %d fx %g evals %d\n", ret, fx, pc.evals);
     if (ret < 0 && ret != LBFGSERR_MAXIMUMITERATION && ret != LBFGSERR_ROUNDING_ERROR &&
         ret != LBFGSERR_MAXIMUMLINESEARCH && ret != LBFGSERR_MINIMUMSTEP &&
         ret != LBFGSERR_MAXIMUMSTEP && ret != LBFGSERR_WIDTHTOOSMALL) {
@@ -865,7 +879,8 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
     for (size_t k = 0; k < nfeat; ++k) {
       size_t v = (size_t)feat[k].vertex;
       double d = 0;
-      for (int a = 0; a < 3; ++a) d += (pc.X[3 * v + a] - feat[k].point[a]) * (pc.X[3 * v + a] - feat[k].point[a]);
+      for (int a = 0; a < 3; ++a)
+        d += (pc.X[3 * v + a] - feat[k].point[a]) * (pc.X[3 * v + a] - feat[k].point[a]);
       fprintf(stderr, "%.0f ", sqrt(d) * 1e3);
     }
     fprintf(stderr, " (feature errors mm, data %d, iters %d)\n", use_data, iters);
@@ -963,7 +978,7 @@ static km_status refine(km_recon *r, const frame_data *fd, const double *Vb, int
     const double *Q = full ? fd->P : fd->C, *NQ = full ? fd->N : fd->CN;
     size_t nq = full ? fd->n : fd->nc;
     memcpy(r->work, r->surface, r->nv * 3 * sizeof(double));
-    double ws = correspond(r, r->work, Q, NQ, nq, 0.15);
+    double ws = correspond(r, r->work, Q, NQ, nq, 0.15, fmax(0.003, ldexp(0.03, -it)));
     double mean = 0;
     for (size_t i = 0; i < nq; ++i)
       if (r->pw[i] > 0) mean += r->pw[i] * r->pdist[i];
@@ -1076,8 +1091,8 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     double *A = km__malloc(nfeat, 3 * sizeof(double)), *B = km__malloc(nfeat, 3 * sizeof(double));
     for (int pass = 0; pass < 3 && A && B; ++pass) {
       ps = KM_OK;
-      st->iterations +=
-          skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, 2, feat, nfeat, false, 100 * r->o.w_pose, &ps);
+      st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, 2, feat, nfeat, false,
+                                     100 * r->o.w_pose, &ps);
       if (ps != KM_OK) break;
       memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
       for (size_t k = 0; k < nfeat; ++k) {
@@ -1089,14 +1104,17 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
       /* the similarity goes into the unposed base; the root offset follows it */
       for (size_t i = 0; i < nv; ++i) {
         mat_vec(R2, r->base + 3 * i, r->base + 3 * i);
-        for (int a = 0; a < 3; ++a) r->base[3 * i + a] = s2 * r->base[3 * i + a] + t2[a];
+        for (int a = 0; a < 3; ++a)
+          r->base[3 * i + a] = s2 * r->base[3 * i + a] + t2[a];
       }
       for (size_t j = 0; j < nj; ++j) {
         mat_vec(R2, r->base_joints + 3 * j, r->base_joints + 3 * j);
-        for (int a = 0; a < 3; ++a) r->base_joints[3 * j + a] = s2 * r->base_joints[3 * j + a] + t2[a];
+        for (int a = 0; a < 3; ++a)
+          r->base_joints[3 * j + a] = s2 * r->base_joints[3 * j + a] + t2[a];
       }
       mat_vec(R2, r->troot, zero);
-      for (int a = 0; a < 3; ++a) zero[a] *= s2;
+      for (int a = 0; a < 3; ++a)
+        zero[a] *= s2;
     }
     free(A), free(B);
     ps = KM_OK;
@@ -1202,14 +1220,18 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   if (s) {
     fs = s;
   } else {
-    st->iterations +=
-        skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations, NULL, 0,
-                     true, r->o.w_pose, &fs);
+    st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations,
+                                   NULL, 0, true, r->o.w_pose, &fs);
   }
+  bool finite = true;
+  for (size_t i = 0; fs == KM_OK && i < nv * 3 && finite; ++i)
+    finite = isfinite(r->global[i]);
+  if (fs == KM_OK && !finite) fs = KM_ERR_NO_CONVERGENCE;
   if (fs != KM_OK) {
-    /* carried by the skeleton prediction */
-    memcpy(r->Lrot, Lpred, nj * 9 * sizeof(double));
-    memcpy(r->troot, tpred, sizeof tpred);
+    /* carried by the skeleton: the previous pose (a failed frame must not extrapolate a
+     * velocity that may be what made it fail) */
+    memcpy(r->Lrot, r->Lprev, nj * 9 * sizeof(double));
+    memcpy(r->troot, r->tprev, sizeof tpred);
     forward_kinematics(r, r->Lrot, r->troot, r->work, r->work + 9 * nj, r->G);
     memcpy(r->joints, r->work + 9 * nj, nj * 3 * sizeof(double));
     lbs_apply(r, r->G, r->base, r->global);
@@ -1217,6 +1239,8 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   } else {
     km_error e2;
     fs = refine(r, &fd, r->global, r->o.refine_iterations, NULL, 0, 0, &st->iterations, &e2);
+    for (size_t i = 0; fs == KM_OK && i < nv * 3; ++i)
+      if (!isfinite(r->surface[i])) fs = KM_ERR_NO_CONVERGENCE;
     if (fs) memcpy(r->surface, r->global, nv * 3 * sizeof(double));
   }
   if (fd.P && fd.n >= 16 && fd.N) {
@@ -1245,9 +1269,10 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   if (fs)
     km__log(KM_LOG_WARN, "reconstruct: frame %zu did not converge (%s): carried by the skeleton",
             r->frame, km_status_name(fs));
-  memcpy(r->Lprev2, r->Lprev, nj * 9 * sizeof(double));
+  /* after a failure the velocity restarts from zero */
+  memcpy(r->Lprev2, fs ? r->Lrot : r->Lprev, nj * 9 * sizeof(double));
   memcpy(r->Lprev, r->Lrot, nj * 9 * sizeof(double));
-  memcpy(r->tprev2, r->tprev, sizeof r->tprev);
+  memcpy(r->tprev2, fs ? r->troot : r->tprev, sizeof r->tprev);
   memcpy(r->tprev, r->troot, sizeof r->troot);
   ++r->frame;
   st->seconds = km__now() - t0;
