@@ -25,7 +25,7 @@ static int cmp_d(const void *a, const void *b) {
 
 static void logger(km_log_level l, const char *m, void *u) {
   (void)u;
-  if (l >= KM_LOG_WARN) fprintf(stderr, "%s\n", m);
+  if (l >= KM_LOG_WARN || getenv("KM_BENCH_DEBUG")) fprintf(stderr, "%s\n", m);
 }
 
 static int run_dfaust(const char *dir, const char *json) {

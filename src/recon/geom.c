@@ -330,6 +330,58 @@ km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err)
   return KM_OK;
 }
 
+struct km__point_index {
+  RTCScene scene;
+  knn_geom g;
+};
+
+km_status km__point_index_create(const double *P, size_t n, km__point_index **out, km_error *err) {
+  *out = NULL;
+  RTCDevice dev = km__embree_device(err);
+  if (!dev) return KM_ERR_UNSUPPORTED;
+  km__point_index *ix = calloc(1, sizeof *ix);
+  if (!ix) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  ix->g.P = P;
+  ix->scene = rtcNewScene(dev);
+  RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_USER);
+  rtcSetGeometryUserPrimitiveCount(geom, (unsigned)n);
+  rtcSetGeometryUserData(geom, &ix->g);
+  rtcSetGeometryBoundsFunction(geom, knn_bounds, &ix->g);
+  rtcSetGeometryPointQueryFunction(geom, knn_cb);
+  rtcCommitGeometry(geom);
+  rtcAttachGeometry(ix->scene, geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(ix->scene);
+  *out = ix;
+  return KM_OK;
+}
+
+void km__point_index_nearest(const km__point_index *ix, const double *Q, size_t nq, double max_dist,
+                             int32_t *idx, double *dist) {
+#pragma omp parallel for schedule(dynamic, 256)
+  for (size_t i = 0; i < nq; ++i) {
+    double d2 = INFINITY;
+    int32_t id = -1;
+    knn_query q = {.P = ix->g.P, .k = 1, .idx = &id, .d2 = &d2};
+    memcpy(q.p, Q + 3 * i, sizeof q.p);
+    struct RTCPointQuery pq = {(float)q.p[0], (float)q.p[1], (float)q.p[2], 0,
+                               max_dist > 0 ? (float)max_dist : INFINITY};
+    struct RTCPointQueryContext ctx;
+    rtcInitPointQueryContext(&ctx);
+    rtcPointQuery(ix->scene, &pq, &ctx, NULL, &q);
+    if (q.count == 0 || (max_dist > 0 && d2 > max_dist * max_dist)) id = -1;
+    idx[i] = id;
+    if (dist) dist[i] = id >= 0 ? sqrt(d2) : INFINITY;
+  }
+}
+
+void km__point_index_free(km__point_index **ix) {
+  if (!ix || !*ix) return;
+  rtcReleaseScene((*ix)->scene);
+  free(*ix);
+  *ix = NULL;
+}
+
 static void covariance(const double *P, const int32_t *ids, size_t m, double c[3], double C[9]) {
   c[0] = c[1] = c[2] = 0;
   for (size_t j = 0; j < m; ++j)

@@ -27,6 +27,14 @@ double km__closest_on_triangle(const double *p, const double *a, const double *b
 
 /* k nearest neighbours (the point itself included) of every point: idx n*k. */
 km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err);
+/* Nearest point of a fixed cloud (Embree user-geometry BVH, as km__knn). */
+typedef struct km__point_index km__point_index;
+km_status km__point_index_create(const double *P, size_t n, km__point_index **out, km_error *err);
+/* idx[i] = nearest point to Q[i] within max_dist (-1 if none), dist[i] its distance. */
+void km__point_index_nearest(const km__point_index *ix, const double *Q, size_t nq, double max_dist,
+                             int32_t *idx, double *dist);
+void km__point_index_free(km__point_index **ix);
+
 /* Unit normals by PCA over the k neighbours (unoriented: sign arbitrary). N n*3. */
 km_status km__point_normals(const double *P, size_t n, int k, double *N, km_error *err);
 /* Pauly et al. 2002 hierarchical clustering: splits while a cluster is larger than max_size

@@ -47,6 +47,32 @@ static void rodrigues(const double *r, double *R) {
   for (int i = 0; i < 9; ++i)
     R[i] = (i % 4 == 0) + a * K[i] + b * K2[i];
 }
+/* Nearest rotation by Gram-Schmidt on the rows: products of rotations drift off SO(3) in
+ * floating point, and the constant-velocity prediction would amplify the drift. */
+static void orthonormalize(double *R) {
+  double *a = R, *b = R + 3, *c = R + 6;
+  double l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+  if (!(l > 0)) {
+    memset(R, 0, 9 * sizeof *R);
+    R[0] = R[4] = R[8] = 1;
+    return;
+  }
+  for (int k = 0; k < 3; ++k)
+    a[k] /= l;
+  double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  for (int k = 0; k < 3; ++k)
+    b[k] -= d * a[k];
+  l = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+  if (!(l > 0)) {
+    memset(R, 0, 9 * sizeof *R);
+    R[0] = R[4] = R[8] = 1;
+    return;
+  }
+  for (int k = 0; k < 3; ++k)
+    b[k] /= l;
+  cross(a, b, c);
+}
+
 /* Right Jacobian of SO(3): exp(r + d) ~ exp(r) exp(Jr(r) d). */
 static void right_jacobian(const double *r, double *J) {
   double th = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
@@ -102,6 +128,9 @@ struct km_recon {
   int32_t *ptri;
   double *pbary, *pdist, *pw, *pnormal, *ptsel;
   int32_t *sel;
+  /* surface -> points term of the skeletal step: per vertex nearest point and weight */
+  int32_t *vnear;
+  double *vw, *vdist, *vn;
 };
 
 static void opt_defaults(km_recon_options *o) {
@@ -285,6 +314,10 @@ void km_recon_free(km_recon **rp) {
   free(r->pnormal);
   free(r->ptsel);
   free(r->sel);
+  free(r->vnear);
+  free(r->vw);
+  free(r->vdist);
+  free(r->vn);
   free(r);
   *rp = NULL;
 }
@@ -346,9 +379,13 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   r->work = km__malloc(nv * 3 > nj * 12 ? nv * 3 : nj * 12, sizeof(double));
   r->joints = km__malloc(nj, 3 * sizeof(double));
   r->G = km__malloc(nj, 12 * sizeof(double));
-  if (!r->parents || !r->tmpl_joints || !r->names || !r->skin.joints || !r->skin.weights ||
-      !r->base || !r->base_joints || !r->Lrot || !r->Lprev || !r->Lprev2 || !r->global ||
-      !r->surface || !r->work || !r->joints || !r->G) {
+  r->vnear = km__malloc(nv, sizeof *r->vnear);
+  r->vw = km__malloc(nv, sizeof(double));
+  r->vdist = km__malloc(nv, sizeof(double));
+  r->vn = km__malloc(nv, 3 * sizeof(double));
+  if (!r->vnear || !r->vw || !r->vdist || !r->vn || !r->parents || !r->tmpl_joints || !r->names ||
+      !r->skin.joints || !r->skin.weights || !r->base || !r->base_joints || !r->Lrot || !r->Lprev ||
+      !r->Lprev2 || !r->global || !r->surface || !r->work || !r->joints || !r->G) {
     km_recon_free(&r);
     return km__fail(err, KM_ERR_NOMEM, "km_recon_create: out of memory");
   }
@@ -644,6 +681,7 @@ static void lbs_apply(const km_recon *r, const double *G, const double *Vb, doub
 /* ---------------------------------------------------------------- skeleton: L-BFGS */
 
 #define PLANE_MU 0.1
+#define S2S_WEIGHT 0.5
 
 typedef struct pose_ctx {
   km_recon *r;
@@ -654,6 +692,8 @@ typedef struct pose_ctx {
   const double *tref;
   double *Lrot, *W, *cj, *G, *X, *gv, *acc; /* scratch */
   double lambda;
+  const double *NQ;   /* point normals */
+  double vwsum;       /* surface -> points weight sum (0: term off) */
   const double *xoff; /* n: parameters accumulated in earlier rounds (prediction offset) */
   const km_recon_feature *feat;
   size_t nfeat;
@@ -691,6 +731,23 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
       double e = pc->X[3 * v + a] - pc->feat[k].point[a];
       E += w * e * e;
       pc->gv[3 * v + a] += 2 * w * e;
+    }
+  }
+  /* surface -> points: pulls template parts towards points they do not yet cover (a limb
+   * that moved away leaves its points closer to another part of the surface) */
+  if (pc->use_data && pc->vwsum > 0) {
+    double sv = S2S_WEIGHT / pc->vwsum;
+    for (size_t v = 0; v < nv; ++v) {
+      double w = r->vw[v] * sv;
+      if (w <= 0) continue;
+      size_t q = (size_t)r->vnear[v];
+      const double *nn = pc->NQ + 3 * q;
+      double e[3] = {pc->X[3 * v] - pc->Q[3 * q], pc->X[3 * v + 1] - pc->Q[3 * q + 1],
+                     pc->X[3 * v + 2] - pc->Q[3 * q + 2]};
+      double en = nn[0] * e[0] + nn[1] * e[1] + nn[2] * e[2];
+      E += w * (en * en + PLANE_MU * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]));
+      for (int a = 0; a < 3; ++a)
+        pc->gv[3 * v + a] += 2 * w * (en * nn[a] + PLANE_MU * e[a]);
     }
   }
   for (size_t p = 0; pc->use_data && p < pc->nq; ++p) {
@@ -782,8 +839,11 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
     *status = KM_ERR_NOMEM;
     return 0;
   }
+  km__point_index *ix = NULL;
+  if (use_data && nq) km__point_index_create(Q, nq, &ix, NULL);
   pose_ctx pc = {.r = r,
                  .Q = Q,
+                 .NQ = NQ,
                  .nq = nq,
                  .lambda = lambda,
                  .xoff = xoff,
@@ -818,37 +878,41 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
     pose_from_params(&pc, x);
     lbs_apply(r, pc.G, r->base, pc.X);
     memcpy(r->work, pc.X, nv * 3 * sizeof(double));
-    pc.wsum = use_data ? correspond(r, r->work, Q, NQ, nq, 0.3, fmax(0.003, ldexp(0.1, -it))) : 1;
+    double floor_m = fmax(0.003, ldexp(0.1, -it));
+    pc.wsum = use_data ? correspond(r, r->work, Q, NQ, nq, 0.3, floor_m) : 1;
+    pc.vwsum = 0;
+    if (use_data && ix && NQ) {
+      km_mesh cur = {.V = r->work, .F = r->tmpl.F, .n_vertices = nv, .n_faces = r->nf};
+      if (km_vertex_normals(&cur, KM_NORMALS_AREA, r->vn, NULL) == KM_OK) {
+        km__point_index_nearest(ix, r->work, nv, 0.3, r->vnear, r->vdist);
+        size_t m = 0;
+        for (size_t v = 0; v < nv; ++v)
+          if (r->vnear[v] >= 0) r->vw[m++] = r->vdist[v];
+        double med = 0;
+        if (m) {
+          qsort(r->vw, m, sizeof(double), cmp_double);
+          med = r->vw[m / 2];
+        }
+        double c = fmax(r->o.outlier_scale * 1.4826 * med, floor_m);
+        for (size_t v = 0; v < nv; ++v) {
+          double w = 0;
+          if (r->vnear[v] >= 0 && r->vdist[v] < 4 * c) {
+            const double *pn = NQ + 3 * (size_t)r->vnear[v], *vn = r->vn + 3 * v;
+            double q = r->vdist[v] / c;
+            if (fabs(pn[0] * vn[0] + pn[1] * vn[1] + pn[2] * vn[2]) > 0.5)
+              w = 1.0 / ((1 + q * q) * (1 + q * q));
+          }
+          r->vw[v] = w;
+          pc.vwsum += w;
+        }
+      }
+    }
     if (pc.wsum <= 0) {
       *status = KM_ERR_NO_CONVERGENCE;
       break;
     }
     lbfgsfloatval_t fx;
-    if (getenv("KM_GRADCHECK")) {
-      double *gg = malloc(n * sizeof(double)), *g2 = malloc(n * sizeof(double));
-      for (int k = 0; k < n; ++k)
-        x[k] = 0.05 * sin(k * 1.7);
-      pose_evaluate(&pc, x, gg, n, 0);
-      double maxrel = 0;
-      for (int k = 0; k < n; ++k) {
-        double h = 1e-6, xk = x[k];
-        x[k] = xk + h;
-        double ep = pose_evaluate(&pc, x, g2, n, 0);
-        x[k] = xk - h;
-        double em = pose_evaluate(&pc, x, g2, n, 0);
-        x[k] = xk;
-        double fd = (ep - em) / (2 * h);
-        double rel = fabs(fd - gg[k]) / (fabs(fd) + fabs(gg[k]) + 1e-12);
-        if (rel > maxrel) maxrel = rel;
-        if (rel > 1e-4) fprintf(stderr, "grad %d: fd %g an %g\n", k, fd, gg[k]);
-      }
-      fprintf(stderr, "gradcheck max rel %g\n", maxrel);
-      free(gg), free(g2);
-      memset(x, 0, (size_t)n * sizeof *x);
-    }
     int ret = lbfgs(n, x, &fx, pose_evaluate, NULL, &pc, &par);
-    if (getenv("KM_DEBUG_FEAT"))
-      fprintf(stderr, "lbfgs ret %d fx %g evals %d\n", ret, fx, pc.evals);
     if (ret < 0 && ret != LBFGSERR_MAXIMUMITERATION && ret != LBFGSERR_ROUNDING_ERROR &&
         ret != LBFGSERR_MAXIMUMLINESEARCH && ret != LBFGSERR_MINIMUMSTEP &&
         ret != LBFGSERR_MAXIMUMSTEP && ret != LBFGSERR_WIDTHTOOSMALL) {
@@ -861,6 +925,7 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
       double E[9];
       rodrigues(x + 3 + 3 * j, E);
       mat_mul(Lcur + 9 * j, E, Lcur + 9 * j);
+      orthonormalize(Lcur + 9 * j);
     }
     for (int a = 0; a < 3; ++a)
       tcur[a] += x[a];
@@ -870,21 +935,6 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
   }
   memcpy(r->Lrot, Lcur, nj * 9 * sizeof(double));
   memcpy(r->troot, tcur, sizeof tcur);
-  if (getenv("KM_DEBUG_FEAT") && nfeat) {
-    memset(x, 0, (size_t)n * sizeof *x);
-    pc.Lref = Lcur;
-    pc.tref = tcur;
-    pose_from_params(&pc, x);
-    lbs_apply(r, pc.G, r->base, pc.X);
-    for (size_t k = 0; k < nfeat; ++k) {
-      size_t v = (size_t)feat[k].vertex;
-      double d = 0;
-      for (int a = 0; a < 3; ++a)
-        d += (pc.X[3 * v + a] - feat[k].point[a]) * (pc.X[3 * v + a] - feat[k].point[a]);
-      fprintf(stderr, "%.0f ", sqrt(d) * 1e3);
-    }
-    fprintf(stderr, " (feature errors mm, data %d, iters %d)\n", use_data, iters);
-  }
   double *W = pc.W, *cj = pc.cj;
   forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
   memcpy(r->joints, cj, nj * 3 * sizeof(double));
@@ -893,6 +943,7 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
   free(scratch);
   free(Lcur);
   free(xoff);
+  km__point_index_free(&ix);
   return iters;
 }
 
@@ -1143,7 +1194,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
   if (s) goto fail;
   /* 4. the registered surface is the template for the rest: joints carried by the skinned
    * vertices' affine maps */
-  for (size_t j = 0; j < nj && !getenv("KM_NOCARRY"); ++j) {
+  for (size_t j = 0; j < nj; ++j) {
     double acc[3] = {0, 0, 0}, wsum = 0;
     for (size_t i = 0; i < nv; ++i)
       for (int k = 0; k < 4; ++k)
@@ -1210,6 +1261,7 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
         Pt[3 * a + b] = r->Lprev2[9 * j + 3 * b + a];
     mat_mul(Pt, r->Lprev + 9 * j, D);
     mat_mul(r->Lprev + 9 * j, D, Lpred + 9 * j);
+    orthonormalize(Lpred + 9 * j);
   }
   double tpred[3];
   for (int a = 0; a < 3; ++a)
@@ -1223,6 +1275,8 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
     st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations,
                                    NULL, 0, true, r->o.w_pose, &fs);
   }
+  km__log(KM_LOG_DEBUG, "frame %zu: skeleton %s, root (%.3f %.3f %.3f), %d evaluations", r->frame,
+          km_status_name(fs), r->troot[0], r->troot[1], r->troot[2], st->iterations);
   bool finite = true;
   for (size_t i = 0; fs == KM_OK && i < nv * 3 && finite; ++i)
     finite = isfinite(r->global[i]);
