@@ -333,6 +333,50 @@ static void test_registration(void) {
     for (int a = 0; a < 3; ++a)
       dg = fmax(dg, fabs(G[3 * i + a] - V1[3 * i + a]));
   CHECK_MSG(dg < 0.01, "LBS surface from the estimated skeleton within 1 cm: %g", dg);
+
+  /* the same pose with 5% gross outliers (0.3-0.6 m off) and the upper bone's points gone:
+   * the outliers are down-weighted and the unseen bone keeps its pose */
+  double tip_before[3];
+  memcpy(tip_before, J + 6, sizeof tip_before);
+  {
+    size_t m = 0;
+    double *Q = malloc(n * 3 * sizeof *Q);
+    for (size_t i = 0; i < n; ++i) {
+      const double *q = P + 3 * i;
+      double along =
+          (q[0] - mid[0]) * bone[0] + (q[1] - mid[1]) * bone[1] + (q[2] - mid[2]) * bone[2];
+      if (along > 0) continue; /* above the middle joint: hidden */
+      memcpy(Q + 3 * m, q, 3 * sizeof(double));
+      if (i % 20 == 0) Q[3 * m] += 0.3 + 0.3 * (double)(i % 7) / 7.0;
+      ++m;
+    }
+    CHECK_OK(km_recon_next_frame(r, Q, m, &st, KM_E));
+    CHECK(st.status == KM_OK);
+    J = km_recon_joints(r);
+    /* the prediction continues the last frame's angular velocity about the middle joint */
+    double pred[3], dt[3] = {tip_before[0] - J[3], tip_before[1] - J[4], tip_before[2] - J[5]};
+    for (int a = 0; a < 3; ++a)
+      pred[a] = J[3 + a] + Rb[3 * a] * dt[0] + Rb[3 * a + 1] * dt[1] + Rb[3 * a + 2] * dt[2];
+    double e = sqrt(pow(J[6] - pred[0], 2) + pow(J[7] - pred[1], 2) + pow(J[8] - pred[2], 2));
+    /* (within a few degrees: the blend zone below the middle joint still sees points) */
+    CHECK_MSG(e < 0.06, "unseen bone follows the prediction: tip %.4f m away", e);
+    CHECK_MSG(sqrt(pow(J[6] - tip_before[0], 2) + pow(J[7] - tip_before[1], 2) +
+                   pow(J[8] - tip_before[2], 2)) > 0.08,
+              "and does not stay where it was");
+    /* lower half still on its points despite the outliers */
+    const double *S2 = km_recon_surface(r);
+    double dlow = 0;
+    size_t nlow = 0;
+    for (size_t i = 0; i < nv; ++i)
+      if (c.mesh.V[3 * i + 2] < 0.4) {
+        dlow += sqrt(pow(S2[3 * i] - V1[3 * i], 2) + pow(S2[3 * i + 1] - V1[3 * i + 1], 2) +
+                     pow(S2[3 * i + 2] - V1[3 * i + 2], 2));
+        ++nlow;
+      }
+    dlow /= (double)nlow;
+    CHECK_MSG(dlow < 0.002, "outliers ignored: lower half within %.4f m on average", dlow);
+    free(Q);
+  }
   free(P);
 
   /* a frame without points is carried by the skeleton prediction, not an error */

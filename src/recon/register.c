@@ -572,7 +572,7 @@ static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, si
       r->blocks[16 * (nv + e) + 5 * k] -= ws;
     }
   }
-  double wid = 1e-4 * r->o.w_smooth / (double)nv;
+  double wid = 0.01 * ws; /* ~1% of one edge: keeps the system SPD, barely biases it */
   for (size_t i = 0; i < nv; ++i)
     for (int k = 0; k < 4; ++k) {
       r->blocks[16 * i + 5 * k] += wid;
@@ -896,7 +896,9 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
         double c = fmax(r->o.outlier_scale * 1.4826 * med, floor_m);
         for (size_t v = 0; v < nv; ++v) {
           double w = 0;
-          if (r->vnear[v] >= 0 && r->vdist[v] < 4 * c) {
+          /* only towards points the surface does not explain yet (residual > 1 cm): a
+           * vertex of a hidden limb must not be dragged onto points another part covers */
+          if (r->vnear[v] >= 0 && r->vdist[v] < 4 * c && r->pdist[r->vnear[v]] > 0.01) {
             const double *pn = NQ + 3 * (size_t)r->vnear[v], *vn = r->vn + 3 * v;
             double q = r->vdist[v] / c;
             if (fabs(pn[0] * vn[0] + pn[1] * vn[1] + pn[2] * vn[2]) > 0.5)
