@@ -141,24 +141,102 @@ int main(int argc, char **argv) {
   size_t npts0 = p0.n;
   km_points_free(&p0);
   km_recon_options ro = {0};
+  if (getenv("KM_BENCH_REFINE")) ro.refine_iterations = atoi(getenv("KM_BENCH_REFINE"));
+  if (getenv("KM_BENCH_WPOSE")) ro.w_pose = atof(getenv("KM_BENCH_WPOSE"));
+  /* The incremental API (what km_reconstruct streams through) so both the refined and the
+   * filtered sequences are at hand for the jitter measure. */
+  km_recon *rc = NULL;
+  if (km_recon_create(&tmpl, &ro, &rc, &e)) die("recon", &e);
+  size_t nv = tmpl.mesh.n_vertices, nj = tmpl.skeleton.n_joints;
+  double *ref = malloc(n * nv * 3 * sizeof *ref), *glob = malloc(n * nv * 3 * sizeof *glob);
+  double *filt = malloc(n * nv * 3 * sizeof *filt);
   km_recon_report rep = {0};
-  snprintf(path, sizeof path, "%s/recon.pc2", dir);
+  rep.n_frames = n, rep.n_joints = nj;
+  rep.frames = calloc(n, sizeof *rep.frames);
+  rep.joints = malloc(n * nj * 3 * sizeof *rep.joints);
+  rep.joint_names = calloc(nj, sizeof *rep.joint_names);
+  for (size_t j = 0; j < nj; ++j)
+    rep.joint_names[j] = strdup(tmpl.skeleton.names[j]);
   double t0 = km__now();
-  if (km_reconstruct((const char *const *)paths, n, &tmpl, feat, nfeat, &ro, path, &rep, &e))
-    die("reconstruct", &e);
+  for (size_t f = 0; f < n; ++f) {
+    double tf = km__now();
+    km_points pts = {0};
+    if (km_points_read(paths[f], &pts, &e)) die("frame", &e);
+    if (f == 0) {
+      if (km_recon_first_frame(rc, pts.P, pts.n, feat, nfeat, &rep.frames[f], &e))
+        die("first frame", &e);
+    } else {
+      km_recon_next_frame(rc, pts.P, pts.n, &rep.frames[f], &e);
+    }
+    rep.frames[f].index = f;
+    rep.frames[f].seconds = km__now() - tf; /* including reading the file */
+    if (rep.frames[f].status) ++rep.failed_frames;
+    km_points_free(&pts);
+    memcpy(ref + f * nv * 3, km_recon_surface(rc), nv * 3 * sizeof(double));
+    memcpy(glob + f * nv * 3, km_recon_global(rc), nv * 3 * sizeof(double));
+    memcpy(rep.joints + f * nj * 3, km_recon_joints(rc), nj * 3 * sizeof(double));
+  }
+  if (km_local_motion_filter(n, nv, ref, glob, 2, 1, filt, &e)) die("filter", &e);
   double total = km__now() - t0;
-  double *rec = NULL;
-  km_anim_info ri;
-  if (km_pc2_read(path, &rec, &ri, &e)) die("recon", &e);
-  /* distances reconstructed vertices -> true surface */
+  km_recon_free(&rc);
+  double *rec = filt;
+  km_anim_info ri = {.frames = n};
+  /* truth trajectories of the template vertices: each vertex anchored at frame 0 to its
+   * closest point on the true surface (triangle + barycentrics), carried through the true
+   * animation; jitter = mean |second difference| of (reconstruction - anchored truth) */
   km_mesh tm = subj.mesh;
   double *tv = malloc(tm.n_vertices * 3 * sizeof(double));
   memcpy(tv, truth, tm.n_vertices * 3 * sizeof(double));
   km__surface *ts = NULL;
   if (km__surface_create(tv, tm.n_vertices, tm.F, tm.n_faces, &ts, &e)) die("truth surface", &e);
-  size_t nv = tmpl.mesh.n_vertices;
   int32_t *tri = malloc(nv * sizeof *tri);
-  double *dist = malloc(nv * sizeof *dist);
+  double *dist = malloc(nv * sizeof *dist), *bary = malloc(nv * 3 * sizeof *bary);
+  km__surface_closest(ts, ref, nv, 0, tri, bary, NULL);
+  double jit[3] = {0, 0, 0}, jerk[3] = {0, 0, 0};
+  for (int pass = 0; pass < 3; ++pass) {
+    const double *seq = pass == 2 ? glob : pass ? filt : ref;
+    for (size_t f = 1; f + 1 < n; ++f) {
+      double acc = 0, accj = 0;
+      for (size_t i = 0; i < nv; ++i) {
+        double d2 = 0, dj = 0;
+        for (int a = 0; a < 3; ++a) {
+          double tr[3];
+          for (int k = 0; k < 3; ++k) {
+            size_t ff = f - 1 + (size_t)k;
+            const int32_t *t = tm.F + 3 * (size_t)tri[i];
+            const double *T = truth + ff * tm.n_vertices * 3;
+            tr[k] = bary[3 * i] * T[3 * (size_t)t[0] + a] +
+                    bary[3 * i + 1] * T[3 * (size_t)t[1] + a] +
+                    bary[3 * i + 2] * T[3 * (size_t)t[2] + a];
+          }
+          double s0 = seq[(f - 1) * nv * 3 + 3 * i + a], s1 = seq[f * nv * 3 + 3 * i + a],
+                 s2 = seq[(f + 1) * nv * 3 + 3 * i + a];
+          double d = (s2 - tr[2]) - 2 * (s1 - tr[1]) + (s0 - tr[0]);
+          double dd = s2 - 2 * s1 + s0;
+          d2 += d * d, dj += dd * dd;
+        }
+        acc += sqrt(d2), accj += sqrt(dj);
+      }
+      jit[pass] += acc / (double)nv / (double)(n - 2);
+      jerk[pass] += accj / (double)nv / (double)(n - 2);
+    }
+  }
+  rep.jerk_before = jerk[0], rep.jerk_after = jerk[1];
+  printf("jitter of the LBS-only (skeleton) sequence: %.3f mm\n", jit[2] * 1e3);
+  if (getenv("KM_BENCH_TRACE")) {
+    size_t i = (size_t)tmpl.landmarks[6].vertex; /* hand_left */
+    for (size_t f = 0; f < n; ++f) {
+      const int32_t *t = tm.F + 3 * (size_t)tri[i];
+      const double *T = truth + f * tm.n_vertices * 3;
+      double tr[3];
+      for (int a = 0; a < 3; ++a)
+        tr[a] = bary[3 * i] * T[3 * (size_t)t[0] + a] + bary[3 * i + 1] * T[3 * (size_t)t[1] + a] +
+                bary[3 * i + 2] * T[3 * (size_t)t[2] + a];
+      const double *x = ref + f * nv * 3 + 3 * i;
+      printf("f%zu truth %.4f %.4f %.4f rec %.4f %.4f %.4f\n", f, tr[0], tr[1], tr[2], x[0], x[1],
+             x[2]);
+    }
+  }
   double *secs = malloc(n * sizeof *secs);
   double tmean = 0, tmax = 0, pmean = 0;
   printf("%6s %8s %9s %9s %9s %6s %8s %s\n", "frame", "points", "mean_mm", "max_mm", "truth_mm",
@@ -175,20 +253,6 @@ int main(int argc, char **argv) {
     tmax = mx * 1e3 > tmax ? mx * 1e3 : tmax;
     pmean += rep.frames[f].mean_mm;
     secs[f] = rep.frames[f].seconds;
-    if (getenv("KM_BENCH_JOINTS")) {
-      int worst = 0;
-      double we = 0;
-      for (size_t j = 0; j < take.n_joints; ++j) {
-        double d = 0;
-        for (int a = 0; a < 3; ++a) {
-          double x = rep.joints[(f * take.n_joints + j) * 3 + a] -
-                     take.positions[(f * take.n_joints + j) * 3 + a];
-          d += x * x;
-        }
-        if (sqrt(d) > we) we = sqrt(d), worst = (int)j;
-      }
-      printf("   worst joint %s %.1f mm\n", take.joint_names[worst], we * 1e3);
-    }
     km_recon_frame_stats *s = &rep.frames[f];
     if (f < 10 || f % 25 == 0 || s->status)
       printf("%6zu %8zu %9.2f %9.2f %9.2f %6d %8.3f %s\n", s->index, s->points, s->mean_mm,
@@ -201,20 +265,23 @@ int main(int argc, char **argv) {
   double med = secs[1 + (nf - 1) / 2];
   printf("\n%-22s %zu\n%-22s %zu (template %zu vertices, subject %zu)\n%-22s %.3f\n"
          "%-22s %.3f\n%-22s %.3f\n%-22s %.3f\n%-22s %.3f\n%-22s %.5f\n%-22s %.5f\n%-22s %zu\n"
-         "%-22s %zu\n%-22s %.1f s (capture %.1f s)\n",
+         "%-22s %zu\n%-22s %.1f s (capture %.1f s)\n%-22s %.4f\n%-22s %.4f\n",
          "frames", nf, "points_frame0", npts0, nv, subj.mesh.n_vertices, "s_per_frame", med,
          "first_frame_s", rep.frames[0].seconds, "err_points_mm", pmean, "err_truth_mean_mm", tmean,
          "err_truth_max_mm", tmax, "jerk_before_mm", rep.jerk_before * 1e3, "jerk_after_mm",
          rep.jerk_after * 1e3, "features", nfeat, "failed_frames", rep.failed_frames, "total",
-         total, tc);
-  printf("{\"bench\":\"reconstruct\",\"frames\":%zu,\"s_per_frame\":%.4f,\"err_points_mm\":%.3f,"
-         "\"err_truth_mean_mm\":%.3f,\"err_truth_max_mm\":%.3f,\"jerk_before\":%.6g,"
-         "\"jerk_after\":%.6g,\"failed_frames\":%zu}\n",
-         nf, med, pmean, tmean, tmax, rep.jerk_before, rep.jerk_after, rep.failed_frames);
+         total, tc, "jitter_before_mm", jit[0] * 1e3, "jitter_after_mm", jit[1] * 1e3);
+  printf(
+      "{\"bench\":\"reconstruct\",\"frames\":%zu,\"s_per_frame\":%.4f,\"err_points_mm\":%.3f,"
+      "\"err_truth_mean_mm\":%.3f,\"err_truth_max_mm\":%.3f,\"jerk_before\":%.6g,"
+      "\"jerk_after\":%.6g,\"jitter_before\":%.6g,\"jitter_after\":%.6g,\"failed_frames\":%zu}\n",
+      nf, med, pmean, tmean, tmax, rep.jerk_before, rep.jerk_after, jit[0], jit[1],
+      rep.failed_frames);
   if (json && km_recon_report_write_json(json, &rep, &e)) die("json", &e);
   if (plot && km_recon_report_plot(plot, &rep, &e)) die("plot", &e);
   km__surface_free(&ts);
-  free(tv), free(tri), free(dist), free(secs), free(rec), free(truth);
+  free(tv), free(tri), free(dist), free(bary), free(secs), free(ref), free(glob), free(filt),
+      free(truth);
   km_recon_report_free(&rep);
   km_paths_free(&paths, n);
   km_take_free(&take);

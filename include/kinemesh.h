@@ -443,7 +443,7 @@ typedef struct km_recon_options {
   size_t coarse_points;   /* multiresolution level size (Pauly clustering); 0: 2000 */
   int knn;                /* neighbours for point normals; 0: 10 */
   int first_iterations;   /* first frame: nonrigid iterations per phase; 0: 12 */
-  int refine_iterations;  /* later frames: surface refinement iterations; 0: 5 */
+  int refine_iterations;  /* later frames: surface refinement iterations; 0: 4 */
   int skeleton_iterations;/* later frames: correspondence updates of the skeletal step; 0: 6 */
   double w_data;          /* 0: 1 */
   double w_feature;       /* 0: 10 */

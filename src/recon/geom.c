@@ -198,7 +198,7 @@ void km__surface_update(km__surface *s, const double *V) {
 
 void km__surface_closest(const km__surface *s, const double *Q, size_t n, double max_dist,
                          int32_t *tri, double *bary, double *dist) {
-#pragma omp parallel for schedule(dynamic, 256)
+#pragma omp parallel for schedule(dynamic, 256) if (n > KM__OMP_MIN)
   for (size_t i = 0; i < n; ++i) {
     closest_query q = {.s = s, .best_d2 = INFINITY, .tri = -1};
     memcpy(q.p, Q + 3 * i, sizeof q.p);
@@ -310,7 +310,7 @@ km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err)
   rtcAttachGeometry(scene, geom);
   rtcReleaseGeometry(geom);
   rtcCommitScene(scene);
-#pragma omp parallel
+#pragma omp parallel if (n > KM__OMP_MIN)
   {
     double d2[64];
     int kk = k > 64 ? 64 : k;
@@ -358,7 +358,7 @@ km_status km__point_index_create(const double *P, size_t n, km__point_index **ou
 
 void km__point_index_nearest(const km__point_index *ix, const double *Q, size_t nq, double max_dist,
                              int32_t *idx, double *dist) {
-#pragma omp parallel for schedule(dynamic, 256)
+#pragma omp parallel for schedule(dynamic, 256) if (nq > KM__OMP_MIN)
   for (size_t i = 0; i < nq; ++i) {
     double d2 = INFINITY;
     int32_t id = -1;
@@ -406,7 +406,7 @@ km_status km__point_normals(const double *P, size_t n, int k, double *N, km_erro
   if (!idx) return km__fail(err, KM_ERR_NOMEM, "normals: out of memory");
   km_status s = km__knn(P, n, k, idx, err);
   if (!s) {
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n > KM__OMP_MIN)
     for (size_t i = 0; i < n; ++i) {
       double c[3], C[9], ev[3], V[9];
       covariance(P, idx + (size_t)k * i, (size_t)k, c, C);

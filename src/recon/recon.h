@@ -6,6 +6,10 @@
 
 #include "internal.h"
 
+/* Below this many queries a parallel region costs more than it saves (fork/join and the
+ * threads' spin-wait, measured on the 2-core CI machine). */
+#define KM__OMP_MIN 16384
+
 /* Process-wide Embree device (created once; NULL when Embree cannot start). */
 void *km__embree_device(km_error *err);
 

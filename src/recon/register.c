@@ -137,7 +137,7 @@ static void opt_defaults(km_recon_options *o) {
   if (!o->coarse_points) o->coarse_points = 2000;
   if (o->knn <= 0) o->knn = 10;
   if (o->first_iterations <= 0) o->first_iterations = 12;
-  if (o->refine_iterations <= 0) o->refine_iterations = 5;
+  if (o->refine_iterations <= 0) o->refine_iterations = 4;
   if (o->skeleton_iterations <= 0) o->skeleton_iterations = 6;
   if (o->w_data <= 0) o->w_data = 1;
   if (o->w_feature <= 0) o->w_feature = 10;
@@ -1269,7 +1269,9 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   for (int a = 0; a < 3; ++a)
     tpred[a] = 2 * r->tprev[a] - r->tprev2[a];
   frame_data fd;
+  double tp0 = km__now();
   km_status s = frame_prepare(r, P, n, &fd, err);
+  double tp1 = km__now();
   km_status fs = KM_OK;
   if (s) {
     fs = s;
@@ -1277,8 +1279,12 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
     st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations,
                                    NULL, 0, true, r->o.w_pose, &fs);
   }
-  km__log(KM_LOG_DEBUG, "frame %zu: skeleton %s, root (%.3f %.3f %.3f), %d evaluations", r->frame,
-          km_status_name(fs), r->troot[0], r->troot[1], r->troot[2], st->iterations);
+  double tp2 = km__now();
+  km__log(KM_LOG_DEBUG,
+          "frame %zu: skeleton %s, root (%.3f %.3f %.3f), %d evaluations; prepare %.3f s, "
+          "skeleton %.3f s",
+          r->frame, km_status_name(fs), r->troot[0], r->troot[1], r->troot[2], st->iterations,
+          tp1 - tp0, tp2 - tp1);
   bool finite = true;
   for (size_t i = 0; fs == KM_OK && i < nv * 3 && finite; ++i)
     finite = isfinite(r->global[i]);
