@@ -297,6 +297,14 @@ static void test_degenerate(void) {
   CHECK_STATUS(km_cotmatrix(&b, &Ls, KM_E), KM_ERR_INVALID);
   CHECK(strstr(km_test_err.message, "face 0") != NULL);
   CHECK_STATUS(km_massmatrix(&b, KM_MASS_VORONOI, &Ls, KM_E), KM_ERR_INVALID);
+  /* a point cloud: zero Laplacian (diagonal only), tiny masses */
+  km_mesh pc = {Vs, NULL, 3, 0};
+  CHECK_OK(km_cotmatrix(&pc, &Ls, KM_E));
+  CHECK(km_sparse_rows(Ls) == 3 && km_sparse_coeff(Ls, 1, 1) == 0);
+  km_sparse_free(&Ls);
+  CHECK_OK(km_uniform_laplacian(&pc, &Ls, KM_E));
+  CHECK(km_sparse_coeff(Ls, 2, 2) == 0);
+  km_sparse_free(&Ls);
   /* an isolated vertex gets a tiny positive mass */
   double Vi[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 5, 5};
   km_mesh iso = {Vi, Fs, 4, 1};

@@ -83,6 +83,13 @@ static void test_sparse(void) {
   CHECK_STATUS(km_sparse_from_triplets(M, N, 1, bad_r, bad_c, v, &C, KM_E), KM_ERR_INVALID);
   CHECK(strstr(km_test_err.message, "(7,0)") != NULL);
   km_sparse_free(&S);
+  /* empty: no entries at all, and a 0 x 0 matrix */
+  CHECK_OK(km_sparse_from_triplets(4, 3, 0, NULL, NULL, NULL, &S, KM_E));
+  CHECK(km_sparse_nnz(S) == 0 && km_sparse_rows(S) == 4 && km_sparse_coeff(S, 1, 1) == 0);
+  km_sparse_free(&S);
+  CHECK_OK(km_sparse_diagonal(0, NULL, &S, KM_E));
+  CHECK(km_sparse_nnz(S) == 0 && km_sparse_rows(S) == 0);
+  km_sparse_free(&S);
   km_sparse_free(&A);
   km_sparse_free(&B);
   CHECK(A == NULL);

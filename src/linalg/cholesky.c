@@ -1,11 +1,14 @@
 /* km_cholesky: CHOLMOD analyse / factorise / solve. The symmetric matrix (stored with both
  * triangles) is handed to CHOLMOD as stype = -1, so only its lower triangle is read.
  *
- * Supernodal vs simplicial is left to CHOLMOD's default (CHOLMOD_AUTO, supernodal when
- * flops/nnz(L) >= 40): on mesh Laplacians (43k vertices) supernodal factorisation was faster
- * and single right-hand-side solves were within a few percent of simplicial, see
- * bench/bench_eigen.c. BLAS threads are OpenBLAS's business (process-wide); we do not
- * change them. */
+ * Supernodal vs simplicial is left to CHOLMOD's default (CHOLMOD_AUTO: supernodal when
+ * flops/nnz(L) >= 40, which mesh Laplacians beyond a few thousand vertices exceed). Measured
+ * with bench/bench_eigen.c on 2 cores: on armadillo (43k vertices) forcing simplicial was
+ * ~20% faster for one factorisation plus ~55 single-vector solves, but on a 41k icosphere
+ * its factorisation was 2.6x slower (242 vs 93 ms) and 6x slower at 164k vertices, with
+ * solves within 10%; auto is the safer default. Supernodal runs on BLAS: OpenBLAS's thread
+ * count is process-wide and left to the application (on a loaded 2-core machine
+ * OPENBLAS_NUM_THREADS=1 avoided large slowdowns from spinning threads). */
 #include "internal.h"
 #include "linalg/sparse.h"
 

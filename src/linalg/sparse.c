@@ -63,6 +63,16 @@ km_status km__sparse_from_cholmod(cholmod_sparse **C, km_sparse **out, km_error 
   return KM_OK;
 }
 
+struct entry {
+  int32_t row, order;
+  double value;
+};
+static int entry_cmp(const void *a, const void *b) {
+  const struct entry *x = a, *y = b;
+  if (x->row != y->row) return x->row < y->row ? -1 : 1;
+  return (x->order > y->order) - (x->order < y->order);
+}
+
 km_status km_sparse_from_triplets(size_t n_rows, size_t n_cols, size_t nnz, const int32_t *rows,
                                   const int32_t *cols, const double *values, km_sparse **out,
                                   km_error *err) {
@@ -81,31 +91,100 @@ km_status km_sparse_from_triplets(size_t n_rows, size_t n_cols, size_t nnz, cons
                       "matrix",
                       k, (int)rows[k], (int)cols[k], n_rows, n_cols);
   }
+  /* Bucket by column, then km__sparse_compress. cholmod_triplet_to_sparse does the same in
+   * the same time (two transposes); this path is shared with the Laplacian assembly, which
+   * scatters straight into columns without a triplet list. */
   cholmod_common cc;
   km__cholmod_start(&cc);
-  /* A shallow triplet header over the caller's arrays: cholmod_triplet_to_sparse only reads
-   * them, and does the two-pass bucket sort that sums duplicates and sorts rows. */
-  cholmod_triplet T;
-  memset(&T, 0, sizeof T);
-  T.nrow = n_rows;
-  T.ncol = n_cols;
-  T.nzmax = nnz;
-  T.nnz = nnz;
-  T.i = (void *)rows;
-  T.j = (void *)cols;
-  T.x = (void *)values;
-  T.stype = 0;
-  T.itype = CHOLMOD_INT;
-  T.xtype = CHOLMOD_REAL;
-  T.dtype = CHOLMOD_DOUBLE;
-  cholmod_sparse *C = cholmod_triplet_to_sparse(&T, nnz, &cc);
-  if (!C) {
-    km_status s = cholmod_fail(err, &cc, "km_sparse_from_triplets");
-    cholmod_finish(&cc);
-    return s;
+  cholmod_sparse *C = cholmod_allocate_sparse(n_rows, n_cols, nnz, 1, 1, 0, CHOLMOD_REAL, &cc);
+  int32_t *next = km__malloc(n_cols + 1, sizeof *next);
+  km_status s = KM_OK;
+  if (!C || !next) {
+    s = C ? km__fail(err, KM_ERR_NOMEM, "km_sparse_from_triplets: out of memory")
+          : cholmod_fail(err, &cc, "km_sparse_from_triplets");
+    goto done;
   }
+  int32_t *p = C->p, *ri = C->i;
+  double *x = C->x;
+  memset(p, 0, (n_cols + 1) * sizeof *p);
+  for (size_t k = 0; k < nnz; ++k)
+    ++p[cols[k] + 1];
+  for (size_t j = 0; j < n_cols; ++j)
+    p[j + 1] += p[j];
+  memcpy(next, p, (n_cols + 1) * sizeof *p);
+  for (size_t k = 0; k < nnz; ++k) {
+    int32_t q = next[cols[k]]++;
+    ri[q] = rows[k];
+    x[q] = values[k];
+  }
+  free(next);
   cholmod_finish(&cc);
-  return km__sparse_from_cholmod(&C, out, err);
+  return km__sparse_compress(&C, out, err);
+done:
+  free(next);
+  cholmod_free_sparse(&C, &cc);
+  cholmod_finish(&cc);
+  return s;
+}
+
+km_status km__sparse_compress(cholmod_sparse **Cp, km_sparse **out, km_error *err) {
+  cholmod_sparse *C = *Cp;
+  size_t n_cols = C->ncol, nnz = (size_t)((int32_t *)C->p)[n_cols];
+  int32_t *p = C->p, *ri = C->i;
+  double *x = C->x;
+  int32_t longest = 0;
+  for (size_t j = 0; j < n_cols; ++j)
+    if (p[j + 1] - p[j] > longest) longest = p[j + 1] - p[j];
+  struct entry *buf = NULL;
+  if (longest > 32 && !(buf = km__malloc((size_t)longest, sizeof *buf))) {
+    cholmod_common cc;
+    km__cholmod_start(&cc);
+    cholmod_free_sparse(Cp, &cc);
+    cholmod_finish(&cc);
+    return km__fail(err, KM_ERR_NOMEM, "sparse matrix: out of memory");
+  }
+  int32_t w = 0, start = 0;
+  for (size_t j = 0; j < n_cols; ++j) {
+    int32_t end = p[j + 1], len = end - start;
+    if (len <= 32) { /* insertion sort, stable */
+      for (int32_t a = start + 1; a < end; ++a) {
+        int32_t r = ri[a];
+        double v = x[a];
+        int32_t b = a - 1;
+        for (; b >= start && ri[b] > r; --b)
+          ri[b + 1] = ri[b], x[b + 1] = x[b];
+        ri[b + 1] = r, x[b + 1] = v;
+      }
+    } else {
+      for (int32_t a = 0; a < len; ++a)
+        buf[a] = (struct entry){ri[start + a], a, x[start + a]};
+      qsort(buf, (size_t)len, sizeof *buf, entry_cmp);
+      for (int32_t a = 0; a < len; ++a)
+        ri[start + a] = buf[a].row, x[start + a] = buf[a].value;
+    }
+    int32_t col_start = w;
+    for (int32_t q = start; q < end; ++q) {
+      if (w > col_start && ri[w - 1] == ri[q]) {
+        x[w - 1] += x[q];
+      } else {
+        ri[w] = ri[q], x[w] = x[q];
+        ++w;
+      }
+    }
+    p[j] = col_start;
+    start = end;
+  }
+  p[n_cols] = w;
+  free(buf);
+  C->sorted = 1;
+  C->packed = 1;
+  if ((size_t)w < nnz && w > 0) {
+    cholmod_common cc;
+    km__cholmod_start(&cc);
+    cholmod_reallocate_sparse((size_t)w, C, &cc); /* shrinking cannot fail in a harmful way */
+    cholmod_finish(&cc);
+  }
+  return km__sparse_from_cholmod(Cp, out, err);
 }
 
 km_status km_sparse_diagonal(size_t n, const double *diag, km_sparse **out, km_error *err) {

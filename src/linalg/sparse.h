@@ -16,6 +16,12 @@ cholmod_sparse *km__sparse_cholmod(const km_sparse *A);
  * packed here if it is not already. */
 km_status km__sparse_from_cholmod(cholmod_sparse **C, km_sparse **out, km_error *err);
 
+/* Finishes a CSC matrix whose columns were filled bucket-wise: *C is packed (p has ncol+1
+ * entries, p[ncol] = entries), rows within a column unsorted and possibly repeated. Sorts
+ * each column (stable), sums repeated rows in fill order, then wraps it as km__sparse_from_cholmod
+ * does (takes ownership). Linear in the entries for short columns. */
+km_status km__sparse_compress(cholmod_sparse **C, km_sparse **out, km_error *err);
+
 /* cholmod_start plus the settings every kinemesh common uses (int indices, never prints). */
 void km__cholmod_start(cholmod_common *cc);
 

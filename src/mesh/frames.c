@@ -1,12 +1,12 @@
 /* Per-vertex local frames (normal, tangent, bitangent) that follow the surface across poses
  * of one connectivity: the tangent is always the projected edge to the same neighbour. */
 #include "internal.h"
-#include "mesh/mesh_check.h"
+#include "mesh/mesh_args.h"
 
 #include <math.h>
 
 km_status km_frame_neighbors(const km_mesh *m, int32_t *ref, km_error *err) {
-  km_status s = km__check_mesh(m, "km_frame_neighbors", err);
+  km_status s = km__mesh_check_faces(m, "km_frame_neighbors", err);
   if (s) return s;
   if (m->n_vertices && !ref)
     return km__fail(err, KM_ERR_INVALID, "km_frame_neighbors: ref is NULL");

@@ -1,31 +1,15 @@
-/* Cotangent and uniform Laplacians and lumped mass matrices, assembled from triplets
- * (CHOLMOD sums the duplicates). Off-diagonal triplets are emitted per face and the
- * diagonal is accumulated densely, so the triplet list is 6 per face + #V. */
+/* Cotangent and uniform Laplacians and lumped mass matrices. Per-face weights are scattered
+ * straight into CSC columns and km__sparse_compress sums the duplicates (an edge shared by two
+ * faces), so no triplet list is materialised. */
 #include "internal.h"
 #include "linalg/sparse.h"
-#include "mesh/mesh_check.h"
+#include "mesh/mesh_args.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define KM_COT_CLAMP 1e5
-
-km_status km__check_mesh(const km_mesh *m, const char *who, km_error *err) {
-  if (!m) return km__fail(err, KM_ERR_INVALID, "%s: mesh is NULL", who);
-  if ((m->n_vertices && !m->V) || (m->n_faces && !m->F))
-    return km__fail(err, KM_ERR_INVALID, "%s: mesh has NULL arrays", who);
-  if (m->n_vertices > INT32_MAX || m->n_faces > INT32_MAX / 3)
-    return km__fail(err, KM_ERR_INVALID, "%s: mesh too large for int32 indices", who);
-  for (size_t f = 0; f < m->n_faces; ++f)
-    for (int c = 0; c < 3; ++c) {
-      int32_t v = m->F[3 * f + c];
-      if (v < 0 || (size_t)v >= m->n_vertices)
-        return km__fail(err, KM_ERR_INVALID, "%s: face %zu references vertex %d, expected 0..%zu",
-                        who, f, (int)v, m->n_vertices ? m->n_vertices - 1 : 0);
-    }
-  return KM_OK;
-}
 
 static inline void sub3(const double *a, const double *b, double *o) {
   o[0] = a[0] - b[0];
@@ -63,106 +47,128 @@ static bool face_cots(const km_mesh *m, size_t f, double cot[3], double *area2) 
   return true;
 }
 
-/* Builds the matrix from off-diagonal triplets (rows/cols/vals, n_off entries, with room for
- * n more) plus the dense diagonal. Frees nothing. */
-static km_status assemble(size_t n, size_t n_off, int32_t *rows, int32_t *cols, double *vals,
-                          const double *diag, km_sparse **out, km_error *err) {
-  for (size_t v = 0; v < n; ++v) {
-    rows[n_off + v] = cols[n_off + v] = (int32_t)v;
-    vals[n_off + v] = diag[v];
+/* Scatters symmetric edge weights straight into CSC columns (no triplet list): column v
+ * holds its diagonal first, then two entries per incident face, which km__sparse_compress
+ * sorts and sums. w has 3 entries per face, the weight of the edge opposite each corner;
+ * faces with keep[f] == 0 are skipped. The diagonal is minus the row sum. */
+static km_status assemble(const km_mesh *m, const double *w, const unsigned char *keep,
+                          km_sparse **out, km_error *err) {
+  size_t n = m->n_vertices, nf = m->n_faces;
+  cholmod_common cc;
+  km__cholmod_start(&cc);
+  size_t nz = n;
+  for (size_t f = 0; f < nf; ++f)
+    nz += keep[f] ? 6 : 0;
+  if (nz > INT32_MAX) {
+    cholmod_finish(&cc);
+    return km__fail(err, KM_ERR_INVALID, "Laplacian: %zu entries exceed int32 indices", nz);
   }
-  return km_sparse_from_triplets(n, n, n_off + n, rows, cols, vals, out, err);
+  cholmod_sparse *C = cholmod_allocate_sparse(n, n, nz, 0, 1, 0, CHOLMOD_REAL, &cc);
+  int32_t *next = km__malloc(n + 1, sizeof *next);
+  if (!C || !next) {
+    cholmod_free_sparse(&C, &cc);
+    cholmod_finish(&cc);
+    free(next);
+    return km__fail(err, KM_ERR_NOMEM, "Laplacian: out of memory (%zu vertices)", n);
+  }
+  cholmod_finish(&cc);
+  int32_t *p = C->p, *ri = C->i;
+  double *x = C->x;
+  for (size_t v = 0; v <= n; ++v)
+    p[v] = v ? 1 : 0;
+  for (size_t f = 0; f < nf; ++f)
+    if (keep[f])
+      for (int c = 0; c < 3; ++c)
+        p[m->F[3 * f + c] + 1] += 2;
+  for (size_t v = 0; v < n; ++v) {
+    p[v + 1] += p[v];
+    ri[p[v]] = (int32_t)v; /* diagonal slot, summed below */
+    x[p[v]] = 0;
+    next[v] = p[v] + 1;
+  }
+  for (size_t f = 0; f < nf; ++f) {
+    if (!keep[f]) continue;
+    const int32_t *t = m->F + 3 * f;
+    for (int c = 0; c < 3; ++c) {
+      int32_t i = t[(c + 1) % 3], j = t[(c + 2) % 3];
+      double wt = w[3 * f + c];
+      int32_t q = next[j]++;
+      ri[q] = i, x[q] = wt;
+      x[p[j]] -= wt;
+      q = next[i]++;
+      ri[q] = j, x[q] = wt;
+      x[p[i]] -= wt;
+    }
+  }
+  free(next);
+  return km__sparse_compress(&C, out, err);
 }
 
 km_status km_cotmatrix(const km_mesh *m, km_sparse **L, km_error *err) {
   if (!L) return km__fail(err, KM_ERR_INVALID, "km_cotmatrix: L is NULL");
   *L = NULL;
-  km_status s = km__check_mesh(m, "km_cotmatrix", err);
+  km_status s = km__mesh_check_faces(m, "km_cotmatrix", err);
   if (s) return s;
-  size_t n = m->n_vertices, nt = 6 * m->n_faces + n;
-  int32_t *rows = km__malloc(nt, sizeof *rows), *cols = km__malloc(nt, sizeof *cols);
-  double *vals = km__malloc(nt, sizeof *vals), *diag = km__calloc(n, sizeof *diag);
-  if (!rows || !cols || !vals || !diag) {
-    s = km__fail(err, KM_ERR_NOMEM, "km_cotmatrix: out of memory (%zu vertices)", n);
-    goto done;
+  double *w = km__malloc(m->n_faces, 3 * sizeof *w);
+  unsigned char *keep = km__malloc(m->n_faces, 1);
+  if (!w || !keep) {
+    free(w), free(keep);
+    return km__fail(err, KM_ERR_NOMEM, "km_cotmatrix: out of memory (%zu faces)", m->n_faces);
   }
-  size_t k = 0;
   for (size_t f = 0; f < m->n_faces; ++f) {
     double cot[3], a2;
-    if (!face_cots(m, f, cot, &a2)) continue;
-    const int32_t *t = m->F + 3 * f;
-    for (int c = 0; c < 3; ++c) {
-      /* the corner c is opposite the edge (c+1, c+2) */
-      int32_t i = t[(c + 1) % 3], j = t[(c + 2) % 3];
-      double w = 0.5 * cot[c];
-      rows[k] = i, cols[k] = j, vals[k++] = w;
-      rows[k] = j, cols[k] = i, vals[k++] = w;
-      diag[i] -= w;
-      diag[j] -= w;
-    }
+    keep[f] = face_cots(m, f, cot, &a2);
+    for (int c = 0; c < 3; ++c)
+      w[3 * f + c] = 0.5 * cot[c];
   }
-  s = assemble(n, k, rows, cols, vals, diag, L, err);
-done:
-  free(rows);
-  free(cols);
-  free(vals);
-  free(diag);
+  s = assemble(m, w, keep, L, err);
+  free(w), free(keep);
   return s;
 }
 
 km_status km_uniform_laplacian(const km_mesh *m, km_sparse **L, km_error *err) {
   if (!L) return km__fail(err, KM_ERR_INVALID, "km_uniform_laplacian: L is NULL");
   *L = NULL;
-  km_status s = km__check_mesh(m, "km_uniform_laplacian", err);
+  km_status s = km__mesh_check_faces(m, "km_uniform_laplacian", err);
   if (s) return s;
-  size_t n = m->n_vertices, nt = 6 * m->n_faces + n;
-  int32_t *rows = km__malloc(nt, sizeof *rows), *cols = km__malloc(nt, sizeof *cols);
-  double *vals = km__malloc(nt, sizeof *vals), *diag = km__calloc(n, sizeof *diag);
-  if (!rows || !cols || !vals || !diag) {
-    s = km__fail(err, KM_ERR_NOMEM, "km_uniform_laplacian: out of memory (%zu vertices)", n);
-    goto done;
+  double *w = km__malloc(m->n_faces, 3 * sizeof *w);
+  unsigned char *keep = km__malloc(m->n_faces, 1);
+  if (!w || !keep) {
+    free(w), free(keep);
+    return km__fail(err, KM_ERR_NOMEM, "km_uniform_laplacian: out of memory");
   }
-  size_t k = 0;
   for (size_t f = 0; f < m->n_faces; ++f) {
     const int32_t *t = m->F + 3 * f;
-    for (int c = 0; c < 3; ++c) {
-      int32_t i = t[c], j = t[(c + 1) % 3];
-      if (i == j) continue;
-      rows[k] = i, cols[k] = j, vals[k++] = 1;
-      rows[k] = j, cols[k] = i, vals[k++] = 1;
-    }
+    keep[f] = 1;
+    for (int c = 0; c < 3; ++c)
+      w[3 * f + c] = t[(c + 1) % 3] != t[(c + 2) % 3];
   }
-  s = assemble(n, k, rows, cols, vals, diag, L, err);
-  if (s) goto done;
-  {
-    /* An interior edge appears in two faces and was summed to 2: reset every edge to 1 and
-     * the diagonal to minus the number of distinct neighbours. */
-    cholmod_sparse *A = km__sparse_cholmod(*L);
-    const int32_t *p = A->p, *ri = A->i;
-    double *x = A->x;
-    for (size_t j = 0; j < n; ++j) {
-      int32_t dpos = -1, deg = 0;
-      for (int32_t q = p[j]; q < p[j + 1]; ++q) {
-        if ((size_t)ri[q] == j)
-          dpos = q;
-        else
-          x[q] = 1, ++deg;
-      }
-      if (dpos >= 0) x[dpos] = -deg;
+  s = assemble(m, w, keep, L, err);
+  free(w), free(keep);
+  if (s) return s;
+  /* An interior edge appears in two faces and was summed to 2: reset every edge to 1 and
+   * the diagonal to minus the number of distinct neighbours. A face with a repeated index
+   * adds a zero-weight self entry to the diagonal only (weight 0), which changes nothing. */
+  cholmod_sparse *A = km__sparse_cholmod(*L);
+  const int32_t *p = A->p, *ri = A->i;
+  double *x = A->x;
+  for (size_t j = 0; j < m->n_vertices; ++j) {
+    int32_t dpos = -1, deg = 0;
+    for (int32_t q = p[j]; q < p[j + 1]; ++q) {
+      if ((size_t)ri[q] == j)
+        dpos = q;
+      else if (x[q] != 0)
+        x[q] = 1, ++deg;
     }
+    if (dpos >= 0) x[dpos] = -deg;
   }
-done:
-  free(rows);
-  free(cols);
-  free(vals);
-  free(diag);
-  return s;
+  return KM_OK;
 }
 
 km_status km_massmatrix(const km_mesh *m, km_mass_type type, km_sparse **M, km_error *err) {
   if (!M) return km__fail(err, KM_ERR_INVALID, "km_massmatrix: M is NULL");
   *M = NULL;
-  km_status s = km__check_mesh(m, "km_massmatrix", err);
+  km_status s = km__mesh_check_faces(m, "km_massmatrix", err);
   if (s) return s;
   if (type != KM_MASS_VORONOI && type != KM_MASS_BARYCENTRIC)
     return km__fail(err, KM_ERR_INVALID, "km_massmatrix: unknown mass type %d", (int)type);

@@ -1,12 +1,12 @@
 /* Per-vertex normals: a scatter of weighted face normals over the faces. */
 #include "internal.h"
-#include "mesh/mesh_check.h"
+#include "mesh/mesh_args.h"
 
 #include <math.h>
 #include <string.h>
 
 km_status km_vertex_normals(const km_mesh *m, km_normal_weighting w, double *N, km_error *err) {
-  km_status s = km__check_mesh(m, "km_vertex_normals", err);
+  km_status s = km__mesh_check_faces(m, "km_vertex_normals", err);
   if (s) return s;
   if (w != KM_NORMALS_AREA && w != KM_NORMALS_ANGLE)
     return km__fail(err, KM_ERR_INVALID, "km_vertex_normals: unknown weighting %d", (int)w);
