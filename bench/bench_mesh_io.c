@@ -25,6 +25,17 @@ int main(int argc, char **argv) {
     qsort(t, 5, sizeof t[0], cmp_double);
     printf("%s: %zu vertices, %zu faces, read median %.2f ms (min %.2f)\n", argv[i], m.n_vertices,
            m.n_faces, 1e3 * t[2], 1e3 * t[0]);
+    const char *outs[] = {"/tmp/bench_mesh_io.obj", "/tmp/bench_mesh_io.ply",
+                          "/tmp/bench_mesh_io.off"};
+    for (int k = 0; k < 3; ++k) {
+      double t0 = km__now();
+      if (km_mesh_write(outs[k], &m, NULL, &err)) {
+        fprintf(stderr, "%s\n", err.message);
+        return 1;
+      }
+      printf("  write %s: %.2f ms\n", outs[k], 1e3 * (km__now() - t0));
+      remove(outs[k]);
+    }
     km_mesh_free(&m);
   }
   return 0;

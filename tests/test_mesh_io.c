@@ -209,6 +209,20 @@ static void round_trip(size_t n_faces) {
 static void test_round_trip(void) {
   round_trip(9);
   round_trip(0); /* point cloud */
+
+  /* Writing checks its input and reports the path; a failed write leaves nothing behind. */
+  const double V[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  int32_t F[3] = {0, 1, 3};
+  km_mesh bad = {(double *)V, F, 3, 1};
+  CHECK_STATUS(km_mesh_write("bad_write.obj", &bad, NULL, KM_E), KM_ERR_INVALID);
+  CHECK(strstr(km_test_err.message, "bad_write.obj") != NULL);
+  FILE *f = fopen("bad_write.obj", "rb");
+  CHECK(f == NULL);
+  if (f) fclose(f);
+  F[2] = 2;
+  CHECK_STATUS(km_mesh_write("no/such/dir/x.ply", &bad, NULL, KM_E), KM_ERR_IO);
+  CHECK(strstr(km_test_err.message, "no/such/dir/x.ply") != NULL);
+  CHECK_STATUS(km_mesh_write("x.stl", &bad, NULL, KM_E), KM_ERR_UNSUPPORTED);
 }
 
 /* The call must fail with `st` and a message naming `name` followed by `where` (":3" or
@@ -250,6 +264,9 @@ static void test_bad_obj(void) {
   EXPECT_FAIL("v 0 0 0\nv 1 0\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE, ":2:", "3 coordinates");
   EXPECT_FAIL("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE,
               ":4:", "at least 3");
+  /* 2^64 + 2 must not wrap around to a valid index. */
+  EXPECT_FAIL("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 18446744073709551618 2 3\n", KM_FORMAT_OBJ, "a.obj",
+              KM_ERR_PARSE, ":4:", "face vertex");
   EXPECT_FAIL("# nothing\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE, ":", "'v'");
   EXPECT_FAIL("v 0 0 0\n\x7f\x45\x4c\x46\x02\x01\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE,
               ":2:", "keyword");

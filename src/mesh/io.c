@@ -174,10 +174,9 @@ bool km__parse_int64(const char *s, size_t len, int64_t *out) {
   for (; i < len; ++i) {
     unsigned d = (unsigned)(unsigned char)s[i] - '0';
     if (d > 9) return false;
-    if (v > (UINT64_C(1) << 62)) return false; /* far beyond any index; avoids overflow */
+    if (v > ((uint64_t)INT64_MAX - d) / 10) return false;
     v = v * 10 + d;
   }
-  if (v > (uint64_t)INT64_MAX) return false;
   *out = neg ? -(int64_t)v : (int64_t)v;
   return true;
 }

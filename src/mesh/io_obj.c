@@ -121,7 +121,7 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
       ++nv; /* extra numbers (w, colours) are ignored */
     } else if (keyword_is(tok, len, "f")) {
       size_t n = 0;
-      while (next_token(&c, &tok, &len)) {
+      while (next_token(&c, &tok, &len) && tok[0] != '#') { /* a trailing comment ends it */
         int64_t idx;
         if (!parse_face_ref(tok, len, &idx)) {
           km__quote_token(tok, len, q, sizeof q);
