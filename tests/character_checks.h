@@ -40,6 +40,8 @@ typedef struct cc_topology {
   size_t components;
   int64_t euler;
   double volume, min_area;
+  double min_normal_dot;       /* over pairs of faces sharing an edge: -1 is a fold */
+  double min_angle, max_angle; /* degrees, over all triangle corners */
   bool distinct_corners;
 } cc_topology;
 
@@ -113,6 +115,46 @@ static void cc_topology_compute(const km_mesh *m, cc_topology *t) {
     if (deg[i] && cc_root(par, (int32_t)i) == (int32_t)i) ++t->components;
   }
   t->euler = (int64_t)used - (int64_t)(ne / 2) + (int64_t)nf;
+  t->min_normal_dot = 1;
+  if (t->closed_oriented)
+    for (size_t i = 0; i < ne; ++i) {
+      int32_t a = (int32_t)(keys[i] >> 32), b = (int32_t)(keys[i] & 0xffffffffu);
+      if (a > b) continue;
+      ptrdiff_t j = cc_find(keys, ne, cc_key(b, a));
+      double n[2][3];
+      for (int s = 0; s < 2; ++s) {
+        const int32_t *F = m->F + 3 * (size_t)face_of[s ? (size_t)j : i];
+        const double *p = m->V + 3 * (size_t)F[0], *q = m->V + 3 * (size_t)F[1],
+                     *r = m->V + 3 * (size_t)F[2];
+        double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+        double w[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+        n[s][0] = u[1] * w[2] - u[2] * w[1];
+        n[s][1] = u[2] * w[0] - u[0] * w[2];
+        n[s][2] = u[0] * w[1] - u[1] * w[0];
+        double l = sqrt(n[s][0] * n[s][0] + n[s][1] * n[s][1] + n[s][2] * n[s][2]);
+        for (int k = 0; k < 3; ++k)
+          n[s][k] /= l > 0 ? l : 1;
+      }
+      double d = n[0][0] * n[1][0] + n[0][1] * n[1][1] + n[0][2] * n[1][2];
+      if (d < t->min_normal_dot) t->min_normal_dot = d;
+    }
+  t->min_angle = 180;
+  t->max_angle = 0;
+  for (size_t f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const double *p = m->V + 3 * (size_t)m->F[3 * f + k];
+      const double *q = m->V + 3 * (size_t)m->F[3 * f + (k + 1) % 3];
+      const double *r = m->V + 3 * (size_t)m->F[3 * f + (k + 2) % 3];
+      double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+      double w[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+      double c[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
+                     u[0] * w[1] - u[1] * w[0]};
+      double ang = atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
+                         u[0] * w[0] + u[1] * w[1] + u[2] * w[2]) *
+                   180 / M_PI;
+      t->min_angle = fmin(t->min_angle, ang);
+      t->max_angle = fmax(t->max_angle, ang);
+    }
   t->min_area = INFINITY;
   for (size_t f = 0; f < nf; ++f) {
     const double *a = m->V + 3 * (size_t)m->F[3 * f], *b = m->V + 3 * (size_t)m->F[3 * f + 1],
@@ -144,6 +186,13 @@ static void cc_check_character(const km_character *c, size_t target, double heig
   CHECK_MSG(t.components == 1, "%zu components", t.components);
   CHECK_MSG(t.euler == 2, "Euler characteristic %lld", (long long)t.euler);
   CHECK_MSG(t.volume > 0, "signed volume %g", t.volume);
+  /* No face folded over its neighbour (coarse meshes have creases near 120 degrees). */
+  CHECK_MSG(t.min_normal_dot > -0.8, "adjacent face normals at %g", t.min_normal_dot);
+  /* Relaxation + Delaunay flips give about 20..123 degrees on the default subject (6..156 at
+   * worst on extreme shapes at 2-8k vertices); raw marching tetrahedra has slivers near 0
+   * and 180. */
+  CHECK_MSG(t.min_angle > 5 && t.max_angle < 165, "angles %.2f..%.2f degrees", t.min_angle,
+            t.max_angle);
   /* Average triangle area is ~1.9 m^2 / #F; demand no face below 1e-4 of it. */
   double avg = 1.9 / (double)m->n_faces;
   CHECK_MSG(t.min_area > 1e-4 * avg, "min face area %g (average %g)", t.min_area, avg);

@@ -219,9 +219,11 @@ static void build_body(body *b, const km_character_options *o, double min_r) {
   set3(J + 3 * J_WRIST_L, sh_x + 0.53 * fa, arm_y, 0);
   set3(J + 3 * J_HAND_L, sh_x + 0.61 * fa, arm_y, 0);
   set3(J + 3 * J_HIP_L, 0.09, hip_y, 0);
-  set3(J + 3 * J_KNEE_L, 0.11, knee_y, 0);
-  set3(J + 3 * J_ANKLE_L, 0.13, ankle_y, -0.01);
-  set3(J + 3 * J_FOOT_L, 0.13, 0.04, 0.10);
+  /* Thick legs stand wider so that they stay apart below the crotch. */
+  double spread = g > 1 ? g - 1 : 0;
+  set3(J + 3 * J_KNEE_L, 0.11 + 0.07 * spread, knee_y, 0);
+  set3(J + 3 * J_ANKLE_L, 0.13 + 0.09 * spread, ankle_y, -0.01);
+  set3(J + 3 * J_FOOT_L, 0.13 + 0.09 * spread, 0.04, 0.10);
   for (int j = J_SHOULDER_L; j <= J_HAND_L; ++j) {
     memcpy(J + 3 * (j + 4), J + 3 * j, 3 * sizeof *J);
     J[3 * (j + 4)] = -J[3 * j];
@@ -248,9 +250,15 @@ static void build_body(body *b, const km_character_options *o, double min_r) {
   set3(a, -0.085, hc_y - 0.03, 0);
   set3(c, 0.085, hc_y - 0.03, 0);
   add_prim(b, a, 0.105 * g, c, 0.105 * g, J_HIP_C);
+  /* Fills the top of the V between the thighs, whose crease is too sharp to mesh well. */
+  set3(a, 0, hc_y - 0.09, -0.01);
+  add_prim(b, a, 0.075 * g, a, 0.075 * g, J_HIP_C);
   if (bel > 0) {
-    set3(a, 0, hc_y + 0.12, 0.02 + 0.06 * bel);
-    add_prim(b, a, (0.10 + 0.06 * bel) * g, a, (0.10 + 0.06 * bel) * g, J_HIP_C);
+    /* Grows forward more than down, and stays above the crotch: a belly that reached the
+     * thighs would close a handle between them. */
+    double r = 0.09 + 0.055 * bel;
+    set3(a, 0, hc_y + 0.06 + 0.8 * r, 0.015 + 0.065 * bel);
+    add_prim(b, a, r, a, r, J_HIP_C);
   }
   set3(a, 0, sc_y - 0.04, 0);
   set3(c, 0, head_y - 0.06 * fh, 0.005);
@@ -280,16 +288,25 @@ static void build_body(body *b, const km_character_options *o, double min_r) {
     set3(b->toe_tip[side], fo[0], 0.035, fo[2] + 0.075);
     add_prim(b, fo, 0.04, b->toe_tip[side], 0.033, J_FOOT_L + o4);
   }
-  /* Scale to the requested height (head top to sole), then sit the soles on y = 0. */
-  double top = -DBL_MAX, bot = DBL_MAX;
-  for (int i = 0; i < b->np; ++i) {
-    const prim *q = &b->p[i];
-    top = fmax(top, fmax(q->a[1] + q->r1, q->b[1] + q->r2));
-    bot = fmin(bot, fmin(q->a[1] - q->r1, q->b[1] - q->r2));
+  /* Scale to the requested height (head top to sole), then sit the soles on y = 0. The radius
+   * floor is applied in design units first so that it cannot push the soles below 0. */
+  double top = -DBL_MAX, bot = DBL_MAX, sc = 1;
+  for (int pass = 0; pass < 2; ++pass) {
+    top = -DBL_MAX;
+    bot = DBL_MAX;
+    for (int i = 0; i < b->np; ++i) {
+      prim *q = &b->p[i];
+      if (pass) {
+        q->r1 = fmax(q->r1, min_r / sc);
+        q->r2 = fmax(q->r2, min_r / sc);
+      }
+      top = fmax(top, fmax(q->a[1] + q->r1, q->b[1] + q->r2));
+      bot = fmin(bot, fmin(q->a[1] - q->r1, q->b[1] - q->r2));
+    }
+    sc = o->height / (top - bot);
   }
-  double sc = o->height / (top - bot);
   b->height = o->height;
-  b->k = 0.03 * sc;
+  b->k = fmax(0.03 * sc, 0.8 * min_r);
   for (int i = 0; i < b->np; ++i) {
     prim *q = &b->p[i];
     q->a[1] -= bot;
@@ -298,8 +315,8 @@ static void build_body(body *b, const km_character_options *o, double min_r) {
       q->a[k] *= sc;
       q->b[k] *= sc;
     }
-    q->r1 = fmax(q->r1 * sc, min_r);
-    q->r2 = fmax(q->r2 * sc, min_r);
+    q->r1 *= sc;
+    q->r2 *= sc;
     prim_finish(q);
   }
   double *pts[KM_KINECT1_JOINTS + 5];
@@ -515,7 +532,7 @@ static km_status alloc_skin(km_skin *s, size_t n, km_error *err) {
 static km_status count_at(const km_character_options *o, double h, size_t *n, km_error *err) {
   body *b = malloc(sizeof *b);
   if (!b) return km__fail(err, KM_ERR_NOMEM, "character: out of memory");
-  build_body(b, o, 0.6 * h);
+  build_body(b, o, 1.0 * h);
   km_status st = build_cull(b, err);
   if (st == KM_OK) st = km__polygonize_count(body_field, b, b->lo, b->hi, h, n, err);
   free(b->mask);
@@ -536,8 +553,8 @@ km_status km_character_generate(const km_character_options *opt, km_character *o
                     o.target_vertices);
   if (!(o.height >= 0.1 && o.height <= 10))
     return km__fail(err, KM_ERR_INVALID, "character: height %g m is outside 0.1..10", o.height);
-  if (!(o.girth >= 0.5 && o.girth <= 2.0))
-    return km__fail(err, KM_ERR_INVALID, "character: girth %g is outside 0.5..2", o.girth);
+  if (!(o.girth >= 0.5 && o.girth <= 1.6))
+    return km__fail(err, KM_ERR_INVALID, "character: girth %g is outside 0.5..1.6", o.girth);
   if (!(o.belly >= 0 && o.belly <= 2.0))
     return km__fail(err, KM_ERR_INVALID, "character: belly %g is outside 0..2", o.belly);
 
@@ -564,7 +581,7 @@ km_status km_character_generate(const km_character_options *opt, km_character *o
   memset(b, 0, sizeof *b);
   for (int attempt = 0; attempt < 3; ++attempt) {
     free(b->mask);
-    build_body(b, &o, 0.6 * h);
+    build_body(b, &o, 1.0 * h);
     if ((st = build_cull(b, err)) != KM_OK) break;
     if (!km__progress(&o.progress, 0.35, "character: polygonise")) {
       st = km__fail(err, KM_ERR_CANCELLED, "character: cancelled");
@@ -578,9 +595,24 @@ km_status km_character_generate(const km_character_options *opt, km_character *o
     if (fabs(ratio - 1) < 0.08) break;
     h *= sqrt(ratio);
   }
+  if (st == KM_OK && fabs((double)out->mesh.n_vertices / T - 1) > 0.1)
+    st = km__fail(err, KM_ERR_NO_CONVERGENCE,
+                  "character: %zu vertices after 3 polygonisations, target %zu +-10%%",
+                  out->mesh.n_vertices, o.target_vertices);
   if (st == KM_OK && !km__progress(&o.progress, 0.6, "character: relax"))
     st = km__fail(err, KM_ERR_CANCELLED, "character: cancelled");
-  if (st == KM_OK) km__surface_relax(&out->mesh, body_field, b, 6, 1e-6 * o.height);
+  if (st == KM_OK) {
+    /* Relax, flip to Delaunay (removes most obtuse triangles, which give negative cotangent
+     * weights later), relax again for the new connectivity. */
+    double t0 = km__now();
+    km__surface_relax(&out->mesh, body_field, b, 4, 1e-6 * o.height);
+    double t1 = km__now();
+    size_t flips = km__delaunay_flips(&out->mesh, 8);
+    double t2 = km__now();
+    km__surface_relax(&out->mesh, body_field, b, 3, 1e-6 * o.height);
+    km__log(KM_LOG_DEBUG, "character: relax %.3f s, %zu edge flips %.3f s, relax %.3f s", t1 - t0,
+            flips, t2 - t1, km__now() - t2);
+  }
   if (st == KM_OK) st = alloc_skeleton(&out->skeleton, err);
   if (st == KM_OK) {
     memcpy(out->skeleton.rest, b->joints, sizeof b->joints);
@@ -602,6 +634,20 @@ km_status km_character_generate(const km_character_options *opt, km_character *o
 }
 
 /* ---------------------------------------------------------------- rig sidecar */
+
+/* A JSON string literal (names come from files read back, so they may need escapes). */
+static void write_json_string(FILE *f, const char *s) {
+  fputc('"', f);
+  for (const unsigned char *p = (const unsigned char *)s; *p; ++p) {
+    if (*p == '"' || *p == '\\')
+      fprintf(f, "\\%c", *p);
+    else if (*p < 0x20)
+      fprintf(f, "\\u%04x", *p);
+    else
+      fputc(*p, f);
+  }
+  fputc('"', f);
+}
 
 static int find_landmark(const km_character *c, const char *name) {
   for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i)
@@ -654,14 +700,10 @@ km_status km_character_write_rig(const char *path, const km_character *c, km_err
           "\"skeleton\":\"kinect1\",\n\"joints\":[",
           n);
   for (size_t j = 0; j < sk->n_joints; ++j) {
-    /* Names are plain identifiers; escape through cJSON anyway. */
-    cJSON *item = cJSON_CreateStringReference(sk->names[j]);
-    char *name = item ? cJSON_PrintUnformatted(item) : NULL;
-    cJSON_Delete(item);
-    fprintf(f, "%s\n{\"name\":%s,\"parent\":%d,\"rest\":[%.9g,%.9g,%.9g]}", j ? "," : "",
-            name ? name : "\"\"", (int)sk->parents[j], sk->rest[3 * j], sk->rest[3 * j + 1],
-            sk->rest[3 * j + 2]);
-    free(name);
+    fputs(j ? ",\n{\"name\":" : "\n{\"name\":", f);
+    write_json_string(f, sk->names[j]);
+    fprintf(f, ",\"parent\":%d,\"rest\":[%.17g,%.17g,%.17g]}", (int)sk->parents[j], sk->rest[3 * j],
+            sk->rest[3 * j + 1], sk->rest[3 * j + 2]);
   }
   fprintf(f, "],\n\"skin\":{\"influences\":%d,\"joints\":[", KM_SKIN_INFLUENCES);
   for (size_t i = 0; i < n * KM_SKIN_INFLUENCES; ++i)
@@ -675,9 +717,13 @@ km_status km_character_write_rig(const char *path, const km_character *c, km_err
       fprintf(f, i ? ",%.7g" : "%.7g", w);
   }
   fputs("]},\n\"landmarks\":[", f);
-  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i)
-    fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%d,\"mirror\":\"%s\"}", i ? "," : "",
-            c->landmarks[i].name, (int)c->landmarks[i].vertex, c->landmarks[i].mirror);
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    fputs(i ? ",\n{\"name\":" : "\n{\"name\":", f);
+    write_json_string(f, c->landmarks[i].name);
+    fprintf(f, ",\"vertex\":%d,\"mirror\":", (int)c->landmarks[i].vertex);
+    write_json_string(f, c->landmarks[i].mirror);
+    fputc('}', f);
+  }
   fputs("],\n\"handles\":[", f);
   for (int h = 0; h < 5; ++h)
     fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%ld,\"radius\":%.6g}", h ? "," : "",
@@ -698,6 +744,130 @@ static bool json_int(const cJSON *o, double lo, double hi, long *out) {
   return true;
 }
 
+/* The skin arrays hold 8 numbers per vertex: as cJSON items (64 bytes each) a 1M-vertex rig
+ * would take over 500 MB. They are located with a small structural scan (strings and nesting
+ * only), read with strtod, and blanked to [] before cJSON parses the rest. Anything the scan
+ * does not recognise falls back to the plain cJSON path. */
+static size_t js_ws(const char *s, size_t i, size_t n) {
+  while (i < n && (s[i] == ' ' || s[i] == '\t' || s[i] == '\n' || s[i] == '\r'))
+    ++i;
+  return i;
+}
+
+static size_t js_string_end(const char *s, size_t i, size_t n) {
+  for (++i; i < n; ++i) {
+    if (s[i] == '\\')
+      ++i;
+    else if (s[i] == '"')
+      return i + 1;
+  }
+  return SIZE_MAX;
+}
+
+static size_t js_value_end(const char *s, size_t i, size_t n) {
+  if (i >= n) return SIZE_MAX;
+  if (s[i] == '"') return js_string_end(s, i, n);
+  if (s[i] == '{' || s[i] == '[') {
+    int depth = 0;
+    while (i < n) {
+      char c = s[i];
+      if (c == '"') {
+        i = js_string_end(s, i, n);
+        if (i == SIZE_MAX) return SIZE_MAX;
+        continue;
+      }
+      if (c == '{' || c == '[') ++depth;
+      if (c == '}' || c == ']') {
+        if (--depth == 0) return i + 1;
+      }
+      ++i;
+    }
+    return SIZE_MAX;
+  }
+  while (i < n && !strchr(",}] \t\r\n", s[i]))
+    ++i;
+  return i;
+}
+
+/* Span [*vb, *ve) of member `key` of the object starting at s[obj] == '{'. */
+static bool js_member(const char *s, size_t obj, size_t n, const char *key, size_t *vb,
+                      size_t *ve) {
+  if (obj >= n || s[obj] != '{') return false;
+  size_t i = obj + 1, klen = strlen(key);
+  for (;;) {
+    i = js_ws(s, i, n);
+    if (i >= n || s[i] != '"') return false;
+    size_t ke = js_string_end(s, i, n);
+    if (ke == SIZE_MAX) return false;
+    bool match = ke - i - 2 == klen && !memcmp(s + i + 1, key, klen);
+    i = js_ws(s, ke, n);
+    if (i >= n || s[i] != ':') return false;
+    i = js_ws(s, i + 1, n);
+    size_t e = js_value_end(s, i, n);
+    if (e == SIZE_MAX) return false;
+    if (match) {
+      *vb = i;
+      *ve = e;
+      return true;
+    }
+    i = js_ws(s, e, n);
+    if (i >= n || s[i] != ',') return false;
+    ++i;
+  }
+}
+
+/* Reads the number array at [b, e) (s NUL-terminated past e) into out[cap]. Returns the count,
+ * or SIZE_MAX with *bad the byte offset of a malformed entry or the entry past cap. */
+static size_t js_numbers(const char *s, size_t b, size_t e, double *out, size_t cap, size_t *bad) {
+  size_t i = js_ws(s, b + 1, e), n = 0;
+  if (i < e && s[i] == ']') return 0;
+  for (;;) {
+    char *end = NULL;
+    double v = strtod(s + i, &end);
+    if (end == s + i || (size_t)(end - s) > e || n >= cap) {
+      *bad = i;
+      return SIZE_MAX;
+    }
+    out[n++] = v;
+    i = js_ws(s, (size_t)(end - s), e);
+    if (i < e && s[i] == ']') return n;
+    if (i >= e || s[i] != ',') {
+      *bad = i;
+      return SIZE_MAX;
+    }
+    i = js_ws(s, i + 1, e);
+  }
+}
+
+typedef struct fast_skin {
+  bool found;
+  double *joints, *weights; /* as read, validated later */
+  size_t nj, nw;            /* counts, SIZE_MAX when malformed */
+  size_t bad_j, bad_w;      /* byte offsets of the malformed entries */
+} fast_skin;
+
+static bool fast_skin_extract(char *data, size_t size, size_t cap, fast_skin *fs) {
+  memset(fs, 0, sizeof *fs);
+  size_t root = js_ws(data, 0, size), sb, se, jb, je, wb, we;
+  if (!js_member(data, root, size, "skin", &sb, &se)) return true;
+  if (!js_member(data, sb, se, "joints", &jb, &je) || data[jb] != '[') return true;
+  if (!js_member(data, sb, se, "weights", &wb, &we) || data[wb] != '[') return true;
+  fs->joints = km__malloc(cap ? cap : 1, sizeof *fs->joints);
+  fs->weights = km__malloc(cap ? cap : 1, sizeof *fs->weights);
+  if (!fs->joints || !fs->weights) {
+    free(fs->joints);
+    free(fs->weights);
+    return false;
+  }
+  fs->nj = js_numbers(data, jb, je, fs->joints, cap, &fs->bad_j);
+  fs->nw = js_numbers(data, wb, we, fs->weights, cap, &fs->bad_w);
+  /* Blank the arrays (same length, so byte offsets of later errors stay right). */
+  memset(data + jb + 1, ' ', je - jb - 2);
+  memset(data + wb + 1, ' ', we - wb - 2);
+  fs->found = true;
+  return true;
+}
+
 km_status km_character_read_rig(const char *path, size_t n_vertices, km_character *out,
                                 km_error *err) {
   if (!path || !out) return km__fail(err, KM_ERR_INVALID, "read rig: NULL argument");
@@ -705,11 +875,19 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
   size_t size = 0;
   km_status st = km__read_file(path, &data, &size, err);
   if (st != KM_OK) return st;
+  fast_skin fs;
+  size_t cap = n_vertices <= SIZE_MAX / KM_SKIN_INFLUENCES ? n_vertices * KM_SKIN_INFLUENCES : 0;
+  if (!fast_skin_extract(data, size, cap, &fs)) {
+    free(data);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  }
   const char *end = NULL;
   cJSON *root = cJSON_ParseWithLengthOpts(data, size, &end, 0);
   if (!root) {
     size_t at = end && end >= data ? (size_t)(end - data) : 0;
     free(data);
+    free(fs.joints);
+    free(fs.weights);
     return km__fail(err, KM_ERR_PARSE, "%s: invalid JSON near byte %zu", path, at);
   }
   free(data);
@@ -781,25 +959,49 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
       infl != KM_SKIN_INFLUENCES)
     FAIL("%s: \"skin\".\"influences\" must be %d", path, KM_SKIN_INFLUENCES);
   size_t ne = n_vertices * KM_SKIN_INFLUENCES;
-  if (!cJSON_IsArray(sj) || (size_t)cJSON_GetArraySize(sj) != ne)
-    FAIL("%s: \"skin\".\"joints\" must have %zu entries (vertices x %d)", path, ne,
-         KM_SKIN_INFLUENCES);
-  if (!cJSON_IsArray(sw) || (size_t)cJSON_GetArraySize(sw) != ne)
-    FAIL("%s: \"skin\".\"weights\" must have %zu entries (vertices x %d)", path, ne,
-         KM_SKIN_INFLUENCES);
-  if ((st = alloc_skin(&skin, n_vertices, err)) != KM_OK) goto done;
-  size_t i = 0;
-  cJSON_ArrayForEach(it, sj) {
-    long v;
-    if (!json_int(it, -1, nj - 1, &v))
-      FAIL("%s: \"skin\".\"joints\"[%zu] must be -1 or a joint index < %d", path, i, nj);
-    skin.joints[i++] = (int32_t)v;
+  if (fs.found) {
+    if (fs.nj == SIZE_MAX)
+      FAIL("%s: byte %zu: \"skin\".\"joints\" must be %zu numbers (vertices x %d)", path, fs.bad_j,
+           ne, KM_SKIN_INFLUENCES);
+    if (fs.nw == SIZE_MAX)
+      FAIL("%s: byte %zu: \"skin\".\"weights\" must be %zu numbers (vertices x %d)", path, fs.bad_w,
+           ne, KM_SKIN_INFLUENCES);
+    if (fs.nj != ne || fs.nw != ne)
+      FAIL("%s: \"skin\" has %zu joints and %zu weights, expected %zu (vertices x %d)", path, fs.nj,
+           fs.nw, ne, KM_SKIN_INFLUENCES);
+  } else {
+    if (!cJSON_IsArray(sj) || (size_t)cJSON_GetArraySize(sj) != ne)
+      FAIL("%s: \"skin\".\"joints\" must have %zu entries (vertices x %d)", path, ne,
+           KM_SKIN_INFLUENCES);
+    if (!cJSON_IsArray(sw) || (size_t)cJSON_GetArraySize(sw) != ne)
+      FAIL("%s: \"skin\".\"weights\" must have %zu entries (vertices x %d)", path, ne,
+           KM_SKIN_INFLUENCES);
   }
-  i = 0;
-  cJSON_ArrayForEach(it, sw) {
-    if (!cJSON_IsNumber(it) || !(it->valuedouble >= 0 && it->valuedouble <= 1.0001))
-      FAIL("%s: \"skin\".\"weights\"[%zu] must be a number in [0,1]", path, i);
-    skin.weights[i++] = it->valuedouble;
+  if ((st = alloc_skin(&skin, n_vertices, err)) != KM_OK) goto done;
+  if (fs.found) {
+    for (size_t i = 0; i < ne; ++i) {
+      double v = fs.joints[i], w = fs.weights[i];
+      if (!(v >= -1 && v <= nj - 1) || v != floor(v))
+        FAIL("%s: \"skin\".\"joints\"[%zu] must be -1 or a joint index < %d", path, i, nj);
+      if (!(w >= 0 && w <= 1.0001))
+        FAIL("%s: \"skin\".\"weights\"[%zu] must be a number in [0,1]", path, i);
+      skin.joints[i] = (int32_t)v;
+      skin.weights[i] = w;
+    }
+  } else {
+    size_t i = 0;
+    cJSON_ArrayForEach(it, sj) {
+      long v;
+      if (!json_int(it, -1, nj - 1, &v))
+        FAIL("%s: \"skin\".\"joints\"[%zu] must be -1 or a joint index < %d", path, i, nj);
+      skin.joints[i++] = (int32_t)v;
+    }
+    i = 0;
+    cJSON_ArrayForEach(it, sw) {
+      if (!cJSON_IsNumber(it) || !(it->valuedouble >= 0 && it->valuedouble <= 1.0001))
+        FAIL("%s: \"skin\".\"weights\"[%zu] must be a number in [0,1]", path, i);
+      skin.weights[i++] = it->valuedouble;
+    }
   }
   for (size_t v = 0; v < n_vertices; ++v) {
     double sum = 0;
@@ -832,14 +1034,17 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
     ++l;
   }
 #undef FAIL
-  free_skeleton(&out->skeleton);
-  free_skin(&out->skin);
+  free(fs.joints);
+  free(fs.weights);
+  /* Overwritten, not freed: out may hold only a mesh with the rest uninitialised. */
   out->skeleton = sk;
   out->skin = skin;
   memcpy(out->landmarks, lm, sizeof lm);
   cJSON_Delete(root);
   return KM_OK;
 done:
+  free(fs.joints);
+  free(fs.weights);
   free_skeleton(&sk);
   free_skin(&skin);
   cJSON_Delete(root);

@@ -69,7 +69,8 @@ static void set_edge(unsigned char e[2], int a, int b) {
 
 /* Orients triangle (e0,e1,e2) so that its normal (computed on edge midpoints, which never
  * degenerate) points from the inside corners to the outside ones. */
-static void orient(unsigned char tri[3][2], const int *in, int nin, const int *out, int nout) {
+static void orient(tet_case *tc, int t, const int *in, int nin, const int *out, int nout) {
+  unsigned char(*tri)[2] = tc->e[t];
   double m[3][3], ci[3] = {0, 0, 0}, co[3] = {0, 0, 0}, p[3];
   for (int v = 0; v < 3; ++v)
     edge_mid(tri[v][0], tri[v][1], m[v]);
@@ -121,7 +122,7 @@ static void build_cases(tet_case cases[6][16]) {
         tc->ntri = 1;
         for (int v = 0; v < 3; ++v)
           set_edge(tc->e[0][v], lone[0], rest[v]);
-        orient(tc->e[0], in, nin, out, nout);
+        orient(tc, 0, in, nin, out, nout);
       } else {
         /* Quad ac, ad, bd, bc (cyclic) split into two triangles. */
         int a = in[0], b = in[1], cc = out[0], d = out[1];
@@ -134,7 +135,7 @@ static void build_cases(tet_case cases[6][16]) {
         memcpy(tc->e[0][0], q[0], 2);
         memcpy(tc->e[0][1], q[1], 2);
         memcpy(tc->e[0][2], q[2], 2);
-        orient(tc->e[0], in, nin, out, nout);
+        orient(tc, 0, in, nin, out, nout);
         bool flipped = tc->e[0][1][0] != q[1][0] || tc->e[0][1][1] != q[1][1];
         memcpy(tc->e[1][0], q[0], 2);
         memcpy(tc->e[1][1], flipped ? q[3] : q[2], 2);
@@ -159,9 +160,9 @@ static void grid_setup(grid *g, const double lo[3], const double hi[3], double h
 }
 
 /* Values of one block, or NULL when the block is provably on one side of the surface or has
- * no sign change. */
+ * no sign change (or, with *nomem set, when memory ran out). */
 static double *block_values(const grid *g, int64_t bx, int64_t by, int64_t bz, km__field_fn f,
-                            void *user) {
+                            void *user, int *nomem) {
   double h = g->h;
   double c[3] = {g->o[0] + ((double)bx * B + 0.5 * B) * h, g->o[1] + ((double)by * B + 0.5 * B) * h,
                  g->o[2] + ((double)bz * B + 0.5 * B) * h};
@@ -169,7 +170,10 @@ static double *block_values(const grid *g, int64_t bx, int64_t by, int64_t bz, k
   double half_diag = 0.5 * B * h * sqrt(3.0);
   if (fabs(fc) > half_diag + h) return NULL;
   double *v = malloc(sizeof(double) * BP * BP * BP);
-  if (!v) return NULL;
+  if (!v) {
+    *nomem = 1;
+    return NULL;
+  }
   double tiny = 1e-9 * h;
   int npos = 0, nneg = 0;
   for (int k = 0; k < BP; ++k)
@@ -193,17 +197,23 @@ static double *block_values(const grid *g, int64_t bx, int64_t by, int64_t bz, k
   return v;
 }
 
+static void free_blocks(double **blocks, int64_t n);
+
 /* Evaluates all blocks in parallel. blocks[b] is NULL for skipped blocks. Returns false on a
- * failed allocation (a block that could not be allocated is indistinguishable from a skipped
- * one, so allocation failures are tracked separately). */
+ * failed allocation: a missing block would leave a hole, so it is never silently skipped. */
 static bool evaluate_blocks(const grid *g, km__field_fn f, void *user, double ***out) {
   int64_t nblocks = g->nb[0] * g->nb[1] * g->nb[2];
   double **blocks = km__calloc((size_t)nblocks, sizeof *blocks);
   if (!blocks) return false;
-#pragma omp parallel for schedule(dynamic, 16)
+  int nomem = 0;
+#pragma omp parallel for schedule(dynamic, 16) reduction(| : nomem)
   for (int64_t b = 0; b < nblocks; ++b) {
     int64_t bx = b % g->nb[0], by = (b / g->nb[0]) % g->nb[1], bz = b / (g->nb[0] * g->nb[1]);
-    blocks[b] = block_values(g, bx, by, bz, f, user);
+    blocks[b] = block_values(g, bx, by, bz, f, user, &nomem);
+  }
+  if (nomem) {
+    free_blocks(blocks, nblocks);
+    return false;
   }
   *out = blocks;
   return true;
@@ -223,10 +233,10 @@ km_status km__polygonize_count(km__field_fn f, void *user, const double lo[3], c
   int64_t nblocks = g.nb[0] * g.nb[1] * g.nb[2];
   size_t total = 0;
   int nomem = 0;
-#pragma omp parallel for schedule(dynamic, 16) reduction(+ : total, nomem)
+#pragma omp parallel for schedule(dynamic, 16) reduction(+ : total) reduction(| : nomem)
   for (int64_t b = 0; b < nblocks; ++b) {
     int64_t bx = b % g.nb[0], by = (b / g.nb[0]) % g.nb[1], bz = b / (g.nb[0] * g.nb[1]);
-    double *v = block_values(&g, bx, by, bz, f, user);
+    double *v = block_values(&g, bx, by, bz, f, user, &nomem);
     if (!v) continue;
     size_t cnt = 0;
     /* Edges owned by points of this block: p -> p + d, d in {0,1}^3 \ 0. */
@@ -242,9 +252,8 @@ km_status km__polygonize_count(km__field_fn f, void *user, const double lo[3], c
     total += cnt;
     free(v);
   }
-  (void)nomem;
   *n_vertices = total;
-  (void)err;
+  if (nomem) return km__fail(err, KM_ERR_NOMEM, "polygonise: out of memory (h = %g)", h);
   return KM_OK;
 }
 
@@ -501,17 +510,36 @@ static void gradient(km__field_fn f, void *user, const double p[3], double f0, d
   }
 }
 
+/* One Newton step of q towards the zero set; g receives the gradient at the start point. */
+static void newton_step(km__field_fn f, void *user, double q[3], double eps, double g[3]) {
+  double fq = f(user, q);
+  gradient(f, user, q, fq, eps, g);
+  double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+  if (g2 < 1e-12) return;
+  for (int k = 0; k < 3; ++k)
+    q[k] -= fq * g[k] / g2;
+}
+
 void km__surface_relax(km_mesh *m, km__field_fn f, void *user, int iterations, double eps) {
   size_t nv = m->n_vertices, nf = m->n_faces;
   double *sum = km__malloc(nv * 3, sizeof *sum);
   int32_t *cnt = km__malloc(nv, sizeof *cnt);
   double *nV = km__malloc(nv * 3, sizeof *nV);
-  if (!sum || !cnt || !nV) {
+  double *G = km__malloc(nv * 3, sizeof *G);
+  if (!sum || !cnt || !nV || !G) {
     /* Relaxation only improves quality; without memory the mesh stays as it is. */
     free(sum);
     free(cnt);
     free(nV);
+    free(G);
     return;
+  }
+  /* The normal of the tangent plane is the gradient met by the previous Newton step: the
+   * vertex moved by a fraction of an edge since, and this halves the field evaluations. */
+#pragma omp parallel for schedule(static)
+  for (size_t i = 0; i < nv; ++i) {
+    const double *p = m->V + 3 * i;
+    gradient(f, user, p, f(user, p), eps, G + 3 * i);
   }
   for (int it = 0; it < iterations; ++it) {
     memset(sum, 0, nv * 3 * sizeof *sum);
@@ -529,33 +557,27 @@ void km__surface_relax(km_mesh *m, km__field_fn f, void *user, int iterations, d
         ++cnt[b];
       }
     }
+    bool last = it == iterations - 1;
 #pragma omp parallel for schedule(static)
     for (size_t i = 0; i < nv; ++i) {
-      double *p = m->V + 3 * i, q[3], g[3], d[3];
+      const double *p = m->V + 3 * i;
+      double *g = G + 3 * i, q[3], d[3];
       if (!cnt[i]) {
         memcpy(nV + 3 * i, p, sizeof q);
         continue;
       }
-      double f0 = f(user, p);
-      gradient(f, user, p, f0, eps, g);
-      double gn = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+      double gn2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
       for (int k = 0; k < 3; ++k)
         d[k] = sum[3 * i + k] / cnt[i] - p[k];
-      if (gn > 1e-12) {
-        double dn = (d[0] * g[0] + d[1] * g[1] + d[2] * g[2]) / (gn * gn);
+      if (gn2 > 1e-12) {
+        double dn = (d[0] * g[0] + d[1] * g[1] + d[2] * g[2]) / gn2;
         for (int k = 0; k < 3; ++k)
           d[k] -= dn * g[k];
       }
       for (int k = 0; k < 3; ++k)
         q[k] = p[k] + 0.5 * d[k];
-      for (int newton = 0; newton < 2; ++newton) {
-        double fq = f(user, q);
-        gradient(f, user, q, fq, eps, g);
-        double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
-        if (g2 < 1e-12) break;
-        for (int k = 0; k < 3; ++k)
-          q[k] -= fq * g[k] / g2;
-      }
+      newton_step(f, user, q, eps, g);
+      if (last) newton_step(f, user, q, eps, g);
       memcpy(nV + 3 * i, q, sizeof q);
     }
     memcpy(m->V, nV, nv * 3 * sizeof *nV);
@@ -563,4 +585,148 @@ void km__surface_relax(km_mesh *m, km__field_fn f, void *user, int iterations, d
   free(sum);
   free(cnt);
   free(nV);
+  free(G);
+}
+
+/* ---------------------------------------------------------------- edge flips
+ * Half-edge h = 3f + k runs from F[3f+k] to F[3f+(k+1)%3]; opp[h] is its twin. */
+
+static int32_t he_target(const int32_t *F, size_t h) { return F[3 * (h / 3) + (h % 3 + 1) % 3]; }
+static size_t he_prev(size_t h) { return 3 * (h / 3) + (h % 3 + 2) % 3; }
+
+/* Walks the half-edges leaving the source of h; returns the valence, or -1 when `probe`
+ * is a neighbour. */
+static int ring(const int32_t *F, const size_t *opp, size_t h, int32_t probe) {
+  size_t start = h;
+  int n = 0;
+  do {
+    if (he_target(F, h) == probe) return -1;
+    h = opp[he_prev(h)];
+    if (++n > 10000) return -1; /* not a disk: refuse */
+  } while (h != start);
+  return n;
+}
+
+static void tri_normal(const double *V, int32_t a, int32_t b, int32_t c, double n[3]) {
+  const double *p = V + 3 * (size_t)a, *q = V + 3 * (size_t)b, *r = V + 3 * (size_t)c;
+  double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+  double w[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+  n[0] = u[1] * w[2] - u[2] * w[1];
+  n[1] = u[2] * w[0] - u[0] * w[2];
+  n[2] = u[0] * w[1] - u[1] * w[0];
+}
+
+static double angle_at(const double *V, int32_t at, int32_t x, int32_t y) {
+  const double *p = V + 3 * (size_t)at, *q = V + 3 * (size_t)x, *r = V + 3 * (size_t)y;
+  double u[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+  double w[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+  double c[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
+               u[0] * w[0] + u[1] * w[1] + u[2] * w[2]);
+}
+
+static double dot3(const double a[3], const double b[3]) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+size_t km__delaunay_flips(km_mesh *m, int max_passes) {
+  size_t nf = m->n_faces, nh = 3 * nf, flips = 0;
+  int32_t *F = m->F;
+  const double *V = m->V;
+  size_t nv = m->n_vertices;
+  /* Twins through half-edges bucketed by source vertex (linear; valences are small). */
+  size_t *opp = km__malloc(nh, sizeof *opp);
+  size_t *start = km__calloc(nv + 1, sizeof *start);
+  size_t *out = km__malloc(nh, sizeof *out);
+  if (!opp || !start || !out) {
+    free(opp);
+    free(start);
+    free(out);
+    return 0;
+  }
+  for (size_t h = 0; h < nh; ++h)
+    ++start[F[h] + 1];
+  for (size_t v = 0; v < nv; ++v)
+    start[v + 1] += start[v];
+  for (size_t h = 0; h < nh; ++h)
+    out[start[F[h]]++] = h;
+  for (size_t v = nv; v > 0; --v)
+    start[v] = start[v - 1];
+  start[0] = 0;
+  bool ok = true;
+  for (size_t h = 0; h < nh && ok; ++h) {
+    int32_t a = F[h], b = he_target(F, h);
+    size_t found = SIZE_MAX;
+    int count = 0;
+    for (size_t i = start[b]; i < start[b + 1]; ++i)
+      if (he_target(F, out[i]) == a) {
+        found = out[i];
+        ++count;
+      }
+    /* Closed manifold: each directed edge has exactly one reverse (duplicates of a->b would
+     * show up as two reverses of b->a). */
+    if (count != 1) ok = false;
+    opp[h] = found;
+  }
+  free(start);
+  free(out);
+  if (!ok) {
+    free(opp);
+    return 0;
+  }
+  const double coplanar = cos(30.0 * M_PI / 180.0);
+  for (int pass = 0; pass < max_passes; ++pass) {
+    size_t pass_flips = 0;
+    for (size_t e = 0; e < nh; ++e) {
+      size_t t = opp[e];
+      if (t < e) continue;
+      size_t f = e / 3, g = t / 3;
+      int k = (int)(e % 3), mm = (int)(t % 3);
+      int32_t a = F[3 * f + k], b = F[3 * f + (k + 1) % 3], c = F[3 * f + (k + 2) % 3];
+      int32_t d = F[3 * g + (mm + 2) % 3];
+      if (c == d) continue;
+      if (angle_at(V, c, a, b) + angle_at(V, d, a, b) <= M_PI + 1e-9) continue;
+      double nf1[3], ng1[3];
+      tri_normal(V, a, b, c, nf1);
+      tri_normal(V, b, a, d, ng1);
+      double lf = sqrt(dot3(nf1, nf1)), lg = sqrt(dot3(ng1, ng1));
+      if (lf == 0 || lg == 0 || dot3(nf1, ng1) < coplanar * lf * lg) continue;
+      double n1[3], n2[3],
+          sum[3] = {nf1[0] / lf + ng1[0] / lg, nf1[1] / lf + ng1[1] / lg,
+                    nf1[2] / lf + ng1[2] / lg};
+      tri_normal(V, d, b, c, n1);
+      tri_normal(V, c, a, d, n2);
+      double l1 = sqrt(dot3(n1, n1)), l2 = sqrt(dot3(n2, n2));
+      if (l1 <= 1e-12 * (lf + lg) || l2 <= 1e-12 * (lf + lg)) continue;
+      if (dot3(n1, sum) < 0.5 * l1 || dot3(n2, sum) < 0.5 * l2) continue;
+      size_t h_bc = 3 * f + (size_t)(k + 1) % 3, h_ca = 3 * f + (size_t)(k + 2) % 3;
+      size_t h_ad = 3 * g + (size_t)(mm + 1) % 3, h_db = 3 * g + (size_t)(mm + 2) % 3;
+      /* New edge must not exist; a and b keep valence >= 3. */
+      if (ring(F, opp, h_ca, d) < 0) continue;
+      int va = ring(F, opp, h_ad, -1), vb = ring(F, opp, h_bc, -1);
+      if (va <= 3 || vb <= 3) continue;
+      size_t o_bc = opp[h_bc], o_ca = opp[h_ca], o_ad = opp[h_ad], o_db = opp[h_db];
+      F[3 * f] = d;
+      F[3 * f + 1] = b;
+      F[3 * f + 2] = c;
+      F[3 * g] = c;
+      F[3 * g + 1] = a;
+      F[3 * g + 2] = d;
+      opp[3 * f] = o_db;
+      opp[o_db] = 3 * f;
+      opp[3 * f + 1] = o_bc;
+      opp[o_bc] = 3 * f + 1;
+      opp[3 * f + 2] = 3 * g + 2;
+      opp[3 * g + 2] = 3 * f + 2;
+      opp[3 * g] = o_ca;
+      opp[o_ca] = 3 * g;
+      opp[3 * g + 1] = o_ad;
+      opp[o_ad] = 3 * g + 1;
+      ++pass_flips;
+    }
+    flips += pass_flips;
+    if (!pass_flips) break;
+  }
+  free(opp);
+  return flips;
 }

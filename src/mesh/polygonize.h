@@ -23,4 +23,10 @@ km_status km__polygonize(km__field_fn f, void *user, const double lo[3], const d
  * (Newton steps along the gradient, finite differences with step eps). Connectivity kept. */
 void km__surface_relax(km_mesh *m, km__field_fn f, void *user, int iterations, double eps);
 
+/* Delaunay-style edge flips (opposite angles summing over 180 degrees) between nearly
+ * coplanar faces, keeping the mesh closed, manifold and oriented: a flip is skipped when the
+ * new edge exists, a vertex would drop to valence 3 or a new face would fold. Returns the
+ * number of flips (0 also when the mesh is not closed and manifold or memory runs out). */
+size_t km__delaunay_flips(km_mesh *m, int max_passes);
+
 #endif
