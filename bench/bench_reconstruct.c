@@ -246,8 +246,18 @@ int main(int argc, char **argv) {
     km__surface_update(ts, tv);
     km__surface_closest(ts, rec + f * nv * 3, nv, 0, tri, NULL, dist);
     double m = 0, mx = 0;
-    for (size_t i = 0; i < nv; ++i)
-      m += dist[i], mx = dist[i] > mx ? dist[i] : mx;
+    size_t imx = 0;
+    for (size_t i = 0; i < nv; ++i) {
+      m += dist[i];
+      if (dist[i] > mx) mx = dist[i], imx = i;
+    }
+    if (getenv("KM_BENCH_TRACE") && f < 3) {
+      size_t far = 0;
+      for (size_t i = 0; i < nv; ++i)
+        far += dist[i] > 0.02;
+      printf("frame %zu: worst vertex %zu (%s, %.0f mm), %zu vertices > 2 cm\n", f, imx,
+             tmpl.skeleton.names[tmpl.skin.joints[4 * imx]], mx * 1e3, far);
+    }
     m /= (double)nv;
     tmean += m;
     tmax = mx * 1e3 > tmax ? mx * 1e3 : tmax;

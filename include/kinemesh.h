@@ -448,7 +448,8 @@ typedef struct km_recon_options {
   double w_data;          /* 0: 1 */
   double w_feature;       /* 0: 10 */
   double w_smooth;        /* 0: 0.05 (per edge; data is per point, normalised by count) */
-  double w_pose;          /* skeletal step: penalty on change from the previous frame; 0: 1e-3 */
+  double w_pose;          /* skeletal step: penalty (per rad^2) on the change from the
+                           * constant-velocity prediction; 0: 1e-5 (x100 on the first frame) */
   double outlier_scale;   /* Geman-McClure scale as a multiple of 1.4826*median residual; 0: 3 */
   int filter_radius;      /* temporal Gaussian half width in frames; 0: 2 (5 frames), <0: off */
   double filter_sigma;    /* frames; 0: 1 */
@@ -493,8 +494,11 @@ km_status km_recon_report_plot(const char *png_path, const km_recon_report *r, k
 typedef struct km_recon km_recon;
 km_status km_recon_create(const km_character *template_character, const km_recon_options *opt,
                           km_recon **out, km_error *err);
-/* Global similarity (Horn) from the features, then affine registration with w_d = 0 and
- * then with all three terms. n_features >= 3 unless the template already overlaps P. */
+/* Global alignment (Horn, rigid) from the features; the skeletal step posed by the features,
+ * then the least-squares scale and rotation again against the posed landmarks; then affine
+ * registration with w_d = 0 and then with all three terms. With fewer than 3 features the
+ * subject is assumed upright (y up, facing +z like the template): centroids and heights are
+ * matched and the pose comes from the data alone. */
 km_status km_recon_first_frame(km_recon *r, const double *P, size_t n,
                                const km_recon_feature *features, size_t n_features,
                                km_recon_frame_stats *stats, km_error *err);

@@ -104,6 +104,19 @@ static void test_readers(void) {
   CHECK(strstr(km_test_err.message, "bad.xyz:2") != NULL);
   CHECK_STATUS(km_points_parse("x", 1, "a.foo", &p, KM_E), KM_ERR_UNSUPPORTED);
 
+  /* real capture data (D-FAUST points, binary PLY in metres), when the checkout has it */
+  char shared[512];
+  if (km_test_shared("pointclouds/dfaust_50002_light_hopping_loose/00000080.ply", shared,
+                     sizeof shared)) {
+    CHECK_OK(km_points_read(shared, &p, KM_E));
+    CHECK(p.n == 100000 && p.dropped_nan == 0);
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t i = 0; i < p.n; ++i)
+      lo = fmin(lo, p.P[3 * i + 1]), hi = fmax(hi, p.P[3 * i + 1]);
+    CHECK_MSG(hi - lo > 1.5 && hi - lo < 2.0, "a standing person, metres: height %.3f", hi - lo);
+    km_points_free(&p);
+  }
+
   /* PLY round trip through the point writer, and frame listing in name order */
   char dir[] = "/tmp/km_test_recon_XXXXXX";
   CHECK(mkdtemp(dir) != NULL);
