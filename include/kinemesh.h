@@ -449,7 +449,8 @@ typedef struct km_recon_options {
   double w_feature;       /* 0: 10 */
   double w_smooth;        /* 0: 0.05 (per edge; data is per point, normalised by count) */
   double w_pose;          /* skeletal step: penalty (per rad^2) on the change from the
-                           * constant-velocity prediction; 0: 1e-5 (x100 on the first frame) */
+                           * constant-velocity prediction; 0: 3e-4 (the data term is a mean
+                           * squared distance in m^2, so this is small) */
   double outlier_scale;   /* Geman-McClure scale as a multiple of 1.4826*median residual; 0: 3 */
   int filter_radius;      /* temporal Gaussian half width in frames; 0: 2 (5 frames), <0: off */
   double filter_sigma;    /* frames; 0: 1 */

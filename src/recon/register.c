@@ -142,7 +142,7 @@ static void opt_defaults(km_recon_options *o) {
   if (o->w_data <= 0) o->w_data = 1;
   if (o->w_feature <= 0) o->w_feature = 10;
   if (o->w_smooth <= 0) o->w_smooth = 0.05;
-  if (o->w_pose <= 0) o->w_pose = 1e-5;
+  if (o->w_pose <= 0) o->w_pose = 3e-4;
   if (o->outlier_scale <= 0) o->outlier_scale = 3;
   if (o->filter_radius == 0) o->filter_radius = 2;
   if (o->filter_sigma <= 0) o->filter_sigma = 1;
@@ -681,6 +681,9 @@ static void lbs_apply(const km_recon *r, const double *G, const double *Vb, doub
 /* ---------------------------------------------------------------- skeleton: L-BFGS */
 
 #define PLANE_MU 0.1
+/* First frame: the pose comes from the features and is only refined by the data, so it is
+ * held closer than later frames (whose reference is a prediction). */
+#define KM__FIRST_FRAME_POSE_WEIGHT 1e-3
 #define S2S_WEIGHT 0.5
 
 typedef struct pose_ctx {
@@ -1145,7 +1148,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     for (int pass = 0; pass < 3 && A && B; ++pass) {
       ps = KM_OK;
       st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, 2, feat, nfeat, false,
-                                     100 * r->o.w_pose, &ps);
+                                     KM__FIRST_FRAME_POSE_WEIGHT, &ps);
       if (ps != KM_OK) break;
       memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
       for (size_t k = 0; k < nfeat; ++k) {
@@ -1173,8 +1176,9 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     ps = KM_OK;
   }
   /* with features the fitted pose is trusted: data refines it under a stronger tie */
-  st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, r->o.skeleton_iterations, feat,
-                                 nfeat, true, nfeat >= 3 ? 100 * r->o.w_pose : r->o.w_pose, &ps);
+  st->iterations +=
+      skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, r->o.skeleton_iterations, feat, nfeat, true,
+                   nfeat >= 3 ? KM__FIRST_FRAME_POSE_WEIGHT : r->o.w_pose, &ps);
   free(Lid);
   if (ps != KM_OK) {
     /* keep the aligned template */
