@@ -1024,9 +1024,11 @@ static void frame_error(km_recon *r, const frame_data *fd, const double *X,
 }
 
 /* Surface refinement from Vb (coarse level first, full data for the last two rounds). */
+/* floor0/decay: the robust scale's floor starts at floor0 and shrinks by decay per round
+ * (the first frame starts farther from the data than a tracked frame). */
 static km_status refine(km_recon *r, const frame_data *fd, const double *Vb, int iters,
-                        const km_recon_feature *feat, size_t nfeat, double wf, int *count,
-                        km_error *err) {
+                        const km_recon_feature *feat, size_t nfeat, double wf, double floor0,
+                        double decay, int *count, km_error *err) {
   memcpy(r->surface, Vb, r->nv * 3 * sizeof(double));
   double prev = INFINITY;
   for (int it = 0; it < iters; ++it) {
@@ -1034,7 +1036,7 @@ static km_status refine(km_recon *r, const frame_data *fd, const double *Vb, int
     const double *Q = full ? fd->P : fd->C, *NQ = full ? fd->N : fd->CN;
     size_t nq = full ? fd->n : fd->nc;
     memcpy(r->work, r->surface, r->nv * 3 * sizeof(double));
-    double ws = correspond(r, r->work, Q, NQ, nq, 0.15, fmax(0.003, ldexp(0.03, -it)));
+    double ws = correspond(r, r->work, Q, NQ, nq, 0.15, fmax(0.003, floor0 * pow(decay, it)));
     double mean = 0;
     for (size_t i = 0; i < nq; ++i)
       if (r->pw[i] > 0) mean += r->pw[i] * r->pdist[i];
@@ -1196,7 +1198,8 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     if (s) goto fail;
     memcpy(V1, r->surface, nv * 3 * sizeof(double));
   }
-  s = refine(r, &fd, V1, r->o.first_iterations, feat, nfeat, r->o.w_feature, &st->iterations, err);
+  s = refine(r, &fd, V1, r->o.first_iterations, feat, nfeat, r->o.w_feature, 0.1, 0.7,
+             &st->iterations, err);
   if (s) goto fail;
   /* 4. the registered surface is the template for the rest: joints carried by the skinned
    * vertices' affine maps */
@@ -1304,7 +1307,8 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
     memcpy(r->surface, r->global, nv * 3 * sizeof(double));
   } else {
     km_error e2;
-    fs = refine(r, &fd, r->global, r->o.refine_iterations, NULL, 0, 0, &st->iterations, &e2);
+    fs = refine(r, &fd, r->global, r->o.refine_iterations, NULL, 0, 0, 0.03, 0.5, &st->iterations,
+                &e2);
     for (size_t i = 0; fs == KM_OK && i < nv * 3; ++i)
       if (!isfinite(r->surface[i])) fs = KM_ERR_NO_CONVERGENCE;
     if (fs) memcpy(r->surface, r->global, nv * 3 * sizeof(double));
