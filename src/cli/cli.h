@@ -69,6 +69,13 @@ int km_cli_precompute(int argc, char **argv);
 int km_cli_animate(int argc, char **argv);
 int km_cli_bench(int argc, char **argv);
 int km_cli_bench_live(int argc, char **argv);
+int km_cli_bench_reconstruct(int argc, char **argv);
+int km_cli_gen_capture(int argc, char **argv);
+int km_cli_reconstruct(int argc, char **argv);
+/* A character: mesh + rig sidecar (default <stem>.rig.json), or the canonical procedural
+ * one with `vertices` vertices when mesh is NULL. */
+km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
+                                km_error *err);
 /* "<CPU model>, <n> cores" for benchmark headers. */
 void km_cli_machine(char *out, size_t n);
 int km_cli_live(int argc, char **argv);

@@ -1,42 +1,25 @@
 /* Verbs of capability 3 (point clouds to mesh animation):
  *   kinemesh gen capture   simulated multi-view depth capture of an animated character
- *   kinemesh reconstruct   template-based mesh animation from point cloud frames
- * To wire them: declare km_cli_gen_capture / km_cli_reconstruct in cli.h, route
- * "gen capture" from km_cli_gen and add {"reconstruct", ...} to main.c's VERBS. Until the
- * CLI infrastructure (cli.h) is in the tree this file builds to a placeholder. */
-#if __has_include("cli.h")
+ *   kinemesh reconstruct   template-based mesh animation from point cloud frames */
 #include "cli.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-/* Character = mesh + rig sidecar, or the canonical procedural one when mesh is NULL. */
-static km_status load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
-                                km_error *err) {
-  if (!mesh) {
-    km_character_options co = {0};
-    co.target_vertices = vertices;
-    return km_character_generate(&co, c, err);
-  }
-  char *rig_path = rig ? NULL : km_cli_rig_path(mesh);
-  km_status s = km_mesh_read(mesh, &c->mesh, err);
-  if (s == KM_OK) s = km_character_read_rig(rig ? rig : rig_path, c->mesh.n_vertices, c, err);
-  free(rig_path);
-  return s;
-}
-
 int km_cli_gen_capture(int argc, char **argv) {
-  const char *character = NULL, *rig = NULL, *kind = "kungfu", *out = NULL;
-  size_t frames = 60, cameras = 4, points = 30000, seed = 1, vertices = 8000;
+  const char *character = NULL, *rig = NULL, *kind = "kungfu", *out = NULL, *motion = NULL;
+  size_t frames = 60, cameras = 8, points = 30000, seed = 1, vertices = 8000;
   double noise = 2;
   const km_cli_opt opts[] = {
       {"character", 'c', KM_OPT_STRING, &character,
        "subject mesh with a rig sidecar (default: procedural, --vertices)"},
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
       {"vertices", 'n', KM_OPT_SIZE, &vertices, "procedural subject size (default 8000)"},
-      {"kind", 0, KM_OPT_STRING, &kind, "walk, wave or kungfu (default kungfu)"},
-      {"frames", 'f', KM_OPT_SIZE, &frames, "frames at 30 Hz (default 60)"},
-      {"cameras", 0, KM_OPT_SIZE, &cameras, "depth cameras on a ring (default 4)"},
+      {"motion", 'm', KM_OPT_STRING, &motion,
+       "take to perform (.json/.csv/.bvh; default: generated --kind)"},
+      {"kind", 0, KM_OPT_STRING, &kind, "generated motion: walk, wave or kungfu (default kungfu)"},
+      {"frames", 'f', KM_OPT_SIZE, &frames, "frames (default 60; with --motion: all of the take)"},
+      {"cameras", 0, KM_OPT_SIZE, &cameras, "depth cameras on a ring (default 8)"},
       {"points", 0, KM_OPT_SIZE, &points, "points per frame over all cameras (default 30000)"},
       {"noise-mm", 0, KM_OPT_DOUBLE, &noise, "Gaussian noise sigma in mm (default 2, 0: none)"},
       {"seed", 0, KM_OPT_SIZE, &seed, "noise seed (default 1)"},
@@ -44,11 +27,12 @@ int km_cli_gen_capture(int argc, char **argv) {
   };
   const char *pos[1];
   int n_pos;
-  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
-                       "kinemesh gen capture [--character MESH] [--kind K] [--frames N] -o DIR",
-                       "Ray-casts the animated character from depth cameras (Embree): one binary\n"
-                       "PLY point cloud per frame with occlusion holes and noise, plus the\n"
-                       "ground truth as DIR/truth.pc2 (faces: DIR/truth_rest.ply).");
+  int r = km_cli_parse(
+      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
+      "kinemesh gen capture --character CHAR --motion TAKE [--cameras 8] [--noise-mm 2] -o DIR",
+      "Ray-casts the animated character from depth cameras (Embree): one binary\n"
+      "PLY point cloud per frame with occlusion holes and noise, plus the\n"
+      "ground truth as DIR/truth.pc2 (faces: DIR/truth_rest.ply).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!out) return km_cli_error("gen capture", "-o DIR is required");
   km_motion_kind mk = !strcmp(kind, "walk")     ? KM_MOTION_WALK
@@ -66,13 +50,14 @@ int km_cli_gen_capture(int argc, char **argv) {
                            .seed = seed};
   co.progress = km_cli_progress("capture");
   double t0 = km_cli_now();
-  if (load_character(character, rig, vertices, &c, &err) ||
-      km_motion_generate(&c.skeleton, mk, frames, &take, &err) ||
+  if (km_cli_load_character(character, rig, vertices, &c, &err) ||
+      (motion ? km_cli_read_motion(motion, &take, &err)
+              : km_motion_generate(&c.skeleton, mk, frames, &take, &err)) ||
       km_capture_simulate(&c, &take, &co, out, &err))
     rc = km_cli_fail("gen capture", &err);
   else
     fprintf(stderr, "kinemesh gen capture: %zu frames in %.1f s -> %s/frame_*.ply, truth.pc2\n",
-            frames, km_cli_now() - t0, out);
+            take.n_frames, km_cli_now() - t0, out);
   km_cli_progress_done();
   km_take_free(&take);
   km_character_free(&c);
@@ -115,6 +100,7 @@ static int read_features(const char *path, km_recon_feature **out, size_t *n) {
 
 int km_cli_reconstruct(int argc, char **argv) {
   const char *tmpl = NULL, *rig = NULL, *features = NULL, *out = NULL, *report = NULL, *plot = NULL;
+  const char *clouds = NULL;
   size_t coarse = 0, vertices = 4000;
   int radius = 0;
   const km_cli_opt opts[] = {
@@ -122,8 +108,10 @@ int km_cli_reconstruct(int argc, char **argv) {
        "template mesh with rig sidecar (default: procedural, --vertices)"},
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
       {"vertices", 'n', KM_OPT_SIZE, &vertices, "procedural template size (default 4000)"},
-      {"features", 0, KM_OPT_STRING, &features,
+      {"clouds", 0, KM_OPT_STRING, &clouds, "point cloud frames: a directory or a quoted glob"},
+      {"correspondences", 0, KM_OPT_STRING, &features,
        "first-frame correspondences, lines 'vertex x y z' (default: global alignment only)"},
+      {"features", 0, KM_OPT_STRING, &features, "same as --correspondences"},
       {"coarse", 0, KM_OPT_SIZE, &coarse, "points of the coarse level (default 2000)"},
       {"filter-radius", 0, KM_OPT_INT, &radius, "temporal filter half width (default 2, -1 off)"},
       {"report", 0, KM_OPT_STRING, &report, "per-frame report (JSON)"},
@@ -132,17 +120,21 @@ int km_cli_reconstruct(int argc, char **argv) {
   };
   const char *pos[1];
   int n_pos;
-  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
-                       "kinemesh reconstruct FRAMES [--template MESH] [--features F] -o OUT",
-                       "Template-based mesh animation from point cloud frames (Park & Lim 2014).\n"
-                       "FRAMES is a directory or a quoted glob of .ply/.pcd/.xyz files, read in\n"
-                       "name order.");
+  int r =
+      km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
+                   "kinemesh reconstruct --template T [--rig R] --clouds 'FRAMES/*.ply' "
+                   "[--correspondences C] -o OUT [--report R.json] [--plot P.png]",
+                   "Template-based mesh animation from point cloud frames (Park & Lim 2014).\n"
+                   "FRAMES (--clouds, or the one positional argument) is a directory or a quoted\n"
+                   "glob of .ply/.pcd/.xyz files, read in name order.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
-  if (n_pos != 1 || !out) return km_cli_error("reconstruct", "FRAMES and -o OUT are required");
+  if (!clouds && n_pos == 1) clouds = pos[0];
+  if (!clouds || !out)
+    return km_cli_error("reconstruct", "--clouds FRAMES and -o OUT are required");
   km_error err = {0};
   char **paths = NULL;
   size_t n = 0;
-  if (km_point_frames_list(pos[0], &paths, &n, &err)) return km_cli_fail("reconstruct", &err);
+  if (km_point_frames_list(clouds, &paths, &n, &err)) return km_cli_fail("reconstruct", &err);
   km_recon_feature *feat = NULL;
   size_t nfeat = 0;
   if (features) {
@@ -160,7 +152,7 @@ int km_cli_reconstruct(int argc, char **argv) {
   km_recon_options ro = {.coarse_points = coarse, .filter_radius = radius};
   ro.progress = km_cli_progress("reconstruct");
   double t0 = km_cli_now();
-  km_status s = load_character(tmpl, rig, vertices, &c, &err);
+  km_status s = km_cli_load_character(tmpl, rig, vertices, &c, &err);
   if (!s) s = km_reconstruct((const char *const *)paths, n, &c, feat, nfeat, &ro, out, &rep, &err);
   km_cli_progress_done();
   if (rep.n_frames) {
@@ -184,7 +176,3 @@ int km_cli_reconstruct(int argc, char **argv) {
   km_paths_free(&paths, n);
   return rc;
 }
-#else
-/* Placeholder so this branch links before the CLI infrastructure (cli.h, main.c) lands. */
-int main(void) { return 2; }
-#endif

@@ -18,6 +18,8 @@ static const km_cli_verb VERBS[] = {
      km_cli_animate},
     {"live", "live puppetry server: tracker in (OSC/UDP/replay), mesh out to a browser page",
      km_cli_live},
+    {"reconstruct", "point clouds -> mesh animation: register a rigged template to every frame",
+     km_cli_reconstruct},
     {"bench", "benchmarks printing the papers' tables (bench deform)", km_cli_bench},
 };
 
