@@ -176,16 +176,11 @@ static void test_bend(km_puppet_energy energy) {
   double diag = km_bbox_diagonal(m.V, n);
   int32_t *hv = malloc(n * sizeof(int32_t)), off[3];
   bar_handles(&m, 0.03, 0.97, off, hv, &nhv);
-  double t0 = km__now();
   km_puppet *p = NULL;
   km_puppet_options po = {.energy = energy};
   CHECK_OK(km_puppet_precompute(&m, &po, &p, KM_E));
-  double t_pre = km__now() - t0;
   if (!p) return;
-  t0 = km__now();
   CHECK_OK(km_puppet_set_handles(p, 2, off, hv, KM_E));
-  double t_set = km__now() - t0;
-  printf("bend (%s): precompute %.3f s, set_handles %.4f s\n", ename, t_pre, t_set);
 
   km_arap *a = NULL;
   km_arap_options ao = {.iterations = 10};
@@ -262,15 +257,24 @@ static void test_bend(km_puppet_energy energy) {
   km_mesh_free(&m);
 }
 
-/* Changing the handle set costs a 320x320 Cholesky, not an eigen-decomposition. */
+/* Changing the handle set costs a 320x320 Cholesky, not an eigen-decomposition. Checked by
+ * what runs, not by timing (speed belongs to the benchmarks): the eigen solver logs each ARPACK
+ * run, so a logger counts them during precompute and during set_handles. */
+static int eig_runs;
+static void count_eigs(km_log_level level, const char *msg, void *user) {
+  (void)level, (void)user;
+  if (strncmp(msg, "km_eigs:", 8) == 0 && strstr(msg, "ARPACK")) ++eig_runs;
+}
+
 static void test_handle_change_cost(void) {
   km_mesh m = {0};
   CHECK_OK(km_icosphere(5, 1.0, &m, KM_E));
   size_t n = m.n_vertices;
-  double t0 = km__now();
+  km_set_logger(count_eigs, NULL);
+  eig_runs = 0;
   km_puppet *p = NULL;
   CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
-  double t_pre = km__now() - t0;
+  CHECK_MSG(eig_runs >= 1, "precompute ran ARPACK %d times", eig_runs);
   int32_t *hv = malloc(n * sizeof(int32_t)), off[3] = {0};
   size_t k = 0;
   for (size_t v = 0; v < n; ++v)
@@ -279,14 +283,11 @@ static void test_handle_change_cost(void) {
   for (size_t v = 0; v < n; ++v)
     if (m.V[3 * v] > 0.95) hv[k++] = (int32_t)v;
   off[2] = (int32_t)k;
-  double t_set = 1e9;
-  for (int rep = 0; rep < 3 && p; ++rep) {
-    t0 = km__now();
+  eig_runs = 0;
+  for (int rep = 0; rep < 3 && p; ++rep)
     CHECK_OK(km_puppet_set_handles(p, 1 + rep % 2, off, hv, KM_E));
-    t_set = fmin(t_set, km__now() - t0);
-  }
-  printf("handles: %zu vertices: precompute %.3f s, set_handles %.4f s\n", n, t_pre, t_set);
-  CHECK_MSG(t_set < 0.1 * t_pre, "set_handles %.4f s vs precompute %.3f s", t_set, t_pre);
+  CHECK_MSG(eig_runs == 0, "set_handles ran ARPACK %d times", eig_runs);
+  km_set_logger(NULL, NULL);
   km_puppet_free(&p);
   free(hv);
   km_mesh_free(&m);
