@@ -3,6 +3,8 @@
  *   kinemesh reconstruct   template-based mesh animation from point cloud frames */
 #include "cli.h"
 
+#include <cjson/cJSON.h>
+
 #include <stdlib.h>
 #include <string.h>
 
@@ -65,25 +67,68 @@ int km_cli_gen_capture(int argc, char **argv) {
 }
 
 /* Features file: one "vertex x y z" per line ('#' comments). */
+/* First-frame correspondences: JSON {"correspondences": [{"vertex": 12, "point": [x, y, z]},
+ * ...]} or text/CSV lines "vertex x y z" / "vertex,x,y,z" (a header line and # comments are
+ * skipped). Returns 0, -1 when unreadable, or the 1-based line (JSON: entry) that is wrong. */
 static int read_features(const char *path, km_recon_feature **out, size_t *n) {
-  FILE *f = fopen(path, "r");
+  FILE *f = fopen(path, "rb");
   if (!f) return -1;
+  fseek(f, 0, SEEK_END);
+  long size = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  char *text = size >= 0 ? malloc((size_t)size + 1) : NULL;
+  size_t got = text ? fread(text, 1, (size_t)size, f) : 0;
+  fclose(f);
+  if (!text) return -1;
+  text[got] = '\0';
+  *n = 0;
+  *out = NULL;
+  const char *q = text;
+  while (*q == ' ' || *q == '\t' || *q == '\n' || *q == '\r')
+    ++q;
+  if (*q == '{') {
+    cJSON *root = cJSON_Parse(text);
+    const cJSON *arr = cJSON_GetObjectItemCaseSensitive(root, "correspondences");
+    int count = cJSON_GetArraySize(arr), bad = root && cJSON_IsArray(arr) ? 0 : 1;
+    *out = malloc(sizeof **out * (size_t)(count > 0 ? count : 1));
+    for (int i = 0; !bad && *out && i < count; ++i) {
+      const cJSON *e = cJSON_GetArrayItem(arr, i);
+      const cJSON *v = cJSON_GetObjectItemCaseSensitive(e, "vertex");
+      const cJSON *pt = cJSON_GetObjectItemCaseSensitive(e, "point");
+      if (!cJSON_IsNumber(v) || v->valuedouble < 0 || v->valuedouble > INT32_MAX ||
+          cJSON_GetArraySize(pt) != 3) {
+        bad = i + 1;
+        break;
+      }
+      (*out)[*n].vertex = (int32_t)v->valuedouble;
+      for (int k = 0; k < 3; ++k) {
+        const cJSON *c = cJSON_GetArrayItem(pt, k);
+        if (!cJSON_IsNumber(c)) bad = i + 1;
+        (*out)[*n].point[k] = cJSON_IsNumber(c) ? c->valuedouble : 0;
+      }
+      ++*n;
+    }
+    cJSON_Delete(root);
+    free(text);
+    return bad;
+  }
   size_t cap = 16;
   *out = malloc(cap * sizeof **out);
-  *n = 0;
-  char line[512];
-  int lineno = 0;
-  while (*out && fgets(line, sizeof line, f)) {
+  int lineno = 0, bad = 0;
+  for (char *line = strtok(text, "\n"); line && *out && !bad; line = strtok(NULL, "\n")) {
     ++lineno;
+    for (char *c = line; *c; ++c)
+      if (*c == ',' || *c == ';' || *c == '\r') *c = ' ';
     char *p = line;
     while (*p == ' ' || *p == '\t')
       ++p;
-    if (*p == '#' || *p == '\n' || !*p) continue;
+    if (*p == '#' || !*p) continue;
+    if (*n == 0 && lineno == 1 && !(*p >= '0' && *p <= '9')) continue; /* CSV header */
     long v;
     double x, y, z;
     if (sscanf(p, "%ld %lf %lf %lf", &v, &x, &y, &z) != 4 || v < 0 || v > INT32_MAX) {
-      fclose(f);
-      return lineno;
+      bad = lineno;
+      break;
     }
     if (*n == cap) {
       km_recon_feature *g = realloc(*out, 2 * cap * sizeof *g);
@@ -94,8 +139,8 @@ static int read_features(const char *path, km_recon_feature **out, size_t *n) {
     (*out)[*n].point[0] = x, (*out)[*n].point[1] = y, (*out)[*n].point[2] = z;
     ++*n;
   }
-  fclose(f);
-  return 0;
+  free(text);
+  return bad;
 }
 
 int km_cli_reconstruct(int argc, char **argv) {
@@ -110,7 +155,8 @@ int km_cli_reconstruct(int argc, char **argv) {
       {"vertices", 'n', KM_OPT_SIZE, &vertices, "procedural template size (default 4000)"},
       {"clouds", 0, KM_OPT_STRING, &clouds, "point cloud frames: a directory or a quoted glob"},
       {"correspondences", 0, KM_OPT_STRING, &features,
-       "first-frame correspondences, lines 'vertex x y z' (default: global alignment only)"},
+       "first-frame correspondences: JSON, CSV or 'vertex x y z' lines (default: global "
+       "alignment)"},
       {"features", 0, KM_OPT_STRING, &features, "same as --correspondences"},
       {"coarse", 0, KM_OPT_SIZE, &coarse, "points of the coarse level (default 2000)"},
       {"filter-radius", 0, KM_OPT_INT, &radius, "temporal filter half width (default 2, -1 off)"},
@@ -143,7 +189,10 @@ int km_cli_reconstruct(int argc, char **argv) {
       free(feat);
       km_paths_free(&paths, n);
       return fl < 0 ? km_cli_error("reconstruct", "%s: cannot open", features)
-                    : km_cli_error("reconstruct", "%s:%d: expected 'vertex x y z'", features, fl);
+                    : km_cli_error("reconstruct",
+                                   "%s: entry/line %d: expected 'vertex x y z' (text or CSV) or "
+                                   "{\"vertex\": V, \"point\": [x, y, z]} (JSON)",
+                                   features, fl);
     }
   }
   km_character c = {0};
