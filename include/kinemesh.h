@@ -570,23 +570,36 @@ void km_retarget_free(km_retarget **r);
 /* Reduced isoline model of Wu, Lu & Song (after Au et al. 2006/2007): n_e propagation fields
  * (the first non-constant eigenvectors of -L phi = lambda M phi), n_iso isolines per field,
  * one affine 3x4 transform per isoline as the unknowns (4*n_iso*n_e per coordinate).
- * Precompute depends on the mesh only (not on handles) and can be cached on disk. */
+ * Precompute depends on the mesh only (not on handles) and can be cached on disk. Meant for
+ * one connected component: with several (or unreferenced vertices) the first eigenvectors
+ * are component indicators and the fields degrade. A km_puppet is not thread-safe. */
 typedef struct km_puppet km_puppet;
+/* Both energies use the same reduced unknowns, the same prefactored U^T U structure and the
+ * same rotations estimated on isoline-crossed triangles and interpolated (W_delta R_delta).
+ * ARAP is the default because it tracks the full-space reference closer: mean deviation
+ * 1.2% / 1.7% of the diagonal on armadillo / horse against 1.9% / 2.3% for the paper's
+ * Laplacian energy (kinemesh bench deform, README), at the same per-frame cost. */
+typedef enum km_puppet_energy {
+  KM_PUPPET_ENERGY_ARAP = 0,  /* reduced ARAP (membrane) energy (default) */
+  KM_PUPPET_ENERGY_LAPLACIAN, /* the paper's eq. 8-9: |L X - rotated rest Laplacian|^2 */
+} km_puppet_energy;
 typedef struct km_puppet_options {
   int fields;           /* n_e propagation fields; 0: 8 (1 .. 32) */
   int isolines;         /* n_iso isolines per field; 0: 10 (2 .. 64) */
   int iterations;       /* dual-Laplacian rotation updates per solve; 0: 4 */
   double tolerance;     /* stop earlier when |dR| / |R - I| < tolerance; 0: 1e-4 */
   double handle_weight; /* relative handle weight w_c (1: the handle and Laplacian terms of
-                           U^T U have equal trace); 0: 1. Handles are soft: larger follows
-                           them closer and bends the rest more */
+                           U^T U have equal trace); 0: 1 (Laplacian energy) or 3 (ARAP
+                           energy). Handles are soft: larger follows them closer and
+                           bends the rest more */
   int crossed_per_isoline; /* crossed triangles sampled per isoline for rotations; 0: 10 */
+  km_puppet_energy energy; /* 0: reduced ARAP; KM_PUPPET_ENERGY_LAPLACIAN: the paper's */
   km_progress progress;
 } km_puppet_options;
 
 /* Builds the reduced model of `rest` (closed or open triangle mesh, >= 4 vertices).
- * Only fields, isolines and crossed_per_isoline shape the model (and the cache key); the
- * other options are solve settings. */
+ * Only fields, isolines, crossed_per_isoline and energy shape the model (and the cache key);
+ * the other options are solve settings. */
 km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt,
                                km_puppet **out, km_error *err);
 /* Writes the model atomically: magic, format version, parameters, hash of the rest mesh,
@@ -635,6 +648,155 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles,
 /* Warm-started from the previous solve (the rest pose at first). V_out #V*3. */
 km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_error *err);
 void km_arap_free(km_arap **a);
+/* ---- point clouds to mesh animation */
+
+/* One point cloud frame. Points with a NaN/inf coordinate are dropped and counted. */
+typedef struct km_points {
+  double *P;          /* n*3 positions, metres */
+  size_t n;
+  size_t dropped_nan; /* points skipped because a coordinate was not finite */
+} km_points;
+void km_points_free(km_points *p);
+
+/* Reads a point cloud: .ply (through km_mesh_read; faces, if any, are ignored), .pcd
+ * (PCD v0.7, DATA ascii or binary; fields x y z as F4/F8, other fields skipped;
+ * binary_compressed is KM_ERR_UNSUPPORTED), .xyz/.txt/.pts (whitespace or comma separated,
+ * the first three numbers of each line; '#' comments and blank lines skipped). Errors name
+ * the file and the line (text) or byte offset (binary). */
+km_status km_points_read(const char *path, km_points *out, km_error *err);
+/* Same from memory; the format comes from the extension of `name`. */
+km_status km_points_parse(const void *data, size_t size, const char *name, km_points *out,
+                          km_error *err);
+/* Writes a binary little-endian PLY with float x y z and no faces, atomically. */
+km_status km_points_write_ply(const char *path, const double *P, size_t n, km_error *err);
+/* Frame files in name order: `pattern` is a directory (its .ply/.pcd/.xyz/.txt/.pts files)
+ * or a glob(3) pattern. *paths is an array of *n strings; free with km_paths_free. An empty
+ * result is KM_ERR_IO naming the pattern. */
+km_status km_point_frames_list(const char *pattern, char ***paths, size_t *n, km_error *err);
+void km_paths_free(char ***paths, size_t n);
+
+/* Absolute orientation (Horn 1987, unit quaternions): R (row-major 3x3), t and s minimising
+ * sum |s R A_i + t - B_i|^2 over n >= 3 pairs (A, B n*3). with_scale false gives s = 1.
+ * s may be NULL when with_scale is false. KM_ERR_DEGENERATE_MESH for collinear input. */
+km_status km_absolute_orientation(const double *A, const double *B, size_t n, bool with_scale,
+                                  double R[9], double t[3], double *s, km_error *err);
+
+/* ---- capture simulator (ground truth for reconstruction tests and benchmarks) */
+typedef struct km_capture_options {
+  int cameras;             /* depth cameras on a ring around the subject; 0: 4 */
+  size_t points_per_frame; /* target total over all cameras; 0: 30000 */
+  double noise_mm;         /* Gaussian noise sigma along each axis, mm; 0: 2, < 0: none */
+  double distance;         /* camera distance from the subject's centre, m; 0: 3 */
+  double height;           /* camera height above the subject's centre, m; 0: 0.3 */
+  uint64_t seed;           /* noise seed (frame index is mixed in) */
+  km_progress progress;
+} km_capture_options;
+/* Ray-casts one posed mesh (Embree) from the cameras: every camera shoots a regular grid of
+ * rays over the mesh's bounding box as seen from it, so the total hit count is about
+ * points_per_frame; surfaces hidden from all cameras get no points. out is allocated.
+ * frame mixes into the noise seed. */
+km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, size_t frame,
+                           km_points *out, km_error *err);
+/* Poses character c by the take (km_skeleton_pose_from_positions + km_lbs), captures every
+ * frame and writes out_dir/frame_00000.ply ... plus out_dir/truth.pc2 (the posed meshes)
+ * and out_dir/truth_rest.ply (c->mesh, whose faces give truth.pc2 its connectivity).
+ * out_dir is created if missing. */
+km_status km_capture_simulate(const km_character *c, const km_take *take,
+                              const km_capture_options *opt, const char *out_dir,
+                              km_error *err);
+
+/* ---- reconstruction (Park & Lim 2014 after Allen, Curless & Popovic 2003) */
+typedef struct km_recon_options {
+  size_t coarse_points;   /* multiresolution level size (Pauly clustering); 0: 2000 */
+  int knn;                /* neighbours for point normals; 0: 10 */
+  int first_iterations;   /* first frame: nonrigid iterations per phase; 0: 12 */
+  int refine_iterations;  /* later frames: surface refinement iterations; 0: 4 */
+  int skeleton_iterations;/* later frames: correspondence updates of the skeletal step; 0: 6 */
+  double w_data;          /* 0: 1 */
+  double w_feature;       /* 0: 10 */
+  double w_smooth;        /* 0: 0.05 (per edge; data is per point, normalised by count) */
+  double w_pose;          /* skeletal step: penalty (per rad^2) on the change from the
+                           * constant-velocity prediction; 0: 3e-4 (the data term is a mean
+                           * squared distance in m^2, so this is small) */
+  double outlier_scale;   /* Geman-McClure scale as a multiple of 1.4826*median residual; 0: 3 */
+  int filter_radius;      /* temporal Gaussian half width in frames; 0: 2 (5 frames), <0: off */
+  double filter_sigma;    /* frames; 0: 1 */
+  km_progress progress;
+} km_recon_options;
+
+/* A user-given feature correspondence: template vertex <-> point position (first frame). */
+typedef struct km_recon_feature {
+  int32_t vertex;
+  double point[3];
+} km_recon_feature;
+
+typedef struct km_recon_frame_stats {
+  size_t index;
+  size_t points;      /* finite points used */
+  size_t dropped;     /* NaN points dropped */
+  double mean_mm;     /* mean distance points -> reconstructed surface */
+  double max_mm;
+  int iterations;     /* solver iterations (skeleton L-BFGS + surface) */
+  double seconds;
+  km_status status;   /* KM_OK, or why the frame was carried by the skeleton */
+} km_recon_frame_stats;
+
+typedef struct km_recon_report {
+  size_t n_frames, n_joints;
+  km_recon_frame_stats *frames; /* n_frames */
+  double *joints;               /* n_frames*n_joints*3 estimated joint positions */
+  char **joint_names;           /* n_joints */
+  double jerk_before, jerk_after; /* mean |second difference| of vertices, m, around the filter */
+  size_t failed_frames;
+} km_recon_report;
+void km_recon_report_free(km_recon_report *r);
+/* JSON: {"format":"kinemesh-recon-report","version":1,"frames":[{"index":..,"points":..,
+ * "mean_mm":..,"max_mm":..,"iterations":..,"seconds":..,"status":"KM_OK",
+ * "joints":[x,y,z,...]}...], "jerk_before":..,"jerk_after":..}. Written atomically. */
+km_status km_recon_report_write_json(const char *path, const km_recon_report *r, km_error *err);
+/* Fig. 6 of the paper: mean/max point error per frame as a PNG through gnuplot (popen). */
+km_status km_recon_report_plot(const char *png_path, const km_recon_report *r, km_error *err);
+
+/* Incremental reconstructor: create with the template (mesh, skeleton, skin), register the
+ * first frame with features, then feed the following frames one at a time. */
+typedef struct km_recon km_recon;
+km_status km_recon_create(const km_character *template_character, const km_recon_options *opt,
+                          km_recon **out, km_error *err);
+/* Global alignment (Horn, rigid) from the features; the skeletal step posed by the features,
+ * then the least-squares scale and rotation again against the posed landmarks; then affine
+ * registration with w_d = 0 and then with all three terms. With fewer than 3 features the
+ * subject is assumed upright (y up, facing +z like the template): centroids and heights are
+ * matched and the pose comes from the data alone. */
+km_status km_recon_first_frame(km_recon *r, const double *P, size_t n,
+                               const km_recon_feature *features, size_t n_features,
+                               km_recon_frame_stats *stats, km_error *err);
+/* Skeletal motion (L-BFGS) then surface refinement. A frame that fails is carried by the
+ * skeleton prediction: the call still returns KM_OK with stats->status set. */
+km_status km_recon_next_frame(km_recon *r, const double *P, size_t n,
+                              km_recon_frame_stats *stats, km_error *err);
+/* Results of the last frame: refined surface and LBS-only (global motion) surface, #V*3,
+ * and joint positions n_joints*3. Valid until the next call. */
+const double *km_recon_surface(const km_recon *r);
+const double *km_recon_global(const km_recon *r);
+const double *km_recon_joints(const km_recon *r);
+const km_mesh *km_recon_template(const km_recon *r); /* faces of the output */
+void km_recon_free(km_recon **r);
+
+/* Local-motion filter (paper IV-3C): out_t = global_t + sum_k g_k (refined - global)_{t+k},
+ * Gaussian weights over |k| <= radius renormalised at the sequence ends. Arrays are
+ * n_frames * n_vertices*3; out may alias refined. */
+km_status km_local_motion_filter(size_t n_frames, size_t n_vertices, const double *refined,
+                                 const double *global, int radius, double sigma, double *out,
+                                 km_error *err);
+
+/* Whole pipeline: reads frames, reconstructs, filters and streams frames to out_anim
+ * (km_anim_writer: .glb, .pc2 or a directory) with a delay of filter_radius frames, so a
+ * failure late in the run never loses finished frames. report may be NULL. */
+km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
+                         const km_character *template_character,
+                         const km_recon_feature *features, size_t n_features,
+                         const km_recon_options *opt, const char *out_anim,
+                         km_recon_report *report, km_error *err);
 
 /* ---- avatar pose transfer, pose recognition, key-pose morphing */
 

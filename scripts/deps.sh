@@ -6,7 +6,7 @@ PKGS=(build-essential cmake pkg-config
       libsuitesparse-dev libarpack2-dev liblapacke-dev libopenblas-dev
       libembree-dev libcjson-dev libsvm-dev liblbfgs-dev
       liblo-dev liblo-tools libwebsockets-dev gnuplot-nox
-      nodejs npm)
+      nodejs npm chromium)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -31,4 +31,11 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 if [ ! -d "$here/tests/gltf/node_modules/gltf-validator" ]; then
   echo "kinemesh: installing npm packages for tests/gltf"
   (cd "$here/tests/gltf" && npm ci --no-audit --no-fund --loglevel=error)
+fi
+
+# Live mode page: three.js (copied beside the binary by the build) and playwright-core (drives
+# Debian's chromium in the end-to-end test; no browser download), pinned by package-lock.json.
+if [ ! -d "$here/web/node_modules/three" ] || [ ! -d "$here/web/node_modules/playwright-core" ]; then
+  echo "kinemesh: installing npm packages for web/"
+  (cd "$here/web" && npm ci --no-audit --no-fund --loglevel=error)
 fi

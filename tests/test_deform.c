@@ -61,14 +61,20 @@ static void rigid(const double *R, const double *t, const double *x, double *y) 
     y[r] = R[r * 3] * x[0] + R[r * 3 + 1] * x[1] + R[r * 3 + 2] * x[2] + t[r];
 }
 
-/* Rest reproduction and rigid motion on one mesh with the given handles. */
-static void check_invariants(const char *name, const km_mesh *m, size_t nh, const int32_t *off,
+/* Rest reproduction and rigid motion on one mesh with the given handles. rigid_tol: allowed
+ * rigid-motion error of the puppet (fraction of the diagonal); arap_tol: of the full ARAP
+ * reference, < 0 to skip it (a flat plate converges very slowly from rest: its isometric
+ * bends cost ARAP almost nothing). */
+static void check_invariants(const char *name, km_puppet_energy energy, double rigid_tol,
+                             double arap_tol, const km_mesh *m, size_t nh, const int32_t *off,
                              const int32_t *hv) {
   size_t n = m->n_vertices, nhv = (size_t)off[nh];
   double diag = km_bbox_diagonal(m->V, n);
   km_puppet *p = NULL;
   km_puppet_options o = {0};
-  o.iterations = 30;
+  o.iterations =
+      energy == KM_PUPPET_ENERGY_ARAP ? 200 : 30; /* local-global converges slowly from rest */
+  o.energy = energy;
   o.tolerance = 1e-12;
   CHECK_OK(km_puppet_precompute(m, &o, &p, KM_E));
   if (!p) return;
@@ -94,17 +100,17 @@ static void check_invariants(const char *name, const km_mesh *m, size_t nh, cons
   CHECK(all_finite(X, n * 3));
   double er = max_dev(X, Y, n) / diag, em = mean_dev(X, Y, n) / diag;
   printf("%s: rigid motion: reduced max %.3g mean %.3g of the diagonal\n", name, er, em);
-  CHECK_MSG(er <= 1e-4, "%s: rigid motion error %g", name, er);
+  CHECK_MSG(er <= rigid_tol, "%s: rigid motion error %g", name, er);
 
   /* ARAP: same two properties */
   km_arap *a = NULL;
   km_arap_options ao = {.iterations = 400, .tolerance = 1e-300}; /* slow from rest */
-  CHECK_OK(km_arap_precompute(m, nh, off, hv, &ao, &a, KM_E));
+  if (arap_tol >= 0) CHECK_OK(km_arap_precompute(m, nh, off, hv, &ao, &a, KM_E));
   if (a) {
     CHECK_OK(km_arap_solve(a, T, X, KM_E));
     er = max_dev(X, Y, n) / diag;
     printf("%s: rigid motion: ARAP max %.3g of the diagonal\n", name, er);
-    CHECK_MSG(er <= 1e-6, "%s: ARAP rigid motion error %g", name, er);
+    CHECK_MSG(er <= arap_tol, "%s: ARAP rigid motion error %g", name, er);
     km_arap_free(&a);
   }
   free(T);
@@ -130,35 +136,51 @@ static void test_invariants(void) {
     off[h + 1] = (int32_t)k;
   }
   CHECK(k > 9);
-  check_invariants("icosphere", &m, 3, off, hv);
+  check_invariants("icosphere", KM_PUPPET_ENERGY_LAPLACIAN, 1e-4, 1e-6, &m, 3, off, hv);
+  check_invariants("icosphere/arap", KM_PUPPET_ENERGY_ARAP, 1e-4, 1e-6, &m, 3, off, hv);
+  km_mesh_free(&m);
+
+  /* an open, planar mesh: the transforms' z column is undetermined (the ridge handles it) */
+  CHECK_OK(km_grid(30, 6, 1.0, 0.2, &m, KM_E));
+  {
+    int32_t goff[3] = {0}, *gh = malloc(m.n_vertices * sizeof(int32_t));
+    size_t g = 0;
+    for (size_t v = 0; v < m.n_vertices; ++v)
+      if (m.V[3 * v] < 0.05) gh[g++] = (int32_t)v;
+    goff[1] = (int32_t)g;
+    for (size_t v = 0; v < m.n_vertices; ++v)
+      if (m.V[3 * v] > 0.95) gh[g++] = (int32_t)v;
+    goff[2] = (int32_t)g;
+    check_invariants("grid", KM_PUPPET_ENERGY_LAPLACIAN, 1e-3, -1, &m, 2, goff, gh);
+    check_invariants("grid/arap", KM_PUPPET_ENERGY_ARAP, 1e-3, -1, &m, 2, goff, gh);
+    free(gh);
+  }
   km_mesh_free(&m);
 
   CHECK_OK(km_cylinder(16, 30, 0.1, 1.0, &m, KM_E));
   int32_t *bh = malloc(m.n_vertices * sizeof(int32_t)), boff[3];
   size_t nhv;
   bar_handles(&m, 0.04, 0.96, boff, bh, &nhv);
-  check_invariants("cylinder", &m, 2, boff, bh);
+  check_invariants("cylinder", KM_PUPPET_ENERGY_LAPLACIAN, 1e-4, 1e-6, &m, 2, boff, bh);
+  check_invariants("cylinder/arap", KM_PUPPET_ENERGY_ARAP, 1e-4, 1e-6, &m, 2, boff, bh);
   free(bh);
   km_mesh_free(&m);
 }
 
 /* Bend a bar: anchor the bottom, pull the top sideways; compare with full ARAP. */
-static void test_bend(void) {
+static void test_bend(km_puppet_energy energy) {
+  const char *ename = energy == KM_PUPPET_ENERGY_ARAP ? "arap energy" : "laplacian energy";
   km_mesh m = {0};
   CHECK_OK(km_cylinder(24, 60, 0.08, 1.0, &m, KM_E));
   size_t n = m.n_vertices, nhv;
   double diag = km_bbox_diagonal(m.V, n);
   int32_t *hv = malloc(n * sizeof(int32_t)), off[3];
   bar_handles(&m, 0.03, 0.97, off, hv, &nhv);
-  double t0 = km__now();
   km_puppet *p = NULL;
-  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
-  double t_pre = km__now() - t0;
+  km_puppet_options po = {.energy = energy};
+  CHECK_OK(km_puppet_precompute(&m, &po, &p, KM_E));
   if (!p) return;
-  t0 = km__now();
   CHECK_OK(km_puppet_set_handles(p, 2, off, hv, KM_E));
-  double t_set = km__now() - t0;
-  printf("bend: precompute %.3f s, set_handles %.4f s\n", t_pre, t_set);
 
   km_arap *a = NULL;
   km_arap_options ao = {.iterations = 10};
@@ -189,9 +211,9 @@ static void test_bend(void) {
     else
       pulled = fmax(pulled, d);
   }
-  printf("bend: anchored handle max error %.3g, pulled handle max error %.3g (pull %.2f, "
+  printf("bend (%s): anchored handle max error %.3g, pulled handle max error %.3g (pull %.2f, "
          "diagonal %.3f)\n",
-         anchor, pulled, pull, diag);
+         ename, anchor, pulled, pull, diag);
   CHECK_MSG(anchor < 0.01 * diag, "anchor moved %g", anchor);
   CHECK_MSG(pulled < 0.1 * pull, "pulled handle off by %g", pulled);
   /* smooth bend: the mean x displacement of each ring increases monotonically along the bar */
@@ -209,7 +231,8 @@ static void test_bend(void) {
   CHECK_MSG(mono, "ring displacements are not monotonic along the bar");
   if (a) {
     double md = mean_dev(X, Y, n) / diag, xd = max_dev(X, Y, n) / diag;
-    printf("bend: reduced vs full ARAP deviation: mean %.4f max %.4f of the diagonal\n", md, xd);
+    printf("bend (%s): reduced vs full ARAP deviation: mean %.4f max %.4f of the diagonal\n", ename,
+           md, xd);
     CHECK_MSG(md <= 0.02, "mean deviation %g > 2%% of the diagonal", md);
   }
   km_puppet_info info;
@@ -234,15 +257,24 @@ static void test_bend(void) {
   km_mesh_free(&m);
 }
 
-/* Changing the handle set costs a 320x320 Cholesky, not an eigen-decomposition. */
+/* Changing the handle set costs a 320x320 Cholesky, not an eigen-decomposition. Checked by
+ * what runs, not by timing (speed belongs to the benchmarks): the eigen solver logs each ARPACK
+ * run, so a logger counts them during precompute and during set_handles. */
+static int eig_runs;
+static void count_eigs(km_log_level level, const char *msg, void *user) {
+  (void)level, (void)user;
+  if (strncmp(msg, "km_eigs:", 8) == 0 && strstr(msg, "ARPACK")) ++eig_runs;
+}
+
 static void test_handle_change_cost(void) {
   km_mesh m = {0};
   CHECK_OK(km_icosphere(5, 1.0, &m, KM_E));
   size_t n = m.n_vertices;
-  double t0 = km__now();
+  km_set_logger(count_eigs, NULL);
+  eig_runs = 0;
   km_puppet *p = NULL;
   CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
-  double t_pre = km__now() - t0;
+  CHECK_MSG(eig_runs >= 1, "precompute ran ARPACK %d times", eig_runs);
   int32_t *hv = malloc(n * sizeof(int32_t)), off[3] = {0};
   size_t k = 0;
   for (size_t v = 0; v < n; ++v)
@@ -251,14 +283,11 @@ static void test_handle_change_cost(void) {
   for (size_t v = 0; v < n; ++v)
     if (m.V[3 * v] > 0.95) hv[k++] = (int32_t)v;
   off[2] = (int32_t)k;
-  double t_set = 1e9;
-  for (int rep = 0; rep < 3 && p; ++rep) {
-    t0 = km__now();
+  eig_runs = 0;
+  for (int rep = 0; rep < 3 && p; ++rep)
     CHECK_OK(km_puppet_set_handles(p, 1 + rep % 2, off, hv, KM_E));
-    t_set = fmin(t_set, km__now() - t0);
-  }
-  printf("handles: %zu vertices: precompute %.3f s, set_handles %.4f s\n", n, t_pre, t_set);
-  CHECK_MSG(t_set < 0.1 * t_pre, "set_handles %.4f s vs precompute %.3f s", t_set, t_pre);
+  CHECK_MSG(eig_runs == 0, "set_handles ran ARPACK %d times", eig_runs);
+  km_set_logger(NULL, NULL);
   km_puppet_free(&p);
   free(hv);
   km_mesh_free(&m);
@@ -293,6 +322,8 @@ static void test_cache(void) {
   /* different parameters */
   km_puppet_options o = {.isolines = 12};
   CHECK_STATUS(km_puppet_load(path, &m, &o, &q, KM_E), KM_ERR_STALE);
+  km_puppet_options oe = {.energy = KM_PUPPET_ENERGY_LAPLACIAN};
+  CHECK_STATUS(km_puppet_load(path, &m, &oe, &q, KM_E), KM_ERR_STALE);
   CHECK(q == NULL);
   /* different mesh: one coordinate nudged, and another mesh altogether */
   CHECK_OK(km_mesh_copy(&m, &m2, KM_E));
@@ -522,7 +553,8 @@ static void test_errors(void) {
 int main(void) {
   test_errors();
   test_invariants();
-  test_bend();
+  test_bend(KM_PUPPET_ENERGY_LAPLACIAN);
+  test_bend(KM_PUPPET_ENERGY_ARAP);
   test_handle_change_cost();
   test_cache();
   test_real_mesh();

@@ -409,30 +409,12 @@ static void test_truncation_and_corruption(void) {
 
 /* ---------------------------------------------------------------- real data */
 
-static double median5(double *t) {
-  for (int i = 0; i < 5; ++i)
-    for (int j = i + 1; j < 5; ++j)
-      if (t[j] < t[i]) {
-        double x = t[i];
-        t[i] = t[j];
-        t[j] = x;
-      }
-  return t[2];
-}
 
 static bool read_shared(const char *rel, km_mesh *m, size_t nv, size_t nf) {
   char buf[1024];
   const char *path = km_test_shared(rel, buf, sizeof buf);
   if (!path) return false;
-  double t[5];
-  for (int i = 0; i < 5; ++i) {
-    double t0 = km__now();
-    CHECK_OK(km_mesh_read(path, m, KM_E));
-    t[i] = km__now() - t0;
-    if (i < 4) km_mesh_free(m);
-  }
-  printf("%s: %zu vertices, %zu faces, read median %.1f ms\n", rel, m->n_vertices, m->n_faces,
-         1e3 * median5(t));
+  CHECK_OK(km_mesh_read(path, m, KM_E));
   CHECK_MSG(m->n_vertices == nv && m->n_faces == nf, "%s: %zu/%zu, expected %zu/%zu", rel,
             m->n_vertices, m->n_faces, nv, nf);
   CHECK(faces_valid(m));

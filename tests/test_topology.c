@@ -246,15 +246,9 @@ static void test_shared_armadillo(void) {
   if (!path) return;
   km_mesh m;
   CHECK_OK(km_mesh_read(path, &m, KM_E));
-  double t0 = km__now();
   km_mesh_info i = info_of(&m);
-  double t1 = km__now();
   int32_t *off = NULL, *adj = NULL;
   CHECK_OK(km_adjacency_list(&m, &off, &adj, KM_E));
-  printf(
-      "armadillo: info %.1f ms, adjacency %.1f ms; E=%zu boundary=%zu components=%zu euler=%lld\n",
-      1e3 * (t1 - t0), 1e3 * (km__now() - t1), i.edges, i.boundary_edges, i.components,
-      (long long)i.euler_characteristic);
   if (off) CHECK((size_t)off[m.n_vertices] == 2 * i.edges);
   /* Every face edge 1..3 uses: 3F = sum over edges of uses >= 2E - boundary. */
   CHECK(3 * i.faces >= 2 * i.edges - i.boundary_edges);

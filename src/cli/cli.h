@@ -68,6 +68,17 @@ int km_cli_pose(int argc, char **argv);
 int km_cli_precompute(int argc, char **argv);
 int km_cli_animate(int argc, char **argv);
 int km_cli_bench(int argc, char **argv);
+int km_cli_bench_live(int argc, char **argv);
+int km_cli_bench_reconstruct(int argc, char **argv);
+int km_cli_gen_capture(int argc, char **argv);
+int km_cli_reconstruct(int argc, char **argv);
+/* A character: mesh + rig sidecar (default <stem>.rig.json), or the canonical procedural
+ * one with `vertices` vertices when mesh is NULL. */
+km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
+                                km_error *err);
+/* "<CPU model>, <n> cores" for benchmark headers. */
+void km_cli_machine(char *out, size_t n);
+int km_cli_live(int argc, char **argv);
 
 /* Puppetry helpers shared by animate, bench and live. */
 char *km_cli_cache_path(const char *mesh_path); /* MESH.kmcache, caller frees */
@@ -76,5 +87,7 @@ km_status km_cli_puppet_open(const km_mesh *mesh, const km_puppet_options *po, c
                              km_error *err);
 km_status km_cli_read_motion(const char *path, km_take *t, km_error *err);
 double km_cli_median(double *v, size_t n); /* sorts v */
+/* --energy laplacian|arap; prints the error and returns non-zero when unknown. */
+int km_cli_parse_energy(const char *verb, const char *s, km_puppet_energy *e);
 
 #endif

@@ -130,7 +130,7 @@ static void joints_at(size_t f, double diag, double *J) {
 }
 
 static int bench_deform(int argc, char **argv) {
-  const char *mesh_path = NULL;
+  const char *mesh_path = NULL, *energy = NULL;
   size_t handles = 5, frames = 100, full_frames = 30, repeat = 0;
   bool json = false;
   const km_cli_opt opts[] = {
@@ -141,6 +141,8 @@ static int bench_deform(int argc, char **argv) {
        "frames also solved by the full ARAP reference (default 30; 0: skip)"},
       {"repeat", 0, KM_OPT_SIZE, &repeat,
        "runs of precompute / cache load (default 3, 1 above 200k vertices)"},
+      {"energy", 0, KM_OPT_STRING, &energy,
+       "reduced model energy: arap (default) or laplacian (the paper's)"},
       {"json", 0, KM_OPT_FLAG, &json, "print one JSON object"},
   };
   const char *pos[1];
@@ -157,6 +159,8 @@ static int bench_deform(int argc, char **argv) {
   if (handles < 2) return km_cli_error("bench deform", "--handles must be at least 2");
   if (frames < 1) return km_cli_error("bench deform", "--frames must be at least 1");
   if (full_frames > frames) full_frames = frames;
+  km_puppet_options po = {0};
+  if (km_cli_parse_energy("bench deform", energy, &po.energy)) return KM_EXIT_FAIL;
 
   km_error err = {0};
   km_mesh m = {0};
@@ -214,7 +218,6 @@ static int bench_deform(int argc, char **argv) {
   }
 
   /* t1: precompute from scratch; t~1: load from the cache (what a second run does). */
-  km_puppet_options po = {0};
   for (size_t i = 0; i < repeat; ++i) {
     km_puppet_free(&pup);
     double a = km_cli_now();
@@ -277,6 +280,7 @@ static int bench_deform(int argc, char **argv) {
     km_cli_machine(machine, sizeof machine);
     cJSON_AddStringToObject(o, "mesh", mesh_path);
     cJSON_AddStringToObject(o, "machine", machine);
+    cJSON_AddStringToObject(o, "energy", po.energy == KM_PUPPET_ENERGY_ARAP ? "arap" : "laplacian");
     cJSON_AddNumberToObject(o, "n_ver", (double)m.n_vertices);
     cJSON_AddNumberToObject(o, "n_han", (double)handles);
     cJSON_AddNumberToObject(o, "n_tri", (double)info.crossed_triangles);
@@ -301,9 +305,10 @@ static int bench_deform(int argc, char **argv) {
   } else {
     char machine[320];
     km_cli_machine(machine, sizeof machine);
-    printf("kinemesh bench deform — %s; medians: t1 of %zu runs, t~1 of 5 loads, per-frame "
-           "times of %zu frames (%d rotation updates each), full ARAP on %zu frames\n",
-           machine, repeat, frames, info.last_iterations, full_frames);
+    printf("kinemesh bench deform — %s; %s energy; medians: t1 of %zu runs, t~1 of 5 loads, "
+           "per-frame times of %zu frames (%d rotation updates each), full ARAP on %zu frames\n",
+           machine, po.energy == KM_PUPPET_ENERGY_ARAP ? "reduced ARAP" : "paper (Laplacian)",
+           repeat, frames, info.last_iterations, full_frames);
     printf("%-28s %8s %5s %5s %8s %8s %6s %9s %8s %9s %11s %9s %9s\n", "model", "n_ver", "n_han",
            "n_tri", "t1(s)", "t~1(s)", "P(%)", "t2,3(ms)", "t4(ms)", "tper(ms)", "full tper",
            "dev mean", "dev max");
@@ -342,8 +347,13 @@ done:
 
 int km_cli_bench(int argc, char **argv) {
   if (argc >= 2 && !strcmp(argv[1], "deform")) return bench_deform(argc - 1, argv + 1);
+  if (argc >= 2 && !strcmp(argv[1], "live")) return km_cli_bench_live(argc - 1, argv + 1);
+  if (argc >= 2 && !strcmp(argv[1], "reconstruct"))
+    return km_cli_bench_reconstruct(argc - 1, argv + 1);
   FILE *f = (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) ? stdout : stderr;
   fprintf(f, "usage: kinemesh bench deform --mesh MESH [--handles N] [--frames F] [--json]\n"
-             "(kinemesh bench deform --help for options)\n");
+             "       kinemesh bench live [--mesh MESH] [--vertices N] [--frames N] [--rate HZ]\n"
+             "       kinemesh bench reconstruct [--frames 300] [--report R.json] [--plot P.png]\n"
+             "(kinemesh bench <what> --help for options)\n");
   return f == stdout ? KM_EXIT_OK : KM_EXIT_USAGE;
 }

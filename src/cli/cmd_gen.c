@@ -94,12 +94,11 @@ static int gen_character(int argc, char **argv) {
   return rc;
 }
 
-/* The rest skeleton a take is made for: the character's (mesh + its rig sidecar), or the
- * canonical character's when none is given. */
-static km_status rest_skeleton(const char *mesh, const char *rig, km_character *c, km_error *err) {
+km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
+                                km_error *err) {
   if (!mesh) {
     km_character_options co = {0};
-    co.target_vertices = 2000;
+    co.target_vertices = vertices;
     return km_character_generate(&co, c, err);
   }
   char *rig_path = rig ? NULL : km_cli_rig_path(mesh);
@@ -142,7 +141,7 @@ static int gen_motion(int argc, char **argv) {
   km_character c = {0};
   km_take t = {0};
   int rc = KM_EXIT_OK;
-  if (rest_skeleton(character, rig, &c, &err) != KM_OK ||
+  if (km_cli_load_character(character, rig, 2000, &c, &err) != KM_OK ||
       km_motion_generate(&c.skeleton, mk, frames, &t, &err) != KM_OK ||
       km_take_write(out, &t, &err) != KM_OK)
     rc = km_cli_fail("gen motion", &err);
@@ -157,9 +156,11 @@ static int gen_motion(int argc, char **argv) {
 int km_cli_gen(int argc, char **argv) {
   if (argc >= 2 && !strcmp(argv[1], "character")) return gen_character(argc - 1, argv + 1);
   if (argc >= 2 && !strcmp(argv[1], "motion")) return gen_motion(argc - 1, argv + 1);
+  if (argc >= 2 && !strcmp(argv[1], "capture")) return km_cli_gen_capture(argc - 1, argv + 1);
   FILE *f = (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) ? stdout : stderr;
   fprintf(f, "usage: kinemesh gen character [options] -o char.obj\n"
              "       kinemesh gen motion --kind walk|wave|kungfu --frames F -o take.json\n"
+             "       kinemesh gen capture --character CHAR --motion TAKE -o FRAMES/\n"
              "(kinemesh gen character --help, kinemesh gen motion --help for options)\n");
   return f == stdout ? KM_EXIT_OK : KM_EXIT_USAGE;
 }

@@ -10,6 +10,16 @@
 
 /* ------------------------------------------------------------------ shared pieces */
 
+int km_cli_parse_energy(const char *verb, const char *s, km_puppet_energy *e) {
+  if (!s || !strcmp(s, "arap"))
+    *e = KM_PUPPET_ENERGY_ARAP;
+  else if (!strcmp(s, "laplacian"))
+    *e = KM_PUPPET_ENERGY_LAPLACIAN;
+  else
+    return km_cli_error(verb, "--energy must be laplacian or arap, not '%s'", s);
+  return 0;
+}
+
 static int parse_solver(const char *verb, const char *s, bool *full) {
   if (!s || !strcmp(s, "reduced"))
     *full = false;
@@ -186,7 +196,7 @@ double km_cli_median(double *v, size_t n) {
 
 int km_cli_animate(int argc, char **argv) {
   const char *mesh_path = NULL, *rig_path = NULL, *motion = NULL, *cache = NULL, *out = NULL;
-  const char *solver = NULL;
+  const char *solver = NULL, *energy = NULL;
   int iterations = 0;
   double scale = 0, fps = 0;
   size_t key_every = 0;
@@ -199,6 +209,8 @@ int km_cli_animate(int argc, char **argv) {
       {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default MESH.kmcache)"},
       {"solver", 0, KM_OPT_STRING, &solver,
        "reduced (default, real time) or full (ARAP reference)"},
+      {"energy", 0, KM_OPT_STRING, &energy,
+       "reduced model energy: arap (default) or laplacian (the paper's eq. 8-9)"},
       {"iterations", 0, KM_OPT_INT, &iterations, "rotation updates per frame (default 4)"},
       {"scale", 0, KM_OPT_DOUBLE, &scale, "performer-to-character scale (default: automatic)"},
       {"fps", 0, KM_OPT_DOUBLE, &fps, "output frame rate (default: the take's)"},
@@ -217,7 +229,9 @@ int km_cli_animate(int argc, char **argv) {
   if (!mesh_path || !motion || !out)
     return km_cli_error("animate", "--mesh, --motion and -o are required (see --help)");
   bool full = false;
-  if (parse_solver("animate", solver, &full)) return KM_EXIT_FAIL;
+  km_puppet_energy pe = KM_PUPPET_ENERGY_ARAP;
+  if (parse_solver("animate", solver, &full) || km_cli_parse_energy("animate", energy, &pe))
+    return KM_EXIT_FAIL;
 
   km_error err = {0};
   km_mesh m = {0};
@@ -282,6 +296,7 @@ int km_cli_animate(int argc, char **argv) {
   } else {
     km_puppet_options po = {0};
     po.iterations = iterations;
+    po.energy = pe;
     km_status s = km_cli_puppet_open(&m, &po, cache ? cache : cache_default, true, &pup, &loaded,
                                      &t_pre, &err);
     if (s == KM_OK) s = km_puppet_set_handles(pup, rig.n_handles, offsets, hverts, &err);

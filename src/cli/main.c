@@ -16,6 +16,10 @@ static const km_cli_verb VERBS[] = {
     {"precompute", "build and cache the reduced deformation model of a mesh", km_cli_precompute},
     {"animate", "puppetry: drive a mesh from a skeleton take through a rig -> .glb/.pc2/frames",
      km_cli_animate},
+    {"live", "live puppetry server: tracker in (OSC/UDP/replay), mesh out to a browser page",
+     km_cli_live},
+    {"reconstruct", "point clouds -> mesh animation: register a rigged template to every frame",
+     km_cli_reconstruct},
     {"bench", "benchmarks printing the papers' tables (bench deform)", km_cli_bench},
 };
 

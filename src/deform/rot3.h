@@ -24,9 +24,10 @@ static inline double km__dot3(const double *a, const double *b) {
 static inline double km__normalize3(double *a) {
   double l = sqrt(km__dot3(a, a));
   if (l > 1e-300) {
-    a[0] /= l;
-    a[1] /= l;
-    a[2] /= l;
+    double inv = 1 / l; /* one division: this runs per triangle per iteration */
+    a[0] *= inv;
+    a[1] *= inv;
+    a[2] *= inv;
   }
   return l;
 }
@@ -125,28 +126,28 @@ static inline void km__nearest_rotation3(const double *A, double *R) {
 static inline void km__quat_from_rot3(const double *R, double *q) {
   double tr = R[0] + R[4] + R[8];
   if (tr > 0) {
-    double s = sqrt(tr + 1.0) * 2;
+    double s = sqrt(tr + 1.0) * 2, is = 1 / s;
     q[0] = 0.25 * s;
-    q[1] = (R[7] - R[5]) / s;
-    q[2] = (R[2] - R[6]) / s;
-    q[3] = (R[3] - R[1]) / s;
+    q[1] = (R[7] - R[5]) * is;
+    q[2] = (R[2] - R[6]) * is;
+    q[3] = (R[3] - R[1]) * is;
   } else if (R[0] > R[4] && R[0] > R[8]) {
-    double s = sqrt(1.0 + R[0] - R[4] - R[8]) * 2;
-    q[0] = (R[7] - R[5]) / s;
+    double s = sqrt(1.0 + R[0] - R[4] - R[8]) * 2, is = 1 / s;
+    q[0] = (R[7] - R[5]) * is;
     q[1] = 0.25 * s;
-    q[2] = (R[1] + R[3]) / s;
-    q[3] = (R[2] + R[6]) / s;
+    q[2] = (R[1] + R[3]) * is;
+    q[3] = (R[2] + R[6]) * is;
   } else if (R[4] > R[8]) {
-    double s = sqrt(1.0 + R[4] - R[0] - R[8]) * 2;
-    q[0] = (R[2] - R[6]) / s;
-    q[1] = (R[1] + R[3]) / s;
+    double s = sqrt(1.0 + R[4] - R[0] - R[8]) * 2, is = 1 / s;
+    q[0] = (R[2] - R[6]) * is;
+    q[1] = (R[1] + R[3]) * is;
     q[2] = 0.25 * s;
-    q[3] = (R[5] + R[7]) / s;
+    q[3] = (R[5] + R[7]) * is;
   } else {
-    double s = sqrt(1.0 + R[8] - R[0] - R[4]) * 2;
-    q[0] = (R[3] - R[1]) / s;
-    q[1] = (R[2] + R[6]) / s;
-    q[2] = (R[5] + R[7]) / s;
+    double s = sqrt(1.0 + R[8] - R[0] - R[4]) * 2, is = 1 / s;
+    q[0] = (R[3] - R[1]) * is;
+    q[1] = (R[2] + R[6]) * is;
+    q[2] = (R[5] + R[7]) * is;
     q[3] = 0.25 * s;
   }
 }

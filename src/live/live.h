@@ -1,0 +1,101 @@
+/* Live mode: tracker input (OSC, JSON over UDP, a replayed take) -> filter -> retarget ->
+ * reduced deformation -> WebSocket frames to browser pages, plus the HTTP side (static page,
+ * /status, /mesh, /rig, /handles, POST /rig, POST /replay). Private to kinemesh (the CLI's
+ * `live` verb and bench_live use it). */
+#ifndef KM_LIVE_H
+#define KM_LIVE_H
+
+#include "kinemesh.h"
+
+#include <stdint.h>
+
+/* ---------------------------------------------------------------- input parsing */
+
+/* Index of a tracker joint name in KM_KINECT1 order: Kinect v1 names (HandLeft), Kinect v2
+ * names (SpineBase, SpineShoulder, WristLeft, ...) and OSCeleton/OpenNI names (l_hand, torso,
+ * waist, ...). -1: unknown name. -2: a known joint that has no Kinect v1 counterpart
+ * (HandTipLeft, ThumbRight, l_finger, r_collar, Neck of v2 when SpineShoulder is sent, ...). */
+int km__live_joint_index(const char *name);
+
+/* A JSON-lines UDP datagram (one frame): either {"joints": {"HandLeft": [x,y,z], ...}}
+ * (names as above, null or absent = missing), {"joints": [60 numbers or nulls]} or a bare
+ * array of 60 numbers, Kinect v1 order, metres in kinemesh space (y up, performer facing +z,
+ * as in takes). joints: 60 doubles, NaN where missing. Returns the number of joints set, or
+ * -1 for a malformed datagram (bad JSON, wrong count, non-numbers, non-finite values, no
+ * known joint). */
+int km__live_parse_json(const char *data, size_t size, double *joints);
+
+/* A tracker OSC message, already decoded by liblo. */
+typedef enum km__live_osc_kind {
+  KM_LIVE_OSC_BAD = -1,    /* malformed (wrong arity or types, NaN, unknown joint) */
+  KM_LIVE_OSC_IGNORED = 0, /* valid but carries no v1 joint (hand states, /new_user, ...) */
+  KM_LIVE_OSC_JOINT = 1
+} km__live_osc_kind;
+typedef struct km__live_osc_joint {
+  int joint;        /* KM_KINECT1 index */
+  int user;         /* OSCeleton user id or Kinect v2 body id (0 when it does not parse) */
+  double p[3];      /* kinemesh space, metres; NaN when the tracker says "NotTracked" */
+  double timestamp; /* OSCeleton trailing timestamp (ms); NaN when absent */
+} km__live_osc_joint;
+/* OSCeleton "/joint" siiffff[d] (name, sensor, user, x, y, z in cm with y down, confidence,
+ * [timestamp ms]) and KinectV2-OSC "/bodies/{id}/joints/{Name}" fffs (metres, tracking state).
+ * Both are Kinect camera space; they are turned into kinemesh space like the Kinect CSV
+ * reader does (180 degrees about y). argv: liblo's argument array (lo_arg **). */
+km__live_osc_kind km__live_parse_osc(const char *path, const char *types, void *const *argv,
+                                     int argc, km__live_osc_joint *out);
+
+/* ---------------------------------------------------------------- server */
+
+typedef struct km__live_options {
+  const char *bind;     /* listen address for HTTP, OSC and UDP; NULL: 127.0.0.1 */
+  int http_port;        /* 8080 when 0 */
+  int osc_port;         /* 0: no OSC input */
+  int udp_port;         /* 0: no JSON/UDP input */
+  bool quantize;        /* frames as uint16 in the frame's bounding box instead of float32 */
+  bool loop;            /* replay the take in a loop */
+  bool no_autoplay;     /* do not start the replay at start-up (page button / POST only) */
+  const char *web_dir;  /* static page assets; NULL: no page (404) */
+  const char *rig_path; /* written (atomically) on POST /rig; NULL: POST /rig refused */
+  bool record;          /* keep every received raw frame for km__live_record_take */
+} km__live_options;
+
+typedef struct km__live km__live;
+
+/* mesh and puppet stay owned by the caller and must outlive the server; the puppet's handles
+ * are set here from the rig. rig_json is the rig file's text. replay: a take already in
+ * KM_KINECT1 order (20 joints) or NULL. Binds the sockets (KM_ERR_IO naming the port when it
+ * is taken) and starts the input and deformation threads; the HTTP service runs in
+ * km__live_run. */
+km_status km__live_create(const km__live_options *opt, const km_mesh *mesh, km_puppet *puppet,
+                          const char *rig_json, size_t rig_size, const km_take *replay,
+                          km__live **out, km_error *err);
+/* Serves until km__live_stop (callable from any thread and from a signal handler). */
+km_status km__live_run(km__live *l, km_error *err);
+void km__live_stop(km__live *l);
+/* Starts (or restarts) the replay, as POST /replay does. false when there is no take. */
+bool km__live_replay(km__live *l);
+
+typedef struct km__live_stats {
+  uint64_t frames_in, frames_out, frames_sent, frames_dropped;
+  uint64_t osc_messages, udp_datagrams, bad_packets;
+  int clients;
+  double lat_median_ms, lat_p99_ms;             /* packet received -> frame written to a socket */
+  double t_retarget_ms, t_deform_ms, t_pack_ms; /* medians of the recent frames */
+  size_t lat_count;
+} km__live_stats;
+void km__live_get_stats(km__live *l, km__live_stats *out);
+/* Writes /status's JSON (malloc'ed, NUL-terminated). */
+char *km__live_status_json(km__live *l);
+/* The raw received frames as a take (fps measured from the arrival times). */
+km_status km__live_record_take(km__live *l, const char *path, km_error *err);
+void km__live_free(km__live **l);
+
+/* Frame message layout (little-endian), shared with web/live.js:
+ * u32 magic 'KMF1', u32 flags (1: uint16 positions), u32 n_vertices, u32 frame seq,
+ * u32 input seq, f32 retarget ms, f32 deform ms, f32 pack ms, f32 scale,
+ * f32 bbox min[3], f32 bbox max[3], f32 joints[60] (filtered, in the character's space; NaN
+ * missing), 4 bytes pad, then positions: f32[3n], or u16[3n] with p = min + u/65535 (max-min). */
+#define KM_LIVE_MAGIC 0x31464d4bu
+#define KM_LIVE_HEADER 304
+
+#endif

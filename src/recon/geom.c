@@ -1,0 +1,584 @@
+#include "recon/recon.h"
+
+#include <embree3/rtcore.h>
+#include <float.h>
+#include <lapacke.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+static RTCDevice g_device;
+static pthread_once_t g_device_once = PTHREAD_ONCE_INIT;
+static void device_init(void) { g_device = rtcNewDevice(NULL); }
+
+void *km__embree_device(km_error *err) {
+  pthread_once(&g_device_once, device_init);
+  if (!g_device) km__fail(err, KM_ERR_UNSUPPORTED, "Embree: rtcNewDevice failed");
+  return g_device;
+}
+
+void km__eig3(const double A[9], double evals[3], double evecs[9]) {
+  double a[9];
+  memcpy(a, A, sizeof a);
+  double work[16];
+  /* column-major == row-major for a symmetric matrix; eigenvectors come out in columns */
+  if (LAPACKE_dsyev_work(LAPACK_COL_MAJOR, 'V', 'U', 3, a, 3, evals, work, 16) != 0) {
+    memset(evecs, 0, 9 * sizeof *evecs);
+    evecs[0] = evecs[4] = evecs[8] = 1;
+    evals[0] = evals[1] = evals[2] = 0;
+    return;
+  }
+  /* a is column-major: column c = eigenvector c; store row-major with vectors as columns */
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      evecs[3 * r + c] = a[3 * c + r];
+}
+
+/* ---------------------------------------------------------------- closest point on triangle */
+
+static double dot3(const double *a, const double *b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+/* Ericson, Real-Time Collision Detection 5.1.5: Voronoi regions of the triangle. */
+double km__closest_on_triangle(const double *p, const double *a, const double *b, const double *c,
+                               double *w) {
+  double ab[3], ac[3], ap[3];
+  for (int k = 0; k < 3; ++k)
+    ab[k] = b[k] - a[k], ac[k] = c[k] - a[k], ap[k] = p[k] - a[k];
+  double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
+  double u, v, t;
+  if (d1 <= 0 && d2 <= 0) {
+    u = 1, v = 0, t = 0;
+    goto done;
+  }
+  double bp[3];
+  for (int k = 0; k < 3; ++k)
+    bp[k] = p[k] - b[k];
+  double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
+  if (d3 >= 0 && d4 <= d3) {
+    u = 0, v = 1, t = 0;
+    goto done;
+  }
+  double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    double s = d1 / (d1 - d3);
+    u = 1 - s, v = s, t = 0;
+    goto done;
+  }
+  double cp[3];
+  for (int k = 0; k < 3; ++k)
+    cp[k] = p[k] - c[k];
+  double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
+  if (d6 >= 0 && d5 <= d6) {
+    u = 0, v = 0, t = 1;
+    goto done;
+  }
+  double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    double s = d2 / (d2 - d6);
+    u = 1 - s, v = 0, t = s;
+    goto done;
+  }
+  double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    double s = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    u = 0, v = 1 - s, t = s;
+    goto done;
+  }
+  {
+    double den = va + vb + vc;
+    if (!(fabs(den) > 0)) { /* degenerate triangle: fall back to vertex a */
+      u = 1, v = 0, t = 0;
+      goto done;
+    }
+    v = vb / den, t = vc / den, u = 1 - v - t;
+  }
+done:
+  w[0] = u, w[1] = v, w[2] = t;
+  double q[3], d2s = 0;
+  for (int k = 0; k < 3; ++k)
+    q[k] = u * a[k] + v * b[k] + t * c[k] - p[k], d2s += q[k] * q[k];
+  return d2s;
+}
+
+/* ---------------------------------------------------------------- mesh closest points */
+
+struct km__surface {
+  RTCScene scene;
+  RTCGeometry geom;
+  float *vb;
+  const double *V;
+  const int32_t *F;
+  size_t nv, nf;
+};
+
+typedef struct closest_query {
+  const km__surface *s;
+  double p[3];
+  double best_d2;
+  int32_t tri;
+  double w[3];
+} closest_query;
+
+static bool closest_cb(struct RTCPointQueryFunctionArguments *args) {
+  closest_query *q = args->userPtr;
+  const km__surface *s = q->s;
+  unsigned f = args->primID;
+  const int32_t *t = s->F + 3 * (size_t)f;
+  double w[3];
+  double d2 = km__closest_on_triangle(q->p, s->V + 3 * (size_t)t[0], s->V + 3 * (size_t)t[1],
+                                      s->V + 3 * (size_t)t[2], w);
+  if (d2 < q->best_d2) {
+    q->best_d2 = d2;
+    q->tri = (int32_t)f;
+    memcpy(q->w, w, sizeof w);
+    /* Embree tests float bounds: keep a small margin so rounding never hides the winner */
+    args->query->radius = (float)(sqrt(d2) * (1 + 1e-5) + 1e-7);
+    return true;
+  }
+  return false;
+}
+
+static void fill_vb(km__surface *s) {
+  for (size_t i = 0; i < s->nv; ++i) {
+    s->vb[4 * i + 0] = (float)s->V[3 * i + 0];
+    s->vb[4 * i + 1] = (float)s->V[3 * i + 1];
+    s->vb[4 * i + 2] = (float)s->V[3 * i + 2];
+    s->vb[4 * i + 3] = 0;
+  }
+}
+
+km_status km__surface_create(const double *V, size_t nv, const int32_t *F, size_t nf,
+                             km__surface **out, km_error *err) {
+  *out = NULL;
+  RTCDevice dev = km__embree_device(err);
+  if (!dev) return KM_ERR_UNSUPPORTED;
+  if (!nf || !nv) return km__fail(err, KM_ERR_DEGENERATE_MESH, "closest point: mesh has no faces");
+  for (size_t i = 0; i < 3 * nf; ++i)
+    if (F[i] < 0 || (size_t)F[i] >= nv)
+      return km__fail(err, KM_ERR_INVALID, "closest point: face index %d out of range", F[i]);
+  km__surface *s = calloc(1, sizeof *s);
+  if (!s) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  s->V = V, s->F = F, s->nv = nv, s->nf = nf;
+  s->scene = rtcNewScene(dev);
+  rtcSetSceneFlags(s->scene, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(s->scene, RTC_BUILD_QUALITY_LOW);
+  s->geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+  rtcSetGeometryBuildQuality(s->geom, RTC_BUILD_QUALITY_REFIT);
+  s->vb = rtcSetNewGeometryBuffer(s->geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                  4 * sizeof(float), nv);
+  unsigned *ib = rtcSetNewGeometryBuffer(s->geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                         3 * sizeof(unsigned), nf);
+  if (!s->vb || !ib) {
+    rtcReleaseGeometry(s->geom);
+    rtcReleaseScene(s->scene);
+    free(s);
+    return km__fail(err, KM_ERR_NOMEM, "Embree: cannot allocate buffers");
+  }
+  for (size_t i = 0; i < 3 * nf; ++i)
+    ib[i] = (unsigned)F[i];
+  fill_vb(s);
+  rtcSetGeometryPointQueryFunction(s->geom, closest_cb);
+  rtcCommitGeometry(s->geom);
+  rtcAttachGeometry(s->scene, s->geom);
+  rtcCommitScene(s->scene);
+  *out = s;
+  return KM_OK;
+}
+
+void km__surface_update(km__surface *s, const double *V) {
+  s->V = V;
+  fill_vb(s);
+  rtcUpdateGeometryBuffer(s->geom, RTC_BUFFER_TYPE_VERTEX, 0);
+  rtcCommitGeometry(s->geom);
+  rtcCommitScene(s->scene);
+}
+
+void km__surface_closest(const km__surface *s, const double *Q, size_t n, double max_dist,
+                         int32_t *tri, double *bary, double *dist) {
+#pragma omp parallel for schedule(dynamic, 256) if (n > KM__OMP_MIN)
+  for (size_t i = 0; i < n; ++i) {
+    closest_query q = {.s = s, .best_d2 = INFINITY, .tri = -1};
+    memcpy(q.p, Q + 3 * i, sizeof q.p);
+    struct RTCPointQuery pq = {(float)q.p[0], (float)q.p[1], (float)q.p[2], 0,
+                               max_dist > 0 ? (float)max_dist : INFINITY};
+    struct RTCPointQueryContext ctx;
+    rtcInitPointQueryContext(&ctx);
+    rtcPointQuery(s->scene, &pq, &ctx, NULL, &q);
+    if (max_dist > 0 && q.best_d2 > max_dist * max_dist) q.tri = -1;
+    tri[i] = q.tri;
+    if (bary) memcpy(bary + 3 * i, q.w, sizeof q.w);
+    if (dist) dist[i] = q.tri >= 0 ? sqrt(q.best_d2) : INFINITY;
+  }
+}
+
+void km__surface_free(km__surface **s) {
+  if (!s || !*s) return;
+  rtcReleaseGeometry((*s)->geom);
+  rtcReleaseScene((*s)->scene);
+  free(*s);
+  *s = NULL;
+}
+
+/* ---------------------------------------------------------------- k nearest neighbours */
+/* Embree user geometry of points: the same BVH and point-query machinery as the closest
+ * surface point, which copes with the very uneven density of captured clouds (a uniform
+ * grid hash would need a cell size per region). */
+
+typedef struct knn_geom {
+  const double *P;
+} knn_geom;
+
+typedef struct knn_query {
+  const double *P;
+  double p[3];
+  int k, count;
+  int32_t *idx;
+  double *d2; /* max-heap by distance of size count */
+} knn_query;
+
+static void knn_bounds(const struct RTCBoundsFunctionArguments *args) {
+  const knn_geom *g = args->geometryUserPtr;
+  const double *p = g->P + 3 * (size_t)args->primID;
+  struct RTCBounds *b = args->bounds_o;
+  b->lower_x = nextafterf((float)p[0], -INFINITY);
+  b->lower_y = nextafterf((float)p[1], -INFINITY);
+  b->lower_z = nextafterf((float)p[2], -INFINITY);
+  b->upper_x = nextafterf((float)p[0], INFINITY);
+  b->upper_y = nextafterf((float)p[1], INFINITY);
+  b->upper_z = nextafterf((float)p[2], INFINITY);
+}
+
+static void heap_sift_down(knn_query *q, int i) {
+  for (;;) {
+    int l = 2 * i + 1, r = l + 1, m = i;
+    if (l < q->count && q->d2[l] > q->d2[m]) m = l;
+    if (r < q->count && q->d2[r] > q->d2[m]) m = r;
+    if (m == i) return;
+    double td = q->d2[i];
+    int32_t ti = q->idx[i];
+    q->d2[i] = q->d2[m], q->idx[i] = q->idx[m];
+    q->d2[m] = td, q->idx[m] = ti;
+    i = m;
+  }
+}
+
+static bool knn_cb(struct RTCPointQueryFunctionArguments *args) {
+  knn_query *q = args->userPtr;
+  const double *p = q->P + 3 * (size_t)args->primID;
+  double d[3] = {p[0] - q->p[0], p[1] - q->p[1], p[2] - q->p[2]};
+  double d2 = dot3(d, d);
+  if (q->count < q->k) {
+    int i = q->count++;
+    q->d2[i] = d2, q->idx[i] = (int32_t)args->primID;
+    while (i > 0 && q->d2[(i - 1) / 2] < q->d2[i]) {
+      int par = (i - 1) / 2;
+      double td = q->d2[i];
+      int32_t ti = q->idx[i];
+      q->d2[i] = q->d2[par], q->idx[i] = q->idx[par];
+      q->d2[par] = td, q->idx[par] = ti;
+      i = par;
+    }
+  } else if (d2 < q->d2[0]) {
+    q->d2[0] = d2, q->idx[0] = (int32_t)args->primID;
+    heap_sift_down(q, 0);
+  } else {
+    return false;
+  }
+  if (q->count == q->k) {
+    args->query->radius = (float)(sqrt(q->d2[0]) * (1 + 1e-5) + 1e-9);
+    return true;
+  }
+  return false;
+}
+
+km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err) {
+  RTCDevice dev = km__embree_device(err);
+  if (!dev) return KM_ERR_UNSUPPORTED;
+  if (k < 1 || (size_t)k > n)
+    return km__fail(err, KM_ERR_INVALID, "knn: k=%d with %zu points", k, n);
+  knn_geom g = {P};
+  RTCScene scene = rtcNewScene(dev);
+  RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_USER);
+  rtcSetGeometryUserPrimitiveCount(geom, (unsigned)n);
+  rtcSetGeometryUserData(geom, &g);
+  rtcSetGeometryBoundsFunction(geom, knn_bounds, &g);
+  rtcSetGeometryPointQueryFunction(geom, knn_cb);
+  rtcCommitGeometry(geom);
+  rtcAttachGeometry(scene, geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(scene);
+#pragma omp parallel if (n > KM__OMP_MIN)
+  {
+    double d2[64];
+    int kk = k > 64 ? 64 : k;
+#pragma omp for schedule(dynamic, 512)
+    for (size_t i = 0; i < n; ++i) {
+      knn_query q = {.P = P, .k = kk, .idx = idx + (size_t)k * i, .d2 = d2};
+      memcpy(q.p, P + 3 * i, sizeof q.p);
+      struct RTCPointQuery pq = {(float)q.p[0], (float)q.p[1], (float)q.p[2], 0, INFINITY};
+      struct RTCPointQueryContext ctx;
+      rtcInitPointQueryContext(&ctx);
+      rtcPointQuery(scene, &pq, &ctx, NULL, &q);
+      for (int j = q.count; j < k; ++j)
+        idx[(size_t)k * i + j] = (int32_t)i;
+    }
+  }
+  rtcReleaseScene(scene);
+  return KM_OK;
+}
+
+struct km__point_index {
+  RTCScene scene;
+  knn_geom g;
+};
+
+km_status km__point_index_create(const double *P, size_t n, km__point_index **out, km_error *err) {
+  *out = NULL;
+  RTCDevice dev = km__embree_device(err);
+  if (!dev) return KM_ERR_UNSUPPORTED;
+  km__point_index *ix = calloc(1, sizeof *ix);
+  if (!ix) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  ix->g.P = P;
+  ix->scene = rtcNewScene(dev);
+  RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_USER);
+  rtcSetGeometryUserPrimitiveCount(geom, (unsigned)n);
+  rtcSetGeometryUserData(geom, &ix->g);
+  rtcSetGeometryBoundsFunction(geom, knn_bounds, &ix->g);
+  rtcSetGeometryPointQueryFunction(geom, knn_cb);
+  rtcCommitGeometry(geom);
+  rtcAttachGeometry(ix->scene, geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(ix->scene);
+  *out = ix;
+  return KM_OK;
+}
+
+void km__point_index_nearest(const km__point_index *ix, const double *Q, size_t nq, double max_dist,
+                             int32_t *idx, double *dist) {
+#pragma omp parallel for schedule(dynamic, 256) if (nq > KM__OMP_MIN)
+  for (size_t i = 0; i < nq; ++i) {
+    double d2 = INFINITY;
+    int32_t id = -1;
+    knn_query q = {.P = ix->g.P, .k = 1, .idx = &id, .d2 = &d2};
+    memcpy(q.p, Q + 3 * i, sizeof q.p);
+    struct RTCPointQuery pq = {(float)q.p[0], (float)q.p[1], (float)q.p[2], 0,
+                               max_dist > 0 ? (float)max_dist : INFINITY};
+    struct RTCPointQueryContext ctx;
+    rtcInitPointQueryContext(&ctx);
+    rtcPointQuery(ix->scene, &pq, &ctx, NULL, &q);
+    if (q.count == 0 || (max_dist > 0 && d2 > max_dist * max_dist)) id = -1;
+    idx[i] = id;
+    if (dist) dist[i] = id >= 0 ? sqrt(d2) : INFINITY;
+  }
+}
+
+void km__point_index_free(km__point_index **ix) {
+  if (!ix || !*ix) return;
+  rtcReleaseScene((*ix)->scene);
+  free(*ix);
+  *ix = NULL;
+}
+
+static void covariance(const double *P, const int32_t *ids, size_t m, double c[3], double C[9]) {
+  c[0] = c[1] = c[2] = 0;
+  for (size_t j = 0; j < m; ++j)
+    for (int a = 0; a < 3; ++a)
+      c[a] += P[3 * (size_t)ids[j] + a];
+  for (int a = 0; a < 3; ++a)
+    c[a] /= (double)(m ? m : 1);
+  memset(C, 0, 9 * sizeof *C);
+  for (size_t j = 0; j < m; ++j) {
+    const double *p = P + 3 * (size_t)ids[j];
+    double d[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b)
+        C[3 * a + b] += d[a] * d[b];
+  }
+}
+
+km_status km__point_normals(const double *P, size_t n, int k, double *N, km_error *err) {
+  if ((size_t)k > n) k = (int)n;
+  if (k > 64) k = 64;
+  int32_t *idx = km__malloc(n, (size_t)k * sizeof *idx);
+  if (!idx) return km__fail(err, KM_ERR_NOMEM, "normals: out of memory");
+  km_status s = km__knn(P, n, k, idx, err);
+  if (!s) {
+#pragma omp parallel for schedule(static) if (n > KM__OMP_MIN)
+    for (size_t i = 0; i < n; ++i) {
+      double c[3], C[9], ev[3], V[9];
+      covariance(P, idx + (size_t)k * i, (size_t)k, c, C);
+      km__eig3(C, ev, V);
+      N[3 * i + 0] = V[0], N[3 * i + 1] = V[3], N[3 * i + 2] = V[6];
+    }
+  }
+  free(idx);
+  return s;
+}
+
+/* ---------------------------------------------------------------- multiresolution clustering */
+/* Pauly, Gross & Kobbelt 2002, hierarchical clustering: a cluster is split through its
+ * centroid along the direction of greatest variance while it is bigger than max_size or its
+ * surface variation lambda0/(lambda0+lambda1+lambda2) exceeds max_var. Flat regions end as
+ * big clusters, curved ones as small ones. */
+
+typedef struct cluster_ctx {
+  const double *P;
+  int32_t *ids;
+  int32_t *reps;
+  size_t n_reps, cap;
+  size_t max_size;
+  double max_var;
+} cluster_ctx;
+
+static void cluster_rec(cluster_ctx *cx, size_t lo, size_t hi, int depth) {
+  size_t m = hi - lo;
+  if (!m) return;
+  double c[3], C[9], ev[3], V[9];
+  covariance(cx->P, cx->ids + lo, m, c, C);
+  km__eig3(C, ev, V);
+  double tr = ev[0] + ev[1] + ev[2];
+  double var = tr > 0 ? ev[0] / tr : 0;
+  bool split = m > cx->max_size || (var > cx->max_var && m > 4);
+  if (split && depth < 60 && m > 1) {
+    double ax[3] = {V[2], V[5], V[8]};
+    size_t i = lo, j = hi;
+    while (i < j) {
+      const double *p = cx->P + 3 * (size_t)cx->ids[i];
+      double d = (p[0] - c[0]) * ax[0] + (p[1] - c[1]) * ax[1] + (p[2] - c[2]) * ax[2];
+      if (d < 0)
+        ++i;
+      else {
+        --j;
+        int32_t t = cx->ids[i];
+        cx->ids[i] = cx->ids[j];
+        cx->ids[j] = t;
+      }
+    }
+    if (i > lo && i < hi) {
+      cluster_rec(cx, lo, i, depth + 1);
+      cluster_rec(cx, i, hi, depth + 1);
+      return;
+    }
+  }
+  if (cx->n_reps == cx->cap) return;
+  double best = INFINITY;
+  int32_t bi = cx->ids[lo];
+  for (size_t j = lo; j < hi; ++j) {
+    const double *p = cx->P + 3 * (size_t)cx->ids[j];
+    double d = (p[0] - c[0]) * (p[0] - c[0]) + (p[1] - c[1]) * (p[1] - c[1]) +
+               (p[2] - c[2]) * (p[2] - c[2]);
+    if (d < best) best = d, bi = cx->ids[j];
+  }
+  cx->reps[cx->n_reps++] = bi;
+}
+
+km_status km__cluster_points(const double *P, size_t n, size_t target, int32_t **reps,
+                             size_t *n_reps, km_error *err) {
+  *reps = NULL;
+  *n_reps = 0;
+  if (!n) return KM_OK;
+  if (target < 1) target = 1;
+  cluster_ctx cx = {.P = P};
+  cx.ids = km__malloc(n, sizeof *cx.ids);
+  cx.reps = km__malloc(n, sizeof *cx.reps);
+  if (!cx.ids || !cx.reps) {
+    free(cx.ids);
+    free(cx.reps);
+    return km__fail(err, KM_ERR_NOMEM, "clustering: out of memory");
+  }
+  cx.cap = n;
+  /* Size bound and curvature bound chosen together: about half the clusters come from the
+   * size bound, the rest from curvature; the variation threshold is searched so that the
+   * count lands near target. */
+  double lo = 0.0005, hi = 0.2;
+  for (int it = 0; it < 12; ++it) {
+    cx.max_size = (size_t)(2.0 * (double)n / (double)target) + 1;
+    cx.max_var = sqrt(lo * hi);
+    cx.n_reps = 0;
+    for (size_t i = 0; i < n; ++i)
+      cx.ids[i] = (int32_t)i;
+    cluster_rec(&cx, 0, n, 0);
+    if (cx.n_reps > target * 11 / 10)
+      lo = cx.max_var;
+    else if (cx.n_reps < target * 9 / 10)
+      hi = cx.max_var;
+    else
+      break;
+  }
+  free(cx.ids);
+  *reps = cx.reps;
+  *n_reps = cx.n_reps;
+  return KM_OK;
+}
+
+/* ---------------------------------------------------------------- Horn 1987 */
+
+km_status km_absolute_orientation(const double *A, const double *B, size_t n, bool with_scale,
+                                  double R[9], double t[3], double *s, km_error *err) {
+  if (!A || !B || !R || !t || (with_scale && !s))
+    return km__fail(err, KM_ERR_INVALID, "km_absolute_orientation: NULL argument");
+  if (n < 3)
+    return km__fail(err, KM_ERR_INVALID, "km_absolute_orientation: need >= 3 pairs, got %zu", n);
+  double ca[3] = {0}, cb[3] = {0};
+  for (size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k)
+      ca[k] += A[3 * i + k], cb[k] += B[3 * i + k];
+  for (int k = 0; k < 3; ++k)
+    ca[k] /= (double)n, cb[k] /= (double)n;
+  double S[9] = {0}, sa = 0;
+  for (size_t i = 0; i < n; ++i) {
+    double a[3], b[3];
+    for (int k = 0; k < 3; ++k)
+      a[k] = A[3 * i + k] - ca[k], b[k] = B[3 * i + k] - cb[k];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        S[3 * r + c] += a[r] * b[c];
+    sa += dot3(a, a);
+  }
+  /* Horn's symmetric 4x4 N; its top eigenvector is the unit quaternion of the rotation. */
+  double Sxx = S[0], Sxy = S[1], Sxz = S[2], Syx = S[3], Syy = S[4], Syz = S[5], Szx = S[6],
+         Szy = S[7], Szz = S[8];
+  double N[16] = {Sxx + Syy + Szz, Syz - Szy,       Szx - Sxz,        Sxy - Syx,
+                  Syz - Szy,       Sxx - Syy - Szz, Sxy + Syx,        Szx + Sxz,
+                  Szx - Sxz,       Sxy + Syx,       -Sxx + Syy - Szz, Syz + Szy,
+                  Sxy - Syx,       Szx + Sxz,       Syz + Szy,        -Sxx - Syy + Szz};
+  double w[4];
+  if (LAPACKE_dsyev(LAPACK_COL_MAJOR, 'V', 'U', 4, N, 4, w) != 0)
+    return km__fail(err, KM_ERR_NO_CONVERGENCE, "km_absolute_orientation: dsyev failed");
+  double scale_ref = fabs(w[3]) + fabs(w[0]);
+  if (!(sa > 0) || !(scale_ref > 0) || (w[3] - w[2]) < 1e-12 * scale_ref)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "km_absolute_orientation: points are collinear or coincident");
+  double q0 = N[12], qx = N[13], qy = N[14], qz = N[15];
+  R[0] = q0 * q0 + qx * qx - qy * qy - qz * qz;
+  R[1] = 2 * (qx * qy - q0 * qz);
+  R[2] = 2 * (qx * qz + q0 * qy);
+  R[3] = 2 * (qy * qx + q0 * qz);
+  R[4] = q0 * q0 - qx * qx + qy * qy - qz * qz;
+  R[5] = 2 * (qy * qz - q0 * qx);
+  R[6] = 2 * (qz * qx - q0 * qy);
+  R[7] = 2 * (qz * qy + q0 * qx);
+  R[8] = q0 * q0 - qx * qx - qy * qy + qz * qz;
+  double sc = 1;
+  if (with_scale) {
+    /* least squares scale with R fixed: sum b.(R a) / sum |a|^2 */
+    double num = 0;
+    for (size_t i = 0; i < n; ++i) {
+      double a[3], b[3];
+      for (int k = 0; k < 3; ++k)
+        a[k] = A[3 * i + k] - ca[k], b[k] = B[3 * i + k] - cb[k];
+      for (int r = 0; r < 3; ++r)
+        num += b[r] * (R[3 * r] * a[0] + R[3 * r + 1] * a[1] + R[3 * r + 2] * a[2]);
+    }
+    sc = num / sa;
+    *s = sc;
+  } else if (s) {
+    *s = 1;
+  }
+  for (int r = 0; r < 3; ++r)
+    t[r] = cb[r] - sc * (R[3 * r] * ca[0] + R[3 * r + 1] * ca[1] + R[3 * r + 2] * ca[2]);
+  return KM_OK;
+}

@@ -1,0 +1,53 @@
+/* Private geometry for point cloud reconstruction: closest points on a triangle mesh and
+ * k nearest neighbours (both through Embree point queries), point normals, multiresolution
+ * clustering. */
+#ifndef KM_RECON_RECON_H
+#define KM_RECON_RECON_H
+
+#include "internal.h"
+
+/* Below this many queries a parallel region costs more than it saves (fork/join and the
+ * threads' spin-wait, measured on the 2-core CI machine). */
+#define KM__OMP_MIN 16384
+
+/* Process-wide Embree device (created once; NULL when Embree cannot start). */
+void *km__embree_device(km_error *err);
+
+/* Closest-point structure over a triangle mesh whose positions change between queries. */
+typedef struct km__surface km__surface;
+km_status km__surface_create(const double *V, size_t nv, const int32_t *F, size_t nf,
+                             km__surface **out, km_error *err);
+/* New positions (same count), BVH refit. V must stay alive until the next update. */
+void km__surface_update(km__surface *s, const double *V);
+/* For each query point: closest triangle, barycentrics (3 per point) and distance. Points
+ * farther than max_dist (<= 0: unlimited) get tri = -1. Parallel (OpenMP). */
+void km__surface_closest(const km__surface *s, const double *Q, size_t n, double max_dist,
+                         int32_t *tri, double *bary, double *dist);
+void km__surface_free(km__surface **s);
+
+/* Closest point on triangle (a,b,c) to p: barycentrics w (3), returns squared distance. */
+double km__closest_on_triangle(const double *p, const double *a, const double *b, const double *c,
+                               double *w);
+
+/* k nearest neighbours (the point itself included) of every point: idx n*k. */
+km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err);
+/* Nearest point of a fixed cloud (Embree user-geometry BVH, as km__knn). */
+typedef struct km__point_index km__point_index;
+km_status km__point_index_create(const double *P, size_t n, km__point_index **out, km_error *err);
+/* idx[i] = nearest point to Q[i] within max_dist (-1 if none), dist[i] its distance. */
+void km__point_index_nearest(const km__point_index *ix, const double *Q, size_t nq, double max_dist,
+                             int32_t *idx, double *dist);
+void km__point_index_free(km__point_index **ix);
+
+/* Unit normals by PCA over the k neighbours (unoriented: sign arbitrary). N n*3. */
+km_status km__point_normals(const double *P, size_t n, int k, double *N, km_error *err);
+/* Pauly et al. 2002 hierarchical clustering: splits while a cluster is larger than max_size
+ * or curved (surface variation > max_var). Returns representative indices (the point
+ * nearest each cluster centroid), about `target` of them. *reps allocated. */
+km_status km__cluster_points(const double *P, size_t n, size_t target, int32_t **reps,
+                             size_t *n_reps, km_error *err);
+
+/* Symmetric 3x3 eigen-decomposition (ascending), LAPACKE_dsyev. A row-major, vecs columns. */
+void km__eig3(const double A[9], double evals[3], double evecs[9]);
+
+#endif

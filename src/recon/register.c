@@ -1,0 +1,1350 @@
+/* Template registration to point clouds (Park & Lim 2014, after Allen, Curless & Popovic
+ * 2003): Horn similarity from features, per-vertex affine registration, skeletal motion by
+ * L-BFGS, surface refinement. */
+#include "recon/recon.h"
+
+#include <cholmod.h>
+#include <float.h>
+#include <lbfgs.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---------------------------------------------------------------- small 3x3 helpers */
+
+static void mat_mul(const double *A, const double *B, double *C) {
+  double T[9];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      T[3 * r + c] = A[3 * r] * B[c] + A[3 * r + 1] * B[3 + c] + A[3 * r + 2] * B[6 + c];
+  memcpy(C, T, sizeof T);
+}
+static void mat_vec(const double *A, const double *x, double *y) {
+  double t[3];
+  for (int r = 0; r < 3; ++r)
+    t[r] = A[3 * r] * x[0] + A[3 * r + 1] * x[1] + A[3 * r + 2] * x[2];
+  memcpy(y, t, sizeof t);
+}
+static void mat_tvec(const double *A, const double *x, double *y) {
+  double t[3];
+  for (int c = 0; c < 3; ++c)
+    t[c] = A[c] * x[0] + A[3 + c] * x[1] + A[6 + c] * x[2];
+  memcpy(y, t, sizeof t);
+}
+static void cross(const double *a, const double *b, double *c) {
+  double t[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  memcpy(c, t, sizeof t);
+}
+static void rodrigues(const double *r, double *R) {
+  double th = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+  double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0}, K2[9];
+  mat_mul(K, K, K2);
+  double a, b;
+  if (th < 1e-6)
+    a = 1 - th * th / 6, b = 0.5 - th * th / 24;
+  else
+    a = sin(th) / th, b = (1 - cos(th)) / (th * th);
+  for (int i = 0; i < 9; ++i)
+    R[i] = (i % 4 == 0) + a * K[i] + b * K2[i];
+}
+/* Nearest rotation by Gram-Schmidt on the rows: products of rotations drift off SO(3) in
+ * floating point, and the constant-velocity prediction would amplify the drift. */
+static void orthonormalize(double *R) {
+  double *a = R, *b = R + 3, *c = R + 6;
+  double l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+  if (!(l > 0)) {
+    memset(R, 0, 9 * sizeof *R);
+    R[0] = R[4] = R[8] = 1;
+    return;
+  }
+  for (int k = 0; k < 3; ++k)
+    a[k] /= l;
+  double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  for (int k = 0; k < 3; ++k)
+    b[k] -= d * a[k];
+  l = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+  if (!(l > 0)) {
+    memset(R, 0, 9 * sizeof *R);
+    R[0] = R[4] = R[8] = 1;
+    return;
+  }
+  for (int k = 0; k < 3; ++k)
+    b[k] /= l;
+  cross(a, b, c);
+}
+
+/* Right Jacobian of SO(3): exp(r + d) ~ exp(r) exp(Jr(r) d). */
+static void right_jacobian(const double *r, double *J) {
+  double th = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+  double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0}, K2[9];
+  mat_mul(K, K, K2);
+  double a, b;
+  if (th < 1e-5)
+    a = 0.5 - th * th / 24, b = 1.0 / 6 - th * th / 120;
+  else
+    a = (1 - cos(th)) / (th * th), b = (th - sin(th)) / (th * th * th);
+  for (int i = 0; i < 9; ++i)
+    J[i] = (i % 4 == 0) - a * K[i] + b * K2[i];
+}
+
+/* ---------------------------------------------------------------- the reconstructor */
+
+struct km_recon {
+  km_recon_options o;
+  size_t nv, nf, nj, ne;
+  km_mesh tmpl;        /* template (copied) */
+  int32_t *parents;    /* nj */
+  double *tmpl_joints; /* nj*3 template rest joints */
+  km_skin skin;        /* copied */
+  char **names;
+  int32_t *edges;      /* ne*2, i < j */
+  int32_t *face_edges; /* nf*3: edge index of (v0,v1), (v1,v2), (v2,v0) */
+  /* affine solver: 4 unknowns per vertex and coordinate, 3 right-hand sides sharing one
+   * CHOLMOD factor of the 4#V x 4#V SPD matrix */
+  cholmod_common cc;
+  cholmod_sparse *M;
+  cholmod_factor *L;
+  double *blocks;     /* (nv + ne) * 16 accumulators: diagonal blocks then edge blocks */
+  int64_t *block_pos; /* (nv + ne) * 16 positions in M->x (-1: lower triangle) */
+  double *rhs;        /* 4nv*3 */
+  double *sol;        /* 4nv*3 */
+  /* registration state */
+  bool have_base;
+  double *base;                  /* nv*3 registered first frame (template for later frames) */
+  double *base_joints;           /* nj*3 */
+  double *Lrot, *Lprev, *Lprev2; /* nj*9 local rotations relative to base */
+  double troot[3], tprev[3], tprev2[3];
+  size_t frame;
+  double *global;  /* nv*3 LBS-only surface */
+  double *surface; /* nv*3 refined */
+  double *joints;  /* nj*3 current joints */
+  double *G;       /* nj*12 current joint transforms (world, from base) */
+  double *work;    /* nv*3 scratch */
+  km__surface *query;
+  double err_hist[8];
+  size_t n_hist;
+  /* per-frame data (capacity grows) */
+  size_t pcap;
+  int32_t *ptri;
+  double *pbary, *pdist, *pw, *pnormal, *ptsel;
+  int32_t *sel;
+  /* surface -> points term of the skeletal step: per vertex nearest point and weight */
+  int32_t *vnear;
+  double *vw, *vdist, *vn;
+};
+
+static void opt_defaults(km_recon_options *o) {
+  if (!o->coarse_points) o->coarse_points = 2000;
+  if (o->knn <= 0) o->knn = 10;
+  if (o->first_iterations <= 0) o->first_iterations = 12;
+  if (o->refine_iterations <= 0) o->refine_iterations = 4;
+  if (o->skeleton_iterations <= 0) o->skeleton_iterations = 6;
+  if (o->w_data <= 0) o->w_data = 1;
+  if (o->w_feature <= 0) o->w_feature = 10;
+  if (o->w_smooth <= 0) o->w_smooth = 0.05;
+  if (o->w_pose <= 0) o->w_pose = 3e-4;
+  if (o->outlier_scale <= 0) o->outlier_scale = 3;
+  if (o->filter_radius == 0) o->filter_radius = 2;
+  if (o->filter_sigma <= 0) o->filter_sigma = 1;
+}
+
+static int cmp_edge(const void *a, const void *b) {
+  const int32_t *x = a, *y = b;
+  if (x[0] != y[0]) return x[0] < y[0] ? -1 : 1;
+  return (x[1] > y[1]) - (x[1] < y[1]);
+}
+
+static int64_t find_edge(const km_recon *r, int32_t i, int32_t j) {
+  if (i > j) {
+    int32_t t = i;
+    i = j;
+    j = t;
+  }
+  size_t lo = 0, hi = r->ne;
+  while (lo < hi) {
+    size_t m = (lo + hi) / 2;
+    const int32_t *e = r->edges + 2 * m;
+    if (e[0] < i || (e[0] == i && e[1] < j))
+      lo = m + 1;
+    else
+      hi = m;
+  }
+  if (lo < r->ne && r->edges[2 * lo] == i && r->edges[2 * lo + 1] == j) return (int64_t)lo;
+  return -1;
+}
+
+/* Builds the edge list and the CSC pattern (upper triangle, stype 1) of the block system. */
+static km_status build_system(km_recon *r, km_error *err) {
+  size_t nf = r->nf, nv = r->nv;
+  int32_t *e = km__malloc(nf * 3, 2 * sizeof *e);
+  if (!e) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  for (size_t f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) {
+      int32_t a = r->tmpl.F[3 * f + k], b = r->tmpl.F[3 * f + (k + 1) % 3];
+      e[6 * f + 2 * k] = a < b ? a : b;
+      e[6 * f + 2 * k + 1] = a < b ? b : a;
+    }
+  qsort(e, nf * 3, 2 * sizeof *e, cmp_edge);
+  size_t ne = 0;
+  for (size_t i = 0; i < nf * 3; ++i) {
+    if (e[2 * i] == e[2 * i + 1]) continue;
+    if (ne && e[2 * ne - 2] == e[2 * i] && e[2 * ne - 1] == e[2 * i + 1]) continue;
+    e[2 * ne] = e[2 * i], e[2 * ne + 1] = e[2 * i + 1];
+    ++ne;
+  }
+  r->edges = e;
+  r->ne = ne;
+  r->face_edges = km__malloc(nf, 3 * sizeof *r->face_edges);
+  if (!r->face_edges) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  for (size_t f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k)
+      r->face_edges[3 * f + k] =
+          (int32_t)find_edge(r, r->tmpl.F[3 * f + k], r->tmpl.F[3 * f + (k + 1) % 3]);
+  /* column block j holds row blocks i <= j: edges (i, j) with i < j, then the diagonal */
+  size_t *cnt = calloc(nv, sizeof *cnt);
+  if (!cnt) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  for (size_t k = 0; k < ne; ++k)
+    ++cnt[e[2 * k + 1]];
+  size_t n = 4 * nv;
+  size_t nnz = 16 * ne + 10 * nv;
+  r->M = cholmod_allocate_sparse(n, n, nnz, 1, 1, 1, CHOLMOD_REAL, &r->cc);
+  r->blocks = km__malloc(nv + ne, 16 * sizeof(double));
+  r->block_pos = km__malloc(nv + ne, 16 * sizeof(int64_t));
+  size_t *colstart = km__malloc(nv + 1, sizeof *colstart);
+  size_t *fill = calloc(nv, sizeof *fill);
+  if (!r->M || !r->blocks || !r->block_pos || !colstart || !fill) {
+    free(cnt);
+    free(colstart);
+    free(fill);
+    return km__fail(err, KM_ERR_NOMEM, "affine system: out of memory (%zu unknowns)", n);
+  }
+  int *Mp = r->M->p, *Mi = r->M->i;
+  /* Per column block j: (cnt[j] edge blocks) * 4 rows + diagonal block rows 0..cc */
+  size_t pos = 0;
+  for (size_t j = 0; j < nv; ++j) {
+    colstart[j] = pos;
+    for (int c = 0; c < 4; ++c)
+      pos += 4 * cnt[j] + (size_t)c + 1;
+  }
+  colstart[nv] = pos;
+  /* edges sorted by (i, j): for a fixed j, its i's come in ascending order as k increases */
+  for (size_t k = 0; k < ne; ++k) {
+    size_t i = (size_t)e[2 * k], j = (size_t)e[2 * k + 1];
+    size_t slot = fill[j]++;
+    for (int c = 0; c < 4; ++c) {
+      size_t colbase = colstart[j];
+      for (int cc2 = 0; cc2 < c; ++cc2)
+        colbase += 4 * cnt[j] + (size_t)cc2 + 1;
+      for (int rr = 0; rr < 4; ++rr) {
+        size_t p = colbase + 4 * slot + (size_t)rr;
+        Mi[p] = (int)(4 * i + (size_t)rr);
+        r->block_pos[16 * (nv + k) + 4 * rr + c] = (int64_t)p;
+      }
+    }
+  }
+  for (size_t j = 0; j < nv; ++j) {
+    size_t colbase = colstart[j];
+    for (int c = 0; c < 4; ++c) {
+      Mp[4 * j + (size_t)c] = (int)colbase;
+      for (int rr = 0; rr < 4; ++rr) {
+        if (rr <= c) {
+          size_t p = colbase + 4 * cnt[j] + (size_t)rr;
+          Mi[p] = (int)(4 * j + (size_t)rr);
+          r->block_pos[16 * j + 4 * rr + c] = (int64_t)p;
+        } else {
+          r->block_pos[16 * j + 4 * rr + c] = -1;
+        }
+      }
+      colbase += 4 * cnt[j] + (size_t)c + 1;
+    }
+  }
+  Mp[n] = (int)pos;
+  free(cnt);
+  free(colstart);
+  free(fill);
+  memset(r->M->x, 0, pos * sizeof(double));
+  for (size_t j = 0; j < nv; ++j)
+    for (int c = 0; c < 4; ++c)
+      ((double *)r->M->x)[r->block_pos[16 * j + 5 * c]] = 1;
+  r->L = cholmod_analyze(r->M, &r->cc);
+  if (!r->L || r->cc.status != CHOLMOD_OK)
+    return km__fail(err, KM_ERR_NOMEM, "CHOLMOD analyze failed (status %d)", r->cc.status);
+  r->rhs = km__malloc(n, 3 * sizeof(double));
+  r->sol = km__malloc(n, 3 * sizeof(double));
+  if (!r->rhs || !r->sol) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  return KM_OK;
+}
+
+void km_recon_free(km_recon **rp) {
+  if (!rp || !*rp) return;
+  km_recon *r = *rp;
+  km_mesh_free(&r->tmpl);
+  free(r->parents);
+  free(r->tmpl_joints);
+  free(r->skin.joints);
+  free(r->skin.weights);
+  if (r->names)
+    for (size_t j = 0; j < r->nj; ++j)
+      free(r->names[j]);
+  free(r->names);
+  free(r->edges);
+  free(r->face_edges);
+  if (r->L) cholmod_free_factor(&r->L, &r->cc);
+  if (r->M) cholmod_free_sparse(&r->M, &r->cc);
+  cholmod_finish(&r->cc);
+  free(r->blocks);
+  free(r->block_pos);
+  free(r->rhs);
+  free(r->sol);
+  free(r->base);
+  free(r->base_joints);
+  free(r->Lrot);
+  free(r->Lprev);
+  free(r->Lprev2);
+  free(r->global);
+  free(r->surface);
+  free(r->joints);
+  free(r->G);
+  free(r->work);
+  km__surface_free(&r->query);
+  free(r->ptri);
+  free(r->pbary);
+  free(r->pdist);
+  free(r->pw);
+  free(r->pnormal);
+  free(r->ptsel);
+  free(r->sel);
+  free(r->vnear);
+  free(r->vw);
+  free(r->vdist);
+  free(r->vn);
+  free(r);
+  *rp = NULL;
+}
+
+km_status km_recon_create(const km_character *c, const km_recon_options *opt, km_recon **out,
+                          km_error *err) {
+  if (!c || !out) return km__fail(err, KM_ERR_INVALID, "km_recon_create: NULL argument");
+  *out = NULL;
+  const km_mesh *m = &c->mesh;
+  if (!m->n_faces || m->n_vertices < 4)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH, "km_recon_create: template needs faces");
+  if (c->skin.n_vertices != m->n_vertices || !c->skin.joints || !c->skin.weights)
+    return km__fail(err, KM_ERR_INVALID, "km_recon_create: skin has %zu vertices, mesh %zu",
+                    c->skin.n_vertices, m->n_vertices);
+  size_t nj = c->skeleton.n_joints;
+  if (!nj || !c->skeleton.parents || !c->skeleton.rest)
+    return km__fail(err, KM_ERR_INVALID, "km_recon_create: template has no skeleton");
+  for (size_t j = 0; j < nj; ++j)
+    if (c->skeleton.parents[j] >= (int32_t)j || (j == 0) != (c->skeleton.parents[j] < 0))
+      return km__fail(err, KM_ERR_INVALID,
+                      "km_recon_create: joint %zu: parent %d must precede it (one root, first)", j,
+                      c->skeleton.parents[j]);
+  for (size_t i = 0; i < 4 * m->n_vertices; ++i)
+    if (c->skin.joints[i] >= (int32_t)nj)
+      return km__fail(err, KM_ERR_INVALID, "km_recon_create: skin joint %d out of range",
+                      c->skin.joints[i]);
+  km_recon *r = calloc(1, sizeof *r);
+  if (!r) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  cholmod_start(&r->cc);
+  r->cc.print = 0; /* the library never prints; failures come back as km_status */
+  r->cc.supernodal = CHOLMOD_AUTO;
+  r->o = opt ? *opt : (km_recon_options){0};
+  opt_defaults(&r->o);
+  km_status s = km_mesh_copy(m, &r->tmpl, err);
+  if (s) {
+    km_recon_free(&r);
+    return s;
+  }
+  for (size_t i = 0; i < 3 * m->n_faces; ++i)
+    if (m->F[i] < 0 || (size_t)m->F[i] >= m->n_vertices) {
+      km_recon_free(&r);
+      return km__fail(err, KM_ERR_INVALID, "km_recon_create: face index %d out of range", m->F[i]);
+    }
+  r->nv = m->n_vertices, r->nf = m->n_faces, r->nj = nj;
+  size_t nv = r->nv;
+  r->parents = km__malloc(nj, sizeof *r->parents);
+  r->tmpl_joints = km__malloc(nj, 3 * sizeof(double));
+  r->names = calloc(nj, sizeof *r->names);
+  r->skin.n_vertices = nv;
+  r->skin.joints = km__malloc(nv, 4 * sizeof(int32_t));
+  r->skin.weights = km__malloc(nv, 4 * sizeof(double));
+  r->base = km__malloc(nv, 3 * sizeof(double));
+  r->base_joints = km__malloc(nj, 3 * sizeof(double));
+  r->Lrot = km__malloc(nj, 9 * sizeof(double));
+  r->Lprev = km__malloc(nj, 9 * sizeof(double));
+  r->Lprev2 = km__malloc(nj, 9 * sizeof(double));
+  r->global = km__malloc(nv, 3 * sizeof(double));
+  r->surface = km__malloc(nv, 3 * sizeof(double));
+  r->work = km__malloc(nv * 3 > nj * 12 ? nv * 3 : nj * 12, sizeof(double));
+  r->joints = km__malloc(nj, 3 * sizeof(double));
+  r->G = km__malloc(nj, 12 * sizeof(double));
+  r->vnear = km__malloc(nv, sizeof *r->vnear);
+  r->vw = km__malloc(nv, sizeof(double));
+  r->vdist = km__malloc(nv, sizeof(double));
+  r->vn = km__malloc(nv, 3 * sizeof(double));
+  if (!r->vnear || !r->vw || !r->vdist || !r->vn || !r->parents || !r->tmpl_joints || !r->names ||
+      !r->skin.joints || !r->skin.weights || !r->base || !r->base_joints || !r->Lrot || !r->Lprev ||
+      !r->Lprev2 || !r->global || !r->surface || !r->work || !r->joints || !r->G) {
+    km_recon_free(&r);
+    return km__fail(err, KM_ERR_NOMEM, "km_recon_create: out of memory");
+  }
+  memcpy(r->parents, c->skeleton.parents, nj * sizeof *r->parents);
+  memcpy(r->tmpl_joints, c->skeleton.rest, nj * 3 * sizeof(double));
+  for (size_t j = 0; j < nj; ++j)
+    r->names[j] =
+        strdup(c->skeleton.names && c->skeleton.names[j] ? c->skeleton.names[j] : "joint");
+  memcpy(r->skin.joints, c->skin.joints, nv * 4 * sizeof(int32_t));
+  memcpy(r->skin.weights, c->skin.weights, nv * 4 * sizeof(double));
+  memcpy(r->surface, m->V, nv * 3 * sizeof(double));
+  memcpy(r->global, m->V, nv * 3 * sizeof(double));
+  memcpy(r->joints, c->skeleton.rest, nj * 3 * sizeof(double));
+  s = build_system(r, err);
+  if (!s) s = km__surface_create(r->surface, nv, r->tmpl.F, r->nf, &r->query, err);
+  if (s) {
+    km_recon_free(&r);
+    return s;
+  }
+  *out = r;
+  return KM_OK;
+}
+
+const double *km_recon_surface(const km_recon *r) { return r ? r->surface : NULL; }
+const double *km_recon_global(const km_recon *r) { return r ? r->global : NULL; }
+const double *km_recon_joints(const km_recon *r) { return r ? r->joints : NULL; }
+const km_mesh *km_recon_template(const km_recon *r) { return r ? &r->tmpl : NULL; }
+
+/* ---------------------------------------------------------------- correspondences */
+
+static km_status reserve_points(km_recon *r, size_t n, km_error *err) {
+  if (n <= r->pcap) return KM_OK;
+  free(r->ptri), free(r->pbary), free(r->pdist), free(r->pw), free(r->pnormal), free(r->ptsel),
+      free(r->sel);
+  r->ptri = km__malloc(n, sizeof *r->ptri);
+  r->pbary = km__malloc(n, 3 * sizeof(double));
+  r->pdist = km__malloc(n, sizeof(double));
+  r->pw = km__malloc(n, sizeof(double));
+  r->pnormal = km__malloc(n, 3 * sizeof(double));
+  r->ptsel = km__malloc(n, 3 * sizeof(double));
+  r->sel = km__malloc(n, sizeof *r->sel);
+  r->pcap = n;
+  if (!r->ptri || !r->pbary || !r->pdist || !r->pw || !r->pnormal || !r->ptsel || !r->sel) {
+    r->pcap = 0;
+    return km__fail(err, KM_ERR_NOMEM, "out of memory for %zu points", n);
+  }
+  return KM_OK;
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+/* Closest points of Q (n) on surface X, then robust weights: Geman-McClure with scale
+ * c = outlier_scale * 1.4826 * median residual, floored (at 3 mm in the end, so sensor noise
+ * is never treated as outliers; larger in early rounds, so a limb that moved far while the
+ * rest stood still is not mistaken for outliers), zero beyond 4c, and zero where the point normal
+ * (if given) and the face normal are more than 60 degrees apart (a point on the inner thigh must
+ * not pull the other leg). Returns the sum of weights. */
+static double correspond(km_recon *r, const double *X, const double *Q, const double *NQ, size_t n,
+                         double max_dist, double floor) {
+  km__surface_update(r->query, X);
+  km__surface_closest(r->query, Q, n, max_dist, r->ptri, r->pbary, r->pdist);
+  size_t m = 0;
+  for (size_t i = 0; i < n; ++i)
+    if (r->ptri[i] >= 0) r->pw[m++] = r->pdist[i];
+  double med = 0;
+  if (m) {
+    qsort(r->pw, m, sizeof(double), cmp_double);
+    med = r->pw[m / 2];
+  }
+  double c = r->o.outlier_scale * 1.4826 * med;
+  if (c < floor) c = floor;
+  double wsum = 0;
+  for (size_t i = 0; i < n; ++i) {
+    double w = 0;
+    if (r->ptri[i] >= 0 && r->pdist[i] < 4 * c) {
+      double q = r->pdist[i] / c;
+      w = 1.0 / ((1 + q * q) * (1 + q * q));
+      {
+        const int32_t *t = r->tmpl.F + 3 * (size_t)r->ptri[i];
+        const double *a = X + 3 * (size_t)t[0], *b = X + 3 * (size_t)t[1],
+                     *cc = X + 3 * (size_t)t[2];
+        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+               v[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]}, fn[3];
+        cross(u, v, fn);
+        double l = sqrt(fn[0] * fn[0] + fn[1] * fn[1] + fn[2] * fn[2]);
+        for (int a = 0; a < 3; ++a)
+          r->pnormal[3 * i + a] = l > 0 ? fn[a] / l : 0;
+        if (NQ) {
+          const double *pn = NQ + 3 * i;
+          if (l > 0 && fabs(fn[0] * pn[0] + fn[1] * pn[1] + fn[2] * pn[2]) < 0.5 * l) w = 0;
+        }
+      }
+    }
+    r->pw[i] = w;
+    wsum += w;
+  }
+  return wsum;
+}
+
+/* ---------------------------------------------------------------- affine registration */
+
+/* Solves for per-vertex affine A_i (x_i = c + A_i [v_i - c; 1]) minimising
+ *   w_d/sum(w) sum_p w_p |p - sum_b beta_b x_b|^2 + w_f/nf sum |q_k - x_{v_k}|^2
+ *   + w_s/ne sum_edges |A_i - A_j|_F^2 + w_id/nv sum |A_i - [I 0]|_F^2
+ * for fixed correspondences: one linear least-squares (Gauss-Newton) step. The tiny w_id
+ * keeps the system SPD where neither data nor features reach. X receives the result. */
+static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, size_t nq, double wd,
+                              const km_recon_feature *feat, size_t nfeat, double wf, double *X,
+                              km_error *err) {
+  size_t nv = r->nv, ne = r->ne;
+  double c[3] = {0, 0, 0};
+  for (size_t i = 0; i < nv; ++i)
+    for (int a = 0; a < 3; ++a)
+      c[a] += Vb[3 * i + a];
+  for (int a = 0; a < 3; ++a)
+    c[a] /= (double)nv;
+  memset(r->blocks, 0, (nv + ne) * 16 * sizeof(double));
+  memset(r->rhs, 0, 4 * nv * 3 * sizeof(double));
+  size_t n4 = 4 * nv;
+#define H(i, k) ((k) < 3 ? Vb[3 * (size_t)(i) + (k)] - c[k] : 1.0)
+  double wsum = 0;
+  for (size_t p = 0; p < nq; ++p)
+    wsum += r->pw[p];
+  if (wd > 0 && wsum > 0) {
+    double scale = wd / wsum;
+    for (size_t p = 0; p < nq; ++p) {
+      double w = r->pw[p] * scale;
+      if (w <= 0 || r->ptri[p] < 0) continue;
+      size_t f = (size_t)r->ptri[p];
+      const int32_t *t = r->tmpl.F + 3 * f;
+      const double *be = r->pbary + 3 * p;
+      double J[3][4];
+      for (int b = 0; b < 3; ++b)
+        for (int k = 0; k < 4; ++k)
+          J[b][k] = be[b] * H(t[b], k);
+      for (int b = 0; b < 3; ++b) {
+        for (int k = 0; k < 4; ++k)
+          for (int a = 0; a < 3; ++a)
+            r->rhs[a * n4 + 4 * (size_t)t[b] + k] += w * J[b][k] * (Q[3 * p + a] - c[a]);
+        for (int b2 = 0; b2 < 3; ++b2) {
+          if (t[b] == t[b2]) {
+            if (b2 != b) continue;
+            double *B = r->blocks + 16 * (size_t)t[b];
+            for (int k = 0; k < 4; ++k)
+              for (int l = 0; l < 4; ++l)
+                B[4 * k + l] += w * J[b][k] * J[b][l];
+          } else if (t[b] < t[b2]) {
+            /* edge block stores rows of the smaller vertex, columns of the larger */
+            int ek = (b2 == (b + 1) % 3) ? b : b2;
+            int32_t e = r->face_edges[3 * f + ek];
+            if (e < 0) continue;
+            double *B = r->blocks + 16 * (nv + (size_t)e);
+            for (int k = 0; k < 4; ++k)
+              for (int l = 0; l < 4; ++l)
+                B[4 * k + l] += w * J[b][k] * J[b2][l];
+          }
+        }
+      }
+    }
+  }
+  if (nfeat && wf > 0) {
+    double w = wf / (double)nfeat;
+    for (size_t k = 0; k < nfeat; ++k) {
+      int32_t v = feat[k].vertex;
+      if (v < 0 || (size_t)v >= nv) continue;
+      double *B = r->blocks + 16 * (size_t)v;
+      for (int a = 0; a < 4; ++a) {
+        for (int b = 0; b < 4; ++b)
+          B[4 * a + b] += w * H(v, a) * H(v, b);
+        for (int d = 0; d < 3; ++d)
+          r->rhs[d * n4 + 4 * (size_t)v + a] += w * H(v, a) * (feat[k].point[d] - c[d]);
+      }
+    }
+  }
+  double ws = r->o.w_smooth / (double)(ne ? ne : 1);
+  for (size_t e = 0; e < ne; ++e) {
+    size_t i = (size_t)r->edges[2 * e], j = (size_t)r->edges[2 * e + 1];
+    for (int k = 0; k < 4; ++k) {
+      r->blocks[16 * i + 5 * k] += ws;
+      r->blocks[16 * j + 5 * k] += ws;
+      r->blocks[16 * (nv + e) + 5 * k] -= ws;
+    }
+  }
+  double wid = 0.01 * ws; /* ~1% of one edge: keeps the system SPD, barely biases it */
+  for (size_t i = 0; i < nv; ++i)
+    for (int k = 0; k < 4; ++k) {
+      r->blocks[16 * i + 5 * k] += wid;
+      if (k < 3) r->rhs[(size_t)k * n4 + 4 * i + (size_t)k] += wid;
+    }
+#undef H
+  double *Mx = r->M->x;
+  for (size_t b = 0; b < nv + ne; ++b)
+    for (int k = 0; k < 16; ++k) {
+      int64_t p = r->block_pos[16 * b + k];
+      if (p >= 0) Mx[p] = r->blocks[16 * b + k];
+    }
+  if (!cholmod_factorize(r->M, r->L, &r->cc) || r->cc.status != CHOLMOD_OK)
+    return km__fail(err, r->cc.status == CHOLMOD_NOT_POSDEF ? KM_ERR_NOT_POSDEF : KM_ERR_NOMEM,
+                    "affine registration: CHOLMOD factorization failed (status %d)", r->cc.status);
+  cholmod_dense B = {.nrow = n4,
+                     .ncol = 3,
+                     .nzmax = n4 * 3,
+                     .d = n4,
+                     .x = r->rhs,
+                     .xtype = CHOLMOD_REAL,
+                     .dtype = CHOLMOD_DOUBLE};
+  cholmod_dense *Xs = cholmod_solve(CHOLMOD_A, r->L, &B, &r->cc);
+  if (!Xs) return km__fail(err, KM_ERR_NOMEM, "affine registration: CHOLMOD solve failed");
+  memcpy(r->sol, Xs->x, n4 * 3 * sizeof(double));
+  cholmod_free_dense(&Xs, &r->cc);
+  for (size_t i = 0; i < nv; ++i) {
+    double h[4] = {Vb[3 * i] - c[0], Vb[3 * i + 1] - c[1], Vb[3 * i + 2] - c[2], 1};
+    for (int a = 0; a < 3; ++a) {
+      const double *A = r->sol + (size_t)a * n4 + 4 * i;
+      double x = c[a] + A[0] * h[0] + A[1] * h[1] + A[2] * h[2] + A[3] * h[3];
+      X[3 * i + a] = isfinite(x) ? x : Vb[3 * i + a];
+    }
+  }
+  return KM_OK;
+}
+
+/* Affine map of a point by the solved A of vertex i (for carrying joints along). */
+static void affine_apply(const km_recon *r, const double *Vb, size_t i, const double *p,
+                         double *out) {
+  size_t nv = r->nv, n4 = 4 * nv;
+  double c[3] = {0, 0, 0};
+  for (size_t k = 0; k < nv; ++k)
+    for (int a = 0; a < 3; ++a)
+      c[a] += Vb[3 * k + a];
+  for (int a = 0; a < 3; ++a)
+    c[a] /= (double)nv;
+  double h[4] = {p[0] - c[0], p[1] - c[1], p[2] - c[2], 1};
+  for (int a = 0; a < 3; ++a) {
+    const double *A = r->sol + (size_t)a * n4 + 4 * i;
+    out[a] = c[a] + A[0] * h[0] + A[1] * h[1] + A[2] * h[2] + A[3] * h[3];
+  }
+}
+
+/* ---------------------------------------------------------------- skeleton: FK and LBS */
+
+/* World transforms G_j (3x4) taking base positions to posed ones, from local rotations
+ * L_j and root translation t: W_j = W_parent L_j, c_j = c_parent + W_parent (J_j - J_parent). */
+static void forward_kinematics(const km_recon *r, const double *Lrot, const double *t, double *W,
+                               double *cj, double *G) {
+  const double *J = r->base_joints;
+  for (size_t j = 0; j < r->nj; ++j) {
+    int32_t p = r->parents[j];
+    if (p < 0) {
+      memcpy(W + 9 * j, Lrot + 9 * j, 9 * sizeof(double));
+      for (int a = 0; a < 3; ++a)
+        cj[3 * j + a] = J[3 * j + a] + t[a];
+    } else {
+      mat_mul(W + 9 * (size_t)p, Lrot + 9 * j, W + 9 * j);
+      double d[3] = {J[3 * j] - J[3 * (size_t)p], J[3 * j + 1] - J[3 * (size_t)p + 1],
+                     J[3 * j + 2] - J[3 * (size_t)p + 2]};
+      mat_vec(W + 9 * (size_t)p, d, d);
+      for (int a = 0; a < 3; ++a)
+        cj[3 * j + a] = cj[3 * (size_t)p + a] + d[a];
+    }
+    /* G_j x = W_j (x - J_j) + c_j */
+    double *Gj = G + 12 * j;
+    double WJ[3];
+    mat_vec(W + 9 * j, J + 3 * j, WJ);
+    for (int rr = 0; rr < 3; ++rr) {
+      for (int cc = 0; cc < 3; ++cc)
+        Gj[4 * rr + cc] = W[9 * j + 3 * rr + cc];
+      Gj[4 * rr + 3] = cj[3 * j + rr] - WJ[rr];
+    }
+  }
+}
+
+/* Serial on purpose: called once per L-BFGS evaluation on a few thousand vertices, where an
+ * OpenMP fork/join costs more than the work. */
+static void lbs_apply(const km_recon *r, const double *G, const double *Vb, double *X) {
+  for (size_t i = 0; i < r->nv; ++i) {
+    double x[3] = {0, 0, 0};
+    const double *v = Vb + 3 * i;
+    for (int k = 0; k < 4; ++k) {
+      int32_t j = r->skin.joints[4 * i + k];
+      double w = r->skin.weights[4 * i + k];
+      if (j < 0 || w == 0) continue;
+      const double *g = G + 12 * (size_t)j;
+      for (int a = 0; a < 3; ++a)
+        x[a] += w * (g[4 * a] * v[0] + g[4 * a + 1] * v[1] + g[4 * a + 2] * v[2] + g[4 * a + 3]);
+    }
+    memcpy(X + 3 * i, x, sizeof x);
+  }
+}
+
+/* ---------------------------------------------------------------- skeleton: L-BFGS */
+
+#define PLANE_MU 0.1
+/* First frame: the pose comes from the features and is only refined by the data, so it is
+ * held closer than later frames (whose reference is a prediction). */
+#define KM__FIRST_FRAME_POSE_WEIGHT 1e-3
+#define S2S_WEIGHT 0.5
+
+typedef struct pose_ctx {
+  km_recon *r;
+  const double *Q; /* points */
+  size_t nq;
+  double wsum;
+  const double *Lref; /* nj*9 rotations the parameters are relative to */
+  const double *tref;
+  double *Lrot, *W, *cj, *G, *X, *gv, *acc; /* scratch */
+  double lambda;
+  const double *NQ;   /* point normals */
+  double vwsum;       /* surface -> points weight sum (0: term off) */
+  const double *xoff; /* n: parameters accumulated in earlier rounds (prediction offset) */
+  const km_recon_feature *feat;
+  size_t nfeat;
+  double wf;
+  bool use_data;
+  int evals;
+} pose_ctx;
+
+static void pose_from_params(pose_ctx *pc, const double *x) {
+  km_recon *r = pc->r;
+  for (size_t j = 0; j < r->nj; ++j) {
+    double E[9];
+    rodrigues(x + 3 + 3 * j, E);
+    mat_mul(pc->Lref + 9 * j, E, pc->Lrot + 9 * j);
+  }
+  double t[3] = {pc->tref[0] + x[0], pc->tref[1] + x[1], pc->tref[2] + x[2]};
+  forward_kinematics(r, pc->Lrot, t, pc->W, pc->cj, pc->G);
+}
+
+static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgsfloatval_t *g,
+                                     const int n, const lbfgsfloatval_t step) {
+  (void)step;
+  pose_ctx *pc = inst;
+  km_recon *r = pc->r;
+  size_t nv = r->nv, nj = r->nj;
+  ++pc->evals;
+  pose_from_params(pc, x);
+  lbs_apply(r, pc->G, r->base, pc->X);
+  memset(pc->gv, 0, nv * 3 * sizeof(double));
+  double E = 0, s = 1.0 / (pc->wsum > 0 ? pc->wsum : 1);
+  for (size_t k = 0; k < pc->nfeat; ++k) {
+    size_t v = (size_t)pc->feat[k].vertex;
+    double w = pc->wf / (double)pc->nfeat;
+    for (int a = 0; a < 3; ++a) {
+      double e = pc->X[3 * v + a] - pc->feat[k].point[a];
+      E += w * e * e;
+      pc->gv[3 * v + a] += 2 * w * e;
+    }
+  }
+  /* surface -> points: pulls template parts towards points they do not yet cover (a limb
+   * that moved away leaves its points closer to another part of the surface) */
+  if (pc->use_data && pc->vwsum > 0) {
+    double sv = S2S_WEIGHT / pc->vwsum;
+    for (size_t v = 0; v < nv; ++v) {
+      double w = r->vw[v] * sv;
+      if (w <= 0) continue;
+      size_t q = (size_t)r->vnear[v];
+      const double *nn = pc->NQ + 3 * q;
+      double e[3] = {pc->X[3 * v] - pc->Q[3 * q], pc->X[3 * v + 1] - pc->Q[3 * q + 1],
+                     pc->X[3 * v + 2] - pc->Q[3 * q + 2]};
+      double en = nn[0] * e[0] + nn[1] * e[1] + nn[2] * e[2];
+      E += w * (en * en + PLANE_MU * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]));
+      for (int a = 0; a < 3; ++a)
+        pc->gv[3 * v + a] += 2 * w * (en * nn[a] + PLANE_MU * e[a]);
+    }
+  }
+  for (size_t p = 0; pc->use_data && p < pc->nq; ++p) {
+    double w = r->pw[p] * s;
+    if (w <= 0) continue;
+    const int32_t *t = r->tmpl.F + 3 * (size_t)r->ptri[p];
+    const double *be = r->pbary + 3 * p;
+    double e[3];
+    for (int a = 0; a < 3; ++a)
+      e[a] = be[0] * pc->X[3 * (size_t)t[0] + a] + be[1] * pc->X[3 * (size_t)t[1] + a] +
+             be[2] * pc->X[3 * (size_t)t[2] + a] - pc->Q[3 * p + a];
+    /* point-to-plane plus a little point-to-point (the face normal is frozen with the
+     * correspondence): converges in far fewer rounds than point-to-point alone */
+    const double *nn = r->pnormal + 3 * p;
+    double en = nn[0] * e[0] + nn[1] * e[1] + nn[2] * e[2];
+    E += w * (en * en + PLANE_MU * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]));
+    double ge[3];
+    for (int a = 0; a < 3; ++a)
+      ge[a] = 2 * w * (en * nn[a] + PLANE_MU * e[a]);
+    for (int b = 0; b < 3; ++b)
+      for (int a = 0; a < 3; ++a)
+        pc->gv[3 * (size_t)t[b] + a] += be[b] * ge[a];
+  }
+  /* per joint: a_k = sum w (G_k v) x g_v, b_k = sum w g_v */
+  double *acc = pc->acc; /* nj*6 */
+  memset(acc, 0, nj * 6 * sizeof(double));
+  for (size_t i = 0; i < nv; ++i) {
+    const double *gvi = pc->gv + 3 * i;
+    if (gvi[0] == 0 && gvi[1] == 0 && gvi[2] == 0) continue;
+    const double *v = r->base + 3 * i;
+    for (int k = 0; k < 4; ++k) {
+      int32_t j = r->skin.joints[4 * i + k];
+      double w = r->skin.weights[4 * i + k];
+      if (j < 0 || w == 0) continue;
+      const double *G = pc->G + 12 * (size_t)j;
+      double y[3], yx[3];
+      for (int a = 0; a < 3; ++a)
+        y[a] = G[4 * a] * v[0] + G[4 * a + 1] * v[1] + G[4 * a + 2] * v[2] + G[4 * a + 3];
+      cross(y, gvi, yx);
+      for (int a = 0; a < 3; ++a)
+        acc[6 * (size_t)j + a] += w * yx[a], acc[6 * (size_t)j + 3 + a] += w * gvi[a];
+    }
+  }
+  /* subtree sums, children after parents */
+  for (size_t j = nj; j-- > 1;) {
+    int32_t p = r->parents[j];
+    for (int a = 0; a < 6; ++a)
+      acc[6 * (size_t)p + a] += acc[6 * j + a];
+  }
+  for (int a = 0; a < 3; ++a)
+    g[a] = acc[3 + a];
+  for (size_t j = 0; j < nj; ++j) {
+    double cb[3], gphi[3], Jr[9], tmp[3];
+    cross(pc->cj + 3 * j, acc + 6 * j + 3, cb);
+    for (int a = 0; a < 3; ++a)
+      gphi[a] = acc[6 * j + a] - cb[a];
+    mat_tvec(pc->W + 9 * j, gphi, tmp);
+    right_jacobian(x + 3 + 3 * j, Jr);
+    mat_tvec(Jr, tmp, g + 3 + 3 * j);
+  }
+  /* small change from the reference pose (the skeleton prediction) */
+  double lam = pc->lambda;
+  for (int k = 0; k < n; ++k) {
+    double wk = k < 3 ? lam * 4 : lam; /* translation in metres: 0.5 m ~ 1 rad */
+    double d = x[k] + pc->xoff[k];
+    E += wk * d * d;
+    g[k] += 2 * wk * d;
+  }
+  return E;
+}
+
+/* Estimates the pose for points Q (with normals NQ) starting from (Lref, tref). Returns the
+ * L-BFGS iterations used; the pose ends in r->Lrot / r->troot, LBS surface in r->global. */
+static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t nq,
+                        const double *Lref, const double *tref, int outer,
+                        const km_recon_feature *feat, size_t nfeat, bool use_data, double lambda,
+                        km_status *status) {
+  size_t nj = r->nj, nv = r->nv;
+  int n = (int)(3 + 3 * nj);
+  lbfgsfloatval_t *x = lbfgs_malloc(n);
+  double *scratch = km__malloc(nj * 9 * 2 + nj * 3 + nj * 12 + nv * 6 + nj * 6, sizeof(double));
+  double *Lcur = km__malloc(nj, 9 * sizeof(double));
+  double *xoff = calloc((size_t)n, sizeof(double));
+  if (!x || !scratch || !Lcur || !xoff) {
+    free(xoff);
+    lbfgs_free(x);
+    free(scratch);
+    free(Lcur);
+    *status = KM_ERR_NOMEM;
+    return 0;
+  }
+  km__point_index *ix = NULL;
+  if (use_data && nq) km__point_index_create(Q, nq, &ix, NULL);
+  pose_ctx pc = {.r = r,
+                 .Q = Q,
+                 .NQ = NQ,
+                 .nq = nq,
+                 .lambda = lambda,
+                 .xoff = xoff,
+                 .feat = feat,
+                 .nfeat = nfeat,
+                 .wf = r->o.w_feature,
+                 .use_data = use_data};
+  pc.Lrot = scratch;
+  pc.W = pc.Lrot + nj * 9;
+  pc.cj = pc.W + nj * 9;
+  pc.G = pc.cj + nj * 3;
+  pc.X = pc.G + nj * 12;
+  pc.gv = pc.X + nv * 3;
+  pc.acc = pc.gv + nv * 3;
+  memcpy(Lcur, Lref, nj * 9 * sizeof(double));
+  double tcur[3] = {tref[0], tref[1], tref[2]};
+  int iters = 0;
+  *status = KM_OK;
+  lbfgs_parameter_t par;
+  lbfgs_parameter_init(&par);
+  par.max_iterations = use_data ? 60 : 300;
+  par.epsilon = 1e-6;
+  par.past = 3;
+  par.delta = 1e-7;
+  /* Each outer round fixes the correspondences (closest points on the current LBS surface)
+   * and optimises the pose around the current estimate; the regulariser keeps it near the
+   * prediction through the accumulated translation (rotations: per round). */
+  for (int it = 0; it < outer; ++it) {
+    pc.Lref = Lcur;
+    pc.tref = tcur;
+    memset(x, 0, (size_t)n * sizeof *x);
+    pose_from_params(&pc, x);
+    lbs_apply(r, pc.G, r->base, pc.X);
+    memcpy(r->work, pc.X, nv * 3 * sizeof(double));
+    double floor_m = fmax(0.003, ldexp(0.1, -it));
+    pc.wsum = use_data ? correspond(r, r->work, Q, NQ, nq, 0.3, floor_m) : 1;
+    pc.vwsum = 0;
+    if (use_data && ix && NQ) {
+      km_mesh cur = {.V = r->work, .F = r->tmpl.F, .n_vertices = nv, .n_faces = r->nf};
+      if (km_vertex_normals(&cur, KM_NORMALS_AREA, r->vn, NULL) == KM_OK) {
+        km__point_index_nearest(ix, r->work, nv, 0.3, r->vnear, r->vdist);
+        size_t m = 0;
+        for (size_t v = 0; v < nv; ++v)
+          if (r->vnear[v] >= 0) r->vw[m++] = r->vdist[v];
+        double med = 0;
+        if (m) {
+          qsort(r->vw, m, sizeof(double), cmp_double);
+          med = r->vw[m / 2];
+        }
+        double c = fmax(r->o.outlier_scale * 1.4826 * med, floor_m);
+        for (size_t v = 0; v < nv; ++v) {
+          double w = 0;
+          /* only towards points the surface does not explain yet (residual > 1 cm): a
+           * vertex of a hidden limb must not be dragged onto points another part covers */
+          if (r->vnear[v] >= 0 && r->vdist[v] < 4 * c && r->pdist[r->vnear[v]] > 0.01) {
+            const double *pn = NQ + 3 * (size_t)r->vnear[v], *vn = r->vn + 3 * v;
+            double q = r->vdist[v] / c;
+            if (fabs(pn[0] * vn[0] + pn[1] * vn[1] + pn[2] * vn[2]) > 0.5)
+              w = 1.0 / ((1 + q * q) * (1 + q * q));
+          }
+          r->vw[v] = w;
+          pc.vwsum += w;
+        }
+      }
+    }
+    if (pc.wsum <= 0) {
+      *status = KM_ERR_NO_CONVERGENCE;
+      break;
+    }
+    lbfgsfloatval_t fx;
+    int ret = lbfgs(n, x, &fx, pose_evaluate, NULL, &pc, &par);
+    if (ret < 0 && ret != LBFGSERR_MAXIMUMITERATION && ret != LBFGSERR_ROUNDING_ERROR &&
+        ret != LBFGSERR_MAXIMUMLINESEARCH && ret != LBFGSERR_MINIMUMSTEP &&
+        ret != LBFGSERR_MAXIMUMSTEP && ret != LBFGSERR_WIDTHTOOSMALL) {
+      *status = KM_ERR_NO_CONVERGENCE;
+      break;
+    }
+    iters += pc.evals;
+    pc.evals = 0;
+    for (size_t j = 0; j < nj; ++j) {
+      double E[9];
+      rodrigues(x + 3 + 3 * j, E);
+      mat_mul(Lcur + 9 * j, E, Lcur + 9 * j);
+      orthonormalize(Lcur + 9 * j);
+    }
+    for (int a = 0; a < 3; ++a)
+      tcur[a] += x[a];
+    /* first-order accumulation of the deviation from the prediction */
+    for (int k = 0; k < n; ++k)
+      xoff[k] += x[k];
+  }
+  memcpy(r->Lrot, Lcur, nj * 9 * sizeof(double));
+  memcpy(r->troot, tcur, sizeof tcur);
+  double *W = pc.W, *cj = pc.cj;
+  forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+  memcpy(r->joints, cj, nj * 3 * sizeof(double));
+  lbs_apply(r, r->G, r->base, r->global);
+  lbfgs_free(x);
+  free(scratch);
+  free(Lcur);
+  free(xoff);
+  km__point_index_free(&ix);
+  return iters;
+}
+
+/* ---------------------------------------------------------------- per-frame driver */
+
+typedef struct frame_data {
+  const double *P; /* full points */
+  size_t n;
+  double *N;  /* normals of P */
+  double *C;  /* coarse points */
+  double *CN; /* coarse normals */
+  size_t nc;
+} frame_data;
+
+static void frame_data_free(frame_data *fd) {
+  free(fd->N);
+  free(fd->C);
+  free(fd->CN);
+}
+
+static km_status frame_prepare(km_recon *r, const double *P, size_t n, frame_data *fd,
+                               km_error *err) {
+  memset(fd, 0, sizeof *fd);
+  fd->P = P;
+  fd->n = n;
+  if (n < 16) return km__fail(err, KM_ERR_INVALID, "frame has %zu points (need >= 16)", n);
+  fd->N = km__malloc(n, 3 * sizeof(double));
+  if (!fd->N) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  km_status s = km__point_normals(P, n, r->o.knn, fd->N, err);
+  if (s) return s;
+  int32_t *reps = NULL;
+  size_t nr = 0;
+  if (n > r->o.coarse_points * 3 / 2) {
+    s = km__cluster_points(P, n, r->o.coarse_points, &reps, &nr, err);
+    if (s) return s;
+  }
+  if (!nr) {
+    fd->C = km__malloc(n, 3 * sizeof(double));
+    fd->CN = km__malloc(n, 3 * sizeof(double));
+    if (!fd->C || !fd->CN) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+    memcpy(fd->C, P, n * 3 * sizeof(double));
+    memcpy(fd->CN, fd->N, n * 3 * sizeof(double));
+    fd->nc = n;
+  } else {
+    fd->C = km__malloc(nr, 3 * sizeof(double));
+    fd->CN = km__malloc(nr, 3 * sizeof(double));
+    if (!fd->C || !fd->CN) {
+      free(reps);
+      return km__fail(err, KM_ERR_NOMEM, "out of memory");
+    }
+    for (size_t i = 0; i < nr; ++i) {
+      memcpy(fd->C + 3 * i, P + 3 * (size_t)reps[i], 3 * sizeof(double));
+      memcpy(fd->CN + 3 * i, fd->N + 3 * (size_t)reps[i], 3 * sizeof(double));
+    }
+    fd->nc = nr;
+    free(reps);
+  }
+  return reserve_points(r, n, err);
+}
+
+/* Mean and max point-to-surface distance (mm) over all points. */
+static void frame_error(km_recon *r, const frame_data *fd, const double *X,
+                        km_recon_frame_stats *st) {
+  km__surface_update(r->query, X);
+  km__surface_closest(r->query, fd->P, fd->n, 0, r->ptri, NULL, r->pdist);
+  double sum = 0, mx = 0;
+  for (size_t i = 0; i < fd->n; ++i) {
+    sum += r->pdist[i];
+    if (r->pdist[i] > mx) mx = r->pdist[i];
+  }
+  st->mean_mm = 1e3 * sum / (double)fd->n;
+  st->max_mm = 1e3 * mx;
+}
+
+/* Surface refinement from Vb (coarse level first, full data for the last two rounds). */
+/* floor0/decay: the robust scale's floor starts at floor0 and shrinks by decay per round
+ * (the first frame starts farther from the data than a tracked frame). */
+static km_status refine(km_recon *r, const frame_data *fd, const double *Vb, int iters,
+                        const km_recon_feature *feat, size_t nfeat, double wf, double floor0,
+                        double decay, int *count, km_error *err) {
+  memcpy(r->surface, Vb, r->nv * 3 * sizeof(double));
+  double prev = INFINITY;
+  for (int it = 0; it < iters; ++it) {
+    bool full = it >= iters - 2;
+    const double *Q = full ? fd->P : fd->C, *NQ = full ? fd->N : fd->CN;
+    size_t nq = full ? fd->n : fd->nc;
+    memcpy(r->work, r->surface, r->nv * 3 * sizeof(double));
+    double ws = correspond(r, r->work, Q, NQ, nq, 0.15, fmax(0.003, floor0 * pow(decay, it)));
+    double mean = 0;
+    for (size_t i = 0; i < nq; ++i)
+      if (r->pw[i] > 0) mean += r->pw[i] * r->pdist[i];
+    mean /= ws > 0 ? ws : 1;
+    km_status s = affine_solve(r, Vb, Q, nq, r->o.w_data, feat, nfeat, wf, r->surface, err);
+    ++*count;
+    if (s) return s;
+    if (!full && fabs(prev - mean) < 1e-5) it = iters - 3 > it ? iters - 3 : it;
+    prev = mean;
+  }
+  return KM_OK;
+}
+
+km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_recon_feature *feat,
+                               size_t nfeat, km_recon_frame_stats *st, km_error *err) {
+  if (!r || (!P && n) || (!feat && nfeat))
+    return km__fail(err, KM_ERR_INVALID, "km_recon_first_frame: NULL argument");
+  double t0 = km__now();
+  km_recon_frame_stats local = {0};
+  if (!st) st = &local;
+  memset(st, 0, sizeof *st);
+  st->points = n;
+  size_t nv = r->nv, nj = r->nj;
+  for (size_t k = 0; k < nfeat; ++k)
+    if (feat[k].vertex < 0 || (size_t)feat[k].vertex >= nv)
+      return km__fail(err, KM_ERR_INVALID, "feature %zu: vertex %d out of range (%zu vertices)", k,
+                      feat[k].vertex, nv);
+  frame_data fd;
+  km_status s = frame_prepare(r, P, n, &fd, err);
+  if (s) {
+    frame_data_free(&fd);
+    return s;
+  }
+  /* 1. global similarity: Horn on the features, else centroid + height */
+  double R[9], t[3], sc = 1;
+  if (nfeat >= 3) {
+    double *A = km__malloc(nfeat, 3 * sizeof(double)), *B = km__malloc(nfeat, 3 * sizeof(double));
+    if (!A || !B) {
+      free(A), free(B), frame_data_free(&fd);
+      return km__fail(err, KM_ERR_NOMEM, "out of memory");
+    }
+    for (size_t k = 0; k < nfeat; ++k) {
+      memcpy(A + 3 * k, r->tmpl.V + 3 * (size_t)feat[k].vertex, 3 * sizeof(double));
+      memcpy(B + 3 * k, feat[k].point, 3 * sizeof(double));
+    }
+    /* rigid only here: with the subject in another pose than the template, a scale from
+     * unposed landmarks is biased (arms out vs. arms in); scale comes after posing */
+    s = km_absolute_orientation(A, B, nfeat, false, R, t, NULL, err);
+    free(A), free(B);
+    if (s) {
+      frame_data_free(&fd);
+      return km__wrap(err, s, "first frame: global alignment from %zu features", nfeat);
+    }
+  } else {
+    /* No correspondences: the subject is assumed upright like the template (y up); match
+     * centroids and heights. */
+    double cp[3] = {0}, ct[3] = {0}, plo = INFINITY, phi = -INFINITY, tlo = INFINITY,
+           thi = -INFINITY;
+    for (size_t i = 0; i < n; ++i) {
+      for (int a = 0; a < 3; ++a)
+        cp[a] += P[3 * i + a] / (double)n;
+      plo = fmin(plo, P[3 * i + 1]), phi = fmax(phi, P[3 * i + 1]);
+    }
+    for (size_t i = 0; i < nv; ++i) {
+      for (int a = 0; a < 3; ++a)
+        ct[a] += r->tmpl.V[3 * i + a] / (double)nv;
+      tlo = fmin(tlo, r->tmpl.V[3 * i + 1]), thi = fmax(thi, r->tmpl.V[3 * i + 1]);
+    }
+    sc = (thi > tlo && phi > plo) ? (phi - plo) / (thi - tlo) : 1;
+    memset(R, 0, sizeof R);
+    R[0] = R[4] = R[8] = 1;
+    for (int a = 0; a < 3; ++a)
+      t[a] = cp[a] - sc * ct[a];
+  }
+  double *V1 = km__malloc(nv, 3 * sizeof(double));
+  if (!V1) {
+    frame_data_free(&fd);
+    return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  }
+  for (size_t i = 0; i < nv; ++i) {
+    mat_vec(R, r->tmpl.V + 3 * i, V1 + 3 * i);
+    for (int a = 0; a < 3; ++a)
+      V1[3 * i + a] = sc * V1[3 * i + a] + t[a];
+  }
+  for (size_t j = 0; j < nj; ++j) {
+    mat_vec(R, r->tmpl_joints + 3 * j, r->base_joints + 3 * j);
+    for (int a = 0; a < 3; ++a)
+      r->base_joints[3 * j + a] = sc * r->base_joints[3 * j + a] + t[a];
+  }
+  memcpy(r->base, V1, nv * 3 * sizeof(double));
+  /* 2. pose: the skeletal step on the aligned template (the subject need not stand exactly
+   * in the template's pose) */
+  for (size_t j = 0; j < nj; ++j) {
+    double *L = r->Lrot + 9 * j;
+    memset(L, 0, 9 * sizeof(double));
+    L[0] = L[4] = L[8] = 1;
+  }
+  double zero[3] = {0, 0, 0};
+  km_status ps = KM_OK;
+  double *Lid = km__malloc(nj, 9 * sizeof(double));
+  if (!Lid) {
+    free(V1), frame_data_free(&fd);
+    return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  }
+  memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
+  /* Features drive the pose first (the subject may stand far from the template's pose);
+   * the similarity is then re-estimated against the posed landmarks, which removes the bias
+   * a pose difference puts into Horn's scale and rotation; then features and data. */
+  if (nfeat >= 3) {
+    double *A = km__malloc(nfeat, 3 * sizeof(double)), *B = km__malloc(nfeat, 3 * sizeof(double));
+    for (int pass = 0; pass < 3 && A && B; ++pass) {
+      ps = KM_OK;
+      st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, 2, feat, nfeat, false,
+                                     KM__FIRST_FRAME_POSE_WEIGHT, &ps);
+      if (ps != KM_OK) break;
+      memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
+      for (size_t k = 0; k < nfeat; ++k) {
+        memcpy(A + 3 * k, r->global + 3 * (size_t)feat[k].vertex, 3 * sizeof(double));
+        memcpy(B + 3 * k, feat[k].point, 3 * sizeof(double));
+      }
+      double R2[9], t2[3], s2 = 1;
+      if (km_absolute_orientation(A, B, nfeat, true, R2, t2, &s2, NULL) != KM_OK) break;
+      /* the similarity goes into the unposed base; the root offset follows it */
+      for (size_t i = 0; i < nv; ++i) {
+        mat_vec(R2, r->base + 3 * i, r->base + 3 * i);
+        for (int a = 0; a < 3; ++a)
+          r->base[3 * i + a] = s2 * r->base[3 * i + a] + t2[a];
+      }
+      for (size_t j = 0; j < nj; ++j) {
+        mat_vec(R2, r->base_joints + 3 * j, r->base_joints + 3 * j);
+        for (int a = 0; a < 3; ++a)
+          r->base_joints[3 * j + a] = s2 * r->base_joints[3 * j + a] + t2[a];
+      }
+      mat_vec(R2, r->troot, zero);
+      for (int a = 0; a < 3; ++a)
+        zero[a] *= s2;
+    }
+    free(A), free(B);
+    ps = KM_OK;
+  }
+  /* with features the fitted pose is trusted: data refines it under a stronger tie */
+  st->iterations +=
+      skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, r->o.skeleton_iterations, feat, nfeat, true,
+                   nfeat >= 3 ? KM__FIRST_FRAME_POSE_WEIGHT : r->o.w_pose, &ps);
+  free(Lid);
+  if (ps != KM_OK) {
+    /* keep the aligned template */
+    memcpy(r->global, V1, nv * 3 * sizeof(double));
+    memcpy(r->joints, r->base_joints, nj * 3 * sizeof(double));
+  }
+  /* 3. affine registration: features + smoothness, then all three terms */
+  memcpy(V1, r->global, nv * 3 * sizeof(double));
+  if (nfeat) {
+    /* feature term alone is linear: one solve */
+    for (size_t i = 0; i < n; ++i)
+      r->pw[i] = 0;
+    s = affine_solve(r, V1, fd.C, 0, 0, feat, nfeat, r->o.w_feature, r->surface, err);
+    ++st->iterations;
+    if (s) goto fail;
+    memcpy(V1, r->surface, nv * 3 * sizeof(double));
+  }
+  s = refine(r, &fd, V1, r->o.first_iterations, feat, nfeat, r->o.w_feature, 0.1, 0.7,
+             &st->iterations, err);
+  if (s) goto fail;
+  /* 4. the registered surface is the template for the rest: joints carried by the skinned
+   * vertices' affine maps */
+  for (size_t j = 0; j < nj; ++j) {
+    double acc[3] = {0, 0, 0}, wsum = 0;
+    for (size_t i = 0; i < nv; ++i)
+      for (int k = 0; k < 4; ++k)
+        if (r->skin.joints[4 * i + k] == (int32_t)j && r->skin.weights[4 * i + k] > 0.3) {
+          double q[3];
+          affine_apply(r, V1, i, r->joints + 3 * j, q);
+          double w = r->skin.weights[4 * i + k];
+          for (int a = 0; a < 3; ++a)
+            acc[a] += w * q[a];
+          wsum += w;
+        }
+    if (wsum > 0)
+      for (int a = 0; a < 3; ++a)
+        r->joints[3 * j + a] = acc[a] / wsum;
+  }
+  memcpy(r->base, r->surface, nv * 3 * sizeof(double));
+  memcpy(r->base_joints, r->joints, nj * 3 * sizeof(double));
+  memcpy(r->global, r->surface, nv * 3 * sizeof(double));
+  for (size_t j = 0; j < nj; ++j) {
+    double *L = r->Lrot + 9 * j;
+    memset(L, 0, 9 * sizeof(double));
+    L[0] = L[4] = L[8] = 1;
+  }
+  memcpy(r->Lprev, r->Lrot, nj * 9 * sizeof(double));
+  memcpy(r->Lprev2, r->Lrot, nj * 9 * sizeof(double));
+  memset(r->troot, 0, sizeof r->troot);
+  memset(r->tprev, 0, sizeof r->tprev);
+  memset(r->tprev2, 0, sizeof r->tprev2);
+  forward_kinematics(r, r->Lrot, r->troot, r->work, r->work + 9 * nj, r->G);
+  r->have_base = true;
+  r->frame = 1;
+  frame_error(r, &fd, r->surface, st);
+  st->status = KM_OK;
+  st->seconds = km__now() - t0;
+  r->n_hist = 0;
+  free(V1);
+  frame_data_free(&fd);
+  return KM_OK;
+fail:
+  free(V1);
+  frame_data_free(&fd);
+  return s;
+}
+
+km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_frame_stats *st,
+                              km_error *err) {
+  if (!r || (!P && n)) return km__fail(err, KM_ERR_INVALID, "km_recon_next_frame: NULL argument");
+  if (!r->have_base)
+    return km__fail(err, KM_ERR_INVALID, "km_recon_next_frame: register the first frame first");
+  double t0 = km__now();
+  km_recon_frame_stats local = {0};
+  if (!st) st = &local;
+  memset(st, 0, sizeof *st);
+  st->index = r->frame;
+  st->points = n;
+  size_t nv = r->nv, nj = r->nj;
+  /* prediction: constant angular velocity per joint and constant root velocity */
+  double *Lpred = km__malloc(nj, 9 * sizeof(double));
+  if (!Lpred) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  for (size_t j = 0; j < nj; ++j) {
+    double D[9], Pt[9];
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b)
+        Pt[3 * a + b] = r->Lprev2[9 * j + 3 * b + a];
+    mat_mul(Pt, r->Lprev + 9 * j, D);
+    mat_mul(r->Lprev + 9 * j, D, Lpred + 9 * j);
+    orthonormalize(Lpred + 9 * j);
+  }
+  double tpred[3];
+  for (int a = 0; a < 3; ++a)
+    tpred[a] = 2 * r->tprev[a] - r->tprev2[a];
+  frame_data fd;
+  double tp0 = km__now();
+  km_status s = frame_prepare(r, P, n, &fd, err);
+  double tp1 = km__now();
+  km_status fs = KM_OK;
+  if (s) {
+    fs = s;
+  } else {
+    st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations,
+                                   NULL, 0, true, r->o.w_pose, &fs);
+  }
+  double tp2 = km__now();
+  km__log(KM_LOG_DEBUG,
+          "frame %zu: skeleton %s, root (%.3f %.3f %.3f), %d evaluations; prepare %.3f s, "
+          "skeleton %.3f s",
+          r->frame, km_status_name(fs), r->troot[0], r->troot[1], r->troot[2], st->iterations,
+          tp1 - tp0, tp2 - tp1);
+  bool finite = true;
+  for (size_t i = 0; fs == KM_OK && i < nv * 3 && finite; ++i)
+    finite = isfinite(r->global[i]);
+  if (fs == KM_OK && !finite) fs = KM_ERR_NO_CONVERGENCE;
+  if (fs != KM_OK) {
+    /* carried by the skeleton: the previous pose (a failed frame must not extrapolate a
+     * velocity that may be what made it fail) */
+    memcpy(r->Lrot, r->Lprev, nj * 9 * sizeof(double));
+    memcpy(r->troot, r->tprev, sizeof tpred);
+    forward_kinematics(r, r->Lrot, r->troot, r->work, r->work + 9 * nj, r->G);
+    memcpy(r->joints, r->work + 9 * nj, nj * 3 * sizeof(double));
+    lbs_apply(r, r->G, r->base, r->global);
+    memcpy(r->surface, r->global, nv * 3 * sizeof(double));
+  } else {
+    km_error e2;
+    fs = refine(r, &fd, r->global, r->o.refine_iterations, NULL, 0, 0, 0.03, 0.5, &st->iterations,
+                &e2);
+    for (size_t i = 0; fs == KM_OK && i < nv * 3; ++i)
+      if (!isfinite(r->surface[i])) fs = KM_ERR_NO_CONVERGENCE;
+    if (fs) memcpy(r->surface, r->global, nv * 3 * sizeof(double));
+  }
+  if (fd.P && fd.n >= 16 && fd.N) {
+    frame_error(r, &fd, r->surface, st);
+    /* a frame far worse than the recent ones did not converge: carry it by the skeleton */
+    double ref = 0;
+    for (size_t k = 0; k < r->n_hist; ++k)
+      ref += r->err_hist[k] / (double)r->n_hist;
+    if (fs == KM_OK && r->n_hist >= 3 && st->mean_mm > 4 * ref + 5) {
+      fs = KM_ERR_NO_CONVERGENCE;
+      memcpy(r->surface, r->global, nv * 3 * sizeof(double));
+      frame_error(r, &fd, r->surface, st);
+    }
+    if (fs == KM_OK) {
+      if (r->n_hist < 8)
+        r->err_hist[r->n_hist++] = st->mean_mm;
+      else {
+        memmove(r->err_hist, r->err_hist + 1, 7 * sizeof(double));
+        r->err_hist[7] = st->mean_mm;
+      }
+    }
+  }
+  frame_data_free(&fd);
+  free(Lpred);
+  st->status = fs;
+  if (fs)
+    km__log(KM_LOG_WARN, "reconstruct: frame %zu did not converge (%s): carried by the skeleton",
+            r->frame, km_status_name(fs));
+  /* after a failure the velocity restarts from zero */
+  memcpy(r->Lprev2, fs ? r->Lrot : r->Lprev, nj * 9 * sizeof(double));
+  memcpy(r->Lprev, r->Lrot, nj * 9 * sizeof(double));
+  memcpy(r->tprev2, fs ? r->troot : r->tprev, sizeof r->tprev);
+  memcpy(r->tprev, r->troot, sizeof r->troot);
+  ++r->frame;
+  st->seconds = km__now() - t0;
+  return KM_OK;
+}

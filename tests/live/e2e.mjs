@@ -1,0 +1,120 @@
+// End-to-end: headless Debian chromium (driven by playwright-core, no browser download) opens
+// the live page, plays the take with the replay button, checks frames arrive and the mesh
+// moves, adds a handle through the mapping panel (click on a projected vertex, pick the joint
+// on the diagram, add, save) and checks the rig file on disk. Keeps a screenshot.
+import { createRequire } from 'node:module';
+import fs from 'node:fs';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { check, finish, status, waitFor, sleep } from './lib.mjs';
+
+const here = path.dirname(fileURLToPath(import.meta.url));
+const require = createRequire(path.join(here, '../../web/package.json'));
+const { chromium } = require('playwright-core');
+const [http, , , work] = process.argv.slice(2);
+const url = `http://127.0.0.1:${http}/`;
+const rigPath = path.join(work, 'c.rig.json');
+const rigBefore = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
+
+const browser = await chromium.launch({
+  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+  headless: true,
+  args: ['--no-sandbox', '--enable-unsafe-swiftshader', '--use-angle=swiftshader',
+    '--ignore-gpu-blocklist', '--disable-dev-shm-usage'],
+});
+const errors = [];
+try {
+  const page = await browser.newPage({ viewport: { width: 1100, height: 700 } });
+  page.on('pageerror', (e) => errors.push(String(e)));
+  page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
+  await page.goto(url);
+  await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
+    null, { timeout: 20000 });
+  check(true, 'page loaded the mesh and the rig and opened the WebSocket');
+  const s0 = await status(http);
+  check(s0.clients >= 1, `/status counts the page as a client (${s0.clients})`);
+  check(s0.frames_in === 0, 'no frames before replay (--no-autoplay)');
+
+  // Replay button -> frames arrive and vertices move.
+  await page.click('#replay');
+  await page.waitForFunction(() => window.kmLive.frames >= 3, null, { timeout: 10000 });
+  const nv = await page.evaluate(() => window.kmLive.nv);
+  const snap = () => page.evaluate(() => {
+    const out = [];
+    for (let i = 0; i < window.kmLive.nv; i += 7) out.push(...window.kmLive.vertexPosition(i));
+    return out;
+  });
+  const a = await snap();
+  await sleep(700);
+  const b = await snap();
+  let moved = 0;
+  for (let i = 0; i < a.length; ++i) moved = Math.max(moved, Math.abs(a[i] - b[i]));
+  check(a.length > 0 && moved > 0.01, `vertex positions change between frames (max ${moved.toFixed(3)} m)`);
+  const frames = await page.evaluate(() => window.kmLive.frames);
+  check(frames >= 10, `page received ${frames} frames`);
+  // Wait for the take (2 s) to end so the mesh holds still for picking.
+  await waitFor(async () => { const s = await status(http); await sleep(300); return (await status(http)).frames_out === s.frames_out; }, 8000);
+  const s1 = await status(http);
+  check(s1.frames_sent >= 10 && s1.times_ms.latency_median != null,
+    `/status: ${s1.frames_in} in, ${s1.frames_out} out, ${s1.frames_sent} sent, latency ${s1.times_ms.latency_median} ms`);
+
+  // Pick a vertex on the chest facing the camera: the front-most vertex near the mid-line at
+  // 70% of the height (current positions, read from the page).
+  const pos = await page.evaluate(() => { const o = []; for (let i = 0; i < window.kmLive.nv; ++i) o.push(window.kmLive.vertexPosition(i)); return o; });
+  let ymin = Infinity, ymax = -Infinity;
+  for (const p of pos) { ymin = Math.min(ymin, p[1]); ymax = Math.max(ymax, p[1]); }
+  const yt = ymin + 0.7 * (ymax - ymin);
+  let target = -1, bz = -Infinity;
+  pos.forEach((p, i) => { if (Math.abs(p[0]) < 0.04 && Math.abs(p[1] - yt) < 0.04 && p[2] > bz) { bz = p[2]; target = i; } });
+  check(target >= 0, `chest vertex ${target}`);
+  const px = await page.evaluate((i) => window.kmLive.project(i), target);
+  await page.mouse.click(px.x, px.y);
+  const pending = await page.evaluate(() => window.kmLive.pending && window.kmLive.pending.vertex);
+  const dist = pending == null ? Infinity : Math.hypot(...[0, 1, 2].map((k) => pos[pending][k] - pos[target][k]));
+  check(pending != null && dist < 0.05, `click on the canvas picked vertex ${pending} (${dist.toFixed(3)} m from ${target})`);
+  await page.fill('#h-radius', '0.06');
+  await page.dispatchEvent('#h-radius', 'input');
+  await page.click('#diagram circle[data-joint="ElbowLeft"]');
+  check(await page.inputValue('#h-joint') === 'ElbowLeft', 'diagram click selects ElbowLeft');
+  await page.uncheck('#ax-z');
+  await page.fill('#h-scale', '0.5');
+  await page.click('#h-add');
+  await page.click('#save');
+  await page.waitForFunction(() => window.kmLive.saved >= 1, null, { timeout: 10000 });
+  const rigAfter = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
+  check(rigAfter.handles.length === rigBefore.handles.length + 1, `rig on disk has ${rigAfter.handles.length} handles (was ${rigBefore.handles.length})`);
+  const h = rigAfter.handles.find((x) => x.vertex === pending);
+  const m = h && rigAfter.map.find((x) => x.handle === h.name);
+  check(h && Math.abs(h.radius - 0.06) < 1e-9, 'new handle: picked vertex and radius');
+  check(m && m.joint === 'ElbowLeft' && m.axes === 'xy' && m.scale === 0.5, 'new map entry: ElbowLeft, axes xy, scale 0.5');
+  check(rigAfter.joints && rigAfter.skin, 'other rig keys (joints, skin) preserved');
+  const hs = await (await fetch(`${url}handles`)).json();
+  const hh = h && hs.handles.find((x) => x.name === h.name);
+  check(hh && hh.vertices.includes(pending), `server resolved the new handle (${hh ? hh.vertices.length : 0} vertices)`);
+  const st = await waitFor(async () => { const x = await status(http); return h && x.handles[h.name] !== undefined && x; }, 3000);
+  check(st, '/status reports the new handle (the deformation switched to the new rig)');
+
+  // Remove a handle in the panel and save again.
+  const nBefore = rigAfter.handles.length;
+  await page.click('#handles li:has-text("foot_left") button.remove');
+  await page.click('#save');
+  await page.waitForFunction(() => window.kmLive.saved >= 2, null, { timeout: 10000 });
+  const rig2 = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
+  check(rig2.handles.length === nBefore - 1 && !rig2.handles.some((x) => x.name === 'foot_left') &&
+    !rig2.map.some((x) => x.handle === 'foot_left'), 'removed foot_left: handle and map entry gone from the rig on disk');
+
+  // The deformation keeps running with the new rig.
+  const f0 = (await status(http)).frames_out;
+  await page.click('#replay');
+  await waitFor(async () => (await status(http)).frames_out > f0 + 10, 5000);
+  check((await status(http)).frames_out > f0 + 10, 'replay after the rig change produces frames');
+  await sleep(600);
+  await page.screenshot({ path: path.join(work, 'live_page.png') });
+  check(fs.existsSync(path.join(work, 'live_page.png')), `screenshot ${path.join(work, 'live_page.png')}`);
+  check(errors.length === 0, `no page errors ${errors.join(' | ')}`);
+} catch (e) {
+  check(false, 'exception: ' + (e && e.stack || e));
+} finally {
+  await browser.close();
+}
+finish('live_e2e');

@@ -1,0 +1,62 @@
+// A real OSC client: Debian's oscsend (liblo-tools) sends OSCeleton /joint messages (and then
+// KinectV2-OSC /bodies/... messages); the frame counter advances and the handle mapped to the
+// right hand moves.
+import { execFileSync } from 'node:child_process';
+import { check, finish, status, waitFor, sleep } from './lib.mjs';
+
+const [http, osc] = process.argv.slice(2);
+const send = (...args) => execFileSync('oscsend', ['127.0.0.1', osc, ...args.map(String)]);
+
+// An OpenNI-style skeleton in centimetres, y pointing down, ~2 m from the sensor.
+const SKEL = {
+  head: [0, -75, 200], neck: [0, -55, 200], torso: [0, -25, 200],
+  l_shoulder: [-18, -52, 200], l_elbow: [-45, -52, 200], l_hand: [-70, -52, 200],
+  r_shoulder: [18, -52, 200], r_elbow: [45, -52, 200], r_hand: [70, -52, 200],
+  l_hip: [-10, 5, 200], l_knee: [-11, 45, 200], l_foot: [-12, 85, 200],
+  r_hip: [10, 5, 200], r_knee: [11, 45, 200], r_foot: [12, 85, 200],
+};
+function frame(ts, over = {}) {
+  for (const [name, p] of Object.entries({ ...SKEL, ...over }))
+    send('/joint', 'siiffffd', name, 0, 1, p[0], p[1], p[2], 1, ts);
+}
+const hand = async () => (await status(http)).handles.hand_right;
+
+const s0 = await status(http);
+check(s0.frames_in === 0, 'no frames before OSC input');
+frame(1000);
+frame(1033);
+await waitFor(async () => (await status(http)).frames_in >= 2, 3000);
+const s1 = await status(http);
+check(s1.frames_in >= 2, `OSCeleton frames assembled: frames_in ${s1.frames_in}`);
+check(s1.osc_messages === 30, `osc_messages ${s1.osc_messages} (30 sent)`);
+check(s1.bad_packets === 0, 'no bad packets');
+await waitFor(async () => (await status(http)).frames_out >= 2, 3000);
+const h0 = await hand();
+// raise the right hand by 40 cm (y is down in OSCeleton)
+frame(1066, { r_hand: [70, -92, 200] });
+// the message without the trailing timestamp is accepted too
+send('/joint', 'siiffff', 'r_hand', 0, 1, 70, -92, 200, 1);
+await waitFor(async () => (await status(http)).frames_out >= s1.frames_out + 1, 3000);
+await sleep(300);
+const h1 = await hand();
+const dy = h1[1] - h0[1];
+check(dy > 0.15, `hand_right handle moved up ${dy.toFixed(3)} m (joint raised 0.40 m)`);
+check(Math.abs(h1[0] - h0[0]) < 0.05, 'and not sideways');
+const s2 = await status(http);
+check(s2.frames_in > s1.frames_in, `frame counter advanced (${s1.frames_in} -> ${s2.frames_in})`);
+
+// KinectV2-OSC: another body takes over after 0.5 s of silence; metres, y up.
+await sleep(700);
+const v2 = (x, y, z) => send('/bodies/72057594037928100/joints/HandRight', 'fffs', x, y, z, 'Tracked');
+// several frames per position so the Holt filter settles
+for (let i = 0; i < 8; ++i) v2(-0.7, 0.5, 2.0);
+send('/bodies/72057594037928100/hands/Right', 's', 'Open'); // valid, carries no joint
+await sleep(200);
+const h2 = await hand();
+for (let i = 0; i < 8; ++i) v2(-0.7, 0.8, 2.0);
+await sleep(200);
+const h3 = await hand();
+check(h3[1] - h2[1] > 0.1, `KinectV2-OSC HandRight moves the handle up ${(h3[1] - h2[1]).toFixed(3)} m`);
+const s3 = await status(http);
+check(s3.bad_packets === 0, `still no bad packets (${s3.bad_packets})`);
+finish('live_osc');

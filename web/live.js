@@ -1,0 +1,353 @@
+// kinemesh live page: the deforming mesh (three.js), the skeleton overlay, stats and the
+// mapping panel (handles on the mesh -> Kinect joints, saved with POST /rig).
+import * as THREE from 'three';
+import { OrbitControls } from './OrbitControls.js';
+
+const KINECT = ['HipCenter', 'Spine', 'ShoulderCenter', 'Head', 'ShoulderLeft', 'ElbowLeft',
+  'WristLeft', 'HandLeft', 'ShoulderRight', 'ElbowRight', 'WristRight', 'HandRight', 'HipLeft',
+  'KneeLeft', 'AnkleLeft', 'FootLeft', 'HipRight', 'KneeRight', 'AnkleRight', 'FootRight'];
+const PARENT = [-1, 0, 1, 2, 2, 4, 5, 6, 2, 8, 9, 10, 0, 12, 13, 14, 0, 16, 17, 18];
+// Diagram layout (metres, front view) when the rig has no rest skeleton.
+const LAYOUT = [[0, .95], [0, 1.2], [0, 1.45], [0, 1.65], [.18, 1.42], [.42, 1.42], [.62, 1.42],
+  [.7, 1.42], [-.18, 1.42], [-.42, 1.42], [-.62, 1.42], [-.7, 1.42], [.1, .9], [.11, .5],
+  [.12, .1], [.14, .03], [-.1, .9], [-.11, .5], [-.12, .1], [-.14, .03]];
+const MAGIC = 0x31464d4b, HEADER = 304;
+
+const $ = (id) => document.getElementById(id);
+const state = {
+  frames: 0, seq: 0, inSeq: 0, times: [0, 0, 0], rig: null, handleSets: [], pending: null,
+  recv: [], nv: 0, connected: false,
+};
+window.kmLive = state; // for the end-to-end test
+
+// ---------------------------------------------------------------- scene
+const canvas = $('canvas');
+const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio || 1);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x1d2024);
+const camera = new THREE.PerspectiveCamera(35, 1, 0.01, 100);
+const controls = new OrbitControls(camera, canvas);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x404050, 1.6));
+const sun = new THREE.DirectionalLight(0xffffff, 1.8);
+sun.position.set(1, 2, 3);
+scene.add(sun);
+const grid = new THREE.GridHelper(4, 20, 0x444444, 0x333333);
+scene.add(grid);
+
+const geom = new THREE.BufferGeometry();
+const material = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.7, metalness: 0,
+  side: THREE.DoubleSide });
+const mesh = new THREE.Mesh(geom, material);
+scene.add(mesh);
+
+const skelGeom = new THREE.BufferGeometry();
+skelGeom.setAttribute('position', new THREE.BufferAttribute(new Float32Array(19 * 2 * 3), 3));
+const skel = new THREE.LineSegments(skelGeom, new THREE.LineBasicMaterial({ color: 0x33ff99,
+  depthTest: false, transparent: true }));
+skel.renderOrder = 2;
+const jointGeom = new THREE.BufferGeometry();
+jointGeom.setAttribute('position', new THREE.BufferAttribute(new Float32Array(20 * 3), 3));
+const joints = new THREE.Points(jointGeom, new THREE.PointsMaterial({ color: 0xffee55, size: 6,
+  sizeAttenuation: false, depthTest: false, transparent: true }));
+joints.renderOrder = 3;
+skel.visible = joints.visible = false;
+scene.add(skel, joints);
+
+function resize() {
+  const w = canvas.clientWidth, h = canvas.clientHeight;
+  renderer.setSize(w, h, false);
+  camera.aspect = w / Math.max(1, h);
+  camera.updateProjectionMatrix();
+}
+window.addEventListener('resize', resize);
+
+// ---------------------------------------------------------------- mesh + rig
+const BASE = [0.78, 0.72, 0.66], PENDING = [0.2, 0.85, 1.0];
+const HANDLE_COLORS = [[1, .55, .1], [.9, .3, .5], [.5, .8, .2], [.6, .5, 1], [1, .85, .2],
+  [.3, .7, .9]];
+
+async function loadMesh() {
+  const buf = await (await fetch('mesh')).arrayBuffer();
+  const dv = new DataView(buf);
+  const nv = dv.getUint32(4, true), nf = dv.getUint32(8, true);
+  state.nv = nv;
+  const pos = new Float32Array(buf, 16, 3 * nv).slice();
+  const idx = new Uint32Array(buf.slice(16 + 12 * nv, 16 + 12 * nv + 12 * nf));
+  state.rest = pos.slice();
+  geom.setAttribute('position', new THREE.BufferAttribute(pos, 3));
+  geom.setAttribute('color', new THREE.BufferAttribute(new Float32Array(3 * nv), 3));
+  geom.setIndex(new THREE.BufferAttribute(idx, 1));
+  geom.computeVertexNormals();
+  geom.computeBoundingSphere();
+  geom.computeBoundingBox();
+  const bb = geom.boundingBox, c = bb.getCenter(new THREE.Vector3());
+  const size = bb.getSize(new THREE.Vector3());
+  const d = Math.max(size.y, size.x) * 2.2;
+  controls.target.copy(c);
+  camera.position.set(c.x, c.y, c.z + d);
+  camera.near = d / 100; camera.far = d * 20;
+  camera.updateProjectionMatrix();
+  grid.position.y = bb.min.y;
+  state.radiusScale = Math.max(size.x, size.y, size.z);
+  recolor();
+}
+
+async function loadRig() {
+  state.rig = await (await fetch('rig')).json();
+  const hs = await (await fetch('handles')).json();
+  state.handleSets = hs.handles || [];
+  renderHandles();
+  drawDiagram();
+  recolor();
+}
+
+function recolor() {
+  const col = geom.getAttribute('color');
+  if (!col) return;
+  const a = col.array;
+  for (let i = 0; i < state.nv; ++i) a.set(BASE, 3 * i);
+  state.handleSets.forEach((h, k) => {
+    const c = HANDLE_COLORS[k % HANDLE_COLORS.length];
+    for (const v of h.vertices) if (v < state.nv) a.set(c, 3 * v);
+  });
+  if (state.pending) for (const v of state.pending.preview) a.set(PENDING, 3 * v);
+  col.needsUpdate = true;
+}
+
+// ---------------------------------------------------------------- frames
+function onFrame(buf) {
+  const dv = new DataView(buf);
+  if (buf.byteLength < HEADER || dv.getUint32(0, true) !== MAGIC) return;
+  const flags = dv.getUint32(4, true), nv = dv.getUint32(8, true);
+  if (nv !== state.nv) return;
+  state.seq = dv.getUint32(12, true);
+  state.inSeq = dv.getUint32(16, true);
+  state.times = [dv.getFloat32(20, true), dv.getFloat32(24, true), dv.getFloat32(28, true)];
+  const lo = [0, 1, 2].map((k) => dv.getFloat32(36 + 4 * k, true));
+  const hi = [0, 1, 2].map((k) => dv.getFloat32(48 + 4 * k, true));
+  const J = new Float32Array(buf, 60, 60);
+  const P = geom.getAttribute('position');
+  const out = P.array;
+  if (flags & 1) {
+    const q = new Uint16Array(buf, HEADER, 3 * nv);
+    const s = [0, 1, 2].map((k) => (hi[k] - lo[k]) / 65535);
+    for (let i = 0; i < 3 * nv; i += 3) {
+      out[i] = lo[0] + q[i] * s[0]; out[i + 1] = lo[1] + q[i + 1] * s[1];
+      out[i + 2] = lo[2] + q[i + 2] * s[2];
+    }
+  } else {
+    out.set(new Float32Array(buf, HEADER, 3 * nv));
+  }
+  P.needsUpdate = true;
+  geom.computeVertexNormals();
+  geom.computeBoundingSphere();
+  // skeleton overlay
+  const sp = skelGeom.getAttribute('position').array, jp = jointGeom.getAttribute('position').array;
+  let ok = true;
+  for (let j = 0; j < 20; ++j) {
+    for (let a = 0; a < 3; ++a) jp[3 * j + a] = J[3 * j + a];
+    ok &&= Number.isFinite(J[3 * j]);
+  }
+  for (let j = 1, k = 0; j < 20; ++j, ++k) {
+    const p = PARENT[j];
+    for (let a = 0; a < 3; ++a) { sp[6 * k + a] = J[3 * p + a]; sp[6 * k + 3 + a] = J[3 * j + a]; }
+  }
+  skelGeom.getAttribute('position').needsUpdate = true;
+  jointGeom.getAttribute('position').needsUpdate = true;
+  skel.visible = joints.visible = ok && $('show-skel').checked;
+  state.frames++;
+  const now = performance.now();
+  state.recv.push(now);
+  while (state.recv.length && now - state.recv[0] > 1000) state.recv.shift();
+}
+
+function connect() {
+  const ws = new WebSocket(`ws://${location.host}/ws`, 'kinemesh');
+  ws.binaryType = 'arraybuffer';
+  ws.onopen = () => { state.connected = true; $('conn').textContent = 'connected'; $('conn').className = 'ok'; };
+  ws.onclose = () => {
+    state.connected = false;
+    $('conn').textContent = 'disconnected'; $('conn').className = 'bad';
+    setTimeout(connect, 1000);
+  };
+  ws.onmessage = (e) => onFrame(e.data);
+}
+
+async function pollStatus() {
+  try {
+    const s = await (await fetch('status')).json();
+    state.status = s;
+    $('s-in').textContent = s.frames_in; $('s-out').textContent = s.frames_out;
+    $('s-bad').textContent = s.bad_packets;
+    const l = s.times_ms.latency_median;
+    $('s-lat').textContent = l == null ? '–' : l.toFixed(2);
+  } catch (e) { /* server gone; the socket reconnects */ }
+}
+
+// ---------------------------------------------------------------- picking
+const ray = new THREE.Raycaster();
+let down = null;
+canvas.addEventListener('pointerdown', (e) => { down = [e.clientX, e.clientY]; });
+canvas.addEventListener('pointerup', (e) => {
+  if (!down || Math.hypot(e.clientX - down[0], e.clientY - down[1]) > 4) return; // a drag
+  const r = canvas.getBoundingClientRect();
+  const ndc = new THREE.Vector2(((e.clientX - r.left) / r.width) * 2 - 1,
+    -((e.clientY - r.top) / r.height) * 2 + 1);
+  ray.setFromCamera(ndc, camera);
+  const hit = ray.intersectObject(mesh)[0];
+  if (!hit || !hit.face) return;
+  // nearest corner of the hit triangle
+  const P = geom.getAttribute('position');
+  let best = -1, bd = Infinity;
+  for (const v of [hit.face.a, hit.face.b, hit.face.c]) {
+    const d = new THREE.Vector3().fromBufferAttribute(P, v).distanceTo(hit.point);
+    if (d < bd) { bd = d; best = v; }
+  }
+  setPending(best);
+});
+
+// Preview of the handle region: a Euclidean ball on the rest mesh (the server resolves the
+// geodesic ball when the rig is saved; the colours then come from /handles).
+function setPending(v) {
+  const radius = +$('h-radius').value, R = state.rest, preview = [];
+  const x = R[3 * v], y = R[3 * v + 1], z = R[3 * v + 2];
+  for (let i = 0; i < state.nv; ++i) {
+    const dx = R[3 * i] - x, dy = R[3 * i + 1] - y, dz = R[3 * i + 2] - z;
+    if (dx * dx + dy * dy + dz * dz <= radius * radius) preview.push(i);
+  }
+  if (!preview.length) preview.push(v);
+  state.pending = { vertex: v, preview };
+  $('h-vertex').textContent = v;
+  $('h-add').disabled = false;
+  recolor();
+}
+
+$('h-radius').addEventListener('input', () => {
+  $('h-radius-v').textContent = (+$('h-radius').value).toFixed(3);
+  if (state.pending) setPending(state.pending.vertex);
+});
+
+// project(i): client-space pixel position of vertex i (used by the end-to-end test)
+state.project = (i) => {
+  const P = geom.getAttribute('position');
+  const p = new THREE.Vector3().fromBufferAttribute(P, i).project(camera);
+  const r = canvas.getBoundingClientRect();
+  return { x: r.left + (p.x + 1) / 2 * r.width, y: r.top + (1 - p.y) / 2 * r.height, z: p.z };
+};
+state.vertexPosition = (i) => Array.from(geom.getAttribute('position').array.slice(3 * i, 3 * i + 3));
+
+// ---------------------------------------------------------------- panel
+const sel = $('h-joint');
+KINECT.forEach((n) => { const o = document.createElement('option'); o.value = o.textContent = n; sel.append(o); });
+sel.value = 'HandRight';
+sel.addEventListener('change', drawDiagram);
+
+function drawDiagram() {
+  const svg = $('diagram');
+  const rest = LAYOUT.map((p) => p.slice());
+  for (const j of (state.rig && state.rig.joints) || []) {
+    const k = KINECT.indexOf(j.name);
+    if (k >= 0 && Array.isArray(j.rest)) rest[k] = [j.rest[0], j.rest[1]];
+  }
+  const xs = rest.map((p) => p[0]), ys = rest.map((p) => p[1]);
+  const minx = Math.min(...xs), maxx = Math.max(...xs), miny = Math.min(...ys), maxy = Math.max(...ys);
+  const s = Math.min(210 / Math.max(1e-6, maxx - minx), 220 / Math.max(1e-6, maxy - miny));
+  const X = (p) => 120 + (p[0] - (minx + maxx) / 2) * s, Y = (p) => 235 - (p[1] - miny) * s;
+  const mapped = new Set(((state.rig && state.rig.map) || []).map((m) => m.joint));
+  let html = '';
+  for (let j = 1; j < 20; ++j) {
+    const a = rest[PARENT[j]], b = rest[j];
+    html += `<line x1="${X(a)}" y1="${Y(a)}" x2="${X(b)}" y2="${Y(b)}" stroke="#777" stroke-width="2"/>`;
+  }
+  rest.forEach((p, j) => {
+    const fill = KINECT[j] === sel.value ? '#3cf' : mapped.has(KINECT[j]) ? '#f90' : '#bbb';
+    html += `<circle data-joint="${KINECT[j]}" cx="${X(p)}" cy="${Y(p)}" r="6" fill="${fill}"><title>${KINECT[j]}</title></circle>`;
+  });
+  svg.innerHTML = html;
+  svg.querySelectorAll('circle').forEach((c) => c.addEventListener('click', () => {
+    sel.value = c.dataset.joint;
+    drawDiagram();
+  }));
+}
+
+function renderHandles() {
+  const ul = $('handles');
+  ul.innerHTML = '';
+  for (const h of state.rig.handles || []) {
+    const maps = (state.rig.map || []).filter((m) => m.handle === h.name);
+    const li = document.createElement('li');
+    li.innerHTML = `<span>${h.name} → ${maps.map((m) => `${m.joint} ${m.axes || 'xyz'}×${m.scale ?? 1}`).join(', ') || '(anchor)'}</span>`;
+    const b = document.createElement('button');
+    b.textContent = '✕';
+    b.title = 'remove handle';
+    b.className = 'remove';
+    b.addEventListener('click', () => {
+      state.rig.handles = state.rig.handles.filter((x) => x !== h);
+      state.rig.map = (state.rig.map || []).filter((m) => m.handle !== h.name);
+      state.handleSets = state.handleSets.filter((x) => x.name !== h.name);
+      renderHandles(); drawDiagram(); recolor();
+    });
+    li.append(b);
+    ul.append(li);
+  }
+}
+
+$('h-add').addEventListener('click', () => {
+  if (!state.pending || !state.rig) return;
+  const joint = sel.value;
+  const axes = ['x', 'y', 'z'].filter((a) => $('ax-' + a).checked).join('');
+  if (!axes) { $('save-status').textContent = 'pick at least one axis'; return; }
+  let name = `${joint}_${state.pending.vertex}`;
+  const names = new Set((state.rig.handles || []).map((h) => h.name));
+  for (let k = 2; names.has(name); ++k) name = `${joint}_${state.pending.vertex}_${k}`;
+  const radius = +$('h-radius').value;
+  state.rig.handles = state.rig.handles || [];
+  state.rig.map = state.rig.map || [];
+  state.rig.handles.push({ name, vertex: state.pending.vertex, radius });
+  state.rig.map.push({ handle: name, joint, axes, scale: +$('h-scale').value || 1 });
+  state.handleSets.push({ name, vertices: state.pending.preview });
+  state.pending = null;
+  $('h-vertex').textContent = '–';
+  $('h-add').disabled = true;
+  renderHandles(); drawDiagram(); recolor();
+});
+
+$('save').addEventListener('click', async () => {
+  $('save-status').textContent = 'saving…';
+  const r = await fetch('rig', { method: 'POST', headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify(state.rig) });
+  const j = await r.json().catch(() => ({}));
+  if (r.ok) {
+    $('save-status').textContent = `saved (${j.handles} handles)`;
+    state.saved = (state.saved || 0) + 1;
+    await loadRig();
+  } else {
+    $('save-status').textContent = 'error: ' + (j.error || r.status);
+  }
+});
+
+$('replay').addEventListener('click', async () => {
+  const r = await fetch('replay', { method: 'POST', body: '{}' });
+  if (!r.ok) $('replay').textContent = 'no take to replay';
+});
+
+// ---------------------------------------------------------------- loop
+function animate() {
+  requestAnimationFrame(animate);
+  controls.update();
+  renderer.render(scene, camera);
+  $('fps').textContent = state.recv.length;
+  $('seq').textContent = state.seq;
+  $('t-rt').textContent = state.times[0].toFixed(3);
+  $('t-def').textContent = state.times[1].toFixed(2);
+  $('t-pack').textContent = state.times[2].toFixed(2);
+}
+
+resize();
+await loadMesh();
+await loadRig();
+state.ready = true;
+connect();
+setInterval(pollStatus, 500);
+animate();
