@@ -1,19 +1,16 @@
 /* Verbs of capability 2 (avatar pose transfer, Lifkooee et al. 2019):
- *   kinemesh transfer SOURCE TEMPLATE -o OUT        pose transfer between meshes of one
- * connectivity kinemesh posedb build CLASS=MESH... -o DB       pose database (CART + SVM),
- * cross-validated kinemesh posedb query DB TRACK                  recognise every frame of a TRACK
- * file kinemesh avatar AVATAR DB TRACK -o ANIM         motion generation (key poses + morphing)
+ *   kinemesh transfer --source S --template T -o OUT     pose transfer, same connectivity
+ *   kinemesh posedb build --meshes GLOB --labels CSV -o DB   pose database (CART + SVM)
+ *   kinemesh posedb query DB --landmarks-xyz TRACK       recognise every frame of a track
+ *   kinemesh avatar --source S --db DB --track TRACK -o ANIM  key poses + morphing
  * Landmarks come from --landmarks LM.json or the mesh's rig sidecar (<stem>.rig.json).
- * Lead: declare these four in cli.h and add them to the verb table in main.c. */
+ * The positional forms (SOURCE TEMPLATE, CLASS=MESH[@GROUP]..., DB TRACK, AVATAR DB TRACK)
+ * are accepted too. */
 #include "cli.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-
-int km_cli_transfer(int argc, char **argv);
-int km_cli_posedb(int argc, char **argv);
-int km_cli_avatar(int argc, char **argv);
 
 /* Landmarks for a mesh: --landmarks file, else the rig sidecar next to the mesh. */
 static km_status load_landmarks(const char *lm_path, const char *mesh_path, size_t n_vertices,
@@ -32,9 +29,11 @@ static km_status load_landmarks(const char *lm_path, const char *mesh_path, size
 
 int km_cli_transfer(int argc, char **argv) {
   const char *out = NULL, *lm_path = NULL, *encoding = "edge", *laplacian = "uniform",
-             *align = "scale";
+             *align = "scale", *source = NULL, *templ = NULL;
   int iterations = 0;
   const km_cli_opt opts[] = {
+      {"source", 's', KM_OPT_STRING, &source, "the avatar mesh S"},
+      {"template", 't', KM_OPT_STRING, &templ, "the posed template T (same connectivity as S)"},
       {"output", 'o', KM_OPT_STRING, &out, "output mesh (.obj/.ply/.off)"},
       {"landmarks", 'l', KM_OPT_STRING, &lm_path,
        "LM.json with the landmark vertices (default: SOURCE's rig sidecar)"},
@@ -48,12 +47,14 @@ int km_cli_transfer(int argc, char **argv) {
   const char *pos[2];
   int n_pos;
   int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 2, &n_pos,
-                       "kinemesh transfer SOURCE TEMPLATE -o OUT [--landmarks LM.json]",
+                       "kinemesh transfer --source S --template T -o OUT [--landmarks LM.json]",
                        "SOURCE (the avatar) takes the pose of TEMPLATE (same connectivity) by\n"
                        "locally encoded Laplacian offsets; landmark vertices follow TEMPLATE's,\n"
                        "scaled to SOURCE's size.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
-  if (n_pos != 2) return km_cli_error("transfer", "expected SOURCE and TEMPLATE meshes");
+  if (source && n_pos < 2) pos[n_pos++] = source;
+  if (templ && n_pos < 2) pos[n_pos++] = templ;
+  if (n_pos != 2) return km_cli_error("transfer", "expected --source S and --template T");
   if (!out) return km_cli_error("transfer", "-o OUTPUT is required");
   km_transfer_options to = {0};
   to.max_iterations = iterations;
@@ -116,11 +117,76 @@ done:
 }
 
 /* posedb build CLASS=MESH[@GROUP]... */
+/* --meshes GLOB --labels CSV -> "CLASS=PATH[@GROUP]" entries. The CSV has lines
+ * "mesh,class[,subject]" (an optional header; `mesh` matches a listed file by path or by
+ * base name). Entries are heap strings appended to pos; returns how many, -1 after an error. */
+static int labelled_meshes(const char *glob_pattern, const char *labels_path, const char **pos,
+                           int n_pos, int max_pos, char ***owned, size_t *n_owned) {
+  km_error err = {0};
+  char **paths = NULL;
+  size_t np = 0;
+  if (km_point_frames_list(glob_pattern, &paths, &np, &err)) {
+    km_cli_fail("posedb build", &err);
+    return -1;
+  }
+  FILE *f = fopen(labels_path, "r");
+  if (!f) {
+    km_paths_free(&paths, np);
+    km_cli_error("posedb build", "%s: cannot open the labels file", labels_path);
+    return -1;
+  }
+  *owned = calloc(np ? np : 1, sizeof **owned);
+  char line[4096];
+  int line_no = 0, rc = 0;
+  while (*owned && fgets(line, sizeof line, f)) {
+    ++line_no;
+    line[strcspn(line, "\r\n")] = '\0';
+    char *fields[3] = {NULL, NULL, NULL};
+    int nf = 0;
+    for (char *tok = strtok(line, ",;\t"); tok && nf < 3; tok = strtok(NULL, ",;\t")) {
+      while (*tok == ' ')
+        ++tok;
+      fields[nf++] = tok;
+    }
+    if (nf == 0 || fields[0][0] == '#') continue;
+    if (nf < 2) {
+      km_cli_error("posedb build", "%s:%d: expected 'mesh,class[,subject]'", labels_path, line_no);
+      rc = -1;
+      break;
+    }
+    size_t k = 0;
+    for (; k < np; ++k) {
+      const char *base = strrchr(paths[k], '/');
+      if (!strcmp(paths[k], fields[0]) || !strcmp(base ? base + 1 : paths[k], fields[0])) break;
+    }
+    if (k == np) {
+      if (line_no == 1) continue; /* a header line */
+      km_cli_error("posedb build", "%s:%d: '%s' is not among the meshes of %s", labels_path,
+                   line_no, fields[0], glob_pattern);
+      rc = -1;
+      break;
+    }
+    if (n_pos >= max_pos || *n_owned >= np) break;
+    size_t len = strlen(fields[1]) + strlen(paths[k]) + (fields[2] ? strlen(fields[2]) : 0) + 4;
+    char *e = malloc(len);
+    if (!e) break;
+    snprintf(e, len, "%s=%s%s%s", fields[1], paths[k], fields[2] ? "@" : "",
+             fields[2] ? fields[2] : "");
+    (*owned)[(*n_owned)++] = e;
+    pos[n_pos++] = e;
+  }
+  fclose(f);
+  km_paths_free(&paths, np);
+  return rc < 0 ? -1 : n_pos;
+}
+
 static int posedb_build(int argc, char **argv) {
-  const char *out = NULL, *lm_path = NULL, *kernel = "rbf";
+  const char *out = NULL, *lm_path = NULL, *kernel = "rbf", *mesh_glob = NULL, *labels_csv = NULL;
   size_t features = 60;
   int folds = 0;
   const km_cli_opt opts[] = {
+      {"meshes", 0, KM_OPT_STRING, &mesh_glob, "the database meshes: a quoted glob or a directory"},
+      {"labels", 0, KM_OPT_STRING, &labels_csv, "CSV lines 'mesh,class[,subject]' for --meshes"},
       {"output", 'o', KM_OPT_STRING, &out, "output database (.kmposedb)"},
       {"landmarks", 'l', KM_OPT_STRING, &lm_path,
        "LM.json with 16 landmark vertices and mirrors (default: the first mesh's rig sidecar)"},
@@ -135,7 +201,7 @@ static int posedb_build(int argc, char **argv) {
   int n_pos;
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, MAX_POS, &n_pos,
-      "kinemesh posedb build CLASS=MESH[@GROUP]... -o db.kmposedb [--landmarks LM.json]",
+      "kinemesh posedb build --meshes 'DIR/*.ply' --labels labels.csv --landmarks LM.json -o DB",
       "A pose database from meshes of one connectivity labelled with pose classes (GROUP: the\n"
       "subject, for leave-one-subject-out cross-validation). Prints the cross-validated\n"
       "accuracy for the chosen number of features.");
@@ -143,12 +209,29 @@ static int posedb_build(int argc, char **argv) {
     free(pos);
     return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   }
+  char **owned = NULL;
+  size_t n_owned = 0;
+  if (mesh_glob || labels_csv) {
+    if (!mesh_glob || !labels_csv) {
+      free(pos);
+      return km_cli_error("posedb build", "--meshes and --labels go together");
+    }
+    n_pos = labelled_meshes(mesh_glob, labels_csv, pos, n_pos, MAX_POS, &owned, &n_owned);
+    if (n_pos < 0) {
+      for (size_t i = 0; i < n_owned; ++i)
+        free(owned[i]);
+      free(owned);
+      free(pos);
+      return KM_EXIT_FAIL;
+    }
+  }
   int rc = KM_EXIT_OK;
   km_error err = {0};
   size_t n = (size_t)n_pos, nc = 0;
   km_mesh *meshes = calloc(n ? n : 1, sizeof *meshes);
   int32_t *labels = malloc((n ? n : 1) * sizeof *labels), *groups = malloc((n ? n : 1) * 4);
   char **names = calloc(n ? n : 1, sizeof *names);
+  char **group_names = calloc(n ? n : 1, sizeof *group_names);
   bool have_groups = false;
   km_posedb *db = NULL;
   km_landmark lm[KM_POSE_MAX_LANDMARKS];
@@ -157,7 +240,7 @@ static int posedb_build(int argc, char **argv) {
     rc = km_cli_error("posedb build", "need -o OUTPUT and at least two CLASS=MESH arguments");
     goto done;
   }
-  if (!meshes || !labels || !groups || !names) {
+  if (!meshes || !labels || !groups || !names || !group_names) {
     rc = km_cli_error("posedb build", "out of memory");
     goto done;
   }
@@ -175,7 +258,11 @@ static int posedb_build(int argc, char **argv) {
     groups[i] = 0;
     if (at) {
       *at = '\0';
-      groups[i] = atoi(at + 1);
+      /* subjects are names ("alice") or numbers: each distinct one is its own group */
+      size_t g = 0;
+      while (g < i && !(groups[g] >= 0 && group_names[g] && !strcmp(group_names[g], at + 1))) ++g;
+      group_names[i] = strdup(at + 1);
+      groups[i] = g < i ? groups[g] : (int32_t)i;
       have_groups = true;
     }
     size_t c = 0;
@@ -216,12 +303,17 @@ done:
   for (size_t i = 0; i < n; ++i) {
     if (meshes) km_mesh_free(&meshes[i]);
     if (names) free(names[i]);
+    if (group_names) free(group_names[i]);
   }
+  free(group_names);
   free(meshes);
   free(labels);
   free(groups);
   free(names);
   free(pos);
+  for (size_t i = 0; i < n_owned; ++i)
+    free(owned[i]);
+  free(owned);
   km_posedb_free(&db);
   return rc;
 }
@@ -240,14 +332,19 @@ static int map_track(const km_posedb *db, const km_track *t, int32_t *map, const
 }
 
 static int posedb_query(int argc, char **argv) {
-  const km_cli_opt opts[] = {{"landmarks", 'l', KM_OPT_STRING, NULL, "unused"}};
+  const char *xyz = NULL;
+  const km_cli_opt opts[] = {{"landmarks-xyz", 0, KM_OPT_STRING, &xyz,
+                              "tracked landmark positions: a track file (.json/.csv), one frame "
+                              "or many"}};
   const char *pos[2];
   int n_pos;
-  int r = km_cli_parse(argc, argv, opts, 0, pos, 2, &n_pos, "kinemesh posedb query DB TRACK",
-                       "Recognises the pose of every frame of a TRACK file (.json/.csv) and\n"
-                       "prints frame, class, template and time.");
+  int r = km_cli_parse(
+      argc, argv, opts, 1, pos, 2, &n_pos, "kinemesh posedb query DB --landmarks-xyz FRAME.json",
+      "Recognises the pose of every frame of a track file (.json/.csv; a single\n"
+      "frame is a track of one frame) and prints frame, class, template and time.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
-  if (n_pos != 2) return km_cli_error("posedb query", "expected DB and TRACK");
+  if (xyz && n_pos < 2) pos[n_pos++] = xyz;
+  if (n_pos != 2) return km_cli_error("posedb query", "expected DB and --landmarks-xyz FILE");
   km_error err = {0};
   km_posedb *db = NULL;
   km_track t = {0};
@@ -287,8 +384,8 @@ int km_cli_posedb(int argc, char **argv) {
   if (argc >= 2 && !strcmp(argv[1], "build")) return posedb_build(argc - 1, argv + 1);
   if (argc >= 2 && !strcmp(argv[1], "query")) return posedb_query(argc - 1, argv + 1);
   fprintf(argc >= 2 && strcmp(argv[1], "-h") && strcmp(argv[1], "--help") ? stderr : stdout,
-          "usage: kinemesh posedb build CLASS=MESH[@GROUP]... -o db.kmposedb\n"
-          "       kinemesh posedb query DB TRACK\n");
+          "usage: kinemesh posedb build --meshes 'DIR/*.ply' --labels labels.csv -o DB\n"
+          "       kinemesh posedb query DB --landmarks-xyz FRAME.json\n");
   return argc >= 2 && (!strcmp(argv[1], "-h") || !strcmp(argv[1], "--help")) ? KM_EXIT_OK
                                                                              : KM_EXIT_USAGE;
 }
@@ -307,10 +404,14 @@ static km_status push_frame(size_t frame, const double *V, void *user, km_error 
 }
 
 int km_cli_avatar(int argc, char **argv) {
-  const char *out = NULL, *lm_path = NULL;
+  const char *out = NULL, *lm_path = NULL, *source = NULL, *dbp = NULL, *track = NULL;
   size_t key_every = 1;
   double scale = 0;
   const km_cli_opt opts[] = {
+      {"source", 's', KM_OPT_STRING, &source, "the avatar mesh (same connectivity as the DB)"},
+      {"db", 0, KM_OPT_STRING, &dbp, "pose database (kinemesh posedb build)"},
+      {"track", 0, KM_OPT_STRING, &track, "tracked landmark positions (.json/.csv)"},
+      {"interval", 0, KM_OPT_SIZE, &key_every, "same as --key-every"},
       {"output", 'o', KM_OPT_STRING, &out, "output animation (.glb, .pc2, or a directory)"},
       {"landmarks", 'l', KM_OPT_STRING, &lm_path,
        "LM.json with the avatar's landmark vertices (default: AVATAR's rig sidecar)"},
@@ -322,12 +423,15 @@ int km_cli_avatar(int argc, char **argv) {
   const char *pos[3];
   int n_pos;
   int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 3, &n_pos,
-                       "kinemesh avatar AVATAR DB TRACK -o anim.glb [--key-every K]",
+                       "kinemesh avatar --source S --db DB --track TRACK -o OUT.glb [--interval K]",
                        "Drives AVATAR (same connectivity as DB's templates) from a TRACK of\n"
                        "landmark positions: key poses are recognised in DB and transferred, the\n"
                        "frames in between interpolated; one output frame per track frame.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
-  if (n_pos != 3) return km_cli_error("avatar", "expected AVATAR, DB and TRACK");
+  if (source && n_pos < 3) pos[n_pos++] = source;
+  if (dbp && n_pos < 3) pos[n_pos++] = dbp;
+  if (track && n_pos < 3) pos[n_pos++] = track;
+  if (n_pos != 3) return km_cli_error("avatar", "expected --source S, --db DB and --track TRACK");
   if (!out) return km_cli_error("avatar", "-o OUTPUT is required");
   km_error err = {0};
   km_mesh avatar = {0};
