@@ -1,5 +1,5 @@
 /* Pose descriptor, CART feature selection, SVM pose database, TRACK files, morphing. */
-#include "km_poses.h"
+#include "pose/km_poses.h"
 #include "km_test.h"
 
 #include <unistd.h>

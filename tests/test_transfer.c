@@ -1,5 +1,5 @@
 /* Pose transfer by locally encoded Laplacian offsets. */
-#include "km_poses.h"
+#include "pose/km_poses.h"
 #include "km_test.h"
 
 static int32_t lm_ids[KM_CHARACTER_LANDMARKS];

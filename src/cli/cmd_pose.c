@@ -260,7 +260,8 @@ static int posedb_build(int argc, char **argv) {
       *at = '\0';
       /* subjects are names ("alice") or numbers: each distinct one is its own group */
       size_t g = 0;
-      while (g < i && !(groups[g] >= 0 && group_names[g] && !strcmp(group_names[g], at + 1))) ++g;
+      while (g < i && !(groups[g] >= 0 && group_names[g] && !strcmp(group_names[g], at + 1)))
+        ++g;
       group_names[i] = strdup(at + 1);
       groups[i] = g < i ? groups[g] : (int32_t)i;
       have_groups = true;
