@@ -17,16 +17,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Local copies of the Kinect v1 tables: the public km_kinect1_* functions live in the
- * skeleton module; kept static here so this file links on its own (lead: dedupe). */
-static const char *const joint_names[KM_KINECT1_JOINTS] = {
-    "HipCenter",  "Spine",     "ShoulderCenter", "Head",          "ShoulderLeft",
-    "ElbowLeft",  "WristLeft", "HandLeft",       "ShoulderRight", "ElbowRight",
-    "WristRight", "HandRight", "HipLeft",        "KneeLeft",      "AnkleLeft",
-    "FootLeft",   "HipRight",  "KneeRight",      "AnkleRight",    "FootRight"};
-static const int joint_parents[KM_KINECT1_JOINTS] = {-1, 0,  1, 2,  2,  4,  5, 6,  2,  8,
-                                                     9,  10, 0, 12, 13, 14, 0, 16, 17, 18};
-
 enum {
   J_HIP_C = 0,
   J_SPINE,
@@ -477,34 +467,11 @@ static void compute_landmarks(const body *b, const km_mesh *m, km_landmark *lm) 
 
 /* ---------------------------------------------------------------- public API */
 
-static void free_strings(char **s, size_t n) {
-  if (!s) return;
-  for (size_t i = 0; i < n; ++i)
-    free(s[i]);
-  free(s);
-}
-
-/* Local frees: km_mesh_free / km_skeleton_free / km_skin_free belong to other modules. */
-static void free_skeleton(km_skeleton *s) {
-  free_strings(s->names, s->n_joints);
-  free(s->parents);
-  free(s->rest);
-  memset(s, 0, sizeof *s);
-}
-
-static void free_skin(km_skin *s) {
-  free(s->joints);
-  free(s->weights);
-  memset(s, 0, sizeof *s);
-}
-
 void km_character_free(km_character *c) {
   if (!c) return;
-  free(c->mesh.V);
-  free(c->mesh.F);
-  memset(&c->mesh, 0, sizeof c->mesh);
-  free_skeleton(&c->skeleton);
-  free_skin(&c->skin);
+  km_mesh_free(&c->mesh);
+  km_skeleton_free(&c->skeleton);
+  km_skin_free(&c->skin);
   memset(c->landmarks, 0, sizeof c->landmarks);
 }
 
@@ -516,12 +483,12 @@ static km_status alloc_skeleton(km_skeleton *s, km_error *err) {
   s->rest = km__malloc(KM_KINECT1_JOINTS * 3, sizeof *s->rest);
   bool ok = s->names && s->parents && s->rest;
   for (int j = 0; ok && j < KM_KINECT1_JOINTS; ++j) {
-    s->names[j] = strdup(joint_names[j]);
+    s->names[j] = strdup(km_kinect1_joint_name(j));
     ok = s->names[j] != NULL;
-    s->parents[j] = joint_parents[j];
+    s->parents[j] = km_kinect1_joint_parent(j);
   }
   if (!ok) {
-    free_skeleton(s);
+    km_skeleton_free(s);
     return km__fail(err, KM_ERR_NOMEM, "character: out of memory");
   }
   return KM_OK;
@@ -532,7 +499,7 @@ static km_status alloc_skin(km_skin *s, size_t n, km_error *err) {
   s->joints = km__malloc(n * KM_SKIN_INFLUENCES, sizeof *s->joints);
   s->weights = km__malloc(n * KM_SKIN_INFLUENCES, sizeof *s->weights);
   if (!s->joints || !s->weights) {
-    free_skin(s);
+    km_skin_free(s);
     return km__fail(err, KM_ERR_NOMEM, "character: out of memory (%zu vertices)", n);
   }
   return KM_OK;
@@ -1233,8 +1200,8 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
 done:
   free(fs.joints);
   free(fs.weights);
-  free_skeleton(&sk);
-  free_skin(&skin);
+  km_skeleton_free(&sk);
+  km_skin_free(&skin);
   cJSON_Delete(root);
   return st;
 }
