@@ -42,9 +42,9 @@ typedef enum km_status {
   KM_ERR_NOT_POSDEF,      /* Cholesky met a non-positive-definite matrix */
   KM_ERR_NO_CONVERGENCE,  /* an iterative method did not converge */
   KM_ERR_NOMEM,
-  KM_ERR_CANCELLED,       /* a progress callback asked to stop */
-  KM_ERR_UNSUPPORTED,     /* valid input using a feature kinemesh does not handle */
-  KM_ERR_STALE,           /* a cache does not match its inputs (version, checksum, mesh) */
+  KM_ERR_CANCELLED,   /* a progress callback asked to stop */
+  KM_ERR_UNSUPPORTED, /* valid input using a feature kinemesh does not handle */
+  KM_ERR_STALE,       /* a cache does not match its inputs (version, checksum, mesh) */
 } km_status;
 
 typedef struct km_error {
@@ -73,8 +73,8 @@ typedef struct km_progress {
 /* ---------------------------------------------------------------- meshes */
 
 typedef struct km_mesh {
-  double *V;      /* #V*3 positions */
-  int32_t *F;     /* #F*3 triangles, 0-based */
+  double *V;  /* #V*3 positions */
+  int32_t *F; /* #F*3 triangles, 0-based */
   size_t n_vertices;
   size_t n_faces; /* 0 for a point cloud */
 } km_mesh;
@@ -93,8 +93,8 @@ typedef enum km_ply_encoding {
 } km_ply_encoding;
 
 typedef struct km_mesh_write_options {
-  km_mesh_format format;  /* 0: from extension */
-  km_ply_encoding ply;    /* 0: binary little endian */
+  km_mesh_format format; /* 0: from extension */
+  km_ply_encoding ply;   /* 0: binary little endian */
 } km_mesh_write_options;
 
 /* Allocates a mesh with uninitialised V and F of the given sizes. */
@@ -124,8 +124,8 @@ km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_
 typedef struct km_mesh_info {
   size_t vertices, faces;
   size_t edges;
-  size_t boundary_edges;    /* used by exactly one face */
-  size_t nonmanifold_edges; /* used by three or more faces */
+  size_t boundary_edges;       /* used by exactly one face */
+  size_t nonmanifold_edges;    /* used by three or more faces */
   size_t nonmanifold_vertices; /* faces around the vertex form more than one fan */
   size_t components;
   size_t isolated_vertices;
@@ -189,8 +189,7 @@ km_status km_cholesky_analyze(const km_sparse *A, km_cholesky **out, km_error *e
 /* A must have the pattern given to analyze. KM_ERR_NOT_POSDEF when it is not SPD. */
 km_status km_cholesky_factorize(km_cholesky *c, const km_sparse *A, km_error *err);
 /* X = A^-1 B, B and X column-major n x nrhs (may alias). */
-km_status km_cholesky_solve(km_cholesky *c, size_t nrhs, const double *B, double *X,
-                            km_error *err);
+km_status km_cholesky_solve(km_cholesky *c, size_t nrhs, const double *B, double *X, km_error *err);
 size_t km_cholesky_size(const km_cholesky *c);
 void km_cholesky_free(km_cholesky **c);
 
@@ -205,7 +204,8 @@ km_status km_cotmatrix(const km_mesh *m, km_sparse **L, km_error *err);
 km_status km_uniform_laplacian(const km_mesh *m, km_sparse **L, km_error *err);
 
 typedef enum km_mass_type {
-  KM_MASS_VORONOI = 0, /* mixed Voronoi areas (Meyer et al. 2003): obtuse triangles split 1/2,1/4,1/4 */
+  KM_MASS_VORONOI =
+      0, /* mixed Voronoi areas (Meyer et al. 2003): obtuse triangles split 1/2,1/4,1/4 */
   KM_MASS_BARYCENTRIC, /* a third of each incident triangle's area */
 } km_mass_type;
 /* Lumped (diagonal) mass matrix. Isolated vertices get a tiny positive mass so M stays
@@ -231,10 +231,10 @@ km_status km_local_frames(const km_mesh *m, const double *N, const int32_t *ref,
 /* ---------------------------------------------------------------- eigenfields */
 
 typedef struct km_eigs_options {
-  double sigma;     /* shift; 0: a small negative shift relative to the spectrum scale */
-  double tol;       /* ARPACK tolerance; 0: 1e-10 */
-  int max_iter;     /* 0: 1000 */
-  int ncv;          /* Lanczos vectors; 0: min(n, max(2k+1, 20)) */
+  double sigma; /* shift; 0: a small negative shift relative to the spectrum scale */
+  double tol;   /* ARPACK tolerance; 0: 1e-10 */
+  int max_iter; /* 0: 1000 */
+  int ncv;      /* Lanczos vectors; 0: min(n, max(2k+1, 20)) */
   km_progress progress;
 } km_eigs_options;
 /* The k smallest eigenpairs of -L phi = lambda M phi (L symmetric NSD, M diagonal SPD) by
@@ -268,9 +268,9 @@ void km_skeleton_free(km_skeleton *s);
 typedef struct km_take {
   size_t n_frames, n_joints;
   double fps;
-  char **joint_names;  /* n_joints */
-  int32_t *parents;    /* n_joints, -1 for roots; may be NULL when unknown */
-  double *positions;   /* n_frames * n_joints * 3 */
+  char **joint_names; /* n_joints */
+  int32_t *parents;   /* n_joints, -1 for roots; may be NULL when unknown */
+  double *positions;  /* n_frames * n_joints * 3 */
 } km_take;
 void km_take_free(km_take *t);
 /* kinemesh take JSON:
@@ -283,8 +283,8 @@ km_status km_take_write(const char *path, const km_take *t, km_error *err);
 #define KM_SKIN_INFLUENCES 4
 typedef struct km_skin {
   size_t n_vertices;
-  int32_t *joints;  /* n_vertices*4, -1 for an unused slot */
-  double *weights;  /* n_vertices*4, summing to 1 */
+  int32_t *joints; /* n_vertices*4, -1 for an unused slot */
+  double *weights; /* n_vertices*4, summing to 1 */
 } km_skin;
 void km_skin_free(km_skin *s);
 
@@ -317,9 +317,9 @@ typedef struct km_landmark {
 } km_landmark;
 
 typedef struct km_character {
-  km_mesh mesh;          /* closed, manifold, one component */
-  km_skeleton skeleton;  /* the 20 Kinect v1 joints at rest */
-  km_skin skin;          /* LBS weights over the skeleton's joints */
+  km_mesh mesh;         /* closed, manifold, one component */
+  km_skeleton skeleton; /* the 20 Kinect v1 joints at rest */
+  km_skin skin;         /* LBS weights over the skeleton's joints */
   km_landmark landmarks[KM_CHARACTER_LANDMARKS];
 } km_character;
 void km_character_free(km_character *c);
@@ -333,8 +333,7 @@ void km_character_free(km_character *c);
  * them onto the new implicit surface (Newton steps along the field gradient) and relaxing
  * them tangentially, in a few steps through intermediate bodies. Skeleton and skin are the
  * new subject's. Costs about twice a direct polygonisation. */
-km_status km_character_generate(const km_character_options *opt, km_character *out,
-                                km_error *err);
+km_status km_character_generate(const km_character_options *opt, km_character *out, km_error *err);
 /* Rig sidecar (<mesh>.rig.json): skeleton, skin, landmarks, and a default puppetry rig
  * (handles at head, hands, feet mapped to the matching Kinect joints). */
 km_status km_character_write_rig(const char *path, const km_character *c, km_error *err);
@@ -347,8 +346,8 @@ typedef enum km_motion_kind { KM_MOTION_WALK = 0, KM_MOTION_WAVE, KM_MOTION_KUNG
  * frames >= 1. Deterministic. Like a tracked performer it starts in the rest (T) pose — the
  * calibration pose puppetry measures displacements from — holds it 0.2 s and blends into
  * the motion over the next 0.5 s. */
-km_status km_motion_generate(const km_skeleton *s, km_motion_kind kind, size_t frames,
-                             km_take *out, km_error *err);
+km_status km_motion_generate(const km_skeleton *s, km_motion_kind kind, size_t frames, km_take *out,
+                             km_error *err);
 
 /* ---------------------------------------------------------------- animation output */
 
@@ -378,9 +377,9 @@ void km_anim_writer_free(km_anim_writer **w);
 
 typedef struct km_anim_info {
   km_anim_format format;
-  size_t frames;   /* frames in the file (morph targets for glb) */
+  size_t frames; /* frames in the file (morph targets for glb) */
   size_t vertices;
-  size_t faces;    /* 0 for pc2 */
+  size_t faces; /* 0 for pc2 */
   double fps;
   double duration; /* seconds */
 } km_anim_info;
@@ -584,14 +583,14 @@ typedef enum km_puppet_energy {
   KM_PUPPET_ENERGY_LAPLACIAN, /* the paper's eq. 8-9: |L X - rotated rest Laplacian|^2 */
 } km_puppet_energy;
 typedef struct km_puppet_options {
-  int fields;           /* n_e propagation fields; 0: 8 (1 .. 32) */
-  int isolines;         /* n_iso isolines per field; 0: 10 (2 .. 64) */
-  int iterations;       /* dual-Laplacian rotation updates per solve; 0: 4 */
-  double tolerance;     /* stop earlier when |dR| / |R - I| < tolerance; 0: 1e-4 */
-  double handle_weight; /* relative handle weight w_c (1: the handle and Laplacian terms of
-                           U^T U have equal trace); 0: 1 (Laplacian energy) or 3 (ARAP
-                           energy). Handles are soft: larger follows them closer and
-                           bends the rest more */
+  int fields;              /* n_e propagation fields; 0: 8 (1 .. 32) */
+  int isolines;            /* n_iso isolines per field; 0: 10 (2 .. 64) */
+  int iterations;          /* dual-Laplacian rotation updates per solve; 0: 4 */
+  double tolerance;        /* stop earlier when |dR| / |R - I| < tolerance; 0: 1e-4 */
+  double handle_weight;    /* relative handle weight w_c (1: the handle and Laplacian terms of
+                              U^T U have equal trace); 0: 1 (Laplacian energy) or 3 (ARAP
+                              energy). Handles are soft: larger follows them closer and
+                              bends the rest more */
   int crossed_per_isoline; /* crossed triangles sampled per isoline for rotations; 0: 10 */
   km_puppet_energy energy; /* 0: reduced ARAP; KM_PUPPET_ENERGY_LAPLACIAN: the paper's */
   km_progress progress;
@@ -600,8 +599,8 @@ typedef struct km_puppet_options {
 /* Builds the reduced model of `rest` (closed or open triangle mesh, >= 4 vertices).
  * Only fields, isolines, crossed_per_isoline and energy shape the model (and the cache key);
  * the other options are solve settings. */
-km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt,
-                               km_puppet **out, km_error *err);
+km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt, km_puppet **out,
+                               km_error *err);
 /* Writes the model atomically: magic, format version, parameters, hash of the rest mesh,
  * payload, checksum (native little-endian doubles). */
 km_status km_puppet_save(const km_puppet *p, const char *path, km_error *err);
@@ -623,11 +622,11 @@ void km_puppet_reset(km_puppet *p);
 typedef struct km_puppet_info {
   size_t vertices;
   int fields, isolines;
-  size_t unknowns;           /* 4*n_iso*n_e per coordinate */
-  size_t crossed_triangles;  /* n_tri: triangles whose rotations drive the update */
+  size_t unknowns;          /* 4*n_iso*n_e per coordinate */
+  size_t crossed_triangles; /* n_tri: triangles whose rotations drive the update */
   size_t handles, handle_vertices;
-  int last_iterations;       /* rotation updates done by the last solve */
-  double last_change;        /* its last relative update |dR| / |R - I| */
+  int last_iterations; /* rotation updates done by the last solve */
+  double last_change;  /* its last relative update |dR| / |R - I| */
 } km_puppet_info;
 void km_puppet_info_get(const km_puppet *p, km_puppet_info *out);
 void km_puppet_free(km_puppet **p);
@@ -642,9 +641,9 @@ typedef struct km_arap_options {
   double tolerance; /* stop earlier when the largest vertex move < tolerance * bbox diagonal;
                        0: 1e-6 */
 } km_arap_options;
-km_status km_arap_precompute(const km_mesh *rest, size_t n_handles,
-                             const int32_t *handle_offsets, const int32_t *handle_vertices,
-                             const km_arap_options *opt, km_arap **out, km_error *err);
+km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_t *handle_offsets,
+                             const int32_t *handle_vertices, const km_arap_options *opt,
+                             km_arap **out, km_error *err);
 /* Warm-started from the previous solve (the rest pose at first). V_out #V*3. */
 km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_error *err);
 void km_arap_free(km_arap **a);
@@ -652,7 +651,7 @@ void km_arap_free(km_arap **a);
 
 /* One point cloud frame. Points with a NaN/inf coordinate are dropped and counted. */
 typedef struct km_points {
-  double *P;          /* n*3 positions, metres */
+  double *P; /* n*3 positions, metres */
   size_t n;
   size_t dropped_nan; /* points skipped because a coordinate was not finite */
 } km_points;
@@ -702,25 +701,24 @@ km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, 
  * and out_dir/truth_rest.ply (c->mesh, whose faces give truth.pc2 its connectivity).
  * out_dir is created if missing. */
 km_status km_capture_simulate(const km_character *c, const km_take *take,
-                              const km_capture_options *opt, const char *out_dir,
-                              km_error *err);
+                              const km_capture_options *opt, const char *out_dir, km_error *err);
 
 /* ---- reconstruction (Park & Lim 2014 after Allen, Curless & Popovic 2003) */
 typedef struct km_recon_options {
-  size_t coarse_points;   /* multiresolution level size (Pauly clustering); 0: 2000 */
-  int knn;                /* neighbours for point normals; 0: 10 */
-  int first_iterations;   /* first frame: nonrigid iterations per phase; 0: 12 */
-  int refine_iterations;  /* later frames: surface refinement iterations; 0: 4 */
-  int skeleton_iterations;/* later frames: correspondence updates of the skeletal step; 0: 6 */
-  double w_data;          /* 0: 1 */
-  double w_feature;       /* 0: 10 */
-  double w_smooth;        /* 0: 0.05 (per edge; data is per point, normalised by count) */
-  double w_pose;          /* skeletal step: penalty (per rad^2) on the change from the
-                           * constant-velocity prediction; 0: 3e-4 (the data term is a mean
-                           * squared distance in m^2, so this is small) */
-  double outlier_scale;   /* Geman-McClure scale as a multiple of 1.4826*median residual; 0: 3 */
-  int filter_radius;      /* temporal Gaussian half width in frames; 0: 2 (5 frames), <0: off */
-  double filter_sigma;    /* frames; 0: 1 */
+  size_t coarse_points;    /* multiresolution level size (Pauly clustering); 0: 2000 */
+  int knn;                 /* neighbours for point normals; 0: 10 */
+  int first_iterations;    /* first frame: nonrigid iterations per phase; 0: 12 */
+  int refine_iterations;   /* later frames: surface refinement iterations; 0: 4 */
+  int skeleton_iterations; /* later frames: correspondence updates of the skeletal step; 0: 6 */
+  double w_data;           /* 0: 1 */
+  double w_feature;        /* 0: 10 */
+  double w_smooth;         /* 0: 0.05 (per edge; data is per point, normalised by count) */
+  double w_pose;           /* skeletal step: penalty (per rad^2) on the change from the
+                            * constant-velocity prediction; 0: 3e-4 (the data term is a mean
+                            * squared distance in m^2, so this is small) */
+  double outlier_scale;    /* Geman-McClure scale as a multiple of 1.4826*median residual; 0: 3 */
+  int filter_radius;       /* temporal Gaussian half width in frames; 0: 2 (5 frames), <0: off */
+  double filter_sigma;     /* frames; 0: 1 */
   km_progress progress;
 } km_recon_options;
 
@@ -732,20 +730,20 @@ typedef struct km_recon_feature {
 
 typedef struct km_recon_frame_stats {
   size_t index;
-  size_t points;      /* finite points used */
-  size_t dropped;     /* NaN points dropped */
-  double mean_mm;     /* mean distance points -> reconstructed surface */
+  size_t points;  /* finite points used */
+  size_t dropped; /* NaN points dropped */
+  double mean_mm; /* mean distance points -> reconstructed surface */
   double max_mm;
-  int iterations;     /* solver iterations (skeleton L-BFGS + surface) */
+  int iterations; /* solver iterations (skeleton L-BFGS + surface) */
   double seconds;
-  km_status status;   /* KM_OK, or why the frame was carried by the skeleton */
+  km_status status; /* KM_OK, or why the frame was carried by the skeleton */
 } km_recon_frame_stats;
 
 typedef struct km_recon_report {
   size_t n_frames, n_joints;
-  km_recon_frame_stats *frames; /* n_frames */
-  double *joints;               /* n_frames*n_joints*3 estimated joint positions */
-  char **joint_names;           /* n_joints */
+  km_recon_frame_stats *frames;   /* n_frames */
+  double *joints;                 /* n_frames*n_joints*3 estimated joint positions */
+  char **joint_names;             /* n_joints */
   double jerk_before, jerk_after; /* mean |second difference| of vertices, m, around the filter */
   size_t failed_frames;
 } km_recon_report;
@@ -772,8 +770,8 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n,
                                km_recon_frame_stats *stats, km_error *err);
 /* Skeletal motion (L-BFGS) then surface refinement. A frame that fails is carried by the
  * skeleton prediction: the call still returns KM_OK with stats->status set. */
-km_status km_recon_next_frame(km_recon *r, const double *P, size_t n,
-                              km_recon_frame_stats *stats, km_error *err);
+km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_frame_stats *stats,
+                              km_error *err);
 /* Results of the last frame: refined surface and LBS-only (global motion) surface, #V*3,
  * and joint positions n_joints*3. Valid until the next call. */
 const double *km_recon_surface(const km_recon *r);
@@ -793,9 +791,8 @@ km_status km_local_motion_filter(size_t n_frames, size_t n_vertices, const doubl
  * (km_anim_writer: .glb, .pc2 or a directory) with a delay of filter_radius frames, so a
  * failure late in the run never loses finished frames. report may be NULL. */
 km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
-                         const km_character *template_character,
-                         const km_recon_feature *features, size_t n_features,
-                         const km_recon_options *opt, const char *out_anim,
+                         const km_character *template_character, const km_recon_feature *features,
+                         size_t n_features, const km_recon_options *opt, const char *out_anim,
                          km_recon_report *report, km_error *err);
 
 /* ---- avatar pose transfer, pose recognition, key-pose morphing */
@@ -845,9 +842,9 @@ typedef struct km_transfer_options {
   km_offset_encoding encoding; /* 0: per edge (see above); KM_OFFSETS_VERTEX: paper's eq. 3 */
   km_transfer_align align;     /* how landmark targets come from a template; 0: scale */
   int max_iterations;          /* solves per transfer; 0: 10 */
-  double tolerance; /* stop when the largest vertex move between two solves is below
-                       tolerance * bbox diagonal of S and the largest frame entry change is
-                       below tolerance; 0: 1e-4 */
+  double tolerance;            /* stop when the largest vertex move between two solves is below
+                                  tolerance * bbox diagonal of S and the largest frame entry change is
+                                  below tolerance; 0: 1e-4 */
 } km_transfer_options;
 
 typedef struct km_transfer km_transfer;
@@ -897,8 +894,8 @@ void km_transfer_free(km_transfer **t);
 /* Least-squares similarity dst ~ s R src + t (Umeyama 1991; SVD by LAPACKE), n >= 3 points,
  * weights (n, >= 0) may be NULL for equal weights. R row-major 3x3, proper rotation.
  * KM_ERR_DEGENERATE_MESH when the source points are all coincident. */
-km_status km_similarity_fit(const double *src, const double *dst, const double *weights,
-                            size_t n, double *s, double R[9], double t[3], km_error *err);
+km_status km_similarity_fit(const double *src, const double *dst, const double *weights, size_t n,
+                            double *s, double R[9], double t[3], km_error *err);
 /* Total triangle area (for pose-invariant size ratios). */
 double km_surface_area(const km_mesh *m);
 
@@ -907,8 +904,8 @@ double km_surface_area(const km_mesh *m);
  * Every mirror must name a landmark of the file (itself on the mid-line). Reads at most
  * `capacity` landmarks (more: KM_ERR_PARSE); n_vertices > 0 checks vertex ids. */
 #define KM_POSE_MAX_LANDMARKS 32
-km_status km_landmarks_read(const char *path, size_t n_vertices, km_landmark *out,
-                            size_t capacity, size_t *n, km_error *err);
+km_status km_landmarks_read(const char *path, size_t n_vertices, km_landmark *out, size_t capacity,
+                            size_t *n, km_error *err);
 km_status km_landmarks_write(const char *path, const km_landmark *lm, size_t n, km_error *err);
 
 /* Pose descriptor (eq. 4). For n landmarks the candidate features are all angles
@@ -966,10 +963,10 @@ typedef struct km_posedb_report {
  * candidate angles, classification libsvm, template choice nearest neighbour inside the class.
  * The database keeps a copy of the meshes as templates. report may be NULL. */
 km_status km_posedb_build(const km_mesh *meshes, size_t n_meshes, const int32_t *labels,
-                          size_t n_classes, const char *const *class_names,
-                          const int32_t *groups, const km_landmark *landmarks,
-                          size_t n_landmarks, const km_posedb_options *opt, km_posedb **out,
-                          km_posedb_report *report, km_error *err);
+                          size_t n_classes, const char *const *class_names, const int32_t *groups,
+                          const km_landmark *landmarks, size_t n_landmarks,
+                          const km_posedb_options *opt, km_posedb **out, km_posedb_report *report,
+                          km_error *err);
 
 typedef struct km_pose_match {
   int32_t label;         /* predicted class */
@@ -979,8 +976,7 @@ typedef struct km_pose_match {
 } km_pose_match;
 
 /* Recognises the pose given by landmark positions P (n_landmarks*3, database order). */
-km_status km_posedb_query(const km_posedb *db, const double *P, km_pose_match *out,
-                          km_error *err);
+km_status km_posedb_query(const km_posedb *db, const double *P, km_pose_match *out, km_error *err);
 /* Single-file database (binary, versioned: "KMPOSEDB" magic, version, JSON header, raw
  * little-endian arrays, FNV-1a checksum). The SVM is retrained on load from the stored
  * templates (deterministic, milliseconds for thousands of samples). */
@@ -1031,10 +1027,10 @@ void km_track_free(km_track *t);
 void km_pose_lerp(const double *A, const double *B, size_t n_vertices, double a, double *out);
 
 typedef struct km_avatar_options {
-  size_t key_every;    /* k: recognise + transfer every k frames, interpolate between; 0: 1 */
-  double track_scale;  /* avatar size / tracked body size; 0: from the first key frame
-                          (size(avatar)/size(template) as in KM_TRANSFER_ALIGN_SCALE, over the
-                          Umeyama scale template->track) */
+  size_t key_every;   /* k: recognise + transfer every k frames, interpolate between; 0: 1 */
+  double track_scale; /* avatar size / tracked body size; 0: from the first key frame
+                         (size(avatar)/size(template) as in KM_TRANSFER_ALIGN_SCALE, over the
+                         Umeyama scale template->track) */
   km_progress progress;
 } km_avatar_options;
 
@@ -1046,8 +1042,7 @@ typedef struct km_avatar_stats {
 } km_avatar_stats;
 
 /* Called once per output frame, in order; returning non-OK stops the run with that status. */
-typedef km_status (*km_avatar_frame_fn)(size_t frame, const double *V, void *user,
-                                        km_error *err);
+typedef km_status (*km_avatar_frame_fn)(size_t frame, const double *V, void *user, km_error *err);
 
 /* Motion generation (section 3.5): every k-th track frame (and the last) is recognised in db,
  * its template transferred onto the avatar with the tracked landmarks (scaled to the avatar)

@@ -2,7 +2,6 @@
  * would take minutes). Its speed is measured by bench/bench_character, not here. */
 #include "character_checks.h"
 
-
 int main(void) {
 #if defined(__SANITIZE_ADDRESS__)
   printf("SKIP: 1M-vertex character under the sanitizers\n");

@@ -409,7 +409,6 @@ static void test_truncation_and_corruption(void) {
 
 /* ---------------------------------------------------------------- real data */
 
-
 static bool read_shared(const char *rel, km_mesh *m, size_t nv, size_t nf) {
   char buf[1024];
   const char *path = km_test_shared(rel, buf, sizeof buf);

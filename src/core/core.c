@@ -100,7 +100,8 @@ km_status km__atomic_open(km__atomic_file *af, const char *path, km_error *err) 
   snprintf(af->tmp_path, n + 32, "%s.tmp.%ld", path, (long)getpid());
   af->f = fopen(af->tmp_path, "wb");
   if (!af->f) {
-    km_status s = km__fail(err, KM_ERR_IO, "%s: cannot open for writing: %s", path, strerror(errno));
+    km_status s =
+        km__fail(err, KM_ERR_IO, "%s: cannot open for writing: %s", path, strerror(errno));
     free(af->path);
     free(af->tmp_path);
     memset(af, 0, sizeof *af);
@@ -185,7 +186,8 @@ void km__extension(const char *path, char *out, size_t out_size) {
   const char *dot = strrchr(base, '.');
   if (!dot || dot == base) return;
   size_t i = 0;
-  for (const char *p = dot + 1; *p && i + 1 < out_size; ++p) out[i++] = (char)tolower((unsigned char)*p);
+  for (const char *p = dot + 1; *p && i + 1 < out_size; ++p)
+    out[i++] = (char)tolower((unsigned char)*p);
   out[i] = '\0';
 }
 

@@ -70,10 +70,10 @@ struct km_puppet {
   size_t nr, nd, n_isolines; /* 4 n_iso n_e, 3 n_iso n_e, n_iso n_e */
   double center[3], scale;
   uint64_t mesh_hash;
-  double *P;        /* n*3 rest, world units */
-  double *Pn;       /* n*3 rest, normalised: (p - center)/scale */
-  double *wfield;   /* ne, sum 1 */
-  double *iso;      /* ne*niso iso-values, ascending per field */
+  double *P;      /* n*3 rest, world units */
+  double *Pn;     /* n*3 rest, normalised: (p - center)/scale */
+  double *wfield; /* ne, sum 1 */
+  double *iso;    /* ne*niso iso-values, ascending per field */
   /* Vertex-major on purpose: the X = W R kernel reads one vertex's n_e brackets and
    * parameters from one or two cache lines and vectorises over the 12 entries of the blended
    * transform (one 16-lane vector per field), which needs no gathers; a field-major
