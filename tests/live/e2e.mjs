@@ -29,7 +29,7 @@ try {
   page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
   await page.goto(url);
   await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
-    null, { timeout: 20000 });
+    null, { timeout: 80000 });
   check(true, 'page loaded the mesh and the rig and opened the WebSocket');
   const s0 = await status(http);
   check(s0.clients >= 1, `/status counts the page as a client (${s0.clients})`);
@@ -37,7 +37,7 @@ try {
 
   // Replay button -> frames arrive and vertices move.
   await page.click('#replay');
-  await page.waitForFunction(() => window.kmLive.frames >= 3, null, { timeout: 10000 });
+  await page.waitForFunction(() => window.kmLive.frames >= 3, null, { timeout: 40000 });
   const nv = await page.evaluate(() => window.kmLive.nv);
   const snap = () => page.evaluate(() => {
     const out = [];
@@ -80,7 +80,7 @@ try {
   await page.fill('#h-scale', '0.5');
   await page.click('#h-add');
   await page.click('#save');
-  await page.waitForFunction(() => window.kmLive.saved >= 1, null, { timeout: 10000 });
+  await page.waitForFunction(() => window.kmLive.saved >= 1, null, { timeout: 40000 });
   const rigAfter = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
   check(rigAfter.handles.length === rigBefore.handles.length + 1, `rig on disk has ${rigAfter.handles.length} handles (was ${rigBefore.handles.length})`);
   const h = rigAfter.handles.find((x) => x.vertex === pending);
@@ -98,7 +98,7 @@ try {
   const nBefore = rigAfter.handles.length;
   await page.click('#handles li:has-text("foot_left") button.remove');
   await page.click('#save');
-  await page.waitForFunction(() => window.kmLive.saved >= 2, null, { timeout: 10000 });
+  await page.waitForFunction(() => window.kmLive.saved >= 2, null, { timeout: 40000 });
   const rig2 = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
   check(rig2.handles.length === nBefore - 1 && !rig2.handles.some((x) => x.name === 'foot_left') &&
     !rig2.map.some((x) => x.handle === 'foot_left'), 'removed foot_left: handle and map entry gone from the rig on disk');
