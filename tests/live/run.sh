@@ -2,8 +2,8 @@
 # ctest driver for live mode: run.sh e2e|e2e_quantize|osc|garbage KINEMESH WORKDIR
 # Generates a small character and take, starts `kinemesh live` on loopback with random free
 # ports (retrying when a port is taken), runs the matching node script against it, stops the
-# server with SIGTERM and checks it exits cleanly. Skips (77) only when a tool the set-up
-# installs is missing (chromium for e2e, oscsend for osc).
+# server with SIGTERM and checks it exits cleanly. A missing tool (chromium, oscsend: the set-up
+# installs them) is a failure, not a skip.
 set -uo pipefail
 MODE=$1
 BIN=$2
@@ -12,8 +12,8 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
 command -v node >/dev/null || { echo "FAIL: node not found (scripts/deps.sh installs it)"; exit 1; }
 [ -d "$ROOT/web/node_modules/playwright-core" ] || { echo "FAIL: web/node_modules missing (run scripts/deps.sh)"; exit 1; }
-if [ "${MODE#e2e}" != "$MODE" ] && ! command -v chromium >/dev/null; then echo "SKIP: chromium not installed"; exit 77; fi
-if [ "$MODE" = osc ] && ! command -v oscsend >/dev/null; then echo "SKIP: oscsend (liblo-tools) not installed"; exit 77; fi
+if [ "${MODE#e2e}" != "$MODE" ] && ! command -v chromium >/dev/null; then echo "FAIL: chromium not installed (scripts/deps.sh installs it)"; exit 1; fi
+if [ "$MODE" = osc ] && ! command -v oscsend >/dev/null; then echo "FAIL: oscsend not installed (scripts/deps.sh installs liblo-tools)"; exit 1; fi
 rm -rf "$WORK" && mkdir -p "$WORK"
 "$BIN" gen character --vertices 3000 -o "$WORK/c.obj" >/dev/null 2>&1 || { echo "FAIL: gen character"; exit 1; }
 "$BIN" gen motion --kind wave --frames 60 --character "$WORK/c.obj" -o "$WORK/t.json" >/dev/null 2>&1 || { echo "FAIL: gen motion"; exit 1; }
