@@ -531,6 +531,21 @@ static km_status select_crossed(km_puppet *p, const km_mesh *m, const double *ev
 /* K0 = (LW)^T (LW) and G = (LW)^T W_d, one row of L at a time: row i of LW touches only the
  * isolines bracketing i's neighbours (~3 per field), so each row costs ~(12 n_e)^2 instead
  * of a dense 320^2. Per-thread accumulators, summed at the end. */
+
+/* Sparse accumulator over isoline rows: row li of buf (width w) joins the list of rows touched
+ * for `owner` (zeroed on first touch), then buf[li] += a * v. */
+static inline void spa_add(int32_t *stamp, int32_t *list, int *n, double *buf, int w, size_t li,
+                           int32_t owner, double a, const double *v) {
+  if (stamp[li] != owner) {
+    stamp[li] = owner;
+    list[(*n)++] = (int32_t)li;
+    for (int k = 0; k < w; ++k)
+      buf[li * (size_t)w + k] = 0;
+  }
+  for (int k = 0; k < w; ++k)
+    buf[li * (size_t)w + k] += a * v[k];
+}
+
 static km_status assemble_reduced(km_puppet *p, const km_sparse *L, const double *delta0,
                                   km_error *err) {
   const int32_t *cp, *ri;
@@ -586,15 +601,7 @@ static km_status assemble_reduced(km_puppet *p, const km_sparse *L, const double
           w_entry(p, j, f, &I0, &a0, &a1);
           for (int s = 0; s < 2; ++s) {
             size_t li = I0 + s;
-            double a = l * (s ? a1 : a0);
-            if (st[li] != (int32_t)i) {
-              st[li] = (int32_t)i;
-              tl[nt++] = (int32_t)li;
-              for (int k = 0; k < 4; ++k)
-                acc[li * 4 + k] = 0;
-            }
-            for (int k = 0; k < 4; ++k)
-              acc[li * 4 + k] += a * p4[k];
+            spa_add(st, tl, &nt, acc, 4, li, (int32_t)i, l * (s ? a1 : a0), p4);
           }
         }
       }
@@ -732,37 +739,12 @@ static km_status assemble_reduced_arap(km_puppet *p, const km_sparse *L, km_erro
           for (int s2 = 0; s2 < 2; ++s2) {
             /* (L W)_i */
             size_t li = I0 + s2;
-            double a = l * (s2 ? a1 : a0);
-            if (st[li] != (int32_t)i) {
-              st[li] = (int32_t)i;
-              tl[nt++] = (int32_t)li;
-              for (int k = 0; k < 4; ++k)
-                acc[li * 4 + k] = 0;
-            }
-            for (int k = 0; k < 4; ++k)
-              acc[li * 4 + k] += a * p4[k];
+            spa_add(st, tl, &nt, acc, 4, li, (int32_t)i, l * (s2 ? a1 : a0), p4);
             if (j == i) continue;
             /* B_i: w_ij/2 (c_i + c_j) (p_i - p_j), the c_j part on j's isolines ... */
-            double cj = 0.5 * l * (s2 ? a1 : a0);
-            if (sg[li] != (int32_t)i) {
-              sg[li] = (int32_t)i;
-              tg[ng++] = (int32_t)li;
-              for (int k = 0; k < 3; ++k)
-                g[li * 3 + k] = 0;
-            }
-            for (int k = 0; k < 3; ++k)
-              g[li * 3 + k] += cj * e[k];
+            spa_add(sg, tg, &ng, g, 3, li, (int32_t)i, 0.5 * l * (s2 ? a1 : a0), e);
             /* ... and the c_i part on i's */
-            size_t lk = Ii + s2;
-            double ci = 0.5 * l * (s2 ? b1 : b0);
-            if (sg[lk] != (int32_t)i) {
-              sg[lk] = (int32_t)i;
-              tg[ng++] = (int32_t)lk;
-              for (int k = 0; k < 3; ++k)
-                g[lk * 3 + k] = 0;
-            }
-            for (int k = 0; k < 3; ++k)
-              g[lk * 3 + k] += ci * e[k];
+            spa_add(sg, tg, &ng, g, 3, Ii + s2, (int32_t)i, 0.5 * l * (s2 ? b1 : b0), e);
           }
         }
       }
