@@ -294,6 +294,14 @@ void km_skin_free(km_skin *s);
  * keep the rest-relative transform of the parent. transforms: n_joints*12. */
 km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *positions,
                                           double *transforms, km_error *err);
+/* Joint rest positions at the boundaries of the skinned parts (Park & Lim: the skeleton of a
+ * template that has only weights). Joint j sits at the weighted centroid of the vertices its
+ * part shares with its parent's part (weight min(w_j, w_parent)); a root, or a joint whose
+ * part shares no vertex with its parent's, sits at the weighted centroid of its own part; a
+ * joint no vertex is weighted to keeps the position in `rest` (in: a guess, may be the
+ * rig's; out: the estimate). parents: n_joints entries, -1 for roots. */
+km_status km_skeleton_from_weights(const km_mesh *m, const km_skin *skin, const int32_t *parents,
+                                   size_t n_joints, double *rest, km_error *err);
 /* out = sum_k w_k T_{j_k} v for each rest vertex. out #V*3 may not alias rest. */
 km_status km_lbs(const double *rest, size_t n_vertices, const km_skin *skin,
                  const double *transforms, size_t n_joints, double *out, km_error *err);
@@ -719,6 +727,9 @@ typedef struct km_recon_options {
   double outlier_scale;    /* Geman-McClure scale as a multiple of 1.4826*median residual; 0: 3 */
   int filter_radius;       /* temporal Gaussian half width in frames; 0: 2 (5 frames), <0: off */
   double filter_sigma;     /* frames; 0: 1 */
+  bool rig_joints;         /* false (default): joints estimated at the part boundaries of the
+                            * LBS weights (km_skeleton_from_weights), as the paper does; true:
+                            * the template rig's joint positions as they are */
   km_progress progress;
 } km_recon_options;
 

@@ -303,8 +303,54 @@ static void test_generate(void) {
   km_skeleton_free(&s);
 }
 
+/* Joints recovered from the skin weights alone land near the rig's joints on the procedural
+ * character (whose weights blend over a band around each joint), and a joint no vertex is
+ * weighted to keeps its guess. */
+static void test_skeleton_from_weights(void) {
+  km_character c = {0};
+  km_character_options co = {0};
+  co.target_vertices = 8000;
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  size_t nj = c.skeleton.n_joints;
+  double *est = malloc(sizeof(double) * 3 * nj);
+  for (size_t i = 0; i < 3 * nj; ++i)
+    est[i] = 1e3; /* far-away guesses */
+  CHECK_OK(km_skeleton_from_weights(&c.mesh, &c.skin, c.skeleton.parents, nj, est, KM_E));
+  double worst = 0, sum = 0;
+  for (size_t j = 0; j < nj; ++j) {
+    double d = 0;
+    for (int k = 0; k < 3; ++k)
+      d += pow(est[3 * j + k] - c.skeleton.rest[3 * j + k], 2);
+    d = sqrt(d);
+    sum += d;
+    if (d > worst) worst = d;
+    printf("joint %-14s estimated %.1f cm from the rig's\n", c.skeleton.names[j], 100 * d);
+  }
+  CHECK_MSG(sum / (double)nj < 0.03 && worst < 0.12, "mean %.3f m, worst %.3f m", sum / (double)nj,
+            worst);
+  /* no vertex weighted to any joint: every guess stays */
+  km_skin empty = c.skin;
+  empty.weights = calloc(4 * c.mesh.n_vertices, sizeof(double));
+  for (size_t i = 0; i < 3 * nj; ++i)
+    est[i] = (double)i;
+  CHECK_OK(km_skeleton_from_weights(&c.mesh, &empty, c.skeleton.parents, nj, est, KM_E));
+  bool kept = true;
+  for (size_t i = 0; i < 3 * nj; ++i)
+    kept &= est[i] == (double)i;
+  CHECK(kept);
+  free(empty.weights);
+  int32_t bad_parents[KM_KINECT1_JOINTS];
+  memcpy(bad_parents, c.skeleton.parents, sizeof bad_parents);
+  bad_parents[3] = 99;
+  CHECK_STATUS(km_skeleton_from_weights(&c.mesh, &c.skin, bad_parents, nj, est, KM_E),
+               KM_ERR_INVALID);
+  free(est);
+  km_character_free(&c);
+}
+
 int main(void) {
   test_kinect_tables();
+  test_skeleton_from_weights();
   test_pose();
   test_take_io();
   test_generate();

@@ -29,6 +29,8 @@ static void logger(km_log_level l, const char *m, void *u) {
   if (l >= KM_LOG_WARN || getenv("KM_BENCH_DEBUG")) fprintf(stderr, "%s\n", m);
 }
 
+static bool g_rig_joints; /* --rig-joints, read by both scenarios */
+
 static int run_dfaust(const char *dir, const char *json) {
   km_error e = {0};
   char **paths = NULL;
@@ -39,6 +41,7 @@ static int run_dfaust(const char *dir, const char *json) {
   if (km_character_generate(&co, &tmpl, &e)) die("template", &e);
   km_recon_report rep = {0};
   km_recon_options ro = {0};
+  ro.rig_joints = g_rig_joints;
   char out[512];
   snprintf(out, sizeof out, "/tmp/bench_recon_dfaust_%d.pc2", (int)getpid());
   double t0 = km__now();
@@ -72,6 +75,8 @@ int km_cli_bench_reconstruct(int argc, char **argv) {
       {"plot", 0, KM_OPT_STRING, &plot, "also plot the per-frame errors (PNG, gnuplot)"},
       {"keep", 0, KM_OPT_STRING, &keep, "keep the simulated capture in this directory"},
       {"dfaust", 0, KM_OPT_STRING, &dfaust, "reconstruct real D-FAUST clouds from DIR instead"},
+      {"rig-joints", 0, KM_OPT_FLAG, &g_rig_joints,
+       "use the template rig's joints (default: estimated from the skin weights)"},
   };
   const char *pos[1];
   int n_pos;
@@ -154,6 +159,7 @@ int km_cli_bench_reconstruct(int argc, char **argv) {
   size_t npts0 = p0.n;
   km_points_free(&p0);
   km_recon_options ro = {0};
+  ro.rig_joints = g_rig_joints;
   if (getenv("KM_BENCH_REFINE")) ro.refine_iterations = atoi(getenv("KM_BENCH_REFINE"));
   if (getenv("KM_BENCH_WPOSE")) ro.w_pose = atof(getenv("KM_BENCH_WPOSE"));
   /* The incremental API (what km_reconstruct streams through) so both the refined and the

@@ -146,6 +146,7 @@ static int read_features(const char *path, km_recon_feature **out, size_t *n) {
 int km_cli_reconstruct(int argc, char **argv) {
   const char *tmpl = NULL, *rig = NULL, *features = NULL, *out = NULL, *report = NULL, *plot = NULL;
   const char *clouds = NULL;
+  bool rig_joints = false;
   size_t coarse = 0, vertices = 4000;
   int radius = 0;
   const km_cli_opt opts[] = {
@@ -160,6 +161,8 @@ int km_cli_reconstruct(int argc, char **argv) {
       {"features", 0, KM_OPT_STRING, &features, "same as --correspondences"},
       {"coarse", 0, KM_OPT_SIZE, &coarse, "points of the coarse level (default 2000)"},
       {"filter-radius", 0, KM_OPT_INT, &radius, "temporal filter half width (default 2, -1 off)"},
+      {"rig-joints", 0, KM_OPT_FLAG, &rig_joints,
+       "use the template rig's joints (default: estimated from the skin weights)"},
       {"report", 0, KM_OPT_STRING, &report, "per-frame report (JSON)"},
       {"plot", 0, KM_OPT_STRING, &plot, "error plot (PNG, through gnuplot)"},
       {"output", 'o', KM_OPT_STRING, &out, "output animation (.glb, .pc2 or a directory)"},
@@ -198,7 +201,8 @@ int km_cli_reconstruct(int argc, char **argv) {
   km_character c = {0};
   int rc = KM_EXIT_OK;
   km_recon_report rep = {0};
-  km_recon_options ro = {.coarse_points = coarse, .filter_radius = radius};
+  km_recon_options ro = {
+      .coarse_points = coarse, .filter_radius = radius, .rig_joints = rig_joints};
   ro.progress = km_cli_progress("reconstruct");
   double t0 = km_cli_now();
   km_status s = km_cli_load_character(tmpl, rig, vertices, &c, &err);

@@ -226,3 +226,49 @@ km_status km_lbs(const double *rest, size_t n_vertices, const km_skin *skin,
                     bad, n_joints - 1);
   return KM_OK;
 }
+
+km_status km_skeleton_from_weights(const km_mesh *m, const km_skin *skin, const int32_t *parents,
+                                   size_t n_joints, double *rest, km_error *err) {
+  if (!m || !skin || !parents || !rest || !n_joints)
+    return km__fail(err, KM_ERR_INVALID, "km_skeleton_from_weights: NULL argument");
+  if (skin->n_vertices != m->n_vertices || !skin->joints || !skin->weights)
+    return km__fail(err, KM_ERR_INVALID,
+                    "km_skeleton_from_weights: skin has %zu vertices, mesh %zu", skin->n_vertices,
+                    m->n_vertices);
+  for (size_t j = 0; j < n_joints; ++j)
+    if (parents[j] >= (int32_t)n_joints)
+      return km__fail(err, KM_ERR_INVALID, "km_skeleton_from_weights: joint %zu: bad parent %d", j,
+                      parents[j]);
+  /* per joint: boundary sums (weight, weighted position) and own-part sums */
+  double *acc = km__calloc(n_joints * 8, sizeof *acc);
+  if (!acc) return km__fail(err, KM_ERR_NOMEM, "km_skeleton_from_weights: out of memory");
+  for (size_t v = 0; v < m->n_vertices; ++v) {
+    const int32_t *jv = skin->joints + KM_SKIN_INFLUENCES * v;
+    const double *wv = skin->weights + KM_SKIN_INFLUENCES * v, *x = m->V + 3 * v;
+    for (int a = 0; a < KM_SKIN_INFLUENCES; ++a) {
+      int32_t j = jv[a];
+      if (j < 0 || (size_t)j >= n_joints || !(wv[a] > 0)) continue;
+      double *own = acc + 8 * (size_t)j + 4;
+      own[0] += wv[a];
+      for (int k = 0; k < 3; ++k)
+        own[1 + k] += wv[a] * x[k];
+      for (int b = 0; b < KM_SKIN_INFLUENCES; ++b)
+        if (jv[b] == parents[j] && wv[b] > 0) {
+          double w = fmin(wv[a], wv[b]);
+          double *bd = acc + 8 * (size_t)j;
+          bd[0] += w;
+          for (int k = 0; k < 3; ++k)
+            bd[1 + k] += w * x[k];
+        }
+    }
+  }
+  for (size_t j = 0; j < n_joints; ++j) {
+    const double *bd = acc + 8 * j, *own = bd + 4;
+    const double *use = parents[j] >= 0 && bd[0] > 0 ? bd : own[0] > 0 ? own : NULL;
+    if (use)
+      for (int k = 0; k < 3; ++k)
+        rest[3 * j + k] = use[1 + k] / use[0];
+  }
+  free(acc);
+  return KM_OK;
+}

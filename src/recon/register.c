@@ -391,6 +391,13 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   }
   memcpy(r->parents, c->skeleton.parents, nj * sizeof *r->parents);
   memcpy(r->tmpl_joints, c->skeleton.rest, nj * 3 * sizeof(double));
+  if (!r->o.rig_joints) {
+    s = km_skeleton_from_weights(m, &c->skin, c->skeleton.parents, nj, r->tmpl_joints, err);
+    if (s) {
+      km_recon_free(&r);
+      return s;
+    }
+  }
   for (size_t j = 0; j < nj; ++j)
     r->names[j] =
         strdup(c->skeleton.names && c->skeleton.names[j] ? c->skeleton.names[j] : "joint");
@@ -398,7 +405,7 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   memcpy(r->skin.weights, c->skin.weights, nv * 4 * sizeof(double));
   memcpy(r->surface, m->V, nv * 3 * sizeof(double));
   memcpy(r->global, m->V, nv * 3 * sizeof(double));
-  memcpy(r->joints, c->skeleton.rest, nj * 3 * sizeof(double));
+  memcpy(r->joints, r->tmpl_joints, nj * 3 * sizeof(double));
   s = build_system(r, err);
   if (!s) s = km__surface_create(r->surface, nv, r->tmpl.F, r->nf, &r->query, err);
   if (s) {
