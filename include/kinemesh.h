@@ -757,11 +757,16 @@ typedef struct km_recon_report {
   char **joint_names;             /* n_joints */
   double jerk_before, jerk_after; /* mean |second difference| of vertices, m, around the filter */
   size_t failed_frames;
+  size_t correspondences;         /* first-frame correspondences used; 0: a global alignment
+                                     only (centroids, heights; subject facing +z) */
+  bool rig_joints;                /* joints from the rig as given (else from the skin weights) */
 } km_recon_report;
 void km_recon_report_free(km_recon_report *r);
 /* JSON: {"format":"kinemesh-recon-report","version":1,"frames":[{"index":..,"points":..,
  * "mean_mm":..,"max_mm":..,"iterations":..,"seconds":..,"status":"KM_OK",
- * "joints":[x,y,z,...]}...], "jerk_before":..,"jerk_after":..}. Written atomically. */
+ * "joints":[x,y,z,...]}...], "jerk_before":..,"jerk_after":.., "first_frame": {
+ * "correspondences": N, "initialisation": "..."}, "joints_from": "skin weights"|"rig"}.
+ * Written atomically. */
 km_status km_recon_report_write_json(const char *path, const km_recon_report *r, km_error *err);
 /* Fig. 6 of the paper: mean/max point error per frame as a PNG through gnuplot (popen). */
 km_status km_recon_report_plot(const char *png_path, const km_recon_report *r, km_error *err);

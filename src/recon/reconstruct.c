@@ -90,6 +90,14 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
     cJSON_AddItemToArray(frames, o);
   }
   cJSON_AddNumberToObject(root, "failed_frames", (double)r->failed_frames);
+  cJSON *ff = cJSON_AddObjectToObject(root, "first_frame");
+  cJSON_AddNumberToObject(ff, "correspondences", (double)r->correspondences);
+  cJSON_AddStringToObject(
+      ff, "initialisation",
+      r->correspondences ? "Horn alignment + scale on the given correspondences"
+                         : "no correspondences given: the template's landmarks and a global "
+                           "alignment only (centroids, heights; the subject assumed to face +z)");
+  cJSON_AddStringToObject(root, "joints_from", r->rig_joints ? "rig" : "skin weights");
   cJSON_AddNumberToObject(root, "jerk_before", r->jerk_before);
   cJSON_AddNumberToObject(root, "jerk_after", r->jerk_after);
   char *text = cJSON_Print(root);
@@ -155,6 +163,8 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
   km_recon_report local_rep = {0};
   km_recon_report *rep = report ? report : &local_rep;
   memset(rep, 0, sizeof *rep);
+  rep->correspondences = n_feat;
+  rep->rig_joints = o.rig_joints;
   km_recon *r = NULL;
   km_anim_writer *w = NULL;
   size_t nv = tmpl->mesh.n_vertices, nj = tmpl->skeleton.n_joints, win = 2 * (size_t)radius + 1;
