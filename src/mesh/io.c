@@ -211,6 +211,18 @@ void km__quote_token(const char *s, size_t len, char *out, size_t out_size) {
   out[o] = '\0';
 }
 
+bool km__tris_fan(km__tris *t, size_t j, int32_t idx, int32_t *first, int32_t *prev) {
+  if (j >= 2) {
+    if (!km__tris_reserve(t, t->n + 1)) return false;
+    int32_t *f = t->F + 3 * t->n++;
+    f[0] = *first, f[1] = *prev, f[2] = idx;
+  } else if (j == 0) {
+    *first = idx;
+  }
+  *prev = idx;
+  return true;
+}
+
 bool km__tris_reserve(km__tris *t, size_t n_tris) {
   if (n_tris <= t->cap) return true;
   size_t cap = t->cap ? t->cap : 64;

@@ -155,17 +155,10 @@ km_status km__off_parse(const char *data, size_t size, const char *name, km_mesh
                      r.line, nv ? nv - 1 : 0, q);
         break;
       }
-      if (j >= 2) {
-        if (!km__tris_reserve(&tris, tris.n + 1)) {
-          s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
-          break;
-        }
-        int32_t *t = tris.F + 3 * tris.n++;
-        t[0] = first, t[1] = prev, t[2] = (int32_t)idx;
-      } else if (j == 0) {
-        first = (int32_t)idx;
+      if (!km__tris_fan(&tris, (size_t)j, (int32_t)idx, &first, &prev)) {
+        s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+        break;
       }
-      prev = (int32_t)idx;
     }
     /* Anything after the indices (a face colour) is ignored. */
   }

@@ -38,6 +38,9 @@ typedef struct km__tris {
   size_t n, cap; /* in triangles */
 } km__tris;
 bool km__tris_reserve(km__tris *t, size_t n_tris);
+/* Fan triangulation (0, j-1, j) of a polygon fed one index at a time: corner j of the polygon
+ * is idx; first/prev carry the fan's state between calls. False when out of memory. */
+bool km__tris_fan(km__tris *t, size_t j, int32_t idx, int32_t *first, int32_t *prev);
 
 static inline bool km__is_space(char c) {
   return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
