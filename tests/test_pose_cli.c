@@ -1,0 +1,155 @@
+/* Avatar pose transfer through the CLI: transfer, posedb build/query and avatar on procedural
+ * subjects that share connectivity, with LBS-posed ground truth. */
+#include "km_test.h"
+
+#include <cjson/cJSON.h>
+
+#define DIR "pose_cli"
+
+static double mean_dist(const km_mesh *a, const km_mesh *b) {
+  double s = 0;
+  for (size_t v = 0; v < a->n_vertices; ++v) {
+    double d = 0;
+    for (int k = 0; k < 3; ++k)
+      d += pow(a->V[3 * v + k] - b->V[3 * v + k], 2);
+    s += sqrt(d);
+  }
+  return s / (double)a->n_vertices;
+}
+
+/* A track file: the landmark vertices of posed frames of subject a. */
+static void write_track(const char *path, const km_landmark *lm, const char *frames_dir,
+                        const int *frames, int n_frames) {
+  cJSON *root = cJSON_CreateObject();
+  cJSON_AddNumberToObject(root, "fps", 30);
+  cJSON *names = cJSON_AddArrayToObject(root, "landmarks");
+  for (int l = 0; l < KM_CHARACTER_LANDMARKS; ++l)
+    cJSON_AddItemToArray(names, cJSON_CreateString(lm[l].name));
+  cJSON *fr = cJSON_AddArrayToObject(root, "frames");
+  for (int i = 0; i < n_frames; ++i) {
+    char p[256];
+    snprintf(p, sizeof p, "%s/frame_%06d.obj", frames_dir, frames[i]);
+    km_mesh m = {0};
+    CHECK_OK(km_mesh_read(p, &m, KM_E));
+    cJSON *row = cJSON_CreateArray();
+    for (int l = 0; l < KM_CHARACTER_LANDMARKS && m.V; ++l)
+      for (int k = 0; k < 3; ++k)
+        cJSON_AddItemToArray(row, cJSON_CreateNumber(m.V[3 * (size_t)lm[l].vertex + k]));
+    cJSON_AddItemToArray(fr, row);
+    km_mesh_free(&m);
+  }
+  char *s = cJSON_Print(root);
+  FILE *f = fopen(path, "w");
+  fputs(s, f);
+  fclose(f);
+  free(s);
+  cJSON_Delete(root);
+}
+
+int main(void) {
+  char *out = NULL;
+  CHECK(km_test_run("rm -rf " DIR " && mkdir -p " DIR "/db", NULL) == 0);
+  /* two subjects of one connectivity, three motions each, posed by LBS */
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2500 -o " DIR "/a.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2500 --shape stocky -o " DIR "/b.obj",
+                    NULL) == 0);
+  const char *kinds[3] = {"walk", "wave", "kungfu"};
+  char cmd[1024];
+  for (int k = 0; k < 3; ++k) {
+    snprintf(cmd, sizeof cmd,
+             KM_CLI " gen motion --kind %s --frames 90 --character " DIR "/a.obj -o " DIR
+                    "/%s.json",
+             kinds[k], kinds[k]);
+    CHECK(km_test_run(cmd, NULL) == 0);
+    for (int s = 0; s < 2; ++s) {
+      snprintf(cmd, sizeof cmd,
+               KM_CLI " pose --mesh " DIR "/%c.obj --motion " DIR "/%s.json -o " DIR "/%c_%s",
+               "ab"[s], kinds[k], "ab"[s], kinds[k]);
+      CHECK(km_test_run(cmd, NULL) == 0);
+    }
+  }
+  km_mesh a = {0}, b = {0}, bt = {0}, res = {0};
+  CHECK_OK(km_mesh_read(DIR "/a.obj", &a, KM_E));
+  CHECK_OK(km_mesh_read(DIR "/b.obj", &b, KM_E));
+  CHECK(a.n_vertices == b.n_vertices && a.n_faces == b.n_faces);
+
+  /* transfer: b takes a's kung-fu pose of frame 60; b posed by LBS is the truth */
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/b.obj --template " DIR
+                           "/a_kungfu/frame_000060.obj -o " DIR "/b60.obj",
+                    &out) == 0);
+  free(out);
+  CHECK_OK(km_mesh_read(DIR "/b_kungfu/frame_000060.obj", &bt, KM_E));
+  CHECK_OK(km_mesh_read(DIR "/b60.obj", &res, KM_E));
+  if (res.V && bt.V && res.n_vertices == bt.n_vertices) {
+    double e_transfer = mean_dist(&res, &bt), e_rest = mean_dist(&b, &bt);
+    CHECK_MSG(e_transfer < 0.25 * e_rest && e_transfer < 0.04,
+              "transfer error %.4f m, source at rest %.4f m", e_transfer, e_rest);
+  }
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/b.obj --template " DIR
+                           "/a.obj --landmarks " DIR "/none.json -o " DIR "/x.obj",
+                    NULL) == 1);
+
+  /* database: frames of both subjects labelled by motion, subjects as CV groups */
+  FILE *f = fopen(DIR "/labels.csv", "w");
+  fputs("mesh,class,subject\n", f);
+  for (int k = 0; k < 3; ++k)
+    for (int s = 0; s < 2; ++s)
+      for (int fr = 40; fr <= 80; fr += 10) {
+        snprintf(cmd, sizeof cmd, "cp " DIR "/%c_%s/frame_%06d.obj " DIR "/db/%c_%s_%d.obj",
+                 "ab"[s], kinds[k], fr, "ab"[s], kinds[k], fr);
+        CHECK(km_test_run(cmd, NULL) == 0);
+        fprintf(f, "%c_%s_%d.obj,%s,%c\n", "ab"[s], kinds[k], fr, kinds[k], "ab"[s]);
+      }
+  fclose(f);
+  CHECK(km_test_run(KM_CLI " posedb build --meshes '" DIR "/db/*.obj' --labels " DIR
+                           "/labels.csv --landmarks " DIR "/a.rig.json -o " DIR "/poses.kmposedb",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "3 classes") && strstr(out, "over 2 folds"), "%s", out);
+  free(out);
+
+  /* query and avatar from a track of subject a's landmarks */
+  km_landmark lm[KM_CHARACTER_LANDMARKS];
+  size_t nl = 0;
+  CHECK_OK(
+      km_landmarks_read(DIR "/a.rig.json", a.n_vertices, lm, KM_CHARACTER_LANDMARKS, &nl, KM_E));
+  CHECK(nl == KM_CHARACTER_LANDMARKS);
+  int frames[12];
+  for (int i = 0; i < 12; ++i)
+    frames[i] = 35 + 4 * i;
+  write_track(DIR "/wave_track.json", lm, DIR "/a_wave", frames, 12);
+  CHECK(km_test_run(KM_CLI " posedb query " DIR "/poses.kmposedb --landmarks-xyz " DIR
+                           "/wave_track.json",
+                    &out) == 0);
+  size_t wave_rows = 0;
+  for (char *p = out; p && (p = strstr(p, ",wave,")); ++p)
+    ++wave_rows;
+  CHECK_MSG(wave_rows >= 10, "%zu of 12 frames recognised as wave:\n%s", wave_rows, out);
+  free(out);
+  CHECK(km_test_run(KM_CLI " avatar --source " DIR "/b.obj --db " DIR "/poses.kmposedb --track " DIR
+                           "/wave_track.json --interval 3 -o " DIR "/avatar.pc2",
+                    &out) == 0);
+  free(out);
+  double *anim = NULL;
+  km_anim_info info;
+  CHECK_OK(km_pc2_read(DIR "/avatar.pc2", &anim, &info, KM_E));
+  CHECK(info.frames == 12 && info.vertices == b.n_vertices);
+  /* a key frame (every 3rd) follows the tracked pose: frame 6 is wave frame 59 */
+  km_mesh bw = {0};
+  CHECK_OK(km_mesh_read(DIR "/b_wave/frame_000059.obj", &bw, KM_E));
+  if (anim && info.frames == 12 && bw.V && bw.n_vertices == b.n_vertices) {
+    km_mesh key = b;
+    key.V = anim + 6 * 3 * b.n_vertices;
+    double e_key = mean_dist(&key, &bw), e_rest = mean_dist(&b, &bw);
+    CHECK_MSG(e_key < 0.3 * e_rest, "avatar key frame %.4f m from the truth, rest %.4f m", e_key,
+              e_rest);
+  }
+  km_mesh_free(&bw);
+  free(anim);
+
+  km_mesh_free(&a);
+  km_mesh_free(&b);
+  km_mesh_free(&bt);
+  km_mesh_free(&res);
+  km_test_run("rm -rf " DIR, NULL);
+  return km_test_finish("test_pose_cli");
+}
