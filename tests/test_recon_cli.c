@@ -1,0 +1,89 @@
+/* Point clouds to mesh animation through the CLI: a simulated capture, then reconstruct with
+ * a report and a plot; bad inputs exit non-zero with a message naming them. */
+#include "km_test.h"
+
+#include <cjson/cJSON.h>
+
+#define DIR "recon_cli"
+
+int main(void) {
+  char *out = NULL;
+  CHECK(km_test_run("rm -rf " DIR " && mkdir -p " DIR, NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 6000 --shape stocky -o " DIR "/subject.obj",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen motion --kind wave --frames 5 --character " DIR
+                           "/subject.obj -o " DIR "/take.json",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen capture --character " DIR "/subject.obj --motion " DIR
+                           "/take.json --cameras 8 --points 12000 --noise-mm 2 -o " DIR "/frames",
+                    &out) == 0);
+  free(out);
+  km_anim_info truth;
+  CHECK_OK(km_anim_info_read(DIR "/frames/truth.pc2", &truth, KM_E));
+  CHECK(truth.frames == 5);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 3000 -o " DIR "/template.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/template.obj --clouds '" DIR
+                           "/frames/frame_*.ply' -o " DIR "/recon.pc2 --report " DIR
+                           "/report.json --plot " DIR "/errors.png",
+                    &out) == 0);
+  free(out);
+  km_anim_info info;
+  CHECK_OK(km_anim_info_read(DIR "/recon.pc2", &info, KM_E));
+  CHECK(info.frames == 5);
+  char *data = NULL;
+  size_t size = 0;
+  FILE *f = fopen(DIR "/report.json", "rb");
+  CHECK(f != NULL);
+  if (f) {
+    fseek(f, 0, SEEK_END);
+    size = (size_t)ftell(f);
+    fseek(f, 0, SEEK_SET);
+    data = malloc(size + 1);
+    data[fread(data, 1, size, f)] = '\0';
+    fclose(f);
+  }
+  cJSON *rep = data ? cJSON_Parse(data) : NULL;
+  free(data);
+  const cJSON *frames = cJSON_GetObjectItemCaseSensitive(rep, "frames");
+  CHECK(cJSON_GetArraySize(frames) == 5);
+  for (int i = 0; i < cJSON_GetArraySize(frames); ++i) {
+    const cJSON *fr = cJSON_GetArrayItem(frames, i);
+    const char *keys[] = {"index", "points", "mean_mm", "max_mm", "iterations", "seconds"};
+    for (int k = 0; k < 6; ++k)
+      CHECK_MSG(cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(fr, keys[k])), "frame %d: %s", i,
+                keys[k]);
+    const cJSON *mean = cJSON_GetObjectItemCaseSensitive(fr, "mean_mm");
+    /* 2 mm noise: the surface sits a few mm from the points on average */
+    CHECK_MSG(cJSON_IsNumber(mean) && mean->valuedouble > 0 && mean->valuedouble < 6,
+              "frame %d: mean %.2f mm", i, cJSON_IsNumber(mean) ? mean->valuedouble : -1);
+    CHECK(cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(fr, "joints")) ==
+          3 * KM_KINECT1_JOINTS);
+  }
+  const cJSON *ff = cJSON_GetObjectItemCaseSensitive(rep, "first_frame");
+  CHECK(cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(ff, "correspondences")) &&
+        cJSON_GetObjectItemCaseSensitive(ff, "correspondences")->valuedouble == 0);
+  cJSON_Delete(rep);
+  f = fopen(DIR "/errors.png", "rb");
+  unsigned char sig[8] = {0};
+  CHECK(f && fread(sig, 1, 8, f) == 8 && sig[0] == 0x89 && sig[1] == 'P' && sig[2] == 'N');
+  if (f) fclose(f);
+
+  /* bad inputs */
+  CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/template.obj --clouds '" DIR
+                           "/nothing_*.ply' -o " DIR "/x.pc2",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "nothing_"), "%s", out);
+  free(out);
+  f = fopen(DIR "/bad.json", "w");
+  fputs("{\"correspondences\": [{\"vertex\": \"x\"}]}", f);
+  fclose(f);
+  CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/template.obj --clouds '" DIR
+                           "/frames/frame_*.ply' --correspondences " DIR "/bad.json -o " DIR
+                           "/x.pc2",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "bad.json"), "%s", out);
+  free(out);
+  CHECK(km_test_run("test ! -e " DIR "/x.pc2", NULL) == 0);
+  km_test_run("rm -rf " DIR, NULL);
+  return km_test_finish("test_recon_cli");
+}
