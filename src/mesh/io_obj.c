@@ -12,14 +12,7 @@ typedef struct line_cursor {
 
 /* Next whitespace-separated token of the line; false at the end of the line. */
 static bool next_token(line_cursor *c, const char **tok, size_t *len) {
-  while (c->p < c->end && km__is_space(*c->p))
-    ++c->p;
-  if (c->p >= c->end) return false;
-  *tok = c->p;
-  while (c->p < c->end && !km__is_space(*c->p))
-    ++c->p;
-  *len = (size_t)(c->p - *tok);
-  return true;
+  return km__token(&c->p, c->end, tok, len);
 }
 
 static bool is_keyword_char(char ch) {

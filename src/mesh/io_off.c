@@ -29,14 +29,7 @@ static bool next_line(off_reader *r) {
 }
 
 static bool line_token(off_reader *r, const char **tok, size_t *len) {
-  while (r->lp < r->le && km__is_space(*r->lp))
-    ++r->lp;
-  if (r->lp >= r->le) return false;
-  *tok = r->lp;
-  while (r->lp < r->le && !km__is_space(*r->lp))
-    ++r->lp;
-  *len = (size_t)(r->lp - *tok);
-  return true;
+  return km__token(&r->lp, r->le, tok, len);
 }
 
 km_status km__off_parse(const char *data, size_t size, const char *name, km_mesh *out,

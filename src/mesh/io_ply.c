@@ -59,14 +59,7 @@ typedef struct tok_cursor {
 } tok_cursor;
 
 static bool line_token(tok_cursor *c, const char **tok, size_t *len) {
-  while (c->p < c->end && km__is_space(*c->p))
-    ++c->p;
-  if (c->p >= c->end) return false;
-  *tok = c->p;
-  while (c->p < c->end && !km__is_space(*c->p))
-    ++c->p;
-  *len = (size_t)(c->p - *tok);
-  return true;
+  return km__token(&c->p, c->end, tok, len);
 }
 
 static bool tok_is(const char *tok, size_t len, const char *s) {

@@ -46,4 +46,22 @@ static inline bool km__is_space(char c) {
   return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
 }
 
+/* Next whitespace-separated token in [*p, end), advancing *p past it; false when none is
+ * left. The readers call it on a cursor bounded by the current line. */
+static inline bool km__token(const char **p, const char *end, const char **tok, size_t *len) {
+  const char *q = *p;
+  while (q < end && km__is_space(*q))
+    ++q;
+  if (q >= end) {
+    *p = q;
+    return false;
+  }
+  *tok = q;
+  while (q < end && !km__is_space(*q))
+    ++q;
+  *len = (size_t)(q - *tok);
+  *p = q;
+  return true;
+}
+
 #endif
