@@ -55,6 +55,20 @@ typedef struct client {
   size_t max_seq;
 } client;
 
+/* A whole frame arrived: its sequence number (header byte 16) gets the arrival time. */
+static void record_frame(client *c) {
+  double t = now_s();
+  uint32_t magic, in_seq;
+  memcpy(&magic, c->head, 4);
+  memcpy(&in_seq, c->head + 16, 4);
+  if (magic == KM_LIVE_MAGIC && c->received < MAX_FRAMES && in_seq < c->max_seq) {
+    c->recv_t[in_seq] = t;
+    c->recv_seq[c->received++] = in_seq;
+    if (c->received == 1) c->first_t = t;
+    c->last_t = t;
+  }
+}
+
 static int cb_client(struct lws *wsi, enum lws_callback_reasons reason, void *user, void *in,
                      size_t len) {
   client *c = lws_context_user(lws_get_context(wsi));
@@ -73,16 +87,7 @@ static int cb_client(struct lws *wsi, enum lws_callback_reasons reason, void *us
       c->head_n += k;
     }
     if (lws_is_final_fragment(wsi) && !lws_remaining_packet_payload(wsi)) {
-      double t = now_s();
-      uint32_t magic, in_seq;
-      memcpy(&magic, c->head, 4);
-      memcpy(&in_seq, c->head + 16, 4);
-      if (magic == KM_LIVE_MAGIC && c->received < MAX_FRAMES && in_seq < c->max_seq) {
-        c->recv_t[in_seq] = t;
-        c->recv_seq[c->received++] = in_seq;
-        if (c->received == 1) c->first_t = t;
-        c->last_t = t;
-      }
+      record_frame(c);
     }
     break;
   default: break;
@@ -150,16 +155,7 @@ static void *raw_main(void *arg) {
       len -= k;
     }
     if (fin && (opcode == 2 || opcode == 0)) {
-      double t = now_s();
-      uint32_t magic, in_seq;
-      memcpy(&magic, c->head, 4);
-      memcpy(&in_seq, c->head + 16, 4);
-      if (magic == KM_LIVE_MAGIC && c->received < MAX_FRAMES && in_seq < c->max_seq) {
-        c->recv_t[in_seq] = t;
-        c->recv_seq[c->received++] = in_seq;
-        if (c->received == 1) c->first_t = t;
-        c->last_t = t;
-      }
+      record_frame(c);
     }
   }
 out:
