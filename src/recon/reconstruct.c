@@ -149,6 +149,21 @@ km_status km_recon_report_plot(const char *png_path, const km_recon_report *r, k
   return KM_OK;
 }
 
+/* Jerk: mean over vertices of |x_t - 2 x_{t-1} + x_{t-2}| (metres). */
+static double mean_second_difference(const double *x, const double *x1, const double *x2,
+                                     size_t nv) {
+  double acc = 0;
+  for (size_t i = 0; i < nv; ++i) {
+    double d2 = 0;
+    for (int a = 0; a < 3; ++a) {
+      double d = x[3 * i + a] - 2 * x1[3 * i + a] + x2[3 * i + a];
+      d2 += d * d;
+    }
+    acc += sqrt(d2);
+  }
+  return acc / (double)nv;
+}
+
 /* ---------------------------------------------------------------- pipeline */
 
 km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_character *tmpl,
@@ -235,16 +250,7 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
       /* jerk before filtering */
       const double *cur = km_recon_surface(r);
       if (f >= 2) {
-        double acc = 0;
-        for (size_t i = 0; i < nv; ++i) {
-          double d2 = 0;
-          for (int a = 0; a < 3; ++a) {
-            double d = cur[3 * i + a] - 2 * prev_ref[3 * i + a] + prev2_ref[3 * i + a];
-            d2 += d * d;
-          }
-          acc += sqrt(d2);
-        }
-        jerk_b += acc / (double)nv, ++jerk_nb;
+        jerk_b += mean_second_difference(cur, prev_ref, prev2_ref, nv), ++jerk_nb;
       }
       memcpy(prev2_ref, prev_ref, nv * 3 * sizeof(double));
       memcpy(prev_ref, cur, nv * 3 * sizeof(double));
@@ -280,16 +286,7 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
         goto done;
       }
       if (t >= 2) {
-        double acc = 0;
-        for (size_t i = 0; i < nv; ++i) {
-          double d2 = 0;
-          for (int a = 0; a < 3; ++a) {
-            double d = outf[3 * i + a] - 2 * prev_out[3 * i + a] + prev2_out[3 * i + a];
-            d2 += d * d;
-          }
-          acc += sqrt(d2);
-        }
-        jerk_a += acc / (double)nv, ++jerk_na;
+        jerk_a += mean_second_difference(outf, prev_out, prev2_out, nv), ++jerk_na;
       }
       memcpy(prev2_out, prev_out, nv * 3 * sizeof(double));
       memcpy(prev_out, outf, nv * 3 * sizeof(double));
