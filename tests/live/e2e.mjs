@@ -6,7 +6,7 @@ import { createRequire } from 'node:module';
 import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { check, finish, status, waitFor, sleep } from './lib.mjs';
+import { check, finish, status, waitFor, sleep, replayDone } from './lib.mjs';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const require = createRequire(path.join(here, '../../web/package.json'));
@@ -35,28 +35,31 @@ try {
   check(s0.clients >= 1, `/status counts the page as a client (${s0.clients})`);
   check(s0.frames_in === 0, 'no frames before replay (--no-autoplay)');
 
-  // Replay button -> frames arrive and vertices move.
+  // Replay button -> frames arrive and vertices move. Frame counts depend on how busy the
+  // machine is (latest wins), so the checks are on motion and accounting, not on a rate.
   await page.click('#replay');
   await page.waitForFunction(() => window.kmLive.frames >= 3, null, { timeout: 40000 });
-  const nv = await page.evaluate(() => window.kmLive.nv);
   const snap = () => page.evaluate(() => {
     const out = [];
     for (let i = 0; i < window.kmLive.nv; i += 7) out.push(...window.kmLive.vertexPosition(i));
     return out;
   });
   const a = await snap();
+  const fa = await page.evaluate(() => window.kmLive.frames);
   await sleep(700);
+  // Wait for the take (2 s) to end so the mesh holds still for picking.
+  const s1 = await replayDone(http, s0);
   const b = await snap();
   let moved = 0;
   for (let i = 0; i < a.length; ++i) moved = Math.max(moved, Math.abs(a[i] - b[i]));
-  check(a.length > 0 && moved > 0.01, `vertex positions change between frames (max ${moved.toFixed(3)} m)`);
   const frames = await page.evaluate(() => window.kmLive.frames);
-  check(frames >= 10, `page received ${frames} frames`);
-  // Wait for the take (2 s) to end so the mesh holds still for picking.
-  await waitFor(async () => { const s = await status(http); await sleep(300); return (await status(http)).frames_out === s.frames_out; }, 8000);
-  const s1 = await status(http);
-  check(s1.frames_sent >= 10 && s1.times_ms.latency_median != null,
-    `/status: ${s1.frames_in} in, ${s1.frames_out} out, ${s1.frames_sent} sent, latency ${s1.times_ms.latency_median} ms`);
+  check(a.length > 0 && moved > 0.01, `vertex positions change between frames ${fa} and ${frames} (max ${moved.toFixed(3)} m)`);
+  check(s1 && s1.solve_errors === 0 && s1.frames_out >= 3 && s1.frames_sent >= 3 && s1.times_ms.latency_median != null,
+    s1 ? `/status: ${s1.frames_in} in, ${s1.frames_out} out, ${s1.frames_dropped} superseded, ${s1.frames_sent} sent, latency ${s1.times_ms.latency_median} ms`
+      : '/status: the replay did not settle');
+  await page.waitForFunction((n) => window.kmLive.inSeq === n, s1 ? s1.frames_in : -1, { timeout: 20000 }).catch(() => {});
+  const inSeq = await page.evaluate(() => window.kmLive.inSeq);
+  check(s1 && inSeq === s1.frames_in, `page shows the take's last frame (input ${inSeq} of ${s1 && s1.frames_in})`);
 
   // Pick a vertex on the chest facing the camera: the front-most vertex near the mid-line at
   // 70% of the height (current positions, read from the page).
@@ -103,11 +106,16 @@ try {
   check(rig2.handles.length === nBefore - 1 && !rig2.handles.some((x) => x.name === 'foot_left') &&
     !rig2.map.some((x) => x.handle === 'foot_left'), 'removed foot_left: handle and map entry gone from the rig on disk');
 
-  // The deformation keeps running with the new rig.
-  const f0 = (await status(http)).frames_out;
+  // The deformation keeps running with the new rig: the whole replay is deformed (or
+  // superseded by newer input) with no solve error, and the page gets its last frame.
+  const s2 = await status(http);
   await page.click('#replay');
-  await waitFor(async () => (await status(http)).frames_out > f0 + 10, 5000);
-  check((await status(http)).frames_out > f0 + 10, 'replay after the rig change produces frames');
+  const s3 = await replayDone(http, s2);
+  check(s3 && s3.frames_out > s2.frames_out && s3.solve_errors === s2.solve_errors,
+    s3 ? `replay after the rig change: ${s3.frames_in - s2.frames_in} in, ${s3.frames_out - s2.frames_out} out, no solve errors`
+      : 'replay after the rig change did not settle');
+  await page.waitForFunction((n) => window.kmLive.inSeq === n, s3 ? s3.frames_in : -1, { timeout: 20000 }).catch(() => {});
+  check(s3 && (await page.evaluate(() => window.kmLive.inSeq)) === s3.frames_in, 'page shows the last frame after the rig change');
   await sleep(600);
   await page.screenshot({ path: path.join(work, 'live_page.png') });
   check(fs.existsSync(path.join(work, 'live_page.png')), `screenshot ${path.join(work, 'live_page.png')}`);

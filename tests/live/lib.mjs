@@ -24,3 +24,20 @@ export async function waitFor(fn, ms, step = 50) {
     await sleep(step);
   }
 }
+// Waits for a replay started after status `s0` to finish: input has stopped and every frame
+// that came in is accounted for (deformed, superseded by a newer one, or a solve error). The
+// counts depend on how busy the machine is (latest wins), so callers check the accounting,
+// not a frame rate. Returns the final status, or null when the replay never settled.
+export async function replayDone(http, s0, ms = 8000) {
+  return waitFor(async () => {
+    const a = await status(http);
+    await sleep(300);
+    const b = await status(http);
+    const settled = b.frames_in > s0.frames_in && b.frames_in === a.frames_in && b.frames_out === a.frames_out;
+    return settled && accounted(s0, b) ? b : null;
+  }, ms);
+}
+export function accounted(s0, s1) {
+  return (s1.frames_out - s0.frames_out) + (s1.frames_dropped - s0.frames_dropped) +
+    (s1.solve_errors - s0.solve_errors) >= s1.frames_in - s0.frames_in;
+}
