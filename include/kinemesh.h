@@ -757,9 +757,9 @@ typedef struct km_recon_report {
   char **joint_names;             /* n_joints */
   double jerk_before, jerk_after; /* mean |second difference| of vertices, m, around the filter */
   size_t failed_frames;
-  size_t correspondences;         /* first-frame correspondences used; 0: a global alignment
-                                     only (centroids, heights; subject facing +z) */
-  bool rig_joints;                /* joints from the rig as given (else from the skin weights) */
+  size_t correspondences; /* first-frame correspondences used; 0: a global alignment
+                             only (centroids, heights; subject facing +z) */
+  bool rig_joints;        /* joints from the rig as given (else from the skin weights) */
 } km_recon_report;
 void km_recon_report_free(km_recon_report *r);
 /* JSON: {"format":"kinemesh-recon-report","version":1,"frames":[{"index":..,"points":..,
@@ -876,7 +876,8 @@ typedef struct km_transfer_stats {
   int iterations;         /* linear solves done */
   bool converged;         /* tolerance met before max_iterations */
   double position_change; /* last iteration's largest vertex move / bbox diagonal */
-  double frame_change;    /* largest frame entry change at the last frame update (frames are not
+  double frame_change;    /* largest frame entry change at the last frame update; NAN while the
+                             positions still move (only measured once they settle; frames are not
                              recomputed after the last allowed solve) */
   double frames_ms;       /* time in normals + frames, all iterations */
   double solve_ms;        /* time in right-hand sides + triangular solves, all iterations */

@@ -74,6 +74,33 @@ static void test_errors(const km_character *a) {
   km_mesh cloud = a->mesh;
   cloud.n_faces = 0;
   CHECK_STATUS(km_transfer_precompute(&cloud, lm_ids, 16, NULL, &t, KM_E), KM_ERR_DEGENERATE_MESH);
+  /* Two spheres, landmarks on one only: the other could float anywhere. */
+  {
+    km_mesh s1 = {0}, s2 = {0}, two = {0};
+    CHECK_OK(km_icosphere(2, 1.0, &s1, KM_E));
+    CHECK_OK(km_icosphere(2, 1.0, &s2, KM_E));
+    size_t nv = s1.n_vertices, nt = s1.n_faces;
+    two.n_vertices = 2 * nv;
+    two.n_faces = 2 * nt;
+    two.V = malloc(sizeof(double) * 6 * nv);
+    two.F = malloc(sizeof(int32_t) * 6 * nt);
+    memcpy(two.V, s1.V, sizeof(double) * 3 * nv);
+    for (size_t i = 0; i < 3 * nv; ++i)
+      two.V[3 * nv + i] = s2.V[i] + (i % 3 == 0 ? 3.0 : 0.0);
+    memcpy(two.F, s1.F, sizeof(int32_t) * 3 * nt);
+    for (size_t i = 0; i < 3 * nt; ++i)
+      two.F[3 * nt + i] = s2.F[i] + (int32_t)nv;
+    int32_t one[3] = {0, 5, 17}, both[4] = {0, 5, 17, (int32_t)nv + 3};
+    CHECK_STATUS(km_transfer_precompute(&two, one, 3, NULL, &t, KM_E), KM_ERR_NOT_POSDEF);
+    CHECK(strstr(km_test_err.message, "component") != NULL);
+    CHECK(t == NULL);
+    CHECK_OK(km_transfer_precompute(&two, both, 4, NULL, &t, KM_E));
+    km_transfer_free(&t);
+    free(two.V);
+    free(two.F);
+    km_mesh_free(&s1);
+    km_mesh_free(&s2);
+  }
   /* Three landmarks are enough. */
   CHECK_OK(km_transfer_precompute(&a->mesh, lm_ids, 3, NULL, &t, KM_E));
   double *out = malloc(a->mesh.n_vertices * 3 * sizeof *out);
