@@ -107,6 +107,34 @@ int main(void) {
   CHECK_MSG(out && strstr(out, "3 classes") && strstr(out, "over 2 folds"), "%s", out);
   free(out);
 
+  /* bench transfer on the same pair: the issue's JSON keys, an error that matches the
+   * transfer's above, recognition against the database (values, not speed) */
+  CHECK(km_test_run(KM_CLI " bench transfer --source " DIR "/b.obj --template " DIR
+                           "/a_kungfu/frame_000060.obj --truth " DIR
+                           "/b_kungfu/frame_000060.obj --db " DIR "/poses.kmposedb --json",
+                    &out) == 0);
+  cJSON *bj = out ? cJSON_Parse(strchr(out, '{') ? strchr(out, '{') : out) : NULL;
+  CHECK_MSG(bj != NULL, "bench transfer --json printed: %s", out ? out : "(nothing)");
+  if (bj) {
+    const char *keys[] = {"n_ver",       "laplacian_ms", "cholesky_ms", "recognition_ms",
+                          "frames_ms",   "solve_ms",     "iterations",  "online_ms",
+                          "err_mean_mm", "err_max_mm"};
+    for (size_t k = 0; k < sizeof keys / sizeof keys[0]; ++k)
+      CHECK_MSG(cJSON_IsNumber(cJSON_GetObjectItem(bj, keys[k])), "bench key %s", keys[k]);
+    CHECK(cJSON_GetObjectItem(bj, "n_ver")->valuedouble == (double)b.n_vertices);
+    double it = cJSON_GetObjectItem(bj, "iterations")->valuedouble;
+    CHECK(it >= 1 && it <= 10);
+    if (res.V && bt.V && res.n_vertices == bt.n_vertices) {
+      double e = cJSON_GetObjectItem(bj, "err_mean_mm")->valuedouble;
+      CHECK_MSG(fabs(e - 1e3 * mean_dist(&res, &bt)) < 0.05, "bench error %g mm vs transfer %g mm",
+                e, 1e3 * mean_dist(&res, &bt));
+    }
+    CHECK(cJSON_GetObjectItem(bj, "err_max_mm")->valuedouble >=
+          cJSON_GetObjectItem(bj, "err_mean_mm")->valuedouble);
+    cJSON_Delete(bj);
+  }
+  free(out);
+
   /* query and avatar from a track of subject a's landmarks */
   km_landmark lm[KM_CHARACTER_LANDMARKS];
   size_t nl = 0;

@@ -40,8 +40,25 @@ static int die(const char *what, const km_error *e) {
   return 1;
 }
 
+/* A row as JSON; what was not measured (NaN) is null. */
+static cJSON *row_json(const row *r) {
+  cJSON *j = cJSON_CreateObject();
+  cJSON_AddStringToObject(j, "name", r->name);
+  cJSON_AddNumberToObject(j, "n_ver", (double)r->n_ver);
+  const char *k[] = {"laplacian_ms", "cholesky_ms", "recognition_ms", "frames_ms", "solve_ms",
+                     "iterations",   "online_ms",   "err_mean_mm",    "err_max_mm"};
+  const double v[] = {r->laplacian_ms, r->cholesky_ms, r->recognition_ms, r->frames_ms, r->solve_ms,
+                      r->iterations,   r->online_ms,   r->err_mean_mm,    r->err_max_mm};
+  for (size_t i = 0; i < sizeof v / sizeof v[0]; ++i)
+    if (isfinite(v[i]))
+      cJSON_AddNumberToObject(j, k[i], v[i]);
+    else
+      cJSON_AddNullToObject(j, k[i]);
+  return j;
+}
+
 static void print_row(const row *r) {
-  printf("%-34s %6zu %8.2f %8.2f %8.4f %8.3f %8.3f %5.1f %8.2f %8.2f %8.2f\n", r->name, r->n_ver,
+  printf("%-40s %6zu %8.2f %8.2f %8.4f %8.3f %8.3f %5.1f %8.2f %8.2f %8.2f\n", r->name, r->n_ver,
          r->laplacian_ms, r->cholesky_ms, r->recognition_ms, r->frames_ms, r->solve_ms,
          r->iterations, r->online_ms, r->err_mean_mm, r->err_max_mm);
 }
@@ -55,7 +72,8 @@ typedef struct online {
 enum { ONLINE_REPS = 15 };
 
 static km_status run_online(km_transfer *t, const km_posedb *db, const double *P,
-                            const double *fixed_template, double *X, online *o, km_error *e) {
+                            const double *fixed_template, const double *warm, double *X, online *o,
+                            km_error *e) {
   double rec[ONLINE_REPS], fr[ONLINE_REPS], so[ONLINE_REPS], tot[ONLINE_REPS];
   for (int rep = 0; rep < ONLINE_REPS; ++rep) {
     double t0 = now_ms();
@@ -71,7 +89,7 @@ static km_status run_online(km_transfer *t, const km_posedb *db, const double *P
       rec[rep] = now_ms() - t0;
     }
     km_transfer_stats st;
-    km_status s = km_transfer_solve(t, T, P, NULL, X, &st, e);
+    km_status s = km_transfer_solve(t, T, P, T ? NULL : warm, X, &st, e);
     if (s) return s;
     tot[rep] = now_ms() - t0;
     fr[rep] = st.frames_ms / st.iterations;
@@ -123,7 +141,7 @@ static int bench_pair(const char *src, const char *tmpl, const char *lm_path, co
   }
   V = malloc(sizeof *V * 3 * S.n_vertices);
   online o;
-  if (!V || run_online(t, db, P, T.V, V, &o, &e)) {
+  if (!V || run_online(t, db, P, T.V, NULL, V, &o, &e)) {
     rc = die("online", &e);
     goto done;
   }
@@ -149,29 +167,11 @@ static int bench_pair(const char *src, const char *tmpl, const char *lm_path, co
     char machine[320];
     km_cli_machine(machine, sizeof machine);
     printf("kinemesh bench transfer — %s; medians of %d runs\n", machine, ONLINE_REPS);
-    printf("%-34s %6s %8s %8s %8s %8s %8s %5s %8s %8s %8s\n", "mesh", "n_ver", "lapl_ms", "chol_ms",
+    printf("%-40s %6s %8s %8s %8s %8s %8s %5s %8s %8s %8s\n", "mesh", "n_ver", "lapl_ms", "chol_ms",
            "recog_ms", "frame_ms", "solve_ms", "iters", "online", "err_mean", "err_max");
     print_row(&r);
   }
-  cJSON *j = cJSON_CreateObject();
-  cJSON_AddNumberToObject(j, "n_ver", (double)r.n_ver);
-  cJSON_AddNumberToObject(j, "laplacian_ms", r.laplacian_ms);
-  cJSON_AddNumberToObject(j, "cholesky_ms", r.cholesky_ms);
-  if (db)
-    cJSON_AddNumberToObject(j, "recognition_ms", r.recognition_ms);
-  else
-    cJSON_AddNullToObject(j, "recognition_ms");
-  cJSON_AddNumberToObject(j, "frames_ms", r.frames_ms);
-  cJSON_AddNumberToObject(j, "solve_ms", r.solve_ms);
-  cJSON_AddNumberToObject(j, "iterations", r.iterations);
-  cJSON_AddNumberToObject(j, "online_ms", r.online_ms);
-  if (truth) {
-    cJSON_AddNumberToObject(j, "err_mean_mm", r.err_mean_mm);
-    cJSON_AddNumberToObject(j, "err_max_mm", r.err_max_mm);
-  } else {
-    cJSON_AddNullToObject(j, "err_mean_mm");
-    cJSON_AddNullToObject(j, "err_max_mm");
-  }
+  cJSON *j = row_json(&r);
   char *js = cJSON_PrintUnformatted(j);
   cJSON_Delete(j);
   if (js) puts(js);
@@ -219,7 +219,7 @@ int km_cli_bench_transfer(int argc, char **argv) {
     return bench_pair(src, tmpl, lm_path, truth, dbp, json_only);
   }
   km_error e;
-  row rows[6];
+  row rows[8];
   int nrows = 0;
 
   /* Subjects: A is the avatar, B..D populate the pose database. */
@@ -262,10 +262,13 @@ int km_cli_bench_transfer(int argc, char **argv) {
   for (int l = 0; l < 16; ++l)
     ids[l] = c[0].landmarks[l].vertex;
   double *G = malloc(n * 3 * sizeof *G), *X = malloc(n * 3 * sizeof *X), P[48];
-  static const char *const vname[3] = {"<=10 it", "1 it", "paper's vertex enc."};
-  for (int variant = 0; variant < 3; ++variant) {
+  /* 3, 4: the baseline the issue compares with, landmark-only Laplacian editing (no template:
+   * frames from the avatar at rest), iterated or a single solve. */
+  static const char *const vname[5] = {"<=10 it", "1 it", "paper's vertex enc.",
+                                       "landmark-only, <=10 it", "landmark-only, 1 solve"};
+  for (int variant = 0; variant < 5; ++variant) {
     km_transfer_options to = {0};
-    if (variant == 1) to.max_iterations = 1;
+    if (variant == 1 || variant == 4) to.max_iterations = 1;
     if (variant == 2) to.encoding = KM_OFFSETS_VERTEX;
     km_transfer *t = NULL;
     if (km_transfer_precompute(&c[0].mesh, ids, 16, &to, &t, &e)) return die("precompute", &e);
@@ -280,7 +283,8 @@ int km_cli_bench_transfer(int argc, char **argv) {
       for (int l = 0; l < 16; ++l)
         memcpy(P + 3 * l, G + 3 * (size_t)ids[l], 3 * sizeof(double));
       online o;
-      if (run_online(t, db, P, NULL, X, &o, &e)) return die("online", &e);
+      if (run_online(t, variant < 3 ? db : NULL, P, NULL, c[0].mesh.V, X, &o, &e))
+        return die("online", &e);
       km_pose_match m;
       km_posedb_query(db, P, &m, &e);
       correct += m.label == p;
@@ -294,6 +298,7 @@ int km_cli_bench_transfer(int argc, char **argv) {
       r->err_mean_mm += mean * 1e3 / KP_N_POSES;
       r->err_max_mm = fmax(r->err_max_mm, max * 1e3);
     }
+    if (variant >= 3) r->recognition_ms = NAN;
     if (!json_only && variant == 0)
       fprintf(stderr,
               "pose database: %zu templates, cv accuracy %.3f; avatar's poses recognised "
@@ -349,7 +354,7 @@ int km_cli_bench_transfer(int argc, char **argv) {
       online o;
       /* With the database the template is whatever recognition picks (tr_reg_001 itself
        * when it recognises pose 1); without it, tr_reg_001. */
-      if (run_online(t, fdbp, FP, tt.V, FX, &o, &e)) return die("FAUST online", &e);
+      if (run_online(t, fdbp, FP, tt.V, NULL, FX, &o, &e)) return die("FAUST online", &e);
       row *r = &rows[nrows++];
       memset(r, 0, sizeof *r);
       snprintf(r->name, sizeof r->name, "FAUST 000->001 (%s)", variant ? "1 it" : "<=10 it");
@@ -376,7 +381,7 @@ int km_cli_bench_transfer(int argc, char **argv) {
     char machine[320];
     km_cli_machine(machine, sizeof machine);
     printf("kinemesh bench transfer — %s; medians of %d runs\n", machine, ONLINE_REPS);
-    printf("%-34s %6s %8s %8s %8s %8s %8s %5s %8s %8s %8s\n", "mesh", "n_ver", "lapl_ms", "chol_ms",
+    printf("%-40s %6s %8s %8s %8s %8s %8s %5s %8s %8s %8s\n", "mesh", "n_ver", "lapl_ms", "chol_ms",
            "recog_ms", "frame_ms", "solve_ms", "iters", "online", "err_mean", "err_max");
     for (int i = 0; i < nrows; ++i)
       print_row(&rows[i]);
@@ -385,13 +390,11 @@ int km_cli_bench_transfer(int argc, char **argv) {
   }
   printf("[\n");
   for (int i = 0; i < nrows; ++i) {
-    const row *r = &rows[i];
-    printf("  {\"name\": \"%s\", \"n_ver\": %zu, \"laplacian_ms\": %.4f, \"cholesky_ms\": %.4f, "
-           "\"recognition_ms\": %.4f, \"frames_ms\": %.4f, \"solve_ms\": %.4f, \"iterations\": "
-           "%.2f, \"online_ms\": %.4f, \"err_mean_mm\": %.3f, \"err_max_mm\": %.3f}%s\n",
-           r->name, r->n_ver, r->laplacian_ms, r->cholesky_ms, r->recognition_ms, r->frames_ms,
-           r->solve_ms, r->iterations, r->online_ms, r->err_mean_mm, r->err_max_mm,
-           i + 1 < nrows ? "," : "");
+    cJSON *j = row_json(&rows[i]);
+    char *js = cJSON_PrintUnformatted(j);
+    cJSON_Delete(j);
+    printf("  %s%s\n", js ? js : "null", i + 1 < nrows ? "," : "");
+    free(js);
   }
   printf("]\n");
   for (int i = 0; i < 4; ++i)
