@@ -138,6 +138,12 @@ km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *er
 /* Length of the bounding-box diagonal (0 for an empty mesh). */
 double km_bbox_diagonal(const double *V, size_t n_vertices);
 
+/* k vertices spread over the mesh by farthest-point sampling (Euclidean, deterministic: the
+ * first is the vertex farthest from the centroid, each next one the farthest from those
+ * taken). Written to ids (k entries). For landmarks on a mesh without a rig: meshes of one
+ * connectivity share the ids. Isolated vertices are never taken. */
+km_status km_farthest_points(const km_mesh *m, size_t k, int32_t *ids, km_error *err);
+
 /* Vertex-vertex adjacency in CSR form: neighbours of v are
  * adj[offsets[v] .. offsets[v+1]), sorted ascending. offsets has #V+1 entries.
  * Both arrays are allocated by the call; free them with free(). */

@@ -88,6 +88,32 @@ int main(void) {
   CHECK(km_test_run(KM_CLI " transfer --source " DIR "/b.obj --template " DIR
                            "/a.obj --landmarks " DIR "/none.json -o " DIR "/x.obj",
                     NULL) == 1);
+  /* --landmarks auto: farthest-point landmarks, for meshes without a rig */
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/b.obj --template " DIR
+                           "/a_kungfu/frame_000060.obj --landmarks auto:20 -o " DIR "/b60auto.obj",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "20 landmarks"), "%s", out ? out : "");
+  free(out);
+  km_mesh ra = {0};
+  CHECK_OK(km_mesh_read(DIR "/b60auto.obj", &ra, KM_E));
+  if (ra.V && bt.V && ra.n_vertices == bt.n_vertices) {
+    double e_auto = mean_dist(&ra, &bt), e_rest = mean_dist(&b, &bt);
+    CHECK_MSG(e_auto < 0.35 * e_rest, "auto landmarks: error %.4f m, source at rest %.4f m", e_auto,
+              e_rest);
+  }
+  km_mesh_free(&ra);
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/b.obj --template " DIR
+                           "/a.obj --landmarks auto:2 -o " DIR "/x.obj",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "3 <= K"), "%s", out ? out : "");
+  free(out);
+  CHECK(km_test_run("cp " DIR "/b.obj " DIR "/norig.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/norig.obj --template " DIR "/a.obj -o " DIR
+                           "/x.obj",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "norig.rig.json") && strstr(out, "--landmarks auto"), "%s",
+            out ? out : "");
+  free(out);
 
   /* database: frames of both subjects labelled by motion, subjects as CV groups */
   FILE *f = fopen(DIR "/labels.csv", "w");

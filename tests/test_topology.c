@@ -259,7 +259,52 @@ static void test_shared_armadillo(void) {
   km_mesh_free(&m);
 }
 
+/* Farthest-point sampling: spread (2 points on a sphere are antipodal, 4 form a near-regular
+ * tetrahedron), deterministic, never an isolated vertex, clear errors. */
+static void test_farthest_points(void) {
+  km_mesh s = {0};
+  CHECK_OK(km_icosphere(3, 1.0, &s, KM_E));
+  if (!s.V) return;
+  /* one isolated vertex far away: a landmark there would float */
+  size_t n = s.n_vertices;
+  double *V = realloc(s.V, sizeof(double) * 3 * (n + 1));
+  CHECK(V != NULL);
+  if (!V) return;
+  s.V = V;
+  s.V[3 * n] = 50, s.V[3 * n + 1] = 0, s.V[3 * n + 2] = 0;
+  s.n_vertices = n + 1;
+  int32_t ids[8], again[8];
+  CHECK_OK(km_farthest_points(&s, 2, ids, KM_E));
+  double d2 = 0;
+  for (int a = 0; a < 3; ++a)
+    d2 += pow(s.V[3 * ids[0] + a] - s.V[3 * ids[1] + a], 2);
+  CHECK_MSG(fabs(sqrt(d2) - 2) < 1e-6, "two samples %g apart, not antipodal", sqrt(d2));
+  CHECK_OK(km_farthest_points(&s, 8, ids, KM_E));
+  CHECK_OK(km_farthest_points(&s, 8, again, KM_E));
+  CHECK(memcmp(ids, again, sizeof ids) == 0);
+  double dmin4 = INFINITY;
+  for (int i = 0; i < 8; ++i) {
+    CHECK((size_t)ids[i] < n); /* not the isolated vertex */
+    for (int j = 0; j < i; ++j) {
+      CHECK(ids[i] != ids[j]);
+      double e = 0;
+      for (int a = 0; a < 3; ++a)
+        e += pow(s.V[3 * ids[i] + a] - s.V[3 * ids[j] + a], 2);
+      if (i < 4) dmin4 = fmin(dmin4, sqrt(e));
+    }
+  }
+  /* a regular tetrahedron in the unit sphere has edges 1.633; greedy sampling gets close */
+  CHECK_MSG(dmin4 > 1.35, "4 samples only %g apart", dmin4);
+  CHECK_STATUS(km_farthest_points(&s, n + 1, ids, KM_E), KM_ERR_INVALID);
+  CHECK_STATUS(km_farthest_points(NULL, 2, ids, KM_E), KM_ERR_INVALID);
+  km_mesh cloud = s;
+  cloud.n_faces = 0;
+  CHECK_STATUS(km_farthest_points(&cloud, 2, ids, KM_E), KM_ERR_DEGENERATE_MESH);
+  km_mesh_free(&s);
+}
+
 int main(void) {
+  test_farthest_points();
   test_tetrahedron();
   test_open_square_and_extras();
   test_nonmanifold();

@@ -36,7 +36,8 @@ int km_cli_transfer(int argc, char **argv) {
       {"template", 't', KM_OPT_STRING, &templ, "the posed template T (same connectivity as S)"},
       {"output", 'o', KM_OPT_STRING, &out, "output mesh (.obj/.ply/.off)"},
       {"landmarks", 'l', KM_OPT_STRING, &lm_path,
-       "LM.json with the landmark vertices (default: SOURCE's rig sidecar)"},
+       "LM.json with the landmark vertices (default: SOURCE's rig sidecar), or auto[:K]: K "
+       "(default 16) vertices spread by farthest-point sampling, for any mesh"},
       {"iterations", 'i', KM_OPT_INT, &iterations, "maximum solves (default 10)"},
       {"encoding", 0, KM_OPT_STRING, &encoding,
        "edge (default) or vertex (the paper's eq. 3 verbatim)"},
@@ -77,9 +78,31 @@ int km_cli_transfer(int argc, char **argv) {
   size_t nl = 0;
   int32_t ids[KM_POSE_MAX_LANDMARKS];
   int rc = KM_EXIT_OK;
-  if (km_mesh_read(pos[0], &s, &err) || km_mesh_read(pos[1], &t, &err) ||
-      load_landmarks(lm_path, pos[0], s.n_vertices, lm, &nl, &err)) {
+  bool auto_lm = lm_path && !strncmp(lm_path, "auto", 4);
+  if (auto_lm) {
+    const char *k = lm_path + 4;
+    char *end = NULL;
+    long v = *k == ':' ? strtol(k + 1, &end, 10) : 16;
+    if ((*k && *k != ':') || (*k == ':' && (end == k + 1 || *end)) || v < 3 ||
+        v > KM_POSE_MAX_LANDMARKS)
+      return km_cli_error("transfer", "--landmarks auto:K needs 3 <= K <= %d, not '%s'",
+                          KM_POSE_MAX_LANDMARKS, lm_path);
+    nl = (size_t)v;
+  }
+  if (km_mesh_read(pos[0], &s, &err) || km_mesh_read(pos[1], &t, &err)) {
     rc = km_cli_fail("transfer", &err);
+    goto done;
+  }
+  if (auto_lm) {
+    if (km_farthest_points(&s, nl, ids, &err)) {
+      rc = km_cli_fail("transfer", &err);
+      goto done;
+    }
+  } else if (load_landmarks(lm_path, pos[0], s.n_vertices, lm, &nl, &err)) {
+    rc = km_cli_fail("transfer", &err);
+    if (!lm_path)
+      fprintf(stderr, "kinemesh transfer: no landmarks: give --landmarks LM.json, or --landmarks "
+                      "auto for a mesh without a rig\n");
     goto done;
   }
   if (t.n_vertices != s.n_vertices || t.n_faces != s.n_faces ||
@@ -90,7 +113,7 @@ int km_cli_transfer(int argc, char **argv) {
                       pos[1], t.n_vertices, t.n_faces, pos[0], s.n_vertices, s.n_faces);
     goto done;
   }
-  for (size_t i = 0; i < nl; ++i)
+  for (size_t i = 0; i < nl && !auto_lm; ++i)
     ids[i] = lm[i].vertex;
   double t0 = km_cli_now();
   km_transfer_stats st;

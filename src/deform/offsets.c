@@ -21,8 +21,11 @@
  * (tests/test_transfer.c): 9-11 mm mean error instead of 35-38 mm.
  *
  * Measured too: iterating the frames (paper's step 3) drifts slowly from the template towards
- * landmark-only editing (10 iterations: 11 mm, 1 iteration: 9 mm); the default stays the
- * paper's 10, max_iterations = 1 is the faster and here more accurate choice. */
+ * landmark-only editing, because frames re-estimated on a Laplacian solution are a little
+ * smoother than the template's each time (mean errors, 10 iterations vs 1: generated subjects
+ * 10.9 vs 7.5 mm, FAUST 13.2 vs 6.8 mm, the cat poses 14.5 vs 7.9 mm). The default stays the
+ * paper's 10, as the issue asks; max_iterations = 1 is the faster and here more accurate
+ * choice. */
 #include "deform/offsets.h"
 #include "linalg/sparse.h"
 
