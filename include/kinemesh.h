@@ -623,6 +623,11 @@ km_status km_puppet_save(const km_puppet *p, const char *path, km_error *err);
  * corrupted: the caller then precomputes again. KM_ERR_IO when it cannot be read. */
 km_status km_puppet_load(const char *path, const km_mesh *rest, const km_puppet_options *opt,
                          km_puppet **out, km_error *err);
+/* The model parameters a cache was built with (fields, isolines, crossed_per_isoline, energy;
+ * the other members of *opt are left as they are), read from its header only: a caller can
+ * adopt them before km_puppet_load, which still checks everything. KM_ERR_IO when the file
+ * cannot be read, KM_ERR_STALE when it is not a cache of this format. */
+km_status km_puppet_cache_options(const char *path, km_puppet_options *opt, km_error *err);
 /* Sets the handle set (milliseconds: a 4*n_iso*n_e dense Cholesky; no eigen-decomposition).
  * The warm start of the previous solve is kept. */
 km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *handle_offsets,

@@ -2,12 +2,59 @@
  * cache life cycle (build, reuse, corruption detected and rebuilt), and the demo. */
 #include "km_test.h"
 
+#include <cjson/cJSON.h>
 #include <unistd.h>
 
 static bool all_finite(const double *x, size_t n) {
   for (size_t i = 0; i < n; ++i)
     if (!isfinite(x[i])) return false;
   return true;
+}
+
+/* Handles follow their joints: each mapped handle's centroid moves like its joint's (scaled)
+ * displacement since the first frame. The filter lags a little and handles are soft
+ * constraints, so the paths are compared as a whole: the mean distance between the two must
+ * be small against the mean length of the joint path. `take` is in the rig's joint order. */
+static void check_follows(const km_mesh *m, const km_rig *rig, const km_take *take,
+                          const double *frames, const km_anim_info *info, const char *label) {
+  km_retarget *rt = NULL;
+  CHECK_OK(km_retarget_create(rig, m, take->n_joints, NULL, &rt, KM_E));
+  km_retarget_push(rt, take->positions, NULL);
+  double s = km_retarget_scale(rt);
+  CHECK(isfinite(s) && s > 0);
+  for (size_t e = 0; e < rig->n_maps; ++e) {
+    const km_rig_handle *h = &rig->handles[rig->maps[e].handle];
+    int j = rig->maps[e].joint;
+    double c0[3] = {0, 0, 0}, err_sum = 0, path_sum = 0;
+    const double *j0 = NULL;
+    for (size_t f = 0; f < take->n_frames; ++f) {
+      const double *jf = take->positions + (f * take->n_joints + (size_t)j) * 3;
+      double c[3] = {0, 0, 0};
+      for (size_t i = 0; i < h->n_vertices; ++i)
+        for (int a = 0; a < 3; ++a)
+          c[a] +=
+              frames[(f * info->vertices + (size_t)h->vertices[i]) * 3 + a] / (double)h->n_vertices;
+      if (!j0) {
+        if (!isfinite(jf[0])) continue;
+        j0 = jf;
+        memcpy(c0, c, sizeof c0);
+      }
+      if (!isfinite(jf[0])) continue;
+      double d_err = 0, d_path = 0;
+      for (int a = 0; a < 3; ++a) {
+        double want = s * (jf[a] - j0[a]);
+        d_err += pow(c[a] - c0[a] - want, 2);
+        d_path += want * want;
+      }
+      err_sum += sqrt(d_err);
+      path_sum += sqrt(d_path);
+    }
+    CHECK_MSG(path_sum > 0 && err_sum < 0.25 * path_sum,
+              "%s: handle %s vs joint %s: mean deviation %.1f%% of the mean joint displacement",
+              label, h->name, km_kinect1_joint_name(j),
+              100 * err_sum / (path_sum > 0 ? path_sum : 1));
+  }
+  km_retarget_free(&rt);
 }
 
 static void test_real_mesh_real_skeleton(const char *mesh_src, const char *csv) {
@@ -36,47 +83,7 @@ static void test_real_mesh_real_skeleton(const char *mesh_src, const char *csv) 
   CHECK(info.frames == take.n_frames && info.vertices == m.n_vertices);
   if (frames && info.frames == take.n_frames && info.vertices == m.n_vertices) {
     CHECK(all_finite(frames, info.frames * info.vertices * 3));
-    /* Handles follow their joints: each mapped handle's centroid moves like its joint's
-     * (scaled) displacement since the first frame. The filter lags a little and handles are
-     * soft constraints, so compare the paths as a whole: the mean distance between the two
-     * must be small against the mean length of the joint path. */
-    km_retarget *rt = NULL;
-    CHECK_OK(km_retarget_create(&rig, &m, take.n_joints, NULL, &rt, KM_E));
-    km_retarget_push(rt, take.positions, NULL);
-    double s = km_retarget_scale(rt);
-    CHECK(isfinite(s) && s > 0);
-    for (size_t e = 0; e < rig.n_maps; ++e) {
-      const km_rig_handle *h = &rig.handles[rig.maps[e].handle];
-      int j = rig.maps[e].joint;
-      double c0[3] = {0, 0, 0}, err_sum = 0, path_sum = 0;
-      const double *j0 = NULL;
-      for (size_t f = 0; f < take.n_frames; ++f) {
-        const double *jf = take.positions + (f * take.n_joints + (size_t)j) * 3;
-        double c[3] = {0, 0, 0};
-        for (size_t i = 0; i < h->n_vertices; ++i)
-          for (int a = 0; a < 3; ++a)
-            c[a] += frames[(f * info.vertices + (size_t)h->vertices[i]) * 3 + a] /
-                    (double)h->n_vertices;
-        if (!j0) {
-          if (!isfinite(jf[0])) continue;
-          j0 = jf;
-          memcpy(c0, c, sizeof c0);
-        }
-        if (!isfinite(jf[0])) continue;
-        double d_err = 0, d_path = 0;
-        for (int a = 0; a < 3; ++a) {
-          double want = s * (jf[a] - j0[a]);
-          d_err += pow(c[a] - c0[a] - want, 2);
-          d_path += want * want;
-        }
-        err_sum += sqrt(d_err);
-        path_sum += sqrt(d_path);
-      }
-      CHECK_MSG(path_sum > 0 && err_sum < 0.25 * path_sum,
-                "handle %s vs joint %s: mean deviation %.1f%% of the mean joint displacement",
-                h->name, km_kinect1_joint_name(j), 100 * err_sum / (path_sum > 0 ? path_sum : 1));
-    }
-    km_retarget_free(&rt);
+    check_follows(&m, &rig, &take, frames, &info, "armadillo_1k + PRECOG");
   }
 
   /* Second run loads the cache (t~1) and gives the same animation bit for bit. */
@@ -165,6 +172,8 @@ static void test_bad_rig_and_motion(void) {
   km_test_run("rm -f puppet_c.* puppet_bad.rig.json puppet_t.json", NULL);
 }
 
+/* The demo's animation, also written as .pc2: one frame per take frame, no NaN, handles
+ * following their joints. */
 static void test_demo(void) {
   char *out = NULL;
   CHECK(
@@ -176,12 +185,124 @@ static void test_demo(void) {
   km_anim_info info;
   CHECK_OK(km_anim_info_read("puppet_demo/out/demo.glb", &info, KM_E));
   CHECK(info.frames == 150 && info.vertices > 18000 && info.fps == 30);
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_demo/out/character.obj --motion "
+                           "puppet_demo/out/kungfu.json -o puppet_demo/out/demo.pc2",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "cache loaded"), "the demo's cache is reused: %s", out ? out : "");
+  free(out);
+  km_mesh m = {0};
+  km_take take = {0};
+  km_rig rig = {0};
+  double *frames = NULL;
+  CHECK_OK(km_mesh_read("puppet_demo/out/character.obj", &m, KM_E));
+  CHECK_OK(km_take_read("puppet_demo/out/kungfu.json", &take, KM_E));
+  CHECK_OK(km_rig_read("puppet_demo/out/character.rig.json", &m, NULL, 0, &rig, KM_E));
+  CHECK_OK(km_pc2_read("puppet_demo/out/demo.pc2", &frames, &info, KM_E));
+  CHECK(rig.skeleton == KM_RIG_KINECT1 && take.n_joints == KM_KINECT1_JOINTS);
+  for (size_t j = 0; j < take.n_joints && j < KM_KINECT1_JOINTS; ++j)
+    CHECK(!strcmp(take.joint_names[j], km_kinect1_joint_name((int)j)));
+  CHECK(frames && info.frames == take.n_frames && info.vertices == m.n_vertices);
+  if (frames && info.frames == take.n_frames && info.vertices == m.n_vertices &&
+      take.n_joints == KM_KINECT1_JOINTS) {
+    CHECK(all_finite(frames, info.frames * info.vertices * 3));
+    CHECK(rig.n_maps >= 5);
+    check_follows(&m, &rig, &take, frames, &info, "demo");
+  }
+  free(frames);
+  km_rig_free(&rig);
+  km_take_free(&take);
+  km_mesh_free(&m);
   km_test_run("rm -rf puppet_demo", NULL);
+}
+
+/* precompute keeps an up-to-date cache and builds with its own parameters, which animate then
+ * adopts; --frame-format ply; a motion without the joints a kinect1 rig maps is an error. */
+static void test_cache_params_and_formats(void) {
+  char *out = NULL;
+  CHECK(km_test_run("rm -rf puppet_p && mkdir puppet_p", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2500 -o puppet_p/c.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen motion --kind wave --frames 12 --character puppet_p/c.obj -o "
+                           "puppet_p/w.json",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " precompute puppet_p/c.obj --fields 6 --isolines 12", &out) == 0);
+  CHECK_MSG(out && strstr(out, "6 fields x 12 isolines") && strstr(out, "built"), "%s",
+            out ? out : "");
+  free(out);
+  CHECK(km_test_run(KM_CLI " precompute puppet_p/c.obj --fields 6 --isolines 12", &out) == 0);
+  CHECK_MSG(out && strstr(out, "up to date"), "second precompute loads: %s", out ? out : "");
+  free(out);
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_p/c.obj --motion puppet_p/w.json "
+                           "--frame-format ply -o puppet_p/frames",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "6 fields x 12 isolines") && strstr(out, "cache loaded") &&
+                !strstr(out, "not usable"),
+            "animate adopts the cache's parameters: %s", out ? out : "");
+  free(out);
+  km_mesh c = {0}, f0 = {0};
+  CHECK_OK(km_mesh_read("puppet_p/c.obj", &c, KM_E));
+  CHECK_OK(km_mesh_read("puppet_p/frames/frame_000011.ply", &f0, KM_E));
+  CHECK(c.n_vertices == f0.n_vertices && c.n_faces == f0.n_faces);
+  CHECK(f0.V && all_finite(f0.V, f0.n_vertices * 3));
+  km_mesh_free(&f0);
+  km_mesh_free(&c);
+  /* asking for other parameters rebuilds (and says so) */
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_p/c.obj --motion puppet_p/w.json --fields 8 "
+                           "-o puppet_p/a.pc2",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "not usable"), "%s", out ? out : "");
+  free(out);
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_p/c.obj --motion puppet_p/w.json "
+                           "--frame-format stl -o puppet_p/x",
+                    &out) != 0);
+  CHECK_MSG(out && strstr(out, "obj or ply"), "%s", out ? out : "");
+  free(out);
+  char bvh[1024];
+  if (km_test_shared("bvh/cmu_131_01.bvh", bvh, sizeof bvh)) {
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd,
+             KM_CLI " animate --mesh puppet_p/c.obj --motion '%s' -o puppet_p/b.pc2", bvh);
+    CHECK(km_test_run(cmd, &out) == 1);
+    CHECK_MSG(out && strstr(out, "cmu_131_01.bvh") && strstr(out, "HandLeft") &&
+                  strstr(out, "\"bvh\" rig"),
+              "%s", out ? out : "");
+    free(out);
+    CHECK(access("puppet_p/b.pc2", F_OK) != 0);
+  }
+  km_test_run("rm -rf puppet_p", NULL);
+}
+
+/* bench deform: one JSON object per mesh with the keys (values, not speed). */
+static void test_bench_deform_json(void) {
+  char *out = NULL;
+  CHECK(km_test_run(KM_CLI " bench deform --mesh character:2000 character:2600 --frames 6 "
+                           "--full-frames 2 --repeat 1 --json 2>/dev/null",
+                    &out) == 0);
+  const char *keys[] = {"n_ver", "n_han",   "n_tri",        "t1_s",         "t1_cached_s", "t23_ms",
+                        "t4_ms", "tper_ms", "full_tper_ms", "dev_mean_rel", "dev_max_rel"};
+  int rows = 0;
+  double nv[2] = {0, 0};
+  for (char *line = out ? strtok(out, "\n") : NULL; line; line = strtok(NULL, "\n")) {
+    cJSON *o = cJSON_Parse(line);
+    if (!o) continue;
+    for (size_t k = 0; k < sizeof keys / sizeof keys[0]; ++k)
+      CHECK_MSG(cJSON_IsNumber(cJSON_GetObjectItem(o, keys[k])), "row %d key %s", rows, keys[k]);
+    if (rows < 2 && cJSON_IsNumber(cJSON_GetObjectItem(o, "n_ver")))
+      nv[rows] = cJSON_GetObjectItem(o, "n_ver")->valuedouble;
+    cJSON *d = cJSON_GetObjectItem(o, "dev_mean_rel");
+    CHECK(cJSON_IsNumber(d) && d->valuedouble >= 0 && d->valuedouble < 0.05);
+    cJSON_Delete(o);
+    ++rows;
+  }
+  CHECK_MSG(rows == 2, "%d JSON rows", rows);
+  CHECK(nv[0] > 1500 && nv[0] < 2500 && nv[1] > nv[0]);
+  free(out);
 }
 
 int main(void) {
   char a[1024], c[1024];
   test_bad_rig_and_motion();
+  test_cache_params_and_formats();
+  test_bench_deform_json();
   test_demo();
   if (km_test_shared("meshes/armadillo_1k.off", a, sizeof a) &&
       km_test_shared("skeleton/precog_Seq1_1.csv", c, sizeof c))

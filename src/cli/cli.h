@@ -93,5 +93,8 @@ km_status km_cli_read_motion(const char *path, km_take *t, km_error *err);
 double km_cli_median(double *v, size_t n); /* sorts v */
 /* --energy laplacian|arap; prints the error and returns non-zero when unknown. */
 int km_cli_parse_energy(const char *verb, const char *s, km_puppet_energy *e);
+/* --frame-format obj|ply for directory outputs (NULL: from the path, obj for a directory);
+ * prints the error and returns non-zero when unknown. */
+int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f);
 
 #endif

@@ -129,39 +129,18 @@ static void joints_at(size_t f, double diag, double *J) {
   }
 }
 
-static int bench_deform(int argc, char **argv) {
-  const char *mesh_path = NULL, *energy = NULL;
-  size_t handles = 5, frames = 100, full_frames = 30, repeat = 0;
-  bool json = false;
-  const km_cli_opt opts[] = {
-      {"mesh", 0, KM_OPT_STRING, &mesh_path, "mesh file, or character:N (procedural, N vertices)"},
-      {"handles", 0, KM_OPT_SIZE, &handles, "number of handles (default 5; handle 0 is an anchor)"},
-      {"frames", 0, KM_OPT_SIZE, &frames, "frames of synthetic performer motion (default 100)"},
-      {"full-frames", 0, KM_OPT_SIZE, &full_frames,
-       "frames also solved by the full ARAP reference (default 30; 0: skip)"},
-      {"repeat", 0, KM_OPT_SIZE, &repeat,
-       "runs of precompute / cache load (default 3, 1 above 200k vertices)"},
-      {"energy", 0, KM_OPT_STRING, &energy,
-       "reduced model energy: arap (default) or laplacian (the paper's)"},
-      {"json", 0, KM_OPT_FLAG, &json, "print one JSON object"},
-  };
-  const char *pos[1];
-  int n_pos;
-  int r = km_cli_parse(
-      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
-      "kinemesh bench deform --mesh MESH [--handles N] [--frames F] [--json]",
-      "Reproduces Table 1 of Wu, Lu & Song: precompute t1, cache load t~1, their\n"
-      "ratio P, filter + retarget t2,3 and deformation t4 per frame (full-resolution\n"
-      "output included), t_per = t2,3 + t4; medians. Also the full ARAP solver per\n"
-      "frame and the reduced model's deviation from it (fraction of the bbox diagonal).");
-  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
-  if (!mesh_path) return km_cli_error("bench deform", "--mesh is required");
-  if (handles < 2) return km_cli_error("bench deform", "--handles must be at least 2");
-  if (frames < 1) return km_cli_error("bench deform", "--frames must be at least 1");
-  if (full_frames > frames) full_frames = frames;
-  km_puppet_options po = {0};
-  if (km_cli_parse_energy("bench deform", energy, &po.energy)) return KM_EXIT_FAIL;
+typedef struct deform_args {
+  size_t handles, frames, full_frames, repeat;
+  km_puppet_options po;
+  bool json, header;
+} deform_args;
 
+/* One mesh: one row (or one JSON object). */
+static int bench_deform_one(const char *mesh_path, const deform_args *da) {
+  size_t handles = da->handles, frames = da->frames, full_frames = da->full_frames,
+         repeat = da->repeat;
+  bool json = da->json;
+  km_puppet_options po = da->po;
   km_error err = {0};
   km_mesh m = {0};
   km_rig rig = {0};
@@ -303,15 +282,18 @@ static int bench_deform(int argc, char **argv) {
     if (s) puts(s);
     free(s);
   } else {
-    char machine[320];
-    km_cli_machine(machine, sizeof machine);
-    printf("kinemesh bench deform — %s; %s energy; medians: t1 of %zu runs, t~1 of 5 loads, "
-           "per-frame times of %zu frames (%d rotation updates each), full ARAP on %zu frames\n",
-           machine, po.energy == KM_PUPPET_ENERGY_ARAP ? "reduced ARAP" : "paper (Laplacian)",
-           repeat, frames, info.last_iterations, full_frames);
-    printf("%-28s %8s %5s %5s %8s %8s %6s %9s %8s %9s %11s %9s %9s\n", "model", "n_ver", "n_han",
-           "n_tri", "t1(s)", "t~1(s)", "P(%)", "t2,3(ms)", "t4(ms)", "tper(ms)", "full tper",
-           "dev mean", "dev max");
+    if (da->header) {
+      char machine[320];
+      km_cli_machine(machine, sizeof machine);
+      printf("kinemesh bench deform — %s; %s energy; medians: t1 of %zu runs (1 above 200k "
+             "vertices unless --repeat), t~1 of 5 loads, per-frame times of %zu frames (%d "
+             "rotation updates each), full ARAP on %zu frames\n",
+             machine, po.energy == KM_PUPPET_ENERGY_ARAP ? "reduced ARAP" : "paper (Laplacian)",
+             repeat, frames, info.last_iterations, full_frames);
+      printf("%-28s %8s %5s %5s %8s %8s %6s %9s %8s %9s %11s %9s %9s\n", "model", "n_ver", "n_han",
+             "n_tri", "t1(s)", "t~1(s)", "P(%)", "t2,3(ms)", "t4(ms)", "tper(ms)", "full tper",
+             "dev mean", "dev max");
+    }
     const char *base = strrchr(mesh_path, '/');
     printf("%-28.28s %8zu %5zu %5zu %8.3f %8.4f %6.2f %9.4f %8.3f %9.3f %11.2f %8.3f%% %8.3f%%\n",
            base ? base + 1 : mesh_path, m.n_vertices, handles, info.crossed_triangles, mt1, mt1c,
@@ -342,6 +324,55 @@ done:
   free(targets);
   free(V);
   free(Vf);
+  return rc;
+}
+
+static int bench_deform(int argc, char **argv) {
+  const char *mesh_path = NULL, *energy = NULL;
+  deform_args da = {5, 100, 30, 0, {0}, false, true};
+  const km_cli_opt opts[] = {
+      {"mesh", 0, KM_OPT_STRING, &mesh_path,
+       "mesh file, or character:N (procedural, N vertices); more meshes may follow as "
+       "arguments, one row each"},
+      {"handles", 0, KM_OPT_SIZE, &da.handles,
+       "number of handles (default 5; handle 0 is an anchor)"},
+      {"frames", 0, KM_OPT_SIZE, &da.frames, "frames of synthetic performer motion (default 100)"},
+      {"full-frames", 0, KM_OPT_SIZE, &da.full_frames,
+       "frames also solved by the full ARAP reference (default 30; 0: skip)"},
+      {"repeat", 0, KM_OPT_SIZE, &da.repeat,
+       "runs of precompute / cache load (default 3, 1 above 200k vertices)"},
+      {"energy", 0, KM_OPT_STRING, &energy,
+       "reduced model energy: arap (default) or laplacian (the paper's)"},
+      {"json", 0, KM_OPT_FLAG, &da.json, "print one JSON object per mesh, one per line"},
+  };
+  enum { MAX_MESHES = 32 };
+  const char *pos[MAX_MESHES];
+  int n_pos;
+  int r = km_cli_parse(
+      argc, argv, opts, sizeof opts / sizeof opts[0], pos, MAX_MESHES - 1, &n_pos,
+      "kinemesh bench deform --mesh MESH [MESH ...] [--handles N] [--frames F] [--json]",
+      "Reproduces Table 1 of Wu, Lu & Song: precompute t1, cache load t~1, their\n"
+      "ratio P, filter + retarget t2,3 and deformation t4 per frame (full-resolution\n"
+      "output included), t_per = t2,3 + t4; medians. Also the full ARAP solver per\n"
+      "frame and the reduced model's deviation from it (fraction of the bbox diagonal).");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (mesh_path) {
+    memmove(pos + 1, pos, sizeof *pos * (size_t)n_pos);
+    pos[0] = mesh_path;
+    ++n_pos;
+  }
+  if (!n_pos) return km_cli_error("bench deform", "--mesh is required");
+  if (da.handles < 2) return km_cli_error("bench deform", "--handles must be at least 2");
+  if (da.frames < 1) return km_cli_error("bench deform", "--frames must be at least 1");
+  if (da.full_frames > da.frames) da.full_frames = da.frames;
+  if (km_cli_parse_energy("bench deform", energy, &da.po.energy)) return KM_EXIT_FAIL;
+  int rc = KM_EXIT_OK;
+  for (int i = 0; i < n_pos; ++i) {
+    da.header = i == 0;
+    int ri = bench_deform_one(pos[i], &da);
+    if (ri != KM_EXIT_OK) rc = ri;
+    fflush(stdout);
+  }
   return rc;
 }
 

@@ -168,7 +168,7 @@ int km_cli_gen(int argc, char **argv) {
 /* Poses a skinned character along a take by linear blend skinning: the rig's skeleton is
  * driven by the take's joint positions (matched by name). */
 int km_cli_pose(int argc, char **argv) {
-  const char *mesh = NULL, *rig = NULL, *motion = NULL, *out = NULL;
+  const char *mesh = NULL, *rig = NULL, *motion = NULL, *out = NULL, *frame_format = NULL;
   double fps = 0;
   size_t key_every = 0;
   const km_cli_opt opts[] = {
@@ -177,6 +177,8 @@ int km_cli_pose(int argc, char **argv) {
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <mesh stem>.rig.json)"},
       {"motion", 0, KM_OPT_STRING, &motion, "take (.json) with the rig's joint names"},
       {"fps", 0, KM_OPT_DOUBLE, &fps, "frame rate of the output (default: the take's)"},
+      {"frame-format", 0, KM_OPT_STRING, &frame_format,
+       "directory output: obj (default) or ply (binary) per frame"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory"},
   };
   const char *pos[1];
@@ -186,6 +188,8 @@ int km_cli_pose(int argc, char **argv) {
                        "Linear-blend-skinning playback of a take on a rigged character.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!mesh || !motion || !out) return km_cli_error("pose", "--mesh, --motion and -o are required");
+  km_anim_format af = 0;
+  if (km_cli_parse_frame_format("pose", frame_format, &af)) return KM_EXIT_FAIL;
   km_error err = {0};
   km_character c = {0};
   km_take t = {0};
@@ -215,6 +219,7 @@ int km_cli_pose(int argc, char **argv) {
   km_anim_options ao = {0};
   ao.fps = fps > 0 ? fps : t.fps;
   ao.key_every = key_every;
+  ao.format = af;
   if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
   km_progress prog = km_cli_progress("pose");
   for (size_t f = 0; f < t.n_frames; ++f) {

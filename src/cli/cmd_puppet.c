@@ -20,6 +20,18 @@ int km_cli_parse_energy(const char *verb, const char *s, km_puppet_energy *e) {
   return 0;
 }
 
+int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f) {
+  if (!s)
+    *f = KM_ANIM_AUTO;
+  else if (!strcmp(s, "obj"))
+    *f = KM_ANIM_OBJ_DIR;
+  else if (!strcmp(s, "ply"))
+    *f = KM_ANIM_PLY_DIR;
+  else
+    return km_cli_error(verb, "--frame-format must be obj or ply, not '%s'", s);
+  return 0;
+}
+
 static int parse_solver(const char *verb, const char *s, bool *full) {
   if (!s || !strcmp(s, "reduced"))
     *full = false;
@@ -80,20 +92,39 @@ km_status km_cli_read_motion(const char *path, km_take *t, km_error *err) {
 }
 
 /* For a kinect1 rig the map's joint indices are Kinect v1 indices: reorders a take's columns
- * into that order by name (absent joints become NaN). */
-static km_status take_to_kinect_order(km_take *t, km_error *err) {
+ * into that order by name (joints the rig does not map may be absent: they become NaN). A
+ * joint the rig maps must be in the take: a BVH with a "Spine" and a "Head" but no "HandLeft"
+ * would otherwise animate nothing, silently. */
+static km_status take_to_kinect_order(km_take *t, const km_rig *rig, const char *motion,
+                                      km_error *err) {
   int src[KM_KINECT1_JOINTS];
-  int found = 0;
   for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
     src[j] = -1;
     for (size_t k = 0; k < t->n_joints; ++k)
       if (!strcmp(t->joint_names[k], km_kinect1_joint_name(j))) src[j] = (int)k;
-    found += src[j] >= 0;
   }
-  if (!found)
+  char missing[512] = "";
+  size_t n_missing = 0;
+  for (size_t m = 0; m < rig->n_maps; ++m) {
+    int j = rig->maps[m].joint;
+    if (j < 0 || j >= KM_KINECT1_JOINTS || src[j] >= 0 || strstr(missing, km_kinect1_joint_name(j)))
+      continue;
+    size_t len = strlen(missing);
+    snprintf(missing + len, sizeof missing - len, "%s%s", n_missing ? ", " : "",
+             km_kinect1_joint_name(j));
+    ++n_missing;
+  }
+  if (n_missing) {
+    char have[512] = "";
+    for (size_t k = 0; k < t->n_joints && k < 12; ++k) {
+      size_t len = strlen(have);
+      snprintf(have + len, sizeof have - len, "%s%s", k ? ", " : "", t->joint_names[k]);
+    }
     return km_cli_set_error(err, KM_ERR_INVALID,
-                            "the motion has none of the 20 Kinect v1 joint names the rig maps "
-                            "(HipCenter, HandLeft, ...); use a \"bvh\" rig for other skeletons");
+                            "%s has no joint named %s, which the kinect1 rig maps (its joints: "
+                            "%s%s); use a \"bvh\" rig that names this motion's joints",
+                            motion, missing, have, t->n_joints > 12 ? ", ..." : "");
+  }
   bool same = t->n_joints == KM_KINECT1_JOINTS;
   for (int j = 0; same && j < KM_KINECT1_JOINTS; ++j)
     same = src[j] == j;
@@ -131,45 +162,71 @@ static km_status take_to_kinect_order(km_take *t, km_error *err) {
 /* ------------------------------------------------------------------ precompute */
 
 int km_cli_precompute(int argc, char **argv) {
-  const char *out = NULL;
+  const char *out = NULL, *energy = NULL;
   int fields = 8, isolines = 10;
+  bool force = false;
   const km_cli_opt opts[] = {
       {"output", 'o', KM_OPT_STRING, &out, "cache file (default MESH.kmcache)"},
       {"fields", 0, KM_OPT_INT, &fields, "propagation fields n_e (default 8)"},
       {"isolines", 0, KM_OPT_INT, &isolines, "isolines per field n_iso (default 10)"},
+      {"energy", 0, KM_OPT_STRING, &energy,
+       "reduced model energy: arap (default) or laplacian (the paper's eq. 8-9)"},
+      {"force", 0, KM_OPT_FLAG, &force, "rebuild even when the cache is up to date"},
   };
   const char *pos[1];
   int n_pos;
   int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
-                       "kinemesh precompute MESH [-o CACHE] [--fields 8] [--isolines 10]",
+                       "kinemesh precompute MESH [-o CACHE] [--fields 8] [--isolines 10] "
+                       "[--energy arap|laplacian] [--force]",
                        "Builds the reduced isoline model of a mesh (eigenfields of the cotangent\n"
                        "Laplacian, isolines, interpolation W, W'L'LW) and writes it to a\n"
-                       "versioned, checksummed cache that animate and live reuse.");
+                       "versioned, checksummed cache that animate and live reuse. A cache that\n"
+                       "is already up to date for this mesh and these parameters is loaded and\n"
+                       "kept (--force rebuilds it).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (n_pos != 1) return km_cli_error("precompute", "expected one MESH");
+  km_puppet_options po = {0};
+  po.fields = fields;
+  po.isolines = isolines;
+  if (km_cli_parse_energy("precompute", energy, &po.energy)) return KM_EXIT_FAIL;
   km_error err = {0};
   km_mesh m = {0};
   km_puppet *p = NULL;
   char *cache = out ? NULL : km_cli_cache_path(pos[0]);
+  const char *path = out ? out : cache;
   int rc = KM_EXIT_OK;
-  km_puppet_options po = {0};
-  po.fields = fields;
-  po.isolines = isolines;
-  po.progress = km_cli_progress("precompute");
   double t0 = km_cli_now();
-  if (km_mesh_read(pos[0], &m, &err) != KM_OK || km_puppet_precompute(&m, &po, &p, &err) != KM_OK ||
-      km_puppet_save(p, out ? out : cache, &err) != KM_OK) {
+  bool loaded = false;
+  if (km_mesh_read(pos[0], &m, &err) != KM_OK) {
     rc = km_cli_fail("precompute", &err);
-  } else {
-    km_cli_progress_done();
-    km_puppet_info info;
-    km_puppet_info_get(p, &info);
-    fprintf(stderr,
-            "kinemesh precompute: %zu vertices, %d fields x %d isolines (%zu unknowns per "
-            "coordinate), %zu crossed triangles in %.3f s -> %s\n",
-            info.vertices, info.fields, info.isolines, info.unknowns, info.crossed_triangles,
-            km_cli_now() - t0, out ? out : cache);
+    goto done;
   }
+  if (!force) {
+    km_error lerr = {0};
+    km_status s = km_puppet_load(path, &m, &po, &p, &lerr);
+    if (s == KM_OK)
+      loaded = true;
+    else if (s == KM_ERR_STALE)
+      fprintf(stderr, "kinemesh precompute: rebuilding %s: %s\n", path, lerr.message);
+  }
+  if (!loaded) {
+    po.progress = km_cli_progress("precompute");
+    t0 = km_cli_now();
+    if (km_puppet_precompute(&m, &po, &p, &err) != KM_OK ||
+        km_puppet_save(p, path, &err) != KM_OK) {
+      rc = km_cli_fail("precompute", &err);
+      goto done;
+    }
+    km_cli_progress_done();
+  }
+  km_puppet_info info;
+  km_puppet_info_get(p, &info);
+  fprintf(stderr,
+          "kinemesh precompute: %zu vertices, %d fields x %d isolines (%zu unknowns per "
+          "coordinate), %zu crossed triangles; %s in %.3f s -> %s\n",
+          info.vertices, info.fields, info.isolines, info.unknowns, info.crossed_triangles,
+          loaded ? "up to date, loaded (t~1)" : "built (t1)", km_cli_now() - t0, path);
+done:
   free(cache);
   km_puppet_free(&p);
   km_mesh_free(&m);
@@ -197,7 +254,8 @@ double km_cli_median(double *v, size_t n) {
 int km_cli_animate(int argc, char **argv) {
   const char *mesh_path = NULL, *rig_path = NULL, *motion = NULL, *cache = NULL, *out = NULL;
   const char *solver = NULL, *energy = NULL;
-  int iterations = 0;
+  const char *frame_format = NULL;
+  int iterations = 0, fields = 0, isolines = 0;
   double scale = 0, fps = 0;
   size_t key_every = 0;
   const km_cli_opt opts[] = {
@@ -211,11 +269,17 @@ int km_cli_animate(int argc, char **argv) {
        "reduced (default, real time) or full (ARAP reference)"},
       {"energy", 0, KM_OPT_STRING, &energy,
        "reduced model energy: arap (default) or laplacian (the paper's eq. 8-9)"},
+      {"fields", 0, KM_OPT_INT, &fields,
+       "propagation fields n_e (default: the cache's when it has one, else 8)"},
+      {"isolines", 0, KM_OPT_INT, &isolines,
+       "isolines per field n_iso (default: the cache's when it has one, else 10)"},
       {"iterations", 0, KM_OPT_INT, &iterations, "rotation updates per frame (default 4)"},
       {"scale", 0, KM_OPT_DOUBLE, &scale, "performer-to-character scale (default: automatic)"},
       {"fps", 0, KM_OPT_DOUBLE, &fps, "output frame rate (default: the take's)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames"},
-      {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory of per-frame .obj"},
+      {"frame-format", 0, KM_OPT_STRING, &frame_format,
+       "directory output: obj (default) or ply (binary) per frame"},
+      {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory of per-frame meshes"},
   };
   const char *pos[1];
   int n_pos;
@@ -230,7 +294,9 @@ int km_cli_animate(int argc, char **argv) {
     return km_cli_error("animate", "--mesh, --motion and -o are required (see --help)");
   bool full = false;
   km_puppet_energy pe = KM_PUPPET_ENERGY_ARAP;
-  if (parse_solver("animate", solver, &full) || km_cli_parse_energy("animate", energy, &pe))
+  km_anim_format af = 0;
+  if (parse_solver("animate", solver, &full) || km_cli_parse_energy("animate", energy, &pe) ||
+      km_cli_parse_frame_format("animate", frame_format, &af))
     return KM_EXIT_FAIL;
 
   km_error err = {0};
@@ -260,7 +326,8 @@ int km_cli_animate(int argc, char **argv) {
   if (km_rig_read(rig_path ? rig_path : rig_default, &m, (const char *const *)take.joint_names,
                   take.n_joints, &rig, &err) != KM_OK)
     goto fail;
-  if (rig.skeleton == KM_RIG_KINECT1 && take_to_kinect_order(&take, &err) != KM_OK) goto fail;
+  if (rig.skeleton == KM_RIG_KINECT1 && take_to_kinect_order(&take, &rig, motion, &err) != KM_OK)
+    goto fail;
   if (rig.n_handles == 0) {
     rc = km_cli_error("animate", "the rig has no handles");
     goto done;
@@ -295,10 +362,21 @@ int km_cli_animate(int argc, char **argv) {
     if (s != KM_OK) goto fail;
   } else {
     km_puppet_options po = {0};
+    const char *cpath = cache ? cache : cache_default;
+    /* A cache made by `precompute --fields/--isolines/--energy` is used as built unless this
+     * run asks for other parameters. */
+    km_error cerr = {0};
+    if (!fields && !isolines && !energy && km_puppet_cache_options(cpath, &po, &cerr) == KM_OK)
+      fprintf(stderr, "kinemesh animate: %s: %d fields x %d isolines, %s energy\n", cpath,
+              po.fields, po.isolines,
+              po.energy == KM_PUPPET_ENERGY_LAPLACIAN ? "laplacian" : "arap");
+    else {
+      po.fields = fields;
+      po.isolines = isolines;
+      po.energy = pe;
+    }
     po.iterations = iterations;
-    po.energy = pe;
-    km_status s = km_cli_puppet_open(&m, &po, cache ? cache : cache_default, true, &pup, &loaded,
-                                     &t_pre, &err);
+    km_status s = km_cli_puppet_open(&m, &po, cpath, true, &pup, &loaded, &t_pre, &err);
     if (s == KM_OK) s = km_puppet_set_handles(pup, rig.n_handles, offsets, hverts, &err);
     free(hverts);
     if (s != KM_OK) goto fail;
@@ -314,6 +392,7 @@ int km_cli_animate(int argc, char **argv) {
   km_anim_options wo = {0};
   wo.fps = fps > 0 ? fps : take.fps;
   wo.key_every = key_every;
+  wo.format = af;
   if (km_anim_writer_open(out, &m, &wo, &w, &err) != KM_OK) goto fail;
   km_progress prog = km_cli_progress("animate");
   for (size_t f = 0; f < take.n_frames; ++f) {

@@ -39,8 +39,10 @@
 
 #include "deform/rot3.h"
 
+#include <errno.h>
 #include <lapacke.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #ifdef _OPENMP
@@ -999,6 +1001,34 @@ static bool rb_get(rbuf *r, void *dst, size_t size) {
   if (size) memcpy(dst, r->buf + r->pos, size);
   r->pos += size + pad;
   return true;
+}
+
+km_status km_puppet_cache_options(const char *path, km_puppet_options *opt, km_error *err) {
+  if (!path || !opt) return km__fail(err, KM_ERR_INVALID, "puppet cache options: NULL argument");
+  FILE *f = fopen(path, "rb");
+  if (!f) return km__fail(err, KM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+  unsigned char b[KM_PUPPET_HEADER];
+  size_t got = fread(b, 1, sizeof b, f);
+  fclose(f);
+  if (got < sizeof b)
+    return km__fail(err, KM_ERR_STALE, "%s: truncated puppet cache (%zu bytes, a header is %u)",
+                    path, got, KM_PUPPET_HEADER);
+  uint32_t u32[2];
+  memcpy(u32, b + 8, 8);
+  if (memcmp(b, KM_PUPPET_MAGIC, 8) != 0 || u32[0] != KM_PUPPET_FORMAT ||
+      u32[1] != KM_PUPPET_ENDIAN)
+    return km__fail(err, KM_ERR_STALE, "%s: not a puppet cache of format %u", path,
+                    KM_PUPPET_FORMAT);
+  int32_t params[4];
+  memcpy(params, b + 32, 16);
+  if (params[3] != KM_PUPPET_ENERGY_ARAP && params[3] != KM_PUPPET_ENERGY_LAPLACIAN)
+    return km__fail(err, KM_ERR_STALE, "%s: unknown energy %d in the cache header", path,
+                    params[3]);
+  opt->fields = params[0];
+  opt->isolines = params[1];
+  opt->crossed_per_isoline = params[2];
+  opt->energy = (km_puppet_energy)params[3];
+  return KM_OK;
 }
 
 km_status km_puppet_load(const char *path, const km_mesh *rest, const km_puppet_options *opt,

@@ -6,8 +6,7 @@
 #include <stdlib.h>
 
 km_status km_farthest_points(const km_mesh *m, size_t k, int32_t *ids, km_error *err) {
-  if (!m || (k && !ids))
-    return km__fail(err, KM_ERR_INVALID, "km_farthest_points: NULL argument");
+  if (!m || (k && !ids)) return km__fail(err, KM_ERR_INVALID, "km_farthest_points: NULL argument");
   if (k == 0) return KM_OK;
   size_t n = m->n_vertices;
   if (!m->V || !m->F || m->n_faces == 0)
