@@ -130,11 +130,13 @@ function onFrame(buf) {
   const P = geom.getAttribute('position');
   const out = P.array;
   if (flags & 1) {
-    const q = new Uint16Array(buf, HEADER, 3 * nv);
-    const s = [0, 1, 2].map((k) => (hi[k] - lo[k]) / 65535);
+    // int16 about the box centre c with half-extent h: x = c + q h / 32767 (src/live/live.h)
+    const q = new Int16Array(buf, HEADER, 3 * nv);
+    const c = [0, 1, 2].map((k) => (lo[k] + hi[k]) / 2);
+    const s = [0, 1, 2].map((k) => (hi[k] - lo[k]) / 2 / 32767);
     for (let i = 0; i < 3 * nv; i += 3) {
-      out[i] = lo[0] + q[i] * s[0]; out[i + 1] = lo[1] + q[i + 1] * s[1];
-      out[i + 2] = lo[2] + q[i + 2] * s[2];
+      out[i] = c[0] + q[i] * s[0]; out[i + 1] = c[1] + q[i + 1] * s[1];
+      out[i + 2] = c[2] + q[i + 2] * s[2];
     }
   } else {
     out.set(new Float32Array(buf, HEADER, 3 * nv));
@@ -142,6 +144,7 @@ function onFrame(buf) {
   P.needsUpdate = true;
   geom.computeVertexNormals();
   geom.computeBoundingSphere();
+  state.box = { lo, hi };
   // skeleton overlay
   const sp = skelGeom.getAttribute('position').array, jp = jointGeom.getAttribute('position').array;
   let ok = true;

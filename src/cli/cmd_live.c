@@ -76,7 +76,8 @@ int km_cli_live(int argc, char **argv) {
       {"http", 0, KM_OPT_INT, &http, "HTTP/WebSocket port (default 8080)"},
       {"bind", 0, KM_OPT_STRING, &bind, "listen address (default 127.0.0.1)"},
       {"record", 0, KM_OPT_STRING, &record, "write the received raw joints as a take on exit"},
-      {"quantize", 0, KM_OPT_FLAG, &quantize, "send positions as uint16 in the frame's box"},
+      {"quantize", 0, KM_OPT_FLAG, &quantize,
+       "send positions as int16 quantised to the frame's bounding box (half the bytes)"},
       {"web", 0, KM_OPT_STRING, &web, "page directory (default: web/ beside the binary)"},
       {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default MESH.kmcache)"},
   };

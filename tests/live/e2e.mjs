@@ -1,6 +1,6 @@
 // End-to-end: headless Debian chromium (driven by playwright-core, no browser download) opens
-// the live page, plays the take with the replay button, checks frames arrive and the mesh
-// moves, adds a handle through the mapping panel (click on a projected vertex, pick the joint
+// the live page, plays the take with the replay button, checks frames arrive, the mesh moves and its decoded positions fill the
+// frame's box (float32, or int16 with --quantize), adds a handle through the mapping panel (click on a projected vertex, pick the joint
 // on the diagram, add, save) and checks the rig file on disk. Keeps a screenshot.
 import { createRequire } from 'node:module';
 import fs from 'node:fs';
@@ -60,6 +60,23 @@ try {
   await page.waitForFunction((n) => window.kmLive.inSeq === n, s1 ? s1.frames_in : -1, { timeout: 20000 }).catch(() => {});
   const inSeq = await page.evaluate(() => window.kmLive.inSeq);
   check(s1 && inSeq === s1.frames_in, `page shows the take's last frame (input ${inSeq} of ${s1 && s1.frames_in})`);
+  // The decoded positions span the frame's box: its extremes are vertices, exact in float32
+  // and within one int16 step (half-extent / 32767) when quantised. A wrong decode (uint16
+  // offsets from the minimum, say) lands outside it.
+  const fit = await page.evaluate(() => {
+    const { lo, hi } = window.kmLive.box, nv = window.kmLive.nv, out = [];
+    for (let a = 0; a < 3; ++a) {
+      let mn = Infinity, mx = -Infinity;
+      for (let i = 0; i < nv; ++i) { const x = window.kmLive.vertexPosition(i)[a]; mn = Math.min(mn, x); mx = Math.max(mx, x); }
+      out.push({ lo: lo[a], hi: hi[a], mn, mx });
+    }
+    return out;
+  });
+  const fitOk = fit.every((f) => {
+    const tol = (f.hi - f.lo) / 2 / 32767 + 1e-6;
+    return Math.abs(f.mn - f.lo) <= tol && Math.abs(f.mx - f.hi) <= tol;
+  });
+  check(fitOk, `decoded positions span the frame's box: ${fit.map((f) => `[${f.mn.toFixed(5)}, ${f.mx.toFixed(5)}] vs [${f.lo.toFixed(5)}, ${f.hi.toFixed(5)}]`).join(' ')}`);
 
   // Pick a vertex on the chest facing the camera: the front-most vertex near the mid-line at
   // 70% of the height (current positions, read from the page).
