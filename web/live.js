@@ -145,24 +145,44 @@ function onFrame(buf) {
   geom.computeVertexNormals();
   geom.computeBoundingSphere();
   state.box = { lo, hi };
-  // skeleton overlay
-  const sp = skelGeom.getAttribute('position').array, jp = jointGeom.getAttribute('position').array;
-  let ok = true;
-  for (let j = 0; j < 20; ++j) {
-    for (let a = 0; a < 3; ++a) jp[3 * j + a] = J[3 * j + a];
-    ok &&= Number.isFinite(J[3 * j]);
-  }
-  for (let j = 1, k = 0; j < 20; ++j, ++k) {
-    const p = PARENT[j];
-    for (let a = 0; a < 3; ++a) { sp[6 * k + a] = J[3 * p + a]; sp[6 * k + 3 + a] = J[3 * j + a]; }
-  }
-  skelGeom.getAttribute('position').needsUpdate = true;
-  jointGeom.getAttribute('position').needsUpdate = true;
-  skel.visible = joints.visible = ok && $('show-skel').checked;
+  drawSkeleton(J);
   state.frames++;
   const now = performance.now();
   state.recv.push(now);
   while (state.recv.length && now - state.recv[0] > 1000) state.recv.shift();
+}
+
+// Bridges leave joints out (OSCeleton sends no wrists or ankles: they arrive NaN), so the
+// overlay draws what it can: the finite joints and every bone with both ends finite, packed at
+// the front of the buffers and cut with setDrawRange. The tail is filled with a drawn point,
+// never NaN, because three.js bounds the whole attribute, not the draw range.
+function drawSkeleton(J) {
+  const sp = skelGeom.getAttribute('position').array, jp = jointGeom.getAttribute('position').array;
+  const ok = (j) => Number.isFinite(J[3 * j]) && Number.isFinite(J[3 * j + 1]) && Number.isFinite(J[3 * j + 2]);
+  let nj = 0, nb = 0;
+  for (let j = 0; j < 20; ++j) {
+    if (!ok(j)) continue;
+    for (let a = 0; a < 3; ++a) jp[3 * nj + a] = J[3 * j + a];
+    ++nj;
+    const p = PARENT[j];
+    if (p < 0 || !ok(p)) continue;
+    for (let a = 0; a < 3; ++a) { sp[6 * nb + a] = J[3 * p + a]; sp[6 * nb + 3 + a] = J[3 * j + a]; }
+    ++nb;
+  }
+  for (let k = 3 * nj; k < jp.length; ++k) jp[k] = nj ? jp[k % 3] : 0;
+  for (let k = 6 * nb; k < sp.length; ++k) sp[k] = nb ? sp[k % 3] : 0;
+  jointGeom.setDrawRange(0, nj);
+  skelGeom.setDrawRange(0, 2 * nb);
+  skelGeom.getAttribute('position').needsUpdate = true;
+  jointGeom.getAttribute('position').needsUpdate = true;
+  // The overlay moves with the performer: a bounding sphere from the first frame would cull it.
+  skelGeom.computeBoundingSphere();
+  jointGeom.computeBoundingSphere();
+  state.overlay = { joints: nj, bones: nb,
+    finite: jp.every(Number.isFinite) && sp.every(Number.isFinite) };
+  const show = $('show-skel').checked;
+  joints.visible = show && nj > 0;
+  skel.visible = show && nb > 0;
 }
 
 function connect() {
