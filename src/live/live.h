@@ -77,7 +77,7 @@ bool km__live_replay(km__live *l);
 
 typedef struct km__live_stats {
   uint64_t frames_in, frames_out, frames_sent, frames_dropped;
-  uint64_t osc_messages, udp_datagrams, bad_packets;
+  uint64_t osc_messages, udp_datagrams, bad_packets, solve_errors;
   int clients;
   double lat_median_ms, lat_p99_ms;             /* packet received -> frame written to a socket */
   double t_retarget_ms, t_deform_ms, t_pack_ms; /* medians of the recent frames */

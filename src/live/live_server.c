@@ -684,6 +684,7 @@ void km__live_get_stats(km__live *l, km__live_stats *o) {
   o->osc_messages = atomic_load(&l->osc_messages);
   o->udp_datagrams = atomic_load(&l->udp_datagrams);
   o->bad_packets = atomic_load(&l->bad_packets);
+  o->solve_errors = atomic_load(&l->solve_errors);
   o->clients = atomic_load(&l->clients);
   pthread_mutex_lock(&l->st_mu);
   o->lat_median_ms = ring_q(&l->lat, 0.5);
@@ -713,7 +714,7 @@ char *km__live_status_json(km__live *l) {
   cJSON_AddNumberToObject(o, "osc_messages", (double)s.osc_messages);
   cJSON_AddNumberToObject(o, "udp_datagrams", (double)s.udp_datagrams);
   cJSON_AddNumberToObject(o, "bad_packets", (double)s.bad_packets);
-  cJSON_AddNumberToObject(o, "solve_errors", (double)atomic_load(&l->solve_errors));
+  cJSON_AddNumberToObject(o, "solve_errors", (double)s.solve_errors);
   cJSON_AddNumberToObject(o, "clients", s.clients);
   cJSON_AddNumberToObject(o, "vertices", (double)l->mesh->n_vertices);
   cJSON_AddBoolToObject(o, "quantize", l->opt.quantize);
