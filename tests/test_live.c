@@ -1,5 +1,6 @@
-/* Live mode: tracker message parsing (joint names, JSON datagrams, OSC messages) and the
- * server in-process (JSON frames over UDP in, frames produced, rig kept, record written). */
+/* Live mode: tracker message parsing (joint names, JSON datagrams, OSC messages), the int16
+ * quantisation, and the server in-process (JSON frames over UDP in, frames produced, rig
+ * kept, record written; the same frames read over WebSocket as float32 and as int16). */
 #include "km_test.h"
 
 #include "live/live.h"
@@ -9,6 +10,7 @@
 #include <netinet/in.h>
 #include <pthread.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <unistd.h>
 
 static void test_names(void) {
@@ -144,6 +146,131 @@ static void test_osc(void) {
   lo_message_free(m);
 }
 
+/* Decodes what km__live_quantize wrote, the way web/live.js does. */
+static double dequant(int16_t q, float lo, float hi) {
+  double c = 0.5 * ((double)lo + hi), h = 0.5 * ((double)hi - lo);
+  return c + q * h / 32767.0;
+}
+
+static void test_quantize(void) {
+  enum { N = 1000 };
+  double *V = malloc(sizeof(double) * 3 * N);
+  int16_t *q = malloc(sizeof(int16_t) * 3 * N);
+  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  unsigned r = 12345;
+  for (int k = 0; k < 3 * N; ++k) {
+    r = r * 1103515245u + 12345u;
+    /* a character-sized box that is not centred on the origin */
+    V[k] = (k % 3 == 1 ? 1.8 : 0.9) * ((r >> 8) / 16777216.0) + (k % 3 == 0 ? -0.45 : 0.3);
+    float x = (float)V[k];
+    lo[k % 3] = x < lo[k % 3] ? x : lo[k % 3];
+    hi[k % 3] = x > hi[k % 3] ? x : hi[k % 3];
+  }
+  km__live_quantize(V, N, lo, hi, q);
+  double worst = 0;
+  int neg = 0;
+  for (int k = 0; k < 3 * N; ++k) {
+    int a = k % 3;
+    /* rounding is at most half a step h/32767; the float arithmetic adds a little */
+    double step = 0.5 * ((double)hi[a] - lo[a]) / 32767.0;
+    double e = fabs(dequant(q[k], lo[a], hi[a]) - V[k]) / step;
+    worst = e > worst ? e : worst;
+    neg += q[k] < 0;
+    CHECK(q[k] >= -32767 && q[k] <= 32767);
+  }
+  CHECK_MSG(worst <= 0.55, "worst decoding error %.3f steps (half-extent / 32767)", worst);
+  CHECK(neg > N / 2 && neg < 5 * N / 2); /* centred: about half the values are negative */
+
+  /* the box's corners are the ends of the range, its centre is 0; NaN is 0 and points outside
+   * the box clamp to it; a flat axis is 0 */
+  double W[15] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], 0.5 * (lo[0] + hi[0]), 7, NAN,
+                  -100,  1e30,  NAN,   5,     5,     5};
+  float flo[3] = {lo[0], lo[1], 5}, fhi[3] = {hi[0], hi[1], 5};
+  int16_t w[15];
+  km__live_quantize(W, 5, flo, fhi, w);
+  CHECK(w[0] == -32767 && w[1] == -32767 && w[3] == 32767 && w[4] == 32767);
+  CHECK(w[6] == 0);
+  CHECK(w[7] == 32767 && w[8] == 0);
+  CHECK(w[9] == -32767 && w[10] == 32767 && w[11] == 0);
+  CHECK(w[2] == 0 && w[5] == 0 && w[14] == 0); /* z is flat at 5 */
+  free(V);
+  free(q);
+}
+
+/* ---- a WebSocket client on a plain socket (the frames are what the page receives) */
+
+static int ws_connect(int port) {
+  int fd = socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return -1;
+  struct timeval tv = {10, 0}; /* a server that stops sending fails the test, never hangs it */
+  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  struct sockaddr_in a = {0};
+  a.sin_family = AF_INET;
+  a.sin_port = htons((uint16_t)port);
+  inet_pton(AF_INET, "127.0.0.1", &a.sin_addr);
+  const char *req = "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
+                    "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                    "Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: kinemesh\r\n\r\n";
+  if (connect(fd, (struct sockaddr *)&a, sizeof a) ||
+      send(fd, req, strlen(req), 0) != (ssize_t)strlen(req)) {
+    close(fd);
+    return -1;
+  }
+  char resp[2048];
+  size_t n = 0;
+  /* byte by byte so that no frame data is taken with the response */
+  while (n + 1 < sizeof resp && recv(fd, resp + n, 1, 0) == 1) {
+    ++n;
+    if (n >= 4 && !memcmp(resp + n - 4, "\r\n\r\n", 4)) break;
+  }
+  resp[n] = 0;
+  if (!strstr(resp, " 101 ")) {
+    close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+static bool recv_full(int fd, unsigned char *b, size_t n) {
+  while (n) {
+    ssize_t r = recv(fd, b, n, 0);
+    if (r <= 0) return false;
+    b += r;
+    n -= (size_t)r;
+  }
+  return true;
+}
+
+/* The next whole binary message (server frames are unmasked); malloc'ed in *msg. */
+static bool ws_read(int fd, unsigned char **msg, size_t *len) {
+  *msg = NULL;
+  *len = 0;
+  for (;;) {
+    unsigned char h[10];
+    if (!recv_full(fd, h, 2)) return false;
+    uint64_t n = h[1] & 127;
+    if (n == 126) {
+      if (!recv_full(fd, h + 2, 2)) return false;
+      n = ((uint64_t)h[2] << 8) | h[3];
+    } else if (n == 127) {
+      if (!recv_full(fd, h + 2, 8)) return false;
+      n = 0;
+      for (int k = 0; k < 8; ++k)
+        n = (n << 8) | h[2 + k];
+    }
+    if (n > (64u << 20)) return false;
+    unsigned char *b = realloc(*msg, *len + (size_t)n + 1);
+    if (!b) return false;
+    *msg = b;
+    if (!recv_full(fd, *msg + *len, (size_t)n)) return false;
+    int op = h[0] & 15;
+    if (op == 8) return false;
+    if (op == 9 || op == 10) continue; /* ping / pong between fragments */
+    *len += (size_t)n;
+    if (h[0] & 128) return true;
+  }
+}
+
 /* ---- the server in-process */
 
 typedef struct runner {
@@ -275,10 +402,155 @@ static void test_server(void) {
   km_character_free(&c);
 }
 
+/* Runs a fresh server (float32 or int16 frames), sends the take's frames 0, 4, 8, ... as JSON
+ * datagrams, each once the previous one is deformed (so both runs deform the same sequence),
+ * and returns the WebSocket message of the last one (NULL on failure). */
+static unsigned char *serve_frames(const km_mesh *m, km_puppet *p, const char *rig, size_t rig_n,
+                                   const km_take *take, bool quantize, size_t *len) {
+  enum { SENT = 10 };
+  km_puppet_reset(p);
+  km__live *l = NULL;
+  km__live_options o = {0};
+  o.quantize = quantize;
+  km_status s = KM_ERR_IO;
+  int http_port = 0, udp_port = 0;
+  for (int attempt = 0; attempt < 8 && s != KM_OK; ++attempt) {
+    http_port = 20000 + (int)((getpid() * 257 + attempt * 1559 + quantize * 31) % 40000);
+    o.http_port = http_port;
+    o.udp_port = udp_port = http_port + 1;
+    s = km__live_create(&o, m, p, rig, rig_n, NULL, &l, KM_E);
+  }
+  CHECK_MSG(s == KM_OK, "%s", km_test_err.message);
+  if (s != KM_OK) return NULL;
+  runner r = {l, KM_OK};
+  pthread_t th;
+  pthread_create(&th, NULL, run_main, &r);
+  unsigned char *out = NULL;
+  *len = 0;
+  int ws = ws_connect(http_port);
+  CHECK_MSG(ws >= 0, "WebSocket handshake with the server on port %d", http_port);
+  km__live_stats st = {0};
+  for (int i = 0; ws >= 0 && i < 500 && st.clients < 1; ++i) {
+    usleep(10000);
+    km__live_get_stats(l, &st);
+  }
+  int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  struct sockaddr_in a = {0};
+  a.sin_family = AF_INET;
+  a.sin_port = htons((uint16_t)udp_port);
+  inet_pton(AF_INET, "127.0.0.1", &a.sin_addr);
+  for (int k = 0; ws >= 0 && k < SENT; ++k) {
+    const double *j = take->positions + 60 * (size_t)(4 * k);
+    char buf[4096];
+    size_t n = (size_t)snprintf(buf, sizeof buf, "[");
+    for (int c = 0; c < 60; ++c)
+      n += (size_t)snprintf(buf + n, sizeof buf - n, "%s%.17g", c ? "," : "", j[c]);
+    n += (size_t)snprintf(buf + n, sizeof buf - n, "]");
+    sendto(fd, buf, n, 0, (struct sockaddr *)&a, sizeof a);
+    for (int i = 0; i < 1000; ++i) {
+      km__live_get_stats(l, &st);
+      if (st.frames_out >= (uint64_t)k + 1) break;
+      usleep(5000);
+    }
+  }
+  CHECK_MSG(st.frames_out == SENT && st.frames_dropped == 0, "%s: %llu frames deformed of %d",
+            quantize ? "int16" : "float32", (unsigned long long)st.frames_out, SENT);
+  /* the page gets the newest frame; older ones may come first */
+  unsigned char *msg = NULL;
+  size_t n = 0;
+  while (ws >= 0 && ws_read(ws, &msg, &n)) {
+    uint32_t in_seq = 0;
+    if (n >= KM_LIVE_HEADER) memcpy(&in_seq, msg + 16, 4);
+    if (in_seq == SENT) {
+      out = msg;
+      *len = n;
+      break;
+    }
+    free(msg);
+    msg = NULL;
+  }
+  if (!out) free(msg);
+  CHECK_MSG(out != NULL, "%s: no WebSocket message for input frame %d",
+            quantize ? "int16" : "float32", SENT);
+  if (ws >= 0) close(ws);
+  close(fd);
+  km__live_stop(l);
+  pthread_join(th, NULL);
+  km__live_free(&l);
+  return out;
+}
+
+/* The int16 frames (--quantize) decode, as the page does, to the float32 frames' positions
+ * within half a quantisation step of the frame's box. */
+static void test_server_quantized(void) {
+  km_character c = {0};
+  km_character_options co = {0};
+  co.target_vertices = 2000;
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  char dir[] = "/tmp/km_test_liveq_XXXXXX";
+  CHECK(mkdtemp(dir) != NULL);
+  char rig_path[128];
+  snprintf(rig_path, sizeof rig_path, "%s/c.rig.json", dir);
+  CHECK_OK(km_character_write_rig(rig_path, &c, KM_E));
+  FILE *f = fopen(rig_path, "rb");
+  char *rig = malloc(1 << 22);
+  size_t rig_n = f ? fread(rig, 1, (1 << 22) - 1, f) : 0;
+  if (f) fclose(f);
+  km_puppet *p = NULL;
+  CHECK_OK(km_puppet_precompute(&c.mesh, &(km_puppet_options){0}, &p, KM_E));
+  km_take take = {0};
+  CHECK_OK(km_motion_generate(&c.skeleton, KM_MOTION_WAVE, 40, &take, KM_E));
+  size_t nv = c.mesh.n_vertices, lf = 0, lq = 0;
+  unsigned char *ff = p ? serve_frames(&c.mesh, p, rig, rig_n, &take, false, &lf) : NULL;
+  unsigned char *fq = p ? serve_frames(&c.mesh, p, rig, rig_n, &take, true, &lq) : NULL;
+  CHECK_MSG(!ff || lf == KM_LIVE_HEADER + 12 * nv, "float32 frame of %zu bytes for %zu vertices",
+            lf, nv);
+  CHECK_MSG(!fq || lq == KM_LIVE_HEADER + 6 * nv, "int16 frame of %zu bytes for %zu vertices", lq,
+            nv);
+  if (ff && fq && lf == KM_LIVE_HEADER + 12 * nv && lq == KM_LIVE_HEADER + 6 * nv) {
+    uint32_t flf, flq;
+    memcpy(&flf, ff + 4, 4);
+    memcpy(&flq, fq + 4, 4);
+    CHECK(flf == 0 && flq == 1);
+    float lo[3], hi[3], lo2[3], hi2[3];
+    memcpy(lo, fq + 36, 12);
+    memcpy(hi, fq + 48, 12);
+    memcpy(lo2, ff + 36, 12);
+    memcpy(hi2, ff + 48, 12);
+    CHECK(!memcmp(lo, lo2, 12) && !memcmp(hi, hi2, 12)); /* the same deformation */
+    double worst = 0, moved = 0;
+    for (size_t k = 0; k < 3 * nv; ++k) {
+      float x;
+      int16_t q;
+      memcpy(&x, ff + KM_LIVE_HEADER + 4 * k, 4);
+      memcpy(&q, fq + KM_LIVE_HEADER + 2 * k, 2);
+      int a = (int)(k % 3);
+      double step = 0.5 * ((double)hi[a] - lo[a]) / 32767.0;
+      double e = fabs(dequant(q, lo[a], hi[a]) - x) / step;
+      worst = e > worst ? e : worst;
+      double d = fabs(x - c.mesh.V[k]);
+      moved = d > moved ? d : moved;
+    }
+    CHECK_MSG(worst <= 0.55, "int16 frame decodes %.3f steps (half-extent / 32767) from float32",
+              worst);
+    CHECK_MSG(moved > 0.01, "the compared frame is posed: %.4f m from rest", moved);
+  }
+  free(ff);
+  free(fq);
+  remove(rig_path);
+  rmdir(dir);
+  free(rig);
+  km_take_free(&take);
+  km_puppet_free(&p);
+  km_character_free(&c);
+}
+
 int main(void) {
   test_names();
   test_json();
   test_osc();
+  test_quantize();
   test_server();
+  test_server_quantized();
   return km_test_finish("test_live");
 }

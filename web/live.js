@@ -130,11 +130,13 @@ function onFrame(buf) {
   const P = geom.getAttribute('position');
   const out = P.array;
   if (flags & 1) {
-    const q = new Uint16Array(buf, HEADER, 3 * nv);
-    const s = [0, 1, 2].map((k) => (hi[k] - lo[k]) / 65535);
+    // int16 about the box centre c with half-extent h: x = c + q h / 32767 (src/live/live.h)
+    const q = new Int16Array(buf, HEADER, 3 * nv);
+    const c = [0, 1, 2].map((k) => (lo[k] + hi[k]) / 2);
+    const s = [0, 1, 2].map((k) => (hi[k] - lo[k]) / 2 / 32767);
     for (let i = 0; i < 3 * nv; i += 3) {
-      out[i] = lo[0] + q[i] * s[0]; out[i + 1] = lo[1] + q[i + 1] * s[1];
-      out[i + 2] = lo[2] + q[i + 2] * s[2];
+      out[i] = c[0] + q[i] * s[0]; out[i + 1] = c[1] + q[i + 1] * s[1];
+      out[i + 2] = c[2] + q[i + 2] * s[2];
     }
   } else {
     out.set(new Float32Array(buf, HEADER, 3 * nv));
@@ -142,24 +144,45 @@ function onFrame(buf) {
   P.needsUpdate = true;
   geom.computeVertexNormals();
   geom.computeBoundingSphere();
-  // skeleton overlay
-  const sp = skelGeom.getAttribute('position').array, jp = jointGeom.getAttribute('position').array;
-  let ok = true;
-  for (let j = 0; j < 20; ++j) {
-    for (let a = 0; a < 3; ++a) jp[3 * j + a] = J[3 * j + a];
-    ok &&= Number.isFinite(J[3 * j]);
-  }
-  for (let j = 1, k = 0; j < 20; ++j, ++k) {
-    const p = PARENT[j];
-    for (let a = 0; a < 3; ++a) { sp[6 * k + a] = J[3 * p + a]; sp[6 * k + 3 + a] = J[3 * j + a]; }
-  }
-  skelGeom.getAttribute('position').needsUpdate = true;
-  jointGeom.getAttribute('position').needsUpdate = true;
-  skel.visible = joints.visible = ok && $('show-skel').checked;
+  state.box = { lo, hi };
+  drawSkeleton(J);
   state.frames++;
   const now = performance.now();
   state.recv.push(now);
   while (state.recv.length && now - state.recv[0] > 1000) state.recv.shift();
+}
+
+// Bridges leave joints out (OSCeleton sends no wrists or ankles: they arrive NaN), so the
+// overlay draws what it can: the finite joints and every bone with both ends finite, packed at
+// the front of the buffers and cut with setDrawRange. The tail is filled with a drawn point,
+// never NaN, because three.js bounds the whole attribute, not the draw range.
+function drawSkeleton(J) {
+  const sp = skelGeom.getAttribute('position').array, jp = jointGeom.getAttribute('position').array;
+  const ok = (j) => Number.isFinite(J[3 * j]) && Number.isFinite(J[3 * j + 1]) && Number.isFinite(J[3 * j + 2]);
+  let nj = 0, nb = 0;
+  for (let j = 0; j < 20; ++j) {
+    if (!ok(j)) continue;
+    for (let a = 0; a < 3; ++a) jp[3 * nj + a] = J[3 * j + a];
+    ++nj;
+    const p = PARENT[j];
+    if (p < 0 || !ok(p)) continue;
+    for (let a = 0; a < 3; ++a) { sp[6 * nb + a] = J[3 * p + a]; sp[6 * nb + 3 + a] = J[3 * j + a]; }
+    ++nb;
+  }
+  for (let k = 3 * nj; k < jp.length; ++k) jp[k] = nj ? jp[k % 3] : 0;
+  for (let k = 6 * nb; k < sp.length; ++k) sp[k] = nb ? sp[k % 3] : 0;
+  jointGeom.setDrawRange(0, nj);
+  skelGeom.setDrawRange(0, 2 * nb);
+  skelGeom.getAttribute('position').needsUpdate = true;
+  jointGeom.getAttribute('position').needsUpdate = true;
+  // The overlay moves with the performer: a bounding sphere from the first frame would cull it.
+  skelGeom.computeBoundingSphere();
+  jointGeom.computeBoundingSphere();
+  state.overlay = { joints: nj, bones: nb,
+    finite: jp.every(Number.isFinite) && sp.every(Number.isFinite) };
+  const show = $('show-skel').checked;
+  joints.visible = show && nj > 0;
+  skel.visible = show && nb > 0;
 }
 
 function connect() {

@@ -83,6 +83,9 @@ km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertic
 /* "<CPU model>, <n> cores" for benchmark headers. */
 void km_cli_machine(char *out, size_t n);
 int km_cli_live(int argc, char **argv);
+/* A take's columns in KM_KINECT1 order by name (absent joints NaN; positions malloc'ed, no
+ * names): what live mode replays and sends. path names the take in errors. */
+km_status km_cli_take_kinect1(const char *path, const km_take *t, km_take *out, km_error *err);
 
 /* Puppetry helpers shared by animate, bench and live. */
 char *km_cli_cache_path(const char *mesh_path); /* MESH.kmcache, caller frees */

@@ -384,7 +384,7 @@ int km_cli_bench(int argc, char **argv) {
     return km_cli_bench_reconstruct(argc - 1, argv + 1);
   FILE *f = (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) ? stdout : stderr;
   fprintf(f, "usage: kinemesh bench deform --mesh MESH [--handles N] [--frames F] [--json]\n"
-             "       kinemesh bench live [--mesh MESH] [--vertices N] [--frames N] [--rate HZ]\n"
+             "       kinemesh bench live [--mesh MESH [--rig RIG]] [--take TAKE] [--json]\n"
              "       kinemesh bench transfer [--source S --template T [--truth X] [--db DB]]\n"
              "       kinemesh bench reconstruct [--frames 300] [--report R.json] [--plot P.png]\n"
              "(kinemesh bench <what> --help for options)\n");

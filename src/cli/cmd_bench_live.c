@@ -1,13 +1,17 @@
-/* bench_live: the full live-mode path with a local WebSocket client.
- *   bench_live [--mesh MESH] [--vertices 60000] [--frames 1200] [--rate 240] [--quantize]
- * Starts the live server in-process on loopback (random ports), connects a libwebsockets
- * client (second thread), and sends a generated take as JSON datagrams over UDP at --rate
- * frames/s. Reports the server's latency from packet received to frame written to the
- * socket (median, p99), the client-side latency from datagram sent to frame received, the
- * stage medians, and the frames per second the client sustained. Without --mesh a procedural
- * character of --vertices is generated (its rig and reduced model cached under /tmp). */
+/* kinemesh bench live: the full live-mode path with a local WebSocket client.
+ *   kinemesh bench live [--mesh MESH [--rig RIG] | --vertices 60000] [--take TAKE]
+ *                       [--frames 1200] [--rate 240] [--quantize] [--json]
+ * Starts the live server in-process on loopback (random ports), connects a WebSocket client
+ * (second thread), and sends a take (the generated kungfu take unless --take) as JSON
+ * datagrams over UDP at --rate frames/s. Reports the server's latency from packet received to
+ * frame written to the socket (median, p99), the client-side latency from datagram sent to
+ * frame received, the stage medians, and the frames per second the client sustained. Without
+ * --mesh a procedural character of --vertices is generated (mesh, rig and reduced model
+ * cached under /tmp). */
 #include "cli.h"
 #include "live/live.h"
+
+#include <cjson/cJSON.h>
 
 #include <arpa/inet.h>
 #include <libwebsockets.h>
@@ -75,7 +79,8 @@ static int cb_client(struct lws *wsi, enum lws_callback_reasons reason, void *us
   switch (reason) {
   case LWS_CALLBACK_CLIENT_ESTABLISHED: atomic_store(&c->connected, 1); break;
   case LWS_CALLBACK_CLIENT_CONNECTION_ERROR:
-    fprintf(stderr, "bench_live: client: %s\n", in ? (const char *)in : "connection error");
+    fprintf(stderr, "kinemesh bench live: client: %s\n",
+            in ? (const char *)in : "connection error");
     atomic_store(&c->failed, 1);
     break;
   case LWS_CALLBACK_CLIENT_CLOSED: atomic_store(&c->failed, 1); break;
@@ -200,99 +205,146 @@ static void *server_main(void *arg) {
   return NULL;
 }
 
+/* Reads a whole text file (the rig, handed to the server as text). */
+static char *read_text(const char *path, size_t *n) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  char *b = NULL;
+  long sz = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+  if (sz >= 0 && fseek(f, 0, SEEK_SET) == 0 && (b = malloc((size_t)sz + 1)) &&
+      fread(b, 1, (size_t)sz, f) == (size_t)sz) {
+    b[sz] = 0;
+    *n = (size_t)sz;
+  } else {
+    free(b);
+    b = NULL;
+  }
+  fclose(f);
+  return b;
+}
+
+static void add_num(cJSON *o, const char *k, double v) {
+  if (isfinite(v))
+    cJSON_AddNumberToObject(o, k, v);
+  else
+    cJSON_AddNullToObject(o, k);
+}
+
+#define VERB "bench live"
+
 int km_cli_bench_live(int argc, char **argv) {
-  const char *mesh_path = NULL;
+  const char *mesh_arg = NULL, *rig_arg = NULL, *take_path = NULL;
   size_t vertices = 60000, frames = 1200;
   double rate = 240;
-  bool quantize = false, lws_client = false;
-  for (int i = 1; i < argc; ++i) {
-    if (!strcmp(argv[i], "--mesh") && i + 1 < argc)
-      mesh_path = argv[++i];
-    else if (!strcmp(argv[i], "--vertices") && i + 1 < argc)
-      vertices = (size_t)atol(argv[++i]);
-    else if (!strcmp(argv[i], "--frames") && i + 1 < argc)
-      frames = (size_t)atol(argv[++i]);
-    else if (!strcmp(argv[i], "--rate") && i + 1 < argc)
-      rate = atof(argv[++i]);
-    else if (!strcmp(argv[i], "--quantize"))
-      quantize = true;
-    else if (!strcmp(argv[i], "--lws-client"))
-      lws_client = true;
-    else {
-      FILE *uf = (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) ? stdout : stderr;
-      fprintf(uf,
-              "usage: kinemesh bench live [--mesh MESH] [--vertices N] [--frames N] [--rate HZ] "
-              "[--quantize]\n");
-      return uf == stdout ? 0 : 2;
-    }
-  }
-  if (frames < 10 || frames > MAX_FRAMES - 10 || rate <= 0) {
-    fprintf(stderr, "bench_live: --frames 10..%d, --rate > 0\n", MAX_FRAMES - 10);
-    return 2;
-  }
+  bool quantize = false, lws_client = false, json = false;
+  const km_cli_opt opts[] = {
+      {"mesh", 0, KM_OPT_STRING, &mesh_arg,
+       "mesh to animate (default: a generated character of --vertices)"},
+      {"rig", 0, KM_OPT_STRING, &rig_arg, "its rig (default <mesh stem>.rig.json)"},
+      {"vertices", 0, KM_OPT_SIZE, &vertices, "without --mesh: character size (default 60000)"},
+      {"take", 0, KM_OPT_STRING, &take_path,
+       "take to send (.json/.csv/.bvh with Kinect joint names; default: generated kungfu)"},
+      {"frames", 0, KM_OPT_SIZE, &frames, "input frames to send (default 1200; the take loops)"},
+      {"rate", 0, KM_OPT_DOUBLE, &rate, "input frames per second (default 240)"},
+      {"quantize", 0, KM_OPT_FLAG, &quantize, "int16 frames (live --quantize)"},
+      {"json", 0, KM_OPT_FLAG, &json, "print one JSON object (null: not measured)"},
+      {"lws-client", 0, KM_OPT_FLAG, &lws_client,
+       "measure with a libwebsockets client (slower to parse than the server sends)"},
+  };
+  const char *pos[1];
+  int n_pos;
+  int r = km_cli_parse(
+      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
+      "kinemesh bench live [--mesh MESH [--rig RIG] | --vertices 60000] [--take TAKE] "
+      "[--frames 1200] [--rate 240] [--quantize] [--json]",
+      "The live server in-process on loopback with a local WebSocket client: the take is sent\n"
+      "as JSON datagrams at --rate frames/s. Prints the server latency from packet received\n"
+      "to frame sent (median, p99), the stage medians, the client-side latency from datagram\n"
+      "sent to frame received, and the frames per second the client sustained.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (frames < 10 || frames > MAX_FRAMES - 10)
+    return km_cli_error(VERB, "--frames must be in 10..%d, got %zu", MAX_FRAMES - 10, frames);
+  if (!(rate > 0) || !isfinite(rate))
+    return km_cli_error(VERB, "--rate must be a positive number of frames per second");
+  if (rig_arg && !mesh_arg)
+    return km_cli_error(VERB, "--rig goes with --mesh (the generated character has its own)");
+  if (!mesh_arg && vertices < 500)
+    return km_cli_error(VERB, "--vertices must be at least 500, got %zu", vertices);
+
   km_error err = {0};
   km_mesh mesh = {0};
-  char path[512], rig_path[600], cache[600];
   km_character ch = {0};
+  km_take raw = {0}, take = {0};
+  km_puppet *pup = NULL;
+  km__live *l = NULL;
+  char *rig = NULL, *rig_default = NULL, *cache = NULL;
+  size_t rig_n = 0;
+  int rc = KM_EXIT_FAIL;
+  char gen_mesh[512];
+  const char *mesh_path = mesh_arg;
+  FILE *info = json ? stderr : stdout; /* --json keeps stdout for the one object */
+
   if (!mesh_path) {
+    /* The generated character and its rig are cached beside each other; both are rewritten
+     * when either is missing (writes are atomic, so a concurrent run reads whole files). */
+    char gen_rig[540];
     mkdir("/tmp/kinemesh_bench_live", 0777);
-    snprintf(path, sizeof path, "/tmp/kinemesh_bench_live/char_%zu.obj", vertices);
-    mesh_path = path;
+    snprintf(gen_mesh, sizeof gen_mesh, "/tmp/kinemesh_bench_live/char_%zu.obj", vertices);
+    snprintf(gen_rig, sizeof gen_rig, "/tmp/kinemesh_bench_live/char_%zu.rig.json", vertices);
+    mesh_path = gen_mesh;
     struct stat st;
-    if (stat(path, &st)) {
+    if (stat(gen_mesh, &st) || stat(gen_rig, &st)) {
       km_character_options co = {0};
       co.target_vertices = vertices;
       if (km_character_generate(&co, &ch, &err) != KM_OK ||
-          km_mesh_write(path, &ch.mesh, NULL, &err) != KM_OK)
+          km_mesh_write(gen_mesh, &ch.mesh, NULL, &err) != KM_OK ||
+          km_character_write_rig(gen_rig, &ch, &err) != KM_OK)
         goto fail;
       km_character_free(&ch);
     }
   }
-  snprintf(rig_path, sizeof rig_path, "%.*s.rig.json",
-           (int)(strrchr(mesh_path, '.') ? strrchr(mesh_path, '.') - mesh_path
-                                         : (long)strlen(mesh_path)),
-           mesh_path);
-  snprintf(cache, sizeof cache, "%s.kmcache", mesh_path);
+  rig_default = rig_arg ? NULL : km_cli_rig_path(mesh_path);
+  cache = km_cli_cache_path(mesh_path);
+  const char *rig_path = rig_arg ? rig_arg : rig_default;
+  if (!cache || !rig_path) {
+    rc = km_cli_error(VERB, "out of memory");
+    goto done;
+  }
   if (km_mesh_read(mesh_path, &mesh, &err) != KM_OK) goto fail;
   {
     struct stat st;
-    if (stat(rig_path, &st)) {
-      /* a rig for a mesh without one: generate the character's rig (same generator) */
-      km_character_options co = {0};
-      co.target_vertices = vertices;
-      if (km_character_generate(&co, &ch, &err) != KM_OK || ch.mesh.n_vertices != mesh.n_vertices ||
-          km_character_write_rig(rig_path, &ch, &err) != KM_OK) {
-        fprintf(stderr, "bench_live: %s has no rig sidecar %s\n", mesh_path, rig_path);
-        return 1;
-      }
-      km_character_free(&ch);
+    if (!rig_arg && stat(rig_path, &st)) {
+      rc = km_cli_error(VERB, "%s has no rig sidecar %s; pass --rig RIG (a rig JSON for it)",
+                        mesh_path, rig_path);
+      goto done;
     }
   }
-  if (km_character_read_rig(rig_path, mesh.n_vertices, &ch, &err) != KM_OK) goto fail;
-  km_puppet *pup = NULL;
-  km_puppet_options po = {0};
-  double t0 = now_s();
-  if (km_puppet_load(cache, &mesh, &po, &pup, &err) != KM_OK) {
-    if (km_puppet_precompute(&mesh, &po, &pup, &err) != KM_OK) goto fail;
-    km_error e2 = {0};
-    km_puppet_save(pup, cache, &e2);
-    printf("precompute: %.2f s (cached in %s)\n", now_s() - t0, cache);
+  if (!(rig = read_text(rig_path, &rig_n))) {
+    rc = km_cli_error(VERB, "cannot read the rig %s", rig_path);
+    goto done;
   }
-  km_take take = {0};
-  if (km_motion_generate(&ch.skeleton, KM_MOTION_KUNGFU, 300, &take, &err) != KM_OK) goto fail;
-  FILE *f = fopen(rig_path, "rb");
-  if (!f) {
-    fprintf(stderr, "bench_live: cannot read %s\n", rig_path);
-    return 1;
+  if (take_path) {
+    if (km_cli_read_motion(take_path, &raw, &err) != KM_OK ||
+        km_cli_take_kinect1(take_path, &raw, &take, &err) != KM_OK)
+      goto fail;
+  } else {
+    /* The generated take follows the rig's own skeleton. */
+    if (km_character_read_rig(rig_path, mesh.n_vertices, &ch, &err) != KM_OK) {
+      rc = km_cli_error(VERB, "%s; the generated take needs the rig's skeleton (or pass --take)",
+                        err.message);
+      goto done;
+    }
+    if (km_motion_generate(&ch.skeleton, KM_MOTION_KUNGFU, 300, &take, &err) != KM_OK) goto fail;
   }
-  fseek(f, 0, SEEK_END);
-  long rig_n = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *rig = malloc((size_t)rig_n + 1);
-  if (!rig || fread(rig, 1, (size_t)rig_n, f) != (size_t)rig_n) return 1;
-  fclose(f);
+  {
+    km_puppet_options po = {0};
+    bool loaded = false;
+    double t_pre = 0;
+    if (km_cli_puppet_open(&mesh, &po, cache, true, &pup, &loaded, &t_pre, &err) != KM_OK)
+      goto fail;
+    if (!loaded) fprintf(info, "precompute: %.2f s (cached in %s)\n", t_pre, cache);
+  }
 
-  km__live *l = NULL;
   km__live_options o = {0};
   o.quantize = quantize;
   int udp_port = 0, http_port = 0;
@@ -303,12 +355,13 @@ int km_cli_bench_live(int argc, char **argv) {
     udp_port = http_port + 1;
     o.http_port = http_port;
     o.udp_port = udp_port;
-    s = km__live_create(&o, &mesh, pup, rig, (size_t)rig_n, NULL, &l, &err);
+    s = km__live_create(&o, &mesh, pup, rig, rig_n, NULL, &l, &err);
   }
   if (s != KM_OK) goto fail;
   server_run sr = {l};
   pthread_t sth, cth;
   pthread_create(&sth, NULL, server_main, &sr);
+  bool client_started = false;
 
   client c;
   memset(&c, 0, sizeof c);
@@ -316,27 +369,35 @@ int km_cli_bench_live(int argc, char **argv) {
   c.recv_t = calloc(c.max_seq, sizeof(double));
   c.recv_seq = calloc(MAX_FRAMES, sizeof(uint32_t));
   double *send_t = calloc(c.max_seq, sizeof(double));
-  struct lws_protocols protos[] = {{"kinemesh", cb_client, 0, 1 << 20, 0, NULL, 0},
-                                   {NULL, NULL, 0, 0, 0, NULL, 0}};
-  struct lws_context_creation_info info;
-  memset(&info, 0, sizeof info);
-  info.port = CONTEXT_PORT_NO_LISTEN;
-  /* lws reads at most this much per poll wake-up: 4 KiB by default, far too little for
-   * 700 KB frames */
-  info.pt_serv_buf_size = 1 << 20;
-  info.protocols = protos;
-  info.user = &c;
-  raw_client rc = {&c, -1};
+  int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  raw_client rcl = {&c, -1};
+  double start = 0, send_end = 0;
+  km__live_stats st;
+  memset(&st, 0, sizeof st);
+  if (!c.recv_t || !c.recv_seq || !send_t || fd < 0) {
+    rc = km_cli_error(VERB, "out of memory or no UDP socket");
+    goto stop;
+  }
   if (!lws_client) {
-    rc.fd = raw_connect(http_port);
-    if (rc.fd < 0) {
-      fprintf(stderr, "bench_live: the WebSocket handshake failed\n");
-      return 1;
+    rcl.fd = raw_connect(http_port);
+    if (rcl.fd < 0) {
+      rc = km_cli_error(VERB, "the WebSocket handshake with 127.0.0.1:%d failed", http_port);
+      goto stop;
     }
     atomic_store(&c.connected, 1);
-    pthread_create(&cth, NULL, raw_main, &rc);
+    pthread_create(&cth, NULL, raw_main, &rcl);
   } else {
-    c.ctx = lws_create_context(&info);
+    struct lws_protocols protos[] = {{"kinemesh", cb_client, 0, 1 << 20, 0, NULL, 0},
+                                     {NULL, NULL, 0, 0, 0, NULL, 0}};
+    struct lws_context_creation_info ci0;
+    memset(&ci0, 0, sizeof ci0);
+    ci0.port = CONTEXT_PORT_NO_LISTEN;
+    /* lws reads at most this much per poll wake-up: 4 KiB by default, far too little for
+     * 700 KB frames */
+    ci0.pt_serv_buf_size = 1 << 20;
+    ci0.protocols = protos;
+    ci0.user = &c;
+    c.ctx = lws_create_context(&ci0);
     struct lws_client_connect_info ci;
     memset(&ci, 0, sizeof ci);
     ci.context = c.ctx;
@@ -347,26 +408,26 @@ int km_cli_bench_live(int argc, char **argv) {
     ci.origin = "127.0.0.1";
     ci.protocol = "kinemesh";
     if (!c.ctx || !lws_client_connect_via_info(&ci)) {
-      fprintf(stderr, "bench_live: cannot start the WebSocket client\n");
-      return 1;
+      rc = km_cli_error(VERB, "cannot start the libwebsockets client");
+      goto stop;
     }
     pthread_create(&cth, NULL, client_main, &c);
   }
+  client_started = true;
   for (int i = 0; i < 500 && !atomic_load(&c.connected) && !atomic_load(&c.failed); ++i)
     usleep(10000);
   if (!atomic_load(&c.connected)) {
-    fprintf(stderr, "bench_live: the client did not connect\n");
-    return 1;
+    rc = km_cli_error(VERB, "the WebSocket client did not connect to 127.0.0.1:%d", http_port);
+    goto stop;
   }
 
-  int fd = socket(AF_INET, SOCK_DGRAM, 0);
   struct sockaddr_in a;
   memset(&a, 0, sizeof a);
   a.sin_family = AF_INET;
   a.sin_port = htons((uint16_t)udp_port);
   inet_pton(AF_INET, "127.0.0.1", &a.sin_addr);
   char buf[4096];
-  double start = now_s();
+  start = now_s();
   for (size_t k = 0; k < frames; ++k) {
     double due = start + (double)k / rate;
     double w = due - now_s();
@@ -376,67 +437,131 @@ int km_cli_bench_live(int argc, char **argv) {
     }
     const double *p = take.positions + 60 * (k % take.n_frames);
     size_t n = (size_t)snprintf(buf, sizeof buf, "[");
-    for (int j = 0; j < 60; ++j)
-      n += (size_t)snprintf(buf + n, sizeof buf - n, "%s%.5f", j ? "," : "", p[j]);
+    for (int j = 0; j < 60; ++j) {
+      /* a joint the take lacks goes as null (missing), as trackers send it */
+      if (isfinite(p[j]))
+        n += (size_t)snprintf(buf + n, sizeof buf - n, "%s%.5f", j ? "," : "", p[j]);
+      else
+        n += (size_t)snprintf(buf + n, sizeof buf - n, "%snull", j ? "," : "");
+    }
     n += (size_t)snprintf(buf + n, sizeof buf - n, "]");
     send_t[k + 1] = now_s(); /* the server numbers input frames from 1 */
     sendto(fd, buf, n, 0, (struct sockaddr *)&a, sizeof a);
   }
-  double send_end = now_s();
-  usleep(300000);
-  km__live_stats st;
-  km__live_get_stats(l, &st);
-  atomic_store(&c.done, 1);
-  if (lws_client) {
-    lws_cancel_service(c.ctx);
-  } else {
-    shutdown(rc.fd, SHUT_RDWR);
+  send_end = now_s();
+  /* Let the pipeline drain: every input frame deformed or superseded, and everything the
+   * server wrote read by the client, unchanged over 100 ms (at most 10 s; a slow machine
+   * just waits longer, the figures do not depend on it). */
+  {
+    uint64_t last_sent = UINT64_MAX;
+    size_t last_recv = SIZE_MAX;
+    for (double t_end = now_s() + 10; now_s() < t_end;) {
+      usleep(100000);
+      km__live_get_stats(l, &st);
+      size_t got = c.received;
+      bool drained = st.frames_in >= frames &&
+                     st.frames_out + st.frames_dropped + st.solve_errors >= st.frames_in &&
+                     got >= st.frames_sent;
+      if (drained && st.frames_sent == last_sent && got == last_recv) break;
+      last_sent = st.frames_sent;
+      last_recv = got;
+    }
   }
-  pthread_join(cth, NULL);
+  km__live_get_stats(l, &st);
+  rc = KM_EXIT_OK;
+stop:
+  atomic_store(&c.done, 1);
+  if (client_started) {
+    if (lws_client)
+      lws_cancel_service(c.ctx);
+    else
+      shutdown(rcl.fd, SHUT_RDWR);
+    pthread_join(cth, NULL);
+  }
   km__live_stop(l);
   pthread_join(sth, NULL);
 
-  size_t nr = c.received;
-  double *e2e = malloc(sizeof(double) * (nr ? nr : 1));
-  size_t ne = 0;
-  for (size_t i = 0; i < nr; ++i) {
-    uint32_t q = c.recv_seq[i];
-    if (q >= 1 && q <= frames) e2e[ne++] = 1e3 * (c.recv_t[q] - send_t[q]);
-  }
-  double fps = nr > 1 ? (double)(nr - 1) / (c.last_t - c.first_t) : 0;
-  {
+  if (rc == KM_EXIT_OK) {
+    size_t nr = c.received;
+    double *e2e = malloc(sizeof(double) * (nr ? nr : 1));
+    size_t ne = 0;
+    for (size_t i = 0; e2e && i < nr; ++i) {
+      uint32_t q = c.recv_seq[i];
+      if (q >= 1 && q <= frames) e2e[ne++] = 1e3 * (c.recv_t[q] - send_t[q]);
+    }
+    double fps = nr > 1 && c.last_t > c.first_t ? (double)(nr - 1) / (c.last_t - c.first_t) : NAN;
+    double cmed = quantile(e2e, ne, 0.5), cp99 = quantile(e2e, ne, 0.99);
+    double lat_med = st.lat_count ? st.lat_median_ms : NAN,
+           lat_p99 = st.lat_count ? st.lat_p99_ms : NAN;
     char machine[320];
     km_cli_machine(machine, sizeof machine);
-    printf("kinemesh bench live — %s\n", machine);
+    const char *client_name = lws_client ? "libwebsockets" : "plain-socket";
+    if (json) {
+      cJSON *j = cJSON_CreateObject();
+      cJSON_AddStringToObject(j, "machine", machine);
+      cJSON_AddStringToObject(j, "mesh", mesh_path);
+      cJSON_AddStringToObject(j, "take", take_path ? take_path : "kungfu (generated)");
+      cJSON_AddNumberToObject(j, "n_ver", (double)mesh.n_vertices);
+      cJSON_AddBoolToObject(j, "quantize", quantize);
+      cJSON_AddStringToObject(j, "client", client_name);
+      cJSON_AddNumberToObject(j, "frames", (double)frames);
+      cJSON_AddNumberToObject(j, "rate", rate);
+      add_num(j, "send_s", send_end - start);
+      add_num(j, "latency_median_ms", lat_med);
+      add_num(j, "latency_p99_ms", lat_p99);
+      cJSON_AddNumberToObject(j, "latency_frames", (double)st.lat_count);
+      add_num(j, "retarget_ms", st.t_retarget_ms);
+      add_num(j, "deform_ms", st.t_deform_ms);
+      add_num(j, "pack_ms", st.t_pack_ms);
+      add_num(j, "client_latency_median_ms", cmed);
+      add_num(j, "client_latency_p99_ms", cp99);
+      cJSON_AddNumberToObject(j, "frames_in", (double)st.frames_in);
+      cJSON_AddNumberToObject(j, "frames_deformed", (double)st.frames_out);
+      cJSON_AddNumberToObject(j, "frames_dropped", (double)st.frames_dropped);
+      cJSON_AddNumberToObject(j, "frames_received", (double)nr);
+      add_num(j, "fps", fps);
+      cJSON_AddNumberToObject(j, "solve_errors", (double)st.solve_errors);
+      char *js = cJSON_PrintUnformatted(j);
+      cJSON_Delete(j);
+      if (js) puts(js);
+      free(js);
+    } else {
+      printf("kinemesh bench live — %s\n", machine);
+      printf("bench_live: %zu vertices, %s frames, %zu input frames at %.0f/s over %.2f s, %s "
+             "client\n",
+             mesh.n_vertices, quantize ? "int16" : "float32", frames, rate, send_end - start,
+             client_name);
+      printf("  server  packet received -> frame sent:  median %.3f ms   p99 %.3f ms  (%zu "
+             "frames)\n",
+             lat_med, lat_p99, st.lat_count);
+      printf("  stages (median): retarget %.4f ms, deform %.3f ms, pack %.3f ms\n",
+             st.t_retarget_ms, st.t_deform_ms, st.t_pack_ms);
+      printf("  client  datagram sent -> frame received: median %.3f ms   p99 %.3f ms\n", cmed,
+             cp99);
+      printf("  client received %zu frames: sustained %.1f frames/s (input %.0f/s; %llu dropped "
+             "by latest-wins)\n",
+             nr, fps, rate, (unsigned long long)st.frames_dropped);
+    }
+    free(e2e);
   }
-  printf("bench_live: %zu vertices, %s frames, %zu input frames at %.0f/s over %.2f s, %s "
-         "client\n",
-         mesh.n_vertices, quantize ? "uint16" : "float32", frames, rate, send_end - start,
-         lws_client ? "libwebsockets" : "plain-socket");
-  printf("  server  packet received -> frame sent:  median %.3f ms   p99 %.3f ms  (%zu frames)\n",
-         st.lat_median_ms, st.lat_p99_ms, st.lat_count);
-  printf("  stages (median): retarget %.4f ms, deform %.3f ms, pack %.3f ms\n", st.t_retarget_ms,
-         st.t_deform_ms, st.t_pack_ms);
-  printf("  client  datagram sent -> frame received: median %.3f ms   p99 %.3f ms\n",
-         quantile(e2e, ne, 0.5), quantile(e2e, ne, 0.99));
-  printf("  client received %zu frames: sustained %.1f frames/s (input %.0f/s; %llu dropped "
-         "by latest-wins)\n",
-         nr, fps, rate, (unsigned long long)st.frames_dropped);
-  free(e2e);
   free(send_t);
   free(c.recv_t);
   free(c.recv_seq);
-  close(fd);
-  if (rc.fd >= 0) close(rc.fd);
-  km__live_free(&l);
+  if (fd >= 0) close(fd);
+  if (rcl.fd >= 0) close(rcl.fd);
   if (c.ctx) lws_context_destroy(c.ctx);
+  goto done;
+fail:
+  rc = km_cli_fail(VERB, &err);
+done:
+  km__live_free(&l);
   free(rig);
+  free(rig_default);
+  free(cache);
+  km_take_free(&raw);
   km_take_free(&take);
   km_character_free(&ch);
   km_puppet_free(&pup);
   km_mesh_free(&mesh);
-  return 0;
-fail:
-  fprintf(stderr, "bench_live: %s\n", err.message);
-  return 1;
+  return rc;
 }

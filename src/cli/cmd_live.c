@@ -19,8 +19,7 @@ static void on_signal(int sig) {
   if (g_live) km__live_stop(g_live);
 }
 
-/* Columns of the take in KM_KINECT1 order by name (absent joints NaN). */
-static km_status to_kinect_order(const km_take *t, km_take *out, km_error *err) {
+km_status km_cli_take_kinect1(const char *path, const km_take *t, km_take *out, km_error *err) {
   memset(out, 0, sizeof *out);
   int src[KM_KINECT1_JOINTS], found = 0;
   for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
@@ -31,7 +30,9 @@ static km_status to_kinect_order(const km_take *t, km_take *out, km_error *err) 
   }
   if (!found || !t->n_frames)
     return km_cli_set_error(err, KM_ERR_INVALID,
-                            "the replay take has no frames or none of the 20 Kinect v1 joints");
+                            "%s: the take has no frames or none of the 20 Kinect v1 joints "
+                            "(HipCenter, HandLeft, ...)",
+                            path);
   out->n_frames = t->n_frames;
   out->n_joints = KM_KINECT1_JOINTS;
   out->fps = t->fps > 0 ? t->fps : 30;
@@ -76,7 +77,8 @@ int km_cli_live(int argc, char **argv) {
       {"http", 0, KM_OPT_INT, &http, "HTTP/WebSocket port (default 8080)"},
       {"bind", 0, KM_OPT_STRING, &bind, "listen address (default 127.0.0.1)"},
       {"record", 0, KM_OPT_STRING, &record, "write the received raw joints as a take on exit"},
-      {"quantize", 0, KM_OPT_FLAG, &quantize, "send positions as uint16 in the frame's box"},
+      {"quantize", 0, KM_OPT_FLAG, &quantize,
+       "send positions as int16 quantised to the frame's bounding box (half the bytes)"},
       {"web", 0, KM_OPT_STRING, &web, "page directory (default: web/ beside the binary)"},
       {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default MESH.kmcache)"},
   };
@@ -130,7 +132,7 @@ int km_cli_live(int argc, char **argv) {
   rig_text[rig_size] = 0;
   if (replay) {
     if (km_cli_read_motion(replay, &raw, &err) != KM_OK ||
-        to_kinect_order(&raw, &take, &err) != KM_OK)
+        km_cli_take_kinect1(replay, &raw, &take, &err) != KM_OK)
       goto fail;
   }
   km_puppet_options po = {0};

@@ -51,7 +51,7 @@ typedef struct km__live_options {
   int http_port;        /* 8080 when 0 */
   int osc_port;         /* 0: no OSC input */
   int udp_port;         /* 0: no JSON/UDP input */
-  bool quantize;        /* frames as uint16 in the frame's bounding box instead of float32 */
+  bool quantize;        /* frames as int16 quantised to the frame's bounding box, not float32 */
   bool loop;            /* replay the take in a loop */
   bool no_autoplay;     /* do not start the replay at start-up (page button / POST only) */
   const char *web_dir;  /* static page assets; NULL: no page (404) */
@@ -77,7 +77,7 @@ bool km__live_replay(km__live *l);
 
 typedef struct km__live_stats {
   uint64_t frames_in, frames_out, frames_sent, frames_dropped;
-  uint64_t osc_messages, udp_datagrams, bad_packets;
+  uint64_t osc_messages, udp_datagrams, bad_packets, solve_errors;
   int clients;
   double lat_median_ms, lat_p99_ms;             /* packet received -> frame written to a socket */
   double t_retarget_ms, t_deform_ms, t_pack_ms; /* medians of the recent frames */
@@ -91,11 +91,17 @@ km_status km__live_record_take(km__live *l, const char *path, km_error *err);
 void km__live_free(km__live **l);
 
 /* Frame message layout (little-endian), shared with web/live.js:
- * u32 magic 'KMF1', u32 flags (1: uint16 positions), u32 n_vertices, u32 frame seq,
+ * u32 magic 'KMF1', u32 flags (1: int16 positions), u32 n_vertices, u32 frame seq,
  * u32 input seq, f32 retarget ms, f32 deform ms, f32 pack ms, f32 scale,
  * f32 bbox min[3], f32 bbox max[3], f32 joints[60] (filtered, in the character's space; NaN
- * missing), 4 bytes pad, then positions: f32[3n], or u16[3n] with p = min + u/65535 (max-min). */
+ * missing), 4 bytes pad, then positions: f32[3n], or i16[3n] with p = c + q h / 32767 per
+ * axis, c = (min + max) / 2 and h = (max - min) / 2 (q in [-32767, 32767]; 0 for NaN). */
 #define KM_LIVE_MAGIC 0x31464d4bu
 #define KM_LIVE_HEADER 304
+
+/* The quantised payload: n vertices (V, 3n doubles) as int16 in the box lo..hi as above.
+ * NaN becomes 0 (the centre); points outside the box are clamped to it. An axis with
+ * hi <= lo (flat, or no finite point) gets 0 throughout. */
+void km__live_quantize(const double *V, size_t n, const float lo[3], const float hi[3], int16_t *q);
 
 #endif

@@ -519,6 +519,28 @@ static void *input_main(void *arg) {
 
 /* ================================================================ deformation */
 
+void km__live_quantize(const double *V, size_t n, const float lo[3], const float hi[3],
+                       int16_t *q) {
+  /* Centred so the page decodes x = c + q h / 32767 with the lo/hi it already has. */
+  float c[3], sc[3];
+  for (int a = 0; a < 3; ++a) {
+    float h = 0.5f * (hi[a] - lo[a]);
+    c[a] = 0.5f * (lo[a] + hi[a]);
+    sc[a] = h > 0 ? 32767.0f / h : 0.0f;
+  }
+  for (size_t v = 0; v < n; ++v)
+    for (int a = 0; a < 3; ++a) {
+      /* q + 32768.5: positive, so truncation rounds (lrintf is 5x slower here) */
+      float t = ((float)V[3 * v + a] - c[a]) * sc[a] + 32768.5f;
+      /* Selects the compiler turns into vector blends. Below the range clamps to -32767, NaN
+       * (no comparison holds) goes to 0; the clamps also catch the rounding of c and h pushing
+       * the box's own extremes just past +-32767. */
+      t = t >= 1.0f ? t : (t < 1.0f ? 1.0f : 32768.5f);
+      t = t < 65535.5f ? t : 65535.0f;
+      q[3 * v + a] = (int16_t)((int32_t)t - 32768);
+    }
+}
+
 static void pack_frame(km__live *l, unsigned char *dst, const double *filt, uint64_t seq,
                        uint64_t in_seq, float t_rt, float t_def) {
   double t0 = km__now();
@@ -553,16 +575,7 @@ static void pack_frame(km__live *l, unsigned char *dst, const double *filt, uint
   memset(dst + 300, 0, 4);
   unsigned char *out = dst + KM_LIVE_HEADER;
   if (l->opt.quantize) {
-    float sc[3];
-    for (int a = 0; a < 3; ++a)
-      sc[a] = hi[a] > lo[a] ? 65535.0f / (hi[a] - lo[a]) : 0.0f;
-    uint16_t *q = (uint16_t *)(void *)out;
-    for (size_t v = 0; v < n; ++v)
-      for (int a = 0; a < 3; ++a) {
-        /* +0.5 and truncation rounds (lrintf is 5x slower here) */
-        float x = ((float)V[3 * v + a] - lo[a]) * sc[a] + 0.5f;
-        q[3 * v + a] = x >= 0 ? (x < 65535.0f ? (uint16_t)x : 65535u) : 0; /* NaN -> 0 */
-      }
+    km__live_quantize(V, n, lo, hi, (int16_t *)(void *)out);
   } else {
     float *p = (float *)(void *)out;
     for (size_t k = 0; k < 3 * n; ++k)
@@ -671,6 +684,7 @@ void km__live_get_stats(km__live *l, km__live_stats *o) {
   o->osc_messages = atomic_load(&l->osc_messages);
   o->udp_datagrams = atomic_load(&l->udp_datagrams);
   o->bad_packets = atomic_load(&l->bad_packets);
+  o->solve_errors = atomic_load(&l->solve_errors);
   o->clients = atomic_load(&l->clients);
   pthread_mutex_lock(&l->st_mu);
   o->lat_median_ms = ring_q(&l->lat, 0.5);
@@ -700,7 +714,7 @@ char *km__live_status_json(km__live *l) {
   cJSON_AddNumberToObject(o, "osc_messages", (double)s.osc_messages);
   cJSON_AddNumberToObject(o, "udp_datagrams", (double)s.udp_datagrams);
   cJSON_AddNumberToObject(o, "bad_packets", (double)s.bad_packets);
-  cJSON_AddNumberToObject(o, "solve_errors", (double)atomic_load(&l->solve_errors));
+  cJSON_AddNumberToObject(o, "solve_errors", (double)s.solve_errors);
   cJSON_AddNumberToObject(o, "clients", s.clients);
   cJSON_AddNumberToObject(o, "vertices", (double)l->mesh->n_vertices);
   cJSON_AddBoolToObject(o, "quantize", l->opt.quantize);

@@ -1,17 +1,20 @@
 // End-to-end: headless Debian chromium (driven by playwright-core, no browser download) opens
-// the live page, plays the take with the replay button, checks frames arrive and the mesh
-// moves, adds a handle through the mapping panel (click on a projected vertex, pick the joint
+// the live page, draws the partial skeleton of an OSCeleton frame, plays the take with the
+// replay button, checks frames arrive, the mesh moves and its decoded positions fill the
+// frame's box (float32, or int16 with --quantize), adds a handle through the mapping panel (click on a projected vertex, pick the joint
 // on the diagram, add, save) and checks the rig file on disk. Keeps a screenshot.
 import { createRequire } from 'node:module';
+import dgram from 'node:dgram';
 import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { check, finish, status, waitFor, sleep, replayDone } from './lib.mjs';
+import { check, finish, status, waitFor, sleep, replayDone, OSCELETON_SKEL,
+  osceletonFrame } from './lib.mjs';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const require = createRequire(path.join(here, '../../web/package.json'));
 const { chromium } = require('playwright-core');
-const [http, , , work] = process.argv.slice(2);
+const [http, osc, , work] = process.argv.slice(2);
 const url = `http://127.0.0.1:${http}/`;
 const rigPath = path.join(work, 'c.rig.json');
 const rigBefore = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
@@ -35,6 +38,21 @@ try {
   check(s0.clients >= 1, `/status counts the page as a client (${s0.clients})`);
   check(s0.frames_in === 0, 'no frames before replay (--no-autoplay)');
 
+  // An OSCeleton frame has no wrists or ankles (the mid-hip stands in for HipCenter): the
+  // overlay draws the 16 joints it has and the 11 bones between them, with no NaN in its
+  // buffers. One bundle, so it is one frame.
+  const sock = dgram.createSocket('udp4');
+  await new Promise((r) => sock.send(osceletonFrame(OSCELETON_SKEL), +osc, '127.0.0.1', () => r()));
+  sock.close();
+  await page.waitForFunction(() => window.kmLive.inSeq >= 1, null, { timeout: 40000 }).catch(() => {});
+  const ov = await page.evaluate(() => window.kmLive.overlay);
+  check(ov && ov.joints === 16 && ov.bones === 11 && ov.finite,
+    `partial skeleton: ${ov ? `${ov.joints} joints, ${ov.bones} bones drawn${ov.finite ? '' : ', NaN in the buffers'}` : 'no frame'} (want 16, 11)`);
+  check(await page.evaluate(() => window.kmLive.frames >= 1 && document.getElementById('show-skel').checked),
+    'overlay shown for a partial skeleton');
+  const s0b = await replayDone(http, s0);
+  check(s0b && s0b.frames_in === 1, `the OSC bundle was one frame (frames_in ${s0b && s0b.frames_in})`);
+
   // Replay button -> frames arrive and vertices move. Frame counts depend on how busy the
   // machine is (latest wins), so the checks are on motion and accounting, not on a rate.
   await page.click('#replay');
@@ -48,7 +66,7 @@ try {
   const fa = await page.evaluate(() => window.kmLive.frames);
   await sleep(700);
   // Wait for the take (2 s) to end so the mesh holds still for picking.
-  const s1 = await replayDone(http, s0);
+  const s1 = await replayDone(http, s0b || s0);
   const b = await snap();
   let moved = 0;
   for (let i = 0; i < a.length; ++i) moved = Math.max(moved, Math.abs(a[i] - b[i]));
@@ -60,6 +78,25 @@ try {
   await page.waitForFunction((n) => window.kmLive.inSeq === n, s1 ? s1.frames_in : -1, { timeout: 20000 }).catch(() => {});
   const inSeq = await page.evaluate(() => window.kmLive.inSeq);
   check(s1 && inSeq === s1.frames_in, `page shows the take's last frame (input ${inSeq} of ${s1 && s1.frames_in})`);
+  const ov2 = await page.evaluate(() => window.kmLive.overlay);
+  check(ov2 && ov2.joints === 20 && ov2.bones === 19 && ov2.finite, `full skeleton: ${ov2 && ov2.joints} joints, ${ov2 && ov2.bones} bones drawn`);
+  // The decoded positions span the frame's box: its extremes are vertices, exact in float32
+  // and within one int16 step (half-extent / 32767) when quantised. A wrong decode (uint16
+  // offsets from the minimum, say) lands outside it.
+  const fit = await page.evaluate(() => {
+    const { lo, hi } = window.kmLive.box, nv = window.kmLive.nv, out = [];
+    for (let a = 0; a < 3; ++a) {
+      let mn = Infinity, mx = -Infinity;
+      for (let i = 0; i < nv; ++i) { const x = window.kmLive.vertexPosition(i)[a]; mn = Math.min(mn, x); mx = Math.max(mx, x); }
+      out.push({ lo: lo[a], hi: hi[a], mn, mx });
+    }
+    return out;
+  });
+  const fitOk = fit.every((f) => {
+    const tol = (f.hi - f.lo) / 2 / 32767 + 1e-6;
+    return Math.abs(f.mn - f.lo) <= tol && Math.abs(f.mx - f.hi) <= tol;
+  });
+  check(fitOk, `decoded positions span the frame's box: ${fit.map((f) => `[${f.mn.toFixed(5)}, ${f.mx.toFixed(5)}] vs [${f.lo.toFixed(5)}, ${f.hi.toFixed(5)}]`).join(' ')}`);
 
   // Pick a vertex on the chest facing the camera: the front-most vertex near the mid-line at
   // 70% of the height (current positions, read from the page).

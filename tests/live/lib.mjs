@@ -41,3 +41,23 @@ export function accounted(s0, s1) {
   return (s1.frames_out - s0.frames_out) + (s1.frames_dropped - s0.frames_dropped) +
     (s1.solve_errors - s0.solve_errors) >= s1.frames_in - s0.frames_in;
 }
+// An OpenNI-style skeleton as OSCeleton sends it: centimetres, y pointing down, ~2 m from the
+// sensor. Like the real bridges it has no wrists, ankles or waist.
+export const OSCELETON_SKEL = {
+  head: [0, -75, 200], neck: [0, -55, 200], torso: [0, -25, 200],
+  l_shoulder: [-18, -52, 200], l_elbow: [-45, -52, 200], l_hand: [-70, -52, 200],
+  r_shoulder: [18, -52, 200], r_elbow: [45, -52, 200], r_hand: [70, -52, 200],
+  l_hip: [-10, 5, 200], l_knee: [-11, 45, 200], l_foot: [-12, 85, 200],
+  r_hip: [10, 5, 200], r_knee: [11, 45, 200], r_foot: [12, 85, 200],
+};
+// OSC encoding (big-endian, strings NUL-terminated and padded to 4 bytes).
+export const oscString = (s) => { const b = Buffer.from(s + '\0'); return Buffer.concat([b, Buffer.alloc((4 - b.length % 4) % 4)]); };
+export const oscFloat = (x) => { const b = Buffer.alloc(4); b.writeFloatBE(x); return b; };
+export const oscInt = (x) => { const b = Buffer.alloc(4); b.writeInt32BE(x); return b; };
+export const oscMessage = (addr, types, ...args) => Buffer.concat([oscString(addr), oscString(',' + types), ...args]);
+// One datagram holding many messages, so a frame cannot be split by a scheduling delay.
+export const oscBundle = (msgs) => Buffer.concat([oscString('#bundle'), Buffer.alloc(8),
+  ...msgs.flatMap((m) => [oscInt(m.length), m])]);
+// An OSCeleton frame (/joint siiffff per joint) as one bundle.
+export const osceletonFrame = (skel, user = 1) => oscBundle(Object.entries(skel).map(([name, p]) =>
+  oscMessage('/joint', 'siiffff', oscString(name), oscInt(0), oscInt(user), ...p.map(oscFloat), oscFloat(1))));

@@ -2,19 +2,11 @@
 // KinectV2-OSC /bodies/... messages); the frame counter advances and the handle mapped to the
 // right hand moves.
 import { execFileSync } from 'node:child_process';
-import { check, finish, status, waitFor, sleep } from './lib.mjs';
+import { check, finish, status, waitFor, sleep, OSCELETON_SKEL as SKEL } from './lib.mjs';
 
 const [http, osc] = process.argv.slice(2);
 const send = (...args) => execFileSync('oscsend', ['127.0.0.1', osc, ...args.map(String)]);
 
-// An OpenNI-style skeleton in centimetres, y pointing down, ~2 m from the sensor.
-const SKEL = {
-  head: [0, -75, 200], neck: [0, -55, 200], torso: [0, -25, 200],
-  l_shoulder: [-18, -52, 200], l_elbow: [-45, -52, 200], l_hand: [-70, -52, 200],
-  r_shoulder: [18, -52, 200], r_elbow: [45, -52, 200], r_hand: [70, -52, 200],
-  l_hip: [-10, 5, 200], l_knee: [-11, 45, 200], l_foot: [-12, 85, 200],
-  r_hip: [10, 5, 200], r_knee: [11, 45, 200], r_foot: [12, 85, 200],
-};
 function frame(ts, over = {}) {
   for (const [name, p] of Object.entries({ ...SKEL, ...over }))
     send('/joint', 'siiffffd', name, 0, 1, p[0], p[1], p[2], 1, ts);
