@@ -671,7 +671,8 @@ typedef struct km_points {
 } km_points;
 void km_points_free(km_points *p);
 
-/* Reads a point cloud: .ply (through km_mesh_read; faces, if any, are ignored), .pcd
+/* Reads a point cloud: .ply (the mesh PLY reader, except that NaN/inf coordinates are
+ * accepted, then dropped and counted; faces, if any, are ignored), .pcd
  * (PCD v0.7, DATA ascii or binary; fields x y z as F4/F8, other fields skipped;
  * binary_compressed is KM_ERR_UNSUPPORTED), .xyz/.txt/.pts (whitespace or comma separated,
  * the first three numbers of each line; '#' comments and blank lines skipped). Errors name

@@ -104,6 +104,58 @@ static void test_readers(void) {
   CHECK(strstr(km_test_err.message, "bad.xyz:2") != NULL);
   CHECK_STATUS(km_points_parse("x", 1, "a.foo", &p, KM_E), KM_ERR_UNSUPPORTED);
 
+  /* PLY clouds drop and count NaN/inf rows like PCD and XYZ, keeping the finite points in
+   * file order; the mesh reader still refuses the same bytes, naming file and line/byte */
+  const char *ply_nan = "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\n"
+                        "property float y\nproperty float z\nend_header\n"
+                        "0.5 1.25 -2\nnan 0 0\n1 2 3\n0 -inf 1\n4 NaN 5\n-1.5 0 0.125\n";
+  CHECK_OK(km_points_parse(ply_nan, strlen(ply_nan), "nan.ply", &p, KM_E));
+  CHECK_MSG(p.n == 3 && p.dropped_nan == 3, "ascii PLY: %zu points, %zu dropped", p.n,
+            p.dropped_nan);
+  for (int i = 0; i < 3 && p.n == 3; ++i)
+    for (int a = 0; a < 3; ++a)
+      CHECK_NEAR(p.P[3 * i + a], want[i][a], 1e-12);
+  km_points_free(&p);
+  km_mesh mm = {0};
+  CHECK_STATUS(km_mesh_parse(ply_nan, strlen(ply_nan), KM_FORMAT_PLY, "nan.ply", &mm, KM_E),
+               KM_ERR_PARSE);
+  CHECK_MSG(strstr(km_test_err.message, "nan.ply:9:") != NULL, "%s", km_test_err.message);
+  km_mesh_free(&mm);
+  /* a word that is no number is still an error for a cloud */
+  const char *ply_bad = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"
+                        "property float y\nproperty float z\nend_header\n1 2 3\n1 nanx 3\n";
+  CHECK_STATUS(km_points_parse(ply_bad, strlen(ply_bad), "bad.ply", &p, KM_E), KM_ERR_PARSE);
+  CHECK_MSG(strstr(km_test_err.message, "bad.ply:9:") != NULL, "%s", km_test_err.message);
+  {
+    /* binary little endian: x y z float plus an ignored uchar, rows 1 and 3 with a NaN */
+    const char *hdr = "ply\nformat binary_little_endian 1.0\nelement vertex 5\n"
+                      "property float x\nproperty float y\nproperty float z\n"
+                      "property uchar intensity\nend_header\n";
+    size_t hl = strlen(hdr), rec = 13;
+    unsigned char buf[512];
+    memcpy(buf, hdr, hl);
+    const float rows[5][3] = {
+        {0.5f, 1.25f, -2}, {1, NAN, 0}, {1, 2, 3}, {NAN, NAN, NAN}, {-1.5f, 0, 0.125f}};
+    for (int i = 0; i < 5; ++i) {
+      memcpy(buf + hl + rec * (size_t)i, rows[i], 12); /* little-endian hosts, as PCD */
+      buf[hl + rec * (size_t)i + 12] = (unsigned char)(7 * i);
+    }
+    CHECK_OK(km_points_parse(buf, hl + 5 * rec, "nan_le.ply", &p, KM_E));
+    CHECK_MSG(p.n == 3 && p.dropped_nan == 2, "binary PLY: %zu points, %zu dropped", p.n,
+              p.dropped_nan);
+    for (int i = 0; i < 3 && p.n == 3; ++i)
+      for (int a = 0; a < 3; ++a)
+        CHECK_NEAR(p.P[3 * i + a], want[i][a], 1e-7);
+    km_points_free(&p);
+    CHECK_STATUS(km_mesh_parse(buf, hl + 5 * rec, KM_FORMAT_PLY, "nan_le.ply", &mm, KM_E),
+                 KM_ERR_PARSE);
+    char where[64];
+    snprintf(where, sizeof where, "nan_le.ply: byte %zu:", hl + rec + 4);
+    CHECK_MSG(strstr(km_test_err.message, where) != NULL, "%s (wanted %s)", km_test_err.message,
+              where);
+    km_mesh_free(&mm);
+  }
+
   /* real capture data (D-FAUST points, binary PLY in metres), when the checkout has it */
   char shared[512];
   if (km_test_shared("pointclouds/dfaust_50002_light_hopping_loose/00000080.ply", shared,
