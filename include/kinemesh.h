@@ -713,7 +713,8 @@ km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, 
                            km_points *out, km_error *err);
 /* Poses character c by the take (km_skeleton_pose_from_positions + km_lbs), captures every
  * frame and writes out_dir/frame_00000.ply ... plus out_dir/truth.pc2 (the posed meshes)
- * and out_dir/truth_rest.ply (c->mesh, whose faces give truth.pc2 its connectivity).
+ * and out_dir/truth_rest.obj (c->mesh, whose faces give truth.pc2 its connectivity; OBJ so
+ * that listing the frames, by directory or by a glob of its .ply files, never picks it up).
  * out_dir is created if missing. */
 km_status km_capture_simulate(const km_character *c, const km_take *take,
                               const km_capture_options *opt, const char *out_dir, km_error *err);
@@ -754,7 +755,8 @@ typedef struct km_recon_frame_stats {
   double max_mm;
   int iterations; /* solver iterations (skeleton L-BFGS + surface) */
   double seconds;
-  km_status status; /* KM_OK, or why the frame was carried by the skeleton */
+  km_status status;  /* KM_OK, or why the frame was carried by the skeleton */
+  char message[512]; /* status != KM_OK: what went wrong (a read error names the file) */
 } km_recon_frame_stats;
 
 typedef struct km_recon_report {
@@ -771,9 +773,9 @@ typedef struct km_recon_report {
 void km_recon_report_free(km_recon_report *r);
 /* JSON: {"format":"kinemesh-recon-report","version":1,"frames":[{"index":..,"points":..,
  * "mean_mm":..,"max_mm":..,"iterations":..,"seconds":..,"status":"KM_OK",
- * "joints":[x,y,z,...]}...], "jerk_before":..,"jerk_after":.., "first_frame": {
- * "correspondences": N, "initialisation": "..."}, "joints_from": "skin weights"|"rig"}.
- * Written atomically. */
+ * "message":".." (failed frames only), "joints":[x,y,z,...]}...], "jerk_before":..,
+ * "jerk_after":.., "first_frame": {"correspondences": N, "initialisation": "..."},
+ * "joints_from": "skin weights"|"rig"}. Written atomically. */
 km_status km_recon_report_write_json(const char *path, const km_recon_report *r, km_error *err);
 /* Fig. 6 of the paper: mean/max point error per frame as a PNG through gnuplot (popen). */
 km_status km_recon_report_plot(const char *png_path, const km_recon_report *r, km_error *err);
@@ -792,7 +794,8 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n,
                                const km_recon_feature *features, size_t n_features,
                                km_recon_frame_stats *stats, km_error *err);
 /* Skeletal motion (L-BFGS) then surface refinement. A frame that fails is carried by the
- * skeleton prediction: the call still returns KM_OK with stats->status set. */
+ * skeleton prediction: the call still returns KM_OK with stats->status and stats->message
+ * set (err is only filled when the call itself fails). */
 km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_frame_stats *stats,
                               km_error *err);
 /* Results of the last frame: refined surface and LBS-only (global motion) surface, #V*3,

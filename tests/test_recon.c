@@ -575,6 +575,10 @@ static void test_pipeline(void) {
   snprintf(paths[2], 300, "%s/missing.ply", dir);
   CHECK_OK(km_reconstruct((const char *const *)paths, NF, &c, feat, 3, &o, out, &rep, KM_E));
   CHECK(rep.n_frames == NF && rep.failed_frames == 1 && rep.frames[2].status == KM_ERR_IO);
+  /* the read error survives the skeleton carry, file name and all */
+  CHECK_MSG(strstr(rep.frames[2].message, "missing.ply") != NULL, "frame 2: '%s'",
+            rep.frames[2].message);
+  CHECK(rep.frames[1].message[0] == '\0' && rep.frames[3].message[0] == '\0');
   km_recon_report_free(&rep);
   for (int f = 0; f < NF; ++f)
     free(paths[f]);

@@ -82,6 +82,7 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
     cJSON_AddNumberToObject(o, "iterations", s->iterations);
     cJSON_AddNumberToObject(o, "seconds", s->seconds);
     cJSON_AddStringToObject(o, "status", km_status_name(s->status));
+    if (s->status && s->message[0]) cJSON_AddStringToObject(o, "message", s->message);
     if (r->joints) {
       cJSON *j = cJSON_AddArrayToObject(o, "joints");
       for (size_t k = 0; k < r->n_joints * 3; ++k)
@@ -233,10 +234,16 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
           goto done;
         }
       } else {
-        km_recon_next_frame(r, rs ? NULL : pts.P, rs ? 0 : pts.n, st, &fe);
+        /* its own error: fe must still hold the read error (with the file name) afterwards */
+        km_error ne = {0};
+        if (rs)
+          km__log(KM_LOG_WARN, "reconstruct: frame %zu: %s: carried by the skeleton", f,
+                  fe.message);
+        km_recon_next_frame(r, rs ? NULL : pts.P, rs ? 0 : pts.n, st, &ne);
         if (rs) {
           st->status = rs;
-          km__log(KM_LOG_WARN, "reconstruct: %s", fe.message);
+          snprintf(st->message, sizeof st->message, "%.*s", (int)sizeof st->message - 1,
+                   fe.message);
         }
       }
       st->index = f;

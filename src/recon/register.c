@@ -1284,11 +1284,13 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
     tpred[a] = 2 * r->tprev[a] - r->tprev2[a];
   frame_data fd;
   double tp0 = km__now();
-  km_status s = frame_prepare(r, P, n, &fd, err);
+  km_error pe = {0};
+  km_status s = frame_prepare(r, P, n, &fd, &pe);
   double tp1 = km__now();
   km_status fs = KM_OK;
   if (s) {
     fs = s;
+    snprintf(st->message, sizeof st->message, "%.*s", (int)sizeof st->message - 1, pe.message);
   } else {
     st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations,
                                    NULL, 0, true, r->o.w_pose, &fs);
@@ -1343,9 +1345,11 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   frame_data_free(&fd);
   free(Lpred);
   st->status = fs;
+  if (fs && !st->message[0])
+    snprintf(st->message, sizeof st->message, "did not converge (%s)", km_status_name(fs));
   if (fs)
-    km__log(KM_LOG_WARN, "reconstruct: frame %zu did not converge (%s): carried by the skeleton",
-            r->frame, km_status_name(fs));
+    km__log(KM_LOG_WARN, "reconstruct: frame %zu: %s: carried by the skeleton", r->frame,
+            st->message);
   /* after a failure the velocity restarts from zero */
   memcpy(r->Lprev2, fs ? r->Lrot : r->Lprev, nj * 9 * sizeof(double));
   memcpy(r->Lprev, r->Lrot, nj * 9 * sizeof(double));
