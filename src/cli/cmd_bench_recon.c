@@ -3,7 +3,8 @@
  * 2014).  kinemesh bench reconstruct [--frames 300] [--dfaust DIR] [--keep DIR] [--report F]
  * Prints a table and a JSON line. Errors: err_points_mm = mean distance captured points ->
  * reconstructed surface; err_truth_* = distance from reconstructed vertices to the true
- * (noise-free) surface of the subject, per frame mean / max over frames. */
+ * (noise-free) surface of the subject, per frame mean / max over frames. Every length in the
+ * JSON line is in mm, jerk and jitter included (the table prints them in mm too). */
 #include "cli.h"
 #include "recon/recon.h"
 
@@ -87,7 +88,8 @@ int km_cli_bench_reconstruct(int argc, char **argv) {
                    "subject performing the kungfu take, reconstructed from a 4,000-vertex\n"
                    "template of a different body. Prints a per-frame table, the summary and one\n"
                    "JSON line (frames, s_per_frame, err_points_mm, err_truth_mean_mm,\n"
-                   "err_truth_max_mm, jerk_before, jerk_after).");
+                   "err_truth_max_mm, jerk_before, jerk_after, jitter_before, jitter_after;\n"
+                   "errors, jerk and jitter in mm).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (frames < 3) return km_cli_error("bench reconstruct", "--frames must be at least 3");
   {
@@ -113,7 +115,8 @@ int km_cli_bench_reconstruct(int argc, char **argv) {
     snprintf(dir, sizeof dir, "%s", keep);
   else
     snprintf(dir, sizeof dir, "/tmp/bench_recon_%d", (int)getpid());
-  km_capture_options cap = {.points_per_frame = 32000, .noise_mm = 2, .seed = 42};
+  /* 8 cameras as the help and the simulator example say (the library default is 4) */
+  km_capture_options cap = {.cameras = 8, .points_per_frame = 32000, .noise_mm = 2, .seed = 42};
   double tc = km__now();
   if (km_capture_simulate(&subj, &take, &cap, dir, &e)) die("capture", &e);
   tc = km__now() - tc;
@@ -304,8 +307,8 @@ int km_cli_bench_reconstruct(int argc, char **argv) {
       "{\"bench\":\"reconstruct\",\"frames\":%zu,\"s_per_frame\":%.4f,\"err_points_mm\":%.3f,"
       "\"err_truth_mean_mm\":%.3f,\"err_truth_max_mm\":%.3f,\"jerk_before\":%.6g,"
       "\"jerk_after\":%.6g,\"jitter_before\":%.6g,\"jitter_after\":%.6g,\"failed_frames\":%zu}\n",
-      nf, med, pmean, tmean, tmax, rep.jerk_before, rep.jerk_after, jit[0], jit[1],
-      rep.failed_frames);
+      nf, med, pmean, tmean, tmax, rep.jerk_before * 1e3, rep.jerk_after * 1e3, jit[0] * 1e3,
+      jit[1] * 1e3, rep.failed_frames);
   if (json && km_recon_report_write_json(json, &rep, &e)) die("json", &e);
   if (plot && km_recon_report_plot(plot, &rep, &e)) die("plot", &e);
   km__surface_free(&ts);

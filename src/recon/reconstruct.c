@@ -66,7 +66,7 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
   if (!root) return km__fail(err, KM_ERR_NOMEM, "out of memory");
   cJSON_AddStringToObject(root, "format", "kinemesh-recon-report");
   cJSON_AddNumberToObject(root, "version", 1);
-  cJSON_AddStringToObject(root, "units", "mm (errors), m (joints)");
+  cJSON_AddStringToObject(root, "units", "mm (errors), m (joints, jerk)");
   cJSON *names = cJSON_AddArrayToObject(root, "joint_names");
   for (size_t j = 0; j < r->n_joints; ++j)
     cJSON_AddItemToArray(names, cJSON_CreateString(r->joint_names ? r->joint_names[j] : ""));
