@@ -1057,6 +1057,19 @@ static km_status refine(km_recon *r, const frame_data *fd, const double *Vb, int
   return KM_OK;
 }
 
+km_status km__recon_affine_register(km_recon *r, const double *Vb, const double *P, size_t n,
+                                    const km_recon_feature *feat, size_t nfeat, int iterations,
+                                    km_error *err) {
+  if (!r || !Vb || !P || (!feat && nfeat) || iterations < 1)
+    return km__fail(err, KM_ERR_INVALID, "km__recon_affine_register: bad argument");
+  frame_data fd;
+  km_status s = frame_prepare(r, P, n, &fd, err);
+  int count = 0;
+  if (!s) s = refine(r, &fd, Vb, iterations, feat, nfeat, r->o.w_feature, 0.1, 0.7, &count, err);
+  frame_data_free(&fd);
+  return s;
+}
+
 km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_recon_feature *feat,
                                size_t nfeat, km_recon_frame_stats *st, km_error *err) {
   if (!r || (!P && n) || (!feat && nfeat))
