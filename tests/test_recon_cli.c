@@ -70,6 +70,15 @@ int main(void) {
   const cJSON *ff = cJSON_GetObjectItemCaseSensitive(rep, "first_frame");
   CHECK(cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(ff, "correspondences")) &&
         cJSON_GetObjectItemCaseSensitive(ff, "correspondences")->valuedouble == 0);
+  /* without correspondences the report says how frame 0 was placed */
+  const cJSON *init = cJSON_GetObjectItemCaseSensitive(ff, "initialisation");
+  CHECK_MSG(cJSON_IsString(init) && strstr(init->valuestring, "headings") &&
+                strstr(init->valuestring, "landmarks"),
+            "%s", cJSON_IsString(init) ? init->valuestring : "(none)");
+  const cJSON *yc = cJSON_GetObjectItemCaseSensitive(ff, "yaw_candidates");
+  CHECK(cJSON_IsNumber(yc) && yc->valuedouble >= 8);
+  const cJSON *nl = cJSON_GetObjectItemCaseSensitive(ff, "landmarks");
+  CHECK(cJSON_IsNumber(nl) && nl->valuedouble >= 3 && nl->valuedouble <= KM_CHARACTER_LANDMARKS);
   cJSON_Delete(rep);
   FILE *f = fopen(DIR "/errors.png", "rb");
   unsigned char sig[8] = {0};

@@ -46,12 +46,15 @@ static int run_dfaust(const char *dir, const char *json) {
   char out[512];
   snprintf(out, sizeof out, "/tmp/bench_recon_dfaust_%d.pc2", (int)getpid());
   double t0 = km__now();
-  /* D-FAUST has no feature correspondences: global alignment (centroid + height) only */
+  /* D-FAUST has no feature correspondences: the heading search and the template's landmarks
+   * as pseudo-correspondences (km_recon_init, in the report) */
   if (km_reconstruct((const char *const *)paths, n, &tmpl, NULL, 0, &ro, out, &rep, &e))
     die("reconstruct", &e);
   double secs = km__now() - t0;
-  printf("D-FAUST %s: %zu frames, %.2f s/frame (no correspondences: global alignment only)\n", dir,
-         rep.n_frames, secs / (double)(rep.n_frames ? rep.n_frames : 1));
+  printf("D-FAUST %s: %zu frames, %.2f s/frame (no correspondences: heading %.0f deg kept of %d, "
+         "rotation %.1f deg, %zu landmarks as pseudo-correspondences)\n",
+         dir, rep.n_frames, secs / (double)(rep.n_frames ? rep.n_frames : 1), rep.init.yaw_deg,
+         rep.init.yaw_candidates, rep.init.rotation_deg, rep.init.landmarks);
   printf("%6s %8s %9s %9s %6s %8s %s\n", "frame", "points", "mean_mm", "max_mm", "iters", "seconds",
          "status");
   for (size_t f = 0; f < rep.n_frames; ++f) {
@@ -187,6 +190,8 @@ int km_cli_bench_reconstruct(int argc, char **argv) {
     if (f == 0) {
       if (km_recon_first_frame(rc, pts.P, pts.n, feat, nfeat, &rep.frames[f], &e))
         die("first frame", &e);
+      rep.correspondences = nfeat;
+      km_recon_init_get(rc, &rep.init);
     } else {
       km_recon_next_frame(rc, pts.P, pts.n, &rep.frames[f], &e);
     }

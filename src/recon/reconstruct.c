@@ -92,12 +92,39 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
   }
   cJSON_AddNumberToObject(root, "failed_frames", (double)r->failed_frames);
   cJSON *ff = cJSON_AddObjectToObject(root, "first_frame");
+  const km_recon_init *in = &r->init;
   cJSON_AddNumberToObject(ff, "correspondences", (double)r->correspondences);
-  cJSON_AddStringToObject(
-      ff, "initialisation",
-      r->correspondences ? "Horn alignment + scale on the given correspondences"
-                         : "no correspondences given: the template's landmarks and a global "
-                           "alignment only (centroids, heights; the subject assumed to face +z)");
+  char text_init[640];
+  if (r->correspondences >= 3) {
+    snprintf(text_init, sizeof text_init,
+             "Horn alignment on the %zu given correspondences, the skeletal pose from them, "
+             "then scale and rotation again on the posed correspondences",
+             r->correspondences);
+  } else if (in->yaw_candidates) {
+    snprintf(text_init, sizeof text_init,
+             "%s: global alignment (centroids, height scale %.3f; the subject assumed upright, "
+             "y up; %d headings about the vertical axis, rigid ICP and the skeletal pose from "
+             "each; kept heading %.0f deg, rotation %.1f deg, capped residual %.1f mm rigid, "
+             "%.1f mm posed, %.1f mm at the feet), then %zu of the template's landmarks matched "
+             "to their closest "
+             "points as pseudo-correspondences of the feature-only affine stage",
+             r->correspondences ? "fewer than 3 correspondences given" : "no correspondences given",
+             in->scale, in->yaw_candidates, in->yaw_deg, in->rotation_deg, in->rigid_residual_mm,
+             in->residual_mm, in->feet_residual_mm, in->landmarks);
+  } else {
+    snprintf(text_init, sizeof text_init, "first frame not registered");
+  }
+  cJSON_AddStringToObject(ff, "initialisation", text_init);
+  if (r->correspondences < 3 && in->yaw_candidates) {
+    cJSON_AddNumberToObject(ff, "yaw_candidates", in->yaw_candidates);
+    cJSON_AddNumberToObject(ff, "yaw_deg", in->yaw_deg);
+    cJSON_AddNumberToObject(ff, "rotation_deg", in->rotation_deg);
+    cJSON_AddNumberToObject(ff, "rigid_residual_mm", in->rigid_residual_mm);
+    cJSON_AddNumberToObject(ff, "residual_mm", in->residual_mm);
+    cJSON_AddNumberToObject(ff, "feet_residual_mm", in->feet_residual_mm);
+    cJSON_AddNumberToObject(ff, "scale", in->scale);
+    cJSON_AddNumberToObject(ff, "landmarks", (double)in->landmarks);
+  }
   cJSON_AddStringToObject(root, "joints_from", r->rig_joints ? "rig" : "skin weights");
   cJSON_AddNumberToObject(root, "jerk_before", r->jerk_before);
   cJSON_AddNumberToObject(root, "jerk_after", r->jerk_after);
@@ -233,6 +260,7 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
           s = km__wrap(err, rs, "%s", paths[0]);
           goto done;
         }
+        km_recon_init_get(r, &rep->init);
       } else {
         /* its own error: fe must still hold the read error (with the file name) afterwards */
         km_error ne = {0};
