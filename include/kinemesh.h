@@ -676,7 +676,8 @@ typedef struct km_points {
 } km_points;
 void km_points_free(km_points *p);
 
-/* Reads a point cloud: .ply (through km_mesh_read; faces, if any, are ignored), .pcd
+/* Reads a point cloud: .ply (the mesh PLY reader, except that NaN/inf coordinates are
+ * accepted, then dropped and counted; faces, if any, are ignored), .pcd
  * (PCD v0.7, DATA ascii or binary; fields x y z as F4/F8, other fields skipped;
  * binary_compressed is KM_ERR_UNSUPPORTED), .xyz/.txt/.pts (whitespace or comma separated,
  * the first three numbers of each line; '#' comments and blank lines skipped). Errors name
@@ -717,7 +718,8 @@ km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, 
                            km_points *out, km_error *err);
 /* Poses character c by the take (km_skeleton_pose_from_positions + km_lbs), captures every
  * frame and writes out_dir/frame_00000.ply ... plus out_dir/truth.pc2 (the posed meshes)
- * and out_dir/truth_rest.ply (c->mesh, whose faces give truth.pc2 its connectivity).
+ * and out_dir/truth_rest.obj (c->mesh, whose faces give truth.pc2 its connectivity; OBJ so
+ * that listing the frames, by directory or by a glob of its .ply files, never picks it up).
  * out_dir is created if missing. */
 km_status km_capture_simulate(const km_character *c, const km_take *take,
                               const km_capture_options *opt, const char *out_dir, km_error *err);
@@ -758,8 +760,30 @@ typedef struct km_recon_frame_stats {
   double max_mm;
   int iterations; /* solver iterations (skeleton L-BFGS + surface) */
   double seconds;
-  km_status status; /* KM_OK, or why the frame was carried by the skeleton */
+  km_status status;  /* KM_OK, or why the frame was carried by the skeleton */
+  char message[512]; /* status != KM_OK: what went wrong (a read error names the file) */
 } km_recon_frame_stats;
+
+/* How the first frame was placed before the nonrigid registration. */
+typedef struct km_recon_init {
+  size_t correspondences; /* given correspondences (>= 3: Horn's alignment on them) */
+  /* Fewer than 3 given: a global alignment that assumes the subject upright (y up) but not
+   * its heading. Centroids and heights are matched (scale = height ratio), then the template
+   * is turned about the vertical axis to each of yaw_candidates headings; from each, rigid
+   * ICP (point-to-plane on the trimmed closest points), then the skeletal step; the heading
+   * whose posed surface leaves the smallest residual plus feet residual is kept. Residuals
+   * are the mean point-to-surface distance over the coarse points, each capped at 5 cm. */
+  int yaw_candidates;
+  double yaw_deg;           /* heading kept: the template's rotation about +y before ICP */
+  double rotation_deg;      /* angle of its rigid rotation after ICP, degrees */
+  double rigid_residual_mm; /* its residual after rigid ICP */
+  double residual_mm;       /* its residual after the skeletal step */
+  double feet_residual_mm;  /* the same over the points of the lowest 8% of the height */
+  double scale;             /* height ratio points / template */
+  /* template landmarks (rig sidecar) matched to their closest points after the skeletal
+   * fit, used as pseudo-correspondences in the feature-only affine stage (w_d = 0) */
+  size_t landmarks;
+} km_recon_init;
 
 typedef struct km_recon_report {
   size_t n_frames, n_joints;
@@ -768,16 +792,19 @@ typedef struct km_recon_report {
   char **joint_names;             /* n_joints */
   double jerk_before, jerk_after; /* mean |second difference| of vertices, m, around the filter */
   size_t failed_frames;
-  size_t correspondences; /* first-frame correspondences used; 0: a global alignment
-                             only (centroids, heights; subject facing +z) */
+  size_t correspondences; /* first-frame correspondences given */
+  km_recon_init init;     /* how the first frame was initialised */
   bool rig_joints;        /* joints from the rig as given (else from the skin weights) */
 } km_recon_report;
 void km_recon_report_free(km_recon_report *r);
 /* JSON: {"format":"kinemesh-recon-report","version":1,"frames":[{"index":..,"points":..,
  * "mean_mm":..,"max_mm":..,"iterations":..,"seconds":..,"status":"KM_OK",
- * "joints":[x,y,z,...]}...], "jerk_before":..,"jerk_after":.., "first_frame": {
- * "correspondences": N, "initialisation": "..."}, "joints_from": "skin weights"|"rig"}.
- * Written atomically. */
+ * "message":".." (failed frames only), "joints":[x,y,z,...]}...], "jerk_before":..,
+ * "jerk_after":.., "first_frame": {"correspondences": N, "initialisation": "...", and
+ * without correspondences "yaw_candidates", "yaw_deg", "rotation_deg", "rigid_residual_mm",
+ * "residual_mm", "feet_residual_mm", "scale", "landmarks"}, "joints_from": "skin weights"|"rig"}.
+ * Written atomically.
+ */
 km_status km_recon_report_write_json(const char *path, const km_recon_report *r, km_error *err);
 /* Fig. 6 of the paper: mean/max point error per frame as a PNG through gnuplot (popen). */
 km_status km_recon_report_plot(const char *png_path, const km_recon_report *r, km_error *err);
@@ -790,13 +817,16 @@ km_status km_recon_create(const km_character *template_character, const km_recon
 /* Global alignment (Horn, rigid) from the features; the skeletal step posed by the features,
  * then the least-squares scale and rotation again against the posed landmarks; then affine
  * registration with w_d = 0 and then with all three terms. With fewer than 3 features the
- * subject is assumed upright (y up, facing +z like the template): centroids and heights are
- * matched and the pose comes from the data alone. */
+ * subject is assumed upright (y up) but may face any way: see km_recon_init; the pose comes
+ * from the data, and the template's landmarks (those of the character given to
+ * km_recon_create that have a name) matched to their closest points stand in for the
+ * features of the w_d = 0 stage. */
 km_status km_recon_first_frame(km_recon *r, const double *P, size_t n,
                                const km_recon_feature *features, size_t n_features,
                                km_recon_frame_stats *stats, km_error *err);
 /* Skeletal motion (L-BFGS) then surface refinement. A frame that fails is carried by the
- * skeleton prediction: the call still returns KM_OK with stats->status set. */
+ * skeleton prediction: the call still returns KM_OK with stats->status and stats->message
+ * set (err is only filled when the call itself fails). */
 km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_frame_stats *stats,
                               km_error *err);
 /* Results of the last frame: refined surface and LBS-only (global motion) surface, #V*3,
@@ -805,6 +835,8 @@ const double *km_recon_surface(const km_recon *r);
 const double *km_recon_global(const km_recon *r);
 const double *km_recon_joints(const km_recon *r);
 const km_mesh *km_recon_template(const km_recon *r); /* faces of the output */
+/* How the first frame was initialised (zeros before it). */
+void km_recon_init_get(const km_recon *r, km_recon_init *out);
 void km_recon_free(km_recon **r);
 
 /* Local-motion filter (paper IV-3C): out_t = global_t + sum_k g_k (refined - global)_{t+k},

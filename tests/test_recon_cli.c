@@ -6,6 +6,20 @@
 
 #define DIR "recon_cli"
 
+static cJSON *read_json(const char *path) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  fseek(f, 0, SEEK_END);
+  size_t size = (size_t)ftell(f);
+  fseek(f, 0, SEEK_SET);
+  char *data = malloc(size + 1);
+  data[fread(data, 1, size, f)] = '\0';
+  fclose(f);
+  cJSON *j = cJSON_Parse(data);
+  free(data);
+  return j;
+}
+
 int main(void) {
   char *out = NULL;
   CHECK(km_test_run("rm -rf " DIR " && mkdir -p " DIR, NULL) == 0);
@@ -21,6 +35,12 @@ int main(void) {
   km_anim_info truth;
   CHECK_OK(km_anim_info_read(DIR "/frames/truth.pc2", &truth, KM_E));
   CHECK(truth.frames == 5);
+  /* the rest mesh (faces of truth.pc2) is no .ply, so the frame lister never takes it */
+  km_mesh rest = {0};
+  CHECK_OK(km_mesh_read(DIR "/frames/truth_rest.obj", &rest, KM_E));
+  CHECK(rest.n_vertices == truth.vertices && rest.n_faces > 0);
+  km_mesh_free(&rest);
+  CHECK(km_test_run("test ! -e " DIR "/frames/truth_rest.ply", NULL) == 0);
   CHECK(km_test_run(KM_CLI " gen character --vertices 3000 -o " DIR "/template.obj", NULL) == 0);
   CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/template.obj --clouds '" DIR
                            "/frames/frame_*.ply' -o " DIR "/recon.pc2 --report " DIR
@@ -30,20 +50,8 @@ int main(void) {
   km_anim_info info;
   CHECK_OK(km_anim_info_read(DIR "/recon.pc2", &info, KM_E));
   CHECK(info.frames == 5);
-  char *data = NULL;
-  size_t size = 0;
-  FILE *f = fopen(DIR "/report.json", "rb");
-  CHECK(f != NULL);
-  if (f) {
-    fseek(f, 0, SEEK_END);
-    size = (size_t)ftell(f);
-    fseek(f, 0, SEEK_SET);
-    data = malloc(size + 1);
-    data[fread(data, 1, size, f)] = '\0';
-    fclose(f);
-  }
-  cJSON *rep = data ? cJSON_Parse(data) : NULL;
-  free(data);
+  cJSON *rep = read_json(DIR "/report.json");
+  CHECK(rep != NULL);
   const cJSON *frames = cJSON_GetObjectItemCaseSensitive(rep, "frames");
   CHECK(cJSON_GetArraySize(frames) == 5);
   for (int i = 0; i < cJSON_GetArraySize(frames); ++i) {
@@ -62,11 +70,66 @@ int main(void) {
   const cJSON *ff = cJSON_GetObjectItemCaseSensitive(rep, "first_frame");
   CHECK(cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(ff, "correspondences")) &&
         cJSON_GetObjectItemCaseSensitive(ff, "correspondences")->valuedouble == 0);
+  /* without correspondences the report says how frame 0 was placed */
+  const cJSON *init = cJSON_GetObjectItemCaseSensitive(ff, "initialisation");
+  CHECK_MSG(cJSON_IsString(init) && strstr(init->valuestring, "headings") &&
+                strstr(init->valuestring, "landmarks"),
+            "%s", cJSON_IsString(init) ? init->valuestring : "(none)");
+  const cJSON *yc = cJSON_GetObjectItemCaseSensitive(ff, "yaw_candidates");
+  CHECK(cJSON_IsNumber(yc) && yc->valuedouble >= 8);
+  const cJSON *nl = cJSON_GetObjectItemCaseSensitive(ff, "landmarks");
+  CHECK(cJSON_IsNumber(nl) && nl->valuedouble >= 3 && nl->valuedouble <= KM_CHARACTER_LANDMARKS);
   cJSON_Delete(rep);
-  f = fopen(DIR "/errors.png", "rb");
+  FILE *f = fopen(DIR "/errors.png", "rb");
   unsigned char sig[8] = {0};
   CHECK(f && fread(sig, 1, 8, f) == 8 && sig[0] == 0x89 && sig[1] == 'P' && sig[2] == 'N');
   if (f) fclose(f);
+
+  /* the README's glob of every .ply in FRAMES: exactly the captured frames, nothing else */
+  CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/template.obj --clouds '" DIR
+                           "/frames/*.ply' -o " DIR "/glob.pc2 --report " DIR "/glob.json",
+                    &out) == 0);
+  free(out);
+  rep = read_json(DIR "/glob.json");
+  CHECK_MSG(cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(rep, "frames")) ==
+                (int)truth.frames,
+            "'frames/*.ply': %d frames in the report, %zu captured",
+            cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(rep, "frames")), truth.frames);
+  cJSON_Delete(rep);
+  CHECK_OK(km_anim_info_read(DIR "/glob.pc2", &info, KM_E));
+  CHECK(info.frames == truth.frames);
+
+  /* a corrupt frame in the middle (directory mode, which also holds truth.pc2 and
+   * truth_rest.obj): the run completes, and the report and the warning keep the read
+   * error naming the file */
+  CHECK(km_test_run("cp -r " DIR "/frames " DIR "/corrupt && truncate -s 300 " DIR
+                    "/corrupt/frame_00002.ply",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/template.obj --clouds " DIR
+                           "/corrupt -o " DIR "/corrupt.pc2 --report " DIR "/corrupt.json",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "frame_00002.ply"), "warning names the file: %s", out);
+  free(out);
+  rep = read_json(DIR "/corrupt.json");
+  frames = cJSON_GetObjectItemCaseSensitive(rep, "frames");
+  CHECK(cJSON_GetArraySize(frames) == (int)truth.frames);
+  for (int i = 0; i < cJSON_GetArraySize(frames); ++i) {
+    const cJSON *fr = cJSON_GetArrayItem(frames, i);
+    const cJSON *st = cJSON_GetObjectItemCaseSensitive(fr, "status");
+    const cJSON *msg = cJSON_GetObjectItemCaseSensitive(fr, "message");
+    if (i == 2) {
+      CHECK(cJSON_IsString(st) && !strcmp(st->valuestring, "KM_ERR_PARSE"));
+      CHECK_MSG(cJSON_IsString(msg) && strstr(msg->valuestring, "frame_00002.ply"),
+                "frame 2 message: %s", cJSON_IsString(msg) ? msg->valuestring : "(none)");
+    } else {
+      CHECK_MSG(cJSON_IsString(st) && !strcmp(st->valuestring, "KM_OK") && !msg, "frame %d", i);
+    }
+  }
+  const cJSON *failed = cJSON_GetObjectItemCaseSensitive(rep, "failed_frames");
+  CHECK(cJSON_IsNumber(failed) && failed->valuedouble == 1);
+  cJSON_Delete(rep);
+  CHECK_OK(km_anim_info_read(DIR "/corrupt.pc2", &info, KM_E));
+  CHECK(info.frames == truth.frames);
 
   /* bad inputs */
   CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/template.obj --clouds '" DIR

@@ -3,7 +3,8 @@
  * 2014).  kinemesh bench reconstruct [--frames 300] [--dfaust DIR] [--keep DIR] [--report F]
  * Prints a table and a JSON line. Errors: err_points_mm = mean distance captured points ->
  * reconstructed surface; err_truth_* = distance from reconstructed vertices to the true
- * (noise-free) surface of the subject, per frame mean / max over frames. */
+ * (noise-free) surface of the subject, per frame mean / max over frames. Every length in the
+ * JSON line is in mm, jerk and jitter included (the table prints them in mm too). */
 #include "cli.h"
 #include "recon/recon.h"
 
@@ -45,12 +46,15 @@ static int run_dfaust(const char *dir, const char *json) {
   char out[512];
   snprintf(out, sizeof out, "/tmp/bench_recon_dfaust_%d.pc2", (int)getpid());
   double t0 = km__now();
-  /* D-FAUST has no feature correspondences: global alignment (centroid + height) only */
+  /* D-FAUST has no feature correspondences: the heading search and the template's landmarks
+   * as pseudo-correspondences (km_recon_init, in the report) */
   if (km_reconstruct((const char *const *)paths, n, &tmpl, NULL, 0, &ro, out, &rep, &e))
     die("reconstruct", &e);
   double secs = km__now() - t0;
-  printf("D-FAUST %s: %zu frames, %.2f s/frame (no correspondences: global alignment only)\n", dir,
-         rep.n_frames, secs / (double)(rep.n_frames ? rep.n_frames : 1));
+  printf("D-FAUST %s: %zu frames, %.2f s/frame (no correspondences: heading %.0f deg kept of %d, "
+         "rotation %.1f deg, %zu landmarks as pseudo-correspondences)\n",
+         dir, rep.n_frames, secs / (double)(rep.n_frames ? rep.n_frames : 1), rep.init.yaw_deg,
+         rep.init.yaw_candidates, rep.init.rotation_deg, rep.init.landmarks);
   printf("%6s %8s %9s %9s %6s %8s %s\n", "frame", "points", "mean_mm", "max_mm", "iters", "seconds",
          "status");
   for (size_t f = 0; f < rep.n_frames; ++f) {
@@ -87,7 +91,8 @@ int km_cli_bench_reconstruct(int argc, char **argv) {
                    "subject performing the kungfu take, reconstructed from a 4,000-vertex\n"
                    "template of a different body. Prints a per-frame table, the summary and one\n"
                    "JSON line (frames, s_per_frame, err_points_mm, err_truth_mean_mm,\n"
-                   "err_truth_max_mm, jerk_before, jerk_after).");
+                   "err_truth_max_mm, jerk_before, jerk_after, jitter_before, jitter_after;\n"
+                   "errors, jerk and jitter in mm).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (frames < 3) return km_cli_error("bench reconstruct", "--frames must be at least 3");
   {
@@ -113,7 +118,8 @@ int km_cli_bench_reconstruct(int argc, char **argv) {
     snprintf(dir, sizeof dir, "%s", keep);
   else
     snprintf(dir, sizeof dir, "/tmp/bench_recon_%d", (int)getpid());
-  km_capture_options cap = {.points_per_frame = 32000, .noise_mm = 2, .seed = 42};
+  /* 8 cameras as the help and the simulator example say (the library default is 4) */
+  km_capture_options cap = {.cameras = 8, .points_per_frame = 32000, .noise_mm = 2, .seed = 42};
   double tc = km__now();
   if (km_capture_simulate(&subj, &take, &cap, dir, &e)) die("capture", &e);
   tc = km__now() - tc;
@@ -184,6 +190,8 @@ int km_cli_bench_reconstruct(int argc, char **argv) {
     if (f == 0) {
       if (km_recon_first_frame(rc, pts.P, pts.n, feat, nfeat, &rep.frames[f], &e))
         die("first frame", &e);
+      rep.correspondences = nfeat;
+      km_recon_init_get(rc, &rep.init);
     } else {
       km_recon_next_frame(rc, pts.P, pts.n, &rep.frames[f], &e);
     }
@@ -304,8 +312,8 @@ int km_cli_bench_reconstruct(int argc, char **argv) {
       "{\"bench\":\"reconstruct\",\"frames\":%zu,\"s_per_frame\":%.4f,\"err_points_mm\":%.3f,"
       "\"err_truth_mean_mm\":%.3f,\"err_truth_max_mm\":%.3f,\"jerk_before\":%.6g,"
       "\"jerk_after\":%.6g,\"jitter_before\":%.6g,\"jitter_after\":%.6g,\"failed_frames\":%zu}\n",
-      nf, med, pmean, tmean, tmax, rep.jerk_before, rep.jerk_after, jit[0], jit[1],
-      rep.failed_frames);
+      nf, med, pmean, tmean, tmax, rep.jerk_before * 1e3, rep.jerk_after * 1e3, jit[0] * 1e3,
+      jit[1] * 1e3, rep.failed_frames);
   if (json && km_recon_report_write_json(json, &rep, &e)) die("json", &e);
   if (plot && km_recon_report_plot(plot, &rep, &e)) die("plot", &e);
   km__surface_free(&ts);

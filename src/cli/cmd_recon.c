@@ -34,7 +34,8 @@ int km_cli_gen_capture(int argc, char **argv) {
       "kinemesh gen capture --character CHAR --motion TAKE [--cameras 8] [--noise-mm 2] -o DIR",
       "Ray-casts the animated character from depth cameras (Embree): one binary\n"
       "PLY point cloud per frame with occlusion holes and noise, plus the\n"
-      "ground truth as DIR/truth.pc2 (faces: DIR/truth_rest.ply).");
+      "ground truth as DIR/truth.pc2 (faces: DIR/truth_rest.obj, which a\n"
+      "directory or 'DIR/*.ply' given to reconstruct does not read as a frame).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!out) return km_cli_error("gen capture", "-o DIR is required");
   km_motion_kind mk = !strcmp(kind, "walk")     ? KM_MOTION_WALK
@@ -58,7 +59,9 @@ int km_cli_gen_capture(int argc, char **argv) {
       km_capture_simulate(&c, &take, &co, out, &err))
     rc = km_cli_fail("gen capture", &err);
   else
-    fprintf(stderr, "kinemesh gen capture: %zu frames in %.1f s -> %s/frame_*.ply, truth.pc2\n",
+    fprintf(stderr,
+            "kinemesh gen capture: %zu frames in %.1f s -> %s/frame_*.ply, truth.pc2, "
+            "truth_rest.obj\n",
             take.n_frames, km_cli_now() - t0, out);
   km_cli_progress_done();
   km_take_free(&take);

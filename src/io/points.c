@@ -1,10 +1,12 @@
-/* Point cloud frame readers: PLY (through km_mesh_parse), PCD v0.7 and XYZ text.
+/* Point cloud frame readers: PLY (the mesh PLY parser, told to keep NaN), PCD v0.7 and XYZ
+ * text.
  *
  * The PCD parser is written by hand: the reference reader is PCL's (C++, with Boost and
  * Eigen, far too heavy to link into a C library for a header plus a packed array). Only
  * what kinemesh needs is read: x y z of each point, other fields are skipped by their
  * declared SIZE*COUNT. */
 #include "internal.h"
+#include "mesh/mesh_io.h"
 
 #include <ctype.h>
 #include <dirent.h>
@@ -36,7 +38,9 @@ static void push_point(km_points *o, double x, double y, double z) {
 static km_status parse_ply(const void *data, size_t size, const char *name, km_points *out,
                            km_error *err) {
   km_mesh m = {0};
-  km_status s = km_mesh_parse(data, size, KM_FORMAT_PLY, name, &m, err);
+  /* NaN rows stay in place so push_point drops and counts them as for PCD and XYZ; the
+   * finite points keep the file's order. */
+  km_status s = km__ply_parse_ex(data, size, name, KM__PLY_NONFINITE, &m, err);
   if (s) return s;
   out->P = km__malloc(m.n_vertices ? m.n_vertices : 1, 3 * sizeof(double));
   if (!out->P) {

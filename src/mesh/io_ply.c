@@ -279,7 +279,34 @@ typedef struct body_reader {
   bool ascii, be;
   size_t line; /* ascii: current line */
   km_error *err;
+  bool nonfinite_ok; /* KM__PLY_NONFINITE */
 } body_reader;
+
+static bool ascii_ieq(const char *s, size_t len, const char *lit) {
+  size_t n = strlen(lit);
+  if (len != n) return false;
+  for (size_t i = 0; i < n; ++i)
+    if ((s[i] | 0x20) != lit[i]) return false;
+  return true;
+}
+
+/* NaN and infinity as C's printf, Python and PCL spell them: [+-]nan[(...)], [+-]inf,
+ * [+-]infinity, any case. Overflowing literals (1e999) stay errors: they are corruption,
+ * not a sensor's "no return". */
+static bool parse_nonfinite(const char *tok, size_t len, double *d) {
+  bool neg = false;
+  if (len && (tok[0] == '+' || tok[0] == '-')) neg = tok[0] == '-', ++tok, --len;
+  if (len >= 3 && ascii_ieq(tok, 3, "nan") &&
+      (len == 3 || (tok[3] == '(' && tok[len - 1] == ')'))) {
+    *d = NAN;
+    return true;
+  }
+  if (ascii_ieq(tok, len, "inf") || ascii_ieq(tok, len, "infinity")) {
+    *d = neg ? -INFINITY : INFINITY;
+    return true;
+  }
+  return false;
+}
 
 static km_status truncated(body_reader *r, const char *what) {
   if (r->ascii)
@@ -321,7 +348,9 @@ static km_status read_value(body_reader *r, ply_type t, bool as_int, double *d, 
     const char *tok;
     size_t len;
     if (!ascii_token(r, &tok, &len)) return truncated(r, what);
-    bool ok = as_int ? km__parse_int64(tok, len, i) : km__parse_double(tok, len, d);
+    bool ok =
+        as_int ? km__parse_int64(tok, len, i)
+               : km__parse_double(tok, len, d) || (r->nonfinite_ok && parse_nonfinite(tok, len, d));
     if (!ok) {
       char q[64];
       km__quote_token(tok, len, q, sizeof q);
@@ -336,7 +365,7 @@ static km_status read_value(body_reader *r, ply_type t, bool as_int, double *d, 
     *i = load_int(r->p, t, r->be);
   else {
     *d = load_double(r->p, t, r->be);
-    if (!isfinite(*d))
+    if (!isfinite(*d) && !r->nonfinite_ok)
       return km__fail(r->err, KM_ERR_PARSE, "%s: byte %zu: expected %s (a finite number), found %g",
                       r->name, (size_t)(r->p - r->base), what, *d);
   }
@@ -380,6 +409,11 @@ static km_status read_list_count(body_reader *r, const ply_prop *pr, int64_t *n)
 
 km_status km__ply_parse(const char *data, size_t size, const char *name, km_mesh *out,
                         km_error *err) {
+  return km__ply_parse_ex(data, size, name, 0, out, err);
+}
+
+km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsigned flags,
+                           km_mesh *out, km_error *err) {
   ply_header *h = calloc(1, sizeof *h);
   if (!h) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
   const char *body = NULL;
@@ -466,7 +500,8 @@ km_status km__ply_parse(const char *data, size_t size, const char *name, km_mesh
                    ascii,
                    h->encoding == KM_PLY_BINARY_BE,
                    line,
-                   err};
+                   err,
+                   (flags & KM__PLY_NONFINITE) != 0};
   for (size_t ei = 0; ei < h->n_el && !s; ++ei) {
     ply_element *e = &h->el[ei];
     const ply_prop *props = &h->props[e->first_prop];

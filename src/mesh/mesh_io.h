@@ -12,6 +12,13 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
                         km_error *err);
 km_status km__ply_parse(const char *data, size_t size, const char *name, km_mesh *out,
                         km_error *err);
+/* km__ply_parse with flags. KM__PLY_NONFINITE: vertex coordinates may be NaN or +-inf (ascii
+ * "nan", "-inf", "infinity", any case; binary: any bit pattern) and are kept as such. Only
+ * the point cloud reader (src/io/points.c) sets it: sensors write NaN for pixels without a
+ * return, which a point cloud drops and counts, while a mesh with one is broken. */
+#define KM__PLY_NONFINITE 1u
+km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsigned flags,
+                           km_mesh *out, km_error *err);
 km_status km__off_parse(const char *data, size_t size, const char *name, km_mesh *out,
                         km_error *err);
 

@@ -210,7 +210,9 @@ km_status km_capture_simulate(const km_character *c, const km_take *take,
   km_capture_options o = opt ? *opt : (km_capture_options){0};
   size_t nv = c->mesh.n_vertices, nj = c->skeleton.n_joints;
   char path[4096];
-  snprintf(path, sizeof path, "%s/truth_rest.ply", out_dir);
+  /* OBJ, not PLY: the frames are listed by extension (the directory, or a glob of its .ply
+   * files), and the rest mesh must not be read back as one more frame. */
+  snprintf(path, sizeof path, "%s/truth_rest.obj", out_dir);
   km_status s = km_mesh_write(path, &c->mesh, NULL, err);
   if (s) return s;
   snprintf(path, sizeof path, "%s/truth.pc2", out_dir);

@@ -47,6 +47,16 @@ km_status km__point_normals(const double *P, size_t n, int k, double *N, km_erro
 km_status km__cluster_points(const double *P, size_t n, size_t target, int32_t **reps,
                              size_t *n_reps, km_error *err);
 
+/* The affine registration step alone, as the first frame runs it after the global alignment
+ * and the pose: `iterations` rounds of closest points (robust weights) on the current
+ * surface, each followed by one Gauss-Newton solve (CHOLMOD) for the per-vertex affine maps
+ * of Vb under w_d E_d + w_f E_f + w_s E_s; coarse points first, all points in the last two
+ * rounds. Vb has the template's vertex count; the result is km_recon_surface(r). Exposed for
+ * the tests (a mesh registered to points of its own surface must reach zero error). */
+km_status km__recon_affine_register(km_recon *r, const double *Vb, const double *P, size_t n,
+                                    const km_recon_feature *feat, size_t nfeat, int iterations,
+                                    km_error *err);
+
 /* Symmetric 3x3 eigen-decomposition (ascending), LAPACKE_dsyev. A row-major, vecs columns. */
 void km__eig3(const double A[9], double evals[3], double evecs[9]);
 

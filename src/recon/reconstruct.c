@@ -66,7 +66,7 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
   if (!root) return km__fail(err, KM_ERR_NOMEM, "out of memory");
   cJSON_AddStringToObject(root, "format", "kinemesh-recon-report");
   cJSON_AddNumberToObject(root, "version", 1);
-  cJSON_AddStringToObject(root, "units", "mm (errors), m (joints)");
+  cJSON_AddStringToObject(root, "units", "mm (errors), m (joints, jerk)");
   cJSON *names = cJSON_AddArrayToObject(root, "joint_names");
   for (size_t j = 0; j < r->n_joints; ++j)
     cJSON_AddItemToArray(names, cJSON_CreateString(r->joint_names ? r->joint_names[j] : ""));
@@ -82,6 +82,7 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
     cJSON_AddNumberToObject(o, "iterations", s->iterations);
     cJSON_AddNumberToObject(o, "seconds", s->seconds);
     cJSON_AddStringToObject(o, "status", km_status_name(s->status));
+    if (s->status && s->message[0]) cJSON_AddStringToObject(o, "message", s->message);
     if (r->joints) {
       cJSON *j = cJSON_AddArrayToObject(o, "joints");
       for (size_t k = 0; k < r->n_joints * 3; ++k)
@@ -91,12 +92,39 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
   }
   cJSON_AddNumberToObject(root, "failed_frames", (double)r->failed_frames);
   cJSON *ff = cJSON_AddObjectToObject(root, "first_frame");
+  const km_recon_init *in = &r->init;
   cJSON_AddNumberToObject(ff, "correspondences", (double)r->correspondences);
-  cJSON_AddStringToObject(
-      ff, "initialisation",
-      r->correspondences ? "Horn alignment + scale on the given correspondences"
-                         : "no correspondences given: the template's landmarks and a global "
-                           "alignment only (centroids, heights; the subject assumed to face +z)");
+  char text_init[640];
+  if (r->correspondences >= 3) {
+    snprintf(text_init, sizeof text_init,
+             "Horn alignment on the %zu given correspondences, the skeletal pose from them, "
+             "then scale and rotation again on the posed correspondences",
+             r->correspondences);
+  } else if (in->yaw_candidates) {
+    snprintf(text_init, sizeof text_init,
+             "%s: global alignment (centroids, height scale %.3f; the subject assumed upright, "
+             "y up; %d headings about the vertical axis, rigid ICP and the skeletal pose from "
+             "each; kept heading %.0f deg, rotation %.1f deg, capped residual %.1f mm rigid, "
+             "%.1f mm posed, %.1f mm at the feet), then %zu of the template's landmarks matched "
+             "to their closest "
+             "points as pseudo-correspondences of the feature-only affine stage",
+             r->correspondences ? "fewer than 3 correspondences given" : "no correspondences given",
+             in->scale, in->yaw_candidates, in->yaw_deg, in->rotation_deg, in->rigid_residual_mm,
+             in->residual_mm, in->feet_residual_mm, in->landmarks);
+  } else {
+    snprintf(text_init, sizeof text_init, "first frame not registered");
+  }
+  cJSON_AddStringToObject(ff, "initialisation", text_init);
+  if (r->correspondences < 3 && in->yaw_candidates) {
+    cJSON_AddNumberToObject(ff, "yaw_candidates", in->yaw_candidates);
+    cJSON_AddNumberToObject(ff, "yaw_deg", in->yaw_deg);
+    cJSON_AddNumberToObject(ff, "rotation_deg", in->rotation_deg);
+    cJSON_AddNumberToObject(ff, "rigid_residual_mm", in->rigid_residual_mm);
+    cJSON_AddNumberToObject(ff, "residual_mm", in->residual_mm);
+    cJSON_AddNumberToObject(ff, "feet_residual_mm", in->feet_residual_mm);
+    cJSON_AddNumberToObject(ff, "scale", in->scale);
+    cJSON_AddNumberToObject(ff, "landmarks", (double)in->landmarks);
+  }
   cJSON_AddStringToObject(root, "joints_from", r->rig_joints ? "rig" : "skin weights");
   cJSON_AddNumberToObject(root, "jerk_before", r->jerk_before);
   cJSON_AddNumberToObject(root, "jerk_after", r->jerk_after);
@@ -232,11 +260,18 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
           s = km__wrap(err, rs, "%s", paths[0]);
           goto done;
         }
+        km_recon_init_get(r, &rep->init);
       } else {
-        km_recon_next_frame(r, rs ? NULL : pts.P, rs ? 0 : pts.n, st, &fe);
+        /* its own error: fe must still hold the read error (with the file name) afterwards */
+        km_error ne = {0};
+        if (rs)
+          km__log(KM_LOG_WARN, "reconstruct: frame %zu: %s: carried by the skeleton", f,
+                  fe.message);
+        km_recon_next_frame(r, rs ? NULL : pts.P, rs ? 0 : pts.n, st, &ne);
         if (rs) {
           st->status = rs;
-          km__log(KM_LOG_WARN, "reconstruct: %s", fe.message);
+          snprintf(st->message, sizeof st->message, "%.*s", (int)sizeof st->message - 1,
+                   fe.message);
         }
       }
       st->index = f;

@@ -131,6 +131,10 @@ struct km_recon {
   /* surface -> points term of the skeletal step: per vertex nearest point and weight */
   int32_t *vnear;
   double *vw, *vdist, *vn;
+  /* template landmarks with a name (pseudo-correspondences without given ones) */
+  int32_t lm[KM_CHARACTER_LANDMARKS];
+  size_t n_lm;
+  km_recon_init init;
 };
 
 static void opt_defaults(km_recon_options *o) {
@@ -403,6 +407,10 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
         strdup(c->skeleton.names && c->skeleton.names[j] ? c->skeleton.names[j] : "joint");
   memcpy(r->skin.joints, c->skin.joints, nv * 4 * sizeof(int32_t));
   memcpy(r->skin.weights, c->skin.weights, nv * 4 * sizeof(double));
+  for (int l = 0; l < KM_CHARACTER_LANDMARKS; ++l)
+    if (c->landmarks[l].name[0] && c->landmarks[l].vertex >= 0 &&
+        (size_t)c->landmarks[l].vertex < nv)
+      r->lm[r->n_lm++] = c->landmarks[l].vertex;
   memcpy(r->surface, m->V, nv * 3 * sizeof(double));
   memcpy(r->global, m->V, nv * 3 * sizeof(double));
   memcpy(r->joints, r->tmpl_joints, nj * 3 * sizeof(double));
@@ -420,6 +428,13 @@ const double *km_recon_surface(const km_recon *r) { return r ? r->surface : NULL
 const double *km_recon_global(const km_recon *r) { return r ? r->global : NULL; }
 const double *km_recon_joints(const km_recon *r) { return r ? r->joints : NULL; }
 const km_mesh *km_recon_template(const km_recon *r) { return r ? &r->tmpl : NULL; }
+void km_recon_init_get(const km_recon *r, km_recon_init *out) {
+  if (!out) return;
+  if (r)
+    *out = r->init;
+  else
+    memset(out, 0, sizeof *out);
+}
 
 /* ---------------------------------------------------------------- correspondences */
 
@@ -1057,6 +1072,253 @@ static km_status refine(km_recon *r, const frame_data *fd, const double *Vb, int
   return KM_OK;
 }
 
+/* ---------------------------------------------------------------- global alignment */
+
+#define KM__YAW_CANDIDATES 12
+#define KM__ICP_ROUNDS 10
+#define KM__RESIDUAL_CAP 0.05   /* m: a point farther than this counts as this far */
+#define KM__LANDMARK_REACH 0.04 /* m: a landmark farther from every point is not used */
+#define KM__FEET_HEIGHT 0.08    /* of the subject's height: the points scored as the feet */
+
+/* X = sc R V + t over the template. */
+static void place(const km_recon *r, const double *R, double sc, const double *t, double *X) {
+  for (size_t i = 0; i < r->nv; ++i) {
+    mat_vec(R, r->tmpl.V + 3 * i, X + 3 * i);
+    for (int a = 0; a < 3; ++a)
+      X[3 * i + a] = sc * X[3 * i + a] + t[a];
+  }
+}
+
+/* Closest points of Q on X (r->ptri, r->pbary, r->pdist); returns the capped mean distance,
+ * which counts a body part with no counterpart (a foot pointing the wrong way) at most
+ * KM__RESIDUAL_CAP per point instead of letting it dominate. */
+static double capped_residual(km_recon *r, const double *X, const double *Q, size_t n) {
+  km__surface_update(r->query, X);
+  km__surface_closest(r->query, Q, n, 0, r->ptri, r->pbary, r->pdist);
+  double sum = 0;
+  for (size_t i = 0; i < n; ++i)
+    sum += fmin(r->ptri[i] >= 0 ? r->pdist[i] : INFINITY, KM__RESIDUAL_CAP);
+  return sum / (double)(n ? n : 1);
+}
+
+/* Solves the 6x6 SPD system M x = b in place (Gaussian elimination, partial pivoting). */
+static bool solve6(double M[36], double b[6]) {
+  for (int c = 0; c < 6; ++c) {
+    int p = c;
+    for (int r = c + 1; r < 6; ++r)
+      if (fabs(M[6 * r + c]) > fabs(M[6 * p + c])) p = r;
+    if (!(fabs(M[6 * p + c]) > 1e-300)) return false;
+    if (p != c) {
+      for (int k = 0; k < 6; ++k) {
+        double tmp = M[6 * c + k];
+        M[6 * c + k] = M[6 * p + k], M[6 * p + k] = tmp;
+      }
+      double tmp = b[c];
+      b[c] = b[p], b[p] = tmp;
+    }
+    for (int r = c + 1; r < 6; ++r) {
+      double f = M[6 * r + c] / M[6 * c + c];
+      for (int k = c; k < 6; ++k)
+        M[6 * r + k] -= f * M[6 * c + k];
+      b[r] -= f * b[c];
+    }
+  }
+  for (int c = 5; c >= 0; --c) {
+    for (int k = c + 1; k < 6; ++k)
+      b[c] -= M[6 * c + k] * b[k];
+    b[c] /= M[6 * c + c];
+  }
+  return true;
+}
+
+/* One rigid ICP step of the placed template X (closest points of Q in r->ptri/pbary/pdist)
+ * towards the points within `keep`: point-to-plane plus PLANE_MU point-to-point, linearised
+ * about the kept surface points' centroid. Point-to-point alone turns a roughly cylindrical
+ * body about its axis only a little per step. Updates R, t (X = sc R V + t). */
+static bool icp_step(km_recon *r, const double *X, const double *Q, size_t nq, double keep,
+                     double *R, double *t) {
+  double cs[3] = {0, 0, 0}, cnt = 0;
+  for (size_t i = 0; i < nq; ++i) {
+    if (r->ptri[i] < 0 || r->pdist[i] > keep) continue;
+    const int32_t *f = r->tmpl.F + 3 * (size_t)r->ptri[i];
+    const double *w = r->pbary + 3 * i;
+    for (int a = 0; a < 3; ++a)
+      cs[a] += w[0] * X[3 * (size_t)f[0] + a] + w[1] * X[3 * (size_t)f[1] + a] +
+               w[2] * X[3 * (size_t)f[2] + a];
+    ++cnt;
+  }
+  if (cnt < 6) return false;
+  for (int a = 0; a < 3; ++a)
+    cs[a] /= cnt;
+  double M[36] = {0}, b[6] = {0};
+  for (size_t i = 0; i < nq; ++i) {
+    if (r->ptri[i] < 0 || r->pdist[i] > keep) continue;
+    const int32_t *f = r->tmpl.F + 3 * (size_t)r->ptri[i];
+    const double *w = r->pbary + 3 * i, *x0 = X + 3 * (size_t)f[0], *x1 = X + 3 * (size_t)f[1],
+                 *x2 = X + 3 * (size_t)f[2];
+    double sp[3], e[3], u[3], v[3], nn[3];
+    for (int a = 0; a < 3; ++a) {
+      double sa = w[0] * x0[a] + w[1] * x1[a] + w[2] * x2[a];
+      sp[a] = sa - cs[a];
+      e[a] = sa - Q[3 * i + a];
+      u[a] = x1[a] - x0[a], v[a] = x2[a] - x0[a];
+    }
+    cross(u, v, nn);
+    double l = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
+    if (!(l > 0)) continue;
+    for (int a = 0; a < 3; ++a)
+      nn[a] /= l;
+    /* rows: the plane residual, then the three point residuals scaled by sqrt(mu) */
+    double J[4][6], res[4], sxn[3];
+    cross(sp, nn, sxn);
+    for (int k = 0; k < 3; ++k)
+      J[0][k] = sxn[k], J[0][3 + k] = nn[k];
+    res[0] = e[0] * nn[0] + e[1] * nn[1] + e[2] * nn[2];
+    double sm = sqrt(PLANE_MU);
+    for (int a = 0; a < 3; ++a) {
+      /* d(omega x s)_a / d omega = -[s]x row a */
+      double row[3] = {0, 0, 0};
+      row[(a + 1) % 3] = sp[(a + 2) % 3];
+      row[(a + 2) % 3] = -sp[(a + 1) % 3];
+      for (int k = 0; k < 3; ++k)
+        J[1 + a][k] = sm * row[k], J[1 + a][3 + k] = sm * (k == a);
+      res[1 + a] = sm * e[a];
+    }
+    for (int q = 0; q < 4; ++q)
+      for (int j = 0; j < 6; ++j) {
+        b[j] -= J[q][j] * res[q];
+        for (int k = 0; k < 6; ++k)
+          M[6 * j + k] += J[q][j] * J[q][k];
+      }
+  }
+  if (!solve6(M, b)) return false;
+  double Ri[9];
+  rodrigues(b, Ri);
+  /* X' = Ri (X - cs) + cs + tau: R <- Ri R, t <- Ri (t - cs) + cs + tau */
+  mat_mul(Ri, R, R);
+  orthonormalize(R);
+  double d[3] = {t[0] - cs[0], t[1] - cs[1], t[2] - cs[2]};
+  mat_vec(Ri, d, d);
+  for (int a = 0; a < 3; ++a)
+    t[a] = d[a] + cs[a] + b[3 + a];
+  return true;
+}
+
+/* Without correspondences: the subject is upright (y up) like the template, but its heading
+ * is unknown. Every heading of a ring is tried: centroids and heights matched, the template
+ * turned about the vertical axis, rigid ICP (icp_step on the closest points within 2.5
+ * median distances, which leaves out limbs posed differently from the template), then the
+ * skeletal step from there; the smallest capped residual of the posed surface wins. The
+ * rigid residual alone cannot choose: a person turned 180 degrees has nearly the same
+ * silhouette, and when the subject's pose is far from the template's (legs apart and arms
+ * down against arms out) every heading leaves about the same rigid residual. Rigid ICP from a
+ * single start falls into the nearest local minimum, which for a body turned 120 degrees is not
+ * the right one. Even posed, front and back differ by little over the whole body; they
+ * differ most at the feet (toes reach forward, heels barely back), so the points of the
+ * lowest 8% of the height count as much as all the others together: turned the wrong way,
+ * the posed feet leave them 1.3-2 times as far from the surface (simulated captures and a
+ * D-FAUST scan). */
+static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbest, double *tbest,
+                                  double *scbest, km_error *err) {
+  const double *Q = fd->C;
+  size_t nq = fd->nc, nv = r->nv, nj = r->nj;
+  double cp[3] = {0}, ct[3] = {0}, plo = INFINITY, phi = -INFINITY, tlo = INFINITY, thi = -INFINITY;
+  for (size_t i = 0; i < fd->n; ++i) {
+    for (int a = 0; a < 3; ++a)
+      cp[a] += fd->P[3 * i + a] / (double)fd->n;
+    plo = fmin(plo, fd->P[3 * i + 1]), phi = fmax(phi, fd->P[3 * i + 1]);
+  }
+  for (size_t i = 0; i < nv; ++i) {
+    for (int a = 0; a < 3; ++a)
+      ct[a] += r->tmpl.V[3 * i + a] / (double)nv;
+    tlo = fmin(tlo, r->tmpl.V[3 * i + 1]), thi = fmax(thi, r->tmpl.V[3 * i + 1]);
+  }
+  double sc = (thi > tlo && phi > plo) ? (phi - plo) / (thi - tlo) : 1;
+  double *X = km__malloc(nv, 3 * sizeof(double)), *Lid = km__malloc(nj, 9 * sizeof(double));
+  if (!X || !Lid) {
+    free(X), free(Lid);
+    return km__fail(err, KM_ERR_NOMEM, "global alignment: out of memory");
+  }
+  double best = INFINITY;
+  for (int k = 0; k < KM__YAW_CANDIDATES; ++k) {
+    double yaw = 2 * M_PI * k / KM__YAW_CANDIDATES, R[9], t[3], c = cos(yaw), sn = sin(yaw);
+    double Ry[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
+    memcpy(R, Ry, sizeof R);
+    mat_vec(R, ct, t);
+    for (int a = 0; a < 3; ++a)
+      t[a] = cp[a] - sc * t[a];
+    for (int it = 0; it < KM__ICP_ROUNDS; ++it) {
+      place(r, R, sc, t, X);
+      capped_residual(r, X, Q, nq);
+      size_t m = 0;
+      for (size_t i = 0; i < nq; ++i)
+        if (r->ptri[i] >= 0) r->pw[m++] = r->pdist[i];
+      if (m < 6) break;
+      qsort(r->pw, m, sizeof(double), cmp_double);
+      if (!icp_step(r, X, Q, nq, fmax(2.5 * r->pw[m / 2], 0.01), R, t)) break;
+    }
+    place(r, R, sc, t, X);
+    double rigid = capped_residual(r, X, Q, nq);
+    /* the skeletal step from this placement, as the first frame will run it */
+    memcpy(r->base, X, nv * 3 * sizeof(double));
+    for (size_t j = 0; j < nj; ++j) {
+      mat_vec(R, r->tmpl_joints + 3 * j, r->base_joints + 3 * j);
+      for (int a = 0; a < 3; ++a)
+        r->base_joints[3 * j + a] = sc * r->base_joints[3 * j + a] + t[a];
+      double *L = Lid + 9 * j;
+      memset(L, 0, 9 * sizeof(double));
+      L[0] = L[4] = L[8] = 1;
+    }
+    double zero[3] = {0, 0, 0}, posed = INFINITY, feet = 0, n_feet = 0;
+    km_status ps = KM_OK;
+    skeleton_fit(r, Q, fd->CN, nq, Lid, zero, r->o.skeleton_iterations, NULL, 0, true, r->o.w_pose,
+                 &ps);
+    if (ps == KM_OK) {
+      posed = capped_residual(r, r->global, Q, nq);
+      for (size_t i = 0; i < nq; ++i)
+        if (Q[3 * i + 1] < plo + KM__FEET_HEIGHT * (phi - plo)) {
+          feet += fmin(r->ptri[i] >= 0 ? r->pdist[i] : INFINITY, KM__RESIDUAL_CAP);
+          ++n_feet;
+        }
+      feet = n_feet ? feet / n_feet : 0;
+    }
+    km__log(KM_LOG_DEBUG,
+            "first frame: heading %3.0f deg: residual %.2f mm rigid, %.2f mm posed, feet %.2f mm",
+            yaw * 180 / M_PI, rigid * 1e3, posed * 1e3, feet * 1e3);
+    if (posed + feet < best) {
+      best = posed + feet;
+      r->init.residual_mm = posed * 1e3;
+      r->init.feet_residual_mm = feet * 1e3;
+      memcpy(Rbest, R, 9 * sizeof(double));
+      memcpy(tbest, t, 3 * sizeof(double));
+      r->init.yaw_deg = yaw * 180 / M_PI;
+      r->init.rigid_residual_mm = rigid * 1e3;
+    }
+  }
+  free(X), free(Lid);
+  if (!isfinite(best))
+    return km__fail(err, KM_ERR_NO_CONVERGENCE, "global alignment: no heading fits the points");
+  *scbest = sc;
+  r->init.yaw_candidates = KM__YAW_CANDIDATES;
+  r->init.scale = sc;
+  double tr = Rbest[0] + Rbest[4] + Rbest[8];
+  r->init.rotation_deg = acos(fmax(-1, fmin(1, (tr - 1) / 2))) * 180 / M_PI;
+  return KM_OK;
+}
+
+km_status km__recon_affine_register(km_recon *r, const double *Vb, const double *P, size_t n,
+                                    const km_recon_feature *feat, size_t nfeat, int iterations,
+                                    km_error *err) {
+  if (!r || !Vb || !P || (!feat && nfeat) || iterations < 1)
+    return km__fail(err, KM_ERR_INVALID, "km__recon_affine_register: bad argument");
+  frame_data fd;
+  km_status s = frame_prepare(r, P, n, &fd, err);
+  int count = 0;
+  if (!s) s = refine(r, &fd, Vb, iterations, feat, nfeat, r->o.w_feature, 0.1, 0.7, &count, err);
+  frame_data_free(&fd);
+  return s;
+}
+
 km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_recon_feature *feat,
                                size_t nfeat, km_recon_frame_stats *st, km_error *err) {
   if (!r || (!P && n) || (!feat && nfeat))
@@ -1066,6 +1328,8 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
   if (!st) st = &local;
   memset(st, 0, sizeof *st);
   st->points = n;
+  memset(&r->init, 0, sizeof r->init);
+  r->init.correspondences = nfeat;
   size_t nv = r->nv, nj = r->nj;
   for (size_t k = 0; k < nfeat; ++k)
     if (feat[k].vertex < 0 || (size_t)feat[k].vertex >= nv)
@@ -1098,25 +1362,11 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
       return km__wrap(err, s, "first frame: global alignment from %zu features", nfeat);
     }
   } else {
-    /* No correspondences: the subject is assumed upright like the template (y up); match
-     * centroids and heights. */
-    double cp[3] = {0}, ct[3] = {0}, plo = INFINITY, phi = -INFINITY, tlo = INFINITY,
-           thi = -INFINITY;
-    for (size_t i = 0; i < n; ++i) {
-      for (int a = 0; a < 3; ++a)
-        cp[a] += P[3 * i + a] / (double)n;
-      plo = fmin(plo, P[3 * i + 1]), phi = fmax(phi, P[3 * i + 1]);
+    s = global_alignment(r, &fd, R, t, &sc, err);
+    if (s) {
+      frame_data_free(&fd);
+      return km__wrap(err, s, "first frame");
     }
-    for (size_t i = 0; i < nv; ++i) {
-      for (int a = 0; a < 3; ++a)
-        ct[a] += r->tmpl.V[3 * i + a] / (double)nv;
-      tlo = fmin(tlo, r->tmpl.V[3 * i + 1]), thi = fmax(thi, r->tmpl.V[3 * i + 1]);
-    }
-    sc = (thi > tlo && phi > plo) ? (phi - plo) / (thi - tlo) : 1;
-    memset(R, 0, sizeof R);
-    R[0] = R[4] = R[8] = 1;
-    for (int a = 0; a < 3; ++a)
-      t[a] = cp[a] - sc * ct[a];
   }
   double *V1 = km__malloc(nv, 3 * sizeof(double));
   if (!V1) {
@@ -1196,15 +1446,48 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
   }
   /* 3. affine registration: features + smoothness, then all three terms */
   memcpy(V1, r->global, nv * 3 * sizeof(double));
-  if (nfeat) {
+  /* Without correspondences the template's landmarks on the posed surface, matched to their
+   * closest points, are the features of the w_d = 0 stage. Only there: a closest point is
+   * no true correspondence, and at w_f = 10 it would hold the surface against the data in
+   * the later stage. */
+  const km_recon_feature *f1 = feat;
+  size_t nf1 = nfeat;
+  km_recon_feature *pseudo = NULL;
+  if (nfeat < 3 && r->n_lm) {
+    pseudo = km__malloc(nfeat + r->n_lm, sizeof *pseudo);
+    km__point_index *ix = NULL;
+    s = pseudo ? km__point_index_create(fd.P, fd.n, &ix, err)
+               : km__fail(err, KM_ERR_NOMEM, "out of memory");
+    if (s) {
+      free(pseudo);
+      goto fail;
+    }
+    if (nfeat) memcpy(pseudo, feat, nfeat * sizeof *pseudo);
+    size_t m = nfeat;
+    for (size_t l = 0; l < r->n_lm; ++l) {
+      int32_t idx;
+      double d;
+      km__point_index_nearest(ix, r->global + 3 * (size_t)r->lm[l], 1, KM__LANDMARK_REACH, &idx,
+                              &d);
+      if (idx < 0) continue; /* hidden from every camera, or posed away from the template */
+      pseudo[m].vertex = r->lm[l];
+      memcpy(pseudo[m].point, fd.P + 3 * (size_t)idx, 3 * sizeof(double));
+      ++m;
+    }
+    km__point_index_free(&ix);
+    r->init.landmarks = m - nfeat;
+    f1 = pseudo, nf1 = m;
+  }
+  if (nf1) {
     /* feature term alone is linear: one solve */
     for (size_t i = 0; i < n; ++i)
       r->pw[i] = 0;
-    s = affine_solve(r, V1, fd.C, 0, 0, feat, nfeat, r->o.w_feature, r->surface, err);
+    s = affine_solve(r, V1, fd.C, 0, 0, f1, nf1, r->o.w_feature, r->surface, err);
     ++st->iterations;
-    if (s) goto fail;
-    memcpy(V1, r->surface, nv * 3 * sizeof(double));
+    if (!s) memcpy(V1, r->surface, nv * 3 * sizeof(double));
   }
+  free(pseudo);
+  if (s) goto fail;
   s = refine(r, &fd, V1, r->o.first_iterations, feat, nfeat, r->o.w_feature, 0.1, 0.7,
              &st->iterations, err);
   if (s) goto fail;
@@ -1284,11 +1567,13 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
     tpred[a] = 2 * r->tprev[a] - r->tprev2[a];
   frame_data fd;
   double tp0 = km__now();
-  km_status s = frame_prepare(r, P, n, &fd, err);
+  km_error pe = {0};
+  km_status s = frame_prepare(r, P, n, &fd, &pe);
   double tp1 = km__now();
   km_status fs = KM_OK;
   if (s) {
     fs = s;
+    snprintf(st->message, sizeof st->message, "%.*s", (int)sizeof st->message - 1, pe.message);
   } else {
     st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations,
                                    NULL, 0, true, r->o.w_pose, &fs);
@@ -1343,9 +1628,11 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   frame_data_free(&fd);
   free(Lpred);
   st->status = fs;
+  if (fs && !st->message[0])
+    snprintf(st->message, sizeof st->message, "did not converge (%s)", km_status_name(fs));
   if (fs)
-    km__log(KM_LOG_WARN, "reconstruct: frame %zu did not converge (%s): carried by the skeleton",
-            r->frame, km_status_name(fs));
+    km__log(KM_LOG_WARN, "reconstruct: frame %zu: %s: carried by the skeleton", r->frame,
+            st->message);
   /* after a failure the velocity restarts from zero */
   memcpy(r->Lprev2, fs ? r->Lrot : r->Lprev, nj * 9 * sizeof(double));
   memcpy(r->Lprev, r->Lrot, nj * 9 * sizeof(double));
