@@ -46,16 +46,28 @@ km_status km_cli_take_kinect1(const char *path, const km_take *t, km_take *out, 
   return KM_OK;
 }
 
-/* build/kinemesh -> build/web */
+/* The page beside the binary (build/kinemesh -> build/web), else where `cmake --install` puts
+ * it (P/bin/kinemesh -> P/share/kinemesh/web). */
 static char *default_web_dir(void) {
   char exe[PATH_MAX];
   ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
   if (n <= 0) return NULL;
   exe[n] = 0;
   char *dir = dirname(exe);
-  size_t len = strlen(dir) + 5;
+  size_t len = strlen(dir) + 64;
   char *out = malloc(len);
-  if (out) snprintf(out, len, "%s/web", dir);
+  if (!out) return NULL;
+  snprintf(out, len, "%s/web/index.html", dir);
+  if (access(out, R_OK) == 0) {
+    snprintf(out, len, "%s/web", dir);
+    return out;
+  }
+  snprintf(out, len, "%s/../share/kinemesh/web/index.html", dir);
+  if (access(out, R_OK) == 0) {
+    snprintf(out, len, "%s/../share/kinemesh/web", dir);
+    return out;
+  }
+  snprintf(out, len, "%s/web", dir); /* reported as missing there */
   return out;
 }
 
