@@ -1008,11 +1008,12 @@ typedef struct km_posedb km_posedb;
 
 typedef struct km_posedb_report {
   size_t samples, classes, features;
-  double cv_accuracy; /* correct / total over held-out folds (eq. 8 with one-vs-rest counts is
-                         1 - 2 e / (N K) and always higher; the stricter figure is kept);
-                         -1 when no cross-validation ran */
+  double cv_accuracy; /* correct / total over held-out folds; -1 when no cross-validation ran */
   size_t cv_folds;    /* folds used (groups: one per group) */
   double build_ms;
+  double cv_accuracy_eq8; /* the paper's eq. 8, (TP+TN)/(TP+TN+FP+FN) averaged over the K
+                             one-vs-rest problems: 1 - 2 e / (N K) for e errors in N tests,
+                             always >= cv_accuracy; -1 when no cross-validation ran */
 } km_posedb_report;
 
 /* Builds a pose database from n_meshes meshes of one connectivity (point clouds are fine when

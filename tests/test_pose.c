@@ -126,7 +126,7 @@ static void test_toy_classification(void) {
     km_posedb *dv = NULL;
     km_posedb_report rv;
     CHECK_OK(km_posedb_build(meshes, C * PER, labels, C, NULL, NULL, lm, 16, &ov, &dv, &rv, KM_E));
-    CHECK(rv.cv_accuracy == -1 && rv.cv_folds == 0);
+    CHECK(rv.cv_accuracy == -1 && rv.cv_accuracy_eq8 == -1 && rv.cv_folds == 0);
     int ok = 0;
     for (int i = 0; i < 20 && dv; ++i) {
       double P[48];
@@ -227,6 +227,9 @@ static void test_database(subject *s, const char *tmpdir) {
          rep.samples, rep.classes, rep.features, rep.cv_accuracy, rep.cv_folds, rep.build_ms);
   CHECK(rep.features == 60 && rep.cv_folds == N_TRAIN);
   CHECK(rep.cv_accuracy >= 0.95);
+  /* eq. 8 over the one-vs-rest problems: 1 - 2 e / (N K), never below correct / total */
+  CHECK_NEAR(rep.cv_accuracy_eq8, 1 - 2 * (1 - rep.cv_accuracy) / (double)rep.classes, 1e-12);
+  CHECK(rep.cv_accuracy_eq8 >= rep.cv_accuracy);
   size_t d = 0;
   const int32_t *fe = km_posedb_features(db, &d);
   CHECK(d == 60 && fe != NULL);
@@ -269,6 +272,7 @@ static void test_database(subject *s, const char *tmpdir) {
     km_posedb_report r2;
     km_posedb_info(db2, &r2);
     CHECK_NEAR(r2.cv_accuracy, rep.cv_accuracy, 1e-12);
+    CHECK_NEAR(r2.cv_accuracy_eq8, rep.cv_accuracy_eq8, 1e-12);
     km_mesh t1, t2;
     km_posedb_template(db, 17, &t1);
     km_posedb_template(db2, 17, &t2);

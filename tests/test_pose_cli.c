@@ -105,7 +105,7 @@ int main(void) {
   CHECK(km_test_run(KM_CLI " transfer --source " DIR "/b.obj --template " DIR
                            "/a.obj --landmarks auto:2 -o " DIR "/x.obj",
                     &out) == 1);
-  CHECK_MSG(out && strstr(out, "3 <= K"), "%s", out ? out : "");
+  CHECK_MSG(out && strstr(out, "K >= 3"), "%s", out ? out : "");
   free(out);
   CHECK(km_test_run("cp " DIR "/b.obj " DIR "/norig.obj", NULL) == 0);
   CHECK(km_test_run(KM_CLI " transfer --source " DIR "/norig.obj --template " DIR "/a.obj -o " DIR
@@ -127,10 +127,21 @@ int main(void) {
         fprintf(f, "%c_%s_%d.obj,%s,%c\n", "ab"[s], kinds[k], fr, kinds[k], "ab"[s]);
       }
   fclose(f);
-  CHECK(km_test_run(KM_CLI " posedb build --meshes '" DIR "/db/*.obj' --labels " DIR
+  /* a mesh the labels do not name is left out, with a warning; a glob without meshes is an
+   * error that says so */
+  CHECK(km_test_run("cp " DIR "/a.obj " DIR "/db/unlabelled.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " posedb build --meshes " DIR "/db --labels " DIR
                            "/labels.csv --landmarks " DIR "/a.rig.json -o " DIR "/poses.kmposedb",
                     &out) == 0);
-  CHECK_MSG(out && strstr(out, "3 classes") && strstr(out, "over 2 folds"), "%s", out);
+  CHECK_MSG(out && strstr(out, "3 classes") && strstr(out, "over 2 folds") &&
+                strstr(out, "eq. 8") && strstr(out, "1 of the 31 meshes") &&
+                strstr(out, "unlabelled.obj"),
+            "%s", out);
+  free(out);
+  CHECK(km_test_run(KM_CLI " posedb build --meshes '" DIR "/db/*.stl' --labels " DIR
+                           "/labels.csv --landmarks " DIR "/a.rig.json -o " DIR "/x.kmposedb",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "matched no mesh files"), "%s", out ? out : "");
   free(out);
 
   /* bench transfer on the same pair: the issue's JSON keys, an error that matches the
@@ -171,6 +182,44 @@ int main(void) {
   for (int i = 0; i < 12; ++i)
     frames[i] = 35 + 4 * i;
   write_track(DIR "/wave_track.json", lm, DIR "/a_wave", frames, 12);
+  /* transfer with tracked landmark positions as the targets (no scaling): the landmark
+   * vertices of the result sit exactly on them */
+  int f60[1] = {60};
+  write_track(DIR "/kf60.json", lm, DIR "/a_kungfu", f60, 1);
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/b.obj --template " DIR
+                           "/a_kungfu/frame_000060.obj --landmarks-xyz " DIR "/kf60.json -o " DIR
+                           "/b60xyz.obj",
+                    NULL) == 0);
+  {
+    km_mesh rx = {0}, a60 = {0};
+    CHECK_OK(km_mesh_read(DIR "/b60xyz.obj", &rx, KM_E));
+    CHECK_OK(km_mesh_read(DIR "/a_kungfu/frame_000060.obj", &a60, KM_E));
+    double worst = 0;
+    for (size_t l = 0; rx.V && a60.V && l < nl; ++l)
+      for (int k = 0; k < 3; ++k)
+        worst = fmax(
+            worst, fabs(rx.V[3 * (size_t)lm[l].vertex + k] - a60.V[3 * (size_t)lm[l].vertex + k]));
+    CHECK_MSG(rx.V && a60.V && worst < 1e-9, "landmarks %g m off the tracked positions", worst);
+    km_mesh_free(&rx);
+    km_mesh_free(&a60);
+  }
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/b.obj --template " DIR
+                           "/a.obj --landmarks-xyz " DIR "/kf60.json --frame 3 -o " DIR "/x.obj",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "kf60.json") && strstr(out, "out of range"), "%s", out ? out : "");
+  free(out);
+  /* fewer than 3 landmarks in an LM.json: the error names the file */
+  f = fopen(DIR "/lm2.json", "w");
+  fprintf(f,
+          "{\"landmarks\": [{\"name\": \"%s\", \"vertex\": %d, \"mirror\": \"%s\"}, "
+          "{\"name\": \"%s\", \"vertex\": %d, \"mirror\": \"%s\"}]}\n",
+          lm[0].name, (int)lm[0].vertex, lm[0].name, lm[1].name, (int)lm[1].vertex, lm[1].name);
+  fclose(f);
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/b.obj --template " DIR
+                           "/a.obj --landmarks " DIR "/lm2.json -o " DIR "/x.obj",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "lm2.json") && strstr(out, "at least 3"), "%s", out ? out : "");
+  free(out);
   CHECK(km_test_run(KM_CLI " posedb query " DIR "/poses.kmposedb --landmarks-xyz " DIR
                            "/wave_track.json",
                     &out) == 0);
@@ -183,6 +232,12 @@ int main(void) {
                            "/wave_track.json --interval 3 -o " DIR "/avatar.pc2",
                     &out) == 0);
   free(out);
+  CHECK(km_test_run(KM_CLI " avatar --source " DIR "/b.obj --db " DIR "/poses.kmposedb --track " DIR
+                           "/wave_track.json --interval 3 -o " DIR "/avatar.glb",
+                    NULL) == 0);
+  km_anim_info ginfo;
+  CHECK_OK(km_anim_info_read(DIR "/avatar.glb", &ginfo, KM_E));
+  CHECK(ginfo.frames == 12 && ginfo.vertices == b.n_vertices);
   double *anim = NULL;
   km_anim_info info;
   CHECK_OK(km_pc2_read(DIR "/avatar.pc2", &anim, &info, KM_E));

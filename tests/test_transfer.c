@@ -2,6 +2,8 @@
 #include "pose/km_poses.h"
 #include "km_test.h"
 
+#include "deform/offsets.h"
+
 static int32_t lm_ids[KM_CHARACTER_LANDMARKS];
 
 static void landmark_ids(const km_character *c) {
@@ -35,6 +37,26 @@ static void test_frames(const km_character *a) {
   }
   CHECK_MSG(worst < 1e-12, "frames deviate from orthonormal by %g", worst);
   CHECK_MSG(det_min > 0.999999, "a frame is not right-handed (det %g)", det_min);
+  /* The solver computes its frames in its own fused, vectorised passes: on a posed mesh they
+   * must be these same frames. */
+  km_transfer *t = NULL;
+  CHECK_OK(km_transfer_precompute(&a->mesh, lm_ids, 16, NULL, &t, KM_E));
+  double *P = malloc(n * 3 * sizeof *P), *Fs = malloc(n * 9 * sizeof *Fs);
+  CHECK_OK(kp_pose_character(a, &kp_poses[4], NULL, P, KM_E));
+  if (t) {
+    km_mesh posed = a->mesh;
+    posed.V = P;
+    CHECK_OK(km_vertex_normals(&posed, KM_NORMALS_AREA, N, KM_E));
+    CHECK_OK(km_local_frames(&posed, N, ref, Fr, KM_E));
+    km__transfer_frames(t, P, Fs);
+    double diff = 0;
+    for (size_t k = 0; k < n * 9; ++k)
+      diff = fmax(diff, fabs(Fs[k] - Fr[k]));
+    CHECK_MSG(diff < 1e-12, "solver frames differ from km_local_frames by %g", diff);
+    km_transfer_free(&t);
+  }
+  free(P);
+  free(Fs);
   free(N);
   free(Fr);
   free(ref);

@@ -8,29 +8,39 @@
  * are accepted too. */
 #include "cli.h"
 
+#include <glob.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
 
 /* Landmarks for a mesh: --landmarks file, else the rig sidecar next to the mesh. */
-static km_status load_landmarks(const char *lm_path, const char *mesh_path, size_t n_vertices,
-                                km_landmark *lm, size_t *n, km_error *err) {
-  if (lm_path) return km_landmarks_read(lm_path, n_vertices, lm, KM_POSE_MAX_LANDMARKS, n, err);
+static km_status load_landmarks_cap(const char *lm_path, const char *mesh_path, size_t n_vertices,
+                                    km_landmark *lm, size_t capacity, size_t *n, km_error *err) {
+  if (lm_path) return km_landmarks_read(lm_path, n_vertices, lm, capacity, n, err);
   char *rig = km_cli_rig_path(mesh_path);
   if (!rig) {
     err->status = KM_ERR_NOMEM;
     snprintf(err->message, sizeof err->message, "out of memory");
     return KM_ERR_NOMEM;
   }
-  km_status s = km_landmarks_read(rig, n_vertices, lm, KM_POSE_MAX_LANDMARKS, n, err);
+  km_status s = km_landmarks_read(rig, n_vertices, lm, capacity, n, err);
   free(rig);
   return s;
 }
 
+/* The descriptor's landmarks: at most KM_POSE_MAX_LANDMARKS. */
+static km_status load_landmarks(const char *lm_path, const char *mesh_path, size_t n_vertices,
+                                km_landmark *lm, size_t *n, km_error *err) {
+  return load_landmarks_cap(lm_path, mesh_path, n_vertices, lm, KM_POSE_MAX_LANDMARKS, n, err);
+}
+
 int km_cli_transfer(int argc, char **argv) {
   const char *out = NULL, *lm_path = NULL, *encoding = "edge", *laplacian = "uniform",
-             *align = "scale", *source = NULL, *templ = NULL;
+             *align = "scale", *source = NULL, *templ = NULL, *xyz = NULL;
   int iterations = 0;
+  size_t xyz_frame = 0;
   const km_cli_opt opts[] = {
       {"source", 's', KM_OPT_STRING, &source, "the avatar mesh S"},
       {"template", 't', KM_OPT_STRING, &templ, "the posed template T (same connectivity as S)"},
@@ -38,6 +48,10 @@ int km_cli_transfer(int argc, char **argv) {
       {"landmarks", 'l', KM_OPT_STRING, &lm_path,
        "LM.json with the landmark vertices (default: SOURCE's rig sidecar), or auto[:K]: K "
        "(default 16) vertices spread by farthest-point sampling, for any mesh"},
+      {"landmarks-xyz", 0, KM_OPT_STRING, &xyz,
+       "tracked landmark positions (a track .json/.csv, names as in the landmarks) as the "
+       "targets, instead of TEMPLATE's landmarks"},
+      {"frame", 0, KM_OPT_SIZE, &xyz_frame, "frame of --landmarks-xyz (default 0)"},
       {"iterations", 'i', KM_OPT_INT, &iterations, "maximum solves (default 10)"},
       {"encoding", 0, KM_OPT_STRING, &encoding,
        "edge (default) or vertex (the paper's eq. 3 verbatim)"},
@@ -74,35 +88,58 @@ int km_cli_transfer(int argc, char **argv) {
   km_error err = {0};
   km_mesh s = {0}, t = {0}, o = {0};
   km_transfer *tr = NULL;
-  km_landmark lm[KM_POSE_MAX_LANDMARKS];
-  size_t nl = 0;
-  int32_t ids[KM_POSE_MAX_LANDMARKS];
+  km_track trk = {0};
+  km_landmark *lm = NULL;
+  int32_t *ids = NULL;
+  double *targets = NULL;
+  size_t nl = 0, auto_k = 0;
   int rc = KM_EXIT_OK;
   bool auto_lm = lm_path && !strncmp(lm_path, "auto", 4);
   if (auto_lm) {
     const char *k = lm_path + 4;
     char *end = NULL;
     long v = *k == ':' ? strtol(k + 1, &end, 10) : 16;
-    if ((*k && *k != ':') || (*k == ':' && (end == k + 1 || *end)) || v < 3 ||
-        v > KM_POSE_MAX_LANDMARKS)
-      return km_cli_error("transfer", "--landmarks auto:K needs 3 <= K <= %d, not '%s'",
-                          KM_POSE_MAX_LANDMARKS, lm_path);
-    nl = (size_t)v;
+    if ((*k && *k != ':') || (*k == ':' && (end == k + 1 || *end)) || v < 3)
+      return km_cli_error("transfer", "--landmarks auto:K needs K >= 3, not '%s'", lm_path);
+    auto_k = (size_t)v;
   }
+  if (xyz && auto_lm)
+    return km_cli_error("transfer", "--landmarks-xyz needs named landmarks (LM.json or the rig), "
+                                    "not --landmarks auto");
   if (km_mesh_read(pos[0], &s, &err) || km_mesh_read(pos[1], &t, &err)) {
     rc = km_cli_fail("transfer", &err);
     goto done;
   }
+  /* Transfer takes any number of landmarks (at least 3, at least one vertex free). */
+  lm = calloc(s.n_vertices ? s.n_vertices : 1, sizeof *lm);
+  ids = calloc(s.n_vertices ? s.n_vertices : 1, sizeof *ids);
+  if (!lm || !ids) {
+    rc = km_cli_error("transfer", "out of memory");
+    goto done;
+  }
   if (auto_lm) {
+    nl = auto_k;
     if (km_farthest_points(&s, nl, ids, &err)) {
       rc = km_cli_fail("transfer", &err);
       goto done;
     }
-  } else if (load_landmarks(lm_path, pos[0], s.n_vertices, lm, &nl, &err)) {
+  } else if (load_landmarks_cap(lm_path, pos[0], s.n_vertices, lm, s.n_vertices, &nl, &err)) {
     rc = km_cli_fail("transfer", &err);
     if (!lm_path)
       fprintf(stderr, "kinemesh transfer: no landmarks: give --landmarks LM.json, or --landmarks "
                       "auto for a mesh without a rig\n");
+    goto done;
+  }
+  if (!auto_lm && nl < 3) {
+    char *rig = lm_path ? NULL : km_cli_rig_path(pos[0]);
+    rc = km_cli_error("transfer",
+                      "%s: %zu landmark(s); transfer needs at least 3 to fix the avatar's "
+                      "rotation",
+                      lm_path ? lm_path
+                      : rig   ? rig
+                              : pos[0],
+                      nl);
+    free(rig);
     goto done;
   }
   if (t.n_vertices != s.n_vertices || t.n_faces != s.n_faces ||
@@ -115,10 +152,43 @@ int km_cli_transfer(int argc, char **argv) {
   }
   for (size_t i = 0; i < nl && !auto_lm; ++i)
     ids[i] = lm[i].vertex;
+  if (xyz) {
+    /* tracked targets: matched to the landmarks by name */
+    if (km_track_read(xyz, &trk, &err)) {
+      rc = km_cli_fail("transfer", &err);
+      goto done;
+    }
+    if (xyz_frame >= trk.n_frames) {
+      rc = km_cli_error("transfer", "%s has %zu frame(s); --frame %zu is out of range", xyz,
+                        trk.n_frames, xyz_frame);
+      goto done;
+    }
+    targets = malloc(sizeof(double) * 3 * nl);
+    if (!targets) {
+      rc = km_cli_error("transfer", "out of memory");
+      goto done;
+    }
+    for (size_t i = 0; i < nl; ++i) {
+      size_t k = 0;
+      while (k < trk.n_landmarks && strcmp(trk.names[k], lm[i].name))
+        ++k;
+      if (k == trk.n_landmarks) {
+        rc = km_cli_error("transfer", "%s has no landmark named '%s'", xyz, lm[i].name);
+        goto done;
+      }
+      const double *p = trk.positions + (xyz_frame * trk.n_landmarks + k) * 3;
+      if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
+        rc = km_cli_error("transfer", "%s: landmark '%s' is not tracked in frame %zu", xyz,
+                          lm[i].name, xyz_frame);
+        goto done;
+      }
+      memcpy(targets + 3 * i, p, 3 * sizeof(double));
+    }
+  }
   double t0 = km_cli_now();
   km_transfer_stats st;
   if (km_transfer_precompute(&s, ids, nl, &to, &tr, &err) || km_mesh_copy(&s, &o, &err) ||
-      km_transfer_solve(tr, t.V, NULL, NULL, o.V, &st, &err) ||
+      km_transfer_solve(tr, t.V, targets, NULL, o.V, &st, &err) ||
       km_mesh_write(out, &o, NULL, &err)) {
     rc = km_cli_fail("transfer", &err);
     goto done;
@@ -133,6 +203,10 @@ int km_cli_transfer(int argc, char **argv) {
           st.frames_ms / st.iterations, st.solve_ms / st.iterations, km_cli_now() - t0, out);
 done:
   km_transfer_free(&tr);
+  km_track_free(&trk);
+  free(lm);
+  free(ids);
+  free(targets);
   km_mesh_free(&s);
   km_mesh_free(&t);
   km_mesh_free(&o);
@@ -143,18 +217,60 @@ done:
 /* --meshes GLOB --labels CSV -> "CLASS=PATH[@GROUP]" entries. The CSV has lines
  * "mesh,class[,subject]" (an optional header; `mesh` matches a listed file by path or by
  * base name). Entries are heap strings appended to pos; returns how many, -1 after an error. */
+static int cmp_path(const void *a, const void *b) {
+  return strcmp(*(char *const *)a, *(char *const *)b);
+}
+
+static bool is_mesh_ext(const char *path) {
+  const char *dot = strrchr(path, '.');
+  return dot && (!strcasecmp(dot, ".obj") || !strcasecmp(dot, ".ply") || !strcasecmp(dot, ".off"));
+}
+
+/* The mesh files of a directory (.obj .ply .off) or of a glob, sorted; NULL after an error. */
+static char **list_meshes(const char *pattern, size_t *n) {
+  *n = 0;
+  struct stat st;
+  bool dir = stat(pattern, &st) == 0 && S_ISDIR(st.st_mode);
+  char pat[4096];
+  snprintf(pat, sizeof pat, dir ? "%s/*" : "%s", pattern);
+  glob_t g;
+  int r = glob(pat, 0, NULL, &g);
+  if (r != 0 && r != GLOB_NOMATCH) {
+    km_cli_error("posedb build", "--meshes '%s': cannot list the files", pattern);
+    return NULL;
+  }
+  char **list = calloc(r == 0 && g.gl_pathc ? g.gl_pathc : 1, sizeof *list);
+  for (size_t i = 0; list && r == 0 && i < g.gl_pathc; ++i) {
+    if (stat(g.gl_pathv[i], &st) != 0 || S_ISDIR(st.st_mode) || !is_mesh_ext(g.gl_pathv[i]))
+      continue;
+    if (!(list[*n] = strdup(g.gl_pathv[i]))) break;
+    ++*n;
+  }
+  if (r == 0) globfree(&g);
+  if (!list || !*n) {
+    km_paths_free(&list, *n);
+    km_cli_error("posedb build", "--meshes '%s' matched no mesh files (.obj .ply .off)", pattern);
+    return NULL;
+  }
+  qsort(list, *n, sizeof *list, cmp_path);
+  return list;
+}
+
 static int labelled_meshes(const char *glob_pattern, const char *labels_path, const char **pos,
                            int n_pos, int max_pos, char ***owned, size_t *n_owned) {
-  km_error err = {0};
-  char **paths = NULL;
   size_t np = 0;
-  if (km_point_frames_list(glob_pattern, &paths, &np, &err)) {
-    km_cli_fail("posedb build", &err);
+  char **paths = list_meshes(glob_pattern, &np);
+  if (!paths) return -1;
+  bool *used = calloc(np, sizeof *used);
+  if (!used) {
+    km_paths_free(&paths, np);
+    km_cli_error("posedb build", "out of memory");
     return -1;
   }
   FILE *f = fopen(labels_path, "r");
   if (!f) {
     km_paths_free(&paths, np);
+    free(used);
     km_cli_error("posedb build", "%s: cannot open the labels file", labels_path);
     return -1;
   }
@@ -190,6 +306,7 @@ static int labelled_meshes(const char *glob_pattern, const char *labels_path, co
       break;
     }
     if (n_pos >= max_pos || *n_owned >= np) break;
+    used[k] = true;
     size_t len = strlen(fields[1]) + strlen(paths[k]) + (fields[2] ? strlen(fields[2]) : 0) + 4;
     char *e = malloc(len);
     if (!e) break;
@@ -199,6 +316,27 @@ static int labelled_meshes(const char *glob_pattern, const char *labels_path, co
     pos[n_pos++] = e;
   }
   fclose(f);
+  if (rc == 0) {
+    /* A mesh the labels do not name is left out: said, not silent. */
+    size_t unlabelled = 0;
+    char names[512] = "";
+    for (size_t k = 0; k < np; ++k) {
+      if (used[k]) continue;
+      if (unlabelled < 5) {
+        const char *base = strrchr(paths[k], '/');
+        size_t len = strlen(names);
+        snprintf(names + len, sizeof names - len, "%s%s", unlabelled ? ", " : "",
+                 base ? base + 1 : paths[k]);
+      }
+      ++unlabelled;
+    }
+    if (unlabelled)
+      fprintf(stderr,
+              "kinemesh posedb build: warning: %zu of the %zu meshes of %s have no line in %s "
+              "and are left out (%s%s)\n",
+              unlabelled, np, glob_pattern, labels_path, names, unlabelled > 5 ? ", ..." : "");
+  }
+  free(used);
   km_paths_free(&paths, np);
   return rc < 0 ? -1 : n_pos;
 }
@@ -321,8 +459,9 @@ static int posedb_build(int argc, char **argv) {
   km_cli_progress_done();
   fprintf(stderr,
           "kinemesh posedb build: %zu meshes, %zu classes, d = %zu; cross-validated accuracy "
-          "%.3f over %zu folds; %.0f ms -> %s\n",
-          rep.samples, rep.classes, rep.features, rep.cv_accuracy, rep.cv_folds, rep.build_ms, out);
+          "%.3f over %zu folds (eq. 8, one-vs-rest: %.3f); %.0f ms -> %s\n",
+          rep.samples, rep.classes, rep.features, rep.cv_accuracy, rep.cv_folds,
+          rep.cv_accuracy_eq8, rep.build_ms, out);
 done:
   for (size_t i = 0; i < n; ++i) {
     if (meshes) km_mesh_free(&meshes[i]);

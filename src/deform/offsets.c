@@ -680,6 +680,10 @@ fail:
   return s;
 }
 
+void km__transfer_frames(km_transfer *t, const double *V, double *frames) {
+  frames_of(t, V, frames, NULL);
+}
+
 size_t km_transfer_vertices(const km_transfer *t) { return t ? t->n : 0; }
 /* mesh.V holds the source positions again whenever no frames_of() call is running. */
 const km_mesh *km__transfer_source(const km_transfer *t) { return t ? &t->mesh : NULL; }

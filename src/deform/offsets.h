@@ -14,4 +14,8 @@ double km__transfer_area(const km_transfer *t);
  * distances, see KM_TRANSFER_ALIGN_SCALE). Uses the object's scratch. */
 double km__transfer_size_ratio(const km_transfer *t, const double *T);
 
+/* The solver's own per-iteration frames of positions V (#V*9, rows n, t, b), for tests: they
+ * must equal km_vertex_normals (area) + km_local_frames on the same positions. */
+void km__transfer_frames(km_transfer *t, const double *V, double *frames);
+
 #endif

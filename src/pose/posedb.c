@@ -245,6 +245,8 @@ km_status km_posedb_build(const km_mesh *meshes, size_t n_meshes, const int32_t 
   db->report.classes = n_classes;
   db->report.features = db->model.d;
   db->report.cv_accuracy = tested > 0 ? correct / tested : -1;
+  db->report.cv_accuracy_eq8 =
+      tested > 0 && n_classes > 0 ? 1 - 2 * (tested - correct) / (tested * (double)n_classes) : -1;
   db->report.cv_folds = tested > 0 ? folds : 0;
   db->report.build_ms = (km__now() - t0) * 1e3;
   if (report) *report = db->report;
@@ -365,6 +367,7 @@ km_status km_posedb_save(const km_posedb *db, const char *path, km_error *err) {
   cJSON_AddNumberToObject(op, "cv_folds", db->opt.cv_folds);
   cJSON *rp = cJSON_AddObjectToObject(root, "report");
   cJSON_AddNumberToObject(rp, "cv_accuracy", db->report.cv_accuracy);
+  cJSON_AddNumberToObject(rp, "cv_accuracy_eq8", db->report.cv_accuracy_eq8);
   cJSON_AddNumberToObject(rp, "cv_folds", (double)db->report.cv_folds);
   cJSON_AddNumberToObject(rp, "build_ms", db->report.build_ms);
   char *json = cJSON_PrintUnformatted(root);
@@ -567,10 +570,13 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
     db->report.classes = nc;
     db->report.features = d;
     db->report.cv_accuracy = -1;
+    db->report.cv_accuracy_eq8 = -1;
     if (rp) {
       cJSON *v;
       if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(rp, "cv_accuracy")))
         db->report.cv_accuracy = v->valuedouble;
+      if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(rp, "cv_accuracy_eq8")))
+        db->report.cv_accuracy_eq8 = v->valuedouble;
       if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(rp, "cv_folds")) &&
           v->valuedouble >= 0)
         db->report.cv_folds = (size_t)v->valuedouble;
