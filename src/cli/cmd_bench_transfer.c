@@ -73,9 +73,9 @@ typedef struct online {
 
 enum { ONLINE_REPS = 15 };
 
-static km_status run_online(km_transfer *t, const km_posedb *db, const double *P,
-                            const double *fixed_template, const double *warm, double *X, online *o,
-                            km_error *e) {
+static km_status run_online_q(km_transfer *t, const km_posedb *db, const double *P,
+                              const double *Pq, const double *fixed_template, const double *warm,
+                              double *X, online *o, km_error *e) {
   double rec[ONLINE_REPS], fr[ONLINE_REPS], so[ONLINE_REPS], tot[ONLINE_REPS];
   for (int rep = 0; rep < ONLINE_REPS; ++rep) {
     double t0 = now_ms();
@@ -83,11 +83,14 @@ static km_status run_online(km_transfer *t, const km_posedb *db, const double *P
     const double *T = fixed_template;
     if (db) {
       km_pose_match m;
-      km_status s = km_posedb_query(db, P, &m, e);
+      km_status s = km_posedb_query(db, Pq ? Pq : P, &m, e);
       if (s) return s;
-      km_mesh tm;
-      km_posedb_template(db, m.template_index, &tm);
-      T = tm.V;
+      /* With a fixed template the database only times the recognition. */
+      if (!fixed_template) {
+        km_mesh tm;
+        km_posedb_template(db, m.template_index, &tm);
+        T = tm.V;
+      }
       rec[rep] = now_ms() - t0;
     }
     km_transfer_stats st;
@@ -103,6 +106,69 @@ static km_status run_online(km_transfer *t, const km_posedb *db, const double *P
   o->solve_ms = km_cli_median(so, ONLINE_REPS);
   o->total_ms = km_cli_median(tot, ONLINE_REPS);
   return KM_OK;
+}
+
+static km_status run_online(km_transfer *t, const km_posedb *db, const double *P,
+                            const double *fixed_template, const double *warm, double *X, online *o,
+                            km_error *e) {
+  return run_online_q(t, db, P, NULL, fixed_template, warm, X, o, e);
+}
+
+/* Four generated subjects of nv vertices (c[0] the avatar) and a database of 10 pose classes
+ * from subjects 1..3 (each pose plain and jittered); the subjects are the CV groups. */
+static km_status generated_db(size_t nv, km_character c[4], km_posedb **db, km_posedb_report *rep,
+                              km_error *e) {
+  km_character_options so[4] = {{nv, 5, 1.70, 1.1, 0, {0}},
+                                {nv, 11, 1.85, 0.9, 0.6, {0}},
+                                {nv, 3, 1.60, 1.0, 0.3, {0}},
+                                {nv, 0, 0, 0, 0, {0}}};
+  memset(c, 0, 4 * sizeof *c);
+  km_status st = KM_OK;
+  for (int i = 0; i < 4 && !st; ++i)
+    st = km_character_generate(&so[i], &c[i], e);
+  if (st) {
+    for (int i = 0; i < 4; ++i)
+      km_character_free(&c[i]);
+    return st;
+  }
+  size_t n = c[0].mesh.n_vertices;
+  enum { JIT = 2 };
+  size_t ndb = 3 * KP_N_POSES * JIT;
+  km_mesh *meshes = calloc(ndb, sizeof *meshes);
+  int32_t *labels = malloc(ndb * sizeof *labels), *groups = malloc(ndb * sizeof *groups);
+  double *buf = malloc(ndb * n * 3 * sizeof *buf);
+  if (!meshes || !labels || !groups || !buf) {
+    st = km_cli_set_error(e, KM_ERR_NOMEM, "out of memory for the pose database");
+    goto done;
+  }
+  uint64_t rs = 88172645463325252ULL;
+  size_t k = 0;
+  for (int si = 1; si < 4 && !st; ++si)
+    for (int p = 0; p < KP_N_POSES && !st; ++p)
+      for (int j = 0; j < JIT && !st; ++j, ++k) {
+        double jit[KP_MAX_ROTS];
+        for (int q = 0; q < KP_MAX_ROTS; ++q) {
+          rs ^= rs << 13, rs ^= rs >> 7, rs ^= rs << 17;
+          jit[q] = 0.2 * ((double)(rs >> 11) / 9007199254740992.0 - 0.5);
+        }
+        meshes[k] = c[si].mesh;
+        meshes[k].V = buf + k * n * 3;
+        st = kp_pose_character(&c[si], &kp_poses[p], j ? jit : NULL, meshes[k].V, e);
+        labels[k] = p;
+        groups[k] = si;
+      }
+  if (!st)
+    st = km_posedb_build(meshes, ndb, labels, KP_N_POSES, NULL, groups, c[0].landmarks, 16, NULL,
+                         db, rep, e);
+done:
+  free(meshes);
+  free(labels);
+  free(groups);
+  free(buf);
+  if (st)
+    for (int i = 0; i < 4; ++i)
+      km_character_free(&c[i]);
+  return st;
 }
 
 /* One row for given meshes: S takes T's pose; landmarks from --landmarks or S's rig sidecar;
@@ -147,11 +213,56 @@ static int bench_pair(const char *src, const char *tmpl, const char *lm_path, co
     rc = die("targets", &e);
     goto done;
   }
+  /* Without --db, recognition is timed in the generated 10-class database when the landmarks
+   * are the generator's 16 (same names): the query takes them in the database's order. */
+  double Pq[3 * KM_POSE_MAX_LANDMARKS];
+  const char *rec_note = NULL;
+  km_character gc[4];
+  bool have_gc = false;
+  if (!db) {
+    km_landmark glm[KM_CHARACTER_LANDMARKS];
+    km_character one = {0};
+    km_character_options go = {0};
+    go.target_vertices = 2000;
+    bool names_ok = nl == KM_CHARACTER_LANDMARKS;
+    if (names_ok && km_character_generate(&go, &one, &e) == KM_OK) {
+      memcpy(glm, one.landmarks, sizeof glm);
+      km_character_free(&one);
+      for (size_t a = 0; a < KM_CHARACTER_LANDMARKS && names_ok; ++a) {
+        size_t b = 0;
+        while (b < nl && strcmp(lm[b].name, glm[a].name))
+          ++b;
+        names_ok = b < nl;
+        if (names_ok) memcpy(Pq + 3 * a, P + 3 * b, 3 * sizeof(double));
+      }
+    } else {
+      names_ok = false;
+    }
+    km_posedb_report grep_rep;
+    if (names_ok && generated_db(3000, gc, &db, &grep_rep, &e) == KM_OK)
+      have_gc = true, rec_note = "recognition in a generated 10-class database";
+    else
+      rec_note = "no recognition: give --db, or the generator's 16 named landmarks";
+  }
   V = malloc(sizeof *V * 3 * S.n_vertices);
   online o;
-  if (!V || run_online(t, db, P, T.V, NULL, V, &o, &e)) {
+  if (!V || run_online_q(t, db, P, have_gc ? Pq : NULL, T.V, NULL, V, &o, &e)) {
     rc = die("online", &e);
     goto done;
+  }
+  /* The baseline next to it: landmark-only editing (no template, frames from S). */
+  double lo_mean = NAN, lo_max = NAN;
+  if (truth) {
+    online ob;
+    if (run_online(t, NULL, P, NULL, S.V, V, &ob, &e)) {
+      rc = die("online", &e);
+      goto done;
+    }
+    kp_error(V, X.V, S.n_vertices, &lo_mean, &lo_max);
+    if (run_online(t, NULL, P, T.V, NULL, V, &ob, &e)) { /* V back to the transfer */
+      rc = die("online", &e);
+      goto done;
+    }
   }
   row r;
   memset(&r, 0, sizeof r);
@@ -160,6 +271,9 @@ static int bench_pair(const char *src, const char *tmpl, const char *lm_path, co
   r.n_ver = S.n_vertices;
   km_transfer_precompute_ms(t, &r.laplacian_ms, &r.cholesky_ms);
   r.recognition_ms = db ? o.rec_ms : NAN;
+  if (have_gc)
+    for (int i = 0; i < 4; ++i)
+      km_character_free(&gc[i]);
   r.frames_ms = o.frames_ms;
   r.solve_ms = o.solve_ms;
   r.iterations = o.iterations;
@@ -178,8 +292,19 @@ static int bench_pair(const char *src, const char *tmpl, const char *lm_path, co
     printf("%-40s %6s %8s %8s %8s %8s %8s %5s %8s %8s %8s\n", "mesh", "n_ver", "lapl_ms", "chol_ms",
            "recog_ms", "frame_ms", "solve_ms", "iters", "online", "err_mean", "err_max");
     print_row(&r);
+    if (truth)
+      printf("landmark-only editing (no template): error mean %.2f mm, max %.2f mm\n",
+             1e3 * lo_mean, 1e3 * lo_max);
+    if (rec_note) printf("(%s)\n", rec_note);
   }
   cJSON *j = row_json(&r);
+  if (isfinite(lo_mean)) {
+    cJSON_AddNumberToObject(j, "landmark_only_err_mean_mm", 1e3 * lo_mean);
+    cJSON_AddNumberToObject(j, "landmark_only_err_max_mm", 1e3 * lo_max);
+  } else {
+    cJSON_AddNullToObject(j, "landmark_only_err_mean_mm");
+    cJSON_AddNullToObject(j, "landmark_only_err_max_mm");
+  }
   char *js = cJSON_PrintUnformatted(j);
   cJSON_Delete(j);
   if (js) puts(js);
@@ -231,41 +356,11 @@ int km_cli_bench_transfer(int argc, char **argv) {
   int nrows = 0;
 
   /* Subjects: A is the avatar, B..D populate the pose database. */
-  km_character_options so[4] = {{nv, 5, 1.70, 1.1, 0, {0}},
-                                {nv, 11, 1.85, 0.9, 0.6, {0}},
-                                {nv, 3, 1.60, 1.0, 0.3, {0}},
-                                {nv, 0, 0, 0, 0, {0}}};
   km_character c[4];
-  for (int i = 0; i < 4; ++i)
-    if (km_character_generate(&so[i], &c[i], &e)) return die("character", &e);
-  size_t n = c[0].mesh.n_vertices;
-  enum { JIT = 2 };
-  size_t ndb = 3 * KP_N_POSES * JIT;
-  km_mesh *meshes = calloc(ndb, sizeof *meshes);
-  int32_t *labels = malloc(ndb * sizeof *labels), *groups = malloc(ndb * sizeof *groups);
-  double *buf = malloc(ndb * n * 3 * sizeof *buf);
-  uint64_t rs = 88172645463325252ULL;
-  size_t k = 0;
-  for (int si = 1; si < 4; ++si)
-    for (int p = 0; p < KP_N_POSES; ++p)
-      for (int j = 0; j < JIT; ++j, ++k) {
-        double jit[KP_MAX_ROTS];
-        for (int q = 0; q < KP_MAX_ROTS; ++q) {
-          rs ^= rs << 13, rs ^= rs >> 7, rs ^= rs << 17;
-          jit[q] = 0.2 * ((double)(rs >> 11) / 9007199254740992.0 - 0.5);
-        }
-        meshes[k] = c[si].mesh;
-        meshes[k].V = buf + k * n * 3;
-        if (kp_pose_character(&c[si], &kp_poses[p], j ? jit : NULL, meshes[k].V, &e))
-          return die("pose", &e);
-        labels[k] = p;
-        groups[k] = si;
-      }
   km_posedb *db = NULL;
   km_posedb_report rep;
-  if (km_posedb_build(meshes, ndb, labels, KP_N_POSES, NULL, groups, c[0].landmarks, 16, NULL, &db,
-                      &rep, &e))
-    return die("pose database", &e);
+  if (generated_db(nv, c, &db, &rep, &e)) return die("pose database", &e);
+  size_t n = c[0].mesh.n_vertices, ndb = rep.samples;
   int32_t ids[16];
   for (int l = 0; l < 16; ++l)
     ids[l] = c[0].landmarks[l].vertex;
@@ -367,8 +462,7 @@ int km_cli_bench_transfer(int argc, char **argv) {
       if (km_transfer_precompute(&s, fid, nl, &to, &t, &e)) return die("FAUST precompute", &e);
       double *FX = malloc(s.n_vertices * 3 * sizeof *FX);
       online o;
-      /* With the database the template is whatever recognition picks (tr_reg_001 itself
-       * when it recognises pose 1); without it, tr_reg_001. */
+      /* The template is tr_reg_001; the small database times the recognition. */
       if (run_online(t, fdbp, FP, tt.V, NULL, FX, &o, &e)) return die("FAUST online", &e);
       row *r = &rows[nrows++];
       memset(r, 0, sizeof *r);
@@ -456,10 +550,6 @@ int km_cli_bench_transfer(int argc, char **argv) {
   printf("]\n");
   for (int i = 0; i < 4; ++i)
     km_character_free(&c[i]);
-  free(meshes);
-  free(labels);
-  free(groups);
-  free(buf);
   free(G);
   free(X);
   return 0;
