@@ -93,9 +93,14 @@ async function loadMesh() {
   recolor();
 }
 
+// Edits made while a reload is in flight win over it: the panel must never put back a handle
+// the user has just removed (state.edits counts adds and removes).
 async function loadRig() {
-  state.rig = await (await fetch('rig')).json();
+  const e0 = state.edits || 0;
+  const rig = await (await fetch('rig')).json();
   const hs = await (await fetch('handles')).json();
+  if ((state.edits || 0) !== e0) return;
+  state.rig = rig;
   state.handleSets = hs.handles || [];
   renderHandles();
   drawDiagram();
@@ -309,6 +314,7 @@ function renderHandles() {
       state.rig.handles = state.rig.handles.filter((x) => x !== h);
       state.rig.map = (state.rig.map || []).filter((m) => m.handle !== h.name);
       state.handleSets = state.handleSets.filter((x) => x.name !== h.name);
+      state.edits = (state.edits || 0) + 1;
       renderHandles(); drawDiagram(); recolor();
     });
     li.append(b);
@@ -330,6 +336,7 @@ $('h-add').addEventListener('click', () => {
   state.rig.handles.push({ name, vertex: state.pending.vertex, radius });
   state.rig.map.push({ handle: name, joint, axes, scale: +$('h-scale').value || 1 });
   state.handleSets.push({ name, vertices: state.pending.preview });
+  state.edits = (state.edits || 0) + 1;
   state.pending = null;
   $('h-vertex').textContent = '–';
   $('h-add').disabled = true;
@@ -342,9 +349,9 @@ $('save').addEventListener('click', async () => {
     body: JSON.stringify(state.rig) });
   const j = await r.json().catch(() => ({}));
   if (r.ok) {
+    await loadRig();
     $('save-status').textContent = `saved (${j.handles} handles)`;
     state.saved = (state.saved || 0) + 1;
-    await loadRig();
   } else {
     $('save-status').textContent = 'error: ' + (j.error || r.status);
   }
