@@ -114,6 +114,24 @@ static km_status run_online(km_transfer *t, const km_posedb *db, const double *P
   return run_online_q(t, db, P, NULL, fixed_template, warm, X, o, e);
 }
 
+/* A row of a real pair: "NAME (<=10 it)" or "NAME (1 it)", errors of X against truth. */
+static void fill_row(row *r, const char *name, int one_it, const km_transfer *t, const online *o,
+                     bool recognition, const double *X, const double *truth, size_t n) {
+  memset(r, 0, sizeof *r);
+  snprintf(r->name, sizeof r->name, "%s (%s)", name, one_it ? "1 it" : "<=10 it");
+  r->n_ver = n;
+  km_transfer_precompute_ms(t, &r->laplacian_ms, &r->cholesky_ms);
+  r->recognition_ms = recognition ? o->rec_ms : NAN;
+  r->frames_ms = o->frames_ms;
+  r->solve_ms = o->solve_ms;
+  r->iterations = o->iterations;
+  r->online_ms = o->total_ms;
+  double mean, max;
+  kp_error(X, truth, n, &mean, &max);
+  r->err_mean_mm = mean * 1e3;
+  r->err_max_mm = max * 1e3;
+}
+
 /* Four generated subjects of nv vertices (c[0] the avatar) and a database of 10 pose classes
  * from subjects 1..3 (each pose plain and jittered); the subjects are the CV groups. */
 static km_status generated_db(size_t nv, km_character c[4], km_posedb **db, km_posedb_report *rep,
@@ -464,20 +482,7 @@ int km_cli_bench_transfer(int argc, char **argv) {
       online o;
       /* The template is tr_reg_001; the small database times the recognition. */
       if (run_online(t, fdbp, FP, tt.V, NULL, FX, &o, &e)) return die("FAUST online", &e);
-      row *r = &rows[nrows++];
-      memset(r, 0, sizeof *r);
-      snprintf(r->name, sizeof r->name, "FAUST 000->001 (%s)", variant ? "1 it" : "<=10 it");
-      r->n_ver = s.n_vertices;
-      km_transfer_precompute_ms(t, &r->laplacian_ms, &r->cholesky_ms);
-      r->recognition_ms = o.rec_ms;
-      r->frames_ms = o.frames_ms;
-      r->solve_ms = o.solve_ms;
-      r->iterations = o.iterations;
-      r->online_ms = o.total_ms;
-      double mean, max;
-      kp_error(FX, tt.V, s.n_vertices, &mean, &max);
-      r->err_mean_mm = mean * 1e3;
-      r->err_max_mm = max * 1e3;
+      fill_row(&rows[nrows++], "FAUST 000->001", variant, t, &o, true, FX, tt.V, s.n_vertices);
       free(FX);
       km_transfer_free(&t);
     }
@@ -507,20 +512,7 @@ int km_cli_bench_transfer(int argc, char **argv) {
       double *CX = malloc(ca.n_vertices * 3 * sizeof *CX);
       online o;
       if (!CX || run_online(t, NULL, CP, cb.V, NULL, CX, &o, &e)) return die("cat online", &e);
-      row *r = &rows[nrows++];
-      memset(r, 0, sizeof *r);
-      snprintf(r->name, sizeof r->name, "cat ref->04 (%s)", variant ? "1 it" : "<=10 it");
-      r->n_ver = ca.n_vertices;
-      km_transfer_precompute_ms(t, &r->laplacian_ms, &r->cholesky_ms);
-      r->recognition_ms = NAN;
-      r->frames_ms = o.frames_ms;
-      r->solve_ms = o.solve_ms;
-      r->iterations = o.iterations;
-      r->online_ms = o.total_ms;
-      double mean, max;
-      kp_error(CX, cb.V, ca.n_vertices, &mean, &max);
-      r->err_mean_mm = mean * 1e3;
-      r->err_max_mm = max * 1e3;
+      fill_row(&rows[nrows++], "cat ref->04", variant, t, &o, false, CX, cb.V, ca.n_vertices);
       free(CX);
       km_transfer_free(&t);
     }
