@@ -1051,6 +1051,10 @@ size_t km_posedb_landmark_count(const km_posedb *db);
 const km_landmark *km_posedb_landmarks(const km_posedb *db);
 /* Template i as a mesh view (V, F owned by the database; do not free). */
 void km_posedb_template(const km_posedb *db, size_t i, km_mesh *view);
+/* Names for the templates (e.g. their file names, n = km_posedb_size entries, at most 127
+ * characters kept), saved with the database so a query can say which mesh it picked. */
+km_status km_posedb_set_template_names(km_posedb *db, const char *const *names, km_error *err);
+const char *km_posedb_template_name(const km_posedb *db, size_t i); /* "" when unnamed */
 /* Selected features: d triples (d*3 ints, owned by the database), best first. */
 const int32_t *km_posedb_features(const km_posedb *db, size_t *d);
 /* The build report (cv figures as stored; samples/classes/features of this database). */

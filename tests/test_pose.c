@@ -257,7 +257,20 @@ static void test_database(subject *s, const char *tmpdir) {
   printf("  held-out subjects: accuracy %.3f (%d/%d), query %.4f ms mean\n", acc, correct, total,
          qms / total);
   CHECK_MSG(acc >= 0.95, "held-out accuracy %g", acc);
-  /* Save / load gives the same database and the same answers. */
+  /* Save / load gives the same database and the same answers (and the template names). */
+  CHECK(!strcmp(km_posedb_template_name(db, 0), ""));
+  {
+    size_t nt = km_posedb_size(db);
+    char(*tn)[32] = calloc(nt, sizeof *tn);
+    const char **tp = calloc(nt, sizeof *tp);
+    for (size_t i = 0; tn && tp && i < nt; ++i) {
+      snprintf(tn[i], sizeof tn[i], "template %zu", i);
+      tp[i] = tn[i];
+    }
+    if (tn && tp) CHECK_OK(km_posedb_set_template_names(db, tp, KM_E));
+    free(tn);
+    free(tp);
+  }
   char path[1024];
   snprintf(path, sizeof path, "%s/db.kmposedb", tmpdir);
   CHECK_OK(km_posedb_save(db, path, KM_E));
@@ -273,6 +286,8 @@ static void test_database(subject *s, const char *tmpdir) {
     km_posedb_info(db2, &r2);
     CHECK_NEAR(r2.cv_accuracy, rep.cv_accuracy, 1e-12);
     CHECK_NEAR(r2.cv_accuracy_eq8, rep.cv_accuracy_eq8, 1e-12);
+    CHECK(!strcmp(km_posedb_template_name(db2, 17), "template 17"));
+    CHECK(!strcmp(km_posedb_template_name(db2, 0), "template 0"));
     km_mesh t1, t2;
     km_posedb_template(db, 17, &t1);
     km_posedb_template(db2, 17, &t2);

@@ -242,6 +242,9 @@ int main(void) {
   for (char *p = out; p && (p = strstr(p, ",wave,")); ++p)
     ++wave_rows;
   CHECK_MSG(wave_rows >= 10, "%zu of 12 frames recognised as wave:\n%s", wave_rows, out);
+  /* the picked template is named: a wave mesh of the database */
+  CHECK_MSG(out && strstr(out, "template_name") && strstr(out, "_wave_") && strstr(out, ".obj"),
+            "%s", out ? out : "");
   free(out);
   CHECK(km_test_run(KM_CLI " avatar --source " DIR "/b.obj --db " DIR "/poses.kmposedb --track " DIR
                            "/wave_track.json --interval 3 -o " DIR "/avatar.pc2",

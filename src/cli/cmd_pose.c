@@ -449,9 +449,29 @@ static int posedb_build(int argc, char **argv) {
   po.kernel = !strcmp(kernel, "linear") ? KM_SVM_LINEAR : KM_SVM_RBF;
   po.progress = km_cli_progress("posedb");
   km_posedb_report rep;
-  if (km_posedb_build(meshes, n, labels, nc, (const char *const *)names,
-                      have_groups ? groups : NULL, lm, nl, &po, &db, &rep, &err) ||
-      km_posedb_save(db, out, &err)) {
+  /* templates named by their file names, so that a query says which mesh it picked */
+  const char **tnames = calloc(n, sizeof *tnames);
+  for (size_t i = 0; tnames && i < n; ++i) {
+    const char *eq = strchr(pos[i], '='), *base = eq ? strrchr(eq + 1, '/') : NULL;
+    tnames[i] = base ? base + 1 : eq ? eq + 1 : pos[i];
+  }
+  km_status bs = km_posedb_build(meshes, n, labels, nc, (const char *const *)names,
+                                 have_groups ? groups : NULL, lm, nl, &po, &db, &rep, &err);
+  if (!bs && tnames) {
+    /* drop an "@GROUP" suffix from the names */
+    char **clean = calloc(n, sizeof *clean);
+    for (size_t i = 0; clean && i < n; ++i) {
+      clean[i] = strdup(tnames[i]);
+      char *at = clean[i] ? strrchr(clean[i], '@') : NULL;
+      if (at) *at = '\0';
+    }
+    if (clean) bs = km_posedb_set_template_names(db, (const char *const *)clean, &err);
+    for (size_t i = 0; clean && i < n; ++i)
+      free(clean[i]);
+    free(clean);
+  }
+  free(tnames);
+  if (bs || km_posedb_save(db, out, &err)) {
     km_cli_progress_done();
     rc = km_cli_fail("posedb build", &err);
     goto done;
@@ -521,17 +541,18 @@ static int posedb_query(int argc, char **argv) {
   size_t nl = km_posedb_landmark_count(db);
   double P[3 * KM_POSE_MAX_LANDMARKS], ms = 0;
   size_t done_frames = 0;
-  printf("frame,class,template,distance,ms\n");
+  printf("frame,class,template,distance,ms,template_name\n");
   for (size_t f = 0; f < t.n_frames; ++f) {
     for (size_t a = 0; a < nl; ++a)
       memcpy(P + 3 * a, t.positions + (f * t.n_landmarks + (size_t)map[a]) * 3, 3 * sizeof(double));
     km_pose_match m;
     if (km_posedb_query(db, P, &m, &err)) {
-      printf("%zu,,,,\n", f); /* untracked landmark: no answer for this frame */
+      printf("%zu,,,,,\n", f); /* untracked landmark: no answer for this frame */
       continue;
     }
     const char *cn = km_posedb_class_name(db, (size_t)m.label);
-    printf("%zu,%s,%zu,%.6g,%.4f\n", f, *cn ? cn : "?", m.template_index, m.distance, m.ms);
+    printf("%zu,%s,%zu,%.6g,%.4f,%s\n", f, *cn ? cn : "?", m.template_index, m.distance, m.ms,
+           km_posedb_template_name(db, m.template_index));
     ms += m.ms;
     ++done_frames;
   }

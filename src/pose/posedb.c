@@ -18,6 +18,7 @@ struct km_posedb {
   size_t n_meshes, n_vertices, n_faces, n_classes, nl;
   km_landmark lm[KM_POSE_MAX_LANDMARKS];
   char (*class_names)[64];
+  char (*template_names)[128]; /* NULL: unnamed */
   int32_t *labels, *groups;
   double *V;
   int32_t *F;
@@ -32,6 +33,7 @@ void km_posedb_free(km_posedb **dbp) {
   if (!dbp || !*dbp) return;
   km_posedb *db = *dbp;
   free(db->class_names);
+  free(db->template_names);
   free(db->labels);
   free(db->groups);
   free(db->V);
@@ -47,6 +49,20 @@ size_t km_posedb_size(const km_posedb *db) { return db ? db->n_meshes : 0; }
 size_t km_posedb_classes(const km_posedb *db) { return db ? db->n_classes : 0; }
 const char *km_posedb_class_name(const km_posedb *db, size_t c) {
   return db && c < db->n_classes ? db->class_names[c] : "";
+}
+km_status km_posedb_set_template_names(km_posedb *db, const char *const *names, km_error *err) {
+  if (!db || !names) return km__fail(err, KM_ERR_INVALID, "km_posedb_set_template_names: NULL");
+  if (!db->template_names) {
+    db->template_names = km__calloc(db->n_meshes ? db->n_meshes : 1, sizeof *db->template_names);
+    if (!db->template_names)
+      return km__fail(err, KM_ERR_NOMEM, "km_posedb_set_template_names: out of memory");
+  }
+  for (size_t i = 0; i < db->n_meshes; ++i)
+    snprintf(db->template_names[i], sizeof db->template_names[i], "%s", names[i] ? names[i] : "");
+  return KM_OK;
+}
+const char *km_posedb_template_name(const km_posedb *db, size_t i) {
+  return db && db->template_names && i < db->n_meshes ? db->template_names[i] : "";
 }
 int32_t km_posedb_label(const km_posedb *db, size_t i) {
   return db && i < db->n_meshes ? db->labels[i] : -1;
@@ -346,6 +362,11 @@ km_status km_posedb_save(const km_posedb *db, const char *path, km_error *err) {
   cJSON *cl = cJSON_AddArrayToObject(root, "classes");
   for (size_t c = 0; c < db->n_classes; ++c)
     cJSON_AddItemToArray(cl, cJSON_CreateString(db->class_names[c]));
+  if (db->template_names) {
+    cJSON *tn = cJSON_AddArrayToObject(root, "templates");
+    for (size_t i = 0; i < db->n_meshes; ++i)
+      cJSON_AddItemToArray(tn, cJSON_CreateString(db->template_names[i]));
+  }
   cJSON *lb = cJSON_AddArrayToObject(root, "labels");
   cJSON *gr = db->groups ? cJSON_AddArrayToObject(root, "groups") : NULL;
   for (size_t i = 0; i < db->n_meshes; ++i) {
@@ -503,6 +524,20 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
   if (!s) cJSON_ArrayForEach(it, cl) {
       snprintf(db->class_names[i++], 64, "%s", cJSON_IsString(it) ? it->valuestring : "");
     }
+  /* optional (databases from before template names have none) */
+  cJSON *tn = cJSON_GetObjectItemCaseSensitive(root, "templates");
+  if (!s && cJSON_IsArray(tn) && (size_t)cJSON_GetArraySize(tn) == db->n_meshes) {
+    db->template_names = km__calloc(db->n_meshes ? db->n_meshes : 1, sizeof *db->template_names);
+    if (!db->template_names) {
+      s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+    } else {
+      i = 0;
+      cJSON_ArrayForEach(it, tn) {
+        snprintf(db->template_names[i++], sizeof *db->template_names, "%s",
+                 cJSON_IsString(it) ? it->valuestring : "");
+      }
+    }
+  }
   i = 0;
   if (!s) cJSON_ArrayForEach(it, lb) {
       if (!cJSON_IsNumber(it) || !(it->valuedouble >= 0) || it->valuedouble >= (double)nc) {
