@@ -5,6 +5,7 @@
 
 #include "kinemesh.h"
 
+#include <cjson/cJSON.h>
 #include <stdio.h>
 
 typedef struct km_cli_verb {
@@ -83,8 +84,8 @@ km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertic
 /* "<CPU model>, <n> cores" for benchmark headers. */
 void km_cli_machine(char *out, size_t n);
 int km_cli_live(int argc, char **argv);
-/* A take's columns in KM_KINECT1 order by name (absent joints NaN; positions malloc'ed, no
- * names): what live mode replays and sends. path names the take in errors. */
+/* A take's columns in KM_KINECT1 order by name (absent joints NaN, Kinect names and parents;
+ * free with km_take_free): what live mode replays and sends. path names the take in errors. */
 km_status km_cli_take_kinect1(const char *path, const km_take *t, km_take *out, km_error *err);
 
 /* Puppetry helpers shared by animate, bench and live. */
@@ -96,6 +97,8 @@ km_status km_cli_read_motion(const char *path, km_take *t, km_error *err);
 double km_cli_median(double *v, size_t n); /* sorts v */
 /* --energy laplacian|arap; prints the error and returns non-zero when unknown. */
 int km_cli_parse_energy(const char *verb, const char *s, km_puppet_energy *e);
+/* Adds v under key, or null when v is not finite (not measured): the benches' JSON. */
+void km_cli_json_number(cJSON *o, const char *key, double v);
 /* --frame-format obj|ply for directory outputs (NULL: from the path, obj for a directory);
  * prints the error and returns non-zero when unknown. */
 int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f);

@@ -1,6 +1,7 @@
 #include "cli.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -225,4 +226,11 @@ km_status km_cli_set_error(km_error *err, km_status s, const char *fmt, ...) {
     va_end(ap);
   }
   return s;
+}
+
+void km_cli_json_number(cJSON *o, const char *key, double v) {
+  if (isfinite(v))
+    cJSON_AddNumberToObject(o, key, v);
+  else
+    cJSON_AddNullToObject(o, key);
 }

@@ -268,15 +268,10 @@ static int bench_deform_one(const char *mesh_path, const deform_args *da) {
     cJSON_AddNumberToObject(o, "t23_ms", m23);
     cJSON_AddNumberToObject(o, "t4_ms", m4);
     cJSON_AddNumberToObject(o, "tper_ms", m23 + m4);
-    if (full_frames) {
-      cJSON_AddNumberToObject(o, "full_tper_ms", mf);
-      cJSON_AddNumberToObject(o, "dev_mean_rel", dmean);
-      cJSON_AddNumberToObject(o, "dev_max_rel", dmax);
-    } else {
-      cJSON_AddNullToObject(o, "full_tper_ms");
-      cJSON_AddNullToObject(o, "dev_mean_rel");
-      cJSON_AddNullToObject(o, "dev_max_rel");
-    }
+    /* NaN (null) when --full-frames 0 skipped the reference */
+    km_cli_json_number(o, "full_tper_ms", mf);
+    km_cli_json_number(o, "dev_mean_rel", dmean);
+    km_cli_json_number(o, "dev_max_rel", dmax);
     char *s = cJSON_PrintUnformatted(o);
     cJSON_Delete(o);
     if (s) puts(s);

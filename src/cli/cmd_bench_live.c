@@ -223,13 +223,6 @@ static char *read_text(const char *path, size_t *n) {
   return b;
 }
 
-static void add_num(cJSON *o, const char *k, double v) {
-  if (isfinite(v))
-    cJSON_AddNumberToObject(o, k, v);
-  else
-    cJSON_AddNullToObject(o, k);
-}
-
 #define VERB "bench live"
 
 int km_cli_bench_live(int argc, char **argv) {
@@ -506,20 +499,20 @@ stop:
       cJSON_AddStringToObject(j, "client", client_name);
       cJSON_AddNumberToObject(j, "frames", (double)frames);
       cJSON_AddNumberToObject(j, "rate", rate);
-      add_num(j, "send_s", send_end - start);
-      add_num(j, "latency_median_ms", lat_med);
-      add_num(j, "latency_p99_ms", lat_p99);
+      km_cli_json_number(j, "send_s", send_end - start);
+      km_cli_json_number(j, "latency_median_ms", lat_med);
+      km_cli_json_number(j, "latency_p99_ms", lat_p99);
       cJSON_AddNumberToObject(j, "latency_frames", (double)st.lat_count);
-      add_num(j, "retarget_ms", st.t_retarget_ms);
-      add_num(j, "deform_ms", st.t_deform_ms);
-      add_num(j, "pack_ms", st.t_pack_ms);
-      add_num(j, "client_latency_median_ms", cmed);
-      add_num(j, "client_latency_p99_ms", cp99);
+      km_cli_json_number(j, "retarget_ms", st.t_retarget_ms);
+      km_cli_json_number(j, "deform_ms", st.t_deform_ms);
+      km_cli_json_number(j, "pack_ms", st.t_pack_ms);
+      km_cli_json_number(j, "client_latency_median_ms", cmed);
+      km_cli_json_number(j, "client_latency_p99_ms", cp99);
       cJSON_AddNumberToObject(j, "frames_in", (double)st.frames_in);
       cJSON_AddNumberToObject(j, "frames_deformed", (double)st.frames_out);
       cJSON_AddNumberToObject(j, "frames_dropped", (double)st.frames_dropped);
       cJSON_AddNumberToObject(j, "frames_received", (double)nr);
-      add_num(j, "fps", fps);
+      km_cli_json_number(j, "fps", fps);
       cJSON_AddNumberToObject(j, "solve_errors", (double)st.solve_errors);
       char *js = cJSON_PrintUnformatted(j);
       cJSON_Delete(j);

@@ -50,10 +50,7 @@ static cJSON *row_json(const row *r) {
   const double v[] = {r->laplacian_ms, r->cholesky_ms, r->recognition_ms, r->frames_ms, r->solve_ms,
                       r->iterations,   r->online_ms,   r->err_mean_mm,    r->err_max_mm};
   for (size_t i = 0; i < sizeof v / sizeof v[0]; ++i)
-    if (isfinite(v[i]))
-      cJSON_AddNumberToObject(j, k[i], v[i]);
-    else
-      cJSON_AddNullToObject(j, k[i]);
+    km_cli_json_number(j, k[i], v[i]);
   return j;
 }
 
@@ -316,13 +313,8 @@ static int bench_pair(const char *src, const char *tmpl, const char *lm_path, co
     if (rec_note) printf("(%s)\n", rec_note);
   }
   cJSON *j = row_json(&r);
-  if (isfinite(lo_mean)) {
-    cJSON_AddNumberToObject(j, "landmark_only_err_mean_mm", 1e3 * lo_mean);
-    cJSON_AddNumberToObject(j, "landmark_only_err_max_mm", 1e3 * lo_max);
-  } else {
-    cJSON_AddNullToObject(j, "landmark_only_err_mean_mm");
-    cJSON_AddNullToObject(j, "landmark_only_err_max_mm");
-  }
+  km_cli_json_number(j, "landmark_only_err_mean_mm", 1e3 * lo_mean);
+  km_cli_json_number(j, "landmark_only_err_max_mm", 1e3 * lo_max);
   char *js = cJSON_PrintUnformatted(j);
   cJSON_Delete(j);
   if (js) puts(js);

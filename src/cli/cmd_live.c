@@ -19,33 +19,6 @@ static void on_signal(int sig) {
   if (g_live) km__live_stop(g_live);
 }
 
-km_status km_cli_take_kinect1(const char *path, const km_take *t, km_take *out, km_error *err) {
-  memset(out, 0, sizeof *out);
-  int src[KM_KINECT1_JOINTS], found = 0;
-  for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
-    src[j] = -1;
-    for (size_t k = 0; k < t->n_joints; ++k)
-      if (!strcmp(t->joint_names[k], km_kinect1_joint_name(j))) src[j] = (int)k;
-    found += src[j] >= 0;
-  }
-  if (!found || !t->n_frames)
-    return km_cli_set_error(err, KM_ERR_INVALID,
-                            "%s: the take has no frames or none of the 20 Kinect v1 joints "
-                            "(HipCenter, HandLeft, ...)",
-                            path);
-  out->n_frames = t->n_frames;
-  out->n_joints = KM_KINECT1_JOINTS;
-  out->fps = t->fps > 0 ? t->fps : 30;
-  out->positions = malloc(sizeof(double) * 3 * KM_KINECT1_JOINTS * t->n_frames);
-  if (!out->positions) return km_cli_set_error(err, KM_ERR_NOMEM, "out of memory");
-  for (size_t f = 0; f < t->n_frames; ++f)
-    for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
-      for (int a = 0; a < 3; ++a)
-        out->positions[(f * KM_KINECT1_JOINTS + (size_t)j) * 3 + a] =
-            src[j] < 0 ? NAN : t->positions[(f * t->n_joints + (size_t)src[j]) * 3 + a];
-  return KM_OK;
-}
-
 /* The page beside the binary (build/kinemesh -> build/web), else where `cmake --install` puts
  * it (P/bin/kinemesh -> P/share/kinemesh/web). */
 static char *default_web_dir(void) {
@@ -204,7 +177,7 @@ done:
   km__live_free(&live);
   km_puppet_free(&pup);
   km_take_free(&raw);
-  free(take.positions);
+  km_take_free(&take);
   km_mesh_free(&m);
   free(rig_text);
   free(rig_default);

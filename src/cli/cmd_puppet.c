@@ -91,6 +91,59 @@ km_status km_cli_read_motion(const char *path, km_take *t, km_error *err) {
   return km_take_read(path, t, err);
 }
 
+/* Column of each Kinect v1 joint in take t (by name), -1 when absent; returns how many. */
+static int kinect1_columns(const km_take *t, int src[KM_KINECT1_JOINTS]) {
+  int found = 0;
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
+    src[j] = -1;
+    for (size_t k = 0; k < t->n_joints; ++k)
+      if (!strcmp(t->joint_names[k], km_kinect1_joint_name(j))) src[j] = (int)k;
+    found += src[j] >= 0;
+  }
+  return found;
+}
+
+/* out: t's columns src[] as a take of the 20 Kinect v1 joints (names, parents; absent joints
+ * NaN). */
+static km_status kinect1_take(const km_take *t, const int src[KM_KINECT1_JOINTS], km_take *out,
+                              km_error *err) {
+  memset(out, 0, sizeof *out);
+  out->n_frames = t->n_frames;
+  out->n_joints = KM_KINECT1_JOINTS;
+  out->fps = t->fps;
+  out->positions = malloc(sizeof(double) * 3 * KM_KINECT1_JOINTS * (t->n_frames ? t->n_frames : 1));
+  out->joint_names = calloc(KM_KINECT1_JOINTS, sizeof *out->joint_names);
+  out->parents = malloc(sizeof(int32_t) * KM_KINECT1_JOINTS);
+  bool ok = out->positions && out->joint_names && out->parents;
+  for (int j = 0; ok && j < KM_KINECT1_JOINTS; ++j) {
+    ok = (out->joint_names[j] = strdup(km_kinect1_joint_name(j))) != NULL;
+    out->parents[j] = km_kinect1_joint_parent(j);
+  }
+  if (!ok) {
+    km_take_free(out);
+    return km_cli_set_error(err, KM_ERR_NOMEM, "out of memory");
+  }
+  for (size_t f = 0; f < t->n_frames; ++f)
+    for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+      for (int a = 0; a < 3; ++a)
+        out->positions[(f * KM_KINECT1_JOINTS + (size_t)j) * 3 + a] =
+            src[j] < 0 ? NAN : t->positions[(f * t->n_joints + (size_t)src[j]) * 3 + a];
+  return KM_OK;
+}
+
+km_status km_cli_take_kinect1(const char *path, const km_take *t, km_take *out, km_error *err) {
+  int src[KM_KINECT1_JOINTS];
+  memset(out, 0, sizeof *out);
+  if (!kinect1_columns(t, src) || !t->n_frames)
+    return km_cli_set_error(err, KM_ERR_INVALID,
+                            "%s: the take has no frames or none of the 20 Kinect v1 joints "
+                            "(HipCenter, HandLeft, ...)",
+                            path);
+  km_status s = kinect1_take(t, src, out, err);
+  if (s == KM_OK && !(out->fps > 0)) out->fps = 30;
+  return s;
+}
+
 /* For a kinect1 rig the map's joint indices are Kinect v1 indices: reorders a take's columns
  * into that order by name (joints the rig does not map may be absent: they become NaN). A
  * joint the rig maps must be in the take: a BVH with a "Spine" and a "Head" but no "HandLeft"
@@ -98,11 +151,7 @@ km_status km_cli_read_motion(const char *path, km_take *t, km_error *err) {
 static km_status take_to_kinect_order(km_take *t, const km_rig *rig, const char *motion,
                                       km_error *err) {
   int src[KM_KINECT1_JOINTS];
-  for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
-    src[j] = -1;
-    for (size_t k = 0; k < t->n_joints; ++k)
-      if (!strcmp(t->joint_names[k], km_kinect1_joint_name(j))) src[j] = (int)k;
-  }
+  kinect1_columns(t, src);
   char missing[512] = "";
   size_t n_missing = 0;
   for (size_t m = 0; m < rig->n_maps; ++m) {
@@ -129,33 +178,11 @@ static km_status take_to_kinect_order(km_take *t, const km_rig *rig, const char 
   for (int j = 0; same && j < KM_KINECT1_JOINTS; ++j)
     same = src[j] == j;
   if (same) return KM_OK;
-  double *pos = malloc(sizeof(double) * 3 * KM_KINECT1_JOINTS * (t->n_frames ? t->n_frames : 1));
-  char **names = calloc(KM_KINECT1_JOINTS, sizeof *names);
-  int32_t *parents = malloc(sizeof(int32_t) * KM_KINECT1_JOINTS);
-  if (!pos || !names || !parents) {
-    free(pos);
-    free(names);
-    free(parents);
-    return km_cli_set_error(err, KM_ERR_NOMEM, "out of memory");
-  }
-  for (size_t f = 0; f < t->n_frames; ++f)
-    for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
-      for (int a = 0; a < 3; ++a)
-        pos[(f * KM_KINECT1_JOINTS + (size_t)j) * 3 + a] =
-            src[j] < 0 ? NAN : t->positions[(f * t->n_joints + (size_t)src[j]) * 3 + a];
-  for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
-    names[j] = strdup(km_kinect1_joint_name(j));
-    parents[j] = km_kinect1_joint_parent(j);
-  }
-  size_t frames = t->n_frames;
-  double fps = t->fps;
+  km_take k;
+  km_status s = kinect1_take(t, src, &k, err);
+  if (s) return s;
   km_take_free(t);
-  t->n_frames = frames;
-  t->fps = fps;
-  t->n_joints = KM_KINECT1_JOINTS;
-  t->joint_names = names;
-  t->parents = parents;
-  t->positions = pos;
+  *t = k;
   return KM_OK;
 }
 
