@@ -234,31 +234,28 @@ static int bench_pair(const char *src, const char *tmpl, const char *lm_path, co
   const char *rec_note = NULL;
   km_character gc[4];
   bool have_gc = false;
-  if (!db) {
-    km_landmark glm[KM_CHARACTER_LANDMARKS];
-    km_character one = {0};
-    km_character_options go = {0};
-    go.target_vertices = 2000;
-    bool names_ok = nl == KM_CHARACTER_LANDMARKS;
-    if (names_ok && km_character_generate(&go, &one, &e) == KM_OK) {
-      memcpy(glm, one.landmarks, sizeof glm);
-      km_character_free(&one);
-      for (size_t a = 0; a < KM_CHARACTER_LANDMARKS && names_ok; ++a) {
-        size_t b = 0;
-        while (b < nl && strcmp(lm[b].name, glm[a].name))
-          ++b;
-        names_ok = b < nl;
-        if (names_ok) memcpy(Pq + 3 * a, P + 3 * b, 3 * sizeof(double));
-      }
-    } else {
-      names_ok = false;
+  km_posedb_report grep_rep;
+  if (!db && nl == KM_CHARACTER_LANDMARKS && generated_db(3000, gc, &db, &grep_rep, &e) == KM_OK) {
+    have_gc = true;
+    const km_landmark *glm = km_posedb_landmarks(db);
+    bool names_ok = true;
+    for (size_t a = 0; a < KM_CHARACTER_LANDMARKS && names_ok; ++a) {
+      size_t b = 0;
+      while (b < nl && strcmp(lm[b].name, glm[a].name))
+        ++b;
+      names_ok = b < nl;
+      if (names_ok) memcpy(Pq + 3 * a, P + 3 * b, 3 * sizeof(double));
     }
-    km_posedb_report grep_rep;
-    if (names_ok && generated_db(3000, gc, &db, &grep_rep, &e) == KM_OK)
-      have_gc = true, rec_note = "recognition in a generated 10-class database";
-    else
-      rec_note = "no recognition: give --db, or the generator's 16 named landmarks";
+    if (names_ok) {
+      rec_note = "recognition in a generated 10-class database";
+    } else {
+      km_posedb_free(&db);
+      for (int i = 0; i < 4; ++i)
+        km_character_free(&gc[i]);
+      have_gc = false;
+    }
   }
+  if (!db) rec_note = "no recognition: give --db, or the generator's 16 named landmarks";
   V = malloc(sizeof *V * 3 * S.n_vertices);
   online o;
   if (!V || run_online_q(t, db, P, have_gc ? Pq : NULL, T.V, NULL, V, &o, &e)) {
