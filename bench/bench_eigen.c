@@ -3,7 +3,6 @@
  * Usage: bench_eigen [mesh.obj] [k]  (default ../shared/data/meshes/armadillo.obj, k 9).
  * A throw-away OBJ reader ("v x y z" and "f a b c", 1-based, optional /vt/vn) keeps this
  * independent of the mesh IO module. */
-#include "internal.h"
 #include "kinemesh.h"
 
 #include <stdio.h>
@@ -71,23 +70,23 @@ int main(int argc, char **argv) {
   double *evecs = malloc(m.n_vertices * (size_t)k * sizeof *evecs);
   for (int r = 0; r < R; ++r) {
     km_sparse *L = NULL, *M = NULL, *K = NULL;
-    double t0 = km__now();
+    double t0 = km_seconds();
     if (km_cotmatrix(&m, &L, &e)) goto fail;
-    double t0m = km__now();
+    double t0m = km_seconds();
     if (km_massmatrix(&m, KM_MASS_VORONOI, &M, &e)) goto fail;
-    double t1 = km__now();
+    double t1 = km_seconds();
     tc[r] = t0m - t0;
     /* the factor step of km_eigs, timed alone (km_eigs repeats it) */
     km_cholesky *c = NULL;
     if (km_sparse_add(-1, L, 1e-6, M, &K, &e) || km_cholesky_analyze(K, &c, &e) ||
         km_cholesky_factorize(c, K, &e))
       goto fail;
-    double t2 = km__now();
+    double t2 = km_seconds();
     km_cholesky_free(&c);
     km_sparse_free(&K);
-    double t3 = km__now();
+    double t3 = km_seconds();
     if (km_eigs(L, M, k, NULL, evals, evecs, &e)) goto fail;
-    double t4 = km__now();
+    double t4 = km_seconds();
     tl[r] = t1 - t0, tf[r] = t2 - t1, te[r] = t4 - t3;
     km_sparse_free(&L);
     km_sparse_free(&M);

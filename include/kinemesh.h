@@ -30,6 +30,8 @@ extern "C" {
 #define KM_VERSION_MINOR 1
 #define KM_VERSION_PATCH 0
 const char *km_version(void);
+/* Monotonic clock in seconds (for timing; arbitrary origin). */
+double km_seconds(void);
 
 /* ---------------------------------------------------------------- errors */
 
@@ -51,6 +53,17 @@ typedef struct km_error {
   km_status status;
   char message[1024];
 } km_error;
+
+/* Fills err (when not NULL) with status and a printf-formatted message; returns status, so
+ * that a caller's failure path reads `return km_error_set(err, KM_ERR_IO, "%s: ...", path)`. */
+km_status km_error_set(km_error *err, km_status status, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+/* Writes size bytes to path atomically: a temporary file beside it, flushed, then renamed,
+ * so a reader never sees a half-written file and a failure leaves nothing behind. */
+km_status km_write_file_atomic(const char *path, const void *data, size_t size, km_error *err);
 
 /* Stable name of a status ("KM_ERR_PARSE"). Never NULL. */
 const char *km_status_name(km_status s);
@@ -134,6 +147,10 @@ typedef struct km_mesh_info {
   double bbox_min[3], bbox_max[3];
 } km_mesh_info;
 km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *err);
+
+/* Mean and maximum of |A_v - B_v| over n points (A, B n*3). */
+void km_vertex_distance_stats(const double *A, const double *B, size_t n, double *mean,
+                              double *max);
 
 /* Length of the bounding-box diagonal (0 for an empty mesh). */
 double km_bbox_diagonal(const double *V, size_t n_vertices);
@@ -354,6 +371,18 @@ km_status km_character_write_rig(const char *path, const km_character *c, km_err
 /* Reads the skeleton, skin and landmarks of a rig sidecar (mesh not touched). */
 km_status km_character_read_rig(const char *path, size_t n_vertices, km_character *out,
                                 km_error *err);
+
+/* The built-in pose set: KM_POSE_PRESETS named joint-angle poses (t_pose, a_pose, arms_up,
+ * squat, ...) of the Kinect v1 skeleton, each up to KM_POSE_PRESET_MAX_ROTATIONS joint
+ * rotations. Ground truth for pose-transfer tests and benchmarks. */
+#define KM_POSE_PRESETS 10
+#define KM_POSE_PRESET_MAX_ROTATIONS 8
+/* Name of preset p (NULL when out of range). */
+const char *km_pose_preset_name(int p);
+/* Character c in preset p by forward kinematics and km_lbs: V #V*3 posed positions. jitter:
+ * NULL, or KM_POSE_PRESET_MAX_ROTATIONS factors; rotation k's angle is scaled by 1+jitter[k]. */
+km_status km_character_pose_preset(const km_character *c, int p, const double *jitter, double *V,
+                                   km_error *err);
 
 typedef enum km_motion_kind { KM_MOTION_WALK = 0, KM_MOTION_WAVE, KM_MOTION_KUNGFU } km_motion_kind;
 /* A take of the 20 Kinect v1 joints at 30 Hz for skeleton s (the character's rest skeleton),
@@ -700,6 +729,13 @@ void km_paths_free(char ***paths, size_t n);
 km_status km_absolute_orientation(const double *A, const double *B, size_t n, bool with_scale,
                                   double R[9], double t[3], double *s, km_error *err);
 
+/* Closest points on a triangle mesh (Embree point queries, OpenMP over queries).
+ * V #V*3 and F #F*3 the mesh; Q #Q*3 query points. Outputs (each may be NULL):
+ * tri #Q closest triangle, bary #Q*3 its barycentrics, dist #Q distance (mesh units). */
+km_status km_point_mesh_distance(const double *V, size_t n_vertices, const int32_t *F,
+                                 size_t n_faces, const double *Q, size_t n_queries, int32_t *tri,
+                                 double *bary, double *dist, km_error *err);
+
 /* ---- capture simulator (ground truth for reconstruction tests and benchmarks) */
 typedef struct km_capture_options {
   int cameras;             /* depth cameras on a ring around the subject; 0: 4 */
@@ -806,8 +842,6 @@ void km_recon_report_free(km_recon_report *r);
  * Written atomically.
  */
 km_status km_recon_report_write_json(const char *path, const km_recon_report *r, km_error *err);
-/* Fig. 6 of the paper: mean/max point error per frame as a PNG through gnuplot (popen). */
-km_status km_recon_report_plot(const char *png_path, const km_recon_report *r, km_error *err);
 
 /* Incremental reconstructor: create with the template (mesh, skeleton, skin), register the
  * first frame with features, then feed the following frames one at a time. */

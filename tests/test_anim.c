@@ -1,6 +1,6 @@
 /* Animation output: glb (parsed back here with an independent little GLB reader), pc2, OBJ
  * and PLY frame directories, info, and failure cases that must leave nothing behind. */
-#include "internal.h"
+#include "core/core.h"
 #include "km_test.h"
 
 #include <cjson/cJSON.h>

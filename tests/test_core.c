@@ -1,4 +1,4 @@
-#include "internal.h"
+#include "core/core.h"
 #include "km_test.h"
 
 #include <unistd.h>

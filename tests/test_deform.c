@@ -6,7 +6,7 @@
 #include <stdint.h>
 #include <unistd.h>
 
-#include "internal.h" /* km__now */
+#include "core/core.h" /* km_seconds */
 
 /* Handles of a bar along z: vertices with z < lo (anchor) and z > hi (pulled). */
 static void bar_handles(const km_mesh *m, double lo, double hi, int32_t *off, int32_t *hv,

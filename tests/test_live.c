@@ -3,7 +3,7 @@
  * kept, record written; the same frames read over WebSocket as float32 and as int16). */
 #include "km_test.h"
 
-#include "live/live.h"
+#include "live.h"
 
 #include <arpa/inet.h>
 #include <lo/lo.h>
@@ -14,26 +14,26 @@
 #include <unistd.h>
 
 static void test_names(void) {
-  CHECK(km__live_joint_index("HandLeft") == 7);
-  CHECK(km__live_joint_index("FootRight") == 19);
-  CHECK(km__live_joint_index("SpineBase") == 0);
-  CHECK(km__live_joint_index("SpineMid") == 1);
-  CHECK(km__live_joint_index("SpineShoulder") == 2);
-  CHECK(km__live_joint_index("l_hand") == 7);
-  CHECK(km__live_joint_index("r_hand") == 11);
-  CHECK(km__live_joint_index("l_knee") == 13);
-  CHECK(km__live_joint_index("r_foot") == 19);
-  CHECK(km__live_joint_index("torso") == 1);
-  CHECK(km__live_joint_index("neck") == 2);
-  CHECK(km__live_joint_index("head") == 3);
-  CHECK(km__live_joint_index("HandTipLeft") == -2);
-  CHECK(km__live_joint_index("Neck") == -2);
-  CHECK(km__live_joint_index("Wing") == -1);
-  CHECK(km__live_joint_index("") == -1);
-  CHECK(km__live_joint_index(NULL) == -1);
+  CHECK(km_live_joint_index("HandLeft") == 7);
+  CHECK(km_live_joint_index("FootRight") == 19);
+  CHECK(km_live_joint_index("SpineBase") == 0);
+  CHECK(km_live_joint_index("SpineMid") == 1);
+  CHECK(km_live_joint_index("SpineShoulder") == 2);
+  CHECK(km_live_joint_index("l_hand") == 7);
+  CHECK(km_live_joint_index("r_hand") == 11);
+  CHECK(km_live_joint_index("l_knee") == 13);
+  CHECK(km_live_joint_index("r_foot") == 19);
+  CHECK(km_live_joint_index("torso") == 1);
+  CHECK(km_live_joint_index("neck") == 2);
+  CHECK(km_live_joint_index("head") == 3);
+  CHECK(km_live_joint_index("HandTipLeft") == -2);
+  CHECK(km_live_joint_index("Neck") == -2);
+  CHECK(km_live_joint_index("Wing") == -1);
+  CHECK(km_live_joint_index("") == -1);
+  CHECK(km_live_joint_index(NULL) == -1);
 }
 
-static int parse(const char *s, double *j) { return km__live_parse_json(s, strlen(s), j); }
+static int parse(const char *s, double *j) { return km_live_parse_json(s, strlen(s), j); }
 
 static void test_json(void) {
   double j[60];
@@ -71,16 +71,16 @@ static void test_json(void) {
     CHECK_MSG(parse(bad[i], j) == -1, "%s", bad[i]);
     CHECK(isnan(j[0]) && isnan(j[21]));
   }
-  CHECK(km__live_parse_json(NULL, 0, j) == -1);
+  CHECK(km_live_parse_json(NULL, 0, j) == -1);
 }
 
-static km__live_osc_kind osc(lo_message m, const char *path, km__live_osc_joint *o) {
-  return km__live_parse_osc(path, lo_message_get_types(m), (void *const *)lo_message_get_argv(m),
+static km_live_osc_kind osc(lo_message m, const char *path, km_live_osc_joint *o) {
+  return km_live_parse_osc(path, lo_message_get_types(m), (void *const *)lo_message_get_argv(m),
                             lo_message_get_argc(m), o);
 }
 
 static void test_osc(void) {
-  km__live_osc_joint o;
+  km_live_osc_joint o;
   lo_message m = lo_message_new();
   lo_message_add_string(m, "r_hand");
   lo_message_add_int32(m, 0);
@@ -146,7 +146,7 @@ static void test_osc(void) {
   lo_message_free(m);
 }
 
-/* Decodes what km__live_quantize wrote, the way web/live.js does. */
+/* Decodes what km_live_quantize wrote, the way web/live.js does. */
 static double dequant(int16_t q, float lo, float hi) {
   double c = 0.5 * ((double)lo + hi), h = 0.5 * ((double)hi - lo);
   return c + q * h / 32767.0;
@@ -166,7 +166,7 @@ static void test_quantize(void) {
     lo[k % 3] = x < lo[k % 3] ? x : lo[k % 3];
     hi[k % 3] = x > hi[k % 3] ? x : hi[k % 3];
   }
-  km__live_quantize(V, N, lo, hi, q);
+  km_live_quantize(V, N, lo, hi, q);
   double worst = 0;
   int neg = 0;
   for (int k = 0; k < 3 * N; ++k) {
@@ -187,7 +187,7 @@ static void test_quantize(void) {
                   -100,  1e30,  NAN,   5,     5,     5};
   float flo[3] = {lo[0], lo[1], 5}, fhi[3] = {hi[0], hi[1], 5};
   int16_t w[15];
-  km__live_quantize(W, 5, flo, fhi, w);
+  km_live_quantize(W, 5, flo, fhi, w);
   CHECK(w[0] == -32767 && w[1] == -32767 && w[3] == 32767 && w[4] == 32767);
   CHECK(w[6] == 0);
   CHECK(w[7] == 32767 && w[8] == 0);
@@ -274,14 +274,14 @@ static bool ws_read(int fd, unsigned char **msg, size_t *len) {
 /* ---- the server in-process */
 
 typedef struct runner {
-  km__live *l;
+  km_live *l;
   km_status s;
 } runner;
 
 static void *run_main(void *arg) {
   runner *r = arg;
   km_error e = {0};
-  r->s = km__live_run(r->l, &e);
+  r->s = km_live_run(r->l, &e);
   return NULL;
 }
 
@@ -305,8 +305,8 @@ static void test_server(void) {
   km_take take = {0};
   CHECK_OK(km_motion_generate(&c.skeleton, KM_MOTION_WAVE, 20, &take, KM_E));
 
-  km__live *l = NULL;
-  km__live_options o = {0};
+  km_live *l = NULL;
+  km_live_options o = {0};
   o.record = true;
   o.no_autoplay = true;
   o.rig_path = rig_path;
@@ -317,7 +317,7 @@ static void test_server(void) {
     o.http_port = base;
     o.udp_port = udp_port = base + 1;
     o.osc_port = base + 2;
-    s = km__live_create(&o, &c.mesh, p, rig, rig_n, &take, &l, KM_E);
+    s = km_live_create(&o, &c.mesh, p, rig, rig_n, &take, &l, KM_E);
   }
   CHECK_MSG(s == KM_OK, "%s", km_test_err.message);
   if (s == KM_OK) {
@@ -341,34 +341,34 @@ static void test_server(void) {
       usleep(20000);
     }
     sendto(fd, "garbage", 7, 0, (struct sockaddr *)&a, sizeof a);
-    km__live_stats st;
+    km_live_stats st;
     for (int i = 0; i < 200; ++i) {
-      km__live_get_stats(l, &st);
+      km_live_get_stats(l, &st);
       if (st.frames_out >= 1 && st.bad_packets >= 1 && st.frames_in >= 10) break;
       usleep(10000);
     }
     CHECK_MSG(st.frames_in == 10, "frames_in %llu", (unsigned long long)st.frames_in);
     CHECK(st.frames_out >= 1 && st.frames_out <= st.frames_in);
     CHECK(st.udp_datagrams == 11 && st.bad_packets == 1);
-    char *js = km__live_status_json(l);
+    char *js = km_live_status_json(l);
     CHECK(js && strstr(js, "\"frames_in\":10") && strstr(js, "\"hand_left\""));
     free(js);
     /* the replay plays the 20-frame take at 30 fps (a late input thread skips to the frame
      * that is due, so under load a few may be skipped; the last one always comes) */
-    CHECK(km__live_replay(l));
+    CHECK(km_live_replay(l));
     uint64_t last = 0;
     for (int i = 0; i < 300; ++i) {
       usleep(100000);
-      km__live_get_stats(l, &st);
+      km_live_get_stats(l, &st);
       if (st.frames_in == last) break;
       last = st.frames_in;
     }
     CHECK_MSG(st.frames_in >= 11 && st.frames_in <= 30, "frames_in %llu after replay",
               (unsigned long long)st.frames_in);
-    km__live_stop(l);
+    km_live_stop(l);
     pthread_join(th, NULL);
     CHECK(r.s == KM_OK);
-    CHECK_OK(km__live_record_take(l, rec_path, KM_E));
+    CHECK_OK(km_live_record_take(l, rec_path, KM_E));
     km_take rec = {0};
     CHECK_OK(km_take_read(rec_path, &rec, KM_E));
     CHECK(rec.n_frames == st.frames_in && rec.n_joints == 20);
@@ -379,20 +379,20 @@ static void test_server(void) {
     }
     km_take_free(&rec);
     close(fd);
-    km__live_free(&l);
+    km_live_free(&l);
   }
   /* a second server on a taken port fails cleanly */
   if (s == KM_OK) {
-    km__live *l2 = NULL, *l3 = NULL;
+    km_live *l2 = NULL, *l3 = NULL;
     o.record = false;
-    CHECK_OK(km__live_create(&o, &c.mesh, p, rig, rig_n, NULL, &l2, KM_E));
-    CHECK_STATUS(km__live_create(&o, &c.mesh, p, rig, rig_n, NULL, &l3, KM_E), KM_ERR_IO);
+    CHECK_OK(km_live_create(&o, &c.mesh, p, rig, rig_n, NULL, &l2, KM_E));
+    CHECK_STATUS(km_live_create(&o, &c.mesh, p, rig, rig_n, NULL, &l3, KM_E), KM_ERR_IO);
     CHECK(l3 == NULL);
-    km__live_free(&l2);
+    km_live_free(&l2);
   }
   /* a rig that does not parse */
-  km__live *l4 = NULL;
-  CHECK_STATUS(km__live_create(&o, &c.mesh, p, "{", 1, NULL, &l4, KM_E), KM_ERR_PARSE);
+  km_live *l4 = NULL;
+  CHECK_STATUS(km_live_create(&o, &c.mesh, p, "{", 1, NULL, &l4, KM_E), KM_ERR_PARSE);
   remove(rig_path);
   remove(rec_path);
   rmdir(dir);
@@ -409,8 +409,8 @@ static unsigned char *serve_frames(const km_mesh *m, km_puppet *p, const char *r
                                    const km_take *take, bool quantize, size_t *len) {
   enum { SENT = 10 };
   km_puppet_reset(p);
-  km__live *l = NULL;
-  km__live_options o = {0};
+  km_live *l = NULL;
+  km_live_options o = {0};
   o.quantize = quantize;
   km_status s = KM_ERR_IO;
   int http_port = 0, udp_port = 0;
@@ -418,7 +418,7 @@ static unsigned char *serve_frames(const km_mesh *m, km_puppet *p, const char *r
     http_port = 20000 + (int)((getpid() * 257 + attempt * 1559 + quantize * 31) % 40000);
     o.http_port = http_port;
     o.udp_port = udp_port = http_port + 1;
-    s = km__live_create(&o, m, p, rig, rig_n, NULL, &l, KM_E);
+    s = km_live_create(&o, m, p, rig, rig_n, NULL, &l, KM_E);
   }
   CHECK_MSG(s == KM_OK, "%s", km_test_err.message);
   if (s != KM_OK) return NULL;
@@ -429,10 +429,10 @@ static unsigned char *serve_frames(const km_mesh *m, km_puppet *p, const char *r
   *len = 0;
   int ws = ws_connect(http_port);
   CHECK_MSG(ws >= 0, "WebSocket handshake with the server on port %d", http_port);
-  km__live_stats st = {0};
+  km_live_stats st = {0};
   for (int i = 0; ws >= 0 && i < 500 && st.clients < 1; ++i) {
     usleep(10000);
-    km__live_get_stats(l, &st);
+    km_live_get_stats(l, &st);
   }
   int fd = socket(AF_INET, SOCK_DGRAM, 0);
   struct sockaddr_in a = {0};
@@ -448,7 +448,7 @@ static unsigned char *serve_frames(const km_mesh *m, km_puppet *p, const char *r
     n += (size_t)snprintf(buf + n, sizeof buf - n, "]");
     sendto(fd, buf, n, 0, (struct sockaddr *)&a, sizeof a);
     for (int i = 0; i < 1000; ++i) {
-      km__live_get_stats(l, &st);
+      km_live_get_stats(l, &st);
       if (st.frames_out >= (uint64_t)k + 1) break;
       usleep(5000);
     }
@@ -474,9 +474,9 @@ static unsigned char *serve_frames(const km_mesh *m, km_puppet *p, const char *r
             quantize ? "int16" : "float32", SENT);
   if (ws >= 0) close(ws);
   close(fd);
-  km__live_stop(l);
+  km_live_stop(l);
   pthread_join(th, NULL);
-  km__live_free(&l);
+  km_live_free(&l);
   return out;
 }
 

@@ -1,6 +1,6 @@
 /* Mesh readers and writers: every format and encoding, exact vertex order, bit-exact round
  * trips, precise error messages, robustness on truncated and corrupted input, real data. */
-#include "internal.h"
+#include "core/core.h"
 #include "km_test.h"
 
 #include <float.h>

@@ -1,5 +1,5 @@
 /* Kinect v1 tables, take JSON, pose fitting, LBS and procedural motion. */
-#include "internal.h"
+#include "core/core.h"
 #include "km_test.h"
 
 #include <unistd.h>

@@ -1,5 +1,5 @@
 /* Pose descriptor, CART feature selection, SVM pose database, TRACK files, morphing. */
-#include "pose/km_poses.h"
+#include "synth/poses.h"
 #include "km_test.h"
 
 #include <unistd.h>

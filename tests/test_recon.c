@@ -3,6 +3,7 @@
  * sanitizers). */
 #include "km_test.h"
 #include "recon/recon.h"
+#include "recon_plot.h"
 
 #include <unistd.h>
 

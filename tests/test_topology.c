@@ -1,6 +1,6 @@
 /* km_mesh_info_compute, km_bbox_diagonal and km_adjacency_list on hand-made meshes whose
  * counts are known by construction, and against brute-force recounts on random meshes. */
-#include "internal.h"
+#include "core/core.h"
 #include "km_test.h"
 
 static km_mesh make(size_t nv, const double *V, size_t nf, const int32_t *F) {

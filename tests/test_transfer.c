@@ -1,8 +1,8 @@
 /* Pose transfer by locally encoded Laplacian offsets. */
-#include "pose/km_poses.h"
+#include "synth/poses.h"
 #include "km_test.h"
 
-#include "deform/offsets.h"
+#include "transfer/transfer.h"
 
 static int32_t lm_ids[KM_CHARACTER_LANDMARKS];
 

@@ -1,4 +1,4 @@
-#include "internal.h"
+#include "core/core.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -26,7 +26,7 @@ const char *km_status_name(km_status s) {
   return "KM_ERR_UNKNOWN";
 }
 
-km_status km__fail(km_error *err, km_status status, const char *fmt, ...) {
+km_status km_error_set(km_error *err, km_status status, const char *fmt, ...) {
   if (err) {
     err->status = status;
     va_list ap;
@@ -191,7 +191,7 @@ void km__extension(const char *path, char *out, size_t out_size) {
   out[i] = '\0';
 }
 
-double km__now(void) {
+double km_seconds(void) {
   struct timespec ts;
   clock_gettime(CLOCK_MONOTONIC, &ts);
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
@@ -204,4 +204,16 @@ uint64_t km__fnv1a(uint64_t h, const void *data, size_t size) {
     h *= 0x100000001b3ULL;
   }
   return h;
+}
+
+km_status km_write_file_atomic(const char *path, const void *data, size_t size, km_error *err) {
+  if (!path || (!data && size)) return km__fail(err, KM_ERR_INVALID, "km_write_file_atomic: NULL argument");
+  km__atomic_file af = {0};
+  km_status s = km__atomic_open(&af, path, err);
+  if (s != KM_OK) return s;
+  if (size && fwrite(data, 1, size, af.f) != size) {
+    km__atomic_abort(&af);
+    return km__fail(err, KM_ERR_IO, "%s: write failed", path);
+  }
+  return km__atomic_commit(&af, err);
 }

@@ -9,8 +9,8 @@
  * solves within 10%; auto is the safer default. Supernodal runs on BLAS: OpenBLAS's thread
  * count is process-wide and left to the application (on a loaded 2-core machine
  * OPENBLAS_NUM_THREADS=1 avoided large slowdowns from spinning threads). */
-#include "internal.h"
-#include "linalg/sparse.h"
+#include "core/core.h"
+#include "linalg/linalg.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -9,8 +9,8 @@
  * ARPACK keeps its state in Fortran SAVE variables (process-global), so the reverse
  * communication loop is serialised by a mutex: concurrent km_eigs calls are safe, they just
  * take turns in that loop. */
-#include "internal.h"
-#include "linalg/sparse.h"
+#include "core/core.h"
+#include "linalg/linalg.h"
 
 #include <arpack.h>
 #include <cblas.h>

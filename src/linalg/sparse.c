@@ -1,9 +1,9 @@
 /* km_sparse: a thin owner of a CHOLMOD cholmod_sparse (int32 indices, real double, sorted,
  * packed, stype 0). Each matrix carries its own cholmod_common so that no mutable state is
  * shared between threads; cholmod_start does not allocate, so this costs only its size. */
-#include "linalg/sparse.h"
+#include "linalg/linalg.h"
 
-#include "internal.h"
+#include "core/core.h"
 
 #include <limits.h>
 #include <stdlib.h>

@@ -1,6 +1,6 @@
 /* Per-vertex local frames (normal, tangent, bitangent) that follow the surface across poses
  * of one connectivity: the tangent is always the projected edge to the same neighbour. */
-#include "internal.h"
+#include "core/core.h"
 #include "mesh/mesh_args.h"
 
 #include <math.h>

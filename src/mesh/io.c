@@ -1,6 +1,6 @@
 /* Mesh allocation, format dispatch for reading/writing, and the number helpers shared by
  * the text parsers. */
-#include "mesh_io.h"
+#include "mesh/mesh_io.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -92,12 +92,12 @@ km_status km_mesh_read(const char *path, km_mesh *out, km_error *err) {
   size_t size = 0;
   s = km__read_file(path, &data, &size, err);
   if (s) return s;
-  double t0 = km__now();
+  double t0 = km_seconds();
   s = km_mesh_parse(data, size, fmt, path, out, err);
   free(data);
   if (!s)
     km__log(KM_LOG_DEBUG, "%s: %zu vertices, %zu faces in %.3f s", path, out->n_vertices,
-            out->n_faces, km__now() - t0);
+            out->n_faces, km_seconds() - t0);
   return s;
 }
 

@@ -1,7 +1,7 @@
 /* Wavefront OBJ: `v` positions and `f` polygons (fan-triangulated); everything else that is
  * a keyword is skipped. Parsed in place from the memory buffer, one pass to count vertices
  * (so that positive indices can be range-checked and V allocated once), one pass to parse. */
-#include "mesh_io.h"
+#include "mesh/mesh_io.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -1,6 +1,6 @@
 /* Geomview OFF (and COFF/NOFF/CNOFF, whose per-vertex extras are ignored). Read line by
  * line: one vertex or face per line, so trailing colours/normals need no declared layout. */
-#include "mesh_io.h"
+#include "mesh/mesh_io.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -6,7 +6,7 @@
  * rply and miniply were considered; neither is packaged here, rply reads through FILE*
  * callbacks (we parse from memory for fuzzing and speed) and both leave error positions to
  * the caller, so the reader is written out. */
-#include "mesh_io.h"
+#include "mesh/mesh_io.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -1,8 +1,8 @@
 /* Cotangent and uniform Laplacians and lumped mass matrices. Per-face weights are scattered
  * straight into CSC columns and km__sparse_compress sums the duplicates (an edge shared by two
  * faces), so no triplet list is materialised. */
-#include "internal.h"
-#include "linalg/sparse.h"
+#include "core/core.h"
+#include "linalg/linalg.h"
 #include "mesh/mesh_args.h"
 
 #include <math.h>

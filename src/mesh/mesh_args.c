@@ -1,5 +1,5 @@
 /* Argument checks shared by the mesh operators. */
-#include "internal.h"
+#include "core/core.h"
 #include "mesh/mesh_args.h"
 
 km_status km__mesh_check_faces(const km_mesh *m, const char *who, km_error *err) {

@@ -2,7 +2,7 @@
 #ifndef KM_MESH_IO_H
 #define KM_MESH_IO_H
 
-#include "internal.h"
+#include "core/core.h"
 
 #include <stdint.h>
 

@@ -1,5 +1,5 @@
 /* Per-vertex normals: a scatter of weighted face normals over the faces. */
-#include "internal.h"
+#include "core/core.h"
 #include "mesh/mesh_args.h"
 
 #include <math.h>

@@ -1,6 +1,6 @@
 /* Farthest-point sampling of mesh vertices (km_farthest_points). Hand-written: a dozen lines
  * of O(k n) distance updates that none of the project's dependencies offers on their own. */
-#include "internal.h"
+#include "core/core.h"
 
 #include <math.h>
 #include <stdlib.h>

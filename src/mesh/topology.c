@@ -3,7 +3,7 @@
  * Edges are found by sorting packed (min,max) vertex pairs. A radix sort is used instead of
  * qsort: the keys are plain 64-bit integers and 8 byte-passes beat a comparison sort's
  * indirect calls by ~5x at a million faces. No dependency in the project offers one. */
-#include "internal.h"
+#include "core/core.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -289,4 +289,17 @@ km_status km_adjacency_list(const km_mesh *m, int32_t **offsets, int32_t **adj, 
   *offsets = off;
   *adj = a;
   return KM_OK;
+}
+
+void km_vertex_distance_stats(const double *A, const double *B, size_t n, double *mean, double *max) {
+  double s = 0, m = 0;
+  for (size_t v = 0; v < n; ++v) {
+    double d = sqrt((A[3 * v] - B[3 * v]) * (A[3 * v] - B[3 * v]) +
+                    (A[3 * v + 1] - B[3 * v + 1]) * (A[3 * v + 1] - B[3 * v + 1]) +
+                    (A[3 * v + 2] - B[3 * v + 2]) * (A[3 * v + 2] - B[3 * v + 2]));
+    s += d;
+    if (d > m) m = d;
+  }
+  *mean = n ? s / (double)n : 0;
+  *max = m;
 }

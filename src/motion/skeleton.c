@@ -1,5 +1,5 @@
 /* Kinect v1 joint table and the frees of skeleton-side structures. */
-#include "internal.h"
+#include "core/core.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -1,7 +1,7 @@
 /* kinemesh take JSON (see kinemesh.h): reading with cJSON, writing by hand so each frame is
  * one line and coordinates round-trip exactly (%.17g). A missing joint is written as three
  * nulls and read back as NaN. */
-#include "internal.h"
+#include "core/core.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>

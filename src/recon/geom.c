@@ -582,3 +582,18 @@ km_status km_absolute_orientation(const double *A, const double *B, size_t n, bo
     t[r] = cb[r] - sc * (R[3 * r] * ca[0] + R[3 * r + 1] * ca[1] + R[3 * r + 2] * ca[2]);
   return KM_OK;
 }
+
+km_status km_point_mesh_distance(const double *V, size_t n_vertices, const int32_t *F,
+                                 size_t n_faces, const double *Q, size_t n_queries, int32_t *tri,
+                                 double *bary, double *dist, km_error *err) {
+  if (!V || !F || (!Q && n_queries))
+    return km__fail(err, KM_ERR_INVALID, "km_point_mesh_distance: NULL argument");
+  int32_t *t = tri ? tri : km__malloc(n_queries ? n_queries : 1, sizeof *t);
+  if (!t) return km__fail(err, KM_ERR_NOMEM, "km_point_mesh_distance: out of memory");
+  km__surface *s = NULL;
+  km_status st = km__surface_create(V, n_vertices, F, n_faces, &s, err);
+  if (st == KM_OK) km__surface_closest(s, Q, n_queries, 0, t, bary, dist);
+  km__surface_free(&s);
+  if (t != tri) free(t);
+  return st;
+}

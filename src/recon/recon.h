@@ -1,10 +1,11 @@
+/* Requires: core, linalg, math, mesh, motion, anim. External: Embree, liblbfgs, cJSON. */
 /* Private geometry for point cloud reconstruction: closest points on a triangle mesh and
  * k nearest neighbours (both through Embree point queries), point normals, multiresolution
  * clustering. */
 #ifndef KM_RECON_RECON_H
 #define KM_RECON_RECON_H
 
-#include "internal.h"
+#include "core/core.h"
 
 /* Below this many queries a parallel region costs more than it saves (fork/join and the
  * threads' spin-wait, measured on the 2-core CI machine). */

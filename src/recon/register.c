@@ -1323,7 +1323,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
                                size_t nfeat, km_recon_frame_stats *st, km_error *err) {
   if (!r || (!P && n) || (!feat && nfeat))
     return km__fail(err, KM_ERR_INVALID, "km_recon_first_frame: NULL argument");
-  double t0 = km__now();
+  double t0 = km_seconds();
   km_recon_frame_stats local = {0};
   if (!st) st = &local;
   memset(st, 0, sizeof *st);
@@ -1527,7 +1527,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
   r->frame = 1;
   frame_error(r, &fd, r->surface, st);
   st->status = KM_OK;
-  st->seconds = km__now() - t0;
+  st->seconds = km_seconds() - t0;
   r->n_hist = 0;
   free(V1);
   frame_data_free(&fd);
@@ -1543,7 +1543,7 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   if (!r || (!P && n)) return km__fail(err, KM_ERR_INVALID, "km_recon_next_frame: NULL argument");
   if (!r->have_base)
     return km__fail(err, KM_ERR_INVALID, "km_recon_next_frame: register the first frame first");
-  double t0 = km__now();
+  double t0 = km_seconds();
   km_recon_frame_stats local = {0};
   if (!st) st = &local;
   memset(st, 0, sizeof *st);
@@ -1566,10 +1566,10 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   for (int a = 0; a < 3; ++a)
     tpred[a] = 2 * r->tprev[a] - r->tprev2[a];
   frame_data fd;
-  double tp0 = km__now();
+  double tp0 = km_seconds();
   km_error pe = {0};
   km_status s = frame_prepare(r, P, n, &fd, &pe);
-  double tp1 = km__now();
+  double tp1 = km_seconds();
   km_status fs = KM_OK;
   if (s) {
     fs = s;
@@ -1578,7 +1578,7 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
     st->iterations += skeleton_fit(r, fd.C, fd.CN, fd.nc, Lpred, tpred, r->o.skeleton_iterations,
                                    NULL, 0, true, r->o.w_pose, &fs);
   }
-  double tp2 = km__now();
+  double tp2 = km_seconds();
   km__log(KM_LOG_DEBUG,
           "frame %zu: skeleton %s, root (%.3f %.3f %.3f), %d evaluations; prepare %.3f s, "
           "skeleton %.3f s",
@@ -1639,6 +1639,6 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   memcpy(r->tprev2, fs ? r->troot : r->tprev, sizeof r->tprev);
   memcpy(r->tprev, r->troot, sizeof r->troot);
   ++r->frame;
-  st->seconds = km__now() - t0;
+  st->seconds = km_seconds() - t0;
   return KM_OK;
 }

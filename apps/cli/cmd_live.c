@@ -1,0 +1,187 @@
+/* kinemesh live: tracker (OSC / JSON over UDP / a replayed take) -> deforming mesh streamed
+ * to browser pages over WebSocket, with the mapping panel. The server is src/live/. */
+#include "cli.h"
+
+#include "live.h"
+
+#include <libgen.h>
+#include <math.h>
+#include <limits.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static km_live *volatile g_live;
+
+static void on_signal(int sig) {
+  (void)sig;
+  if (g_live) km_live_stop(g_live);
+}
+
+/* The page beside the binary (build/kinemesh -> build/web), else where `cmake --install` puts
+ * it (P/bin/kinemesh -> P/share/kinemesh/web). */
+static char *default_web_dir(void) {
+  char exe[PATH_MAX];
+  ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+  if (n <= 0) return NULL;
+  exe[n] = 0;
+  char *dir = dirname(exe);
+  size_t len = strlen(dir) + 64;
+  char *out = malloc(len);
+  if (!out) return NULL;
+  snprintf(out, len, "%s/web/index.html", dir);
+  if (access(out, R_OK) == 0) {
+    snprintf(out, len, "%s/web", dir);
+    return out;
+  }
+  snprintf(out, len, "%s/../share/kinemesh/web/index.html", dir);
+  if (access(out, R_OK) == 0) {
+    snprintf(out, len, "%s/../share/kinemesh/web", dir);
+    return out;
+  }
+  snprintf(out, len, "%s/web", dir); /* reported as missing there */
+  return out;
+}
+
+int km_cli_live(int argc, char **argv) {
+  const char *mesh_path = NULL, *rig_path = NULL, *replay = NULL, *record = NULL;
+  const char *bind = "127.0.0.1", *web = NULL, *cache = NULL;
+  int osc = 0, udp = 0, http = 8080;
+  bool quantize = false, loop = false, no_autoplay = false;
+  const km_cli_opt opts[] = {
+      {"mesh", 0, KM_OPT_STRING, &mesh_path, "mesh to animate (OBJ/PLY/OFF)"},
+      {"rig", 0, KM_OPT_STRING, &rig_path,
+       "rig: handles, joint map, filter (default <mesh stem>.rig.json); POST /rig rewrites it"},
+      {"osc", 0, KM_OPT_INT, &osc, "OSC port (OSCeleton /joint, KinectV2-OSC /bodies/...)"},
+      {"udp", 0, KM_OPT_INT, &udp, "JSON-over-UDP port (one frame per datagram)"},
+      {"replay", 0, KM_OPT_STRING, &replay, "take to replay (.json/.csv/.bvh with Kinect names)"},
+      {"loop", 0, KM_OPT_FLAG, &loop, "replay in a loop"},
+      {"no-autoplay", 0, KM_OPT_FLAG, &no_autoplay,
+       "do not start the replay at start-up (the page's replay button starts it)"},
+      {"http", 0, KM_OPT_INT, &http, "HTTP/WebSocket port (default 8080)"},
+      {"bind", 0, KM_OPT_STRING, &bind, "listen address (default 127.0.0.1)"},
+      {"record", 0, KM_OPT_STRING, &record, "write the received raw joints as a take on exit"},
+      {"quantize", 0, KM_OPT_FLAG, &quantize,
+       "send positions as int16 quantised to the frame's bounding box (half the bytes)"},
+      {"web", 0, KM_OPT_STRING, &web, "page directory (default: web/ beside the binary)"},
+      {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default MESH.kmcache)"},
+  };
+  const char *pos[1];
+  int n_pos;
+  int r = km_cli_parse(
+      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
+      "kinemesh live --mesh MESH [--rig RIG] [--osc 7110] [--udp 9000] [--replay TAKE] "
+      "[--http 8080] [--record OUT.json] [--bind 127.0.0.1] [--quantize]",
+      "Live puppetry: tracker frames are smoothed, retargeted and the mesh deformed by the\n"
+      "cached reduced model; every connected page gets the newest frame over WebSocket\n"
+      "(older frames are dropped, never queued). Open the printed URL for the view and the\n"
+      "mapping panel. GET /status reports counters and per-stage times.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (!mesh_path) return km_cli_error("live", "--mesh is required (see --help)");
+  if (http <= 0 || http > 65535 || osc < 0 || osc > 65535 || udp < 0 || udp > 65535)
+    return km_cli_error("live", "ports must be in 1..65535");
+
+  km_error err = {0};
+  km_mesh m = {0};
+  km_take raw = {0}, take = {0};
+  km_puppet *pup = NULL;
+  km_live *live = NULL;
+  char *rig_text = NULL;
+  size_t rig_size = 0;
+  char *rig_default = rig_path ? NULL : km_cli_rig_path(mesh_path);
+  char *cache_default = cache ? NULL : km_cli_cache_path(mesh_path);
+  char *web_default = web ? NULL : default_web_dir();
+  const char *rig_file = rig_path ? rig_path : rig_default;
+  int rc = KM_EXIT_FAIL;
+  bool loaded = false;
+  double t_pre = 0;
+
+  if (km_mesh_read(mesh_path, &m, &err) != KM_OK) goto fail;
+  FILE *f = fopen(rig_file, "rb");
+  if (!f) {
+    rc = km_cli_error("live", "cannot read the rig %s", rig_file);
+    goto done;
+  }
+  fseek(f, 0, SEEK_END);
+  long sz = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  rig_text = sz >= 0 ? malloc((size_t)sz + 1) : NULL;
+  if (!rig_text || fread(rig_text, 1, (size_t)sz, f) != (size_t)sz) {
+    fclose(f);
+    rc = km_cli_error("live", "cannot read the rig %s", rig_file);
+    goto done;
+  }
+  fclose(f);
+  rig_size = (size_t)sz;
+  rig_text[rig_size] = 0;
+  if (replay) {
+    if (km_cli_read_motion(replay, &raw, &err) != KM_OK ||
+        km_cli_take_kinect1(replay, &raw, &take, &err) != KM_OK)
+      goto fail;
+  }
+  km_puppet_options po = {0};
+  if (km_cli_puppet_open(&m, &po, cache ? cache : cache_default, true, &pup, &loaded, &t_pre,
+                         &err) != KM_OK)
+    goto fail;
+
+  km_live_options lo = {0};
+  lo.bind = bind;
+  lo.http_port = http;
+  lo.osc_port = osc;
+  lo.udp_port = udp;
+  lo.quantize = quantize;
+  lo.loop = loop;
+  lo.no_autoplay = no_autoplay;
+  lo.web_dir = web ? web : web_default;
+  lo.rig_path = rig_file;
+  lo.record = record != NULL;
+  if (km_live_create(&lo, &m, pup, rig_text, rig_size, replay ? &take : NULL, &live, &err) !=
+      KM_OK)
+    goto fail;
+  g_live = live;
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, NULL);
+  sigaction(SIGTERM, &sa, NULL);
+  signal(SIGPIPE, SIG_IGN);
+  printf("kinemesh live: %zu vertices (model %s in %.2f s); open http://%s:%d/\n", m.n_vertices,
+         loaded ? "loaded" : "precomputed", t_pre, bind, http);
+  if (osc) printf("  OSC (OSCeleton /joint, KinectV2-OSC /bodies/...) on udp %s:%d\n", bind, osc);
+  if (udp) printf("  JSON frames on udp %s:%d\n", bind, udp);
+  if (replay) printf("  replay: %s (%zu frames at %g fps)\n", replay, take.n_frames, take.fps);
+  fflush(stdout);
+  km_status s = km_live_run(live, &err);
+  g_live = NULL;
+  km_live_stats st;
+  km_live_get_stats(live, &st);
+  fprintf(stderr,
+          "kinemesh live: %llu frames in, %llu out, %llu sent, %llu bad packets; latency "
+          "median %.2f ms, p99 %.2f ms\n",
+          (unsigned long long)st.frames_in, (unsigned long long)st.frames_out,
+          (unsigned long long)st.frames_sent, (unsigned long long)st.bad_packets, st.lat_median_ms,
+          st.lat_p99_ms);
+  if (s != KM_OK) goto fail;
+  if (record) {
+    if (km_live_record_take(live, record, &err) != KM_OK) goto fail;
+    fprintf(stderr, "kinemesh live: recorded %llu frames -> %s\n", (unsigned long long)st.frames_in,
+            record);
+  }
+  rc = KM_EXIT_OK;
+  goto done;
+fail:
+  rc = km_cli_fail("live", &err);
+done:
+  g_live = NULL;
+  km_live_free(&live);
+  km_puppet_free(&pup);
+  km_take_free(&raw);
+  km_take_free(&take);
+  km_mesh_free(&m);
+  free(rig_text);
+  free(rig_default);
+  free(cache_default);
+  free(web_default);
+  return rc;
+}

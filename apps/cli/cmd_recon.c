@@ -1,0 +1,235 @@
+/* Verbs of capability 3 (point clouds to mesh animation):
+ *   kinemesh gen capture   simulated multi-view depth capture of an animated character
+ *   kinemesh reconstruct   template-based mesh animation from point cloud frames */
+#include "cli.h"
+#include "recon_plot.h"
+
+#include <cjson/cJSON.h>
+
+#include <stdlib.h>
+#include <string.h>
+
+int km_cli_gen_capture(int argc, char **argv) {
+  const char *character = NULL, *rig = NULL, *kind = "kungfu", *out = NULL, *motion = NULL;
+  size_t frames = 60, cameras = 8, points = 30000, seed = 1, vertices = 8000;
+  double noise = 2;
+  const km_cli_opt opts[] = {
+      {"character", 'c', KM_OPT_STRING, &character,
+       "subject mesh with a rig sidecar (default: procedural, --vertices)"},
+      {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
+      {"vertices", 'n', KM_OPT_SIZE, &vertices, "procedural subject size (default 8000)"},
+      {"motion", 'm', KM_OPT_STRING, &motion,
+       "take to perform (.json/.csv/.bvh; default: generated --kind)"},
+      {"kind", 0, KM_OPT_STRING, &kind, "generated motion: walk, wave or kungfu (default kungfu)"},
+      {"frames", 'f', KM_OPT_SIZE, &frames, "frames (default 60; with --motion: all of the take)"},
+      {"cameras", 0, KM_OPT_SIZE, &cameras, "depth cameras on a ring (default 8)"},
+      {"points", 0, KM_OPT_SIZE, &points, "points per frame over all cameras (default 30000)"},
+      {"noise-mm", 0, KM_OPT_DOUBLE, &noise, "Gaussian noise sigma in mm (default 2, 0: none)"},
+      {"seed", 0, KM_OPT_SIZE, &seed, "noise seed (default 1)"},
+      {"output", 'o', KM_OPT_STRING, &out, "output directory"},
+  };
+  const char *pos[1];
+  int n_pos;
+  int r = km_cli_parse(
+      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
+      "kinemesh gen capture --character CHAR --motion TAKE [--cameras 8] [--noise-mm 2] -o DIR",
+      "Ray-casts the animated character from depth cameras (Embree): one binary\n"
+      "PLY point cloud per frame with occlusion holes and noise, plus the\n"
+      "ground truth as DIR/truth.pc2 (faces: DIR/truth_rest.obj, which a\n"
+      "directory or 'DIR/*.ply' given to reconstruct does not read as a frame).");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (!out) return km_cli_error("gen capture", "-o DIR is required");
+  km_motion_kind mk = !strcmp(kind, "walk")     ? KM_MOTION_WALK
+                      : !strcmp(kind, "wave")   ? KM_MOTION_WAVE
+                      : !strcmp(kind, "kungfu") ? KM_MOTION_KUNGFU
+                                                : (km_motion_kind)-1;
+  if ((int)mk < 0) return km_cli_error("gen capture", "--kind '%s': walk, wave or kungfu", kind);
+  km_error err = {0};
+  km_character c = {0};
+  km_take take = {0};
+  int rc = KM_EXIT_OK;
+  km_capture_options co = {.cameras = (int)cameras,
+                           .points_per_frame = points,
+                           .noise_mm = noise > 0 ? noise : -1,
+                           .seed = seed};
+  co.progress = km_cli_progress("capture");
+  double t0 = km_cli_now();
+  if (km_cli_load_character(character, rig, vertices, &c, &err) ||
+      (motion ? km_cli_read_motion(motion, &take, &err)
+              : km_motion_generate(&c.skeleton, mk, frames, &take, &err)) ||
+      km_capture_simulate(&c, &take, &co, out, &err))
+    rc = km_cli_fail("gen capture", &err);
+  else
+    fprintf(stderr,
+            "kinemesh gen capture: %zu frames in %.1f s -> %s/frame_*.ply, truth.pc2, "
+            "truth_rest.obj\n",
+            take.n_frames, km_cli_now() - t0, out);
+  km_cli_progress_done();
+  km_take_free(&take);
+  km_character_free(&c);
+  return rc;
+}
+
+/* Features file: one "vertex x y z" per line ('#' comments). */
+/* First-frame correspondences: JSON {"correspondences": [{"vertex": 12, "point": [x, y, z]},
+ * ...]} or text/CSV lines "vertex x y z" / "vertex,x,y,z" (a header line and # comments are
+ * skipped). Returns 0, -1 when unreadable, or the 1-based line (JSON: entry) that is wrong. */
+static int read_features(const char *path, km_recon_feature **out, size_t *n) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return -1;
+  fseek(f, 0, SEEK_END);
+  long size = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  char *text = size >= 0 ? malloc((size_t)size + 1) : NULL;
+  size_t got = text ? fread(text, 1, (size_t)size, f) : 0;
+  fclose(f);
+  if (!text) return -1;
+  text[got] = '\0';
+  *n = 0;
+  *out = NULL;
+  const char *q = text;
+  while (*q == ' ' || *q == '\t' || *q == '\n' || *q == '\r')
+    ++q;
+  if (*q == '{') {
+    cJSON *root = cJSON_Parse(text);
+    const cJSON *arr = cJSON_GetObjectItemCaseSensitive(root, "correspondences");
+    int count = cJSON_GetArraySize(arr), bad = root && cJSON_IsArray(arr) ? 0 : 1;
+    *out = malloc(sizeof **out * (size_t)(count > 0 ? count : 1));
+    for (int i = 0; !bad && *out && i < count; ++i) {
+      const cJSON *e = cJSON_GetArrayItem(arr, i);
+      const cJSON *v = cJSON_GetObjectItemCaseSensitive(e, "vertex");
+      const cJSON *pt = cJSON_GetObjectItemCaseSensitive(e, "point");
+      if (!cJSON_IsNumber(v) || v->valuedouble < 0 || v->valuedouble > INT32_MAX ||
+          cJSON_GetArraySize(pt) != 3) {
+        bad = i + 1;
+        break;
+      }
+      (*out)[*n].vertex = (int32_t)v->valuedouble;
+      for (int k = 0; k < 3; ++k) {
+        const cJSON *c = cJSON_GetArrayItem(pt, k);
+        if (!cJSON_IsNumber(c)) bad = i + 1;
+        (*out)[*n].point[k] = cJSON_IsNumber(c) ? c->valuedouble : 0;
+      }
+      ++*n;
+    }
+    cJSON_Delete(root);
+    free(text);
+    return bad;
+  }
+  size_t cap = 16;
+  *out = malloc(cap * sizeof **out);
+  int lineno = 0, bad = 0;
+  for (char *line = strtok(text, "\n"); line && *out && !bad; line = strtok(NULL, "\n")) {
+    ++lineno;
+    for (char *c = line; *c; ++c)
+      if (*c == ',' || *c == ';' || *c == '\r') *c = ' ';
+    char *p = line;
+    while (*p == ' ' || *p == '\t')
+      ++p;
+    if (*p == '#' || !*p) continue;
+    if (*n == 0 && lineno == 1 && !(*p >= '0' && *p <= '9')) continue; /* CSV header */
+    long v;
+    double x, y, z;
+    if (sscanf(p, "%ld %lf %lf %lf", &v, &x, &y, &z) != 4 || v < 0 || v > INT32_MAX) {
+      bad = lineno;
+      break;
+    }
+    if (*n == cap) {
+      km_recon_feature *g = realloc(*out, 2 * cap * sizeof *g);
+      if (!g) break;
+      *out = g, cap *= 2;
+    }
+    (*out)[*n].vertex = (int32_t)v;
+    (*out)[*n].point[0] = x, (*out)[*n].point[1] = y, (*out)[*n].point[2] = z;
+    ++*n;
+  }
+  free(text);
+  return bad;
+}
+
+int km_cli_reconstruct(int argc, char **argv) {
+  const char *tmpl = NULL, *rig = NULL, *features = NULL, *out = NULL, *report = NULL, *plot = NULL;
+  const char *clouds = NULL;
+  bool rig_joints = false;
+  size_t coarse = 0, vertices = 4000;
+  int radius = 0;
+  const km_cli_opt opts[] = {
+      {"template", 't', KM_OPT_STRING, &tmpl,
+       "template mesh with rig sidecar (default: procedural, --vertices)"},
+      {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
+      {"vertices", 'n', KM_OPT_SIZE, &vertices, "procedural template size (default 4000)"},
+      {"clouds", 0, KM_OPT_STRING, &clouds, "point cloud frames: a directory or a quoted glob"},
+      {"correspondences", 0, KM_OPT_STRING, &features,
+       "first-frame correspondences: JSON, CSV or 'vertex x y z' lines (default: global "
+       "alignment)"},
+      {"features", 0, KM_OPT_STRING, &features, "same as --correspondences"},
+      {"coarse", 0, KM_OPT_SIZE, &coarse, "points of the coarse level (default 2000)"},
+      {"filter-radius", 0, KM_OPT_INT, &radius, "temporal filter half width (default 2, -1 off)"},
+      {"rig-joints", 0, KM_OPT_FLAG, &rig_joints,
+       "use the template rig's joints (default: estimated from the skin weights)"},
+      {"report", 0, KM_OPT_STRING, &report, "per-frame report (JSON)"},
+      {"plot", 0, KM_OPT_STRING, &plot, "error plot (PNG, through gnuplot)"},
+      {"output", 'o', KM_OPT_STRING, &out, "output animation (.glb, .pc2 or a directory)"},
+  };
+  const char *pos[1];
+  int n_pos;
+  int r =
+      km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
+                   "kinemesh reconstruct --template T [--rig R] --clouds 'FRAMES/*.ply' "
+                   "[--correspondences C] -o OUT [--report R.json] [--plot P.png]",
+                   "Template-based mesh animation from point cloud frames (Park & Lim 2014).\n"
+                   "FRAMES (--clouds, or the one positional argument) is a directory or a quoted\n"
+                   "glob of .ply/.pcd/.xyz files, read in name order.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (!clouds && n_pos == 1) clouds = pos[0];
+  if (!clouds || !out)
+    return km_cli_error("reconstruct", "--clouds FRAMES and -o OUT are required");
+  km_error err = {0};
+  char **paths = NULL;
+  size_t n = 0;
+  if (km_point_frames_list(clouds, &paths, &n, &err)) return km_cli_fail("reconstruct", &err);
+  km_recon_feature *feat = NULL;
+  size_t nfeat = 0;
+  if (features) {
+    int fl = read_features(features, &feat, &nfeat);
+    if (fl != 0) {
+      free(feat);
+      km_paths_free(&paths, n);
+      return fl < 0 ? km_cli_error("reconstruct", "%s: cannot open", features)
+                    : km_cli_error("reconstruct",
+                                   "%s: entry/line %d: expected 'vertex x y z' (text or CSV) or "
+                                   "{\"vertex\": V, \"point\": [x, y, z]} (JSON)",
+                                   features, fl);
+    }
+  }
+  km_character c = {0};
+  int rc = KM_EXIT_OK;
+  km_recon_report rep = {0};
+  km_recon_options ro = {
+      .coarse_points = coarse, .filter_radius = radius, .rig_joints = rig_joints};
+  ro.progress = km_cli_progress("reconstruct");
+  double t0 = km_cli_now();
+  km_status s = km_cli_load_character(tmpl, rig, vertices, &c, &err);
+  if (!s) s = km_reconstruct((const char *const *)paths, n, &c, feat, nfeat, &ro, out, &rep, &err);
+  km_cli_progress_done();
+  if (rep.n_frames) {
+    double mean = 0;
+    for (size_t f = 0; f < rep.n_frames; ++f)
+      mean += rep.frames[f].mean_mm / (double)rep.n_frames;
+    fprintf(stderr,
+            "kinemesh reconstruct: %zu frames (%zu carried by the skeleton), mean point error "
+            "%.2f mm, %.2f s/frame, jerk %.2f -> %.2f mm -> %s\n",
+            rep.n_frames, rep.failed_frames, mean, (km_cli_now() - t0) / (double)rep.n_frames,
+            rep.jerk_before * 1e3, rep.jerk_after * 1e3, out);
+    km_error e2 = {0};
+    if (report && km_recon_report_write_json(report, &rep, &e2))
+      rc = km_cli_fail("reconstruct", &e2);
+    if (plot && km_recon_report_plot(plot, &rep, &e2)) rc = km_cli_fail("reconstruct", &e2);
+  }
+  if (s) rc = km_cli_fail("reconstruct", &err);
+  km_recon_report_free(&rep);
+  km_character_free(&c);
+  free(feat);
+  km_paths_free(&paths, n);
+  return rc;
+}

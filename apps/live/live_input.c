@@ -1,0 +1,193 @@
+/* Tracker message parsing for live mode: joint names of the three skeleton vocabularies,
+ * JSON datagrams (cJSON) and OSC messages (decoded by liblo, interpreted here). */
+#include "live.h"
+
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <string.h>
+
+typedef struct joint_alias {
+  const char *name;
+  int joint; /* KM_KINECT1 index, -2: known joint without a v1 counterpart */
+} joint_alias;
+
+/* Kinect v2 (KinectV2-OSC / the SDK's JointType names) and OSCeleton (OpenNI) names. v2's
+ * SpineShoulder is v1's ShoulderCenter; v2's Neck lies between it and the head and has no v1
+ * joint. OpenNI's torso is the mid-spine (v1 Spine) and its waist the pelvis (HipCenter). */
+static const joint_alias ALIASES[] = {
+    {"SpineBase", 0},    {"SpineMid", 1},   {"SpineShoulder", 2}, {"Neck", -2},
+    {"HandTipLeft", -2}, {"ThumbLeft", -2}, {"HandTipRight", -2}, {"ThumbRight", -2},
+    {"waist", 0},        {"torso", 1},      {"neck", 2},          {"head", 3},
+    {"l_shoulder", 4},   {"l_elbow", 5},    {"l_wrist", 6},       {"l_hand", 7},
+    {"r_shoulder", 8},   {"r_elbow", 9},    {"r_wrist", 10},      {"r_hand", 11},
+    {"l_hip", 12},       {"l_knee", 13},    {"l_ankle", 14},      {"l_foot", 15},
+    {"r_hip", 16},       {"r_knee", 17},    {"r_ankle", 18},      {"r_foot", 19},
+    {"l_collar", -2},    {"r_collar", -2},  {"l_fingertip", -2},  {"r_fingertip", -2},
+};
+
+int km_live_joint_index(const char *name) {
+  if (!name) return -1;
+  int j = km_kinect1_joint_index(name);
+  if (j >= 0) return j;
+  for (size_t i = 0; i < sizeof ALIASES / sizeof ALIASES[0]; ++i)
+    if (!strcmp(name, ALIASES[i].name)) return ALIASES[i].joint;
+  return -1;
+}
+
+/* ---------------------------------------------------------------- JSON datagrams */
+
+static int read_xyz(const cJSON *a, double *p) {
+  if (!a || cJSON_IsNull(a)) return 0;
+  if (!cJSON_IsArray(a) || cJSON_GetArraySize(a) != 3) return -1;
+  for (int k = 0; k < 3; ++k) {
+    const cJSON *v = cJSON_GetArrayItem(a, k);
+    if (!cJSON_IsNumber(v) || !isfinite(v->valuedouble)) return -1;
+    p[k] = v->valuedouble;
+  }
+  return 1;
+}
+
+static int read_flat(const cJSON *a, double *joints) {
+  if (cJSON_GetArraySize(a) != 3 * KM_KINECT1_JOINTS) return -1;
+  int n = 0, k = 0;
+  for (const cJSON *v = a->child; v; v = v->next, ++k) {
+    if (cJSON_IsNull(v)) continue;
+    if (!cJSON_IsNumber(v) || !isfinite(v->valuedouble)) return -1;
+    joints[k] = v->valuedouble;
+  }
+  /* A joint counts only when all three of its numbers are present. */
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+    if (isnan(joints[3 * j]) || isnan(joints[3 * j + 1]) || isnan(joints[3 * j + 2]))
+      joints[3 * j] = joints[3 * j + 1] = joints[3 * j + 2] = NAN;
+    else
+      ++n;
+  return n;
+}
+
+int km_live_parse_json(const char *data, size_t size, double *joints) {
+  for (int k = 0; k < 3 * KM_KINECT1_JOINTS; ++k)
+    joints[k] = NAN;
+  if (!data || !size) return -1;
+  cJSON *doc = cJSON_ParseWithLength(data, size);
+  if (!doc) return -1;
+  int n = -1;
+  const cJSON *js = cJSON_IsArray(doc) ? doc : cJSON_GetObjectItemCaseSensitive(doc, "joints");
+  if (cJSON_IsArray(js)) {
+    n = read_flat(js, joints);
+  } else if (cJSON_IsObject(js)) {
+    n = 0;
+    for (const cJSON *e = js->child; e; e = e->next) {
+      int j = km_live_joint_index(e->string);
+      if (j == -2) continue;
+      double p[3];
+      int r = j >= 0 ? read_xyz(e, p) : 0;
+      if (r < 0) {
+        n = -1;
+        break;
+      }
+      if (r > 0) {
+        memcpy(joints + 3 * j, p, sizeof p);
+        ++n;
+      }
+    }
+  }
+  cJSON_Delete(doc);
+  if (n <= 0) {
+    for (int k = 0; k < 3 * KM_KINECT1_JOINTS; ++k)
+      joints[k] = NAN;
+    return -1;
+  }
+  return n;
+}
+
+/* ---------------------------------------------------------------- OSC */
+
+static bool is_num(char t) { return t == 'f' || t == 'd' || t == 'i' || t == 'h'; }
+/* liblo's argument pointers point into the message, 4-byte aligned, while lo_arg (a union
+ * with int64 and double) wants 8: read through memcpy instead of the union. */
+static double num(char t, const void *a) {
+  switch (t) {
+  case 'f': {
+    float f;
+    memcpy(&f, a, sizeof f);
+    return f;
+  }
+  case 'd': {
+    double d;
+    memcpy(&d, a, sizeof d);
+    return d;
+  }
+  case 'i': {
+    int32_t i;
+    memcpy(&i, a, sizeof i);
+    return i;
+  }
+  default: {
+    int64_t h;
+    memcpy(&h, a, sizeof h);
+    return (double)h;
+  }
+  }
+}
+
+km_live_osc_kind km_live_parse_osc(const char *path, const char *types, void *const *argv_,
+                                     int argc, km_live_osc_joint *out) {
+  const void *const *argv = (const void *const *)argv_;
+  if (!path || !types || argc < 0 || (int)strlen(types) != argc) return KM_LIVE_OSC_BAD;
+  out->timestamp = NAN;
+  out->user = 0;
+  if (!strcmp(path, "/joint")) {
+    /* OSCeleton: s i i f f f f [d]; some builds send the numbers as doubles. */
+    if (argc != 7 && argc != 8) return KM_LIVE_OSC_BAD;
+    if (types[0] != 's' || (types[1] != 'i' && types[1] != 'h') ||
+        (types[2] != 'i' && types[2] != 'h'))
+      return KM_LIVE_OSC_BAD;
+    for (int k = 3; k < argc; ++k)
+      if (!is_num(types[k])) return KM_LIVE_OSC_BAD;
+    int j = km_live_joint_index((const char *)argv[0]);
+    if (j == -1) return KM_LIVE_OSC_BAD;
+    double x = num(types[3], argv[3]), y = num(types[4], argv[4]), z = num(types[5], argv[5]);
+    if (!isfinite(x) || !isfinite(y) || !isfinite(z) || !isfinite(num(types[6], argv[6])))
+      return KM_LIVE_OSC_BAD;
+    if (j == -2) return KM_LIVE_OSC_IGNORED;
+    out->joint = j;
+    out->user = (int)num(types[2], argv[2]);
+    /* centimetres, y pointing down; then Kinect camera space -> kinemesh (x,y,z)->(-x,y,-z) */
+    out->p[0] = -x / 100.0;
+    out->p[1] = -y / 100.0;
+    out->p[2] = -z / 100.0;
+    if (argc == 8) {
+      double ts = num(types[7], argv[7]);
+      if (!isfinite(ts)) return KM_LIVE_OSC_BAD;
+      out->timestamp = ts;
+    }
+    return KM_LIVE_OSC_JOINT;
+  }
+  if (!strncmp(path, "/bodies/", 8)) {
+    const char *id = path + 8, *slash = strchr(id, '/');
+    if (!slash) return KM_LIVE_OSC_BAD;
+    int user = 0;
+    for (const char *c = id; c < slash && c - id < 9; ++c)
+      if (*c >= '0' && *c <= '9') user = user * 10 + (*c - '0');
+    if (strncmp(slash, "/joints/", 8)) return KM_LIVE_OSC_IGNORED; /* hands/{Left} states */
+    int j = km_live_joint_index(slash + 8);
+    if (j == -1) return KM_LIVE_OSC_BAD;
+    if (argc < 3 || argc > 4 || !is_num(types[0]) || !is_num(types[1]) || !is_num(types[2]) ||
+        (argc == 4 && types[3] != 's'))
+      return KM_LIVE_OSC_BAD;
+    double x = num(types[0], argv[0]), y = num(types[1], argv[1]), z = num(types[2], argv[2]);
+    if (!isfinite(x) || !isfinite(y) || !isfinite(z)) return KM_LIVE_OSC_BAD;
+    if (j == -2) return KM_LIVE_OSC_IGNORED;
+    out->joint = j;
+    out->user = user;
+    out->p[0] = -x;
+    out->p[1] = y;
+    out->p[2] = -z;
+    if (argc == 4 && !strcmp((const char *)argv[3], "NotTracked"))
+      out->p[0] = out->p[1] = out->p[2] = NAN;
+    return KM_LIVE_OSC_JOINT;
+  }
+  /* OSCeleton's /new_user, /new_skel, /lost_user and anything else a bridge sends. */
+  return KM_LIVE_OSC_IGNORED;
+}

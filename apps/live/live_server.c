@@ -1,0 +1,1273 @@
+/* Live mode server. Three threads:
+ *  - input: polls the OSC and JSON UDP sockets (its own sockets so they bind to the requested
+ *    address; liblo only decodes), assembles per-joint OSC messages into frames and plays the
+ *    replay take on time. It stores only the newest joint frame (latest wins).
+ *  - deform: takes the newest frame, filter -> retarget -> km_puppet_solve -> packs a frame
+ *    message into a double buffer and wakes the service loop with lws_cancel_service.
+ *  - service (the caller of km_live_run): libwebsockets HTTP + WebSocket. Each page has one
+ *    pending slot: on WRITEABLE it sends the newest frame if it has not sent it yet, so a slow
+ *    page skips frames instead of queueing them.
+ * The rig can be replaced at run time (POST /rig): the deform thread swaps handles with
+ * km_puppet_set_handles (no eigen precompute) and a new retarget seeded with the reference
+ * pose already seen, so the character does not jump. */
+#include "live.h"
+
+
+#include <cjson/cJSON.h>
+#include <errno.h>
+#include <libwebsockets.h>
+#include <lo/lo.h>
+#include <math.h>
+#include <netinet/in.h>
+#include <arpa/inet.h>
+#include <poll.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#define NJ KM_KINECT1_JOINTS
+#define RING 2048
+#define MAX_POST (256u << 20)
+
+typedef struct ring {
+  double v[RING];
+  size_t n, head;
+} ring;
+
+static void ring_push(ring *r, double x) {
+  r->v[r->head] = x;
+  r->head = (r->head + 1) % RING;
+  if (r->n < RING) ++r->n;
+}
+
+static int cmp_d(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return x < y ? -1 : x > y;
+}
+
+/* Quantile of the ring's content (copies; called on /status only). */
+static double ring_q(const ring *r, double q) {
+  if (!r->n) return NAN;
+  double *tmp = malloc(sizeof(double) * r->n);
+  if (!tmp) return NAN;
+  memcpy(tmp, r->v, sizeof(double) * r->n);
+  qsort(tmp, r->n, sizeof(double), cmp_d);
+  size_t k = (size_t)ceil(q * (double)r->n) - (q > 0);
+  if (k >= r->n) k = r->n - 1;
+  double out = tmp[k];
+  free(tmp);
+  return out;
+}
+
+/* OSC messages arrive one joint at a time: this gathers them into frames. */
+typedef struct assembler {
+  double state[NJ * 3];
+  uint32_t pending, learned;
+  int user;
+  double user_t, first_t, last_t, ts;
+} assembler;
+
+typedef struct live_rig {
+  km_rig rig;
+  char *text;
+  size_t len;
+} live_rig;
+
+struct km_live {
+  km_live_options opt;
+  char bind[64];
+  char *web_dir, *rig_path;
+  const km_mesh *mesh;
+  km_puppet *puppet;
+  const km_take *take;
+
+  /* deform-thread state */
+  km_rig rig;
+  km_retarget *rt;
+  km_filter *filter;
+  double *targets, *V, *centroids;
+  size_t n_targets_cap;
+  double p0[NJ * 3], last_raw[NJ * 3], rest_joints[NJ * 3];
+  bool have_raw;
+
+  /* input slot */
+  pthread_mutex_t in_mu;
+  pthread_cond_t in_cv;
+  double in_joints[NJ * 3];
+  double in_t;
+  uint64_t in_seq, taken_seq;
+  bool reset_req;
+  live_rig pending; /* rig.handles != NULL or text != NULL: a rig to apply */
+  bool has_pending;
+  double *rec;
+  size_t rec_n, rec_cap;
+  double rec_t0, rec_t1;
+
+  /* output double buffer (each LWS_PRE + frame_size bytes) */
+  pthread_mutex_t out_mu;
+  unsigned char *out_latest, *out_work;
+  size_t frame_size;
+  uint64_t out_seq;
+  double out_t_recv;
+  uint64_t woke_seq; /* service thread only */
+  uint64_t lat_seq;  /* service thread only: newest frame whose latency was recorded */
+
+  /* stats */
+  pthread_mutex_t st_mu;
+  ring lat, t_rt, t_def, t_pack, out_times;
+  double *handle_pos;  /* n_handles*3 current handle centroid targets */
+  char **handle_names; /* n_handles */
+  size_t n_handles;
+  char *rig_text; /* GET /rig */
+  size_t rig_len;
+  char *handles_json; /* GET /handles */
+  atomic_uint_fast64_t frames_in, frames_out, frames_sent, frames_dropped, osc_messages,
+      udp_datagrams, bad_packets, solve_errors;
+  atomic_int clients;
+
+  /* threads, sockets */
+  pthread_t in_thr, def_thr;
+  bool in_started, def_started;
+  atomic_int stop;
+  atomic_int replay_req;
+  int osc_fd, udp_fd;
+  struct lws_context *ctx;
+  struct lws_protocols protocols[3];
+  unsigned char *mesh_blob;
+  size_t mesh_len;
+};
+
+/* ================================================================ rig handling */
+
+/* Rest joints of the character (rig sidecar "joints": [{"name", "rest"}]) for the skeleton
+ * overlay; without them the overlay is centred on the mesh's bounding box. */
+static void read_rest_joints(km_live *l, const char *text, size_t len) {
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t v = 0; v < l->mesh->n_vertices; ++v)
+    for (int a = 0; a < 3; ++a) {
+      double x = l->mesh->V[3 * v + a];
+      lo[a] = x < lo[a] ? x : lo[a];
+      hi[a] = x > hi[a] ? x : hi[a];
+    }
+  for (int j = 0; j < NJ; ++j)
+    for (int a = 0; a < 3; ++a)
+      l->rest_joints[3 * j + a] = 0.5 * (lo[a] + hi[a]);
+  cJSON *doc = cJSON_ParseWithLength(text, len);
+  const cJSON *js = cJSON_GetObjectItemCaseSensitive(doc, "joints");
+  for (const cJSON *e = cJSON_IsArray(js) ? js->child : NULL; e; e = e->next) {
+    const cJSON *n = cJSON_GetObjectItemCaseSensitive(e, "name");
+    const cJSON *r = cJSON_GetObjectItemCaseSensitive(e, "rest");
+    int j = cJSON_IsString(n) ? km_live_joint_index(n->valuestring) : -1;
+    if (j < 0 || !cJSON_IsArray(r) || cJSON_GetArraySize(r) != 3) continue;
+    for (int a = 0; a < 3; ++a) {
+      const cJSON *x = cJSON_GetArrayItem(r, a);
+      if (cJSON_IsNumber(x)) l->rest_joints[3 * j + a] = x->valuedouble;
+    }
+  }
+  cJSON_Delete(doc);
+}
+
+static char *handles_json(const km_rig *rig) {
+  cJSON *doc = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(doc, "handles");
+  for (size_t h = 0; h < rig->n_handles; ++h) {
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "name", rig->handles[h].name);
+    cJSON *vs = cJSON_AddArrayToObject(o, "vertices");
+    for (size_t i = 0; i < rig->handles[h].n_vertices; ++i)
+      cJSON_AddItemToArray(vs, cJSON_CreateNumber(rig->handles[h].vertices[i]));
+    cJSON_AddItemToArray(arr, o);
+  }
+  char *s = cJSON_PrintUnformatted(doc);
+  cJSON_Delete(doc);
+  return s;
+}
+
+/* Installs `nr` (taken over on success) as the active rig: handles into the puppet, a new
+ * filter and retarget. The retarget's reference pose is re-seeded with the first valid
+ * filtered positions already seen (p0), then the newest frame is replayed through it. */
+static km_status apply_rig(km_live *l, live_rig *nr, km_error *err) {
+  km_rig *rig = &nr->rig;
+  if (rig->skeleton != KM_RIG_KINECT1)
+    return km_error_set(err, KM_ERR_INVALID, "live mode needs a \"kinect1\" rig");
+  if (rig->n_handles == 0) return km_error_set(err, KM_ERR_INVALID, "the rig has no handles");
+  int32_t *off = live_alloc(rig->n_handles + 1, sizeof(int32_t));
+  size_t n_hv = 0;
+  for (size_t h = 0; h < rig->n_handles; ++h)
+    n_hv += rig->handles[h].n_vertices;
+  int32_t *hv = live_alloc(n_hv ? n_hv : 1, sizeof(int32_t));
+  double *targets = live_alloc(3 * (n_hv ? n_hv : 1), sizeof(double));
+  double *cent = live_alloc(3 * rig->n_handles, sizeof(double));
+  double *hpos = live_alloc(3 * rig->n_handles, sizeof(double));
+  char **names = live_zalloc(rig->n_handles, sizeof(char *));
+  km_filter *f = NULL;
+  km_retarget *rt = NULL;
+  km_status s = KM_OK;
+  if (!off || !hv || !targets || !cent || !hpos || !names) {
+    s = km_error_set(err, KM_ERR_NOMEM, "out of memory for the rig");
+    goto fail;
+  }
+  off[0] = 0;
+  for (size_t h = 0, k = 0; h < rig->n_handles; ++h) {
+    for (size_t i = 0; i < rig->handles[h].n_vertices; ++i)
+      hv[k++] = rig->handles[h].vertices[i];
+    off[h + 1] = (int32_t)k;
+    names[h] = strdup(rig->handles[h].name);
+    if (!names[h]) {
+      s = km_error_set(err, KM_ERR_NOMEM, "out of memory for the rig");
+      goto fail;
+    }
+  }
+  km_retarget_options ro = {0};
+  if ((s = km_filter_create(NJ, &rig->filter, &f, err)) != KM_OK ||
+      (s = km_retarget_create(rig, l->mesh, NJ, &ro, &rt, err)) != KM_OK ||
+      (s = km_puppet_set_handles(l->puppet, rig->n_handles, off, hv, err)) != KM_OK)
+    goto fail;
+  bool seeded = false;
+  for (int k = 0; k < 3 * NJ; ++k)
+    seeded |= !isnan(l->p0[k]);
+  if (seeded) km_retarget_push(rt, l->p0, NULL);
+  if (l->have_raw) {
+    double filt[3 * NJ];
+    km_filter_push(f, l->last_raw, filt);
+    km_retarget_push(rt, filt, cent);
+  } else {
+    memcpy(cent, km_retarget_rest_centroids(rt), sizeof(double) * 3 * rig->n_handles);
+  }
+  memcpy(hpos, cent, sizeof(double) * 3 * rig->n_handles);
+  char *hj = handles_json(rig);
+  read_rest_joints(l, nr->text, nr->len);
+
+  km_filter_free(&l->filter);
+  km_retarget_free(&l->rt);
+  km_rig_free(&l->rig);
+  free(l->targets);
+  free(l->centroids);
+  l->rig = *rig;
+  memset(rig, 0, sizeof *rig);
+  l->filter = f;
+  l->rt = rt;
+  l->targets = targets;
+  l->centroids = cent;
+  free(off);
+  free(hv);
+
+  pthread_mutex_lock(&l->st_mu);
+  for (size_t h = 0; h < l->n_handles; ++h)
+    free(l->handle_names[h]);
+  free(l->handle_names);
+  free(l->handle_pos);
+  free(l->rig_text);
+  free(l->handles_json);
+  l->handle_names = names;
+  l->handle_pos = hpos;
+  l->n_handles = l->rig.n_handles;
+  l->rig_text = nr->text;
+  l->rig_len = nr->len;
+  l->handles_json = hj;
+  nr->text = NULL;
+  pthread_mutex_unlock(&l->st_mu);
+  return KM_OK;
+fail:
+  km_filter_free(&f);
+  km_retarget_free(&rt);
+  if (names)
+    for (size_t h = 0; h < rig->n_handles; ++h)
+      free(names[h]);
+  free(names);
+  free(off);
+  free(hv);
+  free(targets);
+  free(cent);
+  free(hpos);
+  /* The puppet may hold a half-set handle set: put the active rig's back. */
+  if (l->rig.n_handles && s != KM_OK) {
+    int32_t *o2 = live_alloc(l->rig.n_handles + 1, sizeof(int32_t));
+    size_t n2 = 0;
+    for (size_t h = 0; h < l->rig.n_handles; ++h)
+      n2 += l->rig.handles[h].n_vertices;
+    int32_t *v2 = live_alloc(n2 ? n2 : 1, sizeof(int32_t));
+    if (o2 && v2) {
+      o2[0] = 0;
+      for (size_t h = 0, k = 0; h < l->rig.n_handles; ++h) {
+        for (size_t i = 0; i < l->rig.handles[h].n_vertices; ++i)
+          v2[k++] = l->rig.handles[h].vertices[i];
+        o2[h + 1] = (int32_t)k;
+      }
+      km_error e2 = {0};
+      km_puppet_set_handles(l->puppet, l->rig.n_handles, o2, v2, &e2);
+    }
+    free(o2);
+    free(v2);
+  }
+  return s;
+}
+
+/* ================================================================ input */
+
+static void push_frame(km_live *l, const double *joints, double t_recv, bool reset) {
+  pthread_mutex_lock(&l->in_mu);
+  if (l->in_seq != l->taken_seq) atomic_fetch_add(&l->frames_dropped, 1);
+  memcpy(l->in_joints, joints, sizeof l->in_joints);
+  l->in_t = t_recv;
+  ++l->in_seq;
+  if (reset) l->reset_req = true;
+  if (l->opt.record) {
+    if (l->rec_n == l->rec_cap) {
+      size_t cap = l->rec_cap ? 2 * l->rec_cap : 1024;
+      double *r = realloc(l->rec, sizeof(double) * 3 * NJ * cap);
+      if (r) {
+        l->rec = r;
+        l->rec_cap = cap;
+      }
+    }
+    if (l->rec_n < l->rec_cap) {
+      memcpy(l->rec + 3 * NJ * l->rec_n++, joints, sizeof(double) * 3 * NJ);
+      if (l->rec_n == 1) l->rec_t0 = t_recv;
+      l->rec_t1 = t_recv;
+    }
+  }
+  pthread_cond_signal(&l->in_cv);
+  pthread_mutex_unlock(&l->in_mu);
+  atomic_fetch_add(&l->frames_in, 1);
+}
+
+static bool valid3(const double *p) { return !isnan(p[0]) && !isnan(p[1]) && !isnan(p[2]); }
+
+static void asm_commit(km_live *l, assembler *a) {
+  if (!a->pending) return;
+  double snap[3 * NJ];
+  memcpy(snap, a->state, sizeof snap);
+  /* OpenNI has no pelvis joint unless the bridge sends "waist": the mid-hip stands in. */
+  if (!valid3(snap) && valid3(snap + 3 * 12) && valid3(snap + 3 * 16))
+    for (int k = 0; k < 3; ++k)
+      snap[k] = 0.5 * (snap[3 * 12 + k] + snap[3 * 16 + k]);
+  a->learned |= a->pending;
+  a->pending = 0;
+  push_frame(l, snap, a->first_t, false);
+}
+
+static void asm_joint(km_live *l, assembler *a, const km_live_osc_joint *j, double now) {
+  /* One performer at a time: another body takes over after 0.5 s of silence. */
+  if (a->user != j->user) {
+    if (a->user != INT32_MIN && now - a->user_t < 0.5) return;
+    asm_commit(l, a);
+    a->user = j->user;
+    a->learned = 0;
+    for (int k = 0; k < 3 * NJ; ++k)
+      a->state[k] = NAN;
+  }
+  a->user_t = now;
+  uint32_t bit = 1u << j->joint;
+  /* A frame ends when a joint repeats or the bridge's timestamp changes. */
+  if (a->pending &&
+      ((a->pending & bit) || (!isnan(j->timestamp) && !isnan(a->ts) && j->timestamp != a->ts)))
+    asm_commit(l, a);
+  if (!a->pending) a->first_t = now;
+  a->ts = j->timestamp;
+  memcpy(a->state + 3 * j->joint, j->p, sizeof j->p);
+  a->pending |= bit;
+  a->last_t = now;
+  /* ... or as soon as every joint this bridge sends has arrived. */
+  if (a->learned && (a->pending & a->learned) == a->learned) asm_commit(l, a);
+}
+
+static void handle_osc_msg(km_live *l, assembler *a, const char *data, size_t size, double now,
+                           int depth) {
+  if (size >= 8 && !memcmp(data, "#bundle", 8)) {
+    /* "#bundle\0", 8-byte time tag, then (int32 size, element)* */
+    if (depth > 8 || size < 16) {
+      atomic_fetch_add(&l->bad_packets, 1);
+      return;
+    }
+    size_t p = 16;
+    while (p < size) {
+      if (size - p < 4) {
+        atomic_fetch_add(&l->bad_packets, 1);
+        return;
+      }
+      uint32_t n = ((uint32_t)(unsigned char)data[p] << 24) |
+                   ((uint32_t)(unsigned char)data[p + 1] << 16) |
+                   ((uint32_t)(unsigned char)data[p + 2] << 8) | (unsigned char)data[p + 3];
+      p += 4;
+      if (n > size - p || n % 4) {
+        atomic_fetch_add(&l->bad_packets, 1);
+        return;
+      }
+      handle_osc_msg(l, a, data + p, n, now, depth + 1);
+      p += n;
+    }
+    return;
+  }
+  if (!size || !memchr(data, 0, size) || data[0] != '/') {
+    atomic_fetch_add(&l->bad_packets, 1);
+    return;
+  }
+  int res = 0;
+  /* lo_message_deserialise validates sizes, padding and type tags. */
+  lo_message m = lo_message_deserialise((void *)data, size, &res);
+  if (!m) {
+    atomic_fetch_add(&l->bad_packets, 1);
+    return;
+  }
+  atomic_fetch_add(&l->osc_messages, 1);
+  km_live_osc_joint j;
+  km_live_osc_kind k =
+      km_live_parse_osc(data, lo_message_get_types(m), (void *const *)lo_message_get_argv(m),
+                         lo_message_get_argc(m), &j);
+  if (k == KM_LIVE_OSC_BAD)
+    atomic_fetch_add(&l->bad_packets, 1);
+  else if (k == KM_LIVE_OSC_JOINT)
+    asm_joint(l, a, &j, now);
+  lo_message_free(m);
+}
+
+static void drain(km_live *l, int fd, bool osc, assembler *a, unsigned char *buf, size_t cap) {
+  for (int i = 0; i < 4096; ++i) {
+    ssize_t n = recv(fd, buf, cap, MSG_DONTWAIT | MSG_TRUNC);
+    if (n < 0) return;
+    double now = km_seconds();
+    if ((size_t)n > cap) {
+      atomic_fetch_add(&l->bad_packets, 1);
+      continue;
+    }
+    if (osc) {
+      handle_osc_msg(l, a, (const char *)buf, (size_t)n, now, 0);
+    } else {
+      atomic_fetch_add(&l->udp_datagrams, 1);
+      double joints[3 * NJ];
+      if (km_live_parse_json((const char *)buf, (size_t)n, joints) < 0)
+        atomic_fetch_add(&l->bad_packets, 1);
+      else
+        push_frame(l, joints, now, false);
+    }
+  }
+}
+
+static void *input_main(void *arg) {
+  km_live *l = arg;
+  size_t cap = 65536;
+  unsigned char *buf = malloc(cap);
+  assembler a;
+  memset(&a, 0, sizeof a);
+  a.user = INT32_MIN;
+  a.ts = NAN;
+  for (int k = 0; k < 3 * NJ; ++k)
+    a.state[k] = NAN;
+  bool playing = false;
+  size_t next = 0;
+  double t0 = 0, fps = l->take && l->take->fps > 0 ? l->take->fps : 30;
+  while (buf && !atomic_load(&l->stop)) {
+    if (atomic_exchange(&l->replay_req, 0) && l->take && l->take->n_frames) {
+      playing = true;
+      next = 0;
+      t0 = km_seconds();
+    }
+    double now = km_seconds(), wait = 0.05;
+    if (playing) {
+      /* Latest wins here too: when late, jump to the frame that is due now. */
+      size_t due = (size_t)floor((now - t0) * fps);
+      if (due >= next) {
+        if (due >= l->take->n_frames) {
+          if (l->opt.loop) {
+            t0 += (double)l->take->n_frames / fps;
+            due %= l->take->n_frames;
+          } else {
+            due = l->take->n_frames - 1;
+          }
+        }
+        push_frame(l, l->take->positions + 3 * NJ * due, now, next == 0);
+        next = due + 1;
+        if (next >= l->take->n_frames && !l->opt.loop) playing = false;
+      }
+      if (playing) {
+        double tn = t0 + (double)next / fps - now;
+        wait = tn < wait ? tn : wait;
+      }
+    }
+    if (a.pending) {
+      double td = a.last_t + 0.010 - now;
+      if (td <= 0) {
+        asm_commit(l, &a);
+      } else if (td < wait) {
+        wait = td;
+      }
+    }
+    struct pollfd p[2];
+    int np = 0, io = -1, iu = -1;
+    if (l->osc_fd >= 0) {
+      p[np] = (struct pollfd){.fd = l->osc_fd, .events = POLLIN};
+      io = np++;
+    }
+    if (l->udp_fd >= 0) {
+      p[np] = (struct pollfd){.fd = l->udp_fd, .events = POLLIN};
+      iu = np++;
+    }
+    if (wait < 0) wait = 0;
+    struct timespec ts = {(time_t)wait, (long)((wait - floor(wait)) * 1e9)};
+    int r = ppoll(p, (nfds_t)np, &ts, NULL);
+    if (r <= 0) continue;
+    if (io >= 0 && (p[io].revents & POLLIN)) drain(l, l->osc_fd, true, &a, buf, cap);
+    if (iu >= 0 && (p[iu].revents & POLLIN)) drain(l, l->udp_fd, false, &a, buf, cap);
+  }
+  free(buf);
+  return NULL;
+}
+
+/* ================================================================ deformation */
+
+void km_live_quantize(const double *V, size_t n, const float lo[3], const float hi[3],
+                       int16_t *q) {
+  /* Centred so the page decodes x = c + q h / 32767 with the lo/hi it already has. */
+  float c[3], sc[3];
+  for (int a = 0; a < 3; ++a) {
+    float h = 0.5f * (hi[a] - lo[a]);
+    c[a] = 0.5f * (lo[a] + hi[a]);
+    sc[a] = h > 0 ? 32767.0f / h : 0.0f;
+  }
+  for (size_t v = 0; v < n; ++v)
+    for (int a = 0; a < 3; ++a) {
+      /* q + 32768.5: positive, so truncation rounds (lrintf is 5x slower here) */
+      float t = ((float)V[3 * v + a] - c[a]) * sc[a] + 32768.5f;
+      /* Selects the compiler turns into vector blends. Below the range clamps to -32767, NaN
+       * (no comparison holds) goes to 0; the clamps also catch the rounding of c and h pushing
+       * the box's own extremes just past +-32767. */
+      t = t >= 1.0f ? t : (t < 1.0f ? 1.0f : 32768.5f);
+      t = t < 65535.5f ? t : 65535.0f;
+      q[3 * v + a] = (int16_t)((int32_t)t - 32768);
+    }
+}
+
+static void pack_frame(km_live *l, unsigned char *dst, const double *filt, uint64_t seq,
+                       uint64_t in_seq, float t_rt, float t_def) {
+  double t0 = km_seconds();
+  size_t n = l->mesh->n_vertices;
+  const double *V = l->V;
+  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t v = 0; v < n; ++v)
+    for (int a = 0; a < 3; ++a) {
+      float x = (float)V[3 * v + a];
+      lo[a] = x < lo[a] ? x : lo[a];
+      hi[a] = x > hi[a] ? x : hi[a];
+    }
+  uint32_t hdr[5] = {KM_LIVE_MAGIC, l->opt.quantize ? 1u : 0u, (uint32_t)n, (uint32_t)seq,
+                     (uint32_t)in_seq};
+  memcpy(dst, hdr, sizeof hdr);
+  double s = km_retarget_scale(l->rt);
+  float f[4 + 6 + 3 * NJ];
+  f[0] = t_rt;
+  f[1] = t_def;
+  f[2] = 0;
+  f[3] = (float)s;
+  memcpy(f + 4, lo, sizeof lo);
+  memcpy(f + 7, hi, sizeof hi);
+  /* Overlay joints in the character's space: rest joint + the handle's displacement rule
+   * s (p - p0), so they move exactly as the handles they drive. */
+  for (int j = 0; j < NJ; ++j)
+    for (int a = 0; a < 3; ++a) {
+      double d = filt[3 * j + a] - l->p0[3 * j + a];
+      f[10 + 3 * j + a] = isnan(d) || isnan(s) ? NAN : (float)(l->rest_joints[3 * j + a] + s * d);
+    }
+  memcpy(dst + 20, f, sizeof f);
+  memset(dst + 300, 0, 4);
+  unsigned char *out = dst + KM_LIVE_HEADER;
+  if (l->opt.quantize) {
+    km_live_quantize(V, n, lo, hi, (int16_t *)(void *)out);
+  } else {
+    float *p = (float *)(void *)out;
+    for (size_t k = 0; k < 3 * n; ++k)
+      p[k] = (float)V[k];
+  }
+  float tp = (float)(1e3 * (km_seconds() - t0));
+  memcpy(dst + 28, &tp, sizeof tp);
+}
+
+static void *deform_main(void *arg) {
+  km_live *l = arg;
+  double raw[3 * NJ], filt[3 * NJ];
+  uint64_t produced = 0;
+  for (;;) {
+    pthread_mutex_lock(&l->in_mu);
+    while (!atomic_load(&l->stop) && l->in_seq == l->taken_seq && !l->has_pending)
+      pthread_cond_wait(&l->in_cv, &l->in_mu);
+    if (atomic_load(&l->stop)) {
+      pthread_mutex_unlock(&l->in_mu);
+      break;
+    }
+    live_rig nr = {0};
+    bool has_rig = l->has_pending;
+    if (has_rig) {
+      nr = l->pending;
+      memset(&l->pending, 0, sizeof l->pending);
+      l->has_pending = false;
+    }
+    bool have = l->in_seq != l->taken_seq;
+    uint64_t in_seq = l->in_seq;
+    double t_recv = l->in_t;
+    bool reset = l->reset_req;
+    l->reset_req = false;
+    if (have) memcpy(raw, l->in_joints, sizeof raw);
+    l->taken_seq = l->in_seq;
+    pthread_mutex_unlock(&l->in_mu);
+
+    if (has_rig) {
+      km_error err = {0};
+      if (apply_rig(l, &nr, &err) != KM_OK)
+        fprintf(stderr, "kinemesh live: rig not applied: %s\n", err.message);
+      km_rig_free(&nr.rig);
+      free(nr.text);
+      if (!have && l->have_raw) {
+        /* Show the new handles on the current pose right away. */
+        memcpy(raw, l->last_raw, sizeof raw);
+        have = true;
+        t_recv = km_seconds();
+      }
+    }
+    if (reset) {
+      km_filter_reset(l->filter);
+      km_retarget_reset(l->rt);
+      km_puppet_reset(l->puppet);
+      for (int k = 0; k < 3 * NJ; ++k)
+        l->p0[k] = NAN;
+    }
+    if (!have) continue;
+    double t0 = km_seconds();
+    memcpy(l->last_raw, raw, sizeof raw);
+    l->have_raw = true;
+    km_filter_push(l->filter, raw, filt);
+    for (int k = 0; k < 3 * NJ; ++k)
+      if (isnan(l->p0[k]) && !isnan(filt[k])) l->p0[k] = filt[k];
+    km_retarget_push(l->rt, filt, l->centroids);
+    km_retarget_vertex_targets(l->rt, l->targets);
+    double t1 = km_seconds();
+    km_error err = {0};
+    if (km_puppet_solve(l->puppet, l->targets, l->V, &err) != KM_OK) {
+      atomic_fetch_add(&l->solve_errors, 1);
+      continue;
+    }
+    double t2 = km_seconds();
+    pack_frame(l, l->out_work + LWS_PRE, filt, produced + 1, in_seq, (float)(1e3 * (t1 - t0)),
+               (float)(1e3 * (t2 - t1)));
+    double t3 = km_seconds();
+    pthread_mutex_lock(&l->out_mu);
+    unsigned char *tmp = l->out_latest;
+    l->out_latest = l->out_work;
+    l->out_work = tmp;
+    l->out_seq = ++produced;
+    l->out_t_recv = t_recv;
+    pthread_mutex_unlock(&l->out_mu);
+    atomic_fetch_add(&l->frames_out, 1);
+    pthread_mutex_lock(&l->st_mu);
+    ring_push(&l->t_rt, 1e3 * (t1 - t0));
+    ring_push(&l->t_def, 1e3 * (t2 - t1));
+    ring_push(&l->t_pack, 1e3 * (t3 - t2));
+    ring_push(&l->out_times, t3);
+    if (l->handle_pos && l->n_handles == l->rig.n_handles)
+      memcpy(l->handle_pos, l->centroids, sizeof(double) * 3 * l->n_handles);
+    pthread_mutex_unlock(&l->st_mu);
+    if (l->ctx) lws_cancel_service(l->ctx);
+  }
+  return NULL;
+}
+
+/* ================================================================ status */
+
+void km_live_get_stats(km_live *l, km_live_stats *o) {
+  memset(o, 0, sizeof *o);
+  o->frames_in = atomic_load(&l->frames_in);
+  o->frames_out = atomic_load(&l->frames_out);
+  o->frames_sent = atomic_load(&l->frames_sent);
+  o->frames_dropped = atomic_load(&l->frames_dropped);
+  o->osc_messages = atomic_load(&l->osc_messages);
+  o->udp_datagrams = atomic_load(&l->udp_datagrams);
+  o->bad_packets = atomic_load(&l->bad_packets);
+  o->solve_errors = atomic_load(&l->solve_errors);
+  o->clients = atomic_load(&l->clients);
+  pthread_mutex_lock(&l->st_mu);
+  o->lat_median_ms = ring_q(&l->lat, 0.5);
+  o->lat_p99_ms = ring_q(&l->lat, 0.99);
+  o->lat_count = l->lat.n;
+  o->t_retarget_ms = ring_q(&l->t_rt, 0.5);
+  o->t_deform_ms = ring_q(&l->t_def, 0.5);
+  o->t_pack_ms = ring_q(&l->t_pack, 0.5);
+  pthread_mutex_unlock(&l->st_mu);
+}
+
+static void add_num(cJSON *o, const char *k, double v) {
+  if (isfinite(v))
+    cJSON_AddNumberToObject(o, k, v);
+  else
+    cJSON_AddNullToObject(o, k);
+}
+
+char *km_live_status_json(km_live *l) {
+  km_live_stats s;
+  km_live_get_stats(l, &s);
+  cJSON *o = cJSON_CreateObject();
+  cJSON_AddNumberToObject(o, "frames_in", (double)s.frames_in);
+  cJSON_AddNumberToObject(o, "frames_out", (double)s.frames_out);
+  cJSON_AddNumberToObject(o, "frames_sent", (double)s.frames_sent);
+  cJSON_AddNumberToObject(o, "frames_dropped", (double)s.frames_dropped);
+  cJSON_AddNumberToObject(o, "osc_messages", (double)s.osc_messages);
+  cJSON_AddNumberToObject(o, "udp_datagrams", (double)s.udp_datagrams);
+  cJSON_AddNumberToObject(o, "bad_packets", (double)s.bad_packets);
+  cJSON_AddNumberToObject(o, "solve_errors", (double)s.solve_errors);
+  cJSON_AddNumberToObject(o, "clients", s.clients);
+  cJSON_AddNumberToObject(o, "vertices", (double)l->mesh->n_vertices);
+  cJSON_AddBoolToObject(o, "quantize", l->opt.quantize);
+  cJSON_AddBoolToObject(o, "replay_available", l->take != NULL);
+  cJSON *t = cJSON_AddObjectToObject(o, "times_ms");
+  add_num(t, "retarget", s.t_retarget_ms);
+  add_num(t, "deform", s.t_deform_ms);
+  add_num(t, "pack", s.t_pack_ms);
+  add_num(t, "latency_median", s.lat_median_ms);
+  add_num(t, "latency_p99", s.lat_p99_ms);
+  pthread_mutex_lock(&l->st_mu);
+  double fps = NAN, now = km_seconds();
+  {
+    /* frames produced in the last second */
+    size_t c = 0;
+    for (size_t i = 0; i < l->out_times.n; ++i)
+      c += now - l->out_times.v[i] <= 1.0;
+    fps = (double)c;
+  }
+  cJSON *h = cJSON_AddObjectToObject(o, "handles");
+  for (size_t i = 0; i < l->n_handles; ++i) {
+    double *p = l->handle_pos + 3 * i;
+    cJSON *a = cJSON_CreateArray();
+    for (int k = 0; k < 3; ++k)
+      cJSON_AddItemToArray(a, isfinite(p[k]) ? cJSON_CreateNumber(p[k]) : cJSON_CreateNull());
+    cJSON_AddItemToObject(h, l->handle_names[i], a);
+  }
+  pthread_mutex_unlock(&l->st_mu);
+  add_num(o, "fps_out", fps);
+  char *str = cJSON_PrintUnformatted(o);
+  cJSON_Delete(o);
+  return str;
+}
+
+/* ================================================================ HTTP + WebSocket */
+
+typedef struct http_pss {
+  unsigned char *body; /* LWS_PRE + len */
+  size_t len, pos;
+  char *post;
+  size_t post_len, post_cap;
+  int post_kind; /* 1: /rig, 2: /replay */
+  bool post_too_big;
+} http_pss;
+
+typedef struct ws_pss {
+  unsigned char *buf;
+  size_t cap;
+  uint64_t sent_seq;
+} ws_pss;
+
+static void pss_clear(http_pss *p) {
+  free(p->body);
+  free(p->post);
+  memset(p, 0, sizeof *p);
+}
+
+/* Sends headers now and the body from HTTP_WRITEABLE. Takes `data` (malloc'ed, LWS_PRE
+ * bytes reserved in front) over. */
+static int respond(struct lws *wsi, http_pss *p, unsigned status, const char *ctype,
+                   unsigned char *data, size_t len) {
+  free(p->body);
+  p->body = data;
+  p->len = len;
+  p->pos = 0;
+  unsigned char hb[LWS_PRE + 1024], *start = hb + LWS_PRE, *q = start, *end = hb + sizeof hb - 1;
+  if (lws_add_http_common_headers(wsi, status, ctype, (lws_filepos_t)len, &q, end) ||
+      lws_add_http_header_by_token(wsi, WSI_TOKEN_HTTP_CACHE_CONTROL,
+                                   (const unsigned char *)"no-store", 8, &q, end) ||
+      lws_finalize_write_http_header(wsi, start, &q, end))
+    return 1;
+  lws_callback_on_writable(wsi);
+  return 0;
+}
+
+static unsigned char *with_pre(const void *src, size_t len) {
+  unsigned char *b = malloc(LWS_PRE + len + 1);
+  if (b && len) memcpy(b + LWS_PRE, src, len);
+  return b;
+}
+
+static int respond_str(struct lws *wsi, http_pss *p, unsigned status, const char *ctype,
+                       const char *s) {
+  size_t n = s ? strlen(s) : 0;
+  unsigned char *b = with_pre(s, n);
+  if (!b) return 1;
+  return respond(wsi, p, status, ctype, b, n);
+}
+
+static int respond_error(struct lws *wsi, http_pss *p, unsigned status, const char *msg) {
+  cJSON *o = cJSON_CreateObject();
+  cJSON_AddStringToObject(o, "error", msg);
+  char *s = cJSON_PrintUnformatted(o);
+  cJSON_Delete(o);
+  int r = respond_str(wsi, p, status, "application/json", s);
+  free(s);
+  return r;
+}
+
+static const char *mime(const char *path) {
+  const char *dot = strrchr(path, '.');
+  if (!dot) return "application/octet-stream";
+  if (!strcmp(dot, ".html")) return "text/html; charset=utf-8";
+  if (!strcmp(dot, ".js") || !strcmp(dot, ".mjs")) return "text/javascript";
+  if (!strcmp(dot, ".css")) return "text/css";
+  if (!strcmp(dot, ".json")) return "application/json";
+  if (!strcmp(dot, ".png")) return "image/png";
+  if (!strcmp(dot, ".svg")) return "image/svg+xml";
+  return "application/octet-stream";
+}
+
+static int handle_post(km_live *l, struct lws *wsi, http_pss *p) {
+  if (p->post_too_big) return respond_error(wsi, p, 413, "request body too large");
+  if (p->post_kind == 2) {
+    if (!km_live_replay(l)) return respond_error(wsi, p, 409, "no --replay take loaded");
+    return respond_str(wsi, p, 200, "application/json", "{\"ok\":true}");
+  }
+  if (!l->rig_path) return respond_error(wsi, p, 403, "rig saving is disabled");
+  live_rig nr = {0};
+  km_error err = {0};
+  if (km_rig_parse(p->post ? p->post : "", p->post_len, "POST /rig", l->mesh, NULL, 0, &nr.rig,
+                   &err) != KM_OK)
+    return respond_error(wsi, p, 400, err.message);
+  if (nr.rig.skeleton != KM_RIG_KINECT1 || nr.rig.n_handles == 0) {
+    km_rig_free(&nr.rig);
+    return respond_error(wsi, p, 400, "the rig needs skeleton kinect1 and at least one handle");
+  }
+  if (km_write_file_atomic(l->rig_path, p->post, p->post_len, &err) != KM_OK) {
+    km_rig_free(&nr.rig);
+    return respond_error(wsi, p, 500, err.message[0] ? err.message : "cannot write the rig");
+  }
+  nr.text = p->post;
+  nr.len = p->post_len;
+  p->post = NULL;
+  p->post_len = p->post_cap = 0;
+  size_t n_handles = nr.rig.n_handles;
+  /* GET /rig and /handles answer with the saved rig from now on, even before the deform
+   * thread has switched to it. */
+  char *hj = handles_json(&nr.rig), *text = malloc(nr.len + 1);
+  if (hj && text) {
+    memcpy(text, nr.text, nr.len + 1);
+    pthread_mutex_lock(&l->st_mu);
+    free(l->rig_text);
+    free(l->handles_json);
+    l->rig_text = text;
+    l->rig_len = nr.len;
+    l->handles_json = hj;
+    pthread_mutex_unlock(&l->st_mu);
+  } else {
+    free(hj);
+    free(text);
+  }
+  pthread_mutex_lock(&l->in_mu);
+  if (l->has_pending) {
+    km_rig_free(&l->pending.rig);
+    free(l->pending.text);
+  }
+  l->pending = nr;
+  l->has_pending = true;
+  pthread_cond_signal(&l->in_cv);
+  pthread_mutex_unlock(&l->in_mu);
+  char msg[128];
+  snprintf(msg, sizeof msg, "{\"ok\":true,\"handles\":%zu}", n_handles);
+  return respond_str(wsi, p, 200, "application/json", msg);
+}
+
+static int cb_http(struct lws *wsi, enum lws_callback_reasons reason, void *user, void *in,
+                   size_t len) {
+  km_live *l = lws_context_user(lws_get_context(wsi));
+  http_pss *p = user;
+  switch (reason) {
+  case LWS_CALLBACK_HTTP: {
+    const char *uri = in;
+    pss_clear(p);
+    if (lws_hdr_total_length(wsi, WSI_TOKEN_POST_URI) > 0) {
+      if (!strcmp(uri, "/rig"))
+        p->post_kind = 1;
+      else if (!strcmp(uri, "/replay"))
+        p->post_kind = 2;
+      else
+        return respond_error(wsi, p, 404, "unknown POST endpoint");
+      char cl[32] = "";
+      if (lws_hdr_copy(wsi, cl, sizeof cl, WSI_TOKEN_HTTP_CONTENT_LENGTH) <= 0 || atol(cl) == 0)
+        return handle_post(l, wsi, p); /* no body is coming */
+      return 0;
+    }
+    if (!strcmp(uri, "/status")) {
+      char *s = km_live_status_json(l);
+      int r = s ? respond_str(wsi, p, 200, "application/json", s) : 1;
+      free(s);
+      return r;
+    }
+    if (!strcmp(uri, "/mesh")) {
+      unsigned char *b = with_pre(l->mesh_blob, l->mesh_len);
+      return b ? respond(wsi, p, 200, "application/octet-stream", b, l->mesh_len) : 1;
+    }
+    if (!strcmp(uri, "/rig") || !strcmp(uri, "/handles")) {
+      pthread_mutex_lock(&l->st_mu);
+      bool rig = !strcmp(uri, "/rig");
+      size_t n = rig ? l->rig_len : (l->handles_json ? strlen(l->handles_json) : 0);
+      unsigned char *b = with_pre(rig ? l->rig_text : l->handles_json, n);
+      pthread_mutex_unlock(&l->st_mu);
+      return b ? respond(wsi, p, 200, "application/json", b, n) : 1;
+    }
+    if (!l->web_dir || strstr(uri, "..") || strlen(uri) > 200 || uri[0] != '/')
+      return respond_error(wsi, p, 404, "not found");
+    char path[1024];
+    snprintf(path, sizeof path, "%s%s", l->web_dir, !strcmp(uri, "/") ? "/index.html" : uri);
+    if (access(path, R_OK)) return respond_error(wsi, p, 404, "not found");
+    int n = lws_serve_http_file(wsi, path, mime(path), NULL, 0);
+    if (n < 0 || (n > 0 && lws_http_transaction_completed(wsi))) return -1;
+    return 0;
+  }
+  case LWS_CALLBACK_HTTP_BODY:
+    if (!len || !in) return 0;
+    if (p->post_len + len > MAX_POST) {
+      p->post_too_big = true;
+      return 0;
+    }
+    if (p->post_len + len + 1 > p->post_cap) {
+      size_t cap = p->post_cap ? p->post_cap : 4096;
+      while (cap < p->post_len + len + 1)
+        cap *= 2;
+      char *q = realloc(p->post, cap);
+      if (!q) {
+        p->post_too_big = true;
+        return 0;
+      }
+      p->post = q;
+      p->post_cap = cap;
+    }
+    memcpy(p->post + p->post_len, in, len);
+    p->post_len += len;
+    p->post[p->post_len] = 0;
+    return 0;
+  case LWS_CALLBACK_HTTP_BODY_COMPLETION: return handle_post(l, wsi, p);
+  case LWS_CALLBACK_HTTP_WRITEABLE: {
+    if (!p->body) return 0;
+    size_t chunk = p->len - p->pos;
+    if (chunk > 65536) chunk = 65536;
+    bool final = p->pos + chunk == p->len;
+    if (lws_write(wsi, p->body + LWS_PRE + p->pos, chunk,
+                  final ? LWS_WRITE_HTTP_FINAL : LWS_WRITE_HTTP) != (int)chunk)
+      return 1;
+    p->pos += chunk;
+    if (!final) {
+      lws_callback_on_writable(wsi);
+      return 0;
+    }
+    free(p->body);
+    p->body = NULL;
+    if (lws_http_transaction_completed(wsi)) return -1;
+    return 0;
+  }
+  case LWS_CALLBACK_CLOSED_HTTP:
+  case LWS_CALLBACK_HTTP_DROP_PROTOCOL:
+    if (p) pss_clear(p);
+    return 0;
+  default: break;
+  }
+  return lws_callback_http_dummy(wsi, reason, user, in, len);
+}
+
+static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, void *in,
+                 size_t len) {
+  struct lws_context *ctx = lws_get_context(wsi);
+  km_live *l = lws_context_user(ctx);
+  ws_pss *p = user;
+  switch (reason) {
+  case LWS_CALLBACK_EVENT_WAIT_CANCELLED: {
+    /* The deform thread has a new frame (or km_live_stop was called). */
+    pthread_mutex_lock(&l->out_mu);
+    uint64_t seq = l->out_seq;
+    pthread_mutex_unlock(&l->out_mu);
+    if (seq != l->woke_seq) {
+      l->woke_seq = seq;
+      lws_callback_on_writable_all_protocol(ctx, &l->protocols[1]);
+    }
+    return 0;
+  }
+  case LWS_CALLBACK_ESTABLISHED: {
+    memset(p, 0, sizeof *p);
+    /* Room for about one frame in the kernel: with the default (autotuned to megabytes) a
+     * slow page would have several old frames queued in the socket, defeating latest-wins. */
+    int fd = lws_get_socket_fd(wsi), sz = (int)(l->frame_size + 65536);
+    if (fd >= 0) setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &sz, sizeof sz);
+    atomic_fetch_add(&l->clients, 1);
+    lws_callback_on_writable(wsi);
+    return 0;
+  }
+  case LWS_CALLBACK_CLOSED:
+    atomic_fetch_sub(&l->clients, 1);
+    free(p->buf);
+    p->buf = NULL;
+    return 0;
+  case LWS_CALLBACK_SERVER_WRITEABLE: {
+    if (lws_send_pipe_choked(wsi)) {
+      lws_callback_on_writable(wsi);
+      return 0;
+    }
+    if (!p->buf) {
+      p->cap = LWS_PRE + l->frame_size;
+      p->buf = malloc(p->cap);
+      if (!p->buf) return -1;
+    }
+    pthread_mutex_lock(&l->out_mu);
+    uint64_t seq = l->out_seq;
+    double t_recv = l->out_t_recv;
+    bool fresh = seq && seq != p->sent_seq;
+    if (fresh) memcpy(p->buf + LWS_PRE, l->out_latest + LWS_PRE, l->frame_size);
+    pthread_mutex_unlock(&l->out_mu);
+    if (!fresh) return 0;
+    if (lws_write(wsi, p->buf + LWS_PRE, l->frame_size, LWS_WRITE_BINARY) < (int)l->frame_size)
+      return -1;
+    p->sent_seq = seq;
+    atomic_fetch_add(&l->frames_sent, 1);
+    if (seq > l->lat_seq) {
+      l->lat_seq = seq;
+      double lat = 1e3 * (km_seconds() - t_recv);
+      pthread_mutex_lock(&l->st_mu);
+      ring_push(&l->lat, lat);
+      pthread_mutex_unlock(&l->st_mu);
+    }
+    return 0;
+  }
+  case LWS_CALLBACK_RECEIVE:
+    (void)in;
+    (void)len;
+    return 0;
+  default: break;
+  }
+  return 0;
+}
+
+/* ================================================================ life cycle */
+
+static int udp_socket(const char *bind_addr, int port, km_error *err, const char *what) {
+  int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  if (fd < 0) return km_error_set(err, KM_ERR_IO, "%s: socket: %s", what, strerror(errno)), -1;
+  struct sockaddr_in a = {0};
+  a.sin_family = AF_INET;
+  a.sin_port = htons((uint16_t)port);
+  if (inet_pton(AF_INET, bind_addr, &a.sin_addr) != 1) {
+    close(fd);
+    km_error_set(err, KM_ERR_INVALID, "%s: --bind %s is not an IPv4 address", what, bind_addr);
+    return -1;
+  }
+  int rcv = 1 << 20;
+  setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcv, sizeof rcv);
+  if (bind(fd, (struct sockaddr *)&a, sizeof a)) {
+    km_error_set(err, KM_ERR_IO, "%s: cannot bind %s:%d: %s", what, bind_addr, port, strerror(errno));
+    close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+static bool build_mesh_blob(km_live *l) {
+  const km_mesh *m = l->mesh;
+  size_t n = 16 + 12 * m->n_vertices + 12 * m->n_faces;
+  l->mesh_blob = malloc(n);
+  if (!l->mesh_blob) return false;
+  uint32_t h[4] = {0x314d4d4bu /* 'KMM1' */, (uint32_t)m->n_vertices, (uint32_t)m->n_faces, 0};
+  memcpy(l->mesh_blob, h, 16);
+  float *v = (float *)(void *)(l->mesh_blob + 16);
+  for (size_t k = 0; k < 3 * m->n_vertices; ++k)
+    v[k] = (float)m->V[k];
+  uint32_t *f = (uint32_t *)(void *)(l->mesh_blob + 16 + 12 * m->n_vertices);
+  for (size_t k = 0; k < 3 * m->n_faces; ++k)
+    f[k] = (uint32_t)m->F[k];
+  l->mesh_len = n;
+  return true;
+}
+
+km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_puppet *puppet,
+                          const char *rig_json, size_t rig_size, const km_take *replay,
+                          km_live **out, km_error *err) {
+  *out = NULL;
+  if (!mesh || !mesh->n_vertices || !puppet || !rig_json)
+    return km_error_set(err, KM_ERR_INVALID, "live: mesh, puppet and rig are required");
+  if (replay && (replay->n_joints != NJ || !replay->positions))
+    return km_error_set(err, KM_ERR_INVALID, "live: the replay take must have the 20 Kinect joints");
+  km_live *l = live_zalloc(1, sizeof *l);
+  if (!l) return km_error_set(err, KM_ERR_NOMEM, "out of memory");
+  l->opt = *opt;
+  snprintf(l->bind, sizeof l->bind, "%s", opt->bind ? opt->bind : "127.0.0.1");
+  l->opt.bind = l->bind;
+  if (!l->opt.http_port) l->opt.http_port = 8080;
+  l->web_dir = opt->web_dir ? strdup(opt->web_dir) : NULL;
+  l->rig_path = opt->rig_path ? strdup(opt->rig_path) : NULL;
+  l->opt.web_dir = l->web_dir;
+  l->opt.rig_path = l->rig_path;
+  l->mesh = mesh;
+  l->puppet = puppet;
+  l->take = replay;
+  l->osc_fd = l->udp_fd = -1;
+  pthread_mutex_init(&l->in_mu, NULL);
+  pthread_cond_init(&l->in_cv, NULL);
+  pthread_mutex_init(&l->out_mu, NULL);
+  pthread_mutex_init(&l->st_mu, NULL);
+  for (int k = 0; k < 3 * NJ; ++k)
+    l->p0[k] = NAN;
+  km_status s = KM_OK;
+  size_t n = mesh->n_vertices;
+  l->frame_size = KM_LIVE_HEADER + n * 3 * (opt->quantize ? 2 : 4);
+  l->out_latest = live_zalloc(LWS_PRE + l->frame_size, 1);
+  l->out_work = live_zalloc(LWS_PRE + l->frame_size, 1);
+  l->V = live_alloc(3 * n, sizeof(double));
+  if (!l->out_latest || !l->out_work || !l->V || !build_mesh_blob(l) ||
+      (opt->web_dir && !l->web_dir) || (opt->rig_path && !l->rig_path)) {
+    s = km_error_set(err, KM_ERR_NOMEM, "out of memory");
+    goto fail;
+  }
+  live_rig nr = {0};
+  if ((s = km_rig_parse(rig_json, rig_size, opt->rig_path ? opt->rig_path : "rig", mesh, NULL, 0,
+                        &nr.rig, err)) != KM_OK)
+    goto fail;
+  nr.text = malloc(rig_size + 1);
+  if (!nr.text) {
+    km_rig_free(&nr.rig);
+    s = km_error_set(err, KM_ERR_NOMEM, "out of memory");
+    goto fail;
+  }
+  memcpy(nr.text, rig_json, rig_size);
+  nr.text[rig_size] = 0;
+  nr.len = rig_size;
+  s = apply_rig(l, &nr, err);
+  km_rig_free(&nr.rig);
+  free(nr.text);
+  if (s != KM_OK) goto fail;
+
+  if (opt->osc_port > 0 && (l->osc_fd = udp_socket(l->bind, opt->osc_port, err, "OSC")) < 0) {
+    s = KM_ERR_IO;
+    goto fail;
+  }
+  if (opt->udp_port > 0 && (l->udp_fd = udp_socket(l->bind, opt->udp_port, err, "UDP")) < 0) {
+    s = KM_ERR_IO;
+    goto fail;
+  }
+
+  l->protocols[0] = (struct lws_protocols){"http", cb_http, sizeof(http_pss), 0, 0, NULL, 0};
+  l->protocols[1] = (struct lws_protocols){"kinemesh", cb_ws, sizeof(ws_pss), 4096, 0, NULL, 0};
+  lws_set_log_level(LLL_ERR, NULL);
+  struct lws_context_creation_info info;
+  memset(&info, 0, sizeof info);
+  info.port = l->opt.http_port;
+  info.iface = l->bind;
+  info.protocols = l->protocols;
+  info.user = l;
+  info.options = LWS_SERVER_OPTION_DISABLE_IPV6;
+  info.count_threads = 1;
+  l->ctx = lws_create_context(&info);
+  if (!l->ctx) {
+    s = km_error_set(err, KM_ERR_IO, "cannot listen for HTTP on %s:%d (port taken?)", l->bind,
+                 l->opt.http_port);
+    goto fail;
+  }
+  if (pthread_create(&l->def_thr, NULL, deform_main, l)) {
+    s = km_error_set(err, KM_ERR_IO, "cannot start the deformation thread");
+    goto fail;
+  }
+  l->def_started = true;
+  if (replay && !opt->no_autoplay) atomic_store(&l->replay_req, 1);
+  if (pthread_create(&l->in_thr, NULL, input_main, l)) {
+    s = km_error_set(err, KM_ERR_IO, "cannot start the input thread");
+    goto fail;
+  }
+  l->in_started = true;
+  *out = l;
+  return KM_OK;
+fail:
+  km_live_free(&l);
+  return s;
+}
+
+km_status km_live_run(km_live *l, km_error *err) {
+  while (!atomic_load(&l->stop))
+    if (lws_service(l->ctx, 0) < 0) return km_error_set(err, KM_ERR_IO, "HTTP service failed");
+  return KM_OK;
+}
+
+void km_live_stop(km_live *l) {
+  atomic_store(&l->stop, 1);
+  if (l->ctx) lws_cancel_service(l->ctx);
+}
+
+bool km_live_replay(km_live *l) {
+  if (!l->take) return false;
+  atomic_store(&l->replay_req, 1);
+  return true;
+}
+
+km_status km_live_record_take(km_live *l, const char *path, km_error *err) {
+  pthread_mutex_lock(&l->in_mu);
+  km_take t = {0};
+  t.n_frames = l->rec_n;
+  t.n_joints = NJ;
+  /* Frames arrive at the tracker's rate: the take's fps is the measured mean. */
+  t.fps = l->rec_n > 1 && l->rec_t1 > l->rec_t0
+              ? round((double)(l->rec_n - 1) / (l->rec_t1 - l->rec_t0))
+              : 30;
+  if (t.fps < 1) t.fps = 1;
+  char *names[NJ];
+  int32_t parents[NJ];
+  for (int j = 0; j < NJ; ++j) {
+    names[j] = (char *)km_kinect1_joint_name(j);
+    parents[j] = km_kinect1_joint_parent(j);
+  }
+  t.joint_names = names;
+  t.parents = parents;
+  t.positions = l->rec;
+  km_status s = km_take_write(path, &t, err);
+  pthread_mutex_unlock(&l->in_mu);
+  return s;
+}
+
+void km_live_free(km_live **lp) {
+  km_live *l = lp ? *lp : NULL;
+  if (!l) return;
+  atomic_store(&l->stop, 1);
+  pthread_mutex_lock(&l->in_mu);
+  pthread_cond_broadcast(&l->in_cv);
+  pthread_mutex_unlock(&l->in_mu);
+  if (l->in_started) pthread_join(l->in_thr, NULL);
+  if (l->def_started) pthread_join(l->def_thr, NULL);
+  if (l->ctx) lws_context_destroy(l->ctx);
+  if (l->osc_fd >= 0) close(l->osc_fd);
+  if (l->udp_fd >= 0) close(l->udp_fd);
+  km_filter_free(&l->filter);
+  km_retarget_free(&l->rt);
+  km_rig_free(&l->rig);
+  if (l->has_pending) {
+    km_rig_free(&l->pending.rig);
+    free(l->pending.text);
+  }
+  for (size_t h = 0; h < l->n_handles; ++h)
+    free(l->handle_names[h]);
+  free(l->handle_names);
+  free(l->handle_pos);
+  free(l->rig_text);
+  free(l->handles_json);
+  free(l->targets);
+  free(l->centroids);
+  free(l->V);
+  free(l->out_latest);
+  free(l->out_work);
+  free(l->mesh_blob);
+  free(l->rec);
+  free(l->web_dir);
+  free(l->rig_path);
+  pthread_mutex_destroy(&l->in_mu);
+  pthread_cond_destroy(&l->in_cv);
+  pthread_mutex_destroy(&l->out_mu);
+  pthread_mutex_destroy(&l->st_mu);
+  free(l);
+  *lp = NULL;
+}

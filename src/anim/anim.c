@@ -1,0 +1,631 @@
+/* Streaming animation output: a fixed-connectivity mesh, one frame at a time, to
+ *  - PC2 (Blender / 3ds Max point cache),
+ *  - a directory of per-frame OBJ or binary PLY files,
+ *  - glTF 2.0 binary with one morph target per (key) frame (glb.c).
+ * Nothing appears at the destination until close succeeds: PC2 and glb go through
+ * km__atomic_open/commit, a directory is filled under "<dir>.tmp.<pid>" and renamed. */
+#include "anim/anim.h"
+
+#include <dirent.h>
+#include <float.h>
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#define PC2_HEADER 32
+#define PC2_NSAMPLES_OFFSET 28
+
+static void put_f64le(unsigned char *p, double d) {
+  uint64_t u;
+  memcpy(&u, &d, 8);
+  for (int i = 0; i < 8; ++i)
+    p[i] = (unsigned char)(u >> (8 * i));
+}
+
+static char *dup_str(const char *s) {
+  size_t n = strlen(s) + 1;
+  char *d = malloc(n);
+  if (d) memcpy(d, s, n);
+  return d;
+}
+
+/* "frame_" + at least 6 digits + ".obj"/".ply": the files this module writes into a
+ * directory. Returns 1 for obj, 2 for ply, 0 otherwise. */
+static int frame_file_kind(const char *name) {
+  if (strncmp(name, "frame_", 6) != 0) return 0;
+  const char *p = name + 6;
+  size_t digits = 0;
+  while (*p >= '0' && *p <= '9')
+    ++p, ++digits;
+  if (digits < 6) return 0;
+  if (strcmp(p, ".obj") == 0) return 1;
+  if (strcmp(p, ".ply") == 0) return 2;
+  return 0;
+}
+
+/* Checks that an existing directory holds only frame files (ours, from an earlier run), so
+ * replacing it cannot destroy anything else. */
+static km_status check_replaceable_dir(const char *path, km_error *err) {
+  DIR *d = opendir(path);
+  if (!d) return km__fail(err, KM_ERR_IO, "%s: cannot open directory: %s", path, strerror(errno));
+  km_status s = KM_OK;
+  struct dirent *e;
+  while ((e = readdir(d)) != NULL) {
+    if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
+    if (!frame_file_kind(e->d_name)) {
+      s = km__fail(err, KM_ERR_IO,
+                   "%s: directory exists and holds '%s', which is not a frame file; refusing to "
+                   "replace it",
+                   path, e->d_name);
+      break;
+    }
+  }
+  closedir(d);
+  return s;
+}
+
+/* Removes the frame files of a directory, then the directory (if it is then empty). */
+static void remove_frame_dir(const char *dir) {
+  DIR *d = opendir(dir);
+  if (!d) return;
+  size_t n = strlen(dir);
+  struct dirent *e;
+  while ((e = readdir(d)) != NULL) {
+    if (!frame_file_kind(e->d_name)) continue;
+    size_t m = n + strlen(e->d_name) + 2;
+    char *p = malloc(m);
+    if (!p) break;
+    snprintf(p, m, "%s/%s", dir, e->d_name);
+    remove(p);
+    free(p);
+  }
+  closedir(d);
+  if (rmdir(dir) != 0) km__log(KM_LOG_WARN, "%s: could not remove directory", dir);
+}
+
+static void writer_discard(km_anim_writer *w) {
+  if (w->af.f || w->af.path) km__atomic_abort(&w->af);
+  if (w->keys) fclose(w->keys);
+  if (w->tmp_dir) remove_frame_dir(w->tmp_dir);
+  free(w->tmp_dir);
+  free(w->path);
+  free(w->rest);
+  free(w->F);
+  free(w->fbuf);
+  free(w->bytes);
+  free(w->key_frame);
+  free(w->key_minmax);
+  free(w->last);
+  free(w);
+}
+
+void km_anim_writer_free(km_anim_writer **w) {
+  if (!w || !*w) return;
+  writer_discard(*w);
+  *w = NULL;
+}
+
+static km_anim_format format_from_path(const char *path) {
+  char ext[8];
+  km__extension(path, ext, sizeof ext);
+  if (strcmp(ext, "glb") == 0) return KM_ANIM_GLB;
+  if (strcmp(ext, "pc2") == 0) return KM_ANIM_PC2;
+  return KM_ANIM_OBJ_DIR;
+}
+
+static void minmax_init(float mm[6]) {
+  for (int c = 0; c < 3; ++c) {
+    mm[c] = INFINITY;
+    mm[3 + c] = -INFINITY;
+  }
+}
+
+km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_anim_options *opt,
+                              km_anim_writer **out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_anim_writer_open: out is NULL");
+  *out = NULL;
+  if (!path || !*path) return km__fail(err, KM_ERR_INVALID, "km_anim_writer_open: empty path");
+  if (!rest || !rest->V || rest->n_vertices == 0)
+    return km__fail(err, KM_ERR_INVALID, "%s: the rest mesh has no vertices", path);
+  if (rest->n_faces && !rest->F)
+    return km__fail(err, KM_ERR_INVALID, "%s: the rest mesh has faces but F is NULL", path);
+  /* PC2 stores the point count as int32 and glb indexes with uint32. */
+  if (rest->n_vertices > (size_t)INT32_MAX || rest->n_faces > (size_t)INT32_MAX / 3)
+    return km__fail(err, KM_ERR_UNSUPPORTED, "%s: mesh too large for animation output", path);
+  const size_t nv = rest->n_vertices, nf = rest->n_faces;
+  for (size_t i = 0; i < nf * 3; ++i)
+    if (rest->F[i] < 0 || (size_t)rest->F[i] >= nv)
+      return km__fail(err, KM_ERR_INVALID, "%s: face %zu references vertex %ld of %zu", path, i / 3,
+                      (long)rest->F[i], nv);
+  for (size_t i = 0; i < nv * 3; ++i)
+    if (!(fabs(rest->V[i]) <= FLT_MAX))
+      return km__fail(err, KM_ERR_INVALID, "%s: rest vertex %zu has a non-finite coordinate", path,
+                      i / 3);
+
+  km_anim_options o = opt ? *opt : (km_anim_options){0};
+  if (o.fps == 0) o.fps = 30;
+  if (!(o.fps > 0) || !isfinite(o.fps))
+    return km__fail(err, KM_ERR_INVALID, "%s: fps must be positive, got %g", path, o.fps);
+  if (o.key_every == 0) o.key_every = 1;
+  if (o.format == KM_ANIM_AUTO) o.format = format_from_path(path);
+  if (o.format < KM_ANIM_GLB || o.format > KM_ANIM_PLY_DIR)
+    return km__fail(err, KM_ERR_INVALID, "%s: unknown animation format %d", path, (int)o.format);
+
+  km_anim_writer *w = calloc(1, sizeof *w);
+  if (!w) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  w->format = o.format;
+  w->n_vertices = nv;
+  w->n_faces = nf;
+  w->fps = o.fps;
+  w->key_every = o.key_every;
+  w->path = dup_str(path);
+  /* "out/frames/" must not put the temporary directory inside the destination. */
+  for (size_t n = w->path ? strlen(w->path) : 0; n > 1 && w->path[n - 1] == '/'; --n)
+    w->path[n - 1] = '\0';
+  w->rest = km__malloc(nv * 3, sizeof *w->rest);
+  w->F = km__malloc(nf * 3, sizeof *w->F);
+  if (!w->path || !w->rest || !w->F) goto nomem;
+  memcpy(w->rest, rest->V, nv * 3 * sizeof *w->rest);
+  if (nf) memcpy(w->F, rest->F, nf * 3 * sizeof *w->F);
+
+  km_status s = KM_OK;
+  switch (w->format) {
+  case KM_ANIM_PC2: {
+    w->bytes = km__malloc(nv, 12);
+    if (!w->bytes) goto nomem;
+    if ((s = km__atomic_open(&w->af, w->path, err)) != KM_OK) goto fail;
+    unsigned char h[PC2_HEADER] = "POINTCACHE2";
+    km__put_u32le(h + 12, 1);
+    km__put_u32le(h + 16, (uint32_t)nv);
+    /* PC2 has no frame rate: startFrame 0 and one sample per frame; the reader takes the
+     * scene's frame rate. */
+    km__put_f32le(h + 20, 0.0f);
+    km__put_f32le(h + 24, 1.0f);
+    km__put_u32le(h + 28, 0); /* numSamples, patched by close */
+    if (fwrite(h, 1, sizeof h, w->af.f) != sizeof h) {
+      s = km__fail(err, KM_ERR_IO, "%s: write failed: %s", path, strerror(errno));
+      goto fail;
+    }
+    break;
+  }
+  case KM_ANIM_GLB: {
+    w->fbuf = km__malloc(nv * 3, sizeof *w->fbuf);
+    w->last = km__malloc(nv * 3, sizeof *w->last);
+    w->bytes = km__malloc(nv, 12);
+    if (!w->fbuf || !w->last || !w->bytes) goto nomem;
+    /* Key frames can outgrow memory (1M vertices x hundreds of frames), so they wait in an
+     * anonymous temporary file that disappears with the process. */
+    /* The output's temporary is created now so a bad path fails here, not after the run. */
+    if ((s = km__atomic_open(&w->af, w->path, err)) != KM_OK) goto fail;
+    w->keys = tmpfile();
+    if (!w->keys) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot create a temporary file: %s", path, strerror(errno));
+      goto fail;
+    }
+    minmax_init(w->rest_minmax);
+    for (size_t i = 0; i < nv; ++i)
+      for (int c = 0; c < 3; ++c) {
+        float f = (float)w->rest[3 * i + c];
+        if (f < w->rest_minmax[c]) w->rest_minmax[c] = f;
+        if (f > w->rest_minmax[3 + c]) w->rest_minmax[3 + c] = f;
+      }
+    break;
+  }
+  case KM_ANIM_OBJ_DIR:
+  case KM_ANIM_PLY_DIR: {
+    struct stat st;
+    if (stat(w->path, &st) == 0) {
+      if (!S_ISDIR(st.st_mode)) {
+        s = km__fail(err, KM_ERR_IO, "%s: exists and is not a directory", path);
+        goto fail;
+      }
+      if ((s = check_replaceable_dir(w->path, err)) != KM_OK) goto fail;
+    }
+    size_t n = strlen(w->path) + 32;
+    w->tmp_dir = malloc(n);
+    if (!w->tmp_dir) goto nomem;
+    snprintf(w->tmp_dir, n, "%s.tmp.%ld", w->path, (long)getpid());
+    if (mkdir(w->tmp_dir, 0777) != 0) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot create directory: %s", w->tmp_dir, strerror(errno));
+      free(w->tmp_dir);
+      w->tmp_dir = NULL; /* not ours: never remove it */
+      goto fail;
+    }
+    size_t vb = nv * 24, fb = nf * 13;
+    w->bytes = malloc((vb > fb ? vb : fb) + 1);
+    if (!w->bytes) goto nomem;
+    break;
+  }
+  default: break;
+  }
+  *out = w;
+  return KM_OK;
+nomem:
+  s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for a %zu-vertex animation", path, nv);
+fail:
+  writer_discard(w);
+  return s;
+}
+
+/* ---------------------------------------------------------------- per-format frame output */
+
+static km_status push_pc2(km_anim_writer *w, const double *V, km_error *err) {
+  for (size_t i = 0; i < w->n_vertices * 3; ++i)
+    km__put_f32le(w->bytes + 4 * i, (float)V[i]);
+  if (fwrite(w->bytes, 12, w->n_vertices, w->af.f) != w->n_vertices) {
+    w->failed = true;
+    return km__fail(err, KM_ERR_IO, "%s: write failed at frame %zu: %s", w->path, w->frames,
+                    strerror(errno));
+  }
+  return KM_OK;
+}
+
+static km_status store_key(km_anim_writer *w, const float *disp, const float mm[6], size_t frame,
+                           km_error *err) {
+  if (w->n_keys == w->key_cap) {
+    size_t cap = w->key_cap ? 2 * w->key_cap : 64;
+    size_t *kf = realloc(w->key_frame, cap * sizeof *kf);
+    if (kf) w->key_frame = kf;
+    float *km = kf ? realloc(w->key_minmax, cap * 6 * sizeof *km) : NULL;
+    if (km) w->key_minmax = km;
+    if (!kf || !km) {
+      w->failed = true;
+      return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+    }
+    w->key_cap = cap;
+  }
+  if (fwrite(disp, sizeof *disp, w->n_vertices * 3, w->keys) != w->n_vertices * 3) {
+    w->failed = true;
+    return km__fail(err, KM_ERR_IO, "%s: cannot write key frame %zu to a temporary file: %s",
+                    w->path, frame, strerror(errno));
+  }
+  w->key_frame[w->n_keys] = frame;
+  memcpy(w->key_minmax + 6 * w->n_keys, mm, 6 * sizeof *mm);
+  ++w->n_keys;
+  return KM_OK;
+}
+
+static km_status push_glb(km_anim_writer *w, const double *V, km_error *err) {
+  /* glb is limited to 4 GiB (uint32 lengths); refuse early rather than at close. */
+  uint64_t per_key = (uint64_t)w->n_vertices * 12;
+  uint64_t estimate = per_key * (w->n_keys + 2) + (uint64_t)w->n_faces * 12 +
+                      (uint64_t)(w->n_keys + 1) * (w->n_keys + 2) * 4 + (1u << 20);
+  if (estimate > UINT32_MAX)
+    return km__fail(err, KM_ERR_UNSUPPORTED,
+                    "%s: frame %zu would make the glb exceed 4 GiB; use key_every > 1 or pc2",
+                    w->path, w->frames);
+  float mm[6];
+  minmax_init(mm);
+  for (size_t i = 0; i < w->n_vertices * 3; ++i) {
+    float d = (float)(V[i] - w->rest[i]);
+    w->last[i] = d;
+    if (d < mm[i % 3]) mm[i % 3] = d;
+    if (d > mm[3 + i % 3]) mm[3 + i % 3] = d;
+  }
+  memcpy(w->last_minmax, mm, sizeof mm);
+  if (w->frames % w->key_every == 0) return store_key(w, w->last, mm, w->frames, err);
+  return KM_OK;
+}
+
+static km_status push_dir(km_anim_writer *w, const double *V, km_error *err) {
+  bool ply = w->format == KM_ANIM_PLY_DIR;
+  size_t n = strlen(w->tmp_dir) + 40;
+  char *fp = malloc(n);
+  if (!fp) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+  snprintf(fp, n, "%s/frame_%06zu.%s", w->tmp_dir, w->frames, ply ? "ply" : "obj");
+  FILE *f = fopen(fp, "wb");
+  if (!f) {
+    km_status s = km__fail(err, KM_ERR_IO, "%s: cannot open for writing: %s", fp, strerror(errno));
+    free(fp);
+    w->failed = true;
+    return s;
+  }
+  const size_t nv = w->n_vertices, nf = w->n_faces;
+  /* Coordinates are written exactly (%.17g / raw doubles), as km_mesh_write does; the fps is
+   * kept in a comment so km_anim_info_read can report it. */
+  if (ply) {
+    fprintf(f,
+            "ply\nformat binary_little_endian 1.0\ncomment kinemesh animation frame %zu fps "
+            "%.17g\nelement vertex %zu\nproperty double x\nproperty double y\nproperty double "
+            "z\n",
+            w->frames, w->fps, nv);
+    if (nf) fprintf(f, "element face %zu\nproperty list uchar int vertex_indices\n", nf);
+    fputs("end_header\n", f);
+    for (size_t i = 0; i < nv * 3; ++i)
+      put_f64le(w->bytes + 8 * i, V[i]);
+    fwrite(w->bytes, 24, nv, f);
+    for (size_t i = 0; i < nf; ++i) {
+      unsigned char *p = w->bytes + 13 * i;
+      p[0] = 3;
+      for (int k = 0; k < 3; ++k)
+        km__put_u32le(p + 1 + 4 * k, (uint32_t)w->F[3 * i + k]);
+    }
+    fwrite(w->bytes, 13, nf, f);
+  } else {
+    fprintf(f, "# kinemesh animation frame %zu fps %.17g\n", w->frames, w->fps);
+    for (size_t i = 0; i < nv; ++i)
+      fprintf(f, "v %.17g %.17g %.17g\n", V[3 * i], V[3 * i + 1], V[3 * i + 2]);
+    for (size_t i = 0; i < nf; ++i)
+      fprintf(f, "f %ld %ld %ld\n", (long)w->F[3 * i] + 1, (long)w->F[3 * i + 1] + 1,
+              (long)w->F[3 * i + 2] + 1);
+  }
+  int bad = ferror(f);
+  bad |= fclose(f) != 0;
+  km_status s = KM_OK;
+  if (bad) {
+    s = km__fail(err, KM_ERR_IO, "%s: write failed: %s", fp, strerror(errno));
+    w->failed = true;
+  }
+  free(fp);
+  return s;
+}
+
+km_status km_anim_writer_push(km_anim_writer *w, const double *V, km_error *err) {
+  if (!w) return km__fail(err, KM_ERR_INVALID, "km_anim_writer_push: writer is NULL (closed?)");
+  if (!V) return km__fail(err, KM_ERR_INVALID, "%s: frame %zu: V is NULL", w->path, w->frames);
+  if (w->failed)
+    return km__fail(err, KM_ERR_IO, "%s: an earlier write failed; the animation is discarded",
+                    w->path);
+  if (w->frames >= (size_t)INT32_MAX)
+    return km__fail(err, KM_ERR_UNSUPPORTED, "%s: too many frames", w->path);
+  /* A rejected frame is not written, so the writer stays usable. */
+  for (size_t i = 0; i < w->n_vertices * 3; ++i)
+    if (!(fabs(V[i]) <= FLT_MAX && fabs(V[i] - w->rest[i]) <= FLT_MAX))
+      return km__fail(err, KM_ERR_INVALID,
+                      "%s: frame %zu: vertex %zu coordinate %zu is not finite in float32 (%g)",
+                      w->path, w->frames, i / 3, i % 3, V[i]);
+  km_status s = KM_OK;
+  switch (w->format) {
+  case KM_ANIM_PC2: s = push_pc2(w, V, err); break;
+  case KM_ANIM_GLB: s = push_glb(w, V, err); break;
+  default: s = push_dir(w, V, err); break;
+  }
+  if (s == KM_OK) ++w->frames;
+  return s;
+}
+
+/* ---------------------------------------------------------------- close */
+
+static km_status close_pc2(km_anim_writer *w, km_error *err) {
+  unsigned char b[4];
+  km__put_u32le(b, (uint32_t)w->frames);
+  if (fseek(w->af.f, PC2_NSAMPLES_OFFSET, SEEK_SET) != 0 || fwrite(b, 1, 4, w->af.f) != 4)
+    return km__fail(err, KM_ERR_IO, "%s: cannot patch the sample count: %s", w->path,
+                    strerror(errno));
+  return km__atomic_commit(&w->af, err);
+}
+
+static km_status close_dir(km_anim_writer *w, km_error *err) {
+  struct stat st;
+  if (stat(w->path, &st) != 0) {
+    if (rename(w->tmp_dir, w->path) != 0)
+      return km__fail(err, KM_ERR_IO, "%s: cannot rename %s into place: %s", w->path, w->tmp_dir,
+                      strerror(errno));
+  } else {
+    /* Replace an earlier animation: move it aside, move the new one in, then delete the old
+     * frame files. Re-checked here because the directory may have changed since open. */
+    km_status s = check_replaceable_dir(w->path, err);
+    if (s != KM_OK) return s;
+    size_t n = strlen(w->path) + 32;
+    char *old = malloc(n);
+    if (!old) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+    snprintf(old, n, "%s.old.%ld", w->path, (long)getpid());
+    if (rename(w->path, old) != 0) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot move the existing directory aside: %s", w->path,
+                   strerror(errno));
+      free(old);
+      return s;
+    }
+    if (rename(w->tmp_dir, w->path) != 0) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot rename %s into place: %s", w->path, w->tmp_dir,
+                   strerror(errno));
+      (void)rename(old, w->path);
+      free(old);
+      return s;
+    }
+    remove_frame_dir(old);
+    free(old);
+  }
+  free(w->tmp_dir);
+  w->tmp_dir = NULL; /* published: discard must not remove it */
+  return KM_OK;
+}
+
+km_status km_anim_writer_close(km_anim_writer **wp, km_error *err) {
+  if (!wp || !*wp) return km__fail(err, KM_ERR_INVALID, "km_anim_writer_close: writer is NULL");
+  km_anim_writer *w = *wp;
+  *wp = NULL;
+  km_status s = KM_OK;
+  if (w->failed)
+    s = km__fail(err, KM_ERR_IO, "%s: an earlier write failed; nothing written", w->path);
+  else if (w->frames == 0)
+    s = km__fail(err, KM_ERR_INVALID, "%s: no frames were pushed; nothing written", w->path);
+  else if (w->format == KM_ANIM_PC2)
+    s = close_pc2(w, err);
+  else if (w->format == KM_ANIM_GLB)
+    s = km__glb_finish(w, err);
+  else
+    s = close_dir(w, err);
+  writer_discard(w);
+  return s;
+}
+
+/* ---------------------------------------------------------------- reading */
+
+/* Parses the 32-byte PC2 header and checks it against the file size. */
+static km_status pc2_header(FILE *f, const char *path, km_anim_info *info, km_error *err) {
+  unsigned char h[PC2_HEADER];
+  size_t got = fread(h, 1, sizeof h, f);
+  if (got < sizeof h)
+    return km__fail(err, KM_ERR_PARSE, "%s: byte %zu: truncated PC2 header (32 bytes expected)",
+                    path, got);
+  if (memcmp(h, "POINTCACHE2\0", 12) != 0)
+    return km__fail(err, KM_ERR_PARSE, "%s: byte 0: not a PC2 file (no POINTCACHE2 signature)",
+                    path);
+  uint32_t version = km__get_u32le(h + 12);
+  int32_t np = (int32_t)km__get_u32le(h + 16), ns = (int32_t)km__get_u32le(h + 28);
+  if (version != 1)
+    return km__fail(err, KM_ERR_UNSUPPORTED, "%s: byte 12: PC2 version %u, expected 1", path,
+                    version);
+  if (np < 0) return km__fail(err, KM_ERR_PARSE, "%s: byte 16: negative point count", path);
+  if (ns < 0) return km__fail(err, KM_ERR_PARSE, "%s: byte 28: negative sample count", path);
+  if (fseek(f, 0, SEEK_END) != 0)
+    return km__fail(err, KM_ERR_IO, "%s: cannot seek: %s", path, strerror(errno));
+  long size = ftell(f);
+  uint64_t want = PC2_HEADER + (uint64_t)np * (uint64_t)ns * 12;
+  if (size < 0 || (uint64_t)size != want)
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: file is %ld bytes, header (%d points x %d samples) needs %llu", path, size,
+                    np, ns, (unsigned long long)want);
+  if (fseek(f, PC2_HEADER, SEEK_SET) != 0)
+    return km__fail(err, KM_ERR_IO, "%s: cannot seek: %s", path, strerror(errno));
+  memset(info, 0, sizeof *info);
+  info->format = KM_ANIM_PC2;
+  info->frames = (size_t)ns;
+  info->vertices = (size_t)np;
+  /* PC2 carries a sample step, not a frame rate, so fps and duration are unknown (0). */
+  return KM_OK;
+}
+
+km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_error *err) {
+  if (frames) *frames = NULL;
+  if (!path || !frames) return km__fail(err, KM_ERR_INVALID, "km_pc2_read: NULL argument");
+  FILE *f = fopen(path, "rb");
+  if (!f) return km__fail(err, KM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+  km_anim_info tmp;
+  km_status s = pc2_header(f, path, &tmp, err);
+  if (s != KM_OK) {
+    fclose(f);
+    return s;
+  }
+  size_t n = tmp.frames * tmp.vertices * 3;
+  double *out = km__malloc(n, sizeof *out);
+  unsigned char *buf = km__malloc(tmp.vertices ? tmp.vertices : 1, 12);
+  if (!out || !buf) {
+    free(out);
+    free(buf);
+    fclose(f);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames", path, tmp.frames);
+  }
+  for (size_t k = 0; k < tmp.frames; ++k) {
+    if (fread(buf, 12, tmp.vertices, f) != tmp.vertices) {
+      free(out);
+      free(buf);
+      fclose(f);
+      return km__fail(err, KM_ERR_IO, "%s: read error in frame %zu", path, k);
+    }
+    double *o = out + k * tmp.vertices * 3;
+    for (size_t i = 0; i < tmp.vertices * 3; ++i)
+      o[i] = km__get_f32le(buf + 4 * i);
+  }
+  free(buf);
+  fclose(f);
+  *frames = out;
+  if (info) *info = tmp;
+  return KM_OK;
+}
+
+/* Vertex / face counts and fps of one frame file we wrote (or any OBJ / PLY with the usual
+ * header); reads the PLY header only, the whole OBJ. */
+static km_status frame_file_info(const char *fp, int kind, km_anim_info *info, km_error *err) {
+  FILE *f = fopen(fp, "rb");
+  if (!f) return km__fail(err, KM_ERR_IO, "%s: cannot open: %s", fp, strerror(errno));
+  char line[512];
+  size_t lineno = 0, nv = 0, nf = 0;
+  double fps = 0;
+  km_status s = KM_OK;
+  while (fgets(line, sizeof line, f)) {
+    ++lineno;
+    size_t len = strlen(line);
+    bool whole = len && line[len - 1] == '\n';
+    const char *c = strstr(line, "kinemesh animation frame");
+    if (c) {
+      const char *q = strstr(c, "fps ");
+      if (q) fps = strtod(q + 4, NULL);
+    }
+    if (kind == 2) {
+      if (lineno == 1 && strncmp(line, "ply", 3) != 0) {
+        s = km__fail(err, KM_ERR_PARSE, "%s:1: not a PLY file", fp);
+        break;
+      }
+      unsigned long long n;
+      if (sscanf(line, "element vertex %llu", &n) == 1) nv = (size_t)n;
+      if (sscanf(line, "element face %llu", &n) == 1) nf = (size_t)n;
+      if (strncmp(line, "end_header", 10) == 0) break;
+    } else if (line[0] == 'v' && (line[1] == ' ' || line[1] == '\t')) {
+      ++nv;
+    } else if (line[0] == 'f' && (line[1] == ' ' || line[1] == '\t')) {
+      size_t corners = 0;
+      for (char *p = line + 1; *p;) {
+        while (*p == ' ' || *p == '\t')
+          ++p;
+        if (!*p || *p == '\n' || *p == '\r') break;
+        ++corners;
+        while (*p && *p != ' ' && *p != '\t' && *p != '\n')
+          ++p;
+      }
+      if (corners >= 3) nf += corners - 2; /* fan triangulation, as km_mesh_read does */
+    }
+    /* Skip the rest of an over-long line (only comments can be that long). */
+    while (!whole) {
+      if (!fgets(line, sizeof line, f)) break;
+      len = strlen(line);
+      whole = len && line[len - 1] == '\n';
+    }
+  }
+  fclose(f);
+  info->vertices = nv;
+  info->faces = nf;
+  info->fps = isfinite(fps) && fps > 0 ? fps : 0;
+  return s;
+}
+
+static km_status dir_info(const char *path, km_anim_info *out, km_error *err) {
+  DIR *d = opendir(path);
+  if (!d) return km__fail(err, KM_ERR_IO, "%s: cannot open directory: %s", path, strerror(errno));
+  size_t n_obj = 0, n_ply = 0;
+  struct dirent *e;
+  while ((e = readdir(d)) != NULL) {
+    int k = frame_file_kind(e->d_name);
+    n_obj += k == 1;
+    n_ply += k == 2;
+  }
+  closedir(d);
+  if (n_obj + n_ply == 0)
+    return km__fail(err, KM_ERR_PARSE, "%s: no frame_NNNNNN.obj / .ply files in the directory",
+                    path);
+  memset(out, 0, sizeof *out);
+  int kind = n_obj >= n_ply ? 1 : 2;
+  out->format = kind == 1 ? KM_ANIM_OBJ_DIR : KM_ANIM_PLY_DIR;
+  out->frames = kind == 1 ? n_obj : n_ply;
+  size_t m = strlen(path) + 32;
+  char *fp = malloc(m);
+  if (!fp) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  snprintf(fp, m, "%s/frame_000000.%s", path, kind == 1 ? "obj" : "ply");
+  km_status s = frame_file_info(fp, kind, out, err);
+  free(fp);
+  if (s == KM_OK && out->fps > 0) out->duration = (double)(out->frames - 1) / out->fps;
+  return s;
+}
+
+km_status km_anim_info_read(const char *path, km_anim_info *out, km_error *err) {
+  if (!path || !out) return km__fail(err, KM_ERR_INVALID, "km_anim_info_read: NULL argument");
+  memset(out, 0, sizeof *out);
+  struct stat st;
+  if (stat(path, &st) != 0) return km__fail(err, KM_ERR_IO, "%s: %s", path, strerror(errno));
+  if (S_ISDIR(st.st_mode)) return dir_info(path, out, err);
+  char ext[8];
+  km__extension(path, ext, sizeof ext);
+  if (strcmp(ext, "glb") == 0) return km__glb_info(path, out, err);
+  if (strcmp(ext, "pc2") == 0) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return km__fail(err, KM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    km_status s = pc2_header(f, path, out, err);
+    fclose(f);
+    return s;
+  }
+  return km__fail(err, KM_ERR_UNSUPPORTED,
+                  "%s: unknown animation format (expected .glb, .pc2 or a frame directory)", path);
+}

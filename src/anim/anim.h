@@ -1,0 +1,66 @@
+/* Requires: core, mesh. External: cJSON. */
+/* Private interface between the animation writer (anim.c) and its format back-ends. */
+#ifndef KM_IO_ANIM_H
+#define KM_IO_ANIM_H
+
+#include "core/core.h"
+
+#include <string.h>
+
+/* Little-endian encoding independent of the host byte order. */
+static inline void km__put_u32le(unsigned char *p, uint32_t v) {
+  p[0] = (unsigned char)v;
+  p[1] = (unsigned char)(v >> 8);
+  p[2] = (unsigned char)(v >> 16);
+  p[3] = (unsigned char)(v >> 24);
+}
+static inline uint32_t km__get_u32le(const unsigned char *p) {
+  return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+static inline void km__put_f32le(unsigned char *p, float f) {
+  uint32_t u;
+  memcpy(&u, &f, 4);
+  km__put_u32le(p, u);
+}
+static inline float km__get_f32le(const unsigned char *p) {
+  uint32_t u = km__get_u32le(p);
+  float f;
+  memcpy(&f, &u, 4);
+  return f;
+}
+
+/* Writer state shared by the back-ends. */
+struct km_anim_writer {
+  km_anim_format format;
+  char *path;
+  size_t n_vertices, n_faces;
+  double *rest; /* copy of the rest positions */
+  int32_t *F;   /* copy of the rest faces */
+  double fps;
+  size_t key_every;
+  size_t frames;        /* frames accepted so far */
+  bool failed;          /* an I/O error happened: close refuses to publish */
+  float *fbuf;          /* one frame as float32 (glb) */
+  unsigned char *bytes; /* one frame encoded (pc2, ply) */
+  /* pc2: the output itself, streamed to its temporary. */
+  km__atomic_file af;
+  /* glb: key-frame displacements, float32, in an anonymous temporary file. */
+  FILE *keys;
+  size_t n_keys;
+  size_t *key_frame; /* frame index of each stored key */
+  float *key_minmax; /* 6 per key: min xyz, max xyz of the displacement */
+  size_t key_cap;
+  float *last; /* the latest frame's displacement (glb), for the closing key */
+  float last_minmax[6];
+  float rest_minmax[6];
+  /* directories: frames are written into tmp_dir, renamed into place on close. */
+  char *tmp_dir;
+};
+
+/* Writes the final .glb from the stored keys (called by close). */
+km_status km__glb_finish(km_anim_writer *w, km_error *err);
+
+/* Reads the .glb header and JSON chunk only (the binary chunk may be large). */
+km_status km__glb_info(const char *path, km_anim_info *out, km_error *err);
+
+#endif

@@ -1,0 +1,364 @@
+/* glTF 2.0 binary output: the rest mesh plus one morph target per key frame holding float32
+ * POSITION displacements, and an animation whose LINEAR weights sampler is one-hot per key,
+ * so players crossfade between consecutive keys. Many morph targets (hundreds) are valid
+ * glTF; Blender imports them as shape keys (named through mesh.extras.targetNames).
+ * The frame rate, frame count and key spacing are kept in asset.extras.kinemesh so
+ * km_anim_info_read can report them exactly. */
+#include "anim/anim.h"
+
+#include <cjson/cJSON.h>
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+
+#define GLB_MAGIC 0x46546C67u /* "glTF" */
+#define GLB_JSON 0x4E4F534Au  /* "JSON" */
+#define GLB_BIN 0x004E4942u   /* "BIN\0" */
+#define GL_FLOAT 5126
+#define GL_UNSIGNED_INT 5125
+#define GL_ARRAY_BUFFER 34962
+#define GL_ELEMENT_ARRAY_BUFFER 34963
+
+static cJSON *num_array(const float *v, int n) {
+  cJSON *a = cJSON_CreateArray();
+  for (int i = 0; a && i < n; ++i)
+    cJSON_AddItemToArray(a, cJSON_CreateNumber((double)v[i]));
+  return a;
+}
+
+/* Appends a bufferView + accessor pair and returns the accessor index. */
+static int add_view_accessor(cJSON *views, cJSON *accessors, uint64_t offset, uint64_t length,
+                             int target, int component, size_t count, const char *type,
+                             const float *min, const float *max, int n_minmax) {
+  cJSON *v = cJSON_CreateObject();
+  cJSON_AddNumberToObject(v, "buffer", 0);
+  cJSON_AddNumberToObject(v, "byteOffset", (double)offset);
+  cJSON_AddNumberToObject(v, "byteLength", (double)length);
+  if (target) cJSON_AddNumberToObject(v, "target", target);
+  cJSON_AddItemToArray(views, v);
+  cJSON *a = cJSON_CreateObject();
+  cJSON_AddNumberToObject(a, "bufferView", cJSON_GetArraySize(views) - 1);
+  cJSON_AddNumberToObject(a, "componentType", component);
+  cJSON_AddNumberToObject(a, "count", (double)count);
+  cJSON_AddStringToObject(a, "type", type);
+  if (min) {
+    cJSON_AddItemToObject(a, "min", num_array(min, n_minmax));
+    cJSON_AddItemToObject(a, "max", num_array(max, n_minmax));
+  }
+  cJSON_AddItemToArray(accessors, a);
+  return cJSON_GetArraySize(accessors) - 1;
+}
+
+static km_status write_all(km_anim_writer *w, FILE *f, const void *p, size_t n, km_error *err) {
+  if (n && fwrite(p, 1, n, f) != n)
+    return km__fail(err, KM_ERR_IO, "%s: write failed: %s", w->path, strerror(errno));
+  return KM_OK;
+}
+
+km_status km__glb_finish(km_anim_writer *w, km_error *err) {
+  /* The last frame always closes the animation, key or not. */
+  if ((w->frames - 1) % w->key_every != 0) {
+    if (fseek(w->keys, 0, SEEK_END) != 0)
+      return km__fail(err, KM_ERR_IO, "%s: cannot seek the key-frame temporary", w->path);
+    if (fwrite(w->last, sizeof *w->last, w->n_vertices * 3, w->keys) != w->n_vertices * 3)
+      return km__fail(err, KM_ERR_IO, "%s: cannot write the last key frame: %s", w->path,
+                      strerror(errno));
+    if (w->n_keys == w->key_cap) {
+      size_t *kf = realloc(w->key_frame, (w->key_cap + 1) * sizeof *kf);
+      if (kf) w->key_frame = kf;
+      float *km = kf ? realloc(w->key_minmax, (w->key_cap + 1) * 6 * sizeof *km) : NULL;
+      if (km) w->key_minmax = km;
+      if (!kf || !km) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+      ++w->key_cap;
+    }
+    w->key_frame[w->n_keys] = w->frames - 1;
+    memcpy(w->key_minmax + 6 * w->n_keys, w->last_minmax, sizeof w->last_minmax);
+    ++w->n_keys;
+  }
+  const size_t nv = w->n_vertices, nf = w->n_faces, nk = w->n_keys;
+
+  /* Binary layout: indices, rest positions, targets, key times, weights. Every piece is a
+   * multiple of 4 bytes, so every bufferView offset is 4-aligned. */
+  uint64_t off = 0;
+  const uint64_t idx_len = (uint64_t)nf * 12, pos_len = (uint64_t)nv * 12;
+  const uint64_t times_len = (uint64_t)nk * 4, weights_len = (uint64_t)nk * nk * 4;
+  uint64_t bin_len = idx_len + pos_len * (1 + nk) + times_len + weights_len;
+  if (bin_len + (64u << 20) > UINT32_MAX)
+    return km__fail(err, KM_ERR_UNSUPPORTED,
+                    "%s: %zu key frames of %zu vertices exceed the 4 GiB glb limit; use "
+                    "key_every > 1 or pc2",
+                    w->path, nk, nv);
+
+  float *times = km__malloc(nk, sizeof *times);
+  if (!times) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+  for (size_t k = 0; k < nk; ++k)
+    times[k] = (float)((double)w->key_frame[k] / w->fps);
+
+  cJSON *root = cJSON_CreateObject();
+  cJSON *asset = cJSON_AddObjectToObject(root, "asset");
+  cJSON_AddStringToObject(asset, "version", "2.0");
+  cJSON_AddStringToObject(asset, "generator", "kinemesh");
+  cJSON *ex = cJSON_AddObjectToObject(cJSON_AddObjectToObject(asset, "extras"), "kinemesh");
+  cJSON_AddNumberToObject(ex, "fps", w->fps);
+  cJSON_AddNumberToObject(ex, "frames", (double)w->frames);
+  cJSON_AddNumberToObject(ex, "key_every", (double)w->key_every);
+  cJSON_AddNumberToObject(root, "scene", 0);
+  cJSON *scene = cJSON_CreateObject();
+  cJSON_AddItemToObject(scene, "nodes", cJSON_CreateIntArray((const int[]){0}, 1));
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "scenes"), scene);
+  cJSON *node = cJSON_CreateObject();
+  cJSON_AddNumberToObject(node, "mesh", 0);
+  cJSON_AddStringToObject(node, "name", "kinemesh");
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "nodes"), node);
+
+  cJSON *views = cJSON_CreateArray(), *accessors = cJSON_CreateArray();
+  cJSON *prim = cJSON_CreateObject();
+  if (nf) {
+    int a = add_view_accessor(views, accessors, off, idx_len, GL_ELEMENT_ARRAY_BUFFER,
+                              GL_UNSIGNED_INT, nf * 3, "SCALAR", NULL, NULL, 0);
+    cJSON_AddNumberToObject(prim, "indices", a);
+    off += idx_len;
+  }
+  int a_pos = add_view_accessor(views, accessors, off, pos_len, GL_ARRAY_BUFFER, GL_FLOAT, nv,
+                                "VEC3", w->rest_minmax, w->rest_minmax + 3, 3);
+  off += pos_len;
+  cJSON_AddNumberToObject(cJSON_AddObjectToObject(prim, "attributes"), "POSITION", a_pos);
+  cJSON_AddNumberToObject(prim, "mode", nf ? 4 : 0); /* triangles, or points for a cloud */
+  cJSON *targets = cJSON_AddArrayToObject(prim, "targets");
+  cJSON *names = cJSON_CreateArray();
+  for (size_t k = 0; k < nk; ++k) {
+    const float *mm = w->key_minmax + 6 * k;
+    int a = add_view_accessor(views, accessors, off, pos_len, GL_ARRAY_BUFFER, GL_FLOAT, nv, "VEC3",
+                              mm, mm + 3, 3);
+    off += pos_len;
+    cJSON *t = cJSON_CreateObject();
+    cJSON_AddNumberToObject(t, "POSITION", a);
+    cJSON_AddItemToArray(targets, t);
+    char nm[32];
+    snprintf(nm, sizeof nm, "frame_%06zu", w->key_frame[k]);
+    cJSON_AddItemToArray(names, cJSON_CreateString(nm));
+  }
+  cJSON *mesh = cJSON_CreateObject();
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(mesh, "primitives"), prim);
+  cJSON *weights0 = cJSON_AddArrayToObject(mesh, "weights");
+  for (size_t k = 0; k < nk; ++k)
+    cJSON_AddItemToArray(weights0, cJSON_CreateNumber(0));
+  cJSON_AddItemToObject(cJSON_AddObjectToObject(mesh, "extras"), "targetNames", names);
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "meshes"), mesh);
+
+  int a_in = add_view_accessor(views, accessors, off, times_len, 0, GL_FLOAT, nk, "SCALAR",
+                               &times[0], &times[nk - 1], 1);
+  off += times_len;
+  int a_out = add_view_accessor(views, accessors, off, weights_len, 0, GL_FLOAT, nk * nk, "SCALAR",
+                                NULL, NULL, 0);
+  off += weights_len;
+  cJSON *sampler = cJSON_CreateObject();
+  cJSON_AddNumberToObject(sampler, "input", a_in);
+  cJSON_AddStringToObject(sampler, "interpolation", "LINEAR");
+  cJSON_AddNumberToObject(sampler, "output", a_out);
+  cJSON *channel = cJSON_CreateObject();
+  cJSON_AddNumberToObject(channel, "sampler", 0);
+  cJSON *target = cJSON_AddObjectToObject(channel, "target");
+  cJSON_AddNumberToObject(target, "node", 0);
+  cJSON_AddStringToObject(target, "path", "weights");
+  cJSON *anim = cJSON_CreateObject();
+  cJSON_AddStringToObject(anim, "name", "kinemesh");
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(anim, "channels"), channel);
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(anim, "samplers"), sampler);
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "animations"), anim);
+  cJSON *buffer = cJSON_CreateObject();
+  cJSON_AddNumberToObject(buffer, "byteLength", (double)bin_len);
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "buffers"), buffer);
+  cJSON_AddItemToObject(root, "bufferViews", views);
+  cJSON_AddItemToObject(root, "accessors", accessors);
+
+  char *json = cJSON_PrintUnformatted(root);
+  cJSON_Delete(root);
+  if (!json || off != bin_len) {
+    free(json);
+    free(times);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory building the glTF JSON", w->path);
+  }
+  size_t json_len = strlen(json), json_pad = (4 - json_len % 4) % 4;
+  uint64_t total = 12 + 8 + json_len + json_pad + 8 + bin_len;
+  if (total > UINT32_MAX) {
+    free(json);
+    free(times);
+    return km__fail(err, KM_ERR_UNSUPPORTED, "%s: glb would exceed 4 GiB", w->path);
+  }
+
+  km__atomic_file af = w->af; /* opened by km_anim_writer_open */
+  memset(&w->af, 0, sizeof w->af);
+  km_status s = KM_OK;
+  unsigned char h[20];
+  km__put_u32le(h, GLB_MAGIC);
+  km__put_u32le(h + 4, 2);
+  km__put_u32le(h + 8, (uint32_t)total);
+  km__put_u32le(h + 12, (uint32_t)(json_len + json_pad));
+  km__put_u32le(h + 16, GLB_JSON);
+  s = write_all(w, af.f, h, 20, err);
+  if (s == KM_OK) s = write_all(w, af.f, json, json_len, err);
+  if (s == KM_OK) s = write_all(w, af.f, "   ", json_pad, err);
+  free(json);
+  km__put_u32le(h, (uint32_t)bin_len);
+  km__put_u32le(h + 4, GLB_BIN);
+  if (s == KM_OK) s = write_all(w, af.f, h, 8, err);
+
+  unsigned char *b = w->bytes;
+  if (s == KM_OK && nf) {
+    /* Indices in chunks that reuse the per-vertex scratch buffer (nv*12 bytes). */
+    size_t chunk = nv, done = 0;
+    while (s == KM_OK && done < nf * 3) {
+      size_t n = nf * 3 - done < chunk ? nf * 3 - done : chunk;
+      for (size_t i = 0; i < n; ++i)
+        km__put_u32le(b + 4 * i, (uint32_t)w->F[done + i]);
+      s = write_all(w, af.f, b, 4 * n, err);
+      done += n;
+    }
+  }
+  if (s == KM_OK) {
+    for (size_t i = 0; i < nv * 3; ++i)
+      km__put_f32le(b + 4 * i, (float)w->rest[i]);
+    s = write_all(w, af.f, b, nv * 12, err);
+  }
+  if (s == KM_OK && fseek(w->keys, 0, SEEK_SET) != 0)
+    s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the key-frame temporary", w->path);
+  for (size_t k = 0; s == KM_OK && k < nk; ++k) {
+    if (fread(w->fbuf, sizeof *w->fbuf, nv * 3, w->keys) != nv * 3) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot read key frame %zu back from its temporary", w->path,
+                   k);
+      break;
+    }
+    for (size_t i = 0; i < nv * 3; ++i)
+      km__put_f32le(b + 4 * i, w->fbuf[i]);
+    s = write_all(w, af.f, b, nv * 12, err);
+  }
+  /* Key times, then one-hot weights (one row of nk per key), through a row buffer: there
+   * can be more keys than vertices. */
+  unsigned char *row = s == KM_OK ? calloc(nk, 4) : NULL;
+  if (s == KM_OK && !row) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+  if (s == KM_OK) {
+    for (size_t k = 0; k < nk; ++k)
+      km__put_f32le(row + 4 * k, times[k]);
+    s = write_all(w, af.f, row, 4 * nk, err);
+    memset(row, 0, 4 * nk);
+  }
+  free(times);
+  for (size_t k = 0; s == KM_OK && k < nk; ++k) {
+    km__put_f32le(row + 4 * k, 1.0f);
+    s = write_all(w, af.f, row, 4 * nk, err);
+    km__put_f32le(row + 4 * k, 0.0f);
+  }
+  free(row);
+  if (s != KM_OK) {
+    km__atomic_abort(&af);
+    return s;
+  }
+  return km__atomic_commit(&af, err);
+}
+
+/* ---------------------------------------------------------------- info */
+
+static const cJSON *get_path(const cJSON *o, const char *key, int index) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+  if (index >= 0) v = cJSON_IsArray(v) ? cJSON_GetArrayItem(v, index) : NULL;
+  return v;
+}
+
+static bool get_count(const cJSON *accessors, const cJSON *index, double *count) {
+  if (!cJSON_IsNumber(index)) return false;
+  const cJSON *a = cJSON_GetArrayItem(accessors, index->valueint);
+  const cJSON *c = cJSON_GetObjectItemCaseSensitive(a, "count");
+  if (!cJSON_IsNumber(c) || !(c->valuedouble >= 0 && c->valuedouble < 4294967296.0)) return false;
+  *count = c->valuedouble;
+  return true;
+}
+
+km_status km__glb_info(const char *path, km_anim_info *out, km_error *err) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return km__fail(err, KM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+  unsigned char h[20];
+  size_t got = fread(h, 1, sizeof h, f);
+  long size = -1;
+  if (fseek(f, 0, SEEK_END) == 0) size = ftell(f);
+  km_status s = KM_OK;
+  char *json = NULL;
+  if (got < sizeof h)
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte %zu: truncated glb header (20 bytes expected)", path,
+                 got);
+  else if (km__get_u32le(h) != GLB_MAGIC)
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte 0: not a glTF binary (magic is not 'glTF')", path);
+  else if (km__get_u32le(h + 4) != 2)
+    s = km__fail(err, KM_ERR_UNSUPPORTED, "%s: byte 4: glb version %u, expected 2", path,
+                 km__get_u32le(h + 4));
+  else if (size < 0 || km__get_u32le(h + 8) != (uint64_t)size)
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte 8: header length %u but the file has %ld bytes", path,
+                 km__get_u32le(h + 8), size);
+  else if (km__get_u32le(h + 16) != GLB_JSON)
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte 16: first chunk is not JSON", path);
+  else if ((uint64_t)km__get_u32le(h + 12) > (uint64_t)size - 20)
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte 12: JSON chunk length %u runs past the end", path,
+                 km__get_u32le(h + 12));
+  size_t jl = s == KM_OK ? km__get_u32le(h + 12) : 0;
+  if (s == KM_OK && !(json = malloc(jl + 1)))
+    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  if (s == KM_OK && (fseek(f, 20, SEEK_SET) != 0 || fread(json, 1, jl, f) != jl))
+    s = km__fail(err, KM_ERR_IO, "%s: cannot read the JSON chunk", path);
+  fclose(f);
+  if (s != KM_OK) {
+    free(json);
+    return s;
+  }
+  json[jl] = '\0';
+  const char *end = NULL;
+  cJSON *root = cJSON_ParseWithLengthOpts(json, jl, &end, false);
+  if (!root) {
+    size_t at = end && end >= json ? (size_t)(end - json) : 0;
+    free(json);
+    return km__fail(err, KM_ERR_PARSE, "%s: byte %zu: invalid JSON in the glb JSON chunk", path,
+                    20 + at);
+  }
+  free(json);
+  const cJSON *accessors = cJSON_GetObjectItemCaseSensitive(root, "accessors");
+  const cJSON *prim = get_path(get_path(root, "meshes", 0), "primitives", 0);
+  const cJSON *pos = get_path(get_path(prim, "attributes", -1), "POSITION", -1);
+  double count = 0;
+  if (!prim || !get_count(accessors, pos, &count)) {
+    cJSON_Delete(root);
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: JSON: meshes[0].primitives[0].attributes.POSITION does not name an "
+                    "accessor with a count",
+                    path);
+  }
+  out->format = KM_ANIM_GLB;
+  out->vertices = (size_t)count;
+  const cJSON *mode = get_path(prim, "mode", -1);
+  int m = cJSON_IsNumber(mode) ? mode->valueint : 4;
+  const cJSON *ind = get_path(prim, "indices", -1);
+  if (m == 4) {
+    if (ind && get_count(accessors, ind, &count))
+      out->faces = (size_t)count / 3;
+    else if (!ind)
+      out->faces = out->vertices / 3;
+  }
+  out->frames = (size_t)cJSON_GetArraySize(get_path(prim, "targets", -1));
+  /* Timing: exact values from our own extras; otherwise from the sampler's key times,
+   * assuming evenly spaced keys. */
+  const cJSON *ex = get_path(get_path(get_path(root, "asset", -1), "extras", -1), "kinemesh", -1);
+  const cJSON *fps = get_path(ex, "fps", -1);
+  const cJSON *input =
+      get_path(get_path(get_path(root, "animations", 0), "samplers", 0), "input", -1);
+  const cJSON *in_acc =
+      cJSON_IsNumber(input) ? cJSON_GetArrayItem(accessors, input->valueint) : NULL;
+  const cJSON *tmax = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(in_acc, "max"), 0);
+  double n_in = 0;
+  if (cJSON_IsNumber(tmax)) out->duration = tmax->valuedouble;
+  if (cJSON_IsNumber(fps) && fps->valuedouble > 0) {
+    out->fps = fps->valuedouble;
+  } else if (cJSON_IsNumber(tmax) && tmax->valuedouble > 0 && get_count(accessors, input, &n_in) &&
+             n_in > 1) {
+    out->fps = (n_in - 1) / tmax->valuedouble;
+  }
+  cJSON_Delete(root);
+  return KM_OK;
+}

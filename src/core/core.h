@@ -1,0 +1,54 @@
+/* Requires: nothing (libc). */
+/* Private helpers shared across kinemesh modules (prefix km__). Not installed. */
+#ifndef KM_INTERNAL_H
+#define KM_INTERNAL_H
+
+#include "kinemesh.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+
+#if defined(__GNUC__)
+#define KM__PRINTF(a, b) __attribute__((format(printf, a, b)))
+#else
+#define KM__PRINTF(a, b)
+#endif
+
+/* Fills err (if any) and returns status, so call sites read `return km__fail(err, ...)`. */
+#define km__fail km_error_set
+/* Prefixes an existing message: "context: previous message". Returns err->status or s. */
+km_status km__wrap(km_error *err, km_status s, const char *fmt, ...) KM__PRINTF(3, 4);
+
+void km__log(km_log_level level, const char *fmt, ...) KM__PRINTF(2, 3);
+
+/* Progress report; returns false when the caller asked to cancel. */
+bool km__progress(const km_progress *p, double fraction, const char *stage);
+
+/* Overflow-checked allocations: NULL on overflow or failure. */
+void *km__malloc(size_t count, size_t size);
+void *km__calloc(size_t count, size_t size);
+
+/* Atomic output files: write to "<path>.tmp.<pid>" then rename on commit. */
+typedef struct km__atomic_file {
+  FILE *f;
+  char *path;
+  char *tmp_path;
+} km__atomic_file;
+km_status km__atomic_open(km__atomic_file *af, const char *path, km_error *err);
+/* Flushes, checks for write errors, fsyncs and renames. Closes in every case. */
+km_status km__atomic_commit(km__atomic_file *af, km_error *err);
+/* Closes and removes the temporary. Safe on a zeroed or already closed handle. */
+void km__atomic_abort(km__atomic_file *af);
+
+/* Reads a whole file into memory (NUL-terminated for convenience, size excludes it). */
+km_status km__read_file(const char *path, char **data, size_t *size, km_error *err);
+
+/* File extension (lowercase, without the dot) into out; "" when none. */
+void km__extension(const char *path, char *out, size_t out_size);
+
+
+/* FNV-1a 64-bit over bytes, chained from `h` (start with KM__FNV_SEED). */
+#define KM__FNV_SEED 0xcbf29ce484222325ULL
+uint64_t km__fnv1a(uint64_t h, const void *data, size_t size);
+
+#endif

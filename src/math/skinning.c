@@ -1,0 +1,274 @@
+/* Per-joint rigid transforms from joint positions, and linear blend skinning.
+ *
+ * Skinning convention: a vertex weighted to joint j follows the rigid transform of the bone
+ * that starts at j and goes to j's child (or children). So forearm vertices are weighted to
+ * the elbow, upper-arm vertices to the shoulder, and T_j(p) = R_j (p - rest_j) + pos_j, i.e.
+ * the joint's rest position maps to its posed position and the bone(s) below it turn by R_j.
+ *
+ * R_j is found from the directions of j's children:
+ *  - one child: the parent's rotation, followed by the minimal rotation taking the
+ *    parent-rotated rest direction onto the posed direction (no twist about the bone beyond
+ *    what the parent carries), so a rigidly moved skeleton gives every joint that motion;
+ *  - several children (HipCenter, ShoulderCenter): the best-fit rotation of the unit child
+ *    directions (Kabsch, 3x3 SVD by LAPACKE_dgesvd, reflection-corrected);
+ *  - no child (Head, hands, feet) or no valid child position: the parent's rotation.
+ * A joint whose position is NaN holds its parent's transform (applied to its rest offset). */
+#include "core/core.h"
+#include "math/math.h"
+
+#include <lapacke.h>
+#include <stdlib.h>
+
+static double norm3(const double v[3]) { return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
+
+static bool finite3(const double *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }
+
+/* Minimal rotation taking unit a onto unit b (Rodrigues). */
+static void min_rotation(const double a[3], const double b[3], double R[9]) {
+  double v[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  double c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  if (c < -1 + 1e-12) {
+    /* Opposite directions: half turn about any axis perpendicular to a. */
+    int k = fabs(a[0]) < fabs(a[1]) ? (fabs(a[0]) < fabs(a[2]) ? 0 : 2)
+                                    : (fabs(a[1]) < fabs(a[2]) ? 1 : 2);
+    double e[3] = {0, 0, 0};
+    e[k] = 1;
+    double u[3] = {a[1] * e[2] - a[2] * e[1], a[2] * e[0] - a[0] * e[2], a[0] * e[1] - a[1] * e[0]};
+    double n = norm3(u);
+    for (int i = 0; i < 3; ++i)
+      u[i] /= n;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        R[3 * i + j] = 2 * u[i] * u[j] - (i == j);
+    return;
+  }
+  double K[9] = {0, -v[2], v[1], v[2], 0, -v[0], -v[1], v[0], 0}, K2[9];
+  km__m3_mul(K, K, K2);
+  double f = 1 / (1 + c);
+  for (int i = 0; i < 9; ++i)
+    R[i] = (i % 4 == 0) + K[i] + f * K2[i];
+}
+
+/* Best rotation R with R d_i ~ e_i (Kabsch). Returns false when the directions are (nearly)
+ * collinear, where the rotation about their common axis is undetermined. */
+static bool kabsch(int n, const double *d, const double *e, double R[9]) {
+  /* H = sum d_i e_i^T, row-major. */
+  double H[9] = {0};
+  for (int k = 0; k < n; ++k)
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        H[3 * i + j] += d[3 * k + i] * e[3 * k + j];
+  double S[3], U[9], Vt[9], superb[2];
+  if (LAPACKE_dgesvd(LAPACK_ROW_MAJOR, 'A', 'A', 3, 3, H, 3, S, U, 3, Vt, 3, superb) != 0)
+    return false;
+  if (!(S[1] > 1e-9 * S[0])) return false;
+  /* R = V diag(1,1,sign det(V U^T)) U^T */
+  double V[9], Ut[9];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      V[3 * i + j] = Vt[3 * j + i];
+      Ut[3 * i + j] = U[3 * j + i];
+    }
+  double M[9];
+  km__m3_mul(V, Ut, M);
+  double det = M[0] * (M[4] * M[8] - M[5] * M[7]) - M[1] * (M[3] * M[8] - M[5] * M[6]) +
+               M[2] * (M[3] * M[7] - M[4] * M[6]);
+  if (det < 0)
+    for (int i = 0; i < 3; ++i)
+      V[3 * i + 2] = -V[3 * i + 2];
+  km__m3_mul(V, Ut, R);
+  return true;
+}
+
+km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *positions,
+                                          double *transforms, km_error *err) {
+  if (!s || !positions || !transforms || !s->parents || !s->rest)
+    return km__fail(err, KM_ERR_INVALID, "km_skeleton_pose_from_positions: NULL argument");
+  const size_t n = s->n_joints;
+  for (size_t j = 0; j < n; ++j) {
+    if (s->parents[j] < -1 || s->parents[j] >= (int32_t)j)
+      return km__fail(err, KM_ERR_INVALID,
+                      "skeleton: parent of joint %zu is %ld, not an earlier joint", j,
+                      (long)s->parents[j]);
+    if (!finite3(s->rest + 3 * j))
+      return km__fail(err, KM_ERR_INVALID, "skeleton: rest position of joint %zu is not finite", j);
+  }
+  /* Children in CSR form; the skeleton is tiny, but one allocation serves any size. */
+  int32_t *first = km__calloc(n + 1, sizeof *first);
+  int32_t *kids = km__malloc(n, sizeof *kids);
+  double *P = km__malloc(n, 3 * sizeof *P);
+  double *dir = km__malloc(n, 6 * sizeof *dir); /* rest and posed unit child directions */
+  double *dd = km__malloc(n, 6 * sizeof *dd);   /* the same, split for kabsch() */
+  if (!first || !kids || !P || !dir || !dd) {
+    free(first), free(kids), free(P), free(dir), free(dd);
+    return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  }
+  for (size_t j = 0; j < n; ++j)
+    if (s->parents[j] >= 0) ++first[s->parents[j] + 1];
+  for (size_t j = 0; j < n; ++j)
+    first[j + 1] += first[j];
+  {
+    int32_t *fill = km__malloc(n + 1, sizeof *fill);
+    if (!fill) {
+      free(first), free(kids), free(P), free(dir), free(dd);
+      return km__fail(err, KM_ERR_NOMEM, "out of memory");
+    }
+    memcpy(fill, first, (n + 1) * sizeof *fill);
+    for (size_t j = 0; j < n; ++j)
+      if (s->parents[j] >= 0) kids[fill[s->parents[j]]++] = (int32_t)j;
+    free(fill);
+  }
+
+  for (size_t j = 0; j < n; ++j) {
+    double *T = transforms + 12 * j;
+    const double *rj = s->rest + 3 * j;
+    double Rp[9], tp[3] = {0, 0, 0};
+    int p = s->parents[j];
+    if (p >= 0) {
+      const double *Tp = transforms + 12 * p;
+      for (int i = 0; i < 3; ++i) {
+        Rp[3 * i] = Tp[4 * i], Rp[3 * i + 1] = Tp[4 * i + 1], Rp[3 * i + 2] = Tp[4 * i + 2];
+        tp[i] = Tp[4 * i + 3];
+      }
+    } else {
+      km__m3_identity(Rp);
+    }
+    double R[9];
+    memcpy(R, Rp, sizeof R);
+    const double *pj = positions + 3 * j;
+    if (finite3(pj)) {
+      memcpy(P + 3 * j, pj, 3 * sizeof *P);
+      int m = 0;
+      for (int32_t k = first[j]; k < first[j + 1]; ++k) {
+        const double *pc = positions + 3 * kids[k], *rc = s->rest + 3 * kids[k];
+        if (!finite3(pc)) continue;
+        double d[3] = {rc[0] - rj[0], rc[1] - rj[1], rc[2] - rj[2]};
+        double e[3] = {pc[0] - pj[0], pc[1] - pj[1], pc[2] - pj[2]};
+        double nd = norm3(d), ne = norm3(e);
+        if (!(nd > 1e-12 && ne > 1e-12)) continue;
+        for (int i = 0; i < 3; ++i)
+          dir[6 * m + i] = d[i] / nd, dir[6 * m + 3 + i] = e[i] / ne;
+        ++m;
+      }
+      bool done = false;
+      if (m >= 2) {
+        /* Kabsch wants the two sets as separate arrays. */
+        for (int k = 0; k < m; ++k)
+          for (int i = 0; i < 3; ++i) {
+            dd[3 * k + i] = dir[6 * k + i];
+            dd[3 * m + 3 * k + i] = dir[6 * k + 3 + i];
+          }
+        done = kabsch(m, dd, dd + 3 * m, R);
+      }
+      if (!done && m >= 1) {
+        double a[3], Rm[9];
+        km__m3_apply(Rp, dir, a);
+        min_rotation(a, dir + 3, Rm);
+        km__m3_mul(Rm, Rp, R);
+      }
+    } else {
+      /* Missing joint: carried rigidly by its parent. */
+      double q[3];
+      km__m3_apply(Rp, rj, q);
+      for (int i = 0; i < 3; ++i)
+        P[3 * j + i] = q[i] + tp[i];
+    }
+    double Rr[3];
+    km__m3_apply(R, rj, Rr);
+    for (int i = 0; i < 3; ++i) {
+      T[4 * i] = R[3 * i], T[4 * i + 1] = R[3 * i + 1], T[4 * i + 2] = R[3 * i + 2];
+      T[4 * i + 3] = P[3 * j + i] - Rr[i];
+    }
+  }
+  free(first), free(kids), free(P), free(dir), free(dd);
+  return KM_OK;
+}
+
+km_status km_lbs(const double *rest, size_t n_vertices, const km_skin *skin,
+                 const double *transforms, size_t n_joints, double *out, km_error *err) {
+  if (!rest || !skin || !transforms || !out || (n_vertices && (!skin->joints || !skin->weights)))
+    return km__fail(err, KM_ERR_INVALID, "km_lbs: NULL argument");
+  if (skin->n_vertices != n_vertices)
+    return km__fail(err, KM_ERR_INVALID, "km_lbs: skin has %zu vertices, mesh has %zu",
+                    skin->n_vertices, n_vertices);
+  if (out == rest) return km__fail(err, KM_ERR_INVALID, "km_lbs: out aliases rest");
+  long bad = -1;
+#pragma omp parallel for schedule(static) if (n_vertices > 20000)
+  for (long v = 0; v < (long)n_vertices; ++v) {
+    const double *p = rest + 3 * v;
+    double acc[3] = {0, 0, 0}, wsum = 0;
+    for (int k = 0; k < KM_SKIN_INFLUENCES; ++k) {
+      int32_t j = skin->joints[KM_SKIN_INFLUENCES * v + k];
+      double w = skin->weights[KM_SKIN_INFLUENCES * v + k];
+      if (j < 0) continue;
+      if ((size_t)j >= n_joints || !isfinite(w)) {
+#pragma omp critical(km_lbs_bad)
+        bad = v;
+        continue;
+      }
+      if (w == 0) continue;
+      const double *T = transforms + 12 * j;
+      for (int i = 0; i < 3; ++i)
+        acc[i] += w * (T[4 * i] * p[0] + T[4 * i + 1] * p[1] + T[4 * i + 2] * p[2] + T[4 * i + 3]);
+      wsum += w;
+    }
+    /* A vertex without influences stays at rest instead of collapsing to the origin. */
+    double *o = out + 3 * v;
+    if (wsum == 0)
+      o[0] = p[0], o[1] = p[1], o[2] = p[2];
+    else
+      o[0] = acc[0], o[1] = acc[1], o[2] = acc[2];
+  }
+  if (bad >= 0)
+    return km__fail(err, KM_ERR_INVALID,
+                    "km_lbs: vertex %ld has an influence on joint outside 0..%zu or a non-finite "
+                    "weight",
+                    bad, n_joints - 1);
+  return KM_OK;
+}
+
+km_status km_skeleton_from_weights(const km_mesh *m, const km_skin *skin, const int32_t *parents,
+                                   size_t n_joints, double *rest, km_error *err) {
+  if (!m || !skin || !parents || !rest || !n_joints)
+    return km__fail(err, KM_ERR_INVALID, "km_skeleton_from_weights: NULL argument");
+  if (skin->n_vertices != m->n_vertices || !skin->joints || !skin->weights)
+    return km__fail(err, KM_ERR_INVALID,
+                    "km_skeleton_from_weights: skin has %zu vertices, mesh %zu", skin->n_vertices,
+                    m->n_vertices);
+  for (size_t j = 0; j < n_joints; ++j)
+    if (parents[j] >= (int32_t)n_joints)
+      return km__fail(err, KM_ERR_INVALID, "km_skeleton_from_weights: joint %zu: bad parent %d", j,
+                      parents[j]);
+  /* per joint: boundary sums (weight, weighted position) and own-part sums */
+  double *acc = km__calloc(n_joints * 8, sizeof *acc);
+  if (!acc) return km__fail(err, KM_ERR_NOMEM, "km_skeleton_from_weights: out of memory");
+  for (size_t v = 0; v < m->n_vertices; ++v) {
+    const int32_t *jv = skin->joints + KM_SKIN_INFLUENCES * v;
+    const double *wv = skin->weights + KM_SKIN_INFLUENCES * v, *x = m->V + 3 * v;
+    for (int a = 0; a < KM_SKIN_INFLUENCES; ++a) {
+      int32_t j = jv[a];
+      if (j < 0 || (size_t)j >= n_joints || !(wv[a] > 0)) continue;
+      double *own = acc + 8 * (size_t)j + 4;
+      own[0] += wv[a];
+      for (int k = 0; k < 3; ++k)
+        own[1 + k] += wv[a] * x[k];
+      for (int b = 0; b < KM_SKIN_INFLUENCES; ++b)
+        if (jv[b] == parents[j] && wv[b] > 0) {
+          double w = fmin(wv[a], wv[b]);
+          double *bd = acc + 8 * (size_t)j;
+          bd[0] += w;
+          for (int k = 0; k < 3; ++k)
+            bd[1 + k] += w * x[k];
+        }
+    }
+  }
+  for (size_t j = 0; j < n_joints; ++j) {
+    const double *bd = acc + 8 * j, *own = bd + 4;
+    const double *use = parents[j] >= 0 && bd[0] > 0 ? bd : own[0] > 0 ? own : NULL;
+    if (use)
+      for (int k = 0; k < 3; ++k)
+        rest[3 * j + k] = use[1 + k] / use[0];
+  }
+  free(acc);
+  return KM_OK;
+}

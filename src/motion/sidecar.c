@@ -1,0 +1,448 @@
+/* The rig sidecar (<mesh>.rig.json): skeleton, skin weights and landmarks of a rigged mesh,
+ * read and written here and nowhere else. */
+#include "motion/motion.h"
+
+#include <cjson/cJSON.h>
+#include <float.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+void km_character_free(km_character *c) {
+  if (!c) return;
+  km_mesh_free(&c->mesh);
+  km_skeleton_free(&c->skeleton);
+  km_skin_free(&c->skin);
+  memset(c->landmarks, 0, sizeof c->landmarks);
+}
+
+km_status km__skin_alloc(km_skin *s, size_t n, km_error *err) {
+  s->n_vertices = n;
+  s->joints = km__malloc(n * KM_SKIN_INFLUENCES, sizeof *s->joints);
+  s->weights = km__malloc(n * KM_SKIN_INFLUENCES, sizeof *s->weights);
+  if (!s->joints || !s->weights) {
+    km_skin_free(s);
+    return km__fail(err, KM_ERR_NOMEM, "skin: out of memory (%zu vertices)", n);
+  }
+  return KM_OK;
+}
+
+/* ---------------------------------------------------------------- rig sidecar */
+
+/* A JSON string literal (names come from files read back, so they may need escapes). */
+static void write_json_string(FILE *f, const char *s) {
+  fputc('"', f);
+  for (const unsigned char *p = (const unsigned char *)s; *p; ++p) {
+    if (*p == '"' || *p == '\\')
+      fprintf(f, "\\%c", *p);
+    else if (*p < 0x20)
+      fprintf(f, "\\u%04x", *p);
+    else
+      fputc(*p, f);
+  }
+  fputc('"', f);
+}
+
+static int find_landmark(const km_character *c, const char *name) {
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i)
+    if (!strcmp(c->landmarks[i].name, name)) return i;
+  return -1;
+}
+
+/* Streams the JSON with fprintf: a cJSON tree of 8M numbers for a 1M-vertex skin would cost
+ * gigabytes. Weights are written with 7 significant digits. */
+km_status km_character_write_rig(const char *path, const km_character *c, km_error *err) {
+  if (!path || !c) return km__fail(err, KM_ERR_INVALID, "write rig: NULL argument");
+  const km_mesh *m = &c->mesh;
+  const km_skeleton *sk = &c->skeleton;
+  size_t n = m->n_vertices;
+  if (!n || !m->V || sk->n_joints == 0 || !sk->names || !sk->parents || !sk->rest)
+    return km__fail(err, KM_ERR_INVALID, "%s: character has no mesh or skeleton", path);
+  if (c->skin.n_vertices != n || !c->skin.joints || !c->skin.weights)
+    return km__fail(err, KM_ERR_INVALID, "%s: skin has %zu vertices, mesh has %zu", path,
+                    c->skin.n_vertices, n);
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i)
+    if (c->landmarks[i].vertex < 0 || (size_t)c->landmarks[i].vertex >= n)
+      return km__fail(err, KM_ERR_INVALID, "%s: landmark %s has vertex %d outside 0..%zu", path,
+                      c->landmarks[i].name, (int)c->landmarks[i].vertex, n - 1);
+  /* Handles: top of the head (highest vertex), finger tips and toe tips (landmarks). */
+  size_t top = 0;
+  double ymin = DBL_MAX, ymax = -DBL_MAX;
+  for (size_t v = 0; v < n; ++v) {
+    double y = m->V[3 * v + 1];
+    if (y > ymax) ymax = y, top = v;
+    if (y < ymin) ymin = y;
+  }
+  double radius = 0.07 * (ymax - ymin);
+  static const char *const handle_names[5] = {"head", "hand_left", "hand_right", "foot_left",
+                                              "foot_right"};
+  static const char *const handle_joints[5] = {"Head", "HandLeft", "HandRight", "FootLeft",
+                                               "FootRight"};
+  long handle_vertex[5];
+  handle_vertex[0] = (long)top;
+  for (int h = 1; h < 5; ++h) {
+    int li = find_landmark(c, handle_names[h]);
+    handle_vertex[h] = li >= 0 ? c->landmarks[li].vertex : (long)top;
+  }
+
+  km__atomic_file af;
+  km_status st = km__atomic_open(&af, path, err);
+  if (st != KM_OK) return st;
+  FILE *f = af.f;
+  fprintf(f,
+          "{\"format\":\"kinemesh-rig\",\"version\":1,\"units\":\"m\",\"vertices\":%zu,"
+          "\"skeleton\":\"kinect1\",\n\"joints\":[",
+          n);
+  for (size_t j = 0; j < sk->n_joints; ++j) {
+    fputs(j ? ",\n{\"name\":" : "\n{\"name\":", f);
+    write_json_string(f, sk->names[j]);
+    fprintf(f, ",\"parent\":%d,\"rest\":[%.17g,%.17g,%.17g]}", (int)sk->parents[j], sk->rest[3 * j],
+            sk->rest[3 * j + 1], sk->rest[3 * j + 2]);
+  }
+  fprintf(f, "],\n\"skin\":{\"influences\":%d,\"joints\":[", KM_SKIN_INFLUENCES);
+  for (size_t i = 0; i < n * KM_SKIN_INFLUENCES; ++i)
+    fprintf(f, i ? ",%d" : "%d", (int)c->skin.joints[i]);
+  fputs("],\n\"weights\":[", f);
+  for (size_t i = 0; i < n * KM_SKIN_INFLUENCES; ++i) {
+    double w = c->skin.weights[i];
+    if (w == 0)
+      fputs(i ? ",0" : "0", f);
+    else
+      fprintf(f, i ? ",%.7g" : "%.7g", w);
+  }
+  fputs("]},\n\"landmarks\":[", f);
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    fputs(i ? ",\n{\"name\":" : "\n{\"name\":", f);
+    write_json_string(f, c->landmarks[i].name);
+    fprintf(f, ",\"vertex\":%d,\"mirror\":", (int)c->landmarks[i].vertex);
+    write_json_string(f, c->landmarks[i].mirror);
+    fputc('}', f);
+  }
+  fputs("],\n\"handles\":[", f);
+  for (int h = 0; h < 5; ++h)
+    fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%ld,\"radius\":%.6g}", h ? "," : "",
+            handle_names[h], handle_vertex[h], radius);
+  fputs("],\n\"map\":[", f);
+  for (int h = 0; h < 5; ++h)
+    fprintf(f, "%s\n{\"handle\":\"%s\",\"joint\":\"%s\",\"axes\":\"xyz\",\"scale\":1.0}",
+            h ? "," : "", handle_names[h], handle_joints[h]);
+  fputs("],\n\"filter\":{\"smoothing\":0.5,\"trend\":0.5}}\n", f);
+  return km__atomic_commit(&af, err);
+}
+
+static bool json_int(const cJSON *o, double lo, double hi, long *out) {
+  if (!cJSON_IsNumber(o)) return false;
+  double v = o->valuedouble;
+  if (!(v >= lo && v <= hi) || v != floor(v)) return false;
+  *out = (long)v;
+  return true;
+}
+
+/* The skin arrays hold 8 numbers per vertex: as cJSON items (64 bytes each) a 1M-vertex rig
+ * would take over 500 MB. They are located with a small structural scan (strings and nesting
+ * only), read with strtod, and blanked to [] before cJSON parses the rest. Anything the scan
+ * does not recognise falls back to the plain cJSON path. */
+static size_t js_ws(const char *s, size_t i, size_t n) {
+  while (i < n && (s[i] == ' ' || s[i] == '\t' || s[i] == '\n' || s[i] == '\r'))
+    ++i;
+  return i;
+}
+
+static size_t js_string_end(const char *s, size_t i, size_t n) {
+  for (++i; i < n; ++i) {
+    if (s[i] == '\\')
+      ++i;
+    else if (s[i] == '"')
+      return i + 1;
+  }
+  return SIZE_MAX;
+}
+
+static size_t js_value_end(const char *s, size_t i, size_t n) {
+  if (i >= n) return SIZE_MAX;
+  if (s[i] == '"') return js_string_end(s, i, n);
+  if (s[i] == '{' || s[i] == '[') {
+    int depth = 0;
+    while (i < n) {
+      char c = s[i];
+      if (c == '"') {
+        i = js_string_end(s, i, n);
+        if (i == SIZE_MAX) return SIZE_MAX;
+        continue;
+      }
+      if (c == '{' || c == '[') ++depth;
+      if (c == '}' || c == ']') {
+        if (--depth == 0) return i + 1;
+      }
+      ++i;
+    }
+    return SIZE_MAX;
+  }
+  while (i < n && !strchr(",}] \t\r\n", s[i]))
+    ++i;
+  return i;
+}
+
+/* Span [*vb, *ve) of member `key` of the object starting at s[obj] == '{'. */
+static bool js_member(const char *s, size_t obj, size_t n, const char *key, size_t *vb,
+                      size_t *ve) {
+  if (obj >= n || s[obj] != '{') return false;
+  size_t i = obj + 1, klen = strlen(key);
+  for (;;) {
+    i = js_ws(s, i, n);
+    if (i >= n || s[i] != '"') return false;
+    size_t ke = js_string_end(s, i, n);
+    if (ke == SIZE_MAX) return false;
+    bool match = ke - i - 2 == klen && !memcmp(s + i + 1, key, klen);
+    i = js_ws(s, ke, n);
+    if (i >= n || s[i] != ':') return false;
+    i = js_ws(s, i + 1, n);
+    size_t e = js_value_end(s, i, n);
+    if (e == SIZE_MAX) return false;
+    if (match) {
+      *vb = i;
+      *ve = e;
+      return true;
+    }
+    i = js_ws(s, e, n);
+    if (i >= n || s[i] != ',') return false;
+    ++i;
+  }
+}
+
+/* Reads the number array at [b, e) (s NUL-terminated past e) into out[cap]. Returns the count,
+ * or SIZE_MAX with *bad the byte offset of a malformed entry or the entry past cap. */
+static size_t js_numbers(const char *s, size_t b, size_t e, double *out, size_t cap, size_t *bad) {
+  size_t i = js_ws(s, b + 1, e), n = 0;
+  if (i < e && s[i] == ']') return 0;
+  for (;;) {
+    char *end = NULL;
+    double v = strtod(s + i, &end);
+    if (end == s + i || (size_t)(end - s) > e || n >= cap) {
+      *bad = i;
+      return SIZE_MAX;
+    }
+    out[n++] = v;
+    i = js_ws(s, (size_t)(end - s), e);
+    if (i < e && s[i] == ']') return n;
+    if (i >= e || s[i] != ',') {
+      *bad = i;
+      return SIZE_MAX;
+    }
+    i = js_ws(s, i + 1, e);
+  }
+}
+
+typedef struct fast_skin {
+  bool found;
+  double *joints, *weights; /* as read, validated later */
+  size_t nj, nw;            /* counts, SIZE_MAX when malformed */
+  size_t bad_j, bad_w;      /* byte offsets of the malformed entries */
+} fast_skin;
+
+static bool fast_skin_extract(char *data, size_t size, size_t cap, fast_skin *fs) {
+  memset(fs, 0, sizeof *fs);
+  size_t root = js_ws(data, 0, size), sb, se, jb, je, wb, we;
+  if (!js_member(data, root, size, "skin", &sb, &se)) return true;
+  if (!js_member(data, sb, se, "joints", &jb, &je) || data[jb] != '[') return true;
+  if (!js_member(data, sb, se, "weights", &wb, &we) || data[wb] != '[') return true;
+  fs->joints = km__malloc(cap ? cap : 1, sizeof *fs->joints);
+  fs->weights = km__malloc(cap ? cap : 1, sizeof *fs->weights);
+  if (!fs->joints || !fs->weights) {
+    free(fs->joints);
+    free(fs->weights);
+    return false;
+  }
+  fs->nj = js_numbers(data, jb, je, fs->joints, cap, &fs->bad_j);
+  fs->nw = js_numbers(data, wb, we, fs->weights, cap, &fs->bad_w);
+  /* Blank the arrays (same length, so byte offsets of later errors stay right). */
+  memset(data + jb + 1, ' ', je - jb - 2);
+  memset(data + wb + 1, ' ', we - wb - 2);
+  fs->found = true;
+  return true;
+}
+
+km_status km_character_read_rig(const char *path, size_t n_vertices, km_character *out,
+                                km_error *err) {
+  if (!path || !out) return km__fail(err, KM_ERR_INVALID, "read rig: NULL argument");
+  char *data = NULL;
+  size_t size = 0;
+  km_status st = km__read_file(path, &data, &size, err);
+  if (st != KM_OK) return st;
+  fast_skin fs;
+  size_t cap = n_vertices <= SIZE_MAX / KM_SKIN_INFLUENCES ? n_vertices * KM_SKIN_INFLUENCES : 0;
+  if (!fast_skin_extract(data, size, cap, &fs)) {
+    free(data);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  }
+  const char *end = NULL;
+  cJSON *root = cJSON_ParseWithLengthOpts(data, size, &end, 0);
+  if (!root) {
+    size_t at = end && end >= data ? (size_t)(end - data) : 0;
+    free(data);
+    free(fs.joints);
+    free(fs.weights);
+    return km__fail(err, KM_ERR_PARSE, "%s: invalid JSON near byte %zu", path, at);
+  }
+  free(data);
+  km_skeleton sk = {0};
+  km_skin skin = {0};
+  km_landmark lm[KM_CHARACTER_LANDMARKS];
+  memset(lm, 0, sizeof lm);
+#define FAIL(...)                                                                                  \
+  do {                                                                                             \
+    st = km__fail(err, KM_ERR_PARSE, __VA_ARGS__);                                                 \
+    goto done;                                                                                     \
+  } while (0)
+  const cJSON *fmt = cJSON_GetObjectItemCaseSensitive(root, "format");
+  if (!cJSON_IsString(fmt) || strcmp(fmt->valuestring, "kinemesh-rig"))
+    FAIL("%s: \"format\" is not \"kinemesh-rig\"", path);
+  long ver = 0, nv = 0;
+  if (!json_int(cJSON_GetObjectItemCaseSensitive(root, "version"), 1, 1e9, &ver) || ver != 1)
+    FAIL("%s: unsupported \"version\" (expected 1)", path);
+  if (!json_int(cJSON_GetObjectItemCaseSensitive(root, "vertices"), 0, 2147483647.0, &nv))
+    FAIL("%s: \"vertices\" is missing or not a non-negative integer", path);
+  if ((size_t)nv != n_vertices) {
+    st = km__fail(err, KM_ERR_STALE, "%s: rig is for %ld vertices, the mesh has %zu", path, nv,
+                  n_vertices);
+    goto done;
+  }
+  const cJSON *joints = cJSON_GetObjectItemCaseSensitive(root, "joints");
+  int nj = cJSON_GetArraySize(joints);
+  if (!cJSON_IsArray(joints) || nj < 1 || nj > 1000)
+    FAIL("%s: \"joints\" must be an array of 1..1000 joints", path);
+  sk.n_joints = (size_t)nj;
+  sk.names = km__calloc((size_t)nj, sizeof *sk.names);
+  sk.parents = km__malloc((size_t)nj, sizeof *sk.parents);
+  sk.rest = km__malloc((size_t)nj * 3, sizeof *sk.rest);
+  if (!sk.names || !sk.parents || !sk.rest) {
+    st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+    goto done;
+  }
+  int j = 0;
+  const cJSON *it;
+  cJSON_ArrayForEach(it, joints) {
+    const cJSON *name = cJSON_GetObjectItemCaseSensitive(it, "name");
+    const cJSON *rest = cJSON_GetObjectItemCaseSensitive(it, "rest");
+    long par;
+    if (!cJSON_IsString(name)) FAIL("%s: joint %d has no \"name\" string", path, j);
+    if (!json_int(cJSON_GetObjectItemCaseSensitive(it, "parent"), -1, j - 1, &par))
+      FAIL("%s: joint %d (%s): \"parent\" must be -1 or an earlier joint", path, j,
+           name->valuestring);
+    if (!cJSON_IsArray(rest) || cJSON_GetArraySize(rest) != 3)
+      FAIL("%s: joint %d (%s): \"rest\" must be [x,y,z]", path, j, name->valuestring);
+    for (int k = 0; k < 3; ++k) {
+      const cJSON *x = cJSON_GetArrayItem(rest, k);
+      if (!cJSON_IsNumber(x) || !isfinite(x->valuedouble))
+        FAIL("%s: joint %d (%s): \"rest\" must hold 3 finite numbers", path, j, name->valuestring);
+      sk.rest[3 * j + k] = x->valuedouble;
+    }
+    sk.names[j] = strdup(name->valuestring);
+    if (!sk.names[j]) {
+      st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+      goto done;
+    }
+    sk.parents[j] = (int32_t)par;
+    ++j;
+  }
+  const cJSON *sn = cJSON_GetObjectItemCaseSensitive(root, "skin");
+  const cJSON *sj = cJSON_GetObjectItemCaseSensitive(sn, "joints");
+  const cJSON *sw = cJSON_GetObjectItemCaseSensitive(sn, "weights");
+  long infl = 0;
+  if (!json_int(cJSON_GetObjectItemCaseSensitive(sn, "influences"), 1, 64, &infl) ||
+      infl != KM_SKIN_INFLUENCES)
+    FAIL("%s: \"skin\".\"influences\" must be %d", path, KM_SKIN_INFLUENCES);
+  size_t ne = n_vertices * KM_SKIN_INFLUENCES;
+  if (fs.found) {
+    if (fs.nj == SIZE_MAX)
+      FAIL("%s: byte %zu: \"skin\".\"joints\" must be %zu numbers (vertices x %d)", path, fs.bad_j,
+           ne, KM_SKIN_INFLUENCES);
+    if (fs.nw == SIZE_MAX)
+      FAIL("%s: byte %zu: \"skin\".\"weights\" must be %zu numbers (vertices x %d)", path, fs.bad_w,
+           ne, KM_SKIN_INFLUENCES);
+    if (fs.nj != ne || fs.nw != ne)
+      FAIL("%s: \"skin\" has %zu joints and %zu weights, expected %zu (vertices x %d)", path, fs.nj,
+           fs.nw, ne, KM_SKIN_INFLUENCES);
+  } else {
+    if (!cJSON_IsArray(sj) || (size_t)cJSON_GetArraySize(sj) != ne)
+      FAIL("%s: \"skin\".\"joints\" must have %zu entries (vertices x %d)", path, ne,
+           KM_SKIN_INFLUENCES);
+    if (!cJSON_IsArray(sw) || (size_t)cJSON_GetArraySize(sw) != ne)
+      FAIL("%s: \"skin\".\"weights\" must have %zu entries (vertices x %d)", path, ne,
+           KM_SKIN_INFLUENCES);
+  }
+  if ((st = km__skin_alloc(&skin, n_vertices, err)) != KM_OK) goto done;
+  if (fs.found) {
+    for (size_t i = 0; i < ne; ++i) {
+      double v = fs.joints[i], w = fs.weights[i];
+      if (!(v >= -1 && v <= nj - 1) || v != floor(v))
+        FAIL("%s: \"skin\".\"joints\"[%zu] must be -1 or a joint index < %d", path, i, nj);
+      if (!(w >= 0 && w <= 1.0001))
+        FAIL("%s: \"skin\".\"weights\"[%zu] must be a number in [0,1]", path, i);
+      skin.joints[i] = (int32_t)v;
+      skin.weights[i] = w;
+    }
+  } else {
+    size_t i = 0;
+    cJSON_ArrayForEach(it, sj) {
+      long v;
+      if (!json_int(it, -1, nj - 1, &v))
+        FAIL("%s: \"skin\".\"joints\"[%zu] must be -1 or a joint index < %d", path, i, nj);
+      skin.joints[i++] = (int32_t)v;
+    }
+    i = 0;
+    cJSON_ArrayForEach(it, sw) {
+      if (!cJSON_IsNumber(it) || !(it->valuedouble >= 0 && it->valuedouble <= 1.0001))
+        FAIL("%s: \"skin\".\"weights\"[%zu] must be a number in [0,1]", path, i);
+      skin.weights[i++] = it->valuedouble;
+    }
+  }
+  for (size_t v = 0; v < n_vertices; ++v) {
+    double sum = 0;
+    for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
+      size_t e = v * KM_SKIN_INFLUENCES + (size_t)q;
+      if (skin.joints[e] < 0) skin.weights[e] = 0;
+      sum += skin.weights[e];
+    }
+    if (fabs(sum - 1) > 1e-4) FAIL("%s: skin weights of vertex %zu sum to %g, not 1", path, v, sum);
+  }
+  const cJSON *lms = cJSON_GetObjectItemCaseSensitive(root, "landmarks");
+  if (!cJSON_IsArray(lms) || cJSON_GetArraySize(lms) != KM_CHARACTER_LANDMARKS)
+    FAIL("%s: \"landmarks\" must be an array of %d landmarks", path, KM_CHARACTER_LANDMARKS);
+  int l = 0;
+  cJSON_ArrayForEach(it, lms) {
+    const cJSON *name = cJSON_GetObjectItemCaseSensitive(it, "name");
+    const cJSON *mir = cJSON_GetObjectItemCaseSensitive(it, "mirror");
+    long v;
+    if (!cJSON_IsString(name) || strlen(name->valuestring) >= sizeof lm[l].name)
+      FAIL("%s: landmark %d: \"name\" must be a string of at most 31 bytes", path, l);
+    if (!cJSON_IsString(mir) || strlen(mir->valuestring) >= sizeof lm[l].mirror)
+      FAIL("%s: landmark %d (%s): \"mirror\" must be a string of at most 31 bytes", path, l,
+           name->valuestring);
+    if (!json_int(cJSON_GetObjectItemCaseSensitive(it, "vertex"), 0, (double)n_vertices - 1, &v))
+      FAIL("%s: landmark %d (%s): \"vertex\" must be an index below %zu", path, l,
+           name->valuestring, n_vertices);
+    snprintf(lm[l].name, sizeof lm[l].name, "%s", name->valuestring);
+    snprintf(lm[l].mirror, sizeof lm[l].mirror, "%s", mir->valuestring);
+    lm[l].vertex = (int32_t)v;
+    ++l;
+  }
+#undef FAIL
+  free(fs.joints);
+  free(fs.weights);
+  /* Overwritten, not freed: out may hold only a mesh with the rest uninitialised. */
+  out->skeleton = sk;
+  out->skin = skin;
+  memcpy(out->landmarks, lm, sizeof lm);
+  cJSON_Delete(root);
+  return KM_OK;
+done:
+  free(fs.joints);
+  free(fs.weights);
+  km_skeleton_free(&sk);
+  km_skin_free(&skin);
+  cJSON_Delete(root);
+  return st;
+}

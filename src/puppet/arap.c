@@ -1,0 +1,310 @@
+/* Full-space as-rigid-as-possible surface deformation (Sorkine & Alexa 2007), the quality
+ * yardstick for the reduced puppet solver.
+ *
+ * Energy sum_i sum_j w_ij |(x_i - x_j) - R_i (p_i - p_j)|^2 with cotangent weights w_ij.
+ * Global step: -L x = b with b_i = sum_j w_ij/2 (R_i + R_j)(p_i - p_j); handle vertices are
+ * eliminated (hard constraints), so the CHOLMOD factor of -L_ff is computed once per handle
+ * set and each iteration is one 3-column solve. Local step: R_i = nearest rotation to
+ * sum_j w_ij (x_i - x_j)(p_i - p_j)^T, closed form (rot3.h). */
+#include "core/core.h"
+
+#include "math/math.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct km_arap {
+  size_t n, n_free, n_hv;
+  int iterations;
+  double tolerance, diag;
+  double *P;        /* n*3 rest */
+  int32_t *adj_off; /* n+1 */
+  int32_t *adj;     /* neighbours */
+  double *w;        /* cot weights (L_ij) */
+  int32_t *map;     /* vertex -> free index, or -(handle vertex index)-1 */
+  int32_t *h_v;     /* n_hv */
+  km_cholesky *chol;
+  double *X; /* n*3 current (warm start) */
+  double *R; /* n*9 */
+  double *B; /* n_free*3 column-major rhs / solution */
+};
+
+static int32_t uf_find(int32_t *parent, int32_t x) {
+  while (parent[x] != x) {
+    parent[x] = parent[parent[x]];
+    x = parent[x];
+  }
+  return x;
+}
+
+/* -L_ff is only semidefinite when a connected component holds no handle vertex, and CHOLMOD
+ * may still "factor" it with a round-off pivot, so check the topology instead (union-find
+ * over the faces). Returns the first unanchored vertex or -1. */
+static int32_t unanchored_vertex(const km_mesh *m, const int32_t *map, int32_t *parent) {
+  size_t n = m->n_vertices;
+  for (size_t v = 0; v < n; ++v)
+    parent[v] = (int32_t)v;
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int k = 1; k < 3; ++k) {
+      int32_t a = uf_find(parent, m->F[3 * f]), b = uf_find(parent, m->F[3 * f + k]);
+      if (a != b) parent[a] = b;
+    }
+  unsigned char *anchored = calloc(n, 1);
+  if (!anchored) return -1;
+  for (size_t v = 0; v < n; ++v)
+    if (map[v] < 0 && map[v] != INT32_MIN) anchored[uf_find(parent, (int32_t)v)] = 1;
+  int32_t bad = -1;
+  for (size_t f = 0; f < m->n_faces * 3 && bad < 0; ++f)
+    if (!anchored[uf_find(parent, m->F[f])]) bad = m->F[f];
+  free(anchored);
+  return bad;
+}
+
+void km_arap_free(km_arap **pa) {
+  if (!pa || !*pa) return;
+  km_arap *a = *pa;
+  km_cholesky_free(&a->chol);
+  free(a->P);
+  free(a->adj_off);
+  free(a->adj);
+  free(a->w);
+  free(a->map);
+  free(a->h_v);
+  free(a->X);
+  free(a->R);
+  free(a->B);
+  free(a);
+  *pa = NULL;
+}
+
+km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_t *handle_offsets,
+                             const int32_t *handle_vertices, const km_arap_options *opt,
+                             km_arap **out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "arap: out is NULL");
+  *out = NULL;
+  if (!rest || !rest->V || !rest->F || rest->n_vertices < 3 || rest->n_faces < 1)
+    return km__fail(err, KM_ERR_INVALID, "arap: the rest mesh needs vertices and faces");
+  if (rest->n_vertices > INT32_MAX / 2)
+    return km__fail(err, KM_ERR_INVALID, "arap: mesh too large");
+  for (size_t i = 0; i < rest->n_faces * 3; ++i)
+    if (rest->F[i] < 0 || (size_t)rest->F[i] >= rest->n_vertices)
+      return km__fail(err, KM_ERR_INVALID, "arap: face %zu references vertex %d", i / 3,
+                      (int)rest->F[i]);
+  if (!n_handles || !handle_offsets || !handle_vertices || handle_offsets[0] != 0)
+    return km__fail(err, KM_ERR_INVALID,
+                    "arap: needs at least one handle (offsets starting at 0 and vertices)");
+  for (size_t h = 0; h < n_handles; ++h)
+    if (handle_offsets[h + 1] < handle_offsets[h])
+      return km__fail(err, KM_ERR_INVALID, "arap: handle_offsets decreases at handle %zu", h);
+  size_t n = rest->n_vertices, nhv = (size_t)handle_offsets[n_handles];
+  if (nhv == 0 || nhv > n)
+    return km__fail(err, KM_ERR_INVALID, "arap: %zu handle vertices for %zu vertices", nhv, n);
+  km_arap_options o = {0};
+  if (opt) o = *opt;
+  if (o.iterations == 0) o.iterations = 4;
+  if (o.tolerance == 0) o.tolerance = 1e-6;
+  if (o.iterations < 0 || !(o.tolerance >= 0))
+    return km__fail(err, KM_ERR_INVALID, "arap: iterations and tolerance must be >= 0");
+
+  km_arap *a = calloc(1, sizeof *a);
+  if (!a) return km__fail(err, KM_ERR_NOMEM, "arap: out of memory");
+  a->n = n;
+  a->n_hv = nhv;
+  a->iterations = o.iterations;
+  a->tolerance = o.tolerance;
+  km_status s = KM_OK;
+  km_sparse *L = NULL, *A = NULL;
+  int32_t *ti = NULL, *tj = NULL;
+  double *tv = NULL;
+  a->P = km__malloc(n * 3, sizeof(double));
+  a->X = km__malloc(n * 3, sizeof(double));
+  a->R = km__malloc(n * 9, sizeof(double));
+  a->map = km__malloc(n, sizeof(int32_t));
+  a->h_v = km__malloc(nhv, sizeof(int32_t));
+  a->adj_off = km__calloc(n + 1, sizeof(int32_t));
+  if (!a->P || !a->X || !a->R || !a->map || !a->h_v || !a->adj_off) goto nomem;
+  memcpy(a->P, rest->V, n * 3 * sizeof(double));
+  a->diag = km_bbox_diagonal(rest->V, n);
+  memcpy(a->X, rest->V, n * 3 * sizeof(double));
+  for (size_t v = 0; v < n; ++v)
+    a->map[v] = 0;
+  for (size_t i = 0; i < nhv; ++i) {
+    int32_t v = handle_vertices[i];
+    if (v < 0 || (size_t)v >= n || a->map[v] != 0) {
+      s = km__fail(err, KM_ERR_INVALID, "arap: handle vertex %zu is %d (out of range or repeated)",
+                   i, (int)v);
+      goto fail;
+    }
+    a->map[v] = -(int32_t)i - 1;
+    a->h_v[i] = v;
+  }
+  /* vertices used by no face have no Laplacian row: they stay where they are (INT32_MIN) */
+  unsigned char *used = km__calloc(n, 1);
+  if (!used) goto nomem;
+  for (size_t i = 0; i < rest->n_faces * 3; ++i)
+    used[rest->F[i]] = 1;
+  size_t nfree = 0;
+  for (size_t v = 0; v < n; ++v)
+    if (a->map[v] == 0) a->map[v] = used[v] ? (int32_t)nfree++ : INT32_MIN;
+  free(used);
+  a->n_free = nfree;
+
+  {
+    int32_t *parent = km__malloc(n, sizeof(int32_t));
+    if (!parent) goto nomem;
+    int32_t bad = unanchored_vertex(rest, a->map, parent);
+    free(parent);
+    if (bad >= 0) {
+      s = km__fail(err, KM_ERR_INVALID,
+                   "arap: the connected component of vertex %d has no handle vertex (its "
+                   "position would be undetermined)",
+                   (int)bad);
+      goto fail;
+    }
+  }
+  if ((s = km_cotmatrix(rest, &L, err))) goto fail;
+  const int32_t *cp, *ri;
+  const double *lx;
+  km_sparse_csc(L, &cp, &ri, &lx);
+  /* neighbour lists (off-diagonal entries of the symmetric L) */
+  size_t nnz = 0;
+  for (size_t j = 0; j < n; ++j)
+    for (int32_t q = cp[j]; q < cp[j + 1]; ++q)
+      if ((size_t)ri[q] != j) {
+        a->adj_off[j + 1]++;
+        ++nnz;
+      }
+  for (size_t j = 0; j < n; ++j)
+    a->adj_off[j + 1] += a->adj_off[j];
+  a->adj = km__malloc(nnz ? nnz : 1, sizeof(int32_t));
+  a->w = km__malloc(nnz ? nnz : 1, sizeof(double));
+  if (!a->adj || !a->w) goto nomem;
+  for (size_t j = 0, k = 0; j < n; ++j)
+    for (int32_t q = cp[j]; q < cp[j + 1]; ++q)
+      if ((size_t)ri[q] != j) {
+        a->adj[k] = ri[q];
+        a->w[k++] = lx[q];
+      }
+  if (nfree > 0) {
+    /* -L restricted to the free vertices */
+    size_t cap = (size_t)cp[n];
+    ti = km__malloc(cap ? cap : 1, sizeof(int32_t));
+    tj = km__malloc(cap ? cap : 1, sizeof(int32_t));
+    tv = km__malloc(cap ? cap : 1, sizeof(double));
+    a->B = km__malloc(nfree * 3, sizeof(double));
+    if (!ti || !tj || !tv || !a->B) goto nomem;
+    size_t m = 0;
+    for (size_t j = 0; j < n; ++j) {
+      if (a->map[j] < 0) continue;
+      for (int32_t q = cp[j]; q < cp[j + 1]; ++q) {
+        if (a->map[ri[q]] < 0) continue;
+        ti[m] = a->map[ri[q]];
+        tj[m] = a->map[j];
+        tv[m++] = -lx[q];
+      }
+    }
+    if ((s = km_sparse_from_triplets(nfree, nfree, m, ti, tj, tv, &A, err))) goto fail;
+    if ((s = km_cholesky_analyze(A, &a->chol, err))) goto fail;
+    if ((s = km_cholesky_factorize(a->chol, A, err))) {
+      km__wrap(err, s,
+               "arap: the constrained Laplacian is singular (every connected component needs "
+               "a handle vertex)");
+      goto fail;
+    }
+  }
+  km_sparse_free(&L);
+  km_sparse_free(&A);
+  free(ti);
+  free(tj);
+  free(tv);
+  *out = a;
+  return KM_OK;
+nomem:
+  s = km__fail(err, KM_ERR_NOMEM, "arap: out of memory for %zu vertices", n);
+fail:
+  km_sparse_free(&L);
+  km_sparse_free(&A);
+  free(ti);
+  free(tj);
+  free(tv);
+  km_arap_free(&a);
+  return s;
+}
+
+static void local_step(km_arap *a) {
+  const double *P = a->P, *X = a->X;
+  ptrdiff_t n = (ptrdiff_t)a->n;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) if (n > 8192)
+#endif
+  for (ptrdiff_t i = 0; i < n; ++i) {
+    double S[9] = {0};
+    for (int32_t k = a->adj_off[i]; k < a->adj_off[i + 1]; ++k) {
+      int32_t j = a->adj[k];
+      double w = a->w[k];
+      double e0[3], e1[3];
+      for (int c = 0; c < 3; ++c) {
+        e0[c] = P[3 * i + c] - P[3 * j + c];
+        e1[c] = X[3 * i + c] - X[3 * j + c];
+      }
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          S[r * 3 + c] += w * e1[r] * e0[c];
+    }
+    km__nearest_rotation3(S, a->R + 9 * i);
+  }
+}
+
+km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_error *err) {
+  if (!a || !targets || !V_out) return km__fail(err, KM_ERR_INVALID, "arap solve: NULL argument");
+  for (size_t i = 0; i < a->n_hv * 3; ++i)
+    if (!isfinite(targets[i]))
+      return km__fail(err, KM_ERR_INVALID, "arap solve: target of handle vertex %zu is not finite",
+                      i / 3);
+  for (size_t i = 0; i < a->n_hv; ++i)
+    memcpy(a->X + 3 * (size_t)a->h_v[i], targets + 3 * i, 3 * sizeof(double));
+  size_t n = a->n, nf = a->n_free;
+  const double *P = a->P;
+  for (int it = 0; it < a->iterations && nf > 0; ++it) {
+    local_step(a);
+    double *B = a->B;
+    for (size_t i = 0; i < n; ++i) {
+      int32_t fi = a->map[i];
+      if (fi < 0) continue;
+      double b[3] = {0, 0, 0};
+      const double *Ri = a->R + 9 * i;
+      for (int32_t k = a->adj_off[i]; k < a->adj_off[i + 1]; ++k) {
+        int32_t j = a->adj[k];
+        double w = 0.5 * a->w[k];
+        const double *Rj = a->R + 9 * (size_t)j;
+        double e0[3] = {P[3 * i] - P[3 * j], P[3 * i + 1] - P[3 * j + 1],
+                        P[3 * i + 2] - P[3 * j + 2]};
+        for (int r = 0; r < 3; ++r)
+          b[r] += w * ((Ri[r * 3] + Rj[r * 3]) * e0[0] + (Ri[r * 3 + 1] + Rj[r * 3 + 1]) * e0[1] +
+                       (Ri[r * 3 + 2] + Rj[r * 3 + 2]) * e0[2]);
+        int32_t fj = a->map[j];
+        if (fj < 0) /* eliminated handle: L_ij x_j moves to the right-hand side */
+          for (int r = 0; r < 3; ++r)
+            b[r] += a->w[k] * a->X[3 * j + r];
+      }
+      for (int r = 0; r < 3; ++r)
+        B[fi + r * nf] = b[r];
+    }
+    km_status s = km_cholesky_solve(a->chol, 3, B, B, err);
+    if (s) return km__wrap(err, s, "arap solve");
+    double move = 0;
+    for (size_t i = 0; i < n; ++i) {
+      int32_t fi = a->map[i];
+      if (fi < 0) continue;
+      for (int r = 0; r < 3; ++r) {
+        double d = fabs(B[fi + r * nf] - a->X[3 * i + r]);
+        move = d > move ? d : move;
+        a->X[3 * i + r] = B[fi + r * nf];
+      }
+    }
+    if (move < a->tolerance * a->diag) break;
+  }
+  memcpy(V_out, a->X, n * 3 * sizeof(double));
+  return KM_OK;
+}
