@@ -1,19 +1,56 @@
 /* kinemesh — animate any triangle mesh from captured human motion.
  *
  * The one public header. C11, no third-party types: solver objects are opaque.
+ * Sections follow the library's layers, bottom up; each names the module (src/<m>/) that
+ * implements it and may use only the sections above it (docs/architecture.md):
+ *
+ *   core      version, errors, logging & progress, clock, atomic files      src/core/
+ *   linalg    sparse matrices, sparse Cholesky, eigenpairs                    src/linalg/
+ *   math      linear blend skinning, skeleton poses                          src/math/
+ *   mesh      meshes, I/O, topology, operators, point clouds                 src/mesh/
+ *   motion    skeletons, takes, motion formats, filter, rig, retargeting,
+ *             character rig sidecar                                          src/motion/
+ *   anim      animation writers and readers (glTF, PC2, frame directories)   src/anim/
+ *   puppet    puppetry deformers (Wu, Lu & Song 2012)                        src/puppet/
+ *   transfer  pose transfer, pose recognition, morphing (Lifkooee et al. 2019) src/transfer/
+ *   recon     point clouds to mesh animation (Park & Lim 2014)               src/recon/
+ *   synth     procedural character, generated motion, pose presets,
+ *             capture simulator                                              src/synth/
+ *
+ * The three papers the solvers follow, named wherever an equation or section is cited:
+ *   Wu, Lu & Song 2012  — real-time mesh puppetry from Kinect joints with a reduced isoline
+ *                         model (puppet, and the motion filter and retargeting it uses).
+ *   Lifkooee et al. 2019 — avatar pose transfer by locally encoded Laplacian offsets, pose
+ *                         recognition from landmark angles, key-pose morphing (transfer).
+ *   Park & Lim 2014     — template-based reconstruction of a mesh animation from point
+ *                         clouds, after Allen, Curless & Popovic 2003 (recon).
  *
  * Conventions (read once, they hold everywhere):
  *  - Every fallible call returns km_status (KM_OK == 0) and, when `err` is not NULL,
  *    fills it with a message for the user naming the file, line/byte and what was expected.
+ *    Any of them may return KM_ERR_INVALID (NULL or out-of-range argument) and KM_ERR_NOMEM;
+ *    a function's "Errors:" line lists the other statuses it returns.
  *  - Arrays are plain, row-major, owned by whoever allocated them. Positions are
  *    `double V[#V*3]` (x0 y0 z0 x1 ...), triangles `int32_t F[#F*3]`. Dense matrices with
  *    several columns (eigenvectors, right-hand sides) are column-major: column c of an
  *    n-row matrix starts at X + c*n.
+ *  - Argument lists (libigl's habit): `V  #V*3 rest positions` names an argument, its size
+ *    (#V vertices, #F faces, #J joints, #H handles, #L landmarks, #P points) and meaning.
+ *    "in" arguments are read only; "out" arguments are caller-allocated arrays of the stated
+ *    size unless the text says "allocated", in which case the named free function (or
+ *    free()) releases them. A NULL out argument marked "may be NULL" is skipped.
  *  - Units: metres inside the library.
  *  - Laplacian sign: L is negative semidefinite, rows sum to zero (L_ii = -sum_j L_ij).
  *    System matrices are built from -L plus constraints so they are SPD.
+ *  - Objects follow precompute (or create / analyze / open) -> solve (or push) -> free.
+ *    Solve depends only on values, not on topology or the set of handles, does not allocate
+ *    and does not log. No object is thread-safe; distinct objects may be used in parallel.
  *  - Frees take the address of what they free and set it to NULL; freeing NULL is a no-op.
+ *    Plain structs (km_mesh, km_take, ...) are freed by value-pointer and zeroed.
  *  - The library never prints. Install a logger with km_set_logger() to see its messages.
+ *
+ * Test fixtures (primitive meshes, the CART tree, single capture frames) are not part of
+ * this API: they are declared in src/synth/synth.h and src/transfer/transfer.h.
  */
 #ifndef KINEMESH_H
 #define KINEMESH_H
@@ -26,14 +63,15 @@
 extern "C" {
 #endif
 
+/* ==== core: version, errors, logging & progress, clock, atomic files (src/core/) ==== */
+
 #define KM_VERSION_MAJOR 0
 #define KM_VERSION_MINOR 1
 #define KM_VERSION_PATCH 0
+/* Returns the library version, "MAJOR.MINOR.PATCH" (static string, never NULL). */
 const char *km_version(void);
-/* Monotonic clock in seconds (for timing; arbitrary origin). */
-double km_seconds(void);
 
-/* ---------------------------------------------------------------- errors */
+/* ---- errors */
 
 typedef enum km_status {
   KM_OK = 0,
@@ -54,25 +92,30 @@ typedef struct km_error {
   char message[1024];
 } km_error;
 
-/* Fills err (when not NULL) with status and a printf-formatted message; returns status, so
- * that a caller's failure path reads `return km_error_set(err, KM_ERR_IO, "%s: ...", path)`. */
+/* Fills err with status and a printf-formatted message, so that a caller's failure path
+ * reads `return km_error_set(err, KM_ERR_IO, "%s: ...", path)`.
+ *   err     out: may be NULL (then nothing is written)
+ *   status  in: the status to record
+ *   fmt     in: printf format and its arguments; the message is truncated to 1023 bytes
+ * Returns status. */
 km_status km_error_set(km_error *err, km_status status, const char *fmt, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 3, 4)))
 #endif
     ;
-/* Writes size bytes to path atomically: a temporary file beside it, flushed, then renamed,
- * so a reader never sees a half-written file and a failure leaves nothing behind. */
-km_status km_write_file_atomic(const char *path, const void *data, size_t size, km_error *err);
 
-/* Stable name of a status ("KM_ERR_PARSE"). Never NULL. */
+/* Stable name of a status ("KM_ERR_PARSE").
+ *   s  in: any value
+ * Returns a static string, never NULL ("KM_ERR_UNKNOWN" for a value out of range). */
 const char *km_status_name(km_status s);
 
-/* ---------------------------------------------------------------- logging & progress */
+/* ---- logging & progress */
 
 typedef enum km_log_level { KM_LOG_DEBUG = 0, KM_LOG_INFO, KM_LOG_WARN, KM_LOG_ERROR } km_log_level;
 typedef void (*km_log_fn)(km_log_level level, const char *message, void *user);
-/* Installs the process-wide logger (NULL silences the library, the default). */
+/* Installs the process-wide logger (the library is silent by default).
+ *   fn    in: called with each message (no trailing newline); NULL silences the library
+ *   user  in: passed back to fn untouched */
 void km_set_logger(km_log_fn fn, void *user);
 
 /* Called by long operations with fraction in [0,1] and a short stage name.
@@ -83,7 +126,151 @@ typedef struct km_progress {
   void *user;
 } km_progress;
 
-/* ---------------------------------------------------------------- meshes */
+/* ---- clock */
+
+/* Returns a monotonic clock reading in seconds (for timing; arbitrary origin). */
+double km_seconds(void);
+
+/* ---- atomic files */
+
+/* Writes a file atomically: a temporary file beside it, flushed, then renamed, so a reader
+ * never sees a half-written file and a failure leaves nothing behind.
+ *   path  in: destination file
+ *   data  in: size bytes to write
+ * Errors: KM_ERR_IO naming path. */
+km_status km_write_file_atomic(const char *path, const void *data, size_t size, km_error *err);
+
+/* ==== linalg: sparse matrices, sparse Cholesky, eigenpairs (src/linalg/) ==== */
+
+/* ---- sparse matrices */
+
+/* Sparse matrix (compressed columns, int32 indices, double values, sorted, no duplicates).
+ * Symmetric matrices are stored with both triangles. Backed by CHOLMOD. */
+typedef struct km_sparse km_sparse;
+
+/* Builds a matrix from triplets; duplicate (i,j) entries are summed.
+ *   n_rows, n_cols  in: shape
+ *   rows, cols      in: nnz row / column indices, 0-based, within the shape
+ *   values          in: nnz values
+ *   out             out: allocated matrix; free with km_sparse_free */
+km_status km_sparse_from_triplets(size_t n_rows, size_t n_cols, size_t nnz, const int32_t *rows,
+                                  const int32_t *cols, const double *values, km_sparse **out,
+                                  km_error *err);
+/* Diagonal matrix.
+ *   diag  in: n diagonal values
+ *   out   out: allocated n x n matrix; free with km_sparse_free */
+km_status km_sparse_diagonal(size_t n, const double *diag, km_sparse **out, km_error *err);
+/* Linear combination C = alpha*A + beta*B.
+ *   A, B  in: matrices of the same shape
+ *   out   out: allocated C; free with km_sparse_free */
+km_status km_sparse_add(double alpha, const km_sparse *A, double beta, const km_sparse *B,
+                        km_sparse **out, km_error *err);
+/* Shape and stored entries of A (A in; returns the count). */
+size_t km_sparse_rows(const km_sparse *A);
+size_t km_sparse_cols(const km_sparse *A);
+size_t km_sparse_nnz(const km_sparse *A);
+/* Read-only view of the CSC arrays, owned by A (valid until it is freed).
+ *   A        in: matrix
+ *   col_ptr  out: cols+1 column starts
+ *   row_idx  out: nnz row indices, sorted within each column
+ *   values   out: nnz values */
+void km_sparse_csc(const km_sparse *A, const int32_t **col_ptr, const int32_t **row_idx,
+                   const double **values);
+/* Returns A(i,j), 0 when not stored (or out of range). */
+double km_sparse_coeff(const km_sparse *A, size_t i, size_t j);
+/* Product Y = A X.
+ *   A  in: rows x cols matrix
+ *   X  in: cols x k, column-major
+ *   Y  out: rows x k, column-major; must not alias X */
+void km_sparse_mul(const km_sparse *A, size_t k, const double *X, double *Y);
+/* Frees *A and sets it to NULL. */
+void km_sparse_free(km_sparse **A);
+
+/* ---- sparse Cholesky */
+
+/* Sparse Cholesky of a symmetric positive-definite matrix (CHOLMOD).
+ * analyze once per pattern, factorize whenever the values change, solve many times.
+ * solve does not allocate (workspace is kept in the object) and is not thread-safe on one
+ * object. */
+typedef struct km_cholesky km_cholesky;
+/* Symbolic analysis (fill-reducing ordering) of a pattern.
+ *   A    in: n x n symmetric matrix (both triangles stored); only its pattern is used
+ *   out  out: allocated factor object, not yet factorized; free with km_cholesky_free */
+km_status km_cholesky_analyze(const km_sparse *A, km_cholesky **out, km_error *err);
+/* Numeric factorisation.
+ *   c  in/out: analyzed object
+ *   A  in: matrix with the pattern given to analyze
+ * Errors: KM_ERR_NOT_POSDEF when A is not SPD. */
+km_status km_cholesky_factorize(km_cholesky *c, const km_sparse *A, km_error *err);
+/* Solves A X = B with the last factorisation.
+ *   B  in: n x nrhs, column-major
+ *   X  out: n x nrhs, column-major; may alias B */
+km_status km_cholesky_solve(km_cholesky *c, size_t nrhs, const double *B, double *X, km_error *err);
+/* Returns n, the order of the analyzed matrix. */
+size_t km_cholesky_size(const km_cholesky *c);
+/* Frees *c and sets it to NULL. */
+void km_cholesky_free(km_cholesky **c);
+
+/* ---- eigenpairs */
+
+typedef struct km_eigs_options {
+  double sigma; /* shift; 0: a small negative shift relative to the spectrum scale */
+  double tol;   /* ARPACK tolerance; 0: 1e-10 */
+  int max_iter; /* 0: 1000 */
+  int ncv;      /* Lanczos vectors; 0: min(n, max(2k+1, 20)) */
+  km_progress progress;
+} km_eigs_options;
+/* The k smallest eigenpairs of -L phi = lambda M phi by ARPACK in shift-invert mode on a
+ * CHOLMOD factor of (-L - sigma M).
+ *   L      in: #V x #V symmetric negative semidefinite (e.g. km_cotmatrix)
+ *   M      in: #V x #V diagonal SPD (e.g. km_massmatrix)
+ *   k      in: 1 <= k < #V
+ *   opt    in: may be NULL (defaults)
+ *   evals  out: k eigenvalues, ascending; may be NULL
+ *   evecs  out: #V x k column-major, M-orthonormal; may be NULL
+ * Errors: KM_ERR_NOT_POSDEF, KM_ERR_NO_CONVERGENCE, KM_ERR_CANCELLED. */
+km_status km_eigs(const km_sparse *L, const km_sparse *M, int k, const km_eigs_options *opt,
+                  double *evals, double *evecs, km_error *err);
+
+/* ==== math: linear blend skinning, skeleton poses (src/math/) ==== */
+
+/* km_mesh (mesh section), km_skeleton and km_skin (motion section) are defined with the
+ * modules that own them; the skinning maths below only takes pointers to them. */
+typedef struct km_mesh km_mesh;
+typedef struct km_skeleton km_skeleton;
+typedef struct km_skin km_skin;
+
+/* Per-joint rigid transforms that take the rest skeleton to the given joint positions: each
+ * joint's rotation is the minimal rotation of its rest bone direction(s) onto the posed
+ * ones (no twist), composed down the hierarchy.
+ *   s           in: skeleton, #J joints with rest positions
+ *   positions   in: #J*3 posed joint positions; a NaN joint keeps the rest-relative
+ *               transform of its parent
+ *   transforms  out: #J*12, per joint row-major 3x4 [R | t] */
+km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *positions,
+                                          double *transforms, km_error *err);
+/* Joint rest positions at the boundaries of the skinned parts (Park & Lim 2014: the skeleton
+ * of a template that has only weights). Joint j sits at the weighted centroid of the
+ * vertices its part shares with its parent's part (weight min(w_j, w_parent)); a root, or a
+ * joint whose part shares no vertex with its parent's, sits at the weighted centroid of its
+ * own part; a joint no vertex is weighted to keeps the position in `rest`.
+ *   m        in: mesh, #V vertices
+ *   skin     in: #V vertices' weights over n_joints joints
+ *   parents  in: n_joints parents, -1 for roots
+ *   rest     in/out: n_joints*3; in: a guess (may be the rig's), out: the estimate */
+km_status km_skeleton_from_weights(const km_mesh *m, const km_skin *skin, const int32_t *parents,
+                                   size_t n_joints, double *rest, km_error *err);
+/* Linear blend skinning: out_v = sum_k w_k T_{j_k} rest_v.
+ *   rest        in: #V*3 rest positions
+ *   skin        in: #V vertices' joints and weights
+ *   transforms  in: n_joints*12 row-major 3x4 (km_skeleton_pose_from_positions)
+ *   out         out: #V*3 posed positions; may not alias rest */
+km_status km_lbs(const double *rest, size_t n_vertices, const km_skin *skin,
+                 const double *transforms, size_t n_joints, double *out, km_error *err);
+
+/* ==== mesh: meshes, I/O, topology, operators, point clouds (src/mesh/) ==== */
+
+/* ---- the mesh */
 
 typedef struct km_mesh {
   double *V;  /* #V*3 positions */
@@ -91,6 +278,19 @@ typedef struct km_mesh {
   size_t n_vertices;
   size_t n_faces; /* 0 for a point cloud */
 } km_mesh;
+
+/* Allocates a mesh with uninitialised V and F.
+ *   n_vertices, n_faces  in: #V (<= INT32_MAX) and #F
+ *   out                  out: V #V*3 and F #F*3 allocated; free with km_mesh_free */
+km_status km_mesh_alloc(size_t n_vertices, size_t n_faces, km_mesh *out, km_error *err);
+/* Deep copy.
+ *   src  in: mesh
+ *   out  out: allocated copy; free with km_mesh_free */
+km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err);
+/* Frees m->V and m->F and zeroes the struct (the struct itself is the caller's). */
+void km_mesh_free(km_mesh *m);
+
+/* ---- I/O */
 
 typedef enum km_mesh_format {
   KM_FORMAT_AUTO = 0, /* from the file extension */
@@ -110,30 +310,37 @@ typedef struct km_mesh_write_options {
   km_ply_encoding ply;   /* 0: binary little endian */
 } km_mesh_write_options;
 
-/* Allocates a mesh with uninitialised V and F of the given sizes. */
-km_status km_mesh_alloc(size_t n_vertices, size_t n_faces, km_mesh *out, km_error *err);
-/* Deep copy. */
-km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err);
-/* Frees V and F and zeroes the struct. */
-void km_mesh_free(km_mesh *m);
-
-/* Reads OBJ / PLY (ascii, binary LE/BE) / OFF. Vertex order and count are exactly those of
- * the file; polygons are fan-triangulated (0,i,i+1). A PLY without faces reads as a point
- * cloud (n_faces == 0). Errors name `path` and the line (text) or byte offset (binary). */
+/* Reads OBJ / PLY (ascii, binary LE/BE) / OFF, format by extension. Vertex order and count
+ * are exactly those of the file; polygons are fan-triangulated (0,i,i+1). A PLY without
+ * faces reads as a point cloud (n_faces == 0).
+ *   path  in: file
+ *   out   out: allocated mesh; free with km_mesh_free
+ * Errors: KM_ERR_IO, KM_ERR_PARSE naming path and the line (text) or byte offset (binary),
+ * KM_ERR_UNSUPPORTED. */
 km_status km_mesh_read(const char *path, km_mesh *out, km_error *err);
-/* Same from memory; `name` is used in error messages. format must not be AUTO unless
- * `name` has an extension. */
+/* km_mesh_read from memory.
+ *   data, size  in: file contents (need not be NUL-terminated)
+ *   format      in: must not be AUTO unless `name` has an extension
+ *   name        in: used for the format and in error messages
+ *   out         out: allocated mesh; free with km_mesh_free
+ * Errors: as km_mesh_read. */
 km_status km_mesh_parse(const void *data, size_t size, km_mesh_format format, const char *name,
                         km_mesh *out, km_error *err);
-/* Writes atomically (temporary file, then rename). Coordinates are written exactly
- * (%.17g in text formats, raw doubles in binary PLY), so reading back is bit for bit. */
+/* Writes a mesh atomically (temporary file, then rename). Coordinates are written exactly
+ * (%.17g in text formats, raw doubles in binary PLY), so reading back is bit for bit.
+ *   path  in: file; its extension gives the format unless opt says otherwise
+ *   m     in: mesh
+ *   opt   in: may be NULL (format from extension, binary little-endian PLY)
+ * Errors: KM_ERR_IO. */
 km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_options *opt,
                         km_error *err);
 
-/* Topology and extent. Edges are undirected vertex pairs used by at least one face.
- * A component is a set of faces connected through shared vertices; vertices used by no
- * face are counted as isolated, not as components. A face is degenerate when two of its
- * indices are equal or its area is below 1e-14 * bbox_diagonal^2. */
+/* ---- topology and extent */
+
+/* Edges are undirected vertex pairs used by at least one face. A component is a set of
+ * faces connected through shared vertices; vertices used by no face are counted as
+ * isolated, not as components. A face is degenerate when two of its indices are equal or
+ * its area is below 1e-14 * bbox_diagonal^2. */
 typedef struct km_mesh_info {
   size_t vertices, faces;
   size_t edges;
@@ -146,84 +353,47 @@ typedef struct km_mesh_info {
   int64_t euler_characteristic; /* V - E + F over non-isolated vertices */
   double bbox_min[3], bbox_max[3];
 } km_mesh_info;
+/* Topology and extent of a mesh.
+ *   m    in: mesh (a point cloud is fine)
+ *   out  out: counts and bounding box */
 km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *err);
 
-/* Mean and maximum of |A_v - B_v| over n points (A, B n*3). */
+/* Mean and maximum point-to-point distance |A_i - B_i|.
+ *   A, B       in: n*3 positions each
+ *   mean, max  out: the statistics (0 for n == 0) */
 void km_vertex_distance_stats(const double *A, const double *B, size_t n, double *mean,
                               double *max);
 
-/* Length of the bounding-box diagonal (0 for an empty mesh). */
+/* Returns the length of the bounding-box diagonal of V (#V*3), 0 for an empty set. */
 double km_bbox_diagonal(const double *V, size_t n_vertices);
 
 /* k vertices spread over the mesh by farthest-point sampling (Euclidean, deterministic: the
  * first is the vertex farthest from the centroid, each next one the farthest from those
- * taken). Written to ids (k entries). For landmarks on a mesh without a rig: meshes of one
- * connectivity share the ids. Isolated vertices are never taken. */
+ * taken). For landmarks on a mesh without a rig: meshes of one connectivity share the ids.
+ * Isolated vertices are never taken.
+ *   m    in: mesh with at least k non-isolated vertices
+ *   ids  out: k vertex ids */
 km_status km_farthest_points(const km_mesh *m, size_t k, int32_t *ids, km_error *err);
 
-/* Vertex-vertex adjacency in CSR form: neighbours of v are
- * adj[offsets[v] .. offsets[v+1]), sorted ascending. offsets has #V+1 entries.
- * Both arrays are allocated by the call; free them with free(). */
+/* Vertex-vertex adjacency in CSR form: neighbours of v are adj[offsets[v] .. offsets[v+1]),
+ * sorted ascending.
+ *   m        in: mesh, #V vertices
+ *   offsets  out: allocated, #V+1 entries; free()
+ *   adj      out: allocated, offsets[#V] entries; free() */
 km_status km_adjacency_list(const km_mesh *m, int32_t **offsets, int32_t **adj, km_error *err);
 
-/* Primitive meshes for tests and examples (closed, manifold, consistently oriented
- * outward). icosphere: 10*4^subdiv+2 vertices on a sphere of `radius`. */
-km_status km_icosphere(int subdivisions, double radius, km_mesh *out, km_error *err);
-/* Open rectangular grid in the z=0 plane, (nx+1)*(ny+1) vertices over [0,sx]x[0,sy]. */
-km_status km_grid(int nx, int ny, double sx, double sy, km_mesh *out, km_error *err);
-/* Closed capped cylinder along +z from z=0 to z=length: `rings`+1 rings of `segments`
- * vertices each plus two cap centres. */
-km_status km_cylinder(int segments, int rings, double radius, double length, km_mesh *out,
-                      km_error *err);
+/* ---- geometric operators */
 
-/* ---------------------------------------------------------------- sparse matrices */
-
-/* Sparse matrix (compressed columns, int32 indices, double values, sorted, no duplicates).
- * Symmetric matrices are stored with both triangles. Backed by CHOLMOD. */
-typedef struct km_sparse km_sparse;
-
-/* Builds an n_rows x n_cols matrix from triplets; duplicate (i,j) entries are summed. */
-km_status km_sparse_from_triplets(size_t n_rows, size_t n_cols, size_t nnz, const int32_t *rows,
-                                  const int32_t *cols, const double *values, km_sparse **out,
-                                  km_error *err);
-/* Diagonal matrix. */
-km_status km_sparse_diagonal(size_t n, const double *diag, km_sparse **out, km_error *err);
-/* C = alpha*A + beta*B (same shape). */
-km_status km_sparse_add(double alpha, const km_sparse *A, double beta, const km_sparse *B,
-                        km_sparse **out, km_error *err);
-size_t km_sparse_rows(const km_sparse *A);
-size_t km_sparse_cols(const km_sparse *A);
-size_t km_sparse_nnz(const km_sparse *A);
-/* Read-only view of the CSC arrays: col_ptr has cols+1 entries. */
-void km_sparse_csc(const km_sparse *A, const int32_t **col_ptr, const int32_t **row_idx,
-                   const double **values);
-/* A(i,j), 0 when not stored. */
-double km_sparse_coeff(const km_sparse *A, size_t i, size_t j);
-/* Y = A X for X column-major cols x k, Y rows x k. Y must not alias X. */
-void km_sparse_mul(const km_sparse *A, size_t k, const double *X, double *Y);
-void km_sparse_free(km_sparse **A);
-
-/* Sparse Cholesky of a symmetric positive-definite matrix (CHOLMOD).
- * analyze once per pattern, factorize whenever the values change, solve many times.
- * solve does not allocate (workspace is kept in the object) and is not thread-safe on one
- * object. */
-typedef struct km_cholesky km_cholesky;
-km_status km_cholesky_analyze(const km_sparse *A, km_cholesky **out, km_error *err);
-/* A must have the pattern given to analyze. KM_ERR_NOT_POSDEF when it is not SPD. */
-km_status km_cholesky_factorize(km_cholesky *c, const km_sparse *A, km_error *err);
-/* X = A^-1 B, B and X column-major n x nrhs (may alias). */
-km_status km_cholesky_solve(km_cholesky *c, size_t nrhs, const double *B, double *X, km_error *err);
-size_t km_cholesky_size(const km_cholesky *c);
-void km_cholesky_free(km_cholesky **c);
-
-/* ---------------------------------------------------------------- geometric operators */
-
-/* Cotangent Laplacian, #V x #V: L_ij = (cot a_ij + cot b_ij)/2 for each edge, L_ii = -sum.
+/* Cotangent Laplacian: L_ij = (cot a_ij + cot b_ij)/2 for each edge, L_ii = -sum.
  * Cotangents are clamped to [-1e5, 1e5] (zero-angle / near-degenerate triangles) and a
  * face with zero area contributes nothing, so the matrix stays finite. Obtuse triangles
- * give negative weights, as the continuous operator does. */
+ * give negative weights, as the continuous operator does.
+ *   m  in: triangle mesh
+ *   L  out: allocated #V x #V; free with km_sparse_free */
 km_status km_cotmatrix(const km_mesh *m, km_sparse **L, km_error *err);
-/* Uniform (graph) Laplacian: L_ij = 1 for each edge, L_ii = -degree. */
+/* Uniform (graph) Laplacian: L_ij = 1 for each edge, L_ii = -degree.
+ *   m  in: triangle mesh
+ *   L  out: allocated #V x #V; free with km_sparse_free */
 km_status km_uniform_laplacian(const km_mesh *m, km_sparse **L, km_error *err);
 
 typedef enum km_mass_type {
@@ -232,50 +402,89 @@ typedef enum km_mass_type {
   KM_MASS_BARYCENTRIC, /* a third of each incident triangle's area */
 } km_mass_type;
 /* Lumped (diagonal) mass matrix. Isolated vertices get a tiny positive mass so M stays
- * invertible. */
+ * invertible.
+ *   m  in: triangle mesh
+ *   M  out: allocated #V x #V diagonal; free with km_sparse_free */
 km_status km_massmatrix(const km_mesh *m, km_mass_type type, km_sparse **M, km_error *err);
 
 typedef enum km_normal_weighting {
   KM_NORMALS_AREA = 0, /* face normals weighted by area */
   KM_NORMALS_ANGLE,    /* weighted by the incident angle (Thürmer & Wüthrich) */
 } km_normal_weighting;
-/* Unit per-vertex normals, N #V*3. A vertex with no non-degenerate face gets (0,0,0). */
+/* Unit per-vertex normals.
+ *   m  in: triangle mesh
+ *   N  out: #V*3; a vertex with no non-degenerate face gets (0,0,0) */
 km_status km_vertex_normals(const km_mesh *m, km_normal_weighting w, double *N, km_error *err);
 
 /* For every vertex, the neighbour whose edge defines its local frame's tangent. Chosen once
  * on a reference mesh (the lowest-index neighbour) and reused for every pose of the same
- * connectivity, so frames correspond across poses. ref #V; isolated vertices get -1. */
+ * connectivity, so frames correspond across poses.
+ *   m    in: reference triangle mesh
+ *   ref  out: #V neighbour ids; isolated vertices get -1 */
 km_status km_frame_neighbors(const km_mesh *m, int32_t *ref, km_error *err);
-/* Local orthonormal frames: frames #V*9, per vertex the rows n (normal), t (edge to ref
- * projected on the tangent plane, normalised), b = n x t. Right-handed. */
+/* Local orthonormal frames, right-handed.
+ *   m       in: triangle mesh (any pose of the reference connectivity)
+ *   N       in: #V*3 unit normals (km_vertex_normals)
+ *   ref     in: #V frame neighbours (km_frame_neighbors)
+ *   frames  out: #V*9, per vertex the rows n (normal), t (edge to ref projected on the
+ *           tangent plane, normalised), b = n x t */
 km_status km_local_frames(const km_mesh *m, const double *N, const int32_t *ref, double *frames,
                           km_error *err);
 
-/* ---------------------------------------------------------------- eigenfields */
+/* ---- point clouds */
 
-typedef struct km_eigs_options {
-  double sigma; /* shift; 0: a small negative shift relative to the spectrum scale */
-  double tol;   /* ARPACK tolerance; 0: 1e-10 */
-  int max_iter; /* 0: 1000 */
-  int ncv;      /* Lanczos vectors; 0: min(n, max(2k+1, 20)) */
-  km_progress progress;
-} km_eigs_options;
-/* The k smallest eigenpairs of -L phi = lambda M phi (L symmetric NSD, M diagonal SPD) by
- * ARPACK in shift-invert mode on a CHOLMOD factor of (-L - sigma M). evals ascending (k),
- * evecs column-major #V x k, M-orthonormal. Either output may be NULL. */
-km_status km_eigs(const km_sparse *L, const km_sparse *M, int k, const km_eigs_options *opt,
-                  double *evals, double *evecs, km_error *err);
+/* One point cloud frame. Points with a NaN/inf coordinate are dropped and counted. */
+typedef struct km_points {
+  double *P; /* n*3 positions, metres */
+  size_t n;
+  size_t dropped_nan; /* points skipped because a coordinate was not finite */
+} km_points;
+/* Frees p->P and zeroes the struct. */
+void km_points_free(km_points *p);
 
-/* ---------------------------------------------------------------- skeletons & takes */
+/* Reads a point cloud: .ply (the mesh PLY reader, except that NaN/inf coordinates are
+ * accepted, then dropped and counted; faces, if any, are ignored), .pcd
+ * (PCD v0.7, DATA ascii or binary; fields x y z as F4/F8, other fields skipped),
+ * .xyz/.txt/.pts (whitespace or comma separated, the first three numbers of each line;
+ * '#' comments and blank lines skipped).
+ *   path  in: file
+ *   out   out: allocated points (#P*3); free with km_points_free
+ * Errors: KM_ERR_IO, KM_ERR_PARSE naming the file and the line (text) or byte offset
+ * (binary), KM_ERR_UNSUPPORTED (PCD binary_compressed). */
+km_status km_points_read(const char *path, km_points *out, km_error *err);
+/* km_points_read from memory.
+ *   data, size  in: file contents
+ *   name        in: its extension gives the format; used in error messages
+ *   out         out: allocated points; free with km_points_free */
+km_status km_points_parse(const void *data, size_t size, const char *name, km_points *out,
+                          km_error *err);
+/* Writes a binary little-endian PLY with float x y z and no faces, atomically.
+ *   P  in: n*3 positions
+ * Errors: KM_ERR_IO. */
+km_status km_points_write_ply(const char *path, const double *P, size_t n, km_error *err);
+/* Frame files in name order.
+ *   pattern  in: a directory (its .ply/.pcd/.xyz/.txt/.pts files) or a glob(3) pattern
+ *   paths    out: allocated array of *n strings; free with km_paths_free
+ *   n        out: number of files
+ * Errors: KM_ERR_IO naming the pattern when nothing matches. */
+km_status km_point_frames_list(const char *pattern, char ***paths, size_t *n, km_error *err);
+/* Frees the n strings of *paths and the array, and sets *paths to NULL. */
+void km_paths_free(char ***paths, size_t n);
+
+/* ==== motion: skeletons, takes, motion formats, filter, rig, retargeting, rig sidecar
+ *      (src/motion/) ==== */
+
+/* ---- skeletons */
 
 #define KM_KINECT1_JOINTS 20
 /* Kinect v1 joint order: HipCenter, Spine, ShoulderCenter, Head, ShoulderLeft, ElbowLeft,
  * WristLeft, HandLeft, ShoulderRight, ElbowRight, WristRight, HandRight, HipLeft, KneeLeft,
  * AnkleLeft, FootLeft, HipRight, KneeRight, AnkleRight, FootRight. */
+/* Returns the name of Kinect v1 joint j (0 .. KM_KINECT1_JOINTS-1), a static string. */
 const char *km_kinect1_joint_name(int j);
-/* Parent of joint j in the Kinect v1 hierarchy (-1 for HipCenter). */
+/* Returns the parent of Kinect v1 joint j (-1 for HipCenter). */
 int km_kinect1_joint_parent(int j);
-/* Index of a Kinect v1 joint by name (case-sensitive), -1 when unknown. */
+/* Returns the index of a Kinect v1 joint by name (case-sensitive), -1 when unknown. */
 int km_kinect1_joint_index(const char *name);
 
 typedef struct km_skeleton {
@@ -284,7 +493,20 @@ typedef struct km_skeleton {
   int32_t *parents; /* -1 for a root; parents[j] < j */
   double *rest;     /* n_joints*3 rest positions */
 } km_skeleton;
+/* Frees the names, parents and rest arrays of s and zeroes the struct. */
 void km_skeleton_free(km_skeleton *s);
+
+/* Linear blend skinning weights (km_lbs). Each vertex has up to 4 influences. */
+#define KM_SKIN_INFLUENCES 4
+typedef struct km_skin {
+  size_t n_vertices;
+  int32_t *joints; /* n_vertices*4, -1 for an unused slot */
+  double *weights; /* n_vertices*4, summing to 1 */
+} km_skin;
+/* Frees the joints and weights arrays of s and zeroes the struct. */
+void km_skin_free(km_skin *s);
+
+/* ---- takes */
 
 /* A motion take: joint positions per frame (the form trackers deliver). A joint missing in a
  * frame is NaN. */
@@ -295,142 +517,22 @@ typedef struct km_take {
   int32_t *parents;   /* n_joints, -1 for roots; may be NULL when unknown */
   double *positions;  /* n_frames * n_joints * 3 */
 } km_take;
+/* Frees every array of t and zeroes the struct. */
 void km_take_free(km_take *t);
 /* kinemesh take JSON:
  * {"format":"kinemesh-take","version":1,"fps":30,"units":"m","joints":["HipCenter",...],
- *  "parents":[-1,0,...],"frames":[[x,y,z, x,y,z, ...], ...]}   (null = missing joint) */
+ *  "parents":[-1,0,...],"frames":[[x,y,z, x,y,z, ...], ...]}   (null = missing joint)
+ * km_take_read:
+ *   path  in: file
+ *   out   out: allocated take; free with km_take_free
+ *   Errors: KM_ERR_IO, KM_ERR_PARSE naming the file.
+ * km_take_write (atomically):
+ *   t     in: take (NaN joints are written as null)
+ *   Errors: KM_ERR_IO. */
 km_status km_take_read(const char *path, km_take *out, km_error *err);
 km_status km_take_write(const char *path, const km_take *t, km_error *err);
 
-/* Linear blend skinning. Each vertex has up to 4 influences. */
-#define KM_SKIN_INFLUENCES 4
-typedef struct km_skin {
-  size_t n_vertices;
-  int32_t *joints; /* n_vertices*4, -1 for an unused slot */
-  double *weights; /* n_vertices*4, summing to 1 */
-} km_skin;
-void km_skin_free(km_skin *s);
-
-/* Per-joint rigid transforms (row-major 3x4: [R | t]) that take the rest skeleton to the
- * given joint positions: each joint's rotation is the minimal rotation of its rest bone
- * direction(s) onto the posed ones (no twist), composed down the hierarchy. NaN positions
- * keep the rest-relative transform of the parent. transforms: n_joints*12. */
-km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *positions,
-                                          double *transforms, km_error *err);
-/* Joint rest positions at the boundaries of the skinned parts (Park & Lim: the skeleton of a
- * template that has only weights). Joint j sits at the weighted centroid of the vertices its
- * part shares with its parent's part (weight min(w_j, w_parent)); a root, or a joint whose
- * part shares no vertex with its parent's, sits at the weighted centroid of its own part; a
- * joint no vertex is weighted to keeps the position in `rest` (in: a guess, may be the
- * rig's; out: the estimate). parents: n_joints entries, -1 for roots. */
-km_status km_skeleton_from_weights(const km_mesh *m, const km_skin *skin, const int32_t *parents,
-                                   size_t n_joints, double *rest, km_error *err);
-/* out = sum_k w_k T_{j_k} v for each rest vertex. out #V*3 may not alias rest. */
-km_status km_lbs(const double *rest, size_t n_vertices, const km_skin *skin,
-                 const double *transforms, size_t n_joints, double *out, km_error *err);
-
-/* ---------------------------------------------------------------- procedural character */
-
-typedef struct km_character_options {
-  size_t target_vertices; /* 0: 20000. Output within +-10%. 2,000 .. 1,000,000 */
-  uint64_t seed;          /* small per-subject variation of proportions; 0 is valid */
-  double height;          /* metres; 0: 1.75 */
-  double girth;           /* limb thickness factor; 0: 1.0 */
-  double belly;           /* belly size factor; 0: 0 (none), 1: pronounced */
-  km_progress progress;
-} km_character_options;
-
-#define KM_CHARACTER_LANDMARKS 16
-typedef struct km_landmark {
-  char name[32];
-  char mirror[32]; /* name of the left/right counterpart (itself on the mid-line) */
-  int32_t vertex;
-} km_landmark;
-
-typedef struct km_character {
-  km_mesh mesh;         /* closed, manifold, one component */
-  km_skeleton skeleton; /* the 20 Kinect v1 joints at rest */
-  km_skin skin;         /* LBS weights over the skeleton's joints */
-  km_landmark landmarks[KM_CHARACTER_LANDMARKS];
-} km_character;
-void km_character_free(km_character *c);
-
-/* Generates a humanoid as an implicit surface around a skeleton, polygonised so that its
- * vertex count is target_vertices +-10%. Equal options (shape, seed) give equal meshes.
- * All subjects of one target_vertices SHARE CONNECTIVITY (same F, same vertex count and
- * order, same landmark vertex ids): the canonical subject (seed 0, height 1.75, girth 1,
- * belly 0) is polygonised at that resolution and every other shape is obtained by carrying
- * its vertices to the new skeleton's primitives (bone lengths, offsets, radii), projecting
- * them onto the new implicit surface (Newton steps along the field gradient) and relaxing
- * them tangentially, in a few steps through intermediate bodies. Skeleton and skin are the
- * new subject's. Costs about twice a direct polygonisation. */
-km_status km_character_generate(const km_character_options *opt, km_character *out, km_error *err);
-/* Rig sidecar (<mesh>.rig.json): skeleton, skin, landmarks, and a default puppetry rig
- * (handles at head, hands, feet mapped to the matching Kinect joints). */
-km_status km_character_write_rig(const char *path, const km_character *c, km_error *err);
-/* Reads the skeleton, skin and landmarks of a rig sidecar (mesh not touched). */
-km_status km_character_read_rig(const char *path, size_t n_vertices, km_character *out,
-                                km_error *err);
-
-/* The built-in pose set: KM_POSE_PRESETS named joint-angle poses (t_pose, a_pose, arms_up,
- * squat, ...) of the Kinect v1 skeleton, each up to KM_POSE_PRESET_MAX_ROTATIONS joint
- * rotations. Ground truth for pose-transfer tests and benchmarks. */
-#define KM_POSE_PRESETS 10
-#define KM_POSE_PRESET_MAX_ROTATIONS 8
-/* Name of preset p (NULL when out of range). */
-const char *km_pose_preset_name(int p);
-/* Character c in preset p by forward kinematics and km_lbs: V #V*3 posed positions. jitter:
- * NULL, or KM_POSE_PRESET_MAX_ROTATIONS factors; rotation k's angle is scaled by 1+jitter[k]. */
-km_status km_character_pose_preset(const km_character *c, int p, const double *jitter, double *V,
-                                   km_error *err);
-
-typedef enum km_motion_kind { KM_MOTION_WALK = 0, KM_MOTION_WAVE, KM_MOTION_KUNGFU } km_motion_kind;
-/* A take of the 20 Kinect v1 joints at 30 Hz for skeleton s (the character's rest skeleton),
- * frames >= 1. Deterministic. Like a tracked performer it starts in the rest (T) pose — the
- * calibration pose puppetry measures displacements from — holds it 0.2 s and blends into
- * the motion over the next 0.5 s. */
-km_status km_motion_generate(const km_skeleton *s, km_motion_kind kind, size_t frames, km_take *out,
-                             km_error *err);
-
-/* ---------------------------------------------------------------- animation output */
-
-typedef enum km_anim_format {
-  KM_ANIM_AUTO = 0, /* from the path: .glb, .pc2, else a directory */
-  KM_ANIM_GLB,
-  KM_ANIM_PC2,
-  KM_ANIM_OBJ_DIR,
-  KM_ANIM_PLY_DIR,
-} km_anim_format;
-
-typedef struct km_anim_options {
-  km_anim_format format; /* 0: from the path (a directory gets per-frame .obj) */
-  double fps;            /* 0: 30 */
-  size_t key_every;      /* glb: one morph target every k frames (0/1: every frame) */
-} km_anim_options;
-
-/* Streams an animation of a fixed-connectivity mesh to disk. Nothing appears at `path`
- * until close succeeds (a temporary is renamed); free without close discards it. */
-typedef struct km_anim_writer km_anim_writer;
-km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_anim_options *opt,
-                              km_anim_writer **out, km_error *err);
-/* Appends one frame: V is #V*3 positions in metres. */
-km_status km_anim_writer_push(km_anim_writer *w, const double *V, km_error *err);
-km_status km_anim_writer_close(km_anim_writer **w, km_error *err);
-void km_anim_writer_free(km_anim_writer **w);
-
-typedef struct km_anim_info {
-  km_anim_format format;
-  size_t frames; /* frames in the file (morph targets for glb) */
-  size_t vertices;
-  size_t faces; /* 0 for pc2 */
-  double fps;
-  double duration; /* seconds */
-} km_anim_info;
-km_status km_anim_info_read(const char *path, km_anim_info *out, km_error *err);
-/* Reads all frames of a .pc2 (frames*vertices*3 doubles, allocated; free()). */
-km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_error *err);
-
-/* ---- motion input, filtering, retargeting (puppetry) */
+/* ---- motion formats */
 
 /* Kinect v1 skeleton recording as CSV (the PRECOG dataset layout): a header line of the 20
  * joint names separated by ';', then one line per frame of 20 "x y z" triples separated by
@@ -442,8 +544,11 @@ km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_
  * is rotated 180 degrees about y: (x, y, z) -> (-x, y, -z). That is a rotation, not a mirror:
  * the performer's left hand stays the character's left (+x). The origin stays at the sensor.
  * A joint at exactly (0,0,0) (the SDK's "not tracked") becomes NaN (missing).
- * labels: optional (NULL to skip); receives a malloc'ed array of n_frames action labels
- * (0 when the file has no label field); free() it. */
+ *   path    in: file
+ *   out     out: allocated take (#frames x 20 joints); free with km_take_free
+ *   labels  out: may be NULL; else an allocated array of #frames action labels (0 when the
+ *           file has no label field); free()
+ * Errors: KM_ERR_IO, KM_ERR_PARSE naming the file and line. */
 km_status km_kinect_csv_read(const char *path, km_take *out, int32_t **labels, km_error *err);
 
 /* Metres per unit of the CMU mocap BVH files (cgspeed conversion): 1 unit = 1/0.45 inch. */
@@ -474,12 +579,20 @@ typedef struct km_bvh_info {
  * the order listed (intrinsic): "Zrotation Xrotation Yrotation" gives R = Rz*Rx*Ry, angles in
  * degrees, right-handed. Channels may come in any order; 0..6 per joint, each at most once.
  * Axes are kept as in the file (BVH is y up by convention). fps = 1/Frame Time, snapped to
- * the nearest integer when within 0.01. opt and info may be NULL. */
+ * the nearest integer when within 0.01.
+ *   path  in: file
+ *   opt   in: may be NULL (automatic units, no end sites)
+ *   out   out: allocated take (#frames x #J, names and parents); free with km_take_free
+ *   info  out: may be NULL; the units and channels used
+ * Errors: KM_ERR_IO, KM_ERR_PARSE naming the file and line. */
 km_status km_bvh_read(const char *path, const km_bvh_options *opt, km_take *out, km_bvh_info *info,
                       km_error *err);
 
-/* Holt double exponential smoothing of joint positions (paper eq. 4) with the extra knobs of
- * the Kinect SDK (NUI_TRANSFORM_SMOOTH_PARAMETERS). Per joint, with raw sample x:
+/* ---- filter */
+
+/* Holt double exponential smoothing of joint positions (Wu, Lu & Song 2012, eq. 4) with the
+ * extra knobs of the Kinect SDK (NUI_TRANSFORM_SMOOTH_PARAMETERS). Per joint, with raw
+ * sample x:
  *   x' = x, or lerp(prev_level, x, d/jitter_radius) when d = |x - prev_level| <= jitter_radius
  *   level = (1 - smoothing) x' + smoothing (prev_level + prev_trend)
  *   trend = trend_gain (level - prev_level) + (1 - trend_gain) prev_trend
@@ -498,15 +611,22 @@ typedef struct km_filter_options {
 #define KM_FILTER_ZERO (-1.0)
 
 typedef struct km_filter km_filter;
+/* Creates a filter for #J = n_joints joints.
+ *   opt  in: may be NULL (defaults)
+ *   out  out: allocated filter; free with km_filter_free */
 km_status km_filter_create(size_t n_joints, const km_filter_options *opt, km_filter **out,
                            km_error *err);
-/* One frame: raw and filtered are n_joints*3 (may alias). A NaN raw joint (missing) does not
- * touch the joint's state and outputs its last filtered value; before the joint's first good
- * sample it outputs NaN. */
+/* Filters one frame. A NaN raw joint (missing) does not touch the joint's state and outputs
+ * its last filtered value; before the joint's first good sample it outputs NaN.
+ *   raw       in: #J*3 joint positions
+ *   filtered  out: #J*3; may alias raw */
 void km_filter_push(km_filter *f, const double *raw, double *filtered);
 /* Forgets all history (as if just created). */
 void km_filter_reset(km_filter *f);
+/* Frees *f and sets it to NULL. */
 void km_filter_free(km_filter **f);
+
+/* ---- rig */
 
 /* Puppetry rig (JSON):
  * { "skeleton": "kinect1" | "bvh",                       (default kinect1)
@@ -521,11 +641,11 @@ void km_filter_free(km_filter **f);
  * does not jump to a nearby other limb; radius 0 or absent: the seed alone; a mesh without
  * faces falls back to Euclidean distance). "axes" is a non-empty subset of "xyz"; "scale"
  * defaults to 1. In "filter", an explicit 0 for smoothing or trend means zero. Several map
- * entries may drive one handle (their displacements add up: a row of eq. 7's M with several
- * ones) and one joint may drive several handles. Errors name the rig file and the handle or
- * joint: unknown joint (kinect1: the 20 Kinect v1 names; bvh: the joint_names given),
- * unknown or duplicate handle, empty handle, a vertex in two handles, vertex id out of range,
- * bad axes. */
+ * entries may drive one handle (their displacements add up: a row of Wu, Lu & Song's eq. 7
+ * M with several ones) and one joint may drive several handles. Errors name the rig file and
+ * the handle or joint: unknown joint (kinect1: the 20 Kinect v1 names; bvh: the joint_names
+ * given), unknown or duplicate handle, empty handle, a vertex in two handles, vertex id out
+ * of range, bad axes. */
 typedef enum km_rig_skeleton { KM_RIG_KINECT1 = 0, KM_RIG_BVH } km_rig_skeleton;
 
 typedef struct km_rig_handle {
@@ -553,17 +673,27 @@ typedef struct km_rig {
   km_filter_options filter;
 } km_rig;
 
-/* Parses a rig and resolves its handles on `mesh`. joint_names/n_joint_names: the take's
- * joints, needed for "bvh" rigs (ignored for kinect1, whose names are fixed). */
+/* Parses a rig file and resolves its handles on a mesh.
+ *   path         in: rig JSON (a character rig sidecar is accepted as is)
+ *   mesh         in: the mesh the handles refer to, #V vertices
+ *   joint_names  in: n_joint_names names of the take's joints, needed for "bvh" rigs
+ *                (ignored, may be NULL, for kinect1, whose names are fixed)
+ *   out          out: allocated rig; free with km_rig_free
+ * Errors: KM_ERR_IO, KM_ERR_PARSE and KM_ERR_INVALID naming the file and handle or joint. */
 km_status km_rig_read(const char *path, const km_mesh *mesh, const char *const *joint_names,
                       size_t n_joint_names, km_rig *out, km_error *err);
-/* Same from memory; `name` is used in error messages. */
+/* km_rig_read from memory.
+ *   json, size  in: the rig text
+ *   name        in: used in error messages */
 km_status km_rig_parse(const char *json, size_t size, const char *name, const km_mesh *mesh,
                        const char *const *joint_names, size_t n_joint_names, km_rig *out,
                        km_error *err);
+/* Frees the handles and maps of rig and zeroes the struct. */
 void km_rig_free(km_rig *rig);
 
-/* Retargeting (paper eq. 5-7). Per frame, handle h's target is
+/* ---- retargeting */
+
+/* Retargeting (Wu, Lu & Song 2012, eq. 5-7). Per frame, handle h's target is
  *   target_h = rest_centroid_h + s * sum_{maps e on h} scale_e * mask_e (p_j(e) - p_j(e)^0)
  * where p^0 is the joint's first valid (non-NaN) position. That is eq. 7 accumulated over
  * frames: H^t = M S^t with S^t the eq. 6 increments, and sum_t d^t telescopes to p^t - p^0; M
@@ -572,10 +702,9 @@ void km_rig_free(km_rig *rig);
  * extent if the mesh is flat in y) over the first valid frame's performer stature (kinect1:
  * the Head-to-lower-foot joint span / KM_KINECT1_SPAN_OF_STATURE, since the Head joint sits
  * at the head's centre and the foot joints above the soles; otherwise the y extent of the
- * valid joints), replacing eq. 5's
- * screen-size ratio. Handles no map drives are
- * anchors (target = rest centroid). If a joint a handle needs is NaN, the handle keeps its
- * last target. */
+ * valid joints), replacing eq. 5's screen-size ratio. Handles no map drives are anchors
+ * (target = rest centroid). If a joint a handle needs is NaN, the handle keeps its last
+ * target. */
 /* Kinect v1 Head-to-foot joint span as a fraction of stature (anthropometric head-centre and
  * foot-joint heights: 0.937 and 0.023 of stature on kinemesh's procedural character). */
 #define KM_KINECT1_SPAN_OF_STATURE 0.91
@@ -584,34 +713,138 @@ typedef struct km_retarget_options {
 } km_retarget_options;
 
 typedef struct km_retarget km_retarget;
-/* n_joints: joints per frame in what will be pushed (20 for kinect1). The rig's vertex ids
- * must be valid for `rest`, which must be the mesh the rig was resolved on. */
+/* Creates a retargeter.
+ *   rig       in: rig resolved on `rest` (#H = rig->n_handles handles)
+ *   rest      in: the mesh the rig was resolved on
+ *   n_joints  in: #J joints per pushed frame (20 for kinect1)
+ *   opt       in: may be NULL (automatic scale)
+ *   out       out: allocated; free with km_retarget_free
+ * Errors: KM_ERR_INVALID when a rig vertex or joint is out of range. */
 km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_joints,
                              const km_retarget_options *opt, km_retarget **out, km_error *err);
-/* One frame of (filtered) joints, n_joints*3, NaN = not valid yet. Writes n_handles*3 targets
- * into handle_targets (may be NULL). */
+/* One frame.
+ *   joints          in: #J*3 (filtered) joint positions, NaN = not valid yet
+ *   handle_targets  out: #H*3 handle centroid targets; may be NULL */
 void km_retarget_push(km_retarget *r, const double *joints, double *handle_targets);
 /* Per-vertex targets of the last push: for every handle in order, every vertex of it in
- * order, rest position + the handle's displacement. out: km_retarget_vertex_count()*3. */
+ * order, rest position + the handle's displacement.
+ *   out  out: km_retarget_vertex_count(r)*3 */
 void km_retarget_vertex_targets(const km_retarget *r, double *out);
+/* Returns the number of handle vertices (all handles together). */
 size_t km_retarget_vertex_count(const km_retarget *r);
-/* Rest centroids of the handles, n_handles*3. */
+/* Returns the rest centroids of the handles, #H*3, owned by r. */
 const double *km_retarget_rest_centroids(const km_retarget *r);
-/* The performer-to-character factor in use; NaN while auto and no valid frame seen yet. */
+/* Returns the performer-to-character factor in use; NaN while auto and no valid frame seen. */
 double km_retarget_scale(const km_retarget *r);
 /* Forgets reference positions (and the auto scale): the next valid frame is the new rest. */
 void km_retarget_reset(km_retarget *r);
+/* Frees *r and sets it to NULL. */
 void km_retarget_free(km_retarget **r);
-/* ---- deformation: reduced isoline model (puppetry) and full reference solver */
+
+/* ---- character rig sidecar and landmarks */
+
+/* A named mesh vertex with its left/right counterpart (pose recognition, pose transfer). */
+typedef struct km_landmark {
+  char name[32];
+  char mirror[32]; /* name of the left/right counterpart (itself on the mid-line) */
+  int32_t vertex;
+} km_landmark;
+
+/* A rigged character: what km_character_generate makes, a rig sidecar stores and the
+ * reconstructor takes as its template. */
+#define KM_CHARACTER_LANDMARKS 16
+typedef struct km_character {
+  km_mesh mesh;         /* closed, manifold, one component */
+  km_skeleton skeleton; /* the 20 Kinect v1 joints at rest */
+  km_skin skin;         /* LBS weights over the skeleton's joints */
+  km_landmark landmarks[KM_CHARACTER_LANDMARKS];
+} km_character;
+/* Frees mesh, skeleton and skin of c and zeroes the struct. */
+void km_character_free(km_character *c);
+
+/* Writes a rig sidecar (<mesh>.rig.json, atomically): skeleton, skin, landmarks, and a
+ * default puppetry rig (handles at head, hands, feet mapped to the matching Kinect joints).
+ *   c  in: character (its mesh is not written, only its vertex count)
+ * Errors: KM_ERR_IO. */
+km_status km_character_write_rig(const char *path, const km_character *c, km_error *err);
+/* Reads the skeleton, skin and landmarks of a rig sidecar.
+ *   n_vertices  in: #V of the mesh the sidecar belongs to (checked against the file)
+ *   out         in/out: skeleton, skin and landmarks allocated/filled (mesh not touched);
+ *               free with km_character_free
+ * Errors: KM_ERR_IO, KM_ERR_PARSE naming the file; KM_ERR_STALE when the sidecar is for
+ * another vertex count. */
+km_status km_character_read_rig(const char *path, size_t n_vertices, km_character *out,
+                                km_error *err);
+
+/* ==== anim: animation writers and readers (src/anim/) ==== */
+
+typedef enum km_anim_format {
+  KM_ANIM_AUTO = 0, /* from the path: .glb, .pc2, else a directory */
+  KM_ANIM_GLB,
+  KM_ANIM_PC2,
+  KM_ANIM_OBJ_DIR,
+  KM_ANIM_PLY_DIR,
+} km_anim_format;
+
+typedef struct km_anim_options {
+  km_anim_format format; /* 0: from the path (a directory gets per-frame .obj) */
+  double fps;            /* 0: 30 */
+  size_t key_every;      /* glb: one morph target every k frames (0/1: every frame) */
+} km_anim_options;
+
+/* Streams an animation of a fixed-connectivity mesh to disk. Nothing appears at `path`
+ * until close succeeds (a temporary is renamed); free without close discards it. */
+typedef struct km_anim_writer km_anim_writer;
+/* Opens a writer.
+ *   path  in: .glb, .pc2 or a directory
+ *   rest  in: the mesh (#V vertices, #F faces) whose frames follow; copied as needed
+ *   opt   in: may be NULL (format from the path, 30 fps)
+ *   out   out: allocated writer; close with km_anim_writer_close or discard with
+ *         km_anim_writer_free
+ * Errors: KM_ERR_IO. */
+km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_anim_options *opt,
+                              km_anim_writer **out, km_error *err);
+/* Appends one frame.
+ *   V  in: #V*3 positions in metres
+ * Errors: KM_ERR_IO. */
+km_status km_anim_writer_push(km_anim_writer *w, const double *V, km_error *err);
+/* Finishes the file, renames it into place, frees *w and sets it to NULL (on failure too).
+ * Errors: KM_ERR_IO; KM_ERR_INVALID when no frame was pushed (nothing is written then). */
+km_status km_anim_writer_close(km_anim_writer **w, km_error *err);
+/* Discards an unfinished animation, frees *w and sets it to NULL. */
+void km_anim_writer_free(km_anim_writer **w);
+
+typedef struct km_anim_info {
+  km_anim_format format;
+  size_t frames; /* frames in the file (morph targets for glb) */
+  size_t vertices;
+  size_t faces; /* 0 for pc2 */
+  double fps;
+  double duration; /* seconds */
+} km_anim_info;
+/* Describes an animation file.
+ *   path  in: .glb, .pc2 or a frame directory
+ *   out   out: format, counts, frame rate
+ * Errors: KM_ERR_IO, KM_ERR_PARSE. */
+km_status km_anim_info_read(const char *path, km_anim_info *out, km_error *err);
+/* Reads all frames of a .pc2.
+ *   frames  out: allocated, info->frames * info->vertices * 3 doubles; free()
+ *   info    out: counts and frame rate
+ * Errors: KM_ERR_IO, KM_ERR_PARSE. */
+km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_error *err);
+
+/* ==== puppet: puppetry deformers, Wu, Lu & Song 2012 (src/puppet/) ==== */
 
 /* Handles (both solvers): handle h owns handle_vertices[handle_offsets[h] ..
- * handle_offsets[h+1]) (offsets: n_handles+1 entries, offsets[0] == 0, non-decreasing).
+ * handle_offsets[h+1]) (offsets: #H+1 entries, offsets[0] == 0, non-decreasing).
  * A vertex may appear in at most one handle. Targets are absolute positions, one xyz per
- * handle vertex in handle_vertices order (handle_offsets[n_handles]*3 doubles). */
+ * handle vertex in handle_vertices order (handle_offsets[#H]*3 doubles). */
 
-/* Reduced isoline model of Wu, Lu & Song (after Au et al. 2006/2007): n_e propagation fields
- * (the first non-constant eigenvectors of -L phi = lambda M phi), n_iso isolines per field,
- * one affine 3x4 transform per isoline as the unknowns (4*n_iso*n_e per coordinate).
+/* ---- reduced isoline model */
+
+/* Reduced isoline model of Wu, Lu & Song 2012 (after Au et al. 2006/2007): n_e propagation
+ * fields (the first non-constant eigenvectors of -L phi = lambda M phi), n_iso isolines per
+ * field, one affine 3x4 transform per isoline as the unknowns (4*n_iso*n_e per coordinate).
  * Precompute depends on the mesh only (not on handles) and can be cached on disk. Meant for
  * one connected component: with several (or unreferenced vertices) the first eigenvectors
  * are component indicators and the fields degrade. A km_puppet is not thread-safe. */
@@ -619,11 +852,11 @@ typedef struct km_puppet km_puppet;
 /* Both energies use the same reduced unknowns, the same prefactored U^T U structure and the
  * same rotations estimated on isoline-crossed triangles and interpolated (W_delta R_delta).
  * ARAP is the default because it tracks the full-space reference closer: mean deviation
- * 1.2% / 1.7% of the diagonal on armadillo / horse against 1.9% / 2.3% for the paper's
+ * 1.2% / 1.7% of the diagonal on armadillo / horse against 1.9% / 2.3% for Wu, Lu & Song's
  * Laplacian energy (kinemesh bench deform, README), at the same per-frame cost. */
 typedef enum km_puppet_energy {
   KM_PUPPET_ENERGY_ARAP = 0,  /* reduced ARAP (membrane) energy (default) */
-  KM_PUPPET_ENERGY_LAPLACIAN, /* the paper's eq. 8-9: |L X - rotated rest Laplacian|^2 */
+  KM_PUPPET_ENERGY_LAPLACIAN, /* Wu, Lu & Song eq. 8-9: |L X - rotated rest Laplacian|^2 */
 } km_puppet_energy;
 typedef struct km_puppet_options {
   int fields;              /* n_e propagation fields; 0: 8 (1 .. 32) */
@@ -635,34 +868,52 @@ typedef struct km_puppet_options {
                               energy). Handles are soft: larger follows them closer and
                               bends the rest more */
   int crossed_per_isoline; /* crossed triangles sampled per isoline for rotations; 0: 10 */
-  km_puppet_energy energy; /* 0: reduced ARAP; KM_PUPPET_ENERGY_LAPLACIAN: the paper's */
+  km_puppet_energy energy; /* 0: reduced ARAP; KM_PUPPET_ENERGY_LAPLACIAN: Wu, Lu & Song's */
   km_progress progress;
 } km_puppet_options;
 
-/* Builds the reduced model of `rest` (closed or open triangle mesh, >= 4 vertices).
- * Only fields, isolines, crossed_per_isoline and energy shape the model (and the cache key);
- * the other options are solve settings. */
+/* Builds the reduced model (eigenfields, isolines, prefactored system). Only fields,
+ * isolines, crossed_per_isoline and energy shape the model (and the cache key); the other
+ * options are solve settings.
+ *   rest  in: closed or open triangle mesh, #V >= 4; copied
+ *   opt   in: may be NULL (defaults)
+ *   out   out: allocated model; free with km_puppet_free
+ * Errors: KM_ERR_DEGENERATE_MESH, KM_ERR_NOT_POSDEF, KM_ERR_NO_CONVERGENCE,
+ * KM_ERR_CANCELLED. */
 km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt, km_puppet **out,
                                km_error *err);
 /* Writes the model atomically: magic, format version, parameters, hash of the rest mesh,
- * payload, checksum (native little-endian doubles). */
+ * payload, checksum (native little-endian doubles).
+ * Errors: KM_ERR_IO. */
 km_status km_puppet_save(const km_puppet *p, const char *path, km_error *err);
-/* Reads a model saved for exactly this rest mesh and these options. KM_ERR_STALE (with the
- * reason) when the file is from another version, mesh or parameter set, truncated or
- * corrupted: the caller then precomputes again. KM_ERR_IO when it cannot be read. */
+/* Reads a model saved for exactly this rest mesh and these options.
+ *   path  in: cache file (km_puppet_save)
+ *   rest  in: the mesh the cache must have been built on
+ *   opt   in: the options it must have been built with; may be NULL (defaults)
+ *   out   out: allocated model; free with km_puppet_free
+ * Errors: KM_ERR_STALE (with the reason) when the file is from another version, mesh or
+ * parameter set, truncated or corrupted: the caller then precomputes again. KM_ERR_IO when
+ * it cannot be read. */
 km_status km_puppet_load(const char *path, const km_mesh *rest, const km_puppet_options *opt,
                          km_puppet **out, km_error *err);
-/* The model parameters a cache was built with (fields, isolines, crossed_per_isoline, energy;
- * the other members of *opt are left as they are), read from its header only: a caller can
- * adopt them before km_puppet_load, which still checks everything. KM_ERR_IO when the file
- * cannot be read, KM_ERR_STALE when it is not a cache of this format. */
+/* The model parameters a cache was built with, read from its header only: a caller can
+ * adopt them before km_puppet_load, which still checks everything.
+ *   path  in: cache file
+ *   opt   in/out: fields, isolines, crossed_per_isoline and energy are set; the other
+ *         members are left as they are
+ * Errors: KM_ERR_IO when the file cannot be read, KM_ERR_STALE when it is not a cache of
+ * this format. */
 km_status km_puppet_cache_options(const char *path, km_puppet_options *opt, km_error *err);
 /* Sets the handle set (milliseconds: a 4*n_iso*n_e dense Cholesky; no eigen-decomposition).
- * The warm start of the previous solve is kept. */
+ * The warm start of the previous solve is kept.
+ *   handle_offsets   in: #H+1 offsets (see "Handles" above)
+ *   handle_vertices  in: handle_offsets[#H] vertex ids */
 km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *handle_offsets,
                                 const int32_t *handle_vertices, km_error *err);
-/* One frame: targets as described above; V_out #V*3 deformed positions. Does not allocate.
- * Warm-started from the previous solve. */
+/* One frame, warm-started from the previous solve. Does not allocate.
+ *   targets  in: handle_offsets[#H]*3 absolute handle vertex positions
+ *   V_out    out: #V*3 deformed positions
+ * Errors: KM_ERR_INVALID before km_puppet_set_handles. */
 km_status km_puppet_solve(km_puppet *p, const double *targets, double *V_out, km_error *err);
 /* Forgets the warm start (the next solve starts from the rest pose). */
 void km_puppet_reset(km_puppet *p);
@@ -676,8 +927,13 @@ typedef struct km_puppet_info {
   int last_iterations; /* rotation updates done by the last solve */
   double last_change;  /* its last relative update |dR| / |R - I| */
 } km_puppet_info;
+/* Sizes of the model and figures of the last solve.
+ *   out  out: filled */
 void km_puppet_info_get(const km_puppet *p, km_puppet_info *out);
+/* Frees *p and sets it to NULL. */
 void km_puppet_free(km_puppet **p);
+
+/* ---- full-space ARAP reference */
 
 /* Full-space as-rigid-as-possible deformation (Sorkine & Alexa 2007), the quality
  * reference: cotangent weights, handle vertices eliminated (hard constraints), a CHOLMOD
@@ -689,78 +945,385 @@ typedef struct km_arap_options {
   double tolerance; /* stop earlier when the largest vertex move < tolerance * bbox diagonal;
                        0: 1e-6 */
 } km_arap_options;
+/* Factorises the system for a fixed handle set.
+ *   rest             in: triangle mesh, #V vertices; copied
+ *   handle_offsets   in: #H+1 offsets (see "Handles" above)
+ *   handle_vertices  in: handle_offsets[#H] vertex ids
+ *   opt              in: may be NULL (defaults)
+ *   out              out: allocated solver; free with km_arap_free
+ * Errors: KM_ERR_DEGENERATE_MESH, KM_ERR_NOT_POSDEF (a component without handles). */
 km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_t *handle_offsets,
                              const int32_t *handle_vertices, const km_arap_options *opt,
                              km_arap **out, km_error *err);
-/* Warm-started from the previous solve (the rest pose at first). V_out #V*3. */
+/* One frame, warm-started from the previous solve (the rest pose at first).
+ *   targets  in: handle_offsets[#H]*3 absolute handle vertex positions
+ *   V_out    out: #V*3 deformed positions */
 km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_error *err);
+/* Frees *a and sets it to NULL. */
 void km_arap_free(km_arap **a);
-/* ---- point clouds to mesh animation */
 
-/* One point cloud frame. Points with a NaN/inf coordinate are dropped and counted. */
-typedef struct km_points {
-  double *P; /* n*3 positions, metres */
-  size_t n;
-  size_t dropped_nan; /* points skipped because a coordinate was not finite */
-} km_points;
-void km_points_free(km_points *p);
+/* ==== transfer: pose transfer, pose recognition, key-pose morphing, Lifkooee et al. 2019
+ *      (src/transfer/) ==== */
 
-/* Reads a point cloud: .ply (the mesh PLY reader, except that NaN/inf coordinates are
- * accepted, then dropped and counted; faces, if any, are ignored), .pcd
- * (PCD v0.7, DATA ascii or binary; fields x y z as F4/F8, other fields skipped;
- * binary_compressed is KM_ERR_UNSUPPORTED), .xyz/.txt/.pts (whitespace or comma separated,
- * the first three numbers of each line; '#' comments and blank lines skipped). Errors name
- * the file and the line (text) or byte offset (binary). */
-km_status km_points_read(const char *path, km_points *out, km_error *err);
-/* Same from memory; the format comes from the extension of `name`. */
-km_status km_points_parse(const void *data, size_t size, const char *name, km_points *out,
+/* ---- pose transfer */
+
+/* Pose transfer by locally encoded Laplacian offsets (Lifkooee et al. 2019): a source mesh S
+ * (the avatar) takes the pose of a template mesh T of the same connectivity. Offline:
+ * offsets Delta = L X_S, per-vertex frames F(v) (normal, tangent from a fixed neighbour edge,
+ * their cross product) and pose-invariant coordinates W_i = F_S(v_i)^T Delta_i. Online: the
+ * landmark vertices are fixed at their targets, the rest solves
+ *   (-L)_ff x_f = -(F W)_f + L_fc x_c          (eq. 7, symmetric elimination form)
+ * (F W stands for the rotated offsets of the chosen km_offset_encoding)
+ * with F = frames of T at first, then frames of the previous solution, until positions and
+ * frames settle. The factor of (-L)_ff is computed once per landmark set. */
+typedef enum km_laplacian_kind {
+  KM_LAPLACIAN_UNIFORM = 0, /* graph Laplacian, Lifkooee et al.'s eq. 2 */
+  KM_LAPLACIAN_COTAN,       /* cotangent weights of the source mesh */
+} km_laplacian_kind;
+
+typedef enum km_transfer_align {
+  /* T's landmark positions scaled about the origin by size(S)/size(T), T's placement kept.
+   * size = sum of edge-graph geodesic distances from landmark 0 to the other landmarks:
+   * pose-invariant and, unlike the surface area, insensitive to girth and belly. */
+  KM_TRANSFER_ALIGN_SCALE = 0,
+  /* Umeyama similarity (rotation, translation, scale) of T's landmarks onto the source's rest
+   * landmarks (scale replaced by the geodesic size ratio): places the result where S
+   * stands. Only sensible when T's pose is close to S's rest pose (the fit mixes pose and
+   * placement otherwise). */
+  KM_TRANSFER_ALIGN_SIMILARITY,
+} km_transfer_align;
+
+typedef enum km_offset_encoding {
+  /* Default. Each one-ring edge in the frames of both its ends (E_ij = F_S(i) e_ij); the
+   * right-hand side is sum_j w_ij (F(i)^T E_ij - F(j)^T E_ji) / 2. Identical to Lifkooee et
+   * al.'s encoding at rest (it sums to F(v_i) W_i when both frames agree), but where
+   * neighbouring frames differ (a bent joint in the template) the result bends too: the
+   * Poisson / ARAP-global-step form of the same locally encoded offsets. Measured on
+   * generated subjects (3k vertices, 10 poses, tracked landmarks): 9 mm mean error vs 37 mm. */
+  KM_OFFSETS_EDGE = 0,
+  /* Lifkooee et al.'s eq. 3 verbatim: one offset per vertex in the vertex's own frame,
+   * right-hand side F(v_i) W_i. Rotating a rest offset cannot create the bend of a limb at a
+   * joint (a straight tube has no bend in its offsets), so limbs bend only at the landmarks. */
+  KM_OFFSETS_VERTEX,
+} km_offset_encoding;
+
+typedef struct km_transfer_options {
+  km_laplacian_kind laplacian; /* 0: uniform */
+  km_offset_encoding encoding; /* 0: per edge (see above); KM_OFFSETS_VERTEX: Lifkooee eq. 3 */
+  km_transfer_align align;     /* how landmark targets come from a template; 0: scale */
+  int max_iterations;          /* solves per transfer; 0: 10 */
+  double tolerance;            /* stop when the largest vertex move between two solves is below
+                                  tolerance * bbox diagonal of S and the largest frame entry change is
+                                  below tolerance; 0: 1e-4 */
+} km_transfer_options;
+
+typedef struct km_transfer km_transfer;
+
+/* Offline stage: Laplacian, offsets, frames and the Cholesky factor of (-L)_ff.
+ *   source       in: the avatar at rest (closed or open triangle mesh, #V vertices); copied
+ *   landmarks    in: #L = n_landmarks >= 3 distinct vertex ids (fewer leaves the Laplacian
+ *                rank deficient up to a rotation: KM_ERR_INVALID); copied
+ *   opt          in: may be NULL (defaults)
+ *   out          out: allocated; free with km_transfer_free
+ * Errors: KM_ERR_DEGENERATE_MESH, KM_ERR_NOT_POSDEF. */
+km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks,
+                                 size_t n_landmarks, const km_transfer_options *opt,
+                                 km_transfer **out, km_error *err);
+
+typedef struct km_transfer_stats {
+  int iterations;         /* linear solves done */
+  bool converged;         /* tolerance met before max_iterations */
+  double position_change; /* last iteration's largest vertex move / bbox diagonal */
+  double frame_change;    /* largest frame entry change at the last frame update; NAN while the
+                             positions still move (only measured once they settle; frames are not
+                             recomputed after the last allowed solve) */
+  double frames_ms;       /* time in normals + frames, all iterations */
+  double solve_ms;        /* time in right-hand sides + triangular solves, all iterations */
+  double total_ms;        /* whole call */
+} km_transfer_stats;
+
+/* Online stage. Does not allocate. Not thread-safe on one object.
+ *   template_V  in: #V*3 positions of T (same connectivity as S); its frames start the
+ *               iteration. May be NULL when warm_start is given.
+ *   targets     in: #L*3 landmark positions in precompute order; NULL: from template_V's
+ *               landmark vertices through the options' align mode (template_V then required)
+ *   warm_start  in: #V*3 a previous result (e.g. the last key pose); its frames start the
+ *               iteration when template_V is NULL. Ignored otherwise. May be NULL.
+ *   V_out       out: #V*3 result; may alias warm_start but not template_V
+ *   stats       out: may be NULL */
+km_status km_transfer_solve(km_transfer *t, const double *template_V, const double *targets,
+                            const double *warm_start, double *V_out, km_transfer_stats *stats,
+                            km_error *err);
+/* Returns #V of the source. */
+size_t km_transfer_vertices(const km_transfer *t);
+/* Returns #L, the landmark count. */
+size_t km_transfer_landmarks(const km_transfer *t);
+/* Landmark targets the solver would use for a template. Uses the object's scratch (one
+ * Dijkstra): not thread-safe on one object, does not allocate.
+ *   template_V  in: #V*3
+ *   targets     out: #L*3 */
+km_status km_transfer_targets(const km_transfer *t, const double *template_V, double *targets,
+                              km_error *err);
+/* Offline timings of precompute in milliseconds.
+ *   laplacian_ms  out: Laplacian + offsets + frames; may be NULL
+ *   cholesky_ms   out: symbolic + numeric Cholesky; may be NULL */
+void km_transfer_precompute_ms(const km_transfer *t, double *laplacian_ms, double *cholesky_ms);
+/* Frees *t and sets it to NULL. */
+void km_transfer_free(km_transfer **t);
+
+/* Least-squares similarity dst ~ s R src + t (Umeyama 1991; SVD by LAPACKE).
+ *   src, dst  in: n*3 points, n >= 3
+ *   weights   in: n weights >= 0; may be NULL (equal weights)
+ *   s         out: scale
+ *   R         out: row-major 3x3 proper rotation
+ *   t         out: translation
+ * Errors: KM_ERR_DEGENERATE_MESH when the source points are all coincident. */
+km_status km_similarity_fit(const double *src, const double *dst, const double *weights, size_t n,
+                            double *s, double R[9], double t[3], km_error *err);
+/* Returns the total triangle area of m (for pose-invariant size ratios). */
+double km_surface_area(const km_mesh *m);
+
+/* ---- landmark files */
+
+/* LM.json: {"landmarks":[{"name":"head","vertex":411,"mirror":"head"},...]}; a character rig
+ * sidecar (*.rig.json) carries the same array and is accepted as is. Every mirror must name
+ * a landmark of the file (itself on the mid-line).
+ * km_landmarks_read:
+ *   n_vertices  in: > 0 checks the vertex ids against #V; 0 skips the check
+ *   out         out: up to `capacity` landmarks (more: KM_ERR_PARSE)
+ *   n           out: landmarks read
+ *   Errors: KM_ERR_IO, KM_ERR_PARSE naming the file.
+ * km_landmarks_write (atomically):
+ *   lm  in: n landmarks
+ *   Errors: KM_ERR_IO. */
+#define KM_POSE_MAX_LANDMARKS 32
+km_status km_landmarks_read(const char *path, size_t n_vertices, km_landmark *out, size_t capacity,
+                            size_t *n, km_error *err);
+km_status km_landmarks_write(const char *path, const km_landmark *lm, size_t n, km_error *err);
+
+/* ---- pose recognition */
+
+/* Pose descriptor (Lifkooee et al. 2019, eq. 4). For n landmarks the candidate features are
+ * all angles angle(i, j, k) at landmark j between segments j->i and j->k, i < k, i, k != j:
+ * n (n-1) (n-2) / 2 of them (1,680 for 16 landmarks), in the order j major, then i, then k.
+ * A feature is stored as its triple {i, j, k}. */
+/* Returns the number of candidate features for n_landmarks landmarks. */
+size_t km_pose_candidate_count(size_t n_landmarks);
+/* The triple of candidate feature f.
+ *   f       in: 0 .. km_pose_candidate_count(n_landmarks)-1
+ *   triple  out: {i, j, k} */
+void km_pose_candidate(size_t n_landmarks, size_t f, int32_t triple[3]);
+/* Angles of the given triples; a zero-length segment gives pi/2.
+ *   P        in: #L*3 landmark positions
+ *   triples  in: n_features*3 landmark indices
+ *   out      out: n_features angles in radians, [0, pi] */
+void km_pose_angles(const double *P, const int32_t *triples, size_t n_features, double *out);
+
+typedef enum km_svm_kernel { KM_SVM_RBF = 0, KM_SVM_LINEAR } km_svm_kernel;
+
+/* How Lifkooee et al.'s left/right mirroring is used (their section 3.2.1): "when an angle
+ * (i,j,k) is observed, also add an instance of (m(i),m(j),m(k))". */
+typedef enum km_pose_mirror {
+  /* default: the feature-selection trees see every sample twice, as measured and mirrored
+   * (same class), so the selected angles are not biased to the side the data moves most;
+   * the SVM is trained on the samples as measured, so left and right variants of a pose
+   * may be distinct classes. */
+  KM_POSE_MIRROR_SELECTION = 0,
+  KM_POSE_MIRROR_ALL,  /* also add mirrored samples to the SVM training set (same class) */
+  KM_POSE_MIRROR_NONE, /* no mirroring */
+} km_pose_mirror;
+
+typedef struct km_posedb_options {
+  size_t features;       /* d, selected angles; 0: 60 (capped by the candidate count) */
+  int tree_max_depth;    /* CART depth limit; 0: 16 */
+  km_pose_mirror mirror; /* 0: mirrored samples in feature selection only */
+  km_svm_kernel kernel;  /* 0: RBF */
+  double svm_c;          /* 0: 10 */
+  double svm_gamma;      /* RBF gamma on features scaled to [-1,1]; 0: 1/d */
+  int cv_folds;          /* k-fold cross-validation when no groups are given; 0: 5, 1: none */
+  km_progress progress;
+} km_posedb_options;
+
+typedef struct km_posedb km_posedb;
+
+typedef struct km_posedb_report {
+  size_t samples, classes, features;
+  double cv_accuracy; /* correct / total over held-out folds; -1 when no cross-validation ran */
+  size_t cv_folds;    /* folds used (groups: one per group) */
+  double build_ms;
+  double cv_accuracy_eq8; /* Lifkooee et al.'s eq. 8, (TP+TN)/(TP+TN+FP+FN) averaged over the
+                             K one-vs-rest problems: 1 - 2 e / (N K) for e errors in N tests,
+                             always >= cv_accuracy; -1 when no cross-validation ran */
+} km_posedb_report;
+
+/* Builds a pose database. Feature selection is CART (Gini) over all candidate angles,
+ * classification libsvm, template choice nearest neighbour inside the class.
+ *   meshes       in: n_meshes meshes of one connectivity (point clouds are fine when only
+ *                recognition is wanted); copied as the templates
+ *   labels       in: n_meshes pose classes in [0, n_classes)
+ *   class_names  in: n_classes names; may be NULL
+ *   groups       in: n_meshes subject ids, so that cross-validation leaves one subject out
+ *                at a time; may be NULL (k-fold)
+ *   landmarks    in: #L = n_landmarks >= 4 vertex ids on the meshes, with mirrors
+ *   opt          in: may be NULL (defaults)
+ *   out          out: allocated database; free with km_posedb_free
+ *   report       out: may be NULL
+ * Errors: KM_ERR_CANCELLED. */
+km_status km_posedb_build(const km_mesh *meshes, size_t n_meshes, const int32_t *labels,
+                          size_t n_classes, const char *const *class_names, const int32_t *groups,
+                          const km_landmark *landmarks, size_t n_landmarks,
+                          const km_posedb_options *opt, km_posedb **out, km_posedb_report *report,
                           km_error *err);
-/* Writes a binary little-endian PLY with float x y z and no faces, atomically. */
-km_status km_points_write_ply(const char *path, const double *P, size_t n, km_error *err);
-/* Frame files in name order: `pattern` is a directory (its .ply/.pcd/.xyz/.txt/.pts files)
- * or a glob(3) pattern. *paths is an array of *n strings; free with km_paths_free. An empty
- * result is KM_ERR_IO naming the pattern. */
-km_status km_point_frames_list(const char *pattern, char ***paths, size_t *n, km_error *err);
-void km_paths_free(char ***paths, size_t n);
 
-/* Absolute orientation (Horn 1987, unit quaternions): R (row-major 3x3), t and s minimising
- * sum |s R A_i + t - B_i|^2 over n >= 3 pairs (A, B n*3). with_scale false gives s = 1.
- * s may be NULL when with_scale is false. KM_ERR_DEGENERATE_MESH for collinear input. */
+typedef struct km_pose_match {
+  int32_t label;         /* predicted class */
+  size_t template_index; /* nearest database mesh of that class */
+  double distance;       /* descriptor distance to it (scaled features) */
+  double ms;             /* descriptor + SVM + nearest neighbour time */
+} km_pose_match;
+
+/* Recognises a pose.
+ *   P    in: #L*3 landmark positions in database order, all finite
+ *   out  out: class, nearest template, distance, time */
+km_status km_posedb_query(const km_posedb *db, const double *P, km_pose_match *out, km_error *err);
+/* Single-file database (binary, versioned: "KMPOSEDB" magic, version, JSON header, raw
+ * little-endian arrays, FNV-1a checksum), written atomically. The SVM is retrained on load
+ * from the stored templates (deterministic, milliseconds for thousands of samples).
+ * km_posedb_save: Errors: KM_ERR_IO.
+ * km_posedb_load:
+ *   out  out: allocated database; free with km_posedb_free
+ *   Errors: KM_ERR_IO, KM_ERR_PARSE (not a database, truncated, checksum). */
+km_status km_posedb_save(const km_posedb *db, const char *path, km_error *err);
+km_status km_posedb_load(const char *path, km_posedb **out, km_error *err);
+/* Accessors (db in; strings and arrays owned by the database):
+ *   size            number of templates (meshes)
+ *   classes         number of classes
+ *   class_name      name of class c, "" when unnamed
+ *   label           class of template i
+ *   landmark_count  #L
+ *   landmarks       #L landmarks */
+size_t km_posedb_size(const km_posedb *db);
+size_t km_posedb_classes(const km_posedb *db);
+const char *km_posedb_class_name(const km_posedb *db, size_t c); /* "" when unnamed */
+int32_t km_posedb_label(const km_posedb *db, size_t i);
+size_t km_posedb_landmark_count(const km_posedb *db);
+const km_landmark *km_posedb_landmarks(const km_posedb *db);
+/* Template i as a mesh view.
+ *   view  out: V, F owned by the database; do not free */
+void km_posedb_template(const km_posedb *db, size_t i, km_mesh *view);
+/* Names for the templates (e.g. their file names), saved with the database so a query can
+ * say which mesh it picked.
+ *   names  in: km_posedb_size(db) strings, at most 127 characters of each kept; copied */
+km_status km_posedb_set_template_names(km_posedb *db, const char *const *names, km_error *err);
+/* Returns the name of template i, "" when unnamed (owned by the database). */
+const char *km_posedb_template_name(const km_posedb *db, size_t i); /* "" when unnamed */
+/* Selected features, best first.
+ *   d  out: number of features
+ * Returns d*3 landmark indices (triples), owned by the database. */
+const int32_t *km_posedb_features(const km_posedb *db, size_t *d);
+/* The build report (cv figures as stored; samples/classes/features of this database).
+ *   report  out: filled */
+void km_posedb_info(const km_posedb *db, km_posedb_report *report);
+/* Frees *db and sets it to NULL. */
+void km_posedb_free(km_posedb **db);
+
+/* ---- landmark tracks */
+
+/* Tracked landmark sequences (TRACK).
+ * JSON: {"fps":30,"landmarks":["head",...],"frames":[[x,y,z, ...], ...]} with 3 numbers per
+ *       landmark per frame (null: not tracked in that frame -> NaN).
+ * CSV:  first line the landmark names separated by commas; then one frame per line with
+ *       3 numbers per landmark (x,y,z in landmark order), comma-separated; empty field: NaN.
+ *       fps 30. Format by extension (.json / .csv). Units: metres. */
+typedef struct km_track {
+  size_t n_frames, n_landmarks;
+  double fps;
+  char (*names)[32]; /* n_landmarks */
+  double *positions; /* n_frames * n_landmarks * 3 */
+} km_track;
+/* km_track_read:
+ *   out  out: allocated track; free with km_track_free
+ *   Errors: KM_ERR_IO, KM_ERR_PARSE naming the file and line.
+ * km_track_write (atomically, format by extension):
+ *   t  in: track (NaN written as null / an empty field)
+ *   Errors: KM_ERR_IO. */
+km_status km_track_read(const char *path, km_track *out, km_error *err);
+km_status km_track_write(const char *path, const km_track *t, km_error *err);
+/* Frees names and positions of t and zeroes the struct. */
+void km_track_free(km_track *t);
+
+/* ---- key-pose morphing */
+
+/* Linear interpolation out = (1-a) A + a B of two key poses.
+ *   A, B  in: #V*3 each
+ *   out   out: #V*3; may alias A or B */
+void km_pose_lerp(const double *A, const double *B, size_t n_vertices, double a, double *out);
+
+typedef struct km_avatar_options {
+  size_t key_every;   /* k: recognise + transfer every k frames, interpolate between; 0: 1 */
+  double track_scale; /* avatar size / tracked body size; 0: from the first key frame
+                         (size(avatar)/size(template) as in KM_TRANSFER_ALIGN_SCALE, over the
+                         Umeyama scale template->track) */
+  km_progress progress;
+} km_avatar_options;
+
+typedef struct km_avatar_stats {
+  size_t frames, key_frames;
+  double recognition_ms, transfer_ms; /* totals over key frames */
+  double iterations_mean;
+  double max_frame_ms; /* slowest key frame, recognition + transfer */
+} km_avatar_stats;
+
+/* Called once per output frame, in order; returning non-OK stops the run with that status. */
+typedef km_status (*km_avatar_frame_fn)(size_t frame, const double *V, void *user, km_error *err);
+
+/* Motion generation (Lifkooee et al. 2019, section 3.5): every k-th track frame (and the
+ * last) is recognised in db, its template transferred onto the avatar with the tracked
+ * landmarks (scaled to the avatar) as targets, and frames in between are linear
+ * interpolations of consecutive key poses, so there is one output frame per track frame. A
+ * key frame with an untracked (NaN) landmark repeats the previous key pose.
+ *   t      in/out: precomputed on the avatar with the landmark vertices in the database's
+ *          landmark order (its scratch is used)
+ *   db     in: pose database
+ *   track  in: landmark track; its landmarks are matched to the database's by name (or
+ *          taken in order when the track has no names)
+ *   opt    in: may be NULL (defaults)
+ *   fn     in: receives each output frame, V #V*3 (valid during the call only), and user
+ *   stats  out: may be NULL
+ * Errors: whatever fn returns, KM_ERR_CANCELLED. */
+km_status km_avatar_animate(km_transfer *t, const km_posedb *db, const km_track *track,
+                            const km_avatar_options *opt, km_avatar_frame_fn fn, void *user,
+                            km_avatar_stats *stats, km_error *err);
+
+/* ==== recon: point clouds to mesh animation, Park & Lim 2014 (src/recon/) ==== */
+
+/* ---- geometry */
+
+/* Absolute orientation (Horn 1987, unit quaternions): R, t and s minimising
+ * sum |s R A_i + t - B_i|^2.
+ *   A, B        in: n*3 paired points, n >= 3
+ *   with_scale  in: false gives s = 1
+ *   R           out: row-major 3x3 rotation
+ *   t           out: translation
+ *   s           out: scale; may be NULL when with_scale is false
+ * Errors: KM_ERR_DEGENERATE_MESH for collinear input. */
 km_status km_absolute_orientation(const double *A, const double *B, size_t n, bool with_scale,
                                   double R[9], double t[3], double *s, km_error *err);
 
 /* Closest points on a triangle mesh (Embree point queries, OpenMP over queries).
- * V #V*3 and F #F*3 the mesh; Q #Q*3 query points. Outputs (each may be NULL):
- * tri #Q closest triangle, bary #Q*3 its barycentrics, dist #Q distance (mesh units). */
+ *   V     in: #V*3 mesh positions
+ *   F     in: #F*3 triangles
+ *   Q     in: #Q*3 query points (#Q = n_queries)
+ *   tri   out: #Q closest triangle; may be NULL
+ *   bary  out: #Q*3 its barycentrics; may be NULL
+ *   dist  out: #Q distance (mesh units); may be NULL
+ * Errors: KM_ERR_DEGENERATE_MESH (no faces), KM_ERR_UNSUPPORTED when Embree cannot start. */
 km_status km_point_mesh_distance(const double *V, size_t n_vertices, const int32_t *F,
                                  size_t n_faces, const double *Q, size_t n_queries, int32_t *tri,
                                  double *bary, double *dist, km_error *err);
 
-/* ---- capture simulator (ground truth for reconstruction tests and benchmarks) */
-typedef struct km_capture_options {
-  int cameras;             /* depth cameras on a ring around the subject; 0: 4 */
-  size_t points_per_frame; /* target total over all cameras; 0: 30000 */
-  double noise_mm;         /* Gaussian noise sigma along each axis, mm; 0: 2, < 0: none */
-  double distance;         /* camera distance from the subject's centre, m; 0: 3 */
-  double height;           /* camera height above the subject's centre, m; 0: 0.3 */
-  uint64_t seed;           /* noise seed (frame index is mixed in) */
-  km_progress progress;
-} km_capture_options;
-/* Ray-casts one posed mesh (Embree) from the cameras: every camera shoots a regular grid of
- * rays over the mesh's bounding box as seen from it, so the total hit count is about
- * points_per_frame; surfaces hidden from all cameras get no points. out is allocated.
- * frame mixes into the noise seed. */
-km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, size_t frame,
-                           km_points *out, km_error *err);
-/* Poses character c by the take (km_skeleton_pose_from_positions + km_lbs), captures every
- * frame and writes out_dir/frame_00000.ply ... plus out_dir/truth.pc2 (the posed meshes)
- * and out_dir/truth_rest.obj (c->mesh, whose faces give truth.pc2 its connectivity; OBJ so
- * that listing the frames, by directory or by a glob of its .ply files, never picks it up).
- * out_dir is created if missing. */
-km_status km_capture_simulate(const km_character *c, const km_take *take,
-                              const km_capture_options *opt, const char *out_dir, km_error *err);
-
 /* ---- reconstruction (Park & Lim 2014 after Allen, Curless & Popovic 2003) */
+
 typedef struct km_recon_options {
   size_t coarse_points;    /* multiresolution level size (Pauly clustering); 0: 2000 */
   int knn;                 /* neighbours for point normals; 0: 10 */
@@ -777,7 +1340,7 @@ typedef struct km_recon_options {
   int filter_radius;       /* temporal Gaussian half width in frames; 0: 2 (5 frames), <0: off */
   double filter_sigma;     /* frames; 0: 1 */
   bool rig_joints;         /* false (default): joints estimated at the part boundaries of the
-                            * LBS weights (km_skeleton_from_weights), as the paper does; true:
+                            * LBS weights (km_skeleton_from_weights), as Park & Lim do; true:
                             * the template rig's joint positions as they are */
   km_progress progress;
 } km_recon_options;
@@ -832,327 +1395,173 @@ typedef struct km_recon_report {
   km_recon_init init;     /* how the first frame was initialised */
   bool rig_joints;        /* joints from the rig as given (else from the skin weights) */
 } km_recon_report;
+/* Frees frames, joints and joint_names of r and zeroes the struct. */
 void km_recon_report_free(km_recon_report *r);
-/* JSON: {"format":"kinemesh-recon-report","version":1,"frames":[{"index":..,"points":..,
+/* Writes a report as JSON, atomically:
+ * {"format":"kinemesh-recon-report","version":1,"frames":[{"index":..,"points":..,
  * "mean_mm":..,"max_mm":..,"iterations":..,"seconds":..,"status":"KM_OK",
  * "message":".." (failed frames only), "joints":[x,y,z,...]}...], "jerk_before":..,
  * "jerk_after":.., "first_frame": {"correspondences": N, "initialisation": "...", and
  * without correspondences "yaw_candidates", "yaw_deg", "rotation_deg", "rigid_residual_mm",
  * "residual_mm", "feet_residual_mm", "scale", "landmarks"}, "joints_from": "skin weights"|"rig"}.
- * Written atomically.
- */
+ *   r  in: report (km_reconstruct)
+ * Errors: KM_ERR_IO. */
 km_status km_recon_report_write_json(const char *path, const km_recon_report *r, km_error *err);
 
 /* Incremental reconstructor: create with the template (mesh, skeleton, skin), register the
  * first frame with features, then feed the following frames one at a time. */
 typedef struct km_recon km_recon;
+/* Prepares the template.
+ *   template_character  in: mesh (#V vertices), skeleton (#J joints), skin, landmarks;
+ *                       copied
+ *   opt                 in: may be NULL (defaults)
+ *   out                 out: allocated; free with km_recon_free */
 km_status km_recon_create(const km_character *template_character, const km_recon_options *opt,
                           km_recon **out, km_error *err);
-/* Global alignment (Horn, rigid) from the features; the skeletal step posed by the features,
- * then the least-squares scale and rotation again against the posed landmarks; then affine
- * registration with w_d = 0 and then with all three terms. With fewer than 3 features the
- * subject is assumed upright (y up) but may face any way: see km_recon_init; the pose comes
- * from the data, and the template's landmarks (those of the character given to
- * km_recon_create that have a name) matched to their closest points stand in for the
- * features of the w_d = 0 stage. */
+/* Registers the first frame. Global alignment (Horn, rigid) from the features; the skeletal
+ * step posed by the features, then the least-squares scale and rotation again against the
+ * posed landmarks; then affine registration with w_d = 0 and then with all three terms.
+ * With fewer than 3 features the subject is assumed upright (y up) but may face any way:
+ * see km_recon_init; the pose comes from the data, and the template's landmarks (those of
+ * the character given to km_recon_create that have a name) matched to their closest points
+ * stand in for the features of the w_d = 0 stage.
+ *   P         in: n*3 points (non-finite points are dropped)
+ *   features  in: n_features correspondences; may be NULL when n_features == 0
+ *   stats     out: may be NULL
+ * Errors: KM_ERR_DEGENERATE_MESH, KM_ERR_NOT_POSDEF, KM_ERR_NO_CONVERGENCE. */
 km_status km_recon_first_frame(km_recon *r, const double *P, size_t n,
                                const km_recon_feature *features, size_t n_features,
                                km_recon_frame_stats *stats, km_error *err);
-/* Skeletal motion (L-BFGS) then surface refinement. A frame that fails is carried by the
- * skeleton prediction: the call still returns KM_OK with stats->status and stats->message
- * set (err is only filled when the call itself fails). */
+/* Registers the next frame: skeletal motion (L-BFGS) then surface refinement. A frame that
+ * fails is carried by the skeleton prediction: the call still returns KM_OK with
+ * stats->status and stats->message set (err is only filled when the call itself fails).
+ *   P      in: n*3 points
+ *   stats  out: may be NULL */
 km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_frame_stats *stats,
                               km_error *err);
-/* Results of the last frame: refined surface and LBS-only (global motion) surface, #V*3,
- * and joint positions n_joints*3. Valid until the next call. */
+/* Results of the last frame, owned by r and valid until the next call:
+ *   surface   #V*3 refined surface
+ *   global    #V*3 LBS-only (global motion) surface
+ *   joints    #J*3 joint positions
+ *   template  the template mesh (its faces are those of the output) */
 const double *km_recon_surface(const km_recon *r);
 const double *km_recon_global(const km_recon *r);
 const double *km_recon_joints(const km_recon *r);
 const km_mesh *km_recon_template(const km_recon *r); /* faces of the output */
-/* How the first frame was initialised (zeros before it). */
+/* How the first frame was initialised.
+ *   out  out: filled (zeros before the first frame) */
 void km_recon_init_get(const km_recon *r, km_recon_init *out);
+/* Frees *r and sets it to NULL. */
 void km_recon_free(km_recon **r);
 
-/* Local-motion filter (paper IV-3C): out_t = global_t + sum_k g_k (refined - global)_{t+k},
- * Gaussian weights over |k| <= radius renormalised at the sequence ends. Arrays are
- * n_frames * n_vertices*3; out may alias refined. */
+/* Local-motion filter (Park & Lim 2014, section IV-3C):
+ * out_t = global_t + sum_k g_k (refined - global)_{t+k}, Gaussian weights over |k| <= radius
+ * renormalised at the sequence ends.
+ *   refined  in: n_frames * #V*3 refined surfaces
+ *   global   in: n_frames * #V*3 LBS-only surfaces
+ *   radius   in: half width in frames; sigma in frames
+ *   out      out: n_frames * #V*3; may alias refined */
 km_status km_local_motion_filter(size_t n_frames, size_t n_vertices, const double *refined,
                                  const double *global, int radius, double sigma, double *out,
                                  km_error *err);
 
-/* Whole pipeline: reads frames, reconstructs, filters and streams frames to out_anim
- * (km_anim_writer: .glb, .pc2 or a directory) with a delay of filter_radius frames, so a
- * failure late in the run never loses finished frames. report may be NULL. */
+/* Whole pipeline: reads frames, reconstructs, filters and streams frames to out_anim with a
+ * delay of filter_radius frames, so a failure late in the run never loses finished frames.
+ *   frame_paths         in: n_frames point cloud files (km_points_read), in order
+ *   template_character  in: as km_recon_create
+ *   features            in: n_features first-frame correspondences; may be NULL
+ *   opt                 in: may be NULL (defaults)
+ *   out_anim            in: output for km_anim_writer (.glb, .pc2 or a directory)
+ *   report              out: may be NULL; allocated contents, free with
+ *                       km_recon_report_free
+ * Errors: KM_ERR_IO (output), the first frame's errors, KM_ERR_CANCELLED. */
 km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
                          const km_character *template_character, const km_recon_feature *features,
                          size_t n_features, const km_recon_options *opt, const char *out_anim,
                          km_recon_report *report, km_error *err);
 
-/* ---- avatar pose transfer, pose recognition, key-pose morphing */
+/* ==== synth: procedural character, generated motion, pose presets, capture simulator
+ *      (src/synth/) ==== */
 
-/* Pose transfer by locally encoded Laplacian offsets (Lifkooee et al. 2019): a source mesh S
- * (the avatar) takes the pose of a template mesh T of the same connectivity. Offline:
- * offsets Delta = L X_S, per-vertex frames F(v) (normal, tangent from a fixed neighbour edge,
- * their cross product) and pose-invariant coordinates W_i = F_S(v_i)^T Delta_i. Online: the
- * landmark vertices are fixed at their targets, the rest solves
- *   (-L)_ff x_f = -(F W)_f + L_fc x_c          (eq. 7, symmetric elimination form)
- * (F W stands for the rotated offsets of the chosen km_offset_encoding)
- * with F = frames of T at first, then frames of the previous solution, until positions and
- * frames settle. The factor of (-L)_ff is computed once per landmark set. */
-typedef enum km_laplacian_kind {
-  KM_LAPLACIAN_UNIFORM = 0, /* graph Laplacian, the paper's eq. 2 */
-  KM_LAPLACIAN_COTAN,       /* cotangent weights of the source mesh */
-} km_laplacian_kind;
+/* ---- procedural character */
 
-typedef enum km_transfer_align {
-  /* T's landmark positions scaled about the origin by size(S)/size(T), T's placement kept.
-   * size = sum of edge-graph geodesic distances from landmark 0 to the other landmarks:
-   * pose-invariant and, unlike the surface area, insensitive to girth and belly. */
-  KM_TRANSFER_ALIGN_SCALE = 0,
-  /* Umeyama similarity (rotation, translation, scale) of T's landmarks onto the source's rest
-   * landmarks (scale replaced by the geodesic size ratio): places the result where S
-   * stands. Only sensible when T's pose is close to S's rest pose (the fit mixes pose and
-   * placement otherwise). */
-  KM_TRANSFER_ALIGN_SIMILARITY,
-} km_transfer_align;
-
-typedef enum km_offset_encoding {
-  /* Default. Each one-ring edge in the frames of both its ends (E_ij = F_S(i) e_ij); the
-   * right-hand side is sum_j w_ij (F(i)^T E_ij - F(j)^T E_ji) / 2. Identical to the paper's
-   * encoding at rest (it sums to F(v_i) W_i when both frames agree), but where neighbouring
-   * frames differ (a bent joint in the template) the result bends too: the Poisson /
-   * ARAP-global-step form of the same locally encoded offsets. Measured on generated
-   * subjects (3k vertices, 10 poses, tracked landmarks): 9 mm mean error vs 37 mm. */
-  KM_OFFSETS_EDGE = 0,
-  /* The paper's eq. 3 verbatim: one offset per vertex in the vertex's own frame, right-hand
-   * side F(v_i) W_i. Rotating a rest offset cannot create the bend of a limb at a joint (a
-   * straight tube has no bend in its offsets), so limbs bend only at the landmarks. */
-  KM_OFFSETS_VERTEX,
-} km_offset_encoding;
-
-typedef struct km_transfer_options {
-  km_laplacian_kind laplacian; /* 0: uniform */
-  km_offset_encoding encoding; /* 0: per edge (see above); KM_OFFSETS_VERTEX: paper's eq. 3 */
-  km_transfer_align align;     /* how landmark targets come from a template; 0: scale */
-  int max_iterations;          /* solves per transfer; 0: 10 */
-  double tolerance;            /* stop when the largest vertex move between two solves is below
-                                  tolerance * bbox diagonal of S and the largest frame entry change is
-                                  below tolerance; 0: 1e-4 */
-} km_transfer_options;
-
-typedef struct km_transfer km_transfer;
-
-/* Offline stage. source: the avatar at rest (closed or open triangle mesh, #V vertices).
- * landmarks: n_landmarks distinct vertex ids, >= 3 (fewer leaves the Laplacian rank
- * deficient up to a rotation: KM_ERR_INVALID). The object keeps copies of what it needs. */
-km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks,
-                                 size_t n_landmarks, const km_transfer_options *opt,
-                                 km_transfer **out, km_error *err);
-
-typedef struct km_transfer_stats {
-  int iterations;         /* linear solves done */
-  bool converged;         /* tolerance met before max_iterations */
-  double position_change; /* last iteration's largest vertex move / bbox diagonal */
-  double frame_change;    /* largest frame entry change at the last frame update; NAN while the
-                             positions still move (only measured once they settle; frames are not
-                             recomputed after the last allowed solve) */
-  double frames_ms;       /* time in normals + frames, all iterations */
-  double solve_ms;        /* time in right-hand sides + triangular solves, all iterations */
-  double total_ms;        /* whole call */
-} km_transfer_stats;
-
-/* Online stage. All arrays are #V*3 (or n_landmarks*3 for targets), row-major.
- *  template_V  positions of T (same connectivity as S); its frames start the iteration.
- *              May be NULL when warm_start is given.
- *  targets     landmark positions in precompute order; NULL: from template_V's landmark
- *              vertices through the options' align mode (template_V then required).
- *  warm_start  a previous result (e.g. the last key pose); its frames start the iteration
- *              when template_V is NULL. Ignored otherwise. May be NULL.
- *  V_out       result, may alias warm_start but not template_V.
- *  stats       may be NULL.
- * Does not allocate. Not thread-safe on one object. */
-km_status km_transfer_solve(km_transfer *t, const double *template_V, const double *targets,
-                            const double *warm_start, double *V_out, km_transfer_stats *stats,
-                            km_error *err);
-size_t km_transfer_vertices(const km_transfer *t);
-size_t km_transfer_landmarks(const km_transfer *t);
-/* Landmark targets the solver would use for template_V (n_landmarks*3). Uses the object's
- * scratch (one Dijkstra): not thread-safe on one object, does not allocate. */
-km_status km_transfer_targets(const km_transfer *t, const double *template_V, double *targets,
-                              km_error *err);
-/* Offline timings of precompute: Laplacian + offsets + frames, and symbolic + numeric
- * Cholesky, in milliseconds. Either may be NULL. */
-void km_transfer_precompute_ms(const km_transfer *t, double *laplacian_ms, double *cholesky_ms);
-void km_transfer_free(km_transfer **t);
-
-/* Least-squares similarity dst ~ s R src + t (Umeyama 1991; SVD by LAPACKE), n >= 3 points,
- * weights (n, >= 0) may be NULL for equal weights. R row-major 3x3, proper rotation.
- * KM_ERR_DEGENERATE_MESH when the source points are all coincident. */
-km_status km_similarity_fit(const double *src, const double *dst, const double *weights, size_t n,
-                            double *s, double R[9], double t[3], km_error *err);
-/* Total triangle area (for pose-invariant size ratios). */
-double km_surface_area(const km_mesh *m);
-
-/* Landmark files. LM.json: {"landmarks":[{"name":"head","vertex":411,"mirror":"head"},...]};
- * a character rig sidecar (*.rig.json) carries the same array and is accepted as is.
- * Every mirror must name a landmark of the file (itself on the mid-line). Reads at most
- * `capacity` landmarks (more: KM_ERR_PARSE); n_vertices > 0 checks vertex ids. */
-#define KM_POSE_MAX_LANDMARKS 32
-km_status km_landmarks_read(const char *path, size_t n_vertices, km_landmark *out, size_t capacity,
-                            size_t *n, km_error *err);
-km_status km_landmarks_write(const char *path, const km_landmark *lm, size_t n, km_error *err);
-
-/* Pose descriptor (eq. 4). For n landmarks the candidate features are all angles
- * angle(i, j, k) at landmark j between segments j->i and j->k, i < k, i, k != j:
- * n (n-1) (n-2) / 2 of them (1,680 for 16 landmarks), in the order j major, then i, then k.
- * A feature is stored as its triple {i, j, k}. */
-size_t km_pose_candidate_count(size_t n_landmarks);
-/* The triple of candidate feature f. */
-void km_pose_candidate(size_t n_landmarks, size_t f, int32_t triple[3]);
-/* Angles in radians [0, pi] of the given triples for landmark positions P (n*3);
- * a zero-length segment gives pi/2. */
-void km_pose_angles(const double *P, const int32_t *triples, size_t n_features, double *out);
-
-typedef enum km_svm_kernel { KM_SVM_RBF = 0, KM_SVM_LINEAR } km_svm_kernel;
-
-/* How the paper's left/right mirroring is used (section 3.2.1): "when an angle (i,j,k) is
- * observed, also add an instance of (m(i),m(j),m(k))". */
-typedef enum km_pose_mirror {
-  /* default: the feature-selection trees see every sample twice, as measured and mirrored
-   * (same class), so the selected angles are not biased to the side the data moves most;
-   * the SVM is trained on the samples as measured, so left and right variants of a pose
-   * may be distinct classes. */
-  KM_POSE_MIRROR_SELECTION = 0,
-  KM_POSE_MIRROR_ALL,  /* also add mirrored samples to the SVM training set (same class) */
-  KM_POSE_MIRROR_NONE, /* no mirroring */
-} km_pose_mirror;
-
-typedef struct km_posedb_options {
-  size_t features;       /* d, selected angles; 0: 60 (capped by the candidate count) */
-  int tree_max_depth;    /* CART depth limit; 0: 16 */
-  km_pose_mirror mirror; /* 0: mirrored samples in feature selection only */
-  km_svm_kernel kernel;  /* 0: RBF */
-  double svm_c;          /* 0: 10 */
-  double svm_gamma;      /* RBF gamma on features scaled to [-1,1]; 0: 1/d */
-  int cv_folds;          /* k-fold cross-validation when no groups are given; 0: 5, 1: none */
+typedef struct km_character_options {
+  size_t target_vertices; /* 0: 20000. Output within +-10%. 2,000 .. 1,000,000 */
+  uint64_t seed;          /* small per-subject variation of proportions; 0 is valid */
+  double height;          /* metres; 0: 1.75 */
+  double girth;           /* limb thickness factor; 0: 1.0 */
+  double belly;           /* belly size factor; 0: 0 (none), 1: pronounced */
   km_progress progress;
-} km_posedb_options;
+} km_character_options;
 
-typedef struct km_posedb km_posedb;
+/* Generates a humanoid as an implicit surface around a skeleton, polygonised so that its
+ * vertex count is target_vertices +-10%. Equal options (shape, seed) give equal meshes.
+ * All subjects of one target_vertices SHARE CONNECTIVITY (same F, same vertex count and
+ * order, same landmark vertex ids): the canonical subject (seed 0, height 1.75, girth 1,
+ * belly 0) is polygonised at that resolution and every other shape is obtained by carrying
+ * its vertices to the new skeleton's primitives (bone lengths, offsets, radii), projecting
+ * them onto the new implicit surface (Newton steps along the field gradient) and relaxing
+ * them tangentially, in a few steps through intermediate bodies. Skeleton and skin are the
+ * new subject's. Costs about twice a direct polygonisation.
+ *   opt  in: may be NULL (defaults)
+ *   out  out: allocated mesh, skeleton (20 Kinect v1 joints), skin and 16 landmarks; free
+ *        with km_character_free
+ * Errors: KM_ERR_CANCELLED. */
+km_status km_character_generate(const km_character_options *opt, km_character *out, km_error *err);
 
-typedef struct km_posedb_report {
-  size_t samples, classes, features;
-  double cv_accuracy; /* correct / total over held-out folds; -1 when no cross-validation ran */
-  size_t cv_folds;    /* folds used (groups: one per group) */
-  double build_ms;
-  double cv_accuracy_eq8; /* the paper's eq. 8, (TP+TN)/(TP+TN+FP+FN) averaged over the K
-                             one-vs-rest problems: 1 - 2 e / (N K) for e errors in N tests,
-                             always >= cv_accuracy; -1 when no cross-validation ran */
-} km_posedb_report;
+/* ---- generated motion */
 
-/* Builds a pose database from n_meshes meshes of one connectivity (point clouds are fine when
- * only recognition is wanted). labels[i] in [0, n_classes) is the pose class of mesh i;
- * class_names (n_classes, may be NULL) label them; groups (may be NULL) give the subject of
- * each mesh so that cross-validation leaves one subject out at a time. landmarks (n >= 4,
- * with mirrors) are vertex ids on the meshes. Feature selection is CART (Gini) over all
- * candidate angles, classification libsvm, template choice nearest neighbour inside the class.
- * The database keeps a copy of the meshes as templates. report may be NULL. */
-km_status km_posedb_build(const km_mesh *meshes, size_t n_meshes, const int32_t *labels,
-                          size_t n_classes, const char *const *class_names, const int32_t *groups,
-                          const km_landmark *landmarks, size_t n_landmarks,
-                          const km_posedb_options *opt, km_posedb **out, km_posedb_report *report,
-                          km_error *err);
+typedef enum km_motion_kind { KM_MOTION_WALK = 0, KM_MOTION_WAVE, KM_MOTION_KUNGFU } km_motion_kind;
+/* A take of the 20 Kinect v1 joints at 30 Hz. Deterministic. Like a tracked performer it
+ * starts in the rest (T) pose — the calibration pose puppetry measures displacements from —
+ * holds it 0.2 s and blends into the motion over the next 0.5 s.
+ *   s       in: the character's rest skeleton (20 Kinect v1 joints)
+ *   frames  in: >= 1
+ *   out     out: allocated take (frames x 20 joints); free with km_take_free */
+km_status km_motion_generate(const km_skeleton *s, km_motion_kind kind, size_t frames, km_take *out,
+                             km_error *err);
 
-typedef struct km_pose_match {
-  int32_t label;         /* predicted class */
-  size_t template_index; /* nearest database mesh of that class */
-  double distance;       /* descriptor distance to it (scaled features) */
-  double ms;             /* descriptor + SVM + nearest neighbour time */
-} km_pose_match;
+/* ---- pose presets */
 
-/* Recognises the pose given by landmark positions P (n_landmarks*3, database order). */
-km_status km_posedb_query(const km_posedb *db, const double *P, km_pose_match *out, km_error *err);
-/* Single-file database (binary, versioned: "KMPOSEDB" magic, version, JSON header, raw
- * little-endian arrays, FNV-1a checksum). The SVM is retrained on load from the stored
- * templates (deterministic, milliseconds for thousands of samples). */
-km_status km_posedb_save(const km_posedb *db, const char *path, km_error *err);
-km_status km_posedb_load(const char *path, km_posedb **out, km_error *err);
-size_t km_posedb_size(const km_posedb *db);
-size_t km_posedb_classes(const km_posedb *db);
-const char *km_posedb_class_name(const km_posedb *db, size_t c); /* "" when unnamed */
-int32_t km_posedb_label(const km_posedb *db, size_t i);
-size_t km_posedb_landmark_count(const km_posedb *db);
-const km_landmark *km_posedb_landmarks(const km_posedb *db);
-/* Template i as a mesh view (V, F owned by the database; do not free). */
-void km_posedb_template(const km_posedb *db, size_t i, km_mesh *view);
-/* Names for the templates (e.g. their file names, n = km_posedb_size entries, at most 127
- * characters kept), saved with the database so a query can say which mesh it picked. */
-km_status km_posedb_set_template_names(km_posedb *db, const char *const *names, km_error *err);
-const char *km_posedb_template_name(const km_posedb *db, size_t i); /* "" when unnamed */
-/* Selected features: d triples (d*3 ints, owned by the database), best first. */
-const int32_t *km_posedb_features(const km_posedb *db, size_t *d);
-/* The build report (cv figures as stored; samples/classes/features of this database). */
-void km_posedb_info(const km_posedb *db, km_posedb_report *report);
-void km_posedb_free(km_posedb **db);
+/* The built-in pose set: KM_POSE_PRESETS named joint-angle poses (t_pose, a_pose, arms_up,
+ * squat, ...) of the Kinect v1 skeleton, each up to KM_POSE_PRESET_MAX_ROTATIONS joint
+ * rotations. Ground truth for pose-transfer tests and benchmarks. */
+#define KM_POSE_PRESETS 10
+#define KM_POSE_PRESET_MAX_ROTATIONS 8
+/* Returns the name of preset p (static string; NULL when out of range). */
+const char *km_pose_preset_name(int p);
+/* Character c in preset p by forward kinematics and km_lbs.
+ *   c       in: character (km_character_generate)
+ *   p       in: 0 .. KM_POSE_PRESETS-1
+ *   jitter  in: NULL, or KM_POSE_PRESET_MAX_ROTATIONS factors; rotation k's angle is scaled
+ *           by 1+jitter[k]
+ *   V       out: #V*3 posed positions */
+km_status km_character_pose_preset(const km_character *c, int p, const double *jitter, double *V,
+                                   km_error *err);
 
-/* Decision tree (CART, Gini impurity) over dense features, exposed for tests and tools.
- * X row-major n_samples x n_features, y in [0, n_classes). importance (n_features, may be
- * NULL): total weighted impurity decrease per feature, normalised to sum 1. */
-typedef struct km_cart km_cart;
-km_status km_cart_fit(const double *X, const int32_t *y, size_t n_samples, size_t n_features,
-                      size_t n_classes, int max_depth, km_cart **out, double *importance,
-                      km_error *err);
-int32_t km_cart_predict(const km_cart *tree, const double *x);
-size_t km_cart_nodes(const km_cart *tree);
-void km_cart_free(km_cart **tree);
+/* ---- capture simulator (ground truth for reconstruction tests and benchmarks) */
 
-/* Tracked landmark sequences (TRACK).
- * JSON: {"fps":30,"landmarks":["head",...],"frames":[[x,y,z, ...], ...]} with 3 numbers per
- *       landmark per frame (null: not tracked in that frame -> NaN).
- * CSV:  first line the landmark names separated by commas; then one frame per line with
- *       3 numbers per landmark (x,y,z in landmark order), comma-separated; empty field: NaN.
- *       fps 30. Format by extension (.json / .csv). Units: metres. */
-typedef struct km_track {
-  size_t n_frames, n_landmarks;
-  double fps;
-  char (*names)[32]; /* n_landmarks */
-  double *positions; /* n_frames * n_landmarks * 3 */
-} km_track;
-km_status km_track_read(const char *path, km_track *out, km_error *err);
-km_status km_track_write(const char *path, const km_track *t, km_error *err);
-void km_track_free(km_track *t);
-
-/* Linear interpolation out = (1-a) A + a B of two key poses (n*3 values); out may alias. */
-void km_pose_lerp(const double *A, const double *B, size_t n_vertices, double a, double *out);
-
-typedef struct km_avatar_options {
-  size_t key_every;   /* k: recognise + transfer every k frames, interpolate between; 0: 1 */
-  double track_scale; /* avatar size / tracked body size; 0: from the first key frame
-                         (size(avatar)/size(template) as in KM_TRANSFER_ALIGN_SCALE, over the
-                         Umeyama scale template->track) */
+typedef struct km_capture_options {
+  int cameras;             /* depth cameras on a ring around the subject; 0: 4 */
+  size_t points_per_frame; /* target total over all cameras; 0: 30000 */
+  double noise_mm;         /* Gaussian noise sigma along each axis, mm; 0: 2, < 0: none */
+  double distance;         /* camera distance from the subject's centre, m; 0: 3 */
+  double height;           /* camera height above the subject's centre, m; 0: 0.3 */
+  uint64_t seed;           /* noise seed (frame index is mixed in) */
   km_progress progress;
-} km_avatar_options;
-
-typedef struct km_avatar_stats {
-  size_t frames, key_frames;
-  double recognition_ms, transfer_ms; /* totals over key frames */
-  double iterations_mean;
-  double max_frame_ms; /* slowest key frame, recognition + transfer */
-} km_avatar_stats;
-
-/* Called once per output frame, in order; returning non-OK stops the run with that status. */
-typedef km_status (*km_avatar_frame_fn)(size_t frame, const double *V, void *user, km_error *err);
-
-/* Motion generation (section 3.5): every k-th track frame (and the last) is recognised in db,
- * its template transferred onto the avatar with the tracked landmarks (scaled to the avatar)
- * as targets, and frames in between are linear interpolations of consecutive key poses, so
- * there is one output frame per track frame. t must be precomputed on the avatar with the
- * landmark vertices in the database's landmark order; the track's landmarks are matched to
- * the database's by name (or taken in order when the track has no names). A key frame with
- * an untracked (NaN) landmark repeats the previous key pose. */
-km_status km_avatar_animate(km_transfer *t, const km_posedb *db, const km_track *track,
-                            const km_avatar_options *opt, km_avatar_frame_fn fn, void *user,
-                            km_avatar_stats *stats, km_error *err);
+} km_capture_options;
+/* Poses a character by a take (km_skeleton_pose_from_positions + km_lbs), ray-casts every
+ * frame from depth cameras on a ring (Embree) and writes out_dir/frame_00000.ply ... plus
+ * out_dir/truth.pc2 (the posed meshes) and out_dir/truth_rest.obj (c->mesh, whose faces give
+ * truth.pc2 its connectivity; OBJ so that listing the frames, by directory or by a glob of
+ * its .ply files, never picks it up).
+ *   c        in: character whose skeleton matches the take's joints
+ *   take     in: motion
+ *   opt      in: may be NULL (defaults)
+ *   out_dir  in: created if missing
+ * Errors: KM_ERR_IO, KM_ERR_CANCELLED. */
+km_status km_capture_simulate(const km_character *c, const km_take *take,
+                              const km_capture_options *opt, const char *out_dir, km_error *err);
 
 #ifdef __cplusplus
 }

@@ -1,5 +1,6 @@
 /* End-to-end checks of the kinemesh command-line tool: exit codes, JSON keys, messages. */
 #include "km_test.h"
+#include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
 #include <cjson/cJSON.h>
 

@@ -2,6 +2,7 @@
  * bending, cache round trip and staleness, handle changes without eigen-decomposition, and
  * the reduced-vs-full deviation. */
 #include "km_test.h"
+#include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
 #include <stdint.h>
 #include <unistd.h>

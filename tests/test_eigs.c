@@ -1,6 +1,7 @@
 /* km_eigs on icospheres: the Laplace-Beltrami spectrum of a sphere of radius r is
  * l(l+1)/r^2 with multiplicity 2l+1, so the 9 smallest are 0, 2/r^2 (x3), 6/r^2 (x5). */
 #include "km_test.h"
+#include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
 static void free_mesh(km_mesh *m) {
   free(m->V), free(m->F);

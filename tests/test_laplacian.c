@@ -1,5 +1,6 @@
 /* Laplacians, mass matrices, normals and frames on primitive and hand-made meshes. */
 #include "km_test.h"
+#include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
 static void free_mesh(km_mesh *m) {
   free(m->V), free(m->F);

@@ -1,6 +1,7 @@
 /* Pose descriptor, CART feature selection, SVM pose database, TRACK files, morphing. */
 #include "synth/poses.h"
 #include "km_test.h"
+#include "transfer/transfer.h" /* km_cart_*: test fixture */
 
 #include <unistd.h>
 

@@ -2,6 +2,7 @@
  * temporal filter, pipeline. Small meshes only (the file runs in well under a minute with
  * sanitizers). */
 #include "km_test.h"
+#include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 #include "recon/recon.h"
 #include "recon_plot.h"
 

@@ -2,6 +2,7 @@
  * counts are known by construction, and against brute-force recounts on random meshes. */
 #include "core/core.h"
 #include "km_test.h"
+#include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
 static km_mesh make(size_t nv, const double *V, size_t nf, const int32_t *F) {
   km_mesh m;

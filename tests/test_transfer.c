@@ -1,6 +1,7 @@
 /* Pose transfer by locally encoded Laplacian offsets. */
 #include "synth/poses.h"
 #include "km_test.h"
+#include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
 #include "transfer/transfer.h"
 

@@ -1,6 +1,7 @@
 /* Capture simulator: multi-view depth cameras ray-cast with Embree, giving the point cloud
  * animation a ground truth (the posed meshes). */
 #include "recon/recon.h"
+#include "synth/synth.h"
 
 #include <embree3/rtcore.h>
 #include <errno.h>

@@ -1,5 +1,5 @@
 /* Primitive meshes for tests and examples. */
-#include "core/core.h"
+#include "synth/synth.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -5,7 +5,7 @@
  * OpenCV's ml module (C++) and R's rpart, none of which we may link from C here). The tree is
  * small (hundreds to a few thousand samples, ~1,700 angle features), so the plain
  * sort-per-node split search is fast enough: O(F n log n) per tree level. */
-#include "core/core.h"
+#include "transfer/pose.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -2,7 +2,7 @@
 #ifndef KM_POSE_POSE_H
 #define KM_POSE_POSE_H
 
-#include "core/core.h"
+#include "transfer/transfer.h"
 
 /* Mirror map m[i] = index of landmark i's counterpart, from the names. */
 km_status km__landmark_mirrors(const km_landmark *lm, size_t n, int32_t *m, km_error *err);
