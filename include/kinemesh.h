@@ -471,8 +471,7 @@ km_status km_point_frames_list(const char *pattern, char ***paths, size_t *n, km
 /* Frees the n strings of *paths and the array, and sets *paths to NULL. */
 void km_paths_free(char ***paths, size_t n);
 
-/* ==== motion: skeletons, takes, motion formats, filter, rig, retargeting, rig sidecar
- *      (src/motion/) ==== */
+/* ==== motion: skeletons, takes, formats, filter, rig, retargeting, sidecar (src/motion/) ==== */
 
 /* ---- skeletons */
 
@@ -962,8 +961,7 @@ km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_err
 /* Frees *a and sets it to NULL. */
 void km_arap_free(km_arap **a);
 
-/* ==== transfer: pose transfer, pose recognition, key-pose morphing, Lifkooee et al. 2019
- *      (src/transfer/) ==== */
+/* ==== transfer: pose transfer & recognition, Lifkooee et al. 2019 (src/transfer/) ==== */
 
 /* ---- pose transfer */
 
@@ -1480,8 +1478,7 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
                          size_t n_features, const km_recon_options *opt, const char *out_anim,
                          km_recon_report *report, km_error *err);
 
-/* ==== synth: procedural character, generated motion, pose presets, capture simulator
- *      (src/synth/) ==== */
+/* ==== synth: character, generated motion, pose presets, capture (src/synth/) ==== */
 
 /* ---- procedural character */
 
