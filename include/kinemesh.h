@@ -750,6 +750,10 @@ typedef struct km_puppetry_options {
    * the model is precomputed and written there. NULL: always precompute, write nothing. */
   const char *cache_path;
   bool force;            /* precompute and rewrite the cache even when it is up to date */
+  /* Adopt the model parameters an existing cache was built with (fields, isolines,
+   * crossed_per_isoline, energy: km_puppet_cache_options) instead of puppet's, so a cache
+   * made with other parameters is used as built rather than rebuilt. */
+  bool cache_parameters;
   const char *take_name; /* names the take in error messages; NULL: "the take" */
 } km_puppetry_options;
 
@@ -767,13 +771,15 @@ typedef enum km_puppetry_model_source {
 typedef struct km_puppetry_info {
   km_puppetry_model_source model;
   double model_seconds; /* load or precompute time of the solver (not the cache write) */
+  bool cache_parameters; /* options.cache_parameters took the cache's model parameters */
+  km_puppet_options puppet; /* the reduced model parameters used (progress cleared) */
   km_error stale;       /* REBUILT_STALE: status KM_ERR_STALE and why the cache was unusable */
   km_error save;        /* status KM_OK, or why the cache could not be written (the pipeline
                            is usable all the same) */
 } km_puppetry_info;
 
-/* The cache policy alone: the reduced model of rest by opt->puppet, opt->cache_path and
- * opt->force (the other members are ignored), loaded when the cache is up to date, else
+/* The cache policy alone: the reduced model of rest by opt->puppet, opt->cache_path,
+ * opt->force and opt->cache_parameters (the other members are ignored), loaded when the cache is up to date, else
  * precomputed (opt->puppet.progress reports it) and saved. *out: the caller's, free with
  * km_puppet_free. info: what happened (may be NULL). A cache that is absent or stale is
  * rebuilt; any other load error fails; a failed save is only reported in info->save. */

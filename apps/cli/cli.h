@@ -87,15 +87,11 @@ int km_cli_live(int argc, char **argv);
 
 /* Puppetry helpers shared by animate, bench and live. */
 char *km_cli_cache_path(const char *mesh_path); /* MESH.kmcache, caller frees */
-/* km_puppetry_create (rig may be NULL: the model only) with the reduced model cached in
- * `cache` (NULL: none; opt: NULL for defaults, its cache_path replaced) and a progress bar
- * for the precompute; prints what the cache policy reported that the user must know (a stale
- * cache rebuilt, a cache not written). */
-km_status km_cli_puppetry_open(const km_mesh *mesh, const km_rig *rig,
-                               const char *const *joint_names, size_t n_joints,
-                               const char *cache, const km_puppetry_options *opt,
-                               km_puppetry **out, km_puppetry_info *info, km_error *err);
-/* The same for the reduced model alone (default parameters; live mode's server takes it). */
+/* Prints what the cache policy reported that the user must know: a stale cache rebuilt, a
+ * cache not written. */
+void km_cli_report_cache(const char *cache, const km_puppetry_info *info);
+/* The reduced model (default parameters) by the cache policy with a progress bar for the
+ * precompute, reported as above: what live mode's server takes. */
 km_status km_cli_puppet_open(const km_mesh *mesh, const char *cache, km_puppet **out,
                              km_puppetry_info *info, km_error *err);
 double km_cli_median(double *v, size_t n); /* sorts v */

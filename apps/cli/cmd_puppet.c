@@ -48,26 +48,12 @@ char *km_cli_cache_path(const char *mesh_path) {
   return out;
 }
 
-static void report_cache(const char *cache, const km_puppetry_info *info) {
+void km_cli_report_cache(const char *cache, const km_puppetry_info *info) {
   if (info->model == KM_PUPPETRY_MODEL_REBUILT_STALE)
     fprintf(stderr, "kinemesh: cache %s not usable (%s); rebuilding it\n", cache,
             info->stale.message);
   if (info->save.status != KM_OK)
     fprintf(stderr, "kinemesh: warning: could not write the cache: %s\n", info->save.message);
-}
-
-km_status km_cli_puppetry_open(const km_mesh *mesh, const km_rig *rig,
-                               const char *const *joint_names, size_t n_joints,
-                               const char *cache, const km_puppetry_options *opt,
-                               km_puppetry **out, km_puppetry_info *info, km_error *err) {
-  km_puppetry_options o = {0};
-  if (opt) o = *opt;
-  o.cache_path = cache;
-  o.puppet.progress = km_cli_progress("precompute");
-  km_status s = km_puppetry_create(mesh, rig, joint_names, n_joints, &o, out, info, err);
-  km_cli_progress_done();
-  if (s == KM_OK) report_cache(cache, info);
-  return s;
 }
 
 km_status km_cli_puppet_open(const km_mesh *mesh, const char *cache, km_puppet **out,
@@ -77,7 +63,7 @@ km_status km_cli_puppet_open(const km_mesh *mesh, const char *cache, km_puppet *
   o.puppet.progress = km_cli_progress("precompute");
   km_status s = km_puppetry_model_open(mesh, &o, out, info, err);
   km_cli_progress_done();
-  if (s == KM_OK) report_cache(cache, info);
+  if (s == KM_OK) km_cli_report_cache(cache, info);
   return s;
 }
 
@@ -252,22 +238,24 @@ int km_cli_animate(int argc, char **argv) {
   if (!full) {
     /* A cache made by `precompute --fields/--isolines/--energy` is used as built unless this
      * run asks for other parameters. */
-    km_error cerr = {0};
-    if (!fields && !isolines && !energy && km_puppet_cache_options(cpath, &o.puppet, &cerr) == KM_OK)
-      fprintf(stderr, "kinemesh animate: %s: %d fields x %d isolines, %s energy\n", cpath,
-              o.puppet.fields, o.puppet.isolines,
-              o.puppet.energy == KM_PUPPET_ENERGY_LAPLACIAN ? "laplacian" : "arap");
-    else {
-      o.puppet.fields = fields;
-      o.puppet.isolines = isolines;
-      o.puppet.energy = pe;
-    }
+    o.cache_parameters = !fields && !isolines && !energy;
+    o.puppet.fields = fields;
+    o.puppet.isolines = isolines;
+    o.puppet.energy = pe;
     o.puppet.iterations = iterations;
+    o.puppet.progress = km_cli_progress("precompute");
+    o.cache_path = cpath;
   }
   km_puppetry_info pi;
-  if (km_cli_puppetry_open(&m, &rig, (const char *const *)take.joint_names, take.n_joints,
-                           full ? NULL : cpath, &o, &pl, &pi, &err) != KM_OK)
-    goto fail;
+  km_status cs = km_puppetry_create(&m, &rig, (const char *const *)take.joint_names,
+                                    take.n_joints, &o, &pl, &pi, &err);
+  km_cli_progress_done();
+  if (cs != KM_OK) goto fail;
+  if (pi.cache_parameters)
+    fprintf(stderr, "kinemesh animate: %s: %d fields x %d isolines, %s energy\n", cpath,
+            pi.puppet.fields, pi.puppet.isolines,
+            pi.puppet.energy == KM_PUPPET_ENERGY_LAPLACIAN ? "laplacian" : "arap");
+  km_cli_report_cache(cpath, &pi);
   bool loaded = pi.model == KM_PUPPETRY_MODEL_LOADED;
   const int32_t *offsets = NULL;
   km_puppetry_handles(pl, NULL, &offsets, NULL);

@@ -214,11 +214,17 @@ km_status km_puppetry_model_open(const km_mesh *rest, const km_puppetry_options 
   if (!info) info = &local;
   memset(info, 0, sizeof *info);
   const char *cache = opt->cache_path;
+  km_puppet_options po = opt->puppet;
+  km_error cerr = {0};
+  if (cache && opt->cache_parameters && km_puppet_cache_options(cache, &po, &cerr) == KM_OK)
+    info->cache_parameters = true;
+  info->puppet = po;
+  info->puppet.progress = (km_progress){0};
   km_status s;
   if (cache && !opt->force) {
     km_error lerr = {0};
     double t0 = km_seconds();
-    s = km_puppet_load(cache, rest, &opt->puppet, out, &lerr);
+    s = km_puppet_load(cache, rest, &po, out, &lerr);
     if (s == KM_OK) {
       info->model = KM_PUPPETRY_MODEL_LOADED;
       info->model_seconds = km_seconds() - t0;
@@ -235,7 +241,7 @@ km_status km_puppetry_model_open(const km_mesh *rest, const km_puppetry_options 
     info->model = KM_PUPPETRY_MODEL_REBUILT_FORCED;
   }
   double t0 = km_seconds();
-  s = km_puppet_precompute(rest, &opt->puppet, out, err);
+  s = km_puppet_precompute(rest, &po, out, err);
   info->model_seconds = km_seconds() - t0;
   if (s != KM_OK) return s;
   if (cache) km_puppet_save(*out, cache, &info->save);
