@@ -587,6 +587,33 @@ typedef struct km_bvh_info {
 km_status km_bvh_read(const char *path, const km_bvh_options *opt, km_take *out, km_bvh_info *info,
                       km_error *err);
 
+/* ---- motion reader (any format) */
+
+typedef enum km_motion_format {
+  KM_MOTION_AUTO = 0,   /* by extension: .json, .csv, .bvh; otherwise by content */
+  KM_MOTION_TAKE_JSON,  /* kinemesh take (km_take_read) */
+  KM_MOTION_KINECT_CSV, /* Kinect v1 skeleton recording (km_kinect_csv_read) */
+  KM_MOTION_BVH         /* BVH (km_bvh_read) */
+} km_motion_format;
+typedef struct km_motion_read_options {
+  km_motion_format format; /* 0: auto. Content sniffing: "HIERARCHY" is BVH, '{' a take, a
+                              first line with ';' a Kinect CSV, anything else a take */
+  bool kinect1;            /* the take's columns in KM_KINECT1 order by name: 20 joints with
+                              Kinect names and parents, absent joints NaN, fps 30 when the file
+                              has none. KM_ERR_INVALID when the file has no frames or none of
+                              the 20 Kinect v1 joints */
+  km_bvh_options bvh;      /* for BVH files */
+} km_motion_read_options;
+typedef struct km_motion_read_info {
+  km_motion_format format; /* the format read */
+  size_t kinect1_found;    /* kinect1: how many of the 20 Kinect v1 joints the file has */
+} km_motion_read_info;
+/* Reads a motion file of any supported format into out (free with km_take_free).
+ * path: the file; opt, info: may be NULL. On failure *out is empty and the error message
+ * names the file. */
+km_status km_motion_read(const char *path, const km_motion_read_options *opt, km_take *out,
+                         km_motion_read_info *info, km_error *err);
+
 /* ---- filter */
 
 /* Holt double exponential smoothing of joint positions (Wu, Lu & Song 2012, eq. 4) with the
@@ -960,6 +987,131 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_
 km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_error *err);
 /* Frees *a and sets it to NULL. */
 void km_arap_free(km_arap **a);
+
+/* ---- puppetry pipeline */
+
+/* One frame of captured joints in, one deformed mesh out: Holt filter -> retarget (eq. 5-7)
+ * -> reduced isoline model (or the full ARAP reference), plus the reduced model's disk cache
+ * policy. It is what `animate`, `bench deform` and the live server run. The rig (handles, map,
+ * filter) can be replaced at run time without a new eigen precompute. Not thread-safe. */
+typedef struct km_puppetry km_puppetry;
+
+typedef enum km_puppetry_solver {
+  KM_PUPPETRY_REDUCED = 0, /* reduced isoline model (km_puppet), cached on disk */
+  KM_PUPPETRY_FULL         /* full-space ARAP (km_arap), rebuilt per handle set, no cache */
+} km_puppetry_solver;
+
+typedef struct km_puppetry_options {
+  const km_filter_options *filter; /* NULL: the rig's "filter" */
+  km_retarget_options retarget;    /* scale 0: automatic */
+  km_puppet_options puppet;        /* reduced model and solve settings; its progress callback
+                                      reports the precompute */
+  km_arap_options arap;            /* full solver settings */
+  km_puppetry_solver solver;       /* 0: reduced */
+  /* An already built reduced model of the rest mesh to use (borrowed: it stays the caller's
+   * and must outlive the pipeline, which sets its handles). NULL: km_puppetry_model_open. */
+  km_puppet *model;
+  /* Reduced model cache: loaded when up to date for this mesh and model parameters, else
+   * the model is precomputed and written there. NULL: always precompute, write nothing. */
+  const char *cache_path;
+  bool force;            /* precompute and rewrite the cache even when it is up to date */
+  /* Adopt the model parameters an existing cache was built with (fields, isolines,
+   * crossed_per_isoline, energy: km_puppet_cache_options) instead of puppet's, so a cache
+   * made with other parameters is used as built rather than rebuilt. */
+  bool cache_parameters;
+  const char *take_name; /* names the take in error messages; NULL: "the take" */
+} km_puppetry_options;
+
+typedef enum km_puppetry_model_source {
+  KM_PUPPETRY_MODEL_BUILT = 0,      /* precomputed: no cache path, or no cache file yet */
+  KM_PUPPETRY_MODEL_LOADED,         /* loaded from an up-to-date cache */
+  KM_PUPPETRY_MODEL_REBUILT_STALE,  /* the cache did not match: see stale */
+  KM_PUPPETRY_MODEL_REBUILT_FORCED, /* options.force */
+  KM_PUPPETRY_MODEL_FULL,           /* full solver: ARAP precomputed for the rig's handles */
+  KM_PUPPETRY_MODEL_GIVEN           /* options.model was used */
+} km_puppetry_model_source;
+
+/* What km_puppetry_create did about the model (the library never prints: the caller
+ * reports it). */
+typedef struct km_puppetry_info {
+  km_puppetry_model_source model;
+  double model_seconds; /* load or precompute time of the solver (not the cache write) */
+  bool cache_parameters; /* options.cache_parameters took the cache's model parameters */
+  km_puppet_options puppet; /* the reduced model parameters used (progress cleared) */
+  km_error stale;       /* REBUILT_STALE: status KM_ERR_STALE and why the cache was unusable */
+  km_error save;        /* status KM_OK, or why the cache could not be written (the pipeline
+                           is usable all the same) */
+} km_puppetry_info;
+
+/* The cache policy alone: the reduced model of rest by opt->puppet, opt->cache_path,
+ * opt->force and opt->cache_parameters (the other members are ignored), loaded when the cache is up to date, else
+ * precomputed (opt->puppet.progress reports it) and saved. *out: the caller's, free with
+ * km_puppet_free. info: what happened (may be NULL). A cache that is absent or stale is
+ * rebuilt; any other load error fails; a failed save is only reported in info->save. */
+km_status km_puppetry_model_open(const km_mesh *rest, const km_puppetry_options *opt,
+                                 km_puppet **out, km_puppetry_info *info, km_error *err);
+
+/* rest: the mesh to deform (kept by pointer: must outlive the pipeline).
+ * rig: resolved on rest (copied; may be NULL: the model only, set a rig with
+ * km_puppetry_set_rig before pushing). joint_names, n_joints: the columns of the frames that
+ * will be pushed (n_joints*3 doubles each). For a "kinect1" rig with joint_names, columns are
+ * matched to the 20 Kinect v1 joints by name (extra columns ignored, absent ones missing),
+ * and every joint the rig maps must be present (KM_ERR_INVALID naming take_name and the
+ * missing joints); joint_names NULL: frames are already in the rig's joint order. info: may
+ * be NULL. The reduced model is options.model, else km_puppetry_model_open's: its errors fail
+ * the call; a cache that cannot be written is only reported in info->save. */
+km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig,
+                             const char *const *joint_names, size_t n_joints,
+                             const km_puppetry_options *opt, km_puppetry **out,
+                             km_puppetry_info *info, km_error *err);
+/* Replaces the rig (handles, map, filter) at run time: new filter and retarget, the solver's
+ * handle set changed (reduced: milliseconds, no eigen precompute; full: a new factor). The
+ * new retarget's reference pose is seeded with the first valid filtered joints already seen
+ * and the newest frame is replayed through it, so the character does not jump; the handle
+ * targets reflect that (rest centroids when nothing was pushed yet). On failure the previous
+ * rig stays in force. The rig is copied. */
+km_status km_puppetry_set_rig(km_puppetry *p, const km_rig *rig, km_error *err);
+/* One frame: joints n_joints*3 raw positions in the create-time column order (NaN = missing:
+ * the joint holds its last filtered value); V_out #V*3 deformed positions. Does not allocate.
+ * KM_ERR_INVALID when no rig is set; solver errors as km_puppet_solve / km_arap_solve. */
+km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, km_error *err);
+/* Forgets the filter history, the retarget's reference pose and auto scale, the first valid
+ * joints and the newest frame, and the reduced solver's warm start (the full solver keeps
+ * its warm start). */
+void km_puppetry_reset(km_puppetry *p);
+
+/* Milliseconds spent by the last push in each stage (Wu, Lu & Song's t2,3 = filter + retarget,
+ * t4 = solve). */
+typedef struct km_puppetry_times {
+  double filter_ms, retarget_ms, solve_ms;
+} km_puppetry_times;
+void km_puppetry_times_get(const km_puppetry *p, km_puppetry_times *out);
+/* The performer-to-character factor in use; NaN while automatic and no valid frame seen. */
+double km_puppetry_scale(const km_puppetry *p);
+/* Handle set of the current rig: *n_handles, offsets (n_handles+1) and vertices
+ * (offsets[n_handles]), as km_puppet_set_handles takes them; owned by the pipeline, valid
+ * until the next km_puppetry_set_rig. Zero / NULL when no rig is set. */
+void km_puppetry_handles(const km_puppetry *p, size_t *n_handles, const int32_t **offsets,
+                         const int32_t **vertices);
+/* Targets of the last push (or of km_puppetry_set_rig), owned by the pipeline:
+ * handle_targets n_handles*3 (handle centroids), vertex_targets offsets[n_handles]*3 (one
+ * per handle vertex, what the solver got), rest_centroids n_handles*3. NULL without a rig. */
+const double *km_puppetry_handle_targets(const km_puppetry *p);
+const double *km_puppetry_vertex_targets(const km_puppetry *p);
+const double *km_puppetry_rest_centroids(const km_puppetry *p);
+/* Joints in the rig's order (20 for kinect1, else n_joints), *3 doubles, owned by the
+ * pipeline: filtered = the last push's filter output; reference = per coordinate the first
+ * valid filtered value since create / reset (NaN until seen); last = the last raw frame
+ * pushed (NULL when none since create / reset). NULL without a rig. */
+const double *km_puppetry_filtered_joints(const km_puppetry *p);
+const double *km_puppetry_reference_joints(const km_puppetry *p);
+const double *km_puppetry_last_joints(const km_puppetry *p);
+/* The reduced model in use (NULL for the full solver); owned by the pipeline unless it was
+ * given as options.model. */
+km_puppet *km_puppetry_model(const km_puppetry *p);
+/* The reduced model's info (zeroed for the full solver). */
+void km_puppetry_puppet_info(const km_puppetry *p, km_puppet_info *out);
+void km_puppetry_free(km_puppetry **p);
 
 /* ==== transfer: pose transfer & recognition, Lifkooee et al. 2019 (src/transfer/) ==== */
 

@@ -84,16 +84,16 @@ km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertic
 /* "<CPU model>, <n> cores" for benchmark headers. */
 void km_cli_machine(char *out, size_t n);
 int km_cli_live(int argc, char **argv);
-/* A take's columns in KM_KINECT1 order by name (absent joints NaN, Kinect names and parents;
- * free with km_take_free): what live mode replays and sends. path names the take in errors. */
-km_status km_cli_take_kinect1(const char *path, const km_take *t, km_take *out, km_error *err);
 
 /* Puppetry helpers shared by animate, bench and live. */
 char *km_cli_cache_path(const char *mesh_path); /* MESH.kmcache, caller frees */
-km_status km_cli_puppet_open(const km_mesh *mesh, const km_puppet_options *po, const char *cache,
-                             bool verbose, km_puppet **out, bool *loaded, double *seconds,
-                             km_error *err);
-km_status km_cli_read_motion(const char *path, km_take *t, km_error *err);
+/* Prints what the cache policy reported that the user must know: a stale cache rebuilt, a
+ * cache not written. */
+void km_cli_report_cache(const char *cache, const km_puppetry_info *info);
+/* The reduced model (default parameters) by the cache policy with a progress bar for the
+ * precompute, reported as above: what live mode's server takes. */
+km_status km_cli_puppet_open(const km_mesh *mesh, const char *cache, km_puppet **out,
+                             km_puppetry_info *info, km_error *err);
 double km_cli_median(double *v, size_t n); /* sorts v */
 /* --energy laplacian|arap; prints the error and returns non-zero when unknown. */
 int km_cli_parse_energy(const char *verb, const char *s, km_puppet_energy *e);

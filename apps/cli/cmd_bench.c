@@ -144,13 +144,10 @@ static int bench_deform_one(const char *mesh_path, const deform_args *da) {
   km_error err = {0};
   km_mesh m = {0};
   km_rig rig = {0};
-  km_puppet *pup = NULL;
+  km_puppetry *pl = NULL;
   km_arap *arap = NULL;
-  km_filter *filter = NULL;
-  km_retarget *rt = NULL;
-  int32_t *off = NULL, *hv = NULL;
-  double *t1 = NULL, *t1c = NULL, *t23 = NULL, *t4 = NULL, *tf = NULL, *targets = NULL;
-  double *V = NULL, *Vf = NULL, J[KM_KINECT1_JOINTS * 3], Jf[KM_KINECT1_JOINTS * 3];
+  double *t1 = NULL, *t1c = NULL, *t23 = NULL, *t4 = NULL, *tf = NULL;
+  double *V = NULL, *Vf = NULL, J[KM_KINECT1_JOINTS * 3];
   int rc = KM_EXIT_FAIL;
   char cache[64];
   snprintf(cache, sizeof cache, "/tmp/kinemesh-bench-%ld.kmcache", (long)getpid());
@@ -178,64 +175,54 @@ static int bench_deform_one(const char *mesh_path, const deform_args *da) {
     rig.maps[rig.n_maps].scale = 1.0;
     rig.n_maps++;
   }
-  off = malloc((handles + 1) * sizeof *off);
-  hv = malloc(handles * per * sizeof *hv);
   t1 = malloc(repeat * sizeof *t1);
   t1c = malloc(5 * sizeof *t1c);
   t23 = malloc(frames * sizeof *t23);
   t4 = malloc(frames * sizeof *t4);
   tf = malloc((full_frames ? full_frames : 1) * sizeof *tf);
-  targets = malloc(3 * handles * per * sizeof *targets);
   V = malloc(3 * m.n_vertices * sizeof *V);
   Vf = malloc(3 * m.n_vertices * sizeof *Vf);
-  if (!off || !hv || !t1 || !t1c || !t23 || !t4 || !tf || !targets || !V || !Vf) goto nomem;
-  off[0] = 0;
-  for (size_t h = 0, k = 0; h < handles; ++h) {
-    for (size_t i = 0; i < rig.handles[h].n_vertices; ++i)
-      hv[k++] = rig.handles[h].vertices[i];
-    off[h + 1] = off[h] + (int32_t)rig.handles[h].n_vertices;
-  }
+  if (!t1 || !t1c || !t23 || !t4 || !tf || !V || !Vf) goto nomem;
 
-  /* t1: precompute from scratch; t~1: load from the cache (what a second run does). */
-  for (size_t i = 0; i < repeat; ++i) {
-    km_puppet_free(&pup);
-    double a = km_cli_now();
-    if (km_puppet_precompute(&m, &po, &pup, &err) != KM_OK) goto fail;
-    t1[i] = km_cli_now() - a;
-  }
-  if (km_puppet_save(pup, cache, &err) != KM_OK) goto fail;
-  for (int i = 0; i < 5; ++i) {
-    km_puppet_free(&pup);
-    double a = km_cli_now();
-    if (km_puppet_load(cache, &m, &po, &pup, &err) != KM_OK) goto fail;
-    t1c[i] = km_cli_now() - a;
+  /* t1: precompute from scratch (--force); t~1: load from the cache (what a second run
+   * does). The pipeline's model time excludes the cache write and the handle set-up. */
+  km_puppetry_options o = {0};
+  o.puppet = po;
+  o.retarget.scale = 1.0;
+  o.cache_path = cache;
+  km_puppetry_info pi;
+  for (size_t i = 0; i < repeat + 5; ++i) {
+    km_puppetry_free(&pl);
+    o.force = i < repeat;
+    if (km_puppetry_create(&m, &rig, NULL, KM_KINECT1_JOINTS, &o, &pl, &pi, &err) != KM_OK)
+      goto fail;
+    if (pi.save.status != KM_OK) {
+      err = pi.save;
+      goto fail;
+    }
+    if (i < repeat)
+      t1[i] = pi.model_seconds;
+    else
+      t1c[i - repeat] = pi.model_seconds;
   }
   remove(cache);
-  if (km_puppet_set_handles(pup, handles, off, hv, &err) != KM_OK) goto fail;
-  km_retarget_options ro = {0};
-  ro.scale = 1.0;
-  if (km_filter_create(KM_KINECT1_JOINTS, NULL, &filter, &err) != KM_OK ||
-      km_retarget_create(&rig, &m, KM_KINECT1_JOINTS, &ro, &rt, &err) != KM_OK)
-    goto fail;
-  if (full_frames && km_arap_precompute(&m, handles, off, hv, NULL, &arap, &err) != KM_OK)
-    goto fail;
+  size_t n_h = 0;
+  const int32_t *off = NULL, *hv = NULL;
+  km_puppetry_handles(pl, &n_h, &off, &hv);
+  if (full_frames && km_arap_precompute(&m, n_h, off, hv, NULL, &arap, &err) != KM_OK) goto fail;
 
   double dev_sum = 0, dev_max = 0;
   size_t dev_n = 0;
   for (size_t f = 0; f < frames; ++f) {
     joints_at(f, diag, J);
-    double a = km_cli_now();
-    km_filter_push(filter, J, Jf);
-    km_retarget_push(rt, Jf, NULL);
-    km_retarget_vertex_targets(rt, targets);
-    double b = km_cli_now();
-    if (km_puppet_solve(pup, targets, V, &err) != KM_OK) goto fail;
-    double c = km_cli_now();
-    t23[f] = 1e3 * (b - a);
-    t4[f] = 1e3 * (c - b);
+    if (km_puppetry_push(pl, J, V, &err) != KM_OK) goto fail;
+    km_puppetry_times tm;
+    km_puppetry_times_get(pl, &tm);
+    t23[f] = tm.filter_ms + tm.retarget_ms;
+    t4[f] = tm.solve_ms;
     if (f < full_frames) {
       double d = km_cli_now();
-      if (km_arap_solve(arap, targets, Vf, &err) != KM_OK) goto fail;
+      if (km_arap_solve(arap, km_puppetry_vertex_targets(pl), Vf, &err) != KM_OK) goto fail;
       tf[f] = 1e3 * (km_cli_now() - d) + t23[f];
       for (size_t v = 0; v < m.n_vertices; ++v) {
         double dx = V[3 * v] - Vf[3 * v], dy = V[3 * v + 1] - Vf[3 * v + 1],
@@ -248,7 +235,7 @@ static int bench_deform_one(const char *mesh_path, const deform_args *da) {
     }
   }
   km_puppet_info info;
-  km_puppet_info_get(pup, &info);
+  km_puppetry_puppet_info(pl, &info);
   double mt1 = km_cli_median(t1, repeat), mt1c = km_cli_median(t1c, 5);
   double m23 = km_cli_median(t23, frames), m4 = km_cli_median(t4, frames);
   double mf = full_frames ? km_cli_median(tf, full_frames) : NAN;
@@ -303,20 +290,15 @@ fail:
   rc = km_cli_fail("bench deform", &err);
 done:
   remove(cache);
-  km_puppet_free(&pup);
+  km_puppetry_free(&pl);
   km_arap_free(&arap);
-  km_filter_free(&filter);
-  km_retarget_free(&rt);
   km_rig_free(&rig);
   km_mesh_free(&m);
-  free(off);
-  free(hv);
   free(t1);
   free(t1c);
   free(t23);
   free(t4);
   free(tf);
-  free(targets);
   free(V);
   free(Vf);
   return rc;

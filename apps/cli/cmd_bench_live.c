@@ -267,7 +267,7 @@ int km_cli_bench_live(int argc, char **argv) {
   km_error err = {0};
   km_mesh mesh = {0};
   km_character ch = {0};
-  km_take raw = {0}, take = {0};
+  km_take take = {0};
   km_puppet *pup = NULL;
   km_live *l = NULL;
   char *rig = NULL, *rig_default = NULL, *cache = NULL;
@@ -317,9 +317,9 @@ int km_cli_bench_live(int argc, char **argv) {
     goto done;
   }
   if (take_path) {
-    if (km_cli_read_motion(take_path, &raw, &err) != KM_OK ||
-        km_cli_take_kinect1(take_path, &raw, &take, &err) != KM_OK)
-      goto fail;
+    km_motion_read_options mo = {0};
+    mo.kinect1 = true;
+    if (km_motion_read(take_path, &mo, &take, NULL, &err) != KM_OK) goto fail;
   } else {
     /* The generated take follows the rig's own skeleton. */
     if (km_character_read_rig(rig_path, mesh.n_vertices, &ch, &err) != KM_OK) {
@@ -330,12 +330,10 @@ int km_cli_bench_live(int argc, char **argv) {
     if (km_motion_generate(&ch.skeleton, KM_MOTION_KUNGFU, 300, &take, &err) != KM_OK) goto fail;
   }
   {
-    km_puppet_options po = {0};
-    bool loaded = false;
-    double t_pre = 0;
-    if (km_cli_puppet_open(&mesh, &po, cache, true, &pup, &loaded, &t_pre, &err) != KM_OK)
-      goto fail;
-    if (!loaded) fprintf(info, "precompute: %.2f s (cached in %s)\n", t_pre, cache);
+    km_puppetry_info pi;
+    if (km_cli_puppet_open(&mesh, cache, &pup, &pi, &err) != KM_OK) goto fail;
+    if (pi.model != KM_PUPPETRY_MODEL_LOADED)
+      fprintf(info, "precompute: %.2f s (cached in %s)\n", pi.model_seconds, cache);
   }
 
   km_live_options o = {0};
@@ -551,7 +549,6 @@ done:
   free(rig);
   free(rig_default);
   free(cache);
-  km_take_free(&raw);
   km_take_free(&take);
   km_character_free(&ch);
   km_puppet_free(&pup);

@@ -84,7 +84,7 @@ int km_cli_live(int argc, char **argv) {
 
   km_error err = {0};
   km_mesh m = {0};
-  km_take raw = {0}, take = {0};
+  km_take take = {0};
   km_puppet *pup = NULL;
   km_live *live = NULL;
   char *rig_text = NULL;
@@ -94,8 +94,6 @@ int km_cli_live(int argc, char **argv) {
   char *web_default = web ? NULL : default_web_dir();
   const char *rig_file = rig_path ? rig_path : rig_default;
   int rc = KM_EXIT_FAIL;
-  bool loaded = false;
-  double t_pre = 0;
 
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK) goto fail;
   FILE *f = fopen(rig_file, "rb");
@@ -115,15 +113,11 @@ int km_cli_live(int argc, char **argv) {
   fclose(f);
   rig_size = (size_t)sz;
   rig_text[rig_size] = 0;
-  if (replay) {
-    if (km_cli_read_motion(replay, &raw, &err) != KM_OK ||
-        km_cli_take_kinect1(replay, &raw, &take, &err) != KM_OK)
-      goto fail;
-  }
-  km_puppet_options po = {0};
-  if (km_cli_puppet_open(&m, &po, cache ? cache : cache_default, true, &pup, &loaded, &t_pre,
-                         &err) != KM_OK)
-    goto fail;
+  km_motion_read_options mo = {0};
+  mo.kinect1 = true;
+  if (replay && km_motion_read(replay, &mo, &take, NULL, &err) != KM_OK) goto fail;
+  km_puppetry_info pi;
+  if (km_cli_puppet_open(&m, cache ? cache : cache_default, &pup, &pi, &err) != KM_OK) goto fail;
 
   km_live_options lo = {0};
   lo.bind = bind;
@@ -147,7 +141,8 @@ int km_cli_live(int argc, char **argv) {
   sigaction(SIGTERM, &sa, NULL);
   signal(SIGPIPE, SIG_IGN);
   printf("kinemesh live: %zu vertices (model %s in %.2f s); open http://%s:%d/\n", m.n_vertices,
-         loaded ? "loaded" : "precomputed", t_pre, bind, http);
+         pi.model == KM_PUPPETRY_MODEL_LOADED ? "loaded" : "precomputed", pi.model_seconds, bind,
+         http);
   if (osc) printf("  OSC (OSCeleton /joint, KinectV2-OSC /bodies/...) on udp %s:%d\n", bind, osc);
   if (udp) printf("  JSON frames on udp %s:%d\n", bind, udp);
   if (replay) printf("  replay: %s (%zu frames at %g fps)\n", replay, take.n_frames, take.fps);
@@ -176,7 +171,6 @@ done:
   g_live = NULL;
   km_live_free(&live);
   km_puppet_free(&pup);
-  km_take_free(&raw);
   km_take_free(&take);
   km_mesh_free(&m);
   free(rig_text);

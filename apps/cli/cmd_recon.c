@@ -55,7 +55,7 @@ int km_cli_gen_capture(int argc, char **argv) {
   co.progress = km_cli_progress("capture");
   double t0 = km_cli_now();
   if (km_cli_load_character(character, rig, vertices, &c, &err) ||
-      (motion ? km_cli_read_motion(motion, &take, &err)
+      (motion ? km_motion_read(motion, NULL, &take, NULL, &err)
               : km_motion_generate(&c.skeleton, mk, frames, &take, &err)) ||
       km_capture_simulate(&c, &take, &co, out, &err))
     rc = km_cli_fail("gen capture", &err);

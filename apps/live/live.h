@@ -70,8 +70,9 @@ typedef struct km_live_options {
 
 typedef struct km_live km_live;
 
-/* mesh and puppet stay owned by the caller and must outlive the server; the puppet's handles
- * are set here from the rig. rig_json is the rig file's text. replay: a take already in
+/* mesh and puppet (the reduced model) stay owned by the caller and must outlive the server,
+ * which runs them in its own km_puppetry pipeline; the rig (rig_json, the rig file's text) is
+ * set there with km_puppetry_set_rig, as POST /rig does later. replay: a take already in
  * KM_KINECT1 order (20 joints) or NULL. Binds the sockets (KM_ERR_IO naming the port when it
  * is taken) and starts the input and deformation threads; the HTTP service runs in
  * km_live_run. */

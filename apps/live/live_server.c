@@ -2,14 +2,15 @@
  *  - input: polls the OSC and JSON UDP sockets (its own sockets so they bind to the requested
  *    address; liblo only decodes), assembles per-joint OSC messages into frames and plays the
  *    replay take on time. It stores only the newest joint frame (latest wins).
- *  - deform: takes the newest frame, filter -> retarget -> km_puppet_solve -> packs a frame
- *    message into a double buffer and wakes the service loop with lws_cancel_service.
+ *  - deform: takes the newest frame, pushes it through the km_puppetry pipeline (filter ->
+ *    retarget -> reduced solve), packs a frame message into a double buffer and wakes the
+ *    service loop with lws_cancel_service.
  *  - service (the caller of km_live_run): libwebsockets HTTP + WebSocket. Each page has one
  *    pending slot: on WRITEABLE it sends the newest frame if it has not sent it yet, so a slow
  *    page skips frames instead of queueing them.
- * The rig can be replaced at run time (POST /rig): the deform thread swaps handles with
- * km_puppet_set_handles (no eigen precompute) and a new retarget seeded with the reference
- * pose already seen, so the character does not jump. */
+ * The rig can be replaced at run time (POST /rig): the deform thread hands it to
+ * km_puppetry_set_rig (no eigen precompute; the new retarget is seeded with the reference
+ * pose already seen, so the character does not jump). */
 #include "live.h"
 
 
@@ -81,17 +82,13 @@ struct km_live {
   char bind[64];
   char *web_dir, *rig_path;
   const km_mesh *mesh;
-  km_puppet *puppet;
+  km_puppetry *pipe;
   const km_take *take;
 
   /* deform-thread state */
   km_rig rig;
-  km_retarget *rt;
-  km_filter *filter;
-  double *targets, *V, *centroids;
-  size_t n_targets_cap;
-  double p0[NJ * 3], last_raw[NJ * 3], rest_joints[NJ * 3];
-  bool have_raw;
+  double *V;
+  double rest_joints[NJ * 3];
 
   /* input slot */
   pthread_mutex_t in_mu;
@@ -185,74 +182,33 @@ static char *handles_json(const km_rig *rig) {
   return s;
 }
 
-/* Installs `nr` (taken over on success) as the active rig: handles into the puppet, a new
- * filter and retarget. The retarget's reference pose is re-seeded with the first valid
- * filtered positions already seen (p0), then the newest frame is replayed through it. */
+/* Installs `nr` (taken over on success) as the active rig: km_puppetry_set_rig (handles,
+ * filter, retarget seeded with the pose already seen), then the handle list and overlay. */
 static km_status apply_rig(km_live *l, live_rig *nr, km_error *err) {
   km_rig *rig = &nr->rig;
   if (rig->skeleton != KM_RIG_KINECT1)
     return km_error_set(err, KM_ERR_INVALID, "live mode needs a \"kinect1\" rig");
   if (rig->n_handles == 0) return km_error_set(err, KM_ERR_INVALID, "the rig has no handles");
-  int32_t *off = live_alloc(rig->n_handles + 1, sizeof(int32_t));
-  size_t n_hv = 0;
-  for (size_t h = 0; h < rig->n_handles; ++h)
-    n_hv += rig->handles[h].n_vertices;
-  int32_t *hv = live_alloc(n_hv ? n_hv : 1, sizeof(int32_t));
-  double *targets = live_alloc(3 * (n_hv ? n_hv : 1), sizeof(double));
-  double *cent = live_alloc(3 * rig->n_handles, sizeof(double));
   double *hpos = live_alloc(3 * rig->n_handles, sizeof(double));
   char **names = live_zalloc(rig->n_handles, sizeof(char *));
-  km_filter *f = NULL;
-  km_retarget *rt = NULL;
   km_status s = KM_OK;
-  if (!off || !hv || !targets || !cent || !hpos || !names) {
+  if (!hpos || !names) {
     s = km_error_set(err, KM_ERR_NOMEM, "out of memory for the rig");
     goto fail;
   }
-  off[0] = 0;
-  for (size_t h = 0, k = 0; h < rig->n_handles; ++h) {
-    for (size_t i = 0; i < rig->handles[h].n_vertices; ++i)
-      hv[k++] = rig->handles[h].vertices[i];
-    off[h + 1] = (int32_t)k;
-    names[h] = strdup(rig->handles[h].name);
-    if (!names[h]) {
+  for (size_t h = 0; h < rig->n_handles; ++h)
+    if (!(names[h] = strdup(rig->handles[h].name))) {
       s = km_error_set(err, KM_ERR_NOMEM, "out of memory for the rig");
       goto fail;
     }
-  }
-  km_retarget_options ro = {0};
-  if ((s = km_filter_create(NJ, &rig->filter, &f, err)) != KM_OK ||
-      (s = km_retarget_create(rig, l->mesh, NJ, &ro, &rt, err)) != KM_OK ||
-      (s = km_puppet_set_handles(l->puppet, rig->n_handles, off, hv, err)) != KM_OK)
-    goto fail;
-  bool seeded = false;
-  for (int k = 0; k < 3 * NJ; ++k)
-    seeded |= !isnan(l->p0[k]);
-  if (seeded) km_retarget_push(rt, l->p0, NULL);
-  if (l->have_raw) {
-    double filt[3 * NJ];
-    km_filter_push(f, l->last_raw, filt);
-    km_retarget_push(rt, filt, cent);
-  } else {
-    memcpy(cent, km_retarget_rest_centroids(rt), sizeof(double) * 3 * rig->n_handles);
-  }
-  memcpy(hpos, cent, sizeof(double) * 3 * rig->n_handles);
+  if ((s = km_puppetry_set_rig(l->pipe, rig, err)) != KM_OK) goto fail;
+  memcpy(hpos, km_puppetry_handle_targets(l->pipe), sizeof(double) * 3 * rig->n_handles);
   char *hj = handles_json(rig);
   read_rest_joints(l, nr->text, nr->len);
 
-  km_filter_free(&l->filter);
-  km_retarget_free(&l->rt);
   km_rig_free(&l->rig);
-  free(l->targets);
-  free(l->centroids);
   l->rig = *rig;
   memset(rig, 0, sizeof *rig);
-  l->filter = f;
-  l->rt = rt;
-  l->targets = targets;
-  l->centroids = cent;
-  free(off);
-  free(hv);
 
   pthread_mutex_lock(&l->st_mu);
   for (size_t h = 0; h < l->n_handles; ++h)
@@ -271,37 +227,11 @@ static km_status apply_rig(km_live *l, live_rig *nr, km_error *err) {
   pthread_mutex_unlock(&l->st_mu);
   return KM_OK;
 fail:
-  km_filter_free(&f);
-  km_retarget_free(&rt);
   if (names)
     for (size_t h = 0; h < rig->n_handles; ++h)
       free(names[h]);
   free(names);
-  free(off);
-  free(hv);
-  free(targets);
-  free(cent);
   free(hpos);
-  /* The puppet may hold a half-set handle set: put the active rig's back. */
-  if (l->rig.n_handles && s != KM_OK) {
-    int32_t *o2 = live_alloc(l->rig.n_handles + 1, sizeof(int32_t));
-    size_t n2 = 0;
-    for (size_t h = 0; h < l->rig.n_handles; ++h)
-      n2 += l->rig.handles[h].n_vertices;
-    int32_t *v2 = live_alloc(n2 ? n2 : 1, sizeof(int32_t));
-    if (o2 && v2) {
-      o2[0] = 0;
-      for (size_t h = 0, k = 0; h < l->rig.n_handles; ++h) {
-        for (size_t i = 0; i < l->rig.handles[h].n_vertices; ++i)
-          v2[k++] = l->rig.handles[h].vertices[i];
-        o2[h + 1] = (int32_t)k;
-      }
-      km_error e2 = {0};
-      km_puppet_set_handles(l->puppet, l->rig.n_handles, o2, v2, &e2);
-    }
-    free(o2);
-    free(v2);
-  }
   return s;
 }
 
@@ -555,7 +485,8 @@ static void pack_frame(km_live *l, unsigned char *dst, const double *filt, uint6
   uint32_t hdr[5] = {KM_LIVE_MAGIC, l->opt.quantize ? 1u : 0u, (uint32_t)n, (uint32_t)seq,
                      (uint32_t)in_seq};
   memcpy(dst, hdr, sizeof hdr);
-  double s = km_retarget_scale(l->rt);
+  double s = km_puppetry_scale(l->pipe);
+  const double *p0 = km_puppetry_reference_joints(l->pipe);
   float f[4 + 6 + 3 * NJ];
   f[0] = t_rt;
   f[1] = t_def;
@@ -567,7 +498,7 @@ static void pack_frame(km_live *l, unsigned char *dst, const double *filt, uint6
    * s (p - p0), so they move exactly as the handles they drive. */
   for (int j = 0; j < NJ; ++j)
     for (int a = 0; a < 3; ++a) {
-      double d = filt[3 * j + a] - l->p0[3 * j + a];
+      double d = filt[3 * j + a] - p0[3 * j + a];
       f[10 + 3 * j + a] = isnan(d) || isnan(s) ? NAN : (float)(l->rest_joints[3 * j + a] + s * d);
     }
   memcpy(dst + 20, f, sizeof f);
@@ -586,7 +517,7 @@ static void pack_frame(km_live *l, unsigned char *dst, const double *filt, uint6
 
 static void *deform_main(void *arg) {
   km_live *l = arg;
-  double raw[3 * NJ], filt[3 * NJ];
+  double raw[3 * NJ];
   uint64_t produced = 0;
   for (;;) {
     pthread_mutex_lock(&l->in_mu);
@@ -618,38 +549,27 @@ static void *deform_main(void *arg) {
         fprintf(stderr, "kinemesh live: rig not applied: %s\n", err.message);
       km_rig_free(&nr.rig);
       free(nr.text);
-      if (!have && l->have_raw) {
+      const double *last = km_puppetry_last_joints(l->pipe);
+      if (!have && last) {
         /* Show the new handles on the current pose right away. */
-        memcpy(raw, l->last_raw, sizeof raw);
+        memcpy(raw, last, sizeof raw);
         have = true;
         t_recv = km_seconds();
       }
     }
-    if (reset) {
-      km_filter_reset(l->filter);
-      km_retarget_reset(l->rt);
-      km_puppet_reset(l->puppet);
-      for (int k = 0; k < 3 * NJ; ++k)
-        l->p0[k] = NAN;
-    }
+    if (reset) km_puppetry_reset(l->pipe);
     if (!have) continue;
-    double t0 = km_seconds();
-    memcpy(l->last_raw, raw, sizeof raw);
-    l->have_raw = true;
-    km_filter_push(l->filter, raw, filt);
-    for (int k = 0; k < 3 * NJ; ++k)
-      if (isnan(l->p0[k]) && !isnan(filt[k])) l->p0[k] = filt[k];
-    km_retarget_push(l->rt, filt, l->centroids);
-    km_retarget_vertex_targets(l->rt, l->targets);
-    double t1 = km_seconds();
     km_error err = {0};
-    if (km_puppet_solve(l->puppet, l->targets, l->V, &err) != KM_OK) {
+    if (km_puppetry_push(l->pipe, raw, l->V, &err) != KM_OK) {
       atomic_fetch_add(&l->solve_errors, 1);
       continue;
     }
     double t2 = km_seconds();
-    pack_frame(l, l->out_work + LWS_PRE, filt, produced + 1, in_seq, (float)(1e3 * (t1 - t0)),
-               (float)(1e3 * (t2 - t1)));
+    km_puppetry_times tm;
+    km_puppetry_times_get(l->pipe, &tm);
+    double t_rt = tm.filter_ms + tm.retarget_ms, t_def = tm.solve_ms;
+    pack_frame(l, l->out_work + LWS_PRE, km_puppetry_filtered_joints(l->pipe), produced + 1,
+               in_seq, (float)t_rt, (float)t_def);
     double t3 = km_seconds();
     pthread_mutex_lock(&l->out_mu);
     unsigned char *tmp = l->out_latest;
@@ -660,12 +580,12 @@ static void *deform_main(void *arg) {
     pthread_mutex_unlock(&l->out_mu);
     atomic_fetch_add(&l->frames_out, 1);
     pthread_mutex_lock(&l->st_mu);
-    ring_push(&l->t_rt, 1e3 * (t1 - t0));
-    ring_push(&l->t_def, 1e3 * (t2 - t1));
+    ring_push(&l->t_rt, t_rt);
+    ring_push(&l->t_def, t_def);
     ring_push(&l->t_pack, 1e3 * (t3 - t2));
     ring_push(&l->out_times, t3);
     if (l->handle_pos && l->n_handles == l->rig.n_handles)
-      memcpy(l->handle_pos, l->centroids, sizeof(double) * 3 * l->n_handles);
+      memcpy(l->handle_pos, km_puppetry_handle_targets(l->pipe), sizeof(double) * 3 * l->n_handles);
     pthread_mutex_unlock(&l->st_mu);
     if (l->ctx) lws_cancel_service(l->ctx);
   }
@@ -1107,15 +1027,12 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
   l->opt.web_dir = l->web_dir;
   l->opt.rig_path = l->rig_path;
   l->mesh = mesh;
-  l->puppet = puppet;
   l->take = replay;
   l->osc_fd = l->udp_fd = -1;
   pthread_mutex_init(&l->in_mu, NULL);
   pthread_cond_init(&l->in_cv, NULL);
   pthread_mutex_init(&l->out_mu, NULL);
   pthread_mutex_init(&l->st_mu, NULL);
-  for (int k = 0; k < 3 * NJ; ++k)
-    l->p0[k] = NAN;
   km_status s = KM_OK;
   size_t n = mesh->n_vertices;
   l->frame_size = KM_LIVE_HEADER + n * 3 * (opt->quantize ? 2 : 4);
@@ -1127,6 +1044,10 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
     s = km_error_set(err, KM_ERR_NOMEM, "out of memory");
     goto fail;
   }
+  km_puppetry_options po = {0};
+  po.model = puppet;
+  if ((s = km_puppetry_create(mesh, NULL, NULL, NJ, &po, &l->pipe, NULL, err)) != KM_OK)
+    goto fail;
   live_rig nr = {0};
   if ((s = km_rig_parse(rig_json, rig_size, opt->rig_path ? opt->rig_path : "rig", mesh, NULL, 0,
                         &nr.rig, err)) != KM_OK)
@@ -1242,8 +1163,7 @@ void km_live_free(km_live **lp) {
   if (l->ctx) lws_context_destroy(l->ctx);
   if (l->osc_fd >= 0) close(l->osc_fd);
   if (l->udp_fd >= 0) close(l->udp_fd);
-  km_filter_free(&l->filter);
-  km_retarget_free(&l->rt);
+  km_puppetry_free(&l->pipe);
   km_rig_free(&l->rig);
   if (l->has_pending) {
     km_rig_free(&l->pending.rig);
@@ -1255,8 +1175,6 @@ void km_live_free(km_live **lp) {
   free(l->handle_pos);
   free(l->rig_text);
   free(l->handles_json);
-  free(l->targets);
-  free(l->centroids);
   free(l->V);
   free(l->out_latest);
   free(l->out_work);

@@ -1,0 +1,428 @@
+/* The puppetry pipeline (km_puppetry) and the one motion reader (km_motion_read): rest joints
+ * reproduce the rest mesh, the pipeline matches the hand-written filter -> retarget -> solve
+ * loop bit for bit (reduced and full), Kinect columns are matched by name, the cache policy
+ * (built, loaded, stale, forced), run-time rig swaps, and every motion format. */
+#include "km_test.h"
+
+#include <stdint.h>
+#include <unistd.h>
+
+static char g_dir[] = "/tmp/km_test_puppetry_XXXXXX";
+
+static double max_abs_diff(const double *a, const double *b, size_t n) {
+  double m = 0;
+  for (size_t i = 0; i < n; ++i) {
+    double d = fabs(a[i] - b[i]);
+    if (!(d <= m)) m = d; /* NaN counts as a difference */
+  }
+  return m;
+}
+
+typedef struct fixture {
+  km_character c;
+  km_rig rig;
+  km_take take; /* KM_KINECT1 order */
+  char rig_path[256];
+} fixture;
+
+static bool fixture_make(fixture *fx) {
+  memset(fx, 0, sizeof *fx);
+  km_character_options co = {0};
+  co.target_vertices = 2000;
+  bool ok = true;
+  CHECK_OK(km_character_generate(&co, &fx->c, KM_E));
+  snprintf(fx->rig_path, sizeof fx->rig_path, "%s/c.rig.json", g_dir);
+  CHECK_OK(km_character_write_rig(fx->rig_path, &fx->c, KM_E));
+  CHECK_OK(km_rig_read(fx->rig_path, &fx->c.mesh, NULL, 0, &fx->rig, KM_E));
+  CHECK_OK(km_motion_generate(&fx->c.skeleton, KM_MOTION_WAVE, 24, &fx->take, KM_E));
+  ok = fx->rig.n_handles > 0 && fx->take.n_joints == KM_KINECT1_JOINTS && fx->take.n_frames == 24;
+  CHECK(ok);
+  return ok;
+}
+
+static void fixture_free(fixture *fx) {
+  km_take_free(&fx->take);
+  km_rig_free(&fx->rig);
+  km_character_free(&fx->c);
+}
+
+/* Pushing the rest joints keeps every handle at its rest centroid: the rest mesh comes back. */
+static void test_rest_reproduces_rest(const fixture *fx) {
+  km_puppetry *p = NULL;
+  km_puppetry_info info;
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, KM_KINECT1_JOINTS, NULL, &p, &info,
+                              KM_E));
+  if (!p) return;
+  CHECK(info.model == KM_PUPPETRY_MODEL_BUILT);
+  size_t nv = fx->c.mesh.n_vertices, nh = 0;
+  km_puppetry_handles(p, &nh, NULL, NULL);
+  CHECK(nh == fx->rig.n_handles);
+  /* before any push the handle targets are the rest centroids */
+  CHECK(max_abs_diff(km_puppetry_handle_targets(p), km_puppetry_rest_centroids(p), 3 * nh) == 0);
+  CHECK(km_puppetry_last_joints(p) == NULL);
+  double *V = malloc(sizeof(double) * 3 * nv);
+  double diag = km_bbox_diagonal(fx->c.mesh.V, nv);
+  for (int f = 0; f < 5; ++f)
+    CHECK_OK(km_puppetry_push(p, fx->c.skeleton.rest, V, KM_E));
+  CHECK_MSG(max_abs_diff(V, fx->c.mesh.V, 3 * nv) < 1e-6 * diag, "dev %g",
+            max_abs_diff(V, fx->c.mesh.V, 3 * nv));
+  CHECK(max_abs_diff(km_puppetry_handle_targets(p), km_puppetry_rest_centroids(p), 3 * nh) <
+        1e-12 * diag);
+  CHECK(km_puppetry_last_joints(p) != NULL);
+  CHECK(max_abs_diff(km_puppetry_reference_joints(p), fx->c.skeleton.rest, 3 * 20) < 1e-12);
+  km_puppetry_times t;
+  km_puppetry_times_get(p, &t);
+  CHECK(t.filter_ms >= 0 && t.retarget_ms >= 0 && t.solve_ms > 0);
+  km_puppet_info pi;
+  km_puppetry_puppet_info(p, &pi);
+  CHECK(pi.vertices == nv && pi.handles == nh);
+  km_puppetry_reset(p);
+  CHECK(km_puppetry_last_joints(p) == NULL);
+  CHECK(isnan(km_puppetry_reference_joints(p)[0]));
+  free(V);
+  km_puppetry_free(&p);
+  CHECK(p == NULL);
+  km_puppetry_free(&p); /* NULL-safe */
+}
+
+/* The hand-written loop every front end used to carry. */
+static void manual_loop(const fixture *fx, bool full, double *Vs) {
+  size_t nv = fx->c.mesh.n_vertices, nh = fx->rig.n_handles, n_hv = 0;
+  for (size_t h = 0; h < nh; ++h)
+    n_hv += fx->rig.handles[h].n_vertices;
+  int32_t *off = malloc(sizeof(int32_t) * (nh + 1)), *hv = malloc(sizeof(int32_t) * n_hv);
+  off[0] = 0;
+  for (size_t h = 0, k = 0; h < nh; ++h) {
+    for (size_t i = 0; i < fx->rig.handles[h].n_vertices; ++i)
+      hv[k++] = fx->rig.handles[h].vertices[i];
+    off[h + 1] = (int32_t)k;
+  }
+  km_filter *f = NULL;
+  km_retarget *rt = NULL;
+  km_puppet *pup = NULL;
+  km_arap *arap = NULL;
+  CHECK_OK(km_filter_create(20, &fx->rig.filter, &f, KM_E));
+  CHECK_OK(km_retarget_create(&fx->rig, &fx->c.mesh, 20, NULL, &rt, KM_E));
+  if (full) {
+    CHECK_OK(km_arap_precompute(&fx->c.mesh, nh, off, hv, NULL, &arap, KM_E));
+  } else {
+    CHECK_OK(km_puppet_precompute(&fx->c.mesh, NULL, &pup, KM_E));
+    CHECK_OK(km_puppet_set_handles(pup, nh, off, hv, KM_E));
+  }
+  double filt[60], *targets = malloc(sizeof(double) * 3 * n_hv);
+  for (size_t fr = 0; fr < fx->take.n_frames; ++fr) {
+    km_filter_push(f, fx->take.positions + fr * 60, filt);
+    km_retarget_push(rt, filt, NULL);
+    km_retarget_vertex_targets(rt, targets);
+    if (full)
+      CHECK_OK(km_arap_solve(arap, targets, Vs + fr * 3 * nv, KM_E));
+    else
+      CHECK_OK(km_puppet_solve(pup, targets, Vs + fr * 3 * nv, KM_E));
+  }
+  free(targets);
+  free(off);
+  free(hv);
+  km_filter_free(&f);
+  km_retarget_free(&rt);
+  km_puppet_free(&pup);
+  km_arap_free(&arap);
+}
+
+static void run_pipeline(const fixture *fx, km_puppetry *p, const km_take *t, double *Vs) {
+  size_t nv = fx->c.mesh.n_vertices;
+  for (size_t fr = 0; fr < t->n_frames; ++fr)
+    CHECK_OK(km_puppetry_push(p, t->positions + fr * t->n_joints * 3, Vs + fr * 3 * nv, KM_E));
+}
+
+static void test_same_as_manual_loop(const fixture *fx) {
+  size_t nv = fx->c.mesh.n_vertices, nf = fx->take.n_frames;
+  double *A = malloc(sizeof(double) * 3 * nv * nf), *B = malloc(sizeof(double) * 3 * nv * nf);
+  for (int full = 0; full < 2; ++full) {
+    manual_loop(fx, full, A);
+    km_puppetry_options o = {0};
+    o.solver = full ? KM_PUPPETRY_FULL : KM_PUPPETRY_REDUCED;
+    km_puppetry *p = NULL;
+    km_puppetry_info info;
+    CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, 20, &o, &p, &info, KM_E));
+    if (!p) continue;
+    CHECK(info.model == (full ? KM_PUPPETRY_MODEL_FULL : KM_PUPPETRY_MODEL_BUILT));
+    run_pipeline(fx, p, &fx->take, B);
+    CHECK_MSG(memcmp(A, B, sizeof(double) * 3 * nv * nf) == 0, "%s: max diff %g",
+              full ? "full" : "reduced", max_abs_diff(A, B, 3 * nv * nf));
+    km_puppetry_free(&p);
+  }
+
+  /* Columns in another order, with extra and missing-but-unmapped ones, matched by name. */
+  km_take sh = {0};
+  sh.n_frames = nf;
+  sh.n_joints = 22;
+  sh.fps = fx->take.fps;
+  char *names[22];
+  char extra1[] = "Tail", extra2[] = "HandTipLeft";
+  sh.positions = malloc(sizeof(double) * 3 * 22 * nf);
+  for (int k = 0; k < 22; ++k) {
+    int j = 21 - k; /* reversed; k = 0 and 1 are the extras */
+    names[k] = k == 0 ? extra1 : k == 1 ? extra2 : (char *)km_kinect1_joint_name(j);
+    for (size_t fr = 0; fr < nf; ++fr)
+      for (int a = 0; a < 3; ++a)
+        sh.positions[(fr * 22 + (size_t)k) * 3 + a] =
+            k < 2 ? 1e9 : fx->take.positions[(fr * 20 + (size_t)j) * 3 + a];
+  }
+  km_puppetry *p = NULL;
+  km_puppetry_options o = {0};
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, (const char *const *)names, 22, &o, &p, NULL,
+                              KM_E));
+  if (p) {
+    manual_loop(fx, false, A);
+    run_pipeline(fx, p, &sh, B);
+    CHECK(memcmp(A, B, sizeof(double) * 3 * nv * nf) == 0);
+    km_puppetry_free(&p);
+  }
+  /* A mapped joint the take lacks is an error naming the take and the joint. */
+  names[14] = extra1; /* was HandLeft (j = 7), which the character's rig maps */
+  bool maps_hand = false;
+  for (size_t m = 0; m < fx->rig.n_maps; ++m)
+    maps_hand |= fx->rig.maps[m].joint == 7;
+  CHECK(maps_hand);
+  o.take_name = "wave.bvh";
+  km_status s = km_puppetry_create(&fx->c.mesh, &fx->rig, (const char *const *)names, 22, &o, &p,
+                                   NULL, KM_E);
+  CHECK(s == KM_ERR_INVALID && p == NULL);
+  CHECK_MSG(strstr(km_test_err.message, "wave.bvh has no joint named HandLeft, which the kinect1 "
+                                        "rig maps (its joints: Tail, HandTipLeft, FootRight") !=
+                NULL,
+            "%s", km_test_err.message);
+  km_puppetry_free(&p);
+  free(sh.positions);
+  free(A);
+  free(B);
+}
+
+static void corrupt(const char *path) {
+  FILE *f = fopen(path, "r+b");
+  CHECK(f != NULL);
+  if (!f) return;
+  fseek(f, 0, SEEK_END);
+  long n = ftell(f);
+  fseek(f, n / 2, SEEK_SET);
+  unsigned char junk[64];
+  memset(junk, 0xA5, sizeof junk);
+  fwrite(junk, 1, sizeof junk, f);
+  fclose(f);
+}
+
+static void test_cache_policy(const fixture *fx) {
+  char cache[300];
+  snprintf(cache, sizeof cache, "%s/c.kmcache", g_dir);
+  size_t nv = fx->c.mesh.n_vertices, nf = fx->take.n_frames;
+  double *A = malloc(sizeof(double) * 3 * nv * nf), *B = malloc(sizeof(double) * 3 * nv * nf);
+  km_puppetry_options o = {0};
+  o.cache_path = cache;
+  km_puppetry_info info;
+  km_puppetry *p = NULL;
+
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, 20, &o, &p, &info, KM_E));
+  CHECK(info.model == KM_PUPPETRY_MODEL_BUILT && info.save.status == KM_OK);
+  CHECK(access(cache, R_OK) == 0);
+  if (p) run_pipeline(fx, p, &fx->take, A);
+  km_puppetry_free(&p);
+
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, 20, &o, &p, &info, KM_E));
+  CHECK(info.model == KM_PUPPETRY_MODEL_LOADED && info.model_seconds >= 0);
+  if (p) run_pipeline(fx, p, &fx->take, B);
+  CHECK(memcmp(A, B, sizeof(double) * 3 * nv * nf) == 0);
+  km_puppetry_free(&p);
+
+  corrupt(cache);
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, 20, &o, &p, &info, KM_E));
+  CHECK(info.model == KM_PUPPETRY_MODEL_REBUILT_STALE);
+  CHECK(info.stale.status == KM_ERR_STALE && info.stale.message[0] != '\0');
+  CHECK(info.save.status == KM_OK);
+  km_puppetry_free(&p);
+  /* rewritten: loads again */
+  km_puppet *model = NULL;
+  CHECK_OK(km_puppetry_model_open(&fx->c.mesh, &o, &model, &info, KM_E));
+  CHECK(info.model == KM_PUPPETRY_MODEL_LOADED);
+
+  o.force = true;
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, 20, &o, &p, &info, KM_E));
+  CHECK(info.model == KM_PUPPETRY_MODEL_REBUILT_FORCED);
+  km_puppetry_free(&p);
+
+  /* A borrowed model: used as is, left to the caller. */
+  km_puppetry_options ob = {0};
+  ob.model = model;
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, 20, &ob, &p, &info, KM_E));
+  CHECK(info.model == KM_PUPPETRY_MODEL_GIVEN && km_puppetry_model(p) == model);
+  km_puppetry_free(&p);
+  km_puppet_info pi;
+  km_puppet_info_get(model, &pi); /* still alive */
+  CHECK(pi.vertices == nv);
+  km_puppet_free(&model);
+
+  /* A cache that cannot be written is reported, the pipeline works all the same. */
+  km_puppetry_options bad = {0};
+  bad.cache_path = "/nonexistent-dir/c.kmcache";
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, 20, &bad, &p, &info, KM_E));
+  CHECK(info.model == KM_PUPPETRY_MODEL_BUILT && info.save.status != KM_OK);
+  km_puppetry_free(&p);
+  remove(cache);
+  free(A);
+  free(B);
+}
+
+static void test_set_rig(const fixture *fx) {
+  size_t nv = fx->c.mesh.n_vertices, nf = fx->take.n_frames;
+  double *A = malloc(sizeof(double) * 3 * nv * nf), *B = malloc(sizeof(double) * 3 * nv * nf);
+  km_puppetry *p = NULL, *q = NULL;
+  /* model only, then a rig */
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, NULL, NULL, 20, NULL, &p, NULL, KM_E));
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, 20, NULL, &q, NULL, KM_E));
+  if (!p || !q) return;
+  CHECK_STATUS(km_puppetry_push(p, fx->take.positions, A, KM_E), KM_ERR_INVALID);
+  CHECK_OK(km_puppetry_set_rig(p, &fx->rig, KM_E));
+  run_pipeline(fx, p, &fx->take, A);
+  run_pipeline(fx, q, &fx->take, B);
+  CHECK(memcmp(A, B, sizeof(double) * 3 * nv * nf) == 0);
+
+  /* A rig that fails leaves the old one in force. */
+  km_rig empty = fx->rig;
+  empty.n_handles = 0;
+  CHECK_STATUS(km_puppetry_set_rig(p, &empty, KM_E), KM_ERR_INVALID);
+  CHECK(strstr(km_test_err.message, "no handles") != NULL);
+  km_puppetry_reset(p);
+  km_puppetry_reset(q);
+  run_pipeline(fx, p, &fx->take, A);
+  run_pipeline(fx, q, &fx->take, B);
+  CHECK(memcmp(A, B, sizeof(double) * 3 * nv * nf) == 0);
+
+  /* A swap mid-take keeps the pose: the newest frame is replayed through the new rig. */
+  const double *last = fx->take.positions + (nf - 1) * 60;
+  double before[3 * 64];
+  size_t nh = fx->rig.n_handles < 64 ? fx->rig.n_handles : 64;
+  memcpy(before, km_puppetry_handle_targets(p), sizeof(double) * 3 * nh);
+  CHECK_OK(km_puppetry_set_rig(p, &fx->rig, KM_E));
+  CHECK(km_puppetry_last_joints(p) != NULL &&
+        max_abs_diff(km_puppetry_last_joints(p), last, 60) == 0);
+  double diag = km_bbox_diagonal(fx->c.mesh.V, nv);
+  CHECK_MSG(max_abs_diff(before, km_puppetry_handle_targets(p), 3 * nh) < 0.05 * diag, "%g",
+            max_abs_diff(before, km_puppetry_handle_targets(p), 3 * nh));
+  CHECK(isfinite(km_puppetry_scale(p)));
+  km_puppetry_free(&p);
+  km_puppetry_free(&q);
+  free(A);
+  free(B);
+}
+
+static bool mentions(const char *path) {
+  return strstr(km_test_err.message, path) != NULL;
+}
+
+static void test_motion_read(const fixture *fx) {
+  km_take t;
+  km_motion_read_info info;
+  /* BVH, by extension */
+  CHECK_OK(km_motion_read(KM_TEST_DATA "/bvh_two_joint.bvh", NULL, &t, &info, KM_E));
+  CHECK(info.format == KM_MOTION_BVH && t.n_frames == 3 && t.n_joints == 2);
+  km_take_free(&t);
+  km_motion_read_options mo = {0};
+  mo.bvh.end_sites = true;
+  CHECK_OK(km_motion_read(KM_TEST_DATA "/bvh_two_joint.bvh", &mo, &t, NULL, KM_E));
+  CHECK(t.n_joints == 3);
+  km_take_free(&t);
+  /* Kinect CSV */
+  CHECK_OK(km_motion_read(KM_TEST_DATA "/kinect_reordered.csv", NULL, &t, &info, KM_E));
+  CHECK(info.format == KM_MOTION_KINECT_CSV && t.n_frames == 3 && t.n_joints == 20);
+  km_take_free(&t);
+  /* take JSON, and the same file without an extension (by content) */
+  char take_path[300], noext[300];
+  snprintf(take_path, sizeof take_path, "%s/wave.json", g_dir);
+  snprintf(noext, sizeof noext, "%s/wave_take", g_dir);
+  CHECK_OK(km_take_write(take_path, &fx->take, KM_E));
+  CHECK_OK(km_take_write(noext, &fx->take, KM_E));
+  CHECK_OK(km_motion_read(take_path, NULL, &t, &info, KM_E));
+  CHECK(info.format == KM_MOTION_TAKE_JSON && t.n_frames == fx->take.n_frames);
+  km_take_free(&t);
+  CHECK_OK(km_motion_read(noext, NULL, &t, &info, KM_E));
+  CHECK(info.format == KM_MOTION_TAKE_JSON && t.n_frames == fx->take.n_frames);
+  km_take_free(&t);
+  char bvh_noext[300];
+  snprintf(bvh_noext, sizeof bvh_noext, "%s/two_joint_motion", g_dir);
+  char cmd[700];
+  snprintf(cmd, sizeof cmd, "cp %s %s", KM_TEST_DATA "/bvh_two_joint.bvh", bvh_noext);
+  CHECK(system(cmd) == 0);
+  CHECK_OK(km_motion_read(bvh_noext, NULL, &t, &info, KM_E));
+  CHECK(info.format == KM_MOTION_BVH && t.n_frames == 3);
+  km_take_free(&t);
+
+  /* kinect1: a BVH's columns by name; the two-joint BVH has none of them */
+  mo = (km_motion_read_options){.kinect1 = true};
+  CHECK_STATUS(km_motion_read(KM_TEST_DATA "/bvh_two_joint.bvh", &mo, &t, NULL, KM_E),
+               KM_ERR_INVALID);
+  CHECK(mentions(KM_TEST_DATA "/bvh_two_joint.bvh") &&
+        strstr(km_test_err.message, "Kinect v1 joints") != NULL);
+  CHECK(t.n_frames == 0 && t.positions == NULL);
+  /* a take with the Kinect joints in another order and one missing */
+  km_take sh = {0};
+  sh.n_frames = 2;
+  sh.n_joints = 3;
+  sh.fps = 0;
+  char *names[3] = {"HandLeft", "Foo", "HipCenter"};
+  double pos[18];
+  for (int k = 0; k < 18; ++k)
+    pos[k] = k;
+  sh.joint_names = names;
+  sh.positions = pos;
+  sh.fps = 25;
+  char sh_path[300];
+  snprintf(sh_path, sizeof sh_path, "%s/partial.json", g_dir);
+  CHECK_OK(km_take_write(sh_path, &sh, KM_E));
+  CHECK_OK(km_motion_read(sh_path, &mo, &t, &info, KM_E));
+  CHECK(t.n_joints == 20 && t.n_frames == 2 && info.kinect1_found == 2 && t.fps == 25);
+  if (t.n_joints == 20) {
+    CHECK(!strcmp(t.joint_names[0], "HipCenter") && !strcmp(t.joint_names[7], "HandLeft"));
+    CHECK(t.parents && t.parents[0] == -1 && t.parents[7] == km_kinect1_joint_parent(7));
+    CHECK(t.positions[0] == 6 && t.positions[2] == 8);        /* HipCenter, frame 0 */
+    CHECK(t.positions[7 * 3] == 0 && t.positions[60 + 21] == 9); /* HandLeft */
+    CHECK(isnan(t.positions[3]));                              /* Spine absent */
+  }
+  km_take_free(&t);
+
+  /* Garbage: an error that names the file, whatever the format. */
+  const char *exts[] = {".json", ".bvh", ".csv", ""};
+  for (int e = 0; e < 4; ++e) {
+    char g[300];
+    snprintf(g, sizeof g, "%s/garbage%s", g_dir, exts[e]);
+    FILE *f = fopen(g, "wb");
+    if (f) {
+      fputs("\x01\x02 this is not motion\n{[;;\n", f);
+      fclose(f);
+    }
+    km_status s = km_motion_read(g, NULL, &t, NULL, KM_E);
+    CHECK_MSG(s != KM_OK && mentions(g), "%s: %s", g, km_test_err.message);
+    CHECK(t.positions == NULL && t.n_frames == 0);
+  }
+  char missing[300];
+  snprintf(missing, sizeof missing, "%s/absent.bvh", g_dir);
+  CHECK(km_motion_read(missing, NULL, &t, NULL, KM_E) != KM_OK && mentions(missing));
+}
+
+int main(void) {
+  if (!mkdtemp(g_dir)) {
+    perror("mkdtemp");
+    return 1;
+  }
+  fixture fx;
+  if (fixture_make(&fx)) {
+    test_rest_reproduces_rest(&fx);
+    test_same_as_manual_loop(&fx);
+    test_cache_policy(&fx);
+    test_set_rig(&fx);
+    test_motion_read(&fx);
+  }
+  fixture_free(&fx);
+  char cmd[128];
+  snprintf(cmd, sizeof cmd, "rm -rf %s", g_dir);
+  if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_dir);
+  return km_test_finish("test_puppetry");
+}
