@@ -31,8 +31,7 @@ int km_live_ws_connect(const char *host, int port, double timeout_s) {
                     "Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: kinemesh\r\n\r\n",
                     host);
   if (inet_pton(AF_INET, host, &a.sin_addr) != 1 || rn <= 0 || (size_t)rn >= sizeof req ||
-      connect(fd, (struct sockaddr *)&a, sizeof a) ||
-      send(fd, req, (size_t)rn, 0) != (ssize_t)rn) {
+      connect(fd, (struct sockaddr *)&a, sizeof a) || send(fd, req, (size_t)rn, 0) != (ssize_t)rn) {
     close(fd);
     return -1;
   }
