@@ -1,8 +1,10 @@
-// libFuzzer target for the mesh readers (not built by CMake). Build and run from the repo root:
-//   clang -g -O1 -fsanitize=fuzzer,address,undefined -D_GNU_SOURCE -Iinclude -Isrc -Isrc/core \
-//     fuzz/fuzz_mesh.c src/mesh/*.c src/core/*.c -lm -o fuzz_mesh
-//   mkdir -p corpus && cp tests/data/* corpus/ && ./fuzz_mesh -max_len=4096 corpus
-// Each input is parsed as OBJ, PLY and OFF; a mesh that parses must have in-range indices.
+/* Modules: mesh.
+ * libFuzzer target for the mesh readers: each input is parsed as OBJ, PLY and OFF through
+ * km_mesh_parse; a mesh that parses must have in-range indices and a mesh info.
+ * Built and run by fuzz/run.sh (ctest `fuzz`, when clang is present): the "Modules:" line
+ * above names the library modules it needs, compiled from src/ with clang
+ * -fsanitize=fuzzer,address,undefined together with the modules they require. By hand:
+ *   bash fuzz/run.sh . /tmp/fuzz 60 fuzz_mesh */
 #include "kinemesh.h"
 
 #include <stdint.h>

@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # Installs the Debian packages kinemesh builds against, skipping those already present.
-# Called by `make demo` / `make test`; safe to run repeatedly.
+# Called by `make demo` / `make test`; safe to run repeatedly. clang and libclang-rt-dev (its
+# sanitizer and libFuzzer runtimes) are for the fuzz test only (fuzz/run.sh skips without them).
 set -euo pipefail
 PKGS=(build-essential cmake pkg-config
       libsuitesparse-dev libarpack2-dev liblapacke-dev libopenblas-dev
       libembree-dev libcjson-dev libsvm-dev liblbfgs-dev
       liblo-dev liblo-tools libwebsockets-dev gnuplot-nox
-      nodejs npm chromium)
+      nodejs npm chromium
+      clang libclang-rt-dev)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -4,13 +4,13 @@
 #include "km_test.h"
 
 #include "live.h"
+#include "ws_client.h"
 
 #include <arpa/inet.h>
 #include <lo/lo.h>
 #include <netinet/in.h>
 #include <pthread.h>
 #include <sys/socket.h>
-#include <sys/time.h>
 #include <unistd.h>
 
 static void test_names(void) {
@@ -197,80 +197,6 @@ static void test_quantize(void) {
   free(q);
 }
 
-/* ---- a WebSocket client on a plain socket (the frames are what the page receives) */
-
-static int ws_connect(int port) {
-  int fd = socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) return -1;
-  struct timeval tv = {10, 0}; /* a server that stops sending fails the test, never hangs it */
-  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  struct sockaddr_in a = {0};
-  a.sin_family = AF_INET;
-  a.sin_port = htons((uint16_t)port);
-  inet_pton(AF_INET, "127.0.0.1", &a.sin_addr);
-  const char *req = "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
-                    "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                    "Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: kinemesh\r\n\r\n";
-  if (connect(fd, (struct sockaddr *)&a, sizeof a) ||
-      send(fd, req, strlen(req), 0) != (ssize_t)strlen(req)) {
-    close(fd);
-    return -1;
-  }
-  char resp[2048];
-  size_t n = 0;
-  /* byte by byte so that no frame data is taken with the response */
-  while (n + 1 < sizeof resp && recv(fd, resp + n, 1, 0) == 1) {
-    ++n;
-    if (n >= 4 && !memcmp(resp + n - 4, "\r\n\r\n", 4)) break;
-  }
-  resp[n] = 0;
-  if (!strstr(resp, " 101 ")) {
-    close(fd);
-    return -1;
-  }
-  return fd;
-}
-
-static bool recv_full(int fd, unsigned char *b, size_t n) {
-  while (n) {
-    ssize_t r = recv(fd, b, n, 0);
-    if (r <= 0) return false;
-    b += r;
-    n -= (size_t)r;
-  }
-  return true;
-}
-
-/* The next whole binary message (server frames are unmasked); malloc'ed in *msg. */
-static bool ws_read(int fd, unsigned char **msg, size_t *len) {
-  *msg = NULL;
-  *len = 0;
-  for (;;) {
-    unsigned char h[10];
-    if (!recv_full(fd, h, 2)) return false;
-    uint64_t n = h[1] & 127;
-    if (n == 126) {
-      if (!recv_full(fd, h + 2, 2)) return false;
-      n = ((uint64_t)h[2] << 8) | h[3];
-    } else if (n == 127) {
-      if (!recv_full(fd, h + 2, 8)) return false;
-      n = 0;
-      for (int k = 0; k < 8; ++k)
-        n = (n << 8) | h[2 + k];
-    }
-    if (n > (64u << 20)) return false;
-    unsigned char *b = realloc(*msg, *len + (size_t)n + 1);
-    if (!b) return false;
-    *msg = b;
-    if (!recv_full(fd, *msg + *len, (size_t)n)) return false;
-    int op = h[0] & 15;
-    if (op == 8) return false;
-    if (op == 9 || op == 10) continue; /* ping / pong between fragments */
-    *len += (size_t)n;
-    if (h[0] & 128) return true;
-  }
-}
-
 /* ---- the server in-process */
 
 typedef struct runner {
@@ -427,7 +353,9 @@ static unsigned char *serve_frames(const km_mesh *m, km_puppet *p, const char *r
   pthread_create(&th, NULL, run_main, &r);
   unsigned char *out = NULL;
   *len = 0;
-  int ws = ws_connect(http_port);
+  /* a client on a plain socket: the frames are what the page receives; a server that stops
+   * sending fails the test, never hangs it */
+  int ws = km_live_ws_connect("127.0.0.1", http_port, 10);
   CHECK_MSG(ws >= 0, "WebSocket handshake with the server on port %d", http_port);
   km_live_stats st = {0};
   for (int i = 0; ws >= 0 && i < 500 && st.clients < 1; ++i) {
@@ -457,8 +385,8 @@ static unsigned char *serve_frames(const km_mesh *m, km_puppet *p, const char *r
             quantize ? "int16" : "float32", (unsigned long long)st.frames_out, SENT);
   /* the page gets the newest frame; older ones may come first */
   unsigned char *msg = NULL;
-  size_t n = 0;
-  while (ws >= 0 && ws_read(ws, &msg, &n)) {
+  size_t n = 0, cap = 0;
+  while (ws >= 0 && km_live_ws_read(ws, &msg, &cap, &n)) {
     uint32_t in_seq = 0;
     if (n >= KM_LIVE_HEADER) memcpy(&in_seq, msg + 16, 4);
     if (in_seq == SENT) {
@@ -466,8 +394,6 @@ static unsigned char *serve_frames(const km_mesh *m, km_puppet *p, const char *r
       *len = n;
       break;
     }
-    free(msg);
-    msg = NULL;
   }
   if (!out) free(msg);
   CHECK_MSG(out != NULL, "%s: no WebSocket message for input frame %d",

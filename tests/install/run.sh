@@ -20,6 +20,57 @@ printf '#include <kinemesh.h>\nint main(void) { km_mesh m = {0}; (void)m; return
 cc -std=c11 -fsyntax-only -I"$P/include" "$WORK/use.c" || fail "the installed header does not compile on its own"
 echo "ok   the installed header compiles alone"
 
+# A program built against the installed prefix only: flags from its kinemesh.pc (static), no
+# path into the source or build tree. An octahedron by hand: counts, and a Laplacian (CHOLMOD's
+# side of the archive, so Libs.private is exercised).
+PC=$(ls "$P"/lib*/pkgconfig/kinemesh.pc 2>/dev/null | head -n 1)
+[ -n "$PC" ] || fail "kinemesh.pc not installed (expected PREFIX/lib/pkgconfig/kinemesh.pc)"
+cat >"$WORK/octa.c" <<'EOC'
+#include <kinemesh.h>
+
+#include <math.h>
+#include <stdio.h>
+
+int main(void) {
+  double V[] = {1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1};
+  int32_t F[] = {0, 2, 4, 2, 1, 4, 1, 3, 4, 3, 0, 4, 2, 0, 5, 1, 2, 5, 3, 1, 5, 0, 3, 5};
+  km_mesh m = {V, F, 6, 8};
+  km_mesh_info info;
+  km_error err;
+  if (km_mesh_info_compute(&m, &info, &err) != KM_OK) {
+    printf("km_mesh_info_compute: %s\n", err.message);
+    return 1;
+  }
+  km_sparse *L = NULL;
+  if (km_cotmatrix(&m, &L, &err) != KM_OK) {
+    printf("km_cotmatrix: %s\n", err.message);
+    return 1;
+  }
+  double ones[6] = {1, 1, 1, 1, 1, 1}, r[6];
+  km_sparse_mul(L, 1, ones, r);
+  double rs = 0;
+  for (int i = 0; i < 6; ++i)
+    rs += fabs(r[i]);
+  size_t nnz = km_sparse_nnz(L);
+  km_sparse_free(&L);
+  printf("kinemesh %s: %zu vertices, %zu faces, %zu edges, %zu boundary edges, %zu component, "
+         "euler %lld; L %zu nonzeros, |L*1| %.1e\n",
+         km_version(), info.vertices, info.faces, info.edges, info.boundary_edges,
+         info.components, (long long)info.euler_characteristic, nnz, rs);
+  return info.vertices == 6 && info.faces == 8 && info.edges == 12 && info.boundary_edges == 0 &&
+                 info.components == 1 && info.euler_characteristic == 2 && nnz == 6 + 2 * 12 &&
+                 rs < 1e-12
+             ? 0
+             : 1;
+}
+EOC
+FLAGS=$(PKG_CONFIG_PATH=$(dirname "$PC") pkg-config --cflags --libs --static kinemesh) ||
+  fail "pkg-config --cflags --libs --static kinemesh"
+case $FLAGS in *"$P"*) ;; *) fail "kinemesh.pc does not point into the prefix: $FLAGS" ;; esac
+(cd "$WORK" && cc -std=c11 octa.c $FLAGS -o octa) || fail "a program against the installed library does not build: cc octa.c $FLAGS"
+"$WORK/octa" || fail "a program against the installed library gives wrong counts"
+echo "ok   a program built with pkg-config --static kinemesh against the prefix runs"
+
 K=$P/bin/kinemesh
 "$K" gen character --vertices 2000 -o "$WORK/c.obj" >/dev/null 2>&1 || fail "installed kinemesh gen character"
 "$K" precompute "$WORK/c.obj" >/dev/null 2>&1 || fail "installed kinemesh precompute"

@@ -5,6 +5,7 @@
  * reconstructed surface; err_truth_* = distance from reconstructed vertices to the true
  * (noise-free) surface of the subject, per frame mean / max over frames. Every length in the
  * JSON line is in mm, jerk and jitter included (the table prints them in mm too). */
+#include "bench.h"
 #include "cli.h"
 #include "recon_plot.h"
 

@@ -12,6 +12,7 @@
  * repository root, for ../shared/data and tests/data/smpl_landmarks.json; default ".").
  * kinemesh bench transfer --source S --template T [--landmarks LM] [--truth X] [--db DB]:
  * one row for the given meshes. Times are medians of 15 runs. */
+#include "bench.h"
 #include "cli.h"
 
 #include <math.h>

@@ -1,7 +1,9 @@
-/* Verbs that make the built-in default: gen character, gen motion; and pose (LBS playback). */
+/* kinemesh gen: the built-in inputs.
+ *   kinemesh gen character   a procedural character (mesh + rig sidecar)
+ *   kinemesh gen motion      a motion take (walk, wave, kungfu) for a character's skeleton
+ *   kinemesh gen capture     simulated multi-view depth capture of an animated character */
 #include "cli.h"
 
-#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -153,6 +155,67 @@ static int gen_motion(int argc, char **argv) {
   return rc;
 }
 
+int km_cli_gen_capture(int argc, char **argv) {
+  const char *character = NULL, *rig = NULL, *kind = "kungfu", *out = NULL, *motion = NULL;
+  size_t frames = 60, cameras = 8, points = 30000, seed = 1, vertices = 8000;
+  double noise = 2;
+  const km_cli_opt opts[] = {
+      {"character", 'c', KM_OPT_STRING, &character,
+       "subject mesh with a rig sidecar (default: procedural, --vertices)"},
+      {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
+      {"vertices", 'n', KM_OPT_SIZE, &vertices, "procedural subject size (default 8000)"},
+      {"motion", 'm', KM_OPT_STRING, &motion,
+       "take to perform (.json/.csv/.bvh; default: generated --kind)"},
+      {"kind", 0, KM_OPT_STRING, &kind, "generated motion: walk, wave or kungfu (default kungfu)"},
+      {"frames", 'f', KM_OPT_SIZE, &frames, "frames (default 60; with --motion: all of the take)"},
+      {"cameras", 0, KM_OPT_SIZE, &cameras, "depth cameras on a ring (default 8)"},
+      {"points", 0, KM_OPT_SIZE, &points, "points per frame over all cameras (default 30000)"},
+      {"noise-mm", 0, KM_OPT_DOUBLE, &noise, "Gaussian noise sigma in mm (default 2, 0: none)"},
+      {"seed", 0, KM_OPT_SIZE, &seed, "noise seed (default 1)"},
+      {"output", 'o', KM_OPT_STRING, &out, "output directory"},
+  };
+  const char *pos[1];
+  int n_pos;
+  int r = km_cli_parse(
+      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
+      "kinemesh gen capture --character CHAR --motion TAKE [--cameras 8] [--noise-mm 2] -o DIR",
+      "Ray-casts the animated character from depth cameras (Embree): one binary\n"
+      "PLY point cloud per frame with occlusion holes and noise, plus the\n"
+      "ground truth as DIR/truth.pc2 (faces: DIR/truth_rest.obj, which a\n"
+      "directory or 'DIR/*.ply' given to reconstruct does not read as a frame).");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (!out) return km_cli_error("gen capture", "-o DIR is required");
+  km_motion_kind mk = !strcmp(kind, "walk")     ? KM_MOTION_WALK
+                      : !strcmp(kind, "wave")   ? KM_MOTION_WAVE
+                      : !strcmp(kind, "kungfu") ? KM_MOTION_KUNGFU
+                                                : (km_motion_kind)-1;
+  if ((int)mk < 0) return km_cli_error("gen capture", "--kind '%s': walk, wave or kungfu", kind);
+  km_error err = {0};
+  km_character c = {0};
+  km_take take = {0};
+  int rc = KM_EXIT_OK;
+  km_capture_options co = {.cameras = (int)cameras,
+                           .points_per_frame = points,
+                           .noise_mm = noise > 0 ? noise : -1,
+                           .seed = seed};
+  co.progress = km_cli_progress("capture");
+  double t0 = km_cli_now();
+  if (km_cli_load_character(character, rig, vertices, &c, &err) ||
+      (motion ? km_motion_read(motion, NULL, &take, NULL, &err)
+              : km_motion_generate(&c.skeleton, mk, frames, &take, &err)) ||
+      km_capture_simulate(&c, &take, &co, out, &err))
+    rc = km_cli_fail("gen capture", &err);
+  else
+    fprintf(stderr,
+            "kinemesh gen capture: %zu frames in %.1f s -> %s/frame_*.ply, truth.pc2, "
+            "truth_rest.obj\n",
+            take.n_frames, km_cli_now() - t0, out);
+  km_cli_progress_done();
+  km_take_free(&take);
+  km_character_free(&c);
+  return rc;
+}
+
 int km_cli_gen(int argc, char **argv) {
   if (argc >= 2 && !strcmp(argv[1], "character")) return gen_character(argc - 1, argv + 1);
   if (argc >= 2 && !strcmp(argv[1], "motion")) return gen_motion(argc - 1, argv + 1);
@@ -163,92 +226,4 @@ int km_cli_gen(int argc, char **argv) {
              "       kinemesh gen capture --character CHAR --motion TAKE -o FRAMES/\n"
              "(kinemesh gen character --help, kinemesh gen motion --help for options)\n");
   return f == stdout ? KM_EXIT_OK : KM_EXIT_USAGE;
-}
-
-/* Poses a skinned character along a take by linear blend skinning: the rig's skeleton is
- * driven by the take's joint positions (matched by name). */
-int km_cli_pose(int argc, char **argv) {
-  const char *mesh = NULL, *rig = NULL, *motion = NULL, *out = NULL, *frame_format = NULL;
-  double fps = 0;
-  size_t key_every = 0;
-  const km_cli_opt opts[] = {
-      {"mesh", 0, KM_OPT_STRING, &mesh, "skinned mesh (from kinemesh gen character)"},
-      {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames (default 1)"},
-      {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <mesh stem>.rig.json)"},
-      {"motion", 0, KM_OPT_STRING, &motion, "take (.json) with the rig's joint names"},
-      {"fps", 0, KM_OPT_DOUBLE, &fps, "frame rate of the output (default: the take's)"},
-      {"frame-format", 0, KM_OPT_STRING, &frame_format,
-       "directory output: obj (default) or ply (binary) per frame"},
-      {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory"},
-  };
-  const char *pos[1];
-  int n_pos;
-  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
-                       "kinemesh pose --mesh MESH [--rig RIG] --motion TAKE -o OUT",
-                       "Linear-blend-skinning playback of a take on a rigged character.");
-  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
-  if (!mesh || !motion || !out) return km_cli_error("pose", "--mesh, --motion and -o are required");
-  km_anim_format af = 0;
-  if (km_cli_parse_frame_format("pose", frame_format, &af)) return KM_EXIT_FAIL;
-  km_error err = {0};
-  km_character c = {0};
-  km_take t = {0};
-  km_anim_writer *w = NULL;
-  double *pos_frame = NULL, *xf = NULL, *V = NULL;
-  int *map = NULL;
-  int rc = KM_EXIT_FAIL;
-  char *rig_path = rig ? NULL : km_cli_rig_path(mesh);
-  if (km_mesh_read(mesh, &c.mesh, &err) != KM_OK ||
-      km_character_read_rig(rig ? rig : rig_path, c.mesh.n_vertices, &c, &err) != KM_OK ||
-      km_take_read(motion, &t, &err) != KM_OK)
-    goto fail;
-  size_t nj = c.skeleton.n_joints;
-  map = malloc(sizeof(int) * nj);
-  pos_frame = malloc(sizeof(double) * 3 * nj);
-  xf = malloc(sizeof(double) * 12 * nj);
-  V = malloc(sizeof(double) * 3 * c.mesh.n_vertices);
-  if (!map || !pos_frame || !xf || !V) {
-    rc = km_cli_error("pose", "out of memory");
-    goto done;
-  }
-  for (size_t j = 0; j < nj; ++j) {
-    map[j] = -1;
-    for (size_t k = 0; k < t.n_joints; ++k)
-      if (!strcmp(c.skeleton.names[j], t.joint_names[k])) map[j] = (int)k;
-  }
-  km_anim_options ao = {0};
-  ao.fps = fps > 0 ? fps : t.fps;
-  ao.key_every = key_every;
-  ao.format = af;
-  if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
-  km_progress prog = km_cli_progress("pose");
-  for (size_t f = 0; f < t.n_frames; ++f) {
-    for (size_t j = 0; j < nj; ++j)
-      for (int a = 0; a < 3; ++a)
-        pos_frame[3 * j + a] =
-            map[j] < 0 ? NAN : t.positions[(f * t.n_joints + (size_t)map[j]) * 3 + a];
-    if (km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err) != KM_OK ||
-        km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK ||
-        km_anim_writer_push(w, V, &err) != KM_OK)
-      goto fail;
-    prog.fn((double)(f + 1) / (double)t.n_frames, "skinning", NULL);
-  }
-  if (km_anim_writer_close(&w, &err) != KM_OK) goto fail;
-  km_cli_progress_done();
-  fprintf(stderr, "kinemesh pose: %zu frames of %zu vertices -> %s\n", t.n_frames,
-          c.mesh.n_vertices, out);
-  rc = KM_EXIT_OK;
-  goto done;
-fail:
-  rc = km_cli_fail("pose", &err);
-done:
-  km_anim_writer_free(&w);
-  free(rig_path);
-  free(map);
-  free(pos_frame);
-  free(xf);
-  free(V);
-  km_take_free(&t);
-  km_character_free(&c);
-  return rc;
 }

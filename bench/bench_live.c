@@ -8,8 +8,10 @@
  * frame received, the stage medians, and the frames per second the client sustained. Without
  * --mesh a procedural character of --vertices is generated (mesh, rig and reduced model
  * cached under /tmp). */
+#include "bench.h"
 #include "cli.h"
 #include "live.h"
+#include "ws_client.h"
 
 #include <cjson/cJSON.h>
 
@@ -108,20 +110,7 @@ static void *client_main(void *arg) {
   return NULL;
 }
 
-/* A minimal WebSocket client on a plain socket, reading whole frames with large recv()s.
- * libwebsockets 4.1's client parses received payload byte by byte (about 150 MB/s here), which
- * would make the measuring client, not the server, the bottleneck for 700 KB frames; it is
- * kept as --lws-client. */
-static bool read_full(int fd, unsigned char *b, size_t n) {
-  while (n) {
-    ssize_t r = recv(fd, b, n, 0);
-    if (r <= 0) return false;
-    b += r;
-    n -= (size_t)r;
-  }
-  return true;
-}
-
+/* The plain-socket client (apps/live/ws_client.c) on its own thread. */
 typedef struct raw_client {
   client *c;
   int fd;
@@ -130,69 +119,15 @@ typedef struct raw_client {
 static void *raw_main(void *arg) {
   raw_client *rc = arg;
   client *c = rc->c;
-  size_t cap = 1 << 20;
-  unsigned char *scratch = malloc(cap);
-  while (scratch && !atomic_load(&c->done)) {
-    unsigned char h[14];
-    if (!read_full(rc->fd, h, 2)) break;
-    uint64_t len = h[1] & 127;
-    if (len == 126) {
-      if (!read_full(rc->fd, h + 2, 2)) break;
-      len = ((uint64_t)h[2] << 8) | h[3];
-    } else if (len == 127) {
-      if (!read_full(rc->fd, h + 2, 8)) break;
-      len = 0;
-      for (int k = 0; k < 8; ++k)
-        len = (len << 8) | h[2 + k];
-    }
-    int opcode = h[0] & 15;
-    bool fin = h[0] & 128;
-    if (opcode == 8) break;
-    if (opcode != 0) c->head_n = 0;
-    while (len) {
-      size_t k = len < cap ? (size_t)len : cap;
-      if (!read_full(rc->fd, scratch, k)) goto out;
-      if (c->head_n < sizeof c->head) {
-        size_t m = k < sizeof c->head - c->head_n ? k : sizeof c->head - c->head_n;
-        memcpy(c->head + c->head_n, scratch, m);
-        c->head_n += m;
-      }
-      len -= k;
-    }
-    if (fin && (opcode == 2 || opcode == 0)) {
-      record_frame(c);
-    }
+  unsigned char *msg = NULL;
+  size_t cap = 0, len = 0;
+  while (!atomic_load(&c->done) && km_live_ws_read(rc->fd, &msg, &cap, &len)) {
+    c->head_n = len < sizeof c->head ? len : sizeof c->head;
+    memcpy(c->head, msg, c->head_n);
+    record_frame(c);
   }
-out:
-  free(scratch);
+  free(msg);
   return NULL;
-}
-
-static int raw_connect(int port) {
-  int fd = socket(AF_INET, SOCK_STREAM, 0);
-  struct sockaddr_in a;
-  memset(&a, 0, sizeof a);
-  a.sin_family = AF_INET;
-  a.sin_port = htons((uint16_t)port);
-  inet_pton(AF_INET, "127.0.0.1", &a.sin_addr);
-  if (fd < 0 || connect(fd, (struct sockaddr *)&a, sizeof a)) return -1;
-  const char *req = "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
-                    "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                    "Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: kinemesh\r\n\r\n";
-  if (send(fd, req, strlen(req), 0) != (ssize_t)strlen(req)) return -1;
-  char resp[2048];
-  size_t n = 0;
-  /* byte by byte so no frame data is consumed with the response */
-  while (n + 1 < sizeof resp && recv(fd, resp + n, 1, 0) == 1) {
-    ++n;
-    if (n >= 4 && !memcmp(resp + n - 4, "\r\n\r\n", 4)) break;
-  }
-  resp[n] = 0;
-  if (!strstr(resp, " 101 ")) {
-    close(fd);
-    return -1;
-  }
-  return fd;
 }
 
 typedef struct server_run {
@@ -370,7 +305,7 @@ int km_cli_bench_live(int argc, char **argv) {
     goto stop;
   }
   if (!lws_client) {
-    rcl.fd = raw_connect(http_port);
+    rcl.fd = km_live_ws_connect("127.0.0.1", http_port, 0);
     if (rcl.fd < 0) {
       rc = km_cli_error(VERB, "the WebSocket handshake with 127.0.0.1:%d failed", http_port);
       goto stop;

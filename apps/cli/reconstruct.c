@@ -1,6 +1,6 @@
-/* Verbs of capability 3 (point clouds to mesh animation):
- *   kinemesh gen capture   simulated multi-view depth capture of an animated character
- *   kinemesh reconstruct   template-based mesh animation from point cloud frames */
+/* kinemesh reconstruct: point clouds -> mesh animation, a rigged template registered to
+ * every frame (Park & Lim 2014). The simulated capture it reads is `kinemesh gen capture`
+ * (gen.c). */
 #include "cli.h"
 #include "recon_plot.h"
 
@@ -8,67 +8,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-
-int km_cli_gen_capture(int argc, char **argv) {
-  const char *character = NULL, *rig = NULL, *kind = "kungfu", *out = NULL, *motion = NULL;
-  size_t frames = 60, cameras = 8, points = 30000, seed = 1, vertices = 8000;
-  double noise = 2;
-  const km_cli_opt opts[] = {
-      {"character", 'c', KM_OPT_STRING, &character,
-       "subject mesh with a rig sidecar (default: procedural, --vertices)"},
-      {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
-      {"vertices", 'n', KM_OPT_SIZE, &vertices, "procedural subject size (default 8000)"},
-      {"motion", 'm', KM_OPT_STRING, &motion,
-       "take to perform (.json/.csv/.bvh; default: generated --kind)"},
-      {"kind", 0, KM_OPT_STRING, &kind, "generated motion: walk, wave or kungfu (default kungfu)"},
-      {"frames", 'f', KM_OPT_SIZE, &frames, "frames (default 60; with --motion: all of the take)"},
-      {"cameras", 0, KM_OPT_SIZE, &cameras, "depth cameras on a ring (default 8)"},
-      {"points", 0, KM_OPT_SIZE, &points, "points per frame over all cameras (default 30000)"},
-      {"noise-mm", 0, KM_OPT_DOUBLE, &noise, "Gaussian noise sigma in mm (default 2, 0: none)"},
-      {"seed", 0, KM_OPT_SIZE, &seed, "noise seed (default 1)"},
-      {"output", 'o', KM_OPT_STRING, &out, "output directory"},
-  };
-  const char *pos[1];
-  int n_pos;
-  int r = km_cli_parse(
-      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
-      "kinemesh gen capture --character CHAR --motion TAKE [--cameras 8] [--noise-mm 2] -o DIR",
-      "Ray-casts the animated character from depth cameras (Embree): one binary\n"
-      "PLY point cloud per frame with occlusion holes and noise, plus the\n"
-      "ground truth as DIR/truth.pc2 (faces: DIR/truth_rest.obj, which a\n"
-      "directory or 'DIR/*.ply' given to reconstruct does not read as a frame).");
-  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
-  if (!out) return km_cli_error("gen capture", "-o DIR is required");
-  km_motion_kind mk = !strcmp(kind, "walk")     ? KM_MOTION_WALK
-                      : !strcmp(kind, "wave")   ? KM_MOTION_WAVE
-                      : !strcmp(kind, "kungfu") ? KM_MOTION_KUNGFU
-                                                : (km_motion_kind)-1;
-  if ((int)mk < 0) return km_cli_error("gen capture", "--kind '%s': walk, wave or kungfu", kind);
-  km_error err = {0};
-  km_character c = {0};
-  km_take take = {0};
-  int rc = KM_EXIT_OK;
-  km_capture_options co = {.cameras = (int)cameras,
-                           .points_per_frame = points,
-                           .noise_mm = noise > 0 ? noise : -1,
-                           .seed = seed};
-  co.progress = km_cli_progress("capture");
-  double t0 = km_cli_now();
-  if (km_cli_load_character(character, rig, vertices, &c, &err) ||
-      (motion ? km_motion_read(motion, NULL, &take, NULL, &err)
-              : km_motion_generate(&c.skeleton, mk, frames, &take, &err)) ||
-      km_capture_simulate(&c, &take, &co, out, &err))
-    rc = km_cli_fail("gen capture", &err);
-  else
-    fprintf(stderr,
-            "kinemesh gen capture: %zu frames in %.1f s -> %s/frame_*.ply, truth.pc2, "
-            "truth_rest.obj\n",
-            take.n_frames, km_cli_now() - t0, out);
-  km_cli_progress_done();
-  km_take_free(&take);
-  km_character_free(&c);
-  return rc;
-}
 
 /* Features file: one "vertex x y z" per line ('#' comments). */
 /* First-frame correspondences: JSON {"correspondences": [{"vertex": 12, "point": [x, y, z]},

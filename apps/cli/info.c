@@ -1,0 +1,106 @@
+/* kinemesh info: topology counts and extent of a mesh, or a description of an animation
+ * (.glb, .pc2, a directory of frames). */
+#include "cli.h"
+#include "cli_verbs.h"
+
+#include <cjson/cJSON.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+static bool is_anim_path(const char *path) {
+  struct stat st;
+  if (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) return true;
+  size_t n = strlen(path);
+  return (n > 4 && (!strcasecmp(path + n - 4, ".glb") || !strcasecmp(path + n - 4, ".pc2")));
+}
+
+static cJSON *vec3(const double *v) {
+  cJSON *a = cJSON_CreateArray();
+  for (int i = 0; i < 3; ++i)
+    cJSON_AddItemToArray(a, cJSON_CreateNumber(v[i]));
+  return a;
+}
+
+static const char *anim_format_name(km_anim_format f) {
+  switch (f) {
+  case KM_ANIM_GLB: return "glb";
+  case KM_ANIM_PC2: return "pc2";
+  case KM_ANIM_OBJ_DIR: return "obj-dir";
+  case KM_ANIM_PLY_DIR: return "ply-dir";
+  default: return "unknown";
+  }
+}
+
+int km_cli_info(int argc, char **argv) {
+  bool json = false;
+  const km_cli_opt opts[] = {{"json", 0, KM_OPT_FLAG, &json, "print JSON instead of text"}};
+  const char *pos[1];
+  int n_pos;
+  int r = km_cli_parse(argc, argv, opts, 1, pos, 1, &n_pos, "kinemesh info FILE [--json]",
+                       "Mesh (OBJ/PLY/OFF): vertex/face counts, topology counts and bounding box.\n"
+                       "Animation (.glb, .pc2, frame directory): frames, vertices, frame rate.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (n_pos != 1) return km_cli_error("info", "expected one FILE (see kinemesh info --help)");
+  km_error err = {0};
+  const char *path = pos[0];
+
+  if (is_anim_path(path)) {
+    km_anim_info ai;
+    if (km_anim_info_read(path, &ai, &err) != KM_OK) return km_cli_fail("info", &err);
+    if (json) {
+      cJSON *o = cJSON_CreateObject();
+      cJSON_AddStringToObject(o, "file", path);
+      cJSON_AddStringToObject(o, "format", anim_format_name(ai.format));
+      cJSON_AddNumberToObject(o, "frames", (double)ai.frames);
+      cJSON_AddNumberToObject(o, "vertices", (double)ai.vertices);
+      cJSON_AddNumberToObject(o, "faces", (double)ai.faces);
+      cJSON_AddNumberToObject(o, "fps", ai.fps);
+      cJSON_AddNumberToObject(o, "duration_s", ai.duration);
+      return km_cli_print_json("info", o);
+    }
+    printf("file        %s\nformat      %s\nframes      %zu\nvertices    %zu\nfaces       %zu\n",
+           path, anim_format_name(ai.format), ai.frames, ai.vertices, ai.faces);
+    if (ai.fps > 0)
+      printf("frame rate  %g fps\nduration    %.3f s\n", ai.fps, ai.duration);
+    else
+      printf("frame rate  not stored in this format\n");
+    return KM_EXIT_OK;
+  }
+
+  km_mesh m = {0};
+  if (km_mesh_read(path, &m, &err) != KM_OK) return km_cli_fail("info", &err);
+  km_mesh_info info;
+  km_status s = km_mesh_info_compute(&m, &info, &err);
+  km_mesh_free(&m);
+  if (s != KM_OK) return km_cli_fail("info", &err);
+  if (json) {
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "file", path);
+    cJSON_AddNumberToObject(o, "vertices", (double)info.vertices);
+    cJSON_AddNumberToObject(o, "faces", (double)info.faces);
+    cJSON_AddNumberToObject(o, "edges", (double)info.edges);
+    cJSON_AddNumberToObject(o, "boundary_edges", (double)info.boundary_edges);
+    cJSON_AddNumberToObject(o, "nonmanifold_edges", (double)info.nonmanifold_edges);
+    cJSON_AddNumberToObject(o, "nonmanifold_vertices", (double)info.nonmanifold_vertices);
+    cJSON_AddNumberToObject(o, "components", (double)info.components);
+    cJSON_AddNumberToObject(o, "isolated_vertices", (double)info.isolated_vertices);
+    cJSON_AddNumberToObject(o, "degenerate_faces", (double)info.degenerate_faces);
+    cJSON_AddNumberToObject(o, "euler_characteristic", (double)info.euler_characteristic);
+    cJSON_AddItemToObject(o, "bbox_min", vec3(info.bbox_min));
+    cJSON_AddItemToObject(o, "bbox_max", vec3(info.bbox_max));
+    return km_cli_print_json("info", o);
+  }
+  printf("file                  %s\n", path);
+  printf("vertices              %zu\nfaces                 %zu\nedges                 %zu\n",
+         info.vertices, info.faces, info.edges);
+  printf("boundary edges        %zu\nnon-manifold edges    %zu\nnon-manifold vertices %zu\n",
+         info.boundary_edges, info.nonmanifold_edges, info.nonmanifold_vertices);
+  printf("components            %zu\nisolated vertices     %zu\ndegenerate faces      %zu\n",
+         info.components, info.isolated_vertices, info.degenerate_faces);
+  printf("euler characteristic  %lld\n", (long long)info.euler_characteristic);
+  printf("bbox min              %.6g %.6g %.6g\nbbox max              %.6g %.6g %.6g\n",
+         info.bbox_min[0], info.bbox_min[1], info.bbox_min[2], info.bbox_max[0], info.bbox_max[1],
+         info.bbox_max[2]);
+  return KM_EXIT_OK;
+}

@@ -1,0 +1,187 @@
+/* kinemesh transfer: avatar pose transfer (Lifkooee et al. 2019): the source takes the
+ * template's pose (same connectivity).
+ *   kinemesh transfer --source S --template T -o OUT   (or SOURCE TEMPLATE positionally)
+ * Landmarks come from --landmarks LM.json or the mesh's rig sidecar (<stem>.rig.json). */
+#include "cli.h"
+#include "cli_verbs.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+int km_cli_transfer(int argc, char **argv) {
+  const char *out = NULL, *lm_path = NULL, *encoding = "edge", *laplacian = "uniform",
+             *align = "scale", *source = NULL, *templ = NULL, *xyz = NULL;
+  int iterations = 0;
+  size_t xyz_frame = 0;
+  const km_cli_opt opts[] = {
+      {"source", 's', KM_OPT_STRING, &source, "the avatar mesh S"},
+      {"template", 't', KM_OPT_STRING, &templ, "the posed template T (same connectivity as S)"},
+      {"output", 'o', KM_OPT_STRING, &out, "output mesh (.obj/.ply/.off)"},
+      {"landmarks", 'l', KM_OPT_STRING, &lm_path,
+       "LM.json with the landmark vertices (default: SOURCE's rig sidecar), or auto[:K]: K "
+       "(default 16) vertices spread by farthest-point sampling, for any mesh"},
+      {"landmarks-xyz", 0, KM_OPT_STRING, &xyz,
+       "tracked landmark positions (a track .json/.csv, names as in the landmarks) as the "
+       "targets, instead of TEMPLATE's landmarks"},
+      {"frame", 0, KM_OPT_SIZE, &xyz_frame, "frame of --landmarks-xyz (default 0)"},
+      {"iterations", 'i', KM_OPT_INT, &iterations, "maximum solves (default 10)"},
+      {"encoding", 0, KM_OPT_STRING, &encoding,
+       "edge (default) or vertex (the paper's eq. 3 verbatim)"},
+      {"laplacian", 0, KM_OPT_STRING, &laplacian, "uniform (default, eq. 2) or cotan"},
+      {"align", 0, KM_OPT_STRING, &align,
+       "scale (default: TEMPLATE's landmarks scaled to SOURCE's size) or similarity"},
+  };
+  const char *pos[2];
+  int n_pos;
+  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 2, &n_pos,
+                       "kinemesh transfer --source S --template T -o OUT [--landmarks LM.json]",
+                       "SOURCE (the avatar) takes the pose of TEMPLATE (same connectivity) by\n"
+                       "locally encoded Laplacian offsets; landmark vertices follow TEMPLATE's,\n"
+                       "scaled to SOURCE's size.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (source && n_pos < 2) pos[n_pos++] = source;
+  if (templ && n_pos < 2) pos[n_pos++] = templ;
+  if (n_pos != 2) return km_cli_error("transfer", "expected --source S and --template T");
+  if (!out) return km_cli_error("transfer", "-o OUTPUT is required");
+  km_transfer_options to = {0};
+  to.max_iterations = iterations;
+  if (!strcmp(encoding, "vertex"))
+    to.encoding = KM_OFFSETS_VERTEX;
+  else if (strcmp(encoding, "edge"))
+    return km_cli_error("transfer", "--encoding must be edge or vertex, not '%s'", encoding);
+  if (!strcmp(laplacian, "cotan"))
+    to.laplacian = KM_LAPLACIAN_COTAN;
+  else if (strcmp(laplacian, "uniform"))
+    return km_cli_error("transfer", "--laplacian must be uniform or cotan, not '%s'", laplacian);
+  if (!strcmp(align, "similarity"))
+    to.align = KM_TRANSFER_ALIGN_SIMILARITY;
+  else if (strcmp(align, "scale"))
+    return km_cli_error("transfer", "--align must be scale or similarity, not '%s'", align);
+  km_error err = {0};
+  km_mesh s = {0}, t = {0}, o = {0};
+  km_transfer *tr = NULL;
+  km_track trk = {0};
+  km_landmark *lm = NULL;
+  int32_t *ids = NULL;
+  double *targets = NULL;
+  size_t nl = 0, auto_k = 0;
+  int rc = KM_EXIT_OK;
+  bool auto_lm = lm_path && !strncmp(lm_path, "auto", 4);
+  if (auto_lm) {
+    const char *k = lm_path + 4;
+    char *end = NULL;
+    long v = *k == ':' ? strtol(k + 1, &end, 10) : 16;
+    if ((*k && *k != ':') || (*k == ':' && (end == k + 1 || *end)) || v < 3)
+      return km_cli_error("transfer", "--landmarks auto:K needs K >= 3, not '%s'", lm_path);
+    auto_k = (size_t)v;
+  }
+  if (xyz && auto_lm)
+    return km_cli_error("transfer", "--landmarks-xyz needs named landmarks (LM.json or the rig), "
+                                    "not --landmarks auto");
+  if (km_mesh_read(pos[0], &s, &err) || km_mesh_read(pos[1], &t, &err)) {
+    rc = km_cli_fail("transfer", &err);
+    goto done;
+  }
+  /* Transfer takes any number of landmarks (at least 3, at least one vertex free). */
+  lm = calloc(s.n_vertices ? s.n_vertices : 1, sizeof *lm);
+  ids = calloc(s.n_vertices ? s.n_vertices : 1, sizeof *ids);
+  if (!lm || !ids) {
+    rc = km_cli_error("transfer", "out of memory");
+    goto done;
+  }
+  if (auto_lm) {
+    nl = auto_k;
+    if (km_farthest_points(&s, nl, ids, &err)) {
+      rc = km_cli_fail("transfer", &err);
+      goto done;
+    }
+  } else if (km_cli_load_landmarks(lm_path, pos[0], s.n_vertices, lm, s.n_vertices, &nl, &err)) {
+    rc = km_cli_fail("transfer", &err);
+    if (!lm_path)
+      fprintf(stderr, "kinemesh transfer: no landmarks: give --landmarks LM.json, or --landmarks "
+                      "auto for a mesh without a rig\n");
+    goto done;
+  }
+  if (!auto_lm && nl < 3) {
+    char *rig = lm_path ? NULL : km_cli_rig_path(pos[0]);
+    rc = km_cli_error("transfer",
+                      "%s: %zu landmark(s); transfer needs at least 3 to fix the avatar's "
+                      "rotation",
+                      lm_path ? lm_path
+                      : rig   ? rig
+                              : pos[0],
+                      nl);
+    free(rig);
+    goto done;
+  }
+  if (t.n_vertices != s.n_vertices || t.n_faces != s.n_faces ||
+      memcmp(t.F, s.F, s.n_faces * 3 * sizeof(int32_t)) != 0) {
+    rc = km_cli_error("transfer",
+                      "%s (%zu vertices, %zu faces) does not share the connectivity of %s (%zu "
+                      "vertices, %zu faces)",
+                      pos[1], t.n_vertices, t.n_faces, pos[0], s.n_vertices, s.n_faces);
+    goto done;
+  }
+  for (size_t i = 0; i < nl && !auto_lm; ++i)
+    ids[i] = lm[i].vertex;
+  if (xyz) {
+    /* tracked targets: matched to the landmarks by name */
+    if (km_track_read(xyz, &trk, &err)) {
+      rc = km_cli_fail("transfer", &err);
+      goto done;
+    }
+    if (xyz_frame >= trk.n_frames) {
+      rc = km_cli_error("transfer", "%s has %zu frame(s); --frame %zu is out of range", xyz,
+                        trk.n_frames, xyz_frame);
+      goto done;
+    }
+    targets = malloc(sizeof(double) * 3 * nl);
+    if (!targets) {
+      rc = km_cli_error("transfer", "out of memory");
+      goto done;
+    }
+    for (size_t i = 0; i < nl; ++i) {
+      size_t k = 0;
+      while (k < trk.n_landmarks && strcmp(trk.names[k], lm[i].name))
+        ++k;
+      if (k == trk.n_landmarks) {
+        rc = km_cli_error("transfer", "%s has no landmark named '%s'", xyz, lm[i].name);
+        goto done;
+      }
+      const double *p = trk.positions + (xyz_frame * trk.n_landmarks + k) * 3;
+      if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
+        rc = km_cli_error("transfer", "%s: landmark '%s' is not tracked in frame %zu", xyz,
+                          lm[i].name, xyz_frame);
+        goto done;
+      }
+      memcpy(targets + 3 * i, p, 3 * sizeof(double));
+    }
+  }
+  double t0 = km_cli_now();
+  km_transfer_stats st;
+  if (km_transfer_precompute(&s, ids, nl, &to, &tr, &err) || km_mesh_copy(&s, &o, &err) ||
+      km_transfer_solve(tr, t.V, targets, NULL, o.V, &st, &err) ||
+      km_mesh_write(out, &o, NULL, &err)) {
+    rc = km_cli_fail("transfer", &err);
+    goto done;
+  }
+  double lap, chol;
+  km_transfer_precompute_ms(tr, &lap, &chol);
+  fprintf(stderr,
+          "kinemesh transfer: %zu vertices, %zu landmarks; offline %.1f ms (Laplacian %.1f, "
+          "Cholesky %.1f); online %.2f ms, %d iterations (frames %.3f, solve %.3f ms each) in "
+          "%.2f s -> %s\n",
+          s.n_vertices, nl, lap + chol, lap, chol, st.total_ms, st.iterations,
+          st.frames_ms / st.iterations, st.solve_ms / st.iterations, km_cli_now() - t0, out);
+done:
+  km_transfer_free(&tr);
+  km_track_free(&trk);
+  free(lm);
+  free(ids);
+  free(targets);
+  km_mesh_free(&s);
+  km_mesh_free(&t);
+  km_mesh_free(&o);
+  return rc;
+}
