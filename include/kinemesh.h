@@ -325,6 +325,12 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
  * rig's; out: the estimate). parents: n_joints entries, -1 for roots. */
 km_status km_skeleton_from_weights(const km_mesh *m, const km_skin *skin, const int32_t *parents,
                                    size_t n_joints, double *rest, km_error *err);
+/* Least-squares similarity dst ~ s R src + t (Umeyama 1991 / Kabsch: one SVD), n >= 3 point
+ * pairs (src, dst n*3). weights (n, >= 0) may be NULL for equal weights. with_scale false
+ * fits a rigid motion (s = 1; s may then be NULL). R row-major 3x3, a proper rotation.
+ * KM_ERR_DEGENERATE_MESH when the source points coincide or the pairs are collinear. */
+km_status km_similarity_fit(const double *src, const double *dst, const double *weights, size_t n,
+                            bool with_scale, double *s, double R[9], double t[3], km_error *err);
 /* out = sum_k w_k T_{j_k} v for each rest vertex. out #V*3 may not alias rest. */
 km_status km_lbs(const double *rest, size_t n_vertices, const km_skin *skin,
                  const double *transforms, size_t n_joints, double *out, km_error *err);
@@ -723,12 +729,6 @@ km_status km_points_write_ply(const char *path, const double *P, size_t n, km_er
 km_status km_point_frames_list(const char *pattern, char ***paths, size_t *n, km_error *err);
 void km_paths_free(char ***paths, size_t n);
 
-/* Absolute orientation (Horn 1987, unit quaternions): R (row-major 3x3), t and s minimising
- * sum |s R A_i + t - B_i|^2 over n >= 3 pairs (A, B n*3). with_scale false gives s = 1.
- * s may be NULL when with_scale is false. KM_ERR_DEGENERATE_MESH for collinear input. */
-km_status km_absolute_orientation(const double *A, const double *B, size_t n, bool with_scale,
-                                  double R[9], double t[3], double *s, km_error *err);
-
 /* Closest points on a triangle mesh (Embree point queries, OpenMP over queries).
  * V #V*3 and F #F*3 the mesh; Q #Q*3 query points. Outputs (each may be NULL):
  * tri #Q closest triangle, bary #Q*3 its barycentrics, dist #Q distance (mesh units). */
@@ -985,11 +985,6 @@ km_status km_transfer_targets(const km_transfer *t, const double *template_V, do
 void km_transfer_precompute_ms(const km_transfer *t, double *laplacian_ms, double *cholesky_ms);
 void km_transfer_free(km_transfer **t);
 
-/* Least-squares similarity dst ~ s R src + t (Umeyama 1991; SVD by LAPACKE), n >= 3 points,
- * weights (n, >= 0) may be NULL for equal weights. R row-major 3x3, proper rotation.
- * KM_ERR_DEGENERATE_MESH when the source points are all coincident. */
-km_status km_similarity_fit(const double *src, const double *dst, const double *weights, size_t n,
-                            double *s, double R[9], double t[3], km_error *err);
 /* Total triangle area (for pose-invariant size ratios). */
 double km_surface_area(const km_mesh *m);
 

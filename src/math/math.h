@@ -8,8 +8,17 @@
 #ifndef KM_MATH_MATH_H
 #define KM_MATH_MATH_H
 
+#include "kinemesh.h"
+
 #include <math.h>
 #include <string.h>
+
+/* The best rotation R (det +1, row-major) with R a_i ~ b_i from the cross-covariance
+ * H = sum_i w_i a_i b_i^T (row-major; Kabsch by a 3x3 SVD, reflection-corrected).
+ * S: H's singular values, descending (S[1] ~ 0: the a_i are collinear and R's turn about
+ * their line is arbitrary). Returns the trace of R H (the Umeyama scale's numerator), or -1
+ * when the SVD failed (R identity). Used by km_similarity_fit (similarity.c). */
+double km__rotation_fit3(const double H[9], double R[9], double S[3]);
 
 static inline void km__cross3(const double *a, const double *b, double *c) {
   c[0] = a[1] * b[2] - a[2] * b[1];

@@ -10,13 +10,12 @@
  *    parent-rotated rest direction onto the posed direction (no twist about the bone beyond
  *    what the parent carries), so a rigidly moved skeleton gives every joint that motion;
  *  - several children (HipCenter, ShoulderCenter): the best-fit rotation of the unit child
- *    directions (Kabsch, 3x3 SVD by LAPACKE_dgesvd, reflection-corrected);
+ *    directions (km__rotation_fit3: Kabsch, reflection-corrected);
  *  - no child (Head, hands, feet) or no valid child position: the parent's rotation.
  * A joint whose position is NaN holds its parent's transform (applied to its rest offset). */
 #include "core/core.h"
 #include "math/math.h"
 
-#include <lapacke.h>
 #include <stdlib.h>
 
 static double norm3(const double v[3]) { return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
@@ -49,37 +48,6 @@ static void min_rotation(const double a[3], const double b[3], double R[9]) {
     R[i] = (i % 4 == 0) + K[i] + f * K2[i];
 }
 
-/* Best rotation R with R d_i ~ e_i (Kabsch). Returns false when the directions are (nearly)
- * collinear, where the rotation about their common axis is undetermined. */
-static bool kabsch(int n, const double *d, const double *e, double R[9]) {
-  /* H = sum d_i e_i^T, row-major. */
-  double H[9] = {0};
-  for (int k = 0; k < n; ++k)
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        H[3 * i + j] += d[3 * k + i] * e[3 * k + j];
-  double S[3], U[9], Vt[9], superb[2];
-  if (LAPACKE_dgesvd(LAPACK_ROW_MAJOR, 'A', 'A', 3, 3, H, 3, S, U, 3, Vt, 3, superb) != 0)
-    return false;
-  if (!(S[1] > 1e-9 * S[0])) return false;
-  /* R = V diag(1,1,sign det(V U^T)) U^T */
-  double V[9], Ut[9];
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) {
-      V[3 * i + j] = Vt[3 * j + i];
-      Ut[3 * i + j] = U[3 * j + i];
-    }
-  double M[9];
-  km__m3_mul(V, Ut, M);
-  double det = M[0] * (M[4] * M[8] - M[5] * M[7]) - M[1] * (M[3] * M[8] - M[5] * M[6]) +
-               M[2] * (M[3] * M[7] - M[4] * M[6]);
-  if (det < 0)
-    for (int i = 0; i < 3; ++i)
-      V[3 * i + 2] = -V[3 * i + 2];
-  km__m3_mul(V, Ut, R);
-  return true;
-}
-
 km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *positions,
                                           double *transforms, km_error *err) {
   if (!s || !positions || !transforms || !s->parents || !s->rest)
@@ -98,7 +66,7 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
   int32_t *kids = km__malloc(n, sizeof *kids);
   double *P = km__malloc(n, 3 * sizeof *P);
   double *dir = km__malloc(n, 6 * sizeof *dir); /* rest and posed unit child directions */
-  double *dd = km__malloc(n, 6 * sizeof *dd);   /* the same, split for kabsch() */
+  double *dd = km__malloc(n, 6 * sizeof *dd);   /* the same, split for the fit */
   if (!first || !kids || !P || !dir || !dd) {
     free(first), free(kids), free(P), free(dir), free(dd);
     return km__fail(err, KM_ERR_NOMEM, "out of memory");
@@ -158,7 +126,17 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
             dd[3 * k + i] = dir[6 * k + i];
             dd[3 * m + 3 * k + i] = dir[6 * k + 3 + i];
           }
-        done = kabsch(m, dd, dd + 3 * m, R);
+        /* H = sum d_i e_i^T; collinear directions leave the turn about them open */
+        double H[9] = {0}, S[3], Rk[9];
+        const double *d = dd, *e = dd + 3 * m;
+        for (int k = 0; k < m; ++k)
+          for (int i = 0; i < 3; ++i)
+            for (int jj = 0; jj < 3; ++jj)
+              H[3 * i + jj] += d[3 * k + i] * e[3 * k + jj];
+        if (km__rotation_fit3(H, Rk, S) >= 0 && S[1] > 1e-9 * S[0]) {
+          memcpy(R, Rk, sizeof Rk);
+          done = true;
+        }
       }
       if (!done && m >= 1) {
         double a[3], Rm[9];

@@ -54,26 +54,22 @@ static bool face_cots(const km_mesh *m, size_t f, double cot[3], double *area2) 
 static km_status assemble(const km_mesh *m, const double *w, const unsigned char *keep,
                           km_sparse **out, km_error *err) {
   size_t n = m->n_vertices, nf = m->n_faces;
-  cholmod_common cc;
-  km__cholmod_start(&cc);
   size_t nz = n;
   for (size_t f = 0; f < nf; ++f)
     nz += keep[f] ? 6 : 0;
-  if (nz > INT32_MAX) {
-    cholmod_finish(&cc);
+  if (nz > INT32_MAX)
     return km__fail(err, KM_ERR_INVALID, "Laplacian: %zu entries exceed int32 indices", nz);
-  }
-  cholmod_sparse *C = cholmod_allocate_sparse(n, n, nz, 0, 1, 0, CHOLMOD_REAL, &cc);
+  km_sparse *C = NULL;
+  km_status s = km__sparse_alloc(n, n, nz, &C, err);
+  if (s) return s;
   int32_t *next = km__malloc(n + 1, sizeof *next);
-  if (!C || !next) {
-    cholmod_free_sparse(&C, &cc);
-    cholmod_finish(&cc);
-    free(next);
+  if (!next) {
+    km_sparse_free(&C);
     return km__fail(err, KM_ERR_NOMEM, "Laplacian: out of memory (%zu vertices)", n);
   }
-  cholmod_finish(&cc);
-  int32_t *p = C->p, *ri = C->i;
-  double *x = C->x;
+  int32_t *p, *ri;
+  double *x;
+  km__sparse_arrays(C, &p, &ri, &x);
   for (size_t v = 0; v <= n; ++v)
     p[v] = v ? 1 : 0;
   for (size_t f = 0; f < nf; ++f)
@@ -101,7 +97,9 @@ static km_status assemble(const km_mesh *m, const double *w, const unsigned char
     }
   }
   free(next);
-  return km__sparse_compress(&C, out, err);
+  s = km__sparse_compress(&C, err);
+  *out = C;
+  return s;
 }
 
 km_status km_cotmatrix(const km_mesh *m, km_sparse **L, km_error *err) {
@@ -149,9 +147,9 @@ km_status km_uniform_laplacian(const km_mesh *m, km_sparse **L, km_error *err) {
   /* An interior edge appears in two faces and was summed to 2: reset every edge to 1 and
    * the diagonal to minus the number of distinct neighbours. A face with a repeated index
    * adds a zero-weight self entry to the diagonal only (weight 0), which changes nothing. */
-  cholmod_sparse *A = km__sparse_cholmod(*L);
-  const int32_t *p = A->p, *ri = A->i;
-  double *x = A->x;
+  const int32_t *p, *ri;
+  km_sparse_csc(*L, &p, &ri, NULL);
+  double *x = km__sparse_values(*L);
   for (size_t j = 0; j < m->n_vertices; ++j) {
     int32_t dpos = -1, deg = 0;
     for (int32_t q = p[j]; q < p[j + 1]; ++q) {

@@ -1,8 +1,8 @@
 #include "recon/recon.h"
+#include "linalg/linalg.h"
 
 #include <embree3/rtcore.h>
 #include <float.h>
-#include <lapacke.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -23,7 +23,7 @@ void km__eig3(const double A[9], double evals[3], double evecs[9]) {
   memcpy(a, A, sizeof a);
   double work[16];
   /* column-major == row-major for a symmetric matrix; eigenvectors come out in columns */
-  if (LAPACKE_dsyev_work(LAPACK_COL_MAJOR, 'V', 'U', 3, a, 3, evals, work, 16) != 0) {
+  if (km__sym_eig_work(3, a, evals, work, 16) != 0) {
     memset(evecs, 0, 9 * sizeof *evecs);
     evecs[0] = evecs[4] = evecs[8] = 1;
     evals[0] = evals[1] = evals[2] = 0;
@@ -511,75 +511,6 @@ km_status km__cluster_points(const double *P, size_t n, size_t target, int32_t *
   free(cx.ids);
   *reps = cx.reps;
   *n_reps = cx.n_reps;
-  return KM_OK;
-}
-
-/* ---------------------------------------------------------------- Horn 1987 */
-
-km_status km_absolute_orientation(const double *A, const double *B, size_t n, bool with_scale,
-                                  double R[9], double t[3], double *s, km_error *err) {
-  if (!A || !B || !R || !t || (with_scale && !s))
-    return km__fail(err, KM_ERR_INVALID, "km_absolute_orientation: NULL argument");
-  if (n < 3)
-    return km__fail(err, KM_ERR_INVALID, "km_absolute_orientation: need >= 3 pairs, got %zu", n);
-  double ca[3] = {0}, cb[3] = {0};
-  for (size_t i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k)
-      ca[k] += A[3 * i + k], cb[k] += B[3 * i + k];
-  for (int k = 0; k < 3; ++k)
-    ca[k] /= (double)n, cb[k] /= (double)n;
-  double S[9] = {0}, sa = 0;
-  for (size_t i = 0; i < n; ++i) {
-    double a[3], b[3];
-    for (int k = 0; k < 3; ++k)
-      a[k] = A[3 * i + k] - ca[k], b[k] = B[3 * i + k] - cb[k];
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c)
-        S[3 * r + c] += a[r] * b[c];
-    sa += dot3(a, a);
-  }
-  /* Horn's symmetric 4x4 N; its top eigenvector is the unit quaternion of the rotation. */
-  double Sxx = S[0], Sxy = S[1], Sxz = S[2], Syx = S[3], Syy = S[4], Syz = S[5], Szx = S[6],
-         Szy = S[7], Szz = S[8];
-  double N[16] = {Sxx + Syy + Szz, Syz - Szy,       Szx - Sxz,        Sxy - Syx,
-                  Syz - Szy,       Sxx - Syy - Szz, Sxy + Syx,        Szx + Sxz,
-                  Szx - Sxz,       Sxy + Syx,       -Sxx + Syy - Szz, Syz + Szy,
-                  Sxy - Syx,       Szx + Sxz,       Syz + Szy,        -Sxx - Syy + Szz};
-  double w[4];
-  if (LAPACKE_dsyev(LAPACK_COL_MAJOR, 'V', 'U', 4, N, 4, w) != 0)
-    return km__fail(err, KM_ERR_NO_CONVERGENCE, "km_absolute_orientation: dsyev failed");
-  double scale_ref = fabs(w[3]) + fabs(w[0]);
-  if (!(sa > 0) || !(scale_ref > 0) || (w[3] - w[2]) < 1e-12 * scale_ref)
-    return km__fail(err, KM_ERR_DEGENERATE_MESH,
-                    "km_absolute_orientation: points are collinear or coincident");
-  double q0 = N[12], qx = N[13], qy = N[14], qz = N[15];
-  R[0] = q0 * q0 + qx * qx - qy * qy - qz * qz;
-  R[1] = 2 * (qx * qy - q0 * qz);
-  R[2] = 2 * (qx * qz + q0 * qy);
-  R[3] = 2 * (qy * qx + q0 * qz);
-  R[4] = q0 * q0 - qx * qx + qy * qy - qz * qz;
-  R[5] = 2 * (qy * qz - q0 * qx);
-  R[6] = 2 * (qz * qx - q0 * qy);
-  R[7] = 2 * (qz * qy + q0 * qx);
-  R[8] = q0 * q0 - qx * qx - qy * qy + qz * qz;
-  double sc = 1;
-  if (with_scale) {
-    /* least squares scale with R fixed: sum b.(R a) / sum |a|^2 */
-    double num = 0;
-    for (size_t i = 0; i < n; ++i) {
-      double a[3], b[3];
-      for (int k = 0; k < 3; ++k)
-        a[k] = A[3 * i + k] - ca[k], b[k] = B[3 * i + k] - cb[k];
-      for (int r = 0; r < 3; ++r)
-        num += b[r] * (R[3 * r] * a[0] + R[3 * r + 1] * a[1] + R[3 * r + 2] * a[2]);
-    }
-    sc = num / sa;
-    *s = sc;
-  } else if (s) {
-    *s = 1;
-  }
-  for (int r = 0; r < 3; ++r)
-    t[r] = cb[r] - sc * (R[3 * r] * ca[0] + R[3 * r + 1] * ca[1] + R[3 * r + 2] * ca[2]);
   return KM_OK;
 }
 

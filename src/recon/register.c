@@ -2,8 +2,8 @@
  * 2003): Horn similarity from features, per-vertex affine registration, skeletal motion by
  * L-BFGS, surface refinement. */
 #include "recon/recon.h"
+#include "linalg/linalg.h"
 
-#include <cholmod.h>
 #include <float.h>
 #include <lbfgs.h>
 #include <math.h>
@@ -101,9 +101,8 @@ struct km_recon {
   int32_t *face_edges; /* nf*3: edge index of (v0,v1), (v1,v2), (v2,v0) */
   /* affine solver: 4 unknowns per vertex and coordinate, 3 right-hand sides sharing one
    * CHOLMOD factor of the 4#V x 4#V SPD matrix */
-  cholmod_common cc;
-  cholmod_sparse *M;
-  cholmod_factor *L;
+  km_sparse *M;      /* upper triangle only (km__cholesky_options.stored = 1) */
+  km_cholesky *L;
   double *blocks;     /* (nv + ne) * 16 accumulators: diagonal blocks then edge blocks */
   int64_t *block_pos; /* (nv + ne) * 16 positions in M->x (-1: lower triangle) */
   double *rhs;        /* 4nv*3 */
@@ -211,7 +210,8 @@ static km_status build_system(km_recon *r, km_error *err) {
     ++cnt[e[2 * k + 1]];
   size_t n = 4 * nv;
   size_t nnz = 16 * ne + 10 * nv;
-  r->M = cholmod_allocate_sparse(n, n, nnz, 1, 1, 1, CHOLMOD_REAL, &r->cc);
+  km_status s = km__sparse_alloc(n, n, nnz, &r->M, err);
+  if (s) return s;
   r->blocks = km__malloc(nv + ne, 16 * sizeof(double));
   r->block_pos = km__malloc(nv + ne, 16 * sizeof(int64_t));
   size_t *colstart = km__malloc(nv + 1, sizeof *colstart);
@@ -222,7 +222,9 @@ static km_status build_system(km_recon *r, km_error *err) {
     free(fill);
     return km__fail(err, KM_ERR_NOMEM, "affine system: out of memory (%zu unknowns)", n);
   }
-  int *Mp = r->M->p, *Mi = r->M->i;
+  int32_t *Mp, *Mi;
+  double *Mx;
+  km__sparse_arrays(r->M, &Mp, &Mi, &Mx);
   /* Per column block j: (cnt[j] edge blocks) * 4 rows + diagonal block rows 0..cc */
   size_t pos = 0;
   for (size_t j = 0; j < nv; ++j) {
@@ -266,13 +268,15 @@ static km_status build_system(km_recon *r, km_error *err) {
   free(cnt);
   free(colstart);
   free(fill);
-  memset(r->M->x, 0, pos * sizeof(double));
+  memset(Mx, 0, pos * sizeof(double));
   for (size_t j = 0; j < nv; ++j)
     for (int c = 0; c < 4; ++c)
-      ((double *)r->M->x)[r->block_pos[16 * j + 5 * c]] = 1;
-  r->L = cholmod_analyze(r->M, &r->cc);
-  if (!r->L || r->cc.status != CHOLMOD_OK)
-    return km__fail(err, KM_ERR_NOMEM, "CHOLMOD analyze failed (status %d)", r->cc.status);
+      Mx[r->block_pos[16 * j + 5 * c]] = 1;
+  /* the columns are sorted without repeats, so block_pos stays valid */
+  if ((s = km__sparse_compress(&r->M, err))) return s;
+  /* CHOLMOD's own choice: supernodal LL' for large templates, simplicial LDL' for small */
+  km__cholesky_options co = {.kind = KM__CHOLESKY_AUTO_LDL, .stored = 1};
+  if ((s = km__cholesky_analyze_with(r->M, &co, &r->L, err))) return s;
   r->rhs = km__malloc(n, 3 * sizeof(double));
   r->sol = km__malloc(n, 3 * sizeof(double));
   if (!r->rhs || !r->sol) return km__fail(err, KM_ERR_NOMEM, "out of memory");
@@ -293,9 +297,8 @@ void km_recon_free(km_recon **rp) {
   free(r->names);
   free(r->edges);
   free(r->face_edges);
-  if (r->L) cholmod_free_factor(&r->L, &r->cc);
-  if (r->M) cholmod_free_sparse(&r->M, &r->cc);
-  cholmod_finish(&r->cc);
+  km_cholesky_free(&r->L);
+  km_sparse_free(&r->M);
   free(r->blocks);
   free(r->block_pos);
   free(r->rhs);
@@ -350,9 +353,6 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
                       c->skin.joints[i]);
   km_recon *r = calloc(1, sizeof *r);
   if (!r) return km__fail(err, KM_ERR_NOMEM, "out of memory");
-  cholmod_start(&r->cc);
-  r->cc.print = 0; /* the library never prints; failures come back as km_status */
-  r->cc.supernodal = CHOLMOD_AUTO;
   r->o = opt ? *opt : (km_recon_options){0};
   opt_defaults(&r->o);
   km_status s = km_mesh_copy(m, &r->tmpl, err);
@@ -601,26 +601,18 @@ static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, si
       if (k < 3) r->rhs[(size_t)k * n4 + 4 * i + (size_t)k] += wid;
     }
 #undef H
-  double *Mx = r->M->x;
+  double *Mx = km__sparse_values(r->M);
   for (size_t b = 0; b < nv + ne; ++b)
     for (int k = 0; k < 16; ++k) {
       int64_t p = r->block_pos[16 * b + k];
       if (p >= 0) Mx[p] = r->blocks[16 * b + k];
     }
-  if (!cholmod_factorize(r->M, r->L, &r->cc) || r->cc.status != CHOLMOD_OK)
-    return km__fail(err, r->cc.status == CHOLMOD_NOT_POSDEF ? KM_ERR_NOT_POSDEF : KM_ERR_NOMEM,
-                    "affine registration: CHOLMOD factorization failed (status %d)", r->cc.status);
-  cholmod_dense B = {.nrow = n4,
-                     .ncol = 3,
-                     .nzmax = n4 * 3,
-                     .d = n4,
-                     .x = r->rhs,
-                     .xtype = CHOLMOD_REAL,
-                     .dtype = CHOLMOD_DOUBLE};
-  cholmod_dense *Xs = cholmod_solve(CHOLMOD_A, r->L, &B, &r->cc);
-  if (!Xs) return km__fail(err, KM_ERR_NOMEM, "affine registration: CHOLMOD solve failed");
-  memcpy(r->sol, Xs->x, n4 * 3 * sizeof(double));
-  cholmod_free_dense(&Xs, &r->cc);
+  km_error ferr;
+  km_status fs = km_cholesky_factorize(r->L, r->M, &ferr);
+  if (fs)
+    return km__fail(err, fs == KM_ERR_NOT_POSDEF ? KM_ERR_NOT_POSDEF : KM_ERR_NOMEM,
+                    "affine registration: factorization failed: %s", ferr.message);
+  if ((fs = km_cholesky_solve(r->L, 3, r->rhs, r->sol, err))) return fs;
   for (size_t i = 0; i < nv; ++i) {
     double h[4] = {Vb[3 * i] - c[0], Vb[3 * i + 1] - c[1], Vb[3 * i + 2] - c[2], 1};
     for (int a = 0; a < 3; ++a) {
@@ -1355,7 +1347,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     }
     /* rigid only here: with the subject in another pose than the template, a scale from
      * unposed landmarks is biased (arms out vs. arms in); scale comes after posing */
-    s = km_absolute_orientation(A, B, nfeat, false, R, t, NULL, err);
+    s = km_similarity_fit(A, B, NULL, nfeat, false, NULL, R, t, err);
     free(A), free(B);
     if (s) {
       frame_data_free(&fd);
@@ -1415,7 +1407,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
         memcpy(B + 3 * k, feat[k].point, 3 * sizeof(double));
       }
       double R2[9], t2[3], s2 = 1;
-      if (km_absolute_orientation(A, B, nfeat, true, R2, t2, &s2, NULL) != KM_OK) break;
+      if (km_similarity_fit(A, B, NULL, nfeat, true, &s2, R2, t2, NULL) != KM_OK) break;
       /* the similarity goes into the unposed base; the root offset follows it */
       for (size_t i = 0; i < nv; ++i) {
         mat_vec(R2, r->base + 3 * i, r->base + 3 * i);
