@@ -18,9 +18,7 @@
 
 #include <stdlib.h>
 
-static double norm3(const double v[3]) { return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
-
-static bool finite3(const double *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }
+static double norm3(const double v[3]) { return sqrt(km__dot3(v, v)); }
 
 /* Minimal rotation taking unit a onto unit b (Rodrigues). */
 static void min_rotation(const double a[3], const double b[3], double R[9]) {
@@ -58,7 +56,7 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
       return km__fail(err, KM_ERR_INVALID,
                       "skeleton: parent of joint %zu is %ld, not an earlier joint", j,
                       (long)s->parents[j]);
-    if (!finite3(s->rest + 3 * j))
+    if (!km__finite3(s->rest + 3 * j))
       return km__fail(err, KM_ERR_INVALID, "skeleton: rest position of joint %zu is not finite", j);
   }
   /* Children in CSR form; the skeleton is tiny, but one allocation serves any size. */
@@ -104,12 +102,12 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
     double R[9];
     memcpy(R, Rp, sizeof R);
     const double *pj = positions + 3 * j;
-    if (finite3(pj)) {
+    if (km__finite3(pj)) {
       memcpy(P + 3 * j, pj, 3 * sizeof *P);
       int m = 0;
       for (int32_t k = first[j]; k < first[j + 1]; ++k) {
         const double *pc = positions + 3 * kids[k], *rc = s->rest + 3 * kids[k];
-        if (!finite3(pc)) continue;
+        if (!km__finite3(pc)) continue;
         double d[3] = {rc[0] - rj[0], rc[1] - rj[1], rc[2] - rj[2]};
         double e[3] = {pc[0] - pj[0], pc[1] - pj[1], pc[2] - pj[2]};
         double nd = norm3(d), ne = norm3(e);
@@ -160,6 +158,38 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
   }
   free(first), free(kids), free(P), free(dir), free(dd);
   return KM_OK;
+}
+
+void km__forward_kinematics(size_t n, const int32_t *parents, const double *L, const double *o,
+                            double *W, double *P) {
+  for (size_t j = 0; j < n; ++j) {
+    int32_t p = parents[j];
+    if (p < 0) {
+      memcpy(W + 9 * j, L + 9 * j, 9 * sizeof *W);
+      if (P != o) memcpy(P + 3 * j, o + 3 * j, 3 * sizeof *P);
+    } else {
+      const double *Wp = W + 9 * (size_t)p, *Pp = P + 3 * (size_t)p;
+      double d[3];
+      km__m3_apply(Wp, o + 3 * j, d);
+      for (int a = 0; a < 3; ++a)
+        P[3 * j + a] = Pp[a] + d[a];
+      km__m3_mul(Wp, L + 9 * j, W + 9 * j);
+    }
+  }
+}
+
+void km__joint_transforms(size_t n, const double *W, const double *P, const double *rest,
+                          double *G) {
+  for (size_t j = 0; j < n; ++j) {
+    const double *Wj = W + 9 * j;
+    double WJ[3];
+    km__m3_apply(Wj, rest + 3 * j, WJ);
+    double *Gj = G + 12 * j;
+    for (int r = 0; r < 3; ++r) {
+      Gj[4 * r] = Wj[3 * r], Gj[4 * r + 1] = Wj[3 * r + 1], Gj[4 * r + 2] = Wj[3 * r + 2];
+      Gj[4 * r + 3] = P[3 * j + r] - WJ[r];
+    }
+  }
 }
 
 km_status km_lbs(const double *rest, size_t n_vertices, const km_skin *skin,

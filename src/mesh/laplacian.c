@@ -3,6 +3,7 @@
  * faces), so no triplet list is materialised. */
 #include "core/core.h"
 #include "linalg/linalg.h"
+#include "math/math.h"
 #include "mesh/mesh_args.h"
 
 #include <math.h>
@@ -11,36 +12,22 @@
 
 #define KM_COT_CLAMP 1e5
 
-static inline void sub3(const double *a, const double *b, double *o) {
-  o[0] = a[0] - b[0];
-  o[1] = a[1] - b[1];
-  o[2] = a[2] - b[2];
-}
-static inline double dot3(const double *a, const double *b) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-static inline void cross3(const double *a, const double *b, double *o) {
-  o[0] = a[1] * b[2] - a[2] * b[1];
-  o[1] = a[2] * b[0] - a[0] * b[2];
-  o[2] = a[0] * b[1] - a[1] * b[0];
-}
-
 /* Cotangents of the three corners of face f and twice its area; false when the area is zero
  * (or not finite), in which case the face contributes nothing. */
 static bool face_cots(const km_mesh *m, size_t f, double cot[3], double *area2) {
   const int32_t *t = m->F + 3 * f;
   const double *p[3] = {m->V + 3 * (size_t)t[0], m->V + 3 * (size_t)t[1], m->V + 3 * (size_t)t[2]};
   double u[3], v[3], n[3];
-  sub3(p[1], p[0], u);
-  sub3(p[2], p[0], v);
-  cross3(u, v, n);
-  double a2 = sqrt(dot3(n, n));
+  km__sub3(p[1], p[0], u);
+  km__sub3(p[2], p[0], v);
+  km__cross3(u, v, n);
+  double a2 = sqrt(km__dot3(n, n));
   if (!(a2 > 0) || !isfinite(a2)) return false;
   for (int c = 0; c < 3; ++c) {
     /* cot of the corner at c = (e1 . e2) / |e1 x e2|, and |e1 x e2| is 2*area at any corner */
-    sub3(p[(c + 1) % 3], p[c], u);
-    sub3(p[(c + 2) % 3], p[c], v);
-    double ct = dot3(u, v) / a2;
+    km__sub3(p[(c + 1) % 3], p[c], u);
+    km__sub3(p[(c + 2) % 3], p[c], v);
+    double ct = km__dot3(u, v) / a2;
     cot[c] = ct > KM_COT_CLAMP ? KM_COT_CLAMP : ct < -KM_COT_CLAMP ? -KM_COT_CLAMP : ct;
   }
   *area2 = a2;
@@ -198,8 +185,8 @@ km_status km_massmatrix(const km_mesh *m, km_mass_type type, km_sparse **M, km_e
     double l2[3]; /* squared length of the edge opposite corner c */
     for (int c = 0; c < 3; ++c) {
       double e[3];
-      sub3(m->V + 3 * (size_t)t[(c + 1) % 3], m->V + 3 * (size_t)t[(c + 2) % 3], e);
-      l2[c] = dot3(e, e);
+      km__sub3(m->V + 3 * (size_t)t[(c + 1) % 3], m->V + 3 * (size_t)t[(c + 2) % 3], e);
+      l2[c] = km__dot3(e, e);
     }
     for (int c = 0; c < 3; ++c) {
       int a = (c + 1) % 3, b = (c + 2) % 3;

@@ -1,4 +1,5 @@
 #include "recon/recon.h"
+#include "math/math.h"
 #include "linalg/linalg.h"
 
 #include <embree3/rtcore.h>
@@ -37,17 +38,13 @@ void km__eig3(const double A[9], double evals[3], double evecs[9]) {
 
 /* ---------------------------------------------------------------- closest point on triangle */
 
-static double dot3(const double *a, const double *b) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
 /* Ericson, Real-Time Collision Detection 5.1.5: Voronoi regions of the triangle. */
 double km__closest_on_triangle(const double *p, const double *a, const double *b, const double *c,
                                double *w) {
   double ab[3], ac[3], ap[3];
   for (int k = 0; k < 3; ++k)
     ab[k] = b[k] - a[k], ac[k] = c[k] - a[k], ap[k] = p[k] - a[k];
-  double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
+  double d1 = km__dot3(ab, ap), d2 = km__dot3(ac, ap);
   double u, v, t;
   if (d1 <= 0 && d2 <= 0) {
     u = 1, v = 0, t = 0;
@@ -56,7 +53,7 @@ double km__closest_on_triangle(const double *p, const double *a, const double *b
   double bp[3];
   for (int k = 0; k < 3; ++k)
     bp[k] = p[k] - b[k];
-  double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
+  double d3 = km__dot3(ab, bp), d4 = km__dot3(ac, bp);
   if (d3 >= 0 && d4 <= d3) {
     u = 0, v = 1, t = 0;
     goto done;
@@ -70,7 +67,7 @@ double km__closest_on_triangle(const double *p, const double *a, const double *b
   double cp[3];
   for (int k = 0; k < 3; ++k)
     cp[k] = p[k] - c[k];
-  double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
+  double d5 = km__dot3(ab, cp), d6 = km__dot3(ac, cp);
   if (d6 >= 0 && d5 <= d6) {
     u = 0, v = 0, t = 1;
     goto done;
@@ -269,7 +266,7 @@ static bool knn_cb(struct RTCPointQueryFunctionArguments *args) {
   knn_query *q = args->userPtr;
   const double *p = q->P + 3 * (size_t)args->primID;
   double d[3] = {p[0] - q->p[0], p[1] - q->p[1], p[2] - q->p[2]};
-  double d2 = dot3(d, d);
+  double d2 = km__dot3(d, d);
   if (q->count < q->k) {
     int i = q->count++;
     q->d2[i] = d2, q->idx[i] = (int32_t)args->primID;

@@ -2,6 +2,7 @@
  * 2003): Horn similarity from features, per-vertex affine registration, skeletal motion by
  * L-BFGS, surface refinement. */
 #include "recon/recon.h"
+#include "math/math.h"
 #include "linalg/linalg.h"
 
 #include <float.h>
@@ -12,41 +13,6 @@
 
 /* ---------------------------------------------------------------- small 3x3 helpers */
 
-static void mat_mul(const double *A, const double *B, double *C) {
-  double T[9];
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c)
-      T[3 * r + c] = A[3 * r] * B[c] + A[3 * r + 1] * B[3 + c] + A[3 * r + 2] * B[6 + c];
-  memcpy(C, T, sizeof T);
-}
-static void mat_vec(const double *A, const double *x, double *y) {
-  double t[3];
-  for (int r = 0; r < 3; ++r)
-    t[r] = A[3 * r] * x[0] + A[3 * r + 1] * x[1] + A[3 * r + 2] * x[2];
-  memcpy(y, t, sizeof t);
-}
-static void mat_tvec(const double *A, const double *x, double *y) {
-  double t[3];
-  for (int c = 0; c < 3; ++c)
-    t[c] = A[c] * x[0] + A[3 + c] * x[1] + A[6 + c] * x[2];
-  memcpy(y, t, sizeof t);
-}
-static void cross(const double *a, const double *b, double *c) {
-  double t[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-  memcpy(c, t, sizeof t);
-}
-static void rodrigues(const double *r, double *R) {
-  double th = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
-  double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0}, K2[9];
-  mat_mul(K, K, K2);
-  double a, b;
-  if (th < 1e-6)
-    a = 1 - th * th / 6, b = 0.5 - th * th / 24;
-  else
-    a = sin(th) / th, b = (1 - cos(th)) / (th * th);
-  for (int i = 0; i < 9; ++i)
-    R[i] = (i % 4 == 0) + a * K[i] + b * K2[i];
-}
 /* Nearest rotation by Gram-Schmidt on the rows: products of rotations drift off SO(3) in
  * floating point, and the constant-velocity prediction would amplify the drift. */
 static void orthonormalize(double *R) {
@@ -70,14 +36,14 @@ static void orthonormalize(double *R) {
   }
   for (int k = 0; k < 3; ++k)
     b[k] /= l;
-  cross(a, b, c);
+  km__cross3(a, b, c);
 }
 
 /* Right Jacobian of SO(3): exp(r + d) ~ exp(r) exp(Jr(r) d). */
 static void right_jacobian(const double *r, double *J) {
   double th = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
   double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0}, K2[9];
-  mat_mul(K, K, K2);
+  km__m3_mul(K, K, K2);
   double a, b;
   if (th < 1e-5)
     a = 0.5 - th * th / 24, b = 1.0 / 6 - th * th / 120;
@@ -494,7 +460,7 @@ static double correspond(km_recon *r, const double *X, const double *Q, const do
                      *cc = X + 3 * (size_t)t[2];
         double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
                v[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]}, fn[3];
-        cross(u, v, fn);
+        km__cross3(u, v, fn);
         double l = sqrt(fn[0] * fn[0] + fn[1] * fn[1] + fn[2] * fn[2]);
         for (int a = 0; a < 3; ++a)
           r->pnormal[3 * i + a] = l > 0 ? fn[a] / l : 0;
@@ -648,48 +614,20 @@ static void affine_apply(const km_recon *r, const double *Vb, size_t i, const do
 static void forward_kinematics(const km_recon *r, const double *Lrot, const double *t, double *W,
                                double *cj, double *G) {
   const double *J = r->base_joints;
-  for (size_t j = 0; j < r->nj; ++j) {
+  for (size_t j = 0; j < r->nj; ++j) { /* offsets, turned into positions in place */
     int32_t p = r->parents[j];
-    if (p < 0) {
-      memcpy(W + 9 * j, Lrot + 9 * j, 9 * sizeof(double));
-      for (int a = 0; a < 3; ++a)
-        cj[3 * j + a] = J[3 * j + a] + t[a];
-    } else {
-      mat_mul(W + 9 * (size_t)p, Lrot + 9 * j, W + 9 * j);
-      double d[3] = {J[3 * j] - J[3 * (size_t)p], J[3 * j + 1] - J[3 * (size_t)p + 1],
-                     J[3 * j + 2] - J[3 * (size_t)p + 2]};
-      mat_vec(W + 9 * (size_t)p, d, d);
-      for (int a = 0; a < 3; ++a)
-        cj[3 * j + a] = cj[3 * (size_t)p + a] + d[a];
-    }
-    /* G_j x = W_j (x - J_j) + c_j */
-    double *Gj = G + 12 * j;
-    double WJ[3];
-    mat_vec(W + 9 * j, J + 3 * j, WJ);
-    for (int rr = 0; rr < 3; ++rr) {
-      for (int cc = 0; cc < 3; ++cc)
-        Gj[4 * rr + cc] = W[9 * j + 3 * rr + cc];
-      Gj[4 * rr + 3] = cj[3 * j + rr] - WJ[rr];
-    }
+    for (int a = 0; a < 3; ++a)
+      cj[3 * j + a] = p < 0 ? J[3 * j + a] + t[a] : J[3 * j + a] - J[3 * (size_t)p + a];
   }
+  km__forward_kinematics(r->nj, r->parents, Lrot, cj, W, cj);
+  km__joint_transforms(r->nj, W, cj, J, G);
 }
 
-/* Serial on purpose: called once per L-BFGS evaluation on a few thousand vertices, where an
- * OpenMP fork/join costs more than the work. */
+/* km_lbs runs serially below 20000 vertices: called once per L-BFGS evaluation on a few
+ * thousand vertices, an OpenMP fork/join would cost more than the work. The skin was checked
+ * by km_recon_create. */
 static void lbs_apply(const km_recon *r, const double *G, const double *Vb, double *X) {
-  for (size_t i = 0; i < r->nv; ++i) {
-    double x[3] = {0, 0, 0};
-    const double *v = Vb + 3 * i;
-    for (int k = 0; k < 4; ++k) {
-      int32_t j = r->skin.joints[4 * i + k];
-      double w = r->skin.weights[4 * i + k];
-      if (j < 0 || w == 0) continue;
-      const double *g = G + 12 * (size_t)j;
-      for (int a = 0; a < 3; ++a)
-        x[a] += w * (g[4 * a] * v[0] + g[4 * a + 1] * v[1] + g[4 * a + 2] * v[2] + g[4 * a + 3]);
-    }
-    memcpy(X + 3 * i, x, sizeof x);
-  }
+  km_lbs(Vb, r->nv, &r->skin, G, r->nj, X, NULL);
 }
 
 /* ---------------------------------------------------------------- skeleton: L-BFGS */
@@ -723,8 +661,8 @@ static void pose_from_params(pose_ctx *pc, const double *x) {
   km_recon *r = pc->r;
   for (size_t j = 0; j < r->nj; ++j) {
     double E[9];
-    rodrigues(x + 3 + 3 * j, E);
-    mat_mul(pc->Lref + 9 * j, E, pc->Lrot + 9 * j);
+    km__m3_from_rotvec(x + 3 + 3 * j, E);
+    km__m3_mul(pc->Lref + 9 * j, E, pc->Lrot + 9 * j);
   }
   double t[3] = {pc->tref[0] + x[0], pc->tref[1] + x[1], pc->tref[2] + x[2]};
   forward_kinematics(r, pc->Lrot, t, pc->W, pc->cj, pc->G);
@@ -803,7 +741,7 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
       double y[3], yx[3];
       for (int a = 0; a < 3; ++a)
         y[a] = G[4 * a] * v[0] + G[4 * a + 1] * v[1] + G[4 * a + 2] * v[2] + G[4 * a + 3];
-      cross(y, gvi, yx);
+      km__cross3(y, gvi, yx);
       for (int a = 0; a < 3; ++a)
         acc[6 * (size_t)j + a] += w * yx[a], acc[6 * (size_t)j + 3 + a] += w * gvi[a];
     }
@@ -818,12 +756,12 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
     g[a] = acc[3 + a];
   for (size_t j = 0; j < nj; ++j) {
     double cb[3], gphi[3], Jr[9], tmp[3];
-    cross(pc->cj + 3 * j, acc + 6 * j + 3, cb);
+    km__cross3(pc->cj + 3 * j, acc + 6 * j + 3, cb);
     for (int a = 0; a < 3; ++a)
       gphi[a] = acc[6 * j + a] - cb[a];
-    mat_tvec(pc->W + 9 * j, gphi, tmp);
+    km__m3_apply_t(pc->W + 9 * j, gphi, tmp);
     right_jacobian(x + 3 + 3 * j, Jr);
-    mat_tvec(Jr, tmp, g + 3 + 3 * j);
+    km__m3_apply_t(Jr, tmp, g + 3 + 3 * j);
   }
   /* small change from the reference pose (the skeleton prediction) */
   double lam = pc->lambda;
@@ -942,8 +880,8 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
     pc.evals = 0;
     for (size_t j = 0; j < nj; ++j) {
       double E[9];
-      rodrigues(x + 3 + 3 * j, E);
-      mat_mul(Lcur + 9 * j, E, Lcur + 9 * j);
+      km__m3_from_rotvec(x + 3 + 3 * j, E);
+      km__m3_mul(Lcur + 9 * j, E, Lcur + 9 * j);
       orthonormalize(Lcur + 9 * j);
     }
     for (int a = 0; a < 3; ++a)
@@ -1075,7 +1013,7 @@ static km_status refine(km_recon *r, const frame_data *fd, const double *Vb, int
 /* X = sc R V + t over the template. */
 static void place(const km_recon *r, const double *R, double sc, const double *t, double *X) {
   for (size_t i = 0; i < r->nv; ++i) {
-    mat_vec(R, r->tmpl.V + 3 * i, X + 3 * i);
+    km__m3_apply(R, r->tmpl.V + 3 * i, X + 3 * i);
     for (int a = 0; a < 3; ++a)
       X[3 * i + a] = sc * X[3 * i + a] + t[a];
   }
@@ -1155,14 +1093,14 @@ static bool icp_step(km_recon *r, const double *X, const double *Q, size_t nq, d
       e[a] = sa - Q[3 * i + a];
       u[a] = x1[a] - x0[a], v[a] = x2[a] - x0[a];
     }
-    cross(u, v, nn);
+    km__cross3(u, v, nn);
     double l = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
     if (!(l > 0)) continue;
     for (int a = 0; a < 3; ++a)
       nn[a] /= l;
     /* rows: the plane residual, then the three point residuals scaled by sqrt(mu) */
     double J[4][6], res[4], sxn[3];
-    cross(sp, nn, sxn);
+    km__cross3(sp, nn, sxn);
     for (int k = 0; k < 3; ++k)
       J[0][k] = sxn[k], J[0][3 + k] = nn[k];
     res[0] = e[0] * nn[0] + e[1] * nn[1] + e[2] * nn[2];
@@ -1185,12 +1123,12 @@ static bool icp_step(km_recon *r, const double *X, const double *Q, size_t nq, d
   }
   if (!solve6(M, b)) return false;
   double Ri[9];
-  rodrigues(b, Ri);
+  km__m3_from_rotvec(b, Ri);
   /* X' = Ri (X - cs) + cs + tau: R <- Ri R, t <- Ri (t - cs) + cs + tau */
-  mat_mul(Ri, R, R);
+  km__m3_mul(Ri, R, R);
   orthonormalize(R);
   double d[3] = {t[0] - cs[0], t[1] - cs[1], t[2] - cs[2]};
-  mat_vec(Ri, d, d);
+  km__m3_apply(Ri, d, d);
   for (int a = 0; a < 3; ++a)
     t[a] = d[a] + cs[a] + b[3 + a];
   return true;
@@ -1236,7 +1174,7 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
     double yaw = 2 * M_PI * k / KM__YAW_CANDIDATES, R[9], t[3], c = cos(yaw), sn = sin(yaw);
     double Ry[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
     memcpy(R, Ry, sizeof R);
-    mat_vec(R, ct, t);
+    km__m3_apply(R, ct, t);
     for (int a = 0; a < 3; ++a)
       t[a] = cp[a] - sc * t[a];
     for (int it = 0; it < KM__ICP_ROUNDS; ++it) {
@@ -1254,7 +1192,7 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
     /* the skeletal step from this placement, as the first frame will run it */
     memcpy(r->base, X, nv * 3 * sizeof(double));
     for (size_t j = 0; j < nj; ++j) {
-      mat_vec(R, r->tmpl_joints + 3 * j, r->base_joints + 3 * j);
+      km__m3_apply(R, r->tmpl_joints + 3 * j, r->base_joints + 3 * j);
       for (int a = 0; a < 3; ++a)
         r->base_joints[3 * j + a] = sc * r->base_joints[3 * j + a] + t[a];
       double *L = Lid + 9 * j;
@@ -1366,12 +1304,12 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     return km__fail(err, KM_ERR_NOMEM, "out of memory");
   }
   for (size_t i = 0; i < nv; ++i) {
-    mat_vec(R, r->tmpl.V + 3 * i, V1 + 3 * i);
+    km__m3_apply(R, r->tmpl.V + 3 * i, V1 + 3 * i);
     for (int a = 0; a < 3; ++a)
       V1[3 * i + a] = sc * V1[3 * i + a] + t[a];
   }
   for (size_t j = 0; j < nj; ++j) {
-    mat_vec(R, r->tmpl_joints + 3 * j, r->base_joints + 3 * j);
+    km__m3_apply(R, r->tmpl_joints + 3 * j, r->base_joints + 3 * j);
     for (int a = 0; a < 3; ++a)
       r->base_joints[3 * j + a] = sc * r->base_joints[3 * j + a] + t[a];
   }
@@ -1410,16 +1348,16 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
       if (km_similarity_fit(A, B, NULL, nfeat, true, &s2, R2, t2, NULL) != KM_OK) break;
       /* the similarity goes into the unposed base; the root offset follows it */
       for (size_t i = 0; i < nv; ++i) {
-        mat_vec(R2, r->base + 3 * i, r->base + 3 * i);
+        km__m3_apply(R2, r->base + 3 * i, r->base + 3 * i);
         for (int a = 0; a < 3; ++a)
           r->base[3 * i + a] = s2 * r->base[3 * i + a] + t2[a];
       }
       for (size_t j = 0; j < nj; ++j) {
-        mat_vec(R2, r->base_joints + 3 * j, r->base_joints + 3 * j);
+        km__m3_apply(R2, r->base_joints + 3 * j, r->base_joints + 3 * j);
         for (int a = 0; a < 3; ++a)
           r->base_joints[3 * j + a] = s2 * r->base_joints[3 * j + a] + t2[a];
       }
-      mat_vec(R2, r->troot, zero);
+      km__m3_apply(R2, r->troot, zero);
       for (int a = 0; a < 3; ++a)
         zero[a] *= s2;
     }
@@ -1550,8 +1488,8 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b)
         Pt[3 * a + b] = r->Lprev2[9 * j + 3 * b + a];
-    mat_mul(Pt, r->Lprev + 9 * j, D);
-    mat_mul(r->Lprev + 9 * j, D, Lpred + 9 * j);
+    km__m3_mul(Pt, r->Lprev + 9 * j, D);
+    km__m3_mul(r->Lprev + 9 * j, D, Lpred + 9 * j);
     orthonormalize(Lpred + 9 * j);
   }
   double tpred[3];
