@@ -28,6 +28,7 @@
  * choice. */
 #include "transfer/transfer.h"
 #include "linalg/linalg.h"
+#include "mesh/mesh.h"
 
 /* Above this many vertices the per-iteration loops (frames, right-hand side) run on OpenMP
  * threads. Not lower: at 7k vertices two free cores took 10 iterations from ~5.8 to ~4.6 ms
@@ -72,8 +73,7 @@ struct km_transfer {
   double *e_b;
   /* Size of a pose of this connectivity: edge-graph geodesic distances from landmark 0 to the
    * other landmarks, summed (Dijkstra; scratch kept here so solves do not allocate). */
-  int32_t *adj_ptr, *adj, *hp, *hpos;
-  double *dist;
+  km__geodesic *geodesic;
   double geo;
   double area, diag;
   double laplacian_ms, cholesky_ms;
@@ -120,11 +120,7 @@ void km_transfer_free(km_transfer **tp) {
   free(t->e_ptr);
   free(t->e_nbr);
   free(t->e_b);
-  free(t->adj_ptr);
-  free(t->adj);
-  free(t->hp);
-  free(t->hpos);
-  free(t->dist);
+  km__geodesic_free(&t->geodesic);
   free(t);
   *tp = NULL;
 }
@@ -227,56 +223,11 @@ static double frames_of(km_transfer *t, const double *V, double *frames, const d
  * the skeleton's lengths. */
 static double landmark_geodesics(const km_transfer *tc, const double *V) {
   km_transfer *t = (km_transfer *)tc; /* scratch only */
-  size_t n = t->n, hn = 0, left = t->nc;
-  for (size_t v = 0; v < n; ++v)
-    t->dist[v] = INFINITY, t->hpos[v] = -1;
-  int32_t src = t->lm[0];
-  t->dist[src] = 0;
-  t->hp[hn++] = src;
-  t->hpos[src] = 0;
-  /* landmarks are marked by a negative free_of (see precompute) */
-  while (hn > 0 && left > 0) {
-    int32_t u = t->hp[0];
-    t->hpos[u] = -2; /* settled */
-    t->hp[0] = t->hp[--hn];
-    if (hn) t->hpos[t->hp[0]] = 0;
-    for (size_t i = 0;;) { /* sift down */
-      size_t l = 2 * i + 1, r = l + 1, m = i;
-      if (l < hn && t->dist[t->hp[l]] < t->dist[t->hp[m]]) m = l;
-      if (r < hn && t->dist[t->hp[r]] < t->dist[t->hp[m]]) m = r;
-      if (m == i) break;
-      int32_t a = t->hp[i];
-      t->hp[i] = t->hp[m], t->hp[m] = a;
-      t->hpos[t->hp[i]] = (int32_t)i, t->hpos[t->hp[m]] = (int32_t)m;
-      i = m;
-    }
-    if (t->free_of[u] < 0) --left;
-    const double *pu = V + 3 * (size_t)u;
-    for (int32_t q = t->adj_ptr[u]; q < t->adj_ptr[u + 1]; ++q) {
-      int32_t w = t->adj[q];
-      if (t->hpos[w] == -2) continue;
-      const double *pw = V + 3 * (size_t)w;
-      double d =
-          t->dist[u] + sqrt((pw[0] - pu[0]) * (pw[0] - pu[0]) + (pw[1] - pu[1]) * (pw[1] - pu[1]) +
-                            (pw[2] - pu[2]) * (pw[2] - pu[2]));
-      if (!(d < t->dist[w])) continue;
-      t->dist[w] = d;
-      size_t i = t->hpos[w] < 0 ? hn++ : (size_t)t->hpos[w];
-      t->hp[i] = w;
-      while (i > 0) { /* sift up */
-        size_t p = (i - 1) / 2;
-        if (!(t->dist[t->hp[p]] > t->dist[t->hp[i]])) break;
-        int32_t a = t->hp[i];
-        t->hp[i] = t->hp[p], t->hp[p] = a;
-        t->hpos[t->hp[i]] = (int32_t)i;
-        i = p;
-      }
-      t->hpos[t->hp[i]] = (int32_t)i;
-    }
-  }
+  const double *dist =
+      km__geodesic_run(t->geodesic, V, t->lm[0], INFINITY, t->lm, t->nc, NULL, NULL);
   double sum = 0;
   for (size_t c = 1; c < t->nc; ++c)
-    sum += t->dist[t->lm[c]];
+    sum += dist[t->lm[c]];
   return sum;
 }
 
@@ -463,24 +414,7 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
     }
   }
   t->lfc_ptr[n_landmarks] = (int32_t)q;
-  t->adj_ptr = km__malloc(n + 1, sizeof(int32_t));
-  t->adj = km__malloc(nnz ? nnz : 1, sizeof(int32_t));
-  t->hp = km__malloc(n, sizeof(int32_t));
-  t->hpos = km__malloc(n, sizeof(int32_t));
-  t->dist = km__malloc(n, sizeof(double));
-  if (!t->adj_ptr || !t->adj || !t->hp || !t->hpos || !t->dist) {
-    s = km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: out of memory (%zu vertices)", n);
-    goto fail;
-  }
-  {
-    size_t a = 0;
-    for (size_t j = 0; j < n; ++j) {
-      t->adj_ptr[j] = (int32_t)a;
-      for (int32_t p = cp[j]; p < cp[j + 1]; ++p)
-        if ((size_t)ri[p] != j) t->adj[a++] = ri[p];
-    }
-    t->adj_ptr[n] = (int32_t)a;
-  }
+  if ((s = km__geodesic_create(&t->mesh, &t->geodesic, err))) goto fail;
   t->geo = landmark_geodesics(t, t->rest);
   if (o.encoding == KM_OFFSETS_EDGE) {
     size_t ne = 0;
