@@ -9,10 +9,6 @@ int km__svd3(double A[9], double S[3], double U[9], double Vt[9]) {
   return (int)LAPACKE_dgesvd(LAPACK_ROW_MAJOR, 'A', 'A', 3, 3, A, 3, S, U, 3, Vt, 3, superb);
 }
 
-int km__sym_eig_work(int n, double *A, double *w, double *work, int lwork) {
-  return (int)LAPACKE_dsyev_work(LAPACK_COL_MAJOR, 'V', 'U', n, A, n, w, work, lwork);
-}
-
 int km__potrf(size_t n, double *K) {
   return (int)LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'U', (lapack_int)n, K, (lapack_int)n);
 }

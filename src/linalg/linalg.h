@@ -59,10 +59,6 @@ km_status km__cholesky_analyze_with(const km_sparse *A, const km__cholesky_optio
 
 /* A = U diag(S) Vt for a row-major 3x3 A (destroyed); U, Vt row-major, S descending. */
 int km__svd3(double A[9], double S[3], double U[9], double Vt[9]);
-/* Eigen-decomposition of the symmetric column-major n x n A (upper triangle read) with the
- * caller's workspace (LAPACK dsyev): eigenvalues ascending in w, eigenvectors in the columns of
- * A. */
-int km__sym_eig_work(int n, double *A, double *w, double *work, int lwork);
 /* Cholesky factor K = U^T U in place of the column-major n x n K (upper triangle; dpotrf). */
 int km__potrf(size_t n, double *K);
 /* B = K^-1 B with the factor of km__potrf; B column-major n x nrhs (dpotrs). */

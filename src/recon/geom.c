@@ -1,6 +1,5 @@
 #include "recon/recon.h"
 #include "math/math.h"
-#include "linalg/linalg.h"
 
 #include <embree3/rtcore.h>
 #include <float.h>
@@ -17,23 +16,6 @@ void *km__embree_device(km_error *err) {
   pthread_once(&g_device_once, device_init);
   if (!g_device) km__fail(err, KM_ERR_UNSUPPORTED, "Embree: rtcNewDevice failed");
   return g_device;
-}
-
-void km__eig3(const double A[9], double evals[3], double evecs[9]) {
-  double a[9];
-  memcpy(a, A, sizeof a);
-  double work[16];
-  /* column-major == row-major for a symmetric matrix; eigenvectors come out in columns */
-  if (km__sym_eig_work(3, a, evals, work, 16) != 0) {
-    memset(evecs, 0, 9 * sizeof *evecs);
-    evecs[0] = evecs[4] = evecs[8] = 1;
-    evals[0] = evals[1] = evals[2] = 0;
-    return;
-  }
-  /* a is column-major: column c = eigenvector c; store row-major with vectors as columns */
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c)
-      evecs[3 * r + c] = a[3 * c + r];
 }
 
 /* ---------------------------------------------------------------- closest point on triangle */
@@ -407,8 +389,8 @@ km_status km__point_normals(const double *P, size_t n, int k, double *N, km_erro
     for (size_t i = 0; i < n; ++i) {
       double c[3], C[9], ev[3], V[9];
       covariance(P, idx + (size_t)k * i, (size_t)k, c, C);
-      km__eig3(C, ev, V);
-      N[3 * i + 0] = V[0], N[3 * i + 1] = V[3], N[3 * i + 2] = V[6];
+      km__sym_eig3(C, ev, V); /* descending: the normal is the last column */
+      N[3 * i + 0] = V[2], N[3 * i + 1] = V[5], N[3 * i + 2] = V[8];
     }
   }
   free(idx);
@@ -435,12 +417,12 @@ static void cluster_rec(cluster_ctx *cx, size_t lo, size_t hi, int depth) {
   if (!m) return;
   double c[3], C[9], ev[3], V[9];
   covariance(cx->P, cx->ids + lo, m, c, C);
-  km__eig3(C, ev, V);
+  km__sym_eig3(C, ev, V); /* descending */
   double tr = ev[0] + ev[1] + ev[2];
-  double var = tr > 0 ? ev[0] / tr : 0;
+  double var = tr > 0 ? ev[2] / tr : 0;
   bool split = m > cx->max_size || (var > cx->max_var && m > 4);
   if (split && depth < 60 && m > 1) {
-    double ax[3] = {V[2], V[5], V[8]};
+    double ax[3] = {V[0], V[3], V[6]};
     size_t i = lo, j = hi;
     while (i < j) {
       const double *p = cx->P + 3 * (size_t)cx->ids[i];
