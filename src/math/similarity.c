@@ -71,8 +71,7 @@ km_status km_similarity_fit(const double *src, const double *dst, const double *
                     "km_similarity_fit: the %zu source points coincide", n);
   double S[3];
   double trace = km__rotation_fit3(H, R, S);
-  if (trace < 0)
-    return km__fail(err, KM_ERR_NO_CONVERGENCE, "km_similarity_fit: SVD failed");
+  if (trace < 0) return km__fail(err, KM_ERR_NO_CONVERGENCE, "km_similarity_fit: SVD failed");
   /* Collinear points leave the rotation about their line undetermined. */
   if (!(S[1] > 1e-12 * S[0]))
     return km__fail(err, KM_ERR_DEGENERATE_MESH,

@@ -64,9 +64,8 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
   int32_t *kids = km__malloc(n, sizeof *kids);
   double *P = km__malloc(n, 3 * sizeof *P);
   double *dir = km__malloc(n, 6 * sizeof *dir); /* rest and posed unit child directions */
-  double *dd = km__malloc(n, 6 * sizeof *dd);   /* the same, split for the fit */
-  if (!first || !kids || !P || !dir || !dd) {
-    free(first), free(kids), free(P), free(dir), free(dd);
+  if (!first || !kids || !P || !dir) {
+    free(first), free(kids), free(P), free(dir);
     return km__fail(err, KM_ERR_NOMEM, "out of memory");
   }
   for (size_t j = 0; j < n; ++j)
@@ -76,7 +75,7 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
   {
     int32_t *fill = km__malloc(n + 1, sizeof *fill);
     if (!fill) {
-      free(first), free(kids), free(P), free(dir), free(dd);
+      free(first), free(kids), free(P), free(dir);
       return km__fail(err, KM_ERR_NOMEM, "out of memory");
     }
     memcpy(fill, first, (n + 1) * sizeof *fill);
@@ -118,19 +117,12 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
       }
       bool done = false;
       if (m >= 2) {
-        /* Kabsch wants the two sets as separate arrays. */
-        for (int k = 0; k < m; ++k)
-          for (int i = 0; i < 3; ++i) {
-            dd[3 * k + i] = dir[6 * k + i];
-            dd[3 * m + 3 * k + i] = dir[6 * k + 3 + i];
-          }
         /* H = sum d_i e_i^T; collinear directions leave the turn about them open */
         double H[9] = {0}, S[3], Rk[9];
-        const double *d = dd, *e = dd + 3 * m;
         for (int k = 0; k < m; ++k)
           for (int i = 0; i < 3; ++i)
             for (int jj = 0; jj < 3; ++jj)
-              H[3 * i + jj] += d[3 * k + i] * e[3 * k + jj];
+              H[3 * i + jj] += dir[6 * k + i] * dir[6 * k + 3 + jj];
         if (km__rotation_fit3(H, Rk, S) >= 0 && S[1] > 1e-9 * S[0]) {
           memcpy(R, Rk, sizeof Rk);
           done = true;
@@ -156,7 +148,7 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
       T[4 * i + 3] = P[3 * j + i] - Rr[i];
     }
   }
-  free(first), free(kids), free(P), free(dir), free(dd);
+  free(first), free(kids), free(P), free(dir);
   return KM_OK;
 }
 

@@ -11,10 +11,10 @@
 
 struct km__geodesic {
   size_t n;
-  int32_t *ptr, *adj;  /* CSR, one entry per face edge (a neighbour may repeat) */
-  double *dist;        /* INFINITY where untouched */
-  int32_t *hp, *hpos;  /* heap of vertices; position in it, -1 outside, -2 settled */
-  int32_t *touched;    /* vertices given a finite distance in the last run, in order */
+  int32_t *ptr, *adj; /* CSR, one entry per face edge (a neighbour may repeat) */
+  double *dist;       /* INFINITY where untouched */
+  int32_t *hp, *hpos; /* heap of vertices; position in it, -1 outside, -2 settled */
+  int32_t *touched;   /* vertices given a finite distance in the last run, in order */
   size_t n_touched;
   unsigned char *stop; /* marks of the stop set during a run */
 };
@@ -111,9 +111,9 @@ const double *km__geodesic_run(km__geodesic *g, const double *V, int32_t seed, d
       int32_t w = g->adj[q];
       if (hpos[w] == -2) continue;
       const double *pw = V + 3 * (size_t)w;
-      double d = dist[u] + sqrt((pw[0] - pu[0]) * (pw[0] - pu[0]) +
-                                (pw[1] - pu[1]) * (pw[1] - pu[1]) +
-                                (pw[2] - pu[2]) * (pw[2] - pu[2]));
+      double d =
+          dist[u] + sqrt((pw[0] - pu[0]) * (pw[0] - pu[0]) + (pw[1] - pu[1]) * (pw[1] - pu[1]) +
+                         (pw[2] - pu[2]) * (pw[2] - pu[2]));
       if (!(d <= radius) || !(d < dist[w])) continue;
       if (dist[w] == INFINITY) g->touched[g->n_touched++] = w;
       dist[w] = d;

@@ -148,8 +148,7 @@ static bool json_int(const cJSON *o, double lo, double hi, long *out) {
 
 /* The landmark array of a sidecar or landmark file (km__landmarks_parse). */
 static km_status landmarks_from_json(const char *path, const cJSON *arr, size_t n_vertices,
-                                     km_landmark *out, size_t capacity, size_t *n,
-                                     km_error *err) {
+                                     km_landmark *out, size_t capacity, size_t *n, km_error *err) {
   *n = 0;
   size_t cnt = (size_t)cJSON_GetArraySize(arr);
   if (cnt > capacity)
@@ -198,10 +197,10 @@ km_status km__landmarks_parse(const char *path, const char *data, size_t size, s
     return km__fail(err, KM_ERR_PARSE, "%s: invalid JSON near byte %zu", path, at);
   }
   const cJSON *arr = cJSON_GetObjectItemCaseSensitive(root, "landmarks");
-  km_status s = cJSON_IsArray(arr)
-                    ? landmarks_from_json(path, arr, n_vertices, out, capacity, n, err)
-                    : km__fail(err, KM_ERR_PARSE,
-                               "%s: expected an object with a \"landmarks\" array", path);
+  km_status s =
+      cJSON_IsArray(arr)
+          ? landmarks_from_json(path, arr, n_vertices, out, capacity, n, err)
+          : km__fail(err, KM_ERR_PARSE, "%s: expected an object with a \"landmarks\" array", path);
   cJSON_Delete(root);
   return s;
 }

@@ -1,6 +1,6 @@
 /* Template registration to point clouds (Park & Lim 2014, after Allen, Curless & Popovic
- * 2003): Horn similarity from features, per-vertex affine registration, skeletal motion by
- * L-BFGS, surface refinement. */
+ * 2003): similarity from features (km_similarity_fit), per-vertex affine registration,
+ * skeletal motion by L-BFGS, surface refinement. */
 #include "recon/recon.h"
 #include "math/math.h"
 #include "linalg/linalg.h"
@@ -67,7 +67,7 @@ struct km_recon {
   int32_t *face_edges; /* nf*3: edge index of (v0,v1), (v1,v2), (v2,v0) */
   /* affine solver: 4 unknowns per vertex and coordinate, 3 right-hand sides sharing one
    * CHOLMOD factor of the 4#V x 4#V SPD matrix */
-  km_sparse *M;      /* upper triangle only (km__cholesky_options.stored = 1) */
+  km_sparse *M; /* upper triangle only (km__cholesky_options.stored = 1) */
   km_cholesky *L;
   double *blocks;     /* (nv + ne) * 16 accumulators: diagonal blocks then edge blocks */
   int64_t *block_pos; /* (nv + ne) * 16 positions in M->x (-1: lower triangle) */
@@ -1271,7 +1271,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     frame_data_free(&fd);
     return s;
   }
-  /* 1. global similarity: Horn on the features, else centroid + height */
+  /* 1. global similarity: km_similarity_fit (rigid) on the features, else centroid + height */
   double R[9], t[3], sc = 1;
   if (nfeat >= 3) {
     double *A = km__malloc(nfeat, 3 * sizeof(double)), *B = km__malloc(nfeat, 3 * sizeof(double));
@@ -1331,7 +1331,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
   memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
   /* Features drive the pose first (the subject may stand far from the template's pose);
    * the similarity is then re-estimated against the posed landmarks, which removes the bias
-   * a pose difference puts into Horn's scale and rotation; then features and data. */
+   * a pose difference puts into the fitted scale and rotation; then features and data. */
   if (nfeat >= 3) {
     double *A = km__malloc(nfeat, 3 * sizeof(double)), *B = km__malloc(nfeat, 3 * sizeof(double));
     for (int pass = 0; pass < 3 && A && B; ++pass) {

@@ -476,7 +476,8 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
     while (col < t->nf)
       Ap[++col] = (int32_t)q2;
     if ((s = km__sparse_compress(&cA, err))) goto fail;
-    km__cholesky_options co = {.kind = KM__CHOLESKY_SIMPLICIAL_LDL, .stored = -1, .min_pivot = 1e-10};
+    km__cholesky_options co = {
+        .kind = KM__CHOLESKY_SIMPLICIAL_LDL, .stored = -1, .min_pivot = 1e-10};
     s = km__cholesky_analyze_with(cA, &co, &t->chol, err);
     if (!s) s = km_cholesky_factorize(t->chol, cA, err);
     km_sparse_free(&cA);
