@@ -260,6 +260,17 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
  *   rest     in/out: n_joints*3; in: a guess (may be the rig's), out: the estimate */
 km_status km_skeleton_from_weights(const km_mesh *m, const km_skin *skin, const int32_t *parents,
                                    size_t n_joints, double *rest, km_error *err);
+/* Least-squares similarity dst ~ s R src + t (Umeyama 1991 / Kabsch: one SVD); the one fit
+ * used for rig alignment, pose transfer and reconstruction alike.
+ *   src, dst    in: n*3 paired points, n >= 3
+ *   weights     in: n weights >= 0; may be NULL (equal weights)
+ *   with_scale  in: false fits a rigid motion (s = 1)
+ *   s           out: scale; may be NULL when with_scale is false
+ *   R           out: row-major 3x3 proper rotation
+ *   t           out: translation
+ * Errors: KM_ERR_DEGENERATE_MESH when the source points coincide or the pairs are collinear. */
+km_status km_similarity_fit(const double *src, const double *dst, const double *weights, size_t n,
+                            bool with_scale, double *s, double R[9], double t[3], km_error *err);
 /* Linear blend skinning: out_v = sum_k w_k T_{j_k} rest_v.
  *   rest        in: #V*3 rest positions
  *   skin        in: #V vertices' joints and weights
@@ -1221,15 +1232,6 @@ void km_transfer_precompute_ms(const km_transfer *t, double *laplacian_ms, doubl
 /* Frees *t and sets it to NULL. */
 void km_transfer_free(km_transfer **t);
 
-/* Least-squares similarity dst ~ s R src + t (Umeyama 1991; SVD by LAPACKE).
- *   src, dst  in: n*3 points, n >= 3
- *   weights   in: n weights >= 0; may be NULL (equal weights)
- *   s         out: scale
- *   R         out: row-major 3x3 proper rotation
- *   t         out: translation
- * Errors: KM_ERR_DEGENERATE_MESH when the source points are all coincident. */
-km_status km_similarity_fit(const double *src, const double *dst, const double *weights, size_t n,
-                            double *s, double R[9], double t[3], km_error *err);
 /* Returns the total triangle area of m (for pose-invariant size ratios). */
 double km_surface_area(const km_mesh *m);
 
@@ -1448,17 +1450,6 @@ km_status km_avatar_animate(km_transfer *t, const km_posedb *db, const km_track 
 /* ==== recon: point clouds to mesh animation, Park & Lim 2014 (src/recon/) ==== */
 
 /* ---- geometry */
-
-/* Absolute orientation (Horn 1987, unit quaternions): R, t and s minimising
- * sum |s R A_i + t - B_i|^2.
- *   A, B        in: n*3 paired points, n >= 3
- *   with_scale  in: false gives s = 1
- *   R           out: row-major 3x3 rotation
- *   t           out: translation
- *   s           out: scale; may be NULL when with_scale is false
- * Errors: KM_ERR_DEGENERATE_MESH for collinear input. */
-km_status km_absolute_orientation(const double *A, const double *B, size_t n, bool with_scale,
-                                  double R[9], double t[3], double *s, km_error *err);
 
 /* Closest points on a triangle mesh (Embree point queries, OpenMP over queries).
  *   V     in: #V*3 mesh positions

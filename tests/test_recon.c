@@ -29,7 +29,7 @@ static void test_horn(void) {
                            Rt[3 * r + 2] * A[3 * i + 2]) +
                      tt[r];
   }
-  CHECK_OK(km_absolute_orientation(A, B, 10, true, R, t, &s, KM_E));
+  CHECK_OK(km_similarity_fit(A, B, NULL, 10, true, &s, R, t, KM_E));
   CHECK_NEAR(s, st, 1e-9);
   for (int k = 0; k < 9; ++k)
     CHECK_NEAR(R[k], Rt[k], 1e-9);
@@ -40,14 +40,14 @@ static void test_horn(void) {
     for (int r = 0; r < 3; ++r)
       B[3 * i + r] = Rt[3 * r] * A[3 * i] + Rt[3 * r + 1] * A[3 * i + 1] +
                      Rt[3 * r + 2] * A[3 * i + 2] + tt[r];
-  CHECK_OK(km_absolute_orientation(A, B, 10, false, R, t, NULL, KM_E));
+  CHECK_OK(km_similarity_fit(A, B, NULL, 10, false, NULL, R, t, KM_E));
   for (int k = 0; k < 9; ++k)
     CHECK_NEAR(R[k], Rt[k], 1e-9);
   /* collinear points cannot fix a rotation */
   for (int i = 0; i < 5; ++i)
     A[3 * i] = i, A[3 * i + 1] = 2 * i, A[3 * i + 2] = 0;
-  CHECK_STATUS(km_absolute_orientation(A, A, 5, true, R, t, &s, KM_E), KM_ERR_DEGENERATE_MESH);
-  CHECK_STATUS(km_absolute_orientation(A, B, 2, true, R, t, &s, KM_E), KM_ERR_INVALID);
+  CHECK_STATUS(km_similarity_fit(A, A, NULL, 5, true, &s, R, t, KM_E), KM_ERR_DEGENERATE_MESH);
+  CHECK_STATUS(km_similarity_fit(A, B, NULL, 2, true, &s, R, t, KM_E), KM_ERR_INVALID);
 }
 
 /* ---------------------------------------------------------------- readers */

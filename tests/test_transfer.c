@@ -73,15 +73,15 @@ static void test_similarity(void) {
                              R0[3 * r + 2] * src[3 * i + 2]) +
                        t0[r];
   double s, R[9], t[3];
-  CHECK_OK(km_similarity_fit(src, dst, NULL, 6, &s, R, t, KM_E));
+  CHECK_OK(km_similarity_fit(src, dst, NULL, 6, true, &s, R, t, KM_E));
   CHECK_NEAR(s, s0, 1e-12);
   for (int k = 0; k < 9; ++k)
     CHECK_NEAR(R[k], R0[k], 1e-12);
   for (int k = 0; k < 3; ++k)
     CHECK_NEAR(t[k], t0[k], 1e-12);
   double same[9] = {1, 1, 1, 1, 1, 1, 1, 1, 1};
-  CHECK_STATUS(km_similarity_fit(same, dst, NULL, 3, &s, R, t, KM_E), KM_ERR_DEGENERATE_MESH);
-  CHECK_STATUS(km_similarity_fit(src, dst, NULL, 2, &s, R, t, KM_E), KM_ERR_INVALID);
+  CHECK_STATUS(km_similarity_fit(same, dst, NULL, 3, true, &s, R, t, KM_E), KM_ERR_DEGENERATE_MESH);
+  CHECK_STATUS(km_similarity_fit(src, dst, NULL, 2, true, &s, R, t, KM_E), KM_ERR_INVALID);
 }
 
 static void test_errors(const km_character *a) {

@@ -10,7 +10,9 @@
  * count is process-wide and left to the application (on a loaded 2-core machine
  * OPENBLAS_NUM_THREADS=1 avoided large slowdowns from spinning threads). */
 #include "core/core.h"
-#include "linalg/linalg.h"
+#include "linalg/cholmod_door.h"
+
+#include <math.h>
 
 #include <stdlib.h>
 #include <string.h>
@@ -22,6 +24,8 @@ struct km_cholesky {
   size_t n;
   size_t nnz;
   int32_t *Ap, *Ai; /* pattern given to analyze, to reject a different one */
+  double min_pivot; /* LDL' pivot check, relative to the largest pivot (0: none) */
+  int stype;        /* how CHOLMOD reads A: -1 lower triangle, 1 upper */
   bool factorized;
 };
 
@@ -31,15 +35,21 @@ static km_status cholmod_status(km_error *err, const cholmod_common *cc, const c
   return km__fail(err, KM_ERR_INVALID, "%s: CHOLMOD failed with status %d", what, cc->status);
 }
 
-/* A lower-triangle view of A without copying: same arrays, stype -1 (upper entries are
- * ignored by CHOLMOD). */
-static cholmod_sparse lower_view(const km_sparse *A) {
+/* A symmetric view of A without copying: same arrays, stype -1 (lower triangle read, upper
+ * entries ignored by CHOLMOD) or 1 (upper). */
+static cholmod_sparse sym_view(const km_cholesky *c, const km_sparse *A) {
   cholmod_sparse v = *km__sparse_cholmod(A);
-  v.stype = -1;
+  v.stype = c->stype;
   return v;
 }
 
 km_status km_cholesky_analyze(const km_sparse *A, km_cholesky **out, km_error *err) {
+  return km__cholesky_analyze_with(A, NULL, out, err);
+}
+
+km_status km__cholesky_analyze_with(const km_sparse *A, const km__cholesky_options *opt,
+                                    km_cholesky **out, km_error *err) {
+  km__cholesky_options o = opt ? *opt : (km__cholesky_options){0};
   if (!out) return km__fail(err, KM_ERR_INVALID, "km_cholesky_analyze: out is NULL");
   *out = NULL;
   if (!A) return km__fail(err, KM_ERR_INVALID, "km_cholesky_analyze: matrix is NULL");
@@ -52,7 +62,10 @@ km_status km_cholesky_analyze(const km_sparse *A, km_cholesky **out, km_error *e
   km__cholmod_start(&c->cc);
   /* Simplicial LDL' (CHOLMOD's default form) succeeds on indefinite matrices with non-zero
    * pivots; LL' fails at the first non-positive pivot, which is the SPD check we promise. */
-  c->cc.final_ll = 1;
+  c->cc.final_ll = o.kind == KM__CHOLESKY_LL;
+  if (o.kind == KM__CHOLESKY_SIMPLICIAL_LDL) c->cc.supernodal = CHOLMOD_SIMPLICIAL;
+  c->min_pivot = o.min_pivot;
+  c->stype = o.stored > 0 ? 1 : -1;
   c->n = n;
   c->nnz = km_sparse_nnz(A);
   const int32_t *p, *i;
@@ -65,7 +78,7 @@ km_status km_cholesky_analyze(const km_sparse *A, km_cholesky **out, km_error *e
   }
   memcpy(c->Ap, p, (n + 1) * sizeof *p);
   memcpy(c->Ai, i, c->nnz * sizeof *i);
-  cholmod_sparse v = lower_view(A);
+  cholmod_sparse v = sym_view(c, A);
   c->L = cholmod_analyze(&v, &c->cc);
   if (!c->L || c->cc.status != CHOLMOD_OK) {
     km_status s = cholmod_status(err, &c->cc, "km_cholesky_analyze");
@@ -87,8 +100,24 @@ km_status km_cholesky_factorize(km_cholesky *c, const km_sparse *A, km_error *er
                     "to km_cholesky_analyze (%zu x %zu, %zu entries)",
                     c->n, c->n, c->nnz);
   c->factorized = false;
-  cholmod_sparse v = lower_view(A);
+  cholmod_sparse v = sym_view(c, A);
   int ok = cholmod_factorize(&v, c->L, &c->cc);
+  if (ok && c->cc.status == CHOLMOD_OK && c->min_pivot > 0 && !c->L->is_ll && !c->L->is_super) {
+    /* LDL' only stops at an exactly zero pivot; a singular block (say, a mesh component
+     * without a constraint) leaves a pivot of round-off, of either sign, many orders below the
+     * others. */
+    const int *Lp = c->L->p;
+    const double *Lx = c->L->x;
+    double dmax = 0;
+    for (size_t j = 0; j < c->n; ++j)
+      dmax = fmax(dmax, Lx[Lp[j]]);
+    for (size_t j = 0; j < c->n; ++j)
+      if (!(Lx[Lp[j]] > c->min_pivot * dmax)) {
+        c->cc.status = CHOLMOD_NOT_POSDEF;
+        c->L->minor = j;
+        break;
+      }
+  }
   if (c->cc.status == CHOLMOD_NOT_POSDEF)
     return km__fail(err, KM_ERR_NOT_POSDEF,
                     "km_cholesky_factorize: the %zu x %zu matrix is not positive definite: "

@@ -1,7 +1,7 @@
 /* km_sparse: a thin owner of a CHOLMOD cholmod_sparse (int32 indices, real double, sorted,
  * packed, stype 0). Each matrix carries its own cholmod_common so that no mutable state is
  * shared between threads; cholmod_start does not allocate, so this costs only its size. */
-#include "linalg/linalg.h"
+#include "linalg/cholmod_door.h"
 
 #include "core/core.h"
 
@@ -63,6 +63,8 @@ km_status km__sparse_from_cholmod(cholmod_sparse **C, km_sparse **out, km_error 
   return KM_OK;
 }
 
+static km_status compress_cholmod(cholmod_sparse **Cp, km_sparse **out, km_error *err);
+
 struct entry {
   int32_t row, order;
   double value;
@@ -91,7 +93,7 @@ km_status km_sparse_from_triplets(size_t n_rows, size_t n_cols, size_t nnz, cons
                       "matrix",
                       k, (int)rows[k], (int)cols[k], n_rows, n_cols);
   }
-  /* Bucket by column, then km__sparse_compress. cholmod_triplet_to_sparse does the same in
+  /* Bucket by column, then compress. cholmod_triplet_to_sparse does the same in
    * the same time (two transposes); this path is shared with the Laplacian assembly, which
    * scatters straight into columns without a triplet list. */
   cholmod_common cc;
@@ -119,7 +121,7 @@ km_status km_sparse_from_triplets(size_t n_rows, size_t n_cols, size_t nnz, cons
   }
   free(next);
   cholmod_finish(&cc);
-  return km__sparse_compress(&C, out, err);
+  return compress_cholmod(&C, out, err);
 done:
   free(next);
   cholmod_free_sparse(&C, &cc);
@@ -127,7 +129,7 @@ done:
   return s;
 }
 
-km_status km__sparse_compress(cholmod_sparse **Cp, km_sparse **out, km_error *err) {
+static km_status compress_cholmod(cholmod_sparse **Cp, km_sparse **out, km_error *err) {
   cholmod_sparse *C = *Cp;
   size_t n_cols = C->ncol, nnz = (size_t)((int32_t *)C->p)[n_cols];
   int32_t *p = C->p, *ri = C->i;
@@ -185,6 +187,40 @@ km_status km__sparse_compress(cholmod_sparse **Cp, km_sparse **out, km_error *er
     cholmod_finish(&cc);
   }
   return km__sparse_from_cholmod(Cp, out, err);
+}
+
+km_status km__sparse_alloc(size_t n_rows, size_t n_cols, size_t nnz, km_sparse **out,
+                           km_error *err) {
+  *out = NULL;
+  if (n_rows > INT32_MAX || n_cols > INT32_MAX || nnz > INT32_MAX)
+    return km__fail(err, KM_ERR_INVALID,
+                    "sparse matrix: %zu x %zu with %zu entries exceeds int32 indices", n_rows,
+                    n_cols, nnz);
+  km_sparse *S = malloc(sizeof *S);
+  if (!S) return km__fail(err, KM_ERR_NOMEM, "sparse matrix: out of memory");
+  km__cholmod_start(&S->cc);
+  S->A = cholmod_allocate_sparse(n_rows, n_cols, nnz, 0, 1, 0, CHOLMOD_REAL, &S->cc);
+  if (!S->A) {
+    km_status s = cholmod_fail(err, &S->cc, "sparse matrix");
+    km_sparse_free(&S);
+    return s;
+  }
+  ((int32_t *)S->A->p)[0] = 0;
+  *out = S;
+  return KM_OK;
+}
+
+void km__sparse_arrays(km_sparse *A, int32_t **col_ptr, int32_t **row_idx, double **values) {
+  if (col_ptr) *col_ptr = A->A->p;
+  if (row_idx) *row_idx = A->A->i;
+  if (values) *values = A->A->x;
+}
+
+km_status km__sparse_compress(km_sparse **A, km_error *err) {
+  cholmod_sparse *C = (*A)->A;
+  (*A)->A = NULL;
+  km_sparse_free(A);
+  return compress_cholmod(&C, A, err);
 }
 
 km_status km_sparse_diagonal(size_t n, const double *diag, km_sparse **out, km_error *err) {
@@ -284,7 +320,7 @@ void km_sparse_mul(const km_sparse *A, size_t k, const double *X, double *Y) {
 
 void km_sparse_free(km_sparse **A) {
   if (!A || !*A) return;
-  cholmod_free_sparse(&(*A)->A, &(*A)->cc);
+  if ((*A)->A) cholmod_free_sparse(&(*A)->A, &(*A)->cc);
   cholmod_finish(&(*A)->cc);
   free(*A);
   *A = NULL;

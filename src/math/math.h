@@ -8,8 +8,28 @@
 #ifndef KM_MATH_MATH_H
 #define KM_MATH_MATH_H
 
+#include "kinemesh.h"
+
 #include <math.h>
 #include <string.h>
+
+/* The best rotation R (det +1, row-major) with R a_i ~ b_i from the cross-covariance
+ * H = sum_i w_i a_i b_i^T (row-major; Kabsch by a 3x3 SVD, reflection-corrected).
+ * S: H's singular values, descending (S[1] ~ 0: the a_i are collinear and R's turn about
+ * their line is arbitrary). Returns the trace of R H (the Umeyama scale's numerator), or -1
+ * when the SVD failed (R identity). Used by km_similarity_fit (similarity.c). */
+double km__rotation_fit3(const double H[9], double R[9], double S[3]);
+
+/* The one forward kinematics (skinning.c), over joints in parent-first order (parents[j] < j,
+ * -1 for a root): W_j = W_parent L_j and P_j = P_parent + W_parent o_j; a root has W_j = L_j,
+ * P_j = o_j. L n*9 local rotations (row-major), o n*3 offsets from the parent (a root: its
+ * position); out W n*9 world rotations, P n*3 world positions (P may be o: in place). */
+void km__forward_kinematics(size_t n, const int32_t *parents, const double *L, const double *o,
+                            double *W, double *P);
+/* Rigid 3x4 transforms (row-major [R | t], as km_lbs takes them) that move rest joint J_j to
+ * P_j turned by W_j: G_j x = W_j (x - J_j) + P_j. W n*9, P n*3, rest n*3, G n*12. */
+void km__joint_transforms(size_t n, const double *W, const double *P, const double *rest,
+                          double *G);
 
 static inline void km__cross3(const double *a, const double *b, double *c) {
   c[0] = a[1] * b[2] - a[2] * b[1];
@@ -19,6 +39,17 @@ static inline void km__cross3(const double *a, const double *b, double *c) {
 
 static inline double km__dot3(const double *a, const double *b) {
   return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+/* o = a - b */
+static inline void km__sub3(const double *a, const double *b, double *o) {
+  o[0] = a[0] - b[0];
+  o[1] = a[1] - b[1];
+  o[2] = a[2] - b[2];
+}
+
+static inline bool km__finite3(const double *p) {
+  return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
 }
 
 /* Normalises in place; returns the old length (vector untouched when it is ~0). */
@@ -206,6 +237,28 @@ static inline void km__m3_apply(const double R[9], const double x[3], double y[3
   double t1 = R[3] * x[0] + R[4] * x[1] + R[5] * x[2];
   double t2 = R[6] * x[0] + R[7] * x[1] + R[8] * x[2];
   y[0] = t0, y[1] = t1, y[2] = t2;
+}
+
+/* y = R^T x (y may alias x). */
+static inline void km__m3_apply_t(const double R[9], const double x[3], double y[3]) {
+  double t0 = R[0] * x[0] + R[3] * x[1] + R[6] * x[2];
+  double t1 = R[1] * x[0] + R[4] * x[1] + R[7] * x[2];
+  double t2 = R[2] * x[0] + R[5] * x[1] + R[8] * x[2];
+  y[0] = t0, y[1] = t1, y[2] = t2;
+}
+
+/* Rotation of the rotation vector r (axis * angle in radians; Rodrigues), series near 0. */
+static inline void km__m3_from_rotvec(const double r[3], double R[9]) {
+  double th = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+  double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0}, K2[9];
+  km__m3_mul(K, K, K2);
+  double a, b;
+  if (th < 1e-6)
+    a = 1 - th * th / 6, b = 0.5 - th * th / 24;
+  else
+    a = sin(th) / th, b = (1 - cos(th)) / (th * th);
+  for (int i = 0; i < 9; ++i)
+    R[i] = (i % 4 == 0) + a * K[i] + b * K2[i];
 }
 
 /* Rotation by angle a (radians) about a coordinate axis (0 x, 1 y, 2 z), right-handed. */

@@ -10,18 +10,15 @@
  *    parent-rotated rest direction onto the posed direction (no twist about the bone beyond
  *    what the parent carries), so a rigidly moved skeleton gives every joint that motion;
  *  - several children (HipCenter, ShoulderCenter): the best-fit rotation of the unit child
- *    directions (Kabsch, 3x3 SVD by LAPACKE_dgesvd, reflection-corrected);
+ *    directions (km__rotation_fit3: Kabsch, reflection-corrected);
  *  - no child (Head, hands, feet) or no valid child position: the parent's rotation.
  * A joint whose position is NaN holds its parent's transform (applied to its rest offset). */
 #include "core/core.h"
 #include "math/math.h"
 
-#include <lapacke.h>
 #include <stdlib.h>
 
-static double norm3(const double v[3]) { return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
-
-static bool finite3(const double *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }
+static double norm3(const double v[3]) { return sqrt(km__dot3(v, v)); }
 
 /* Minimal rotation taking unit a onto unit b (Rodrigues). */
 static void min_rotation(const double a[3], const double b[3], double R[9]) {
@@ -49,37 +46,6 @@ static void min_rotation(const double a[3], const double b[3], double R[9]) {
     R[i] = (i % 4 == 0) + K[i] + f * K2[i];
 }
 
-/* Best rotation R with R d_i ~ e_i (Kabsch). Returns false when the directions are (nearly)
- * collinear, where the rotation about their common axis is undetermined. */
-static bool kabsch(int n, const double *d, const double *e, double R[9]) {
-  /* H = sum d_i e_i^T, row-major. */
-  double H[9] = {0};
-  for (int k = 0; k < n; ++k)
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        H[3 * i + j] += d[3 * k + i] * e[3 * k + j];
-  double S[3], U[9], Vt[9], superb[2];
-  if (LAPACKE_dgesvd(LAPACK_ROW_MAJOR, 'A', 'A', 3, 3, H, 3, S, U, 3, Vt, 3, superb) != 0)
-    return false;
-  if (!(S[1] > 1e-9 * S[0])) return false;
-  /* R = V diag(1,1,sign det(V U^T)) U^T */
-  double V[9], Ut[9];
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) {
-      V[3 * i + j] = Vt[3 * j + i];
-      Ut[3 * i + j] = U[3 * j + i];
-    }
-  double M[9];
-  km__m3_mul(V, Ut, M);
-  double det = M[0] * (M[4] * M[8] - M[5] * M[7]) - M[1] * (M[3] * M[8] - M[5] * M[6]) +
-               M[2] * (M[3] * M[7] - M[4] * M[6]);
-  if (det < 0)
-    for (int i = 0; i < 3; ++i)
-      V[3 * i + 2] = -V[3 * i + 2];
-  km__m3_mul(V, Ut, R);
-  return true;
-}
-
 km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *positions,
                                           double *transforms, km_error *err) {
   if (!s || !positions || !transforms || !s->parents || !s->rest)
@@ -90,7 +56,7 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
       return km__fail(err, KM_ERR_INVALID,
                       "skeleton: parent of joint %zu is %ld, not an earlier joint", j,
                       (long)s->parents[j]);
-    if (!finite3(s->rest + 3 * j))
+    if (!km__finite3(s->rest + 3 * j))
       return km__fail(err, KM_ERR_INVALID, "skeleton: rest position of joint %zu is not finite", j);
   }
   /* Children in CSR form; the skeleton is tiny, but one allocation serves any size. */
@@ -98,9 +64,8 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
   int32_t *kids = km__malloc(n, sizeof *kids);
   double *P = km__malloc(n, 3 * sizeof *P);
   double *dir = km__malloc(n, 6 * sizeof *dir); /* rest and posed unit child directions */
-  double *dd = km__malloc(n, 6 * sizeof *dd);   /* the same, split for kabsch() */
-  if (!first || !kids || !P || !dir || !dd) {
-    free(first), free(kids), free(P), free(dir), free(dd);
+  if (!first || !kids || !P || !dir) {
+    free(first), free(kids), free(P), free(dir);
     return km__fail(err, KM_ERR_NOMEM, "out of memory");
   }
   for (size_t j = 0; j < n; ++j)
@@ -110,7 +75,7 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
   {
     int32_t *fill = km__malloc(n + 1, sizeof *fill);
     if (!fill) {
-      free(first), free(kids), free(P), free(dir), free(dd);
+      free(first), free(kids), free(P), free(dir);
       return km__fail(err, KM_ERR_NOMEM, "out of memory");
     }
     memcpy(fill, first, (n + 1) * sizeof *fill);
@@ -136,12 +101,12 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
     double R[9];
     memcpy(R, Rp, sizeof R);
     const double *pj = positions + 3 * j;
-    if (finite3(pj)) {
+    if (km__finite3(pj)) {
       memcpy(P + 3 * j, pj, 3 * sizeof *P);
       int m = 0;
       for (int32_t k = first[j]; k < first[j + 1]; ++k) {
         const double *pc = positions + 3 * kids[k], *rc = s->rest + 3 * kids[k];
-        if (!finite3(pc)) continue;
+        if (!km__finite3(pc)) continue;
         double d[3] = {rc[0] - rj[0], rc[1] - rj[1], rc[2] - rj[2]};
         double e[3] = {pc[0] - pj[0], pc[1] - pj[1], pc[2] - pj[2]};
         double nd = norm3(d), ne = norm3(e);
@@ -152,13 +117,16 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
       }
       bool done = false;
       if (m >= 2) {
-        /* Kabsch wants the two sets as separate arrays. */
+        /* H = sum d_i e_i^T; collinear directions leave the turn about them open */
+        double H[9] = {0}, S[3], Rk[9];
         for (int k = 0; k < m; ++k)
-          for (int i = 0; i < 3; ++i) {
-            dd[3 * k + i] = dir[6 * k + i];
-            dd[3 * m + 3 * k + i] = dir[6 * k + 3 + i];
-          }
-        done = kabsch(m, dd, dd + 3 * m, R);
+          for (int i = 0; i < 3; ++i)
+            for (int jj = 0; jj < 3; ++jj)
+              H[3 * i + jj] += dir[6 * k + i] * dir[6 * k + 3 + jj];
+        if (km__rotation_fit3(H, Rk, S) >= 0 && S[1] > 1e-9 * S[0]) {
+          memcpy(R, Rk, sizeof Rk);
+          done = true;
+        }
       }
       if (!done && m >= 1) {
         double a[3], Rm[9];
@@ -180,8 +148,40 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
       T[4 * i + 3] = P[3 * j + i] - Rr[i];
     }
   }
-  free(first), free(kids), free(P), free(dir), free(dd);
+  free(first), free(kids), free(P), free(dir);
   return KM_OK;
+}
+
+void km__forward_kinematics(size_t n, const int32_t *parents, const double *L, const double *o,
+                            double *W, double *P) {
+  for (size_t j = 0; j < n; ++j) {
+    int32_t p = parents[j];
+    if (p < 0) {
+      memcpy(W + 9 * j, L + 9 * j, 9 * sizeof *W);
+      if (P != o) memcpy(P + 3 * j, o + 3 * j, 3 * sizeof *P);
+    } else {
+      const double *Wp = W + 9 * (size_t)p, *Pp = P + 3 * (size_t)p;
+      double d[3];
+      km__m3_apply(Wp, o + 3 * j, d);
+      for (int a = 0; a < 3; ++a)
+        P[3 * j + a] = Pp[a] + d[a];
+      km__m3_mul(Wp, L + 9 * j, W + 9 * j);
+    }
+  }
+}
+
+void km__joint_transforms(size_t n, const double *W, const double *P, const double *rest,
+                          double *G) {
+  for (size_t j = 0; j < n; ++j) {
+    const double *Wj = W + 9 * j;
+    double WJ[3];
+    km__m3_apply(Wj, rest + 3 * j, WJ);
+    double *Gj = G + 12 * j;
+    for (int r = 0; r < 3; ++r) {
+      Gj[4 * r] = Wj[3 * r], Gj[4 * r + 1] = Wj[3 * r + 1], Gj[4 * r + 2] = Wj[3 * r + 2];
+      Gj[4 * r + 3] = P[3 * j + r] - WJ[r];
+    }
+  }
 }
 
 km_status km_lbs(const double *rest, size_t n_vertices, const km_skin *skin,

@@ -1,6 +1,7 @@
 /* Per-vertex local frames (normal, tangent, bitangent) that follow the surface across poses
  * of one connectivity: the tangent is always the projected edge to the same neighbour. */
 #include "core/core.h"
+#include "math/math.h"
 #include "mesh/mesh_args.h"
 
 #include <math.h>
@@ -24,11 +25,6 @@ km_status km_frame_neighbors(const km_mesh *m, int32_t *ref, km_error *err) {
     }
   }
   return KM_OK;
-}
-
-static void normalize3(double *a) {
-  double l = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-  a[0] /= l, a[1] /= l, a[2] /= l;
 }
 
 /* Frames: rows n, t, b with b = n x t.
@@ -75,11 +71,11 @@ km_status km_local_frames(const km_mesh *m, const double *N, const int32_t *ref,
       d = nn[ax];
       t[0] = a[0] - d * nn[0], t[1] = a[1] - d * nn[1], t[2] = a[2] - d * nn[2];
     }
-    normalize3(t);
+    km__normalize3(t);
     b[0] = nn[1] * t[2] - nn[2] * t[1];
     b[1] = nn[2] * t[0] - nn[0] * t[2];
     b[2] = nn[0] * t[1] - nn[1] * t[0];
-    normalize3(b);
+    km__normalize3(b);
   }
   return KM_OK;
 }

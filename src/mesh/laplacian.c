@@ -3,6 +3,7 @@
  * faces), so no triplet list is materialised. */
 #include "core/core.h"
 #include "linalg/linalg.h"
+#include "math/math.h"
 #include "mesh/mesh_args.h"
 
 #include <math.h>
@@ -11,36 +12,22 @@
 
 #define KM_COT_CLAMP 1e5
 
-static inline void sub3(const double *a, const double *b, double *o) {
-  o[0] = a[0] - b[0];
-  o[1] = a[1] - b[1];
-  o[2] = a[2] - b[2];
-}
-static inline double dot3(const double *a, const double *b) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-static inline void cross3(const double *a, const double *b, double *o) {
-  o[0] = a[1] * b[2] - a[2] * b[1];
-  o[1] = a[2] * b[0] - a[0] * b[2];
-  o[2] = a[0] * b[1] - a[1] * b[0];
-}
-
 /* Cotangents of the three corners of face f and twice its area; false when the area is zero
  * (or not finite), in which case the face contributes nothing. */
 static bool face_cots(const km_mesh *m, size_t f, double cot[3], double *area2) {
   const int32_t *t = m->F + 3 * f;
   const double *p[3] = {m->V + 3 * (size_t)t[0], m->V + 3 * (size_t)t[1], m->V + 3 * (size_t)t[2]};
   double u[3], v[3], n[3];
-  sub3(p[1], p[0], u);
-  sub3(p[2], p[0], v);
-  cross3(u, v, n);
-  double a2 = sqrt(dot3(n, n));
+  km__sub3(p[1], p[0], u);
+  km__sub3(p[2], p[0], v);
+  km__cross3(u, v, n);
+  double a2 = sqrt(km__dot3(n, n));
   if (!(a2 > 0) || !isfinite(a2)) return false;
   for (int c = 0; c < 3; ++c) {
     /* cot of the corner at c = (e1 . e2) / |e1 x e2|, and |e1 x e2| is 2*area at any corner */
-    sub3(p[(c + 1) % 3], p[c], u);
-    sub3(p[(c + 2) % 3], p[c], v);
-    double ct = dot3(u, v) / a2;
+    km__sub3(p[(c + 1) % 3], p[c], u);
+    km__sub3(p[(c + 2) % 3], p[c], v);
+    double ct = km__dot3(u, v) / a2;
     cot[c] = ct > KM_COT_CLAMP ? KM_COT_CLAMP : ct < -KM_COT_CLAMP ? -KM_COT_CLAMP : ct;
   }
   *area2 = a2;
@@ -54,26 +41,22 @@ static bool face_cots(const km_mesh *m, size_t f, double cot[3], double *area2) 
 static km_status assemble(const km_mesh *m, const double *w, const unsigned char *keep,
                           km_sparse **out, km_error *err) {
   size_t n = m->n_vertices, nf = m->n_faces;
-  cholmod_common cc;
-  km__cholmod_start(&cc);
   size_t nz = n;
   for (size_t f = 0; f < nf; ++f)
     nz += keep[f] ? 6 : 0;
-  if (nz > INT32_MAX) {
-    cholmod_finish(&cc);
+  if (nz > INT32_MAX)
     return km__fail(err, KM_ERR_INVALID, "Laplacian: %zu entries exceed int32 indices", nz);
-  }
-  cholmod_sparse *C = cholmod_allocate_sparse(n, n, nz, 0, 1, 0, CHOLMOD_REAL, &cc);
+  km_sparse *C = NULL;
+  km_status s = km__sparse_alloc(n, n, nz, &C, err);
+  if (s) return s;
   int32_t *next = km__malloc(n + 1, sizeof *next);
-  if (!C || !next) {
-    cholmod_free_sparse(&C, &cc);
-    cholmod_finish(&cc);
-    free(next);
+  if (!next) {
+    km_sparse_free(&C);
     return km__fail(err, KM_ERR_NOMEM, "Laplacian: out of memory (%zu vertices)", n);
   }
-  cholmod_finish(&cc);
-  int32_t *p = C->p, *ri = C->i;
-  double *x = C->x;
+  int32_t *p, *ri;
+  double *x;
+  km__sparse_arrays(C, &p, &ri, &x);
   for (size_t v = 0; v <= n; ++v)
     p[v] = v ? 1 : 0;
   for (size_t f = 0; f < nf; ++f)
@@ -101,7 +84,9 @@ static km_status assemble(const km_mesh *m, const double *w, const unsigned char
     }
   }
   free(next);
-  return km__sparse_compress(&C, out, err);
+  s = km__sparse_compress(&C, err);
+  *out = C;
+  return s;
 }
 
 km_status km_cotmatrix(const km_mesh *m, km_sparse **L, km_error *err) {
@@ -149,9 +134,9 @@ km_status km_uniform_laplacian(const km_mesh *m, km_sparse **L, km_error *err) {
   /* An interior edge appears in two faces and was summed to 2: reset every edge to 1 and
    * the diagonal to minus the number of distinct neighbours. A face with a repeated index
    * adds a zero-weight self entry to the diagonal only (weight 0), which changes nothing. */
-  cholmod_sparse *A = km__sparse_cholmod(*L);
-  const int32_t *p = A->p, *ri = A->i;
-  double *x = A->x;
+  const int32_t *p, *ri;
+  km_sparse_csc(*L, &p, &ri, NULL);
+  double *x = km__sparse_values(*L);
   for (size_t j = 0; j < m->n_vertices; ++j) {
     int32_t dpos = -1, deg = 0;
     for (int32_t q = p[j]; q < p[j + 1]; ++q) {
@@ -200,8 +185,8 @@ km_status km_massmatrix(const km_mesh *m, km_mass_type type, km_sparse **M, km_e
     double l2[3]; /* squared length of the edge opposite corner c */
     for (int c = 0; c < 3; ++c) {
       double e[3];
-      sub3(m->V + 3 * (size_t)t[(c + 1) % 3], m->V + 3 * (size_t)t[(c + 2) % 3], e);
-      l2[c] = dot3(e, e);
+      km__sub3(m->V + 3 * (size_t)t[(c + 1) % 3], m->V + 3 * (size_t)t[(c + 2) % 3], e);
+      l2[c] = km__dot3(e, e);
     }
     for (int c = 0; c < 3; ++c) {
       int a = (c + 1) % 3, b = (c + 2) % 3;

@@ -7,4 +7,20 @@
 
 #include "core/core.h"
 
+/* Edge-graph geodesic distances: Dijkstra over the mesh's edges with an indexed binary heap,
+ * the one Dijkstra of the library (geodesic.c). Created once per connectivity (faces of m;
+ * m's positions are not kept); each run reuses its scratch and does not allocate. */
+typedef struct km__geodesic km__geodesic;
+km_status km__geodesic_create(const km_mesh *m, km__geodesic **out, km_error *err);
+/* Distances along edges from seed over positions V (#V*3, same vertex count as the create
+ * mesh). Edges that would reach past radius are not followed (INFINITY: no bound); with
+ * n_stop > 0 the run ends as soon as every vertex of stop[] is settled (their distances are
+ * then final; others may be larger than the truth). Returns the #V distances (INFINITY: not
+ * reached), valid until the next run; reached/n_reached (may be NULL): the vertices given a
+ * finite distance, seed first, in the order they were reached. */
+const double *km__geodesic_run(km__geodesic *g, const double *V, int32_t seed, double radius,
+                               const int32_t *stop, size_t n_stop, const int32_t **reached,
+                               size_t *n_reached);
+void km__geodesic_free(km__geodesic **g);
+
 #endif

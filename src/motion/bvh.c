@@ -1,5 +1,6 @@
 /* BVH reader: hierarchy + motion to joint world positions (see km_bvh_read). */
 #include "motion/motion.h"
+#include "math/math.h"
 
 #include <errno.h>
 #include <math.h>
@@ -188,58 +189,17 @@ static km_status parse_joint(bvh_parser *ps, int32_t parent, bool end_site, cons
   return KM_OK;
 }
 
-/* Rotation about a coordinate axis by `deg` degrees (right-handed), row-major 3x3. */
-static void axis_rotation(int axis, double deg, double R[9]) {
-  double a = deg * (M_PI / 180.0), c = cos(a), s = sin(a);
-  memset(R, 0, 9 * sizeof(double));
-  switch (axis) {
-  case 0:
-    R[0] = 1;
-    R[4] = c;
-    R[5] = -s;
-    R[7] = s;
-    R[8] = c;
-    break;
-  case 1:
-    R[4] = 1;
-    R[0] = c;
-    R[2] = s;
-    R[6] = -s;
-    R[8] = c;
-    break;
-  default:
-    R[8] = 1;
-    R[0] = c;
-    R[1] = -s;
-    R[3] = s;
-    R[4] = c;
-    break;
-  }
-}
-
-static void mat_mul(const double A[9], const double B[9], double C[9]) {
-  double T[9];
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c)
-      T[3 * r + c] = A[3 * r] * B[c] + A[3 * r + 1] * B[3 + c] + A[3 * r + 2] * B[6 + c];
-  memcpy(C, T, sizeof T);
-}
-
-static void mat_vec(const double A[9], const double v[3], double out[3]) {
-  double t[3];
-  for (int r = 0; r < 3; ++r)
-    t[r] = A[3 * r] * v[0] + A[3 * r + 1] * v[1] + A[3 * r + 2] * v[2];
-  memcpy(out, t, sizeof t);
-}
-
 /* Forward kinematics of one frame. row: this frame's channel values (NULL = rest pose, i.e.
- * offsets only). Rw/Pw: per joint world rotation and position (scratch, n_joints). */
+ * offsets only). Rw/Pw: per joint world rotation and position (n_joints); scratch: local
+ * rotations and offsets (n_joints*12), parents (n_joints). */
 static void forward_kinematics(const bvh_joint *J, size_t n, const double *row, double scale,
-                               double *Rw, double *Pw) {
+                               double *scratch, int32_t *parents, double *Rw, double *Pw) {
+  double *L = scratch, *o = scratch + 9 * n;
   for (size_t i = 0; i < n; ++i) {
     const bvh_joint *j = &J[i];
-    double t[3] = {j->offset[0], j->offset[1], j->offset[2]};
-    double R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    double *t = o + 3 * i, *R = L + 9 * i;
+    memcpy(t, j->offset, 3 * sizeof *t);
+    km__m3_identity(R);
     if (row) {
       for (int c = 0; c < j->n_ch; ++c) {
         double v = row[j->ch_start + (size_t)c];
@@ -248,26 +208,16 @@ static void forward_kinematics(const bvh_joint *J, size_t n, const double *row, 
           t[id] = v; /* position channels replace the offset component */
         } else {
           double A[9];
-          axis_rotation(id - CH_XROT, v, A);
-          mat_mul(R, A, R); /* intrinsic: later channels rotate in the already-rotated frame */
+          km__m3_axis(id - CH_XROT, v * (M_PI / 180.0), A);
+          km__m3_mul(R, A, R); /* intrinsic: later channels rotate in the already-rotated frame */
         }
       }
     }
     for (int k = 0; k < 3; ++k)
       t[k] *= scale;
-    double *r = Rw + 9 * i, *p = Pw + 3 * i;
-    if (j->parent < 0) {
-      memcpy(r, R, sizeof R);
-      memcpy(p, t, sizeof t);
-    } else {
-      const double *rp = Rw + 9 * (size_t)j->parent, *pp = Pw + 3 * (size_t)j->parent;
-      double w[3];
-      mat_vec(rp, t, w);
-      for (int k = 0; k < 3; ++k)
-        p[k] = pp[k] + w[k];
-      mat_mul(rp, R, r);
-    }
+    parents[i] = j->parent;
   }
+  km__forward_kinematics(n, parents, L, o, Rw, Pw);
 }
 
 static void free_joints(bvh_parser *ps) {
@@ -309,7 +259,8 @@ km_status km_bvh_read(const char *path, const km_bvh_options *opt, km_take *out,
   km_status st = km__read_file(path, &data, &size, err);
   if (st != KM_OK) return st;
   bvh_parser ps = {.path = path, .p = data, .end = data + size, .line = 1, .err = err};
-  double *Rw = NULL, *Pw = NULL, *row = NULL, *positions = NULL;
+  double *Rw = NULL, *Pw = NULL, *fk = NULL, *row = NULL, *positions = NULL;
+  int32_t *fk_parents = NULL;
   char **names = NULL;
   int32_t *parents = NULL, *out_index = NULL;
   size_t n_out = 0;
@@ -390,13 +341,15 @@ km_status km_bvh_read(const char *path, const km_bvh_options *opt, km_take *out,
   /* Units from the rest pose (offsets only). */
   Rw = km__malloc(ps.n_joints, 9 * sizeof(double));
   Pw = km__malloc(ps.n_joints, 3 * sizeof(double));
+  fk = km__malloc(ps.n_joints, 12 * sizeof(double));
+  fk_parents = km__malloc(ps.n_joints, sizeof(int32_t));
   row = km__malloc(ps.n_channels, sizeof(double));
   out_index = km__malloc(ps.n_joints, sizeof(int32_t));
-  if (!Rw || !Pw || !row || !out_index) {
+  if (!Rw || !Pw || !fk || !fk_parents || !row || !out_index) {
     st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
     goto done;
   }
-  forward_kinematics(ps.joints, ps.n_joints, NULL, 1.0, Rw, Pw);
+  forward_kinematics(ps.joints, ps.n_joints, NULL, 1.0, fk, fk_parents, Rw, Pw);
   double ymin = INFINITY, ymax = -INFINITY;
   for (size_t i = 0; i < ps.n_joints; ++i) {
     ymin = fmin(ymin, Pw[3 * i + 1]);
@@ -484,7 +437,7 @@ km_status km_bvh_read(const char *path, const km_bvh_options *opt, km_take *out,
                       f + 1, c, ps.n_channels);
         goto done;
       }
-      forward_kinematics(ps.joints, ps.n_joints, row, scale, Rw, Pw);
+      forward_kinematics(ps.joints, ps.n_joints, row, scale, fk, fk_parents, Rw, Pw);
       double *dst = positions + f * n_out * 3;
       for (size_t i = 0; i < ps.n_joints; ++i)
         if (out_index[i] >= 0)
@@ -526,6 +479,8 @@ done:
   free(positions);
   free(Rw);
   free(Pw);
+  free(fk);
+  free(fk_parents);
   free(row);
   free(out_index);
   free_joints(&ps);

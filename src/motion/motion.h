@@ -5,6 +5,8 @@
 
 #include "core/core.h"
 
+#include <stdio.h>
+
 /* Heap-copies a string (NULL on failure). */
 char *km__strdup(const char *s);
 
@@ -14,5 +16,14 @@ km_status km__skin_alloc(km_skin *s, size_t n, km_error *err);
 /* Column of each Kinect v1 joint among names (by exact name), -1 when absent; returns how
  * many were found. Shared by km_motion_read (kinect1 takes) and km_puppetry (kinect1 rigs). */
 int km__kinect1_columns(const char *const *names, size_t n_names, int src[KM_KINECT1_JOINTS]);
+/* The one landmark reader (sidecar.c), for rig sidecars and landmark files alike: the
+ * "landmarks" array of the JSON text data (size bytes; path names the file in errors), each
+ * {"name": string, "vertex": integer, "mirror": string (optional: itself)}. At most capacity
+ * entries (more: KM_ERR_PARSE); n_vertices > 0 bounds the vertex ids; names must be unique.
+ * Mirrors are not matched here (km__landmark_mirrors in transfer does that). */
+km_status km__landmarks_parse(const char *path, const char *data, size_t size, size_t n_vertices,
+                              km_landmark *out, size_t capacity, size_t *n, km_error *err);
+/* The one landmark writer: the JSON array [{"name":..,"vertex":..,"mirror":..},...] to f. */
+void km__landmarks_write_json(FILE *f, const km_landmark *lm, size_t n);
 
 #endif

@@ -1,5 +1,6 @@
 /* Puppetry rig: JSON parsing (cJSON) and handle resolution on a mesh (see km_rig_parse). */
 #include "motion/motion.h"
+#include "mesh/mesh.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -30,133 +31,19 @@ void km_rig_free(km_rig *rig) {
   memset(rig, 0, sizeof *rig);
 }
 
-/* ---- geodesic balls: Dijkstra over mesh edges with a binary heap.
- * Hand-written: none of the linked libraries offers a graph shortest-path routine, and the
- * search stops at the radius so it only touches the ball. */
-
-typedef struct heap_item {
-  double d;
-  int32_t v;
-} heap_item;
-
-typedef struct geodesic {
-  int32_t *offsets, *adj; /* CSR, neighbours may repeat (one entry per face edge) */
-  double *dist;           /* INFINITY when untouched */
-  int32_t *touched;
-  size_t n_touched;
-  heap_item *heap;
-  size_t heap_n, heap_cap;
-} geodesic;
-
-static void geodesic_free(geodesic *g) {
-  free(g->offsets);
-  free(g->adj);
-  free(g->dist);
-  free(g->touched);
-  free(g->heap);
-  memset(g, 0, sizeof *g);
-}
-
-static bool geodesic_init(geodesic *g, const km_mesh *m) {
-  memset(g, 0, sizeof *g);
-  size_t n = m->n_vertices;
-  g->offsets = km__calloc(n + 1, sizeof(int32_t));
-  g->adj = km__malloc(m->n_faces, 6 * sizeof(int32_t));
-  g->dist = km__malloc(n, sizeof(double));
-  g->touched = km__malloc(n, sizeof(int32_t));
-  if (!g->offsets || (!g->adj && m->n_faces) || !g->dist || !g->touched) {
-    geodesic_free(g);
-    return false;
-  }
-  for (size_t f = 0; f < m->n_faces; ++f)
-    for (int k = 0; k < 3; ++k)
-      g->offsets[m->F[3 * f + k] + 1] += 2;
-  for (size_t v = 0; v < n; ++v)
-    g->offsets[v + 1] += g->offsets[v];
-  int32_t *fill = km__malloc(n ? n : 1, sizeof(int32_t));
-  if (!fill) {
-    geodesic_free(g);
-    return false;
-  }
-  memcpy(fill, g->offsets, n * sizeof(int32_t));
-  for (size_t f = 0; f < m->n_faces; ++f) {
-    const int32_t *t = m->F + 3 * f;
-    for (int k = 0; k < 3; ++k) {
-      int32_t a = t[k], b = t[(k + 1) % 3];
-      g->adj[fill[a]++] = b;
-      g->adj[fill[b]++] = a;
-    }
-  }
-  free(fill);
-  for (size_t v = 0; v < n; ++v)
-    g->dist[v] = INFINITY;
-  return true;
-}
-
-static bool heap_push(geodesic *g, double d, int32_t v) {
-  if (g->heap_n == g->heap_cap) {
-    size_t cap = g->heap_cap ? g->heap_cap * 2 : 256;
-    heap_item *h = realloc(g->heap, cap * sizeof *h);
-    if (!h) return false;
-    g->heap = h;
-    g->heap_cap = cap;
-  }
-  size_t i = g->heap_n++;
-  while (i > 0) {
-    size_t p = (i - 1) / 2;
-    if (g->heap[p].d <= d) break;
-    g->heap[i] = g->heap[p];
-    i = p;
-  }
-  g->heap[i] = (heap_item){d, v};
-  return true;
-}
-
-static heap_item heap_pop(geodesic *g) {
-  heap_item top = g->heap[0], last = g->heap[--g->heap_n];
-  size_t i = 0, n = g->heap_n;
-  for (;;) {
-    size_t c = 2 * i + 1;
-    if (c >= n) break;
-    if (c + 1 < n && g->heap[c + 1].d < g->heap[c].d) ++c;
-    if (g->heap[c].d >= last.d) break;
-    g->heap[i] = g->heap[c];
-    i = c;
-  }
-  if (n) g->heap[i] = last;
-  return top;
-}
+/* ---- geodesic balls: km__geodesic (mesh) with the radius as its bound, so a run only touches
+ * the ball. */
 
 /* Vertices within edge-path distance `radius` of `seed`, into a malloc'ed list. */
-static bool geodesic_ball(geodesic *g, const double *V, int32_t seed, double radius, int32_t **out,
-                          size_t *n_out) {
-  g->heap_n = 0;
-  g->n_touched = 0;
-  bool ok = heap_push(g, 0.0, seed);
-  g->dist[seed] = 0.0;
-  g->touched[g->n_touched++] = seed;
-  while (ok && g->heap_n) {
-    heap_item it = heap_pop(g);
-    if (it.d > g->dist[it.v]) continue; /* stale entry */
-    const double *p = V + 3 * (size_t)it.v;
-    for (int32_t e = g->offsets[it.v]; e < g->offsets[it.v + 1]; ++e) {
-      int32_t w = g->adj[e];
-      const double *q = V + 3 * (size_t)w;
-      double dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
-      double d = it.d + sqrt(dx * dx + dy * dy + dz * dz);
-      if (d <= radius && d < g->dist[w]) {
-        if (g->dist[w] == INFINITY) g->touched[g->n_touched++] = w;
-        g->dist[w] = d;
-        if (!heap_push(g, d, w)) ok = false;
-      }
-    }
-  }
-  int32_t *list = ok ? km__malloc(g->n_touched, sizeof(int32_t)) : NULL;
-  if (list) memcpy(list, g->touched, g->n_touched * sizeof(int32_t));
-  for (size_t i = 0; i < g->n_touched; ++i)
-    g->dist[g->touched[i]] = INFINITY;
+static bool geodesic_ball(km__geodesic *g, const double *V, int32_t seed, double radius,
+                          int32_t **out, size_t *n_out) {
+  const int32_t *reached;
+  size_t n;
+  km__geodesic_run(g, V, seed, radius, NULL, 0, &reached, &n);
+  int32_t *list = km__malloc(n, sizeof(int32_t));
+  if (list) memcpy(list, reached, n * sizeof(int32_t));
   *out = list;
-  *n_out = list ? g->n_touched : 0;
+  *n_out = list ? n : 0;
   return list != NULL;
 }
 
@@ -251,8 +138,7 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
   }
   km_status st = KM_OK;
   int32_t *owner = NULL;
-  geodesic geo = {0};
-  bool geo_ready = false;
+  km__geodesic *geo = NULL;
   if (!cJSON_IsObject(root)) {
     st = km__fail(err, KM_ERR_PARSE, "%s: expected a JSON object at the top level", name);
     goto done;
@@ -340,14 +226,11 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
         goto done;
       }
       if (radius > 0 && mesh->n_faces > 0) {
-        if (!geo_ready) {
-          if (!geodesic_init(&geo, mesh)) {
-            st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
-            goto done;
-          }
-          geo_ready = true;
+        if (!geo && km__geodesic_create(mesh, &geo, NULL) != KM_OK) {
+          st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+          goto done;
         }
-        if (!geodesic_ball(&geo, mesh->V, (int32_t)seed, radius, &rh->vertices, &rh->n_vertices)) {
+        if (!geodesic_ball(geo, mesh->V, (int32_t)seed, radius, &rh->vertices, &rh->n_vertices)) {
           st = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
           goto done;
         }
@@ -514,7 +397,7 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
 done:
   cJSON_Delete(root);
   free(owner);
-  if (geo_ready) geodesic_free(&geo);
+  km__geodesic_free(&geo);
   if (st != KM_OK) km_rig_free(out);
   return st;
 }

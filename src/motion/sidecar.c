@@ -45,6 +45,18 @@ static void write_json_string(FILE *f, const char *s) {
   fputc('"', f);
 }
 
+void km__landmarks_write_json(FILE *f, const km_landmark *lm, size_t n) {
+  fputc('[', f);
+  for (size_t i = 0; i < n; ++i) {
+    fputs(i ? ",\n{\"name\":" : "\n{\"name\":", f);
+    write_json_string(f, lm[i].name);
+    fprintf(f, ",\"vertex\":%d,\"mirror\":", (int)lm[i].vertex);
+    write_json_string(f, lm[i].mirror);
+    fputc('}', f);
+  }
+  fputc(']', f);
+}
+
 static int find_landmark(const km_character *c, const char *name) {
   for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i)
     if (!strcmp(c->landmarks[i].name, name)) return i;
@@ -112,15 +124,9 @@ km_status km_character_write_rig(const char *path, const km_character *c, km_err
     else
       fprintf(f, i ? ",%.7g" : "%.7g", w);
   }
-  fputs("]},\n\"landmarks\":[", f);
-  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
-    fputs(i ? ",\n{\"name\":" : "\n{\"name\":", f);
-    write_json_string(f, c->landmarks[i].name);
-    fprintf(f, ",\"vertex\":%d,\"mirror\":", (int)c->landmarks[i].vertex);
-    write_json_string(f, c->landmarks[i].mirror);
-    fputc('}', f);
-  }
-  fputs("],\n\"handles\":[", f);
+  fputs("]},\n\"landmarks\":", f);
+  km__landmarks_write_json(f, c->landmarks, KM_CHARACTER_LANDMARKS);
+  fputs(",\n\"handles\":[", f);
   for (int h = 0; h < 5; ++h)
     fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%ld,\"radius\":%.6g}", h ? "," : "",
             handle_names[h], handle_vertex[h], radius);
@@ -138,6 +144,65 @@ static bool json_int(const cJSON *o, double lo, double hi, long *out) {
   if (!(v >= lo && v <= hi) || v != floor(v)) return false;
   *out = (long)v;
   return true;
+}
+
+/* The landmark array of a sidecar or landmark file (km__landmarks_parse). */
+static km_status landmarks_from_json(const char *path, const cJSON *arr, size_t n_vertices,
+                                     km_landmark *out, size_t capacity, size_t *n, km_error *err) {
+  *n = 0;
+  size_t cnt = (size_t)cJSON_GetArraySize(arr);
+  if (cnt > capacity)
+    return km__fail(err, KM_ERR_PARSE, "%s: %zu landmarks, at most %zu are supported", path, cnt,
+                    capacity);
+  size_t i = 0;
+  const cJSON *it;
+  cJSON_ArrayForEach(it, arr) {
+    const cJSON *nm = cJSON_GetObjectItemCaseSensitive(it, "name");
+    const cJSON *mr = cJSON_GetObjectItemCaseSensitive(it, "mirror");
+    long v;
+    if (!cJSON_IsString(nm) || strlen(nm->valuestring) >= sizeof out[i].name)
+      return km__fail(err, KM_ERR_PARSE,
+                      "%s: landmark %zu: \"name\" must be a string of at most %zu bytes", path, i,
+                      sizeof out[i].name - 1);
+    if (mr && (!cJSON_IsString(mr) || strlen(mr->valuestring) >= sizeof out[i].mirror))
+      return km__fail(err, KM_ERR_PARSE,
+                      "%s: landmark %zu (%s): \"mirror\" must be a string of at most %zu bytes",
+                      path, i, nm->valuestring, sizeof out[i].mirror - 1);
+    double hi = n_vertices > 0 ? (double)n_vertices - 1 : (double)INT32_MAX;
+    if (!json_int(cJSON_GetObjectItemCaseSensitive(it, "vertex"), 0, hi, &v))
+      return km__fail(err, KM_ERR_PARSE,
+                      "%s: landmark %zu (%s): \"vertex\" must be an integer in 0..%.0f", path, i,
+                      nm->valuestring, hi);
+    memset(&out[i], 0, sizeof out[i]);
+    snprintf(out[i].name, sizeof out[i].name, "%s", nm->valuestring);
+    snprintf(out[i].mirror, sizeof out[i].mirror, "%s", mr ? mr->valuestring : nm->valuestring);
+    out[i].vertex = (int32_t)v;
+    for (size_t a = 0; a < i; ++a)
+      if (strcmp(out[a].name, out[i].name) == 0)
+        return km__fail(err, KM_ERR_PARSE, "%s: landmark name \"%s\" appears twice", path,
+                        out[i].name);
+    ++i;
+  }
+  *n = i;
+  return KM_OK;
+}
+
+km_status km__landmarks_parse(const char *path, const char *data, size_t size, size_t n_vertices,
+                              km_landmark *out, size_t capacity, size_t *n, km_error *err) {
+  *n = 0;
+  const char *end = NULL;
+  cJSON *root = cJSON_ParseWithLengthOpts(data, size, &end, 0);
+  if (!root) {
+    size_t at = end && end >= data ? (size_t)(end - data) : 0;
+    return km__fail(err, KM_ERR_PARSE, "%s: invalid JSON near byte %zu", path, at);
+  }
+  const cJSON *arr = cJSON_GetObjectItemCaseSensitive(root, "landmarks");
+  km_status s =
+      cJSON_IsArray(arr)
+          ? landmarks_from_json(path, arr, n_vertices, out, capacity, n, err)
+          : km__fail(err, KM_ERR_PARSE, "%s: expected an object with a \"landmarks\" array", path);
+  cJSON_Delete(root);
+  return s;
 }
 
 /* The skin arrays hold 8 numbers per vertex: as cJSON items (64 bytes each) a 1M-vertex rig
@@ -411,24 +476,9 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
   const cJSON *lms = cJSON_GetObjectItemCaseSensitive(root, "landmarks");
   if (!cJSON_IsArray(lms) || cJSON_GetArraySize(lms) != KM_CHARACTER_LANDMARKS)
     FAIL("%s: \"landmarks\" must be an array of %d landmarks", path, KM_CHARACTER_LANDMARKS);
-  int l = 0;
-  cJSON_ArrayForEach(it, lms) {
-    const cJSON *name = cJSON_GetObjectItemCaseSensitive(it, "name");
-    const cJSON *mir = cJSON_GetObjectItemCaseSensitive(it, "mirror");
-    long v;
-    if (!cJSON_IsString(name) || strlen(name->valuestring) >= sizeof lm[l].name)
-      FAIL("%s: landmark %d: \"name\" must be a string of at most 31 bytes", path, l);
-    if (!cJSON_IsString(mir) || strlen(mir->valuestring) >= sizeof lm[l].mirror)
-      FAIL("%s: landmark %d (%s): \"mirror\" must be a string of at most 31 bytes", path, l,
-           name->valuestring);
-    if (!json_int(cJSON_GetObjectItemCaseSensitive(it, "vertex"), 0, (double)n_vertices - 1, &v))
-      FAIL("%s: landmark %d (%s): \"vertex\" must be an index below %zu", path, l,
-           name->valuestring, n_vertices);
-    snprintf(lm[l].name, sizeof lm[l].name, "%s", name->valuestring);
-    snprintf(lm[l].mirror, sizeof lm[l].mirror, "%s", mir->valuestring);
-    lm[l].vertex = (int32_t)v;
-    ++l;
-  }
+  size_t nl = 0;
+  if ((st = landmarks_from_json(path, lms, n_vertices, lm, KM_CHARACTER_LANDMARKS, &nl, err)))
+    goto done;
 #undef FAIL
   free(fs.joints);
   free(fs.weights);

@@ -40,7 +40,7 @@
 #include "math/math.h"
 
 #include <errno.h>
-#include <lapacke.h>
+#include "linalg/linalg.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -1252,7 +1252,7 @@ km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *h
   for (size_t i = 0; i < nr; ++i)
     tr += K[i + i * nr];
   /* the ridge is retried 100x larger if the factorisation meets round-off trouble */
-  lapack_int info = 1;
+  int info = 1;
   for (double ridge = KM_PUPPET_RIDGE; info != 0 && ridge < 1e-4; ridge *= 100) {
     if (ridge > KM_PUPPET_RIDGE) {
       memcpy(K, p->K0, nr * nr * sizeof(double));
@@ -1261,7 +1261,7 @@ km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *h
     p->mu = ridge * (tr > 0 ? tr / (double)nr : 1);
     for (size_t i = 0; i < nr; ++i)
       K[i + i * nr] += p->mu;
-    info = LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'U', (lapack_int)nr, K, (lapack_int)nr);
+    info = km__potrf(nr, K);
   }
   if (info != 0)
     return km__fail(err, KM_ERR_NOT_POSDEF,
@@ -1270,8 +1270,7 @@ km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *h
     for (size_t r = 0; r < nr; ++r)
       p->Kt[r + c * nr] = r >= c ? K[c + r * nr] : 0;
   memcpy(p->KinvG, p->G, nr * p->nd * sizeof(double));
-  info = LAPACKE_dpotrs(LAPACK_COL_MAJOR, 'U', (lapack_int)nr, (lapack_int)p->nd, K, (lapack_int)nr,
-                        p->KinvG, (lapack_int)nr);
+  info = km__potrs(nr, p->nd, K, p->KinvG);
   if (info != 0)
     return km__fail(err, KM_ERR_NOT_POSDEF, "puppet: dpotrs failed (info %d)", (int)info);
   for (size_t i = 0; i < nr * p->nd; ++i)

@@ -1,8 +1,8 @@
 #include "recon/recon.h"
+#include "math/math.h"
 
 #include <embree3/rtcore.h>
 #include <float.h>
-#include <lapacke.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -18,28 +18,7 @@ void *km__embree_device(km_error *err) {
   return g_device;
 }
 
-void km__eig3(const double A[9], double evals[3], double evecs[9]) {
-  double a[9];
-  memcpy(a, A, sizeof a);
-  double work[16];
-  /* column-major == row-major for a symmetric matrix; eigenvectors come out in columns */
-  if (LAPACKE_dsyev_work(LAPACK_COL_MAJOR, 'V', 'U', 3, a, 3, evals, work, 16) != 0) {
-    memset(evecs, 0, 9 * sizeof *evecs);
-    evecs[0] = evecs[4] = evecs[8] = 1;
-    evals[0] = evals[1] = evals[2] = 0;
-    return;
-  }
-  /* a is column-major: column c = eigenvector c; store row-major with vectors as columns */
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c)
-      evecs[3 * r + c] = a[3 * c + r];
-}
-
 /* ---------------------------------------------------------------- closest point on triangle */
-
-static double dot3(const double *a, const double *b) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
 
 /* Ericson, Real-Time Collision Detection 5.1.5: Voronoi regions of the triangle. */
 double km__closest_on_triangle(const double *p, const double *a, const double *b, const double *c,
@@ -47,7 +26,7 @@ double km__closest_on_triangle(const double *p, const double *a, const double *b
   double ab[3], ac[3], ap[3];
   for (int k = 0; k < 3; ++k)
     ab[k] = b[k] - a[k], ac[k] = c[k] - a[k], ap[k] = p[k] - a[k];
-  double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
+  double d1 = km__dot3(ab, ap), d2 = km__dot3(ac, ap);
   double u, v, t;
   if (d1 <= 0 && d2 <= 0) {
     u = 1, v = 0, t = 0;
@@ -56,7 +35,7 @@ double km__closest_on_triangle(const double *p, const double *a, const double *b
   double bp[3];
   for (int k = 0; k < 3; ++k)
     bp[k] = p[k] - b[k];
-  double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
+  double d3 = km__dot3(ab, bp), d4 = km__dot3(ac, bp);
   if (d3 >= 0 && d4 <= d3) {
     u = 0, v = 1, t = 0;
     goto done;
@@ -70,7 +49,7 @@ double km__closest_on_triangle(const double *p, const double *a, const double *b
   double cp[3];
   for (int k = 0; k < 3; ++k)
     cp[k] = p[k] - c[k];
-  double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
+  double d5 = km__dot3(ab, cp), d6 = km__dot3(ac, cp);
   if (d6 >= 0 && d5 <= d6) {
     u = 0, v = 0, t = 1;
     goto done;
@@ -269,7 +248,7 @@ static bool knn_cb(struct RTCPointQueryFunctionArguments *args) {
   knn_query *q = args->userPtr;
   const double *p = q->P + 3 * (size_t)args->primID;
   double d[3] = {p[0] - q->p[0], p[1] - q->p[1], p[2] - q->p[2]};
-  double d2 = dot3(d, d);
+  double d2 = km__dot3(d, d);
   if (q->count < q->k) {
     int i = q->count++;
     q->d2[i] = d2, q->idx[i] = (int32_t)args->primID;
@@ -410,8 +389,8 @@ km_status km__point_normals(const double *P, size_t n, int k, double *N, km_erro
     for (size_t i = 0; i < n; ++i) {
       double c[3], C[9], ev[3], V[9];
       covariance(P, idx + (size_t)k * i, (size_t)k, c, C);
-      km__eig3(C, ev, V);
-      N[3 * i + 0] = V[0], N[3 * i + 1] = V[3], N[3 * i + 2] = V[6];
+      km__sym_eig3(C, ev, V); /* descending: the normal is the last column */
+      N[3 * i + 0] = V[2], N[3 * i + 1] = V[5], N[3 * i + 2] = V[8];
     }
   }
   free(idx);
@@ -438,12 +417,12 @@ static void cluster_rec(cluster_ctx *cx, size_t lo, size_t hi, int depth) {
   if (!m) return;
   double c[3], C[9], ev[3], V[9];
   covariance(cx->P, cx->ids + lo, m, c, C);
-  km__eig3(C, ev, V);
+  km__sym_eig3(C, ev, V); /* descending */
   double tr = ev[0] + ev[1] + ev[2];
-  double var = tr > 0 ? ev[0] / tr : 0;
+  double var = tr > 0 ? ev[2] / tr : 0;
   bool split = m > cx->max_size || (var > cx->max_var && m > 4);
   if (split && depth < 60 && m > 1) {
-    double ax[3] = {V[2], V[5], V[8]};
+    double ax[3] = {V[0], V[3], V[6]};
     size_t i = lo, j = hi;
     while (i < j) {
       const double *p = cx->P + 3 * (size_t)cx->ids[i];
@@ -511,75 +490,6 @@ km_status km__cluster_points(const double *P, size_t n, size_t target, int32_t *
   free(cx.ids);
   *reps = cx.reps;
   *n_reps = cx.n_reps;
-  return KM_OK;
-}
-
-/* ---------------------------------------------------------------- Horn 1987 */
-
-km_status km_absolute_orientation(const double *A, const double *B, size_t n, bool with_scale,
-                                  double R[9], double t[3], double *s, km_error *err) {
-  if (!A || !B || !R || !t || (with_scale && !s))
-    return km__fail(err, KM_ERR_INVALID, "km_absolute_orientation: NULL argument");
-  if (n < 3)
-    return km__fail(err, KM_ERR_INVALID, "km_absolute_orientation: need >= 3 pairs, got %zu", n);
-  double ca[3] = {0}, cb[3] = {0};
-  for (size_t i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k)
-      ca[k] += A[3 * i + k], cb[k] += B[3 * i + k];
-  for (int k = 0; k < 3; ++k)
-    ca[k] /= (double)n, cb[k] /= (double)n;
-  double S[9] = {0}, sa = 0;
-  for (size_t i = 0; i < n; ++i) {
-    double a[3], b[3];
-    for (int k = 0; k < 3; ++k)
-      a[k] = A[3 * i + k] - ca[k], b[k] = B[3 * i + k] - cb[k];
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c)
-        S[3 * r + c] += a[r] * b[c];
-    sa += dot3(a, a);
-  }
-  /* Horn's symmetric 4x4 N; its top eigenvector is the unit quaternion of the rotation. */
-  double Sxx = S[0], Sxy = S[1], Sxz = S[2], Syx = S[3], Syy = S[4], Syz = S[5], Szx = S[6],
-         Szy = S[7], Szz = S[8];
-  double N[16] = {Sxx + Syy + Szz, Syz - Szy,       Szx - Sxz,        Sxy - Syx,
-                  Syz - Szy,       Sxx - Syy - Szz, Sxy + Syx,        Szx + Sxz,
-                  Szx - Sxz,       Sxy + Syx,       -Sxx + Syy - Szz, Syz + Szy,
-                  Sxy - Syx,       Szx + Sxz,       Syz + Szy,        -Sxx - Syy + Szz};
-  double w[4];
-  if (LAPACKE_dsyev(LAPACK_COL_MAJOR, 'V', 'U', 4, N, 4, w) != 0)
-    return km__fail(err, KM_ERR_NO_CONVERGENCE, "km_absolute_orientation: dsyev failed");
-  double scale_ref = fabs(w[3]) + fabs(w[0]);
-  if (!(sa > 0) || !(scale_ref > 0) || (w[3] - w[2]) < 1e-12 * scale_ref)
-    return km__fail(err, KM_ERR_DEGENERATE_MESH,
-                    "km_absolute_orientation: points are collinear or coincident");
-  double q0 = N[12], qx = N[13], qy = N[14], qz = N[15];
-  R[0] = q0 * q0 + qx * qx - qy * qy - qz * qz;
-  R[1] = 2 * (qx * qy - q0 * qz);
-  R[2] = 2 * (qx * qz + q0 * qy);
-  R[3] = 2 * (qy * qx + q0 * qz);
-  R[4] = q0 * q0 - qx * qx + qy * qy - qz * qz;
-  R[5] = 2 * (qy * qz - q0 * qx);
-  R[6] = 2 * (qz * qx - q0 * qy);
-  R[7] = 2 * (qz * qy + q0 * qx);
-  R[8] = q0 * q0 - qx * qx - qy * qy + qz * qz;
-  double sc = 1;
-  if (with_scale) {
-    /* least squares scale with R fixed: sum b.(R a) / sum |a|^2 */
-    double num = 0;
-    for (size_t i = 0; i < n; ++i) {
-      double a[3], b[3];
-      for (int k = 0; k < 3; ++k)
-        a[k] = A[3 * i + k] - ca[k], b[k] = B[3 * i + k] - cb[k];
-      for (int r = 0; r < 3; ++r)
-        num += b[r] * (R[3 * r] * a[0] + R[3 * r + 1] * a[1] + R[3 * r + 2] * a[2]);
-    }
-    sc = num / sa;
-    *s = sc;
-  } else if (s) {
-    *s = 1;
-  }
-  for (int r = 0; r < 3; ++r)
-    t[r] = cb[r] - sc * (R[3 * r] * ca[0] + R[3 * r + 1] * ca[1] + R[3 * r + 2] * ca[2]);
   return KM_OK;
 }
 

@@ -58,7 +58,4 @@ km_status km__recon_affine_register(km_recon *r, const double *Vb, const double 
                                     const km_recon_feature *feat, size_t nfeat, int iterations,
                                     km_error *err);
 
-/* Symmetric 3x3 eigen-decomposition (ascending), LAPACKE_dsyev. A row-major, vecs columns. */
-void km__eig3(const double A[9], double evals[3], double evecs[9]);
-
 #endif

@@ -1,9 +1,10 @@
 /* Template registration to point clouds (Park & Lim 2014, after Allen, Curless & Popovic
- * 2003): Horn similarity from features, per-vertex affine registration, skeletal motion by
- * L-BFGS, surface refinement. */
+ * 2003): similarity from features (km_similarity_fit), per-vertex affine registration,
+ * skeletal motion by L-BFGS, surface refinement. */
 #include "recon/recon.h"
+#include "math/math.h"
+#include "linalg/linalg.h"
 
-#include <cholmod.h>
 #include <float.h>
 #include <lbfgs.h>
 #include <math.h>
@@ -12,41 +13,6 @@
 
 /* ---------------------------------------------------------------- small 3x3 helpers */
 
-static void mat_mul(const double *A, const double *B, double *C) {
-  double T[9];
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c)
-      T[3 * r + c] = A[3 * r] * B[c] + A[3 * r + 1] * B[3 + c] + A[3 * r + 2] * B[6 + c];
-  memcpy(C, T, sizeof T);
-}
-static void mat_vec(const double *A, const double *x, double *y) {
-  double t[3];
-  for (int r = 0; r < 3; ++r)
-    t[r] = A[3 * r] * x[0] + A[3 * r + 1] * x[1] + A[3 * r + 2] * x[2];
-  memcpy(y, t, sizeof t);
-}
-static void mat_tvec(const double *A, const double *x, double *y) {
-  double t[3];
-  for (int c = 0; c < 3; ++c)
-    t[c] = A[c] * x[0] + A[3 + c] * x[1] + A[6 + c] * x[2];
-  memcpy(y, t, sizeof t);
-}
-static void cross(const double *a, const double *b, double *c) {
-  double t[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-  memcpy(c, t, sizeof t);
-}
-static void rodrigues(const double *r, double *R) {
-  double th = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
-  double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0}, K2[9];
-  mat_mul(K, K, K2);
-  double a, b;
-  if (th < 1e-6)
-    a = 1 - th * th / 6, b = 0.5 - th * th / 24;
-  else
-    a = sin(th) / th, b = (1 - cos(th)) / (th * th);
-  for (int i = 0; i < 9; ++i)
-    R[i] = (i % 4 == 0) + a * K[i] + b * K2[i];
-}
 /* Nearest rotation by Gram-Schmidt on the rows: products of rotations drift off SO(3) in
  * floating point, and the constant-velocity prediction would amplify the drift. */
 static void orthonormalize(double *R) {
@@ -70,14 +36,14 @@ static void orthonormalize(double *R) {
   }
   for (int k = 0; k < 3; ++k)
     b[k] /= l;
-  cross(a, b, c);
+  km__cross3(a, b, c);
 }
 
 /* Right Jacobian of SO(3): exp(r + d) ~ exp(r) exp(Jr(r) d). */
 static void right_jacobian(const double *r, double *J) {
   double th = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
   double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0}, K2[9];
-  mat_mul(K, K, K2);
+  km__m3_mul(K, K, K2);
   double a, b;
   if (th < 1e-5)
     a = 0.5 - th * th / 24, b = 1.0 / 6 - th * th / 120;
@@ -101,9 +67,8 @@ struct km_recon {
   int32_t *face_edges; /* nf*3: edge index of (v0,v1), (v1,v2), (v2,v0) */
   /* affine solver: 4 unknowns per vertex and coordinate, 3 right-hand sides sharing one
    * CHOLMOD factor of the 4#V x 4#V SPD matrix */
-  cholmod_common cc;
-  cholmod_sparse *M;
-  cholmod_factor *L;
+  km_sparse *M; /* upper triangle only (km__cholesky_options.stored = 1) */
+  km_cholesky *L;
   double *blocks;     /* (nv + ne) * 16 accumulators: diagonal blocks then edge blocks */
   int64_t *block_pos; /* (nv + ne) * 16 positions in M->x (-1: lower triangle) */
   double *rhs;        /* 4nv*3 */
@@ -211,7 +176,8 @@ static km_status build_system(km_recon *r, km_error *err) {
     ++cnt[e[2 * k + 1]];
   size_t n = 4 * nv;
   size_t nnz = 16 * ne + 10 * nv;
-  r->M = cholmod_allocate_sparse(n, n, nnz, 1, 1, 1, CHOLMOD_REAL, &r->cc);
+  km_status s = km__sparse_alloc(n, n, nnz, &r->M, err);
+  if (s) return s;
   r->blocks = km__malloc(nv + ne, 16 * sizeof(double));
   r->block_pos = km__malloc(nv + ne, 16 * sizeof(int64_t));
   size_t *colstart = km__malloc(nv + 1, sizeof *colstart);
@@ -222,7 +188,9 @@ static km_status build_system(km_recon *r, km_error *err) {
     free(fill);
     return km__fail(err, KM_ERR_NOMEM, "affine system: out of memory (%zu unknowns)", n);
   }
-  int *Mp = r->M->p, *Mi = r->M->i;
+  int32_t *Mp, *Mi;
+  double *Mx;
+  km__sparse_arrays(r->M, &Mp, &Mi, &Mx);
   /* Per column block j: (cnt[j] edge blocks) * 4 rows + diagonal block rows 0..cc */
   size_t pos = 0;
   for (size_t j = 0; j < nv; ++j) {
@@ -266,13 +234,15 @@ static km_status build_system(km_recon *r, km_error *err) {
   free(cnt);
   free(colstart);
   free(fill);
-  memset(r->M->x, 0, pos * sizeof(double));
+  memset(Mx, 0, pos * sizeof(double));
   for (size_t j = 0; j < nv; ++j)
     for (int c = 0; c < 4; ++c)
-      ((double *)r->M->x)[r->block_pos[16 * j + 5 * c]] = 1;
-  r->L = cholmod_analyze(r->M, &r->cc);
-  if (!r->L || r->cc.status != CHOLMOD_OK)
-    return km__fail(err, KM_ERR_NOMEM, "CHOLMOD analyze failed (status %d)", r->cc.status);
+      Mx[r->block_pos[16 * j + 5 * c]] = 1;
+  /* the columns are sorted without repeats, so block_pos stays valid */
+  if ((s = km__sparse_compress(&r->M, err))) return s;
+  /* CHOLMOD's own choice: supernodal LL' for large templates, simplicial LDL' for small */
+  km__cholesky_options co = {.kind = KM__CHOLESKY_AUTO_LDL, .stored = 1};
+  if ((s = km__cholesky_analyze_with(r->M, &co, &r->L, err))) return s;
   r->rhs = km__malloc(n, 3 * sizeof(double));
   r->sol = km__malloc(n, 3 * sizeof(double));
   if (!r->rhs || !r->sol) return km__fail(err, KM_ERR_NOMEM, "out of memory");
@@ -293,9 +263,8 @@ void km_recon_free(km_recon **rp) {
   free(r->names);
   free(r->edges);
   free(r->face_edges);
-  if (r->L) cholmod_free_factor(&r->L, &r->cc);
-  if (r->M) cholmod_free_sparse(&r->M, &r->cc);
-  cholmod_finish(&r->cc);
+  km_cholesky_free(&r->L);
+  km_sparse_free(&r->M);
   free(r->blocks);
   free(r->block_pos);
   free(r->rhs);
@@ -350,9 +319,6 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
                       c->skin.joints[i]);
   km_recon *r = calloc(1, sizeof *r);
   if (!r) return km__fail(err, KM_ERR_NOMEM, "out of memory");
-  cholmod_start(&r->cc);
-  r->cc.print = 0; /* the library never prints; failures come back as km_status */
-  r->cc.supernodal = CHOLMOD_AUTO;
   r->o = opt ? *opt : (km_recon_options){0};
   opt_defaults(&r->o);
   km_status s = km_mesh_copy(m, &r->tmpl, err);
@@ -494,7 +460,7 @@ static double correspond(km_recon *r, const double *X, const double *Q, const do
                      *cc = X + 3 * (size_t)t[2];
         double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
                v[3] = {cc[0] - a[0], cc[1] - a[1], cc[2] - a[2]}, fn[3];
-        cross(u, v, fn);
+        km__cross3(u, v, fn);
         double l = sqrt(fn[0] * fn[0] + fn[1] * fn[1] + fn[2] * fn[2]);
         for (int a = 0; a < 3; ++a)
           r->pnormal[3 * i + a] = l > 0 ? fn[a] / l : 0;
@@ -601,26 +567,18 @@ static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, si
       if (k < 3) r->rhs[(size_t)k * n4 + 4 * i + (size_t)k] += wid;
     }
 #undef H
-  double *Mx = r->M->x;
+  double *Mx = km__sparse_values(r->M);
   for (size_t b = 0; b < nv + ne; ++b)
     for (int k = 0; k < 16; ++k) {
       int64_t p = r->block_pos[16 * b + k];
       if (p >= 0) Mx[p] = r->blocks[16 * b + k];
     }
-  if (!cholmod_factorize(r->M, r->L, &r->cc) || r->cc.status != CHOLMOD_OK)
-    return km__fail(err, r->cc.status == CHOLMOD_NOT_POSDEF ? KM_ERR_NOT_POSDEF : KM_ERR_NOMEM,
-                    "affine registration: CHOLMOD factorization failed (status %d)", r->cc.status);
-  cholmod_dense B = {.nrow = n4,
-                     .ncol = 3,
-                     .nzmax = n4 * 3,
-                     .d = n4,
-                     .x = r->rhs,
-                     .xtype = CHOLMOD_REAL,
-                     .dtype = CHOLMOD_DOUBLE};
-  cholmod_dense *Xs = cholmod_solve(CHOLMOD_A, r->L, &B, &r->cc);
-  if (!Xs) return km__fail(err, KM_ERR_NOMEM, "affine registration: CHOLMOD solve failed");
-  memcpy(r->sol, Xs->x, n4 * 3 * sizeof(double));
-  cholmod_free_dense(&Xs, &r->cc);
+  km_error ferr;
+  km_status fs = km_cholesky_factorize(r->L, r->M, &ferr);
+  if (fs)
+    return km__fail(err, fs == KM_ERR_NOT_POSDEF ? KM_ERR_NOT_POSDEF : KM_ERR_NOMEM,
+                    "affine registration: factorization failed: %s", ferr.message);
+  if ((fs = km_cholesky_solve(r->L, 3, r->rhs, r->sol, err))) return fs;
   for (size_t i = 0; i < nv; ++i) {
     double h[4] = {Vb[3 * i] - c[0], Vb[3 * i + 1] - c[1], Vb[3 * i + 2] - c[2], 1};
     for (int a = 0; a < 3; ++a) {
@@ -656,48 +614,20 @@ static void affine_apply(const km_recon *r, const double *Vb, size_t i, const do
 static void forward_kinematics(const km_recon *r, const double *Lrot, const double *t, double *W,
                                double *cj, double *G) {
   const double *J = r->base_joints;
-  for (size_t j = 0; j < r->nj; ++j) {
+  for (size_t j = 0; j < r->nj; ++j) { /* offsets, turned into positions in place */
     int32_t p = r->parents[j];
-    if (p < 0) {
-      memcpy(W + 9 * j, Lrot + 9 * j, 9 * sizeof(double));
-      for (int a = 0; a < 3; ++a)
-        cj[3 * j + a] = J[3 * j + a] + t[a];
-    } else {
-      mat_mul(W + 9 * (size_t)p, Lrot + 9 * j, W + 9 * j);
-      double d[3] = {J[3 * j] - J[3 * (size_t)p], J[3 * j + 1] - J[3 * (size_t)p + 1],
-                     J[3 * j + 2] - J[3 * (size_t)p + 2]};
-      mat_vec(W + 9 * (size_t)p, d, d);
-      for (int a = 0; a < 3; ++a)
-        cj[3 * j + a] = cj[3 * (size_t)p + a] + d[a];
-    }
-    /* G_j x = W_j (x - J_j) + c_j */
-    double *Gj = G + 12 * j;
-    double WJ[3];
-    mat_vec(W + 9 * j, J + 3 * j, WJ);
-    for (int rr = 0; rr < 3; ++rr) {
-      for (int cc = 0; cc < 3; ++cc)
-        Gj[4 * rr + cc] = W[9 * j + 3 * rr + cc];
-      Gj[4 * rr + 3] = cj[3 * j + rr] - WJ[rr];
-    }
+    for (int a = 0; a < 3; ++a)
+      cj[3 * j + a] = p < 0 ? J[3 * j + a] + t[a] : J[3 * j + a] - J[3 * (size_t)p + a];
   }
+  km__forward_kinematics(r->nj, r->parents, Lrot, cj, W, cj);
+  km__joint_transforms(r->nj, W, cj, J, G);
 }
 
-/* Serial on purpose: called once per L-BFGS evaluation on a few thousand vertices, where an
- * OpenMP fork/join costs more than the work. */
+/* km_lbs runs serially below 20000 vertices: called once per L-BFGS evaluation on a few
+ * thousand vertices, an OpenMP fork/join would cost more than the work. The skin was checked
+ * by km_recon_create. */
 static void lbs_apply(const km_recon *r, const double *G, const double *Vb, double *X) {
-  for (size_t i = 0; i < r->nv; ++i) {
-    double x[3] = {0, 0, 0};
-    const double *v = Vb + 3 * i;
-    for (int k = 0; k < 4; ++k) {
-      int32_t j = r->skin.joints[4 * i + k];
-      double w = r->skin.weights[4 * i + k];
-      if (j < 0 || w == 0) continue;
-      const double *g = G + 12 * (size_t)j;
-      for (int a = 0; a < 3; ++a)
-        x[a] += w * (g[4 * a] * v[0] + g[4 * a + 1] * v[1] + g[4 * a + 2] * v[2] + g[4 * a + 3]);
-    }
-    memcpy(X + 3 * i, x, sizeof x);
-  }
+  km_lbs(Vb, r->nv, &r->skin, G, r->nj, X, NULL);
 }
 
 /* ---------------------------------------------------------------- skeleton: L-BFGS */
@@ -731,8 +661,8 @@ static void pose_from_params(pose_ctx *pc, const double *x) {
   km_recon *r = pc->r;
   for (size_t j = 0; j < r->nj; ++j) {
     double E[9];
-    rodrigues(x + 3 + 3 * j, E);
-    mat_mul(pc->Lref + 9 * j, E, pc->Lrot + 9 * j);
+    km__m3_from_rotvec(x + 3 + 3 * j, E);
+    km__m3_mul(pc->Lref + 9 * j, E, pc->Lrot + 9 * j);
   }
   double t[3] = {pc->tref[0] + x[0], pc->tref[1] + x[1], pc->tref[2] + x[2]};
   forward_kinematics(r, pc->Lrot, t, pc->W, pc->cj, pc->G);
@@ -811,7 +741,7 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
       double y[3], yx[3];
       for (int a = 0; a < 3; ++a)
         y[a] = G[4 * a] * v[0] + G[4 * a + 1] * v[1] + G[4 * a + 2] * v[2] + G[4 * a + 3];
-      cross(y, gvi, yx);
+      km__cross3(y, gvi, yx);
       for (int a = 0; a < 3; ++a)
         acc[6 * (size_t)j + a] += w * yx[a], acc[6 * (size_t)j + 3 + a] += w * gvi[a];
     }
@@ -826,12 +756,12 @@ static lbfgsfloatval_t pose_evaluate(void *inst, const lbfgsfloatval_t *x, lbfgs
     g[a] = acc[3 + a];
   for (size_t j = 0; j < nj; ++j) {
     double cb[3], gphi[3], Jr[9], tmp[3];
-    cross(pc->cj + 3 * j, acc + 6 * j + 3, cb);
+    km__cross3(pc->cj + 3 * j, acc + 6 * j + 3, cb);
     for (int a = 0; a < 3; ++a)
       gphi[a] = acc[6 * j + a] - cb[a];
-    mat_tvec(pc->W + 9 * j, gphi, tmp);
+    km__m3_apply_t(pc->W + 9 * j, gphi, tmp);
     right_jacobian(x + 3 + 3 * j, Jr);
-    mat_tvec(Jr, tmp, g + 3 + 3 * j);
+    km__m3_apply_t(Jr, tmp, g + 3 + 3 * j);
   }
   /* small change from the reference pose (the skeleton prediction) */
   double lam = pc->lambda;
@@ -950,8 +880,8 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
     pc.evals = 0;
     for (size_t j = 0; j < nj; ++j) {
       double E[9];
-      rodrigues(x + 3 + 3 * j, E);
-      mat_mul(Lcur + 9 * j, E, Lcur + 9 * j);
+      km__m3_from_rotvec(x + 3 + 3 * j, E);
+      km__m3_mul(Lcur + 9 * j, E, Lcur + 9 * j);
       orthonormalize(Lcur + 9 * j);
     }
     for (int a = 0; a < 3; ++a)
@@ -1083,7 +1013,7 @@ static km_status refine(km_recon *r, const frame_data *fd, const double *Vb, int
 /* X = sc R V + t over the template. */
 static void place(const km_recon *r, const double *R, double sc, const double *t, double *X) {
   for (size_t i = 0; i < r->nv; ++i) {
-    mat_vec(R, r->tmpl.V + 3 * i, X + 3 * i);
+    km__m3_apply(R, r->tmpl.V + 3 * i, X + 3 * i);
     for (int a = 0; a < 3; ++a)
       X[3 * i + a] = sc * X[3 * i + a] + t[a];
   }
@@ -1163,14 +1093,14 @@ static bool icp_step(km_recon *r, const double *X, const double *Q, size_t nq, d
       e[a] = sa - Q[3 * i + a];
       u[a] = x1[a] - x0[a], v[a] = x2[a] - x0[a];
     }
-    cross(u, v, nn);
+    km__cross3(u, v, nn);
     double l = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
     if (!(l > 0)) continue;
     for (int a = 0; a < 3; ++a)
       nn[a] /= l;
     /* rows: the plane residual, then the three point residuals scaled by sqrt(mu) */
     double J[4][6], res[4], sxn[3];
-    cross(sp, nn, sxn);
+    km__cross3(sp, nn, sxn);
     for (int k = 0; k < 3; ++k)
       J[0][k] = sxn[k], J[0][3 + k] = nn[k];
     res[0] = e[0] * nn[0] + e[1] * nn[1] + e[2] * nn[2];
@@ -1193,12 +1123,12 @@ static bool icp_step(km_recon *r, const double *X, const double *Q, size_t nq, d
   }
   if (!solve6(M, b)) return false;
   double Ri[9];
-  rodrigues(b, Ri);
+  km__m3_from_rotvec(b, Ri);
   /* X' = Ri (X - cs) + cs + tau: R <- Ri R, t <- Ri (t - cs) + cs + tau */
-  mat_mul(Ri, R, R);
+  km__m3_mul(Ri, R, R);
   orthonormalize(R);
   double d[3] = {t[0] - cs[0], t[1] - cs[1], t[2] - cs[2]};
-  mat_vec(Ri, d, d);
+  km__m3_apply(Ri, d, d);
   for (int a = 0; a < 3; ++a)
     t[a] = d[a] + cs[a] + b[3 + a];
   return true;
@@ -1244,7 +1174,7 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
     double yaw = 2 * M_PI * k / KM__YAW_CANDIDATES, R[9], t[3], c = cos(yaw), sn = sin(yaw);
     double Ry[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
     memcpy(R, Ry, sizeof R);
-    mat_vec(R, ct, t);
+    km__m3_apply(R, ct, t);
     for (int a = 0; a < 3; ++a)
       t[a] = cp[a] - sc * t[a];
     for (int it = 0; it < KM__ICP_ROUNDS; ++it) {
@@ -1262,7 +1192,7 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
     /* the skeletal step from this placement, as the first frame will run it */
     memcpy(r->base, X, nv * 3 * sizeof(double));
     for (size_t j = 0; j < nj; ++j) {
-      mat_vec(R, r->tmpl_joints + 3 * j, r->base_joints + 3 * j);
+      km__m3_apply(R, r->tmpl_joints + 3 * j, r->base_joints + 3 * j);
       for (int a = 0; a < 3; ++a)
         r->base_joints[3 * j + a] = sc * r->base_joints[3 * j + a] + t[a];
       double *L = Lid + 9 * j;
@@ -1341,7 +1271,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     frame_data_free(&fd);
     return s;
   }
-  /* 1. global similarity: Horn on the features, else centroid + height */
+  /* 1. global similarity: km_similarity_fit (rigid) on the features, else centroid + height */
   double R[9], t[3], sc = 1;
   if (nfeat >= 3) {
     double *A = km__malloc(nfeat, 3 * sizeof(double)), *B = km__malloc(nfeat, 3 * sizeof(double));
@@ -1355,7 +1285,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     }
     /* rigid only here: with the subject in another pose than the template, a scale from
      * unposed landmarks is biased (arms out vs. arms in); scale comes after posing */
-    s = km_absolute_orientation(A, B, nfeat, false, R, t, NULL, err);
+    s = km_similarity_fit(A, B, NULL, nfeat, false, NULL, R, t, err);
     free(A), free(B);
     if (s) {
       frame_data_free(&fd);
@@ -1374,12 +1304,12 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     return km__fail(err, KM_ERR_NOMEM, "out of memory");
   }
   for (size_t i = 0; i < nv; ++i) {
-    mat_vec(R, r->tmpl.V + 3 * i, V1 + 3 * i);
+    km__m3_apply(R, r->tmpl.V + 3 * i, V1 + 3 * i);
     for (int a = 0; a < 3; ++a)
       V1[3 * i + a] = sc * V1[3 * i + a] + t[a];
   }
   for (size_t j = 0; j < nj; ++j) {
-    mat_vec(R, r->tmpl_joints + 3 * j, r->base_joints + 3 * j);
+    km__m3_apply(R, r->tmpl_joints + 3 * j, r->base_joints + 3 * j);
     for (int a = 0; a < 3; ++a)
       r->base_joints[3 * j + a] = sc * r->base_joints[3 * j + a] + t[a];
   }
@@ -1401,7 +1331,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
   memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
   /* Features drive the pose first (the subject may stand far from the template's pose);
    * the similarity is then re-estimated against the posed landmarks, which removes the bias
-   * a pose difference puts into Horn's scale and rotation; then features and data. */
+   * a pose difference puts into the fitted scale and rotation; then features and data. */
   if (nfeat >= 3) {
     double *A = km__malloc(nfeat, 3 * sizeof(double)), *B = km__malloc(nfeat, 3 * sizeof(double));
     for (int pass = 0; pass < 3 && A && B; ++pass) {
@@ -1415,19 +1345,19 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
         memcpy(B + 3 * k, feat[k].point, 3 * sizeof(double));
       }
       double R2[9], t2[3], s2 = 1;
-      if (km_absolute_orientation(A, B, nfeat, true, R2, t2, &s2, NULL) != KM_OK) break;
+      if (km_similarity_fit(A, B, NULL, nfeat, true, &s2, R2, t2, NULL) != KM_OK) break;
       /* the similarity goes into the unposed base; the root offset follows it */
       for (size_t i = 0; i < nv; ++i) {
-        mat_vec(R2, r->base + 3 * i, r->base + 3 * i);
+        km__m3_apply(R2, r->base + 3 * i, r->base + 3 * i);
         for (int a = 0; a < 3; ++a)
           r->base[3 * i + a] = s2 * r->base[3 * i + a] + t2[a];
       }
       for (size_t j = 0; j < nj; ++j) {
-        mat_vec(R2, r->base_joints + 3 * j, r->base_joints + 3 * j);
+        km__m3_apply(R2, r->base_joints + 3 * j, r->base_joints + 3 * j);
         for (int a = 0; a < 3; ++a)
           r->base_joints[3 * j + a] = s2 * r->base_joints[3 * j + a] + t2[a];
       }
-      mat_vec(R2, r->troot, zero);
+      km__m3_apply(R2, r->troot, zero);
       for (int a = 0; a < 3; ++a)
         zero[a] *= s2;
     }
@@ -1558,8 +1488,8 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b)
         Pt[3 * a + b] = r->Lprev2[9 * j + 3 * b + a];
-    mat_mul(Pt, r->Lprev + 9 * j, D);
-    mat_mul(r->Lprev + 9 * j, D, Lpred + 9 * j);
+    km__m3_mul(Pt, r->Lprev + 9 * j, D);
+    km__m3_mul(r->Lprev + 9 * j, D, Lpred + 9 * j);
     orthonormalize(Lpred + 9 * j);
   }
   double tpred[3];

@@ -2,6 +2,7 @@
  * animation a ground truth (the posed meshes). */
 #include "recon/recon.h"
 #include "synth/synth.h"
+#include "math/math.h"
 
 #include <embree3/rtcore.h>
 #include <errno.h>
@@ -32,11 +33,6 @@ typedef struct cam {
   double u0, u1, v0, v1; /* image-plane extent (tangents) of the mesh bbox */
 } cam;
 
-static void normalize(double *v) {
-  double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-  if (l > 0) v[0] /= l, v[1] /= l, v[2] /= l;
-}
-
 /* Casts a res x res grid (scaled to the bbox extent) from every camera; hits (after noise)
  * go to out when out != NULL. Returns the hit count. */
 static size_t cast(RTCScene scene, const cam *cams, int nc, double spacing, double sigma,
@@ -62,7 +58,7 @@ static size_t cast(RTCScene scene, const cam *cams, int nc, double spacing, doub
       double d[3];
       for (int a = 0; a < 3; ++a)
         d[a] = k->fwd[a] + u * k->right[a] + v * k->up[a];
-      normalize(d);
+      km__normalize3(d);
       struct RTCRayHit rh;
       memset(&rh, 0, sizeof rh);
       rh.ray.org_x = (float)k->o[0], rh.ray.org_y = (float)k->o[1], rh.ray.org_z = (float)k->o[2];
@@ -75,7 +71,7 @@ static size_t cast(RTCScene scene, const cam *cams, int nc, double spacing, doub
       ok[pix] = 0;
       if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
       double n[3] = {rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z};
-      normalize(n);
+      km__normalize3(n);
       /* depth sensors return nothing at grazing incidence */
       if (fabs(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) < 0.15) continue;
       ok[pix] = 1;
@@ -154,12 +150,12 @@ km_status km_capture_frame(const km_mesh *posed, const km_capture_options *opt, 
     k->o[2] = ctr[2] + dist * cos(ang);
     for (int a = 0; a < 3; ++a)
       k->fwd[a] = ctr[a] - k->o[a];
-    normalize(k->fwd);
+    km__normalize3(k->fwd);
     double upw[3] = {0, 1, 0};
     k->right[0] = k->fwd[1] * upw[2] - k->fwd[2] * upw[1];
     k->right[1] = k->fwd[2] * upw[0] - k->fwd[0] * upw[2];
     k->right[2] = k->fwd[0] * upw[1] - k->fwd[1] * upw[0];
-    normalize(k->right);
+    km__normalize3(k->right);
     k->up[0] = k->right[1] * k->fwd[2] - k->right[2] * k->fwd[1];
     k->up[1] = k->right[2] * k->fwd[0] - k->right[0] * k->fwd[2];
     k->up[2] = k->right[0] * k->fwd[1] - k->right[1] * k->fwd[0];

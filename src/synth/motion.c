@@ -250,19 +250,15 @@ static void pose_to_positions(const double *rest, const double side_arm[2],
     km__m3_axis(0, l->knee * DEG, Q[hip[side] + 1]);
     km__m3_axis(0, l->ankle * DEG, Q[hip[side] + 2]);
   }
-  memcpy(W[HIP_C], Q[HIP_C], sizeof W[0]);
-  out[0] = rest[0] + p->dx;
-  out[1] = rest[1];
-  out[2] = rest[2] + p->dz;
-  for (int j = 1; j < NJ; ++j) {
-    int par = km_kinect1_joint_parent(j);
-    double o[3] = {rest[3 * j] - rest[3 * par], rest[3 * j + 1] - rest[3 * par + 1],
-                   rest[3 * j + 2] - rest[3 * par + 2]};
-    km__m3_apply(W[par], o, o);
+  int32_t parents[NJ];
+  for (int j = 0; j < NJ; ++j) { /* offsets from the parent, positions after the FK */
+    int par = parents[j] = km_kinect1_joint_parent(j);
     for (int i = 0; i < 3; ++i)
-      out[3 * j + i] = out[3 * par + i] + o[i];
-    km__m3_mul(W[par], Q[j], W[j]);
+      out[3 * j + i] = par < 0 ? rest[3 * j + i] : rest[3 * j + i] - rest[3 * par + i];
   }
+  out[3 * HIP_C] += p->dx;
+  out[3 * HIP_C + 2] += p->dz;
+  km__forward_kinematics(NJ, parents, Q[0], out, W[0], out);
   static const int feet[4] = {ANKLE_L, FOOT_L, ANKLE_R, FOOT_R};
   double lo = INFINITY;
   for (int k = 0; k < 4; ++k)

@@ -11,6 +11,7 @@
  * to be entirely inside or outside (the field is 1-Lipschitz) are evaluated, so memory and
  * time scale with the surface area, not the volume. */
 #include "synth/polygonize.h"
+#include "math/math.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -625,10 +626,6 @@ static double angle_at(const double *V, int32_t at, int32_t x, int32_t y) {
                u[0] * w[0] + u[1] * w[1] + u[2] * w[2]);
 }
 
-static double dot3(const double a[3], const double b[3]) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
 size_t km__delaunay_flips(km_mesh *m, int max_passes) {
   size_t nf = m->n_faces, nh = 3 * nf, flips = 0;
   int32_t *F = m->F;
@@ -689,16 +686,16 @@ size_t km__delaunay_flips(km_mesh *m, int max_passes) {
       double nf1[3], ng1[3];
       tri_normal(V, a, b, c, nf1);
       tri_normal(V, b, a, d, ng1);
-      double lf = sqrt(dot3(nf1, nf1)), lg = sqrt(dot3(ng1, ng1));
-      if (lf == 0 || lg == 0 || dot3(nf1, ng1) < coplanar * lf * lg) continue;
+      double lf = sqrt(km__dot3(nf1, nf1)), lg = sqrt(km__dot3(ng1, ng1));
+      if (lf == 0 || lg == 0 || km__dot3(nf1, ng1) < coplanar * lf * lg) continue;
       double n1[3], n2[3],
           sum[3] = {nf1[0] / lf + ng1[0] / lg, nf1[1] / lf + ng1[1] / lg,
                     nf1[2] / lf + ng1[2] / lg};
       tri_normal(V, d, b, c, n1);
       tri_normal(V, c, a, d, n2);
-      double l1 = sqrt(dot3(n1, n1)), l2 = sqrt(dot3(n2, n2));
+      double l1 = sqrt(km__dot3(n1, n1)), l2 = sqrt(km__dot3(n2, n2));
       if (l1 <= 1e-12 * (lf + lg) || l2 <= 1e-12 * (lf + lg)) continue;
-      if (dot3(n1, sum) < 0.5 * l1 || dot3(n2, sum) < 0.5 * l2) continue;
+      if (km__dot3(n1, sum) < 0.5 * l1 || km__dot3(n2, sum) < 0.5 * l2) continue;
       size_t h_bc = 3 * f + (size_t)(k + 1) % 3, h_ca = 3 * f + (size_t)(k + 2) % 3;
       size_t h_ad = 3 * g + (size_t)(mm + 1) % 3, h_db = 3 * g + (size_t)(mm + 2) % 3;
       /* New edge must not exist; a and b keep valence >= 3. */

@@ -37,39 +37,26 @@ const kp_pose kp_poses[KP_N_POSES] = {
     {"bow", {{KP_SPINE, 0, 50}, {KP_SHL, 2, -70}, {KP_SHR, 2, 70}}, 3},
 };
 void kp_transforms(const km_skeleton *s, const kp_pose *p, const double *jitter, double *T,
-                          double *posed_joints) {
-  size_t n = s->n_joints;
-  double G[KM_KINECT1_JOINTS][9], P[KM_KINECT1_JOINTS][3];
-  for (size_t j = 0; j < n && j < KM_KINECT1_JOINTS; ++j) {
-    double L[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+                   double *posed_joints) {
+  size_t n = s->n_joints < KM_KINECT1_JOINTS ? s->n_joints : KM_KINECT1_JOINTS;
+  double L[KM_KINECT1_JOINTS][9], o[KM_KINECT1_JOINTS][3], G[KM_KINECT1_JOINTS][9],
+      P[KM_KINECT1_JOINTS][3];
+  for (size_t j = 0; j < n; ++j) {
+    km__m3_identity(L[j]);
     for (int k = 0; k < p->n; ++k)
       if (p->r[k].joint == (int)j) {
-        double R[9], tmp[9];
+        double R[9];
         kp_axis_angle(p->r[k].axis, p->r[k].deg * (1 + (jitter ? jitter[k] : 0)), R);
-        km__m3_mul(L, R, tmp);
-        memcpy(L, tmp, sizeof L);
+        km__m3_mul(L[j], R, L[j]);
       }
     int pa = s->parents[j];
     const double *rj = s->rest + 3 * j;
-    if (pa < 0) {
-      memcpy(G[j], L, sizeof L);
-      memcpy(P[j], rj, 3 * sizeof(double));
-    } else {
-      km__m3_mul(G[pa], L, G[j]);
-      const double *rp = s->rest + 3 * pa;
-      double d[3] = {rj[0] - rp[0], rj[1] - rp[1], rj[2] - rp[2]};
-      for (int i = 0; i < 3; ++i)
-        P[j][i] =
-            P[pa][i] + G[pa][3 * i] * d[0] + G[pa][3 * i + 1] * d[1] + G[pa][3 * i + 2] * d[2];
-    }
-    double *t = T + 12 * j;
-    for (int i = 0; i < 3; ++i) {
-      t[4 * i] = G[j][3 * i], t[4 * i + 1] = G[j][3 * i + 1], t[4 * i + 2] = G[j][3 * i + 2];
-      t[4 * i + 3] =
-          P[j][i] - (G[j][3 * i] * rj[0] + G[j][3 * i + 1] * rj[1] + G[j][3 * i + 2] * rj[2]);
-    }
-    if (posed_joints) memcpy(posed_joints + 3 * j, P[j], 3 * sizeof(double));
+    for (int i = 0; i < 3; ++i)
+      o[j][i] = pa < 0 ? rj[i] : rj[i] - s->rest[3 * pa + i];
   }
+  km__forward_kinematics(n, s->parents, L[0], o[0], G[0], P[0]);
+  km__joint_transforms(n, G[0], P[0], s->rest, T);
+  if (posed_joints) memcpy(posed_joints, P, n * 3 * sizeof(double));
 }
 
 km_status kp_pose_character(const km_character *c, const kp_pose *p, const double *jitter,

@@ -1,6 +1,7 @@
 /* Pose descriptor (eq. 4): angles between segments joining tracked landmarks; landmark files;
  * TRACK files. */
 #include "transfer/pose.h"
+#include "motion/motion.h"
 
 #include <cjson/cJSON.h>
 #include <ctype.h>
@@ -66,6 +67,8 @@ km_status km__landmark_mirrors(const km_landmark *lm, size_t n, int32_t *m, km_e
 
 /* ---------------------------------------------------------------- landmark files */
 
+/* The array itself is read and written by motion's landmark reader and writer (the rig
+ * sidecar carries the same array); matching mirrors is this module's rule. */
 km_status km_landmarks_read(const char *path, size_t n_vertices, km_landmark *out, size_t capacity,
                             size_t *n, km_error *err) {
   if (!path || !out || !n) return km__fail(err, KM_ERR_INVALID, "km_landmarks_read: NULL argument");
@@ -74,64 +77,10 @@ km_status km_landmarks_read(const char *path, size_t n_vertices, km_landmark *ou
   size_t size = 0;
   km_status s = km__read_file(path, &data, &size, err);
   if (s) return s;
-  cJSON *root = cJSON_ParseWithLength(data, size);
-  if (!root) {
-    const char *e = cJSON_GetErrorPtr();
-    size_t off = e && e >= data && e <= data + size ? (size_t)(e - data) : 0;
-    free(data);
-    return km__fail(err, KM_ERR_PARSE, "%s: byte %zu: not valid JSON", path, off);
-  }
-  free(data);
-  cJSON *arr = cJSON_GetObjectItemCaseSensitive(root, "landmarks");
-  if (!cJSON_IsArray(arr)) {
-    cJSON_Delete(root);
-    return km__fail(err, KM_ERR_PARSE, "%s: expected an object with a \"landmarks\" array", path);
-  }
-  size_t cnt = (size_t)cJSON_GetArraySize(arr);
-  if (cnt > capacity) {
-    cJSON_Delete(root);
-    return km__fail(err, KM_ERR_PARSE, "%s: %zu landmarks, at most %zu are supported", path, cnt,
-                    capacity);
-  }
   size_t i = 0;
-  cJSON *it;
-  cJSON_ArrayForEach(it, arr) {
-    cJSON *nm = cJSON_GetObjectItemCaseSensitive(it, "name");
-    cJSON *vx = cJSON_GetObjectItemCaseSensitive(it, "vertex");
-    cJSON *mr = cJSON_GetObjectItemCaseSensitive(it, "mirror");
-    if (!cJSON_IsString(nm) || !cJSON_IsNumber(vx)) {
-      cJSON_Delete(root);
-      return km__fail(err, KM_ERR_PARSE,
-                      "%s: landmark %zu: expected {\"name\": string, \"vertex\": integer, "
-                      "\"mirror\": string}",
-                      path, i);
-    }
-    double v = vx->valuedouble;
-    if (!(v >= 0) || v != floor(v) || v > 2147483647.0 ||
-        (n_vertices > 0 && v >= (double)n_vertices)) {
-      km__fail(err, KM_ERR_PARSE, "%s: landmark %zu (\"%.40s\"): vertex %g is not in 0..%zu", path,
-               i, nm->valuestring, v, n_vertices ? n_vertices - 1 : (size_t)INT32_MAX);
-      cJSON_Delete(root);
-      return KM_ERR_PARSE;
-    }
-    if (strlen(nm->valuestring) >= sizeof out[i].name ||
-        (cJSON_IsString(mr) && strlen(mr->valuestring) >= sizeof out[i].mirror)) {
-      cJSON_Delete(root);
-      return km__fail(err, KM_ERR_PARSE, "%s: landmark %zu: name longer than %zu characters", path,
-                      i, sizeof out[i].name - 1);
-    }
-    memset(&out[i], 0, sizeof out[i]);
-    strcpy(out[i].name, nm->valuestring);
-    strcpy(out[i].mirror, cJSON_IsString(mr) ? mr->valuestring : nm->valuestring);
-    out[i].vertex = (int32_t)v;
-    ++i;
-  }
-  cJSON_Delete(root);
-  for (size_t a = 0; a < i; ++a)
-    for (size_t b = a + 1; b < i; ++b)
-      if (strcmp(out[a].name, out[b].name) == 0)
-        return km__fail(err, KM_ERR_PARSE, "%s: landmark name \"%s\" appears twice", path,
-                        out[a].name);
+  s = km__landmarks_parse(path, data, size, n_vertices, out, capacity, &i, err);
+  free(data);
+  if (s) return s;
   int32_t m[KM_POSE_MAX_LANDMARKS];
   if (i <= KM_POSE_MAX_LANDMARKS) {
     s = km__landmark_mirrors(out, i, m, err);
@@ -147,11 +96,9 @@ km_status km_landmarks_write(const char *path, const km_landmark *lm, size_t n, 
   km__atomic_file af;
   km_status s = km__atomic_open(&af, path, err);
   if (s) return s;
-  fprintf(af.f, "{\"landmarks\": [\n");
-  for (size_t i = 0; i < n; ++i)
-    fprintf(af.f, "  {\"name\": \"%s\", \"vertex\": %d, \"mirror\": \"%s\"}%s\n", lm[i].name,
-            (int)lm[i].vertex, lm[i].mirror, i + 1 < n ? "," : "");
-  fprintf(af.f, "]}\n");
+  fputs("{\"landmarks\":", af.f);
+  km__landmarks_write_json(af.f, lm, n);
+  fputs("}\n", af.f);
   return km__atomic_commit(&af, err);
 }
 

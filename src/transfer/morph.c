@@ -86,7 +86,7 @@ km_status km_avatar_animate(km_transfer *t, const km_posedb *db, const km_track 
         for (size_t a = 0; a < nl; ++a)
           memcpy(TL + 3 * a, T.V + 3 * (size_t)lm[a].vertex, 3 * sizeof(double));
         double su, R[9], tr[3];
-        s = km_similarity_fit(TL, P, NULL, nl, &su, R, tr, err);
+        s = km_similarity_fit(TL, P, NULL, nl, true, &su, R, tr, err);
         if (s) {
           km__wrap(err, s, "km_avatar_animate: frame %zu: sizing the track", kf);
           goto done;

@@ -28,8 +28,8 @@
  * choice. */
 #include "transfer/transfer.h"
 #include "linalg/linalg.h"
+#include "mesh/mesh.h"
 
-#include <lapacke.h>
 /* Above this many vertices the per-iteration loops (frames, right-hand side) run on OpenMP
  * threads. Not lower: at 7k vertices two free cores took 10 iterations from ~5.8 to ~4.6 ms
  * (before the single-thread work below brought them to ~4.9 ms on one core), but on a busy
@@ -55,14 +55,10 @@ struct km_transfer {
   /* L_fc in compressed form: for landmark c, entries (free row, value). */
   int32_t *lfc_ptr, *lfc_row;
   double *lfc_val;
-  /* CHOLMOD used directly rather than through km_cholesky: km_cholesky leaves simplicial vs
-   * supernodal to CHOLMOD_AUTO, which picks supernodal for these matrices, and supernodal
-   * 3-column solves are 2.3x slower than simplicial ones at 7k vertices (0.61 vs 0.26 ms):
-   * the per-iteration solve is the paper's hot path. */
-  cholmod_common cc;
-  bool cc_started;
-  cholmod_factor *factor;
-  cholmod_dense *cX, *cY, *cE;
+  /* Simplicial LDL' (km__cholesky_options): CHOLMOD_AUTO picks supernodal for these
+   * matrices, and supernodal 3-column solves are 2.3x slower than simplicial ones at 7k
+   * vertices (0.61 vs 0.26 ms): the per-iteration solve is the paper's hot path. */
+  km_cholesky *chol;
   double *rhs;        /* nf*3 column-major */
   double *N;          /* #V*3 normals scratch */
   double *sq;         /* #V*2 reciprocal square roots scratch */
@@ -77,8 +73,7 @@ struct km_transfer {
   double *e_b;
   /* Size of a pose of this connectivity: edge-graph geodesic distances from landmark 0 to the
    * other landmarks, summed (Dijkstra; scratch kept here so solves do not allocate). */
-  int32_t *adj_ptr, *adj, *hp, *hpos;
-  double *dist;
+  km__geodesic *geodesic;
   double geo;
   double area, diag;
   double laplacian_ms, cholesky_ms;
@@ -102,67 +97,6 @@ double km_surface_area(const km_mesh *m) {
   return a;
 }
 
-km_status km_similarity_fit(const double *src, const double *dst, const double *weights, size_t n,
-                            double *s, double R[9], double t[3], km_error *err) {
-  if (!src || !dst || !s || !R || !t)
-    return km__fail(err, KM_ERR_INVALID, "km_similarity_fit: NULL argument");
-  if (n < 3) return km__fail(err, KM_ERR_INVALID, "km_similarity_fit: %zu points, need >= 3", n);
-  double wsum = 0, ms[3] = {0, 0, 0}, md[3] = {0, 0, 0};
-  for (size_t i = 0; i < n; ++i) {
-    double w = weights ? weights[i] : 1.0;
-    if (!(w >= 0) || !isfinite(w))
-      return km__fail(err, KM_ERR_INVALID, "km_similarity_fit: weight %zu is %g, expected >= 0", i,
-                      w);
-    for (int c = 0; c < 3; ++c) {
-      if (!isfinite(src[3 * i + c]) || !isfinite(dst[3 * i + c]))
-        return km__fail(err, KM_ERR_INVALID, "km_similarity_fit: point %zu is not finite", i);
-      ms[c] += w * src[3 * i + c];
-      md[c] += w * dst[3 * i + c];
-    }
-    wsum += w;
-  }
-  if (!(wsum > 0)) return km__fail(err, KM_ERR_INVALID, "km_similarity_fit: all weights are 0");
-  for (int c = 0; c < 3; ++c)
-    ms[c] /= wsum, md[c] /= wsum;
-  /* Sigma = sum w (d - md)(s - ms)^T / wsum, var_s = sum w |s - ms|^2 / wsum. */
-  double S[9] = {0}, var = 0;
-  for (size_t i = 0; i < n; ++i) {
-    double w = (weights ? weights[i] : 1.0) / wsum;
-    double a[3], b[3];
-    for (int c = 0; c < 3; ++c)
-      a[c] = src[3 * i + c] - ms[c], b[c] = dst[3 * i + c] - md[c];
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c)
-        S[3 * r + c] += w * b[r] * a[c];
-    var += w * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-  }
-  if (!(var > 0))
-    return km__fail(err, KM_ERR_DEGENERATE_MESH,
-                    "km_similarity_fit: the %zu source points coincide", n);
-  double U[9], VT[9], D[3], superb[2], A[9];
-  memcpy(A, S, sizeof A);
-  lapack_int info = LAPACKE_dgesvd(LAPACK_ROW_MAJOR, 'A', 'A', 3, 3, A, 3, D, U, 3, VT, 3, superb);
-  if (info != 0)
-    return km__fail(err, KM_ERR_NO_CONVERGENCE, "km_similarity_fit: SVD failed (info %d)",
-                    (int)info);
-  double detU = U[0] * (U[4] * U[8] - U[5] * U[7]) - U[1] * (U[3] * U[8] - U[5] * U[6]) +
-                U[2] * (U[3] * U[7] - U[4] * U[6]);
-  double detV = VT[0] * (VT[4] * VT[8] - VT[5] * VT[7]) - VT[1] * (VT[3] * VT[8] - VT[5] * VT[6]) +
-                VT[2] * (VT[3] * VT[7] - VT[4] * VT[6]);
-  double sg[3] = {1, 1, detU * detV < 0 ? -1 : 1};
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) {
-      double v = 0;
-      for (int k = 0; k < 3; ++k)
-        v += U[3 * r + k] * sg[k] * VT[3 * k + c];
-      R[3 * r + c] = v;
-    }
-  *s = (D[0] * sg[0] + D[1] * sg[1] + D[2] * sg[2]) / var;
-  for (int r = 0; r < 3; ++r)
-    t[r] = md[r] - *s * (R[3 * r] * ms[0] + R[3 * r + 1] * ms[1] + R[3 * r + 2] * ms[2]);
-  return KM_OK;
-}
-
 void km_transfer_free(km_transfer **tp) {
   if (!tp || !*tp) return;
   km_transfer *t = *tp;
@@ -176,13 +110,7 @@ void km_transfer_free(km_transfer **tp) {
   free(t->lfc_ptr);
   free(t->lfc_row);
   free(t->lfc_val);
-  if (t->cc_started) {
-    cholmod_free_factor(&t->factor, &t->cc);
-    cholmod_free_dense(&t->cX, &t->cc);
-    cholmod_free_dense(&t->cY, &t->cc);
-    cholmod_free_dense(&t->cE, &t->cc);
-    cholmod_finish(&t->cc);
-  }
+  km_cholesky_free(&t->chol);
   free(t->rhs);
   free(t->N);
   free(t->sq);
@@ -192,11 +120,7 @@ void km_transfer_free(km_transfer **tp) {
   free(t->e_ptr);
   free(t->e_nbr);
   free(t->e_b);
-  free(t->adj_ptr);
-  free(t->adj);
-  free(t->hp);
-  free(t->hpos);
-  free(t->dist);
+  km__geodesic_free(&t->geodesic);
   free(t);
   *tp = NULL;
 }
@@ -299,56 +223,11 @@ static double frames_of(km_transfer *t, const double *V, double *frames, const d
  * the skeleton's lengths. */
 static double landmark_geodesics(const km_transfer *tc, const double *V) {
   km_transfer *t = (km_transfer *)tc; /* scratch only */
-  size_t n = t->n, hn = 0, left = t->nc;
-  for (size_t v = 0; v < n; ++v)
-    t->dist[v] = INFINITY, t->hpos[v] = -1;
-  int32_t src = t->lm[0];
-  t->dist[src] = 0;
-  t->hp[hn++] = src;
-  t->hpos[src] = 0;
-  /* landmarks are marked by a negative free_of (see precompute) */
-  while (hn > 0 && left > 0) {
-    int32_t u = t->hp[0];
-    t->hpos[u] = -2; /* settled */
-    t->hp[0] = t->hp[--hn];
-    if (hn) t->hpos[t->hp[0]] = 0;
-    for (size_t i = 0;;) { /* sift down */
-      size_t l = 2 * i + 1, r = l + 1, m = i;
-      if (l < hn && t->dist[t->hp[l]] < t->dist[t->hp[m]]) m = l;
-      if (r < hn && t->dist[t->hp[r]] < t->dist[t->hp[m]]) m = r;
-      if (m == i) break;
-      int32_t a = t->hp[i];
-      t->hp[i] = t->hp[m], t->hp[m] = a;
-      t->hpos[t->hp[i]] = (int32_t)i, t->hpos[t->hp[m]] = (int32_t)m;
-      i = m;
-    }
-    if (t->free_of[u] < 0) --left;
-    const double *pu = V + 3 * (size_t)u;
-    for (int32_t q = t->adj_ptr[u]; q < t->adj_ptr[u + 1]; ++q) {
-      int32_t w = t->adj[q];
-      if (t->hpos[w] == -2) continue;
-      const double *pw = V + 3 * (size_t)w;
-      double d =
-          t->dist[u] + sqrt((pw[0] - pu[0]) * (pw[0] - pu[0]) + (pw[1] - pu[1]) * (pw[1] - pu[1]) +
-                            (pw[2] - pu[2]) * (pw[2] - pu[2]));
-      if (!(d < t->dist[w])) continue;
-      t->dist[w] = d;
-      size_t i = t->hpos[w] < 0 ? hn++ : (size_t)t->hpos[w];
-      t->hp[i] = w;
-      while (i > 0) { /* sift up */
-        size_t p = (i - 1) / 2;
-        if (!(t->dist[t->hp[p]] > t->dist[t->hp[i]])) break;
-        int32_t a = t->hp[i];
-        t->hp[i] = t->hp[p], t->hp[p] = a;
-        t->hpos[t->hp[i]] = (int32_t)i;
-        i = p;
-      }
-      t->hpos[t->hp[i]] = (int32_t)i;
-    }
-  }
+  const double *dist =
+      km__geodesic_run(t->geodesic, V, t->lm[0], INFINITY, t->lm, t->nc, NULL, NULL);
   double sum = 0;
   for (size_t c = 1; c < t->nc; ++c)
-    sum += t->dist[t->lm[c]];
+    sum += dist[t->lm[c]];
   return sum;
 }
 
@@ -535,24 +414,7 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
     }
   }
   t->lfc_ptr[n_landmarks] = (int32_t)q;
-  t->adj_ptr = km__malloc(n + 1, sizeof(int32_t));
-  t->adj = km__malloc(nnz ? nnz : 1, sizeof(int32_t));
-  t->hp = km__malloc(n, sizeof(int32_t));
-  t->hpos = km__malloc(n, sizeof(int32_t));
-  t->dist = km__malloc(n, sizeof(double));
-  if (!t->adj_ptr || !t->adj || !t->hp || !t->hpos || !t->dist) {
-    s = km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: out of memory (%zu vertices)", n);
-    goto fail;
-  }
-  {
-    size_t a = 0;
-    for (size_t j = 0; j < n; ++j) {
-      t->adj_ptr[j] = (int32_t)a;
-      for (int32_t p = cp[j]; p < cp[j + 1]; ++p)
-        if ((size_t)ri[p] != j) t->adj[a++] = ri[p];
-    }
-    t->adj_ptr[n] = (int32_t)a;
-  }
+  if ((s = km__geodesic_create(&t->mesh, &t->geodesic, err))) goto fail;
   t->geo = landmark_geodesics(t, t->rest);
   if (o.encoding == KM_OFFSETS_EDGE) {
     size_t ne = 0;
@@ -587,79 +449,52 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
   }
   double t1 = km_seconds();
   t->laplacian_ms = (t1 - t0) * 1e3;
-  /* Lower triangle of A = -(L_ff) as a CHOLMOD matrix (stype -1). */
-  km__cholmod_start(&t->cc);
-  t->cc_started = true;
-  t->cc.supernodal = CHOLMOD_SIMPLICIAL;
-  /* LDL': its 3-column solve is 7% faster than LL''s (no square roots in the factor, a unit
-   * diagonal in the triangular sweeps). CHOLMOD's LDL' only stops at an exactly zero pivot, so
-   * the pivots are checked below. */
-  t->cc.final_ll = 0;
+  /* Lower triangle of A = -(L_ff), factored as simplicial LDL': its 3-column solve is 7%
+   * faster than LL''s (no square roots in the factor, a unit diagonal in the triangular
+   * sweeps). LDL' only stops at an exactly zero pivot, so the pivots are checked (min_pivot). */
   {
     size_t nlow = 0;
     for (size_t e = 0; e < m; ++e)
       if (ti[e] >= tj[e]) ++nlow;
-    cholmod_sparse *cA =
-        cholmod_allocate_sparse(t->nf, t->nf, nlow, 1, 1, -1, CHOLMOD_REAL, &t->cc);
-    if (!cA) {
-      s = km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: out of memory (%zu entries)", nlow);
-      goto fail;
-    }
+    km_sparse *cA = NULL;
+    if ((s = km__sparse_alloc(t->nf, t->nf, nlow, &cA, err))) goto fail;
     /* The triplets were emitted column by column with rows ascending (L is sorted CSC and
      * free indices preserve the order), so the lower part is already in CSC order. */
-    int *Ap = cA->p, *Ai = cA->i;
-    double *Ax = cA->x;
+    int32_t *Ap, *Ai;
+    double *Ax;
+    km__sparse_arrays(cA, &Ap, &Ai, &Ax);
     size_t q2 = 0, col = 0;
     Ap[0] = 0;
     for (size_t e = 0; e < m; ++e) {
       while (col < (size_t)tj[e])
-        Ap[++col] = (int)q2;
+        Ap[++col] = (int32_t)q2;
       if (ti[e] < tj[e]) continue;
       Ai[q2] = ti[e];
       Ax[q2] = tv[e];
       ++q2;
     }
     while (col < t->nf)
-      Ap[++col] = (int)q2;
-    t->factor = cholmod_analyze(cA, &t->cc);
-    int ok = t->factor && cholmod_factorize(cA, t->factor, &t->cc);
-    cholmod_free_sparse(&cA, &t->cc);
-    if (ok && t->cc.status == CHOLMOD_OK && !t->factor->is_ll && !t->factor->is_super) {
-      /* A component without a landmark leaves a Laplacian block that is singular: its last
-       * pivot is round-off, of either sign, many orders below the others. */
-      const int *Lp = t->factor->p;
-      const double *Lx = t->factor->x;
-      double dmax = 0;
-      for (size_t j = 0; j < t->nf; ++j)
-        dmax = fmax(dmax, Lx[Lp[j]]);
-      for (size_t j = 0; j < t->nf; ++j)
-        if (!(Lx[Lp[j]] > 1e-10 * dmax)) t->cc.status = CHOLMOD_NOT_POSDEF;
-    }
-    if (t->cc.status == CHOLMOD_NOT_POSDEF) {
+      Ap[++col] = (int32_t)q2;
+    if ((s = km__sparse_compress(&cA, err))) goto fail;
+    km__cholesky_options co = {
+        .kind = KM__CHOLESKY_SIMPLICIAL_LDL, .stored = -1, .min_pivot = 1e-10};
+    s = km__cholesky_analyze_with(cA, &co, &t->chol, err);
+    if (!s) s = km_cholesky_factorize(t->chol, cA, err);
+    km_sparse_free(&cA);
+    if (s == KM_ERR_NOT_POSDEF) {
       s = km__fail(err, KM_ERR_NOT_POSDEF,
                    "km_transfer_precompute: the constrained Laplacian is singular: every "
                    "connected component of the source needs at least one landmark");
       goto fail;
     }
-    if (!ok || t->cc.status != CHOLMOD_OK) {
-      s = km__fail(err, t->cc.status == CHOLMOD_OUT_OF_MEMORY ? KM_ERR_NOMEM : KM_ERR_INVALID,
-                   "km_transfer_precompute: CHOLMOD failed with status %d", t->cc.status);
-      goto fail;
-    }
+    if (s) goto fail;
   }
   t->cholesky_ms = (km_seconds() - t1) * 1e3;
   {
     /* One solve now makes CHOLMOD allocate its solve workspace here, not in the first
      * km_transfer_solve (which promises not to allocate). */
     memset(t->rhs, 0, t->nf * 3 * sizeof(double));
-    cholmod_dense b;
-    memset(&b, 0, sizeof b);
-    b.nrow = t->nf, b.ncol = 3, b.nzmax = t->nf * 3, b.d = t->nf, b.x = t->rhs;
-    b.xtype = CHOLMOD_REAL, b.dtype = CHOLMOD_DOUBLE;
-    if (!cholmod_solve2(CHOLMOD_A, t->factor, &b, NULL, &t->cX, NULL, &t->cY, &t->cE, &t->cc)) {
-      s = km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: CHOLMOD solve workspace");
-      goto fail;
-    }
+    if ((s = km_cholesky_solve(t->chol, 3, t->rhs, t->rhs, err))) goto fail;
   }
   km_sparse_free(&L);
   free(ti);
@@ -717,7 +552,7 @@ km_status km_transfer_targets(const km_transfer *t, const double *T, double *tar
       for (int d = 0; d < 3; ++d)
         rl[3 * c + d] = t->rest[3 * (size_t)t->lm[c] + d];
     double sc, R[9], tr[3];
-    km_status s = km_similarity_fit(targets, rl, NULL, t->nc, &sc, R, tr, err);
+    km_status s = km_similarity_fit(targets, rl, NULL, t->nc, true, &sc, R, tr, err);
     free(heap);
     if (s) return km__wrap(err, s, "km_transfer_targets: aligning the template's landmarks");
     /* Umeyama's scale mixes pose and size; the geodesic ratio is pose-invariant. */
@@ -817,20 +652,10 @@ km_status km_transfer_solve(km_transfer *t, const double *T, const double *targe
         t->rhs[nf + f] += l * t->tgt[3 * c + 1];
         t->rhs[2 * nf + f] += l * t->tgt[3 * c + 2];
       }
-    cholmod_dense b;
-    memset(&b, 0, sizeof b);
-    b.nrow = nf;
-    b.ncol = 3;
-    b.nzmax = nf * 3;
-    b.d = nf;
-    b.x = t->rhs;
-    b.xtype = CHOLMOD_REAL;
-    b.dtype = CHOLMOD_DOUBLE;
-    if (!cholmod_solve2(CHOLMOD_A, t->factor, &b, NULL, &t->cX, NULL, &t->cY, &t->cE, &t->cc) ||
-        t->cc.status != CHOLMOD_OK)
-      return km__fail(err, KM_ERR_NOMEM, "km_transfer_solve: CHOLMOD solve failed (status %d)",
-                      t->cc.status);
-    const double *xs = t->cX->x;
+    /* solved in place: the right-hand side is rebuilt from scratch every iteration */
+    km_status ss = km_cholesky_solve(t->chol, 3, t->rhs, t->rhs, err);
+    if (ss) return ss;
+    const double *xs = t->rhs;
     /* Scatter, measuring the largest move on the way (landmarks sit at their targets from
      * the first solve on, so only free vertices move afterwards). */
     if (it == 0) {

@@ -1,0 +1,19 @@
+/* Dense LAPACK for the modules above linalg: thin wrappers, so that LAPACKE's types and
+ * headers stay in src/linalg/. */
+#include "linalg/linalg.h"
+
+#include <lapacke.h>
+
+int km__svd3(double A[9], double S[3], double U[9], double Vt[9]) {
+  double superb[2];
+  return (int)LAPACKE_dgesvd(LAPACK_ROW_MAJOR, 'A', 'A', 3, 3, A, 3, S, U, 3, Vt, 3, superb);
+}
+
+int km__potrf(size_t n, double *K) {
+  return (int)LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'U', (lapack_int)n, K, (lapack_int)n);
+}
+
+int km__potrs(size_t n, size_t nrhs, const double *K, double *B) {
+  return (int)LAPACKE_dpotrs(LAPACK_COL_MAJOR, 'U', (lapack_int)n, (lapack_int)nrhs, K,
+                             (lapack_int)n, B, (lapack_int)n);
+}
