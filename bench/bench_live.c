@@ -160,7 +160,7 @@ static char *read_text(const char *path, size_t *n) {
 
 #define VERB "bench live"
 
-int km_cli_bench_live(int argc, char **argv) {
+int km_bench_live(int argc, char **argv) {
   const char *mesh_arg = NULL, *rig_arg = NULL, *take_path = NULL;
   size_t vertices = 60000, frames = 1200;
   double rate = 240;
@@ -420,7 +420,7 @@ stop:
     double lat_med = st.lat_count ? st.lat_median_ms : NAN,
            lat_p99 = st.lat_count ? st.lat_p99_ms : NAN;
     char machine[320];
-    km_cli_machine(machine, sizeof machine);
+    km_bench_machine(machine, sizeof machine);
     const char *client_name = lws_client ? "libwebsockets" : "plain-socket";
     if (json) {
       cJSON *j = cJSON_CreateObject();

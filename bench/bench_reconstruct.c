@@ -71,7 +71,7 @@ static int run_dfaust(const char *dir, const char *json) {
   return 0;
 }
 
-int km_cli_bench_reconstruct(int argc, char **argv) {
+int km_bench_reconstruct(int argc, char **argv) {
   size_t frames = 300;
   const char *keep = NULL, *json = NULL, *dfaust = NULL, *plot = NULL;
   const km_cli_opt opts[] = {
@@ -98,7 +98,7 @@ int km_cli_bench_reconstruct(int argc, char **argv) {
   if (frames < 3) return km_cli_error("bench reconstruct", "--frames must be at least 3");
   {
     char machine[320];
-    km_cli_machine(machine, sizeof machine);
+    km_bench_machine(machine, sizeof machine);
     printf("kinemesh bench reconstruct — %s\n", machine);
   }
   km_set_logger(logger, NULL);

@@ -301,7 +301,7 @@ static int bench_pair(const char *src, const char *tmpl, const char *lm_path, co
   }
   if (!json_only) {
     char machine[320];
-    km_cli_machine(machine, sizeof machine);
+    km_bench_machine(machine, sizeof machine);
     printf("kinemesh bench transfer — %s; medians of %d runs\n", machine, ONLINE_REPS);
     printf("%-40s %6s %8s %8s %8s %8s %8s %5s %8s %8s %8s\n", "mesh", "n_ver", "lapl_ms", "chol_ms",
            "recog_ms", "frame_ms", "solve_ms", "iters", "online", "err_mean", "err_max");
@@ -330,7 +330,7 @@ done:
   return rc;
 }
 
-int km_cli_bench_transfer(int argc, char **argv) {
+int km_bench_transfer(int argc, char **argv) {
   size_t nv = 7000;
   bool json_only = false;
   const char *root = ".", *src = NULL, *tmpl = NULL, *lm_path = NULL, *truth = NULL, *dbp = NULL;
@@ -513,7 +513,7 @@ int km_cli_bench_transfer(int argc, char **argv) {
 
   if (!json_only) {
     char machine[320];
-    km_cli_machine(machine, sizeof machine);
+    km_bench_machine(machine, sizeof machine);
     printf("kinemesh bench transfer — %s; medians of %d runs\n", machine, ONLINE_REPS);
     printf("%-40s %6s %8s %8s %8s %8s %8s %5s %8s %8s %8s\n", "mesh", "n_ver", "lapl_ms", "chol_ms",
            "recog_ms", "frame_ms", "solve_ms", "iters", "online", "err_mean", "err_max");

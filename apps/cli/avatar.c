@@ -3,7 +3,6 @@
  * between are morphed.
  *   kinemesh avatar --source S --db DB --track TRACK -o ANIM   (or AVATAR DB TRACK) */
 #include "cli.h"
-#include "cli_verbs.h"
 
 #include <math.h>
 #include <stdlib.h>

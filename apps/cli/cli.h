@@ -68,21 +68,15 @@ int km_cli_gen(int argc, char **argv);
 int km_cli_pose(int argc, char **argv);
 int km_cli_precompute(int argc, char **argv);
 int km_cli_animate(int argc, char **argv);
-int km_cli_bench(int argc, char **argv);
-int km_cli_bench_live(int argc, char **argv);
-int km_cli_bench_reconstruct(int argc, char **argv);
 int km_cli_gen_capture(int argc, char **argv);
 int km_cli_reconstruct(int argc, char **argv);
 int km_cli_transfer(int argc, char **argv);
 int km_cli_posedb(int argc, char **argv);
 int km_cli_avatar(int argc, char **argv);
-int km_cli_bench_transfer(int argc, char **argv);
 /* A character: mesh + rig sidecar (default <stem>.rig.json), or the canonical procedural
  * one with `vertices` vertices when mesh is NULL. */
 km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
                                 km_error *err);
-/* "<CPU model>, <n> cores" for benchmark headers. */
-void km_cli_machine(char *out, size_t n);
 int km_cli_live(int argc, char **argv);
 
 /* Puppetry helpers shared by animate, bench and live. */
@@ -102,5 +96,13 @@ void km_cli_json_number(cJSON *o, const char *key, double v);
 /* --frame-format obj|ply for directory outputs (NULL: from the path, obj for a directory);
  * prints the error and returns non-zero when unknown. */
 int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f);
+
+/* Prints root (then deletes it) as indented JSON on stdout; "kinemesh <verb>: out of memory"
+ * and exit status 1 when it cannot. */
+int km_cli_print_json(const char *verb, cJSON *root);
+/* Landmarks for a mesh of n_vertices: the --landmarks file lm_path, else the rig sidecar next
+ * to mesh_path (<stem>.rig.json). At most capacity into lm, count in *n. */
+km_status km_cli_load_landmarks(const char *lm_path, const char *mesh_path, size_t n_vertices,
+                                km_landmark *lm, size_t capacity, size_t *n, km_error *err);
 
 #endif

@@ -234,3 +234,90 @@ void km_cli_json_number(cJSON *o, const char *key, double v) {
   else
     cJSON_AddNullToObject(o, key);
 }
+
+/* ---- puppetry pieces shared by precompute, animate, live and the benches */
+
+
+int km_cli_parse_energy(const char *verb, const char *s, km_puppet_energy *e) {
+  if (!s || !strcmp(s, "arap"))
+    *e = KM_PUPPET_ENERGY_ARAP;
+  else if (!strcmp(s, "laplacian"))
+    *e = KM_PUPPET_ENERGY_LAPLACIAN;
+  else
+    return km_cli_error(verb, "--energy must be laplacian or arap, not '%s'", s);
+  return 0;
+}
+
+int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f) {
+  if (!s)
+    *f = KM_ANIM_AUTO;
+  else if (!strcmp(s, "obj"))
+    *f = KM_ANIM_OBJ_DIR;
+  else if (!strcmp(s, "ply"))
+    *f = KM_ANIM_PLY_DIR;
+  else
+    return km_cli_error(verb, "--frame-format must be obj or ply, not '%s'", s);
+  return 0;
+}
+
+char *km_cli_cache_path(const char *mesh_path) {
+  size_t n = strlen(mesh_path);
+  char *out = malloc(n + 10);
+  if (out) snprintf(out, n + 10, "%s.kmcache", mesh_path);
+  return out;
+}
+
+void km_cli_report_cache(const char *cache, const km_puppetry_info *info) {
+  if (info->model == KM_PUPPETRY_MODEL_REBUILT_STALE)
+    fprintf(stderr, "kinemesh: cache %s not usable (%s); rebuilding it\n", cache,
+            info->stale.message);
+  if (info->save.status != KM_OK)
+    fprintf(stderr, "kinemesh: warning: could not write the cache: %s\n", info->save.message);
+}
+
+km_status km_cli_puppet_open(const km_mesh *mesh, const char *cache, km_puppet **out,
+                             km_puppetry_info *info, km_error *err) {
+  km_puppetry_options o = {0};
+  o.cache_path = cache;
+  o.puppet.progress = km_cli_progress("precompute");
+  km_status s = km_puppetry_model_open(mesh, &o, out, info, err);
+  km_cli_progress_done();
+  if (s == KM_OK) km_cli_report_cache(cache, info);
+  return s;
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return x < y ? -1 : x > y;
+}
+
+double km_cli_median(double *v, size_t n) {
+  if (!n) return NAN;
+  qsort(v, n, sizeof *v, cmp_double);
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* ---- shared by several verbs */
+
+int km_cli_print_json(const char *verb, cJSON *root) {
+  char *s = cJSON_Print(root);
+  cJSON_Delete(root);
+  if (!s) return km_cli_error(verb, "out of memory");
+  puts(s);
+  free(s);
+  return KM_EXIT_OK;
+}
+
+km_status km_cli_load_landmarks(const char *lm_path, const char *mesh_path, size_t n_vertices,
+                                km_landmark *lm, size_t capacity, size_t *n, km_error *err) {
+  if (lm_path) return km_landmarks_read(lm_path, n_vertices, lm, capacity, n, err);
+  char *rig = km_cli_rig_path(mesh_path);
+  if (!rig) {
+    err->status = KM_ERR_NOMEM;
+    snprintf(err->message, sizeof err->message, "out of memory");
+    return KM_ERR_NOMEM;
+  }
+  km_status s = km_landmarks_read(rig, n_vertices, lm, capacity, n, err);
+  free(rig);
+  return s;
+}

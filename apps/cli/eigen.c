@@ -1,6 +1,5 @@
 /* kinemesh eigen: the smallest eigenvalues of the cotangent Laplacian (ARPACK shift-invert). */
 #include "cli.h"
-#include "cli_verbs.h"
 
 #include <cjson/cJSON.h>
 #include <stdlib.h>

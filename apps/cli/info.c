@@ -1,7 +1,6 @@
 /* kinemesh info: topology counts and extent of a mesh, or a description of an animation
  * (.glb, .pc2, a directory of frames). */
 #include "cli.h"
-#include "cli_verbs.h"
 
 #include <cjson/cJSON.h>
 #include <stdlib.h>

@@ -1,4 +1,5 @@
 /* kinemesh <verb>: a thin command-line layer over libkinemesh. */
+#include "bench.h"
 #include "cli.h"
 
 #include <stdio.h>
@@ -25,7 +26,7 @@ static const km_cli_verb VERBS[] = {
      km_cli_avatar},
     {"reconstruct", "point clouds -> mesh animation: register a rigged template to every frame",
      km_cli_reconstruct},
-    {"bench", "benchmarks printing the papers' tables (bench deform)", km_cli_bench},
+    {"bench", "benchmarks printing the papers' tables (bench deform)", km_bench},
 };
 
 static void usage(FILE *f) {

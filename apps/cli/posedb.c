@@ -4,7 +4,6 @@
  *   kinemesh posedb query DB --landmarks-xyz TRACK           recognise every frame of a track
  * Landmarks come from --landmarks LM.json or the mesh's rig sidecar (<stem>.rig.json). */
 #include "cli.h"
-#include "cli_verbs.h"
 
 #include <glob.h>
 #include <stdlib.h>

@@ -3,7 +3,6 @@
  *   kinemesh transfer --source S --template T -o OUT   (or SOURCE TEMPLATE positionally)
  * Landmarks come from --landmarks LM.json or the mesh's rig sidecar (<stem>.rig.json). */
 #include "cli.h"
-#include "cli_verbs.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -1,5 +1,6 @@
-/* kinemesh bench <what>: paper-style timing tables (medians of repeated runs, machine named).
- * Speed is measured here, never in tests. */
+/* kinemesh bench deform: Table 1 of Wu, Lu & Song (precompute, load, per-frame stage times of
+ * the reduced model, the full ARAP reference and the deviation between them). */
+#include "bench.h"
 #include "cli.h"
 
 #include <cjson/cJSON.h>
@@ -8,29 +9,8 @@
 #include <string.h>
 #include <unistd.h>
 
-/* "model name" of the first CPU and the core count, for the table header. */
-void km_cli_machine(char *out, size_t n) {
-  char model[256] = "unknown CPU";
-  FILE *f = fopen("/proc/cpuinfo", "r");
-  if (f) {
-    char line[512];
-    while (fgets(line, sizeof line, f))
-      if (!strncmp(line, "model name", 10)) {
-        char *c = strchr(line, ':');
-        if (c) {
-          c += 1 + (c[1] == ' ');
-          c[strcspn(c, "\n")] = '\0';
-          snprintf(model, sizeof model, "%s", c);
-        }
-        break;
-      }
-    fclose(f);
-  }
-  snprintf(out, n, "%s, %ld cores", model, sysconf(_SC_NPROCESSORS_ONLN));
-}
-
 /* MESH is a file, or "character:N" for the procedural character with N vertices. */
-km_status km_cli_bench_mesh(const char *spec, km_mesh *m, km_error *err) {
+static km_status bench_mesh(const char *spec, km_mesh *m, km_error *err) {
   if (!strncmp(spec, "character:", 10)) {
     km_character_options co = {0};
     co.target_vertices = (size_t)strtoull(spec + 10, NULL, 10);
@@ -152,7 +132,7 @@ static int bench_deform_one(const char *mesh_path, const deform_args *da) {
   char cache[64];
   snprintf(cache, sizeof cache, "/tmp/kinemesh-bench-%ld.kmcache", (long)getpid());
 
-  if (km_cli_bench_mesh(mesh_path, &m, &err) != KM_OK) goto fail;
+  if (bench_mesh(mesh_path, &m, &err) != KM_OK) goto fail;
   if (!repeat) repeat = m.n_vertices > 200000 ? 1 : 3;
   double diag = km_bbox_diagonal(m.V, m.n_vertices);
   size_t per = m.n_vertices / 400;
@@ -243,7 +223,7 @@ static int bench_deform_one(const char *mesh_path, const deform_args *da) {
   if (json) {
     cJSON *o = cJSON_CreateObject();
     char machine[320];
-    km_cli_machine(machine, sizeof machine);
+    km_bench_machine(machine, sizeof machine);
     cJSON_AddStringToObject(o, "mesh", mesh_path);
     cJSON_AddStringToObject(o, "machine", machine);
     cJSON_AddStringToObject(o, "energy", po.energy == KM_PUPPET_ENERGY_ARAP ? "arap" : "laplacian");
@@ -266,7 +246,7 @@ static int bench_deform_one(const char *mesh_path, const deform_args *da) {
   } else {
     if (da->header) {
       char machine[320];
-      km_cli_machine(machine, sizeof machine);
+      km_bench_machine(machine, sizeof machine);
       printf("kinemesh bench deform — %s; %s energy; medians: t1 of %zu runs (1 above 200k "
              "vertices unless --repeat), t~1 of 5 loads, per-frame times of %zu frames (%d "
              "rotation updates each), full ARAP on %zu frames\n",
@@ -304,7 +284,7 @@ done:
   return rc;
 }
 
-static int bench_deform(int argc, char **argv) {
+int km_bench_deform(int argc, char **argv) {
   const char *mesh_path = NULL, *energy = NULL;
   deform_args da = {5, 100, 30, 0, {0}, false, true};
   const km_cli_opt opts[] = {
@@ -353,17 +333,3 @@ static int bench_deform(int argc, char **argv) {
   return rc;
 }
 
-int km_cli_bench(int argc, char **argv) {
-  if (argc >= 2 && !strcmp(argv[1], "deform")) return bench_deform(argc - 1, argv + 1);
-  if (argc >= 2 && !strcmp(argv[1], "live")) return km_cli_bench_live(argc - 1, argv + 1);
-  if (argc >= 2 && !strcmp(argv[1], "transfer")) return km_cli_bench_transfer(argc - 1, argv + 1);
-  if (argc >= 2 && !strcmp(argv[1], "reconstruct"))
-    return km_cli_bench_reconstruct(argc - 1, argv + 1);
-  FILE *f = (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) ? stdout : stderr;
-  fprintf(f, "usage: kinemesh bench deform --mesh MESH [--handles N] [--frames F] [--json]\n"
-             "       kinemesh bench live [--mesh MESH [--rig RIG]] [--take TAKE] [--json]\n"
-             "       kinemesh bench transfer [--source S --template T [--truth X] [--db DB]]\n"
-             "       kinemesh bench reconstruct [--frames 300] [--report R.json] [--plot P.png]\n"
-             "(kinemesh bench <what> --help for options)\n");
-  return f == stdout ? KM_EXIT_OK : KM_EXIT_USAGE;
-}

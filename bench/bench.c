@@ -1,0 +1,44 @@
+/* kinemesh bench <what>: paper-style timing tables (medians of repeated runs, machine named).
+ * Speed is measured here, never in tests. */
+#include "bench.h"
+#include "cli.h"
+
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+/* "model name" of the first CPU and the core count, for the table header. */
+void km_bench_machine(char *out, size_t n) {
+  char model[256] = "unknown CPU";
+  FILE *f = fopen("/proc/cpuinfo", "r");
+  if (f) {
+    char line[512];
+    while (fgets(line, sizeof line, f))
+      if (!strncmp(line, "model name", 10)) {
+        char *c = strchr(line, ':');
+        if (c) {
+          c += 1 + (c[1] == ' ');
+          c[strcspn(c, "\n")] = '\0';
+          snprintf(model, sizeof model, "%s", c);
+        }
+        break;
+      }
+    fclose(f);
+  }
+  snprintf(out, n, "%s, %ld cores", model, sysconf(_SC_NPROCESSORS_ONLN));
+}
+
+int km_bench(int argc, char **argv) {
+  if (argc >= 2 && !strcmp(argv[1], "deform")) return km_bench_deform(argc - 1, argv + 1);
+  if (argc >= 2 && !strcmp(argv[1], "live")) return km_bench_live(argc - 1, argv + 1);
+  if (argc >= 2 && !strcmp(argv[1], "transfer")) return km_bench_transfer(argc - 1, argv + 1);
+  if (argc >= 2 && !strcmp(argv[1], "reconstruct"))
+    return km_bench_reconstruct(argc - 1, argv + 1);
+  FILE *f = (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) ? stdout : stderr;
+  fprintf(f, "usage: kinemesh bench deform --mesh MESH [--handles N] [--frames F] [--json]\n"
+             "       kinemesh bench live [--mesh MESH [--rig RIG]] [--take TAKE] [--json]\n"
+             "       kinemesh bench transfer [--source S --template T [--truth X] [--db DB]]\n"
+             "       kinemesh bench reconstruct [--frames 300] [--report R.json] [--plot P.png]\n"
+             "(kinemesh bench <what> --help for options)\n");
+  return f == stdout ? KM_EXIT_OK : KM_EXIT_USAGE;
+}
