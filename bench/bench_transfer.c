@@ -155,7 +155,7 @@ static km_status generated_db(size_t nv, km_character c[4], km_posedb **db, km_p
   int32_t *labels = malloc(ndb * sizeof *labels), *groups = malloc(ndb * sizeof *groups);
   double *buf = malloc(ndb * n * 3 * sizeof *buf);
   if (!meshes || !labels || !groups || !buf) {
-    st = km_cli_set_error(e, KM_ERR_NOMEM, "out of memory for the pose database");
+    st = km_error_set(e, KM_ERR_NOMEM, "out of memory for the pose database");
     goto done;
   }
   uint64_t rs = 88172645463325252ULL;

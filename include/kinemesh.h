@@ -1285,6 +1285,38 @@ typedef enum km_pose_mirror {
   KM_POSE_MIRROR_NONE, /* no mirroring */
 } km_pose_mirror;
 
+/* ---- labelled pose meshes (the input of a pose database) */
+
+/* The meshes a pose database is built from, with their classes and subjects. All arrays are
+ * owned by the set; free with km_pose_set_free. */
+typedef struct km_pose_set {
+  size_t n;            /* meshes */
+  char **paths;        /* n mesh files */
+  char **names;        /* n template names: the files' base names */
+  int32_t *labels;     /* n class indices into class_names */
+  int32_t *groups;     /* n subject ids (equal ids: one subject); NULL when no entry names one */
+  size_t n_classes;    /* distinct classes */
+  char **class_names;  /* n_classes names, in order of first appearance */
+  size_t n_listed;     /* km_pose_set_from_labels: mesh files the folder or glob holds */
+  size_t n_unlabelled; /* km_pose_set_from_labels: meshes that no line of the CSV names */
+  char **unlabelled;   /* their paths (left out of the set) */
+} km_pose_set;
+/* From n entries "CLASS=MESH[@GROUP]" (GROUP: the subject, for leave-one-subject-out
+ * cross-validation; entries without one are group 0).
+ * Errors: KM_ERR_INVALID naming the entry that has no CLASS=. */
+km_status km_pose_set_from_entries(const char *const *entries, size_t n, km_pose_set *out,
+                                   km_error *err);
+/* From the mesh files (.obj .ply .off) of a folder or glob `meshes` and a CSV of lines
+ * "mesh,class[,subject]" (',', ';' or tab; an optional header line; '#' comments; `mesh` is a
+ * listed file's path or base name), in the CSV's order, after n_before entries
+ * "CLASS=MESH[@GROUP]" given otherwise (entries_before may be NULL when n_before is 0).
+ * Errors: KM_ERR_IO (nothing matched, unreadable CSV), KM_ERR_PARSE naming the CSV line. */
+km_status km_pose_set_from_labels(const char *meshes, const char *labels_csv,
+                                  const char *const *entries_before, size_t n_before,
+                                  km_pose_set *out, km_error *err);
+/* Frees the arrays of s and zeroes it. */
+void km_pose_set_free(km_pose_set *s);
+
 typedef struct km_posedb_options {
   size_t features;       /* d, selected angles; 0: 60 (capped by the candidate count) */
   int tree_max_depth;    /* CART depth limit; 0: 16 */

@@ -41,9 +41,6 @@ int km_cli_fail(const char *verb, const km_error *err);
 /* Same for a message of the CLI itself. Returns 1 (2 for usage errors). */
 int km_cli_error(const char *verb, const char *fmt, ...);
 
-/* Fills a km_error from the CLI side (for helpers that return km_status). */
-km_status km_cli_set_error(km_error *err, km_status s, const char *fmt, ...);
-
 void km_cli_install_logger(void);
 
 /* Monotonic seconds, for the timing lines verbs print. */

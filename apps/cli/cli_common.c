@@ -217,17 +217,6 @@ char *km_cli_rig_path(const char *mesh_path) {
   return out;
 }
 
-km_status km_cli_set_error(km_error *err, km_status s, const char *fmt, ...) {
-  if (err) {
-    err->status = s;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(err->message, sizeof err->message, fmt, ap);
-    va_end(ap);
-  }
-  return s;
-}
-
 void km_cli_json_number(cJSON *o, const char *key, double v) {
   if (isfinite(v))
     cJSON_AddNumberToObject(o, key, v);
@@ -312,11 +301,7 @@ km_status km_cli_load_landmarks(const char *lm_path, const char *mesh_path, size
                                 km_landmark *lm, size_t capacity, size_t *n, km_error *err) {
   if (lm_path) return km_landmarks_read(lm_path, n_vertices, lm, capacity, n, err);
   char *rig = km_cli_rig_path(mesh_path);
-  if (!rig) {
-    err->status = KM_ERR_NOMEM;
-    snprintf(err->message, sizeof err->message, "out of memory");
-    return KM_ERR_NOMEM;
-  }
+  if (!rig) return km_error_set(err, KM_ERR_NOMEM, "out of memory");
   km_status s = km_landmarks_read(rig, n_vertices, lm, capacity, n, err);
   free(rig);
   return s;

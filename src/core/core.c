@@ -1,6 +1,9 @@
 #include "core/core.h"
 
 #include <ctype.h>
+#include <dirent.h>
+#include <glob.h>
+#include <sys/stat.h>
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -216,4 +219,93 @@ km_status km_write_file_atomic(const char *path, const void *data, size_t size, 
     return km__fail(err, KM_ERR_IO, "%s: write failed", path);
   }
   return km__atomic_commit(&af, err);
+}
+
+void km_paths_free(char ***paths, size_t n) {
+  if (!paths || !*paths) return;
+  for (size_t i = 0; i < n; ++i)
+    free((*paths)[i]);
+  free(*paths);
+  *paths = NULL;
+}
+
+static bool has_ext(const char *name, const char *const *exts) {
+  if (!exts) return true;
+  char ext[16];
+  km__extension(name, ext, sizeof ext);
+  for (; *exts; ++exts)
+    if (!strcmp(ext, *exts)) return true;
+  return false;
+}
+
+static int cmp_path(const void *a, const void *b) {
+  return strcmp(*(char *const *)a, *(char *const *)b);
+}
+
+km_status km__list_files(const char *pattern, const char *const *exts, bool filter_glob,
+                         char ***paths, size_t *n, km_error *err) {
+  *paths = NULL;
+  *n = 0;
+  struct stat st;
+  char **list = NULL;
+  size_t count = 0, cap = 0;
+  bool oom = false;
+  if (stat(pattern, &st) == 0 && S_ISDIR(st.st_mode)) {
+    DIR *d = opendir(pattern);
+    if (!d)
+      return km__fail(err, KM_ERR_IO, "%s: cannot open directory: %s", pattern, strerror(errno));
+    struct dirent *e;
+    while (!oom && (e = readdir(d))) {
+      if (e->d_name[0] == '.' || !has_ext(e->d_name, exts)) continue;
+      size_t len = strlen(pattern) + strlen(e->d_name) + 2;
+      char *path = malloc(len);
+      if (!path) break;
+      snprintf(path, len, "%s/%s", pattern, e->d_name);
+      if (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) {
+        free(path);
+        continue;
+      }
+      if (count == cap) {
+        cap = cap ? 2 * cap : 64;
+        char **nl = realloc(list, cap * sizeof *nl);
+        if (!nl) {
+          free(path);
+          oom = true;
+          break;
+        }
+        list = nl;
+      }
+      list[count++] = path;
+    }
+    closedir(d);
+  } else {
+    glob_t g;
+    int r = glob(pattern, 0, NULL, &g);
+    if (r != 0 && r != GLOB_NOMATCH) {
+      if (r != GLOB_NOMATCH) globfree(&g);
+      return km__fail(err, KM_ERR_IO, "%s: cannot list the files", pattern);
+    }
+    if (r == 0) {
+      list = calloc(g.gl_pathc ? g.gl_pathc : 1, sizeof *list);
+      oom = !list;
+      for (size_t i = 0; list && i < g.gl_pathc; ++i) {
+        if (stat(g.gl_pathv[i], &st) == 0 && S_ISDIR(st.st_mode)) continue;
+        if (filter_glob && !has_ext(g.gl_pathv[i], exts)) continue;
+        if (!(list[count] = strdup(g.gl_pathv[i]))) {
+          oom = true;
+          break;
+        }
+        ++count;
+      }
+    }
+    globfree(&g);
+  }
+  if (oom) {
+    km_paths_free(&list, count);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory listing the files", pattern);
+  }
+  if (count) qsort(list, count, sizeof *list, cmp_path);
+  *paths = list;
+  *n = count;
+  return KM_OK;
 }

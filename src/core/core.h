@@ -43,6 +43,14 @@ void km__atomic_abort(km__atomic_file *af);
 /* Reads a whole file into memory (NUL-terminated for convenience, size excludes it). */
 km_status km__read_file(const char *path, char **data, size_t *size, km_error *err);
 
+/* Files of a directory (entries whose extension is one of exts, dot-files and folders skipped)
+ * or of a glob(3) pattern (folders skipped; filtered by exts too when filter_glob), sorted by
+ * name. exts: lowercase extensions without the dot, NULL-terminated; NULL takes every file.
+ * *paths: allocated, *n entries (may be 0), free with km_paths_free. KM_ERR_IO naming the
+ * pattern when the directory cannot be read or the glob fails. */
+km_status km__list_files(const char *pattern, const char *const *exts, bool filter_glob,
+                         char ***paths, size_t *n, km_error *err);
+
 /* File extension (lowercase, without the dot) into out; "" when none. */
 void km__extension(const char *path, char *out, size_t out_size);
 

@@ -9,13 +9,10 @@
 #include "mesh/mesh_io.h"
 
 #include <ctype.h>
-#include <dirent.h>
 #include <errno.h>
-#include <glob.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 void km_points_free(km_points *p) {
   if (!p) return;
@@ -368,74 +365,15 @@ km_status km_points_write_ply(const char *path, const double *P, size_t n, km_er
   return km__atomic_commit(&af, err);
 }
 
-static bool is_point_ext(const char *name) {
-  char ext[16];
-  km__extension(name, ext, sizeof ext);
-  return !strcmp(ext, "ply") || !strcmp(ext, "pcd") || !strcmp(ext, "xyz") || !strcmp(ext, "txt") ||
-         !strcmp(ext, "pts");
-}
-
-static int cmp_str(const void *a, const void *b) {
-  return strcmp(*(char *const *)a, *(char *const *)b);
-}
-
-void km_paths_free(char ***paths, size_t n) {
-  if (!paths || !*paths) return;
-  for (size_t i = 0; i < n; ++i)
-    free((*paths)[i]);
-  free(*paths);
-  *paths = NULL;
-}
-
 km_status km_point_frames_list(const char *pattern, char ***paths, size_t *n, km_error *err) {
   if (!pattern || !paths || !n)
     return km__fail(err, KM_ERR_INVALID, "km_point_frames_list: NULL argument");
-  *paths = NULL;
-  *n = 0;
-  struct stat st;
-  char **list = NULL;
-  size_t count = 0;
-  if (stat(pattern, &st) == 0 && S_ISDIR(st.st_mode)) {
-    DIR *d = opendir(pattern);
-    if (!d)
-      return km__fail(err, KM_ERR_IO, "%s: cannot open directory: %s", pattern, strerror(errno));
-    size_t cap = 0;
-    struct dirent *e;
-    while ((e = readdir(d))) {
-      if (e->d_name[0] == '.' || !is_point_ext(e->d_name)) continue;
-      if (count == cap) {
-        cap = cap ? 2 * cap : 64;
-        char **nl = realloc(list, cap * sizeof *nl);
-        if (!nl) break;
-        list = nl;
-      }
-      size_t len = strlen(pattern) + strlen(e->d_name) + 2;
-      list[count] = malloc(len);
-      if (!list[count]) break;
-      snprintf(list[count], len, "%s/%s", pattern, e->d_name);
-      ++count;
-    }
-    closedir(d);
-  } else {
-    glob_t g;
-    int r = glob(pattern, 0, NULL, &g);
-    if (r == 0) {
-      list = calloc(g.gl_pathc ? g.gl_pathc : 1, sizeof *list);
-      for (size_t i = 0; list && i < g.gl_pathc; ++i) {
-        if (stat(g.gl_pathv[i], &st) == 0 && S_ISDIR(st.st_mode)) continue;
-        list[count] = strdup(g.gl_pathv[i]);
-        if (!list[count]) break;
-        ++count;
-      }
-    }
-    if (r == 0 || r == GLOB_NOMATCH) globfree(&g);
-  }
-  if (!count) {
-    free(list);
+  static const char *const exts[] = {"ply", "pcd", "xyz", "txt", "pts", NULL};
+  km_status s = km__list_files(pattern, exts, false, paths, n, err);
+  if (s != KM_OK) return s;
+  if (!*n) {
+    km_paths_free(paths, 0);
     return km__fail(err, KM_ERR_IO, "%s: no point cloud frames (.ply .pcd .xyz) found", pattern);
   }
-  qsort(list, count, sizeof *list, cmp_str);
-  *paths = list;
-  *n = count;
   return KM_OK;
 }
