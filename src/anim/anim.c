@@ -502,7 +502,9 @@ km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_
   }
   size_t n = tmp.frames * tmp.vertices * 3;
   double *out = km__malloc(n, sizeof *out);
-  unsigned char *buf = km__malloc(tmp.vertices ? tmp.vertices : 1, 12);
+  /* The header was checked against the file size, which bounds vertices * frames; with no
+   * frames it bounds nothing, so the frame buffer is only sized by a header that has frames. */
+  unsigned char *buf = km__malloc(tmp.frames && tmp.vertices ? tmp.vertices : 1, 12);
   if (!out || !buf) {
     free(out);
     free(buf);
