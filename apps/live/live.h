@@ -1,7 +1,8 @@
-/* Live mode: tracker input (OSC, JSON over UDP, a replayed take) -> filter -> retarget ->
- * reduced deformation -> WebSocket frames to browser pages, plus the HTTP side (static page,
- * /status, /mesh, /rig, /handles, POST /rig, POST /replay). Private to kinemesh (the CLI's
- * `live` verb and bench_live use it). */
+/* Live mode, the application target kinemesh_live: tracker input (OSC, JSON over UDP, a
+ * replayed take) -> the puppetry pipeline (km_puppetry) -> WebSocket frames to browser pages,
+ * plus the HTTP side (static page, /status, /mesh, /rig, /handles, POST /rig, POST /replay).
+ * Built on include/kinemesh.h only; the only target that links libwebsockets and liblo. Its
+ * users: the CLI's `live` verb, `bench live`, tests/test_live.c. */
 #ifndef KM_LIVE_H
 #define KM_LIVE_H
 
