@@ -100,6 +100,12 @@ struct km_recon {
   int32_t lm[KM_CHARACTER_LANDMARKS];
   size_t n_lm;
   km_recon_init init;
+  /* two-sided error of the last frame: per vertex nearest point distance, the unsupported
+   * vertices, vertex normals when cameras are given */
+  double *sup_dist;
+  int32_t *sup_idx, *sup_list;
+  size_t n_sup;
+  double *sup_N;
 };
 
 static void opt_defaults(km_recon_options *o) {
@@ -115,6 +121,9 @@ static void opt_defaults(km_recon_options *o) {
   if (o->outlier_scale <= 0) o->outlier_scale = 3;
   if (o->filter_radius == 0) o->filter_radius = 2;
   if (o->filter_sigma <= 0) o->filter_sigma = 1;
+  if (!(o->unsupported_distance > 0)) o->unsupported_distance = 0.03;
+  if (!(o->unsupported_fraction > 0)) o->unsupported_fraction = 0.02;
+  if (!o->cameras) o->n_cameras = 0;
 }
 
 static int cmp_edge(const void *a, const void *b) {
@@ -291,6 +300,10 @@ void km_recon_free(km_recon **rp) {
   free(r->vw);
   free(r->vdist);
   free(r->vn);
+  free(r->sup_dist);
+  free(r->sup_idx);
+  free(r->sup_list);
+  free(r->sup_N);
   free(r);
   *rp = NULL;
 }
@@ -353,7 +366,11 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   r->vw = km__malloc(nv, sizeof(double));
   r->vdist = km__malloc(nv, sizeof(double));
   r->vn = km__malloc(nv, 3 * sizeof(double));
-  if (!r->vnear || !r->vw || !r->vdist || !r->vn || !r->parents || !r->tmpl_joints || !r->names ||
+  r->sup_dist = km__malloc(nv, sizeof(double));
+  r->sup_idx = km__malloc(nv, sizeof(int32_t));
+  r->sup_list = km__malloc(nv, sizeof(int32_t));
+  if (r->o.n_cameras) r->sup_N = km__malloc(nv, 3 * sizeof(double));
+  if (!r->sup_dist || !r->sup_idx || !r->sup_list || (r->o.n_cameras && !r->sup_N) || !r->vnear || !r->vw || !r->vdist || !r->vn || !r->parents || !r->tmpl_joints || !r->names ||
       !r->skin.joints || !r->skin.weights || !r->base || !r->base_joints || !r->Lrot || !r->Lprev ||
       !r->Lprev2 || !r->global || !r->surface || !r->work || !r->joints || !r->G) {
     km_recon_free(&r);
@@ -394,6 +411,11 @@ const double *km_recon_surface(const km_recon *r) { return r ? r->surface : NULL
 const double *km_recon_global(const km_recon *r) { return r ? r->global : NULL; }
 const double *km_recon_joints(const km_recon *r) { return r ? r->joints : NULL; }
 const km_mesh *km_recon_template(const km_recon *r) { return r ? &r->tmpl : NULL; }
+const int32_t *km_recon_unsupported(const km_recon *r, size_t *count) {
+  if (count) *count = r && r->have_base ? r->n_sup : 0;
+  return r && r->have_base ? r->sup_list : NULL;
+}
+
 void km_recon_init_get(const km_recon *r, km_recon_init *out) {
   if (!out) return;
   if (r)
@@ -961,7 +983,101 @@ static km_status frame_prepare(km_recon *r, const double *P, size_t n, frame_dat
   return reserve_points(r, n, err);
 }
 
-/* Mean and max point-to-surface distance (mm) over all points. */
+/* The q-quantile (0..1) of x[0..n) by the nearest-rank rule; reorders x. Quickselect: a
+ * full sort of 100k distances per frame is measurable, and no library here has a select. */
+static double quantile(double *x, size_t n, double q) {
+  if (!n) return 0;
+  size_t kk = (size_t)ceil(q * (double)n);
+  long long k = kk ? (long long)kk - 1 : 0, l = 0, m = (long long)n - 1;
+  if (k > m) k = m;
+  while (l < m) { /* Wirth's select */
+    double xk = x[k];
+    long long i = l, j = m;
+    do {
+      while (x[i] < xk)
+        ++i;
+      while (xk < x[j])
+        --j;
+      if (i <= j) {
+        double t = x[i];
+        x[i] = x[j], x[j] = t;
+        ++i, --j;
+      }
+    } while (i <= j);
+    if (j < k) l = i;
+    if (k < i) m = j;
+  }
+  return x[k];
+}
+
+/* Surface -> points: every measured vertex of X to its nearest point, the unsupported
+ * vertices and the skin joints they belong to. */
+static void surface_support(km_recon *r, const frame_data *fd, const double *X,
+                            km_recon_frame_stats *st) {
+  size_t nv = r->nv;
+  r->n_sup = 0;
+  km__point_index *ix = NULL;
+  if (km__point_index_create(fd->P, fd->n, &ix, NULL)) return;
+  km__point_index_nearest(ix, X, nv, 0, r->sup_idx, r->sup_dist);
+  km__point_index_free(&ix);
+  bool *seen = NULL;
+  if (r->o.n_cameras) {
+    km_mesh view = {.V = (double *)X, .F = r->tmpl.F, .n_vertices = nv, .n_faces = r->nf};
+    seen = km__malloc(nv, sizeof *seen);
+    if (seen && km_vertex_normals(&view, KM_NORMALS_AREA, r->sup_N, NULL)) free(seen), seen = NULL;
+    for (size_t i = 0; seen && i < nv; ++i) {
+      seen[i] = false;
+      for (size_t c = 0; c < r->o.n_cameras && !seen[i]; ++c) {
+        double d = 0;
+        for (int a = 0; a < 3; ++a)
+          d += r->sup_N[3 * i + a] * (r->o.cameras[3 * c + a] - X[3 * i + a]);
+        seen[i] = d > 0;
+      }
+    }
+  }
+  double *d = km__malloc(nv, sizeof *d);
+  size_t m = 0;
+  double sum = 0, mx = 0;
+  size_t *per_joint = calloc(r->nj, sizeof *per_joint);
+  for (size_t i = 0; i < nv; ++i) {
+    if (seen && !seen[i]) continue;
+    double di = r->sup_dist[i];
+    sum += di;
+    mx = di > mx ? di : mx;
+    if (d) d[m] = di;
+    ++m;
+    if (di > r->o.unsupported_distance) {
+      r->sup_list[r->n_sup++] = (int32_t)i;
+      int best = 0;
+      for (int k = 1; k < 4; ++k)
+        if (r->skin.joints[4 * i + k] >= 0 && r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
+          best = k;
+      int32_t j = r->skin.joints[4 * i + best];
+      if (per_joint && j >= 0) ++per_joint[j];
+    }
+  }
+  st->surface_vertices = m;
+  st->surface_mean_mm = m ? 1e3 * sum / (double)m : 0;
+  st->surface_max_mm = 1e3 * mx;
+  st->surface_p95_mm = d ? 1e3 * quantile(d, m, 0.95) : st->surface_max_mm;
+  st->unsupported_vertices = r->n_sup;
+  st->unsupported = (double)r->n_sup > r->o.unsupported_fraction * (double)m;
+  st->n_unsupported_joints = 0;
+  /* the parts: joints holding at least a tenth of the unsupported vertices, most first */
+  while (per_joint && r->n_sup && st->n_unsupported_joints < KM_RECON_MAX_PARTS) {
+    size_t jb = 0;
+    for (size_t j = 1; j < r->nj; ++j)
+      if (per_joint[j] > per_joint[jb]) jb = j;
+    if (!per_joint[jb] || 10 * per_joint[jb] < r->n_sup) break;
+    st->unsupported_joints[st->n_unsupported_joints++] = (int32_t)jb;
+    per_joint[jb] = 0;
+  }
+  free(per_joint);
+  free(d);
+  free(seen);
+}
+
+/* Points -> surface (mean, p95, max in mm over all points) and surface -> points. */
 static void frame_error(km_recon *r, const frame_data *fd, const double *X,
                         km_recon_frame_stats *st) {
   km__surface_update(r->query, X);
@@ -973,6 +1089,11 @@ static void frame_error(km_recon *r, const frame_data *fd, const double *X,
   }
   st->mean_mm = 1e3 * sum / (double)fd->n;
   st->max_mm = 1e3 * mx;
+  double *d = km__malloc(fd->n, sizeof *d);
+  if (d) memcpy(d, r->pdist, fd->n * sizeof *d);
+  st->p95_mm = d ? 1e3 * quantile(d, fd->n, 0.95) : st->max_mm;
+  free(d);
+  surface_support(r, fd, X, st);
 }
 
 /* Surface refinement from Vb (coarse level first, full data for the last two rounds). */
