@@ -935,9 +935,11 @@ typedef struct frame_data {
   double *C;  /* coarse points */
   double *CN; /* coarse normals */
   size_t nc;
+  km__point_index *ix; /* nearest points of P (normals, surface -> points) */
 } frame_data;
 
 static void frame_data_free(frame_data *fd) {
+  km__point_index_free(&fd->ix);
   free(fd->N);
   free(fd->C);
   free(fd->CN);
@@ -951,7 +953,8 @@ static km_status frame_prepare(km_recon *r, const double *P, size_t n, frame_dat
   if (n < 16) return km__fail(err, KM_ERR_INVALID, "frame has %zu points (need >= 16)", n);
   fd->N = km__malloc(n, 3 * sizeof(double));
   if (!fd->N) return km__fail(err, KM_ERR_NOMEM, "out of memory");
-  km_status s = km__point_normals(P, n, r->o.knn, fd->N, err);
+  km_status s = km__point_index_create(P, n, &fd->ix, err);
+  if (!s) s = km__point_normals_indexed(P, n, fd->ix, r->o.knn, fd->N, err);
   if (s) return s;
   int32_t *reps = NULL;
   size_t nr = 0;
@@ -1016,10 +1019,8 @@ static void surface_support(km_recon *r, const frame_data *fd, const double *X,
                             km_recon_frame_stats *st) {
   size_t nv = r->nv;
   r->n_sup = 0;
-  km__point_index *ix = NULL;
-  if (km__point_index_create(fd->P, fd->n, &ix, NULL)) return;
-  km__point_index_nearest(ix, X, nv, 0, r->sup_idx, r->sup_dist);
-  km__point_index_free(&ix);
+  if (!fd->ix) return;
+  km__point_index_nearest(fd->ix, X, nv, 0, r->sup_idx, r->sup_dist);
   bool *seen = NULL;
   if (r->o.n_cameras) {
     km_mesh view = {.V = (double *)X, .F = r->tmpl.F, .n_vertices = nv, .n_faces = r->nf};
@@ -1089,11 +1090,14 @@ static void frame_error(km_recon *r, const frame_data *fd, const double *X,
   }
   st->mean_mm = 1e3 * sum / (double)fd->n;
   st->max_mm = 1e3 * mx;
+  double t0 = km_seconds();
   double *d = km__malloc(fd->n, sizeof *d);
   if (d) memcpy(d, r->pdist, fd->n * sizeof *d);
   st->p95_mm = d ? 1e3 * quantile(d, fd->n, 0.95) : st->max_mm;
   free(d);
   surface_support(r, fd, X, st);
+  km__log(KM_LOG_DEBUG, "frame %zu: two-sided error %.4f s (%zu points, %zu vertices)", r->frame,
+          km_seconds() - t0, fd->n, r->nv);
 }
 
 /* Surface refinement from Vb (coarse level first, full data for the last two rounds). */
