@@ -1495,6 +1495,8 @@ typedef struct km_recon_options {
                                 * occlusion test: a vertex the body hides from every camera
                                 * still counts). Borrowed: must outlive the reconstructor. */
   size_t n_cameras;
+  /* ---- limbs found, not assumed */
+  bool no_limb_search; /* true: skip the first frame's limb search (see km_recon_init) */
 } km_recon_options;
 
 /* A user-given feature correspondence: template vertex <-> point position (first frame). */
@@ -1553,6 +1555,13 @@ typedef struct km_recon_init {
   /* template landmarks (rig sidecar) matched to their closest points after the skeletal
    * fit, used as pseudo-correspondences in the feature-only affine stage (w_d = 0) */
   size_t landmarks;
+  /* ---- limbs found, not assumed: after the skeletal step each limb chain's first two
+   * joints (shoulder then elbow, hip then knee: joints below a branching joint whose subtree
+   * is a simple chain of >= 3) are turned to the best of 160 bone directions, scored
+   * two-sided (limb vertices to points, unexplained points to the limb), then the skeletal
+   * step runs again. The joints turned (a direction is kept only well below the current
+   * score): */
+  size_t limbs_turned;
 } km_recon_init;
 
 typedef struct km_recon_report {

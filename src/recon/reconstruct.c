@@ -159,6 +159,7 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
     cJSON_AddNumberToObject(ff, "scale", in->scale);
     cJSON_AddNumberToObject(ff, "landmarks", (double)in->landmarks);
   }
+  cJSON_AddNumberToObject(ff, "limbs_turned", (double)in->limbs_turned);
   cJSON_AddStringToObject(root, "joints_from", r->rig_joints ? "rig" : "skin weights");
   cJSON_AddNumberToObject(root, "jerk_before", r->jerk_before);
   cJSON_AddNumberToObject(root, "jerk_after", r->jerk_after);

@@ -1361,6 +1361,182 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
   return KM_OK;
 }
 
+/* ---------------------------------------------------------------- limb search */
+
+#define KM__LIMB_DIRECTIONS 160 /* bone directions tried per joint (about 16 degrees apart) */
+#define KM__LIMB_CAP 0.10       /* m: a distance counts at most this much in the score */
+#define KM__LIMB_GAIN 0.9       /* a searched direction is kept below this fraction of the score */
+
+/* The limb chains of the skeleton: a joint whose parent branches (>= 2 children) and whose
+ * subtree is a simple chain of at least 3 joints (shoulder -> elbow -> wrist -> hand,
+ * hip -> knee -> ankle -> foot on the Kinect rig; any rig of that shape). chain[c*4 + k]:
+ * the first two joints of chain c (searched) and the joint after them; returns the count. */
+static int limb_chains(const km_recon *r, int32_t *chain, int max) {
+  size_t nj = r->nj;
+  int count = 0;
+  for (size_t j = 1; j < nj && count < max; ++j) {
+    int32_t p = r->parents[j];
+    int children_p = 0;
+    for (size_t k = 1; k < nj; ++k)
+      children_p += r->parents[k] == p;
+    if (children_p < 2) continue;
+    int32_t cur = (int32_t)j, seq[3];
+    int len = 0;
+    bool simple = true;
+    while (simple) {
+      if (len < 3) seq[len] = cur;
+      ++len;
+      int32_t next = -1;
+      int nc = 0;
+      for (size_t k = (size_t)cur + 1; k < nj; ++k)
+        if (r->parents[k] == cur) next = (int32_t)k, ++nc;
+      if (nc == 0) break;
+      if (nc > 1) simple = false;
+      cur = next;
+    }
+    if (!simple || len < 3) continue;
+    chain[4 * count] = seq[0], chain[4 * count + 1] = seq[1], chain[4 * count + 2] = seq[2];
+    ++count;
+  }
+  return count;
+}
+
+/* Score of limb vertices Y (m of them) against the frame: surface -> points (each vertex to
+ * its nearest point) plus points -> limb over the points U no other part explains (each to
+ * its nearest limb vertex), distances capped. */
+static double limb_score(const frame_data *fd, const double *Y, size_t m, const double *U,
+                         size_t nu, int32_t *idx, double *dist) {
+  km__point_index_nearest(fd->ix, Y, m, KM__LIMB_CAP, idx, dist);
+  double a = 0, b = 0;
+  for (size_t i = 0; i < m; ++i)
+    a += idx[i] >= 0 ? dist[i] : KM__LIMB_CAP;
+  for (size_t u = 0; u < nu; ++u) {
+    double best = KM__LIMB_CAP * KM__LIMB_CAP;
+    for (size_t i = 0; i < m; ++i) {
+      double d[3] = {U[3 * u] - Y[3 * i], U[3 * u + 1] - Y[3 * i + 1], U[3 * u + 2] - Y[3 * i + 2]};
+      double d2 = km__dot3(d, d);
+      if (d2 < best) best = d2;
+    }
+    b += sqrt(best);
+  }
+  return a / (double)(m ? m : 1) + b / (double)(nu ? nu : 1);
+}
+
+/* Limbs found, not assumed: after the skeletal step of the first frame, each limb chain's
+ * first joint (shoulder, hip) and then its second (elbow, knee) is turned so that its bone
+ * points along the best of KM__LIMB_DIRECTIONS directions (a Fibonacci sphere, the current
+ * one included), scored two-sided over the vertices of the joint's subtree (by the skin
+ * weights' largest joint) and the points the rest of the body leaves unexplained. A limb the
+ * local fit left outside its capture radius is thus put where its points are; the skeletal
+ * step then refines it. Returns how many joints were turned. */
+static int limb_search(km_recon *r, const frame_data *fd) {
+  size_t nv = r->nv, nj = r->nj;
+  int32_t chains[4 * 8];
+  int nc = limb_chains(r, chains, 8);
+  if (!nc || !fd->ix) return 0;
+  int32_t *dom = km__malloc(nv, sizeof *dom), *idx = km__malloc(nv, sizeof *idx);
+  double *W = km__malloc(nj, 9 * sizeof(double)), *cj = km__malloc(nj, 3 * sizeof(double));
+  double *Y = km__malloc(nv, 3 * sizeof(double)), *Y0 = km__malloc(nv, 3 * sizeof(double));
+  double *dist = km__malloc(nv, sizeof(double)), *U = km__malloc(fd->nc, 3 * sizeof(double));
+  int32_t *sel = km__malloc(nv, sizeof *sel), *ptri = km__malloc(fd->nc, sizeof *ptri);
+  double *pd = km__malloc(fd->nc, sizeof(double));
+  bool *in_sub = km__malloc(nj, sizeof *in_sub);
+  int turned = 0;
+  if (!dom || !idx || !W || !cj || !Y || !Y0 || !dist || !U || !sel || !ptri || !pd || !in_sub)
+    goto out;
+  for (size_t i = 0; i < nv; ++i) {
+    int best = 0;
+    for (int k = 1; k < 4; ++k)
+      if (r->skin.joints[4 * i + k] >= 0 &&
+          r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
+        best = k;
+    dom[i] = r->skin.joints[4 * i + best];
+  }
+  double dirs[KM__LIMB_DIRECTIONS][3];
+  for (int k = 0; k < KM__LIMB_DIRECTIONS; ++k) { /* Fibonacci sphere */
+    double z = 1 - (2.0 * k + 1) / KM__LIMB_DIRECTIONS, rr = sqrt(fmax(0, 1 - z * z));
+    double ph = k * M_PI * (3 - sqrt(5.0));
+    dirs[k][0] = rr * cos(ph), dirs[k][1] = z, dirs[k][2] = rr * sin(ph);
+  }
+  for (int c = 0; c < nc; ++c)
+    for (int stage = 0; stage < 2; ++stage) {
+      int32_t j = chains[4 * c + stage], child = chains[4 * c + stage + 1];
+      forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+      lbs_apply(r, r->G, r->base, r->global);
+      /* the joint's subtree: its vertices move with it */
+      for (size_t k = 0; k < nj; ++k)
+        in_sub[k] = (int32_t)k == j || (k > (size_t)j && r->parents[k] >= 0 && in_sub[r->parents[k]]);
+      /* scored: the first joint by its own segment alone (upper arm, thigh: the joint
+       * below is not placed yet), the second by its whole subtree */
+      size_t m = 0, all = 0;
+#define KM__LIMB_SCORED(i) (dom[i] >= 0 && (stage ? in_sub[dom[i]] : dom[i] == j))
+      for (size_t i = 0; i < nv; ++i)
+        if (KM__LIMB_SCORED(i)) ++all;
+      size_t stride = all > 300 ? all / 300 + 1 : 1, cnt = 0;
+      for (size_t i = 0; i < nv; ++i)
+        if (KM__LIMB_SCORED(i) && cnt++ % stride == 0) sel[m++] = (int32_t)i;
+#undef KM__LIMB_SCORED
+      if (m < 8) continue;
+      /* points unexplained by the rest of the body: farther than 2 cm from the surface, or
+       * closest to a triangle of this subtree */
+      km__surface_update(r->query, r->global);
+      km__surface_closest(r->query, fd->C, fd->nc, 0, ptri, NULL, pd);
+      size_t nu = 0;
+      for (size_t q = 0; q < fd->nc; ++q) {
+        int32_t v0 = ptri[q] >= 0 ? r->tmpl.F[3 * (size_t)ptri[q]] : -1;
+        bool mine = v0 >= 0 && dom[v0] >= 0 && in_sub[dom[v0]];
+        if (pd[q] > 0.02 || mine) memcpy(U + 3 * nu++, fd->C + 3 * q, 3 * sizeof(double));
+      }
+      for (size_t k = 0; k < m; ++k)
+        memcpy(Y0 + 3 * k, r->global + 3 * (size_t)sel[k], 3 * sizeof(double));
+      double bone[3] = {cj[3 * child] - cj[3 * j], cj[3 * child + 1] - cj[3 * j + 1],
+                        cj[3 * child + 2] - cj[3 * j + 2]};
+      if (km__normalize3(bone) < 1e-9) continue;
+      double score0 = limb_score(fd, Y0, m, U, nu, idx, dist), best = score0;
+      double Rbest[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+      for (int k = 0; k < KM__LIMB_DIRECTIONS; ++k) {
+        double axis[3], R[9];
+        km__cross3(bone, dirs[k], axis);
+        double sn = km__normalize3(axis), cs = km__dot3(bone, dirs[k]);
+        if (sn < 1e-9) continue;
+        double ang = atan2(sn, cs), rv[3] = {axis[0] * ang, axis[1] * ang, axis[2] * ang};
+        km__m3_from_rotvec(rv, R);
+        for (size_t i = 0; i < m; ++i) {
+          double d[3] = {Y0[3 * i] - cj[3 * j], Y0[3 * i + 1] - cj[3 * j + 1],
+                         Y0[3 * i + 2] - cj[3 * j + 2]};
+          km__m3_apply(R, d, Y + 3 * i);
+          for (int a = 0; a < 3; ++a)
+            Y[3 * i + a] += cj[3 * j + a];
+        }
+        double sc = limb_score(fd, Y, m, U, nu, idx, dist);
+        if (sc < best) best = sc, memcpy(Rbest, R, sizeof Rbest);
+      }
+      km__log(KM_LOG_DEBUG, "first frame: limb search %s: score %.1f -> %.1f mm", r->names[j],
+              score0 * 1e3, best * 1e3);
+      if (!(best < KM__LIMB_GAIN * score0)) continue;
+      /* world rotation Rbest about the joint: W_j' = Rbest W_j, so L_j' = W_p^T Rbest W_p L_j */
+      int32_t p = r->parents[j];
+      double Wp[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, Wpt[9], T[9], L2[9];
+      if (p >= 0) memcpy(Wp, W + 9 * (size_t)p, sizeof Wp);
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+          Wpt[3 * a + b] = Wp[3 * b + a];
+      km__m3_mul(Wpt, Rbest, T);
+      km__m3_mul(T, Wp, L2);
+      km__m3_mul(L2, r->Lrot + 9 * (size_t)j, T);
+      memcpy(r->Lrot + 9 * (size_t)j, T, sizeof T);
+      orthonormalize(r->Lrot + 9 * (size_t)j);
+      ++turned;
+    }
+  forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+  memcpy(r->joints, cj, nj * 3 * sizeof(double));
+  lbs_apply(r, r->G, r->base, r->global);
+out:
+  free(dom), free(idx), free(W), free(cj), free(Y), free(Y0), free(dist), free(U), free(sel);
+  free(ptri), free(pd), free(in_sub);
+  return turned;
+}
+
 km_status km__recon_affine_register(km_recon *r, const double *Vb, const double *P, size_t n,
                                     const km_recon_feature *feat, size_t nfeat, int iterations,
                                     km_error *err) {
@@ -1493,6 +1669,19 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
   st->iterations +=
       skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, r->o.skeleton_iterations, feat, nfeat, true,
                    nfeat >= 3 ? KM__FIRST_FRAME_POSE_WEIGHT : r->o.w_pose, &ps);
+  /* limbs found, not assumed: a limb the local fit could not reach is searched for, then
+   * the skeletal step refines from there */
+  if (ps == KM_OK && !r->o.no_limb_search) {
+    int turned = limb_search(r, &fd);
+    if (turned) {
+      memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
+      double t1[3] = {r->troot[0], r->troot[1], r->troot[2]};
+      st->iterations +=
+          skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, t1, r->o.skeleton_iterations, feat, nfeat,
+                       true, nfeat >= 3 ? KM__FIRST_FRAME_POSE_WEIGHT : r->o.w_pose, &ps);
+    }
+    r->init.limbs_turned = (size_t)turned;
+  }
   free(Lid);
   if (ps != KM_OK) {
     /* keep the aligned template */
