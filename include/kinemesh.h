@@ -1602,7 +1602,8 @@ const char *km_recon_frame_status(const km_recon_frame_stats *s);
  * "unsupported_distance_mm", "unsupported_fraction", "unsupported_frames", "jerk_before":..,
  * "jerk_after":.., "first_frame": {"correspondences": N, "initialisation": "...", and
  * without correspondences "yaw_candidates", "yaw_deg", "rotation_deg", "rigid_residual_mm",
- * "residual_mm", "feet_residual_mm", "scale", "landmarks"}, "joints_from": "skin weights"|"rig"}.
+ * "residual_mm", "feet_residual_mm", "scale", "landmarks"; and "limbs_turned"},
+ * "joints_from": "skin weights"|"rig"}.
  *   r  in: report (km_reconstruct)
  * Errors: KM_ERR_IO. */
 km_status km_recon_report_write_json(const char *path, const km_recon_report *r, km_error *err);

@@ -338,18 +338,21 @@ static void test_occluded_arm(void) {
 /* Limbs found, not assumed: the first frame is mid-kick (guard up, one knee raised) while the
  * template stands with arms out. Without the limb search both arms and the raised leg stayed
  * where the local fit left them (measured on the 4000-vertex template: 25-29% of the surface
- * unsupported on every frame, up to 689 mm); with it no frame after the first is flagged. */
+ * unsupported on every frame, up to 689 mm); with it no frame after the first is flagged
+ * (the first: the raised foot, 3.6%). With a 2000-vertex template the limbs are found too
+ * but the head and neck stay bent (15% unsupported, flagged): not asserted here. */
 static void test_limbs_found(void) {
   km_character subj = {0}, tmpl = {0};
   km_character_options so = {.target_vertices = 4000, .seed = 7, .girth = 1.05};
-  km_character_options to = {.target_vertices = 2000, .seed = 1};
+  km_character_options to = {.target_vertices = 4000, .seed = 1};
   CHECK_OK(km_character_generate(&so, &subj, KM_E));
   CHECK_OK(km_character_generate(&to, &tmpl, KM_E));
   enum { SKIP = 40, NF = 5 };
   char dir[64], **paths = NULL;
   size_t n = 0;
   double *truth = NULL;
-  capture(&subj, KM_MOTION_KUNGFU, SKIP + NF, 16000, dir, &paths, &n, &truth);
+  capture(&subj, KM_MOTION_KUNGFU, SKIP + NF, 24000, dir, &paths, &n, &truth);
+  if (getenv("KM_TEST_KEEP")) printf("capture in %s\n", dir);
   km_anim_info ti = {0};
   {
     char tp[300];
@@ -360,16 +363,18 @@ static void test_limbs_found(void) {
   snprintf(out, sizeof out, "%s/out.pc2", dir);
   for (int pass = 0; pass < 2 && n == SKIP + NF; ++pass) {
     km_recon_report rep = {0};
-    km_recon_options o = {.coarse_points = 1500, .no_limb_search = pass == 0};
+    km_recon_options o = {.no_limb_search = pass == 0};
     CHECK_OK(km_reconstruct((const char *const *)paths + SKIP, NF, &tmpl, NULL, 0, &o, out, &rep,
                             KM_E));
     size_t flagged_after_first = 0;
     for (size_t f = 0; f < rep.n_frames; ++f) {
       const km_recon_frame_stats *s = &rep.frames[f];
       printf("%s, frame %zu: %s, points->surface %.2f mm, surface->points mean %.2f max %.0f "
-             "mm, %zu unsupported\n",
+             "mm, %zu unsupported (%s %s)\n",
              pass ? "limb search" : "no limb search", f, km_recon_frame_status(s), s->mean_mm,
-             s->surface_mean_mm, s->surface_max_mm, s->unsupported_vertices);
+             s->surface_mean_mm, s->surface_max_mm, s->unsupported_vertices,
+             s->n_unsupported_joints > 0 ? rep.joint_names[s->unsupported_joints[0]] : "",
+             s->n_unsupported_joints > 1 ? rep.joint_names[s->unsupported_joints[1]] : "");
       flagged_after_first += f > 0 && s->unsupported;
     }
     if (pass == 0) {
@@ -386,7 +391,7 @@ static void test_limbs_found(void) {
   }
   free(truth);
   km_paths_free(&paths, n);
-  remove_dir(dir);
+  if (!getenv("KM_TEST_KEEP")) remove_dir(dir);
   km_character_free(&subj);
   km_character_free(&tmpl);
 }
