@@ -3,7 +3,10 @@
  * 2014).  kinemesh bench reconstruct [--frames 300] [--dfaust DIR] [--keep DIR] [--report F]
  * Prints a table and a JSON line. Errors: err_points_mm = mean distance captured points ->
  * reconstructed surface; err_truth_* = distance from reconstructed vertices to the true
- * (noise-free) surface of the subject, per frame mean / max over frames. Every length in the
+ * (noise-free) surface of the subject, per frame mean / max over frames; err_surface_* =
+ * surface -> points (template vertex to its nearest captured point: the surface that no point
+ * supports, which err_points_mm cannot see), unsupported_frames = frames the reconstructor
+ * flagged (more than 2% of the vertices 3 cm or more from every point). Every length in the
  * JSON line is in mm, jerk and jitter included (the table prints them in mm too). */
 #include "bench.h"
 #include "cli.h"
@@ -56,13 +59,20 @@ static int run_dfaust(const char *dir, const char *json) {
          "rotation %.1f deg, %zu landmarks as pseudo-correspondences)\n",
          dir, rep.n_frames, secs / (double)(rep.n_frames ? rep.n_frames : 1), rep.init.yaw_deg,
          rep.init.yaw_candidates, rep.init.rotation_deg, rep.init.landmarks);
-  printf("%6s %8s %9s %9s %6s %8s %s\n", "frame", "points", "mean_mm", "max_mm", "iters", "seconds",
-         "status");
+  printf("%6s %8s %9s %9s %9s | %9s %9s %9s %6s | %6s %8s %s\n", "frame", "points", "mean_mm",
+         "p95_mm", "max_mm", "s_mean", "s_p95", "s_max", "unsup", "iters", "seconds", "status");
+  double smax = 0;
   for (size_t f = 0; f < rep.n_frames; ++f) {
     km_recon_frame_stats *s = &rep.frames[f];
-    printf("%6zu %8zu %9.2f %9.2f %6d %8.3f %s\n", s->index, s->points, s->mean_mm, s->max_mm,
-           s->iterations, s->seconds, km_status_name(s->status));
+    printf("%6zu %8zu %9.2f %9.2f %9.2f | %9.2f %9.2f %9.2f %6zu | %6d %8.3f %s\n", s->index,
+           s->points, s->mean_mm, s->p95_mm, s->max_mm, s->surface_mean_mm, s->surface_p95_mm,
+           s->surface_max_mm, s->unsupported_vertices, s->iterations, s->seconds,
+           km_recon_frame_status(s));
+    smax = s->surface_max_mm > smax ? s->surface_max_mm : smax;
   }
+  printf("surface -> points over %s; max %.1f mm; %zu frame(s) flagged unsupported_surface\n",
+         rep.visibility_known ? "vertices facing a camera" : "all vertices", smax,
+         rep.unsupported_frames);
   if (json && km_recon_report_write_json(json, &rep, &e)) die("json", &e);
   unlink(out);
   km_recon_report_free(&rep);
@@ -92,8 +102,10 @@ int km_bench_reconstruct(int argc, char **argv) {
                    "subject performing the kungfu take, reconstructed from a 4,000-vertex\n"
                    "template of a different body. Prints a per-frame table, the summary and one\n"
                    "JSON line (frames, s_per_frame, err_points_mm, err_truth_mean_mm,\n"
-                   "err_truth_max_mm, jerk_before, jerk_after, jitter_before, jitter_after;\n"
-                   "errors, jerk and jitter in mm).");
+                   "err_truth_max_mm, jerk_before, jerk_after, jitter_before, jitter_after,\n"
+                   "err_surface_mean_mm, err_surface_p95_max_mm, err_surface_max_mm (surface\n"
+                   "to points), unsupported_frames; errors, jerk and jitter in mm). Per frame:\n"
+                   "both directions of the error and the mean and max to the truth.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (frames < 3) return km_cli_error("bench reconstruct", "--frames must be at least 3");
   {
@@ -164,8 +176,21 @@ int km_bench_reconstruct(int argc, char **argv) {
     ++nfeat;
   }
   size_t npts0 = p0.n;
+  /* the simulator's ring (8 cameras 3 m from the subject's bounding-box centre, 0.3 m above
+   * it) around frame 0: surface -> points is measured over the vertices facing a camera */
+  double cams[8 * 3], lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY,
+                                                                       -INFINITY};
+  for (size_t i = 0; i < p0.n; ++i)
+    for (int a = 0; a < 3; ++a)
+      lo[a] = fmin(lo[a], p0.P[3 * i + a]), hi[a] = fmax(hi[a], p0.P[3 * i + a]);
+  for (int c = 0; c < 8; ++c) {
+    double ang = 2 * M_PI * (c + 0.5) / 8;
+    cams[3 * c] = (lo[0] + hi[0]) / 2 + 3 * sin(ang);
+    cams[3 * c + 1] = (lo[1] + hi[1]) / 2 + 0.3;
+    cams[3 * c + 2] = (lo[2] + hi[2]) / 2 + 3 * cos(ang);
+  }
   km_points_free(&p0);
-  km_recon_options ro = {0};
+  km_recon_options ro = {.cameras = cams, .n_cameras = 8};
   ro.rig_joints = g_rig_joints;
   if (getenv("KM_BENCH_REFINE")) ro.refine_iterations = atoi(getenv("KM_BENCH_REFINE"));
   if (getenv("KM_BENCH_WPOSE")) ro.w_pose = atof(getenv("KM_BENCH_WPOSE"));
@@ -178,6 +203,8 @@ int km_bench_reconstruct(int argc, char **argv) {
   double *filt = malloc(n * nv * 3 * sizeof *filt);
   km_recon_report rep = {0};
   rep.n_frames = n, rep.n_joints = nj;
+  rep.unsupported_distance_mm = 30, rep.unsupported_fraction = 0.02; /* the defaults ro has */
+  rep.visibility_known = true;
   rep.frames = calloc(n, sizeof *rep.frames);
   rep.joints = malloc(n * nj * 3 * sizeof *rep.joints);
   rep.joint_names = calloc(nj, sizeof *rep.joint_names);
@@ -199,6 +226,7 @@ int km_bench_reconstruct(int argc, char **argv) {
     rep.frames[f].index = f;
     rep.frames[f].seconds = km_seconds() - tf; /* including reading the file */
     if (rep.frames[f].status) ++rep.failed_frames;
+    if (rep.frames[f].unsupported) ++rep.unsupported_frames;
     km_points_free(&pts);
     memcpy(ref + f * nv * 3, km_recon_surface(rc), nv * 3 * sizeof(double));
     memcpy(glob + f * nv * 3, km_recon_global(rc), nv * 3 * sizeof(double));
@@ -265,9 +293,13 @@ int km_bench_reconstruct(int argc, char **argv) {
     }
   }
   double *secs = malloc(n * sizeof *secs);
-  double tmean = 0, tmax = 0, pmean = 0;
-  printf("%6s %8s %9s %9s %9s %6s %8s %s\n", "frame", "points", "mean_mm", "max_mm", "truth_mm",
-         "iters", "seconds", "status");
+  double tmean = 0, tmax = 0, pmean = 0, smean = 0, smax = 0, sp95max = 0;
+  /* two-sided: mean/p95/max points -> surface, s_* surface -> points (every template vertex to
+   * its nearest captured point), unsup = vertices beyond 30 mm; truth = mean/max of the
+   * filtered output's vertices to the true surface */
+  printf("%6s %8s %9s %9s %9s | %9s %9s %9s %6s | %9s %9s %6s %8s %s\n", "frame", "points",
+         "mean_mm", "p95_mm", "max_mm", "s_mean", "s_p95", "s_max", "unsup", "truth_mm",
+         "truth_max", "iters", "seconds", "status");
   for (size_t f = 0; f < rep.n_frames && f < ri.frames; ++f) {
     memcpy(tv, truth + f * tm.n_vertices * 3, tm.n_vertices * 3 * sizeof(double));
     if (km_point_mesh_distance(tv, tm.n_vertices, tm.F, tm.n_faces, rec + f * nv * 3, nv, tri, NULL,
@@ -292,29 +324,41 @@ int km_bench_reconstruct(int argc, char **argv) {
     pmean += rep.frames[f].mean_mm;
     secs[f] = rep.frames[f].seconds;
     km_recon_frame_stats *s = &rep.frames[f];
-    if (f < 10 || f % 25 == 0 || s->status)
-      printf("%6zu %8zu %9.2f %9.2f %9.2f %6d %8.3f %s\n", s->index, s->points, s->mean_mm,
-             s->max_mm, m * 1e3, s->iterations, s->seconds, km_status_name(s->status));
+    smean += s->surface_mean_mm;
+    smax = s->surface_max_mm > smax ? s->surface_max_mm : smax;
+    sp95max = s->surface_p95_mm > sp95max ? s->surface_p95_mm : sp95max;
+    if (f < 10 || f % 25 == 0 || s->status || s->unsupported || mx > 0.03)
+      printf("%6zu %8zu %9.2f %9.2f %9.2f | %9.2f %9.2f %9.2f %6zu | %9.2f %9.2f %6d %8.3f %s\n",
+             s->index, s->points, s->mean_mm, s->p95_mm, s->max_mm, s->surface_mean_mm,
+             s->surface_p95_mm, s->surface_max_mm, s->unsupported_vertices, m * 1e3, mx * 1e3,
+             s->iterations, s->seconds, km_recon_frame_status(s));
   }
   size_t nf = rep.n_frames < ri.frames ? rep.n_frames : ri.frames;
   tmean = 1e3 * tmean / (double)nf;
   pmean /= (double)nf;
+  smean /= (double)nf;
   qsort(secs + 1, nf - 1, sizeof *secs, cmp_d); /* frame 0 (first-frame registration) apart */
   double med = secs[1 + (nf - 1) / 2];
+  printf("surface -> points over the vertices facing one of the 8 cameras\n");
   printf("\n%-22s %zu\n%-22s %zu (template %zu vertices, subject %zu)\n%-22s %.3f\n"
          "%-22s %.3f\n%-22s %.3f\n%-22s %.3f\n%-22s %.3f\n%-22s %.5f\n%-22s %.5f\n%-22s %zu\n"
-         "%-22s %zu\n%-22s %.1f s (capture %.1f s)\n%-22s %.4f\n%-22s %.4f\n",
+         "%-22s %zu\n%-22s %.1f s (capture %.1f s)\n%-22s %.4f\n%-22s %.4f\n"
+         "%-22s %.3f\n%-22s %.3f\n%-22s %.3f\n%-22s %zu\n",
          "frames", nf, "points_frame0", npts0, nv, subj.mesh.n_vertices, "s_per_frame", med,
          "first_frame_s", rep.frames[0].seconds, "err_points_mm", pmean, "err_truth_mean_mm", tmean,
          "err_truth_max_mm", tmax, "jerk_before_mm", rep.jerk_before * 1e3, "jerk_after_mm",
          rep.jerk_after * 1e3, "features", nfeat, "failed_frames", rep.failed_frames, "total",
-         total, tc, "jitter_before_mm", jit[0] * 1e3, "jitter_after_mm", jit[1] * 1e3);
+         total, tc, "jitter_before_mm", jit[0] * 1e3, "jitter_after_mm", jit[1] * 1e3,
+         "err_surface_mean_mm", smean, "err_surface_p95_max_mm", sp95max, "err_surface_max_mm",
+         smax, "unsupported_frames", rep.unsupported_frames);
   printf(
       "{\"bench\":\"reconstruct\",\"frames\":%zu,\"s_per_frame\":%.4f,\"err_points_mm\":%.3f,"
       "\"err_truth_mean_mm\":%.3f,\"err_truth_max_mm\":%.3f,\"jerk_before\":%.6g,"
-      "\"jerk_after\":%.6g,\"jitter_before\":%.6g,\"jitter_after\":%.6g,\"failed_frames\":%zu}\n",
+      "\"jerk_after\":%.6g,\"jitter_before\":%.6g,\"jitter_after\":%.6g,\"failed_frames\":%zu,"
+      "\"err_surface_mean_mm\":%.3f,\"err_surface_p95_max_mm\":%.3f,\"err_surface_max_mm\":%.3f,"
+      "\"unsupported_frames\":%zu}\n",
       nf, med, pmean, tmean, tmax, rep.jerk_before * 1e3, rep.jerk_after * 1e3, jit[0] * 1e3,
-      jit[1] * 1e3, rep.failed_frames);
+      jit[1] * 1e3, rep.failed_frames, smean, sp95max, smax, rep.unsupported_frames);
   if (json && km_recon_report_write_json(json, &rep, &e)) die("json", &e);
   if (plot && km_recon_report_plot(plot, &rep, &e)) die("plot", &e);
   free(tv), free(tri), free(dist), free(bary), free(secs), free(ref), free(glob), free(filt),

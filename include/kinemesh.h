@@ -1516,6 +1516,19 @@ typedef struct km_recon_options {
                             * LBS weights (km_skeleton_from_weights), as Park & Lim do; true:
                             * the template rig's joint positions as they are */
   km_progress progress;
+  /* ---- two-sided error (surface -> points) and unsupported surface */
+  double unsupported_distance; /* m: a template vertex farther than this from every point of
+                                * its frame is unsupported; 0: 0.03 */
+  double unsupported_fraction; /* a frame whose unsupported vertices exceed this fraction of
+                                * the vertices measured is flagged; 0: 0.02 */
+  const double *cameras;       /* n_cameras*3 camera centres in the points' frame (metres), or
+                                * NULL: visibility unknown, every vertex is measured. Given,
+                                * only vertices whose normal faces a camera are measured (no
+                                * occlusion test: a vertex the body hides from every camera
+                                * still counts). Borrowed: must outlive the reconstructor. */
+  size_t n_cameras;
+  /* ---- limbs found, not assumed */
+  bool no_limb_search; /* true: skip the first frame's limb search (see km_recon_init) */
 } km_recon_options;
 
 /* A user-given feature correspondence: template vertex <-> point position (first frame). */
@@ -1524,6 +1537,7 @@ typedef struct km_recon_feature {
   double point[3];
 } km_recon_feature;
 
+#define KM_RECON_MAX_PARTS 8 /* body parts named per unsupported frame */
 typedef struct km_recon_frame_stats {
   size_t index;
   size_t points;  /* finite points used */
@@ -1534,6 +1548,24 @@ typedef struct km_recon_frame_stats {
   double seconds;
   km_status status;  /* KM_OK, or why the frame was carried by the skeleton */
   char message[512]; /* status != KM_OK: what went wrong (a read error names the file) */
+  /* ---- two-sided error. mean_mm/max_mm above measure points -> surface only: surface no
+   * point supports (a limb left behind) is invisible to them. These measure the registered
+   * (unfiltered) surface km_recon_surface. */
+  double p95_mm;          /* points -> surface, 95th percentile */
+  double surface_mean_mm; /* surface -> points: each measured template vertex to its nearest
+                           * point of the frame; mean, 95th percentile, max */
+  double surface_p95_mm;
+  double surface_max_mm;
+  size_t surface_vertices;     /* vertices measured: all (no cameras given) or those facing a
+                                * camera (km_recon_options.cameras) */
+  size_t unsupported_vertices; /* measured vertices farther than unsupported_distance from
+                                * every point */
+  bool unsupported;            /* unsupported_vertices > unsupported_fraction * surface_vertices:
+                                * the report's status "unsupported_surface" */
+  int n_unsupported_joints;    /* entries of unsupported_joints */
+  int32_t unsupported_joints[KM_RECON_MAX_PARTS]; /* the body parts concerned: skin joints
+                                * (each vertex's largest weight) holding at least a tenth of the
+                                * unsupported vertices, most first */
 } km_recon_frame_stats;
 
 /* How the first frame was placed before the nonrigid registration. */
@@ -1555,6 +1587,13 @@ typedef struct km_recon_init {
   /* template landmarks (rig sidecar) matched to their closest points after the skeletal
    * fit, used as pseudo-correspondences in the feature-only affine stage (w_d = 0) */
   size_t landmarks;
+  /* ---- limbs found, not assumed: after the skeletal step each limb chain's first two
+   * joints (shoulder then elbow, hip then knee: joints below a branching joint whose subtree
+   * is a simple chain of >= 3) are turned to the best of 160 bone directions, scored
+   * two-sided (limb vertices to points, unexplained points to the limb), then the skeletal
+   * step runs again. The joints turned (a direction is kept only well below the current
+   * score): */
+  size_t limbs_turned;
 } km_recon_init;
 
 typedef struct km_recon_report {
@@ -1567,16 +1606,36 @@ typedef struct km_recon_report {
   size_t correspondences; /* first-frame correspondences given */
   km_recon_init init;     /* how the first frame was initialised */
   bool rig_joints;        /* joints from the rig as given (else from the skin weights) */
+  /* ---- two-sided error */
+  bool visibility_known;          /* cameras were given: surface -> points over the vertices
+                                   * facing one; else over all vertices */
+  double unsupported_distance_mm; /* the thresholds used */
+  double unsupported_fraction;
+  size_t unsupported_frames;      /* frames flagged "unsupported_surface" */
+  int32_t **unsupported;          /* n_frames (km_reconstruct; may be NULL): per frame the ids
+                                   * of its unsupported vertices, frames[f].unsupported_vertices
+                                   * of them (NULL when none) */
 } km_recon_report;
-/* Frees frames, joints and joint_names of r and zeroes the struct. */
+/* Frees frames, joints, joint_names and unsupported of r and zeroes the struct. */
 void km_recon_report_free(km_recon_report *r);
+/* ---- two-sided error: frame status and unsupported vertices */
+/* A frame's status as the report writes it: "unsupported_surface" for a frame that is
+ * otherwise KM_OK but flagged (s->unsupported), else km_status_name(s->status). Static. */
+const char *km_recon_frame_status(const km_recon_frame_stats *s);
+
 /* Writes a report as JSON, atomically:
  * {"format":"kinemesh-recon-report","version":1,"frames":[{"index":..,"points":..,
  * "mean_mm":..,"max_mm":..,"iterations":..,"seconds":..,"status":"KM_OK",
- * "message":".." (failed frames only), "joints":[x,y,z,...]}...], "jerk_before":..,
+ * "message":".." (failed frames only), "joints":[x,y,z,...], and the two-sided error:
+ * "p95_mm", "surface_mean_mm", "surface_p95_mm", "surface_max_mm", "surface_vertices",
+ * "unsupported_vertices", "unsupported_joints":[names], "unsupported_ids":[vertex ids] (when
+ * report->unsupported has them); a flagged frame has "status":"unsupported_surface"}...],
+ * "surface_to_points": "all vertices (visibility unknown)"|"vertices facing a camera",
+ * "unsupported_distance_mm", "unsupported_fraction", "unsupported_frames", "jerk_before":..,
  * "jerk_after":.., "first_frame": {"correspondences": N, "initialisation": "...", and
  * without correspondences "yaw_candidates", "yaw_deg", "rotation_deg", "rigid_residual_mm",
- * "residual_mm", "feet_residual_mm", "scale", "landmarks"}, "joints_from": "skin weights"|"rig"}.
+ * "residual_mm", "feet_residual_mm", "scale", "landmarks"; and "limbs_turned"},
+ * "joints_from": "skin weights"|"rig"}.
  *   r  in: report (km_reconstruct)
  * Errors: KM_ERR_IO. */
 km_status km_recon_report_write_json(const char *path, const km_recon_report *r, km_error *err);
@@ -1624,6 +1683,11 @@ const km_mesh *km_recon_template(const km_recon *r); /* faces of the output */
 /* How the first frame was initialised.
  *   out  out: filled (zeros before the first frame) */
 void km_recon_init_get(const km_recon *r, km_recon_init *out);
+/* ---- two-sided error: the unsupported vertices of the last registered frame (see
+ * km_recon_frame_stats).
+ *   count  out: how many (stats.unsupported_vertices); may be NULL
+ * Returns their ids, owned by r, valid until the next frame (NULL before the first). */
+const int32_t *km_recon_unsupported(const km_recon *r, size_t *count);
 /* Frees *r and sets it to NULL. */
 void km_recon_free(km_recon **r);
 

@@ -131,6 +131,44 @@ int main(void) {
   CHECK_OK(km_anim_info_read(DIR "/corrupt.pc2", &info, KM_E));
   CHECK(info.frames == truth.frames);
 
+  /* two-sided error: a 5 mm threshold leaves surface unsupported on every frame (2 mm noise,
+   * a template of another build, soles no camera sees): a warning line per frame, exit 0;
+   * with --strict, exit 1 */
+  CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/template.obj --clouds '" DIR
+                           "/frames/frame_*.ply' -o " DIR "/tight.pc2 --unsupported-mm 5 "
+                           "--report " DIR "/tight.json",
+                    &out) == 0);
+  int warnings = 0;
+  for (const char *q = out; q && (q = strstr(q, "warning: frame ")); ++q)
+    ++warnings;
+  CHECK_MSG(warnings == (int)truth.frames && strstr(out, "unsupported surface"), "%s", out);
+  free(out);
+  rep = read_json(DIR "/tight.json");
+  frames = cJSON_GetObjectItemCaseSensitive(rep, "frames");
+  for (int i = 0; i < cJSON_GetArraySize(frames); ++i) {
+    const cJSON *fr = cJSON_GetArrayItem(frames, i);
+    const cJSON *st = cJSON_GetObjectItemCaseSensitive(fr, "status");
+    CHECK(cJSON_IsString(st) && !strcmp(st->valuestring, "unsupported_surface"));
+    const char *keys[] = {"p95_mm", "surface_mean_mm", "surface_p95_mm", "surface_max_mm",
+                          "surface_vertices", "unsupported_vertices"};
+    for (int k = 0; k < 6; ++k)
+      CHECK_MSG(cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(fr, keys[k])), "frame %d: %s", i,
+                keys[k]);
+    CHECK(cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(fr, "unsupported_joints")) > 0);
+    CHECK(cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(fr, "unsupported_ids")) ==
+          (int)cJSON_GetObjectItemCaseSensitive(fr, "unsupported_vertices")->valuedouble);
+  }
+  const cJSON *uf = cJSON_GetObjectItemCaseSensitive(rep, "unsupported_frames");
+  CHECK(cJSON_IsNumber(uf) && uf->valuedouble == (double)truth.frames);
+  const cJSON *stp = cJSON_GetObjectItemCaseSensitive(rep, "surface_to_points");
+  CHECK(cJSON_IsString(stp) && strstr(stp->valuestring, "all vertices"));
+  cJSON_Delete(rep);
+  CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/template.obj --clouds '" DIR
+                           "/frames/frame_*.ply' -o " DIR "/tight.pc2 --unsupported-mm 5 --strict",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "--strict"), "%s", out);
+  free(out);
+
   /* bad inputs */
   CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/template.obj --clouds '" DIR
                            "/nothing_*.ply' -o " DIR "/x.pc2",

@@ -5,7 +5,9 @@
 
 #include "kinemesh.h"
 
-/* Fig. 6 of Park & Lim: mean/max point error per frame as a PNG through gnuplot (popen). */
+/* Fig. 6 of Park & Lim, both ways: per frame, points -> surface (mean/p95/max) above and
+ * surface -> points (mean/p95/max, the unsupported threshold, the flagged frames) below, as
+ * a PNG through gnuplot (popen). */
 km_status km_recon_report_plot(const char *png_path, const km_recon_report *r, km_error *err);
 
 #endif

@@ -89,7 +89,8 @@ static int read_features(const char *path, km_recon_feature **out, size_t *n) {
 int km_cli_reconstruct(int argc, char **argv) {
   const char *tmpl = NULL, *rig = NULL, *features = NULL, *out = NULL, *report = NULL, *plot = NULL;
   const char *clouds = NULL;
-  bool rig_joints = false;
+  bool rig_joints = false, strict = false;
+  double unsupported_mm = 0, unsupported_fraction = 0;
   size_t coarse = 0, vertices = 4000;
   int radius = 0;
   const km_cli_opt opts[] = {
@@ -106,6 +107,12 @@ int km_cli_reconstruct(int argc, char **argv) {
       {"filter-radius", 0, KM_OPT_INT, &radius, "temporal filter half width (default 2, -1 off)"},
       {"rig-joints", 0, KM_OPT_FLAG, &rig_joints,
        "use the template rig's joints (default: estimated from the skin weights)"},
+      {"unsupported-mm", 0, KM_OPT_DOUBLE, &unsupported_mm,
+       "a template vertex farther than this from every point is unsupported (default 30)"},
+      {"unsupported-fraction", 0, KM_OPT_DOUBLE, &unsupported_fraction,
+       "flag a frame with more than this fraction of its surface unsupported (default 0.02)"},
+      {"strict", 0, KM_OPT_FLAG, &strict,
+       "exit non-zero when a frame is flagged (unsupported surface) or carried"},
       {"report", 0, KM_OPT_STRING, &report, "per-frame report (JSON)"},
       {"plot", 0, KM_OPT_STRING, &plot, "error plot (PNG, through gnuplot)"},
       {"output", 'o', KM_OPT_STRING, &out, "output animation (.glb, .pc2 or a directory)"},
@@ -115,10 +122,14 @@ int km_cli_reconstruct(int argc, char **argv) {
   int r =
       km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
                    "kinemesh reconstruct --template T [--rig R] --clouds 'FRAMES/*.ply' "
-                   "[--correspondences C] -o OUT [--report R.json] [--plot P.png]",
+                   "[--correspondences C] -o OUT [--report R.json] [--plot P.png] [--strict]",
                    "Template-based mesh animation from point cloud frames (Park & Lim 2014).\n"
                    "FRAMES (--clouds, or the one positional argument) is a directory or a quoted\n"
-                   "glob of .ply/.pcd/.xyz files, read in name order.");
+                   "glob of .ply/.pcd/.xyz files, read in name order. Every frame is measured\n"
+                   "both ways: points to surface, and surface to points (template vertices far\n"
+                   "from every point: a limb left behind or hidden); a frame with too much\n"
+                   "unsupported surface gets a warning line, and with --strict the exit status\n"
+                   "is 1.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!clouds && n_pos == 1) clouds = pos[0];
   if (!clouds || !out)
@@ -144,22 +155,58 @@ int km_cli_reconstruct(int argc, char **argv) {
   km_character c = {0};
   int rc = KM_EXIT_OK;
   km_recon_report rep = {0};
-  km_recon_options ro = {
-      .coarse_points = coarse, .filter_radius = radius, .rig_joints = rig_joints};
+  if (unsupported_mm < 0 || unsupported_fraction < 0 || unsupported_fraction >= 1) {
+    free(feat);
+    km_paths_free(&paths, n);
+    return km_cli_error("reconstruct",
+                        "--unsupported-mm must be >= 0 and --unsupported-fraction in [0, 1)");
+  }
+  km_recon_options ro = {.coarse_points = coarse,
+                         .filter_radius = radius,
+                         .rig_joints = rig_joints,
+                         .unsupported_distance = unsupported_mm * 1e-3,
+                         .unsupported_fraction = unsupported_fraction};
   ro.progress = km_cli_progress("reconstruct");
   double t0 = km_cli_now();
   km_status s = km_cli_load_character(tmpl, rig, vertices, &c, &err);
   if (!s) s = km_reconstruct((const char *const *)paths, n, &c, feat, nfeat, &ro, out, &rep, &err);
   km_cli_progress_done();
   if (rep.n_frames) {
-    double mean = 0;
-    for (size_t f = 0; f < rep.n_frames; ++f)
-      mean += rep.frames[f].mean_mm / (double)rep.n_frames;
+    double mean = 0, smean = 0, smax = 0;
+    for (size_t f = 0; f < rep.n_frames; ++f) {
+      const km_recon_frame_stats *st = &rep.frames[f];
+      mean += st->mean_mm / (double)rep.n_frames;
+      smean += st->surface_mean_mm / (double)rep.n_frames;
+      smax = st->surface_max_mm > smax ? st->surface_max_mm : smax;
+      if (!st->unsupported) continue;
+      char parts[512] = "";
+      for (int k = 0; k < st->n_unsupported_joints; ++k) {
+        size_t len = strlen(parts);
+        snprintf(parts + len, sizeof parts - len, "%s%s", k ? ", " : "",
+                 rep.joint_names[st->unsupported_joints[k]]);
+      }
+      fprintf(stderr,
+              "kinemesh reconstruct: warning: frame %zu: unsupported surface: %zu of %zu "
+              "vertices (%.1f%%) farther than %.0f mm from every point (up to %.0f mm): %s\n",
+              st->index, st->unsupported_vertices, st->surface_vertices,
+              st->surface_vertices ? 100.0 * (double)st->unsupported_vertices /
+                                         (double)st->surface_vertices
+                                   : 0.0,
+              rep.unsupported_distance_mm, st->surface_max_mm, parts[0] ? parts : "no one part");
+    }
     fprintf(stderr,
-            "kinemesh reconstruct: %zu frames (%zu carried by the skeleton), mean point error "
-            "%.2f mm, %.2f s/frame, jerk %.2f -> %.2f mm -> %s\n",
-            rep.n_frames, rep.failed_frames, mean, (km_cli_now() - t0) / (double)rep.n_frames,
-            rep.jerk_before * 1e3, rep.jerk_after * 1e3, out);
+            "kinemesh reconstruct: %zu frames (%zu carried by the skeleton, %zu with unsupported "
+            "surface), mean point error %.2f mm, surface to points mean %.2f mm max %.0f mm "
+            "(%s), %.2f s/frame, jerk %.2f -> %.2f mm -> %s\n",
+            rep.n_frames, rep.failed_frames, rep.unsupported_frames, mean, smean, smax,
+            rep.visibility_known ? "vertices facing a camera" : "all vertices",
+            (km_cli_now() - t0) / (double)rep.n_frames, rep.jerk_before * 1e3,
+            rep.jerk_after * 1e3, out);
+    if (strict && (rep.unsupported_frames || rep.failed_frames) && rc == KM_EXIT_OK && !s) {
+      fprintf(stderr, "kinemesh reconstruct: --strict: %zu frame(s) flagged, %zu carried\n",
+              rep.unsupported_frames, rep.failed_frames);
+      rc = KM_EXIT_FAIL;
+    }
     km_error e2 = {0};
     if (report && km_recon_report_write_json(report, &rep, &e2))
       rc = km_cli_fail("reconstruct", &e2);

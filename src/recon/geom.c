@@ -273,22 +273,8 @@ static bool knn_cb(struct RTCPointQueryFunctionArguments *args) {
   return false;
 }
 
-km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err) {
-  RTCDevice dev = km__embree_device(err);
-  if (!dev) return KM_ERR_UNSUPPORTED;
-  if (k < 1 || (size_t)k > n)
-    return km__fail(err, KM_ERR_INVALID, "knn: k=%d with %zu points", k, n);
-  knn_geom g = {P};
-  RTCScene scene = rtcNewScene(dev);
-  RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_USER);
-  rtcSetGeometryUserPrimitiveCount(geom, (unsigned)n);
-  rtcSetGeometryUserData(geom, &g);
-  rtcSetGeometryBoundsFunction(geom, knn_bounds, &g);
-  rtcSetGeometryPointQueryFunction(geom, knn_cb);
-  rtcCommitGeometry(geom);
-  rtcAttachGeometry(scene, geom);
-  rtcReleaseGeometry(geom);
-  rtcCommitScene(scene);
+/* k nearest neighbours of every point of P (the points the scene was built over). */
+static void knn_scene(RTCScene scene, const double *P, size_t n, int k, int32_t *idx) {
 #pragma omp parallel if (n > KM__OMP_MIN)
   {
     double d2[64];
@@ -305,8 +291,17 @@ km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err)
         idx[(size_t)k * i + j] = (int32_t)i;
     }
   }
-  rtcReleaseScene(scene);
-  return KM_OK;
+}
+
+km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err) {
+  if (k < 1 || (size_t)k > n)
+    return km__fail(err, KM_ERR_INVALID, "knn: k=%d with %zu points", k, n);
+  km__point_index *ix = NULL;
+  km_status s = km__point_index_create(P, n, &ix, err);
+  if (s) return s;
+  s = km__point_index_knn(ix, n, k, idx, err);
+  km__point_index_free(&ix);
+  return s;
 }
 
 struct km__point_index {
@@ -332,6 +327,14 @@ km_status km__point_index_create(const double *P, size_t n, km__point_index **ou
   rtcReleaseGeometry(geom);
   rtcCommitScene(ix->scene);
   *out = ix;
+  return KM_OK;
+}
+
+km_status km__point_index_knn(const km__point_index *ix, size_t n, int k, int32_t *idx,
+                              km_error *err) {
+  if (k < 1 || (size_t)k > n)
+    return km__fail(err, KM_ERR_INVALID, "knn: k=%d with %zu points", k, n);
+  knn_scene(ix->scene, ix->g.P, n, k, idx);
   return KM_OK;
 }
 
@@ -379,11 +382,16 @@ static void covariance(const double *P, const int32_t *ids, size_t m, double c[3
 }
 
 km_status km__point_normals(const double *P, size_t n, int k, double *N, km_error *err) {
+  return km__point_normals_indexed(P, n, NULL, k, N, err);
+}
+
+km_status km__point_normals_indexed(const double *P, size_t n, const km__point_index *ix, int k,
+                                    double *N, km_error *err) {
   if ((size_t)k > n) k = (int)n;
   if (k > 64) k = 64;
   int32_t *idx = km__malloc(n, (size_t)k * sizeof *idx);
   if (!idx) return km__fail(err, KM_ERR_NOMEM, "normals: out of memory");
-  km_status s = km__knn(P, n, k, idx, err);
+  km_status s = ix ? km__point_index_knn(ix, n, k, idx, err) : km__knn(P, n, k, idx, err);
   if (!s) {
 #pragma omp parallel for schedule(static) if (n > KM__OMP_MIN)
     for (size_t i = 0; i < n; ++i) {

@@ -39,9 +39,17 @@ km_status km__point_index_create(const double *P, size_t n, km__point_index **ou
 void km__point_index_nearest(const km__point_index *ix, const double *Q, size_t nq, double max_dist,
                              int32_t *idx, double *dist);
 void km__point_index_free(km__point_index **ix);
+/* k nearest neighbours (the point itself included) of each of the index's own n points (the
+ * P it was built over): idx n*k. km__knn without building the index again. */
+km_status km__point_index_knn(const km__point_index *ix, size_t n, int k, int32_t *idx,
+                              km_error *err);
 
 /* Unit normals by PCA over the k neighbours (unoriented: sign arbitrary). N n*3. */
 km_status km__point_normals(const double *P, size_t n, int k, double *N, km_error *err);
+/* The same over an index already built over P (NULL: build one); a frame builds its index
+ * once for the normals and the surface -> points error (about 0.2 s per 100k points). */
+km_status km__point_normals_indexed(const double *P, size_t n, const km__point_index *ix, int k,
+                                    double *N, km_error *err);
 /* Pauly et al. 2002 hierarchical clustering: splits while a cluster is larger than max_size
  * or curved (surface variation > max_var). Returns representative indices (the point
  * nearest each cluster centroid), about `target` of them. *reps allocated. */

@@ -56,7 +56,16 @@ void km_recon_report_free(km_recon_report *r) {
     for (size_t j = 0; j < r->n_joints; ++j)
       free(r->joint_names[j]);
   free(r->joint_names);
+  if (r->unsupported)
+    for (size_t f = 0; f < r->n_frames; ++f)
+      free(r->unsupported[f]);
+  free(r->unsupported);
   memset(r, 0, sizeof *r);
+}
+
+const char *km_recon_frame_status(const km_recon_frame_stats *s) {
+  if (!s) return "";
+  return s->status == KM_OK && s->unsupported ? "unsupported_surface" : km_status_name(s->status);
 }
 
 km_status km_recon_report_write_json(const char *path, const km_recon_report *r, km_error *err) {
@@ -81,8 +90,27 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
     cJSON_AddNumberToObject(o, "max_mm", s->max_mm);
     cJSON_AddNumberToObject(o, "iterations", s->iterations);
     cJSON_AddNumberToObject(o, "seconds", s->seconds);
-    cJSON_AddStringToObject(o, "status", km_status_name(s->status));
+    cJSON_AddStringToObject(o, "status", km_recon_frame_status(s));
     if (s->status && s->message[0]) cJSON_AddStringToObject(o, "message", s->message);
+    cJSON_AddNumberToObject(o, "p95_mm", s->p95_mm);
+    cJSON_AddNumberToObject(o, "surface_mean_mm", s->surface_mean_mm);
+    cJSON_AddNumberToObject(o, "surface_p95_mm", s->surface_p95_mm);
+    cJSON_AddNumberToObject(o, "surface_max_mm", s->surface_max_mm);
+    cJSON_AddNumberToObject(o, "surface_vertices", (double)s->surface_vertices);
+    cJSON_AddNumberToObject(o, "unsupported_vertices", (double)s->unsupported_vertices);
+    cJSON *uj = cJSON_AddArrayToObject(o, "unsupported_joints");
+    for (int k = 0; k < s->n_unsupported_joints && k < KM_RECON_MAX_PARTS; ++k) {
+      int32_t j = s->unsupported_joints[k];
+      cJSON_AddItemToArray(uj, cJSON_CreateString(r->joint_names && j >= 0 &&
+                                                          (size_t)j < r->n_joints
+                                                      ? r->joint_names[j]
+                                                      : ""));
+    }
+    if (r->unsupported && r->unsupported[f]) {
+      cJSON *ids = cJSON_AddArrayToObject(o, "unsupported_ids");
+      for (size_t k = 0; k < s->unsupported_vertices; ++k)
+        cJSON_AddItemToArray(ids, cJSON_CreateNumber(r->unsupported[f][k]));
+    }
     if (r->joints) {
       cJSON *j = cJSON_AddArrayToObject(o, "joints");
       for (size_t k = 0; k < r->n_joints * 3; ++k)
@@ -91,6 +119,12 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
     cJSON_AddItemToArray(frames, o);
   }
   cJSON_AddNumberToObject(root, "failed_frames", (double)r->failed_frames);
+  cJSON_AddStringToObject(root, "surface_to_points",
+                          r->visibility_known ? "vertices facing a camera"
+                                              : "all vertices (visibility unknown)");
+  cJSON_AddNumberToObject(root, "unsupported_distance_mm", r->unsupported_distance_mm);
+  cJSON_AddNumberToObject(root, "unsupported_fraction", r->unsupported_fraction);
+  cJSON_AddNumberToObject(root, "unsupported_frames", (double)r->unsupported_frames);
   cJSON *ff = cJSON_AddObjectToObject(root, "first_frame");
   const km_recon_init *in = &r->init;
   cJSON_AddNumberToObject(ff, "correspondences", (double)r->correspondences);
@@ -125,6 +159,7 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
     cJSON_AddNumberToObject(ff, "scale", in->scale);
     cJSON_AddNumberToObject(ff, "landmarks", (double)in->landmarks);
   }
+  cJSON_AddNumberToObject(ff, "limbs_turned", (double)in->limbs_turned);
   cJSON_AddStringToObject(root, "joints_from", r->rig_joints ? "rig" : "skin weights");
   cJSON_AddNumberToObject(root, "jerk_before", r->jerk_before);
   cJSON_AddNumberToObject(root, "jerk_after", r->jerk_after);
@@ -173,6 +208,10 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
   memset(rep, 0, sizeof *rep);
   rep->correspondences = n_feat;
   rep->rig_joints = o.rig_joints;
+  rep->visibility_known = o.cameras && o.n_cameras;
+  rep->unsupported_distance_mm = 1e3 * (o.unsupported_distance > 0 ? o.unsupported_distance : 0.03);
+  rep->unsupported_fraction = o.unsupported_fraction > 0 ? o.unsupported_fraction : 0.02;
+  size_t done_frames = 0;
   km_recon *r = NULL;
   km_anim_writer *w = NULL;
   size_t nv = tmpl->mesh.n_vertices, nj = tmpl->skeleton.n_joints, win = 2 * (size_t)radius + 1;
@@ -186,12 +225,13 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
   rep->frames = calloc(n_frames, sizeof *rep->frames);
   rep->joints = km__malloc(n_frames, nj * 3 * sizeof(double));
   rep->joint_names = calloc(nj, sizeof *rep->joint_names);
+  rep->unsupported = calloc(n_frames, sizeof *rep->unsupported);
   ring_ref = km__malloc(win, nv * 3 * sizeof(double));
   ring_glob = km__malloc(win, nv * 3 * sizeof(double));
   outf = km__malloc(nv, 3 * sizeof(double));
   prev_out = km__malloc(nv, 6 * sizeof(double));
   prev_ref = km__malloc(nv, 6 * sizeof(double));
-  if (!rep->frames || !rep->joints || !rep->joint_names || !ring_ref || !ring_glob || !outf ||
+  if (!rep->frames || !rep->joints || !rep->joint_names || !rep->unsupported || !ring_ref || !ring_glob || !outf ||
       !prev_out || !prev_ref) {
     s = km__fail(err, KM_ERR_NOMEM, "km_reconstruct: out of memory");
     goto done;
@@ -206,7 +246,6 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
   if (s) goto done;
   /* Frame t is written once frames up to t + radius are in (or at the end): the Gaussian
    * filter needs them, and every finished frame reaches the writer as soon as it can. */
-  size_t done_frames = 0;
   for (size_t f = 0; f <= n_frames; ++f) {
     if (f < n_frames) {
       km_points pts = {0};
@@ -242,6 +281,27 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
       st->index = f;
       st->dropped = pts.dropped_nan;
       if (st->status) ++rep->failed_frames;
+      if (km_recon_frame_status(st)[0] == 'u') {
+        ++rep->unsupported_frames;
+        char parts[400] = "";
+        for (int k = 0; k < st->n_unsupported_joints; ++k) {
+          const char *nm = rep->joint_names[st->unsupported_joints[k]];
+          size_t len = strlen(parts);
+          snprintf(parts + len, sizeof parts - len, "%s%s", k ? ", " : "", nm);
+        }
+        /* debug only: the applications print the flagged frames from the report */
+        km__log(KM_LOG_DEBUG,
+                "reconstruct: frame %zu: unsupported surface: %zu of %zu vertices farther than "
+                "%.0f mm from every point (%s)",
+                f, st->unsupported_vertices, st->surface_vertices, rep->unsupported_distance_mm,
+                parts);
+      }
+      if (st->unsupported_vertices) {
+        size_t cnt = 0;
+        const int32_t *ids = km_recon_unsupported(r, &cnt);
+        rep->unsupported[f] = ids && cnt ? km__malloc(cnt, sizeof(int32_t)) : NULL;
+        if (rep->unsupported[f]) memcpy(rep->unsupported[f], ids, cnt * sizeof(int32_t));
+      }
       km_points_free(&pts);
       memcpy(rep->joints + f * nj * 3, km_recon_joints(r), nj * 3 * sizeof(double));
       memcpy(ring_ref + (f % win) * nv * 3, km_recon_surface(r), nv * 3 * sizeof(double));
@@ -315,6 +375,7 @@ close : {
   rep->jerk_before = jerk_nb ? jerk_b / (double)jerk_nb : 0;
   rep->jerk_after = jerk_na ? jerk_a / (double)jerk_na : 0;
 done:
+  rep->n_frames = done_frames; /* on an error too: the frames finished (and their lists) */
   km_anim_writer_free(&w);
   km_recon_free(&r);
   free(ring_ref);

@@ -100,6 +100,12 @@ struct km_recon {
   int32_t lm[KM_CHARACTER_LANDMARKS];
   size_t n_lm;
   km_recon_init init;
+  /* two-sided error of the last frame: per vertex nearest point distance, the unsupported
+   * vertices, vertex normals when cameras are given */
+  double *sup_dist;
+  int32_t *sup_idx, *sup_list;
+  size_t n_sup;
+  double *sup_N;
 };
 
 static void opt_defaults(km_recon_options *o) {
@@ -115,6 +121,9 @@ static void opt_defaults(km_recon_options *o) {
   if (o->outlier_scale <= 0) o->outlier_scale = 3;
   if (o->filter_radius == 0) o->filter_radius = 2;
   if (o->filter_sigma <= 0) o->filter_sigma = 1;
+  if (!(o->unsupported_distance > 0)) o->unsupported_distance = 0.03;
+  if (!(o->unsupported_fraction > 0)) o->unsupported_fraction = 0.02;
+  if (!o->cameras) o->n_cameras = 0;
 }
 
 static int cmp_edge(const void *a, const void *b) {
@@ -291,6 +300,10 @@ void km_recon_free(km_recon **rp) {
   free(r->vw);
   free(r->vdist);
   free(r->vn);
+  free(r->sup_dist);
+  free(r->sup_idx);
+  free(r->sup_list);
+  free(r->sup_N);
   free(r);
   *rp = NULL;
 }
@@ -353,7 +366,11 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   r->vw = km__malloc(nv, sizeof(double));
   r->vdist = km__malloc(nv, sizeof(double));
   r->vn = km__malloc(nv, 3 * sizeof(double));
-  if (!r->vnear || !r->vw || !r->vdist || !r->vn || !r->parents || !r->tmpl_joints || !r->names ||
+  r->sup_dist = km__malloc(nv, sizeof(double));
+  r->sup_idx = km__malloc(nv, sizeof(int32_t));
+  r->sup_list = km__malloc(nv, sizeof(int32_t));
+  if (r->o.n_cameras) r->sup_N = km__malloc(nv, 3 * sizeof(double));
+  if (!r->sup_dist || !r->sup_idx || !r->sup_list || (r->o.n_cameras && !r->sup_N) || !r->vnear || !r->vw || !r->vdist || !r->vn || !r->parents || !r->tmpl_joints || !r->names ||
       !r->skin.joints || !r->skin.weights || !r->base || !r->base_joints || !r->Lrot || !r->Lprev ||
       !r->Lprev2 || !r->global || !r->surface || !r->work || !r->joints || !r->G) {
     km_recon_free(&r);
@@ -394,6 +411,11 @@ const double *km_recon_surface(const km_recon *r) { return r ? r->surface : NULL
 const double *km_recon_global(const km_recon *r) { return r ? r->global : NULL; }
 const double *km_recon_joints(const km_recon *r) { return r ? r->joints : NULL; }
 const km_mesh *km_recon_template(const km_recon *r) { return r ? &r->tmpl : NULL; }
+const int32_t *km_recon_unsupported(const km_recon *r, size_t *count) {
+  if (count) *count = r && r->have_base ? r->n_sup : 0;
+  return r && r->have_base ? r->sup_list : NULL;
+}
+
 void km_recon_init_get(const km_recon *r, km_recon_init *out) {
   if (!out) return;
   if (r)
@@ -913,9 +935,11 @@ typedef struct frame_data {
   double *C;  /* coarse points */
   double *CN; /* coarse normals */
   size_t nc;
+  km__point_index *ix; /* nearest points of P (normals, surface -> points) */
 } frame_data;
 
 static void frame_data_free(frame_data *fd) {
+  km__point_index_free(&fd->ix);
   free(fd->N);
   free(fd->C);
   free(fd->CN);
@@ -929,7 +953,8 @@ static km_status frame_prepare(km_recon *r, const double *P, size_t n, frame_dat
   if (n < 16) return km__fail(err, KM_ERR_INVALID, "frame has %zu points (need >= 16)", n);
   fd->N = km__malloc(n, 3 * sizeof(double));
   if (!fd->N) return km__fail(err, KM_ERR_NOMEM, "out of memory");
-  km_status s = km__point_normals(P, n, r->o.knn, fd->N, err);
+  km_status s = km__point_index_create(P, n, &fd->ix, err);
+  if (!s) s = km__point_normals_indexed(P, n, fd->ix, r->o.knn, fd->N, err);
   if (s) return s;
   int32_t *reps = NULL;
   size_t nr = 0;
@@ -961,7 +986,99 @@ static km_status frame_prepare(km_recon *r, const double *P, size_t n, frame_dat
   return reserve_points(r, n, err);
 }
 
-/* Mean and max point-to-surface distance (mm) over all points. */
+/* The q-quantile (0..1) of x[0..n) by the nearest-rank rule; reorders x. Quickselect: a
+ * full sort of 100k distances per frame is measurable, and no library here has a select. */
+static double quantile(double *x, size_t n, double q) {
+  if (!n) return 0;
+  size_t kk = (size_t)ceil(q * (double)n);
+  long long k = kk ? (long long)kk - 1 : 0, l = 0, m = (long long)n - 1;
+  if (k > m) k = m;
+  while (l < m) { /* Wirth's select */
+    double xk = x[k];
+    long long i = l, j = m;
+    do {
+      while (x[i] < xk)
+        ++i;
+      while (xk < x[j])
+        --j;
+      if (i <= j) {
+        double t = x[i];
+        x[i] = x[j], x[j] = t;
+        ++i, --j;
+      }
+    } while (i <= j);
+    if (j < k) l = i;
+    if (k < i) m = j;
+  }
+  return x[k];
+}
+
+/* Surface -> points: every measured vertex of X to its nearest point, the unsupported
+ * vertices and the skin joints they belong to. */
+static void surface_support(km_recon *r, const frame_data *fd, const double *X,
+                            km_recon_frame_stats *st) {
+  size_t nv = r->nv;
+  r->n_sup = 0;
+  if (!fd->ix) return;
+  km__point_index_nearest(fd->ix, X, nv, 0, r->sup_idx, r->sup_dist);
+  bool *seen = NULL;
+  if (r->o.n_cameras) {
+    km_mesh view = {.V = (double *)X, .F = r->tmpl.F, .n_vertices = nv, .n_faces = r->nf};
+    seen = km__malloc(nv, sizeof *seen);
+    if (seen && km_vertex_normals(&view, KM_NORMALS_AREA, r->sup_N, NULL)) free(seen), seen = NULL;
+    for (size_t i = 0; seen && i < nv; ++i) {
+      seen[i] = false;
+      for (size_t c = 0; c < r->o.n_cameras && !seen[i]; ++c) {
+        double d = 0;
+        for (int a = 0; a < 3; ++a)
+          d += r->sup_N[3 * i + a] * (r->o.cameras[3 * c + a] - X[3 * i + a]);
+        seen[i] = d > 0;
+      }
+    }
+  }
+  double *d = km__malloc(nv, sizeof *d);
+  size_t m = 0;
+  double sum = 0, mx = 0;
+  size_t *per_joint = calloc(r->nj, sizeof *per_joint);
+  for (size_t i = 0; i < nv; ++i) {
+    if (seen && !seen[i]) continue;
+    double di = r->sup_dist[i];
+    sum += di;
+    mx = di > mx ? di : mx;
+    if (d) d[m] = di;
+    ++m;
+    if (di > r->o.unsupported_distance) {
+      r->sup_list[r->n_sup++] = (int32_t)i;
+      int best = 0;
+      for (int k = 1; k < 4; ++k)
+        if (r->skin.joints[4 * i + k] >= 0 && r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
+          best = k;
+      int32_t j = r->skin.joints[4 * i + best];
+      if (per_joint && j >= 0) ++per_joint[j];
+    }
+  }
+  st->surface_vertices = m;
+  st->surface_mean_mm = m ? 1e3 * sum / (double)m : 0;
+  st->surface_max_mm = 1e3 * mx;
+  st->surface_p95_mm = d ? 1e3 * quantile(d, m, 0.95) : st->surface_max_mm;
+  st->unsupported_vertices = r->n_sup;
+  st->unsupported = (double)r->n_sup > r->o.unsupported_fraction * (double)m;
+  st->n_unsupported_joints = 0;
+  /* the parts: joints holding at least a tenth of the unsupported vertices, most first */
+  while (per_joint && r->n_sup && st->n_unsupported_joints < KM_RECON_MAX_PARTS) {
+    size_t jb = 0;
+    for (size_t j = 1; j < r->nj; ++j)
+      if (per_joint[j] > per_joint[jb]) jb = j;
+    if (!per_joint[jb] || 10 * per_joint[jb] < r->n_sup) break;
+    st->unsupported_joints[st->n_unsupported_joints++] = (int32_t)jb;
+    per_joint[jb] = 0;
+  }
+  free(per_joint);
+  free(d);
+  free(seen);
+}
+
+/* Points -> surface (mean, p95, max in mm over all points) and surface -> points. */
 static void frame_error(km_recon *r, const frame_data *fd, const double *X,
                         km_recon_frame_stats *st) {
   km__surface_update(r->query, X);
@@ -973,6 +1090,14 @@ static void frame_error(km_recon *r, const frame_data *fd, const double *X,
   }
   st->mean_mm = 1e3 * sum / (double)fd->n;
   st->max_mm = 1e3 * mx;
+  double t0 = km_seconds();
+  double *d = km__malloc(fd->n, sizeof *d);
+  if (d) memcpy(d, r->pdist, fd->n * sizeof *d);
+  st->p95_mm = d ? 1e3 * quantile(d, fd->n, 0.95) : st->max_mm;
+  free(d);
+  surface_support(r, fd, X, st);
+  km__log(KM_LOG_DEBUG, "frame %zu: two-sided error %.4f s (%zu points, %zu vertices)", r->frame,
+          km_seconds() - t0, fd->n, r->nv);
 }
 
 /* Surface refinement from Vb (coarse level first, full data for the last two rounds). */
@@ -1236,6 +1361,182 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
   return KM_OK;
 }
 
+/* ---------------------------------------------------------------- limb search */
+
+#define KM__LIMB_DIRECTIONS 160 /* bone directions tried per joint (about 16 degrees apart) */
+#define KM__LIMB_CAP 0.10       /* m: a distance counts at most this much in the score */
+#define KM__LIMB_GAIN 0.9       /* a searched direction is kept below this fraction of the score */
+
+/* The limb chains of the skeleton: a joint whose parent branches (>= 2 children) and whose
+ * subtree is a simple chain of at least 3 joints (shoulder -> elbow -> wrist -> hand,
+ * hip -> knee -> ankle -> foot on the Kinect rig; any rig of that shape). chain[c*4 + k]:
+ * the first two joints of chain c (searched) and the joint after them; returns the count. */
+static int limb_chains(const km_recon *r, int32_t *chain, int max) {
+  size_t nj = r->nj;
+  int count = 0;
+  for (size_t j = 1; j < nj && count < max; ++j) {
+    int32_t p = r->parents[j];
+    int children_p = 0;
+    for (size_t k = 1; k < nj; ++k)
+      children_p += r->parents[k] == p;
+    if (children_p < 2) continue;
+    int32_t cur = (int32_t)j, seq[3];
+    int len = 0;
+    bool simple = true;
+    while (simple) {
+      if (len < 3) seq[len] = cur;
+      ++len;
+      int32_t next = -1;
+      int nc = 0;
+      for (size_t k = (size_t)cur + 1; k < nj; ++k)
+        if (r->parents[k] == cur) next = (int32_t)k, ++nc;
+      if (nc == 0) break;
+      if (nc > 1) simple = false;
+      cur = next;
+    }
+    if (!simple || len < 3) continue;
+    chain[4 * count] = seq[0], chain[4 * count + 1] = seq[1], chain[4 * count + 2] = seq[2];
+    ++count;
+  }
+  return count;
+}
+
+/* Score of limb vertices Y (m of them) against the frame: surface -> points (each vertex to
+ * its nearest point) plus points -> limb over the points U no other part explains (each to
+ * its nearest limb vertex), distances capped. */
+static double limb_score(const frame_data *fd, const double *Y, size_t m, const double *U,
+                         size_t nu, int32_t *idx, double *dist) {
+  km__point_index_nearest(fd->ix, Y, m, KM__LIMB_CAP, idx, dist);
+  double a = 0, b = 0;
+  for (size_t i = 0; i < m; ++i)
+    a += idx[i] >= 0 ? dist[i] : KM__LIMB_CAP;
+  for (size_t u = 0; u < nu; ++u) {
+    double best = KM__LIMB_CAP * KM__LIMB_CAP;
+    for (size_t i = 0; i < m; ++i) {
+      double d[3] = {U[3 * u] - Y[3 * i], U[3 * u + 1] - Y[3 * i + 1], U[3 * u + 2] - Y[3 * i + 2]};
+      double d2 = km__dot3(d, d);
+      if (d2 < best) best = d2;
+    }
+    b += sqrt(best);
+  }
+  return a / (double)(m ? m : 1) + b / (double)(nu ? nu : 1);
+}
+
+/* Limbs found, not assumed: after the skeletal step of the first frame, each limb chain's
+ * first joint (shoulder, hip) and then its second (elbow, knee) is turned so that its bone
+ * points along the best of KM__LIMB_DIRECTIONS directions (a Fibonacci sphere, the current
+ * one included), scored two-sided over the vertices of the joint's subtree (by the skin
+ * weights' largest joint) and the points the rest of the body leaves unexplained. A limb the
+ * local fit left outside its capture radius is thus put where its points are; the skeletal
+ * step then refines it. Returns how many joints were turned. */
+static int limb_search(km_recon *r, const frame_data *fd) {
+  size_t nv = r->nv, nj = r->nj;
+  int32_t chains[4 * 8];
+  int nc = limb_chains(r, chains, 8);
+  if (!nc || !fd->ix) return 0;
+  int32_t *dom = km__malloc(nv, sizeof *dom), *idx = km__malloc(nv, sizeof *idx);
+  double *W = km__malloc(nj, 9 * sizeof(double)), *cj = km__malloc(nj, 3 * sizeof(double));
+  double *Y = km__malloc(nv, 3 * sizeof(double)), *Y0 = km__malloc(nv, 3 * sizeof(double));
+  double *dist = km__malloc(nv, sizeof(double)), *U = km__malloc(fd->nc, 3 * sizeof(double));
+  int32_t *sel = km__malloc(nv, sizeof *sel), *ptri = km__malloc(fd->nc, sizeof *ptri);
+  double *pd = km__malloc(fd->nc, sizeof(double));
+  bool *in_sub = km__malloc(nj, sizeof *in_sub);
+  int turned = 0;
+  if (!dom || !idx || !W || !cj || !Y || !Y0 || !dist || !U || !sel || !ptri || !pd || !in_sub)
+    goto out;
+  for (size_t i = 0; i < nv; ++i) {
+    int best = 0;
+    for (int k = 1; k < 4; ++k)
+      if (r->skin.joints[4 * i + k] >= 0 &&
+          r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
+        best = k;
+    dom[i] = r->skin.joints[4 * i + best];
+  }
+  double dirs[KM__LIMB_DIRECTIONS][3];
+  for (int k = 0; k < KM__LIMB_DIRECTIONS; ++k) { /* Fibonacci sphere */
+    double z = 1 - (2.0 * k + 1) / KM__LIMB_DIRECTIONS, rr = sqrt(fmax(0, 1 - z * z));
+    double ph = k * M_PI * (3 - sqrt(5.0));
+    dirs[k][0] = rr * cos(ph), dirs[k][1] = z, dirs[k][2] = rr * sin(ph);
+  }
+  for (int c = 0; c < nc; ++c)
+    for (int stage = 0; stage < 2; ++stage) {
+      int32_t j = chains[4 * c + stage], child = chains[4 * c + stage + 1];
+      forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+      lbs_apply(r, r->G, r->base, r->global);
+      /* the joint's subtree: its vertices move with it */
+      for (size_t k = 0; k < nj; ++k)
+        in_sub[k] = (int32_t)k == j || (k > (size_t)j && r->parents[k] >= 0 && in_sub[r->parents[k]]);
+      /* scored: the first joint by its own segment alone (upper arm, thigh: the joint
+       * below is not placed yet), the second by its whole subtree */
+      size_t m = 0, all = 0;
+#define KM__LIMB_SCORED(i) (dom[i] >= 0 && (stage ? in_sub[dom[i]] : dom[i] == j))
+      for (size_t i = 0; i < nv; ++i)
+        if (KM__LIMB_SCORED(i)) ++all;
+      size_t stride = all > 300 ? all / 300 + 1 : 1, cnt = 0;
+      for (size_t i = 0; i < nv; ++i)
+        if (KM__LIMB_SCORED(i) && cnt++ % stride == 0) sel[m++] = (int32_t)i;
+#undef KM__LIMB_SCORED
+      if (m < 8) continue;
+      /* points unexplained by the rest of the body: farther than 2 cm from the surface, or
+       * closest to a triangle of this subtree */
+      km__surface_update(r->query, r->global);
+      km__surface_closest(r->query, fd->C, fd->nc, 0, ptri, NULL, pd);
+      size_t nu = 0;
+      for (size_t q = 0; q < fd->nc; ++q) {
+        int32_t v0 = ptri[q] >= 0 ? r->tmpl.F[3 * (size_t)ptri[q]] : -1;
+        bool mine = v0 >= 0 && dom[v0] >= 0 && in_sub[dom[v0]];
+        if (pd[q] > 0.02 || mine) memcpy(U + 3 * nu++, fd->C + 3 * q, 3 * sizeof(double));
+      }
+      for (size_t k = 0; k < m; ++k)
+        memcpy(Y0 + 3 * k, r->global + 3 * (size_t)sel[k], 3 * sizeof(double));
+      double bone[3] = {cj[3 * child] - cj[3 * j], cj[3 * child + 1] - cj[3 * j + 1],
+                        cj[3 * child + 2] - cj[3 * j + 2]};
+      if (km__normalize3(bone) < 1e-9) continue;
+      double score0 = limb_score(fd, Y0, m, U, nu, idx, dist), best = score0;
+      double Rbest[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+      for (int k = 0; k < KM__LIMB_DIRECTIONS; ++k) {
+        double axis[3], R[9];
+        km__cross3(bone, dirs[k], axis);
+        double sn = km__normalize3(axis), cs = km__dot3(bone, dirs[k]);
+        if (sn < 1e-9) continue;
+        double ang = atan2(sn, cs), rv[3] = {axis[0] * ang, axis[1] * ang, axis[2] * ang};
+        km__m3_from_rotvec(rv, R);
+        for (size_t i = 0; i < m; ++i) {
+          double d[3] = {Y0[3 * i] - cj[3 * j], Y0[3 * i + 1] - cj[3 * j + 1],
+                         Y0[3 * i + 2] - cj[3 * j + 2]};
+          km__m3_apply(R, d, Y + 3 * i);
+          for (int a = 0; a < 3; ++a)
+            Y[3 * i + a] += cj[3 * j + a];
+        }
+        double sc = limb_score(fd, Y, m, U, nu, idx, dist);
+        if (sc < best) best = sc, memcpy(Rbest, R, sizeof Rbest);
+      }
+      km__log(KM_LOG_DEBUG, "first frame: limb search %s: score %.1f -> %.1f mm", r->names[j],
+              score0 * 1e3, best * 1e3);
+      if (!(best < KM__LIMB_GAIN * score0)) continue;
+      /* world rotation Rbest about the joint: W_j' = Rbest W_j, so L_j' = W_p^T Rbest W_p L_j */
+      int32_t p = r->parents[j];
+      double Wp[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, Wpt[9], T[9], L2[9];
+      if (p >= 0) memcpy(Wp, W + 9 * (size_t)p, sizeof Wp);
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+          Wpt[3 * a + b] = Wp[3 * b + a];
+      km__m3_mul(Wpt, Rbest, T);
+      km__m3_mul(T, Wp, L2);
+      km__m3_mul(L2, r->Lrot + 9 * (size_t)j, T);
+      memcpy(r->Lrot + 9 * (size_t)j, T, sizeof T);
+      orthonormalize(r->Lrot + 9 * (size_t)j);
+      ++turned;
+    }
+  forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+  memcpy(r->joints, cj, nj * 3 * sizeof(double));
+  lbs_apply(r, r->G, r->base, r->global);
+out:
+  free(dom), free(idx), free(W), free(cj), free(Y), free(Y0), free(dist), free(U), free(sel);
+  free(ptri), free(pd), free(in_sub);
+  return turned;
+}
+
 km_status km__recon_affine_register(km_recon *r, const double *Vb, const double *P, size_t n,
                                     const km_recon_feature *feat, size_t nfeat, int iterations,
                                     km_error *err) {
@@ -1368,6 +1669,19 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
   st->iterations +=
       skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, zero, r->o.skeleton_iterations, feat, nfeat, true,
                    nfeat >= 3 ? KM__FIRST_FRAME_POSE_WEIGHT : r->o.w_pose, &ps);
+  /* limbs found, not assumed: a limb the local fit could not reach is searched for, then
+   * the skeletal step refines from there */
+  if (ps == KM_OK && !r->o.no_limb_search) {
+    int turned = limb_search(r, &fd);
+    if (turned) {
+      memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
+      double t1[3] = {r->troot[0], r->troot[1], r->troot[2]};
+      st->iterations +=
+          skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, t1, r->o.skeleton_iterations, feat, nfeat,
+                       true, nfeat >= 3 ? KM__FIRST_FRAME_POSE_WEIGHT : r->o.w_pose, &ps);
+    }
+    r->init.limbs_turned = (size_t)turned;
+  }
   free(Lid);
   if (ps != KM_OK) {
     /* keep the aligned template */
