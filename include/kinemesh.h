@@ -627,13 +627,27 @@ km_status km_motion_read(const char *path, const km_motion_read_options *opt, km
 
 /* ---- filter */
 
+/* ---- issue 12: filter kinds */
+typedef enum km_filter_kind {
+  KM_FILTER_HOLT = 0, /* Holt double exponential smoothing with the Kinect SDK knobs */
+  KM_FILTER_ONE_EURO  /* One Euro filter (Casiez, Roussel & Vogel, CHI 2012) */
+} km_filter_kind;
+
 /* Holt double exponential smoothing of joint positions (Wu, Lu & Song 2012, eq. 4) with the
  * extra knobs of the Kinect SDK (NUI_TRANSFORM_SMOOTH_PARAMETERS). Per joint, with raw
  * sample x:
  *   x' = x, or lerp(prev_level, x, d/jitter_radius) when d = |x - prev_level| <= jitter_radius
- *   level = (1 - smoothing) x' + smoothing (prev_level + prev_trend)
+ *   level = (1 - smoothing) x' + smoothing (prev_level + prev_trend), then clamped per
+ *           coordinate between prev_level and x' (the trend may not carry the level past the
+ *           input after a fast move stops: the overshoot fix of issue 12)
  *   trend = trend_gain (level - prev_level) + (1 - trend_gain) prev_trend
- *   out   = level + prediction * trend, pulled back to within max_deviation of x.
+ *   out   = level + prediction * trend', pulled back to within max_deviation of x, where
+ *           trend' is the trend clamped per coordinate to the raw step x - prev_x (sign and
+ *           size), so a stopped joint is not predicted onward.
+ * One Euro (kind KM_FILTER_ONE_EURO), per joint with Te = 1/fps (times the frames since the
+ * last good sample): speed = lowpass(|x - prev_x| / Te, d_cutoff); cutoff = min_cutoff + beta
+ * speed; out = lowpass(x, cutoff), lowpass(x, fc) = prev + a (x - prev), a = 1/(1 + 1/(2 pi fc
+ * Te)). The Holt fields are ignored for it and vice versa.
  * So eq. 4's beta = 1 - smoothing and gamma = trend. The first good sample initialises
  * level = x, trend = 0 (eq. 4 with p^0 = p^1). */
 typedef struct km_filter_options {
@@ -644,6 +658,12 @@ typedef struct km_filter_options {
   double prediction;    /* frames of trend added to the output (Kinect fPrediction). 0: none */
   double jitter_radius; /* metres (Kinect fJitterRadius). 0: off */
   double max_deviation; /* metres (Kinect fMaxDeviationRadius). 0: off */
+  /* ---- issue 12: One Euro filter, overshoot clamp */
+  km_filter_kind kind;  /* 0: Holt (above); KM_FILTER_ONE_EURO: Casiez et al. 2012 */
+  double fps;           /* frames per second of the pushed frames (One Euro). 0: 30 */
+  double min_cutoff;    /* One Euro minimum cutoff, Hz. 0: 1.5 */
+  double beta;          /* One Euro speed coefficient, Hz per m/s. 0: 1.0 */
+  double d_cutoff;      /* One Euro cutoff of the speed estimate, Hz. 0: 1.0 */
 } km_filter_options;
 #define KM_FILTER_ZERO (-1.0)
 
@@ -662,6 +682,50 @@ void km_filter_push(km_filter *f, const double *raw, double *filtered);
 void km_filter_reset(km_filter *f);
 /* Frees *f and sets it to NULL. */
 void km_filter_free(km_filter **f);
+
+/* ---- issue 12: glitch rejection (before the filter) */
+
+/* Tracker glitches become missing samples, so the filter after it holds / predicts instead
+ * of chasing them. Per joint and frame, in this order:
+ *   refound: a joint that comes back after missing frames stays missing for refound_frames
+ *            more frames (trackers re-acquire a lost joint at a wrong place first);
+ *   speed:   the sample is farther than max_speed / fps * k from the joint's last accepted
+ *            sample, k = frames since it (so a joint that really moved is re-acquired after a
+ *            few frames: the allowance grows while it is rejected);
+ *   bone:    the bone from its parent (accepted this frame) departs from the running median
+ *            of the bone's accepted lengths (last 31) by more than bone_tolerance * median +
+ *            bone_slack (once 5 lengths were seen). */
+typedef struct km_glitch_options {
+  double fps;            /* frames per second of the pushed frames. 0: 30 */
+  double max_speed;      /* m/s. 0: 8 (a 0.6 m one-frame jump at 30 fps is 18 m/s); < 0: off */
+  double bone_tolerance; /* relative. 0: 0.4; < 0: no bone test */
+  double bone_slack;     /* metres added to the bone tolerance (short, noisy bones). 0: 0.04 */
+  int refound_frames;    /* 0: 1; < 0: none */
+} km_glitch_options;
+typedef struct km_glitch_stats {
+  size_t frames;   /* frames pushed */
+  size_t samples;  /* joint samples that were present (not NaN) */
+  size_t missing;  /* joint samples that were NaN already */
+  size_t rejected; /* present samples turned missing (the sum of the three reasons) */
+  size_t refound, speed, bone; /* rejections by reason */
+} km_glitch_stats;
+typedef struct km_glitch km_glitch;
+/* Creates a glitch rejector for #J = n_joints joints.
+ *   parents  in: #J parent indices (-1 roots, parents[j] < j) for the bone test; may be NULL
+ *            (no bone test)
+ *   opt      in: may be NULL (defaults)
+ *   out      out: allocated; free with km_glitch_free
+ * Errors: KM_ERR_INVALID for bad options or parents. */
+km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_glitch_options *opt,
+                           km_glitch **out, km_error *err);
+/* One frame: raw #J*3 in, clean #J*3 out (rejected joints NaN); clean may alias raw. */
+void km_glitch_push(km_glitch *g, const double *raw, double *clean);
+/* Counts since create / reset. */
+void km_glitch_stats_get(const km_glitch *g, km_glitch_stats *out);
+/* Forgets history and counts. */
+void km_glitch_reset(km_glitch *g);
+/* Frees *g and sets it to NULL. */
+void km_glitch_free(km_glitch **g);
 
 /* ---- rig */
 
@@ -1031,6 +1095,14 @@ typedef struct km_puppetry_options {
    * made with other parameters is used as built rather than rebuilt. */
   bool cache_parameters;
   const char *take_name; /* names the take in error messages; NULL: "the take" */
+  /* ---- issue 12: glitch rejection and frame rate */
+  double fps;                 /* frame rate of the pushed frames, for the glitch speed test
+                                 and the One Euro filter when their own fps is 0. 0: 30 */
+  km_glitch_options glitch;   /* rejection before the filter (km_glitch_create) */
+  bool no_glitch;             /* true: no glitch rejection (raw frames go to the filter) */
+  const int32_t *joint_parents; /* n_joints parents of the pushed columns, for the bone test
+                                   (copied); NULL: kinect1 rigs use the Kinect v1 bones, other
+                                   rigs get no bone test */
 } km_puppetry_options;
 
 typedef enum km_puppetry_model_source {
@@ -1083,7 +1155,8 @@ km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig,
  * rig stays in force. The rig is copied. */
 km_status km_puppetry_set_rig(km_puppetry *p, const km_rig *rig, km_error *err);
 /* One frame: joints n_joints*3 raw positions in the create-time column order (NaN = missing:
- * the joint holds its last filtered value); V_out #V*3 deformed positions. Does not allocate.
+ * the joint holds its last filtered value; a sample the glitch rejector refuses counts as
+ * missing); V_out #V*3 deformed positions. Does not allocate.
  * KM_ERR_INVALID when no rig is set; solver errors as km_puppet_solve / km_arap_solve. */
 km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, km_error *err);
 /* Forgets the filter history, the retarget's reference pose and auto scale, the first valid
@@ -1117,6 +1190,8 @@ const double *km_puppetry_rest_centroids(const km_puppetry *p);
 const double *km_puppetry_filtered_joints(const km_puppetry *p);
 const double *km_puppetry_reference_joints(const km_puppetry *p);
 const double *km_puppetry_last_joints(const km_puppetry *p);
+/* Glitch rejection counts since the current rig was set (or reset); zeroed when off. */
+void km_puppetry_glitch_stats(const km_puppetry *p, km_glitch_stats *out);
 /* The reduced model in use (NULL for the full solver); owned by the pipeline unless it was
  * given as options.model. */
 km_puppet *km_puppetry_model(const km_puppetry *p);

@@ -99,6 +99,28 @@ static km_status parse_filter(const char *name, const cJSON *jf, km_filter_optio
                                       "max_deviation"};
   double *dst[5] = {&fo->smoothing, &fo->trend, &fo->prediction, &fo->jitter_radius,
                     &fo->max_deviation};
+  const cJSON *jk = cJSON_GetObjectItemCaseSensitive(jf, "kind");
+  if (jk) {
+    if (cJSON_IsString(jk) && !strcmp(jk->valuestring, "holt"))
+      fo->kind = KM_FILTER_HOLT;
+    else if (cJSON_IsString(jk) && !strcmp(jk->valuestring, "one_euro"))
+      fo->kind = KM_FILTER_ONE_EURO;
+    else
+      return km__fail(err, KM_ERR_PARSE, "%s: filter.kind: expected \"holt\" or \"one_euro\"",
+                      name);
+  }
+  static const char *const euro_keys[3] = {"min_cutoff", "beta", "d_cutoff"};
+  double *euro_dst[3] = {&fo->min_cutoff, &fo->beta, &fo->d_cutoff};
+  for (int k = 0; k < 3; ++k) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(jf, euro_keys[k]);
+    if (!v) continue;
+    double x;
+    if (!json_finite(v, &x) || !(k == 1 ? x >= 0 : x > 0))
+      return km__fail(err, KM_ERR_PARSE, "%s: filter.%s: expected a number %s", name,
+                      euro_keys[k], k == 1 ? ">= 0" : "> 0");
+    /* beta 0 in the file means no speed adaptation: a tiny positive stands for it */
+    *euro_dst[k] = (k == 1 && x == 0) ? 1e-12 : x;
+  }
   for (int k = 0; k < 5; ++k) {
     const cJSON *v = cJSON_GetObjectItemCaseSensitive(jf, keys[k]);
     if (!v) continue;
