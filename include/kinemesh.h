@@ -541,6 +541,15 @@ void km_take_free(km_take *t);
  *   Errors: KM_ERR_IO. */
 km_status km_take_read(const char *path, km_take *out, km_error *err);
 km_status km_take_write(const char *path, const km_take *t, km_error *err);
+/* ---- issue 12: resampling */
+/* The take resampled to fps: round(#frames * fps / in->fps) frames (at least 1), frame k at
+ * time k / fps, positions interpolated linearly between the neighbouring input frames (a
+ * missing neighbour: the nearer one's value, NaN when that is missing); the duration
+ * #frames / fps is kept. Names and parents are copied.
+ *   in   in: take with fps > 0
+ *   out  out: allocated take; free with km_take_free
+ * Errors: KM_ERR_INVALID (no frames, rates not positive). */
+km_status km_take_resample(const km_take *in, double fps, km_take *out, km_error *err);
 
 /* ---- motion formats */
 
@@ -922,6 +931,10 @@ typedef struct km_anim_info {
   size_t faces; /* 0 for pc2 */
   double fps;
   double duration; /* seconds */
+  /* ---- issue 12: one timeline for every writer option */
+  size_t timeline_frames; /* frames of the animation's timeline: duration = (timeline_frames
+                             - 1) / fps wherever fps is known; = frames except for a glb
+                             written with key_every > 1 (frames counts its key frames) */
 } km_anim_info;
 /* Describes an animation file.
  *   path  in: .glb, .pc2 or a frame directory

@@ -46,7 +46,8 @@ int km_cli_animate(int argc, char **argv) {
        "isolines per field n_iso (default: the cache's when it has one, else 10)"},
       {"iterations", 0, KM_OPT_INT, &iterations, "rotation updates per frame (default 4)"},
       {"scale", 0, KM_OPT_DOUBLE, &scale, "performer-to-character scale (default: automatic)"},
-      {"fps", 0, KM_OPT_DOUBLE, &fps, "output frame rate (default: the take's)"},
+      {"fps", 0, KM_OPT_DOUBLE, &fps,
+       "output frame rate; the motion is resampled (default: the take's)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames"},
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
        "directory output: obj (default) or ply (binary) per frame"},
@@ -88,6 +89,12 @@ int km_cli_animate(int argc, char **argv) {
     rc = km_cli_error("animate", "%s has no frames", motion);
     goto done;
   }
+  if (fps > 0 && fps != take.fps) { /* resample, do not relabel: the duration is kept */
+    km_take rs;
+    if (km_take_resample(&take, fps, &rs, &err) != KM_OK) goto fail;
+    km_take_free(&take);
+    take = rs;
+  }
   if (km_rig_read(rig_path ? rig_path : rig_default, &m, (const char *const *)take.joint_names,
                   take.n_joints, &rig, &err) != KM_OK)
     goto fail;
@@ -95,6 +102,8 @@ int km_cli_animate(int argc, char **argv) {
   km_puppetry_options o = {0};
   o.retarget.scale = scale;
   o.take_name = motion;
+  o.fps = take.fps;
+  o.joint_parents = take.parents;
   o.solver = full ? KM_PUPPETRY_FULL : KM_PUPPETRY_REDUCED;
   o.arap.iterations = iterations;
   const char *cpath = cache ? cache : cache_default;
