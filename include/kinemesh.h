@@ -743,9 +743,15 @@ void km_glitch_free(km_glitch **g);
  *   "handles": [ {"name": "head", "vertex": 1234, "radius": 0.05},  geodesic ball
  *                {"name": "tail", "vertices": [10, 11, 12]},        explicit list
  *                {"name": "base", "center": [0, 0, 0], "radius": 0.1} ],  Euclidean ball
- *   "map": [ {"handle": "head", "joint": "Head", "axes": "xyz", "scale": 1.0} ],
+ *   "relative_to": "HipCenter",                          (optional, every map entry)
+ *   "map": [ {"handle": "head", "joint": "Head", "axes": "xyz", "scale": 1.0,
+ *             "relative_to": "HipCenter"} ],              (optional, overrides the rig's;
+ *                                                          "" = absolute)
  *   "filter": {"smoothing": 0.5, "trend": 0.5, "prediction": 0, "jitter_radius": 0,
- *              "max_deviation": 0} }
+ *              "max_deviation": 0,
+ *              "kind": "holt" | "one_euro", "min_cutoff": 1.5, "beta": 1.0, "d_cutoff": 1.0} }
+ * "relative_to" names a joint whose displacement is subtracted from the mapped joint's
+ * (root-relative motion: the same as a second entry with scale -1 on that joint).
  * Other keys are ignored. "vertex"+"radius" takes every vertex whose shortest path along mesh
  * edges from the seed is <= radius (Dijkstra, so it stays on the seed's connected region and
  * does not jump to a nearby other limb; radius 0 or absent: the seed alone; a mesh without
@@ -772,6 +778,10 @@ typedef struct km_rig_map {
   int32_t joint;  /* index into the take's joints (KM_KINECT1 order for kinect1) */
   uint32_t axes;  /* KM_AXIS_* mask of the displacement components kept */
   double scale;   /* per-map factor on top of the performer-to-character scale */
+  /* ---- issue 12: root-relative motion */
+  int32_t relative_to; /* 0: the joint's own motion; else 1 + the index of a joint whose
+                          motion is subtracted ("relative_to": "HipCenter"), so a walk's root
+                          translation does not stretch the mesh */
 } km_rig_map;
 
 typedef struct km_rig {
@@ -805,6 +815,7 @@ void km_rig_free(km_rig *rig);
 
 /* Retargeting (Wu, Lu & Song 2012, eq. 5-7). Per frame, handle h's target is
  *   target_h = rest_centroid_h + s * sum_{maps e on h} scale_e * mask_e (p_j(e) - p_j(e)^0)
+ * (with relative_to r: (p_j - p_r) - (p_j^0 - p_r^0))
  * where p^0 is the joint's first valid (non-NaN) position. That is eq. 7 accumulated over
  * frames: H^t = M S^t with S^t the eq. 6 increments, and sum_t d^t telescopes to p^t - p^0; M
  * is stored sparsely as the map list (M_ij = scale_e, with the axis mask per entry). s maps

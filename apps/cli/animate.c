@@ -99,6 +99,14 @@ int km_cli_animate(int argc, char **argv) {
                   take.n_joints, &rig, &err) != KM_OK)
     goto fail;
 
+  if (rig.n_maps == 0) { /* all anchors: a still animation nobody asked for */
+    rc = km_cli_error("animate",
+                      "%s: the rig's \"map\" is empty or absent, so every handle is an anchor and "
+                      "the mesh would not move; map handles to joints, e.g. {\"handle\": "
+                      "\"%s\", \"joint\": \"Head\"}",
+                      rig_path ? rig_path : rig_default, rig.n_handles ? rig.handles[0].name : "h");
+    goto done;
+  }
   km_puppetry_options o = {0};
   o.retarget.scale = scale;
   o.take_name = motion;

@@ -64,7 +64,7 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
   for (size_t e = 0; e < rig->n_maps; ++e) {
     const km_rig_map *m = &rig->maps[e];
     if (m->handle < 0 || (size_t)m->handle >= rig->n_handles || m->joint < 0 ||
-        (size_t)m->joint >= n_joints)
+        (size_t)m->joint >= n_joints || m->relative_to < 0 || (size_t)m->relative_to > n_joints)
       return km__fail(err, KM_ERR_INVALID,
                       "rig map %zu: handle %d / joint %d out of range (%zu handles, %zu joints)", e,
                       (int)m->handle, (int)m->joint, rig->n_handles, n_joints);
@@ -182,8 +182,16 @@ void km_retarget_push(km_retarget *r, const double *joints, double *handle_targe
         const km_rig_map *m = &r->maps[e];
         const double *p = joints + 3 * (size_t)m->joint, *p0 = r->ref + 3 * (size_t)m->joint;
         ok = valid3(p) && valid3(p0);
+        double root[3] = {0, 0, 0};
+        if (ok && m->relative_to > 0) { /* root-relative: subtract the reference's motion */
+          const double *q = joints + 3 * (size_t)(m->relative_to - 1),
+                       *q0 = r->ref + 3 * (size_t)(m->relative_to - 1);
+          ok = valid3(q) && valid3(q0);
+          for (int c = 0; ok && c < 3; ++c)
+            root[c] = q[c] - q0[c];
+        }
         for (int c = 0; ok && c < 3; ++c)
-          if (m->axes & (1u << c)) d[c] += m->scale * (p[c] - p0[c]);
+          if (m->axes & (1u << c)) d[c] += m->scale * (p[c] - p0[c] - root[c]);
       }
       if (!ok) continue; /* a joint is not valid: the handle keeps its last target */
       for (int c = 0; c < 3; ++c)

@@ -403,6 +403,29 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
                     name, mi, mh->valuestring, mj->valuestring);
       goto done;
     }
+    const cJSON *mr = cJSON_GetObjectItemCaseSensitive(m, "relative_to");
+    if (!mr) mr = cJSON_GetObjectItemCaseSensitive(root, "relative_to");
+    if (mr) {
+      int ridx = -2;
+      if (cJSON_IsString(mr) && !mr->valuestring[0]) {
+        ridx = -1;
+      } else if (cJSON_IsString(mr) && out->skeleton == KM_RIG_KINECT1) {
+        ridx = km_kinect1_joint_index(mr->valuestring);
+        if (ridx < 0) ridx = -2;
+      } else if (cJSON_IsString(mr)) {
+        for (size_t k = 0; k < n_joint_names && ridx < 0; ++k)
+          if (joint_names[k] && strcmp(joint_names[k], mr->valuestring) == 0) ridx = (int)k;
+      }
+      if (ridx == -2) {
+        st = km__fail(err, KM_ERR_PARSE,
+                      "%s: map[%zu] (handle '%s', joint '%s'): \"relative_to\" must name a "
+                      "%s joint (or be \"\" for absolute motion)",
+                      name, mi, mh->valuestring, mj->valuestring,
+                      out->skeleton == KM_RIG_KINECT1 ? "Kinect v1" : "take");
+        goto done;
+      }
+      rm->relative_to = ridx + 1;
+    }
     rm->scale = 1.0;
     const cJSON *ms = cJSON_GetObjectItemCaseSensitive(m, "scale");
     if (ms && !json_finite(ms, &rm->scale)) {
