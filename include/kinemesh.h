@@ -706,7 +706,8 @@ void km_filter_free(km_filter **f);
  *            bone_slack (once 5 lengths were seen). */
 typedef struct km_glitch_options {
   double fps;            /* frames per second of the pushed frames. 0: 30 */
-  double max_speed;      /* m/s. 0: 8 (a 0.6 m one-frame jump at 30 fps is 18 m/s); < 0: off */
+  double max_speed;      /* m/s. 0: 12 (a fast punch or kick peaks near 10 m/s; a 0.6 m
+                            one-frame jump at 30 fps is 18 m/s); < 0: off */
   double bone_tolerance; /* relative. 0: 0.4; < 0: no bone test */
   double bone_slack;     /* metres added to the bone tolerance (short, noisy bones). 0: 0.04 */
   int refound_frames;    /* 0: 1; < 0: none */
@@ -750,6 +751,7 @@ void km_glitch_free(km_glitch **g);
  *   "filter": {"smoothing": 0.5, "trend": 0.5, "prediction": 0, "jitter_radius": 0,
  *              "max_deviation": 0,
  *              "kind": "holt" | "one_euro", "min_cutoff": 1.5, "beta": 1.0, "d_cutoff": 1.0} }
+ * "floor": true keeps every handle vertex above the rest floor (km_retarget_options.floor).
  * "relative_to" names a joint whose displacement is subtracted from the mapped joint's
  * (root-relative motion: the same as a second entry with scale -1 on that joint).
  * Other keys are ignored. "vertex"+"radius" takes every vertex whose shortest path along mesh
@@ -791,6 +793,7 @@ typedef struct km_rig {
   km_rig_map *maps;
   size_t n_maps;
   km_filter_options filter;
+  bool floor; /* ---- issue 12: "floor": true, see km_retarget_options.floor */
 } km_rig;
 
 /* Parses a rig file and resolves its handles on a mesh.
@@ -831,6 +834,9 @@ void km_rig_free(km_rig *rig);
 #define KM_KINECT1_SPAN_OF_STATURE 0.91
 typedef struct km_retarget_options {
   double scale; /* performer-to-character factor s; 0: automatic (above) */
+  /* ---- issue 12: floor constraint */
+  bool floor; /* no handle vertex goes below the rest mesh's lowest y (the rest floor): a
+                 handle's y displacement is clamped from below. Also on when rig->floor */
 } km_retarget_options;
 
 typedef struct km_retarget km_retarget;

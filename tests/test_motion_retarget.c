@@ -378,6 +378,28 @@ static void test_relative_to(void) {
   CHECK_NEAR(T[3], c[3] + 0.5, 1e-12); /* foot: absolute */
   km_retarget_free(&r);
   km_rig_free(&rig);
+  /* "floor": a foot pushed 0.3 m down stops at the rest floor; lifted, it moves freely */
+  snprintf(json, sizeof json,
+           "{\"floor\":true,\"handles\":[{\"name\":\"foot\",\"vertices\":[%d]}],"
+           "\"map\":[{\"handle\":\"foot\",\"joint\":\"FootRight\"}]}",
+           vid(8, 0));
+  CHECK_OK(parse(json, &m, &rig));
+  CHECK(rig.floor);
+  CHECK_OK(km_retarget_create(&rig, &m, KM_KINECT1_JOINTS, &o, &r, KM_E));
+  c = km_retarget_rest_centroids(r);
+  double lowest = INFINITY;
+  for (size_t v = 0; v < m.n_vertices; ++v)
+    lowest = fmin(lowest, m.V[3 * v + 1]);
+  standing(J);
+  km_retarget_push(r, J, T);
+  J[3 * 19 + 1] -= 0.3;
+  km_retarget_push(r, J, T);
+  CHECK_NEAR(T[1], lowest, 1e-12);
+  J[3 * 19 + 1] += 0.5;
+  km_retarget_push(r, J, T);
+  CHECK_NEAR(T[1], c[1] + 0.2, 1e-12);
+  km_retarget_free(&r);
+  km_rig_free(&rig);
   snprintf(json, sizeof json,
            "{\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
            "\"map\":[{\"handle\":\"h\",\"joint\":\"Head\",\"relative_to\":\"Hips\"}]}");

@@ -46,7 +46,7 @@ km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_gli
   *out = NULL;
   km_glitch_options o = opt ? *opt : (km_glitch_options){0};
   double fps = o.fps == 0 ? 30.0 : o.fps;
-  double speed = o.max_speed == 0 ? 8.0 : o.max_speed;
+  double speed = o.max_speed == 0 ? 12.0 : o.max_speed;
   double tol = o.bone_tolerance == 0 ? 0.4 : o.bone_tolerance;
   double slack = o.bone_slack == 0 ? 0.04 : o.bone_slack;
   if (!(fps > 0) || !isfinite(fps) || !isfinite(speed) || !isfinite(tol) || !isfinite(slack) ||

@@ -18,6 +18,7 @@ struct km_retarget {
   bool auto_scale;
   double scale; /* NaN while auto and unknown */
   double mesh_height;
+  double *floor_dy; /* n_handles: lowest allowed y displacement; NULL: no floor */
 };
 
 static int cmp_map(const void *a, const void *b) {
@@ -35,6 +36,7 @@ void km_retarget_free(km_retarget **r) {
   free(t->centroid);
   free(t->disp);
   free(t->ref);
+  free(t->floor_dy);
   free(t);
   *r = NULL;
 }
@@ -134,6 +136,18 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
   r->mesh_height = hi[1] - lo[1];
   /* A mesh lying flat in y (a sheet, a grid) has no height; its largest extent stands in. */
   if (!(r->mesh_height > 1e-9 * ext_max)) r->mesh_height = ext_max;
+  if (o.floor || rig->floor) {
+    if (!(r->floor_dy = km__malloc(r->n_handles, sizeof(double)))) {
+      km_retarget_free(&r);
+      return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
+    }
+    for (size_t h = 0; h < r->n_handles; ++h) {
+      double ymin = INFINITY;
+      for (size_t q = r->hv_start[h]; q < r->hv_start[h + 1]; ++q)
+        ymin = fmin(ymin, r->hv_rest[3 * q + 1]);
+      r->floor_dy[h] = lo[1] - ymin; /* <= 0 */
+    }
+  }
   r->kinect1 = rig->skeleton == KM_RIG_KINECT1;
   r->auto_scale = o.scale == 0;
   r->scale = r->auto_scale ? NAN : o.scale;
@@ -196,6 +210,7 @@ void km_retarget_push(km_retarget *r, const double *joints, double *handle_targe
       if (!ok) continue; /* a joint is not valid: the handle keeps its last target */
       for (int c = 0; c < 3; ++c)
         r->disp[3 * h + c] = r->scale * d[c];
+      if (r->floor_dy && r->disp[3 * h + 1] < r->floor_dy[h]) r->disp[3 * h + 1] = r->floor_dy[h];
     }
   }
   if (handle_targets)

@@ -437,6 +437,12 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     ++mi;
   }
   out->n_maps = mi;
+  const cJSON *jfl = cJSON_GetObjectItemCaseSensitive(root, "floor");
+  if (jfl && !cJSON_IsBool(jfl)) {
+    st = km__fail(err, KM_ERR_PARSE, "%s: \"floor\" must be true or false", name);
+    goto done;
+  }
+  out->floor = cJSON_IsTrue(jfl);
   st = parse_filter(name, cJSON_GetObjectItemCaseSensitive(root, "filter"), &out->filter, err);
 
 done:
