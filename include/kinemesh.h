@@ -752,6 +752,11 @@ void km_glitch_free(km_glitch **g);
  *              "max_deviation": 0,
  *              "kind": "holt" | "one_euro", "min_cutoff": 1.5, "beta": 1.0, "d_cutoff": 1.0} }
  * "floor": true keeps every handle vertex above the rest floor (km_retarget_options.floor).
+ * "root_motion": "rigid" (needs the rig-level "relative_to": the root) moves the whole mesh
+ * rigidly with the root: its translation and its heading (rotation about y of the line from
+ * the "heading" joints' left to right one, kinect1 default ["HipLeft", "HipRight"]), while the
+ * handles take the motion relative to the root, expressed in the root's heading frame.
+ * "root_motion": "none" (default) leaves the mesh where the handles put it.
  * "relative_to" names a joint whose displacement is subtracted from the mapped joint's
  * (root-relative motion: the same as a second entry with scale -1 on that joint).
  * Other keys are ignored. "vertex"+"radius" takes every vertex whose shortest path along mesh
@@ -794,6 +799,12 @@ typedef struct km_rig {
   size_t n_maps;
   km_filter_options filter;
   bool floor; /* ---- issue 12: "floor": true, see km_retarget_options.floor */
+  /* ---- issue 12: rigid root motion ("root_motion": "rigid") */
+  bool root_rigid;    /* the whole mesh follows the root rigidly, handles take the motion
+                         relative to it (see km_retarget_root_transform) */
+  int32_t root;       /* 1 + the root joint (the rig-level "relative_to"); 0: none */
+  int32_t heading[2]; /* 1 + the left and right joints whose line gives the heading ("heading":
+                         [left, right]; kinect1 default HipLeft, HipRight); 0: no heading */
 } km_rig;
 
 /* Parses a rig file and resolves its handles on a mesh.
@@ -863,6 +874,13 @@ size_t km_retarget_vertex_count(const km_retarget *r);
 const double *km_retarget_rest_centroids(const km_retarget *r);
 /* Returns the performer-to-character factor in use; NaN while auto and no valid frame seen. */
 double km_retarget_scale(const km_retarget *r);
+/* ---- issue 12: rigid root motion */
+/* The rigid motion of the last push for a rig with root_rigid: the deformed mesh V is to be
+ * placed at R (V - pivot) + pivot + t. R: 3x3 row-major rotation about y by the heading change
+ * since the reference frame; t: s * (root - root reference); pivot: the rest mesh's bounding
+ * box centre. Identity (R = I, t = 0) for other rigs or while the root is not valid. Returns
+ * whether the rig has rigid root motion. */
+bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], double pivot[3]);
 /* Forgets reference positions (and the auto scale): the next valid frame is the new rest. */
 void km_retarget_reset(km_retarget *r);
 /* Frees *r and sets it to NULL. */

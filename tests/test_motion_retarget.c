@@ -378,6 +378,19 @@ static void test_relative_to(void) {
   CHECK_NEAR(T[3], c[3] + 0.5, 1e-12); /* foot: absolute */
   km_retarget_free(&r);
   km_rig_free(&rig);
+  /* "root_motion": "rigid" takes the rig-level root and the Kinect hips as heading */
+  snprintf(json, sizeof json,
+           "{\"relative_to\":\"HipCenter\",\"root_motion\":\"rigid\","
+           "\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
+           "\"map\":[{\"handle\":\"h\",\"joint\":\"Head\"}]}");
+  CHECK_OK(parse(json, &m, &rig));
+  CHECK(rig.root_rigid && rig.root == 1 && rig.heading[0] == 13 && rig.heading[1] == 17);
+  km_rig_free(&rig);
+  snprintf(json, sizeof json,
+           "{\"root_motion\":\"rigid\",\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
+           "\"map\":[{\"handle\":\"h\",\"joint\":\"Head\"}]}");
+  CHECK_STATUS(parse(json, &m, &rig), KM_ERR_PARSE);
+  CHECK(strstr(km_test_err.message, "puppet.rig.json") && strstr(km_test_err.message, "relative_to"));
   /* "floor": a foot pushed 0.3 m down stops at the rest floor; lifted, it moves freely */
   snprintf(json, sizeof json,
            "{\"floor\":true,\"handles\":[{\"name\":\"foot\",\"vertices\":[%d]}],"

@@ -470,6 +470,61 @@ static void test_spike_rejected(const fixture *fx) {
   km_take_free(&t);
 }
 
+/* Issue 12: "root_motion": "rigid" with "relative_to": "HipCenter": a performer who only
+ * walks and turns (the skeleton moved rigidly: 90 degrees about y and 0.3 m) moves the mesh
+ * rigidly (rest mesh rotated about its box centre and translated by s * 0.3 m), unstretched. */
+static void test_root_rigid(const fixture *fx) {
+  km_rig rig = fx->rig;
+  rig.maps = malloc(rig.n_maps * sizeof *rig.maps);
+  memcpy(rig.maps, fx->rig.maps, rig.n_maps * sizeof *rig.maps);
+  for (size_t e = 0; e < rig.n_maps; ++e)
+    rig.maps[e].relative_to = 1; /* HipCenter */
+  rig.root_rigid = true;
+  rig.root = 1;
+  rig.heading[0] = 1 + km_kinect1_joint_index("HipLeft");
+  rig.heading[1] = 1 + km_kinect1_joint_index("HipRight");
+  km_filter_options raw = {.smoothing = KM_FILTER_ZERO, .trend = KM_FILTER_ZERO};
+  km_puppetry_options o = {0};
+  o.filter = &raw;
+  o.no_glitch = true;
+  km_puppetry *p = NULL;
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &rig, NULL, KM_KINECT1_JOINTS, &o, &p, NULL, KM_E));
+  free(rig.maps);
+  if (!p) return;
+  size_t nv = fx->c.mesh.n_vertices;
+  double *V = malloc(sizeof(double) * 3 * nv), J[3 * KM_KINECT1_JOINTS];
+  const double *J0 = fx->c.skeleton.rest;
+  CHECK_OK(km_puppetry_push(p, J0, V, KM_E));
+  const double move[3] = {0.3, 0, 0.2};
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j) { /* R_y(90): (x, z) -> (z, -x) about the hips */
+    double w[3] = {J0[3 * j] - J0[0], J0[3 * j + 1] - J0[1], J0[3 * j + 2] - J0[2]};
+    J[3 * j] = J0[0] + w[2] + move[0];
+    J[3 * j + 1] = J0[1] + w[1] + move[1];
+    J[3 * j + 2] = J0[2] - w[0] + move[2];
+  }
+  for (int f = 0; f < 3; ++f)
+    CHECK_OK(km_puppetry_push(p, J, V, KM_E));
+  double s = km_puppetry_scale(p), diag = km_bbox_diagonal(fx->c.mesh.V, nv);
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t v = 0; v < nv; ++v)
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = fmin(lo[d], fx->c.mesh.V[3 * v + d]);
+      hi[d] = fmax(hi[d], fx->c.mesh.V[3 * v + d]);
+    }
+  double worst = 0;
+  for (size_t v = 0; v < nv; ++v) {
+    const double *x = fx->c.mesh.V + 3 * v;
+    double w[3] = {x[0] - 0.5 * (lo[0] + hi[0]), x[1], x[2] - 0.5 * (lo[2] + hi[2])};
+    double e[3] = {0.5 * (lo[0] + hi[0]) + w[2] + s * move[0], w[1] + s * move[1],
+                   0.5 * (lo[2] + hi[2]) - w[0] + s * move[2]};
+    for (int d = 0; d < 3; ++d)
+      worst = fmax(worst, fabs(V[3 * v + d] - e[d]));
+  }
+  CHECK_MSG(worst < 1e-6 * diag, "rigid root motion: off by %g (diag %g)", worst, diag);
+  free(V);
+  km_puppetry_free(&p);
+}
+
 int main(void) {
   if (!mkdtemp(g_dir)) {
     perror("mkdtemp");
@@ -483,6 +538,7 @@ int main(void) {
     test_set_rig(&fx);
     test_motion_read(&fx);
     test_spike_rejected(&fx);
+    test_root_rigid(&fx);
   }
   fixture_free(&fx);
   char cmd[128];

@@ -19,6 +19,12 @@ struct km_retarget {
   double scale; /* NaN while auto and unknown */
   double mesh_height;
   double *floor_dy; /* n_handles: lowest allowed y displacement; NULL: no floor */
+  /* rigid root motion */
+  bool rigid;
+  int32_t root, hl, hr; /* joint indices; hl/hr -1: no heading */
+  double pivot[3];
+  double R[9], t[3];   /* of the last push */
+  double cos_h, sin_h; /* heading change of the last push */
 };
 
 static int cmp_map(const void *a, const void *b) {
@@ -47,6 +53,11 @@ void km_retarget_reset(km_retarget *r) {
     r->ref[i] = NAN;
   memset(r->disp, 0, 3 * r->n_handles * sizeof(double));
   if (r->auto_scale) r->scale = NAN;
+  memset(r->R, 0, sizeof r->R);
+  r->R[0] = r->R[4] = r->R[8] = 1;
+  memset(r->t, 0, sizeof r->t);
+  r->cos_h = 1;
+  r->sin_h = 0;
 }
 
 km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_joints,
@@ -148,6 +159,20 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       r->floor_dy[h] = lo[1] - ymin; /* <= 0 */
     }
   }
+  if (rig->root_rigid) {
+    if (rig->root < 1 || (size_t)rig->root > n_joints || rig->heading[0] < 0 ||
+        (size_t)rig->heading[0] > n_joints || rig->heading[1] < 0 ||
+        (size_t)rig->heading[1] > n_joints) {
+      km_retarget_free(&r);
+      return km__fail(err, KM_ERR_INVALID, "rigid root motion: root or heading joint out of range");
+    }
+    r->rigid = true;
+    r->root = rig->root - 1;
+    r->hl = rig->heading[0] && rig->heading[1] ? rig->heading[0] - 1 : -1;
+    r->hr = rig->heading[0] && rig->heading[1] ? rig->heading[1] - 1 : -1;
+    for (int d = 0; d < 3; ++d)
+      r->pivot[d] = 0.5 * (lo[d] + hi[d]);
+  }
   r->kinect1 = rig->skeleton == KM_RIG_KINECT1;
   r->auto_scale = o.scale == 0;
   r->scale = r->auto_scale ? NAN : o.scale;
@@ -186,6 +211,26 @@ void km_retarget_push(km_retarget *r, const double *joints, double *handle_targe
     double h = skeleton_height(r, joints);
     if (h > 1e-6) r->scale = r->mesh_height / h;
   }
+  if (r->rigid && isfinite(r->scale)) {
+    const double *q = joints + 3 * (size_t)r->root, *q0 = r->ref + 3 * (size_t)r->root;
+    if (valid3(q) && valid3(q0)) {
+      if (r->hl >= 0) {
+        const double *a = joints + 3 * (size_t)r->hl, *b = joints + 3 * (size_t)r->hr;
+        const double *a0 = r->ref + 3 * (size_t)r->hl, *b0 = r->ref + 3 * (size_t)r->hr;
+        if (valid3(a) && valid3(b) && valid3(a0) && valid3(b0)) {
+          /* R_y(phi) takes (1,0,0) to (cos phi, 0, -sin phi): a vector's angle is atan2(-z, x) */
+          double phi = atan2(-(b[2] - a[2]), b[0] - a[0]) - atan2(-(b0[2] - a0[2]), b0[0] - a0[0]);
+          r->cos_h = cos(phi);
+          r->sin_h = sin(phi);
+        }
+      }
+      double c = r->cos_h, sn = r->sin_h;
+      double R[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
+      memcpy(r->R, R, sizeof R);
+      for (int d = 0; d < 3; ++d)
+        r->t[d] = r->scale * (q[d] - q0[d]);
+    }
+  }
   if (isfinite(r->scale)) {
     for (size_t h = 0; h < r->n_handles; ++h) {
       size_t a = r->map_start[h], b = r->map_start[h + 1];
@@ -204,8 +249,19 @@ void km_retarget_push(km_retarget *r, const double *joints, double *handle_targe
           for (int c = 0; ok && c < 3; ++c)
             root[c] = q[c] - q0[c];
         }
+        double rel[3] = {p[0] - p0[0] - root[0], p[1] - p0[1] - root[1], p[2] - p0[2] - root[2]};
+        if (ok && r->rigid && m->relative_to > 0) {
+          /* in the root's heading frame: R^T (p - q) - (p0 - q0) */
+          const double *q = joints + 3 * (size_t)(m->relative_to - 1),
+                       *q0 = r->ref + 3 * (size_t)(m->relative_to - 1);
+          double w[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+          double c = r->cos_h, sn = r->sin_h;
+          rel[0] = c * w[0] - sn * w[2] - (p0[0] - q0[0]);
+          rel[1] = w[1] - (p0[1] - q0[1]);
+          rel[2] = sn * w[0] + c * w[2] - (p0[2] - q0[2]);
+        }
         for (int c = 0; ok && c < 3; ++c)
-          if (m->axes & (1u << c)) d[c] += m->scale * (p[c] - p0[c] - root[c]);
+          if (m->axes & (1u << c)) d[c] += m->scale * rel[c];
       }
       if (!ok) continue; /* a joint is not valid: the handle keeps its last target */
       for (int c = 0; c < 3; ++c)
@@ -228,3 +284,10 @@ void km_retarget_vertex_targets(const km_retarget *r, double *out) {
 size_t km_retarget_vertex_count(const km_retarget *r) { return r->n_hv; }
 const double *km_retarget_rest_centroids(const km_retarget *r) { return r->centroid; }
 double km_retarget_scale(const km_retarget *r) { return r->scale; }
+
+bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], double pivot[3]) {
+  if (R) memcpy(R, r->R, sizeof r->R);
+  if (t) memcpy(t, r->t, sizeof r->t);
+  if (pivot) memcpy(pivot, r->pivot, sizeof r->pivot);
+  return r->rigid;
+}

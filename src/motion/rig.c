@@ -437,6 +437,60 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     ++mi;
   }
   out->n_maps = mi;
+  {
+    const cJSON *jrm = cJSON_GetObjectItemCaseSensitive(root, "root_motion");
+    if (jrm && !(cJSON_IsString(jrm) && (!strcmp(jrm->valuestring, "rigid") ||
+                                          !strcmp(jrm->valuestring, "none")))) {
+      st = km__fail(err, KM_ERR_PARSE, "%s: \"root_motion\": expected \"rigid\" or \"none\"",
+                    name);
+      goto done;
+    }
+    out->root_rigid = jrm && !strcmp(jrm->valuestring, "rigid");
+    const cJSON *jrt = cJSON_GetObjectItemCaseSensitive(root, "relative_to");
+    int32_t ids[3] = {0, 0, 0};
+    const cJSON *jhd = cJSON_GetObjectItemCaseSensitive(root, "heading");
+    const char *want[3] = {cJSON_IsString(jrt) ? jrt->valuestring : NULL, NULL, NULL};
+    if (jhd) {
+      if (!cJSON_IsArray(jhd) || cJSON_GetArraySize(jhd) != 2 ||
+          !cJSON_IsString(cJSON_GetArrayItem(jhd, 0)) ||
+          !cJSON_IsString(cJSON_GetArrayItem(jhd, 1))) {
+        st = km__fail(err, KM_ERR_PARSE,
+                      "%s: \"heading\": expected two joint names [left, right]", name);
+        goto done;
+      }
+      want[1] = cJSON_GetArrayItem(jhd, 0)->valuestring;
+      want[2] = cJSON_GetArrayItem(jhd, 1)->valuestring;
+    } else if (out->skeleton == KM_RIG_KINECT1) {
+      want[1] = "HipLeft";
+      want[2] = "HipRight";
+    }
+    for (int k = 0; k < 3; ++k) {
+      if (!want[k] || !want[k][0]) continue;
+      int idx = -1;
+      if (out->skeleton == KM_RIG_KINECT1)
+        idx = km_kinect1_joint_index(want[k]);
+      else
+        for (size_t q = 0; q < n_joint_names && idx < 0; ++q)
+          if (joint_names[q] && !strcmp(joint_names[q], want[k])) idx = (int)q;
+      if (idx < 0) {
+        st = km__fail(err, KM_ERR_PARSE, "%s: %s: unknown %s joint '%s'", name,
+                      k ? "\"heading\"" : "\"relative_to\"",
+                      out->skeleton == KM_RIG_KINECT1 ? "Kinect v1" : "take", want[k]);
+        goto done;
+      }
+      ids[k] = idx + 1;
+    }
+    if (out->root_rigid && !ids[0]) {
+      st = km__fail(err, KM_ERR_PARSE,
+                    "%s: \"root_motion\": \"rigid\" needs a rig-level \"relative_to\" naming "
+                    "the root joint (e.g. \"HipCenter\")",
+                    name);
+      goto done;
+    }
+    out->root = ids[0];
+    out->heading[0] = ids[1] && ids[2] ? ids[1] : 0;
+    out->heading[1] = ids[1] && ids[2] ? ids[2] : 0;
+  }
   const cJSON *jfl = cJSON_GetObjectItemCaseSensitive(root, "floor");
   if (jfl && !cJSON_IsBool(jfl)) {
     st = km__fail(err, KM_ERR_PARSE, "%s: \"floor\" must be true or false", name);

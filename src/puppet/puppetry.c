@@ -378,6 +378,15 @@ km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, 
   km_status s = p->opt.solver == KM_PUPPETRY_FULL ? km_arap_solve(p->arap, p->targets, V_out, err)
                                                   : km_puppet_solve(p->puppet, p->targets, V_out,
                                                                     err);
+  double R[9], tr[3], pv[3];
+  if (s == KM_OK && km_retarget_root_transform(p->rt, R, tr, pv)) {
+    /* rigid root motion: the deformed mesh (root-relative) follows the root as a whole */
+    for (size_t v = 0; v < p->rest->n_vertices; ++v) {
+      double *x = V_out + 3 * v, w[3] = {x[0] - pv[0], x[1] - pv[1], x[2] - pv[2]};
+      for (int a = 0; a < 3; ++a)
+        x[a] = R[3 * a] * w[0] + R[3 * a + 1] * w[1] + R[3 * a + 2] * w[2] + pv[a] + tr[a];
+    }
+  }
   double t3 = km_seconds();
   p->times.filter_ms = 1e3 * (t1 - t0);
   p->times.retarget_ms = 1e3 * (t2 - t1);
