@@ -752,6 +752,9 @@ void km_glitch_free(km_glitch **g);
  *              "max_deviation": 0,
  *              "kind": "holt" | "one_euro", "min_cutoff": 1.5, "beta": 1.0, "d_cutoff": 1.0} }
  * "floor": true keeps every handle vertex above the rest floor (km_retarget_options.floor).
+ * "rotate": true (rig level: every entry; or per map entry) makes the handle turn with the bone
+ * that ends at the entry's joint: the handle's vertices get rest + displacement rotated about
+ * the handle's centroid (the first rotating entry of a handle gives its rotation).
  * "root_motion": "rigid" (needs the rig-level "relative_to": the root) moves the whole mesh
  * rigidly with the root: its translation and its heading (rotation about y of the line from
  * the "heading" joints' left to right one, kinect1 default ["HipLeft", "HipRight"]), while the
@@ -789,6 +792,10 @@ typedef struct km_rig_map {
   int32_t relative_to; /* 0: the joint's own motion; else 1 + the index of a joint whose
                           motion is subtracted ("relative_to": "HipCenter"), so a walk's root
                           translation does not stretch the mesh */
+  /* ---- issue 12: handles that carry rotation */
+  bool rotate; /* "rotate": true: the handle also turns with the bone that ends at this joint
+                  (parent -> joint direction, relative to the reference frame; the shortest
+                  rotation, no twist). false (default): translation only, as in the paper */
 } km_rig_map;
 
 typedef struct km_rig {
@@ -848,6 +855,10 @@ typedef struct km_retarget_options {
   /* ---- issue 12: floor constraint */
   bool floor; /* no handle vertex goes below the rest mesh's lowest y (the rest floor): a
                  handle's y displacement is clamped from below. Also on when rig->floor */
+  /* ---- issue 12: rotating handles */
+  const int32_t *parents; /* #J joint parents (read at create only) for map entries with
+                             rotate; NULL: the Kinect v1 tree for kinect1 rigs, else such
+                             entries translate only */
 } km_retarget_options;
 
 typedef struct km_retarget km_retarget;
@@ -865,7 +876,8 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
  *   handle_targets  out: #H*3 handle centroid targets; may be NULL */
 void km_retarget_push(km_retarget *r, const double *joints, double *handle_targets);
 /* Per-vertex targets of the last push: for every handle in order, every vertex of it in
- * order, rest position + the handle's displacement.
+ * order, rest position + the handle's displacement (for a rotating handle: centroid +
+ * displacement + R (rest position - centroid)).
  *   out  out: km_retarget_vertex_count(r)*3 */
 void km_retarget_vertex_targets(const km_retarget *r, double *out);
 /* Returns the number of handle vertices (all handles together). */

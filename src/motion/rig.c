@@ -426,6 +426,15 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
       }
       rm->relative_to = ridx + 1;
     }
+    const cJSON *mrot = cJSON_GetObjectItemCaseSensitive(m, "rotate");
+    if (!mrot) mrot = cJSON_GetObjectItemCaseSensitive(root, "rotate");
+    if (mrot && !cJSON_IsBool(mrot)) {
+      st = km__fail(err, KM_ERR_PARSE,
+                    "%s: map[%zu] (handle '%s', joint '%s'): \"rotate\" must be true or false",
+                    name, mi, mh->valuestring, mj->valuestring);
+      goto done;
+    }
+    rm->rotate = cJSON_IsTrue(mrot);
     rm->scale = 1.0;
     const cJSON *ms = cJSON_GetObjectItemCaseSensitive(m, "scale");
     if (ms && !json_finite(ms, &rm->scale)) {

@@ -163,8 +163,10 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
       return s;
     }
   }
+  km_retarget_options ro = p->opt.retarget; /* rotating handles: bones in the rig's order */
+  if (!ro.parents && rig->skeleton != KM_RIG_KINECT1 && !r.col) ro.parents = p->parents_in;
   if ((s = km_filter_create(r.nj, &fo, &r.filter, err)) != KM_OK ||
-      (s = km_retarget_create(rig, p->rest, r.nj, &p->opt.retarget, &r.rt, err)) != KM_OK) {
+      (s = km_retarget_create(rig, p->rest, r.nj, &ro, &r.rt, err)) != KM_OK) {
     rig_state_free(&r);
     return s;
   }
@@ -298,6 +300,7 @@ km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig,
   p->opt.take_name = NULL;
   if (opt && opt->take_name && !(p->take_name = km__strdup(opt->take_name))) goto nomem;
   p->opt.joint_parents = NULL;
+  p->opt.retarget.parents = NULL; /* the pipeline's bones come from joint_parents */
   if (opt && opt->joint_parents) {
     if (!(p->parents_in = km__malloc(n_joints ? n_joints : 1, sizeof(int32_t)))) goto nomem;
     memcpy(p->parents_in, opt->joint_parents, n_joints * sizeof(int32_t));
