@@ -27,6 +27,7 @@ struct km_retarget {
   double cos_h, sin_h; /* heading change of the last push */
   /* rotating handles */
   int32_t *rot_joint, *rot_parent; /* n_handles; -1: translation only; NULL: none rotates */
+  int32_t *par;                    /* n_joints parents (-1 roots), for rotating handles */
   double *rot;                     /* n_handles*9 row-major, of the last valid frame */
 };
 
@@ -48,6 +49,7 @@ void km_retarget_free(km_retarget **r) {
   free(t->floor_dy);
   free(t->rot_joint);
   free(t->rot_parent);
+  free(t->par);
   free(t->rot);
   free(t);
   *r = NULL;
@@ -191,9 +193,16 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
     r->rot_joint = km__malloc(r->n_handles, sizeof(int32_t));
     r->rot_parent = km__malloc(r->n_handles, sizeof(int32_t));
     r->rot = km__malloc(r->n_handles, 9 * sizeof(double));
-    if (!r->rot_joint || !r->rot_parent || !r->rot) {
+    r->par = km__malloc(n_joints ? n_joints : 1, sizeof(int32_t));
+    if (!r->rot_joint || !r->rot_parent || !r->rot || !r->par) {
       km_retarget_free(&r);
       return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
+    }
+    for (size_t j = 0; j < n_joints; ++j) {
+      int32_t q = o.parents ? o.parents[j]
+                  : rig->skeleton == KM_RIG_KINECT1 ? km_kinect1_joint_parent((int)j)
+                                                      : -1;
+      r->par[j] = q >= 0 && (size_t)q < j ? q : -1;
     }
     for (size_t h = 0; h < r->n_handles; ++h) {
       r->rot_joint[h] = r->rot_parent[h] = -1;
@@ -344,6 +353,16 @@ static void update_rotations(km_retarget *r, const double *J) {
   for (size_t h = 0; h < r->n_handles; ++h) {
     int32_t j = r->rot_joint[h], q = r->rot_parent[h];
     if (j < 0) continue;
+    /* A short bone (a Kinect wrist -> hand, ankle -> foot: a few noisy centimetres) gives a
+     * jittery direction: the nearest ancestor at least 0.15 m away stands in. */
+    while (r->par[q] >= 0) {
+      const double *a = r->ref + 3 * (size_t)j, *b = r->ref + 3 * (size_t)q;
+      if (!valid3(a) || !valid3(b)) break;
+      double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                      (a[2] - b[2]) * (a[2] - b[2]));
+      if (l >= 0.15) break; /* metres of performer */
+      q = r->par[q];
+    }
     const double *p = J + 3 * (size_t)j, *pq = J + 3 * (size_t)q;
     const double *p0 = r->ref + 3 * (size_t)j, *q0 = r->ref + 3 * (size_t)q;
     if (!valid3(p) || !valid3(pq) || !valid3(p0) || !valid3(q0)) continue;
