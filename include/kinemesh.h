@@ -541,6 +541,15 @@ void km_take_free(km_take *t);
  *   Errors: KM_ERR_IO. */
 km_status km_take_read(const char *path, km_take *out, km_error *err);
 km_status km_take_write(const char *path, const km_take *t, km_error *err);
+/* ---- issue 12: resampling */
+/* The take resampled to fps: round(#frames * fps / in->fps) frames (at least 1), frame k at
+ * time k / fps, positions interpolated linearly between the neighbouring input frames (a
+ * missing neighbour: the nearer one's value, NaN when that is missing); the duration
+ * #frames / fps is kept. Names and parents are copied.
+ *   in   in: take with fps > 0
+ *   out  out: allocated take; free with km_take_free
+ * Errors: KM_ERR_INVALID (no frames, rates not positive). */
+km_status km_take_resample(const km_take *in, double fps, km_take *out, km_error *err);
 
 /* ---- motion formats */
 
@@ -627,13 +636,27 @@ km_status km_motion_read(const char *path, const km_motion_read_options *opt, km
 
 /* ---- filter */
 
+/* ---- issue 12: filter kinds */
+typedef enum km_filter_kind {
+  KM_FILTER_HOLT = 0, /* Holt double exponential smoothing with the Kinect SDK knobs */
+  KM_FILTER_ONE_EURO  /* One Euro filter (Casiez, Roussel & Vogel, CHI 2012) */
+} km_filter_kind;
+
 /* Holt double exponential smoothing of joint positions (Wu, Lu & Song 2012, eq. 4) with the
  * extra knobs of the Kinect SDK (NUI_TRANSFORM_SMOOTH_PARAMETERS). Per joint, with raw
  * sample x:
  *   x' = x, or lerp(prev_level, x, d/jitter_radius) when d = |x - prev_level| <= jitter_radius
- *   level = (1 - smoothing) x' + smoothing (prev_level + prev_trend)
+ *   level = (1 - smoothing) x' + smoothing (prev_level + prev_trend), then clamped per
+ *           coordinate between prev_level and x' (the trend may not carry the level past the
+ *           input after a fast move stops: the overshoot fix of issue 12)
  *   trend = trend_gain (level - prev_level) + (1 - trend_gain) prev_trend
- *   out   = level + prediction * trend, pulled back to within max_deviation of x.
+ *   out   = level + prediction * trend', pulled back to within max_deviation of x, where
+ *           trend' is the trend clamped per coordinate to the raw step x - prev_x (sign and
+ *           size), so a stopped joint is not predicted onward.
+ * One Euro (kind KM_FILTER_ONE_EURO), per joint with Te = 1/fps (times the frames since the
+ * last good sample): speed = lowpass(|x - prev_x| / Te, d_cutoff); cutoff = min_cutoff + beta
+ * speed; out = lowpass(x, cutoff), lowpass(x, fc) = prev + a (x - prev), a = 1/(1 + 1/(2 pi fc
+ * Te)). The Holt fields are ignored for it and vice versa.
  * So eq. 4's beta = 1 - smoothing and gamma = trend. The first good sample initialises
  * level = x, trend = 0 (eq. 4 with p^0 = p^1). */
 typedef struct km_filter_options {
@@ -644,6 +667,12 @@ typedef struct km_filter_options {
   double prediction;    /* frames of trend added to the output (Kinect fPrediction). 0: none */
   double jitter_radius; /* metres (Kinect fJitterRadius). 0: off */
   double max_deviation; /* metres (Kinect fMaxDeviationRadius). 0: off */
+  /* ---- issue 12: One Euro filter, overshoot clamp */
+  km_filter_kind kind;  /* 0: Holt (above); KM_FILTER_ONE_EURO: Casiez et al. 2012 */
+  double fps;           /* frames per second of the pushed frames (One Euro). 0: 30 */
+  double min_cutoff;    /* One Euro minimum cutoff, Hz. 0: 1.5 */
+  double beta;          /* One Euro speed coefficient, Hz per m/s. 0: 1.0 */
+  double d_cutoff;      /* One Euro cutoff of the speed estimate, Hz. 0: 1.0 */
 } km_filter_options;
 #define KM_FILTER_ZERO (-1.0)
 
@@ -663,6 +692,51 @@ void km_filter_reset(km_filter *f);
 /* Frees *f and sets it to NULL. */
 void km_filter_free(km_filter **f);
 
+/* ---- issue 12: glitch rejection (before the filter) */
+
+/* Tracker glitches become missing samples, so the filter after it holds / predicts instead
+ * of chasing them. Per joint and frame, in this order:
+ *   refound: a joint that comes back after missing frames stays missing for refound_frames
+ *            more frames (trackers re-acquire a lost joint at a wrong place first);
+ *   speed:   the sample is farther than max_speed / fps * k from the joint's last accepted
+ *            sample, k = frames since it (so a joint that really moved is re-acquired after a
+ *            few frames: the allowance grows while it is rejected);
+ *   bone:    the bone from its parent (accepted this frame) departs from the running median
+ *            of the bone's accepted lengths (last 31) by more than bone_tolerance * median +
+ *            bone_slack (once 5 lengths were seen). */
+typedef struct km_glitch_options {
+  double fps;            /* frames per second of the pushed frames. 0: 30 */
+  double max_speed;      /* m/s. 0: 12 (a fast punch or kick peaks near 10 m/s; a 0.6 m
+                            one-frame jump at 30 fps is 18 m/s); < 0: off */
+  double bone_tolerance; /* relative. 0: 0.4; < 0: no bone test */
+  double bone_slack;     /* metres added to the bone tolerance (short, noisy bones). 0: 0.04 */
+  int refound_frames;    /* 0: 1; < 0: none */
+} km_glitch_options;
+typedef struct km_glitch_stats {
+  size_t frames;   /* frames pushed */
+  size_t samples;  /* joint samples that were present (not NaN) */
+  size_t missing;  /* joint samples that were NaN already */
+  size_t rejected; /* present samples turned missing (the sum of the three reasons) */
+  size_t refound, speed, bone; /* rejections by reason */
+} km_glitch_stats;
+typedef struct km_glitch km_glitch;
+/* Creates a glitch rejector for #J = n_joints joints.
+ *   parents  in: #J parent indices (-1 roots, parents[j] < j) for the bone test; may be NULL
+ *            (no bone test)
+ *   opt      in: may be NULL (defaults)
+ *   out      out: allocated; free with km_glitch_free
+ * Errors: KM_ERR_INVALID for bad options or parents. */
+km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_glitch_options *opt,
+                           km_glitch **out, km_error *err);
+/* One frame: raw #J*3 in, clean #J*3 out (rejected joints NaN); clean may alias raw. */
+void km_glitch_push(km_glitch *g, const double *raw, double *clean);
+/* Counts since create / reset. */
+void km_glitch_stats_get(const km_glitch *g, km_glitch_stats *out);
+/* Forgets history and counts. */
+void km_glitch_reset(km_glitch *g);
+/* Frees *g and sets it to NULL. */
+void km_glitch_free(km_glitch **g);
+
 /* ---- rig */
 
 /* Puppetry rig (JSON):
@@ -670,9 +744,24 @@ void km_filter_free(km_filter **f);
  *   "handles": [ {"name": "head", "vertex": 1234, "radius": 0.05},  geodesic ball
  *                {"name": "tail", "vertices": [10, 11, 12]},        explicit list
  *                {"name": "base", "center": [0, 0, 0], "radius": 0.1} ],  Euclidean ball
- *   "map": [ {"handle": "head", "joint": "Head", "axes": "xyz", "scale": 1.0} ],
+ *   "relative_to": "HipCenter",                          (optional, every map entry)
+ *   "map": [ {"handle": "head", "joint": "Head", "axes": "xyz", "scale": 1.0,
+ *             "relative_to": "HipCenter"} ],              (optional, overrides the rig's;
+ *                                                          "" = absolute)
  *   "filter": {"smoothing": 0.5, "trend": 0.5, "prediction": 0, "jitter_radius": 0,
- *              "max_deviation": 0} }
+ *              "max_deviation": 0,
+ *              "kind": "holt" | "one_euro", "min_cutoff": 1.5, "beta": 1.0, "d_cutoff": 1.0} }
+ * "floor": true keeps every handle vertex above the rest floor (km_retarget_options.floor).
+ * "rotate": true (rig level: every entry; or per map entry) makes the handle turn with the bone
+ * that ends at the entry's joint: the handle's vertices get rest + displacement rotated about
+ * the handle's centroid (the first rotating entry of a handle gives its rotation).
+ * "root_motion": "rigid" (needs the rig-level "relative_to": the root) moves the whole mesh
+ * rigidly with the root: its translation and its heading (rotation about y of the line from
+ * the "heading" joints' left to right one, kinect1 default ["HipLeft", "HipRight"]), while the
+ * handles take the motion relative to the root, expressed in the root's heading frame.
+ * "root_motion": "none" (default) leaves the mesh where the handles put it.
+ * "relative_to" names a joint whose displacement is subtracted from the mapped joint's
+ * (root-relative motion: the same as a second entry with scale -1 on that joint).
  * Other keys are ignored. "vertex"+"radius" takes every vertex whose shortest path along mesh
  * edges from the seed is <= radius (Dijkstra, so it stays on the seed's connected region and
  * does not jump to a nearby other limb; radius 0 or absent: the seed alone; a mesh without
@@ -699,6 +788,14 @@ typedef struct km_rig_map {
   int32_t joint;  /* index into the take's joints (KM_KINECT1 order for kinect1) */
   uint32_t axes;  /* KM_AXIS_* mask of the displacement components kept */
   double scale;   /* per-map factor on top of the performer-to-character scale */
+  /* ---- issue 12: root-relative motion */
+  int32_t relative_to; /* 0: the joint's own motion; else 1 + the index of a joint whose
+                          motion is subtracted ("relative_to": "HipCenter"), so a walk's root
+                          translation does not stretch the mesh */
+  /* ---- issue 12: handles that carry rotation */
+  bool rotate; /* "rotate": true: the handle also turns with the bone that ends at this joint
+                  (parent -> joint direction, relative to the reference frame; the shortest
+                  rotation, no twist). false (default): translation only, as in the paper */
 } km_rig_map;
 
 typedef struct km_rig {
@@ -708,6 +805,13 @@ typedef struct km_rig {
   km_rig_map *maps;
   size_t n_maps;
   km_filter_options filter;
+  bool floor; /* ---- issue 12: "floor": true, see km_retarget_options.floor */
+  /* ---- issue 12: rigid root motion ("root_motion": "rigid") */
+  bool root_rigid;    /* the whole mesh follows the root rigidly, handles take the motion
+                         relative to it (see km_retarget_root_transform) */
+  int32_t root;       /* 1 + the root joint (the rig-level "relative_to"); 0: none */
+  int32_t heading[2]; /* 1 + the left and right joints whose line gives the heading ("heading":
+                         [left, right]; kinect1 default HipLeft, HipRight); 0: no heading */
 } km_rig;
 
 /* Parses a rig file and resolves its handles on a mesh.
@@ -732,6 +836,7 @@ void km_rig_free(km_rig *rig);
 
 /* Retargeting (Wu, Lu & Song 2012, eq. 5-7). Per frame, handle h's target is
  *   target_h = rest_centroid_h + s * sum_{maps e on h} scale_e * mask_e (p_j(e) - p_j(e)^0)
+ * (with relative_to r: (p_j - p_r) - (p_j^0 - p_r^0))
  * where p^0 is the joint's first valid (non-NaN) position. That is eq. 7 accumulated over
  * frames: H^t = M S^t with S^t the eq. 6 increments, and sum_t d^t telescopes to p^t - p^0; M
  * is stored sparsely as the map list (M_ij = scale_e, with the axis mask per entry). s maps
@@ -747,6 +852,13 @@ void km_rig_free(km_rig *rig);
 #define KM_KINECT1_SPAN_OF_STATURE 0.91
 typedef struct km_retarget_options {
   double scale; /* performer-to-character factor s; 0: automatic (above) */
+  /* ---- issue 12: floor constraint */
+  bool floor; /* no handle vertex goes below the rest mesh's lowest y (the rest floor): a
+                 handle's y displacement is clamped from below. Also on when rig->floor */
+  /* ---- issue 12: rotating handles */
+  const int32_t *parents; /* #J joint parents (read at create only) for map entries with
+                             rotate; NULL: the Kinect v1 tree for kinect1 rigs, else such
+                             entries translate only */
 } km_retarget_options;
 
 typedef struct km_retarget km_retarget;
@@ -764,7 +876,8 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
  *   handle_targets  out: #H*3 handle centroid targets; may be NULL */
 void km_retarget_push(km_retarget *r, const double *joints, double *handle_targets);
 /* Per-vertex targets of the last push: for every handle in order, every vertex of it in
- * order, rest position + the handle's displacement.
+ * order, rest position + the handle's displacement (for a rotating handle: centroid +
+ * displacement + R (rest position - centroid)).
  *   out  out: km_retarget_vertex_count(r)*3 */
 void km_retarget_vertex_targets(const km_retarget *r, double *out);
 /* Returns the number of handle vertices (all handles together). */
@@ -773,6 +886,13 @@ size_t km_retarget_vertex_count(const km_retarget *r);
 const double *km_retarget_rest_centroids(const km_retarget *r);
 /* Returns the performer-to-character factor in use; NaN while auto and no valid frame seen. */
 double km_retarget_scale(const km_retarget *r);
+/* ---- issue 12: rigid root motion */
+/* The rigid motion of the last push for a rig with root_rigid: the deformed mesh V is to be
+ * placed at R (V - pivot) + pivot + t. R: 3x3 row-major rotation about y by the heading change
+ * since the reference frame; t: s * (root - root reference); pivot: the rest mesh's bounding
+ * box centre. Identity (R = I, t = 0) for other rigs or while the root is not valid. Returns
+ * whether the rig has rigid root motion. */
+bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], double pivot[3]);
 /* Forgets reference positions (and the auto scale): the next valid frame is the new rest. */
 void km_retarget_reset(km_retarget *r);
 /* Frees *r and sets it to NULL. */
@@ -858,6 +978,10 @@ typedef struct km_anim_info {
   size_t faces; /* 0 for pc2 */
   double fps;
   double duration; /* seconds */
+  /* ---- issue 12: one timeline for every writer option */
+  size_t timeline_frames; /* frames of the animation's timeline: duration = (timeline_frames
+                             - 1) / fps wherever fps is known; = frames except for a glb
+                             written with key_every > 1 (frames counts its key frames) */
 } km_anim_info;
 /* Describes an animation file.
  *   path  in: .glb, .pc2 or a frame directory
@@ -1031,6 +1155,14 @@ typedef struct km_puppetry_options {
    * made with other parameters is used as built rather than rebuilt. */
   bool cache_parameters;
   const char *take_name; /* names the take in error messages; NULL: "the take" */
+  /* ---- issue 12: glitch rejection and frame rate */
+  double fps;                 /* frame rate of the pushed frames, for the glitch speed test
+                                 and the One Euro filter when their own fps is 0. 0: 30 */
+  km_glitch_options glitch;   /* rejection before the filter (km_glitch_create) */
+  bool no_glitch;             /* true: no glitch rejection (raw frames go to the filter) */
+  const int32_t *joint_parents; /* n_joints parents of the pushed columns, for the bone test
+                                   (copied); NULL: kinect1 rigs use the Kinect v1 bones, other
+                                   rigs get no bone test */
 } km_puppetry_options;
 
 typedef enum km_puppetry_model_source {
@@ -1083,7 +1215,8 @@ km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig,
  * rig stays in force. The rig is copied. */
 km_status km_puppetry_set_rig(km_puppetry *p, const km_rig *rig, km_error *err);
 /* One frame: joints n_joints*3 raw positions in the create-time column order (NaN = missing:
- * the joint holds its last filtered value); V_out #V*3 deformed positions. Does not allocate.
+ * the joint holds its last filtered value; a sample the glitch rejector refuses counts as
+ * missing); V_out #V*3 deformed positions. Does not allocate.
  * KM_ERR_INVALID when no rig is set; solver errors as km_puppet_solve / km_arap_solve. */
 km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, km_error *err);
 /* Forgets the filter history, the retarget's reference pose and auto scale, the first valid
@@ -1117,6 +1250,8 @@ const double *km_puppetry_rest_centroids(const km_puppetry *p);
 const double *km_puppetry_filtered_joints(const km_puppetry *p);
 const double *km_puppetry_reference_joints(const km_puppetry *p);
 const double *km_puppetry_last_joints(const km_puppetry *p);
+/* Glitch rejection counts since the current rig was set (or reset); zeroed when off. */
+void km_puppetry_glitch_stats(const km_puppetry *p, km_glitch_stats *out);
 /* The reduced model in use (NULL for the full solver); owned by the pipeline unless it was
  * given as options.model. */
 km_puppet *km_puppetry_model(const km_puppetry *p);

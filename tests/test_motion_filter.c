@@ -203,7 +203,135 @@ static void test_options(void) {
   }
 }
 
+/* Issue 12: One Euro keeps a constant exactly, tracks a ramp with a lag that shrinks as the
+ * speed term opens the cutoff, and is smoother than the input on noise. */
+static void test_one_euro(void) {
+  km_filter_options o = {.kind = KM_FILTER_ONE_EURO, .fps = 30};
+  km_filter *f = NULL;
+  CHECK_OK(km_filter_create(2, &o, &f, KM_E));
+  const double raw[6] = {0.25, -1.5, 3.0, 1e-3, 0.3, -0.7};
+  double out[6];
+  size_t diff = 0;
+  for (int t = 0; t < 100; ++t) {
+    km_filter_push(f, raw, out);
+    for (int k = 0; k < 6; ++k)
+      diff += out[k] != raw[k];
+  }
+  CHECK_MSG(diff == 0, "one euro: constant changed %zu values", diff);
+  km_filter_free(&f);
+  /* ramp at 1 m/s: the output follows, lag bounded and settled */
+  km_filter_options slow = o;
+  slow.beta = 1e-12; /* no speed adaptation: plain low-pass at min_cutoff */
+  km_filter *g = NULL;
+  CHECK_OK(km_filter_create(1, &o, &f, KM_E));
+  CHECK_OK(km_filter_create(1, &slow, &g, KM_E));
+  double lag = 0, lag_slow = 0, lag_prev = 0;
+  for (int t = 0; t < 120; ++t) {
+    double x[3] = {t / 30.0, 0, 0}, y[3], z[3];
+    km_filter_push(f, x, y);
+    km_filter_push(g, x, z);
+    CHECK(y[0] <= x[0] + 1e-12 && y[0] >= 0);
+    lag_prev = lag;
+    lag = x[0] - y[0];
+    lag_slow = x[0] - z[0];
+  }
+  CHECK_MSG(fabs(lag - lag_prev) < 1e-6, "one euro ramp lag not settled: %g vs %g", lag, lag_prev);
+  CHECK_MSG(lag < 0.1 && lag < lag_slow, "one euro ramp lag %g (without speed term %g)", lag,
+            lag_slow);
+  /* noise: smaller frame-to-frame steps than the input */
+  km_filter_reset(f);
+  double prev_in = 0, prev_out = 0, tv_in = 0, tv_out = 0;
+  for (int t = 0; t < 300; ++t) {
+    double x[3] = {0.01 * (uniform() - 0.5), 0, 0}, y[3];
+    km_filter_push(f, x, y);
+    if (t) {
+      tv_in += fabs(x[0] - prev_in);
+      tv_out += fabs(y[0] - prev_out);
+    }
+    prev_in = x[0];
+    prev_out = y[0];
+  }
+  CHECK_MSG(tv_out < 0.5 * tv_in, "one euro does not smooth noise: %g vs %g", tv_out, tv_in);
+  km_filter_free(&f);
+  km_filter_free(&g);
+  km_filter_options bad = {.kind = KM_FILTER_ONE_EURO, .min_cutoff = -1};
+  CHECK_STATUS(km_filter_create(1, &bad, &f, KM_E), KM_ERR_INVALID);
+}
+
+/* Issue 12: Holt no longer carries a joint past its input when a fast move stops. */
+static void test_holt_no_overshoot(void) {
+  for (int pred = 0; pred < 2; ++pred) {
+    km_filter_options o = {.smoothing = 0.5, .trend = 0.9, .prediction = pred};
+    km_filter *f = NULL;
+    CHECK_OK(km_filter_create(1, &o, &f, KM_E));
+    double worst = 0;
+    for (int t = 0; t < 60; ++t) {
+      double x[3] = {0, t < 10 ? -0.1 * t : -0.9, 0}, y[3]; /* a foot coming down, then stop */
+      km_filter_push(f, x, y);
+      /* prediction extrapolates while moving; once the input stops, nothing goes past it */
+      if (!pred || t > 10) worst = fmin(worst, y[1]);
+    }
+    CHECK_MSG(worst >= -0.9 - 1e-12, "Holt (prediction %d) overshoots the stop: %g below -0.9",
+              pred, -0.9 - worst);
+    km_filter_free(&f);
+  }
+}
+
+/* Issue 12: the glitch rejector turns a one-frame spike, a too-long bone and a re-found joint
+ * into missing samples, counts them, and lets a real move through after a few frames. */
+static void test_glitch(void) {
+  const int32_t parents[2] = {-1, 0};
+  km_glitch *g = NULL;
+  km_glitch_options o = {.fps = 30}; /* 12 m/s: 0.4 m per frame */
+  CHECK_OK(km_glitch_create(2, parents, &o, &g, KM_E));
+  double x[6], y[6];
+  for (int t = 0; t < 20; ++t) { /* a 0.3 m bone, slowly moving */
+    double a = 0.01 * t;
+    double v[6] = {a, 1, 0, a, 1.3, 0};
+    memcpy(x, v, sizeof v);
+    km_glitch_push(g, x, y);
+    CHECK(memcmp(x, y, sizeof x) == 0);
+  }
+  km_glitch_stats st;
+  km_glitch_stats_get(g, &st);
+  CHECK(st.rejected == 0 && st.samples == 40 && st.frames == 20);
+  x[4] += 0.6; /* spike on the child */
+  km_glitch_push(g, x, y);
+  CHECK(isnan(y[3]) && !isnan(y[0]));
+  x[4] -= 0.6;
+  km_glitch_push(g, x, y);
+  CHECK(!isnan(y[3]));
+  x[4] += 0.2; /* slow enough, but the bone grows by 67% */
+  km_glitch_push(g, x, y);
+  CHECK(isnan(y[3]));
+  x[4] -= 0.2;
+  double lost[6] = {x[0], x[1], x[2], NAN, NAN, NAN};
+  km_glitch_push(g, lost, y);
+  km_glitch_push(g, x, y); /* re-found: held one frame */
+  CHECK(isnan(y[3]));
+  km_glitch_push(g, x, y);
+  CHECK(!isnan(y[3]));
+  km_glitch_stats_get(g, &st);
+  CHECK_MSG(st.rejected == 3 && st.speed == 1 && st.bone == 1 && st.refound == 1 &&
+                st.missing == 1,
+            "stats: rejected %zu speed %zu bone %zu refound %zu missing %zu", st.rejected,
+            st.speed, st.bone, st.refound, st.missing);
+  /* a real 0.6 m relocation of the whole chain is accepted once the allowance has grown
+   * past it (2 frames x 0.4 m) */
+  for (int k = 0; k < 6; k += 3)
+    x[k] += 0.6;
+  km_glitch_push(g, x, y);
+  CHECK(isnan(y[0]));
+  km_glitch_push(g, x, y);
+  CHECK(!isnan(y[0]) && !isnan(y[3]));
+  km_glitch_free(&g);
+  CHECK(g == NULL);
+}
+
 int main(void) {
+  test_one_euro();
+  test_holt_no_overshoot();
+  test_glitch();
   test_constant();
   test_ramp();
   test_missing();

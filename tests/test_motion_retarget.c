@@ -348,7 +348,81 @@ static void test_pipeline(void) {
   km_take_free(&t);
 }
 
+/* Issue 12: "relative_to" subtracts a root joint's motion: a whole-body walk moves no handle;
+ * per entry it overrides the rig's, "" restores absolute motion; a bad name is an error. */
+static void test_relative_to(void) {
+  km_mesh m = legs_mesh();
+  km_rig rig;
+  char json[1024];
+  snprintf(json, sizeof json,
+           "{\"relative_to\":\"HipCenter\",\"handles\":[{\"name\":\"hand\",\"vertices\":[%d]},"
+           "{\"name\":\"foot\",\"vertices\":[%d]}],"
+           "\"map\":[{\"handle\":\"hand\",\"joint\":\"HandLeft\"},"
+           "{\"handle\":\"foot\",\"joint\":\"FootRight\",\"relative_to\":\"\"}]}",
+           vid(0, NY), vid(8, 0));
+  CHECK_OK(parse(json, &m, &rig));
+  CHECK(rig.n_maps == 2 && rig.maps[0].relative_to == 1 && rig.maps[1].relative_to == 0);
+  km_retarget *r = NULL;
+  km_retarget_options o = {.scale = 1};
+  CHECK_OK(km_retarget_create(&rig, &m, KM_KINECT1_JOINTS, &o, &r, KM_E));
+  double J[KM_KINECT1_JOINTS * 3], T[6];
+  standing(J);
+  km_retarget_push(r, J, T);
+  const double *c = km_retarget_rest_centroids(r);
+  for (int k = 0; k < 3 * KM_KINECT1_JOINTS; k += 3)
+    J[k] += 0.5; /* the performer walks 0.5 m along x */
+  J[3 * 7 + 1] += 0.1; /* and lifts the left hand 0.1 m */
+  km_retarget_push(r, J, T);
+  CHECK_NEAR(T[0], c[0], 1e-12); /* hand: relative to the hips, only the lift */
+  CHECK_NEAR(T[1], c[1] + 0.1, 1e-12);
+  CHECK_NEAR(T[3], c[3] + 0.5, 1e-12); /* foot: absolute */
+  km_retarget_free(&r);
+  km_rig_free(&rig);
+  /* "root_motion": "rigid" takes the rig-level root and the Kinect hips as heading */
+  snprintf(json, sizeof json,
+           "{\"relative_to\":\"HipCenter\",\"root_motion\":\"rigid\","
+           "\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
+           "\"map\":[{\"handle\":\"h\",\"joint\":\"Head\"}]}");
+  CHECK_OK(parse(json, &m, &rig));
+  CHECK(rig.root_rigid && rig.root == 1 && rig.heading[0] == 13 && rig.heading[1] == 17);
+  km_rig_free(&rig);
+  snprintf(json, sizeof json,
+           "{\"root_motion\":\"rigid\",\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
+           "\"map\":[{\"handle\":\"h\",\"joint\":\"Head\"}]}");
+  CHECK_STATUS(parse(json, &m, &rig), KM_ERR_PARSE);
+  CHECK(strstr(km_test_err.message, "puppet.rig.json") && strstr(km_test_err.message, "relative_to"));
+  /* "floor": a foot pushed 0.3 m down stops at the rest floor; lifted, it moves freely */
+  snprintf(json, sizeof json,
+           "{\"floor\":true,\"handles\":[{\"name\":\"foot\",\"vertices\":[%d]}],"
+           "\"map\":[{\"handle\":\"foot\",\"joint\":\"FootRight\"}]}",
+           vid(8, 0));
+  CHECK_OK(parse(json, &m, &rig));
+  CHECK(rig.floor);
+  CHECK_OK(km_retarget_create(&rig, &m, KM_KINECT1_JOINTS, &o, &r, KM_E));
+  c = km_retarget_rest_centroids(r);
+  double lowest = INFINITY;
+  for (size_t v = 0; v < m.n_vertices; ++v)
+    lowest = fmin(lowest, m.V[3 * v + 1]);
+  standing(J);
+  km_retarget_push(r, J, T);
+  J[3 * 19 + 1] -= 0.3;
+  km_retarget_push(r, J, T);
+  CHECK_NEAR(T[1], lowest, 1e-12);
+  J[3 * 19 + 1] += 0.5;
+  km_retarget_push(r, J, T);
+  CHECK_NEAR(T[1], c[1] + 0.2, 1e-12);
+  km_retarget_free(&r);
+  km_rig_free(&rig);
+  snprintf(json, sizeof json,
+           "{\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
+           "\"map\":[{\"handle\":\"h\",\"joint\":\"Head\",\"relative_to\":\"Hips\"}]}");
+  CHECK_STATUS(parse(json, &m, &rig), KM_ERR_PARSE);
+  CHECK(strstr(km_test_err.message, "puppet.rig.json") && strstr(km_test_err.message, "relative_to"));
+  free_mesh(&m);
+}
+
 int main(void) {
+  test_relative_to();
   test_rig_parse();
   test_rig_errors();
   test_retarget();

@@ -407,6 +407,124 @@ static void test_motion_read(const fixture *fx) {
   CHECK(km_motion_read(missing, NULL, &t, NULL, KM_E) != KM_OK && mentions(missing));
 }
 
+/* Issue 12: a 0.6 m one-frame spike on a hand is rejected before the filter: the mesh stays
+ * within 1% of the diagonal of the clean take's result (and without rejection it does not). */
+static void test_spike_rejected(const fixture *fx) {
+  km_take t = {0};
+  CHECK_OK(km_motion_generate(&fx->c.skeleton, KM_MOTION_WAVE, 60, &t, KM_E));
+  if (t.n_frames != 60) {
+    km_take_free(&t);
+    return;
+  }
+  size_t nv = fx->c.mesh.n_vertices, nf = t.n_frames, nj = t.n_joints;
+  double *clean = malloc(sizeof(double) * 3 * nv * nf), *spiked = malloc(sizeof(double) * 3 * nv * nf);
+  double *pos = malloc(sizeof(double) * 3 * nj * nf);
+  memcpy(pos, t.positions, sizeof(double) * 3 * nj * nf);
+  int hand = km_kinect1_joint_index("HandLeft");
+  pos[(30 * nj + (size_t)hand) * 3 + 1] += 0.6;
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t v = 0; v < nv; ++v)
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = fmin(lo[d], fx->c.mesh.V[3 * v + d]);
+      hi[d] = fmax(hi[d], fx->c.mesh.V[3 * v + d]);
+    }
+  double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                     (hi[2] - lo[2]) * (hi[2] - lo[2]));
+  for (int off = 0; off < 2; ++off) {
+    km_puppetry_options o = {0};
+    o.fps = t.fps;
+    o.no_glitch = off;
+    km_puppetry *p = NULL;
+    CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, nj, &o, &p, NULL, KM_E));
+    if (!p) break;
+    for (size_t f = 0; f < nf; ++f)
+      CHECK_OK(km_puppetry_push(p, t.positions + f * nj * 3, clean + f * 3 * nv, KM_E));
+    km_glitch_stats st0;
+    km_puppetry_glitch_stats(p, &st0);
+    km_puppetry_reset(p);
+    for (size_t f = 0; f < nf; ++f)
+      CHECK_OK(km_puppetry_push(p, pos + f * nj * 3, spiked + f * 3 * nv, KM_E));
+    km_glitch_stats st;
+    km_puppetry_glitch_stats(p, &st);
+    double worst = 0;
+    for (size_t f = 0; f < nf; ++f)
+      for (size_t v = 0; v < nv; ++v) {
+        const double *a = clean + (f * nv + v) * 3, *b = spiked + (f * nv + v) * 3;
+        worst = fmax(worst, sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                                 (a[2] - b[2]) * (a[2] - b[2])));
+      }
+    if (!off) {
+      CHECK_MSG(st0.rejected == 0, "clean take: %zu samples rejected", st0.rejected);
+      CHECK_MSG(st.rejected >= 1 && st.speed >= 1, "spike not counted (%zu rejected)",
+                st.rejected);
+      CHECK_MSG(worst <= 0.01 * diag, "spike moves the mesh %.4f (diag %.4f)", worst, diag);
+    } else {
+      CHECK_MSG(st.rejected == 0 && worst > 0.01 * diag,
+                "without rejection the spike should show (%.4f of diag %.4f)", worst, diag);
+    }
+    km_puppetry_free(&p);
+  }
+  free(clean);
+  free(spiked);
+  free(pos);
+  km_take_free(&t);
+}
+
+/* Issue 12: "root_motion": "rigid" with "relative_to": "HipCenter": a performer who only
+ * walks and turns (the skeleton moved rigidly: 90 degrees about y and 0.3 m) moves the mesh
+ * rigidly (rest mesh rotated about its box centre and translated by s * 0.3 m), unstretched. */
+static void test_root_rigid(const fixture *fx) {
+  km_rig rig = fx->rig;
+  rig.maps = malloc(rig.n_maps * sizeof *rig.maps);
+  memcpy(rig.maps, fx->rig.maps, rig.n_maps * sizeof *rig.maps);
+  for (size_t e = 0; e < rig.n_maps; ++e)
+    rig.maps[e].relative_to = 1; /* HipCenter */
+  rig.root_rigid = true;
+  rig.root = 1;
+  rig.heading[0] = 1 + km_kinect1_joint_index("HipLeft");
+  rig.heading[1] = 1 + km_kinect1_joint_index("HipRight");
+  km_filter_options raw = {.smoothing = KM_FILTER_ZERO, .trend = KM_FILTER_ZERO};
+  km_puppetry_options o = {0};
+  o.filter = &raw;
+  o.no_glitch = true;
+  km_puppetry *p = NULL;
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &rig, NULL, KM_KINECT1_JOINTS, &o, &p, NULL, KM_E));
+  free(rig.maps);
+  if (!p) return;
+  size_t nv = fx->c.mesh.n_vertices;
+  double *V = malloc(sizeof(double) * 3 * nv), J[3 * KM_KINECT1_JOINTS];
+  const double *J0 = fx->c.skeleton.rest;
+  CHECK_OK(km_puppetry_push(p, J0, V, KM_E));
+  const double move[3] = {0.3, 0, 0.2};
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j) { /* R_y(90): (x, z) -> (z, -x) about the hips */
+    double w[3] = {J0[3 * j] - J0[0], J0[3 * j + 1] - J0[1], J0[3 * j + 2] - J0[2]};
+    J[3 * j] = J0[0] + w[2] + move[0];
+    J[3 * j + 1] = J0[1] + w[1] + move[1];
+    J[3 * j + 2] = J0[2] - w[0] + move[2];
+  }
+  for (int f = 0; f < 3; ++f)
+    CHECK_OK(km_puppetry_push(p, J, V, KM_E));
+  double s = km_puppetry_scale(p), diag = km_bbox_diagonal(fx->c.mesh.V, nv);
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t v = 0; v < nv; ++v)
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = fmin(lo[d], fx->c.mesh.V[3 * v + d]);
+      hi[d] = fmax(hi[d], fx->c.mesh.V[3 * v + d]);
+    }
+  double worst = 0;
+  for (size_t v = 0; v < nv; ++v) {
+    const double *x = fx->c.mesh.V + 3 * v;
+    double w[3] = {x[0] - 0.5 * (lo[0] + hi[0]), x[1], x[2] - 0.5 * (lo[2] + hi[2])};
+    double e[3] = {0.5 * (lo[0] + hi[0]) + w[2] + s * move[0], w[1] + s * move[1],
+                   0.5 * (lo[2] + hi[2]) - w[0] + s * move[2]};
+    for (int d = 0; d < 3; ++d)
+      worst = fmax(worst, fabs(V[3 * v + d] - e[d]));
+  }
+  CHECK_MSG(worst < 1e-6 * diag, "rigid root motion: off by %g (diag %g)", worst, diag);
+  free(V);
+  km_puppetry_free(&p);
+}
+
 int main(void) {
   if (!mkdtemp(g_dir)) {
     perror("mkdtemp");
@@ -419,6 +537,8 @@ int main(void) {
     test_cache_policy(&fx);
     test_set_rig(&fx);
     test_motion_read(&fx);
+    test_spike_rejected(&fx);
+    test_root_rigid(&fx);
   }
   fixture_free(&fx);
   char cmd[128];

@@ -25,7 +25,8 @@ typedef struct stage_times {
 int km_cli_animate(int argc, char **argv) {
   const char *mesh_path = NULL, *rig_path = NULL, *motion = NULL, *cache = NULL, *out = NULL;
   const char *solver = NULL, *energy = NULL;
-  const char *frame_format = NULL;
+  const char *frame_format = NULL, *filter_kind = NULL;
+  bool no_glitch = false, floor_on = false;
   int iterations = 0, fields = 0, isolines = 0;
   double scale = 0, fps = 0;
   size_t key_every = 0;
@@ -46,8 +47,14 @@ int km_cli_animate(int argc, char **argv) {
        "isolines per field n_iso (default: the cache's when it has one, else 10)"},
       {"iterations", 0, KM_OPT_INT, &iterations, "rotation updates per frame (default 4)"},
       {"scale", 0, KM_OPT_DOUBLE, &scale, "performer-to-character scale (default: automatic)"},
-      {"fps", 0, KM_OPT_DOUBLE, &fps, "output frame rate (default: the take's)"},
+      {"fps", 0, KM_OPT_DOUBLE, &fps,
+       "output frame rate; the motion is resampled (default: the take's)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames"},
+      {"filter", 0, KM_OPT_STRING, &filter_kind,
+       "joint filter: holt or one_euro (default: the rig's \"filter\", else holt)"},
+      {"no-glitch", 0, KM_OPT_FLAG, &no_glitch,
+       "do not reject tracker glitches (jumps, bone-length outliers) before the filter"},
+      {"floor", 0, KM_OPT_FLAG, &floor_on, "keep every handle vertex above the rest floor"},
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
        "directory output: obj (default) or ply (binary) per frame"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory of per-frame meshes"},
@@ -88,13 +95,43 @@ int km_cli_animate(int argc, char **argv) {
     rc = km_cli_error("animate", "%s has no frames", motion);
     goto done;
   }
+  if (fps > 0 && fps != take.fps) { /* resample, do not relabel: the duration is kept */
+    km_take rs;
+    if (km_take_resample(&take, fps, &rs, &err) != KM_OK) goto fail;
+    km_take_free(&take);
+    take = rs;
+  }
   if (km_rig_read(rig_path ? rig_path : rig_default, &m, (const char *const *)take.joint_names,
                   take.n_joints, &rig, &err) != KM_OK)
     goto fail;
 
+  if (rig.n_maps == 0) { /* all anchors: a still animation nobody asked for */
+    rc = km_cli_error("animate",
+                      "%s: the rig's \"map\" is empty or absent, so every handle is an anchor and "
+                      "the mesh would not move; map handles to joints, e.g. {\"handle\": "
+                      "\"%s\", \"joint\": \"Head\"}",
+                      rig_path ? rig_path : rig_default, rig.n_handles ? rig.handles[0].name : "h");
+    goto done;
+  }
+  km_filter_options fo = rig.filter;
+  if (filter_kind) {
+    if (!strcmp(filter_kind, "holt")) {
+      fo.kind = KM_FILTER_HOLT;
+    } else if (!strcmp(filter_kind, "one_euro")) {
+      fo.kind = KM_FILTER_ONE_EURO;
+    } else {
+      rc = km_cli_error("animate", "--filter must be holt or one_euro, not '%s'", filter_kind);
+      goto done;
+    }
+  }
   km_puppetry_options o = {0};
+  if (filter_kind) o.filter = &fo;
+  o.no_glitch = no_glitch;
+  o.retarget.floor = floor_on;
   o.retarget.scale = scale;
   o.take_name = motion;
+  o.fps = take.fps;
+  o.joint_parents = take.parents;
   o.solver = full ? KM_PUPPETRY_FULL : KM_PUPPETRY_REDUCED;
   o.arap.iterations = iterations;
   const char *cpath = cache ? cache : cache_default;
@@ -147,15 +184,23 @@ int km_cli_animate(int argc, char **argv) {
   if (km_anim_writer_close(&w, &err) != KM_OK) goto fail;
   km_cli_progress_done();
   double m23 = km_cli_median(t23, take.n_frames), m4 = km_cli_median(t4, take.n_frames);
+  km_glitch_stats gs;
+  km_puppetry_glitch_stats(pl, &gs);
+  char glitch_line[160] = "";
+  if (!no_glitch)
+    snprintf(glitch_line, sizeof glitch_line,
+             "  glitches rejected: %zu of %zu joint samples (speed %zu, bone %zu, re-found %zu)\n",
+             gs.rejected, gs.samples, gs.speed, gs.bone, gs.refound);
   fprintf(stderr,
           "kinemesh animate: %zu frames, %zu vertices, %zu handles (%zu vertices), scale %.3f\n"
           "  %-22s %10s %12s %12s %12s\n"
           "  %-22s %10.3f %12.4f %12.3f %12.3f\n"
+          "%s"
           "-> %s\n",
           take.n_frames, m.n_vertices, rig.n_handles, n_hv, km_puppetry_scale(pl),
           full ? "stage (full ARAP)" : (loaded ? "stage (cache loaded)" : "stage (precomputed)"),
           full ? "t1 (s)" : (loaded ? "t~1 (s)" : "t1 (s)"), "t2,3 (ms)", "t4 (ms)", "tper (ms)",
-          "median per frame", pi.model_seconds, m23, m4, m23 + m4, out);
+          "median per frame", pi.model_seconds, m23, m4, m23 + m4, glitch_line, out);
   rc = KM_EXIT_OK;
   goto done;
 nomem:

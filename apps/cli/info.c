@@ -51,7 +51,9 @@ int km_cli_info(int argc, char **argv) {
       cJSON *o = cJSON_CreateObject();
       cJSON_AddStringToObject(o, "file", path);
       cJSON_AddStringToObject(o, "format", anim_format_name(ai.format));
-      cJSON_AddNumberToObject(o, "frames", (double)ai.frames);
+      cJSON_AddNumberToObject(o, "frames", (double)ai.timeline_frames);
+      if (ai.timeline_frames != ai.frames)
+        cJSON_AddNumberToObject(o, "key_frames", (double)ai.frames);
       cJSON_AddNumberToObject(o, "vertices", (double)ai.vertices);
       cJSON_AddNumberToObject(o, "faces", (double)ai.faces);
       cJSON_AddNumberToObject(o, "fps", ai.fps);
@@ -59,7 +61,8 @@ int km_cli_info(int argc, char **argv) {
       return km_cli_print_json("info", o);
     }
     printf("file        %s\nformat      %s\nframes      %zu\nvertices    %zu\nfaces       %zu\n",
-           path, anim_format_name(ai.format), ai.frames, ai.vertices, ai.faces);
+           path, anim_format_name(ai.format), ai.timeline_frames, ai.vertices, ai.faces);
+    if (ai.timeline_frames != ai.frames) printf("key frames  %zu\n", ai.frames);
     if (ai.fps > 0)
       printf("frame rate  %g fps\nduration    %.3f s\n", ai.fps, ai.duration);
     else

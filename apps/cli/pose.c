@@ -17,7 +17,7 @@ int km_cli_pose(int argc, char **argv) {
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames (default 1)"},
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <mesh stem>.rig.json)"},
       {"motion", 0, KM_OPT_STRING, &motion, "take (.json) with the rig's joint names"},
-      {"fps", 0, KM_OPT_DOUBLE, &fps, "frame rate of the output (default: the take's)"},
+      {"fps", 0, KM_OPT_DOUBLE, &fps, "frame rate of the output; the motion is resampled (default: the take's)"},
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
        "directory output: obj (default) or ply (binary) per frame"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory"},
@@ -43,6 +43,12 @@ int km_cli_pose(int argc, char **argv) {
       km_character_read_rig(rig ? rig : rig_path, c.mesh.n_vertices, &c, &err) != KM_OK ||
       km_take_read(motion, &t, &err) != KM_OK)
     goto fail;
+  if (fps > 0 && fps != t.fps && t.n_frames > 0) { /* resample, do not relabel */
+    km_take rs;
+    if (km_take_resample(&t, fps, &rs, &err) != KM_OK) goto fail;
+    km_take_free(&t);
+    t = rs;
+  }
   size_t nj = c.skeleton.n_joints;
   map = malloc(sizeof(int) * nj);
   pos_frame = malloc(sizeof(double) * 3 * nj);

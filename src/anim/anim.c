@@ -612,7 +612,18 @@ static km_status dir_info(const char *path, km_anim_info *out, km_error *err) {
   return s;
 }
 
+static km_status anim_info_read(const char *path, km_anim_info *out, km_error *err);
+
+/* Every format reports one timeline (issue 12): frames, fps and duration agree. */
 km_status km_anim_info_read(const char *path, km_anim_info *out, km_error *err) {
+  km_status s = anim_info_read(path, out, err);
+  if (s == KM_OK && out->timeline_frames == 0) out->timeline_frames = out->frames;
+  if (s == KM_OK && out->fps > 0 && out->timeline_frames > 0)
+    out->duration = (double)(out->timeline_frames - 1) / out->fps;
+  return s;
+}
+
+static km_status anim_info_read(const char *path, km_anim_info *out, km_error *err) {
   if (!path || !out) return km__fail(err, KM_ERR_INVALID, "km_anim_info_read: NULL argument");
   memset(out, 0, sizeof *out);
   struct stat st;

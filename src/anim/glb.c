@@ -346,6 +346,9 @@ km_status km__glb_info(const char *path, km_anim_info *out, km_error *err) {
    * assuming evenly spaced keys. */
   const cJSON *ex = get_path(get_path(get_path(root, "asset", -1), "extras", -1), "kinemesh", -1);
   const cJSON *fps = get_path(ex, "fps", -1);
+  const cJSON *total = get_path(ex, "frames", -1);
+  if (cJSON_IsNumber(total) && total->valuedouble >= 1 && total->valuedouble < 1e12)
+    out->timeline_frames = (size_t)total->valuedouble;
   const cJSON *input =
       get_path(get_path(get_path(root, "animations", 0), "samplers", 0), "input", -1);
   const cJSON *in_acc =

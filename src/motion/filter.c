@@ -1,5 +1,6 @@
 /* Holt double exponential joint filter (paper eq. 4) with the Kinect SDK's jitter, prediction
- * and max-deviation stages (NUI_TRANSFORM_SMOOTH_PARAMETERS). See km_filter_options. */
+ * and max-deviation stages (NUI_TRANSFORM_SMOOTH_PARAMETERS), and the One Euro filter
+ * (Casiez, Roussel & Vogel 2012). See km_filter_options. */
 #include "motion/motion.h"
 
 #include <math.h>
@@ -8,12 +9,17 @@
 
 typedef struct joint_state {
   double level[3], trend[3], out[3];
-  bool valid; /* has seen a good sample */
+  double prev_x[3]; /* last good raw sample */
+  double speed;     /* One Euro: filtered speed, m/s */
+  int gap;          /* frames since the last good sample */
+  bool valid;       /* has seen a good sample */
 } joint_state;
 
 struct km_filter {
   size_t n;
+  km_filter_kind kind;
   double smoothing, trend, prediction, jitter, max_dev;
+  double te, min_cutoff, beta, d_cutoff; /* One Euro */
   joint_state *s;
 };
 
@@ -36,6 +42,16 @@ km_status km_filter_create(size_t n_joints, const km_filter_options *opt, km_fil
                     "filter prediction, jitter_radius and max_deviation must be finite and >= 0 "
                     "(got %g, %g, %g)",
                     o.prediction, o.jitter_radius, o.max_deviation);
+  if (o.kind != KM_FILTER_HOLT && o.kind != KM_FILTER_ONE_EURO)
+    return km__fail(err, KM_ERR_INVALID, "filter kind %d is unknown", (int)o.kind);
+  double fps = o.fps == 0 ? 30.0 : o.fps, mc = o.min_cutoff == 0 ? 1.5 : o.min_cutoff;
+  double beta = o.beta == 0 ? 1.0 : o.beta, dc = o.d_cutoff == 0 ? 1.0 : o.d_cutoff;
+  if (!(fps > 0) || !isfinite(fps) || !(mc > 0) || !isfinite(mc) || !(beta >= 0) ||
+      !isfinite(beta) || !(dc > 0) || !isfinite(dc))
+    return km__fail(err, KM_ERR_INVALID,
+                    "filter fps, min_cutoff and d_cutoff must be finite and > 0, beta >= 0 (got "
+                    "%g, %g, %g, %g)",
+                    o.fps, o.min_cutoff, o.d_cutoff, o.beta);
   km_filter *f = calloc(1, sizeof *f);
   if (!f) return km__fail(err, KM_ERR_NOMEM, "km_filter_create: out of memory");
   f->s = km__calloc(n_joints ? n_joints : 1, sizeof *f->s);
@@ -49,6 +65,11 @@ km_status km_filter_create(size_t n_joints, const km_filter_options *opt, km_fil
   f->prediction = o.prediction;
   f->jitter = o.jitter_radius;
   f->max_dev = o.max_deviation;
+  f->kind = o.kind;
+  f->te = 1.0 / fps;
+  f->min_cutoff = mc;
+  f->beta = beta;
+  f->d_cutoff = dc;
   *out = f;
   return KM_OK;
 }
@@ -58,23 +79,54 @@ static double dist3(const double a[3], const double b[3]) {
   return sqrt(dx * dx + dy * dy + dz * dz);
 }
 
+static double clamp2(double v, double a, double b) {
+  double lo = a < b ? a : b, hi = a < b ? b : a;
+  return v < lo ? lo : (v > hi ? hi : v);
+}
+
+/* Smoothing factor of a first-order low-pass with cutoff fc (Hz) over te seconds. */
+static double one_euro_alpha(double fc, double te) {
+  double tau = 1.0 / (2.0 * M_PI * fc);
+  return 1.0 / (1.0 + tau / te);
+}
+
 void km_filter_push(km_filter *f, const double *raw, double *filtered) {
   for (size_t j = 0; j < f->n; ++j) {
     joint_state *s = &f->s[j];
     double x[3] = {raw[3 * j], raw[3 * j + 1], raw[3 * j + 2]};
     double *o = filtered + 3 * j;
+    ++s->gap;
     if (!isfinite(x[0]) || !isfinite(x[1]) || !isfinite(x[2])) {
       /* Missing: the state is left alone so the trend is not polluted; hold the output. */
       for (int k = 0; k < 3; ++k)
         o[k] = s->valid ? s->out[k] : NAN;
       continue;
     }
+    double prev_x[3] = {s->prev_x[0], s->prev_x[1], s->prev_x[2]};
+    int gap = s->gap;
+    memcpy(s->prev_x, x, sizeof x);
+    s->gap = 0;
     if (!s->valid) {
       for (int k = 0; k < 3; ++k) {
         s->level[k] = x[k];
         s->trend[k] = 0;
+        s->out[k] = x[k];
       }
+      s->speed = 0;
       s->valid = true;
+      if (f->kind == KM_FILTER_ONE_EURO) {
+        for (int k = 0; k < 3; ++k)
+          o[k] = x[k];
+        continue;
+      }
+    } else if (f->kind == KM_FILTER_ONE_EURO) {
+      double te = f->te * (gap > 0 ? gap : 1);
+      double v = dist3(x, prev_x) / te;
+      s->speed += one_euro_alpha(f->d_cutoff, te) * (v - s->speed);
+      double a = one_euro_alpha(f->min_cutoff + f->beta * s->speed, te);
+      for (int k = 0; k < 3; ++k)
+        o[k] = s->out[k] = s->out[k] + a * (x[k] - s->out[k]);
+      continue;
     } else {
       double in[3] = {x[0], x[1], x[2]};
       if (f->jitter > 0) {
@@ -89,13 +141,14 @@ void km_filter_push(km_filter *f, const double *raw, double *filtered) {
         double prev = s->level[k];
         /* Written as lerps so that a constant input is reproduced bit for bit. */
         double lv = in[k] + f->smoothing * ((prev + s->trend[k]) - in[k]);
+        lv = clamp2(lv, prev, in[k]); /* no overshoot past the input */
         s->trend[k] += f->trend * ((lv - prev) - s->trend[k]);
         s->level[k] = lv;
       }
     }
     double y[3];
-    for (int k = 0; k < 3; ++k)
-      y[k] = s->level[k] + f->prediction * s->trend[k];
+    for (int k = 0; k < 3; ++k) /* predict no farther than the raw step, in its direction */
+      y[k] = s->level[k] + f->prediction * clamp2(s->trend[k], 0.0, x[k] - prev_x[k]);
     if (f->max_dev > 0) {
       double d = dist3(y, x);
       if (d > f->max_dev) {

@@ -18,6 +18,17 @@ struct km_retarget {
   bool auto_scale;
   double scale; /* NaN while auto and unknown */
   double mesh_height;
+  double *floor_dy; /* n_handles: lowest allowed y displacement; NULL: no floor */
+  /* rigid root motion */
+  bool rigid;
+  int32_t root, hl, hr; /* joint indices; hl/hr -1: no heading */
+  double pivot[3];
+  double R[9], t[3];   /* of the last push */
+  double cos_h, sin_h; /* heading change of the last push */
+  /* rotating handles */
+  int32_t *rot_joint, *rot_parent; /* n_handles; -1: translation only; NULL: none rotates */
+  int32_t *par;                    /* n_joints parents (-1 roots), for rotating handles */
+  double *rot;                     /* n_handles*9 row-major, of the last valid frame */
 };
 
 static int cmp_map(const void *a, const void *b) {
@@ -35,6 +46,11 @@ void km_retarget_free(km_retarget **r) {
   free(t->centroid);
   free(t->disp);
   free(t->ref);
+  free(t->floor_dy);
+  free(t->rot_joint);
+  free(t->rot_parent);
+  free(t->par);
+  free(t->rot);
   free(t);
   *r = NULL;
 }
@@ -45,6 +61,16 @@ void km_retarget_reset(km_retarget *r) {
     r->ref[i] = NAN;
   memset(r->disp, 0, 3 * r->n_handles * sizeof(double));
   if (r->auto_scale) r->scale = NAN;
+  memset(r->R, 0, sizeof r->R);
+  r->R[0] = r->R[4] = r->R[8] = 1;
+  memset(r->t, 0, sizeof r->t);
+  r->cos_h = 1;
+  r->sin_h = 0;
+  if (r->rot)
+    for (size_t h = 0; h < r->n_handles; ++h) {
+      double I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+      memcpy(r->rot + 9 * h, I, sizeof I);
+    }
 }
 
 km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_joints,
@@ -64,7 +90,7 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
   for (size_t e = 0; e < rig->n_maps; ++e) {
     const km_rig_map *m = &rig->maps[e];
     if (m->handle < 0 || (size_t)m->handle >= rig->n_handles || m->joint < 0 ||
-        (size_t)m->joint >= n_joints)
+        (size_t)m->joint >= n_joints || m->relative_to < 0 || (size_t)m->relative_to > n_joints)
       return km__fail(err, KM_ERR_INVALID,
                       "rig map %zu: handle %d / joint %d out of range (%zu handles, %zu joints)", e,
                       (int)m->handle, (int)m->joint, rig->n_handles, n_joints);
@@ -134,6 +160,66 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
   r->mesh_height = hi[1] - lo[1];
   /* A mesh lying flat in y (a sheet, a grid) has no height; its largest extent stands in. */
   if (!(r->mesh_height > 1e-9 * ext_max)) r->mesh_height = ext_max;
+  if (o.floor || rig->floor) {
+    if (!(r->floor_dy = km__malloc(r->n_handles, sizeof(double)))) {
+      km_retarget_free(&r);
+      return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
+    }
+    for (size_t h = 0; h < r->n_handles; ++h) {
+      double ymin = INFINITY;
+      for (size_t q = r->hv_start[h]; q < r->hv_start[h + 1]; ++q)
+        ymin = fmin(ymin, r->hv_rest[3 * q + 1]);
+      r->floor_dy[h] = lo[1] - ymin; /* <= 0 */
+    }
+  }
+  if (rig->root_rigid) {
+    if (rig->root < 1 || (size_t)rig->root > n_joints || rig->heading[0] < 0 ||
+        (size_t)rig->heading[0] > n_joints || rig->heading[1] < 0 ||
+        (size_t)rig->heading[1] > n_joints) {
+      km_retarget_free(&r);
+      return km__fail(err, KM_ERR_INVALID, "rigid root motion: root or heading joint out of range");
+    }
+    r->rigid = true;
+    r->root = rig->root - 1;
+    r->hl = rig->heading[0] && rig->heading[1] ? rig->heading[0] - 1 : -1;
+    r->hr = rig->heading[0] && rig->heading[1] ? rig->heading[1] - 1 : -1;
+    for (int d = 0; d < 3; ++d)
+      r->pivot[d] = 0.5 * (lo[d] + hi[d]);
+  }
+  bool any_rot = false;
+  for (size_t e = 0; e < rig->n_maps; ++e)
+    any_rot |= rig->maps[e].rotate;
+  if (any_rot) {
+    r->rot_joint = km__malloc(r->n_handles, sizeof(int32_t));
+    r->rot_parent = km__malloc(r->n_handles, sizeof(int32_t));
+    r->rot = km__malloc(r->n_handles, 9 * sizeof(double));
+    r->par = km__malloc(n_joints ? n_joints : 1, sizeof(int32_t));
+    if (!r->rot_joint || !r->rot_parent || !r->rot || !r->par) {
+      km_retarget_free(&r);
+      return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
+    }
+    for (size_t j = 0; j < n_joints; ++j) {
+      int32_t q = o.parents ? o.parents[j]
+                  : rig->skeleton == KM_RIG_KINECT1 ? km_kinect1_joint_parent((int)j)
+                                                      : -1;
+      r->par[j] = q >= 0 && (size_t)q < j ? q : -1;
+    }
+    for (size_t h = 0; h < r->n_handles; ++h) {
+      r->rot_joint[h] = r->rot_parent[h] = -1;
+      for (size_t e = r->map_start[h]; e < r->map_start[h + 1] && r->rot_joint[h] < 0; ++e) {
+        const km_rig_map *m = &r->maps[e];
+        int32_t par = -1;
+        if (!m->rotate) continue;
+        if (o.parents)
+          par = o.parents[m->joint];
+        else if (rig->skeleton == KM_RIG_KINECT1)
+          par = km_kinect1_joint_parent(m->joint);
+        if (par < 0 || (size_t)par >= n_joints) continue; /* a root: nothing to turn with */
+        r->rot_joint[h] = m->joint;
+        r->rot_parent[h] = par;
+      }
+    }
+  }
   r->kinect1 = rig->skeleton == KM_RIG_KINECT1;
   r->auto_scale = o.scale == 0;
   r->scale = r->auto_scale ? NAN : o.scale;
@@ -164,6 +250,8 @@ static double skeleton_height(const km_retarget *r, const double *J) {
   return hi > lo ? hi - lo : NAN;
 }
 
+static void update_rotations(km_retarget *r, const double *J);
+
 void km_retarget_push(km_retarget *r, const double *joints, double *handle_targets) {
   for (size_t j = 0; j < r->n_joints; ++j)
     if (!isfinite(r->ref[3 * j]) && valid3(joints + 3 * j))
@@ -171,6 +259,26 @@ void km_retarget_push(km_retarget *r, const double *joints, double *handle_targe
   if (!isfinite(r->scale)) {
     double h = skeleton_height(r, joints);
     if (h > 1e-6) r->scale = r->mesh_height / h;
+  }
+  if (r->rigid && isfinite(r->scale)) {
+    const double *q = joints + 3 * (size_t)r->root, *q0 = r->ref + 3 * (size_t)r->root;
+    if (valid3(q) && valid3(q0)) {
+      if (r->hl >= 0) {
+        const double *a = joints + 3 * (size_t)r->hl, *b = joints + 3 * (size_t)r->hr;
+        const double *a0 = r->ref + 3 * (size_t)r->hl, *b0 = r->ref + 3 * (size_t)r->hr;
+        if (valid3(a) && valid3(b) && valid3(a0) && valid3(b0)) {
+          /* R_y(phi) takes (1,0,0) to (cos phi, 0, -sin phi): a vector's angle is atan2(-z, x) */
+          double phi = atan2(-(b[2] - a[2]), b[0] - a[0]) - atan2(-(b0[2] - a0[2]), b0[0] - a0[0]);
+          r->cos_h = cos(phi);
+          r->sin_h = sin(phi);
+        }
+      }
+      double c = r->cos_h, sn = r->sin_h;
+      double R[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
+      memcpy(r->R, R, sizeof R);
+      for (int d = 0; d < 3; ++d)
+        r->t[d] = r->scale * (q[d] - q0[d]);
+    }
   }
   if (isfinite(r->scale)) {
     for (size_t h = 0; h < r->n_handles; ++h) {
@@ -182,26 +290,126 @@ void km_retarget_push(km_retarget *r, const double *joints, double *handle_targe
         const km_rig_map *m = &r->maps[e];
         const double *p = joints + 3 * (size_t)m->joint, *p0 = r->ref + 3 * (size_t)m->joint;
         ok = valid3(p) && valid3(p0);
+        double root[3] = {0, 0, 0};
+        if (ok && m->relative_to > 0) { /* root-relative: subtract the reference's motion */
+          const double *q = joints + 3 * (size_t)(m->relative_to - 1),
+                       *q0 = r->ref + 3 * (size_t)(m->relative_to - 1);
+          ok = valid3(q) && valid3(q0);
+          for (int c = 0; ok && c < 3; ++c)
+            root[c] = q[c] - q0[c];
+        }
+        double rel[3] = {p[0] - p0[0] - root[0], p[1] - p0[1] - root[1], p[2] - p0[2] - root[2]};
+        if (ok && r->rigid && m->relative_to > 0) {
+          /* in the root's heading frame: R^T (p - q) - (p0 - q0) */
+          const double *q = joints + 3 * (size_t)(m->relative_to - 1),
+                       *q0 = r->ref + 3 * (size_t)(m->relative_to - 1);
+          double w[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+          double c = r->cos_h, sn = r->sin_h;
+          rel[0] = c * w[0] - sn * w[2] - (p0[0] - q0[0]);
+          rel[1] = w[1] - (p0[1] - q0[1]);
+          rel[2] = sn * w[0] + c * w[2] - (p0[2] - q0[2]);
+        }
         for (int c = 0; ok && c < 3; ++c)
-          if (m->axes & (1u << c)) d[c] += m->scale * (p[c] - p0[c]);
+          if (m->axes & (1u << c)) d[c] += m->scale * rel[c];
       }
       if (!ok) continue; /* a joint is not valid: the handle keeps its last target */
       for (int c = 0; c < 3; ++c)
         r->disp[3 * h + c] = r->scale * d[c];
+      if (r->floor_dy && r->disp[3 * h + 1] < r->floor_dy[h]) r->disp[3 * h + 1] = r->floor_dy[h];
     }
   }
+  if (r->rot) update_rotations(r, joints);
   if (handle_targets)
     for (size_t i = 0; i < 3 * r->n_handles; ++i)
       handle_targets[i] = r->centroid[i] + r->disp[i];
 }
 
+/* The shortest rotation taking unit a to unit b (Rodrigues), row-major. */
+static void rotation_between(const double a[3], const double b[3], double R[9]) {
+  double v[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  double c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  if (c < -1 + 1e-12) { /* opposite: half a turn about any axis perpendicular to a */
+    double p[3] = {0, -a[2], a[1]};
+    if (fabs(a[0]) > 0.9) p[0] = -a[1], p[1] = a[0], p[2] = 0;
+    double n = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        R[3 * i + j] = 2 * p[i] * p[j] / (n * n) - (i == j);
+    return;
+  }
+  double K[9] = {0, -v[2], v[1], v[2], 0, -v[0], -v[1], v[0], 0}, f = 1 / (1 + c);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      double kk = 0;
+      for (int k = 0; k < 3; ++k)
+        kk += K[3 * i + k] * K[3 * k + j];
+      R[3 * i + j] = (i == j) + K[3 * i + j] + f * kk;
+    }
+}
+
+/* Rotations of the rotating handles from the bones of this frame (kept when a bone is not
+ * valid). With rigid root motion the rotation is taken in the root's heading frame. */
+static void update_rotations(km_retarget *r, const double *J) {
+  for (size_t h = 0; h < r->n_handles; ++h) {
+    int32_t j = r->rot_joint[h], q = r->rot_parent[h];
+    if (j < 0) continue;
+    /* A short bone (a Kinect wrist -> hand, ankle -> foot: a few noisy centimetres) gives a
+     * jittery direction: the nearest ancestor at least 0.15 m away stands in. */
+    while (r->par[q] >= 0) {
+      const double *a = r->ref + 3 * (size_t)j, *b = r->ref + 3 * (size_t)q;
+      if (!valid3(a) || !valid3(b)) break;
+      double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                      (a[2] - b[2]) * (a[2] - b[2]));
+      if (l >= 0.15) break; /* metres of performer */
+      q = r->par[q];
+    }
+    const double *p = J + 3 * (size_t)j, *pq = J + 3 * (size_t)q;
+    const double *p0 = r->ref + 3 * (size_t)j, *q0 = r->ref + 3 * (size_t)q;
+    if (!valid3(p) || !valid3(pq) || !valid3(p0) || !valid3(q0)) continue;
+    double d[3] = {p[0] - pq[0], p[1] - pq[1], p[2] - pq[2]};
+    double d0[3] = {p0[0] - q0[0], p0[1] - q0[1], p0[2] - q0[2]};
+    if (r->rigid) { /* R_y(-phi) d */
+      double c = r->cos_h, sn = r->sin_h, x = d[0], z = d[2];
+      d[0] = c * x - sn * z;
+      d[2] = sn * x + c * z;
+    }
+    double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    double n0 = sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]);
+    if (!(n > 1e-9) || !(n0 > 1e-9)) continue;
+    for (int c = 0; c < 3; ++c) {
+      d[c] /= n;
+      d0[c] /= n0;
+    }
+    rotation_between(d0, d, r->rot + 9 * h);
+  }
+}
+
 void km_retarget_vertex_targets(const km_retarget *r, double *out) {
-  for (size_t h = 0; h < r->n_handles; ++h)
-    for (size_t k = r->hv_start[h]; k < r->hv_start[h + 1]; ++k)
-      for (int c = 0; c < 3; ++c)
-        out[3 * k + c] = r->hv_rest[3 * k + c] + r->disp[3 * h + c];
+  for (size_t h = 0; h < r->n_handles; ++h) {
+    const double *R = r->rot && r->rot_joint[h] >= 0 ? r->rot + 9 * h : NULL;
+    const double *c = r->centroid + 3 * h;
+    for (size_t k = r->hv_start[h]; k < r->hv_start[h + 1]; ++k) {
+      const double *x = r->hv_rest + 3 * k;
+      if (!R) {
+        for (int a = 0; a < 3; ++a)
+          out[3 * k + a] = x[a] + r->disp[3 * h + a];
+        continue;
+      }
+      double w[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]};
+      for (int a = 0; a < 3; ++a)
+        out[3 * k + a] = c[a] + r->disp[3 * h + a] + R[3 * a] * w[0] + R[3 * a + 1] * w[1] +
+                         R[3 * a + 2] * w[2];
+    }
+  }
 }
 
 size_t km_retarget_vertex_count(const km_retarget *r) { return r->n_hv; }
 const double *km_retarget_rest_centroids(const km_retarget *r) { return r->centroid; }
 double km_retarget_scale(const km_retarget *r) { return r->scale; }
+
+bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], double pivot[3]) {
+  if (R) memcpy(R, r->R, sizeof r->R);
+  if (t) memcpy(t, r->t, sizeof r->t);
+  if (pivot) memcpy(pivot, r->pivot, sizeof r->pivot);
+  return r->rigid;
+}

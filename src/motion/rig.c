@@ -99,6 +99,28 @@ static km_status parse_filter(const char *name, const cJSON *jf, km_filter_optio
                                       "max_deviation"};
   double *dst[5] = {&fo->smoothing, &fo->trend, &fo->prediction, &fo->jitter_radius,
                     &fo->max_deviation};
+  const cJSON *jk = cJSON_GetObjectItemCaseSensitive(jf, "kind");
+  if (jk) {
+    if (cJSON_IsString(jk) && !strcmp(jk->valuestring, "holt"))
+      fo->kind = KM_FILTER_HOLT;
+    else if (cJSON_IsString(jk) && !strcmp(jk->valuestring, "one_euro"))
+      fo->kind = KM_FILTER_ONE_EURO;
+    else
+      return km__fail(err, KM_ERR_PARSE, "%s: filter.kind: expected \"holt\" or \"one_euro\"",
+                      name);
+  }
+  static const char *const euro_keys[3] = {"min_cutoff", "beta", "d_cutoff"};
+  double *euro_dst[3] = {&fo->min_cutoff, &fo->beta, &fo->d_cutoff};
+  for (int k = 0; k < 3; ++k) {
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(jf, euro_keys[k]);
+    if (!v) continue;
+    double x;
+    if (!json_finite(v, &x) || !(k == 1 ? x >= 0 : x > 0))
+      return km__fail(err, KM_ERR_PARSE, "%s: filter.%s: expected a number %s", name,
+                      euro_keys[k], k == 1 ? ">= 0" : "> 0");
+    /* beta 0 in the file means no speed adaptation: a tiny positive stands for it */
+    *euro_dst[k] = (k == 1 && x == 0) ? 1e-12 : x;
+  }
   for (int k = 0; k < 5; ++k) {
     const cJSON *v = cJSON_GetObjectItemCaseSensitive(jf, keys[k]);
     if (!v) continue;
@@ -381,6 +403,38 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
                     name, mi, mh->valuestring, mj->valuestring);
       goto done;
     }
+    const cJSON *mr = cJSON_GetObjectItemCaseSensitive(m, "relative_to");
+    if (!mr) mr = cJSON_GetObjectItemCaseSensitive(root, "relative_to");
+    if (mr) {
+      int ridx = -2;
+      if (cJSON_IsString(mr) && !mr->valuestring[0]) {
+        ridx = -1;
+      } else if (cJSON_IsString(mr) && out->skeleton == KM_RIG_KINECT1) {
+        ridx = km_kinect1_joint_index(mr->valuestring);
+        if (ridx < 0) ridx = -2;
+      } else if (cJSON_IsString(mr)) {
+        for (size_t k = 0; k < n_joint_names && ridx < 0; ++k)
+          if (joint_names[k] && strcmp(joint_names[k], mr->valuestring) == 0) ridx = (int)k;
+      }
+      if (ridx == -2) {
+        st = km__fail(err, KM_ERR_PARSE,
+                      "%s: map[%zu] (handle '%s', joint '%s'): \"relative_to\" must name a "
+                      "%s joint (or be \"\" for absolute motion)",
+                      name, mi, mh->valuestring, mj->valuestring,
+                      out->skeleton == KM_RIG_KINECT1 ? "Kinect v1" : "take");
+        goto done;
+      }
+      rm->relative_to = ridx + 1;
+    }
+    const cJSON *mrot = cJSON_GetObjectItemCaseSensitive(m, "rotate");
+    if (!mrot) mrot = cJSON_GetObjectItemCaseSensitive(root, "rotate");
+    if (mrot && !cJSON_IsBool(mrot)) {
+      st = km__fail(err, KM_ERR_PARSE,
+                    "%s: map[%zu] (handle '%s', joint '%s'): \"rotate\" must be true or false",
+                    name, mi, mh->valuestring, mj->valuestring);
+      goto done;
+    }
+    rm->rotate = cJSON_IsTrue(mrot);
     rm->scale = 1.0;
     const cJSON *ms = cJSON_GetObjectItemCaseSensitive(m, "scale");
     if (ms && !json_finite(ms, &rm->scale)) {
@@ -392,6 +446,66 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     ++mi;
   }
   out->n_maps = mi;
+  {
+    const cJSON *jrm = cJSON_GetObjectItemCaseSensitive(root, "root_motion");
+    if (jrm && !(cJSON_IsString(jrm) && (!strcmp(jrm->valuestring, "rigid") ||
+                                          !strcmp(jrm->valuestring, "none")))) {
+      st = km__fail(err, KM_ERR_PARSE, "%s: \"root_motion\": expected \"rigid\" or \"none\"",
+                    name);
+      goto done;
+    }
+    out->root_rigid = jrm && !strcmp(jrm->valuestring, "rigid");
+    const cJSON *jrt = cJSON_GetObjectItemCaseSensitive(root, "relative_to");
+    int32_t ids[3] = {0, 0, 0};
+    const cJSON *jhd = cJSON_GetObjectItemCaseSensitive(root, "heading");
+    const char *want[3] = {cJSON_IsString(jrt) ? jrt->valuestring : NULL, NULL, NULL};
+    if (jhd) {
+      if (!cJSON_IsArray(jhd) || cJSON_GetArraySize(jhd) != 2 ||
+          !cJSON_IsString(cJSON_GetArrayItem(jhd, 0)) ||
+          !cJSON_IsString(cJSON_GetArrayItem(jhd, 1))) {
+        st = km__fail(err, KM_ERR_PARSE,
+                      "%s: \"heading\": expected two joint names [left, right]", name);
+        goto done;
+      }
+      want[1] = cJSON_GetArrayItem(jhd, 0)->valuestring;
+      want[2] = cJSON_GetArrayItem(jhd, 1)->valuestring;
+    } else if (out->skeleton == KM_RIG_KINECT1) {
+      want[1] = "HipLeft";
+      want[2] = "HipRight";
+    }
+    for (int k = 0; k < 3; ++k) {
+      if (!want[k] || !want[k][0]) continue;
+      int idx = -1;
+      if (out->skeleton == KM_RIG_KINECT1)
+        idx = km_kinect1_joint_index(want[k]);
+      else
+        for (size_t q = 0; q < n_joint_names && idx < 0; ++q)
+          if (joint_names[q] && !strcmp(joint_names[q], want[k])) idx = (int)q;
+      if (idx < 0) {
+        st = km__fail(err, KM_ERR_PARSE, "%s: %s: unknown %s joint '%s'", name,
+                      k ? "\"heading\"" : "\"relative_to\"",
+                      out->skeleton == KM_RIG_KINECT1 ? "Kinect v1" : "take", want[k]);
+        goto done;
+      }
+      ids[k] = idx + 1;
+    }
+    if (out->root_rigid && !ids[0]) {
+      st = km__fail(err, KM_ERR_PARSE,
+                    "%s: \"root_motion\": \"rigid\" needs a rig-level \"relative_to\" naming "
+                    "the root joint (e.g. \"HipCenter\")",
+                    name);
+      goto done;
+    }
+    out->root = ids[0];
+    out->heading[0] = ids[1] && ids[2] ? ids[1] : 0;
+    out->heading[1] = ids[1] && ids[2] ? ids[2] : 0;
+  }
+  const cJSON *jfl = cJSON_GetObjectItemCaseSensitive(root, "floor");
+  if (jfl && !cJSON_IsBool(jfl)) {
+    st = km__fail(err, KM_ERR_PARSE, "%s: \"floor\" must be true or false", name);
+    goto done;
+  }
+  out->floor = cJSON_IsTrue(jfl);
   st = parse_filter(name, cJSON_GetObjectItemCaseSensitive(root, "filter"), &out->filter, err);
 
 done:

@@ -16,6 +16,7 @@ struct km_puppetry {
   km_filter_options filter_opt; /* opt.filter's value when given */
   char *take_name;
   char **names; /* create-time columns (NULL: already in the rig's order) */
+  int32_t *parents_in; /* n_in create-time parents (NULL: unknown) */
   size_t n_in;  /* joints per pushed frame */
 
   km_puppet *puppet; /* reduced solver */
@@ -27,6 +28,7 @@ struct km_puppetry {
   size_t nj;   /* joints in the rig's order */
   int32_t *col; /* nj source columns (-1: absent) or NULL for the identity */
   km_filter *filter;
+  km_glitch *glitch; /* NULL: off */
   km_retarget *rt;
   size_t n_handles;
   int32_t *off, *hv;
@@ -92,6 +94,7 @@ typedef struct rig_state {
   km_retarget *rt;
   km_arap *arap;
   double *handle_targets, *targets, *filt, *p0, *last;
+  km_glitch *glitch;
 } rig_state;
 
 static void rig_state_free(rig_state *r) {
@@ -99,6 +102,7 @@ static void rig_state_free(rig_state *r) {
   free(r->off);
   free(r->hv);
   km_filter_free(&r->filter);
+  km_glitch_free(&r->glitch);
   km_retarget_free(&r->rt);
   km_arap_free(&r->arap);
   free(r->handle_targets);
@@ -138,9 +142,31 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
       r.hv[k++] = rig->handles[h].vertices[i];
     r.off[h + 1] = (int32_t)k;
   }
-  const km_filter_options *fo = p->opt.filter ? &p->filter_opt : &rig->filter;
-  if ((s = km_filter_create(r.nj, fo, &r.filter, err)) != KM_OK ||
-      (s = km_retarget_create(rig, p->rest, r.nj, &p->opt.retarget, &r.rt, err)) != KM_OK) {
+  km_filter_options fo = p->opt.filter ? p->filter_opt : rig->filter;
+  double fps = p->opt.fps > 0 ? p->opt.fps : 30.0;
+  if (fo.fps == 0) fo.fps = fps;
+  if (!p->opt.no_glitch) {
+    km_glitch_options go = p->opt.glitch;
+    if (go.fps == 0) go.fps = fps;
+    /* Bones in the rig's joint order: the Kinect v1 tree, or the take's own. */
+    int32_t kpar[KM_KINECT1_JOINTS];
+    const int32_t *par = NULL;
+    if (rig->skeleton == KM_RIG_KINECT1 && r.nj == KM_KINECT1_JOINTS) {
+      for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+        kpar[j] = km_kinect1_joint_parent(j);
+      par = kpar;
+    } else if (!r.col && p->parents_in) {
+      par = p->parents_in;
+    }
+    if ((s = km_glitch_create(r.nj, par, &go, &r.glitch, err)) != KM_OK) {
+      rig_state_free(&r);
+      return s;
+    }
+  }
+  km_retarget_options ro = p->opt.retarget; /* rotating handles: bones in the rig's order */
+  if (!ro.parents && rig->skeleton != KM_RIG_KINECT1 && !r.col) ro.parents = p->parents_in;
+  if ((s = km_filter_create(r.nj, &fo, &r.filter, err)) != KM_OK ||
+      (s = km_retarget_create(rig, p->rest, r.nj, &ro, &r.rt, err)) != KM_OK) {
     rig_state_free(&r);
     return s;
   }
@@ -182,7 +208,7 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
 
   rig_state old = {p->nj,     p->n_handles,      p->col,     p->off,  p->hv,
                    p->filter, p->rt,             NULL,       p->handle_targets,
-                   p->targets, p->filt,          p->p0,      p->last};
+                   p->targets, p->filt,          p->p0,      p->last, p->glitch};
   if (r.arap) {
     old.arap = p->arap;
     p->arap = r.arap;
@@ -194,6 +220,7 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
   p->off = r.off;
   p->hv = r.hv;
   p->filter = r.filter;
+  p->glitch = r.glitch;
   p->rt = r.rt;
   p->handle_targets = r.handle_targets;
   p->targets = r.targets;
@@ -272,6 +299,12 @@ km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig,
   p->opt.cache_path = NULL;
   p->opt.take_name = NULL;
   if (opt && opt->take_name && !(p->take_name = km__strdup(opt->take_name))) goto nomem;
+  p->opt.joint_parents = NULL;
+  p->opt.retarget.parents = NULL; /* the pipeline's bones come from joint_parents */
+  if (opt && opt->joint_parents) {
+    if (!(p->parents_in = km__malloc(n_joints ? n_joints : 1, sizeof(int32_t)))) goto nomem;
+    memcpy(p->parents_in, opt->joint_parents, n_joints * sizeof(int32_t));
+  }
   if (joint_names) {
     p->names = km__calloc(n_joints ? n_joints : 1, sizeof(char *));
     if (!p->names) goto nomem;
@@ -333,7 +366,12 @@ km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, 
     memcpy(p->last, joints, sizeof(double) * 3 * p->nj);
   }
   p->have_last = true;
-  km_filter_push(p->filter, p->last, p->filt);
+  if (p->glitch) {
+    km_glitch_push(p->glitch, p->last, p->filt); /* filt as scratch: the filter may alias */
+    km_filter_push(p->filter, p->filt, p->filt);
+  } else {
+    km_filter_push(p->filter, p->last, p->filt);
+  }
   for (size_t k = 0; k < 3 * p->nj; ++k)
     if (isnan(p->p0[k]) && !isnan(p->filt[k])) p->p0[k] = p->filt[k];
   double t1 = km_seconds();
@@ -343,6 +381,15 @@ km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, 
   km_status s = p->opt.solver == KM_PUPPETRY_FULL ? km_arap_solve(p->arap, p->targets, V_out, err)
                                                   : km_puppet_solve(p->puppet, p->targets, V_out,
                                                                     err);
+  double R[9], tr[3], pv[3];
+  if (s == KM_OK && km_retarget_root_transform(p->rt, R, tr, pv)) {
+    /* rigid root motion: the deformed mesh (root-relative) follows the root as a whole */
+    for (size_t v = 0; v < p->rest->n_vertices; ++v) {
+      double *x = V_out + 3 * v, w[3] = {x[0] - pv[0], x[1] - pv[1], x[2] - pv[2]};
+      for (int a = 0; a < 3; ++a)
+        x[a] = R[3 * a] * w[0] + R[3 * a + 1] * w[1] + R[3 * a + 2] * w[2] + pv[a] + tr[a];
+    }
+  }
   double t3 = km_seconds();
   p->times.filter_ms = 1e3 * (t1 - t0);
   p->times.retarget_ms = 1e3 * (t2 - t1);
@@ -354,6 +401,7 @@ void km_puppetry_reset(km_puppetry *p) {
   if (!p) return;
   if (p->filter) {
     km_filter_reset(p->filter);
+    km_glitch_reset(p->glitch);
     km_retarget_reset(p->rt);
     for (size_t k = 0; k < 3 * p->nj; ++k)
       p->p0[k] = NAN;
@@ -386,6 +434,13 @@ const double *km_puppetry_last_joints(const km_puppetry *p) {
   return p->have_last ? p->last : NULL;
 }
 
+void km_puppetry_glitch_stats(const km_puppetry *p, km_glitch_stats *out) {
+  if (p->glitch)
+    km_glitch_stats_get(p->glitch, out);
+  else
+    memset(out, 0, sizeof *out);
+}
+
 km_puppet *km_puppetry_model(const km_puppetry *p) { return p->puppet; }
 
 void km_puppetry_puppet_info(const km_puppetry *p, km_puppet_info *out) {
@@ -399,13 +454,14 @@ void km_puppetry_free(km_puppetry **pp) {
   if (!pp || !*pp) return;
   km_puppetry *p = *pp;
   rig_state r = {p->nj,     p->n_handles, p->col,  p->off,  p->hv,  p->filter, p->rt,
-                 p->arap,   p->handle_targets, p->targets, p->filt, p->p0, p->last};
+                 p->arap,   p->handle_targets, p->targets, p->filt, p->p0, p->last, p->glitch};
   rig_state_free(&r);
   if (p->own_puppet) km_puppet_free(&p->puppet);
   if (p->names)
     for (size_t k = 0; k < p->n_in; ++k)
       free(p->names[k]);
   free(p->names);
+  free(p->parents_in);
   free(p->take_name);
   free(p);
   *pp = NULL;

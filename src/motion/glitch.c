@@ -1,0 +1,171 @@
+/* Tracker glitch rejection before the joint filter (issue 12), see km_glitch_create. Three
+ * tests per joint and frame, each turning the sample into "missing" (NaN) so that the filter
+ * after it holds its state instead of chasing the glitch:
+ *   refound: a joint that was missing stays missing for refound_frames more frames (trackers
+ *            re-acquire a lost joint at a wrong place first);
+ *   speed:   the sample lies farther from the joint's last accepted sample than max_speed
+ *            allows over the time since then (the allowance grows with every rejected frame,
+ *            so a joint that really moved is re-acquired after a few frames);
+ *   bone:    the bone from the (accepted) parent departs from the running median of its
+ *            accepted lengths by more than bone_tolerance * median + bone_slack.
+ * A plain ring buffer and a selection over it give the running median; the window is small
+ * (KM_GLITCH_WINDOW samples), so nothing cleverer (two heaps) pays for itself. */
+#include "motion/motion.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define KM_GLITCH_WINDOW 31
+#define KM_GLITCH_MIN_SAMPLES 5 /* bone lengths seen before the bone test starts */
+
+typedef struct glitch_joint {
+  double last[3];  /* last accepted sample */
+  bool has_last;
+  int since;       /* frames since the last accepted sample (1 = the previous frame) */
+  int hold;        /* refound: frames still to treat as missing */
+  bool was_missing;
+  double len[KM_GLITCH_WINDOW]; /* accepted bone lengths to the parent */
+  int n_len, next_len;
+} glitch_joint;
+
+struct km_glitch {
+  size_t n;
+  int32_t *parents; /* n, -1: root or no bone test */
+  double step;      /* max_speed / fps: metres per frame; <= 0: off */
+  double tol, slack;
+  int refound;
+  glitch_joint *j;
+  bool *ok; /* n, scratch: accepted this frame */
+  km_glitch_stats stats;
+};
+
+km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_glitch_options *opt,
+                           km_glitch **out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_glitch_create: out is NULL");
+  *out = NULL;
+  km_glitch_options o = opt ? *opt : (km_glitch_options){0};
+  double fps = o.fps == 0 ? 30.0 : o.fps;
+  double speed = o.max_speed == 0 ? 12.0 : o.max_speed;
+  double tol = o.bone_tolerance == 0 ? 0.4 : o.bone_tolerance;
+  double slack = o.bone_slack == 0 ? 0.04 : o.bone_slack;
+  if (!(fps > 0) || !isfinite(fps) || !isfinite(speed) || !isfinite(tol) || !isfinite(slack) ||
+      slack < 0)
+    return km__fail(err, KM_ERR_INVALID,
+                    "glitch options: fps must be > 0 and max_speed, bone_tolerance, bone_slack "
+                    "finite (bone_slack >= 0); got fps %g, max_speed %g, bone_tolerance %g, "
+                    "bone_slack %g",
+                    o.fps, o.max_speed, o.bone_tolerance, o.bone_slack);
+  if (parents)
+    for (size_t k = 0; k < n_joints; ++k)
+      if (parents[k] >= (int32_t)k || parents[k] < -1)
+        return km__fail(err, KM_ERR_INVALID,
+                        "km_glitch_create: parent of joint %zu is %d (expected -1 or < %zu)", k,
+                        (int)parents[k], k);
+  km_glitch *g = km__calloc(1, sizeof *g);
+  if (!g) return km__fail(err, KM_ERR_NOMEM, "km_glitch_create: out of memory");
+  size_t n = n_joints ? n_joints : 1;
+  g->parents = km__malloc(n, sizeof(int32_t));
+  g->j = km__calloc(n, sizeof *g->j);
+  g->ok = km__calloc(n, sizeof(bool));
+  if (!g->parents || !g->j || !g->ok) {
+    km_glitch_free(&g);
+    return km__fail(err, KM_ERR_NOMEM, "km_glitch_create: out of memory (%zu joints)", n_joints);
+  }
+  g->n = n_joints;
+  for (size_t k = 0; k < n_joints; ++k)
+    g->parents[k] = parents && tol > 0 ? parents[k] : -1;
+  g->step = speed > 0 ? speed / fps : 0;
+  g->tol = tol;
+  g->slack = slack;
+  g->refound = o.refound_frames == 0 ? 1 : (o.refound_frames < 0 ? 0 : o.refound_frames);
+  *out = g;
+  return KM_OK;
+}
+
+static double median(const double *v, int n) {
+  double a[KM_GLITCH_WINDOW];
+  memcpy(a, v, (size_t)n * sizeof *a);
+  /* insertion sort: n <= 31 */
+  for (int i = 1; i < n; ++i) {
+    double x = a[i];
+    int k = i - 1;
+    for (; k >= 0 && a[k] > x; --k)
+      a[k + 1] = a[k];
+    a[k + 1] = x;
+  }
+  return n % 2 ? a[n / 2] : 0.5 * (a[n / 2 - 1] + a[n / 2]);
+}
+
+static double dist3(const double *a, const double *b) {
+  double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+  return sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+void km_glitch_push(km_glitch *g, const double *raw, double *clean) {
+  ++g->stats.frames;
+  for (size_t k = 0; k < g->n; ++k) {
+    glitch_joint *s = &g->j[k];
+    const double *x = raw + 3 * k;
+    g->ok[k] = false;
+    if (s->has_last) ++s->since;
+    if (!isfinite(x[0]) || !isfinite(x[1]) || !isfinite(x[2])) {
+      ++g->stats.missing;
+      s->was_missing = true;
+      continue;
+    }
+    ++g->stats.samples;
+    if (s->was_missing && s->has_last) s->hold = g->refound;
+    s->was_missing = false;
+    if (s->hold > 0) {
+      --s->hold;
+      ++g->stats.refound;
+      continue;
+    }
+    if (s->has_last && g->step > 0 && dist3(x, s->last) > g->step * s->since) {
+      ++g->stats.speed;
+      continue;
+    }
+    int32_t p = g->parents[k];
+    if (p >= 0 && g->ok[p]) {
+      double len = dist3(x, raw + 3 * (size_t)p);
+      if (s->n_len >= KM_GLITCH_MIN_SAMPLES) {
+        double med = median(s->len, s->n_len);
+        if (fabs(len - med) > g->tol * med + g->slack) {
+          ++g->stats.bone;
+          continue;
+        }
+      }
+      s->len[s->next_len] = len;
+      s->next_len = (s->next_len + 1) % KM_GLITCH_WINDOW;
+      if (s->n_len < KM_GLITCH_WINDOW) ++s->n_len;
+    }
+    g->ok[k] = true;
+    memcpy(s->last, x, sizeof s->last);
+    s->has_last = true;
+    s->since = 0;
+  }
+  for (size_t k = 0; k < g->n; ++k) {
+    if (!g->ok[k] && isfinite(raw[3 * k]) && isfinite(raw[3 * k + 1]) && isfinite(raw[3 * k + 2]))
+      ++g->stats.rejected;
+    for (int c = 0; c < 3; ++c)
+      clean[3 * k + c] = g->ok[k] ? raw[3 * k + c] : NAN;
+  }
+}
+
+void km_glitch_stats_get(const km_glitch *g, km_glitch_stats *out) { *out = g->stats; }
+
+void km_glitch_reset(km_glitch *g) {
+  if (!g) return;
+  memset(g->j, 0, g->n * sizeof *g->j);
+  memset(&g->stats, 0, sizeof g->stats);
+}
+
+void km_glitch_free(km_glitch **g) {
+  if (!g || !*g) return;
+  free((*g)->parents);
+  free((*g)->j);
+  free((*g)->ok);
+  free(*g);
+  *g = NULL;
+}

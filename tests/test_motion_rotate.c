@@ -1,0 +1,123 @@
+/* Issue 12, handles that carry rotation: a thin two-bone bar (2 m, radius 2 cm) anchored at one
+ * end, whose end handle turns 90 degrees with its bone, bends instead of shearing the end
+ * (through km_puppetry, full ARAP run to convergence, and the reduced model); translation-only
+ * handles (the paper's) keep the end ring's orientation and stretch it. */
+#include "km_test.h"
+
+enum { RING = 8, SEGS = 40 };
+
+static km_mesh bar(void) {
+  km_mesh m = {0};
+  m.n_vertices = (size_t)RING * (SEGS + 1);
+  m.n_faces = (size_t)2 * RING * SEGS;
+  m.V = malloc(m.n_vertices * 3 * sizeof(double));
+  m.F = malloc(m.n_faces * 3 * sizeof(int32_t));
+  for (int i = 0; i <= SEGS; ++i)
+    for (int k = 0; k < RING; ++k) {
+      double a = 2 * M_PI * k / RING, *v = m.V + 3 * (size_t)(i * RING + k);
+      v[0] = 2.0 * i / SEGS;
+      v[1] = 0.02 * cos(a);
+      v[2] = 0.02 * sin(a);
+    }
+  size_t f = 0;
+  for (int i = 0; i < SEGS; ++i)
+    for (int k = 0; k < RING; ++k) {
+      int32_t a = i * RING + k, b = i * RING + (k + 1) % RING, c = a + RING, d = b + RING;
+      int32_t t[6] = {a, b, d, a, d, c};
+      memcpy(m.F + 3 * f, t, sizeof t);
+      f += 2;
+    }
+  return m;
+}
+
+static double edge_stretch(const km_mesh *m, const double *V) {
+  double worst = 0;
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int e = 0; e < 3; ++e) {
+      int32_t a = m->F[3 * f + e], b = m->F[3 * f + (e + 1) % 3];
+      double l = 0, l0 = 0;
+      for (int c = 0; c < 3; ++c) {
+        l += (V[3 * a + c] - V[3 * b + c]) * (V[3 * a + c] - V[3 * b + c]);
+        l0 += (m->V[3 * a + c] - m->V[3 * b + c]) * (m->V[3 * a + c] - m->V[3 * b + c]);
+      }
+      worst = fmax(worst, fabs(sqrt(l / l0) - 1));
+    }
+  return worst;
+}
+
+static double run(const km_mesh *m, bool rotate, km_puppetry_solver solver, double *end_ring_y) {
+  char json[2048];
+  int n = snprintf(json, sizeof json,
+                   "{\"skeleton\":\"bvh\",\"handles\":[{\"name\":\"base\",\"vertices\":[");
+  for (int k = 0; k < RING; ++k)
+    n += snprintf(json + n, sizeof json - (size_t)n, "%s%d", k ? "," : "", k);
+  n += snprintf(json + n, sizeof json - (size_t)n, "]},{\"name\":\"end\",\"vertices\":[");
+  for (int k = 0; k < RING; ++k)
+    n += snprintf(json + n, sizeof json - (size_t)n, "%s%d", k ? "," : "", SEGS * RING + k);
+  snprintf(json + n, sizeof json - (size_t)n,
+           "]}],\"map\":[{\"handle\":\"end\",\"joint\":\"end\",\"rotate\":%s}]}",
+           rotate ? "true" : "false");
+  const char *names[3] = {"root", "elbow", "end"};
+  const int32_t parents[3] = {-1, 0, 1};
+  km_rig rig;
+  double stretch = NAN;
+  CHECK_OK(km_rig_parse(json, strlen(json), "bar.rig.json", m, names, 3, &rig, KM_E));
+  CHECK(rig.n_maps == 1 && rig.maps[0].rotate == rotate);
+  km_filter_options raw = {.smoothing = KM_FILTER_ZERO, .trend = KM_FILTER_ZERO};
+  km_puppetry_options o = {0};
+  o.filter = &raw;
+  o.no_glitch = true;
+  o.joint_parents = parents;
+  o.retarget.scale = 1;
+  o.solver = solver;
+  o.puppet.fields = 4;
+  o.puppet.isolines = 10;
+  o.arap.iterations = 100;
+  km_puppetry *p = NULL;
+  CHECK_OK(km_puppetry_create(m, &rig, names, 3, &o, &p, NULL, KM_E));
+  if (p) {
+    double *V = malloc(m->n_vertices * 3 * sizeof(double));
+    const double straight[9] = {0, 0, 0, 1, 0, 0, 2, 0, 0}, bent[9] = {0, 0, 0, 1, 0, 0, 1, 1, 0};
+    CHECK_OK(km_puppetry_push(p, straight, V, KM_E));
+    for (int f = 0; f < 20; ++f)
+      CHECK_OK(km_puppetry_push(p, bent, V, KM_E));
+    stretch = edge_stretch(m, V);
+    /* the end ring now lies across the y axis: its vertices share y = 1 */
+    double ylo = INFINITY, yhi = -INFINITY;
+    for (int k = 0; k < RING; ++k) {
+      ylo = fmin(ylo, V[3 * (size_t)(SEGS * RING + k) + 1]);
+      yhi = fmax(yhi, V[3 * (size_t)(SEGS * RING + k) + 1]);
+    }
+    *end_ring_y = yhi - ylo;
+    free(V);
+    km_puppetry_free(&p);
+  }
+  km_rig_free(&rig);
+  return stretch;
+}
+
+int main(void) {
+  km_mesh m = bar();
+  for (int solver = 0; solver < 2; ++solver) {
+    double spread_rot, spread_tr;
+    double s_rot = run(&m, true, solver ? KM_PUPPETRY_FULL : KM_PUPPETRY_REDUCED, &spread_rot);
+    double s_tr = run(&m, false, solver ? KM_PUPPETRY_FULL : KM_PUPPETRY_REDUCED, &spread_tr);
+    printf("  %s: edge stretch max %.4f with rotating handles, %.4f translation-only; end ring "
+           "y spread %.4f vs %.4f\n",
+           solver ? "full" : "reduced", s_rot, s_tr, spread_rot, spread_tr);
+    /* the end ring (diameter 0.04) lies across y when it turned, along y when it did not;
+     * the reduced model meets its handle targets in the least-squares sense only */
+    CHECK_MSG(spread_rot < (solver ? 1e-9 : 0.5 * spread_tr),
+              "the end handle did not turn (y spread %g vs %g)", spread_rot, spread_tr);
+    CHECK_MSG(spread_tr > (solver ? 0.039 : 0.02), "translation-only handle turned (y spread %g)",
+              spread_tr);
+    CHECK_MSG(s_rot < s_tr, "rotation %g vs translation %g", s_rot, s_tr);
+    /* converged full ARAP: 5.0% with rotating handles, 22% translation-only */
+    if (solver)
+      CHECK_MSG(s_rot <= 0.055 && s_rot < 0.3 * s_tr, "full solver: rotating handles stretch %g",
+                s_rot);
+  }
+  free(m.V);
+  free(m.F);
+  return km_test_finish("test_motion_rotate");
+}
