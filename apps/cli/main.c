@@ -26,6 +26,8 @@ static const km_cli_verb VERBS[] = {
      km_cli_avatar},
     {"reconstruct", "point clouds -> mesh animation: register a rigged template to every frame",
      km_cli_reconstruct},
+    {"rig", "automatic rigging: skeleton, skin, landmarks and puppetry handles for any mesh",
+     km_cli_rig},
     {"bench", "benchmarks printing the papers' tables (bench deform)", km_bench},
 };
 
