@@ -1634,10 +1634,15 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * extent. A humanoid's roles: the two lowest extremities are the feet, the highest near the
  * feet's mid-line the head top, the outermost on each side the hand tips. Its torso and leg
  * joints are centroids of thin horizontal slices at height-normalised levels (fractions of
- * H measured on the procedural character), restricted to the torso or that leg's side; arm
- * joints are centroids of geodesic rings (vertices at one geodesic distance from the hand
- * tip) at proportional distances between the tip and the shoulder, which follows the arm
- * whatever its pose. Those centroids lie inside tubular parts. A non-humanoid (quadruped):
+ * H measured on the procedural character), each the centroid of the longest contour the
+ * plane cuts near the torso or on that leg's side (so a hand or a trunk the plane also cuts
+ * is left out); short legs or low arms (where the feet's geodesics part, where an arm's
+ * ring near its root is) lower the hips or the shoulders and the joints between follow.
+ * Hands: the extremity on each side maximising limb length * (1 - t), t being where along
+ * the head-to-foot path its geodesics part (an arm beats an ear or a horn). Arm joints are
+ * centroids of geodesic rings (vertices at one geodesic distance from the hand tip) at
+ * proportional distances between the tip and the shoulder, which follows the arm whatever
+ * its pose. Those centroids lie inside tubular parts. A non-humanoid (quadruped):
  * the four lowest extremities are its limbs, split front/hind along the feet's principal
  * horizontal axis (front = towards the head) and left/right across it; the highest other
  * extremity is the head. Front limbs take the Kinect arm joints (HandLeft/Right at the

@@ -298,7 +298,7 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
    * horn joins near the top; a bump (knee, shoulder) is short. On each side, among extremities
    * off the mid-line joining below t = 0.9, the hand maximises len * (1 - t). */
   int hand_l = -1, hand_r = -1;
-  double best_l = -1, best_r = -1;
+  double best_l = -1, best_r = -1, len_l = 0, len_r = 0;
   const int32_t hv = r->ext_v[head], flv = r->ext_v[foot_l], frv = r->ext_v[foot_r];
   const double *Dh = r->dist + (size_t)head * r->n;
   double A = 0.5 * (Dh[flv] + Dh[frv]);
@@ -312,8 +312,8 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
       double len = 0.5 * (De[hv] + fmin(De[flv], De[frv]) - A);
       if (pass == 0 && (t > 0.9 || fabs(x) < 0.08 * r->H)) continue;
       double sc = fmax(len, 1e-9 * A) * (1 - fmin(t, 0.99));
-      if (need_l && x > 0 && sc > best_l) best_l = sc, hand_l = (int)e;
-      if (need_r && x < 0 && sc > best_r) best_r = sc, hand_r = (int)e;
+      if (need_l && x > 0 && sc > best_l) best_l = sc, hand_l = (int)e, len_l = len;
+      if (need_r && x < 0 && sc > best_r) best_r = sc, hand_r = (int)e, len_r = len;
     }
   }
   if (hand_l < 0 || hand_r < 0)
@@ -328,33 +328,61 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
   set_role(rep, hand_r, "HandRight");
 
   double *J = r->J, y0 = r->ymin, H = r->H, hw = 0.2 * H, xc = xm;
-  static const double tf[4] = {F_HIP_C, F_SPINE, F_SHOULDER_C, F_HEAD};
+  /* Heights: a person's proportions (fractions of H), unless the body says otherwise. The
+   * legs part at the crotch, found as the ring of one foot at the distance where its
+   * geodesics to the other foot and to the head part; the arms join where their ring near
+   * the limb's root is. Short legs or low arms (a big head on a small body) lower the hips
+   * or the shoulders, and the joints between follow. */
+  double hip_y = y0 + F_HIP * H, ankle_y = y0 + F_ANKLE * H, sh_y[2];
+  {
+    const double *Dl = r->dist + (size_t)foot_l * r->n;
+    double cd = 0.5 * (Dl[r->ext_v[head]] + Dl[r->ext_v[foot_r]] -
+                       r->dist[(size_t)foot_r * r->n + (size_t)r->ext_v[head]]);
+    double crotch[3];
+    if (cd > 0) {
+      ring_centroid(r, (size_t)foot_l, cd, crotch);
+      if (crotch[1] + 0.065 * H < hip_y - 0.1 * H) hip_y = crotch[1] + 0.065 * H;
+    }
+  }
+  for (int side = 0; side < 2; ++side) {
+    double root[3], len = side ? len_r : len_l;
+    sh_y[side] = y0 + F_SHOULDER * H;
+    if (len > 0) {
+      ring_centroid(r, (size_t)(side ? hand_r : hand_l), 0.9 * len, root);
+      if (root[1] < sh_y[side] - 0.12 * H) sh_y[side] = root[1];
+    }
+  }
+  double top_y = P(r, r->ext_v[head])[1];
+  double hipc_y = hip_y + (F_HIP_C - F_HIP) * H;
+  double sc_y = fmax(sh_y[0], sh_y[1]) + (F_SHOULDER_C - F_SHOULDER) * H;
+  double knee_y = ankle_y + (F_KNEE - F_ANKLE) / (F_HIP - F_ANKLE) * (hip_y - ankle_y);
+  double ty[4] = {hipc_y, hipc_y + (F_SPINE - F_HIP_C) / (F_SHOULDER_C - F_HIP_C) * (sc_y - hipc_y),
+                  sc_y, sc_y + (F_HEAD - F_SHOULDER_C) / (1 - F_SHOULDER_C) * (top_y - sc_y)};
   static const int tj[4] = {J_HIP_C, J_SPINE, J_SHOULDER_C, J_HEAD};
   for (int i = 0; i < 4; ++i)
-    if (!slice_centroid(r, y0 + tf[i] * H, xc, hw, 0, 0, J + 3 * tj[i]))
-      set3(J + 3 * tj[i], xc, y0 + tf[i] * H, P(r, r->ext_v[head])[2]);
+    if (!slice_centroid(r, ty[i], xc, hw, 0, 0, J + 3 * tj[i]))
+      set3(J + 3 * tj[i], xc, ty[i], P(r, r->ext_v[head])[2]);
   for (int side = 0; side < 2; ++side) {
     int o4 = 4 * side, foot = side ? foot_r : foot_l, hand = side ? hand_r : hand_l;
     double sx = side ? -1 : 1;
     const double *toe = P(r, r->ext_v[foot]);
     double *kn = J + 3 * (J_KNEE_L + o4), *an = J + 3 * (J_ANKLE_L + o4),
            *ft = J + 3 * (J_FOOT_L + o4), *hp = J + 3 * (J_HIP_L + o4);
-    if (!slice_centroid(r, y0 + F_KNEE * H, toe[0], 0.15 * H, xm, side ? -1 : 1, kn))
-      set3(kn, toe[0], y0 + F_KNEE * H, toe[2]);
+    if (!slice_centroid(r, knee_y, toe[0], 0.15 * H, xm, side ? -1 : 1, kn))
+      set3(kn, toe[0], knee_y, toe[2]);
     if (!slice_centroid(r, y0 + F_ANKLE_SLICE * H, toe[0], 0.15 * H, xm, side ? -1 : 1, an))
-      set3(an, toe[0], y0 + F_ANKLE * H, toe[2]);
-    an[1] = y0 + F_ANKLE * H;
+      set3(an, toe[0], ankle_y, toe[2]);
+    an[1] = ankle_y;
     set3(ft, an[0], y0 + F_FOOT * H, an[2] + 0.5 * (toe[2] - an[2]));
     const double *hc = J + 3 * J_HIP_C;
-    set3(hp, hc[0] + 0.82 * (kn[0] - hc[0]), y0 + F_HIP * H, hc[2]);
-    /* Arm: shoulder by proportion, then rings from the hand tip. */
+    set3(hp, hc[0] + 0.82 * (kn[0] - hc[0]), hip_y, hc[2]);
+    /* Arm: the shoulder beside the shoulder centre, then rings from the hand tip. */
     const double *sc = J + 3 * J_SHOULDER_C;
     double *sh = J + 3 * (J_SHOULDER_L + o4);
-    set3(sh, sc[0] + sx * F_SHOULDER_X * H, y0 + F_SHOULDER * H, sc[2]);
-    size_t e = (size_t)hand;
+    set3(sh, sc[0] + sx * F_SHOULDER_X * H, sh_y[side], sc[2]);
     static const double af[3] = {F_ELBOW_ARM, F_WRIST_ARM, F_HAND_ARM};
     int aj[3] = {J_ELBOW_L + o4, J_WRIST_L + o4, J_HAND_L + o4};
-    limb_chain(r, e, sh, af, 3, aj, J);
+    limb_chain(r, (size_t)hand, sh, af, 3, aj, J);
     r->tip[J_HAND_L + o4] = r->ext_v[hand];
     r->tip[J_FOOT_L + o4] = r->ext_v[foot];
   }
