@@ -482,6 +482,19 @@ km_status km_point_frames_list(const char *pattern, char ***paths, size_t *n, km
 /* Frees the n strings of *paths and the array, and sets *paths to NULL. */
 void km_paths_free(char ***paths, size_t n);
 
+/* ---- nearest vertices (kinemesh pick; src/mesh/nearest.c) */
+
+/* The k vertices nearest to a point (Euclidean), nearest first; ties by lower id.
+ *   V         in: #V*3 positions
+ *   n         in: #V
+ *   p         in: 3 coordinates
+ *   k         in: how many (more than #V: #V)
+ *   ids       out: min(k, #V) vertex ids
+ *   dist      out: their distances; may be NULL
+ * Returns how many were written. */
+size_t km_nearest_vertices(const double *V, size_t n, const double p[3], size_t k, int32_t *ids,
+                           double *dist);
+
 /* ==== motion: skeletons, takes, formats, filter, rig, retargeting, sidecar (src/motion/) ==== */
 
 /* ---- skeletons */

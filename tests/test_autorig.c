@@ -309,12 +309,54 @@ static void test_cli(void) {
   km_mesh_free(&m);
 }
 
+/* km_nearest_vertices against a brute-force sort, and kinemesh pick. */
+static void test_pick(void) {
+  km_character_options co = {0};
+  co.target_vertices = 3000;
+  km_character c = {0};
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  const km_mesh *m = &c.mesh;
+  double p[3] = {0.31, 1.2, 0.05};
+  int32_t ids[8];
+  double d[8];
+  size_t n = km_nearest_vertices(m->V, m->n_vertices, p, 8, ids, d);
+  CHECK(n == 8);
+  /* brute force: how many vertices are strictly nearer than the i-th */
+  for (size_t i = 0; i < n; ++i) {
+    size_t nearer = 0;
+    for (size_t v = 0; v < m->n_vertices; ++v) {
+      const double *q = m->V + 3 * v;
+      double dv = sqrt((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) +
+                       (q[2] - p[2]) * (q[2] - p[2]));
+      if (dv < d[i]) ++nearer;
+    }
+    CHECK_MSG(nearer <= i, "pick %zu: %zu vertices nearer", i, nearer);
+    if (i) CHECK(d[i] >= d[i - 1]);
+  }
+  char path[512], cmd[1024], *out = NULL, want[32];
+  snprintf(path, sizeof path, "%s/pick.off", g_dir);
+  CHECK_OK(km_mesh_write(path, m, NULL, KM_E));
+  snprintf(cmd, sizeof cmd, KM_CLI " pick '%s' --near 0.31,1.2,0.05 --k 2", path);
+  CHECK(km_test_run(cmd, &out) == 0);
+  snprintf(want, sizeof want, "%d ", (int)ids[0]);
+  CHECK_MSG(out && !strncmp(out, want, strlen(want)), "pick printed: %s, want %s", out ? out : "",
+            want);
+  free(out);
+  snprintf(cmd, sizeof cmd, KM_CLI " pick '%s' --near 0.31,1.2", path);
+  CHECK(km_test_run(cmd, &out) != 0);
+  CHECK(out && strstr(out, "x,y,z"));
+  free(out);
+  CHECK(km_nearest_vertices(m->V, 2, p, 8, ids, NULL) == 2);
+  km_character_free(&c);
+}
+
 int main(void) {
   if (!mkdtemp(g_dir)) {
     perror("mkdtemp");
     return 1;
   }
   test_refused();
+  test_pick();
   test_character(10000, 0, 0, 0);
   test_character(20000, 7, 0.6, 1.15);
   test_cli();
