@@ -309,6 +309,34 @@ static void test_cli(void) {
   km_mesh_free(&m);
 }
 
+/* A vertex no face uses, far away, changes nothing: same skeleton as without it. */
+static void test_isolated_vertex(void) {
+  km_character_options co = {0};
+  co.target_vertices = 5000;
+  km_character c = {0}, a = {0}, b = {0};
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_alloc(c.mesh.n_vertices + 1, c.mesh.n_faces, &m, KM_E));
+  if (!m.V) return;
+  memcpy(m.V, c.mesh.V, sizeof(double) * 3 * c.mesh.n_vertices);
+  memcpy(m.F, c.mesh.F, sizeof(int32_t) * 3 * c.mesh.n_faces);
+  double far[3] = {10, 10, 10};
+  memcpy(m.V + 3 * c.mesh.n_vertices, far, sizeof far);
+  CHECK_OK(km_autorig(&c.mesh, NULL, &a, NULL, KM_E));
+  CHECK_OK(km_autorig(&m, NULL, &b, NULL, KM_E));
+  if (a.skeleton.rest && b.skeleton.rest) {
+    double d = 0;
+    for (int i = 0; i < 3 * KM_KINECT1_JOINTS; ++i)
+      d = fmax(d, fabs(a.skeleton.rest[i] - b.skeleton.rest[i]));
+    CHECK_MSG(d < 1e-9, "isolated vertex moved a joint by %g", d);
+    CHECK(skin_valid(&b.skin, m.n_vertices));
+  }
+  km_character_free(&a);
+  km_character_free(&b);
+  km_mesh_free(&m);
+  km_character_free(&c);
+}
+
 /* km_nearest_vertices against a brute-force sort, and kinemesh pick. */
 static void test_pick(void) {
   km_character_options co = {0};
@@ -359,6 +387,7 @@ int main(void) {
   test_pick();
   test_character(10000, 0, 0, 0);
   test_character(20000, 7, 0.6, 1.15);
+  test_isolated_vertex();
   test_cli();
   char buf[1024];
   const char *csv = km_test_shared("skeleton/precog_Seq1_1.csv", buf, sizeof buf);

@@ -72,9 +72,19 @@ int km_cli_rig(int argc, char **argv) {
     rc = km_cli_fail("rig", &err);
     goto done;
   }
-  printf("handles head, hand_left, hand_right, foot_left, foot_right -> Head, HandLeft, "
-         "HandRight, FootLeft, FootRight\nwrote %s\n",
-         path);
+  /* The puppetry rig in the sidecar must resolve on the mesh (handles apart, in range). */
+  km_rig rig = {0};
+  if (km_rig_read(path, &m, NULL, 0, &rig, &err) != KM_OK) {
+    fprintf(stderr, "kinemesh rig: wrote %s, but its puppetry handles do not resolve: %s\n",
+            path, err.message);
+    rc = KM_EXIT_FAIL;
+    goto done;
+  }
+  for (size_t h = 0; h < rig.n_handles; ++h)
+    printf("%shandle %s: %zu vertices", h ? ", " : "", rig.handles[h].name,
+           rig.handles[h].n_vertices);
+  km_rig_free(&rig);
+  printf("\nwrote %s\n", path);
 done:
   free(def);
   km_character_free(&c);

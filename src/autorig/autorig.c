@@ -49,6 +49,7 @@ typedef struct rigger {
   double J[KM_KINECT1_JOINTS * 3];
   int32_t tip[KM_KINECT1_JOINTS]; /* extremity vertex a leaf joint reaches to (-1: none) */
   int32_t *uf;  /* n: slice union-find */
+  unsigned char *on_face; /* n: 1 for vertices some face uses (others are isolated) */
   double *acc;  /* n*4: slice contour sums */
 } rigger;
 
@@ -63,6 +64,7 @@ static int32_t nearest_vertex(const rigger *r, const double p[3]) {
   double best = DBL_MAX;
   int32_t bi = 0;
   for (size_t v = 0; v < r->n; ++v) {
+    if (r->on_face && !r->on_face[v]) continue;
     double d = dist3(r->m->V + 3 * v, p);
     if (d < best) best = d, bi = (int32_t)v;
   }
@@ -105,10 +107,15 @@ static km_status find_extremities(rigger *r, const km_autorig_options *o, km_err
   size_t n = r->n, maxe = o->max_extremities ? o->max_extremities : KM_AUTORIG_MAX_EXTREMITIES;
   if (maxe > KM_AUTORIG_MAX_EXTREMITIES) maxe = KM_AUTORIG_MAX_EXTREMITIES;
   double thr = (o->min_extremity > 0 ? o->min_extremity : 0.2) * r->ext;
-  double c[3] = {0, 0, 0};
+  double c[3] = {0, 0, 0}, cnt = 0;
   for (size_t v = 0; v < n; ++v)
-    for (int k = 0; k < 3; ++k)
-      c[k] += r->m->V[3 * v + k] / (double)n;
+    if (r->on_face[v]) {
+      for (int k = 0; k < 3; ++k)
+        c[k] += r->m->V[3 * v + k];
+      cnt += 1;
+    }
+  for (int k = 0; k < 3; ++k)
+    c[k] /= cnt > 0 ? cnt : 1;
   int32_t root = nearest_vertex(r, c);
   double *dmin = km__malloc(n, sizeof *dmin);
   r->dist = km__malloc(n * maxe, sizeof *r->dist);
@@ -557,6 +564,7 @@ static int32_t ray_pick(const rigger *r, const double o[3], const double dir[3],
   int32_t best = -1;
   double bt = -DBL_MAX;
   for (size_t v = 0; v < r->n; ++v) {
+    if (!r->on_face[v]) continue;
     const double *p = r->m->V + 3 * v;
     double q[3] = {p[0] - o[0], p[1] - o[1], p[2] - o[2]};
     double t = q[0] * dir[0] + q[1] * dir[1] + q[2] * dir[2];
@@ -641,19 +649,28 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   r.n = m->n_vertices;
   for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
     r.tip[j] = -1;
+  r.on_face = km__calloc(r.n, 1);
+  if (!r.on_face) return km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", r.n);
+  for (size_t i = 0; i < 3 * m->n_faces; ++i)
+    if (m->F[i] >= 0 && (size_t)m->F[i] < r.n) r.on_face[m->F[i]] = 1;
   double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX};
   for (size_t v = 0; v < r.n; ++v)
-    for (int k = 0; k < 3; ++k) {
+    for (int k = 0; k < 3 && r.on_face[v]; ++k) {
       double x = m->V[3 * v + k];
       if (x < lo[k]) lo[k] = x;
       if (x > hi[k]) hi[k] = x;
     }
   r.ymin = lo[1], r.ymax = hi[1], r.H = hi[1] - lo[1];
   r.ext = fmax(hi[0] - lo[0], fmax(r.H, hi[2] - lo[2]));
-  if (!km__progress(&o.progress, 0.0, "geodesics"))
+  if (!km__progress(&o.progress, 0.0, "geodesics")) {
+    free(r.on_face);
     return km__fail(err, KM_ERR_CANCELLED, "rig: cancelled");
+  }
   st = km__geodesic_create(m, &r.geo, err);
-  if (st != KM_OK) return st;
+  if (st != KM_OK) {
+    free(r.on_face);
+    return st;
+  }
   st = find_extremities(&r, &o, err);
   km_autorig_skeleton kind = o.skeleton;
   if (st == KM_OK && kind == KM_AUTORIG_AUTO)
@@ -702,6 +719,7 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   km__geodesic_free(&r.geo);
   free(r.dist);
   free(r.uf);
+  free(r.on_face);
   free(r.acc);
   if (st != KM_OK) {
     km_character_free(out);
