@@ -1660,18 +1660,24 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * horizontal axis (front = towards the head) and left/right across it; the highest other
  * extremity is the head. Front limbs take the Kinect arm joints (HandLeft/Right at the
  * tips), hind limbs the leg joints, the head Head; limb joints are geodesic ring centroids,
- * the spine runs between the hind and front limb roots at the centroid's height.
+ * the spine runs between the hind and front limb roots at the centroid's height. A prop (a
+ * bust, an object; what auto falls back to when neither fits, the reason in the report):
+ * the highest vertex drives Head, the outermost upper vertex on each side HandLeft /
+ * HandRight, the lowest outer one on each side FootLeft / FootRight (each at least 0.2 H
+ * along the surface from the others), the joints on straight lines from the centroid.
  * Skin: every vertex is weighted on the bones nearest to it (distance to the bone segment,
  * the segment from a joint to its child weighting that joint, leaf joints reaching to their
  * extremity), w = (1 - (d - dmin) / band)^2 within band = 0.06 H of the nearest, at most 4
  * influences, summing to 1. Landmarks: the surface vertex hit by a ray from a joint
  * (forward, up or sideways, like the procedural character's), hands and feet at their tips.
  * Meshes it refuses: no faces, several components (each connected set of faces), non-manifold
- * edges (three or more faces), too few extremities for the requested skeleton. */
+ * edges (three or more faces), too few extremities for the requested skeleton (kinect1 or
+ * quadruped asked for), a surface too small for five separate handles. */
 typedef enum km_autorig_skeleton {
   KM_AUTORIG_AUTO = 0, /* humanoid or quadruped, from where the extremities are */
   KM_AUTORIG_KINECT1,  /* humanoid: Kinect v1 joints embedded in the body */
-  KM_AUTORIG_QUADRUPED /* four limbs and a head mapped onto the Kinect v1 joints */
+  KM_AUTORIG_QUADRUPED, /* four limbs and a head mapped onto the Kinect v1 joints */
+  KM_AUTORIG_PROP       /* a bust, an object: five handle points by position (below) */
 } km_autorig_skeleton;
 
 #define KM_AUTORIG_MAX_EXTREMITIES 16
@@ -1684,7 +1690,7 @@ typedef struct km_autorig_options {
 
 /* What km_autorig chose (the library never prints: the caller reports it). */
 typedef struct km_autorig_report {
-  km_autorig_skeleton kind; /* KM_AUTORIG_KINECT1 (humanoid) or KM_AUTORIG_QUADRUPED */
+  km_autorig_skeleton kind; /* KM_AUTORIG_KINECT1 (humanoid), _QUADRUPED or _PROP */
   size_t n_extremities;
   int32_t extremity[KM_AUTORIG_MAX_EXTREMITIES];  /* vertex ids, most prominent first */
   double extremity_distance[KM_AUTORIG_MAX_EXTREMITIES]; /* geodesic prominence, metres */
@@ -1692,6 +1698,9 @@ typedef struct km_autorig_report {
   char role[KM_AUTORIG_MAX_EXTREMITIES][16];
   double height;  /* y extent of the mesh */
   double seconds; /* wall time */
+  /* auto: why the humanoid or quadruped rig failed when the mesh was rigged as a prop
+   * instead ("" otherwise) */
+  char fallback[256];
 } km_autorig_report;
 
 /* Rigs a mesh.

@@ -11,22 +11,24 @@ int km_cli_rig(int argc, char **argv) {
   const km_cli_opt opts[] = {
       {"output", 'o', KM_OPT_STRING, &out, "rig sidecar to write (default MESH.rig.json)"},
       {"skeleton", 0, KM_OPT_STRING, &skel,
-       "auto (default: humanoid or quadruped from the extremities), kinect1 (humanoid) or "
-       "quadruped"},
+       "auto (default: humanoid or quadruped from the extremities, else prop), kinect1 "
+       "(humanoid), quadruped or prop (handles by position)"},
       {"min-extremity", 0, KM_OPT_DOUBLE, &min_ext,
        "extremity prominence as a fraction of the largest extent (default 0.2)"},
   };
   const char *pos[1];
   int n_pos;
   int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
-                       "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped]",
+                       "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop]",
                        "Rigs a mesh kinemesh did not make: finds its extremities (geodesic\n"
                        "extremes), embeds the 20 Kinect v1 joints in its interior, computes\n"
                        "skin weights and the 16 landmarks, and writes the rig sidecar that\n"
                        "animate, live, pose and reconstruct read (skeleton, skin, landmarks and\n"
                        "a puppetry rig: handles at the head, hands and feet). A quadruped's\n"
                        "front limbs take the hands, its hind limbs the feet, its highest other\n"
-                       "extremity the head. The mesh is taken as y up, facing +z.");
+                       "extremity the head. A mesh with neither (a bust, an object) gets five\n"
+                       "handles by position: highest -> head, upper sides -> hands, lower sides\n"
+                       "-> feet. The mesh is taken as y up, facing +z.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (n_pos != 1) return km_cli_error("rig", "expected one MESH");
   km_autorig_options o = {0};
@@ -36,8 +38,10 @@ int km_cli_rig(int argc, char **argv) {
     o.skeleton = KM_AUTORIG_KINECT1;
   else if (!strcmp(skel, "quadruped"))
     o.skeleton = KM_AUTORIG_QUADRUPED;
+  else if (!strcmp(skel, "prop"))
+    o.skeleton = KM_AUTORIG_PROP;
   else
-    return km_cli_error("rig", "--skeleton %s: expected auto, kinect1 or quadruped", skel);
+    return km_cli_error("rig", "--skeleton %s: expected auto, kinect1, quadruped or prop", skel);
   o.min_extremity = min_ext;
   km_error err = {0};
   km_mesh m = {0};
@@ -54,10 +58,15 @@ int km_cli_rig(int argc, char **argv) {
     rc = km_cli_fail("rig", &err);
     goto done;
   }
+  if (rep.fallback[0]) printf("not a humanoid or quadruped (%s): rigged as a prop\n", rep.fallback);
   printf("%s: %zu vertices, height %.4g, rigged as %s in %.3f s\n", pos[0], m.n_vertices,
-         rep.height, rep.kind == KM_AUTORIG_QUADRUPED ? "a quadruped" : "a humanoid (kinect1)",
+         rep.height,
+         rep.kind == KM_AUTORIG_QUADRUPED ? "a quadruped"
+         : rep.kind == KM_AUTORIG_PROP    ? "a prop (handles by position)"
+                                          : "a humanoid (kinect1)",
          rep.seconds);
-  printf("extremities (geodesic extremes, most prominent first):\n");
+  printf(rep.kind == KM_AUTORIG_PROP ? "extremities and handle points:\n"
+                                     : "extremities (geodesic extremes, most prominent first):\n");
   for (size_t e = 0; e < rep.n_extremities; ++e) {
     const double *p = m.V + 3 * (size_t)rep.extremity[e];
     printf("  vertex %-8d at (%8.4f %8.4f %8.4f)  prominence %.4f  %s\n", (int)rep.extremity[e],

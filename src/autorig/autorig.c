@@ -125,17 +125,47 @@ static km_status find_extremities(rigger *r, const km_autorig_options *o, km_err
     free(dmin);
     return km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", n);
   }
+  double *d0 = km__malloc(n, sizeof *d0);
+  unsigned char *cand = km__malloc(n, 1);
+  if (!d0 || !cand) {
+    free(dmin);
+    free(d0);
+    free(cand);
+    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", n);
+  }
   const double *d = km__geodesic_run(r->geo, r->m->V, root, INFINITY, NULL, 0, NULL, NULL);
   memcpy(dmin, d, n * sizeof *dmin);
+  memcpy(d0, d, n * sizeof *d0);
+  for (size_t v = 0; v < n; ++v)
+    cand[v] = isfinite(d0[v]);
+  /* An extremity is the tip of something: the farthest vertex from the root within rho
+   * along the surface (a blob's far side is not one). A vertex that is not is dropped with
+   * its ball, all but the ball's farthest vertex. */
+  double rho = 0.05 * r->ext;
+  size_t checks = 0;
   r->n_ext = 0;
-  while (r->n_ext < maxe) {
+  while (r->n_ext < maxe && checks < 4000) {
     int32_t best = -1;
     double bd = -1;
     for (size_t v = 0; v < n; ++v)
-      if (isfinite(dmin[v]) && dmin[v] > bd) bd = dmin[v], best = (int32_t)v;
+      if (cand[v] && dmin[v] > bd) bd = dmin[v], best = (int32_t)v;
     if (best < 0 || bd < thr) break;
+    ++checks;
+    const int32_t *ball = NULL;
+    size_t nb = 0;
+    km__geodesic_run(r->geo, r->m->V, best, rho, NULL, 0, &ball, &nb);
+    int32_t far = best;
+    for (size_t i = 0; i < nb; ++i)
+      if (d0[ball[i]] > d0[far]) far = ball[i];
+    if (far != best) {
+      for (size_t i = 0; i < nb; ++i)
+        if (ball[i] != far) cand[ball[i]] = 0;
+      continue;
+    }
     if (!km__progress(&o->progress, 0.1 + 0.4 * (double)r->n_ext / (double)maxe, "extremities")) {
       free(dmin);
+      free(d0);
+      free(cand);
       return km__fail(err, KM_ERR_CANCELLED, "rig: cancelled");
     }
     d = km__geodesic_run(r->geo, r->m->V, best, INFINITY, NULL, 0, NULL, NULL);
@@ -147,6 +177,8 @@ static km_status find_extremities(rigger *r, const km_autorig_options *o, km_err
     r->ext_d[r->n_ext] = bd;
     ++r->n_ext;
   }
+  free(d0);
+  free(cand);
   free(dmin);
   return KM_OK;
 }
@@ -245,15 +277,22 @@ static void limb_chain(const rigger *r, size_t e, const double root[3], const do
 
 /* ---------------------------------------------------------------- roles */
 
-/* The lowest unused extremity that is not a second tip of a limb already chosen (geodesic
- * distance to each chosen one above half the height: a heel beside its toes is skipped). */
+/* The lowest unused extremity that is not a second tip of a limb already chosen (a heel
+ * beside its toes is skipped): apart from each chosen one by half the height along the
+ * surface, or by a surface path 1.6 times their straight distance (legs parted by a
+ * crotch). */
 static int lowest_distinct(const rigger *r, const bool *used, const int *chosen, int n_chosen) {
   int best = -1;
   for (size_t e = 0; e < r->n_ext; ++e) {
     if (used[e]) continue;
     bool near = false;
-    for (int c = 0; c < n_chosen; ++c)
-      if (r->dist[e * r->n + (size_t)r->ext_v[chosen[c]]] < 0.5 * r->H) near = true;
+    for (int c = 0; c < n_chosen; ++c) {
+      int32_t a = r->ext_v[e], b = r->ext_v[chosen[c]];
+      double g = r->dist[e * r->n + (size_t)b];
+      /* same limb unless far apart along the surface, or the surface path detours (a crotch
+       * between two short legs) */
+      if (g < 0.5 * r->H && g < 1.6 * dist3(P(r, a), P(r, b))) near = true;
+    }
     if (near) continue;
     if (best < 0 || P(r, r->ext_v[e])[1] < P(r, r->ext_v[best])[1]) best = (int)e;
   }
@@ -489,6 +528,84 @@ static km_status rig_quadruped(rigger *r, km_autorig_report *rep, km_error *err)
   return KM_OK;
 }
 
+/* Prop (a bust, an object: too few extremities for limbs): five handle points by position,
+ * the highest vertex for the head, the outermost upper vertex on each side for the hands, the
+ * lowest outer vertex on each side for the feet, each at least 0.2 H along the surface from
+ * the others; the joints on straight lines from the centroid to them. */
+static km_status rig_prop(rigger *r, km_autorig_report *rep, km_error *err) {
+  size_t n = r->n;
+  double c[3] = {0, 0, 0}, cnt = 0, H = r->H;
+  for (size_t v = 0; v < n; ++v)
+    if (r->on_face[v]) {
+      for (int k = 0; k < 3; ++k)
+        c[k] += r->m->V[3 * v + k];
+      cnt += 1;
+    }
+  for (int k = 0; k < 3; ++k)
+    c[k] /= cnt;
+  double *dmin = km__malloc(n, sizeof *dmin);
+  if (!dmin) return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  for (size_t v = 0; v < n; ++v)
+    dmin[v] = INFINITY;
+  /* order: head, hand_left, hand_right, foot_left, foot_right */
+  int32_t pick[5];
+  for (int h = 0; h < 5; ++h) {
+    double best = -DBL_MAX;
+    int32_t bv = -1;
+    for (size_t v = 0; v < n; ++v) {
+      if (!r->on_face[v] || !(dmin[v] > 0.2 * H)) continue;
+      const double *p = r->m->V + 3 * v;
+      double x = (p[0] - c[0]) / r->ext, y = (p[1] - r->ymin) / H, sc;
+      switch (h) {
+      case 0: sc = y; break;
+      case 1: sc = x + 0.5 * y; break;
+      case 2: sc = -x + 0.5 * y; break;
+      case 3: sc = x - y; break;
+      default: sc = -x - y; break;
+      }
+      if (sc > best) best = sc, bv = (int32_t)v;
+    }
+    if (bv < 0) {
+      free(dmin);
+      return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                      "rig: the mesh is too small along its surface for five handles 0.2 of its "
+                      "height apart (found %d)", h);
+    }
+    pick[h] = bv;
+    const double *d = km__geodesic_run(r->geo, r->m->V, bv, INFINITY, NULL, 0, NULL, NULL);
+    for (size_t v = 0; v < n; ++v)
+      if (d[v] < dmin[v]) dmin[v] = d[v];
+  }
+  free(dmin);
+  static const char *const roles[5] = {"Head", "HandLeft", "HandRight", "FootLeft", "FootRight"};
+  if (rep)
+    for (int h = 0; h < 5 && rep->n_extremities < KM_AUTORIG_MAX_EXTREMITIES; ++h) {
+      size_t e = rep->n_extremities++;
+      rep->extremity[e] = pick[h];
+      rep->extremity_distance[e] = 0;
+      snprintf(rep->role[e], sizeof rep->role[e], "%s", roles[h]);
+    }
+  double *J = r->J;
+  const double *top = P(r, pick[0]);
+  memcpy(J + 3 * J_HIP_C, c, sizeof c);
+  for (int k = 0; k < 3; ++k) {
+    J[3 * J_SPINE + k] = c[k] + 0.25 * (top[k] - c[k]);
+    J[3 * J_SHOULDER_C + k] = c[k] + 0.5 * (top[k] - c[k]);
+    J[3 * J_HEAD + k] = c[k] + 0.75 * (top[k] - c[k]);
+  }
+  static const double f[4] = {0.25, 0.5, 0.75, 0.9};
+  const int chain0[4] = {J_SHOULDER_L, J_SHOULDER_R, J_HIP_L, J_HIP_R};
+  for (int l = 0; l < 4; ++l) {
+    const double *tip = P(r, pick[1 + l]), *from = l < 2 ? J + 3 * J_SHOULDER_C : c;
+    for (int i = 0; i < 4; ++i)
+      for (int k = 0; k < 3; ++k)
+        J[3 * (chain0[l] + i) + k] = from[k] + f[i] * (tip[k] - from[k]);
+    r->tip[chain0[l] + 3] = pick[1 + l];
+  }
+  r->tip[J_HEAD] = pick[0];
+  return KM_OK;
+}
+
 /* ---------------------------------------------------------------- skin */
 
 static double seg_dist(const double *p, const double *a, const double *b) {
@@ -682,9 +799,25 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
     memcpy(report->extremity, r.ext_v, sizeof r.ext_v);
     memcpy(report->extremity_distance, r.ext_d, sizeof r.ext_d);
   }
-  if (st == KM_OK)
-    st = kind == KM_AUTORIG_QUADRUPED ? rig_quadruped(&r, report, err)
-                                      : rig_humanoid(&r, report, err);
+  if (st == KM_OK) {
+    if (kind == KM_AUTORIG_PROP)
+      st = rig_prop(&r, report, err);
+    else
+      st = kind == KM_AUTORIG_QUADRUPED ? rig_quadruped(&r, report, err)
+                                        : rig_humanoid(&r, report, err);
+    /* Automatic choice: a body whose limbs cannot be told apart is rigged as a prop. */
+    if (st == KM_ERR_DEGENERATE_MESH && o.skeleton == KM_AUTORIG_AUTO) {
+      if (report) {
+        snprintf(report->fallback, sizeof report->fallback, "%.200s", err ? err->message : "");
+        memset(report->role, 0, sizeof report->role);
+        report->kind = KM_AUTORIG_PROP;
+      }
+      kind = KM_AUTORIG_PROP;
+      for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+        r.tip[j] = -1;
+      st = rig_prop(&r, report, err);
+    }
+  }
   if (st == KM_OK && !km__progress(&o.progress, 0.6, "skin"))
     st = km__fail(err, KM_ERR_CANCELLED, "rig: cancelled");
   if (st == KM_OK) st = km_mesh_copy(m, &out->mesh, err);
