@@ -121,8 +121,7 @@ int km_bench_rig(int argc, char **argv) {
                        "character:50000 character:100000. Target: <= 2 s at 50k vertices.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (repeat < 1) return km_cli_error("bench rig", "--repeat must be at least 1");
-  static const char *const defaults[] = {"character:10000", "character:50000",
-                                         "character:100000"};
+  static const char *const defaults[] = {"character:10000", "character:50000", "character:100000"};
   if (!n_pos) {
     for (int i = 0; i < 3; ++i)
       pos[i] = defaults[i];

@@ -1644,8 +1644,10 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * Extremities are geodesic extremes: starting from the vertex nearest the vertex centroid,
  * repeatedly the vertex farthest along mesh edges (Dijkstra) from the root and from every
  * extremity found so far, while that distance exceeds min_extremity * the largest bbox
- * extent. A humanoid's roles: the two lowest extremities are the feet, the highest near the
- * feet's mid-line the head top, the outermost on each side the hand tips. Its torso and leg
+ * extent, keeping only tips (the farthest vertex from the root within 0.05 of that extent
+ * along the surface; a blob has one). A humanoid's roles: the two lowest extremities of
+ * distinct limbs are the feet (a heel beside its toes is one limb), the most prominent above
+ * mid-height near the feet's mid-line the head top, the hand tips as below. Its torso and leg
  * joints are centroids of thin horizontal slices at height-normalised levels (fractions of
  * H measured on the procedural character), each the centroid of the longest contour the
  * plane cuts near the torso or on that leg's side (so a hand or a trunk the plane also cuts
@@ -1674,7 +1676,7 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * edges (three or more faces), too few extremities for the requested skeleton (kinect1 or
  * quadruped asked for), a surface too small for five separate handles. */
 typedef enum km_autorig_skeleton {
-  KM_AUTORIG_AUTO = 0, /* humanoid or quadruped, from where the extremities are */
+  KM_AUTORIG_AUTO = 0, /* humanoid or quadruped from where the extremities are, else prop */
   KM_AUTORIG_KINECT1,  /* humanoid: Kinect v1 joints embedded in the body */
   KM_AUTORIG_QUADRUPED, /* four limbs and a head mapped onto the Kinect v1 joints */
   KM_AUTORIG_PROP       /* a bust, an object: five handle points by position (below) */
@@ -1684,7 +1686,7 @@ typedef enum km_autorig_skeleton {
 typedef struct km_autorig_options {
   km_autorig_skeleton skeleton; /* 0: auto */
   double min_extremity; /* extremity prominence, fraction of the largest bbox extent; 0: 0.2 */
-  size_t max_extremities; /* 0 or more than KM_AUTORIG_MAX_EXTREMITIES: that many */
+  size_t max_extremities; /* most extremities sought; 0: KM_AUTORIG_MAX_EXTREMITIES (also the cap) */
   km_progress progress;
 } km_autorig_options;
 
@@ -1710,7 +1712,8 @@ typedef struct km_autorig_report {
  *           v1 joints), skin (#V vertices) and 16 landmarks; free with km_character_free
  *   report  out: what was chosen; may be NULL
  * Errors: KM_ERR_DEGENERATE_MESH naming what is wrong (no faces, N components, N
- * non-manifold edges, zero height, too few extremities); KM_ERR_NOMEM; KM_ERR_CANCELLED. */
+ * non-manifold edges, zero height, too few extremities, too small for five handles);
+ * KM_ERR_NOMEM; KM_ERR_CANCELLED. */
 km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_character *out,
                      km_autorig_report *report, km_error *err);
 

@@ -51,9 +51,10 @@ static void test_character(size_t nv, uint64_t seed, double belly, double girth)
     const double *a = c.skeleton.rest + 3 * j, *b = r.skeleton.rest + 3 * j;
     double d = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
                     (a[2] - b[2]) * (a[2] - b[2]));
-    CHECK_MSG(d < 0.05 * H, "character %zu seed %llu: %s is %.3f m (%.1f%% of the height) "
-              "from the truth", nv, (unsigned long long)seed, km_kinect1_joint_name(j), d,
-              100 * d / H);
+    CHECK_MSG(d < 0.05 * H,
+              "character %zu seed %llu: %s is %.3f m (%.1f%% of the height) "
+              "from the truth",
+              nv, (unsigned long long)seed, km_kinect1_joint_name(j), d, 100 * d / H);
     if (d > worst) worst = d, wj = j;
     CHECK(!strcmp(r.skeleton.names[j], km_kinect1_joint_name(j)));
     CHECK(r.skeleton.parents[j] == km_kinect1_joint_parent(j));
@@ -116,16 +117,16 @@ static int cmp_double(const void *a, const void *b) {
  * its worst edge and 1.5x at the 95th percentile. The median edge must stay below 1.5x on
  * every mesh; the automatic rig's 99th percentile on the character is compared with the true
  * rig's in test_character_drive. *stretch_out: the 99th percentile. */
-static void drive(const char *label, const km_mesh *m, const km_character *c,
-                  const km_take *take, double *stretch_out, double max_stretch) {
+static void drive(const char *label, const km_mesh *m, const km_character *c, const km_take *take,
+                  double *stretch_out, double max_stretch) {
   char rig_path[512];
   snprintf(rig_path, sizeof rig_path, "%s/drive_%zu.rig.json", g_dir, m->n_vertices);
   CHECK_OK(km_character_write_rig(rig_path, c, KM_E));
   km_rig rig = {0};
   CHECK_OK(km_rig_read(rig_path, m, NULL, 0, &rig, KM_E));
   km_puppetry *p = NULL;
-  CHECK_OK(km_puppetry_create(m, &rig, (const char *const *)take->joint_names, take->n_joints,
-                              NULL, &p, NULL, KM_E));
+  CHECK_OK(km_puppetry_create(m, &rig, (const char *const *)take->joint_names, take->n_joints, NULL,
+                              &p, NULL, KM_E));
   if (!p) {
     km_rig_free(&rig);
     return;
@@ -155,7 +156,8 @@ static void drive(const char *label, const km_mesh *m, const km_character *c,
     for (size_t e = 0; e < ne; ++e) {
       size_t f = e / 3;
       int k = (int)(e % 3);
-      const double *a = V + 3 * (size_t)m->F[3 * f + k], *b = V + 3 * (size_t)m->F[3 * f + (k + 1) % 3];
+      const double *a = V + 3 * (size_t)m->F[3 * f + k],
+                   *b = V + 3 * (size_t)m->F[3 * f + (k + 1) % 3];
       double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
                       (a[2] - b[2]) * (a[2] - b[2]));
       double r = len0[e] > 0 ? l / len0[e] : 1;
@@ -236,8 +238,10 @@ static void test_character_drive(const km_take *take) {
   double s_true = 0, s_auto = 0;
   drive("character, true rig", &c.mesh, &c, take, &s_true, 4.0);
   drive("character, automatic rig", &c.mesh, &r, take, &s_auto, 4.0);
-  CHECK_MSG(s_auto < 1.05 * s_true, "automatic rig stretches %.3fx at the 99th percentile, the "
-            "true rig %.3fx", s_auto, s_true);
+  CHECK_MSG(s_auto < 1.05 * s_true,
+            "automatic rig stretches %.3fx at the 99th percentile, the "
+            "true rig %.3fx",
+            s_auto, s_true);
   km_character_free(&r);
   km_character_free(&c);
 }
@@ -278,8 +282,7 @@ static void test_refused(void) {
   km_autorig_options ho = {0};
   ho.skeleton = KM_AUTORIG_KINECT1;
   CHECK_STATUS(km_autorig(&m, &ho, &c, NULL, KM_E), KM_ERR_DEGENERATE_MESH);
-  CHECK_MSG(strstr(km_test_err.message, "extremities") != NULL, "message: %s",
-            km_test_err.message);
+  CHECK_MSG(strstr(km_test_err.message, "extremities") != NULL, "message: %s", km_test_err.message);
   CHECK_STATUS(km_autorig(&m, NULL, &c, NULL, KM_E), KM_ERR_DEGENERATE_MESH);
   CHECK_MSG(strstr(km_test_err.message, "five handles") != NULL, "message: %s",
             km_test_err.message);

@@ -18,17 +18,18 @@ int km_cli_rig(int argc, char **argv) {
   };
   const char *pos[1];
   int n_pos;
-  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
-                       "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop]",
-                       "Rigs a mesh kinemesh did not make: finds its extremities (geodesic\n"
-                       "extremes), embeds the 20 Kinect v1 joints in its interior, computes\n"
-                       "skin weights and the 16 landmarks, and writes the rig sidecar that\n"
-                       "animate, live, pose and reconstruct read (skeleton, skin, landmarks and\n"
-                       "a puppetry rig: handles at the head, hands and feet). A quadruped's\n"
-                       "front limbs take the hands, its hind limbs the feet, its highest other\n"
-                       "extremity the head. A mesh with neither (a bust, an object) gets five\n"
-                       "handles by position: highest -> head, upper sides -> hands, lower sides\n"
-                       "-> feet. The mesh is taken as y up, facing +z.");
+  int r =
+      km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
+                   "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop]",
+                   "Rigs a mesh kinemesh did not make: finds its extremities (geodesic\n"
+                   "extremes), embeds the 20 Kinect v1 joints in its interior, computes\n"
+                   "skin weights and the 16 landmarks, and writes the rig sidecar that\n"
+                   "animate, live, pose and reconstruct read (skeleton, skin, landmarks and\n"
+                   "a puppetry rig: handles at the head, hands and feet). A quadruped's\n"
+                   "front limbs take the hands, its hind limbs the feet, its highest other\n"
+                   "extremity the head. A mesh with neither (a bust, an object) gets five\n"
+                   "handles by position: highest -> head, upper sides -> hands, lower sides\n"
+                   "-> feet. The mesh is taken as y up, facing +z.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (n_pos != 1) return km_cli_error("rig", "expected one MESH");
   km_autorig_options o = {0};
@@ -70,8 +71,7 @@ int km_cli_rig(int argc, char **argv) {
   for (size_t e = 0; e < rep.n_extremities; ++e) {
     const double *p = m.V + 3 * (size_t)rep.extremity[e];
     printf("  vertex %-8d at (%8.4f %8.4f %8.4f)  prominence %.4f  %s\n", (int)rep.extremity[e],
-           p[0], p[1], p[2], rep.extremity_distance[e],
-           rep.role[e][0] ? rep.role[e] : "(unused)");
+           p[0], p[1], p[2], rep.extremity_distance[e], rep.role[e][0] ? rep.role[e] : "(unused)");
   }
   printf("joints:\n");
   for (size_t j = 0; j < c.skeleton.n_joints; ++j)
@@ -84,8 +84,8 @@ int km_cli_rig(int argc, char **argv) {
   /* The puppetry rig in the sidecar must resolve on the mesh (handles apart, in range). */
   km_rig rig = {0};
   if (km_rig_read(path, &m, NULL, 0, &rig, &err) != KM_OK) {
-    fprintf(stderr, "kinemesh rig: wrote %s, but its puppetry handles do not resolve: %s\n",
-            path, err.message);
+    fprintf(stderr, "kinemesh rig: wrote %s, but its puppetry handles do not resolve: %s\n", path,
+            err.message);
     rc = KM_EXIT_FAIL;
     goto done;
   }

@@ -12,11 +12,26 @@
 #include <string.h>
 
 enum {
-  J_HIP_C = 0, J_SPINE, J_SHOULDER_C, J_HEAD,
-  J_SHOULDER_L, J_ELBOW_L, J_WRIST_L, J_HAND_L,
-  J_SHOULDER_R, J_ELBOW_R, J_WRIST_R, J_HAND_R,
-  J_HIP_L, J_KNEE_L, J_ANKLE_L, J_FOOT_L,
-  J_HIP_R, J_KNEE_R, J_ANKLE_R, J_FOOT_R
+  J_HIP_C = 0,
+  J_SPINE,
+  J_SHOULDER_C,
+  J_HEAD,
+  J_SHOULDER_L,
+  J_ELBOW_L,
+  J_WRIST_L,
+  J_HAND_L,
+  J_SHOULDER_R,
+  J_ELBOW_R,
+  J_WRIST_R,
+  J_HAND_R,
+  J_HIP_L,
+  J_KNEE_L,
+  J_ANKLE_L,
+  J_FOOT_L,
+  J_HIP_R,
+  J_KNEE_R,
+  J_ANKLE_R,
+  J_FOOT_R
 };
 
 /* Height fractions of the joints above the soles, measured on the procedural character
@@ -42,15 +57,15 @@ typedef struct rigger {
   size_t n;
   double ymin, ymax, H, ext;
   km__geodesic *geo;
-  double *dist;   /* per extremity: n distances */
+  double *dist; /* per extremity: n distances */
   size_t n_ext;
   int32_t ext_v[KM_AUTORIG_MAX_EXTREMITIES];
   double ext_d[KM_AUTORIG_MAX_EXTREMITIES];
   double J[KM_KINECT1_JOINTS * 3];
   int32_t tip[KM_KINECT1_JOINTS]; /* extremity vertex a leaf joint reaches to (-1: none) */
-  int32_t *uf;  /* n: slice union-find */
-  unsigned char *on_face; /* n: 1 for vertices some face uses (others are isolated) */
-  double *acc;  /* n*4: slice contour sums */
+  int32_t *uf;                    /* n: slice union-find */
+  unsigned char *on_face;         /* n: 1 for vertices some face uses (others are isolated) */
+  double *acc;                    /* n*4: slice contour sums */
 } rigger;
 
 static const double *P(const rigger *r, int32_t v) { return r->m->V + 3 * (size_t)v; }
@@ -74,8 +89,7 @@ static int32_t nearest_vertex(const rigger *r, const double p[3]) {
 /* ---------------------------------------------------------------- checks */
 
 static km_status check_mesh(const km_mesh *m, km_error *err) {
-  if (!m || !m->V || m->n_vertices == 0)
-    return km__fail(err, KM_ERR_INVALID, "rig: empty mesh");
+  if (!m || !m->V || m->n_vertices == 0) return km__fail(err, KM_ERR_INVALID, "rig: empty mesh");
   if (m->n_faces == 0 || !m->F)
     return km__fail(err, KM_ERR_DEGENERATE_MESH,
                     "rig: the mesh has no faces (a point cloud cannot be rigged)");
@@ -202,7 +216,8 @@ static bool slice_centroid(rigger *r, double y0, double xc, double hw, double xm
   const km_mesh *m = r->m;
   int32_t *par = r->uf;
   for (size_t v = 0; v < r->n; ++v)
-    par[v] = (int32_t)v, r->acc[4 * v] = r->acc[4 * v + 1] = r->acc[4 * v + 2] = r->acc[4 * v + 3] = 0;
+    par[v] = (int32_t)v,
+    r->acc[4 * v] = r->acc[4 * v + 1] = r->acc[4 * v + 2] = r->acc[4 * v + 3] = 0;
   for (size_t f = 0; f < m->n_faces; ++f) {
     const int32_t *t = m->F + 3 * f;
     double ya = P(r, t[0])[1], yb = P(r, t[1])[1], yc = P(r, t[2])[1];
@@ -569,7 +584,8 @@ static km_status rig_prop(rigger *r, km_autorig_report *rep, km_error *err) {
       free(dmin);
       return km__fail(err, KM_ERR_DEGENERATE_MESH,
                       "rig: the mesh is too small along its surface for five handles 0.2 of its "
-                      "height apart (found %d)", h);
+                      "height apart (found %d)",
+                      h);
     }
     pick[h] = bv;
     const double *d = km__geodesic_run(r->geo, r->m->V, bv, INFINITY, NULL, 0, NULL, NULL);
@@ -609,8 +625,8 @@ static km_status rig_prop(rigger *r, km_autorig_report *rep, km_error *err) {
 /* ---------------------------------------------------------------- skin */
 
 static double seg_dist(const double *p, const double *a, const double *b) {
-  double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, ap[3] = {p[0] - a[0], p[1] - a[1],
-                                                                  p[2] - a[2]};
+  double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+         ap[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
   double l2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
   double t = l2 > 0 ? (ap[0] * ab[0] + ap[1] * ab[1] + ap[2] * ab[2]) / l2 : 0;
   t = t < 0 ? 0 : t > 1 ? 1 : t;
@@ -694,15 +710,22 @@ static int32_t ray_pick(const rigger *r, const double o[3], const double dir[3],
 }
 
 static void compute_landmarks(const rigger *r, const double fwd[3], km_landmark *lm) {
-  static const char *const names[KM_CHARACTER_LANDMARKS][2] = {
-      {"head", "head"},           {"neck", "neck"},
-      {"shoulder_left", "shoulder_right"}, {"shoulder_right", "shoulder_left"},
-      {"elbow_left", "elbow_right"},       {"elbow_right", "elbow_left"},
-      {"hand_left", "hand_right"},         {"hand_right", "hand_left"},
-      {"chest", "chest"},                  {"pelvis", "pelvis"},
-      {"hip_left", "hip_right"},           {"hip_right", "hip_left"},
-      {"knee_left", "knee_right"},         {"knee_right", "knee_left"},
-      {"foot_left", "foot_right"},         {"foot_right", "foot_left"}};
+  static const char *const names[KM_CHARACTER_LANDMARKS][2] = {{"head", "head"},
+                                                               {"neck", "neck"},
+                                                               {"shoulder_left", "shoulder_right"},
+                                                               {"shoulder_right", "shoulder_left"},
+                                                               {"elbow_left", "elbow_right"},
+                                                               {"elbow_right", "elbow_left"},
+                                                               {"hand_left", "hand_right"},
+                                                               {"hand_right", "hand_left"},
+                                                               {"chest", "chest"},
+                                                               {"pelvis", "pelvis"},
+                                                               {"hip_left", "hip_right"},
+                                                               {"hip_right", "hip_left"},
+                                                               {"knee_left", "knee_right"},
+                                                               {"knee_right", "knee_left"},
+                                                               {"foot_left", "foot_right"},
+                                                               {"foot_right", "foot_left"}};
   const double *J = r->J, up[3] = {0, 1, 0};
   double rho = 0.04 * r->H, left[3] = {fwd[2], 0, -fwd[0]}, right[3] = {-fwd[2], 0, fwd[0]};
   double o[3];
