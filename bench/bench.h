@@ -26,5 +26,7 @@ int km_bench_live(int argc, char **argv);
 int km_bench_reconstruct(int argc, char **argv);
 /* bench/bench_transfer.c: Table 2 of Lifkooee et al. (avatar pose transfer). */
 int km_bench_transfer(int argc, char **argv);
+/* bench/bench_rig.c: time of automatic rigging (km_autorig) at 10k, 50k, 100k vertices. */
+int km_bench_rig(int argc, char **argv);
 
 #endif

@@ -482,6 +482,19 @@ km_status km_point_frames_list(const char *pattern, char ***paths, size_t *n, km
 /* Frees the n strings of *paths and the array, and sets *paths to NULL. */
 void km_paths_free(char ***paths, size_t n);
 
+/* ---- nearest vertices (kinemesh pick; src/mesh/nearest.c) */
+
+/* The k vertices nearest to a point (Euclidean), nearest first; ties by lower id.
+ *   V         in: #V*3 positions
+ *   n         in: #V
+ *   p         in: 3 coordinates
+ *   k         in: how many (more than #V: #V)
+ *   ids       out: min(k, #V) vertex ids
+ *   dist      out: their distances; may be NULL
+ * Returns how many were written. */
+size_t km_nearest_vertices(const double *V, size_t n, const double p[3], size_t k, int32_t *ids,
+                           double *dist);
+
 /* ==== motion: skeletons, takes, formats, filter, rig, retargeting, sidecar (src/motion/) ==== */
 
 /* ---- skeletons */
@@ -1851,6 +1864,89 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
                          const km_character *template_character, const km_recon_feature *features,
                          size_t n_features, const km_recon_options *opt, const char *out_anim,
                          km_recon_report *report, km_error *err);
+
+/* ==== autorig: automatic rigging of a mesh kinemesh did not make (src/autorig/) ==== */
+
+/* Embeds a Kinect v1 skeleton in a mesh, computes skin weights and the 16 named landmarks,
+ * so that km_character_write_rig can write its sidecar (skeleton, skin, landmarks and the
+ * default puppetry rig: handles at the head, the hand_* and foot_* landmarks).
+ *
+ * Method. The mesh is taken as y up, facing +z (left = +x), height = its y extent H.
+ * Extremities are geodesic extremes: starting from the vertex nearest the vertex centroid,
+ * repeatedly the vertex farthest along mesh edges (Dijkstra) from the root and from every
+ * extremity found so far, while that distance exceeds min_extremity * the largest bbox
+ * extent, keeping only tips (the farthest vertex from the root within 0.05 of that extent
+ * along the surface; a blob has one). A humanoid's roles: the two lowest extremities of
+ * distinct limbs are the feet (a heel beside its toes is one limb), the most prominent above
+ * mid-height near the feet's mid-line the head top, the hand tips as below. Its torso and leg
+ * joints are centroids of thin horizontal slices at height-normalised levels (fractions of
+ * H measured on the procedural character), each the centroid of the longest contour the
+ * plane cuts near the torso or on that leg's side (so a hand or a trunk the plane also cuts
+ * is left out); short legs or low arms (where the feet's geodesics part, where an arm's
+ * ring near its root is) lower the hips or the shoulders and the joints between follow.
+ * Hands: the extremity on each side maximising limb length * (1 - t), t being where along
+ * the head-to-foot path its geodesics part (an arm beats an ear or a horn). Arm joints are
+ * centroids of geodesic rings (vertices at one geodesic distance from the hand tip) at
+ * proportional distances between the tip and the shoulder, which follows the arm whatever
+ * its pose. Those centroids lie inside tubular parts. A non-humanoid (quadruped):
+ * the four lowest extremities are its limbs, split front/hind along the feet's principal
+ * horizontal axis (front = towards the head) and left/right across it; the highest other
+ * extremity is the head. Front limbs take the Kinect arm joints (HandLeft/Right at the
+ * tips), hind limbs the leg joints, the head Head; limb joints are geodesic ring centroids,
+ * the spine runs between the hind and front limb roots at the centroid's height. A prop (a
+ * bust, an object; what auto falls back to when neither fits, the reason in the report):
+ * the highest vertex drives Head, the outermost upper vertex on each side HandLeft /
+ * HandRight, the lowest outer one on each side FootLeft / FootRight (each at least 0.2 H
+ * along the surface from the others), the joints on straight lines from the centroid.
+ * Skin: every vertex is weighted on the bones nearest to it (distance to the bone segment,
+ * the segment from a joint to its child weighting that joint, leaf joints reaching to their
+ * extremity), w = (1 - (d - dmin) / band)^2 within band = 0.06 H of the nearest, at most 4
+ * influences, summing to 1. Landmarks: the surface vertex hit by a ray from a joint
+ * (forward, up or sideways, like the procedural character's), hands and feet at their tips.
+ * Meshes it refuses: no faces, several components (each connected set of faces), non-manifold
+ * edges (three or more faces), too few extremities for the requested skeleton (kinect1 or
+ * quadruped asked for), a surface too small for five separate handles. */
+typedef enum km_autorig_skeleton {
+  KM_AUTORIG_AUTO = 0, /* humanoid or quadruped from where the extremities are, else prop */
+  KM_AUTORIG_KINECT1,  /* humanoid: Kinect v1 joints embedded in the body */
+  KM_AUTORIG_QUADRUPED, /* four limbs and a head mapped onto the Kinect v1 joints */
+  KM_AUTORIG_PROP       /* a bust, an object: five handle points by position (below) */
+} km_autorig_skeleton;
+
+#define KM_AUTORIG_MAX_EXTREMITIES 16
+typedef struct km_autorig_options {
+  km_autorig_skeleton skeleton; /* 0: auto */
+  double min_extremity; /* extremity prominence, fraction of the largest bbox extent; 0: 0.2 */
+  size_t max_extremities; /* most extremities sought; 0: KM_AUTORIG_MAX_EXTREMITIES (also the cap) */
+  km_progress progress;
+} km_autorig_options;
+
+/* What km_autorig chose (the library never prints: the caller reports it). */
+typedef struct km_autorig_report {
+  km_autorig_skeleton kind; /* KM_AUTORIG_KINECT1 (humanoid), _QUADRUPED or _PROP */
+  size_t n_extremities;
+  int32_t extremity[KM_AUTORIG_MAX_EXTREMITIES];  /* vertex ids, most prominent first */
+  double extremity_distance[KM_AUTORIG_MAX_EXTREMITIES]; /* geodesic prominence, metres */
+  /* Role of each extremity: the Kinect joint it drives ("Head", "HandLeft", ...) or "" */
+  char role[KM_AUTORIG_MAX_EXTREMITIES][16];
+  double height;  /* y extent of the mesh */
+  double seconds; /* wall time */
+  /* auto: why the humanoid or quadruped rig failed when the mesh was rigged as a prop
+   * instead ("" otherwise) */
+  char fallback[256];
+} km_autorig_report;
+
+/* Rigs a mesh.
+ *   m       in: triangle mesh, #V vertices, #F faces (one component, manifold edges)
+ *   opt     in: may be NULL (defaults)
+ *   out     out: a character: mesh (a copy of m, vertex order kept), skeleton (the 20 Kinect
+ *           v1 joints), skin (#V vertices) and 16 landmarks; free with km_character_free
+ *   report  out: what was chosen; may be NULL
+ * Errors: KM_ERR_DEGENERATE_MESH naming what is wrong (no faces, N components, N
+ * non-manifold edges, zero height, too few extremities, too small for five handles);
+ * KM_ERR_NOMEM; KM_ERR_CANCELLED. */
+km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_character *out,
+                     km_autorig_report *report, km_error *err);
 
 /* ==== synth: character, generated motion, pose presets, capture (src/synth/) ==== */
 

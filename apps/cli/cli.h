@@ -75,6 +75,8 @@ int km_cli_avatar(int argc, char **argv);
 km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
                                 km_error *err);
 int km_cli_live(int argc, char **argv);
+int km_cli_rig(int argc, char **argv);
+int km_cli_pick(int argc, char **argv);
 
 /* Puppetry helpers shared by animate, bench and live. */
 char *km_cli_cache_path(const char *mesh_path); /* MESH.kmcache, caller frees */

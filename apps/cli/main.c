@@ -26,6 +26,9 @@ static const km_cli_verb VERBS[] = {
      km_cli_avatar},
     {"reconstruct", "point clouds -> mesh animation: register a rigged template to every frame",
      km_cli_reconstruct},
+    {"rig", "automatic rigging: skeleton, skin, landmarks and puppetry handles for any mesh",
+     km_cli_rig},
+    {"pick", "vertex ids and positions nearest to a point (for rigs and scripts)", km_cli_pick},
     {"bench", "benchmarks printing the papers' tables (bench deform)", km_bench},
 };
 

@@ -1,0 +1,137 @@
+/* kinemesh bench rig: time of automatic rigging (km_autorig) at several vertex counts, on the
+ * procedural character ("character:N") and on mesh files. Target: <= 2 s at 50k vertices. */
+#include "bench.h"
+#include "cli.h"
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+/* MESH is a file, or "character:N" for the procedural character with N vertices. */
+static km_status rig_bench_mesh(const char *spec, km_mesh *m, km_error *err) {
+  if (!strncmp(spec, "character:", 10)) {
+    km_character_options co = {0};
+    co.target_vertices = (size_t)strtoull(spec + 10, NULL, 10);
+    km_character c = {0};
+    km_status s = km_character_generate(&co, &c, err);
+    if (s != KM_OK) return s;
+    *m = c.mesh;
+    memset(&c.mesh, 0, sizeof c.mesh);
+    km_character_free(&c);
+    return KM_OK;
+  }
+  return km_mesh_read(spec, m, err);
+}
+
+static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header) {
+  km_error err = {0};
+  km_mesh m = {0};
+  km_character c = {0};
+  km_autorig_report rep;
+  double *t = calloc(repeat, sizeof *t), *tw = calloc(repeat, sizeof *tw);
+  char tmp[] = "/tmp/km_bench_rig_XXXXXX";
+  int fd = -1, rc = KM_EXIT_FAIL;
+  if (!t || !tw) {
+    rc = km_cli_error("bench rig", "out of memory");
+    goto done;
+  }
+  if (rig_bench_mesh(spec, &m, &err) != KM_OK) {
+    rc = km_cli_fail("bench rig", &err);
+    goto done;
+  }
+  fd = mkstemp(tmp);
+  if (fd < 0) {
+    rc = km_cli_error("bench rig", "cannot create a temporary file");
+    goto done;
+  }
+  for (size_t i = 0; i < repeat; ++i) {
+    km_character_free(&c);
+    double t0 = km_cli_now();
+    if (km_autorig(&m, NULL, &c, &rep, &err) != KM_OK) {
+      rc = km_cli_fail("bench rig", &err);
+      goto done;
+    }
+    t[i] = km_cli_now() - t0;
+    t0 = km_cli_now();
+    if (km_character_write_rig(tmp, &c, &err) != KM_OK) {
+      rc = km_cli_fail("bench rig", &err);
+      goto done;
+    }
+    tw[i] = km_cli_now() - t0;
+  }
+  double mt = km_cli_median(t, repeat), mw = km_cli_median(tw, repeat);
+  const char *kind = rep.kind == KM_AUTORIG_QUADRUPED ? "quadruped" : "humanoid";
+  char machine[320];
+  km_bench_machine(machine, sizeof machine);
+  if (json) {
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "mesh", spec);
+    cJSON_AddStringToObject(o, "machine", machine);
+    cJSON_AddNumberToObject(o, "n_ver", (double)m.n_vertices);
+    cJSON_AddStringToObject(o, "kind", kind);
+    cJSON_AddNumberToObject(o, "extremities", (double)rep.n_extremities);
+    cJSON_AddNumberToObject(o, "repeat", (double)repeat);
+    cJSON_AddNumberToObject(o, "rig_s", mt);
+    cJSON_AddNumberToObject(o, "write_s", mw);
+    char *s = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    if (s) puts(s);
+    free(s);
+  } else {
+    if (header) {
+      printf("kinemesh bench rig — %s; medians of %zu runs; rig = km_autorig (extremities, "
+             "skeleton, skin, landmarks), write = the sidecar (km_character_write_rig)\n",
+             machine, repeat);
+      printf("%-28s %8s %10s %5s %9s %9s\n", "model", "n_ver", "kind", "n_ext", "rig(s)",
+             "write(s)");
+    }
+    const char *base = strrchr(spec, '/');
+    printf("%-28.28s %8zu %10s %5zu %9.3f %9.3f\n", base ? base + 1 : spec, m.n_vertices, kind,
+           rep.n_extremities, mt, mw);
+  }
+  rc = KM_EXIT_OK;
+done:
+  if (fd >= 0) {
+    close(fd);
+    remove(tmp);
+  }
+  km_character_free(&c);
+  km_mesh_free(&m);
+  free(t);
+  free(tw);
+  return rc;
+}
+
+int km_bench_rig(int argc, char **argv) {
+  size_t repeat = 3;
+  bool json = false;
+  const km_cli_opt opts[] = {
+      {"repeat", 0, KM_OPT_SIZE, &repeat, "runs per mesh (default 3; the median is printed)"},
+      {"json", 0, KM_OPT_FLAG, &json, "print one JSON object per mesh, one per line"},
+  };
+  enum { MAX_MESHES = 32 };
+  const char *pos[MAX_MESHES];
+  int n_pos;
+  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, MAX_MESHES, &n_pos,
+                       "kinemesh bench rig [MESH ...] [--repeat 3] [--json]",
+                       "Times automatic rigging (kinemesh rig) per mesh: a file, or character:N\n"
+                       "for the procedural character with N vertices. Default: character:10000\n"
+                       "character:50000 character:100000. Target: <= 2 s at 50k vertices.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (repeat < 1) return km_cli_error("bench rig", "--repeat must be at least 1");
+  static const char *const defaults[] = {"character:10000", "character:50000", "character:100000"};
+  if (!n_pos) {
+    for (int i = 0; i < 3; ++i)
+      pos[i] = defaults[i];
+    n_pos = 3;
+  }
+  int rc = KM_EXIT_OK;
+  for (int i = 0; i < n_pos; ++i) {
+    int ri = bench_rig_one(pos[i], repeat, json, i == 0);
+    if (ri != KM_EXIT_OK) rc = ri;
+    fflush(stdout);
+  }
+  return rc;
+}

@@ -1,0 +1,886 @@
+/* Automatic rigging (km_autorig): geodesic extremities, a Kinect v1 skeleton embedded from
+ * height-normalised slices and geodesic rings, distance-to-bone skin, landmarks. The method
+ * is described at km_autorig in include/kinemesh.h. */
+#include "autorig/autorig.h"
+
+#include "mesh/mesh.h"
+#include "motion/motion.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum {
+  J_HIP_C = 0,
+  J_SPINE,
+  J_SHOULDER_C,
+  J_HEAD,
+  J_SHOULDER_L,
+  J_ELBOW_L,
+  J_WRIST_L,
+  J_HAND_L,
+  J_SHOULDER_R,
+  J_ELBOW_R,
+  J_WRIST_R,
+  J_HAND_R,
+  J_HIP_L,
+  J_KNEE_L,
+  J_ANKLE_L,
+  J_FOOT_L,
+  J_HIP_R,
+  J_KNEE_R,
+  J_ANKLE_R,
+  J_FOOT_R
+};
+
+/* Height fractions of the joints above the soles, measured on the procedural character
+ * (src/synth/character.c: stature 1.75 m). */
+#define F_HIP_C 0.540
+#define F_SPINE 0.671
+#define F_SHOULDER_C 0.820
+#define F_HEAD 0.929
+#define F_SHOULDER 0.809
+#define F_HIP 0.523
+#define F_KNEE 0.283
+#define F_ANKLE 0.049
+#define F_ANKLE_SLICE 0.085 /* above the foot: the leg's section alone */
+#define F_FOOT 0.023
+#define F_SHOULDER_X 0.109 /* shoulder joint's distance from the mid-line */
+/* Arm joints as fractions of the shoulder-to-finger-tip length from the shoulder. */
+#define F_ELBOW_ARM 0.394
+#define F_WRIST_ARM 0.746
+#define F_HAND_ARM 0.859
+
+typedef struct rigger {
+  const km_mesh *m;
+  size_t n;
+  double ymin, ymax, H, ext;
+  km__geodesic *geo;
+  double *dist; /* per extremity: n distances */
+  size_t n_ext;
+  int32_t ext_v[KM_AUTORIG_MAX_EXTREMITIES];
+  double ext_d[KM_AUTORIG_MAX_EXTREMITIES];
+  double J[KM_KINECT1_JOINTS * 3];
+  int32_t tip[KM_KINECT1_JOINTS]; /* extremity vertex a leaf joint reaches to (-1: none) */
+  int32_t *uf;                    /* n: slice union-find */
+  unsigned char *on_face;         /* n: 1 for vertices some face uses (others are isolated) */
+  double *acc;                    /* n*4: slice contour sums */
+} rigger;
+
+static const double *P(const rigger *r, int32_t v) { return r->m->V + 3 * (size_t)v; }
+static void set3(double *a, double x, double y, double z) { a[0] = x, a[1] = y, a[2] = z; }
+static double dist3(const double *a, const double *b) {
+  double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+  return sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+static int32_t nearest_vertex(const rigger *r, const double p[3]) {
+  double best = DBL_MAX;
+  int32_t bi = 0;
+  for (size_t v = 0; v < r->n; ++v) {
+    if (r->on_face && !r->on_face[v]) continue;
+    double d = dist3(r->m->V + 3 * v, p);
+    if (d < best) best = d, bi = (int32_t)v;
+  }
+  return bi;
+}
+
+/* ---------------------------------------------------------------- checks */
+
+static km_status check_mesh(const km_mesh *m, km_error *err) {
+  if (!m || !m->V || m->n_vertices == 0) return km__fail(err, KM_ERR_INVALID, "rig: empty mesh");
+  if (m->n_faces == 0 || !m->F)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: the mesh has no faces (a point cloud cannot be rigged)");
+  km_mesh_info info;
+  km_status st = km_mesh_info_compute(m, &info, err);
+  if (st != KM_OK) return st;
+  if (info.components != 1)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: the mesh has %zu components (separate pieces of connected faces); "
+                    "it needs exactly one: keep the body or join the pieces",
+                    info.components);
+  if (info.nonmanifold_edges)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: the mesh has %zu non-manifold edges (shared by three or more faces); "
+                    "repair it first",
+                    info.nonmanifold_edges);
+  if (!(info.bbox_max[1] - info.bbox_min[1] > 0))
+    return km__fail(err, KM_ERR_DEGENERATE_MESH, "rig: the mesh has zero height (y extent)");
+  for (size_t i = 0; i < 3 * m->n_vertices; ++i)
+    if (!isfinite(m->V[i]))
+      return km__fail(err, KM_ERR_DEGENERATE_MESH, "rig: vertex %zu has a non-finite coordinate",
+                      i / 3);
+  return KM_OK;
+}
+
+/* ---------------------------------------------------------------- extremities */
+
+static km_status find_extremities(rigger *r, const km_autorig_options *o, km_error *err) {
+  size_t n = r->n, maxe = o->max_extremities ? o->max_extremities : KM_AUTORIG_MAX_EXTREMITIES;
+  if (maxe > KM_AUTORIG_MAX_EXTREMITIES) maxe = KM_AUTORIG_MAX_EXTREMITIES;
+  double thr = (o->min_extremity > 0 ? o->min_extremity : 0.2) * r->ext;
+  double c[3] = {0, 0, 0}, cnt = 0;
+  for (size_t v = 0; v < n; ++v)
+    if (r->on_face[v]) {
+      for (int k = 0; k < 3; ++k)
+        c[k] += r->m->V[3 * v + k];
+      cnt += 1;
+    }
+  for (int k = 0; k < 3; ++k)
+    c[k] /= cnt > 0 ? cnt : 1;
+  int32_t root = nearest_vertex(r, c);
+  double *dmin = km__malloc(n, sizeof *dmin);
+  r->dist = km__malloc(n * maxe, sizeof *r->dist);
+  r->uf = km__malloc(n, sizeof *r->uf);
+  r->acc = km__malloc(4 * n, sizeof *r->acc);
+  if (!dmin || !r->dist || !r->uf || !r->acc) {
+    free(dmin);
+    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", n);
+  }
+  double *d0 = km__malloc(n, sizeof *d0);
+  unsigned char *cand = km__malloc(n, 1);
+  if (!d0 || !cand) {
+    free(dmin);
+    free(d0);
+    free(cand);
+    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", n);
+  }
+  const double *d = km__geodesic_run(r->geo, r->m->V, root, INFINITY, NULL, 0, NULL, NULL);
+  memcpy(dmin, d, n * sizeof *dmin);
+  memcpy(d0, d, n * sizeof *d0);
+  for (size_t v = 0; v < n; ++v)
+    cand[v] = isfinite(d0[v]);
+  /* An extremity is the tip of something: the farthest vertex from the root within rho
+   * along the surface (a blob's far side is not one). A vertex that is not is dropped with
+   * its ball, all but the ball's farthest vertex. */
+  double rho = 0.05 * r->ext;
+  size_t checks = 0;
+  r->n_ext = 0;
+  while (r->n_ext < maxe && checks < 4000) {
+    int32_t best = -1;
+    double bd = -1;
+    for (size_t v = 0; v < n; ++v)
+      if (cand[v] && dmin[v] > bd) bd = dmin[v], best = (int32_t)v;
+    if (best < 0 || bd < thr) break;
+    ++checks;
+    const int32_t *ball = NULL;
+    size_t nb = 0;
+    km__geodesic_run(r->geo, r->m->V, best, rho, NULL, 0, &ball, &nb);
+    int32_t far = best;
+    for (size_t i = 0; i < nb; ++i)
+      if (d0[ball[i]] > d0[far]) far = ball[i];
+    if (far != best) {
+      for (size_t i = 0; i < nb; ++i)
+        if (ball[i] != far) cand[ball[i]] = 0;
+      continue;
+    }
+    if (!km__progress(&o->progress, 0.1 + 0.4 * (double)r->n_ext / (double)maxe, "extremities")) {
+      free(dmin);
+      free(d0);
+      free(cand);
+      return km__fail(err, KM_ERR_CANCELLED, "rig: cancelled");
+    }
+    d = km__geodesic_run(r->geo, r->m->V, best, INFINITY, NULL, 0, NULL, NULL);
+    double *dst = r->dist + r->n_ext * n;
+    memcpy(dst, d, n * sizeof *dst);
+    for (size_t v = 0; v < n; ++v)
+      if (dst[v] < dmin[v]) dmin[v] = dst[v];
+    r->ext_v[r->n_ext] = best;
+    r->ext_d[r->n_ext] = bd;
+    ++r->n_ext;
+  }
+  free(d0);
+  free(cand);
+  free(dmin);
+  return KM_OK;
+}
+
+/* ---------------------------------------------------------------- centroids */
+
+static int32_t uf_find(int32_t *par, int32_t a) {
+  while (par[a] != a)
+    a = par[a] = par[par[a]];
+  return a;
+}
+
+/* The mesh cut by the plane y = y0: the cut segments of the faces it crosses, grouped into
+ * contours (faces joined through shared vertices). Among the contours whose centroid c has
+ * |c.x - xc| < hw and, when side != 0, (c.x - xm) * side > 0, the longest one's centroid
+ * (segment midpoints weighted by length) goes to out: the middle of that cross-section of
+ * the body (torso, a leg), clear of other parts the plane also cuts (hands, a trunk). False
+ * when no contour qualifies. */
+static bool slice_centroid(rigger *r, double y0, double xc, double hw, double xm, int side,
+                           double out[3]) {
+  const km_mesh *m = r->m;
+  int32_t *par = r->uf;
+  for (size_t v = 0; v < r->n; ++v)
+    par[v] = (int32_t)v,
+    r->acc[4 * v] = r->acc[4 * v + 1] = r->acc[4 * v + 2] = r->acc[4 * v + 3] = 0;
+  for (size_t f = 0; f < m->n_faces; ++f) {
+    const int32_t *t = m->F + 3 * f;
+    double ya = P(r, t[0])[1], yb = P(r, t[1])[1], yc = P(r, t[2])[1];
+    if (fmin(ya, fmin(yb, yc)) > y0 || fmax(ya, fmax(yb, yc)) < y0) continue;
+    int32_t a = uf_find(par, t[0]), b = uf_find(par, t[1]), c = uf_find(par, t[2]);
+    par[b] = a;
+    par[uf_find(par, c)] = a;
+  }
+  for (size_t f = 0; f < m->n_faces; ++f) {
+    const int32_t *t = m->F + 3 * f;
+    double q[2][3];
+    int k = 0;
+    for (int e = 0; e < 3 && k < 2; ++e) {
+      const double *p0 = P(r, t[e]), *p1 = P(r, t[(e + 1) % 3]);
+      if ((p0[1] < y0) == (p1[1] < y0)) continue;
+      double u = (y0 - p0[1]) / (p1[1] - p0[1]);
+      for (int i = 0; i < 3; ++i)
+        q[k][i] = p0[i] + u * (p1[i] - p0[i]);
+      ++k;
+    }
+    if (k < 2) continue;
+    double len = dist3(q[0], q[1]);
+    double *a = r->acc + 4 * (size_t)uf_find(par, t[0]);
+    a[0] += len * 0.5 * (q[0][0] + q[1][0]);
+    a[2] += len * 0.5 * (q[0][2] + q[1][2]);
+    a[3] += len;
+  }
+  double best = 0;
+  bool found = false;
+  for (size_t v = 0; v < r->n; ++v) {
+    const double *a = r->acc + 4 * v;
+    if (!(a[3] > 0)) continue;
+    double cx = a[0] / a[3], cz = a[2] / a[3];
+    if (fabs(cx - xc) >= hw || (side && (cx - xm) * side <= 0)) continue;
+    if (a[3] > best) best = a[3], found = true, set3(out, cx, y0, cz);
+  }
+  return found;
+}
+
+/* Centroid of the geodesic ring of extremity e at distance d0 (vertices with distance in
+ * [d0 - band, d0 + band], band widening until it holds some). */
+static void ring_centroid(const rigger *r, size_t e, double d0, double out[3]) {
+  const double *D = r->dist + e * r->n;
+  for (double band = 0.01 * r->H; band < 0.2 * r->H; band *= 1.6) {
+    double s[3] = {0, 0, 0};
+    size_t cnt = 0;
+    for (size_t v = 0; v < r->n; ++v) {
+      if (!(fabs(D[v] - d0) <= band)) continue;
+      const double *p = r->m->V + 3 * v;
+      s[0] += p[0], s[1] += p[1], s[2] += p[2];
+      ++cnt;
+    }
+    if (cnt >= 3) {
+      set3(out, s[0] / (double)cnt, s[1] / (double)cnt, s[2] / (double)cnt);
+      return;
+    }
+  }
+  memcpy(out, P(r, r->ext_v[e]), 3 * sizeof *out);
+}
+
+/* A limb chain from extremity e (tip) to the root point `root` (a joint already placed):
+ * joints[k] at fraction f[k] of the way from the root to the tip, as ring centroids of e at
+ * the matching geodesic distance (the root vertex's distance scaled). */
+static void limb_chain(const rigger *r, size_t e, const double root[3], const double *f, int k,
+                       const int *joints, double *J) {
+  int32_t rv = nearest_vertex(r, root);
+  double L = r->dist[e * r->n + (size_t)rv];
+  if (!isfinite(L) || L <= 0) L = dist3(root, P(r, r->ext_v[e]));
+  for (int i = 0; i < k; ++i)
+    ring_centroid(r, e, (1 - f[i]) * L, J + 3 * joints[i]);
+}
+
+/* ---------------------------------------------------------------- roles */
+
+/* The lowest unused extremity that is not a second tip of a limb already chosen (a heel
+ * beside its toes is skipped): apart from each chosen one by half the height along the
+ * surface, or by a surface path 1.6 times their straight distance (legs parted by a
+ * crotch). */
+static int lowest_distinct(const rigger *r, const bool *used, const int *chosen, int n_chosen) {
+  int best = -1;
+  for (size_t e = 0; e < r->n_ext; ++e) {
+    if (used[e]) continue;
+    bool near = false;
+    for (int c = 0; c < n_chosen; ++c) {
+      int32_t a = r->ext_v[e], b = r->ext_v[chosen[c]];
+      double g = r->dist[e * r->n + (size_t)b];
+      /* same limb unless far apart along the surface, or the surface path detours (a crotch
+       * between two short legs) */
+      if (g < 0.5 * r->H && g < 1.6 * dist3(P(r, a), P(r, b))) near = true;
+    }
+    if (near) continue;
+    if (best < 0 || P(r, r->ext_v[e])[1] < P(r, r->ext_v[best])[1]) best = (int)e;
+  }
+  return best;
+}
+
+static void set_role(km_autorig_report *rep, int e, const char *name) {
+  if (rep && e >= 0) snprintf(rep->role[e], sizeof rep->role[e], "%s", name);
+}
+
+/* Humanoid: feet, head, hands; then the joints. */
+static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) {
+  if (r->n_ext < 5)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: found %zu extremities (geodesic extremes), a humanoid needs 5 (head, "
+                    "two hands, two feet)",
+                    r->n_ext);
+  bool used[KM_AUTORIG_MAX_EXTREMITIES] = {false};
+  int feet[2] = {-1, -1};
+  feet[0] = lowest_distinct(r, used, feet, 0);
+  used[feet[0]] = true;
+  feet[1] = lowest_distinct(r, used, feet, 1);
+  if (feet[1] < 0)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: found one foot only (no second low extremity apart from the first)");
+  used[feet[1]] = true;
+  int f1 = feet[0], f2 = feet[1];
+  const double *p1 = P(r, r->ext_v[f1]), *p2 = P(r, r->ext_v[f2]);
+  int foot_l = p1[0] >= p2[0] ? f1 : f2, foot_r = foot_l == f1 ? f2 : f1;
+  double xm = 0.5 * (p1[0] + p2[0]);
+  /* Head: the most prominent extremity near the feet's mid-line above mid-height (ears and
+   * horns are less prominent than the head they sit on). */
+  int head = -1;
+  for (size_t e = 0; e < r->n_ext; ++e) {
+    if (used[e]) continue;
+    const double *p = P(r, r->ext_v[e]);
+    if (fabs(p[0] - xm) > 0.15 * r->H || p[1] < r->ymin + 0.5 * r->H) continue;
+    if (head < 0 || r->ext_d[e] > r->ext_d[head]) head = (int)e;
+  }
+  if (head < 0)
+    for (size_t e = 0; e < r->n_ext; ++e)
+      if (!used[e] && (head < 0 || P(r, r->ext_v[e])[1] > P(r, r->ext_v[head])[1])) head = (int)e;
+  if (head < 0) return km__fail(err, KM_ERR_DEGENERATE_MESH, "rig: no extremity left for the head");
+  used[head] = true;
+  /* Hands. An extremity's geodesics to the head top and to the nearer foot part at a point
+   * `a` of the head-to-foot path: t = (d_foot - d_head) / d(head, feet) is where along the
+   * body (1 at the head top, -1 at the feet) and len = (d_head + d_foot - d(head, feet)) / 2
+   * how long the limb is from there. An arm is long and joins at the shoulders; an ear or a
+   * horn joins near the top; a bump (knee, shoulder) is short. On each side, among extremities
+   * off the mid-line joining below t = 0.9, the hand maximises len * (1 - t). */
+  int hand_l = -1, hand_r = -1;
+  double best_l = -1, best_r = -1, len_l = 0, len_r = 0;
+  const int32_t hv = r->ext_v[head], flv = r->ext_v[foot_l], frv = r->ext_v[foot_r];
+  const double *Dh = r->dist + (size_t)head * r->n;
+  double A = 0.5 * (Dh[flv] + Dh[frv]);
+  for (int pass = 0; pass < 2; ++pass) {
+    bool need_l = hand_l < 0, need_r = hand_r < 0;
+    for (size_t e = 0; e < r->n_ext; ++e) {
+      if (used[e]) continue;
+      const double *De = r->dist + e * r->n;
+      double t = (fmin(De[flv], De[frv]) - De[hv]) / A;
+      double x = P(r, r->ext_v[e])[0] - xm;
+      double len = 0.5 * (De[hv] + fmin(De[flv], De[frv]) - A);
+      if (pass == 0 && (t > 0.9 || fabs(x) < 0.08 * r->H)) continue;
+      double sc = fmax(len, 1e-9 * A) * (1 - fmin(t, 0.99));
+      if (need_l && x > 0 && sc > best_l) best_l = sc, hand_l = (int)e, len_l = len;
+      if (need_r && x < 0 && sc > best_r) best_r = sc, hand_r = (int)e, len_r = len;
+    }
+  }
+  if (hand_l < 0 || hand_r < 0)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: no %s hand: no extremity besides the head and feet on the %s side (+x is "
+                    "the left of a mesh facing +z)",
+                    hand_l < 0 ? "left" : "right", hand_l < 0 ? "+x" : "-x");
+  set_role(rep, foot_l, "FootLeft");
+  set_role(rep, foot_r, "FootRight");
+  set_role(rep, head, "Head");
+  set_role(rep, hand_l, "HandLeft");
+  set_role(rep, hand_r, "HandRight");
+
+  double *J = r->J, y0 = r->ymin, H = r->H, hw = 0.2 * H, xc = xm;
+  /* Heights: a person's proportions (fractions of H), unless the body says otherwise. The
+   * legs part at the crotch, found as the ring of one foot at the distance where its
+   * geodesics to the other foot and to the head part; the arms join where their ring near
+   * the limb's root is. Short legs or low arms (a big head on a small body) lower the hips
+   * or the shoulders, and the joints between follow. */
+  double hip_y = y0 + F_HIP * H, ankle_y = y0 + F_ANKLE * H, sh_y[2];
+  {
+    const double *Dl = r->dist + (size_t)foot_l * r->n;
+    double cd = 0.5 * (Dl[r->ext_v[head]] + Dl[r->ext_v[foot_r]] -
+                       r->dist[(size_t)foot_r * r->n + (size_t)r->ext_v[head]]);
+    double crotch[3];
+    if (cd > 0) {
+      ring_centroid(r, (size_t)foot_l, cd, crotch);
+      if (crotch[1] + 0.065 * H < hip_y - 0.1 * H) hip_y = crotch[1] + 0.065 * H;
+    }
+  }
+  for (int side = 0; side < 2; ++side) {
+    double root[3], len = side ? len_r : len_l;
+    sh_y[side] = y0 + F_SHOULDER * H;
+    if (len > 0) {
+      ring_centroid(r, (size_t)(side ? hand_r : hand_l), 0.9 * len, root);
+      if (root[1] < sh_y[side] - 0.12 * H) sh_y[side] = root[1];
+    }
+  }
+  double top_y = P(r, r->ext_v[head])[1];
+  double hipc_y = hip_y + (F_HIP_C - F_HIP) * H;
+  double sc_y = fmax(sh_y[0], sh_y[1]) + (F_SHOULDER_C - F_SHOULDER) * H;
+  double knee_y = ankle_y + (F_KNEE - F_ANKLE) / (F_HIP - F_ANKLE) * (hip_y - ankle_y);
+  double ty[4] = {hipc_y, hipc_y + (F_SPINE - F_HIP_C) / (F_SHOULDER_C - F_HIP_C) * (sc_y - hipc_y),
+                  sc_y, sc_y + (F_HEAD - F_SHOULDER_C) / (1 - F_SHOULDER_C) * (top_y - sc_y)};
+  static const int tj[4] = {J_HIP_C, J_SPINE, J_SHOULDER_C, J_HEAD};
+  for (int i = 0; i < 4; ++i)
+    if (!slice_centroid(r, ty[i], xc, hw, 0, 0, J + 3 * tj[i]))
+      set3(J + 3 * tj[i], xc, ty[i], P(r, r->ext_v[head])[2]);
+  for (int side = 0; side < 2; ++side) {
+    int o4 = 4 * side, foot = side ? foot_r : foot_l, hand = side ? hand_r : hand_l;
+    double sx = side ? -1 : 1;
+    const double *toe = P(r, r->ext_v[foot]);
+    double *kn = J + 3 * (J_KNEE_L + o4), *an = J + 3 * (J_ANKLE_L + o4),
+           *ft = J + 3 * (J_FOOT_L + o4), *hp = J + 3 * (J_HIP_L + o4);
+    if (!slice_centroid(r, knee_y, toe[0], 0.15 * H, xm, side ? -1 : 1, kn))
+      set3(kn, toe[0], knee_y, toe[2]);
+    if (!slice_centroid(r, y0 + F_ANKLE_SLICE * H, toe[0], 0.15 * H, xm, side ? -1 : 1, an))
+      set3(an, toe[0], ankle_y, toe[2]);
+    an[1] = ankle_y;
+    set3(ft, an[0], y0 + F_FOOT * H, an[2] + 0.5 * (toe[2] - an[2]));
+    const double *hc = J + 3 * J_HIP_C;
+    set3(hp, hc[0] + 0.82 * (kn[0] - hc[0]), hip_y, hc[2]);
+    /* Arm: the shoulder beside the shoulder centre, then rings from the hand tip. */
+    const double *sc = J + 3 * J_SHOULDER_C;
+    double *sh = J + 3 * (J_SHOULDER_L + o4);
+    set3(sh, sc[0] + sx * F_SHOULDER_X * H, sh_y[side], sc[2]);
+    static const double af[3] = {F_ELBOW_ARM, F_WRIST_ARM, F_HAND_ARM};
+    int aj[3] = {J_ELBOW_L + o4, J_WRIST_L + o4, J_HAND_L + o4};
+    limb_chain(r, (size_t)hand, sh, af, 3, aj, J);
+    r->tip[J_HAND_L + o4] = r->ext_v[hand];
+    r->tip[J_FOOT_L + o4] = r->ext_v[foot];
+  }
+  r->tip[J_HEAD] = r->ext_v[head];
+  return KM_OK;
+}
+
+/* Quadruped: four lowest extremities are limbs, the highest other one the head. */
+static km_status rig_quadruped(rigger *r, km_autorig_report *rep, km_error *err) {
+  if (r->n_ext < 5)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: found %zu extremities (geodesic extremes), a quadruped needs 5 (four "
+                    "limbs and a head)",
+                    r->n_ext);
+  bool used[KM_AUTORIG_MAX_EXTREMITIES] = {false};
+  int limb[4] = {-1, -1, -1, -1};
+  double fc[3] = {0, 0, 0};
+  for (int i = 0; i < 4; ++i) {
+    limb[i] = lowest_distinct(r, used, limb, i);
+    if (limb[i] < 0)
+      return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                      "rig: found %d distinct limbs (low extremities), a quadruped needs 4", i);
+    used[limb[i]] = true;
+    for (int k = 0; k < 3; ++k)
+      fc[k] += 0.25 * P(r, r->ext_v[limb[i]])[k];
+  }
+  int head = -1;
+  for (size_t e = 0; e < r->n_ext; ++e)
+    if (!used[e] && (head < 0 || P(r, r->ext_v[e])[1] > P(r, r->ext_v[head])[1])) head = (int)e;
+  /* Principal horizontal axis of the four feet, pointing to the head. */
+  double sxx = 0, sxz = 0, szz = 0;
+  for (int i = 0; i < 4; ++i) {
+    const double *p = P(r, r->ext_v[limb[i]]);
+    double dx = p[0] - fc[0], dz = p[2] - fc[2];
+    sxx += dx * dx, sxz += dx * dz, szz += dz * dz;
+  }
+  double th = 0.5 * atan2(2 * sxz, sxx - szz), fw[3] = {cos(th), 0, sin(th)};
+  const double *hp = P(r, r->ext_v[head]);
+  if ((hp[0] - fc[0]) * fw[0] + (hp[2] - fc[2]) * fw[2] < 0) fw[0] = -fw[0], fw[2] = -fw[2];
+  double left[3] = {fw[2], 0, -fw[0]}; /* up x forward */
+  /* front pair = the two with the largest forward projection */
+  double proj[4], lat[4];
+  for (int i = 0; i < 4; ++i) {
+    const double *p = P(r, r->ext_v[limb[i]]);
+    proj[i] = (p[0] - fc[0]) * fw[0] + (p[2] - fc[2]) * fw[2];
+    lat[i] = (p[0] - fc[0]) * left[0] + (p[2] - fc[2]) * left[2];
+  }
+  int ord[4] = {0, 1, 2, 3};
+  for (int a = 0; a < 4; ++a)
+    for (int b = a + 1; b < 4; ++b)
+      if (proj[ord[b]] > proj[ord[a]]) {
+        int t = ord[a];
+        ord[a] = ord[b], ord[b] = t;
+      }
+  /* ord[0..1] front, ord[2..3] hind; left = larger lateral */
+  int fl = lat[ord[0]] >= lat[ord[1]] ? ord[0] : ord[1], fr = fl == ord[0] ? ord[1] : ord[0];
+  int hl = lat[ord[2]] >= lat[ord[3]] ? ord[2] : ord[3], hr = hl == ord[2] ? ord[3] : ord[2];
+  int e_fl = limb[fl], e_fr = limb[fr], e_hl = limb[hl], e_hr = limb[hr];
+  set_role(rep, e_fl, "HandLeft");
+  set_role(rep, e_fr, "HandRight");
+  set_role(rep, e_hl, "FootLeft");
+  set_role(rep, e_hr, "FootRight");
+  set_role(rep, head, "Head");
+
+  double *J = r->J, c[3] = {0, 0, 0};
+  for (size_t v = 0; v < r->n; ++v)
+    for (int k = 0; k < 3; ++k)
+      c[k] += r->m->V[3 * v + k] / (double)r->n;
+  double front[3] = {0, 0, 0}, hind[3] = {0, 0, 0};
+  for (int k = 0; k < 3; ++k) {
+    front[k] = 0.5 * (P(r, r->ext_v[e_fl])[k] + P(r, r->ext_v[e_fr])[k]);
+    hind[k] = 0.5 * (P(r, r->ext_v[e_hl])[k] + P(r, r->ext_v[e_hr])[k]);
+  }
+  set3(J + 3 * J_HIP_C, hind[0], c[1], hind[2]);
+  set3(J + 3 * J_SHOULDER_C, front[0], c[1], front[2]);
+  for (int k = 0; k < 3; ++k)
+    J[3 * J_SPINE + k] = 0.5 * (J[3 * J_HIP_C + k] + J[3 * J_SHOULDER_C + k]);
+  double hd = 0.12 * r->H;
+  ring_centroid(r, (size_t)head, hd, J + 3 * J_HEAD);
+  struct {
+    int e, root, j0, anchor;
+  } limbs[4] = {{e_fl, J_SHOULDER_L, J_ELBOW_L, J_SHOULDER_C},
+                {e_fr, J_SHOULDER_R, J_ELBOW_R, J_SHOULDER_C},
+                {e_hl, J_HIP_L, J_KNEE_L, J_HIP_C},
+                {e_hr, J_HIP_R, J_KNEE_R, J_HIP_C}};
+  for (int i = 0; i < 4; ++i) {
+    const double *tp = P(r, r->ext_v[limbs[i].e]), *an = J + 3 * limbs[i].anchor;
+    double *rt = J + 3 * limbs[i].root;
+    /* limb root: beside the spine joint, halfway out towards the foot */
+    set3(rt, an[0] + 0.5 * (tp[0] - an[0]), an[1], an[2] + 0.5 * (tp[2] - an[2]));
+    static const double lf[3] = {0.5, 0.85, 0.95};
+    int lj[3] = {limbs[i].j0, limbs[i].j0 + 1, limbs[i].j0 + 2};
+    limb_chain(r, (size_t)limbs[i].e, rt, lf, 3, lj, J);
+    r->tip[limbs[i].j0 + 2] = r->ext_v[limbs[i].e];
+  }
+  r->tip[J_HEAD] = r->ext_v[head];
+  return KM_OK;
+}
+
+/* Prop (a bust, an object: too few extremities for limbs): five handle points by position,
+ * the highest vertex for the head, the outermost upper vertex on each side for the hands, the
+ * lowest outer vertex on each side for the feet, each at least 0.2 H along the surface from
+ * the others; the joints on straight lines from the centroid to them. */
+static km_status rig_prop(rigger *r, km_autorig_report *rep, km_error *err) {
+  size_t n = r->n;
+  double c[3] = {0, 0, 0}, cnt = 0, H = r->H;
+  for (size_t v = 0; v < n; ++v)
+    if (r->on_face[v]) {
+      for (int k = 0; k < 3; ++k)
+        c[k] += r->m->V[3 * v + k];
+      cnt += 1;
+    }
+  for (int k = 0; k < 3; ++k)
+    c[k] /= cnt;
+  double *dmin = km__malloc(n, sizeof *dmin);
+  if (!dmin) return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  for (size_t v = 0; v < n; ++v)
+    dmin[v] = INFINITY;
+  /* order: head, hand_left, hand_right, foot_left, foot_right */
+  int32_t pick[5];
+  for (int h = 0; h < 5; ++h) {
+    double best = -DBL_MAX;
+    int32_t bv = -1;
+    for (size_t v = 0; v < n; ++v) {
+      if (!r->on_face[v] || !(dmin[v] > 0.2 * H)) continue;
+      const double *p = r->m->V + 3 * v;
+      double x = (p[0] - c[0]) / r->ext, y = (p[1] - r->ymin) / H, sc;
+      switch (h) {
+      case 0: sc = y; break;
+      case 1: sc = x + 0.5 * y; break;
+      case 2: sc = -x + 0.5 * y; break;
+      case 3: sc = x - y; break;
+      default: sc = -x - y; break;
+      }
+      if (sc > best) best = sc, bv = (int32_t)v;
+    }
+    if (bv < 0) {
+      free(dmin);
+      return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                      "rig: the mesh is too small along its surface for five handles 0.2 of its "
+                      "height apart (found %d)",
+                      h);
+    }
+    pick[h] = bv;
+    const double *d = km__geodesic_run(r->geo, r->m->V, bv, INFINITY, NULL, 0, NULL, NULL);
+    for (size_t v = 0; v < n; ++v)
+      if (d[v] < dmin[v]) dmin[v] = d[v];
+  }
+  free(dmin);
+  static const char *const roles[5] = {"Head", "HandLeft", "HandRight", "FootLeft", "FootRight"};
+  if (rep)
+    for (int h = 0; h < 5 && rep->n_extremities < KM_AUTORIG_MAX_EXTREMITIES; ++h) {
+      size_t e = rep->n_extremities++;
+      rep->extremity[e] = pick[h];
+      rep->extremity_distance[e] = 0;
+      snprintf(rep->role[e], sizeof rep->role[e], "%s", roles[h]);
+    }
+  double *J = r->J;
+  const double *top = P(r, pick[0]);
+  memcpy(J + 3 * J_HIP_C, c, sizeof c);
+  for (int k = 0; k < 3; ++k) {
+    J[3 * J_SPINE + k] = c[k] + 0.25 * (top[k] - c[k]);
+    J[3 * J_SHOULDER_C + k] = c[k] + 0.5 * (top[k] - c[k]);
+    J[3 * J_HEAD + k] = c[k] + 0.75 * (top[k] - c[k]);
+  }
+  static const double f[4] = {0.25, 0.5, 0.75, 0.9};
+  const int chain0[4] = {J_SHOULDER_L, J_SHOULDER_R, J_HIP_L, J_HIP_R};
+  for (int l = 0; l < 4; ++l) {
+    const double *tip = P(r, pick[1 + l]), *from = l < 2 ? J + 3 * J_SHOULDER_C : c;
+    for (int i = 0; i < 4; ++i)
+      for (int k = 0; k < 3; ++k)
+        J[3 * (chain0[l] + i) + k] = from[k] + f[i] * (tip[k] - from[k]);
+    r->tip[chain0[l] + 3] = pick[1 + l];
+  }
+  r->tip[J_HEAD] = pick[0];
+  return KM_OK;
+}
+
+/* ---------------------------------------------------------------- skin */
+
+static double seg_dist(const double *p, const double *a, const double *b) {
+  double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+         ap[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+  double l2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
+  double t = l2 > 0 ? (ap[0] * ab[0] + ap[1] * ab[1] + ap[2] * ab[2]) / l2 : 0;
+  t = t < 0 ? 0 : t > 1 ? 1 : t;
+  double q[3] = {a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]};
+  return dist3(p, q);
+}
+
+static void compute_skin(const rigger *r, km_skin *skin) {
+  /* bones: (a, b, joint weighted) */
+  double seg[2 * KM_KINECT1_JOINTS][6];
+  int segj[2 * KM_KINECT1_JOINTS], ns = 0;
+  for (int j = 1; j < KM_KINECT1_JOINTS; ++j) {
+    int p = km_kinect1_joint_parent(j);
+    memcpy(seg[ns], r->J + 3 * p, 3 * sizeof(double));
+    memcpy(seg[ns] + 3, r->J + 3 * j, 3 * sizeof(double));
+    segj[ns++] = p;
+  }
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+    if (r->tip[j] >= 0) {
+      memcpy(seg[ns], r->J + 3 * j, 3 * sizeof(double));
+      memcpy(seg[ns] + 3, P(r, r->tip[j]), 3 * sizeof(double));
+      segj[ns++] = j;
+    }
+  double band = 0.06 * r->H;
+#pragma omp parallel for schedule(static)
+  for (size_t v = 0; v < r->n; ++v) {
+    const double *p = r->m->V + 3 * v;
+    double d[KM_KINECT1_JOINTS], dmin = DBL_MAX;
+    for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+      d[j] = DBL_MAX;
+    for (int s = 0; s < ns; ++s) {
+      double x = seg_dist(p, seg[s], seg[s] + 3);
+      if (x < d[segj[s]]) d[segj[s]] = x;
+      if (x < dmin) dmin = x;
+    }
+    int32_t jj[KM_SKIN_INFLUENCES];
+    double ww[KM_SKIN_INFLUENCES];
+    int cnt = 0;
+    for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
+      double t = (d[j] - dmin) / band;
+      if (t >= 1) continue;
+      double w = (1 - t) * (1 - t);
+      int pos = cnt;
+      while (pos > 0 && ww[pos - 1] < w)
+        --pos;
+      if (pos >= KM_SKIN_INFLUENCES) continue;
+      int last = cnt < KM_SKIN_INFLUENCES ? cnt : KM_SKIN_INFLUENCES - 1;
+      for (int q = last; q > pos; --q)
+        ww[q] = ww[q - 1], jj[q] = jj[q - 1];
+      ww[pos] = w, jj[pos] = j;
+      if (cnt < KM_SKIN_INFLUENCES) ++cnt;
+    }
+    double sum = 0;
+    for (int q = 0; q < cnt; ++q)
+      sum += ww[q];
+    for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
+      skin->joints[4 * v + q] = q < cnt ? jj[q] : -1;
+      skin->weights[4 * v + q] = q < cnt ? ww[q] / sum : 0.0;
+    }
+  }
+}
+
+/* ---------------------------------------------------------------- landmarks */
+
+/* The vertex farthest along dir among those within rho of the ray from o along dir (the
+ * surface point the ray leaves through); the nearest vertex to o when none. */
+static int32_t ray_pick(const rigger *r, const double o[3], const double dir[3], double rho) {
+  int32_t best = -1;
+  double bt = -DBL_MAX;
+  for (size_t v = 0; v < r->n; ++v) {
+    if (!r->on_face[v]) continue;
+    const double *p = r->m->V + 3 * v;
+    double q[3] = {p[0] - o[0], p[1] - o[1], p[2] - o[2]};
+    double t = q[0] * dir[0] + q[1] * dir[1] + q[2] * dir[2];
+    if (t <= 0 || t > 0.4 * r->H) continue;
+    double e[3] = {q[0] - t * dir[0], q[1] - t * dir[1], q[2] - t * dir[2]};
+    if (e[0] * e[0] + e[1] * e[1] + e[2] * e[2] > rho * rho) continue;
+    if (t > bt) bt = t, best = (int32_t)v;
+  }
+  return best >= 0 ? best : nearest_vertex(r, o);
+}
+
+static void compute_landmarks(const rigger *r, const double fwd[3], km_landmark *lm) {
+  static const char *const names[KM_CHARACTER_LANDMARKS][2] = {{"head", "head"},
+                                                               {"neck", "neck"},
+                                                               {"shoulder_left", "shoulder_right"},
+                                                               {"shoulder_right", "shoulder_left"},
+                                                               {"elbow_left", "elbow_right"},
+                                                               {"elbow_right", "elbow_left"},
+                                                               {"hand_left", "hand_right"},
+                                                               {"hand_right", "hand_left"},
+                                                               {"chest", "chest"},
+                                                               {"pelvis", "pelvis"},
+                                                               {"hip_left", "hip_right"},
+                                                               {"hip_right", "hip_left"},
+                                                               {"knee_left", "knee_right"},
+                                                               {"knee_right", "knee_left"},
+                                                               {"foot_left", "foot_right"},
+                                                               {"foot_right", "foot_left"}};
+  const double *J = r->J, up[3] = {0, 1, 0};
+  double rho = 0.04 * r->H, left[3] = {fwd[2], 0, -fwd[0]}, right[3] = {-fwd[2], 0, fwd[0]};
+  double o[3];
+  int32_t v[KM_CHARACTER_LANDMARKS];
+  v[0] = ray_pick(r, J + 3 * J_HEAD, fwd, rho);
+  for (int k = 0; k < 3; ++k)
+    o[k] = 0.5 * (J[3 * J_SHOULDER_C + k] + J[3 * J_HEAD + k]);
+  v[1] = ray_pick(r, o, fwd, rho);
+  v[2] = ray_pick(r, J + 3 * J_SHOULDER_L, up, rho);
+  v[3] = ray_pick(r, J + 3 * J_SHOULDER_R, up, rho);
+  v[4] = ray_pick(r, J + 3 * J_ELBOW_L, up, rho);
+  v[5] = ray_pick(r, J + 3 * J_ELBOW_R, up, rho);
+  v[6] = r->tip[J_HAND_L];
+  v[7] = r->tip[J_HAND_R];
+  for (int k = 0; k < 3; ++k)
+    o[k] = J[3 * J_SPINE + k] + 0.6 * (J[3 * J_SHOULDER_C + k] - J[3 * J_SPINE + k]);
+  v[8] = ray_pick(r, o, fwd, rho);
+  v[9] = ray_pick(r, J + 3 * J_HIP_C, fwd, rho);
+  v[10] = ray_pick(r, J + 3 * J_HIP_L, left, rho);
+  v[11] = ray_pick(r, J + 3 * J_HIP_R, right, rho);
+  v[12] = ray_pick(r, J + 3 * J_KNEE_L, fwd, rho);
+  v[13] = ray_pick(r, J + 3 * J_KNEE_R, fwd, rho);
+  v[14] = r->tip[J_FOOT_L];
+  v[15] = r->tip[J_FOOT_R];
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    memset(&lm[i], 0, sizeof lm[i]);
+    snprintf(lm[i].name, sizeof lm[i].name, "%s", names[i][0]);
+    snprintf(lm[i].mirror, sizeof lm[i].mirror, "%s", names[i][1]);
+    lm[i].vertex = v[i];
+  }
+}
+
+/* ---------------------------------------------------------------- public */
+
+static bool looks_quadruped(const rigger *r) {
+  /* Three or more distinct limbs on the ground (a humanoid stands on two). */
+  bool used[KM_AUTORIG_MAX_EXTREMITIES] = {false};
+  int chosen[KM_AUTORIG_MAX_EXTREMITIES] = {0}, n = 0;
+  while (n < 4) {
+    int e = lowest_distinct(r, used, chosen, n);
+    if (e < 0 || P(r, r->ext_v[e])[1] > r->ymin + 0.1 * r->H) break;
+    used[e] = true;
+    chosen[n++] = e;
+  }
+  return n >= 3;
+}
+
+km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_character *out,
+                     km_autorig_report *report, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "rig: NULL output");
+  memset(out, 0, sizeof *out);
+  if (report) memset(report, 0, sizeof *report);
+  km_autorig_options o = {0};
+  if (opt) o = *opt;
+  double t0 = km_seconds();
+  km_status st = check_mesh(m, err);
+  if (st != KM_OK) return st;
+  rigger r;
+  memset(&r, 0, sizeof r);
+  r.m = m;
+  r.n = m->n_vertices;
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+    r.tip[j] = -1;
+  r.on_face = km__calloc(r.n, 1);
+  if (!r.on_face) return km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", r.n);
+  for (size_t i = 0; i < 3 * m->n_faces; ++i)
+    if (m->F[i] >= 0 && (size_t)m->F[i] < r.n) r.on_face[m->F[i]] = 1;
+  double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX};
+  for (size_t v = 0; v < r.n; ++v)
+    for (int k = 0; k < 3 && r.on_face[v]; ++k) {
+      double x = m->V[3 * v + k];
+      if (x < lo[k]) lo[k] = x;
+      if (x > hi[k]) hi[k] = x;
+    }
+  r.ymin = lo[1], r.ymax = hi[1], r.H = hi[1] - lo[1];
+  r.ext = fmax(hi[0] - lo[0], fmax(r.H, hi[2] - lo[2]));
+  if (!km__progress(&o.progress, 0.0, "geodesics")) {
+    free(r.on_face);
+    return km__fail(err, KM_ERR_CANCELLED, "rig: cancelled");
+  }
+  st = km__geodesic_create(m, &r.geo, err);
+  if (st != KM_OK) {
+    free(r.on_face);
+    return st;
+  }
+  st = find_extremities(&r, &o, err);
+  km_autorig_skeleton kind = o.skeleton;
+  if (st == KM_OK && kind == KM_AUTORIG_AUTO)
+    kind = looks_quadruped(&r) ? KM_AUTORIG_QUADRUPED : KM_AUTORIG_KINECT1;
+  if (report) {
+    report->kind = kind;
+    report->height = r.H;
+    report->n_extremities = r.n_ext;
+    memcpy(report->extremity, r.ext_v, sizeof r.ext_v);
+    memcpy(report->extremity_distance, r.ext_d, sizeof r.ext_d);
+  }
+  if (st == KM_OK) {
+    if (kind == KM_AUTORIG_PROP)
+      st = rig_prop(&r, report, err);
+    else
+      st = kind == KM_AUTORIG_QUADRUPED ? rig_quadruped(&r, report, err)
+                                        : rig_humanoid(&r, report, err);
+    /* Automatic choice: a body whose limbs cannot be told apart is rigged as a prop. */
+    if (st == KM_ERR_DEGENERATE_MESH && o.skeleton == KM_AUTORIG_AUTO) {
+      if (report) {
+        snprintf(report->fallback, sizeof report->fallback, "%.200s", err ? err->message : "");
+        memset(report->role, 0, sizeof report->role);
+        report->kind = KM_AUTORIG_PROP;
+      }
+      kind = KM_AUTORIG_PROP;
+      for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+        r.tip[j] = -1;
+      st = rig_prop(&r, report, err);
+    }
+  }
+  if (st == KM_OK && !km__progress(&o.progress, 0.6, "skin"))
+    st = km__fail(err, KM_ERR_CANCELLED, "rig: cancelled");
+  if (st == KM_OK) st = km_mesh_copy(m, &out->mesh, err);
+  if (st == KM_OK) st = km__skin_alloc(&out->skin, r.n, err);
+  if (st == KM_OK) {
+    km_skeleton *sk = &out->skeleton;
+    sk->n_joints = KM_KINECT1_JOINTS;
+    sk->names = km__calloc(KM_KINECT1_JOINTS, sizeof *sk->names);
+    sk->parents = km__malloc(KM_KINECT1_JOINTS, sizeof *sk->parents);
+    sk->rest = km__malloc(3 * KM_KINECT1_JOINTS, sizeof *sk->rest);
+    if (!sk->names || !sk->parents || !sk->rest)
+      st = km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+    for (int j = 0; st == KM_OK && j < KM_KINECT1_JOINTS; ++j) {
+      sk->names[j] = km__strdup(km_kinect1_joint_name(j));
+      if (!sk->names[j]) st = km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+      sk->parents[j] = km_kinect1_joint_parent(j);
+    }
+    if (st == KM_OK) memcpy(sk->rest, r.J, sizeof r.J);
+  }
+  if (st == KM_OK) {
+    compute_skin(&r, &out->skin);
+    double fwd[3] = {0, 0, 1};
+    if (kind == KM_AUTORIG_QUADRUPED) {
+      double a[3] = {r.J[3 * J_SHOULDER_C] - r.J[3 * J_HIP_C], 0,
+                     r.J[3 * J_SHOULDER_C + 2] - r.J[3 * J_HIP_C + 2]};
+      double l = hypot(a[0], a[2]);
+      if (l > 0) set3(fwd, a[0] / l, 0, a[2] / l);
+    }
+    compute_landmarks(&r, fwd, out->landmarks);
+    km__progress(&o.progress, 1.0, "done");
+  }
+  km__geodesic_free(&r.geo);
+  free(r.dist);
+  free(r.uf);
+  free(r.on_face);
+  free(r.acc);
+  if (st != KM_OK) {
+    km_character_free(out);
+    return st;
+  }
+  if (report) report->seconds = km_seconds() - t0;
+  return KM_OK;
+}

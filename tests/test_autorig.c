@@ -1,0 +1,450 @@
+/* Automatic rigging (km_autorig, kinemesh rig): on the procedural character every joint lands
+ * within 5% of the height of the true skeleton; on real meshes (armadillo, dog, elephant,
+ * horse in ../shared/data) the rig drives the puppetry pipeline from a real Kinect take with no
+ * NaN, edges stretched less than 1.5x and handles following their joints; meshes it cannot
+ * rig (two components, a non-manifold edge, no faces) are refused naming the problem. */
+#include "km_test.h"
+
+#include "synth/synth.h"
+
+#include <stdint.h>
+#include <unistd.h>
+
+static char g_dir[] = "/tmp/km_test_autorig_XXXXXX";
+
+static bool skin_valid(const km_skin *s, size_t n) {
+  if (s->n_vertices != n) return false;
+  for (size_t v = 0; v < n; ++v) {
+    double sum = 0;
+    for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
+      int32_t j = s->joints[4 * v + q];
+      double w = s->weights[4 * v + q];
+      if (j < -1 || j >= KM_KINECT1_JOINTS || !(w >= 0 && w <= 1)) return false;
+      if (j < 0 && w != 0) return false;
+      sum += w;
+    }
+    if (fabs(sum - 1) > 1e-9) return false;
+  }
+  return true;
+}
+
+/* The true skeleton is known: every embedded joint within 5% of the height. */
+static void test_character(size_t nv, uint64_t seed, double belly, double girth) {
+  km_character_options co = {0};
+  co.target_vertices = nv;
+  co.seed = seed;
+  co.belly = belly;
+  co.girth = girth;
+  km_character c = {0}, r = {0};
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  km_autorig_report rep;
+  CHECK_OK(km_autorig(&c.mesh, NULL, &r, &rep, KM_E));
+  if (r.skeleton.n_joints != KM_KINECT1_JOINTS) {
+    CHECK(false);
+    km_character_free(&c);
+    return;
+  }
+  CHECK(rep.kind == KM_AUTORIG_KINECT1);
+  double H = rep.height, worst = 0;
+  int wj = 0;
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
+    const double *a = c.skeleton.rest + 3 * j, *b = r.skeleton.rest + 3 * j;
+    double d = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                    (a[2] - b[2]) * (a[2] - b[2]));
+    CHECK_MSG(d < 0.05 * H,
+              "character %zu seed %llu: %s is %.3f m (%.1f%% of the height) "
+              "from the truth",
+              nv, (unsigned long long)seed, km_kinect1_joint_name(j), d, 100 * d / H);
+    if (d > worst) worst = d, wj = j;
+    CHECK(!strcmp(r.skeleton.names[j], km_kinect1_joint_name(j)));
+    CHECK(r.skeleton.parents[j] == km_kinect1_joint_parent(j));
+  }
+  printf("character %zu vertices (seed %llu, belly %g, girth %g): worst joint %s at %.1f%% of "
+         "the height, rigged in %.3f s\n",
+         c.mesh.n_vertices, (unsigned long long)seed, belly, girth, km_kinect1_joint_name(wj),
+         100 * worst / H, rep.seconds);
+  CHECK(r.mesh.n_vertices == c.mesh.n_vertices &&
+        memcmp(r.mesh.V, c.mesh.V, sizeof(double) * 3 * c.mesh.n_vertices) == 0);
+  CHECK(skin_valid(&r.skin, c.mesh.n_vertices));
+  /* Landmarks: the true ones' names, near the true ones (within 8% of the height). */
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    CHECK(!strcmp(r.landmarks[i].name, c.landmarks[i].name));
+    CHECK(!strcmp(r.landmarks[i].mirror, c.landmarks[i].mirror));
+    const double *a = c.mesh.V + 3 * (size_t)c.landmarks[i].vertex,
+                 *b = c.mesh.V + 3 * (size_t)r.landmarks[i].vertex;
+    double d = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                    (a[2] - b[2]) * (a[2] - b[2]));
+    CHECK_MSG(d < 0.08 * H, "landmark %s is %.3f m from the truth", r.landmarks[i].name, d);
+  }
+  /* The sidecar round-trips and resolves as a puppetry rig. */
+  char path[256];
+  snprintf(path, sizeof path, "%s/char_%llu.rig.json", g_dir, (unsigned long long)seed);
+  CHECK_OK(km_character_write_rig(path, &r, KM_E));
+  km_character back = {0};
+  CHECK_OK(km_character_read_rig(path, c.mesh.n_vertices, &back, KM_E));
+  CHECK(back.skeleton.n_joints == KM_KINECT1_JOINTS);
+  km_character_free(&back);
+  km_rig rig = {0};
+  CHECK_OK(km_rig_read(path, &c.mesh, NULL, 0, &rig, KM_E));
+  CHECK(rig.n_handles == 5 && rig.n_maps == 5);
+  km_rig_free(&rig);
+  km_character_free(&r);
+  km_character_free(&c);
+}
+
+/* z up -> y up: (x, y, z) -> (x, z, -y). kinemesh takes meshes as y up; the dog and the horse
+ * of ../shared/data are z up. */
+static void z_up_to_y_up(km_mesh *m) {
+  for (size_t v = 0; v < m->n_vertices; ++v) {
+    double *p = m->V + 3 * v, y = p[1];
+    p[1] = p[2];
+    p[2] = -y;
+  }
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return x < y ? -1 : x > y;
+}
+
+/* Drives mesh m through the rig sidecar of c with a real take; checks no NaN, edge stretch
+ * (max_stretch: bound on the worst edge; INFINITY: no stretch checks, for props whose handles
+ * were placed by position only)
+ * and handles following their targets. Stretch: per edge, its largest length over the take
+ * / its rest length. The puppetry deformer moves its handles by translation only, so a limb
+ * whose handle travels far (this take's performer starts with the arms down: the T-posed
+ * hands travel a metre) stretches: even the procedural character's true rig reaches 2.5x on
+ * its worst edge and 1.5x at the 95th percentile. The median edge must stay below 1.5x on
+ * every mesh; the automatic rig's 99th percentile on the character is compared with the true
+ * rig's in test_character_drive. *stretch_out: the 99th percentile. */
+static void drive(const char *label, const km_mesh *m, const km_character *c, const km_take *take,
+                  double *stretch_out, double max_stretch) {
+  char rig_path[512];
+  snprintf(rig_path, sizeof rig_path, "%s/drive_%zu.rig.json", g_dir, m->n_vertices);
+  CHECK_OK(km_character_write_rig(rig_path, c, KM_E));
+  km_rig rig = {0};
+  CHECK_OK(km_rig_read(rig_path, m, NULL, 0, &rig, KM_E));
+  km_puppetry *p = NULL;
+  CHECK_OK(km_puppetry_create(m, &rig, (const char *const *)take->joint_names, take->n_joints, NULL,
+                              &p, NULL, KM_E));
+  if (!p) {
+    km_rig_free(&rig);
+    return;
+  }
+  size_t nv = m->n_vertices, ne = 3 * m->n_faces, nh = 0;
+  const int32_t *off = NULL, *hv = NULL;
+  km_puppetry_handles(p, &nh, &off, &hv);
+  double *V = malloc(sizeof(double) * 3 * nv), *len0 = malloc(sizeof(double) * ne),
+         *smax = calloc(ne, sizeof(double));
+  for (size_t e = 0; e < ne; ++e) {
+    size_t f = e / 3;
+    int k = (int)(e % 3);
+    const double *a = m->V + 3 * (size_t)m->F[3 * f + k],
+                 *b = m->V + 3 * (size_t)m->F[3 * f + (k + 1) % 3];
+    len0[e] = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                   (a[2] - b[2]) * (a[2] - b[2]));
+  }
+  size_t nonfinite = 0;
+  double dev_sum = 0, move_sum = 0;
+  for (size_t fr = 0; fr < take->n_frames; ++fr) {
+    if (km_puppetry_push(p, take->positions + fr * take->n_joints * 3, V, KM_E) != KM_OK) {
+      CHECK_MSG(false, "%s frame %zu: %s", label, fr, km_test_err.message);
+      break;
+    }
+    for (size_t i = 0; i < 3 * nv; ++i)
+      nonfinite += !isfinite(V[i]);
+    for (size_t e = 0; e < ne; ++e) {
+      size_t f = e / 3;
+      int k = (int)(e % 3);
+      const double *a = V + 3 * (size_t)m->F[3 * f + k],
+                   *b = V + 3 * (size_t)m->F[3 * f + (k + 1) % 3];
+      double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                      (a[2] - b[2]) * (a[2] - b[2]));
+      double r = len0[e] > 0 ? l / len0[e] : 1;
+      if (!(r <= smax[e])) smax[e] = r;
+    }
+    /* Handles follow their targets (the retargeted joints). */
+    const double *T = km_puppetry_handle_targets(p), *C0 = km_puppetry_rest_centroids(p);
+    for (size_t h = 0; h < nh; ++h) {
+      double c3[3] = {0, 0, 0};
+      for (int32_t i = off[h]; i < off[h + 1]; ++i)
+        for (int a = 0; a < 3; ++a)
+          c3[a] += V[3 * (size_t)hv[i] + a] / (double)(off[h + 1] - off[h]);
+      double d = 0, mv = 0;
+      for (int a = 0; a < 3; ++a) {
+        d += (c3[a] - T[3 * h + a]) * (c3[a] - T[3 * h + a]);
+        mv += (T[3 * h + a] - C0[3 * h + a]) * (T[3 * h + a] - C0[3 * h + a]);
+      }
+      dev_sum += sqrt(d);
+      move_sum += sqrt(mv);
+    }
+  }
+  qsort(smax, ne, sizeof *smax, cmp_double);
+  double p50 = smax[ne / 2], p90 = smax[(size_t)(0.9 * (double)(ne - 1))],
+         p99 = smax[(size_t)(0.99 * (double)(ne - 1))];
+  printf("%s: %zu vertices, %zu frames: edge stretch median %.3f, 90%% %.3f, 99%% %.3f, max "
+         "%.3f; handle deviation %.1f%% of the handle motion\n",
+         label, nv, take->n_frames, p50, p90, p99, smax[ne - 1],
+         100 * dev_sum / (move_sum > 0 ? move_sum : 1));
+  if (stretch_out) *stretch_out = p99;
+  CHECK_MSG(nonfinite == 0, "%s: %zu non-finite coordinates", label, nonfinite);
+  if (isfinite(max_stretch)) CHECK_MSG(p50 < 1.5, "%s: median edge stretched %.3fx", label, p50);
+  CHECK_MSG(smax[ne - 1] < max_stretch, "%s: an edge stretched %.3fx", label, smax[ne - 1]);
+  CHECK_MSG(move_sum > 0 && dev_sum < 0.25 * move_sum,
+            "%s: handles deviate %.1f%% of their motion from their targets", label,
+            100 * dev_sum / (move_sum > 0 ? move_sum : 1));
+  free(V);
+  free(len0);
+  free(smax);
+  km_puppetry_free(&p);
+  km_rig_free(&rig);
+}
+
+/* Rig a real mesh, drive it with a real Kinect take through km_puppetry. */
+static void test_real(const char *rel, bool z_up, km_autorig_skeleton want, const km_take *take) {
+  char buf[1024];
+  const char *path = km_test_shared(rel, buf, sizeof buf);
+  if (!path) return;
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_read(path, &m, KM_E));
+  if (!m.n_vertices) return;
+  if (z_up) z_up_to_y_up(&m);
+  km_character c = {0};
+  km_autorig_report rep;
+  km_status st = km_autorig(&m, NULL, &c, &rep, KM_E);
+  CHECK_MSG(st == KM_OK, "%s: %s", rel, km_test_err.message);
+  if (st == KM_OK) {
+    printf("%s: rigged as %s in %.3f s\n", rel,
+           rep.kind == KM_AUTORIG_QUADRUPED ? "a quadruped" : "a humanoid", rep.seconds);
+    CHECK_MSG(rep.kind == want, "%s: rigged as %s", rel,
+              rep.kind == KM_AUTORIG_QUADRUPED ? "a quadruped" : "a humanoid");
+    CHECK(skin_valid(&c.skin, m.n_vertices));
+    for (int j = 0; j < 3 * KM_KINECT1_JOINTS; ++j)
+      CHECK(isfinite(c.skeleton.rest[j]));
+    drive(rel, &m, &c, take, NULL, 4.0);
+  }
+  km_character_free(&c);
+  km_mesh_free(&m);
+}
+
+/* Reference: the procedural character driven through its own (true) rig and through the
+ * automatic one. */
+static void test_character_drive(const km_take *take) {
+  km_character_options co = {0};
+  co.target_vertices = 10000;
+  km_character c = {0}, r = {0};
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  CHECK_OK(km_autorig(&c.mesh, NULL, &r, NULL, KM_E));
+  double s_true = 0, s_auto = 0;
+  drive("character, true rig", &c.mesh, &c, take, &s_true, 4.0);
+  drive("character, automatic rig", &c.mesh, &r, take, &s_auto, 4.0);
+  CHECK_MSG(s_auto < 1.05 * s_true,
+            "automatic rig stretches %.3fx at the 99th percentile, the "
+            "true rig %.3fx",
+            s_auto, s_true);
+  km_character_free(&r);
+  km_character_free(&c);
+}
+
+/* Two tetrahedra: two components. */
+static void test_refused(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_alloc(8, 8, &m, KM_E));
+  static const double V[24] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1,
+                               3, 0, 0, 4, 0, 0, 3, 1, 0, 3, 0, 1};
+  static const int32_t F[24] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3,
+                                4, 6, 5, 4, 5, 7, 4, 7, 6, 5, 6, 7};
+  memcpy(m.V, V, sizeof V);
+  memcpy(m.F, F, sizeof F);
+  km_character c = {0};
+  CHECK_STATUS(km_autorig(&m, NULL, &c, NULL, KM_E), KM_ERR_DEGENERATE_MESH);
+  CHECK_MSG(strstr(km_test_err.message, "2 components") != NULL, "message: %s",
+            km_test_err.message);
+  CHECK(c.mesh.V == NULL && c.skin.joints == NULL);
+  /* A non-manifold edge: a third triangle on edge 0-1 of the first tetrahedron. */
+  km_mesh nm = {0};
+  CHECK_OK(km_mesh_alloc(5, 5, &nm, KM_E));
+  memcpy(nm.V, V, 12 * sizeof(double));
+  nm.V[12] = 0.5, nm.V[13] = -1, nm.V[14] = 0.2;
+  memcpy(nm.F, F, 12 * sizeof(int32_t));
+  nm.F[12] = 0, nm.F[13] = 1, nm.F[14] = 4;
+  CHECK_STATUS(km_autorig(&nm, NULL, &c, NULL, KM_E), KM_ERR_DEGENERATE_MESH);
+  CHECK_MSG(strstr(km_test_err.message, "non-manifold") != NULL, "message: %s",
+            km_test_err.message);
+  /* No faces. */
+  nm.n_faces = 0;
+  CHECK_STATUS(km_autorig(&nm, NULL, &c, NULL, KM_E), KM_ERR_DEGENERATE_MESH);
+  CHECK_MSG(strstr(km_test_err.message, "no faces") != NULL, "message: %s", km_test_err.message);
+  nm.n_faces = 5;
+  /* A lone tetrahedron has too few extremities for a humanoid, and too few vertices for
+   * five separate handles. */
+  m.n_vertices = 4, m.n_faces = 4;
+  km_autorig_options ho = {0};
+  ho.skeleton = KM_AUTORIG_KINECT1;
+  CHECK_STATUS(km_autorig(&m, &ho, &c, NULL, KM_E), KM_ERR_DEGENERATE_MESH);
+  CHECK_MSG(strstr(km_test_err.message, "extremities") != NULL, "message: %s", km_test_err.message);
+  CHECK_STATUS(km_autorig(&m, NULL, &c, NULL, KM_E), KM_ERR_DEGENERATE_MESH);
+  CHECK_MSG(strstr(km_test_err.message, "five handles") != NULL, "message: %s",
+            km_test_err.message);
+  m.n_vertices = 8, m.n_faces = 8;
+
+  /* Through the CLI: the two-component mesh is refused with the same message. */
+  char p[512], cmd[2048], *out = NULL;
+  snprintf(p, sizeof p, "%s/two.off", g_dir);
+  CHECK_OK(km_mesh_write(p, &m, NULL, KM_E));
+  snprintf(cmd, sizeof cmd, KM_CLI " rig '%s' -o '%s/two.rig.json'", p, g_dir);
+  int rc = km_test_run(cmd, &out);
+  CHECK(rc == 1);
+  CHECK_MSG(out && strstr(out, "2 components"), "output: %s", out ? out : "");
+  free(out);
+  km_mesh_free(&nm);
+  km_mesh_free(&m);
+}
+
+/* kinemesh rig on a generated character writes a sidecar animate can use. */
+static void test_cli(void) {
+  char cmd[2048], *out = NULL;
+  snprintf(cmd, sizeof cmd, KM_CLI " gen character -n 3000 -o '%s/g.obj'", g_dir);
+  CHECK(km_test_run(cmd, NULL) == 0);
+  snprintf(cmd, sizeof cmd, KM_CLI " rig '%s/g.obj' -o '%s/g.auto.rig.json'", g_dir, g_dir);
+  int rc = km_test_run(cmd, &out);
+  CHECK_MSG(rc == 0, "rig: %s", out ? out : "");
+  CHECK(out && strstr(out, "HandLeft") && strstr(out, "humanoid"));
+  free(out);
+  char gen_path[512];
+  snprintf(gen_path, sizeof gen_path, "%s/g.obj", g_dir);
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_read(gen_path, &m, KM_E));
+  km_character back = {0};
+  snprintf(gen_path, sizeof gen_path, "%s/g.auto.rig.json", g_dir);
+  CHECK_OK(km_character_read_rig(gen_path, m.n_vertices, &back, KM_E));
+  km_character_free(&back);
+  km_mesh_free(&m);
+}
+
+/* A prop (an ellipsoid: no limbs) gets five handles by position, and puppetry runs on it. */
+static void test_prop(const km_take *take) {
+  km_mesh m = {0};
+  CHECK_OK(km_icosphere(4, 0.5, &m, KM_E));
+  if (!m.V) return;
+  for (size_t v = 0; v < m.n_vertices; ++v)
+    m.V[3 * v + 1] *= 1.6, m.V[3 * v + 2] *= 0.7;
+  km_character c = {0};
+  km_autorig_report rep;
+  CHECK_OK(km_autorig(&m, NULL, &c, &rep, KM_E));
+  CHECK(rep.kind == KM_AUTORIG_PROP && rep.fallback[0] != '\0');
+  if (c.skeleton.rest) {
+    CHECK(skin_valid(&c.skin, m.n_vertices));
+    /* head handle highest, hand_left on +x, hand_right on -x */
+    const double *top = m.V + 3 * (size_t)c.landmarks[0].vertex;
+    CHECK(c.landmarks[6].vertex >= 0 && m.V[3 * (size_t)c.landmarks[6].vertex] > 0.2);
+    CHECK(c.landmarks[7].vertex >= 0 && m.V[3 * (size_t)c.landmarks[7].vertex] < -0.2);
+    CHECK(top[1] > 0);
+    if (take) drive("ellipsoid prop", &m, &c, take, NULL, INFINITY);
+  }
+  km_character_free(&c);
+  km_mesh_free(&m);
+}
+
+/* A vertex no face uses, far away, changes nothing: same skeleton as without it. */
+static void test_isolated_vertex(void) {
+  km_character_options co = {0};
+  co.target_vertices = 5000;
+  km_character c = {0}, a = {0}, b = {0};
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_alloc(c.mesh.n_vertices + 1, c.mesh.n_faces, &m, KM_E));
+  if (!m.V) return;
+  memcpy(m.V, c.mesh.V, sizeof(double) * 3 * c.mesh.n_vertices);
+  memcpy(m.F, c.mesh.F, sizeof(int32_t) * 3 * c.mesh.n_faces);
+  double far[3] = {10, 10, 10};
+  memcpy(m.V + 3 * c.mesh.n_vertices, far, sizeof far);
+  CHECK_OK(km_autorig(&c.mesh, NULL, &a, NULL, KM_E));
+  CHECK_OK(km_autorig(&m, NULL, &b, NULL, KM_E));
+  if (a.skeleton.rest && b.skeleton.rest) {
+    double d = 0;
+    for (int i = 0; i < 3 * KM_KINECT1_JOINTS; ++i)
+      d = fmax(d, fabs(a.skeleton.rest[i] - b.skeleton.rest[i]));
+    CHECK_MSG(d < 1e-9, "isolated vertex moved a joint by %g", d);
+    CHECK(skin_valid(&b.skin, m.n_vertices));
+  }
+  km_character_free(&a);
+  km_character_free(&b);
+  km_mesh_free(&m);
+  km_character_free(&c);
+}
+
+/* km_nearest_vertices against a brute-force sort, and kinemesh pick. */
+static void test_pick(void) {
+  km_character_options co = {0};
+  co.target_vertices = 3000;
+  km_character c = {0};
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  const km_mesh *m = &c.mesh;
+  double p[3] = {0.31, 1.2, 0.05};
+  int32_t ids[8];
+  double d[8];
+  size_t n = km_nearest_vertices(m->V, m->n_vertices, p, 8, ids, d);
+  CHECK(n == 8);
+  /* brute force: how many vertices are strictly nearer than the i-th */
+  for (size_t i = 0; i < n; ++i) {
+    size_t nearer = 0;
+    for (size_t v = 0; v < m->n_vertices; ++v) {
+      const double *q = m->V + 3 * v;
+      double dv = sqrt((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) +
+                       (q[2] - p[2]) * (q[2] - p[2]));
+      if (dv < d[i]) ++nearer;
+    }
+    CHECK_MSG(nearer <= i, "pick %zu: %zu vertices nearer", i, nearer);
+    if (i) CHECK(d[i] >= d[i - 1]);
+  }
+  char path[512], cmd[1024], *out = NULL, want[32];
+  snprintf(path, sizeof path, "%s/pick.off", g_dir);
+  CHECK_OK(km_mesh_write(path, m, NULL, KM_E));
+  snprintf(cmd, sizeof cmd, KM_CLI " pick '%s' --near 0.31,1.2,0.05 --k 2", path);
+  CHECK(km_test_run(cmd, &out) == 0);
+  snprintf(want, sizeof want, "%d ", (int)ids[0]);
+  CHECK_MSG(out && !strncmp(out, want, strlen(want)), "pick printed: %s, want %s", out ? out : "",
+            want);
+  free(out);
+  snprintf(cmd, sizeof cmd, KM_CLI " pick '%s' --near 0.31,1.2", path);
+  CHECK(km_test_run(cmd, &out) != 0);
+  CHECK(out && strstr(out, "x,y,z"));
+  free(out);
+  CHECK(km_nearest_vertices(m->V, 2, p, 8, ids, NULL) == 2);
+  km_character_free(&c);
+}
+
+int main(void) {
+  if (!mkdtemp(g_dir)) {
+    perror("mkdtemp");
+    return 1;
+  }
+  test_refused();
+  test_pick();
+  test_character(10000, 0, 0, 0);
+  test_character(20000, 7, 0.6, 1.15);
+  test_isolated_vertex();
+  test_cli();
+  char buf[1024];
+  const char *csv = km_test_shared("skeleton/precog_Seq1_1.csv", buf, sizeof buf);
+  if (csv) {
+    km_take take = {0};
+    km_motion_read_options mo = {0};
+    mo.kinect1 = true;
+    CHECK_OK(km_motion_read(csv, &mo, &take, NULL, KM_E));
+    if (take.n_frames) {
+      test_prop(&take);
+      test_character_drive(&take);
+      test_real("meshes/armadillo.obj", false, KM_AUTORIG_KINECT1, &take);
+      test_real("meshes/dog0.off", true, KM_AUTORIG_QUADRUPED, &take);
+      test_real("meshes/elephant.obj", false, KM_AUTORIG_KINECT1, &take);
+      test_real("meshes/horse.ply", true, KM_AUTORIG_QUADRUPED, &take);
+    }
+    km_take_free(&take);
+  }
+  char cmd[512];
+  snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
+  if (km_test_run(cmd, NULL) != 0) fprintf(stderr, "could not remove %s\n", g_dir);
+  return km_test_finish("test_autorig");
+}
