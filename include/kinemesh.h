@@ -288,6 +288,12 @@ typedef struct km_mesh {
   int32_t *F; /* #F*3 triangles, 0-based */
   size_t n_vertices;
   size_t n_faces; /* 0 for a point cloud */
+  /* ---- optional per-vertex attributes as read (issue 11); NULL when the file has none.
+   * Owned by the mesh like V and F (km_mesh_free frees them, km_mesh_copy copies them). A
+   * mesh built by hand may leave them NULL: every function that does not say otherwise
+   * ignores them. */
+  double *UV; /* #V*2 texture coordinates (u, v), OBJ vt / PLY u v, s t, texture_u texture_v */
+  double *N;  /* #V*3 normals as read (OBJ vn / PLY nx ny nz; not renormalised) */
 } km_mesh;
 
 /* Allocates a mesh with uninitialised V and F.
@@ -298,8 +304,11 @@ km_status km_mesh_alloc(size_t n_vertices, size_t n_faces, km_mesh *out, km_erro
  *   src  in: mesh
  *   out  out: allocated copy; free with km_mesh_free */
 km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err);
-/* Frees m->V and m->F and zeroes the struct (the struct itself is the caller's). */
+/* Frees m->V, m->F, m->UV, m->N and zeroes the struct (the struct itself is the caller's). */
 void km_mesh_free(km_mesh *m);
+/* 64-bit FNV-1a hash of the counts, positions and faces (attributes are not included): the
+ * key of the default reduced-model cache. Same mesh bytes, same hash. 0 for NULL. */
+uint64_t km_mesh_hash(const km_mesh *m);
 
 /* ---- I/O */
 
@@ -324,6 +333,11 @@ typedef struct km_mesh_write_options {
 /* Reads OBJ / PLY (ascii, binary LE/BE) / OFF, format by extension. Vertex order and count
  * are exactly those of the file; polygons are fan-triangulated (0,i,i+1). A PLY without
  * faces reads as a point cloud (n_faces == 0).
+ * Attributes: OBJ `vt`/`vn` are attached to vertices through the faces' v/vt/vn references
+ * (the vertex count stays that of the `v` lines: where a vertex is referenced with several
+ * UVs or normals, at a texture seam, the first reference in file order wins and the others
+ * are dropped; vertices no face references with a vt get (0,0)); PLY vertex properties
+ * u v (or s t, texture_u texture_v) and nx ny nz are read as they are.
  *   path  in: file
  *   out   out: allocated mesh; free with km_mesh_free
  * Errors: KM_ERR_IO, KM_ERR_PARSE naming path and the line (text) or byte offset (binary),
@@ -337,8 +351,10 @@ km_status km_mesh_read(const char *path, km_mesh *out, km_error *err);
  * Errors: as km_mesh_read. */
 km_status km_mesh_parse(const void *data, size_t size, km_mesh_format format, const char *name,
                         km_mesh *out, km_error *err);
-/* Writes a mesh atomically (temporary file, then rename). Coordinates are written exactly
- * (%.17g in text formats, raw doubles in binary PLY), so reading back is bit for bit.
+/* Writes a mesh atomically (temporary file, then rename), creating missing parent folders.
+ * Coordinates are written exactly (%.17g in text formats, raw doubles in binary PLY), so
+ * reading back is bit for bit. UV and N, when present, are written too (OBJ vt/vn with
+ * v/t/n face references, one per vertex; PLY u v, nx ny nz); OFF has no place for them. 
  *   path  in: file; its extension gives the format unless opt says otherwise
  *   m     in: mesh
  *   opt   in: may be NULL (format from extension, binary little-endian PLY)

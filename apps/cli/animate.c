@@ -35,7 +35,7 @@ int km_cli_animate(int argc, char **argv) {
        "rig: handles, joint map, filter (default <mesh stem>.rig.json)"},
       {"motion", 0, KM_OPT_STRING, &motion,
        "take: .json (kinemesh), .csv (Kinect v1 recording), .bvh"},
-      {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default MESH.kmcache)"},
+      {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default: $XDG_CACHE_HOME/kinemesh/<mesh hash>.kmcache)"},
       {"solver", 0, KM_OPT_STRING, &solver,
        "reduced (default, real time) or full (ARAP reference)"},
       {"energy", 0, KM_OPT_STRING, &energy,
@@ -78,12 +78,13 @@ int km_cli_animate(int argc, char **argv) {
   km_anim_writer *w = NULL;
   double *V = NULL, *t23 = NULL, *t4 = NULL;
   char *rig_default = rig_path ? NULL : km_cli_rig_path(mesh_path);
-  char *cache_default = cache ? NULL : km_cli_cache_path(mesh_path);
+  char *cache_default = NULL;
   int rc = KM_EXIT_FAIL;
 
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK ||
       km_motion_read(motion, NULL, &take, NULL, &err) != KM_OK)
     goto fail;
+  if (!cache && !(cache_default = km_cli_cache_path(&m))) goto nomem;
   if (take.n_frames == 0) {
     rc = km_cli_error("animate", "%s has no frames", motion);
     goto done;

@@ -80,7 +80,11 @@ km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertic
 int km_cli_live(int argc, char **argv);
 
 /* Puppetry helpers shared by animate, bench and live. */
-char *km_cli_cache_path(const char *mesh_path); /* MESH.kmcache, caller frees */
+/* The default reduced-model cache of a mesh as read (and oriented): in the user's cache
+ * folder, $XDG_CACHE_HOME/kinemesh/<km_mesh_hash>.kmcache, else ~/.cache/kinemesh/..., never
+ * beside the input (which may be read-only or shared); the model parameters are recorded in
+ * the file and checked on load. NULL when out of memory. Caller frees. */
+char *km_cli_cache_path(const km_mesh *mesh);
 /* Prints what the cache policy reported that the user must know: a stale cache rebuilt, a
  * cache not written. */
 void km_cli_report_cache(const char *cache, const km_puppetry_info *info);

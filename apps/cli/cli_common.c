@@ -260,10 +260,19 @@ int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f
   return 0;
 }
 
-char *km_cli_cache_path(const char *mesh_path) {
-  size_t n = strlen(mesh_path);
-  char *out = malloc(n + 10);
-  if (out) snprintf(out, n + 10, "%s.kmcache", mesh_path);
+char *km_cli_cache_path(const km_mesh *mesh) {
+  const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+  char dir[4096];
+  if (xdg && xdg[0] == '/') /* the XDG spec: a relative value is to be ignored */
+    snprintf(dir, sizeof dir, "%s/kinemesh", xdg);
+  else if (home && home[0])
+    snprintf(dir, sizeof dir, "%s/.cache/kinemesh", home);
+  else
+    snprintf(dir, sizeof dir, "/tmp/kinemesh-cache-%ld", (long)getuid());
+  size_t n = strlen(dir) + 32;
+  char *out = malloc(n);
+  if (out)
+    snprintf(out, n, "%s/%016llx.kmcache", dir, (unsigned long long)km_mesh_hash(mesh));
   return out;
 }
 

@@ -65,7 +65,7 @@ int km_cli_live(int argc, char **argv) {
       {"quantize", 0, KM_OPT_FLAG, &quantize,
        "send positions as int16 quantised to the frame's bounding box (half the bytes)"},
       {"web", 0, KM_OPT_STRING, &web, "page directory (default: web/ beside the binary)"},
-      {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default MESH.kmcache)"},
+      {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default: $XDG_CACHE_HOME/kinemesh/<mesh hash>.kmcache)"},
   };
   const char *pos[1];
   int n_pos;
@@ -90,12 +90,16 @@ int km_cli_live(int argc, char **argv) {
   char *rig_text = NULL;
   size_t rig_size = 0;
   char *rig_default = rig_path ? NULL : km_cli_rig_path(mesh_path);
-  char *cache_default = cache ? NULL : km_cli_cache_path(mesh_path);
+  char *cache_default = NULL;
   char *web_default = web ? NULL : default_web_dir();
   const char *rig_file = rig_path ? rig_path : rig_default;
   int rc = KM_EXIT_FAIL;
 
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK) goto fail;
+  if (!cache && !(cache_default = km_cli_cache_path(&m))) {
+    rc = km_cli_error("live", "out of memory");
+    goto done;
+  }
   FILE *f = fopen(rig_file, "rb");
   if (!f) {
     rc = km_cli_error("live", "cannot read the rig %s", rig_file);

@@ -36,14 +36,34 @@ km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err) {
   if (s) return s;
   if (src->n_vertices) memcpy(tmp.V, src->V, src->n_vertices * 3 * sizeof(double));
   if (src->n_faces) memcpy(tmp.F, src->F, src->n_faces * 3 * sizeof(int32_t));
+  size_t nv = src->n_vertices ? src->n_vertices : 1;
+  if (src->UV && !(tmp.UV = km__malloc(nv * 2, sizeof(double)))) goto nomem;
+  if (src->N && !(tmp.N = km__malloc(nv * 3, sizeof(double)))) goto nomem;
+  if (src->UV && src->n_vertices) memcpy(tmp.UV, src->UV, src->n_vertices * 2 * sizeof(double));
+  if (src->N && src->n_vertices) memcpy(tmp.N, src->N, src->n_vertices * 3 * sizeof(double));
   *out = tmp;
   return KM_OK;
+nomem:
+  km_mesh_free(&tmp);
+  return km__fail(err, KM_ERR_NOMEM, "km_mesh_copy: out of memory");
 }
+
+uint64_t km_mesh_hash(const km_mesh *m) {
+  if (!m) return 0;
+  uint64_t sz[2] = {m->n_vertices, m->n_faces};
+  uint64_t h = km__fnv1a(KM__FNV_SEED, sz, sizeof sz);
+  if (m->V) h = km__fnv1a(h, m->V, m->n_vertices * 3 * sizeof(double));
+  if (m->F) h = km__fnv1a(h, m->F, m->n_faces * 3 * sizeof(int32_t));
+  return h;
+}
+
 
 void km_mesh_free(km_mesh *m) {
   if (!m) return;
   free(m->V);
   free(m->F);
+  free(m->UV);
+  free(m->N);
   memset(m, 0, sizeof *m);
 }
 

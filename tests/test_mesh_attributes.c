@@ -1,0 +1,257 @@
+/* Texture coordinates and normals (issue 11): read from OBJ (vt/vn through the faces' v/vt/vn
+ * references, vertex order and count kept) and PLY (u v / s t / texture_u texture_v, nx ny
+ * nz), kept by copy, written back by km_mesh_write, `convert`, OBJ/PLY frame directories and
+ * .glb (TEXCOORD_0, NORMAL, NORMAL morph targets), and read back intact. Also: `-o` creates
+ * missing parent folders, and the puppetry cache goes to $XDG_CACHE_HOME, not beside the
+ * input. */
+#include "km_test.h"
+
+#include "core/core.h"
+
+#include <cjson/cJSON.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* A quad split in two, with a texture seam at vertex 0 (two vt), normals, a comment, vt
+ * before v and a negative reference. */
+static const char k_obj[] = "# textured quad\n"
+                            "vt 0.25 0.5\n"
+                            "v 0 0 0\n"
+                            "v 1 0 0\n"
+                            "v 1 1 0\n"
+                            "v 0 1 0\n"
+                            "vt 1 0\n"
+                            "vt 1 1\n"
+                            "vt 0 1\n"
+                            "vt 0.75 0.125\n"
+                            "vn 0 0 1\n"
+                            "f 1/1/1 2/2/1 3/3/1\n"
+                            "f 1/-1/1 3/3/1 4/4/1\n";
+
+static void test_obj_read(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_parse(k_obj, sizeof k_obj - 1, KM_FORMAT_OBJ, "quad.obj", &m, KM_E));
+  CHECK(m.n_vertices == 4 && m.n_faces == 2);
+  CHECK(m.UV != NULL && m.N != NULL);
+  if (m.UV && m.N && m.n_vertices == 4) {
+    /* vertex 0: the first reference (vt 1) wins over the seam's second (vt 5) */
+    const double want[8] = {0.25, 0.5, 1, 0, 1, 1, 0, 1};
+    for (int i = 0; i < 8; ++i)
+      CHECK_NEAR(m.UV[i], want[i], 0);
+    for (int i = 0; i < 4; ++i)
+      CHECK(m.N[3 * i] == 0 && m.N[3 * i + 1] == 0 && m.N[3 * i + 2] == 1);
+  }
+  km_mesh c = {0};
+  CHECK_OK(km_mesh_copy(&m, &c, KM_E));
+  CHECK(c.UV && c.N && c.UV != m.UV && memcmp(c.UV, m.UV, 8 * sizeof(double)) == 0);
+  km_mesh_free(&c);
+  CHECK(c.UV == NULL && c.N == NULL);
+
+  /* Writers: OBJ, PLY ascii / binary LE / BE read back bit for bit; OFF drops them. */
+  const char *paths[] = {"attr_t/a.obj", "attr_t/a_ascii.ply", "attr_t/a_le.ply",
+                         "attr_t/a_be.ply"};
+  km_ply_encoding enc[] = {0, KM_PLY_ASCII, KM_PLY_BINARY_LE, KM_PLY_BINARY_BE};
+  km_test_run("rm -rf attr_t", NULL);
+  for (int k = 0; k < 4; ++k) {
+    km_mesh_write_options wo = {0};
+    wo.ply = enc[k];
+    /* attr_t/ does not exist: the writer creates it */
+    CHECK_OK(km_mesh_write(paths[k], &m, &wo, KM_E));
+    km_mesh r = {0};
+    CHECK_OK(km_mesh_read(paths[k], &r, KM_E));
+    CHECK_MSG(r.n_vertices == 4 && r.UV && r.N, "%s", paths[k]);
+    if (r.UV && r.N && r.n_vertices == 4) {
+      CHECK_MSG(memcmp(r.UV, m.UV, 8 * sizeof(double)) == 0, "%s: UV", paths[k]);
+      CHECK_MSG(memcmp(r.N, m.N, 12 * sizeof(double)) == 0, "%s: N", paths[k]);
+      CHECK(memcmp(r.V, m.V, 12 * sizeof(double)) == 0);
+    }
+    km_mesh_free(&r);
+  }
+  km_mesh_free(&m);
+
+  /* Without vt lines, i/t references are ignored as before; with them, out of range fails. */
+  static const char plain[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1 2/2 3/3\n";
+  CHECK_OK(km_mesh_parse(plain, sizeof plain - 1, KM_FORMAT_OBJ, "p.obj", &m, KM_E));
+  CHECK(m.UV == NULL && m.N == NULL && m.n_faces == 1);
+  km_mesh_free(&m);
+  static const char bad[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/7 3/1\n";
+  CHECK_STATUS(km_mesh_parse(bad, sizeof bad - 1, KM_FORMAT_OBJ, "b.obj", &m, KM_E),
+               KM_ERR_PARSE);
+  CHECK_MSG(strstr(km_test_err.message, "b.obj:5") && strstr(km_test_err.message, "texture"),
+            "%s", km_test_err.message);
+}
+
+static void test_ply_names(void) {
+  /* s t and nx ny nz among other properties (a colour), ascii */
+  static const char ply[] = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                            "property float y\nproperty float z\nproperty uchar red\n"
+                            "property float s\nproperty float t\nproperty float nx\n"
+                            "property float ny\nproperty float nz\n"
+                            "element face 1\nproperty list uchar int vertex_indices\n"
+                            "end_header\n"
+                            "0 0 0 9 0.5 0.25 0 0 1\n1 0 0 9 1 0 0 0 1\n0 1 0 9 0 1 0 0 1\n"
+                            "3 0 1 2\n";
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_parse(ply, sizeof ply - 1, KM_FORMAT_PLY, "st.ply", &m, KM_E));
+  CHECK(m.UV && m.N && m.n_vertices == 3);
+  if (m.UV && m.N) {
+    CHECK(m.UV[0] == 0.5 && m.UV[1] == 0.25 && m.UV[2] == 1 && m.UV[5] == 1);
+    CHECK(m.N[2] == 1 && m.N[8] == 1);
+  }
+  km_mesh_free(&m);
+}
+
+/* ---- glb read back */
+
+static uint32_t u32(const unsigned char *b) {
+  return (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
+}
+
+/* Float data of the accessor named by attribute `attr` of the first primitive (target < 0)
+ * or of its morph target `target`; NULL when absent. */
+static const unsigned char *glb_attr(const char *data, size_t size, const char *attr, int target,
+                                     size_t *count, cJSON **json_out) {
+  if (size < 28) return NULL;
+  const unsigned char *d = (const unsigned char *)data;
+  uint32_t jl = u32(d + 12);
+  if (20 + (size_t)jl + 8 > size) return NULL;
+  cJSON *j = cJSON_ParseWithLength(data + 20, jl);
+  *json_out = j;
+  const unsigned char *bin = d + 20 + jl + 8;
+  size_t bin_len = u32(d + 20 + jl);
+  cJSON *prim = cJSON_GetArrayItem(
+      cJSON_GetObjectItem(cJSON_GetArrayItem(cJSON_GetObjectItem(j, "meshes"), 0), "primitives"),
+      0);
+  cJSON *attrs = target < 0 ? cJSON_GetObjectItem(prim, "attributes")
+                            : cJSON_GetArrayItem(cJSON_GetObjectItem(prim, "targets"), target);
+  cJSON *a = cJSON_GetObjectItem(attrs, attr);
+  if (!cJSON_IsNumber(a)) return NULL;
+  cJSON *acc = cJSON_GetArrayItem(cJSON_GetObjectItem(j, "accessors"), a->valueint);
+  cJSON *bv = cJSON_GetArrayItem(cJSON_GetObjectItem(j, "bufferViews"),
+                                 cJSON_GetObjectItem(acc, "bufferView")->valueint);
+  size_t off = (size_t)cJSON_GetObjectItem(bv, "byteOffset")->valuedouble;
+  size_t len = (size_t)cJSON_GetObjectItem(bv, "byteLength")->valuedouble;
+  *count = (size_t)cJSON_GetObjectItem(acc, "count")->valuedouble;
+  if (off + len > bin_len) return NULL;
+  return bin + off;
+}
+
+static float f32(const unsigned char *p) {
+  uint32_t u = u32(p);
+  float f;
+  memcpy(&f, &u, 4);
+  return f;
+}
+
+/* A generated character given UVs (a cylindrical projection) goes through convert, animate
+ * to .glb and to OBJ and PLY frames; the UVs come back intact everywhere, normals are unit
+ * and follow the frame. */
+static void test_cli_textured(void) {
+  char *out = NULL;
+  CHECK(km_test_run("rm -rf attr_c attr_cache && mkdir attr_c", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2500 -o attr_c/c.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen motion --kind wave --frames 8 --character attr_c/c.obj -o "
+                           "attr_c/w.json",
+                    NULL) == 0);
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_read("attr_c/c.obj", &m, KM_E));
+  if (!m.n_vertices) return;
+  m.UV = malloc(m.n_vertices * 2 * sizeof(double));
+  for (size_t i = 0; i < m.n_vertices; ++i) {
+    m.UV[2 * i] = 0.5 + atan2(m.V[3 * i + 2], m.V[3 * i]) / (2 * M_PI);
+    m.UV[2 * i + 1] = m.V[3 * i + 1] / 2;
+  }
+  CHECK_OK(km_mesh_write("attr_c/t.obj", &m, NULL, KM_E));
+  CHECK(km_test_run("cp attr_c/c.rig.json attr_c/t.rig.json", NULL) == 0);
+
+  /* convert into a folder that does not exist yet */
+  CHECK(km_test_run(KM_CLI " convert attr_c/t.obj attr_c/new/deeper/t.ply", &out) == 0);
+  free(out);
+  km_mesh r = {0};
+  CHECK_OK(km_mesh_read("attr_c/new/deeper/t.ply", &r, KM_E));
+  CHECK(r.UV && r.n_vertices == m.n_vertices &&
+        memcmp(r.UV, m.UV, m.n_vertices * 2 * sizeof(double)) == 0);
+  km_mesh_free(&r);
+
+  /* animate with the cache in a private XDG cache folder: nothing lands beside the mesh */
+  const char *env = "XDG_CACHE_HOME=\"$PWD/attr_cache\" ";
+  char cmd[2048];
+  const char *outs[] = {"attr_c/out/t.glb", "attr_c/out/frames_obj", "attr_c/out/frames_ply"};
+  const char *fmt[] = {"", "", " --frame-format ply"};
+  for (int k = 0; k < 3; ++k) {
+    snprintf(cmd, sizeof cmd,
+             "%s" KM_CLI " animate --mesh attr_c/t.obj --motion attr_c/w.json%s -o %s", env,
+             fmt[k], outs[k]);
+    CHECK_MSG(km_test_run(cmd, &out) == 0, "%s: %s", cmd, out ? out : "");
+    free(out);
+  }
+  CHECK(access("attr_c/t.obj.kmcache", F_OK) != 0);
+  CHECK(km_test_run("ls attr_cache/kinemesh/*.kmcache", NULL) == 0);
+
+  /* frames: UVs exact, normals unit */
+  const char *frames[] = {"attr_c/out/frames_obj/frame_000007.obj",
+                          "attr_c/out/frames_ply/frame_000007.ply"};
+  for (int k = 0; k < 2; ++k) {
+    CHECK_OK(km_mesh_read(frames[k], &r, KM_E));
+    CHECK_MSG(r.UV && r.N && r.n_vertices == m.n_vertices, "%s", frames[k]);
+    if (r.UV && r.N && r.n_vertices == m.n_vertices) {
+      CHECK_MSG(memcmp(r.UV, m.UV, m.n_vertices * 2 * sizeof(double)) == 0, "%s UV", frames[k]);
+      double worst = 0;
+      for (size_t i = 0; i < r.n_vertices; ++i) {
+        double *n = r.N + 3 * i;
+        worst = fmax(worst, fabs(sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) - 1));
+      }
+      CHECK_MSG(worst < 1e-6, "%s: normal length off by %g", frames[k], worst);
+      /* recomputed for the frame: the same as the frame's own normals */
+      double *N = malloc(r.n_vertices * 3 * sizeof(double));
+      CHECK_OK(km_vertex_normals(&r, KM_NORMALS_AREA, N, KM_E));
+      double dev = 0;
+      for (size_t i = 0; i < r.n_vertices * 3; ++i)
+        dev = fmax(dev, fabs(N[i] - r.N[i]));
+      CHECK_MSG(dev < 1e-6, "%s: normals differ from the frame's by %g", frames[k], dev);
+      free(N);
+    }
+    km_mesh_free(&r);
+  }
+
+  /* glb: TEXCOORD_0 = (u, 1 - v) as float, NORMAL unit, morph targets carry NORMAL */
+  char *data = NULL;
+  size_t size = 0, count = 0;
+  CHECK_OK(km__read_file("attr_c/out/t.glb", &data, &size, KM_E));
+  cJSON *j = NULL;
+  const unsigned char *uv = data ? glb_attr(data, size, "TEXCOORD_0", -1, &count, &j) : NULL;
+  CHECK(uv && count == m.n_vertices);
+  if (uv && count == m.n_vertices) {
+    double dev = 0;
+    for (size_t i = 0; i < count; ++i) {
+      dev = fmax(dev, fabs(f32(uv + 8 * i) - (float)m.UV[2 * i]));
+      dev = fmax(dev, fabs(f32(uv + 8 * i + 4) - (float)(1 - m.UV[2 * i + 1])));
+    }
+    CHECK_MSG(dev == 0, "glb TEXCOORD_0 differs by %g", dev);
+  }
+  cJSON_Delete(j);
+  j = NULL;
+  CHECK(data && glb_attr(data, size, "NORMAL", -1, &count, &j) && count == m.n_vertices);
+  cJSON_Delete(j);
+  j = NULL;
+  CHECK(data && glb_attr(data, size, "NORMAL", 3, &count, &j) && count == m.n_vertices);
+  cJSON_Delete(j);
+  free(data);
+
+  /* a second run loads the cache from the XDG folder */
+  snprintf(cmd, sizeof cmd,
+           "%s" KM_CLI " animate --mesh attr_c/t.obj --motion attr_c/w.json -o attr_c/out/u.pc2",
+           env);
+  CHECK(km_test_run(cmd, &out) == 0);
+  CHECK_MSG(out && strstr(out, "cache loaded"), "%s", out ? out : "");
+  free(out);
+  km_mesh_free(&m);
+  km_test_run("rm -rf attr_c attr_cache attr_t", NULL);
+}
+
+int main(void) {
+  test_obj_read();
+  test_ply_names();
+  test_cli_textured();
+  return km_test_finish("test_mesh_attributes");
+}
