@@ -362,6 +362,69 @@ km_status km_mesh_parse(const void *data, size_t size, km_mesh_format format, co
 km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_options *opt,
                         km_error *err);
 
+/* ---- orientation and units (issue 11) ----------------------------------------------------
+ * Inside kinemesh a character stands along +y, faces +z and is measured in metres. A file
+ * made another way (a z-up scan, a model facing -z, centimetres) is brought into that frame
+ * by a rotation that takes its up axis to +y and its forward axis to +z, and a scale. */
+
+typedef enum km_axis {
+  KM_AXIS_NONE = 0, /* not given */
+  KM_AXIS_POS_X,
+  KM_AXIS_NEG_X,
+  KM_AXIS_POS_Y,
+  KM_AXIS_NEG_Y,
+  KM_AXIS_POS_Z,
+  KM_AXIS_NEG_Z,
+} km_axis;
+
+/* How a file's coordinates relate to kinemesh's frame. Zero: y up, facing +z, metres. */
+typedef struct km_frame {
+  km_axis up;      /* the file's axis that points up (NONE: +y) */
+  km_axis forward; /* the file's axis the model faces (NONE: +z) */
+  double scale;    /* file units to metres (0: 1) */
+} km_frame;
+
+/* "+x", "-x", "x", "X", "+Y", ... into an axis. Errors: KM_ERR_INVALID quoting s. */
+km_status km_axis_parse(const char *s, km_axis *out, km_error *err);
+/* "+x" ... "-z"; "none" for KM_AXIS_NONE. Static storage. */
+const char *km_axis_name(km_axis a);
+/* Metres per unit of "m", "cm", "mm", "in", "ft" (0 for anything else). */
+double km_units_scale(const char *units);
+/* The rotation of a frame change, row-major: p_kinemesh = scale * R * p_file.
+ *   f  in: frame (up and forward must be perpendicular)
+ *   R  out: 9 doubles, a proper rotation (a signed permutation)
+ * Errors: KM_ERR_INVALID when up and forward lie on the same axis. */
+km_status km_frame_rotation(const km_frame *f, double R[9], km_error *err);
+/* Applies a frame change in place: positions P (n_points*3) become scale*R*P (NaN stays NaN),
+ * normals N (n_normals*3, may be NULL) become R*N (rotation only).
+ * Errors: as km_frame_rotation; KM_ERR_INVALID for a non-positive or non-finite scale. */
+km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *N,
+                         size_t n_normals, km_error *err);
+/* km_frame_apply to a mesh's V and N (UV and faces are unchanged; a rotation keeps the
+ * winding). */
+km_status km_mesh_frame_apply(const km_frame *f, km_mesh *m, km_error *err);
+
+typedef struct km_frame_guess {
+  km_frame frame;   /* the guessed up and forward (scale 0: units are not guessed) */
+  double height;    /* extent along the guessed up axis, in file units */
+  bool standing;    /* the up axis is clearly the longest (a standing figure) */
+  bool sure_up;     /* the sign of up was decided by a clear mass offset, not by default */
+  bool sure_forward;
+} km_frame_guess;
+/* Guesses how a mesh is oriented, among the 24 axis-aligned frames. Heuristic (documented in
+ * src/mesh/orient.c): the up axis is the longest extent when it is clearly longest (a
+ * standing figure), else y when the y extent is at least half of the longest (the common
+ * convention), else z; up points to the side where the surface area's centroid sits (a body
+ * carried above thinner legs). Forward is the shorter remaining axis for a standing figure
+ * (depth < shoulder width) and the longer one otherwise (a quadruped's length); its sign: for
+ * a standing figure the side the feet reach (toes ahead of the shins), otherwise the side of
+ * the highest part (a head held up in front). Good for humanoids and quadrupeds made
+ * axis-aligned; the CLI prints it so a wrong guess is seen and overridden.
+ *   m    in: triangle mesh (a point cloud uses vertex weights)
+ *   out  out: the guess
+ * Errors: KM_ERR_INVALID for an empty or flat (zero extent) mesh. */
+km_status km_mesh_frame_guess(const km_mesh *m, km_frame_guess *out, km_error *err);
+
 /* ---- topology and extent */
 
 /* Edges are undirected vertex pairs used by at least one face. A component is a set of

@@ -29,7 +29,10 @@ int km_cli_animate(int argc, char **argv) {
   int iterations = 0, fields = 0, isolines = 0;
   double scale = 0, fps = 0;
   size_t key_every = 0;
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      KM_CLI_FRAME_OPTIONS(fo),
+      KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh_path, "mesh to animate (OBJ/PLY/OFF)"},
       {"rig", 0, KM_OPT_STRING, &rig_path,
        "rig: handles, joint map, filter (default <mesh stem>.rig.json)"},
@@ -84,6 +87,10 @@ int km_cli_animate(int argc, char **argv) {
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK ||
       km_motion_read(motion, NULL, &take, NULL, &err) != KM_OK)
     goto fail;
+  if ((rc = km_cli_orient_mesh("animate", mesh_path, &fo, &m)) ||
+      (rc = km_cli_orient_take("animate", &fo, &take)))
+    goto done;
+  rc = KM_EXIT_FAIL;
   if (!cache && !(cache_default = km_cli_cache_path(&m))) goto nomem;
   if (take.n_frames == 0) {
     rc = km_cli_error("animate", "%s has no frames", motion);

@@ -330,3 +330,90 @@ km_status km_cli_load_landmarks(const char *lm_path, const char *mesh_path, size
   free(rig);
   return s;
 }
+
+/* ---- orientation (issue 11) */
+
+static int parse_axis_opt(const char *verb, const char *opt, const char *s, km_axis *a) {
+  km_error e = {0};
+  if (!s) return 0;
+  if (km_axis_parse(s, a, &e) != KM_OK)
+    return km_cli_error(verb, "--%s: %s", opt, e.message);
+  return 0;
+}
+
+/* An axis perpendicular to up for a forward that was not given or clashes: +z, or -y for
+ * a z-up file (Blender's convention: the front view looks along +y at a model facing -y). */
+static km_axis default_forward(km_axis up) {
+  return (up == KM_AXIS_POS_Z || up == KM_AXIS_NEG_Z) ? KM_AXIS_NEG_Y : KM_AXIS_POS_Z;
+}
+
+static bool same_axis(km_axis a, km_axis b) { return a && b && (a - 1) / 2 == (b - 1) / 2; }
+
+int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opts *fo,
+                      const km_mesh *m, bool quiet, km_frame *out, bool *guessed) {
+  memset(out, 0, sizeof *out);
+  if (guessed) *guessed = false;
+  km_cli_frame_opts none = {0};
+  if (!fo) fo = &none;
+  if (parse_axis_opt(verb, "up", fo->up, &out->up) ||
+      parse_axis_opt(verb, "forward", fo->forward, &out->forward))
+    return KM_EXIT_USAGE;
+  if (fo->units) {
+    char *end = NULL;
+    double x = km_units_scale(fo->units);
+    if (x == 0) x = strtod(fo->units, &end);
+    if (!(x > 0) || !isfinite(x) || (end && *end))
+      return km_cli_error(verb, "--units must be m, cm, mm, in, ft or a positive number, not '%s'",
+                          fo->units);
+    out->scale = x;
+  }
+  if (same_axis(out->up, out->forward))
+    return km_cli_error(verb, "--up %s and --forward %s lie on the same axis", fo->up, fo->forward);
+  if (out->up && out->forward) return 0;
+  km_frame_guess g;
+  km_error e = {0};
+  if (km_mesh_frame_guess(m, &g, &e) != KM_OK) { /* flat or empty: keep kinemesh's axes */
+    if (!out->up) out->up = KM_AXIS_POS_Y;
+    if (!out->forward || same_axis(out->up, out->forward)) out->forward = default_forward(out->up);
+    return 0;
+  }
+  if (!out->up) out->up = g.frame.up;
+  if (!out->forward) out->forward = same_axis(out->up, g.frame.forward)
+                                        ? default_forward(out->up)
+                                        : g.frame.forward;
+  if (guessed) *guessed = true;
+  if (!quiet)
+    fprintf(stderr,
+            "kinemesh %s: %s: up %s, forward %s (%s; height %.4g %s) - override with --up / "
+            "--forward\n",
+            verb, path, km_axis_name(out->up), km_axis_name(out->forward),
+            fo->up || fo->forward ? "partly guessed" : "guessed", g.height,
+            fo->units ? fo->units : "units");
+  return 0;
+}
+
+int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo,
+                       km_mesh *m) {
+  km_frame f;
+  int rc = km_cli_mesh_frame(verb, path, fo, m, false, &f, NULL);
+  if (rc) return rc;
+  if (f.up == KM_AXIS_POS_Y && f.forward == KM_AXIS_POS_Z && (f.scale == 0 || f.scale == 1))
+    return 0; /* already kinemesh's frame: the positions stay bit for bit */
+  km_error e = {0};
+  if (km_mesh_frame_apply(&f, m, &e) != KM_OK) return km_cli_fail(verb, &e);
+  return 0;
+}
+
+int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t) {
+  if (!fo || (!fo->motion_up && !fo->motion_forward)) return 0;
+  km_frame f = {0};
+  if (parse_axis_opt(verb, "motion-up", fo->motion_up, &f.up) ||
+      parse_axis_opt(verb, "motion-forward", fo->motion_forward, &f.forward))
+    return KM_EXIT_USAGE;
+  if (!f.up) f.up = KM_AXIS_POS_Y;
+  if (!f.forward) f.forward = default_forward(f.up);
+  km_error e = {0};
+  if (km_frame_apply(&f, t->positions, t->n_frames * t->n_joints, NULL, 0, &e) != KM_OK)
+    return km_cli_fail(verb, &e);
+  return 0;
+}

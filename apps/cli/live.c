@@ -49,7 +49,10 @@ int km_cli_live(int argc, char **argv) {
   const char *bind = "127.0.0.1", *web = NULL, *cache = NULL;
   int osc = 0, udp = 0, http = 8080;
   bool quantize = false, loop = false, no_autoplay = false;
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      KM_CLI_FRAME_OPTIONS(fo),
+      KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh_path, "mesh to animate (OBJ/PLY/OFF)"},
       {"rig", 0, KM_OPT_STRING, &rig_path,
        "rig: handles, joint map, filter (default <mesh stem>.rig.json); POST /rig rewrites it"},
@@ -96,6 +99,8 @@ int km_cli_live(int argc, char **argv) {
   int rc = KM_EXIT_FAIL;
 
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK) goto fail;
+  if ((rc = km_cli_orient_mesh("live", mesh_path, &fo, &m))) goto done;
+  rc = KM_EXIT_FAIL;
   if (!cache && !(cache_default = km_cli_cache_path(&m))) {
     rc = km_cli_error("live", "out of memory");
     goto done;
@@ -120,6 +125,8 @@ int km_cli_live(int argc, char **argv) {
   km_motion_read_options mo = {0};
   mo.kinect1 = true;
   if (replay && km_motion_read(replay, &mo, &take, NULL, &err) != KM_OK) goto fail;
+  if ((rc = km_cli_orient_take("live", &fo, &take))) goto done;
+  rc = KM_EXIT_FAIL;
   km_puppetry_info pi;
   if (km_cli_puppet_open(&m, cache ? cache : cache_default, &pup, &pi, &err) != KM_OK) goto fail;
 

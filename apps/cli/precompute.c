@@ -10,7 +10,9 @@ int km_cli_precompute(int argc, char **argv) {
   const char *out = NULL, *energy = NULL;
   int fields = 8, isolines = 10;
   bool force = false;
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      KM_CLI_FRAME_OPTIONS(fo),
       {"output", 'o', KM_OPT_STRING, &out, "cache file (default: the user's cache folder, $XDG_CACHE_HOME/kinemesh)"},
       {"fields", 0, KM_OPT_INT, &fields, "propagation fields n_e (default 8)"},
       {"isolines", 0, KM_OPT_INT, &isolines, "isolines per field n_iso (default 10)"},
@@ -45,6 +47,7 @@ int km_cli_precompute(int argc, char **argv) {
     rc = km_cli_fail("precompute", &err);
     goto done;
   }
+  if ((rc = km_cli_orient_mesh("precompute", pos[0], &fo, &m))) goto done;
   if (!out && !(path = cache = km_cli_cache_path(&m))) {
     rc = km_cli_error("precompute", "out of memory");
     goto done;
