@@ -130,6 +130,27 @@ static void test_rotated_copies(void) {
       free(fr);
     }
   }
+  /* The rig sidecar's "frame" says it all (the `rig` verb records it): no flags, no guess. */
+  CHECK(km_test_run("sed '0,/{/s//{\"frame\": {\"up\": \"+z\", \"forward\": \"-x\", "
+                    "\"scale\": 0.01},/' orient_t/c.rig.json > orient_t/all.rig.json",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " animate --mesh orient_t/all.obj --motion orient_t/w.json -o "
+                           "orient_t/sidecar.pc2",
+                    &out) == 0);
+  CHECK_MSG(out && !strstr(out, "guessed"), "%s", out ? out : "");
+  free(out);
+  double *fr = NULL;
+  km_anim_info fi;
+  CHECK_OK(km_pc2_read("orient_t/sidecar.pc2", &fr, &fi, KM_E));
+  if (fr && ref && fi.frames == ri.frames && fi.vertices == ri.vertices) {
+    double worst = 0;
+    for (size_t i = 0; i < fi.frames * fi.vertices * 3; ++i)
+      worst = fmax(worst, fabs(fr[i] - ref[i]));
+    CHECK_MSG(worst < 1e-4, "sidecar frame: max deviation %.3g m", worst);
+  } else {
+    CHECK(false);
+  }
+  free(fr);
   free(ref);
   km_mesh_free(&m);
   km_test_run("rm -rf orient_t", NULL);

@@ -75,8 +75,10 @@ typedef struct km_cli_frame_opts {
   {"motion-up", 0, KM_OPT_STRING, &(fo).motion_up, "the take's up axis (default +y)"},           \
       {"motion-forward", 0, KM_OPT_STRING, &(fo).motion_forward,                                 \
        "the axis the performer faces in the take (default +z)"}
-/* The frame the options say, the missing axes guessed from m (printed on stderr in one line
- * naming path, so the user can see and override it, unless quiet). *guessed: whether any axis
+/* The frame the options say; with neither --up nor --forward, the "frame" object of the
+ * mesh's rig sidecar (<stem>.rig.json: {"up": "+z", "forward": "-y", "scale": 0.01}, scale
+ * optional, metres per file unit) when it has one; the missing axes guessed from m (printed
+ * on stderr in one line naming path, so the user can see and override it, unless quiet). *guessed: whether any axis
  * was guessed (may be NULL). Prints the error and returns non-zero on a bad option. */
 int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opts *fo,
                       const km_mesh *m, bool quiet, km_frame *out, bool *guessed);

@@ -349,6 +349,37 @@ static km_axis default_forward(km_axis up) {
 
 static bool same_axis(km_axis a, km_axis b) { return a && b && (a - 1) / 2 == (b - 1) / 2; }
 
+/* The "frame" object of the mesh's rig sidecar (<stem>.rig.json), when it has a valid one:
+ *   "frame": {"up": "+z", "forward": "-y", "scale": 0.01}
+ * up/forward are the file's axes, scale metres per file unit (optional). */
+static bool sidecar_frame(const char *mesh_path, km_frame *out) {
+  memset(out, 0, sizeof *out);
+  char *rig = mesh_path ? km_cli_rig_path(mesh_path) : NULL;
+  FILE *f = rig ? fopen(rig, "rb") : NULL;
+  free(rig);
+  if (!f) return false;
+  char *text = NULL;
+  long n = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+  if (n > 0 && n < (1L << 30) && fseek(f, 0, SEEK_SET) == 0 && (text = malloc((size_t)n + 1)) &&
+      fread(text, 1, (size_t)n, f) == (size_t)n)
+    text[n] = '\0';
+  else
+    free(text), text = NULL;
+  fclose(f);
+  cJSON *j = text ? cJSON_Parse(text) : NULL;
+  free(text);
+  cJSON *fr = cJSON_GetObjectItemCaseSensitive(j, "frame");
+  const char *up = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(fr, "up"));
+  const char *fw = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(fr, "forward"));
+  cJSON *sc = cJSON_GetObjectItemCaseSensitive(fr, "scale");
+  bool ok = up && fw && km_axis_parse(up, &out->up, NULL) == KM_OK &&
+            km_axis_parse(fw, &out->forward, NULL) == KM_OK && !same_axis(out->up, out->forward);
+  if (ok && cJSON_IsNumber(sc) && sc->valuedouble > 0 && isfinite(sc->valuedouble))
+    out->scale = sc->valuedouble;
+  cJSON_Delete(j);
+  return ok;
+}
+
 int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opts *fo,
                       const km_mesh *m, bool quiet, km_frame *out, bool *guessed) {
   memset(out, 0, sizeof *out);
@@ -370,6 +401,14 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
   if (same_axis(out->up, out->forward))
     return km_cli_error(verb, "--up %s and --forward %s lie on the same axis", fo->up, fo->forward);
   if (out->up && out->forward) return 0;
+  /* No axis given: the rig sidecar's record of them (written by whoever rigged the mesh). */
+  km_frame sf;
+  if (!out->up && !out->forward && sidecar_frame(path, &sf)) {
+    out->up = sf.up;
+    out->forward = sf.forward;
+    if (!fo->units && sf.scale > 0) out->scale = sf.scale;
+    return 0;
+  }
   km_frame_guess g;
   km_error e = {0};
   if (km_mesh_frame_guess(m, &g, &e) != KM_OK) { /* flat or empty: keep kinemesh's axes */
