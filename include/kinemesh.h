@@ -317,6 +317,7 @@ typedef enum km_mesh_format {
   KM_FORMAT_OBJ,
   KM_FORMAT_PLY,
   KM_FORMAT_OFF,
+  KM_FORMAT_GLTF, /* .glb / .gltf: read only (issue 11) */
 } km_mesh_format;
 
 typedef enum km_ply_encoding {
@@ -330,7 +331,10 @@ typedef struct km_mesh_write_options {
   km_ply_encoding ply;   /* 0: binary little endian */
 } km_mesh_write_options;
 
-/* Reads OBJ / PLY (ascii, binary LE/BE) / OFF, format by extension. Vertex order and count
+/* Reads OBJ / PLY (ascii, binary LE/BE) / OFF / glTF 2.0 (.glb, .gltf), format by extension.
+ * glTF: the triangles, POSITION, NORMAL and TEXCOORD_0 of every primitive of every mesh,
+ * merged in file order (meshes, then primitives; vertex order = accessor order, primitive
+ * after primitive); node transforms are not applied; v = 1 - v_gltf (OBJ's origin). Vertex order and count
  * are exactly those of the file; polygons are fan-triangulated (0,i,i+1). A PLY without
  * faces reads as a point cloud (n_faces == 0).
  * Attributes: OBJ `vt`/`vn` are attached to vertices through the faces' v/vt/vn references

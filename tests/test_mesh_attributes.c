@@ -238,6 +238,20 @@ static void test_cli_textured(void) {
   cJSON_Delete(j);
   free(data);
 
+  /* the .glb read back as a mesh (glTF in): positions, UVs (v flipped back) and normals */
+  CHECK_OK(km_mesh_read("attr_c/out/t.glb", &r, KM_E));
+  CHECK(r.n_vertices == m.n_vertices && r.n_faces == m.n_faces && r.UV && r.N);
+  if (r.UV && r.n_vertices == m.n_vertices && r.n_faces == m.n_faces) {
+    double dv = 0, dt = 0;
+    for (size_t i = 0; i < m.n_vertices * 3; ++i)
+      dv = fmax(dv, fabs(r.V[i] - (double)(float)m.V[i]));
+    for (size_t i = 0; i < m.n_vertices * 2; ++i)
+      dt = fmax(dt, fabs(r.UV[i] - m.UV[i]));
+    CHECK_MSG(dv == 0 && dt < 1e-6, "glb as a mesh: positions %g, uv %g", dv, dt);
+    CHECK(memcmp(r.F, m.F, m.n_faces * 3 * sizeof(int32_t)) == 0);
+  }
+  km_mesh_free(&r);
+
   /* a second run loads the cache from the XDG folder */
   snprintf(cmd, sizeof cmd,
            "%s" KM_CLI " animate --mesh attr_c/t.obj --motion attr_c/w.json -o attr_c/out/u.pc2",
@@ -249,7 +263,99 @@ static void test_cli_textured(void) {
   km_test_run("rm -rf attr_c attr_cache attr_t", NULL);
 }
 
+/* A hand-written .gltf: two meshes (two primitives and one), an embedded base64 buffer,
+ * uint16 indices, a primitive without indices; merged in file order. Every truncated prefix
+ * of a .glb is an error, never a crash. */
+static void test_gltf_in(void) {
+  /* buffer: 4 positions (float VEC3, 48 bytes), uint16 indices 0 1 2 0 2 3 (12 bytes) */
+  unsigned char buf[60];
+  const float P[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  memcpy(buf, P, 48);
+  const uint16_t I[6] = {0, 1, 2, 0, 2, 3};
+  memcpy(buf + 48, I, 12);
+  static const char b64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  char enc[128];
+  size_t o = 0;
+  for (size_t i = 0; i < 60; i += 3) {
+    uint32_t v = (uint32_t)buf[i] << 16 | (uint32_t)buf[i + 1] << 8 | buf[i + 2];
+    for (int k = 3; k >= 0; --k)
+      enc[o++] = b64[(v >> (6 * k)) & 63];
+  }
+  enc[o] = 0;
+  char json[2048];
+  snprintf(json, sizeof json,
+           "{\"asset\":{\"version\":\"2.0\"},"
+           "\"buffers\":[{\"byteLength\":60,\"uri\":\"data:application/octet-stream;base64,%s\"}],"
+           "\"bufferViews\":[{\"buffer\":0,\"byteLength\":48},"
+           "{\"buffer\":0,\"byteOffset\":48,\"byteLength\":12}],"
+           "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":4,\"type\":\"VEC3\"},"
+           "{\"bufferView\":1,\"componentType\":5123,\"count\":6,\"type\":\"SCALAR\"},"
+           "{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"}],"
+           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1},"
+           "{\"attributes\":{\"POSITION\":2}}]},"
+           "{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1,\"mode\":4}]}]}",
+           enc);
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_parse(json, strlen(json), KM_FORMAT_GLTF, "hand.gltf", &m, KM_E));
+  CHECK(m.n_vertices == 11 && m.n_faces == 5 && !m.UV && !m.N);
+  if (m.n_vertices == 11 && m.n_faces == 5) {
+    CHECK(m.F[6] == 4 && m.F[7] == 5 && m.F[8] == 6);                   /* unindexed, after 4 */
+    CHECK(m.F[9] == 7 && m.F[10] == 8 && m.F[11] == 9 && m.F[14] == 10); /* second mesh */
+    CHECK(m.V[3 * 8] == 1 && m.V[3 * 8 + 1] == 0 && m.V[3 * 9 + 1] == 1);
+  }
+  km_mesh_free(&m);
+  /* bad files: clear errors */
+  char bad[2048];
+  snprintf(bad, sizeof bad, "%s", json);
+  char *mode = strstr(bad, "\"mode\":4");
+  if (mode) mode[7] = '1';
+  CHECK_STATUS(km_mesh_parse(bad, strlen(bad), KM_FORMAT_GLTF, "lines.gltf", &m, KM_E),
+               KM_ERR_UNSUPPORTED);
+  CHECK_MSG(strstr(km_test_err.message, "meshes[1].primitives[0]") &&
+                strstr(km_test_err.message, "triangles"),
+            "%s", km_test_err.message);
+  snprintf(bad, sizeof bad, "%s", json);
+  char *cnt = strstr(bad, "\"count\":6");
+  if (cnt) cnt[8] = '9';
+  CHECK_STATUS(km_mesh_parse(bad, strlen(bad), KM_FORMAT_GLTF, "short.gltf", &m, KM_E),
+               KM_ERR_PARSE);
+  CHECK_MSG(strstr(km_test_err.message, "does not fit"), "%s", km_test_err.message);
+
+  /* every prefix of a kinemesh .glb: an error or (the whole file) a mesh */
+  CHECK(km_test_run("rm -rf attr_g && mkdir attr_g", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2000 -o attr_g/c.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen motion --kind wave --frames 3 --character attr_g/c.obj -o "
+                           "attr_g/w.json",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " pose --mesh attr_g/c.obj --motion attr_g/w.json -o attr_g/p.glb",
+                    NULL) == 0);
+  char *data = NULL;
+  size_t size = 0;
+  CHECK_OK(km__read_file("attr_g/p.glb", &data, &size, KM_E));
+  size_t bad_prefixes = 0;
+  for (size_t n = 0; data && n < size; n += 1 + n / 64)
+    if (km_mesh_parse(data, n, KM_FORMAT_GLTF, "p.glb", &m, KM_E) == KM_OK) {
+      ++bad_prefixes;
+      km_mesh_free(&m);
+    }
+  CHECK_MSG(bad_prefixes == 0, "%zu truncated prefixes parsed", bad_prefixes);
+  CHECK(data && km_mesh_parse(data, size, KM_FORMAT_GLTF, "p.glb", &m, KM_E) == KM_OK);
+  km_mesh_free(&m);
+  free(data);
+  /* ... and every verb that reads a mesh reads it: convert to OBJ, same vertex count */
+  CHECK(km_test_run(KM_CLI " convert attr_g/p.glb attr_g/p.obj", NULL) == 0);
+  km_mesh a = {0}, b = {0};
+  CHECK_OK(km_mesh_read("attr_g/c.obj", &a, KM_E));
+  CHECK_OK(km_mesh_read("attr_g/p.obj", &b, KM_E));
+  CHECK(a.n_vertices == b.n_vertices && a.n_faces == b.n_faces && a.n_faces &&
+        memcmp(a.F, b.F, a.n_faces * 3 * sizeof(int32_t)) == 0);
+  km_mesh_free(&a);
+  km_mesh_free(&b);
+  km_test_run("rm -rf attr_g", NULL);
+}
+
 int main(void) {
+  test_gltf_in();
   test_obj_read();
   test_ply_names();
   test_cli_textured();

@@ -44,9 +44,12 @@ int km_cli_info(int argc, char **argv) {
   km_error err = {0};
   const char *path = pos[0];
 
-  if (is_anim_path(path)) {
-    km_anim_info ai;
-    if (km_anim_info_read(path, &ai, &err) != KM_OK) return km_cli_fail("info", &err);
+  km_anim_info ai;
+  size_t plen = strlen(path);
+  bool glb = plen > 4 && !strcasecmp(path + plen - 4, ".glb");
+  /* A .glb that is not a kinemesh animation is read as a mesh. */
+  if (is_anim_path(path) && (km_anim_info_read(path, &ai, &err) == KM_OK || !glb)) {
+    if (err.status != KM_OK) return km_cli_fail("info", &err);
     if (json) {
       cJSON *o = cJSON_CreateObject();
       cJSON_AddStringToObject(o, "file", path);

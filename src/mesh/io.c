@@ -76,9 +76,11 @@ static km_status format_from_name(const char *name, km_mesh_format *fmt, km_erro
     *fmt = KM_FORMAT_PLY;
   else if (!strcmp(ext, "off"))
     *fmt = KM_FORMAT_OFF;
+  else if (!strcmp(ext, "glb") || !strcmp(ext, "gltf"))
+    *fmt = KM_FORMAT_GLTF;
   else
     return km__fail(err, KM_ERR_UNSUPPORTED,
-                    "%s: unknown mesh extension '%s' (expected .obj, .ply or .off)",
+                    "%s: unknown mesh extension '%s' (expected .obj, .ply, .off, .glb or .gltf)",
                     name ? name : "(unnamed)", ext);
   return KM_OK;
 }
@@ -98,6 +100,7 @@ km_status km_mesh_parse(const void *data, size_t size, km_mesh_format format, co
   case KM_FORMAT_OBJ: return km__obj_parse(d, size, name, out, err);
   case KM_FORMAT_PLY: return km__ply_parse(d, size, name, out, err);
   case KM_FORMAT_OFF: return km__off_parse(d, size, name, out, err);
+  case KM_FORMAT_GLTF: return km__gltf_parse(d, size, name, NULL, out, err);
   default: return km__fail(err, KM_ERR_INVALID, "%s: unknown mesh format %d", name, (int)format);
   }
 }
@@ -113,7 +116,10 @@ km_status km_mesh_read(const char *path, km_mesh *out, km_error *err) {
   s = km__read_file(path, &data, &size, err);
   if (s) return s;
   double t0 = km_seconds();
-  s = km_mesh_parse(data, size, fmt, path, out, err);
+  if (fmt == KM_FORMAT_GLTF) /* buffers may be files beside it */
+    s = km__gltf_parse(data, size, path, path, out, err);
+  else
+    s = km_mesh_parse(data, size, fmt, path, out, err);
   free(data);
   if (!s)
     km__log(KM_LOG_DEBUG, "%s: %zu vertices, %zu faces in %.3f s", path, out->n_vertices,
@@ -146,6 +152,11 @@ km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_
     s = format_from_name(path, &fmt, err);
     if (s) return s;
   }
+  if (fmt == KM_FORMAT_GLTF)
+    return km__fail(err, KM_ERR_UNSUPPORTED,
+                    "%s: glTF is read, not written, as a mesh (write .obj or .ply; animations "
+                    "are written as .glb by the animation writer)",
+                    path);
   if (fmt != KM_FORMAT_OBJ && fmt != KM_FORMAT_PLY && fmt != KM_FORMAT_OFF)
     return km__fail(err, KM_ERR_INVALID, "%s: unknown mesh format %d", path, (int)fmt);
   if (enc != KM_PLY_BINARY_LE && enc != KM_PLY_BINARY_BE && enc != KM_PLY_ASCII)
