@@ -304,6 +304,16 @@ static void test_gltf_in(void) {
     CHECK(m.V[3 * 8] == 1 && m.V[3 * 8 + 1] == 0 && m.V[3 * 9 + 1] == 1);
   }
   km_mesh_free(&m);
+  /* tests/data/quad.gltf: NORMAL and TEXCOORD_0 (glTF's top-left v turned to OBJ's) */
+  CHECK_OK(km_mesh_read(KM_TEST_DATA "/quad.gltf", &m, KM_E));
+  CHECK(m.n_vertices == 4 && m.n_faces == 2 && m.UV && m.N);
+  if (m.UV && m.N && m.n_vertices == 4) {
+    const double uv[8] = {0, 0, 1, 0, 1, 1, 0, 1};
+    for (int i = 0; i < 8; ++i)
+      CHECK(m.UV[i] == uv[i]);
+    CHECK(m.N[2] == 1 && m.N[11] == 1 && m.F[3] == 0 && m.F[5] == 3);
+  }
+  km_mesh_free(&m);
   /* bad files: clear errors */
   char bad[2048];
   snprintf(bad, sizeof bad, "%s", json);

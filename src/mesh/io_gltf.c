@@ -224,6 +224,24 @@ static double comp(const acc_view *v, size_t i, int c) {
   }
 }
 
+/* cJSON on a NUL-terminated copy (the input buffer is not terminated); the byte of a syntax
+ * error is reported relative to the JSON's start plus `at`. */
+static km_status parse_json(const char *p, size_t n, const char *name, size_t at, cJSON **out,
+                            km_error *err) {
+  char *t = km__malloc(n + 1, 1);
+  if (!t) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+  memcpy(t, p, n);
+  t[n] = '\0';
+  const char *end = NULL;
+  *out = cJSON_ParseWithLengthOpts(t, n, &end, false);
+  km_status s = KM_OK;
+  if (!*out)
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte %zu: invalid glTF JSON", name,
+                 at + (end && end >= t ? (size_t)(end - t) : 0));
+  free(t);
+  return s;
+}
+
 static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
   cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
   if (!cJSON_GetArraySize(meshes))
@@ -327,24 +345,26 @@ km_status km__gltf_parse(const char *data, size_t size, const char *name, const 
     if (size < 20 || rd32(u + 4) != 2)
       return km__fail(err, KM_ERR_PARSE, "%s: expected a glTF 2.0 binary header", name);
     size_t total = rd32(u + 8), jl = rd32(u + 12);
-    if (total > size || rd32(u + 16) != 0x4E4F534Au || jl > total - 20)
+    if (total > size || total < 20 || rd32(u + 16) != 0x4E4F534Au || jl > total - 20)
       return km__fail(err, KM_ERR_PARSE,
                       "%s: byte 12: the JSON chunk (%zu bytes) does not fit the %zu-byte file",
                       name, jl, size);
-    d.json = cJSON_ParseWithLength(data + 20, jl);
+    km_status s = parse_json(data + 20, jl, name, 20, &d.json, err);
+    if (s) return s;
     size_t bo = 20 + jl;
     if (bo + 8 <= total && rd32(u + bo + 4) == 0x004E4942u) {
       size_t bl = rd32(u + bo);
-      if (bl > total - bo - 8)
+      if (bl > total - bo - 8) {
+        cJSON_Delete(d.json);
         return km__fail(err, KM_ERR_PARSE, "%s: byte %zu: the BIN chunk is truncated", name, bo);
+      }
       d.bin = u + bo + 8;
       d.bin_len = bl;
     }
   } else {
-    d.json = cJSON_ParseWithLength(data, size);
+    km_status s = parse_json(data, size, name, 0, &d.json, err);
+    if (s) return s;
   }
-  if (!d.json)
-    return km__fail(err, KM_ERR_PARSE, "%s: the glTF JSON does not parse", name);
   km_status s = parse_doc(&d, out, err);
   if (s) km_mesh_free(out);
   for (int i = 0; i < d.n_bufs && d.bufs; ++i)
