@@ -332,9 +332,10 @@ typedef struct km_mesh_write_options {
 } km_mesh_write_options;
 
 /* Reads OBJ / PLY (ascii, binary LE/BE) / OFF / glTF 2.0 (.glb, .gltf), format by extension.
- * glTF: the triangles, POSITION, NORMAL and TEXCOORD_0 of every primitive of every mesh,
- * merged in file order (meshes, then primitives; vertex order = accessor order, primitive
- * after primitive); node transforms are not applied; v = 1 - v_gltf (OBJ's origin). Vertex order and count
+ * glTF: the triangles, POSITION, NORMAL and TEXCOORD_0 of the scene's meshes, merged in
+ * order (nodes depth-first as listed, each node's mesh's primitives in order; vertex order =
+ * accessor order, primitive after primitive) with the nodes' world transforms applied (a
+ * file without nodes: its meshes in order, as stored); v = 1 - v_gltf (OBJ's origin). Vertex order and count
  * are exactly those of the file; polygons are fan-triangulated (0,i,i+1). A PLY without
  * faces reads as a point cloud (n_faces == 0).
  * Attributes: OBJ `vt`/`vn` are attached to vertices through the faces' v/vt/vn references

@@ -304,6 +304,35 @@ static void test_gltf_in(void) {
     CHECK(m.V[3 * 8] == 1 && m.V[3 * 8 + 1] == 0 && m.V[3 * 9 + 1] == 1);
   }
   km_mesh_free(&m);
+  /* nodes: only mesh 1, placed by a child (translation) of a rotated, scaled parent (TRS,
+   * composed down the hierarchy); then mirrored, which flips the winding */
+  char *tail = strrchr(json, '}');
+  if (tail) {
+    char nodes[4096];
+    snprintf(nodes, sizeof nodes,
+             "%.*s,\"nodes\":[{\"children\":[1],\"rotation\":[0.70710678118654757,0,0,"
+             "0.70710678118654757],\"scale\":[2,2,2]},{\"mesh\":1,\"translation\":[0,0,1]}],"
+             "\"scenes\":[{\"nodes\":[0]}],\"scene\":0}",
+             (int)(tail - json), json);
+    CHECK_OK(km_mesh_parse(nodes, strlen(nodes), KM_FORMAT_GLTF, "nodes.gltf", &m, KM_E));
+    CHECK(m.n_vertices == 4 && m.n_faces == 2);
+    if (m.n_vertices == 4) {
+      const double want[12] = {0, -2, 0, 2, -2, 0, 2, -2, 2, 0, -2, 2};
+      double dev = 0;
+      for (int i = 0; i < 12; ++i)
+        dev = fmax(dev, fabs(m.V[i] - want[i]));
+      CHECK_MSG(dev < 1e-12, "node transforms: deviation %g", dev);
+      CHECK(m.F[0] == 0 && m.F[1] == 1 && m.F[2] == 2);
+    }
+    km_mesh_free(&m);
+    snprintf(nodes, sizeof nodes,
+             "%.*s,\"nodes\":[{\"children\":[1],\"scale\":[-1,1,1]},{\"mesh\":1}],"
+             "\"scenes\":[{\"nodes\":[0]}]}",
+             (int)(tail - json), json);
+    CHECK_OK(km_mesh_parse(nodes, strlen(nodes), KM_FORMAT_GLTF, "mirror.gltf", &m, KM_E));
+    CHECK(m.n_faces == 2 && m.F[0] == 0 && m.F[1] == 2 && m.F[2] == 1 && m.V[3] == -1);
+    km_mesh_free(&m);
+  }
   /* tests/data/quad.gltf: NORMAL and TEXCOORD_0 (glTF's top-left v turned to OBJ's) */
   CHECK_OK(km_mesh_read(KM_TEST_DATA "/quad.gltf", &m, KM_E));
   CHECK(m.n_vertices == 4 && m.n_faces == 2 && m.UV && m.N);

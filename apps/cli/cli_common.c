@@ -5,6 +5,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -407,6 +408,15 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
     out->up = sf.up;
     out->forward = sf.forward;
     if (!fo->units && sf.scale > 0) out->scale = sf.scale;
+    return 0;
+  }
+  /* glTF says it itself: +y up, the front facing +z, metres (glTF 2.0, 3.4). */
+  size_t pl = path ? strlen(path) : 0;
+  if (!out->up && !out->forward &&
+      ((pl > 4 && !strcasecmp(path + pl - 4, ".glb")) ||
+       (pl > 5 && !strcasecmp(path + pl - 5, ".gltf")))) {
+    out->up = KM_AXIS_POS_Y;
+    out->forward = KM_AXIS_POS_Z;
     return 0;
   }
   km_frame_guess g;

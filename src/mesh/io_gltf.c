@@ -5,11 +5,14 @@
  * the part a mesh needs (accessors over buffer views over buffers) is small; every offset,
  * stride and count is checked against the bytes that are really there before it is read.
  *
- * Several primitives (of one mesh or of several) are merged in the order of the file's
- * `meshes` array and of each mesh's `primitives`: the vertices of primitive k follow those of
- * primitive k-1 and its indices are shifted by their count, so the vertex order is the file's
- * accessor order, primitive after primitive. Node transforms are not applied (the mesh data is
- * taken as it is stored; a glTF is y up and in metres by the specification). Texture
+ * What is read is the scene (`scene`, else the first of `scenes`, else every root node): its
+ * nodes depth-first in the order they are listed, children in order; each node with a mesh
+ * contributes that mesh's primitives in order, with the node's world transform (matrix or
+ * TRS, composed down the hierarchy) applied to positions and normals (a mirroring transform
+ * also flips the triangles' winding). A file without nodes: the `meshes` in order, as stored.
+ * The vertices of primitive k follow those of primitive k-1 and its indices are shifted by
+ * their count, so the vertex order is the file's accessor order, primitive after primitive,
+ * instance after instance. A glTF is y up, facing +z, in metres by the specification. Texture
  * coordinates are turned to kinemesh's (OBJ's) bottom-left origin: v = 1 - v_gltf; a
  * primitive without NORMAL or TEXCOORD_0 among others that have them gets zeros. */
 #include "mesh/mesh_io.h"
@@ -242,12 +245,179 @@ static km_status parse_json(const char *p, size_t n, const char *name, size_t at
   return s;
 }
 
+/* A mesh placed by a node: its index and world transform (column-major 4x4, as glTF). */
+typedef struct instance {
+  int mesh;
+  double M[16];
+} instance;
+
+#define MAX_INSTANCES 65536 /* node visits: keeps a DAG of shared children from exploding */
+
+typedef struct instances {
+  instance *v;
+  size_t n, cap;
+  size_t visits;
+} instances;
+
+static void mat_mul(const double A[16], const double B[16], double C[16]) {
+  double T[16];
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) {
+      double x = 0;
+      for (int k = 0; k < 4; ++k)
+        x += A[k * 4 + r] * B[c * 4 + k];
+      T[c * 4 + r] = x;
+    }
+  memcpy(C, T, sizeof T);
+}
+
+static bool num_array(const cJSON *a, int n, double *out) {
+  if (cJSON_GetArraySize(a) != n) return false;
+  for (int i = 0; i < n; ++i) {
+    const cJSON *x = cJSON_GetArrayItem(a, i);
+    if (!cJSON_IsNumber(x) || !isfinite(x->valuedouble)) return false;
+    out[i] = x->valuedouble;
+  }
+  return true;
+}
+
+static km_status node_local(gltf_doc *d, const cJSON *node, int ni, double M[16], km_error *err) {
+  static const double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  memcpy(M, I, sizeof I);
+  const cJSON *m = cJSON_GetObjectItemCaseSensitive(node, "matrix");
+  if (m) {
+    if (!num_array(m, 16, M))
+      return km__fail(err, KM_ERR_PARSE, "%s: nodes[%d]: matrix must be 16 finite numbers",
+                      d->name, ni);
+    return KM_OK;
+  }
+  double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, sc[3] = {1, 1, 1};
+  const cJSON *jt = cJSON_GetObjectItemCaseSensitive(node, "translation");
+  const cJSON *jr = cJSON_GetObjectItemCaseSensitive(node, "rotation");
+  const cJSON *js = cJSON_GetObjectItemCaseSensitive(node, "scale");
+  if ((jt && !num_array(jt, 3, t)) || (jr && !num_array(jr, 4, q)) || (js && !num_array(js, 3, sc)))
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: nodes[%d]: translation (3), rotation (4) and scale (3) must be finite "
+                    "numbers",
+                    d->name, ni);
+  double qn = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  if (!(qn > 0)) qn = 1, q[3] = 1;
+  double x = q[0] / qn, y = q[1] / qn, z = q[2] / qn, w = q[3] / qn;
+  double R[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - z * w),     2 * (x * z + y * w),
+                 2 * (x * y + z * w),     1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+                 2 * (x * z - y * w),     2 * (y * z + x * w),     1 - 2 * (x * x + y * y)};
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r)
+      M[c * 4 + r] = R[r * 3 + c] * sc[c];
+  M[12] = t[0], M[13] = t[1], M[14] = t[2];
+  return KM_OK;
+}
+
+static km_status visit(gltf_doc *d, int ni, const double P[16], int depth, instances *out,
+                       km_error *err) {
+  cJSON *nodes = cJSON_GetObjectItemCaseSensitive(d->json, "nodes");
+  cJSON *node = cJSON_GetArrayItem(nodes, ni);
+  if (ni < 0 || !node)
+    return km__fail(err, KM_ERR_PARSE, "%s: node %d does not exist", d->name, ni);
+  if (depth > 64 || ++out->visits > MAX_INSTANCES)
+    return km__fail(err, KM_ERR_UNSUPPORTED,
+                    "%s: the node hierarchy is deeper than 64 or has more than %d node visits "
+                    "(a cycle?)",
+                    d->name, MAX_INSTANCES);
+  double L[16], M[16];
+  km_status s = node_local(d, node, ni, L, err);
+  if (s) return s;
+  mat_mul(P, L, M);
+  int mesh = jint(node, "mesh", -1);
+  if (mesh >= 0) {
+    if (out->n == out->cap) {
+      size_t nc = out->cap ? 2 * out->cap : 16;
+      instance *nv = realloc(out->v, nc * sizeof *nv);
+      if (!nv) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+      out->v = nv;
+      out->cap = nc;
+    }
+    out->v[out->n].mesh = mesh;
+    memcpy(out->v[out->n++].M, M, sizeof M);
+  }
+  cJSON *ch = cJSON_GetObjectItemCaseSensitive(node, "children");
+  for (int i = 0; i < cJSON_GetArraySize(ch) && !s; ++i) {
+    cJSON *c = cJSON_GetArrayItem(ch, i);
+    int ci = cJSON_IsNumber(c) && c->valuedouble >= 0 && c->valuedouble < 2147483647.0
+                 ? (int)c->valuedouble
+                 : -1;
+    s = visit(d, ci, M, depth + 1, out, err);
+  }
+  return s;
+}
+
+/* The meshes to read with their transforms, in the order described at the top. */
+static km_status collect_instances(gltf_doc *d, instances *out, km_error *err) {
+  static const double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  cJSON *nodes = cJSON_GetObjectItemCaseSensitive(d->json, "nodes");
+  cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
+  int nn = cJSON_GetArraySize(nodes);
+  km_status s = KM_OK;
+  if (nn == 0) { /* no nodes: every mesh as stored */
+    for (int m = 0; m < cJSON_GetArraySize(meshes) && !s; ++m) {
+      instance *nv = realloc(out->v, (out->n + 1) * sizeof *nv);
+      if (!nv) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+      out->v = nv;
+      out->v[out->n].mesh = m;
+      memcpy(out->v[out->n++].M, I, sizeof I);
+    }
+    return KM_OK;
+  }
+  cJSON *scenes = cJSON_GetObjectItemCaseSensitive(d->json, "scenes");
+  int si = jint(d->json, "scene", 0);
+  cJSON *scene = cJSON_GetArrayItem(scenes, si < 0 ? 0 : si);
+  cJSON *roots = cJSON_GetObjectItemCaseSensitive(scene, "nodes");
+  if (scene) {
+    for (int i = 0; i < cJSON_GetArraySize(roots) && !s; ++i) {
+      cJSON *r = cJSON_GetArrayItem(roots, i);
+      s = visit(d, cJSON_IsNumber(r) ? (int)r->valuedouble : -1, I, 0, out, err);
+    }
+    return s;
+  }
+  /* no scene: every node that is nobody's child */
+  unsigned char *child = km__calloc((size_t)nn, 1);
+  if (!child) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+  for (int i = 0; i < nn; ++i) {
+    cJSON *ch = cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(nodes, i), "children");
+    for (int k = 0; k < cJSON_GetArraySize(ch); ++k) {
+      cJSON *c = cJSON_GetArrayItem(ch, k);
+      if (cJSON_IsNumber(c) && c->valuedouble >= 0 && c->valuedouble < nn)
+        child[(int)c->valuedouble] = 1;
+    }
+  }
+  for (int i = 0; i < nn && !s; ++i)
+    if (!child[i]) s = visit(d, i, I, 0, out, err);
+  free(child);
+  return s;
+}
+
+static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out,
+                                km_error *err);
+
 static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
   cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
   if (!cJSON_GetArraySize(meshes))
     return km__fail(err, KM_ERR_PARSE, "%s: expected a non-empty 'meshes' array", d->name);
   km_status s = load_buffers(d, err);
   if (s) return s;
+  instances inst = {0};
+  if ((s = collect_instances(d, &inst, err))) {
+    free(inst.v);
+    return s;
+  }
+  s = read_instances(d, &inst, out, err);
+  free(inst.v);
+  return s;
+}
+
+static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out, km_error *err) {
+  cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
+  km_status s = KM_OK;
   /* Pass 1: count; pass 2: fill. */
   size_t nv = 0, nf = 0;
   bool any_n = false, any_t = false;
@@ -261,8 +431,22 @@ static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
       if (any_t && !(out->UV = km__calloc(nv ? nv : 1, 2 * sizeof(double)))) goto nomem;
     }
     size_t v0 = 0, f0 = 0;
-    for (int mi = 0; mi < cJSON_GetArraySize(meshes); ++mi) {
-      cJSON *prims = cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(meshes, mi), "primitives");
+    for (size_t ii = 0; ii < inst->n; ++ii) {
+      int mi = inst->v[ii].mesh;
+      const double *M = inst->v[ii].M;
+      cJSON *mesh = cJSON_GetArrayItem(meshes, mi);
+      if (!mesh)
+        return km__fail(err, KM_ERR_PARSE, "%s: a node names mesh %d, which does not exist",
+                        d->name, mi);
+      /* normals by the cofactor matrix of the linear part (inverse transpose up to scale) */
+      double C[9], det = M[0] * (M[5] * M[10] - M[9] * M[6]) - M[4] * (M[1] * M[10] - M[9] * M[2]) +
+                         M[8] * (M[1] * M[6] - M[5] * M[2]);
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) {
+          int r1 = (r + 1) % 3, r2 = (r + 2) % 3, c1 = (c + 1) % 3, c2 = (c + 2) % 3;
+          C[r * 3 + c] = M[c1 * 4 + r1] * M[c2 * 4 + r2] - M[c2 * 4 + r1] * M[c1 * 4 + r2];
+        }
+      cJSON *prims = cJSON_GetObjectItemCaseSensitive(mesh, "primitives");
       for (int pi = 0; pi < cJSON_GetArraySize(prims); ++pi) {
         cJSON *pr = cJSON_GetArrayItem(prims, pi);
         char what[64];
@@ -303,19 +487,35 @@ static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
           if (nv > INT32_MAX) break;
           continue;
         }
-        for (size_t i = 0; i < pos.count; ++i)
+        for (size_t i = 0; i < pos.count; ++i) {
+          double p[3], n[3] = {0, 0, 0};
           for (int c = 0; c < 3; ++c) {
-            double x = comp(&pos, i, c);
-            if (!isfinite(x))
-              return km__fail(err, KM_ERR_PARSE, "%s: %s: POSITION %zu is not finite", d->name,
-                              what, i);
-            out->V[3 * (v0 + i) + c] = x;
-            if (hn) out->N[3 * (v0 + i) + c] = comp(&nrm, i, c);
+            p[c] = comp(&pos, i, c);
+            if (hn) n[c] = comp(&nrm, i, c);
             if (ht && c < 2) {
               double t = comp(&tex, i, c);
               out->UV[2 * (v0 + i) + c] = c ? 1 - t : t;
             }
           }
+          double nl = 0;
+          for (int r = 0; r < 3; ++r) {
+            double x = M[12 + r];
+            for (int c = 0; c < 3; ++c)
+              x += M[c * 4 + r] * p[c];
+            if (!isfinite(x))
+              return km__fail(err, KM_ERR_PARSE, "%s: %s: POSITION %zu is not finite", d->name,
+                              what, i);
+            out->V[3 * (v0 + i) + r] = x;
+            if (hn) {
+              double y = C[r * 3] * n[0] + C[r * 3 + 1] * n[1] + C[r * 3 + 2] * n[2];
+              out->N[3 * (v0 + i) + r] = y;
+              nl += y * y;
+            }
+          }
+          if (hn && nl > 0 && isfinite(nl) && fabs(nl - 1) > 1e-12) /* renormalise if scaled */
+            for (int r = 0; r < 3; ++r)
+              out->N[3 * (v0 + i) + r] /= sqrt(nl);
+        }
         for (size_t k = 0; k < ni; ++k) {
           double ix = hi ? comp(&idx, k, 0) : (double)k;
           if (!(ix < (double)pos.count))
@@ -324,6 +524,13 @@ static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
                             d->name, what, k, ix, pos.count);
           out->F[3 * f0 + k] = (int32_t)(v0 + (size_t)ix);
         }
+        if (det < 0) /* a mirror: keep the outward winding */
+          for (size_t t = 0; t < ni / 3; ++t) {
+            int32_t *f = out->F + 3 * (f0 + t);
+            int32_t tmp = f[1];
+            f[1] = f[2];
+            f[2] = tmp;
+          }
         v0 += pos.count;
         f0 += ni / 3;
       }
