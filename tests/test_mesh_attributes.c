@@ -75,10 +75,9 @@ static void test_obj_read(void) {
   CHECK(m.UV == NULL && m.N == NULL && m.n_faces == 1);
   km_mesh_free(&m);
   static const char bad[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/7 3/1\n";
-  CHECK_STATUS(km_mesh_parse(bad, sizeof bad - 1, KM_FORMAT_OBJ, "b.obj", &m, KM_E),
-               KM_ERR_PARSE);
-  CHECK_MSG(strstr(km_test_err.message, "b.obj:5") && strstr(km_test_err.message, "texture"),
-            "%s", km_test_err.message);
+  CHECK_STATUS(km_mesh_parse(bad, sizeof bad - 1, KM_FORMAT_OBJ, "b.obj", &m, KM_E), KM_ERR_PARSE);
+  CHECK_MSG(strstr(km_test_err.message, "b.obj:5") && strstr(km_test_err.message, "texture"), "%s",
+            km_test_err.message);
 }
 
 static void test_ply_names(void) {
@@ -180,8 +179,8 @@ static void test_cli_textured(void) {
   const char *fmt[] = {"", "", " --frame-format ply"};
   for (int k = 0; k < 3; ++k) {
     snprintf(cmd, sizeof cmd,
-             "%s" KM_CLI " animate --mesh attr_c/t.obj --motion attr_c/w.json%s -o %s", env,
-             fmt[k], outs[k]);
+             "%s" KM_CLI " animate --mesh attr_c/t.obj --motion attr_c/w.json%s -o %s", env, fmt[k],
+             outs[k]);
     CHECK_MSG(km_test_run(cmd, &out) == 0, "%s: %s", cmd, out ? out : "");
     free(out);
   }
@@ -299,7 +298,7 @@ static void test_gltf_in(void) {
   CHECK_OK(km_mesh_parse(json, strlen(json), KM_FORMAT_GLTF, "hand.gltf", &m, KM_E));
   CHECK(m.n_vertices == 11 && m.n_faces == 5 && !m.UV && !m.N);
   if (m.n_vertices == 11 && m.n_faces == 5) {
-    CHECK(m.F[6] == 4 && m.F[7] == 5 && m.F[8] == 6);                   /* unindexed, after 4 */
+    CHECK(m.F[6] == 4 && m.F[7] == 5 && m.F[8] == 6);                    /* unindexed, after 4 */
     CHECK(m.F[9] == 7 && m.F[10] == 8 && m.F[11] == 9 && m.F[14] == 10); /* second mesh */
     CHECK(m.V[3 * 8] == 1 && m.V[3 * 8 + 1] == 0 && m.V[3 * 9 + 1] == 1);
   }

@@ -52,8 +52,8 @@ static void write_copy(const km_mesh *m, const km_frame *f, const char *path) {
   double s = f->scale ? f->scale : 1;
   for (size_t i = 0; i < c.n_vertices; ++i)
     for (int a = 0; a < 3; ++a) /* p_file = R^T p / s */
-      c.V[3 * i + a] = (R[a] * m->V[3 * i] + R[3 + a] * m->V[3 * i + 1] +
-                        R[6 + a] * m->V[3 * i + 2]) / s;
+      c.V[3 * i + a] =
+          (R[a] * m->V[3 * i] + R[3 + a] * m->V[3 * i + 1] + R[6 + a] * m->V[3 * i + 2]) / s;
   CHECK_OK(km_mesh_write(path, &c, NULL, KM_E));
   km_mesh_free(&c);
 }
@@ -124,8 +124,8 @@ static void test_rotated_copies(void) {
         for (size_t i = 0; i < fi.frames * fi.vertices * 3; ++i)
           worst = fmax(worst, fabs(fr[i] - ref[i]));
         /* float32 output of a 1.75 m figure; the centimetre copies differ by rounding */
-        CHECK_MSG(worst < 1e-4, "%s (%s): max deviation from the original %.3g m",
-                  copies[k].name, guessed ? "guessed" : copies[k].args, worst);
+        CHECK_MSG(worst < 1e-4, "%s (%s): max deviation from the original %.3g m", copies[k].name,
+                  guessed ? "guessed" : copies[k].args, worst);
       }
       free(fr);
     }

@@ -58,34 +58,36 @@ void km_cli_progress_done(void);
 
 /* ---- orientation: one option set for every verb that reads a mesh or a motion (issue 11) */
 typedef struct km_cli_frame_opts {
-  const char *up, *forward; /* "+x" ... "-z"; NULL: guessed from the mesh */
-  const char *units;        /* m, cm, mm, in, ft, or metres per unit; NULL: metres */
+  const char *up, *forward;               /* "+x" ... "-z"; NULL: guessed from the mesh */
+  const char *units;                      /* m, cm, mm, in, ft, or metres per unit; NULL: metres */
   const char *motion_up, *motion_forward; /* the take's axes; NULL: y up, facing +z */
 } km_cli_frame_opts;
 /* Entries for a verb's option array (a mesh's frame). */
+/* clang-format off */
 #define KM_CLI_FRAME_OPTIONS(fo)                                                                   \
-  {"up", 0, KM_OPT_STRING, &(fo).up,                                                             \
-   "the mesh's up axis: +x -x +y -y +z -z (default: guessed and printed)"},                      \
-      {"forward", 0, KM_OPT_STRING, &(fo).forward,                                               \
-       "the axis the mesh faces (default: guessed and printed)"},                                \
-      {"units", 0, KM_OPT_STRING, &(fo).units,                                                   \
-       "the mesh's units: m (default), cm, mm, in, ft, or metres per unit"}
+  {"up", 0, KM_OPT_STRING, &(fo).up,                                                               \
+   "the mesh's up axis: +x -x +y -y +z -z (default: guessed and printed)"},                        \
+  {"forward", 0, KM_OPT_STRING, &(fo).forward,                                                     \
+   "the axis the mesh faces (default: guessed and printed)"},                                      \
+  {"units", 0, KM_OPT_STRING, &(fo).units,                                                         \
+   "the mesh's units: m (default), cm, mm, in, ft, or metres per unit"}
 /* Entries for verbs that read a take as well. */
 #define KM_CLI_MOTION_FRAME_OPTIONS(fo)                                                            \
-  {"motion-up", 0, KM_OPT_STRING, &(fo).motion_up, "the take's up axis (default +y)"},           \
-      {"motion-forward", 0, KM_OPT_STRING, &(fo).motion_forward,                                 \
-       "the axis the performer faces in the take (default +z)"}
+  {"motion-up", 0, KM_OPT_STRING, &(fo).motion_up, "the take's up axis (default +y)"},             \
+  {"motion-forward", 0, KM_OPT_STRING, &(fo).motion_forward,                                       \
+   "the axis the performer faces in the take (default +z)"}
+/* clang-format on */
 /* The frame the options say; with neither --up nor --forward, the "frame" object of the
  * mesh's rig sidecar (<stem>.rig.json: {"up": "+z", "forward": "-y", "scale": 0.01}, scale
  * optional, metres per file unit) when it has one; the missing axes guessed from m (printed
- * on stderr in one line naming path, so the user can see and override it, unless quiet). *guessed: whether any axis
- * was guessed (may be NULL). Prints the error and returns non-zero on a bad option. */
+ * on stderr in one line naming path, so the user can see and override it, unless quiet).
+ * *guessed: whether any axis was guessed (may be NULL). Prints the error and returns non-zero
+ * on a bad option. */
 int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opts *fo,
                       const km_mesh *m, bool quiet, km_frame *out, bool *guessed);
 /* km_cli_mesh_frame, then the mesh is brought into kinemesh's frame (y up, facing +z,
  * metres). Returns 0, or prints the error and returns an exit status. */
-int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo,
-                       km_mesh *m);
+int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo, km_mesh *m);
 /* The take's positions into kinemesh's frame by --motion-up/--motion-forward. */
 int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t);
 

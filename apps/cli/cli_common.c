@@ -238,7 +238,6 @@ void km_cli_json_number(cJSON *o, const char *key, double v) {
 
 /* ---- puppetry pieces shared by precompute, animate, live and the benches */
 
-
 int km_cli_parse_energy(const char *verb, const char *s, km_puppet_energy *e) {
   if (!s || !strcmp(s, "arap"))
     *e = KM_PUPPET_ENERGY_ARAP;
@@ -272,8 +271,7 @@ char *km_cli_cache_path(const km_mesh *mesh) {
     snprintf(dir, sizeof dir, "/tmp/kinemesh-cache-%ld", (long)getuid());
   size_t n = strlen(dir) + 32;
   char *out = malloc(n);
-  if (out)
-    snprintf(out, n, "%s/%016llx.kmcache", dir, (unsigned long long)km_mesh_hash(mesh));
+  if (out) snprintf(out, n, "%s/%016llx.kmcache", dir, (unsigned long long)km_mesh_hash(mesh));
   return out;
 }
 
@@ -337,8 +335,7 @@ km_status km_cli_load_landmarks(const char *lm_path, const char *mesh_path, size
 static int parse_axis_opt(const char *verb, const char *opt, const char *s, km_axis *a) {
   km_error e = {0};
   if (!s) return 0;
-  if (km_axis_parse(s, a, &e) != KM_OK)
-    return km_cli_error(verb, "--%s: %s", opt, e.message);
+  if (km_axis_parse(s, a, &e) != KM_OK) return km_cli_error(verb, "--%s: %s", opt, e.message);
   return 0;
 }
 
@@ -427,9 +424,8 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
     return 0;
   }
   if (!out->up) out->up = g.frame.up;
-  if (!out->forward) out->forward = same_axis(out->up, g.frame.forward)
-                                        ? default_forward(out->up)
-                                        : g.frame.forward;
+  if (!out->forward)
+    out->forward = same_axis(out->up, g.frame.forward) ? default_forward(out->up) : g.frame.forward;
   if (guessed) *guessed = true;
   if (!quiet)
     fprintf(stderr,

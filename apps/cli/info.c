@@ -120,8 +120,9 @@ int km_cli_info(int argc, char **argv) {
   printf("attributes            %s%s%s\n", has_uv ? "texcoords " : "", has_n ? "normals" : "",
          has_uv || has_n ? "" : "none");
   if (have_guess)
-    printf("orientation (guess)   up %s, forward %s, height %.6g%s (override with --up/--forward)\n",
-           km_axis_name(g.frame.up), km_axis_name(g.frame.forward), g.height,
-           g.standing ? ", standing" : "");
+    printf(
+        "orientation (guess)   up %s, forward %s, height %.6g%s (override with --up/--forward)\n",
+        km_axis_name(g.frame.up), km_axis_name(g.frame.forward), g.height,
+        g.standing ? ", standing" : "");
   return KM_EXIT_OK;
 }

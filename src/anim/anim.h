@@ -58,10 +58,10 @@ struct km_anim_writer {
   /* Attributes of a rest mesh that has them (issue 11): its texture coordinates, copied, and
    * whether normals are written (recomputed from each frame's positions: a deformed mesh's
    * normals are not the rest's). NULL / false: positions only, as before. */
-  double *uv;    /* #V*2 */
-  bool normals;  /* rest had UV or N */
-  double *nbuf;  /* #V*3 scratch: one frame's normals */
-  double *vbuf;  /* #V*3 scratch: one key's positions (glb) */
+  double *uv;   /* #V*2 */
+  bool normals; /* rest had UV or N */
+  double *nbuf; /* #V*3 scratch: one frame's normals */
+  double *vbuf; /* #V*3 scratch: one key's positions (glb) */
 };
 
 /* Unit area-weighted normals of positions V over the writer's faces into w->nbuf; a vertex

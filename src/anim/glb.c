@@ -90,8 +90,8 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   const uint64_t times_len = (uint64_t)nk * 4, weights_len = (uint64_t)nk * nk * 4;
   const bool with_n = w->normals;
   const uint64_t uv_len = w->uv ? (uint64_t)nv * 8 : 0;
-  uint64_t bin_len = idx_len + pos_len * (1 + nk) * (with_n ? 2 : 1) + uv_len + times_len +
-                     weights_len;
+  uint64_t bin_len =
+      idx_len + pos_len * (1 + nk) * (with_n ? 2 : 1) + uv_len + times_len + weights_len;
   if (bin_len + (64u << 20) > UINT32_MAX)
     return km__fail(err, KM_ERR_UNSUPPORTED,
                     "%s: %zu key frames of %zu vertices exceed the 4 GiB glb limit; use "

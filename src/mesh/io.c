@@ -57,7 +57,6 @@ uint64_t km_mesh_hash(const km_mesh *m) {
   return h;
 }
 
-
 void km_mesh_free(km_mesh *m) {
   if (!m) return;
   free(m->V);

@@ -110,8 +110,8 @@ static km_status load_buffers(gltf_doc *d, km_error *err) {
     if (!strncmp(uri, "data:", 5)) {
       const char *comma = strstr(uri, ";base64,");
       if (!comma || !b64_decode(comma + 8, &d->bufs[i], &d->buf_len[i]))
-        return km__fail(err, KM_ERR_PARSE, "%s: buffers[%d]: expected a base64 data: URI",
-                        d->name, i);
+        return km__fail(err, KM_ERR_PARSE, "%s: buffers[%d]: expected a base64 data: URI", d->name,
+                        i);
     } else {
       if (!d->base_path || strstr(uri, "..") || uri[0] == '/' || strchr(uri, ':'))
         return km__fail(err, KM_ERR_UNSUPPORTED,
@@ -131,8 +131,8 @@ static km_status load_buffers(gltf_doc *d, km_error *err) {
       d->bufs[i] = (unsigned char *)data;
     }
     if (d->buf_len[i] < (size_t)blen)
-      return km__fail(err, KM_ERR_PARSE, "%s: buffers[%d]: %zu bytes, byteLength says %d",
-                      d->name, i, d->buf_len[i], blen);
+      return km__fail(err, KM_ERR_PARSE, "%s: buffers[%d]: %zu bytes, byteLength says %d", d->name,
+                      i, d->buf_len[i], blen);
     d->buf_len[i] = (size_t)blen;
   }
   return KM_OK;
@@ -180,7 +180,8 @@ static km_status accessor(gltf_doc *d, int a, const char *what, acc_view *v, km_
                     "%s: %s: accessor %d: expected type, componentType, count and bufferView",
                     d->name, what, a);
   cJSON *bv = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "bufferViews"), bvi);
-  int bi = jint(bv, "buffer", -1), boff = jint(bv, "byteOffset", 0), blen = jint(bv, "byteLength", -1);
+  int bi = jint(bv, "buffer", -1), boff = jint(bv, "byteOffset", 0),
+      blen = jint(bv, "byteLength", -1);
   int stride = jint(bv, "byteStride", 0);
   if (!bv || bi < 0 || bi >= d->n_bufs || boff < 0 || blen < 0 || stride < 0)
     return km__fail(err, KM_ERR_PARSE, "%s: %s: bufferView %d is missing or invalid", d->name, what,
@@ -287,8 +288,8 @@ static km_status node_local(gltf_doc *d, const cJSON *node, int ni, double M[16]
   const cJSON *m = cJSON_GetObjectItemCaseSensitive(node, "matrix");
   if (m) {
     if (!num_array(m, 16, M))
-      return km__fail(err, KM_ERR_PARSE, "%s: nodes[%d]: matrix must be 16 finite numbers",
-                      d->name, ni);
+      return km__fail(err, KM_ERR_PARSE, "%s: nodes[%d]: matrix must be 16 finite numbers", d->name,
+                      ni);
     return KM_OK;
   }
   double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, sc[3] = {1, 1, 1};
@@ -396,8 +397,7 @@ static km_status collect_instances(gltf_doc *d, instances *out, km_error *err) {
   return s;
 }
 
-static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out,
-                                km_error *err);
+static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out, km_error *err);
 
 static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
   cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
@@ -424,8 +424,8 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
   for (int pass = 0; pass < 2; ++pass) {
     if (pass == 1) {
       if (nv > INT32_MAX)
-        return km__fail(err, KM_ERR_UNSUPPORTED, "%s: %zu vertices exceed the int32 range",
-                        d->name, nv);
+        return km__fail(err, KM_ERR_UNSUPPORTED, "%s: %zu vertices exceed the int32 range", d->name,
+                        nv);
       if ((s = km_mesh_alloc(nv, nf, out, err))) return s;
       if (any_n && !(out->N = km__calloc(nv ? nv : 1, 3 * sizeof(double)))) goto nomem;
       if (any_t && !(out->UV = km__calloc(nv ? nv : 1, 2 * sizeof(double)))) goto nomem;
@@ -477,8 +477,8 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
                           what);
         size_t ni = hi ? idx.count : pos.count;
         if (ni % 3)
-          return km__fail(err, KM_ERR_PARSE, "%s: %s: %zu indices is not a multiple of 3",
-                          d->name, what, ni);
+          return km__fail(err, KM_ERR_PARSE, "%s: %s: %zu indices is not a multiple of 3", d->name,
+                          what, ni);
         if (pass == 0) {
           nv += pos.count;
           nf += ni / 3;

@@ -1,7 +1,8 @@
 /* Wavefront OBJ: `v` positions, `f` polygons (fan-triangulated), and `vt`/`vn` attached to
  * the vertices through the faces' v/vt/vn references (first reference wins at a seam: the
- * vertex order and count stay the `v` lines'); everything else that is a keyword is skipped. Parsed in place from the memory buffer, one pass to count vertices
- * (so that positive indices can be range-checked and V allocated once), one pass to parse. */
+ * vertex order and count stay the `v` lines'); everything else that is a keyword is skipped. Parsed
+ * in place from the memory buffer, one pass to count vertices (so that positive indices can be
+ * range-checked and V allocated once), one pass to parse. */
 #include "mesh/mesh_io.h"
 
 #include <stdlib.h>
@@ -139,8 +140,8 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
       for (int k = 0; k < have; ++k) {
         if (!next_token(&c, &tok, &len) || tok[0] == '#') {
           if (k >= need) break; /* vt u: v defaults to 0 */
-          s = km__fail(err, KM_ERR_PARSE, "%s:%zu: expected %d numbers after '%s', found %d",
-                       name, line, need, is_t ? "vt" : "vn", k);
+          s = km__fail(err, KM_ERR_PARSE, "%s:%zu: expected %d numbers after '%s', found %d", name,
+                       line, need, is_t ? "vt" : "vn", k);
           break;
         }
         if (!km__parse_double(tok, len, &dst[k])) {

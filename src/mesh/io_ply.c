@@ -28,7 +28,18 @@ static const size_t k_type_size[] = {0, 1, 1, 2, 2, 4, 4, 4, 8};
 
 static bool type_is_int(ply_type t) { return t >= T_I8 && t <= T_U32; }
 
-enum { ROLE_NONE = 0, ROLE_X, ROLE_Y, ROLE_Z, ROLE_INDICES, ROLE_U, ROLE_V, ROLE_NX, ROLE_NY, ROLE_NZ };
+enum {
+  ROLE_NONE = 0,
+  ROLE_X,
+  ROLE_Y,
+  ROLE_Z,
+  ROLE_INDICES,
+  ROLE_U,
+  ROLE_V,
+  ROLE_NX,
+  ROLE_NY,
+  ROLE_NZ
+};
 
 /* Vertex attribute names: texture coordinates as Blender/MeshLab (s t), Paraview/Open3D
  * (u v) and PCL/others (texture_u texture_v) write them; normals nx ny nz. */
@@ -36,10 +47,9 @@ static int attribute_role(const char *t, size_t l) {
   static const struct {
     const char *name;
     int role;
-  } k[] = {{"u", ROLE_U},         {"s", ROLE_U},         {"texture_u", ROLE_U},
-           {"texture_s", ROLE_U}, {"v", ROLE_V},         {"t", ROLE_V},
-           {"texture_v", ROLE_V}, {"texture_t", ROLE_V}, {"nx", ROLE_NX},
-           {"ny", ROLE_NY},       {"nz", ROLE_NZ}};
+  } k[] = {{"u", ROLE_U},   {"s", ROLE_U},   {"texture_u", ROLE_U}, {"texture_s", ROLE_U},
+           {"v", ROLE_V},   {"t", ROLE_V},   {"texture_v", ROLE_V}, {"texture_t", ROLE_V},
+           {"nx", ROLE_NX}, {"ny", ROLE_NY}, {"nz", ROLE_NZ}};
   for (size_t i = 0; i < sizeof k / sizeof k[0]; ++i)
     if (strlen(k[i].name) == l && !memcmp(k[i].name, t, l)) return k[i].role;
   return ROLE_NONE;
@@ -514,7 +524,8 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
   V = km__malloc(nv ? nv * 3 : 1, sizeof(double));
   if (want_uv) UV = km__malloc(nv ? nv * 2 : 1, sizeof(double));
   if (want_n) NV = km__malloc(nv ? nv * 3 : 1, sizeof(double));
-  if (!V || (want_uv && !UV) || (want_n && !NV) || (fe && !km__tris_reserve(&tris, fe->count ? (size_t)fe->count : 1))) {
+  if (!V || (want_uv && !UV) || (want_n && !NV) ||
+      (fe && !km__tris_reserve(&tris, fe->count ? (size_t)fe->count : 1))) {
     s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu vertices", name, nv);
     goto done;
   }

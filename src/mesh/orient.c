@@ -73,8 +73,8 @@ km_status km_frame_rotation(const km_frame *f, double R[9], km_error *err) {
   return KM_OK;
 }
 
-km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *N,
-                         size_t n_normals, km_error *err) {
+km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *N, size_t n_normals,
+                         km_error *err) {
   double R[9];
   km_status s = km_frame_rotation(f, R, err);
   if (s) return s;
@@ -209,8 +209,8 @@ km_status km_mesh_frame_guess(const km_mesh *m, km_frame_guess *out, km_error *e
     double mid = 0.5 * (mn[a] + mx[a]), sw = 0;
     for (int sl = 0; sl < 10; ++sl) {
       double w;
-      double c = slab_mean(S, n, up, mn[up], ext[up], sl / 10.0, (sl + 1) / 10.0 + (sl == 9),
-                           a, &w);
+      double c =
+          slab_mean(S, n, up, mn[up], ext[up], sl / 10.0, (sl + 1) / 10.0 + (sl == 9), a, &w);
       if (!(w > 0)) continue;
       wander[k] += w * fabs(c - mid) / ext[a];
       sw += w;
