@@ -529,7 +529,7 @@ static void test_many_keys(void) {
 
 int main(void) {
   test_many_keys();
-  km_mesh rest;
+  km_mesh rest = {0};
   make_rest(&rest);
   double *frames = all_frames(&rest);
   test_glb(&rest, frames);

@@ -126,7 +126,7 @@ static void check_mesh(km_mesh *m, const char *what) {
 }
 
 static void test_primitives_laplacians(void) {
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_icosphere(2, 1.5, &m, KM_E));
   CHECK(m.n_vertices == 162 && m.n_faces == 320);
   check_mesh(&m, "icosphere");
@@ -171,7 +171,7 @@ static void check_closed_outward(const km_mesh *m, double expected_volume, doubl
 }
 
 static void test_primitive_shapes(void) {
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_icosphere(3, 2.0, &m, KM_E));
   CHECK(m.n_vertices == 642);
   double worst = 0;
@@ -233,7 +233,7 @@ static void test_known_values(void) {
 
 static void test_linear_precision(void) {
   /* On a flat grid the cotangent Laplacian of f = a x + b y + c vanishes inside. */
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_grid(7, 5, 2.0, 1.3, &m, KM_E));
   size_t n = m.n_vertices;
   /* jitter interior vertices in-plane so that this is not just the regular stencil */
@@ -267,7 +267,7 @@ static void test_linear_precision(void) {
 static void test_degenerate(void) {
   /* A 2x1 grid plus a zero-area face on collinear vertices and one with a repeated index:
    * they must contribute nothing. */
-  km_mesh g;
+  km_mesh g = {0};
   CHECK_OK(km_grid(2, 1, 2.0, 1.0, &g, KM_E));
   km_sparse *Lg = NULL, *Ld = NULL;
   CHECK_OK(km_cotmatrix(&g, &Lg, KM_E));
@@ -324,7 +324,7 @@ static void rotate(const double R[9], const double *x, double *y) {
 }
 
 static void test_normals_frames(void) {
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_icosphere(2, 3.0, &m, KM_E));
   size_t n = m.n_vertices;
   double *N = malloc(n * 3 * sizeof *N), *fr = malloc(n * 9 * sizeof *fr);
