@@ -59,7 +59,7 @@ int main(int argc, char **argv) {
   km_set_logger(logger, NULL);
   const char *path = argc > 1 ? argv[1] : KM_BENCH_DEFAULT;
   int k = argc > 2 ? atoi(argv[2]) : 9;
-  km_mesh m;
+  km_mesh m = {0};
   if (read_obj(path, &m)) {
     fprintf(stderr, "cannot read %s\n", path);
     return 1;

@@ -232,13 +232,16 @@ int km_bench_live(int argc, char **argv) {
     }
   }
   rig_default = rig_arg ? NULL : km_cli_rig_path(mesh_path);
-  cache = km_cli_cache_path(mesh_path);
   const char *rig_path = rig_arg ? rig_arg : rig_default;
-  if (!cache || !rig_path) {
+  if (!rig_path) {
     rc = km_cli_error(VERB, "out of memory");
     goto done;
   }
   if (km_mesh_read(mesh_path, &mesh, &err) != KM_OK) goto fail;
+  if (!(cache = km_cli_cache_path(&mesh))) {
+    rc = km_cli_error(VERB, "out of memory");
+    goto done;
+  }
   {
     struct stat st;
     if (!rig_arg && stat(rig_path, &st)) {

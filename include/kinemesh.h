@@ -288,6 +288,12 @@ typedef struct km_mesh {
   int32_t *F; /* #F*3 triangles, 0-based */
   size_t n_vertices;
   size_t n_faces; /* 0 for a point cloud */
+  /* ---- optional per-vertex attributes as read (issue 11); NULL when the file has none.
+   * Owned by the mesh like V and F (km_mesh_free frees them, km_mesh_copy copies them). A
+   * mesh built by hand may leave them NULL: every function that does not say otherwise
+   * ignores them. */
+  double *UV; /* #V*2 texture coordinates (u, v), OBJ vt / PLY u v, s t, texture_u texture_v */
+  double *N;  /* #V*3 normals as read (OBJ vn / PLY nx ny nz; not renormalised) */
 } km_mesh;
 
 /* Allocates a mesh with uninitialised V and F.
@@ -298,8 +304,11 @@ km_status km_mesh_alloc(size_t n_vertices, size_t n_faces, km_mesh *out, km_erro
  *   src  in: mesh
  *   out  out: allocated copy; free with km_mesh_free */
 km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err);
-/* Frees m->V and m->F and zeroes the struct (the struct itself is the caller's). */
+/* Frees m->V, m->F, m->UV, m->N and zeroes the struct (the struct itself is the caller's). */
 void km_mesh_free(km_mesh *m);
+/* 64-bit FNV-1a hash of the counts, positions and faces (attributes are not included): the
+ * key of the default reduced-model cache. Same mesh bytes, same hash. 0 for NULL. */
+uint64_t km_mesh_hash(const km_mesh *m);
 
 /* ---- I/O */
 
@@ -308,6 +317,7 @@ typedef enum km_mesh_format {
   KM_FORMAT_OBJ,
   KM_FORMAT_PLY,
   KM_FORMAT_OFF,
+  KM_FORMAT_GLTF, /* .glb / .gltf: read only (issue 11) */
 } km_mesh_format;
 
 typedef enum km_ply_encoding {
@@ -321,9 +331,18 @@ typedef struct km_mesh_write_options {
   km_ply_encoding ply;   /* 0: binary little endian */
 } km_mesh_write_options;
 
-/* Reads OBJ / PLY (ascii, binary LE/BE) / OFF, format by extension. Vertex order and count
+/* Reads OBJ / PLY (ascii, binary LE/BE) / OFF / glTF 2.0 (.glb, .gltf), format by extension.
+ * glTF: the triangles, POSITION, NORMAL and TEXCOORD_0 of the scene's meshes, merged in
+ * order (nodes depth-first as listed, each node's mesh's primitives in order; vertex order =
+ * accessor order, primitive after primitive) with the nodes' world transforms applied (a
+ * file without nodes: its meshes in order, as stored); v = 1 - v_gltf (OBJ's origin). Vertex order and count
  * are exactly those of the file; polygons are fan-triangulated (0,i,i+1). A PLY without
  * faces reads as a point cloud (n_faces == 0).
+ * Attributes: OBJ `vt`/`vn` are attached to vertices through the faces' v/vt/vn references
+ * (the vertex count stays that of the `v` lines: where a vertex is referenced with several
+ * UVs or normals, at a texture seam, the first reference in file order wins and the others
+ * are dropped; vertices no face references with a vt get (0,0)); PLY vertex properties
+ * u v (or s t, texture_u texture_v) and nx ny nz are read as they are.
  *   path  in: file
  *   out   out: allocated mesh; free with km_mesh_free
  * Errors: KM_ERR_IO, KM_ERR_PARSE naming path and the line (text) or byte offset (binary),
@@ -337,14 +356,79 @@ km_status km_mesh_read(const char *path, km_mesh *out, km_error *err);
  * Errors: as km_mesh_read. */
 km_status km_mesh_parse(const void *data, size_t size, km_mesh_format format, const char *name,
                         km_mesh *out, km_error *err);
-/* Writes a mesh atomically (temporary file, then rename). Coordinates are written exactly
- * (%.17g in text formats, raw doubles in binary PLY), so reading back is bit for bit.
+/* Writes a mesh atomically (temporary file, then rename), creating missing parent folders.
+ * Coordinates are written exactly (%.17g in text formats, raw doubles in binary PLY), so
+ * reading back is bit for bit. UV and N, when present, are written too (OBJ vt/vn with
+ * v/t/n face references, one per vertex; PLY u v, nx ny nz); OFF has no place for them. 
  *   path  in: file; its extension gives the format unless opt says otherwise
  *   m     in: mesh
  *   opt   in: may be NULL (format from extension, binary little-endian PLY)
  * Errors: KM_ERR_IO. */
 km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_options *opt,
                         km_error *err);
+
+/* ---- orientation and units (issue 11) ----------------------------------------------------
+ * Inside kinemesh a character stands along +y, faces +z and is measured in metres. A file
+ * made another way (a z-up scan, a model facing -z, centimetres) is brought into that frame
+ * by a rotation that takes its up axis to +y and its forward axis to +z, and a scale. */
+
+typedef enum km_axis {
+  KM_AXIS_NONE = 0, /* not given */
+  KM_AXIS_POS_X,
+  KM_AXIS_NEG_X,
+  KM_AXIS_POS_Y,
+  KM_AXIS_NEG_Y,
+  KM_AXIS_POS_Z,
+  KM_AXIS_NEG_Z,
+} km_axis;
+
+/* How a file's coordinates relate to kinemesh's frame. Zero: y up, facing +z, metres. */
+typedef struct km_frame {
+  km_axis up;      /* the file's axis that points up (NONE: +y) */
+  km_axis forward; /* the file's axis the model faces (NONE: +z) */
+  double scale;    /* file units to metres (0: 1) */
+} km_frame;
+
+/* "+x", "-x", "x", "X", "+Y", ... into an axis. Errors: KM_ERR_INVALID quoting s. */
+km_status km_axis_parse(const char *s, km_axis *out, km_error *err);
+/* "+x" ... "-z"; "none" for KM_AXIS_NONE. Static storage. */
+const char *km_axis_name(km_axis a);
+/* Metres per unit of "m", "cm", "mm", "in", "ft" (0 for anything else). */
+double km_units_scale(const char *units);
+/* The rotation of a frame change, row-major: p_kinemesh = scale * R * p_file.
+ *   f  in: frame (up and forward must be perpendicular)
+ *   R  out: 9 doubles, a proper rotation (a signed permutation)
+ * Errors: KM_ERR_INVALID when up and forward lie on the same axis. */
+km_status km_frame_rotation(const km_frame *f, double R[9], km_error *err);
+/* Applies a frame change in place: positions P (n_points*3) become scale*R*P (NaN stays NaN),
+ * normals N (n_normals*3, may be NULL) become R*N (rotation only).
+ * Errors: as km_frame_rotation; KM_ERR_INVALID for a non-positive or non-finite scale. */
+km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *N,
+                         size_t n_normals, km_error *err);
+/* km_frame_apply to a mesh's V and N (UV and faces are unchanged; a rotation keeps the
+ * winding). */
+km_status km_mesh_frame_apply(const km_frame *f, km_mesh *m, km_error *err);
+
+typedef struct km_frame_guess {
+  km_frame frame;   /* the guessed up and forward (scale 0: units are not guessed) */
+  double height;    /* extent along the guessed up axis, in file units */
+  bool standing;    /* the up axis is clearly the longest (a standing figure) */
+  bool sure_up;     /* the sign of up was decided by a clear mass offset, not by default */
+  bool sure_forward;
+} km_frame_guess;
+/* Guesses how a mesh is oriented, among the 24 axis-aligned frames. Heuristic (documented in
+ * src/mesh/orient.c): the up axis is the longest extent when it is clearly longest (a
+ * standing figure), else y when the y extent is at least half of the longest (the common
+ * convention), else z; up points to the side where the surface area's centroid sits (a body
+ * carried above thinner legs). Forward is the shorter remaining axis for a standing figure
+ * (depth < shoulder width) and the longer one otherwise (a quadruped's length); its sign: for
+ * a standing figure the side the feet reach (toes ahead of the shins), otherwise the side of
+ * the highest part (a head held up in front). Good for humanoids and quadrupeds made
+ * axis-aligned; the CLI prints it so a wrong guess is seen and overridden.
+ *   m    in: triangle mesh (a point cloud uses vertex weights)
+ *   out  out: the guess
+ * Errors: KM_ERR_INVALID for an empty or flat (zero extent) mesh. */
+km_status km_mesh_frame_guess(const km_mesh *m, km_frame_guess *out, km_error *err);
 
 /* ---- topology and extent */
 

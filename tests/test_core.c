@@ -30,9 +30,18 @@ static void test_atomic_file(void) {
   free(data);
   remove(path);
 
-  /* A directory that does not exist is a clear IO error naming the path. */
-  CHECK_STATUS(km__atomic_open(&af, "no/such/dir/x.txt", KM_E), KM_ERR_IO);
-  CHECK(strstr(km_test_err.message, "no/such/dir/x.txt") != NULL);
+  /* Missing folders are created (issue 11: every -o works without a mkdir) ... */
+  CHECK_OK(km__atomic_open(&af, "core_mk/such/dir/x.txt", KM_E));
+  fputs("x", af.f);
+  CHECK_OK(km__atomic_commit(&af, KM_E));
+  CHECK(access("core_mk/such/dir/x.txt", F_OK) == 0);
+  remove("core_mk/such/dir/x.txt");
+  rmdir("core_mk/such/dir");
+  rmdir("core_mk/such");
+  rmdir("core_mk");
+  /* ... and a folder that cannot be made (under a file) is a clear IO error naming the path. */
+  CHECK_STATUS(km__atomic_open(&af, "/dev/null/such/dir/x.txt", KM_E), KM_ERR_IO);
+  CHECK(strstr(km_test_err.message, "/dev/null/such/dir/x.txt") != NULL);
 }
 
 static void test_errors(void) {

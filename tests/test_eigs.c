@@ -14,7 +14,7 @@ static const double exact_l[9] = {0, 2, 2, 2, 6, 6, 6, 6, 6};
  * Returns the largest relative error of the non-zero eigenvalues. */
 static double sphere_case(int subdiv, double r, double *evals_out) {
   const int k = 9;
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_icosphere(subdiv, r, &m, KM_E));
   size_t n = m.n_vertices;
   km_sparse *L = NULL, *M = NULL;
@@ -86,7 +86,7 @@ static bool cancel_at_half(double fraction, const char *stage, void *user) {
 }
 
 static void test_options_and_errors(void) {
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_icosphere(3, 1.0, &m, KM_E));
   km_sparse *L = NULL, *M = NULL;
   CHECK_OK(km_cotmatrix(&m, &L, KM_E));

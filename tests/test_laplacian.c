@@ -126,7 +126,7 @@ static void check_mesh(km_mesh *m, const char *what) {
 }
 
 static void test_primitives_laplacians(void) {
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_icosphere(2, 1.5, &m, KM_E));
   CHECK(m.n_vertices == 162 && m.n_faces == 320);
   check_mesh(&m, "icosphere");
@@ -171,7 +171,7 @@ static void check_closed_outward(const km_mesh *m, double expected_volume, doubl
 }
 
 static void test_primitive_shapes(void) {
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_icosphere(3, 2.0, &m, KM_E));
   CHECK(m.n_vertices == 642);
   double worst = 0;
@@ -198,7 +198,7 @@ static void test_known_values(void) {
   /* Right isosceles triangle: cot 90 = 0, cot 45 = 1. */
   double V[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
   int32_t F[3] = {0, 1, 2};
-  km_mesh m = {V, F, 3, 1};
+  km_mesh m = {.V = V, .F = F, .n_vertices = 3, .n_faces = 1};
   km_sparse *L = NULL;
   CHECK_OK(km_cotmatrix(&m, &L, KM_E));
   CHECK_NEAR(km_sparse_coeff(L, 0, 1), 0.5, 1e-15);
@@ -218,7 +218,7 @@ static void test_known_values(void) {
   /* A single obtuse triangle: the weight of the edge opposite the obtuse angle is negative,
    * the mixed area gives the obtuse corner half the area. */
   double Vo[9] = {0, 0, 0, 2, 0, 0, 1, 0.2, 0};
-  km_mesh o = {Vo, F, 3, 1};
+  km_mesh o = {.V = Vo, .F = F, .n_vertices = 3, .n_faces = 1};
   CHECK_OK(km_cotmatrix(&o, &L, KM_E));
   double cot2 = (1 * -1 + -0.2 * -0.2) / (2 * 0.2); /* at vertex 2: (v0-v2).(v1-v2)/|x| */
   CHECK_NEAR(km_sparse_coeff(L, 0, 1), 0.5 * cot2, 1e-14);
@@ -233,7 +233,7 @@ static void test_known_values(void) {
 
 static void test_linear_precision(void) {
   /* On a flat grid the cotangent Laplacian of f = a x + b y + c vanishes inside. */
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_grid(7, 5, 2.0, 1.3, &m, KM_E));
   size_t n = m.n_vertices;
   /* jitter interior vertices in-plane so that this is not just the regular stencil */
@@ -267,7 +267,7 @@ static void test_linear_precision(void) {
 static void test_degenerate(void) {
   /* A 2x1 grid plus a zero-area face on collinear vertices and one with a repeated index:
    * they must contribute nothing. */
-  km_mesh g;
+  km_mesh g = {0};
   CHECK_OK(km_grid(2, 1, 2.0, 1.0, &g, KM_E));
   km_sparse *Lg = NULL, *Ld = NULL;
   CHECK_OK(km_cotmatrix(&g, &Lg, KM_E));
@@ -275,7 +275,7 @@ static void test_degenerate(void) {
   memcpy(F, g.F, 12 * sizeof *F);
   int32_t extra[6] = {0, 1, 2, 3, 3, 4}; /* 0,1,2 lie on y=0 */
   memcpy(F + 12, extra, sizeof extra);
-  km_mesh d = {g.V, F, g.n_vertices, 6};
+  km_mesh d = {.V = g.V, .F = F, .n_vertices = g.n_vertices, .n_faces = 6};
   CHECK_OK(km_cotmatrix(&d, &Ld, KM_E));
   double worst = 0;
   for (size_t i = 0; i < d.n_vertices; ++i)
@@ -286,7 +286,7 @@ static void test_degenerate(void) {
   /* A sliver (nearly zero angle): clamped, finite */
   double Vs[9] = {0, 0, 0, 1, 0, 0, 0.5, 1e-9, 0};
   int32_t Fs[3] = {0, 1, 2};
-  km_mesh s = {Vs, Fs, 3, 1};
+  km_mesh s = {.V = Vs, .F = Fs, .n_vertices = 3, .n_faces = 1};
   km_sparse *Ls = NULL;
   CHECK_OK(km_cotmatrix(&s, &Ls, KM_E));
   check_laplacian(Ls, "sliver");
@@ -294,12 +294,12 @@ static void test_degenerate(void) {
   km_sparse_free(&Ls);
   /* out-of-range index */
   int32_t Fb[3] = {0, 1, 9};
-  km_mesh b = {Vs, Fb, 3, 1};
+  km_mesh b = {.V = Vs, .F = Fb, .n_vertices = 3, .n_faces = 1};
   CHECK_STATUS(km_cotmatrix(&b, &Ls, KM_E), KM_ERR_INVALID);
   CHECK(strstr(km_test_err.message, "face 0") != NULL);
   CHECK_STATUS(km_massmatrix(&b, KM_MASS_VORONOI, &Ls, KM_E), KM_ERR_INVALID);
   /* a point cloud: zero Laplacian (diagonal only), tiny masses */
-  km_mesh pc = {Vs, NULL, 3, 0};
+  km_mesh pc = {.V = Vs, .F = NULL, .n_vertices = 3, .n_faces = 0};
   CHECK_OK(km_cotmatrix(&pc, &Ls, KM_E));
   CHECK(km_sparse_rows(Ls) == 3 && km_sparse_coeff(Ls, 1, 1) == 0);
   km_sparse_free(&Ls);
@@ -308,7 +308,7 @@ static void test_degenerate(void) {
   km_sparse_free(&Ls);
   /* an isolated vertex gets a tiny positive mass */
   double Vi[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 5, 5};
-  km_mesh iso = {Vi, Fs, 4, 1};
+  km_mesh iso = {.V = Vi, .F = Fs, .n_vertices = 4, .n_faces = 1};
   km_sparse *M = NULL;
   CHECK_OK(km_massmatrix(&iso, KM_MASS_VORONOI, &M, KM_E));
   CHECK(km_sparse_coeff(M, 3, 3) > 0 && km_sparse_coeff(M, 3, 3) < 1e-9);
@@ -324,7 +324,7 @@ static void rotate(const double R[9], const double *x, double *y) {
 }
 
 static void test_normals_frames(void) {
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_icosphere(2, 3.0, &m, KM_E));
   size_t n = m.n_vertices;
   double *N = malloc(n * 3 * sizeof *N), *fr = malloc(n * 9 * sizeof *fr);
@@ -368,7 +368,7 @@ static void test_normals_frames(void) {
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
       R[3 * i + j] = Rx[3 * i] * Rz[j] + Rx[3 * i + 1] * Rz[3 + j] + Rx[3 * i + 2] * Rz[6 + j];
-  km_mesh r = {malloc(n * 3 * sizeof(double)), m.F, n, m.n_faces};
+  km_mesh r = {.V = malloc(n * 3 * sizeof(double)), .F = m.F, .n_vertices = n, .n_faces = m.n_faces};
   for (size_t v = 0; v < n; ++v) {
     rotate(R, m.V + 3 * v, r.V + 3 * v);
     r.V[3 * v] += 10, r.V[3 * v + 1] -= 4;
@@ -391,7 +391,7 @@ static void test_normals_frames(void) {
   /* degenerate inputs: zero normal and no reference still give an orthonormal frame */
   double Nz[3] = {0, 0, 0}, Vz[3] = {1, 2, 3}, f1[9];
   int32_t rz = -1;
-  km_mesh one = {Vz, NULL, 1, 0};
+  km_mesh one = {.V = Vz, .F = NULL, .n_vertices = 1, .n_faces = 0};
   CHECK_OK(km_local_frames(&one, Nz, &rz, f1, KM_E));
   CHECK_NEAR(f1[0] * f1[0] + f1[1] * f1[1] + f1[2] * f1[2], 1, 1e-15);
   CHECK_NEAR(f1[0] * f1[3] + f1[1] * f1[4] + f1[2] * f1[5], 0, 1e-15);

@@ -31,7 +31,7 @@ static bool vertex_is(const km_mesh *m, size_t v, double x, double y, double z) 
 static void test_obj_forms(void) {
   char path[1024];
   snprintf(path, sizeof path, "%s/mixed.obj", KM_TEST_DATA);
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_mesh_read(path, &m, KM_E));
   CHECK(m.n_vertices == 7);
   CHECK(m.n_faces == 6);
@@ -56,7 +56,7 @@ static void test_obj_forms(void) {
 static void test_ply_ascii(void) {
   size_t n;
   char *d = load("ascii.ply", &n);
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_mesh_parse(d, n, KM_FORMAT_AUTO, "ascii.ply", &m, KM_E));
   CHECK(m.n_vertices == 5 && m.n_faces == 4);
   CHECK(vertex_is(&m, 0, 0, 0, 0));
@@ -74,7 +74,7 @@ static void test_ply_ascii(void) {
 static void test_ply_binary(void) {
   size_t n;
   char *d = load("tet_le.ply", &n);
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_mesh_parse(d, n, KM_FORMAT_PLY, "tet_le.ply", &m, KM_E));
   CHECK(m.n_vertices == 4 && m.n_faces == 4);
   CHECK(vertex_is(&m, 0, 0, 0, 0));
@@ -110,7 +110,7 @@ static void test_ply_binary(void) {
 static void test_off(void) {
   size_t n;
   char *d = load("poly.off", &n);
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_mesh_parse(d, n, KM_FORMAT_OFF, "poly.off", &m, KM_E));
   CHECK(m.n_vertices == 6 && m.n_faces == 5);
   CHECK(vertex_is(&m, 3, 0.5, 1.5, 0));
@@ -157,7 +157,7 @@ static bool same_bits(const km_mesh *a, const km_mesh *b) {
 
 static void round_trip(size_t n_faces) {
   size_t nt = sizeof k_tricky / sizeof k_tricky[0];
-  km_mesh orig;
+  km_mesh orig = {0};
   CHECK_OK(km_mesh_alloc(nt, n_faces, &orig, KM_E));
   for (size_t i = 0; i < nt * 3; ++i)
     orig.V[i] = k_tricky[(i * 7) % nt] * (i % 2 ? -1 : 1);
@@ -168,12 +168,12 @@ static void round_trip(size_t n_faces) {
   /* OBJ -> PLY (LE, BE, ascii) -> OFF -> OBJ, each read back and compared bit for bit. */
   const char *paths[] = {"rt_a.obj", "rt_b.ply", "rt_c.ply", "rt_d.ply", "rt_e.off", "rt_f.obj"};
   const km_ply_encoding enc[] = {0, KM_PLY_BINARY_LE, KM_PLY_BINARY_BE, KM_PLY_ASCII, 0, 0};
-  km_mesh cur;
+  km_mesh cur = {0};
   CHECK_OK(km_mesh_copy(&orig, &cur, KM_E));
   for (int i = 0; i < 6; ++i) {
     km_mesh_write_options opt = {KM_FORMAT_AUTO, enc[i]};
     CHECK_OK(km_mesh_write(paths[i], &cur, &opt, KM_E));
-    km_mesh next;
+    km_mesh next = {0};
     CHECK_OK(km_mesh_read(paths[i], &next, KM_E));
     CHECK_MSG(same_bits(&orig, &next), "round trip through %s with %zu faces", paths[i], n_faces);
     km_mesh_free(&cur);
@@ -213,15 +213,16 @@ static void test_round_trip(void) {
   /* Writing checks its input and reports the path; a failed write leaves nothing behind. */
   const double V[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
   int32_t F[3] = {0, 1, 3};
-  km_mesh bad = {(double *)V, F, 3, 1};
+  km_mesh bad = {.V = (double *)V, .F = F, .n_vertices = 3, .n_faces = 1};
   CHECK_STATUS(km_mesh_write("bad_write.obj", &bad, NULL, KM_E), KM_ERR_INVALID);
   CHECK(strstr(km_test_err.message, "bad_write.obj") != NULL);
   FILE *f = fopen("bad_write.obj", "rb");
   CHECK(f == NULL);
   if (f) fclose(f);
   F[2] = 2;
-  CHECK_STATUS(km_mesh_write("no/such/dir/x.ply", &bad, NULL, KM_E), KM_ERR_IO);
-  CHECK(strstr(km_test_err.message, "no/such/dir/x.ply") != NULL);
+  /* Missing folders are created (issue 11); one that cannot be (under a file) fails. */
+  CHECK_STATUS(km_mesh_write("/dev/null/such/dir/x.ply", &bad, NULL, KM_E), KM_ERR_IO);
+  CHECK(strstr(km_test_err.message, "/dev/null/such/dir/x.ply") != NULL);
   CHECK_STATUS(km_mesh_write("x.stl", &bad, NULL, KM_E), KM_ERR_UNSUPPORTED);
 }
 
@@ -229,7 +230,7 @@ static void test_round_trip(void) {
  * ": byte 123"), plus `what` somewhere. */
 static void expect_fail(const char *text, size_t len, km_mesh_format fmt, const char *name,
                         km_status st, const char *where, const char *what) {
-  km_mesh m;
+  km_mesh m = {0};
   char *copy = malloc(len ? len : 1); /* exact-size buffer: ASan sees any overread */
   memcpy(copy, text, len);
   CHECK_STATUS(km_mesh_parse(copy, len, fmt, name, &m, KM_E), st);
@@ -371,7 +372,7 @@ static void test_truncation_and_corruption(void) {
     for (size_t len = 0; len <= n; ++len) {
       char *p = malloc(len ? len : 1);
       memcpy(p, d, len);
-      km_mesh m;
+      km_mesh m = {0};
       km_error e = {0};
       km_status s = km_mesh_parse(p, len, fmts[fi], files[fi], &m, &e);
       if (s == KM_OK) {
@@ -395,7 +396,7 @@ static void test_truncation_and_corruption(void) {
         rng = rng * 6364136223846793005ULL + 1442695040888963407ULL;
         p[(rng >> 33) % n] = (char)(rng >> 17);
       }
-      km_mesh m;
+      km_mesh m = {0};
       if (km_mesh_parse(p, n, fmts[fi], files[fi], &m, NULL) == KM_OK) {
         invalid += !faces_valid(&m);
         km_mesh_free(&m);
@@ -437,7 +438,7 @@ static void obj_first_last(const char *data, double first[3], double last[3]) {
 }
 
 static int test_shared(void) {
-  km_mesh m;
+  km_mesh m = {0};
   int found = 0;
   if (read_shared("meshes/armadillo.obj", &m, 43243, 86482)) {
     ++found;

@@ -97,7 +97,7 @@ static void test_toy_classification(void) {
   double *buf = malloc(C * PER * 48 * sizeof *buf);
   for (int i = 0; i < C * PER; ++i) {
     labels[i] = i % C;
-    meshes[i] = (km_mesh){buf + 48 * i, NULL, 16, 0};
+    meshes[i] = (km_mesh){.V = buf + 48 * i, .n_vertices = 16};
     toy_pose(labels[i], buf + 48 * i);
   }
   km_posedb_options o = {0};

@@ -58,10 +58,19 @@ static void check_follows(const km_mesh *m, const km_rig *rig, const km_take *ta
 }
 
 static void test_real_mesh_real_skeleton(const char *mesh_src, const char *csv) {
-  /* The mesh is copied into the build tree so its cache lands there, not in ../shared. */
-  char cmd[8192], *out = NULL;
-  snprintf(cmd, sizeof cmd, "cp '%s' puppet_a1k.off && rm -f puppet_a1k.off.kmcache", mesh_src);
+  /* The cache goes to $XDG_CACHE_HOME (main sets it to puppet_cache/ in the build tree),
+   * keyed by the mesh's hash, never beside the mesh. */
+  char cmd[8192], *out = NULL, cache[512];
+  snprintf(cmd, sizeof cmd, "cp '%s' puppet_a1k.off", mesh_src);
   CHECK(km_test_run(cmd, NULL) == 0);
+  {
+    km_mesh cm = {0};
+    CHECK_OK(km_mesh_read("puppet_a1k.off", &cm, KM_E));
+    snprintf(cache, sizeof cache, "puppet_cache/kinemesh/%016llx.kmcache",
+             (unsigned long long)km_mesh_hash(&cm));
+    km_mesh_free(&cm);
+    remove(cache);
+  }
   const char *rig_path = KM_TEST_DATA "/armadillo_1k.rig.json";
   snprintf(cmd, sizeof cmd,
            KM_CLI " animate --mesh puppet_a1k.off --rig %s --motion '%s' -o puppet_a1k.pc2",
@@ -69,6 +78,8 @@ static void test_real_mesh_real_skeleton(const char *mesh_src, const char *csv) 
   CHECK(km_test_run(cmd, &out) == 0);
   CHECK_MSG(strstr(out, "t1 (s)") != NULL, "first run precomputes: %s", out);
   free(out);
+  CHECK_MSG(access(cache, F_OK) == 0, "the cache is %s", cache);
+  CHECK(access("puppet_a1k.off.kmcache", F_OK) != 0);
 
   km_take take = {0};
   km_mesh m = {0};
@@ -101,7 +112,7 @@ static void test_real_mesh_real_skeleton(const char *mesh_src, const char *csv) 
   free(frames2);
 
   /* Corrupt one byte in the middle of the cache: detected, reported, rebuilt, same result. */
-  FILE *f = fopen("puppet_a1k.off.kmcache", "r+b");
+  FILE *f = fopen(cache, "r+b");
   CHECK(f != NULL);
   if (f) {
     fseek(f, 0, SEEK_END);
@@ -299,7 +310,12 @@ static void test_bench_deform_json(void) {
 }
 
 int main(void) {
-  char a[1024], c[1024];
+  char a[1024], c[1024], cwd[900], xdg[1024];
+  /* The CLI's default cache folder: here, not the user's ~/.cache. */
+  if (getcwd(cwd, sizeof cwd)) {
+    snprintf(xdg, sizeof xdg, "%s/puppet_cache", cwd);
+    setenv("XDG_CACHE_HOME", xdg, 1);
+  }
   test_bad_rig_and_motion();
   test_cache_params_and_formats();
   test_bench_deform_json();

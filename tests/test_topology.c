@@ -5,7 +5,7 @@
 #include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
 static km_mesh make(size_t nv, const double *V, size_t nf, const int32_t *F) {
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_mesh_alloc(nv, nf, &m, KM_E));
   if (nv) memcpy(m.V, V, nv * 3 * sizeof(double));
   if (nf) memcpy(m.F, F, nf * 3 * sizeof(int32_t));
@@ -108,7 +108,7 @@ static void test_nonmanifold(void) {
 static void test_grid(void) {
   /* n x n quads split in two: known counts for any n. */
   const int n = 7;
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_mesh_alloc((size_t)((n + 1) * (n + 1)), (size_t)(2 * n * n), &m, KM_E));
   for (int y = 0; y <= n; ++y)
     for (int x = 0; x <= n; ++x) {
@@ -146,7 +146,7 @@ static void test_random_against_brute_force(void) {
 #define RNG() (rng = rng * 6364136223846793005ULL + 1442695040888963407ULL, (uint32_t)(rng >> 33))
   for (int trial = 0; trial < 200; ++trial) {
     size_t nv = 4 + RNG() % 10, nf = 1 + RNG() % 14;
-    km_mesh m;
+    km_mesh m = {0};
     CHECK_OK(km_mesh_alloc(nv, nf, &m, KM_E));
     for (size_t k = 0; k < nv * 3; ++k)
       m.V[k] = (double)(RNG() % 1000) / 100.0;
@@ -245,7 +245,7 @@ static void test_shared_armadillo(void) {
   char buf[1024];
   const char *path = km_test_shared("meshes/armadillo.obj", buf, sizeof buf);
   if (!path) return;
-  km_mesh m;
+  km_mesh m = {0};
   CHECK_OK(km_mesh_read(path, &m, KM_E));
   km_mesh_info i = info_of(&m);
   int32_t *off = NULL, *adj = NULL;

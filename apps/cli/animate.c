@@ -30,13 +30,16 @@ int km_cli_animate(int argc, char **argv) {
   int iterations = 0, fields = 0, isolines = 0;
   double scale = 0, fps = 0;
   size_t key_every = 0;
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      KM_CLI_FRAME_OPTIONS(fo),
+      KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh_path, "mesh to animate (OBJ/PLY/OFF)"},
       {"rig", 0, KM_OPT_STRING, &rig_path,
        "rig: handles, joint map, filter (default <mesh stem>.rig.json)"},
       {"motion", 0, KM_OPT_STRING, &motion,
        "take: .json (kinemesh), .csv (Kinect v1 recording), .bvh"},
-      {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default MESH.kmcache)"},
+      {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default: $XDG_CACHE_HOME/kinemesh/<mesh hash>.kmcache)"},
       {"solver", 0, KM_OPT_STRING, &solver,
        "reduced (default, real time) or full (ARAP reference)"},
       {"energy", 0, KM_OPT_STRING, &energy,
@@ -85,12 +88,17 @@ int km_cli_animate(int argc, char **argv) {
   km_anim_writer *w = NULL;
   double *V = NULL, *t23 = NULL, *t4 = NULL;
   char *rig_default = rig_path ? NULL : km_cli_rig_path(mesh_path);
-  char *cache_default = cache ? NULL : km_cli_cache_path(mesh_path);
+  char *cache_default = NULL;
   int rc = KM_EXIT_FAIL;
 
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK ||
       km_motion_read(motion, NULL, &take, NULL, &err) != KM_OK)
     goto fail;
+  if ((rc = km_cli_orient_mesh("animate", mesh_path, &fo, &m)) ||
+      (rc = km_cli_orient_take("animate", &fo, &take)))
+    goto done;
+  rc = KM_EXIT_FAIL;
+  if (!cache && !(cache_default = km_cli_cache_path(&m))) goto nomem;
   if (take.n_frames == 0) {
     rc = km_cli_error("animate", "%s has no frames", motion);
     goto done;
@@ -113,19 +121,19 @@ int km_cli_animate(int argc, char **argv) {
                       rig_path ? rig_path : rig_default, rig.n_handles ? rig.handles[0].name : "h");
     goto done;
   }
-  km_filter_options fo = rig.filter;
+  km_filter_options filt = rig.filter;
   if (filter_kind) {
     if (!strcmp(filter_kind, "holt")) {
-      fo.kind = KM_FILTER_HOLT;
+      filt.kind = KM_FILTER_HOLT;
     } else if (!strcmp(filter_kind, "one_euro")) {
-      fo.kind = KM_FILTER_ONE_EURO;
+      filt.kind = KM_FILTER_ONE_EURO;
     } else {
       rc = km_cli_error("animate", "--filter must be holt or one_euro, not '%s'", filter_kind);
       goto done;
     }
   }
   km_puppetry_options o = {0};
-  if (filter_kind) o.filter = &fo;
+  if (filter_kind) o.filter = &filt;
   o.no_glitch = no_glitch;
   o.retarget.floor = floor_on;
   o.retarget.scale = scale;

@@ -53,6 +53,41 @@ char *km_cli_rig_path(const char *mesh_path);
 km_progress km_cli_progress(const char *label);
 void km_cli_progress_done(void);
 
+/* ---- orientation: one option set for every verb that reads a mesh or a motion (issue 11) */
+typedef struct km_cli_frame_opts {
+  const char *up, *forward;               /* "+x" ... "-z"; NULL: guessed from the mesh */
+  const char *units;                      /* m, cm, mm, in, ft, or metres per unit; NULL: metres */
+  const char *motion_up, *motion_forward; /* the take's axes; NULL: y up, facing +z */
+} km_cli_frame_opts;
+/* Entries for a verb's option array (a mesh's frame). */
+/* clang-format off */
+#define KM_CLI_FRAME_OPTIONS(fo)                                                                   \
+  {"up", 0, KM_OPT_STRING, &(fo).up,                                                               \
+   "the mesh's up axis: +x -x +y -y +z -z (default: guessed and printed)"},                        \
+  {"forward", 0, KM_OPT_STRING, &(fo).forward,                                                     \
+   "the axis the mesh faces (default: guessed and printed)"},                                      \
+  {"units", 0, KM_OPT_STRING, &(fo).units,                                                         \
+   "the mesh's units: m (default), cm, mm, in, ft, or metres per unit"}
+/* Entries for verbs that read a take as well. */
+#define KM_CLI_MOTION_FRAME_OPTIONS(fo)                                                            \
+  {"motion-up", 0, KM_OPT_STRING, &(fo).motion_up, "the take's up axis (default +y)"},             \
+  {"motion-forward", 0, KM_OPT_STRING, &(fo).motion_forward,                                       \
+   "the axis the performer faces in the take (default +z)"}
+/* clang-format on */
+/* The frame the options say; with neither --up nor --forward, the "frame" object of the
+ * mesh's rig sidecar (<stem>.rig.json: {"up": "+z", "forward": "-y", "scale": 0.01}, scale
+ * optional, metres per file unit) when it has one; the missing axes guessed from m (printed
+ * on stderr in one line naming path, so the user can see and override it, unless quiet).
+ * *guessed: whether any axis was guessed (may be NULL). Prints the error and returns non-zero
+ * on a bad option. */
+int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opts *fo,
+                      const km_mesh *m, bool quiet, km_frame *out, bool *guessed);
+/* km_cli_mesh_frame, then the mesh is brought into kinemesh's frame (y up, facing +z,
+ * metres). Returns 0, or prints the error and returns an exit status. */
+int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo, km_mesh *m);
+/* The take's positions into kinemesh's frame by --motion-up/--motion-forward. */
+int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t);
+
 /* Exit codes */
 #define KM_EXIT_OK 0
 #define KM_EXIT_FAIL 1
@@ -79,7 +114,11 @@ int km_cli_rig(int argc, char **argv);
 int km_cli_pick(int argc, char **argv);
 
 /* Puppetry helpers shared by animate, bench and live. */
-char *km_cli_cache_path(const char *mesh_path); /* MESH.kmcache, caller frees */
+/* The default reduced-model cache of a mesh as read (and oriented): in the user's cache
+ * folder, $XDG_CACHE_HOME/kinemesh/<km_mesh_hash>.kmcache, else ~/.cache/kinemesh/..., never
+ * beside the input (which may be read-only or shared); the model parameters are recorded in
+ * the file and checked on load. NULL when out of memory. Caller frees. */
+char *km_cli_cache_path(const km_mesh *mesh);
 /* Prints what the cache policy reported that the user must know: a stale cache rebuilt, a
  * cache not written. */
 void km_cli_report_cache(const char *cache, const km_puppetry_info *info);

@@ -5,6 +5,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -226,7 +227,6 @@ void km_cli_json_number(cJSON *o, const char *key, double v) {
 
 /* ---- puppetry pieces shared by precompute, animate, live and the benches */
 
-
 int km_cli_parse_energy(const char *verb, const char *s, km_puppet_energy *e) {
   if (!s || !strcmp(s, "arap"))
     *e = KM_PUPPET_ENERGY_ARAP;
@@ -249,10 +249,18 @@ int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f
   return 0;
 }
 
-char *km_cli_cache_path(const char *mesh_path) {
-  size_t n = strlen(mesh_path);
-  char *out = malloc(n + 10);
-  if (out) snprintf(out, n + 10, "%s.kmcache", mesh_path);
+char *km_cli_cache_path(const km_mesh *mesh) {
+  const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+  char dir[4096];
+  if (xdg && xdg[0] == '/') /* the XDG spec: a relative value is to be ignored */
+    snprintf(dir, sizeof dir, "%s/kinemesh", xdg);
+  else if (home && home[0])
+    snprintf(dir, sizeof dir, "%s/.cache/kinemesh", home);
+  else
+    snprintf(dir, sizeof dir, "/tmp/kinemesh-cache-%ld", (long)getuid());
+  size_t n = strlen(dir) + 32;
+  char *out = malloc(n);
+  if (out) snprintf(out, n, "%s/%016llx.kmcache", dir, (unsigned long long)km_mesh_hash(mesh));
   return out;
 }
 
@@ -305,4 +313,137 @@ km_status km_cli_load_landmarks(const char *lm_path, const char *mesh_path, size
   km_status s = km_landmarks_read(rig, n_vertices, lm, capacity, n, err);
   free(rig);
   return s;
+}
+
+/* ---- orientation (issue 11) */
+
+static int parse_axis_opt(const char *verb, const char *opt, const char *s, km_axis *a) {
+  km_error e = {0};
+  if (!s) return 0;
+  if (km_axis_parse(s, a, &e) != KM_OK) return km_cli_error(verb, "--%s: %s", opt, e.message);
+  return 0;
+}
+
+/* An axis perpendicular to up for a forward that was not given or clashes: +z, or -y for
+ * a z-up file (Blender's convention: the front view looks along +y at a model facing -y). */
+static km_axis default_forward(km_axis up) {
+  return (up == KM_AXIS_POS_Z || up == KM_AXIS_NEG_Z) ? KM_AXIS_NEG_Y : KM_AXIS_POS_Z;
+}
+
+static bool same_axis(km_axis a, km_axis b) { return a && b && (a - 1) / 2 == (b - 1) / 2; }
+
+/* The "frame" object of the mesh's rig sidecar (<stem>.rig.json), when it has a valid one:
+ *   "frame": {"up": "+z", "forward": "-y", "scale": 0.01}
+ * up/forward are the file's axes, scale metres per file unit (optional). */
+static bool sidecar_frame(const char *mesh_path, km_frame *out) {
+  memset(out, 0, sizeof *out);
+  char *rig = mesh_path ? km_cli_rig_path(mesh_path) : NULL;
+  FILE *f = rig ? fopen(rig, "rb") : NULL;
+  free(rig);
+  if (!f) return false;
+  char *text = NULL;
+  long n = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+  if (n > 0 && n < (1L << 30) && fseek(f, 0, SEEK_SET) == 0 && (text = malloc((size_t)n + 1)) &&
+      fread(text, 1, (size_t)n, f) == (size_t)n)
+    text[n] = '\0';
+  else
+    free(text), text = NULL;
+  fclose(f);
+  cJSON *j = text ? cJSON_Parse(text) : NULL;
+  free(text);
+  cJSON *fr = cJSON_GetObjectItemCaseSensitive(j, "frame");
+  const char *up = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(fr, "up"));
+  const char *fw = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(fr, "forward"));
+  cJSON *sc = cJSON_GetObjectItemCaseSensitive(fr, "scale");
+  bool ok = up && fw && km_axis_parse(up, &out->up, NULL) == KM_OK &&
+            km_axis_parse(fw, &out->forward, NULL) == KM_OK && !same_axis(out->up, out->forward);
+  if (ok && cJSON_IsNumber(sc) && sc->valuedouble > 0 && isfinite(sc->valuedouble))
+    out->scale = sc->valuedouble;
+  cJSON_Delete(j);
+  return ok;
+}
+
+int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opts *fo,
+                      const km_mesh *m, bool quiet, km_frame *out, bool *guessed) {
+  memset(out, 0, sizeof *out);
+  if (guessed) *guessed = false;
+  km_cli_frame_opts none = {0};
+  if (!fo) fo = &none;
+  if (parse_axis_opt(verb, "up", fo->up, &out->up) ||
+      parse_axis_opt(verb, "forward", fo->forward, &out->forward))
+    return KM_EXIT_USAGE;
+  if (fo->units) {
+    char *end = NULL;
+    double x = km_units_scale(fo->units);
+    if (x == 0) x = strtod(fo->units, &end);
+    if (!(x > 0) || !isfinite(x) || (end && *end))
+      return km_cli_error(verb, "--units must be m, cm, mm, in, ft or a positive number, not '%s'",
+                          fo->units);
+    out->scale = x;
+  }
+  if (same_axis(out->up, out->forward))
+    return km_cli_error(verb, "--up %s and --forward %s lie on the same axis", fo->up, fo->forward);
+  if (out->up && out->forward) return 0;
+  /* No axis given: the rig sidecar's record of them (written by whoever rigged the mesh). */
+  km_frame sf;
+  if (!out->up && !out->forward && sidecar_frame(path, &sf)) {
+    out->up = sf.up;
+    out->forward = sf.forward;
+    if (!fo->units && sf.scale > 0) out->scale = sf.scale;
+    return 0;
+  }
+  /* glTF says it itself: +y up, the front facing +z, metres (glTF 2.0, 3.4). */
+  size_t pl = path ? strlen(path) : 0;
+  if (!out->up && !out->forward &&
+      ((pl > 4 && !strcasecmp(path + pl - 4, ".glb")) ||
+       (pl > 5 && !strcasecmp(path + pl - 5, ".gltf")))) {
+    out->up = KM_AXIS_POS_Y;
+    out->forward = KM_AXIS_POS_Z;
+    return 0;
+  }
+  km_frame_guess g;
+  km_error e = {0};
+  if (km_mesh_frame_guess(m, &g, &e) != KM_OK) { /* flat or empty: keep kinemesh's axes */
+    if (!out->up) out->up = KM_AXIS_POS_Y;
+    if (!out->forward || same_axis(out->up, out->forward)) out->forward = default_forward(out->up);
+    return 0;
+  }
+  if (!out->up) out->up = g.frame.up;
+  if (!out->forward)
+    out->forward = same_axis(out->up, g.frame.forward) ? default_forward(out->up) : g.frame.forward;
+  if (guessed) *guessed = true;
+  if (!quiet)
+    fprintf(stderr,
+            "kinemesh %s: %s: up %s, forward %s (%s; height %.4g %s) - override with --up / "
+            "--forward\n",
+            verb, path, km_axis_name(out->up), km_axis_name(out->forward),
+            fo->up || fo->forward ? "partly guessed" : "guessed", g.height,
+            fo->units ? fo->units : "units");
+  return 0;
+}
+
+int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo,
+                       km_mesh *m) {
+  km_frame f;
+  int rc = km_cli_mesh_frame(verb, path, fo, m, false, &f, NULL);
+  if (rc) return rc;
+  if (f.up == KM_AXIS_POS_Y && f.forward == KM_AXIS_POS_Z && (f.scale == 0 || f.scale == 1))
+    return 0; /* already kinemesh's frame: the positions stay bit for bit */
+  km_error e = {0};
+  if (km_mesh_frame_apply(&f, m, &e) != KM_OK) return km_cli_fail(verb, &e);
+  return 0;
+}
+
+int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t) {
+  if (!fo || (!fo->motion_up && !fo->motion_forward)) return 0;
+  km_frame f = {0};
+  if (parse_axis_opt(verb, "motion-up", fo->motion_up, &f.up) ||
+      parse_axis_opt(verb, "motion-forward", fo->motion_forward, &f.forward))
+    return KM_EXIT_USAGE;
+  if (!f.up) f.up = KM_AXIS_POS_Y;
+  if (!f.forward) f.forward = default_forward(f.up);
+  km_error e = {0};
+  if (km_frame_apply(&f, t->positions, t->n_frames * t->n_joints, NULL, 0, &e) != KM_OK)
+    return km_cli_fail(verb, &e);
+  return 0;
 }

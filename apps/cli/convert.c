@@ -1,21 +1,35 @@
-/* kinemesh convert: a mesh between OBJ, PLY and OFF, chosen by extension. */
+/* kinemesh convert: a mesh between OBJ, PLY and OFF, chosen by extension; with --up /
+ * --forward / --units / --scale, rewritten into kinemesh's frame (y up, facing +z, metres). */
 #include "cli.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 int km_cli_convert(int argc, char **argv) {
   const char *ply = NULL;
+  double scale = 0;
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
-      {"ply", 0, KM_OPT_STRING, &ply, "PLY encoding: binary (default), binary-be, ascii"}};
+      {"ply", 0, KM_OPT_STRING, &ply, "PLY encoding: binary (default), binary-be, ascii"},
+      KM_CLI_FRAME_OPTIONS(fo),
+      {"scale", 0, KM_OPT_DOUBLE, &scale, "multiply coordinates by X (after --units)"},
+  };
   const char *pos[2];
   int n_pos;
-  int r = km_cli_parse(argc, argv, opts, 1, pos, 2, &n_pos, "kinemesh convert IN OUT [--ply ascii]",
+  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 2, &n_pos,
+                       "kinemesh convert IN OUT [--ply ascii] [--up +z --forward -y] "
+                       "[--units cm] [--scale X]",
                        "Converts between OBJ, PLY and OFF by file extension. Vertex order and\n"
-                       "coordinates are kept exactly; polygons are fan-triangulated.");
+                       "coordinates are kept exactly; polygons are fan-triangulated; texture\n"
+                       "coordinates and normals are kept (OBJ, PLY). With --up, --forward,\n"
+                       "--units or --scale the mesh is rotated and scaled into kinemesh's frame\n"
+                       "(y up, facing +z, metres; a missing axis is guessed and printed).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (n_pos != 2)
     return km_cli_error("convert", "expected IN and OUT (see kinemesh convert --help)");
+  if (scale < 0 || !isfinite(scale))
+    return km_cli_error("convert", "--scale must be positive, not %g", scale);
   km_mesh_write_options wo = {0};
   if (ply) {
     if (!strcmp(ply, "binary") || !strcmp(ply, "binary-le"))
@@ -30,6 +44,18 @@ int km_cli_convert(int argc, char **argv) {
   km_error err = {0};
   km_mesh m = {0};
   if (km_mesh_read(pos[0], &m, &err) != KM_OK) return km_cli_fail("convert", &err);
+  if (fo.up || fo.forward || fo.units || scale > 0) {
+    km_frame f;
+    int rc = km_cli_mesh_frame("convert", pos[0], &fo, &m, false, &f, NULL);
+    if (!rc) {
+      if (scale > 0) f.scale = (f.scale > 0 ? f.scale : 1) * scale;
+      if (km_mesh_frame_apply(&f, &m, &err) != KM_OK) rc = km_cli_fail("convert", &err);
+    }
+    if (rc) {
+      km_mesh_free(&m);
+      return rc;
+    }
+  }
   km_status s = km_mesh_write(pos[1], &m, &wo, &err);
   size_t nv = m.n_vertices, nf = m.n_faces;
   km_mesh_free(&m);

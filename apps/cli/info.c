@@ -44,9 +44,12 @@ int km_cli_info(int argc, char **argv) {
   km_error err = {0};
   const char *path = pos[0];
 
-  if (is_anim_path(path)) {
-    km_anim_info ai;
-    if (km_anim_info_read(path, &ai, &err) != KM_OK) return km_cli_fail("info", &err);
+  km_anim_info ai;
+  size_t plen = strlen(path);
+  bool glb = plen > 4 && !strcasecmp(path + plen - 4, ".glb");
+  /* A .glb that is not a kinemesh animation is read as a mesh. */
+  if (is_anim_path(path) && (km_anim_info_read(path, &ai, &err) == KM_OK || !glb)) {
+    if (err.status != KM_OK) return km_cli_fail("info", &err);
     if (json) {
       cJSON *o = cJSON_CreateObject();
       cJSON_AddStringToObject(o, "file", path);
@@ -74,6 +77,10 @@ int km_cli_info(int argc, char **argv) {
   if (km_mesh_read(path, &m, &err) != KM_OK) return km_cli_fail("info", &err);
   km_mesh_info info;
   km_status s = km_mesh_info_compute(&m, &info, &err);
+  km_frame_guess g;
+  km_error gerr = {0};
+  bool have_guess = s == KM_OK && km_mesh_frame_guess(&m, &g, &gerr) == KM_OK;
+  bool has_uv = m.UV != NULL, has_n = m.N != NULL;
   km_mesh_free(&m);
   if (s != KM_OK) return km_cli_fail("info", &err);
   if (json) {
@@ -91,6 +98,15 @@ int km_cli_info(int argc, char **argv) {
     cJSON_AddNumberToObject(o, "euler_characteristic", (double)info.euler_characteristic);
     cJSON_AddItemToObject(o, "bbox_min", vec3(info.bbox_min));
     cJSON_AddItemToObject(o, "bbox_max", vec3(info.bbox_max));
+    cJSON_AddBoolToObject(o, "texcoords", has_uv);
+    cJSON_AddBoolToObject(o, "normals", has_n);
+    if (have_guess) {
+      cJSON *go = cJSON_AddObjectToObject(o, "orientation_guess");
+      cJSON_AddStringToObject(go, "up", km_axis_name(g.frame.up));
+      cJSON_AddStringToObject(go, "forward", km_axis_name(g.frame.forward));
+      cJSON_AddNumberToObject(go, "height", g.height);
+      cJSON_AddBoolToObject(go, "standing", g.standing);
+    }
     return km_cli_print_json("info", o);
   }
   printf("file                  %s\n", path);
@@ -104,5 +120,12 @@ int km_cli_info(int argc, char **argv) {
   printf("bbox min              %.6g %.6g %.6g\nbbox max              %.6g %.6g %.6g\n",
          info.bbox_min[0], info.bbox_min[1], info.bbox_min[2], info.bbox_max[0], info.bbox_max[1],
          info.bbox_max[2]);
+  printf("attributes            %s%s%s\n", has_uv ? "texcoords " : "", has_n ? "normals" : "",
+         has_uv || has_n ? "" : "none");
+  if (have_guess)
+    printf(
+        "orientation (guess)   up %s, forward %s, height %.6g%s (override with --up/--forward)\n",
+        km_axis_name(g.frame.up), km_axis_name(g.frame.forward), g.height,
+        g.standing ? ", standing" : "");
   return KM_EXIT_OK;
 }

@@ -49,7 +49,10 @@ int km_cli_live(int argc, char **argv) {
   const char *bind = "127.0.0.1", *web = NULL, *cache = NULL;
   int osc = 0, udp = 0, http = 8080;
   bool quantize = false, loop = false, no_autoplay = false;
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      KM_CLI_FRAME_OPTIONS(fo),
+      KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh_path, "mesh to animate (OBJ/PLY/OFF)"},
       {"rig", 0, KM_OPT_STRING, &rig_path,
        "rig: handles, joint map, filter (default <mesh stem>.rig.json); POST /rig rewrites it"},
@@ -65,7 +68,7 @@ int km_cli_live(int argc, char **argv) {
       {"quantize", 0, KM_OPT_FLAG, &quantize,
        "send positions as int16 quantised to the frame's bounding box (half the bytes)"},
       {"web", 0, KM_OPT_STRING, &web, "page directory (default: web/ beside the binary)"},
-      {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default MESH.kmcache)"},
+      {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default: $XDG_CACHE_HOME/kinemesh/<mesh hash>.kmcache)"},
   };
   const char *pos[1];
   int n_pos;
@@ -90,12 +93,18 @@ int km_cli_live(int argc, char **argv) {
   char *rig_text = NULL;
   size_t rig_size = 0;
   char *rig_default = rig_path ? NULL : km_cli_rig_path(mesh_path);
-  char *cache_default = cache ? NULL : km_cli_cache_path(mesh_path);
+  char *cache_default = NULL;
   char *web_default = web ? NULL : default_web_dir();
   const char *rig_file = rig_path ? rig_path : rig_default;
   int rc = KM_EXIT_FAIL;
 
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK) goto fail;
+  if ((rc = km_cli_orient_mesh("live", mesh_path, &fo, &m))) goto done;
+  rc = KM_EXIT_FAIL;
+  if (!cache && !(cache_default = km_cli_cache_path(&m))) {
+    rc = km_cli_error("live", "out of memory");
+    goto done;
+  }
   FILE *f = fopen(rig_file, "rb");
   if (!f) {
     rc = km_cli_error("live", "cannot read the rig %s", rig_file);
@@ -116,6 +125,8 @@ int km_cli_live(int argc, char **argv) {
   km_motion_read_options mo = {0};
   mo.kinect1 = true;
   if (replay && km_motion_read(replay, &mo, &take, NULL, &err) != KM_OK) goto fail;
+  if ((rc = km_cli_orient_take("live", &fo, &take))) goto done;
+  rc = KM_EXIT_FAIL;
   km_puppetry_info pi;
   if (km_cli_puppet_open(&m, cache ? cache : cache_default, &pup, &pi, &err) != KM_OK) goto fail;
 

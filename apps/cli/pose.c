@@ -12,7 +12,10 @@ int km_cli_pose(int argc, char **argv) {
   const char *mesh = NULL, *rig = NULL, *motion = NULL, *out = NULL, *frame_format = NULL;
   double fps = 0;
   size_t key_every = 0;
+  /* The mesh stays in its file's frame: the rig sidecar's skeleton is stored in it. */
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh, "skinned mesh (from kinemesh gen character)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames (default 1)"},
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <mesh stem>.rig.json)"},
@@ -43,6 +46,8 @@ int km_cli_pose(int argc, char **argv) {
       km_character_read_rig(rig ? rig : rig_path, c.mesh.n_vertices, &c, &err) != KM_OK ||
       km_take_read(motion, &t, &err) != KM_OK)
     goto fail;
+  if ((rc = km_cli_orient_take("pose", &fo, &t))) goto done;
+  rc = KM_EXIT_FAIL;
   if (fps > 0 && fps != t.fps && t.n_frames > 0) { /* resample, do not relabel */
     km_take rs;
     if (km_take_resample(&t, fps, &rs, &err) != KM_OK) goto fail;

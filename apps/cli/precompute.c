@@ -10,8 +10,10 @@ int km_cli_precompute(int argc, char **argv) {
   const char *out = NULL, *energy = NULL;
   int fields = 8, isolines = 10;
   bool force = false;
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
-      {"output", 'o', KM_OPT_STRING, &out, "cache file (default MESH.kmcache)"},
+      KM_CLI_FRAME_OPTIONS(fo),
+      {"output", 'o', KM_OPT_STRING, &out, "cache file (default: the user's cache folder, $XDG_CACHE_HOME/kinemesh)"},
       {"fields", 0, KM_OPT_INT, &fields, "propagation fields n_e (default 8)"},
       {"isolines", 0, KM_OPT_INT, &isolines, "isolines per field n_iso (default 10)"},
       {"energy", 0, KM_OPT_STRING, &energy,
@@ -37,12 +39,17 @@ int km_cli_precompute(int argc, char **argv) {
   km_error err = {0};
   km_mesh m = {0};
   km_puppetry *p = NULL;
-  char *cache = out ? NULL : km_cli_cache_path(pos[0]);
-  const char *path = out ? out : cache;
+  char *cache = NULL;
+  const char *path = out;
   int rc = KM_EXIT_OK;
   double t0;
   if (km_mesh_read(pos[0], &m, &err) != KM_OK) {
     rc = km_cli_fail("precompute", &err);
+    goto done;
+  }
+  if ((rc = km_cli_orient_mesh("precompute", pos[0], &fo, &m))) goto done;
+  if (!out && !(path = cache = km_cli_cache_path(&m))) {
+    rc = km_cli_error("precompute", "out of memory");
     goto done;
   }
   km_puppetry_options o = {0};

@@ -98,6 +98,9 @@ static void writer_discard(km_anim_writer *w) {
   free(w->key_frame);
   free(w->key_minmax);
   free(w->last);
+  free(w->uv);
+  free(w->nbuf);
+  free(w->vbuf);
   free(w);
 }
 
@@ -169,6 +172,14 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   if (!w->path || !w->rest || !w->F) goto nomem;
   memcpy(w->rest, rest->V, nv * 3 * sizeof *w->rest);
   if (nf) memcpy(w->F, rest->F, nf * 3 * sizeof *w->F);
+  if (rest->UV) {
+    if (!(w->uv = km__malloc(nv * 2, sizeof *w->uv))) goto nomem;
+    memcpy(w->uv, rest->UV, nv * 2 * sizeof *w->uv);
+  }
+  w->normals = (rest->UV || rest->N) && nf && w->format != KM_ANIM_PC2;
+  if (w->normals && (!(w->nbuf = km__malloc(nv * 3, sizeof(double))) ||
+                     !(w->vbuf = km__malloc(nv * 3, sizeof(double)))))
+    goto nomem;
 
   km_status s = KM_OK;
   switch (w->format) {
@@ -227,13 +238,18 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     w->tmp_dir = malloc(n);
     if (!w->tmp_dir) goto nomem;
     snprintf(w->tmp_dir, n, "%s.tmp.%ld", w->path, (long)getpid());
+    if ((s = km__make_parents(w->tmp_dir, err)) != KM_OK) {
+      free(w->tmp_dir);
+      w->tmp_dir = NULL;
+      goto fail;
+    }
     if (mkdir(w->tmp_dir, 0777) != 0) {
       s = km__fail(err, KM_ERR_IO, "%s: cannot create directory: %s", w->tmp_dir, strerror(errno));
       free(w->tmp_dir);
       w->tmp_dir = NULL; /* not ours: never remove it */
       goto fail;
     }
-    size_t vb = nv * 24, fb = nf * 13;
+    size_t vb = nv * 64, fb = nf * 13;
     w->bytes = malloc((vb > fb ? vb : fb) + 1);
     if (!w->bytes) goto nomem;
     break;
@@ -309,8 +325,19 @@ static km_status push_glb(km_anim_writer *w, const double *V, km_error *err) {
   return KM_OK;
 }
 
+void km__anim_normals(km_anim_writer *w, const double *V) {
+  km_mesh view = {(double *)V, w->F, w->n_vertices, w->n_faces, NULL, NULL};
+  if (km_vertex_normals(&view, KM_NORMALS_AREA, w->nbuf, NULL) != KM_OK)
+    memset(w->nbuf, 0, w->n_vertices * 3 * sizeof *w->nbuf);
+  for (size_t i = 0; i < w->n_vertices; ++i) {
+    double *n = w->nbuf + 3 * i;
+    if (!(n[0] * n[0] + n[1] * n[1] + n[2] * n[2] > 0.5)) n[0] = 0, n[1] = 1, n[2] = 0;
+  }
+}
+
 static km_status push_dir(km_anim_writer *w, const double *V, km_error *err) {
   bool ply = w->format == KM_ANIM_PLY_DIR;
+  if (w->normals) km__anim_normals(w, V);
   size_t n = strlen(w->tmp_dir) + 40;
   char *fp = malloc(n);
   if (!fp) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
@@ -331,11 +358,21 @@ static km_status push_dir(km_anim_writer *w, const double *V, km_error *err) {
             "%.17g\nelement vertex %zu\nproperty double x\nproperty double y\nproperty double "
             "z\n",
             w->frames, w->fps, nv);
+    if (w->uv) fputs("property double u\nproperty double v\n", f);
+    if (w->normals) fputs("property double nx\nproperty double ny\nproperty double nz\n", f);
     if (nf) fprintf(f, "element face %zu\nproperty list uchar int vertex_indices\n", nf);
     fputs("end_header\n", f);
-    for (size_t i = 0; i < nv * 3; ++i)
-      put_f64le(w->bytes + 8 * i, V[i]);
-    fwrite(w->bytes, 24, nv, f);
+    size_t per = 3 + (w->uv ? 2 : 0) + (w->normals ? 3 : 0);
+    for (size_t i = 0; i < nv; ++i) {
+      unsigned char *p = w->bytes + 8 * per * i;
+      for (int k = 0; k < 3; ++k, p += 8)
+        put_f64le(p, V[3 * i + k]);
+      for (int k = 0; w->uv && k < 2; ++k, p += 8)
+        put_f64le(p, w->uv[2 * i + k]);
+      for (int k = 0; w->normals && k < 3; ++k, p += 8)
+        put_f64le(p, w->nbuf[3 * i + k]);
+    }
+    fwrite(w->bytes, 8 * per, nv, f);
     for (size_t i = 0; i < nf; ++i) {
       unsigned char *p = w->bytes + 13 * i;
       p[0] = 3;
@@ -347,9 +384,27 @@ static km_status push_dir(km_anim_writer *w, const double *V, km_error *err) {
     fprintf(f, "# kinemesh animation frame %zu fps %.17g\n", w->frames, w->fps);
     for (size_t i = 0; i < nv; ++i)
       fprintf(f, "v %.17g %.17g %.17g\n", V[3 * i], V[3 * i + 1], V[3 * i + 2]);
-    for (size_t i = 0; i < nf; ++i)
-      fprintf(f, "f %ld %ld %ld\n", (long)w->F[3 * i] + 1, (long)w->F[3 * i + 1] + 1,
-              (long)w->F[3 * i + 2] + 1);
+    /* One vt / vn per vertex in vertex order (vt as read, vn recomputed for this frame), so
+     * every face reference is i/i/i and the vertex order stays the rest mesh's. */
+    for (size_t i = 0; w->uv && i < nv; ++i)
+      fprintf(f, "vt %.17g %.17g\n", w->uv[2 * i], w->uv[2 * i + 1]);
+    for (size_t i = 0; w->normals && i < nv; ++i)
+      fprintf(f, "vn %.9g %.9g %.9g\n", w->nbuf[3 * i], w->nbuf[3 * i + 1], w->nbuf[3 * i + 2]);
+    for (size_t i = 0; i < nf; ++i) {
+      fputc('f', f);
+      for (int k = 0; k < 3; ++k) {
+        long v = (long)w->F[3 * i + k] + 1;
+        if (w->uv && w->normals)
+          fprintf(f, " %ld/%ld/%ld", v, v, v);
+        else if (w->uv)
+          fprintf(f, " %ld/%ld", v, v);
+        else if (w->normals)
+          fprintf(f, " %ld//%ld", v, v);
+        else
+          fprintf(f, " %ld", v);
+      }
+      fputc('\n', f);
+    }
   }
   int bad = ferror(f);
   bad |= fclose(f) != 0;

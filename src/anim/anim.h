@@ -55,7 +55,18 @@ struct km_anim_writer {
   float rest_minmax[6];
   /* directories: frames are written into tmp_dir, renamed into place on close. */
   char *tmp_dir;
+  /* Attributes of a rest mesh that has them (issue 11): its texture coordinates, copied, and
+   * whether normals are written (recomputed from each frame's positions: a deformed mesh's
+   * normals are not the rest's). NULL / false: positions only, as before. */
+  double *uv;   /* #V*2 */
+  bool normals; /* rest had UV or N */
+  double *nbuf; /* #V*3 scratch: one frame's normals */
+  double *vbuf; /* #V*3 scratch: one key's positions (glb) */
 };
+
+/* Unit area-weighted normals of positions V over the writer's faces into w->nbuf; a vertex
+ * with no non-degenerate face gets +y (glTF requires unit normals). */
+void km__anim_normals(km_anim_writer *w, const double *V);
 
 /* Writes the final .glb from the stored keys (called by close). */
 km_status km__glb_finish(km_anim_writer *w, km_error *err);

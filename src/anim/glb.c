@@ -3,7 +3,13 @@
  * so players crossfade between consecutive keys. Many morph targets (hundreds) are valid
  * glTF; Blender imports them as shape keys (named through mesh.extras.targetNames).
  * The frame rate, frame count and key spacing are kept in asset.extras.kinemesh so
- * km_anim_info_read can report them exactly. */
+ * km_anim_info_read can report them exactly.
+ * A rest mesh with texture coordinates or normals (issue 11) also gets TEXCOORD_0 (the UVs
+ * as read, v flipped to glTF's top-left origin: v' = 1 - v) and NORMAL on the base mesh, and
+ * every morph target carries a NORMAL displacement: the key's own recomputed area-weighted
+ * normals minus the rest's, so viewers shade each frame correctly without recomputing
+ * anything. A mesh without attributes is written as before (positions only; viewers then
+ * shade flat from the morphed positions). */
 #include "anim/anim.h"
 
 #include <cjson/cJSON.h>
@@ -82,7 +88,10 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   uint64_t off = 0;
   const uint64_t idx_len = (uint64_t)nf * 12, pos_len = (uint64_t)nv * 12;
   const uint64_t times_len = (uint64_t)nk * 4, weights_len = (uint64_t)nk * nk * 4;
-  uint64_t bin_len = idx_len + pos_len * (1 + nk) + times_len + weights_len;
+  const bool with_n = w->normals;
+  const uint64_t uv_len = w->uv ? (uint64_t)nv * 8 : 0;
+  uint64_t bin_len =
+      idx_len + pos_len * (1 + nk) * (with_n ? 2 : 1) + uv_len + times_len + weights_len;
   if (bin_len + (64u << 20) > UINT32_MAX)
     return km__fail(err, KM_ERR_UNSUPPORTED,
                     "%s: %zu key frames of %zu vertices exceed the 4 GiB glb limit; use "
@@ -122,7 +131,20 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   int a_pos = add_view_accessor(views, accessors, off, pos_len, GL_ARRAY_BUFFER, GL_FLOAT, nv,
                                 "VEC3", w->rest_minmax, w->rest_minmax + 3, 3);
   off += pos_len;
-  cJSON_AddNumberToObject(cJSON_AddObjectToObject(prim, "attributes"), "POSITION", a_pos);
+  cJSON *attrs = cJSON_AddObjectToObject(prim, "attributes");
+  cJSON_AddNumberToObject(attrs, "POSITION", a_pos);
+  if (with_n) {
+    int a_n = add_view_accessor(views, accessors, off, pos_len, GL_ARRAY_BUFFER, GL_FLOAT, nv,
+                                "VEC3", NULL, NULL, 0);
+    off += pos_len;
+    cJSON_AddNumberToObject(attrs, "NORMAL", a_n);
+  }
+  if (w->uv) {
+    int a_t = add_view_accessor(views, accessors, off, uv_len, GL_ARRAY_BUFFER, GL_FLOAT, nv,
+                                "VEC2", NULL, NULL, 0);
+    off += uv_len;
+    cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a_t);
+  }
   cJSON_AddNumberToObject(prim, "mode", nf ? 4 : 0); /* triangles, or points for a cloud */
   cJSON *targets = cJSON_AddArrayToObject(prim, "targets");
   cJSON *names = cJSON_CreateArray();
@@ -133,6 +155,12 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     off += pos_len;
     cJSON *t = cJSON_CreateObject();
     cJSON_AddNumberToObject(t, "POSITION", a);
+    if (with_n) {
+      int a_n = add_view_accessor(views, accessors, off, pos_len, GL_ARRAY_BUFFER, GL_FLOAT, nv,
+                                  "VEC3", NULL, NULL, 0);
+      off += pos_len;
+      cJSON_AddNumberToObject(t, "NORMAL", a_n);
+    }
     cJSON_AddItemToArray(targets, t);
     char nm[32];
     snprintf(nm, sizeof nm, "frame_%06zu", w->key_frame[k]);
@@ -221,6 +249,26 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
       km__put_f32le(b + 4 * i, (float)w->rest[i]);
     s = write_all(w, af.f, b, nv * 12, err);
   }
+  /* Rest normals are kept in vbuf's place until the keys need it: nbuf is reused per key. */
+  double *rest_n = NULL;
+  if (s == KM_OK && with_n) {
+    rest_n = km__malloc(nv * 3, sizeof *rest_n);
+    if (!rest_n) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+  }
+  if (s == KM_OK && with_n) {
+    km__anim_normals(w, w->rest);
+    memcpy(rest_n, w->nbuf, nv * 3 * sizeof *rest_n);
+    for (size_t i = 0; i < nv * 3; ++i)
+      km__put_f32le(b + 4 * i, (float)rest_n[i]);
+    s = write_all(w, af.f, b, nv * 12, err);
+  }
+  if (s == KM_OK && w->uv) {
+    for (size_t i = 0; i < nv; ++i) {
+      km__put_f32le(b + 8 * i, (float)w->uv[2 * i]);
+      km__put_f32le(b + 8 * i + 4, (float)(1.0 - w->uv[2 * i + 1]));
+    }
+    s = write_all(w, af.f, b, nv * 8, err);
+  }
   if (s == KM_OK && fseek(w->keys, 0, SEEK_SET) != 0)
     s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the key-frame temporary", w->path);
   for (size_t k = 0; s == KM_OK && k < nk; ++k) {
@@ -232,7 +280,16 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     for (size_t i = 0; i < nv * 3; ++i)
       km__put_f32le(b + 4 * i, w->fbuf[i]);
     s = write_all(w, af.f, b, nv * 12, err);
+    if (s == KM_OK && with_n) {
+      for (size_t i = 0; i < nv * 3; ++i)
+        w->vbuf[i] = w->rest[i] + (double)w->fbuf[i];
+      km__anim_normals(w, w->vbuf);
+      for (size_t i = 0; i < nv * 3; ++i)
+        km__put_f32le(b + 4 * i, (float)(w->nbuf[i] - rest_n[i]));
+      s = write_all(w, af.f, b, nv * 12, err);
+    }
   }
+  free(rest_n);
   /* Key times, then one-hot weights (one row of nk per key), through a row buffer: there
    * can be more keys than vertices. */
   unsigned char *row = s == KM_OK ? calloc(nk, 4) : NULL;

@@ -5,6 +5,7 @@
 #include <glob.h>
 #include <sys/stat.h>
 #include <errno.h>
+#include <sys/stat.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -90,8 +91,33 @@ void *km__calloc(size_t count, size_t size) {
   return calloc(count ? count : 1, size ? size : 1);
 }
 
+km_status km__make_parents(const char *path, km_error *err) {
+  size_t n = path ? strlen(path) : 0;
+  char *d = malloc(n + 1);
+  if (!d) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path ? path : "");
+  memcpy(d, path ? path : "", n + 1);
+  km_status s = KM_OK;
+  /* Each prefix ending before a '/' (past the first character: "/abs" needs no "/"). */
+  for (size_t i = 1; i < n && !s; ++i) {
+    if (d[i] != '/' || d[i - 1] == '/') continue;
+    d[i] = '\0';
+    struct stat st;
+    if (stat(d, &st) != 0) {
+      if (mkdir(d, 0777) != 0 && errno != EEXIST)
+        s = km__fail(err, KM_ERR_IO, "%s: cannot create folder %s: %s", path, d, strerror(errno));
+    } else if (!S_ISDIR(st.st_mode)) {
+      s = km__fail(err, KM_ERR_IO, "%s: %s exists and is not a folder", path, d);
+    }
+    d[i] = '/';
+  }
+  free(d);
+  return s;
+}
+
 km_status km__atomic_open(km__atomic_file *af, const char *path, km_error *err) {
   memset(af, 0, sizeof *af);
+  km_status ps = km__make_parents(path, err);
+  if (ps) return ps;
   size_t n = strlen(path);
   af->path = malloc(n + 1);
   af->tmp_path = malloc(n + 32);

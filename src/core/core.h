@@ -34,7 +34,13 @@ typedef struct km__atomic_file {
   char *path;
   char *tmp_path;
 } km__atomic_file;
+/* Creates path's missing parent folders first (km__make_parents): every `-o out/x.obj` works
+ * without a prior mkdir. */
 km_status km__atomic_open(km__atomic_file *af, const char *path, km_error *err);
+/* Creates the missing folders above path ("a/b/c.obj": a and a/b), like mkdir -p of its
+ * dirname. The one place outputs get their folders: km__atomic_open and the frame-directory
+ * writer call it. KM_ERR_IO naming the folder that could not be made. */
+km_status km__make_parents(const char *path, km_error *err);
 /* Flushes, checks for write errors, fsyncs and renames. Closes in every case. */
 km_status km__atomic_commit(km__atomic_file *af, km_error *err);
 /* Closes and removes the temporary. Safe on a zeroed or already closed handle. */

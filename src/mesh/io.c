@@ -36,14 +36,33 @@ km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err) {
   if (s) return s;
   if (src->n_vertices) memcpy(tmp.V, src->V, src->n_vertices * 3 * sizeof(double));
   if (src->n_faces) memcpy(tmp.F, src->F, src->n_faces * 3 * sizeof(int32_t));
+  size_t nv = src->n_vertices ? src->n_vertices : 1;
+  if (src->UV && !(tmp.UV = km__malloc(nv * 2, sizeof(double)))) goto nomem;
+  if (src->N && !(tmp.N = km__malloc(nv * 3, sizeof(double)))) goto nomem;
+  if (src->UV && src->n_vertices) memcpy(tmp.UV, src->UV, src->n_vertices * 2 * sizeof(double));
+  if (src->N && src->n_vertices) memcpy(tmp.N, src->N, src->n_vertices * 3 * sizeof(double));
   *out = tmp;
   return KM_OK;
+nomem:
+  km_mesh_free(&tmp);
+  return km__fail(err, KM_ERR_NOMEM, "km_mesh_copy: out of memory");
+}
+
+uint64_t km_mesh_hash(const km_mesh *m) {
+  if (!m) return 0;
+  uint64_t sz[2] = {m->n_vertices, m->n_faces};
+  uint64_t h = km__fnv1a(KM__FNV_SEED, sz, sizeof sz);
+  if (m->V) h = km__fnv1a(h, m->V, m->n_vertices * 3 * sizeof(double));
+  if (m->F) h = km__fnv1a(h, m->F, m->n_faces * 3 * sizeof(int32_t));
+  return h;
 }
 
 void km_mesh_free(km_mesh *m) {
   if (!m) return;
   free(m->V);
   free(m->F);
+  free(m->UV);
+  free(m->N);
   memset(m, 0, sizeof *m);
 }
 
@@ -56,9 +75,11 @@ static km_status format_from_name(const char *name, km_mesh_format *fmt, km_erro
     *fmt = KM_FORMAT_PLY;
   else if (!strcmp(ext, "off"))
     *fmt = KM_FORMAT_OFF;
+  else if (!strcmp(ext, "glb") || !strcmp(ext, "gltf"))
+    *fmt = KM_FORMAT_GLTF;
   else
     return km__fail(err, KM_ERR_UNSUPPORTED,
-                    "%s: unknown mesh extension '%s' (expected .obj, .ply or .off)",
+                    "%s: unknown mesh extension '%s' (expected .obj, .ply, .off, .glb or .gltf)",
                     name ? name : "(unnamed)", ext);
   return KM_OK;
 }
@@ -78,6 +99,7 @@ km_status km_mesh_parse(const void *data, size_t size, km_mesh_format format, co
   case KM_FORMAT_OBJ: return km__obj_parse(d, size, name, out, err);
   case KM_FORMAT_PLY: return km__ply_parse(d, size, name, out, err);
   case KM_FORMAT_OFF: return km__off_parse(d, size, name, out, err);
+  case KM_FORMAT_GLTF: return km__gltf_parse(d, size, name, NULL, out, err);
   default: return km__fail(err, KM_ERR_INVALID, "%s: unknown mesh format %d", name, (int)format);
   }
 }
@@ -93,7 +115,10 @@ km_status km_mesh_read(const char *path, km_mesh *out, km_error *err) {
   s = km__read_file(path, &data, &size, err);
   if (s) return s;
   double t0 = km_seconds();
-  s = km_mesh_parse(data, size, fmt, path, out, err);
+  if (fmt == KM_FORMAT_GLTF) /* buffers may be files beside it */
+    s = km__gltf_parse(data, size, path, path, out, err);
+  else
+    s = km_mesh_parse(data, size, fmt, path, out, err);
   free(data);
   if (!s)
     km__log(KM_LOG_DEBUG, "%s: %zu vertices, %zu faces in %.3f s", path, out->n_vertices,
@@ -126,6 +151,11 @@ km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_
     s = format_from_name(path, &fmt, err);
     if (s) return s;
   }
+  if (fmt == KM_FORMAT_GLTF)
+    return km__fail(err, KM_ERR_UNSUPPORTED,
+                    "%s: glTF is read, not written, as a mesh (write .obj or .ply; animations "
+                    "are written as .glb by the animation writer)",
+                    path);
   if (fmt != KM_FORMAT_OBJ && fmt != KM_FORMAT_PLY && fmt != KM_FORMAT_OFF)
     return km__fail(err, KM_ERR_INVALID, "%s: unknown mesh format %d", path, (int)fmt);
   if (enc != KM_PLY_BINARY_LE && enc != KM_PLY_BINARY_BE && enc != KM_PLY_ASCII)

@@ -1,6 +1,8 @@
-/* Wavefront OBJ: `v` positions and `f` polygons (fan-triangulated); everything else that is
- * a keyword is skipped. Parsed in place from the memory buffer, one pass to count vertices
- * (so that positive indices can be range-checked and V allocated once), one pass to parse. */
+/* Wavefront OBJ: `v` positions, `f` polygons (fan-triangulated), and `vt`/`vn` attached to
+ * the vertices through the faces' v/vt/vn references (first reference wins at a seam: the
+ * vertex order and count stay the `v` lines'); everything else that is a keyword is skipped. Parsed
+ * in place from the memory buffer, one pass to count vertices (so that positive indices can be
+ * range-checked and V allocated once), one pass to parse. */
 #include "mesh/mesh_io.h"
 
 #include <stdlib.h>
@@ -25,10 +27,12 @@ static bool keyword_is(const char *tok, size_t len, const char *kw) {
   return len == n && memcmp(tok, kw, n) == 0;
 }
 
-/* One `i`, `i/t`, `i//n` or `i/t/n` reference; only the position index is kept. */
-static bool parse_face_ref(const char *tok, size_t len, int64_t *idx) {
+/* One `i`, `i/t`, `i//n` or `i/t/n` reference; tn[0], tn[1]: the texture and normal
+ * indices as written (0 when absent). */
+static bool parse_face_ref(const char *tok, size_t len, int64_t *idx, int64_t tn[2]) {
   const char *slash = memchr(tok, '/', len);
   size_t ilen = slash ? (size_t)(slash - tok) : len;
+  tn[0] = tn[1] = 0;
   if (!km__parse_int64(tok, ilen, idx)) return false;
   if (!slash) return true;
   /* Texture and normal parts: empty or integers, at most two of them. */
@@ -36,8 +40,7 @@ static bool parse_face_ref(const char *tok, size_t len, int64_t *idx) {
   for (int part = 0; part < 2; ++part) {
     const char *q = memchr(p, '/', (size_t)(end - p));
     size_t plen = q ? (size_t)(q - p) : (size_t)(end - p);
-    int64_t dummy;
-    if (plen && !km__parse_int64(p, plen, &dummy)) return false;
+    if (plen && !km__parse_int64(p, plen, &tn[part])) return false;
     if (part == 0 && plen == 0 && !q) return false; /* "i/" */
     if (!q) return true;
     if (part == 1) return false; /* a third slash */
@@ -53,7 +56,7 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
   char q[64];
 
   /* Pass 1: count `v` lines and `f` lines. */
-  size_t nv_total = 0, nf_lines = 0;
+  size_t nv_total = 0, nf_lines = 0, nt_total = 0, nn_total = 0;
   for (const char *p = data; p < end;) {
     const char *nl = memchr(p, '\n', (size_t)(end - p));
     const char *le = nl ? nl : end;
@@ -64,6 +67,9 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
         ++nv_total;
       else if (p[0] == 'f')
         ++nf_lines;
+    } else if (le - p >= 2 && p[0] == 'v' && (p[1] == 't' || p[1] == 'n') &&
+               (le - p == 2 || km__is_space(p[2]))) {
+      ++*(p[1] == 't' ? &nt_total : &nn_total);
     }
     p = nl ? nl + 1 : end;
   }
@@ -79,6 +85,18 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
     return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu vertices", name, nv_total);
   }
 
+  /* Attributes: the file's vt/vn lists, then one per vertex (set = assigned by a face). */
+  double *T = nt_total ? km__malloc(nt_total, 2 * sizeof(double)) : NULL;
+  double *Nn = nn_total ? km__malloc(nn_total, 3 * sizeof(double)) : NULL;
+  double *UV = nt_total ? km__calloc(nv_total, 2 * sizeof(double)) : NULL;
+  double *NV = nn_total ? km__calloc(nv_total, 3 * sizeof(double)) : NULL;
+  unsigned char *set = (nt_total || nn_total) ? km__calloc(nv_total, 1) : NULL;
+  if ((nt_total && (!T || !UV)) || (nn_total && (!Nn || !NV)) || ((nt_total || nn_total) && !set)) {
+    free(V), free(tris.F), free(T), free(Nn), free(UV), free(NV), free(set);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu vertices", name, nv_total);
+  }
+  bool any_t = false, any_n = false;
+  size_t nt = 0, nn = 0, seams = 0;
   km_status s = KM_OK;
   size_t nv = 0, line = 0;
   int32_t poly_buf[64];
@@ -112,11 +130,32 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
         }
       }
       ++nv; /* extra numbers (w, colours) are ignored */
+    } else if ((keyword_is(tok, len, "vt") && nt < nt_total) ||
+               (keyword_is(tok, len, "vn") && nn < nn_total)) {
+      bool is_t = tok[1] == 't';
+      double *dst = is_t ? T + 2 * nt++ : Nn + 3 * nn++;
+      int need = is_t ? 1 : 3, have = is_t ? 2 : 3;
+      dst[0] = dst[1] = 0;
+      if (!is_t) dst[2] = 0;
+      for (int k = 0; k < have; ++k) {
+        if (!next_token(&c, &tok, &len) || tok[0] == '#') {
+          if (k >= need) break; /* vt u: v defaults to 0 */
+          s = km__fail(err, KM_ERR_PARSE, "%s:%zu: expected %d numbers after '%s', found %d", name,
+                       line, need, is_t ? "vt" : "vn", k);
+          break;
+        }
+        if (!km__parse_double(tok, len, &dst[k])) {
+          km__quote_token(tok, len, q, sizeof q);
+          s = km__fail(err, KM_ERR_PARSE, "%s:%zu: expected a finite number in '%s', found %s",
+                       name, line, is_t ? "vt" : "vn", q);
+          break;
+        }
+      }
     } else if (keyword_is(tok, len, "f")) {
       size_t n = 0;
       while (next_token(&c, &tok, &len) && tok[0] != '#') { /* a trailing comment ends it */
-        int64_t idx;
-        if (!parse_face_ref(tok, len, &idx)) {
+        int64_t idx, tn[2];
+        if (!parse_face_ref(tok, len, &idx, tn)) {
           km__quote_token(tok, len, q, sizeof q);
           s = km__fail(err, KM_ERR_PARSE,
                        "%s:%zu: expected a face vertex 'i', 'i/t', 'i//n' or 'i/t/n', found %s",
@@ -135,6 +174,39 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
                        name, line, (long long)idx, nv_total, nv, nv);
           break;
         }
+        /* vt/vn references: 1-based, or negative relative to those read so far. */
+        size_t ref[2] = {0, 0}; /* 1-based resolved, 0: none */
+        for (int a = 0; a < 2 && !s; ++a) {
+          size_t total = a ? nn_total : nt_total, sofar = a ? nn : nt;
+          /* A file without any vt (vn) line: its references name nothing, and were always
+           * read as plain positions; kept so. */
+          if (!tn[a] || !total) continue;
+          if (tn[a] > 0 && (uint64_t)tn[a] <= total)
+            ref[a] = (size_t)tn[a];
+          else if (tn[a] < 0 && (uint64_t)(-tn[a]) <= sofar)
+            ref[a] = sofar + 1 - (size_t)(-tn[a]);
+          else
+            s = km__fail(err, KM_ERR_PARSE,
+                         "%s:%zu: face %s index %lld out of range (expected 1..%zu, or -1..-%zu)",
+                         name, line, a ? "normal" : "texture", (long long)tn[a], total, sofar);
+        }
+        if (s) break;
+        size_t vi = (size_t)zero_based;
+        if (ref[0]) {
+          const double *t = T + 2 * (ref[0] - 1);
+          if (!(set[vi] & 1)) {
+            UV[2 * vi] = t[0], UV[2 * vi + 1] = t[1];
+            set[vi] |= 1;
+          } else if (UV[2 * vi] != t[0] || UV[2 * vi + 1] != t[1]) {
+            ++seams;
+          }
+          any_t = true;
+        }
+        if (ref[1] && !(set[vi] & 2)) {
+          memcpy(NV + 3 * vi, Nn + 3 * (ref[1] - 1), 3 * sizeof(double));
+          set[vi] |= 2;
+        }
+        any_n |= ref[1] != 0;
         if (n == poly_cap) {
           size_t nc = poly_cap * 2;
           int32_t *np = km__malloc(nc, sizeof *np);
@@ -179,11 +251,20 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
   if (!s && nv == 0)
     s = km__fail(err, KM_ERR_PARSE, "%s:%zu: expected at least one 'v' line, found none", name,
                  line);
+  free(T), free(Nn), free(set);
   if (s) {
-    free(V);
-    free(tris.F);
+    free(V), free(tris.F), free(UV), free(NV);
     return s;
   }
+  if (!any_t) free(UV), UV = NULL;
+  if (!any_n) free(NV), NV = NULL;
+  if (seams)
+    km__log(KM_LOG_DEBUG,
+            "%s: %zu face corners name another texture coordinate for a vertex that already has "
+            "one (texture seams); the first is kept, vertex order stays the file's",
+            name, seams);
+  out->UV = UV;
+  out->N = NV;
   out->V = V;
   out->F = tris.F;
   out->n_vertices = nv;
@@ -206,7 +287,32 @@ km_status km__obj_write(FILE *f, const km_mesh *m) {
     write_double(f, m->V[3 * i + 1], ' ');
     write_double(f, m->V[3 * i + 2], '\n');
   }
-  for (size_t i = 0; i < m->n_faces; ++i)
-    fprintf(f, "f %d %d %d\n", m->F[3 * i] + 1, m->F[3 * i + 1] + 1, m->F[3 * i + 2] + 1);
+  /* One vt and one vn per vertex, in vertex order, so every face reference is i/i/i. */
+  for (size_t i = 0; m->UV && i < m->n_vertices; ++i) {
+    fputs("vt ", f);
+    write_double(f, m->UV[2 * i], ' ');
+    write_double(f, m->UV[2 * i + 1], '\n');
+  }
+  for (size_t i = 0; m->N && i < m->n_vertices; ++i) {
+    fputs("vn ", f);
+    write_double(f, m->N[3 * i], ' ');
+    write_double(f, m->N[3 * i + 1], ' ');
+    write_double(f, m->N[3 * i + 2], '\n');
+  }
+  for (size_t i = 0; i < m->n_faces; ++i) {
+    fputc('f', f);
+    for (int k = 0; k < 3; ++k) {
+      int v = m->F[3 * i + k] + 1;
+      if (m->UV && m->N)
+        fprintf(f, " %d/%d/%d", v, v, v);
+      else if (m->UV)
+        fprintf(f, " %d/%d", v, v);
+      else if (m->N)
+        fprintf(f, " %d//%d", v, v);
+      else
+        fprintf(f, " %d", v);
+    }
+    fputc('\n', f);
+  }
   return ferror(f) ? KM_ERR_IO : KM_OK;
 }

@@ -28,7 +28,32 @@ static const size_t k_type_size[] = {0, 1, 1, 2, 2, 4, 4, 4, 8};
 
 static bool type_is_int(ply_type t) { return t >= T_I8 && t <= T_U32; }
 
-enum { ROLE_NONE = 0, ROLE_X, ROLE_Y, ROLE_Z, ROLE_INDICES };
+enum {
+  ROLE_NONE = 0,
+  ROLE_X,
+  ROLE_Y,
+  ROLE_Z,
+  ROLE_INDICES,
+  ROLE_U,
+  ROLE_V,
+  ROLE_NX,
+  ROLE_NY,
+  ROLE_NZ
+};
+
+/* Vertex attribute names: texture coordinates as Blender/MeshLab (s t), Paraview/Open3D
+ * (u v) and PCL/others (texture_u texture_v) write them; normals nx ny nz. */
+static int attribute_role(const char *t, size_t l) {
+  static const struct {
+    const char *name;
+    int role;
+  } k[] = {{"u", ROLE_U},   {"s", ROLE_U},   {"texture_u", ROLE_U}, {"texture_s", ROLE_U},
+           {"v", ROLE_V},   {"t", ROLE_V},   {"texture_v", ROLE_V}, {"texture_t", ROLE_V},
+           {"nx", ROLE_NX}, {"ny", ROLE_NY}, {"nz", ROLE_NZ}};
+  for (size_t i = 0; i < sizeof k / sizeof k[0]; ++i)
+    if (strlen(k[i].name) == l && !memcmp(k[i].name, t, l)) return k[i].role;
+  return ROLE_NONE;
+}
 
 typedef struct ply_prop {
   ply_type type;       /* scalar type, or the list's item type */
@@ -190,6 +215,8 @@ static km_status parse_header(const char *data, size_t size, const char *name, p
           return km__fail(err, KM_ERR_PARSE, "%s:%zu: expected vertex %.*s to be a scalar", name,
                           line, (int)l3, t3);
         pr.role = ROLE_X + (t3[0] - 'x');
+      } else if (e->is_vertex && !list) {
+        pr.role = attribute_role(t3, l3);
       }
       if (e->is_face && list &&
           (tok_is(t3, l3, "vertex_indices") || tok_is(t3, l3, "vertex_index"))) {
@@ -201,7 +228,9 @@ static km_status parse_header(const char *data, size_t size, const char *name, p
         pr.role = ROLE_INDICES;
       }
       for (size_t i = e->first_prop; i < h->n_props; ++i)
-        if (pr.role && h->props[i].role == pr.role)
+        if (pr.role >= ROLE_U && h->props[i].role == pr.role)
+          pr.role = ROLE_NONE; /* "u" and "s" both: the first is read, the second skipped */
+        else if (pr.role && h->props[i].role == pr.role)
           return km__fail(err, KM_ERR_PARSE, "%s:%zu: property declared twice", name, line);
       h->props[h->n_props++] = pr;
       e->n_props++;
@@ -419,7 +448,7 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
   const char *body = NULL;
   size_t line = 0;
   km_status s = parse_header(data, size, name, h, &body, &line, err);
-  double *V = NULL;
+  double *V = NULL, *UV = NULL, *NV = NULL;
   km__tris tris = {0};
   if (s) goto done;
 
@@ -442,6 +471,11 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
                  name, ve->header_line);
     goto done;
   }
+  int attrs = 0; /* bit per role present */
+  for (size_t k = 0; k < ve->n_props; ++k)
+    attrs |= 1 << h->props[ve->first_prop + k].role;
+  bool want_uv = (attrs & (1 << ROLE_U)) && (attrs & (1 << ROLE_V));
+  bool want_n = (attrs & (7 << ROLE_NX)) == (7 << ROLE_NX);
   bool has_indices = false;
   if (fe)
     for (size_t k = 0; k < fe->n_props; ++k)
@@ -488,7 +522,10 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
 
   size_t nv = (size_t)ve->count;
   V = km__malloc(nv ? nv * 3 : 1, sizeof(double));
-  if (!V || (fe && !km__tris_reserve(&tris, fe->count ? (size_t)fe->count : 1))) {
+  if (want_uv) UV = km__malloc(nv ? nv * 2 : 1, sizeof(double));
+  if (want_n) NV = km__malloc(nv ? nv * 3 : 1, sizeof(double));
+  if (!V || (want_uv && !UV) || (want_n && !NV) ||
+      (fe && !km__tris_reserve(&tris, fe->count ? (size_t)fe->count : 1))) {
     s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu vertices", name, nv);
     goto done;
   }
@@ -525,9 +562,15 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
     for (uint64_t n = 0; n < e->count && !s; ++n) {
       for (size_t k = 0; k < e->n_props && !s; ++k) {
         const ply_prop *pr = &props[k];
-        if (e->is_vertex && pr->role) {
+        if (e->is_vertex && pr->role >= ROLE_X && pr->role <= ROLE_Z) {
           s = read_value(&r, pr->type, false, &V[n * 3 + (size_t)(pr->role - ROLE_X)], NULL,
                          "a vertex coordinate");
+        } else if (e->is_vertex && pr->role >= ROLE_U && pr->role <= ROLE_V && UV) {
+          s = read_value(&r, pr->type, false, &UV[n * 2 + (size_t)(pr->role - ROLE_U)], NULL,
+                         "a texture coordinate");
+        } else if (e->is_vertex && pr->role >= ROLE_NX && NV) {
+          s = read_value(&r, pr->type, false, &NV[n * 3 + (size_t)(pr->role - ROLE_NX)], NULL,
+                         "a normal component");
         } else if (pr->count_type == T_NONE) {
           s = skip_values(&r, pr->type, 1);
         } else if (pr->role != ROLE_INDICES) {
@@ -589,7 +632,9 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
   out->F = tris.F;
   out->n_vertices = nv;
   out->n_faces = tris.n;
-  V = NULL;
+  out->UV = UV;
+  out->N = NV;
+  V = UV = NV = NULL;
   tris.F = NULL;
   if (!fe) { /* point cloud: keep a valid (empty) face array */
     out->F = km__malloc(1, 3 * sizeof(int32_t));
@@ -600,6 +645,8 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
   }
 done:
   free(V);
+  free(UV);
+  free(NV);
   free(tris.F);
   free(h);
   return s;
@@ -622,29 +669,48 @@ km_status km__ply_write(FILE *f, const km_mesh *m, km_ply_encoding enc) {
           "ply\nformat %s 1.0\ncomment kinemesh\nelement vertex %zu\nproperty double x\n"
           "property double y\nproperty double z\n",
           fmt, m->n_vertices);
+  if (m->UV) fputs("property double u\nproperty double v\n", f);
+  if (m->N) fputs("property double nx\nproperty double ny\nproperty double nz\n", f);
   if (m->n_faces)
     fprintf(f, "element face %zu\nproperty list uchar int vertex_indices\n", m->n_faces);
   fputs("end_header\n", f);
   if (enc == KM_PLY_ASCII) {
     char buf[40];
-    for (size_t i = 0; i < m->n_vertices; ++i)
-      for (int k = 0; k < 3; ++k) {
-        int n = km__format_double(buf, sizeof buf - 1, m->V[3 * i + (size_t)k]);
-        buf[n] = k == 2 ? '\n' : ' ';
+    for (size_t i = 0; i < m->n_vertices; ++i) {
+      double rec[8];
+      int n_rec = 0;
+      for (int k = 0; k < 3; ++k)
+        rec[n_rec++] = m->V[3 * i + (size_t)k];
+      for (int k = 0; m->UV && k < 2; ++k)
+        rec[n_rec++] = m->UV[2 * i + (size_t)k];
+      for (int k = 0; m->N && k < 3; ++k)
+        rec[n_rec++] = m->N[3 * i + (size_t)k];
+      for (int k = 0; k < n_rec; ++k) {
+        int n = km__format_double(buf, sizeof buf - 1, rec[k]);
+        buf[n] = k == n_rec - 1 ? '\n' : ' ';
         fwrite(buf, 1, (size_t)n + 1, f);
       }
+    }
     for (size_t i = 0; i < m->n_faces; ++i)
       fprintf(f, "3 %d %d %d\n", m->F[3 * i], m->F[3 * i + 1], m->F[3 * i + 2]);
   } else {
     bool be = enc == KM_PLY_BINARY_BE;
-    unsigned char rec[24];
+    unsigned char rec[64];
     for (size_t i = 0; i < m->n_vertices; ++i) {
-      for (int k = 0; k < 3; ++k) {
+      double val[8];
+      int n_val = 0;
+      for (int k = 0; k < 3; ++k)
+        val[n_val++] = m->V[3 * i + (size_t)k];
+      for (int k = 0; m->UV && k < 2; ++k)
+        val[n_val++] = m->UV[2 * i + (size_t)k];
+      for (int k = 0; m->N && k < 3; ++k)
+        val[n_val++] = m->N[3 * i + (size_t)k];
+      for (int k = 0; k < n_val; ++k) {
         uint64_t b;
-        memcpy(&b, &m->V[3 * i + (size_t)k], 8);
+        memcpy(&b, &val[k], 8);
         store_bits(rec + 8 * k, b, 8, be);
       }
-      fwrite(rec, 1, 24, f);
+      fwrite(rec, 1, 8 * (size_t)n_val, f);
     }
     for (size_t i = 0; i < m->n_faces; ++i) {
       rec[0] = 3;

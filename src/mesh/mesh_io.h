@@ -19,6 +19,10 @@ km_status km__ply_parse(const char *data, size_t size, const char *name, km_mesh
 #define KM__PLY_NONFINITE 1u
 km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsigned flags,
                            km_mesh *out, km_error *err);
+/* glTF 2.0 (.glb or .gltf JSON; io_gltf.c). base_path: the file's path, for buffers in files
+ * beside it (NULL: only the BIN chunk and data: URIs). */
+km_status km__gltf_parse(const char *data, size_t size, const char *name, const char *base_path,
+                         km_mesh *out, km_error *err);
 km_status km__off_parse(const char *data, size_t size, const char *name, km_mesh *out,
                         km_error *err);
 

@@ -202,6 +202,8 @@ km_status km_capture_simulate(const km_character *c, const km_take *take,
   if (take->n_joints != c->skeleton.n_joints)
     return km__fail(err, KM_ERR_INVALID, "km_capture_simulate: take has %zu joints, skeleton %zu",
                     take->n_joints, c->skeleton.n_joints);
+  km_status ps = km__make_parents(out_dir, err); /* missing folders above out_dir */
+  if (ps) return ps;
   if (mkdir(out_dir, 0777) != 0 && errno != EEXIST)
     return km__fail(err, KM_ERR_IO, "%s: cannot create directory: %s", out_dir, strerror(errno));
   km_capture_options o = opt ? *opt : (km_capture_options){0};

@@ -10,6 +10,7 @@
 /* Plain allocation instead of km_mesh_alloc so this file depends on nothing but libc; the
  * result is freed the same way (free V and F). */
 static km_status alloc_mesh(size_t nv, size_t nf, km_mesh *out, const char *who, km_error *err) {
+  memset(out, 0, sizeof *out); /* UV and N (issue 11) stay NULL */
   out->V = km__malloc(nv, 3 * sizeof(double));
   out->F = km__malloc(nf, 3 * sizeof(int32_t));
   if (!out->V || !out->F) {

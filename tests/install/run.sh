@@ -34,7 +34,7 @@ cat >"$WORK/octa.c" <<'EOC'
 int main(void) {
   double V[] = {1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1};
   int32_t F[] = {0, 2, 4, 2, 1, 4, 1, 3, 4, 3, 0, 4, 2, 0, 5, 1, 2, 5, 3, 1, 5, 0, 3, 5};
-  km_mesh m = {V, F, 6, 8};
+  km_mesh m = {.V = V, .F = F, .n_vertices = 6, .n_faces = 8};
   km_mesh_info info;
   km_error err;
   if (km_mesh_info_compute(&m, &info, &err) != KM_OK) {

@@ -1,0 +1,583 @@
+/* glTF 2.0 meshes in (.glb, and .gltf with embedded data: URIs or buffer files beside it):
+ * triangles, POSITION, NORMAL, TEXCOORD_0.
+ *
+ * Written by hand on cJSON: cgltf (the reference C reader) is not packaged in Debian, and
+ * the part a mesh needs (accessors over buffer views over buffers) is small; every offset,
+ * stride and count is checked against the bytes that are really there before it is read.
+ *
+ * What is read is the scene (`scene`, else the first of `scenes`, else every root node): its
+ * nodes depth-first in the order they are listed, children in order; each node with a mesh
+ * contributes that mesh's primitives in order, with the node's world transform (matrix or
+ * TRS, composed down the hierarchy) applied to positions and normals (a mirroring transform
+ * also flips the triangles' winding). A file without nodes: the `meshes` in order, as stored.
+ * The vertices of primitive k follow those of primitive k-1 and its indices are shifted by
+ * their count, so the vertex order is the file's accessor order, primitive after primitive,
+ * instance after instance. A glTF is y up, facing +z, in metres by the specification. Texture
+ * coordinates are turned to kinemesh's (OBJ's) bottom-left origin: v = 1 - v_gltf; a
+ * primitive without NORMAL or TEXCOORD_0 among others that have them gets zeros. */
+#include "mesh/mesh_io.h"
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct gltf_doc {
+  const char *name; /* for messages */
+  cJSON *json;
+  const unsigned char *bin; /* glb BIN chunk, may be NULL */
+  size_t bin_len;
+  unsigned char **bufs; /* decoded buffers (owned; NULL when the buffer is the BIN chunk) */
+  size_t *buf_len;
+  int n_bufs;
+  const char *base_path; /* for relative buffer URIs; NULL: none allowed */
+} gltf_doc;
+
+static uint32_t rd32(const unsigned char *p) {
+  return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static int b64v(unsigned char c) {
+  if (c >= 'A' && c <= 'Z') return c - 'A';
+  if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+  if (c >= '0' && c <= '9') return c - '0' + 52;
+  if (c == '+') return 62;
+  if (c == '/') return 63;
+  return -1;
+}
+
+static bool b64_decode(const char *s, unsigned char **out, size_t *n) {
+  size_t len = strlen(s);
+  unsigned char *o = km__malloc(len / 4 * 3 + 3, 1);
+  if (!o) return false;
+  size_t k = 0;
+  uint32_t acc = 0;
+  int bits = 0;
+  for (size_t i = 0; i < len; ++i) {
+    if (s[i] == '=') break;
+    int v = b64v((unsigned char)s[i]);
+    if (v < 0) {
+      free(o);
+      return false;
+    }
+    acc = acc << 6 | (uint32_t)v;
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      o[k++] = (unsigned char)(acc >> bits);
+    }
+  }
+  *out = o;
+  *n = k;
+  return true;
+}
+
+static int jint(const cJSON *o, const char *k, int def) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
+  if (!v) return def;
+  if (!cJSON_IsNumber(v) || v->valuedouble != floor(v->valuedouble) || v->valuedouble < 0 ||
+      v->valuedouble > 2147483647.0)
+    return -2; /* invalid */
+  return (int)v->valuedouble;
+}
+
+static km_status load_buffers(gltf_doc *d, km_error *err) {
+  cJSON *bufs = cJSON_GetObjectItemCaseSensitive(d->json, "buffers");
+  d->n_bufs = cJSON_GetArraySize(bufs);
+  if (!d->n_bufs) return KM_OK;
+  d->bufs = km__calloc((size_t)d->n_bufs, sizeof *d->bufs);
+  d->buf_len = km__calloc((size_t)d->n_bufs, sizeof *d->buf_len);
+  if (!d->bufs || !d->buf_len) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+  for (int i = 0; i < d->n_bufs; ++i) {
+    cJSON *b = cJSON_GetArrayItem(bufs, i);
+    const char *uri = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(b, "uri"));
+    int blen = jint(b, "byteLength", -1);
+    if (blen < 0)
+      return km__fail(err, KM_ERR_PARSE, "%s: buffers[%d]: expected a byteLength", d->name, i);
+    if (!uri) {
+      if (i != 0 || !d->bin)
+        return km__fail(err, KM_ERR_PARSE,
+                        "%s: buffers[%d] has no uri (only the first buffer of a .glb may use the "
+                        "BIN chunk)",
+                        d->name, i);
+      if ((size_t)blen > d->bin_len)
+        return km__fail(err, KM_ERR_PARSE,
+                        "%s: buffers[0]: byteLength %d exceeds the %zu-byte BIN chunk", d->name,
+                        blen, d->bin_len);
+      d->buf_len[i] = (size_t)blen;
+      continue;
+    }
+    if (!strncmp(uri, "data:", 5)) {
+      const char *comma = strstr(uri, ";base64,");
+      if (!comma || !b64_decode(comma + 8, &d->bufs[i], &d->buf_len[i]))
+        return km__fail(err, KM_ERR_PARSE, "%s: buffers[%d]: expected a base64 data: URI", d->name,
+                        i);
+    } else {
+      if (!d->base_path || strstr(uri, "..") || uri[0] == '/' || strchr(uri, ':'))
+        return km__fail(err, KM_ERR_UNSUPPORTED,
+                        "%s: buffers[%d]: external buffer '%.80s' cannot be read here (only a "
+                        "file beside a .gltf read from disk)",
+                        d->name, i, uri);
+      const char *slash = strrchr(d->base_path, '/');
+      size_t dir = slash ? (size_t)(slash - d->base_path) + 1 : 0;
+      char *p = malloc(dir + strlen(uri) + 1);
+      if (!p) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+      memcpy(p, d->base_path, dir);
+      strcpy(p + dir, uri);
+      char *data = NULL;
+      km_status s = km__read_file(p, &data, &d->buf_len[i], err);
+      free(p);
+      if (s) return s;
+      d->bufs[i] = (unsigned char *)data;
+    }
+    if (d->buf_len[i] < (size_t)blen)
+      return km__fail(err, KM_ERR_PARSE, "%s: buffers[%d]: %zu bytes, byteLength says %d", d->name,
+                      i, d->buf_len[i], blen);
+    d->buf_len[i] = (size_t)blen;
+  }
+  return KM_OK;
+}
+
+static size_t comp_size(int ct) {
+  switch (ct) {
+  case 5120:
+  case 5121: return 1;
+  case 5122:
+  case 5123: return 2;
+  case 5125:
+  case 5126: return 4;
+  default: return 0;
+  }
+}
+
+/* An accessor resolved to bytes: element i, component c is at p + i*stride + c*csize. */
+typedef struct acc_view {
+  const unsigned char *p;
+  size_t count, stride, csize;
+  int ncomp, ct;
+  bool normalized;
+} acc_view;
+
+static km_status accessor(gltf_doc *d, int a, const char *what, acc_view *v, km_error *err) {
+  cJSON *acc = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "accessors"), a);
+  if (a < 0 || !acc)
+    return km__fail(err, KM_ERR_PARSE, "%s: %s: accessor %d does not exist", d->name, what, a);
+  if (cJSON_GetObjectItemCaseSensitive(acc, "sparse"))
+    return km__fail(err, KM_ERR_UNSUPPORTED, "%s: %s: sparse accessors are not supported", d->name,
+                    what);
+  const char *type = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(acc, "type"));
+  int ct = jint(acc, "componentType", -1), count = jint(acc, "count", -1);
+  int bvi = jint(acc, "bufferView", -1), aoff = jint(acc, "byteOffset", 0);
+  int ncomp = !type                     ? 0
+              : !strcmp(type, "SCALAR") ? 1
+              : !strcmp(type, "VEC2")   ? 2
+              : !strcmp(type, "VEC3")   ? 3
+              : !strcmp(type, "VEC4")   ? 4
+                                        : 0;
+  size_t cs = comp_size(ct);
+  if (!ncomp || !cs || count < 0 || bvi < 0 || aoff < 0)
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: %s: accessor %d: expected type, componentType, count and bufferView",
+                    d->name, what, a);
+  cJSON *bv = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "bufferViews"), bvi);
+  int bi = jint(bv, "buffer", -1), boff = jint(bv, "byteOffset", 0),
+      blen = jint(bv, "byteLength", -1);
+  int stride = jint(bv, "byteStride", 0);
+  if (!bv || bi < 0 || bi >= d->n_bufs || boff < 0 || blen < 0 || stride < 0)
+    return km__fail(err, KM_ERR_PARSE, "%s: %s: bufferView %d is missing or invalid", d->name, what,
+                    bvi);
+  const unsigned char *buf = d->bufs[bi] ? d->bufs[bi] : d->bin;
+  size_t elem = cs * (size_t)ncomp, st = stride ? (size_t)stride : elem;
+  if ((uint64_t)boff + (uint64_t)blen > d->buf_len[bi] || st < elem ||
+      (count && (uint64_t)aoff + (uint64_t)st * (uint64_t)(count - 1) + elem > (uint64_t)blen))
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: %s: accessor %d (%d elements) does not fit its bufferView / buffer",
+                    d->name, what, a, count);
+  v->p = buf + boff + aoff;
+  v->count = (size_t)count;
+  v->stride = st;
+  v->csize = cs;
+  v->ncomp = ncomp;
+  v->ct = ct;
+  cJSON *nz = cJSON_GetObjectItemCaseSensitive(acc, "normalized");
+  v->normalized = cJSON_IsTrue(nz);
+  return KM_OK;
+}
+
+static double comp(const acc_view *v, size_t i, int c) {
+  const unsigned char *p = v->p + i * v->stride + (size_t)c * v->csize;
+  switch (v->ct) {
+  case 5126: {
+    uint32_t u = rd32(p);
+    float f;
+    memcpy(&f, &u, 4);
+    return f;
+  }
+  case 5125: return (double)rd32(p);
+  case 5123: {
+    double x = (double)(uint16_t)(p[0] | p[1] << 8);
+    return v->normalized ? x / 65535.0 : x;
+  }
+  case 5122: {
+    double x = (double)(int16_t)(uint16_t)(p[0] | p[1] << 8);
+    return v->normalized ? fmax(x / 32767.0, -1.0) : x;
+  }
+  case 5121: return v->normalized ? p[0] / 255.0 : p[0];
+  case 5120: return v->normalized ? fmax((int8_t)p[0] / 127.0, -1.0) : (int8_t)p[0];
+  default: return 0;
+  }
+}
+
+/* cJSON on a NUL-terminated copy (the input buffer is not terminated); the byte of a syntax
+ * error is reported relative to the JSON's start plus `at`. */
+static km_status parse_json(const char *p, size_t n, const char *name, size_t at, cJSON **out,
+                            km_error *err) {
+  char *t = km__malloc(n + 1, 1);
+  if (!t) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+  memcpy(t, p, n);
+  t[n] = '\0';
+  const char *end = NULL;
+  *out = cJSON_ParseWithLengthOpts(t, n, &end, false);
+  km_status s = KM_OK;
+  if (!*out)
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte %zu: invalid glTF JSON", name,
+                 at + (end && end >= t ? (size_t)(end - t) : 0));
+  free(t);
+  return s;
+}
+
+/* A mesh placed by a node: its index and world transform (column-major 4x4, as glTF). */
+typedef struct instance {
+  int mesh;
+  double M[16];
+} instance;
+
+#define MAX_INSTANCES 65536 /* node visits: keeps a DAG of shared children from exploding */
+
+typedef struct instances {
+  instance *v;
+  size_t n, cap;
+  size_t visits;
+} instances;
+
+static void mat_mul(const double A[16], const double B[16], double C[16]) {
+  double T[16];
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) {
+      double x = 0;
+      for (int k = 0; k < 4; ++k)
+        x += A[k * 4 + r] * B[c * 4 + k];
+      T[c * 4 + r] = x;
+    }
+  memcpy(C, T, sizeof T);
+}
+
+static bool num_array(const cJSON *a, int n, double *out) {
+  if (cJSON_GetArraySize(a) != n) return false;
+  for (int i = 0; i < n; ++i) {
+    const cJSON *x = cJSON_GetArrayItem(a, i);
+    if (!cJSON_IsNumber(x) || !isfinite(x->valuedouble)) return false;
+    out[i] = x->valuedouble;
+  }
+  return true;
+}
+
+static km_status node_local(gltf_doc *d, const cJSON *node, int ni, double M[16], km_error *err) {
+  static const double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  memcpy(M, I, sizeof I);
+  const cJSON *m = cJSON_GetObjectItemCaseSensitive(node, "matrix");
+  if (m) {
+    if (!num_array(m, 16, M))
+      return km__fail(err, KM_ERR_PARSE, "%s: nodes[%d]: matrix must be 16 finite numbers", d->name,
+                      ni);
+    return KM_OK;
+  }
+  double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, sc[3] = {1, 1, 1};
+  const cJSON *jt = cJSON_GetObjectItemCaseSensitive(node, "translation");
+  const cJSON *jr = cJSON_GetObjectItemCaseSensitive(node, "rotation");
+  const cJSON *js = cJSON_GetObjectItemCaseSensitive(node, "scale");
+  if ((jt && !num_array(jt, 3, t)) || (jr && !num_array(jr, 4, q)) || (js && !num_array(js, 3, sc)))
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: nodes[%d]: translation (3), rotation (4) and scale (3) must be finite "
+                    "numbers",
+                    d->name, ni);
+  double qn = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  if (!(qn > 0)) qn = 1, q[3] = 1;
+  double x = q[0] / qn, y = q[1] / qn, z = q[2] / qn, w = q[3] / qn;
+  double R[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - z * w),     2 * (x * z + y * w),
+                 2 * (x * y + z * w),     1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+                 2 * (x * z - y * w),     2 * (y * z + x * w),     1 - 2 * (x * x + y * y)};
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r)
+      M[c * 4 + r] = R[r * 3 + c] * sc[c];
+  M[12] = t[0], M[13] = t[1], M[14] = t[2];
+  return KM_OK;
+}
+
+static km_status visit(gltf_doc *d, int ni, const double P[16], int depth, instances *out,
+                       km_error *err) {
+  cJSON *nodes = cJSON_GetObjectItemCaseSensitive(d->json, "nodes");
+  cJSON *node = cJSON_GetArrayItem(nodes, ni);
+  if (ni < 0 || !node)
+    return km__fail(err, KM_ERR_PARSE, "%s: node %d does not exist", d->name, ni);
+  if (depth > 64 || ++out->visits > MAX_INSTANCES)
+    return km__fail(err, KM_ERR_UNSUPPORTED,
+                    "%s: the node hierarchy is deeper than 64 or has more than %d node visits "
+                    "(a cycle?)",
+                    d->name, MAX_INSTANCES);
+  double L[16], M[16];
+  km_status s = node_local(d, node, ni, L, err);
+  if (s) return s;
+  mat_mul(P, L, M);
+  int mesh = jint(node, "mesh", -1);
+  if (mesh >= 0) {
+    if (out->n == out->cap) {
+      size_t nc = out->cap ? 2 * out->cap : 16;
+      instance *nv = realloc(out->v, nc * sizeof *nv);
+      if (!nv) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+      out->v = nv;
+      out->cap = nc;
+    }
+    out->v[out->n].mesh = mesh;
+    memcpy(out->v[out->n++].M, M, sizeof M);
+  }
+  cJSON *ch = cJSON_GetObjectItemCaseSensitive(node, "children");
+  for (int i = 0; i < cJSON_GetArraySize(ch) && !s; ++i) {
+    cJSON *c = cJSON_GetArrayItem(ch, i);
+    int ci = cJSON_IsNumber(c) && c->valuedouble >= 0 && c->valuedouble < 2147483647.0
+                 ? (int)c->valuedouble
+                 : -1;
+    s = visit(d, ci, M, depth + 1, out, err);
+  }
+  return s;
+}
+
+/* The meshes to read with their transforms, in the order described at the top. */
+static km_status collect_instances(gltf_doc *d, instances *out, km_error *err) {
+  static const double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  cJSON *nodes = cJSON_GetObjectItemCaseSensitive(d->json, "nodes");
+  cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
+  int nn = cJSON_GetArraySize(nodes);
+  km_status s = KM_OK;
+  if (nn == 0) { /* no nodes: every mesh as stored */
+    for (int m = 0; m < cJSON_GetArraySize(meshes) && !s; ++m) {
+      instance *nv = realloc(out->v, (out->n + 1) * sizeof *nv);
+      if (!nv) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+      out->v = nv;
+      out->v[out->n].mesh = m;
+      memcpy(out->v[out->n++].M, I, sizeof I);
+    }
+    return KM_OK;
+  }
+  cJSON *scenes = cJSON_GetObjectItemCaseSensitive(d->json, "scenes");
+  int si = jint(d->json, "scene", 0);
+  cJSON *scene = cJSON_GetArrayItem(scenes, si < 0 ? 0 : si);
+  cJSON *roots = cJSON_GetObjectItemCaseSensitive(scene, "nodes");
+  if (scene) {
+    for (int i = 0; i < cJSON_GetArraySize(roots) && !s; ++i) {
+      cJSON *r = cJSON_GetArrayItem(roots, i);
+      s = visit(d, cJSON_IsNumber(r) ? (int)r->valuedouble : -1, I, 0, out, err);
+    }
+    return s;
+  }
+  /* no scene: every node that is nobody's child */
+  unsigned char *child = km__calloc((size_t)nn, 1);
+  if (!child) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+  for (int i = 0; i < nn; ++i) {
+    cJSON *ch = cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(nodes, i), "children");
+    for (int k = 0; k < cJSON_GetArraySize(ch); ++k) {
+      cJSON *c = cJSON_GetArrayItem(ch, k);
+      if (cJSON_IsNumber(c) && c->valuedouble >= 0 && c->valuedouble < nn)
+        child[(int)c->valuedouble] = 1;
+    }
+  }
+  for (int i = 0; i < nn && !s; ++i)
+    if (!child[i]) s = visit(d, i, I, 0, out, err);
+  free(child);
+  return s;
+}
+
+static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out, km_error *err);
+
+static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
+  cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
+  if (!cJSON_GetArraySize(meshes))
+    return km__fail(err, KM_ERR_PARSE, "%s: expected a non-empty 'meshes' array", d->name);
+  km_status s = load_buffers(d, err);
+  if (s) return s;
+  instances inst = {0};
+  if ((s = collect_instances(d, &inst, err))) {
+    free(inst.v);
+    return s;
+  }
+  s = read_instances(d, &inst, out, err);
+  free(inst.v);
+  return s;
+}
+
+static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out, km_error *err) {
+  cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
+  km_status s = KM_OK;
+  /* Pass 1: count; pass 2: fill. */
+  size_t nv = 0, nf = 0;
+  bool any_n = false, any_t = false;
+  for (int pass = 0; pass < 2; ++pass) {
+    if (pass == 1) {
+      if (nv > INT32_MAX)
+        return km__fail(err, KM_ERR_UNSUPPORTED, "%s: %zu vertices exceed the int32 range", d->name,
+                        nv);
+      if ((s = km_mesh_alloc(nv, nf, out, err))) return s;
+      if (any_n && !(out->N = km__calloc(nv ? nv : 1, 3 * sizeof(double)))) goto nomem;
+      if (any_t && !(out->UV = km__calloc(nv ? nv : 1, 2 * sizeof(double)))) goto nomem;
+    }
+    size_t v0 = 0, f0 = 0;
+    for (size_t ii = 0; ii < inst->n; ++ii) {
+      int mi = inst->v[ii].mesh;
+      const double *M = inst->v[ii].M;
+      cJSON *mesh = cJSON_GetArrayItem(meshes, mi);
+      if (!mesh)
+        return km__fail(err, KM_ERR_PARSE, "%s: a node names mesh %d, which does not exist",
+                        d->name, mi);
+      /* normals by the cofactor matrix of the linear part (inverse transpose up to scale) */
+      double C[9], det = M[0] * (M[5] * M[10] - M[9] * M[6]) - M[4] * (M[1] * M[10] - M[9] * M[2]) +
+                         M[8] * (M[1] * M[6] - M[5] * M[2]);
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) {
+          int r1 = (r + 1) % 3, r2 = (r + 2) % 3, c1 = (c + 1) % 3, c2 = (c + 2) % 3;
+          C[r * 3 + c] = M[c1 * 4 + r1] * M[c2 * 4 + r2] - M[c2 * 4 + r1] * M[c1 * 4 + r2];
+        }
+      cJSON *prims = cJSON_GetObjectItemCaseSensitive(mesh, "primitives");
+      for (int pi = 0; pi < cJSON_GetArraySize(prims); ++pi) {
+        cJSON *pr = cJSON_GetArrayItem(prims, pi);
+        char what[64];
+        snprintf(what, sizeof what, "meshes[%d].primitives[%d]", mi, pi);
+        int mode = jint(pr, "mode", 4);
+        if (mode != 4)
+          return km__fail(err, KM_ERR_UNSUPPORTED,
+                          "%s: %s: mode %d (only triangles, mode 4, are read)", d->name, what,
+                          mode);
+        cJSON *at = cJSON_GetObjectItemCaseSensitive(pr, "attributes");
+        acc_view pos, nrm, tex, idx;
+        if ((s = accessor(d, jint(at, "POSITION", -1), what, &pos, err))) return s;
+        if (pos.ncomp != 3 || pos.ct != 5126)
+          return km__fail(err, KM_ERR_PARSE, "%s: %s: POSITION must be VEC3 float", d->name, what);
+        bool hn = cJSON_GetObjectItemCaseSensitive(at, "NORMAL") != NULL;
+        bool ht = cJSON_GetObjectItemCaseSensitive(at, "TEXCOORD_0") != NULL;
+        if (hn && (s = accessor(d, jint(at, "NORMAL", -1), what, &nrm, err))) return s;
+        if (ht && (s = accessor(d, jint(at, "TEXCOORD_0", -1), what, &tex, err))) return s;
+        if ((hn && (nrm.ncomp != 3 || nrm.count != pos.count)) ||
+            (ht && (tex.ncomp != 2 || tex.count != pos.count)))
+          return km__fail(err, KM_ERR_PARSE,
+                          "%s: %s: NORMAL (VEC3) / TEXCOORD_0 (VEC2) must have POSITION's count",
+                          d->name, what);
+        bool hi = cJSON_GetObjectItemCaseSensitive(pr, "indices") != NULL;
+        if (hi && (s = accessor(d, jint(pr, "indices", -1), what, &idx, err))) return s;
+        if (hi && (idx.ncomp != 1 || (idx.ct != 5121 && idx.ct != 5123 && idx.ct != 5125)))
+          return km__fail(err, KM_ERR_PARSE, "%s: %s: indices must be unsigned SCALAR", d->name,
+                          what);
+        size_t ni = hi ? idx.count : pos.count;
+        if (ni % 3)
+          return km__fail(err, KM_ERR_PARSE, "%s: %s: %zu indices is not a multiple of 3", d->name,
+                          what, ni);
+        if (pass == 0) {
+          nv += pos.count;
+          nf += ni / 3;
+          any_n |= hn;
+          any_t |= ht;
+          if (nv > INT32_MAX) break;
+          continue;
+        }
+        for (size_t i = 0; i < pos.count; ++i) {
+          double p[3], n[3] = {0, 0, 0};
+          for (int c = 0; c < 3; ++c) {
+            p[c] = comp(&pos, i, c);
+            if (hn) n[c] = comp(&nrm, i, c);
+            if (ht && c < 2) {
+              double t = comp(&tex, i, c);
+              out->UV[2 * (v0 + i) + c] = c ? 1 - t : t;
+            }
+          }
+          double nl = 0;
+          for (int r = 0; r < 3; ++r) {
+            double x = M[12 + r];
+            for (int c = 0; c < 3; ++c)
+              x += M[c * 4 + r] * p[c];
+            if (!isfinite(x))
+              return km__fail(err, KM_ERR_PARSE, "%s: %s: POSITION %zu is not finite", d->name,
+                              what, i);
+            out->V[3 * (v0 + i) + r] = x;
+            if (hn) {
+              double y = C[r * 3] * n[0] + C[r * 3 + 1] * n[1] + C[r * 3 + 2] * n[2];
+              out->N[3 * (v0 + i) + r] = y;
+              nl += y * y;
+            }
+          }
+          if (hn && nl > 0 && isfinite(nl) && fabs(nl - 1) > 1e-12) /* renormalise if scaled */
+            for (int r = 0; r < 3; ++r)
+              out->N[3 * (v0 + i) + r] /= sqrt(nl);
+        }
+        for (size_t k = 0; k < ni; ++k) {
+          double ix = hi ? comp(&idx, k, 0) : (double)k;
+          if (!(ix < (double)pos.count))
+            return km__fail(err, KM_ERR_PARSE,
+                            "%s: %s: index %zu is %.0f, outside the primitive's %zu vertices",
+                            d->name, what, k, ix, pos.count);
+          out->F[3 * f0 + k] = (int32_t)(v0 + (size_t)ix);
+        }
+        if (det < 0) /* a mirror: keep the outward winding */
+          for (size_t t = 0; t < ni / 3; ++t) {
+            int32_t *f = out->F + 3 * (f0 + t);
+            int32_t tmp = f[1];
+            f[1] = f[2];
+            f[2] = tmp;
+          }
+        v0 += pos.count;
+        f0 += ni / 3;
+      }
+    }
+  }
+  if (nv == 0) return km__fail(err, KM_ERR_PARSE, "%s: the meshes have no vertices", d->name);
+  return KM_OK;
+nomem:
+  return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+}
+
+km_status km__gltf_parse(const char *data, size_t size, const char *name, const char *base_path,
+                         km_mesh *out, km_error *err) {
+  gltf_doc d = {0};
+  d.name = name;
+  d.base_path = base_path;
+  const unsigned char *u = (const unsigned char *)data;
+  if (size >= 4 && !memcmp(data, "glTF", 4)) {
+    if (size < 20 || rd32(u + 4) != 2)
+      return km__fail(err, KM_ERR_PARSE, "%s: expected a glTF 2.0 binary header", name);
+    size_t total = rd32(u + 8), jl = rd32(u + 12);
+    if (total > size || total < 20 || rd32(u + 16) != 0x4E4F534Au || jl > total - 20)
+      return km__fail(err, KM_ERR_PARSE,
+                      "%s: byte 12: the JSON chunk (%zu bytes) does not fit the %zu-byte file",
+                      name, jl, size);
+    km_status s = parse_json(data + 20, jl, name, 20, &d.json, err);
+    if (s) return s;
+    size_t bo = 20 + jl;
+    if (bo + 8 <= total && rd32(u + bo + 4) == 0x004E4942u) {
+      size_t bl = rd32(u + bo);
+      if (bl > total - bo - 8) {
+        cJSON_Delete(d.json);
+        return km__fail(err, KM_ERR_PARSE, "%s: byte %zu: the BIN chunk is truncated", name, bo);
+      }
+      d.bin = u + bo + 8;
+      d.bin_len = bl;
+    }
+  } else {
+    km_status s = parse_json(data, size, name, 0, &d.json, err);
+    if (s) return s;
+  }
+  km_status s = parse_doc(&d, out, err);
+  if (s) km_mesh_free(out);
+  for (int i = 0; i < d.n_bufs && d.bufs; ++i)
+    free(d.bufs[i]);
+  free(d.bufs);
+  free(d.buf_len);
+  cJSON_Delete(d.json);
+  return s;
+}

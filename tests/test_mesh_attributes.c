@@ -1,0 +1,401 @@
+/* Texture coordinates and normals (issue 11): read from OBJ (vt/vn through the faces' v/vt/vn
+ * references, vertex order and count kept) and PLY (u v / s t / texture_u texture_v, nx ny
+ * nz), kept by copy, written back by km_mesh_write, `convert`, OBJ/PLY frame directories and
+ * .glb (TEXCOORD_0, NORMAL, NORMAL morph targets), and read back intact. Also: `-o` creates
+ * missing parent folders, and the puppetry cache goes to $XDG_CACHE_HOME, not beside the
+ * input. */
+#include "km_test.h"
+
+#include "core/core.h"
+
+#include <cjson/cJSON.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* A quad split in two, with a texture seam at vertex 0 (two vt), normals, a comment, vt
+ * before v and a negative reference. */
+static const char k_obj[] = "# textured quad\n"
+                            "vt 0.25 0.5\n"
+                            "v 0 0 0\n"
+                            "v 1 0 0\n"
+                            "v 1 1 0\n"
+                            "v 0 1 0\n"
+                            "vt 1 0\n"
+                            "vt 1 1\n"
+                            "vt 0 1\n"
+                            "vt 0.75 0.125\n"
+                            "vn 0 0 1\n"
+                            "f 1/1/1 2/2/1 3/3/1\n"
+                            "f 1/-1/1 3/3/1 4/4/1\n";
+
+static void test_obj_read(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_parse(k_obj, sizeof k_obj - 1, KM_FORMAT_OBJ, "quad.obj", &m, KM_E));
+  CHECK(m.n_vertices == 4 && m.n_faces == 2);
+  CHECK(m.UV != NULL && m.N != NULL);
+  if (m.UV && m.N && m.n_vertices == 4) {
+    /* vertex 0: the first reference (vt 1) wins over the seam's second (vt 5) */
+    const double want[8] = {0.25, 0.5, 1, 0, 1, 1, 0, 1};
+    for (int i = 0; i < 8; ++i)
+      CHECK_NEAR(m.UV[i], want[i], 0);
+    for (int i = 0; i < 4; ++i)
+      CHECK(m.N[3 * i] == 0 && m.N[3 * i + 1] == 0 && m.N[3 * i + 2] == 1);
+  }
+  km_mesh c = {0};
+  CHECK_OK(km_mesh_copy(&m, &c, KM_E));
+  CHECK(c.UV && c.N && c.UV != m.UV && memcmp(c.UV, m.UV, 8 * sizeof(double)) == 0);
+  km_mesh_free(&c);
+  CHECK(c.UV == NULL && c.N == NULL);
+
+  /* Writers: OBJ, PLY ascii / binary LE / BE read back bit for bit; OFF drops them. */
+  const char *paths[] = {"attr_t/a.obj", "attr_t/a_ascii.ply", "attr_t/a_le.ply",
+                         "attr_t/a_be.ply"};
+  km_ply_encoding enc[] = {0, KM_PLY_ASCII, KM_PLY_BINARY_LE, KM_PLY_BINARY_BE};
+  km_test_run("rm -rf attr_t", NULL);
+  for (int k = 0; k < 4; ++k) {
+    km_mesh_write_options wo = {0};
+    wo.ply = enc[k];
+    /* attr_t/ does not exist: the writer creates it */
+    CHECK_OK(km_mesh_write(paths[k], &m, &wo, KM_E));
+    km_mesh r = {0};
+    CHECK_OK(km_mesh_read(paths[k], &r, KM_E));
+    CHECK_MSG(r.n_vertices == 4 && r.UV && r.N, "%s", paths[k]);
+    if (r.UV && r.N && r.n_vertices == 4) {
+      CHECK_MSG(memcmp(r.UV, m.UV, 8 * sizeof(double)) == 0, "%s: UV", paths[k]);
+      CHECK_MSG(memcmp(r.N, m.N, 12 * sizeof(double)) == 0, "%s: N", paths[k]);
+      CHECK(memcmp(r.V, m.V, 12 * sizeof(double)) == 0);
+    }
+    km_mesh_free(&r);
+  }
+  km_mesh_free(&m);
+
+  /* Without vt lines, i/t references are ignored as before; with them, out of range fails. */
+  static const char plain[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1 2/2 3/3\n";
+  CHECK_OK(km_mesh_parse(plain, sizeof plain - 1, KM_FORMAT_OBJ, "p.obj", &m, KM_E));
+  CHECK(m.UV == NULL && m.N == NULL && m.n_faces == 1);
+  km_mesh_free(&m);
+  static const char bad[] = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/7 3/1\n";
+  CHECK_STATUS(km_mesh_parse(bad, sizeof bad - 1, KM_FORMAT_OBJ, "b.obj", &m, KM_E), KM_ERR_PARSE);
+  CHECK_MSG(strstr(km_test_err.message, "b.obj:5") && strstr(km_test_err.message, "texture"), "%s",
+            km_test_err.message);
+}
+
+static void test_ply_names(void) {
+  /* s t and nx ny nz among other properties (a colour), ascii */
+  static const char ply[] = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                            "property float y\nproperty float z\nproperty uchar red\n"
+                            "property float s\nproperty float t\nproperty float nx\n"
+                            "property float ny\nproperty float nz\n"
+                            "element face 1\nproperty list uchar int vertex_indices\n"
+                            "end_header\n"
+                            "0 0 0 9 0.5 0.25 0 0 1\n1 0 0 9 1 0 0 0 1\n0 1 0 9 0 1 0 0 1\n"
+                            "3 0 1 2\n";
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_parse(ply, sizeof ply - 1, KM_FORMAT_PLY, "st.ply", &m, KM_E));
+  CHECK(m.UV && m.N && m.n_vertices == 3);
+  if (m.UV && m.N) {
+    CHECK(m.UV[0] == 0.5 && m.UV[1] == 0.25 && m.UV[2] == 1 && m.UV[5] == 1);
+    CHECK(m.N[2] == 1 && m.N[8] == 1);
+  }
+  km_mesh_free(&m);
+}
+
+/* ---- glb read back */
+
+static uint32_t u32(const unsigned char *b) {
+  return (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
+}
+
+/* Float data of the accessor named by attribute `attr` of the first primitive (target < 0)
+ * or of its morph target `target`; NULL when absent. */
+static const unsigned char *glb_attr(const char *data, size_t size, const char *attr, int target,
+                                     size_t *count, cJSON **json_out) {
+  if (size < 28) return NULL;
+  const unsigned char *d = (const unsigned char *)data;
+  uint32_t jl = u32(d + 12);
+  if (20 + (size_t)jl + 8 > size) return NULL;
+  cJSON *j = cJSON_ParseWithLength(data + 20, jl);
+  *json_out = j;
+  const unsigned char *bin = d + 20 + jl + 8;
+  size_t bin_len = u32(d + 20 + jl);
+  cJSON *prim = cJSON_GetArrayItem(
+      cJSON_GetObjectItem(cJSON_GetArrayItem(cJSON_GetObjectItem(j, "meshes"), 0), "primitives"),
+      0);
+  cJSON *attrs = target < 0 ? cJSON_GetObjectItem(prim, "attributes")
+                            : cJSON_GetArrayItem(cJSON_GetObjectItem(prim, "targets"), target);
+  cJSON *a = cJSON_GetObjectItem(attrs, attr);
+  if (!cJSON_IsNumber(a)) return NULL;
+  cJSON *acc = cJSON_GetArrayItem(cJSON_GetObjectItem(j, "accessors"), a->valueint);
+  cJSON *bv = cJSON_GetArrayItem(cJSON_GetObjectItem(j, "bufferViews"),
+                                 cJSON_GetObjectItem(acc, "bufferView")->valueint);
+  size_t off = (size_t)cJSON_GetObjectItem(bv, "byteOffset")->valuedouble;
+  size_t len = (size_t)cJSON_GetObjectItem(bv, "byteLength")->valuedouble;
+  *count = (size_t)cJSON_GetObjectItem(acc, "count")->valuedouble;
+  if (off + len > bin_len) return NULL;
+  return bin + off;
+}
+
+static float f32(const unsigned char *p) {
+  uint32_t u = u32(p);
+  float f;
+  memcpy(&f, &u, 4);
+  return f;
+}
+
+/* A generated character given UVs (a cylindrical projection) goes through convert, animate
+ * to .glb and to OBJ and PLY frames; the UVs come back intact everywhere, normals are unit
+ * and follow the frame. */
+static void test_cli_textured(void) {
+  char *out = NULL;
+  CHECK(km_test_run("rm -rf attr_c attr_cache && mkdir attr_c", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2500 -o attr_c/c.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen motion --kind wave --frames 8 --character attr_c/c.obj -o "
+                           "attr_c/w.json",
+                    NULL) == 0);
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_read("attr_c/c.obj", &m, KM_E));
+  if (!m.n_vertices) return;
+  m.UV = malloc(m.n_vertices * 2 * sizeof(double));
+  for (size_t i = 0; i < m.n_vertices; ++i) {
+    m.UV[2 * i] = 0.5 + atan2(m.V[3 * i + 2], m.V[3 * i]) / (2 * M_PI);
+    m.UV[2 * i + 1] = m.V[3 * i + 1] / 2;
+  }
+  CHECK_OK(km_mesh_write("attr_c/t.obj", &m, NULL, KM_E));
+  CHECK(km_test_run("cp attr_c/c.rig.json attr_c/t.rig.json", NULL) == 0);
+
+  /* convert into a folder that does not exist yet */
+  CHECK(km_test_run(KM_CLI " convert attr_c/t.obj attr_c/new/deeper/t.ply", &out) == 0);
+  free(out);
+  km_mesh r = {0};
+  CHECK_OK(km_mesh_read("attr_c/new/deeper/t.ply", &r, KM_E));
+  CHECK(r.UV && r.n_vertices == m.n_vertices &&
+        memcmp(r.UV, m.UV, m.n_vertices * 2 * sizeof(double)) == 0);
+  km_mesh_free(&r);
+
+  /* animate with the cache in a private XDG cache folder: nothing lands beside the mesh */
+  const char *env = "XDG_CACHE_HOME=\"$PWD/attr_cache\" ";
+  char cmd[2048];
+  const char *outs[] = {"attr_c/out/t.glb", "attr_c/out/frames_obj", "attr_c/out/frames_ply"};
+  const char *fmt[] = {"", "", " --frame-format ply"};
+  for (int k = 0; k < 3; ++k) {
+    snprintf(cmd, sizeof cmd,
+             "%s" KM_CLI " animate --mesh attr_c/t.obj --motion attr_c/w.json%s -o %s", env, fmt[k],
+             outs[k]);
+    CHECK_MSG(km_test_run(cmd, &out) == 0, "%s: %s", cmd, out ? out : "");
+    free(out);
+  }
+  CHECK(access("attr_c/t.obj.kmcache", F_OK) != 0);
+  CHECK(km_test_run("ls attr_cache/kinemesh/*.kmcache", NULL) == 0);
+
+  /* frames: UVs exact, normals unit */
+  const char *frames[] = {"attr_c/out/frames_obj/frame_000007.obj",
+                          "attr_c/out/frames_ply/frame_000007.ply"};
+  for (int k = 0; k < 2; ++k) {
+    CHECK_OK(km_mesh_read(frames[k], &r, KM_E));
+    CHECK_MSG(r.UV && r.N && r.n_vertices == m.n_vertices, "%s", frames[k]);
+    if (r.UV && r.N && r.n_vertices == m.n_vertices) {
+      CHECK_MSG(memcmp(r.UV, m.UV, m.n_vertices * 2 * sizeof(double)) == 0, "%s UV", frames[k]);
+      double worst = 0;
+      for (size_t i = 0; i < r.n_vertices; ++i) {
+        double *n = r.N + 3 * i;
+        worst = fmax(worst, fabs(sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) - 1));
+      }
+      CHECK_MSG(worst < 1e-6, "%s: normal length off by %g", frames[k], worst);
+      /* recomputed for the frame: the same as the frame's own normals */
+      double *N = malloc(r.n_vertices * 3 * sizeof(double));
+      CHECK_OK(km_vertex_normals(&r, KM_NORMALS_AREA, N, KM_E));
+      double dev = 0;
+      for (size_t i = 0; i < r.n_vertices * 3; ++i)
+        dev = fmax(dev, fabs(N[i] - r.N[i]));
+      CHECK_MSG(dev < 1e-6, "%s: normals differ from the frame's by %g", frames[k], dev);
+      free(N);
+    }
+    km_mesh_free(&r);
+  }
+
+  /* glb: TEXCOORD_0 = (u, 1 - v) as float, NORMAL unit, morph targets carry NORMAL */
+  char *data = NULL;
+  size_t size = 0, count = 0;
+  CHECK_OK(km__read_file("attr_c/out/t.glb", &data, &size, KM_E));
+  cJSON *j = NULL;
+  const unsigned char *uv = data ? glb_attr(data, size, "TEXCOORD_0", -1, &count, &j) : NULL;
+  CHECK(uv && count == m.n_vertices);
+  if (uv && count == m.n_vertices) {
+    double dev = 0;
+    for (size_t i = 0; i < count; ++i) {
+      dev = fmax(dev, fabs(f32(uv + 8 * i) - (float)m.UV[2 * i]));
+      dev = fmax(dev, fabs(f32(uv + 8 * i + 4) - (float)(1 - m.UV[2 * i + 1])));
+    }
+    CHECK_MSG(dev == 0, "glb TEXCOORD_0 differs by %g", dev);
+  }
+  cJSON_Delete(j);
+  j = NULL;
+  CHECK(data && glb_attr(data, size, "NORMAL", -1, &count, &j) && count == m.n_vertices);
+  cJSON_Delete(j);
+  j = NULL;
+  CHECK(data && glb_attr(data, size, "NORMAL", 3, &count, &j) && count == m.n_vertices);
+  cJSON_Delete(j);
+  free(data);
+
+  /* the .glb read back as a mesh (glTF in): positions, UVs (v flipped back) and normals */
+  CHECK_OK(km_mesh_read("attr_c/out/t.glb", &r, KM_E));
+  CHECK(r.n_vertices == m.n_vertices && r.n_faces == m.n_faces && r.UV && r.N);
+  if (r.UV && r.n_vertices == m.n_vertices && r.n_faces == m.n_faces) {
+    double dv = 0, dt = 0;
+    for (size_t i = 0; i < m.n_vertices * 3; ++i)
+      dv = fmax(dv, fabs(r.V[i] - (double)(float)m.V[i]));
+    for (size_t i = 0; i < m.n_vertices * 2; ++i)
+      dt = fmax(dt, fabs(r.UV[i] - m.UV[i]));
+    CHECK_MSG(dv == 0 && dt < 1e-6, "glb as a mesh: positions %g, uv %g", dv, dt);
+    CHECK(memcmp(r.F, m.F, m.n_faces * 3 * sizeof(int32_t)) == 0);
+  }
+  km_mesh_free(&r);
+
+  /* a second run loads the cache from the XDG folder */
+  snprintf(cmd, sizeof cmd,
+           "%s" KM_CLI " animate --mesh attr_c/t.obj --motion attr_c/w.json -o attr_c/out/u.pc2",
+           env);
+  CHECK(km_test_run(cmd, &out) == 0);
+  CHECK_MSG(out && strstr(out, "cache loaded"), "%s", out ? out : "");
+  free(out);
+  km_mesh_free(&m);
+  km_test_run("rm -rf attr_c attr_cache attr_t", NULL);
+}
+
+/* A hand-written .gltf: two meshes (two primitives and one), an embedded base64 buffer,
+ * uint16 indices, a primitive without indices; merged in file order. Every truncated prefix
+ * of a .glb is an error, never a crash. */
+static void test_gltf_in(void) {
+  /* buffer: 4 positions (float VEC3, 48 bytes), uint16 indices 0 1 2 0 2 3 (12 bytes) */
+  unsigned char buf[60];
+  const float P[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  memcpy(buf, P, 48);
+  const uint16_t I[6] = {0, 1, 2, 0, 2, 3};
+  memcpy(buf + 48, I, 12);
+  static const char b64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  char enc[128];
+  size_t o = 0;
+  for (size_t i = 0; i < 60; i += 3) {
+    uint32_t v = (uint32_t)buf[i] << 16 | (uint32_t)buf[i + 1] << 8 | buf[i + 2];
+    for (int k = 3; k >= 0; --k)
+      enc[o++] = b64[(v >> (6 * k)) & 63];
+  }
+  enc[o] = 0;
+  char json[2048];
+  snprintf(json, sizeof json,
+           "{\"asset\":{\"version\":\"2.0\"},"
+           "\"buffers\":[{\"byteLength\":60,\"uri\":\"data:application/octet-stream;base64,%s\"}],"
+           "\"bufferViews\":[{\"buffer\":0,\"byteLength\":48},"
+           "{\"buffer\":0,\"byteOffset\":48,\"byteLength\":12}],"
+           "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":4,\"type\":\"VEC3\"},"
+           "{\"bufferView\":1,\"componentType\":5123,\"count\":6,\"type\":\"SCALAR\"},"
+           "{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"}],"
+           "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1},"
+           "{\"attributes\":{\"POSITION\":2}}]},"
+           "{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1,\"mode\":4}]}]}",
+           enc);
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_parse(json, strlen(json), KM_FORMAT_GLTF, "hand.gltf", &m, KM_E));
+  CHECK(m.n_vertices == 11 && m.n_faces == 5 && !m.UV && !m.N);
+  if (m.n_vertices == 11 && m.n_faces == 5) {
+    CHECK(m.F[6] == 4 && m.F[7] == 5 && m.F[8] == 6);                    /* unindexed, after 4 */
+    CHECK(m.F[9] == 7 && m.F[10] == 8 && m.F[11] == 9 && m.F[14] == 10); /* second mesh */
+    CHECK(m.V[3 * 8] == 1 && m.V[3 * 8 + 1] == 0 && m.V[3 * 9 + 1] == 1);
+  }
+  km_mesh_free(&m);
+  /* nodes: only mesh 1, placed by a child (translation) of a rotated, scaled parent (TRS,
+   * composed down the hierarchy); then mirrored, which flips the winding */
+  char *tail = strrchr(json, '}');
+  if (tail) {
+    char nodes[4096];
+    snprintf(nodes, sizeof nodes,
+             "%.*s,\"nodes\":[{\"children\":[1],\"rotation\":[0.70710678118654757,0,0,"
+             "0.70710678118654757],\"scale\":[2,2,2]},{\"mesh\":1,\"translation\":[0,0,1]}],"
+             "\"scenes\":[{\"nodes\":[0]}],\"scene\":0}",
+             (int)(tail - json), json);
+    CHECK_OK(km_mesh_parse(nodes, strlen(nodes), KM_FORMAT_GLTF, "nodes.gltf", &m, KM_E));
+    CHECK(m.n_vertices == 4 && m.n_faces == 2);
+    if (m.n_vertices == 4) {
+      const double want[12] = {0, -2, 0, 2, -2, 0, 2, -2, 2, 0, -2, 2};
+      double dev = 0;
+      for (int i = 0; i < 12; ++i)
+        dev = fmax(dev, fabs(m.V[i] - want[i]));
+      CHECK_MSG(dev < 1e-12, "node transforms: deviation %g", dev);
+      CHECK(m.F[0] == 0 && m.F[1] == 1 && m.F[2] == 2);
+    }
+    km_mesh_free(&m);
+    snprintf(nodes, sizeof nodes,
+             "%.*s,\"nodes\":[{\"children\":[1],\"scale\":[-1,1,1]},{\"mesh\":1}],"
+             "\"scenes\":[{\"nodes\":[0]}]}",
+             (int)(tail - json), json);
+    CHECK_OK(km_mesh_parse(nodes, strlen(nodes), KM_FORMAT_GLTF, "mirror.gltf", &m, KM_E));
+    CHECK(m.n_faces == 2 && m.F[0] == 0 && m.F[1] == 2 && m.F[2] == 1 && m.V[3] == -1);
+    km_mesh_free(&m);
+  }
+  /* tests/data/quad.gltf: NORMAL and TEXCOORD_0 (glTF's top-left v turned to OBJ's) */
+  CHECK_OK(km_mesh_read(KM_TEST_DATA "/quad.gltf", &m, KM_E));
+  CHECK(m.n_vertices == 4 && m.n_faces == 2 && m.UV && m.N);
+  if (m.UV && m.N && m.n_vertices == 4) {
+    const double uv[8] = {0, 0, 1, 0, 1, 1, 0, 1};
+    for (int i = 0; i < 8; ++i)
+      CHECK(m.UV[i] == uv[i]);
+    CHECK(m.N[2] == 1 && m.N[11] == 1 && m.F[3] == 0 && m.F[5] == 3);
+  }
+  km_mesh_free(&m);
+  /* bad files: clear errors */
+  char bad[2048];
+  snprintf(bad, sizeof bad, "%s", json);
+  char *mode = strstr(bad, "\"mode\":4");
+  if (mode) mode[7] = '1';
+  CHECK_STATUS(km_mesh_parse(bad, strlen(bad), KM_FORMAT_GLTF, "lines.gltf", &m, KM_E),
+               KM_ERR_UNSUPPORTED);
+  CHECK_MSG(strstr(km_test_err.message, "meshes[1].primitives[0]") &&
+                strstr(km_test_err.message, "triangles"),
+            "%s", km_test_err.message);
+  snprintf(bad, sizeof bad, "%s", json);
+  char *cnt = strstr(bad, "\"count\":6");
+  if (cnt) cnt[8] = '9';
+  CHECK_STATUS(km_mesh_parse(bad, strlen(bad), KM_FORMAT_GLTF, "short.gltf", &m, KM_E),
+               KM_ERR_PARSE);
+  CHECK_MSG(strstr(km_test_err.message, "does not fit"), "%s", km_test_err.message);
+
+  /* every prefix of a kinemesh .glb: an error or (the whole file) a mesh */
+  CHECK(km_test_run("rm -rf attr_g && mkdir attr_g", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2000 -o attr_g/c.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen motion --kind wave --frames 3 --character attr_g/c.obj -o "
+                           "attr_g/w.json",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " pose --mesh attr_g/c.obj --motion attr_g/w.json -o attr_g/p.glb",
+                    NULL) == 0);
+  char *data = NULL;
+  size_t size = 0;
+  CHECK_OK(km__read_file("attr_g/p.glb", &data, &size, KM_E));
+  size_t bad_prefixes = 0;
+  for (size_t n = 0; data && n < size; n += 1 + n / 64)
+    if (km_mesh_parse(data, n, KM_FORMAT_GLTF, "p.glb", &m, KM_E) == KM_OK) {
+      ++bad_prefixes;
+      km_mesh_free(&m);
+    }
+  CHECK_MSG(bad_prefixes == 0, "%zu truncated prefixes parsed", bad_prefixes);
+  CHECK(data && km_mesh_parse(data, size, KM_FORMAT_GLTF, "p.glb", &m, KM_E) == KM_OK);
+  km_mesh_free(&m);
+  free(data);
+  /* ... and every verb that reads a mesh reads it: convert to OBJ, same vertex count */
+  CHECK(km_test_run(KM_CLI " convert attr_g/p.glb attr_g/p.obj", NULL) == 0);
+  km_mesh a = {0}, b = {0};
+  CHECK_OK(km_mesh_read("attr_g/c.obj", &a, KM_E));
+  CHECK_OK(km_mesh_read("attr_g/p.obj", &b, KM_E));
+  CHECK(a.n_vertices == b.n_vertices && a.n_faces == b.n_faces && a.n_faces &&
+        memcmp(a.F, b.F, a.n_faces * 3 * sizeof(int32_t)) == 0);
+  km_mesh_free(&a);
+  km_mesh_free(&b);
+  km_test_run("rm -rf attr_g", NULL);
+}
+
+int main(void) {
+  test_gltf_in();
+  test_obj_read();
+  test_ply_names();
+  test_cli_textured();
+  return km_test_finish("test_mesh_attributes");
+}
