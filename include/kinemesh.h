@@ -825,8 +825,13 @@ typedef struct km_glitch km_glitch;
  * Errors: KM_ERR_INVALID for bad options or parents. */
 km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_glitch_options *opt,
                            km_glitch **out, km_error *err);
-/* One frame: raw #J*3 in, clean #J*3 out (rejected joints NaN); clean may alias raw. */
+/* One frame: raw #J*3 in, clean #J*3 out (rejected joints NaN); clean may alias raw. Frames
+ * are taken as 1/fps apart. */
 void km_glitch_push(km_glitch *g, const double *raw, double *clean);
+/* Same for a frame received at time t (seconds, any origin; NaN: untimed): the speed test
+ * allows for the time since a joint's last accepted sample when that is longer than its
+ * frame count says (frames dropped or a silent tracker). */
+void km_glitch_push_at(km_glitch *g, const double *raw, double t, double *clean);
 /* Counts since create / reset. */
 void km_glitch_stats_get(const km_glitch *g, km_glitch_stats *out);
 /* Forgets history and counts. */
@@ -1316,6 +1321,10 @@ km_status km_puppetry_set_rig(km_puppetry *p, const km_rig *rig, km_error *err);
  * missing); V_out #V*3 deformed positions. Does not allocate.
  * KM_ERR_INVALID when no rig is set; solver errors as km_puppet_solve / km_arap_solve. */
 km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, km_error *err);
+/* Same for a frame received at time t (seconds, any origin, NaN: untimed), which the glitch
+ * rejector's speed test uses (km_glitch_push_at): for live input, where frames are dropped. */
+km_status km_puppetry_push_at(km_puppetry *p, const double *joints, double t, double *V_out,
+                              km_error *err);
 /* Forgets the filter history, the retarget's reference pose and auto scale, the first valid
  * joints and the newest frame, and the reduced solver's warm start (the full solver keeps
  * its warm start). */

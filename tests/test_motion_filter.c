@@ -326,6 +326,23 @@ static void test_glitch(void) {
   CHECK(!isnan(y[0]) && !isnan(y[3]));
   km_glitch_free(&g);
   CHECK(g == NULL);
+
+  /* Timed frames (live input): a 0.6 m move refused one frame (1/30 s) after the last
+   * accepted sample is accepted when the frame comes 0.5 s later (a silent tracker, or
+   * frames the server dropped), and an untimed frame still counts as one frame. */
+  CHECK_OK(km_glitch_create(1, NULL, &o, &g, KM_E));
+  double p[3] = {0, 1, 0}, q[3];
+  km_glitch_push_at(g, p, 10.0, q);
+  CHECK(!isnan(q[0]));
+  p[0] += 0.6;
+  km_glitch_push_at(g, p, 10.0 + 1.0 / 30, q);
+  CHECK(isnan(q[0]));
+  km_glitch_push_at(g, p, 10.5, q);
+  CHECK(!isnan(q[0]) && q[0] == p[0]);
+  p[0] += 0.6;
+  km_glitch_push(g, p, q);
+  CHECK(isnan(q[0]));
+  km_glitch_free(&g);
 }
 
 int main(void) {

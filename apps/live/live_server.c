@@ -560,7 +560,7 @@ static void *deform_main(void *arg) {
     if (reset) km_puppetry_reset(l->pipe);
     if (!have) continue;
     km_error err = {0};
-    if (km_puppetry_push(l->pipe, raw, l->V, &err) != KM_OK) {
+    if (km_puppetry_push_at(l->pipe, raw, t_recv, l->V, &err) != KM_OK) {
       atomic_fetch_add(&l->solve_errors, 1);
       continue;
     }

@@ -23,6 +23,7 @@ typedef struct glitch_joint {
   double last[3];  /* last accepted sample */
   bool has_last;
   int since;       /* frames since the last accepted sample (1 = the previous frame) */
+  double t_last;   /* time of the last accepted sample (seconds; NaN: frames are not timed) */
   int hold;        /* refound: frames still to treat as missing */
   bool was_missing;
   double len[KM_GLITCH_WINDOW]; /* accepted bone lengths to the parent */
@@ -33,6 +34,7 @@ struct km_glitch {
   size_t n;
   int32_t *parents; /* n, -1: root or no bone test */
   double step;      /* max_speed / fps: metres per frame; <= 0: off */
+  double fps;       /* frames per second the step is for */
   double tol, slack;
   int refound;
   glitch_joint *j;
@@ -76,6 +78,7 @@ km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_gli
   for (size_t k = 0; k < n_joints; ++k)
     g->parents[k] = parents && tol > 0 ? parents[k] : -1;
   g->step = speed > 0 ? speed / fps : 0;
+  g->fps = fps;
   g->tol = tol;
   g->slack = slack;
   g->refound = o.refound_frames == 0 ? 1 : (o.refound_frames < 0 ? 0 : o.refound_frames);
@@ -103,6 +106,10 @@ static double dist3(const double *a, const double *b) {
 }
 
 void km_glitch_push(km_glitch *g, const double *raw, double *clean) {
+  km_glitch_push_at(g, raw, NAN, clean);
+}
+
+void km_glitch_push_at(km_glitch *g, const double *raw, double t, double *clean) {
   ++g->stats.frames;
   for (size_t k = 0; k < g->n; ++k) {
     glitch_joint *s = &g->j[k];
@@ -122,7 +129,13 @@ void km_glitch_push(km_glitch *g, const double *raw, double *clean) {
       ++g->stats.refound;
       continue;
     }
-    if (s->has_last && g->step > 0 && dist3(x, s->last) > g->step * s->since) {
+    /* The allowance grows with the frames since the last accepted sample, or with the time
+     * since then when frames are timed: a live server that keeps only the newest of several
+     * frames, or a tracker that went silent, must not make a real move look too fast. */
+    double frames = s->since;
+    if (isfinite(t) && isfinite(s->t_last) && t - s->t_last > 0)
+      frames = fmax(frames, (t - s->t_last) * g->fps);
+    if (s->has_last && g->step > 0 && dist3(x, s->last) > g->step * frames) {
       ++g->stats.speed;
       continue;
     }
@@ -144,6 +157,7 @@ void km_glitch_push(km_glitch *g, const double *raw, double *clean) {
     memcpy(s->last, x, sizeof s->last);
     s->has_last = true;
     s->since = 0;
+    s->t_last = t;
   }
   for (size_t k = 0; k < g->n; ++k) {
     if (!g->ok[k] && isfinite(raw[3 * k]) && isfinite(raw[3 * k + 1]) && isfinite(raw[3 * k + 2]))

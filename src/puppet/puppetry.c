@@ -356,6 +356,11 @@ km_status km_puppetry_set_rig(km_puppetry *p, const km_rig *rig, km_error *err) 
 }
 
 km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, km_error *err) {
+  return km_puppetry_push_at(p, joints, NAN, V_out, err);
+}
+
+km_status km_puppetry_push_at(km_puppetry *p, const double *joints, double t, double *V_out,
+                              km_error *err) {
   if (!p->filter) return km__fail(err, KM_ERR_INVALID, "km_puppetry_push: no rig set");
   double t0 = km_seconds();
   if (p->col) {
@@ -367,7 +372,7 @@ km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, 
   }
   p->have_last = true;
   if (p->glitch) {
-    km_glitch_push(p->glitch, p->last, p->filt); /* filt as scratch: the filter may alias */
+    km_glitch_push_at(p->glitch, p->last, t, p->filt); /* filt as scratch: the filter may alias */
     km_filter_push(p->filter, p->filt, p->filt);
   } else {
     km_filter_push(p->filter, p->last, p->filt);
