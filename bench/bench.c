@@ -42,7 +42,7 @@ int km_bench(int argc, char **argv) {
              "       kinemesh bench transfer [--source S --template T [--truth X] [--db DB]]\n"
              "       kinemesh bench reconstruct [--frames 300] [--report R.json] [--plot P.png]\n"
              "       kinemesh bench rig [MESH ...] [--repeat 3] [--json]\n"
-             "       kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames 90] [--json]\n"
+             "       kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames 300] [--json]\n"
              "(kinemesh bench <what> --help for options)\n");
   return f == stdout ? KM_EXIT_OK : KM_EXIT_USAGE;
 }

@@ -32,6 +32,7 @@ typedef struct bm_args {
   const char *data;
   size_t frames;
   bool json, floor;
+  int32_t relative_to; /* 1 + a Kinect joint subtracted from every map entry; 0: as rigged */
   char machine[320];
 } bm_args;
 
@@ -186,7 +187,7 @@ static void print_skip(const bm_args *a, const char *take, const char *mesh, con
     if (s) puts(s);
     free(s);
   } else {
-    printf("%-18.18s %-14.14s skipped: %s\n", take, mesh, why);
+    printf("%-18.18s %-16.16s skipped: %s\n", take, mesh, why);
   }
   fflush(stdout);
 }
@@ -401,8 +402,10 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
     bm_metrics r[2];
     bool ok = true;
     for (int v = 0; v < 2 && ok; ++v) {
-      for (size_t e = 0; e < rig.n_maps; ++e)
+      for (size_t e = 0; e < rig.n_maps; ++e) {
         rig.maps[e].rotate = v == 1;
+        if (a->relative_to) rig.maps[e].relative_to = a->relative_to;
+      }
       rig.floor = a->floor;
       if (run_variant(&m, &g, &rig, model, &t, nf, &r[v], &te) != KM_OK) {
         snprintf(why, sizeof why, "%.500s", te.message);
@@ -424,6 +427,8 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       cJSON_AddNumberToObject(o, "frames", (double)nf);
       cJSON_AddNumberToObject(o, "fps", t.fps);
       cJSON_AddBoolToObject(o, "floor", a->floor);
+      cJSON_AddStringToObject(o, "relative_to",
+                              a->relative_to ? km_kinect1_joint_name(a->relative_to - 1) : "");
       km_cli_json_number(o, "take_jump_max_pct", r[0].raw_jump_pct);
       cJSON_AddItemToObject(o, "translate", metrics_json(&r[0]));
       cJSON_AddItemToObject(o, "rotate", metrics_json(&r[1]));
@@ -432,7 +437,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       if (s) puts(s);
       free(s);
     } else {
-      printf("%-18.18s %-14.14s %7zu %5zu  %6.3f %6.3f  %5zu %5zu  %6.2f %6.2f %6.2f  %5zu %5zu  "
+      printf("%-18.18s %-16.16s %7zu %5zu  %6.3f %6.3f  %5zu %5zu  %6.2f %6.2f %6.2f  %5zu %5zu  "
              "%7.2f %7.2f\n",
              tname, mname, m.n_vertices, nf, r[0].stretch, r[1].stretch, r[0].folded,
              r[1].folded, r[0].raw_jump_pct, r[0].jump_pct, r[1].jump_pct, r[0].below, r[1].below,
@@ -500,8 +505,8 @@ static void split_list(const char *s, char ***list, size_t *n) {
 }
 
 int km_bench_motion(int argc, char **argv) {
-  const char *takes_opt = NULL, *meshes_opt = NULL;
-  bm_args a = {"../shared/data", 90, false, false, ""};
+  const char *takes_opt = NULL, *meshes_opt = NULL, *relative_opt = NULL;
+  bm_args a = {"../shared/data", 300, false, false, 0, ""};
   const km_cli_opt opts[] = {
       {"takes", 0, KM_OPT_STRING, &takes_opt,
        "comma list of motion files (Kinect CSV, BVH, take JSON) or walk, wave, kungfu "
@@ -510,7 +515,11 @@ int km_bench_motion(int argc, char **argv) {
        "comma list of mesh files, names in DATA/meshes, or character:N; default: armadillo, "
        "dog0, elephant, character:10000"},
       {"frames", 0, KM_OPT_SIZE, &a.frames,
-       "frames per take at most (default 90, about a minute on 2 cores; 0: all)"},
+       "frames per take at most (default 300: every frame of the shipped takes, well under "
+       "a minute on 2 cores; 0: all)"},
+      {"relative-to", 0, KM_OPT_STRING, &relative_opt,
+       "a Kinect joint (HipCenter) whose motion every map entry subtracts (root-relative "
+       "motion); default: the rig as km_autorig writes it (absolute)"},
       {"data", 0, KM_OPT_STRING, &a.data, "the data folder (default ../shared/data)"},
       {"floor", 0, KM_OPT_FLAG, &a.floor,
        "the rig's floor constraint on (no handle vertex below the rest floor)"},
@@ -520,7 +529,7 @@ int km_bench_motion(int argc, char **argv) {
   const char *pos[1];
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
-      "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames 90] [--json]",
+      "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames 300] [--json]",
       "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
       "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"
       "paper's, T) and rotating handles (R) side by side. Per row: edge stretch max\n"
@@ -529,6 +538,13 @@ int km_bench_motion(int argc, char **argv) {
       "with a vertex below the rest floor (by more than 0.5% of the diagonal) and the\n"
       "median per-frame time. BVH takes need Kinect v1 joint names; otherwise skipped.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (relative_opt) {
+    int j = km_kinect1_joint_index(relative_opt);
+    if (j < 0)
+      return km_cli_error("bench motion", "--relative-to %s: not a Kinect v1 joint (HipCenter, ...)",
+                          relative_opt);
+    a.relative_to = j + 1;
+  }
   km_bench_machine(a.machine, sizeof a.machine);
   char **takes = NULL, **meshes = NULL;
   size_t n_takes = 0, n_meshes = 0;
@@ -551,11 +567,13 @@ int km_bench_motion(int argc, char **argv) {
       printf("kinemesh bench motion — %s; km_autorig rigs, default glitch rejection and filter, "
              "takes at 30 fps, first %zu frames; T = translation-only handles (Wu, Lu & Song), "
              "R = rotating handles; jump 'take' = the mapped joints' own largest step (scaled); t = "
-             "median of per-frame push times%s\n",
-             a.machine, a.frames, a.floor ? "; floor constraint on" : "");
-      printf("%-18s %-14s %7s %5s  %13s  %11s  %20s  %11s  %15s\n", "", "", "", "",
+             "median of per-frame push times%s%s%s\n",
+             a.machine, a.frames, a.floor ? "; floor constraint on" : "",
+             a.relative_to ? "; motion relative to " : "",
+             a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
+      printf("%-18s %-16s %7s %5s  %13s  %11s  %20s  %11s  %15s\n", "", "", "", "",
              "stretch max", "folded", "jump %diag", "below floor", "t/frame (ms)");
-      printf("%-18s %-14s %7s %5s  %6s %6s  %5s %5s  %6s %6s %6s  %5s %5s  %7s %7s\n", "take",
+      printf("%-18s %-16s %7s %5s  %6s %6s  %5s %5s  %6s %6s %6s  %5s %5s  %7s %7s\n", "take",
              "mesh", "n_ver", "fr", "T", "R", "T", "R", "take", "T", "R", "T", "R", "T", "R");
     }
     fflush(stdout);
