@@ -439,9 +439,9 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
     } else {
       printf("%-18.18s %-16.16s %7zu %5zu  %6.3f %6.3f  %5zu %5zu  %6.2f %6.2f %6.2f  %5zu %5zu  "
              "%7.2f %7.2f\n",
-             tname, mname, m.n_vertices, nf, r[0].stretch, r[1].stretch, r[0].folded,
-             r[1].folded, r[0].raw_jump_pct, r[0].jump_pct, r[1].jump_pct, r[0].below, r[1].below,
-             r[0].tper_ms, r[1].tper_ms);
+             tname, mname, m.n_vertices, nf, r[0].stretch, r[1].stretch, r[0].folded, r[1].folded,
+             r[0].raw_jump_pct, r[0].jump_pct, r[1].jump_pct, r[0].below, r[1].below, r[0].tper_ms,
+             r[1].tper_ms);
     }
     fflush(stdout);
     km_take_free(&t);
@@ -541,8 +541,8 @@ int km_bench_motion(int argc, char **argv) {
   if (relative_opt) {
     int j = km_kinect1_joint_index(relative_opt);
     if (j < 0)
-      return km_cli_error("bench motion", "--relative-to %s: not a Kinect v1 joint (HipCenter, ...)",
-                          relative_opt);
+      return km_cli_error("bench motion",
+                          "--relative-to %s: not a Kinect v1 joint (HipCenter, ...)", relative_opt);
     a.relative_to = j + 1;
   }
   km_bench_machine(a.machine, sizeof a.machine);
@@ -564,15 +564,16 @@ int km_bench_motion(int argc, char **argv) {
     print_skip(&a, "*", "*", "no takes (none given, none found in the data folder)");
   } else {
     if (!a.json) {
-      printf("kinemesh bench motion — %s; km_autorig rigs, default glitch rejection and filter, "
-             "takes at 30 fps, first %zu frames; T = translation-only handles (Wu, Lu & Song), "
-             "R = rotating handles; jump 'take' = the mapped joints' own largest step (scaled); t = "
-             "median of per-frame push times%s%s%s\n",
-             a.machine, a.frames, a.floor ? "; floor constraint on" : "",
-             a.relative_to ? "; motion relative to " : "",
-             a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
-      printf("%-18s %-16s %7s %5s  %13s  %11s  %20s  %11s  %15s\n", "", "", "", "",
-             "stretch max", "folded", "jump %diag", "below floor", "t/frame (ms)");
+      printf(
+          "kinemesh bench motion — %s; km_autorig rigs, default glitch rejection and filter, "
+          "takes at 30 fps, first %zu frames; T = translation-only handles (Wu, Lu & Song), "
+          "R = rotating handles; jump 'take' = the mapped joints' own largest step (scaled); t = "
+          "median of per-frame push times%s%s%s\n",
+          a.machine, a.frames, a.floor ? "; floor constraint on" : "",
+          a.relative_to ? "; motion relative to " : "",
+          a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
+      printf("%-18s %-16s %7s %5s  %13s  %11s  %20s  %11s  %15s\n", "", "", "", "", "stretch max",
+             "folded", "jump %diag", "below floor", "t/frame (ms)");
       printf("%-18s %-16s %7s %5s  %6s %6s  %5s %5s  %6s %6s %6s  %5s %5s  %7s %7s\n", "take",
              "mesh", "n_ver", "fr", "T", "R", "T", "R", "take", "T", "R", "T", "R", "T", "R");
     }
