@@ -28,5 +28,8 @@ int km_bench_reconstruct(int argc, char **argv);
 int km_bench_transfer(int argc, char **argv);
 /* bench/bench_rig.c: time of automatic rigging (km_autorig) at 10k, 50k, 100k vertices. */
 int km_bench_rig(int argc, char **argv);
+/* bench/bench_motion.c (issue 12): real takes on auto-rigged meshes through puppetry,
+ * translation-only vs rotating handles: stretch, folds, jumps, floor, per-frame time. */
+int km_bench_motion(int argc, char **argv);
 
 #endif

@@ -1,0 +1,593 @@
+/* kinemesh bench motion (issue 12): real takes driving automatically rigged meshes through the
+ * puppetry pipeline, translation-only handles (Wu, Lu & Song's) beside rotating handles
+ * ("rotate": true). Per row: edge stretch, folds, one-frame jumps, floor and per-frame time.
+ *
+ * Per (mesh, take): the mesh is oriented (km_mesh_frame_guess + km_mesh_frame_apply), rigged by
+ * km_autorig (its sidecar's default puppetry rig, read back with km_rig_read), its reduced
+ * model built once and shared by both variants; the take is read with km_motion_read
+ * (kinect1 = true: columns matched to the Kinect v1 names), resampled to 30 fps when faster,
+ * and its first --frames frames pushed through km_puppetry (default glitch rejection and
+ * filter). Metrics over the output frames:
+ *   stretch   max over frames and edges of |l / l0 - 1|
+ *   folded    triangles that, in some frame, have a neighbour (across an edge) whose normal
+ *             made < 60 degrees with theirs at rest and makes > 120 degrees now (distinct
+ *             triangles over the take)
+ *   jump      max over frames f >= 1 and vertices of |V_f - V_{f-1}|, % of the bbox diagonal
+ *   below     frames with a vertex more than 0.5% of the diagonal below the rest floor
+ *   t (ms)    median over frames of the wall time of km_puppetry_push
+ * A mesh or take that is missing or cannot be used gives a "skipped" line with the reason. */
+#include "bench.h"
+#include "cli.h"
+
+#include <cjson/cJSON.h>
+#include <dirent.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#define BM_FLOOR_TOL 0.005 /* fraction of the diagonal below the rest floor that counts */
+
+typedef struct bm_args {
+  const char *data;
+  size_t frames;
+  bool json, floor;
+  int32_t relative_to; /* 1 + a Kinect joint subtracted from every map entry; 0: as rigged */
+  char machine[320];
+} bm_args;
+
+typedef struct bm_metrics {
+  double stretch, jump_pct, tper_ms;
+  double raw_jump_pct; /* the take's largest one-frame joint step (mapped joints, times the
+                          performer-to-character scale), % of the diagonal: the motion itself */
+  size_t folded, below;
+} bm_metrics;
+
+/* Mesh topology and rest measures shared by both variants. */
+typedef struct bm_geom {
+  size_t n_edges, n_pairs;
+  int32_t *edges; /* n_edges*2 */
+  double *len0;   /* n_edges */
+  int32_t *pairs; /* n_pairs*2 faces sharing an edge, < 60 degrees apart at rest */
+  double diag, floor_y;
+} bm_geom;
+
+typedef struct bm_half {
+  int32_t a, b, f;
+} bm_half;
+
+static int half_cmp(const void *x, const void *y) {
+  const bm_half *p = x, *q = y;
+  if (p->a != q->a) return p->a < q->a ? -1 : 1;
+  if (p->b != q->b) return p->b < q->b ? -1 : 1;
+  return p->f < q->f ? -1 : p->f > q->f;
+}
+
+static void face_normal(const double *V, const int32_t *t, double n[3]) {
+  const double *a = V + 3 * (size_t)t[0], *b = V + 3 * (size_t)t[1], *c = V + 3 * (size_t)t[2];
+  double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  n[0] = u[1] * v[2] - u[2] * v[1];
+  n[1] = u[2] * v[0] - u[0] * v[2];
+  n[2] = u[0] * v[1] - u[1] * v[0];
+  double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  for (int k = 0; k < 3; ++k)
+    n[k] = l > 0 ? n[k] / l : 0;
+}
+
+static void geom_free(bm_geom *g) {
+  free(g->edges);
+  free(g->len0);
+  free(g->pairs);
+  memset(g, 0, sizeof *g);
+}
+
+static bool geom_build(const km_mesh *m, bm_geom *g) {
+  memset(g, 0, sizeof *g);
+  size_t nh = 3 * m->n_faces;
+  bm_half *h = malloc((nh ? nh : 1) * sizeof *h);
+  double *N = malloc(3 * (m->n_faces ? m->n_faces : 1) * sizeof *N);
+  g->edges = malloc(2 * (nh ? nh : 1) * sizeof *g->edges);
+  g->len0 = malloc((nh ? nh : 1) * sizeof *g->len0);
+  g->pairs = malloc(2 * (nh ? nh : 1) * sizeof *g->pairs);
+  if (!h || !N || !g->edges || !g->len0 || !g->pairs) {
+    free(h);
+    free(N);
+    geom_free(g);
+    return false;
+  }
+  for (size_t f = 0; f < m->n_faces; ++f) {
+    const int32_t *t = m->F + 3 * f;
+    face_normal(m->V, t, N + 3 * f);
+    for (int k = 0; k < 3; ++k) {
+      int32_t a = t[k], b = t[(k + 1) % 3];
+      h[3 * f + k] = (bm_half){a < b ? a : b, a < b ? b : a, (int32_t)f};
+    }
+  }
+  qsort(h, nh, sizeof *h, half_cmp);
+  for (size_t i = 0; i < nh;) {
+    size_t j = i + 1;
+    while (j < nh && h[j].a == h[i].a && h[j].b == h[i].b)
+      ++j;
+    const double *p = m->V + 3 * (size_t)h[i].a, *q = m->V + 3 * (size_t)h[i].b;
+    double l = sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                    (p[2] - q[2]) * (p[2] - q[2]));
+    if (l > 0) {
+      g->edges[2 * g->n_edges] = h[i].a;
+      g->edges[2 * g->n_edges + 1] = h[i].b;
+      g->len0[g->n_edges++] = l;
+    }
+    if (j - i == 2) { /* manifold interior edge */
+      const double *n1 = N + 3 * (size_t)h[i].f, *n2 = N + 3 * (size_t)h[i + 1].f;
+      if (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2] > 0.5) {
+        g->pairs[2 * g->n_pairs] = h[i].f;
+        g->pairs[2 * g->n_pairs + 1] = h[i + 1].f;
+        g->n_pairs++;
+      }
+    }
+    i = j;
+  }
+  free(h);
+  free(N);
+  g->diag = km_bbox_diagonal(m->V, m->n_vertices);
+  g->floor_y = INFINITY;
+  for (size_t v = 0; v < m->n_vertices; ++v)
+    if (m->V[3 * v + 1] < g->floor_y) g->floor_y = m->V[3 * v + 1];
+  return true;
+}
+
+/* MESH: a path, "character:N", or a name looked up in DATA/meshes (.obj, .off, .ply). */
+static bool resolve_mesh(const char *spec, const char *data, char *path, size_t n) {
+  if (!strncmp(spec, "character:", 10) || strchr(spec, '/') || strchr(spec, '.')) {
+    snprintf(path, n, "%s", spec);
+    return strncmp(spec, "character:", 10) == 0 || access(spec, R_OK) == 0;
+  }
+  static const char *const ext[] = {".obj", ".off", ".ply"};
+  for (int i = 0; i < 3; ++i) {
+    snprintf(path, n, "%s/meshes/%s%s", data, spec, ext[i]);
+    if (access(path, R_OK) == 0) return true;
+  }
+  snprintf(path, n, "%s/meshes/%s.{obj,off,ply}", data, spec);
+  return false;
+}
+
+static km_status load_mesh(const char *path, km_mesh *m, char *frame_note, size_t n,
+                           km_error *err) {
+  frame_note[0] = '\0';
+  if (!strncmp(path, "character:", 10)) {
+    km_character_options co = {0};
+    co.target_vertices = (size_t)strtoull(path + 10, NULL, 10);
+    km_character c = {0};
+    km_status s = km_character_generate(&co, &c, err);
+    if (s != KM_OK) return s;
+    *m = c.mesh;
+    memset(&c.mesh, 0, sizeof c.mesh);
+    km_character_free(&c);
+    snprintf(frame_note, n, "procedural, y up");
+    return KM_OK;
+  }
+  km_status s = km_mesh_read(path, m, err);
+  if (s != KM_OK) return s;
+  km_frame_guess g;
+  if ((s = km_mesh_frame_guess(m, &g, err)) != KM_OK) return s;
+  g.frame.scale = 0;
+  snprintf(frame_note, n, "up %s, forward %s (guessed)", km_axis_name(g.frame.up),
+           km_axis_name(g.frame.forward));
+  return km_mesh_frame_apply(&g.frame, m, err);
+}
+
+static void print_skip(const bm_args *a, const char *take, const char *mesh, const char *why) {
+  if (a->json) {
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "take", take);
+    cJSON_AddStringToObject(o, "mesh", mesh);
+    cJSON_AddStringToObject(o, "skipped", why);
+    char *s = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    if (s) puts(s);
+    free(s);
+  } else {
+    printf("%-18.18s %-16.16s skipped: %s\n", take, mesh, why);
+  }
+  fflush(stdout);
+}
+
+static const char *base_name(const char *p) {
+  const char *b = strrchr(p, '/');
+  return b ? b + 1 : p;
+}
+
+/* A take: a motion file, or walk / wave / kungfu generated on the mesh's skeleton. */
+static km_status load_take(const char *spec, const km_skeleton *skel, size_t frames, km_take *t,
+                           char *why, size_t n_why, km_error *err) {
+  static const char *const gen[] = {"walk", "wave", "kungfu"};
+  for (int k = 0; k < 3; ++k)
+    if (!strcmp(spec, gen[k]) || (!strncmp(spec, "gen:", 4) && !strcmp(spec + 4, gen[k])))
+      return km_motion_generate(skel, (km_motion_kind)k, frames ? frames : 150, t, err);
+  if (access(spec, R_OK) != 0) {
+    snprintf(why, n_why, "%s not found", spec);
+    return KM_ERR_IO;
+  }
+  km_motion_read_options ro = {0};
+  ro.kinect1 = true;
+  km_motion_read_info ri;
+  km_status s = km_motion_read(spec, &ro, t, &ri, err);
+  if (s != KM_OK) {
+    snprintf(why, n_why, "no Kinect v1 joints: %.400s", err->message);
+    return s;
+  }
+  if (t->fps > 30.5) {
+    km_take r = {0};
+    if ((s = km_take_resample(t, 30, &r, err)) != KM_OK) return s;
+    km_take_free(t);
+    *t = r;
+  }
+  return KM_OK;
+}
+
+static int dcmp(const void *x, const void *y) {
+  double a = *(const double *)x, b = *(const double *)y;
+  return a < b ? -1 : a > b;
+}
+
+/* One variant over the take: the metrics. */
+static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *rig,
+                             km_puppet *model, const km_take *t, size_t nf, bm_metrics *out,
+                             km_error *err) {
+  km_puppetry_options o = {0};
+  o.model = model;
+  o.fps = t->fps;
+  o.take_name = "take";
+  km_puppetry *p = NULL;
+  size_t nv = m->n_vertices;
+  double *V = malloc(3 * nv * sizeof *V), *Vp = malloc(3 * nv * sizeof *Vp);
+  double *N = malloc(3 * (m->n_faces ? m->n_faces : 1) * sizeof *N);
+  double *tm = malloc((nf ? nf : 1) * sizeof *tm);
+  unsigned char *ever = calloc(m->n_faces ? m->n_faces : 1, 1);
+  km_status s = KM_OK;
+  memset(out, 0, sizeof *out);
+  if (!V || !Vp || !N || !tm || !ever) {
+    s = KM_ERR_NOMEM;
+    snprintf(err->message, sizeof err->message, "out of memory");
+    goto done;
+  }
+  s = km_puppetry_create(m, rig, (const char *const *)t->joint_names, t->n_joints, &o, &p, NULL,
+                         err);
+  if (s != KM_OK) goto done;
+  for (size_t f = 0; f < nf; ++f) {
+    double t0 = km_cli_now();
+    s = km_puppetry_push(p, t->positions + f * t->n_joints * 3, V, err);
+    tm[f] = 1e3 * (km_cli_now() - t0);
+    if (s != KM_OK) goto done;
+    for (size_t e = 0; e < g->n_edges; ++e) {
+      const double *a = V + 3 * (size_t)g->edges[2 * e], *b = V + 3 * (size_t)g->edges[2 * e + 1];
+      double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                      (a[2] - b[2]) * (a[2] - b[2]));
+      double r = fabs(l / g->len0[e] - 1);
+      if (!(r <= out->stretch)) out->stretch = r; /* NaN propagates */
+    }
+    for (size_t k = 0; k < m->n_faces; ++k)
+      face_normal(V, m->F + 3 * k, N + 3 * k);
+    for (size_t q = 0; q < g->n_pairs; ++q) {
+      const double *n1 = N + 3 * (size_t)g->pairs[2 * q], *n2 = N + 3 * (size_t)g->pairs[2 * q + 1];
+      if (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2] < -0.5)
+        ever[g->pairs[2 * q]] = ever[g->pairs[2 * q + 1]] = 1;
+    }
+    double ymin = INFINITY, jump = 0;
+    for (size_t v = 0; v < nv; ++v) {
+      if (V[3 * v + 1] < ymin) ymin = V[3 * v + 1];
+      if (f) {
+        double dx = V[3 * v] - Vp[3 * v], dy = V[3 * v + 1] - Vp[3 * v + 1],
+               dz = V[3 * v + 2] - Vp[3 * v + 2];
+        double d = sqrt(dx * dx + dy * dy + dz * dz);
+        if (!(d <= jump)) jump = d;
+      }
+    }
+    if (!(100 * jump / g->diag <= out->jump_pct)) out->jump_pct = 100 * jump / g->diag;
+    for (size_t e = 0; f && e < rig->n_maps; ++e) {
+      const double *q = t->positions + (f * t->n_joints + (size_t)rig->maps[e].joint) * 3,
+                   *q0 = q - t->n_joints * 3;
+      double d = sqrt((q[0] - q0[0]) * (q[0] - q0[0]) + (q[1] - q0[1]) * (q[1] - q0[1]) +
+                      (q[2] - q0[2]) * (q[2] - q0[2])) *
+                 km_puppetry_scale(p) / g->diag;
+      if (d > out->raw_jump_pct / 100) out->raw_jump_pct = 100 * d; /* NaN: missing, skipped */
+    }
+    if (ymin < g->floor_y - BM_FLOOR_TOL * g->diag) out->below++;
+    double *sw = V;
+    V = Vp;
+    Vp = sw;
+  }
+  for (size_t k = 0; k < m->n_faces; ++k)
+    out->folded += ever[k];
+  qsort(tm, nf, sizeof *tm, dcmp);
+  out->tper_ms = nf ? (nf % 2 ? tm[nf / 2] : 0.5 * (tm[nf / 2 - 1] + tm[nf / 2])) : NAN;
+done:
+  km_puppetry_free(&p);
+  free(V);
+  free(Vp);
+  free(N);
+  free(tm);
+  free(ever);
+  return s;
+}
+
+static cJSON *metrics_json(const bm_metrics *x) {
+  cJSON *o = cJSON_CreateObject();
+  km_cli_json_number(o, "stretch_max", x->stretch);
+  cJSON_AddNumberToObject(o, "folded", (double)x->folded);
+  km_cli_json_number(o, "jump_max_pct", x->jump_pct);
+  cJSON_AddNumberToObject(o, "below_floor_frames", (double)x->below);
+  km_cli_json_number(o, "tper_ms", x->tper_ms);
+  return o;
+}
+
+/* Every (take) row of one mesh. */
+static int bench_motion_mesh(const char *spec, const char *const *takes, size_t n_takes,
+                             const bm_args *a) {
+  char path[1024], note[128];
+  km_error err = {0};
+  km_mesh m = {0};
+  km_character c = {0};
+  km_rig rig = {0};
+  km_puppet *model = NULL;
+  bm_geom g = {0};
+  char tmp[] = "/tmp/km_bench_motion_XXXXXX";
+  int fd = -1, rc = KM_EXIT_OK;
+  const char *mname = base_name(spec);
+  if (!resolve_mesh(spec, a->data, path, sizeof path)) {
+    char why[1200];
+    snprintf(why, sizeof why, "mesh %s not found", path);
+    print_skip(a, "*", mname, why);
+    return KM_EXIT_OK;
+  }
+  double t0 = km_cli_now();
+  if (load_mesh(path, &m, note, sizeof note, &err) != KM_OK) goto skip_mesh;
+  km_autorig_report rep;
+  if (km_autorig(&m, NULL, &c, &rep, &err) != KM_OK) goto skip_mesh;
+  fd = mkstemp(tmp);
+  if (fd < 0) {
+    snprintf(err.message, sizeof err.message, "cannot create a temporary file");
+    goto skip_mesh;
+  }
+  if (km_character_write_rig(tmp, &c, &err) != KM_OK) goto skip_mesh;
+  if (km_rig_read(tmp, &m, NULL, 0, &rig, &err) != KM_OK) goto skip_mesh;
+  double t_rig = km_cli_now() - t0;
+  t0 = km_cli_now();
+  km_puppetry_options mo = {0};
+  if (km_puppetry_model_open(&m, &mo, &model, NULL, &err) != KM_OK) goto skip_mesh;
+  double t_model = km_cli_now() - t0;
+  if (!geom_build(&m, &g)) {
+    snprintf(err.message, sizeof err.message, "out of memory");
+    goto skip_mesh;
+  }
+  if (!a->json)
+    printf("# %s: %zu vertices, %s, rigged as %s (%zu handles) in %.2f s, model %.2f s\n", mname,
+           m.n_vertices, note,
+           rep.kind == KM_AUTORIG_QUADRUPED ? "quadruped"
+           : rep.kind == KM_AUTORIG_PROP    ? "prop"
+                                            : "humanoid",
+           rig.n_handles, t_rig, t_model);
+  for (size_t i = 0; i < n_takes; ++i) {
+    const char *tname = base_name(takes[i]);
+    km_take t = {0};
+    char why[600] = "";
+    km_error te = {0};
+    if (load_take(takes[i], &c.skeleton, a->frames, &t, why, sizeof why, &te) != KM_OK) {
+      print_skip(a, tname, mname, why[0] ? why : te.message);
+      km_take_free(&t);
+      continue;
+    }
+    size_t nf = a->frames && a->frames < t.n_frames ? a->frames : t.n_frames;
+    /* every joint the rig maps must be in the take (a BVH with other joint names has none) */
+    char missing[400] = "";
+    for (size_t e = 0; e < rig.n_maps; ++e) {
+      int32_t js[2] = {rig.maps[e].joint, rig.maps[e].relative_to - 1};
+      for (int k = 0; k < 2; ++k) {
+        if (js[k] < 0 || (size_t)js[k] >= t.n_joints) continue;
+        bool seen = false;
+        for (size_t f = 0; f < nf && !seen; ++f)
+          seen = isfinite(t.positions[(f * t.n_joints + (size_t)js[k]) * 3]);
+        const char *jn = t.joint_names ? t.joint_names[js[k]] : "?";
+        if (!seen && !strstr(missing, jn) && strlen(missing) + strlen(jn) + 3 < sizeof missing)
+          snprintf(missing + strlen(missing), sizeof missing - strlen(missing), "%s%s",
+                   missing[0] ? ", " : "", jn);
+      }
+    }
+    if (missing[0]) {
+      snprintf(why, sizeof why, "the take lacks joints the rig maps (%s)", missing);
+      print_skip(a, tname, mname, why);
+      km_take_free(&t);
+      continue;
+    }
+    bm_metrics r[2];
+    bool ok = true;
+    for (int v = 0; v < 2 && ok; ++v) {
+      for (size_t e = 0; e < rig.n_maps; ++e) {
+        rig.maps[e].rotate = v == 1;
+        if (a->relative_to) rig.maps[e].relative_to = a->relative_to;
+      }
+      rig.floor = a->floor;
+      if (run_variant(&m, &g, &rig, model, &t, nf, &r[v], &te) != KM_OK) {
+        snprintf(why, sizeof why, "%.500s", te.message);
+        ok = false;
+      }
+    }
+    if (!ok) {
+      print_skip(a, tname, mname, why);
+      km_take_free(&t);
+      continue;
+    }
+    if (a->json) {
+      cJSON *o = cJSON_CreateObject();
+      cJSON_AddStringToObject(o, "take", tname);
+      cJSON_AddStringToObject(o, "mesh", mname);
+      cJSON_AddStringToObject(o, "machine", a->machine);
+      cJSON_AddNumberToObject(o, "n_ver", (double)m.n_vertices);
+      cJSON_AddNumberToObject(o, "n_han", (double)rig.n_handles);
+      cJSON_AddNumberToObject(o, "frames", (double)nf);
+      cJSON_AddNumberToObject(o, "fps", t.fps);
+      cJSON_AddBoolToObject(o, "floor", a->floor);
+      cJSON_AddStringToObject(o, "relative_to",
+                              a->relative_to ? km_kinect1_joint_name(a->relative_to - 1) : "");
+      km_cli_json_number(o, "take_jump_max_pct", r[0].raw_jump_pct);
+      cJSON_AddItemToObject(o, "translate", metrics_json(&r[0]));
+      cJSON_AddItemToObject(o, "rotate", metrics_json(&r[1]));
+      char *s = cJSON_PrintUnformatted(o);
+      cJSON_Delete(o);
+      if (s) puts(s);
+      free(s);
+    } else {
+      printf("%-18.18s %-16.16s %7zu %5zu  %6.3f %6.3f  %5zu %5zu  %6.2f %6.2f %6.2f  %5zu %5zu  "
+             "%7.2f %7.2f\n",
+             tname, mname, m.n_vertices, nf, r[0].stretch, r[1].stretch, r[0].folded, r[1].folded,
+             r[0].raw_jump_pct, r[0].jump_pct, r[1].jump_pct, r[0].below, r[1].below, r[0].tper_ms,
+             r[1].tper_ms);
+    }
+    fflush(stdout);
+    km_take_free(&t);
+  }
+  goto done;
+skip_mesh:
+  print_skip(a, "*", mname, err.message);
+done:
+  if (fd >= 0) {
+    close(fd);
+    remove(tmp);
+  }
+  geom_free(&g);
+  km_puppet_free(&model);
+  km_rig_free(&rig);
+  km_character_free(&c);
+  km_mesh_free(&m);
+  return rc;
+}
+
+static int str_cmp(const void *x, const void *y) {
+  return strcmp(*(const char *const *)x, *(const char *const *)y);
+}
+
+/* Files of DIR ending in ext, sorted, appended to list (owned strings). */
+static void list_dir(const char *dir, const char *ext, char ***list, size_t *n) {
+  DIR *d = opendir(dir);
+  if (!d) return;
+  size_t first = *n;
+  struct dirent *e;
+  while ((e = readdir(d))) {
+    size_t l = strlen(e->d_name), le = strlen(ext);
+    if (l <= le || strcmp(e->d_name + l - le, ext)) continue;
+    char **nl = realloc(*list, (*n + 1) * sizeof *nl);
+    if (!nl) break;
+    *list = nl;
+    size_t sz = strlen(dir) + l + 2;
+    if (!((*list)[*n] = malloc(sz))) break;
+    snprintf((*list)[*n], sz, "%s/%s", dir, e->d_name);
+    ++*n;
+  }
+  closedir(d);
+  qsort(*list + first, *n - first, sizeof **list, str_cmp);
+}
+
+/* Splits a comma list into owned strings appended to list. */
+static void split_list(const char *s, char ***list, size_t *n) {
+  while (s && *s) {
+    size_t l = strcspn(s, ",");
+    if (l) {
+      char **nl = realloc(*list, (*n + 1) * sizeof *nl);
+      if (!nl) return;
+      *list = nl;
+      if (!((*list)[*n] = malloc(l + 1))) return;
+      memcpy((*list)[*n], s, l);
+      (*list)[*n][l] = '\0';
+      ++*n;
+    }
+    s += l + (s[l] == ',');
+  }
+}
+
+int km_bench_motion(int argc, char **argv) {
+  const char *takes_opt = NULL, *meshes_opt = NULL, *relative_opt = NULL;
+  bm_args a = {"../shared/data", 300, false, false, 0, ""};
+  const km_cli_opt opts[] = {
+      {"takes", 0, KM_OPT_STRING, &takes_opt,
+       "comma list of motion files (Kinect CSV, BVH, take JSON) or walk, wave, kungfu "
+       "(generated on the mesh's skeleton); default: every file in DATA/skeleton and DATA/bvh"},
+      {"meshes", 0, KM_OPT_STRING, &meshes_opt,
+       "comma list of mesh files, names in DATA/meshes, or character:N; default: armadillo, "
+       "dog0, elephant, character:10000"},
+      {"frames", 0, KM_OPT_SIZE, &a.frames,
+       "frames per take at most (default 300: every frame of the shipped takes, well under "
+       "a minute on 2 cores; 0: all)"},
+      {"relative-to", 0, KM_OPT_STRING, &relative_opt,
+       "a Kinect joint (HipCenter) whose motion every map entry subtracts (root-relative "
+       "motion); default: the rig as km_autorig writes it (absolute)"},
+      {"data", 0, KM_OPT_STRING, &a.data, "the data folder (default ../shared/data)"},
+      {"floor", 0, KM_OPT_FLAG, &a.floor,
+       "the rig's floor constraint on (no handle vertex below the rest floor)"},
+      {"json", 0, KM_OPT_FLAG, &a.json, "print one JSON object per row, one per line"},
+  };
+  int n_pos;
+  const char *pos[1];
+  int r = km_cli_parse(
+      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
+      "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames 300] [--json]",
+      "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
+      "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"
+      "paper's, T) and rotating handles (R) side by side. Per row: edge stretch max\n"
+      "|l/l0 - 1|, folded triangles (a neighbour's normal < 60 deg at rest, > 120 deg\n"
+      "in a frame), the largest one-frame vertex jump (% of the bbox diagonal), frames\n"
+      "with a vertex below the rest floor (by more than 0.5% of the diagonal) and the\n"
+      "median per-frame time. BVH takes need Kinect v1 joint names; otherwise skipped.");
+  if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (relative_opt) {
+    int j = km_kinect1_joint_index(relative_opt);
+    if (j < 0)
+      return km_cli_error("bench motion",
+                          "--relative-to %s: not a Kinect v1 joint (HipCenter, ...)", relative_opt);
+    a.relative_to = j + 1;
+  }
+  km_bench_machine(a.machine, sizeof a.machine);
+  char **takes = NULL, **meshes = NULL;
+  size_t n_takes = 0, n_meshes = 0;
+  if (takes_opt) {
+    split_list(takes_opt, &takes, &n_takes);
+  } else {
+    char dir[1024];
+    snprintf(dir, sizeof dir, "%s/skeleton", a.data);
+    list_dir(dir, ".csv", &takes, &n_takes);
+    snprintf(dir, sizeof dir, "%s/bvh", a.data);
+    list_dir(dir, ".bvh", &takes, &n_takes);
+  }
+  split_list(meshes_opt ? meshes_opt : "armadillo,dog0,elephant,character:10000", &meshes,
+             &n_meshes);
+  int rc = KM_EXIT_OK;
+  if (!n_takes) {
+    print_skip(&a, "*", "*", "no takes (none given, none found in the data folder)");
+  } else {
+    if (!a.json) {
+      printf(
+          "kinemesh bench motion — %s; km_autorig rigs, default glitch rejection and filter, "
+          "takes at 30 fps, first %zu frames; T = translation-only handles (Wu, Lu & Song), "
+          "R = rotating handles; jump 'take' = the mapped joints' own largest step (scaled); t = "
+          "median of per-frame push times%s%s%s\n",
+          a.machine, a.frames, a.floor ? "; floor constraint on" : "",
+          a.relative_to ? "; motion relative to " : "",
+          a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
+      printf("%-18s %-16s %7s %5s  %13s  %11s  %20s  %11s  %15s\n", "", "", "", "", "stretch max",
+             "folded", "jump %diag", "below floor", "t/frame (ms)");
+      printf("%-18s %-16s %7s %5s  %6s %6s  %5s %5s  %6s %6s %6s  %5s %5s  %7s %7s\n", "take",
+             "mesh", "n_ver", "fr", "T", "R", "T", "R", "take", "T", "R", "T", "R", "T", "R");
+    }
+    fflush(stdout);
+    for (size_t i = 0; i < n_meshes; ++i) {
+      int ri = bench_motion_mesh(meshes[i], (const char *const *)takes, n_takes, &a);
+      if (ri != KM_EXIT_OK) rc = ri;
+    }
+  }
+  for (size_t i = 0; i < n_takes; ++i)
+    free(takes[i]);
+  for (size_t i = 0; i < n_meshes; ++i)
+    free(meshes[i]);
+  free(takes);
+  free(meshes);
+  return rc;
+}

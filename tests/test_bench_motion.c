@@ -1,0 +1,106 @@
+/* kinemesh bench motion (issue 12) through the CLI: on the procedural character with a
+ * generated take (built in, and written to a take file), a few frames, --json. Checks the
+ * keys, that every number is finite and sane (values, never speed), and that a missing take
+ * or mesh gives a "skipped" row, not a failure. */
+#include "km_test.h"
+
+#include <cjson/cJSON.h>
+#include <unistd.h>
+
+static double num(const cJSON *o, const char *key, int row) {
+  const cJSON *v = cJSON_GetObjectItem(o, key);
+  CHECK_MSG(cJSON_IsNumber(v) && isfinite(v->valuedouble), "row %d: \"%s\" is not a finite number",
+            row, key);
+  return cJSON_IsNumber(v) ? v->valuedouble : NAN;
+}
+
+static void check_variant(const cJSON *row, const char *name, int r, double frames) {
+  const cJSON *o = cJSON_GetObjectItem(row, name);
+  CHECK_MSG(cJSON_IsObject(o), "row %d: no \"%s\" object", r, name);
+  if (!cJSON_IsObject(o)) return;
+  double stretch = num(o, "stretch_max", r), folded = num(o, "folded", r),
+         jump = num(o, "jump_max_pct", r), below = num(o, "below_floor_frames", r),
+         t = num(o, "tper_ms", r);
+  /* a few frames of a take that starts in the rest pose and blends into a walk: the mesh
+   * barely moves, so nothing may stretch, fold or jump much */
+  CHECK_MSG(stretch >= 0 && stretch < 0.3, "row %d %s: stretch %g", r, name, stretch);
+  CHECK_MSG(folded >= 0 && folded == floor(folded) && folded < 50, "row %d %s: folded %g", r, name,
+            folded);
+  CHECK_MSG(jump >= 0 && jump < 5, "row %d %s: jump %g%%", r, name, jump);
+  CHECK_MSG(below >= 0 && below <= frames, "row %d %s: %g frames below the floor", r, name, below);
+  CHECK_MSG(t > 0, "row %d %s: per-frame time %g", r, name, t);
+}
+
+int main(void) {
+  char cwd[900], xdg[1024];
+  if (getcwd(cwd, sizeof cwd)) {
+    snprintf(xdg, sizeof xdg, "%s/puppet_cache", cwd);
+    setenv("XDG_CACHE_HOME", xdg, 1);
+  }
+  /* a generated take written to a file: the file path of --takes */
+  km_character c = {0};
+  km_character_options co = {0};
+  co.target_vertices = 3000;
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  km_take take = {0};
+  CHECK_OK(km_motion_generate(&c.skeleton, KM_MOTION_WAVE, 20, &take, KM_E));
+  CHECK_OK(km_take_write("bench_motion_wave.json", &take, KM_E));
+  km_take_free(&take);
+  km_character_free(&c);
+
+  char *out = NULL;
+  int rc = km_test_run(KM_CLI " bench motion --meshes character:3000,no_such_mesh "
+                              "--takes walk,bench_motion_wave.json,no_such_take.csv --frames 8 "
+                              "--json 2>/dev/null",
+                       &out);
+  CHECK_MSG(rc == 0, "exit status %d: %s", rc, out ? out : "");
+  int rows = 0, skipped = 0;
+  bool saw_walk = false, saw_file = false, saw_take_skip = false, saw_mesh_skip = false;
+  for (char *line = out ? strtok(out, "\n") : NULL; line; line = strtok(NULL, "\n")) {
+    if (line[0] != '{') continue; /* log lines on stderr (folded into stdout) */
+    cJSON *o = cJSON_Parse(line);
+    CHECK_MSG(o != NULL, "not JSON: %s", line);
+    if (!o) continue;
+    const cJSON *take_s = cJSON_GetObjectItem(o, "take"), *mesh_s = cJSON_GetObjectItem(o, "mesh");
+    CHECK(cJSON_IsString(take_s) && cJSON_IsString(mesh_s));
+    const cJSON *sk = cJSON_GetObjectItem(o, "skipped");
+    if (cJSON_IsString(sk)) {
+      ++skipped;
+      if (cJSON_IsString(take_s) && !strcmp(take_s->valuestring, "no_such_take.csv"))
+        saw_take_skip = strstr(sk->valuestring, "not found") != NULL;
+      if (cJSON_IsString(mesh_s) && !strcmp(mesh_s->valuestring, "no_such_mesh"))
+        saw_mesh_skip = strstr(sk->valuestring, "not found") != NULL;
+      cJSON_Delete(o);
+      continue;
+    }
+    const cJSON *mach = cJSON_GetObjectItem(o, "machine");
+    CHECK(cJSON_IsString(mach) && mach->valuestring[0]);
+    if (cJSON_IsString(take_s)) {
+      saw_walk |= !strcmp(take_s->valuestring, "walk");
+      saw_file |= !strcmp(take_s->valuestring, "bench_motion_wave.json");
+    }
+    double nv = num(o, "n_ver", rows), nh = num(o, "n_han", rows), fr = num(o, "frames", rows);
+    num(o, "fps", rows);
+    double tj = num(o, "take_jump_max_pct", rows);
+    CHECK_MSG(nv > 2500 && nv < 3500, "row %d: %g vertices", rows, nv);
+    CHECK_MSG(nh >= 2, "row %d: %g handles", rows, nh);
+    CHECK_MSG(fr == 8, "row %d: %g frames (--frames 8)", rows, fr);
+    CHECK(tj >= 0);
+    check_variant(o, "translate", rows, fr);
+    check_variant(o, "rotate", rows, fr);
+    cJSON_Delete(o);
+    ++rows;
+  }
+  CHECK_MSG(rows == 2, "%d measured rows, expected 2", rows);
+  CHECK_MSG(saw_walk && saw_file, "rows for the built-in walk and the take file");
+  CHECK_MSG(saw_take_skip && saw_mesh_skip && skipped == 2,
+            "%d skipped rows (a missing take and a missing mesh, each 'not found')", skipped);
+  free(out);
+  remove("bench_motion_wave.json");
+
+  /* a bad option is a usage error */
+  CHECK(km_test_run(KM_CLI " bench motion --relative-to NoSuchJoint --takes walk "
+                           "--meshes character:3000 >/dev/null",
+                    NULL) == 1);
+  return km_test_finish("test_bench_motion");
+}
