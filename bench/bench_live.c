@@ -308,7 +308,7 @@ int km_bench_live(int argc, char **argv) {
     goto stop;
   }
   if (!lws_client) {
-    rcl.fd = km_live_ws_connect("127.0.0.1", http_port, 0);
+    rcl.fd = km_live_ws_connect("127.0.0.1", http_port, km_live_token(l), 0);
     if (rcl.fd < 0) {
       rc = km_cli_error(VERB, "the WebSocket handshake with 127.0.0.1:%d failed", http_port);
       goto stop;
@@ -332,9 +332,11 @@ int km_bench_live(int argc, char **argv) {
     ci.context = c.ctx;
     ci.address = "127.0.0.1";
     ci.port = http_port;
-    ci.path = "/ws";
+    char ws_path[128];
+    snprintf(ws_path, sizeof ws_path, "/ws?token=%s", km_live_token(l));
+    ci.path = ws_path;
     ci.host = "127.0.0.1";
-    ci.origin = "127.0.0.1";
+    ci.origin = "http://127.0.0.1";
     ci.protocol = "kinemesh";
     if (!c.ctx || !lws_client_connect_via_info(&ci)) {
       rc = km_cli_error(VERB, "cannot start the libwebsockets client");

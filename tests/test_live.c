@@ -355,7 +355,7 @@ static unsigned char *serve_frames(const km_mesh *m, km_puppet *p, const char *r
   *len = 0;
   /* a client on a plain socket: the frames are what the page receives; a server that stops
    * sending fails the test, never hangs it */
-  int ws = km_live_ws_connect("127.0.0.1", http_port, 10);
+  int ws = km_live_ws_connect("127.0.0.1", http_port, km_live_token(l), 10);
   CHECK_MSG(ws >= 0, "WebSocket handshake with the server on port %d", http_port);
   km_live_stats st = {0};
   for (int i = 0; ws >= 0 && i < 500 && st.clients < 1; ++i) {

@@ -14,6 +14,10 @@ const LAYOUT = [[0, .95], [0, 1.2], [0, 1.45], [0, 1.65], [.18, 1.42], [.42, 1.4
 const MAGIC = 0x31464d4b, HEADER = 304;
 
 const $ = (id) => document.getElementById(id);
+// The server's per-run secret comes in the printed URL (?token=...): every request to the
+// server carries it (POSTs and the WebSocket need it; off loopback the data GETs too).
+const TOKEN = new URLSearchParams(location.search).get('token') || '';
+const api = (p) => (TOKEN ? `${p}?token=${encodeURIComponent(TOKEN)}` : p);
 const state = {
   frames: 0, seq: 0, inSeq: 0, times: [0, 0, 0], rig: null, handleSets: [], pending: null,
   recv: [], nv: 0, connected: false,
@@ -68,7 +72,7 @@ const HANDLE_COLORS = [[1, .55, .1], [.9, .3, .5], [.5, .8, .2], [.6, .5, 1], [1
   [.3, .7, .9]];
 
 async function loadMesh() {
-  const buf = await (await fetch('mesh')).arrayBuffer();
+  const buf = await (await fetch(api('mesh'))).arrayBuffer();
   const dv = new DataView(buf);
   const nv = dv.getUint32(4, true), nf = dv.getUint32(8, true);
   state.nv = nv;
@@ -97,8 +101,8 @@ async function loadMesh() {
 // the user has just removed (state.edits counts adds and removes).
 async function loadRig() {
   const e0 = state.edits || 0;
-  const rig = await (await fetch('rig')).json();
-  const hs = await (await fetch('handles')).json();
+  const rig = await (await fetch(api('rig'))).json();
+  const hs = await (await fetch(api('handles'))).json();
   if ((state.edits || 0) !== e0) return;
   state.rig = rig;
   state.handleSets = hs.handles || [];
@@ -191,7 +195,7 @@ function drawSkeleton(J) {
 }
 
 function connect() {
-  const ws = new WebSocket(`ws://${location.host}/ws`, 'kinemesh');
+  const ws = new WebSocket(`ws://${location.host}/${api('ws')}`, 'kinemesh');
   ws.binaryType = 'arraybuffer';
   ws.onopen = () => { state.connected = true; $('conn').textContent = 'connected'; $('conn').className = 'ok'; };
   ws.onclose = () => {
@@ -204,7 +208,7 @@ function connect() {
 
 async function pollStatus() {
   try {
-    const s = await (await fetch('status')).json();
+    const s = await (await fetch(api('status'))).json();
     state.status = s;
     $('s-in').textContent = s.frames_in; $('s-out').textContent = s.frames_out;
     $('s-bad').textContent = s.bad_packets;
@@ -345,7 +349,7 @@ $('h-add').addEventListener('click', () => {
 
 $('save').addEventListener('click', async () => {
   $('save-status').textContent = 'saving…';
-  const r = await fetch('rig', { method: 'POST', headers: { 'Content-Type': 'application/json' },
+  const r = await fetch(api('rig'), { method: 'POST', headers: { 'Content-Type': 'application/json' },
     body: JSON.stringify(state.rig) });
   const j = await r.json().catch(() => ({}));
   if (r.ok) {
@@ -358,7 +362,8 @@ $('save').addEventListener('click', async () => {
 });
 
 $('replay').addEventListener('click', async () => {
-  const r = await fetch('replay', { method: 'POST', body: '{}' });
+  const r = await fetch(api('replay'), { method: 'POST',
+    headers: { 'Content-Type': 'application/json' }, body: '{}' });
   if (!r.ok) $('replay').textContent = 'no take to replay';
 });
 

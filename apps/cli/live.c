@@ -46,9 +46,9 @@ static char *default_web_dir(void) {
 
 int km_cli_live(int argc, char **argv) {
   const char *mesh_path = NULL, *rig_path = NULL, *replay = NULL, *record = NULL;
-  const char *bind = "127.0.0.1", *web = NULL, *cache = NULL;
+  const char *bind = "127.0.0.1", *web = NULL, *cache = NULL, *token = NULL;
   int osc = 0, udp = 0, http = 8080;
-  bool quantize = false, loop = false, no_autoplay = false;
+  bool quantize = false, loop = false, no_autoplay = false, no_token = false;
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
       KM_CLI_FRAME_OPTIONS(fo),
@@ -63,12 +63,18 @@ int km_cli_live(int argc, char **argv) {
       {"no-autoplay", 0, KM_OPT_FLAG, &no_autoplay,
        "do not start the replay at start-up (the page's replay button starts it)"},
       {"http", 0, KM_OPT_INT, &http, "HTTP/WebSocket port (default 8080)"},
-      {"bind", 0, KM_OPT_STRING, &bind, "listen address (default 127.0.0.1)"},
+      {"bind", 0, KM_OPT_STRING, &bind,
+       "listen address (default 127.0.0.1; off loopback the token is required)"},
+      {"token", 0, KM_OPT_STRING, &token,
+       "secret the page and clients must send (?token=; default: a random one per run)"},
+      {"no-token", 0, KM_OPT_FLAG, &no_token,
+       "no token for POSTs and the WebSocket (loopback only; Host and Origin still checked)"},
       {"record", 0, KM_OPT_STRING, &record, "write the received raw joints as a take on exit"},
       {"quantize", 0, KM_OPT_FLAG, &quantize,
        "send positions as int16 quantised to the frame's bounding box (half the bytes)"},
       {"web", 0, KM_OPT_STRING, &web, "page directory (default: web/ beside the binary)"},
-      {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default: $XDG_CACHE_HOME/kinemesh/<mesh hash>.kmcache)"},
+      {"cache", 0, KM_OPT_STRING, &cache,
+       "reduced-model cache (default: $XDG_CACHE_HOME/kinemesh/<mesh hash>.kmcache)"},
   };
   const char *pos[1];
   int n_pos;
@@ -141,6 +147,8 @@ int km_cli_live(int argc, char **argv) {
   lo.web_dir = web ? web : web_default;
   lo.rig_path = rig_file;
   lo.record = record != NULL;
+  lo.token = token;
+  lo.no_token = no_token;
   if (km_live_create(&lo, &m, pup, rig_text, rig_size, replay ? &take : NULL, &live, &err) !=
       KM_OK)
     goto fail;
@@ -151,9 +159,10 @@ int km_cli_live(int argc, char **argv) {
   sigaction(SIGINT, &sa, NULL);
   sigaction(SIGTERM, &sa, NULL);
   signal(SIGPIPE, SIG_IGN);
-  printf("kinemesh live: %zu vertices (model %s in %.2f s); open http://%s:%d/\n", m.n_vertices,
+  const char *tok = km_live_token(live);
+  printf("kinemesh live: %zu vertices (model %s in %.2f s); open http://%s:%d/%s%s\n", m.n_vertices,
          pi.model == KM_PUPPETRY_MODEL_LOADED ? "loaded" : "precomputed", pi.model_seconds, bind,
-         http);
+         http, *tok ? "?token=" : "", tok);
   if (osc) printf("  OSC (OSCeleton /joint, KinectV2-OSC /bodies/...) on udp %s:%d\n", bind, osc);
   if (udp) printf("  JSON frames on udp %s:%d\n", bind, udp);
   if (replay) printf("  replay: %s (%zu frames at %g fps)\n", replay, take.n_frames, take.fps);

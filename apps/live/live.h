@@ -67,7 +67,20 @@ typedef struct km_live_options {
   const char *web_dir;  /* static page assets; NULL: no page (404) */
   const char *rig_path; /* written (atomically) on POST /rig; NULL: POST /rig refused */
   bool record;          /* keep every received raw frame for km_live_record_take */
+  /* Access control (issue 18). Every request must name an allowed Host (localhost, 127.x,
+   * [::1], the bound address; any IPv4 literal when bound to 0.0.0.0); POSTs and the
+   * WebSocket must carry ?token=TOKEN, and their Origin, when sent, must be the page's own
+   * (http://HOST); POST bodies must be application/json, at most KM_LIVE_MAX_POST bytes. Off
+   * loopback the data GETs (/status, /mesh, /rig, /handles) need the token too. */
+  const char *token; /* NULL: a random one per run (km_live_token); else >= 16 of [A-Za-z0-9_-] */
+  bool no_token;     /* no token at all: refused unless bound to loopback */
+  int max_clients;   /* WebSocket pages at once; 0: KM_LIVE_MAX_CLIENTS */
+  size_t record_max; /* frames kept by `record`; 0: KM_LIVE_RECORD_MAX (older ones stay) */
 } km_live_options;
+
+#define KM_LIVE_MAX_POST (4u << 20)
+#define KM_LIVE_MAX_CLIENTS 32
+#define KM_LIVE_RECORD_MAX ((size_t)1 << 18) /* 2.4 hours at 30 fps, 126 MB */
 
 typedef struct km_live km_live;
 
@@ -80,6 +93,8 @@ typedef struct km_live km_live;
 km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_puppet *puppet,
                           const char *rig_json, size_t rig_size, const km_take *replay,
                           km_live **out, km_error *err);
+/* The token the page and clients must send (?token=...), "" when none (no_token). */
+const char *km_live_token(const km_live *l);
 /* Serves until km_live_stop (callable from any thread and from a signal handler). */
 km_status km_live_run(km_live *l, km_error *err);
 void km_live_stop(km_live *l);

@@ -26,12 +26,15 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
+#include <sys/random.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #define NJ KM_KINECT1_JOINTS
 #define RING 2048
-#define MAX_POST (256u << 20)
+#define MAX_POST KM_LIVE_MAX_POST
 
 typedef struct ring {
   double v[RING];
@@ -76,6 +79,21 @@ typedef struct live_rig {
   char *text;
   size_t len;
 } live_rig;
+
+/* A POST /rig handed to the rig thread (parse, merge, write, apply) so the service thread
+ * keeps serving pages and frames; the answer goes back to the waiting connection. */
+typedef struct rig_job {
+  pthread_mutex_t mu;
+  pthread_cond_t cv;
+  bool busy;       /* from the hand-over until the answer is taken (or its asker is gone) */
+  bool queued;     /* body waiting for the rig thread */
+  bool done;       /* status + reply ready */
+  struct lws *wsi; /* the connection waiting for the answer; NULL once it closed */
+  char *body;
+  size_t len;
+  unsigned status;
+  char *reply;
+} rig_job;
 
 struct km_live {
   km_live_options opt;
@@ -135,6 +153,13 @@ struct km_live {
   struct lws_protocols protocols[3];
   unsigned char *mesh_blob;
   size_t mesh_len;
+
+  /* access control, POST /rig off the service thread */
+  char token[72]; /* "" when none */
+  bool loopback;  /* bound to 127.x */
+  rig_job job;
+  pthread_t rig_thr;
+  bool rig_started;
 };
 
 /* ================================================================ rig handling */
@@ -244,7 +269,7 @@ static void push_frame(km_live *l, const double *joints, double t_recv, bool res
   l->in_t = t_recv;
   ++l->in_seq;
   if (reset) l->reset_req = true;
-  if (l->opt.record) {
+  if (l->opt.record && l->rec_n < l->opt.record_max) {
     if (l->rec_n == l->rec_cap) {
       size_t cap = l->rec_cap ? 2 * l->rec_cap : 1024;
       double *r = realloc(l->rec, sizeof(double) * 3 * NJ * cap);
@@ -677,12 +702,17 @@ typedef struct http_pss {
   size_t post_len, post_cap;
   int post_kind; /* 1: /rig, 2: /replay */
   bool post_too_big;
+  bool answered;   /* a response was started for this request: never a second one */
+  bool waiting;    /* handed to the rig thread; the answer comes on WRITEABLE */
+  unsigned reject; /* POST refused before its body: answered at body completion */
+  const char *reject_msg;
 } http_pss;
 
 typedef struct ws_pss {
   unsigned char *buf;
   size_t cap;
   uint64_t sent_seq;
+  bool counted; /* ESTABLISHED was reached (a refused upgrade is CLOSED too) */
 } ws_pss;
 
 static void pss_clear(http_pss *p) {
@@ -699,6 +729,7 @@ static int respond(struct lws *wsi, http_pss *p, unsigned status, const char *ct
   p->body = data;
   p->len = len;
   p->pos = 0;
+  p->answered = true;
   unsigned char hb[LWS_PRE + 1024], *start = hb + LWS_PRE, *q = start, *end = hb + sizeof hb - 1;
   if (lws_add_http_common_headers(wsi, status, ctype, (lws_filepos_t)len, &q, end) ||
       lws_add_http_header_by_token(wsi, WSI_TOKEN_HTTP_CACHE_CONTROL,
@@ -745,46 +776,259 @@ static const char *mime(const char *path) {
   return "application/octet-stream";
 }
 
-static int handle_post(km_live *l, struct lws *wsi, http_pss *p) {
-  if (p->post_too_big) return respond_error(wsi, p, 413, "request body too large");
-  if (p->post_kind == 2) {
-    if (!km_live_replay(l)) return respond_error(wsi, p, 409, "no --replay take loaded");
-    return respond_str(wsi, p, 200, "application/json", "{\"ok\":true}");
+/* ---------------------------------------------------------------- access control */
+
+static bool is_loopback_v4(const char *addr) {
+  struct in_addr a;
+  return inet_pton(AF_INET, addr, &a) == 1 && (ntohl(a.s_addr) >> 24) == 127;
+}
+
+/* Host header allow-list: loopback names, the bound address, any IPv4 literal when bound to
+ * every interface (a DNS-rebinding page always comes with a name, never a literal). */
+static bool host_allowed(const km_live *l, const char *host) {
+  char h[256];
+  size_t n = strlen(host);
+  if (!n || n >= sizeof h) return false;
+  if (host[0] == '[') {
+    const char *e = strchr(host, ']');
+    if (!e || (e[1] && e[1] != ':')) return false;
+    return (size_t)(e - host) == 4 && !strncmp(host, "[::1", 4);
   }
-  if (!l->rig_path) return respond_error(wsi, p, 403, "rig saving is disabled");
+  const char *c = strchr(host, ':');
+  n = c ? (size_t)(c - host) : n;
+  memcpy(h, host, n);
+  h[n] = 0;
+  if (c) {
+    for (const char *d = c + 1; *d; ++d)
+      if (*d < '0' || *d > '9') return false;
+  }
+  if (!strcasecmp(h, "localhost") || is_loopback_v4(h)) return true;
+  if (!strcmp(h, l->bind)) return true;
+  struct in_addr a;
+  return !strcmp(l->bind, "0.0.0.0") && inet_pton(AF_INET, h, &a) == 1;
+}
+
+static bool token_ok(const km_live *l, struct lws *wsi) {
+  if (!l->token[0]) return true;
+  char buf[128];
+  /* returns a pointer into buf past "token=" */
+  const char *v = lws_get_urlarg_by_name(wsi, "token=", buf, sizeof buf);
+  if (!v) return false;
+  size_t n = strlen(v), m = strlen(l->token);
+  unsigned diff = (unsigned)(n ^ m);
+  for (size_t i = 0; i < m; ++i)
+    diff |= (unsigned char)(l->token[i] ^ (i < n ? v[i] : 0));
+  return diff == 0;
+}
+
+/* Checks a request's Host (always), and for state-changing requests and the WebSocket its
+ * Origin and token. NULL when allowed, else the reason (status in *status). */
+static const char *access_denied(const km_live *l, struct lws *wsi, bool changes_state,
+                                 unsigned *status) {
+  char host[256] = "", origin[300] = "";
+  *status = 403;
+  if (lws_hdr_copy(wsi, host, sizeof host, WSI_TOKEN_HOST) <= 0 || !host_allowed(l, host))
+    return "Host not allowed (open the URL the server printed)";
+  if (!changes_state) return NULL;
+  int on = lws_hdr_total_length(wsi, WSI_TOKEN_ORIGIN);
+  if (on > 0) {
+    char want[300];
+    snprintf(want, sizeof want, "http://%s", host);
+    if (on >= (int)sizeof origin ||
+        lws_hdr_copy(wsi, origin, sizeof origin, WSI_TOKEN_ORIGIN) <= 0 || strcasecmp(origin, want))
+      return "cross-origin request refused";
+  }
+  if (!token_ok(l, wsi)) {
+    *status = 401;
+    return "missing or wrong token (open the URL the server printed, with its ?token=)";
+  }
+  return NULL;
+}
+
+static bool json_content_type(struct lws *wsi) {
+  char ct[128] = "";
+  if (lws_hdr_copy(wsi, ct, sizeof ct, WSI_TOKEN_HTTP_CONTENT_TYPE) <= 0) return false;
+  size_t n = strlen("application/json");
+  return !strncasecmp(ct, "application/json", n) && (ct[n] == 0 || ct[n] == ';' || ct[n] == ' ');
+}
+
+/* ---------------------------------------------------------------- POST /rig */
+
+/* The rig file as it is on disk now (NULL when unreadable). */
+static char *read_text_file(const char *path, size_t max, size_t *len) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  size_t cap = 65536, n = 0;
+  char *b = malloc(cap + 1);
+  while (b) {
+    size_t got = fread(b + n, 1, cap - n, f);
+    n += got;
+    if (n < cap) break;
+    char *nb = cap * 2 <= max ? realloc(b, cap * 2 + 1) : NULL;
+    if (!nb) {
+      free(b);
+      b = NULL;
+      break;
+    }
+    b = nb;
+    cap *= 2;
+  }
+  if (b && ferror(f)) {
+    free(b);
+    b = NULL;
+  }
+  fclose(f);
+  if (b) {
+    b[n] = 0;
+    *len = n;
+  }
+  return b;
+}
+
+/* The sidecar's layout: one top-level key per line, one array element per line. */
+static char *rig_print(const cJSON *doc) {
+  size_t cap = 4096, n = 0;
+  char *out = malloc(cap);
+  bool ok = out != NULL;
+#define PUT(str)                                                                                   \
+  do {                                                                                             \
+    const char *s_ = (str);                                                                        \
+    size_t k_ = strlen(s_);                                                                        \
+    if (ok && n + k_ + 1 > cap) {                                                                  \
+      while (n + k_ + 1 > cap)                                                                     \
+        cap *= 2;                                                                                  \
+      char *o_ = realloc(out, cap);                                                                \
+      if (o_)                                                                                      \
+        out = o_;                                                                                  \
+      else                                                                                         \
+        ok = false;                                                                                \
+    }                                                                                              \
+    if (ok) {                                                                                      \
+      memcpy(out + n, s_, k_ + 1);                                                                 \
+      n += k_;                                                                                     \
+    }                                                                                              \
+  } while (0)
+  PUT("{");
+  for (const cJSON *it = doc->child; it && ok; it = it->next) {
+    cJSON *key = cJSON_CreateString(it->string ? it->string : "");
+    char *k = cJSON_PrintUnformatted(key);
+    cJSON_Delete(key);
+    if (!k) ok = false;
+    PUT(it == doc->child ? "" : ",\n");
+    if (k) PUT(k);
+    free(k);
+    PUT(":");
+    if (cJSON_IsArray(it)) {
+      PUT("[");
+      for (const cJSON *e = it->child; e && ok; e = e->next) {
+        char *v = cJSON_PrintUnformatted(e);
+        if (!v) ok = false;
+        PUT(e == it->child ? "\n" : ",\n");
+        if (v) PUT(v);
+        free(v);
+      }
+      PUT("]");
+    } else {
+      char *v = cJSON_PrintUnformatted(it);
+      if (!v) ok = false;
+      if (v) PUT(v);
+      free(v);
+    }
+  }
+  PUT("}\n");
+#undef PUT
+  if (!ok) {
+    free(out);
+    return NULL;
+  }
+  return out;
+}
+
+/* Merges the puppetry part of a posted rig (handles, map, filter) into the sidecar, checks
+ * the result against the mesh, writes it (atomically, mode kept) and queues it for the
+ * deform thread. Runs on the rig thread. Returns the HTTP status; *reply: JSON. */
+static unsigned rig_post(km_live *l, const char *body, size_t len, char **reply) {
+  char msg[sizeof(((km_error *)0)->message) + 64];
+  *reply = NULL;
+  cJSON *posted = cJSON_ParseWithLength(body ? body : "", len);
+  if (!cJSON_IsObject(posted)) {
+    cJSON_Delete(posted);
+    snprintf(msg, sizeof msg, "POST /rig: the body is not a JSON object");
+    goto bad;
+  }
+  size_t flen = 0;
+  char *ftext = read_text_file(l->rig_path, 64u << 20, &flen);
+  cJSON *base = ftext ? cJSON_ParseWithLength(ftext, flen) : NULL;
+  free(ftext);
+  if (!cJSON_IsObject(base)) {
+    /* Unreadable or broken on disk: merge into the rig the server is running with. */
+    cJSON_Delete(base);
+    pthread_mutex_lock(&l->st_mu);
+    base = l->rig_text ? cJSON_ParseWithLength(l->rig_text, l->rig_len) : NULL;
+    pthread_mutex_unlock(&l->st_mu);
+    if (!cJSON_IsObject(base)) {
+      cJSON_Delete(base);
+      base = cJSON_CreateObject();
+    }
+  }
+  static const char *const keys[] = {"handles", "map", "filter"};
+  for (size_t k = 0; k < sizeof keys / sizeof keys[0]; ++k) {
+    cJSON *v = cJSON_DetachItemFromObjectCaseSensitive(posted, keys[k]);
+    if (!v) continue;
+    if (cJSON_GetObjectItemCaseSensitive(base, keys[k]))
+      cJSON_ReplaceItemInObjectCaseSensitive(base, keys[k], v);
+    else
+      cJSON_AddItemToObject(base, keys[k], v);
+  }
+  cJSON_Delete(posted);
+  char *text = rig_print(base);
+  cJSON_Delete(base);
+  if (!text) {
+    *reply = strdup("{\"error\":\"out of memory\"}");
+    return 500;
+  }
   live_rig nr = {0};
   km_error err = {0};
-  if (km_rig_parse(p->post ? p->post : "", p->post_len, "POST /rig", l->mesh, NULL, 0, &nr.rig,
-                   &err) != KM_OK)
-    return respond_error(wsi, p, 400, err.message);
+  size_t tlen = strlen(text);
+  if (km_rig_parse(text, tlen, "POST /rig", l->mesh, NULL, 0, &nr.rig, &err) != KM_OK) {
+    free(text);
+    snprintf(msg, sizeof msg, "%s", err.message);
+    goto bad;
+  }
   if (nr.rig.skeleton != KM_RIG_KINECT1 || nr.rig.n_handles == 0) {
     km_rig_free(&nr.rig);
-    return respond_error(wsi, p, 400, "the rig needs skeleton kinect1 and at least one handle");
+    free(text);
+    snprintf(msg, sizeof msg, "the rig needs skeleton kinect1 and at least one handle");
+    goto bad;
   }
-  if (km_write_file_atomic(l->rig_path, p->post, p->post_len, &err) != KM_OK) {
+  if (km_write_file_atomic(l->rig_path, text, tlen, &err) != KM_OK) {
     km_rig_free(&nr.rig);
-    return respond_error(wsi, p, 500, err.message[0] ? err.message : "cannot write the rig");
+    free(text);
+    snprintf(msg, sizeof msg, "%s", err.message[0] ? err.message : "cannot write the rig");
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "error", msg);
+    *reply = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    return 500;
   }
-  nr.text = p->post;
-  nr.len = p->post_len;
-  p->post = NULL;
-  p->post_len = p->post_cap = 0;
+  nr.text = text;
+  nr.len = tlen;
   size_t n_handles = nr.rig.n_handles;
   /* GET /rig and /handles answer with the saved rig from now on, even before the deform
    * thread has switched to it. */
-  char *hj = handles_json(&nr.rig), *text = malloc(nr.len + 1);
-  if (hj && text) {
-    memcpy(text, nr.text, nr.len + 1);
+  char *hj = handles_json(&nr.rig), *copy = malloc(nr.len + 1);
+  if (hj && copy) {
+    memcpy(copy, nr.text, nr.len + 1);
     pthread_mutex_lock(&l->st_mu);
     free(l->rig_text);
     free(l->handles_json);
-    l->rig_text = text;
+    l->rig_text = copy;
     l->rig_len = nr.len;
     l->handles_json = hj;
     pthread_mutex_unlock(&l->st_mu);
   } else {
     free(hj);
-    free(text);
+    free(copy);
   }
   pthread_mutex_lock(&l->in_mu);
   if (l->has_pending) {
@@ -795,9 +1039,109 @@ static int handle_post(km_live *l, struct lws *wsi, http_pss *p) {
   l->has_pending = true;
   pthread_cond_signal(&l->in_cv);
   pthread_mutex_unlock(&l->in_mu);
-  char msg[128];
   snprintf(msg, sizeof msg, "{\"ok\":true,\"handles\":%zu}", n_handles);
-  return respond_str(wsi, p, 200, "application/json", msg);
+  *reply = strdup(msg);
+  return 200;
+bad:;
+  cJSON *o = cJSON_CreateObject();
+  cJSON_AddStringToObject(o, "error", msg);
+  *reply = cJSON_PrintUnformatted(o);
+  cJSON_Delete(o);
+  return 400;
+}
+
+static void *rig_main(void *arg) {
+  km_live *l = arg;
+  rig_job *j = &l->job;
+  pthread_mutex_lock(&j->mu);
+  for (;;) {
+    while (!atomic_load(&l->stop) && !j->queued)
+      pthread_cond_wait(&j->cv, &j->mu);
+    if (atomic_load(&l->stop)) break;
+    char *body = j->body;
+    size_t len = j->len;
+    j->body = NULL;
+    j->queued = false;
+    pthread_mutex_unlock(&j->mu);
+    char *reply = NULL;
+    unsigned status = rig_post(l, body, len, &reply);
+    free(body);
+    pthread_mutex_lock(&j->mu);
+    if (j->wsi) {
+      j->status = status;
+      j->reply = reply;
+      j->done = true;
+    } else { /* the asker hung up: nobody takes the answer */
+      free(reply);
+      j->busy = false;
+    }
+    if (l->ctx) lws_cancel_service(l->ctx);
+  }
+  pthread_mutex_unlock(&j->mu);
+  return NULL;
+}
+
+static int handle_post(km_live *l, struct lws *wsi, http_pss *p) {
+  if (p->answered) return 0; /* Content-Length: 0 was answered at the headers already */
+  if (p->reject) return respond_error(wsi, p, p->reject, p->reject_msg);
+  if (p->post_too_big) return respond_error(wsi, p, 413, "request body too large");
+  if (p->post_kind == 2) {
+    if (!km_live_replay(l)) return respond_error(wsi, p, 409, "no --replay take loaded");
+    return respond_str(wsi, p, 200, "application/json", "{\"ok\":true}");
+  }
+  if (!l->rig_path) return respond_error(wsi, p, 403, "rig saving is disabled");
+  rig_job *j = &l->job;
+  pthread_mutex_lock(&j->mu);
+  if (j->busy) {
+    pthread_mutex_unlock(&j->mu);
+    return respond_error(wsi, p, 503, "another rig is being saved; try again");
+  }
+  j->busy = j->queued = true;
+  j->done = false;
+  j->wsi = wsi;
+  j->body = p->post;
+  j->len = p->post_len;
+  p->post = NULL;
+  p->post_len = p->post_cap = 0;
+  p->waiting = true;
+  p->answered = true;
+  pthread_cond_signal(&j->cv);
+  pthread_mutex_unlock(&j->mu);
+  return 0;
+}
+
+/* The rig thread's answer for this connection, when it is ready. */
+static int rig_answer(struct lws *wsi, http_pss *p, km_live *l) {
+  rig_job *j = &l->job;
+  pthread_mutex_lock(&j->mu);
+  if (!j->done || j->wsi != wsi) {
+    pthread_mutex_unlock(&j->mu);
+    return 0;
+  }
+  unsigned status = j->status;
+  char *reply = j->reply;
+  j->reply = NULL;
+  j->wsi = NULL;
+  j->done = j->busy = false;
+  pthread_mutex_unlock(&j->mu);
+  p->waiting = false;
+  int r = respond_str(wsi, p, status, "application/json", reply ? reply : "{}");
+  free(reply);
+  return r;
+}
+
+static void rig_forget(km_live *l, struct lws *wsi) {
+  rig_job *j = &l->job;
+  pthread_mutex_lock(&j->mu);
+  if (j->wsi == wsi) {
+    j->wsi = NULL;
+    if (j->done) {
+      free(j->reply);
+      j->reply = NULL;
+      j->done = j->busy = false;
+    }
+  }
+  pthread_mutex_unlock(&j->mu);
 }
 
 static int cb_http(struct lws *wsi, enum lws_callback_reasons reason, void *user, void *in,
@@ -805,21 +1149,44 @@ static int cb_http(struct lws *wsi, enum lws_callback_reasons reason, void *user
   km_live *l = lws_context_user(lws_get_context(wsi));
   http_pss *p = user;
   switch (reason) {
+  case LWS_CALLBACK_EVENT_WAIT_CANCELLED:
+    /* The rig thread may have an answer ready. */
+    pthread_mutex_lock(&l->job.mu);
+    if (l->job.done && l->job.wsi) lws_callback_on_writable(l->job.wsi);
+    pthread_mutex_unlock(&l->job.mu);
+    return 0;
   case LWS_CALLBACK_HTTP: {
     const char *uri = in;
+    if (p->waiting) rig_forget(l, wsi);
     pss_clear(p);
-    if (lws_hdr_total_length(wsi, WSI_TOKEN_POST_URI) > 0) {
+    unsigned st = 403;
+    bool post = lws_hdr_total_length(wsi, WSI_TOKEN_POST_URI) > 0;
+    const char *why = access_denied(l, wsi, post, &st);
+    if (post) {
+      char cl[32] = "";
+      bool body = lws_hdr_copy(wsi, cl, sizeof cl, WSI_TOKEN_HTTP_CONTENT_LENGTH) > 0 &&
+                  strtoull(cl, NULL, 10) > 0;
       if (!strcmp(uri, "/rig"))
         p->post_kind = 1;
       else if (!strcmp(uri, "/replay"))
         p->post_kind = 2;
-      else
-        return respond_error(wsi, p, 404, "unknown POST endpoint");
-      char cl[32] = "";
-      if (lws_hdr_copy(wsi, cl, sizeof cl, WSI_TOKEN_HTTP_CONTENT_LENGTH) <= 0 || atol(cl) == 0)
-        return handle_post(l, wsi, p); /* no body is coming */
+      else if (!why)
+        why = "unknown POST endpoint", st = 404;
+      if (!why && !json_content_type(wsi)) why = "Content-Type must be application/json", st = 415;
+      if (!why && body && strtoull(cl, NULL, 10) > MAX_POST)
+        why = "request body too large", st = 413;
+      if (why) {
+        p->reject = st;
+        p->reject_msg = why;
+      }
+      if (!body) return handle_post(l, wsi, p); /* no body is coming */
       return 0;
     }
+    if (why) return respond_error(wsi, p, st, why);
+    bool data = !strcmp(uri, "/status") || !strcmp(uri, "/mesh") || !strcmp(uri, "/rig") ||
+                !strcmp(uri, "/handles");
+    if (data && !l->loopback && !token_ok(l, wsi))
+      return respond_error(wsi, p, 401, "missing or wrong token");
     if (!strcmp(uri, "/status")) {
       char *s = km_live_status_json(l);
       int r = s ? respond_str(wsi, p, 200, "application/json", s) : 1;
@@ -848,7 +1215,7 @@ static int cb_http(struct lws *wsi, enum lws_callback_reasons reason, void *user
     return 0;
   }
   case LWS_CALLBACK_HTTP_BODY:
-    if (!len || !in) return 0;
+    if (!len || !in || p->reject || p->answered) return 0;
     if (p->post_len + len > MAX_POST) {
       p->post_too_big = true;
       return 0;
@@ -871,6 +1238,7 @@ static int cb_http(struct lws *wsi, enum lws_callback_reasons reason, void *user
     return 0;
   case LWS_CALLBACK_HTTP_BODY_COMPLETION: return handle_post(l, wsi, p);
   case LWS_CALLBACK_HTTP_WRITEABLE: {
+    if (p->waiting) return rig_answer(wsi, p, l);
     if (!p->body) return 0;
     size_t chunk = p->len - p->pos;
     if (chunk > 65536) chunk = 65536;
@@ -890,6 +1258,7 @@ static int cb_http(struct lws *wsi, enum lws_callback_reasons reason, void *user
   }
   case LWS_CALLBACK_CLOSED_HTTP:
   case LWS_CALLBACK_HTTP_DROP_PROTOCOL:
+    if (p && p->waiting) rig_forget(l, wsi);
     if (p) pss_clear(p);
     return 0;
   default: break;
@@ -914,6 +1283,12 @@ static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, 
     }
     return 0;
   }
+  case LWS_CALLBACK_FILTER_PROTOCOL_CONNECTION: {
+    /* The upgrade: Host, Origin and token as for a POST, and a cap on the pages. */
+    unsigned st;
+    if (access_denied(l, wsi, true, &st)) return -1;
+    return atomic_load(&l->clients) >= l->opt.max_clients ? -1 : 0;
+  }
   case LWS_CALLBACK_ESTABLISHED: {
     memset(p, 0, sizeof *p);
     /* Room for about one frame in the kernel: with the default (autotuned to megabytes) a
@@ -921,11 +1296,13 @@ static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, 
     int fd = lws_get_socket_fd(wsi), sz = (int)(l->frame_size + 65536);
     if (fd >= 0) setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &sz, sizeof sz);
     atomic_fetch_add(&l->clients, 1);
+    p->counted = true;
     lws_callback_on_writable(wsi);
     return 0;
   }
   case LWS_CALLBACK_CLOSED:
-    atomic_fetch_sub(&l->clients, 1);
+    if (p->counted) atomic_fetch_sub(&l->clients, 1);
+    p->counted = false;
     free(p->buf);
     p->buf = NULL;
     return 0;
@@ -1029,11 +1406,49 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
   l->mesh = mesh;
   l->take = replay;
   l->osc_fd = l->udp_fd = -1;
+  if (!l->opt.max_clients) l->opt.max_clients = KM_LIVE_MAX_CLIENTS;
+  if (!l->opt.record_max) l->opt.record_max = KM_LIVE_RECORD_MAX;
+  pthread_mutex_init(&l->job.mu, NULL);
+  pthread_cond_init(&l->job.cv, NULL);
   pthread_mutex_init(&l->in_mu, NULL);
   pthread_cond_init(&l->in_cv, NULL);
   pthread_mutex_init(&l->out_mu, NULL);
   pthread_mutex_init(&l->st_mu, NULL);
   km_status s = KM_OK;
+  l->loopback = is_loopback_v4(l->bind);
+  l->opt.token = NULL;
+  if (opt->no_token) {
+    if (!l->loopback) {
+      s = km_error_set(err, KM_ERR_INVALID,
+                       "live: --bind %s is off loopback: a token is required there (drop "
+                       "--no-token)",
+                       l->bind);
+      goto fail;
+    }
+  } else if (opt->token) {
+    size_t tn = strlen(opt->token);
+    bool okc = tn >= 16 && tn < sizeof l->token;
+    for (size_t i = 0; okc && i < tn; ++i) {
+      char c = opt->token[i];
+      okc = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+            c == '-' || c == '_';
+    }
+    if (!okc) {
+      s = km_error_set(err, KM_ERR_INVALID,
+                       "live: the token must be 16 to %zu characters of A-Z a-z 0-9 - _",
+                       sizeof l->token - 1);
+      goto fail;
+    }
+    memcpy(l->token, opt->token, tn + 1);
+  } else {
+    unsigned char r[16];
+    if (getrandom(r, sizeof r, 0) != (ssize_t)sizeof r) {
+      s = km_error_set(err, KM_ERR_IO, "live: no random bytes for the token");
+      goto fail;
+    }
+    for (size_t i = 0; i < sizeof r; ++i)
+      snprintf(l->token + 2 * i, 3, "%02x", r[i]);
+  }
   size_t n = mesh->n_vertices;
   l->frame_size = KM_LIVE_HEADER + n * 3 * (opt->quantize ? 2 : 4);
   l->out_latest = live_zalloc(LWS_PRE + l->frame_size, 1);
@@ -1097,6 +1512,13 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
     goto fail;
   }
   l->def_started = true;
+  if (l->rig_path) {
+    if (pthread_create(&l->rig_thr, NULL, rig_main, l)) {
+      s = km_error_set(err, KM_ERR_IO, "cannot start the rig thread");
+      goto fail;
+    }
+    l->rig_started = true;
+  }
   if (replay && !opt->no_autoplay) atomic_store(&l->replay_req, 1);
   if (pthread_create(&l->in_thr, NULL, input_main, l)) {
     s = km_error_set(err, KM_ERR_IO, "cannot start the input thread");
@@ -1115,6 +1537,8 @@ km_status km_live_run(km_live *l, km_error *err) {
     if (lws_service(l->ctx, 0) < 0) return km_error_set(err, KM_ERR_IO, "HTTP service failed");
   return KM_OK;
 }
+
+const char *km_live_token(const km_live *l) { return l->token; }
 
 void km_live_stop(km_live *l) {
   atomic_store(&l->stop, 1);
@@ -1158,8 +1582,12 @@ void km_live_free(km_live **lp) {
   pthread_mutex_lock(&l->in_mu);
   pthread_cond_broadcast(&l->in_cv);
   pthread_mutex_unlock(&l->in_mu);
+  pthread_mutex_lock(&l->job.mu);
+  pthread_cond_broadcast(&l->job.cv);
+  pthread_mutex_unlock(&l->job.mu);
   if (l->in_started) pthread_join(l->in_thr, NULL);
   if (l->def_started) pthread_join(l->def_thr, NULL);
+  if (l->rig_started) pthread_join(l->rig_thr, NULL);
   if (l->ctx) lws_context_destroy(l->ctx);
   if (l->osc_fd >= 0) close(l->osc_fd);
   if (l->udp_fd >= 0) close(l->udp_fd);
@@ -1182,6 +1610,10 @@ void km_live_free(km_live **lp) {
   free(l->rec);
   free(l->web_dir);
   free(l->rig_path);
+  free(l->job.body);
+  free(l->job.reply);
+  pthread_mutex_destroy(&l->job.mu);
+  pthread_cond_destroy(&l->job.cv);
   pthread_mutex_destroy(&l->in_mu);
   pthread_cond_destroy(&l->in_cv);
   pthread_mutex_destroy(&l->out_mu);

@@ -11,7 +11,7 @@
 #include <sys/time.h>
 #include <unistd.h>
 
-int km_live_ws_connect(const char *host, int port, double timeout_s) {
+int km_live_ws_connect(const char *host, int port, const char *token, double timeout_s) {
   int fd = socket(AF_INET, SOCK_STREAM, 0);
   if (fd < 0) return -1;
   if (timeout_s > 0) {
@@ -26,10 +26,10 @@ int km_live_ws_connect(const char *host, int port, double timeout_s) {
   a.sin_port = htons((uint16_t)port);
   char req[512];
   int rn = snprintf(req, sizeof req,
-                    "GET /ws HTTP/1.1\r\nHost: %s\r\nUpgrade: websocket\r\n"
+                    "GET /ws%s%s HTTP/1.1\r\nHost: %s\r\nUpgrade: websocket\r\n"
                     "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
                     "Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: kinemesh\r\n\r\n",
-                    host);
+                    token && *token ? "?token=" : "", token && *token ? token : "", host);
   if (inet_pton(AF_INET, host, &a.sin_addr) != 1 || rn <= 0 || (size_t)rn >= sizeof req ||
       connect(fd, (struct sockaddr *)&a, sizeof a) || send(fd, req, (size_t)rn, 0) != (ssize_t)rn) {
     close(fd);

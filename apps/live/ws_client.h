@@ -10,11 +10,12 @@
 #include <stdbool.h>
 #include <stddef.h>
 
-/* Connects to ws://host:port/ws with subprotocol "kinemesh" and completes the handshake.
+/* Connects to ws://host:port/ws?token=TOKEN (token NULL or "": none; km_live_token gives the
+ * server's) with subprotocol "kinemesh" and completes the handshake.
  * timeout_s > 0 bounds every later receive (a server that stops sending makes
  * km_live_ws_read return false instead of hanging); 0 waits for ever. Returns the socket
  * (close it with close()), or -1 when the connection or the handshake failed. */
-int km_live_ws_connect(const char *host, int port, double timeout_s);
+int km_live_ws_connect(const char *host, int port, const char *token, double timeout_s);
 
 /* The next whole data message (text or binary; fragments joined, ping/pong skipped) into
  * *msg, a malloc'ed buffer of *cap bytes that is grown as needed and may be reused across

@@ -9,7 +9,7 @@ import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { check, finish, status, waitFor, sleep, replayDone, OSCELETON_SKEL,
-  osceletonFrame } from './lib.mjs';
+  osceletonFrame, TOKEN } from './lib.mjs';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const require = createRequire(path.join(here, '../../web/package.json'));
@@ -30,7 +30,7 @@ try {
   const page = await browser.newPage({ viewport: { width: 1100, height: 700 } });
   page.on('pageerror', (e) => errors.push(String(e)));
   page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-  await page.goto(url);
+  await page.goto(`${url}?token=${TOKEN}`);
   await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
     null, { timeout: 80000 });
   check(true, 'page loaded the mesh and the rig and opened the WebSocket');

@@ -5,7 +5,7 @@ import dgram from 'node:dgram';
 import crypto from 'node:crypto';
 import fs from 'node:fs';
 import path from 'node:path';
-import { check, finish, status, waitFor, sleep, replayDone } from './lib.mjs';
+import { check, finish, status, waitFor, sleep, replayDone, TOKEN } from './lib.mjs';
 
 const [http, osc, udp, work] = process.argv.slice(2);
 const sock = dgram.createSocket('udp4');
@@ -78,7 +78,8 @@ check((await status(http)).solve_errors === 0, 'no solver errors');
 const url = `http://127.0.0.1:${http}`;
 const rigPath = path.join(work, 'c.rig.json');
 const rig0 = fs.readFileSync(rigPath, 'utf8');
-const post = (p, body) => fetch(url + p, { method: 'POST', body });
+const post = (p, body) => fetch(`${url}${p}?token=${TOKEN}`, { method: 'POST', body,
+  headers: { 'Content-Type': 'application/json' } });
 check((await post('/rig', '{"handles": [{"name":"x","vertex": 99999999}]')).status === 400, 'POST /rig with garbage -> 400');
 check((await post('/rig', '{"handles": [{"name":"x","vertex": 99999999}]}')).status === 400, 'POST /rig with an out-of-range vertex -> 400');
 check((await post('/rig', '{"handles": []}')).status === 400, 'POST /rig without handles -> 400');

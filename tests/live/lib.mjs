@@ -8,6 +8,8 @@ export function finish(name) {
   console.log(`${name}: ${passes} passed, ${failures} failed`);
   process.exit(failures ? 1 : 0);
 }
+// The server's per-run secret (tests/live/run.sh reads it from the printed URL).
+export const TOKEN = process.env.KM_LIVE_TOKEN || '';
 export async function status(http) {
   return (await fetch(`http://127.0.0.1:${http}/status`)).json();
 }

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# ctest driver for live mode: run.sh e2e|e2e_quantize|osc|garbage KINEMESH WORKDIR
+# ctest driver for live mode: run.sh e2e|e2e_quantize|osc|garbage|security KINEMESH WORKDIR
+# (security: tests/security/run.sh, which names its script in KM_LIVE_SCRIPT)
 # Generates a small character and take, starts `kinemesh live` on loopback with random free
 # ports (retrying when a port is taken), runs the matching node script against it, stops the
 # server with SIGTERM and checks it exits cleanly. A missing tool (chromium, oscsend: the set-up
@@ -25,6 +26,7 @@ case $MODE in
   e2e_quantize) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
   osc) EXTRA=(--record "$WORK/rec.json") ;;
   garbage) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
+  security) EXTRA=(--replay "$WORK/t.json" --no-autoplay); chmod 600 "$WORK/c.rig.json" ;;
 esac
 
 PID=
@@ -48,7 +50,12 @@ done
 cleanup() { [ -n "$PID" ] && kill -9 $PID 2>/dev/null; }
 trap cleanup EXIT
 
-timeout 90 node "$HERE/${MODE%_quantize}.mjs" "$HTTP" "$OSC" "$UDP" "$WORK"
+# The per-run secret from the printed URL (issue 18): the scripts send it like the page does.
+KM_LIVE_TOKEN=$(grep -o 'token=[A-Za-z0-9_-]*' "$WORK/server.out" | head -1 | cut -d= -f2)
+[ -n "$KM_LIVE_TOKEN" ] || { echo "FAIL: no ?token= in the printed URL"; cat "$WORK/server.out"; exit 1; }
+export KM_LIVE_TOKEN
+SCRIPT=${KM_LIVE_SCRIPT:-$HERE/${MODE%_quantize}.mjs}
+timeout 90 node "$SCRIPT" "$HTTP" "$OSC" "$UDP" "$WORK"
 rc=$?
 kill -0 $PID 2>/dev/null || { echo "FAIL: the server died"; cat "$WORK/server.err"; exit 1; }
 kill -TERM $PID
