@@ -134,11 +134,18 @@ double km_seconds(void);
 /* ---- atomic files */
 
 /* Writes a file atomically: a temporary file beside it, flushed, then renamed, so a reader
- * never sees a half-written file and a failure leaves nothing behind.
+ * never sees a half-written file and a failure leaves nothing behind. The temporary is
+ * created exclusively (never opened through a planted file or symlink) and gets the
+ * replaced file's permissions (a new file: 0666 less the umask).
  *   path  in: destination file
  *   data  in: size bytes to write
  * Errors: KM_ERR_IO naming path. */
 km_status km_write_file_atomic(const char *path, const void *data, size_t size, km_error *err);
+
+/* Removes the temporaries of every output being written at this moment (every writer of the
+ * library goes through one). Async-signal-safe: for a SIGINT/SIGTERM handler that then
+ * exits, so an interrupted run leaves no "*.tmp.*" file behind. */
+void km_remove_temporaries(void);
 
 /* ==== linalg: sparse matrices, sparse Cholesky, eigenpairs (src/linalg/) ==== */
 

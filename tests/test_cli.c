@@ -3,6 +3,7 @@
 #include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
 #include <cjson/cJSON.h>
+#include <unistd.h>
 
 static cJSON *run_json(const char *cmd, int *code) {
   char *out = NULL;
@@ -141,8 +142,29 @@ static void test_gen_and_pose(void) {
   remove("cli_anim.pc2");
 }
 
+/* Issue 18: a report on standard output that cannot be written (full disk) is a failure. */
+static void test_stdout_errors(void) {
+  if (access("/dev/full", W_OK) != 0) {
+    printf("skip: no /dev/full\n");
+    return;
+  }
+  char *out = NULL;
+  int code = km_test_run(KM_CLI " info --json " KM_TEST_DATA "/tetra.obj > /dev/full", &out);
+  CHECK_MSG(code == 1, "info --json > /dev/full exits %d", code);
+  free(out);
+  code = km_test_run(KM_CLI " info " KM_TEST_DATA "/tetra.obj 2>/dev/null > /dev/full", NULL);
+  CHECK_MSG(code == 1, "info > /dev/full exits %d", code);
+  /* the message names the problem */
+  code = km_test_run(
+      "sh -c '" KM_CLI " info --json " KM_TEST_DATA "/tetra.obj 2>&3 > /dev/full' 3>&1", &out);
+  CHECK(out && strstr(out, "standard output"));
+  free(out);
+  CHECK(km_test_run(KM_CLI " info --json " KM_TEST_DATA "/tetra.obj > /dev/null", NULL) == 0);
+}
+
 int main(void) {
   test_help_and_usage();
+  test_stdout_errors();
   test_info_json();
   test_bad_input();
   test_convert_roundtrip();

@@ -1,6 +1,7 @@
 #include "core/core.h"
 #include "km_test.h"
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 static void test_atomic_file(void) {
@@ -44,6 +45,52 @@ static void test_atomic_file(void) {
   CHECK(strstr(km_test_err.message, "/dev/null/such/dir/x.txt") != NULL);
 }
 
+/* Issue 18: a temporary never goes through a planted symlink, keeps the replaced file's
+ * mode, and the signal-handler cleanup removes open temporaries. */
+static void test_atomic_hardening(void) {
+  const char *path = "test_core_hard.txt", *victim = "test_core_victim.txt";
+  remove(path);
+  remove(victim);
+  FILE *f = fopen(victim, "wb");
+  CHECK(f != NULL);
+  if (f) {
+    fputs("precious", f);
+    fclose(f);
+  }
+  /* The name the old writer used: <path>.tmp.<pid>. */
+  char planted[256];
+  snprintf(planted, sizeof planted, "%s.tmp.%ld", path, (long)getpid());
+  remove(planted);
+  CHECK(symlink(victim, planted) == 0);
+  CHECK_OK(km_write_file_atomic(path, "new", 3, KM_E));
+  char *data = NULL;
+  size_t n = 0;
+  CHECK_OK(km__read_file(victim, &data, &n, KM_E));
+  CHECK_MSG(n == 8 && data && !memcmp(data, "precious", 8), "the symlink's target is untouched");
+  free(data);
+  struct stat st;
+  CHECK(lstat(path, &st) == 0 && S_ISREG(st.st_mode));
+  remove(planted);
+
+  /* Mode kept: a 0600 file stays 0600. */
+  CHECK(chmod(path, 0600) == 0);
+  CHECK_OK(km_write_file_atomic(path, "newer", 5, KM_E));
+  CHECK(stat(path, &st) == 0);
+  CHECK_MSG((st.st_mode & 0777) == 0600, "mode kept: %o", (unsigned)(st.st_mode & 0777));
+
+  /* km_remove_temporaries (for SIGINT/SIGTERM handlers) removes an open temporary. */
+  km__atomic_file af;
+  CHECK_OK(km__atomic_open(&af, path, KM_E));
+  char tmp[512];
+  snprintf(tmp, sizeof tmp, "%s", af.tmp_path);
+  CHECK(access(tmp, F_OK) == 0);
+  km_remove_temporaries();
+  CHECK(access(tmp, F_OK) != 0);
+  km__atomic_abort(&af);
+  remove(path);
+  remove(victim);
+}
+
 static void test_errors(void) {
   km_error e = {0};
   CHECK(km__fail(&e, KM_ERR_PARSE, "f.obj:%d: expected %s", 3, "a number") == KM_ERR_PARSE);
@@ -63,6 +110,7 @@ static void test_errors(void) {
 
 int main(void) {
   test_atomic_file();
+  test_atomic_hardening();
   test_errors();
   return km_test_finish("test_core");
 }

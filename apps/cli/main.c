@@ -2,6 +2,8 @@
 #include "bench.h"
 #include "cli.h"
 
+#include <errno.h>
+#include <signal.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -41,8 +43,30 @@ static void usage(FILE *f) {
     fprintf(f, "  %-10s %s\n", VERBS[i].name, VERBS[i].summary);
 }
 
+/* SIGINT/SIGTERM: remove the temporaries of the outputs being written (the old outputs stay
+ * as they were), then die of the signal. `live` installs its own handler (clean stop). */
+static void on_fatal_signal(int sig) {
+  km_remove_temporaries();
+  signal(sig, SIG_DFL);
+  raise(sig);
+}
+
+/* A verb's report on standard output that could not be written (a full disk, a closed pipe)
+ * is a failure, not exit 0 with nothing written. */
+static int finish_stdout(int rc) {
+  errno = 0;
+  if (fflush(stdout) != 0 || ferror(stdout)) {
+    fprintf(stderr, "kinemesh: cannot write standard output: %s\n",
+            errno ? strerror(errno) : "write error");
+    return rc ? rc : 1;
+  }
+  return rc;
+}
+
 int main(int argc, char **argv) {
   km_cli_install_logger();
+  signal(SIGINT, on_fatal_signal);
+  signal(SIGTERM, on_fatal_signal);
   if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") ||
       !strcmp(argv[1], "help")) {
     usage(argc < 2 ? stderr : stdout);
@@ -53,7 +77,7 @@ int main(int argc, char **argv) {
     return 0;
   }
   for (size_t i = 0; i < sizeof VERBS / sizeof VERBS[0]; ++i)
-    if (!strcmp(argv[1], VERBS[i].name)) return VERBS[i].run(argc - 1, argv + 1);
+    if (!strcmp(argv[1], VERBS[i].name)) return finish_stdout(VERBS[i].run(argc - 1, argv + 1));
   fprintf(stderr, "kinemesh: unknown verb '%s'\n\n", argv[1]);
   usage(stderr);
   return 2;

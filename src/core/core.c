@@ -5,7 +5,8 @@
 #include <glob.h>
 #include <sys/stat.h>
 #include <errno.h>
-#include <sys/stat.h>
+#include <fcntl.h>
+#include <signal.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -114,23 +115,81 @@ km_status km__make_parents(const char *path, km_error *err) {
   return s;
 }
 
+/* Temporaries being written, for km_remove_temporaries (a signal handler): fixed slots, no
+ * allocation, so the handler only reads them and calls unlink. */
+#define KM__TMP_SLOTS 32
+#define KM__TMP_MAX 4096
+static char g_tmp_paths[KM__TMP_SLOTS][KM__TMP_MAX];
+static sig_atomic_t g_tmp_used[KM__TMP_SLOTS];
+
+static int tmp_register(const char *path) {
+  if (strlen(path) >= KM__TMP_MAX) return -1;
+  for (int i = 0; i < KM__TMP_SLOTS; ++i) {
+    sig_atomic_t free_slot = 0;
+    if (__atomic_compare_exchange_n(&g_tmp_used[i], &free_slot, 2, false, __ATOMIC_ACQ_REL,
+                                    __ATOMIC_RELAXED)) {
+      strcpy(g_tmp_paths[i], path);
+      __atomic_store_n(&g_tmp_used[i], 1, __ATOMIC_RELEASE);
+      return i;
+    }
+  }
+  return -1;
+}
+
+static void tmp_unregister(const char *path) {
+  for (int i = 0; i < KM__TMP_SLOTS; ++i)
+    if (__atomic_load_n(&g_tmp_used[i], __ATOMIC_ACQUIRE) == 1 && !strcmp(g_tmp_paths[i], path)) {
+      __atomic_store_n(&g_tmp_used[i], 0, __ATOMIC_RELEASE);
+      return;
+    }
+}
+
+void km_remove_temporaries(void) {
+  for (int i = 0; i < KM__TMP_SLOTS; ++i)
+    if (__atomic_load_n(&g_tmp_used[i], __ATOMIC_ACQUIRE) == 1) unlink(g_tmp_paths[i]);
+}
+
 km_status km__atomic_open(km__atomic_file *af, const char *path, km_error *err) {
   memset(af, 0, sizeof *af);
   km_status ps = km__make_parents(path, err);
   if (ps) return ps;
   size_t n = strlen(path);
   af->path = malloc(n + 1);
-  af->tmp_path = malloc(n + 32);
+  af->tmp_path = malloc(n + 48);
   if (!af->path || !af->tmp_path) {
     km__atomic_abort(af);
     return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
   }
   memcpy(af->path, path, n + 1);
-  snprintf(af->tmp_path, n + 32, "%s.tmp.%ld", path, (long)getpid());
-  af->f = fopen(af->tmp_path, "wb");
+  /* Exclusive creation beside the target (O_EXCL | O_NOFOLLOW): a file or symlink planted
+   * under the temporary's name is never opened, the name is retried instead. */
+  static _Atomic unsigned long counter;
+  unsigned long seed = (unsigned long)getpid() * 2654435761ul ^ (unsigned long)time(NULL);
+  int fd = -1, e = 0;
+  for (int tries = 0; tries < 64 && fd < 0; ++tries) {
+    unsigned long r = seed ^ (++counter * 0x9e3779b97f4a7c15ul);
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    r ^= (unsigned long)ts.tv_nsec * 0xbf58476d1ce4e5b9ul;
+    snprintf(af->tmp_path, n + 48, "%s.tmp.%ld.%08lx", path, (long)getpid(), r & 0xfffffffful);
+    fd = open(af->tmp_path, O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+    e = errno;
+    if (fd < 0 && e != EEXIST) break;
+  }
+  if (fd >= 0) {
+    /* Replacing a file keeps its permissions (a 0600 sidecar stays 0600). */
+    struct stat st;
+    if (stat(path, &st) == 0 && S_ISREG(st.st_mode)) (void)fchmod(fd, st.st_mode & 07777);
+    tmp_register(af->tmp_path);
+    if (!(af->f = fdopen(fd, "wb"))) {
+      e = errno;
+      close(fd);
+      unlink(af->tmp_path);
+      tmp_unregister(af->tmp_path);
+    }
+  }
   if (!af->f) {
-    km_status s =
-        km__fail(err, KM_ERR_IO, "%s: cannot open for writing: %s", path, strerror(errno));
+    km_status s = km__fail(err, KM_ERR_IO, "%s: cannot open for writing: %s", path, strerror(e));
     free(af->path);
     free(af->tmp_path);
     memset(af, 0, sizeof *af);
@@ -154,6 +213,7 @@ km_status km__atomic_commit(km__atomic_file *af, km_error *err) {
                  strerror(errno));
     remove(af->tmp_path);
   }
+  tmp_unregister(af->tmp_path);
   free(af->path);
   free(af->tmp_path);
   af->path = af->tmp_path = NULL;
@@ -166,6 +226,7 @@ void km__atomic_abort(km__atomic_file *af) {
     af->f = NULL;
     if (af->tmp_path) remove(af->tmp_path);
   }
+  if (af->tmp_path) tmp_unregister(af->tmp_path);
   free(af->path);
   free(af->tmp_path);
   af->path = af->tmp_path = NULL;

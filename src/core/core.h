@@ -28,7 +28,9 @@ bool km__progress(const km_progress *p, double fraction, const char *stage);
 void *km__malloc(size_t count, size_t size);
 void *km__calloc(size_t count, size_t size);
 
-/* Atomic output files: write to "<path>.tmp.<pid>" then rename on commit. */
+/* Atomic output files: write to "<path>.tmp.<pid>.<random>" (created exclusively, never
+ * through a symlink, with the replaced file's permissions) then rename on commit. Open
+ * temporaries are listed for km_remove_temporaries. */
 typedef struct km__atomic_file {
   FILE *f;
   char *path;
