@@ -101,6 +101,21 @@ static void test_osc(void) {
   lo_message_add_double(m, 1);
   CHECK(osc(m, "/joint", &o) == KM_LIVE_OSC_BAD); /* 9 arguments */
   lo_message_free(m);
+  /* Issue 18: 64-bit user ids (>= 2^31) are no float->int overflow (UB): distinct, >= 0. */
+  int users[2];
+  for (int k = 0; k < 2; ++k) {
+    m = lo_message_new();
+    lo_message_add_string(m, "r_hand");
+    lo_message_add_int32(m, 0);
+    lo_message_add_int64(m, ((int64_t)1 << 40) + k);
+    for (int c = 0; c < 4; ++c)
+      lo_message_add_float(m, 1);
+    CHECK(osc(m, "/joint", &o) == KM_LIVE_OSC_JOINT);
+    users[k] = o.user;
+    lo_message_free(m);
+  }
+  CHECK_MSG(users[0] >= 0 && users[1] >= 0 && users[0] != users[1], "user ids %d %d", users[0],
+            users[1]);
 
   m = lo_message_new();
   lo_message_add_string(m, "r_hand");
@@ -315,6 +330,26 @@ static void test_server(void) {
     CHECK_STATUS(km_live_create(&o, &c.mesh, p, rig, rig_n, NULL, &l3, KM_E), KM_ERR_IO);
     CHECK(l3 == NULL);
     km_live_free(&l2);
+  }
+  /* Issue 18: --record is capped (record_max frames kept, the first ones), not unbounded. */
+  if (s == KM_OK) {
+    km_live *l5 = NULL;
+    o.record = true;
+    o.record_max = 5;
+    o.no_autoplay = false;
+    CHECK_OK(km_live_create(&o, &c.mesh, p, rig, rig_n, &take, &l5, KM_E));
+    km_live_stats st5 = {0};
+    for (int i = 0; l5 && i < 500 && st5.frames_in < 8; ++i) {
+      usleep(20000);
+      km_live_get_stats(l5, &st5);
+    }
+    CHECK_MSG(st5.frames_in >= 8, "frames_in %llu", (unsigned long long)st5.frames_in);
+    if (l5) CHECK_OK(km_live_record_take(l5, rec_path, KM_E));
+    km_take rec = {0};
+    CHECK_OK(km_take_read(rec_path, &rec, KM_E));
+    CHECK_MSG(rec.n_frames == 5, "recorded %zu frames (cap 5)", rec.n_frames);
+    km_take_free(&rec);
+    km_live_free(&l5);
   }
   /* a rig that does not parse */
   km_live *l4 = NULL;

@@ -131,6 +131,21 @@ static double num(char t, const void *a) {
   }
 }
 
+/* A user id as an int: int32 as sent; an int64 outside the int range (Kinect v2 tracking ids
+ * are 64-bit) folded into 0..INT32_MAX, never converted out of range (undefined). */
+static int user_id(char type, const void *a) {
+  if (type == 'i') {
+    int32_t i;
+    memcpy(&i, a, sizeof i);
+    return i;
+  }
+  int64_t h;
+  memcpy(&h, a, sizeof h);
+  if (h >= INT32_MIN && h <= INT32_MAX) return (int)h;
+  uint64_t u = (uint64_t)h;
+  return (int)((u ^ (u >> 31) ^ (u >> 62)) & 0x7fffffffu);
+}
+
 km_live_osc_kind km_live_parse_osc(const char *path, const char *types, void *const *argv_,
                                      int argc, km_live_osc_joint *out) {
   const void *const *argv = (const void *const *)argv_;
@@ -152,7 +167,7 @@ km_live_osc_kind km_live_parse_osc(const char *path, const char *types, void *co
       return KM_LIVE_OSC_BAD;
     if (j == -2) return KM_LIVE_OSC_IGNORED;
     out->joint = j;
-    out->user = (int)num(types[2], argv[2]);
+    out->user = user_id(types[2], argv[2]);
     /* centimetres, y pointing down; then Kinect camera space -> kinemesh (x,y,z)->(-x,y,-z) */
     out->p[0] = -x / 100.0;
     out->p[1] = -y / 100.0;
