@@ -389,7 +389,26 @@ static void test_bvh_cmu(void) {
   km_take_free(&t);
 }
 
+/* Issue 18: a take with an overflowing coordinate (1e999 parses as inf) is refused, naming the
+ * frame and joint; null stays "missing". */
+static void test_take_nonfinite(void) {
+  const char *path = "test_motion_io_inf.json";
+  write_text(path, "{\"format\":\"kinemesh-take\",\"version\":1,\"fps\":30,\"joints\":[\"A\"],"
+                   "\"frames\":[[0,0,0],[1e999,0,0]]}");
+  km_take t;
+  CHECK_STATUS(km_take_read(path, &t, KM_E), KM_ERR_PARSE);
+  CHECK_MSG(strstr(km_test_err.message, "frame 1") && strstr(km_test_err.message, "finite"), "%s",
+            km_test_err.message);
+  write_text(path, "{\"format\":\"kinemesh-take\",\"version\":1,\"fps\":30,\"joints\":[\"A\"],"
+                   "\"frames\":[[0,0,0],[null,null,null]]}");
+  CHECK_OK(km_take_read(path, &t, KM_E));
+  CHECK(t.n_frames == 2 && isnan(t.positions[3]));
+  km_take_free(&t);
+  remove(path);
+}
+
 int main(void) {
+  test_take_nonfinite();
   test_csv_real();
   test_csv_handmade();
   test_csv_malformed();

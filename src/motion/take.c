@@ -98,7 +98,12 @@ static km_status take_from_json(const char *path, const cJSON *root, km_take *t,
     size_t k = 0;
     const cJSON *v;
     cJSON_ArrayForEach(v, it) {
-      if (cJSON_IsNumber(v))
+      if (cJSON_IsNumber(v) && !isfinite(v->valuedouble))
+        return km__fail(err, KM_ERR_PARSE,
+                        "%s: frame %zu, value %zu (joint %s) is not finite (use null for a "
+                        "missing joint)",
+                        path, f, k, t->joint_names[k / 3]);
+      else if (cJSON_IsNumber(v))
         p[k] = v->valuedouble;
       else if (cJSON_IsNull(v))
         p[k] = NAN;
