@@ -140,7 +140,38 @@ static void test_options_and_errors(void) {
   free_mesh(&m);
 }
 
+/* Issue 18: meshes without a spectrum are refused (KM_ERR_DEGENERATE_MESH), not answered
+ * with -0 or NaN: all vertices coincident, no faces, coordinates whose areas overflow. */
+static km_status eigs_of(double *V, size_t nv, int32_t *F, size_t nf, double *ev) {
+  km_mesh m = {V, F, nv, nf, NULL, NULL};
+  km_sparse *L = NULL, *M = NULL;
+  km_status s = km_cotmatrix(&m, &L, NULL);
+  if (s == KM_OK) s = km_massmatrix(&m, KM_MASS_VORONOI, &M, NULL);
+  if (s == KM_OK) s = km_eigs(L, M, 3, NULL, ev, NULL, KM_E);
+  km_sparse_free(&L);
+  km_sparse_free(&M);
+  return s;
+}
+
+static void test_degenerate(void) {
+  int32_t F[] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+  double ev[3];
+  double same[12] = {1, 2, 3, 1, 2, 3, 1, 2, 3, 1, 2, 3};
+  km_status s = eigs_of(same, 4, F, 4, ev);
+  CHECK_MSG(s != KM_OK, "coincident vertices: %s (%g %g %g)", km_status_name(s), ev[0], ev[1],
+            ev[2]);
+  double tet[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  s = eigs_of(tet, 4, F, 0, ev);
+  CHECK_MSG(s != KM_OK, "no faces: %s", km_status_name(s));
+  double huge[12] = {-1e308, -1e308, 0, 1e308, -1e308, 0, 0, 1e308, 0, 0, 0, 1e308};
+  s = eigs_of(huge, 4, F, 4, ev);
+  CHECK_MSG(s != KM_OK, "+-1e308 coordinates: %s", km_status_name(s));
+  /* the same tetrahedron at a sane size still works */
+  CHECK_OK(eigs_of(tet, 4, F, 4, ev));
+}
+
 int main(void) {
+  test_degenerate();
   test_sphere_spectrum();
   test_options_and_errors();
   return km_test_finish("test_eigs");

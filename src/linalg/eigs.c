@@ -245,6 +245,28 @@ km_status km_eigs(const km_sparse *L, const km_sparse *M, int k, const km_eigs_o
   if (opt->ncv > 0 && opt->ncv <= k)
     return km__fail(err, KM_ERR_INVALID, "km_eigs: ncv = %d, expected more than k = %d", opt->ncv,
                     k);
+  /* A mesh whose faces have no area (coincident vertices), no faces at all, or coordinates
+   * so large that areas overflow gives a zero or non-finite L or M: no spectrum, and ARPACK
+   * would return -0 or NaN as if it were one. */
+  {
+    const km_sparse *A[2] = {L, M};
+    for (int a = 0; a < 2; ++a) {
+      const int32_t *p, *ri;
+      const double *x;
+      km_sparse_csc(A[a], &p, &ri, &x);
+      for (int32_t q = 0; q < p[n]; ++q)
+        if (!isfinite(x[q]))
+          return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                          "km_eigs: %s has a non-finite entry (faces of zero area or coordinates "
+                          "too large)",
+                          a ? "the mass matrix" : "the Laplacian");
+    }
+    double trM = diag_sum(M), trL = -diag_sum(L);
+    if (!(trM > 0) || !(trL > 0) || !isfinite(trM) || !isfinite(trL))
+      return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                      "km_eigs: the mesh has no area (no faces, or all of zero area): no "
+                      "spectrum");
+  }
   if (!km__progress(&opt->progress, 0, "eigs: factorize"))
     return km__fail(err, KM_ERR_CANCELLED, "km_eigs: cancelled");
   if (n <= (size_t)2 * k + 1 || n <= 20) return eigs_dense(L, M, k, evals, evecs, err);
