@@ -535,11 +535,13 @@ km_status km_local_frames(const km_mesh *m, const double *N, const int32_t *ref,
 
 /* ---- point clouds */
 
-/* One point cloud frame. Points with a NaN/inf coordinate are dropped and counted. */
+/* One point cloud frame. Points with a NaN/inf coordinate are dropped and counted, and so
+ * are points at exactly (0, 0, 0): a depth sensor's "no return" pixels. */
 typedef struct km_points {
   double *P; /* n*3 positions, metres */
   size_t n;
-  size_t dropped_nan; /* points skipped because a coordinate was not finite */
+  size_t dropped_nan;  /* points skipped because a coordinate was not finite */
+  size_t dropped_zero; /* points skipped because they were exactly (0, 0, 0) */
 } km_points;
 /* Frees p->P and zeroes the struct. */
 void km_points_free(km_points *p);
@@ -1789,7 +1791,7 @@ typedef struct km_recon_feature {
 typedef struct km_recon_frame_stats {
   size_t index;
   size_t points;  /* finite points used */
-  size_t dropped; /* NaN points dropped */
+  size_t dropped; /* points dropped: NaN/inf, or exactly (0, 0, 0) (no sensor return) */
   double mean_mm; /* mean distance points -> reconstructed surface */
   double max_mm;
   int iterations; /* solver iterations (skeleton L-BFGS + surface) */

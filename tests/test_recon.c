@@ -766,7 +766,68 @@ static void test_pipeline(void) {
   km_character_free(&c);
 }
 
+/* Issue 18: duplicate points. 200k copies of one point (a sensor's no-return pixels) made
+ * the kNN quadratic (minutes); copies are now grouped, so this runs in well under a second
+ * and a copy's neighbours are its copies. Exact zeros are dropped by the readers and counted. */
+static void test_duplicates(void) {
+  const size_t dup = 200000, other = 1000, n = dup + other;
+  double *P = malloc(n * 3 * sizeof *P);
+  for (size_t i = 0; i < dup; ++i)
+    P[3 * i] = 0.25, P[3 * i + 1] = 1, P[3 * i + 2] = -0.5;
+  for (size_t i = 0; i < other; ++i) {
+    double t = (double)i / (double)other * 6.283185307179586;
+    P[3 * (dup + i)] = cos(t), P[3 * (dup + i) + 1] = sin(t), P[3 * (dup + i) + 2] = 0.1 * t;
+  }
+  const int k = 8;
+  int32_t *idx = malloc(n * (size_t)k * sizeof *idx);
+  CHECK_OK(km__knn(P, n, k, idx, KM_E));
+  bool copies = true, valid = true, near = true;
+  for (size_t i = 0; i < dup; i += 997)
+    for (int j = 0; j < k; ++j)
+      copies &= idx[(size_t)k * i + j] >= 0 && (size_t)idx[(size_t)k * i + j] < dup;
+  /* the distinct points get their true neighbours: brute force on a few */
+  for (size_t i = dup; i < n; i += 97) {
+    double worst = 0;
+    for (int j = 0; j < k; ++j) {
+      int32_t q = idx[(size_t)k * i + j];
+      valid &= q >= 0 && (size_t)q < n;
+      if (q < 0 || (size_t)q >= n) continue;
+      double d[3] = {P[3 * q] - P[3 * i], P[3 * q + 1] - P[3 * i + 1], P[3 * q + 2] - P[3 * i + 2]};
+      worst = fmax(worst, d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    }
+    int closer = 0;
+    for (size_t q = dup; q < n; ++q) {
+      double d[3] = {P[3 * q] - P[3 * i], P[3 * q + 1] - P[3 * i + 1], P[3 * q + 2] - P[3 * i + 2]};
+      closer += d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < worst * (1 - 1e-9);
+    }
+    near &= closer < k; /* no more than k-1 points strictly closer than the k-th found */
+  }
+  CHECK_MSG(copies, "a copy's neighbours are copies");
+  CHECK(valid);
+  CHECK_MSG(near, "distinct points get their k nearest");
+  /* the nearest-point index answers with a copy too */
+  km__point_index *ix = NULL;
+  CHECK_OK(km__point_index_create(P, n, &ix, KM_E));
+  double q[6] = {0.25, 1.01, -0.5, 1, 0, 0};
+  int32_t id[2];
+  double dist[2];
+  if (ix) km__point_index_nearest(ix, q, 2, 0, id, dist);
+  CHECK(ix && id[0] >= 0 && (size_t)id[0] < dup && fabs(dist[0] - 0.01) < 1e-9);
+  CHECK(ix && id[1] == (int32_t)dup && dist[1] < 1e-12);
+  km__point_index_free(&ix);
+  free(idx);
+  free(P);
+
+  const char xyz[] = "0 0 0\n1 2 3\n0 0 0\nnan 0 0\n0.0 -0 0e5\n0 0 1\n";
+  km_points p = {0};
+  CHECK_OK(km_points_parse(xyz, sizeof xyz - 1, "zeros.xyz", &p, KM_E));
+  CHECK_MSG(p.n == 2 && p.dropped_zero == 3 && p.dropped_nan == 1, "%zu points, %zu zeros, %zu nan",
+            p.n, p.dropped_zero, p.dropped_nan);
+  km_points_free(&p);
+}
+
 int main(void) {
+  test_duplicates();
   test_horn();
   test_readers();
   test_capture();

@@ -20,10 +20,16 @@ void km_points_free(km_points *p) {
   memset(p, 0, sizeof *p);
 }
 
-/* Appends finite points, counts the others. Capacity is checked by the caller. */
+/* Appends finite points, counts the others; exact zeros (a depth sensor's pixels with no
+ * return, often many thousands per frame) are dropped and counted too. Capacity is checked by
+ * the caller. */
 static void push_point(km_points *o, double x, double y, double z) {
   if (!isfinite(x) || !isfinite(y) || !isfinite(z)) {
     ++o->dropped_nan;
+    return;
+  }
+  if (x == 0 && y == 0 && z == 0) {
+    ++o->dropped_zero;
     return;
   }
   o->P[o->n * 3 + 0] = x;
@@ -88,7 +94,7 @@ static km_status parse_xyz(const char *text, size_t size, const char *name, km_p
                         line, k);
       c = e;
     }
-    if (out->n + out->dropped_nan >= cap)
+    if (out->n + out->dropped_nan + out->dropped_zero >= cap)
       return km__fail(err, KM_ERR_PARSE, "%s:%zu: too many points", name, line);
     push_point(out, v[0], v[1], v[2]);
   }

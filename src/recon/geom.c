@@ -293,6 +293,55 @@ static void knn_scene(RTCScene scene, const double *P, size_t n, int k, int32_t 
   }
 }
 
+struct km__point_index {
+  RTCScene scene;
+  knn_geom g; /* over the distinct points (P itself when there are no duplicates) */
+  size_t n, nu;
+  double *U;      /* nu*3 distinct positions; NULL when nu == n */
+  int32_t *start; /* nu+1: members of distinct point u are mem[start[u] .. start[u+1]) */
+  int32_t *mem;   /* n original ids, grouped, ascending within a group */
+};
+
+/* k nearest neighbours over the distinct points, expanded to their copies: a cloud with many
+ * copies of one point (a depth sensor's zeros, a stuck pixel) costs O(n k), where querying
+ * the copies themselves would visit every copy from every copy (quadratic). */
+static void knn_dedup(const km__point_index *ix, int k, int32_t *idx) {
+  const size_t nu = ix->nu;
+#pragma omp parallel if (nu > KM__OMP_MIN)
+  {
+    double d2[64];
+    int32_t near[64];
+    int kk = k > 64 ? 64 : k;
+    if ((size_t)kk > nu) kk = (int)nu;
+#pragma omp for schedule(dynamic, 512)
+    for (size_t u = 0; u < nu; ++u) {
+      knn_query q = {.P = ix->U, .k = kk, .idx = near, .d2 = d2};
+      memcpy(q.p, ix->U + 3 * u, sizeof q.p);
+      struct RTCPointQuery pq = {(float)q.p[0], (float)q.p[1], (float)q.p[2], 0, INFINITY};
+      struct RTCPointQueryContext ctx;
+      rtcInitPointQueryContext(&ctx);
+      rtcPointQuery(ix->scene, &pq, &ctx, NULL, &q);
+      /* nearest first, so the point's own copies come before farther points */
+      for (int a = 1; a < q.count; ++a)
+        for (int b = a; b > 0 && d2[b - 1] > d2[b]; --b) {
+          double td = d2[b];
+          int32_t ti = near[b];
+          d2[b] = d2[b - 1], near[b] = near[b - 1];
+          d2[b - 1] = td, near[b - 1] = ti;
+        }
+      for (int32_t m = ix->start[u]; m < ix->start[u + 1]; ++m) {
+        int32_t i = ix->mem[m], *out = idx + (size_t)k * (size_t)i;
+        int c = 0;
+        for (int r = 0; r < q.count && c < kk; ++r)
+          for (int32_t t = ix->start[near[r]]; t < ix->start[near[r] + 1] && c < kk; ++t)
+            out[c++] = ix->mem[t];
+        while (c < k)
+          out[c++] = i;
+      }
+    }
+  }
+}
+
 km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err) {
   if (k < 1 || (size_t)k > n)
     return km__fail(err, KM_ERR_INVALID, "knn: k=%d with %zu points", k, n);
@@ -304,10 +353,56 @@ km_status km__knn(const double *P, size_t n, int k, int32_t *idx, km_error *err)
   return s;
 }
 
-struct km__point_index {
-  RTCScene scene;
-  knn_geom g;
-};
+typedef struct pt_key {
+  double x[3];
+  int32_t i;
+} pt_key;
+
+/* By the bytes of the coordinates: a total order even with NaN; copies are bit-equal. */
+static int cmp_pt_key(const void *a, const void *b) {
+  const pt_key *p = a, *q = b;
+  int c = memcmp(p->x, q->x, sizeof p->x);
+  return c ? c : (p->i > q->i) - (p->i < q->i);
+}
+
+/* Groups exact copies (ix->U, start, mem); leaves them NULL when every point is distinct. */
+static km_status group_copies(km__point_index *ix, const double *P, size_t n, km_error *err) {
+  ix->n = ix->nu = n;
+  if (n < 2) return KM_OK;
+  pt_key *key = km__malloc(n, sizeof *key);
+  if (!key) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  for (size_t i = 0; i < n; ++i) {
+    memcpy(key[i].x, P + 3 * i, sizeof key[i].x);
+    key[i].i = (int32_t)i;
+  }
+  qsort(key, n, sizeof *key, cmp_pt_key);
+  size_t nu = 1;
+  for (size_t i = 1; i < n; ++i)
+    nu += memcmp(key[i].x, key[i - 1].x, sizeof key[i].x) != 0;
+  if (nu == n) {
+    free(key);
+    return KM_OK;
+  }
+  ix->U = km__malloc(nu, 3 * sizeof(double));
+  ix->start = km__malloc(nu + 1, sizeof(int32_t));
+  ix->mem = km__malloc(n, sizeof(int32_t));
+  if (!ix->U || !ix->start || !ix->mem) {
+    free(key);
+    return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  }
+  size_t u = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (i == 0 || memcmp(key[i].x, key[i - 1].x, sizeof key[i].x)) {
+      memcpy(ix->U + 3 * u, key[i].x, sizeof key[i].x);
+      ix->start[u++] = (int32_t)i;
+    }
+    ix->mem[i] = key[i].i;
+  }
+  ix->start[nu] = (int32_t)n;
+  ix->nu = nu;
+  free(key);
+  return KM_OK;
+}
 
 km_status km__point_index_create(const double *P, size_t n, km__point_index **out, km_error *err) {
   *out = NULL;
@@ -315,10 +410,15 @@ km_status km__point_index_create(const double *P, size_t n, km__point_index **ou
   if (!dev) return KM_ERR_UNSUPPORTED;
   km__point_index *ix = calloc(1, sizeof *ix);
   if (!ix) return km__fail(err, KM_ERR_NOMEM, "out of memory");
-  ix->g.P = P;
+  km_status gs = group_copies(ix, P, n, err);
+  if (gs) {
+    free(ix->U), free(ix->start), free(ix->mem), free(ix);
+    return gs;
+  }
+  ix->g.P = ix->U ? ix->U : P;
   ix->scene = rtcNewScene(dev);
   RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_USER);
-  rtcSetGeometryUserPrimitiveCount(geom, (unsigned)n);
+  rtcSetGeometryUserPrimitiveCount(geom, (unsigned)ix->nu);
   rtcSetGeometryUserData(geom, &ix->g);
   rtcSetGeometryBoundsFunction(geom, knn_bounds, &ix->g);
   rtcSetGeometryPointQueryFunction(geom, knn_cb);
@@ -334,7 +434,12 @@ km_status km__point_index_knn(const km__point_index *ix, size_t n, int k, int32_
                               km_error *err) {
   if (k < 1 || (size_t)k > n)
     return km__fail(err, KM_ERR_INVALID, "knn: k=%d with %zu points", k, n);
-  knn_scene(ix->scene, ix->g.P, n, k, idx);
+  if (n != ix->n)
+    return km__fail(err, KM_ERR_INVALID, "knn: %zu points, the index has %zu", n, ix->n);
+  if (ix->U)
+    knn_dedup(ix, k, idx);
+  else
+    knn_scene(ix->scene, ix->g.P, n, k, idx);
   return KM_OK;
 }
 
@@ -352,6 +457,7 @@ void km__point_index_nearest(const km__point_index *ix, const double *Q, size_t 
     rtcInitPointQueryContext(&ctx);
     rtcPointQuery(ix->scene, &pq, &ctx, NULL, &q);
     if (q.count == 0 || (max_dist > 0 && d2 > max_dist * max_dist)) id = -1;
+    if (id >= 0 && ix->U) id = ix->mem[ix->start[id]]; /* the first copy of that point */
     idx[i] = id;
     if (dist) dist[i] = id >= 0 ? sqrt(d2) : INFINITY;
   }
@@ -360,6 +466,9 @@ void km__point_index_nearest(const km__point_index *ix, const double *Q, size_t 
 void km__point_index_free(km__point_index **ix) {
   if (!ix || !*ix) return;
   rtcReleaseScene((*ix)->scene);
+  free((*ix)->U);
+  free((*ix)->start);
+  free((*ix)->mem);
   free(*ix);
   *ix = NULL;
 }

@@ -279,7 +279,7 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
         }
       }
       st->index = f;
-      st->dropped = pts.dropped_nan;
+      st->dropped = pts.dropped_nan + pts.dropped_zero;
       if (st->status) ++rep->failed_frames;
       if (km_recon_frame_status(st)[0] == 'u') {
         ++rep->unsupported_frames;
