@@ -272,6 +272,43 @@ static void test_cache_policy(const fixture *fx) {
   free(B);
 }
 
+/* Issue 18: a forged cache header (128 bytes asking for the largest model) is not adopted by
+ * cache_parameters: the caller's parameters are used and the cache rebuilt with them. */
+static void test_forged_cache(const fixture *fx) {
+  char cache[300];
+  snprintf(cache, sizeof cache, "%s/forged.kmcache", g_dir);
+  km_puppetry_options o = {0};
+  o.cache_path = cache;
+  km_puppetry_info info;
+  km_puppet *model = NULL;
+  CHECK_OK(km_puppetry_model_open(&fx->c.mesh, &o, &model, &info, KM_E));
+  km_puppet_free(&model);
+  FILE *f = fopen(cache, "rb");
+  unsigned char head[128] = {0};
+  CHECK(f && fread(head, 1, sizeof head, f) == sizeof head);
+  if (f) fclose(f);
+  int32_t params[2] = {32, 64};
+  memcpy(head + 32, params, sizeof params);
+  f = fopen(cache, "wb");
+  CHECK(f && fwrite(head, 1, sizeof head, f) == sizeof head);
+  if (f) fclose(f);
+  o.cache_parameters = true;
+  CHECK_OK(km_puppetry_model_open(&fx->c.mesh, &o, &model, &info, KM_E));
+  CHECK_MSG(!info.cache_parameters && info.puppet.fields != 32 && info.puppet.isolines != 64,
+            "forged header adopted: %d fields x %d isolines", info.puppet.fields,
+            info.puppet.isolines);
+  CHECK(info.model == KM_PUPPETRY_MODEL_REBUILT_STALE);
+  km_puppet_free(&model);
+  /* the rebuilt cache is genuine: its parameters are adopted from now on */
+  CHECK_OK(km_puppetry_model_open(&fx->c.mesh, &o, &model, &info, KM_E));
+  CHECK_MSG(info.cache_parameters && info.model == KM_PUPPETRY_MODEL_LOADED &&
+                info.puppet.fields != 32 && info.puppet.isolines != 64,
+            "genuine cache: adopted %d, model %d, %d fields (%s)", info.cache_parameters,
+            (int)info.model, info.puppet.fields, info.stale.message);
+  km_puppet_free(&model);
+  remove(cache);
+}
+
 static void test_set_rig(const fixture *fx) {
   size_t nv = fx->c.mesh.n_vertices, nf = fx->take.n_frames;
   double *A = malloc(sizeof(double) * 3 * nv * nf), *B = malloc(sizeof(double) * 3 * nv * nf);
@@ -536,6 +573,7 @@ int main(void) {
     test_rest_reproduces_rest(&fx);
     test_same_as_manual_loop(&fx);
     test_cache_policy(&fx);
+    test_forged_cache(&fx);
     test_set_rig(&fx);
     test_motion_read(&fx);
     test_spike_rejected(&fx);

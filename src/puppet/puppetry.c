@@ -243,11 +243,26 @@ km_status km_puppetry_model_open(const km_mesh *rest, const km_puppetry_options 
   const char *cache = opt->cache_path;
   km_puppet_options po = opt->puppet;
   km_error cerr = {0};
-  if (cache && opt->cache_parameters && km_puppet_cache_options(cache, &po, &cerr) == KM_OK)
-    info->cache_parameters = true;
+  km_status s;
+  if (cache && opt->cache_parameters && km_puppet_cache_options(cache, &po, &cerr) == KM_OK) {
+    /* The header's parameters are adopted only from a cache that loads: checksum, mesh hash
+     * and sizes verified. A forged or foreign header (a 128-byte file asking for the largest
+     * model) falls back to the caller's parameters and the cache is rebuilt with them. */
+    km_error lerr = {0};
+    double t0 = km_seconds();
+    s = opt->force ? KM_ERR_STALE : km_puppet_load(cache, rest, &po, out, &lerr);
+    if (s == KM_OK) {
+      info->cache_parameters = true;
+      info->puppet = po;
+      info->puppet.progress = (km_progress){0};
+      info->model = KM_PUPPETRY_MODEL_LOADED;
+      info->model_seconds = km_seconds() - t0;
+      return KM_OK;
+    }
+    po = opt->puppet;
+  }
   info->puppet = po;
   info->puppet.progress = (km_progress){0};
-  km_status s;
   if (cache && !opt->force) {
     km_error lerr = {0};
     double t0 = km_seconds();
