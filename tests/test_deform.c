@@ -544,6 +544,25 @@ static void test_errors(void) {
     free(Y);
     km_arap_free(&a);
   }
+  /* ... and in the reduced solver too (issue 18: it moved with the fields) */
+  km_puppet *pr = NULL;
+  CHECK_OK(km_puppet_precompute(&two, NULL, &pr, KM_E));
+  if (pr) {
+    int32_t ro[3] = {0, 1, 2}, rv[2] = {0, (int32_t)m.n_vertices - 1};
+    CHECK_OK(km_puppet_set_handles(pr, 2, ro, rv, KM_E));
+    double tg[6], *Y = malloc(two.n_vertices * 3 * sizeof(double));
+    memcpy(tg, two.V, 3 * sizeof(double));
+    memcpy(tg + 3, two.V + 3 * (size_t)rv[1], 3 * sizeof(double));
+    tg[0] += 0.3, tg[1] -= 0.2;
+    CHECK_OK(km_puppet_solve(pr, tg, Y, KM_E));
+    const double *y = Y + 3 * m.n_vertices;
+    CHECK(all_finite(Y, two.n_vertices * 3));
+    CHECK_MSG(y[0] == 5 && y[1] == 6 && y[2] == 7, "isolated vertex moved to %g %g %g", y[0], y[1],
+              y[2]);
+    CHECK_MSG(fabs(Y[0] - two.V[0]) > 0.1, "the mesh follows the handle (%g)", Y[0] - two.V[0]);
+    free(Y);
+    km_puppet_free(&pr);
+  }
   km_mesh_free(&two);
   free(X);
   km_mesh_free(&m);

@@ -99,6 +99,8 @@ struct km_puppet {
   float *cv_t;    /* ncv*ne */
   float *cv_pf;   /* ncv*3 */
   double *cv_pn;  /* ncv*3 */
+  int32_t *lone;  /* n_lone vertices no face uses: they keep their rest position */
+  size_t n_lone;
   double *K0;     /* nr*nr  W^T L^T L W */
   double *G;      /* nr*nd  W^T L^T W_d */
   double trK0;
@@ -199,6 +201,29 @@ static km_status check_mesh(const km_mesh *m, km_error *err) {
   return KM_OK;
 }
 
+/* The vertices no face uses (issue 18): the fields give them arbitrary values, so the solve
+ * puts them back at rest instead of moving them with whatever isolines they fall between. */
+static km_status find_lone(km_puppet *p, const km_mesh *rest, km_error *err) {
+  uint8_t *used = km__calloc(rest->n_vertices ? rest->n_vertices : 1, 1);
+  if (!used) return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
+  for (size_t k = 0; k < 3 * rest->n_faces; ++k)
+    used[rest->F[k]] = 1;
+  size_t n = 0;
+  for (size_t i = 0; i < rest->n_vertices; ++i)
+    n += !used[i];
+  free(p->lone);
+  p->lone = NULL;
+  p->n_lone = 0;
+  if (n && !(p->lone = km__malloc(n, sizeof(int32_t)))) {
+    free(used);
+    return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
+  }
+  for (size_t i = 0; i < rest->n_vertices; ++i)
+    if (!used[i]) p->lone[p->n_lone++] = (int32_t)i;
+  free(used);
+  return KM_OK;
+}
+
 void km_puppet_free(km_puppet **pp) {
   if (!pp || !*pp) return;
   km_puppet *p = *pp;
@@ -206,7 +231,7 @@ void km_puppet_free(km_puppet **pp) {
                   p->tri_v,  p->tri_iso, p->iso_off, p->tri_lv, p->tri_F0,  p->tri_a, p->cv,
                   p->cv_x,   p->K0,      p->G,       p->h_off,  p->h_v,     p->K,     p->KinvG,
                   p->KinvGf, p->dR,      p->dR0,     p->dRnew,  p->dRd,     p->quat,  p->A,
-                  p->D,      p->cv_br,   p->cv_t,    p->cv_pf,  p->cv_pn,   p->Kt};
+                  p->D,      p->cv_br,   p->cv_t,    p->cv_pf,  p->cv_pn,   p->Kt,    p->lone};
   for (size_t i = 0; i < sizeof ptrs / sizeof ptrs[0]; ++i)
     free(ptrs[i]);
   free(p);
@@ -902,6 +927,10 @@ km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt
   free(mass);
   free(delta0);
   free(cm);
+  if ((s = find_lone(p, rest, err))) {
+    km_puppet_free(&p);
+    return s;
+  }
   *out = p;
   return KM_OK;
 cancel:
@@ -1137,6 +1166,7 @@ km_status km_puppet_load(const char *path, const km_mesh *rest, const km_puppet_
     if (!isfinite(p->G[i])) STALE("%s: puppet cache has non-finite values", path);
   if ((s = finish_model(p, err))) goto done;
   finish_trace(p);
+  if ((s = find_lone(p, rest, err))) goto done;
   *out = p;
   p = NULL;
   s = KM_OK;
@@ -1555,6 +1585,8 @@ km_status km_puppet_solve(km_puppet *p, const double *targets, double *V_out, km
   p->last_iters = it;
   p->last_change = change;
   eval_full(p, V_out);
+  for (size_t k = 0; k < p->n_lone; ++k)
+    memcpy(V_out + 3 * (size_t)p->lone[k], p->P + 3 * (size_t)p->lone[k], 3 * sizeof(double));
   return KM_OK;
 }
 
