@@ -336,7 +336,7 @@ int km_bench_live(int argc, char **argv) {
     snprintf(ws_path, sizeof ws_path, "/ws?token=%s", km_live_token(l));
     ci.path = ws_path;
     ci.host = "127.0.0.1";
-    ci.origin = "http://127.0.0.1";
+    ci.origin = "127.0.0.1"; /* lws sends Origin: http://127.0.0.1 */
     ci.protocol = "kinemesh";
     if (!c.ctx || !lws_client_connect_via_info(&ci)) {
       rc = km_cli_error(VERB, "cannot start the libwebsockets client");
