@@ -83,6 +83,11 @@ int main(void) {
   CHECK(cJSON_IsString(take) && strstr(take->valuestring, "kungfu"));
   cJSON_Delete(j);
 
+  /* the libwebsockets client passes the server's Origin and token checks too (issue 18) */
+  j = run_json(KM_CLI " bench live --mesh " DIR "/c.obj --frames 60 --lws-client --json");
+  check_bench(j, m.n_vertices, 60, false, "--lws-client");
+  cJSON_Delete(j);
+
   /* --take, --rig given for a mesh that has no sidecar, int16 frames */
   CHECK(km_test_run("cp " DIR "/c.obj " DIR "/bare.obj && cp " DIR "/c.rig.json " DIR "/r.json",
                     NULL) == 0);
