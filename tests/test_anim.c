@@ -463,6 +463,21 @@ static void test_failures(const km_mesh *rest, const double *frames) {
     CHECK_STATUS(km_anim_writer_close(&w, KM_E), KM_ERR_INVALID);
     CHECK(!dir_has_prefix("test_anim_fail"));
   }
+  /* Issue 18: what a SIGINT/SIGTERM handler calls (km_remove_temporaries) leaves no
+   * temporary file or half-filled frame directory behind; the writer is then freed safely. */
+  const char *sig[] = {"test_anim_sig.glb", "test_anim_sig.pc2", "test_anim_sig_dir",
+                       "test_anim_sig_ply/"};
+  for (int p = 0; p < 4; ++p) {
+    km_anim_writer *w = NULL;
+    CHECK_OK(km_anim_writer_open(sig[p], rest, NULL, &w, KM_E));
+    CHECK_OK(km_anim_writer_push(w, frames, KM_E));
+    CHECK_OK(km_anim_writer_push(w, frames, KM_E));
+    CHECK(dir_has_prefix("test_anim_sig"));
+    km_remove_temporaries();
+    CHECK_MSG(!dir_has_prefix("test_anim_sig"), "%s: temporary left after the cleanup", sig[p]);
+    km_anim_writer_free(&w);
+    CHECK(access(sig[p], F_OK) != 0);
+  }
   /* Wrong paths name themselves (missing folders are created, so: under a file). */
   km_anim_writer *w = NULL;
   CHECK_STATUS(km_anim_writer_open("/dev/null/dir/a.glb", rest, NULL, &w, KM_E), KM_ERR_IO);

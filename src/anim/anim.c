@@ -89,6 +89,7 @@ static void writer_discard(km_anim_writer *w) {
   if (w->af.f || w->af.path) km__atomic_abort(&w->af);
   if (w->keys) fclose(w->keys);
   if (w->tmp_dir) remove_frame_dir(w->tmp_dir);
+  if (w->tmp_dir) km__tmp_dir_unregister(w->tmp_dir_slot);
   free(w->tmp_dir);
   free(w->path);
   free(w->rest);
@@ -158,6 +159,7 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
 
   km_anim_writer *w = calloc(1, sizeof *w);
   if (!w) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  w->tmp_dir_slot = -1;
   w->format = o.format;
   w->n_vertices = nv;
   w->n_faces = nf;
@@ -249,6 +251,8 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
       w->tmp_dir = NULL; /* not ours: never remove it */
       goto fail;
     }
+    w->tmp_dir_slot =
+        km__tmp_dir_register(w->tmp_dir, w->format == KM_ANIM_PLY_DIR ? "ply" : "obj");
     size_t vb = nv * 64, fb = nf * 13;
     w->bytes = malloc((vb > fb ? vb : fb) + 1);
     if (!w->bytes) goto nomem;
@@ -438,6 +442,7 @@ km_status km_anim_writer_push(km_anim_writer *w, const double *V, km_error *err)
   default: s = push_dir(w, V, err); break;
   }
   if (s == KM_OK) ++w->frames;
+  if (s == KM_OK && w->tmp_dir) km__tmp_dir_frames(w->tmp_dir_slot, w->frames);
   return s;
 }
 
@@ -483,6 +488,7 @@ static km_status close_dir(km_anim_writer *w, km_error *err) {
     remove_frame_dir(old);
     free(old);
   }
+  km__tmp_dir_unregister(w->tmp_dir_slot);
   free(w->tmp_dir);
   w->tmp_dir = NULL; /* published: discard must not remove it */
   return KM_OK;

@@ -55,6 +55,7 @@ struct km_anim_writer {
   float rest_minmax[6];
   /* directories: frames are written into tmp_dir, renamed into place on close. */
   char *tmp_dir;
+  int tmp_dir_slot; /* km__tmp_dir_register's slot (SIGINT cleanup), -1: none */
   /* Attributes of a rest mesh that has them (issue 11): its texture coordinates, copied, and
    * whether normals are written (recomputed from each frame's positions: a deformed mesh's
    * normals are not the rest's). NULL / false: positions only, as before. */

@@ -144,9 +144,71 @@ static void tmp_unregister(const char *path) {
     }
 }
 
+#define KM__DIR_SLOTS 8
+static char g_dir_paths[KM__DIR_SLOTS][KM__TMP_MAX];
+static char g_dir_ext[KM__DIR_SLOTS][8];
+static size_t g_dir_frames[KM__DIR_SLOTS];
+static sig_atomic_t g_dir_used[KM__DIR_SLOTS];
+
+int km__tmp_dir_register(const char *dir, const char *ext) {
+  if (strlen(dir) + 32 >= KM__TMP_MAX || strlen(ext) >= sizeof g_dir_ext[0]) return -1;
+  for (int i = 0; i < KM__DIR_SLOTS; ++i) {
+    sig_atomic_t free_slot = 0;
+    if (__atomic_compare_exchange_n(&g_dir_used[i], &free_slot, 2, false, __ATOMIC_ACQ_REL,
+                                    __ATOMIC_RELAXED)) {
+      strcpy(g_dir_paths[i], dir);
+      strcpy(g_dir_ext[i], ext);
+      __atomic_store_n(&g_dir_frames[i], 0, __ATOMIC_RELAXED);
+      __atomic_store_n(&g_dir_used[i], 1, __ATOMIC_RELEASE);
+      return i;
+    }
+  }
+  return -1;
+}
+
+void km__tmp_dir_frames(int slot, size_t frames) {
+  if (slot >= 0 && slot < KM__DIR_SLOTS)
+    __atomic_store_n(&g_dir_frames[slot], frames, __ATOMIC_RELEASE);
+}
+
+void km__tmp_dir_unregister(int slot) {
+  if (slot >= 0 && slot < KM__DIR_SLOTS) __atomic_store_n(&g_dir_used[slot], 0, __ATOMIC_RELEASE);
+}
+
+/* "<dir>/frame_%06zu.<ext>" without stdio (async-signal-safe). */
+static void frame_name(char *out, const char *dir, size_t k, const char *ext) {
+  size_t n = strlen(dir);
+  memcpy(out, dir, n);
+  memcpy(out + n, "/frame_", 7);
+  n += 7;
+  char d[24];
+  int nd = 0;
+  do {
+    d[nd++] = (char)('0' + k % 10);
+    k /= 10;
+  } while (k);
+  while (nd < 6)
+    d[nd++] = '0';
+  while (nd)
+    out[n++] = d[--nd];
+  out[n++] = '.';
+  size_t e = strlen(ext);
+  memcpy(out + n, ext, e + 1);
+}
+
 void km_remove_temporaries(void) {
   for (int i = 0; i < KM__TMP_SLOTS; ++i)
     if (__atomic_load_n(&g_tmp_used[i], __ATOMIC_ACQUIRE) == 1) unlink(g_tmp_paths[i]);
+  char p[KM__TMP_MAX + 40];
+  for (int i = 0; i < KM__DIR_SLOTS; ++i) {
+    if (__atomic_load_n(&g_dir_used[i], __ATOMIC_ACQUIRE) != 1) continue;
+    size_t nf = __atomic_load_n(&g_dir_frames[i], __ATOMIC_ACQUIRE);
+    for (size_t k = 0; k <= nf; ++k) {
+      frame_name(p, g_dir_paths[i], k, g_dir_ext[i]);
+      unlink(p);
+    }
+    rmdir(g_dir_paths[i]);
+  }
 }
 
 km_status km__atomic_open(km__atomic_file *af, const char *path, km_error *err) {

@@ -39,6 +39,13 @@ typedef struct km__atomic_file {
 /* Creates path's missing parent folders first (km__make_parents): every `-o out/x.obj` works
  * without a prior mkdir. */
 km_status km__atomic_open(km__atomic_file *af, const char *path, km_error *err);
+/* Frame directories being filled (anim's "<dir>.tmp.<pid>"): km_remove_temporaries removes
+ * their frame files frame_NNNNNN.<ext> (the first `frames` + 1 of them) and the directory.
+ * register returns a slot (-1 when full: no cleanup, no error); frames updates the count;
+ * unregister forgets it (published or removed). */
+int km__tmp_dir_register(const char *dir, const char *ext);
+void km__tmp_dir_frames(int slot, size_t frames);
+void km__tmp_dir_unregister(int slot);
 /* Creates the missing folders above path ("a/b/c.obj": a and a/b), like mkdir -p of its
  * dirname. The one place outputs get their folders: km__atomic_open and the frame-directory
  * writer call it. KM_ERR_IO naming the folder that could not be made. */
