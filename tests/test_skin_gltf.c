@@ -10,12 +10,47 @@
 
 #define DIR "skin_gltf"
 
-/* Mixamo names of the Kinect v1 joints (km_kinect1_joint_name order). */
-static const char *const mixamo[KM_KINECT1_JOINTS] = {
-    "Hips",      "Spine",           "Neck",     "Head",         "LeftArm",    "LeftForeArm",
-    "LeftHand",  "LeftHandMiddle1", "RightArm", "RightForeArm", "RightHand",  "RightHandMiddle1",
-    "LeftUpLeg", "LeftLeg",         "LeftFoot", "LeftToeBase",  "RightUpLeg", "RightLeg",
-    "RightFoot", "RightToeBase"};
+/* Bone names in four conventions: the Kinect v1 joints (km_kinect1_joint_name order), then a
+ * clavicle (between ShoulderCenter and ShoulderLeft), a second finger joint (below HandLeft)
+ * and a head end, which kinemesh has no joint for. */
+static const char *const mixamo[23] = {"mixamorig:Hips",         "mixamorig:Spine",
+                                       "mixamorig:Neck",         "mixamorig:Head",
+                                       "mixamorig:LeftArm",      "mixamorig:LeftForeArm",
+                                       "mixamorig:LeftHand",     "mixamorig:LeftHandMiddle1",
+                                       "mixamorig:RightArm",     "mixamorig:RightForeArm",
+                                       "mixamorig:RightHand",    "mixamorig:RightHandMiddle1",
+                                       "mixamorig:LeftUpLeg",    "mixamorig:LeftLeg",
+                                       "mixamorig:LeftFoot",     "mixamorig:LeftToeBase",
+                                       "mixamorig:RightUpLeg",   "mixamorig:RightLeg",
+                                       "mixamorig:RightFoot",    "mixamorig:RightToeBase",
+                                       "mixamorig:LeftShoulder", "mixamorig:LeftHandMiddle2",
+                                       "mixamorig:HeadTop_End"};
+static const char *const unity[23] = {"Hips",          "Spine",
+                                      "Neck",          "Head",
+                                      "LeftUpperArm",  "LeftLowerArm",
+                                      "LeftHand",      "LeftMiddleProximal",
+                                      "RightUpperArm", "RightLowerArm",
+                                      "RightHand",     "RightMiddleProximal",
+                                      "LeftUpperLeg",  "LeftLowerLeg",
+                                      "LeftFoot",      "LeftToes",
+                                      "RightUpperLeg", "RightLowerLeg",
+                                      "RightFoot",     "RightToes",
+                                      "LeftShoulder",  "LeftMiddleIntermediate",
+                                      "HeadTop"};
+static const char *const vroid[23] = {
+    "J_Bip_C_Hips",     "J_Bip_C_Spine",    "J_Bip_C_Neck",   "J_Bip_C_Head",
+    "J_Bip_L_UpperArm", "J_Bip_L_LowerArm", "J_Bip_L_Hand",   "J_Bip_L_Middle1",
+    "J_Bip_R_UpperArm", "J_Bip_R_LowerArm", "J_Bip_R_Hand",   "J_Bip_R_Middle1",
+    "J_Bip_L_UpperLeg", "J_Bip_L_LowerLeg", "J_Bip_L_Foot",   "J_Bip_L_ToeBase",
+    "J_Bip_R_UpperLeg", "J_Bip_R_LowerLeg", "J_Bip_R_Foot",   "J_Bip_R_ToeBase",
+    "J_Bip_L_Shoulder", "J_Bip_L_Middle2",  "J_Adj_C_HeadTop"};
+static const char *const rigify[23] = {
+    "DEF-spine",       "DEF-spine.001",     "DEF-spine.004", "DEF-head",
+    "DEF-upper_arm.L", "DEF-forearm.L",     "DEF-hand.L",    "DEF-f_middle.01.L",
+    "DEF-upper_arm.R", "DEF-forearm.R",     "DEF-hand.R",    "DEF-f_middle.01.R",
+    "DEF-thigh.L",     "DEF-shin.L",        "DEF-foot.L",    "DEF-toe.L",
+    "DEF-thigh.R",     "DEF-shin.R",        "DEF-foot.R",    "DEF-toe.R",
+    "DEF-shoulder.L",  "DEF-f_middle.02.L", "head_end"};
 
 enum { EXTRA_CLAVICLE = 20, EXTRA_FINGER2, EXTRA_HEADTOP, N_BONES };
 
@@ -40,8 +75,8 @@ static void add_view(cJSON *views, cJSON *accs, size_t off, size_t len, int ct, 
   cJSON_AddItemToArray(accs, a);
 }
 
-/* Writes c as a skinned .glb; names: "mixamorig:" + Mixamo names, or "bone<i>" when !named. */
-static void write_skinned_glb(const char *path, const km_character *c, bool named) {
+/* Writes c as a skinned .glb with the bone names of a convention, or "bone<i>" (names NULL). */
+static void write_skinned_glb(const char *path, const km_character *c, const char *const *names) {
   const km_mesh *m = &c->mesh;
   const double *R = c->skeleton.rest;
   size_t nv = m->n_vertices, nf = m->n_faces;
@@ -110,10 +145,8 @@ static void write_skinned_glb(const char *path, const km_character *c, bool name
   for (int j = 0; j < N_BONES; ++j) { /* node 1 + j */
     cJSON *n = cJSON_CreateObject();
     char name[64];
-    const char *extra[3] = {"LeftShoulder", "LeftHandMiddle2", "HeadTop_End"};
-    if (named)
-      snprintf(name, sizeof name, "mixamorig:%s",
-               j < KM_KINECT1_JOINTS ? mixamo[j] : extra[j - KM_KINECT1_JOINTS]);
+    if (names)
+      snprintf(name, sizeof name, "%s", names[j]);
     else
       snprintf(name, sizeof name, "bone%d", j);
     cJSON_AddStringToObject(n, "name", name);
@@ -235,8 +268,11 @@ int main(void) {
   km_character c = {0};
   CHECK_OK(km_mesh_read(DIR "/char.obj", &c.mesh, KM_E));
   CHECK_OK(km_character_read_rig(DIR "/char.rig.json", c.mesh.n_vertices, &c, KM_E));
-  write_skinned_glb(DIR "/skinned.glb", &c, true);
-  write_skinned_glb(DIR "/unnamed.glb", &c, false);
+  write_skinned_glb(DIR "/skinned.glb", &c, mixamo);
+  write_skinned_glb(DIR "/unnamed.glb", &c, NULL);
+  write_skinned_glb(DIR "/unity.glb", &c, unity);
+  write_skinned_glb(DIR "/vroid.glb", &c, vroid);
+  write_skinned_glb(DIR "/rigify.glb", &c, rigify);
 
   /* library: the skin as stored, then as kinemesh's rig */
   km_mesh m = {0};
@@ -284,6 +320,20 @@ int main(void) {
   km_character_free(&g);
   km_mesh_skin_free(&sk);
   km_mesh_free(&m);
+  /* the other conventions map the same way */
+  const char *conv[3] = {DIR "/unity.glb", DIR "/vroid.glb", DIR "/rigify.glb"};
+  for (int k = 0; k < 3; ++k) {
+    CHECK_OK(km_mesh_read_skinned(conv[k], &m, &sk, KM_E));
+    CHECK_OK(km_character_from_skin(&m, &sk, &g, &map, KM_E));
+    double dj = g.skeleton.rest ? 0 : 1;
+    for (int j = 0; j < 3 * KM_KINECT1_JOINTS && g.skeleton.rest; ++j)
+      dj = fmax(dj, fabs(g.skeleton.rest[j] - c.skeleton.rest[j]));
+    CHECK_MSG(dj < 1e-6 && map.n_merged == 3, "%s: joints off by %g, %zu merged", conv[k], dj,
+              map.n_merged);
+    km_character_free(&g);
+    km_mesh_skin_free(&sk);
+    km_mesh_free(&m);
+  }
   /* a non-glTF has no skin; a skin whose names follow no convention is refused by name */
   CHECK_OK(km_mesh_read_skinned(DIR "/char.obj", &m, &sk, KM_E));
   CHECK(sk.n_joints == 0 && sk.joints == NULL);
