@@ -4,6 +4,7 @@
 
 #include "live.h"
 
+#include <errno.h>
 #include <libgen.h>
 #include <math.h>
 #include <limits.h>
@@ -86,8 +87,9 @@ int km_cli_live(int argc, char **argv) {
       KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh_path, "mesh to animate (OBJ/PLY/OFF)"},
       {"rig", 0, KM_OPT_STRING, &rig_path,
-       "rig: handles, joint map, filter (default <mesh stem>.rig.json; when it does not exist, "
-       "a glTF's own skin or an automatic rig); POST /rig rewrites it"},
+       "rig: handles, joint map, filter (default <mesh stem>.rig.json; when the file does not "
+       "exist: a glTF's own skin or an automatic rig, written there by the page's save); "
+       "POST /rig rewrites it"},
       {"osc", 0, KM_OPT_INT, &osc, "OSC port (OSCeleton /joint, KinectV2-OSC /bodies/...)"},
       {"udp", 0, KM_OPT_INT, &udp, "JSON-over-UDP port (one frame per datagram)"},
       {"replay", 0, KM_OPT_STRING, &replay, "take to replay (.json/.csv/.bvh with Kinect names)"},
@@ -139,7 +141,7 @@ int km_cli_live(int argc, char **argv) {
     goto done;
   }
   FILE *f = fopen(rig_file, "rb");
-  if (!f && !rig_path) { /* no rig yet: the glTF's own skin, else an automatic one */
+  if (!f && errno == ENOENT) { /* no rig yet: the glTF's own skin, else an automatic one */
     if (auto_rig(mesh_path, &m, rig_file, &rig_text, &rig_size, &err) != KM_OK) goto fail;
     goto rig_ready;
   }
@@ -179,8 +181,7 @@ rig_ready:;
   lo.web_dir = web ? web : web_default;
   lo.rig_path = rig_file;
   lo.record = record != NULL;
-  if (km_live_create(&lo, &m, pup, rig_text, rig_size, replay ? &take : NULL, &live, &err) !=
-      KM_OK)
+  if (km_live_create(&lo, &m, pup, rig_text, rig_size, replay ? &take : NULL, &live, &err) != KM_OK)
     goto fail;
   g_live = live;
   struct sigaction sa;
