@@ -367,7 +367,10 @@ int main(void) {
   CHECK(m.n_vertices == 7 && fabs(m.V[3 * 6] + 1) < 1e-6);
   km_mesh_free(&m);
 
-  /* CLI: rig writes the sidecar from the skin */
+  /* CLI: info reports the skin, rig writes the sidecar from it */
+  CHECK(km_test_run(KM_CLI " info " DIR "/skinned.glb", &out) == 0);
+  CHECK(out && strstr(out, "23 joints"));
+  free(out);
   CHECK(km_test_run(KM_CLI " rig " DIR "/skinned.glb -o " DIR "/from_skin.rig.json", &out) == 0);
   CHECK(out && strstr(out, "own skin") && strstr(out, "mixamorig:LeftForeArm"));
   free(out);
