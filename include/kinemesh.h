@@ -363,6 +363,36 @@ km_status km_mesh_read(const char *path, km_mesh *out, km_error *err);
  * Errors: as km_mesh_read. */
 km_status km_mesh_parse(const void *data, size_t size, km_mesh_format format, const char *name,
                         km_mesh *out, km_error *err);
+
+/* The skin of a skinned glTF as the file has it (km_mesh_read_skinned); kinemesh's skeleton
+ * and skin are made from it by km_character_from_skin (autorig section). */
+typedef struct km_mesh_skin {
+  size_t n_joints;   /* 0: the file has no skin (the arrays are then NULL) */
+  char **names;      /* n_joints: the joint nodes' names ("node<i>" for an unnamed node) */
+  int32_t *parents;  /* n_joints: the nearest ancestor node that is a joint too, -1 (any order) */
+  double *rest;      /* n_joints*3: each joint node's world position in the file's scene */
+  size_t n_vertices; /* the mesh's #V */
+  int32_t *joints;   /* n_vertices*4: indices into names, -1 for an unused slot */
+  double *weights;   /* n_vertices*4: summing to 1, or all 0 for a vertex bound to no joint */
+} km_mesh_skin;
+/* Frees the arrays of s and zeroes it. */
+void km_mesh_skin_free(km_mesh_skin *s);
+/* km_mesh_read, with the file's skin. A glTF node with a `skin` whose primitives have
+ * JOINTS_0 / WEIGHTS_0 is placed by linear blend skinning with the scene's joint transforms
+ * (joint node's world matrix times its inverse bind matrix; the mesh node's own transform is
+ * ignored, as glTF says), i.e. as a viewer shows it: at the bind pose, as stored. The joints
+ * of every skin used are gathered into one list (each joint node once, in order of first
+ * use); JOINTS_1 / WEIGHTS_1 are not read; a primitive without JOINTS_0 is bound whole to the
+ * nearest joint above its node (else to none). Other formats: the mesh, skin->n_joints 0.
+ *   path  in: file
+ *   mesh  out: as km_mesh_read; free with km_mesh_free
+ *   skin  out: the skin (zeroed when the file has none); free with km_mesh_skin_free
+ * Errors: as km_mesh_read, and KM_ERR_PARSE for a skin whose accessors do not fit. */
+km_status km_mesh_read_skinned(const char *path, km_mesh *mesh, km_mesh_skin *skin,
+                               km_error *err);
+/* km_mesh_read_skinned from memory (format from name's extension; buffers embedded only). */
+km_status km_mesh_parse_skinned(const void *data, size_t size, const char *name, km_mesh *mesh,
+                                km_mesh_skin *skin, km_error *err);
 /* Writes a mesh atomically (temporary file, then rename), creating missing parent folders.
  * Coordinates are written exactly (%.17g in text formats, raw doubles in binary PLY), so
  * reading back is bit for bit. UV and N, when present, are written too (OBJ vt/vn with
@@ -1035,6 +1065,10 @@ void km_character_free(km_character *c);
  *   c  in: character (its mesh is not written, only its vertex count)
  * Errors: KM_ERR_IO. */
 km_status km_character_write_rig(const char *path, const km_character *c, km_error *err);
+/* The sidecar km_character_write_rig writes, in memory (e.g. for km_rig_parse).
+ *   json, size  out: malloc'd text (NUL-terminated) and its length; free with free()
+ * Errors: KM_ERR_INVALID (as km_character_write_rig), KM_ERR_NOMEM. */
+km_status km_character_rig_json(const km_character *c, char **json, size_t *size, km_error *err);
 /* Reads the skeleton, skin and landmarks of a rig sidecar.
  *   n_vertices  in: #V of the mesh the sidecar belongs to (checked against the file)
  *   out         in/out: skeleton, skin and landmarks allocated/filled (mesh not touched);
@@ -2049,6 +2083,41 @@ typedef struct km_autorig_report {
  * KM_ERR_NOMEM; KM_ERR_CANCELLED. */
 km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_character *out,
                      km_autorig_report *report, km_error *err);
+
+/* ---- a skinned glTF's own rig */
+
+/* What km_character_from_skin took from the file. */
+typedef struct km_skin_mapping {
+  /* For each Kinect v1 joint (km_kinect1_joint_name order): the file's joint placed there,
+   * "" where the position was derived (Spine without a joint between hips and neck, a hand
+   * or foot end without its own joint). */
+  char source[KM_KINECT1_JOINTS][64];
+  size_t n_merged; /* the file's joints whose weights went to a mapped ancestor's joint */
+} km_skin_mapping;
+
+/* A rigged template from a mesh's own skin (a skinned glTF, km_mesh_read_skinned): the 20
+ * Kinect v1 joints placed at the file's joints, the file's weights summed onto them, the 16
+ * landmarks placed as km_autorig places them. Joint names are matched after dropping any
+ * "namespace:" prefix (mixamorig:), a DEF-/ORG-/J_Bip_ prefix, case and punctuation, with the
+ * side from a Left/Right/L_/R_ prefix or a .L/_L/.R/_R suffix: upper arm (Mixamo Arm, VRM /
+ * Unity UpperArm, rigify upper_arm) -> Shoulder, ForeArm / LowerArm / forearm -> Elbow, Hand ->
+ * Wrist, HandMiddle1 / MiddleProximal / f_middle.01 -> Hand (else the mean of the wrist's
+ * children, else 0.3 forearm past the wrist), UpLeg / UpperLeg / thigh -> Hip, Leg / LowerLeg
+ * / shin -> Knee, Foot -> Ankle, ToeBase / Toes / toe -> Foot (else the ankle's first child),
+ * Head -> Head. HipCenter is the joint both legs hang from, ShoulderCenter the Neck (else the
+ * joint both arms hang from), Spine the joint between them nearest 48% of the way up (every
+ * joint between them weights it). Every other joint (fingers, clavicles, twist bones, toes'
+ * ends, a root above the hips) gives its weights to its nearest mapped ancestor's joint (none:
+ * HipCenter); each vertex keeps its 4 largest sums, normalised.
+ *   m    in: the mesh as read with the skin (#V vertices)
+ *   s    in: its skin (s->n_vertices == #V)
+ *   out  out: mesh (a copy of m), skeleton (20 Kinect v1 joints), skin, landmarks, as
+ *        km_autorig makes; free with km_character_free
+ *   map  out: which joint went where; may be NULL
+ * Errors: KM_ERR_INVALID (no skin, vertex counts differ), KM_ERR_UNSUPPORTED naming the
+ * limbs no joint name matched and listing the file's joints; KM_ERR_NOMEM. */
+km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_character *out,
+                                 km_skin_mapping *map, km_error *err);
 
 /* ==== synth: character, generated motion, pose presets, capture (src/synth/) ==== */
 

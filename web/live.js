@@ -221,23 +221,40 @@ async function pollStatus() {
 const ray = new THREE.Raycaster();
 let down = null;
 canvas.addEventListener('pointerdown', (e) => { down = [e.clientX, e.clientY]; });
-canvas.addEventListener('pointerup', (e) => {
-  if (!down || Math.hypot(e.clientX - down[0], e.clientY - down[1]) > 4) return; // a drag
+// The vertex under a client-space point: the nearest corner of the hit triangle, or -1.
+function pickVertex(x, y) {
   const r = canvas.getBoundingClientRect();
-  const ndc = new THREE.Vector2(((e.clientX - r.left) / r.width) * 2 - 1,
-    -((e.clientY - r.top) / r.height) * 2 + 1);
+  const ndc = new THREE.Vector2(((x - r.left) / r.width) * 2 - 1, -((y - r.top) / r.height) * 2 + 1);
   ray.setFromCamera(ndc, camera);
   const hit = ray.intersectObject(mesh)[0];
-  if (!hit || !hit.face) return;
-  // nearest corner of the hit triangle
+  if (!hit || !hit.face) return -1;
   const P = geom.getAttribute('position');
   let best = -1, bd = Infinity;
   for (const v of [hit.face.a, hit.face.b, hit.face.c]) {
     const d = new THREE.Vector3().fromBufferAttribute(P, v).distanceTo(hit.point);
     if (d < bd) { bd = d; best = v; }
   }
-  setPending(best);
+  return best;
+}
+canvas.addEventListener('pointerup', (e) => {
+  if (!down || Math.hypot(e.clientX - down[0], e.clientY - down[1]) > 4) return; // a drag
+  const v = pickVertex(e.clientX, e.clientY);
+  if (v >= 0) setPending(v);
 });
+// Hover readout: id and rest position of the vertex under the cursor (once per frame).
+let hoverAt = null;
+canvas.addEventListener('pointermove', (e) => {
+  if (!hoverAt) requestAnimationFrame(() => {
+    const v = pickVertex(hoverAt[0], hoverAt[1]);
+    hoverAt = null;
+    state.hover = v;
+    const R = state.rest;
+    $('hover').textContent = v < 0 || !R ? '–'
+      : `${v} (${[0, 1, 2].map((k) => R[3 * v + k].toFixed(3)).join(', ')})`;
+  });
+  hoverAt = [e.clientX, e.clientY];
+});
+canvas.addEventListener('pointerleave', () => { state.hover = -1; $('hover').textContent = '–'; });
 
 // Preview of the handle region: a Euclidean ball on the rest mesh (the server resolves the
 // geodesic ball when the rig is saved; the colours then come from /handles).

@@ -39,7 +39,8 @@ int km_cli_animate(int argc, char **argv) {
        "rig: handles, joint map, filter (default <mesh stem>.rig.json)"},
       {"motion", 0, KM_OPT_STRING, &motion,
        "take: .json (kinemesh), .csv (Kinect v1 recording), .bvh"},
-      {"cache", 0, KM_OPT_STRING, &cache, "reduced-model cache (default: $XDG_CACHE_HOME/kinemesh/<mesh hash>.kmcache)"},
+      {"cache", 0, KM_OPT_STRING, &cache,
+       "reduced-model cache (default: $XDG_CACHE_HOME/kinemesh/<mesh hash>.kmcache)"},
       {"solver", 0, KM_OPT_STRING, &solver,
        "reduced (default, real time) or full (ARAP reference)"},
       {"energy", 0, KM_OPT_STRING, &energy,
@@ -88,7 +89,8 @@ int km_cli_animate(int argc, char **argv) {
   km_anim_writer *w = NULL;
   double *V = NULL, *t23 = NULL, *t4 = NULL;
   char *rig_default = rig_path ? NULL : km_cli_rig_path(mesh_path);
-  char *cache_default = NULL;
+  char *cache_default = NULL, *skin_json = NULL;
+  size_t skin_json_n = 0;
   int rc = KM_EXIT_FAIL;
 
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK ||
@@ -109,8 +111,19 @@ int km_cli_animate(int argc, char **argv) {
     km_take_free(&take);
     take = rs;
   }
-  if (km_rig_read(rig_path ? rig_path : rig_default, &m, (const char *const *)take.joint_names,
-                  take.n_joints, &rig, &err) != KM_OK)
+  if (!rig_path) { /* a skinned glTF without a sidecar: its own skin makes the rig */
+    km_character sc = {0};
+    bool own = false;
+    km_status ss = km_cli_skin_character("animate", mesh_path, NULL, &sc, &own, &err);
+    if (ss == KM_OK && own) ss = km_character_rig_json(&sc, &skin_json, &skin_json_n, &err);
+    km_character_free(&sc);
+    if (ss != KM_OK) goto fail;
+  }
+  if ((skin_json ? km_rig_parse(skin_json, skin_json_n, mesh_path, &m,
+                                (const char *const *)take.joint_names, take.n_joints, &rig, &err)
+                 : km_rig_read(rig_path ? rig_path : rig_default, &m,
+                               (const char *const *)take.joint_names, take.n_joints, &rig, &err)) !=
+      KM_OK)
     goto fail;
 
   if (rig.n_maps == 0) { /* all anchors: a still animation nobody asked for */
@@ -155,8 +168,8 @@ int km_cli_animate(int argc, char **argv) {
     o.cache_path = cpath;
   }
   km_puppetry_info pi;
-  km_status cs = km_puppetry_create(&m, &rig, (const char *const *)take.joint_names,
-                                    take.n_joints, &o, &pl, &pi, &err);
+  km_status cs = km_puppetry_create(&m, &rig, (const char *const *)take.joint_names, take.n_joints,
+                                    &o, &pl, &pi, &err);
   km_cli_progress_done();
   if (cs != KM_OK) goto fail;
   if (pi.cache_parameters)
@@ -180,8 +193,7 @@ int km_cli_animate(int argc, char **argv) {
   if (km_anim_writer_open(out, &m, &wo, &w, &err) != KM_OK) goto fail;
   km_progress prog = km_cli_progress("animate");
   for (size_t f = 0; f < take.n_frames; ++f) {
-    if (km_puppetry_push(pl, take.positions + f * take.n_joints * 3, V, &err) != KM_OK)
-      goto fail;
+    if (km_puppetry_push(pl, take.positions + f * take.n_joints * 3, V, &err) != KM_OK) goto fail;
     km_puppetry_times tm;
     km_puppetry_times_get(pl, &tm);
     t23[f] = tm.filter_ms + tm.retarget_ms;
@@ -222,6 +234,7 @@ done:
   free(t23);
   free(t4);
   free(rig_default);
+  free(skin_json);
   free(cache_default);
   km_puppetry_free(&pl);
   km_rig_free(&rig);

@@ -109,6 +109,11 @@ int km_cli_avatar(int argc, char **argv);
  * one with `vertices` vertices when mesh is NULL. */
 km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
                                 km_error *err);
+/* A skinned glTF's own skin as its rig (km_character_from_skin), when no rig is given and
+ * <stem>.rig.json does not exist: *c (freed first) gets the mesh, skeleton, skin and landmarks,
+ * the mapping is printed on stderr and *used is set. Otherwise *used is false, c untouched. */
+km_status km_cli_skin_character(const char *verb, const char *mesh_path, const char *rig,
+                                km_character *c, bool *used, km_error *err);
 int km_cli_live(int argc, char **argv);
 int km_cli_rig(int argc, char **argv);
 int km_cli_pick(int argc, char **argv);

@@ -218,6 +218,43 @@ char *km_cli_rig_path(const char *mesh_path) {
   return out;
 }
 
+km_status km_cli_skin_character(const char *verb, const char *mesh_path, const char *rig,
+                                km_character *c, bool *used, km_error *err) {
+  *used = false;
+  size_t n = strlen(mesh_path);
+  bool gltf = (n > 4 && !strcasecmp(mesh_path + n - 4, ".glb")) ||
+              (n > 5 && !strcasecmp(mesh_path + n - 5, ".gltf"));
+  if (rig || !gltf) return KM_OK;
+  char *def = km_cli_rig_path(mesh_path);
+  bool have = def && access(def, F_OK) == 0;
+  free(def);
+  if (have) return KM_OK;
+  km_mesh m = {0};
+  km_mesh_skin sk = {0};
+  km_skin_mapping map;
+  km_status s = km_mesh_read_skinned(mesh_path, &m, &sk, err);
+  if (s == KM_OK && sk.n_joints) {
+    km_character tmp;
+    s = km_character_from_skin(&m, &sk, &tmp, &map, err);
+    if (s == KM_OK) {
+      km_character_free(c);
+      *c = tmp;
+      *used = true;
+      fprintf(stderr,
+              "kinemesh %s: %s: rigged from its own skin (%zu joints; %zu merged into an "
+              "ancestor):",
+              verb, mesh_path, sk.n_joints, map.n_merged);
+      for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+        fprintf(stderr, "%s %s <- %s", j ? "," : "", km_kinect1_joint_name(j),
+                map.source[j][0] ? map.source[j] : "(derived)");
+      fputc('\n', stderr);
+    }
+  }
+  km_mesh_free(&m);
+  km_mesh_skin_free(&sk);
+  return s;
+}
+
 void km_cli_json_number(cJSON *o, const char *key, double v) {
   if (isfinite(v))
     cJSON_AddNumberToObject(o, key, v);

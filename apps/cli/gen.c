@@ -103,8 +103,11 @@ km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertic
     co.target_vertices = vertices;
     return km_character_generate(&co, c, err);
   }
+  bool own = false;
+  km_status s = km_cli_skin_character("template", mesh, rig, c, &own, err);
+  if (s != KM_OK || own) return s;
   char *rig_path = rig ? NULL : km_cli_rig_path(mesh);
-  km_status s = km_mesh_read(mesh, &c->mesh, err);
+  s = km_mesh_read(mesh, &c->mesh, err);
   if (s == KM_OK) s = km_character_read_rig(rig ? rig : rig_path, c->mesh.n_vertices, c, err);
   free(rig_path);
   return s;

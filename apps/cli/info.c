@@ -47,8 +47,10 @@ int km_cli_info(int argc, char **argv) {
   km_anim_info ai;
   size_t plen = strlen(path);
   bool glb = plen > 4 && !strcasecmp(path + plen - 4, ".glb");
-  /* A .glb that is not a kinemesh animation is read as a mesh. */
-  if (is_anim_path(path) && (km_anim_info_read(path, &ai, &err) == KM_OK || !glb)) {
+  /* A .glb that is not a kinemesh animation (or has no frames: a model) is read as a mesh. */
+  bool anim = is_anim_path(path) && (km_anim_info_read(path, &ai, &err) == KM_OK || !glb);
+  if (anim && glb && err.status == KM_OK && ai.timeline_frames == 0) anim = false;
+  if (anim) {
     if (err.status != KM_OK) return km_cli_fail("info", &err);
     if (json) {
       cJSON *o = cJSON_CreateObject();
@@ -74,7 +76,10 @@ int km_cli_info(int argc, char **argv) {
   }
 
   km_mesh m = {0};
-  if (km_mesh_read(path, &m, &err) != KM_OK) return km_cli_fail("info", &err);
+  km_mesh_skin sk = {0};
+  if (km_mesh_read_skinned(path, &m, &sk, &err) != KM_OK) return km_cli_fail("info", &err);
+  size_t skin_joints = sk.n_joints;
+  km_mesh_skin_free(&sk);
   km_mesh_info info;
   km_status s = km_mesh_info_compute(&m, &info, &err);
   km_frame_guess g;
@@ -100,6 +105,7 @@ int km_cli_info(int argc, char **argv) {
     cJSON_AddItemToObject(o, "bbox_max", vec3(info.bbox_max));
     cJSON_AddBoolToObject(o, "texcoords", has_uv);
     cJSON_AddBoolToObject(o, "normals", has_n);
+    cJSON_AddNumberToObject(o, "skin_joints", (double)skin_joints);
     if (have_guess) {
       cJSON *go = cJSON_AddObjectToObject(o, "orientation_guess");
       cJSON_AddStringToObject(go, "up", km_axis_name(g.frame.up));
@@ -122,6 +128,10 @@ int km_cli_info(int argc, char **argv) {
          info.bbox_max[2]);
   printf("attributes            %s%s%s\n", has_uv ? "texcoords " : "", has_n ? "normals" : "",
          has_uv || has_n ? "" : "none");
+  if (skin_joints)
+    printf("skin                  %zu joints (a rigged template as it is: kinemesh rig shows the "
+           "mapping)\n",
+           skin_joints);
   if (have_guess)
     printf(
         "orientation (guess)   up %s, forward %s, height %.6g%s (override with --up/--forward)\n",

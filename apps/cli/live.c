@@ -4,6 +4,7 @@
 
 #include "live.h"
 
+#include <errno.h>
 #include <libgen.h>
 #include <math.h>
 #include <limits.h>
@@ -21,6 +22,37 @@ static void on_signal(int sig) {
 
 /* The page beside the binary (build/kinemesh -> build/web), else where `cmake --install` puts
  * it (P/bin/kinemesh -> P/share/kinemesh/web). */
+/* A rig for a mesh that has none: a skinned glTF's own skin, else km_autorig (what it chose
+ * is printed). Nothing is written: the page's "save rig" writes rig_file. */
+static km_status auto_rig(const char *mesh_path, const km_mesh *m, const char *rig_file,
+                          char **json, size_t *size, km_error *err) {
+  km_character c = {0};
+  bool own = false;
+  km_status s = km_cli_skin_character("live", mesh_path, NULL, &c, &own, err);
+  if (s != KM_OK) return s;
+  km_autorig_report rep;
+  if (!own) {
+    s = km_autorig(m, NULL, &c, &rep, err);
+    if (s != KM_OK) {
+      km_error_set(err, s,
+                   "%s has no rig (%s) and cannot be rigged automatically: %s; place handles "
+                   "by hand (kinemesh pick) in a rig file and pass --rig",
+                   mesh_path, rig_file, err->message);
+      return s;
+    }
+    printf("kinemesh live: no rig at %s: rigged %s as %s (kinemesh rig):", rig_file, mesh_path,
+           rep.kind == KM_AUTORIG_QUADRUPED ? "a quadruped"
+           : rep.kind == KM_AUTORIG_PROP    ? "a prop"
+                                            : "a humanoid");
+    for (size_t e = 0; e < rep.n_extremities; ++e)
+      if (rep.role[e][0]) printf(" %s at vertex %d", rep.role[e], (int)rep.extremity[e]);
+    printf("; \"save rig\" in the page writes it\n");
+  }
+  s = km_character_rig_json(&c, json, size, err);
+  km_character_free(&c);
+  return s;
+}
+
 static char *default_web_dir(void) {
   char exe[PATH_MAX];
   ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
@@ -55,7 +87,9 @@ int km_cli_live(int argc, char **argv) {
       KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh_path, "mesh to animate (OBJ/PLY/OFF)"},
       {"rig", 0, KM_OPT_STRING, &rig_path,
-       "rig: handles, joint map, filter (default <mesh stem>.rig.json); POST /rig rewrites it"},
+       "rig: handles, joint map, filter (default <mesh stem>.rig.json; when the file does not "
+       "exist: a glTF's own skin or an automatic rig, written there by the page's save); "
+       "POST /rig rewrites it"},
       {"osc", 0, KM_OPT_INT, &osc, "OSC port (OSCeleton /joint, KinectV2-OSC /bodies/...)"},
       {"udp", 0, KM_OPT_INT, &udp, "JSON-over-UDP port (one frame per datagram)"},
       {"replay", 0, KM_OPT_STRING, &replay, "take to replay (.json/.csv/.bvh with Kinect names)"},
@@ -112,6 +146,10 @@ int km_cli_live(int argc, char **argv) {
     goto done;
   }
   FILE *f = fopen(rig_file, "rb");
+  if (!f && errno == ENOENT) { /* no rig yet: the glTF's own skin, else an automatic one */
+    if (auto_rig(mesh_path, &m, rig_file, &rig_text, &rig_size, &err) != KM_OK) goto fail;
+    goto rig_ready;
+  }
   if (!f) {
     rc = km_cli_error("live", "cannot read the rig %s", rig_file);
     goto done;
@@ -128,6 +166,7 @@ int km_cli_live(int argc, char **argv) {
   fclose(f);
   rig_size = (size_t)sz;
   rig_text[rig_size] = 0;
+rig_ready:;
   km_motion_read_options mo = {0};
   mo.kinect1 = true;
   if (replay && km_motion_read(replay, &mo, &take, NULL, &err) != KM_OK) goto fail;

@@ -16,11 +16,13 @@ int km_cli_pose(int argc, char **argv) {
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
       KM_CLI_MOTION_FRAME_OPTIONS(fo),
-      {"mesh", 0, KM_OPT_STRING, &mesh, "skinned mesh (from kinemesh gen character)"},
+      {"mesh", 0, KM_OPT_STRING, &mesh, "rigged mesh (gen character, rig, or a skinned .glb)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames (default 1)"},
-      {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <mesh stem>.rig.json)"},
+      {"rig", 0, KM_OPT_STRING, &rig,
+       "its rig sidecar (default <mesh stem>.rig.json, else a glTF's own skin)"},
       {"motion", 0, KM_OPT_STRING, &motion, "take (.json) with the rig's joint names"},
-      {"fps", 0, KM_OPT_DOUBLE, &fps, "frame rate of the output; the motion is resampled (default: the take's)"},
+      {"fps", 0, KM_OPT_DOUBLE, &fps,
+       "frame rate of the output; the motion is resampled (default: the take's)"},
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
        "directory output: obj (default) or ply (binary) per frame"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory"},
@@ -41,9 +43,7 @@ int km_cli_pose(int argc, char **argv) {
   double *pos_frame = NULL, *xf = NULL, *V = NULL;
   int *map = NULL;
   int rc = KM_EXIT_FAIL;
-  char *rig_path = rig ? NULL : km_cli_rig_path(mesh);
-  if (km_mesh_read(mesh, &c.mesh, &err) != KM_OK ||
-      km_character_read_rig(rig ? rig : rig_path, c.mesh.n_vertices, &c, &err) != KM_OK ||
+  if (km_cli_load_character(mesh, rig, 0, &c, &err) != KM_OK ||
       km_take_read(motion, &t, &err) != KM_OK)
     goto fail;
   if ((rc = km_cli_orient_take("pose", &fo, &t))) goto done;
@@ -95,7 +95,6 @@ fail:
   rc = km_cli_fail("pose", &err);
 done:
   km_anim_writer_free(&w);
-  free(rig_path);
   free(map);
   free(pos_frame);
   free(xf);

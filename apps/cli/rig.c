@@ -11,8 +11,8 @@ int km_cli_rig(int argc, char **argv) {
   const km_cli_opt opts[] = {
       {"output", 'o', KM_OPT_STRING, &out, "rig sidecar to write (default MESH.rig.json)"},
       {"skeleton", 0, KM_OPT_STRING, &skel,
-       "auto (default: humanoid or quadruped from the extremities, else prop), kinect1 "
-       "(humanoid), quadruped or prop (handles by position)"},
+       "auto (default: a skinned glTF's own skin, else humanoid or quadruped from the "
+       "extremities, else prop), kinect1 (humanoid), quadruped or prop (handles by position)"},
       {"min-extremity", 0, KM_OPT_DOUBLE, &min_ext,
        "extremity prominence as a fraction of the largest extent (default 0.2)"},
   };
@@ -29,7 +29,9 @@ int km_cli_rig(int argc, char **argv) {
                    "front limbs take the hands, its hind limbs the feet, its highest other\n"
                    "extremity the head. A mesh with neither (a bust, an object) gets five\n"
                    "handles by position: highest -> head, upper sides -> hands, lower sides\n"
-                   "-> feet. The mesh is taken as y up, facing +z.");
+                   "-> feet. The mesh is taken as y up, facing +z. A skinned glTF is rigged\n"
+                   "from its own skeleton and weights (joint names mapped from Mixamo, VRM /\n"
+                   "Unity HumanBodyBones or rigify) unless --skeleton names another.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (n_pos != 1) return km_cli_error("rig", "expected one MESH");
   km_autorig_options o = {0};
@@ -51,9 +53,26 @@ int km_cli_rig(int argc, char **argv) {
   char *def = out ? NULL : km_cli_rig_path(pos[0]);
   const char *path = out ? out : def;
   int rc = KM_EXIT_OK;
-  if (km_mesh_read(pos[0], &m, &err) != KM_OK) {
+  km_mesh_skin sk = {0};
+  if (km_mesh_read_skinned(pos[0], &m, &sk, &err) != KM_OK) {
     rc = km_cli_fail("rig", &err);
     goto done;
+  }
+  if (sk.n_joints && o.skeleton == KM_AUTORIG_AUTO) { /* a skinned glTF: its own skeleton */
+    km_skin_mapping map;
+    km_status ss = km_character_from_skin(&m, &sk, &c, &map, &err);
+    if (ss != KM_OK) {
+      rc = km_cli_fail("rig", &err);
+      goto done;
+    }
+    printf("%s: %zu vertices, rigged from its own skin (%zu joints, %zu merged into an "
+           "ancestor's weights):\n",
+           pos[0], m.n_vertices, sk.n_joints, map.n_merged);
+    for (size_t j = 0; j < c.skeleton.n_joints; ++j)
+      printf("  %-14s <- %-28s (%8.4f %8.4f %8.4f)\n", c.skeleton.names[j],
+             map.source[j][0] ? map.source[j] : "(derived)", c.skeleton.rest[3 * j],
+             c.skeleton.rest[3 * j + 1], c.skeleton.rest[3 * j + 2]);
+    goto write;
   }
   if (km_autorig(&m, &o, &c, &rep, &err) != KM_OK) {
     rc = km_cli_fail("rig", &err);
@@ -77,6 +96,7 @@ int km_cli_rig(int argc, char **argv) {
   for (size_t j = 0; j < c.skeleton.n_joints; ++j)
     printf("  %-14s (%8.4f %8.4f %8.4f)\n", c.skeleton.names[j], c.skeleton.rest[3 * j],
            c.skeleton.rest[3 * j + 1], c.skeleton.rest[3 * j + 2]);
+write:
   if (km_character_write_rig(path, &c, &err) != KM_OK) {
     rc = km_cli_fail("rig", &err);
     goto done;
@@ -95,6 +115,7 @@ int km_cli_rig(int argc, char **argv) {
   km_rig_free(&rig);
   printf("\nwrote %s\n", path);
 done:
+  km_mesh_skin_free(&sk);
   free(def);
   km_character_free(&c);
   km_mesh_free(&m);

@@ -884,3 +884,30 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   if (report) report->seconds = km_seconds() - t0;
   return KM_OK;
 }
+
+/* ---------------------------------------------------------------- landmarks for a given skeleton */
+
+km_status km__autorig_landmarks(const km_mesh *m, const double *J, const int32_t tips[4],
+                                km_landmark *lm, km_error *err) {
+  rigger r;
+  memset(&r, 0, sizeof r);
+  r.m = m;
+  r.n = m->n_vertices;
+  r.on_face = km__calloc(r.n ? r.n : 1, 1);
+  if (!r.on_face) return km__fail(err, KM_ERR_NOMEM, "landmarks: out of memory");
+  for (size_t i = 0; i < 3 * m->n_faces; ++i)
+    if (m->F[i] >= 0 && (size_t)m->F[i] < r.n) r.on_face[m->F[i]] = 1;
+  double ymin = DBL_MAX, ymax = -DBL_MAX;
+  for (size_t v = 0; v < r.n; ++v)
+    if (r.on_face[v]) ymin = fmin(ymin, m->V[3 * v + 1]), ymax = fmax(ymax, m->V[3 * v + 1]);
+  r.H = ymax > ymin ? ymax - ymin : 1;
+  memcpy(r.J, J, sizeof r.J);
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+    r.tip[j] = -1;
+  r.tip[J_HAND_L] = tips[0], r.tip[J_HAND_R] = tips[1];
+  r.tip[J_FOOT_L] = tips[2], r.tip[J_FOOT_R] = tips[3];
+  const double fwd[3] = {0, 0, 1};
+  compute_landmarks(&r, fwd, lm);
+  free(r.on_face);
+  return KM_OK;
+}

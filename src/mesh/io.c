@@ -99,12 +99,30 @@ km_status km_mesh_parse(const void *data, size_t size, km_mesh_format format, co
   case KM_FORMAT_OBJ: return km__obj_parse(d, size, name, out, err);
   case KM_FORMAT_PLY: return km__ply_parse(d, size, name, out, err);
   case KM_FORMAT_OFF: return km__off_parse(d, size, name, out, err);
-  case KM_FORMAT_GLTF: return km__gltf_parse(d, size, name, NULL, out, err);
+  case KM_FORMAT_GLTF: return km__gltf_parse(d, size, name, NULL, out, NULL, err);
   default: return km__fail(err, KM_ERR_INVALID, "%s: unknown mesh format %d", name, (int)format);
   }
 }
 
 km_status km_mesh_read(const char *path, km_mesh *out, km_error *err) {
+  return km_mesh_read_skinned(path, out, NULL, err);
+}
+
+km_status km_mesh_parse_skinned(const void *data, size_t size, const char *name, km_mesh *out,
+                                km_mesh_skin *skin, km_error *err) {
+  if (!out || !skin) return km__fail(err, KM_ERR_INVALID, "km_mesh_parse_skinned: NULL argument");
+  memset(skin, 0, sizeof *skin);
+  km_mesh_format fmt;
+  km_status s = format_from_name(name ? name : "", &fmt, err);
+  if (s) return s;
+  if (fmt != KM_FORMAT_GLTF) return km_mesh_parse(data, size, fmt, name, out, err);
+  memset(out, 0, sizeof *out);
+  if (!data && size) return km__fail(err, KM_ERR_INVALID, "km_mesh_parse_skinned: data is NULL");
+  return km__gltf_parse(data ? data : "", size, name, NULL, out, skin, err);
+}
+
+km_status km_mesh_read_skinned(const char *path, km_mesh *out, km_mesh_skin *skin, km_error *err) {
+  if (skin) memset(skin, 0, sizeof *skin);
   if (!path || !out) return km__fail(err, KM_ERR_INVALID, "km_mesh_read: NULL argument");
   memset(out, 0, sizeof *out);
   km_mesh_format fmt;
@@ -116,7 +134,7 @@ km_status km_mesh_read(const char *path, km_mesh *out, km_error *err) {
   if (s) return s;
   double t0 = km_seconds();
   if (fmt == KM_FORMAT_GLTF) /* buffers may be files beside it */
-    s = km__gltf_parse(data, size, path, path, out, err);
+    s = km__gltf_parse(data, size, path, path, out, skin, err);
   else
     s = km_mesh_parse(data, size, fmt, path, out, err);
   free(data);

@@ -14,7 +14,17 @@
  * their count, so the vertex order is the file's accessor order, primitive after primitive,
  * instance after instance. A glTF is y up, facing +z, in metres by the specification. Texture
  * coordinates are turned to kinemesh's (OBJ's) bottom-left origin: v = 1 - v_gltf; a
- * primitive without NORMAL or TEXCOORD_0 among others that have them gets zeros. */
+ * primitive without NORMAL or TEXCOORD_0 among others that have them gets zeros.
+ *
+ * Skins: a node with a `skin` whose primitive has JOINTS_0 / WEIGHTS_0 is placed as a viewer
+ * shows it, by linear blend skinning with the scene's joint transforms (world matrix of each
+ * joint node times its inverse bind matrix; the mesh node's own transform is ignored, as the
+ * specification says); at the bind pose that is the positions as stored. When the caller asks
+ * for the skin (km_mesh_read_skinned), the joints of every skin used are gathered into one
+ * list (each joint node once, in order of first use), each with its name, its nearest
+ * ancestor node that is also a joint, and its world position; every vertex gets its 4
+ * JOINTS_0 / WEIGHTS_0 influences (weights normalised; JOINTS_1 is not read) and an unskinned
+ * primitive is bound whole to the nearest joint above its node (none: no influence). */
 #include "mesh/mesh_io.h"
 
 #include <cjson/cJSON.h>
@@ -31,6 +41,14 @@ typedef struct gltf_doc {
   size_t *buf_len;
   int n_bufs;
   const char *base_path; /* for relative buffer URIs; NULL: none allowed */
+  int n_nodes;
+  int *node_parent;   /* n_nodes: parent node, -1 for a root */
+  double *node_world; /* n_nodes*16: world matrices (column-major) */
+  km_mesh_skin *skin; /* requested skin output, or NULL */
+  int *joint_of_node; /* n_nodes: index in skin's joint list, -1 */
+  double *S;          /* the current instance's skin matrices (S_n*16), or NULL */
+  int32_t *S_ids;     /* their joints' indices in the gathered list */
+  size_t S_n;
 } gltf_doc;
 
 static uint32_t rd32(const unsigned char *p) {
@@ -173,6 +191,7 @@ static km_status accessor(gltf_doc *d, int a, const char *what, acc_view *v, km_
               : !strcmp(type, "VEC2")   ? 2
               : !strcmp(type, "VEC3")   ? 3
               : !strcmp(type, "VEC4")   ? 4
+              : !strcmp(type, "MAT4")   ? 16
                                         : 0;
   size_t cs = comp_size(ct);
   if (!ncomp || !cs || count < 0 || bvi < 0 || aoff < 0)
@@ -248,7 +267,7 @@ static km_status parse_json(const char *p, size_t n, const char *name, size_t at
 
 /* A mesh placed by a node: its index and world transform (column-major 4x4, as glTF). */
 typedef struct instance {
-  int mesh;
+  int mesh, node, skin; /* node -1 and skin -1 for a file without nodes */
   double M[16];
 } instance;
 
@@ -339,6 +358,8 @@ static km_status visit(gltf_doc *d, int ni, const double P[16], int depth, insta
       out->cap = nc;
     }
     out->v[out->n].mesh = mesh;
+    out->v[out->n].node = ni;
+    out->v[out->n].skin = jint(node, "skin", -1);
     memcpy(out->v[out->n++].M, M, sizeof M);
   }
   cJSON *ch = cJSON_GetObjectItemCaseSensitive(node, "children");
@@ -365,6 +386,7 @@ static km_status collect_instances(gltf_doc *d, instances *out, km_error *err) {
       if (!nv) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
       out->v = nv;
       out->v[out->n].mesh = m;
+      out->v[out->n].node = out->v[out->n].skin = -1;
       memcpy(out->v[out->n++].M, I, sizeof I);
     }
     return KM_OK;
@@ -399,6 +421,156 @@ static km_status collect_instances(gltf_doc *d, instances *out, km_error *err) {
 
 static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out, km_error *err);
 
+/* Parent and world matrix of every node (the scene's pose; joints need not be in the scene). */
+static km_status node_worlds(gltf_doc *d, km_error *err) {
+  static const double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  cJSON *nodes = cJSON_GetObjectItemCaseSensitive(d->json, "nodes");
+  int nn = cJSON_GetArraySize(nodes);
+  d->n_nodes = nn;
+  if (!nn) return KM_OK;
+  d->node_parent = km__malloc((size_t)nn, sizeof *d->node_parent);
+  d->node_world = km__malloc((size_t)nn * 16, sizeof *d->node_world);
+  unsigned char *done = km__calloc((size_t)nn, 1);
+  km_status s = KM_OK;
+  if (!d->node_parent || !d->node_world || !done) {
+    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+    goto out;
+  }
+  for (int i = 0; i < nn; ++i)
+    d->node_parent[i] = -1;
+  for (int i = 0; i < nn; ++i) {
+    cJSON *ch = cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(nodes, i), "children");
+    for (int k = 0; k < cJSON_GetArraySize(ch); ++k) {
+      cJSON *c = cJSON_GetArrayItem(ch, k);
+      if (cJSON_IsNumber(c) && c->valuedouble >= 0 && c->valuedouble < nn &&
+          d->node_parent[(int)c->valuedouble] < 0 && (int)c->valuedouble != i)
+        d->node_parent[(int)c->valuedouble] = i;
+    }
+  }
+  for (int i = 0; i < nn && !s; ++i) {
+    /* the chain up to a done node or a root (at most 64 deep: cycles refused) */
+    int chain[65], n = 0, a = i;
+    while (a >= 0 && !done[a]) {
+      if (n == 65) {
+        s = km__fail(err, KM_ERR_UNSUPPORTED,
+                     "%s: nodes[%d]: the node hierarchy is deeper than 64 (a cycle?)", d->name, i);
+        break;
+      }
+      chain[n++] = a;
+      a = d->node_parent[a];
+    }
+    while (!s && n > 0) {
+      int c = chain[--n];
+      double L[16];
+      if ((s = node_local(d, cJSON_GetArrayItem(nodes, c), c, L, err))) break;
+      int p = d->node_parent[c];
+      mat_mul(p >= 0 ? d->node_world + 16 * p : I, L, d->node_world + 16 * c);
+      done[c] = 1;
+    }
+  }
+out:
+  free(done);
+  return s;
+}
+
+/* The skin matrices (joint world x inverse bind) of skin si, with the joints' indices in the
+ * gathered joint list; *nj their count. */
+static km_status skin_matrices(gltf_doc *d, int si, double **S, int32_t **ids, size_t *nj,
+                               km_error *err) {
+  *S = NULL;
+  *ids = NULL;
+  cJSON *sk = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "skins"), si);
+  cJSON *js = cJSON_GetObjectItemCaseSensitive(sk, "joints");
+  int n = cJSON_GetArraySize(js);
+  if (si < 0 || !sk || n < 1)
+    return km__fail(err, KM_ERR_PARSE, "%s: skins[%d] is missing or has no joints", d->name, si);
+  *S = km__malloc((size_t)n * 16, sizeof **S);
+  *ids = km__malloc((size_t)n, sizeof **ids);
+  if (!*S || !*ids) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+  acc_view ibm;
+  bool has_ibm = cJSON_GetObjectItemCaseSensitive(sk, "inverseBindMatrices") != NULL;
+  char what[48];
+  snprintf(what, sizeof what, "skins[%d]", si);
+  km_status s = KM_OK;
+  if (has_ibm && (s = accessor(d, jint(sk, "inverseBindMatrices", -1), what, &ibm, err))) return s;
+  if (has_ibm && (ibm.ncomp != 16 || ibm.ct != 5126 || ibm.count < (size_t)n))
+    return km__fail(err, KM_ERR_PARSE, "%s: %s: inverseBindMatrices must be %d float MAT4", d->name,
+                    what, n);
+  for (int k = 0; k < n; ++k) {
+    cJSON *jn = cJSON_GetArrayItem(js, k);
+    int node = cJSON_IsNumber(jn) && jn->valuedouble >= 0 && jn->valuedouble < d->n_nodes
+                   ? (int)jn->valuedouble
+                   : -1;
+    if (node < 0)
+      return km__fail(err, KM_ERR_PARSE, "%s: %s: joints[%d] is not a node", d->name, what, k);
+    double B[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    for (int c = 0; has_ibm && c < 16; ++c) {
+      B[c] = comp(&ibm, (size_t)k, c);
+      if (!isfinite(B[c]))
+        return km__fail(err, KM_ERR_PARSE, "%s: %s: inverse bind matrix %d is not finite", d->name,
+                        what, k);
+    }
+    mat_mul(d->node_world + 16 * node, B, *S + 16 * k);
+    (*ids)[k] = d->joint_of_node ? d->joint_of_node[node] : -1;
+  }
+  *nj = (size_t)n;
+  return KM_OK;
+}
+
+/* The joint list of the skins the instances use (each joint node once, first use first). */
+static km_status gather_joints(gltf_doc *d, const instances *inst, km_error *err) {
+  km_mesh_skin *sk = d->skin;
+  cJSON *skins = cJSON_GetObjectItemCaseSensitive(d->json, "skins");
+  cJSON *nodes = cJSON_GetObjectItemCaseSensitive(d->json, "nodes");
+  if (!d->n_nodes) return KM_OK;
+  d->joint_of_node = km__malloc((size_t)d->n_nodes, sizeof *d->joint_of_node);
+  int *order = km__malloc((size_t)d->n_nodes, sizeof *order);
+  if (!d->joint_of_node || !order) {
+    free(order);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+  }
+  for (int i = 0; i < d->n_nodes; ++i)
+    d->joint_of_node[i] = -1;
+  size_t n = 0;
+  for (size_t ii = 0; ii < inst->n; ++ii) {
+    int si = inst->v[ii].skin;
+    if (si < 0) continue;
+    cJSON *js = cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(skins, si), "joints");
+    for (int k = 0; k < cJSON_GetArraySize(js); ++k) {
+      cJSON *jn = cJSON_GetArrayItem(js, k);
+      if (!cJSON_IsNumber(jn) || !(jn->valuedouble >= 0 && jn->valuedouble < d->n_nodes)) continue;
+      int node = (int)jn->valuedouble;
+      if (d->joint_of_node[node] >= 0) continue;
+      d->joint_of_node[node] = (int)n;
+      order[n++] = node;
+    }
+  }
+  km_status s = KM_OK;
+  sk->n_joints = n;
+  if (n) {
+    sk->names = km__calloc(n, sizeof *sk->names);
+    sk->parents = km__malloc(n, sizeof *sk->parents);
+    sk->rest = km__malloc(3 * n, sizeof *sk->rest);
+    if (!sk->names || !sk->parents || !sk->rest) s = km__fail(err, KM_ERR_NOMEM, "out of memory");
+  }
+  for (size_t j = 0; j < n && !s; ++j) {
+    int node = order[j];
+    const char *nm = cJSON_GetStringValue(
+        cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(nodes, node), "name"));
+    char buf[32];
+    snprintf(buf, sizeof buf, "node%d", node);
+    sk->names[j] = strdup(nm && nm[0] ? nm : buf);
+    if (!sk->names[j]) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+    int a = d->node_parent[node];
+    for (int depth = 0; a >= 0 && d->joint_of_node[a] < 0 && depth < 65; ++depth)
+      a = d->node_parent[a];
+    sk->parents[j] = a >= 0 ? d->joint_of_node[a] : -1;
+    memcpy(sk->rest + 3 * j, d->node_world + 16 * node + 12, 3 * sizeof(double));
+  }
+  free(order);
+  return s;
+}
+
 static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
   cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
   if (!cJSON_GetArraySize(meshes))
@@ -407,6 +579,14 @@ static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
   if (s) return s;
   instances inst = {0};
   if ((s = collect_instances(d, &inst, err))) {
+    free(inst.v);
+    return s;
+  }
+  bool skinned = false;
+  for (size_t i = 0; i < inst.n; ++i)
+    skinned |= inst.v[i].skin >= 0;
+  if ((skinned && (s = node_worlds(d, err))) ||
+      (skinned && d->skin && (s = gather_joints(d, &inst, err)))) {
     free(inst.v);
     return s;
   }
@@ -427,6 +607,14 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
         return km__fail(err, KM_ERR_UNSUPPORTED, "%s: %zu vertices exceed the int32 range", d->name,
                         nv);
       if ((s = km_mesh_alloc(nv, nf, out, err))) return s;
+      if (d->skin) {
+        d->skin->n_vertices = nv;
+        d->skin->joints = km__malloc(nv ? nv * 4 : 1, sizeof *d->skin->joints);
+        d->skin->weights = km__calloc(nv ? nv * 4 : 1, sizeof *d->skin->weights);
+        if (!d->skin->joints || !d->skin->weights) goto nomem;
+        for (size_t i = 0; i < 4 * nv; ++i)
+          d->skin->joints[i] = -1;
+      }
       if (any_n && !(out->N = km__calloc(nv ? nv : 1, 3 * sizeof(double)))) goto nomem;
       if (any_t && !(out->UV = km__calloc(nv ? nv : 1, 2 * sizeof(double)))) goto nomem;
     }
@@ -434,6 +622,19 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
     for (size_t ii = 0; ii < inst->n; ++ii) {
       int mi = inst->v[ii].mesh;
       const double *M = inst->v[ii].M;
+      int si = inst->v[ii].skin;
+      free(d->S);
+      free(d->S_ids);
+      d->S = NULL, d->S_ids = NULL, d->S_n = 0;
+      if (pass == 1 && si >= 0 && (s = skin_matrices(d, si, &d->S, &d->S_ids, &d->S_n, err)))
+        return s;
+      int32_t rigid = -1; /* an unskinned mesh: bound to the nearest joint above its node */
+      if (pass == 1 && d->skin && d->joint_of_node && inst->v[ii].node >= 0) {
+        int a = inst->v[ii].node;
+        for (int depth = 0; a >= 0 && d->joint_of_node[a] < 0 && depth < 65; ++depth)
+          a = d->node_parent[a];
+        if (a >= 0) rigid = d->joint_of_node[a];
+      }
       cJSON *mesh = cJSON_GetArrayItem(meshes, mi);
       if (!mesh)
         return km__fail(err, KM_ERR_PARSE, "%s: a node names mesh %d, which does not exist",
@@ -472,6 +673,19 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
                           d->name, what);
         bool hi = cJSON_GetObjectItemCaseSensitive(pr, "indices") != NULL;
         if (hi && (s = accessor(d, jint(pr, "indices", -1), what, &idx, err))) return s;
+        acc_view aj, aw;
+        bool hs = pass == 1 && d->S && cJSON_GetObjectItemCaseSensitive(at, "JOINTS_0") &&
+                  cJSON_GetObjectItemCaseSensitive(at, "WEIGHTS_0");
+        if (hs && ((s = accessor(d, jint(at, "JOINTS_0", -1), what, &aj, err)) ||
+                   (s = accessor(d, jint(at, "WEIGHTS_0", -1), what, &aw, err))))
+          return s;
+        if (hs && (aj.ncomp != 4 || aw.ncomp != 4 || aj.count != pos.count ||
+                   aw.count != pos.count || (aj.ct != 5121 && aj.ct != 5123) || aj.normalized ||
+                   (aw.ct != 5126 && aw.ct != 5121 && aw.ct != 5123)))
+          return km__fail(err, KM_ERR_PARSE,
+                          "%s: %s: JOINTS_0 (VEC4 unsigned byte/short) and WEIGHTS_0 (VEC4 float "
+                          "or normalized) must have POSITION's count",
+                          d->name, what);
         if (hi && (idx.ncomp != 1 || (idx.ct != 5121 && idx.ct != 5123 && idx.ct != 5125)))
           return km__fail(err, KM_ERR_PARSE, "%s: %s: indices must be unsigned SCALAR", d->name,
                           what);
@@ -497,17 +711,50 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
               out->UV[2 * (v0 + i) + c] = c ? 1 - t : t;
             }
           }
-          double nl = 0;
+          double nl = 0, Mv[16];
+          const double *Mp = M;
+          if (hs) { /* linear blend skinning by the scene's joint transforms */
+            double wsum = 0, wq[4];
+            int32_t jq[4];
+            memset(Mv, 0, sizeof Mv);
+            for (int q = 0; q < 4; ++q) {
+              double jx = comp(&aj, i, q), w = comp(&aw, i, q);
+              jq[q] = -1, wq[q] = 0;
+              if (!(w > 0)) continue;
+              if (!(jx < (double)d->S_n) || !isfinite(w))
+                return km__fail(err, KM_ERR_PARSE,
+                                "%s: %s: vertex %zu: JOINTS_0 %.0f is outside the skin's %zu "
+                                "joints (or its weight is not finite)",
+                                d->name, what, i, jx, d->S_n);
+              jq[q] = d->S_ids[(size_t)jx], wq[q] = w;
+              wsum += w;
+              for (int e = 0; e < 16; ++e)
+                Mv[e] += w * d->S[16 * (size_t)jx + e];
+            }
+            if (wsum > 0) {
+              for (int e = 0; e < 16; ++e)
+                Mv[e] /= wsum;
+              Mp = Mv;
+              for (int q = 0; q < 4 && d->skin; ++q) {
+                d->skin->joints[4 * (v0 + i) + q] = jq[q];
+                d->skin->weights[4 * (v0 + i) + q] = wq[q] / wsum;
+              }
+            }
+          } else if (rigid >= 0) {
+            d->skin->joints[4 * (v0 + i)] = rigid;
+            d->skin->weights[4 * (v0 + i)] = 1;
+          }
           for (int r = 0; r < 3; ++r) {
-            double x = M[12 + r];
+            double x = Mp[12 + r];
             for (int c = 0; c < 3; ++c)
-              x += M[c * 4 + r] * p[c];
+              x += Mp[c * 4 + r] * p[c];
             if (!isfinite(x))
               return km__fail(err, KM_ERR_PARSE, "%s: %s: POSITION %zu is not finite", d->name,
                               what, i);
             out->V[3 * (v0 + i) + r] = x;
             if (hn) {
-              double y = C[r * 3] * n[0] + C[r * 3 + 1] * n[1] + C[r * 3 + 2] * n[2];
+              double y = Mp != M ? Mp[r] * n[0] + Mp[4 + r] * n[1] + Mp[8 + r] * n[2]
+                                 : C[r * 3] * n[0] + C[r * 3 + 1] * n[1] + C[r * 3 + 2] * n[2];
               out->N[3 * (v0 + i) + r] = y;
               nl += y * y;
             }
@@ -524,7 +771,7 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
                             d->name, what, k, ix, pos.count);
           out->F[3 * f0 + k] = (int32_t)(v0 + (size_t)ix);
         }
-        if (det < 0) /* a mirror: keep the outward winding */
+        if (det < 0 && !hs) /* a mirror: keep the outward winding */
           for (size_t t = 0; t < ni / 3; ++t) {
             int32_t *f = out->F + 3 * (f0 + t);
             int32_t tmp = f[1];
@@ -543,9 +790,11 @@ nomem:
 }
 
 km_status km__gltf_parse(const char *data, size_t size, const char *name, const char *base_path,
-                         km_mesh *out, km_error *err) {
+                         km_mesh *out, km_mesh_skin *skin, km_error *err) {
   gltf_doc d = {0};
   d.name = name;
+  d.skin = skin;
+  if (skin) memset(skin, 0, sizeof *skin);
   d.base_path = base_path;
   const unsigned char *u = (const unsigned char *)data;
   if (size >= 4 && !memcmp(data, "glTF", 4)) {
@@ -574,10 +823,28 @@ km_status km__gltf_parse(const char *data, size_t size, const char *name, const 
   }
   km_status s = parse_doc(&d, out, err);
   if (s) km_mesh_free(out);
+  if (s || (skin && !skin->n_joints)) km_mesh_skin_free(skin);
+  free(d.node_parent);
+  free(d.node_world);
+  free(d.joint_of_node);
+  free(d.S);
+  free(d.S_ids);
   for (int i = 0; i < d.n_bufs && d.bufs; ++i)
     free(d.bufs[i]);
   free(d.bufs);
   free(d.buf_len);
   cJSON_Delete(d.json);
   return s;
+}
+
+void km_mesh_skin_free(km_mesh_skin *s) {
+  if (!s) return;
+  for (size_t j = 0; s->names && j < s->n_joints; ++j)
+    free(s->names[j]);
+  free(s->names);
+  free(s->parents);
+  free(s->rest);
+  free(s->joints);
+  free(s->weights);
+  memset(s, 0, sizeof *s);
 }

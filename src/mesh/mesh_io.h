@@ -20,9 +20,10 @@ km_status km__ply_parse(const char *data, size_t size, const char *name, km_mesh
 km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsigned flags,
                            km_mesh *out, km_error *err);
 /* glTF 2.0 (.glb or .gltf JSON; io_gltf.c). base_path: the file's path, for buffers in files
- * beside it (NULL: only the BIN chunk and data: URIs). */
+ * beside it (NULL: only the BIN chunk and data: URIs). skin: NULL, or filled as
+ * km_mesh_read_skinned describes (zeroed when the file has none). */
 km_status km__gltf_parse(const char *data, size_t size, const char *name, const char *base_path,
-                         km_mesh *out, km_error *err);
+                         km_mesh *out, km_mesh_skin *skin, km_error *err);
 km_status km__off_parse(const char *data, size_t size, const char *name, km_mesh *out,
                         km_error *err);
 

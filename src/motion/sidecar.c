@@ -65,8 +65,37 @@ static int find_landmark(const km_character *c, const char *name) {
 
 /* Streams the JSON with fprintf: a cJSON tree of 8M numbers for a 1M-vertex skin would cost
  * gigabytes. Weights are written with 7 significant digits. */
+static km_status write_rig_stream(FILE *f, const char *path, const km_character *c, km_error *err);
+
 km_status km_character_write_rig(const char *path, const km_character *c, km_error *err) {
   if (!path || !c) return km__fail(err, KM_ERR_INVALID, "write rig: NULL argument");
+  km__atomic_file af;
+  km_status st = write_rig_stream(NULL, path, c, err); /* validate before creating the file */
+  if (st != KM_OK) return st;
+  if ((st = km__atomic_open(&af, path, err)) != KM_OK) return st;
+  write_rig_stream(af.f, path, c, err);
+  return km__atomic_commit(&af, err);
+}
+
+km_status km_character_rig_json(const km_character *c, char **json, size_t *size, km_error *err) {
+  if (!c || !json || !size) return km__fail(err, KM_ERR_INVALID, "rig json: NULL argument");
+  *json = NULL;
+  *size = 0;
+  km_status st = write_rig_stream(NULL, "rig", c, err);
+  if (st != KM_OK) return st;
+  FILE *f = open_memstream(json, size);
+  if (!f) return km__fail(err, KM_ERR_NOMEM, "rig json: out of memory");
+  write_rig_stream(f, "rig", c, err);
+  if (fclose(f) != 0 || !*json) {
+    free(*json);
+    *json = NULL;
+    return km__fail(err, KM_ERR_NOMEM, "rig json: out of memory");
+  }
+  return KM_OK;
+}
+
+/* f NULL: only checks c. */
+static km_status write_rig_stream(FILE *f, const char *path, const km_character *c, km_error *err) {
   const km_mesh *m = &c->mesh;
   const km_skeleton *sk = &c->skeleton;
   size_t n = m->n_vertices;
@@ -99,10 +128,7 @@ km_status km_character_write_rig(const char *path, const km_character *c, km_err
     handle_vertex[h] = li >= 0 ? c->landmarks[li].vertex : (long)top;
   }
 
-  km__atomic_file af;
-  km_status st = km__atomic_open(&af, path, err);
-  if (st != KM_OK) return st;
-  FILE *f = af.f;
+  if (!f) return KM_OK;
   fprintf(f,
           "{\"format\":\"kinemesh-rig\",\"version\":1,\"units\":\"m\",\"vertices\":%zu,"
           "\"skeleton\":\"kinect1\",\n\"joints\":[",
@@ -135,7 +161,7 @@ km_status km_character_write_rig(const char *path, const km_character *c, km_err
     fprintf(f, "%s\n{\"handle\":\"%s\",\"joint\":\"%s\",\"axes\":\"xyz\",\"scale\":1.0}",
             h ? "," : "", handle_names[h], handle_joints[h]);
   fputs("],\n\"filter\":{\"smoothing\":0.5,\"trend\":0.5}}\n", f);
-  return km__atomic_commit(&af, err);
+  return KM_OK;
 }
 
 static bool json_int(const cJSON *o, double lo, double hi, long *out) {

@@ -24,6 +24,7 @@ EXTRA=()
 case $MODE in
   e2e) EXTRA=(--replay "$WORK/t.json" --no-autoplay) ;;
   e2e_quantize) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
+  e2e_norig) rm -f "$WORK/c.rig.json"; EXTRA=(--no-autoplay) ;;
   osc) EXTRA=(--record "$WORK/rec.json") ;;
   garbage) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
   security) EXTRA=(--replay "$WORK/t.json" --no-autoplay); chmod 600 "$WORK/c.rig.json" ;;

@@ -1,0 +1,416 @@
+/* A skinned glTF's own skeleton and weights as kinemesh's Kinect v1 rig
+ * (km_character_from_skin): joint names mapped by the common conventions, the spine and
+ * shoulders found from the hierarchy, every other joint's weights merged into its nearest
+ * mapped ancestor. The method is described at km_character_from_skin in include/kinemesh.h. */
+#include "autorig/autorig.h"
+
+#include "motion/motion.h"
+
+#include <ctype.h>
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum {
+  HIP_C = 0,
+  SPINE,
+  SHOULDER_C,
+  HEAD,
+  SHOULDER_L,
+  ELBOW_L,
+  WRIST_L,
+  HAND_L,
+  SHOULDER_R,
+  ELBOW_R,
+  WRIST_R,
+  HAND_R,
+  HIP_L,
+  KNEE_L,
+  ANKLE_L,
+  FOOT_L,
+  HIP_R,
+  KNEE_R,
+  ANKLE_R,
+  FOOT_R
+};
+
+/* Roles a name can give: a Kinect joint index, or these for the centre line. */
+enum { R_NONE = -1, R_HIPS = 100, R_NECK = 101 };
+
+static bool starts(const char *s, const char *p) { return !strncmp(s, p, strlen(p)); }
+static bool ends(const char *s, const char *p) {
+  size_t n = strlen(s), k = strlen(p);
+  return n >= k && !strcmp(s + n - k, p);
+}
+static bool in(const char *core, const char *const *list) {
+  for (; *list; ++list)
+    if (!strcmp(core, *list)) return true;
+  return false;
+}
+
+/* Side (-1 none, 0 left, 1 right) and core (lower case, letters and digits only) of a joint
+ * name: "mixamorig:LeftForeArm" -> left "forearm", "upper_arm.L" -> left "upperarm",
+ * "J_Bip_R_UpperLeg" -> right "upperleg", "leftUpperArm" -> left "upperarm". */
+static int split_name(const char *name, char *core, size_t cap) {
+  const char *b = name;
+  for (const char *p = name; *p; ++p)
+    if (*p == ':' || *p == '|') b = p + 1;
+  char s[128];
+  size_t n = 0;
+  for (; *b && n + 1 < sizeof s; ++b)
+    s[n++] = (char)tolower((unsigned char)*b);
+  s[n] = '\0';
+  char *t = s;
+  static const char *const prefixes[] = {"def-",   "org-",    "mch-",   "def_",    "j_bip_",
+                                         "bip01 ", "bip001 ", "bip01_", "bip001_", NULL};
+  for (const char *const *p = prefixes; *p; ++p)
+    if (starts(t, *p)) t += strlen(*p);
+  int side = -1;
+  for (int pass = 0; pass < 2 && side < 0; ++pass) {
+    if (starts(t, "left"))
+      side = 0, t += 4;
+    else if (starts(t, "right"))
+      side = 1, t += 5;
+    else if ((t[0] == 'l' || t[0] == 'r') && t[1] && strchr("_. -", t[1]))
+      side = t[0] == 'r', t += 2;
+    else if (starts(t, "c_"))
+      t += 2;
+    else {
+      static const char *const suf[2][5] = {{".l", "_l", "-l", " l", ".left"},
+                                            {".r", "_r", "-r", " r", ".right"}};
+      for (int sd = 0; sd < 2 && side < 0; ++sd)
+        for (int k = 0; k < 5; ++k)
+          if (ends(t, suf[sd][k])) {
+            side = sd;
+            t[strlen(t) - strlen(suf[sd][k])] = '\0';
+            break;
+          }
+      /* "upper_arm.L.001" (a twist segment): drop a numbered tail once and look again */
+      char *dot = strrchr(t, '.');
+      if (side < 0 && pass == 0 && dot && dot[1] &&
+          strspn(dot + 1, "0123456789") == strlen(dot + 1))
+        *dot = '\0';
+      else
+        break;
+    }
+  }
+  size_t k = 0;
+  for (; *t && k + 1 < cap; ++t)
+    if (isalnum((unsigned char)*t)) core[k++] = *t;
+  core[k] = '\0';
+  return side;
+}
+
+static int classify(const char *name) {
+  char core[128];
+  int side = split_name(name, core, sizeof core);
+  static const char *const arm[] = {"arm", "upperarm", "uparm", NULL};
+  static const char *const fore[] = {"forearm", "lowerarm", "elbow", NULL};
+  static const char *const hand[] = {"hand", "wrist", NULL};
+  static const char *const hand_end[] = {"handmiddle1", "middleproximal", "middle1", "fmiddle01",
+                                         "middle01",    "fingermiddle1",  NULL};
+  static const char *const thigh[] = {"upleg", "upperleg", "thigh", "hip", "uplegroll", NULL};
+  static const char *const shin[] = {"leg", "lowerleg", "shin", "calf", "knee", NULL};
+  static const char *const foot[] = {"foot", "ankle", NULL};
+  static const char *const toe[] = {"toebase", "toes", "toe", "toe0", "ball", NULL};
+  if (side < 0) {
+    static const char *const hips[] = {"hips", "hip", "pelvis", NULL};
+    static const char *const neck[] = {"neck", "neck1", "neck01", NULL};
+    if (in(core, hips)) return R_HIPS;
+    if (in(core, neck)) return R_NECK;
+    if (!strcmp(core, "head")) return HEAD;
+    return R_NONE;
+  }
+  int o = side ? SHOULDER_R - SHOULDER_L : 0, l = side ? HIP_R - HIP_L : 0;
+  if (in(core, arm)) return SHOULDER_L + o;
+  if (in(core, fore)) return ELBOW_L + o;
+  if (in(core, hand)) return WRIST_L + o;
+  if (in(core, hand_end)) return HAND_L + o;
+  if (in(core, thigh)) return HIP_L + l;
+  if (in(core, shin)) return KNEE_L + l;
+  if (in(core, foot)) return ANKLE_L + l;
+  if (in(core, toe)) return FOOT_L + l;
+  return R_NONE;
+}
+
+typedef struct tree {
+  const km_mesh_skin *s;
+  int *depth;
+} tree;
+
+static bool is_ancestor(const tree *t, int a, int b) { /* a ancestor-or-self of b */
+  for (int x = b; x >= 0; x = t->s->parents[x])
+    if (x == a) return true;
+  return false;
+}
+
+static int lca(const tree *t, int a, int b) {
+  while (a >= 0 && b >= 0 && a != b) {
+    if (t->depth[a] >= t->depth[b])
+      a = t->s->parents[a];
+    else
+      b = t->s->parents[b];
+  }
+  return a == b ? a : -1;
+}
+
+static void lerp3(const double *a, const double *b, double f, double *o) {
+  for (int k = 0; k < 3; ++k)
+    o[k] = a[k] + f * (b[k] - a[k]);
+}
+
+km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_character *out,
+                                 km_skin_mapping *map, km_error *err) {
+  if (!m || !s || !out) return km__fail(err, KM_ERR_INVALID, "skin: NULL argument");
+  memset(out, 0, sizeof *out);
+  if (map) memset(map, 0, sizeof *map);
+  if (!s->n_joints || !s->joints || !s->weights || !s->names || !s->parents || !s->rest)
+    return km__fail(err, KM_ERR_INVALID, "skin: the mesh has no skin");
+  if (s->n_vertices != m->n_vertices)
+    return km__fail(err, KM_ERR_INVALID, "skin: %zu vertices, the mesh has %zu", s->n_vertices,
+                    m->n_vertices);
+  const size_t nj = s->n_joints, nv = m->n_vertices;
+  int *role = km__malloc(nj, sizeof *role), *depth = km__malloc(nj, sizeof *depth);
+  int *owner = km__malloc(nj, sizeof *owner), *target = km__malloc(nj, sizeof *target);
+  int32_t *dom = km__malloc(nv ? nv : 1, sizeof *dom);
+  km_status st = KM_OK;
+  if (!role || !depth || !owner || !target || !dom) {
+    st = km__fail(err, KM_ERR_NOMEM, "skin: out of memory");
+    goto done;
+  }
+  tree t = {s, depth};
+  for (size_t j = 0; j < nj; ++j) {
+    int d = 0;
+    for (int x = s->parents[j]; x >= 0 && d <= (int)nj; x = s->parents[x])
+      ++d;
+    if (d > (int)nj) {
+      st = km__fail(err, KM_ERR_PARSE, "skin: the joint hierarchy has a cycle at %s", s->names[j]);
+      goto done;
+    }
+    depth[j] = d;
+    role[j] = classify(s->names[j]);
+  }
+  /* The shallowest joint of each role. */
+  int pick[KM_KINECT1_JOINTS], hips = -1, necks = -1;
+  for (int k = 0; k < KM_KINECT1_JOINTS; ++k)
+    pick[k] = -1;
+  for (size_t j = 0; j < nj; ++j) {
+    int r = role[j];
+    int *slot = r == R_HIPS ? &hips : r == R_NECK ? &necks : r >= 0 ? &pick[r] : NULL;
+    if (slot && (*slot < 0 || depth[j] < depth[*slot])) *slot = (int)j;
+  }
+  static const int required[] = {HEAD,  SHOULDER_L, ELBOW_L, WRIST_L, SHOULDER_R, ELBOW_R, WRIST_R,
+                                 HIP_L, KNEE_L,     ANKLE_L, HIP_R,   KNEE_R,     ANKLE_R};
+  static const char *const need[] = {
+      "Head",          "LeftUpperArm",  "LeftLowerArm", "LeftHand",     "RightUpperArm",
+      "RightLowerArm", "RightHand",     "LeftUpperLeg", "LeftLowerLeg", "LeftFoot",
+      "RightUpperLeg", "RightLowerLeg", "RightFoot"};
+  char missing[256] = "";
+  for (size_t i = 0; i < sizeof required / sizeof *required; ++i)
+    if (pick[required[i]] < 0)
+      snprintf(missing + strlen(missing), sizeof missing - strlen(missing), "%s%s",
+               missing[0] ? ", " : "", need[i]);
+  if (missing[0]) {
+    char names[256] = "";
+    for (size_t j = 0; j < nj && strlen(names) < 200; ++j)
+      snprintf(names + strlen(names), sizeof names - strlen(names), "%s%s", j ? ", " : "",
+               s->names[j]);
+    st = km__fail(err, KM_ERR_UNSUPPORTED,
+                  "skin: no joint found for %s (the joint names follow none of Mixamo, VRM / "
+                  "Unity HumanBodyBones, Blender rigify; the file has %zu joints: %s%s); "
+                  "rig the mesh with `kinemesh rig --skeleton kinect1` instead",
+                  missing, nj, names, nj > 0 && strlen(names) >= 200 ? ", ..." : "");
+    goto done;
+  }
+  double J[KM_KINECT1_JOINTS * 3];
+#define RJ(j) (s->rest + 3 * (size_t)(j))
+  int hip_c = lca(&t, pick[HIP_L], pick[HIP_R]);
+  if (hip_c < 0) hip_c = hips;
+  if (hip_c < 0) hip_c = pick[HIP_L]; /* legs in separate trees: take one */
+  int sh_lca = lca(&t, pick[SHOULDER_L], pick[SHOULDER_R]);
+  if (sh_lca < 0) sh_lca = s->parents[pick[SHOULDER_L]] >= 0 ? s->parents[pick[SHOULDER_L]] : hip_c;
+  int neck = sh_lca;
+  if (necks >= 0 && is_ancestor(&t, sh_lca, necks) && is_ancestor(&t, necks, pick[HEAD]))
+    neck = necks;
+  if (neck == hip_c) neck = -1; /* arms on the hips: no chest joint of its own */
+  memcpy(J + 3 * HIP_C, RJ(hip_c), 3 * sizeof(double));
+  if (neck >= 0)
+    memcpy(J + 3 * SHOULDER_C, RJ(neck), 3 * sizeof(double));
+  else
+    lerp3(RJ(pick[SHOULDER_L]), RJ(pick[SHOULDER_R]), 0.5, J + 3 * SHOULDER_C);
+  for (size_t j = 0; j < nj; ++j)
+    owner[j] = -1;
+  /* Spine: the chain from the neck down to the hips; the joint nearest 48% of the way up
+   * (the procedural character's proportion) gives the position, all of them the weights. */
+  double want[3];
+  lerp3(J + 3 * HIP_C, J + 3 * SHOULDER_C, 0.48, want);
+  memcpy(J + 3 * SPINE, want, sizeof want);
+  double best = DBL_MAX;
+  if (neck >= 0 && is_ancestor(&t, hip_c, neck))
+    for (int x = s->parents[neck]; x >= 0 && x != hip_c; x = s->parents[x]) {
+      owner[x] = SPINE;
+      double dd = 0;
+      for (int k = 0; k < 3; ++k)
+        dd += (RJ(x)[k] - want[k]) * (RJ(x)[k] - want[k]);
+      if (dd < best) {
+        best = dd;
+        memcpy(J + 3 * SPINE, RJ(x), 3 * sizeof(double));
+        if (map) snprintf(map->source[SPINE], sizeof map->source[SPINE], "%s", s->names[x]);
+      }
+    }
+  owner[hip_c] = HIP_C;
+  if (neck >= 0) owner[neck] = SHOULDER_C;
+  if (map) {
+    snprintf(map->source[HIP_C], sizeof map->source[HIP_C], "%s", s->names[hip_c]);
+    if (neck >= 0)
+      snprintf(map->source[SHOULDER_C], sizeof map->source[SHOULDER_C], "%s", s->names[neck]);
+  }
+  for (int k = 0; k < KM_KINECT1_JOINTS; ++k) {
+    if (k == HIP_C || k == SPINE || k == SHOULDER_C) continue;
+    int j = pick[k];
+    /* a hand or toe joint counts only below its wrist or ankle */
+    if ((k == HAND_L || k == HAND_R || k == FOOT_L || k == FOOT_R) && j >= 0 &&
+        !is_ancestor(&t, pick[k - 1], j))
+      j = -1;
+    pick[k] = j;
+    if (j < 0) continue;
+    owner[j] = k;
+    memcpy(J + 3 * k, RJ(j), 3 * sizeof(double));
+    if (map) snprintf(map->source[k], sizeof map->source[k], "%s", s->names[j]);
+  }
+  /* Ends without a joint: the hand at the mean of the wrist's children (the fingers' roots),
+   * else 0.3 forearm past the wrist; the foot at the ankle's first child, else ahead of and
+   * below the ankle. */
+  double ymin = DBL_MAX;
+  for (size_t v = 0; v < nv; ++v)
+    ymin = fmin(ymin, m->V[3 * v + 1]);
+  for (int side = 0; side < 2; ++side) {
+    int h = side ? HAND_R : HAND_L, w = h - 1, e = h - 2;
+    if (pick[h] < 0) {
+      double c[3] = {0, 0, 0};
+      int cnt = 0;
+      for (size_t j = 0; j < nj; ++j)
+        if (s->parents[j] == pick[w]) {
+          for (int k = 0; k < 3; ++k)
+            c[k] += RJ(j)[k];
+          ++cnt;
+        }
+      if (cnt)
+        for (int k = 0; k < 3; ++k)
+          J[3 * h + k] = c[k] / cnt;
+      else
+        lerp3(J + 3 * e, J + 3 * w, 1.3, J + 3 * h);
+    }
+    int f = side ? FOOT_R : FOOT_L, a = f - 1;
+    if (pick[f] < 0) {
+      int child = -1;
+      for (size_t j = 0; j < nj && child < 0; ++j)
+        if (s->parents[j] == pick[a]) child = (int)j;
+      if (child >= 0) {
+        memcpy(J + 3 * f, RJ(child), 3 * sizeof(double));
+      } else {
+        double hgt = J[3 * a + 1] - ymin;
+        J[3 * f] = J[3 * a], J[3 * f + 1] = ymin + 0.4 * hgt, J[3 * f + 2] = J[3 * a + 2] + hgt;
+      }
+    }
+  }
+  /* Every other joint weights the Kinect joint of its nearest mapped ancestor (none: the
+   * hips). */
+  size_t merged = 0;
+  for (size_t j = 0; j < nj; ++j) {
+    int x = (int)j;
+    while (x >= 0 && owner[x] < 0)
+      x = s->parents[x];
+    target[j] = x >= 0 ? owner[x] : HIP_C;
+    merged += owner[j] < 0;
+  }
+  if (map) map->n_merged = merged;
+  if ((st = km_mesh_copy(m, &out->mesh, err)) || (st = km__skin_alloc(&out->skin, nv, err)))
+    goto done;
+  km_skeleton *sk = &out->skeleton;
+  sk->n_joints = KM_KINECT1_JOINTS;
+  sk->names = km__calloc(KM_KINECT1_JOINTS, sizeof *sk->names);
+  sk->parents = km__malloc(KM_KINECT1_JOINTS, sizeof *sk->parents);
+  sk->rest = km__malloc(3 * KM_KINECT1_JOINTS, sizeof *sk->rest);
+  if (!sk->names || !sk->parents || !sk->rest) {
+    st = km__fail(err, KM_ERR_NOMEM, "skin: out of memory");
+    goto done;
+  }
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
+    if (!(sk->names[j] = km__strdup(km_kinect1_joint_name(j)))) {
+      st = km__fail(err, KM_ERR_NOMEM, "skin: out of memory");
+      goto done;
+    }
+    sk->parents[j] = km_kinect1_joint_parent(j);
+  }
+  memcpy(sk->rest, J, sizeof J);
+  for (size_t v = 0; v < nv; ++v) {
+    double w[KM_KINECT1_JOINTS] = {0}, sum = 0;
+    for (int q = 0; q < 4; ++q) {
+      int32_t j = s->joints[4 * v + q];
+      double x = s->weights[4 * v + q];
+      if (j >= 0 && (size_t)j < nj && x > 0 && isfinite(x)) w[target[j]] += x, sum += x;
+    }
+    if (!(sum > 0)) w[HIP_C] = 1;
+    int32_t jj[KM_SKIN_INFLUENCES];
+    double ww[KM_SKIN_INFLUENCES];
+    int cnt = 0;
+    for (int k = 0; k < KM_KINECT1_JOINTS; ++k) { /* the 4 largest, largest first */
+      if (!(w[k] > 0)) continue;
+      int pos = cnt;
+      while (pos > 0 && ww[pos - 1] < w[k])
+        --pos;
+      if (pos >= KM_SKIN_INFLUENCES) continue;
+      int last = cnt < KM_SKIN_INFLUENCES ? cnt : KM_SKIN_INFLUENCES - 1;
+      for (int q = last; q > pos; --q)
+        ww[q] = ww[q - 1], jj[q] = jj[q - 1];
+      ww[pos] = w[k], jj[pos] = k;
+      if (cnt < KM_SKIN_INFLUENCES) ++cnt;
+    }
+    double tot = 0;
+    for (int q = 0; q < cnt; ++q)
+      tot += ww[q];
+    for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
+      out->skin.joints[4 * v + q] = q < cnt ? jj[q] : -1;
+      out->skin.weights[4 * v + q] = q < cnt ? ww[q] / tot : 0.0;
+    }
+    dom[v] = jj[0];
+  }
+  /* Tips for the landmarks: the hand's vertex farthest along wrist -> hand, the foot's
+   * farthest along ankle -> foot (horizontally), among the vertices they dominate. */
+  int32_t tips[4];
+  for (int i = 0; i < 4; ++i) {
+    int e = i == 0 ? HAND_L : i == 1 ? HAND_R : i == 2 ? FOOT_L : FOOT_R, b = e - 1;
+    double d[3];
+    for (int k = 0; k < 3; ++k)
+      d[k] = J[3 * e + k] - J[3 * b + k];
+    if (i >= 2) d[1] = 0;
+    double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(len > 0)) d[0] = 0, d[1] = i >= 2 ? 0 : -1, d[2] = i >= 2 ? 1 : 0, len = 1;
+    double bt = -DBL_MAX, bd = DBL_MAX;
+    int32_t bv = -1, near = 0;
+    for (size_t v = 0; v < nv; ++v) {
+      const double *p = m->V + 3 * v;
+      double q[3] = {p[0] - J[3 * b], p[1] - J[3 * b + 1], p[2] - J[3 * b + 2]};
+      double dn = (p[0] - J[3 * e]) * (p[0] - J[3 * e]) +
+                  (p[1] - J[3 * e + 1]) * (p[1] - J[3 * e + 1]) +
+                  (p[2] - J[3 * e + 2]) * (p[2] - J[3 * e + 2]);
+      if (dn < bd) bd = dn, near = (int32_t)v;
+      if (dom[v] != e && dom[v] != b) continue;
+      double tt = (q[0] * d[0] + q[1] * d[1] + q[2] * d[2]) / len;
+      if (tt > bt) bt = tt, bv = (int32_t)v;
+    }
+    tips[i] = bv >= 0 ? bv : near;
+  }
+  st = km__autorig_landmarks(m, J, tips, out->landmarks, err);
+#undef RJ
+done:
+  free(role);
+  free(depth);
+  free(owner);
+  free(target);
+  free(dom);
+  if (st != KM_OK) km_character_free(out);
+  return st;
+}

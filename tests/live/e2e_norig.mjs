@@ -1,0 +1,80 @@
+// End-to-end without a rig: `kinemesh live --mesh c.obj` with no c.rig.json rigs the mesh itself
+// (km_autorig, printed) and writes nothing; the page's hover readout shows the id and position
+// of the vertex under the cursor; the first handle placed by a click is saved, which creates
+// c.rig.json. Keeps a screenshot.
+import { createRequire } from 'node:module';
+import fs from 'node:fs';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { check, finish, status } from './lib.mjs';
+
+const here = path.dirname(fileURLToPath(import.meta.url));
+const require = createRequire(path.join(here, '../../web/package.json'));
+const { chromium } = require('playwright-core');
+const [http, , , work] = process.argv.slice(2);
+const url = `http://127.0.0.1:${http}/`;
+const rigPath = path.join(work, 'c.rig.json');
+const out = fs.readFileSync(path.join(work, 'server.out'), 'utf8');
+check(/no rig at .*rigged .* as a humanoid/.test(out), `server rigged the mesh itself: ${out.split('\n')[0]}`);
+check(!fs.existsSync(rigPath), 'no rig file written before the page saves');
+
+const browser = await chromium.launch({
+  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+  headless: true,
+  args: ['--no-sandbox', '--enable-unsafe-swiftshader', '--use-angle=swiftshader',
+    '--ignore-gpu-blocklist', '--disable-dev-shm-usage'],
+});
+const errors = [];
+try {
+  const page = await browser.newPage({ viewport: { width: 1100, height: 700 } });
+  page.on('pageerror', (e) => errors.push(String(e)));
+  page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
+  await page.goto(url);
+  await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
+    null, { timeout: 80000 });
+  const s0 = await status(http);
+  check(Object.keys(s0.handles).length === 5, `automatic rig: ${Object.keys(s0.handles).join(', ')}`);
+
+  // A chest vertex facing the camera (front-most near the mid-line at 70% of the height).
+  const pos = await page.evaluate(() => { const o = []; for (let i = 0; i < window.kmLive.nv; ++i) o.push(window.kmLive.vertexPosition(i)); return o; });
+  let ymin = Infinity, ymax = -Infinity;
+  for (const p of pos) { ymin = Math.min(ymin, p[1]); ymax = Math.max(ymax, p[1]); }
+  const yt = ymin + 0.7 * (ymax - ymin);
+  let target = -1, bz = -Infinity;
+  pos.forEach((p, i) => { if (Math.abs(p[0]) < 0.04 && Math.abs(p[1] - yt) < 0.04 && p[2] > bz) { bz = p[2]; target = i; } });
+  check(target >= 0, `chest vertex ${target}`);
+  const px = await page.evaluate((i) => window.kmLive.project(i), target);
+
+  // Hover: the readout names the vertex under the cursor and its position.
+  check((await page.textContent('#hover')).trim() === '–', 'hover readout empty before the cursor is on the mesh');
+  await page.mouse.move(px.x - 30, px.y);
+  await page.mouse.move(px.x, px.y, { steps: 3 });
+  await page.waitForFunction(() => /^\d+ \(/.test(document.getElementById('hover').textContent), null, { timeout: 20000 });
+  const hoverText = (await page.textContent('#hover')).trim();
+  const hv = await page.evaluate(() => window.kmLive.hover);
+  const hd = Math.hypot(...[0, 1, 2].map((k) => pos[hv][k] - pos[target][k]));
+  check(hd < 0.05 && hoverText.startsWith(`${hv} (`) && hoverText.includes(pos[hv][1].toFixed(3)),
+    `hover shows "${hoverText}" (${hd.toFixed(3)} m from ${target})`);
+
+  // The first handle placed by hand: click, joint, add, save -> c.rig.json appears with it.
+  await page.mouse.click(px.x, px.y);
+  const pending = await page.evaluate(() => window.kmLive.pending && window.kmLive.pending.vertex);
+  check(pending === hv, `click placed the handle at the hovered vertex ${pending}`);
+  await page.click('#diagram circle[data-joint="ShoulderCenter"]');
+  await page.click('#h-add');
+  await page.click('#save');
+  await page.waitForFunction(() => window.kmLive.saved >= 1, null, { timeout: 40000 });
+  const rig = fs.existsSync(rigPath) ? JSON.parse(fs.readFileSync(rigPath, 'utf8')) : null;
+  const h = rig && rig.handles.find((x) => x.vertex === pending);
+  const m = h && rig.map.find((x) => x.handle === h.name);
+  check(rig && rig.handles.length === 6 && m && m.joint === 'ShoulderCenter',
+    `saved ${rigPath}: ${rig ? rig.handles.length : 0} handles, the new one on ${m && m.joint}`);
+  check(rig && rig.joints && rig.skin, 'the saved rig keeps the automatic skeleton and skin');
+  await page.screenshot({ path: path.join(work, 'live_norig.png') });
+  check(errors.length === 0, `no page errors ${errors.join(' | ')}`);
+} catch (e) {
+  check(false, 'exception: ' + (e && e.stack || e));
+} finally {
+  await browser.close();
+}
+finish('live_e2e_norig');
