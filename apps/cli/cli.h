@@ -110,6 +110,7 @@ int km_cli_avatar(int argc, char **argv);
 km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
                                 km_error *err);
 int km_cli_live(int argc, char **argv);
+int km_cli_vmc(int argc, char **argv);
 int km_cli_rig(int argc, char **argv);
 int km_cli_pick(int argc, char **argv);
 
