@@ -167,10 +167,42 @@ static void test_bvh_humanoid(void) {
   km_take_free(&k1);
 }
 
+/* docs/skeletons.md prints the table: every body point row the code has must be there. */
+static void test_docs_table(void) {
+  FILE *f = fopen(KM_TEST_DATA "/../../docs/skeletons.md", "rb");
+  CHECK(f != NULL);
+  if (!f) return;
+  static char doc[1 << 16];
+  size_t n = fread(doc, 1, sizeof doc - 1, f);
+  fclose(f);
+  doc[n] = 0;
+  int rows = 0;
+  for (int k = 0; k < KM_SKELETON_KINDS; ++k)
+    for (int j = 0; j < km_skeleton_joint_count((km_skeleton_kind)k); ++j) {
+      if (km_skeleton_joint_map((km_skeleton_kind)k, j, (km_skeleton_kind)k) < 0) continue;
+      char row[512] = "|";
+      bool earlier = false;
+      for (int t = 0; t < KM_SKELETON_KINDS; ++t) {
+        int m = km_skeleton_joint_map((km_skeleton_kind)k, j, (km_skeleton_kind)t);
+        earlier |= m >= 0 && t < k;
+        char c[80];
+        snprintf(c, sizeof c, " %s |",
+                 m >= 0 ? km_skeleton_joint_name((km_skeleton_kind)t, m) : "-");
+        strcat(row, c);
+      }
+      if (earlier) continue; /* the row was made from an earlier skeleton's joint */
+      strcat(row, "\n");
+      ++rows;
+      CHECK_MSG(strstr(doc, row) != NULL, "docs/skeletons.md lacks the row %s", row);
+    }
+  CHECK(rows == 35);
+}
+
 int main(void) {
   test_tables();
   test_rig_names();
   test_unity_convert();
   test_bvh_humanoid();
+  test_docs_table();
   return km_test_finish("test_skeleton_names");
 }
