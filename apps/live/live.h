@@ -21,10 +21,12 @@ static inline void *live_zalloc(size_t count, size_t size) {
 
 /* ---------------------------------------------------------------- input parsing */
 
-/* Index of a tracker joint name in KM_KINECT1 order: Kinect v1 names (HandLeft), Kinect v2
- * names (SpineBase, SpineShoulder, WristLeft, ...) and OSCeleton/OpenNI names (l_hand, torso,
- * waist, ...). -1: unknown name. -2: a known joint that has no Kinect v1 counterpart
- * (HandTipLeft, ThumbRight, l_finger, r_collar, Neck of v2 when SpineShoulder is sent, ...). */
+/* Index of a tracker joint name in KM_KINECT1 order: Kinect v1 names (HandLeft), OSCeleton/
+ * OpenNI names (l_hand, torso, waist, ...), then any skeleton of km_skeleton_kinect1_joint,
+ * Kinect v2 first (SpineBase, SpineShoulder, ...; then HAND_LEFT, LeftMiddleProximal,
+ * left_wrist, lhand, ...). -1: unknown name. -2: a known joint that has no Kinect v1
+ * counterpart (HandTipLeft, ThumbRight, l_finger, r_collar, Neck of v2 when SpineShoulder is
+ * sent, Jaw, ...). */
 int km_live_joint_index(const char *name);
 
 /* A JSON-lines UDP datagram (one frame): either {"joints": {"HandLeft": [x,y,z], ...}}
