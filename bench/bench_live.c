@@ -311,14 +311,8 @@ int km_bench_live(int argc, char **argv) {
   void **vmc_pk = vmc ? calloc(take.n_frames, sizeof(void *)) : NULL;
   size_t *vmc_len = vmc ? calloc(take.n_frames, sizeof(size_t)) : NULL;
   for (size_t f = 0; vmc && vmc_pk && vmc_len && f < take.n_frames; ++f) {
-    double hum[3 * KM_HUMANOID_BONES];
-    for (int b = 0; b < KM_HUMANOID_BONES; ++b) {
-      int k1 = km_skeleton_joint_map(KM_SKELETON_HUMANOID, b, KM_SKELETON_KINECT1);
-      for (int ax = 0; ax < 3; ++ax)
-        hum[3 * b + ax] = k1 >= 0 ? take.positions[60 * f + 3 * (size_t)k1 + (size_t)ax] : NAN;
-    }
     km_humanoid_pose pose;
-    if (km_humanoid_pose_from_positions(hum, &pose, NULL) == KM_OK)
+    if (km_live_vmc_pose_from_kinect1(take.positions + 60 * f, &pose, NULL) == KM_OK)
       vmc_pk[f] = km_live_vmc_bundle(&pose, (double)f / rate, &vmc_len[f]);
   }
   int fd = socket(AF_INET, SOCK_DGRAM, 0);

@@ -67,7 +67,7 @@ static char **vmc_default_port(int argc, char **argv, int *out_argc) {
 
 int km_cli_live(int argc, char **argv) {
   const char *mesh_path = NULL, *rig_path = NULL, *replay = NULL, *record = NULL;
-  const char *bind = "127.0.0.1", *web = NULL, *cache = NULL;
+  const char *bind = "127.0.0.1", *web = NULL, *cache = NULL, *vmc_out = NULL;
   int osc = 0, udp = 0, vmc = 0, http = 8080;
   bool quantize = false, loop = false, no_autoplay = false;
   km_cli_frame_opts fo = {0};
@@ -82,6 +82,8 @@ int km_cli_live(int argc, char **argv) {
       {"vmc", 0, KM_OPT_INT, &vmc,
        "VMC protocol port (XR Animator, VSeeFace, SlimeVR, ...; bare --vmc: " KM_VMC_DEFAULT_PORT
        ")"},
+      {"vmc-out", 0, KM_OPT_STRING, &vmc_out,
+       "send the filtered skeleton of every frame as VMC bundles to HOST:PORT"},
       {"replay", 0, KM_OPT_STRING, &replay, "take to replay (.json/.csv/.bvh with Kinect names)"},
       {"loop", 0, KM_OPT_FLAG, &loop, "replay in a loop"},
       {"no-autoplay", 0, KM_OPT_FLAG, &no_autoplay,
@@ -166,6 +168,7 @@ int km_cli_live(int argc, char **argv) {
   lo.osc_port = osc;
   lo.udp_port = udp;
   lo.vmc_port = vmc;
+  lo.vmc_out = vmc_out;
   lo.quantize = quantize;
   lo.loop = loop;
   lo.no_autoplay = no_autoplay;
@@ -187,6 +190,7 @@ int km_cli_live(int argc, char **argv) {
          http);
   if (osc) printf("  OSC (OSCeleton /joint, KinectV2-OSC /bodies/...) on udp %s:%d\n", bind, osc);
   if (udp) printf("  JSON frames on udp %s:%d\n", bind, udp);
+  if (vmc_out) printf("  VMC out: the filtered skeleton -> udp %s\n", vmc_out);
   if (vmc) printf("  VMC (/VMC/Ext/Root/Pos, /VMC/Ext/Bone/Pos) on udp %s:%d\n", bind, vmc);
   if (replay) printf("  replay: %s (%zu frames at %g fps)\n", replay, take.n_frames, take.fps);
   fflush(stdout);

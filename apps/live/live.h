@@ -101,6 +101,10 @@ km_status km_live_vmc_out_open(const char *host_port, km_live_vmc_out **out, km_
 km_status km_live_vmc_out_send(km_live_vmc_out *o, const km_humanoid_pose *pose, double t,
                                km_error *err);
 void km_live_vmc_out_free(km_live_vmc_out **o);
+/* The humanoid pose of 20 Kinect v1 joints (60 doubles, NaN missing), bones at the same body
+ * point (km_humanoid_pose_from_positions). Errors: KM_ERR_INVALID when no joint is given. */
+km_status km_live_vmc_pose_from_kinect1(const double *joints, km_humanoid_pose *pose,
+                                        km_error *err);
 
 /* ---------------------------------------------------------------- server */
 
@@ -110,6 +114,8 @@ typedef struct km_live_options {
   int osc_port;         /* 0: no OSC input */
   int udp_port;         /* 0: no JSON/UDP input */
   int vmc_port;         /* 0: no VMC input (the protocol's receiver port is 39539) */
+  const char *vmc_out;  /* "HOST:PORT": every deformed frame's filtered skeleton is sent there
+                           as VMC bundles (humanoid bones); NULL: none */
   bool quantize;        /* frames as int16 quantised to the frame's bounding box, not float32 */
   bool loop;            /* replay the take in a loop */
   bool no_autoplay;     /* do not start the replay at start-up (page button / POST only) */
@@ -139,6 +145,7 @@ typedef struct km_live_stats {
   uint64_t frames_in, frames_out, frames_sent, frames_dropped;
   uint64_t osc_messages, udp_datagrams, bad_packets, solve_errors;
   uint64_t vmc_packets, vmc_messages, vmc_frames, vmc_bad, vmc_unknown; /* VMC input */
+  uint64_t vmc_out_frames, vmc_out_errors;                              /* --vmc-out */
   int clients;
   double lat_median_ms, lat_p99_ms;             /* packet received -> frame written to a socket */
   double t_retarget_ms, t_deform_ms, t_pack_ms; /* medians of the recent frames */

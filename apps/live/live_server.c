@@ -124,7 +124,9 @@ struct km_live {
   atomic_uint_fast64_t frames_in, frames_out, frames_sent, frames_dropped, osc_messages,
       udp_datagrams, bad_packets, solve_errors;
   atomic_uint_fast64_t vmc_packets, vmc_messages, vmc_frames, vmc_bad, vmc_unknown;
-  km_live_vmc vmc; /* input thread only */
+  atomic_uint_fast64_t vmc_out_frames, vmc_out_errors;
+  km_live_vmc_out *vmc_out; /* deformation thread only */
+  km_live_vmc vmc;          /* input thread only */
   atomic_int clients;
 
   /* threads, sockets */
@@ -618,6 +620,16 @@ static void *deform_main(void *arg) {
       memcpy(l->handle_pos, km_puppetry_handle_targets(l->pipe), sizeof(double) * 3 * l->n_handles);
     pthread_mutex_unlock(&l->st_mu);
     if (l->ctx) lws_cancel_service(l->ctx);
+    if (l->vmc_out) {
+      /* Forward the filtered skeleton (after the frame is out, so it adds no latency). */
+      const double *fj = km_puppetry_filtered_joints(l->pipe);
+      km_humanoid_pose pose;
+      if (fj && km_live_vmc_pose_from_kinect1(fj, &pose, NULL) == KM_OK &&
+          km_live_vmc_out_send(l->vmc_out, &pose, t_recv, NULL) == KM_OK)
+        atomic_fetch_add(&l->vmc_out_frames, 1);
+      else
+        atomic_fetch_add(&l->vmc_out_errors, 1);
+    }
   }
   return NULL;
 }
@@ -639,6 +651,8 @@ void km_live_get_stats(km_live *l, km_live_stats *o) {
   o->vmc_frames = atomic_load(&l->vmc_frames);
   o->vmc_bad = atomic_load(&l->vmc_bad);
   o->vmc_unknown = atomic_load(&l->vmc_unknown);
+  o->vmc_out_frames = atomic_load(&l->vmc_out_frames);
+  o->vmc_out_errors = atomic_load(&l->vmc_out_errors);
   o->clients = atomic_load(&l->clients);
   pthread_mutex_lock(&l->st_mu);
   o->lat_median_ms = ring_q(&l->lat, 0.5);
@@ -677,6 +691,11 @@ char *km_live_status_json(km_live *l) {
     cJSON_AddNumberToObject(vm, "frames", (double)s.vmc_frames);
     cJSON_AddNumberToObject(vm, "bad", (double)s.vmc_bad);
     cJSON_AddNumberToObject(vm, "unknown", (double)s.vmc_unknown);
+  }
+  if (l->vmc_out) {
+    cJSON *vo = cJSON_AddObjectToObject(o, "vmc_out");
+    cJSON_AddNumberToObject(vo, "frames", (double)s.vmc_out_frames);
+    cJSON_AddNumberToObject(vo, "errors", (double)s.vmc_out_errors);
   }
   cJSON_AddNumberToObject(o, "vertices", (double)l->mesh->n_vertices);
   cJSON_AddBoolToObject(o, "quantize", l->opt.quantize);
@@ -1122,6 +1141,8 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
     s = KM_ERR_IO;
     goto fail;
   }
+  if (opt->vmc_out && (s = km_live_vmc_out_open(opt->vmc_out, &l->vmc_out, err)) != KM_OK)
+    goto fail;
 
   l->protocols[0] = (struct lws_protocols){"http", cb_http, sizeof(http_pss), 0, 0, NULL, 0};
   l->protocols[1] = (struct lws_protocols){"kinemesh", cb_ws, sizeof(ws_pss), 4096, 0, NULL, 0};
@@ -1212,6 +1233,7 @@ void km_live_free(km_live **lp) {
   if (l->osc_fd >= 0) close(l->osc_fd);
   if (l->udp_fd >= 0) close(l->udp_fd);
   if (l->vmc_fd >= 0) close(l->vmc_fd);
+  km_live_vmc_out_free(&l->vmc_out);
   km_puppetry_free(&l->pipe);
   km_rig_free(&l->rig);
   if (l->has_pending) {

@@ -245,3 +245,15 @@ void km_live_vmc_out_free(km_live_vmc_out **o) {
   free(*o);
   *o = NULL;
 }
+
+km_status km_live_vmc_pose_from_kinect1(const double *joints, km_humanoid_pose *pose,
+                                        km_error *err) {
+  double hum[3 * KM_HUMANOID_BONES];
+  for (int b = 0; b < KM_HUMANOID_BONES; ++b) {
+    /* the same body point only: a fallback would put two bones at one place */
+    int k1 = km_skeleton_joint_map(KM_SKELETON_HUMANOID, b, KM_SKELETON_KINECT1);
+    for (int a = 0; a < 3; ++a)
+      hum[3 * b + a] = k1 >= 0 ? joints[3 * k1 + a] : NAN;
+  }
+  return km_humanoid_pose_from_positions(hum, pose, err);
+}

@@ -44,7 +44,9 @@ PID=
 for try in 1 2 3 4 5 6 7 8; do
   BASE=$((20000 + (RANDOM * 7 + $$ + try * 101) % 40000))
   HTTP=$BASE OSC=$((BASE + 1)) UDP=$((BASE + 2)) VMC=$((BASE + 3))
-  "$BIN" live --mesh "$WORK/c.obj" --http $HTTP --osc $OSC --udp $UDP --vmc $VMC "${EXTRA[@]}" \
+  VMC_OUT=()
+  [ "$MODE" = vmc ] && VMC_OUT=(--vmc-out 127.0.0.1:$((BASE + 4)))
+  "$BIN" live --mesh "$WORK/c.obj" --http $HTTP --osc $OSC --udp $UDP --vmc $VMC "${VMC_OUT[@]}" "${EXTRA[@]}" \
     >"$WORK/server.out" 2>"$WORK/server.err" &
   PID=$!
   for i in $(seq 1 100); do
@@ -61,7 +63,7 @@ done
 cleanup() { [ -n "$PID" ] && kill -9 $PID 2>/dev/null; }
 trap cleanup EXIT
 
-KM_BIN="$BIN" KM_VMC=$VMC KM_BVH="$BVH" timeout 90 node "$HERE/${MODE%_quantize}.mjs" "$HTTP" "$OSC" "$UDP" "$WORK"
+KM_BIN="$BIN" KM_VMC=$VMC KM_VMC_OUT=$((BASE + 4)) KM_BVH="$BVH" timeout 90 node "$HERE/${MODE%_quantize}.mjs" "$HTTP" "$OSC" "$UDP" "$WORK"
 rc=$?
 kill -0 $PID 2>/dev/null || { echo "FAIL: the server died"; cat "$WORK/server.err"; exit 1; }
 kill -TERM $PID

@@ -1,10 +1,11 @@
 // VMC input end to end (issue 15): `kinemesh vmc send` replays a CMU BVH into `kinemesh live
 // --vmc` driving a character through a "humanoid" rig. The hand handles move the way the BVH's
-// hands move (3D direction, so a mirrored or unturned frame fails; the left hand rising raises
-// the mesh's left hand, on the mesh's +x side, more than its right); then garbage, truncated
-// bundles, wrong type tags, unknown addresses and a 100k-message burst are counted while
-// /status keeps answering and valid frames still get through.
-// argv: HTTP OSC UDP WORK; env KM_BIN, KM_VMC (port), KM_BVH (the BVH).
+// hands move (3D direction, so a mirrored or unturned frame fails) and the hand the BVH raises
+// (its right, in 131_01) raises the mesh's hand on that side (left on +x) more than the other;
+// --vmc-out sends the filtered skeleton back as VMC bundles; then garbage, truncated bundles,
+// wrong type tags, unknown addresses and a 100k-message burst are counted while /status keeps
+// answering and valid frames still get through.
+// argv: HTTP OSC UDP WORK; env KM_BIN, KM_VMC and KM_VMC_OUT (ports), KM_BVH (the BVH).
 import { execFileSync } from 'node:child_process';
 import { readFileSync } from 'node:fs';
 import dgram from 'node:dgram';
@@ -12,6 +13,11 @@ import { check, finish, status, waitFor, sleep, oscString, oscFloat, oscInt, osc
 
 const [http, , , work] = process.argv.slice(2);
 const BIN = process.env.KM_BIN, VMC = process.env.KM_VMC, BVH = process.env.KM_BVH;
+// live --vmc-out: the filtered skeleton comes back as VMC bundles
+const out = { packets: 0, withHips: 0 };
+const outSock = dgram.createSocket('udp4');
+outSock.on('message', (m) => { out.packets++; if (m.includes('/VMC/Ext/Bone/Pos') && m.includes('Hips\0')) out.withHips++; });
+await new Promise((res) => outSock.bind(Number(process.env.KM_VMC_OUT), '127.0.0.1', res));
 const send = (...args) => execFileSync(BIN, ['vmc', 'send', '--motion', BVH, '--to', `127.0.0.1:${VMC}`, ...args.map(String)], { stdio: ['ignore', 'ignore', 'pipe'] });
 
 // The humanoid joints vmc send will send, as a take (kinemesh frame).
@@ -56,6 +62,11 @@ const cosR = dot(mR, dR) / (norm(mR) * norm(dR) + 1e-12);
 check(cosR > 0.9, `hand_right moves the BVH right hand's way (cos ${cosR.toFixed(3)})`);
 const mUp = up === 'left' ? mL : mR, mOther = up === 'left' ? mR : mL;
 check(mUp[1] > 0.1 && mUp[1] > mOther[1] + 0.1, `the mesh's ${up} hand rises (${mUp[1].toFixed(3)} m), more than its ${other} (${mOther[1].toFixed(3)} m)`);
+
+// ---- --vmc-out
+check(s1.vmc_out && s1.vmc_out.frames > 0 && s1.vmc_out.errors === 0, `--vmc-out sent ${s1.vmc_out && s1.vmc_out.frames} frames, no errors`);
+check(out.packets > 0 && out.withHips === out.packets, `--vmc-out bundles received: ${out.packets}, each with Bone/Pos Hips`);
+outSock.close();
 
 // ---- garbage
 const sock = dgram.createSocket('udp4');
