@@ -228,8 +228,42 @@ static void test_garbage(void) {
   CHECK(km_live_vmc_packet(&v, m.d, m.n, J) == 0 && v.extra_args == 1);
 }
 
+/* A raised LEFT arm as a Unity sender poses it: the upper arm turned -90 degrees about Unity's
+ * z (its T-pose direction -x to +y). The wrist ends up above the shoulder on kinemesh's +x
+ * side: the performer's left hand raises the mesh's left hand (Kinect WristLeft / HandLeft). */
+static void test_raised_left_arm(void) {
+  km_live_vmc v;
+  km_live_vmc_init(&v);
+  buf b, m;
+  const float s = (float)sqrt(0.5);
+  const float hips[7] = {0, 1, 0, 0, 0, 0, 1};
+  const float upper[7] = {-0.2f, 0.4f, 0, 0, 0, -s, s};
+  const float lower[7] = {-0.3f, 0, 0, 0, 0, 0, 1};
+  const float hand[7] = {-0.25f, 0, 0, 0, 0, 0, 1};
+  bundle_begin(&b);
+  pos_msg(&m, "/VMC/Ext/Bone/Pos", "Hips", hips);
+  bundle_add(&b, &m);
+  pos_msg(&m, "/VMC/Ext/Bone/Pos", "LeftUpperArm", upper);
+  bundle_add(&b, &m);
+  pos_msg(&m, "/VMC/Ext/Bone/Pos", "LeftLowerArm", lower);
+  bundle_add(&b, &m);
+  pos_msg(&m, "/VMC/Ext/Bone/Pos", "LeftHand", hand);
+  bundle_add(&b, &m);
+  double J[60];
+  CHECK(km_live_vmc_packet(&v, b.d, b.n, J) == 1);
+  /* Kinect v1: ShoulderLeft 4, WristLeft 6, HandLeft 7 (from the wrist: no fingers sent) */
+  CHECK_NEAR(J[3 * 4 + 0], 0.2, 1e-6);
+  CHECK_NEAR(J[3 * 4 + 1], 1.4, 1e-6);
+  CHECK_NEAR(J[3 * 6 + 0], 0.2, 1e-6);
+  CHECK_NEAR(J[3 * 6 + 1], 1.95, 1e-6);
+  CHECK_NEAR(J[3 * 6 + 2], 0.0, 1e-6);
+  CHECK_NEAR(J[3 * 7 + 1], 1.95, 1e-6);
+  CHECK(isnan(J[3 * 10]) && isnan(J[3 * 11])); /* nothing drives the right hand */
+}
+
 int main(void) {
   test_convention();
+  test_raised_left_arm();
   test_bvh();
   test_garbage();
   return km_test_finish("test_live_vmc");
