@@ -646,7 +646,9 @@ int km_skeleton_detect(const char *const *names, size_t n, int *matched);
  * -1: an unknown name. */
 int km_skeleton_kinect1_joint(km_skeleton_kind named, const char *name);
 /* One frame of kind `from` as kind `to`, by body point with km_skeleton_joint_source's
- * fallbacks, a fallback also taken where the exact joint is NaN in this frame.
+ * fallbacks, a fallback also taken where the exact joint is NaN in this frame; trunk points
+ * the source lacks are made up: the pelvis between the hips, the neck base between the
+ * shoulders, the mid spine between those two, the head at the nose (MediaPipe).
  *   in   in: km_skeleton_joint_count(from)*3 positions, NaN where missing
  *   out  out: km_skeleton_joint_count(to)*3, NaN where nothing drives a joint */
 void km_skeleton_convert(km_skeleton_kind from, const double *in, km_skeleton_kind to,

@@ -72,6 +72,24 @@ static void test_tables(void) {
   km_skeleton_convert(KM_SKELETON_HUMANOID, hum, KM_SKELETON_KINECT1, k1);
   CHECK(k1[3 * 7] == 1 && k1[3 * 7 + 1] == 2 && k1[3 * 7 + 2] == 3); /* HandLeft <- wrist */
   CHECK(k1[3 * 6] == 1 && isnan(k1[0]) && isnan(k1[3 * 11]));
+  /* MediaPipe has no trunk: the pelvis between the hips, the neck base between the
+   * shoulders, the spine between them, the head at the nose */
+  double mp[3 * 33], k1m[60];
+  for (int k = 0; k < 3 * 33; ++k)
+    mp[k] = NAN;
+  const double lh_[3] = {0.1, 1.0, 0}, rh_[3] = {-0.1, 1.0, 0.2}, ls_[3] = {0.2, 1.5, 0},
+               rs_[3] = {-0.2, 1.5, 0}, nose_[3] = {0, 1.7, 0.1};
+  memcpy(mp + 3 * 23, lh_, sizeof lh_);
+  memcpy(mp + 3 * 24, rh_, sizeof rh_);
+  memcpy(mp + 3 * 11, ls_, sizeof ls_);
+  memcpy(mp + 3 * 12, rs_, sizeof rs_);
+  memcpy(mp + 3 * 0, nose_, sizeof nose_);
+  km_skeleton_convert(KM_SKELETON_MEDIAPIPE, mp, KM_SKELETON_KINECT1, k1m);
+  CHECK(k1m[0] == 0 && k1m[1] == 1.0 && k1m[2] == 0.1);   /* HipCenter */
+  CHECK(k1m[6] == 0 && k1m[7] == 1.5 && k1m[8] == 0);     /* ShoulderCenter */
+  CHECK(k1m[3] == 0 && k1m[4] == 1.25 && k1m[5] == 0.05); /* Spine */
+  CHECK(k1m[9] == 0 && k1m[10] == 1.7 && k1m[11] == 0.1); /* Head */
+  CHECK(k1m[12] == 0.2 && isnan(k1m[3 * 5]));             /* ShoulderLeft; no elbow sent */
   const char *detect[] = {"Hips", "LeftUpperArm", "LeftHand", "Head"};
   CHECK(km_skeleton_detect(detect, 4, NULL) == KM_SKELETON_HUMANOID);
 }

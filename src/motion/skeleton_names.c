@@ -406,20 +406,59 @@ int km_skeleton_kinect1_joint(km_skeleton_kind named, const char *name) {
   return -1;
 }
 
+/* Position of body point p in a frame of skeleton f (exact joint only), false when missing. */
+static bool point_pos(const skeleton_def *f, const double *in, int p, double out[3]) {
+  int j = joint_at_point(f, p);
+  if (j < 0 || !(isfinite(in[3 * j]) && isfinite(in[3 * j + 1]) && isfinite(in[3 * j + 2])))
+    return false;
+  memcpy(out, in + 3 * j, 3 * sizeof *out);
+  return true;
+}
+
+static bool midpoint(const skeleton_def *f, const double *in, int a, int b, double out[3]) {
+  double pa[3], pb[3];
+  if (!point_pos(f, in, a, pa) || !point_pos(f, in, b, pb)) return false;
+  for (int k = 0; k < 3; ++k)
+    out[k] = 0.5 * (pa[k] + pb[k]);
+  return true;
+}
+
 void km_skeleton_convert(km_skeleton_kind from, const double *in, km_skeleton_kind to,
                          double *out) {
   const skeleton_def *f = def_of(from), *t = def_of(to);
   if (!f || !t) return;
+  /* Trunk points a source may lack (MediaPipe has no pelvis, spine or neck; OpenNI bridges
+   * often no waist): the pelvis between the hips, the neck base between the shoulders, the
+   * mid spine between those two, the head at the nose. */
+  double pelvis[3], neck[3], spine[3], head[3];
+  bool has_pelvis = point_pos(f, in, P_PELVIS, pelvis) || midpoint(f, in, P_L_HIP, P_R_HIP, pelvis);
+  bool has_neck = point_pos(f, in, P_NECK_BASE, neck) || point_pos(f, in, P_NECK, neck) ||
+                  midpoint(f, in, P_L_SHOULDER, P_R_SHOULDER, neck);
+  bool has_spine = point_pos(f, in, P_SPINE_MID, spine) || point_pos(f, in, P_CHEST, spine);
+  if (!has_spine && has_pelvis && has_neck) {
+    for (int k = 0; k < 3; ++k)
+      spine[k] = 0.5 * (pelvis[k] + neck[k]);
+    has_spine = true;
+  }
+  bool has_head = point_pos(f, in, P_HEAD, head) || point_pos(f, in, P_NOSE, head);
   for (int j = 0; j < t->n; ++j) {
-    int s = -1;
+    int s = -1, p0 = t->joints[j].point;
     /* The exact point, else its fallbacks, skipping joints missing (NaN) in this frame. */
-    for (int step = 0, p = t->joints[j].point; step < 3 && p >= 0 && s < 0; ++step) {
+    for (int step = 0, p = p0; step < 3 && p >= 0 && s < 0; ++step) {
       s = joint_at_point(f, p);
       if (s >= 0 && !(isfinite(in[3 * s]) && isfinite(in[3 * s + 1]) && isfinite(in[3 * s + 2])))
         s = -1;
       p = FALLBACK[p];
     }
+    const double *src = s >= 0 ? in + 3 * s : NULL;
+    if (!src) {
+      src = p0 == P_PELVIS && has_pelvis     ? pelvis
+            : p0 == P_NECK_BASE && has_neck  ? neck
+            : p0 == P_SPINE_MID && has_spine ? spine
+            : p0 == P_HEAD && has_head       ? head
+                                             : NULL;
+    }
     for (int a = 0; a < 3; ++a)
-      out[3 * j + a] = s >= 0 ? in[3 * s + a] : NAN;
+      out[3 * j + a] = src ? src[a] : NAN;
   }
 }
