@@ -6,9 +6,8 @@
  * km_autorig (its sidecar's default puppetry rig, read back with km_rig_read), its reduced
  * model built once and shared by both variants; the take is read with km_motion_read
  * (kinect1 = true: columns matched to the Kinect v1 joints by name or body point), resampled
- * to 30 fps when faster,
- * and its first --frames frames pushed through km_puppetry (default glitch rejection and
- * filter). Metrics over the output frames:
+ * to 30 fps when faster, and its first --frames frames pushed through km_puppetry (default
+ * glitch rejection and filter). Metrics over the output frames:
  *   stretch   max over frames and edges of |l / l0 - 1|
  *   folded    triangles that, in some frame, have a neighbour (across an edge) whose normal
  *             made < 60 degrees with theirs at rest and makes > 120 degrees now (distinct
