@@ -1,11 +1,13 @@
 /* kinemesh bench live: the full live-mode path with a local WebSocket client.
  *   kinemesh bench live [--mesh MESH [--rig RIG] | --vertices 60000] [--take TAKE]
- *                       [--frames 1200] [--rate 240] [--quantize] [--json]
+ *                       [--frames 1200] [--rate 240] [--quantize] [--source json|vmc] [--json]
  * Starts the live server in-process on loopback (random ports), connects a WebSocket client
  * (second thread), and sends a take (the generated kungfu take unless --take) as JSON
  * datagrams over UDP at --rate frames/s. Reports the server's latency from packet received to
  * frame written to the socket (median, p99), the client-side latency from datagram sent to
- * frame received, the stage medians, and the frames per second the client sustained. Without
+ * frame received, the stage medians, and the frames per second the client sustained.
+ * --source vmc sends VMC protocol bundles instead (the take as Unity humanoid bones, built
+ * before the clock starts, as live --vmc receives them). Without
  * --mesh a procedural character of --vertices is generated (mesh, rig and reduced model
  * cached under /tmp). */
 #include "bench.h"
@@ -161,7 +163,7 @@ static char *read_text(const char *path, size_t *n) {
 #define VERB "bench live"
 
 int km_bench_live(int argc, char **argv) {
-  const char *mesh_arg = NULL, *rig_arg = NULL, *take_path = NULL;
+  const char *mesh_arg = NULL, *rig_arg = NULL, *take_path = NULL, *source = "json";
   size_t vertices = 60000, frames = 1200;
   double rate = 240;
   bool quantize = false, lws_client = false, json = false;
@@ -175,6 +177,8 @@ int km_bench_live(int argc, char **argv) {
       {"frames", 0, KM_OPT_SIZE, &frames, "input frames to send (default 1200; the take loops)"},
       {"rate", 0, KM_OPT_DOUBLE, &rate, "input frames per second (default 240)"},
       {"quantize", 0, KM_OPT_FLAG, &quantize, "int16 frames (live --quantize)"},
+      {"source", 0, KM_OPT_STRING, &source,
+       "input: json (JSON datagrams, default) or vmc (VMC protocol bundles, live --vmc)"},
       {"json", 0, KM_OPT_FLAG, &json, "print one JSON object (null: not measured)"},
       {"lws-client", 0, KM_OPT_FLAG, &lws_client,
        "measure with a libwebsockets client (slower to parse than the server sends)"},
@@ -184,7 +188,7 @@ int km_bench_live(int argc, char **argv) {
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
       "kinemesh bench live [--mesh MESH [--rig RIG] | --vertices 60000] [--take TAKE] "
-      "[--frames 1200] [--rate 240] [--quantize] [--json]",
+      "[--frames 1200] [--rate 240] [--quantize] [--source json|vmc] [--json]",
       "The live server in-process on loopback with a local WebSocket client: the take is sent\n"
       "as JSON datagrams at --rate frames/s. Prints the server latency from packet received\n"
       "to frame sent (median, p99), the stage medians, the client-side latency from datagram\n"
@@ -196,6 +200,9 @@ int km_bench_live(int argc, char **argv) {
     return km_cli_error(VERB, "--rate must be a positive number of frames per second");
   if (rig_arg && !mesh_arg)
     return km_cli_error(VERB, "--rig goes with --mesh (the generated character has its own)");
+  bool vmc = !strcmp(source, "vmc");
+  if (!vmc && strcmp(source, "json"))
+    return km_cli_error(VERB, "--source must be json or vmc, got %s", source);
   if (!mesh_arg && vertices < 500)
     return km_cli_error(VERB, "--vertices must be at least 500, got %zu", vertices);
 
@@ -283,7 +290,8 @@ int km_bench_live(int argc, char **argv) {
     http_port = 20000 + rand() % 40000;
     udp_port = http_port + 1;
     o.http_port = http_port;
-    o.udp_port = udp_port;
+    o.udp_port = vmc ? 0 : udp_port;
+    o.vmc_port = vmc ? udp_port : 0;
     s = km_live_create(&o, &mesh, pup, rig, rig_n, NULL, &l, &err);
   }
   if (s != KM_OK) goto fail;
@@ -298,12 +306,21 @@ int km_bench_live(int argc, char **argv) {
   c.recv_t = calloc(c.max_seq, sizeof(double));
   c.recv_seq = calloc(MAX_FRAMES, sizeof(uint32_t));
   double *send_t = calloc(c.max_seq, sizeof(double));
+  /* VMC: every take frame's bundle made before the clock starts (the sender's cost is not
+   * the server's); Kinect v1 joints to humanoid bones at the same body point. */
+  void **vmc_pk = vmc ? calloc(take.n_frames, sizeof(void *)) : NULL;
+  size_t *vmc_len = vmc ? calloc(take.n_frames, sizeof(size_t)) : NULL;
+  for (size_t f = 0; vmc && vmc_pk && vmc_len && f < take.n_frames; ++f) {
+    km_humanoid_pose pose;
+    if (km_live_vmc_pose_from_kinect1(take.positions + 60 * f, &pose, NULL) == KM_OK)
+      vmc_pk[f] = km_live_vmc_bundle(&pose, (double)f / rate, &vmc_len[f]);
+  }
   int fd = socket(AF_INET, SOCK_DGRAM, 0);
   raw_client rcl = {&c, -1};
   double start = 0, send_end = 0;
   km_live_stats st;
   memset(&st, 0, sizeof st);
-  if (!c.recv_t || !c.recv_seq || !send_t || fd < 0) {
+  if (!c.recv_t || !c.recv_seq || !send_t || fd < 0 || (vmc && (!vmc_pk || !vmc_len))) {
     rc = km_cli_error(VERB, "out of memory or no UDP socket");
     goto stop;
   }
@@ -365,6 +382,12 @@ int km_bench_live(int argc, char **argv) {
     if (w > 0) {
       struct timespec ts = {(time_t)w, (long)((w - floor(w)) * 1e9)};
       nanosleep(&ts, NULL);
+    }
+    if (vmc) {
+      const void *pk = vmc_pk[k % take.n_frames];
+      send_t[k + 1] = now_s();
+      if (pk) sendto(fd, pk, vmc_len[k % take.n_frames], 0, (struct sockaddr *)&a, sizeof a);
+      continue;
     }
     const double *p = take.positions + 60 * (k % take.n_frames);
     size_t n = (size_t)snprintf(buf, sizeof buf, "[");
@@ -434,6 +457,7 @@ stop:
       cJSON_AddStringToObject(j, "take", take_path ? take_path : "kungfu (generated)");
       cJSON_AddNumberToObject(j, "n_ver", (double)mesh.n_vertices);
       cJSON_AddBoolToObject(j, "quantize", quantize);
+      cJSON_AddStringToObject(j, "source", source);
       cJSON_AddStringToObject(j, "client", client_name);
       cJSON_AddNumberToObject(j, "frames", (double)frames);
       cJSON_AddNumberToObject(j, "rate", rate);
@@ -459,9 +483,9 @@ stop:
     } else {
       printf("kinemesh bench live — %s\n", machine);
       printf("bench_live: %zu vertices, %s frames, %zu input frames at %.0f/s over %.2f s, %s "
-             "client\n",
+             "client, %s input\n",
              mesh.n_vertices, quantize ? "int16" : "float32", frames, rate, send_end - start,
-             client_name);
+             client_name, vmc ? "VMC bundles" : "JSON datagrams");
       printf("  server  packet received -> frame sent:  median %.3f ms   p99 %.3f ms  (%zu "
              "frames)\n",
              lat_med, lat_p99, st.lat_count);
@@ -476,6 +500,10 @@ stop:
     free(e2e);
   }
   free(send_t);
+  for (size_t f = 0; vmc_pk && f < take.n_frames; ++f)
+    free(vmc_pk[f]);
+  free(vmc_pk);
+  free(vmc_len);
   free(c.recv_t);
   free(c.recv_seq);
   if (fd >= 0) close(fd);

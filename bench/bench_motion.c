@@ -5,9 +5,9 @@
  * Per (mesh, take): the mesh is oriented (km_mesh_frame_guess + km_mesh_frame_apply), rigged by
  * km_autorig (its sidecar's default puppetry rig, read back with km_rig_read), its reduced
  * model built once and shared by both variants; the take is read with km_motion_read
- * (kinect1 = true: columns matched to the Kinect v1 names), resampled to 30 fps when faster,
- * and its first --frames frames pushed through km_puppetry (default glitch rejection and
- * filter). Metrics over the output frames:
+ * (kinect1 = true: columns matched to the Kinect v1 joints by name or body point), resampled
+ * to 30 fps when faster, and its first --frames frames pushed through km_puppetry (default
+ * glitch rejection and filter). Metrics over the output frames:
  *   stretch   max over frames and edges of |l / l0 - 1|
  *   folded    triangles that, in some frame, have a neighbour (across an edge) whose normal
  *             made < 60 degrees with theirs at rest and makes > 120 degrees now (distinct
@@ -536,7 +536,8 @@ int km_bench_motion(int argc, char **argv) {
       "|l/l0 - 1|, folded triangles (a neighbour's normal < 60 deg at rest, > 120 deg\n"
       "in a frame), the largest one-frame vertex jump (% of the bbox diagonal), frames\n"
       "with a vertex below the rest floor (by more than 0.5% of the diagonal) and the\n"
-      "median per-frame time. BVH takes need Kinect v1 joint names; otherwise skipped.");
+      "median per-frame time. BVH takes need joints standing for the Kinect v1 ones\n"
+      "(Kinect names, or another skeleton's: docs/skeletons.md); otherwise skipped.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (relative_opt) {
     int j = km_kinect1_joint_index(relative_opt);

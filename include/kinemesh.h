@@ -633,6 +633,101 @@ int km_kinect1_joint_parent(int j);
 /* Returns the index of a Kinect v1 joint by name (case-sensitive), -1 when unknown. */
 int km_kinect1_joint_index(const char *name);
 
+/* ---- skeletons by name (issue 15; docs/skeletons.md has the table) */
+
+/* The joint vocabularies kinemesh knows, by the names rigs use ("skeleton": "humanoid"):
+ *   kinect1    Kinect v1 (20, KM_KINECT1 order)
+ *   kinect2    Kinect v2 SDK JointType (25: SpineBase, SpineMid, Neck, Head, ..., ThumbRight)
+ *   k4abt      Azure Kinect / Orbbec body tracking (32: PELVIS, SPINE_NAVEL, ..., EAR_RIGHT)
+ *   humanoid   Unity HumanBodyBones, as VMC sends them (55, enum order: Hips, LeftUpperLeg,
+ *              ..., RightLittleDistal, UpperChest); a bone's joint is its origin (LeftHand is
+ *              the wrist)
+ *   mediapipe  MediaPipe BlazePose landmarks (33: nose, left_eye_inner, ..., right_foot_index)
+ *   bvh        the CMU database's BVH conversions (31: Hips, LHipJoint, LeftHip, ..., RThumb)
+ * Every joint stands for a body point (pelvis, mid spine, neck base, left wrist, left hand
+ * centre, ...) or for none (finger phalanges, CMU's LHipJoint, Unity's UpperChest); two joints
+ * of different skeletons map to each other when they stand for the same point. */
+typedef enum km_skeleton_kind {
+  KM_SKELETON_KINECT1 = 0,
+  KM_SKELETON_KINECT2,
+  KM_SKELETON_K4ABT,
+  KM_SKELETON_HUMANOID,
+  KM_SKELETON_MEDIAPIPE,
+  KM_SKELETON_BVH,
+  KM_SKELETON_KINDS
+} km_skeleton_kind;
+#define KM_HUMANOID_BONES 55
+/* The kind named name ("kinect1", "kinect2", "k4abt", "humanoid", "mediapipe", "bvh"), -1 when
+ * unknown. */
+int km_skeleton_kind_from_name(const char *name);
+/* The name of kind k (static), NULL for an unknown kind. */
+const char *km_skeleton_kind_name(km_skeleton_kind k);
+/* Joints of kind k (0 for an unknown kind). */
+int km_skeleton_joint_count(km_skeleton_kind k);
+/* Name (static) and parent (-1 for a root; not always an earlier index: Unity's UpperChest is
+ * bone 54) of joint j of kind k; NULL / -1 when out of range. */
+const char *km_skeleton_joint_name(km_skeleton_kind k, int j);
+int km_skeleton_joint_parent(km_skeleton_kind k, int j);
+/* Index of a joint of kind k by exact (case-sensitive) name, -1 when unknown. */
+int km_skeleton_joint_index(km_skeleton_kind k, const char *name);
+/* The joint of kind `to` that stands for the same body point as joint j of kind `from`, -1
+ * when `to` has none. */
+int km_skeleton_joint_map(km_skeleton_kind from, int j, km_skeleton_kind to);
+/* The joint of kind `from` that drives joint j of kind `to`: the same point, else the nearest
+ * one a tracker of `from` gives (a hand centre takes the wrist, a foot the ankle, a neck base
+ * the neck; *approx, may be NULL, says so). -1 when there is none. */
+int km_skeleton_joint_source(km_skeleton_kind to, int j, km_skeleton_kind from, bool *approx);
+/* The kind most of names[0..n) belong to (ties: the first kind in the enum order), -1 when
+ * none matches; *matched (may be NULL): how many did. */
+int km_skeleton_detect(const char *const *names, size_t n, int *matched);
+/* The Kinect v1 joint (KM_KINECT1 index) a joint name stands for: looked up in kind `named`
+ * first, then in every kind in enum order. -2: a known joint with no Kinect v1 counterpart,
+ * -1: an unknown name. */
+int km_skeleton_kinect1_joint(km_skeleton_kind named, const char *name);
+/* One frame of kind `from` as kind `to`, by body point with km_skeleton_joint_source's
+ * fallbacks, a fallback also taken where the exact joint is NaN in this frame; trunk points
+ * the source lacks are made up: the pelvis between the hips, the neck base between the
+ * shoulders, the mid spine between those two, the head at the nose (MediaPipe).
+ *   in   in: km_skeleton_joint_count(from)*3 positions, NaN where missing
+ *   out  out: km_skeleton_joint_count(to)*3, NaN where nothing drives a joint */
+void km_skeleton_convert(km_skeleton_kind from, const double *in, km_skeleton_kind to,
+                         double *out);
+
+/* ---- humanoid poses (VMC; issue 15) */
+
+/* A Unity humanoid pose as the VMC protocol carries it (/VMC/Ext/Root/Pos, /VMC/Ext/Bone/Pos),
+ * in kinemesh's frame (km_humanoid_unity_convert applied). Quaternions are (x, y, z, w). */
+typedef struct km_humanoid_pose {
+  double root[7];                      /* the avatar root: position (m) and rotation */
+  double bone[7 * KM_HUMANOID_BONES];  /* per HumanBodyBones bone: local position relative to
+                                          its parent bone (or the root) and local rotation */
+  bool present[KM_HUMANOID_BONES];     /* bones set; an absent bone is skipped: its children
+                                          hang from their nearest present ancestor */
+} km_humanoid_pose;
+/* Unity's left-handed frame (x right, y up, z forward, avatars facing +z) <-> kinemesh's
+ * (right-handed, y up, performer facing +z, their left at +x), in place: UniVRM's flip
+ * p -> (x, y, -z), q -> (-qx, -qy, qz, qw), then a half turn about y; together
+ * p -> (-x, y, z), q -> (qx, -qy, -qz, qw). Its own inverse. p or q may be NULL. */
+void km_humanoid_unity_convert(double p[3], double q[4]);
+/* The nearest ancestor of bone b whose present[] is set (present NULL: the parent), -1 when
+ * none (b hangs from the root). */
+int km_humanoid_parent(const bool *present, int b);
+/* Forward kinematics over the humanoid hierarchy (the one FK): world joint positions.
+ *   pose       in: the pose
+ *   positions  out: KM_HUMANOID_BONES*3, NaN for absent bones
+ *   rotations  out: KM_HUMANOID_BONES*9 row-major world rotations (NaN absent); may be NULL
+ * Does not allocate. */
+void km_humanoid_fk(const km_humanoid_pose *pose, double *positions, double *rotations);
+/* The inverse for senders: a pose whose FK gives these positions (exactly, up to rounding),
+ * root at the origin, rotations those of km_skeleton_pose_from_positions from a T-pose rest
+ * (swing only: no twist about the bones), so a receiver that applies the rotations to its own
+ * avatar sees the motion.
+ *   positions  in: KM_HUMANOID_BONES*3 world positions, NaN for bones not given
+ *   out        out: the pose
+ * Errors: KM_ERR_INVALID when no bone has a position. */
+km_status km_humanoid_pose_from_positions(const double *positions, km_humanoid_pose *out,
+                                          km_error *err);
+
 typedef struct km_skeleton {
   size_t n_joints;
   char **names;     /* n_joints strings */

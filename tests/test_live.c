@@ -28,6 +28,11 @@ static void test_names(void) {
   CHECK(km_live_joint_index("head") == 3);
   CHECK(km_live_joint_index("HandTipLeft") == -2);
   CHECK(km_live_joint_index("Neck") == -2);
+  /* other skeletons through the library's table (docs/skeletons.md) */
+  CHECK(km_live_joint_index("HAND_LEFT") == 7);
+  CHECK(km_live_joint_index("LeftMiddleProximal") == 7);
+  CHECK(km_live_joint_index("right_wrist") == 10);
+  CHECK(km_live_joint_index("Jaw") == -2);
   CHECK(km_live_joint_index("Wing") == -1);
   CHECK(km_live_joint_index("") == -1);
   CHECK(km_live_joint_index(NULL) == -1);

@@ -153,7 +153,7 @@ static void test_rig_errors(void) {
       {"two selectors", "{\"handles\":[{\"name\":\"h\",\"vertex\":0,\"vertices\":[1]}]}",
        "exactly one", NULL},
       {"no handles", "{\"map\":[]}", "handles", NULL},
-      {"bad skeleton", "{\"skeleton\":\"kinect2\",\"handles\":[]}", "skeleton", NULL},
+      {"bad skeleton", "{\"skeleton\":\"kinect3\",\"handles\":[]}", "skeleton", NULL},
       {"bad filter", "{\"handles\":[{\"name\":\"h\",\"vertex\":0}],\"filter\":{\"smoothing\":1.5}}",
        "filter.smoothing", NULL},
       {"bad json", "{\"handles\": [\n{\"name\": \"h\",,}]}", "puppet.rig.json:2:", "JSON"},
@@ -415,7 +415,7 @@ static void test_relative_to(void) {
   km_rig_free(&rig);
   snprintf(json, sizeof json,
            "{\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
-           "\"map\":[{\"handle\":\"h\",\"joint\":\"Head\",\"relative_to\":\"Hips\"}]}");
+           "\"map\":[{\"handle\":\"h\",\"joint\":\"Head\",\"relative_to\":\"Hipz\"}]}");
   CHECK_STATUS(parse(json, &m, &rig), KM_ERR_PARSE);
   CHECK(strstr(km_test_err.message, "puppet.rig.json") && strstr(km_test_err.message, "relative_to"));
   free_mesh(&m);

@@ -272,12 +272,11 @@ static void test_cache_params_and_formats(void) {
     char cmd[2048];
     snprintf(cmd, sizeof cmd,
              KM_CLI " animate --mesh puppet_p/c.obj --motion '%s' -o puppet_p/b.pc2", bvh);
-    CHECK(km_test_run(cmd, &out) == 1);
-    CHECK_MSG(out && strstr(out, "cmu_131_01.bvh") && strstr(out, "HandLeft") &&
-                  strstr(out, "\"bvh\" rig"),
-              "%s", out ? out : "");
+    /* issue 15: the CMU joints stand for the Kinect v1 ones (lhand is HandLeft, ...), so the
+     * kinect1 rig is driven by body point (docs/skeletons.md); before, a named error */
+    CHECK_MSG(km_test_run(cmd, &out) == 0, "%s", out ? out : "");
     free(out);
-    CHECK(access("puppet_p/b.pc2", F_OK) != 0);
+    CHECK(access("puppet_p/b.pc2", F_OK) == 0);
   }
   km_test_run("rm -rf puppet_p", NULL);
 }

@@ -115,6 +115,7 @@ km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertic
 km_status km_cli_skin_character(const char *verb, const char *mesh_path, const char *rig,
                                 km_character *c, bool *used, km_error *err);
 int km_cli_live(int argc, char **argv);
+int km_cli_vmc(int argc, char **argv);
 int km_cli_rig(int argc, char **argv);
 int km_cli_pick(int argc, char **argv);
 

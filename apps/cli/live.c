@@ -76,10 +76,31 @@ static char *default_web_dir(void) {
   return out;
 }
 
+/* `--vmc` takes an optional port: a bare `--vmc` (last, or before another option or a
+ * non-number) means the protocol's receiver port. Returns a new argv (caller frees the array,
+ * not the strings) with the default inserted. */
+#define KM_VMC_DEFAULT_PORT "39539"
+static char **vmc_default_port(int argc, char **argv, int *out_argc) {
+  char **a = malloc(sizeof(char *) * (size_t)(2 * argc + 1));
+  int n = 0;
+  if (!a) return NULL;
+  for (int i = 0; i < argc; ++i) {
+    a[n++] = argv[i];
+    if (!strcmp(argv[i], "--vmc")) {
+      const char *next = i + 1 < argc ? argv[i + 1] : NULL;
+      bool number = next && *next && strspn(next, "0123456789") == strlen(next);
+      if (!number) a[n++] = (char *)KM_VMC_DEFAULT_PORT;
+    }
+  }
+  a[n] = NULL;
+  *out_argc = n;
+  return a;
+}
+
 int km_cli_live(int argc, char **argv) {
   const char *mesh_path = NULL, *rig_path = NULL, *replay = NULL, *record = NULL;
-  const char *bind = "127.0.0.1", *web = NULL, *cache = NULL, *token = NULL;
-  int osc = 0, udp = 0, http = 8080;
+  const char *bind = "127.0.0.1", *web = NULL, *cache = NULL, *token = NULL, *vmc_out = NULL;
+  int osc = 0, udp = 0, vmc = 0, http = 8080;
   bool quantize = false, loop = false, no_autoplay = false, no_token = false;
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
@@ -92,6 +113,11 @@ int km_cli_live(int argc, char **argv) {
        "POST /rig rewrites it"},
       {"osc", 0, KM_OPT_INT, &osc, "OSC port (OSCeleton /joint, KinectV2-OSC /bodies/...)"},
       {"udp", 0, KM_OPT_INT, &udp, "JSON-over-UDP port (one frame per datagram)"},
+      {"vmc", 0, KM_OPT_INT, &vmc,
+       "VMC protocol port (XR Animator, VSeeFace, SlimeVR, ...; bare --vmc: " KM_VMC_DEFAULT_PORT
+       ")"},
+      {"vmc-out", 0, KM_OPT_STRING, &vmc_out,
+       "send the filtered skeleton of every frame as VMC bundles to HOST:PORT"},
       {"replay", 0, KM_OPT_STRING, &replay, "take to replay (.json/.csv/.bvh with Kinect names)"},
       {"loop", 0, KM_OPT_FLAG, &loop, "replay in a loop"},
       {"no-autoplay", 0, KM_OPT_FLAG, &no_autoplay,
@@ -112,17 +138,23 @@ int km_cli_live(int argc, char **argv) {
   };
   const char *pos[1];
   int n_pos;
+  int vargc = 0;
+  char **vargv = vmc_default_port(argc, argv, &vargc);
+  if (!vargv) return km_cli_error("live", "out of memory");
   int r = km_cli_parse(
-      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
-      "kinemesh live --mesh MESH [--rig RIG] [--osc 7110] [--udp 9000] [--replay TAKE] "
+      vargc, vargv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
+      "kinemesh live --mesh MESH [--rig RIG] [--osc 7110] [--udp 9000] [--vmc [39539]] "
+      "[--replay TAKE] "
       "[--http 8080] [--record OUT.json] [--bind 127.0.0.1] [--quantize]",
       "Live puppetry: tracker frames are smoothed, retargeted and the mesh deformed by the\n"
       "cached reduced model; every connected page gets the newest frame over WebSocket\n"
       "(older frames are dropped, never queued). Open the printed URL for the view and the\n"
       "mapping panel. GET /status reports counters and per-stage times.");
+  free(vargv); /* the options point into argv's strings (or the static default) */
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!mesh_path) return km_cli_error("live", "--mesh is required (see --help)");
-  if (http <= 0 || http > 65535 || osc < 0 || osc > 65535 || udp < 0 || udp > 65535)
+  if (http <= 0 || http > 65535 || osc < 0 || osc > 65535 || udp < 0 || udp > 65535 || vmc < 0 ||
+      vmc > 65535)
     return km_cli_error("live", "ports must be in 1..65535");
 
   km_error err = {0};
@@ -180,6 +212,8 @@ rig_ready:;
   lo.http_port = http;
   lo.osc_port = osc;
   lo.udp_port = udp;
+  lo.vmc_port = vmc;
+  lo.vmc_out = vmc_out;
   lo.quantize = quantize;
   lo.loop = loop;
   lo.no_autoplay = no_autoplay;
@@ -204,6 +238,8 @@ rig_ready:;
          http, *tok ? "?token=" : "", tok);
   if (osc) printf("  OSC (OSCeleton /joint, KinectV2-OSC /bodies/...) on udp %s:%d\n", bind, osc);
   if (udp) printf("  JSON frames on udp %s:%d\n", bind, udp);
+  if (vmc_out) printf("  VMC out: the filtered skeleton -> udp %s\n", vmc_out);
+  if (vmc) printf("  VMC (/VMC/Ext/Root/Pos, /VMC/Ext/Bone/Pos) on udp %s:%d\n", bind, vmc);
   if (replay) printf("  replay: %s (%zu frames at %g fps)\n", replay, take.n_frames, take.fps);
   fflush(stdout);
   km_status s = km_live_run(live, &err);

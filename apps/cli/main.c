@@ -21,6 +21,7 @@ static const km_cli_verb VERBS[] = {
      km_cli_animate},
     {"live", "live puppetry server: tracker in (OSC/UDP/replay), mesh out to a browser page",
      km_cli_live},
+    {"vmc", "VMC protocol: send a motion (take/BVH/CSV) as VMC bundles (vmc send)", km_cli_vmc},
     {"transfer", "avatar pose transfer: the source takes the template's pose (same connectivity)",
      km_cli_transfer},
     {"posedb", "pose database: build (descriptor, CART selection, SVM) and query", km_cli_posedb},

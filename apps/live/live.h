@@ -21,10 +21,12 @@ static inline void *live_zalloc(size_t count, size_t size) {
 
 /* ---------------------------------------------------------------- input parsing */
 
-/* Index of a tracker joint name in KM_KINECT1 order: Kinect v1 names (HandLeft), Kinect v2
- * names (SpineBase, SpineShoulder, WristLeft, ...) and OSCeleton/OpenNI names (l_hand, torso,
- * waist, ...). -1: unknown name. -2: a known joint that has no Kinect v1 counterpart
- * (HandTipLeft, ThumbRight, l_finger, r_collar, Neck of v2 when SpineShoulder is sent, ...). */
+/* Index of a tracker joint name in KM_KINECT1 order: Kinect v1 names (HandLeft), OSCeleton/
+ * OpenNI names (l_hand, torso, waist, ...), then any skeleton of km_skeleton_kinect1_joint,
+ * Kinect v2 first (SpineBase, SpineShoulder, ...; then HAND_LEFT, LeftMiddleProximal,
+ * left_wrist, lhand, ...). -1: unknown name. -2: a known joint that has no Kinect v1
+ * counterpart (HandTipLeft, ThumbRight, l_finger, r_collar, Neck of v2 when SpineShoulder is
+ * sent, Jaw, ...). */
 int km_live_joint_index(const char *name);
 
 /* A JSON-lines UDP datagram (one frame): either {"joints": {"HandLeft": [x,y,z], ...}}
@@ -54,6 +56,56 @@ typedef struct km_live_osc_joint {
 km_live_osc_kind km_live_parse_osc(const char *path, const char *types, void *const *argv,
                                      int argc, km_live_osc_joint *out);
 
+/* ---------------------------------------------------------------- VMC (live_vmc.c) */
+
+/* VMC protocol receiver state (OSC over UDP; sh-akira/VirtualMotionCaptureProtocol):
+ * /VMC/Ext/Root/Pos (s)"root" px py pz qx qy qz qw [sx sy sz ox oy oz] and /VMC/Ext/Bone/Pos
+ * (s)HumanBodyBones-name px py pz qx qy qz qw (local, parent-relative) in Unity's left-handed
+ * frame, converted on receipt to kinemesh's (km_humanoid_unity_convert: p -> (-x, y, z),
+ * q -> (qx, -qy, -qz, qw), i.e. UniVRM's z flip then a half turn so the performer faces +z).
+ * A frame is complete when its bundle ends, or, for senders that do not bundle, at the next
+ * /VMC/Ext/OK or /VMC/Ext/T. Bones not resent keep their last value. */
+typedef struct km_live_vmc {
+  km_humanoid_pose pose;                   /* the newest pose, kinemesh's frame */
+  double positions[3 * KM_HUMANOID_BONES]; /* its FK at the last frame (NaN: never sent) */
+  bool pending;                            /* pose data since the last frame */
+  double sender_time;                      /* the last /VMC/Ext/T */
+  uint64_t packets, messages, frames;
+  uint64_t bad;        /* packets with a malformed element: truncated bundle, bad type tags,
+                          wrong argument types or counts, non-finite numbers */
+  uint64_t unknown;    /* messages with an address or bone name kinemesh does not use */
+  uint64_t extra_args; /* Root/Bone messages with arguments beyond the 8 used */
+} km_live_vmc;
+typedef enum km_live_vmc_kind {
+  KM_LIVE_VMC_BAD = -1,
+  KM_LIVE_VMC_IGNORED = 0, /* unknown address or bone */
+  KM_LIVE_VMC_POSE = 1,    /* Root/Pos or Bone/Pos taken */
+  KM_LIVE_VMC_SYNC = 2     /* /VMC/Ext/OK or /VMC/Ext/T */
+} km_live_vmc_kind;
+void km_live_vmc_init(km_live_vmc *v);
+/* One decoded message (argv: liblo's lo_arg **). */
+km_live_vmc_kind km_live_vmc_message(km_live_vmc *v, const char *path, const char *types,
+                                     void *const *argv, int argc);
+/* One UDP packet (a message or a bundle). Returns 1 when it completed a frame: joints (60
+ * doubles, KM_KINECT1 order, kinemesh space, NaN where the stream drives nothing) then holds
+ * it; 0 otherwise. */
+int km_live_vmc_packet(km_live_vmc *v, const void *data, size_t size, double *joints);
+/* Sending (kinemesh vmc send): one frame's bundle as VMC senders make it (/VMC/Ext/OK 1,
+ * /VMC/Ext/T t, /VMC/Ext/Root/Pos, /VMC/Ext/Bone/Pos per present bone, floats, Unity's frame).
+ * km_live_vmc_bundle returns its bytes (malloc'ed, *len) or NULL. */
+void *km_live_vmc_bundle(const km_humanoid_pose *pose, double t, size_t *len);
+typedef struct km_live_vmc_out km_live_vmc_out;
+/* host_port: "HOST:PORT". Errors: KM_ERR_INVALID for a malformed address. */
+km_status km_live_vmc_out_open(const char *host_port, km_live_vmc_out **out, km_error *err);
+/* Sends one frame. Errors: KM_ERR_IO (e.g. nothing listening reported by the system). */
+km_status km_live_vmc_out_send(km_live_vmc_out *o, const km_humanoid_pose *pose, double t,
+                               km_error *err);
+void km_live_vmc_out_free(km_live_vmc_out **o);
+/* The humanoid pose of 20 Kinect v1 joints (60 doubles, NaN missing), bones at the same body
+ * point (km_humanoid_pose_from_positions). Errors: KM_ERR_INVALID when no joint is given. */
+km_status km_live_vmc_pose_from_kinect1(const double *joints, km_humanoid_pose *pose,
+                                        km_error *err);
+
 /* ---------------------------------------------------------------- server */
 
 typedef struct km_live_options {
@@ -61,6 +113,9 @@ typedef struct km_live_options {
   int http_port;        /* 8080 when 0 */
   int osc_port;         /* 0: no OSC input */
   int udp_port;         /* 0: no JSON/UDP input */
+  int vmc_port;         /* 0: no VMC input (the protocol's receiver port is 39539) */
+  const char *vmc_out;  /* "HOST:PORT": every deformed frame's filtered skeleton is sent there
+                           as VMC bundles (humanoid bones); NULL: none */
   bool quantize;        /* frames as int16 quantised to the frame's bounding box, not float32 */
   bool loop;            /* replay the take in a loop */
   bool no_autoplay;     /* do not start the replay at start-up (page button / POST only) */
@@ -104,6 +159,8 @@ bool km_live_replay(km_live *l);
 typedef struct km_live_stats {
   uint64_t frames_in, frames_out, frames_sent, frames_dropped;
   uint64_t osc_messages, udp_datagrams, bad_packets, solve_errors;
+  uint64_t vmc_packets, vmc_messages, vmc_frames, vmc_bad, vmc_unknown; /* VMC input */
+  uint64_t vmc_out_frames, vmc_out_errors;                              /* --vmc-out */
   int clients;
   double lat_median_ms, lat_p99_ms;             /* packet received -> frame written to a socket */
   double t_retarget_ms, t_deform_ms, t_pack_ms; /* medians of the recent frames */

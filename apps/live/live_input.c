@@ -12,18 +12,15 @@ typedef struct joint_alias {
   int joint; /* KM_KINECT1 index, -2: known joint without a v1 counterpart */
 } joint_alias;
 
-/* Kinect v2 (KinectV2-OSC / the SDK's JointType names) and OSCeleton (OpenNI) names. v2's
- * SpineShoulder is v1's ShoulderCenter; v2's Neck lies between it and the head and has no v1
- * joint. OpenNI's torso is the mid-spine (v1 Spine) and its waist the pelvis (HipCenter). */
+/* OSCeleton (OpenNI) names; every other skeleton's (Kinect v2, Azure Kinect, Unity humanoid,
+ * MediaPipe, CMU) come from the library's table (km_skeleton_kinect1_joint, Kinect v2 first).
+ * OpenNI's torso is the mid-spine (v1 Spine) and its waist the pelvis (HipCenter). */
 static const joint_alias ALIASES[] = {
-    {"SpineBase", 0},    {"SpineMid", 1},   {"SpineShoulder", 2}, {"Neck", -2},
-    {"HandTipLeft", -2}, {"ThumbLeft", -2}, {"HandTipRight", -2}, {"ThumbRight", -2},
-    {"waist", 0},        {"torso", 1},      {"neck", 2},          {"head", 3},
-    {"l_shoulder", 4},   {"l_elbow", 5},    {"l_wrist", 6},       {"l_hand", 7},
-    {"r_shoulder", 8},   {"r_elbow", 9},    {"r_wrist", 10},      {"r_hand", 11},
-    {"l_hip", 12},       {"l_knee", 13},    {"l_ankle", 14},      {"l_foot", 15},
-    {"r_hip", 16},       {"r_knee", 17},    {"r_ankle", 18},      {"r_foot", 19},
-    {"l_collar", -2},    {"r_collar", -2},  {"l_fingertip", -2},  {"r_fingertip", -2},
+    {"waist", 0},     {"torso", 1},     {"neck", 2},         {"head", 3},         {"l_shoulder", 4},
+    {"l_elbow", 5},   {"l_wrist", 6},   {"l_hand", 7},       {"r_shoulder", 8},   {"r_elbow", 9},
+    {"r_wrist", 10},  {"r_hand", 11},   {"l_hip", 12},       {"l_knee", 13},      {"l_ankle", 14},
+    {"l_foot", 15},   {"r_hip", 16},    {"r_knee", 17},      {"r_ankle", 18},     {"r_foot", 19},
+    {"l_collar", -2}, {"r_collar", -2}, {"l_fingertip", -2}, {"r_fingertip", -2},
 };
 
 int km_live_joint_index(const char *name) {
@@ -32,7 +29,7 @@ int km_live_joint_index(const char *name) {
   if (j >= 0) return j;
   for (size_t i = 0; i < sizeof ALIASES / sizeof ALIASES[0]; ++i)
     if (!strcmp(name, ALIASES[i].name)) return ALIASES[i].joint;
-  return -1;
+  return km_skeleton_kinect1_joint(KM_SKELETON_KINECT2, name);
 }
 
 /* ---------------------------------------------------------------- JSON datagrams */

@@ -141,6 +141,10 @@ struct km_live {
   char *handles_json; /* GET /handles */
   atomic_uint_fast64_t frames_in, frames_out, frames_sent, frames_dropped, osc_messages,
       udp_datagrams, bad_packets, solve_errors;
+  atomic_uint_fast64_t vmc_packets, vmc_messages, vmc_frames, vmc_bad, vmc_unknown;
+  atomic_uint_fast64_t vmc_out_frames, vmc_out_errors;
+  km_live_vmc_out *vmc_out; /* deformation thread only */
+  km_live_vmc vmc;          /* input thread only */
   atomic_int clients;
 
   /* threads, sockets */
@@ -148,7 +152,7 @@ struct km_live {
   bool in_started, def_started;
   atomic_int stop;
   atomic_int replay_req;
-  int osc_fd, udp_fd;
+  int osc_fd, udp_fd, vmc_fd;
   struct lws_context *ctx;
   struct lws_protocols protocols[3];
   unsigned char *mesh_blob;
@@ -379,6 +383,29 @@ static void handle_osc_msg(km_live *l, assembler *a, const char *data, size_t si
   lo_message_free(m);
 }
 
+/* VMC packets: a frame per bundle; the counters published for /status. */
+static void drain_vmc(km_live *l, unsigned char *buf, size_t cap) {
+  km_live_vmc *v = &l->vmc;
+  uint64_t bad0 = v->bad;
+  for (int i = 0; i < 4096; ++i) {
+    ssize_t n = recv(l->vmc_fd, buf, cap, MSG_DONTWAIT | MSG_TRUNC);
+    if (n < 0) break;
+    double now = km_seconds(), joints[3 * NJ];
+    if ((size_t)n > cap) {
+      ++v->packets;
+      ++v->bad;
+      continue;
+    }
+    if (km_live_vmc_packet(v, buf, (size_t)n, joints)) push_frame(l, joints, now, false);
+  }
+  atomic_store(&l->vmc_packets, v->packets);
+  atomic_store(&l->vmc_messages, v->messages);
+  atomic_store(&l->vmc_frames, v->frames);
+  atomic_store(&l->vmc_bad, v->bad);
+  atomic_store(&l->vmc_unknown, v->unknown);
+  if (v->bad > bad0) atomic_fetch_add(&l->bad_packets, v->bad - bad0);
+}
+
 static void drain(km_live *l, int fd, bool osc, assembler *a, unsigned char *buf, size_t cap) {
   for (int i = 0; i < 4096; ++i) {
     ssize_t n = recv(fd, buf, cap, MSG_DONTWAIT | MSG_TRUNC);
@@ -450,8 +477,8 @@ static void *input_main(void *arg) {
         wait = td;
       }
     }
-    struct pollfd p[2];
-    int np = 0, io = -1, iu = -1;
+    struct pollfd p[3];
+    int np = 0, io = -1, iu = -1, iv = -1;
     if (l->osc_fd >= 0) {
       p[np] = (struct pollfd){.fd = l->osc_fd, .events = POLLIN};
       io = np++;
@@ -460,12 +487,17 @@ static void *input_main(void *arg) {
       p[np] = (struct pollfd){.fd = l->udp_fd, .events = POLLIN};
       iu = np++;
     }
+    if (l->vmc_fd >= 0) {
+      p[np] = (struct pollfd){.fd = l->vmc_fd, .events = POLLIN};
+      iv = np++;
+    }
     if (wait < 0) wait = 0;
     struct timespec ts = {(time_t)wait, (long)((wait - floor(wait)) * 1e9)};
     int r = ppoll(p, (nfds_t)np, &ts, NULL);
     if (r <= 0) continue;
     if (io >= 0 && (p[io].revents & POLLIN)) drain(l, l->osc_fd, true, &a, buf, cap);
     if (iu >= 0 && (p[iu].revents & POLLIN)) drain(l, l->udp_fd, false, &a, buf, cap);
+    if (iv >= 0 && (p[iv].revents & POLLIN)) drain_vmc(l, buf, cap);
   }
   free(buf);
   return NULL;
@@ -613,6 +645,16 @@ static void *deform_main(void *arg) {
       memcpy(l->handle_pos, km_puppetry_handle_targets(l->pipe), sizeof(double) * 3 * l->n_handles);
     pthread_mutex_unlock(&l->st_mu);
     if (l->ctx) lws_cancel_service(l->ctx);
+    if (l->vmc_out) {
+      /* Forward the filtered skeleton (after the frame is out, so it adds no latency). */
+      const double *fj = km_puppetry_filtered_joints(l->pipe);
+      km_humanoid_pose pose;
+      if (fj && km_live_vmc_pose_from_kinect1(fj, &pose, NULL) == KM_OK &&
+          km_live_vmc_out_send(l->vmc_out, &pose, t_recv, NULL) == KM_OK)
+        atomic_fetch_add(&l->vmc_out_frames, 1);
+      else
+        atomic_fetch_add(&l->vmc_out_errors, 1);
+    }
   }
   return NULL;
 }
@@ -629,6 +671,13 @@ void km_live_get_stats(km_live *l, km_live_stats *o) {
   o->udp_datagrams = atomic_load(&l->udp_datagrams);
   o->bad_packets = atomic_load(&l->bad_packets);
   o->solve_errors = atomic_load(&l->solve_errors);
+  o->vmc_packets = atomic_load(&l->vmc_packets);
+  o->vmc_messages = atomic_load(&l->vmc_messages);
+  o->vmc_frames = atomic_load(&l->vmc_frames);
+  o->vmc_bad = atomic_load(&l->vmc_bad);
+  o->vmc_unknown = atomic_load(&l->vmc_unknown);
+  o->vmc_out_frames = atomic_load(&l->vmc_out_frames);
+  o->vmc_out_errors = atomic_load(&l->vmc_out_errors);
   o->clients = atomic_load(&l->clients);
   pthread_mutex_lock(&l->st_mu);
   o->lat_median_ms = ring_q(&l->lat, 0.5);
@@ -660,6 +709,19 @@ char *km_live_status_json(km_live *l) {
   cJSON_AddNumberToObject(o, "bad_packets", (double)s.bad_packets);
   cJSON_AddNumberToObject(o, "solve_errors", (double)s.solve_errors);
   cJSON_AddNumberToObject(o, "clients", s.clients);
+  if (l->vmc_fd >= 0) {
+    cJSON *vm = cJSON_AddObjectToObject(o, "vmc");
+    cJSON_AddNumberToObject(vm, "packets", (double)s.vmc_packets);
+    cJSON_AddNumberToObject(vm, "messages", (double)s.vmc_messages);
+    cJSON_AddNumberToObject(vm, "frames", (double)s.vmc_frames);
+    cJSON_AddNumberToObject(vm, "bad", (double)s.vmc_bad);
+    cJSON_AddNumberToObject(vm, "unknown", (double)s.vmc_unknown);
+  }
+  if (l->vmc_out) {
+    cJSON *vo = cJSON_AddObjectToObject(o, "vmc_out");
+    cJSON_AddNumberToObject(vo, "frames", (double)s.vmc_out_frames);
+    cJSON_AddNumberToObject(vo, "errors", (double)s.vmc_out_errors);
+  }
   cJSON_AddNumberToObject(o, "vertices", (double)l->mesh->n_vertices);
   cJSON_AddBoolToObject(o, "quantize", l->opt.quantize);
   cJSON_AddBoolToObject(o, "replay_available", l->take != NULL);
@@ -1405,7 +1467,8 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
   l->opt.rig_path = l->rig_path;
   l->mesh = mesh;
   l->take = replay;
-  l->osc_fd = l->udp_fd = -1;
+  l->osc_fd = l->udp_fd = l->vmc_fd = -1;
+  km_live_vmc_init(&l->vmc);
   if (!l->opt.max_clients) l->opt.max_clients = KM_LIVE_MAX_CLIENTS;
   if (!l->opt.record_max) l->opt.record_max = KM_LIVE_RECORD_MAX;
   pthread_mutex_init(&l->job.mu, NULL);
@@ -1489,6 +1552,12 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
     s = KM_ERR_IO;
     goto fail;
   }
+  if (opt->vmc_port > 0 && (l->vmc_fd = udp_socket(l->bind, opt->vmc_port, err, "VMC")) < 0) {
+    s = KM_ERR_IO;
+    goto fail;
+  }
+  if (opt->vmc_out && (s = km_live_vmc_out_open(opt->vmc_out, &l->vmc_out, err)) != KM_OK)
+    goto fail;
 
   l->protocols[0] = (struct lws_protocols){"http", cb_http, sizeof(http_pss), 0, 0, NULL, 0};
   l->protocols[1] = (struct lws_protocols){"kinemesh", cb_ws, sizeof(ws_pss), 4096, 0, NULL, 0};
@@ -1591,6 +1660,8 @@ void km_live_free(km_live **lp) {
   if (l->ctx) lws_context_destroy(l->ctx);
   if (l->osc_fd >= 0) close(l->osc_fd);
   if (l->udp_fd >= 0) close(l->udp_fd);
+  if (l->vmc_fd >= 0) close(l->vmc_fd);
+  km_live_vmc_out_free(&l->vmc_out);
   km_puppetry_free(&l->pipe);
   km_rig_free(&l->rig);
   if (l->has_pending) {

@@ -16,6 +16,21 @@ int km__kinect1_columns(const char *const *names, size_t n_names, int src[KM_KIN
       if (names[k] && !strcmp(names[k], km_kinect1_joint_name(j))) src[j] = (int)k;
     found += src[j] >= 0;
   }
+  /* Another skeleton's names (a CMU BVH, a humanoid or Kinect v2 take): by body point, with
+   * the fallbacks of km_skeleton_joint_source (a hand centre from the wrist, ...). */
+  int matched = 0;
+  int kind = km_skeleton_detect(names, n_names, &matched);
+  if (kind > KM_SKELETON_KINECT1 && matched > found) {
+    found = 0;
+    for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
+      int s = km_skeleton_joint_source(KM_SKELETON_KINECT1, j, (km_skeleton_kind)kind, NULL);
+      const char *want = km_skeleton_joint_name((km_skeleton_kind)kind, s);
+      src[j] = -1;
+      for (size_t k = 0; want && k < n_names; ++k)
+        if (names[k] && !strcmp(names[k], want)) src[j] = (int)k;
+      found += src[j] >= 0;
+    }
+  }
   return found;
 }
 

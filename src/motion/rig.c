@@ -167,13 +167,20 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
   }
   const cJSON *js = cJSON_GetObjectItemCaseSensitive(root, "skeleton");
   out->skeleton = KM_RIG_KINECT1;
+  /* Joint names of a kinect1 rig: the named skeleton's first, then any other's, each resolved
+   * to the Kinect v1 joint it stands for (km_skeleton_kinect1_joint). */
+  km_skeleton_kind named = KM_SKELETON_KINECT1;
   if (js) {
-    if (cJSON_IsString(js) && strcmp(js->valuestring, "kinect1") == 0) {
-      out->skeleton = KM_RIG_KINECT1;
-    } else if (cJSON_IsString(js) && strcmp(js->valuestring, "bvh") == 0) {
+    int kind = cJSON_IsString(js) ? km_skeleton_kind_from_name(js->valuestring) : -1;
+    if (cJSON_IsString(js) && strcmp(js->valuestring, "bvh") == 0) {
       out->skeleton = KM_RIG_BVH;
+    } else if (kind >= 0) {
+      named = (km_skeleton_kind)kind;
     } else {
-      st = km__fail(err, KM_ERR_PARSE, "%s: \"skeleton\": expected \"kinect1\" or \"bvh\"", name);
+      st = km__fail(err, KM_ERR_PARSE,
+                    "%s: \"skeleton\": expected \"kinect1\", \"kinect2\", \"k4abt\", "
+                    "\"humanoid\", \"mediapipe\" or \"bvh\"",
+                    name);
       goto done;
     }
   }
@@ -378,7 +385,15 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     }
     int jidx = -1;
     if (out->skeleton == KM_RIG_KINECT1) {
-      jidx = km_kinect1_joint_index(mj->valuestring);
+      jidx = km_skeleton_kinect1_joint(named, mj->valuestring);
+      if (jidx == -2) {
+        st = km__fail(err, KM_ERR_PARSE,
+                      "%s: map[%zu] (handle '%s'): joint '%s' has no Kinect v1 counterpart "
+                      "(live input and kinect1 rigs drive the 20 Kinect v1 joints; see "
+                      "docs/skeletons.md)",
+                      name, mi, mh->valuestring, mj->valuestring);
+        goto done;
+      }
     } else {
       for (size_t k = 0; k < n_joint_names && jidx < 0; ++k)
         if (joint_names[k] && strcmp(joint_names[k], mj->valuestring) == 0) jidx = (int)k;
@@ -388,7 +403,8 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
                     mi, mh->valuestring, out->skeleton == KM_RIG_KINECT1 ? "Kinect v1" : "take",
                     mj->valuestring,
                     out->skeleton == KM_RIG_KINECT1
-                        ? " (expected e.g. Head, HandLeft, FootRight; names are case-sensitive)"
+                        ? " (expected e.g. Head, HandLeft, FootRight, or another skeleton's "
+                          "name such as LeftHand; names are case-sensitive)"
                         : "");
       goto done;
     }
@@ -410,7 +426,7 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
       if (cJSON_IsString(mr) && !mr->valuestring[0]) {
         ridx = -1;
       } else if (cJSON_IsString(mr) && out->skeleton == KM_RIG_KINECT1) {
-        ridx = km_kinect1_joint_index(mr->valuestring);
+        ridx = km_skeleton_kinect1_joint(named, mr->valuestring);
         if (ridx < 0) ridx = -2;
       } else if (cJSON_IsString(mr)) {
         for (size_t k = 0; k < n_joint_names && ridx < 0; ++k)
@@ -477,7 +493,7 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
       if (!want[k] || !want[k][0]) continue;
       int idx = -1;
       if (out->skeleton == KM_RIG_KINECT1)
-        idx = km_kinect1_joint_index(want[k]);
+        idx = km_skeleton_kinect1_joint(named, want[k]);
       else
         for (size_t q = 0; q < n_joint_names && idx < 0; ++q)
           if (joint_names[q] && !strcmp(joint_names[q], want[k])) idx = (int)q;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# ctest driver for live mode: run.sh e2e|e2e_quantize|osc|garbage|security KINEMESH WORKDIR
+# ctest driver for live mode: run.sh e2e|e2e_quantize|e2e_norig|osc|garbage|vmc|security KINEMESH WORKDIR
 # (security: tests/security/run.sh, which names its script in KM_LIVE_SCRIPT)
 # Generates a small character and take, starts `kinemesh live` on loopback with random free
 # ports (retrying when a port is taken), runs the matching node script against it, stops the
@@ -15,6 +15,8 @@ command -v node >/dev/null || { echo "FAIL: node not found (scripts/deps.sh inst
 [ -d "$ROOT/web/node_modules/playwright-core" ] || { echo "FAIL: web/node_modules missing (run scripts/deps.sh)"; exit 1; }
 if [ "${MODE#e2e}" != "$MODE" ] && ! command -v chromium >/dev/null; then echo "FAIL: chromium not installed (scripts/deps.sh installs it)"; exit 1; fi
 if [ "$MODE" = osc ] && ! command -v oscsend >/dev/null; then echo "FAIL: oscsend not installed (scripts/deps.sh installs liblo-tools)"; exit 1; fi
+BVH="$ROOT/../shared/data/bvh/cmu_131_01.bvh"
+if [ "$MODE" = vmc ] && [ ! -f "$BVH" ]; then echo "SKIP: $BVH not found (../shared/data is absent)"; exit 77; fi
 rm -rf "$WORK" && mkdir -p "$WORK"
 "$BIN" gen character --vertices 3000 -o "$WORK/c.obj" >/dev/null 2>&1 || { echo "FAIL: gen character"; exit 1; }
 "$BIN" gen motion --kind wave --frames 60 --character "$WORK/c.obj" -o "$WORK/t.json" >/dev/null 2>&1 || { echo "FAIL: gen motion"; exit 1; }
@@ -28,13 +30,26 @@ case $MODE in
   osc) EXTRA=(--record "$WORK/rec.json") ;;
   garbage) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
   security) EXTRA=(--replay "$WORK/t.json" --no-autoplay); chmod 600 "$WORK/c.rig.json" ;;
+  vmc)
+    # The character's rig rewritten for a humanoid (VMC) skeleton: Unity bone names.
+    node -e '
+      const fs = require("fs"), r = JSON.parse(fs.readFileSync(process.argv[1], "utf8"));
+      const H = {Head: "Head", HandLeft: "LeftMiddleProximal", HandRight: "RightMiddleProximal",
+                 FootLeft: "LeftToes", FootRight: "RightToes", HipCenter: "Hips"};
+      r.skeleton = "humanoid";
+      for (const m of r.map) { if (!H[m.joint]) throw new Error("no humanoid name for " + m.joint); m.joint = H[m.joint]; }
+      fs.writeFileSync(process.argv[2], JSON.stringify(r));' "$WORK/c.rig.json" "$WORK/h.rig.json" \
+      || { echo "FAIL: humanoid rig"; exit 1; }
+    EXTRA=(--rig "$WORK/h.rig.json") ;;
 esac
 
 PID=
 for try in 1 2 3 4 5 6 7 8; do
   BASE=$((20000 + (RANDOM * 7 + $$ + try * 101) % 40000))
-  HTTP=$BASE OSC=$((BASE + 1)) UDP=$((BASE + 2))
-  "$BIN" live --mesh "$WORK/c.obj" --http $HTTP --osc $OSC --udp $UDP "${EXTRA[@]}" \
+  HTTP=$BASE OSC=$((BASE + 1)) UDP=$((BASE + 2)) VMC=$((BASE + 3))
+  VMC_OUT=()
+  [ "$MODE" = vmc ] && VMC_OUT=(--vmc-out 127.0.0.1:$((BASE + 4)))
+  "$BIN" live --mesh "$WORK/c.obj" --http $HTTP --osc $OSC --udp $UDP --vmc $VMC "${VMC_OUT[@]}" "${EXTRA[@]}" \
     >"$WORK/server.out" 2>"$WORK/server.err" &
   PID=$!
   for i in $(seq 1 100); do
@@ -56,7 +71,7 @@ KM_LIVE_TOKEN=$(grep -o 'token=[A-Za-z0-9_-]*' "$WORK/server.out" | head -1 | cu
 [ -n "$KM_LIVE_TOKEN" ] || { echo "FAIL: no ?token= in the printed URL"; cat "$WORK/server.out"; exit 1; }
 export KM_LIVE_TOKEN
 SCRIPT=${KM_LIVE_SCRIPT:-$HERE/${MODE%_quantize}.mjs}
-timeout 90 node "$SCRIPT" "$HTTP" "$OSC" "$UDP" "$WORK"
+KM_BIN="$BIN" KM_VMC=$VMC KM_VMC_OUT=$((BASE + 4)) KM_BVH="$BVH" timeout 90 node "$SCRIPT" "$HTTP" "$OSC" "$UDP" "$WORK"
 rc=$?
 kill -0 $PID 2>/dev/null || { echo "FAIL: the server died"; cat "$WORK/server.err"; exit 1; }
 kill -TERM $PID
