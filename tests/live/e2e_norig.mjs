@@ -6,7 +6,7 @@ import { createRequire } from 'node:module';
 import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { check, finish, status } from './lib.mjs';
+import { check, finish, status, TOKEN } from './lib.mjs';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const require = createRequire(path.join(here, '../../web/package.json'));
@@ -29,7 +29,7 @@ try {
   const page = await browser.newPage({ viewport: { width: 1100, height: 700 } });
   page.on('pageerror', (e) => errors.push(String(e)));
   page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-  await page.goto(url);
+  await page.goto(`${url}?token=${TOKEN}`);
   await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
     null, { timeout: 80000 });
   const s0 = await status(http);
