@@ -178,8 +178,8 @@ int km_bench_reconstruct(int argc, char **argv) {
   size_t npts0 = p0.n;
   /* the simulator's ring (8 cameras 3 m from the subject's bounding-box centre, 0.3 m above
    * it) around frame 0: surface -> points is measured over the vertices facing a camera */
-  double cams[8 * 3], lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY,
-                                                                       -INFINITY};
+  double cams[8 * 3], lo[3] = {INFINITY, INFINITY, INFINITY},
+                      hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (size_t i = 0; i < p0.n; ++i)
     for (int a = 0; a < 3; ++a)
       lo[a] = fmin(lo[a], p0.P[3 * i + a]), hi[a] = fmax(hi[a], p0.P[3 * i + a]);
@@ -233,6 +233,18 @@ int km_bench_reconstruct(int argc, char **argv) {
     memcpy(rep.joints + f * nj * 3, km_recon_joints(rc), nj * 3 * sizeof(double));
   }
   if (km_local_motion_filter(n, nv, ref, glob, 2, 1, filt, &e)) die("filter", &e);
+  if (getenv("KM_BENCH_DUMP")) /* the first frames' registered surfaces, to look at */
+    for (size_t f = 0; f < n && f < 3; ++f) {
+      km_mesh dm = tmpl.mesh;
+      dm.V = ref + f * nv * 3;
+      dm.UV = NULL, dm.N = NULL;
+      char dp[1200];
+      snprintf(dp, sizeof dp, "%s/recon_%05zu.obj", getenv("KM_BENCH_DUMP"), f);
+      if (km_mesh_write(dp, &dm, NULL, &e)) die("dump", &e);
+      dm.V = glob + f * nv * 3;
+      snprintf(dp, sizeof dp, "%s/global_%05zu.obj", getenv("KM_BENCH_DUMP"), f);
+      if (km_mesh_write(dp, &dm, NULL, &e)) die("dump", &e);
+    }
   double total = km_seconds() - t0;
   km_recon_free(&rc);
   double *rec = filt;
@@ -351,14 +363,13 @@ int km_bench_reconstruct(int argc, char **argv) {
          total, tc, "jitter_before_mm", jit[0] * 1e3, "jitter_after_mm", jit[1] * 1e3,
          "err_surface_mean_mm", smean, "err_surface_p95_max_mm", sp95max, "err_surface_max_mm",
          smax, "unsupported_frames", rep.unsupported_frames);
-  printf(
-      "{\"bench\":\"reconstruct\",\"frames\":%zu,\"s_per_frame\":%.4f,\"err_points_mm\":%.3f,"
-      "\"err_truth_mean_mm\":%.3f,\"err_truth_max_mm\":%.3f,\"jerk_before\":%.6g,"
-      "\"jerk_after\":%.6g,\"jitter_before\":%.6g,\"jitter_after\":%.6g,\"failed_frames\":%zu,"
-      "\"err_surface_mean_mm\":%.3f,\"err_surface_p95_max_mm\":%.3f,\"err_surface_max_mm\":%.3f,"
-      "\"unsupported_frames\":%zu}\n",
-      nf, med, pmean, tmean, tmax, rep.jerk_before * 1e3, rep.jerk_after * 1e3, jit[0] * 1e3,
-      jit[1] * 1e3, rep.failed_frames, smean, sp95max, smax, rep.unsupported_frames);
+  printf("{\"bench\":\"reconstruct\",\"frames\":%zu,\"s_per_frame\":%.4f,\"err_points_mm\":%.3f,"
+         "\"err_truth_mean_mm\":%.3f,\"err_truth_max_mm\":%.3f,\"jerk_before\":%.6g,"
+         "\"jerk_after\":%.6g,\"jitter_before\":%.6g,\"jitter_after\":%.6g,\"failed_frames\":%zu,"
+         "\"err_surface_mean_mm\":%.3f,\"err_surface_p95_max_mm\":%.3f,\"err_surface_max_mm\":%.3f,"
+         "\"unsupported_frames\":%zu}\n",
+         nf, med, pmean, tmean, tmax, rep.jerk_before * 1e3, rep.jerk_after * 1e3, jit[0] * 1e3,
+         jit[1] * 1e3, rep.failed_frames, smean, sp95max, smax, rep.unsupported_frames);
   if (json && km_recon_report_write_json(json, &rep, &e)) die("json", &e);
   if (plot && km_recon_report_plot(plot, &rep, &e)) die("plot", &e);
   free(tv), free(tri), free(dist), free(bary), free(secs), free(ref), free(glob), free(filt),

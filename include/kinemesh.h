@@ -1835,6 +1835,11 @@ typedef struct km_recon_init {
    * step runs again. The joints turned (a direction is kept only well below the current
    * score): */
   size_t limbs_turned;
+  /* ---- bone lengths: then each limb chain's three segments (upper arm, forearm, hand;
+   * thigh, shin, foot) are stretched along their bones in the template by the best scale of
+   * 0.8..1.25 (coordinate descent, the same two-sided score), kept only where the limb's
+   * score drops below 97%; the skeletal step runs again. The limbs stretched: */
+  size_t limbs_scaled;
 } km_recon_init;
 
 typedef struct km_recon_report {
@@ -1875,7 +1880,7 @@ const char *km_recon_frame_status(const km_recon_frame_stats *s);
  * "unsupported_distance_mm", "unsupported_fraction", "unsupported_frames", "jerk_before":..,
  * "jerk_after":.., "first_frame": {"correspondences": N, "initialisation": "...", and
  * without correspondences "yaw_candidates", "yaw_deg", "rotation_deg", "rigid_residual_mm",
- * "residual_mm", "feet_residual_mm", "scale", "landmarks"; and "limbs_turned"},
+ * "residual_mm", "feet_residual_mm", "scale", "landmarks"; and "limbs_turned", "limbs_scaled"},
  * "joints_from": "skin weights"|"rig"}.
  *   r  in: report (km_reconstruct)
  * Errors: KM_ERR_IO. */
