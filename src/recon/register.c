@@ -100,6 +100,7 @@ struct km_recon {
   int32_t lm[KM_CHARACTER_LANDMARKS];
   size_t n_lm;
   km_recon_init init;
+  size_t limbs_researched; /* joints turned by the search on later frames */
   /* two-sided error of the last frame: per vertex nearest point distance, the unsupported
    * vertices, vertex normals when cameras are given */
   double *sup_dist;
@@ -1991,6 +1992,68 @@ fail:
   return s;
 }
 
+/* Later frames: a part that became unsupported (tracking lost a limb) is searched again from
+ * the current pose, as on the first frame (limb_search), then the skeletal step and the
+ * surface refinement run again. The new pose is kept only when it leaves fewer unsupported
+ * vertices AND explains the points better (points -> surface mean below 90%): a limb hidden
+ * from the cameras has no points to find, and must stay flagged rather than be laid onto
+ * the torso's points. */
+static void research_limbs(km_recon *r, const frame_data *fd, km_recon_frame_stats *st,
+                           km_status *fs) {
+  size_t nv = r->nv, nj = r->nj;
+  double *save = km__malloc(nj * 9 + 3 + nv * 6 + nj * 3, sizeof(double));
+  if (!save) return;
+  double *sL = save, *sT = sL + nj * 9, *sG = sT + 3, *sS = sG + nv * 3, *sJ = sS + nv * 3;
+  memcpy(sL, r->Lrot, nj * 9 * sizeof(double));
+  memcpy(sT, r->troot, 3 * sizeof(double));
+  memcpy(sG, r->global, nv * 3 * sizeof(double));
+  memcpy(sS, r->surface, nv * 3 * sizeof(double));
+  memcpy(sJ, r->joints, nj * 3 * sizeof(double));
+  km_recon_frame_stats before = *st;
+  int turned = limb_search(r, fd);
+  bool keep = false;
+  if (turned) {
+    double *Lref = km__malloc(nj, 9 * sizeof(double));
+    km_status ps = Lref ? KM_OK : KM_ERR_NOMEM;
+    if (Lref) {
+      memcpy(Lref, r->Lrot, nj * 9 * sizeof(double));
+      double t1[3] = {r->troot[0], r->troot[1], r->troot[2]};
+      st->iterations += skeleton_fit(r, fd->C, fd->CN, fd->nc, Lref, t1, r->o.skeleton_iterations,
+                                     NULL, 0, true, r->o.w_pose, &ps);
+      free(Lref);
+    }
+    km_error e2;
+    if (ps == KM_OK)
+      ps = refine(r, fd, r->global, r->o.refine_iterations, NULL, 0, 0, 0.03, 0.5, &st->iterations,
+                  &e2);
+    for (size_t i = 0; ps == KM_OK && i < nv * 3; ++i)
+      if (!isfinite(r->surface[i])) ps = KM_ERR_NO_CONVERGENCE;
+    if (ps == KM_OK) {
+      frame_error(r, fd, r->surface, st);
+      keep = st->unsupported_vertices < before.unsupported_vertices &&
+             st->mean_mm < 0.9 * before.mean_mm;
+    }
+  }
+  km__log(KM_LOG_DEBUG, "frame %zu: unsupported (%zu vertices): %d joints searched again, %s",
+          r->frame, before.unsupported_vertices, turned, keep ? "kept" : "not kept");
+  if (!keep) {
+    int it = st->iterations;
+    memcpy(r->Lrot, sL, nj * 9 * sizeof(double));
+    memcpy(r->troot, sT, 3 * sizeof(double));
+    memcpy(r->global, sG, nv * 3 * sizeof(double));
+    memcpy(r->surface, sS, nv * 3 * sizeof(double));
+    memcpy(r->joints, sJ, nj * 3 * sizeof(double));
+    double *W = r->work; /* the transforms of the kept pose */
+    forward_kinematics(r, r->Lrot, r->troot, W, W + 9 * nj, r->G);
+    if (turned) frame_error(r, fd, r->surface, st);
+    st->iterations = it;
+  } else {
+    r->limbs_researched += (size_t)turned;
+  }
+  (void)fs;
+  free(save);
+}
+
 km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_frame_stats *st,
                               km_error *err) {
   if (!r || (!P && n)) return km__fail(err, KM_ERR_INVALID, "km_recon_next_frame: NULL argument");
@@ -2060,6 +2123,7 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   }
   if (fd.P && fd.n >= 16 && fd.N) {
     frame_error(r, &fd, r->surface, st);
+    if (fs == KM_OK && st->unsupported && !r->o.no_limb_search) research_limbs(r, &fd, st, &fs);
     /* a frame far worse than the recent ones did not converge: carry it by the skeleton */
     double ref = 0;
     for (size_t k = 0; k < r->n_hist; ++k)
