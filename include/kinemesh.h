@@ -1807,6 +1807,7 @@ typedef struct km_recon_frame_stats {
   int32_t unsupported_joints[KM_RECON_MAX_PARTS]; /* the body parts concerned: skin joints
                                 * (each vertex's largest weight) holding at least a tenth of the
                                 * unsupported vertices, most first */
+  double surface_p99_mm; /* surface -> points, 99th percentile */
 } km_recon_frame_stats;
 
 /* How the first frame was placed before the nonrigid registration. */
@@ -1873,7 +1874,7 @@ const char *km_recon_frame_status(const km_recon_frame_stats *s);
  * {"format":"kinemesh-recon-report","version":1,"frames":[{"index":..,"points":..,
  * "mean_mm":..,"max_mm":..,"iterations":..,"seconds":..,"status":"KM_OK",
  * "message":".." (failed frames only), "joints":[x,y,z,...], and the two-sided error:
- * "p95_mm", "surface_mean_mm", "surface_p95_mm", "surface_max_mm", "surface_vertices",
+ * "p95_mm", "surface_mean_mm", "surface_p95_mm", "surface_p99_mm", "surface_max_mm", "surface_vertices",
  * "unsupported_vertices", "unsupported_joints":[names], "unsupported_ids":[vertex ids] (when
  * report->unsupported has them); a flagged frame has "status":"unsupported_surface"}...],
  * "surface_to_points": "all vertices (visibility unknown)"|"vertices facing a camera",

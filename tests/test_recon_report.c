@@ -190,7 +190,7 @@ static void test_two_sided_brute_force(void) {
     }
     double *dq = malloc(nv * sizeof *dq); /* the quantile sorts its input: a copy */
     memcpy(dq, dv, nv * sizeof *dq);
-    double sp95 = quantile_sorted(dq, nv, 0.95);
+    double sp95 = quantile_sorted(dq, nv, 0.95), sp99 = quantile_sorted(dq, nv, 0.99);
     free(dq);
     printf("frame %zu: points->surface %.3f/%.3f/%.3f mm (brute %.3f/%.3f/%.3f), "
            "surface->points %.3f/%.3f/%.3f mm (brute %.3f/%.3f/%.3f), beyond 4 mm %zu (brute "
@@ -204,6 +204,8 @@ static void test_two_sided_brute_force(void) {
     CHECK(st.surface_vertices == nv);
     CHECK_NEAR(st.surface_mean_mm, smean, 1e-3);
     CHECK_NEAR(st.surface_p95_mm, sp95, 1e-3);
+    CHECK_NEAR(st.surface_p99_mm, sp99, 1e-3);
+    CHECK(sp99 >= sp95 && sp99 <= smax);
     CHECK_NEAR(st.surface_max_mm, smax, 1e-3);
     CHECK_MSG(unsup > 0, "frame %zu: the 4 mm threshold leaves some vertices unsupported", f);
     CHECK_MSG(st.unsupported_vertices + 2 >= unsup && unsup + 2 >= st.unsupported_vertices,

@@ -95,6 +95,7 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
     cJSON_AddNumberToObject(o, "p95_mm", s->p95_mm);
     cJSON_AddNumberToObject(o, "surface_mean_mm", s->surface_mean_mm);
     cJSON_AddNumberToObject(o, "surface_p95_mm", s->surface_p95_mm);
+    cJSON_AddNumberToObject(o, "surface_p99_mm", s->surface_p99_mm);
     cJSON_AddNumberToObject(o, "surface_max_mm", s->surface_max_mm);
     cJSON_AddNumberToObject(o, "surface_vertices", (double)s->surface_vertices);
     cJSON_AddNumberToObject(o, "unsupported_vertices", (double)s->unsupported_vertices);

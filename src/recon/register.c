@@ -1064,6 +1064,7 @@ static void surface_support(km_recon *r, const frame_data *fd, const double *X,
   st->surface_mean_mm = m ? 1e3 * sum / (double)m : 0;
   st->surface_max_mm = 1e3 * mx;
   st->surface_p95_mm = d ? 1e3 * quantile(d, m, 0.95) : st->surface_max_mm;
+  st->surface_p99_mm = d ? 1e3 * quantile(d, m, 0.99) : st->surface_max_mm;
   st->unsupported_vertices = r->n_sup;
   st->unsupported = (double)r->n_sup > r->o.unsupported_fraction * (double)m;
   st->n_unsupported_joints = 0;
