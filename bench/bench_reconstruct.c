@@ -34,7 +34,8 @@ static void logger(km_log_level l, const char *m, void *u) {
   if (l >= KM_LOG_WARN || getenv("KM_BENCH_DEBUG")) fprintf(stderr, "%s\n", m);
 }
 
-static bool g_rig_joints; /* --rig-joints, read by both scenarios */
+static bool g_rig_joints;   /* --rig-joints, read by both scenarios */
+static const char *g_shape; /* --template-shape (D-FAUST): stocky | slim | NULL */
 
 static int run_dfaust(const char *dir, const char *json) {
   km_error e = {0};
@@ -43,6 +44,15 @@ static int run_dfaust(const char *dir, const char *json) {
   if (km_point_frames_list(dir, &paths, &n, &e)) die("frames", &e);
   km_character tmpl = {0};
   km_character_options co = {.target_vertices = 4000};
+  /* a template of another build (the presets of gen character --shape) */
+  if (g_shape && !strcmp(g_shape, "stocky"))
+    co.height = 1.70, co.girth = 1.3, co.belly = 0.5;
+  else if (g_shape && !strcmp(g_shape, "slim"))
+    co.height = 1.80, co.girth = 0.8;
+  else if (g_shape) {
+    fprintf(stderr, "kinemesh bench reconstruct: --template-shape %s: stocky or slim\n", g_shape);
+    return KM_EXIT_USAGE;
+  }
   if (km_character_generate(&co, &tmpl, &e)) die("template", &e);
   km_recon_report rep = {0};
   km_recon_options ro = {0};
@@ -59,19 +69,22 @@ static int run_dfaust(const char *dir, const char *json) {
          "rotation %.1f deg, %zu landmarks as pseudo-correspondences)\n",
          dir, rep.n_frames, secs / (double)(rep.n_frames ? rep.n_frames : 1), rep.init.yaw_deg,
          rep.init.yaw_candidates, rep.init.rotation_deg, rep.init.landmarks);
-  printf("%6s %8s %9s %9s %9s | %9s %9s %9s %6s | %6s %8s %s\n", "frame", "points", "mean_mm",
-         "p95_mm", "max_mm", "s_mean", "s_p95", "s_max", "unsup", "iters", "seconds", "status");
-  double smax = 0;
+  printf("%6s %8s %9s %9s %9s | %9s %9s %9s %9s %6s | %6s %8s %s\n", "frame", "points", "mean_mm",
+         "p95_mm", "max_mm", "s_mean", "s_p95", "s_p99", "s_max", "unsup", "iters", "seconds",
+         "status");
+  double smax = 0, sp99max = 0;
   for (size_t f = 0; f < rep.n_frames; ++f) {
     km_recon_frame_stats *s = &rep.frames[f];
-    printf("%6zu %8zu %9.2f %9.2f %9.2f | %9.2f %9.2f %9.2f %6zu | %6d %8.3f %s\n", s->index,
+    printf("%6zu %8zu %9.2f %9.2f %9.2f | %9.2f %9.2f %9.2f %9.2f %6zu | %6d %8.3f %s\n", s->index,
            s->points, s->mean_mm, s->p95_mm, s->max_mm, s->surface_mean_mm, s->surface_p95_mm,
-           s->surface_max_mm, s->unsupported_vertices, s->iterations, s->seconds,
+           s->surface_p99_mm, s->surface_max_mm, s->unsupported_vertices, s->iterations, s->seconds,
            km_recon_frame_status(s));
     smax = s->surface_max_mm > smax ? s->surface_max_mm : smax;
+    sp99max = s->surface_p99_mm > sp99max ? s->surface_p99_mm : sp99max;
   }
-  printf("surface -> points over %s; max %.1f mm; %zu frame(s) flagged unsupported_surface\n",
-         rep.visibility_known ? "vertices facing a camera" : "all vertices", smax,
+  printf("surface -> points over %s; p99 at most %.1f mm, max %.1f mm; %zu frame(s) flagged "
+         "unsupported_surface\n",
+         rep.visibility_known ? "vertices facing a camera" : "all vertices", sp99max, smax,
          rep.unsupported_frames);
   if (json && km_recon_report_write_json(json, &rep, &e)) die("json", &e);
   unlink(out);
@@ -90,6 +103,8 @@ int km_bench_reconstruct(int argc, char **argv) {
       {"plot", 0, KM_OPT_STRING, &plot, "also plot the per-frame errors (PNG, gnuplot)"},
       {"keep", 0, KM_OPT_STRING, &keep, "keep the simulated capture in this directory"},
       {"dfaust", 0, KM_OPT_STRING, &dfaust, "reconstruct real D-FAUST clouds from DIR instead"},
+      {"template-shape", 0, KM_OPT_STRING, &g_shape,
+       "with --dfaust: a template of another build (stocky | slim)"},
       {"rig-joints", 0, KM_OPT_FLAG, &g_rig_joints,
        "use the template rig's joints (default: estimated from the skin weights)"},
   };
@@ -178,8 +193,8 @@ int km_bench_reconstruct(int argc, char **argv) {
   size_t npts0 = p0.n;
   /* the simulator's ring (8 cameras 3 m from the subject's bounding-box centre, 0.3 m above
    * it) around frame 0: surface -> points is measured over the vertices facing a camera */
-  double cams[8 * 3], lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY,
-                                                                       -INFINITY};
+  double cams[8 * 3], lo[3] = {INFINITY, INFINITY, INFINITY},
+                      hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (size_t i = 0; i < p0.n; ++i)
     for (int a = 0; a < 3; ++a)
       lo[a] = fmin(lo[a], p0.P[3 * i + a]), hi[a] = fmax(hi[a], p0.P[3 * i + a]);
@@ -233,6 +248,18 @@ int km_bench_reconstruct(int argc, char **argv) {
     memcpy(rep.joints + f * nj * 3, km_recon_joints(rc), nj * 3 * sizeof(double));
   }
   if (km_local_motion_filter(n, nv, ref, glob, 2, 1, filt, &e)) die("filter", &e);
+  if (getenv("KM_BENCH_DUMP")) /* the first frames' registered surfaces, to look at */
+    for (size_t f = 0; f < n && f < 3; ++f) {
+      km_mesh dm = tmpl.mesh;
+      dm.V = ref + f * nv * 3;
+      dm.UV = NULL, dm.N = NULL;
+      char dp[1200];
+      snprintf(dp, sizeof dp, "%s/recon_%05zu.obj", getenv("KM_BENCH_DUMP"), f);
+      if (km_mesh_write(dp, &dm, NULL, &e)) die("dump", &e);
+      dm.V = glob + f * nv * 3;
+      snprintf(dp, sizeof dp, "%s/global_%05zu.obj", getenv("KM_BENCH_DUMP"), f);
+      if (km_mesh_write(dp, &dm, NULL, &e)) die("dump", &e);
+    }
   double total = km_seconds() - t0;
   km_recon_free(&rc);
   double *rec = filt;
@@ -351,14 +378,13 @@ int km_bench_reconstruct(int argc, char **argv) {
          total, tc, "jitter_before_mm", jit[0] * 1e3, "jitter_after_mm", jit[1] * 1e3,
          "err_surface_mean_mm", smean, "err_surface_p95_max_mm", sp95max, "err_surface_max_mm",
          smax, "unsupported_frames", rep.unsupported_frames);
-  printf(
-      "{\"bench\":\"reconstruct\",\"frames\":%zu,\"s_per_frame\":%.4f,\"err_points_mm\":%.3f,"
-      "\"err_truth_mean_mm\":%.3f,\"err_truth_max_mm\":%.3f,\"jerk_before\":%.6g,"
-      "\"jerk_after\":%.6g,\"jitter_before\":%.6g,\"jitter_after\":%.6g,\"failed_frames\":%zu,"
-      "\"err_surface_mean_mm\":%.3f,\"err_surface_p95_max_mm\":%.3f,\"err_surface_max_mm\":%.3f,"
-      "\"unsupported_frames\":%zu}\n",
-      nf, med, pmean, tmean, tmax, rep.jerk_before * 1e3, rep.jerk_after * 1e3, jit[0] * 1e3,
-      jit[1] * 1e3, rep.failed_frames, smean, sp95max, smax, rep.unsupported_frames);
+  printf("{\"bench\":\"reconstruct\",\"frames\":%zu,\"s_per_frame\":%.4f,\"err_points_mm\":%.3f,"
+         "\"err_truth_mean_mm\":%.3f,\"err_truth_max_mm\":%.3f,\"jerk_before\":%.6g,"
+         "\"jerk_after\":%.6g,\"jitter_before\":%.6g,\"jitter_after\":%.6g,\"failed_frames\":%zu,"
+         "\"err_surface_mean_mm\":%.3f,\"err_surface_p95_max_mm\":%.3f,\"err_surface_max_mm\":%.3f,"
+         "\"unsupported_frames\":%zu}\n",
+         nf, med, pmean, tmean, tmax, rep.jerk_before * 1e3, rep.jerk_after * 1e3, jit[0] * 1e3,
+         jit[1] * 1e3, rep.failed_frames, smean, sp95max, smax, rep.unsupported_frames);
   if (json && km_recon_report_write_json(json, &rep, &e)) die("json", &e);
   if (plot && km_recon_report_plot(plot, &rep, &e)) die("plot", &e);
   free(tv), free(tri), free(dist), free(bary), free(secs), free(ref), free(glob), free(filt),

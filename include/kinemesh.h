@@ -1945,6 +1945,7 @@ typedef struct km_recon_frame_stats {
   int32_t unsupported_joints[KM_RECON_MAX_PARTS]; /* the body parts concerned: skin joints
                                 * (each vertex's largest weight) holding at least a tenth of the
                                 * unsupported vertices, most first */
+  double surface_p99_mm; /* surface -> points, 99th percentile */
 } km_recon_frame_stats;
 
 /* How the first frame was placed before the nonrigid registration. */
@@ -1973,6 +1974,11 @@ typedef struct km_recon_init {
    * step runs again. The joints turned (a direction is kept only well below the current
    * score): */
   size_t limbs_turned;
+  /* ---- bone lengths: then each limb chain's three segments (upper arm, forearm, hand;
+   * thigh, shin, foot) are stretched along their bones in the template by the best scale of
+   * 0.8..1.25 (coordinate descent, the same two-sided score), kept only where the limb's
+   * score drops below 97%; the skeletal step runs again. The limbs stretched: */
+  size_t limbs_scaled;
 } km_recon_init;
 
 typedef struct km_recon_report {
@@ -2006,14 +2012,14 @@ const char *km_recon_frame_status(const km_recon_frame_stats *s);
  * {"format":"kinemesh-recon-report","version":1,"frames":[{"index":..,"points":..,
  * "mean_mm":..,"max_mm":..,"iterations":..,"seconds":..,"status":"KM_OK",
  * "message":".." (failed frames only), "joints":[x,y,z,...], and the two-sided error:
- * "p95_mm", "surface_mean_mm", "surface_p95_mm", "surface_max_mm", "surface_vertices",
+ * "p95_mm", "surface_mean_mm", "surface_p95_mm", "surface_p99_mm", "surface_max_mm", "surface_vertices",
  * "unsupported_vertices", "unsupported_joints":[names], "unsupported_ids":[vertex ids] (when
  * report->unsupported has them); a flagged frame has "status":"unsupported_surface"}...],
  * "surface_to_points": "all vertices (visibility unknown)"|"vertices facing a camera",
  * "unsupported_distance_mm", "unsupported_fraction", "unsupported_frames", "jerk_before":..,
  * "jerk_after":.., "first_frame": {"correspondences": N, "initialisation": "...", and
  * without correspondences "yaw_candidates", "yaw_deg", "rotation_deg", "rigid_residual_mm",
- * "residual_mm", "feet_residual_mm", "scale", "landmarks"; and "limbs_turned"},
+ * "residual_mm", "feet_residual_mm", "scale", "landmarks"; and "limbs_turned", "limbs_scaled"},
  * "joints_from": "skin weights"|"rig"}.
  *   r  in: report (km_reconstruct)
  * Errors: KM_ERR_IO. */

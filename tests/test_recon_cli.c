@@ -57,7 +57,7 @@ int main(void) {
   for (int i = 0; i < cJSON_GetArraySize(frames); ++i) {
     const cJSON *fr = cJSON_GetArrayItem(frames, i);
     const char *keys[] = {"index", "points", "mean_mm", "max_mm", "iterations", "seconds"};
-    for (int k = 0; k < 6; ++k)
+    for (int k = 0; k < (int)(sizeof keys / sizeof keys[0]); ++k)
       CHECK_MSG(cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(fr, keys[k])), "frame %d: %s", i,
                 keys[k]);
     const cJSON *mean = cJSON_GetObjectItemCaseSensitive(fr, "mean_mm");
@@ -149,9 +149,10 @@ int main(void) {
     const cJSON *fr = cJSON_GetArrayItem(frames, i);
     const cJSON *st = cJSON_GetObjectItemCaseSensitive(fr, "status");
     CHECK(cJSON_IsString(st) && !strcmp(st->valuestring, "unsupported_surface"));
-    const char *keys[] = {"p95_mm", "surface_mean_mm", "surface_p95_mm", "surface_max_mm",
-                          "surface_vertices", "unsupported_vertices"};
-    for (int k = 0; k < 6; ++k)
+    const char *keys[] = {
+        "p95_mm",         "surface_mean_mm",  "surface_p95_mm",      "surface_p99_mm",
+        "surface_max_mm", "surface_vertices", "unsupported_vertices"};
+    for (int k = 0; k < (int)(sizeof keys / sizeof keys[0]); ++k)
       CHECK_MSG(cJSON_IsNumber(cJSON_GetObjectItemCaseSensitive(fr, keys[k])), "frame %d: %s", i,
                 keys[k]);
     CHECK(cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(fr, "unsupported_joints")) > 0);

@@ -95,16 +95,16 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
     cJSON_AddNumberToObject(o, "p95_mm", s->p95_mm);
     cJSON_AddNumberToObject(o, "surface_mean_mm", s->surface_mean_mm);
     cJSON_AddNumberToObject(o, "surface_p95_mm", s->surface_p95_mm);
+    cJSON_AddNumberToObject(o, "surface_p99_mm", s->surface_p99_mm);
     cJSON_AddNumberToObject(o, "surface_max_mm", s->surface_max_mm);
     cJSON_AddNumberToObject(o, "surface_vertices", (double)s->surface_vertices);
     cJSON_AddNumberToObject(o, "unsupported_vertices", (double)s->unsupported_vertices);
     cJSON *uj = cJSON_AddArrayToObject(o, "unsupported_joints");
     for (int k = 0; k < s->n_unsupported_joints && k < KM_RECON_MAX_PARTS; ++k) {
       int32_t j = s->unsupported_joints[k];
-      cJSON_AddItemToArray(uj, cJSON_CreateString(r->joint_names && j >= 0 &&
-                                                          (size_t)j < r->n_joints
-                                                      ? r->joint_names[j]
-                                                      : ""));
+      cJSON_AddItemToArray(
+          uj, cJSON_CreateString(
+                  r->joint_names && j >= 0 && (size_t)j < r->n_joints ? r->joint_names[j] : ""));
     }
     if (r->unsupported && r->unsupported[f]) {
       cJSON *ids = cJSON_AddArrayToObject(o, "unsupported_ids");
@@ -160,6 +160,7 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
     cJSON_AddNumberToObject(ff, "landmarks", (double)in->landmarks);
   }
   cJSON_AddNumberToObject(ff, "limbs_turned", (double)in->limbs_turned);
+  cJSON_AddNumberToObject(ff, "limbs_scaled", (double)in->limbs_scaled);
   cJSON_AddStringToObject(root, "joints_from", r->rig_joints ? "rig" : "skin weights");
   cJSON_AddNumberToObject(root, "jerk_before", r->jerk_before);
   cJSON_AddNumberToObject(root, "jerk_after", r->jerk_after);
@@ -231,8 +232,8 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
   outf = km__malloc(nv, 3 * sizeof(double));
   prev_out = km__malloc(nv, 6 * sizeof(double));
   prev_ref = km__malloc(nv, 6 * sizeof(double));
-  if (!rep->frames || !rep->joints || !rep->joint_names || !rep->unsupported || !ring_ref || !ring_glob || !outf ||
-      !prev_out || !prev_ref) {
+  if (!rep->frames || !rep->joints || !rep->joint_names || !rep->unsupported || !ring_ref ||
+      !ring_glob || !outf || !prev_out || !prev_ref) {
     s = km__fail(err, KM_ERR_NOMEM, "km_reconstruct: out of memory");
     goto done;
   }

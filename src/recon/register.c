@@ -100,6 +100,7 @@ struct km_recon {
   int32_t lm[KM_CHARACTER_LANDMARKS];
   size_t n_lm;
   km_recon_init init;
+  size_t limbs_researched; /* joints turned by the search on later frames */
   /* two-sided error of the last frame: per vertex nearest point distance, the unsupported
    * vertices, vertex normals when cameras are given */
   double *sup_dist;
@@ -370,7 +371,8 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   r->sup_idx = km__malloc(nv, sizeof(int32_t));
   r->sup_list = km__malloc(nv, sizeof(int32_t));
   if (r->o.n_cameras) r->sup_N = km__malloc(nv, 3 * sizeof(double));
-  if (!r->sup_dist || !r->sup_idx || !r->sup_list || (r->o.n_cameras && !r->sup_N) || !r->vnear || !r->vw || !r->vdist || !r->vn || !r->parents || !r->tmpl_joints || !r->names ||
+  if (!r->sup_dist || !r->sup_idx || !r->sup_list || (r->o.n_cameras && !r->sup_N) || !r->vnear ||
+      !r->vw || !r->vdist || !r->vn || !r->parents || !r->tmpl_joints || !r->names ||
       !r->skin.joints || !r->skin.weights || !r->base || !r->base_joints || !r->Lrot || !r->Lprev ||
       !r->Lprev2 || !r->global || !r->surface || !r->work || !r->joints || !r->G) {
     km_recon_free(&r);
@@ -1051,7 +1053,8 @@ static void surface_support(km_recon *r, const frame_data *fd, const double *X,
       r->sup_list[r->n_sup++] = (int32_t)i;
       int best = 0;
       for (int k = 1; k < 4; ++k)
-        if (r->skin.joints[4 * i + k] >= 0 && r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
+        if (r->skin.joints[4 * i + k] >= 0 &&
+            r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
           best = k;
       int32_t j = r->skin.joints[4 * i + best];
       if (per_joint && j >= 0) ++per_joint[j];
@@ -1061,6 +1064,7 @@ static void surface_support(km_recon *r, const frame_data *fd, const double *X,
   st->surface_mean_mm = m ? 1e3 * sum / (double)m : 0;
   st->surface_max_mm = 1e3 * mx;
   st->surface_p95_mm = d ? 1e3 * quantile(d, m, 0.95) : st->surface_max_mm;
+  st->surface_p99_mm = d ? 1e3 * quantile(d, m, 0.99) : st->surface_max_mm;
   st->unsupported_vertices = r->n_sup;
   st->unsupported = (double)r->n_sup > r->o.unsupported_fraction * (double)m;
   st->n_unsupported_joints = 0;
@@ -1465,7 +1469,8 @@ static int limb_search(km_recon *r, const frame_data *fd) {
       lbs_apply(r, r->G, r->base, r->global);
       /* the joint's subtree: its vertices move with it */
       for (size_t k = 0; k < nj; ++k)
-        in_sub[k] = (int32_t)k == j || (k > (size_t)j && r->parents[k] >= 0 && in_sub[r->parents[k]]);
+        in_sub[k] =
+            (int32_t)k == j || (k > (size_t)j && r->parents[k] >= 0 && in_sub[r->parents[k]]);
       /* scored: the first joint by its own segment alone (upper arm, thigh: the joint
        * below is not placed yet), the second by its whole subtree */
       size_t m = 0, all = 0;
@@ -1535,6 +1540,198 @@ out:
   free(dom), free(idx), free(W), free(cj), free(Y), free(Y0), free(dist), free(U), free(sel);
   free(ptri), free(pd), free(in_sub);
   return turned;
+}
+
+/* ---------------------------------------------------------------- bone lengths */
+
+#define KM__BONE_SCALE_MIN 0.80 /* bone length scales searched, relative to the template's */
+#define KM__BONE_SCALE_MAX 1.25
+#define KM__BONE_SCALE_STEP 0.025
+#define KM__BONE_SEGMENT 0.075 /* each segment's scale within this of the chain's */
+#define KM__BONE_GAIN 0.97
+#define KM__BONE_ROUNDS                                                                            \
+  3 /* length search and skeletal step alternate (a pose fitted with
+                           * the wrong lengths bends the limb to reach its points) */ /* a limb's scales are kept only below this fraction of its score */
+
+/* The template's bones stretched in the unposed base: joint k's segment (the bone from J_k to
+ * its single child, or for a leaf the part beyond J_k along the bone into it) is scaled by
+ * s[k] along the bone, everything below it follows. Every vertex moves by its skin weights'
+ * blend of the joints' displacement fields D_k(x) = T_k + (s_k - 1) clamp((x - J_k).u_k, 0,
+ * L_k) u_k (T_k: how far J_k moved), so the girth stays and blended regions stay smooth.
+ * B0/J0: the unstretched base and joints; B/J: the result. */
+static void stretch_base(const km_recon *r, const double *s, const double *B0, const double *J0,
+                         double *B, double *J, double *U /* nj*3 */, double *Lb /* nj */,
+                         double *T /* nj*3 */) {
+  size_t nj = r->nj, nv = r->nv;
+  for (size_t k = 0; k < nj; ++k) {
+    int32_t child = -1;
+    int nc = 0;
+    for (size_t c = k + 1; c < nj; ++c)
+      if (r->parents[c] == (int32_t)k) child = (int32_t)c, ++nc;
+    double u[3] = {0, 0, 0}, len = 0;
+    if (nc == 1) {
+      for (int a = 0; a < 3; ++a)
+        u[a] = J0[3 * (size_t)child + a] - J0[3 * k + a];
+      len = km__normalize3(u);
+    } else if (nc == 0 && r->parents[k] >= 0) {
+      size_t p = (size_t)r->parents[k];
+      for (int a = 0; a < 3; ++a)
+        u[a] = J0[3 * k + a] - J0[3 * p + a];
+      km__normalize3(u);
+      len = INFINITY;
+    }
+    memcpy(U + 3 * k, u, sizeof u);
+    Lb[k] = len;
+    int32_t p = r->parents[k];
+    for (int a = 0; a < 3; ++a)
+      J[3 * k + a] = p < 0 ? J0[3 * k + a]
+                           : J[3 * (size_t)p + a] + s[p] * (J0[3 * k + a] - J0[3 * (size_t)p + a]);
+    for (int a = 0; a < 3; ++a)
+      T[3 * k + a] = J[3 * k + a] - J0[3 * k + a];
+  }
+  for (size_t i = 0; i < nv; ++i) {
+    const double *x = B0 + 3 * i;
+    double d[3] = {0, 0, 0};
+    for (int q = 0; q < 4; ++q) {
+      int32_t k = r->skin.joints[4 * i + q];
+      double w = r->skin.weights[4 * i + q];
+      if (k < 0 || w == 0) continue;
+      const double *u = U + 3 * (size_t)k, *jk = J0 + 3 * (size_t)k;
+      double t = 0;
+      if (s[k] != 1 && Lb[k] > 0) {
+        t = (x[0] - jk[0]) * u[0] + (x[1] - jk[1]) * u[1] + (x[2] - jk[2]) * u[2];
+        t = t < 0 ? 0 : t > Lb[k] ? Lb[k] : t;
+        t *= s[k] - 1;
+      }
+      for (int a = 0; a < 3; ++a)
+        d[a] += w * (T[3 * (size_t)k + a] + t * u[a]);
+    }
+    for (int a = 0; a < 3; ++a)
+      B[3 * i + a] = x[a] + d[a];
+  }
+}
+
+/* Bone lengths found, not assumed: a template whose limbs are longer or shorter than the
+ * subject's would keep the excess (a hand reaching 8 cm past the fingertips). After the
+ * pose of the first frame, each limb chain's three segments (upper arm, forearm, hand;
+ * thigh, shin, foot) are stretched along their bones by the best of the scales
+ * KM__BONE_SCALE_MIN..MAX (coordinate descent, two sweeps), scored two-sided like the limb
+ * search (limb_score), in the current pose. The stretch goes into r->base / r->base_joints;
+ * returns how many limbs changed, scales per chain segment in scales_out (3 per chain). */
+static int bone_lengths(km_recon *r, const frame_data *fd, double *scales_out, int max_chains) {
+  size_t nv = r->nv, nj = r->nj;
+  int32_t chains[4 * 8];
+  int nc = limb_chains(r, chains, 8);
+  if (nc > max_chains) nc = max_chains;
+  if (!nc || !fd->ix) return 0;
+  double *B0 = km__malloc(nv, 3 * sizeof(double)), *J0 = km__malloc(nj, 3 * sizeof(double));
+  double *s = km__malloc(nj, sizeof(double)), *Ub = km__malloc(nj, 3 * sizeof(double));
+  double *Lb = km__malloc(nj, sizeof(double)), *Tb = km__malloc(nj, 3 * sizeof(double));
+  double *W = km__malloc(nj, 9 * sizeof(double)), *cj = km__malloc(nj, 3 * sizeof(double));
+  double *Y = km__malloc(nv, 3 * sizeof(double)), *dist = km__malloc(nv, sizeof(double));
+  double *U = km__malloc(fd->nc, 3 * sizeof(double)), *pd = km__malloc(fd->nc, sizeof(double));
+  int32_t *dom = km__malloc(nv, sizeof *dom), *idx = km__malloc(nv, sizeof *idx);
+  int32_t *sel = km__malloc(nv, sizeof *sel), *ptri = km__malloc(fd->nc, sizeof *ptri);
+  bool *in_sub = km__malloc(nj, sizeof *in_sub);
+  int changed = 0;
+  if (!B0 || !J0 || !s || !Ub || !Lb || !Tb || !W || !cj || !Y || !dist || !U || !pd || !dom ||
+      !idx || !sel || !ptri || !in_sub)
+    goto out;
+  memcpy(B0, r->base, nv * 3 * sizeof(double));
+  memcpy(J0, r->base_joints, nj * 3 * sizeof(double));
+  for (size_t k = 0; k < nj; ++k)
+    s[k] = 1;
+  for (size_t i = 0; i < nv; ++i) {
+    int best = 0;
+    for (int k = 1; k < 4; ++k)
+      if (r->skin.joints[4 * i + k] >= 0 &&
+          r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
+        best = k;
+    dom[i] = r->skin.joints[4 * i + best];
+  }
+  for (int c = 0; c < nc; ++c) {
+    int32_t j = chains[4 * c];
+    for (size_t k = 0; k < nj; ++k)
+      in_sub[k] = (int32_t)k == j || (k > (size_t)j && r->parents[k] >= 0 && in_sub[r->parents[k]]);
+    size_t m = 0, all = 0;
+    for (size_t i = 0; i < nv; ++i)
+      all += dom[i] >= 0 && in_sub[dom[i]];
+    size_t stride = all > 1000 ? all / 1000 + 1 : 1, cnt = 0;
+    for (size_t i = 0; i < nv; ++i)
+      if (dom[i] >= 0 && in_sub[dom[i]] && cnt++ % stride == 0) sel[m++] = (int32_t)i;
+    if (m < 8) continue;
+    /* the points the rest of the body leaves unexplained, in the current pose */
+    forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+    lbs_apply(r, r->G, r->base, r->global);
+    km__surface_update(r->query, r->global);
+    km__surface_closest(r->query, fd->C, fd->nc, 0, ptri, NULL, pd);
+    size_t nu = 0;
+    for (size_t q = 0; q < fd->nc; ++q) {
+      int32_t v0 = ptri[q] >= 0 ? r->tmpl.F[3 * (size_t)ptri[q]] : -1;
+      bool mine = v0 >= 0 && dom[v0] >= 0 && in_sub[dom[v0]];
+      if (pd[q] > 0.02 || mine) memcpy(U + 3 * nu++, fd->C + 3 * q, 3 * sizeof(double));
+    }
+    if (nu < 8) {
+      km__log(KM_LOG_DEBUG, "first frame: bone lengths %s: %zu unexplained points", r->names[j],
+              nu);
+      continue;
+    }
+    /* segments: chain[0], chain[1], chain[2] with everything below it */
+    double seg[3] = {1, 1, 1};
+#define KM__SET_SCALES()                                                                           \
+  for (size_t k = 0; k < nj; ++k)                                                                  \
+    if (in_sub[k])                                                                                 \
+      s[k] = (int32_t)k == chains[4 * c]       ? seg[0]                                            \
+             : (int32_t)k == chains[4 * c + 1] ? seg[1]                                            \
+                                               : seg[2];
+    KM__SET_SCALES();
+    stretch_base(r, s, B0, J0, r->base, r->base_joints, Ub, Lb, Tb);
+    for (size_t k = 0; k < m; ++k)
+      memcpy(Y + 3 * k, r->global + 3 * (size_t)sel[k], 3 * sizeof(double));
+    double score0 = limb_score(fd, Y, m, U, nu, idx, dist), best = score0;
+    /* one scale for the whole chain first (a straight limb cannot tell where its elbow is
+     * from its length alone), then each segment within KM__BONE_SEGMENT of it */
+    for (int g = -1; g < 3; ++g) {
+      double keep = g < 0 ? 1 : seg[g];
+      double lo = g < 0 ? KM__BONE_SCALE_MIN : keep - KM__BONE_SEGMENT,
+             hi = g < 0 ? KM__BONE_SCALE_MAX : keep + KM__BONE_SEGMENT;
+      for (double v = lo; v <= hi + 1e-9; v += KM__BONE_SCALE_STEP) {
+        if (fabs(v - keep) < 1e-9) continue;
+        if (g < 0)
+          seg[0] = seg[1] = seg[2] = v;
+        else
+          seg[g] = v;
+        KM__SET_SCALES();
+        stretch_base(r, s, B0, J0, r->base, r->base_joints, Ub, Lb, Tb);
+        forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+        lbs_apply(r, r->G, r->base, r->global);
+        for (size_t k = 0; k < m; ++k)
+          memcpy(Y + 3 * k, r->global + 3 * (size_t)sel[k], 3 * sizeof(double));
+        double sc = limb_score(fd, Y, m, U, nu, idx, dist);
+        if (sc < best) best = sc, keep = v;
+      }
+      if (g < 0)
+        seg[0] = seg[1] = seg[2] = keep;
+      else
+        seg[g] = keep;
+    }
+    bool take = best < KM__BONE_GAIN * score0;
+    km__log(KM_LOG_DEBUG, "first frame: bone lengths %s: %.3f %.3f %.3f, score %.1f -> %.1f mm%s",
+            r->names[j], seg[0], seg[1], seg[2], score0 * 1e3, best * 1e3, take ? "" : " (kept)");
+    if (!take) seg[0] = seg[1] = seg[2] = 1;
+    KM__SET_SCALES();
+#undef KM__SET_SCALES
+    if (scales_out) memcpy(scales_out + 3 * c, seg, sizeof seg);
+    changed += take;
+    stretch_base(r, s, B0, J0, r->base, r->base_joints, Ub, Lb, Tb);
+  }
+  forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+  memcpy(r->joints, cj, nj * 3 * sizeof(double));
+  lbs_apply(r, r->G, r->base, r->global);
+out:
+  free(B0), free(J0), free(s), free(Ub), free(Lb), free(Tb), free(W), free(cj), free(Y);
+  free(dist), free(U), free(pd), free(dom), free(idx), free(sel), free(ptri), free(in_sub);
+  return changed;
 }
 
 km_status km__recon_affine_register(km_recon *r, const double *Vb, const double *P, size_t n,
@@ -1677,10 +1874,24 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
       memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
       double t1[3] = {r->troot[0], r->troot[1], r->troot[2]};
       st->iterations +=
-          skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, t1, r->o.skeleton_iterations, feat, nfeat,
-                       true, nfeat >= 3 ? KM__FIRST_FRAME_POSE_WEIGHT : r->o.w_pose, &ps);
+          skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, t1, r->o.skeleton_iterations, feat, nfeat, true,
+                       nfeat >= 3 ? KM__FIRST_FRAME_POSE_WEIGHT : r->o.w_pose, &ps);
     }
     r->init.limbs_turned = (size_t)turned;
+    /* bone lengths: the limbs stretched to the subject's in the found pose, then the
+     * skeletal step once more */
+    int scaled = 0;
+    for (int round = 0; round < KM__BONE_ROUNDS; ++round) {
+      int sc = bone_lengths(r, &fd, NULL, 8);
+      if (!sc) break;
+      scaled = sc > scaled ? sc : scaled;
+      memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
+      double t1[3] = {r->troot[0], r->troot[1], r->troot[2]};
+      st->iterations +=
+          skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, t1, r->o.skeleton_iterations, feat, nfeat, true,
+                       nfeat >= 3 ? KM__FIRST_FRAME_POSE_WEIGHT : r->o.w_pose, &ps);
+    }
+    r->init.limbs_scaled = (size_t)scaled;
   }
   free(Lid);
   if (ps != KM_OK) {
@@ -1782,6 +1993,68 @@ fail:
   return s;
 }
 
+/* Later frames: a part that became unsupported (tracking lost a limb) is searched again from
+ * the current pose, as on the first frame (limb_search), then the skeletal step and the
+ * surface refinement run again. The new pose is kept only when it leaves fewer unsupported
+ * vertices AND explains the points better (points -> surface mean below 90%): a limb hidden
+ * from the cameras has no points to find, and must stay flagged rather than be laid onto
+ * the torso's points. */
+static void research_limbs(km_recon *r, const frame_data *fd, km_recon_frame_stats *st,
+                           km_status *fs) {
+  size_t nv = r->nv, nj = r->nj;
+  double *save = km__malloc(nj * 9 + 3 + nv * 6 + nj * 3, sizeof(double));
+  if (!save) return;
+  double *sL = save, *sT = sL + nj * 9, *sG = sT + 3, *sS = sG + nv * 3, *sJ = sS + nv * 3;
+  memcpy(sL, r->Lrot, nj * 9 * sizeof(double));
+  memcpy(sT, r->troot, 3 * sizeof(double));
+  memcpy(sG, r->global, nv * 3 * sizeof(double));
+  memcpy(sS, r->surface, nv * 3 * sizeof(double));
+  memcpy(sJ, r->joints, nj * 3 * sizeof(double));
+  km_recon_frame_stats before = *st;
+  int turned = limb_search(r, fd);
+  bool keep = false;
+  if (turned) {
+    double *Lref = km__malloc(nj, 9 * sizeof(double));
+    km_status ps = Lref ? KM_OK : KM_ERR_NOMEM;
+    if (Lref) {
+      memcpy(Lref, r->Lrot, nj * 9 * sizeof(double));
+      double t1[3] = {r->troot[0], r->troot[1], r->troot[2]};
+      st->iterations += skeleton_fit(r, fd->C, fd->CN, fd->nc, Lref, t1, r->o.skeleton_iterations,
+                                     NULL, 0, true, r->o.w_pose, &ps);
+      free(Lref);
+    }
+    km_error e2;
+    if (ps == KM_OK)
+      ps = refine(r, fd, r->global, r->o.refine_iterations, NULL, 0, 0, 0.03, 0.5, &st->iterations,
+                  &e2);
+    for (size_t i = 0; ps == KM_OK && i < nv * 3; ++i)
+      if (!isfinite(r->surface[i])) ps = KM_ERR_NO_CONVERGENCE;
+    if (ps == KM_OK) {
+      frame_error(r, fd, r->surface, st);
+      keep = st->unsupported_vertices < before.unsupported_vertices &&
+             st->mean_mm < 0.9 * before.mean_mm;
+    }
+  }
+  km__log(KM_LOG_DEBUG, "frame %zu: unsupported (%zu vertices): %d joints searched again, %s",
+          r->frame, before.unsupported_vertices, turned, keep ? "kept" : "not kept");
+  if (!keep) {
+    int it = st->iterations;
+    memcpy(r->Lrot, sL, nj * 9 * sizeof(double));
+    memcpy(r->troot, sT, 3 * sizeof(double));
+    memcpy(r->global, sG, nv * 3 * sizeof(double));
+    memcpy(r->surface, sS, nv * 3 * sizeof(double));
+    memcpy(r->joints, sJ, nj * 3 * sizeof(double));
+    double *W = r->work; /* the transforms of the kept pose */
+    forward_kinematics(r, r->Lrot, r->troot, W, W + 9 * nj, r->G);
+    if (turned) frame_error(r, fd, r->surface, st);
+    st->iterations = it;
+  } else {
+    r->limbs_researched += (size_t)turned;
+  }
+  (void)fs;
+  free(save);
+}
+
 km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_frame_stats *st,
                               km_error *err) {
   if (!r || (!P && n)) return km__fail(err, KM_ERR_INVALID, "km_recon_next_frame: NULL argument");
@@ -1851,6 +2124,7 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   }
   if (fd.P && fd.n >= 16 && fd.N) {
     frame_error(r, &fd, r->surface, st);
+    if (fs == KM_OK && st->unsupported && !r->o.no_limb_search) research_limbs(r, &fd, st, &fs);
     /* a frame far worse than the recent ones did not converge: carry it by the skeleton */
     double ref = 0;
     for (size_t k = 0; k < r->n_hist; ++k)
