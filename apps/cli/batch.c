@@ -849,6 +849,7 @@ int km_cli_batch(int argc, char **argv) {
                                  "libopenmpi-dev and rebuild); use --shard I/N instead");
 #endif
   km_batch b = {0};
+  char *sbatch_abs = NULL; /* before entering the manifest's folder */
   int rc = KM_EXIT_OK;
   ssize_t len = readlink("/proc/self/exe", b.self, sizeof b.self - 1);
   if (len <= 0) return km_cli_error("batch", "cannot find this program (/proc/self/exe)");
@@ -872,12 +873,16 @@ int km_cli_batch(int argc, char **argv) {
     return km_cli_error("batch", "out of memory");
   }
   if ((rc = read_manifest(&b, b.manifest)) != 0) goto out;
+  if (sbatch && strcmp(sbatch, "-") && !(sbatch_abs = absolute(sbatch))) {
+    rc = km_cli_error("batch", "out of memory");
+    goto out;
+  }
   if (chdir(b.dir)) {
     rc = km_cli_error("batch", "%s: cannot enter: %s", b.dir, strerror(errno));
     goto out;
   }
   if (sbatch) {
-    rc = emit_sbatch(&b, sbatch, tasks, cpus, time_limit);
+    rc = emit_sbatch(&b, sbatch_abs ? sbatch_abs : sbatch, tasks, cpus, time_limit);
     goto out;
   }
   if (mpi && shard) {
@@ -930,6 +935,7 @@ int km_cli_batch(int argc, char **argv) {
       free(s);
       cJSON_Delete(o);
     }
+    fflush(stdout);
     fprintf(stderr, "kinemesh batch: dry run: %zu of %zu jobs to run (shard %d/%d)\n", n, b.n_jobs,
             b.shard_i, b.shard_n);
   } else {
@@ -945,6 +951,7 @@ int km_cli_batch(int argc, char **argv) {
   }
   free(todo);
 out:
+  free(sbatch_abs);
   batch_free(&b);
   return rc;
 }
