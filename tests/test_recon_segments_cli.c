@@ -6,8 +6,23 @@
 #include "km_test.h"
 
 #define DIR "recon_segments_cli"
+#if defined(__SANITIZE_ADDRESS__)
+/* under the sanitizers (a Debug build, ~10 s a frame) a short take through the same code: the
+ * quality figures are the Release run's */
+#define FRAMES 12
+#define SEG 4
+#define FRAMES_S "12"
+#define SEG_S "4"
+#define SEG3_S "8-11"
+#define OVERLAP_S "2"
+#else
 #define FRAMES 120
 #define SEG 30
+#define FRAMES_S "120"
+#define SEG_S "30"
+#define SEG3_S "90-119"
+#define OVERLAP_S "5"
+#endif
 
 /* Mean over frames and vertices of |A - B|. */
 static double mean_dist(const double *A, const double *B, size_t nf, size_t nv) {
@@ -30,8 +45,8 @@ int main(void) {
   setenv("OMP_NUM_THREADS", "1", 1); /* the two runs side by side, one core each */
   CHECK(km_test_run("rm -rf " DIR " && mkdir -p " DIR, NULL) == 0);
   CHECK(km_test_run(KM_CLI " gen character --vertices 2000 -o " DIR "/t.obj", NULL) == 0);
-  CHECK(km_test_run(KM_CLI " gen motion --kind walk --frames 120 --character " DIR "/t.obj -o " DIR
-                           "/walk.json",
+  CHECK(km_test_run(KM_CLI " gen motion --kind walk --frames " FRAMES_S " --character " DIR
+                           "/t.obj -o " DIR "/walk.json",
                     NULL) == 0);
   CHECK(km_test_run(KM_CLI " gen capture --character " DIR "/t.obj --motion " DIR
                            "/walk.json --cameras 4 --points 3000 -o " DIR "/c",
@@ -46,10 +61,10 @@ int main(void) {
   CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/t.obj --clouds '" DIR
                            "/c/frame_*.ply' -o " DIR "/whole.pc2 > " DIR "/whole.log 2>&1 & " KM_CLI
                            " reconstruct --template " DIR "/t.obj --clouds '" DIR
-                           "/c/frame_*.ply' --segment-frames 30 --overlap 5 -o " DIR
-                           "/seg.pc2 > " DIR "/seg.log 2>&1; s=$?; wait $! && exit $s",
+                           "/c/frame_*.ply' --segment-frames " SEG_S " --overlap " OVERLAP_S
+                           " -o " DIR "/seg.pc2 > " DIR "/seg.log 2>&1; s=$?; wait $! && exit $s",
                     NULL) == 0);
-  CHECK(km_test_run("grep -q 'segment 4/4: frames 90-119' " DIR "/seg.log", NULL) == 0);
+  CHECK(km_test_run("grep -q 'segment 4/4: frames " SEG3_S "' " DIR "/seg.log", NULL) == 0);
   double *T = NULL, *W = NULL, *S = NULL;
   km_anim_info it, iw, is;
   CHECK_OK(km_pc2_read(DIR "/c/truth.pc2", &T, &it, KM_E));
@@ -62,6 +77,10 @@ int main(void) {
     double ew = mean_dist(W, T, FRAMES, nv), es = mean_dist(S, T, FRAMES, nv);
     printf("error to the truth: whole %.2f mm, 4 segments %.2f mm (%.3fx)\n", ew * 1e3, es * 1e3,
            es / ew);
+#if defined(__SANITIZE_ADDRESS__)
+    CHECK(isfinite(es) && es < 0.1);
+    (void)cmp_d;
+#else
     CHECK_MSG(es <= 1.10 * ew, "segmented %.2f mm vs whole %.2f mm", es * 1e3, ew * 1e3);
     double motion[FRAMES - 1], sorted[FRAMES - 1];
     for (size_t f = 0; f + 1 < FRAMES; ++f)
@@ -76,6 +95,7 @@ int main(void) {
     for (size_t seam = SEG; seam < FRAMES; seam += SEG)
       printf(" %.2f", motion[seam - 1] / med);
     printf("\n");
+#endif
   }
   free(T);
   free(W);
