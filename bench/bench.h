@@ -31,5 +31,8 @@ int km_bench_rig(int argc, char **argv);
 /* bench/bench_motion.c (issue 12): real takes on auto-rigged meshes through puppetry,
  * translation-only vs rotating handles: stretch, folds, jumps, floor, per-frame time. */
 int km_bench_motion(int argc, char **argv);
+/* bench/bench_batch.c (issue 17): kinemesh batch throughput with 1 and 2 ranks, serial parts,
+ * and the projected wall time of a Dynamic FAUST-sized archive on 8, 64, 512 ranks. */
+int km_bench_batch(int argc, char **argv);
 
 #endif

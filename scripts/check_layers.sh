@@ -13,8 +13,8 @@
 #  3. only src/linalg/ calls CHOLMOD (cholmod_*), ARPACK (dsaupd/dseupd) and LAPACK (LAPACKE_).
 #  4. with --build: every km_ symbol a module's objects use is defined in the module or in one
 #     it requires (so the build could link each module alone over those below it).
-#  5. with --build or --lib: libkinemesh.a references no lws_ (libwebsockets), lo_ (liblo) or
-#     popen: serving, OSC and processes belong to the applications.
+#  5. with --build or --lib: libkinemesh.a references no lws_ (libwebsockets), lo_ (liblo),
+#     MPI_ (MPI) or popen: serving, OSC, clusters and processes belong to the applications.
 # Exit status 0 when clean, 1 with one line per violation otherwise.
 set -uo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
@@ -149,8 +149,8 @@ if [ -n "$LIB" ]; then
     fail "$LIB: no library to check (build first)"
   else
     while read -r sym; do
-      fail "$(basename "$LIB") references $sym: sockets, OSC and processes belong to the applications"
-    done < <(nm -u "$LIB" 2>/dev/null | awk '{print $NF}' | grep -E '^(lws_|lo_|popen$|pclose$)' | sort -u)
+      fail "$(basename "$LIB") references $sym: sockets, OSC, MPI and processes belong to the applications"
+    done < <(nm -u "$LIB" 2>/dev/null | awk '{print $NF}' | grep -E '^(lws_|lo_|P?MPI_|popen$|pclose$)' | sort -u)
   fi
 fi
 

@@ -8,6 +8,7 @@ PKGS=(build-essential cmake pkg-config
       libembree-dev libcjson-dev libsvm-dev liblbfgs-dev
       liblo-dev liblo-tools libwebsockets-dev gnuplot-nox
       nodejs npm chromium
+      libopenmpi-dev openmpi-bin
       clang libclang-rt-dev)
 missing=()
 for p in "${PKGS[@]}"; do

@@ -105,6 +105,7 @@ int km_cli_reconstruct(int argc, char **argv);
 int km_cli_transfer(int argc, char **argv);
 int km_cli_posedb(int argc, char **argv);
 int km_cli_avatar(int argc, char **argv);
+int km_cli_batch(int argc, char **argv);
 /* A character: mesh + rig sidecar (default <stem>.rig.json), or the canonical procedural
  * one with `vertices` vertices when mesh is NULL. */
 km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,

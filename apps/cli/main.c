@@ -31,6 +31,8 @@ static const km_cli_verb VERBS[] = {
      km_cli_reconstruct},
     {"rig", "automatic rigging: skeleton, skin, landmarks and puppetry handles for any mesh",
      km_cli_rig},
+    {"batch", "run a manifest of jobs (JSON lines): resumable, sharded for Slurm, MPI",
+     km_cli_batch},
     {"pick", "vertex ids and positions nearest to a point (for rigs and scripts)", km_cli_pick},
     {"bench", "benchmarks printing the papers' tables (bench deform)", km_bench},
 };

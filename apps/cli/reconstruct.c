@@ -3,6 +3,7 @@
  * (gen.c). */
 #include "cli.h"
 #include "recon_plot.h"
+#include "recon_segments.h"
 
 #include <cjson/cJSON.h>
 
@@ -91,7 +92,7 @@ int km_cli_reconstruct(int argc, char **argv) {
   const char *clouds = NULL;
   bool rig_joints = false, strict = false;
   double unsupported_mm = 0, unsupported_fraction = 0;
-  size_t coarse = 0, vertices = 4000;
+  size_t coarse = 0, vertices = 4000, segment = 0, overlap = 5;
   int radius = 0;
   const km_cli_opt opts[] = {
       {"template", 't', KM_OPT_STRING, &tmpl,
@@ -116,6 +117,11 @@ int km_cli_reconstruct(int argc, char **argv) {
       {"report", 0, KM_OPT_STRING, &report, "per-frame report (JSON)"},
       {"plot", 0, KM_OPT_STRING, &plot, "error plot (PNG, through gnuplot)"},
       {"output", 'o', KM_OPT_STRING, &out, "output animation (.glb, .pc2 or a directory)"},
+      {"segment-frames", 0, KM_OPT_SIZE, &segment,
+       "split the take into segments of this many frames, each started on its own first frame, "
+       "stitched (default: one segment)"},
+      {"overlap", 0, KM_OPT_SIZE, &overlap,
+       "with --segment-frames: frames a segment tracks into the next, cross-faded (default 5)"},
   };
   const char *pos[1];
   int n_pos;
@@ -167,8 +173,22 @@ int km_cli_reconstruct(int argc, char **argv) {
                          .unsupported_distance = unsupported_mm * 1e-3,
                          .unsupported_fraction = unsupported_fraction};
   ro.progress = km_cli_progress("reconstruct");
+  if (segment && (report || plot || strict)) {
+    free(feat);
+    km_paths_free(&paths, n);
+    return km_cli_error("reconstruct", "--segment-frames: --report, --plot and --strict are not "
+                                       "available with segments yet");
+  }
   double t0 = km_cli_now();
   km_status s = km_cli_load_character(tmpl, rig, vertices, &c, &err);
+  if (!s && segment && segment < n) {
+    rc = km_cli_reconstruct_segmented(paths, n, &c, feat, nfeat, &ro, segment, overlap, out);
+    km_cli_progress_done();
+    km_character_free(&c);
+    free(feat);
+    km_paths_free(&paths, n);
+    return rc;
+  }
   if (!s) s = km_reconstruct((const char *const *)paths, n, &c, feat, nfeat, &ro, out, &rep, &err);
   km_cli_progress_done();
   if (rep.n_frames) {

@@ -1,0 +1,310 @@
+/* kinemesh batch (issue 17): a manifest of six small simulated captures. Shards cover every job
+ * once (also through the Slurm and Kubernetes variables); bad manifests are refused naming the
+ * line; a failing job is reported and the others still run; the batch (under mpirun -n 3 when
+ * built with MPI) gives the same bytes as each job's command run alone, and a rerun then has
+ * nothing to do; a worker rank killed mid-job loses only that job, which a rerun completes. */
+#include "km_test.h"
+
+#include <cjson/cJSON.h>
+#include <unistd.h>
+
+#define DIR "batch_cli"
+#define NJ 6
+#if defined(__SANITIZE_ADDRESS__)
+#define LONG "3" /* a Debug build under the sanitizers: ~10 s a frame */
+#else
+#define LONG "5"
+#endif
+
+static cJSON *read_json(const char *path) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  fseek(f, 0, SEEK_END);
+  size_t size = (size_t)ftell(f);
+  fseek(f, 0, SEEK_SET);
+  char *data = malloc(size + 1);
+  data[fread(data, 1, size, f)] = '\0';
+  fclose(f);
+  cJSON *j = cJSON_Parse(data);
+  free(data);
+  return j;
+}
+
+static void write_text(const char *path, const char *text) {
+  FILE *f = fopen(path, "wb");
+  if (f) {
+    fputs(text, f);
+    fclose(f);
+  }
+}
+
+/* Counts the job ids in a dry run's JSON lines into seen[0..NJ) (ids s1..s6). Returns the
+ * number of lines, -1 on a line that is not a job. */
+static int count_ids(const char *out, int *seen) {
+  int n = 0;
+  for (const char *l = out; l && *l;) {
+    const char *e = strchr(l, '\n');
+    if (*l == '{') {
+      char buf[4096];
+      size_t len = e ? (size_t)(e - l) : strlen(l);
+      if (len >= sizeof buf) return -1;
+      memcpy(buf, l, len);
+      buf[len] = '\0';
+      cJSON *o = cJSON_Parse(buf);
+      const cJSON *id = cJSON_GetObjectItemCaseSensitive(o, "id");
+      int k = cJSON_IsString(id) && id->valuestring[0] == 's' ? atoi(id->valuestring + 1) : 0;
+      cJSON_Delete(o);
+      if (k < 1 || k > NJ) return -1;
+      ++seen[k - 1];
+      ++n;
+    }
+    l = e ? e + 1 : NULL;
+  }
+  return n;
+}
+
+/* Statuses in the batch report: counts of ok and failed. */
+static void report_counts(const char *path, int *ok, int *failed) {
+  cJSON *r = read_json(path);
+  const cJSON *c = cJSON_GetObjectItemCaseSensitive(r, "counts");
+  const cJSON *o = cJSON_GetObjectItemCaseSensitive(c, "ok");
+  const cJSON *f = cJSON_GetObjectItemCaseSensitive(c, "failed");
+  *ok = cJSON_IsNumber(o) ? o->valueint : -1;
+  *failed = cJSON_IsNumber(f) ? f->valueint : -1;
+  cJSON_Delete(r);
+}
+
+static bool same_bytes(const char *a, const char *b) {
+  char cmd[1024];
+  snprintf(cmd, sizeof cmd, "cmp -s '%s' '%s'", a, b);
+  return km_test_run(cmd, NULL) == 0;
+}
+
+int main(void) {
+  char *out = NULL, cmd[4096];
+  /* every run here with one thread per job: the runs compared must not oversubscribe */
+  (void)km_test_err;
+  setenv("OMP_NUM_THREADS", "1", 1);
+  unsetenv("SLURM_ARRAY_TASK_ID");
+  unsetenv("JOB_COMPLETION_INDEX");
+  CHECK(km_test_run("rm -rf " DIR " && mkdir -p " DIR "/out", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2000 -o " DIR "/t.obj", NULL) == 0);
+  const char *kinds[3] = {"walk", "wave", "kungfu"};
+  FILE *m = fopen(DIR "/m.jsonl", "wb");
+  CHECK(m != NULL);
+  if (!m) return km_test_finish("test_batch_cli");
+  fprintf(m, "# six small simulated captures\n\n");
+  for (int i = 1; i <= NJ; ++i) {
+    int frames = i == NJ ? atoi(LONG) : 2; /* one longer job, the first handed out */
+    snprintf(cmd, sizeof cmd,
+             KM_CLI " gen motion --kind %s --frames %d --character " DIR "/t.obj -o " DIR
+                    "/take%d.json && " KM_CLI " gen capture --character " DIR "/t.obj --motion " DIR
+                    "/take%d.json --cameras 4 --points 3000 --seed %d -o " DIR "/c%d",
+             kinds[i % 3], frames, i, i, i, i);
+    CHECK_MSG(km_test_run(cmd, NULL) == 0, "%s", cmd);
+    /* paths relative to the manifest's folder */
+    fprintf(m,
+            "{\"id\": \"s%d\", \"verb\": \"reconstruct\", \"args\": [\"--template\", \"t.obj\", "
+            "\"--clouds\", \"c%d/frame_*.ply\", \"-o\", \"out/s%d.pc2\", \"--report\", "
+            "\"out/s%d.json\"]}\n",
+            i, i, i, i);
+  }
+  fclose(m);
+
+  /* ---- dry run: every job, longest first, with its command line */
+  CHECK(km_test_run(KM_CLI " batch " DIR "/m.jsonl --dry-run 2>/dev/null", &out) == 0);
+  int seen[NJ] = {0};
+  CHECK_MSG(count_ids(out, seen) == NJ, "%s", out ? out : "");
+  CHECK_MSG(out && strchr(out, '{') && !strncmp(strchr(out, '{'), "{\"id\":\"s6\"", 10),
+            "longest first: %s", out ? out : "");
+  CHECK(out && strstr(out, "\"frames\":" LONG) &&
+        strstr(out, "kinemesh reconstruct --template t.obj"));
+  free(out);
+  CHECK(km_test_run("test ! -e " DIR "/m.batch/report.json", NULL) == 0);
+
+  /* ---- shards: for every N, the shards together hold every job once */
+  for (int n = 1; n <= 4; ++n) {
+    int s[NJ] = {0}, total = 0;
+    for (int i = 0; i < n; ++i) {
+      snprintf(cmd, sizeof cmd, KM_CLI " batch " DIR "/m.jsonl --dry-run --shard %d/%d 2>/dev/null",
+               i, n);
+      CHECK(km_test_run(cmd, &out) == 0);
+      total += count_ids(out, s);
+      free(out);
+    }
+    CHECK_MSG(total == NJ, "N=%d: %d jobs", n, total);
+    for (int k = 0; k < NJ; ++k)
+      CHECK_MSG(s[k] == 1, "N=%d: job s%d in %d shards", n, k + 1, s[k]);
+  }
+  /* the scheduler's variables are the same shards (Slurm arrays may start at 1) */
+  char *a = NULL, *b = NULL;
+  CHECK(km_test_run(KM_CLI " batch " DIR "/m.jsonl --dry-run --shard 1/3 2>/dev/null", &a) == 0);
+  CHECK(km_test_run("SLURM_ARRAY_TASK_ID=1 SLURM_ARRAY_TASK_COUNT=3 " KM_CLI " batch " DIR
+                    "/m.jsonl --dry-run 2>/dev/null",
+                    &b) == 0);
+  CHECK(a && b && !strcmp(a, b) && strstr(a, "\"s2\"") && strstr(a, "\"s5\""));
+  free(b);
+  CHECK(km_test_run("SLURM_ARRAY_TASK_ID=2 SLURM_ARRAY_TASK_MIN=1 SLURM_ARRAY_TASK_COUNT=3 " KM_CLI
+                    " batch " DIR "/m.jsonl --dry-run 2>/dev/null",
+                    &b) == 0);
+  CHECK(a && b && !strcmp(a, b));
+  free(b);
+  CHECK(km_test_run("JOB_COMPLETION_INDEX=1 KM_SHARD_COUNT=3 " KM_CLI " batch " DIR
+                    "/m.jsonl --dry-run 2>/dev/null",
+                    &b) == 0);
+  CHECK(a && b && !strcmp(a, b));
+  free(a), free(b);
+  CHECK(km_test_run("SLURM_ARRAY_TASK_ID=1 " KM_CLI " batch " DIR "/m.jsonl --dry-run", NULL) != 0);
+  CHECK(km_test_run(KM_CLI " batch " DIR "/m.jsonl --dry-run --shard 3/3", &out) != 0);
+  CHECK(out && strstr(out, "--shard"));
+  free(out);
+
+  /* ---- bad manifests: refused, naming file and line */
+  const char *bad[][2] = {
+      {"{\"id\": \"a\", \"verb\": \"pose\", \"args\": []}\n{\"id\": \"b\", \"verb\": \"pose\", "
+       "\"args\": [\"x\"\n",
+       "bad.jsonl:2: byte"},
+      {"{\"id\": \"a\", \"verb\": \"live\", \"args\": []}\n", "bad.jsonl:1: verb \"live\""},
+      {"{\"id\": \"a\", \"verb\": \"pose\", \"args\": []}\n{\"id\": \"a\", \"verb\": \"pose\", "
+       "\"args\": []}\n",
+       "bad.jsonl:2: id \"a\" already used on line 1"},
+      {"{\"id\": \"../x\", \"verb\": \"pose\", \"args\": []}\n", "bad.jsonl:1: \"id\""},
+      {"{\"id\": \"a\", \"verb\": \"pose\", \"args\": [1]}\n", "bad.jsonl:1: args[0]"},
+      {"# nothing\n", "no jobs"},
+  };
+  for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
+    write_text(DIR "/bad.jsonl", bad[k][0]);
+    CHECK(km_test_run(KM_CLI " batch " DIR "/bad.jsonl", &out) == 1);
+    CHECK_MSG(out && strstr(out, bad[k][1]), "case %zu: %s", k, out ? out : "");
+    free(out);
+  }
+  CHECK(km_test_run(KM_CLI " batch " DIR "/missing.jsonl", NULL) == 1);
+
+  /* ---- a failing job is reported and the others still run */
+  write_text(DIR "/mixed.jsonl",
+             "{\"id\": \"broken\", \"verb\": \"pose\", \"args\": [\"--mesh\", \"t.obj\", "
+             "\"--motion\", \"no-such-take.json\", \"-o\", \"out/broken.pc2\"]}\n"
+             "{\"id\": \"posed\", \"verb\": \"pose\", \"args\": [\"--mesh\", \"t.obj\", "
+             "\"--motion\", \"take1.json\", \"-o\", \"out/posed.pc2\"]}\n");
+  /* from another folder: the jobs' paths are the manifest's folder's */
+  CHECK(km_test_run("d=$(pwd) && cd /tmp && " KM_CLI " batch $d/" DIR "/mixed.jsonl", &out) == 1);
+  CHECK_MSG(out && strstr(out, "broken: FAILED") && strstr(out, "exit status 1") &&
+                strstr(out, "posed: ok"),
+            "%s", out ? out : "");
+  free(out);
+  cJSON *jr = read_json(DIR "/mixed.batch/jobs/broken.json");
+  const cJSON *st = cJSON_GetObjectItemCaseSensitive(jr, "status");
+  const cJSON *summary = cJSON_GetObjectItemCaseSensitive(jr, "summary");
+  CHECK(cJSON_IsString(st) && !strcmp(st->valuestring, "failed"));
+  CHECK_MSG(cJSON_IsString(summary) && strstr(summary->valuestring, "no-such-take.json"), "%s",
+            cJSON_IsString(summary) ? summary->valuestring : "(none)");
+  cJSON_Delete(jr);
+  int ok = 0, failed = 0;
+  report_counts(DIR "/mixed.batch/report.json", &ok, &failed);
+  CHECK(ok == 1 && failed == 1);
+  /* the rerun retries only the failed job */
+  CHECK(km_test_run(KM_CLI " batch " DIR "/mixed.jsonl --dry-run 2>/dev/null", &out) == 0);
+  CHECK(out && strstr(out, "\"broken\"") && !strstr(out, "\"posed\"") &&
+        strstr(out, "failed before"));
+  free(out);
+
+  /* ---- --emit-sbatch: an array over the manifest */
+  CHECK(km_test_run(KM_CLI " batch " DIR "/m.jsonl --emit-sbatch " DIR "/run.sbatch --tasks 3",
+                    NULL) == 0);
+  CHECK(km_test_run("grep -q '^#SBATCH --array=0-2$' " DIR
+                    "/run.sbatch && grep -q 'batch .*m.jsonl' " DIR "/run.sbatch && bash -n " DIR
+                    "/run.sbatch",
+                    NULL) == 0);
+
+  /* ---- the batch, under MPI when built with it */
+#ifdef KM_MPIRUN
+  /* (OpenMPI keeps allocations to its exit: no leak report from a sanitizer build) */
+  const char *run = "ASAN_OPTIONS=detect_leaks=0 OMPI_ALLOW_RUN_AS_ROOT=1 "
+                    "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 " KM_MPIRUN
+                    " -n 3 --oversubscribe --enable-recovery " KM_CLI " batch " DIR
+                    "/m.jsonl --mpi --mpi-timeout 3";
+#else
+  const char *run = KM_CLI " batch " DIR "/m.jsonl";
+  printf("built without MPI: the batch runs in one process, the killed-rank case is skipped\n");
+#endif
+  CHECK_MSG(km_test_run(run, &out) == 0, "%s", out ? out : "");
+  free(out);
+  report_counts(DIR "/m.batch/report.json", &ok, &failed);
+  CHECK_MSG(ok == NJ && failed == 0, "ok %d failed %d", ok, failed);
+  /* each job's own command line, run alone, gives the same bytes */
+  CHECK(km_test_run("mkdir -p " DIR "/keep && cp " DIR "/out/* " DIR "/keep/", NULL) == 0);
+  for (int i = 1; i <= NJ; ++i) {
+    char path[256];
+    snprintf(path, sizeof path, DIR "/m.batch/jobs/s%d.json", i);
+    jr = read_json(path);
+    const cJSON *c = cJSON_GetObjectItemCaseSensitive(jr, "command");
+    const cJSON *outs = cJSON_GetObjectItemCaseSensitive(jr, "outputs");
+    CHECK(cJSON_GetArraySize(outs) == 2);
+    CHECK(cJSON_IsString(c) && !strncmp(c->valuestring, "cd /", 4));
+    if (cJSON_IsString(c)) {
+      /* the command says "kinemesh": put this build's first on the PATH */
+      char *dir = strdup(KM_CLI);
+      *strrchr(dir, '/') = '\0';
+      snprintf(cmd, sizeof cmd, "PATH=%s:$PATH; %s", dir, c->valuestring);
+      free(dir);
+      CHECK_MSG(km_test_run(cmd, NULL) == 0, "%s", cmd);
+    }
+    cJSON_Delete(jr);
+    char x[128], y[128];
+    snprintf(x, sizeof x, DIR "/out/s%d.pc2", i);
+    snprintf(y, sizeof y, DIR "/keep/s%d.pc2", i);
+    CHECK_MSG(same_bytes(x, y), "s%d.pc2 differs from the job run alone", i);
+  }
+  /* the batch's own outputs back (a reconstruction report holds timings, which differ from run
+   * to run): the rerun verifies every output and has nothing to do */
+  CHECK(km_test_run("cp " DIR "/keep/* " DIR "/out/", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " batch " DIR "/m.jsonl --dry-run 2>/dev/null", &out) == 0);
+  CHECK_MSG(out && !strchr(out, '{'), "%s", out ? out : "");
+  free(out);
+  /* a changed output is noticed */
+  write_text(DIR "/out/s3.json", "{}");
+  CHECK(km_test_run(KM_CLI " batch " DIR "/m.jsonl --dry-run 2>/dev/null", &out) == 0);
+  memset(seen, 0, sizeof seen);
+  CHECK(count_ids(out, seen) == 1 && seen[2] == 1 && strstr(out, "changed"));
+  free(out);
+
+#ifdef KM_MPIRUN
+  /* ---- a worker rank killed mid-job: that job fails, the rest complete, a rerun completes it.
+   * A worker rank is a batch process that is not rank 0 and runs a job (has a child). */
+  snprintf(cmd, sizeof cmd,
+           "%s --force > " DIR "/mpi_kill.log 2>&1 & MP=$!; "
+           "for t in $(seq 1 600); do "
+           "  for p in $(pgrep -f 'kinemesh batch " DIR "/m.jsonl --mpi'); do "
+           "    tr '\\0' '\\n' < /proc/$p/environ 2>/dev/null | grep -q '^OMPI_COMM_WORLD_RANK=0$' "
+           "&& continue; "
+           "    tr '\\0' '\\n' < /proc/$p/environ 2>/dev/null | grep -q '^OMPI_COMM_WORLD_RANK=' "
+           "|| continue; "
+           "    c=$(pgrep -P $p | head -1); "
+           "    if [ -n \"$c\" ] && grep -q reconstruct /proc/$c/cmdline 2>/dev/null; then "
+           "      kill -9 $p; echo killed rank pid $p; wait $MP; exit 0; fi; "
+           "  done; sleep 0.1; "
+           "done; echo no worker found; wait $MP; exit 1",
+           run);
+  CHECK_MSG(km_test_run(cmd, &out) == 0, "%s", out ? out : "");
+  free(out);
+  report_counts(DIR "/m.batch/report.json", &ok, &failed);
+  CHECK_MSG(ok == NJ - 1 && failed == 1, "after a kill: ok %d failed %d", ok, failed);
+  CHECK(km_test_run("grep -q 'stopped answering' " DIR "/m.batch/report.json", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " batch " DIR "/m.jsonl --dry-run 2>/dev/null", &out) == 0);
+  memset(seen, 0, sizeof seen);
+  CHECK_MSG(count_ids(out, seen) == 1, "%s", out ? out : "");
+  free(out);
+  CHECK(km_test_run(run, &out) == 0);
+  CHECK_MSG(out && strstr(out, "1 jobs to run"), "%s", out ? out : "");
+  free(out);
+  report_counts(DIR "/m.batch/report.json", &ok, &failed);
+  CHECK(ok == NJ && failed == 0);
+  for (int i = 1; i <= NJ; ++i) {
+    char x[128], y[128];
+    snprintf(x, sizeof x, DIR "/out/s%d.pc2", i);
+    snprintf(y, sizeof y, DIR "/keep/s%d.pc2", i);
+    CHECK_MSG(same_bytes(x, y), "s%d.pc2 differs after the kill and rerun", i);
+  }
+#endif
+  return km_test_finish("test_batch_cli");
+}
