@@ -1376,8 +1376,14 @@ void km_puppetry_free(km_puppetry **p);
  * landmark vertices are fixed at their targets, the rest solves
  *   (-L)_ff x_f = -(F W)_f + L_fc x_c          (eq. 7, symmetric elimination form)
  * (F W stands for the rotated offsets of the chosen km_offset_encoding)
- * with F = frames of T at first, then frames of the previous solution, until positions and
- * frames settle. The factor of (-L)_ff is computed once per landmark set. */
+ * The factor of (-L)_ff is computed once per landmark set. Vertex encoding (the paper's):
+ * F = frames of T at first, then frames of the previous solution (this drifts towards
+ * landmark-only editing). Edge encoding (default): each iteration lowers the energy
+ *   E(x, S) = sum_i [ sum_j w_ij |x_j - x_i - R_i S_i e_ij|^2 + lambda_i |S_i - I|^2 ]
+ * (e_ij rest edges of S, w_ij = L_ij, R_i the rotation of T's one-ring i fitted onto S's and
+ * kept fixed, S_i a symmetric stretch, lambda_i = damping * sum_j w_ij |e_ij|^2) by
+ * alternating the Laplacian solve for x with the closed-form S_i per vertex: the one-rings
+ * keep T's rotations and take up the stretch that rotated rest edges cannot express. */
 typedef enum km_laplacian_kind {
   KM_LAPLACIAN_UNIFORM = 0, /* graph Laplacian, Lifkooee et al.'s eq. 2 */
   KM_LAPLACIAN_COTAN,       /* cotangent weights of the source mesh */
@@ -1413,10 +1419,14 @@ typedef struct km_transfer_options {
   km_laplacian_kind laplacian; /* 0: uniform */
   km_offset_encoding encoding; /* 0: per edge (see above); KM_OFFSETS_VERTEX: Lifkooee eq. 3 */
   km_transfer_align align;     /* how landmark targets come from a template; 0: scale */
-  int max_iterations;          /* solves per transfer; 0: 10 */
+  int max_iterations;          /* solves per transfer; 0: 5 (edge encoding), 10 (vertex, the
+                                  paper's) */
   double tolerance;            /* stop when the largest vertex move between two solves is below
-                                  tolerance * bbox diagonal of S and the largest frame entry change is
-                                  below tolerance; 0: 1e-4 */
+                                  tolerance * bbox diagonal of S and the largest frame (vertex
+                                  encoding) or stretch (edge) entry change is below tolerance;
+                                  0: 1e-4 */
+  double damping;              /* edge encoding: lambda of the energy above, the pull of each
+                                  stretch S_i towards I; 0: 0.3; < 0: none */
 } km_transfer_options;
 
 typedef struct km_transfer km_transfer;
@@ -1436,10 +1446,13 @@ typedef struct km_transfer_stats {
   int iterations;         /* linear solves done */
   bool converged;         /* tolerance met before max_iterations */
   double position_change; /* last iteration's largest vertex move / bbox diagonal */
-  double frame_change;    /* largest frame entry change at the last frame update; NAN while the
-                             positions still move (only measured once they settle; frames are not
-                             recomputed after the last allowed solve) */
-  double frames_ms;       /* time in normals + frames, all iterations */
+  double frame_change;    /* vertex encoding: largest frame entry change at the last frame
+                             update; NAN while the positions still move (only measured once they
+                             settle; frames are not recomputed after the last allowed solve).
+                             Edge encoding: largest stretch entry change at the last local step
+                             (NAN after the last allowed solve) */
+  double frames_ms;       /* time in normals + frames (edge encoding: + rotation fit and local
+                             steps), all iterations */
   double solve_ms;        /* time in right-hand sides + triangular solves, all iterations */
   double total_ms;        /* whole call */
 } km_transfer_stats;
@@ -1456,6 +1469,12 @@ typedef struct km_transfer_stats {
 km_status km_transfer_solve(km_transfer *t, const double *template_V, const double *targets,
                             const double *warm_start, double *V_out, km_transfer_stats *stats,
                             km_error *err);
+/* Energies of the last km_transfer_solve, one per solve (edge encoding; the vertex encoding
+ * has none and gives 0): E_k = E(x_k, S_(k-1)) of the energy above, which never rises from
+ * one solve to the next.
+ *   energies  out: up to cap values, may be NULL
+ * Returns the number of solves done (stats.iterations). */
+size_t km_transfer_energies(const km_transfer *t, double *energies, size_t cap);
 /* Returns #V of the source. */
 size_t km_transfer_vertices(const km_transfer *t);
 /* Returns #L, the landmark count. */
