@@ -98,7 +98,7 @@ struct km_transfer {
   double *sinv; /* #V*9: 1 / ((l_a + l_b) / 2 + lambda_i) */
   double damping;
   double *energy; /* max_iterations: E after each global step of the last solve */
-  int n_energy;
+  int n_energy, energy_cap;
 };
 
 double km_surface_area(const km_mesh *m) {
@@ -630,6 +630,7 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
     t->anchor = km__malloc(n * 9, sizeof(double));
     t->frames_rest = km__malloc(n * 9, sizeof(double));
     t->energy = km__malloc((size_t)o.max_iterations, sizeof(double));
+    t->energy_cap = o.max_iterations;
     t->mq = km__malloc(n * 12, sizeof(double));
     t->sp = km__malloc(n * 9, sizeof(double));
     t->sinv = km__malloc(n * 9, sizeof(double));
@@ -746,6 +747,12 @@ void km__transfer_frames(km_transfer *t, const double *V, double *frames) {
 }
 
 size_t km_transfer_vertices(const km_transfer *t) { return t ? t->n : 0; }
+void km__transfer_set_iterations(km_transfer *t, int max_iterations, double tolerance) {
+  if (!t || max_iterations < 1) return;
+  /* t->energy holds the precompute's count: never more */
+  if (!t->energy || max_iterations <= t->energy_cap) t->opt.max_iterations = max_iterations;
+  if (tolerance > 0) t->opt.tolerance = tolerance;
+}
 size_t km_transfer_energies(const km_transfer *t, double *energies, size_t cap) {
   if (!t || !t->energy) return 0;
   size_t k = (size_t)t->n_energy;
