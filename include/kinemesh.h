@@ -1560,6 +1560,8 @@ typedef struct km_pose_set {
   size_t n_listed;     /* km_pose_set_from_labels: mesh files the folder or glob holds */
   size_t n_unlabelled; /* km_pose_set_from_labels: meshes that no line of the CSV names */
   char **unlabelled;   /* their paths (left out of the set) */
+  size_t n_duplicates; /* km_pose_set_from_labels: CSV lines naming a mesh already labelled
+                          (warned through the logger and ignored: the first line wins) */
 } km_pose_set;
 /* From n entries "CLASS=MESH[@GROUP]" (GROUP: the subject, for leave-one-subject-out
  * cross-validation; entries without one are group 0).

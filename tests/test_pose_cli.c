@@ -126,6 +126,8 @@ int main(void) {
         CHECK(km_test_run(cmd, NULL) == 0);
         fprintf(f, "%c_%s_%d.obj,%s,%c\n", "ab"[s], kinds[k], fr, kinds[k], "ab"[s]);
       }
+  /* issue 14: a duplicate line is warned about and ignored */
+  fprintf(f, "a_%s_40.obj,%s,a\n", kinds[0], kinds[0]);
   fclose(f);
   /* a mesh the labels do not name is left out, with a warning; a glob without meshes is an
    * error that says so */
@@ -135,7 +137,8 @@ int main(void) {
                     &out) == 0);
   CHECK_MSG(out && strstr(out, "3 classes") && strstr(out, "over 2 folds") &&
                 strstr(out, "eq. 8") && strstr(out, "1 of the 31 meshes") &&
-                strstr(out, "unlabelled.obj"),
+                strstr(out, "unlabelled.obj") && strstr(out, "labelled again") &&
+                strstr(out, "1 line(s) of"),
             "%s", out);
   free(out);
   CHECK(km_test_run(KM_CLI " posedb build --meshes '" DIR "/db/*.stl' --labels " DIR
