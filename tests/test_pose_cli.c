@@ -249,6 +249,37 @@ int main(void) {
   CHECK_MSG(out && strstr(out, "template_name") && strstr(out, "_wave_") && strstr(out, ".obj"),
             "%s", out ? out : "");
   free(out);
+  /* issue 14: `pose --track` writes the rig's landmarks along a take as a track: the same
+   * positions as the posed frames' landmark vertices, recognised by posedb query */
+  CHECK(km_test_run(KM_CLI " pose --mesh " DIR "/a.obj --motion " DIR "/wave.json --track " DIR
+                           "/wave_pose_track.json",
+                    &out) == 0);
+  free(out);
+  {
+    km_track tk = {0};
+    km_mesh f35 = {0};
+    CHECK_OK(km_track_read(DIR "/wave_pose_track.json", &tk, KM_E));
+    CHECK_OK(km_mesh_read(DIR "/a_wave/frame_000035.obj", &f35, KM_E));
+    CHECK(tk.n_frames == 90 && tk.n_landmarks == KM_CHARACTER_LANDMARKS);
+    double worst = tk.n_frames == 90 && f35.V ? 0 : INFINITY;
+    for (size_t l = 0; l < tk.n_landmarks && isfinite(worst); ++l) {
+      CHECK(!strcmp(tk.names[l], lm[l].name));
+      for (int k = 0; k < 3; ++k)
+        worst = fmax(worst, fabs(tk.positions[(35 * tk.n_landmarks + l) * 3 + k] -
+                                 f35.V[3 * (size_t)lm[l].vertex + k]));
+    }
+    CHECK_MSG(worst < 1e-6, "track frame 35 is %g m off the posed frame's landmarks", worst);
+    km_track_free(&tk);
+    km_mesh_free(&f35);
+  }
+  CHECK(km_test_run(KM_CLI " posedb query " DIR "/poses.kmposedb --landmarks-xyz " DIR
+                           "/wave_pose_track.json",
+                    &out) == 0);
+  wave_rows = 0;
+  for (char *p = out; p && (p = strstr(p, ",wave,")); ++p)
+    ++wave_rows;
+  CHECK_MSG(wave_rows >= 60, "%zu of 90 frames of the pose track recognised as wave", wave_rows);
+  free(out);
   CHECK(km_test_run(KM_CLI " avatar --source " DIR "/b.obj --db " DIR "/poses.kmposedb --track " DIR
                            "/wave_track.json --interval 3 -o " DIR "/avatar.pc2",
                     &out) == 0);
