@@ -1475,6 +1475,43 @@ km_status km_transfer_solve(km_transfer *t, const double *template_V, const doub
  *   energies  out: up to cap values, may be NULL
  * Returns the number of solves done (stats.iterations). */
 size_t km_transfer_energies(const km_transfer *t, double *energies, size_t cap);
+/* ---- bodies of another connectivity (issue 14): S takes the pose of a template T whose
+ * mesh differs, given T at rest (TR) and posed (TP). The pose is carried as rotations: each
+ * one-ring of TR -> TP gives a rotation (km_transfer_template_rotations), each source vertex
+ * takes that of its corresponding template vertex (km_transfer_correspondence), and
+ * km_transfer_solve_rotations runs the iteration above from them. S's connectivity and
+ * vertex order are kept. */
+/* Rotation of every one-ring of a mesh from rest to posed (Procrustes, uniform weights).
+ *   rest   in: the template at rest (#VT vertices, faces)
+ *   posed  in: #VT*3 the template posed
+ *   R      out: #VT*9 row-major rotations
+ * Errors: as km_uniform_laplacian. */
+km_status km_transfer_template_rotations(const km_mesh *rest, const double *posed, double *R,
+                                         km_error *err);
+/* Dense correspondence: for every source vertex the nearest template vertex, both at rest and
+ * in one frame (same placement and size; a body of another shape must first be registered
+ * onto the template, which this does not do).
+ *   corr  out: #V (source) template vertex ids */
+km_status km_transfer_correspondence(const km_mesh *source_rest, const km_mesh *template_rest,
+                                     int32_t *corr, km_error *err);
+/* The pose of T carried to S: rotations per source vertex (its corresponding template
+ * vertex's, km_transfer_template_rotations) and landmark targets (the corresponding template
+ * vertex posed, plus the landmark's rest offset from it turned by that vertex's rotation).
+ *   corr       in: #V from km_transfer_correspondence
+ *   landmarks  in: n_landmarks source vertex ids (precompute order)
+ *   R          out: #V*9;  targets  out: n_landmarks*3 (may be NULL when n_landmarks is 0)
+ * Errors: KM_ERR_INVALID (ids out of range), KM_ERR_NOMEM. */
+km_status km_transfer_map_pose(const km_mesh *source_rest, const km_mesh *template_rest,
+                               const double *template_posed, const int32_t *corr,
+                               const int32_t *landmarks, size_t n_landmarks, double *R,
+                               double *targets, km_error *err);
+/* km_transfer_solve from per-vertex rotations instead of a template of S's connectivity.
+ *   R        in: #V*9 row-major rotation of each source vertex's one-ring (the pose)
+ *   targets  in: #L*3 landmark positions in precompute order
+ *   V_out    out: #V*3
+ * Errors: KM_ERR_INVALID (vertex encoding, non-finite input). */
+km_status km_transfer_solve_rotations(km_transfer *t, const double *R, const double *targets,
+                                      double *V_out, km_transfer_stats *stats, km_error *err);
 /* Returns #V of the source. */
 size_t km_transfer_vertices(const km_transfer *t);
 /* Returns #L, the landmark count. */

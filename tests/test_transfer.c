@@ -519,6 +519,67 @@ static int test_cat(void) {
   return 0;
 }
 
+/* Issue 14, bodies of another connectivity: the same procedural body at two vertex counts
+ * (different meshes, one skeleton). S (3k) takes T's (5k) pose from T at rest and posed;
+ * truth: S posed by LBS with the same joint angles. Landmark targets: T's posed vertices that
+ * correspond to S's landmarks. */
+static void test_cross_connectivity(const km_character_options *base) {
+  km_character s = {0}, t = {0};
+  km_character_options os = *base, ot = *base;
+  os.target_vertices = 3000;
+  ot.target_vertices = 5000;
+  CHECK_OK(km_character_generate(&os, &s, KM_E));
+  CHECK_OK(km_character_generate(&ot, &t, KM_E));
+  size_t n = s.mesh.n_vertices, nt = t.mesh.n_vertices;
+  CHECK(n != nt);
+  int32_t ids[KM_CHARACTER_LANDMARKS], *corr = malloc(n * sizeof *corr);
+  for (int l = 0; l < KM_CHARACTER_LANDMARKS; ++l)
+    ids[l] = s.landmarks[l].vertex;
+  double *TP = malloc(nt * 3 * sizeof *TP), *RT = malloc(nt * 9 * sizeof *RT);
+  double *RS = malloc(n * 9 * sizeof *RS), *G = malloc(n * 3 * sizeof *G);
+  double *X = malloc(n * 3 * sizeof *X), P[3 * KM_CHARACTER_LANDMARKS];
+  km_transfer *tr = NULL;
+  CHECK_OK(km_transfer_correspondence(&s.mesh, &t.mesh, corr, KM_E));
+  CHECK_OK(km_transfer_precompute(&s.mesh, ids, KM_CHARACTER_LANDMARKS, NULL, &tr, KM_E));
+  double lo = INFINITY, hi = -INFINITY, sum = 0, worst = 0;
+  for (size_t v = 0; v < n; ++v)
+    lo = fmin(lo, s.mesh.V[3 * v + 1]), hi = fmax(hi, s.mesh.V[3 * v + 1]);
+  for (int p = 0; p < KP_N_POSES && tr; ++p) {
+    CHECK_OK(kp_pose_character(&t, &kp_poses[p], NULL, TP, KM_E));
+    CHECK_OK(kp_pose_character(&s, &kp_poses[p], NULL, G, KM_E));
+    CHECK_OK(km_transfer_template_rotations(&t.mesh, TP, RT, KM_E));
+    CHECK_OK(
+        km_transfer_map_pose(&s.mesh, &t.mesh, TP, corr, ids, KM_CHARACTER_LANDMARKS, RS, P, KM_E));
+    /* each source vertex takes its template vertex's rotation */
+    CHECK(memcmp(RS + 9 * 7, RT + 9 * (size_t)corr[7], 9 * sizeof(double)) == 0);
+    km_transfer_stats st;
+    CHECK_OK(km_transfer_solve_rotations(tr, RS, P, X, &st, KM_E));
+    double mean, max, mean0, max0;
+    kp_error(X, G, n, &mean, &max);
+    kp_error(s.mesh.V, G, n, &mean0, &max0);
+    printf("  %-8s %zu -> %zu vertices: %5.1f mm mean, %5.1f mm max (pose differs by %5.1f mm)\n",
+           kp_poses[p].name, nt, n, mean * 1e3, max * 1e3, mean0 * 1e3);
+    sum += mean / KP_N_POSES;
+    worst = fmax(worst, mean);
+  }
+  printf("  other connectivity: mean %.1f mm over %d poses (worst pose %.1f mm), height %.3f m\n",
+         sum * 1e3, KP_N_POSES, worst * 1e3, hi - lo);
+  CHECK_MSG(sum <= 0.01 * (hi - lo), "other connectivity: mean error %g m > 1%% of %g m", sum,
+            hi - lo);
+  /* the same with rotations that are not finite: an error, not a crash */
+  RS[4] = NAN;
+  CHECK_STATUS(km_transfer_solve_rotations(tr, RS, P, X, NULL, KM_E), KM_ERR_INVALID);
+  km_transfer_free(&tr);
+  free(corr);
+  free(TP);
+  free(RT);
+  free(RS);
+  free(G);
+  free(X);
+  km_character_free(&s);
+  km_character_free(&t);
+}
+
 int main(void) {
   km_character a, b;
   km_character_options oa = {0}, ob = {0};
@@ -542,6 +603,7 @@ int main(void) {
   test_identity(&a);
   test_cross_subject(&a, &b);
   test_iterations(&a, &b);
+  test_cross_connectivity(&oa);
   test_faust();
   test_cat();
   km_character_free(&a);

@@ -97,7 +97,8 @@ struct km_transfer {
   double *sp;   /* #V*9: the stretches S'_i in M_i's eigenbasis */
   double *sinv; /* #V*9: 1 / ((l_a + l_b) / 2 + lambda_i) */
   double damping;
-  double *energy; /* max_iterations: E after each global step of the last solve */
+  const double *given_rot; /* km_transfer_solve_rotations: the rotations to start from */
+  double *energy;          /* max_iterations: E after each global step of the last solve */
   int n_energy, energy_cap;
 };
 
@@ -852,8 +853,16 @@ km_status km_transfer_solve(km_transfer *t, const double *T, const double *targe
       return km__fail(err, KM_ERR_INVALID, "km_transfer_solve: %s vertex %zu is not finite",
                       T ? "template" : "warm start", i / 3);
   double tf = km_seconds();
-  frames_of(t, F0, t->frames, NULL);
-  if (t->rot) {
+  if (t->given_rot) {
+    /* km_transfer_solve_rotations: the rotations as given, S_i = I */
+    for (size_t i = 0; i < n; ++i) {
+      memcpy(t->rot + 9 * i, t->given_rot + 9 * i, 9 * sizeof(double));
+      km__m3_mul(t->rot + 9 * i, t->mq + 12 * i, t->anchor + 9 * i);
+      for (int k = 0; k < 9; ++k)
+        t->sp[9 * i + k] = k % 4 == 0;
+    }
+  } else if (t->rot) {
+    frames_of(t, F0, t->frames, NULL);
     /* R^T_i: the rotation of each one-ring from the source's rest to F0, fitted (Procrustes)
      * from the first guess F_F0(i)^T F_S(i). */
     for (size_t i = 0; i < n; ++i) {
@@ -864,6 +873,8 @@ km_status km_transfer_solve(km_transfer *t, const double *T, const double *targe
           R[3 * r + c] = Ft[r] * Fs[c] + Ft[3 + r] * Fs[3 + c] + Ft[6 + r] * Fs[6 + c];
     }
     rotations_init(t, F0);
+  } else {
+    frames_of(t, F0, t->frames, NULL);
   }
   t->n_energy = 0;
   double frames_s = km_seconds() - tf, solve_s = 0;
@@ -965,5 +976,162 @@ km_status km_transfer_solve(km_transfer *t, const double *T, const double *targe
     stats->solve_ms = solve_s * 1e3;
     stats->total_ms = (km_seconds() - t_start) * 1e3;
   }
+  return KM_OK;
+}
+
+km_status km_transfer_solve_rotations(km_transfer *t, const double *R, const double *targets,
+                                      double *V_out, km_transfer_stats *stats, km_error *err) {
+  if (!t || !R || !targets || !V_out)
+    return km__fail(err, KM_ERR_INVALID, "km_transfer_solve_rotations: NULL argument");
+  if (!t->rot)
+    return km__fail(err, KM_ERR_INVALID,
+                    "km_transfer_solve_rotations: needs the edge encoding (the default)");
+  for (size_t i = 0; i < t->n * 9; ++i)
+    if (!isfinite(R[i]))
+      return km__fail(err, KM_ERR_INVALID,
+                      "km_transfer_solve_rotations: rotation %zu is not "
+                      "finite",
+                      i / 9);
+  t->given_rot = R;
+  km_status s = km_transfer_solve(t, NULL, targets, t->rest, V_out, stats, err);
+  t->given_rot = NULL;
+  return s;
+}
+
+km_status km_transfer_template_rotations(const km_mesh *rest, const double *posed, double *R,
+                                         km_error *err) {
+  if (!rest || !rest->V || !rest->F || !posed || !R)
+    return km__fail(err, KM_ERR_INVALID, "km_transfer_template_rotations: NULL argument");
+  km_sparse *L = NULL;
+  km_status s = km_uniform_laplacian(rest, &L, err);
+  if (s) return s;
+  const int32_t *cp, *ri;
+  const double *val;
+  km_sparse_csc(L, &cp, &ri, &val);
+  for (size_t i = 0; i < rest->n_vertices; ++i) {
+    double C[9] = {0};
+    const double *xi = posed + 3 * i, *si = rest->V + 3 * i;
+    for (int32_t p = cp[i]; p < cp[i + 1]; ++p) {
+      size_t j = (size_t)ri[p];
+      if (j == i) continue;
+      double d[3], e[3];
+      km__sub3(posed + 3 * j, xi, d);
+      km__sub3(rest->V + 3 * j, si, e);
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          C[3 * r + c] += d[r] * e[c];
+    }
+    if (cp[i + 1] - cp[i] > 1)
+      km__nearest_rotation3(C, R + 9 * i);
+    else
+      km__m3_identity(R + 9 * i); /* an isolated vertex */
+  }
+  km_sparse_free(&L);
+  return KM_OK;
+}
+
+km_status km_transfer_correspondence(const km_mesh *source_rest, const km_mesh *template_rest,
+                                     int32_t *corr, km_error *err) {
+  if (!source_rest || !source_rest->V || !template_rest || !template_rest->V || !corr)
+    return km__fail(err, KM_ERR_INVALID, "km_transfer_correspondence: NULL argument");
+  size_t nt = template_rest->n_vertices;
+  if (!nt) return km__fail(err, KM_ERR_INVALID, "km_transfer_correspondence: empty template");
+  /* A uniform grid over the template's vertices, searched in growing shells. */
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t v = 0; v < nt; ++v)
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = fmin(lo[k], template_rest->V[3 * v + k]);
+      hi[k] = fmax(hi[k], template_rest->V[3 * v + k]);
+    }
+  double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+  if (!(ext > 0) || !isfinite(ext))
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "km_transfer_correspondence: template has no "
+                    "extent");
+  int g = (int)fmax(1, fmin(64, cbrt((double)nt / 2)));
+  double cell = ext / g * (1 + 1e-9);
+  size_t ncell = (size_t)g * g * g;
+  int32_t *head = km__malloc(ncell, sizeof *head), *next = km__malloc(nt, sizeof *next);
+  if (!head || !next) {
+    free(head);
+    free(next);
+    return km__fail(err, KM_ERR_NOMEM, "km_transfer_correspondence: out of memory");
+  }
+  for (size_t c = 0; c < ncell; ++c)
+    head[c] = -1;
+#define KM__CELL(x, k) ((int)fmin(g - 1, fmax(0, floor(((x)-lo[k]) / cell))))
+  for (size_t v = 0; v < nt; ++v) {
+    const double *p = template_rest->V + 3 * v;
+    size_t c = ((size_t)KM__CELL(p[0], 0) * g + KM__CELL(p[1], 1)) * g + KM__CELL(p[2], 2);
+    next[v] = head[c];
+    head[c] = (int32_t)v;
+  }
+  for (size_t i = 0; i < source_rest->n_vertices; ++i) {
+    const double *q = source_rest->V + 3 * i;
+    int c0[3] = {KM__CELL(q[0], 0), KM__CELL(q[1], 1), KM__CELL(q[2], 2)};
+    double best = INFINITY;
+    int32_t bi = 0;
+    for (int r = 0; r < g; ++r) {
+      /* shell r: cells at Chebyshev distance r; stop once no closer point can lie further out */
+      for (int a = c0[0] - r; a <= c0[0] + r; ++a)
+        for (int b = c0[1] - r; b <= c0[1] + r; ++b)
+          for (int d = c0[2] - r; d <= c0[2] + r; ++d) {
+            if (a < 0 || b < 0 || d < 0 || a >= g || b >= g || d >= g) continue;
+            if (abs(a - c0[0]) != r && abs(b - c0[1]) != r && abs(d - c0[2]) != r) continue;
+            for (int32_t v = head[((size_t)a * g + b) * g + d]; v >= 0; v = next[v]) {
+              const double *p = template_rest->V + 3 * (size_t)v;
+              double dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
+              double d2 = dx * dx + dy * dy + dz * dz;
+              if (d2 < best) best = d2, bi = v;
+            }
+          }
+      if (best < INFINITY && sqrt(best) <= r * cell) break;
+    }
+    corr[i] = bi;
+  }
+#undef KM__CELL
+  free(head);
+  free(next);
+  return KM_OK;
+}
+
+km_status km_transfer_map_pose(const km_mesh *source_rest, const km_mesh *template_rest,
+                               const double *template_posed, const int32_t *corr,
+                               const int32_t *landmarks, size_t n_landmarks, double *R,
+                               double *targets, km_error *err) {
+  if (!source_rest || !source_rest->V || !template_rest || !template_posed || !corr || !R ||
+      (n_landmarks && (!landmarks || !targets)))
+    return km__fail(err, KM_ERR_INVALID, "km_transfer_map_pose: NULL argument");
+  size_t n = source_rest->n_vertices, nt = template_rest->n_vertices;
+  for (size_t i = 0; i < n; ++i)
+    if (corr[i] < 0 || (size_t)corr[i] >= nt)
+      return km__fail(err, KM_ERR_INVALID,
+                      "km_transfer_map_pose: correspondence %zu is %d, "
+                      "expected 0..%zu",
+                      i, (int)corr[i], nt - 1);
+  for (size_t l = 0; l < n_landmarks; ++l)
+    if (landmarks[l] < 0 || (size_t)landmarks[l] >= n)
+      return km__fail(err, KM_ERR_INVALID, "km_transfer_map_pose: landmark %zu is vertex %d", l,
+                      (int)landmarks[l]);
+  double *RT = km__malloc(nt * 9, sizeof *RT);
+  if (!RT) return km__fail(err, KM_ERR_NOMEM, "km_transfer_map_pose: out of memory");
+  km_status s = km_transfer_template_rotations(template_rest, template_posed, RT, err);
+  if (s) {
+    free(RT);
+    return s;
+  }
+  for (size_t i = 0; i < n; ++i)
+    memcpy(R + 9 * i, RT + 9 * (size_t)corr[i], 9 * sizeof(double));
+  /* A landmark lies off its template vertex by up to half an edge: carry the offset along,
+   * turned by that vertex's rotation. */
+  for (size_t l = 0; l < n_landmarks; ++l) {
+    size_t v = (size_t)landmarks[l], c = (size_t)corr[v];
+    double d[3], rd[3];
+    km__sub3(source_rest->V + 3 * v, template_rest->V + 3 * c, d);
+    km__m3_apply(RT + 9 * c, d, rd);
+    for (int k = 0; k < 3; ++k)
+      targets[3 * l + k] = template_posed[3 * c + k] + rd[k];
+  }
+  free(RT);
   return KM_OK;
 }
