@@ -311,6 +311,45 @@ int main(void) {
   km_mesh_free(&b);
   km_mesh_free(&bt);
   km_mesh_free(&res);
+  /* issue 14: a body of another connectivity (the same generated body at 2,000 vertices)
+   * takes kung-fu frame 60 of a (2,500) through --template-rest; truth: LBS of the same take */
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2000 -o " DIR "/c.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " pose --mesh " DIR "/c.obj --motion " DIR "/kungfu.json -o " DIR
+                           "/c_kungfu",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/c.obj --template " DIR
+                           "/a_kungfu/frame_000060.obj -o " DIR "/c60.obj",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "--template-rest"), "%s", out ? out : "");
+  free(out);
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/c.obj --template " DIR
+                           "/a_kungfu/frame_000060.obj --template-rest " DIR "/c.obj -o " DIR
+                           "/c60.obj",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "is not TEMPLATE"), "%s", out ? out : "");
+  free(out);
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/c.obj --template " DIR
+                           "/a_kungfu/frame_000060.obj --template-rest " DIR "/a.obj -o " DIR
+                           "/c60.obj",
+                    &out) == 0);
+  free(out);
+  {
+    km_mesh c60 = {0}, truth = {0};
+    CHECK_OK(km_mesh_read(DIR "/c60.obj", &c60, KM_E));
+    CHECK_OK(km_mesh_read(DIR "/c_kungfu/frame_000060.obj", &truth, KM_E));
+    CHECK(c60.n_vertices == truth.n_vertices && c60.n_faces == truth.n_faces);
+    if (c60.n_vertices == truth.n_vertices && c60.V) {
+      double mean, max, lo = INFINITY, hi = -INFINITY;
+      km_vertex_distance_stats(c60.V, truth.V, c60.n_vertices, &mean, &max);
+      for (size_t v = 0; v < truth.n_vertices; ++v)
+        lo = fmin(lo, truth.V[3 * v + 1]), hi = fmax(hi, truth.V[3 * v + 1]);
+      printf("  2000 vertices take the pose of 2500: mean %.1f mm, max %.1f mm\n", mean * 1e3,
+             max * 1e3);
+      CHECK_MSG(mean <= 0.01 * (hi - lo), "other connectivity: mean %g m", mean);
+    }
+    km_mesh_free(&c60);
+    km_mesh_free(&truth);
+  }
   km_test_run("rm -rf " DIR, NULL);
   return km_test_finish("test_pose_cli");
 }
