@@ -1399,6 +1399,10 @@ typedef enum km_transfer_align {
    * stands. Only sensible when T's pose is close to S's rest pose (the fit mixes pose and
    * placement otherwise). */
   KM_TRANSFER_ALIGN_SIMILARITY,
+  /* T's landmark positions as they are: for a template of S's size (the same person in
+   * another pose), where any size estimate only adds error (the geodesic ratio moves with the
+   * pose: 1.035 between FAUST 000 and 001 with the SMPL landmarks). */
+  KM_TRANSFER_ALIGN_NONE,
 } km_transfer_align;
 
 typedef enum km_offset_encoding {

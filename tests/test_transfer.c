@@ -146,7 +146,7 @@ static void test_identity(const km_character *a) {
   size_t n = a->mesh.n_vertices;
   double *out = malloc(n * 3 * sizeof *out), h = 1.75;
   for (int lap = 0; lap < 2; ++lap)
-    for (int al = 0; al < 2; ++al) {
+    for (int al = 0; al < 3; ++al) {
       km_transfer_options o = {0};
       o.laplacian = (km_laplacian_kind)lap;
       o.align = (km_transfer_align)al;

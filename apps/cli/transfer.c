@@ -37,7 +37,8 @@ int km_cli_transfer(int argc, char **argv) {
        "edge (default) or vertex (the paper's eq. 3 verbatim)"},
       {"laplacian", 0, KM_OPT_STRING, &laplacian, "uniform (default, eq. 2) or cotan"},
       {"align", 0, KM_OPT_STRING, &align,
-       "scale (default: TEMPLATE's landmarks scaled to SOURCE's size) or similarity"},
+       "scale (default: TEMPLATE's landmarks scaled to SOURCE's size), similarity, or none "
+       "(TEMPLATE's landmarks as they are: the same person in another pose)"},
   };
   const char *pos[2];
   int n_pos;
@@ -65,8 +66,10 @@ int km_cli_transfer(int argc, char **argv) {
     return km_cli_error("transfer", "--laplacian must be uniform or cotan, not '%s'", laplacian);
   if (!strcmp(align, "similarity"))
     to.align = KM_TRANSFER_ALIGN_SIMILARITY;
+  else if (!strcmp(align, "none"))
+    to.align = KM_TRANSFER_ALIGN_NONE;
   else if (strcmp(align, "scale"))
-    return km_cli_error("transfer", "--align must be scale or similarity, not '%s'", align);
+    return km_cli_error("transfer", "--align must be scale, similarity or none, not '%s'", align);
   km_error err = {0};
   km_mesh s = {0}, t = {0}, o = {0}, tr_rest = {0};
   int32_t *corr = NULL;

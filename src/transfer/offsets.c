@@ -439,7 +439,8 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
   if (o.encoding != KM_OFFSETS_VERTEX && o.encoding != KM_OFFSETS_EDGE)
     return km__fail(err, KM_ERR_INVALID, "km_transfer_precompute: unknown offset encoding %d",
                     (int)o.encoding);
-  if (o.align != KM_TRANSFER_ALIGN_SCALE && o.align != KM_TRANSFER_ALIGN_SIMILARITY)
+  if (o.align != KM_TRANSFER_ALIGN_SCALE && o.align != KM_TRANSFER_ALIGN_SIMILARITY &&
+      o.align != KM_TRANSFER_ALIGN_NONE)
     return km__fail(err, KM_ERR_INVALID, "km_transfer_precompute: unknown align mode %d",
                     (int)o.align);
 
@@ -812,7 +813,7 @@ km_status km_transfer_targets(const km_transfer *t, const double *T, double *tar
     for (size_t c = 0; c < t->nc; ++c)
       for (int d = 0; d < 3; ++d)
         targets[3 * c + d] += (cd[d] - cs[d]) / (double)t->nc;
-  } else {
+  } else if (t->opt.align == KM_TRANSFER_ALIGN_SCALE) {
     double sc = size_ratio(t, T);
     for (size_t i = 0; i < t->nc * 3; ++i)
       targets[i] *= sc;
