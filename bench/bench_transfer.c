@@ -5,8 +5,10 @@
  * Rows: a generated character of ~7,000 vertices (subject A takes the poses of subject B;
  * ground truth: A posed by LBS with the same joint angles; landmark targets are A's tracked
  * landmarks; the template comes from recognition in a database of other subjects), with the
- * default <= 10 iterations and with one solve; FAUST (tr_reg_000 takes the pose of
- * tr_reg_001, same subject, so 001 is the truth) when ../shared/data is present.
+ * default iterations and with one solve; FAUST (tr_reg_000 takes the pose of tr_reg_001 and
+ * back, same subject, so the other is the truth; SMPL landmark file and `auto` landmarks) and
+ * the cat poses when ../shared/data is present. The energy after each solve of the default
+ * (km_transfer_energies; generated rows: summed over the poses) ends each default row.
  *
  * kinemesh bench transfer [--vertices N] [--root DIR] [--json]: those rows (DIR: the
  * repository root, for ../shared/data and tests/data/smpl_landmarks.json; default ".").
@@ -29,6 +31,8 @@ typedef struct row {
   size_t n_ver;
   double laplacian_ms, cholesky_ms, recognition_ms, frames_ms, solve_ms, iterations, online_ms;
   double err_mean_mm, err_max_mm;
+  double energy[16]; /* the energy after each solve of the default (edge encoding) */
+  int n_energy;
 } row;
 
 static double now_ms(void) {
@@ -53,15 +57,33 @@ static cJSON *row_json(const row *r) {
                       r->iterations,   r->online_ms,   r->err_mean_mm,    r->err_max_mm};
   for (size_t i = 0; i < sizeof v / sizeof v[0]; ++i)
     km_cli_json_number(j, k[i], v[i]);
+  if (r->n_energy) {
+    cJSON *e = cJSON_AddArrayToObject(j, "energy");
+    for (int i = 0; i < r->n_energy; ++i)
+      cJSON_AddItemToArray(e, cJSON_CreateNumber(r->energy[i]));
+  }
   return j;
 }
 
 static void print_row(const row *r) {
   char rec[16] = "       -";
   if (isfinite(r->recognition_ms)) snprintf(rec, sizeof rec, "%8.4f", r->recognition_ms);
-  printf("%-40s %6zu %8.2f %8.2f %s %8.3f %8.3f %5.1f %8.2f %8.2f %8.2f\n", r->name, r->n_ver,
+  printf("%-40s %6zu %8.2f %8.2f %s %8.3f %8.3f %5.1f %8.2f %8.2f %8.2f", r->name, r->n_ver,
          r->laplacian_ms, r->cholesky_ms, rec, r->frames_ms, r->solve_ms, r->iterations,
          r->online_ms, r->err_mean_mm, r->err_max_mm);
+  for (int i = 0; i < r->n_energy; ++i)
+    printf("%s%.4g", i ? " " : "  E: ", r->energy[i]);
+  printf("\n");
+}
+
+/* The energies of t's last solve into r (summed with what r holds). */
+static void add_energy(row *r, const km_transfer *t) {
+  double e[16];
+  size_t k = km_transfer_energies(t, e, 16);
+  if (k > 16) k = 16;
+  for (size_t i = 0; i < k; ++i)
+    r->energy[i] += e[i];
+  if ((int)k > r->n_energy) r->n_energy = (int)k;
 }
 
 /* Online stage for one key pose: recognition (if db) + transfer; medians of 15 runs. */
@@ -117,7 +139,7 @@ static km_status run_online(km_transfer *t, const km_posedb *db, const double *P
 static void fill_row(row *r, const char *name, int one_it, const km_transfer *t, const online *o,
                      bool recognition, const double *X, const double *truth, size_t n) {
   memset(r, 0, sizeof *r);
-  snprintf(r->name, sizeof r->name, "%s (%s)", name, one_it ? "1 it" : "<=10 it");
+  snprintf(r->name, sizeof r->name, "%s (%s)", name, one_it ? "1 it" : "default");
   r->n_ver = n;
   km_transfer_precompute_ms(t, &r->laplacian_ms, &r->cholesky_ms);
   r->recognition_ms = recognition ? o->rec_ms : NAN;
@@ -129,6 +151,7 @@ static void fill_row(row *r, const char *name, int one_it, const km_transfer *t,
   km_vertex_distance_stats(X, truth, n, &mean, &max);
   r->err_mean_mm = mean * 1e3;
   r->err_max_mm = max * 1e3;
+  if (!one_it) add_energy(r, t);
 }
 
 /* Four generated subjects of nv vertices (c[0] the avatar) and a database of 10 pose classes
@@ -175,8 +198,8 @@ static km_status generated_db(size_t nv, km_character c[4], km_posedb **db, km_p
         groups[k] = si;
       }
   if (!st)
-    st = km_posedb_build(meshes, ndb, labels, KM_POSE_PRESETS, NULL, groups, c[0].landmarks, 16, NULL,
-                         db, rep, e);
+    st = km_posedb_build(meshes, ndb, labels, KM_POSE_PRESETS, NULL, groups, c[0].landmarks, 16,
+                         NULL, db, rep, e);
 done:
   free(meshes);
   free(labels);
@@ -361,7 +384,7 @@ int km_bench_transfer(int argc, char **argv) {
     return bench_pair(src, tmpl, lm_path, truth, dbp, json_only);
   }
   km_error e;
-  row rows[10];
+  row rows[24];
   int nrows = 0;
 
   /* Subjects: A is the avatar, B..D populate the pose database. */
@@ -376,8 +399,8 @@ int km_bench_transfer(int argc, char **argv) {
   double *G = malloc(n * 3 * sizeof *G), *X = malloc(n * 3 * sizeof *X), P[48];
   /* 3, 4: the baseline the issue compares with, landmark-only Laplacian editing (no template:
    * frames from the avatar at rest), iterated or a single solve. */
-  static const char *const vname[5] = {"<=10 it", "1 it", "paper's vertex enc.",
-                                       "landmark-only, <=10 it", "landmark-only, 1 solve"};
+  static const char *const vname[5] = {"default", "1 it", "paper's vertex enc.",
+                                       "landmark-only, default", "landmark-only, 1 solve"};
   /* One untimed precompute first: the first one in a process pays for page faults and
    * CHOLMOD's first allocations (measured: Laplacian 11 vs 4 ms, Cholesky 16 vs 8 ms). */
   {
@@ -416,6 +439,7 @@ int km_bench_transfer(int argc, char **argv) {
       r->online_ms += o.total_ms / KM_POSE_PRESETS;
       r->err_mean_mm += mean * 1e3 / KM_POSE_PRESETS;
       r->err_max_mm = fmax(r->err_max_mm, max * 1e3);
+      if (variant == 0) add_energy(r, t); /* summed over the poses */
     }
     if (variant >= 3) r->recognition_ms = NAN;
     if (!json_only && variant == 0)
@@ -464,52 +488,101 @@ int km_bench_transfer(int argc, char **argv) {
       return die("FAUST database", &e);
     for (int i = 0; i < nfm; ++i)
       km_mesh_free(&fm[i]);
-    for (int variant = 0; variant < 2; ++variant) {
-      km_transfer_options to = {0};
-      to.max_iterations = variant ? 1 : 0;
-      km_transfer *t = NULL;
-      if (km_transfer_precompute(&s, fid, nl, &to, &t, &e)) return die("FAUST precompute", &e);
-      double *FX = malloc(s.n_vertices * 3 * sizeof *FX);
-      online o;
-      /* The template is tr_reg_001; the small database times the recognition. */
-      if (run_online(t, fdbp, FP, tt.V, NULL, FX, &o, &e)) return die("FAUST online", &e);
-      fill_row(&rows[nrows++], "FAUST 000->001", variant, t, &o, true, FX, tt.V, s.n_vertices);
-      free(FX);
-      km_transfer_free(&t);
+    /* Both directions (000 -> 001 and 001 -> 000, each the other's truth), the SMPL landmark
+     * file and 16 farthest-point landmarks (`--landmarks auto`); exact landmark targets. */
+    for (int pair = 0; pair < 4; ++pair) {
+      const km_mesh *A = pair % 2 ? &tt : &s, *B = pair % 2 ? &s : &tt;
+      int32_t pid[KM_POSE_MAX_LANDMARKS];
+      size_t pl_n = nl;
+      if (pair < 2) {
+        memcpy(pid, fid, nl * sizeof *pid);
+      } else {
+        pl_n = 16;
+        if (km_farthest_points(A, pl_n, pid, &e)) return die("FAUST landmarks", &e);
+      }
+      for (size_t l = 0; l < pl_n; ++l)
+        memcpy(FP + 3 * l, B->V + 3 * (size_t)pid[l], 3 * sizeof(double));
+      char nm[48];
+      snprintf(nm, sizeof nm, "FAUST %s %s", pair % 2 ? "001->000" : "000->001",
+               pair < 2 ? "SMPL lm" : "auto lm");
+      for (int variant = 0; variant < 2; ++variant) {
+        km_transfer_options to = {0};
+        to.max_iterations = variant ? 1 : 0;
+        km_transfer *t = NULL;
+        if (km_transfer_precompute(A, pid, pl_n, &to, &t, &e)) return die("FAUST precompute", &e);
+        double *FX = malloc(A->n_vertices * 3 * sizeof *FX);
+        online o;
+        /* The template is B; the small database (SMPL landmarks) times the recognition. */
+        const km_posedb *qdb = pair < 2 ? fdbp : NULL;
+        if (!FX || run_online(t, qdb, FP, B->V, NULL, FX, &o, &e)) return die("FAUST online", &e);
+        fill_row(&rows[nrows++], nm, variant, t, &o, qdb != NULL, FX, B->V, A->n_vertices);
+        free(FX);
+        km_transfer_free(&t);
+      }
     }
     km_posedb_free(&fdbp);
   }
   km_mesh_free(&s);
   km_mesh_free(&tt);
 
-  /* A non-human avatar: the cat reference takes the pose of cat-04 (same cat, so cat-04 is
-   * the truth), 16 farthest-point landmarks as `transfer --landmarks auto` picks them. */
-  char c0[1024], c4[1024];
+  /* A non-human avatar: the cat reference takes each of the nine poses cat-01..09 (same cat,
+   * so the pose is the truth), 16 farthest-point landmarks as `transfer --landmarks auto` picks
+   * them. One row per variant: errors and times averaged over the poses (max: the largest). */
+  char c0[1024];
   snprintf(c0, sizeof c0, "%s/../shared/data/poses/cat-poses/cat-reference.obj", root);
-  snprintf(c4, sizeof c4, "%s/../shared/data/poses/cat-poses/cat-04.obj", root);
-  km_mesh ca = {0}, cb = {0};
-  if (km_mesh_read(c0, &ca, &e) == KM_OK && km_mesh_read(c4, &cb, &e) == KM_OK &&
-      ca.n_vertices == cb.n_vertices) {
+  km_mesh ca = {0};
+  if (km_mesh_read(c0, &ca, &e) == KM_OK) {
     int32_t cid[16];
     double CP[48];
     if (km_farthest_points(&ca, 16, cid, &e)) return die("cat landmarks", &e);
-    for (int l = 0; l < 16; ++l)
-      memcpy(CP + 3 * l, cb.V + 3 * (size_t)cid[l], 3 * sizeof(double));
+    double *CX = malloc(ca.n_vertices * 3 * sizeof *CX);
+    if (!CX) return die("cat", &e);
     for (int variant = 0; variant < 2; ++variant) {
       km_transfer_options to = {0};
       to.max_iterations = variant ? 1 : 0;
       km_transfer *t = NULL;
       if (km_transfer_precompute(&ca, cid, 16, &to, &t, &e)) return die("cat precompute", &e);
-      double *CX = malloc(ca.n_vertices * 3 * sizeof *CX);
-      online o;
-      if (!CX || run_online(t, NULL, CP, cb.V, NULL, CX, &o, &e)) return die("cat online", &e);
-      fill_row(&rows[nrows++], "cat ref->04", variant, t, &o, false, CX, cb.V, ca.n_vertices);
-      free(CX);
+      row acc;
+      memset(&acc, 0, sizeof acc);
+      int np = 0;
+      for (int k = 1; k <= 9; ++k) {
+        char ck[1100];
+        snprintf(ck, sizeof ck, "%s/../shared/data/poses/cat-poses/cat-%02d.obj", root, k);
+        km_mesh cb = {0};
+        if (km_mesh_read(ck, &cb, &e) != KM_OK || cb.n_vertices != ca.n_vertices) {
+          km_mesh_free(&cb);
+          continue;
+        }
+        for (int l = 0; l < 16; ++l)
+          memcpy(CP + 3 * l, cb.V + 3 * (size_t)cid[l], 3 * sizeof(double));
+        online o;
+        if (run_online(t, NULL, CP, cb.V, NULL, CX, &o, &e)) return die("cat online", &e);
+        row r1;
+        fill_row(&r1, "cat", variant, t, &o, false, CX, cb.V, ca.n_vertices);
+        km_mesh_free(&cb);
+        if (!np)
+          acc = r1;
+        else {
+          acc.frames_ms += r1.frames_ms, acc.solve_ms += r1.solve_ms;
+          acc.iterations += r1.iterations, acc.online_ms += r1.online_ms;
+          acc.err_mean_mm += r1.err_mean_mm, acc.err_max_mm = fmax(acc.err_max_mm, r1.err_max_mm);
+          for (int i = 0; i < r1.n_energy && i < 16; ++i)
+            acc.energy[i] += r1.energy[i];
+        }
+        ++np;
+      }
+      if (np) {
+        acc.frames_ms /= np, acc.solve_ms /= np, acc.iterations /= np, acc.online_ms /= np;
+        acc.err_mean_mm /= np;
+        snprintf(acc.name, sizeof acc.name, "cat ref->%d poses (%s)", np,
+                 variant ? "1 it" : "default");
+        rows[nrows++] = acc;
+      }
       km_transfer_free(&t);
     }
+    free(CX);
   }
   km_mesh_free(&ca);
-  km_mesh_free(&cb);
 
   if (!json_only) {
     char machine[320];

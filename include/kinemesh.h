@@ -1514,8 +1514,14 @@ void km_puppetry_free(km_puppetry **p);
  * landmark vertices are fixed at their targets, the rest solves
  *   (-L)_ff x_f = -(F W)_f + L_fc x_c          (eq. 7, symmetric elimination form)
  * (F W stands for the rotated offsets of the chosen km_offset_encoding)
- * with F = frames of T at first, then frames of the previous solution, until positions and
- * frames settle. The factor of (-L)_ff is computed once per landmark set. */
+ * The factor of (-L)_ff is computed once per landmark set. Vertex encoding (the paper's):
+ * F = frames of T at first, then frames of the previous solution (this drifts towards
+ * landmark-only editing). Edge encoding (default): each iteration lowers the energy
+ *   E(x, S) = sum_i [ sum_j w_ij |x_j - x_i - R_i S_i e_ij|^2 + lambda_i |S_i - I|^2 ]
+ * (e_ij rest edges of S, w_ij = L_ij, R_i the rotation of T's one-ring i fitted onto S's and
+ * kept fixed, S_i a symmetric stretch, lambda_i = damping * sum_j w_ij |e_ij|^2) by
+ * alternating the Laplacian solve for x with the closed-form S_i per vertex: the one-rings
+ * keep T's rotations and take up the stretch that rotated rest edges cannot express. */
 typedef enum km_laplacian_kind {
   KM_LAPLACIAN_UNIFORM = 0, /* graph Laplacian, Lifkooee et al.'s eq. 2 */
   KM_LAPLACIAN_COTAN,       /* cotangent weights of the source mesh */
@@ -1531,6 +1537,10 @@ typedef enum km_transfer_align {
    * stands. Only sensible when T's pose is close to S's rest pose (the fit mixes pose and
    * placement otherwise). */
   KM_TRANSFER_ALIGN_SIMILARITY,
+  /* T's landmark positions as they are: for a template of S's size (the same person in
+   * another pose), where any size estimate only adds error (the geodesic ratio moves with the
+   * pose: 1.035 between FAUST 000 and 001 with the SMPL landmarks). */
+  KM_TRANSFER_ALIGN_NONE,
 } km_transfer_align;
 
 typedef enum km_offset_encoding {
@@ -1551,10 +1561,14 @@ typedef struct km_transfer_options {
   km_laplacian_kind laplacian; /* 0: uniform */
   km_offset_encoding encoding; /* 0: per edge (see above); KM_OFFSETS_VERTEX: Lifkooee eq. 3 */
   km_transfer_align align;     /* how landmark targets come from a template; 0: scale */
-  int max_iterations;          /* solves per transfer; 0: 10 */
+  int max_iterations;          /* solves per transfer; 0: 5 (edge encoding), 10 (vertex, the
+                                  paper's) */
   double tolerance;            /* stop when the largest vertex move between two solves is below
-                                  tolerance * bbox diagonal of S and the largest frame entry change is
-                                  below tolerance; 0: 1e-4 */
+                                  tolerance * bbox diagonal of S and the largest frame (vertex
+                                  encoding) or stretch (edge) entry change is below tolerance;
+                                  0: 1e-4 */
+  double damping;              /* edge encoding: lambda of the energy above, the pull of each
+                                  stretch S_i towards I; 0: 0.3; < 0: none */
 } km_transfer_options;
 
 typedef struct km_transfer km_transfer;
@@ -1574,10 +1588,13 @@ typedef struct km_transfer_stats {
   int iterations;         /* linear solves done */
   bool converged;         /* tolerance met before max_iterations */
   double position_change; /* last iteration's largest vertex move / bbox diagonal */
-  double frame_change;    /* largest frame entry change at the last frame update; NAN while the
-                             positions still move (only measured once they settle; frames are not
-                             recomputed after the last allowed solve) */
-  double frames_ms;       /* time in normals + frames, all iterations */
+  double frame_change;    /* vertex encoding: largest frame entry change at the last frame
+                             update; NAN while the positions still move (only measured once they
+                             settle; frames are not recomputed after the last allowed solve).
+                             Edge encoding: largest stretch entry change at the last local step
+                             (NAN after the last allowed solve) */
+  double frames_ms;       /* time in normals + frames (edge encoding: + rotation fit and local
+                             steps), all iterations */
   double solve_ms;        /* time in right-hand sides + triangular solves, all iterations */
   double total_ms;        /* whole call */
 } km_transfer_stats;
@@ -1594,6 +1611,49 @@ typedef struct km_transfer_stats {
 km_status km_transfer_solve(km_transfer *t, const double *template_V, const double *targets,
                             const double *warm_start, double *V_out, km_transfer_stats *stats,
                             km_error *err);
+/* Energies of the last km_transfer_solve, one per solve (edge encoding; the vertex encoding
+ * has none and gives 0): E_k = E(x_k, S_(k-1)) of the energy above, which never rises from
+ * one solve to the next.
+ *   energies  out: up to cap values, may be NULL
+ * Returns the number of solves done (stats.iterations). */
+size_t km_transfer_energies(const km_transfer *t, double *energies, size_t cap);
+/* ---- bodies of another connectivity (issue 14): S takes the pose of a template T whose
+ * mesh differs, given T at rest (TR) and posed (TP). The pose is carried as rotations: each
+ * one-ring of TR -> TP gives a rotation (km_transfer_template_rotations), each source vertex
+ * takes that of its corresponding template vertex (km_transfer_correspondence), and
+ * km_transfer_solve_rotations runs the iteration above from them. S's connectivity and
+ * vertex order are kept. */
+/* Rotation of every one-ring of a mesh from rest to posed (Procrustes, uniform weights).
+ *   rest   in: the template at rest (#VT vertices, faces)
+ *   posed  in: #VT*3 the template posed
+ *   R      out: #VT*9 row-major rotations
+ * Errors: as km_uniform_laplacian. */
+km_status km_transfer_template_rotations(const km_mesh *rest, const double *posed, double *R,
+                                         km_error *err);
+/* Dense correspondence: for every source vertex the nearest template vertex, both at rest and
+ * in one frame (same placement and size; a body of another shape must first be registered
+ * onto the template, which this does not do).
+ *   corr  out: #V (source) template vertex ids */
+km_status km_transfer_correspondence(const km_mesh *source_rest, const km_mesh *template_rest,
+                                     int32_t *corr, km_error *err);
+/* The pose of T carried to S: rotations per source vertex (its corresponding template
+ * vertex's, km_transfer_template_rotations) and landmark targets (the corresponding template
+ * vertex posed, plus the landmark's rest offset from it turned by that vertex's rotation).
+ *   corr       in: #V from km_transfer_correspondence
+ *   landmarks  in: n_landmarks source vertex ids (precompute order)
+ *   R          out: #V*9;  targets  out: n_landmarks*3 (may be NULL when n_landmarks is 0)
+ * Errors: KM_ERR_INVALID (ids out of range), KM_ERR_NOMEM. */
+km_status km_transfer_map_pose(const km_mesh *source_rest, const km_mesh *template_rest,
+                               const double *template_posed, const int32_t *corr,
+                               const int32_t *landmarks, size_t n_landmarks, double *R,
+                               double *targets, km_error *err);
+/* km_transfer_solve from per-vertex rotations instead of a template of S's connectivity.
+ *   R        in: #V*9 row-major rotation of each source vertex's one-ring (the pose)
+ *   targets  in: #L*3 landmark positions in precompute order
+ *   V_out    out: #V*3
+ * Errors: KM_ERR_INVALID (vertex encoding, non-finite input). */
+km_status km_transfer_solve_rotations(km_transfer *t, const double *R, const double *targets,
+                                      double *V_out, km_transfer_stats *stats, km_error *err);
 /* Returns #V of the source. */
 size_t km_transfer_vertices(const km_transfer *t);
 /* Returns #L, the landmark count. */
@@ -1679,6 +1739,8 @@ typedef struct km_pose_set {
   size_t n_listed;     /* km_pose_set_from_labels: mesh files the folder or glob holds */
   size_t n_unlabelled; /* km_pose_set_from_labels: meshes that no line of the CSV names */
   char **unlabelled;   /* their paths (left out of the set) */
+  size_t n_duplicates; /* km_pose_set_from_labels: CSV lines naming a mesh already labelled
+                          (warned through the logger and ignored: the first line wins) */
 } km_pose_set;
 /* From n entries "CLASS=MESH[@GROUP]" (GROUP: the subject, for leave-one-subject-out
  * cross-validation; entries without one are group 0).

@@ -126,6 +126,8 @@ int main(void) {
         CHECK(km_test_run(cmd, NULL) == 0);
         fprintf(f, "%c_%s_%d.obj,%s,%c\n", "ab"[s], kinds[k], fr, kinds[k], "ab"[s]);
       }
+  /* issue 14: a duplicate line is warned about and ignored */
+  fprintf(f, "a_%s_40.obj,%s,a\n", kinds[0], kinds[0]);
   fclose(f);
   /* a mesh the labels do not name is left out, with a warning; a glob without meshes is an
    * error that says so */
@@ -135,7 +137,8 @@ int main(void) {
                     &out) == 0);
   CHECK_MSG(out && strstr(out, "3 classes") && strstr(out, "over 2 folds") &&
                 strstr(out, "eq. 8") && strstr(out, "1 of the 31 meshes") &&
-                strstr(out, "unlabelled.obj"),
+                strstr(out, "unlabelled.obj") && strstr(out, "labelled again") &&
+                strstr(out, "1 line(s) of"),
             "%s", out);
   free(out);
   CHECK(km_test_run(KM_CLI " posedb build --meshes '" DIR "/db/*.stl' --labels " DIR
@@ -246,6 +249,37 @@ int main(void) {
   CHECK_MSG(out && strstr(out, "template_name") && strstr(out, "_wave_") && strstr(out, ".obj"),
             "%s", out ? out : "");
   free(out);
+  /* issue 14: `pose --track` writes the rig's landmarks along a take as a track: the same
+   * positions as the posed frames' landmark vertices, recognised by posedb query */
+  CHECK(km_test_run(KM_CLI " pose --mesh " DIR "/a.obj --motion " DIR "/wave.json --track " DIR
+                           "/wave_pose_track.json",
+                    &out) == 0);
+  free(out);
+  {
+    km_track tk = {0};
+    km_mesh f35 = {0};
+    CHECK_OK(km_track_read(DIR "/wave_pose_track.json", &tk, KM_E));
+    CHECK_OK(km_mesh_read(DIR "/a_wave/frame_000035.obj", &f35, KM_E));
+    CHECK(tk.n_frames == 90 && tk.n_landmarks == KM_CHARACTER_LANDMARKS);
+    double worst = tk.n_frames == 90 && f35.V ? 0 : INFINITY;
+    for (size_t l = 0; l < tk.n_landmarks && isfinite(worst); ++l) {
+      CHECK(!strcmp(tk.names[l], lm[l].name));
+      for (int k = 0; k < 3; ++k)
+        worst = fmax(worst, fabs(tk.positions[(35 * tk.n_landmarks + l) * 3 + k] -
+                                 f35.V[3 * (size_t)lm[l].vertex + k]));
+    }
+    CHECK_MSG(worst < 1e-6, "track frame 35 is %g m off the posed frame's landmarks", worst);
+    km_track_free(&tk);
+    km_mesh_free(&f35);
+  }
+  CHECK(km_test_run(KM_CLI " posedb query " DIR "/poses.kmposedb --landmarks-xyz " DIR
+                           "/wave_pose_track.json",
+                    &out) == 0);
+  wave_rows = 0;
+  for (char *p = out; p && (p = strstr(p, ",wave,")); ++p)
+    ++wave_rows;
+  CHECK_MSG(wave_rows >= 60, "%zu of 90 frames of the pose track recognised as wave", wave_rows);
+  free(out);
   CHECK(km_test_run(KM_CLI " avatar --source " DIR "/b.obj --db " DIR "/poses.kmposedb --track " DIR
                            "/wave_track.json --interval 3 -o " DIR "/avatar.pc2",
                     &out) == 0);
@@ -277,6 +311,45 @@ int main(void) {
   km_mesh_free(&b);
   km_mesh_free(&bt);
   km_mesh_free(&res);
+  /* issue 14: a body of another connectivity (the same generated body at 2,000 vertices)
+   * takes kung-fu frame 60 of a (2,500) through --template-rest; truth: LBS of the same take */
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2000 -o " DIR "/c.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " pose --mesh " DIR "/c.obj --motion " DIR "/kungfu.json -o " DIR
+                           "/c_kungfu",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/c.obj --template " DIR
+                           "/a_kungfu/frame_000060.obj -o " DIR "/c60.obj",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "--template-rest"), "%s", out ? out : "");
+  free(out);
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/c.obj --template " DIR
+                           "/a_kungfu/frame_000060.obj --template-rest " DIR "/c.obj -o " DIR
+                           "/c60.obj",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "is not TEMPLATE"), "%s", out ? out : "");
+  free(out);
+  CHECK(km_test_run(KM_CLI " transfer --source " DIR "/c.obj --template " DIR
+                           "/a_kungfu/frame_000060.obj --template-rest " DIR "/a.obj -o " DIR
+                           "/c60.obj",
+                    &out) == 0);
+  free(out);
+  {
+    km_mesh c60 = {0}, truth = {0};
+    CHECK_OK(km_mesh_read(DIR "/c60.obj", &c60, KM_E));
+    CHECK_OK(km_mesh_read(DIR "/c_kungfu/frame_000060.obj", &truth, KM_E));
+    CHECK(c60.n_vertices == truth.n_vertices && c60.n_faces == truth.n_faces);
+    if (c60.n_vertices == truth.n_vertices && c60.V) {
+      double mean, max, lo = INFINITY, hi = -INFINITY;
+      km_vertex_distance_stats(c60.V, truth.V, c60.n_vertices, &mean, &max);
+      for (size_t v = 0; v < truth.n_vertices; ++v)
+        lo = fmin(lo, truth.V[3 * v + 1]), hi = fmax(hi, truth.V[3 * v + 1]);
+      printf("  2000 vertices take the pose of 2500: mean %.1f mm, max %.1f mm\n", mean * 1e3,
+             max * 1e3);
+      CHECK_MSG(mean <= 0.01 * (hi - lo), "other connectivity: mean %g m", mean);
+    }
+    km_mesh_free(&c60);
+    km_mesh_free(&truth);
+  }
   km_test_run("rm -rf " DIR, NULL);
   return km_test_finish("test_pose_cli");
 }

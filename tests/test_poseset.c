@@ -48,13 +48,21 @@ int main(void) {
   write_file("poseset_dir/p2.ply", "ply\n");
   write_file("poseset_dir/p3.off", "OFF\n");
   write_file("poseset_dir/notes.txt", "not a mesh\n");
-  write_file("poseset_labels.csv", "mesh,class,subject\np2.ply,wave,s1\n# comment\np1.obj;walk;s2\n");
+  write_file("poseset_labels.csv",
+             "mesh,class,subject\np2.ply,wave,s1\n# comment\np1.obj;walk;s2\n");
   CHECK_OK(km_pose_set_from_labels(dir, "poseset_labels.csv", NULL, 0, &s, KM_E));
   CHECK(s.n == 2 && s.n_listed == 3 && s.n_unlabelled == 1);
   CHECK(s.n == 2 && !strcmp(s.paths[0], "poseset_dir/p2.ply") && !strcmp(s.class_names[0], "wave"));
   CHECK(s.n_unlabelled == 1 && strstr(s.unlabelled[0], "p3.off"));
   km_pose_set_free(&s);
 
+  /* issue 14: a mesh labelled twice is warned about and kept once (the first line's class) */
+  write_file("poseset_dup.csv", "p1.obj,walk\np2.ply,wave\np1.obj,walk\np1.obj,run\n");
+  CHECK_OK(km_pose_set_from_labels(dir, "poseset_dup.csv", NULL, 0, &s, KM_E));
+  CHECK_MSG(s.n == 2 && s.n_duplicates == 2 && s.n_classes == 2, "n %zu, duplicates %zu", s.n,
+            s.n_duplicates);
+  CHECK(s.n == 2 && !strcmp(s.class_names[s.labels[0]], "walk"));
+  km_pose_set_free(&s);
   /* a line naming a file that is not there: file:line in the error */
   write_file("poseset_bad.csv", "p1.obj,walk\nnope.obj,walk\n");
   CHECK_STATUS(km_pose_set_from_labels(dir, "poseset_bad.csv", NULL, 0, &s, KM_E), KM_ERR_PARSE);
@@ -64,11 +72,12 @@ int main(void) {
   /* a line with one field */
   write_file("poseset_bad.csv", "p1.obj\n");
   CHECK_STATUS(km_pose_set_from_labels(dir, "poseset_bad.csv", NULL, 0, &s, KM_E), KM_ERR_PARSE);
-  CHECK_MSG(strstr(km_test_err.message, "poseset_bad.csv:1: expected 'mesh,class[,subject]'"),
-            "%s", km_test_err.message);
+  CHECK_MSG(strstr(km_test_err.message, "poseset_bad.csv:1: expected 'mesh,class[,subject]'"), "%s",
+            km_test_err.message);
   /* nothing matched */
-  CHECK_STATUS(km_pose_set_from_labels("poseset_dir/*.stl", "poseset_labels.csv", NULL, 0, &s, KM_E),
-               KM_ERR_IO);
+  CHECK_STATUS(
+      km_pose_set_from_labels("poseset_dir/*.stl", "poseset_labels.csv", NULL, 0, &s, KM_E),
+      KM_ERR_IO);
   CHECK_MSG(strstr(km_test_err.message, "matched no mesh files"), "%s", km_test_err.message);
   /* entries before the CSV's come first */
   const char *before[] = {"jump=poseset_dir/p3.off@s1"};

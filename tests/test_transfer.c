@@ -146,7 +146,7 @@ static void test_identity(const km_character *a) {
   size_t n = a->mesh.n_vertices;
   double *out = malloc(n * 3 * sizeof *out), h = 1.75;
   for (int lap = 0; lap < 2; ++lap)
-    for (int al = 0; al < 2; ++al) {
+    for (int al = 0; al < 3; ++al) {
       km_transfer_options o = {0};
       o.laplacian = (km_laplacian_kind)lap;
       o.align = (km_transfer_align)al;
@@ -164,6 +164,61 @@ static void test_identity(const km_character *a) {
       km_transfer_free(&t);
     }
   free(out);
+}
+
+/* Errors against truth after 1 .. K solves of t (precomputed with max_iterations >= K), and the
+ * energies of the K-solve run; asserts that the energy never rises. */
+enum { KP_CURVE = 8 };
+static void error_curve(km_transfer *t, const double *T, const double *P, const double *truth,
+                        size_t n, double *mean, double *max, double *energy) {
+  double *X = malloc(n * 3 * sizeof *X);
+  for (int k = 1; k <= KP_CURVE; ++k) {
+    km__transfer_set_iterations(t, k, 1e-15);
+    km_transfer_stats st;
+    CHECK_OK(km_transfer_solve(t, T, P, NULL, X, &st, KM_E));
+    CHECK(st.iterations == k);
+    kp_error(X, truth, n, &mean[k - 1], &max[k - 1]);
+  }
+  size_t ne = km_transfer_energies(t, energy, KP_CURVE);
+  CHECK(ne == KP_CURVE);
+  for (int k = 1; k < KP_CURVE; ++k)
+    CHECK_MSG(energy[k] <= energy[k - 1] * (1 + 1e-9), "energy rose at solve %d: %g -> %g", k + 1,
+              energy[k - 1], energy[k]);
+  km__transfer_set_iterations(t, KP_CURVE, 1e-4);
+  free(X);
+}
+
+/* More iterations are never worse: the mean error over the generated poses (B's pose onto A,
+ * A's own landmarks, truth by LBS) after each solve, and the energy of every pose. */
+static void test_iterations(const km_character *a, const km_character *b) {
+  size_t n = a->mesh.n_vertices;
+  double *T = malloc(n * 3 * sizeof *T), *G = malloc(n * 3 * sizeof *G);
+  double P[3 * KM_CHARACTER_LANDMARKS], avg[KP_CURVE] = {0};
+  km_transfer_options o = {0};
+  o.max_iterations = KP_CURVE;
+  km_transfer *t = NULL;
+  CHECK_OK(km_transfer_precompute(&a->mesh, lm_ids, 16, &o, &t, KM_E));
+  for (int p = 0; p < KP_N_POSES && t; ++p) {
+    CHECK_OK(kp_pose_character(b, &kp_poses[p], NULL, T, KM_E));
+    CHECK_OK(kp_pose_character(a, &kp_poses[p], NULL, G, KM_E));
+    gather(G, P);
+    double mean[KP_CURVE], max[KP_CURVE], en[KP_CURVE];
+    error_curve(t, T, P, G, n, mean, max, en);
+    for (int k = 0; k < KP_CURVE; ++k)
+      avg[k] += mean[k] / KP_N_POSES;
+  }
+  printf("  generated subjects, mean error after 1..%d solves (mm):", KP_CURVE);
+  for (int k = 0; k < KP_CURVE; ++k)
+    printf(" %.2f", avg[k] * 1e3);
+  printf("\n");
+  for (int k = 1; k < KP_CURVE; ++k)
+    CHECK_MSG(avg[k] <= avg[k - 1] + 1e-6,
+              "generated subjects: solve %d raised the mean error "
+              "%.4f -> %.4f mm",
+              k + 1, avg[k - 1] * 1e3, avg[k] * 1e3);
+  km_transfer_free(&t);
+  free(T);
+  free(G);
 }
 
 /* B's pose onto A against A posed the same way by LBS. Landmark targets are A's own posed
@@ -308,6 +363,42 @@ static int test_faust(void) {
     }
     km_transfer_free(&tr);
   }
+  /* Issue 14: both directions, the SMPL landmark file and `--landmarks auto`: the error after
+   * every solve never rises, and the default (5 solves) is within mean 6 mm, max 30 mm. */
+  for (int pair = 0; pair < 4; ++pair) {
+    const km_mesh *A = pair % 2 ? &t : &s, *B = pair % 2 ? &s : &t;
+    int32_t fid[KM_POSE_MAX_LANDMARKS];
+    size_t fl = nl;
+    if (pair < 2) {
+      memcpy(fid, ids, nl * sizeof *fid);
+    } else {
+      fl = 16;
+      CHECK_OK(km_farthest_points(A, fl, fid, KM_E));
+    }
+    double FP[3 * KM_POSE_MAX_LANDMARKS];
+    for (size_t i = 0; i < fl; ++i)
+      memcpy(FP + 3 * i, B->V + 3 * (size_t)fid[i], 3 * sizeof(double));
+    km_transfer_options fo = {0};
+    fo.max_iterations = KP_CURVE;
+    km_transfer *ft = NULL;
+    CHECK_OK(km_transfer_precompute(A, fid, fl, &fo, &ft, KM_E));
+    if (!ft) continue;
+    double mean[KP_CURVE], max[KP_CURVE], en[KP_CURVE];
+    error_curve(ft, B->V, FP, B->V, n, mean, max, en);
+    printf("  FAUST %s, %s landmarks: mean / max error after 1..%d solves (mm):",
+           pair % 2 ? "001 -> 000" : "000 -> 001", pair < 2 ? "SMPL" : "auto", KP_CURVE);
+    for (int k = 0; k < KP_CURVE; ++k)
+      printf(" %.2f/%.1f", mean[k] * 1e3, max[k] * 1e3);
+    printf("; energy %.4g -> %.4g\n", en[0], en[KP_CURVE - 1]);
+    for (int k = 1; k < KP_CURVE; ++k)
+      CHECK_MSG(mean[k] <= mean[k - 1] + 1e-6, "FAUST pair %d: solve %d raised the mean error",
+                pair, k + 1);
+    /* the default: 5 solves */
+    CHECK_MSG(mean[4] <= 0.006 && max[4] <= 0.030, "FAUST pair %d: default %.2f / %.1f mm", pair,
+              mean[4] * 1e3, max[4] * 1e3);
+    CHECK(mean[4] <= mean[0]);
+    km_transfer_free(&ft);
+  }
   /* SMPL-generated bodies (Neural Pose Transfer demo meshes): identity 13 takes the pose of
    * identity 14 (targets: 14's landmarks scaled by the geodesic size ratio). No ground truth. */
   char q0[1024], q1[1024];
@@ -412,6 +503,9 @@ static int test_cat(void) {
         count, 1e3 * sum[0] / count, 1e3 * sum[1] / count, 1e3 * sum[2] / count, 1e3 * sum0 / count,
         100 * worst[0], 100 * worst[1], 100 * worst[2]);
     CHECK_MSG(worst[1] < 0.15, "cat: one solve leaves %.0f%% of a pose difference", 100 * worst[1]);
+    CHECK_MSG(sum[0] / count <= 0.008, "cat: default mean error %.2f mm > 8 mm",
+              1e3 * sum[0] / count);
+    CHECK_MSG(sum[0] <= sum[1], "cat: the default %g is worse than one solve %g", sum[0], sum[1]);
     CHECK_MSG(worst[0] < 0.3, "cat: the default leaves %.0f%% of a pose difference",
               100 * worst[0]);
     CHECK_MSG(sum[0] < 0.5 * sum[2] && sum[1] < 0.5 * sum[2],
@@ -423,6 +517,67 @@ static int test_cat(void) {
   free(X);
   km_mesh_free(&r);
   return 0;
+}
+
+/* Issue 14, bodies of another connectivity: the same procedural body at two vertex counts
+ * (different meshes, one skeleton). S (3k) takes T's (5k) pose from T at rest and posed;
+ * truth: S posed by LBS with the same joint angles. Landmark targets: T's posed vertices that
+ * correspond to S's landmarks. */
+static void test_cross_connectivity(const km_character_options *base) {
+  km_character s = {0}, t = {0};
+  km_character_options os = *base, ot = *base;
+  os.target_vertices = 3000;
+  ot.target_vertices = 5000;
+  CHECK_OK(km_character_generate(&os, &s, KM_E));
+  CHECK_OK(km_character_generate(&ot, &t, KM_E));
+  size_t n = s.mesh.n_vertices, nt = t.mesh.n_vertices;
+  CHECK(n != nt);
+  int32_t ids[KM_CHARACTER_LANDMARKS], *corr = malloc(n * sizeof *corr);
+  for (int l = 0; l < KM_CHARACTER_LANDMARKS; ++l)
+    ids[l] = s.landmarks[l].vertex;
+  double *TP = malloc(nt * 3 * sizeof *TP), *RT = malloc(nt * 9 * sizeof *RT);
+  double *RS = malloc(n * 9 * sizeof *RS), *G = malloc(n * 3 * sizeof *G);
+  double *X = malloc(n * 3 * sizeof *X), P[3 * KM_CHARACTER_LANDMARKS];
+  km_transfer *tr = NULL;
+  CHECK_OK(km_transfer_correspondence(&s.mesh, &t.mesh, corr, KM_E));
+  CHECK_OK(km_transfer_precompute(&s.mesh, ids, KM_CHARACTER_LANDMARKS, NULL, &tr, KM_E));
+  double lo = INFINITY, hi = -INFINITY, sum = 0, worst = 0;
+  for (size_t v = 0; v < n; ++v)
+    lo = fmin(lo, s.mesh.V[3 * v + 1]), hi = fmax(hi, s.mesh.V[3 * v + 1]);
+  for (int p = 0; p < KP_N_POSES && tr; ++p) {
+    CHECK_OK(kp_pose_character(&t, &kp_poses[p], NULL, TP, KM_E));
+    CHECK_OK(kp_pose_character(&s, &kp_poses[p], NULL, G, KM_E));
+    CHECK_OK(km_transfer_template_rotations(&t.mesh, TP, RT, KM_E));
+    CHECK_OK(
+        km_transfer_map_pose(&s.mesh, &t.mesh, TP, corr, ids, KM_CHARACTER_LANDMARKS, RS, P, KM_E));
+    /* each source vertex takes its template vertex's rotation */
+    CHECK(memcmp(RS + 9 * 7, RT + 9 * (size_t)corr[7], 9 * sizeof(double)) == 0);
+    km_transfer_stats st;
+    CHECK_OK(km_transfer_solve_rotations(tr, RS, P, X, &st, KM_E));
+    double mean, max, mean0, max0;
+    kp_error(X, G, n, &mean, &max);
+    kp_error(s.mesh.V, G, n, &mean0, &max0);
+    printf("  %-8s %zu -> %zu vertices: %5.1f mm mean, %5.1f mm max (pose differs by %5.1f mm)\n",
+           kp_poses[p].name, nt, n, mean * 1e3, max * 1e3, mean0 * 1e3);
+    sum += mean / KP_N_POSES;
+    worst = fmax(worst, mean);
+  }
+  printf("  other connectivity: mean %.1f mm over %d poses (worst pose %.1f mm), height %.3f m\n",
+         sum * 1e3, KP_N_POSES, worst * 1e3, hi - lo);
+  CHECK_MSG(sum <= 0.01 * (hi - lo), "other connectivity: mean error %g m > 1%% of %g m", sum,
+            hi - lo);
+  /* the same with rotations that are not finite: an error, not a crash */
+  RS[4] = NAN;
+  CHECK_STATUS(km_transfer_solve_rotations(tr, RS, P, X, NULL, KM_E), KM_ERR_INVALID);
+  km_transfer_free(&tr);
+  free(corr);
+  free(TP);
+  free(RT);
+  free(RS);
+  free(G);
+  free(X);
+  km_character_free(&s);
+  km_character_free(&t);
 }
 
 int main(void) {
@@ -447,6 +602,8 @@ int main(void) {
   test_errors(&a);
   test_identity(&a);
   test_cross_subject(&a, &b);
+  test_iterations(&a, &b);
+  test_cross_connectivity(&oa);
   test_faust();
   test_cat();
   km_character_free(&a);

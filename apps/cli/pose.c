@@ -9,7 +9,8 @@
 /* Poses a skinned character along a take by linear blend skinning: the rig's skeleton is
  * driven by the take's joint positions (matched by name). */
 int km_cli_pose(int argc, char **argv) {
-  const char *mesh = NULL, *rig = NULL, *motion = NULL, *out = NULL, *frame_format = NULL;
+  const char *mesh = NULL, *rig = NULL, *motion = NULL, *out = NULL, *frame_format = NULL,
+             *track_out = NULL;
   double fps = 0;
   size_t key_every = 0;
   /* The mesh stays in its file's frame: the rig sidecar's skeleton is stored in it. */
@@ -26,20 +27,25 @@ int km_cli_pose(int argc, char **argv) {
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
        "directory output: obj (default) or ply (binary) per frame"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory"},
+      {"track", 0, KM_OPT_STRING, &track_out,
+       "also (or only) write the rig's landmarks per frame as a landmark track (.json/.csv) for "
+       "posedb query, avatar and transfer --landmarks-xyz"},
   };
   const char *pos[1];
   int n_pos;
   int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
-                       "kinemesh pose --mesh MESH [--rig RIG] --motion TAKE -o OUT",
+                       "kinemesh pose --mesh MESH [--rig RIG] --motion TAKE -o OUT [--track T]",
                        "Linear-blend-skinning playback of a take on a rigged character.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
-  if (!mesh || !motion || !out) return km_cli_error("pose", "--mesh, --motion and -o are required");
+  if (!mesh || !motion || (!out && !track_out))
+    return km_cli_error("pose", "--mesh, --motion and -o (or --track) are required");
   km_anim_format af = 0;
   if (km_cli_parse_frame_format("pose", frame_format, &af)) return KM_EXIT_FAIL;
   km_error err = {0};
   km_character c = {0};
   km_take t = {0};
   km_anim_writer *w = NULL;
+  km_track trk = {0};
   double *pos_frame = NULL, *xf = NULL, *V = NULL;
   int *map = NULL;
   int rc = KM_EXIT_FAIL;
@@ -72,7 +78,20 @@ int km_cli_pose(int argc, char **argv) {
   ao.fps = fps > 0 ? fps : t.fps;
   ao.key_every = key_every;
   ao.format = af;
-  if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
+  if (out && km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
+  if (track_out) {
+    trk.n_frames = t.n_frames;
+    trk.n_landmarks = KM_CHARACTER_LANDMARKS;
+    trk.fps = ao.fps;
+    trk.names = calloc(KM_CHARACTER_LANDMARKS, sizeof *trk.names);
+    trk.positions = malloc(sizeof(double) * 3 * KM_CHARACTER_LANDMARKS * (t.n_frames + 1));
+    if (!trk.names || !trk.positions) {
+      rc = km_cli_error("pose", "out of memory");
+      goto done;
+    }
+    for (size_t l = 0; l < KM_CHARACTER_LANDMARKS; ++l)
+      snprintf(trk.names[l], sizeof trk.names[l], "%s", c.landmarks[l].name);
+  }
   km_progress prog = km_cli_progress("pose");
   for (size_t f = 0; f < t.n_frames; ++f) {
     for (size_t j = 0; j < nj; ++j)
@@ -81,20 +100,26 @@ int km_cli_pose(int argc, char **argv) {
             map[j] < 0 ? NAN : t.positions[(f * t.n_joints + (size_t)map[j]) * 3 + a];
     if (km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err) != KM_OK ||
         km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK ||
-        km_anim_writer_push(w, V, &err) != KM_OK)
+        (w && km_anim_writer_push(w, V, &err) != KM_OK))
       goto fail;
+    for (size_t l = 0; track_out && l < KM_CHARACTER_LANDMARKS; ++l)
+      memcpy(trk.positions + 3 * (f * KM_CHARACTER_LANDMARKS + l),
+             V + 3 * (size_t)c.landmarks[l].vertex, 3 * sizeof(double));
     prog.fn((double)(f + 1) / (double)t.n_frames, "skinning", NULL);
   }
-  if (km_anim_writer_close(&w, &err) != KM_OK) goto fail;
+  if (w && km_anim_writer_close(&w, &err) != KM_OK) goto fail;
+  if (track_out && km_track_write(track_out, &trk, &err) != KM_OK) goto fail;
   km_cli_progress_done();
-  fprintf(stderr, "kinemesh pose: %zu frames of %zu vertices -> %s\n", t.n_frames,
-          c.mesh.n_vertices, out);
+  fprintf(stderr, "kinemesh pose: %zu frames of %zu vertices -> %s%s%s\n", t.n_frames,
+          c.mesh.n_vertices, out ? out : "", out && track_out ? ", landmark track " : "",
+          track_out ? track_out : "");
   rc = KM_EXIT_OK;
   goto done;
 fail:
   rc = km_cli_fail("pose", &err);
 done:
   km_anim_writer_free(&w);
+  km_track_free(&trk);
   free(map);
   free(pos_frame);
   free(xf);

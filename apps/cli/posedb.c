@@ -72,6 +72,11 @@ static int posedb_build(int argc, char **argv) {
             set.n_unlabelled, set.n_listed, mesh_glob, labels_csv, names,
             set.n_unlabelled > 5 ? ", ..." : "");
   }
+  if (set.n_duplicates)
+    fprintf(stderr,
+            "kinemesh posedb build: warning: %zu line(s) of %s label a mesh already labelled "
+            "and are ignored (the first line wins)\n",
+            set.n_duplicates, labels_csv);
   size_t n = set.n;
   if (!out || n < 2) {
     rc = km_cli_error("posedb build", "need -o OUTPUT and at least two CLASS=MESH arguments");
@@ -98,9 +103,9 @@ static int posedb_build(int argc, char **argv) {
   po.kernel = !strcmp(kernel, "linear") ? KM_SVM_LINEAR : KM_SVM_RBF;
   po.progress = km_cli_progress("posedb");
   km_posedb_report rep;
-  km_status bs = km_posedb_build(meshes, n, set.labels, set.n_classes,
-                                 (const char *const *)set.class_names, set.groups, lm, nl, &po,
-                                 &db, &rep, &err);
+  km_status bs =
+      km_posedb_build(meshes, n, set.labels, set.n_classes, (const char *const *)set.class_names,
+                      set.groups, lm, nl, &po, &db, &rep, &err);
   /* templates named by their file names, so that a query says which mesh it picked */
   if (!bs) bs = km_posedb_set_template_names(db, (const char *const *)set.names, &err);
   if (bs || km_posedb_save(db, out, &err)) {

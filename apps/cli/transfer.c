@@ -10,13 +10,18 @@
 
 int km_cli_transfer(int argc, char **argv) {
   const char *out = NULL, *lm_path = NULL, *encoding = "edge", *laplacian = "uniform",
-             *align = "scale", *source = NULL, *templ = NULL, *xyz = NULL;
+             *align = "scale", *source = NULL, *templ = NULL, *xyz = NULL, *trest = NULL;
   int iterations = 0;
+  double damping = 0;
   size_t xyz_frame = 0;
   const km_cli_opt opts[] = {
       {"source", 's', KM_OPT_STRING, &source, "the avatar mesh S"},
       {"template", 't', KM_OPT_STRING, &templ, "the posed template T (same connectivity as S)"},
       {"output", 'o', KM_OPT_STRING, &out, "output mesh (.obj/.ply/.off)"},
+      {"template-rest", 0, KM_OPT_STRING, &trest,
+       "TEMPLATE at rest (its connectivity): needed when TEMPLATE's mesh differs from SOURCE's; "
+       "SOURCE and TR must stand in one frame at one size (each vertex of SOURCE takes the "
+       "rotation of its nearest TR vertex)"},
       {"landmarks", 'l', KM_OPT_STRING, &lm_path,
        "LM.json with the landmark vertices (default: SOURCE's rig sidecar), or auto[:K]: K "
        "(default 16) vertices spread by farthest-point sampling, for any mesh"},
@@ -24,17 +29,22 @@ int km_cli_transfer(int argc, char **argv) {
        "tracked landmark positions (a track .json/.csv, names as in the landmarks) as the "
        "targets, instead of TEMPLATE's landmarks"},
       {"frame", 0, KM_OPT_SIZE, &xyz_frame, "frame of --landmarks-xyz (default 0)"},
-      {"iterations", 'i', KM_OPT_INT, &iterations, "maximum solves (default 10)"},
+      {"iterations", 'i', KM_OPT_INT, &iterations,
+       "maximum solves (default 5; 10 with --encoding vertex); each lowers the energy printed"},
+      {"damping", 0, KM_OPT_DOUBLE, &damping,
+       "pull of each one-ring's stretch towards none (default 0.3; negative: none)"},
       {"encoding", 0, KM_OPT_STRING, &encoding,
        "edge (default) or vertex (the paper's eq. 3 verbatim)"},
       {"laplacian", 0, KM_OPT_STRING, &laplacian, "uniform (default, eq. 2) or cotan"},
       {"align", 0, KM_OPT_STRING, &align,
-       "scale (default: TEMPLATE's landmarks scaled to SOURCE's size) or similarity"},
+       "scale (default: TEMPLATE's landmarks scaled to SOURCE's size), similarity, or none "
+       "(TEMPLATE's landmarks as they are: the same person in another pose)"},
   };
   const char *pos[2];
   int n_pos;
   int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 2, &n_pos,
-                       "kinemesh transfer --source S --template T -o OUT [--landmarks LM.json]",
+                       "kinemesh transfer --source S --template T [--template-rest TR] -o OUT "
+                       "[--landmarks LM.json]",
                        "SOURCE (the avatar) takes the pose of TEMPLATE (same connectivity) by\n"
                        "locally encoded Laplacian offsets; landmark vertices follow TEMPLATE's,\n"
                        "scaled to SOURCE's size.");
@@ -45,6 +55,7 @@ int km_cli_transfer(int argc, char **argv) {
   if (!out) return km_cli_error("transfer", "-o OUTPUT is required");
   km_transfer_options to = {0};
   to.max_iterations = iterations;
+  to.damping = damping;
   if (!strcmp(encoding, "vertex"))
     to.encoding = KM_OFFSETS_VERTEX;
   else if (strcmp(encoding, "edge"))
@@ -55,10 +66,14 @@ int km_cli_transfer(int argc, char **argv) {
     return km_cli_error("transfer", "--laplacian must be uniform or cotan, not '%s'", laplacian);
   if (!strcmp(align, "similarity"))
     to.align = KM_TRANSFER_ALIGN_SIMILARITY;
+  else if (!strcmp(align, "none"))
+    to.align = KM_TRANSFER_ALIGN_NONE;
   else if (strcmp(align, "scale"))
-    return km_cli_error("transfer", "--align must be scale or similarity, not '%s'", align);
+    return km_cli_error("transfer", "--align must be scale, similarity or none, not '%s'", align);
   km_error err = {0};
-  km_mesh s = {0}, t = {0}, o = {0};
+  km_mesh s = {0}, t = {0}, o = {0}, tr_rest = {0};
+  int32_t *corr = NULL;
+  double *rots = NULL;
   km_transfer *tr = NULL;
   km_track trk = {0};
   km_landmark *lm = NULL;
@@ -114,11 +129,27 @@ int km_cli_transfer(int argc, char **argv) {
     free(rig);
     goto done;
   }
-  if (t.n_vertices != s.n_vertices || t.n_faces != s.n_faces ||
-      memcmp(t.F, s.F, s.n_faces * 3 * sizeof(int32_t)) != 0) {
+  bool same = t.n_vertices == s.n_vertices && t.n_faces == s.n_faces &&
+              memcmp(t.F, s.F, s.n_faces * 3 * sizeof(int32_t)) == 0;
+  if (!same && trest) {
+    if (km_mesh_read(trest, &tr_rest, &err)) {
+      rc = km_cli_fail("transfer", &err);
+      goto done;
+    }
+    if (tr_rest.n_vertices != t.n_vertices || tr_rest.n_faces != t.n_faces ||
+        memcmp(tr_rest.F, t.F, t.n_faces * 3 * sizeof(int32_t)) != 0) {
+      rc =
+          km_cli_error("transfer",
+                       "--template-rest %s (%zu vertices, %zu faces) is not TEMPLATE %s's mesh "
+                       "(%zu vertices, %zu faces)",
+                       trest, tr_rest.n_vertices, tr_rest.n_faces, pos[1], t.n_vertices, t.n_faces);
+      goto done;
+    }
+  }
+  if (!same && !trest) {
     rc = km_cli_error("transfer",
                       "%s (%zu vertices, %zu faces) does not share the connectivity of %s (%zu "
-                      "vertices, %zu faces)",
+                      "vertices, %zu faces): give TEMPLATE at rest with --template-rest TR",
                       pos[1], t.n_vertices, t.n_faces, pos[0], s.n_vertices, s.n_faces);
     goto done;
   }
@@ -159,8 +190,30 @@ int km_cli_transfer(int argc, char **argv) {
   }
   double t0 = km_cli_now();
   km_transfer_stats st;
+  if (!same) {
+    /* another connectivity: the pose as rotations and targets carried over from TR -> T */
+    corr = malloc(sizeof *corr * s.n_vertices);
+    rots = malloc(sizeof *rots * 9 * s.n_vertices);
+    double *mapped = malloc(sizeof(double) * 3 * (nl ? nl : 1));
+    if (!corr || !rots || !mapped) {
+      free(mapped);
+      rc = km_cli_error("transfer", "out of memory");
+      goto done;
+    }
+    if (km_transfer_correspondence(&s, &tr_rest, corr, &err) ||
+        km_transfer_map_pose(&s, &tr_rest, t.V, corr, ids, nl, rots, mapped, &err)) {
+      free(mapped);
+      rc = km_cli_fail("transfer", &err);
+      goto done;
+    }
+    if (!targets)
+      targets = mapped;
+    else
+      free(mapped);
+  }
   if (km_transfer_precompute(&s, ids, nl, &to, &tr, &err) || km_mesh_copy(&s, &o, &err) ||
-      km_transfer_solve(tr, t.V, targets, NULL, o.V, &st, &err) ||
+      (same ? km_transfer_solve(tr, t.V, targets, NULL, o.V, &st, &err)
+            : km_transfer_solve_rotations(tr, rots, targets, o.V, &st, &err)) ||
       km_mesh_write(out, &o, NULL, &err)) {
     rc = km_cli_fail("transfer", &err);
     goto done;
@@ -173,6 +226,14 @@ int km_cli_transfer(int argc, char **argv) {
           "%.2f s -> %s\n",
           s.n_vertices, nl, lap + chol, lap, chol, st.total_ms, st.iterations,
           st.frames_ms / st.iterations, st.solve_ms / st.iterations, km_cli_now() - t0, out);
+  double en[64];
+  size_t ne = km_transfer_energies(tr, en, 64);
+  if (ne) {
+    fprintf(stderr, "kinemesh transfer: energy per solve:");
+    for (size_t i = 0; i < ne && i < 64; ++i)
+      fprintf(stderr, " %.6g", en[i]);
+    fprintf(stderr, "\n");
+  }
 done:
   km_transfer_free(&tr);
   km_track_free(&trk);
@@ -182,5 +243,8 @@ done:
   km_mesh_free(&s);
   km_mesh_free(&t);
   km_mesh_free(&o);
+  km_mesh_free(&tr_rest);
+  free(corr);
+  free(rots);
   return rc;
 }

@@ -99,11 +99,13 @@ km_status km_pose_set_from_labels(const char *meshes, const char *labels_csv,
   char *data = NULL;
   size_t size = 0;
   bool *used = km__calloc(np, sizeof *used);
+  int *first_line = km__calloc(np, sizeof *first_line); /* CSV line that labelled mesh k */
+  size_t n_dup = 0;
   char **entries = km__calloc(np + n_before, sizeof *entries);
   size_t ne = 0;
   for (size_t i = 0; entries && i < n_before; ++i)
     if ((entries[ne] = strdup(entries_before[i]))) ++ne;
-  if (!used || !entries) {
+  if (!used || !entries || !first_line) {
     s = km__fail(err, KM_ERR_NOMEM, "pose set: out of memory");
   } else if (km__read_file(labels_csv, &data, &size, NULL) != KM_OK) {
     s = km__fail(err, KM_ERR_IO, "%s: cannot open the labels file", labels_csv);
@@ -137,8 +139,17 @@ km_status km_pose_set_from_labels(const char *meshes, const char *labels_csv,
                    line_no, fields[0], meshes);
       break;
     }
+    if (used[k]) {
+      /* The same mesh twice: one sample, not two (a duplicate would leak into both sides of the
+       * cross-validation); the first line wins. */
+      km__log(KM_LOG_WARN, "%s:%d: '%s' is labelled again (first on line %d): line ignored",
+              labels_csv, line_no, fields[0], first_line[k]);
+      ++n_dup;
+      continue;
+    }
     if (ne >= np + n_before) break;
     used[k] = true;
+    first_line[k] = line_no;
     size_t len = strlen(fields[1]) + strlen(paths[k]) + (fields[2] ? strlen(fields[2]) : 0) + 4;
     if (!(entries[ne] = malloc(len))) {
       s = km__fail(err, KM_ERR_NOMEM, "pose set: out of memory");
@@ -152,9 +163,11 @@ km_status km_pose_set_from_labels(const char *meshes, const char *labels_csv,
   if (s == KM_OK) {
     /* a mesh the labels do not name is left out: the caller says so */
     out->n_listed = np;
+    out->n_duplicates = n_dup;
     for (size_t k = 0; k < np; ++k)
       out->n_unlabelled += !used[k];
-    out->unlabelled = km__calloc(out->n_unlabelled ? out->n_unlabelled : 1, sizeof *out->unlabelled);
+    out->unlabelled =
+        km__calloc(out->n_unlabelled ? out->n_unlabelled : 1, sizeof *out->unlabelled);
     size_t u = 0;
     for (size_t k = 0; out->unlabelled && k < np; ++k)
       if (!used[k]) out->unlabelled[u++] = strdup(paths[k]);
@@ -166,5 +179,6 @@ km_status km_pose_set_from_labels(const char *meshes, const char *labels_csv,
   km_paths_free(&entries, ne);
   km_paths_free(&paths, np);
   free(used);
+  free(first_line);
   return s;
 }

@@ -19,6 +19,11 @@ double km__transfer_size_ratio(const km_transfer *t, const double *T);
  * must equal km_vertex_normals (area) + km_local_frames on the same positions. */
 void km__transfer_frames(km_transfer *t, const double *V, double *frames);
 
+/* Changes the solves per km_transfer_solve of t (1 .. the value t was precomputed with) and
+ * the tolerance, for tests that measure the error after each iteration without a precompute
+ * per count. */
+void km__transfer_set_iterations(km_transfer *t, int max_iterations, double tolerance);
+
 /* ==== transfer: test fixtures / internal (not in include/kinemesh.h) ==== */
 
 /* Decision tree (CART, Gini impurity) over dense features: the feature selection of pose
