@@ -1045,10 +1045,20 @@ typedef enum km_anim_format {
   KM_ANIM_PLY_DIR,
 } km_anim_format;
 
+/* What a .glb animation stores (issue 16). */
+typedef enum km_anim_export {
+  KM_ANIM_EXPORT_MORPHS = 0, /* one morph target per key frame: exact, large */
+  KM_ANIM_EXPORT_SKIN,       /* a skinned mesh + one TRS channel per bone (km_ssdr_fit at
+                                close): what engines play on the GPU, 20-60x smaller */
+} km_anim_export;
+
 typedef struct km_anim_options {
   km_anim_format format; /* 0: from the path (a directory gets per-frame .obj) */
   double fps;            /* 0: 30 */
   size_t key_every;      /* glb: one morph target every k frames (0/1: every frame) */
+  /* ---- issue 16: what a .glb holds (other formats ignore these) */
+  km_anim_export export_kind;         /* 0: KM_ANIM_EXPORT_MORPHS (one target per key frame) */
+  const struct km_ssdr_options *skin; /* KM_ANIM_EXPORT_SKIN: the fit's options; NULL: defaults */
 } km_anim_options;
 
 /* Streams an animation of a fixed-connectivity mesh to disk. Nothing appears at `path`
@@ -1072,6 +1082,52 @@ km_status km_anim_writer_push(km_anim_writer *w, const double *V, km_error *err)
 km_status km_anim_writer_close(km_anim_writer **w, km_error *err);
 /* Discards an unfinished animation, frees *w and sets it to NULL. */
 void km_anim_writer_free(km_anim_writer **w);
+
+/* What close did (issue 16). Errors are against the exact frames pushed, in metres. */
+typedef struct km_anim_report {
+  km_anim_export export_kind;
+  size_t frames, bones;        /* bones: 0 unless skinned */
+  double rms_error, max_error; /* 0 for an exact export */
+  double fit_seconds;          /* time spent fitting (skin), wall clock */
+} km_anim_report;
+/* km_anim_writer_close that also says what it wrote.
+ *   report  out: may be NULL
+ * Errors: as km_anim_writer_close; KM_ERR_DEGENERATE_MESH when no rig fits (skin). */
+km_status km_anim_writer_finish(km_anim_writer **w, km_anim_report *report, km_error *err);
+
+/* ---- skinning decomposition: Le & Deng 2012, "Smooth Skinning Decomposition with Rigid
+ * Bones" (SSDR). Fits a linear-blend-skinning rig to any mesh animation: per-vertex sparse
+ * non-negative weights (<= 4 influences, summing to 1) and per-frame rigid bone transforms,
+ * initialised by clustering the vertices' trajectories. */
+typedef struct km_ssdr_options {
+  size_t bones;        /* 0: 24; the starting count when max_error_mm is set */
+  size_t max_bones;    /* with max_error_mm: bones are added until met or this (0: 4*bones) */
+  double max_error_mm; /* 0: none; else bones are added until the max error is below it */
+  int iterations;      /* weight/transform alternations (0: 12) */
+  size_t influences;   /* per vertex, 1..4 (0: 4) */
+  const double *seed;  /* optional #B*3 bone seeds (e.g. a rig's joints at rest): initial
+                          clusters grow from the vertices nearest them; NULL: k-means++ */
+  size_t n_seed;
+  km_progress progress; /* optional; may cancel */
+} km_ssdr_options;
+typedef struct km_ssdr {
+  size_t n_vertices, n_frames, n_bones;
+  km_skin skin;       /* #V: joints index bones, weights >= 0 sum to 1 */
+  double *transforms; /* n_frames * n_bones * 12: row-major 3x4 [R | t], rest -> frame */
+  double *centers;    /* n_bones * 3: rest centroid of each bone's vertices (a joint spot) */
+  double rms_error, max_error; /* metres, over all frames and vertices */
+} km_ssdr;
+/* Fits an LBS rig to an animation.
+ *   rest      in: #V*3 rest positions
+ *   frames    in: n_frames * #V * 3 positions (the exact animation)
+ *   opt       in: may be NULL
+ *   out       out: filled; free with km_ssdr_free
+ * Errors: KM_ERR_INVALID, KM_ERR_DEGENERATE_MESH (fewer than 4 vertices), KM_ERR_NOMEM,
+ * KM_ERR_CANCELLED. */
+km_status km_ssdr_fit(const double *rest, size_t n_vertices, const double *frames, size_t n_frames,
+                      const km_ssdr_options *opt, km_ssdr *out, km_error *err);
+/* Frees what km_ssdr_fit allocated and zeroes *r. */
+void km_ssdr_free(km_ssdr *r);
 
 typedef struct km_anim_info {
   km_anim_format format;

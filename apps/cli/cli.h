@@ -135,6 +135,26 @@ void km_cli_json_number(cJSON *o, const char *key, double v);
  * prints the error and returns non-zero when unknown. */
 int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f);
 
+/* Issue 16: what a .glb holds. --export morphs[:all] (one morph target per frame, exact) or
+ * skin[:BONES] (a fitted skinned mesh, km_ssdr_fit), and --max-error-mm (skin: bones are added
+ * until the max error is below it). */
+#define KM_CLI_EXPORT_OPTIONS(exp, max_mm)                                                         \
+  {"export", 0, KM_OPT_STRING, &(exp),                                                             \
+   "glb content: morphs[:all] (one target per frame, exact; default) or skin[:BONES] (skinned "    \
+   "mesh + bone animation fitted by SSDR, default 24 bones)"},                                     \
+  {                                                                                                \
+    "max-error-mm", 0, KM_OPT_DOUBLE, &(max_mm),                                                   \
+        "skin: add bones until the max error is below this (up to 4x BONES)"                       \
+  }
+/* Fills ao->export_kind / ao->skin (pointing at *ssdr, which must outlive ao) from --export
+ * and --max-error-mm for output `out`; prints the error and returns non-zero when malformed
+ * or when skin is asked for a non-.glb output. */
+int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, const char *out,
+                        km_anim_options *ao, km_ssdr_options *ssdr);
+/* "  skin: N bones, rms X mm, max Y mm (fit Z s)" on stderr for a skinned export; nothing
+ * for an exact one. */
+void km_cli_report_export(const char *verb, const km_anim_report *rep);
+
 /* Prints root (then deletes it) as indented JSON on stdout; "kinemesh <verb>: out of memory"
  * and exit status 1 when it cannot. */
 int km_cli_print_json(const char *verb, cJSON *root);

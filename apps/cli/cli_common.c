@@ -1,5 +1,6 @@
 #include "cli.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -247,6 +248,48 @@ int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f
   else
     return km_cli_error(verb, "--frame-format must be obj or ply, not '%s'", s);
   return 0;
+}
+
+int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, const char *out,
+                        km_anim_options *ao, km_ssdr_options *ssdr) {
+  memset(ssdr, 0, sizeof *ssdr);
+  ao->export_kind = KM_ANIM_EXPORT_MORPHS;
+  ao->skin = NULL;
+  if (!(max_error_mm >= 0) || !isfinite(max_error_mm))
+    return km_cli_error(verb, "--max-error-mm must be >= 0, not %g", max_error_mm);
+  if (!s || !strcmp(s, "morphs") || !strcmp(s, "morphs:all")) {
+    if (max_error_mm > 0) return km_cli_error(verb, "--max-error-mm applies to --export skin only");
+    return 0;
+  }
+  if (strncmp(s, "skin", 4) != 0 || (s[4] != '\0' && s[4] != ':'))
+    return km_cli_error(verb, "--export must be morphs, morphs:all or skin[:BONES], not '%s'", s);
+  if (s[4] == ':') {
+    char *end = NULL;
+    long b = strtol(s + 5, &end, 10);
+    if (!end || *end || end == s + 5 || b < 1 || b > 65535)
+      return km_cli_error(verb, "--export skin:BONES needs a bone count 1..65535, not '%s'", s + 5);
+    ssdr->bones = (size_t)b;
+  }
+  char ext[8];
+  const char *dot = out ? strrchr(out, '.') : NULL;
+  snprintf(ext, sizeof ext, "%s", dot ? dot + 1 : "");
+  for (char *c = ext; *c; ++c)
+    *c = (char)tolower((unsigned char)*c);
+  if (strcmp(ext, "glb") != 0)
+    return km_cli_error(verb, "--export skin writes a .glb; the output is '%s'", out ? out : "");
+  ssdr->max_error_mm = max_error_mm;
+  ssdr->progress = km_cli_progress("skin fit");
+  ao->export_kind = KM_ANIM_EXPORT_SKIN;
+  ao->skin = ssdr;
+  return 0;
+}
+
+void km_cli_report_export(const char *verb, const km_anim_report *rep) {
+  if (rep->export_kind != KM_ANIM_EXPORT_SKIN) return;
+  km_cli_progress_done();
+  fprintf(stderr,
+          "kinemesh %s: skin: %zu bones, %zu frames, rms %.3f mm, max %.3f mm (fit %.1f s)\n", verb,
+          rep->bones, rep->frames, rep->rms_error * 1e3, rep->max_error * 1e3, rep->fit_seconds);
 }
 
 char *km_cli_cache_path(const km_mesh *mesh) {

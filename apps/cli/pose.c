@@ -12,12 +12,15 @@ int km_cli_pose(int argc, char **argv) {
   const char *mesh = NULL, *rig = NULL, *motion = NULL, *out = NULL, *frame_format = NULL;
   double fps = 0;
   size_t key_every = 0;
+  const char *export_kind = NULL;
+  double max_error_mm = 0;
   /* The mesh stays in its file's frame: the rig sidecar's skeleton is stored in it. */
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
       KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh, "skinned mesh (from kinemesh gen character)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames (default 1)"},
+      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <mesh stem>.rig.json)"},
       {"motion", 0, KM_OPT_STRING, &motion, "take (.json) with the rig's joint names"},
       {"fps", 0, KM_OPT_DOUBLE, &fps, "frame rate of the output; the motion is resampled (default: the take's)"},
@@ -72,6 +75,8 @@ int km_cli_pose(int argc, char **argv) {
   ao.fps = fps > 0 ? fps : t.fps;
   ao.key_every = key_every;
   ao.format = af;
+  km_ssdr_options so;
+  if (km_cli_parse_export("pose", export_kind, max_error_mm, out, &ao, &so)) goto done;
   if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
   km_progress prog = km_cli_progress("pose");
   for (size_t f = 0; f < t.n_frames; ++f) {
@@ -85,8 +90,10 @@ int km_cli_pose(int argc, char **argv) {
       goto fail;
     prog.fn((double)(f + 1) / (double)t.n_frames, "skinning", NULL);
   }
-  if (km_anim_writer_close(&w, &err) != KM_OK) goto fail;
+  km_anim_report rep;
+  if (km_anim_writer_finish(&w, &rep, &err) != KM_OK) goto fail;
   km_cli_progress_done();
+  km_cli_report_export("pose", &rep);
   fprintf(stderr, "kinemesh pose: %zu frames of %zu vertices -> %s\n", t.n_frames,
           c.mesh.n_vertices, out);
   rc = KM_EXIT_OK;

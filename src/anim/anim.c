@@ -12,6 +12,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #define PC2_HEADER 32
@@ -163,6 +164,15 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   w->n_faces = nf;
   w->fps = o.fps;
   w->key_every = o.key_every;
+  if (o.export_kind != KM_ANIM_EXPORT_MORPHS && o.export_kind != KM_ANIM_EXPORT_SKIN) {
+    free(w);
+    return km__fail(err, KM_ERR_INVALID, "%s: unknown export kind %d", path, (int)o.export_kind);
+  }
+  if (o.format == KM_ANIM_GLB && o.export_kind == KM_ANIM_EXPORT_SKIN) {
+    w->export_kind = KM_ANIM_EXPORT_SKIN;
+    w->key_every = 1; /* the fit sees every frame */
+    if (o.skin) w->skin = *o.skin;
+  }
   w->path = dup_str(path);
   /* "out/frames/" must not put the temporary directory inside the destination. */
   for (size_t n = w->path ? strlen(w->path) : 0; n > 1 && w->path[n - 1] == '/'; --n)
@@ -308,7 +318,7 @@ static km_status push_glb(km_anim_writer *w, const double *V, km_error *err) {
   uint64_t per_key = (uint64_t)w->n_vertices * 12;
   uint64_t estimate = per_key * (w->n_keys + 2) + (uint64_t)w->n_faces * 12 +
                       (uint64_t)(w->n_keys + 1) * (w->n_keys + 2) * 4 + (1u << 20);
-  if (estimate > UINT32_MAX)
+  if (estimate > UINT32_MAX && w->export_kind == KM_ANIM_EXPORT_MORPHS)
     return km__fail(err, KM_ERR_UNSUPPORTED,
                     "%s: frame %zu would make the glb exceed 4 GiB; use key_every > 1 or pc2",
                     w->path, w->frames);
@@ -488,10 +498,55 @@ static km_status close_dir(km_anim_writer *w, km_error *err) {
   return KM_OK;
 }
 
+/* Fits the rig over every frame (read back from the key temporary) and writes it. */
+static km_status close_skin(km_anim_writer *w, km_anim_report *rep, km_error *err) {
+  const size_t nv = w->n_vertices, T = w->n_keys;
+  double *frames = km__malloc(T * nv * 3, sizeof *frames);
+  if (!frames)
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames to fit", w->path, T);
+  km_status s = KM_OK;
+  if (fseek(w->keys, 0, SEEK_SET) != 0)
+    s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the frame temporary", w->path);
+  for (size_t t = 0; s == KM_OK && t < T; ++t) {
+    if (fread(w->fbuf, sizeof *w->fbuf, nv * 3, w->keys) != nv * 3) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot read frame %zu back from its temporary", w->path, t);
+      break;
+    }
+    double *V = frames + t * nv * 3;
+    for (size_t i = 0; i < nv * 3; ++i)
+      V[i] = w->rest[i] + (double)w->fbuf[i];
+  }
+  km_ssdr fit = {0};
+  struct timespec t0, t1;
+  clock_gettime(CLOCK_MONOTONIC, &t0);
+  if (s == KM_OK) s = km_ssdr_fit(w->rest, nv, frames, T, &w->skin, &fit, err);
+  clock_gettime(CLOCK_MONOTONIC, &t1);
+  free(frames);
+  if (s != KM_OK) return km__wrap(err, s, "%s", w->path);
+  if (rep) {
+    rep->bones = fit.n_bones;
+    rep->rms_error = fit.rms_error;
+    rep->max_error = fit.max_error;
+    rep->fit_seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+  }
+  s = km__glb_write_skin(w, &fit, err);
+  km_ssdr_free(&fit);
+  return s;
+}
+
 km_status km_anim_writer_close(km_anim_writer **wp, km_error *err) {
+  return km_anim_writer_finish(wp, NULL, err);
+}
+
+km_status km_anim_writer_finish(km_anim_writer **wp, km_anim_report *rep, km_error *err) {
+  if (rep) memset(rep, 0, sizeof *rep);
   if (!wp || !*wp) return km__fail(err, KM_ERR_INVALID, "km_anim_writer_close: writer is NULL");
   km_anim_writer *w = *wp;
   *wp = NULL;
+  if (rep) {
+    rep->export_kind = w->export_kind;
+    rep->frames = w->frames;
+  }
   km_status s = KM_OK;
   if (w->failed)
     s = km__fail(err, KM_ERR_IO, "%s: an earlier write failed; nothing written", w->path);
@@ -499,6 +554,8 @@ km_status km_anim_writer_close(km_anim_writer **wp, km_error *err) {
     s = km__fail(err, KM_ERR_INVALID, "%s: no frames were pushed; nothing written", w->path);
   else if (w->format == KM_ANIM_PC2)
     s = close_pc2(w, err);
+  else if (w->format == KM_ANIM_GLB && w->export_kind == KM_ANIM_EXPORT_SKIN)
+    s = close_skin(w, rep, err);
   else if (w->format == KM_ANIM_GLB)
     s = km__glb_finish(w, err);
   else

@@ -1,4 +1,4 @@
-/* Requires: core, mesh. External: cJSON. */
+/* Requires: core, linalg, math, mesh. External: cJSON. */
 /* Private interface between the animation writer (anim.c) and its format back-ends. */
 #ifndef KM_IO_ANIM_H
 #define KM_IO_ANIM_H
@@ -62,6 +62,9 @@ struct km_anim_writer {
   bool normals; /* rest had UV or N */
   double *nbuf; /* #V*3 scratch: one frame's normals */
   double *vbuf; /* #V*3 scratch: one key's positions (glb) */
+  /* issue 16: a skinned glb fits km_ssdr at close over every frame (stored as keys). */
+  km_anim_export export_kind;
+  km_ssdr_options skin;
 };
 
 /* Unit area-weighted normals of positions V over the writer's faces into w->nbuf; a vertex
@@ -70,6 +73,9 @@ void km__anim_normals(km_anim_writer *w, const double *V);
 
 /* Writes the final .glb from the stored keys (called by close). */
 km_status km__glb_finish(km_anim_writer *w, km_error *err);
+
+/* Writes the skinned .glb of a fit over the writer's rest mesh into w->af and commits it. */
+km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, km_error *err);
 
 /* Reads the .glb header and JSON chunk only (the binary chunk may be large). */
 km_status km__glb_info(const char *path, km_anim_info *out, km_error *err);

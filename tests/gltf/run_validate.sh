@@ -20,6 +20,9 @@ awk 'NR==FNR { if ($1 == "v") printf "vt %.6f %.6f\n", ($2 + 1) / 2, $3 / 2; nex
   "$WORK/c.obj" "$WORK/c.obj" > "$WORK/ct.obj"
 cp "$WORK/c.rig.json" "$WORK/ct.rig.json"
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --key-every 4 -o "$WORK/textured.glb"
-for f in every keys textured; do node "$HERE/validate.mjs" "$WORK/$f.glb"; done
+# Issue 16: a skinned export (SSDR fit; JOINTS_0/WEIGHTS_0, inverse bind matrices, TRS channels).
+"$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export skin:8 -o "$WORK/skin.glb"
+for f in every keys textured skin; do node "$HERE/validate.mjs" "$WORK/$f.glb"; done
 "$BIN" info --json "$WORK/every.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames"; exit 1; }
-echo "gltf_validator: 4 passed, 0 failed"
+"$BIN" info --json "$WORK/skin.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames for the skin"; exit 1; }
+echo "gltf_validator: 6 passed, 0 failed"
