@@ -1152,6 +1152,19 @@ km_status km_anim_info_read(const char *path, km_anim_info *out, km_error *err);
  * Errors: KM_ERR_IO, KM_ERR_PARSE. */
 km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_error *err);
 
+/* Reads a whole animation into memory (issue 16: `kinemesh bake`).
+ *   path    in: .pc2, a frame directory (frame_NNNNNN.obj/.ply) or a .glb of morph targets
+ *           (kinemesh's own, or any glTF whose first mesh a weights channel animates; skinned
+ *           files are not evaluated)
+ *   rest    out: the mesh the frames belong to, with its UVs/normals where the file has them:
+ *           the glb's base mesh, the directory's first frame, a pc2's first frame (no faces);
+ *           free with km_mesh_free
+ *   frames  out: allocated info->frames * #V * 3 positions; free()
+ *   info    out: format, counts, fps (0 when the file does not say)
+ * Errors: KM_ERR_IO, KM_ERR_PARSE (naming file and byte/line), KM_ERR_UNSUPPORTED. */
+km_status km_anim_read(const char *path, km_mesh *rest, double **frames, km_anim_info *info,
+                       km_error *err);
+
 /* ==== puppet: puppetry deformers, Wu, Lu & Song 2012 (src/puppet/) ==== */
 
 /* Handles (both solvers): handle h owns handle_vertices[handle_offsets[h] ..

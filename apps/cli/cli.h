@@ -98,6 +98,7 @@ int km_cli_convert(int argc, char **argv);
 int km_cli_eigen(int argc, char **argv);
 int km_cli_gen(int argc, char **argv);
 int km_cli_pose(int argc, char **argv);
+int km_cli_bake(int argc, char **argv);
 int km_cli_precompute(int argc, char **argv);
 int km_cli_animate(int argc, char **argv);
 int km_cli_gen_capture(int argc, char **argv);

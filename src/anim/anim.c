@@ -754,3 +754,80 @@ static km_status anim_info_read(const char *path, km_anim_info *out, km_error *e
   return km__fail(err, KM_ERR_UNSUPPORTED,
                   "%s: unknown animation format (expected .glb, .pc2 or a frame directory)", path);
 }
+
+/* ---------------------------------------------------------------- whole animations (issue 16) */
+
+km_status km_anim_read(const char *path, km_mesh *rest, double **frames, km_anim_info *info,
+                       km_error *err) {
+  if (!path || !rest || !frames || !info)
+    return km__fail(err, KM_ERR_INVALID, "km_anim_read: NULL argument");
+  memset(rest, 0, sizeof *rest);
+  *frames = NULL;
+  km_status s = km_anim_info_read(path, info, err);
+  if (s != KM_OK) return s;
+  if (info->format == KM_ANIM_PC2) {
+    km_anim_info in2;
+    if ((s = km_pc2_read(path, frames, &in2, err)) != KM_OK) return s;
+    if (in2.frames == 0) {
+      free(*frames);
+      *frames = NULL;
+      return km__fail(err, KM_ERR_PARSE, "%s: the point cache has no frames", path);
+    }
+    *info = in2;
+    if (!(rest->V = km__malloc(in2.vertices * 3, sizeof *rest->V))) {
+      free(*frames);
+      *frames = NULL;
+      return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+    }
+    memcpy(rest->V, *frames, in2.vertices * 3 * sizeof *rest->V);
+    rest->n_vertices = in2.vertices;
+    return KM_OK;
+  }
+  if (info->format == KM_ANIM_GLB) {
+    if ((s = km_mesh_read(path, rest, err)) != KM_OK) return s;
+    size_t n = 0;
+    double fps = info->fps;
+    s = km__glb_frames(path, rest->n_vertices, frames, &n, &fps, err);
+    if (s != KM_OK) {
+      km_mesh_free(rest);
+      return s;
+    }
+    info->frames = info->timeline_frames = n;
+    info->fps = fps;
+    info->duration = fps > 0 && n > 0 ? (double)(n - 1) / fps : 0;
+    return KM_OK;
+  }
+  /* a frame directory: frame_000000 .. in order, every one with the first's vertex count */
+  const char *ext = info->format == KM_ANIM_PLY_DIR ? "ply" : "obj";
+  size_t m = strlen(path) + 40, nv = 0;
+  char *fp = malloc(m);
+  if (!fp) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  for (size_t k = 0; s == KM_OK && k < info->frames; ++k) {
+    snprintf(fp, m, "%s/frame_%06zu.%s", path, k, ext);
+    km_mesh f = {0};
+    if ((s = km_mesh_read(fp, k == 0 ? rest : &f, err)) != KM_OK) break;
+    if (k == 0) {
+      nv = rest->n_vertices;
+      if (!(*frames = km__malloc(info->frames * nv * 3, sizeof **frames))) {
+        s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames", path, info->frames);
+        break;
+      }
+      memcpy(*frames, rest->V, nv * 3 * sizeof **frames);
+      continue;
+    }
+    if (f.n_vertices != nv)
+      s = km__fail(err, KM_ERR_PARSE, "%s: %zu vertices, frame 0 has %zu", fp, f.n_vertices, nv);
+    else
+      memcpy(*frames + k * nv * 3, f.V, nv * 3 * sizeof **frames);
+    km_mesh_free(&f);
+  }
+  free(fp);
+  if (s != KM_OK) {
+    free(*frames);
+    *frames = NULL;
+    km_mesh_free(rest);
+    return s;
+  }
+  info->vertices = nv;
+  return KM_OK;
+}

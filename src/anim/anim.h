@@ -77,6 +77,12 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err);
 /* Writes the skinned .glb of a fit over the writer's rest mesh into w->af and commits it. */
 km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, km_error *err);
 
+/* Every frame of a morph-target .glb (base + sum of weighted targets at each key of the first
+ * weights channel; one frame per target without one): *frames n_frames * nv * 3, allocated.
+ * fps: from kinemesh's extras or the key spacing; untouched when unknown. */
+km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n_frames,
+                         double *fps, km_error *err);
+
 /* Reads the .glb header and JSON chunk only (the binary chunk may be large). */
 km_status km__glb_info(const char *path, km_anim_info *out, km_error *err);
 

@@ -751,3 +751,166 @@ nomem:
   free(b.p);
   return km__fail(err, KM_ERR_NOMEM, "%s: out of memory writing the skinned glb", w->path);
 }
+
+/* ---------------------------------------------------------------- morph frames (issue 16) */
+
+/* Float data of accessor a (FLOAT, `comps` components, tightly packed or strided), checked
+ * against the binary chunk; NULL with err filled otherwise. */
+static const unsigned char *float_accessor(const char *path, const cJSON *root,
+                                           const unsigned char *bin, size_t bin_len, int a,
+                                           int comps, size_t *count, size_t *stride,
+                                           km_error *err) {
+  const cJSON *acc = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "accessors"), a);
+  const cJSON *bv = cJSON_GetObjectItemCaseSensitive(acc, "bufferView");
+  const cJSON *ct = cJSON_GetObjectItemCaseSensitive(acc, "componentType");
+  const cJSON *cn = cJSON_GetObjectItemCaseSensitive(acc, "count");
+  if (!cJSON_IsNumber(bv) || !cJSON_IsNumber(ct) || ct->valueint != GL_FLOAT ||
+      !cJSON_IsNumber(cn) || cn->valuedouble < 0 ||
+      cJSON_IsObject(cJSON_GetObjectItemCaseSensitive(acc, "sparse"))) {
+    km__fail(err, KM_ERR_UNSUPPORTED,
+             "%s: JSON: accessors[%d] is not a dense float accessor in a bufferView", path, a);
+    return NULL;
+  }
+  const cJSON *view =
+      cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "bufferViews"), bv->valueint);
+  const cJSON *vo = cJSON_GetObjectItemCaseSensitive(view, "byteOffset");
+  const cJSON *ao = cJSON_GetObjectItemCaseSensitive(acc, "byteOffset");
+  const cJSON *bs = cJSON_GetObjectItemCaseSensitive(view, "byteStride");
+  const cJSON *vl = cJSON_GetObjectItemCaseSensitive(view, "byteLength");
+  double off =
+      (cJSON_IsNumber(vo) ? vo->valuedouble : 0) + (cJSON_IsNumber(ao) ? ao->valuedouble : 0);
+  double st = cJSON_IsNumber(bs) && bs->valuedouble > 0 ? bs->valuedouble : 4.0 * comps;
+  double n = cn->valuedouble;
+  if (!view || !cJSON_IsNumber(vl) || off < 0 || st < 4.0 * comps ||
+      (n > 0 && off + st * (n - 1) + 4.0 * comps > (double)bin_len)) {
+    km__fail(err, KM_ERR_PARSE, "%s: JSON: accessors[%d] runs past the binary chunk", path, a);
+    return NULL;
+  }
+  *count = (size_t)n;
+  *stride = (size_t)st;
+  return bin + (size_t)off;
+}
+
+km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n_frames,
+                         double *fps, km_error *err) {
+  *frames = NULL;
+  *n_frames = 0;
+  char *data = NULL;
+  size_t size = 0;
+  km_status s = km__read_file(path, &data, &size, err);
+  if (s != KM_OK) return s;
+  const unsigned char *b = (const unsigned char *)data;
+  cJSON *root = NULL;
+  double *out = NULL;
+  if (size < 28 || km__get_u32le(b) != GLB_MAGIC || km__get_u32le(b + 16) != GLB_JSON ||
+      (uint64_t)km__get_u32le(b + 12) + 28 > size) {
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte 0: not a glTF binary with a JSON chunk", path);
+    goto done;
+  }
+  size_t jl = km__get_u32le(b + 12);
+  const unsigned char *bin = b + 20 + jl + 8;
+  size_t bin_len = km__get_u32le(b + 20 + jl);
+  if (km__get_u32le(b + 24 + jl) != GLB_BIN || bin_len > size - 28 - jl) {
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte %zu: missing or truncated BIN chunk", path, 20 + jl);
+    goto done;
+  }
+  root = cJSON_ParseWithLength(data + 20, jl);
+  if (!root) {
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte 20: invalid JSON chunk", path);
+    goto done;
+  }
+  const cJSON *prim = get_path(get_path(root, "meshes", 0), "primitives", 0);
+  const cJSON *targets = cJSON_GetObjectItemCaseSensitive(prim, "targets");
+  const cJSON *pos = get_path(get_path(prim, "attributes", -1), "POSITION", -1);
+  size_t nt = (size_t)cJSON_GetArraySize(targets), cnt = 0, st = 0;
+  if (!cJSON_IsNumber(pos) || nt == 0) {
+    s = km__fail(err, KM_ERR_UNSUPPORTED,
+                 "%s: meshes[0].primitives[0] has no morph targets: not a morph animation", path);
+    goto done;
+  }
+  const unsigned char *base =
+      float_accessor(path, root, bin, bin_len, pos->valueint, 3, &cnt, &st, err);
+  if (!base) {
+    s = err ? err->status : KM_ERR_PARSE;
+    goto done;
+  }
+  if (cnt != nv) {
+    s = km__fail(err, KM_ERR_PARSE, "%s: POSITION has %zu vertices, the mesh %zu", path, cnt, nv);
+    goto done;
+  }
+  /* The weights channel (if any): frames at its key times; else one frame per target. */
+  const cJSON *anim = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "animations"), 0);
+  const cJSON *ch, *wsampler = NULL;
+  cJSON_ArrayForEach(ch, cJSON_GetObjectItemCaseSensitive(anim, "channels")) {
+    const cJSON *p = get_path(get_path(ch, "target", -1), "path", -1);
+    if (cJSON_IsString(p) && !strcmp(p->valuestring, "weights")) {
+      const cJSON *si = get_path(ch, "sampler", -1);
+      if (cJSON_IsNumber(si)) wsampler = get_path(anim, "samplers", si->valueint);
+      break;
+    }
+  }
+  size_t nk = nt, wst = 0, tst = 0, wcnt = 0;
+  const unsigned char *wdata = NULL, *tdata = NULL;
+  if (wsampler) {
+    const cJSON *in = get_path(wsampler, "input", -1), *o = get_path(wsampler, "output", -1);
+    if (!cJSON_IsNumber(in) || !cJSON_IsNumber(o) ||
+        !(tdata = float_accessor(path, root, bin, bin_len, in->valueint, 1, &nk, &tst, err)) ||
+        !(wdata = float_accessor(path, root, bin, bin_len, o->valueint, 1, &wcnt, &wst, err))) {
+      s = err && err->status ? err->status : KM_ERR_PARSE;
+      if (!err || !err->status)
+        km__fail(err, s, "%s: the weights sampler's input/output are not float accessors", path);
+      goto done;
+    }
+    if (wcnt != nk * nt) {
+      s = km__fail(err, KM_ERR_UNSUPPORTED,
+                   "%s: weights sampler has %zu values for %zu keys x %zu targets (cubic "
+                   "splines are not read)",
+                   path, wcnt, nk, nt);
+      goto done;
+    }
+    if (nk >= 2) {
+      double t0 = km__get_f32le(tdata), t1 = km__get_f32le(tdata + (nk - 1) * tst);
+      if (t1 > t0 && fps) *fps = (double)(nk - 1) / (t1 - t0);
+    }
+  }
+  const cJSON *ex = get_path(get_path(get_path(root, "asset", -1), "extras", -1), "kinemesh", -1);
+  const cJSON *efps = get_path(ex, "fps", -1);
+  if (fps && cJSON_IsNumber(efps) && efps->valuedouble > 0) *fps = efps->valuedouble;
+  if (!(out = km__malloc(nk * nv * 3, sizeof *out))) {
+    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames", path, nk);
+    goto done;
+  }
+  for (size_t k = 0; k < nk; ++k)
+    for (size_t i = 0; i < nv; ++i)
+      for (int c = 0; c < 3; ++c)
+        out[(k * nv + i) * 3 + c] = km__get_f32le(base + i * st + 4 * c);
+  for (size_t t = 0; t < nt; ++t) {
+    const cJSON *tp = get_path(cJSON_GetArrayItem(targets, (int)t), "POSITION", -1);
+    size_t tc = 0, ts = 0;
+    const unsigned char *td = cJSON_IsNumber(tp) ? float_accessor(path, root, bin, bin_len,
+                                                                  tp->valueint, 3, &tc, &ts, err)
+                                                 : NULL;
+    if (!td || tc != nv) {
+      if (td || !cJSON_IsNumber(tp))
+        km__fail(err, KM_ERR_PARSE, "%s: morph target %zu has no POSITION of %zu vertices", path, t,
+                 nv);
+      s = err && err->status ? err->status : KM_ERR_PARSE;
+      goto done;
+    }
+    for (size_t k = 0; k < nk; ++k) {
+      double wk = wdata ? km__get_f32le(wdata + (k * nt + t) * wst) : (k == t ? 1.0 : 0.0);
+      if (wk == 0) continue;
+      for (size_t i = 0; i < nv; ++i)
+        for (int c = 0; c < 3; ++c)
+          out[(k * nv + i) * 3 + c] += wk * km__get_f32le(td + i * ts + 4 * c);
+    }
+  }
+  *frames = out;
+  *n_frames = nk;
+  out = NULL;
+done:
+  cJSON_Delete(root);
+  free(out);
+  free(data);
+  return s;
+}
