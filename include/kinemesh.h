@@ -1100,8 +1100,9 @@ km_status km_anim_writer_finish(km_anim_writer **w, km_anim_report *report, km_e
  * non-negative weights (<= 4 influences, summing to 1) and per-frame rigid bone transforms,
  * initialised by clustering the vertices' trajectories. */
 typedef struct km_ssdr_options {
-  size_t bones;        /* 0: 24; the starting count when max_error_mm is set */
-  size_t max_bones;    /* with max_error_mm: bones are added until met or this (0: 4*bones) */
+  size_t bones;        /* 0: 32; the starting count when max_error_mm is set */
+  size_t max_bones;    /* with max_error_mm: bones are split where the error is until the
+                          budget is met or this count (0: 4*bones) */
   double max_error_mm; /* 0: none; else bones are added until the max error is below it */
   int iterations;      /* weight/transform alternations (0: 12) */
   size_t influences;   /* per vertex, 1..4 (0: 4) */

@@ -142,10 +142,10 @@ int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f
 #define KM_CLI_EXPORT_OPTIONS(exp, max_mm)                                                         \
   {"export", 0, KM_OPT_STRING, &(exp),                                                             \
    "glb content: morphs[:all] (one target per frame, exact; default) or skin[:BONES] (skinned "    \
-   "mesh + bone animation fitted by SSDR, default 24 bones)"},                                     \
+   "mesh + bone animation fitted by SSDR; plain skin: 32 bones grown to meet 15 mm)"},             \
   {                                                                                                \
     "max-error-mm", 0, KM_OPT_DOUBLE, &(max_mm),                                                   \
-        "skin: add bones until the max error is below this (up to 4x BONES)"                       \
+        "skin: split bones until the max error is below this (up to 4x BONES)"                     \
   }
 /* Fills ao->export_kind / ao->skin (pointing at *ssdr, which must outlive ao) from --export
  * and --max-error-mm for output `out`; prints the error and returns non-zero when malformed

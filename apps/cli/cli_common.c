@@ -277,7 +277,8 @@ int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, co
     *c = (char)tolower((unsigned char)*c);
   if (strcmp(ext, "glb") != 0)
     return km_cli_error(verb, "--export skin writes a .glb; the output is '%s'", out ? out : "");
-  ssdr->max_error_mm = max_error_mm;
+  /* Plain "skin": a budget that keeps the targets (max 15 mm on a 1.75 m figure). */
+  ssdr->max_error_mm = max_error_mm > 0 ? max_error_mm : (s[4] == ':' ? 0 : 15);
   ssdr->progress = km_cli_progress("skin fit");
   ao->export_kind = KM_ANIM_EXPORT_SKIN;
   ao->skin = ssdr;

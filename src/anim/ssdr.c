@@ -292,7 +292,22 @@ static bool init_clusters(ssdr_ctx *c, const double *seed, size_t n_seed) {
       for (size_t k = 0; k < D; ++k)
         C[j * D + k] /= cnt[j] > 0 ? cnt[j] : 1;
   }
-  /* Rigid clustering: a vertex goes to the bone whose motion explains it best. */
+out:
+  free(X);
+  free(C);
+  free(d2);
+  free(cnt);
+  return ok;
+}
+
+/* Rigid clustering from c->label (Le & Deng's initialisation): a vertex goes to the bone whose
+ * rigid motion explains its trajectory best, the motions are refitted, an emptied bone
+ * restarts at the worst explained vertex; ends with hard weights. */
+static bool rigid_clusters(ssdr_ctx *c) {
+  const size_t n = c->n, B = c->B, T = c->T;
+  const size_t step = T > SSDR_SUBFRAMES ? (T + SSDR_SUBFRAMES - 1) / SSDR_SUBFRAMES : 1;
+  double *cnt = km__malloc(B, sizeof *cnt);
+  if (!cnt) return false;
   for (int it = 0; it < 4; ++it) {
     fit_clusters(c);
 #pragma omp parallel for schedule(static)
@@ -347,12 +362,90 @@ static bool init_clusters(ssdr_ctx *c, const double *seed, size_t n_seed) {
     for (int k = 1; k < 4; ++k)
       c->J[4 * i + k] = -1, c->W[4 * i + k] = 0;
   }
-out:
-  free(X);
-  free(C);
-  free(d2);
   free(cnt);
-  return ok;
+  return true;
+}
+
+/* Error budget (Dem Bones' way of growing a rig): the bones whose worst vertex is furthest
+ * off are split in two, the new half seeded at that vertex (2-means on rest positions within
+ * the bone's vertices). c->label is set from the old fit (main influence) plus the splits;
+ * c->B grows to new_B. */
+static void split_bones(ssdr_ctx *c, size_t old_B, size_t new_B) {
+  const size_t n = c->n, T = c->T;
+  double *ve = km__calloc(n, sizeof *ve), *be = km__calloc(old_B, sizeof *be);
+  size_t *bv = km__calloc(old_B, sizeof *bv);
+  double *cen = km__calloc(old_B * 4, sizeof *cen);
+  if (!ve || !be || !bv || !cen) goto out;
+  for (size_t i = 0; i < n; ++i) {
+    int best = 0;
+    for (int k = 1; k < 4; ++k)
+      if (c->J[4 * i + k] >= 0 && c->W[4 * i + k] > c->W[4 * i + best]) best = k;
+    c->label[i] = c->J[4 * i + best];
+  }
+#pragma omp parallel for schedule(static)
+  for (size_t i = 0; i < n; ++i) {
+    double m = 0, y[3];
+    for (size_t t = 0; t < T; ++t) {
+      double r[3] = {0, 0, 0};
+      for (int k = 0; k < 4; ++k) {
+        int32_t j = c->J[4 * i + k];
+        if (j < 0) continue;
+        xform(c->M + (t * old_B + (size_t)j) * 12, c->P + 3 * i, y);
+        for (int a = 0; a < 3; ++a)
+          r[a] += c->W[4 * i + k] * y[a];
+      }
+      const double *v = c->V + (t * n + i) * 3;
+      double e = (r[0] - v[0]) * (r[0] - v[0]) + (r[1] - v[1]) * (r[1] - v[1]) +
+                 (r[2] - v[2]) * (r[2] - v[2]);
+      if (e > m) m = e;
+    }
+    ve[i] = m;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    size_t j = (size_t)c->label[i];
+    if (ve[i] > be[j]) be[j] = ve[i], bv[j] = i;
+    for (int a = 0; a < 3; ++a)
+      cen[4 * j + a] += c->P[3 * i + a];
+    cen[4 * j + 3] += 1;
+  }
+  for (size_t nb = old_B; nb < new_B; ++nb) {
+    size_t j = 0;
+    for (size_t q = 1; q < old_B; ++q)
+      if (be[q] > be[j]) j = q;
+    if (!(be[j] > 0) || cen[4 * j + 3] < 8) break;
+    be[j] = -1; /* once per round */
+    const double *s = c->P + 3 * bv[j];
+    double o[3];
+    for (int a = 0; a < 3; ++a)
+      o[a] = cen[4 * j + a] / cen[4 * j + 3];
+    /* two Lloyd steps on rest positions between the old centre and the seed */
+    double A[3], Bc[3];
+    memcpy(A, o, sizeof A);
+    memcpy(Bc, s, sizeof Bc);
+    for (int it = 0; it < 3; ++it) {
+      double sa[4] = {0}, sb[4] = {0};
+      for (size_t i = 0; i < n; ++i) {
+        if (c->label[i] != (int32_t)j && c->label[i] != (int32_t)nb) continue;
+        const double *p = c->P + 3 * i;
+        double da = 0, db = 0;
+        for (int a = 0; a < 3; ++a)
+          da += (p[a] - A[a]) * (p[a] - A[a]), db += (p[a] - Bc[a]) * (p[a] - Bc[a]);
+        double *acc = db < da ? sb : sa;
+        c->label[i] = db < da ? (int32_t)nb : (int32_t)j;
+        for (int a = 0; a < 3; ++a)
+          acc[a] += p[a];
+        acc[3] += 1;
+      }
+      for (int a = 0; a < 3 && sa[3] > 0 && sb[3] > 0; ++a)
+        A[a] = sa[a] / sa[3], Bc[a] = sb[a] / sb[3];
+    }
+  }
+out:
+  c->B = new_B;
+  free(ve);
+  free(be);
+  free(bv);
+  free(cen);
 }
 
 /* Weights of every vertex for the current transforms. */
@@ -601,18 +694,31 @@ void km_ssdr_free(km_ssdr *r) {
   memset(r, 0, sizeof *r);
 }
 
-/* One fit with B bones into c (c->M, c->J, c->W allocated by the caller). */
-static km_status fit_once(ssdr_ctx *c, const km_ssdr_options *o, int iterations, double base,
-                          double span, km_error *err) {
-  if (!init_clusters(c, o->seed, o->n_seed))
-    return km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory");
-  for (int it = 0; it < iterations; ++it) {
-    if (!km__progress(&o->progress, base + span * (it + 0.5) / iterations, "skinning fit"))
+/* Alternations from the current clusters (c->label): rigid clustering, then weights and
+ * transforms in turn. */
+static km_status refine(ssdr_ctx *c, const km_ssdr_options *o, double base, double span,
+                        km_error *err) {
+  if (!rigid_clusters(c)) return km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory");
+  for (int it = 0; it < o->iterations; ++it) {
+    if (!km__progress(&o->progress, base + span * (it + 0.5) / o->iterations, "skinning fit"))
       return km__fail(err, KM_ERR_CANCELLED, "km_ssdr_fit: cancelled");
     update_weights(c);
     if (!update_transforms(c)) return km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory");
   }
   return KM_OK;
+}
+
+/* c->M for c->B bones, identities. */
+static bool alloc_transforms(ssdr_ctx *c) {
+  free(c->M);
+  c->M = km__malloc(c->T * c->B * 12, sizeof *c->M);
+  if (!c->M) return false;
+  for (size_t k = 0; k < c->T * c->B; ++k) {
+    double *M = c->M + 12 * k;
+    memset(M, 0, 12 * sizeof *M);
+    M[0] = M[5] = M[10] = 1;
+  }
+  return true;
 }
 
 km_status km_ssdr_fit(const double *rest, size_t n_vertices, const double *frames, size_t n_frames,
@@ -625,7 +731,7 @@ km_status km_ssdr_fit(const double *rest, size_t n_vertices, const double *frame
     return km__fail(err, KM_ERR_DEGENERATE_MESH, "km_ssdr_fit: %zu vertices, need >= 4",
                     n_vertices);
   km_ssdr_options o = opt ? *opt : (km_ssdr_options){0};
-  if (o.bones == 0) o.bones = 24;
+  if (o.bones == 0) o.bones = 32;
   if (o.influences == 0) o.influences = 4;
   if (o.iterations <= 0) o.iterations = 12;
   if (o.influences > 4)
@@ -649,44 +755,30 @@ km_status km_ssdr_fit(const double *rest, size_t n_vertices, const double *frame
 
   ssdr_ctx c = {.P = rest, .V = frames, .n = n_vertices, .T = n_frames, .K = o.influences};
   km_status s = KM_OK;
-  size_t B = o.bones;
-  for (int round = 0;; ++round) {
-    c.B = B;
-    c.M = km__malloc(n_frames * B * 12, sizeof *c.M);
-    c.J = km__malloc(n_vertices * 4, sizeof *c.J);
-    c.W = km__malloc(n_vertices * 4, sizeof *c.W);
-    c.label = km__malloc(n_vertices, sizeof *c.label);
-    if (!c.M || !c.J || !c.W || !c.label) {
-      s = km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory for %zu bones", B);
-    } else {
-      for (size_t k = 0; k < n_frames * B; ++k) {
-        double *M = c.M + 12 * k;
-        memset(M, 0, 12 * sizeof *M);
-        M[0] = M[5] = M[10] = 1;
-      }
-      double base = round == 0 ? 0 : 1 - 1.0 / (round + 1);
-      s = fit_once(&c, &o, o.iterations, base, 1.0 / ((round + 1) * (round + 2)), err);
-    }
-    free(c.label);
-    c.label = NULL;
-    if (s != KM_OK) break;
+  c.B = o.bones;
+  c.J = km__malloc(n_vertices * 4, sizeof *c.J);
+  c.W = km__malloc(n_vertices * 4, sizeof *c.W);
+  c.label = km__malloc(n_vertices, sizeof *c.label);
+  if (!c.J || !c.W || !c.label || !alloc_transforms(&c) || !init_clusters(&c, o.seed, o.n_seed))
+    s = km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory for %zu bones", c.B);
+  for (int round = 0; s == KM_OK; ++round) {
+    double base = round == 0 ? 0 : 1 - 1.0 / (round + 1);
+    if ((s = refine(&c, &o, base, 1.0 / ((round + 1) * (round + 2)), err)) != KM_OK) break;
     double rms, mx;
     measure(&c, &rms, &mx);
-    bool met = !(o.max_error_mm > 0) || mx * 1e3 <= o.max_error_mm || B >= o.max_bones;
-    if (met || round >= 8) {
-      out->rms_error = rms;
-      out->max_error = mx;
+    out->rms_error = rms;
+    out->max_error = mx;
+    if (!(o.max_error_mm > 0) || mx * 1e3 <= o.max_error_mm || c.B >= o.max_bones || round >= 16)
       break;
-    }
-    km__log(KM_LOG_INFO, "km_ssdr_fit: %zu bones: max error %.2f mm > %.2f mm, adding bones", B,
+    /* Grow by a quarter (at least one bone) where the error is. */
+    size_t old_B = c.B, nb = c.B + (c.B + 3) / 4;
+    km__log(KM_LOG_INFO, "km_ssdr_fit: %zu bones: max error %.2f mm > %.2f mm, splitting", old_B,
             mx * 1e3, o.max_error_mm);
-    free(c.M);
-    free(c.J);
-    free(c.W);
-    c.M = NULL, c.J = NULL, c.W = NULL;
-    size_t nb = B + (B + 1) / 2;
-    B = nb > o.max_bones ? o.max_bones : nb;
+    split_bones(&c, old_B, nb > o.max_bones ? o.max_bones : nb);
+    if (!alloc_transforms(&c)) s = km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory");
   }
+  free(c.label);
+  c.label = NULL;
   if (s != KM_OK) {
     free(c.M);
     free(c.J);
