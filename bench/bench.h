@@ -31,5 +31,8 @@ int km_bench_rig(int argc, char **argv);
 /* bench/bench_motion.c (issue 12): real takes on auto-rigged meshes through puppetry,
  * translation-only vs rotating handles: stretch, folds, jumps, floor, per-frame time. */
 int km_bench_motion(int argc, char **argv);
+/* bench/bench_export.c (issue 16): size, error and time of each glTF export kind (per-frame
+ * morphs, skinned by SSDR) of a mesh animation. */
+int km_bench_export(int argc, char **argv);
 
 #endif
