@@ -1050,6 +1050,8 @@ typedef enum km_anim_export {
   KM_ANIM_EXPORT_MORPHS = 0, /* one morph target per key frame: exact, large */
   KM_ANIM_EXPORT_SKIN,       /* a skinned mesh + one TRS channel per bone (km_ssdr_fit at
                                 close): what engines play on the GPU, 20-60x smaller */
+  KM_ANIM_EXPORT_MORPHS_PCA, /* `morphs` basis targets (PCA of the frame displacements) and
+                                per-frame weights: compact, exact as morphs -> frames */
 } km_anim_export;
 
 typedef struct km_anim_options {
@@ -1059,6 +1061,7 @@ typedef struct km_anim_options {
   /* ---- issue 16: what a .glb holds (other formats ignore these) */
   km_anim_export export_kind;         /* 0: KM_ANIM_EXPORT_MORPHS (one target per key frame) */
   const struct km_ssdr_options *skin; /* KM_ANIM_EXPORT_SKIN: the fit's options; NULL: defaults */
+  size_t morphs; /* KM_ANIM_EXPORT_MORPHS_PCA: basis targets (0: 16; capped at the frames) */
 } km_anim_options;
 
 /* Streams an animation of a fixed-connectivity mesh to disk. Nothing appears at `path`
@@ -1087,6 +1090,7 @@ void km_anim_writer_free(km_anim_writer **w);
 typedef struct km_anim_report {
   km_anim_export export_kind;
   size_t frames, bones;        /* bones: 0 unless skinned */
+  size_t targets;              /* morph targets written (0 for a skin) */
   double rms_error, max_error; /* 0 for an exact export */
   double fit_seconds;          /* time spent fitting (skin), wall clock */
 } km_anim_report;

@@ -340,6 +340,41 @@ int main(void) {
   CHECK(rep.export_kind == KM_ANIM_EXPORT_MORPHS && rep.frames == 1 && rep.max_error == 0);
   remove(path);
 
+  /* 5. compact morphs: PCA basis targets + per-frame weights; all of them are exact */
+  for (int pass = 0; pass < 2; ++pass) {
+    km_anim_options po = {
+        .fps = 24, .export_kind = KM_ANIM_EXPORT_MORPHS_PCA, .morphs = pass ? FRAMES : 3};
+    CHECK_OK(km_anim_writer_open(path, &m, &po, &w, KM_E));
+    for (int k = 0; k < FRAMES; ++k)
+      CHECK_OK(km_anim_writer_push(w, fr + (size_t)k * nv * 3, KM_E));
+    CHECK_OK(km_anim_writer_finish(&w, &rep, KM_E));
+    CHECK(rep.export_kind == KM_ANIM_EXPORT_MORPHS_PCA && rep.frames == FRAMES);
+    CHECK(rep.targets >= 1 && rep.targets <= (pass ? FRAMES : 3));
+    if (pass)
+      CHECK_MSG(rep.max_error <= 1e-6, "all targets: max %.6f mm", rep.max_error * 1e3);
+    else
+      CHECK_MSG(rep.max_error > 1e-6 && rep.rms_error < rep.max_error, "3 targets: max %.3f mm",
+                rep.max_error * 1e3);
+    CHECK_OK(km_anim_info_read(path, &info, KM_E));
+    CHECK(info.frames == FRAMES && info.vertices == nv);
+    /* read back through km_anim_read: base + weights x targets at every frame */
+    km_mesh back = {0};
+    double *bf = NULL;
+    km_anim_info bi;
+    CHECK_OK(km_anim_read(path, &back, &bf, &bi, KM_E));
+    if (bf) {
+      CHECK(bi.frames == FRAMES && back.n_vertices == nv && back.n_faces == m.n_faces);
+      double worst = 0;
+      for (size_t i = 0; i < (size_t)FRAMES * nv * 3; ++i)
+        worst = fmax(worst, fabs(bf[i] - fr[i]));
+      CHECK_MSG(worst <= rep.max_error + 1e-5, "read back %.4f mm vs reported %.4f mm", worst * 1e3,
+                rep.max_error * 1e3);
+    }
+    free(bf);
+    km_mesh_free(&back);
+    remove(path);
+  }
+
   free(fr);
   km_skin_free(&truth);
   km_mesh_free(&m);

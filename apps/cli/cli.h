@@ -141,7 +141,8 @@ int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f
  * until the max error is below it). */
 #define KM_CLI_EXPORT_OPTIONS(exp, max_mm)                                                         \
   {"export", 0, KM_OPT_STRING, &(exp),                                                             \
-   "glb content: morphs[:all] (one target per frame, exact; default) or skin[:BONES] (skinned "    \
+   "glb content: morphs[:all] (one target per frame, exact; default), morphs:K (K PCA basis "      \
+   "targets + per-frame weights) or skin[:BONES] (skinned "                                        \
    "mesh + bone animation fitted by SSDR; plain skin: 32 bones grown to meet 15 mm)"},             \
   {                                                                                                \
     "max-error-mm", 0, KM_OPT_DOUBLE, &(max_mm),                                                   \

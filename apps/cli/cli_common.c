@@ -261,8 +261,24 @@ int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, co
     if (max_error_mm > 0) return km_cli_error(verb, "--max-error-mm applies to --export skin only");
     return 0;
   }
+  if (!strncmp(s, "morphs:", 7)) {
+    char *end = NULL;
+    long k = strtol(s + 7, &end, 10);
+    if (!end || *end || end == s + 7 || k < 1 || k > 100000)
+      return km_cli_error(verb, "--export morphs:K needs a target count 1..100000 or all, not '%s'",
+                          s + 7);
+    if (max_error_mm > 0) return km_cli_error(verb, "--max-error-mm applies to --export skin only");
+    const char *dot = out ? strrchr(out, '.') : NULL;
+    if (!dot || strcasecmp(dot, ".glb") != 0)
+      return km_cli_error(verb, "--export morphs:K writes a .glb; the output is '%s'",
+                          out ? out : "");
+    ao->export_kind = KM_ANIM_EXPORT_MORPHS_PCA;
+    ao->morphs = (size_t)k;
+    return 0;
+  }
   if (strncmp(s, "skin", 4) != 0 || (s[4] != '\0' && s[4] != ':'))
-    return km_cli_error(verb, "--export must be morphs, morphs:all or skin[:BONES], not '%s'", s);
+    return km_cli_error(verb, "--export must be morphs[:all], morphs:K or skin[:BONES], not '%s'",
+                        s);
   if (s[4] == ':') {
     char *end = NULL;
     long b = strtol(s + 5, &end, 10);
@@ -286,6 +302,12 @@ int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, co
 }
 
 void km_cli_report_export(const char *verb, const km_anim_report *rep) {
+  if (rep->export_kind == KM_ANIM_EXPORT_MORPHS_PCA) {
+    fprintf(stderr,
+            "kinemesh %s: morphs: %zu basis targets, %zu frames, rms %.4f mm, max %.4f mm\n", verb,
+            rep->targets, rep->frames, rep->rms_error * 1e3, rep->max_error * 1e3);
+    return;
+  }
   if (rep->export_kind != KM_ANIM_EXPORT_SKIN) return;
   km_cli_progress_done();
   fprintf(stderr,

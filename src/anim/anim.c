@@ -5,6 +5,7 @@
  * Nothing appears at the destination until close succeeds: PC2 and glb go through
  * km__atomic_open/commit, a directory is filled under "<dir>.tmp.<pid>" and renamed. */
 #include "anim/anim.h"
+#include "linalg/linalg.h"
 
 #include <dirent.h>
 #include <float.h>
@@ -102,6 +103,7 @@ static void writer_discard(km_anim_writer *w) {
   free(w->uv);
   free(w->nbuf);
   free(w->vbuf);
+  free(w->pca_weights);
   free(w);
 }
 
@@ -164,7 +166,8 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   w->n_faces = nf;
   w->fps = o.fps;
   w->key_every = o.key_every;
-  if (o.export_kind != KM_ANIM_EXPORT_MORPHS && o.export_kind != KM_ANIM_EXPORT_SKIN) {
+  if (o.export_kind != KM_ANIM_EXPORT_MORPHS && o.export_kind != KM_ANIM_EXPORT_SKIN &&
+      o.export_kind != KM_ANIM_EXPORT_MORPHS_PCA) {
     free(w);
     return km__fail(err, KM_ERR_INVALID, "%s: unknown export kind %d", path, (int)o.export_kind);
   }
@@ -172,6 +175,11 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     w->export_kind = KM_ANIM_EXPORT_SKIN;
     w->key_every = 1; /* the fit sees every frame */
     if (o.skin) w->skin = *o.skin;
+  }
+  if (o.format == KM_ANIM_GLB && o.export_kind == KM_ANIM_EXPORT_MORPHS_PCA) {
+    w->export_kind = KM_ANIM_EXPORT_MORPHS_PCA;
+    w->key_every = 1; /* the basis sees every frame */
+    w->pca_k = o.morphs ? o.morphs : 16;
   }
   w->path = dup_str(path);
   /* "out/frames/" must not put the temporary directory inside the destination. */
@@ -534,6 +542,138 @@ static km_status close_skin(km_anim_writer *w, km_anim_report *rep, km_error *er
   return s;
 }
 
+/* Compact morphs: PCA of the frame displacements D (T x 3#V) through the T x T Gram matrix
+ * D D^T (LAPACK dsyev in linalg): the K leading eigenvectors u_k give orthonormal basis
+ * targets b_k = D^T u_k / sqrt(l_k) and weights w_tk = sqrt(l_k) u_k[t], each target scaled
+ * so its weights stay in [-1, 1]. The keys are replaced by the targets, then the usual glb
+ * writer runs with the weights. */
+static km_status close_pca(km_anim_writer *w, km_anim_report *rep, km_error *err) {
+  const size_t nv3 = w->n_vertices * 3, T = w->n_keys;
+  size_t K = w->pca_k < T ? w->pca_k : T;
+  double *D = km__malloc(T * nv3, sizeof *D), *C = km__malloc(T * T, sizeof *C);
+  double *ev = km__malloc(T, sizeof *ev), *B = NULL, *Wt = NULL;
+  FILE *nk = NULL;
+  km_status s = KM_OK;
+  if (!D || !C || !ev) {
+    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames", w->path, T);
+    goto done;
+  }
+  if (fseek(w->keys, 0, SEEK_SET) != 0)
+    s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the frame temporary", w->path);
+  for (size_t t = 0; s == KM_OK && t < T; ++t) {
+    if (fread(w->fbuf, sizeof *w->fbuf, nv3, w->keys) != nv3) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot read frame %zu back", w->path, t);
+      break;
+    }
+    for (size_t i = 0; i < nv3; ++i)
+      D[t * nv3 + i] = w->fbuf[i];
+  }
+  if (s != KM_OK) goto done;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (size_t a = 0; a < T; ++a)
+    for (size_t b = a; b < T; ++b) {
+      double d = 0;
+      for (size_t i = 0; i < nv3; ++i)
+        d += D[a * nv3 + i] * D[b * nv3 + i];
+      C[a * T + b] = C[b * T + a] = d;
+    }
+  if (km__syev(T, C, ev) != 0) {
+    s = km__fail(err, KM_ERR_NO_CONVERGENCE, "%s: PCA eigen-decomposition failed", w->path);
+    goto done;
+  }
+  /* drop directions the frames do not span (a still animation has none) */
+  double lmax = ev[T - 1] > 0 ? ev[T - 1] : 0;
+  while (K > 1 && !(ev[T - K] > 1e-18 * lmax))
+    --K;
+  B = km__calloc(K * nv3, sizeof *B);
+  Wt = km__calloc(T * K, sizeof *Wt);
+  if (!B || !Wt) {
+    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+    goto done;
+  }
+  for (size_t k = 0; k < K; ++k) {
+    size_t col = T - 1 - k;
+    double l = ev[col] > 0 ? sqrt(ev[col]) : 0, m = 0;
+    for (size_t t = 0; t < T; ++t) {
+      Wt[t * K + k] = l * C[t * T + col];
+      m = fmax(m, fabs(Wt[t * K + k]));
+    }
+    double inv = l > 0 ? 1 / l : 0;
+    for (size_t t = 0; t < T; ++t) {
+      double u = C[t * T + col] * inv * m;
+      if (u == 0) continue;
+      for (size_t i = 0; i < nv3; ++i)
+        B[k * nv3 + i] += u * D[t * nv3 + i];
+    }
+    for (size_t t = 0; m > 0 && t < T; ++t)
+      Wt[t * K + k] /= m;
+  }
+  /* Error as a viewer evaluates it: float32 targets and weights. */
+  if (!(w->pca_weights = km__malloc(T * K, sizeof *w->pca_weights))) {
+    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+    goto done;
+  }
+  for (size_t i = 0; i < T * K; ++i)
+    w->pca_weights[i] = (float)Wt[i];
+  double sum = 0, mx = 0;
+#pragma omp parallel for reduction(+ : sum) reduction(max : mx) schedule(static)
+  for (size_t t = 0; t < T; ++t)
+    for (size_t v = 0; v < nv3 / 3; ++v) {
+      double e2 = 0;
+      for (int c = 0; c < 3; ++c) {
+        double r = 0;
+        for (size_t k = 0; k < K; ++k)
+          r += (double)w->pca_weights[t * K + k] * (double)(float)B[k * nv3 + 3 * v + c];
+        double d = r - D[t * nv3 + 3 * v + c];
+        e2 += d * d;
+      }
+      sum += e2;
+      if (e2 > mx) mx = e2;
+    }
+  w->pca_rms = sqrt(sum / (double)(T * nv3 / 3));
+  w->pca_max = sqrt(mx);
+  if (rep) {
+    rep->targets = K;
+    rep->rms_error = w->pca_rms;
+    rep->max_error = w->pca_max;
+  }
+  /* the targets replace the keys */
+  if (!(nk = tmpfile())) {
+    s = km__fail(err, KM_ERR_IO, "%s: cannot create a temporary file: %s", w->path,
+                 strerror(errno));
+    goto done;
+  }
+  for (size_t k = 0; k < K; ++k) {
+    float *mm = w->key_minmax + 6 * k;
+    minmax_init(mm);
+    for (size_t i = 0; i < nv3; ++i) {
+      float f = (float)B[k * nv3 + i];
+      w->fbuf[i] = f;
+      if (f < mm[i % 3]) mm[i % 3] = f;
+      if (f > mm[3 + i % 3]) mm[3 + i % 3] = f;
+    }
+    w->key_frame[k] = k;
+    if (fwrite(w->fbuf, sizeof *w->fbuf, nv3, nk) != nv3) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot write a basis target: %s", w->path, strerror(errno));
+      goto done;
+    }
+  }
+  fclose(w->keys);
+  w->keys = nk;
+  nk = NULL;
+  w->n_keys = K;
+  w->pca_frames = T;
+  s = km__glb_finish(w, err);
+done:
+  if (nk) fclose(nk);
+  free(D);
+  free(C);
+  free(ev);
+  free(B);
+  free(Wt);
+  return s;
+}
+
 km_status km_anim_writer_close(km_anim_writer **wp, km_error *err) {
   return km_anim_writer_finish(wp, NULL, err);
 }
@@ -556,6 +696,8 @@ km_status km_anim_writer_finish(km_anim_writer **wp, km_anim_report *rep, km_err
     s = close_pc2(w, err);
   else if (w->format == KM_ANIM_GLB && w->export_kind == KM_ANIM_EXPORT_SKIN)
     s = close_skin(w, rep, err);
+  else if (w->format == KM_ANIM_GLB && w->export_kind == KM_ANIM_EXPORT_MORPHS_PCA)
+    s = close_pca(w, rep, err);
   else if (w->format == KM_ANIM_GLB)
     s = km__glb_finish(w, err);
   else

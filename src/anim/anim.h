@@ -65,6 +65,11 @@ struct km_anim_writer {
   /* issue 16: a skinned glb fits km_ssdr at close over every frame (stored as keys). */
   km_anim_export export_kind;
   km_ssdr_options skin;
+  /* PCA morphs: the keys are replaced by pca_k basis targets at close; weights T x K. */
+  size_t pca_k;
+  float *pca_weights; /* pca_frames * n_keys, row per frame */
+  size_t pca_frames;
+  double pca_rms, pca_max; /* its error against the frames (m), kept in the extras */
 };
 
 /* Unit area-weighted normals of positions V over the writer's faces into w->nbuf; a vertex

@@ -87,7 +87,10 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
    * multiple of 4 bytes, so every bufferView offset is 4-aligned. */
   uint64_t off = 0;
   const uint64_t idx_len = (uint64_t)nf * 12, pos_len = (uint64_t)nv * 12;
-  const uint64_t times_len = (uint64_t)nk * 4, weights_len = (uint64_t)nk * nk * 4;
+  /* PCA morphs (issue 16): nk basis targets, one weights row per frame; else one-hot keys. */
+  const bool pca = w->pca_weights != NULL;
+  const size_t nt = pca ? w->pca_frames : nk;
+  const uint64_t times_len = (uint64_t)nt * 4, weights_len = (uint64_t)nt * nk * 4;
   const bool with_n = w->normals;
   const uint64_t uv_len = w->uv ? (uint64_t)nv * 8 : 0;
   uint64_t bin_len =
@@ -98,10 +101,10 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
                     "key_every > 1 or pc2",
                     w->path, nk, nv);
 
-  float *times = km__malloc(nk, sizeof *times);
+  float *times = km__malloc(nt, sizeof *times);
   if (!times) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
-  for (size_t k = 0; k < nk; ++k)
-    times[k] = (float)((double)w->key_frame[k] / w->fps);
+  for (size_t k = 0; k < nt; ++k)
+    times[k] = (float)((double)(pca ? k : w->key_frame[k]) / w->fps);
 
   cJSON *root = cJSON_CreateObject();
   cJSON *asset = cJSON_AddObjectToObject(root, "asset");
@@ -111,6 +114,13 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   cJSON_AddNumberToObject(ex, "fps", w->fps);
   cJSON_AddNumberToObject(ex, "frames", (double)w->frames);
   cJSON_AddNumberToObject(ex, "key_every", (double)w->key_every);
+  if (pca) {
+    char ek[32];
+    snprintf(ek, sizeof ek, "morphs:%zu", nk);
+    cJSON_AddStringToObject(ex, "export", ek);
+    cJSON_AddNumberToObject(ex, "rms_error_m", w->pca_rms);
+    cJSON_AddNumberToObject(ex, "max_error_m", w->pca_max);
+  }
   cJSON_AddNumberToObject(root, "scene", 0);
   cJSON *scene = cJSON_CreateObject();
   cJSON_AddItemToObject(scene, "nodes", cJSON_CreateIntArray((const int[]){0}, 1));
@@ -163,7 +173,10 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     }
     cJSON_AddItemToArray(targets, t);
     char nm[32];
-    snprintf(nm, sizeof nm, "frame_%06zu", w->key_frame[k]);
+    if (pca)
+      snprintf(nm, sizeof nm, "basis_%03zu", k);
+    else
+      snprintf(nm, sizeof nm, "frame_%06zu", w->key_frame[k]);
     cJSON_AddItemToArray(names, cJSON_CreateString(nm));
   }
   cJSON *mesh = cJSON_CreateObject();
@@ -174,10 +187,10 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   cJSON_AddItemToObject(cJSON_AddObjectToObject(mesh, "extras"), "targetNames", names);
   cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "meshes"), mesh);
 
-  int a_in = add_view_accessor(views, accessors, off, times_len, 0, GL_FLOAT, nk, "SCALAR",
-                               &times[0], &times[nk - 1], 1);
+  int a_in = add_view_accessor(views, accessors, off, times_len, 0, GL_FLOAT, nt, "SCALAR",
+                               &times[0], &times[nt - 1], 1);
   off += times_len;
-  int a_out = add_view_accessor(views, accessors, off, weights_len, 0, GL_FLOAT, nk * nk, "SCALAR",
+  int a_out = add_view_accessor(views, accessors, off, weights_len, 0, GL_FLOAT, nt * nk, "SCALAR",
                                 NULL, NULL, 0);
   off += weights_len;
   cJSON *sampler = cJSON_CreateObject();
@@ -292,16 +305,22 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   free(rest_n);
   /* Key times, then one-hot weights (one row of nk per key), through a row buffer: there
    * can be more keys than vertices. */
-  unsigned char *row = s == KM_OK ? calloc(nk, 4) : NULL;
+  size_t rl = nt > nk ? nt : nk;
+  unsigned char *row = s == KM_OK ? calloc(rl, 4) : NULL;
   if (s == KM_OK && !row) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
   if (s == KM_OK) {
-    for (size_t k = 0; k < nk; ++k)
+    for (size_t k = 0; k < nt; ++k)
       km__put_f32le(row + 4 * k, times[k]);
-    s = write_all(w, af.f, row, 4 * nk, err);
-    memset(row, 0, 4 * nk);
+    s = write_all(w, af.f, row, 4 * nt, err);
+    memset(row, 0, 4 * rl);
   }
   free(times);
-  for (size_t k = 0; s == KM_OK && k < nk; ++k) {
+  for (size_t t = 0; pca && s == KM_OK && t < nt; ++t) {
+    for (size_t k = 0; k < nk; ++k)
+      km__put_f32le(row + 4 * k, w->pca_weights[t * nk + k]);
+    s = write_all(w, af.f, row, 4 * nk, err);
+  }
+  for (size_t k = 0; !pca && s == KM_OK && k < nk; ++k) {
     km__put_f32le(row + 4 * k, 1.0f);
     s = write_all(w, af.f, row, 4 * nk, err);
     km__put_f32le(row + 4 * k, 0.0f);
@@ -407,7 +426,7 @@ km_status km__glb_info(const char *path, km_anim_info *out, km_error *err) {
   if (cJSON_IsNumber(total) && total->valuedouble >= 1 && total->valuedouble < 1e12)
     out->timeline_frames = (size_t)total->valuedouble;
   /* A skinned export (issue 16) has no targets: its frames are the timeline's. */
-  if (out->frames == 0 && cJSON_IsString(get_path(ex, "export", -1)))
+  if (cJSON_IsString(get_path(ex, "export", -1)) && out->timeline_frames)
     out->frames = out->timeline_frames;
   const cJSON *input =
       get_path(get_path(get_path(root, "animations", 0), "samplers", 0), "input", -1);

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # ctest (issue 16): three.js in headless chromium plays kinemesh's exports — per-frame morphs
-# (exact within 0.01 mm) and a skinned export (within its own reported max error) — at frames
+# (exact within 0.01 mm), a skinned and a PCA-morph export (within their reported max error) — at frames
 # 0, the middle and the last, against the exact frames (.pc2) of the same LBS playback.
 # Skipped (77) with a message when node, chromium or web/node_modules is missing.
 set -euo pipefail
@@ -19,5 +19,7 @@ rm -rf "$WORK" && mkdir -p "$WORK"
 "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" -o "$WORK/morphs.glb" 2>/dev/null
 "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --export skin:16 -o "$WORK/skin.glb" 2>/dev/null
 node "$HERE/three_check.mjs" "$WORK/morphs.glb" "$WORK/exact.pc2" 0.01
+"$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --export morphs:6 -o "$WORK/pca.glb" 2>/dev/null
 node "$HERE/three_check.mjs" "$WORK/skin.glb" "$WORK/exact.pc2" auto
-echo "gltf_three: 2 passed, 0 failed"
+node "$HERE/three_check.mjs" "$WORK/pca.glb" "$WORK/exact.pc2" auto
+echo "gltf_three: 3 passed, 0 failed"
