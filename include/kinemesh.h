@@ -1110,8 +1110,9 @@ typedef struct km_ssdr_options {
   double max_error_mm; /* 0: none; else bones are added until the max error is below it */
   int iterations;      /* weight/transform alternations (0: 12) */
   size_t influences;   /* per vertex, 1..4 (0: 4) */
-  const double *seed;  /* optional #B*3 bone seeds (e.g. a rig's joints at rest): initial
-                          clusters grow from the vertices nearest them; NULL: k-means++ */
+  const double *seed;  /* optional n_seed*3 bone seeds (e.g. the rest centroids of a rig's
+                          skinned parts): the starting bones (bones is then n_seed), clusters
+                          grow from the vertices nearest them; NULL: k-means++ */
   size_t n_seed;
   km_progress progress; /* optional; may cancel */
 } km_ssdr_options;

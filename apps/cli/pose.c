@@ -23,7 +23,8 @@ int km_cli_pose(int argc, char **argv) {
       KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <mesh stem>.rig.json)"},
       {"motion", 0, KM_OPT_STRING, &motion, "take (.json) with the rig's joint names"},
-      {"fps", 0, KM_OPT_DOUBLE, &fps, "frame rate of the output; the motion is resampled (default: the take's)"},
+      {"fps", 0, KM_OPT_DOUBLE, &fps,
+       "frame rate of the output; the motion is resampled (default: the take's)"},
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
        "directory output: obj (default) or ply (binary) per frame"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory"},
@@ -41,7 +42,7 @@ int km_cli_pose(int argc, char **argv) {
   km_character c = {0};
   km_take t = {0};
   km_anim_writer *w = NULL;
-  double *pos_frame = NULL, *xf = NULL, *V = NULL;
+  double *pos_frame = NULL, *xf = NULL, *V = NULL, *seed = NULL;
   int *map = NULL;
   int rc = KM_EXIT_FAIL;
   char *rig_path = rig ? NULL : km_cli_rig_path(mesh);
@@ -77,6 +78,32 @@ int km_cli_pose(int argc, char **argv) {
   ao.format = af;
   km_ssdr_options so;
   if (km_cli_parse_export("pose", export_kind, max_error_mm, out, &ao, &so)) goto done;
+  /* The animation comes from a skeleton: its skinned parts seed the fit (their weighted rest
+   * centroids), unless a bone count was asked for. */
+  if (ao.export_kind == KM_ANIM_EXPORT_SKIN && so.bones == 0) {
+    if (!(seed = calloc(nj * 4, sizeof *seed))) {
+      rc = km_cli_error("pose", "out of memory");
+      goto done;
+    }
+    for (size_t i = 0; i < c.mesh.n_vertices; ++i)
+      for (int k = 0; k < KM_SKIN_INFLUENCES; ++k) {
+        int32_t j = c.skin.joints[KM_SKIN_INFLUENCES * i + k];
+        double wk = c.skin.weights[KM_SKIN_INFLUENCES * i + k];
+        if (j < 0 || (size_t)j >= nj || !(wk > 0)) continue;
+        for (int a = 0; a < 3; ++a)
+          seed[4 * j + a] += wk * c.mesh.V[3 * i + a];
+        seed[4 * j + 3] += wk;
+      }
+    size_t ns = 0;
+    for (size_t j = 0; j < nj; ++j)
+      if (seed[4 * j + 3] > 0) {
+        for (int a = 0; a < 3; ++a)
+          seed[3 * ns + a] = seed[4 * j + a] / seed[4 * j + 3];
+        ++ns;
+      }
+    so.seed = seed;
+    so.n_seed = ns;
+  }
   if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
   km_progress prog = km_cli_progress("pose");
   for (size_t f = 0; f < t.n_frames; ++f) {
@@ -105,6 +132,7 @@ done:
   free(rig_path);
   free(map);
   free(pos_frame);
+  free(seed);
   free(xf);
   free(V);
   km_take_free(&t);

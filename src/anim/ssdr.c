@@ -739,9 +739,9 @@ km_status km_ssdr_fit(const double *rest, size_t n_vertices, const double *frame
   if (!(o.max_error_mm >= 0) || !isfinite(o.max_error_mm))
     return km__fail(err, KM_ERR_INVALID, "km_ssdr_fit: max_error_mm %g must be >= 0",
                     o.max_error_mm);
+  if (o.seed && o.n_seed) o.bones = o.n_seed; /* the seeds are the starting bones */
   if (o.max_bones == 0) o.max_bones = o.max_error_mm > 0 ? 4 * o.bones : o.bones;
   if (o.max_bones < o.bones) o.max_bones = o.bones;
-  if (o.seed && o.n_seed) o.bones = o.max_bones = o.n_seed;
   size_t cap = n_vertices / 4;
   if (o.max_bones > cap) o.max_bones = cap;
   if (o.bones > o.max_bones) o.bones = o.max_bones;

@@ -21,7 +21,7 @@ awk 'NR==FNR { if ($1 == "v") printf "vt %.6f %.6f\n", ($2 + 1) / 2, $3 / 2; nex
 cp "$WORK/c.rig.json" "$WORK/ct.rig.json"
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --key-every 4 -o "$WORK/textured.glb"
 # Issue 16: a skinned export (SSDR fit; JOINTS_0/WEIGHTS_0, inverse bind matrices, TRS channels).
-"$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export skin:8 -o "$WORK/skin.glb"
+"$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export skin -o "$WORK/skin.glb"  # seeded by the rig
 # kinemesh bake: the per-frame morph file back to a skin, and a pc2 + rest mesh to a skin.
 "$BIN" bake "$WORK/every.glb" --export skin:8 -o "$WORK/baked.glb"
 "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" -o "$WORK/every.pc2"
