@@ -1845,6 +1845,9 @@ typedef struct km_recon_options {
   size_t n_cameras;
   /* ---- limbs found, not assumed */
   bool no_limb_search; /* true: skip the first frame's limb search (see km_recon_init) */
+  /* ---- issue 16: how km_reconstruct writes out_anim (export kind, skin fit); NULL: per-frame
+   * morphs at 30 fps. fps 0 in it: 30. Borrowed for the call. */
+  const km_anim_options *anim;
 } km_recon_options;
 
 /* A user-given feature correspondence: template vertex <-> point position (first frame). */
@@ -1931,6 +1934,7 @@ typedef struct km_recon_report {
   int32_t **unsupported;          /* n_frames (km_reconstruct; may be NULL): per frame the ids
                                    * of its unsupported vertices, frames[f].unsupported_vertices
                                    * of them (NULL when none) */
+  km_anim_report export_report;   /* what km_reconstruct's writer wrote (issue 16) */
 } km_recon_report;
 /* Frees frames, joints, joint_names and unsupported of r and zeroes the struct. */
 void km_recon_report_free(km_recon_report *r);

@@ -153,6 +153,12 @@ int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f
  * or when skin is asked for a non-.glb output. */
 int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, const char *out,
                         km_anim_options *ao, km_ssdr_options *ssdr);
+/* An animation that comes from a skinned character starts its skin fit from the character's
+ * own parts: when ao asks for a skin with no bone count, ssdr->seed gets the weighted rest
+ * centroid of every joint's skinned vertices (*seeds allocated, free() it). Returns non-zero
+ * (error printed) when out of memory. */
+int km_cli_skin_seeds(const char *verb, const km_anim_options *ao, const km_mesh *m,
+                      const km_skin *skin, size_t n_joints, km_ssdr_options *ssdr, double **seeds);
 /* "  skin: N bones, rms X mm, max Y mm (fit Z s)" on stderr for a skinned export; nothing
  * for an exact one. */
 void km_cli_report_export(const char *verb, const km_anim_report *rep);

@@ -301,6 +301,36 @@ int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, co
   return 0;
 }
 
+int km_cli_skin_seeds(const char *verb, const km_anim_options *ao, const km_mesh *m,
+                      const km_skin *skin, size_t n_joints, km_ssdr_options *ssdr, double **seeds) {
+  *seeds = NULL;
+  if (ao->export_kind != KM_ANIM_EXPORT_SKIN || ssdr->bones != 0 || !skin || !skin->joints ||
+      n_joints == 0)
+    return 0;
+  double *s = calloc(n_joints * 4, sizeof *s);
+  if (!s) return km_cli_error(verb, "out of memory");
+  for (size_t i = 0; i < m->n_vertices && i < skin->n_vertices; ++i)
+    for (int k = 0; k < KM_SKIN_INFLUENCES; ++k) {
+      int32_t j = skin->joints[KM_SKIN_INFLUENCES * i + k];
+      double wk = skin->weights[KM_SKIN_INFLUENCES * i + k];
+      if (j < 0 || (size_t)j >= n_joints || !(wk > 0)) continue;
+      for (int a = 0; a < 3; ++a)
+        s[4 * j + a] += wk * m->V[3 * i + a];
+      s[4 * j + 3] += wk;
+    }
+  size_t ns = 0;
+  for (size_t j = 0; j < n_joints; ++j)
+    if (s[4 * j + 3] > 0) {
+      for (int a = 0; a < 3; ++a)
+        s[3 * ns + a] = s[4 * j + a] / s[4 * j + 3];
+      ++ns;
+    }
+  ssdr->seed = s;
+  ssdr->n_seed = ns;
+  *seeds = s;
+  return 0;
+}
+
 void km_cli_report_export(const char *verb, const km_anim_report *rep) {
   if (rep->export_kind == KM_ANIM_EXPORT_MORPHS_PCA) {
     fprintf(stderr,

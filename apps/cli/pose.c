@@ -78,32 +78,8 @@ int km_cli_pose(int argc, char **argv) {
   ao.format = af;
   km_ssdr_options so;
   if (km_cli_parse_export("pose", export_kind, max_error_mm, out, &ao, &so)) goto done;
-  /* The animation comes from a skeleton: its skinned parts seed the fit (their weighted rest
-   * centroids), unless a bone count was asked for. */
-  if (ao.export_kind == KM_ANIM_EXPORT_SKIN && so.bones == 0) {
-    if (!(seed = calloc(nj * 4, sizeof *seed))) {
-      rc = km_cli_error("pose", "out of memory");
-      goto done;
-    }
-    for (size_t i = 0; i < c.mesh.n_vertices; ++i)
-      for (int k = 0; k < KM_SKIN_INFLUENCES; ++k) {
-        int32_t j = c.skin.joints[KM_SKIN_INFLUENCES * i + k];
-        double wk = c.skin.weights[KM_SKIN_INFLUENCES * i + k];
-        if (j < 0 || (size_t)j >= nj || !(wk > 0)) continue;
-        for (int a = 0; a < 3; ++a)
-          seed[4 * j + a] += wk * c.mesh.V[3 * i + a];
-        seed[4 * j + 3] += wk;
-      }
-    size_t ns = 0;
-    for (size_t j = 0; j < nj; ++j)
-      if (seed[4 * j + 3] > 0) {
-        for (int a = 0; a < 3; ++a)
-          seed[3 * ns + a] = seed[4 * j + a] / seed[4 * j + 3];
-        ++ns;
-      }
-    so.seed = seed;
-    so.n_seed = ns;
-  }
+  /* The animation comes from a skeleton: its skinned parts seed the fit. */
+  if (km_cli_skin_seeds("pose", &ao, &c.mesh, &c.skin, nj, &so, &seed)) goto done;
   if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
   km_progress prog = km_cli_progress("pose");
   for (size_t f = 0; f < t.n_frames; ++f) {
