@@ -34,5 +34,8 @@ int km_bench_motion(int argc, char **argv);
 /* bench/bench_batch.c (issue 17): kinemesh batch throughput with 1 and 2 ranks, serial parts,
  * and the projected wall time of a Dynamic FAUST-sized archive on 8, 64, 512 ranks. */
 int km_bench_batch(int argc, char **argv);
+/* bench/bench_export.c (issue 16): size, error and time of each glTF export kind (per-frame
+ * morphs, skinned by SSDR) of a mesh animation. */
+int km_bench_export(int argc, char **argv);
 
 #endif

@@ -1183,10 +1183,23 @@ typedef enum km_anim_format {
   KM_ANIM_PLY_DIR,
 } km_anim_format;
 
+/* What a .glb animation stores (issue 16). */
+typedef enum km_anim_export {
+  KM_ANIM_EXPORT_MORPHS = 0, /* one morph target per key frame: exact, large */
+  KM_ANIM_EXPORT_SKIN,       /* a skinned mesh + one TRS channel per bone (km_ssdr_fit at
+                                close): what engines play on the GPU, 20-60x smaller */
+  KM_ANIM_EXPORT_MORPHS_PCA, /* `morphs` basis targets (PCA of the frame displacements) and
+                                per-frame weights: compact, exact as morphs -> frames */
+} km_anim_export;
+
 typedef struct km_anim_options {
   km_anim_format format; /* 0: from the path (a directory gets per-frame .obj) */
   double fps;            /* 0: 30 */
   size_t key_every;      /* glb: one morph target every k frames (0/1: every frame) */
+  /* ---- issue 16: what a .glb holds (other formats ignore these) */
+  km_anim_export export_kind;         /* 0: KM_ANIM_EXPORT_MORPHS (one target per key frame) */
+  const struct km_ssdr_options *skin; /* KM_ANIM_EXPORT_SKIN: the fit's options; NULL: defaults */
+  size_t morphs; /* KM_ANIM_EXPORT_MORPHS_PCA: basis targets (0: 16; capped at the frames) */
 } km_anim_options;
 
 /* Streams an animation of a fixed-connectivity mesh to disk. Nothing appears at `path`
@@ -1211,6 +1224,55 @@ km_status km_anim_writer_close(km_anim_writer **w, km_error *err);
 /* Discards an unfinished animation, frees *w and sets it to NULL. */
 void km_anim_writer_free(km_anim_writer **w);
 
+/* What close did (issue 16). Errors are against the exact frames pushed, in metres. */
+typedef struct km_anim_report {
+  km_anim_export export_kind;
+  size_t frames, bones;        /* bones: 0 unless skinned */
+  size_t targets;              /* morph targets written (0 for a skin) */
+  double rms_error, max_error; /* 0 for an exact export */
+  double fit_seconds;          /* time spent fitting (skin), wall clock */
+} km_anim_report;
+/* km_anim_writer_close that also says what it wrote.
+ *   report  out: may be NULL
+ * Errors: as km_anim_writer_close; KM_ERR_DEGENERATE_MESH when no rig fits (skin). */
+km_status km_anim_writer_finish(km_anim_writer **w, km_anim_report *report, km_error *err);
+
+/* ---- skinning decomposition: Le & Deng 2012, "Smooth Skinning Decomposition with Rigid
+ * Bones" (SSDR). Fits a linear-blend-skinning rig to any mesh animation: per-vertex sparse
+ * non-negative weights (<= 4 influences, summing to 1) and per-frame rigid bone transforms,
+ * initialised by clustering the vertices' trajectories. */
+typedef struct km_ssdr_options {
+  size_t bones;        /* 0: 32; the starting count when max_error_mm is set */
+  size_t max_bones;    /* with max_error_mm: bones are split where the error is until the
+                          budget is met or this count (0: 4*bones) */
+  double max_error_mm; /* 0: none; else bones are added until the max error is below it */
+  int iterations;      /* weight/transform alternations (0: 12) */
+  size_t influences;   /* per vertex, 1..4 (0: 4) */
+  const double *seed;  /* optional n_seed*3 bone seeds (e.g. the rest centroids of a rig's
+                          skinned parts): the starting bones (bones is then n_seed), clusters
+                          grow from the vertices nearest them; NULL: k-means++ */
+  size_t n_seed;
+  km_progress progress; /* optional; may cancel */
+} km_ssdr_options;
+typedef struct km_ssdr {
+  size_t n_vertices, n_frames, n_bones;
+  km_skin skin;       /* #V: joints index bones, weights >= 0 sum to 1 */
+  double *transforms; /* n_frames * n_bones * 12: row-major 3x4 [R | t], rest -> frame */
+  double *centers;    /* n_bones * 3: rest centroid of each bone's vertices (a joint spot) */
+  double rms_error, max_error; /* metres, over all frames and vertices */
+} km_ssdr;
+/* Fits an LBS rig to an animation.
+ *   rest      in: #V*3 rest positions
+ *   frames    in: n_frames * #V * 3 positions (the exact animation)
+ *   opt       in: may be NULL
+ *   out       out: filled; free with km_ssdr_free
+ * Errors: KM_ERR_INVALID, KM_ERR_DEGENERATE_MESH (fewer than 4 vertices), KM_ERR_NOMEM,
+ * KM_ERR_CANCELLED. */
+km_status km_ssdr_fit(const double *rest, size_t n_vertices, const double *frames, size_t n_frames,
+                      const km_ssdr_options *opt, km_ssdr *out, km_error *err);
+/* Frees what km_ssdr_fit allocated and zeroes *r. */
+void km_ssdr_free(km_ssdr *r);
+
 typedef struct km_anim_info {
   km_anim_format format;
   size_t frames; /* frames in the file (morph targets for glb) */
@@ -1233,6 +1295,19 @@ km_status km_anim_info_read(const char *path, km_anim_info *out, km_error *err);
  *   info    out: counts and frame rate
  * Errors: KM_ERR_IO, KM_ERR_PARSE. */
 km_status km_pc2_read(const char *path, double **frames, km_anim_info *info, km_error *err);
+
+/* Reads a whole animation into memory (issue 16: `kinemesh bake`).
+ *   path    in: .pc2, a frame directory (frame_NNNNNN.obj/.ply) or a .glb of morph targets
+ *           (kinemesh's own, or any glTF whose first mesh a weights channel animates; skinned
+ *           files are not evaluated)
+ *   rest    out: the mesh the frames belong to, with its UVs/normals where the file has them:
+ *           the glb's base mesh, the directory's first frame, a pc2's first frame (no faces);
+ *           free with km_mesh_free
+ *   frames  out: allocated info->frames * #V * 3 positions; free()
+ *   info    out: format, counts, fps (0 when the file does not say)
+ * Errors: KM_ERR_IO, KM_ERR_PARSE (naming file and byte/line), KM_ERR_UNSUPPORTED. */
+km_status km_anim_read(const char *path, km_mesh *rest, double **frames, km_anim_info *info,
+                       km_error *err);
 
 /* ==== puppet: puppetry deformers, Wu, Lu & Song 2012 (src/puppet/) ==== */
 
@@ -1970,6 +2045,9 @@ typedef struct km_recon_options {
   size_t n_cameras;
   /* ---- limbs found, not assumed */
   bool no_limb_search; /* true: skip the first frame's limb search (see km_recon_init) */
+  /* ---- issue 16: how km_reconstruct writes out_anim (export kind, skin fit); NULL: per-frame
+   * morphs at 30 fps. fps 0 in it: 30. Borrowed for the call. */
+  const km_anim_options *anim;
 } km_recon_options;
 
 /* A user-given feature correspondence: template vertex <-> point position (first frame). */
@@ -2062,6 +2140,7 @@ typedef struct km_recon_report {
   int32_t **unsupported;          /* n_frames (km_reconstruct; may be NULL): per frame the ids
                                    * of its unsupported vertices, frames[f].unsupported_vertices
                                    * of them (NULL when none) */
+  km_anim_report export_report;   /* what km_reconstruct's writer wrote (issue 16) */
 } km_recon_report;
 /* Frees frames, joints, joint_names and unsupported of r and zeroes the struct. */
 void km_recon_report_free(km_recon_report *r);

@@ -30,6 +30,8 @@ int km_cli_animate(int argc, char **argv) {
   int iterations = 0, fields = 0, isolines = 0;
   double scale = 0, fps = 0;
   size_t key_every = 0;
+  const char *export_kind = NULL;
+  double max_error_mm = 0;
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
       KM_CLI_FRAME_OPTIONS(fo),
@@ -54,6 +56,7 @@ int km_cli_animate(int argc, char **argv) {
       {"fps", 0, KM_OPT_DOUBLE, &fps,
        "output frame rate; the motion is resampled (default: the take's)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames"},
+      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
       {"filter", 0, KM_OPT_STRING, &filter_kind,
        "joint filter: holt or one_euro (default: the rig's \"filter\", else holt)"},
       {"no-glitch", 0, KM_OPT_FLAG, &no_glitch,
@@ -190,6 +193,8 @@ int km_cli_animate(int argc, char **argv) {
   wo.fps = fps > 0 ? fps : take.fps;
   wo.key_every = key_every;
   wo.format = af;
+  km_ssdr_options so;
+  if (km_cli_parse_export("animate", export_kind, max_error_mm, out, &wo, &so)) goto done;
   if (km_anim_writer_open(out, &m, &wo, &w, &err) != KM_OK) goto fail;
   km_progress prog = km_cli_progress("animate");
   for (size_t f = 0; f < take.n_frames; ++f) {
@@ -201,8 +206,10 @@ int km_cli_animate(int argc, char **argv) {
     if (km_anim_writer_push(w, V, &err) != KM_OK) goto fail;
     prog.fn((double)(f + 1) / (double)take.n_frames, full ? "full ARAP" : "reduced model", NULL);
   }
-  if (km_anim_writer_close(&w, &err) != KM_OK) goto fail;
+  km_anim_report rep;
+  if (km_anim_writer_finish(&w, &rep, &err) != KM_OK) goto fail;
   km_cli_progress_done();
+  km_cli_report_export("animate", &rep);
   double m23 = km_cli_median(t23, take.n_frames), m4 = km_cli_median(t4, take.n_frames);
   km_glitch_stats gs;
   km_puppetry_glitch_stats(pl, &gs);

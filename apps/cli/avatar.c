@@ -24,8 +24,10 @@ static km_status push_frame(size_t frame, const double *V, void *user, km_error 
 int km_cli_avatar(int argc, char **argv) {
   const char *out = NULL, *lm_path = NULL, *source = NULL, *dbp = NULL, *track = NULL;
   size_t key_every = 1;
-  double scale = 0;
+  double scale = 0, max_error_mm = 0;
+  const char *export_kind = NULL;
   const km_cli_opt opts[] = {
+      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
       {"source", 's', KM_OPT_STRING, &source, "the avatar mesh (same connectivity as the DB)"},
       {"db", 0, KM_OPT_STRING, &dbp, "pose database (kinemesh posedb build)"},
       {"track", 0, KM_OPT_STRING, &track, "tracked landmark positions (.json/.csv)"},
@@ -83,6 +85,12 @@ int km_cli_avatar(int argc, char **argv) {
   double t0 = km_cli_now();
   km_anim_options ao = {0};
   ao.fps = t.fps;
+  km_ssdr_options so;
+  if (km_cli_parse_export("avatar", export_kind, max_error_mm, out, &ao, &so)) {
+    rc = KM_EXIT_FAIL;
+    goto done;
+  }
+  km_anim_report rep = {0};
   km_avatar_options vo = {0};
   vo.key_every = key_every;
   vo.track_scale = scale;
@@ -92,7 +100,7 @@ int km_cli_avatar(int argc, char **argv) {
   if (km_transfer_precompute(&avatar, ids, dnl, NULL, &tr, &err) ||
       km_anim_writer_open(out, &avatar, &ao, &sink.w, &err) ||
       km_avatar_animate(tr, db, &t, &vo, push_frame, &sink, &st, &err) ||
-      km_anim_writer_close(&sink.w, &err)) {
+      km_anim_writer_finish(&sink.w, &rep, &err)) {
     km_cli_progress_done();
     rc = km_cli_fail("avatar", &err);
     goto done;
@@ -104,6 +112,7 @@ int km_cli_avatar(int argc, char **argv) {
           st.frames, st.key_frames, st.key_frames ? st.recognition_ms / st.key_frames : 0.0,
           st.key_frames ? st.transfer_ms / st.key_frames : 0.0, st.iterations_mean, st.max_frame_ms,
           km_cli_now() - t0, out);
+  km_cli_report_export("avatar", &rep);
 done:
   km_anim_writer_free(&sink.w);
   km_transfer_free(&tr);

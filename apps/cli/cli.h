@@ -98,6 +98,7 @@ int km_cli_convert(int argc, char **argv);
 int km_cli_eigen(int argc, char **argv);
 int km_cli_gen(int argc, char **argv);
 int km_cli_pose(int argc, char **argv);
+int km_cli_bake(int argc, char **argv);
 int km_cli_precompute(int argc, char **argv);
 int km_cli_animate(int argc, char **argv);
 int km_cli_gen_capture(int argc, char **argv);
@@ -141,6 +142,33 @@ void km_cli_json_number(cJSON *o, const char *key, double v);
 /* --frame-format obj|ply for directory outputs (NULL: from the path, obj for a directory);
  * prints the error and returns non-zero when unknown. */
 int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f);
+
+/* Issue 16: what a .glb holds. --export morphs[:all] (one morph target per frame, exact) or
+ * skin[:BONES] (a fitted skinned mesh, km_ssdr_fit), and --max-error-mm (skin: bones are added
+ * until the max error is below it). */
+#define KM_CLI_EXPORT_OPTIONS(exp, max_mm)                                                         \
+  {"export", 0, KM_OPT_STRING, &(exp),                                                             \
+   "glb content: morphs[:all] (one target per frame, exact; default), morphs:K (K PCA basis "      \
+   "targets + per-frame weights) or skin[:BONES] (skinned "                                        \
+   "mesh + bone animation fitted by SSDR; plain skin: 32 bones grown to meet 15 mm)"},             \
+  {                                                                                                \
+    "max-error-mm", 0, KM_OPT_DOUBLE, &(max_mm),                                                   \
+        "skin: split bones until the max error is below this (up to 4x BONES)"                     \
+  }
+/* Fills ao->export_kind / ao->skin (pointing at *ssdr, which must outlive ao) from --export
+ * and --max-error-mm for output `out`; prints the error and returns non-zero when malformed
+ * or when skin is asked for a non-.glb output. */
+int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, const char *out,
+                        km_anim_options *ao, km_ssdr_options *ssdr);
+/* An animation that comes from a skinned character starts its skin fit from the character's
+ * own parts: when ao asks for a skin with no bone count, ssdr->seed gets the weighted rest
+ * centroid of every joint's skinned vertices (*seeds allocated, free() it). Returns non-zero
+ * (error printed) when out of memory. */
+int km_cli_skin_seeds(const char *verb, const km_anim_options *ao, const km_mesh *m,
+                      const km_skin *skin, size_t n_joints, km_ssdr_options *ssdr, double **seeds);
+/* "  skin: N bones, rms X mm, max Y mm (fit Z s)" on stderr for a skinned export; nothing
+ * for an exact one. */
+void km_cli_report_export(const char *verb, const km_anim_report *rep);
 
 /* Prints root (then deletes it) as indented JSON on stdout; "kinemesh <verb>: out of memory"
  * and exit status 1 when it cannot. */

@@ -1,5 +1,6 @@
 #include "cli.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -284,6 +285,101 @@ int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f
   else
     return km_cli_error(verb, "--frame-format must be obj or ply, not '%s'", s);
   return 0;
+}
+
+int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, const char *out,
+                        km_anim_options *ao, km_ssdr_options *ssdr) {
+  memset(ssdr, 0, sizeof *ssdr);
+  ao->export_kind = KM_ANIM_EXPORT_MORPHS;
+  ao->skin = NULL;
+  if (!(max_error_mm >= 0) || !isfinite(max_error_mm))
+    return km_cli_error(verb, "--max-error-mm must be >= 0, not %g", max_error_mm);
+  if (!s || !strcmp(s, "morphs") || !strcmp(s, "morphs:all")) {
+    if (max_error_mm > 0) return km_cli_error(verb, "--max-error-mm applies to --export skin only");
+    return 0;
+  }
+  if (!strncmp(s, "morphs:", 7)) {
+    char *end = NULL;
+    long k = strtol(s + 7, &end, 10);
+    if (!end || *end || end == s + 7 || k < 1 || k > 100000)
+      return km_cli_error(verb, "--export morphs:K needs a target count 1..100000 or all, not '%s'",
+                          s + 7);
+    if (max_error_mm > 0) return km_cli_error(verb, "--max-error-mm applies to --export skin only");
+    const char *dot = out ? strrchr(out, '.') : NULL;
+    if (!dot || strcasecmp(dot, ".glb") != 0)
+      return km_cli_error(verb, "--export morphs:K writes a .glb; the output is '%s'",
+                          out ? out : "");
+    ao->export_kind = KM_ANIM_EXPORT_MORPHS_PCA;
+    ao->morphs = (size_t)k;
+    return 0;
+  }
+  if (strncmp(s, "skin", 4) != 0 || (s[4] != '\0' && s[4] != ':'))
+    return km_cli_error(verb, "--export must be morphs[:all], morphs:K or skin[:BONES], not '%s'",
+                        s);
+  if (s[4] == ':') {
+    char *end = NULL;
+    long b = strtol(s + 5, &end, 10);
+    if (!end || *end || end == s + 5 || b < 1 || b > 65535)
+      return km_cli_error(verb, "--export skin:BONES needs a bone count 1..65535, not '%s'", s + 5);
+    ssdr->bones = (size_t)b;
+  }
+  char ext[8];
+  const char *dot = out ? strrchr(out, '.') : NULL;
+  snprintf(ext, sizeof ext, "%s", dot ? dot + 1 : "");
+  for (char *c = ext; *c; ++c)
+    *c = (char)tolower((unsigned char)*c);
+  if (strcmp(ext, "glb") != 0)
+    return km_cli_error(verb, "--export skin writes a .glb; the output is '%s'", out ? out : "");
+  /* Plain "skin": a budget that keeps the targets (max 15 mm on a 1.75 m figure). */
+  ssdr->max_error_mm = max_error_mm > 0 ? max_error_mm : (s[4] == ':' ? 0 : 15);
+  ssdr->progress = km_cli_progress("skin fit");
+  ao->export_kind = KM_ANIM_EXPORT_SKIN;
+  ao->skin = ssdr;
+  return 0;
+}
+
+int km_cli_skin_seeds(const char *verb, const km_anim_options *ao, const km_mesh *m,
+                      const km_skin *skin, size_t n_joints, km_ssdr_options *ssdr, double **seeds) {
+  *seeds = NULL;
+  if (ao->export_kind != KM_ANIM_EXPORT_SKIN || ssdr->bones != 0 || !skin || !skin->joints ||
+      n_joints == 0)
+    return 0;
+  double *s = calloc(n_joints * 4, sizeof *s);
+  if (!s) return km_cli_error(verb, "out of memory");
+  for (size_t i = 0; i < m->n_vertices && i < skin->n_vertices; ++i)
+    for (int k = 0; k < KM_SKIN_INFLUENCES; ++k) {
+      int32_t j = skin->joints[KM_SKIN_INFLUENCES * i + k];
+      double wk = skin->weights[KM_SKIN_INFLUENCES * i + k];
+      if (j < 0 || (size_t)j >= n_joints || !(wk > 0)) continue;
+      for (int a = 0; a < 3; ++a)
+        s[4 * j + a] += wk * m->V[3 * i + a];
+      s[4 * j + 3] += wk;
+    }
+  size_t ns = 0;
+  for (size_t j = 0; j < n_joints; ++j)
+    if (s[4 * j + 3] > 0) {
+      for (int a = 0; a < 3; ++a)
+        s[3 * ns + a] = s[4 * j + a] / s[4 * j + 3];
+      ++ns;
+    }
+  ssdr->seed = s;
+  ssdr->n_seed = ns;
+  *seeds = s;
+  return 0;
+}
+
+void km_cli_report_export(const char *verb, const km_anim_report *rep) {
+  if (rep->export_kind == KM_ANIM_EXPORT_MORPHS_PCA) {
+    fprintf(stderr,
+            "kinemesh %s: morphs: %zu basis targets, %zu frames, rms %.4f mm, max %.4f mm\n", verb,
+            rep->targets, rep->frames, rep->rms_error * 1e3, rep->max_error * 1e3);
+    return;
+  }
+  if (rep->export_kind != KM_ANIM_EXPORT_SKIN) return;
+  km_cli_progress_done();
+  fprintf(stderr,
+          "kinemesh %s: skin: %zu bones, %zu frames, rms %.3f mm, max %.3f mm (fit %.1f s)\n", verb,
+          rep->bones, rep->frames, rep->rms_error * 1e3, rep->max_error * 1e3, rep->fit_seconds);
 }
 
 char *km_cli_cache_path(const km_mesh *mesh) {

@@ -16,6 +16,8 @@ static const km_cli_verb VERBS[] = {
      km_cli_gen},
     {"pose", "pose a character by linear blend skinning along a take and write an animation",
      km_cli_pose},
+    {"bake", "any mesh animation (.glb/.pc2/frames) -> skinned .glb (skinning decomposition)",
+     km_cli_bake},
     {"precompute", "build and cache the reduced deformation model of a mesh", km_cli_precompute},
     {"animate", "puppetry: drive a mesh from a skeleton take through a rig -> .glb/.pc2/frames",
      km_cli_animate},

@@ -13,12 +13,15 @@ int km_cli_pose(int argc, char **argv) {
              *track_out = NULL;
   double fps = 0;
   size_t key_every = 0;
+  const char *export_kind = NULL;
+  double max_error_mm = 0;
   /* The mesh stays in its file's frame: the rig sidecar's skeleton is stored in it. */
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
       KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh, "rigged mesh (gen character, rig, or a skinned .glb)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames (default 1)"},
+      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
       {"rig", 0, KM_OPT_STRING, &rig,
        "its rig sidecar (default <mesh stem>.rig.json, else a glTF's own skin)"},
       {"motion", 0, KM_OPT_STRING, &motion, "take (.json) with the rig's joint names"},
@@ -46,7 +49,7 @@ int km_cli_pose(int argc, char **argv) {
   km_take t = {0};
   km_anim_writer *w = NULL;
   km_track trk = {0};
-  double *pos_frame = NULL, *xf = NULL, *V = NULL;
+  double *pos_frame = NULL, *xf = NULL, *V = NULL, *seed = NULL;
   int *map = NULL;
   int rc = KM_EXIT_FAIL;
   if (km_cli_load_character(mesh, rig, 0, &c, &err) != KM_OK ||
@@ -78,7 +81,13 @@ int km_cli_pose(int argc, char **argv) {
   ao.fps = fps > 0 ? fps : t.fps;
   ao.key_every = key_every;
   ao.format = af;
-  if (out && km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
+  km_ssdr_options so;
+  if (out) {
+    if (km_cli_parse_export("pose", export_kind, max_error_mm, out, &ao, &so)) goto done;
+    /* The animation comes from a skeleton: its skinned parts seed the fit. */
+    if (km_cli_skin_seeds("pose", &ao, &c.mesh, &c.skin, nj, &so, &seed)) goto done;
+    if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
+  }
   if (track_out) {
     trk.n_frames = t.n_frames;
     trk.n_landmarks = KM_CHARACTER_LANDMARKS;
@@ -107,9 +116,11 @@ int km_cli_pose(int argc, char **argv) {
              V + 3 * (size_t)c.landmarks[l].vertex, 3 * sizeof(double));
     prog.fn((double)(f + 1) / (double)t.n_frames, "skinning", NULL);
   }
-  if (w && km_anim_writer_close(&w, &err) != KM_OK) goto fail;
+  km_anim_report rep;
+  if (w && km_anim_writer_finish(&w, &rep, &err) != KM_OK) goto fail;
   if (track_out && km_track_write(track_out, &trk, &err) != KM_OK) goto fail;
   km_cli_progress_done();
+  if (out) km_cli_report_export("pose", &rep);
   fprintf(stderr, "kinemesh pose: %zu frames of %zu vertices -> %s%s%s\n", t.n_frames,
           c.mesh.n_vertices, out ? out : "", out && track_out ? ", landmark track " : "",
           track_out ? track_out : "");
@@ -122,6 +133,7 @@ done:
   km_track_free(&trk);
   free(map);
   free(pos_frame);
+  free(seed);
   free(xf);
   free(V);
   km_take_free(&t);

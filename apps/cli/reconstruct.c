@@ -94,7 +94,10 @@ int km_cli_reconstruct(int argc, char **argv) {
   double unsupported_mm = 0, unsupported_fraction = 0;
   size_t coarse = 0, vertices = 4000, segment = 0, overlap = 5;
   int radius = 0;
+  const char *export_kind = NULL;
+  double max_error_mm = 0;
   const km_cli_opt opts[] = {
+      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
       {"template", 't', KM_OPT_STRING, &tmpl,
        "template mesh with rig sidecar (default: procedural, --vertices)"},
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
@@ -173,12 +176,21 @@ int km_cli_reconstruct(int argc, char **argv) {
                          .unsupported_distance = unsupported_mm * 1e-3,
                          .unsupported_fraction = unsupported_fraction};
   ro.progress = km_cli_progress("reconstruct");
-  if (segment && (report || plot || strict)) {
+  if (segment && (report || plot || strict || export_kind)) {
     free(feat);
     km_paths_free(&paths, n);
-    return km_cli_error("reconstruct", "--segment-frames: --report, --plot and --strict are not "
-                                       "available with segments yet");
+    return km_cli_error("reconstruct", "--segment-frames: --report, --plot, --strict and --export "
+                                       "are not available with segments yet");
   }
+  km_anim_options ao = {0};
+  km_ssdr_options so;
+  double *seeds = NULL;
+  if (km_cli_parse_export("reconstruct", export_kind, max_error_mm, out, &ao, &so)) {
+    free(feat);
+    km_paths_free(&paths, n);
+    return KM_EXIT_FAIL;
+  }
+  ro.anim = &ao;
   double t0 = km_cli_now();
   km_status s = km_cli_load_character(tmpl, rig, vertices, &c, &err);
   if (!s && segment && segment < n) {
@@ -189,6 +201,10 @@ int km_cli_reconstruct(int argc, char **argv) {
     km_paths_free(&paths, n);
     return rc;
   }
+  /* The template is skinned: its parts seed a skin fit. */
+  if (!s && km_cli_skin_seeds("reconstruct", &ao, &c.mesh, &c.skin, c.skeleton.n_joints, &so,
+                              &seeds))
+    s = km_error_set(&err, KM_ERR_NOMEM, "out of memory");
   if (!s) s = km_reconstruct((const char *const *)paths, n, &c, feat, nfeat, &ro, out, &rep, &err);
   km_cli_progress_done();
   if (rep.n_frames) {
@@ -233,6 +249,8 @@ int km_cli_reconstruct(int argc, char **argv) {
     if (plot && km_recon_report_plot(plot, &rep, &e2)) rc = km_cli_fail("reconstruct", &e2);
   }
   if (s) rc = km_cli_fail("reconstruct", &err);
+  if (!s) km_cli_report_export("reconstruct", &rep.export_report);
+  free(seeds);
   km_recon_report_free(&rep);
   km_character_free(&c);
   free(feat);

@@ -5,6 +5,7 @@
  * Nothing appears at the destination until close succeeds: PC2 and glb go through
  * km__atomic_open/commit, a directory is filled under "<dir>.tmp.<pid>" and renamed. */
 #include "anim/anim.h"
+#include "linalg/linalg.h"
 
 #include <dirent.h>
 #include <float.h>
@@ -12,6 +13,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #define PC2_HEADER 32
@@ -102,6 +104,7 @@ static void writer_discard(km_anim_writer *w) {
   free(w->uv);
   free(w->nbuf);
   free(w->vbuf);
+  free(w->pca_weights);
   free(w);
 }
 
@@ -165,6 +168,21 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   w->n_faces = nf;
   w->fps = o.fps;
   w->key_every = o.key_every;
+  if (o.export_kind != KM_ANIM_EXPORT_MORPHS && o.export_kind != KM_ANIM_EXPORT_SKIN &&
+      o.export_kind != KM_ANIM_EXPORT_MORPHS_PCA) {
+    free(w);
+    return km__fail(err, KM_ERR_INVALID, "%s: unknown export kind %d", path, (int)o.export_kind);
+  }
+  if (o.format == KM_ANIM_GLB && o.export_kind == KM_ANIM_EXPORT_SKIN) {
+    w->export_kind = KM_ANIM_EXPORT_SKIN;
+    w->key_every = 1; /* the fit sees every frame */
+    if (o.skin) w->skin = *o.skin;
+  }
+  if (o.format == KM_ANIM_GLB && o.export_kind == KM_ANIM_EXPORT_MORPHS_PCA) {
+    w->export_kind = KM_ANIM_EXPORT_MORPHS_PCA;
+    w->key_every = 1; /* the basis sees every frame */
+    w->pca_k = o.morphs ? o.morphs : 16;
+  }
   w->path = dup_str(path);
   /* "out/frames/" must not put the temporary directory inside the destination. */
   for (size_t n = w->path ? strlen(w->path) : 0; n > 1 && w->path[n - 1] == '/'; --n)
@@ -312,7 +330,7 @@ static km_status push_glb(km_anim_writer *w, const double *V, km_error *err) {
   uint64_t per_key = (uint64_t)w->n_vertices * 12;
   uint64_t estimate = per_key * (w->n_keys + 2) + (uint64_t)w->n_faces * 12 +
                       (uint64_t)(w->n_keys + 1) * (w->n_keys + 2) * 4 + (1u << 20);
-  if (estimate > UINT32_MAX)
+  if (estimate > UINT32_MAX && w->export_kind == KM_ANIM_EXPORT_MORPHS)
     return km__fail(err, KM_ERR_UNSUPPORTED,
                     "%s: frame %zu would make the glb exceed 4 GiB; use key_every > 1 or pc2",
                     w->path, w->frames);
@@ -494,10 +512,187 @@ static km_status close_dir(km_anim_writer *w, km_error *err) {
   return KM_OK;
 }
 
+/* Fits the rig over every frame (read back from the key temporary) and writes it. */
+static km_status close_skin(km_anim_writer *w, km_anim_report *rep, km_error *err) {
+  const size_t nv = w->n_vertices, T = w->n_keys;
+  double *frames = km__malloc(T * nv * 3, sizeof *frames);
+  if (!frames)
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames to fit", w->path, T);
+  km_status s = KM_OK;
+  if (fseek(w->keys, 0, SEEK_SET) != 0)
+    s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the frame temporary", w->path);
+  for (size_t t = 0; s == KM_OK && t < T; ++t) {
+    if (fread(w->fbuf, sizeof *w->fbuf, nv * 3, w->keys) != nv * 3) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot read frame %zu back from its temporary", w->path, t);
+      break;
+    }
+    double *V = frames + t * nv * 3;
+    for (size_t i = 0; i < nv * 3; ++i)
+      V[i] = w->rest[i] + (double)w->fbuf[i];
+  }
+  km_ssdr fit = {0};
+  struct timespec t0, t1;
+  clock_gettime(CLOCK_MONOTONIC, &t0);
+  if (s == KM_OK) s = km_ssdr_fit(w->rest, nv, frames, T, &w->skin, &fit, err);
+  clock_gettime(CLOCK_MONOTONIC, &t1);
+  free(frames);
+  if (s != KM_OK) return km__wrap(err, s, "%s", w->path);
+  if (rep) {
+    rep->bones = fit.n_bones;
+    rep->rms_error = fit.rms_error;
+    rep->max_error = fit.max_error;
+    rep->fit_seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+  }
+  s = km__glb_write_skin(w, &fit, err);
+  km_ssdr_free(&fit);
+  return s;
+}
+
+/* Compact morphs: PCA of the frame displacements D (T x 3#V) through the T x T Gram matrix
+ * D D^T (LAPACK dsyev in linalg): the K leading eigenvectors u_k give orthonormal basis
+ * targets b_k = D^T u_k / sqrt(l_k) and weights w_tk = sqrt(l_k) u_k[t], each target scaled
+ * so its weights stay in [-1, 1]. The keys are replaced by the targets, then the usual glb
+ * writer runs with the weights. */
+static km_status close_pca(km_anim_writer *w, km_anim_report *rep, km_error *err) {
+  const size_t nv3 = w->n_vertices * 3, T = w->n_keys;
+  size_t K = w->pca_k < T ? w->pca_k : T;
+  double *D = km__malloc(T * nv3, sizeof *D), *C = km__malloc(T * T, sizeof *C);
+  double *ev = km__malloc(T, sizeof *ev), *B = NULL, *Wt = NULL;
+  FILE *nk = NULL;
+  km_status s = KM_OK;
+  if (!D || !C || !ev) {
+    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames", w->path, T);
+    goto done;
+  }
+  if (fseek(w->keys, 0, SEEK_SET) != 0)
+    s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the frame temporary", w->path);
+  for (size_t t = 0; s == KM_OK && t < T; ++t) {
+    if (fread(w->fbuf, sizeof *w->fbuf, nv3, w->keys) != nv3) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot read frame %zu back", w->path, t);
+      break;
+    }
+    for (size_t i = 0; i < nv3; ++i)
+      D[t * nv3 + i] = w->fbuf[i];
+  }
+  if (s != KM_OK) goto done;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (size_t a = 0; a < T; ++a)
+    for (size_t b = a; b < T; ++b) {
+      double d = 0;
+      for (size_t i = 0; i < nv3; ++i)
+        d += D[a * nv3 + i] * D[b * nv3 + i];
+      C[a * T + b] = C[b * T + a] = d;
+    }
+  if (km__syev(T, C, ev) != 0) {
+    s = km__fail(err, KM_ERR_NO_CONVERGENCE, "%s: PCA eigen-decomposition failed", w->path);
+    goto done;
+  }
+  /* drop directions the frames do not span (a still animation has none) */
+  double lmax = ev[T - 1] > 0 ? ev[T - 1] : 0;
+  while (K > 1 && !(ev[T - K] > 1e-18 * lmax))
+    --K;
+  B = km__calloc(K * nv3, sizeof *B);
+  Wt = km__calloc(T * K, sizeof *Wt);
+  if (!B || !Wt) {
+    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+    goto done;
+  }
+  for (size_t k = 0; k < K; ++k) {
+    size_t col = T - 1 - k;
+    double l = ev[col] > 0 ? sqrt(ev[col]) : 0, m = 0;
+    for (size_t t = 0; t < T; ++t) {
+      Wt[t * K + k] = l * C[t * T + col];
+      m = fmax(m, fabs(Wt[t * K + k]));
+    }
+    double inv = l > 0 ? 1 / l : 0;
+    for (size_t t = 0; t < T; ++t) {
+      double u = C[t * T + col] * inv * m;
+      if (u == 0) continue;
+      for (size_t i = 0; i < nv3; ++i)
+        B[k * nv3 + i] += u * D[t * nv3 + i];
+    }
+    for (size_t t = 0; m > 0 && t < T; ++t)
+      Wt[t * K + k] /= m;
+  }
+  /* Error as a viewer evaluates it: float32 targets and weights. */
+  if (!(w->pca_weights = km__malloc(T * K, sizeof *w->pca_weights))) {
+    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+    goto done;
+  }
+  for (size_t i = 0; i < T * K; ++i)
+    w->pca_weights[i] = (float)Wt[i];
+  double sum = 0, mx = 0;
+#pragma omp parallel for reduction(+ : sum) reduction(max : mx) schedule(static)
+  for (size_t t = 0; t < T; ++t)
+    for (size_t v = 0; v < nv3 / 3; ++v) {
+      double e2 = 0;
+      for (int c = 0; c < 3; ++c) {
+        double r = 0;
+        for (size_t k = 0; k < K; ++k)
+          r += (double)w->pca_weights[t * K + k] * (double)(float)B[k * nv3 + 3 * v + c];
+        double d = r - D[t * nv3 + 3 * v + c];
+        e2 += d * d;
+      }
+      sum += e2;
+      if (e2 > mx) mx = e2;
+    }
+  w->pca_rms = sqrt(sum / (double)(T * nv3 / 3));
+  w->pca_max = sqrt(mx);
+  if (rep) {
+    rep->targets = K;
+    rep->rms_error = w->pca_rms;
+    rep->max_error = w->pca_max;
+  }
+  /* the targets replace the keys */
+  if (!(nk = tmpfile())) {
+    s = km__fail(err, KM_ERR_IO, "%s: cannot create a temporary file: %s", w->path,
+                 strerror(errno));
+    goto done;
+  }
+  for (size_t k = 0; k < K; ++k) {
+    float *mm = w->key_minmax + 6 * k;
+    minmax_init(mm);
+    for (size_t i = 0; i < nv3; ++i) {
+      float f = (float)B[k * nv3 + i];
+      w->fbuf[i] = f;
+      if (f < mm[i % 3]) mm[i % 3] = f;
+      if (f > mm[3 + i % 3]) mm[3 + i % 3] = f;
+    }
+    w->key_frame[k] = k;
+    if (fwrite(w->fbuf, sizeof *w->fbuf, nv3, nk) != nv3) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot write a basis target: %s", w->path, strerror(errno));
+      goto done;
+    }
+  }
+  fclose(w->keys);
+  w->keys = nk;
+  nk = NULL;
+  w->n_keys = K;
+  w->pca_frames = T;
+  s = km__glb_finish(w, err);
+done:
+  if (nk) fclose(nk);
+  free(D);
+  free(C);
+  free(ev);
+  free(B);
+  free(Wt);
+  return s;
+}
+
 km_status km_anim_writer_close(km_anim_writer **wp, km_error *err) {
+  return km_anim_writer_finish(wp, NULL, err);
+}
+
+km_status km_anim_writer_finish(km_anim_writer **wp, km_anim_report *rep, km_error *err) {
+  if (rep) memset(rep, 0, sizeof *rep);
   if (!wp || !*wp) return km__fail(err, KM_ERR_INVALID, "km_anim_writer_close: writer is NULL");
   km_anim_writer *w = *wp;
   *wp = NULL;
+  if (rep) {
+    rep->export_kind = w->export_kind;
+    rep->frames = w->frames;
+  }
   km_status s = KM_OK;
   if (w->failed)
     s = km__fail(err, KM_ERR_IO, "%s: an earlier write failed; nothing written", w->path);
@@ -505,6 +700,10 @@ km_status km_anim_writer_close(km_anim_writer **wp, km_error *err) {
     s = km__fail(err, KM_ERR_INVALID, "%s: no frames were pushed; nothing written", w->path);
   else if (w->format == KM_ANIM_PC2)
     s = close_pc2(w, err);
+  else if (w->format == KM_ANIM_GLB && w->export_kind == KM_ANIM_EXPORT_SKIN)
+    s = close_skin(w, rep, err);
+  else if (w->format == KM_ANIM_GLB && w->export_kind == KM_ANIM_EXPORT_MORPHS_PCA)
+    s = close_pca(w, rep, err);
   else if (w->format == KM_ANIM_GLB)
     s = km__glb_finish(w, err);
   else
@@ -702,4 +901,81 @@ static km_status anim_info_read(const char *path, km_anim_info *out, km_error *e
   }
   return km__fail(err, KM_ERR_UNSUPPORTED,
                   "%s: unknown animation format (expected .glb, .pc2 or a frame directory)", path);
+}
+
+/* ---------------------------------------------------------------- whole animations (issue 16) */
+
+km_status km_anim_read(const char *path, km_mesh *rest, double **frames, km_anim_info *info,
+                       km_error *err) {
+  if (!path || !rest || !frames || !info)
+    return km__fail(err, KM_ERR_INVALID, "km_anim_read: NULL argument");
+  memset(rest, 0, sizeof *rest);
+  *frames = NULL;
+  km_status s = km_anim_info_read(path, info, err);
+  if (s != KM_OK) return s;
+  if (info->format == KM_ANIM_PC2) {
+    km_anim_info in2;
+    if ((s = km_pc2_read(path, frames, &in2, err)) != KM_OK) return s;
+    if (in2.frames == 0) {
+      free(*frames);
+      *frames = NULL;
+      return km__fail(err, KM_ERR_PARSE, "%s: the point cache has no frames", path);
+    }
+    *info = in2;
+    if (!(rest->V = km__malloc(in2.vertices * 3, sizeof *rest->V))) {
+      free(*frames);
+      *frames = NULL;
+      return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+    }
+    memcpy(rest->V, *frames, in2.vertices * 3 * sizeof *rest->V);
+    rest->n_vertices = in2.vertices;
+    return KM_OK;
+  }
+  if (info->format == KM_ANIM_GLB) {
+    if ((s = km_mesh_read(path, rest, err)) != KM_OK) return s;
+    size_t n = 0;
+    double fps = info->fps;
+    s = km__glb_frames(path, rest->n_vertices, frames, &n, &fps, err);
+    if (s != KM_OK) {
+      km_mesh_free(rest);
+      return s;
+    }
+    info->frames = info->timeline_frames = n;
+    info->fps = fps;
+    info->duration = fps > 0 && n > 0 ? (double)(n - 1) / fps : 0;
+    return KM_OK;
+  }
+  /* a frame directory: frame_000000 .. in order, every one with the first's vertex count */
+  const char *ext = info->format == KM_ANIM_PLY_DIR ? "ply" : "obj";
+  size_t m = strlen(path) + 40, nv = 0;
+  char *fp = malloc(m);
+  if (!fp) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  for (size_t k = 0; s == KM_OK && k < info->frames; ++k) {
+    snprintf(fp, m, "%s/frame_%06zu.%s", path, k, ext);
+    km_mesh f = {0};
+    if ((s = km_mesh_read(fp, k == 0 ? rest : &f, err)) != KM_OK) break;
+    if (k == 0) {
+      nv = rest->n_vertices;
+      if (!(*frames = km__malloc(info->frames * nv * 3, sizeof **frames))) {
+        s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames", path, info->frames);
+        break;
+      }
+      memcpy(*frames, rest->V, nv * 3 * sizeof **frames);
+      continue;
+    }
+    if (f.n_vertices != nv)
+      s = km__fail(err, KM_ERR_PARSE, "%s: %zu vertices, frame 0 has %zu", fp, f.n_vertices, nv);
+    else
+      memcpy(*frames + k * nv * 3, f.V, nv * 3 * sizeof **frames);
+    km_mesh_free(&f);
+  }
+  free(fp);
+  if (s != KM_OK) {
+    free(*frames);
+    *frames = NULL;
+    km_mesh_free(rest);
+    return s;
+  }
+  info->vertices = nv;
+  return KM_OK;
 }

@@ -1,4 +1,4 @@
-/* Requires: core, mesh. External: cJSON. */
+/* Requires: core, linalg, math, mesh. External: cJSON. */
 /* Private interface between the animation writer (anim.c) and its format back-ends. */
 #ifndef KM_IO_ANIM_H
 #define KM_IO_ANIM_H
@@ -63,6 +63,14 @@ struct km_anim_writer {
   bool normals; /* rest had UV or N */
   double *nbuf; /* #V*3 scratch: one frame's normals */
   double *vbuf; /* #V*3 scratch: one key's positions (glb) */
+  /* issue 16: a skinned glb fits km_ssdr at close over every frame (stored as keys). */
+  km_anim_export export_kind;
+  km_ssdr_options skin;
+  /* PCA morphs: the keys are replaced by pca_k basis targets at close; weights T x K. */
+  size_t pca_k;
+  float *pca_weights; /* pca_frames * n_keys, row per frame */
+  size_t pca_frames;
+  double pca_rms, pca_max; /* its error against the frames (m), kept in the extras */
 };
 
 /* Unit area-weighted normals of positions V over the writer's faces into w->nbuf; a vertex
@@ -71,6 +79,15 @@ void km__anim_normals(km_anim_writer *w, const double *V);
 
 /* Writes the final .glb from the stored keys (called by close). */
 km_status km__glb_finish(km_anim_writer *w, km_error *err);
+
+/* Writes the skinned .glb of a fit over the writer's rest mesh into w->af and commits it. */
+km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, km_error *err);
+
+/* Every frame of a morph-target .glb (base + sum of weighted targets at each key of the first
+ * weights channel; one frame per target without one): *frames n_frames * nv * 3, allocated.
+ * fps: from kinemesh's extras or the key spacing; untouched when unknown. */
+km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n_frames,
+                         double *fps, km_error *err);
 
 /* Reads the .glb header and JSON chunk only (the binary chunk may be large). */
 km_status km__glb_info(const char *path, km_anim_info *out, km_error *err);

@@ -87,7 +87,10 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
    * multiple of 4 bytes, so every bufferView offset is 4-aligned. */
   uint64_t off = 0;
   const uint64_t idx_len = (uint64_t)nf * 12, pos_len = (uint64_t)nv * 12;
-  const uint64_t times_len = (uint64_t)nk * 4, weights_len = (uint64_t)nk * nk * 4;
+  /* PCA morphs (issue 16): nk basis targets, one weights row per frame; else one-hot keys. */
+  const bool pca = w->pca_weights != NULL;
+  const size_t nt = pca ? w->pca_frames : nk;
+  const uint64_t times_len = (uint64_t)nt * 4, weights_len = (uint64_t)nt * nk * 4;
   const bool with_n = w->normals;
   const uint64_t uv_len = w->uv ? (uint64_t)nv * 8 : 0;
   uint64_t bin_len =
@@ -98,10 +101,10 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
                     "key_every > 1 or pc2",
                     w->path, nk, nv);
 
-  float *times = km__malloc(nk, sizeof *times);
+  float *times = km__malloc(nt, sizeof *times);
   if (!times) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
-  for (size_t k = 0; k < nk; ++k)
-    times[k] = (float)((double)w->key_frame[k] / w->fps);
+  for (size_t k = 0; k < nt; ++k)
+    times[k] = (float)((double)(pca ? k : w->key_frame[k]) / w->fps);
 
   cJSON *root = cJSON_CreateObject();
   cJSON *asset = cJSON_AddObjectToObject(root, "asset");
@@ -111,6 +114,13 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   cJSON_AddNumberToObject(ex, "fps", w->fps);
   cJSON_AddNumberToObject(ex, "frames", (double)w->frames);
   cJSON_AddNumberToObject(ex, "key_every", (double)w->key_every);
+  if (pca) {
+    char ek[32];
+    snprintf(ek, sizeof ek, "morphs:%zu", nk);
+    cJSON_AddStringToObject(ex, "export", ek);
+    cJSON_AddNumberToObject(ex, "rms_error_m", w->pca_rms);
+    cJSON_AddNumberToObject(ex, "max_error_m", w->pca_max);
+  }
   cJSON_AddNumberToObject(root, "scene", 0);
   cJSON *scene = cJSON_CreateObject();
   cJSON_AddItemToObject(scene, "nodes", cJSON_CreateIntArray((const int[]){0}, 1));
@@ -163,7 +173,10 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     }
     cJSON_AddItemToArray(targets, t);
     char nm[32];
-    snprintf(nm, sizeof nm, "frame_%06zu", w->key_frame[k]);
+    if (pca)
+      snprintf(nm, sizeof nm, "basis_%03zu", k);
+    else
+      snprintf(nm, sizeof nm, "frame_%06zu", w->key_frame[k]);
     cJSON_AddItemToArray(names, cJSON_CreateString(nm));
   }
   cJSON *mesh = cJSON_CreateObject();
@@ -174,10 +187,10 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   cJSON_AddItemToObject(cJSON_AddObjectToObject(mesh, "extras"), "targetNames", names);
   cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "meshes"), mesh);
 
-  int a_in = add_view_accessor(views, accessors, off, times_len, 0, GL_FLOAT, nk, "SCALAR",
-                               &times[0], &times[nk - 1], 1);
+  int a_in = add_view_accessor(views, accessors, off, times_len, 0, GL_FLOAT, nt, "SCALAR",
+                               &times[0], &times[nt - 1], 1);
   off += times_len;
-  int a_out = add_view_accessor(views, accessors, off, weights_len, 0, GL_FLOAT, nk * nk, "SCALAR",
+  int a_out = add_view_accessor(views, accessors, off, weights_len, 0, GL_FLOAT, nt * nk, "SCALAR",
                                 NULL, NULL, 0);
   off += weights_len;
   cJSON *sampler = cJSON_CreateObject();
@@ -292,16 +305,22 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   free(rest_n);
   /* Key times, then one-hot weights (one row of nk per key), through a row buffer: there
    * can be more keys than vertices. */
-  unsigned char *row = s == KM_OK ? calloc(nk, 4) : NULL;
+  size_t rl = nt > nk ? nt : nk;
+  unsigned char *row = s == KM_OK ? calloc(rl, 4) : NULL;
   if (s == KM_OK && !row) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
   if (s == KM_OK) {
-    for (size_t k = 0; k < nk; ++k)
+    for (size_t k = 0; k < nt; ++k)
       km__put_f32le(row + 4 * k, times[k]);
-    s = write_all(w, af.f, row, 4 * nk, err);
-    memset(row, 0, 4 * nk);
+    s = write_all(w, af.f, row, 4 * nt, err);
+    memset(row, 0, 4 * rl);
   }
   free(times);
-  for (size_t k = 0; s == KM_OK && k < nk; ++k) {
+  for (size_t t = 0; pca && s == KM_OK && t < nt; ++t) {
+    for (size_t k = 0; k < nk; ++k)
+      km__put_f32le(row + 4 * k, w->pca_weights[t * nk + k]);
+    s = write_all(w, af.f, row, 4 * nk, err);
+  }
+  for (size_t k = 0; !pca && s == KM_OK && k < nk; ++k) {
     km__put_f32le(row + 4 * k, 1.0f);
     s = write_all(w, af.f, row, 4 * nk, err);
     km__put_f32le(row + 4 * k, 0.0f);
@@ -406,6 +425,9 @@ km_status km__glb_info(const char *path, km_anim_info *out, km_error *err) {
   const cJSON *total = get_path(ex, "frames", -1);
   if (cJSON_IsNumber(total) && total->valuedouble >= 1 && total->valuedouble < 1e12)
     out->timeline_frames = (size_t)total->valuedouble;
+  /* A skinned export (issue 16) has no targets: its frames are the timeline's. */
+  if (cJSON_IsString(get_path(ex, "export", -1)) && out->timeline_frames)
+    out->frames = out->timeline_frames;
   const cJSON *input =
       get_path(get_path(get_path(root, "animations", 0), "samplers", 0), "input", -1);
   const cJSON *in_acc =
@@ -421,4 +443,493 @@ km_status km__glb_info(const char *path, km_anim_info *out, km_error *err) {
   }
   cJSON_Delete(root);
   return KM_OK;
+}
+
+/* ---------------------------------------------------------------- skinned export (issue 16) */
+
+/* Appends n bytes to a growing binary chunk, 4-aligned. */
+typedef struct bin_buf {
+  unsigned char *p;
+  size_t len, cap;
+} bin_buf;
+
+static unsigned char *bin_grow(bin_buf *b, size_t n) {
+  size_t need = b->len + ((n + 3) & ~(size_t)3);
+  if (need > b->cap) {
+    size_t cap = b->cap ? b->cap : 1 << 16;
+    while (cap < need)
+      cap *= 2;
+    unsigned char *p = realloc(b->p, cap);
+    if (!p) return NULL;
+    b->p = p;
+    b->cap = cap;
+  }
+  unsigned char *at = b->p + b->len;
+  memset(at, 0, need - b->len);
+  b->len = need;
+  return at;
+}
+
+/* Row-major rotation to a unit quaternion (x, y, z, w). */
+static void quat_from_m3(const double R[9], double q[4]) {
+  double tr = R[0] + R[4] + R[8];
+  if (tr > 0) {
+    double s = sqrt(tr + 1.0) * 2;
+    q[3] = 0.25 * s;
+    q[0] = (R[7] - R[5]) / s;
+    q[1] = (R[2] - R[6]) / s;
+    q[2] = (R[3] - R[1]) / s;
+  } else if (R[0] > R[4] && R[0] > R[8]) {
+    double s = sqrt(1.0 + R[0] - R[4] - R[8]) * 2;
+    q[3] = (R[7] - R[5]) / s;
+    q[0] = 0.25 * s;
+    q[1] = (R[1] + R[3]) / s;
+    q[2] = (R[2] + R[6]) / s;
+  } else if (R[4] > R[8]) {
+    double s = sqrt(1.0 + R[4] - R[0] - R[8]) * 2;
+    q[3] = (R[2] - R[6]) / s;
+    q[0] = (R[1] + R[3]) / s;
+    q[1] = 0.25 * s;
+    q[2] = (R[5] + R[7]) / s;
+  } else {
+    double s = sqrt(1.0 + R[8] - R[0] - R[4]) * 2;
+    q[3] = (R[3] - R[1]) / s;
+    q[0] = (R[2] + R[6]) / s;
+    q[1] = (R[5] + R[7]) / s;
+    q[2] = 0.25 * s;
+  }
+  double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+  for (int k = 0; k < 4; ++k)
+    q[k] /= l;
+}
+
+km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, km_error *err) {
+  const size_t nv = w->n_vertices, nf = w->n_faces, B = fit->n_bones, T = fit->n_frames;
+  bin_buf b = {0};
+  cJSON *root = cJSON_CreateObject();
+  cJSON *views = cJSON_CreateArray(), *accessors = cJSON_CreateArray();
+  km_status s = KM_OK;
+  unsigned char *p;
+#define GROW(n)                                                                                    \
+  do {                                                                                             \
+    if (!(p = bin_grow(&b, (n)))) goto nomem;                                                      \
+  } while (0)
+
+  cJSON *asset = cJSON_AddObjectToObject(root, "asset");
+  cJSON_AddStringToObject(asset, "version", "2.0");
+  cJSON_AddStringToObject(asset, "generator", "kinemesh");
+  cJSON *ex = cJSON_AddObjectToObject(cJSON_AddObjectToObject(asset, "extras"), "kinemesh");
+  cJSON_AddNumberToObject(ex, "fps", w->fps);
+  cJSON_AddNumberToObject(ex, "frames", (double)T);
+  cJSON_AddNumberToObject(ex, "key_every", 1);
+  cJSON_AddStringToObject(ex, "export", "skin");
+  cJSON_AddNumberToObject(ex, "bones", (double)B);
+  cJSON_AddNumberToObject(ex, "rms_error_m", fit->rms_error);
+  cJSON_AddNumberToObject(ex, "max_error_m", fit->max_error);
+
+  /* ---- the mesh: indices, rest positions, normals, UVs, joints, weights */
+  cJSON *prim = cJSON_CreateObject();
+  cJSON *attrs = cJSON_AddObjectToObject(prim, "attributes");
+  size_t off;
+  if (nf) {
+    off = b.len;
+    GROW(nf * 12);
+    for (size_t i = 0; i < nf * 3; ++i)
+      km__put_u32le(p + 4 * i, (uint32_t)w->F[i]);
+    cJSON_AddNumberToObject(prim, "indices",
+                            add_view_accessor(views, accessors, off, nf * 12,
+                                              GL_ELEMENT_ARRAY_BUFFER, GL_UNSIGNED_INT, nf * 3,
+                                              "SCALAR", NULL, NULL, 0));
+  }
+  off = b.len;
+  GROW(nv * 12);
+  for (size_t i = 0; i < nv * 3; ++i)
+    km__put_f32le(p + 4 * i, (float)w->rest[i]);
+  cJSON_AddNumberToObject(attrs, "POSITION",
+                          add_view_accessor(views, accessors, off, nv * 12, GL_ARRAY_BUFFER,
+                                            GL_FLOAT, nv, "VEC3", w->rest_minmax,
+                                            w->rest_minmax + 3, 3));
+  if (nf) {
+    /* Engines skin the normals with the bones, so the rest's normals are all they need. */
+    if (!w->nbuf && !(w->nbuf = km__malloc(nv * 3, sizeof *w->nbuf))) goto nomem;
+    km__anim_normals(w, w->rest);
+    off = b.len;
+    GROW(nv * 12);
+    for (size_t i = 0; i < nv * 3; ++i)
+      km__put_f32le(p + 4 * i, (float)w->nbuf[i]);
+    cJSON_AddNumberToObject(attrs, "NORMAL",
+                            add_view_accessor(views, accessors, off, nv * 12, GL_ARRAY_BUFFER,
+                                              GL_FLOAT, nv, "VEC3", NULL, NULL, 0));
+  }
+  if (w->uv) {
+    off = b.len;
+    GROW(nv * 8);
+    for (size_t i = 0; i < nv; ++i) {
+      km__put_f32le(p + 8 * i, (float)w->uv[2 * i]);
+      km__put_f32le(p + 8 * i + 4, (float)(1.0 - w->uv[2 * i + 1]));
+    }
+    cJSON_AddNumberToObject(attrs, "TEXCOORD_0",
+                            add_view_accessor(views, accessors, off, nv * 8, GL_ARRAY_BUFFER,
+                                              GL_FLOAT, nv, "VEC2", NULL, NULL, 0));
+  }
+  const bool wide = B > 256;
+  off = b.len;
+  GROW(nv * (wide ? 8 : 4));
+  for (size_t i = 0; i < nv; ++i)
+    for (int k = 0; k < 4; ++k) {
+      int32_t j = fit->skin.joints[4 * i + k];
+      uint32_t v = j < 0 ? 0 : (uint32_t)j;
+      if (wide) {
+        p[8 * i + 2 * k] = (unsigned char)v;
+        p[8 * i + 2 * k + 1] = (unsigned char)(v >> 8);
+      } else {
+        p[4 * i + k] = (unsigned char)v;
+      }
+    }
+  cJSON_AddNumberToObject(attrs, "JOINTS_0",
+                          add_view_accessor(views, accessors, off, nv * (wide ? 8 : 4),
+                                            GL_ARRAY_BUFFER, wide ? 5123 : 5121, nv, "VEC4", NULL,
+                                            NULL, 0));
+  off = b.len;
+  GROW(nv * 16);
+  for (size_t i = 0; i < nv; ++i) {
+    /* float32 weights renormalised so their float sum is 1 (the validator checks it). */
+    float f[4];
+    double sum = 0;
+    int big = 0;
+    for (int k = 0; k < 4; ++k) {
+      double x = fit->skin.joints[4 * i + k] < 0 ? 0 : fit->skin.weights[4 * i + k];
+      f[k] = (float)x;
+      if (f[k] > f[big]) big = k;
+    }
+    for (int k = 0; k < 4; ++k)
+      if (k != big) sum += f[k];
+    f[big] = (float)(1.0 - sum);
+    for (int k = 0; k < 4; ++k)
+      km__put_f32le(p + 16 * i + 4 * k, f[k]);
+  }
+  cJSON_AddNumberToObject(attrs, "WEIGHTS_0",
+                          add_view_accessor(views, accessors, off, nv * 16, GL_ARRAY_BUFFER,
+                                            GL_FLOAT, nv, "VEC4", NULL, NULL, 0));
+  cJSON_AddNumberToObject(prim, "mode", nf ? 4 : 0);
+  cJSON *mesh = cJSON_CreateObject();
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(mesh, "primitives"), prim);
+  cJSON_AddStringToObject(mesh, "name", "kinemesh");
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "meshes"), mesh);
+
+  /* ---- skeleton: node 0 the skinned mesh, node 1 an identity root, nodes 2.. the bones,
+   * each bound at its rest centre with no rotation, so inverseBindMatrix_j = T(-c_j) and the
+   * fitted rest->frame transform [R | t] is the node's TRS: rotation R, translation R c_j + t. */
+  cJSON *nodes = cJSON_AddArrayToObject(root, "nodes");
+  cJSON *n0 = cJSON_CreateObject();
+  cJSON_AddStringToObject(n0, "name", "kinemesh");
+  cJSON_AddNumberToObject(n0, "mesh", 0);
+  cJSON_AddNumberToObject(n0, "skin", 0);
+  cJSON_AddItemToArray(nodes, n0);
+  cJSON *n1 = cJSON_CreateObject();
+  cJSON_AddStringToObject(n1, "name", "armature");
+  cJSON *children = cJSON_AddArrayToObject(n1, "children");
+  cJSON_AddItemToArray(nodes, n1);
+  cJSON *joints = cJSON_CreateArray();
+  for (size_t j = 0; j < B; ++j) {
+    cJSON_AddItemToArray(children, cJSON_CreateNumber((double)(j + 2)));
+    cJSON_AddItemToArray(joints, cJSON_CreateNumber((double)(j + 2)));
+    cJSON *nj = cJSON_CreateObject();
+    char nm[32];
+    snprintf(nm, sizeof nm, "bone_%03zu", j);
+    cJSON_AddStringToObject(nj, "name", nm);
+    float c[3] = {(float)fit->centers[3 * j], (float)fit->centers[3 * j + 1],
+                  (float)fit->centers[3 * j + 2]};
+    cJSON_AddItemToObject(nj, "translation", num_array(c, 3));
+    cJSON_AddItemToArray(nodes, nj);
+  }
+  off = b.len;
+  GROW(B * 64);
+  for (size_t j = 0; j < B; ++j) {
+    float m[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    for (int a = 0; a < 3; ++a)
+      m[12 + a] = -(float)fit->centers[3 * j + a]; /* column-major: translation last */
+    for (int k = 0; k < 16; ++k)
+      km__put_f32le(p + 64 * j + 4 * k, m[k]);
+  }
+  int a_ibm =
+      add_view_accessor(views, accessors, off, B * 64, 0, GL_FLOAT, B, "MAT4", NULL, NULL, 0);
+  cJSON *skin = cJSON_CreateObject();
+  cJSON_AddNumberToObject(skin, "inverseBindMatrices", a_ibm);
+  cJSON_AddNumberToObject(skin, "skeleton", 1);
+  cJSON_AddItemToObject(skin, "joints", joints);
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "skins"), skin);
+  cJSON_AddNumberToObject(root, "scene", 0);
+  cJSON *scene = cJSON_CreateObject();
+  cJSON_AddItemToObject(scene, "nodes", cJSON_CreateIntArray((const int[]){0, 1}, 2));
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "scenes"), scene);
+
+  /* ---- animation: shared key times, then per bone a translation and a rotation channel */
+  off = b.len;
+  GROW(T * 4);
+  for (size_t t = 0; t < T; ++t)
+    km__put_f32le(p + 4 * t, (float)((double)t / w->fps));
+  float tmin = 0, tmax = (float)((double)(T - 1) / w->fps);
+  int a_time =
+      add_view_accessor(views, accessors, off, T * 4, 0, GL_FLOAT, T, "SCALAR", &tmin, &tmax, 1);
+  cJSON *anim = cJSON_CreateObject();
+  cJSON_AddStringToObject(anim, "name", "kinemesh");
+  cJSON *channels = cJSON_AddArrayToObject(anim, "channels");
+  cJSON *samplers = cJSON_AddArrayToObject(anim, "samplers");
+  for (size_t j = 0; j < B; ++j) {
+    size_t off_t = b.len;
+    GROW(T * 12);
+    unsigned char *pt = p;
+    size_t off_r = b.len;
+    GROW(T * 16);
+    unsigned char *pr = p;
+    pt = b.p + off_t; /* the second GROW may have moved the buffer */
+    double qprev[4] = {0, 0, 0, 1};
+    for (size_t t = 0; t < T; ++t) {
+      const double *M = fit->transforms + (t * B + j) * 12;
+      const double *c = fit->centers + 3 * j;
+      double R[9] = {M[0], M[1], M[2], M[4], M[5], M[6], M[8], M[9], M[10]}, q[4];
+      for (int a = 0; a < 3; ++a)
+        km__put_f32le(pt + 12 * t + 4 * a, (float)(R[3 * a] * c[0] + R[3 * a + 1] * c[1] +
+                                                   R[3 * a + 2] * c[2] + M[4 * a + 3]));
+      quat_from_m3(R, q);
+      /* the shorter arc between keys: players interpolate (s)linearly */
+      if (q[0] * qprev[0] + q[1] * qprev[1] + q[2] * qprev[2] + q[3] * qprev[3] < 0)
+        for (int k = 0; k < 4; ++k)
+          q[k] = -q[k];
+      memcpy(qprev, q, sizeof q);
+      for (int k = 0; k < 4; ++k)
+        km__put_f32le(pr + 16 * t + 4 * k, (float)q[k]);
+    }
+    int a_t =
+        add_view_accessor(views, accessors, off_t, T * 12, 0, GL_FLOAT, T, "VEC3", NULL, NULL, 0);
+    int a_r =
+        add_view_accessor(views, accessors, off_r, T * 16, 0, GL_FLOAT, T, "VEC4", NULL, NULL, 0);
+    const char *paths[2] = {"translation", "rotation"};
+    int outs[2] = {a_t, a_r};
+    for (int k = 0; k < 2; ++k) {
+      cJSON *sm = cJSON_CreateObject();
+      cJSON_AddNumberToObject(sm, "input", a_time);
+      cJSON_AddStringToObject(sm, "interpolation", "LINEAR");
+      cJSON_AddNumberToObject(sm, "output", outs[k]);
+      cJSON_AddItemToArray(samplers, sm);
+      cJSON *ch = cJSON_CreateObject();
+      cJSON_AddNumberToObject(ch, "sampler", cJSON_GetArraySize(samplers) - 1);
+      cJSON *tg = cJSON_AddObjectToObject(ch, "target");
+      cJSON_AddNumberToObject(tg, "node", (double)(j + 2));
+      cJSON_AddStringToObject(tg, "path", paths[k]);
+      cJSON_AddItemToArray(channels, ch);
+    }
+  }
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "animations"), anim);
+  cJSON *buffer = cJSON_CreateObject();
+  cJSON_AddNumberToObject(buffer, "byteLength", (double)b.len);
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "buffers"), buffer);
+  cJSON_AddItemToObject(root, "bufferViews", views);
+  cJSON_AddItemToObject(root, "accessors", accessors);
+  views = accessors = NULL;
+#undef GROW
+
+  char *json = cJSON_PrintUnformatted(root);
+  cJSON_Delete(root);
+  root = NULL;
+  if (!json) goto nomem;
+  size_t json_len = strlen(json), json_pad = (4 - json_len % 4) % 4;
+  uint64_t total = 12 + 8 + json_len + json_pad + 8 + b.len;
+  if (total > UINT32_MAX) {
+    free(json);
+    free(b.p);
+    return km__fail(err, KM_ERR_UNSUPPORTED, "%s: glb would exceed 4 GiB", w->path);
+  }
+  km__atomic_file af = w->af;
+  memset(&w->af, 0, sizeof w->af);
+  unsigned char h[20];
+  km__put_u32le(h, GLB_MAGIC);
+  km__put_u32le(h + 4, 2);
+  km__put_u32le(h + 8, (uint32_t)total);
+  km__put_u32le(h + 12, (uint32_t)(json_len + json_pad));
+  km__put_u32le(h + 16, GLB_JSON);
+  s = write_all(w, af.f, h, 20, err);
+  if (s == KM_OK) s = write_all(w, af.f, json, json_len, err);
+  if (s == KM_OK) s = write_all(w, af.f, "   ", json_pad, err);
+  free(json);
+  km__put_u32le(h, (uint32_t)b.len);
+  km__put_u32le(h + 4, GLB_BIN);
+  if (s == KM_OK) s = write_all(w, af.f, h, 8, err);
+  if (s == KM_OK) s = write_all(w, af.f, b.p, b.len, err);
+  free(b.p);
+  if (s != KM_OK) {
+    km__atomic_abort(&af);
+    return s;
+  }
+  return km__atomic_commit(&af, err);
+nomem:
+  cJSON_Delete(root);
+  cJSON_Delete(views);
+  cJSON_Delete(accessors);
+  free(b.p);
+  return km__fail(err, KM_ERR_NOMEM, "%s: out of memory writing the skinned glb", w->path);
+}
+
+/* ---------------------------------------------------------------- morph frames (issue 16) */
+
+/* Float data of accessor a (FLOAT, `comps` components, tightly packed or strided), checked
+ * against the binary chunk; NULL with err filled otherwise. */
+static const unsigned char *float_accessor(const char *path, const cJSON *root,
+                                           const unsigned char *bin, size_t bin_len, int a,
+                                           int comps, size_t *count, size_t *stride,
+                                           km_error *err) {
+  const cJSON *acc = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "accessors"), a);
+  const cJSON *bv = cJSON_GetObjectItemCaseSensitive(acc, "bufferView");
+  const cJSON *ct = cJSON_GetObjectItemCaseSensitive(acc, "componentType");
+  const cJSON *cn = cJSON_GetObjectItemCaseSensitive(acc, "count");
+  if (!cJSON_IsNumber(bv) || !cJSON_IsNumber(ct) || ct->valueint != GL_FLOAT ||
+      !cJSON_IsNumber(cn) || cn->valuedouble < 0 ||
+      cJSON_IsObject(cJSON_GetObjectItemCaseSensitive(acc, "sparse"))) {
+    km__fail(err, KM_ERR_UNSUPPORTED,
+             "%s: JSON: accessors[%d] is not a dense float accessor in a bufferView", path, a);
+    return NULL;
+  }
+  const cJSON *view =
+      cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "bufferViews"), bv->valueint);
+  const cJSON *vo = cJSON_GetObjectItemCaseSensitive(view, "byteOffset");
+  const cJSON *ao = cJSON_GetObjectItemCaseSensitive(acc, "byteOffset");
+  const cJSON *bs = cJSON_GetObjectItemCaseSensitive(view, "byteStride");
+  const cJSON *vl = cJSON_GetObjectItemCaseSensitive(view, "byteLength");
+  double off =
+      (cJSON_IsNumber(vo) ? vo->valuedouble : 0) + (cJSON_IsNumber(ao) ? ao->valuedouble : 0);
+  double st = cJSON_IsNumber(bs) && bs->valuedouble > 0 ? bs->valuedouble : 4.0 * comps;
+  double n = cn->valuedouble;
+  if (!view || !cJSON_IsNumber(vl) || off < 0 || st < 4.0 * comps ||
+      (n > 0 && off + st * (n - 1) + 4.0 * comps > (double)bin_len)) {
+    km__fail(err, KM_ERR_PARSE, "%s: JSON: accessors[%d] runs past the binary chunk", path, a);
+    return NULL;
+  }
+  *count = (size_t)n;
+  *stride = (size_t)st;
+  return bin + (size_t)off;
+}
+
+km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n_frames,
+                         double *fps, km_error *err) {
+  *frames = NULL;
+  *n_frames = 0;
+  char *data = NULL;
+  size_t size = 0;
+  km_status s = km__read_file(path, &data, &size, err);
+  if (s != KM_OK) return s;
+  const unsigned char *b = (const unsigned char *)data;
+  cJSON *root = NULL;
+  double *out = NULL;
+  if (size < 28 || km__get_u32le(b) != GLB_MAGIC || km__get_u32le(b + 16) != GLB_JSON ||
+      (uint64_t)km__get_u32le(b + 12) + 28 > size) {
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte 0: not a glTF binary with a JSON chunk", path);
+    goto done;
+  }
+  size_t jl = km__get_u32le(b + 12);
+  const unsigned char *bin = b + 20 + jl + 8;
+  size_t bin_len = km__get_u32le(b + 20 + jl);
+  if (km__get_u32le(b + 24 + jl) != GLB_BIN || bin_len > size - 28 - jl) {
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte %zu: missing or truncated BIN chunk", path, 20 + jl);
+    goto done;
+  }
+  root = cJSON_ParseWithLength(data + 20, jl);
+  if (!root) {
+    s = km__fail(err, KM_ERR_PARSE, "%s: byte 20: invalid JSON chunk", path);
+    goto done;
+  }
+  const cJSON *prim = get_path(get_path(root, "meshes", 0), "primitives", 0);
+  const cJSON *targets = cJSON_GetObjectItemCaseSensitive(prim, "targets");
+  const cJSON *pos = get_path(get_path(prim, "attributes", -1), "POSITION", -1);
+  size_t nt = (size_t)cJSON_GetArraySize(targets), cnt = 0, st = 0;
+  if (!cJSON_IsNumber(pos) || nt == 0) {
+    s = km__fail(err, KM_ERR_UNSUPPORTED,
+                 "%s: meshes[0].primitives[0] has no morph targets: not a morph animation", path);
+    goto done;
+  }
+  const unsigned char *base =
+      float_accessor(path, root, bin, bin_len, pos->valueint, 3, &cnt, &st, err);
+  if (!base) {
+    s = err ? err->status : KM_ERR_PARSE;
+    goto done;
+  }
+  if (cnt != nv) {
+    s = km__fail(err, KM_ERR_PARSE, "%s: POSITION has %zu vertices, the mesh %zu", path, cnt, nv);
+    goto done;
+  }
+  /* The weights channel (if any): frames at its key times; else one frame per target. */
+  const cJSON *anim = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "animations"), 0);
+  const cJSON *ch, *wsampler = NULL;
+  cJSON_ArrayForEach(ch, cJSON_GetObjectItemCaseSensitive(anim, "channels")) {
+    const cJSON *p = get_path(get_path(ch, "target", -1), "path", -1);
+    if (cJSON_IsString(p) && !strcmp(p->valuestring, "weights")) {
+      const cJSON *si = get_path(ch, "sampler", -1);
+      if (cJSON_IsNumber(si)) wsampler = get_path(anim, "samplers", si->valueint);
+      break;
+    }
+  }
+  size_t nk = nt, wst = 0, tst = 0, wcnt = 0;
+  const unsigned char *wdata = NULL, *tdata = NULL;
+  if (wsampler) {
+    const cJSON *in = get_path(wsampler, "input", -1), *o = get_path(wsampler, "output", -1);
+    if (!cJSON_IsNumber(in) || !cJSON_IsNumber(o) ||
+        !(tdata = float_accessor(path, root, bin, bin_len, in->valueint, 1, &nk, &tst, err)) ||
+        !(wdata = float_accessor(path, root, bin, bin_len, o->valueint, 1, &wcnt, &wst, err))) {
+      s = err && err->status ? err->status : KM_ERR_PARSE;
+      if (!err || !err->status)
+        km__fail(err, s, "%s: the weights sampler's input/output are not float accessors", path);
+      goto done;
+    }
+    if (wcnt != nk * nt) {
+      s = km__fail(err, KM_ERR_UNSUPPORTED,
+                   "%s: weights sampler has %zu values for %zu keys x %zu targets (cubic "
+                   "splines are not read)",
+                   path, wcnt, nk, nt);
+      goto done;
+    }
+    if (nk >= 2) {
+      double t0 = km__get_f32le(tdata), t1 = km__get_f32le(tdata + (nk - 1) * tst);
+      if (t1 > t0 && fps) *fps = (double)(nk - 1) / (t1 - t0);
+    }
+  }
+  const cJSON *ex = get_path(get_path(get_path(root, "asset", -1), "extras", -1), "kinemesh", -1);
+  const cJSON *efps = get_path(ex, "fps", -1);
+  if (fps && cJSON_IsNumber(efps) && efps->valuedouble > 0) *fps = efps->valuedouble;
+  if (!(out = km__malloc(nk * nv * 3, sizeof *out))) {
+    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames", path, nk);
+    goto done;
+  }
+  for (size_t k = 0; k < nk; ++k)
+    for (size_t i = 0; i < nv; ++i)
+      for (int c = 0; c < 3; ++c)
+        out[(k * nv + i) * 3 + c] = km__get_f32le(base + i * st + 4 * c);
+  for (size_t t = 0; t < nt; ++t) {
+    const cJSON *tp = get_path(cJSON_GetArrayItem(targets, (int)t), "POSITION", -1);
+    size_t tc = 0, ts = 0;
+    const unsigned char *td = cJSON_IsNumber(tp) ? float_accessor(path, root, bin, bin_len,
+                                                                  tp->valueint, 3, &tc, &ts, err)
+                                                 : NULL;
+    if (!td || tc != nv) {
+      if (td || !cJSON_IsNumber(tp))
+        km__fail(err, KM_ERR_PARSE, "%s: morph target %zu has no POSITION of %zu vertices", path, t,
+                 nv);
+      s = err && err->status ? err->status : KM_ERR_PARSE;
+      goto done;
+    }
+    for (size_t k = 0; k < nk; ++k) {
+      double wk = wdata ? km__get_f32le(wdata + (k * nt + t) * wst) : (k == t ? 1.0 : 0.0);
+      if (wk == 0) continue;
+      for (size_t i = 0; i < nv; ++i)
+        for (int c = 0; c < 3; ++c)
+          out[(k * nv + i) * 3 + c] += wk * km__get_f32le(td + i * ts + 4 * c);
+    }
+  }
+  *frames = out;
+  *n_frames = nk;
+  out = NULL;
+done:
+  cJSON_Delete(root);
+  free(out);
+  free(data);
+  return s;
 }

@@ -17,3 +17,7 @@ int km__potrs(size_t n, size_t nrhs, const double *K, double *B) {
   return (int)LAPACKE_dpotrs(LAPACK_COL_MAJOR, 'U', (lapack_int)n, (lapack_int)nrhs, K,
                              (lapack_int)n, B, (lapack_int)n);
 }
+
+int km__syev(size_t n, double *A, double *w) {
+  return (int)LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', (lapack_int)n, A, (lapack_int)n, w);
+}

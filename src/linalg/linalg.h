@@ -63,5 +63,8 @@ int km__svd3(double A[9], double S[3], double U[9], double Vt[9]);
 int km__potrf(size_t n, double *K);
 /* B = K^-1 B with the factor of km__potrf; B column-major n x nrhs (dpotrs). */
 int km__potrs(size_t n, size_t nrhs, const double *K, double *B);
+/* Eigen-decomposition of the symmetric row-major n x n A (upper triangle read): eigenvalues
+ * ascending in w, A replaced by the eigenvectors as its columns (dsyev). */
+int km__syev(size_t n, double *A, double *w);
 
 #endif

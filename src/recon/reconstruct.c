@@ -242,7 +242,8 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
   for (size_t j = 0; j < nj; ++j)
     rep->joint_names[j] =
         strdup(tmpl->skeleton.names && tmpl->skeleton.names[j] ? tmpl->skeleton.names[j] : "");
-  km_anim_options ao = {.fps = 30};
+  km_anim_options ao = o.anim ? *o.anim : (km_anim_options){0};
+  if (ao.fps == 0) ao.fps = 30;
   s = km_anim_writer_open(out_anim, km_recon_template(r), &ao, &w, err);
   if (s) goto done;
   /* Frame t is written once frames up to t + radius are in (or at the end): the Gaussian
@@ -366,7 +367,7 @@ flush:
   }
 close : {
   km_error ce;
-  km_status cs = km_anim_writer_close(&w, &ce);
+  km_status cs = km_anim_writer_finish(&w, &rep->export_report, &ce);
   if (cs && !s) {
     s = cs;
     if (err) *err = ce;

@@ -20,6 +20,14 @@ awk 'NR==FNR { if ($1 == "v") printf "vt %.6f %.6f\n", ($2 + 1) / 2, $3 / 2; nex
   "$WORK/c.obj" "$WORK/c.obj" > "$WORK/ct.obj"
 cp "$WORK/c.rig.json" "$WORK/ct.rig.json"
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --key-every 4 -o "$WORK/textured.glb"
-for f in every keys textured; do node "$HERE/validate.mjs" "$WORK/$f.glb"; done
+# Issue 16: a skinned export (SSDR fit; JOINTS_0/WEIGHTS_0, inverse bind matrices, TRS channels).
+"$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export skin -o "$WORK/skin.glb"  # seeded by the rig
+# kinemesh bake: the per-frame morph file back to a skin, and a pc2 + rest mesh to a skin.
+"$BIN" bake "$WORK/every.glb" --export skin:8 -o "$WORK/baked.glb"
+"$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" -o "$WORK/every.pc2"
+"$BIN" bake "$WORK/every.pc2" --mesh "$WORK/ct.obj" --max-error-mm 20 -o "$WORK/baked_pc2.glb"
+"$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export morphs:5 -o "$WORK/pca.glb"
+for f in every keys textured skin baked baked_pc2 pca; do node "$HERE/validate.mjs" "$WORK/$f.glb"; done
 "$BIN" info --json "$WORK/every.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames"; exit 1; }
-echo "gltf_validator: 4 passed, 0 failed"
+"$BIN" info --json "$WORK/skin.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames for the skin"; exit 1; }
+echo "gltf_validator: 9 passed, 0 failed"

@@ -1,0 +1,846 @@
+/* Skinning decomposition: Le & Deng 2012, "Smooth Skinning Decomposition with Rigid Bones"
+ * (SSDR). Given a rest mesh p_i and frames v_i^t, find bone transforms M_j^t = [R | T]
+ * (rigid) and sparse convex weights w_ij minimising
+ *     sum_t sum_i || v_i^t - sum_j w_ij M_j^t p_i ||^2,
+ * by alternating
+ *   - weights, per vertex: a small non-negative least squares (NNLS) over the vertex's
+ *     candidate bones with the sum-to-one constraint as a heavy penalty row (the paper's
+ *     choice), then the 4 largest kept and solved again, then renormalised exactly;
+ *   - transforms, per frame and bone (block coordinate descent): the weighted Procrustes of
+ *     the paper's eq. 9, solved by the library's one rotation fit (km__rotation_fit3).
+ * Initialisation: k-means++ / Lloyd on the vertices' trajectories, then rigid clustering
+ * (each vertex to the bone whose rigid motion explains its trajectory best, transforms
+ * refitted), as the paper's rigid-bone initialisation does.
+ *
+ * The NNLS is a hand-written Lawson-Hanson active set on the normal equations: the systems
+ * have at most 8 unknowns per vertex, tens of thousands of times per iteration. Debian has
+ * no NNLS in LAPACK; SuiteSparse/ARPACK do not do it; the Fortran NNLS in scipy works on the
+ * tall 3T x 8 matrix and costs its allocations per call, so the Gram form here is both the
+ * simpler and the faster choice for this size. */
+#include "anim/anim.h"
+#include "math/math.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <time.h>
+
+#define SSDR_CANDIDATES 8
+#define SSDR_SUBFRAMES 24
+
+typedef struct ssdr_ctx {
+  const double *P; /* rest, n*3 */
+  const double *V; /* frames, T*n*3 */
+  size_t n, T, B, K;
+  double *M;      /* T*B*12 */
+  int32_t *J;     /* n*4 */
+  double *W;      /* n*4 */
+  int32_t *label; /* n: hard cluster during the initialisation */
+} ssdr_ctx;
+
+/* y = M p for a row-major 3x4 M. */
+static inline void xform(const double *M, const double *p, double *y) {
+  y[0] = M[0] * p[0] + M[1] * p[1] + M[2] * p[2] + M[3];
+  y[1] = M[4] * p[0] + M[5] * p[1] + M[6] * p[2] + M[7];
+  y[2] = M[8] * p[0] + M[9] * p[1] + M[10] * p[2] + M[11];
+}
+
+static uint64_t lcg(uint64_t *s) {
+  *s = *s * 6364136223846793005ull + 1442695040888963407ull;
+  return *s >> 11;
+}
+
+/* Solves the n x n system A x = b (A destroyed) by Gaussian elimination with partial
+ * pivoting; a tiny pivot gets a ridge instead of a division by ~0. */
+static void solve_small(int n, double *A, double *b, double *x) {
+  double scale = 0;
+  for (int i = 0; i < n; ++i)
+    scale = fmax(scale, fabs(A[i * n + i]));
+  double eps = 1e-13 * (scale > 0 ? scale : 1);
+  for (int k = 0; k < n; ++k) {
+    int p = k;
+    for (int i = k + 1; i < n; ++i)
+      if (fabs(A[i * n + k]) > fabs(A[p * n + k])) p = i;
+    if (p != k) {
+      for (int j = 0; j < n; ++j) {
+        double t = A[k * n + j];
+        A[k * n + j] = A[p * n + j];
+        A[p * n + j] = t;
+      }
+      double t = b[k];
+      b[k] = b[p];
+      b[p] = t;
+    }
+    if (fabs(A[k * n + k]) < eps) A[k * n + k] = A[k * n + k] < 0 ? -eps : eps;
+    for (int i = k + 1; i < n; ++i) {
+      double f = A[i * n + k] / A[k * n + k];
+      if (f == 0) continue;
+      for (int j = k; j < n; ++j)
+        A[i * n + j] -= f * A[k * n + j];
+      b[i] -= f * b[k];
+    }
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    double s = b[i];
+    for (int j = i + 1; j < n; ++j)
+      s -= A[i * n + j] * x[j];
+    x[i] = s / A[i * n + i];
+  }
+}
+
+/* Lawson-Hanson NNLS in Gram form: min x'Gx - 2h'x, x >= 0, n <= SSDR_CANDIDATES. */
+static void nnls_gram(int n, const double *G, const double *h, double *x) {
+  bool P[SSDR_CANDIDATES] = {false};
+  double z[SSDR_CANDIDATES], A[SSDR_CANDIDATES * SSDR_CANDIDATES], b[SSDR_CANDIDATES],
+      zs[SSDR_CANDIDATES];
+  int idx[SSDR_CANDIDATES];
+  double hmax = 0;
+  for (int i = 0; i < n; ++i) {
+    x[i] = 0;
+    hmax = fmax(hmax, fabs(h[i]));
+  }
+  const double tol = 1e-12 * (hmax > 0 ? hmax : 1);
+  for (int outer = 0; outer < 3 * n; ++outer) {
+    int best = -1;
+    double bw = tol;
+    for (int i = 0; i < n; ++i) {
+      if (P[i]) continue;
+      double g = h[i];
+      for (int k = 0; k < n; ++k)
+        g -= G[i * n + k] * x[k];
+      if (g > bw) bw = g, best = i;
+    }
+    if (best < 0) break;
+    P[best] = true;
+    for (int inner = 0; inner < 3 * n; ++inner) {
+      int m = 0;
+      for (int i = 0; i < n; ++i)
+        if (P[i]) idx[m++] = i;
+      for (int r = 0; r < m; ++r) {
+        b[r] = h[idx[r]];
+        for (int c = 0; c < m; ++c)
+          A[r * m + c] = G[idx[r] * n + idx[c]];
+      }
+      solve_small(m, A, b, zs);
+      for (int i = 0; i < n; ++i)
+        z[i] = 0;
+      bool feasible = true;
+      for (int r = 0; r < m; ++r) {
+        z[idx[r]] = zs[r];
+        if (zs[r] <= 0) feasible = false;
+      }
+      if (feasible) {
+        memcpy(x, z, (size_t)n * sizeof *x);
+        break;
+      }
+      double alpha = 1;
+      for (int r = 0; r < m; ++r) {
+        int i = idx[r];
+        if (z[i] <= 0) {
+          double a = x[i] / (x[i] - z[i]);
+          if (a < alpha) alpha = a;
+        }
+      }
+      for (int i = 0; i < n; ++i) {
+        x[i] += alpha * (z[i] - x[i]);
+        if (P[i] && x[i] <= 1e-15) P[i] = false, x[i] = 0;
+      }
+    }
+  }
+}
+
+/* Rigid motion of bone j at frame t from the vertices labelled j (initialisation). */
+static void fit_clusters(ssdr_ctx *c) {
+  const size_t n = c->n, B = c->B;
+  double *cnt = calloc(B, sizeof *cnt), *pc = calloc(B * 3, sizeof *pc);
+  if (!cnt || !pc) goto out;
+  for (size_t i = 0; i < n; ++i) {
+    cnt[c->label[i]] += 1;
+    for (int a = 0; a < 3; ++a)
+      pc[3 * c->label[i] + a] += c->P[3 * i + a];
+  }
+  for (size_t j = 0; j < B; ++j)
+    for (int a = 0; a < 3; ++a)
+      pc[3 * j + a] /= cnt[j] > 0 ? cnt[j] : 1;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (size_t t = 0; t < c->T; ++t) {
+    double *qc = calloc(B * 3, sizeof *qc), *H = calloc(B * 9, sizeof *H);
+    if (qc && H) {
+      const double *Vt = c->V + t * n * 3;
+      for (size_t i = 0; i < n; ++i)
+        for (int a = 0; a < 3; ++a)
+          qc[3 * c->label[i] + a] += Vt[3 * i + a];
+      for (size_t j = 0; j < B; ++j)
+        for (int a = 0; a < 3; ++a)
+          qc[3 * j + a] /= cnt[j] > 0 ? cnt[j] : 1;
+      for (size_t i = 0; i < n; ++i) {
+        size_t j = (size_t)c->label[i];
+        double p[3], q[3];
+        for (int a = 0; a < 3; ++a)
+          p[a] = c->P[3 * i + a] - pc[3 * j + a], q[a] = Vt[3 * i + a] - qc[3 * j + a];
+        for (int r = 0; r < 3; ++r)
+          for (int s = 0; s < 3; ++s)
+            H[9 * j + 3 * r + s] += p[r] * q[s];
+      }
+      for (size_t j = 0; j < B; ++j) {
+        double R[9], S[3], *M = c->M + (t * B + j) * 12;
+        if (cnt[j] == 0) continue;
+        if (cnt[j] < 3 || km__rotation_fit3(H + 9 * j, R, S) < 0) km__m3_identity(R);
+        double rp[3];
+        km__m3_apply(R, pc + 3 * j, rp);
+        for (int r = 0; r < 3; ++r) {
+          M[4 * r] = R[3 * r], M[4 * r + 1] = R[3 * r + 1], M[4 * r + 2] = R[3 * r + 2];
+          M[4 * r + 3] = qc[3 * j + r] - rp[r];
+        }
+      }
+    }
+    free(qc);
+    free(H);
+  }
+out:
+  free(cnt);
+  free(pc);
+}
+
+/* Squared error of vertex i under bone j's rigid motion alone, over frames step apart. */
+static double bone_error(const ssdr_ctx *c, size_t i, size_t j, size_t step) {
+  double e = 0, y[3];
+  const double *p = c->P + 3 * i;
+  for (size_t t = 0; t < c->T; t += step) {
+    xform(c->M + (t * c->B + j) * 12, p, y);
+    const double *v = c->V + (t * c->n + i) * 3;
+    e += (y[0] - v[0]) * (y[0] - v[0]) + (y[1] - v[1]) * (y[1] - v[1]) +
+         (y[2] - v[2]) * (y[2] - v[2]);
+  }
+  return e;
+}
+
+/* Initial clusters: k-means++ seeds and Lloyd iterations on trajectories subsampled to a few
+ * frames (or the seeds given), then rigid clustering. Returns false when out of memory. */
+static bool init_clusters(ssdr_ctx *c, const double *seed, size_t n_seed) {
+  const size_t n = c->n, B = c->B, T = c->T;
+  const size_t step = T > SSDR_SUBFRAMES ? (T + SSDR_SUBFRAMES - 1) / SSDR_SUBFRAMES : 1;
+  const size_t D = 3 * ((T + step - 1) / step);
+  double *X = km__malloc(n * D, sizeof *X), *C = km__malloc(B * D, sizeof *C);
+  double *d2 = km__malloc(n, sizeof *d2), *cnt = km__malloc(B, sizeof *cnt);
+  bool ok = X && C && d2 && cnt;
+  if (!ok) goto out;
+  for (size_t i = 0; i < n; ++i)
+    for (size_t t = 0, k = 0; t < T; t += step, k += 3)
+      memcpy(X + i * D + k, c->V + (t * n + i) * 3, 3 * sizeof *X);
+  if (seed && n_seed >= B) {
+    /* Each seed takes its nearest rest vertex's trajectory as the centre. */
+    for (size_t j = 0; j < B; ++j) {
+      size_t best = 0;
+      double bd = INFINITY;
+      for (size_t i = 0; i < n; ++i) {
+        double d = 0;
+        for (int a = 0; a < 3; ++a)
+          d += (c->P[3 * i + a] - seed[3 * j + a]) * (c->P[3 * i + a] - seed[3 * j + a]);
+        if (d < bd) bd = d, best = i;
+      }
+      memcpy(C + j * D, X + best * D, D * sizeof *C);
+    }
+  } else {
+    uint64_t rs = 0x9E3779B97F4A7C15ull;
+    size_t first = (size_t)(lcg(&rs) % n);
+    memcpy(C, X + first * D, D * sizeof *C);
+    for (size_t i = 0; i < n; ++i)
+      d2[i] = INFINITY;
+    for (size_t j = 1; j < B; ++j) {
+      double tot = 0;
+      for (size_t i = 0; i < n; ++i) {
+        double d = 0;
+        for (size_t k = 0; k < D; ++k)
+          d += (X[i * D + k] - C[(j - 1) * D + k]) * (X[i * D + k] - C[(j - 1) * D + k]);
+        if (d < d2[i]) d2[i] = d;
+        tot += d2[i];
+      }
+      double r = (double)(lcg(&rs) % 1000000007ull) / 1000000007.0 * tot, acc = 0;
+      size_t pick = n - 1;
+      for (size_t i = 0; i < n; ++i) {
+        acc += d2[i];
+        if (acc >= r && d2[i] > 0) {
+          pick = i;
+          break;
+        }
+      }
+      memcpy(C + j * D, X + pick * D, D * sizeof *C);
+    }
+  }
+  for (int it = 0; it < 8; ++it) {
+#pragma omp parallel for schedule(static)
+    for (size_t i = 0; i < n; ++i) {
+      double bd = INFINITY;
+      int32_t bj = 0;
+      for (size_t j = 0; j < B; ++j) {
+        double d = 0;
+        for (size_t k = 0; k < D && d < bd; ++k)
+          d += (X[i * D + k] - C[j * D + k]) * (X[i * D + k] - C[j * D + k]);
+        if (d < bd) bd = d, bj = (int32_t)j;
+      }
+      c->label[i] = bj;
+    }
+    memset(C, 0, B * D * sizeof *C);
+    memset(cnt, 0, B * sizeof *cnt);
+    for (size_t i = 0; i < n; ++i) {
+      cnt[c->label[i]] += 1;
+      for (size_t k = 0; k < D; ++k)
+        C[c->label[i] * D + k] += X[i * D + k];
+    }
+    for (size_t j = 0; j < B; ++j)
+      for (size_t k = 0; k < D; ++k)
+        C[j * D + k] /= cnt[j] > 0 ? cnt[j] : 1;
+  }
+out:
+  free(X);
+  free(C);
+  free(d2);
+  free(cnt);
+  return ok;
+}
+
+/* Rigid clustering from c->label (Le & Deng's initialisation): a vertex goes to the bone whose
+ * rigid motion explains its trajectory best, the motions are refitted, an emptied bone
+ * restarts at the worst explained vertex; ends with hard weights. */
+static bool rigid_clusters(ssdr_ctx *c) {
+  const size_t n = c->n, B = c->B, T = c->T;
+  const size_t step = T > SSDR_SUBFRAMES ? (T + SSDR_SUBFRAMES - 1) / SSDR_SUBFRAMES : 1;
+  double *cnt = km__malloc(B, sizeof *cnt);
+  if (!cnt) return false;
+  for (int it = 0; it < 4; ++it) {
+    fit_clusters(c);
+#pragma omp parallel for schedule(static)
+    for (size_t i = 0; i < n; ++i) {
+      double bd = INFINITY;
+      int32_t bj = c->label[i];
+      for (size_t j = 0; j < B; ++j) {
+        double e = bone_error(c, i, j, step);
+        if (e < bd) bd = e, bj = (int32_t)j;
+      }
+      c->label[i] = bj;
+    }
+    /* An emptied bone restarts at the vertex worst explained by its own bone. */
+    memset(cnt, 0, B * sizeof *cnt);
+    for (size_t i = 0; i < n; ++i)
+      cnt[c->label[i]] += 1;
+    for (size_t j = 0; j < B; ++j) {
+      if (cnt[j] >= 3) continue;
+      size_t worst = 0;
+      double we = -1;
+      for (size_t i = 0; i < n; ++i) {
+        if (cnt[c->label[i]] <= 3) continue;
+        double e = bone_error(c, i, (size_t)c->label[i], step);
+        if (e > we) we = e, worst = i;
+      }
+      if (we < 0) continue;
+      cnt[c->label[worst]] -= 1;
+      c->label[worst] = (int32_t)j;
+      cnt[j] = 1;
+      /* its nearest rest neighbours join it so three points define a rotation */
+      for (int more = 0; more < 3; ++more) {
+        size_t bi = SIZE_MAX;
+        double bdist = INFINITY;
+        for (size_t i = 0; i < n; ++i) {
+          if (c->label[i] == (int32_t)j || cnt[c->label[i]] <= 3) continue;
+          double d = 0;
+          for (int a = 0; a < 3; ++a)
+            d += (c->P[3 * i + a] - c->P[3 * worst + a]) * (c->P[3 * i + a] - c->P[3 * worst + a]);
+          if (d < bdist) bdist = d, bi = i;
+        }
+        if (bi == SIZE_MAX) break;
+        cnt[c->label[bi]] -= 1;
+        c->label[bi] = (int32_t)j;
+        cnt[j] += 1;
+      }
+    }
+  }
+  fit_clusters(c);
+  for (size_t i = 0; i < n; ++i) {
+    c->J[4 * i] = c->label[i];
+    c->W[4 * i] = 1;
+    for (int k = 1; k < 4; ++k)
+      c->J[4 * i + k] = -1, c->W[4 * i + k] = 0;
+  }
+  free(cnt);
+  return true;
+}
+
+/* Error budget (Dem Bones' way of growing a rig): the bones whose worst vertex is furthest
+ * off are split in two, the new half seeded at that vertex (2-means on rest positions within
+ * the bone's vertices). c->label is set from the old fit (main influence) plus the splits;
+ * c->B grows to new_B. */
+static void split_bones(ssdr_ctx *c, size_t old_B, size_t new_B) {
+  const size_t n = c->n, T = c->T;
+  double *ve = km__calloc(n, sizeof *ve), *be = km__calloc(old_B, sizeof *be);
+  size_t *bv = km__calloc(old_B, sizeof *bv);
+  double *cen = km__calloc(old_B * 4, sizeof *cen);
+  if (!ve || !be || !bv || !cen) goto out;
+  for (size_t i = 0; i < n; ++i) {
+    int best = 0;
+    for (int k = 1; k < 4; ++k)
+      if (c->J[4 * i + k] >= 0 && c->W[4 * i + k] > c->W[4 * i + best]) best = k;
+    c->label[i] = c->J[4 * i + best];
+  }
+#pragma omp parallel for schedule(static)
+  for (size_t i = 0; i < n; ++i) {
+    double m = 0, y[3];
+    for (size_t t = 0; t < T; ++t) {
+      double r[3] = {0, 0, 0};
+      for (int k = 0; k < 4; ++k) {
+        int32_t j = c->J[4 * i + k];
+        if (j < 0) continue;
+        xform(c->M + (t * old_B + (size_t)j) * 12, c->P + 3 * i, y);
+        for (int a = 0; a < 3; ++a)
+          r[a] += c->W[4 * i + k] * y[a];
+      }
+      const double *v = c->V + (t * n + i) * 3;
+      double e = (r[0] - v[0]) * (r[0] - v[0]) + (r[1] - v[1]) * (r[1] - v[1]) +
+                 (r[2] - v[2]) * (r[2] - v[2]);
+      if (e > m) m = e;
+    }
+    ve[i] = m;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    size_t j = (size_t)c->label[i];
+    if (ve[i] > be[j]) be[j] = ve[i], bv[j] = i;
+    for (int a = 0; a < 3; ++a)
+      cen[4 * j + a] += c->P[3 * i + a];
+    cen[4 * j + 3] += 1;
+  }
+  for (size_t nb = old_B; nb < new_B; ++nb) {
+    size_t j = 0;
+    for (size_t q = 1; q < old_B; ++q)
+      if (be[q] > be[j]) j = q;
+    if (!(be[j] > 0) || cen[4 * j + 3] < 8) break;
+    be[j] = -1; /* once per round */
+    const double *s = c->P + 3 * bv[j];
+    double o[3];
+    for (int a = 0; a < 3; ++a)
+      o[a] = cen[4 * j + a] / cen[4 * j + 3];
+    /* two Lloyd steps on rest positions between the old centre and the seed */
+    double A[3], Bc[3];
+    memcpy(A, o, sizeof A);
+    memcpy(Bc, s, sizeof Bc);
+    for (int it = 0; it < 3; ++it) {
+      double sa[4] = {0}, sb[4] = {0};
+      for (size_t i = 0; i < n; ++i) {
+        if (c->label[i] != (int32_t)j && c->label[i] != (int32_t)nb) continue;
+        const double *p = c->P + 3 * i;
+        double da = 0, db = 0;
+        for (int a = 0; a < 3; ++a)
+          da += (p[a] - A[a]) * (p[a] - A[a]), db += (p[a] - Bc[a]) * (p[a] - Bc[a]);
+        double *acc = db < da ? sb : sa;
+        c->label[i] = db < da ? (int32_t)nb : (int32_t)j;
+        for (int a = 0; a < 3; ++a)
+          acc[a] += p[a];
+        acc[3] += 1;
+      }
+      for (int a = 0; a < 3 && sa[3] > 0 && sb[3] > 0; ++a)
+        A[a] = sa[a] / sa[3], Bc[a] = sb[a] / sb[3];
+    }
+  }
+out:
+  c->B = new_B;
+  free(ve);
+  free(be);
+  free(bv);
+  free(cen);
+}
+
+/* Weights of every vertex for the current transforms. */
+static void update_weights(ssdr_ctx *c) {
+  const size_t n = c->n, B = c->B, T = c->T;
+  const size_t step = T > SSDR_SUBFRAMES ? (T + SSDR_SUBFRAMES - 1) / SSDR_SUBFRAMES : 1;
+  const int NC = (int)(B < SSDR_CANDIDATES ? B : SSDR_CANDIDATES);
+#pragma omp parallel for schedule(dynamic, 64)
+  for (size_t i = 0; i < n; ++i) {
+    /* Candidates: the bones whose rigid motion alone explains the vertex best (on a frame
+     * subsample), plus its current influences. */
+    int cand[SSDR_CANDIDATES];
+    double ce[SSDR_CANDIDATES];
+    int nc = 0;
+    for (int k = 0; k < 4; ++k) {
+      int32_t j = c->J[4 * i + k];
+      if (j >= 0 && c->W[4 * i + k] > 0 && nc < NC) {
+        cand[nc] = j;
+        ce[nc++] = -1; /* kept */
+      }
+    }
+    for (size_t j = 0; j < B; ++j) {
+      bool have = false;
+      for (int k = 0; k < nc; ++k)
+        have |= cand[k] == (int)j;
+      if (have) continue;
+      double e = bone_error(c, i, j, step);
+      if (nc < NC) {
+        cand[nc] = (int)j;
+        ce[nc++] = e;
+        continue;
+      }
+      int worst = -1;
+      for (int k = 0; k < nc; ++k)
+        if (ce[k] >= 0 && (worst < 0 || ce[k] > ce[worst])) worst = k;
+      if (worst >= 0 && e < ce[worst]) cand[worst] = (int)j, ce[worst] = e;
+    }
+    /* Normal equations over all frames: A = [M_j^t p_i]_j stacked over t, b = v_i^t. */
+    double G[SSDR_CANDIDATES * SSDR_CANDIDATES] = {0}, h[SSDR_CANDIDATES] = {0};
+    const double *p = c->P + 3 * i;
+    for (size_t t = 0; t < T; ++t) {
+      double y[SSDR_CANDIDATES][3];
+      const double *v = c->V + (t * n + i) * 3;
+      for (int k = 0; k < nc; ++k) {
+        xform(c->M + (t * B + (size_t)cand[k]) * 12, p, y[k]);
+        h[k] += y[k][0] * v[0] + y[k][1] * v[1] + y[k][2] * v[2];
+      }
+      for (int r = 0; r < nc; ++r)
+        for (int s = r; s < nc; ++s)
+          G[r * nc + s] += y[r][0] * y[s][0] + y[r][1] * y[s][1] + y[r][2] * y[s][2];
+    }
+    double tr = 0;
+    for (int r = 0; r < nc; ++r) {
+      for (int s = 0; s < r; ++s)
+        G[r * nc + s] = G[s * nc + r];
+      tr += G[r * nc + r];
+    }
+    /* Sum-to-one as a heavy penalty row lambda (1'w - 1)^2 (Le & Deng, eq. 7). */
+    double lambda = 1e3 * (tr > 0 ? tr / nc : 1);
+    for (int r = 0; r < nc; ++r) {
+      h[r] += lambda;
+      for (int s = 0; s < nc; ++s)
+        G[r * nc + s] += lambda;
+    }
+    double w[SSDR_CANDIDATES];
+    nnls_gram(nc, G, h, w);
+    /* Keep the K largest, solve again on them. */
+    int keep[4], nk = 0;
+    for (int q = 0; q < (int)c->K; ++q) {
+      int b = -1;
+      for (int k = 0; k < nc; ++k) {
+        bool used = false;
+        for (int u = 0; u < nk; ++u)
+          used |= keep[u] == k;
+        if (!used && w[k] > 0 && (b < 0 || w[k] > w[b])) b = k;
+      }
+      if (b < 0) break;
+      keep[nk++] = b;
+    }
+    if (nk == 0) continue; /* keep the old weights */
+    if (nk < nc) {
+      double G2[16], h2[4], w2[4];
+      for (int r = 0; r < nk; ++r) {
+        h2[r] = h[keep[r]];
+        for (int s = 0; s < nk; ++s)
+          G2[r * nk + s] = G[keep[r] * nc + keep[s]];
+      }
+      nnls_gram(nk, G2, h2, w2);
+      for (int r = 0; r < nk; ++r)
+        w[keep[r]] = w2[r];
+    }
+    double sum = 0;
+    for (int r = 0; r < nk; ++r)
+      sum += w[keep[r]];
+    if (!(sum > 0)) continue;
+    int slot = 0;
+    for (int r = 0; r < nk; ++r) {
+      if (!(w[keep[r]] > 0)) continue;
+      c->J[4 * i + slot] = cand[keep[r]];
+      c->W[4 * i + slot] = w[keep[r]] / sum;
+      ++slot;
+    }
+    for (; slot < 4; ++slot)
+      c->J[4 * i + slot] = -1, c->W[4 * i + slot] = 0;
+  }
+}
+
+/* Transforms of every frame for the current weights (paper eq. 9, bone by bone). */
+static bool update_transforms(ssdr_ctx *c) {
+  const size_t n = c->n, B = c->B;
+  /* bone -> (vertex, weight) lists */
+  size_t *start = calloc(B + 1, sizeof *start);
+  size_t *vi = km__malloc(4 * n + 1, sizeof *vi);
+  double *vw = km__malloc(4 * n + 1, sizeof *vw);
+  bool ok = start && vi && vw;
+  if (ok) {
+    for (size_t i = 0; i < 4 * n; ++i)
+      if (c->J[i] >= 0 && c->W[i] > 0) ++start[c->J[i] + 1];
+    for (size_t j = 0; j < B; ++j)
+      start[j + 1] += start[j];
+    size_t *fill = calloc(B, sizeof *fill);
+    if (!fill) ok = false;
+    for (size_t i = 0; ok && i < 4 * n; ++i)
+      if (c->J[i] >= 0 && c->W[i] > 0) {
+        size_t j = (size_t)c->J[i], at = start[j] + fill[j]++;
+        vi[at] = i / 4;
+        vw[at] = c->W[i];
+      }
+    free(fill);
+  }
+  if (ok) {
+    bool failed = false;
+#pragma omp parallel
+    {
+      double *res = km__malloc(n * 3, sizeof *res); /* v - current reconstruction */
+      if (!res) {
+#pragma omp atomic write
+        failed = true;
+      }
+#pragma omp for schedule(dynamic, 1)
+      for (size_t t = 0; t < c->T; ++t) {
+        if (!res) continue;
+        const double *Vt = c->V + t * n * 3;
+        double *Mt = c->M + t * B * 12;
+        for (size_t i = 0; i < n; ++i) {
+          double r[3] = {Vt[3 * i], Vt[3 * i + 1], Vt[3 * i + 2]}, y[3];
+          for (int k = 0; k < 4; ++k) {
+            int32_t j = c->J[4 * i + k];
+            if (j < 0 || !(c->W[4 * i + k] > 0)) continue;
+            xform(Mt + 12 * (size_t)j, c->P + 3 * i, y);
+            for (int a = 0; a < 3; ++a)
+              r[a] -= c->W[4 * i + k] * y[a];
+          }
+          memcpy(res + 3 * i, r, sizeof r);
+        }
+        for (size_t j = 0; j < B; ++j) {
+          if (start[j + 1] - start[j] < 3) continue;
+          /* q_i = res_i + w_ij M_j p_i; minimise sum ||w_ij M p_i - q_i||^2 over rigid M. */
+          double sw2 = 0, ps[3] = {0, 0, 0}, qs[3] = {0, 0, 0};
+          double *Mj = Mt + 12 * j;
+          for (size_t e = start[j]; e < start[j + 1]; ++e) {
+            size_t i = vi[e];
+            double w = vw[e], y[3];
+            xform(Mj, c->P + 3 * i, y);
+            sw2 += w * w;
+            for (int a = 0; a < 3; ++a) {
+              ps[a] += w * w * c->P[3 * i + a];
+              qs[a] += w * (res[3 * i + a] + w * y[a]);
+            }
+          }
+          for (int a = 0; a < 3; ++a)
+            ps[a] /= sw2, qs[a] /= sw2;
+          double H[9] = {0};
+          for (size_t e = start[j]; e < start[j + 1]; ++e) {
+            size_t i = vi[e];
+            double w = vw[e], y[3], pa[3], qb[3];
+            xform(Mj, c->P + 3 * i, y);
+            for (int a = 0; a < 3; ++a) {
+              pa[a] = w * (c->P[3 * i + a] - ps[a]);
+              qb[a] = res[3 * i + a] + w * y[a] - w * qs[a];
+            }
+            for (int r = 0; r < 3; ++r)
+              for (int s = 0; s < 3; ++s)
+                H[3 * r + s] += pa[r] * qb[s];
+          }
+          double R[9], S[3], rp[3];
+          if (km__rotation_fit3(H, R, S) < 0) continue;
+          km__m3_apply(R, ps, rp);
+          double Mn[12];
+          for (int r = 0; r < 3; ++r) {
+            Mn[4 * r] = R[3 * r], Mn[4 * r + 1] = R[3 * r + 1], Mn[4 * r + 2] = R[3 * r + 2];
+            Mn[4 * r + 3] = qs[r] - rp[r];
+          }
+          /* residuals follow the new transform */
+          for (size_t e = start[j]; e < start[j + 1]; ++e) {
+            size_t i = vi[e];
+            double yo[3], yn[3];
+            xform(Mj, c->P + 3 * i, yo);
+            xform(Mn, c->P + 3 * i, yn);
+            for (int a = 0; a < 3; ++a)
+              res[3 * i + a] -= vw[e] * (yn[a] - yo[a]);
+          }
+          memcpy(Mj, Mn, sizeof Mn);
+        }
+      }
+      free(res);
+    }
+    ok = !failed;
+  }
+  free(start);
+  free(vi);
+  free(vw);
+  return ok;
+}
+
+static void measure(const ssdr_ctx *c, double *rms, double *mx) {
+  const size_t n = c->n, B = c->B;
+  double sum = 0, m = 0;
+#pragma omp parallel for reduction(+ : sum) reduction(max : m) schedule(static)
+  for (size_t t = 0; t < c->T; ++t)
+    for (size_t i = 0; i < n; ++i) {
+      double r[3] = {0, 0, 0}, y[3];
+      for (int k = 0; k < 4; ++k) {
+        int32_t j = c->J[4 * i + k];
+        if (j < 0) continue;
+        xform(c->M + (t * B + (size_t)j) * 12, c->P + 3 * i, y);
+        for (int a = 0; a < 3; ++a)
+          r[a] += c->W[4 * i + k] * y[a];
+      }
+      const double *v = c->V + (t * n + i) * 3;
+      double e = (r[0] - v[0]) * (r[0] - v[0]) + (r[1] - v[1]) * (r[1] - v[1]) +
+                 (r[2] - v[2]) * (r[2] - v[2]);
+      sum += e;
+      if (e > m) m = e;
+    }
+  *rms = sqrt(sum / (double)(n * c->T));
+  *mx = sqrt(m);
+}
+
+void km_ssdr_free(km_ssdr *r) {
+  if (!r) return;
+  free(r->skin.joints);
+  free(r->skin.weights);
+  free(r->transforms);
+  free(r->centers);
+  memset(r, 0, sizeof *r);
+}
+
+/* Alternations from the current clusters (c->label): rigid clustering, then weights and
+ * transforms in turn. */
+static km_status refine(ssdr_ctx *c, const km_ssdr_options *o, double base, double span,
+                        km_error *err) {
+  if (!rigid_clusters(c)) return km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory");
+  for (int it = 0; it < o->iterations; ++it) {
+    if (!km__progress(&o->progress, base + span * (it + 0.5) / o->iterations, "skinning fit"))
+      return km__fail(err, KM_ERR_CANCELLED, "km_ssdr_fit: cancelled");
+    update_weights(c);
+    if (!update_transforms(c)) return km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory");
+  }
+  return KM_OK;
+}
+
+/* c->M for c->B bones, identities. */
+static bool alloc_transforms(ssdr_ctx *c) {
+  free(c->M);
+  c->M = km__malloc(c->T * c->B * 12, sizeof *c->M);
+  if (!c->M) return false;
+  for (size_t k = 0; k < c->T * c->B; ++k) {
+    double *M = c->M + 12 * k;
+    memset(M, 0, 12 * sizeof *M);
+    M[0] = M[5] = M[10] = 1;
+  }
+  return true;
+}
+
+km_status km_ssdr_fit(const double *rest, size_t n_vertices, const double *frames, size_t n_frames,
+                      const km_ssdr_options *opt, km_ssdr *out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_ssdr_fit: out is NULL");
+  memset(out, 0, sizeof *out);
+  if (!rest || !frames) return km__fail(err, KM_ERR_INVALID, "km_ssdr_fit: NULL argument");
+  if (n_frames == 0) return km__fail(err, KM_ERR_INVALID, "km_ssdr_fit: no frames");
+  if (n_vertices < 4)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH, "km_ssdr_fit: %zu vertices, need >= 4",
+                    n_vertices);
+  km_ssdr_options o = opt ? *opt : (km_ssdr_options){0};
+  if (o.bones == 0) o.bones = 32;
+  if (o.influences == 0) o.influences = 4;
+  if (o.iterations <= 0) o.iterations = 12;
+  if (o.influences > 4)
+    return km__fail(err, KM_ERR_INVALID, "km_ssdr_fit: %zu influences, at most 4", o.influences);
+  if (!(o.max_error_mm >= 0) || !isfinite(o.max_error_mm))
+    return km__fail(err, KM_ERR_INVALID, "km_ssdr_fit: max_error_mm %g must be >= 0",
+                    o.max_error_mm);
+  if (o.seed && o.n_seed) o.bones = o.n_seed; /* the seeds are the starting bones */
+  if (o.max_bones == 0) o.max_bones = o.max_error_mm > 0 ? 4 * o.bones : o.bones;
+  if (o.max_bones < o.bones) o.max_bones = o.bones;
+  size_t cap = n_vertices / 4;
+  if (o.max_bones > cap) o.max_bones = cap;
+  if (o.bones > o.max_bones) o.bones = o.max_bones;
+  for (size_t i = 0; i < n_vertices * 3; ++i)
+    if (!isfinite(rest[i]))
+      return km__fail(err, KM_ERR_INVALID, "km_ssdr_fit: rest vertex %zu is not finite", i / 3);
+  for (size_t i = 0; i < n_frames * n_vertices * 3; ++i)
+    if (!isfinite(frames[i]))
+      return km__fail(err, KM_ERR_INVALID, "km_ssdr_fit: frame %zu vertex %zu is not finite",
+                      i / (n_vertices * 3), i / 3 % n_vertices);
+
+  ssdr_ctx c = {.P = rest, .V = frames, .n = n_vertices, .T = n_frames, .K = o.influences};
+  km_status s = KM_OK;
+  c.B = o.bones;
+  c.J = km__malloc(n_vertices * 4, sizeof *c.J);
+  c.W = km__malloc(n_vertices * 4, sizeof *c.W);
+  c.label = km__malloc(n_vertices, sizeof *c.label);
+  if (!c.J || !c.W || !c.label || !alloc_transforms(&c) || !init_clusters(&c, o.seed, o.n_seed))
+    s = km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory for %zu bones", c.B);
+  for (int round = 0; s == KM_OK; ++round) {
+    double base = round == 0 ? 0 : 1 - 1.0 / (round + 1);
+    if ((s = refine(&c, &o, base, 1.0 / ((round + 1) * (round + 2)), err)) != KM_OK) break;
+    double rms, mx;
+    measure(&c, &rms, &mx);
+    out->rms_error = rms;
+    out->max_error = mx;
+    if (!(o.max_error_mm > 0) || mx * 1e3 <= o.max_error_mm || c.B >= o.max_bones || round >= 16)
+      break;
+    /* Grow by a quarter (at least one bone) where the error is. */
+    size_t old_B = c.B, nb = c.B + (c.B + 3) / 4;
+    km__log(KM_LOG_INFO, "km_ssdr_fit: %zu bones: max error %.2f mm > %.2f mm, splitting", old_B,
+            mx * 1e3, o.max_error_mm);
+    split_bones(&c, old_B, nb > o.max_bones ? o.max_bones : nb);
+    if (!alloc_transforms(&c)) s = km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory");
+  }
+  free(c.label);
+  c.label = NULL;
+  if (s != KM_OK) {
+    free(c.M);
+    free(c.J);
+    free(c.W);
+    return s;
+  }
+  /* Drop bones no vertex uses; renumber. */
+  int32_t *map = km__malloc(c.B, sizeof *map);
+  double *cen = km__calloc(c.B * 4, sizeof *cen);
+  if (!map || !cen) {
+    free(map);
+    free(cen);
+    free(c.M);
+    free(c.J);
+    free(c.W);
+    return km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory");
+  }
+  for (size_t i = 0; i < 4 * n_vertices; ++i) {
+    int32_t j = c.J[i];
+    if (j < 0) continue;
+    double w = c.W[i];
+    for (int a = 0; a < 3; ++a)
+      cen[4 * j + a] += w * rest[3 * (i / 4) + a];
+    cen[4 * j + 3] += w;
+  }
+  size_t nb = 0;
+  for (size_t j = 0; j < c.B; ++j) {
+    map[j] = cen[4 * j + 3] > 0 ? (int32_t)nb : -1;
+    if (map[j] < 0) continue;
+    for (int a = 0; a < 3; ++a)
+      cen[4 * nb + a] = cen[4 * j + a] / cen[4 * j + 3];
+    ++nb;
+  }
+  double *M = km__malloc(n_frames * nb * 12, sizeof *M);
+  out->centers = km__malloc(nb * 3, sizeof *out->centers);
+  if (!M || !out->centers) {
+    free(M);
+    free(map);
+    free(cen);
+    free(c.M);
+    free(c.J);
+    free(c.W);
+    km_ssdr_free(out);
+    return km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory");
+  }
+  for (size_t t = 0; t < n_frames; ++t)
+    for (size_t j = 0; j < c.B; ++j)
+      if (map[j] >= 0)
+        memcpy(M + (t * nb + (size_t)map[j]) * 12, c.M + (t * c.B + j) * 12, 12 * sizeof *M);
+  for (size_t j = 0; j < nb; ++j)
+    memcpy(out->centers + 3 * j, cen + 4 * j, 3 * sizeof *cen);
+  for (size_t i = 0; i < 4 * n_vertices; ++i)
+    if (c.J[i] >= 0) c.J[i] = map[c.J[i]];
+  free(map);
+  free(cen);
+  free(c.M);
+  out->n_vertices = n_vertices;
+  out->n_frames = n_frames;
+  out->n_bones = nb;
+  out->transforms = M;
+  out->skin.n_vertices = n_vertices;
+  out->skin.joints = c.J;
+  out->skin.weights = c.W;
+  return KM_OK;
+}
