@@ -8,12 +8,53 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* BVH names standing in for each Kinect v1 joint (in KM_KINECT1 order), tried in order when
+ * the Kinect name itself is absent: the CMU ASF-derived skeleton (cgspeed conversions:
+ * LeftShoulder/LeftElbow/LeftWrist/lhand, LeftHip/LeftKnee/LeftAnkle/LeftToe, lowerback,
+ * lowerneck) and the Mixamo / MotionBuilder style (LeftArm/LeftForeArm/LeftHand,
+ * LeftUpLeg/LeftLeg/LeftFoot/LeftToeBase, Spine, Neck). The Kinect shoulder joint is the top
+ * of the upper arm, so CMU's LeftShoulder and Mixamo's LeftArm (not the clavicles LeftCollar /
+ * LeftShoulder of Mixamo) stand in for it; the Kinect hand joint is mid-hand, after the wrist. */
+static const char *const bvh_alias[KM_KINECT1_JOINTS][4] = {
+    {"Hips", "hip", "Hip", NULL},                           /* HipCenter */
+    {"lowerback", "Spine", "Spine1", "Chest"},              /* Spine */
+    {"lowerneck", "Neck", "Neck1", NULL},                   /* ShoulderCenter */
+    {"Head", "head", NULL, NULL},                           /* Head */
+    {"LeftArm", "lShldr", NULL, NULL},                      /* ShoulderLeft, then CMU below */
+    {"LeftElbow", "LeftForeArm", "lForeArm", NULL},         /* ElbowLeft */
+    {"LeftWrist", "LeftHand", "lHand", NULL},               /* WristLeft */
+    {"lhand", "LeftHandMiddle1", "LeftFingerBase", NULL},   /* HandLeft */
+    {"RightArm", "rShldr", NULL, NULL},                     /* ShoulderRight */
+    {"RightElbow", "RightForeArm", "rForeArm", NULL},       /* ElbowRight */
+    {"RightWrist", "RightHand", "rHand", NULL},             /* WristRight */
+    {"rhand", "RightHandMiddle1", "RightFingerBase", NULL}, /* HandRight */
+    {"LeftHip", "LeftUpLeg", "lThigh", NULL},               /* HipLeft */
+    {"LeftKnee", "LeftLeg", "lShin", NULL},                 /* KneeLeft */
+    {"LeftAnkle", "LeftFoot", "lFoot", NULL},               /* AnkleLeft */
+    {"LeftToe", "LeftToeBase", "LeftToe_End", NULL},        /* FootLeft */
+    {"RightHip", "RightUpLeg", "rThigh", NULL},             /* HipRight */
+    {"RightKnee", "RightLeg", "rShin", NULL},               /* KneeRight */
+    {"RightAnkle", "RightFoot", "rFoot", NULL},             /* AnkleRight */
+    {"RightToe", "RightToeBase", "RightToe_End", NULL},     /* FootRight */
+};
+
+static int column_of(const char *const *names, size_t n_names, const char *want) {
+  for (size_t k = 0; k < n_names; ++k)
+    if (names[k] && !strcmp(names[k], want)) return (int)k;
+  return -1;
+}
+
 int km__kinect1_columns(const char *const *names, size_t n_names, int src[KM_KINECT1_JOINTS]) {
   int found = 0;
+  /* CMU names its upper-arm joint LeftShoulder, where Mixamo's LeftShoulder is the clavicle
+   * (Mixamo has LeftArm): CMU's is used only when the take has no LeftArm. */
+  bool cmu = column_of(names, n_names, "lowerback") >= 0;
   for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
-    src[j] = -1;
-    for (size_t k = 0; k < n_names; ++k)
-      if (names[k] && !strcmp(names[k], km_kinect1_joint_name(j))) src[j] = (int)k;
+    src[j] = column_of(names, n_names, km_kinect1_joint_name(j));
+    for (int a = 0; a < 4 && src[j] < 0 && bvh_alias[j][a]; ++a)
+      src[j] = column_of(names, n_names, bvh_alias[j][a]);
+    if (src[j] < 0 && cmu && (j == 4 || j == 8))
+      src[j] = column_of(names, n_names, j == 4 ? "LeftShoulder" : "RightShoulder");
     found += src[j] >= 0;
   }
   return found;
