@@ -65,7 +65,7 @@ static int find_landmark(const km_character *c, const char *name) {
 
 /* ---- bone handles (issue 12): a band around the middle of each limb bone */
 
-enum { N_BONE_HANDLES = 9 };
+enum { N_BONE_HANDLES = 9, BAND_MAX = 64 };
 static const char *const bone_handle_name[N_BONE_HANDLES] = {
     "upper_arm_left", "forearm_left", "upper_arm_right", "forearm_right", "thigh_left",
     "shin_left",      "thigh_right",  "shin_right",      "chest"};
@@ -243,9 +243,15 @@ km_status km_character_write_rig(const char *path, const km_character *c, km_err
   for (int b = 0; b < N_BONE_HANDLES; ++b) {
     if (!bone_ok[b]) continue;
     fprintf(f, ",\n{\"name\":\"%s\",\"vertices\":[", bone_handle_name[b]);
-    bool first = true;
+    /* At most BAND_MAX vertices, every k-th of the band: a rigid handle needs a few points
+     * spread over the band, and the per-frame solve costs per handle vertex. */
+    size_t cnt = 0, kept = 0;
     for (size_t v = 0; v < n; ++v)
-      if (band[v] == b) {
+      cnt += band[v] == b;
+    size_t every = (cnt + BAND_MAX - 1) / BAND_MAX;
+    bool first = true;
+    for (size_t v = 0, i = 0; v < n; ++v)
+      if (band[v] == b && i++ % every == 0 && kept++ < BAND_MAX) {
         fprintf(f, first ? "%zu" : ",%zu", v);
         first = false;
       }
