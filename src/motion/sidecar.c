@@ -65,14 +65,14 @@ static int find_landmark(const km_character *c, const char *name) {
 
 /* ---- bone handles (issue 12): a band around the middle of each limb bone */
 
-enum { N_BONE_HANDLES = 9, BAND_MAX = 64 };
+enum { N_BONE_HANDLES = 8, BAND_MAX = 64 };
 static const char *const bone_handle_name[N_BONE_HANDLES] = {
-    "upper_arm_left", "forearm_left", "upper_arm_right", "forearm_right", "thigh_left",
-    "shin_left",      "thigh_right",  "shin_right",      "chest"};
+    "upper_arm_left", "forearm_left", "upper_arm_right", "forearm_right",
+    "thigh_left",     "shin_left",    "thigh_right",     "shin_right"};
 static const char *const bone_handle_joints[N_BONE_HANDLES][2] = {
     {"ShoulderLeft", "ElbowLeft"}, {"ElbowLeft", "WristLeft"},  {"ShoulderRight", "ElbowRight"},
     {"ElbowRight", "WristRight"},  {"HipLeft", "KneeLeft"},     {"KneeLeft", "AnkleLeft"},
-    {"HipRight", "KneeRight"},     {"KneeRight", "AnkleRight"}, {"Spine", "ShoulderCenter"}};
+    {"HipRight", "KneeRight"},     {"KneeRight", "AnkleRight"}};
 
 static int32_t uf_find(int32_t *p, int32_t v) {
   while (p[v] != v)
