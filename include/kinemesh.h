@@ -865,8 +865,8 @@ void km_glitch_free(km_glitch **g);
  * A map entry {"handle": "forearm_left", "bone": ["ElbowLeft", "WristLeft"]} (instead of
  * "joint") is a bone handle: the handle moves rigidly with that bone segment (see
  * km_retarget_create), so handles on the upper and lower arm make the elbow bend. "joints":
- * [{"name": "ElbowLeft", "rest": [x, y, z]}, ...] (a rig sidecar's skeleton, in the mesh's
- * frame) gives the character's joints: bone handles then turn about the character's own
+ * [{"name": "ElbowLeft", "rest": [x, y, z]}, ...] (a rig sidecar's skeleton, in kinemesh's
+ * frame: the mesh as animated) gives the character's joints: bone handles then turn about the character's own
  * joints, chained from the root (forward kinematics), so the limbs keep their lengths.
  * "relative_to" names a joint whose displacement is subtracted from the mapped joint's
  * (root-relative motion: the same as a second entry with scale -1 on that joint).

@@ -94,8 +94,7 @@ int km_cli_animate(int argc, char **argv) {
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK ||
       km_motion_read(motion, NULL, &take, NULL, &err) != KM_OK)
     goto fail;
-  km_frame applied;
-  if ((rc = km_cli_orient_mesh_frame("animate", mesh_path, &fo, &m, &applied)) ||
+  if ((rc = km_cli_orient_mesh("animate", mesh_path, &fo, &m)) ||
       (rc = km_cli_orient_take("animate", &fo, &take)))
     goto done;
   rc = KM_EXIT_FAIL;
@@ -112,10 +111,6 @@ int km_cli_animate(int argc, char **argv) {
   }
   if (km_rig_read(rig_path ? rig_path : rig_default, &m, (const char *const *)take.joint_names,
                   take.n_joints, &rig, &err) != KM_OK)
-    goto fail;
-  /* The rig's joints (bone handles' pivots) are in the mesh file's frame, like the mesh was. */
-  if (rig.joint_rest && applied.up &&
-      km_frame_apply(&applied, rig.joint_rest, rig.n_joint_rest, NULL, 0, &err) != KM_OK)
     goto fail;
 
   if (rig.n_maps == 0) { /* all anchors: a still animation nobody asked for */

@@ -85,10 +85,6 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
 /* km_cli_mesh_frame, then the mesh is brought into kinemesh's frame (y up, facing +z,
  * metres). Returns 0, or prints the error and returns an exit status. */
 int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo, km_mesh *m);
-/* km_cli_orient_mesh; *applied: the frame change made (up 0 when none was), for points in the
- * mesh's file frame that must follow it (a rig sidecar's joints). */
-int km_cli_orient_mesh_frame(const char *verb, const char *path, const km_cli_frame_opts *fo,
-                             km_mesh *m, km_frame *applied);
 /* The take's positions into kinemesh's frame by --motion-up/--motion-forward. */
 int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t);
 

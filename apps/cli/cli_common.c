@@ -422,23 +422,16 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
   return 0;
 }
 
-int km_cli_orient_mesh_frame(const char *verb, const char *path, const km_cli_frame_opts *fo,
-                             km_mesh *m, km_frame *applied) {
+int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo,
+                       km_mesh *m) {
   km_frame f;
-  if (applied) memset(applied, 0, sizeof *applied);
   int rc = km_cli_mesh_frame(verb, path, fo, m, false, &f, NULL);
   if (rc) return rc;
   if (f.up == KM_AXIS_POS_Y && f.forward == KM_AXIS_POS_Z && (f.scale == 0 || f.scale == 1))
     return 0; /* already kinemesh's frame: the positions stay bit for bit */
   km_error e = {0};
   if (km_mesh_frame_apply(&f, m, &e) != KM_OK) return km_cli_fail(verb, &e);
-  if (applied) *applied = f;
   return 0;
-}
-
-int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo,
-                       km_mesh *m) {
-  return km_cli_orient_mesh_frame(verb, path, fo, m, NULL);
 }
 
 int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t) {
