@@ -1058,7 +1058,7 @@ void km_character_free(km_character *c);
  * default puppetry rig: handles at head, hands and feet, and (issue 12) bands of at most 64
  * vertices around the middle of each upper arm, forearm, thigh and shin (the vertices whose
  * nearest skeleton bone it is, one connected piece, clear of the end handles); every handle is
- * mapped to a bone ("bone": head ShoulderCenter -> Head, hands wrist -> hand, feet ankle ->
+ * mapped to a bone ("bone": head ShoulderCenter -> Head, hands elbow -> hand, feet knee ->
  * foot, bands their own bone) with "aim": true (see km_rig_parse).
  *   c  in: character (its mesh is not written, only its vertex count)
  * Errors: KM_ERR_IO. */

@@ -533,10 +533,17 @@ static void update_bones(km_retarget *r, const double *J) {
     if (a < 0) continue;
     double *R = r->rot + 9 * h, *disp = r->disp + 3 * h;
     const double *c = r->centroid + 3 * h;
-    if (r->par[b] == a)
+    if (r->par[b] == a) {
       memcpy(R, r->Rb + 9 * (size_t)b, 9 * sizeof(double));
-    else
-      segment_rotation(r, J, a, b, NULL, R);
+    } else { /* a segment over several bones (elbow -> hand): aimed like the limb it is in */
+      double aim[3], *ap = NULL;
+      if (r->aim && r->kinect1 && kinect1_limb((size_t)b)) {
+        for (int d = 0; d < 3; ++d)
+          aim[d] = r->jrest[3 * (size_t)b + d] - r->jrest[3 * (size_t)a + d];
+        if (isfinite(aim[0] + aim[1] + aim[2])) ap = aim;
+      }
+      segment_rotation(r, J, a, b, ap, R);
+    }
     double rel[3] = {0, 0, 0};
     if (r->bone_rel[h] > 0) {
       const double *q = J + 3 * (size_t)(r->bone_rel[h] - 1),

@@ -260,8 +260,11 @@ km_status km_character_write_rig(const char *path, const km_character *c, km_err
   free(band);
   /* Every handle moves rigidly with a bone (the end handles with the bone ending at their
    * joint), posed on the character's own skeleton ("joints" above); see km_rig_parse. */
-  static const char *const handle_bone_start[5] = {"ShoulderCenter", "WristLeft", "WristRight",
-                                                   "AnkleLeft", "AnkleRight"};
+  /* Hands and feet turn about the elbow / knee with the elbow -> hand / knee -> foot line:
+   * Kinect's wrist -> hand and ankle -> foot bones are too short to steer by, and a tracker
+   * that sends a hand alone (OSC) still moves the hand. */
+  static const char *const handle_bone_start[5] = {"ShoulderCenter", "ElbowLeft", "ElbowRight",
+                                                   "KneeLeft", "KneeRight"};
   fputs("],\n\"map\":[", f);
   for (int h = 0; h < 5; ++h)
     fprintf(f, "%s\n{\"handle\":\"%s\",\"bone\":[\"%s\",\"%s\"]}", h ? "," : "", handle_names[h],
