@@ -70,8 +70,8 @@ static const char *const bone_handle_name[N_BONE_HANDLES] = {
     "upper_arm_left", "forearm_left", "upper_arm_right", "forearm_right",
     "thigh_left",     "shin_left",    "thigh_right",     "shin_right"};
 static const char *const bone_handle_joints[N_BONE_HANDLES][2] = {
-    {"ShoulderLeft", "ElbowLeft"}, {"ElbowLeft", "WristLeft"},  {"ShoulderRight", "ElbowRight"},
-    {"ElbowRight", "WristRight"},  {"HipLeft", "KneeLeft"},     {"KneeLeft", "AnkleLeft"},
+    {"ShoulderLeft", "ElbowLeft"}, {"ElbowLeft", "WristLeft"}, {"ShoulderRight", "ElbowRight"},
+    {"ElbowRight", "WristRight"},  {"HipLeft", "KneeLeft"},    {"KneeLeft", "AnkleLeft"},
     {"HipRight", "KneeRight"},     {"KneeRight", "AnkleRight"}};
 
 static int32_t uf_find(int32_t *p, int32_t v) {
