@@ -228,7 +228,7 @@ static void test_real(const char *rel, bool z_up, km_autorig_skeleton want, cons
       CHECK(isfinite(c.skeleton.rest[j]));
     /* The sidecar's bone handles pose the limbs as the performer's (issue 12): joints bend,
      * which concentrates strain in a few edges at the crotch and armpits (worst edge measured
-     * 2.9x armadillo, 2.2x dog0, 4.0x elephant, 4.2x horse; 99th percentile 1.5x to 2.3x). */
+     * 2.8x armadillo, 2.2x dog0, 4.2x elephant, 4.2x horse; 99th percentile 1.6x to 2.3x). */
     drive(rel, &m, &c, take, NULL, 5.0);
   }
   km_character_free(&c);
