@@ -422,8 +422,8 @@ static void test_spike_rejected(const fixture *fx) {
          *spiked = malloc(sizeof(double) * 3 * nv * nf);
   double *pos = malloc(sizeof(double) * 3 * nj * nf);
   memcpy(pos, t.positions, sizeof(double) * 3 * nj * nf);
-  /* The wrist: with the default rig's bone handles the hand joint's own spike would not
-   * show even unrejected (the Kinect wrist -> hand bone is too short to steer the hand). */
+  /* The wrist: it steers the default rig's forearm band (bone handles), so its spike shows
+   * on the arm when it is not rejected. */
   int hand = km_kinect1_joint_index("WristLeft");
   pos[(30 * nj + (size_t)hand) * 3 + 1] += 0.6;
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
