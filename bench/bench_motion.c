@@ -402,12 +402,25 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
     bm_metrics r[2];
     bool ok = true;
     for (int v = 0; v < 2 && ok; ++v) {
-      for (size_t e = 0; e < rig.n_maps; ++e) {
-        rig.maps[e].rotate = v == 1;
+      for (size_t e = 0; e < rig.n_maps; ++e)
         if (a->relative_to) rig.maps[e].relative_to = a->relative_to;
-      }
       rig.floor = a->floor;
-      if (run_variant(&m, &g, &rig, model, &t, nf, &r[v], &te) != KM_OK) {
+      /* T: the paper's rig, the sidecar's first five handles (head, hands, feet) translated
+       * by their end joints; B: the sidecar's rig as written, every handle on a bone. */
+      km_rig tr = rig;
+      km_rig_map tmaps[32];
+      if (v == 0) {
+        tr.n_handles = rig.n_handles < 5 ? rig.n_handles : 5;
+        tr.maps = tmaps;
+        tr.n_maps = 0;
+        for (size_t e = 0; e < rig.n_maps && tr.n_maps < 32; ++e)
+          if ((size_t)rig.maps[e].handle < tr.n_handles) {
+            tmaps[tr.n_maps] = rig.maps[e];
+            tmaps[tr.n_maps].bone_from = 0;
+            tmaps[tr.n_maps++].rotate = false;
+          }
+      }
+      if (run_variant(&m, &g, &tr, model, &t, nf, &r[v], &te) != KM_OK) {
         snprintf(why, sizeof why, "%.500s", te.message);
         ok = false;
       }
@@ -431,7 +444,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
                               a->relative_to ? km_kinect1_joint_name(a->relative_to - 1) : "");
       km_cli_json_number(o, "take_jump_max_pct", r[0].raw_jump_pct);
       cJSON_AddItemToObject(o, "translate", metrics_json(&r[0]));
-      cJSON_AddItemToObject(o, "rotate", metrics_json(&r[1]));
+      cJSON_AddItemToObject(o, "bones", metrics_json(&r[1]));
       char *s = cJSON_PrintUnformatted(o);
       cJSON_Delete(o);
       if (s) puts(s);
@@ -532,7 +545,7 @@ int km_bench_motion(int argc, char **argv) {
       "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames 300] [--json]",
       "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
       "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"
-      "paper's, T) and rotating handles (R) side by side. Per row: edge stretch max\n"
+      "paper's, T) and bone handles (B) side by side. Per row: edge stretch max\n"
       "|l/l0 - 1|, folded triangles (a neighbour's normal < 60 deg at rest, > 120 deg\n"
       "in a frame), the largest one-frame vertex jump (% of the bbox diagonal), frames\n"
       "with a vertex below the rest floor (by more than 0.5% of the diagonal) and the\n"
@@ -565,18 +578,17 @@ int km_bench_motion(int argc, char **argv) {
     print_skip(&a, "*", "*", "no takes (none given, none found in the data folder)");
   } else {
     if (!a.json) {
-      printf(
-          "kinemesh bench motion — %s; km_autorig rigs, default glitch rejection and filter, "
-          "takes at 30 fps, first %zu frames; T = translation-only handles (Wu, Lu & Song), "
-          "R = rotating handles; jump 'take' = the mapped joints' own largest step (scaled); t = "
-          "median of per-frame push times%s%s%s\n",
-          a.machine, a.frames, a.floor ? "; floor constraint on" : "",
-          a.relative_to ? "; motion relative to " : "",
-          a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
+      printf("kinemesh bench motion — %s; km_autorig rigs, default glitch rejection and filter, "
+             "takes at 30 fps, first %zu frames; T = translation-only handles (Wu, Lu & Song), "
+             "B = bone handles; jump 'take' = the mapped joints' own largest step (scaled); t = "
+             "median of per-frame push times%s%s%s\n",
+             a.machine, a.frames, a.floor ? "; floor constraint on" : "",
+             a.relative_to ? "; motion relative to " : "",
+             a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
       printf("%-18s %-16s %7s %5s  %13s  %11s  %20s  %11s  %15s\n", "", "", "", "", "stretch max",
              "folded", "jump %diag", "below floor", "t/frame (ms)");
       printf("%-18s %-16s %7s %5s  %6s %6s  %5s %5s  %6s %6s %6s  %5s %5s  %7s %7s\n", "take",
-             "mesh", "n_ver", "fr", "T", "R", "T", "R", "take", "T", "R", "T", "R", "T", "R");
+             "mesh", "n_ver", "fr", "T", "B", "T", "B", "take", "T", "B", "T", "B", "T", "B");
     }
     fflush(stdout);
     for (size_t i = 0; i < n_meshes; ++i) {

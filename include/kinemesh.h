@@ -996,6 +996,12 @@ void km_glitch_free(km_glitch **g);
  * the "heading" joints' left to right one, kinect1 default ["HipLeft", "HipRight"]), while the
  * handles take the motion relative to the root, expressed in the root's heading frame.
  * "root_motion": "none" (default) leaves the mesh where the handles put it.
+ * A map entry {"handle": "forearm_left", "bone": ["ElbowLeft", "WristLeft"]} (instead of
+ * "joint") is a bone handle: the handle moves rigidly with that bone segment (see
+ * km_retarget_create), so handles on the upper and lower arm make the elbow bend. "joints":
+ * [{"name": "ElbowLeft", "rest": [x, y, z]}, ...] (a rig sidecar's skeleton, in kinemesh's
+ * frame: the mesh as animated) gives the character's joints: bone handles then turn about the character's own
+ * joints, chained from the root (forward kinematics), so the limbs keep their lengths.
  * "relative_to" names a joint whose displacement is subtracted from the mapped joint's
  * (root-relative motion: the same as a second entry with scale -1 on that joint).
  * Other keys are ignored. "vertex"+"radius" takes every vertex whose shortest path along mesh
@@ -1032,6 +1038,11 @@ typedef struct km_rig_map {
   bool rotate; /* "rotate": true: the handle also turns with the bone that ends at this joint
                   (parent -> joint direction, relative to the reference frame; the shortest
                   rotation, no twist). false (default): translation only, as in the paper */
+  /* ---- issue 12: bone handles */
+  int32_t bone_from; /* 0: the entry maps a joint. Else a bone entry ("bone": ["ElbowLeft",
+                        "WristLeft"]): 1 + the bone's start joint, `joint` its end. The handle
+                        moves rigidly with the bone (see km_retarget_create); axes and scale
+                        do not apply */
 } km_rig_map;
 
 typedef struct km_rig {
@@ -1048,6 +1059,15 @@ typedef struct km_rig {
   int32_t root;       /* 1 + the root joint (the rig-level "relative_to"); 0: none */
   int32_t heading[2]; /* 1 + the left and right joints whose line gives the heading ("heading":
                          [left, right]; kinect1 default HipLeft, HipRight); 0: no heading */
+  /* ---- issue 12: the character's own skeleton, for bone handles */
+  double *joint_rest; /* n_joint_rest*3 rest positions of the character's joints in the take's
+                         joint order (kinect1: KM_KINECT1 order) from the rig's "joints" array
+                         (a rig sidecar's), NaN for a joint it lacks; NULL: no "joints" */
+  size_t n_joint_rest;
+  bool aim; /* "aim": true (needs joint_rest, kinect1): the limb bones (upper and lower arms and
+               legs, hands, feet) are aimed along the performer's bones instead of turned by
+               their rotation since the first frame, so a character whose rest pose is not the
+               performer's first pose (a T-pose against arms down) takes the performer's pose */
 } km_rig;
 
 /* Parses a rig file and resolves its handles on a mesh.
@@ -1082,7 +1102,20 @@ void km_rig_free(km_rig *rig);
  * at the head's centre and the foot joints above the soles; otherwise the y extent of the
  * valid joints), replacing eq. 5's screen-size ratio. Handles no map drives are anchors
  * (target = rest centroid). If a joint a handle needs is NaN, the handle keeps its last
- * target. */
+ * target.
+ * Bone handles (issue 12, map entries with bone_from): per frame every bone q -> j of the
+ * take's tree gets R_j, the shortest rotation taking its first-valid-frame direction to the
+ * current one (a bone shorter than 0.15 m of performer, Kinect's wrist -> hand and ankle ->
+ * foot, turns with its parent bone instead: their direction is noise). With the rig's
+ * joint_rest C^0 the character's joints are posed by forward kinematics,
+ *   C_root = C^0_root + s (p_root - p^0_root)  (0 under rigid root motion),
+ *   C_j = C_q + R_j (C^0_j - C^0_q),
+ * and a bone entry a -> b moves its handle's vertices x to C_a - s d_rel + R_b (x - C^0_a)
+ * (d_rel: the displacement of the entry's relative_to joint, 0 if none), so neighbouring bone
+ * handles agree at the joint between them whatever the performer's bone lengths. With the
+ * rig's "aim" a kinect1 limb bone gets R_j = (reference -> current direction) (C^0 bone ->
+ * reference direction) instead: the character's limb points where the performer's does. Without
+ * joint_rest the handle turns about its centroid and moves with the bone's midpoint. */
 /* Kinect v1 Head-to-foot joint span as a fraction of stature (anthropometric head-centre and
  * foot-joint heights: 0.937 and 0.023 of stature on kinemesh's procedural character). */
 #define KM_KINECT1_SPAN_OF_STATURE 0.91
@@ -1156,7 +1189,11 @@ typedef struct km_character {
 void km_character_free(km_character *c);
 
 /* Writes a rig sidecar (<mesh>.rig.json, atomically): skeleton, skin, landmarks, and a
- * default puppetry rig (handles at head, hands, feet mapped to the matching Kinect joints).
+ * default puppetry rig: handles at head, hands and feet, and (issue 12) bands of at most 64
+ * vertices around the middle of each upper arm, forearm, thigh and shin (the vertices whose
+ * nearest skeleton bone it is, one connected piece, clear of the end handles); every handle is
+ * mapped to a bone ("bone": head ShoulderCenter -> Head, hands elbow -> hand, feet knee ->
+ * foot, bands their own bone) with "aim": true (see km_rig_parse).
  *   c  in: character (its mesh is not written, only its vertex count)
  * Errors: KM_ERR_IO. */
 km_status km_character_write_rig(const char *path, const km_character *c, km_error *err);

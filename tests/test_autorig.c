@@ -86,7 +86,12 @@ static void test_character(size_t nv, uint64_t seed, double belly, double girth)
   km_character_free(&back);
   km_rig rig = {0};
   CHECK_OK(km_rig_read(path, &c.mesh, NULL, 0, &rig, KM_E));
-  CHECK(rig.n_handles == 5 && rig.n_maps == 5);
+  /* head, hands, feet, and bone handles on the upper and lower arms and legs */
+  CHECK_MSG(rig.n_handles == 13 && rig.n_maps == 13, "%zu handles, %zu maps", rig.n_handles,
+            rig.n_maps);
+  CHECK(rig.aim && rig.joint_rest && rig.n_joint_rest == KM_KINECT1_JOINTS);
+  for (size_t e = 0; e < rig.n_maps; ++e)
+    CHECK(rig.maps[e].bone_from > 0);
   km_rig_free(&rig);
   km_character_free(&r);
   km_character_free(&c);
@@ -221,7 +226,10 @@ static void test_real(const char *rel, bool z_up, km_autorig_skeleton want, cons
     CHECK(skin_valid(&c.skin, m.n_vertices));
     for (int j = 0; j < 3 * KM_KINECT1_JOINTS; ++j)
       CHECK(isfinite(c.skeleton.rest[j]));
-    drive(rel, &m, &c, take, NULL, 4.0);
+    /* The sidecar's bone handles pose the limbs as the performer's (issue 12): joints bend,
+     * which concentrates strain in a few edges at the crotch and armpits (worst edge measured
+     * 2.8x armadillo, 2.2x dog0, 4.2x elephant, 4.2x horse; 99th percentile 1.6x to 2.3x). */
+    drive(rel, &m, &c, take, NULL, 5.0);
   }
   km_character_free(&c);
   km_mesh_free(&m);

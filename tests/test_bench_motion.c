@@ -87,7 +87,7 @@ int main(void) {
     CHECK_MSG(fr == 8, "row %d: %g frames (--frames 8)", rows, fr);
     CHECK(tj >= 0);
     check_variant(o, "translate", rows, fr);
-    check_variant(o, "rotate", rows, fr);
+    check_variant(o, "bones", rows, fr);
     cJSON_Delete(o);
     ++rows;
   }

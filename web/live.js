@@ -303,7 +303,7 @@ function drawDiagram() {
   const minx = Math.min(...xs), maxx = Math.max(...xs), miny = Math.min(...ys), maxy = Math.max(...ys);
   const s = Math.min(210 / Math.max(1e-6, maxx - minx), 220 / Math.max(1e-6, maxy - miny));
   const X = (p) => 120 + (p[0] - (minx + maxx) / 2) * s, Y = (p) => 235 - (p[1] - miny) * s;
-  const mapped = new Set(((state.rig && state.rig.map) || []).map((m) => m.joint));
+  const mapped = new Set(((state.rig && state.rig.map) || []).map((m) => m.joint || (m.bone && m.bone[1])));
   let html = '';
   for (let j = 1; j < 20; ++j) {
     const a = rest[PARENT[j]], b = rest[j];
@@ -326,7 +326,7 @@ function renderHandles() {
   for (const h of state.rig.handles || []) {
     const maps = (state.rig.map || []).filter((m) => m.handle === h.name);
     const li = document.createElement('li');
-    li.innerHTML = `<span>${h.name} → ${maps.map((m) => `${m.joint} ${m.axes || 'xyz'}×${m.scale ?? 1}`).join(', ') || '(anchor)'}</span>`;
+    li.innerHTML = `<span>${h.name} → ${maps.map((m) => (m.bone ? `bone ${m.bone[0]}→${m.bone[1]}` : `${m.joint} ${m.axes || 'xyz'}×${m.scale ?? 1}`)).join(', ') || '(anchor)'}</span>`;
     const b = document.createElement('button');
     b.textContent = '✕';
     b.title = 'remove handle';

@@ -29,6 +29,15 @@ struct km_retarget {
   int32_t *rot_joint, *rot_parent; /* n_handles; -1: translation only; NULL: none rotates */
   int32_t *par;                    /* n_joints parents (-1 roots), for rotating handles */
   double *rot;                     /* n_handles*9 row-major, of the last valid frame */
+  /* bone handles (issue 12) */
+  int32_t *bone_from; /* n_handles: the bone's start joint for bone handles, -1 others; NULL:
+                         no bone handle */
+  int32_t *bone_rel;  /* n_handles: the bone entry's relative_to (1 + joint, 0: none) */
+  double *jrest;      /* n_joints*3 character joints at rest (NaN unknown); NULL: none */
+  double *Rb;         /* n_joints*9 bone rotations (of the bone ending at the joint) */
+  double *C;          /* n_joints*3 posed character joints */
+  double floor_y;     /* the rest floor (lowest rest y) */
+  bool aim;           /* limb bones aim along the performer's (rig "aim": true) */
 };
 
 static int cmp_map(const void *a, const void *b) {
@@ -51,6 +60,11 @@ void km_retarget_free(km_retarget **r) {
   free(t->rot_parent);
   free(t->par);
   free(t->rot);
+  free(t->bone_from);
+  free(t->bone_rel);
+  free(t->jrest);
+  free(t->Rb);
+  free(t->C);
   free(t);
   *r = NULL;
 }
@@ -70,6 +84,13 @@ void km_retarget_reset(km_retarget *r) {
     for (size_t h = 0; h < r->n_handles; ++h) {
       double I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
       memcpy(r->rot + 9 * h, I, sizeof I);
+    }
+  if (r->Rb)
+    for (size_t j = 0; j < r->n_joints; ++j) {
+      double I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+      memcpy(r->Rb + 9 * j, I, sizeof I);
+      for (int d = 0; d < 3; ++d)
+        r->C[3 * j + d] = r->jrest ? r->jrest[3 * j + d] : NAN;
     }
 }
 
@@ -186,9 +207,17 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
     for (int d = 0; d < 3; ++d)
       r->pivot[d] = 0.5 * (lo[d] + hi[d]);
   }
-  bool any_rot = false;
-  for (size_t e = 0; e < rig->n_maps; ++e)
-    any_rot |= rig->maps[e].rotate;
+  r->floor_y = lo[1];
+  bool any_rot = false, any_bone = false;
+  for (size_t e = 0; e < rig->n_maps; ++e) {
+    any_rot |= rig->maps[e].rotate || rig->maps[e].bone_from > 0;
+    any_bone |= rig->maps[e].bone_from > 0;
+    if (rig->maps[e].bone_from < 0 || (size_t)rig->maps[e].bone_from > n_joints) {
+      km_retarget_free(&r);
+      return km__fail(err, KM_ERR_INVALID, "rig map %zu: bone start joint %d out of range", e,
+                      (int)rig->maps[e].bone_from - 1);
+    }
+  }
   if (any_rot) {
     r->rot_joint = km__malloc(r->n_handles, sizeof(int32_t));
     r->rot_parent = km__malloc(r->n_handles, sizeof(int32_t));
@@ -204,11 +233,32 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
                                                       : -1;
       r->par[j] = q >= 0 && (size_t)q < j ? q : -1;
     }
+    if (any_bone) {
+      r->bone_from = km__malloc(r->n_handles, sizeof(int32_t));
+      r->bone_rel = km__calloc(r->n_handles, sizeof(int32_t));
+      r->Rb = km__malloc(n_joints ? n_joints : 1, 9 * sizeof(double));
+      r->C = km__malloc(n_joints ? n_joints : 1, 3 * sizeof(double));
+      bool jr = rig->joint_rest && rig->n_joint_rest == n_joints;
+      if (jr) r->jrest = km__malloc(n_joints, 3 * sizeof(double));
+      if (!r->bone_from || !r->bone_rel || !r->Rb || !r->C || (jr && !r->jrest)) {
+        km_retarget_free(&r);
+        return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
+      }
+      if (jr) memcpy(r->jrest, rig->joint_rest, n_joints * 3 * sizeof(double));
+      r->aim = jr && rig->aim;
+    }
     for (size_t h = 0; h < r->n_handles; ++h) {
       r->rot_joint[h] = r->rot_parent[h] = -1;
+      if (r->bone_from) r->bone_from[h] = -1;
       for (size_t e = r->map_start[h]; e < r->map_start[h + 1] && r->rot_joint[h] < 0; ++e) {
         const km_rig_map *m = &r->maps[e];
         int32_t par = -1;
+        if (m->bone_from > 0) { /* the first bone entry of a handle drives it */
+          r->rot_joint[h] = m->joint;
+          r->rot_parent[h] = r->bone_from[h] = m->bone_from - 1;
+          r->bone_rel[h] = m->relative_to;
+          continue;
+        }
         if (!m->rotate) continue;
         if (o.parents)
           par = o.parents[m->joint];
@@ -283,7 +333,8 @@ void km_retarget_push(km_retarget *r, const double *joints, double *handle_targe
   if (isfinite(r->scale)) {
     for (size_t h = 0; h < r->n_handles; ++h) {
       size_t a = r->map_start[h], b = r->map_start[h + 1];
-      if (a == b) continue; /* anchor */
+      if (a == b) continue;                               /* anchor */
+      if (r->bone_from && r->bone_from[h] >= 0) continue; /* update_rotations moves it */
       double d[3] = {0, 0, 0};
       bool ok = true;
       for (size_t e = a; e < b && ok; ++e) {
@@ -349,10 +400,13 @@ static void rotation_between(const double a[3], const double b[3], double R[9]) 
 
 /* Rotations of the rotating handles from the bones of this frame (kept when a bone is not
  * valid). With rigid root motion the rotation is taken in the root's heading frame. */
+static void update_bones(km_retarget *r, const double *J);
+
 static void update_rotations(km_retarget *r, const double *J) {
+  if (r->bone_from) update_bones(r, J);
   for (size_t h = 0; h < r->n_handles; ++h) {
     int32_t j = r->rot_joint[h], q = r->rot_parent[h];
-    if (j < 0) continue;
+    if (j < 0 || (r->bone_from && r->bone_from[h] >= 0)) continue;
     /* A short bone (a Kinect wrist -> hand, ankle -> foot: a few noisy centimetres) gives a
      * jittery direction: the nearest ancestor at least 0.15 m away stands in. */
     while (r->par[q] >= 0) {
@@ -381,6 +435,149 @@ static void update_rotations(km_retarget *r, const double *J) {
       d0[c] /= n0;
     }
     rotation_between(d0, d, r->rot + 9 * h);
+  }
+}
+
+static double dist3(const double *a, const double *b) {
+  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+              (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/* The shortest rotation taking the reference direction of a -> b to this frame's (in the
+ * root's heading frame under rigid root motion); false when a joint is not valid. */
+static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, int32_t b,
+                             const double *aim, double R[9]) {
+  const double *p = J + 3 * (size_t)b, *q = J + 3 * (size_t)a;
+  const double *p0 = r->ref + 3 * (size_t)b, *q0 = r->ref + 3 * (size_t)a;
+  if (!valid3(p) || !valid3(q) || !valid3(p0) || !valid3(q0)) return false;
+  double d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+  double d0[3] = {p0[0] - q0[0], p0[1] - q0[1], p0[2] - q0[2]};
+  if (r->rigid) { /* R_y(-phi) d */
+    double c = r->cos_h, sn = r->sin_h, x = d[0], z = d[2];
+    d[0] = c * x - sn * z;
+    d[2] = sn * x + c * z;
+  }
+  double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  double n0 = sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]);
+  if (!(n > 1e-9) || !(n0 > 1e-9)) return false;
+  for (int c = 0; c < 3; ++c) {
+    d[c] /= n;
+    d0[c] /= n0;
+  }
+  rotation_between(d0, d, R);
+  if (aim) { /* then first the character's rest direction onto the reference direction */
+    double u[3] = {aim[0], aim[1], aim[2]}, nu = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    if (!(nu > 1e-12)) return true;
+    for (int c = 0; c < 3; ++c)
+      u[c] /= nu;
+    double A[9], B[9];
+    rotation_between(u, d0, A);
+    memcpy(B, R, sizeof B);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        R[3 * i + j] = B[3 * i] * A[j] + B[3 * i + 1] * A[3 + j] + B[3 * i + 2] * A[6 + j];
+  }
+  return true;
+}
+
+/* Kinect v1 limb bones (ending at an elbow, wrist, hand, knee, ankle or foot): aimed along the
+ * performer's bone (see km_retarget_create); the torso's bones turn relatively. */
+static bool kinect1_limb(size_t j) {
+  return (j >= 5 && j <= 7) || (j >= 9 && j <= 11) || (j >= 13 && j <= 15) || j >= 17;
+}
+
+static void mat_vec(const double R[9], const double x[3], double y[3]) {
+  for (int a = 0; a < 3; ++a)
+    y[a] = R[3 * a] * x[0] + R[3 * a + 1] * x[1] + R[3 * a + 2] * x[2];
+}
+
+/* Bone rotations, the character's posed joints (forward kinematics) and the bone handles'
+ * rigid motions (see km_retarget_create in kinemesh.h). A bone whose joints are not valid this
+ * frame keeps its last rotation; a root that is not valid keeps its last position. */
+static void update_bones(km_retarget *r, const double *J) {
+  if (!isfinite(r->scale)) return;
+  const double s = r->scale;
+  for (size_t j = 0; j < r->n_joints; ++j) {
+    int32_t q = r->par[j];
+    double *Rj = r->Rb + 9 * j, *Cj = r->C + 3 * j;
+    if (q < 0) {
+      const double *p = J + 3 * j, *p0 = r->ref + 3 * j;
+      if (r->jrest && valid3(p) && valid3(p0))
+        for (int d = 0; d < 3; ++d)
+          Cj[d] = r->jrest[3 * j + d] + (r->rigid ? 0 : s * (p[d] - p0[d]));
+      continue;
+    }
+    const double *a0 = r->ref + 3 * j, *b0 = r->ref + 3 * (size_t)q;
+    /* A short bone (Kinect wrist -> hand, ankle -> foot: a few noisy centimetres) turns with
+     * its parent bone. */
+    double aim[3], *ap = NULL;
+    if (r->aim && r->kinect1 && kinect1_limb(j)) {
+      for (int d = 0; d < 3; ++d)
+        aim[d] = r->jrest[3 * j + d] - r->jrest[3 * (size_t)q + d];
+      if (isfinite(aim[0] + aim[1] + aim[2])) ap = aim;
+    }
+    if (valid3(a0) && valid3(b0) && dist3(a0, b0) < 0.15)
+      memcpy(Rj, r->Rb + 9 * (size_t)q, 9 * sizeof(double));
+    else
+      segment_rotation(r, J, q, (int32_t)j, ap, Rj);
+    if (r->jrest) {
+      const double *cj0 = r->jrest + 3 * j, *cq0 = r->jrest + 3 * (size_t)q;
+      double w[3] = {cj0[0] - cq0[0], cj0[1] - cq0[1], cj0[2] - cq0[2]}, y[3];
+      mat_vec(Rj, w, y);
+      for (int d = 0; d < 3; ++d)
+        Cj[d] = r->C[3 * (size_t)q + d] + y[d];
+    }
+  }
+  for (size_t h = 0; h < r->n_handles; ++h) {
+    int32_t a = r->bone_from[h], b = r->rot_joint[h];
+    if (a < 0) continue;
+    double *R = r->rot + 9 * h, *disp = r->disp + 3 * h;
+    const double *c = r->centroid + 3 * h;
+    if (r->par[b] == a) {
+      memcpy(R, r->Rb + 9 * (size_t)b, 9 * sizeof(double));
+    } else { /* a segment over several bones (elbow -> hand): aimed like the limb it is in */
+      double aim[3], *ap = NULL;
+      if (r->aim && r->kinect1 && kinect1_limb((size_t)b)) {
+        for (int d = 0; d < 3; ++d)
+          aim[d] = r->jrest[3 * (size_t)b + d] - r->jrest[3 * (size_t)a + d];
+        if (isfinite(aim[0] + aim[1] + aim[2])) ap = aim;
+      }
+      segment_rotation(r, J, a, b, ap, R);
+    }
+    double rel[3] = {0, 0, 0};
+    if (r->bone_rel[h] > 0) {
+      const double *q = J + 3 * (size_t)(r->bone_rel[h] - 1),
+                   *q0 = r->ref + 3 * (size_t)(r->bone_rel[h] - 1);
+      if (!valid3(q) || !valid3(q0)) continue;
+      if (!(r->rigid && r->bone_rel[h] - 1 == r->root))
+        for (int d = 0; d < 3; ++d)
+          rel[d] = s * (q[d] - q0[d]);
+    }
+    const double *Ca = r->C + 3 * (size_t)a;
+    if (r->jrest && valid3(Ca) && valid3(r->jrest + 3 * (size_t)a)) {
+      /* x -> C_a - rel + R (x - C^0_a), written as the centroid's displacement */
+      double w[3], y[3];
+      for (int d = 0; d < 3; ++d)
+        w[d] = c[d] - r->jrest[3 * (size_t)a + d];
+      mat_vec(R, w, y);
+      for (int d = 0; d < 3; ++d)
+        disp[d] = Ca[d] - rel[d] + y[d] - c[d];
+    } else { /* no character skeleton: about the centroid, with the bone's midpoint */
+      const double *p = J + 3 * (size_t)b, *q = J + 3 * (size_t)a;
+      const double *p0 = r->ref + 3 * (size_t)b, *q0 = r->ref + 3 * (size_t)a;
+      if (!valid3(p) || !valid3(q) || !valid3(p0) || !valid3(q0)) continue;
+      for (int d = 0; d < 3; ++d)
+        disp[d] = 0.5 * s * (p[d] + q[d] - p0[d] - q0[d]) - rel[d];
+    }
+    if (r->floor_dy) { /* no vertex of the turned handle below the rest floor */
+      double ymin = INFINITY;
+      for (size_t k = r->hv_start[h]; k < r->hv_start[h + 1]; ++k) {
+        const double *x = r->hv_rest + 3 * k;
+        double y = R[3] * (x[0] - c[0]) + R[4] * (x[1] - c[1]) + R[5] * (x[2] - c[2]);
+        ymin = fmin(ymin, c[1] + disp[1] + y);
+      }
+      if (ymin < r->floor_y) disp[1] += r->floor_y - ymin;
+    }
   }
 }
 

@@ -28,6 +28,7 @@ void km_rig_free(km_rig *rig) {
     free(rig->handles[h].vertices);
   free(rig->handles);
   free(rig->maps);
+  free(rig->joint_rest);
   memset(rig, 0, sizeof *rig);
 }
 
@@ -133,6 +134,45 @@ static km_status parse_filter(const char *name, const cJSON *jf, km_filter_optio
                                : "[0,inf)");
     /* In the options struct 0 means "default"; an explicit 0 in the file means zero. */
     *dst[k] = (x == 0 && k < 2) ? KM_FILTER_ZERO : x;
+  }
+  return KM_OK;
+}
+
+/* The character's joints ("joints": [{"name": .., "rest": [x, y, z]}, ...], a rig sidecar's
+ * skeleton) in the take's joint order; names the take lacks and entries of another shape are
+ * skipped (joint_rest stays NaN there). */
+static km_status parse_joints(const char *name, const cJSON *jj, const char *const *joint_names,
+                              size_t n_joint_names, km_rig *out, km_error *err) {
+  if (!jj) return KM_OK;
+  if (!cJSON_IsArray(jj)) return KM_OK; /* not a skeleton: ignored like other keys */
+  size_t n = out->skeleton == KM_RIG_KINECT1 ? KM_KINECT1_JOINTS : n_joint_names;
+  if (n == 0) return KM_OK;
+  if (!(out->joint_rest = km__malloc(n, 3 * sizeof(double))))
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+  out->n_joint_rest = n;
+  for (size_t i = 0; i < 3 * n; ++i)
+    out->joint_rest[i] = NAN;
+  const cJSON *it;
+  size_t i = 0;
+  cJSON_ArrayForEach(it, jj) {
+    const cJSON *nm = cJSON_GetObjectItemCaseSensitive(it, "name");
+    const cJSON *rs = cJSON_GetObjectItemCaseSensitive(it, "rest");
+    double x[3];
+    bool ok = cJSON_IsString(nm) && cJSON_IsArray(rs) && cJSON_GetArraySize(rs) == 3;
+    for (int k = 0; ok && k < 3; ++k)
+      ok = json_finite(cJSON_GetArrayItem(rs, k), &x[k]);
+    if (!ok) { /* not a skeleton joint (other files use "joints" otherwise): ignored */
+      ++i;
+      continue;
+    }
+    int j = -1;
+    if (out->skeleton == KM_RIG_KINECT1)
+      j = km_kinect1_joint_index(nm->valuestring);
+    else
+      for (size_t k = 0; k < n_joint_names && j < 0; ++k)
+        if (joint_names[k] && !strcmp(joint_names[k], nm->valuestring)) j = (int)k;
+    if (j >= 0) memcpy(out->joint_rest + 3 * (size_t)j, x, sizeof x);
+    ++i;
   }
   return KM_OK;
 }
@@ -370,13 +410,45 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
   cJSON_ArrayForEach(m, jm) {
     const cJSON *mh = cJSON_GetObjectItemCaseSensitive(m, "handle");
     const cJSON *mj = cJSON_GetObjectItemCaseSensitive(m, "joint");
-    if (!cJSON_IsObject(m) || !cJSON_IsString(mh) || !cJSON_IsString(mj)) {
+    const cJSON *mb = cJSON_GetObjectItemCaseSensitive(m, "bone");
+    const cJSON *mb0 = NULL;
+    if (mb && !mj) { /* a bone entry: its end joint resolves below as "joint" */
+      if (!cJSON_IsArray(mb) || cJSON_GetArraySize(mb) != 2 ||
+          !cJSON_IsString(cJSON_GetArrayItem(mb, 0)) ||
+          !cJSON_IsString(cJSON_GetArrayItem(mb, 1))) {
+        st = km__fail(err, KM_ERR_PARSE,
+                      "%s: map[%zu]: \"bone\" must be two joint names [start, end], e.g. "
+                      "[\"ElbowLeft\", \"WristLeft\"]",
+                      name, mi);
+        goto done;
+      }
+      mb0 = cJSON_GetArrayItem(mb, 0);
+      mj = cJSON_GetArrayItem(mb, 1);
+    }
+    if (!cJSON_IsObject(m) || !cJSON_IsString(mh) || !cJSON_IsString(mj) || (mb && mb0 == NULL)) {
       st = km__fail(err, KM_ERR_PARSE,
-                    "%s: map[%zu]: expected an object with \"handle\" and \"joint\" strings", name,
-                    mi);
+                    "%s: map[%zu]: expected an object with a \"handle\" string and a \"joint\" "
+                    "string or a \"bone\" [start, end] (not both)",
+                    name, mi);
       goto done;
     }
     km_rig_map *rm = &out->maps[mi];
+    if (mb0) {
+      int b0 = -1;
+      if (out->skeleton == KM_RIG_KINECT1)
+        b0 = km_kinect1_joint_index(mb0->valuestring);
+      else
+        for (size_t k = 0; k < n_joint_names && b0 < 0; ++k)
+          if (joint_names[k] && strcmp(joint_names[k], mb0->valuestring) == 0) b0 = (int)k;
+      if (b0 < 0) {
+        st = km__fail(err, KM_ERR_PARSE,
+                      "%s: map[%zu] (handle '%s'): \"bone\": unknown %s joint '%s'", name, mi,
+                      mh->valuestring, out->skeleton == KM_RIG_KINECT1 ? "Kinect v1" : "take",
+                      mb0->valuestring);
+        goto done;
+      }
+      rm->bone_from = b0 + 1;
+    }
     int hidx = find_handle(out, mh->valuestring);
     if (hidx < 0) {
       st = km__fail(err, KM_ERR_PARSE, "%s: map[%zu]: unknown handle '%s'", name, mi,
@@ -521,6 +593,15 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     st = km__fail(err, KM_ERR_PARSE, "%s: \"floor\" must be true or false", name);
     goto done;
   }
+  const cJSON *jaim = cJSON_GetObjectItemCaseSensitive(root, "aim");
+  if (jaim && !cJSON_IsBool(jaim)) {
+    st = km__fail(err, KM_ERR_PARSE, "%s: \"aim\" must be true or false", name);
+    goto done;
+  }
+  out->aim = cJSON_IsTrue(jaim);
+  if ((st = parse_joints(name, cJSON_GetObjectItemCaseSensitive(root, "joints"), joint_names,
+                         n_joint_names, out, err)) != KM_OK)
+    goto done;
   out->floor = cJSON_IsTrue(jfl);
   st = parse_filter(name, cJSON_GetObjectItemCaseSensitive(root, "filter"), &out->filter, err);
 

@@ -63,6 +63,103 @@ static int find_landmark(const km_character *c, const char *name) {
   return -1;
 }
 
+/* ---- bone handles (issue 12): a band around the middle of each limb bone */
+
+enum { N_BONE_HANDLES = 8, BAND_MAX = 64 };
+static const char *const bone_handle_name[N_BONE_HANDLES] = {
+    "upper_arm_left", "forearm_left", "upper_arm_right", "forearm_right",
+    "thigh_left",     "shin_left",    "thigh_right",     "shin_right"};
+static const char *const bone_handle_joints[N_BONE_HANDLES][2] = {
+    {"ShoulderLeft", "ElbowLeft"}, {"ElbowLeft", "WristLeft"}, {"ShoulderRight", "ElbowRight"},
+    {"ElbowRight", "WristRight"},  {"HipLeft", "KneeLeft"},    {"KneeLeft", "AnkleLeft"},
+    {"HipRight", "KneeRight"},     {"KneeRight", "AnkleRight"}};
+
+static int32_t uf_find(int32_t *p, int32_t v) {
+  while (p[v] != v)
+    v = p[v] = p[p[v]];
+  return v;
+}
+
+static int skel_joint(const km_skeleton *sk, const char *name) {
+  for (size_t j = 0; j < sk->n_joints; ++j)
+    if (sk->names[j] && !strcmp(sk->names[j], name)) return (int)j;
+  return -1;
+}
+
+/* Bands: every vertex goes to the bone segment nearest to it (of all the skeleton's bones);
+ * a bone's band is its vertices whose projection falls in the middle 40% of the segment, cut
+ * to the connected part (along faces) holding the band vertex nearest to the bone's midpoint,
+ * and kept off the end handles' balls (centre ends[e], Euclidean radius: the geodesic balls
+ * km_rig_parse grows are inside them). band[v] = the band of v, -1 none. Returns false when
+ * out of memory. */
+static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends, double radius,
+                       int8_t *band, int bone_ok[N_BONE_HANDLES]) {
+  const km_mesh *m = &c->mesh;
+  const km_skeleton *sk = &c->skeleton;
+  size_t n = m->n_vertices;
+  int32_t *uf = km__malloc(n, sizeof(int32_t));
+  double *best = km__malloc(N_BONE_HANDLES, sizeof(double));
+  int32_t *seed = km__malloc(N_BONE_HANDLES, sizeof(int32_t));
+  if (!uf || !best || !seed) {
+    free(uf), free(best), free(seed);
+    return false;
+  }
+  int ja[N_BONE_HANDLES], jb[N_BONE_HANDLES];
+  for (int b = 0; b < N_BONE_HANDLES; ++b) {
+    ja[b] = skel_joint(sk, bone_handle_joints[b][0]);
+    jb[b] = skel_joint(sk, bone_handle_joints[b][1]);
+    bone_ok[b] = ja[b] >= 0 && jb[b] >= 0 && sk->parents[jb[b]] == ja[b];
+    best[b] = INFINITY;
+    seed[b] = -1;
+  }
+  for (size_t v = 0; v < n; ++v) {
+    const double *x = m->V + 3 * v;
+    band[v] = -1;
+    uf[v] = (int32_t)v;
+    bool near_end = false;
+    for (size_t e = 0; e < n_ends && !near_end; ++e) {
+      const double *y = m->V + 3 * (size_t)ends[e];
+      double dx = x[0] - y[0], dy = x[1] - y[1], dz = x[2] - y[2];
+      near_end = dx * dx + dy * dy + dz * dz <= 1.05 * 1.05 * radius * radius;
+    }
+    double dmin = INFINITY, tmin = 0;
+    int jmin = -1;
+    for (size_t j = 0; j < sk->n_joints; ++j) {
+      int q = sk->parents[j];
+      if (q < 0) continue;
+      const double *a = sk->rest + 3 * (size_t)q, *b = sk->rest + 3 * j;
+      double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+      double ax[3] = {x[0] - a[0], x[1] - a[1], x[2] - a[2]};
+      double ll = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
+      double t = ll > 0 ? (ax[0] * ab[0] + ax[1] * ab[1] + ax[2] * ab[2]) / ll : 0;
+      t = t < 0 ? 0 : t > 1 ? 1 : t;
+      double d[3] = {ax[0] - t * ab[0], ax[1] - t * ab[1], ax[2] - t * ab[2]};
+      double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+      if (dd < dmin) dmin = dd, tmin = t, jmin = (int)j;
+    }
+    if (near_end) continue;
+    for (int b = 0; b < N_BONE_HANDLES; ++b)
+      if (bone_ok[b] && jmin == jb[b] && tmin >= 0.3 && tmin <= 0.7) {
+        band[v] = (int8_t)b;
+        double mid = fabs(tmin - 0.5) + sqrt(dmin);
+        if (mid < best[b]) best[b] = mid, seed[b] = (int32_t)v;
+      }
+  }
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int k = 0; k < 3; ++k) {
+      int32_t a = m->F[3 * f + k], b = m->F[3 * f + (k + 1) % 3];
+      if (band[a] >= 0 && band[a] == band[b]) uf[uf_find(uf, a)] = uf_find(uf, b);
+    }
+  for (int b = 0; b < N_BONE_HANDLES; ++b)
+    bone_ok[b] = bone_ok[b] && seed[b] >= 0;
+  for (size_t v = 0; v < n; ++v)
+    if (band[v] >= 0 &&
+        (!bone_ok[band[v]] || uf_find(uf, (int32_t)v) != uf_find(uf, seed[band[v]])))
+      band[v] = -1;
+  free(uf), free(best), free(seed);
+  return true;
+}
+
 /* Streams the JSON with fprintf: a cJSON tree of 8M numbers for a 1M-vertex skin would cost
  * gigabytes. Weights are written with 7 significant digits. */
 static km_status write_rig_stream(FILE *f, const char *path, const km_character *c, km_error *err);
@@ -128,7 +225,19 @@ static km_status write_rig_stream(FILE *f, const char *path, const km_character 
     handle_vertex[h] = li >= 0 ? c->landmarks[li].vertex : (long)top;
   }
 
-  if (!f) return KM_OK;
+  int8_t *band = km__malloc(n, 1);
+  int bone_ok[N_BONE_HANDLES] = {0};
+  int32_t ends[5];
+  for (int h = 0; h < 5; ++h)
+    ends[h] = (int32_t)handle_vertex[h];
+  if (!band || !bone_bands(c, ends, 5, radius, band, bone_ok)) {
+    free(band);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  }
+  if (!f) {
+    free(band);
+    return KM_OK;
+  }
   fprintf(f,
           "{\"format\":\"kinemesh-rig\",\"version\":1,\"units\":\"m\",\"vertices\":%zu,"
           "\"skeleton\":\"kinect1\",\n\"joints\":[",
@@ -156,11 +265,40 @@ static km_status write_rig_stream(FILE *f, const char *path, const km_character 
   for (int h = 0; h < 5; ++h)
     fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%ld,\"radius\":%.6g}", h ? "," : "",
             handle_names[h], handle_vertex[h], radius);
+  for (int b = 0; b < N_BONE_HANDLES; ++b) {
+    if (!bone_ok[b]) continue;
+    fprintf(f, ",\n{\"name\":\"%s\",\"vertices\":[", bone_handle_name[b]);
+    /* At most BAND_MAX vertices, every k-th of the band: a rigid handle needs a few points
+     * spread over the band, and the per-frame solve costs per handle vertex. */
+    size_t cnt = 0, kept = 0;
+    for (size_t v = 0; v < n; ++v)
+      cnt += band[v] == b;
+    size_t every = (cnt + BAND_MAX - 1) / BAND_MAX;
+    bool first = true;
+    for (size_t v = 0, i = 0; v < n; ++v)
+      if (band[v] == b && i++ % every == 0 && kept++ < BAND_MAX) {
+        fprintf(f, first ? "%zu" : ",%zu", v);
+        first = false;
+      }
+    fputs("]}", f);
+  }
+  free(band);
+  /* Every handle moves rigidly with a bone (the end handles with the bone ending at their
+   * joint), posed on the character's own skeleton ("joints" above); see km_rig_parse. */
+  /* Hands and feet turn about the elbow / knee with the elbow -> hand / knee -> foot line:
+   * Kinect's wrist -> hand and ankle -> foot bones are too short to steer by, and a tracker
+   * that sends a hand alone (OSC) still moves the hand. */
+  static const char *const handle_bone_start[5] = {"ShoulderCenter", "ElbowLeft", "ElbowRight",
+                                                   "KneeLeft", "KneeRight"};
   fputs("],\n\"map\":[", f);
   for (int h = 0; h < 5; ++h)
-    fprintf(f, "%s\n{\"handle\":\"%s\",\"joint\":\"%s\",\"axes\":\"xyz\",\"scale\":1.0}",
-            h ? "," : "", handle_names[h], handle_joints[h]);
-  fputs("],\n\"filter\":{\"smoothing\":0.5,\"trend\":0.5}}\n", f);
+    fprintf(f, "%s\n{\"handle\":\"%s\",\"bone\":[\"%s\",\"%s\"]}", h ? "," : "", handle_names[h],
+            handle_bone_start[h], handle_joints[h]);
+  for (int b = 0; b < N_BONE_HANDLES; ++b)
+    if (bone_ok[b])
+      fprintf(f, ",\n{\"handle\":\"%s\",\"bone\":[\"%s\",\"%s\"]}", bone_handle_name[b],
+              bone_handle_joints[b][0], bone_handle_joints[b][1]);
+  fputs("],\n\"aim\":true,\"filter\":{\"smoothing\":0.5,\"trend\":0.5}}\n", f);
   return KM_OK;
 }
 

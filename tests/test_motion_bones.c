@@ -1,0 +1,222 @@
+/* Issue 12, bone handles: a thin two-bone "arm" (2 m, radius 2 cm, shoulder at x = 0, elbow at
+ * x = 1) with a handle band on each bone ("bone": [shoulder, elbow] and [elbow, wrist]) and the
+ * character's joints in the rig bends at the elbow when the performer's forearm turns 90
+ * degrees: the forearm band turns with it about the character's own elbow (forward kinematics,
+ * whatever the performer's bone lengths), and the edge stretch stays bounded (through
+ * km_puppetry, full ARAP and the reduced model). The paper's translation-only hand handle on the
+ * same motion moves the hand but does not turn the forearm. Also: "bone" entries are checked when
+ * parsed, and a CMU BVH take is read onto the Kinect v1 joints (its names mapped). */
+#include "km_test.h"
+
+enum { RING = 8, SEGS = 40 };
+
+static km_mesh bar(void) {
+  km_mesh m = {0};
+  m.n_vertices = (size_t)RING * (SEGS + 1);
+  m.n_faces = (size_t)2 * RING * SEGS;
+  m.V = malloc(m.n_vertices * 3 * sizeof(double));
+  m.F = malloc(m.n_faces * 3 * sizeof(int32_t));
+  for (int i = 0; i <= SEGS; ++i)
+    for (int k = 0; k < RING; ++k) {
+      double a = 2 * M_PI * k / RING, *v = m.V + 3 * (size_t)(i * RING + k);
+      v[0] = 2.0 * i / SEGS;
+      v[1] = 0.02 * cos(a);
+      v[2] = 0.02 * sin(a);
+    }
+  size_t f = 0;
+  for (int i = 0; i < SEGS; ++i)
+    for (int k = 0; k < RING; ++k) {
+      int32_t a = i * RING + k, b = i * RING + (k + 1) % RING, c = a + RING, d = b + RING;
+      int32_t t[6] = {a, b, d, a, d, c};
+      memcpy(m.F + 3 * f, t, sizeof t);
+      f += 2;
+    }
+  return m;
+}
+
+static double edge_stretch(const km_mesh *m, const double *V) {
+  double worst = 0;
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int e = 0; e < 3; ++e) {
+      int32_t a = m->F[3 * f + e], b = m->F[3 * f + (e + 1) % 3];
+      double l = 0, l0 = 0;
+      for (int c = 0; c < 3; ++c) {
+        l += (V[3 * a + c] - V[3 * b + c]) * (V[3 * a + c] - V[3 * b + c]);
+        l0 += (m->V[3 * a + c] - m->V[3 * b + c]) * (m->V[3 * a + c] - m->V[3 * b + c]);
+      }
+      worst = fmax(worst, fabs(sqrt(l / l0) - 1));
+    }
+  return worst;
+}
+
+/* Appends the vertices of rings i0..i1 as a JSON list. */
+static int rings(char *s, size_t n, int i0, int i1) {
+  int w = 0;
+  for (int i = i0; i <= i1; ++i)
+    for (int k = 0; k < RING; ++k)
+      w += snprintf(s + w, n - (size_t)w, "%s%d", i == i0 && !k ? "" : ",", i * RING + k);
+  return w;
+}
+
+typedef struct result {
+  double stretch;
+  double ring[3];    /* centre of ring 30 (x = 1.5 at rest, on the forearm) */
+  double ring_ydiff; /* y spread of ring 30: 0 once it lies across the y axis */
+} result;
+
+/* bones: the two bone handles (shoulder band anchored by its bone); else the paper's rig: the
+ * shoulder ring an anchor, the wrist ring translated by the wrist joint. */
+static result run(const km_mesh *m, bool bones, km_puppetry_solver solver) {
+  char json[8192];
+  size_t n = sizeof json;
+  int w = snprintf(json, n, "{\"skeleton\":\"bvh\",\"handles\":[");
+  if (bones) {
+    w += snprintf(json + w, n - (size_t)w, "{\"name\":\"upper\",\"vertices\":[");
+    w += rings(json + w, n - (size_t)w, 6, 14);
+    w += snprintf(json + w, n - (size_t)w, "]},{\"name\":\"fore\",\"vertices\":[");
+    w += rings(json + w, n - (size_t)w, 26, 34);
+    w += snprintf(json + w, n - (size_t)w,
+                  "]}],\"map\":[{\"handle\":\"upper\",\"bone\":[\"shoulder\",\"elbow\"]},"
+                  "{\"handle\":\"fore\",\"bone\":[\"elbow\",\"wrist\"]}],"
+                  "\"joints\":[{\"name\":\"shoulder\",\"rest\":[0,0,0]},"
+                  "{\"name\":\"elbow\",\"rest\":[1,0,0]},{\"name\":\"wrist\",\"rest\":[2,0,0]}]}");
+  } else {
+    w += snprintf(json + w, n - (size_t)w, "{\"name\":\"base\",\"vertices\":[");
+    w += rings(json + w, n - (size_t)w, 0, 0);
+    w += snprintf(json + w, n - (size_t)w, "]},{\"name\":\"hand\",\"vertices\":[");
+    w += rings(json + w, n - (size_t)w, SEGS, SEGS);
+    snprintf(json + w, n - (size_t)w, "]}],\"map\":[{\"handle\":\"hand\",\"joint\":\"wrist\"}]}");
+  }
+  const char *names[3] = {"shoulder", "elbow", "wrist"};
+  const int32_t parents[3] = {-1, 0, 1};
+  km_rig rig;
+  result res = {NAN, {NAN, NAN, NAN}, NAN};
+  CHECK_OK(km_rig_parse(json, strlen(json), "arm.rig.json", m, names, 3, &rig, KM_E));
+  if (bones) {
+    CHECK(rig.n_maps == 2 && rig.maps[0].bone_from == 1 && rig.maps[0].joint == 1 &&
+          rig.maps[1].bone_from == 2 && rig.maps[1].joint == 2);
+    CHECK(rig.joint_rest && rig.n_joint_rest == 3 && rig.joint_rest[3] == 1);
+  }
+  km_filter_options raw = {.smoothing = KM_FILTER_ZERO, .trend = KM_FILTER_ZERO};
+  km_puppetry_options o = {0};
+  o.filter = &raw;
+  o.no_glitch = true;
+  o.joint_parents = parents;
+  o.retarget.scale = 1;
+  o.solver = solver;
+  o.puppet.fields = 4;
+  o.puppet.isolines = 10;
+  o.arap.iterations = 100;
+  km_puppetry *p = NULL;
+  CHECK_OK(km_puppetry_create(m, &rig, names, 3, &o, &p, NULL, KM_E));
+  if (p) {
+    double *V = malloc(m->n_vertices * 3 * sizeof(double));
+    /* The performer's bones are shorter than the character's (0.9 and 0.8 m against 1 and 1):
+     * bone handles keep the character's lengths. */
+    const double straight[9] = {0, 0, 0, 0.9, 0, 0, 1.7, 0, 0};
+    const double bent[9] = {0, 0, 0, 0.9, 0, 0, 0.9, 0.8, 0};
+    CHECK_OK(km_puppetry_push(p, straight, V, KM_E));
+    for (int f = 0; f < 20; ++f)
+      CHECK_OK(km_puppetry_push(p, bent, V, KM_E));
+    res.stretch = edge_stretch(m, V);
+    double ylo = INFINITY, yhi = -INFINITY, c[3] = {0, 0, 0};
+    for (int k = 0; k < RING; ++k) {
+      const double *v = V + 3 * (size_t)(30 * RING + k);
+      ylo = fmin(ylo, v[1]);
+      yhi = fmax(yhi, v[1]);
+      for (int d = 0; d < 3; ++d)
+        c[d] += v[d] / RING;
+    }
+    memcpy(res.ring, c, sizeof c);
+    res.ring_ydiff = yhi - ylo;
+    free(V);
+    km_puppetry_free(&p);
+  }
+  km_rig_free(&rig);
+  return res;
+}
+
+static void test_bad_bone(const km_mesh *m) {
+  const char *names[3] = {"shoulder", "elbow", "wrist"};
+  const char *bad[] = {
+      "{\"skeleton\":\"bvh\",\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
+      "\"map\":[{\"handle\":\"h\",\"bone\":[\"shoulder\"]}]}",
+      "{\"skeleton\":\"bvh\",\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
+      "\"map\":[{\"handle\":\"h\",\"bone\":[\"knee\",\"elbow\"]}]}",
+      "{\"skeleton\":\"bvh\",\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
+      "\"map\":[{\"handle\":\"h\",\"bone\":[\"shoulder\",\"elbow\"],\"joint\":\"elbow\"}]}",
+      "{\"skeleton\":\"bvh\",\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],\"aim\":1,"
+      "\"map\":[{\"handle\":\"h\",\"bone\":[\"shoulder\",\"elbow\"]}]}",
+  };
+  const char *want[] = {"\"bone\"", "knee", "\"bone\"", "\"aim\""};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
+    km_rig rig;
+    km_error e = {0};
+    CHECK(km_rig_parse(bad[i], strlen(bad[i]), "bad.rig.json", m, names, 3, &rig, &e) ==
+          KM_ERR_PARSE);
+    CHECK_MSG(strstr(e.message, "bad.rig.json") && strstr(e.message, want[i]), "case %zu: %s", i,
+              e.message);
+  }
+}
+
+/* A CMU BVH (ASF names: LeftShoulder/LeftElbow/LeftWrist/lhand, LeftHip/LeftKnee/LeftAnkle/
+ * LeftToe, lowerback, lowerneck) read onto all 20 Kinect v1 joints. */
+static void test_cmu_names(void) {
+  char path[1024];
+  snprintf(path, sizeof path, "%s/bvh/cmu_131_01.bvh", KM_SHARED_DATA);
+  FILE *f = fopen(path, "rb");
+  if (!f) {
+    printf("  skipped the CMU name map: %s is absent\n", path);
+    return;
+  }
+  fclose(f);
+  km_motion_read_options ro = {0};
+  ro.kinect1 = true;
+  km_motion_read_info info;
+  km_take t = {0};
+  CHECK_OK(km_motion_read(path, &ro, &t, &info, KM_E));
+  CHECK_MSG(info.kinect1_found == KM_KINECT1_JOINTS, "%zu of 20 Kinect joints found",
+            info.kinect1_found);
+  if (t.n_frames) { /* the hand hangs below the elbow, the foot below the knee, at frame 0 */
+    const double *p = t.positions;
+    int el = km_kinect1_joint_index("ElbowLeft"), hl = km_kinect1_joint_index("HandLeft");
+    int kn = km_kinect1_joint_index("KneeLeft"), fl = km_kinect1_joint_index("FootLeft");
+    int hd = km_kinect1_joint_index("Head"), hc = km_kinect1_joint_index("HipCenter");
+    CHECK(p[3 * hl + 1] < p[3 * el + 1] && p[3 * fl + 1] < p[3 * kn + 1] &&
+          p[3 * hd + 1] > p[3 * hc + 1]);
+  }
+  km_take_free(&t);
+}
+
+int main(void) {
+  km_mesh m = bar();
+  for (int solver = 0; solver < 2; ++solver) {
+    km_puppetry_solver sv = solver ? KM_PUPPETRY_FULL : KM_PUPPETRY_REDUCED;
+    result b = run(&m, true, sv), t = run(&m, false, sv);
+    printf("  %s: edge stretch max %.4f with bone handles, %.4f translation-only; forearm ring "
+           "at (%.3f %.3f %.3f), y spread %.4f\n",
+           solver ? "full" : "reduced", b.stretch, t.stretch, b.ring[0], b.ring[1], b.ring[2],
+           b.ring_ydiff);
+    /* The forearm ring (x = 1.5 at rest) turned about the character's elbow (1, 0, 0): now at
+     * (1, 0.5, 0), lying across y; the reduced model meets its targets in the least-squares
+     * sense only. */
+    double tol = solver ? 0.002 : 0.05;
+    CHECK_MSG(fabs(b.ring[0] - 1) < tol && fabs(b.ring[1] - 0.5) < tol && fabs(b.ring[2]) < tol,
+              "forearm ring at (%g %g %g)", b.ring[0], b.ring[1], b.ring[2]);
+    CHECK_MSG(b.ring_ydiff < (solver ? 1e-6 : 0.02), "forearm ring did not turn (y spread %g)",
+              b.ring_ydiff);
+    /* A tube bent 90 degrees about a pivot on its axis: the stretch between the bands is
+     * bounded by the inside of the corner (an arc of the same ends is 2 * 0.3 * pi / 4 long
+     * against 0.6: 21% shorter); measured: 18% full, 33% reduced (4 fields). The paper's
+     * handle moves the hand but leaves the forearm unturned. */
+    CHECK_MSG(b.stretch < (solver ? 0.22 : 0.36), "bone handles stretch %g (translation-only %g)",
+              b.stretch, t.stretch);
+    CHECK_MSG(t.ring_ydiff > 0.005 && t.ring_ydiff > 4 * b.ring_ydiff,
+              "translation-only forearm turned (y spread %g)", t.ring_ydiff);
+  }
+  test_bad_bone(&m);
+  test_cmu_names();
+  free(m.V);
+  free(m.F);
+  return km_test_finish("test_motion_bones");
+}
