@@ -33,7 +33,9 @@ try {
   await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
     null, { timeout: 80000 });
   const s0 = await status(http);
-  check(Object.keys(s0.handles).length === 5, `automatic rig: ${Object.keys(s0.handles).join(', ')}`);
+  const auto = Object.keys(s0.handles);
+  check(['head', 'hand_left', 'hand_right', 'foot_left', 'foot_right'].every((h) => auto.includes(h)),
+    `automatic rig: ${auto.join(', ')}`);
 
   // A chest vertex facing the camera (front-most near the mid-line at 70% of the height).
   const pos = await page.evaluate(() => { const o = []; for (let i = 0; i < window.kmLive.nv; ++i) o.push(window.kmLive.vertexPosition(i)); return o; });
@@ -67,7 +69,7 @@ try {
   const rig = fs.existsSync(rigPath) ? JSON.parse(fs.readFileSync(rigPath, 'utf8')) : null;
   const h = rig && rig.handles.find((x) => x.vertex === pending);
   const m = h && rig.map.find((x) => x.handle === h.name);
-  check(rig && rig.handles.length === 6 && m && m.joint === 'ShoulderCenter',
+  check(rig && rig.handles.length === auto.length + 1 && m && m.joint === 'ShoulderCenter',
     `saved ${rigPath}: ${rig ? rig.handles.length : 0} handles, the new one on ${m && m.joint}`);
   check(rig && rig.joints && rig.skin, 'the saved rig keeps the automatic skeleton and skin');
   await page.screenshot({ path: path.join(work, 'live_norig.png') });
