@@ -435,9 +435,10 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     km_rig_map *rm = &out->maps[mi];
     if (mb0) {
       int b0 = -1;
-      if (out->skeleton == KM_RIG_KINECT1)
-        b0 = km_kinect1_joint_index(mb0->valuestring);
-      else
+      if (out->skeleton == KM_RIG_KINECT1) {
+        b0 = km_skeleton_kinect1_joint(named, mb0->valuestring); /* any skeleton's name */
+        if (b0 < 0) b0 = -1;
+      } else
         for (size_t k = 0; k < n_joint_names && b0 < 0; ++k)
           if (joint_names[k] && strcmp(joint_names[k], mb0->valuestring) == 0) b0 = (int)k;
       if (b0 < 0) {

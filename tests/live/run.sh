@@ -35,9 +35,15 @@ case $MODE in
     node -e '
       const fs = require("fs"), r = JSON.parse(fs.readFileSync(process.argv[1], "utf8"));
       const H = {Head: "Head", HandLeft: "LeftMiddleProximal", HandRight: "RightMiddleProximal",
-                 FootLeft: "LeftToes", FootRight: "RightToes", HipCenter: "Hips"};
+                 FootLeft: "LeftToes", FootRight: "RightToes", HipCenter: "Hips",
+                 ShoulderCenter: "Neck", ShoulderLeft: "LeftUpperArm", ElbowLeft: "LeftLowerArm",
+                 WristLeft: "LeftHand", ShoulderRight: "RightUpperArm", ElbowRight: "RightLowerArm",
+                 WristRight: "RightHand", HipLeft: "LeftUpperLeg", KneeLeft: "LeftLowerLeg",
+                 AnkleLeft: "LeftFoot", HipRight: "RightUpperLeg", KneeRight: "RightLowerLeg",
+                 AnkleRight: "RightFoot"};
+      const hn = (j) => { if (!H[j]) throw new Error("no humanoid name for " + j); return H[j]; };
       r.skeleton = "humanoid";
-      for (const m of r.map) { if (!H[m.joint]) throw new Error("no humanoid name for " + m.joint); m.joint = H[m.joint]; }
+      for (const m of r.map) { if (m.bone) m.bone = m.bone.map(hn); else m.joint = hn(m.joint); }
       fs.writeFileSync(process.argv[2], JSON.stringify(r));' "$WORK/c.rig.json" "$WORK/h.rig.json" \
       || { echo "FAIL: humanoid rig"; exit 1; }
     EXTRA=(--rig "$WORK/h.rig.json") ;;
