@@ -36,8 +36,7 @@ int km_bench(int argc, char **argv) {
   if (argc >= 2 && !strcmp(argv[1], "motion")) return km_bench_motion(argc - 1, argv + 1);
   if (argc >= 2 && !strcmp(argv[1], "batch")) return km_bench_batch(argc - 1, argv + 1);
   if (argc >= 2 && !strcmp(argv[1], "export")) return km_bench_export(argc - 1, argv + 1);
-  if (argc >= 2 && !strcmp(argv[1], "reconstruct"))
-    return km_bench_reconstruct(argc - 1, argv + 1);
+  if (argc >= 2 && !strcmp(argv[1], "reconstruct")) return km_bench_reconstruct(argc - 1, argv + 1);
   FILE *f = (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) ? stdout : stderr;
   fprintf(f, "usage: kinemesh bench deform --mesh MESH [--handles N] [--frames F] [--json]\n"
              "       kinemesh bench live [--mesh MESH [--rig RIG]] [--take TAKE] [--json]\n"

@@ -332,4 +332,3 @@ int km_bench_deform(int argc, char **argv) {
   }
   return rc;
 }
-

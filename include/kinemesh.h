@@ -342,8 +342,8 @@ typedef struct km_mesh_write_options {
  * glTF: the triangles, POSITION, NORMAL and TEXCOORD_0 of the scene's meshes, merged in
  * order (nodes depth-first as listed, each node's mesh's primitives in order; vertex order =
  * accessor order, primitive after primitive) with the nodes' world transforms applied (a
- * file without nodes: its meshes in order, as stored); v = 1 - v_gltf (OBJ's origin). Vertex order and count
- * are exactly those of the file; polygons are fan-triangulated (0,i,i+1). A PLY without
+ * file without nodes: its meshes in order, as stored); v = 1 - v_gltf (OBJ's origin). Vertex order
+ * and count are exactly those of the file; polygons are fan-triangulated (0,i,i+1). A PLY without
  * faces reads as a point cloud (n_faces == 0).
  * Attributes: OBJ `vt`/`vn` are attached to vertices through the faces' v/vt/vn references
  * (the vertex count stays that of the `v` lines: where a vertex is referenced with several
@@ -388,15 +388,14 @@ void km_mesh_skin_free(km_mesh_skin *s);
  *   mesh  out: as km_mesh_read; free with km_mesh_free
  *   skin  out: the skin (zeroed when the file has none); free with km_mesh_skin_free
  * Errors: as km_mesh_read, and KM_ERR_PARSE for a skin whose accessors do not fit. */
-km_status km_mesh_read_skinned(const char *path, km_mesh *mesh, km_mesh_skin *skin,
-                               km_error *err);
+km_status km_mesh_read_skinned(const char *path, km_mesh *mesh, km_mesh_skin *skin, km_error *err);
 /* km_mesh_read_skinned from memory (format from name's extension; buffers embedded only). */
 km_status km_mesh_parse_skinned(const void *data, size_t size, const char *name, km_mesh *mesh,
                                 km_mesh_skin *skin, km_error *err);
 /* Writes a mesh atomically (temporary file, then rename), creating missing parent folders.
  * Coordinates are written exactly (%.17g in text formats, raw doubles in binary PLY), so
  * reading back is bit for bit. UV and N, when present, are written too (OBJ vt/vn with
- * v/t/n face references, one per vertex; PLY u v, nx ny nz); OFF has no place for them. 
+ * v/t/n face references, one per vertex; PLY u v, nx ny nz); OFF has no place for them.
  *   path  in: file; its extension gives the format unless opt says otherwise
  *   m     in: mesh
  *   opt   in: may be NULL (format from extension, binary little-endian PLY)
@@ -440,17 +439,17 @@ km_status km_frame_rotation(const km_frame *f, double R[9], km_error *err);
 /* Applies a frame change in place: positions P (n_points*3) become scale*R*P (NaN stays NaN),
  * normals N (n_normals*3, may be NULL) become R*N (rotation only).
  * Errors: as km_frame_rotation; KM_ERR_INVALID for a non-positive or non-finite scale. */
-km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *N,
-                         size_t n_normals, km_error *err);
+km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *N, size_t n_normals,
+                         km_error *err);
 /* km_frame_apply to a mesh's V and N (UV and faces are unchanged; a rotation keeps the
  * winding). */
 km_status km_mesh_frame_apply(const km_frame *f, km_mesh *m, km_error *err);
 
 typedef struct km_frame_guess {
-  km_frame frame;   /* the guessed up and forward (scale 0: units are not guessed) */
-  double height;    /* extent along the guessed up axis, in file units */
-  bool standing;    /* the up axis is clearly the longest (a standing figure) */
-  bool sure_up;     /* the sign of up was decided by a clear mass offset, not by default */
+  km_frame frame; /* the guessed up and forward (scale 0: units are not guessed) */
+  double height;  /* extent along the guessed up axis, in file units */
+  bool standing;  /* the up axis is clearly the longest (a standing figure) */
+  bool sure_up;   /* the sign of up was decided by a clear mass offset, not by default */
   bool sure_forward;
 } km_frame_guess;
 /* Guesses how a mesh is oriented, among the 24 axis-aligned frames. Heuristic (documented in
@@ -690,19 +689,18 @@ int km_skeleton_kinect1_joint(km_skeleton_kind named, const char *name);
  * shoulders, the mid spine between those two, the head at the nose (MediaPipe).
  *   in   in: km_skeleton_joint_count(from)*3 positions, NaN where missing
  *   out  out: km_skeleton_joint_count(to)*3, NaN where nothing drives a joint */
-void km_skeleton_convert(km_skeleton_kind from, const double *in, km_skeleton_kind to,
-                         double *out);
+void km_skeleton_convert(km_skeleton_kind from, const double *in, km_skeleton_kind to, double *out);
 
 /* ---- humanoid poses (VMC; issue 15) */
 
 /* A Unity humanoid pose as the VMC protocol carries it (/VMC/Ext/Root/Pos, /VMC/Ext/Bone/Pos),
  * in kinemesh's frame (km_humanoid_unity_convert applied). Quaternions are (x, y, z, w). */
 typedef struct km_humanoid_pose {
-  double root[7];                      /* the avatar root: position (m) and rotation */
-  double bone[7 * KM_HUMANOID_BONES];  /* per HumanBodyBones bone: local position relative to
-                                          its parent bone (or the root) and local rotation */
-  bool present[KM_HUMANOID_BONES];     /* bones set; an absent bone is skipped: its children
-                                          hang from their nearest present ancestor */
+  double root[7];                     /* the avatar root: position (m) and rotation */
+  double bone[7 * KM_HUMANOID_BONES]; /* per HumanBodyBones bone: local position relative to
+                                         its parent bone (or the root) and local rotation */
+  bool present[KM_HUMANOID_BONES];    /* bones set; an absent bone is skipped: its children
+                                         hang from their nearest present ancestor */
 } km_humanoid_pose;
 /* Unity's left-handed frame (x right, y up, z forward, avatars facing +z) <-> kinemesh's
  * (right-handed, y up, performer facing +z, their left at +x), in place: UniVRM's flip
@@ -899,11 +897,11 @@ typedef struct km_filter_options {
   double jitter_radius; /* metres (Kinect fJitterRadius). 0: off */
   double max_deviation; /* metres (Kinect fMaxDeviationRadius). 0: off */
   /* ---- issue 12: One Euro filter, overshoot clamp */
-  km_filter_kind kind;  /* 0: Holt (above); KM_FILTER_ONE_EURO: Casiez et al. 2012 */
-  double fps;           /* frames per second of the pushed frames (One Euro). 0: 30 */
-  double min_cutoff;    /* One Euro minimum cutoff, Hz. 0: 1.5 */
-  double beta;          /* One Euro speed coefficient, Hz per m/s. 0: 1.0 */
-  double d_cutoff;      /* One Euro cutoff of the speed estimate, Hz. 0: 1.0 */
+  km_filter_kind kind; /* 0: Holt (above); KM_FILTER_ONE_EURO: Casiez et al. 2012 */
+  double fps;          /* frames per second of the pushed frames (One Euro). 0: 30 */
+  double min_cutoff;   /* One Euro minimum cutoff, Hz. 0: 1.5 */
+  double beta;         /* One Euro speed coefficient, Hz per m/s. 0: 1.0 */
+  double d_cutoff;     /* One Euro cutoff of the speed estimate, Hz. 0: 1.0 */
 } km_filter_options;
 #define KM_FILTER_ZERO (-1.0)
 
@@ -944,10 +942,10 @@ typedef struct km_glitch_options {
   int refound_frames;    /* 0: 1; < 0: none */
 } km_glitch_options;
 typedef struct km_glitch_stats {
-  size_t frames;   /* frames pushed */
-  size_t samples;  /* joint samples that were present (not NaN) */
-  size_t missing;  /* joint samples that were NaN already */
-  size_t rejected; /* present samples turned missing (the sum of the three reasons) */
+  size_t frames;               /* frames pushed */
+  size_t samples;              /* joint samples that were present (not NaN) */
+  size_t missing;              /* joint samples that were NaN already */
+  size_t rejected;             /* present samples turned missing (the sum of the three reasons) */
   size_t refound, speed, bone; /* rejections by reason */
 } km_glitch_stats;
 typedef struct km_glitch km_glitch;
@@ -1000,9 +998,9 @@ void km_glitch_free(km_glitch **g);
  * "joint") is a bone handle: the handle moves rigidly with that bone segment (see
  * km_retarget_create), so handles on the upper and lower arm make the elbow bend. "joints":
  * [{"name": "ElbowLeft", "rest": [x, y, z]}, ...] (a rig sidecar's skeleton, in kinemesh's
- * frame: the mesh as animated) gives the character's joints: bone handles then turn about the character's own
- * joints, chained from the root (forward kinematics), so the limbs keep their lengths.
- * "relative_to" names a joint whose displacement is subtracted from the mapped joint's
+ * frame: the mesh as animated) gives the character's joints: bone handles then turn about the
+ * character's own joints, chained from the root (forward kinematics), so the limbs keep their
+ * lengths. "relative_to" names a joint whose displacement is subtracted from the mapped joint's
  * (root-relative motion: the same as a second entry with scale -1 on that joint).
  * Other keys are ignored. "vertex"+"radius" takes every vertex whose shortest path along mesh
  * edges from the seed is <= radius (Dijkstra, so it stays on the seed's connected region and
@@ -1501,17 +1499,17 @@ typedef struct km_puppetry_options {
   /* Reduced model cache: loaded when up to date for this mesh and model parameters, else
    * the model is precomputed and written there. NULL: always precompute, write nothing. */
   const char *cache_path;
-  bool force;            /* precompute and rewrite the cache even when it is up to date */
+  bool force; /* precompute and rewrite the cache even when it is up to date */
   /* Adopt the model parameters an existing cache was built with (fields, isolines,
    * crossed_per_isoline, energy: km_puppet_cache_options) instead of puppet's, so a cache
    * made with other parameters is used as built rather than rebuilt. */
   bool cache_parameters;
   const char *take_name; /* names the take in error messages; NULL: "the take" */
   /* ---- issue 12: glitch rejection and frame rate */
-  double fps;                 /* frame rate of the pushed frames, for the glitch speed test
-                                 and the One Euro filter when their own fps is 0. 0: 30 */
-  km_glitch_options glitch;   /* rejection before the filter (km_glitch_create) */
-  bool no_glitch;             /* true: no glitch rejection (raw frames go to the filter) */
+  double fps;                   /* frame rate of the pushed frames, for the glitch speed test
+                                   and the One Euro filter when their own fps is 0. 0: 30 */
+  km_glitch_options glitch;     /* rejection before the filter (km_glitch_create) */
+  bool no_glitch;               /* true: no glitch rejection (raw frames go to the filter) */
   const int32_t *joint_parents; /* n_joints parents of the pushed columns, for the bone test
                                    (copied); NULL: kinect1 rigs use the Kinect v1 bones, other
                                    rigs get no bone test */
@@ -1530,18 +1528,18 @@ typedef enum km_puppetry_model_source {
  * reports it). */
 typedef struct km_puppetry_info {
   km_puppetry_model_source model;
-  double model_seconds; /* load or precompute time of the solver (not the cache write) */
-  bool cache_parameters; /* options.cache_parameters took the cache's model parameters */
+  double model_seconds;     /* load or precompute time of the solver (not the cache write) */
+  bool cache_parameters;    /* options.cache_parameters took the cache's model parameters */
   km_puppet_options puppet; /* the reduced model parameters used (progress cleared) */
-  km_error stale;       /* REBUILT_STALE: status KM_ERR_STALE and why the cache was unusable */
-  km_error save;        /* status KM_OK, or why the cache could not be written (the pipeline
-                           is usable all the same) */
+  km_error stale;           /* REBUILT_STALE: status KM_ERR_STALE and why the cache was unusable */
+  km_error save;            /* status KM_OK, or why the cache could not be written (the pipeline
+                               is usable all the same) */
 } km_puppetry_info;
 
 /* The cache policy alone: the reduced model of rest by opt->puppet, opt->cache_path,
- * opt->force and opt->cache_parameters (the other members are ignored), loaded when the cache is up to date, else
- * precomputed (opt->puppet.progress reports it) and saved. *out: the caller's, free with
- * km_puppet_free. info: what happened (may be NULL). A cache that is absent or stale is
+ * opt->force and opt->cache_parameters (the other members are ignored), loaded when the cache is up
+ * to date, else precomputed (opt->puppet.progress reports it) and saved. *out: the caller's, free
+ * with km_puppet_free. info: what happened (may be NULL). A cache that is absent or stale is
  * rebuilt; any other load error fails; a failed save is only reported in info->save. */
 km_status km_puppetry_model_open(const km_mesh *rest, const km_puppetry_options *opt,
                                  km_puppet **out, km_puppetry_info *info, km_error *err);
@@ -1555,9 +1553,8 @@ km_status km_puppetry_model_open(const km_mesh *rest, const km_puppetry_options 
  * missing joints); joint_names NULL: frames are already in the rig's joint order. info: may
  * be NULL. The reduced model is options.model, else km_puppetry_model_open's: its errors fail
  * the call; a cache that cannot be written is only reported in info->save. */
-km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig,
-                             const char *const *joint_names, size_t n_joints,
-                             const km_puppetry_options *opt, km_puppetry **out,
+km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig, const char *const *joint_names,
+                             size_t n_joints, const km_puppetry_options *opt, km_puppetry **out,
                              km_puppetry_info *info, km_error *err);
 /* Replaces the rig (handles, map, filter) at run time: new filter and retarget, the solver's
  * handle set changed (reduced: milliseconds, no eigen precompute; full: a new factor). The
@@ -2119,10 +2116,11 @@ typedef struct km_recon_frame_stats {
   bool unsupported;            /* unsupported_vertices > unsupported_fraction * surface_vertices:
                                 * the report's status "unsupported_surface" */
   int n_unsupported_joints;    /* entries of unsupported_joints */
-  int32_t unsupported_joints[KM_RECON_MAX_PARTS]; /* the body parts concerned: skin joints
-                                * (each vertex's largest weight) holding at least a tenth of the
-                                * unsupported vertices, most first */
-  double surface_p99_mm; /* surface -> points, 99th percentile */
+  int32_t
+      unsupported_joints[KM_RECON_MAX_PARTS]; /* the body parts concerned: skin joints
+                                               * (each vertex's largest weight) holding at least a
+                                               * tenth of the unsupported vertices, most first */
+  double surface_p99_mm;                      /* surface -> points, 99th percentile */
 } km_recon_frame_stats;
 
 /* How the first frame was placed before the nonrigid registration. */
@@ -2173,11 +2171,11 @@ typedef struct km_recon_report {
                                    * facing one; else over all vertices */
   double unsupported_distance_mm; /* the thresholds used */
   double unsupported_fraction;
-  size_t unsupported_frames;      /* frames flagged "unsupported_surface" */
-  int32_t **unsupported;          /* n_frames (km_reconstruct; may be NULL): per frame the ids
-                                   * of its unsupported vertices, frames[f].unsupported_vertices
-                                   * of them (NULL when none) */
-  km_anim_report export_report;   /* what km_reconstruct's writer wrote (issue 16) */
+  size_t unsupported_frames;    /* frames flagged "unsupported_surface" */
+  int32_t **unsupported;        /* n_frames (km_reconstruct; may be NULL): per frame the ids
+                                 * of its unsupported vertices, frames[f].unsupported_vertices
+                                 * of them (NULL when none) */
+  km_anim_report export_report; /* what km_reconstruct's writer wrote (issue 16) */
 } km_recon_report;
 /* Frees frames, joints, joint_names and unsupported of r and zeroes the struct. */
 void km_recon_report_free(km_recon_report *r);
@@ -2190,17 +2188,16 @@ const char *km_recon_frame_status(const km_recon_frame_stats *s);
  * {"format":"kinemesh-recon-report","version":1,"frames":[{"index":..,"points":..,
  * "mean_mm":..,"max_mm":..,"iterations":..,"seconds":..,"status":"KM_OK",
  * "message":".." (failed frames only), "joints":[x,y,z,...], and the two-sided error:
- * "p95_mm", "surface_mean_mm", "surface_p95_mm", "surface_p99_mm", "surface_max_mm", "surface_vertices",
- * "unsupported_vertices", "unsupported_joints":[names], "unsupported_ids":[vertex ids] (when
- * report->unsupported has them); a flagged frame has "status":"unsupported_surface"}...],
- * "surface_to_points": "all vertices (visibility unknown)"|"vertices facing a camera",
- * "unsupported_distance_mm", "unsupported_fraction", "unsupported_frames", "jerk_before":..,
- * "jerk_after":.., "first_frame": {"correspondences": N, "initialisation": "...", and
- * without correspondences "yaw_candidates", "yaw_deg", "rotation_deg", "rigid_residual_mm",
- * "residual_mm", "feet_residual_mm", "scale", "landmarks"; and "limbs_turned", "limbs_scaled"},
- * "joints_from": "skin weights"|"rig"}.
- *   r  in: report (km_reconstruct)
- * Errors: KM_ERR_IO. */
+ * "p95_mm", "surface_mean_mm", "surface_p95_mm", "surface_p99_mm", "surface_max_mm",
+ * "surface_vertices", "unsupported_vertices", "unsupported_joints":[names],
+ * "unsupported_ids":[vertex ids] (when report->unsupported has them); a flagged frame has
+ * "status":"unsupported_surface"}...], "surface_to_points": "all vertices (visibility
+ * unknown)"|"vertices facing a camera", "unsupported_distance_mm", "unsupported_fraction",
+ * "unsupported_frames", "jerk_before":.., "jerk_after":.., "first_frame": {"correspondences": N,
+ * "initialisation": "...", and without correspondences "yaw_candidates", "yaw_deg", "rotation_deg",
+ * "rigid_residual_mm", "residual_mm", "feet_residual_mm", "scale", "landmarks"; and "limbs_turned",
+ * "limbs_scaled"}, "joints_from": "skin weights"|"rig"}. r  in: report (km_reconstruct) Errors:
+ * KM_ERR_IO. */
 km_status km_recon_report_write_json(const char *path, const km_recon_report *r, km_error *err);
 
 /* Incremental reconstructor: create with the template (mesh, skeleton, skin), register the
@@ -2322,8 +2319,8 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * edges (three or more faces), too few extremities for the requested skeleton (kinect1 or
  * quadruped asked for), a surface too small for five separate handles. */
 typedef enum km_autorig_skeleton {
-  KM_AUTORIG_AUTO = 0, /* humanoid or quadruped from where the extremities are, else prop */
-  KM_AUTORIG_KINECT1,  /* humanoid: Kinect v1 joints embedded in the body */
+  KM_AUTORIG_AUTO = 0,  /* humanoid or quadruped from where the extremities are, else prop */
+  KM_AUTORIG_KINECT1,   /* humanoid: Kinect v1 joints embedded in the body */
   KM_AUTORIG_QUADRUPED, /* four limbs and a head mapped onto the Kinect v1 joints */
   KM_AUTORIG_PROP       /* a bust, an object: five handle points by position (below) */
 } km_autorig_skeleton;
@@ -2332,7 +2329,8 @@ typedef enum km_autorig_skeleton {
 typedef struct km_autorig_options {
   km_autorig_skeleton skeleton; /* 0: auto */
   double min_extremity; /* extremity prominence, fraction of the largest bbox extent; 0: 0.2 */
-  size_t max_extremities; /* most extremities sought; 0: KM_AUTORIG_MAX_EXTREMITIES (also the cap) */
+  size_t
+      max_extremities; /* most extremities sought; 0: KM_AUTORIG_MAX_EXTREMITIES (also the cap) */
   km_progress progress;
 } km_autorig_options;
 
@@ -2340,7 +2338,7 @@ typedef struct km_autorig_options {
 typedef struct km_autorig_report {
   km_autorig_skeleton kind; /* KM_AUTORIG_KINECT1 (humanoid), _QUADRUPED or _PROP */
   size_t n_extremities;
-  int32_t extremity[KM_AUTORIG_MAX_EXTREMITIES];  /* vertex ids, most prominent first */
+  int32_t extremity[KM_AUTORIG_MAX_EXTREMITIES];         /* vertex ids, most prominent first */
   double extremity_distance[KM_AUTORIG_MAX_EXTREMITIES]; /* geodesic prominence, metres */
   /* Role of each extremity: the Kinect joint it drives ("Head", "HandLeft", ...) or "" */
   char role[KM_AUTORIG_MAX_EXTREMITIES][16];

@@ -368,7 +368,8 @@ static void test_normals_frames(void) {
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
       R[3 * i + j] = Rx[3 * i] * Rz[j] + Rx[3 * i + 1] * Rz[3 + j] + Rx[3 * i + 2] * Rz[6 + j];
-  km_mesh r = {.V = malloc(n * 3 * sizeof(double)), .F = m.F, .n_vertices = n, .n_faces = m.n_faces};
+  km_mesh r = {
+      .V = malloc(n * 3 * sizeof(double)), .F = m.F, .n_vertices = n, .n_faces = m.n_faces};
   for (size_t v = 0; v < n; ++v) {
     rotate(R, m.V + 3 * v, r.V + 3 * v);
     r.V[3 * v] += 10, r.V[3 * v + 1] -= 4;

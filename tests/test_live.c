@@ -81,7 +81,7 @@ static void test_json(void) {
 
 static km_live_osc_kind osc(lo_message m, const char *path, km_live_osc_joint *o) {
   return km_live_parse_osc(path, lo_message_get_types(m), (void *const *)lo_message_get_argv(m),
-                            lo_message_get_argc(m), o);
+                           lo_message_get_argc(m), o);
 }
 
 static void test_osc(void) {

@@ -312,10 +312,9 @@ static void test_glitch(void) {
   km_glitch_push(g, x, y);
   CHECK(!isnan(y[3]));
   km_glitch_stats_get(g, &st);
-  CHECK_MSG(st.rejected == 3 && st.speed == 1 && st.bone == 1 && st.refound == 1 &&
-                st.missing == 1,
-            "stats: rejected %zu speed %zu bone %zu refound %zu missing %zu", st.rejected,
-            st.speed, st.bone, st.refound, st.missing);
+  CHECK_MSG(st.rejected == 3 && st.speed == 1 && st.bone == 1 && st.refound == 1 && st.missing == 1,
+            "stats: rejected %zu speed %zu bone %zu refound %zu missing %zu", st.rejected, st.speed,
+            st.bone, st.refound, st.missing);
   /* a real 0.6 m relocation of the whole chain is accepted once the allowance has grown
    * past it (2 frames x 0.4 m) */
   for (int k = 0; k < 6; k += 3)

@@ -370,7 +370,7 @@ static void test_relative_to(void) {
   km_retarget_push(r, J, T);
   const double *c = km_retarget_rest_centroids(r);
   for (int k = 0; k < 3 * KM_KINECT1_JOINTS; k += 3)
-    J[k] += 0.5; /* the performer walks 0.5 m along x */
+    J[k] += 0.5;       /* the performer walks 0.5 m along x */
   J[3 * 7 + 1] += 0.1; /* and lifts the left hand 0.1 m */
   km_retarget_push(r, J, T);
   CHECK_NEAR(T[0], c[0], 1e-12); /* hand: relative to the hips, only the lift */
@@ -390,7 +390,8 @@ static void test_relative_to(void) {
            "{\"root_motion\":\"rigid\",\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
            "\"map\":[{\"handle\":\"h\",\"joint\":\"Head\"}]}");
   CHECK_STATUS(parse(json, &m, &rig), KM_ERR_PARSE);
-  CHECK(strstr(km_test_err.message, "puppet.rig.json") && strstr(km_test_err.message, "relative_to"));
+  CHECK(strstr(km_test_err.message, "puppet.rig.json") &&
+        strstr(km_test_err.message, "relative_to"));
   /* "floor": a foot pushed 0.3 m down stops at the rest floor; lifted, it moves freely */
   snprintf(json, sizeof json,
            "{\"floor\":true,\"handles\":[{\"name\":\"foot\",\"vertices\":[%d]}],"
@@ -417,7 +418,8 @@ static void test_relative_to(void) {
            "{\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
            "\"map\":[{\"handle\":\"h\",\"joint\":\"Head\",\"relative_to\":\"Hipz\"}]}");
   CHECK_STATUS(parse(json, &m, &rig), KM_ERR_PARSE);
-  CHECK(strstr(km_test_err.message, "puppet.rig.json") && strstr(km_test_err.message, "relative_to"));
+  CHECK(strstr(km_test_err.message, "puppet.rig.json") &&
+        strstr(km_test_err.message, "relative_to"));
   free_mesh(&m);
 }
 

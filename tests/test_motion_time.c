@@ -82,8 +82,7 @@ static void test_writer_info(void) {
     if (ai.fps > 0)
       CHECK_MSG(fabs(ai.fps - 24) < 1e-9 &&
                     fabs(ai.duration - (double)(ai.timeline_frames - 1) / ai.fps) < 1e-9,
-                "%s: %zu frames, %g fps, %g s", names[w], ai.timeline_frames, ai.fps,
-                ai.duration);
+                "%s: %zu frames, %g fps, %g s", names[w], ai.timeline_frames, ai.fps, ai.duration);
     else
       CHECK(ai.duration == 0);
     if (key_every[w] > 1) CHECK(ai.frames == 4); /* keys 0, 3, 6, 9 (the last) */

@@ -50,8 +50,8 @@ static void fixture_free(fixture *fx) {
 static void test_rest_reproduces_rest(const fixture *fx) {
   km_puppetry *p = NULL;
   km_puppetry_info info;
-  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, KM_KINECT1_JOINTS, NULL, &p, &info,
-                              KM_E));
+  CHECK_OK(
+      km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, KM_KINECT1_JOINTS, NULL, &p, &info, KM_E));
   if (!p) return;
   CHECK(info.model == KM_PUPPETRY_MODEL_BUILT);
   size_t nv = fx->c.mesh.n_vertices, nh = 0;
@@ -185,12 +185,12 @@ static void test_same_as_manual_loop(const fixture *fx) {
     maps_hand |= fx->rig.maps[m].joint == 7;
   CHECK(maps_hand);
   o.take_name = "wave.bvh";
-  km_status s = km_puppetry_create(&fx->c.mesh, &fx->rig, (const char *const *)names, 22, &o, &p,
-                                   NULL, KM_E);
+  km_status s =
+      km_puppetry_create(&fx->c.mesh, &fx->rig, (const char *const *)names, 22, &o, &p, NULL, KM_E);
   CHECK(s == KM_ERR_INVALID && p == NULL);
-  CHECK_MSG(strstr(km_test_err.message, "wave.bvh has no joint named HandLeft, which the kinect1 "
-                                        "rig maps (its joints: Tail, HandTipLeft, FootRight") !=
-                NULL,
+  CHECK_MSG(strstr(km_test_err.message,
+                   "wave.bvh has no joint named HandLeft, which the kinect1 "
+                   "rig maps (its joints: Tail, HandTipLeft, FootRight") != NULL,
             "%s", km_test_err.message);
   km_puppetry_free(&p);
   free(sh.positions);
@@ -352,9 +352,7 @@ static void test_set_rig(const fixture *fx) {
   free(B);
 }
 
-static bool mentions(const char *path) {
-  return strstr(km_test_err.message, path) != NULL;
-}
+static bool mentions(const char *path) { return strstr(km_test_err.message, path) != NULL; }
 
 static void test_motion_read(const fixture *fx) {
   km_take t;
@@ -420,9 +418,9 @@ static void test_motion_read(const fixture *fx) {
   if (t.n_joints == 20) {
     CHECK(!strcmp(t.joint_names[0], "HipCenter") && !strcmp(t.joint_names[7], "HandLeft"));
     CHECK(t.parents && t.parents[0] == -1 && t.parents[7] == km_kinect1_joint_parent(7));
-    CHECK(t.positions[0] == 6 && t.positions[2] == 8);        /* HipCenter, frame 0 */
+    CHECK(t.positions[0] == 6 && t.positions[2] == 8);           /* HipCenter, frame 0 */
     CHECK(t.positions[7 * 3] == 0 && t.positions[60 + 21] == 9); /* HandLeft */
-    CHECK(isnan(t.positions[3]));                              /* Spine absent */
+    CHECK(isnan(t.positions[3]));                                /* Spine absent */
   }
   km_take_free(&t);
 
@@ -496,8 +494,7 @@ static void test_spike_rejected(const fixture *fx) {
       }
     if (!off) {
       CHECK_MSG(st0.rejected == 0, "clean take: %zu samples rejected", st0.rejected);
-      CHECK_MSG(st.rejected >= 1 && st.speed >= 1, "spike not counted (%zu rejected)",
-                st.rejected);
+      CHECK_MSG(st.rejected >= 1 && st.speed >= 1, "spike not counted (%zu rejected)", st.rejected);
       CHECK_MSG(worst <= 0.01 * diag, "spike moves the mesh %.4f (diag %.4f)", worst, diag);
     } else {
       CHECK_MSG(st.rejected == 0 && worst > 0.01 * diag,

@@ -222,8 +222,7 @@ rig_ready:;
   lo.record = record != NULL;
   lo.token = token;
   lo.no_token = no_token;
-  if (km_live_create(&lo, &m, pup, rig_text, rig_size, replay ? &take : NULL, &live, &err) !=
-      KM_OK)
+  if (km_live_create(&lo, &m, pup, rig_text, rig_size, replay ? &take : NULL, &live, &err) != KM_OK)
     goto fail;
   g_live = live;
   struct sigaction sa;

@@ -13,7 +13,8 @@ int km_cli_precompute(int argc, char **argv) {
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
       KM_CLI_FRAME_OPTIONS(fo),
-      {"output", 'o', KM_OPT_STRING, &out, "cache file (default: the user's cache folder, $XDG_CACHE_HOME/kinemesh)"},
+      {"output", 'o', KM_OPT_STRING, &out,
+       "cache file (default: the user's cache folder, $XDG_CACHE_HOME/kinemesh)"},
       {"fields", 0, KM_OPT_INT, &fields, "propagation fields n_e (default 8)"},
       {"isolines", 0, KM_OPT_INT, &isolines, "isolines per field n_iso (default 10)"},
       {"energy", 0, KM_OPT_STRING, &energy,
@@ -84,4 +85,3 @@ done:
   km_mesh_free(&m);
   return rc;
 }
-

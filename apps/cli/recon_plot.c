@@ -8,7 +8,8 @@
 #include <string.h>
 
 km_status km_recon_report_plot(const char *png_path, const km_recon_report *r, km_error *err) {
-  if (!png_path || !r) return km_error_set(err, KM_ERR_INVALID, "km_recon_report_plot: NULL argument");
+  if (!png_path || !r)
+    return km_error_set(err, KM_ERR_INVALID, "km_recon_report_plot: NULL argument");
   if (strpbrk(png_path, "'\"\n"))
     return km_error_set(err, KM_ERR_INVALID, "%s: plot path must not contain quotes", png_path);
   /* pngcairo when this gnuplot has it (gnuplot-nox usually does), else the libgd png */
@@ -62,10 +63,10 @@ km_status km_recon_report_plot(const char *png_path, const km_recon_report *r, k
   }
   fprintf(g, "unset multiplot\n");
   int rc = pclose(g);
-  if (rc != 0) return km_error_set(err, KM_ERR_IO, "%s: gnuplot failed (exit status %d)", png_path, rc);
+  if (rc != 0)
+    return km_error_set(err, KM_ERR_IO, "%s: gnuplot failed (exit status %d)", png_path, rc);
   FILE *chk = fopen(png_path, "rb");
   if (!chk) return km_error_set(err, KM_ERR_IO, "%s: gnuplot wrote no file", png_path);
   fclose(chk);
   return KM_OK;
 }
-

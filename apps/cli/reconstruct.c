@@ -202,8 +202,8 @@ int km_cli_reconstruct(int argc, char **argv) {
     return rc;
   }
   /* The template is skinned: its parts seed a skin fit. */
-  if (!s && km_cli_skin_seeds("reconstruct", &ao, &c.mesh, &c.skin, c.skeleton.n_joints, &so,
-                              &seeds))
+  if (!s &&
+      km_cli_skin_seeds("reconstruct", &ao, &c.mesh, &c.skin, c.skeleton.n_joints, &so, &seeds))
     s = km_error_set(&err, KM_ERR_NOMEM, "out of memory");
   if (!s) s = km_reconstruct((const char *const *)paths, n, &c, feat, nfeat, &ro, out, &rep, &err);
   km_cli_progress_done();
@@ -225,9 +225,9 @@ int km_cli_reconstruct(int argc, char **argv) {
               "kinemesh reconstruct: warning: frame %zu: unsupported surface: %zu of %zu "
               "vertices (%.1f%%) farther than %.0f mm from every point (up to %.0f mm): %s\n",
               st->index, st->unsupported_vertices, st->surface_vertices,
-              st->surface_vertices ? 100.0 * (double)st->unsupported_vertices /
-                                         (double)st->surface_vertices
-                                   : 0.0,
+              st->surface_vertices
+                  ? 100.0 * (double)st->unsupported_vertices / (double)st->surface_vertices
+                  : 0.0,
               rep.unsupported_distance_mm, st->surface_max_mm, parts[0] ? parts : "no one part");
     }
     fprintf(stderr,
@@ -236,8 +236,8 @@ int km_cli_reconstruct(int argc, char **argv) {
             "(%s), %.2f s/frame, jerk %.2f -> %.2f mm -> %s\n",
             rep.n_frames, rep.failed_frames, rep.unsupported_frames, mean, smean, smax,
             rep.visibility_known ? "vertices facing a camera" : "all vertices",
-            (km_cli_now() - t0) / (double)rep.n_frames, rep.jerk_before * 1e3,
-            rep.jerk_after * 1e3, out);
+            (km_cli_now() - t0) / (double)rep.n_frames, rep.jerk_before * 1e3, rep.jerk_after * 1e3,
+            out);
     if (strict && (rep.unsupported_frames || rep.failed_frames) && rc == KM_EXIT_OK && !s) {
       fprintf(stderr, "kinemesh reconstruct: --strict: %zu frame(s) flagged, %zu carried\n",
               rep.unsupported_frames, rep.failed_frames);

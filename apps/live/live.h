@@ -53,8 +53,8 @@ typedef struct km_live_osc_joint {
  * [timestamp ms]) and KinectV2-OSC "/bodies/{id}/joints/{Name}" fffs (metres, tracking state).
  * Both are Kinect camera space; they are turned into kinemesh space like the Kinect CSV
  * reader does (180 degrees about y). argv: liblo's argument array (lo_arg **). */
-km_live_osc_kind km_live_parse_osc(const char *path, const char *types, void *const *argv,
-                                     int argc, km_live_osc_joint *out);
+km_live_osc_kind km_live_parse_osc(const char *path, const char *types, void *const *argv, int argc,
+                                   km_live_osc_joint *out);
 
 /* ---------------------------------------------------------------- VMC (live_vmc.c) */
 
@@ -146,8 +146,8 @@ typedef struct km_live km_live;
  * is taken) and starts the input and deformation threads; the HTTP service runs in
  * km_live_run. */
 km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_puppet *puppet,
-                          const char *rig_json, size_t rig_size, const km_take *replay,
-                          km_live **out, km_error *err);
+                         const char *rig_json, size_t rig_size, const km_take *replay,
+                         km_live **out, km_error *err);
 /* The token the page and clients must send (?token=...), "" when none (no_token). */
 const char *km_live_token(const km_live *l);
 /* Serves until km_live_stop (callable from any thread and from a signal handler). */

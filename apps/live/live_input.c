@@ -2,7 +2,6 @@
  * JSON datagrams (cJSON) and OSC messages (decoded by liblo, interpreted here). */
 #include "live.h"
 
-
 #include <cjson/cJSON.h>
 #include <math.h>
 #include <string.h>
@@ -144,7 +143,7 @@ static int user_id(char type, const void *a) {
 }
 
 km_live_osc_kind km_live_parse_osc(const char *path, const char *types, void *const *argv_,
-                                     int argc, km_live_osc_joint *out) {
+                                   int argc, km_live_osc_joint *out) {
   const void *const *argv = (const void *const *)argv_;
   if (!path || !types || argc < 0 || (int)strlen(types) != argc) return KM_LIVE_OSC_BAD;
   out->timestamp = NAN;

@@ -13,7 +13,6 @@
  * pose already seen, so the character does not jump). */
 #include "live.h"
 
-
 #include <cjson/cJSON.h>
 #include <errno.h>
 #include <libwebsockets.h>
@@ -375,7 +374,7 @@ static void handle_osc_msg(km_live *l, assembler *a, const char *data, size_t si
   km_live_osc_joint j;
   km_live_osc_kind k =
       km_live_parse_osc(data, lo_message_get_types(m), (void *const *)lo_message_get_argv(m),
-                         lo_message_get_argc(m), &j);
+                        lo_message_get_argc(m), &j);
   if (k == KM_LIVE_OSC_BAD)
     atomic_fetch_add(&l->bad_packets, 1);
   else if (k == KM_LIVE_OSC_JOINT)
@@ -505,8 +504,7 @@ static void *input_main(void *arg) {
 
 /* ================================================================ deformation */
 
-void km_live_quantize(const double *V, size_t n, const float lo[3], const float hi[3],
-                       int16_t *q) {
+void km_live_quantize(const double *V, size_t n, const float lo[3], const float hi[3], int16_t *q) {
   /* Centred so the page decodes x = c + q h / 32767 with the lo/hi it already has. */
   float c[3], sc[3];
   for (int a = 0; a < 3; ++a) {
@@ -625,8 +623,8 @@ static void *deform_main(void *arg) {
     km_puppetry_times tm;
     km_puppetry_times_get(l->pipe, &tm);
     double t_rt = tm.filter_ms + tm.retarget_ms, t_def = tm.solve_ms;
-    pack_frame(l, l->out_work + LWS_PRE, km_puppetry_filtered_joints(l->pipe), produced + 1,
-               in_seq, (float)t_rt, (float)t_def);
+    pack_frame(l, l->out_work + LWS_PRE, km_puppetry_filtered_joints(l->pipe), produced + 1, in_seq,
+               (float)t_rt, (float)t_def);
     double t3 = km_seconds();
     pthread_mutex_lock(&l->out_mu);
     unsigned char *tmp = l->out_latest;
@@ -1423,7 +1421,8 @@ static int udp_socket(const char *bind_addr, int port, km_error *err, const char
   int rcv = 1 << 20;
   setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcv, sizeof rcv);
   if (bind(fd, (struct sockaddr *)&a, sizeof a)) {
-    km_error_set(err, KM_ERR_IO, "%s: cannot bind %s:%d: %s", what, bind_addr, port, strerror(errno));
+    km_error_set(err, KM_ERR_IO, "%s: cannot bind %s:%d: %s", what, bind_addr, port,
+                 strerror(errno));
     close(fd);
     return -1;
   }
@@ -1448,13 +1447,14 @@ static bool build_mesh_blob(km_live *l) {
 }
 
 km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_puppet *puppet,
-                          const char *rig_json, size_t rig_size, const km_take *replay,
-                          km_live **out, km_error *err) {
+                         const char *rig_json, size_t rig_size, const km_take *replay,
+                         km_live **out, km_error *err) {
   *out = NULL;
   if (!mesh || !mesh->n_vertices || !puppet || !rig_json)
     return km_error_set(err, KM_ERR_INVALID, "live: mesh, puppet and rig are required");
   if (replay && (replay->n_joints != NJ || !replay->positions))
-    return km_error_set(err, KM_ERR_INVALID, "live: the replay take must have the 20 Kinect joints");
+    return km_error_set(err, KM_ERR_INVALID,
+                        "live: the replay take must have the 20 Kinect joints");
   km_live *l = live_zalloc(1, sizeof *l);
   if (!l) return km_error_set(err, KM_ERR_NOMEM, "out of memory");
   l->opt = *opt;
@@ -1524,8 +1524,7 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
   }
   km_puppetry_options po = {0};
   po.model = puppet;
-  if ((s = km_puppetry_create(mesh, NULL, NULL, NJ, &po, &l->pipe, NULL, err)) != KM_OK)
-    goto fail;
+  if ((s = km_puppetry_create(mesh, NULL, NULL, NJ, &po, &l->pipe, NULL, err)) != KM_OK) goto fail;
   live_rig nr = {0};
   if ((s = km_rig_parse(rig_json, rig_size, opt->rig_path ? opt->rig_path : "rig", mesh, NULL, 0,
                         &nr.rig, err)) != KM_OK)
@@ -1573,7 +1572,7 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
   l->ctx = lws_create_context(&info);
   if (!l->ctx) {
     s = km_error_set(err, KM_ERR_IO, "cannot listen for HTTP on %s:%d (port taken?)", l->bind,
-                 l->opt.http_port);
+                     l->opt.http_port);
     goto fail;
   }
   if (pthread_create(&l->def_thr, NULL, deform_main, l)) {

@@ -885,7 +885,8 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   return KM_OK;
 }
 
-/* ---------------------------------------------------------------- landmarks for a given skeleton */
+/* ---------------------------------------------------------------- landmarks for a given skeleton
+ */
 
 km_status km__autorig_landmarks(const km_mesh *m, const double *J, const int32_t tips[4],
                                 km_landmark *lm, km_error *err) {

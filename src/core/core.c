@@ -359,7 +359,8 @@ uint64_t km__fnv1a(uint64_t h, const void *data, size_t size) {
 }
 
 km_status km_write_file_atomic(const char *path, const void *data, size_t size, km_error *err) {
-  if (!path || (!data && size)) return km__fail(err, KM_ERR_INVALID, "km_write_file_atomic: NULL argument");
+  if (!path || (!data && size))
+    return km__fail(err, KM_ERR_INVALID, "km_write_file_atomic: NULL argument");
   km__atomic_file af = {0};
   km_status s = km__atomic_open(&af, path, err);
   if (s != KM_OK) return s;

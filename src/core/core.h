@@ -69,7 +69,6 @@ km_status km__list_files(const char *pattern, const char *const *exts, bool filt
 /* File extension (lowercase, without the dot) into out; "" when none. */
 void km__extension(const char *path, char *out, size_t out_size);
 
-
 /* FNV-1a 64-bit over bytes, chained from `h` (start with KM__FNV_SEED). */
 #define KM__FNV_SEED 0xcbf29ce484222325ULL
 uint64_t km__fnv1a(uint64_t h, const void *data, size_t size);

@@ -1,7 +1,8 @@
 /* Requires: core, linalg, math. External: cJSON. */
-/* Meshes: reading and writing (OBJ, PLY, OFF, glTF in, point clouds), orientation, topology, geometric operators
- * (Laplacians, mass, normals, local frames), sampling. Nothing about characters or motion.
- * Its public API is in include/kinemesh.h; mesh_io.h and mesh_args.h are private to it. */
+/* Meshes: reading and writing (OBJ, PLY, OFF, glTF in, point clouds), orientation, topology,
+ * geometric operators (Laplacians, mass, normals, local frames), sampling. Nothing about characters
+ * or motion. Its public API is in include/kinemesh.h; mesh_io.h and mesh_args.h are private to it.
+ */
 #ifndef KM_MESH_MESH_H
 #define KM_MESH_MESH_H
 

@@ -291,7 +291,8 @@ km_status km_adjacency_list(const km_mesh *m, int32_t **offsets, int32_t **adj, 
   return KM_OK;
 }
 
-void km_vertex_distance_stats(const double *A, const double *B, size_t n, double *mean, double *max) {
+void km_vertex_distance_stats(const double *A, const double *B, size_t n, double *mean,
+                              double *max) {
   double s = 0, m = 0;
   for (size_t v = 0; v < n; ++v) {
     double d = sqrt((A[3 * v] - B[3 * v]) * (A[3 * v] - B[3 * v]) +

@@ -20,11 +20,11 @@
 #define KM_GLITCH_MIN_SAMPLES 5 /* bone lengths seen before the bone test starts */
 
 typedef struct glitch_joint {
-  double last[3];  /* last accepted sample */
+  double last[3]; /* last accepted sample */
   bool has_last;
-  int since;       /* frames since the last accepted sample (1 = the previous frame) */
-  double t_last;   /* time of the last accepted sample (seconds; NaN: frames are not timed) */
-  int hold;        /* refound: frames still to treat as missing */
+  int since;     /* frames since the last accepted sample (1 = the previous frame) */
+  double t_last; /* time of the last accepted sample (seconds; NaN: frames are not timed) */
+  int hold;      /* refound: frames still to treat as missing */
   bool was_missing;
   double len[KM_GLITCH_WINDOW]; /* accepted bone lengths to the parent */
   int n_len, next_len;

@@ -15,7 +15,8 @@ km_status km__skin_alloc(km_skin *s, size_t n, km_error *err);
 
 /* Column of each Kinect v1 joint among names (by exact name; when most names are of another
  * skeleton, km_skeleton_detect, by body point through km_skeleton_joint_source), -1 when
- * absent; returns how many were found. Shared by km_motion_read (kinect1 takes) and km_puppetry (kinect1 rigs). */
+ * absent; returns how many were found. Shared by km_motion_read (kinect1 takes) and km_puppetry
+ * (kinect1 rigs). */
 int km__kinect1_columns(const char *const *names, size_t n_names, int src[KM_KINECT1_JOINTS]);
 /* The one landmark reader (sidecar.c), for rig sidecars and landmark files alike: the
  * "landmarks" array of the JSON text data (size bytes; path names the file in errors), each

@@ -42,8 +42,8 @@ static km_status kinect1_take(const km_take *t, const int src[KM_KINECT1_JOINTS]
   out->n_frames = t->n_frames;
   out->n_joints = KM_KINECT1_JOINTS;
   out->fps = t->fps;
-  out->positions = km__malloc(3 * KM_KINECT1_JOINTS * (t->n_frames ? t->n_frames : 1),
-                              sizeof(double));
+  out->positions =
+      km__malloc(3 * KM_KINECT1_JOINTS * (t->n_frames ? t->n_frames : 1), sizeof(double));
   out->joint_names = km__calloc(KM_KINECT1_JOINTS, sizeof *out->joint_names);
   out->parents = km__malloc(KM_KINECT1_JOINTS, sizeof(int32_t));
   bool ok = out->positions && out->joint_names && out->parents;

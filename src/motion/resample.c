@@ -16,8 +16,7 @@ km_status km_take_resample(const km_take *in, double fps, km_take *out, km_error
     return km__fail(err, KM_ERR_INVALID, "km_take_resample: the take has no frames");
   double nf = round((double)in->n_frames * fps / in->fps);
   if (nf < 1) nf = 1;
-  if (nf > 1e8)
-    return km__fail(err, KM_ERR_INVALID, "km_take_resample: %g frames is too many", nf);
+  if (nf > 1e8) return km__fail(err, KM_ERR_INVALID, "km_take_resample: %g frames is too many", nf);
   size_t n = (size_t)nf, nj = in->n_joints;
   out->n_frames = n;
   out->n_joints = nj;
@@ -27,9 +26,8 @@ km_status km_take_resample(const km_take *in, double fps, km_take *out, km_error
   out->positions = km__malloc(n * (nj ? nj : 1), 3 * sizeof(double));
   if (!out->joint_names || (in->parents && !out->parents) || !out->positions) goto nomem;
   for (size_t j = 0; j < nj; ++j) {
-    if (!(out->joint_names[j] = km__strdup(in->joint_names && in->joint_names[j]
-                                               ? in->joint_names[j]
-                                               : "")))
+    if (!(out->joint_names[j] =
+              km__strdup(in->joint_names && in->joint_names[j] ? in->joint_names[j] : "")))
       goto nomem;
     if (in->parents) out->parents[j] = in->parents[j];
   }

@@ -228,9 +228,9 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
     }
     for (size_t j = 0; j < n_joints; ++j) {
-      int32_t q = o.parents ? o.parents[j]
+      int32_t q = o.parents                         ? o.parents[j]
                   : rig->skeleton == KM_RIG_KINECT1 ? km_kinect1_joint_parent((int)j)
-                                                      : -1;
+                                                    : -1;
       r->par[j] = q >= 0 && (size_t)q < j ? q : -1;
     }
     if (any_bone) {
@@ -594,8 +594,8 @@ void km_retarget_vertex_targets(const km_retarget *r, double *out) {
       }
       double w[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]};
       for (int a = 0; a < 3; ++a)
-        out[3 * k + a] = c[a] + r->disp[3 * h + a] + R[3 * a] * w[0] + R[3 * a + 1] * w[1] +
-                         R[3 * a + 2] * w[2];
+        out[3 * k + a] =
+            c[a] + r->disp[3 * h + a] + R[3 * a] * w[0] + R[3 * a + 1] * w[1] + R[3 * a + 2] * w[2];
     }
   }
 }

@@ -117,8 +117,8 @@ static km_status parse_filter(const char *name, const cJSON *jf, km_filter_optio
     if (!v) continue;
     double x;
     if (!json_finite(v, &x) || !(k == 1 ? x >= 0 : x > 0))
-      return km__fail(err, KM_ERR_PARSE, "%s: filter.%s: expected a number %s", name,
-                      euro_keys[k], k == 1 ? ">= 0" : "> 0");
+      return km__fail(err, KM_ERR_PARSE, "%s: filter.%s: expected a number %s", name, euro_keys[k],
+                      k == 1 ? ">= 0" : "> 0");
     /* beta 0 in the file means no speed adaptation: a tiny positive stands for it */
     *euro_dst[k] = (k == 1 && x == 0) ? 1e-12 : x;
   }
@@ -537,10 +537,9 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
   out->n_maps = mi;
   {
     const cJSON *jrm = cJSON_GetObjectItemCaseSensitive(root, "root_motion");
-    if (jrm && !(cJSON_IsString(jrm) && (!strcmp(jrm->valuestring, "rigid") ||
-                                          !strcmp(jrm->valuestring, "none")))) {
-      st = km__fail(err, KM_ERR_PARSE, "%s: \"root_motion\": expected \"rigid\" or \"none\"",
-                    name);
+    if (jrm && !(cJSON_IsString(jrm) &&
+                 (!strcmp(jrm->valuestring, "rigid") || !strcmp(jrm->valuestring, "none")))) {
+      st = km__fail(err, KM_ERR_PARSE, "%s: \"root_motion\": expected \"rigid\" or \"none\"", name);
       goto done;
     }
     out->root_rigid = jrm && !strcmp(jrm->valuestring, "rigid");
@@ -552,8 +551,8 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
       if (!cJSON_IsArray(jhd) || cJSON_GetArraySize(jhd) != 2 ||
           !cJSON_IsString(cJSON_GetArrayItem(jhd, 0)) ||
           !cJSON_IsString(cJSON_GetArrayItem(jhd, 1))) {
-        st = km__fail(err, KM_ERR_PARSE,
-                      "%s: \"heading\": expected two joint names [left, right]", name);
+        st = km__fail(err, KM_ERR_PARSE, "%s: \"heading\": expected two joint names [left, right]",
+                      name);
         goto done;
       }
       want[1] = cJSON_GetArrayItem(jhd, 0)->valuestring;

@@ -101,8 +101,8 @@ struct km_puppet {
   double *cv_pn;  /* ncv*3 */
   int32_t *lone;  /* n_lone vertices no face uses: they keep their rest position */
   size_t n_lone;
-  double *K0;     /* nr*nr  W^T L^T L W */
-  double *G;      /* nr*nd  W^T L^T W_d */
+  double *K0; /* nr*nr  W^T L^T L W */
+  double *G;  /* nr*nd  W^T L^T W_d */
   double trK0;
   /* ---- solve settings */
   int iterations;

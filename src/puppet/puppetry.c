@@ -15,17 +15,17 @@ struct km_puppetry {
   km_puppetry_options opt;
   km_filter_options filter_opt; /* opt.filter's value when given */
   char *take_name;
-  char **names; /* create-time columns (NULL: already in the rig's order) */
+  char **names;        /* create-time columns (NULL: already in the rig's order) */
   int32_t *parents_in; /* n_in create-time parents (NULL: unknown) */
-  size_t n_in;  /* joints per pushed frame */
+  size_t n_in;         /* joints per pushed frame */
 
   km_puppet *puppet; /* reduced solver */
   bool own_puppet;
-  km_arap *arap;     /* full solver (per handle set) */
+  km_arap *arap; /* full solver (per handle set) */
   double arap_seconds;
 
   /* the current rig; filter == NULL: none */
-  size_t nj;   /* joints in the rig's order */
+  size_t nj;    /* joints in the rig's order */
   int32_t *col; /* nj source columns (-1: absent) or NULL for the identity */
   km_filter *filter;
   km_glitch *glitch; /* NULL: off */
@@ -201,14 +201,12 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
   } else {
     for (size_t k = 0; k < 3 * r.nj; ++k)
       r.filt[k] = NAN;
-    memcpy(r.handle_targets, km_retarget_rest_centroids(r.rt),
-           sizeof(double) * 3 * rig->n_handles);
+    memcpy(r.handle_targets, km_retarget_rest_centroids(r.rt), sizeof(double) * 3 * rig->n_handles);
   }
   km_retarget_vertex_targets(r.rt, r.targets);
 
-  rig_state old = {p->nj,     p->n_handles,      p->col,     p->off,  p->hv,
-                   p->filter, p->rt,             NULL,       p->handle_targets,
-                   p->targets, p->filt,          p->p0,      p->last, p->glitch};
+  rig_state old = {p->nj, p->n_handles,      p->col,     p->off,  p->hv, p->filter, p->rt,
+                   NULL,  p->handle_targets, p->targets, p->filt, p->p0, p->last,   p->glitch};
   if (r.arap) {
     old.arap = p->arap;
     p->arap = r.arap;
@@ -290,9 +288,8 @@ km_status km_puppetry_model_open(const km_mesh *rest, const km_puppetry_options 
   return KM_OK;
 }
 
-km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig,
-                             const char *const *joint_names, size_t n_joints,
-                             const km_puppetry_options *opt, km_puppetry **out,
+km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig, const char *const *joint_names,
+                             size_t n_joints, const km_puppetry_options *opt, km_puppetry **out,
                              km_puppetry_info *info, km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "km_puppetry_create: NULL argument");
   *out = NULL;
@@ -398,9 +395,9 @@ km_status km_puppetry_push_at(km_puppetry *p, const double *joints, double t, do
   km_retarget_push(p->rt, p->filt, p->handle_targets);
   km_retarget_vertex_targets(p->rt, p->targets);
   double t2 = km_seconds();
-  km_status s = p->opt.solver == KM_PUPPETRY_FULL ? km_arap_solve(p->arap, p->targets, V_out, err)
-                                                  : km_puppet_solve(p->puppet, p->targets, V_out,
-                                                                    err);
+  km_status s = p->opt.solver == KM_PUPPETRY_FULL
+                    ? km_arap_solve(p->arap, p->targets, V_out, err)
+                    : km_puppet_solve(p->puppet, p->targets, V_out, err);
   double R[9], tr[3], pv[3];
   if (s == KM_OK && km_retarget_root_transform(p->rt, R, tr, pv)) {
     /* rigid root motion: the deformed mesh (root-relative) follows the root as a whole */
@@ -432,9 +429,7 @@ void km_puppetry_reset(km_puppetry *p) {
 
 void km_puppetry_times_get(const km_puppetry *p, km_puppetry_times *out) { *out = p->times; }
 
-double km_puppetry_scale(const km_puppetry *p) {
-  return p->rt ? km_retarget_scale(p->rt) : NAN;
-}
+double km_puppetry_scale(const km_puppetry *p) { return p->rt ? km_retarget_scale(p->rt) : NAN; }
 
 void km_puppetry_handles(const km_puppetry *p, size_t *n_handles, const int32_t **offsets,
                          const int32_t **vertices) {
@@ -473,8 +468,8 @@ void km_puppetry_puppet_info(const km_puppetry *p, km_puppet_info *out) {
 void km_puppetry_free(km_puppetry **pp) {
   if (!pp || !*pp) return;
   km_puppetry *p = *pp;
-  rig_state r = {p->nj,     p->n_handles, p->col,  p->off,  p->hv,  p->filter, p->rt,
-                 p->arap,   p->handle_targets, p->targets, p->filt, p->p0, p->last, p->glitch};
+  rig_state r = {p->nj,   p->n_handles,      p->col,     p->off,  p->hv, p->filter, p->rt,
+                 p->arap, p->handle_targets, p->targets, p->filt, p->p0, p->last,   p->glitch};
   rig_state_free(&r);
   if (p->own_puppet) km_puppet_free(&p->puppet);
   if (p->names)

@@ -769,4 +769,3 @@ km_status km_character_generate(const km_character_options *opt, km_character *o
   if (st != KM_OK) km_character_free(out);
   return st;
 }
-

@@ -60,7 +60,7 @@ void kp_transforms(const km_skeleton *s, const kp_pose *p, const double *jitter,
 }
 
 km_status kp_pose_character(const km_character *c, const kp_pose *p, const double *jitter,
-                                   double *V, km_error *err) {
+                            double *V, km_error *err) {
   double T[KM_KINECT1_JOINTS * 12];
   kp_transforms(&c->skeleton, p, jitter, T, NULL);
   return km_lbs(c->mesh.V, c->mesh.n_vertices, &c->skin, T, c->skeleton.n_joints, V, err);

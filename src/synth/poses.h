@@ -59,7 +59,7 @@ void kp_transforms(const km_skeleton *s, const kp_pose *p, const double *jitter,
 km_status kp_pose_character(const km_character *c, const kp_pose *p, const double *jitter,
                             double *V, km_error *err);
 /* Rotation of deg degrees about a coordinate axis (0 x, 1 y, 2 z). */
-#define kp_axis_angle(axis, deg, R) km__m3_axis((axis), (deg) * M_PI / 180, (R))
+#define kp_axis_angle(axis, deg, R) km__m3_axis((axis), (deg)*M_PI / 180, (R))
 /* Mean and max vertex distance. */
 #define kp_error km_vertex_distance_stats
 
