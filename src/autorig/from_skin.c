@@ -12,29 +12,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum {
-  HIP_C = 0,
-  SPINE,
-  SHOULDER_C,
-  HEAD,
-  SHOULDER_L,
-  ELBOW_L,
-  WRIST_L,
-  HAND_L,
-  SHOULDER_R,
-  ELBOW_R,
-  WRIST_R,
-  HAND_R,
-  HIP_L,
-  KNEE_L,
-  ANKLE_L,
-  FOOT_L,
-  HIP_R,
-  KNEE_R,
-  ANKLE_R,
-  FOOT_R
-};
-
 /* Roles a name can give: a Kinect joint index, or these for the centre line. */
 enum { R_NONE = -1, R_HIPS = 100, R_NECK = 101 };
 
@@ -119,18 +96,18 @@ static int classify(const char *name) {
     static const char *const neck[] = {"neck", "neck1", "neck01", NULL};
     if (in(core, hips)) return R_HIPS;
     if (in(core, neck)) return R_NECK;
-    if (!strcmp(core, "head")) return HEAD;
+    if (!strcmp(core, "head")) return J_HEAD;
     return R_NONE;
   }
-  int o = side ? SHOULDER_R - SHOULDER_L : 0, l = side ? HIP_R - HIP_L : 0;
-  if (in(core, arm)) return SHOULDER_L + o;
-  if (in(core, fore)) return ELBOW_L + o;
-  if (in(core, hand)) return WRIST_L + o;
-  if (in(core, hand_end)) return HAND_L + o;
-  if (in(core, thigh)) return HIP_L + l;
-  if (in(core, shin)) return KNEE_L + l;
-  if (in(core, foot)) return ANKLE_L + l;
-  if (in(core, toe)) return FOOT_L + l;
+  int o = side ? J_SHOULDER_R - J_SHOULDER_L : 0, l = side ? J_HIP_R - J_HIP_L : 0;
+  if (in(core, arm)) return J_SHOULDER_L + o;
+  if (in(core, fore)) return J_ELBOW_L + o;
+  if (in(core, hand)) return J_WRIST_L + o;
+  if (in(core, hand_end)) return J_HAND_L + o;
+  if (in(core, thigh)) return J_HIP_L + l;
+  if (in(core, shin)) return J_KNEE_L + l;
+  if (in(core, foot)) return J_ANKLE_L + l;
+  if (in(core, toe)) return J_FOOT_L + l;
   return R_NONE;
 }
 
@@ -200,8 +177,9 @@ km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_cha
     int *slot = r == R_HIPS ? &hips : r == R_NECK ? &necks : r >= 0 ? &pick[r] : NULL;
     if (slot && (*slot < 0 || depth[j] < depth[*slot])) *slot = (int)j;
   }
-  static const int required[] = {HEAD,  SHOULDER_L, ELBOW_L, WRIST_L, SHOULDER_R, ELBOW_R, WRIST_R,
-                                 HIP_L, KNEE_L,     ANKLE_L, HIP_R,   KNEE_R,     ANKLE_R};
+  static const int required[] = {J_HEAD,    J_SHOULDER_L, J_ELBOW_L, J_WRIST_L, J_SHOULDER_R,
+                                 J_ELBOW_R, J_WRIST_R,    J_HIP_L,   J_KNEE_L,  J_ANKLE_L,
+                                 J_HIP_R,   J_KNEE_R,     J_ANKLE_R};
   static const char *const need[] = {
       "Head",          "LeftUpperArm",  "LeftLowerArm", "LeftHand",     "RightUpperArm",
       "RightLowerArm", "RightHand",     "LeftUpperLeg", "LeftLowerLeg", "LeftFoot",
@@ -225,52 +203,53 @@ km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_cha
   }
   double J[KM_KINECT1_JOINTS * 3];
 #define RJ(j) (s->rest + 3 * (size_t)(j))
-  int hip_c = lca(&t, pick[HIP_L], pick[HIP_R]);
+  int hip_c = lca(&t, pick[J_HIP_L], pick[J_HIP_R]);
   if (hip_c < 0) hip_c = hips;
-  if (hip_c < 0) hip_c = pick[HIP_L]; /* legs in separate trees: take one */
-  int sh_lca = lca(&t, pick[SHOULDER_L], pick[SHOULDER_R]);
-  if (sh_lca < 0) sh_lca = s->parents[pick[SHOULDER_L]] >= 0 ? s->parents[pick[SHOULDER_L]] : hip_c;
+  if (hip_c < 0) hip_c = pick[J_HIP_L]; /* legs in separate trees: take one */
+  int sh_lca = lca(&t, pick[J_SHOULDER_L], pick[J_SHOULDER_R]);
+  if (sh_lca < 0)
+    sh_lca = s->parents[pick[J_SHOULDER_L]] >= 0 ? s->parents[pick[J_SHOULDER_L]] : hip_c;
   int neck = sh_lca;
-  if (necks >= 0 && is_ancestor(&t, sh_lca, necks) && is_ancestor(&t, necks, pick[HEAD]))
+  if (necks >= 0 && is_ancestor(&t, sh_lca, necks) && is_ancestor(&t, necks, pick[J_HEAD]))
     neck = necks;
   if (neck == hip_c) neck = -1; /* arms on the hips: no chest joint of its own */
-  memcpy(J + 3 * HIP_C, RJ(hip_c), 3 * sizeof(double));
+  memcpy(J + 3 * J_HIP_C, RJ(hip_c), 3 * sizeof(double));
   if (neck >= 0)
-    memcpy(J + 3 * SHOULDER_C, RJ(neck), 3 * sizeof(double));
+    memcpy(J + 3 * J_SHOULDER_C, RJ(neck), 3 * sizeof(double));
   else
-    lerp3(RJ(pick[SHOULDER_L]), RJ(pick[SHOULDER_R]), 0.5, J + 3 * SHOULDER_C);
+    lerp3(RJ(pick[J_SHOULDER_L]), RJ(pick[J_SHOULDER_R]), 0.5, J + 3 * J_SHOULDER_C);
   for (size_t j = 0; j < nj; ++j)
     owner[j] = -1;
   /* Spine: the chain from the neck down to the hips; the joint nearest 48% of the way up
    * (the procedural character's proportion) gives the position, all of them the weights. */
   double want[3];
-  lerp3(J + 3 * HIP_C, J + 3 * SHOULDER_C, 0.48, want);
-  memcpy(J + 3 * SPINE, want, sizeof want);
+  lerp3(J + 3 * J_HIP_C, J + 3 * J_SHOULDER_C, 0.48, want);
+  memcpy(J + 3 * J_SPINE, want, sizeof want);
   double best = DBL_MAX;
   if (neck >= 0 && is_ancestor(&t, hip_c, neck))
     for (int x = s->parents[neck]; x >= 0 && x != hip_c; x = s->parents[x]) {
-      owner[x] = SPINE;
+      owner[x] = J_SPINE;
       double dd = 0;
       for (int k = 0; k < 3; ++k)
         dd += (RJ(x)[k] - want[k]) * (RJ(x)[k] - want[k]);
       if (dd < best) {
         best = dd;
-        memcpy(J + 3 * SPINE, RJ(x), 3 * sizeof(double));
-        if (map) snprintf(map->source[SPINE], sizeof map->source[SPINE], "%s", s->names[x]);
+        memcpy(J + 3 * J_SPINE, RJ(x), 3 * sizeof(double));
+        if (map) snprintf(map->source[J_SPINE], sizeof map->source[J_SPINE], "%s", s->names[x]);
       }
     }
-  owner[hip_c] = HIP_C;
-  if (neck >= 0) owner[neck] = SHOULDER_C;
+  owner[hip_c] = J_HIP_C;
+  if (neck >= 0) owner[neck] = J_SHOULDER_C;
   if (map) {
-    snprintf(map->source[HIP_C], sizeof map->source[HIP_C], "%s", s->names[hip_c]);
+    snprintf(map->source[J_HIP_C], sizeof map->source[J_HIP_C], "%s", s->names[hip_c]);
     if (neck >= 0)
-      snprintf(map->source[SHOULDER_C], sizeof map->source[SHOULDER_C], "%s", s->names[neck]);
+      snprintf(map->source[J_SHOULDER_C], sizeof map->source[J_SHOULDER_C], "%s", s->names[neck]);
   }
   for (int k = 0; k < KM_KINECT1_JOINTS; ++k) {
-    if (k == HIP_C || k == SPINE || k == SHOULDER_C) continue;
+    if (k == J_HIP_C || k == J_SPINE || k == J_SHOULDER_C) continue;
     int j = pick[k];
     /* a hand or toe joint counts only below its wrist or ankle */
-    if ((k == HAND_L || k == HAND_R || k == FOOT_L || k == FOOT_R) && j >= 0 &&
+    if ((k == J_HAND_L || k == J_HAND_R || k == J_FOOT_L || k == J_FOOT_R) && j >= 0 &&
         !is_ancestor(&t, pick[k - 1], j))
       j = -1;
     pick[k] = j;
@@ -286,7 +265,7 @@ km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_cha
   for (size_t v = 0; v < nv; ++v)
     ymin = fmin(ymin, m->V[3 * v + 1]);
   for (int side = 0; side < 2; ++side) {
-    int h = side ? HAND_R : HAND_L, w = h - 1, e = h - 2;
+    int h = side ? J_HAND_R : J_HAND_L, w = h - 1, e = h - 2;
     if (pick[h] < 0) {
       double c[3] = {0, 0, 0};
       int cnt = 0;
@@ -302,7 +281,7 @@ km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_cha
       else
         lerp3(J + 3 * e, J + 3 * w, 1.3, J + 3 * h);
     }
-    int f = side ? FOOT_R : FOOT_L, a = f - 1;
+    int f = side ? J_FOOT_R : J_FOOT_L, a = f - 1;
     if (pick[f] < 0) {
       int child = -1;
       for (size_t j = 0; j < nj && child < 0; ++j)
@@ -322,7 +301,7 @@ km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_cha
     int x = (int)j;
     while (x >= 0 && owner[x] < 0)
       x = s->parents[x];
-    target[j] = x >= 0 ? owner[x] : HIP_C;
+    target[j] = x >= 0 ? owner[x] : J_HIP_C;
     merged += owner[j] < 0;
   }
   if (map) map->n_merged = merged;
@@ -352,7 +331,7 @@ km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_cha
       double x = s->weights[4 * v + q];
       if (j >= 0 && (size_t)j < nj && x > 0 && isfinite(x)) w[target[j]] += x, sum += x;
     }
-    if (!(sum > 0)) w[HIP_C] = 1;
+    if (!(sum > 0)) w[J_HIP_C] = 1;
     int32_t jj[KM_SKIN_INFLUENCES];
     double ww[KM_SKIN_INFLUENCES];
     int cnt = 0;
@@ -381,7 +360,7 @@ km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_cha
    * farthest along ankle -> foot (horizontally), among the vertices they dominate. */
   int32_t tips[4];
   for (int i = 0; i < 4; ++i) {
-    int e = i == 0 ? HAND_L : i == 1 ? HAND_R : i == 2 ? FOOT_L : FOOT_R, b = e - 1;
+    int e = i == 0 ? J_HAND_L : i == 1 ? J_HAND_R : i == 2 ? J_FOOT_L : J_FOOT_R, b = e - 1;
     double d[3];
     for (int k = 0; k < 3; ++k)
       d[k] = J[3 * e + k] - J[3 * b + k];
