@@ -382,7 +382,8 @@ void km_mesh_skin_free(km_mesh_skin *s);
  * (joint node's world matrix times its inverse bind matrix; the mesh node's own transform is
  * ignored, as glTF says), i.e. as a viewer shows it: at the bind pose, as stored. The joints
  * of every skin used are gathered into one list (each joint node once, in order of first
- * use); JOINTS_1 / WEIGHTS_1 are not read; a primitive without JOINTS_0 is bound whole to the
+ * use); with JOINTS_1 / WEIGHTS_1 (8 influences) the position is placed by all 8 and the skin
+ * keeps the 4 largest, renormalised; a primitive without JOINTS_0 is bound whole to the
  * nearest joint above its node (else to none). Other formats: the mesh, skin->n_joints 0.
  *   path  in: file
  *   mesh  out: as km_mesh_read; free with km_mesh_free
