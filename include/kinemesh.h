@@ -681,8 +681,10 @@ int km_skeleton_joint_source(km_skeleton_kind to, int j, km_skeleton_kind from, 
  * none matches; *matched (may be NULL): how many did. */
 int km_skeleton_detect(const char *const *names, size_t n, int *matched);
 /* The Kinect v1 joint (KM_KINECT1 index) a joint name stands for: looked up in kind `named`
- * first, then in every kind in enum order. -2: a known joint with no Kinect v1 counterpart,
- * -1: an unknown name. */
+ * first, then in every kind in enum order, then by the naming conventions of game and DCC rigs
+ * (Mixamo "mixamorig:LeftForeArm", VRoid "J_Bip_L_LowerArm", rigify "DEF-forearm.L", Blender
+ * "forearm.L", Biped "Bip01 L Forearm"; docs/skeletons.md). -2: a known joint with no Kinect v1
+ * counterpart, -1: an unknown name. */
 int km_skeleton_kinect1_joint(km_skeleton_kind named, const char *name);
 /* One frame of kind `from` as kind `to`, by body point with km_skeleton_joint_source's
  * fallbacks, a fallback also taken where the exact joint is NaN in this frame; trunk points
