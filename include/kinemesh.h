@@ -382,7 +382,8 @@ void km_mesh_skin_free(km_mesh_skin *s);
  * (joint node's world matrix times its inverse bind matrix; the mesh node's own transform is
  * ignored, as glTF says), i.e. as a viewer shows it: at the bind pose, as stored. The joints
  * of every skin used are gathered into one list (each joint node once, in order of first
- * use); JOINTS_1 / WEIGHTS_1 are not read; a primitive without JOINTS_0 is bound whole to the
+ * use); with JOINTS_1 / WEIGHTS_1 (8 influences) the position is placed by all 8 and the skin
+ * keeps the 4 largest, renormalised; a primitive without JOINTS_0 is bound whole to the
  * nearest joint above its node (else to none). Other formats: the mesh, skin->n_joints 0.
  *   path  in: file
  *   mesh  out: as km_mesh_read; free with km_mesh_free
@@ -680,8 +681,10 @@ int km_skeleton_joint_source(km_skeleton_kind to, int j, km_skeleton_kind from, 
  * none matches; *matched (may be NULL): how many did. */
 int km_skeleton_detect(const char *const *names, size_t n, int *matched);
 /* The Kinect v1 joint (KM_KINECT1 index) a joint name stands for: looked up in kind `named`
- * first, then in every kind in enum order. -2: a known joint with no Kinect v1 counterpart,
- * -1: an unknown name. */
+ * first, then in every kind in enum order, then by the naming conventions of game and DCC rigs
+ * (Mixamo "mixamorig:LeftForeArm", VRoid "J_Bip_L_LowerArm", rigify "DEF-forearm.L", Blender
+ * "forearm.L", Biped "Bip01 L Forearm"; docs/skeletons.md). -2: a known joint with no Kinect v1
+ * counterpart, -1: an unknown name. */
 int km_skeleton_kinect1_joint(km_skeleton_kind named, const char *name);
 /* One frame of kind `from` as kind `to`, by body point with km_skeleton_joint_source's
  * fallbacks, a fallback also taken where the exact joint is NaN in this frame; trunk points

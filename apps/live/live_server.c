@@ -210,6 +210,47 @@ static char *handles_json(const km_rig *rig) {
   return s;
 }
 
+/* A rig whose "handles" array is empty (`live --no-handles`, or a file written that way): the
+ * server starts idle, showing the rest mesh, until the page's first handle is saved (POST
+ * /rig). km_rig_parse refuses such a rig, so this is checked on the JSON. Returns 1 for an
+ * empty or absent "handles", 0 when it has handles, -1 when the text is not a JSON object. */
+static int rig_text_without_handles(const char *text, size_t len) {
+  cJSON *doc = cJSON_ParseWithLength(text, len);
+  if (!cJSON_IsObject(doc)) {
+    cJSON_Delete(doc);
+    return -1;
+  }
+  const cJSON *h = cJSON_GetObjectItemCaseSensitive(doc, "handles");
+  int r = !h || (cJSON_IsArray(h) && cJSON_GetArraySize(h) == 0);
+  cJSON_Delete(doc);
+  return r;
+}
+
+/* Installs a rig with no handles (text taken over): no puppetry rig, no frames deformed; the
+ * page shows the rest mesh and places the first handle. */
+static km_status apply_idle_rig(km_live *l, char *text, size_t len, km_error *err) {
+  char *hj = strdup("{\"handles\":[]}");
+  if (!hj) return km_error_set(err, KM_ERR_NOMEM, "out of memory for the rig");
+  read_rest_joints(l, text, len);
+  km_rig_free(&l->rig);
+  memset(&l->rig, 0, sizeof l->rig);
+  pthread_mutex_lock(&l->st_mu);
+  for (size_t h = 0; h < l->n_handles; ++h)
+    free(l->handle_names[h]);
+  free(l->handle_names);
+  free(l->handle_pos);
+  free(l->rig_text);
+  free(l->handles_json);
+  l->handle_names = NULL;
+  l->handle_pos = NULL;
+  l->n_handles = 0;
+  l->rig_text = text;
+  l->rig_len = len;
+  l->handles_json = hj;
+  pthread_mutex_unlock(&l->st_mu);
+  return KM_OK;
+}
+
 /* Installs `nr` (taken over on success) as the active rig: km_puppetry_set_rig (handles,
  * filter, retarget seeded with the pose already seen), then the handle list and overlay. */
 static km_status apply_rig(km_live *l, live_rig *nr, km_error *err) {
@@ -614,6 +655,7 @@ static void *deform_main(void *arg) {
     }
     if (reset) km_puppetry_reset(l->pipe);
     if (!have) continue;
+    if (l->rig.n_handles == 0) continue; /* no handles yet: input is counted, nothing moves */
     km_error err = {0};
     if (km_puppetry_push_at(l->pipe, raw, t_recv, l->V, &err) != KM_OK) {
       atomic_fetch_add(&l->solve_errors, 1);
@@ -1526,6 +1568,20 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
   po.model = puppet;
   if ((s = km_puppetry_create(mesh, NULL, NULL, NJ, &po, &l->pipe, NULL, err)) != KM_OK) goto fail;
   live_rig nr = {0};
+  if (rig_text_without_handles(rig_json, rig_size) == 1) {
+    char *text = malloc(rig_size + 1);
+    if (!text) {
+      s = km_error_set(err, KM_ERR_NOMEM, "out of memory");
+      goto fail;
+    }
+    memcpy(text, rig_json, rig_size);
+    text[rig_size] = 0;
+    if ((s = apply_idle_rig(l, text, rig_size, err)) != KM_OK) {
+      free(text);
+      goto fail;
+    }
+    goto rig_done;
+  }
   if ((s = km_rig_parse(rig_json, rig_size, opt->rig_path ? opt->rig_path : "rig", mesh, NULL, 0,
                         &nr.rig, err)) != KM_OK)
     goto fail;
@@ -1542,6 +1598,7 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
   km_rig_free(&nr.rig);
   free(nr.text);
   if (s != KM_OK) goto fail;
+rig_done:
 
   if (opt->osc_port > 0 && (l->osc_fd = udp_socket(l->bind, opt->osc_port, err, "OSC")) < 0) {
     s = KM_ERR_IO;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# ctest driver for live mode: run.sh e2e|e2e_quantize|e2e_norig|osc|garbage|vmc|security KINEMESH WORKDIR
+# ctest driver for live mode: run.sh e2e|e2e_quantize|e2e_norig|e2e_nohandles|osc|garbage|vmc|security KINEMESH WORKDIR
 # (security: tests/security/run.sh, which names its script in KM_LIVE_SCRIPT)
 # Generates a small character and take, starts `kinemesh live` on loopback with random free
 # ports (retrying when a port is taken), runs the matching node script against it, stops the
@@ -27,6 +27,7 @@ case $MODE in
   e2e) EXTRA=(--replay "$WORK/t.json" --no-autoplay) ;;
   e2e_quantize) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
   e2e_norig) rm -f "$WORK/c.rig.json"; EXTRA=(--no-autoplay) ;;
+  e2e_nohandles) EXTRA=(--no-handles --replay "$WORK/t.json" --no-autoplay) ;;
   osc) EXTRA=(--record "$WORK/rec.json") ;;
   garbage) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
   security) EXTRA=(--replay "$WORK/t.json" --no-autoplay); chmod 600 "$WORK/c.rig.json" ;;
