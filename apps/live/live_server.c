@@ -226,6 +226,26 @@ static int rig_text_without_handles(const char *text, size_t len) {
   return r;
 }
 
+/* Publishes the handle list of the active rig (all taken over) for /status, /rig and
+ * /handles, freeing the previous one. */
+static void publish_handles(km_live *l, char **names, double *hpos, size_t n, char *text,
+                            size_t len, char *hj) {
+  pthread_mutex_lock(&l->st_mu);
+  for (size_t h = 0; h < l->n_handles; ++h)
+    free(l->handle_names[h]);
+  free(l->handle_names);
+  free(l->handle_pos);
+  free(l->rig_text);
+  free(l->handles_json);
+  l->handle_names = names;
+  l->handle_pos = hpos;
+  l->n_handles = n;
+  l->rig_text = text;
+  l->rig_len = len;
+  l->handles_json = hj;
+  pthread_mutex_unlock(&l->st_mu);
+}
+
 /* Installs a rig with no handles (text taken over): no puppetry rig, no frames deformed; the
  * page shows the rest mesh and places the first handle. */
 static km_status apply_idle_rig(km_live *l, char *text, size_t len, km_error *err) {
@@ -234,20 +254,7 @@ static km_status apply_idle_rig(km_live *l, char *text, size_t len, km_error *er
   read_rest_joints(l, text, len);
   km_rig_free(&l->rig);
   memset(&l->rig, 0, sizeof l->rig);
-  pthread_mutex_lock(&l->st_mu);
-  for (size_t h = 0; h < l->n_handles; ++h)
-    free(l->handle_names[h]);
-  free(l->handle_names);
-  free(l->handle_pos);
-  free(l->rig_text);
-  free(l->handles_json);
-  l->handle_names = NULL;
-  l->handle_pos = NULL;
-  l->n_handles = 0;
-  l->rig_text = text;
-  l->rig_len = len;
-  l->handles_json = hj;
-  pthread_mutex_unlock(&l->st_mu);
+  publish_handles(l, NULL, NULL, 0, text, len, hj);
   return KM_OK;
 }
 
@@ -279,21 +286,8 @@ static km_status apply_rig(km_live *l, live_rig *nr, km_error *err) {
   l->rig = *rig;
   memset(rig, 0, sizeof *rig);
 
-  pthread_mutex_lock(&l->st_mu);
-  for (size_t h = 0; h < l->n_handles; ++h)
-    free(l->handle_names[h]);
-  free(l->handle_names);
-  free(l->handle_pos);
-  free(l->rig_text);
-  free(l->handles_json);
-  l->handle_names = names;
-  l->handle_pos = hpos;
-  l->n_handles = l->rig.n_handles;
-  l->rig_text = nr->text;
-  l->rig_len = nr->len;
-  l->handles_json = hj;
+  publish_handles(l, names, hpos, l->rig.n_handles, nr->text, nr->len, hj);
   nr->text = NULL;
-  pthread_mutex_unlock(&l->st_mu);
   return KM_OK;
 fail:
   if (names)

@@ -3,36 +3,23 @@
 // replay button, checks frames arrive, the mesh moves and its decoded positions fill the
 // frame's box (float32, or int16 with --quantize), adds a handle through the mapping panel (click on a projected vertex, pick the joint
 // on the diagram, add, save) and checks the rig file on disk. Keeps a screenshot.
-import { createRequire } from 'node:module';
 import dgram from 'node:dgram';
 import fs from 'node:fs';
 import path from 'node:path';
-import { fileURLToPath } from 'node:url';
 import { check, finish, status, waitFor, sleep, replayDone, OSCELETON_SKEL,
-  osceletonFrame, TOKEN } from './lib.mjs';
+  osceletonFrame, openLivePage } from './lib.mjs';
 
-const here = path.dirname(fileURLToPath(import.meta.url));
-const require = createRequire(path.join(here, '../../web/package.json'));
-const { chromium } = require('playwright-core');
 const [http, osc, , work] = process.argv.slice(2);
 const url = `http://127.0.0.1:${http}/`;
 const rigPath = path.join(work, 'c.rig.json');
 const rigBefore = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
 
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  headless: true,
-  args: ['--no-sandbox', '--enable-unsafe-swiftshader', '--use-angle=swiftshader',
-    '--ignore-gpu-blocklist', '--disable-dev-shm-usage'],
-});
-const errors = [];
+let browser = null, errors = [];
 try {
-  const page = await browser.newPage({ viewport: { width: 1100, height: 700 } });
-  page.on('pageerror', (e) => errors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-  await page.goto(`${url}?token=${TOKEN}`);
-  await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
-    null, { timeout: 80000 });
+  const o = await openLivePage(http);
+  browser = o.browser;
+  errors = o.errors;
+  const page = o.page;
   check(true, 'page loaded the mesh and the rig and opened the WebSocket');
   const s0 = await status(http);
   check(s0.clients >= 1, `/status counts the page as a client (${s0.clients})`);
@@ -160,6 +147,6 @@ try {
 } catch (e) {
   check(false, 'exception: ' + (e && e.stack || e));
 } finally {
-  await browser.close();
+  if (browser) await browser.close();
 }
 finish('live_e2e');

@@ -3,35 +3,22 @@
 // input is counted but nothing is deformed; the first handle is placed by a click on the hand,
 // mapped to HandLeft and saved; the saved rig keeps the skeleton and skin, and the replayed take
 // then moves the hand. Keeps a screenshot.
-import { createRequire } from 'node:module';
 import fs from 'node:fs';
 import path from 'node:path';
-import { fileURLToPath } from 'node:url';
 import dgram from 'node:dgram';
-import { check, finish, status, waitFor, replayDone, osceletonFrame, OSCELETON_SKEL, TOKEN } from './lib.mjs';
+import { check, finish, status, waitFor, replayDone, osceletonFrame, OSCELETON_SKEL, openLivePage } from './lib.mjs';
 
-const here = path.dirname(fileURLToPath(import.meta.url));
-const require = createRequire(path.join(here, '../../web/package.json'));
-const { chromium } = require('playwright-core');
 const [http, osc, , work] = process.argv.slice(2);
 const url = `http://127.0.0.1:${http}/`;
 const rigPath = path.join(work, 'c.rig.json');
 const rig0 = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
 
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  headless: true,
-  args: ['--no-sandbox', '--enable-unsafe-swiftshader', '--use-angle=swiftshader',
-    '--ignore-gpu-blocklist', '--disable-dev-shm-usage'],
-});
-const errors = [];
+let browser = null, errors = [];
 try {
-  const page = await browser.newPage({ viewport: { width: 1100, height: 700 } });
-  page.on('pageerror', (e) => errors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-  await page.goto(`${url}?token=${TOKEN}`);
-  await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
-    null, { timeout: 80000 });
+  const o = await openLivePage(http);
+  browser = o.browser;
+  errors = o.errors;
+  const page = o.page;
   const s0 = await status(http);
   check(Object.keys(s0.handles).length === 0, `no handles at start (${Object.keys(s0.handles).join(', ')})`);
   const hs0 = await (await fetch(`${url}handles`)).json();
@@ -87,6 +74,6 @@ try {
 } catch (e) {
   check(false, 'exception: ' + (e && e.stack || e));
 } finally {
-  await browser.close();
+  if (browser) await browser.close();
 }
 finish('live_e2e_nohandles');

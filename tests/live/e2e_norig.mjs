@@ -2,36 +2,22 @@
 // (km_autorig, printed) and writes nothing; the page's hover readout shows the id and position
 // of the vertex under the cursor; the first handle placed by a click is saved, which creates
 // c.rig.json. Keeps a screenshot.
-import { createRequire } from 'node:module';
 import fs from 'node:fs';
 import path from 'node:path';
-import { fileURLToPath } from 'node:url';
-import { check, finish, status, TOKEN } from './lib.mjs';
+import { check, finish, status, openLivePage } from './lib.mjs';
 
-const here = path.dirname(fileURLToPath(import.meta.url));
-const require = createRequire(path.join(here, '../../web/package.json'));
-const { chromium } = require('playwright-core');
 const [http, , , work] = process.argv.slice(2);
-const url = `http://127.0.0.1:${http}/`;
 const rigPath = path.join(work, 'c.rig.json');
 const out = fs.readFileSync(path.join(work, 'server.out'), 'utf8');
 check(/no rig at .*rigged .* as a humanoid/.test(out), `server rigged the mesh itself: ${out.split('\n')[0]}`);
 check(!fs.existsSync(rigPath), 'no rig file written before the page saves');
 
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  headless: true,
-  args: ['--no-sandbox', '--enable-unsafe-swiftshader', '--use-angle=swiftshader',
-    '--ignore-gpu-blocklist', '--disable-dev-shm-usage'],
-});
-const errors = [];
+let browser = null, errors = [];
 try {
-  const page = await browser.newPage({ viewport: { width: 1100, height: 700 } });
-  page.on('pageerror', (e) => errors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-  await page.goto(`${url}?token=${TOKEN}`);
-  await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
-    null, { timeout: 80000 });
+  const o = await openLivePage(http);
+  browser = o.browser;
+  errors = o.errors;
+  const page = o.page;
   const s0 = await status(http);
   const auto = Object.keys(s0.handles);
   check(['head', 'hand_left', 'hand_right', 'foot_left', 'foot_right'].every((h) => auto.includes(h)),
@@ -77,6 +63,6 @@ try {
 } catch (e) {
   check(false, 'exception: ' + (e && e.stack || e));
 } finally {
-  await browser.close();
+  if (browser) await browser.close();
 }
 finish('live_e2e_norig');
