@@ -6,20 +6,15 @@
 import dgram from 'node:dgram';
 import fs from 'node:fs';
 import path from 'node:path';
-import { check, finish, status, waitFor, sleep, replayDone, OSCELETON_SKEL,
-  osceletonFrame, openLivePage } from './lib.mjs';
+import { check, status, waitFor, sleep, replayDone, OSCELETON_SKEL,
+  osceletonFrame, runLivePage } from './lib.mjs';
 
 const [http, osc, , work] = process.argv.slice(2);
 const url = `http://127.0.0.1:${http}/`;
 const rigPath = path.join(work, 'c.rig.json');
 const rigBefore = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
 
-let browser = null, errors = [];
-try {
-  const o = await openLivePage(http);
-  browser = o.browser;
-  errors = o.errors;
-  const page = o.page;
+await runLivePage(http, 'live_e2e', path.join(work, 'live_page.png'), async (page) => {
   check(true, 'page loaded the mesh and the rig and opened the WebSocket');
   const s0 = await status(http);
   check(s0.clients >= 1, `/status counts the page as a client (${s0.clients})`);
@@ -141,12 +136,4 @@ try {
   await page.waitForFunction((n) => window.kmLive.inSeq === n, s3 ? s3.frames_in : -1, { timeout: 20000 }).catch(() => {});
   check(s3 && (await page.evaluate(() => window.kmLive.inSeq)) === s3.frames_in, 'page shows the last frame after the rig change');
   await sleep(600);
-  await page.screenshot({ path: path.join(work, 'live_page.png') });
-  check(fs.existsSync(path.join(work, 'live_page.png')), `screenshot ${path.join(work, 'live_page.png')}`);
-  check(errors.length === 0, `no page errors ${errors.join(' | ')}`);
-} catch (e) {
-  check(false, 'exception: ' + (e && e.stack || e));
-} finally {
-  if (browser) await browser.close();
-}
-finish('live_e2e');
+});

@@ -6,19 +6,14 @@
 import fs from 'node:fs';
 import path from 'node:path';
 import dgram from 'node:dgram';
-import { check, finish, status, waitFor, replayDone, osceletonFrame, OSCELETON_SKEL, openLivePage } from './lib.mjs';
+import { check, status, waitFor, replayDone, osceletonFrame, OSCELETON_SKEL, runLivePage } from './lib.mjs';
 
 const [http, osc, , work] = process.argv.slice(2);
 const url = `http://127.0.0.1:${http}/`;
 const rigPath = path.join(work, 'c.rig.json');
 const rig0 = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
 
-let browser = null, errors = [];
-try {
-  const o = await openLivePage(http);
-  browser = o.browser;
-  errors = o.errors;
-  const page = o.page;
+await runLivePage(http, 'live_e2e_nohandles', path.join(work, 'live_nohandles.png'), async (page) => {
   const s0 = await status(http);
   check(Object.keys(s0.handles).length === 0, `no handles at start (${Object.keys(s0.handles).join(', ')})`);
   const hs0 = await (await fetch(`${url}handles`)).json();
@@ -69,11 +64,4 @@ try {
   check(s3 && s3.frames_out > s2.frames_out && s3.solve_errors === 0,
     `frames deformed once the handle is saved (${s3 && s3.frames_out - s2.frames_out})`);
   check(moved > 0.02, `the hand follows the take (moved ${moved.toFixed(3)} m: ${a.map((x) => x.toFixed(3))} -> ${b.map((x) => x.toFixed(3))})`);
-  await page.screenshot({ path: path.join(work, 'live_nohandles.png') });
-  check(errors.length === 0, `no page errors ${errors.join(' | ')}`);
-} catch (e) {
-  check(false, 'exception: ' + (e && e.stack || e));
-} finally {
-  if (browser) await browser.close();
-}
-finish('live_e2e_nohandles');
+});

@@ -4,7 +4,7 @@
 // c.rig.json. Keeps a screenshot.
 import fs from 'node:fs';
 import path from 'node:path';
-import { check, finish, status, openLivePage } from './lib.mjs';
+import { check, status, runLivePage } from './lib.mjs';
 
 const [http, , , work] = process.argv.slice(2);
 const rigPath = path.join(work, 'c.rig.json');
@@ -12,12 +12,7 @@ const out = fs.readFileSync(path.join(work, 'server.out'), 'utf8');
 check(/no rig at .*rigged .* as a humanoid/.test(out), `server rigged the mesh itself: ${out.split('\n')[0]}`);
 check(!fs.existsSync(rigPath), 'no rig file written before the page saves');
 
-let browser = null, errors = [];
-try {
-  const o = await openLivePage(http);
-  browser = o.browser;
-  errors = o.errors;
-  const page = o.page;
+await runLivePage(http, 'live_e2e_norig', path.join(work, 'live_norig.png'), async (page) => {
   const s0 = await status(http);
   const auto = Object.keys(s0.handles);
   check(['head', 'hand_left', 'hand_right', 'foot_left', 'foot_right'].every((h) => auto.includes(h)),
@@ -58,11 +53,4 @@ try {
   check(rig && rig.handles.length === auto.length + 1 && m && m.joint === 'ShoulderCenter',
     `saved ${rigPath}: ${rig ? rig.handles.length : 0} handles, the new one on ${m && m.joint}`);
   check(rig && rig.joints && rig.skin, 'the saved rig keeps the automatic skeleton and skin');
-  await page.screenshot({ path: path.join(work, 'live_norig.png') });
-  check(errors.length === 0, `no page errors ${errors.join(' | ')}`);
-} catch (e) {
-  check(false, 'exception: ' + (e && e.stack || e));
-} finally {
-  if (browser) await browser.close();
-}
-finish('live_e2e_norig');
+});

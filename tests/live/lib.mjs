@@ -91,3 +91,22 @@ export async function openLivePage(http, { viewport = { width: 1100, height: 700
     throw e;
   }
 }
+
+// A live-page test: opens the page (openLivePage), runs body(page), keeps a screenshot, checks
+// the page logged no error, closes the browser whatever happened and prints the summary.
+export async function runLivePage(http, name, screenshot, body, opts) {
+  let browser = null, errors = [];
+  try {
+    const o = await openLivePage(http, opts);
+    browser = o.browser;
+    errors = o.errors;
+    await body(o.page);
+    if (screenshot) await o.page.screenshot({ path: screenshot });
+    check(errors.length === 0, `no page errors ${errors.join(' | ')}`);
+  } catch (e) {
+    check(false, 'exception: ' + (e && e.stack || e));
+  } finally {
+    if (browser) await browser.close();
+  }
+  finish(name);
+}
