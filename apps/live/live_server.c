@@ -1718,12 +1718,7 @@ void km_live_free(km_live **lp) {
     km_rig_free(&l->pending.rig);
     free(l->pending.text);
   }
-  for (size_t h = 0; h < l->n_handles; ++h)
-    free(l->handle_names[h]);
-  free(l->handle_names);
-  free(l->handle_pos);
-  free(l->rig_text);
-  free(l->handles_json);
+  publish_handles(l, NULL, NULL, 0, NULL, 0, NULL); /* frees the handle list */
   free(l->V);
   free(l->out_latest);
   free(l->out_work);
