@@ -542,7 +542,35 @@ static void test_many_keys(void) {
   remove("test_anim_tet.glb");
 }
 
+/* Issue 18: a .pc2 header's counts are checked against the file's length before anything is
+ * sized by them. tests/data/pc2_no_frames_huge_count.pc2 (32 bytes, 1.78e9 points, no samples;
+ * found by fuzz_anim) once asked for a 21 GB frame buffer; a header claiming more samples than
+ * the file holds is refused naming the sizes. */
+static void test_pc2_header_bombs(void) {
+  const char *seed = KM_TEST_DATA "/pc2_no_frames_huge_count.pc2";
+  double *fr = NULL;
+  km_anim_info in;
+  km_status s = km_pc2_read(seed, &fr, &in, KM_E);
+  CHECK_MSG(s == KM_OK && in.frames == 0, "no-frames pc2: %s (%s)", km_status_name(s),
+            km_test_err.message);
+  free(fr);
+  fr = NULL;
+  unsigned char h[44] = "POINTCACHE2";
+  uint32_t one = 1, np = 1000000, ns = 1000;
+  memcpy(h + 12, &one, 4);
+  memcpy(h + 16, &np, 4);
+  memcpy(h + 28, &ns, 4);
+  FILE *f = fopen("test_anim_bomb.pc2", "wb");
+  CHECK(f && fwrite(h, 1, sizeof h, f) == sizeof h);
+  if (f) fclose(f);
+  CHECK_STATUS(km_pc2_read("test_anim_bomb.pc2", &fr, &in, KM_E), KM_ERR_PARSE);
+  CHECK(fr == NULL && strstr(km_test_err.message, "file is 44 bytes"));
+  CHECK_STATUS(km_anim_info_read("test_anim_bomb.pc2", &in, KM_E), KM_ERR_PARSE);
+  remove("test_anim_bomb.pc2");
+}
+
 int main(void) {
+  test_pc2_header_bombs();
   test_many_keys();
   km_mesh rest = {0};
   make_rest(&rest);

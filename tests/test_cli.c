@@ -160,6 +160,36 @@ static void test_stdout_errors(void) {
   CHECK(out && strstr(out, "standard output"));
   free(out);
   CHECK(km_test_run(KM_CLI " info --json " KM_TEST_DATA "/tetra.obj > /dev/null", NULL) == 0);
+  /* the issue's other two: eigen --json and posedb query (a track of the small database's 16
+   * landmarks, one frame) */
+  km_mesh m = {0};
+  CHECK_OK(km_icosphere(2, 1.0, &m, KM_E));
+  CHECK_OK(km_mesh_write("cli_full.off", &m, NULL, KM_E));
+  km_mesh_free(&m);
+  CHECK(km_test_run(KM_CLI " eigen cli_full.off -k 4 --json > /dev/null", NULL) == 0);
+  code = km_test_run(KM_CLI " eigen cli_full.off -k 4 --json 2>/dev/null > /dev/full", NULL);
+  CHECK_MSG(code == 1, "eigen --json > /dev/full exits %d", code);
+  FILE *f = fopen("cli_full_track.json", "w");
+  if (f) {
+    fputs("{\"fps\": 30, \"landmarks\": [", f);
+    for (int i = 0; i < 16; ++i)
+      fprintf(f, "%s\"p%d\"", i ? ", " : "", i);
+    fputs("], \"frames\": [[", f);
+    for (int i = 0; i < 48; ++i)
+      fprintf(f, "%s%g", i ? ", " : "", 0.05 * (i % 7) + 0.1 * (i / 3));
+    fputs("]]}\n", f);
+    fclose(f);
+  }
+  const char *q = KM_CLI " posedb query " KM_TEST_DATA
+                         "/poses_small.kmposedb --landmarks-xyz cli_full_track.json";
+  char cmd[1024];
+  snprintf(cmd, sizeof cmd, "%s > /dev/null", q);
+  CHECK(km_test_run(cmd, NULL) == 0);
+  snprintf(cmd, sizeof cmd, "%s 2>/dev/null > /dev/full", q);
+  code = km_test_run(cmd, NULL);
+  CHECK_MSG(code == 1, "posedb query > /dev/full exits %d", code);
+  remove("cli_full.off");
+  remove("cli_full_track.json");
 }
 
 int main(void) {

@@ -166,6 +166,51 @@ static void test_osc(void) {
   lo_message_free(m);
 }
 
+/* km_live_osc_packet: a bundle of two joints (one in a nested bundle) and an ignored message,
+ * then broken framing; what the server counts as OSC messages and bad packets. */
+static void count_joint(void *ctx, const km_live_osc_joint *j) {
+  int *seen = ctx;
+  seen[j->joint] += 1;
+}
+static void test_osc_packet(void) {
+  lo_message a = lo_message_new(), b = lo_message_new(), c = lo_message_new();
+  lo_message_add_string(a, "r_hand");
+  lo_message_add_string(b, "head");
+  lo_message_add_int32(c, 1);
+  lo_message ab[2] = {a, b};
+  for (int k = 0; k < 2; ++k) {
+    lo_message_add_int32(ab[k], 0);
+    lo_message_add_int32(ab[k], 1);
+    for (int q = 0; q < 4; ++q)
+      lo_message_add_float(ab[k], 10);
+  }
+  lo_bundle inner = lo_bundle_new(LO_TT_IMMEDIATE), outer = lo_bundle_new(LO_TT_IMMEDIATE);
+  lo_bundle_add_message(inner, "/joint", b);
+  lo_bundle_add_message(outer, "/joint", a);
+  lo_bundle_add_bundle(outer, inner);
+  lo_bundle_add_message(outer, "/new_user", c);
+  size_t n = 0;
+  char *data = lo_bundle_serialise(outer, NULL, &n);
+  int seen[20] = {0};
+  uint64_t msgs = 0;
+  CHECK(data && km_live_osc_packet(data, n, count_joint, seen, &msgs) == 0);
+  CHECK_MSG(msgs == 3 && seen[11] == 1 && seen[3] == 1, "%llu messages, hand %d, head %d",
+            (unsigned long long)msgs, seen[11], seen[3]);
+  /* the last element's size word says more than the packet holds: one bad, the rest taken */
+  if (data && n > 24) {
+    memset(seen, 0, sizeof seen);
+    msgs = 0;
+    /* its size word: 4 bytes before "/new_user\0\0\0" ",i\0\0" and the int (20 bytes) */
+    data[n - 24] = 0x7f;
+    CHECK(km_live_osc_packet(data, n, count_joint, seen, &msgs) == 1);
+    CHECK(msgs == 2 && seen[11] == 1 && seen[3] == 1);
+  }
+  CHECK(km_live_osc_packet("#bundle", 8, NULL, NULL, NULL) == 1);
+  CHECK(km_live_osc_packet("joint", 6, NULL, NULL, NULL) == 1);
+  free(data);
+  lo_bundle_free_recursive(outer);
+}
+
 /* Decodes what km_live_quantize wrote, the way web/live.js does. */
 static double dequant(int16_t q, float lo, float hi) {
   double c = 0.5 * ((double)lo + hi), h = 0.5 * ((double)hi - lo);
@@ -515,6 +560,7 @@ int main(void) {
   test_names();
   test_json();
   test_osc();
+  test_osc_packet();
   test_quantize();
   test_server();
   test_server_quantized();

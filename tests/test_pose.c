@@ -504,12 +504,145 @@ static void test_landmark_files(const km_character *c, const char *tmpdir) {
   remove(path);
 }
 
+/* ---- issue 18: forged pose databases (valid checksums) */
+
+static uint64_t fnv1a(uint64_t h, const void *p, size_t n) {
+  const unsigned char *b = p;
+  for (size_t i = 0; i < n; ++i)
+    h = (h ^ b[i]) * 0x100000001b3ULL;
+  return h;
+}
+/* Writes "KMPOSEDB" | version | header length | json | body | FNV-1a, as km_posedb_save. */
+static void write_db(const char *path, uint32_t version, const char *json, const void *body,
+                     size_t nb) {
+  FILE *f = fopen(path, "wb");
+  CHECK(f != NULL);
+  if (!f) return;
+  uint64_t hl = strlen(json), h = 0xcbf29ce484222325ULL;
+  h = fnv1a(h, "KMPOSEDB", 8), h = fnv1a(h, &version, 4), h = fnv1a(h, &hl, 8);
+  h = fnv1a(h, json, hl), h = fnv1a(h, body, nb);
+  fwrite("KMPOSEDB", 1, 8, f), fwrite(&version, 4, 1, f), fwrite(&hl, 8, 1, f);
+  fwrite(json, 1, hl, f), fwrite(body, 1, nb, f), fwrite(&h, 8, 1, f);
+  fclose(f);
+}
+/* Header JSON of n meshes of 16 vertices (the toy landmarks), two classes, the first d
+ * candidate features; svm: NULL (version 1) or the "svm" member's text. */
+static char *forged_json(size_t n, size_t d, const char *svm) {
+  size_t cap = 64 * d + 8 * n + 4096, len = 0;
+  char *j = malloc(cap);
+  len += (size_t)snprintf(j + len, cap - len,
+                          "{\"format\":\"kinemesh-posedb\",\"n_meshes\":%zu,\"n_vertices\":16,"
+                          "\"n_faces\":0,\"landmarks\":[",
+                          n);
+  for (int i = 0; i < 16; ++i)
+    len += (size_t)snprintf(j + len, cap - len,
+                            "%s{\"name\":\"p%d\",\"vertex\":%d,\"mirror\":\"p%d\"}", i ? "," : "",
+                            i, i, i ^ 1);
+  len += (size_t)snprintf(j + len, cap - len, "],\"classes\":[\"a\",\"b\"],\"labels\":[");
+  for (size_t i = 0; i < n; ++i)
+    len += (size_t)snprintf(j + len, cap - len, "%s%zu", i ? "," : "", i & 1);
+  len += (size_t)snprintf(j + len, cap - len, "],\"features\":[");
+  for (size_t f = 0; f < d; ++f) {
+    int32_t t[3];
+    km_pose_candidate(16, f, t);
+    len += (size_t)snprintf(j + len, cap - len, "%s[%d,%d,%d]", f ? "," : "", t[0], t[1], t[2]);
+  }
+  len += (size_t)snprintf(j + len, cap - len, "]%s%s}", svm ? ",\"svm\":" : "", svm ? svm : "");
+  return j;
+}
+
+static void test_forged_database(const char *tmpdir) {
+  char path[1024];
+  snprintf(path, sizeof path, "%s/forged.kmposedb", tmpdir);
+  enum { NBIG = 3000 };
+  double *V = malloc((size_t)NBIG * 48 * sizeof *V);
+  for (size_t i = 0; i < (size_t)NBIG; ++i)
+    toy_pose((int)(i % 2), V + 48 * i);
+  size_t dall = km_pose_candidate_count(16); /* 1,680 */
+  km_posedb *db = NULL;
+
+  /* Version 1 (no stored model) with many templates and every candidate feature: retraining
+   * it would cost samples^2 x features = 1.5e10; refused, naming the way out. */
+  char *json = forged_json(NBIG, dall, NULL);
+  write_db(path, 1, json, V, (size_t)NBIG * 48 * sizeof *V);
+  free(json);
+  CHECK_STATUS(km_posedb_load(path, &db, KM_E), KM_ERR_UNSUPPORTED);
+  CHECK(db == NULL && strstr(km_test_err.message, "posedb build"));
+
+  /* A small version 1 database is still read (retrained): it recognises its own templates. */
+  json = forged_json(40, 60, NULL);
+  write_db(path, 1, json, V, 40 * 48 * sizeof *V);
+  free(json);
+  CHECK_OK(km_posedb_load(path, &db, KM_E));
+  if (db) {
+    size_t d = 0;
+    km_posedb_features(db, &d);
+    int right = 0;
+    for (int i = 0; i < 40; ++i) {
+      km_pose_match m;
+      CHECK_OK(km_posedb_query(db, V + 48 * i, &m, KM_E));
+      right += m.label == i % 2;
+    }
+    CHECK_MSG(d == 60 && right >= 38, "version 1: %zu features, %d of 40 right", d, right);
+    km_posedb_free(&db);
+  }
+
+  /* Version 2 must carry the model in its bytes: the same big header claiming a model it does
+   * not hold (no descriptors, no support vectors) is refused by its size, before allocating. */
+  json = forged_json(NBIG, dall,
+                     "{\"classes\":2,\"vectors\":6000,\"label\":[0,1],"
+                     "\"n_sv\":[3000,3000]}");
+  write_db(path, 2, json, V, (size_t)NBIG * 48 * sizeof *V);
+  free(json);
+  CHECK_STATUS(km_posedb_load(path, &db, KM_E), KM_ERR_PARSE);
+  CHECK(db == NULL && strstr(km_test_err.message, "with their model"));
+  /* ... and a model of more classes than the database has is refused. */
+  json = forged_json(40, 60, "{\"classes\":3,\"vectors\":0,\"label\":[0,1,2],\"n_sv\":[0,0,0]}");
+  write_db(path, 2, json, V, 40 * 48 * sizeof *V);
+  free(json);
+  CHECK_STATUS(km_posedb_load(path, &db, KM_E), KM_ERR_PARSE);
+
+  /* Built with mirrored SVM samples (support vectors that are mirrored copies), saved with
+   * its model and loaded without training: the same answers. */
+  km_landmark lm[16];
+  toy_landmarks(lm);
+  km_mesh meshes[40];
+  int32_t labels[40];
+  for (int i = 0; i < 40; ++i) {
+    meshes[i] = (km_mesh){.V = V + 48 * i, .n_vertices = 16};
+    labels[i] = i % 2;
+  }
+  km_posedb_options o = {0};
+  o.mirror = KM_POSE_MIRROR_ALL;
+  o.cv_folds = 1;
+  CHECK_OK(km_posedb_build(meshes, 40, labels, 2, NULL, NULL, lm, 16, &o, &db, NULL, KM_E));
+  CHECK_OK(km_posedb_save(db, path, KM_E));
+  km_posedb *db2 = NULL;
+  CHECK_OK(km_posedb_load(path, &db2, KM_E));
+  if (db && db2) {
+    int same = 1;
+    for (int i = 40; i < 140; ++i) {
+      km_pose_match m1, m2;
+      CHECK_OK(km_posedb_query(db, V + 48 * i, &m1, KM_E));
+      CHECK_OK(km_posedb_query(db2, V + 48 * i, &m2, KM_E));
+      same &= m1.label == m2.label && m1.template_index == m2.template_index &&
+              m1.distance == m2.distance;
+    }
+    CHECK_MSG(same, "mirrored model: answers differ after save and load");
+  }
+  km_posedb_free(&db);
+  km_posedb_free(&db2);
+  remove(path);
+  free(V);
+}
+
 int main(void) {
   char tmpdir[] = "/tmp/km_test_pose_XXXXXX";
   if (!mkdtemp(tmpdir)) return 1;
   test_candidates();
   test_cart();
   test_toy_classification();
+  test_forged_database(tmpdir);
   subject s[N_SUBJECTS];
   for (int i = 0; i < N_SUBJECTS; ++i)
     CHECK_OK(km_character_generate(&subject_opts[i], &s[i].c, KM_E));

@@ -2,8 +2,8 @@
  * for line-based text where the prefix ends on a record, a shorter valid result) and never
  * crashes or reads past the end (the sanitize run checks that). The mesh readers have had
  * this loop since issue 3; this covers take, track, rig sidecar, character sidecar, puppet
- * cache, pc2, glb, BVH and Kinect CSV. Large files are cut at every byte of their first and
- * last 256 bytes and at ~300 evenly spaced lengths in between. */
+ * cache, pc2, glb, BVH, Kinect CSV and the pose database. Large files are cut at every byte of
+ * their first and last 256 bytes and at ~300 evenly spaced lengths in between. */
 #include "km_test.h"
 
 #include <unistd.h>
@@ -142,6 +142,46 @@ static km_status read_csv(const char *p, void *ctx, km_error *e) {
   return s;
 }
 
+static km_status read_posedb(const char *p, void *ctx, km_error *e) {
+  (void)ctx;
+  km_posedb *db = NULL;
+  km_status s = km_posedb_load(p, &db, e);
+  km_posedb_free(&db);
+  return s;
+}
+
+/* A small pose database: 12 point sets of 16 landmarks in two classes (class 1 lifts a hand). */
+static km_status write_posedb(const char *path, km_error *e) {
+  km_landmark lm[16];
+  double V[12 * 48];
+  km_mesh m[12];
+  int32_t labels[12];
+  for (int i = 0; i < 16; ++i) {
+    memset(&lm[i], 0, sizeof lm[i]);
+    snprintf(lm[i].name, sizeof lm[i].name, "p%d", i);
+    snprintf(lm[i].mirror, sizeof lm[i].mirror, "p%d", i ^ 1);
+    lm[i].vertex = i;
+  }
+  for (int k = 0; k < 12; ++k) {
+    for (int i = 0; i < 16; ++i) {
+      V[48 * k + 3 * i] = (i & 1 ? -1 : 1) * (0.2 + 0.05 * (i / 2)) + 0.003 * (k % 5);
+      V[48 * k + 3 * i + 1] = 0.1 * (i / 2) + 0.002 * ((k * 7 + i) % 3);
+      V[48 * k + 3 * i + 2] = 0.001 * ((k + i) % 4);
+    }
+    if (k & 1) V[48 * k + 1] += 0.5;
+    m[k] = (km_mesh){.V = V + 48 * k, .n_vertices = 16};
+    labels[k] = k & 1;
+  }
+  km_posedb_options o = {0};
+  o.features = 20;
+  o.cv_folds = 1;
+  km_posedb *db = NULL;
+  km_status s = km_posedb_build(m, 12, labels, 2, NULL, NULL, lm, 16, &o, &db, NULL, e);
+  if (!s) s = km_posedb_save(db, path, e);
+  km_posedb_free(&db);
+  return s;
+}
+
 int main(void) {
   if (!mkdtemp(g_dir)) {
     perror("mkdtemp");
@@ -197,6 +237,12 @@ int main(void) {
   km_puppet_free(&pp);
   free(slurp(path, &n));
   prefix_loop("puppet cache", path, "kmcache", read_cache, &c.mesh, n);
+
+  /* pose database: sizes and checksum, every prefix refused */
+  snprintf(path, sizeof path, "%s/p.kmposedb", g_dir);
+  CHECK_OK(write_posedb(path, KM_E));
+  free(slurp(path, &n));
+  prefix_loop("pose database", path, "kmposedb", read_posedb, NULL, n);
 
   /* pc2 and glb animations */
   const char *fmts[2] = {"pc2", "glb"};

@@ -55,6 +55,15 @@ typedef struct km_live_osc_joint {
  * reader does (180 degrees about y). argv: liblo's argument array (lo_arg **). */
 km_live_osc_kind km_live_parse_osc(const char *path, const char *types, void *const *argv, int argc,
                                    km_live_osc_joint *out);
+/* One OSC UDP datagram: a message, or a bundle ("#bundle\0", 8-byte time tag, then (int32
+ * size, element)*, nested at most 8 deep) whose messages are taken in order. Each message is
+ * decoded by liblo and km_live_parse_osc; on_joint (may be NULL) gets every joint message.
+ * *messages (may be NULL) grows by the messages liblo decoded. Returns the number of malformed
+ * elements: a bundle with bad framing (the rest of that bundle is skipped), a message liblo
+ * refuses, a KM_LIVE_OSC_BAD message. */
+typedef void (*km_live_osc_fn)(void *ctx, const km_live_osc_joint *j);
+int km_live_osc_packet(const char *data, size_t size, km_live_osc_fn on_joint, void *ctx,
+                       uint64_t *messages);
 
 /* ---------------------------------------------------------------- VMC (live_vmc.c) */
 

@@ -3,6 +3,7 @@
 #include "live.h"
 
 #include <cjson/cJSON.h>
+#include <lo/lo.h>
 #include <math.h>
 #include <string.h>
 
@@ -201,4 +202,46 @@ km_live_osc_kind km_live_parse_osc(const char *path, const char *types, void *co
   }
   /* OSCeleton's /new_user, /new_skel, /lost_user and anything else a bridge sends. */
   return KM_LIVE_OSC_IGNORED;
+}
+
+/* A bundle element's or message's walk (see km_live_osc_packet); depth: bundle nesting. */
+static int osc_element(const char *data, size_t size, int depth, km_live_osc_fn on_joint, void *ctx,
+                       uint64_t *messages) {
+  if (size >= 8 && !memcmp(data, "#bundle", 8)) {
+    /* "#bundle\0", 8-byte time tag, then (int32 size, element)* */
+    if (depth > 8 || size < 16) return 1;
+    int bad = 0;
+    size_t p = 16;
+    while (p < size) {
+      if (size - p < 4) return bad + 1;
+      uint32_t n = ((uint32_t)(unsigned char)data[p] << 24) |
+                   ((uint32_t)(unsigned char)data[p + 1] << 16) |
+                   ((uint32_t)(unsigned char)data[p + 2] << 8) | (unsigned char)data[p + 3];
+      p += 4;
+      if (n > size - p || n % 4) return bad + 1;
+      bad += osc_element(data + p, n, depth + 1, on_joint, ctx, messages);
+      p += n;
+    }
+    return bad;
+  }
+  if (!size || !memchr(data, 0, size) || data[0] != '/') return 1;
+  int res = 0;
+  /* lo_message_deserialise validates sizes, padding and type tags. */
+  lo_message m = lo_message_deserialise((void *)data, size, &res);
+  if (!m) return 1;
+  ++*messages;
+  km_live_osc_joint j;
+  km_live_osc_kind k =
+      km_live_parse_osc(data, lo_message_get_types(m), (void *const *)lo_message_get_argv(m),
+                        lo_message_get_argc(m), &j);
+  lo_message_free(m);
+  if (k == KM_LIVE_OSC_JOINT && on_joint) on_joint(ctx, &j);
+  return k == KM_LIVE_OSC_BAD;
+}
+
+int km_live_osc_packet(const char *data, size_t size, km_live_osc_fn on_joint, void *ctx,
+                       uint64_t *messages) {
+  uint64_t dummy = 0;
+  if (!data) return 1;
+  return osc_element(data, size, 0, on_joint, ctx, messages ? messages : &dummy);
 }

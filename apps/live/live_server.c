@@ -367,54 +367,23 @@ static void asm_joint(km_live *l, assembler *a, const km_live_osc_joint *j, doub
   if (a->learned && (a->pending & a->learned) == a->learned) asm_commit(l, a);
 }
 
-static void handle_osc_msg(km_live *l, assembler *a, const char *data, size_t size, double now,
-                           int depth) {
-  if (size >= 8 && !memcmp(data, "#bundle", 8)) {
-    /* "#bundle\0", 8-byte time tag, then (int32 size, element)* */
-    if (depth > 8 || size < 16) {
-      atomic_fetch_add(&l->bad_packets, 1);
-      return;
-    }
-    size_t p = 16;
-    while (p < size) {
-      if (size - p < 4) {
-        atomic_fetch_add(&l->bad_packets, 1);
-        return;
-      }
-      uint32_t n = ((uint32_t)(unsigned char)data[p] << 24) |
-                   ((uint32_t)(unsigned char)data[p + 1] << 16) |
-                   ((uint32_t)(unsigned char)data[p + 2] << 8) | (unsigned char)data[p + 3];
-      p += 4;
-      if (n > size - p || n % 4) {
-        atomic_fetch_add(&l->bad_packets, 1);
-        return;
-      }
-      handle_osc_msg(l, a, data + p, n, now, depth + 1);
-      p += n;
-    }
-    return;
-  }
-  if (!size || !memchr(data, 0, size) || data[0] != '/') {
-    atomic_fetch_add(&l->bad_packets, 1);
-    return;
-  }
-  int res = 0;
-  /* lo_message_deserialise validates sizes, padding and type tags. */
-  lo_message m = lo_message_deserialise((void *)data, size, &res);
-  if (!m) {
-    atomic_fetch_add(&l->bad_packets, 1);
-    return;
-  }
-  atomic_fetch_add(&l->osc_messages, 1);
-  km_live_osc_joint j;
-  km_live_osc_kind k =
-      km_live_parse_osc(data, lo_message_get_types(m), (void *const *)lo_message_get_argv(m),
-                        lo_message_get_argc(m), &j);
-  if (k == KM_LIVE_OSC_BAD)
-    atomic_fetch_add(&l->bad_packets, 1);
-  else if (k == KM_LIVE_OSC_JOINT)
-    asm_joint(l, a, &j, now);
-  lo_message_free(m);
+typedef struct osc_ctx {
+  km_live *l;
+  assembler *a;
+  double now;
+} osc_ctx;
+static void on_osc_joint(void *ctx, const km_live_osc_joint *j) {
+  osc_ctx *o = ctx;
+  asm_joint(o->l, o->a, j, o->now);
+}
+
+/* One OSC datagram: its joints into the assembler, its counts into /status. */
+static void handle_osc(km_live *l, assembler *a, const char *data, size_t size, double now) {
+  osc_ctx o = {l, a, now};
+  uint64_t messages = 0;
+  int bad = km_live_osc_packet(data, size, on_osc_joint, &o, &messages);
+  atomic_fetch_add(&l->osc_messages, messages);
+  if (bad) atomic_fetch_add(&l->bad_packets, (uint64_t)bad);
 }
 
 /* VMC packets: a frame per bundle; the counters published for /status. */
@@ -450,7 +419,7 @@ static void drain(km_live *l, int fd, bool osc, assembler *a, unsigned char *buf
       continue;
     }
     if (osc) {
-      handle_osc_msg(l, a, (const char *)buf, (size_t)n, now, 0);
+      handle_osc(l, a, (const char *)buf, (size_t)n, now);
     } else {
       atomic_fetch_add(&l->udp_datagrams, 1);
       double joints[3 * NJ];

@@ -263,3 +263,113 @@ done:
   if (s) km__pose_model_free(m);
   return s;
 }
+
+void km__pose_model_svm(const km__pose_model *m, km__pose_svm *out) {
+  memset(out, 0, sizeof *out);
+  const struct svm_model *sm = m ? m->svm : NULL;
+  if (!sm) return;
+  out->nr_class = sm->nr_class;
+  out->l = sm->l;
+  out->label = sm->label;
+  out->n_sv = sm->nSV;
+  out->sv_row1 = sm->sv_indices;
+  out->rho = sm->rho;
+  out->coef = (const double *const *)sm->sv_coef;
+}
+
+km_status km__pose_model_restore(km__pose_model *m, size_t nl, const int32_t *mirror,
+                                 const int32_t *triples, size_t d, const double *lo,
+                                 const double *hi, const km_posedb_options *o, int nr_class, int l,
+                                 const int *label, const int *n_sv, const double *rho,
+                                 const double *coef, const int32_t *sv_row, size_t rows,
+                                 const double *desc, const double *P, size_t n, size_t nc,
+                                 km_error *err) {
+  memset(m, 0, sizeof *m);
+  if (nr_class < 1 || (size_t)nr_class > nc || l < 0 || (size_t)l > rows || d < 1 ||
+      nl > KM_POSE_MAX_LANDMARKS)
+    return km__fail(err, KM_ERR_PARSE, "pose model: %d classes, %d support vectors of %zu rows",
+                    nr_class, l, rows);
+  long sum = 0;
+  for (int c = 0; c < nr_class; ++c) {
+    if (label[c] < 0 || (size_t)label[c] >= nc || n_sv[c] < 0)
+      return km__fail(err, KM_ERR_PARSE, "pose model: class %d is label %d with %d vectors", c,
+                      label[c], n_sv[c]);
+    sum += n_sv[c];
+  }
+  if (sum != l)
+    return km__fail(err, KM_ERR_PARSE, "pose model: %ld support vectors by class, %d in all", sum,
+                    l);
+  for (int i = 0; i < l; ++i)
+    if (sv_row[i] < 0 || (size_t)sv_row[i] >= rows || (size_t)sv_row[i] >= 2 * n)
+      return km__fail(err, KM_ERR_PARSE, "pose model: support vector %d is row %d of %zu", i,
+                      (int)sv_row[i], rows);
+  for (size_t f = 0; f < d * 3; ++f)
+    if (triples[f] < 0 || (size_t)triples[f] >= nl)
+      return km__fail(err, KM_ERR_PARSE, "pose model: feature %zu names landmark %d of %zu", f / 3,
+                      (int)triples[f], nl);
+  size_t nrho = (size_t)nr_class * (size_t)(nr_class - 1) / 2, k1 = (size_t)nr_class - 1;
+  m->n_landmarks = nl;
+  m->d = d;
+  m->n_classes = nc;
+  m->triples = km__malloc(d * 3, sizeof(int32_t));
+  m->lo = km__malloc(d, sizeof(double));
+  m->hi = km__malloc(d, sizeof(double));
+  m->nodes = km__malloc((size_t)(l ? l : 1), (d + 1) * sizeof(struct svm_node));
+  struct svm_model *sm = calloc(1, sizeof *sm);
+  double *Pm = km__malloc(nl * 3, sizeof *Pm), *x = km__malloc(d, sizeof *x);
+  km_status s = KM_OK;
+  if (sm) {
+    m->svm = sm;
+    sm->nr_class = nr_class;
+    sm->l = l;
+    sm->free_sv = 0; /* the rows live in m->nodes */
+    sm->SV = km__malloc((size_t)(l ? l : 1), sizeof *sm->SV);
+    sm->sv_coef = km__calloc(k1 ? k1 : 1, sizeof *sm->sv_coef);
+    sm->rho = km__malloc(nrho ? nrho : 1, sizeof *sm->rho);
+    sm->label = km__malloc((size_t)nr_class, sizeof *sm->label);
+    sm->nSV = km__malloc((size_t)nr_class, sizeof *sm->nSV);
+    sm->sv_indices = km__malloc((size_t)(l ? l : 1), sizeof *sm->sv_indices);
+  }
+  bool ok = sm && m->triples && m->lo && m->hi && m->nodes && Pm && x && sm->SV && sm->sv_coef &&
+            sm->rho && sm->label && sm->nSV && sm->sv_indices;
+  for (size_t r = 0; ok && r < k1; ++r)
+    ok = (sm->sv_coef[r] = km__malloc((size_t)(l ? l : 1), sizeof(double))) != NULL;
+  if (!ok) {
+    s = km__fail(err, KM_ERR_NOMEM, "pose model: out of memory (%d support vectors x %zu)", l, d);
+    goto done;
+  }
+  memcpy(m->triples, triples, d * 3 * sizeof(int32_t));
+  memcpy(m->lo, lo, d * sizeof(double));
+  memcpy(m->hi, hi, d * sizeof(double));
+  sm->param.svm_type = C_SVC;
+  sm->param.kernel_type = o->kernel == KM_SVM_LINEAR ? LINEAR : RBF;
+  sm->param.gamma = o->svm_gamma;
+  sm->param.C = o->svm_c;
+  memcpy(sm->label, label, (size_t)nr_class * sizeof(int));
+  memcpy(sm->nSV, n_sv, (size_t)nr_class * sizeof(int));
+  if (nrho) memcpy(sm->rho, rho, nrho * sizeof(double));
+  for (size_t r = 0; r < k1; ++r)
+    if (l) memcpy(sm->sv_coef[r], coef + r * (size_t)l, (size_t)l * sizeof(double));
+  struct svm_node *nodes = m->nodes;
+  for (int i = 0; i < l; ++i) {
+    size_t row = (size_t)sv_row[i];
+    struct svm_node *sv = nodes + (size_t)i * (d + 1);
+    const double *v = desc + row * d;
+    if (row >= n) { /* a mirrored sample: every landmark swapped with its counterpart */
+      for (size_t a = 0; a < nl; ++a)
+        memcpy(Pm + 3 * a, P + (row - n) * nl * 3 + 3 * (size_t)mirror[a], 3 * sizeof(double));
+      km__pose_model_features(m, Pm, x);
+      v = x;
+    }
+    for (size_t f = 0; f < d; ++f)
+      sv[f] = (struct svm_node){(int)f + 1, v[f]};
+    sv[d] = (struct svm_node){-1, 0};
+    sm->SV[i] = sv;
+    sm->sv_indices[i] = (int)row + 1;
+  }
+done:
+  free(Pm);
+  free(x);
+  if (s) km__pose_model_free(m);
+  return s;
+}

@@ -1,12 +1,17 @@
 /* Pose database: templates of one connectivity with pose classes; recognition by selected
  * angles + SVM, template retrieval by nearest neighbour inside the predicted class (section
- * 3.3). File format (version 1, little endian):
+ * 3.3). File format (version 2, little endian):
  *   "KMPOSEDB" | u32 version | u64 header bytes | header JSON | int32 F[n_faces*3] |
- *   f64 V[n_meshes*n_vertices*3] | u64 FNV-1a of everything before it
+ *   f64 V[n_meshes*n_vertices*3] | f64 desc[n_meshes*d] | f64 lo[d] | f64 hi[d] |
+ *   f64 rho[k(k-1)/2] | f64 coef[(k-1)*l] | int32 sv_row[l] | u64 FNV-1a of everything before
  * The JSON holds counts, landmarks, class names, labels, groups, the selected features, the
- * options and the build report. The SVM is not stored: it is retrained on load from the
- * templates with the stored features, which is deterministic and avoids libsvm's model files
- * (svm_save_model/svm_load_model only work on their own paths, not inside our file). */
+ * options, the build report and the SVM's shape ("svm": classes k, vectors l, label and n_sv
+ * per class); the binary part after V is the trained model: the templates' scaled descriptors
+ * (the nearest-neighbour data), the feature ranges and libsvm's arrays (its own model files
+ * only work on their own paths, not inside ours). Loading is linear in the file: nothing is
+ * trained (issue 18: version 1 stored no model and was retrained on load, so a forged file of
+ * 1.7 MB with 14,880 features cost 92 s and 736 MB). Version 1 files are still read, retrained,
+ * when that work is small (KM__POSEDB_V1_WORK). */
 #include "transfer/pose.h"
 
 #include <cjson/cJSON.h>
@@ -83,8 +88,8 @@ const int32_t *km_posedb_features(const km_posedb *db, size_t *d) {
   return db ? db->model.triples : NULL;
 }
 
-/* Landmark positions of every template into db->P; model training; descriptors for NN. */
-static km_status finish(km_posedb *db, const int32_t *fixed, size_t fixed_d, km_error *err) {
+/* Landmark positions of every template into db->P. */
+static km_status landmark_positions(km_posedb *db, km_error *err) {
   size_t nl = db->nl;
   for (size_t i = 0; i < db->n_meshes; ++i)
     for (size_t a = 0; a < nl; ++a)
@@ -94,8 +99,16 @@ static km_status finish(km_posedb *db, const int32_t *fixed, size_t fixed_d, km_
     if (!isfinite(db->P[i]))
       return km__fail(err, KM_ERR_INVALID, "pose database: mesh %zu has a non-finite landmark",
                       i / (nl * 3));
-  km_status s = km__pose_model_train(db->P, db->labels, db->n_meshes, db->n_classes, db->lm, nl,
-                                     &db->opt, fixed, fixed_d, &db->model, err);
+  return KM_OK;
+}
+
+/* Landmark positions; model training; descriptors for NN. */
+static km_status finish(km_posedb *db, const int32_t *fixed, size_t fixed_d, km_error *err) {
+  size_t nl = db->nl;
+  km_status s = landmark_positions(db, err);
+  if (s) return s;
+  s = km__pose_model_train(db->P, db->labels, db->n_meshes, db->n_classes, db->lm, nl, &db->opt,
+                           fixed, fixed_d, &db->model, err);
   if (s) return s;
   db->desc = km__malloc(db->n_meshes * db->model.d, sizeof(double));
   if (!db->desc) return km__fail(err, KM_ERR_NOMEM, "pose database: out of memory");
@@ -391,6 +404,15 @@ km_status km_posedb_save(const km_posedb *db, const char *path, km_error *err) {
   cJSON_AddNumberToObject(rp, "cv_accuracy_eq8", db->report.cv_accuracy_eq8);
   cJSON_AddNumberToObject(rp, "cv_folds", (double)db->report.cv_folds);
   cJSON_AddNumberToObject(rp, "build_ms", db->report.build_ms);
+  km__pose_svm sv;
+  km__pose_model_svm(&db->model, &sv);
+  cJSON *so = cJSON_AddObjectToObject(root, "svm");
+  cJSON_AddNumberToObject(so, "classes", sv.nr_class);
+  cJSON_AddNumberToObject(so, "vectors", sv.l);
+  if (sv.nr_class > 0) {
+    cJSON_AddItemToObject(so, "label", cJSON_CreateIntArray(sv.label, sv.nr_class));
+    cJSON_AddItemToObject(so, "n_sv", cJSON_CreateIntArray(sv.n_sv, sv.nr_class));
+  }
   char *json = cJSON_PrintUnformatted(root);
   cJSON_Delete(root);
   if (!json) return km__fail(err, KM_ERR_NOMEM, "km_posedb_save: out of memory");
@@ -401,7 +423,7 @@ km_status km_posedb_save(const km_posedb *db, const char *path, km_error *err) {
     return s;
   }
   hashed_writer w = {af.f, KM__FNV_SEED};
-  uint32_t version = 1;
+  uint32_t version = 2;
   uint64_t hl = strlen(json);
   hw(&w, "KMPOSEDB", 8);
   hw(&w, &version, 4);
@@ -410,9 +432,72 @@ km_status km_posedb_save(const km_posedb *db, const char *path, km_error *err) {
   free(json);
   hw(&w, db->F, db->n_faces * 3 * sizeof(int32_t));
   hw(&w, db->V, db->n_meshes * db->n_vertices * 3 * sizeof(double));
+  size_t d = db->model.d, k = sv.nr_class > 0 ? (size_t)sv.nr_class : 1;
+  hw(&w, db->desc, db->n_meshes * d * sizeof(double));
+  hw(&w, db->model.lo, d * sizeof(double));
+  hw(&w, db->model.hi, d * sizeof(double));
+  hw(&w, sv.rho, k * (k - 1) / 2 * sizeof(double));
+  for (size_t r = 0; r + 1 < k; ++r)
+    hw(&w, sv.coef[r], (size_t)sv.l * sizeof(double));
+  for (int i = 0; i < sv.l; ++i) {
+    int32_t row = sv.sv_row1[i] - 1;
+    hw(&w, &row, 4);
+  }
   uint64_t h = w.h;
   fwrite(&h, 1, 8, af.f);
   return km__atomic_commit(&af, err);
+}
+
+/* Samples^2 x features that a version 1 database may cost to retrain on load (a few seconds). */
+#define KM__POSEDB_V1_WORK 4.0e9
+
+/* Version 2: the stored descriptors and SVM (q: the bytes after V) into db; k, l checked
+ * against the file by the caller. */
+static km_status restore_model(km_posedb *db, const int32_t *mirror, const int32_t *tri, size_t d,
+                               size_t k, size_t l, cJSON *sla, cJSON *sna, const char *q,
+                               km_error *err) {
+  size_t nm = db->n_meshes, nrho = k * (k - 1) / 2;
+  km_status s = landmark_positions(db, err);
+  if (s) return s;
+  size_t tail_n = 2 * d + nrho + (k - 1) * l; /* doubles, then l int32 */
+  double *tail = km__malloc(tail_n * 8 + l * 4 + 8, 1);
+  int *label = km__malloc(k, sizeof *label), *nsv = km__malloc(k, sizeof *nsv);
+  db->desc = km__malloc(nm * d, sizeof(double));
+  if (!tail || !label || !nsv || !db->desc) {
+    s = km__fail(err, KM_ERR_NOMEM, "pose database: out of memory");
+    goto done;
+  }
+  memcpy(db->desc, q, nm * d * 8);
+  memcpy(tail, q + nm * d * 8, tail_n * 8 + l * 4);
+  size_t c = 0;
+  cJSON *a = sla->child, *b = sna->child;
+  for (; a && b && c < k; a = a->next, b = b->next, ++c) {
+    if (!cJSON_IsNumber(a) || !(a->valuedouble >= 0) || a->valuedouble >= (double)db->n_classes ||
+        !cJSON_IsNumber(b) || !(b->valuedouble >= 0) || b->valuedouble > (double)l) {
+      s = km__fail(err, KM_ERR_PARSE, "pose database: svm class %zu: label or n_sv out of range",
+                   c);
+      goto done;
+    }
+    label[c] = (int)a->valuedouble;
+    nsv[c] = (int)b->valuedouble;
+  }
+  const double *lo = tail, *hi = lo + d, *rho = hi + d, *coef = rho + nrho;
+  int32_t *sv_row = km__malloc(l ? l : 1, sizeof *sv_row);
+  if (!sv_row) {
+    s = km__fail(err, KM_ERR_NOMEM, "pose database: out of memory");
+    goto done;
+  }
+  memcpy(sv_row, coef + (k - 1) * l, l * 4);
+  size_t rows = db->opt.mirror == KM_POSE_MIRROR_ALL ? 2 * nm : nm;
+  s = km__pose_model_restore(&db->model, db->nl, mirror, tri, d, lo, hi, &db->opt, (int)k, (int)l,
+                             label, nsv, rho, coef, sv_row, rows, db->desc, db->P, nm,
+                             db->n_classes, err);
+  free(sv_row);
+done:
+  free(tail);
+  free(label);
+  free(nsv);
+  return s;
 }
 
 static bool get_size(cJSON *o, const char *k, size_t max, size_t *out) {
@@ -443,8 +528,8 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
     goto done;
   }
   memcpy(&version, data + 8, 4);
-  if (version != 1) {
-    s = km__fail(err, KM_ERR_UNSUPPORTED, "%s: byte 8: version %u, this build reads version 1",
+  if (version != 1 && version != 2) {
+    s = km__fail(err, KM_ERR_UNSUPPORTED, "%s: byte 8: version %u, this build reads versions 1, 2",
                  path, version);
     goto done;
   }
@@ -481,19 +566,52 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
   size_t body = size - 28 - (size_t)hl;
   size_t nl = (size_t)cJSON_GetArraySize(lm), nc = (size_t)cJSON_GetArraySize(cl);
   size_t d = (size_t)cJSON_GetArraySize(fe);
-  /* Sizes are checked against the file before anything is allocated. */
-  if (nv == 0 || nm < 2 || nf > body / 12 || nm > body / 24 / nv ||
-      nf * 12 + nm * nv * 24 != body) {
-    s = km__fail(err, KM_ERR_PARSE,
-                 "%s: %zu meshes x %zu vertices and %zu faces do not match the %zu data bytes",
-                 path, nm, nv, nf, body);
-    goto done;
-  }
   if (nl < 4 || nl > KM_POSE_MAX_LANDMARKS || nc < 1 || (size_t)cJSON_GetArraySize(lb) != nm ||
       (gr && (!cJSON_IsArray(gr) || (size_t)cJSON_GetArraySize(gr) != nm)) || d < 1 ||
       d > km_pose_candidate_count(nl)) {
     s = km__fail(err, KM_ERR_PARSE,
                  "%s: inconsistent header (landmarks, classes, labels, features)", path);
+    goto done;
+  }
+  /* Version 2: the model's shape (k classes, l support vectors), checked against the file. */
+  size_t k = 0, l = 0, extra = 0;
+  cJSON *sla = NULL, *sna = NULL;
+  if (version == 2) {
+    cJSON *so = cJSON_GetObjectItemCaseSensitive(root, "svm");
+    if (!cJSON_IsObject(so) || !get_size(so, "classes", nc, &k) || k < 1 ||
+        !get_size(so, "vectors", 2000000000, &l) ||
+        !cJSON_IsArray(sla = cJSON_GetObjectItemCaseSensitive(so, "label")) ||
+        !cJSON_IsArray(sna = cJSON_GetObjectItemCaseSensitive(so, "n_sv")) ||
+        (size_t)cJSON_GetArraySize(sla) != k || (size_t)cJSON_GetArraySize(sna) != k) {
+      s = km__fail(err, KM_ERR_PARSE,
+                   "%s: byte 20: header JSON's \"svm\" lacks classes (1..%zu), vectors, label "
+                   "or n_sv",
+                   path, nc);
+      goto done;
+    }
+  }
+  /* Sizes are checked against the file before anything is allocated; every product is
+   * bounded by the data bytes first. */
+  bool fits = nv > 0 && nm >= 2 && nf <= body / 12 && nm <= body / 24 / nv;
+  if (fits && version == 2) {
+    fits = nm <= body / 8 / d && l <= 2 * nm && k - 1 <= body / 8 / k &&
+           (l == 0 || k - 1 <= body / 8 / l);
+    if (fits) extra = nm * d * 8 + 2 * d * 8 + k * (k - 1) / 2 * 8 + (k - 1) * l * 8 + l * 4;
+  }
+  if (!fits || nf * 12 + nm * nv * 24 + extra != body) {
+    s = km__fail(err, KM_ERR_PARSE,
+                 "%s: %zu meshes x %zu vertices and %zu faces%s do not match the %zu data bytes",
+                 path, nm, nv, nf, version == 2 ? " with their model" : "", body);
+    goto done;
+  }
+  /* Version 1 is retrained on load: libsvm's work grows as samples^2 x features, so only a
+   * database small enough to train in seconds is accepted. */
+  if (version == 1 && (double)nm * (double)nm * (double)d > KM__POSEDB_V1_WORK) {
+    s = km__fail(err, KM_ERR_UNSUPPORTED,
+                 "%s: a version 1 database (no stored model) of %zu templates x %zu features would "
+                 "be retrained on load (over %.0e samples^2 x features); rebuild it with "
+                 "`kinemesh posedb build`, which stores the model",
+                 path, nm, d, KM__POSEDB_V1_WORK);
     goto done;
   }
   db = alloc_db(nm, nv, nf, nc, nl, gr != NULL);
@@ -596,7 +714,10 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
     db->opt = km__posedb_defaults(&o, nl);
     int32_t mirror[KM_POSE_MAX_LANDMARKS];
     s = km__landmark_mirrors(db->lm, nl, mirror, err);
-    if (!s) s = finish(db, tri, d, err);
+    if (!s && version == 1) s = finish(db, tri, d, err);
+    if (!s && version == 2)
+      s = restore_model(db, mirror, tri, d, k, l, sla, sna, data + 20 + hl + nf * 12 + nm * nv * 24,
+                        err);
     if (s) km__wrap(err, s, "%s", path);
   }
   free(tri);
