@@ -1739,8 +1739,7 @@ size_t km_transfer_energies(const km_transfer *t, double *energies, size_t cap);
 km_status km_transfer_template_rotations(const km_mesh *rest, const double *posed, double *R,
                                          km_error *err);
 /* Dense correspondence: for every source vertex the nearest template vertex, both at rest and
- * in one frame (same placement and size; a body of another shape must first be registered
- * onto the template, which this does not do).
+ * in one frame (same placement and size: see km_transfer_register_rest below).
  *   corr  out: #V (source) template vertex ids */
 km_status km_transfer_correspondence(const km_mesh *source_rest, const km_mesh *template_rest,
                                      int32_t *corr, km_error *err);
@@ -1755,6 +1754,30 @@ km_status km_transfer_map_pose(const km_mesh *source_rest, const km_mesh *templa
                                const double *template_posed, const int32_t *corr,
                                const int32_t *landmarks, size_t n_landmarks, double *R,
                                double *targets, km_error *err);
+/* A source that stands in another frame or at another size than TR (a scan against a game
+ * character): register S's rest onto TR's first, then carry the pose over on the registered
+ * copy and turn it back into S's frame:
+ *   km_transfer_register_rest(S, TR, pairs, n, Sr, &s, Q, t);   Sr = s Q S + t
+ *   km_transfer_correspondence(Sr-mesh, TR, corr); km_transfer_map_pose(Sr-mesh, TR, TP, ...);
+ *   km_transfer_pose_to_source(s, Q, t, #V, R, #L, targets);   then km_transfer_solve_rotations
+ * on a km_transfer precomputed on S itself: the output keeps S's frame, size, connectivity and
+ * vertex order. The registration is a similarity (Umeyama, km_similarity_fit) of vertex pairs
+ * (landmarks of one name in both rigs, or given by the user): exact for one body in two
+ * frames; a body of another shape keeps its shape differences in the nearest-vertex
+ * correspondence (no non-rigid step yet).
+ * km_transfer_register_rest:
+ *   pairs       in: n_pairs*2 vertex ids (source, template), n_pairs >= 3
+ *   registered  out: #V*3 the source's rest moved onto TR: s Q x + t
+ *   scale, Q, t out: the similarity (Q row-major 3x3 rotation)
+ *   Errors: KM_ERR_INVALID (ids out of range, fewer than 3 pairs), KM_ERR_DEGENERATE_MESH
+ *   (collinear or coincident pairs).
+ * km_transfer_pose_to_source: R (#V*9, in: TR's frame, out: S's: Q^T R_i Q) and targets
+ *   (#L*3, Q^T (p - t) / s) in place; either may be NULL. */
+km_status km_transfer_register_rest(const km_mesh *source_rest, const km_mesh *template_rest,
+                                    const int32_t *pairs, size_t n_pairs, double *registered,
+                                    double *scale, double Q[9], double t[3], km_error *err);
+void km_transfer_pose_to_source(double scale, const double Q[9], const double t[3],
+                                size_t n_vertices, double *R, size_t n_landmarks, double *targets);
 /* km_transfer_solve from per-vertex rotations instead of a template of S's connectivity.
  *   R        in: #V*9 row-major rotation of each source vertex's one-ring (the pose)
  *   targets  in: #L*3 landmark positions in precompute order

@@ -3,6 +3,7 @@
 #include "km_test.h"
 #include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
+#include "math/math.h"
 #include "transfer/transfer.h"
 
 static int32_t lm_ids[KM_CHARACTER_LANDMARKS];
@@ -573,6 +574,71 @@ static void test_cross_connectivity(const km_character_options *base) {
          sum * 1e3, KP_N_POSES, worst * 1e3, hi - lo);
   CHECK_MSG(sum <= 0.01 * (hi - lo), "other connectivity: mean error %g m > 1%% of %g m", sum,
             hi - lo);
+  /* The source in another frame and size: S's rest turned 90 degrees about x (its up is now
+   * +z), scaled x1.2 and moved. Registered onto T's rest by the similarity of the 16 landmark
+   * pairs (one name in both rigs), the pose carried on the registered copy and turned back:
+   * the truth is the moved S posed. */
+  {
+    const double sc = 1.2, Qm[9] = {1, 0, 0, 0, 0, -1, 0, 1, 0}, tm[3] = {0.4, -0.3, 2.0};
+    km_mesh sm = {0}, sr = {0};
+    CHECK_OK(km_mesh_copy(&s.mesh, &sm, KM_E));
+    CHECK_OK(km_mesh_copy(&s.mesh, &sr, KM_E));
+    double *Gm = malloc(n * 3 * sizeof *Gm), q[3];
+    for (size_t v = 0; v < n; ++v) {
+      km__m3_apply(Qm, s.mesh.V + 3 * v, q);
+      for (int k = 0; k < 3; ++k)
+        sm.V[3 * v + k] = sc * q[k] + tm[k];
+    }
+    int32_t pairs[2 * KM_CHARACTER_LANDMARKS];
+    size_t np = 0;
+    for (int a = 0; a < KM_CHARACTER_LANDMARKS; ++a)
+      for (int b = 0; b < KM_CHARACTER_LANDMARKS; ++b)
+        if (!strcmp(s.landmarks[a].name, t.landmarks[b].name)) {
+          pairs[2 * np] = s.landmarks[a].vertex, pairs[2 * np + 1] = t.landmarks[b].vertex;
+          ++np;
+        }
+    CHECK(np == KM_CHARACTER_LANDMARKS);
+    double rs, RQ[9], rt[3];
+    CHECK_OK(km_transfer_register_rest(&sm, &t.mesh, pairs, np, sr.V, &rs, RQ, rt, KM_E));
+    printf("  moved source registered: scale %.4f (1/1.2 = %.4f)\n", rs, 1 / sc);
+    CHECK_NEAR(rs * sc, 1, 0.02);
+    km_transfer *tm2 = NULL;
+    CHECK_OK(km_transfer_correspondence(&sr, &t.mesh, corr, KM_E));
+    CHECK_OK(km_transfer_precompute(&sm, ids, KM_CHARACTER_LANDMARKS, NULL, &tm2, KM_E));
+    double msum = 0, mworst = 0;
+    for (int p = 0; p < KP_N_POSES && tm2; ++p) {
+      CHECK_OK(kp_pose_character(&t, &kp_poses[p], NULL, TP, KM_E));
+      CHECK_OK(kp_pose_character(&s, &kp_poses[p], NULL, G, KM_E));
+      for (size_t v = 0; v < n; ++v) {
+        km__m3_apply(Qm, G + 3 * v, q);
+        for (int k = 0; k < 3; ++k)
+          Gm[3 * v + k] = sc * q[k] + tm[k];
+      }
+      CHECK_OK(
+          km_transfer_map_pose(&sr, &t.mesh, TP, corr, ids, KM_CHARACTER_LANDMARKS, RS, P, KM_E));
+      km_transfer_pose_to_source(rs, RQ, rt, n, RS, KM_CHARACTER_LANDMARKS, P);
+      CHECK_OK(km_transfer_solve_rotations(tm2, RS, P, X, NULL, KM_E));
+      double mean, max;
+      kp_error(X, Gm, n, &mean, &max);
+      msum += mean / KP_N_POSES;
+      mworst = fmax(mworst, mean);
+    }
+    printf("  other connectivity, source turned 90 deg, x1.2, moved: mean %.1f mm over %d poses "
+           "(worst pose %.1f mm), height %.3f m\n",
+           msum * 1e3, KP_N_POSES, mworst * 1e3, sc * (hi - lo));
+    CHECK_MSG(msum <= 0.01 * sc * (hi - lo), "moved source: mean error %g m > 1%% of %g m", msum,
+              sc * (hi - lo));
+    /* fewer than 3 pairs, an id out of range: errors */
+    CHECK_STATUS(km_transfer_register_rest(&sm, &t.mesh, pairs, 2, sr.V, &rs, RQ, rt, KM_E),
+                 KM_ERR_INVALID);
+    pairs[1] = (int32_t)nt;
+    CHECK_STATUS(km_transfer_register_rest(&sm, &t.mesh, pairs, np, sr.V, &rs, RQ, rt, KM_E),
+                 KM_ERR_INVALID);
+    km_transfer_free(&tm2);
+    km_mesh_free(&sm);
+    km_mesh_free(&sr);
+    free(Gm);
+  }
   /* the same with rotations that are not finite: an error, not a crash */
   RS[4] = NAN;
   CHECK_STATUS(km_transfer_solve_rotations(tr, RS, P, X, NULL, KM_E), KM_ERR_INVALID);

@@ -1186,3 +1186,63 @@ km_status km_transfer_map_pose(const km_mesh *source_rest, const km_mesh *templa
   free(RT);
   return KM_OK;
 }
+
+km_status km_transfer_register_rest(const km_mesh *source_rest, const km_mesh *template_rest,
+                                    const int32_t *pairs, size_t n_pairs, double *registered,
+                                    double *scale, double Q[9], double t[3], km_error *err) {
+  if (!source_rest || !source_rest->V || !template_rest || !template_rest->V || !pairs ||
+      !registered || !scale || !Q || !t)
+    return km__fail(err, KM_ERR_INVALID, "km_transfer_register_rest: NULL argument");
+  if (n_pairs < 3)
+    return km__fail(err, KM_ERR_INVALID,
+                    "km_transfer_register_rest: %zu correspondence(s), at least 3 are needed",
+                    n_pairs);
+  size_t n = source_rest->n_vertices, nt = template_rest->n_vertices;
+  for (size_t k = 0; k < n_pairs; ++k)
+    if (pairs[2 * k] < 0 || (size_t)pairs[2 * k] >= n || pairs[2 * k + 1] < 0 ||
+        (size_t)pairs[2 * k + 1] >= nt)
+      return km__fail(err, KM_ERR_INVALID,
+                      "km_transfer_register_rest: correspondence %zu is (%d, %d), expected "
+                      "source 0..%zu, template 0..%zu",
+                      k, (int)pairs[2 * k], (int)pairs[2 * k + 1], n ? n - 1 : 0, nt ? nt - 1 : 0);
+  double *src = km__malloc(n_pairs * 6, sizeof *src);
+  if (!src) return km__fail(err, KM_ERR_NOMEM, "km_transfer_register_rest: out of memory");
+  double *dst = src + 3 * n_pairs;
+  for (size_t k = 0; k < n_pairs; ++k) {
+    memcpy(src + 3 * k, source_rest->V + 3 * (size_t)pairs[2 * k], 3 * sizeof(double));
+    memcpy(dst + 3 * k, template_rest->V + 3 * (size_t)pairs[2 * k + 1], 3 * sizeof(double));
+  }
+  km_status s = km_similarity_fit(src, dst, NULL, n_pairs, true, scale, Q, t, err);
+  free(src);
+  if (s) return km__wrap(err, s, "km_transfer_register_rest: fitting the correspondences");
+  if (!(*scale > 0) || !isfinite(*scale))
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "km_transfer_register_rest: the correspondences give scale %g", *scale);
+  for (size_t i = 0; i < n; ++i) {
+    double p[3];
+    km__m3_apply(Q, source_rest->V + 3 * i, p);
+    for (int k = 0; k < 3; ++k)
+      registered[3 * i + k] = *scale * p[k] + t[k];
+  }
+  return KM_OK;
+}
+
+void km_transfer_pose_to_source(double scale, const double Q[9], const double t[3],
+                                size_t n_vertices, double *R, size_t n_landmarks, double *targets) {
+  double Qt[9];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      Qt[3 * r + c] = Q[3 * c + r];
+  for (size_t i = 0; i < n_vertices && R; ++i) {
+    double A[9];
+    km__m3_mul(Qt, R + 9 * i, A);
+    km__m3_mul(A, Q, R + 9 * i);
+  }
+  for (size_t l = 0; l < n_landmarks && targets; ++l) {
+    double d[3], p[3];
+    km__sub3(targets + 3 * l, t, d);
+    km__m3_apply(Qt, d, p);
+    for (int k = 0; k < 3; ++k)
+      targets[3 * l + k] = p[k] / scale;
+  }
+}
