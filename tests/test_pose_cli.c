@@ -355,6 +355,7 @@ int main(void) {
    * output stays in the moved source's frame: truth = the moved c posed. */
   {
     km_mesh c = {0}, truth = {0}, cm60 = {0};
+    double height = 0;
     km_landmark lc[KM_POSE_MAX_LANDMARKS], la[KM_POSE_MAX_LANDMARKS];
     size_t nc = 0, na = 0;
     CHECK_OK(km_mesh_read(DIR "/c.obj", &c, KM_E));
@@ -392,11 +393,40 @@ int main(void) {
       km_vertex_distance_stats(cm60.V, truth.V, cm60.n_vertices, &mean, &max);
       for (size_t v = 0; v < truth.n_vertices; ++v)
         lo = fmin(lo, truth.V[3 * v + 2]), hi = fmax(hi, truth.V[3 * v + 2]);
+      height = hi - lo;
       printf("  the same turned 90 deg, x1.2, moved (--correspondences): mean %.1f mm, max %.1f "
              "mm, height %.3f m\n",
              mean * 1e3, max * 1e3, hi - lo);
       CHECK_MSG(mean <= 0.01 * (hi - lo), "moved source: mean %g m", mean);
     }
+    /* the same with the non-rigid step after the similarity */
+    CHECK(km_test_run(KM_CLI " transfer --source " DIR "/cm.obj --landmarks " DIR
+                             "/c.rig.json --template " DIR
+                             "/a_kungfu/frame_000060.obj --template-rest " DIR
+                             "/a.obj --correspondences " DIR
+                             "/cm_pairs.csv --register nonrigid -o " DIR "/cm60n.obj",
+                      &out) == 0);
+    CHECK_MSG(out && strstr(out, "non-rigid registration"), "%s", out ? out : "");
+    free(out);
+    {
+      km_mesh cn = {0};
+      CHECK_OK(km_mesh_read(DIR "/cm60n.obj", &cn, KM_E));
+      CHECK(cn.n_vertices == truth.n_vertices);
+      if (cn.n_vertices == truth.n_vertices && cn.V) {
+        double mean, max;
+        km_vertex_distance_stats(cn.V, truth.V, cn.n_vertices, &mean, &max);
+        printf("  ... with --register nonrigid: mean %.1f mm, max %.1f mm\n", mean * 1e3,
+               max * 1e3);
+        CHECK_MSG(mean <= 0.01 * height, "moved source, non-rigid: mean %g m", mean);
+      }
+      km_mesh_free(&cn);
+    }
+    CHECK(km_test_run(KM_CLI " transfer --source " DIR "/cm.obj --template " DIR
+                             "/a_kungfu/frame_000060.obj --template-rest " DIR
+                             "/a.obj --register rigid -o " DIR "/cm60n.obj",
+                      &out) == 1);
+    CHECK_MSG(out && strstr(out, "--register must be"), "%s", out ? out : "");
+    free(out);
     /* a malformed pair names the file and the line */
     f = fopen(DIR "/bad_pairs.csv", "w");
     if (f) {

@@ -616,7 +616,7 @@ static void test_cross_connectivity(const km_character_options *base) {
       }
       CHECK_OK(
           km_transfer_map_pose(&sr, &t.mesh, TP, corr, ids, KM_CHARACTER_LANDMARKS, RS, P, KM_E));
-      km_transfer_pose_to_source(rs, RQ, rt, n, RS, KM_CHARACTER_LANDMARKS, P);
+      km_transfer_pose_to_source(rs, RQ, rt, NULL, n, RS, KM_CHARACTER_LANDMARKS, P);
       CHECK_OK(km_transfer_solve_rotations(tm2, RS, P, X, NULL, KM_E));
       double mean, max;
       kp_error(X, Gm, n, &mean, &max);
@@ -653,6 +653,70 @@ static void test_cross_connectivity(const km_character_options *base) {
   km_character_free(&t);
 }
 
+/* Another body of another connectivity: the 1.85 m subject at 3,000 vertices takes the poses
+ * of the 1.70 m one at 5,000 (truth: the 1.85 m subject posed by LBS). S is registered onto
+ * T's rest by the similarity of the 16 landmark pairs, then (second row) also by the
+ * reconstruction's non-rigid registration (km_recon_register_mesh), whose one-ring rotations
+ * go to km_transfer_pose_to_source as `local`. */
+static void test_cross_shape(const km_character_options *bo, const km_character_options *ao) {
+  km_character s = {0}, t = {0};
+  km_character_options os = *bo, ot = *ao;
+  os.target_vertices = 3000;
+  ot.target_vertices = 5000;
+  CHECK_OK(km_character_generate(&os, &s, KM_E));
+  CHECK_OK(km_character_generate(&ot, &t, KM_E));
+  size_t n = s.mesh.n_vertices, nt = t.mesh.n_vertices;
+  int32_t ids[KM_CHARACTER_LANDMARKS], pairs[2 * KM_CHARACTER_LANDMARKS];
+  km_recon_feature feat[KM_CHARACTER_LANDMARKS];
+  for (int l = 0; l < KM_CHARACTER_LANDMARKS; ++l) {
+    CHECK(!strcmp(s.landmarks[l].name, t.landmarks[l].name));
+    ids[l] = pairs[2 * l] = s.landmarks[l].vertex;
+    pairs[2 * l + 1] = t.landmarks[l].vertex;
+    feat[l].vertex = ids[l];
+    memcpy(feat[l].point, t.mesh.V + 3 * (size_t)pairs[2 * l + 1], 3 * sizeof(double));
+  }
+  double *Sr = malloc(n * 3 * sizeof *Sr), *Sn = malloc(n * 3 * sizeof *Sn);
+  double *L = malloc(n * 9 * sizeof *L), *R = malloc(n * 9 * sizeof *R);
+  double *TP = malloc(nt * 3 * sizeof *TP), *G = malloc(n * 3 * sizeof *G);
+  double *X = malloc(n * 3 * sizeof *X), P[3 * KM_CHARACTER_LANDMARKS], sc, Q[9], tq[3];
+  int32_t *corr = malloc(n * sizeof *corr);
+  CHECK_OK(km_transfer_register_rest(&s.mesh, &t.mesh, pairs, KM_CHARACTER_LANDMARKS, Sr, &sc, Q,
+                                     tq, KM_E));
+  CHECK_OK(km_recon_register_mesh(&s.mesh, Sr, &t.mesh, feat, KM_CHARACTER_LANDMARKS, 0, Sn, KM_E));
+  km_mesh msr = s.mesh, msn = s.mesh;
+  msr.V = Sr, msn.V = Sn;
+  CHECK_OK(km_transfer_template_rotations(&msr, Sn, L, KM_E));
+  km_transfer *tr = NULL;
+  CHECK_OK(km_transfer_precompute(&s.mesh, ids, KM_CHARACTER_LANDMARKS, NULL, &tr, KM_E));
+  double lo = INFINITY, hi = -INFINITY, sum[2] = {0, 0};
+  for (size_t v = 0; v < n; ++v)
+    lo = fmin(lo, s.mesh.V[3 * v + 1]), hi = fmax(hi, s.mesh.V[3 * v + 1]);
+  for (int mode = 0; mode < 2 && tr; ++mode) {
+    CHECK_OK(km_transfer_correspondence(mode ? &msn : &msr, &t.mesh, corr, KM_E));
+    for (int p = 0; p < KP_N_POSES; ++p) {
+      CHECK_OK(kp_pose_character(&t, &kp_poses[p], NULL, TP, KM_E));
+      CHECK_OK(kp_pose_character(&s, &kp_poses[p], NULL, G, KM_E));
+      CHECK_OK(
+          km_transfer_map_pose(&msr, &t.mesh, TP, corr, ids, KM_CHARACTER_LANDMARKS, R, P, KM_E));
+      km_transfer_pose_to_source(sc, Q, tq, mode ? L : NULL, n, R, KM_CHARACTER_LANDMARKS, P);
+      CHECK_OK(km_transfer_solve_rotations(tr, R, P, X, NULL, KM_E));
+      double mean, max;
+      kp_error(X, G, n, &mean, &max);
+      sum[mode] += mean / KP_N_POSES;
+    }
+  }
+  printf("  %.2f m body at %zu vertices takes the poses of the %.2f m one at %zu: mean %.1f mm "
+         "(similarity), %.1f mm (+ non-rigid registration) over %d poses\n",
+         hi - lo, n, ot.height, nt, sum[0] * 1e3, sum[1] * 1e3, KP_N_POSES);
+  CHECK_MSG(sum[0] <= 0.01 * (hi - lo), "another body: mean error %g m > 1%% of %g m", sum[0],
+            hi - lo);
+  CHECK_MSG(sum[1] <= 0.01 * (hi - lo), "another body, non-rigid: mean error %g m", sum[1]);
+  km_transfer_free(&tr);
+  free(Sr), free(Sn), free(L), free(R), free(TP), free(G), free(X), free(corr);
+  km_character_free(&s);
+  km_character_free(&t);
+}
+
 int main(void) {
   km_character a, b;
   km_character_options oa = {0}, ob = {0};
@@ -677,6 +741,7 @@ int main(void) {
   test_cross_subject(&a, &b);
   test_iterations(&a, &b);
   test_cross_connectivity(&oa);
+  test_cross_shape(&ob, &oa);
   test_faust();
   test_cat();
   km_character_free(&a);

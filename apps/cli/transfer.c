@@ -81,7 +81,7 @@ static int read_pairs(const char *path, size_t ns, size_t nt, int32_t **pairs, s
 int km_cli_transfer(int argc, char **argv) {
   const char *out = NULL, *lm_path = NULL, *encoding = "edge", *laplacian = "uniform",
              *align = "scale", *source = NULL, *templ = NULL, *xyz = NULL, *trest = NULL,
-             *corr_path = NULL;
+             *corr_path = NULL, *reg_mode = "similarity";
   int iterations = 0;
   double damping = 0;
   size_t xyz_frame = 0;
@@ -94,6 +94,10 @@ int km_cli_transfer(int argc, char **argv) {
        "SOURCE is first registered onto TR (a similarity) from --correspondences or from the "
        "landmarks of one name in both rigs, then each of its vertices takes the rotation of "
        "its nearest TR vertex"},
+      {"register", 0, KM_OPT_STRING, &reg_mode,
+       "with --template-rest: similarity (default), nonrigid (then the reconstruction's "
+       "non-rigid registration onto TR, for the correspondence), or none (SOURCE and TR in one "
+       "frame at one size)"},
       {"correspondences", 0, KM_OPT_STRING, &corr_path,
        "with --template-rest: vertex pairs for the registration, a line \"source_vertex,"
        "template_vertex\" each (at least 3; default: landmarks of one name in SOURCE's and "
@@ -149,7 +153,7 @@ int km_cli_transfer(int argc, char **argv) {
   km_error err = {0};
   km_mesh s = {0}, t = {0}, o = {0}, tr_rest = {0};
   int32_t *corr = NULL, *pairs = NULL;
-  double *registered = NULL;
+  double *registered = NULL, *nonrigid_V = NULL, *local = NULL;
   size_t n_pairs = 0;
   double *rots = NULL;
   km_transfer *tr = NULL;
@@ -173,6 +177,10 @@ int km_cli_transfer(int argc, char **argv) {
                                     "not --landmarks auto");
   if (corr_path && !trest)
     return km_cli_error("transfer", "--correspondences goes with --template-rest TR");
+  bool nonrigid = !strcmp(reg_mode, "nonrigid"), no_reg = !strcmp(reg_mode, "none");
+  if (!nonrigid && !no_reg && strcmp(reg_mode, "similarity"))
+    return km_cli_error("transfer", "--register must be similarity, nonrigid or none, not '%s'",
+                        reg_mode);
   if (km_mesh_read(pos[0], &s, &err) || km_mesh_read(pos[1], &t, &err)) {
     rc = km_cli_fail("transfer", &err);
     goto done;
@@ -235,7 +243,7 @@ int km_cli_transfer(int argc, char **argv) {
   }
   for (size_t i = 0; i < nl && !auto_lm; ++i)
     ids[i] = lm[i].vertex;
-  if (!same) {
+  if (!same && !no_reg) {
     /* Pairs for registering SOURCE onto TR: the file, or landmarks of one name in both rigs. */
     if (corr_path) {
       if ((rc = read_pairs(corr_path, s.n_vertices, tr_rest.n_vertices, &pairs, &n_pairs)))
@@ -260,6 +268,11 @@ int km_cli_transfer(int argc, char **argv) {
               ++n_pairs;
               break;
             }
+    }
+    if (n_pairs < 3 && nonrigid) {
+      rc = km_cli_error("transfer", "--register nonrigid needs correspondences (--correspondences, "
+                                    "or landmarks of one name in SOURCE's and TR's rigs)");
+      goto done;
     }
     if (n_pairs < 3)
       fprintf(stderr, "kinemesh transfer: no correspondences (--correspondences, or landmarks of "
@@ -333,14 +346,52 @@ int km_cli_transfer(int argc, char **argv) {
               "rotation %.1f deg, translation (%.3f, %.3f, %.3f)\n",
               trest, n_pairs, sc, acos(c) * 180 / 3.14159265358979323846, tq[0], tq[1], tq[2]);
     }
-    if (km_transfer_correspondence(&sr, &tr_rest, corr, &err) ||
+    km_mesh sn = sr;
+    if (nonrigid) {
+      /* then onto TR's surface (the reconstruction's affine registration, the pairs as its
+       * features): the correspondence comes from there, the pose is still mapped on sr and
+       * each rotation seen from S's own one-ring (km_transfer_pose_to_source's local) */
+      km_recon_feature *feat = malloc(sizeof *feat * n_pairs);
+      nonrigid_V = malloc(sizeof *nonrigid_V * 3 * s.n_vertices);
+      local = malloc(sizeof *local * 9 * s.n_vertices);
+      if (!feat || !nonrigid_V || !local) {
+        free(feat);
+        free(mapped);
+        rc = km_cli_error("transfer", "out of memory");
+        goto done;
+      }
+      for (size_t k = 0; k < n_pairs; ++k) {
+        feat[k].vertex = pairs[2 * k];
+        memcpy(feat[k].point, tr_rest.V + 3 * (size_t)pairs[2 * k + 1], 3 * sizeof(double));
+      }
+      double tn = km_cli_now();
+      km_status rs =
+          km_recon_register_mesh(&s, registered, &tr_rest, feat, n_pairs, 0, nonrigid_V, &err);
+      free(feat);
+      if (!rs) {
+        sn.V = nonrigid_V;
+        rs = km_transfer_template_rotations(&sr, nonrigid_V, local, &err);
+      }
+      if (rs) {
+        free(mapped);
+        rc = km_cli_fail("transfer", &err);
+        goto done;
+      }
+      double mean, max;
+      km_vertex_distance_stats(registered, nonrigid_V, s.n_vertices, &mean, &max);
+      fprintf(stderr,
+              "kinemesh transfer: non-rigid registration onto %s: moved %.1f mm mean, %.1f mm max "
+              "(%.2f s)\n",
+              trest, mean * 1e3, max * 1e3, km_cli_now() - tn);
+    }
+    if (km_transfer_correspondence(&sn, &tr_rest, corr, &err) ||
         km_transfer_map_pose(&sr, &tr_rest, t.V, corr, ids, nl, rots, mapped, &err)) {
       free(mapped);
       rc = km_cli_fail("transfer", &err);
       goto done;
     }
     /* back into SOURCE's frame and size */
-    if (n_pairs >= 3) km_transfer_pose_to_source(sc, Q, tq, s.n_vertices, rots, nl, mapped);
+    if (n_pairs >= 3) km_transfer_pose_to_source(sc, Q, tq, local, s.n_vertices, rots, nl, mapped);
     if (!targets)
       targets = mapped;
     else
@@ -383,5 +434,7 @@ done:
   free(rots);
   free(pairs);
   free(registered);
+  free(nonrigid_V);
+  free(local);
   return rc;
 }

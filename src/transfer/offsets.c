@@ -1228,15 +1228,26 @@ km_status km_transfer_register_rest(const km_mesh *source_rest, const km_mesh *t
 }
 
 void km_transfer_pose_to_source(double scale, const double Q[9], const double t[3],
-                                size_t n_vertices, double *R, size_t n_landmarks, double *targets) {
+                                const double *local, size_t n_vertices, double *R,
+                                size_t n_landmarks, double *targets) {
   double Qt[9];
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c)
       Qt[3 * r + c] = Q[3 * c + r];
   for (size_t i = 0; i < n_vertices && R; ++i) {
-    double A[9];
-    km__m3_mul(Qt, R + 9 * i, A);
-    km__m3_mul(A, Q, R + 9 * i);
+    double A[9], *Ri = R + 9 * i;
+    if (local) {
+      /* the pose seen from the one-ring before the non-rigid step: L^T R L */
+      const double *L = local + 9 * i;
+      double Lt[9];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          Lt[3 * r + c] = L[3 * c + r];
+      km__m3_mul(Ri, L, A);
+      km__m3_mul(Lt, A, Ri);
+    }
+    km__m3_mul(Qt, Ri, A);
+    km__m3_mul(A, Q, Ri);
   }
   for (size_t l = 0; l < n_landmarks && targets; ++l) {
     double d[3], p[3];
