@@ -90,7 +90,8 @@ struct km_transfer {
    * the rest shape; rot / anchor: #V*9 row-major rotations R_i and the template's R^T_i;
    * frames_rest: the source's frames (the first guess of R^T_i is F_T(i)^T F_S(i)). */
   int32_t *adj_ptr, *adj_j;
-  double *adj_e; /* 3 per one-ring entry: w_ij e_ij */
+  double *adj_e;  /* 3 per one-ring entry: w_ij e_ij */
+  double *adj_eq; /* the same in the eigenbasis of M_i: Q_i^T w_ij e_ij (the local step's) */
   double *adj_w, *ebar, *rot, *anchor, *frames_rest;
   double *mq;   /* #V*12: eigenvectors (columns, row-major 3x3) and eigenvalues of M_i */
   double *sp;   /* #V*9: the stretches S'_i in M_i's eigenbasis */
@@ -146,6 +147,7 @@ void km_transfer_free(km_transfer **tp) {
   free(t->adj_j);
   free(t->adj_w);
   free(t->adj_e);
+  free(t->adj_eq);
   free(t->ebar);
   free(t->rot);
   free(t->anchor);
@@ -375,18 +377,18 @@ static double local_step(km_transfer *t, const double *X, bool update, double *c
   double energy = 0, chg = 0;
   for (size_t i = 0; i < n; ++i) {
     const double *xi = X + 3 * i;
-    double C[9] = {0}, D = 0;
+    /* CQ = C_i Q_i, accumulated from the rest edges already in Q_i's basis */
+    double CQ[9] = {0}, D = 0;
     for (int32_t p = t->adj_ptr[i]; p < t->adj_ptr[i + 1]; ++p) {
-      const double *xj = X + 3 * (size_t)t->adj_j[p], *e = t->adj_e + 3 * p;
+      const double *xj = X + 3 * (size_t)t->adj_j[p], *e = t->adj_eq + 3 * p;
       double d[3] = {xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]};
       D += t->adj_w[p] * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
       for (int r = 0; r < 3; ++r)
-        C[3 * r] += d[r] * e[0], C[3 * r + 1] += d[r] * e[1], C[3 * r + 2] += d[r] * e[2];
+        CQ[3 * r] += d[r] * e[0], CQ[3 * r + 1] += d[r] * e[1], CQ[3 * r + 2] += d[r] * e[2];
     }
     const double *Q = t->mq + 12 * i, *l = Q + 9, *P = t->anchor + 9 * i, *iv = t->sinv + 9 * i;
     double *S = t->sp + 9 * i;
-    double CQ[9], B[9];
-    km__m3_mul(C, Q, CQ);
+    double B[9];
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c)
         B[3 * r + c] = P[r] * CQ[c] + P[3 + r] * CQ[3 + c] + P[6 + r] * CQ[6 + c];
@@ -677,6 +679,7 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
     t->adj_j = km__malloc(na ? na : 1, sizeof(int32_t));
     t->adj_w = km__malloc(na ? na : 1, sizeof(double));
     t->adj_e = km__malloc(na ? na * 3 : 1, sizeof(double));
+    t->adj_eq = km__malloc(na ? na * 3 : 1, sizeof(double));
     t->ebar = km__malloc(n, sizeof(double));
     t->rot = km__malloc(n * 9, sizeof(double));
     t->anchor = km__malloc(n * 9, sizeof(double));
@@ -686,8 +689,8 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
     t->mq = km__malloc(n * 12, sizeof(double));
     t->sp = km__malloc(n * 9, sizeof(double));
     t->sinv = km__malloc(n * 9, sizeof(double));
-    if (!t->adj_ptr || !t->adj_j || !t->adj_w || !t->adj_e || !t->ebar || !t->rot || !t->anchor ||
-        !t->frames_rest || !t->energy || !t->mq || !t->sp || !t->sinv) {
+    if (!t->adj_ptr || !t->adj_j || !t->adj_w || !t->adj_e || !t->adj_eq || !t->ebar || !t->rot ||
+        !t->anchor || !t->frames_rest || !t->energy || !t->mq || !t->sp || !t->sinv) {
       s = km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: out of memory (%zu edges)", na);
       goto fail;
     }
@@ -713,6 +716,11 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
       }
       t->ebar[i] = eb;
       km__sym_eig3(M, t->mq + 12 * i + 9, t->mq + 12 * i);
+      const double *Q = t->mq + 12 * i;
+      for (int32_t q = t->adj_ptr[i]; q < (int32_t)a; ++q)
+        for (int c = 0; c < 3; ++c)
+          t->adj_eq[3 * q + c] = t->adj_e[3 * q] * Q[c] + t->adj_e[3 * q + 1] * Q[3 + c] +
+                                 t->adj_e[3 * q + 2] * Q[6 + c];
     }
     t->adj_ptr[n] = (int32_t)a;
     t->damping = o.damping < 0 ? 0 : o.damping > 0 ? o.damping : KM__TRANSFER_DAMPING;
