@@ -2,7 +2,11 @@
 # Installs the Debian packages kinemesh builds against, skipping those already present.
 # Called by `make demo` / `make test`; safe to run repeatedly. clang and libclang-rt-dev (its
 # sanitizer and libFuzzer runtimes) are for the fuzz test only (fuzz/run.sh skips without them).
+# `scripts/deps.sh --test` (what `make test` runs) also installs TEST_PKGS: packages only a test
+# needs and `make demo` does not (Blender, ~720 MB, for the ctest blender_import; its glTF
+# importer needs numpy, which Debian's blender package does not pull in).
 set -euo pipefail
+TEST_PKGS=(blender python3-numpy)
 PKGS=(build-essential cmake pkg-config
       libsuitesparse-dev libarpack2-dev liblapacke-dev libopenblas-dev
       libembree-dev libcjson-dev libsvm-dev liblbfgs-dev
@@ -10,6 +14,7 @@ PKGS=(build-essential cmake pkg-config
       nodejs npm chromium
       libopenmpi-dev openmpi-bin
       clang libclang-rt-dev)
+if [ "${1:-}" = --test ]; then PKGS+=("${TEST_PKGS[@]}"); fi
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
