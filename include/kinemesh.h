@@ -1191,10 +1191,11 @@ void km_character_free(km_character *c);
 
 /* Writes a rig sidecar (<mesh>.rig.json, atomically): skeleton, skin, landmarks, and a
  * default puppetry rig: handles at head, hands and feet, and (issue 12) bands of at most 64
- * vertices around the middle of each upper arm, forearm, thigh and shin (the vertices whose
- * nearest skeleton bone it is, one connected piece, clear of the end handles); every handle is
- * mapped to a bone ("bone": head ShoulderCenter -> Head, hands elbow -> hand, feet knee ->
- * foot, bands their own bone) with "aim": true (see km_rig_parse).
+ * vertices on each upper arm and thigh (0.5 .. 0.8 of the bone from the shoulder / hip: the
+ * joint keeps a free zone to bend in) and around the middle of each forearm and shin (the
+ * vertices whose nearest skeleton bone it is, one connected piece, clear of the end handles);
+ * every handle is mapped to a bone ("bone": head ShoulderCenter -> Head, hands elbow -> hand,
+ * feet knee -> foot, bands their own bone) with "aim": true (see km_rig_parse).
  *   c  in: character (its mesh is not written, only its vertex count)
  * Errors: KM_ERR_IO. */
 km_status km_character_write_rig(const char *path, const km_character *c, km_error *err);
