@@ -5,7 +5,7 @@
 set -euo pipefail
 PKGS=(build-essential cmake pkg-config
       libsuitesparse-dev libarpack2-dev liblapacke-dev libopenblas-dev
-      libembree-dev libcjson-dev libsvm-dev liblbfgs-dev
+      libembree-dev libcjson-dev libsvm-dev liblbfgs-dev libmeshoptimizer-dev
       liblo-dev liblo-tools libwebsockets-dev gnuplot-nox
       nodejs npm chromium
       libopenmpi-dev openmpi-bin
