@@ -1,8 +1,9 @@
 /* kinemesh bench export (issue 16): what each glTF export kind costs and loses on a mesh
  * animation: file size, RMS / max error against the exact frames (mm and % of the rest
  * diagonal), and the time to write it (the skinning fit for skin). Targets on the demo
- * (20k vertices, 150 frames): skin <= 2 MB at RMS <= 2 mm, max <= 15 mm, in <= 20 s.
- * With --take, the animation is first made the way a user makes it: the mesh rigged by
+ * (20k vertices, 150 frames): skin <= 2 MB at RMS <= 2 mm, max <= 15 mm, in <= 20 s; compressed
+ * (KIND+c: KHR_mesh_quantization + EXT_meshopt_compression) skin <= 0.6 MB, morphs:K <= 3 MB at
+ * RMS <= 1 mm. With --take, the animation is first made the way a user makes it: the mesh rigged by
  * `kinemesh rig` and animated by `kinemesh animate` (puppetry) from the take, both run as child
  * processes of this program (like bench batch), the frames written as .pc2 in a temporary
  * folder; e.g. the armadillo row of the README: --mesh ../shared/data/meshes/armadillo.obj
@@ -52,15 +53,21 @@ static int bench_one(const char *path, const char *label, const char *mesh_path,
     printf("kinemesh bench export — %s; medians of %zu runs; error against the exact frames; "
            "time = writing the file (the SSDR fit for skin)\n",
            machine, repeat);
-    printf("%-26s %7s %6s %-10s %6s %10s %9s %9s %8s %8s %8s\n", "animation", "n_ver", "frames",
+    printf("%-26s %7s %6s %-12s %6s %10s %9s %9s %8s %8s %8s\n", "animation", "n_ver", "frames",
            "export", "bones", "size(MB)", "rms(mm)", "max(mm)", "rms(%d)", "max(%d)", "time(s)");
   }
   for (size_t k = 0; k < n_kinds; ++k) {
     km_anim_report rep = {0};
+    /* KIND+c: the same kind with --compress */
+    char kind[64];
+    snprintf(kind, sizeof kind, "%s", kinds[k]);
+    size_t kl = strlen(kind);
+    bool z = kl > 2 && !strcmp(kind + kl - 2, "+c");
+    if (z) kind[kl - 2] = '\0';
     for (size_t r = 0; r < repeat; ++r) {
       km_anim_options ao = {.fps = info.fps > 0 ? info.fps : 30};
       km_ssdr_options so;
-      if (km_cli_parse_export("bench export", kinds[k], 0, tmp, &ao, &so)) goto done;
+      if (km_cli_parse_export("bench export", kind, 0, z, tmp, &ao, &so)) goto done;
       so.progress = (km_progress){0};
       km_anim_writer *w = NULL;
       double t0 = km_cli_now();
@@ -101,7 +108,7 @@ static int bench_one(const char *path, const char *label, const char *mesh_path,
       if (s) puts(s);
       free(s);
     } else {
-      printf("%-26.26s %7zu %6zu %-10s %6zu %10.2f %9.3f %9.3f %8.4f %8.4f %8.2f\n", base,
+      printf("%-26.26s %7zu %6zu %-12s %6zu %10.2f %9.3f %9.3f %8.4f %8.4f %8.2f\n", base,
              m->n_vertices, info.frames, kinds[k], rep.bones, mb, rep.rms_error * 1e3,
              rep.max_error * 1e3, 100 * rep.rms_error / diag, 100 * rep.max_error / diag, mt);
     }
@@ -171,7 +178,8 @@ int km_bench_export(int argc, char **argv) {
        "rigged by `kinemesh rig` (puppetry, as `kinemesh animate` does)"},
       {"rig", 0, KM_OPT_STRING, &rig, "with --take: this rig instead of `kinemesh rig`'s"},
       {"kinds", 0, KM_OPT_STRING, &kinds_s,
-       "export kinds, comma-separated (default morphs:all,skin:32,skin)"},
+       "export kinds, comma-separated; KIND+c: with --compress (default "
+       "morphs:all,skin:32,skin,skin+c,morphs:16+c)"},
       {"repeat", 0, KM_OPT_SIZE, &repeat, "runs per kind (default 1; the median is printed)"},
       {"json", 0, KM_OPT_FLAG, &json, "print one JSON object per row, one per line"},
   };
@@ -189,7 +197,8 @@ int km_bench_export(int argc, char **argv) {
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (repeat < 1) return km_cli_error("bench export", "--repeat must be at least 1");
   char kbuf[256];
-  snprintf(kbuf, sizeof kbuf, "%s", kinds_s ? kinds_s : "morphs:all,skin:32,skin");
+  snprintf(kbuf, sizeof kbuf, "%s",
+           kinds_s ? kinds_s : "morphs:all,skin:32,skin,skin+c,morphs:16+c");
   const char *kinds[MAX_KINDS];
   size_t nk = 0;
   for (char *tok = strtok(kbuf, ","); tok && nk < MAX_KINDS; tok = strtok(NULL, ","))

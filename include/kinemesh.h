@@ -1239,6 +1239,13 @@ typedef struct km_anim_options {
   km_anim_export export_kind;         /* 0: KM_ANIM_EXPORT_MORPHS (one target per key frame) */
   const struct km_ssdr_options *skin; /* KM_ANIM_EXPORT_SKIN: the fit's options; NULL: defaults */
   size_t morphs; /* KM_ANIM_EXPORT_MORPHS_PCA: basis targets (0: 16; capped at the frames) */
+  /* glb, any export kind: KHR_mesh_quantization (positions on a 14-bit grid dequantised by the
+   * mesh node's transform or the inverse bind matrices, morph deltas as 16-bit integers on the
+   * same grid, 8-bit octahedral normals, 16-bit UVs, 8-bit weights) + EXT_meshopt_compression
+   * (every buffer view meshopt-encoded; rotations, translations and weights filtered). Both
+   * extensions are required to read the file. The report's error is then of what a player
+   * decodes. false: plain float32. */
+  bool compress;
 } km_anim_options;
 
 /* Streams an animation of a fixed-connectivity mesh to disk. Nothing appears at `path`

@@ -95,10 +95,11 @@ int km_cli_reconstruct(int argc, char **argv) {
   size_t coarse = 0, vertices = 4000, segment = 0, overlap = 5;
   int radius = 0, segment_only = -1;
   const char *segment_dir = NULL;
+  bool compress = false;
   const char *export_kind = NULL;
   double max_error_mm = 0;
   const km_cli_opt opts[] = {
-      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
+      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm, compress),
       {"template", 't', KM_OPT_STRING, &tmpl,
        "template mesh with rig sidecar (default: procedural, --vertices)"},
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
@@ -200,8 +201,8 @@ int km_cli_reconstruct(int argc, char **argv) {
   km_anim_options ao = {0};
   km_ssdr_options so;
   double *seeds = NULL;
-  if (!one_segment &&
-      km_cli_parse_export("reconstruct", export_kind, max_error_mm, out, &ao, &so)) {
+  if (!one_segment && km_cli_parse_export("reconstruct", export_kind, max_error_mm, compress, out,
+                                           &ao, &so)) {
     free(feat);
     km_paths_free(&paths, n);
     return KM_EXIT_FAIL;
