@@ -839,6 +839,9 @@ static const char *mime(const char *path) {
   if (!strcmp(dot, ".json")) return "application/json";
   if (!strcmp(dot, ".png")) return "image/png";
   if (!strcmp(dot, ".svg")) return "image/svg+xml";
+  /* MediaPipe Pose (the Camera button): streaming compilation wants application/wasm; the
+   * .data, .tflite and .binarypb it fetches are octet-streams */
+  if (!strcmp(dot, ".wasm")) return "application/wasm";
   return "application/octet-stream";
 }
 
