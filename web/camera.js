@@ -33,18 +33,19 @@ function loadScript(src) {
 
 // The joint frame for the server, from one result; null when no body was detected.
 // root: 'fixed' keeps the pelvis in place; 'image' moves it with the hips' image position
-// (x, y; metres from the landmarks' own scale; depth is not estimated).
-export function landmarkFrame(world, image, root) {
+// (x, y; metres from the landmarks' own scale; depth is not estimated). aspect: the image's
+// height / width (image landmarks are fractions of each).
+export function landmarkFrame(world, image, root, aspect = 0.75) {
   if (!world || world.length !== 33) return null;
   const off = [0, HIP_HEIGHT, 0];
   if (root === 'image' && image && image.length === 33) {
     // metres per image unit: the shoulder span in the world over its span in the image
     const ws = Math.hypot(world[11].x - world[12].x, world[11].y - world[12].y);
-    const is = Math.hypot(image[11].x - image[12].x, image[11].y - image[12].y);
+    const is = Math.hypot(image[11].x - image[12].x, (image[11].y - image[12].y) * aspect);
     if (is > 1e-3 && ws > 1e-3) {
       const s = ws / is, hx = (image[23].x + image[24].x) / 2, hy = (image[23].y + image[24].y) / 2;
       off[0] += (hx - 0.5) * s;
-      off[1] -= (hy - 0.6) * s;
+      off[1] -= (hy - 0.6) * aspect * s;
     }
   }
   const joints = new Array(99), visibility = new Array(33);
@@ -100,7 +101,9 @@ export function initCamera(state, $) {
   function onResults(results) {
     cam.frames++;
     draw(results);
-    const f = landmarkFrame(results.poseWorldLandmarks, results.poseLandmarks, $('cam-root').value);
+    const im = results.image, aspect = im && im.width ? im.height / im.width : 0.75;
+    const f = landmarkFrame(results.poseWorldLandmarks, results.poseLandmarks, $('cam-root').value,
+      aspect);
     if (!f) { say('no body in view'); return; }
     cam.detected++;
     cam.last = f;
@@ -112,6 +115,9 @@ export function initCamera(state, $) {
     say(`tracking (${cam.detected} frames)`);
   }
 
+  // One detection per new camera frame, the next one asked for when it is done: the page
+  // keeps drawing and answering between them (a slow machine detects less often, never
+  // queues frames).
   async function loop() {
     if (!running) return;
     try {
@@ -120,7 +126,9 @@ export function initCamera(state, $) {
       cam.error = String(e);
       say('error: ' + e.message, true);
     }
-    if (running) setTimeout(loop, 0);
+    if (!running) return;
+    if (video.requestVideoFrameCallback) video.requestVideoFrameCallback(() => loop());
+    else requestAnimationFrame(() => loop());
   }
 
   async function start() {
@@ -130,7 +138,9 @@ export function initCamera(state, $) {
       if (!window.Pose) await loadScript(MP_DIR + 'pose.js');
       if (!pose) {
         pose = new window.Pose({ locateFile: (f) => MP_DIR + f });
-        pose.setOptions({ modelComplexity: 1, smoothLandmarks: true, enableSegmentation: false,
+        // ?pose=lite in the page's address: the lite landmark model (faster, less precise)
+        const lite = new URLSearchParams(location.search).get('pose') === 'lite';
+        pose.setOptions({ modelComplexity: lite ? 0 : 1, smoothLandmarks: true, enableSegmentation: false,
           minDetectionConfidence: 0.5, minTrackingConfidence: 0.5, selfieMode: false });
         pose.onResults(onResults);
         await pose.initialize();

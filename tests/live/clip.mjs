@@ -38,7 +38,7 @@ export function makeTake(rig) {
     frames, elev: Array.from({ length: FRAMES }, (_, f) => elevation(f)) };
 }
 
-function readObj(file) {
+export function readObj(file) {
   const V = [], F = [];
   for (const line of fs.readFileSync(file, 'utf8').split('\n')) {
     const t = line.trim().split(/\s+/);
@@ -51,7 +51,7 @@ function readObj(file) {
   return { V: Float32Array.from(V), F: Uint32Array.from(F) };
 }
 
-function readPc2(file) {
+export function readPc2(file) {
   const b = fs.readFileSync(file);
   if (b.toString('latin1', 0, 11) !== 'POINTCACHE2') throw new Error(`${file}: not a .pc2`);
   const n = b.readInt32LE(16), frames = b.readInt32LE(28);

@@ -81,7 +81,7 @@ export KM_LIVE_TOKEN
 SCRIPT=${KM_LIVE_SCRIPT:-$HERE/${MODE%_quantize}.mjs}
 # The camera runs MediaPipe Pose on software WebGL: slow on a loaded machine, more time.
 TMO=90
-[ "$MODE" = camera ] && TMO=320
+[ "$MODE" = camera ] && TMO=340
 KM_BIN="$BIN" KM_VMC=$VMC KM_VMC_OUT=$((BASE + 4)) KM_BVH="$BVH" timeout $TMO node "$SCRIPT" "$HTTP" "$OSC" "$UDP" "$WORK"
 rc=$?
 kill -0 $PID 2>/dev/null || { echo "FAIL: the server died"; cat "$WORK/server.err"; exit 1; }
