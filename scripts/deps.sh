@@ -41,9 +41,12 @@ if [ ! -d "$here/tests/gltf/node_modules/gltf-validator" ]; then
   (cd "$here/tests/gltf" && npm ci --no-audit --no-fund --loglevel=error)
 fi
 
-# Live mode page: three.js (copied beside the binary by the build) and playwright-core (drives
-# Debian's chromium in the end-to-end test; no browser download), pinned by package-lock.json.
-if [ ! -d "$here/web/node_modules/three" ] || [ ! -d "$here/web/node_modules/playwright-core" ]; then
+# Live mode page: three.js and @mediapipe/pose (the Camera button: its JS, WASM and model
+# weights; all copied beside the binary by the build, served by kinemesh, no CDN) and
+# playwright-core (drives Debian's chromium in the end-to-end tests; no browser download),
+# pinned by package-lock.json.
+if [ ! -d "$here/web/node_modules/three" ] || [ ! -d "$here/web/node_modules/playwright-core" ] ||
+   [ ! -f "$here/web/node_modules/@mediapipe/pose/pose.js" ]; then
   echo "kinemesh: installing npm packages for web/"
   (cd "$here/web" && npm ci --no-audit --no-fund --loglevel=error)
 fi

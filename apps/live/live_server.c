@@ -140,6 +140,7 @@ struct km_live {
   char *handles_json; /* GET /handles */
   atomic_uint_fast64_t frames_in, frames_out, frames_sent, frames_dropped, osc_messages,
       udp_datagrams, bad_packets, solve_errors;
+  atomic_uint_fast64_t ws_messages; /* joint frames from pages (the camera), good or bad */
   atomic_uint_fast64_t vmc_packets, vmc_messages, vmc_frames, vmc_bad, vmc_unknown;
   atomic_uint_fast64_t vmc_out_frames, vmc_out_errors;
   km_live_vmc_out *vmc_out; /* deformation thread only */
@@ -672,6 +673,7 @@ void km_live_get_stats(km_live *l, km_live_stats *o) {
   o->frames_dropped = atomic_load(&l->frames_dropped);
   o->osc_messages = atomic_load(&l->osc_messages);
   o->udp_datagrams = atomic_load(&l->udp_datagrams);
+  o->ws_messages = atomic_load(&l->ws_messages);
   o->bad_packets = atomic_load(&l->bad_packets);
   o->solve_errors = atomic_load(&l->solve_errors);
   o->vmc_packets = atomic_load(&l->vmc_packets);
@@ -709,6 +711,7 @@ char *km_live_status_json(km_live *l) {
   cJSON_AddNumberToObject(o, "frames_dropped", (double)s.frames_dropped);
   cJSON_AddNumberToObject(o, "osc_messages", (double)s.osc_messages);
   cJSON_AddNumberToObject(o, "udp_datagrams", (double)s.udp_datagrams);
+  cJSON_AddNumberToObject(o, "ws_messages", (double)s.ws_messages);
   cJSON_AddNumberToObject(o, "bad_packets", (double)s.bad_packets);
   cJSON_AddNumberToObject(o, "solve_errors", (double)s.solve_errors);
   cJSON_AddNumberToObject(o, "clients", s.clients);
@@ -776,6 +779,9 @@ typedef struct http_pss {
 typedef struct ws_pss {
   unsigned char *buf;
   size_t cap;
+  char *rx; /* a text message from the page, assembled from its fragments */
+  size_t rx_len;
+  bool rx_skip; /* the message being received is too long: dropped */
   uint64_t sent_seq;
   bool counted; /* ESTABLISHED was reached (a refused upgrade is CLOSED too) */
 } ws_pss;
@@ -838,6 +844,9 @@ static const char *mime(const char *path) {
   if (!strcmp(dot, ".json")) return "application/json";
   if (!strcmp(dot, ".png")) return "image/png";
   if (!strcmp(dot, ".svg")) return "image/svg+xml";
+  /* MediaPipe Pose (the Camera button): streaming compilation wants application/wasm; the
+   * .data, .tflite and .binarypb it fetches are octet-streams */
+  if (!strcmp(dot, ".wasm")) return "application/wasm";
   return "application/octet-stream";
 }
 
@@ -1331,6 +1340,34 @@ static int cb_http(struct lws *wsi, enum lws_callback_reasons reason, void *user
   return lws_callback_http_dummy(wsi, reason, user, in, len);
 }
 
+/* A joint frame from a page (the camera's MediaPipe landmarks): a text message in the JSON of
+ * the UDP input, km_live_parse_json, e.g. {"skeleton": "mediapipe", "joints": [99 numbers or
+ * nulls]}. The upgrade already checked Host, Origin and token. Binary and oversized messages
+ * are bad packets. */
+#define WS_RX_MAX 16384
+static void ws_receive(km_live *l, struct lws *wsi, ws_pss *p, const void *in, size_t len) {
+  if (lws_is_first_fragment(wsi)) {
+    p->rx_len = 0;
+    p->rx_skip = lws_frame_is_binary(wsi);
+  }
+  if (!p->rx_skip && p->rx_len + len > WS_RX_MAX) p->rx_skip = true;
+  if (!p->rx_skip && !p->rx) p->rx = malloc(WS_RX_MAX);
+  if (!p->rx) p->rx_skip = true;
+  if (!p->rx_skip && len) {
+    memcpy(p->rx + p->rx_len, in, len);
+    p->rx_len += len;
+  }
+  if (!lws_is_final_fragment(wsi)) return;
+  atomic_fetch_add(&l->ws_messages, 1);
+  double joints[3 * NJ];
+  if (p->rx_skip || km_live_parse_json(p->rx, p->rx_len, joints) < 0)
+    atomic_fetch_add(&l->bad_packets, 1);
+  else
+    push_frame(l, joints, km_seconds(), false);
+  p->rx_len = 0;
+  p->rx_skip = false;
+}
+
 static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, void *in,
                  size_t len) {
   struct lws_context *ctx = lws_get_context(wsi);
@@ -1370,6 +1407,8 @@ static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, 
     p->counted = false;
     free(p->buf);
     p->buf = NULL;
+    free(p->rx);
+    p->rx = NULL;
     return 0;
   case LWS_CALLBACK_SERVER_WRITEABLE: {
     if (lws_send_pipe_choked(wsi)) {
@@ -1401,10 +1440,7 @@ static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, 
     }
     return 0;
   }
-  case LWS_CALLBACK_RECEIVE:
-    (void)in;
-    (void)len;
-    return 0;
+  case LWS_CALLBACK_RECEIVE: ws_receive(l, wsi, p, in, len); return 0;
   default: break;
   }
   return 0;
