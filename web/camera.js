@@ -11,6 +11,13 @@
 // The performer's left hand is on the image's right (+x_mp) and lands at kinemesh +x, the
 // side of the mesh's left hand. A landmark below the visibility threshold is sent as null: a
 // lost joint, held by the filter as for any tracker.
+//
+// MediaPipe at times reads a performer facing the camera as one seen from behind (on the
+// test's rendered figure, mostly in symmetric poses: 14 of 31 frames in one run): left and
+// right swapped and the depth reversed, the nose behind the shoulders and the left shoulder on
+// the image's left. With facing (the page's "faces the camera", on by default) such a frame is
+// turned back: left and right landmarks exchanged and z negated about the hips ("turned": true
+// in the message). Off, a performer may turn round.
 
 const MP_DIR = 'mediapipe/';
 const VISIBLE = 0.5;
@@ -19,6 +26,10 @@ const HIP_HEIGHT = 0.9; // metres: where the pelvis is put (the retarget uses di
 const LINES = [[11, 12], [11, 13], [13, 15], [12, 14], [14, 16], [11, 23], [12, 24], [23, 24],
   [23, 25], [25, 27], [24, 26], [26, 28], [27, 31], [28, 32], [15, 19], [16, 20], [0, 11],
   [0, 12]];
+
+// The other side's landmark of each BlazePose landmark (0, the nose, has none).
+const PAIR = [0, 4, 5, 6, 1, 2, 3, 8, 7, 10, 9, 12, 11, 14, 13, 16, 15, 18, 17, 20, 19, 22, 21, 24,
+  23, 26, 25, 28, 27, 30, 29, 32, 31];
 
 function loadScript(src) {
   return new Promise((resolve, reject) => {
@@ -34,8 +45,8 @@ function loadScript(src) {
 // The joint frame for the server, from one result; null when no body was detected.
 // root: 'fixed' keeps the pelvis in place; 'image' moves it with the hips' image position
 // (x, y; metres from the landmarks' own scale; depth is not estimated). aspect: the image's
-// height / width (image landmarks are fractions of each).
-export function landmarkFrame(world, image, root, aspect = 0.75) {
+// height / width (image landmarks are fractions of each). facing: see above.
+export function landmarkFrame(world, image, root, aspect = 0.75, facing = true) {
   if (!world || world.length !== 33) return null;
   const off = [0, HIP_HEIGHT, 0];
   if (root === 'image' && image && image.length === 33) {
@@ -48,6 +59,11 @@ export function landmarkFrame(world, image, root, aspect = 0.75) {
       off[1] -= (hy - 0.6) * aspect * s;
     }
   }
+  const nose = world[0], ls = world[11], rs = world[12];
+  const seen = (p) => (p.visibility ?? 1) >= VISIBLE;
+  const turned = facing && seen(nose) && seen(ls) && seen(rs) && ls.x < rs.x - 0.02 &&
+    nose.z > (ls.z + rs.z) / 2;
+  if (turned) world = world.map((_, i) => ({ ...world[PAIR[i]], z: -world[PAIR[i]].z }));
   const joints = new Array(99), visibility = new Array(33);
   for (let i = 0; i < 33; ++i) {
     const p = world[i], v = p.visibility ?? 1;
@@ -57,11 +73,12 @@ export function landmarkFrame(world, image, root, aspect = 0.75) {
     joints[3 * i + 1] = ok ? off[1] - p.y : null;
     joints[3 * i + 2] = ok ? off[2] - p.z : null;
   }
-  return { skeleton: 'mediapipe', joints, visibility };
+  return turned ? { skeleton: 'mediapipe', joints, visibility, turned }
+    : { skeleton: 'mediapipe', joints, visibility };
 }
 
 export function initCamera(state, $) {
-  const cam = { status: 'off', frames: 0, detected: 0, sent: 0, error: null, last: null };
+  const cam = { status: 'off', frames: 0, detected: 0, sent: 0, turned: 0, error: null, last: null };
   state.camera = cam;
   const button = $('cam'), thumb = $('cam-thumb'), ctx = thumb.getContext('2d');
   let video = null, pose = null, running = false;
@@ -103,9 +120,10 @@ export function initCamera(state, $) {
     draw(results);
     const im = results.image, aspect = im && im.width ? im.height / im.width : 0.75;
     const f = landmarkFrame(results.poseWorldLandmarks, results.poseLandmarks, $('cam-root').value,
-      aspect);
+      aspect, $('cam-facing').checked);
     if (!f) { say('no body in view'); return; }
     cam.detected++;
+    if (f.turned) cam.turned++;
     cam.last = f;
     const ws = state.ws;
     if (ws && ws.readyState === WebSocket.OPEN && ws.bufferedAmount < 65536) {

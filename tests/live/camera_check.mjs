@@ -30,12 +30,19 @@ console.log(`left arm elevation ${lo.toFixed(0)}..${hi.toFixed(0)} deg, right ${
 check(L.length >= 16 && lo < LOW / 2 && hi > HIGH / 2,
   `the left wrist sweeps from below to above the shoulder as in the clip (${lo.toFixed(0)}..${hi.toFixed(0)} deg)`);
 check(hi - lo > 0.6 * (HIGH - LOW), `the sweep is most of the clip's (${(hi - lo).toFixed(0)} of ${HIGH - LOW} deg)`);
-check(R.length >= 16 && rhi - rlo < 30 && rhi < 0, `the right wrist stays down (${rlo.toFixed(0)}..${rhi.toFixed(0)} deg)`);
+// MediaPipe (the lite model especially) now and then swaps the arms for a frame: the right arm
+// is judged on most frames, not all.
+const Rs = R.slice().sort((a, b) => a - b), down = R.filter((e) => e < 0).length / R.length;
+const rmed = Rs[Math.floor(Rs.length / 2)];
+check(R.length >= 16 && down >= 0.85 && rmed < -40,
+  `the right wrist stays down: ${(100 * down).toFixed(0)}% of frames below the shoulder, median ${rmed.toFixed(0)} deg`);
 // The raised hand's height follows the sweep: the highest left wrist is the highest wrist.
 const top = frames.reduce((b, f) => (at(f, 'WristLeft')[1] > at(b, 'WristLeft')[1] ? f : b));
 const hip = at(top, 'HipCenter');
 check(at(top, 'WristLeft')[0] > hip[0] && at(top, 'WristRight')[0] < hip[0],
   `performer's left at kinemesh +x: left wrist x ${(at(top, 'WristLeft')[0] - hip[0]).toFixed(2)}, right ${(at(top, 'WristRight')[0] - hip[0]).toFixed(2)} m from the pelvis`);
+const sided = frames.filter((f) => at(f, 'ShoulderLeft')[0] > at(f, 'ShoulderRight')[0]).length / frames.length;
+check(sided >= 0.8, `the left shoulder at +x of the right one in ${(100 * sided).toFixed(0)}% of the frames`);
 check(at(top, 'WristLeft')[1] > at(top, 'Head')[1] - 0.1 && at(top, 'WristLeft')[1] > at(top, 'WristRight')[1] + 0.5,
   'at the top of the sweep the left wrist is up by the head, well above the right one');
 finish('live_camera (recording)');

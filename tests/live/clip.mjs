@@ -74,11 +74,11 @@ function paint(q, body) {
     if (d[1] > 0.05 || d[2] < -0.01 || (d[1] > 0.03 && Math.abs(d[0]) > 0.06)) return HAIR;
     if (d[2] > 0) {
       const ex = Math.abs(d[0]) - 0.038, ey = d[1] - 0.012;
-      if (ex * ex + ey * ey < 0.007 ** 2) return [40, 30, 25];
-      if (ex * ex + ey * ey < 0.014 ** 2) return [245, 245, 240];
-      if (Math.abs(d[0]) > 0.02 && Math.abs(d[0]) < 0.058 && d[1] > 0.03 && d[1] < 0.038) return HAIR;
-      if (Math.abs(d[0]) < 0.028 && d[1] > -0.052 && d[1] < -0.04) return [150, 60, 60];
-      if (Math.abs(d[0]) < 0.01 && d[1] > -0.03 && d[1] < 0.0) return [200, 150, 125];
+      if (ex * ex + ey * ey < 0.008 ** 2) return [40, 30, 25];
+      if (ex * ex + ey * ey < 0.016 ** 2) return [245, 245, 240];
+      if (Math.abs(d[0]) > 0.018 && Math.abs(d[0]) < 0.06 && d[1] > 0.032 && d[1] < 0.042) return HAIR;
+      if (Math.abs(d[0]) < 0.03 && d[1] > -0.056 && d[1] < -0.042) return [150, 50, 50];
+      if (Math.abs(d[0]) < 0.012 && d[1] > -0.03 && d[1] < 0.0) return [190, 135, 110];
     }
     return SKIN;
   }
@@ -192,15 +192,17 @@ export function makeClip(bin, work) {
   const { V, F } = readObj(path.join(work, 'c.obj'));
   const frames = readPc2(path.join(work, 'clip.pc2'));
   if (!frames.length || frames[0].length !== V.length) throw new Error('clip.pc2 does not match c.obj');
-  let lo = Infinity, hi = -Infinity;
-  for (let i = 1; i < V.length; i += 3) { lo = Math.min(lo, V[i]); hi = Math.max(hi, V[i]); }
-  // The whole body, raised hand included, in about 85% of the frame height.
   const rest = (n) => rig.joints.find((j) => j.name === n).rest;
+  // From the knees to the raised hand, so the face is large enough for the detector to tell
+  // the front from the back (it swaps left and right on a small, symmetric figure).
+  const sh = rest('ShoulderLeft'), hand = rest('HandLeft');
+  const arm = Math.hypot(hand[0] - sh[0], hand[1] - sh[1]);
+  const lo = rest('KneeLeft')[1] - 0.05, hi = sh[1] + arm * Math.sin(HIGH * Math.PI / 180) + 0.12;
   const body = { head: rest('Head'), neck: (rest('Head')[1] + rest('ShoulderCenter')[1]) / 2 + 0.02,
     hip: rest('HipCenter')[1], ankle: rest('AnkleLeft')[1] + 0.02,
     shoulderX: Math.abs(rest('ShoulderLeft')[0]) };
-  const cam = { x: 0, y: (lo + hi) / 2 + 0.1, z: 4, f: 0 };
-  cam.f = 0.8 * H * cam.z / (hi - lo + 0.5);
+  const cam = { x: 0, y: (lo + hi) / 2, z: 4, f: 0 };
+  cam.f = H * cam.z / (hi - lo);
   const out = fs.openSync(path.join(work, 'clip.y4m'), 'w');
   fs.writeSync(out, `YUV4MPEG2 W${W} H${H} F30:1 Ip A1:1 C420jpeg\n`);
   frames.forEach((P, f) => {
