@@ -1,9 +1,12 @@
 /* kinemesh bench batch (issue 17): throughput of `kinemesh batch` on a batch of equal
  * reconstruction jobs (simulated captures) with 1 and 2 ranks (mpirun when the CLI has MPI,
  * else two shard processes side by side), the serial parts measured (manifest scan and plan,
- * the per-job start: template read and first-frame alignment), and from those the projected
- * wall time of Dynamic FAUST's size (40,000 frames in 129 sequences) on 8, 64 and 512 ranks.
- * Target: 2 ranks >= 1.8x one rank. */
+ * the per-job start: template read and first-frame alignment), a segmented take through the
+ * batch's segment jobs and stitch (per-segment and stitch times), CPU seconds beside the wall
+ * ones (a shared machine's wall times include waiting), and from those the projected wall time
+ * of Dynamic FAUST's size (40,000 frames in 129 sequences) on 8, 64 and 512 ranks, one job per
+ * sequence and in segments of 200. Targets: 2 ranks >= 1.8x one rank; segmented overhead at
+ * S = 200 <= 15%. */
 #include "bench.h"
 #include "cli.h"
 
@@ -11,6 +14,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 static int sh(const char *cmd) {
@@ -24,27 +28,91 @@ static double timed(const char *cmd) {
   return sh(cmd) ? NAN : km_cli_now() - t0;
 }
 
-/* Median per-job seconds of the batch report, over the *n jobs it timed. */
-static void job_times(const char *report, double *job_s, size_t *n) {
+/* Wall seconds of a shell command; *cpu: the CPU seconds (user + system) of every process it
+ * ran (jobs are waited by their batch process, ranks by mpirun: all reach RUSAGE_CHILDREN). */
+static double timed_cpu(const char *cmd, double *cpu) {
+  struct rusage a, b;
+  getrusage(RUSAGE_CHILDREN, &a);
+  double t = timed(cmd);
+  getrusage(RUSAGE_CHILDREN, &b);
+  *cpu = (double)(b.ru_utime.tv_sec - a.ru_utime.tv_sec) +
+         1e-6 * (double)(b.ru_utime.tv_usec - a.ru_utime.tv_usec) +
+         (double)(b.ru_stime.tv_sec - a.ru_stime.tv_sec) +
+         1e-6 * (double)(b.ru_stime.tv_usec - a.ru_stime.tv_usec);
+  return t;
+}
+
+/* Median wall and CPU seconds of the batch report's jobs: segments = false, the jobs that are
+ * no segment (plain jobs, a segmented take's stitch); true, the segment jobs ("part_of").
+ * *n: how many. */
+static void job_times(const char *report, bool segments, double *job_s, double *cpu_s, size_t *n) {
   FILE *f = fopen(report, "rb");
-  *job_s = NAN;
+  *job_s = *cpu_s = NAN;
   *n = 0;
   if (!f) return;
-  char buf[1 << 16];
-  size_t got = fread(buf, 1, sizeof buf - 1, f);
+  fseek(f, 0, SEEK_END);
+  long size = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  char *buf = size > 0 ? malloc((size_t)size + 1) : NULL;
+  size_t got = buf ? fread(buf, 1, (size_t)size, f) : 0;
   fclose(f);
+  if (!buf) return;
   buf[got] = '\0';
   cJSON *r = cJSON_Parse(buf);
+  free(buf);
   const cJSON *jobs = cJSON_GetObjectItemCaseSensitive(r, "jobs");
   int count = cJSON_GetArraySize(jobs);
-  double *t = calloc((size_t)count + 1, sizeof *t);
+  double *t = calloc(2 * (size_t)count + 2, sizeof *t), *c = t ? t + count + 1 : NULL;
   for (int i = 0; t && i < count; ++i) {
-    const cJSON *s = cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(jobs, i), "seconds");
-    if (cJSON_IsNumber(s)) t[(*n)++] = s->valuedouble;
+    const cJSON *e = cJSON_GetArrayItem(jobs, i);
+    if ((cJSON_GetObjectItemCaseSensitive(e, "part_of") != NULL) != segments) continue;
+    const cJSON *s = cJSON_GetObjectItemCaseSensitive(e, "seconds");
+    const cJSON *u = cJSON_GetObjectItemCaseSensitive(e, "cpu_seconds");
+    if (!cJSON_IsNumber(s)) continue;
+    c[*n] = cJSON_IsNumber(u) ? u->valuedouble : NAN;
+    t[(*n)++] = s->valuedouble;
   }
-  if (t && *n) *job_s = km_cli_median(t, *n);
+  if (t && *n) *job_s = km_cli_median(t, *n), *cpu_s = km_cli_median(c, *n);
   free(t);
   cJSON_Delete(r);
+}
+
+/* Measured costs, seconds: the manifest scan per job, a job's (or segment's) start (process,
+ * template, first-frame alignment) beyond one frame, a frame, the stitch per frame; and the
+ * ranks' efficiency (measured with 2). */
+typedef struct costs {
+  double scan_job, start, frame, stitch_frame, eff;
+} costs;
+
+/* Dynamic FAUST's size, 40,000 frames in 129 sequences (~310 frames each), on 8/64/512 ranks:
+ * one job per sequence, and every sequence in segments of 200 (+5 overlap) spread over the
+ * ranks and stitched; and the overhead of segments of 200 (start + overlap + stitch over the
+ * segment's own work). */
+typedef struct projection {
+  double per_seq[3], segmented[3], seg200, overhead;
+  bool bound[3]; /* per sequence: bound by the longest sequence */
+} projection;
+
+static const int RANKS[3] = {8, 64, 512};
+
+static void project(const costs *c, projection *p) {
+  const double frames = 40000, seqs = 129, S = 200, O = 5, per_seq = frames / seqs;
+  const double longest = c->start + c->frame * per_seq;
+  const double segs = seqs * ceil(per_seq / S);
+  double stitch_frame = isfinite(c->stitch_frame) ? c->stitch_frame : 0;
+  p->seg200 = c->start + (S + O) * c->frame;
+  p->overhead = (c->start + O * c->frame + S * stitch_frame) / (S * c->frame);
+  for (int k = 0; k < 3; ++k) {
+    double w = (seqs * c->start + frames * c->frame) / (RANKS[k] * c->eff);
+    p->bound[k] = w <= longest;
+    p->per_seq[k] = c->scan_job * seqs + (w > longest ? w : longest);
+    /* segments: wall = scan (the segment jobs too) + the segments over the ranks (at least
+     * one) + the stitches over the ranks (at least one take's) */
+    double ws = segs * p->seg200 / (RANKS[k] * c->eff);
+    double st = frames * stitch_frame / RANKS[k];
+    if (st < per_seq * stitch_frame) st = per_seq * stitch_frame;
+    p->segmented[k] = c->scan_job * (seqs + segs) + (ws > p->seg200 ? ws : p->seg200) + st;
+  }
 }
 
 int km_bench_batch(int argc, char **argv) {
@@ -89,6 +157,18 @@ int km_bench_batch(int argc, char **argv) {
             "\"--clouds\", \"c/frame_*.ply\", \"-o\", \"out/j%zu.pc2\"]}\n",
             j, j);
   fclose(m);
+  /* one take of the same frames in segments of half of it (at least 2 segments), overlap 1:
+   * the per-segment cost and the stitch, measured through the batch's segment jobs */
+  const size_t seg_s = frames / 2, seg_o = 1;
+  snprintf(path, sizeof path, "%s/seg.jsonl", dir);
+  m = fopen(path, "wb");
+  if (!m) return km_cli_error("bench batch", "%s: cannot write", path);
+  fprintf(m,
+          "{\"id\": \"take\", \"verb\": \"reconstruct\", \"args\": [\"--template\", \"t.obj\", "
+          "\"--clouds\", \"c/frame_*.ply\", \"--segment-frames\", \"%zu\", \"--overlap\", \"%zu\", "
+          "\"-o\", \"out/take.pc2\"]}\n",
+          seg_s, seg_o);
+  fclose(m);
   snprintf(path, sizeof path, "%s/one.jsonl", dir);
   m = fopen(path, "wb");
   if (!m) return km_cli_error("bench batch", "%s: cannot write", path);
@@ -100,15 +180,16 @@ int km_bench_batch(int argc, char **argv) {
    * template, first-frame alignment: what every job and every segment pays once) */
   snprintf(cmd, sizeof cmd, "cd %s && mkdir -p out && '%s' batch m.jsonl --dry-run >/dev/null 2>&1",
            dir, self);
-  double scan = timed(cmd);
+  double cpu_scan, cpu_start, cpu1, cpu2, cpu_seg;
+  double scan = timed_cpu(cmd, &cpu_scan);
   snprintf(cmd, sizeof cmd, "cd %s && '%s' batch one.jsonl --force >/dev/null 2>&1", dir, self);
-  double start = timed(cmd);
+  double start = timed_cpu(cmd, &cpu_start);
   snprintf(cmd, sizeof cmd, "cd %s && '%s' batch m.jsonl --force >/dev/null 2>&1", dir, self);
-  double t1 = timed(cmd);
-  double job1;
-  size_t n1;
+  double t1 = timed_cpu(cmd, &cpu1);
+  double job1, jcpu1, job2, jcpu2;
+  size_t n1, n2;
   snprintf(path, sizeof path, "%s/m.batch/report.json", dir);
-  job_times(path, &job1, &n1);
+  job_times(path, false, &job1, &jcpu1, &n1);
 #ifdef KM_HAVE_MPI
   const char *how = "mpirun -n 2 ... --mpi";
   snprintf(cmd, sizeof cmd,
@@ -122,32 +203,40 @@ int km_bench_batch(int argc, char **argv) {
            "--shard 1/2 --force >/dev/null 2>&1; wait)",
            dir, self, self);
 #endif
-  double t2 = timed(cmd);
-  double job2;
-  size_t n2;
-  job_times(path, &job2, &n2);
+  double t2 = timed_cpu(cmd, &cpu2);
+  job_times(path, false, &job2, &jcpu2, &n2);
+  /* the segmented take, one process: segment jobs then the stitch */
+  snprintf(cmd, sizeof cmd, "cd %s && '%s' batch seg.jsonl --force >/dev/null 2>&1", dir, self);
+  double tseg = timed_cpu(cmd, &cpu_seg);
+  double seg_job, seg_cpu, stitch, stitch_cpu;
+  size_t nseg, nst;
+  snprintf(path, sizeof path, "%s/seg.batch/report.json", dir);
+  job_times(path, true, &seg_job, &seg_cpu, &nseg);
+  job_times(path, false, &stitch, &stitch_cpu, &nst);
   double speedup = t1 / t2;
-  /* per frame beyond the first: (job - one-frame job) / (frames - 1) */
-  double per_frame = (job1 - start) / (double)(frames - 1);
-  if (!(per_frame > 0)) per_frame = job1 / (double)frames;
-  double per_start = start - per_frame > 0 ? start - per_frame : start;
-  /* Dynamic FAUST's size: 40,000 frames in 129 sequences (~310 frames each), one job each; the
-   * ranks' efficiency is the measured 2-rank one, the scan scaled from the manifest here */
-  const double dfaust_frames = 40000, dfaust_seqs = 129;
-  const int ranks[3] = {8, 64, 512};
-  double proj[3];
-  double eff = speedup / 2 > 1 ? 1 : speedup / 2;
-  double scan_d = scan / (double)jobs * dfaust_seqs;
-  double longest = per_start + per_frame * dfaust_frames / dfaust_seqs;
-  for (int k = 0; k < 3; ++k) {
-    double work = dfaust_seqs * per_start + dfaust_frames * per_frame;
-    double w = work / (ranks[k] * eff);
-    proj[k] = scan_d + (w > longest ? w : longest);
-  }
-  /* reconstruct --segment-frames 200 --overlap 5: a segment pays its own start (first-frame
-   * alignment) and tracks 5 frames into the next */
-  double seg200 = per_start + 205 * per_frame;
-  double seg_over = (per_start + 5 * per_frame) / (200 * per_frame);
+  /* per frame beyond the first: (job - one-frame job) / (frames - 1); wall seconds (this
+   * machine as it is) and CPU seconds (what a rank with a core of its own would take) */
+  double one_job, one_cpu;
+  size_t n_one;
+  snprintf(path, sizeof path, "%s/one.batch/report.json", dir);
+  job_times(path, false, &one_job, &one_cpu, &n_one);
+  costs cw = {.scan_job = scan / (double)jobs,
+              .start = start,
+              .frame = (job1 - start) / (double)(frames - 1),
+              .stitch_frame = stitch / (double)frames,
+              .eff = speedup / 2 > 1 ? 1 : speedup / 2};
+  if (!(cw.frame > 0)) cw.frame = job1 / (double)frames;
+  cw.start = start - cw.frame > 0 ? start - cw.frame : start;
+  costs cc = {.scan_job = cpu_scan / (double)jobs,
+              .start = one_cpu,
+              .frame = (jcpu1 - one_cpu) / (double)(frames - 1),
+              .stitch_frame = stitch_cpu / (double)frames,
+              .eff = cpu2 > 0 && cpu1 / cpu2 < 1 ? cpu1 / cpu2 : 1};
+  if (!(cc.frame > 0)) cc.frame = jcpu1 / (double)frames;
+  cc.start = one_cpu - cc.frame > 0 ? one_cpu - cc.frame : one_cpu;
+  projection pw, pc;
+  project(&cw, &pw);
+  project(&cc, &pc);
   char machine[320];
   km_bench_machine(machine, sizeof machine);
   if (json) {
@@ -158,8 +247,10 @@ int km_bench_batch(int argc, char **argv) {
     cJSON_AddNumberToObject(o, "vertices", (double)vertices);
     cJSON_AddStringToObject(o, "two_ranks", how);
     km_cli_json_number(o, "scan_s", scan);
-    km_cli_json_number(o, "job_start_s", per_start);
-    km_cli_json_number(o, "frame_s", per_frame);
+    km_cli_json_number(o, "job_start_s", cw.start);
+    km_cli_json_number(o, "frame_s", cw.frame);
+    km_cli_json_number(o, "job_start_cpu_s", cc.start);
+    km_cli_json_number(o, "frame_cpu_s", cc.frame);
     km_cli_json_number(o, "job_median_1rank_s", job1);
     km_cli_json_number(o, "job_median_2ranks_s", job2);
     km_cli_json_number(o, "wall_1rank_s", t1);
@@ -167,13 +258,34 @@ int km_bench_batch(int argc, char **argv) {
     km_cli_json_number(o, "jobs_per_s_1rank", (double)jobs / t1);
     km_cli_json_number(o, "jobs_per_s_2ranks", (double)jobs / t2);
     km_cli_json_number(o, "speedup_2ranks", speedup);
-    km_cli_json_number(o, "segment200_s", seg200);
-    km_cli_json_number(o, "segment200_overhead", seg_over);
-    cJSON *p = cJSON_AddObjectToObject(o, "dfaust_projection_s");
-    for (int k = 0; k < 3; ++k) {
-      char key[16];
-      snprintf(key, sizeof key, "%d", ranks[k]);
-      km_cli_json_number(p, key, proj[k]);
+    km_cli_json_number(o, "cpu_scan_s", cpu_scan);
+    km_cli_json_number(o, "cpu_job_start_s", cpu_start);
+    km_cli_json_number(o, "cpu_1rank_s", cpu1);
+    km_cli_json_number(o, "cpu_2ranks_s", cpu2);
+    km_cli_json_number(o, "job_cpu_median_1rank_s", jcpu1);
+    km_cli_json_number(o, "job_cpu_median_2ranks_s", jcpu2);
+    km_cli_json_number(o, "segment_frames", (double)seg_s);
+    km_cli_json_number(o, "segments", (double)nseg);
+    km_cli_json_number(o, "segment_median_s", seg_job);
+    km_cli_json_number(o, "segment_cpu_median_s", seg_cpu);
+    km_cli_json_number(o, "stitch_s", stitch);
+    km_cli_json_number(o, "stitch_cpu_s", stitch_cpu);
+    km_cli_json_number(o, "segmented_wall_s", tseg);
+    km_cli_json_number(o, "segmented_cpu_s", cpu_seg);
+    const projection *pp[2] = {&pw, &pc};
+    for (int q = 0; q < 2; ++q) {
+      cJSON *pj = cJSON_AddObjectToObject(o, q ? "projection_cpu" : "projection_wall");
+      km_cli_json_number(pj, "rank_efficiency", q ? cc.eff : cw.eff);
+      km_cli_json_number(pj, "segment200_s", pp[q]->seg200);
+      km_cli_json_number(pj, "segment200_overhead", pp[q]->overhead);
+      cJSON *a1 = cJSON_AddObjectToObject(pj, "dfaust_per_sequence_s");
+      cJSON *a2 = cJSON_AddObjectToObject(pj, "dfaust_segmented200_s");
+      for (int k = 0; k < 3; ++k) {
+        char key[16];
+        snprintf(key, sizeof key, "%d", RANKS[k]);
+        km_cli_json_number(a1, key, pp[q]->per_seq[k]);
+        km_cli_json_number(a2, key, pp[q]->segmented[k]);
+      }
     }
     char *s = cJSON_PrintUnformatted(o);
     cJSON_Delete(o);
@@ -183,22 +295,38 @@ int km_bench_batch(int argc, char **argv) {
     printf("kinemesh bench batch — %s\n", machine);
     printf("%zu equal jobs: reconstruct %zu frames, %zu-vertex template, OMP_NUM_THREADS=1\n\n",
            jobs, frames, vertices);
-    printf("%-34s %10s %10s %10s\n", "ranks", "wall s", "jobs/s", "job s");
-    printf("%-34s %10.2f %10.3f %10.2f\n", "1 (one process)", t1, (double)jobs / t1, job1);
-    printf("%-34s %10.2f %10.3f %10.2f\n", how, t2, (double)jobs / t2, job2);
-    printf("\nspeedup 2 ranks / 1: %.2fx (target >= 1.8x)\n", speedup);
-    printf("serial parts: manifest scan + plan %.3f s (%zu jobs), job start (process, template, "
-           "first frame) %.2f s, per frame %.2f s\n",
-           scan, jobs, per_start, per_frame);
-    printf("segment of S = 200 (+5 overlap, own first frame): %.0f s; overhead (start + overlap) "
-           "%.1f%% of its work (target <= 15%%; from the measured start and per-frame costs)\n",
-           seg200, 100 * seg_over);
-    printf("\nprojected: Dynamic FAUST size (40,000 frames, 129 sequences), one job per "
-           "sequence, 2-rank efficiency %.0f%%\n",
-           100 * eff);
+    printf("(the machine may be shared: CPU seconds are the work done, wall seconds include "
+           "waiting for a core)\n\n");
+    printf("%-34s %10s %10s %10s %10s %10s\n", "ranks", "wall s", "CPU s", "jobs/s", "job s",
+           "job CPU s");
+    printf("%-34s %10.2f %10.2f %10.3f %10.2f %10.2f\n", "1 (one process)", t1, cpu1,
+           (double)jobs / t1, job1, jcpu1);
+    printf("%-34s %10.2f %10.2f %10.3f %10.2f %10.2f\n", how, t2, cpu2, (double)jobs / t2, job2,
+           jcpu2);
+    printf("\nspeedup 2 ranks / 1: %.2fx wall (target >= 1.8x); CPU 2 ranks / 1: %.2fx (1.0 = no "
+           "extra work)\n",
+           speedup, cpu2 / cpu1);
+    printf("serial parts: manifest scan + plan %.3f s (CPU %.3f s, %zu jobs); job start "
+           "(process, template, first frame) %.2f s (CPU %.2f s); per frame %.2f s (CPU %.2f s)\n",
+           scan, cpu_scan, jobs, cw.start, cc.start, cw.frame, cc.frame);
+    printf("segmented take (%zu frames, S = %zu, overlap %zu, one process): %zu segments, median "
+           "%.2f s (CPU %.2f s) each; stitch %.2f s (CPU %.2f s); all %.2f s (CPU %.2f s)\n",
+           frames, seg_s, seg_o, nseg, seg_job, seg_cpu, stitch, stitch_cpu, tseg, cpu_seg);
+    printf("segment of S = 200 (+5 overlap, own first frame): %.0f s (CPU %.0f s); overhead "
+           "(start + overlap + stitch) %.1f%% of its work (CPU %.1f%%; target <= 15%%)\n",
+           pw.seg200, pc.seg200, 100 * pw.overhead, 100 * pc.overhead);
+    printf("\nprojected: Dynamic FAUST size (40,000 frames, 129 sequences); wall: this machine's "
+           "wall costs and 2-rank efficiency (%.0f%%); CPU: a core per rank, efficiency from the "
+           "CPU seconds (%.0f%%)\n",
+           100 * cw.eff, 100 * cc.eff);
+    printf("%8s %22s %22s %22s %22s\n", "ranks", "per sequence (wall)", "segments 200 (wall)",
+           "per sequence (CPU)", "segments 200 (CPU)");
     for (int k = 0; k < 3; ++k)
-      printf("  %4d ranks: %10.0f s (%.1f h)%s\n", ranks[k], proj[k], proj[k] / 3600,
-             proj[k] <= scan_d + longest + 1e-9 ? "  (bound by the longest sequence)" : "");
+      printf("%8d %12.0f s %5.2f h%s %12.0f s %5.2f h %12.0f s %5.2f h%s %12.0f s %5.2f h\n",
+             RANKS[k], pw.per_seq[k], pw.per_seq[k] / 3600, pw.bound[k] ? "*" : " ",
+             pw.segmented[k], pw.segmented[k] / 3600, pc.per_seq[k], pc.per_seq[k] / 3600,
+             pc.bound[k] ? "*" : " ", pc.segmented[k], pc.segmented[k] / 3600);
+    printf("(* bound by the longest sequence: more ranks than sequences help only in segments)\n");
   }
   snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
   sh(cmd);

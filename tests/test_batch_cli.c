@@ -364,6 +364,13 @@ int main(void) {
   CHECK_MSG(same_bytes(DIR "/out/long.pc2", DIR "/alone.pc2"),
             "the batch's stitched take differs from reconstruct --segment-frames alone");
   CHECK(km_test_run("grep -q '\"frames\"' " DIR "/out/long.json", NULL) == 0); /* its report */
+  /* shards end at different times: --collect (the array's afterany step) stitches a take
+   * whose segments are all done, from the parts alone */
+  CHECK(km_test_run("rm " DIR "/out/long.pc2 " DIR "/seg.batch/jobs/long.json", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " batch " DIR "/seg.jsonl --collect", &out) == 0);
+  CHECK_MSG(out && strstr(out, "long: ok") && !strstr(out, "long@seg"), "%s", out ? out : "");
+  free(out);
+  CHECK(same_bytes(DIR "/out/long.pc2", DIR "/alone.pc2"));
   /* a rerun verifies everything: nothing to do */
   CHECK(km_test_run(KM_CLI " batch " DIR "/seg.jsonl --dry-run 2>/dev/null", &out) == 0);
   CHECK_MSG(out && !strchr(out, '{'), "%s", out ? out : "");
