@@ -986,6 +986,9 @@ void km_glitch_free(km_glitch **g);
  *              "max_deviation": 0,
  *              "kind": "holt" | "one_euro", "min_cutoff": 1.5, "beta": 1.0, "d_cutoff": 1.0} }
  * "floor": true keeps every handle vertex above the rest floor (km_retarget_options.floor).
+ * "max_step": 0.02 eases a faster handle step (a tracker's pose snap) over the next frames: no
+ * handle vertex moves more than that fraction of the mesh diagonal per frame
+ * (km_retarget_options.max_step; a speed limit, off by default).
  * "rotate": true (rig level: every entry; or per map entry) makes the handle turn with the bone
  * that ends at the entry's joint: the handle's vertices get rest + displacement rotated about
  * the handle's centroid (the first rotating entry of a handle gives its rotation).
