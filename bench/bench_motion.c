@@ -15,6 +15,7 @@
  *   jump      max over frames f >= 1 and vertices of |V_f - V_{f-1}|, % of the bbox diagonal
  *   below     frames with a vertex more than 0.5% of the diagonal below the rest floor
  *   t (ms)    median over frames of the wall time of km_puppetry_push
+ *   eased     B only: frames whose handle motion the rig's max_step eased (snap easing)
  * A mesh or take that is missing or cannot be used gives a "skipped" line with the reason. */
 #include "bench.h"
 #include "cli.h"
@@ -32,6 +33,7 @@ typedef struct bm_args {
   const char *data;
   size_t frames;
   bool json, floor;
+  double max_step;     /* B's rig max_step; < 0: as the sidecar writes it */
   int32_t relative_to; /* 1 + a Kinect joint subtracted from every map entry; 0: as rigged */
   char machine[320];
 } bm_args;
@@ -40,7 +42,7 @@ typedef struct bm_metrics {
   double stretch, jump_pct, tper_ms;
   double raw_jump_pct; /* the take's largest one-frame joint step (mapped joints, times the
                           performer-to-character scale), % of the diagonal: the motion itself */
-  size_t folded, below;
+  size_t folded, below, eased;
 } bm_metrics;
 
 /* Mesh topology and rest measures shared by both variants. */
@@ -299,6 +301,7 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   }
   for (size_t k = 0; k < m->n_faces; ++k)
     out->folded += ever[k];
+  out->eased = km_puppetry_eased_frames(p);
   qsort(tm, nf, sizeof *tm, dcmp);
   out->tper_ms = nf ? (nf % 2 ? tm[nf / 2] : 0.5 * (tm[nf / 2 - 1] + tm[nf / 2])) : NAN;
 done:
@@ -318,6 +321,7 @@ static cJSON *metrics_json(const bm_metrics *x) {
   km_cli_json_number(o, "jump_max_pct", x->jump_pct);
   cJSON_AddNumberToObject(o, "below_floor_frames", (double)x->below);
   km_cli_json_number(o, "tper_ms", x->tper_ms);
+  cJSON_AddNumberToObject(o, "eased_frames", (double)x->eased);
   return o;
 }
 
@@ -419,6 +423,9 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
             tmaps[tr.n_maps].bone_from = 0;
             tmaps[tr.n_maps++].rotate = false;
           }
+        tr.max_step = 0; /* the paper follows every step */
+      } else if (a->max_step >= 0) {
+        tr.max_step = a->max_step;
       }
       if (run_variant(&m, &g, &tr, model, &t, nf, &r[v], &te) != KM_OK) {
         snprintf(why, sizeof why, "%.500s", te.message);
@@ -451,10 +458,10 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       free(s);
     } else {
       printf("%-18.18s %-16.16s %7zu %5zu  %6.3f %6.3f  %5zu %5zu  %6.2f %6.2f %6.2f  %5zu %5zu  "
-             "%7.2f %7.2f\n",
+             "%7.2f %7.2f  %5zu\n",
              tname, mname, m.n_vertices, nf, r[0].stretch, r[1].stretch, r[0].folded, r[1].folded,
              r[0].raw_jump_pct, r[0].jump_pct, r[1].jump_pct, r[0].below, r[1].below, r[0].tper_ms,
-             r[1].tper_ms);
+             r[1].tper_ms, r[1].eased);
     }
     fflush(stdout);
     km_take_free(&t);
@@ -519,7 +526,7 @@ static void split_list(const char *s, char ***list, size_t *n) {
 
 int km_bench_motion(int argc, char **argv) {
   const char *takes_opt = NULL, *meshes_opt = NULL, *relative_opt = NULL;
-  bm_args a = {"../shared/data", 300, false, false, 0, ""};
+  bm_args a = {"../shared/data", 300, false, false, -1, 0, ""};
   const km_cli_opt opts[] = {
       {"takes", 0, KM_OPT_STRING, &takes_opt,
        "comma list of motion files (Kinect CSV, BVH, take JSON) or walk, wave, kungfu "
@@ -536,20 +543,25 @@ int km_bench_motion(int argc, char **argv) {
       {"data", 0, KM_OPT_STRING, &a.data, "the data folder (default ../shared/data)"},
       {"floor", 0, KM_OPT_FLAG, &a.floor,
        "the rig's floor constraint on (no handle vertex below the rest floor)"},
+      {"max-step", 0, KM_OPT_DOUBLE, &a.max_step,
+       "B's snap easing: fraction of the diagonal a handle vertex may move per frame (0: off; "
+       "default: the rig's; the sidecar writes none: off)"},
       {"json", 0, KM_OPT_FLAG, &a.json, "print one JSON object per row, one per line"},
   };
   int n_pos;
   const char *pos[1];
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
-      "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames 300] [--json]",
+      "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames 300] [--max-step F] "
+      "[--json]",
       "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
       "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"
       "paper's, T) and bone handles (B) side by side. Per row: edge stretch max\n"
       "|l/l0 - 1|, folded triangles (a neighbour's normal < 60 deg at rest, > 120 deg\n"
       "in a frame), the largest one-frame vertex jump (% of the bbox diagonal), frames\n"
       "with a vertex below the rest floor (by more than 0.5% of the diagonal) and the\n"
-      "median per-frame time. BVH takes need joints standing for the Kinect v1 ones\n"
+      "median per-frame time, and for B the frames the snap easing slowed. BVH takes need joints "
+      "standing for the Kinect v1 ones\n"
       "(Kinect names, or another skeleton's: docs/skeletons.md); otherwise skipped.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (relative_opt) {
@@ -585,10 +597,10 @@ int km_bench_motion(int argc, char **argv) {
              a.machine, a.frames, a.floor ? "; floor constraint on" : "",
              a.relative_to ? "; motion relative to " : "",
              a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
-      printf("%-18s %-16s %7s %5s  %13s  %11s  %20s  %11s  %15s\n", "", "", "", "", "stretch max",
-             "folded", "jump %diag", "below floor", "t/frame (ms)");
-      printf("%-18s %-16s %7s %5s  %6s %6s  %5s %5s  %6s %6s %6s  %5s %5s  %7s %7s\n", "take",
-             "mesh", "n_ver", "fr", "T", "B", "T", "B", "take", "T", "B", "T", "B", "T", "B");
+      printf("%-18s %-16s %7s %5s  %13s  %11s  %20s  %11s  %15s  %5s\n", "", "", "", "",
+             "stretch max", "folded", "jump %diag", "below floor", "t/frame (ms)", "eased");
+      printf("%-18s %-16s %7s %5s  %6s %6s  %5s %5s  %6s %6s %6s  %5s %5s  %7s %7s  %5s\n", "take",
+             "mesh", "n_ver", "fr", "T", "B", "T", "B", "take", "T", "B", "T", "B", "T", "B", "B");
     }
     fflush(stdout);
     for (size_t i = 0; i < n_meshes; ++i) {

@@ -989,6 +989,9 @@ void km_glitch_free(km_glitch **g);
  *              "max_deviation": 0,
  *              "kind": "holt" | "one_euro", "min_cutoff": 1.5, "beta": 1.0, "d_cutoff": 1.0} }
  * "floor": true keeps every handle vertex above the rest floor (km_retarget_options.floor).
+ * "max_step": 0.02 eases a faster handle step (a tracker's pose snap) over the next frames: no
+ * handle vertex moves more than that fraction of the mesh diagonal per frame
+ * (km_retarget_options.max_step; a speed limit, off by default).
  * "rotate": true (rig level: every entry; or per map entry) makes the handle turn with the bone
  * that ends at the entry's joint: the handle's vertices get rest + displacement rotated about
  * the handle's centroid (the first rotating entry of a handle gives its rotation).
@@ -1053,7 +1056,8 @@ typedef struct km_rig {
   km_rig_map *maps;
   size_t n_maps;
   km_filter_options filter;
-  bool floor; /* ---- issue 12: "floor": true, see km_retarget_options.floor */
+  bool floor;      /* ---- issue 12: "floor": true, see km_retarget_options.floor */
+  double max_step; /* "max_step": 0.03, see km_retarget_options.max_step; 0: off */
   /* ---- issue 12: rigid root motion ("root_motion": "rigid") */
   bool root_rigid;    /* the whole mesh follows the root rigidly, handles take the motion
                          relative to it (see km_retarget_root_transform) */
@@ -1129,6 +1133,11 @@ typedef struct km_retarget_options {
   const int32_t *parents; /* #J joint parents (read at create only) for map entries with
                              rotate; NULL: the Kinect v1 tree for kinect1 rigs, else such
                              entries translate only */
+  /* ---- issue 12: snap easing */
+  double max_step; /* fraction of the rest mesh's bounding-box diagonal a handle vertex may
+                      move per push; a faster step (a pose snap of the tracker) is eased over
+                      the next pushes, every handle by the same fraction (displacements
+                      linearly, rotations by slerp). 0: rig->max_step (0: off) */
 } km_retarget_options;
 
 typedef struct km_retarget km_retarget;
@@ -1156,6 +1165,8 @@ size_t km_retarget_vertex_count(const km_retarget *r);
 const double *km_retarget_rest_centroids(const km_retarget *r);
 /* Returns the performer-to-character factor in use; NaN while auto and no valid frame seen. */
 double km_retarget_scale(const km_retarget *r);
+/* Returns the number of pushes since create / reset whose motion max_step eased. */
+size_t km_retarget_eased_frames(const km_retarget *r);
 /* ---- issue 12: rigid root motion */
 /* The rigid motion of the last push for a rig with root_rigid: the deformed mesh V is to be
  * placed at R (V - pivot) + pivot + t. R: 3x3 row-major rotation about y by the heading change
@@ -1616,6 +1627,9 @@ const double *km_puppetry_reference_joints(const km_puppetry *p);
 const double *km_puppetry_last_joints(const km_puppetry *p);
 /* Glitch rejection counts since the current rig was set (or reset); zeroed when off. */
 void km_puppetry_glitch_stats(const km_puppetry *p, km_glitch_stats *out);
+/* Frames whose handle motion the rig's max_step eased (km_retarget_eased_frames) since the
+ * current rig was set (or reset); 0 without a rig. */
+size_t km_puppetry_eased_frames(const km_puppetry *p);
 /* The reduced model in use (NULL for the full solver); owned by the pipeline unless it was
  * given as options.model. */
 km_puppet *km_puppetry_model(const km_puppetry *p);

@@ -423,7 +423,68 @@ static void test_relative_to(void) {
   free_mesh(&m);
 }
 
+/* Snap easing (issue 12): a 0.6 m one-frame jump of the hand joint moves the hand handle by at
+ * most max_step of the diagonal per push, keeps the direction, arrives after the expected
+ * number of pushes and is counted; a step under the limit passes untouched. A bad max_step is
+ * a parse error naming the key. */
+static void test_max_step(void) {
+  km_mesh m = legs_mesh();
+  double diag = sqrt(1.0 * 1.0 + 2.0 * 2.0);
+  km_rig rig;
+  char json[512];
+  snprintf(json, sizeof json,
+           "{\"max_step\":0.02,\"handles\":[{\"name\":\"hand\",\"vertices\":[%d]},"
+           "{\"name\":\"anchor\",\"vertices\":[%d]}],"
+           "\"map\":[{\"handle\":\"hand\",\"joint\":\"HandLeft\"}]}",
+           vid(0, NY), vid(8, 0));
+  CHECK_OK(parse(json, &m, &rig));
+  CHECK(rig.max_step == 0.02);
+  km_retarget *r = NULL;
+  CHECK_OK(km_retarget_create(&rig, &m, KM_KINECT1_JOINTS, NULL, &r, KM_E));
+  double Jt[KM_KINECT1_JOINTS * 3], T[2 * 3], prev[3];
+  standing(Jt);
+  km_retarget_push(r, Jt, T);
+  const double s = km_retarget_scale(r), lim = 0.02 * diag;
+  /* a small step (under the limit) is followed at once */
+  Jt[3 * 7 + 1] += 0.5 * lim / s;
+  km_retarget_push(r, Jt, T);
+  const double *c = km_retarget_rest_centroids(r);
+  CHECK_NEAR(T[1], c[1] + 0.5 * lim, 1e-12);
+  CHECK(km_retarget_eased_frames(r) == 0);
+  /* the snap: 0.6 m along x */
+  Jt[3 * 7] += 0.6;
+  double goal = c[0] + s * 0.6;
+  size_t pushes = 0, worst_bad = 0;
+  memcpy(prev, T, sizeof prev);
+  for (int i = 0; i < 200 && fabs(T[0] - goal) > 1e-9; ++i) {
+    km_retarget_push(r, Jt, T);
+    ++pushes;
+    double d = sqrt((T[0] - prev[0]) * (T[0] - prev[0]) + (T[1] - prev[1]) * (T[1] - prev[1]) +
+                    (T[2] - prev[2]) * (T[2] - prev[2]));
+    worst_bad += d > lim * (1 + 1e-9) || fabs(T[1] - prev[1]) > 1e-12;
+    memcpy(prev, T, sizeof prev);
+  }
+  size_t expect = (size_t)ceil(s * 0.6 / lim - 1e-9);
+  CHECK_MSG(pushes == expect, "arrived after %zu pushes, expected %zu", pushes, expect);
+  CHECK(worst_bad == 0);
+  CHECK_MSG(km_retarget_eased_frames(r) == expect - 1, "%zu eased", km_retarget_eased_frames(r));
+  CHECK(T[3] == c[3] && T[4] == c[4] && T[5] == c[5]); /* the anchor stays */
+  km_retarget_reset(r);
+  CHECK(km_retarget_eased_frames(r) == 0);
+  km_retarget_free(&r);
+  km_rig_free(&rig);
+  /* bad values */
+  const char *bad[] = {"{\"max_step\":-0.1,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}",
+                       "{\"max_step\":\"x\",\"handles\":[{\"name\":\"h\",\"vertex\":0}]}"};
+  for (int i = 0; i < 2; ++i) {
+    CHECK_STATUS(parse(bad[i], &m, &rig), KM_ERR_PARSE);
+    CHECK(strstr(km_test_err.message, "max_step") != NULL);
+  }
+  free_mesh(&m);
+}
+
 int main(void) {
+  test_max_step();
   test_relative_to();
   test_rig_parse();
   test_rig_errors();

@@ -2,48 +2,7 @@
  * end, whose end handle turns 90 degrees with its bone, bends instead of shearing the end
  * (through km_puppetry, full ARAP run to convergence, and the reduced model); translation-only
  * handles (the paper's) keep the end ring's orientation and stretch it. */
-#include "km_test.h"
-
-enum { RING = 8, SEGS = 40 };
-
-static km_mesh bar(void) {
-  km_mesh m = {0};
-  m.n_vertices = (size_t)RING * (SEGS + 1);
-  m.n_faces = (size_t)2 * RING * SEGS;
-  m.V = malloc(m.n_vertices * 3 * sizeof(double));
-  m.F = malloc(m.n_faces * 3 * sizeof(int32_t));
-  for (int i = 0; i <= SEGS; ++i)
-    for (int k = 0; k < RING; ++k) {
-      double a = 2 * M_PI * k / RING, *v = m.V + 3 * (size_t)(i * RING + k);
-      v[0] = 2.0 * i / SEGS;
-      v[1] = 0.02 * cos(a);
-      v[2] = 0.02 * sin(a);
-    }
-  size_t f = 0;
-  for (int i = 0; i < SEGS; ++i)
-    for (int k = 0; k < RING; ++k) {
-      int32_t a = i * RING + k, b = i * RING + (k + 1) % RING, c = a + RING, d = b + RING;
-      int32_t t[6] = {a, b, d, a, d, c};
-      memcpy(m.F + 3 * f, t, sizeof t);
-      f += 2;
-    }
-  return m;
-}
-
-static double edge_stretch(const km_mesh *m, const double *V) {
-  double worst = 0;
-  for (size_t f = 0; f < m->n_faces; ++f)
-    for (int e = 0; e < 3; ++e) {
-      int32_t a = m->F[3 * f + e], b = m->F[3 * f + (e + 1) % 3];
-      double l = 0, l0 = 0;
-      for (int c = 0; c < 3; ++c) {
-        l += (V[3 * a + c] - V[3 * b + c]) * (V[3 * a + c] - V[3 * b + c]);
-        l0 += (m->V[3 * a + c] - m->V[3 * b + c]) * (m->V[3 * a + c] - m->V[3 * b + c]);
-      }
-      worst = fmax(worst, fabs(sqrt(l / l0) - 1));
-    }
-  return worst;
-}
+#include "bar_fixture.h"
 
 static double run(const km_mesh *m, bool rotate, km_puppetry_solver solver, double *end_ring_y) {
   char json[2048];

@@ -1,6 +1,8 @@
 /* Joint motion to handle targets (paper eq. 5-7), see km_retarget_create. */
 #include "motion/motion.h"
 
+#include "math/math.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -38,6 +40,12 @@ struct km_retarget {
   double *C;          /* n_joints*3 posed character joints */
   double floor_y;     /* the rest floor (lowest rest y) */
   bool aim;           /* limb bones aim along the performer's (rig "aim": true) */
+  /* snap easing (issue 12): no handle vertex moves more than max_step per push */
+  double max_step;   /* metres per push; 0: off */
+  double *prev;      /* n_handles*12: displacement (3) and rotation (9) of the last push */
+  double *hv_radius; /* n_handles: largest distance of a handle vertex from its centroid */
+  bool have_prev;
+  size_t eased; /* pushes whose motion was eased */
 };
 
 static int cmp_map(const void *a, const void *b) {
@@ -65,6 +73,8 @@ void km_retarget_free(km_retarget **r) {
   free(t->jrest);
   free(t->Rb);
   free(t->C);
+  free(t->prev);
+  free(t->hv_radius);
   free(t);
   *r = NULL;
 }
@@ -80,6 +90,8 @@ void km_retarget_reset(km_retarget *r) {
   memset(r->t, 0, sizeof r->t);
   r->cos_h = 1;
   r->sin_h = 0;
+  r->have_prev = false;
+  r->eased = 0;
   if (r->rot)
     for (size_t h = 0; h < r->n_handles; ++h) {
       double I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
@@ -193,6 +205,29 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       r->floor_dy[h] = lo[1] - ymin; /* <= 0 */
     }
   }
+  double max_step = o.max_step != 0 ? o.max_step : rig->max_step;
+  if (!(max_step >= 0) || !isfinite(max_step)) {
+    km_retarget_free(&r);
+    return km__fail(err, KM_ERR_INVALID, "retarget max_step must be finite and >= 0, got %g",
+                    max_step);
+  }
+  if (max_step > 0) {
+    r->max_step =
+        max_step * sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                        (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    r->prev = km__malloc(r->n_handles, 12 * sizeof(double));
+    r->hv_radius = km__calloc(r->n_handles, sizeof(double));
+    if (!r->prev || !r->hv_radius) {
+      km_retarget_free(&r);
+      return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
+    }
+    for (size_t h = 0; h < r->n_handles; ++h)
+      for (size_t q = r->hv_start[h]; q < r->hv_start[h + 1]; ++q) {
+        double w[3];
+        km__sub3(r->hv_rest + 3 * q, r->centroid + 3 * h, w);
+        r->hv_radius[h] = fmax(r->hv_radius[h], sqrt(km__dot3(w, w)));
+      }
+  }
   if (rig->root_rigid) {
     if (rig->root < 1 || (size_t)rig->root > n_joints || rig->heading[0] < 0 ||
         (size_t)rig->heading[0] > n_joints || rig->heading[1] < 0 ||
@@ -302,6 +337,69 @@ static double skeleton_height(const km_retarget *r, const double *J) {
 
 static void update_rotations(km_retarget *r, const double *J);
 
+/* Snap easing: the largest step of a handle vertex since the last push is at most
+ * |d - d'| + 2 sin(theta / 2) rho (d: displacement, theta: the angle of R R'^T, rho: the
+ * handle's radius). When some handle's bound exceeds max_step, every handle goes only the
+ * fraction alpha = max_step / (largest bound) of the way (displacements linearly, rotations by
+ * slerp), so the handles stay in step with each other and the rest of the snap follows over
+ * the next pushes. It limits every fast move, not only snaps (a walk's root translation too):
+ * the rig opts in. */
+static void ease(km_retarget *r) {
+  double worst = 0;
+  for (size_t h = 0; r->have_prev && h < r->n_handles; ++h) {
+    const double *pd = r->prev + 12 * h, *pR = pd + 3;
+    double dd[3];
+    for (int d = 0; d < 3; ++d)
+      dd[d] = r->disp[3 * h + d] - pd[d];
+    double step = sqrt(km__dot3(dd, dd));
+    if (r->rot && r->rot_joint[h] >= 0) {
+      const double *R = r->rot + 9 * h;
+      double tr = 0; /* trace(R R'^T) = 1 + 2 cos theta */
+      for (int i = 0; i < 9; ++i)
+        tr += R[i] * pR[i];
+      double c = fmax(-1.0, fmin(1.0, 0.5 * (tr - 1)));
+      step += 2 * sin(0.5 * acos(c)) * r->hv_radius[h];
+    }
+    worst = fmax(worst, step);
+  }
+  if (worst > r->max_step) {
+    double alpha = r->max_step / worst;
+    ++r->eased;
+    for (size_t h = 0; h < r->n_handles; ++h) {
+      const double *pd = r->prev + 12 * h, *pR = pd + 3;
+      for (int d = 0; d < 3; ++d)
+        r->disp[3 * h + d] = pd[d] + alpha * (r->disp[3 * h + d] - pd[d]);
+      if (!(r->rot && r->rot_joint[h] >= 0)) continue;
+      double q0[4], q1[4], q[4];
+      km__quat_from_rot3(pR, q0);
+      km__quat_from_rot3(r->rot + 9 * h, q1);
+      double dot = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3];
+      if (dot < 0) {
+        dot = -dot;
+        for (int i = 0; i < 4; ++i)
+          q1[i] = -q1[i];
+      }
+      double th = acos(fmin(1.0, dot)), w0 = 1 - alpha, w1 = alpha;
+      if (th > 1e-6) w0 = sin((1 - alpha) * th) / sin(th), w1 = sin(alpha * th) / sin(th);
+      double n = 0;
+      for (int i = 0; i < 4; ++i)
+        q[i] = w0 * q0[i] + w1 * q1[i], n += q[i] * q[i];
+      n = sqrt(n);
+      for (int i = 0; i < 4; ++i)
+        q[i] /= n;
+      km__rot3_from_quat(q, r->rot + 9 * h);
+    }
+  }
+  for (size_t h = 0; h < r->n_handles; ++h) {
+    memcpy(r->prev + 12 * h, r->disp + 3 * h, 3 * sizeof(double));
+    if (r->rot)
+      memcpy(r->prev + 12 * h + 3, r->rot + 9 * h, 9 * sizeof(double));
+    else
+      km__m3_identity(r->prev + 12 * h + 3);
+  }
+  r->have_prev = true;
+}
+
 void km_retarget_push(km_retarget *r, const double *joints, double *handle_targets) {
   for (size_t j = 0; j < r->n_joints; ++j)
     if (!isfinite(r->ref[3 * j]) && valid3(joints + 3 * j))
@@ -370,6 +468,7 @@ void km_retarget_push(km_retarget *r, const double *joints, double *handle_targe
     }
   }
   if (r->rot) update_rotations(r, joints);
+  if (r->max_step > 0) ease(r);
   if (handle_targets)
     for (size_t i = 0; i < 3 * r->n_handles; ++i)
       handle_targets[i] = r->centroid[i] + r->disp[i];
@@ -603,6 +702,8 @@ void km_retarget_vertex_targets(const km_retarget *r, double *out) {
 size_t km_retarget_vertex_count(const km_retarget *r) { return r->n_hv; }
 const double *km_retarget_rest_centroids(const km_retarget *r) { return r->centroid; }
 double km_retarget_scale(const km_retarget *r) { return r->scale; }
+size_t km_retarget_eased_frames(const km_retarget *r) { return r->eased; }
+void km__retarget_settle(km_retarget *r) { r->have_prev = false; }
 
 bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], double pivot[3]) {
   if (R) memcpy(R, r->R, sizeof r->R);

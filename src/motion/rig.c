@@ -593,6 +593,15 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     st = km__fail(err, KM_ERR_PARSE, "%s: \"floor\" must be true or false", name);
     goto done;
   }
+  const cJSON *jms = cJSON_GetObjectItemCaseSensitive(root, "max_step");
+  if (jms && (!cJSON_IsNumber(jms) || !(jms->valuedouble >= 0) || !(jms->valuedouble < 1))) {
+    st = km__fail(err, KM_ERR_PARSE,
+                  "%s: \"max_step\" must be a number in [0, 1) (a fraction of the mesh "
+                  "diagonal per frame)",
+                  name);
+    goto done;
+  }
+  out->max_step = jms ? jms->valuedouble : 0;
   const cJSON *jaim = cJSON_GetObjectItemCaseSensitive(root, "aim");
   if (jaim && !cJSON_IsBool(jaim)) {
     st = km__fail(err, KM_ERR_PARSE, "%s: \"aim\" must be true or false", name);

@@ -197,6 +197,7 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
   if (seeded) km_retarget_push(r.rt, r.p0, NULL);
   if (have_last) {
     km_filter_push(r.filter, r.last, r.filt);
+    km__retarget_settle(r.rt);
     km_retarget_push(r.rt, r.filt, r.handle_targets);
   } else {
     for (size_t k = 0; k < 3 * r.nj; ++k)
@@ -454,6 +455,10 @@ void km_puppetry_glitch_stats(const km_puppetry *p, km_glitch_stats *out) {
     km_glitch_stats_get(p->glitch, out);
   else
     memset(out, 0, sizeof *out);
+}
+
+size_t km_puppetry_eased_frames(const km_puppetry *p) {
+  return p->rt ? km_retarget_eased_frames(p->rt) : 0;
 }
 
 km_puppet *km_puppetry_model(const km_puppetry *p) { return p->puppet; }
