@@ -18,6 +18,7 @@
  * tall 3T x 8 matrix and costs its allocations per call, so the Gram form here is both the
  * simpler and the faster choice for this size. */
 #include "anim/anim.h"
+#include "linalg/linalg.h"
 #include "math/math.h"
 
 #include <float.h>
@@ -448,119 +449,199 @@ out:
   free(cen);
 }
 
-/* Weights of every vertex for the current transforms. */
-static void update_weights(ssdr_ctx *c) {
-  const size_t n = c->n, B = c->B, T = c->T;
-  const size_t step = T > SSDR_SUBFRAMES ? (T + SSDR_SUBFRAMES - 1) / SSDR_SUBFRAMES : 1;
-  const int NC = (int)(B < SSDR_CANDIDATES ? B : SSDR_CANDIDATES);
-#pragma omp parallel for schedule(dynamic, 64)
-  for (size_t i = 0; i < n; ++i) {
-    /* Candidates: the bones whose rigid motion alone explains the vertex best (on a frame
-     * subsample), plus its current influences. */
-    int cand[SSDR_CANDIDATES];
-    double ce[SSDR_CANDIDATES];
-    int nc = 0;
-    for (int k = 0; k < 4; ++k) {
-      int32_t j = c->J[4 * i + k];
-      if (j >= 0 && c->W[4 * i + k] > 0 && nc < NC) {
-        cand[nc] = j;
-        ce[nc++] = -1; /* kept */
-      }
-    }
-    for (size_t j = 0; j < B; ++j) {
-      bool have = false;
-      for (int k = 0; k < nc; ++k)
-        have |= cand[k] == (int)j;
-      if (have) continue;
-      double e = bone_error(c, i, j, step);
-      if (nc < NC) {
-        cand[nc] = (int)j;
-        ce[nc++] = e;
-        continue;
-      }
-      int worst = -1;
-      for (int k = 0; k < nc; ++k)
-        if (ce[k] >= 0 && (worst < 0 || ce[k] > ce[worst])) worst = k;
-      if (worst >= 0 && e < ce[worst]) cand[worst] = (int)j, ce[worst] = e;
-    }
-    /* Normal equations over all frames: A = [M_j^t p_i]_j stacked over t, b = v_i^t. */
-    double G[SSDR_CANDIDATES * SSDR_CANDIDATES] = {0}, h[SSDR_CANDIDATES] = {0};
-    const double *p = c->P + 3 * i;
-    for (size_t t = 0; t < T; ++t) {
-      double y[SSDR_CANDIDATES][3];
-      const double *v = c->V + (t * n + i) * 3;
-      for (int k = 0; k < nc; ++k) {
-        xform(c->M + (t * B + (size_t)cand[k]) * 12, p, y[k]);
-        h[k] += y[k][0] * v[0] + y[k][1] * v[1] + y[k][2] * v[2];
-      }
-      for (int r = 0; r < nc; ++r)
-        for (int s = r; s < nc; ++s)
-          G[r * nc + s] += y[r][0] * y[s][0] + y[r][1] * y[s][1] + y[r][2] * y[s][2];
-    }
-    double tr = 0;
-    for (int r = 0; r < nc; ++r) {
-      for (int s = 0; s < r; ++s)
-        G[r * nc + s] = G[s * nc + r];
-      tr += G[r * nc + r];
-    }
-    /* Sum-to-one as a heavy penalty row lambda (1'w - 1)^2 (Le & Deng, eq. 7). */
-    double lambda = 1e3 * (tr > 0 ? tr / nc : 1);
-    for (int r = 0; r < nc; ++r) {
-      h[r] += lambda;
-      for (int s = 0; s < nc; ++s)
-        G[r * nc + s] += lambda;
-    }
-    double w[SSDR_CANDIDATES];
-    nnls_gram(nc, G, h, w);
-    /* Keep the K largest, solve again on them. */
-    int keep[4], nk = 0;
-    for (int q = 0; q < (int)c->K; ++q) {
-      int b = -1;
-      for (int k = 0; k < nc; ++k) {
-        bool used = false;
-        for (int u = 0; u < nk; ++u)
-          used |= keep[u] == k;
-        if (!used && w[k] > 0 && (b < 0 || w[k] > w[b])) b = k;
-      }
-      if (b < 0) break;
-      keep[nk++] = b;
-    }
-    if (nk == 0) continue; /* keep the old weights */
-    if (nk < nc) {
-      double G2[16], h2[4], w2[4];
-      for (int r = 0; r < nk; ++r) {
-        h2[r] = h[keep[r]];
-        for (int s = 0; s < nk; ++s)
-          G2[r * nk + s] = G[keep[r] * nc + keep[s]];
-      }
-      nnls_gram(nk, G2, h2, w2);
-      for (int r = 0; r < nk; ++r)
-        w[keep[r]] = w2[r];
-    }
-    double sum = 0;
-    for (int r = 0; r < nk; ++r)
-      sum += w[keep[r]];
-    if (!(sum > 0)) continue;
-    int slot = 0;
-    for (int r = 0; r < nk; ++r) {
-      if (!(w[keep[r]] > 0)) continue;
-      c->J[4 * i + slot] = cand[keep[r]];
-      c->W[4 * i + slot] = w[keep[r]] / sum;
-      ++slot;
-    }
-    for (; slot < 4; ++slot)
-      c->J[4 * i + slot] = -1, c->W[4 * i + slot] = 0;
-  }
+/* The transforms as one matrix for the Gram-form weight solve: Ms (3T x 4B, row-major), row
+ * 3t + a, column 4j + c = M_j^t[a][c], so that for the homogeneous rest point p~ = (p, 1) and a
+ * trajectory v (3T), (M_j^t p~) . v^t summed over t is p~ . (v^T Ms)[4j..4j+3] and
+ * (M_j^t p~) . (M_l^t p~) summed over t is p~^T Q[4j.., 4l..] p~ with Q = Ms^T Ms (4B x 4B).
+ * Both products are BLAS matrix products (km__gemm) instead of per-vertex loops over frames:
+ * the normal equations of every vertex and the error of every bone on the frame subsample
+ * (step: every step-th frame, the rows packed in that order) come from them. */
+static void pack_transforms(const ssdr_ctx *c, size_t step, double *Ms) {
+  const size_t B = c->B, B4 = 4 * B;
+  for (size_t t = 0, row = 0; t < c->T; t += step, row += 3)
+    for (size_t j = 0; j < B; ++j)
+      for (int a = 0; a < 3; ++a)
+        memcpy(Ms + (row + (size_t)a) * B4 + 4 * j, c->M + (t * B + j) * 12 + 4 * a,
+               4 * sizeof *Ms);
 }
 
-/* Transforms of every frame for the current weights (paper eq. 9, bone by bone). */
+/* p~^T Q[4k.., 4l..] p~ for a row-major Q with row stride ld. */
+static inline double quad4(const double *Q, size_t ld, size_t k, size_t l, const double *p) {
+  const double *q = Q + 4 * k * ld + 4 * l;
+  double s = 0;
+  for (int r = 0; r < 4; ++r) {
+    const double pr = r < 3 ? p[r] : 1;
+    s += pr * (q[r * ld] * p[0] + q[r * ld + 1] * p[1] + q[r * ld + 2] * p[2] + q[r * ld + 3]);
+  }
+  return s;
+}
+
+/* Weights of vertex i from its row Z (4B: v_i^T Ms) and the Gram matrix Q over all frames, and
+ * the same over the frame subsample that ranks the candidate bones (Zs, Qs, vvs = |v_i|^2
+ * summed over the subsample). */
+static void vertex_weights(ssdr_ctx *c, size_t i, const double *Q, const double *Z,
+                           const double *Qs, const double *Zs, double vvs) {
+  const size_t B = c->B, B4 = 4 * B;
+  const int NC = (int)(B < SSDR_CANDIDATES ? B : SSDR_CANDIDATES);
+  const double *p = c->P + 3 * i;
+  /* Candidates: the bones whose rigid motion alone explains the vertex best (on a frame
+   * subsample: bone_error's), plus its current influences. */
+  int cand[SSDR_CANDIDATES];
+  double ce[SSDR_CANDIDATES];
+  int nc = 0;
+  for (int k = 0; k < 4; ++k) {
+    int32_t j = c->J[4 * i + k];
+    if (j >= 0 && c->W[4 * i + k] > 0 && nc < NC) {
+      cand[nc] = j;
+      ce[nc++] = -1; /* kept */
+    }
+  }
+  for (size_t j = 0; j < B; ++j) {
+    bool have = false;
+    for (int k = 0; k < nc; ++k)
+      have |= cand[k] == (int)j;
+    if (have) continue;
+    const double *z = Zs + 4 * j;
+    double e = quad4(Qs, B4, j, j, p) - 2 * (p[0] * z[0] + p[1] * z[1] + p[2] * z[2] + z[3]) + vvs;
+    if (nc < NC) {
+      cand[nc] = (int)j;
+      ce[nc++] = e;
+      continue;
+    }
+    int worst = -1;
+    for (int k = 0; k < nc; ++k)
+      if (ce[k] >= 0 && (worst < 0 || ce[k] > ce[worst])) worst = k;
+    if (worst >= 0 && e < ce[worst]) cand[worst] = (int)j, ce[worst] = e;
+  }
+  /* Normal equations over all frames: A = [M_j^t p_i]_j stacked over t, b = v_i^t. */
+  double G[SSDR_CANDIDATES * SSDR_CANDIDATES], h[SSDR_CANDIDATES];
+  for (int r = 0; r < nc; ++r) {
+    const double *z = Z + 4 * (size_t)cand[r];
+    h[r] = p[0] * z[0] + p[1] * z[1] + p[2] * z[2] + z[3];
+    for (int q = r; q < nc; ++q)
+      G[r * nc + q] = G[q * nc + r] = quad4(Q, B4, (size_t)cand[r], (size_t)cand[q], p);
+  }
+  double tr = 0;
+  for (int r = 0; r < nc; ++r)
+    tr += G[r * nc + r];
+  /* Sum-to-one as a heavy penalty row lambda (1'w - 1)^2 (Le & Deng, eq. 7). */
+  double lambda = 1e3 * (tr > 0 ? tr / nc : 1);
+  for (int r = 0; r < nc; ++r) {
+    h[r] += lambda;
+    for (int q = 0; q < nc; ++q)
+      G[r * nc + q] += lambda;
+  }
+  double w[SSDR_CANDIDATES];
+  nnls_gram(nc, G, h, w);
+  /* Keep the K largest, solve again on them. */
+  int keep[4], nk = 0;
+  for (int q = 0; q < (int)c->K; ++q) {
+    int b = -1;
+    for (int k = 0; k < nc; ++k) {
+      bool used = false;
+      for (int u = 0; u < nk; ++u)
+        used |= keep[u] == k;
+      if (!used && w[k] > 0 && (b < 0 || w[k] > w[b])) b = k;
+    }
+    if (b < 0) break;
+    keep[nk++] = b;
+  }
+  if (nk == 0) return; /* keep the old weights */
+  if (nk < nc) {
+    double G2[16], h2[4], w2[4];
+    for (int r = 0; r < nk; ++r) {
+      h2[r] = h[keep[r]];
+      for (int s = 0; s < nk; ++s)
+        G2[r * nk + s] = G[keep[r] * nc + keep[s]];
+    }
+    nnls_gram(nk, G2, h2, w2);
+    for (int r = 0; r < nk; ++r)
+      w[keep[r]] = w2[r];
+  }
+  double sum = 0;
+  for (int r = 0; r < nk; ++r)
+    sum += w[keep[r]];
+  if (!(sum > 0)) return;
+  int slot = 0;
+  for (int r = 0; r < nk; ++r) {
+    if (!(w[keep[r]] > 0)) continue;
+    c->J[4 * i + slot] = cand[keep[r]];
+    c->W[4 * i + slot] = w[keep[r]] / sum;
+    ++slot;
+  }
+  for (; slot < 4; ++slot)
+    c->J[4 * i + slot] = -1, c->W[4 * i + slot] = 0;
+}
+
+/* Weights of every vertex for the current transforms, a block of vertices at a time: their
+ * trajectories packed as rows X (3T each), Z = X Ms by BLAS; the same on the frame subsample
+ * (Xs, Ms_s) for the candidates. Returns false when out of memory. */
+static bool update_weights(ssdr_ctx *c) {
+  const size_t n = c->n, B = c->B, T = c->T, B4 = 4 * B, T3 = 3 * T;
+  const size_t step = T > SSDR_SUBFRAMES ? (T + SSDR_SUBFRAMES - 1) / SSDR_SUBFRAMES : 1;
+  const size_t S3 = 3 * ((T + step - 1) / step);
+  const size_t blk = n < 2048 ? n : 2048;
+  double *Ms = km__malloc(T3 * B4, sizeof *Ms), *Q = km__malloc(B4 * B4, sizeof *Q);
+  double *Mss = km__malloc(S3 * B4, sizeof *Mss), *Qs = km__malloc(B4 * B4, sizeof *Qs);
+  double *X = km__malloc(blk * T3, sizeof *X), *Z = km__malloc(blk * B4, sizeof *Z);
+  double *Xs = km__malloc(blk * S3, sizeof *Xs), *Zs = km__malloc(blk * B4, sizeof *Zs);
+  double *vvs = km__malloc(blk, sizeof *vvs);
+  bool ok = Ms && Q && Mss && Qs && X && Z && Xs && Zs && vvs;
+  if (ok) {
+    pack_transforms(c, 1, Ms);
+    pack_transforms(c, step, Mss);
+    km__gemm(true, false, B4, B4, T3, 1, Ms, B4, Ms, B4, 0, Q, B4);
+    km__gemm(true, false, B4, B4, S3, 1, Mss, B4, Mss, B4, 0, Qs, B4);
+  }
+  for (size_t i0 = 0; ok && i0 < n; i0 += blk) {
+    const size_t nb = n - i0 < blk ? n - i0 : blk;
+#pragma omp parallel for schedule(static)
+    for (size_t r = 0; r < nb; ++r) {
+      double s = 0;
+      for (size_t t = 0; t < T; ++t)
+        for (int a = 0; a < 3; ++a) {
+          double v = c->V[(t * n + i0 + r) * 3 + (size_t)a];
+          X[r * T3 + 3 * t + (size_t)a] = v;
+          if (t % step) continue;
+          Xs[r * S3 + 3 * (t / step) + (size_t)a] = v;
+          s += v * v;
+        }
+      vvs[r] = s;
+    }
+    km__gemm(false, false, nb, B4, T3, 1, X, T3, Ms, B4, 0, Z, B4);
+    km__gemm(false, false, nb, B4, S3, 1, Xs, S3, Mss, B4, 0, Zs, B4);
+#pragma omp parallel for schedule(dynamic, 64)
+    for (size_t r = 0; r < nb; ++r)
+      vertex_weights(c, i0 + r, Q, Z + r * B4, Qs, Zs + r * B4, vvs[r]);
+  }
+  free(Ms);
+  free(Q);
+  free(Mss);
+  free(Qs);
+  free(X);
+  free(Z);
+  free(Xs);
+  free(Zs);
+  free(vvs);
+  return ok;
+}
+
+/* Transforms of every frame for the current weights (paper eq. 9, bone by bone). The weighted
+ * Procrustes of bone j fits M to the targets q_i = res_i + w_ij M_j p_i with weights w_ij^2;
+ * its sums split into moments of the rest points that the fixed weights make constant
+ * (m0 = sum w^2, m1 = sum w^2 p, m2 = sum w^2 p p^T, once per call) and two sums over the
+ * residuals (sum w res, sum w p res^T), so a frame's pass over a bone's vertices is one
+ * accumulation and one residual update, with no transform of the rest points:
+ *   sum w q = a + R m1 + T m0,   sum w p q^T = Bm + m2 R^T + m1 T^T,
+ *   H = sum w p q^T - m0 ps qs^T  with ps = m1 / m0, qs = sum w q / m0. */
 static bool update_transforms(ssdr_ctx *c) {
   const size_t n = c->n, B = c->B;
   /* bone -> (vertex, weight) lists */
   size_t *start = calloc(B + 1, sizeof *start);
   size_t *vi = km__malloc(4 * n + 1, sizeof *vi);
   double *vw = km__malloc(4 * n + 1, sizeof *vw);
-  bool ok = start && vi && vw;
+  double *mom = km__calloc(B * 13, sizeof *mom); /* per bone: m0, m1[3], m2[9] */
+  bool ok = start && vi && vw && mom;
   if (ok) {
     for (size_t i = 0; i < 4 * n; ++i)
       if (c->J[i] >= 0 && c->W[i] > 0) ++start[c->J[i] + 1];
@@ -575,6 +656,19 @@ static bool update_transforms(ssdr_ctx *c) {
         vw[at] = c->W[i];
       }
     free(fill);
+  }
+  for (size_t j = 0; ok && j < B; ++j) {
+    double *m = mom + 13 * j;
+    for (size_t e = start[j]; e < start[j + 1]; ++e) {
+      const double *p = c->P + 3 * vi[e];
+      double w2 = vw[e] * vw[e];
+      m[0] += w2;
+      for (int a = 0; a < 3; ++a) {
+        m[1 + a] += w2 * p[a];
+        for (int b = 0; b < 3; ++b)
+          m[4 + 3 * a + b] += w2 * p[a] * p[b];
+      }
+    }
   }
   if (ok) {
     bool failed = false;
@@ -603,52 +697,47 @@ static bool update_transforms(ssdr_ctx *c) {
         }
         for (size_t j = 0; j < B; ++j) {
           if (start[j + 1] - start[j] < 3) continue;
-          /* q_i = res_i + w_ij M_j p_i; minimise sum ||w_ij M p_i - q_i||^2 over rigid M. */
-          double sw2 = 0, ps[3] = {0, 0, 0}, qs[3] = {0, 0, 0};
+          const double *m = mom + 13 * j;
           double *Mj = Mt + 12 * j;
+          double sa[3] = {0, 0, 0}, Bm[9] = {0};
           for (size_t e = start[j]; e < start[j + 1]; ++e) {
-            size_t i = vi[e];
-            double w = vw[e], y[3];
-            xform(Mj, c->P + 3 * i, y);
-            sw2 += w * w;
+            const double *p = c->P + 3 * vi[e], *r = res + 3 * vi[e];
+            double w = vw[e];
             for (int a = 0; a < 3; ++a) {
-              ps[a] += w * w * c->P[3 * i + a];
-              qs[a] += w * (res[3 * i + a] + w * y[a]);
+              double wr = w * r[a];
+              sa[a] += wr;
+              Bm[a] += p[0] * wr, Bm[3 + a] += p[1] * wr, Bm[6 + a] += p[2] * wr;
             }
+          }
+          double ps[3], qs[3], H[9];
+          for (int a = 0; a < 3; ++a) {
+            ps[a] = m[1 + a] / m[0];
+            qs[a] = (sa[a] + Mj[4 * a] * m[1] + Mj[4 * a + 1] * m[2] + Mj[4 * a + 2] * m[3] +
+                     Mj[4 * a + 3] * m[0]) /
+                    m[0];
           }
           for (int a = 0; a < 3; ++a)
-            ps[a] /= sw2, qs[a] /= sw2;
-          double H[9] = {0};
-          for (size_t e = start[j]; e < start[j + 1]; ++e) {
-            size_t i = vi[e];
-            double w = vw[e], y[3], pa[3], qb[3];
-            xform(Mj, c->P + 3 * i, y);
-            for (int a = 0; a < 3; ++a) {
-              pa[a] = w * (c->P[3 * i + a] - ps[a]);
-              qb[a] = res[3 * i + a] + w * y[a] - w * qs[a];
-            }
-            for (int r = 0; r < 3; ++r)
-              for (int s = 0; s < 3; ++s)
-                H[3 * r + s] += pa[r] * qb[s];
-          }
+            for (int b = 0; b < 3; ++b)
+              H[3 * a + b] = Bm[3 * a + b] + m[4 + 3 * a] * Mj[4 * b] +
+                             m[4 + 3 * a + 1] * Mj[4 * b + 1] + m[4 + 3 * a + 2] * Mj[4 * b + 2] +
+                             m[1 + a] * Mj[4 * b + 3] - m[0] * ps[a] * qs[b];
           double R[9], S[3], rp[3];
           if (km__rotation_fit3(H, R, S) < 0) continue;
           km__m3_apply(R, ps, rp);
-          double Mn[12];
+          double dM[12];
           for (int r = 0; r < 3; ++r) {
-            Mn[4 * r] = R[3 * r], Mn[4 * r + 1] = R[3 * r + 1], Mn[4 * r + 2] = R[3 * r + 2];
-            Mn[4 * r + 3] = qs[r] - rp[r];
+            double Mn[4] = {R[3 * r], R[3 * r + 1], R[3 * r + 2], qs[r] - rp[r]};
+            for (int q = 0; q < 4; ++q)
+              dM[4 * r + q] = Mn[q] - Mj[4 * r + q], Mj[4 * r + q] = Mn[q];
           }
           /* residuals follow the new transform */
           for (size_t e = start[j]; e < start[j + 1]; ++e) {
-            size_t i = vi[e];
-            double yo[3], yn[3];
-            xform(Mj, c->P + 3 * i, yo);
-            xform(Mn, c->P + 3 * i, yn);
+            const double *p = c->P + 3 * vi[e];
+            double *r = res + 3 * vi[e], d[3];
+            xform(dM, p, d);
             for (int a = 0; a < 3; ++a)
-              res[3 * i + a] -= vw[e] * (yn[a] - yo[a]);
+              r[a] -= vw[e] * d[a];
           }
-          memcpy(Mj, Mn, sizeof Mn);
         }
       }
       free(res);
@@ -658,6 +747,7 @@ static bool update_transforms(ssdr_ctx *c) {
   free(start);
   free(vi);
   free(vw);
+  free(mom);
   return ok;
 }
 
@@ -702,8 +792,8 @@ static km_status refine(ssdr_ctx *c, const km_ssdr_options *o, double base, doub
   for (int it = 0; it < o->iterations; ++it) {
     if (!km__progress(&o->progress, base + span * (it + 0.5) / o->iterations, "skinning fit"))
       return km__fail(err, KM_ERR_CANCELLED, "km_ssdr_fit: cancelled");
-    update_weights(c);
-    if (!update_transforms(c)) return km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory");
+    if (!update_weights(c) || !update_transforms(c))
+      return km__fail(err, KM_ERR_NOMEM, "km_ssdr_fit: out of memory");
   }
   return KM_OK;
 }

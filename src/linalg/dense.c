@@ -2,6 +2,7 @@
  * headers stay in src/linalg/. */
 #include "linalg/linalg.h"
 
+#include <cblas.h>
 #include <lapacke.h>
 
 int km__svd3(double A[9], double S[3], double U[9], double Vt[9]) {
@@ -20,4 +21,12 @@ int km__potrs(size_t n, size_t nrhs, const double *K, double *B) {
 
 int km__syev(size_t n, double *A, double *w) {
   return (int)LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', (lapack_int)n, A, (lapack_int)n, w);
+}
+
+void km__gemm(bool trans_a, bool trans_b, size_t m, size_t n, size_t k, double alpha,
+              const double *A, size_t lda, const double *B, size_t ldb, double beta, double *C,
+              size_t ldc) {
+  cblas_dgemm(CblasRowMajor, trans_a ? CblasTrans : CblasNoTrans,
+              trans_b ? CblasTrans : CblasNoTrans, (blasint)m, (blasint)n, (blasint)k, alpha, A,
+              (blasint)lda, B, (blasint)ldb, beta, C, (blasint)ldc);
 }

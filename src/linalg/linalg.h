@@ -66,5 +66,11 @@ int km__potrs(size_t n, size_t nrhs, const double *K, double *B);
 /* Eigen-decomposition of the symmetric row-major n x n A (upper triangle read): eigenvalues
  * ascending in w, A replaced by the eigenvectors as its columns (dsyev). */
 int km__syev(size_t n, double *A, double *w);
+/* C = alpha op(A) op(B) + beta C, row-major (dgemm, OpenBLAS): op(A) m x k, op(B) k x n, C m x n;
+ * op(X) = X^T when trans_X; lda / ldb / ldc the row strides of the arrays as stored. Call it
+ * outside OpenMP parallel regions (OpenBLAS threads itself). */
+void km__gemm(bool trans_a, bool trans_b, size_t m, size_t n, size_t k, double alpha,
+              const double *A, size_t lda, const double *B, size_t ldb, double beta, double *C,
+              size_t ldc);
 
 #endif
