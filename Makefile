@@ -4,12 +4,16 @@ BUILD ?= build
 ASAN_BUILD ?= build-asan
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 
-.PHONY: all deps build demo test test-sanitize fuzz bench format clean
+.PHONY: all deps deps-test build demo test test-sanitize fuzz bench format clean
 
 all: build
 
 deps:
 	@bash scripts/deps.sh
+
+# The test-only packages too (Blender for the blender_import test): `make demo` stays light.
+deps-test: deps
+	@bash scripts/deps.sh --test
 
 $(BUILD)/CMakeCache.txt:
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release
@@ -20,7 +24,7 @@ build: deps $(BUILD)/CMakeCache.txt
 demo: build
 	@bash scripts/demo.sh $(BUILD)/kinemesh
 
-test: build
+test: deps-test build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS) -L unit
 
 $(ASAN_BUILD)/CMakeCache.txt:

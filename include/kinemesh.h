@@ -382,7 +382,8 @@ void km_mesh_skin_free(km_mesh_skin *s);
  * (joint node's world matrix times its inverse bind matrix; the mesh node's own transform is
  * ignored, as glTF says), i.e. as a viewer shows it: at the bind pose, as stored. The joints
  * of every skin used are gathered into one list (each joint node once, in order of first
- * use); JOINTS_1 / WEIGHTS_1 are not read; a primitive without JOINTS_0 is bound whole to the
+ * use); with JOINTS_1 / WEIGHTS_1 (8 influences) the position is placed by all 8 and the skin
+ * keeps the 4 largest, renormalised; a primitive without JOINTS_0 is bound whole to the
  * nearest joint above its node (else to none). Other formats: the mesh, skin->n_joints 0.
  *   path  in: file
  *   mesh  out: as km_mesh_read; free with km_mesh_free
@@ -680,8 +681,10 @@ int km_skeleton_joint_source(km_skeleton_kind to, int j, km_skeleton_kind from, 
  * none matches; *matched (may be NULL): how many did. */
 int km_skeleton_detect(const char *const *names, size_t n, int *matched);
 /* The Kinect v1 joint (KM_KINECT1 index) a joint name stands for: looked up in kind `named`
- * first, then in every kind in enum order. -2: a known joint with no Kinect v1 counterpart,
- * -1: an unknown name. */
+ * first, then in every kind in enum order, then by the naming conventions of game and DCC rigs
+ * (Mixamo "mixamorig:LeftForeArm", VRoid "J_Bip_L_LowerArm", rigify "DEF-forearm.L", Blender
+ * "forearm.L", Biped "Bip01 L Forearm"; docs/skeletons.md). -2: a known joint with no Kinect v1
+ * counterpart, -1: an unknown name. */
 int km_skeleton_kinect1_joint(km_skeleton_kind named, const char *name);
 /* One frame of kind `from` as kind `to`, by body point with km_skeleton_joint_source's
  * fallbacks, a fallback also taken where the exact joint is NaN in this frame; trunk points
@@ -1188,10 +1191,11 @@ void km_character_free(km_character *c);
 
 /* Writes a rig sidecar (<mesh>.rig.json, atomically): skeleton, skin, landmarks, and a
  * default puppetry rig: handles at head, hands and feet, and (issue 12) bands of at most 64
- * vertices around the middle of each upper arm, forearm, thigh and shin (the vertices whose
- * nearest skeleton bone it is, one connected piece, clear of the end handles); every handle is
- * mapped to a bone ("bone": head ShoulderCenter -> Head, hands elbow -> hand, feet knee ->
- * foot, bands their own bone) with "aim": true (see km_rig_parse).
+ * vertices on each upper arm and thigh (0.5 .. 0.8 of the bone from the shoulder / hip: the
+ * joint keeps a free zone to bend in) and around the middle of each forearm and shin (the
+ * vertices whose nearest skeleton bone it is, one connected piece, clear of the end handles);
+ * every handle is mapped to a bone ("bone": head ShoulderCenter -> Head, hands elbow -> hand,
+ * feet knee -> foot, bands their own bone) with "aim": true (see km_rig_parse).
  *   c  in: character (its mesh is not written, only its vertex count)
  * Errors: KM_ERR_IO. */
 km_status km_character_write_rig(const char *path, const km_character *c, km_error *err);
@@ -1235,6 +1239,13 @@ typedef struct km_anim_options {
   km_anim_export export_kind;         /* 0: KM_ANIM_EXPORT_MORPHS (one target per key frame) */
   const struct km_ssdr_options *skin; /* KM_ANIM_EXPORT_SKIN: the fit's options; NULL: defaults */
   size_t morphs; /* KM_ANIM_EXPORT_MORPHS_PCA: basis targets (0: 16; capped at the frames) */
+  /* glb, any export kind: KHR_mesh_quantization (positions on a 14-bit grid dequantised by the
+   * mesh node's transform or the inverse bind matrices, morph deltas as 16-bit integers on the
+   * same grid, 8-bit octahedral normals, 16-bit UVs, 8-bit weights) + EXT_meshopt_compression
+   * (every buffer view meshopt-encoded; rotations, translations and weights filtered). Both
+   * extensions are required to read the file. The report's error is then of what a player
+   * decodes. false: plain float32. */
+  bool compress;
 } km_anim_options;
 
 /* Streams an animation of a fixed-connectivity mesh to disk. Nothing appears at `path`
@@ -1638,17 +1649,16 @@ typedef enum km_laplacian_kind {
 
 typedef enum km_transfer_align {
   /* T's landmark positions scaled about the origin by size(S)/size(T), T's placement kept.
-   * size = sum of edge-graph geodesic distances from landmark 0 to the other landmarks:
-   * pose-invariant and, unlike the surface area, insensitive to girth and belly. */
+   * size(S)/size(T) = the median over vertices of the one-ring's RMS edge-length ratio S / T:
+   * pose-invariant (edges keep their lengths), so for one body in two poses it is 1 to within
+   * 0.0002 (FAUST, the cat poses, generated subjects) and the targets are T's own. */
   KM_TRANSFER_ALIGN_SCALE = 0,
   /* Umeyama similarity (rotation, translation, scale) of T's landmarks onto the source's rest
-   * landmarks (scale replaced by the geodesic size ratio): places the result where S
+   * landmarks (scale replaced by the edge-length size ratio): places the result where S
    * stands. Only sensible when T's pose is close to S's rest pose (the fit mixes pose and
    * placement otherwise). */
   KM_TRANSFER_ALIGN_SIMILARITY,
-  /* T's landmark positions as they are: for a template of S's size (the same person in
-   * another pose), where any size estimate only adds error (the geodesic ratio moves with the
-   * pose: 1.035 between FAUST 000 and 001 with the SMPL landmarks). */
+  /* T's landmark positions as they are (a template known to be of S's size). */
   KM_TRANSFER_ALIGN_NONE,
 } km_transfer_align;
 
@@ -1740,8 +1750,7 @@ size_t km_transfer_energies(const km_transfer *t, double *energies, size_t cap);
 km_status km_transfer_template_rotations(const km_mesh *rest, const double *posed, double *R,
                                          km_error *err);
 /* Dense correspondence: for every source vertex the nearest template vertex, both at rest and
- * in one frame (same placement and size; a body of another shape must first be registered
- * onto the template, which this does not do).
+ * in one frame (same placement and size: see km_transfer_register_rest below).
  *   corr  out: #V (source) template vertex ids */
 km_status km_transfer_correspondence(const km_mesh *source_rest, const km_mesh *template_rest,
                                      int32_t *corr, km_error *err);
@@ -1756,6 +1765,35 @@ km_status km_transfer_map_pose(const km_mesh *source_rest, const km_mesh *templa
                                const double *template_posed, const int32_t *corr,
                                const int32_t *landmarks, size_t n_landmarks, double *R,
                                double *targets, km_error *err);
+/* A source that stands in another frame or at another size than TR (a scan against a game
+ * character): register S's rest onto TR's first, then carry the pose over on the registered
+ * copy and turn it back into S's frame:
+ *   km_transfer_register_rest(S, TR, pairs, n, Sr, &s, Q, t);   Sr = s Q S + t
+ *   km_transfer_correspondence(Sr-mesh, TR, corr); km_transfer_map_pose(Sr-mesh, TR, TP, ...);
+ *   km_transfer_pose_to_source(s, Q, t, NULL, #V, R, #L, targets); km_transfer_solve_rotations
+ * on a km_transfer precomputed on S itself: the output keeps S's frame, size, connectivity and
+ * vertex order. The registration is a similarity (Umeyama, km_similarity_fit) of vertex pairs
+ * (landmarks of one name in both rigs, or given by the user): exact for one body in two
+ * frames. A non-rigid step may follow (km_recon_register_mesh from Sr onto TR, giving Sn):
+ * the correspondence is then taken from Sn, the pose still mapped on Sr
+ * (km_transfer_map_pose(Sr-mesh, ..., corr from Sn)), and `local` = the one-ring rotations
+ * Sr -> Sn (km_transfer_template_rotations(Sr-mesh, Sn)) so that each R_i is seen from S's own
+ * one-ring.
+ * km_transfer_register_rest:
+ *   pairs       in: n_pairs*2 vertex ids (source, template), n_pairs >= 3
+ *   registered  out: #V*3 the source's rest moved onto TR: s Q x + t
+ *   scale, Q, t out: the similarity (Q row-major 3x3 rotation)
+ *   Errors: KM_ERR_INVALID (ids out of range, fewer than 3 pairs), KM_ERR_DEGENERATE_MESH
+ *   (collinear or coincident pairs).
+ * km_transfer_pose_to_source: R (#V*9, in: TR's frame, out: S's: Q^T L_i^T R_i L_i Q) and
+ *   targets (#L*3, Q^T (p - t) / s) in place; either may be NULL. local: #V*9 the rotations
+ *   L_i of a non-rigid step after the similarity, or NULL (L_i = I). */
+km_status km_transfer_register_rest(const km_mesh *source_rest, const km_mesh *template_rest,
+                                    const int32_t *pairs, size_t n_pairs, double *registered,
+                                    double *scale, double Q[9], double t[3], km_error *err);
+void km_transfer_pose_to_source(double scale, const double Q[9], const double t[3],
+                                const double *local, size_t n_vertices, double *R,
+                                size_t n_landmarks, double *targets);
 /* km_transfer_solve from per-vertex rotations instead of a template of S's connectivity.
  *   R        in: #V*9 row-major rotation of each source vertex's one-ring (the pose)
  *   targets  in: #L*3 landmark positions in precompute order
@@ -2250,6 +2288,22 @@ void km_recon_init_get(const km_recon *r, km_recon_init *out);
 const int32_t *km_recon_unsupported(const km_recon *r, size_t *count);
 /* Frees *r and sets it to NULL. */
 void km_recon_free(km_recon **r);
+/* Non-rigid registration of a mesh onto another surface: the first frame's surface stage
+ * (per-vertex affine maps under data + feature + smoothness terms, robust closest points,
+ * coarse points first) with the target's vertices as the points. For pose transfer across
+ * connectivity (kinemesh transfer --template-rest): the source's rest, already placed on the
+ * target by a similarity, is pulled onto the target's rest.
+ *   source      in: the mesh's faces (#V vertices; its V is not used)
+ *   V_start     in: #V*3 start positions, near the target (metres)
+ *   target      in: the surface to reach (its vertices are the points; >= 16)
+ *   features    in: n_features source vertex <-> target point pairs; may be NULL when 0
+ *   iterations  in: closest-point rounds; <= 0: 12
+ *   V_out       out: #V*3 registered positions; may alias V_start
+ * Errors: KM_ERR_DEGENERATE_MESH, KM_ERR_NOT_POSDEF, KM_ERR_INVALID, KM_ERR_UNSUPPORTED (no
+ * Embree). */
+km_status km_recon_register_mesh(const km_mesh *source, const double *V_start,
+                                 const km_mesh *target, const km_recon_feature *features,
+                                 size_t n_features, int iterations, double *V_out, km_error *err);
 
 /* Local-motion filter (Park & Lim 2014, section IV-3C):
  * out_t = global_t + sum_k g_k (refined - global)_{t+k}, Gaussian weights over |k| <= radius

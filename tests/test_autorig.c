@@ -318,7 +318,6 @@ static void test_cli(void) {
   int rc = km_test_run(cmd, &out);
   CHECK_MSG(rc == 0, "rig: %s", out ? out : "");
   CHECK(out && strstr(out, "HandLeft") && strstr(out, "humanoid"));
-  free(out);
   char gen_path[512];
   snprintf(gen_path, sizeof gen_path, "%s/g.obj", g_dir);
   km_mesh m = {0};
@@ -326,6 +325,51 @@ static void test_cli(void) {
   km_character back = {0};
   snprintf(gen_path, sizeof gen_path, "%s/g.auto.rig.json", g_dir);
   CHECK_OK(km_character_read_rig(gen_path, m.n_vertices, &back, KM_E));
+
+  /* The same character stored z up, facing -y (a scan's axes): `rig` guesses the frame,
+   * rigs in kinemesh's frame (the same joints as the original's, not a skeleton lying along
+   * the body) and records the frame in the sidecar for animate and live. */
+  km_mesh z = {0};
+  CHECK_OK(km_mesh_copy(&m, &z, KM_E));
+  for (size_t v = 0; z.V && v < z.n_vertices; ++v) {
+    double y = m.V[3 * v + 1], zz = m.V[3 * v + 2];
+    z.V[3 * v + 1] = -zz;
+    z.V[3 * v + 2] = y;
+  }
+  snprintf(gen_path, sizeof gen_path, "%s/z.obj", g_dir);
+  CHECK_OK(km_mesh_write(gen_path, &z, NULL, KM_E));
+  snprintf(cmd, sizeof cmd, KM_CLI " rig '%s/z.obj' -o '%s/z.rig.json'", g_dir, g_dir);
+  free(out);
+  out = NULL;
+  rc = km_test_run(cmd, &out);
+  CHECK_MSG(rc == 0 && out && strstr(out, "up +z, forward -y (guessed") && strstr(out, "humanoid"),
+            "rig of the z-up copy: %s", out ? out : "");
+  km_character zc = {0};
+  snprintf(gen_path, sizeof gen_path, "%s/z.rig.json", g_dir);
+  CHECK_OK(km_character_read_rig(gen_path, z.n_vertices, &zc, KM_E));
+  double worst = zc.skeleton.n_joints == back.skeleton.n_joints ? 0 : INFINITY;
+  for (size_t k = 0; isfinite(worst) && k < 3 * back.skeleton.n_joints; ++k)
+    worst = fmax(worst, fabs(zc.skeleton.rest[k] - back.skeleton.rest[k]));
+  CHECK_MSG(worst < 1e-6, "z-up copy rigged %g m away from the original's joints", worst);
+  snprintf(cmd, sizeof cmd,
+           "grep -A3 '\"frame\"' '%s' | grep -q '\"+z\"' && grep -A3 '\"frame\"' '%s' | grep -q "
+           "'\"-y\"'",
+           gen_path, gen_path);
+  CHECK_MSG(km_test_run(cmd, NULL) == 0, "the sidecar records the frame");
+  /* animate reads the record: no guess line, and the run succeeds. */
+  snprintf(cmd, sizeof cmd,
+           KM_CLI
+           " gen motion --kind wave --frames 4 --character '%s/g.obj' -o '%s/w.json' && " KM_CLI
+           " animate --mesh '%s/z.obj' --motion '%s/w.json' -o '%s/z.pc2'",
+           g_dir, g_dir, g_dir, g_dir, g_dir);
+  free(out);
+  out = NULL;
+  rc = km_test_run(cmd, &out);
+  CHECK_MSG(rc == 0 && out && !strstr(out, "guessed"), "animate of the z-up copy: %s",
+            out ? out : "");
+  free(out);
+  km_character_free(&zc);
+  km_mesh_free(&z);
   km_character_free(&back);
   km_mesh_free(&m);
 }

@@ -77,6 +77,42 @@ static void test_json(void) {
     CHECK(isnan(j[0]) && isnan(j[21]));
   }
   CHECK(km_live_parse_json(NULL, 0, j) == -1);
+
+  /* "skeleton": the live page's camera sends MediaPipe landmarks (33) in kinemesh space */
+  CHECK(parse("{\"skeleton\":\"mediapipe\",\"joints\":{\"left_wrist\":[0.5,1.2,0.1],"
+              "\"left_hip\":[0.1,1,0],\"right_hip\":[-0.1,0.9,0],\"HandLeft\":[9,9,9]}}",
+              j) == 3);
+  CHECK(j[18] == 0.5 && j[19] == 1.2 && j[20] == 0.1); /* WristLeft */
+  CHECK(j[21] == 0.5 && j[22] == 1.2);                 /* HandLeft from the wrist (no index) */
+  CHECK_NEAR(j[0], 0, 1e-12);                          /* HipCenter between the hips */
+  CHECK_NEAR(j[1], 0.95, 1e-12);
+  CHECK(isnan(j[3 * 9])); /* ElbowRight not sent */
+  n = (size_t)snprintf(buf, sizeof buf, "{\"skeleton\":\"mediapipe\",\"joints\":[");
+  for (int k = 0; k < 99; ++k) {
+    /* the right hand (wrist 16, pinky 18, index 20, thumb 22) out of sight: sent as nulls */
+    int lm = k / 3;
+    if (lm == 16 || lm == 18 || lm == 20 || lm == 22)
+      n += (size_t)snprintf(buf + n, sizeof buf - n, "%snull", k ? "," : "");
+    else
+      n += (size_t)snprintf(buf + n, sizeof buf - n, "%s%g", k ? "," : "", 0.01 * k);
+  }
+  snprintf(buf + n, sizeof buf - n, "]}");
+  CHECK(parse(buf, j) == 29);
+  CHECK_NEAR(j[3 * 6], 0.01 * 45, 1e-12);      /* WristLeft = left_wrist (15) */
+  CHECK_NEAR(j[3 * 7], 0.01 * 57, 1e-12);      /* HandLeft = left_index (19) */
+  CHECK_NEAR(j[3 * 13 + 1], 0.01 * 76, 1e-12); /* KneeLeft = left_knee (25) y */
+  CHECK(isnan(j[3 * 10]) && isnan(j[3 * 11])); /* WristRight, HandRight lost (held) */
+  CHECK_NEAR(j[3 * 9], 0.01 * 42, 1e-12);      /* ElbowRight = right_elbow (14) */
+  const char *badk[] = {"{\"skeleton\":\"martian\",\"joints\":{\"left_wrist\":[0,0,0]}}",
+                        "{\"skeleton\":3,\"joints\":{\"left_wrist\":[0,0,0]}}",
+                        "{\"skeleton\":\"mediapipe\",\"joints\":[1,2,3]}",
+                        "{\"skeleton\":\"mediapipe\",\"joints\":{\"HandLeft\":[0,0,0]}}",
+                        "{\"skeleton\":\"mediapipe\",\"joints\":{\"left_wrist\":[0,0]}}",
+                        "{\"skeleton\":\"mediapipe\"}"};
+  for (size_t i = 0; i < sizeof badk / sizeof badk[0]; ++i) {
+    CHECK_MSG(parse(badk[i], j) == -1, "%s", badk[i]);
+    CHECK(isnan(j[0]) && isnan(j[21]));
+  }
 }
 
 static km_live_osc_kind osc(lo_message m, const char *path, km_live_osc_joint *o) {

@@ -350,6 +350,100 @@ int main(void) {
     km_mesh_free(&c60);
     km_mesh_free(&truth);
   }
+  /* The same source turned 90 degrees about x, scaled x1.2 and moved, registered onto a's rest
+   * from --correspondences (the landmarks of one name in both rigs, as vertex pairs); the
+   * output stays in the moved source's frame: truth = the moved c posed. */
+  {
+    km_mesh c = {0}, truth = {0}, cm60 = {0};
+    double height = 0;
+    km_landmark lc[KM_POSE_MAX_LANDMARKS], la[KM_POSE_MAX_LANDMARKS];
+    size_t nc = 0, na = 0;
+    CHECK_OK(km_mesh_read(DIR "/c.obj", &c, KM_E));
+    CHECK_OK(km_mesh_read(DIR "/c_kungfu/frame_000060.obj", &truth, KM_E));
+    CHECK_OK(
+        km_landmarks_read(DIR "/c.rig.json", c.n_vertices, lc, KM_POSE_MAX_LANDMARKS, &nc, KM_E));
+    CHECK_OK(km_landmarks_read(DIR "/a.rig.json", 0, la, KM_POSE_MAX_LANDMARKS, &na, KM_E));
+    km_mesh *ms[2] = {&c, &truth};
+    for (int m = 0; m < 2; ++m)
+      for (size_t v = 0; v < ms[m]->n_vertices; ++v) {
+        double *p = ms[m]->V + 3 * v, y = p[1], z = p[2];
+        p[0] = 1.2 * p[0] + 0.4, p[1] = 1.2 * -z - 0.3, p[2] = 1.2 * y + 2.0;
+      }
+    CHECK_OK(km_mesh_write(DIR "/cm.obj", &c, NULL, KM_E));
+    FILE *f = fopen(DIR "/cm_pairs.csv", "w");
+    CHECK(f != NULL);
+    if (f) {
+      fprintf(f, "# source_vertex,template_vertex\n");
+      for (size_t i = 0; i < nc; ++i)
+        for (size_t k = 0; k < na; ++k)
+          if (!strcmp(lc[i].name, la[k].name)) fprintf(f, "%d,%d\n", lc[i].vertex, la[k].vertex);
+      fclose(f);
+    }
+    CHECK(km_test_run(KM_CLI " transfer --source " DIR "/cm.obj --landmarks " DIR
+                             "/c.rig.json --template " DIR
+                             "/a_kungfu/frame_000060.obj --template-rest " DIR
+                             "/a.obj --correspondences " DIR "/cm_pairs.csv -o " DIR "/cm60.obj",
+                      &out) == 0);
+    CHECK_MSG(out && strstr(out, "registered onto"), "%s", out ? out : "");
+    free(out);
+    CHECK_OK(km_mesh_read(DIR "/cm60.obj", &cm60, KM_E));
+    CHECK(cm60.n_vertices == truth.n_vertices && cm60.n_faces == truth.n_faces);
+    if (cm60.n_vertices == truth.n_vertices && cm60.V) {
+      double mean, max, lo = INFINITY, hi = -INFINITY;
+      km_vertex_distance_stats(cm60.V, truth.V, cm60.n_vertices, &mean, &max);
+      for (size_t v = 0; v < truth.n_vertices; ++v)
+        lo = fmin(lo, truth.V[3 * v + 2]), hi = fmax(hi, truth.V[3 * v + 2]);
+      height = hi - lo;
+      printf("  the same turned 90 deg, x1.2, moved (--correspondences): mean %.1f mm, max %.1f "
+             "mm, height %.3f m\n",
+             mean * 1e3, max * 1e3, hi - lo);
+      CHECK_MSG(mean <= 0.01 * (hi - lo), "moved source: mean %g m", mean);
+    }
+    /* the same with the non-rigid step after the similarity */
+    CHECK(km_test_run(KM_CLI " transfer --source " DIR "/cm.obj --landmarks " DIR
+                             "/c.rig.json --template " DIR
+                             "/a_kungfu/frame_000060.obj --template-rest " DIR
+                             "/a.obj --correspondences " DIR
+                             "/cm_pairs.csv --register nonrigid -o " DIR "/cm60n.obj",
+                      &out) == 0);
+    CHECK_MSG(out && strstr(out, "non-rigid registration"), "%s", out ? out : "");
+    free(out);
+    {
+      km_mesh cn = {0};
+      CHECK_OK(km_mesh_read(DIR "/cm60n.obj", &cn, KM_E));
+      CHECK(cn.n_vertices == truth.n_vertices);
+      if (cn.n_vertices == truth.n_vertices && cn.V) {
+        double mean, max;
+        km_vertex_distance_stats(cn.V, truth.V, cn.n_vertices, &mean, &max);
+        printf("  ... with --register nonrigid: mean %.1f mm, max %.1f mm\n", mean * 1e3,
+               max * 1e3);
+        CHECK_MSG(mean <= 0.01 * height, "moved source, non-rigid: mean %g m", mean);
+      }
+      km_mesh_free(&cn);
+    }
+    CHECK(km_test_run(KM_CLI " transfer --source " DIR "/cm.obj --template " DIR
+                             "/a_kungfu/frame_000060.obj --template-rest " DIR
+                             "/a.obj --register rigid -o " DIR "/cm60n.obj",
+                      &out) == 1);
+    CHECK_MSG(out && strstr(out, "--register must be"), "%s", out ? out : "");
+    free(out);
+    /* a malformed pair names the file and the line */
+    f = fopen(DIR "/bad_pairs.csv", "w");
+    if (f) {
+      fputs("1,2\n3,4\n5;6\n", f);
+      fclose(f);
+    }
+    CHECK(km_test_run(KM_CLI " transfer --source " DIR "/cm.obj --landmarks " DIR
+                             "/c.rig.json --template " DIR
+                             "/a_kungfu/frame_000060.obj --template-rest " DIR
+                             "/a.obj --correspondences " DIR "/bad_pairs.csv -o " DIR "/cm60.obj",
+                      &out) == 1);
+    CHECK_MSG(out && strstr(out, "bad_pairs.csv:3:"), "%s", out ? out : "");
+    free(out);
+    km_mesh_free(&c);
+    km_mesh_free(&truth);
+    km_mesh_free(&cm60);
+  }
   km_test_run("rm -rf " DIR, NULL);
   return km_test_finish("test_pose_cli");
 }

@@ -2,8 +2,11 @@
  * and in 4 segments of 30 (each started on its own first frame, 5 frames of overlap
  * cross-faded, the temporal filter across the seams). The segmented result is as close to the
  * truth as the whole one (within 10%), and the frame-to-frame motion at every seam stays within
- * 2x the take's median frame-to-frame motion (no pop). */
+ * 2x the take's median frame-to-frame motion (no pop). The segmented run writes the report
+ * (--report) as an unsegmented one does. */
 #include "km_test.h"
+
+#include <cjson/cJSON.h>
 
 #define DIR "recon_segments_cli"
 #if defined(__SANITIZE_ADDRESS__)
@@ -51,20 +54,36 @@ int main(void) {
   CHECK(km_test_run(KM_CLI " gen capture --character " DIR "/t.obj --motion " DIR
                            "/walk.json --cameras 4 --points 3000 -o " DIR "/c",
                     NULL) == 0);
-  /* segments do not write a report yet: asking for one is refused, not ignored */
+  /* one segment alone needs the folder its part goes to */
   CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/t.obj --clouds '" DIR
-                           "/c/frame_*.ply' --segment-frames 30 --report " DIR "/r.json -o " DIR
-                           "/x.pc2",
+                           "/c/frame_*.ply' --segment-frames 30 --segment 1",
                     &out) == 1);
-  CHECK(out && strstr(out, "--segment-frames"));
+  CHECK(out && strstr(out, "--segment-dir"));
   free(out);
   CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/t.obj --clouds '" DIR
                            "/c/frame_*.ply' -o " DIR "/whole.pc2 > " DIR "/whole.log 2>&1 & " KM_CLI
                            " reconstruct --template " DIR "/t.obj --clouds '" DIR
                            "/c/frame_*.ply' --segment-frames " SEG_S " --overlap " OVERLAP_S
-                           " -o " DIR "/seg.pc2 > " DIR "/seg.log 2>&1; s=$?; wait $! && exit $s",
+                           " -o " DIR "/seg.pc2 --report " DIR "/seg.json > " DIR
+                           "/seg.log 2>&1; s=$?; wait $! && exit $s",
                     NULL) == 0);
   CHECK(km_test_run("grep -q 'segment " SEG_LAST_S "' " DIR "/seg.log", NULL) == 0);
+  /* the report of a segmented take: every frame, from its own segment */
+  {
+    FILE *f = fopen(DIR "/seg.json", "rb");
+    char *text = f ? calloc(1, 1 << 24) : NULL;
+    if (text) fread(text, 1, (1 << 24) - 1, f);
+    if (f) fclose(f);
+    cJSON *r = text ? cJSON_Parse(text) : NULL;
+    const cJSON *frames = cJSON_GetObjectItemCaseSensitive(r, "frames");
+    const cJSON *last = cJSON_GetArrayItem(frames, cJSON_GetArraySize(frames) - 1);
+    const cJSON *index = cJSON_GetObjectItemCaseSensitive(last, "index");
+    CHECK_MSG(cJSON_GetArraySize(frames) == FRAMES, "report frames %d", cJSON_GetArraySize(frames));
+    CHECK(cJSON_IsNumber(index) && index->valuedouble == FRAMES - 1);
+    CHECK(cJSON_GetObjectItemCaseSensitive(r, "jerk_after") != NULL);
+    cJSON_Delete(r);
+    free(text);
+  }
   double *T = NULL, *W = NULL, *S = NULL;
   km_anim_info it, iw, is;
   CHECK_OK(km_pc2_read(DIR "/c/truth.pc2", &T, &it, KM_E));

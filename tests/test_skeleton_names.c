@@ -185,6 +185,125 @@ static void test_bvh_humanoid(void) {
   km_take_free(&k1);
 }
 
+/* Bone names by convention (km__bone_name_kinect1, one matcher for glTF skins, BVH takes and
+ * rig files): the CMU take with its joints renamed as Mixamo names them reads as the same
+ * Kinect v1 take, and rig entries take Mixamo, VRoid, rigify, Blender and Biped names. */
+static const char *const CMU_TO_MIXAMO[][2] = {{"Hips", "Hips"},
+                                               {"LHipJoint", "LHipJoint"},
+                                               {"LeftHip", "LeftUpLeg"},
+                                               {"LeftKnee", "LeftLeg"},
+                                               {"LeftAnkle", "LeftFoot"},
+                                               {"LeftToe", "LeftToeBase"},
+                                               {"RHipJoint", "RHipJoint"},
+                                               {"RightHip", "RightUpLeg"},
+                                               {"RightKnee", "RightLeg"},
+                                               {"RightAnkle", "RightFoot"},
+                                               {"RightToe", "RightToeBase"},
+                                               {"lowerback", "lowerback"},
+                                               {"Chest", "Spine"},
+                                               {"Chest2", "Spine1"},
+                                               {"lowerneck", "Neck"},
+                                               {"Neck", "Neck1"},
+                                               {"Head", "Head"},
+                                               {"LeftCollar", "LeftShoulder"},
+                                               {"LeftShoulder", "LeftArm"},
+                                               {"LeftElbow", "LeftForeArm"},
+                                               {"LeftWrist", "LeftHand"},
+                                               {"lhand", "LeftHandMiddle1"},
+                                               {"LFingers", "LeftHandMiddle2"},
+                                               {"LThumb", "LeftHandThumb1"},
+                                               {"RightCollar", "RightShoulder"},
+                                               {"RightShoulder", "RightArm"},
+                                               {"RightElbow", "RightForeArm"},
+                                               {"RightWrist", "RightHand"},
+                                               {"rhand", "RightHandMiddle1"},
+                                               {"RFingers", "RightHandMiddle2"},
+                                               {"RThumb", "RightHandThumb1"}};
+
+static void test_bone_names(void) {
+  static const struct {
+    const char *name;
+    int joint;
+  } cases[] = {
+      {"mixamorig:LeftForeArm", 5},
+      {"mixamorig:RightUpLeg", 16},
+      {"J_Bip_L_UpperArm", 4},
+      {"J_Bip_R_Foot", 18},
+      {"DEF-forearm.L", 5},
+      {"DEF-shin.R", 17},
+      {"forearm.L", 5},
+      {"hand.R", 10},
+      {"Bip01 L Thigh", 12},
+      {"Bip01 R Calf", 17},
+      {"mixamorig:Hips", 0},
+      {"mixamorig:Neck", 2},
+      {"mixamorig:Head", 3},
+      {"mixamorig:LeftHandMiddle1", 7},
+      {"Tail", -1},
+  };
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
+    int j = km_skeleton_kinect1_joint(KM_SKELETON_KINECT1, cases[i].name);
+    CHECK_MSG(j == cases[i].joint, "%s -> %d, want %d", cases[i].name, j, cases[i].joint);
+  }
+  char buf[1024];
+  const char *path = km_test_shared("bvh/cmu_131_01.bvh", buf, sizeof buf);
+  if (!path) return;
+  FILE *f = fopen(path, "rb");
+  CHECK(f != NULL);
+  if (!f) return;
+  fseek(f, 0, SEEK_END);
+  long n = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  char *text = malloc((size_t)n + 1);
+  size_t got = text ? fread(text, 1, (size_t)n, f) : 0;
+  fclose(f);
+  CHECK(text && got == (size_t)n);
+  if (!text || got != (size_t)n) {
+    free(text);
+    return;
+  }
+  text[n] = 0;
+  const char *out_path = "skeleton_names_mixamo.bvh";
+  FILE *o = fopen(out_path, "wb");
+  CHECK(o != NULL);
+  int renamed = 0;
+  for (char *line = text; o && line && *line;) {
+    char *eol = strchr(line, '\n');
+    if (eol) *eol = 0;
+    char kw[16] = "", name[64] = "";
+    int ind = (int)strspn(line, " \t");
+    if (sscanf(line, "%15s %63s", kw, name) == 2 && (!strcmp(kw, "ROOT") || !strcmp(kw, "JOINT"))) {
+      const char *to = NULL;
+      for (size_t k = 0; k < sizeof CMU_TO_MIXAMO / sizeof CMU_TO_MIXAMO[0]; ++k)
+        if (!strcmp(name, CMU_TO_MIXAMO[k][0])) to = CMU_TO_MIXAMO[k][1];
+      CHECK_MSG(to != NULL, "CMU joint %s has no Mixamo name in the test", name);
+      /* LHipJoint, RHipJoint, lowerback stay as they are: the BVH reader knows CMU's units
+       * by them (and they stand for no Kinect joint). */
+      bool keep = to && !strcmp(to, name);
+      fprintf(o, "%.*s%s %s%s\n", ind, line, kw, keep ? "" : "mixamorig:", to ? to : name);
+      ++renamed;
+    } else {
+      fprintf(o, "%s\n", line);
+    }
+    line = eol ? eol + 1 : NULL;
+  }
+  if (o) fclose(o);
+  free(text);
+  CHECK(renamed == 31);
+  km_motion_read_options mo = {.kinect1 = true};
+  km_motion_read_info i0, i1;
+  km_take a = {0}, b = {0};
+  CHECK_OK(km_motion_read(path, &mo, &a, &i0, KM_E));
+  CHECK_OK(km_motion_read(out_path, &mo, &b, &i1, KM_E));
+  CHECK_MSG(i1.kinect1_found == 20, "Mixamo names: %zu of the 20 Kinect joints", i1.kinect1_found);
+  double worst = a.n_frames == b.n_frames && a.n_joints == b.n_joints ? 0 : INFINITY;
+  for (size_t k = 0; isfinite(worst) && k < 3 * a.n_frames * a.n_joints; ++k)
+    worst = fmax(worst, fabs(a.positions[k] - b.positions[k]));
+  CHECK_MSG(worst == 0, "the Mixamo-named take differs from the CMU one by %g m", worst);
+  km_take_free(&a);
+  km_take_free(&b);
+}
+
 /* docs/skeletons.md prints the table: every body point row the code has must be there. */
 static void test_docs_table(void) {
   FILE *f = fopen(KM_TEST_DATA "/../../docs/skeletons.md", "rb");
@@ -221,6 +340,7 @@ int main(void) {
   test_rig_names();
   test_unity_convert();
   test_bvh_humanoid();
+  test_bone_names();
   test_docs_table();
   return km_test_finish("test_skeleton_names");
 }

@@ -3,6 +3,7 @@
 #include "km_test.h"
 #include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
+#include "math/math.h"
 #include "transfer/transfer.h"
 
 static int32_t lm_ids[KM_CHARACTER_LANDMARKS];
@@ -244,14 +245,14 @@ static void test_cross_subject(const km_character *a, const km_character *b) {
   for (int k = 0; k < 4; ++k)
     CHECK_OK(km_transfer_precompute(&a->mesh, lm_ids, 16, &o[k], &t[k], KM_E));
   if (!t[0] || !t[1] || !t[2] || !t[3]) return;
-  double sum[6] = {0}, worst = 0;
+  double sum[7] = {0}, worst = 0;
   for (int k = 0; k < KP_N_POSES; ++k) {
     const kp_pose *p = &kp_poses[k];
     CHECK_OK(kp_pose_character(b, p, NULL, T, KM_E));
     CHECK_OK(kp_pose_character(a, p, NULL, G, KM_E));
     gather(G, P);
     km_transfer_stats st;
-    double e[6], mx;
+    double e[7], mx;
     CHECK_OK(km_transfer_solve(t[0], T, P, NULL, X, &st, KM_E));
     kp_error(X, G, n, &e[0], &mx);
     CHECK_OK(km_transfer_solve(t[1], T, P, NULL, Y, NULL, KM_E));
@@ -264,18 +265,20 @@ static void test_cross_subject(const km_character *a, const km_character *b) {
     kp_error(Y, G, n, &e[4], &mx);
     CHECK_OK(km_transfer_solve(t[0], T, NULL, NULL, Y, NULL, KM_E));
     kp_error(Y, G, n, &e[5], &mx);
+    CHECK_OK(km_transfer_solve(t[1], T, NULL, NULL, Y, NULL, KM_E));
+    kp_error(Y, G, n, &e[6], &mx);
     printf("  %-8s transfer %5.1f mm (%2d it; 1 it %5.1f; paper's vertex encoding %5.1f) | "
            "landmark-only %5.1f / %5.1f mm | template targets %5.1f mm\n",
            p->name, e[0] * 1e3, st.iterations, e[1] * 1e3, e[2] * 1e3, e[3] * 1e3, e[4] * 1e3,
            e[5] * 1e3);
-    for (int q = 0; q < 6; ++q)
+    for (int q = 0; q < 7; ++q)
       sum[q] += e[q] / KP_N_POSES;
     worst = fmax(worst, e[0]);
   }
   printf("  mean over %d poses: transfer %.1f mm (1 it %.1f, vertex encoding %.1f), landmark-only "
-         "%.1f / %.1f mm, template targets %.1f mm; height %.3f m\n",
+         "%.1f / %.1f mm, template targets %.1f mm (1 it %.1f); height %.3f m\n",
          KP_N_POSES, sum[0] * 1e3, sum[1] * 1e3, sum[2] * 1e3, sum[3] * 1e3, sum[4] * 1e3,
-         sum[5] * 1e3, height);
+         sum[5] * 1e3, sum[6] * 1e3, height);
   CHECK_MSG(sum[0] <= 0.01 * height, "mean error %g m > 1%% of %g m", sum[0], height);
   CHECK_MSG(sum[1] <= 0.01 * height, "mean error (1 iteration) %g m", sum[1]);
   CHECK_MSG(worst <= 0.015 * height, "worst pose %g m > 1.5%% of %g m", worst, height);
@@ -289,6 +292,9 @@ static void test_cross_subject(const km_character *a, const km_character *b) {
             sum[3]);
   CHECK_MSG(sum[0] < sum[2], "edge encoding %g not better than vertex encoding %g", sum[0], sum[2]);
   CHECK_MSG(sum[5] <= 0.02 * height, "template-target transfer error %g m", sum[5]);
+  /* the CLI's default (template targets, 5 solves) against `--iterations 1` */
+  CHECK_MSG(sum[5] <= sum[6], "template targets: the default %g m is worse than one solve %g m",
+            sum[5], sum[6]);
   for (int k = 0; k < 4; ++k)
     km_transfer_free(&t[k]);
   free(T);
@@ -363,8 +369,11 @@ static int test_faust(void) {
     }
     km_transfer_free(&tr);
   }
-  /* Issue 14: both directions, the SMPL landmark file and `--landmarks auto`: the error after
-   * every solve never rises, and the default (5 solves) is within mean 6 mm, max 30 mm. */
+  /* Issue 14: both directions, the SMPL landmark file and `--landmarks auto`, the landmark
+   * targets from the template through the default alignment (KM_TRANSFER_ALIGN_SCALE), exactly
+   * as `kinemesh transfer --source A --template B` runs: the error after every solve never
+   * rises, the default (5 solves) is no worse than one solve and within mean 6 mm, max 30 mm,
+   * and the size ratio of one body in two poses is 1. */
   for (int pair = 0; pair < 4; ++pair) {
     const km_mesh *A = pair % 2 ? &t : &s, *B = pair % 2 ? &s : &t;
     int32_t fid[KM_POSE_MAX_LANDMARKS];
@@ -375,21 +384,20 @@ static int test_faust(void) {
       fl = 16;
       CHECK_OK(km_farthest_points(A, fl, fid, KM_E));
     }
-    double FP[3 * KM_POSE_MAX_LANDMARKS];
-    for (size_t i = 0; i < fl; ++i)
-      memcpy(FP + 3 * i, B->V + 3 * (size_t)fid[i], 3 * sizeof(double));
     km_transfer_options fo = {0};
     fo.max_iterations = KP_CURVE;
     km_transfer *ft = NULL;
     CHECK_OK(km_transfer_precompute(A, fid, fl, &fo, &ft, KM_E));
     if (!ft) continue;
+    double ratio = km__transfer_size_ratio(ft, B->V);
+    CHECK_MSG(fabs(ratio - 1) < 1e-3, "FAUST pair %d: size ratio of one body %g", pair, ratio);
     double mean[KP_CURVE], max[KP_CURVE], en[KP_CURVE];
-    error_curve(ft, B->V, FP, B->V, n, mean, max, en);
+    error_curve(ft, B->V, NULL, B->V, n, mean, max, en);
     printf("  FAUST %s, %s landmarks: mean / max error after 1..%d solves (mm):",
            pair % 2 ? "001 -> 000" : "000 -> 001", pair < 2 ? "SMPL" : "auto", KP_CURVE);
     for (int k = 0; k < KP_CURVE; ++k)
       printf(" %.2f/%.1f", mean[k] * 1e3, max[k] * 1e3);
-    printf("; energy %.4g -> %.4g\n", en[0], en[KP_CURVE - 1]);
+    printf("; energy %.4g -> %.4g; size ratio %.5f\n", en[0], en[KP_CURVE - 1], ratio);
     for (int k = 1; k < KP_CURVE; ++k)
       CHECK_MSG(mean[k] <= mean[k - 1] + 1e-6, "FAUST pair %d: solve %d raised the mean error",
                 pair, k + 1);
@@ -566,6 +574,71 @@ static void test_cross_connectivity(const km_character_options *base) {
          sum * 1e3, KP_N_POSES, worst * 1e3, hi - lo);
   CHECK_MSG(sum <= 0.01 * (hi - lo), "other connectivity: mean error %g m > 1%% of %g m", sum,
             hi - lo);
+  /* The source in another frame and size: S's rest turned 90 degrees about x (its up is now
+   * +z), scaled x1.2 and moved. Registered onto T's rest by the similarity of the 16 landmark
+   * pairs (one name in both rigs), the pose carried on the registered copy and turned back:
+   * the truth is the moved S posed. */
+  {
+    const double sc = 1.2, Qm[9] = {1, 0, 0, 0, 0, -1, 0, 1, 0}, tm[3] = {0.4, -0.3, 2.0};
+    km_mesh sm = {0}, sr = {0};
+    CHECK_OK(km_mesh_copy(&s.mesh, &sm, KM_E));
+    CHECK_OK(km_mesh_copy(&s.mesh, &sr, KM_E));
+    double *Gm = malloc(n * 3 * sizeof *Gm), q[3];
+    for (size_t v = 0; v < n; ++v) {
+      km__m3_apply(Qm, s.mesh.V + 3 * v, q);
+      for (int k = 0; k < 3; ++k)
+        sm.V[3 * v + k] = sc * q[k] + tm[k];
+    }
+    int32_t pairs[2 * KM_CHARACTER_LANDMARKS];
+    size_t np = 0;
+    for (int a = 0; a < KM_CHARACTER_LANDMARKS; ++a)
+      for (int b = 0; b < KM_CHARACTER_LANDMARKS; ++b)
+        if (!strcmp(s.landmarks[a].name, t.landmarks[b].name)) {
+          pairs[2 * np] = s.landmarks[a].vertex, pairs[2 * np + 1] = t.landmarks[b].vertex;
+          ++np;
+        }
+    CHECK(np == KM_CHARACTER_LANDMARKS);
+    double rs, RQ[9], rt[3];
+    CHECK_OK(km_transfer_register_rest(&sm, &t.mesh, pairs, np, sr.V, &rs, RQ, rt, KM_E));
+    printf("  moved source registered: scale %.4f (1/1.2 = %.4f)\n", rs, 1 / sc);
+    CHECK_NEAR(rs * sc, 1, 0.02);
+    km_transfer *tm2 = NULL;
+    CHECK_OK(km_transfer_correspondence(&sr, &t.mesh, corr, KM_E));
+    CHECK_OK(km_transfer_precompute(&sm, ids, KM_CHARACTER_LANDMARKS, NULL, &tm2, KM_E));
+    double msum = 0, mworst = 0;
+    for (int p = 0; p < KP_N_POSES && tm2; ++p) {
+      CHECK_OK(kp_pose_character(&t, &kp_poses[p], NULL, TP, KM_E));
+      CHECK_OK(kp_pose_character(&s, &kp_poses[p], NULL, G, KM_E));
+      for (size_t v = 0; v < n; ++v) {
+        km__m3_apply(Qm, G + 3 * v, q);
+        for (int k = 0; k < 3; ++k)
+          Gm[3 * v + k] = sc * q[k] + tm[k];
+      }
+      CHECK_OK(
+          km_transfer_map_pose(&sr, &t.mesh, TP, corr, ids, KM_CHARACTER_LANDMARKS, RS, P, KM_E));
+      km_transfer_pose_to_source(rs, RQ, rt, NULL, n, RS, KM_CHARACTER_LANDMARKS, P);
+      CHECK_OK(km_transfer_solve_rotations(tm2, RS, P, X, NULL, KM_E));
+      double mean, max;
+      kp_error(X, Gm, n, &mean, &max);
+      msum += mean / KP_N_POSES;
+      mworst = fmax(mworst, mean);
+    }
+    printf("  other connectivity, source turned 90 deg, x1.2, moved: mean %.1f mm over %d poses "
+           "(worst pose %.1f mm), height %.3f m\n",
+           msum * 1e3, KP_N_POSES, mworst * 1e3, sc * (hi - lo));
+    CHECK_MSG(msum <= 0.01 * sc * (hi - lo), "moved source: mean error %g m > 1%% of %g m", msum,
+              sc * (hi - lo));
+    /* fewer than 3 pairs, an id out of range: errors */
+    CHECK_STATUS(km_transfer_register_rest(&sm, &t.mesh, pairs, 2, sr.V, &rs, RQ, rt, KM_E),
+                 KM_ERR_INVALID);
+    pairs[1] = (int32_t)nt;
+    CHECK_STATUS(km_transfer_register_rest(&sm, &t.mesh, pairs, np, sr.V, &rs, RQ, rt, KM_E),
+                 KM_ERR_INVALID);
+    km_transfer_free(&tm2);
+    km_mesh_free(&sm);
+    km_mesh_free(&sr);
+    free(Gm);
+  }
   /* the same with rotations that are not finite: an error, not a crash */
   RS[4] = NAN;
   CHECK_STATUS(km_transfer_solve_rotations(tr, RS, P, X, NULL, KM_E), KM_ERR_INVALID);
@@ -576,6 +649,70 @@ static void test_cross_connectivity(const km_character_options *base) {
   free(RS);
   free(G);
   free(X);
+  km_character_free(&s);
+  km_character_free(&t);
+}
+
+/* Another body of another connectivity: the 1.85 m subject at 3,000 vertices takes the poses
+ * of the 1.70 m one at 5,000 (truth: the 1.85 m subject posed by LBS). S is registered onto
+ * T's rest by the similarity of the 16 landmark pairs, then (second row) also by the
+ * reconstruction's non-rigid registration (km_recon_register_mesh), whose one-ring rotations
+ * go to km_transfer_pose_to_source as `local`. */
+static void test_cross_shape(const km_character_options *bo, const km_character_options *ao) {
+  km_character s = {0}, t = {0};
+  km_character_options os = *bo, ot = *ao;
+  os.target_vertices = 3000;
+  ot.target_vertices = 5000;
+  CHECK_OK(km_character_generate(&os, &s, KM_E));
+  CHECK_OK(km_character_generate(&ot, &t, KM_E));
+  size_t n = s.mesh.n_vertices, nt = t.mesh.n_vertices;
+  int32_t ids[KM_CHARACTER_LANDMARKS], pairs[2 * KM_CHARACTER_LANDMARKS];
+  km_recon_feature feat[KM_CHARACTER_LANDMARKS];
+  for (int l = 0; l < KM_CHARACTER_LANDMARKS; ++l) {
+    CHECK(!strcmp(s.landmarks[l].name, t.landmarks[l].name));
+    ids[l] = pairs[2 * l] = s.landmarks[l].vertex;
+    pairs[2 * l + 1] = t.landmarks[l].vertex;
+    feat[l].vertex = ids[l];
+    memcpy(feat[l].point, t.mesh.V + 3 * (size_t)pairs[2 * l + 1], 3 * sizeof(double));
+  }
+  double *Sr = malloc(n * 3 * sizeof *Sr), *Sn = malloc(n * 3 * sizeof *Sn);
+  double *L = malloc(n * 9 * sizeof *L), *R = malloc(n * 9 * sizeof *R);
+  double *TP = malloc(nt * 3 * sizeof *TP), *G = malloc(n * 3 * sizeof *G);
+  double *X = malloc(n * 3 * sizeof *X), P[3 * KM_CHARACTER_LANDMARKS], sc, Q[9], tq[3];
+  int32_t *corr = malloc(n * sizeof *corr);
+  CHECK_OK(km_transfer_register_rest(&s.mesh, &t.mesh, pairs, KM_CHARACTER_LANDMARKS, Sr, &sc, Q,
+                                     tq, KM_E));
+  CHECK_OK(km_recon_register_mesh(&s.mesh, Sr, &t.mesh, feat, KM_CHARACTER_LANDMARKS, 0, Sn, KM_E));
+  km_mesh msr = s.mesh, msn = s.mesh;
+  msr.V = Sr, msn.V = Sn;
+  CHECK_OK(km_transfer_template_rotations(&msr, Sn, L, KM_E));
+  km_transfer *tr = NULL;
+  CHECK_OK(km_transfer_precompute(&s.mesh, ids, KM_CHARACTER_LANDMARKS, NULL, &tr, KM_E));
+  double lo = INFINITY, hi = -INFINITY, sum[2] = {0, 0};
+  for (size_t v = 0; v < n; ++v)
+    lo = fmin(lo, s.mesh.V[3 * v + 1]), hi = fmax(hi, s.mesh.V[3 * v + 1]);
+  for (int mode = 0; mode < 2 && tr; ++mode) {
+    CHECK_OK(km_transfer_correspondence(mode ? &msn : &msr, &t.mesh, corr, KM_E));
+    for (int p = 0; p < KP_N_POSES; ++p) {
+      CHECK_OK(kp_pose_character(&t, &kp_poses[p], NULL, TP, KM_E));
+      CHECK_OK(kp_pose_character(&s, &kp_poses[p], NULL, G, KM_E));
+      CHECK_OK(
+          km_transfer_map_pose(&msr, &t.mesh, TP, corr, ids, KM_CHARACTER_LANDMARKS, R, P, KM_E));
+      km_transfer_pose_to_source(sc, Q, tq, mode ? L : NULL, n, R, KM_CHARACTER_LANDMARKS, P);
+      CHECK_OK(km_transfer_solve_rotations(tr, R, P, X, NULL, KM_E));
+      double mean, max;
+      kp_error(X, G, n, &mean, &max);
+      sum[mode] += mean / KP_N_POSES;
+    }
+  }
+  printf("  %.2f m body at %zu vertices takes the poses of the %.2f m one at %zu: mean %.1f mm "
+         "(similarity), %.1f mm (+ non-rigid registration) over %d poses\n",
+         hi - lo, n, ot.height, nt, sum[0] * 1e3, sum[1] * 1e3, KP_N_POSES);
+  CHECK_MSG(sum[0] <= 0.01 * (hi - lo), "another body: mean error %g m > 1%% of %g m", sum[0],
+            hi - lo);
+  CHECK_MSG(sum[1] <= 0.01 * (hi - lo), "another body, non-rigid: mean error %g m", sum[1]);
+  km_transfer_free(&tr);
+  free(Sr), free(Sn), free(L), free(R), free(TP), free(G), free(X), free(corr);
   km_character_free(&s);
   km_character_free(&t);
 }
@@ -604,6 +741,7 @@ int main(void) {
   test_cross_subject(&a, &b);
   test_iterations(&a, &b);
   test_cross_connectivity(&oa);
+  test_cross_shape(&ob, &oa);
   test_faust();
   test_cat();
   km_character_free(&a);

@@ -2,6 +2,7 @@
 // mapping panel (handles on the mesh -> Kinect joints, saved with POST /rig).
 import * as THREE from 'three';
 import { OrbitControls } from './OrbitControls.js';
+import { initCamera } from './camera.js';
 
 const KINECT = ['HipCenter', 'Spine', 'ShoulderCenter', 'Head', 'ShoulderLeft', 'ElbowLeft',
   'WristLeft', 'HandLeft', 'ShoulderRight', 'ElbowRight', 'WristRight', 'HandRight', 'HipLeft',
@@ -196,6 +197,7 @@ function drawSkeleton(J) {
 
 function connect() {
   const ws = new WebSocket(`ws://${location.host}/${api('ws')}`, 'kinemesh');
+  state.ws = ws; // the camera sends its joint frames on it
   ws.binaryType = 'arraybuffer';
   ws.onopen = () => { state.connected = true; $('conn').textContent = 'connected'; $('conn').className = 'ok'; };
   ws.onclose = () => {
@@ -399,6 +401,7 @@ function animate() {
 resize();
 await loadMesh();
 await loadRig();
+initCamera(state, $);
 state.ready = true;
 connect();
 setInterval(pollStatus, 500);

@@ -30,6 +30,7 @@ int km_cli_animate(int argc, char **argv) {
   int iterations = 0, fields = 0, isolines = 0;
   double scale = 0, fps = 0;
   size_t key_every = 0;
+  bool compress = false;
   const char *export_kind = NULL;
   double max_error_mm = 0;
   km_cli_frame_opts fo = {0};
@@ -56,7 +57,7 @@ int km_cli_animate(int argc, char **argv) {
       {"fps", 0, KM_OPT_DOUBLE, &fps,
        "output frame rate; the motion is resampled (default: the take's)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames"},
-      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
+      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm, compress),
       {"filter", 0, KM_OPT_STRING, &filter_kind,
        "joint filter: holt or one_euro (default: the rig's \"filter\", else holt)"},
       {"no-glitch", 0, KM_OPT_FLAG, &no_glitch,
@@ -194,7 +195,7 @@ int km_cli_animate(int argc, char **argv) {
   wo.key_every = key_every;
   wo.format = af;
   km_ssdr_options so;
-  if (km_cli_parse_export("animate", export_kind, max_error_mm, out, &wo, &so)) goto done;
+  if (km_cli_parse_export("animate", export_kind, max_error_mm, compress, out, &wo, &so)) goto done;
   if (km_anim_writer_open(out, &m, &wo, &w, &err) != KM_OK) goto fail;
   km_progress prog = km_cli_progress("animate");
   for (size_t f = 0; f < take.n_frames; ++f) {

@@ -25,9 +25,10 @@ int km_cli_avatar(int argc, char **argv) {
   const char *out = NULL, *lm_path = NULL, *source = NULL, *dbp = NULL, *track = NULL;
   size_t key_every = 1;
   double scale = 0, max_error_mm = 0;
+  bool compress = false;
   const char *export_kind = NULL;
   const km_cli_opt opts[] = {
-      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
+      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm, compress),
       {"source", 's', KM_OPT_STRING, &source, "the avatar mesh (same connectivity as the DB)"},
       {"db", 0, KM_OPT_STRING, &dbp, "pose database (kinemesh posedb build)"},
       {"track", 0, KM_OPT_STRING, &track, "tracked landmark positions (.json/.csv)"},
@@ -86,7 +87,7 @@ int km_cli_avatar(int argc, char **argv) {
   km_anim_options ao = {0};
   ao.fps = t.fps;
   km_ssdr_options so;
-  if (km_cli_parse_export("avatar", export_kind, max_error_mm, out, &ao, &so)) {
+  if (km_cli_parse_export("avatar", export_kind, max_error_mm, compress, out, &ao, &so)) {
     rc = KM_EXIT_FAIL;
     goto done;
   }

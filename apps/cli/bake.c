@@ -7,9 +7,10 @@
 
 int km_cli_bake(int argc, char **argv) {
   const char *out = NULL, *mesh_path = NULL, *export_kind = "skin";
+  bool compress = false;
   double max_error_mm = 0, fps = 0;
   const km_cli_opt opts[] = {
-      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
+      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm, compress),
       {"mesh", 0, KM_OPT_STRING, &mesh_path,
        "rest mesh (faces, UVs, normals) for a .pc2 or to replace the input's; same vertex count "
        "and order"},
@@ -21,7 +22,7 @@ int km_cli_bake(int argc, char **argv) {
   int r =
       km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
                    "kinemesh bake IN(.glb|.pc2|frames dir) [--mesh REST] [--export skin[:BONES]] "
-                   "[--max-error-mm MM] -o OUT.glb",
+                   "[--max-error-mm MM] [--compress] -o OUT.glb",
                    "Fits a linear-blend-skinning rig to a mesh animation (Le & Deng 2012,\n"
                    "SSDR): <= 4 bone weights per vertex and one rotation + translation per\n"
                    "bone and frame, written as a skinned glTF that engines and Blender play\n"
@@ -30,7 +31,8 @@ int km_cli_bake(int argc, char **argv) {
   if (n_pos != 1 || !out) return km_cli_error("bake", "expected IN and -o OUT.glb (see --help)");
   km_anim_options ao = {0};
   km_ssdr_options so;
-  if (km_cli_parse_export("bake", export_kind, max_error_mm, out, &ao, &so)) return KM_EXIT_FAIL;
+  if (km_cli_parse_export("bake", export_kind, max_error_mm, compress, out, &ao, &so))
+    return KM_EXIT_FAIL;
   km_error err = {0};
   km_mesh rest = {0}, given = {0};
   double *frames = NULL;

@@ -11,6 +11,7 @@
 #endif
 #include "batch.h"
 #include "cli.h"
+#include "recon_segments.h"
 
 #include <cjson/cJSON.h>
 
@@ -45,6 +46,17 @@ typedef struct job {
   int n_args;
   int line;      /* manifest line, 1-based */
   double frames; /* cost for longest-first: frame count, or 1 when unknown */
+  /* One long take across ranks: a manifest job `reconstruct ... --segment-frames S` of more
+   * than S frames becomes n_seg segment jobs (`... --segment K --segment-dir DIR`, id
+   * "ID@segK", parent = its index, output: the part file) run anywhere, and the job itself
+   * becomes the stitch (`... --segment-dir DIR`), run once its segments are done. */
+  long parent;    /* a segment job: the segmented job's index; else -1 */
+  size_t n_seg;   /* a segmented job: its segments (the jobs parts[0..n_seg)) */
+  size_t *parts;  /* a segmented job: its segment jobs' indices */
+  char *part_dir; /* a segmented job and its segments: folder of the parts */
+  char *part;     /* a segment job: its part file, its one output */
+  size_t seq;     /* position when segments take their job's place: shards, serial order */
+  int attempts;   /* this run's attempt (MPI: 2 when a lost rank's job is reassigned) */
 } job;
 
 struct km_batch {
@@ -53,12 +65,15 @@ struct km_batch {
   char *reports;  /* absolute */
   char self[PATH_MAX];
   job *jobs;
-  size_t n_jobs;
+  size_t n_jobs;     /* manifest jobs, then the segment jobs */
+  size_t n_manifest; /* manifest jobs */
   int shard_i, shard_n;
   bool force;
 };
 
 const char *km_batch_job_id(const km_batch *b, size_t j) { return b->jobs[j].id; }
+long km_batch_job_parent(const km_batch *b, size_t j) { return b->jobs[j].parent; }
+void km_batch_set_attempt(km_batch *b, size_t j, int attempt) { b->jobs[j].attempts = attempt; }
 
 /* ---- small helpers */
 
@@ -243,6 +258,10 @@ static bool is_output_opt(const char *a, const char **inline_val) {
 /* The job's output paths (pointers into its args), at most cap. */
 static int job_outputs(const job *jb, const char **out, int cap) {
   int n = 0;
+  if (jb->part) {
+    out[0] = jb->part;
+    return 1;
+  }
   for (int a = 0; a < jb->n_args && n < cap; ++a) {
     const char *v;
     if (!is_output_opt(jb->args[a], &v)) continue;
@@ -294,6 +313,9 @@ static void batch_free(km_batch *b) {
     for (int a = 0; a < b->jobs[j].n_args; ++a)
       free(b->jobs[j].args[a]);
     free(b->jobs[j].args);
+    free(b->jobs[j].parts);
+    free(b->jobs[j].part_dir);
+    free(b->jobs[j].part);
   }
   free(b->jobs);
   free(b->manifest);
@@ -379,6 +401,8 @@ static int read_manifest(km_batch *b, const char *path) {
         jb->verb = strdup(verb->valuestring);
         jb->line = lineno;
         jb->frames = frames ? frames->valuedouble : -1;
+        jb->parent = -1;
+        jb->seq = b->n_jobs - 1;
         jb->args = calloc((size_t)n_args + 1, sizeof *jb->args);
         for (int a = 0; jb->args && a < n_args; ++a)
           jb->args[jb->n_args++] = strdup(cJSON_GetArrayItem(args, a)->valuestring);
@@ -389,7 +413,65 @@ static int read_manifest(km_batch *b, const char *path) {
   }
   free(text);
   if (!rc && b->n_jobs == 0) rc = km_cli_error("batch", "%s: no jobs", path);
+  b->n_manifest = b->n_jobs;
   return rc;
+}
+
+/* Expands every `reconstruct ... --segment-frames S` job of more than S frames into its
+ * segment jobs (see job). Runs in the manifest's folder (counts the --clouds frames). Returns
+ * non-zero when out of memory. */
+static int expand_segments(km_batch *b) {
+  size_t seq = 0;
+  for (size_t j = 0; j < b->n_manifest; ++j) {
+    job *jb = &b->jobs[j];
+    const char *sv = job_value(jb, "--segment-frames"), *ov = job_value(jb, "--overlap");
+    char **paths = NULL;
+    size_t n = 0;
+    long S = sv ? strtol(sv, NULL, 10) : 0, O = ov ? strtol(ov, NULL, 10) : 5;
+    jb->seq = seq++;
+    if (strcmp(jb->verb, "reconstruct") || S <= 0 || O < 0 || job_value(jb, "--segment") ||
+        job_value(jb, "--segment-dir") || !job_value(jb, "--clouds"))
+      continue;
+    if (km_point_frames_list(job_value(jb, "--clouds"), &paths, &n, NULL)) continue;
+    km_paths_free(&paths, n);
+    if ((size_t)S >= n) continue;
+    const size_t nseg = km_cli_segment_count(n, (size_t)S);
+    job *g = realloc(b->jobs, (b->n_jobs + nseg) * sizeof *g);
+    if (!g) return -1;
+    b->jobs = g;
+    jb = &b->jobs[j];
+    jb->n_seg = nseg;
+    jb->parts = malloc(nseg * sizeof *jb->parts);
+    jb->part_dir = dup_printf("%s/segments/%s", b->reports, jb->id);
+    jb->frames = (double)n;
+    if (!jb->parts || !jb->part_dir) return -1;
+    for (size_t k = 0; k < nseg; ++k) {
+      job *sj = &b->jobs[b->n_jobs];
+      memset(sj, 0, sizeof *sj);
+      jb->parts[k] = b->n_jobs++;
+      sj->id = dup_printf("%s@seg%zu", jb->id, k);
+      sj->verb = strdup(jb->verb);
+      sj->line = jb->line;
+      sj->parent = (long)j;
+      sj->seq = k ? seq++ : jb->seq; /* the segments take the job's place */
+      const size_t a = k * (size_t)S, e = a + (size_t)(S + O) < n ? a + (size_t)(S + O) : n;
+      sj->frames = (double)(e - a);
+      sj->part_dir = strdup(jb->part_dir);
+      sj->part = km_cli_segment_part_path(jb->part_dir, k);
+      sj->args = calloc((size_t)jb->n_args + 5, sizeof *sj->args);
+      if (!sj->id || !sj->verb || !sj->part_dir || !sj->part || !sj->args) return -1;
+      for (int a2 = 0; a2 < jb->n_args; ++a2)
+        if (!(sj->args[sj->n_args++] = strdup(jb->args[a2]))) return -1;
+      sj->args[sj->n_args++] = strdup("--segment");
+      sj->args[sj->n_args++] = dup_printf("%zu", k);
+      sj->args[sj->n_args++] = strdup("--segment-dir");
+      sj->args[sj->n_args++] = strdup(jb->part_dir);
+      for (int a2 = jb->n_args; a2 < sj->n_args; ++a2)
+        if (!sj->args[a2]) return -1;
+    }
+    jb->seq = b->jobs[jb->parts[nseg - 1]].seq; /* the stitch: in its last segment's shard */
+  }
+  return 0;
 }
 
 /* ---- reports */
@@ -483,6 +565,13 @@ static cJSON *job_report_base(const km_batch *b, const job *jb) {
   cJSON_AddStringToObject(r, "command", cmd ? cmd : "");
   free(cmd);
   cJSON_AddNumberToObject(r, "frames", jb->frames);
+  cJSON_AddNumberToObject(r, "attempts", jb->attempts > 0 ? jb->attempts : 1);
+  if (jb->parent >= 0) cJSON_AddStringToObject(r, "part_of", b->jobs[jb->parent].id);
+  if (jb->n_seg) {
+    /* the command above gives these bytes alone; the batch stitched the parts here */
+    cJSON_AddNumberToObject(r, "segments", (double)jb->n_seg);
+    cJSON_AddStringToObject(r, "segment_dir", jb->part_dir);
+  }
   char host[256] = "";
   gethostname(host, sizeof host - 1);
   cJSON_AddStringToObject(r, "host", host);
@@ -519,16 +608,39 @@ static char *log_tail(const char *path) {
 int km_batch_run_job(km_batch *b, size_t j, km_batch_tick tick, void *user) {
   const job *jb = &b->jobs[j];
   char *rp = report_path(b, jb), *lp = log_path(b, jb);
-  char **argv = calloc((size_t)jb->n_args + 3, sizeof *argv);
+  char **argv = calloc((size_t)jb->n_args + 5, sizeof *argv);
   if (!rp || !lp || !argv) {
     free(rp), free(lp), free(argv);
     return 1;
   }
-  unlink(rp); /* a job half rerun must not pass for the old, finished one */
-  argv[0] = "kinemesh";
-  argv[1] = jb->verb;
+  unlink(rp);      /* a job half rerun must not pass for the old, finished one */
+  if (jb->n_seg) { /* the stitch: its segments' parts must be there and verify */
+    for (size_t k = 0; k < jb->n_seg; ++k) {
+      const job *sj = &b->jobs[jb->parts[k]];
+      const char *why = NULL;
+      if (job_verifies(b, sj, &why)) continue;
+      char msg[512];
+      snprintf(msg, sizeof msg, "segment %s is not done (%s): the stitch did not run", sj->id,
+               why ? why : "?");
+      km_batch_mark_failed(b, j, msg);
+      fprintf(stderr, "kinemesh batch: %s: FAILED: %s\n", jb->id, msg);
+      free(rp), free(lp), free(argv);
+      return 1;
+    }
+  }
+  if (jb->part_dir && mkdir_p(jb->part_dir)) {
+    char msg[512];
+    snprintf(msg, sizeof msg, "%.400s: cannot create: %s", jb->part_dir, strerror(errno));
+    km_batch_mark_failed(b, j, msg);
+    free(rp), free(lp), free(argv);
+    return 1;
+  }
+  int na = 0;
+  argv[na++] = "kinemesh";
+  argv[na++] = jb->verb;
   for (int a = 0; a < jb->n_args; ++a)
-    argv[2 + a] = jb->args[a];
+    argv[na++] = jb->args[a];
+  if (jb->n_seg) argv[na++] = "--segment-dir", argv[na++] = jb->part_dir;
   double t0 = km_seconds();
   pid_t parent = getpid();
   fflush(NULL);
@@ -643,8 +755,8 @@ int km_batch_write_report(km_batch *b) {
     failed += !strcmp(status, "failed");
     pending += !cJSON_IsString(st);
     cJSON_AddStringToObject(e, "status", status);
-    const char *keys[] = {"seconds", "cpu_seconds", "exit_code", "error",
-                          "summary", "host",        "outputs",   "command"};
+    const char *keys[] = {"seconds", "cpu_seconds", "exit_code", "error",    "summary",
+                          "host",    "outputs",     "command",   "attempts", "part_of"};
     for (size_t k = 0; jr && k < sizeof keys / sizeof keys[0]; ++k) {
       const cJSON *v = cJSON_GetObjectItemCaseSensitive(jr, keys[k]);
       if (v) cJSON_AddItemToObject(e, keys[k], cJSON_Duplicate(v, true));
@@ -677,9 +789,34 @@ static int cmp_longest(const void *a, const void *b) {
   return i < j ? -1 : i > j;
 }
 
-static int cmp_index(const void *a, const void *b) {
-  size_t i = *(const size_t *)a, j = *(const size_t *)b;
-  return i < j ? -1 : i > j;
+/* One process: manifest order, a segmented job's segments in its place, then its stitch. */
+static int cmp_serial(const void *a, const void *b) {
+  const job *x = &sort_ctx->jobs[*(const size_t *)a], *y = &sort_ctx->jobs[*(const size_t *)b];
+  size_t kx = 2 * x->seq + (x->n_seg > 0), ky = 2 * y->seq + (y->n_seg > 0);
+  return kx < ky ? -1 : kx > ky;
+}
+
+/* Whether every segment of segmented job jb has a report and a part that verify. */
+static bool segments_done(const km_batch *b, const job *jb) {
+  for (size_t k = 0; k < jb->n_seg; ++k) {
+    const char *why;
+    if (!job_verifies(b, &b->jobs[jb->parts[k]], &why)) return false;
+  }
+  return true;
+}
+
+/* Shards end at different times: whichever ends last (or --collect) stitches every segmented
+ * job whose segments are all done and whose own output does not verify yet. Returns the
+ * stitches that failed. */
+static size_t run_ready_stitches(km_batch *b) {
+  size_t failed = 0;
+  for (size_t j = 0; j < b->n_manifest; ++j) {
+    const char *why;
+    if (!b->jobs[j].n_seg || job_verifies(b, &b->jobs[j], &why) || !segments_done(b, &b->jobs[j]))
+      continue;
+    failed += km_batch_run_job(b, j, NULL, NULL) != 0;
+  }
+  return failed;
 }
 
 size_t km_batch_plan(km_batch *b, size_t **todo) {
@@ -687,7 +824,7 @@ size_t km_batch_plan(km_batch *b, size_t **todo) {
   if (!*todo) return (size_t)-1;
   size_t n = 0;
   for (size_t j = 0; j < b->n_jobs; ++j) {
-    if ((int)(j % (size_t)b->shard_n) != b->shard_i) continue;
+    if ((int)(b->jobs[j].seq % (size_t)b->shard_n) != b->shard_i) continue;
     const char *why;
     if (!b->force && job_verifies(b, &b->jobs[j], &why)) continue;
     if (b->jobs[j].frames < 0) b->jobs[j].frames = job_frames(&b->jobs[j]);
@@ -813,7 +950,9 @@ int km_cli_batch(int argc, char **argv) {
        "run shard I of N (jobs whose index mod N is I; default: SLURM_ARRAY_TASK_ID/COUNT, "
        "else JOB_COMPLETION_INDEX/KM_SHARD_COUNT, else all)"},
       {"force", 0, KM_OPT_FLAG, &force, "rerun jobs that verify too"},
-      {"collect", 0, KM_OPT_FLAG, &collect, "only gather the job reports into report.json"},
+      {"collect", 0, KM_OPT_FLAG, &collect,
+       "only gather the job reports into report.json (after the stitches whose segments are all "
+       "done)"},
       {"mpi", 0, KM_OPT_FLAG, &mpi,
        "under mpirun: rank 0 hands jobs out longest first to the ranks as they free up"},
       {"mpi-timeout", 0, KM_OPT_DOUBLE, &timeout,
@@ -900,8 +1039,13 @@ int km_cli_batch(int argc, char **argv) {
     free(logs);
     if (rc) goto out;
   }
+  if (expand_segments(&b)) {
+    rc = km_cli_error("batch", "out of memory");
+    goto out;
+  }
   if (collect) {
-    rc = km_batch_write_report(&b) ? KM_EXIT_FAIL : KM_EXIT_OK;
+    rc = run_ready_stitches(&b) ? KM_EXIT_FAIL : KM_EXIT_OK;
+    if (km_batch_write_report(&b)) rc = KM_EXIT_FAIL;
     goto out;
   }
 #ifdef KM_HAVE_MPI
@@ -940,12 +1084,23 @@ int km_cli_batch(int argc, char **argv) {
             b.shard_i, b.shard_n);
   } else {
     /* one process: in manifest order, which is what a person reading the log expects */
-    qsort(todo, n, sizeof *todo, cmp_index);
+    sort_ctx = &b;
+    qsort(todo, n, sizeof *todo, cmp_serial);
     size_t failed = 0;
     fprintf(stderr, "kinemesh batch: %zu of %zu jobs to run (shard %d/%d), %s\n", n, b.n_jobs,
             b.shard_i, b.shard_n, b.reports);
-    for (size_t k = 0; k < n; ++k)
+    for (size_t k = 0; k < n; ++k) {
+      const job *jb = &b.jobs[todo[k]];
+      if (jb->n_seg && b.shard_n > 1 && !segments_done(&b, jb)) {
+        fprintf(stderr,
+                "kinemesh batch: %s: its segments are not all done (other shards): the shard "
+                "that ends last, or --collect, stitches it\n",
+                jb->id);
+        continue;
+      }
       failed += km_batch_run_job(&b, todo[k], NULL, NULL) != 0;
+    }
+    if (b.shard_n > 1) failed += run_ready_stitches(&b);
     if (km_batch_write_report(&b)) rc = KM_EXIT_FAIL;
     if (failed) rc = KM_EXIT_FAIL;
   }

@@ -25,12 +25,20 @@ int km_batch_write_report(km_batch *b);
 size_t km_batch_plan(km_batch *b, size_t **todo);
 /* The job's id (for messages). */
 const char *km_batch_job_id(const km_batch *b, size_t j);
+/* A segment job (one segment of a long take, `reconstruct --segment-frames`): the index of the
+ * segmented job whose stitch waits for it; -1 for any other job. A segmented job is run (its
+ * stitch) only after all its segments are done. */
+long km_batch_job_parent(const km_batch *b, size_t j);
+/* The attempt the next km_batch_run_job of job j is (its report says "attempts"): 1, or 2 when
+ * the job of a lost MPI rank is run again. */
+void km_batch_set_attempt(km_batch *b, size_t j, int attempt);
 
 /* The MPI driver: rank 0 plans (km_batch_plan) and hands the jobs out, longest first, to the
  * ranks as they free up and writes the batch report; the other ranks run what they are given.
  * timeout_s: a rank that has not been heard from for that long while running a job is taken as
- * dead and its job reported failed. Returns the exit status of this rank. Defined only when
- * built with MPI (KM_HAVE_MPI). */
+ * dead and its job handed to another rank once (attempt 2), reported failed if that is lost
+ * too. A segmented job's stitch is handed out once its segments are done. Returns the exit status
+ * of this rank. Defined only when built with MPI (KM_HAVE_MPI). */
 int km_batch_mpi(km_batch *b, double timeout_s);
 
 #endif

@@ -145,21 +145,24 @@ int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f
 
 /* Issue 16: what a .glb holds. --export morphs[:all] (one morph target per frame, exact) or
  * skin[:BONES] (a fitted skinned mesh, km_ssdr_fit), and --max-error-mm (skin: bones are added
- * until the max error is below it). */
-#define KM_CLI_EXPORT_OPTIONS(exp, max_mm)                                                         \
+ * until the max error is below it), --compress (any kind: quantised + meshopt-encoded). */
+#define KM_CLI_EXPORT_OPTIONS(exp, max_mm, zip)                                                    \
   {"export", 0, KM_OPT_STRING, &(exp),                                                             \
    "glb content: morphs[:all] (one target per frame, exact; default), morphs:K (K PCA basis "      \
    "targets + per-frame weights) or skin[:BONES] (skinned "                                        \
    "mesh + bone animation fitted by SSDR; plain skin: 32 bones grown to meet 15 mm)"},             \
+      {"max-error-mm", 0, KM_OPT_DOUBLE, &(max_mm),                                                \
+       "skin: split bones until the max error is below this (up to 4x BONES)"},                    \
   {                                                                                                \
-    "max-error-mm", 0, KM_OPT_DOUBLE, &(max_mm),                                                   \
-        "skin: split bones until the max error is below this (up to 4x BONES)"                     \
+    "compress", 0, KM_OPT_FLAG, &(zip),                                                            \
+        "glb: KHR_mesh_quantization + EXT_meshopt_compression (engines and three.js with "         \
+        "MeshoptDecoder read it; the printed error includes the quantisation)"                     \
   }
 /* Fills ao->export_kind / ao->skin (pointing at *ssdr, which must outlive ao) from --export
  * and --max-error-mm for output `out`; prints the error and returns non-zero when malformed
  * or when skin is asked for a non-.glb output. */
-int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, const char *out,
-                        km_anim_options *ao, km_ssdr_options *ssdr);
+int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, bool compress,
+                        const char *out, km_anim_options *ao, km_ssdr_options *ssdr);
 /* An animation that comes from a skinned character starts its skin fit from the character's
  * own parts: when ao asks for a skin with no bone count, ssdr->seed gets the weighted rest
  * centroid of every joint's skinned vertices (*seeds allocated, free() it). Returns non-zero

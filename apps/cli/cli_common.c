@@ -287,11 +287,17 @@ int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f
   return 0;
 }
 
-int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, const char *out,
-                        km_anim_options *ao, km_ssdr_options *ssdr) {
+int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, bool compress,
+                        const char *out, km_anim_options *ao, km_ssdr_options *ssdr) {
   memset(ssdr, 0, sizeof *ssdr);
   ao->export_kind = KM_ANIM_EXPORT_MORPHS;
   ao->skin = NULL;
+  ao->compress = compress;
+  if (compress) {
+    const char *dot = out ? strrchr(out, '.') : NULL;
+    if (!dot || strcasecmp(dot, ".glb") != 0)
+      return km_cli_error(verb, "--compress writes a .glb; the output is '%s'", out ? out : "");
+  }
   if (!(max_error_mm >= 0) || !isfinite(max_error_mm))
     return km_cli_error(verb, "--max-error-mm must be >= 0, not %g", max_error_mm);
   if (!s || !strcmp(s, "morphs") || !strcmp(s, "morphs:all")) {
@@ -373,6 +379,11 @@ void km_cli_report_export(const char *verb, const km_anim_report *rep) {
     fprintf(stderr,
             "kinemesh %s: morphs: %zu basis targets, %zu frames, rms %.4f mm, max %.4f mm\n", verb,
             rep->targets, rep->frames, rep->rms_error * 1e3, rep->max_error * 1e3);
+    return;
+  }
+  if (rep->export_kind == KM_ANIM_EXPORT_MORPHS && (rep->rms_error > 0 || rep->max_error > 0)) {
+    fprintf(stderr, "kinemesh %s: morphs (compressed): %zu frames, rms %.4f mm, max %.4f mm\n",
+            verb, rep->frames, rep->rms_error * 1e3, rep->max_error * 1e3);
     return;
   }
   if (rep->export_kind != KM_ANIM_EXPORT_SKIN) return;

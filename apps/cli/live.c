@@ -4,6 +4,8 @@
 
 #include "live.h"
 
+#include <cjson/cJSON.h>
+
 #include <errno.h>
 #include <libgen.h>
 #include <math.h>
@@ -51,6 +53,25 @@ static km_status auto_rig(const char *mesh_path, const km_mesh *m, const char *r
   s = km_character_rig_json(&c, json, size, err);
   km_character_free(&c);
   return s;
+}
+
+/* `--no-handles`: the rig text without its puppetry part ("handles", "map"); the rest (skeleton,
+ * skin, landmarks, filter) stays, so saving the first handle keeps them. */
+static int strip_handles(const char *rig_file, char **text, size_t *size) {
+  cJSON *doc = cJSON_ParseWithLength(*text, *size);
+  if (!cJSON_IsObject(doc)) {
+    cJSON_Delete(doc);
+    return km_cli_error("live", "%s: expected a JSON object (a rig)", rig_file);
+  }
+  cJSON_DeleteItemFromObjectCaseSensitive(doc, "map");
+  cJSON_DeleteItemFromObjectCaseSensitive(doc, "handles");
+  char *out = cJSON_AddArrayToObject(doc, "handles") ? cJSON_Print(doc) : NULL;
+  cJSON_Delete(doc);
+  if (!out) return km_cli_error("live", "out of memory");
+  free(*text);
+  *text = out;
+  *size = strlen(out);
+  return KM_EXIT_OK;
 }
 
 static char *default_web_dir(void) {
@@ -101,7 +122,7 @@ int km_cli_live(int argc, char **argv) {
   const char *mesh_path = NULL, *rig_path = NULL, *replay = NULL, *record = NULL;
   const char *bind = "127.0.0.1", *web = NULL, *cache = NULL, *token = NULL, *vmc_out = NULL;
   int osc = 0, udp = 0, vmc = 0, http = 8080;
-  bool quantize = false, loop = false, no_autoplay = false, no_token = false;
+  bool quantize = false, loop = false, no_autoplay = false, no_token = false, no_handles = false;
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
       KM_CLI_FRAME_OPTIONS(fo),
@@ -111,6 +132,9 @@ int km_cli_live(int argc, char **argv) {
        "rig: handles, joint map, filter (default <mesh stem>.rig.json; when the file does not "
        "exist: a glTF's own skin or an automatic rig, written there by the page's save); "
        "POST /rig rewrites it"},
+      {"no-handles", 0, KM_OPT_FLAG, &no_handles,
+       "start with zero handles (the rig's skeleton, skin and landmarks kept): place the first "
+       "one in the page by clicking; nothing moves until it is saved"},
       {"osc", 0, KM_OPT_INT, &osc, "OSC port (OSCeleton /joint, KinectV2-OSC /bodies/...)"},
       {"udp", 0, KM_OPT_INT, &udp, "JSON-over-UDP port (one frame per datagram)"},
       {"vmc", 0, KM_OPT_INT, &vmc,
@@ -199,6 +223,8 @@ int km_cli_live(int argc, char **argv) {
   rig_size = (size_t)sz;
   rig_text[rig_size] = 0;
 rig_ready:;
+  if (no_handles && (rc = strip_handles(rig_file, &rig_text, &rig_size))) goto done;
+  rc = KM_EXIT_FAIL;
   km_motion_read_options mo = {0};
   mo.kinect1 = true;
   if (replay && km_motion_read(replay, &mo, &take, NULL, &err) != KM_OK) goto fail;

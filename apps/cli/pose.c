@@ -13,6 +13,7 @@ int km_cli_pose(int argc, char **argv) {
              *track_out = NULL;
   double fps = 0;
   size_t key_every = 0;
+  bool compress = false;
   const char *export_kind = NULL;
   double max_error_mm = 0;
   /* The mesh stays in its file's frame: the rig sidecar's skeleton is stored in it. */
@@ -21,7 +22,7 @@ int km_cli_pose(int argc, char **argv) {
       KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh, "rigged mesh (gen character, rig, or a skinned .glb)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames (default 1)"},
-      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
+      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm, compress),
       {"rig", 0, KM_OPT_STRING, &rig,
        "its rig sidecar (default <mesh stem>.rig.json, else a glTF's own skin)"},
       {"motion", 0, KM_OPT_STRING, &motion, "take (.json) with the rig's joint names"},
@@ -83,7 +84,7 @@ int km_cli_pose(int argc, char **argv) {
   ao.format = af;
   km_ssdr_options so;
   if (out) {
-    if (km_cli_parse_export("pose", export_kind, max_error_mm, out, &ao, &so)) goto done;
+    if (km_cli_parse_export("pose", export_kind, max_error_mm, compress, out, &ao, &so)) goto done;
     /* The animation comes from a skeleton: its skinned parts seed the fit. */
     if (km_cli_skin_seeds("pose", &ao, &c.mesh, &c.skin, nj, &so, &seed)) goto done;
     if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;

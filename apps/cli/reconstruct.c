@@ -93,11 +93,13 @@ int km_cli_reconstruct(int argc, char **argv) {
   bool rig_joints = false, strict = false;
   double unsupported_mm = 0, unsupported_fraction = 0;
   size_t coarse = 0, vertices = 4000, segment = 0, overlap = 5;
-  int radius = 0;
+  int radius = 0, segment_only = -1;
+  const char *segment_dir = NULL;
+  bool compress = false;
   const char *export_kind = NULL;
   double max_error_mm = 0;
   const km_cli_opt opts[] = {
-      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm),
+      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm, compress),
       {"template", 't', KM_OPT_STRING, &tmpl,
        "template mesh with rig sidecar (default: procedural, --vertices)"},
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
@@ -125,6 +127,12 @@ int km_cli_reconstruct(int argc, char **argv) {
        "stitched (default: one segment)"},
       {"overlap", 0, KM_OPT_SIZE, &overlap,
        "with --segment-frames: frames a segment tracks into the next, cross-faded (default 5)"},
+      {"segment", 0, KM_OPT_INT, &segment_only,
+       "with --segment-frames and --segment-dir: track only segment K (from 0) and write its "
+       "part there; -o, --report, --plot, --strict and --export belong to the stitch"},
+      {"segment-dir", 0, KM_OPT_STRING, &segment_dir,
+       "with --segment-frames: folder of the segments' parts; without --segment, stitch them "
+       "(the output has the bytes of the same command without --segment-dir)"},
   };
   const char *pos[1];
   int n_pos;
@@ -141,8 +149,14 @@ int km_cli_reconstruct(int argc, char **argv) {
                    "is 1.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!clouds && n_pos == 1) clouds = pos[0];
-  if (!clouds || !out)
+  const bool one_segment = segment_only >= 0;
+  if (segment_only < -1 || ((one_segment || segment_dir) && !segment) ||
+      (one_segment && !segment_dir))
+    return km_cli_error("reconstruct", "--segment K (K >= 0) needs --segment-frames S and "
+                                       "--segment-dir DIR; --segment-dir needs --segment-frames");
+  if (!clouds || (!out && !one_segment))
     return km_cli_error("reconstruct", "--clouds FRAMES and -o OUT are required");
+  if (one_segment) report = plot = export_kind = NULL, strict = false;
   km_error err = {0};
   char **paths = NULL;
   size_t n = 0;
@@ -176,16 +190,19 @@ int km_cli_reconstruct(int argc, char **argv) {
                          .unsupported_distance = unsupported_mm * 1e-3,
                          .unsupported_fraction = unsupported_fraction};
   ro.progress = km_cli_progress("reconstruct");
-  if (segment && (report || plot || strict || export_kind)) {
+  if ((one_segment || segment_dir) && segment >= n) {
     free(feat);
     km_paths_free(&paths, n);
-    return km_cli_error("reconstruct", "--segment-frames: --report, --plot, --strict and --export "
-                                       "are not available with segments yet");
+    return km_cli_error("reconstruct",
+                        "--segment-dir: the take has %zu frames, one segment of %zu: nothing to "
+                        "split (run it without --segment-frames)",
+                        n, segment);
   }
   km_anim_options ao = {0};
   km_ssdr_options so;
   double *seeds = NULL;
-  if (km_cli_parse_export("reconstruct", export_kind, max_error_mm, out, &ao, &so)) {
+  if (!one_segment && km_cli_parse_export("reconstruct", export_kind, max_error_mm, compress, out,
+                                           &ao, &so)) {
     free(feat);
     km_paths_free(&paths, n);
     return KM_EXIT_FAIL;
@@ -193,19 +210,23 @@ int km_cli_reconstruct(int argc, char **argv) {
   ro.anim = &ao;
   double t0 = km_cli_now();
   km_status s = km_cli_load_character(tmpl, rig, vertices, &c, &err);
-  if (!s && segment && segment < n) {
-    rc = km_cli_reconstruct_segmented(paths, n, &c, feat, nfeat, &ro, segment, overlap, out);
-    km_cli_progress_done();
-    km_character_free(&c);
-    free(feat);
-    km_paths_free(&paths, n);
-    return rc;
-  }
   /* The template is skinned: its parts seed a skin fit. */
-  if (!s &&
+  if (!s && !one_segment &&
       km_cli_skin_seeds("reconstruct", &ao, &c.mesh, &c.skin, c.skeleton.n_joints, &so, &seeds))
     s = km_error_set(&err, KM_ERR_NOMEM, "out of memory");
-  if (!s) s = km_reconstruct((const char *const *)paths, n, &c, feat, nfeat, &ro, out, &rep, &err);
+  if (!s && segment && segment < n) {
+    /* segments: tracked here one after the other, or one of them (--segment), or stitched
+     * from parts other processes tracked (--segment-dir); the report as unsegmented */
+    km_cli_segments sg = {
+        .frames = segment, .overlap = overlap, .only = segment_only, .dir = segment_dir};
+    s = km_cli_reconstruct_segmented(paths, n, &c, feat, nfeat, &ro, &sg, out, &rep, &err);
+    if (!s && !one_segment)
+      fprintf(stderr, "kinemesh reconstruct: %zu segments of %zu frames (+%zu overlap) %s\n",
+              km_cli_segment_count(n, segment), segment, overlap,
+              segment_dir ? "stitched from their parts" : "tracked and stitched");
+  } else if (!s) {
+    s = km_reconstruct((const char *const *)paths, n, &c, feat, nfeat, &ro, out, &rep, &err);
+  }
   km_cli_progress_done();
   if (rep.n_frames) {
     double mean = 0, smean = 0, smax = 0;

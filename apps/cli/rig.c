@@ -2,13 +2,43 @@
  * (km_character_write_rig). */
 #include "cli.h"
 
+#include <cjson/cJSON.h>
+
 #include <stdlib.h>
 #include <string.h>
+
+/* The sidecar of c, with a "frame" record ({"up", "forward", "scale"}) when the mesh was
+ * oriented (km_cli_mesh_frame reads it back). */
+static int write_sidecar(const char *path, const km_character *c, const km_frame *f) {
+  km_error err = {0};
+  if (!f) return km_character_write_rig(path, c, &err) != KM_OK ? km_cli_fail("rig", &err) : 0;
+  char *json = NULL;
+  size_t size = 0;
+  if (km_character_rig_json(c, &json, &size, &err) != KM_OK) return km_cli_fail("rig", &err);
+  cJSON *doc = cJSON_ParseWithLength(json, size), *fr = cJSON_CreateObject();
+  free(json);
+  json = NULL;
+  if (doc && fr && cJSON_AddStringToObject(fr, "up", km_axis_name(f->up)) &&
+      cJSON_AddStringToObject(fr, "forward", km_axis_name(f->forward)) &&
+      (f->scale == 0 || cJSON_AddNumberToObject(fr, "scale", f->scale))) {
+    cJSON_AddItemToObject(doc, "frame", fr);
+    fr = NULL;
+    json = cJSON_Print(doc);
+  }
+  cJSON_Delete(fr);
+  cJSON_Delete(doc);
+  if (!json) return km_cli_error("rig", "out of memory");
+  km_status s = km_write_file_atomic(path, json, strlen(json), &err);
+  free(json);
+  return s != KM_OK ? km_cli_fail("rig", &err) : 0;
+}
 
 int km_cli_rig(int argc, char **argv) {
   const char *out = NULL, *skel = NULL;
   double min_ext = 0;
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      KM_CLI_FRAME_OPTIONS(fo),
       {"output", 'o', KM_OPT_STRING, &out, "rig sidecar to write (default MESH.rig.json)"},
       {"skeleton", 0, KM_OPT_STRING, &skel,
        "auto (default: a skinned glTF's own skin, else humanoid or quadruped from the "
@@ -20,7 +50,8 @@ int km_cli_rig(int argc, char **argv) {
   int n_pos;
   int r =
       km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
-                   "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop]",
+                   "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop] "
+                   "[--up +z --forward -y]",
                    "Rigs a mesh kinemesh did not make: finds its extremities (geodesic\n"
                    "extremes), embeds the 20 Kinect v1 joints in its interior, computes\n"
                    "skin weights and the 16 landmarks, and writes the rig sidecar that\n"
@@ -29,7 +60,10 @@ int km_cli_rig(int argc, char **argv) {
                    "front limbs take the hands, its hind limbs the feet, its highest other\n"
                    "extremity the head. A mesh with neither (a bust, an object) gets five\n"
                    "handles by position: highest -> head, upper sides -> hands, lower sides\n"
-                   "-> feet. The mesh is taken as y up, facing +z. A skinned glTF is rigged\n"
+                   "-> feet. The mesh is rigged in kinemesh's frame (y up, facing +z): its up\n"
+                   "and forward axes come from --up/--forward, else are guessed (printed);\n"
+                   "the sidecar records them (\"frame\") and holds the joints in that frame,\n"
+                   "so animate and live orient the mesh the same way. A skinned glTF is rigged\n"
                    "from its own skeleton and weights (joint names mapped from Mixamo, VRM /\n"
                    "Unity HumanBodyBones or rigify) unless --skeleton names another.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
@@ -54,6 +88,8 @@ int km_cli_rig(int argc, char **argv) {
   const char *path = out ? out : def;
   int rc = KM_EXIT_OK;
   km_mesh_skin sk = {0};
+  km_frame frame = {0};
+  bool oriented = false;
   if (km_mesh_read_skinned(pos[0], &m, &sk, &err) != KM_OK) {
     rc = km_cli_fail("rig", &err);
     goto done;
@@ -74,6 +110,15 @@ int km_cli_rig(int argc, char **argv) {
              c.skeleton.rest[3 * j + 1], c.skeleton.rest[3 * j + 2]);
     goto write;
   }
+  /* Orientation: the mesh is rigged in kinemesh's frame (a z-up scan rigged as if y were up
+   * puts both legs on its tail); the sidecar records the frame for the verbs that orient. */
+  if ((rc = km_cli_mesh_frame("rig", pos[0], &fo, &m, false, &frame, NULL))) goto done;
+  oriented = !(frame.up == KM_AXIS_POS_Y && frame.forward == KM_AXIS_POS_Z &&
+               (frame.scale == 0 || frame.scale == 1));
+  if (oriented && km_mesh_frame_apply(&frame, &m, &err) != KM_OK) {
+    rc = km_cli_fail("rig", &err);
+    goto done;
+  }
   if (km_autorig(&m, &o, &c, &rep, &err) != KM_OK) {
     rc = km_cli_fail("rig", &err);
     goto done;
@@ -92,15 +137,12 @@ int km_cli_rig(int argc, char **argv) {
     printf("  vertex %-8d at (%8.4f %8.4f %8.4f)  prominence %.4f  %s\n", (int)rep.extremity[e],
            p[0], p[1], p[2], rep.extremity_distance[e], rep.role[e][0] ? rep.role[e] : "(unused)");
   }
-  printf("joints:\n");
+  printf("joints%s:\n", oriented ? " (in kinemesh's frame: y up, facing +z)" : "");
   for (size_t j = 0; j < c.skeleton.n_joints; ++j)
     printf("  %-14s (%8.4f %8.4f %8.4f)\n", c.skeleton.names[j], c.skeleton.rest[3 * j],
            c.skeleton.rest[3 * j + 1], c.skeleton.rest[3 * j + 2]);
 write:
-  if (km_character_write_rig(path, &c, &err) != KM_OK) {
-    rc = km_cli_fail("rig", &err);
-    goto done;
-  }
+  if ((rc = write_sidecar(path, &c, oriented ? &frame : NULL))) goto done;
   /* The puppetry rig in the sidecar must resolve on the mesh (handles apart, in range). */
   km_rig rig = {0};
   if (km_rig_read(path, &m, NULL, 0, &rig, &err) != KM_OK) {

@@ -4,13 +4,84 @@
  * Landmarks come from --landmarks LM.json or the mesh's rig sidecar (<stem>.rig.json). */
 #include "cli.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+/* --correspondences FILE: one pair of vertex ids a line, "source_vertex,template_vertex"
+ * (blank lines and lines starting with '#' skipped). *pairs allocated (2 per pair). */
+static int read_pairs(const char *path, size_t ns, size_t nt, int32_t **pairs, size_t *np) {
+  FILE *f = fopen(path, "r");
+  if (!f) return km_cli_error("transfer", "%s: %s", path, strerror(errno));
+  char line[512];
+  size_t cap = 0, ln = 0;
+  int rc = KM_EXIT_OK;
+  *pairs = NULL;
+  *np = 0;
+  while (fgets(line, sizeof line, f)) {
+    ++ln;
+    char *p = line;
+    while (*p == ' ' || *p == '\t')
+      ++p;
+    if (*p == '#' || *p == '\n' || *p == '\r' || !*p) continue;
+    char *end;
+    errno = 0;
+    long a = strtol(p, &end, 10), b = -1;
+    bool ok = end != p && !errno;
+    if (ok) {
+      while (*end == ' ' || *end == '\t')
+        ++end;
+      ok = *end == ',';
+    }
+    if (ok) {
+      p = end + 1;
+      b = strtol(p, &end, 10);
+      ok = end != p && !errno;
+      while (ok && (*end == ' ' || *end == '\t' || *end == '\r' || *end == '\n'))
+        ++end;
+      ok = ok && !*end;
+    }
+    if (!ok) {
+      rc = km_cli_error("transfer",
+                        "%s:%zu: expected \"source_vertex,template_vertex\" (two integers)", path,
+                        ln);
+      break;
+    }
+    if (a < 0 || (size_t)a >= ns || b < 0 || (size_t)b >= nt) {
+      rc = km_cli_error("transfer",
+                        "%s:%zu: pair (%ld, %ld) out of range: SOURCE has %zu vertices, the "
+                        "template %zu",
+                        path, ln, a, b, ns, nt);
+      break;
+    }
+    if (*np == cap) {
+      size_t nc = cap ? 2 * cap : 64;
+      int32_t *q = realloc(*pairs, nc * 2 * sizeof *q);
+      if (!q) {
+        rc = km_cli_error("transfer", "out of memory");
+        break;
+      }
+      *pairs = q;
+      cap = nc;
+    }
+    (*pairs)[2 * *np] = (int32_t)a;
+    (*pairs)[2 * *np + 1] = (int32_t)b;
+    ++*np;
+  }
+  fclose(f);
+  if (rc) {
+    free(*pairs);
+    *pairs = NULL;
+    *np = 0;
+  }
+  return rc;
+}
+
 int km_cli_transfer(int argc, char **argv) {
   const char *out = NULL, *lm_path = NULL, *encoding = "edge", *laplacian = "uniform",
-             *align = "scale", *source = NULL, *templ = NULL, *xyz = NULL, *trest = NULL;
+             *align = "scale", *source = NULL, *templ = NULL, *xyz = NULL, *trest = NULL,
+             *corr_path = NULL, *reg_mode = "similarity";
   int iterations = 0;
   double damping = 0;
   size_t xyz_frame = 0;
@@ -20,8 +91,17 @@ int km_cli_transfer(int argc, char **argv) {
       {"output", 'o', KM_OPT_STRING, &out, "output mesh (.obj/.ply/.off)"},
       {"template-rest", 0, KM_OPT_STRING, &trest,
        "TEMPLATE at rest (its connectivity): needed when TEMPLATE's mesh differs from SOURCE's; "
-       "SOURCE and TR must stand in one frame at one size (each vertex of SOURCE takes the "
-       "rotation of its nearest TR vertex)"},
+       "SOURCE is first registered onto TR (a similarity) from --correspondences or from the "
+       "landmarks of one name in both rigs, then each of its vertices takes the rotation of "
+       "its nearest TR vertex"},
+      {"register", 0, KM_OPT_STRING, &reg_mode,
+       "with --template-rest: similarity (default), nonrigid (then the reconstruction's "
+       "non-rigid registration onto TR, for the correspondence), or none (SOURCE and TR in one "
+       "frame at one size)"},
+      {"correspondences", 0, KM_OPT_STRING, &corr_path,
+       "with --template-rest: vertex pairs for the registration, a line \"source_vertex,"
+       "template_vertex\" each (at least 3; default: landmarks of one name in SOURCE's and "
+       "TR's rigs)"},
       {"landmarks", 'l', KM_OPT_STRING, &lm_path,
        "LM.json with the landmark vertices (default: SOURCE's rig sidecar), or auto[:K]: K "
        "(default 16) vertices spread by farthest-point sampling, for any mesh"},
@@ -72,7 +152,9 @@ int km_cli_transfer(int argc, char **argv) {
     return km_cli_error("transfer", "--align must be scale, similarity or none, not '%s'", align);
   km_error err = {0};
   km_mesh s = {0}, t = {0}, o = {0}, tr_rest = {0};
-  int32_t *corr = NULL;
+  int32_t *corr = NULL, *pairs = NULL;
+  double *registered = NULL, *nonrigid_V = NULL, *local = NULL;
+  size_t n_pairs = 0;
   double *rots = NULL;
   km_transfer *tr = NULL;
   km_track trk = {0};
@@ -93,6 +175,12 @@ int km_cli_transfer(int argc, char **argv) {
   if (xyz && auto_lm)
     return km_cli_error("transfer", "--landmarks-xyz needs named landmarks (LM.json or the rig), "
                                     "not --landmarks auto");
+  if (corr_path && !trest)
+    return km_cli_error("transfer", "--correspondences goes with --template-rest TR");
+  bool nonrigid = !strcmp(reg_mode, "nonrigid"), no_reg = !strcmp(reg_mode, "none");
+  if (!nonrigid && !no_reg && strcmp(reg_mode, "similarity"))
+    return km_cli_error("transfer", "--register must be similarity, nonrigid or none, not '%s'",
+                        reg_mode);
   if (km_mesh_read(pos[0], &s, &err) || km_mesh_read(pos[1], &t, &err)) {
     rc = km_cli_fail("transfer", &err);
     goto done;
@@ -155,6 +243,42 @@ int km_cli_transfer(int argc, char **argv) {
   }
   for (size_t i = 0; i < nl && !auto_lm; ++i)
     ids[i] = lm[i].vertex;
+  if (!same && !no_reg) {
+    /* Pairs for registering SOURCE onto TR: the file, or landmarks of one name in both rigs. */
+    if (corr_path) {
+      if ((rc = read_pairs(corr_path, s.n_vertices, tr_rest.n_vertices, &pairs, &n_pairs)))
+        goto done;
+      if (n_pairs < 3) {
+        rc = km_cli_error("transfer", "%s: %zu pair(s); the registration needs at least 3",
+                          corr_path, n_pairs);
+        goto done;
+      }
+    } else if (!auto_lm) {
+      km_landmark tl[KM_POSE_MAX_LANDMARKS];
+      size_t ntl = 0;
+      km_error e2 = {0};
+      if (km_cli_load_landmarks(NULL, trest, tr_rest.n_vertices, tl, KM_POSE_MAX_LANDMARKS, &ntl,
+                                &e2) == KM_OK &&
+          (pairs = malloc(sizeof *pairs * 2 * (nl ? nl : 1))))
+        for (size_t i = 0; i < nl; ++i)
+          for (size_t k = 0; k < ntl; ++k)
+            if (!strcmp(lm[i].name, tl[k].name)) {
+              pairs[2 * n_pairs] = lm[i].vertex;
+              pairs[2 * n_pairs + 1] = tl[k].vertex;
+              ++n_pairs;
+              break;
+            }
+    }
+    if (n_pairs < 3 && nonrigid) {
+      rc = km_cli_error("transfer", "--register nonrigid needs correspondences (--correspondences, "
+                                    "or landmarks of one name in SOURCE's and TR's rigs)");
+      goto done;
+    }
+    if (n_pairs < 3)
+      fprintf(stderr, "kinemesh transfer: no correspondences (--correspondences, or landmarks of "
+                      "one name in both rigs): SOURCE and TR are taken to stand in one frame at "
+                      "one size\n");
+  }
   if (xyz) {
     /* tracked targets: matched to the landmarks by name */
     if (km_track_read(xyz, &trk, &err)) {
@@ -200,12 +324,74 @@ int km_cli_transfer(int argc, char **argv) {
       rc = km_cli_error("transfer", "out of memory");
       goto done;
     }
-    if (km_transfer_correspondence(&s, &tr_rest, corr, &err) ||
-        km_transfer_map_pose(&s, &tr_rest, t.V, corr, ids, nl, rots, mapped, &err)) {
+    /* SOURCE registered onto TR (a similarity), or as it stands */
+    km_mesh sr = s;
+    double sc = 1, Q[9], tq[3];
+    if (n_pairs >= 3) {
+      registered = malloc(sizeof *registered * 3 * s.n_vertices);
+      if (!registered) {
+        free(mapped);
+        rc = km_cli_error("transfer", "out of memory");
+        goto done;
+      }
+      if (km_transfer_register_rest(&s, &tr_rest, pairs, n_pairs, registered, &sc, Q, tq, &err)) {
+        free(mapped);
+        rc = km_cli_fail("transfer", &err);
+        goto done;
+      }
+      sr.V = registered;
+      double c = fmax(-1, fmin(1, (Q[0] + Q[4] + Q[8] - 1) / 2));
+      fprintf(stderr,
+              "kinemesh transfer: SOURCE registered onto %s from %zu pairs: scale %.4f, "
+              "rotation %.1f deg, translation (%.3f, %.3f, %.3f)\n",
+              trest, n_pairs, sc, acos(c) * 180 / 3.14159265358979323846, tq[0], tq[1], tq[2]);
+    }
+    km_mesh sn = sr;
+    if (nonrigid) {
+      /* then onto TR's surface (the reconstruction's affine registration, the pairs as its
+       * features): the correspondence comes from there, the pose is still mapped on sr and
+       * each rotation seen from S's own one-ring (km_transfer_pose_to_source's local) */
+      km_recon_feature *feat = malloc(sizeof *feat * n_pairs);
+      nonrigid_V = malloc(sizeof *nonrigid_V * 3 * s.n_vertices);
+      local = malloc(sizeof *local * 9 * s.n_vertices);
+      if (!feat || !nonrigid_V || !local) {
+        free(feat);
+        free(mapped);
+        rc = km_cli_error("transfer", "out of memory");
+        goto done;
+      }
+      for (size_t k = 0; k < n_pairs; ++k) {
+        feat[k].vertex = pairs[2 * k];
+        memcpy(feat[k].point, tr_rest.V + 3 * (size_t)pairs[2 * k + 1], 3 * sizeof(double));
+      }
+      double tn = km_cli_now();
+      km_status rs =
+          km_recon_register_mesh(&s, registered, &tr_rest, feat, n_pairs, 0, nonrigid_V, &err);
+      free(feat);
+      if (!rs) {
+        sn.V = nonrigid_V;
+        rs = km_transfer_template_rotations(&sr, nonrigid_V, local, &err);
+      }
+      if (rs) {
+        free(mapped);
+        rc = km_cli_fail("transfer", &err);
+        goto done;
+      }
+      double mean, max;
+      km_vertex_distance_stats(registered, nonrigid_V, s.n_vertices, &mean, &max);
+      fprintf(stderr,
+              "kinemesh transfer: non-rigid registration onto %s: moved %.1f mm mean, %.1f mm max "
+              "(%.2f s)\n",
+              trest, mean * 1e3, max * 1e3, km_cli_now() - tn);
+    }
+    if (km_transfer_correspondence(&sn, &tr_rest, corr, &err) ||
+        km_transfer_map_pose(&sr, &tr_rest, t.V, corr, ids, nl, rots, mapped, &err)) {
       free(mapped);
       rc = km_cli_fail("transfer", &err);
       goto done;
     }
+    /* back into SOURCE's frame and size */
+    if (n_pairs >= 3) km_transfer_pose_to_source(sc, Q, tq, local, s.n_vertices, rots, nl, mapped);
     if (!targets)
       targets = mapped;
     else
@@ -246,5 +432,9 @@ done:
   km_mesh_free(&tr_rest);
   free(corr);
   free(rots);
+  free(pairs);
+  free(registered);
+  free(nonrigid_V);
+  free(local);
   return rc;
 }

@@ -34,7 +34,11 @@ int km_live_joint_index(const char *name);
  * array of 60 numbers, Kinect v1 order, metres in kinemesh space (y up, performer facing +z,
  * as in takes). joints: 60 doubles, NaN where missing. Returns the number of joints set, or
  * -1 for a malformed datagram (bad JSON, wrong count, non-numbers, non-finite values, no
- * known joint). */
+ * known joint). With "skeleton": KIND (a km_skeleton_kind_from_name name, e.g. "mediapipe"),
+ * "joints" is {name of KIND: [x,y,z] | null} or count(KIND)*3 numbers or nulls in KIND's
+ * order, converted with km_skeleton_convert (trunk points made up, e.g. the pelvis between
+ * MediaPipe's hips); the count returned is then of KIND's joints. The live page's camera
+ * sends this over the WebSocket, the same parser as the UDP input. */
 int km_live_parse_json(const char *data, size_t size, double *joints);
 
 /* A tracker OSC message, already decoded by liblo. */
@@ -168,6 +172,7 @@ bool km_live_replay(km_live *l);
 typedef struct km_live_stats {
   uint64_t frames_in, frames_out, frames_sent, frames_dropped;
   uint64_t osc_messages, udp_datagrams, bad_packets, solve_errors;
+  uint64_t ws_messages; /* joint frames sent by pages over the WebSocket (the camera) */
   uint64_t vmc_packets, vmc_messages, vmc_frames, vmc_bad, vmc_unknown; /* VMC input */
   uint64_t vmc_out_frames, vmc_out_errors;                              /* --vmc-out */
   int clients;

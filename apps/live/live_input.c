@@ -62,6 +62,47 @@ static int read_flat(const cJSON *a, double *joints) {
   return n;
 }
 
+/* {"skeleton": KIND, "joints": {name: [x,y,z] | null} | [count*3 numbers or nulls]}: the
+ * frame in KIND's joint order, then km_skeleton_convert to Kinect v1 (which makes up the trunk
+ * points MediaPipe lacks). Returns the number of source joints set, -1 when malformed. */
+static int read_kind(km_skeleton_kind kind, const cJSON *js, double *joints) {
+  int nk = km_skeleton_joint_count(kind), n = 0;
+  double in[3 * 64];
+  if (nk <= 0 || nk > 64) return -1;
+  for (int k = 0; k < 3 * nk; ++k)
+    in[k] = NAN;
+  if (cJSON_IsArray(js)) {
+    if (cJSON_GetArraySize(js) != 3 * nk) return -1;
+    int k = 0;
+    for (const cJSON *v = js->child; v; v = v->next, ++k) {
+      if (cJSON_IsNull(v)) continue;
+      if (!cJSON_IsNumber(v) || !isfinite(v->valuedouble)) return -1;
+      in[k] = v->valuedouble;
+    }
+    for (int j = 0; j < nk; ++j)
+      if (isnan(in[3 * j]) || isnan(in[3 * j + 1]) || isnan(in[3 * j + 2]))
+        in[3 * j] = in[3 * j + 1] = in[3 * j + 2] = NAN;
+      else
+        ++n;
+  } else if (cJSON_IsObject(js)) {
+    for (const cJSON *e = js->child; e; e = e->next) {
+      int j = km_skeleton_joint_index(kind, e->string);
+      if (j < 0) continue; /* another skeleton's joint: not this frame's */
+      double p[3];
+      int r = read_xyz(e, p);
+      if (r < 0) return -1;
+      if (r > 0) {
+        memcpy(in + 3 * j, p, sizeof p);
+        ++n;
+      }
+    }
+  } else {
+    return -1;
+  }
+  if (n) km_skeleton_convert(kind, in, KM_SKELETON_KINECT1, joints);
+  return n;
+}
+
 int km_live_parse_json(const char *data, size_t size, double *joints) {
   for (int k = 0; k < 3 * KM_KINECT1_JOINTS; ++k)
     joints[k] = NAN;
@@ -70,7 +111,11 @@ int km_live_parse_json(const char *data, size_t size, double *joints) {
   if (!doc) return -1;
   int n = -1;
   const cJSON *js = cJSON_IsArray(doc) ? doc : cJSON_GetObjectItemCaseSensitive(doc, "joints");
-  if (cJSON_IsArray(js)) {
+  const cJSON *sk = cJSON_IsObject(doc) ? cJSON_GetObjectItemCaseSensitive(doc, "skeleton") : NULL;
+  if (sk) {
+    int kind = cJSON_IsString(sk) ? km_skeleton_kind_from_name(sk->valuestring) : -1;
+    n = kind >= 0 ? read_kind((km_skeleton_kind)kind, js, joints) : -1;
+  } else if (cJSON_IsArray(js)) {
     n = read_flat(js, joints);
   } else if (cJSON_IsObject(js)) {
     n = 0;

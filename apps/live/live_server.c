@@ -140,6 +140,7 @@ struct km_live {
   char *handles_json; /* GET /handles */
   atomic_uint_fast64_t frames_in, frames_out, frames_sent, frames_dropped, osc_messages,
       udp_datagrams, bad_packets, solve_errors;
+  atomic_uint_fast64_t ws_messages; /* joint frames from pages (the camera), good or bad */
   atomic_uint_fast64_t vmc_packets, vmc_messages, vmc_frames, vmc_bad, vmc_unknown;
   atomic_uint_fast64_t vmc_out_frames, vmc_out_errors;
   km_live_vmc_out *vmc_out; /* deformation thread only */
@@ -210,6 +211,54 @@ static char *handles_json(const km_rig *rig) {
   return s;
 }
 
+/* A rig whose "handles" array is empty (`live --no-handles`, or a file written that way): the
+ * server starts idle, showing the rest mesh, until the page's first handle is saved (POST
+ * /rig). km_rig_parse refuses such a rig, so this is checked on the JSON. Returns 1 for an
+ * empty or absent "handles", 0 when it has handles, -1 when the text is not a JSON object. */
+static int rig_text_without_handles(const char *text, size_t len) {
+  cJSON *doc = cJSON_ParseWithLength(text, len);
+  if (!cJSON_IsObject(doc)) {
+    cJSON_Delete(doc);
+    return -1;
+  }
+  const cJSON *h = cJSON_GetObjectItemCaseSensitive(doc, "handles");
+  int r = !h || (cJSON_IsArray(h) && cJSON_GetArraySize(h) == 0);
+  cJSON_Delete(doc);
+  return r;
+}
+
+/* Publishes the handle list of the active rig (all taken over) for /status, /rig and
+ * /handles, freeing the previous one. */
+static void publish_handles(km_live *l, char **names, double *hpos, size_t n, char *text,
+                            size_t len, char *hj) {
+  pthread_mutex_lock(&l->st_mu);
+  for (size_t h = 0; h < l->n_handles; ++h)
+    free(l->handle_names[h]);
+  free(l->handle_names);
+  free(l->handle_pos);
+  free(l->rig_text);
+  free(l->handles_json);
+  l->handle_names = names;
+  l->handle_pos = hpos;
+  l->n_handles = n;
+  l->rig_text = text;
+  l->rig_len = len;
+  l->handles_json = hj;
+  pthread_mutex_unlock(&l->st_mu);
+}
+
+/* Installs a rig with no handles (text taken over): no puppetry rig, no frames deformed; the
+ * page shows the rest mesh and places the first handle. */
+static km_status apply_idle_rig(km_live *l, char *text, size_t len, km_error *err) {
+  char *hj = strdup("{\"handles\":[]}");
+  if (!hj) return km_error_set(err, KM_ERR_NOMEM, "out of memory for the rig");
+  read_rest_joints(l, text, len);
+  km_rig_free(&l->rig);
+  memset(&l->rig, 0, sizeof l->rig);
+  publish_handles(l, NULL, NULL, 0, text, len, hj);
+  return KM_OK;
+}
+
 /* Installs `nr` (taken over on success) as the active rig: km_puppetry_set_rig (handles,
  * filter, retarget seeded with the pose already seen), then the handle list and overlay. */
 static km_status apply_rig(km_live *l, live_rig *nr, km_error *err) {
@@ -238,21 +287,8 @@ static km_status apply_rig(km_live *l, live_rig *nr, km_error *err) {
   l->rig = *rig;
   memset(rig, 0, sizeof *rig);
 
-  pthread_mutex_lock(&l->st_mu);
-  for (size_t h = 0; h < l->n_handles; ++h)
-    free(l->handle_names[h]);
-  free(l->handle_names);
-  free(l->handle_pos);
-  free(l->rig_text);
-  free(l->handles_json);
-  l->handle_names = names;
-  l->handle_pos = hpos;
-  l->n_handles = l->rig.n_handles;
-  l->rig_text = nr->text;
-  l->rig_len = nr->len;
-  l->handles_json = hj;
+  publish_handles(l, names, hpos, l->rig.n_handles, nr->text, nr->len, hj);
   nr->text = NULL;
-  pthread_mutex_unlock(&l->st_mu);
   return KM_OK;
 fail:
   if (names)
@@ -583,6 +619,7 @@ static void *deform_main(void *arg) {
     }
     if (reset) km_puppetry_reset(l->pipe);
     if (!have) continue;
+    if (l->rig.n_handles == 0) continue; /* no handles yet: input is counted, nothing moves */
     km_error err = {0};
     if (km_puppetry_push_at(l->pipe, raw, t_recv, l->V, &err) != KM_OK) {
       atomic_fetch_add(&l->solve_errors, 1);
@@ -636,6 +673,7 @@ void km_live_get_stats(km_live *l, km_live_stats *o) {
   o->frames_dropped = atomic_load(&l->frames_dropped);
   o->osc_messages = atomic_load(&l->osc_messages);
   o->udp_datagrams = atomic_load(&l->udp_datagrams);
+  o->ws_messages = atomic_load(&l->ws_messages);
   o->bad_packets = atomic_load(&l->bad_packets);
   o->solve_errors = atomic_load(&l->solve_errors);
   o->vmc_packets = atomic_load(&l->vmc_packets);
@@ -673,6 +711,7 @@ char *km_live_status_json(km_live *l) {
   cJSON_AddNumberToObject(o, "frames_dropped", (double)s.frames_dropped);
   cJSON_AddNumberToObject(o, "osc_messages", (double)s.osc_messages);
   cJSON_AddNumberToObject(o, "udp_datagrams", (double)s.udp_datagrams);
+  cJSON_AddNumberToObject(o, "ws_messages", (double)s.ws_messages);
   cJSON_AddNumberToObject(o, "bad_packets", (double)s.bad_packets);
   cJSON_AddNumberToObject(o, "solve_errors", (double)s.solve_errors);
   cJSON_AddNumberToObject(o, "clients", s.clients);
@@ -740,6 +779,9 @@ typedef struct http_pss {
 typedef struct ws_pss {
   unsigned char *buf;
   size_t cap;
+  char *rx; /* a text message from the page, assembled from its fragments */
+  size_t rx_len;
+  bool rx_skip; /* the message being received is too long: dropped */
   uint64_t sent_seq;
   bool counted; /* ESTABLISHED was reached (a refused upgrade is CLOSED too) */
 } ws_pss;
@@ -802,6 +844,9 @@ static const char *mime(const char *path) {
   if (!strcmp(dot, ".json")) return "application/json";
   if (!strcmp(dot, ".png")) return "image/png";
   if (!strcmp(dot, ".svg")) return "image/svg+xml";
+  /* MediaPipe Pose (the Camera button): streaming compilation wants application/wasm; the
+   * .data, .tflite and .binarypb it fetches are octet-streams */
+  if (!strcmp(dot, ".wasm")) return "application/wasm";
   return "application/octet-stream";
 }
 
@@ -1295,6 +1340,34 @@ static int cb_http(struct lws *wsi, enum lws_callback_reasons reason, void *user
   return lws_callback_http_dummy(wsi, reason, user, in, len);
 }
 
+/* A joint frame from a page (the camera's MediaPipe landmarks): a text message in the JSON of
+ * the UDP input, km_live_parse_json, e.g. {"skeleton": "mediapipe", "joints": [99 numbers or
+ * nulls]}. The upgrade already checked Host, Origin and token. Binary and oversized messages
+ * are bad packets. */
+#define WS_RX_MAX 16384
+static void ws_receive(km_live *l, struct lws *wsi, ws_pss *p, const void *in, size_t len) {
+  if (lws_is_first_fragment(wsi)) {
+    p->rx_len = 0;
+    p->rx_skip = lws_frame_is_binary(wsi);
+  }
+  if (!p->rx_skip && p->rx_len + len > WS_RX_MAX) p->rx_skip = true;
+  if (!p->rx_skip && !p->rx) p->rx = malloc(WS_RX_MAX);
+  if (!p->rx) p->rx_skip = true;
+  if (!p->rx_skip && len) {
+    memcpy(p->rx + p->rx_len, in, len);
+    p->rx_len += len;
+  }
+  if (!lws_is_final_fragment(wsi)) return;
+  atomic_fetch_add(&l->ws_messages, 1);
+  double joints[3 * NJ];
+  if (p->rx_skip || km_live_parse_json(p->rx, p->rx_len, joints) < 0)
+    atomic_fetch_add(&l->bad_packets, 1);
+  else
+    push_frame(l, joints, km_seconds(), false);
+  p->rx_len = 0;
+  p->rx_skip = false;
+}
+
 static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, void *in,
                  size_t len) {
   struct lws_context *ctx = lws_get_context(wsi);
@@ -1334,6 +1407,8 @@ static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, 
     p->counted = false;
     free(p->buf);
     p->buf = NULL;
+    free(p->rx);
+    p->rx = NULL;
     return 0;
   case LWS_CALLBACK_SERVER_WRITEABLE: {
     if (lws_send_pipe_choked(wsi)) {
@@ -1365,10 +1440,7 @@ static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, 
     }
     return 0;
   }
-  case LWS_CALLBACK_RECEIVE:
-    (void)in;
-    (void)len;
-    return 0;
+  case LWS_CALLBACK_RECEIVE: ws_receive(l, wsi, p, in, len); return 0;
   default: break;
   }
   return 0;
@@ -1495,6 +1567,20 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
   po.model = puppet;
   if ((s = km_puppetry_create(mesh, NULL, NULL, NJ, &po, &l->pipe, NULL, err)) != KM_OK) goto fail;
   live_rig nr = {0};
+  if (rig_text_without_handles(rig_json, rig_size) == 1) {
+    char *text = malloc(rig_size + 1);
+    if (!text) {
+      s = km_error_set(err, KM_ERR_NOMEM, "out of memory");
+      goto fail;
+    }
+    memcpy(text, rig_json, rig_size);
+    text[rig_size] = 0;
+    if ((s = apply_idle_rig(l, text, rig_size, err)) != KM_OK) {
+      free(text);
+      goto fail;
+    }
+    goto rig_done;
+  }
   if ((s = km_rig_parse(rig_json, rig_size, opt->rig_path ? opt->rig_path : "rig", mesh, NULL, 0,
                         &nr.rig, err)) != KM_OK)
     goto fail;
@@ -1511,6 +1597,7 @@ km_status km_live_create(const km_live_options *opt, const km_mesh *mesh, km_pup
   km_rig_free(&nr.rig);
   free(nr.text);
   if (s != KM_OK) goto fail;
+rig_done:
 
   if (opt->osc_port > 0 && (l->osc_fd = udp_socket(l->bind, opt->osc_port, err, "OSC")) < 0) {
     s = KM_ERR_IO;
@@ -1636,12 +1723,7 @@ void km_live_free(km_live **lp) {
     km_rig_free(&l->pending.rig);
     free(l->pending.text);
   }
-  for (size_t h = 0; h < l->n_handles; ++h)
-    free(l->handle_names[h]);
-  free(l->handle_names);
-  free(l->handle_pos);
-  free(l->rig_text);
-  free(l->handles_json);
+  publish_handles(l, NULL, NULL, 0, NULL, 0, NULL); /* frees the handle list */
   free(l->V);
   free(l->out_latest);
   free(l->out_work);

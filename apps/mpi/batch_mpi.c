@@ -6,7 +6,11 @@
  *
  * A rank that dies: plain MPI has no portable failure notice (ULFM is not in OpenMPI 4), so a
  * rank running a job sends a heartbeat every second and rank 0 takes a rank it has not heard
- * from for --mpi-timeout seconds as dead, reports its job failed and gives it nothing more.
+ * from for --mpi-timeout seconds as dead and gives it nothing more; its job goes to another
+ * rank once (attempt 2) and is reported failed only when that one is lost too.
+ *
+ * One long take: its segment jobs are handed out like any other, its stitch once they have
+ * all finished (a rank with nothing else to do waits for it).
  * For mpirun not to abort every rank when one is killed it needs --enable-recovery; after a
  * death the collective MPI_Finalize would wait forever for the dead rank, so rank 0 writes the
  * batch report and ends the run with MPI_Abort (docs/cluster.md). */
@@ -20,17 +24,22 @@
 #include <unistd.h>
 
 enum { TAG_DONE = 1, TAG_BEAT = 2, TAG_JOB = 3 };
-enum { R_BUSY_NONE = -1, R_STOPPED = -2, R_DEAD = -3 };
+/* a rank's state besides the todo position of the job it runs */
+enum { R_BUSY_NONE = -1, R_STOPPED = -2, R_DEAD = -3, R_WAITING = -4 };
 
 typedef struct sched {
   km_batch *b;
   int size;
-  const size_t *todo;
-  size_t n_todo, next;
-  long *running; /* per rank: the job it runs, R_BUSY_NONE when waiting, R_STOPPED, R_DEAD */
+  const size_t *todo; /* job indices, longest first */
+  size_t n_todo;
+  char *taken;      /* per todo position: handed out (or run by rank 0) */
+  int *attempt;     /* per todo position: 1, or 2 once reassigned */
+  size_t *waits;    /* per todo position: segments of that (segmented) job not finished */
+  long *parent_pos; /* per todo position: todo position of the job its segment feeds, or -1 */
+  long *running;    /* per rank: the todo position it runs, or an R_ state */
   double *last_seen;
   double timeout;
-  size_t failed, dead;
+  size_t failed, dead, reassigned;
 } sched;
 
 static double now(void) {
@@ -41,13 +50,40 @@ static double now(void) {
 
 static void nap(void) { nanosleep(&(struct timespec){0, 20000000}, NULL); }
 
-/* Gives rank r its next job, or tells it to stop. */
+/* The first job not handed out whose segments (if any) are all finished; -1 when none now. */
+static long take_next(sched *s) {
+  for (size_t t = 0; t < s->n_todo; ++t)
+    if (!s->taken[t] && !s->waits[t]) {
+      s->taken[t] = 1;
+      return (long)t;
+    }
+  return -1;
+}
+
+static bool all_taken(const sched *s) {
+  for (size_t t = 0; t < s->n_todo; ++t)
+    if (!s->taken[t]) return false;
+  return true;
+}
+
+/* The job at todo position t has finished (ok or failed for good): its stitch may be due. */
+static void finished(sched *s, long t, int failed) {
+  s->failed += failed != 0;
+  if (s->parent_pos[t] >= 0) --s->waits[s->parent_pos[t]];
+}
+
+/* Gives rank r its next job, tells it to stop when every job is handed out, or (a stitch
+ * waiting for segments still running) leaves it waiting for the next service. */
 static void hand_out(sched *s, int r) {
-  int msg = -1;
-  if (s->next < s->n_todo) msg = (int)s->todo[s->next++];
-  MPI_Send(&msg, 1, MPI_INT, r, TAG_JOB, MPI_COMM_WORLD);
-  s->running[r] = msg >= 0 ? msg : R_STOPPED;
+  long t = take_next(s);
   s->last_seen[r] = now();
+  if (t < 0 && !all_taken(s)) {
+    s->running[r] = R_WAITING;
+    return;
+  }
+  int msg[2] = {t >= 0 ? (int)s->todo[t] : -1, t >= 0 ? s->attempt[t] : 0};
+  MPI_Send(msg, 2, MPI_INT, r, TAG_JOB, MPI_COMM_WORLD);
+  s->running[r] = t >= 0 ? t : R_STOPPED;
 }
 
 /* Rank 0's bookkeeping: answers every message waiting, then looks for silent ranks. */
@@ -61,39 +97,54 @@ static void service(void *user) {
     int r = st.MPI_SOURCE, msg[2] = {0, 0};
     MPI_Recv(msg, st.MPI_TAG == TAG_DONE ? 2 : 1, MPI_INT, r, st.MPI_TAG, MPI_COMM_WORLD,
              MPI_STATUS_IGNORE);
-    if (s->running[r] == R_DEAD) continue; /* taken for dead already: its job is reported */
+    if (s->running[r] == R_DEAD) continue; /* taken for dead already: its job is dealt with */
     s->last_seen[r] = now();
     if (st.MPI_TAG == TAG_DONE) {
-      if (msg[0] >= 0 && msg[1]) ++s->failed;
+      if (s->running[r] >= 0) finished(s, s->running[r], msg[1]);
       hand_out(s, r);
     }
   }
+  for (int r = 1; r < s->size; ++r)
+    if (s->running[r] == R_WAITING) hand_out(s, r);
   double t = now();
   for (int r = 1; r < s->size; ++r) {
-    if (s->running[r] == R_STOPPED || s->running[r] == R_DEAD) continue;
+    const long run = s->running[r];
+    if (run == R_STOPPED || run == R_DEAD || run == R_WAITING) continue;
     if (t - s->last_seen[r] <= s->timeout) continue;
-    char why[256];
-    if (s->running[r] >= 0) {
-      snprintf(why, sizeof why,
-               "MPI rank %d stopped answering for %.0f s while running it (killed or its node "
-               "lost)",
-               r, s->timeout);
-      km_batch_mark_failed(s->b, (size_t)s->running[r], why);
-      fprintf(stderr, "kinemesh batch: %s: FAILED: %s\n",
-              km_batch_job_id(s->b, (size_t)s->running[r]), why);
-      ++s->failed;
-    } else {
-      fprintf(stderr, "kinemesh batch: MPI rank %d never asked for a job; taken as lost\n", r);
-    }
     s->running[r] = R_DEAD;
     ++s->dead;
+    if (run < 0) {
+      fprintf(stderr, "kinemesh batch: MPI rank %d never asked for a job; taken as lost\n", r);
+      continue;
+    }
+    const size_t j = s->todo[run];
+    if (s->attempt[run] < 2) {
+      /* once: a node lost is not the job's fault; a job that kills its rank twice is */
+      s->attempt[run] = 2;
+      s->taken[run] = 0;
+      ++s->reassigned;
+      fprintf(stderr,
+              "kinemesh batch: %s: MPI rank %d stopped answering for %.0f s while running it "
+              "(killed or its node lost): handing it to another rank (attempt 2)\n",
+              km_batch_job_id(s->b, j), r, s->timeout);
+      continue;
+    }
+    char why[256];
+    snprintf(why, sizeof why,
+             "MPI rank %d stopped answering for %.0f s while running it (killed or its node "
+             "lost), the second rank it was given",
+             r, s->timeout);
+    km_batch_set_attempt(s->b, j, 2);
+    km_batch_mark_failed(s->b, j, why);
+    fprintf(stderr, "kinemesh batch: %s: FAILED: %s\n", km_batch_job_id(s->b, j), why);
+    finished(s, run, 1);
   }
 }
 
 static bool all_finished(const sched *s) {
   for (int r = 1; r < s->size; ++r)
     if (s->running[r] != R_STOPPED && s->running[r] != R_DEAD) return false;
-  return s->next >= s->n_todo;
+  return all_taken(s);
 }
 
 typedef struct beat {
@@ -113,12 +164,14 @@ static int worker(km_batch *b) {
   int msg[2] = {-1, 0};
   MPI_Send(msg, 2, MPI_INT, 0, TAG_DONE, MPI_COMM_WORLD); /* ready */
   for (;;) {
-    int flag = 0, job;
+    int flag = 0, got[2];
     /* polling with naps: a blocking receive spins a core, which the jobs need */
     while (MPI_Iprobe(0, TAG_JOB, MPI_COMM_WORLD, &flag, MPI_STATUS_IGNORE) == MPI_SUCCESS && !flag)
       nap();
-    MPI_Recv(&job, 1, MPI_INT, 0, TAG_JOB, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    MPI_Recv(got, 2, MPI_INT, 0, TAG_JOB, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    const int job = got[0];
     if (job < 0) break;
+    km_batch_set_attempt(b, (size_t)job, got[1]);
     beat h = {job, now()};
     msg[0] = job;
     msg[1] = km_batch_run_job(b, (size_t)job, heartbeat, &h);
@@ -138,13 +191,27 @@ int km_batch_mpi(km_batch *b, double timeout_s) {
   sched s = {.b = b, .size = size, .timeout = timeout_s};
   size_t *todo = NULL;
   s.n_todo = km_batch_plan(b, &todo);
+  const size_t nt = s.n_todo == (size_t)-1 ? 0 : s.n_todo;
   s.running = malloc(sizeof *s.running * (size_t)size);
   s.last_seen = malloc(sizeof *s.last_seen * (size_t)size);
-  if (s.n_todo == (size_t)-1 || !s.running || !s.last_seen) {
+  s.taken = calloc(nt + 1, 1);
+  s.attempt = malloc(sizeof *s.attempt * (nt + 1));
+  s.waits = calloc(nt + 1, sizeof *s.waits);
+  s.parent_pos = malloc(sizeof *s.parent_pos * (nt + 1));
+  if (s.n_todo == (size_t)-1 || !s.running || !s.last_seen || !s.taken || !s.attempt || !s.waits ||
+      !s.parent_pos) {
     fprintf(stderr, "kinemesh batch: out of memory\n");
     MPI_Abort(MPI_COMM_WORLD, 1);
   }
   s.todo = todo;
+  /* a segment that verified before is not in the plan: its stitch waits only for the others */
+  for (size_t t = 0; t < nt; ++t) {
+    s.attempt[t] = 1;
+    s.parent_pos[t] = -1;
+    const long p = km_batch_job_parent(b, todo[t]);
+    for (size_t q = 0; p >= 0 && q < nt; ++q)
+      if (todo[q] == (size_t)p) s.parent_pos[t] = (long)q, ++s.waits[q];
+  }
   for (int r = 0; r < size; ++r)
     s.running[r] = R_BUSY_NONE, s.last_seen[r] = now();
   fprintf(stderr, "kinemesh batch: %zu jobs to run on %d MPI ranks, longest first\n", s.n_todo,
@@ -153,9 +220,10 @@ int km_batch_mpi(km_batch *b, double timeout_s) {
    * between them and, through the tick, while its own job runs */
   for (;;) {
     service(&s);
-    if (s.next < s.n_todo) {
-      size_t j = s.todo[s.next++];
-      s.failed += km_batch_run_job(b, j, service, &s) != 0;
+    const long t = take_next(&s);
+    if (t >= 0) {
+      km_batch_set_attempt(b, todo[t], s.attempt[t]);
+      finished(&s, t, km_batch_run_job(b, todo[t], service, &s));
       continue;
     }
     if (all_finished(&s)) break;
@@ -165,6 +233,10 @@ int km_batch_mpi(km_batch *b, double timeout_s) {
   free(todo);
   free(s.running);
   free(s.last_seen);
+  free(s.taken);
+  free(s.attempt);
+  free(s.waits);
+  free(s.parent_pos);
   if (s.dead) {
     /* every live rank has been told to stop; MPI_Finalize, a collective, would wait for the
      * dead one forever (in every rank), so end them all here */

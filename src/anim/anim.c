@@ -183,6 +183,7 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     w->key_every = 1; /* the basis sees every frame */
     w->pca_k = o.morphs ? o.morphs : 16;
   }
+  w->compress = o.format == KM_ANIM_GLB && o.compress;
   w->path = dup_str(path);
   /* "out/frames/" must not put the temporary directory inside the destination. */
   for (size_t n = w->path ? strlen(w->path) : 0; n > 1 && w->path[n - 1] == '/'; --n)
@@ -535,15 +536,22 @@ static km_status close_skin(km_anim_writer *w, km_anim_report *rep, km_error *er
   clock_gettime(CLOCK_MONOTONIC, &t0);
   if (s == KM_OK) s = km_ssdr_fit(w->rest, nv, frames, T, &w->skin, &fit, err);
   clock_gettime(CLOCK_MONOTONIC, &t1);
-  free(frames);
-  if (s != KM_OK) return km__wrap(err, s, "%s", w->path);
+  if (s != KM_OK) {
+    free(frames);
+    return km__wrap(err, s, "%s", w->path);
+  }
   if (rep) {
     rep->bones = fit.n_bones;
     rep->rms_error = fit.rms_error;
     rep->max_error = fit.max_error;
     rep->fit_seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
   }
-  s = km__glb_write_skin(w, &fit, err);
+  s = km__glb_write_skin(w, &fit, frames, err);
+  free(frames);
+  if (rep && w->compress) {
+    rep->rms_error = w->q_rms;
+    rep->max_error = w->q_max;
+  }
   km_ssdr_free(&fit);
   return s;
 }
@@ -669,7 +677,13 @@ static km_status close_pca(km_anim_writer *w, km_anim_report *rep, km_error *err
   nk = NULL;
   w->n_keys = K;
   w->pca_frames = T;
+  w->pca_D = D;
   s = km__glb_finish(w, err);
+  w->pca_D = NULL;
+  if (rep && w->compress) {
+    rep->rms_error = w->q_rms;
+    rep->max_error = w->q_max;
+  }
 done:
   if (nk) fclose(nk);
   free(D);
@@ -704,9 +718,13 @@ km_status km_anim_writer_finish(km_anim_writer **wp, km_anim_report *rep, km_err
     s = close_skin(w, rep, err);
   else if (w->format == KM_ANIM_GLB && w->export_kind == KM_ANIM_EXPORT_MORPHS_PCA)
     s = close_pca(w, rep, err);
-  else if (w->format == KM_ANIM_GLB)
+  else if (w->format == KM_ANIM_GLB) {
     s = km__glb_finish(w, err);
-  else
+    if (rep && w->compress) {
+      rep->rms_error = w->q_rms;
+      rep->max_error = w->q_max;
+    }
+  } else
     s = close_dir(w, err);
   writer_discard(w);
   return s;

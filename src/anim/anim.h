@@ -1,4 +1,4 @@
-/* Requires: core, linalg, math, mesh. External: cJSON. */
+/* Requires: core, linalg, math, mesh. External: cJSON, meshoptimizer. */
 /* Private interface between the animation writer (anim.c) and its format back-ends. */
 #ifndef KM_IO_ANIM_H
 #define KM_IO_ANIM_H
@@ -71,6 +71,11 @@ struct km_anim_writer {
   float *pca_weights; /* pca_frames * n_keys, row per frame */
   size_t pca_frames;
   double pca_rms, pca_max; /* its error against the frames (m), kept in the extras */
+  const double *pca_D;     /* the exact displacements (pca_frames * #V*3) while writing */
+  /* --compress: KHR_mesh_quantization + EXT_meshopt_compression; the error a player sees of
+   * what was written (m; the quantisation's on top of the fit's) */
+  bool compress;
+  double q_rms, q_max;
 };
 
 /* Unit area-weighted normals of positions V over the writer's faces into w->nbuf; a vertex
@@ -80,8 +85,10 @@ void km__anim_normals(km_anim_writer *w, const double *V);
 /* Writes the final .glb from the stored keys (called by close). */
 km_status km__glb_finish(km_anim_writer *w, km_error *err);
 
-/* Writes the skinned .glb of a fit over the writer's rest mesh into w->af and commits it. */
-km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, km_error *err);
+/* Writes the skinned .glb of a fit over the writer's rest mesh into w->af and commits it;
+ * frames (fit->n_frames * #V*3, may be NULL) give the compressed file's error (w->q_rms). */
+km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double *frames,
+                             km_error *err);
 
 /* Every frame of a morph-target .glb (base + sum of weighted targets at each key of the first
  * weights channel; one frame per target without one): *frames n_frames * nv * 3, allocated.

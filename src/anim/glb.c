@@ -15,12 +15,17 @@
 #include <cjson/cJSON.h>
 #include <errno.h>
 #include <math.h>
+#include <meshoptimizer.h>
 #include <stdlib.h>
 
 #define GLB_MAGIC 0x46546C67u /* "glTF" */
 #define GLB_JSON 0x4E4F534Au  /* "JSON" */
 #define GLB_BIN 0x004E4942u   /* "BIN\0" */
 #define GL_FLOAT 5126
+#define GL_BYTE 5120
+#define GL_UNSIGNED_BYTE 5121
+#define GL_SHORT 5122
+#define GL_UNSIGNED_SHORT 5123
 #define GL_UNSIGNED_INT 5125
 #define GL_ARRAY_BUFFER 34962
 #define GL_ELEMENT_ARRAY_BUFFER 34963
@@ -61,8 +66,8 @@ static km_status write_all(km_anim_writer *w, FILE *f, const void *p, size_t n, 
   return KM_OK;
 }
 
-km_status km__glb_finish(km_anim_writer *w, km_error *err) {
-  /* The last frame always closes the animation, key or not. */
+/* The last frame always closes the animation, key or not: it becomes the closing key. */
+static km_status close_last_key(km_anim_writer *w, km_error *err) {
   if ((w->frames - 1) % w->key_every != 0) {
     if (fseek(w->keys, 0, SEEK_END) != 0)
       return km__fail(err, KM_ERR_IO, "%s: cannot seek the key-frame temporary", w->path);
@@ -81,6 +86,63 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     memcpy(w->key_minmax + 6 * w->n_keys, w->last_minmax, sizeof w->last_minmax);
     ++w->n_keys;
   }
+  return KM_OK;
+}
+
+/* The one GLB container writer (issue 16): the 12-byte header, the JSON chunk (root, printed
+ * and deleted here; space-padded to 4 bytes) and the BIN chunk of bin_len bytes (a multiple of
+ * 4) into the writer's temporary, published atomically. The BIN chunk is `bin` when given,
+ * else what `stream` writes (exactly bin_len bytes: a large morph file is streamed). */
+typedef km_status (*glb_bin_stream)(km_anim_writer *w, FILE *f, void *ctx, km_error *err);
+static km_status write_glb_container(km_anim_writer *w, cJSON *root, const unsigned char *bin,
+                                     uint64_t bin_len, glb_bin_stream stream, void *ctx,
+                                     km_error *err) {
+  char *json = root ? cJSON_PrintUnformatted(root) : NULL;
+  cJSON_Delete(root);
+  if (!json)
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory building the glTF JSON", w->path);
+  size_t json_len = strlen(json), json_pad = (4 - json_len % 4) % 4;
+  uint64_t total = 12 + 8 + json_len + json_pad + 8 + bin_len;
+  if (total > UINT32_MAX || bin_len % 4) {
+    free(json);
+    return km__fail(err, KM_ERR_UNSUPPORTED, "%s: glb would exceed 4 GiB", w->path);
+  }
+  km__atomic_file af = w->af; /* opened by km_anim_writer_open */
+  memset(&w->af, 0, sizeof w->af);
+  unsigned char h[20];
+  km__put_u32le(h, GLB_MAGIC);
+  km__put_u32le(h + 4, 2);
+  km__put_u32le(h + 8, (uint32_t)total);
+  km__put_u32le(h + 12, (uint32_t)(json_len + json_pad));
+  km__put_u32le(h + 16, GLB_JSON);
+  km_status s = write_all(w, af.f, h, 20, err);
+  if (s == KM_OK) s = write_all(w, af.f, json, json_len, err);
+  if (s == KM_OK) s = write_all(w, af.f, "   ", json_pad, err);
+  free(json);
+  km__put_u32le(h, (uint32_t)bin_len);
+  km__put_u32le(h + 4, GLB_BIN);
+  if (s == KM_OK) s = write_all(w, af.f, h, 8, err);
+  if (s == KM_OK) s = bin ? write_all(w, af.f, bin, bin_len, err) : stream(w, af.f, ctx, err);
+  if (s != KM_OK) {
+    km__atomic_abort(&af);
+    return s;
+  }
+  return km__atomic_commit(&af, err);
+}
+
+/* What the plain morph writer streams after the JSON. */
+typedef struct morph_stream {
+  const float *times;
+  size_t nt, nk;
+  bool pca, with_n;
+} morph_stream;
+static km_status stream_morph_bin(km_anim_writer *w, FILE *f, void *ctx, km_error *err);
+static km_status glb_finish_packed(km_anim_writer *w, km_error *err);
+
+km_status km__glb_finish(km_anim_writer *w, km_error *err) {
+  km_status s0 = close_last_key(w, err);
+  if (s0 != KM_OK) return s0;
+  if (w->compress) return glb_finish_packed(w, err);
   const size_t nv = w->n_vertices, nf = w->n_faces, nk = w->n_keys;
 
   /* Binary layout: indices, rest positions, targets, key times, weights. Every piece is a
@@ -213,38 +275,23 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   cJSON_AddItemToObject(root, "bufferViews", views);
   cJSON_AddItemToObject(root, "accessors", accessors);
 
-  char *json = cJSON_PrintUnformatted(root);
-  cJSON_Delete(root);
-  if (!json || off != bin_len) {
-    free(json);
+  if (off != bin_len) {
+    cJSON_Delete(root);
     free(times);
-    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory building the glTF JSON", w->path);
+    return km__fail(err, KM_ERR_NOMEM, "%s: glb layout mismatch", w->path);
   }
-  size_t json_len = strlen(json), json_pad = (4 - json_len % 4) % 4;
-  uint64_t total = 12 + 8 + json_len + json_pad + 8 + bin_len;
-  if (total > UINT32_MAX) {
-    free(json);
-    free(times);
-    return km__fail(err, KM_ERR_UNSUPPORTED, "%s: glb would exceed 4 GiB", w->path);
-  }
+  morph_stream ms = {times, nt, nk, pca, with_n};
+  km_status s = write_glb_container(w, root, NULL, bin_len, stream_morph_bin, &ms, err);
+  free(times);
+  return s;
+}
 
-  km__atomic_file af = w->af; /* opened by km_anim_writer_open */
-  memset(&w->af, 0, sizeof w->af);
+static km_status stream_morph_bin(km_anim_writer *w, FILE *f, void *ctx, km_error *err) {
+  const morph_stream *ms = ctx;
+  const size_t nv = w->n_vertices, nf = w->n_faces, nk = ms->nk, nt = ms->nt;
+  const bool pca = ms->pca, with_n = ms->with_n;
+  const float *times = ms->times;
   km_status s = KM_OK;
-  unsigned char h[20];
-  km__put_u32le(h, GLB_MAGIC);
-  km__put_u32le(h + 4, 2);
-  km__put_u32le(h + 8, (uint32_t)total);
-  km__put_u32le(h + 12, (uint32_t)(json_len + json_pad));
-  km__put_u32le(h + 16, GLB_JSON);
-  s = write_all(w, af.f, h, 20, err);
-  if (s == KM_OK) s = write_all(w, af.f, json, json_len, err);
-  if (s == KM_OK) s = write_all(w, af.f, "   ", json_pad, err);
-  free(json);
-  km__put_u32le(h, (uint32_t)bin_len);
-  km__put_u32le(h + 4, GLB_BIN);
-  if (s == KM_OK) s = write_all(w, af.f, h, 8, err);
-
   unsigned char *b = w->bytes;
   if (s == KM_OK && nf) {
     /* Indices in chunks that reuse the per-vertex scratch buffer (nv*12 bytes). */
@@ -253,14 +300,14 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
       size_t n = nf * 3 - done < chunk ? nf * 3 - done : chunk;
       for (size_t i = 0; i < n; ++i)
         km__put_u32le(b + 4 * i, (uint32_t)w->F[done + i]);
-      s = write_all(w, af.f, b, 4 * n, err);
+      s = write_all(w, f, b, 4 * n, err);
       done += n;
     }
   }
   if (s == KM_OK) {
     for (size_t i = 0; i < nv * 3; ++i)
       km__put_f32le(b + 4 * i, (float)w->rest[i]);
-    s = write_all(w, af.f, b, nv * 12, err);
+    s = write_all(w, f, b, nv * 12, err);
   }
   /* Rest normals are kept in vbuf's place until the keys need it: nbuf is reused per key. */
   double *rest_n = NULL;
@@ -273,14 +320,14 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     memcpy(rest_n, w->nbuf, nv * 3 * sizeof *rest_n);
     for (size_t i = 0; i < nv * 3; ++i)
       km__put_f32le(b + 4 * i, (float)rest_n[i]);
-    s = write_all(w, af.f, b, nv * 12, err);
+    s = write_all(w, f, b, nv * 12, err);
   }
   if (s == KM_OK && w->uv) {
     for (size_t i = 0; i < nv; ++i) {
       km__put_f32le(b + 8 * i, (float)w->uv[2 * i]);
       km__put_f32le(b + 8 * i + 4, (float)(1.0 - w->uv[2 * i + 1]));
     }
-    s = write_all(w, af.f, b, nv * 8, err);
+    s = write_all(w, f, b, nv * 8, err);
   }
   if (s == KM_OK && fseek(w->keys, 0, SEEK_SET) != 0)
     s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the key-frame temporary", w->path);
@@ -292,14 +339,14 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     }
     for (size_t i = 0; i < nv * 3; ++i)
       km__put_f32le(b + 4 * i, w->fbuf[i]);
-    s = write_all(w, af.f, b, nv * 12, err);
+    s = write_all(w, f, b, nv * 12, err);
     if (s == KM_OK && with_n) {
       for (size_t i = 0; i < nv * 3; ++i)
         w->vbuf[i] = w->rest[i] + (double)w->fbuf[i];
       km__anim_normals(w, w->vbuf);
       for (size_t i = 0; i < nv * 3; ++i)
         km__put_f32le(b + 4 * i, (float)(w->nbuf[i] - rest_n[i]));
-      s = write_all(w, af.f, b, nv * 12, err);
+      s = write_all(w, f, b, nv * 12, err);
     }
   }
   free(rest_n);
@@ -311,26 +358,21 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   if (s == KM_OK) {
     for (size_t k = 0; k < nt; ++k)
       km__put_f32le(row + 4 * k, times[k]);
-    s = write_all(w, af.f, row, 4 * nt, err);
+    s = write_all(w, f, row, 4 * nt, err);
     memset(row, 0, 4 * rl);
   }
-  free(times);
   for (size_t t = 0; pca && s == KM_OK && t < nt; ++t) {
     for (size_t k = 0; k < nk; ++k)
       km__put_f32le(row + 4 * k, w->pca_weights[t * nk + k]);
-    s = write_all(w, af.f, row, 4 * nk, err);
+    s = write_all(w, f, row, 4 * nk, err);
   }
   for (size_t k = 0; !pca && s == KM_OK && k < nk; ++k) {
     km__put_f32le(row + 4 * k, 1.0f);
-    s = write_all(w, af.f, row, 4 * nk, err);
+    s = write_all(w, f, row, 4 * nk, err);
     km__put_f32le(row + 4 * k, 0.0f);
   }
   free(row);
-  if (s != KM_OK) {
-    km__atomic_abort(&af);
-    return s;
-  }
-  return km__atomic_commit(&af, err);
+  return s;
 }
 
 /* ---------------------------------------------------------------- info */
@@ -503,17 +545,287 @@ static void quat_from_m3(const double R[9], double q[4]) {
     q[k] /= l;
 }
 
-km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, km_error *err) {
+/* ---------------------------------------------------------------- packing (issue 16) */
+
+/* The binary views of a glb being built in memory: plain (buffer 0 is the BIN chunk), or with
+ * compress EXT_meshopt_compression: each view's bytes are meshopt-encoded into the BIN chunk
+ * (buffer 0) and the view itself addresses buffer 1, the fallback buffer decoders fill (it
+ * has no uri, so the extension is required). */
+typedef struct glb_pack {
+  bin_buf bin;
+  uint64_t raw_len; /* the fallback buffer's length (compress) */
+  cJSON *views, *accessors;
+  bool compress;
+  size_t nv; /* vertices: the index codec's bound */
+} glb_pack;
+
+enum { PACK_ATTRIBUTES, PACK_TRIANGLES };
+
+/* Appends count elements of `stride` bytes (little-endian; for PACK_TRIANGLES host uint32
+ * indices) as one bufferView; filter: the meshopt filter the data was encoded with (NULL:
+ * NONE). vertex_stride: the view holds vertex attributes (byteStride is written). Returns the
+ * view index, -1 when out of memory. */
+static int pack_view(glb_pack *pk, const void *data, size_t count, size_t stride, int mode,
+                     const char *filter, int target, bool vertex_stride) {
+  size_t raw = count * stride;
+  cJSON *v = cJSON_CreateObject();
+  if (!v) return -1;
+  cJSON_AddItemToArray(pk->views, v);
+  if (!pk->compress) {
+    size_t off = pk->bin.len;
+    unsigned char *p = bin_grow(&pk->bin, raw);
+    if (!p) return -1;
+    memcpy(p, data, raw);
+    cJSON_AddNumberToObject(v, "buffer", 0);
+    cJSON_AddNumberToObject(v, "byteOffset", (double)off);
+  } else {
+    size_t bound = mode == PACK_TRIANGLES ? meshopt_encodeIndexBufferBound(count, pk->nv)
+                                          : meshopt_encodeVertexBufferBound(count, stride);
+    size_t off = pk->bin.len;
+    unsigned char *p = bin_grow(&pk->bin, bound);
+    if (!p) return -1;
+    size_t n = mode == PACK_TRIANGLES
+                   ? meshopt_encodeIndexBuffer(p, bound, (const unsigned int *)data, count)
+                   : meshopt_encodeVertexBuffer(p, bound, data, count, stride);
+    if (!n) return -1;
+    pk->bin.len = off + ((n + 3) & ~(size_t)3);
+    cJSON_AddNumberToObject(v, "buffer", 1);
+    cJSON_AddNumberToObject(v, "byteOffset", (double)pk->raw_len);
+    pk->raw_len += (raw + 3) & ~(uint64_t)3;
+    cJSON *e = cJSON_AddObjectToObject(cJSON_AddObjectToObject(v, "extensions"),
+                                       "EXT_meshopt_compression");
+    cJSON_AddNumberToObject(e, "buffer", 0);
+    cJSON_AddNumberToObject(e, "byteOffset", (double)off);
+    cJSON_AddNumberToObject(e, "byteLength", (double)n);
+    cJSON_AddNumberToObject(e, "byteStride", (double)stride);
+    cJSON_AddStringToObject(e, "mode", mode == PACK_TRIANGLES ? "TRIANGLES" : "ATTRIBUTES");
+    if (filter) cJSON_AddStringToObject(e, "filter", filter);
+    cJSON_AddNumberToObject(e, "count", (double)count);
+  }
+  cJSON_AddNumberToObject(v, "byteLength", (double)raw);
+  if (vertex_stride) cJSON_AddNumberToObject(v, "byteStride", (double)stride);
+  if (target) cJSON_AddNumberToObject(v, "target", target);
+  return cJSON_GetArraySize(pk->views) - 1;
+}
+
+/* Appends an accessor over a whole view; min/max (n values each) may be NULL. Returns its
+ * index, -1 when view is -1. */
+static int pack_accessor(glb_pack *pk, int view, int component, bool normalized, size_t count,
+                         const char *type, const double *mn, const double *mx, int n) {
+  if (view < 0) return -1;
+  cJSON *a = cJSON_CreateObject();
+  cJSON_AddNumberToObject(a, "bufferView", view);
+  cJSON_AddNumberToObject(a, "componentType", component);
+  if (normalized) cJSON_AddBoolToObject(a, "normalized", 1);
+  cJSON_AddNumberToObject(a, "count", (double)count);
+  cJSON_AddStringToObject(a, "type", type);
+  if (mn) {
+    cJSON_AddItemToObject(a, "min", cJSON_CreateDoubleArray(mn, n));
+    cJSON_AddItemToObject(a, "max", cJSON_CreateDoubleArray(mx, n));
+  }
+  cJSON_AddItemToArray(pk->accessors, a);
+  return cJSON_GetArraySize(pk->accessors) - 1;
+}
+
+/* KHR_mesh_quantization grid: position p is stored as the integer round((p - off) / s) with
+ * POS_BITS bits over the rest's largest extent; morph deltas as signed 16-bit on the same
+ * grid (s grows when a delta would not fit). Whoever displays the mesh dequantises through
+ * the mesh node's scale s and translation off (morphs) or the inverse bind matrices (skin). */
+#define POS_BITS 14
+typedef struct qgrid {
+  double off[3], s;
+} qgrid;
+
+static qgrid make_grid(const float rest_minmax[6], double max_delta) {
+  qgrid g;
+  double ext = 0;
+  for (int a = 0; a < 3; ++a) {
+    g.off[a] = (double)rest_minmax[a];
+    ext = fmax(ext, (double)rest_minmax[3 + a] - (double)rest_minmax[a]);
+  }
+  g.s = fmax(ext / ((1 << POS_BITS) - 1), max_delta / 32000.0);
+  if (!(g.s > 0)) g.s = 1e-6;
+  /* a float32 scale, as the JSON holds it, so the file and the error estimate agree */
+  g.s = (double)(float)g.s;
+  for (int a = 0; a < 3; ++a)
+    g.off[a] = (double)(float)g.off[a];
+  return g;
+}
+
+static void put_u16le(unsigned char *p, unsigned v) {
+  p[0] = (unsigned char)v;
+  p[1] = (unsigned char)(v >> 8);
+}
+
+/* Rest positions quantised into b (8 bytes per vertex: u16 xyz + padding), their integer
+ * min/max, and the dequantised positions into dq (#V*3). */
+static void quantise_positions(const double *V, size_t nv, const qgrid *g, unsigned char *b,
+                               double mn[3], double mx[3], double *dq) {
+  for (int a = 0; a < 3; ++a)
+    mn[a] = 65535, mx[a] = 0;
+  for (size_t i = 0; i < nv; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      double q = round((V[3 * i + a] - g->off[a]) / g->s);
+      q = q < 0 ? 0 : q > 65535 ? 65535 : q;
+      put_u16le(b + 8 * i + 2 * a, (unsigned)q);
+      mn[a] = fmin(mn[a], q), mx[a] = fmax(mx[a], q);
+      if (dq) dq[3 * i + a] = g->off[a] + g->s * q;
+    }
+    put_u16le(b + 8 * i + 6, 0);
+  }
+}
+
+/* Unit normals N (#V*3), octahedral-encoded 8-bit into b (4 bytes per vertex). */
+static int pack_normals(glb_pack *pk, const double *N, size_t nv, unsigned char *b, float *f4) {
+  if (!pk->compress) {
+    for (size_t i = 0; i < nv * 3; ++i)
+      km__put_f32le(b + 4 * i, (float)N[i]);
+    return pack_accessor(pk,
+                         pack_view(pk, b, nv, 12, PACK_ATTRIBUTES, NULL, GL_ARRAY_BUFFER, false),
+                         GL_FLOAT, false, nv, "VEC3", NULL, NULL, 0);
+  }
+  for (size_t i = 0; i < nv; ++i) {
+    for (int a = 0; a < 3; ++a)
+      f4[4 * i + a] = (float)N[3 * i + a];
+    f4[4 * i + 3] = 0;
+  }
+  meshopt_encodeFilterOct(b, nv, 4, 8, f4);
+  return pack_accessor(
+      pk, pack_view(pk, b, nv, 4, PACK_ATTRIBUTES, "OCTAHEDRAL", GL_ARRAY_BUFFER, true), GL_BYTE,
+      true, nv, "VEC3", NULL, NULL, 0);
+}
+
+/* Texture coordinates (v flipped to glTF's top-left origin), 16-bit normalised when compress
+ * and all lie in [0, 1], else float. */
+static int pack_uv(glb_pack *pk, const double *uv, size_t nv, unsigned char *b) {
+  bool unit = pk->compress;
+  for (size_t i = 0; unit && i < nv * 2; ++i)
+    unit = uv[i] >= 0 && uv[i] <= 1;
+  if (unit) {
+    for (size_t i = 0; i < nv; ++i) {
+      put_u16le(b + 4 * i, (unsigned)lround(uv[2 * i] * 65535));
+      put_u16le(b + 4 * i + 2, (unsigned)lround((1.0 - uv[2 * i + 1]) * 65535));
+    }
+    return pack_accessor(pk, pack_view(pk, b, nv, 4, PACK_ATTRIBUTES, NULL, GL_ARRAY_BUFFER, true),
+                         GL_UNSIGNED_SHORT, true, nv, "VEC2", NULL, NULL, 0);
+  }
+  for (size_t i = 0; i < nv; ++i) {
+    km__put_f32le(b + 8 * i, (float)uv[2 * i]);
+    km__put_f32le(b + 8 * i + 4, (float)(1.0 - uv[2 * i + 1]));
+  }
+  return pack_accessor(
+      pk, pack_view(pk, b, nv, 8, PACK_ATTRIBUTES, NULL, GL_ARRAY_BUFFER, pk->compress), GL_FLOAT,
+      false, nv, "VEC2", NULL, NULL, 0);
+}
+
+/* Triangle indices: host uint32 for the index codec, little-endian bytes when plain. */
+static int pack_indices(glb_pack *pk, const int32_t *F, size_t nf, unsigned char *b) {
+  for (size_t i = 0; i < nf * 3; ++i) {
+    if (pk->compress) {
+      uint32_t u = (uint32_t)F[i];
+      memcpy(b + 4 * i, &u, 4);
+    } else {
+      km__put_u32le(b + 4 * i, (uint32_t)F[i]);
+    }
+  }
+  return pack_accessor(
+      pk, pack_view(pk, b, nf * 3, 4, PACK_TRIANGLES, NULL, GL_ELEMENT_ARRAY_BUFFER, false),
+      GL_UNSIGNED_INT, false, nf * 3, "SCALAR", NULL, NULL, 0);
+}
+
+/* Float data through the exponential filter (compress; `bits` of mantissa, one exponent per
+ * element of `comps` floats), else plain float32. decoded (may be NULL) receives what a
+ * decoder reads back. */
+static int pack_floats(glb_pack *pk, const float *x, size_t count, int comps, int bits,
+                       unsigned char *b, float *decoded, const char *type, const double *mn,
+                       const double *mx) {
+  size_t stride = 4 * (size_t)comps;
+  if (pk->compress) {
+    meshopt_encodeFilterExp(b, count, stride, bits, x);
+    if (decoded) {
+      memcpy(decoded, b, count * stride);
+      meshopt_decodeFilterExp(decoded, count, stride);
+    }
+  } else {
+    for (size_t i = 0; i < count * (size_t)comps; ++i)
+      km__put_f32le(b + 4 * i, x[i]);
+    if (decoded) memcpy(decoded, x, count * stride);
+  }
+  return pack_accessor(pk,
+                       pack_view(pk, b, count, stride, PACK_ATTRIBUTES,
+                                 pk->compress ? "EXPONENTIAL" : NULL, 0, false),
+                       GL_FLOAT, false, count, type, mn, mx, comps);
+}
+
+/* Adds the extensions a packed file uses and its buffers (the BIN chunk; with compress the
+ * fallback buffer too). */
+static void pack_finish_json(glb_pack *pk, cJSON *root) {
+  cJSON *buffers = cJSON_AddArrayToObject(root, "buffers");
+  cJSON *b0 = cJSON_CreateObject();
+  cJSON_AddNumberToObject(b0, "byteLength", (double)pk->bin.len);
+  cJSON_AddItemToArray(buffers, b0);
+  if (pk->compress) {
+    cJSON *b1 = cJSON_CreateObject();
+    cJSON_AddNumberToObject(b1, "byteLength", (double)pk->raw_len);
+    cJSON_AddBoolToObject(cJSON_AddObjectToObject(cJSON_AddObjectToObject(b1, "extensions"),
+                                                  "EXT_meshopt_compression"),
+                          "fallback", 1);
+    cJSON_AddItemToArray(buffers, b1);
+    const char *ext[2] = {"EXT_meshopt_compression", "KHR_mesh_quantization"};
+    cJSON_AddItemToObject(root, "extensionsUsed", cJSON_CreateStringArray(ext, 2));
+    cJSON_AddItemToObject(root, "extensionsRequired", cJSON_CreateStringArray(ext, 2));
+  }
+  cJSON_AddItemToObject(root, "bufferViews", pk->views);
+  cJSON_AddItemToObject(root, "accessors", pk->accessors);
+  pk->views = pk->accessors = NULL;
+}
+
+static void quat_to_m3(const double q[4], double R[9]) {
+  double x = q[0], y = q[1], z = q[2], w = q[3], l = sqrt(x * x + y * y + z * z + w * w);
+  if (l > 0) x /= l, y /= l, z /= l, w /= l;
+  R[0] = 1 - 2 * (y * y + z * z), R[1] = 2 * (x * y - z * w), R[2] = 2 * (x * z + y * w);
+  R[3] = 2 * (x * y + z * w), R[4] = 1 - 2 * (x * x + z * z), R[5] = 2 * (y * z - x * w);
+  R[6] = 2 * (x * z - y * w), R[7] = 2 * (y * z + x * w), R[8] = 1 - 2 * (x * x + y * y);
+}
+
+/* Little-endian float32 copy of a float array into b, for pack_view without a filter. */
+static int pack_raw_floats(glb_pack *pk, const float *x, size_t count, const char *type, int comps,
+                           unsigned char *b, const double *mn, const double *mx) {
+  for (size_t i = 0; i < count * (size_t)comps; ++i)
+    km__put_f32le(b + 4 * i, x[i]);
+  return pack_accessor(pk,
+                       pack_view(pk, b, count, 4 * (size_t)comps, PACK_ATTRIBUTES, NULL, 0, false),
+                       GL_FLOAT, false, count, type, mn, mx, comps);
+}
+
+static void add_grid_extras(cJSON *ex, const qgrid *g) {
+  cJSON *q = cJSON_AddObjectToObject(ex, "quantization");
+  cJSON_AddItemToObject(q, "offset", cJSON_CreateDoubleArray(g->off, 3));
+  cJSON_AddNumberToObject(q, "scale", g->s);
+  cJSON_AddNumberToObject(q, "position_bits", POS_BITS);
+}
+
+km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double *frames,
+                             km_error *err) {
   const size_t nv = w->n_vertices, nf = w->n_faces, B = fit->n_bones, T = fit->n_frames;
-  bin_buf b = {0};
+  const bool z = w->compress;
+  glb_pack pk = {.compress = z, .nv = nv};
+  pk.views = cJSON_CreateArray();
+  pk.accessors = cJSON_CreateArray();
   cJSON *root = cJSON_CreateObject();
-  cJSON *views = cJSON_CreateArray(), *accessors = cJSON_CreateArray();
+  size_t scratch = nv * 16;
+  if (nf * 12 > scratch) scratch = nf * 12;
+  if (T * 16 > scratch) scratch = T * 16;
+  if (B * 64 > scratch) scratch = B * 64;
+  unsigned char *b = malloc(scratch), *b2 = malloc(T * 16 + 16);
+  float *f4 = km__malloc((nv > T ? nv : T) * 4, sizeof *f4);
+  double *vq = z ? km__malloc(nv * 3, sizeof *vq) : NULL;       /* dequantised rest */
+  double *wq = z ? km__malloc(nv * 4, sizeof *wq) : NULL;       /* dequantised weights */
+  double *rig = z ? km__malloc(T * B * 12, sizeof *rig) : NULL; /* decoded [R | t] per frame */
+  const qgrid g = make_grid(w->rest_minmax, 0);
   km_status s = KM_OK;
-  unsigned char *p;
-#define GROW(n)                                                                                    \
-  do {                                                                                             \
-    if (!(p = bin_grow(&b, (n)))) goto nomem;                                                      \
-  } while (0)
+  if (!root || !pk.views || !pk.accessors || !b || !b2 || !f4 || (z && (!vq || !wq || !rig)))
+    goto nomem;
 
   cJSON *asset = cJSON_AddObjectToObject(root, "asset");
   cJSON_AddStringToObject(asset, "version", "2.0");
@@ -524,102 +836,102 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, km_error *er
   cJSON_AddNumberToObject(ex, "key_every", 1);
   cJSON_AddStringToObject(ex, "export", "skin");
   cJSON_AddNumberToObject(ex, "bones", (double)B);
-  cJSON_AddNumberToObject(ex, "rms_error_m", fit->rms_error);
-  cJSON_AddNumberToObject(ex, "max_error_m", fit->max_error);
 
   /* ---- the mesh: indices, rest positions, normals, UVs, joints, weights */
+  cJSON *mesh = cJSON_CreateObject();
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "meshes"), mesh);
   cJSON *prim = cJSON_CreateObject();
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(mesh, "primitives"), prim);
+  cJSON_AddStringToObject(mesh, "name", "kinemesh");
   cJSON *attrs = cJSON_AddObjectToObject(prim, "attributes");
-  size_t off;
+  int a;
   if (nf) {
-    off = b.len;
-    GROW(nf * 12);
-    for (size_t i = 0; i < nf * 3; ++i)
-      km__put_u32le(p + 4 * i, (uint32_t)w->F[i]);
-    cJSON_AddNumberToObject(prim, "indices",
-                            add_view_accessor(views, accessors, off, nf * 12,
-                                              GL_ELEMENT_ARRAY_BUFFER, GL_UNSIGNED_INT, nf * 3,
-                                              "SCALAR", NULL, NULL, 0));
+    if ((a = pack_indices(&pk, w->F, nf, b)) < 0) goto nomem;
+    cJSON_AddNumberToObject(prim, "indices", a);
   }
-  off = b.len;
-  GROW(nv * 12);
-  for (size_t i = 0; i < nv * 3; ++i)
-    km__put_f32le(p + 4 * i, (float)w->rest[i]);
-  cJSON_AddNumberToObject(attrs, "POSITION",
-                          add_view_accessor(views, accessors, off, nv * 12, GL_ARRAY_BUFFER,
-                                            GL_FLOAT, nv, "VEC3", w->rest_minmax,
-                                            w->rest_minmax + 3, 3));
+  double mn[3], mx[3];
+  if (z) {
+    quantise_positions(w->rest, nv, &g, b, mn, mx, vq);
+    a = pack_accessor(&pk, pack_view(&pk, b, nv, 8, PACK_ATTRIBUTES, NULL, GL_ARRAY_BUFFER, true),
+                      GL_UNSIGNED_SHORT, false, nv, "VEC3", mn, mx, 3);
+  } else {
+    for (size_t i = 0; i < nv * 3; ++i)
+      km__put_f32le(b + 4 * i, (float)w->rest[i]);
+    for (int c = 0; c < 3; ++c)
+      mn[c] = w->rest_minmax[c], mx[c] = w->rest_minmax[3 + c];
+    a = pack_accessor(&pk, pack_view(&pk, b, nv, 12, PACK_ATTRIBUTES, NULL, GL_ARRAY_BUFFER, false),
+                      GL_FLOAT, false, nv, "VEC3", mn, mx, 3);
+  }
+  if (a < 0) goto nomem;
+  cJSON_AddNumberToObject(attrs, "POSITION", a);
   if (nf) {
     /* Engines skin the normals with the bones, so the rest's normals are all they need. */
     if (!w->nbuf && !(w->nbuf = km__malloc(nv * 3, sizeof *w->nbuf))) goto nomem;
     km__anim_normals(w, w->rest);
-    off = b.len;
-    GROW(nv * 12);
-    for (size_t i = 0; i < nv * 3; ++i)
-      km__put_f32le(p + 4 * i, (float)w->nbuf[i]);
-    cJSON_AddNumberToObject(attrs, "NORMAL",
-                            add_view_accessor(views, accessors, off, nv * 12, GL_ARRAY_BUFFER,
-                                              GL_FLOAT, nv, "VEC3", NULL, NULL, 0));
+    if ((a = pack_normals(&pk, w->nbuf, nv, b, f4)) < 0) goto nomem;
+    cJSON_AddNumberToObject(attrs, "NORMAL", a);
   }
   if (w->uv) {
-    off = b.len;
-    GROW(nv * 8);
-    for (size_t i = 0; i < nv; ++i) {
-      km__put_f32le(p + 8 * i, (float)w->uv[2 * i]);
-      km__put_f32le(p + 8 * i + 4, (float)(1.0 - w->uv[2 * i + 1]));
-    }
-    cJSON_AddNumberToObject(attrs, "TEXCOORD_0",
-                            add_view_accessor(views, accessors, off, nv * 8, GL_ARRAY_BUFFER,
-                                              GL_FLOAT, nv, "VEC2", NULL, NULL, 0));
+    if ((a = pack_uv(&pk, w->uv, nv, b)) < 0) goto nomem;
+    cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a);
   }
   const bool wide = B > 256;
-  off = b.len;
-  GROW(nv * (wide ? 8 : 4));
   for (size_t i = 0; i < nv; ++i)
     for (int k = 0; k < 4; ++k) {
       int32_t j = fit->skin.joints[4 * i + k];
       uint32_t v = j < 0 ? 0 : (uint32_t)j;
-      if (wide) {
-        p[8 * i + 2 * k] = (unsigned char)v;
-        p[8 * i + 2 * k + 1] = (unsigned char)(v >> 8);
-      } else {
-        p[4 * i + k] = (unsigned char)v;
-      }
+      if (wide)
+        put_u16le(b + 8 * i + 2 * k, v);
+      else
+        b[4 * i + k] = (unsigned char)v;
     }
-  cJSON_AddNumberToObject(attrs, "JOINTS_0",
-                          add_view_accessor(views, accessors, off, nv * (wide ? 8 : 4),
-                                            GL_ARRAY_BUFFER, wide ? 5123 : 5121, nv, "VEC4", NULL,
-                                            NULL, 0));
-  off = b.len;
-  GROW(nv * 16);
+  a = pack_accessor(&pk,
+                    pack_view(&pk, b, nv, wide ? 8 : 4, PACK_ATTRIBUTES, NULL, GL_ARRAY_BUFFER, z),
+                    wide ? GL_UNSIGNED_SHORT : GL_UNSIGNED_BYTE, false, nv, "VEC4", NULL, NULL, 0);
+  if (a < 0) goto nomem;
+  cJSON_AddNumberToObject(attrs, "JOINTS_0", a);
   for (size_t i = 0; i < nv; ++i) {
-    /* float32 weights renormalised so their float sum is 1 (the validator checks it). */
-    float f[4];
-    double sum = 0;
+    /* Weights renormalised so their stored sum is exactly 1 (the validator checks it): float32
+     * when plain, 8-bit normalised (sum 255) when compressed. */
+    double x[4];
     int big = 0;
     for (int k = 0; k < 4; ++k) {
-      double x = fit->skin.joints[4 * i + k] < 0 ? 0 : fit->skin.weights[4 * i + k];
-      f[k] = (float)x;
-      if (f[k] > f[big]) big = k;
+      x[k] = fit->skin.joints[4 * i + k] < 0 ? 0 : fit->skin.weights[4 * i + k];
+      if (x[k] > x[big]) big = k;
     }
-    for (int k = 0; k < 4; ++k)
-      if (k != big) sum += f[k];
-    f[big] = (float)(1.0 - sum);
-    for (int k = 0; k < 4; ++k)
-      km__put_f32le(p + 16 * i + 4 * k, f[k]);
+    if (z) {
+      int q[4], sum = 0;
+      for (int k = 0; k < 4; ++k)
+        sum += (q[k] = (int)lround(x[k] * 255));
+      q[big] += 255 - sum;
+      for (int k = 0; k < 4; ++k) {
+        b[4 * i + k] = (unsigned char)q[k];
+        wq[4 * i + k] = q[k] / 255.0;
+      }
+    } else {
+      float f[4];
+      double sum = 0;
+      for (int k = 0; k < 4; ++k)
+        f[k] = (float)x[k];
+      for (int k = 0; k < 4; ++k)
+        if (k != big) sum += f[k];
+      f[big] = (float)(1.0 - sum);
+      for (int k = 0; k < 4; ++k)
+        km__put_f32le(b + 16 * i + 4 * k, f[k]);
+    }
   }
-  cJSON_AddNumberToObject(attrs, "WEIGHTS_0",
-                          add_view_accessor(views, accessors, off, nv * 16, GL_ARRAY_BUFFER,
-                                            GL_FLOAT, nv, "VEC4", NULL, NULL, 0));
+  a = pack_accessor(&pk,
+                    pack_view(&pk, b, nv, z ? 4 : 16, PACK_ATTRIBUTES, NULL, GL_ARRAY_BUFFER, z),
+                    z ? GL_UNSIGNED_BYTE : GL_FLOAT, z, nv, "VEC4", NULL, NULL, 0);
+  if (a < 0) goto nomem;
+  cJSON_AddNumberToObject(attrs, "WEIGHTS_0", a);
   cJSON_AddNumberToObject(prim, "mode", nf ? 4 : 0);
-  cJSON *mesh = cJSON_CreateObject();
-  cJSON_AddItemToArray(cJSON_AddArrayToObject(mesh, "primitives"), prim);
-  cJSON_AddStringToObject(mesh, "name", "kinemesh");
-  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "meshes"), mesh);
 
   /* ---- skeleton: node 0 the skinned mesh, node 1 an identity root, nodes 2.. the bones,
    * each bound at its rest centre with no rotation, so inverseBindMatrix_j = T(-c_j) and the
-   * fitted rest->frame transform [R | t] is the node's TRS: rotation R, translation R c_j + t. */
+   * fitted rest->frame transform [R | t] is the node's TRS: rotation R, translation R c_j + t.
+   * Compressed, the dequantisation (scale s, offset o) joins each inverse bind matrix:
+   * T(o - c_j) S(s), as gltfpack does (a skinned mesh's own node transform is ignored). */
   cJSON *nodes = cJSON_AddArrayToObject(root, "nodes");
   cJSON *n0 = cJSON_CreateObject();
   cJSON_AddStringToObject(n0, "name", "kinemesh");
@@ -643,19 +955,20 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, km_error *er
     cJSON_AddItemToObject(nj, "translation", num_array(c, 3));
     cJSON_AddItemToArray(nodes, nj);
   }
-  off = b.len;
-  GROW(B * 64);
   for (size_t j = 0; j < B; ++j) {
     float m[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-    for (int a = 0; a < 3; ++a)
-      m[12 + a] = -(float)fit->centers[3 * j + a]; /* column-major: translation last */
+    for (int c = 0; c < 3; ++c) {
+      m[5 * c] = z ? (float)g.s : 1.0f;
+      m[12 + c] = (float)((z ? g.off[c] : 0.0) - fit->centers[3 * j + c]); /* column-major */
+    }
     for (int k = 0; k < 16; ++k)
-      km__put_f32le(p + 64 * j + 4 * k, m[k]);
+      km__put_f32le(b + 64 * j + 4 * k, m[k]);
   }
-  int a_ibm =
-      add_view_accessor(views, accessors, off, B * 64, 0, GL_FLOAT, B, "MAT4", NULL, NULL, 0);
+  a = pack_accessor(&pk, pack_view(&pk, b, B, 64, PACK_ATTRIBUTES, NULL, 0, false), GL_FLOAT, false,
+                    B, "MAT4", NULL, NULL, 0);
+  if (a < 0) goto nomem;
   cJSON *skin = cJSON_CreateObject();
-  cJSON_AddNumberToObject(skin, "inverseBindMatrices", a_ibm);
+  cJSON_AddNumberToObject(skin, "inverseBindMatrices", a);
   cJSON_AddNumberToObject(skin, "skeleton", 1);
   cJSON_AddItemToObject(skin, "joints", joints);
   cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "skins"), skin);
@@ -664,34 +977,36 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, km_error *er
   cJSON_AddItemToObject(scene, "nodes", cJSON_CreateIntArray((const int[]){0, 1}, 2));
   cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "scenes"), scene);
 
-  /* ---- animation: shared key times, then per bone a translation and a rotation channel */
-  off = b.len;
-  GROW(T * 4);
+  /* ---- animation: shared key times, then per bone a translation and a rotation channel
+   * (compressed: translations through the exponential filter, 16-bit mantissa; rotations
+   * through the quaternion filter, 16 bits, stored as normalised shorts) */
   for (size_t t = 0; t < T; ++t)
-    km__put_f32le(p + 4 * t, (float)((double)t / w->fps));
-  float tmin = 0, tmax = (float)((double)(T - 1) / w->fps);
-  int a_time =
-      add_view_accessor(views, accessors, off, T * 4, 0, GL_FLOAT, T, "SCALAR", &tmin, &tmax, 1);
+    f4[t] = (float)((double)t / w->fps);
+  double tmin = 0, tmax = f4[T - 1];
+  int a_time = pack_raw_floats(&pk, f4, T, "SCALAR", 1, b, &tmin, &tmax);
+  if (a_time < 0) goto nomem;
   cJSON *anim = cJSON_CreateObject();
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "animations"), anim);
   cJSON_AddStringToObject(anim, "name", "kinemesh");
   cJSON *channels = cJSON_AddArrayToObject(anim, "channels");
   cJSON *samplers = cJSON_AddArrayToObject(anim, "samplers");
   for (size_t j = 0; j < B; ++j) {
-    size_t off_t = b.len;
-    GROW(T * 12);
-    unsigned char *pt = p;
-    size_t off_r = b.len;
-    GROW(T * 16);
-    unsigned char *pr = p;
-    pt = b.p + off_t; /* the second GROW may have moved the buffer */
+    const double *c = fit->centers + 3 * j;
+    for (size_t t = 0; t < T; ++t) {
+      const double *M = fit->transforms + (t * B + j) * 12;
+      for (int k = 0; k < 3; ++k)
+        f4[3 * t + k] =
+            (float)(M[4 * k] * c[0] + M[4 * k + 1] * c[1] + M[4 * k + 2] * c[2] + M[4 * k + 3]);
+    }
+    int a_t = pack_floats(&pk, f4, T, 3, 16, b, (float *)b2, "VEC3", NULL, NULL);
+    if (a_t < 0) goto nomem;
+    for (size_t t = 0; z && t < T; ++t)
+      for (int k = 0; k < 3; ++k)
+        rig[(t * B + j) * 12 + 4 * k + 3] = ((const float *)b2)[3 * t + k];
     double qprev[4] = {0, 0, 0, 1};
     for (size_t t = 0; t < T; ++t) {
       const double *M = fit->transforms + (t * B + j) * 12;
-      const double *c = fit->centers + 3 * j;
       double R[9] = {M[0], M[1], M[2], M[4], M[5], M[6], M[8], M[9], M[10]}, q[4];
-      for (int a = 0; a < 3; ++a)
-        km__put_f32le(pt + 12 * t + 4 * a, (float)(R[3 * a] * c[0] + R[3 * a + 1] * c[1] +
-                                                   R[3 * a + 2] * c[2] + M[4 * a + 3]));
       quat_from_m3(R, q);
       /* the shorter arc between keys: players interpolate (s)linearly */
       if (q[0] * qprev[0] + q[1] * qprev[1] + q[2] * qprev[2] + q[3] * qprev[3] < 0)
@@ -699,12 +1014,32 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, km_error *er
           q[k] = -q[k];
       memcpy(qprev, q, sizeof q);
       for (int k = 0; k < 4; ++k)
-        km__put_f32le(pr + 16 * t + 4 * k, (float)q[k]);
+        f4[4 * t + k] = (float)q[k];
     }
-    int a_t =
-        add_view_accessor(views, accessors, off_t, T * 12, 0, GL_FLOAT, T, "VEC3", NULL, NULL, 0);
-    int a_r =
-        add_view_accessor(views, accessors, off_r, T * 16, 0, GL_FLOAT, T, "VEC4", NULL, NULL, 0);
+    int a_r;
+    if (z) {
+      meshopt_encodeFilterQuat(b, T, 8, 16, f4);
+      memcpy(b2, b, T * 8);
+      meshopt_decodeFilterQuat(b2, T, 8);
+      for (size_t t = 0; t < T; ++t) {
+        double q[4], R[9];
+        for (int k = 0; k < 4; ++k) {
+          int16_t v;
+          memcpy(&v, b2 + 8 * t + 2 * k, 2);
+          q[k] = fmax(v / 32767.0, -1.0);
+        }
+        quat_to_m3(q, R);
+        double *D = rig + (t * B + j) * 12;
+        for (int r = 0; r < 3; ++r)
+          for (int k = 0; k < 3; ++k)
+            D[4 * r + k] = R[3 * r + k];
+      }
+      a_r = pack_accessor(&pk, pack_view(&pk, b, T, 8, PACK_ATTRIBUTES, "QUATERNION", 0, false),
+                          GL_SHORT, true, T, "VEC4", NULL, NULL, 0);
+    } else {
+      a_r = pack_raw_floats(&pk, f4, T, "VEC4", 4, b, NULL, NULL);
+    }
+    if (a_r < 0) goto nomem;
     const char *paths[2] = {"translation", "rotation"};
     int outs[2] = {a_t, a_r};
     for (int k = 0; k < 2; ++k) {
@@ -721,54 +1056,285 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, km_error *er
       cJSON_AddItemToArray(channels, ch);
     }
   }
-  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "animations"), anim);
-  cJSON *buffer = cJSON_CreateObject();
-  cJSON_AddNumberToObject(buffer, "byteLength", (double)b.len);
-  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "buffers"), buffer);
-  cJSON_AddItemToObject(root, "bufferViews", views);
-  cJSON_AddItemToObject(root, "accessors", accessors);
-  views = accessors = NULL;
-#undef GROW
 
-  char *json = cJSON_PrintUnformatted(root);
-  cJSON_Delete(root);
-  root = NULL;
-  if (!json) goto nomem;
-  size_t json_len = strlen(json), json_pad = (4 - json_len % 4) % 4;
-  uint64_t total = 12 + 8 + json_len + json_pad + 8 + b.len;
-  if (total > UINT32_MAX) {
-    free(json);
-    free(b.p);
-    return km__fail(err, KM_ERR_UNSUPPORTED, "%s: glb would exceed 4 GiB", w->path);
+  /* ---- the error of what a player evaluates from the compressed file: dequantised rest and
+   * weights, decoded rotations and translations, float32 bind centres */
+  double rms = fit->rms_error, emax = fit->max_error;
+  if (z && frames) {
+    double sum = 0, m2 = 0;
+#pragma omp parallel for reduction(+ : sum) reduction(max : m2) schedule(static)
+    for (size_t t = 0; t < T; ++t)
+      for (size_t i = 0; i < nv; ++i) {
+        double p[3] = {0, 0, 0};
+        for (int k = 0; k < 4; ++k) {
+          int32_t j = fit->skin.joints[4 * i + k];
+          if (j < 0 || wq[4 * i + k] == 0) continue;
+          const double *D = rig + (t * B + (size_t)j) * 12;
+          double l[3];
+          for (int c = 0; c < 3; ++c)
+            l[c] = vq[3 * i + c] - (double)(float)fit->centers[3 * j + c];
+          for (int r = 0; r < 3; ++r)
+            p[r] += wq[4 * i + k] *
+                    (D[4 * r] * l[0] + D[4 * r + 1] * l[1] + D[4 * r + 2] * l[2] + D[4 * r + 3]);
+        }
+        const double *X = frames + (t * nv + i) * 3;
+        double e2 = (p[0] - X[0]) * (p[0] - X[0]) + (p[1] - X[1]) * (p[1] - X[1]) +
+                    (p[2] - X[2]) * (p[2] - X[2]);
+        sum += e2;
+        if (e2 > m2) m2 = e2;
+      }
+    rms = sqrt(sum / (double)(T * nv));
+    emax = sqrt(m2);
   }
-  km__atomic_file af = w->af;
-  memset(&w->af, 0, sizeof w->af);
-  unsigned char h[20];
-  km__put_u32le(h, GLB_MAGIC);
-  km__put_u32le(h + 4, 2);
-  km__put_u32le(h + 8, (uint32_t)total);
-  km__put_u32le(h + 12, (uint32_t)(json_len + json_pad));
-  km__put_u32le(h + 16, GLB_JSON);
-  s = write_all(w, af.f, h, 20, err);
-  if (s == KM_OK) s = write_all(w, af.f, json, json_len, err);
-  if (s == KM_OK) s = write_all(w, af.f, "   ", json_pad, err);
-  free(json);
-  km__put_u32le(h, (uint32_t)b.len);
-  km__put_u32le(h + 4, GLB_BIN);
-  if (s == KM_OK) s = write_all(w, af.f, h, 8, err);
-  if (s == KM_OK) s = write_all(w, af.f, b.p, b.len, err);
-  free(b.p);
-  if (s != KM_OK) {
-    km__atomic_abort(&af);
-    return s;
-  }
-  return km__atomic_commit(&af, err);
+  w->q_rms = rms;
+  w->q_max = emax;
+  cJSON_AddNumberToObject(ex, "rms_error_m", rms);
+  cJSON_AddNumberToObject(ex, "max_error_m", emax);
+  if (z) add_grid_extras(ex, &g);
+  pack_finish_json(&pk, root);
+  free(b);
+  free(b2);
+  free(f4);
+  free(vq);
+  free(wq);
+  free(rig);
+  s = write_glb_container(w, root, pk.bin.p, pk.bin.len, NULL, NULL, err);
+  free(pk.bin.p);
+  return s;
 nomem:
   cJSON_Delete(root);
-  cJSON_Delete(views);
-  cJSON_Delete(accessors);
-  free(b.p);
+  cJSON_Delete(pk.views);
+  cJSON_Delete(pk.accessors);
+  free(pk.bin.p);
+  free(b);
+  free(b2);
+  free(f4);
+  free(vq);
+  free(wq);
+  free(rig);
   return km__fail(err, KM_ERR_NOMEM, "%s: out of memory writing the skinned glb", w->path);
+}
+
+/* ---------------------------------------------------------------- compressed morphs (issue 16) */
+
+/* The morph file (per-key or PCA targets) with KHR_mesh_quantization + EXT_meshopt_compression:
+ * rest positions on the 14-bit grid (the mesh node's scale and translation dequantise),
+ * target POSITION deltas as signed shorts on the same grid, normals octahedral 8-bit, NORMAL
+ * deltas as normalised bytes, UVs as normalised shorts, weights through the exponential
+ * filter. The error a player sees (against the key frames, or against every frame for PCA) is
+ * left in w->q_rms / w->q_max and the extras. */
+static km_status glb_finish_packed(km_anim_writer *w, km_error *err) {
+  const size_t nv = w->n_vertices, nf = w->n_faces, nk = w->n_keys, nv3 = nv * 3;
+  const bool pca = w->pca_weights != NULL, with_n = w->normals;
+  const size_t nt = pca ? w->pca_frames : nk;
+  double maxd = 0;
+  for (size_t i = 0; i < 6 * nk; ++i)
+    maxd = fmax(maxd, fabs((double)w->key_minmax[i]));
+  const qgrid g = make_grid(w->rest_minmax, maxd);
+  glb_pack pk = {.compress = true, .nv = nv};
+  pk.views = cJSON_CreateArray();
+  pk.accessors = cJSON_CreateArray();
+  cJSON *root = cJSON_CreateObject();
+  size_t scratch = nv * 16;
+  if (nf * 12 > scratch) scratch = nf * 12;
+  if (nt * nk * 4 > scratch) scratch = nt * nk * 4;
+  unsigned char *b = malloc(scratch);
+  float *f4 = km__malloc(nv * 4, sizeof *f4), *wts = km__malloc(nt * nk, sizeof *wts);
+  float *wdec = km__malloc(nt * nk, sizeof *wdec);
+  double *vq = km__malloc(nv3, sizeof *vq), *rest_n = NULL;
+  double *acc = pca ? km__calloc(nt * nv3, sizeof *acc) : NULL;
+  km_status s = KM_OK;
+  double sum = 0, m2 = 0;
+  size_t n_err = 0;
+  if (!root || !pk.views || !pk.accessors || !b || !f4 || !wts || !wdec || !vq || (pca && !acc))
+    goto nomem;
+
+  cJSON *asset = cJSON_AddObjectToObject(root, "asset");
+  cJSON_AddStringToObject(asset, "version", "2.0");
+  cJSON_AddStringToObject(asset, "generator", "kinemesh");
+  cJSON *ex = cJSON_AddObjectToObject(cJSON_AddObjectToObject(asset, "extras"), "kinemesh");
+  cJSON_AddNumberToObject(ex, "fps", w->fps);
+  cJSON_AddNumberToObject(ex, "frames", (double)w->frames);
+  cJSON_AddNumberToObject(ex, "key_every", (double)w->key_every);
+  if (pca) {
+    char ek[32];
+    snprintf(ek, sizeof ek, "morphs:%zu", nk);
+    cJSON_AddStringToObject(ex, "export", ek);
+  }
+  add_grid_extras(ex, &g);
+  cJSON_AddNumberToObject(root, "scene", 0);
+  cJSON *scene = cJSON_CreateObject();
+  cJSON_AddItemToObject(scene, "nodes", cJSON_CreateIntArray((const int[]){0}, 1));
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "scenes"), scene);
+  cJSON *node = cJSON_CreateObject();
+  cJSON_AddNumberToObject(node, "mesh", 0);
+  cJSON_AddStringToObject(node, "name", "kinemesh");
+  cJSON_AddItemToObject(node, "translation", cJSON_CreateDoubleArray(g.off, 3));
+  const double sc[3] = {g.s, g.s, g.s};
+  cJSON_AddItemToObject(node, "scale", cJSON_CreateDoubleArray(sc, 3));
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "nodes"), node);
+  cJSON *mesh = cJSON_CreateObject();
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "meshes"), mesh);
+  cJSON *prim = cJSON_CreateObject();
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(mesh, "primitives"), prim);
+  cJSON *attrs = cJSON_AddObjectToObject(prim, "attributes");
+
+  /* weights first: the decoded values enter the error */
+  for (size_t t = 0; t < nt; ++t)
+    for (size_t k = 0; k < nk; ++k)
+      wts[t * nk + k] = pca ? w->pca_weights[t * nk + k] : (float)(t == k);
+  int a_w = pack_floats(&pk, wts, nt * nk, 1, 16, b, wdec, "SCALAR", NULL, NULL);
+  for (size_t k = 0; k < nt; ++k)
+    wts[k] = (float)((double)(pca ? k : w->key_frame[k]) / w->fps);
+  double tmin = wts[0], tmax = wts[nt - 1];
+  int a_in = pack_raw_floats(&pk, wts, nt, "SCALAR", 1, b, &tmin, &tmax);
+  if (a_w < 0 || a_in < 0) goto nomem;
+  int a;
+  if (nf) {
+    if ((a = pack_indices(&pk, w->F, nf, b)) < 0) goto nomem;
+    cJSON_AddNumberToObject(prim, "indices", a);
+  }
+  double mn[3], mx[3];
+  quantise_positions(w->rest, nv, &g, b, mn, mx, vq);
+  a = pack_accessor(&pk, pack_view(&pk, b, nv, 8, PACK_ATTRIBUTES, NULL, GL_ARRAY_BUFFER, true),
+                    GL_UNSIGNED_SHORT, false, nv, "VEC3", mn, mx, 3);
+  if (a < 0) goto nomem;
+  cJSON_AddNumberToObject(attrs, "POSITION", a);
+  if (with_n) {
+    if (!(rest_n = km__malloc(nv3, sizeof *rest_n))) goto nomem;
+    km__anim_normals(w, w->rest);
+    memcpy(rest_n, w->nbuf, nv3 * sizeof *rest_n);
+    if ((a = pack_normals(&pk, rest_n, nv, b, f4)) < 0) goto nomem;
+    cJSON_AddNumberToObject(attrs, "NORMAL", a);
+  }
+  if (w->uv) {
+    if ((a = pack_uv(&pk, w->uv, nv, b)) < 0) goto nomem;
+    cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a);
+  }
+  cJSON_AddNumberToObject(prim, "mode", nf ? 4 : 0);
+  cJSON *targets = cJSON_AddArrayToObject(prim, "targets");
+  cJSON *names = cJSON_CreateArray();
+  cJSON_AddItemToObject(cJSON_AddObjectToObject(mesh, "extras"), "targetNames", names);
+  cJSON *weights0 = cJSON_AddArrayToObject(mesh, "weights");
+  if (fseek(w->keys, 0, SEEK_SET) != 0) {
+    s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the key-frame temporary", w->path);
+    goto fail;
+  }
+  for (size_t k = 0; k < nk; ++k) {
+    if (fread(w->fbuf, sizeof *w->fbuf, nv3, w->keys) != nv3) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot read key frame %zu back from its temporary", w->path,
+                   k);
+      goto fail;
+    }
+    double dmn[3] = {32767, 32767, 32767}, dmx[3] = {-32767, -32767, -32767};
+    for (size_t i = 0; i < nv; ++i) {
+      for (int c = 0; c < 3; ++c) {
+        double q = round((double)w->fbuf[3 * i + c] / g.s);
+        q = q < -32767 ? -32767 : q > 32767 ? 32767 : q;
+        dmn[c] = fmin(dmn[c], q), dmx[c] = fmax(dmx[c], q);
+        put_u16le(b + 8 * i + 2 * c, (unsigned)(int)q & 0xffffu);
+        if (!pca) {
+          /* a key frame: what a player shows there against the exact displacement */
+          double d = vq[3 * i + c] + wdec[k * nk + k] * g.s * q -
+                     (w->rest[3 * i + c] + (double)w->fbuf[3 * i + c]);
+          f4[i] = (c ? f4[i] : 0) + (float)(d * d);
+        } else {
+          for (size_t t = 0; t < nt; ++t)
+            acc[t * nv3 + 3 * i + c] += wdec[t * nk + k] * g.s * q;
+        }
+      }
+      put_u16le(b + 8 * i + 6, 0);
+      if (!pca) {
+        sum += f4[i];
+        m2 = fmax(m2, f4[i]);
+        ++n_err;
+      }
+    }
+    cJSON *tg = cJSON_CreateObject();
+    cJSON_AddItemToArray(targets, tg);
+    a = pack_accessor(&pk, pack_view(&pk, b, nv, 8, PACK_ATTRIBUTES, NULL, GL_ARRAY_BUFFER, true),
+                      GL_SHORT, false, nv, "VEC3", dmn, dmx, 3);
+    if (a < 0) goto nomem;
+    cJSON_AddNumberToObject(tg, "POSITION", a);
+    if (with_n) {
+      /* the key's own normals minus the rest's, as normalised bytes (clamped to [-1, 1]) */
+      for (size_t i = 0; i < nv3; ++i)
+        w->vbuf[i] = w->rest[i] + (double)w->fbuf[i];
+      km__anim_normals(w, w->vbuf);
+      for (size_t i = 0; i < nv; ++i) {
+        for (int c = 0; c < 3; ++c) {
+          double d = fmax(-1.0, fmin(1.0, w->nbuf[3 * i + c] - rest_n[3 * i + c]));
+          b[4 * i + c] = (unsigned char)(signed char)lround(d * 127);
+        }
+        b[4 * i + 3] = 0;
+      }
+      a = pack_accessor(&pk, pack_view(&pk, b, nv, 4, PACK_ATTRIBUTES, NULL, GL_ARRAY_BUFFER, true),
+                        GL_BYTE, true, nv, "VEC3", NULL, NULL, 0);
+      if (a < 0) goto nomem;
+      cJSON_AddNumberToObject(tg, "NORMAL", a);
+    }
+    char nm[32];
+    if (pca)
+      snprintf(nm, sizeof nm, "basis_%03zu", k);
+    else
+      snprintf(nm, sizeof nm, "frame_%06zu", w->key_frame[k]);
+    cJSON_AddItemToArray(names, cJSON_CreateString(nm));
+    cJSON_AddItemToArray(weights0, cJSON_CreateNumber(0));
+  }
+  if (pca && w->pca_D) {
+    /* every frame: base + weighted targets against the exact displacements */
+    for (size_t t = 0; t < nt; ++t)
+      for (size_t i = 0; i < nv; ++i) {
+        double e2 = 0;
+        for (int c = 0; c < 3; ++c) {
+          double d = vq[3 * i + c] + acc[t * nv3 + 3 * i + c] -
+                     (w->rest[3 * i + c] + w->pca_D[t * nv3 + 3 * i + c]);
+          e2 += d * d;
+        }
+        sum += e2;
+        m2 = fmax(m2, e2);
+        ++n_err;
+      }
+  }
+  w->q_rms = n_err ? sqrt(sum / (double)n_err) : 0;
+  w->q_max = sqrt(m2);
+  cJSON_AddNumberToObject(ex, "rms_error_m", w->q_rms);
+  cJSON_AddNumberToObject(ex, "max_error_m", w->q_max);
+
+  cJSON *sampler = cJSON_CreateObject();
+  cJSON_AddNumberToObject(sampler, "input", a_in);
+  cJSON_AddStringToObject(sampler, "interpolation", "LINEAR");
+  cJSON_AddNumberToObject(sampler, "output", a_w);
+  cJSON *channel = cJSON_CreateObject();
+  cJSON_AddNumberToObject(channel, "sampler", 0);
+  cJSON *target = cJSON_AddObjectToObject(channel, "target");
+  cJSON_AddNumberToObject(target, "node", 0);
+  cJSON_AddStringToObject(target, "path", "weights");
+  cJSON *anim = cJSON_CreateObject();
+  cJSON_AddStringToObject(anim, "name", "kinemesh");
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(anim, "channels"), channel);
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(anim, "samplers"), sampler);
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "animations"), anim);
+  pack_finish_json(&pk, root);
+  s = write_glb_container(w, root, pk.bin.p, pk.bin.len, NULL, NULL, err);
+  root = NULL;
+  goto done;
+nomem:
+  s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory writing the compressed glb", w->path);
+fail:
+  cJSON_Delete(root);
+  cJSON_Delete(pk.views);
+  cJSON_Delete(pk.accessors);
+done:
+  free(pk.bin.p);
+  free(b);
+  free(f4);
+  free(wts);
+  free(wdec);
+  free(vq);
+  free(rest_n);
+  free(acc);
+  return s;
 }
 
 /* ---------------------------------------------------------------- morph frames (issue 16) */

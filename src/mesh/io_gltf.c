@@ -23,7 +23,8 @@
  * for the skin (km_mesh_read_skinned), the joints of every skin used are gathered into one
  * list (each joint node once, in order of first use), each with its name, its nearest
  * ancestor node that is also a joint, and its world position; every vertex gets its 4
- * JOINTS_0 / WEIGHTS_0 influences (weights normalised; JOINTS_1 is not read) and an unskinned
+ * JOINTS_0 / WEIGHTS_0 influences (weights normalised; with JOINTS_1 / WEIGHTS_1 too, the
+ * position is placed by all 8 and the skin keeps the 4 largest, renormalised) and an unskinned
  * primitive is bound whole to the nearest joint above its node (none: no influence). */
 #include "mesh/mesh_io.h"
 
@@ -673,19 +674,29 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
                           d->name, what);
         bool hi = cJSON_GetObjectItemCaseSensitive(pr, "indices") != NULL;
         if (hi && (s = accessor(d, jint(pr, "indices", -1), what, &idx, err))) return s;
-        acc_view aj, aw;
+        acc_view aj[2], aw[2];
         bool hs = pass == 1 && d->S && cJSON_GetObjectItemCaseSensitive(at, "JOINTS_0") &&
                   cJSON_GetObjectItemCaseSensitive(at, "WEIGHTS_0");
-        if (hs && ((s = accessor(d, jint(at, "JOINTS_0", -1), what, &aj, err)) ||
-                   (s = accessor(d, jint(at, "WEIGHTS_0", -1), what, &aw, err))))
-          return s;
-        if (hs && (aj.ncomp != 4 || aw.ncomp != 4 || aj.count != pos.count ||
-                   aw.count != pos.count || (aj.ct != 5121 && aj.ct != 5123) || aj.normalized ||
-                   (aw.ct != 5126 && aw.ct != 5121 && aw.ct != 5123)))
-          return km__fail(err, KM_ERR_PARSE,
-                          "%s: %s: JOINTS_0 (VEC4 unsigned byte/short) and WEIGHTS_0 (VEC4 float "
-                          "or normalized) must have POSITION's count",
-                          d->name, what);
+        /* A second set (JOINTS_1 / WEIGHTS_1: influences 5-8) when both are there. */
+        int nsets = hs && cJSON_GetObjectItemCaseSensitive(at, "JOINTS_1") &&
+                            cJSON_GetObjectItemCaseSensitive(at, "WEIGHTS_1")
+                        ? 2
+                        : 1;
+        for (int k = 0; hs && k < nsets; ++k) {
+          char jn[16], wn[16];
+          snprintf(jn, sizeof jn, "JOINTS_%d", k);
+          snprintf(wn, sizeof wn, "WEIGHTS_%d", k);
+          if ((s = accessor(d, jint(at, jn, -1), what, &aj[k], err)) ||
+              (s = accessor(d, jint(at, wn, -1), what, &aw[k], err)))
+            return s;
+          if (aj[k].ncomp != 4 || aw[k].ncomp != 4 || aj[k].count != pos.count ||
+              aw[k].count != pos.count || (aj[k].ct != 5121 && aj[k].ct != 5123) ||
+              aj[k].normalized || (aw[k].ct != 5126 && aw[k].ct != 5121 && aw[k].ct != 5123))
+            return km__fail(err, KM_ERR_PARSE,
+                            "%s: %s: %s (VEC4 unsigned byte/short) and %s (VEC4 float or "
+                            "normalized) must have POSITION's count",
+                            d->name, what, jn, wn);
+        }
         if (hi && (idx.ncomp != 1 || (idx.ct != 5121 && idx.ct != 5123 && idx.ct != 5125)))
           return km__fail(err, KM_ERR_PARSE, "%s: %s: indices must be unsigned SCALAR", d->name,
                           what);
@@ -714,18 +725,18 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
           double nl = 0, Mv[16];
           const double *Mp = M;
           if (hs) { /* linear blend skinning by the scene's joint transforms */
-            double wsum = 0, wq[4];
-            int32_t jq[4];
+            double wsum = 0, wq[8];
+            int32_t jq[8];
             memset(Mv, 0, sizeof Mv);
-            for (int q = 0; q < 4; ++q) {
-              double jx = comp(&aj, i, q), w = comp(&aw, i, q);
+            for (int q = 0; q < 4 * nsets; ++q) {
+              double jx = comp(&aj[q / 4], i, q % 4), w = comp(&aw[q / 4], i, q % 4);
               jq[q] = -1, wq[q] = 0;
               if (!(w > 0)) continue;
               if (!(jx < (double)d->S_n) || !isfinite(w))
                 return km__fail(err, KM_ERR_PARSE,
-                                "%s: %s: vertex %zu: JOINTS_0 %.0f is outside the skin's %zu "
+                                "%s: %s: vertex %zu: JOINTS_%d %.0f is outside the skin's %zu "
                                 "joints (or its weight is not finite)",
-                                d->name, what, i, jx, d->S_n);
+                                d->name, what, i, q / 4, jx, d->S_n);
               jq[q] = d->S_ids[(size_t)jx], wq[q] = w;
               wsum += w;
               for (int e = 0; e < 16; ++e)
@@ -735,9 +746,25 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
               for (int e = 0; e < 16; ++e)
                 Mv[e] /= wsum;
               Mp = Mv;
+              /* The position uses every influence (as a viewer does); the skin keeps 4 per
+               * vertex (kinemesh's skinning): the 4 largest, renormalised. */
+              int keep[4] = {0, 1, 2, 3};
+              double ksum = wsum;
+              if (nsets == 2) {
+                bool used[8] = {false};
+                ksum = 0;
+                for (int q = 0; q < 4; ++q) {
+                  int b = -1;
+                  for (int c = 0; c < 8; ++c)
+                    if (!used[c] && (b < 0 || wq[c] > wq[b])) b = c;
+                  used[b] = true;
+                  keep[q] = b;
+                  ksum += wq[b];
+                }
+              }
               for (int q = 0; q < 4 && d->skin; ++q) {
-                d->skin->joints[4 * (v0 + i) + q] = jq[q];
-                d->skin->weights[4 * (v0 + i) + q] = wq[q] / wsum;
+                d->skin->joints[4 * (v0 + i) + q] = wq[keep[q]] > 0 ? jq[keep[q]] : -1;
+                d->skin->weights[4 * (v0 + i) + q] = wq[keep[q]] / ksum;
               }
             }
           } else if (rigid >= 0) {

@@ -7,6 +7,40 @@
 
 #include <stdio.h>
 
+/* The 20 Kinect v1 joints in km_kinect1 order (KM_KINECT1_JOINTS), for skeleton arrays
+ * (20*3) in the modules above: one enum for autorig and synth. */
+enum {
+  J_HIP_C = 0,
+  J_SPINE,
+  J_SHOULDER_C,
+  J_HEAD,
+  J_SHOULDER_L,
+  J_ELBOW_L,
+  J_WRIST_L,
+  J_HAND_L,
+  J_SHOULDER_R,
+  J_ELBOW_R,
+  J_WRIST_R,
+  J_HAND_R,
+  J_HIP_L,
+  J_KNEE_L,
+  J_ANKLE_L,
+  J_FOOT_L,
+  J_HIP_R,
+  J_KNEE_R,
+  J_ANKLE_R,
+  J_FOOT_R,
+};
+
+/* The Kinect v1 joint a bone name of a game or DCC rig stands for, by naming convention rather
+ * than by a table (skeleton_names.c holds the tables): Mixamo ("mixamorig:LeftForeArm"), VRM /
+ * Unity humanoid ("LeftLowerArm"), VRoid ("J_Bip_L_LowerArm"), rigify ("DEF-forearm.L"), 3ds
+ * Max Biped ("Bip01 L Forearm"), Blender ("forearm.L"): the side from a prefix or suffix, the
+ * rest against the limb words (upper arm -> Shoulder, forearm -> Elbow, hand -> Wrist, middle
+ * finger base -> Hand, thigh -> Hip, shin -> Knee, foot -> Ankle, toe -> Foot; hips / pelvis ->
+ * HipCenter, neck -> ShoulderCenter, head, spine -> Spine). -1: no match. */
+int km__bone_name_kinect1(const char *name);
+
 /* Heap-copies a string (NULL on failure). */
 char *km__strdup(const char *s);
 

@@ -31,6 +31,25 @@ int km__kinect1_columns(const char *const *names, size_t n_names, int src[KM_KIN
       found += src[j] >= 0;
     }
   }
+  /* A game or DCC rig's bone names (a Mixamo or Blender BVH: "mixamorig:LeftForeArm",
+   * "forearm.L"): by naming convention, the first bone of each joint in file order (the one
+   * nearest the root); a missing hand or foot takes the wrist or ankle. */
+  int fz[KM_KINECT1_JOINTS], nfz = 0;
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+    fz[j] = -1;
+  for (size_t k = 0; k < n_names; ++k) {
+    int j = km__bone_name_kinect1(names[k]);
+    if (j >= 0 && fz[j] < 0) fz[j] = (int)k, ++nfz;
+  }
+  if (nfz > found) {
+    static const int stand_in[][2] = {
+        {J_HAND_L, J_WRIST_L}, {J_HAND_R, J_WRIST_R}, {J_FOOT_L, J_ANKLE_L}, {J_FOOT_R, J_ANKLE_R}};
+    for (size_t i = 0; i < sizeof stand_in / sizeof stand_in[0]; ++i)
+      if (fz[stand_in[i][0]] < 0) fz[stand_in[i][0]] = fz[stand_in[i][1]];
+    found = 0;
+    for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+      found += (src[j] = fz[j]) >= 0;
+  }
   return found;
 }
 

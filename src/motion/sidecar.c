@@ -73,6 +73,16 @@ static const char *const bone_handle_joints[N_BONE_HANDLES][2] = {
     {"ShoulderLeft", "ElbowLeft"}, {"ElbowLeft", "WristLeft"}, {"ShoulderRight", "ElbowRight"},
     {"ElbowRight", "WristRight"},  {"HipLeft", "KneeLeft"},    {"KneeLeft", "AnkleLeft"},
     {"HipRight", "KneeRight"},     {"KneeRight", "AnkleRight"}};
+/* Where along its bone (0: the bone's start joint, 1: its end) a band lies. The upper arm and
+ * thigh bands sit on the outer part (0.5 .. 0.8), leaving the shoulder and hip a free zone of
+ * half the bone: a limb swinging 90 degrees about a joint whose band starts at 0.3 stretched the
+ * armpit and crotch to 1.8-2.3x (bench motion, B: character 1.93 -> 1.30, armadillo
+ * 1.84 -> 1.51 on precog_Seq1_1). Forearm and shin bands stay in the middle (0.3 .. 0.7): moved
+ * further out they leave the elbow and knee too little room. Pelvis and chest bands on the
+ * spine bones were tried too and made armadillo worse (stretch 1.51 -> 1.54, 2270 -> 2917
+ * folded), so the torso stays free. */
+static const double band_t[N_BONE_HANDLES][2] = {{0.5, 0.8}, {0.3, 0.7}, {0.5, 0.8}, {0.3, 0.7},
+                                                 {0.5, 0.8}, {0.3, 0.7}, {0.5, 0.8}, {0.3, 0.7}};
 
 static int32_t uf_find(int32_t *p, int32_t v) {
   while (p[v] != v)
@@ -87,8 +97,8 @@ static int skel_joint(const km_skeleton *sk, const char *name) {
 }
 
 /* Bands: every vertex goes to the bone segment nearest to it (of all the skeleton's bones);
- * a bone's band is its vertices whose projection falls in the middle 40% of the segment, cut
- * to the connected part (along faces) holding the band vertex nearest to the bone's midpoint,
+ * a bone's band is its vertices whose projection falls in band_t of the segment, cut
+ * to the connected part (along faces) holding the band vertex nearest to the band's middle,
  * and kept off the end handles' balls (centre ends[e], Euclidean radius: the geodesic balls
  * km_rig_parse grows are inside them). band[v] = the band of v, -1 none. Returns false when
  * out of memory. */
@@ -139,9 +149,9 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
     }
     if (near_end) continue;
     for (int b = 0; b < N_BONE_HANDLES; ++b)
-      if (bone_ok[b] && jmin == jb[b] && tmin >= 0.3 && tmin <= 0.7) {
+      if (bone_ok[b] && jmin == jb[b] && tmin >= band_t[b][0] && tmin <= band_t[b][1]) {
         band[v] = (int8_t)b;
-        double mid = fabs(tmin - 0.5) + sqrt(dmin);
+        double mid = fabs(tmin - 0.5 * (band_t[b][0] + band_t[b][1])) + sqrt(dmin);
         if (mid < best[b]) best[b] = mid, seed[b] = (int32_t)v;
       }
   }

@@ -4,6 +4,7 @@
  * body point every joint stands for. docs/skeletons.md prints the same table. */
 #include "motion/motion.h"
 
+#include <ctype.h>
 #include <math.h>
 #include <string.h>
 
@@ -403,7 +404,7 @@ int km_skeleton_kinect1_joint(km_skeleton_kind named, const char *name) {
       return v1 >= 0 ? v1 : -2;
     }
   }
-  return -1;
+  return km__bone_name_kinect1(name); /* a game / DCC rig's bone name ("mixamorig:LeftArm") */
 }
 
 /* Position of body point p in a frame of skeleton f (exact joint only), false when missing. */
@@ -461,4 +462,106 @@ void km_skeleton_convert(km_skeleton_kind from, const double *in, km_skeleton_ki
     for (int a = 0; a < 3; ++a)
       out[3 * j + a] = src ? src[a] : NAN;
   }
+}
+
+/* ---- bone names by convention (km__bone_name_kinect1): game and DCC rigs name their bones
+ * in a few styles; the side and the limb word say which joint a bone starts at. */
+
+static bool starts(const char *s, const char *p) { return !strncmp(s, p, strlen(p)); }
+static bool ends(const char *s, const char *p) {
+  size_t n = strlen(s), k = strlen(p);
+  return n >= k && !strcmp(s + n - k, p);
+}
+static bool in(const char *core, const char *const *list) {
+  for (; *list; ++list)
+    if (!strcmp(core, *list)) return true;
+  return false;
+}
+
+/* Side (-1 none, 0 left, 1 right) and core (lower case, letters and digits only) of a joint
+ * name: "mixamorig:LeftForeArm" -> left "forearm", "upper_arm.L" -> left "upperarm",
+ * "J_Bip_R_UpperLeg" -> right "upperleg", "leftUpperArm" -> left "upperarm". */
+static int split_name(const char *name, char *core, size_t cap) {
+  const char *b = name;
+  for (const char *p = name; *p; ++p)
+    if (*p == ':' || *p == '|') b = p + 1;
+  char s[128];
+  size_t n = 0;
+  for (; *b && n + 1 < sizeof s; ++b)
+    s[n++] = (char)tolower((unsigned char)*b);
+  s[n] = '\0';
+  char *t = s;
+  static const char *const prefixes[] = {"def-",   "org-",    "mch-",   "def_",    "j_bip_",
+                                         "bip01 ", "bip001 ", "bip01_", "bip001_", NULL};
+  for (const char *const *p = prefixes; *p; ++p)
+    if (starts(t, *p)) t += strlen(*p);
+  int side = -1;
+  for (int pass = 0; pass < 2 && side < 0; ++pass) {
+    if (starts(t, "left"))
+      side = 0, t += 4;
+    else if (starts(t, "right"))
+      side = 1, t += 5;
+    else if ((t[0] == 'l' || t[0] == 'r') && t[1] && strchr("_. -", t[1]))
+      side = t[0] == 'r', t += 2;
+    else if (starts(t, "c_"))
+      t += 2;
+    else {
+      static const char *const suf[2][5] = {{".l", "_l", "-l", " l", ".left"},
+                                            {".r", "_r", "-r", " r", ".right"}};
+      for (int sd = 0; sd < 2 && side < 0; ++sd)
+        for (int k = 0; k < 5; ++k)
+          if (ends(t, suf[sd][k])) {
+            side = sd;
+            t[strlen(t) - strlen(suf[sd][k])] = '\0';
+            break;
+          }
+      /* "upper_arm.L.001" (a twist segment): drop a numbered tail once and look again */
+      char *dot = strrchr(t, '.');
+      if (side < 0 && pass == 0 && dot && dot[1] &&
+          strspn(dot + 1, "0123456789") == strlen(dot + 1))
+        *dot = '\0';
+      else
+        break;
+    }
+  }
+  size_t k = 0;
+  for (; *t && k + 1 < cap; ++t)
+    if (isalnum((unsigned char)*t)) core[k++] = *t;
+  core[k] = '\0';
+  return side;
+}
+
+int km__bone_name_kinect1(const char *name) {
+  if (!name) return -1;
+  char core[128];
+  int side = split_name(name, core, sizeof core);
+  static const char *const arm[] = {"arm", "upperarm", "uparm", NULL};
+  static const char *const fore[] = {"forearm", "lowerarm", "elbow", NULL};
+  static const char *const hand[] = {"hand", "wrist", NULL};
+  static const char *const hand_end[] = {"handmiddle1", "middleproximal", "middle1", "fmiddle01",
+                                         "middle01",    "fingermiddle1",  NULL};
+  static const char *const thigh[] = {"upleg", "upperleg", "thigh", "hip", "uplegroll", NULL};
+  static const char *const shin[] = {"leg", "lowerleg", "shin", "calf", "knee", NULL};
+  static const char *const foot[] = {"foot", "ankle", NULL};
+  static const char *const toe[] = {"toebase", "toes", "toe", "toe0", "ball", NULL};
+  if (side < 0) {
+    static const char *const hips[] = {"hips", "hip", "pelvis", NULL};
+    static const char *const neck[] = {"neck", "neck1", "neck01", NULL};
+    static const char *const spine[] = {"spine", "spine0", "spine01", "abdomen", NULL};
+    if (in(core, hips)) return J_HIP_C;
+    if (in(core, neck)) return J_SHOULDER_C;
+    if (in(core, spine)) return J_SPINE;
+    if (!strcmp(core, "head")) return J_HEAD;
+    return -1;
+  }
+  int o = side ? J_SHOULDER_R - J_SHOULDER_L : 0, l = side ? J_HIP_R - J_HIP_L : 0;
+  if (in(core, arm)) return J_SHOULDER_L + o;
+  if (in(core, fore)) return J_ELBOW_L + o;
+  if (in(core, hand)) return J_WRIST_L + o;
+  if (in(core, hand_end)) return J_HAND_L + o;
+  if (in(core, thigh)) return J_HIP_L + l;
+  if (in(core, shin)) return J_KNEE_L + l;
+  if (in(core, foot)) return J_ANKLE_L + l;
+  if (in(core, toe)) return J_FOOT_L + l;
+  return -1;
 }

@@ -2160,3 +2160,50 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   st->seconds = km_seconds() - t0;
   return KM_OK;
 }
+
+km_status km_recon_register_mesh(const km_mesh *source, const double *V_start,
+                                 const km_mesh *target, const km_recon_feature *features,
+                                 size_t n_features, int iterations, double *V_out, km_error *err) {
+  if (!source || !source->V || !source->F || !V_start || !target || !target->V || !V_out ||
+      (!features && n_features))
+    return km__fail(err, KM_ERR_INVALID, "km_recon_register_mesh: NULL argument");
+  size_t nv = source->n_vertices;
+  if (iterations <= 0) iterations = 12;
+  /* The reconstructor wants a rigged template; the surface stage uses none of the rig, so one
+   * joint carries every vertex (rig_joints: no joint estimation from the weights). */
+  km_character c = {0};
+  c.mesh = *source;
+  c.mesh.V = (double *)V_start;
+  int32_t parent = -1;
+  double root[3] = {0, 0, 0};
+  char name[] = "root", *names[1] = {name};
+  c.skeleton.n_joints = 1;
+  c.skeleton.parents = &parent;
+  c.skeleton.rest = root;
+  c.skeleton.names = names;
+  c.skin.n_vertices = nv;
+  c.skin.joints = km__malloc(nv, 4 * sizeof(int32_t));
+  c.skin.weights = km__calloc(nv * 4, sizeof(double));
+  if (!c.skin.joints || !c.skin.weights) {
+    free(c.skin.joints), free(c.skin.weights);
+    return km__fail(err, KM_ERR_NOMEM, "km_recon_register_mesh: out of memory");
+  }
+  for (size_t i = 0; i < nv; ++i) {
+    c.skin.joints[4 * i] = 0;
+    c.skin.joints[4 * i + 1] = c.skin.joints[4 * i + 2] = c.skin.joints[4 * i + 3] = -1;
+    c.skin.weights[4 * i] = 1;
+  }
+  km_recon_options o = {0};
+  o.rig_joints = true;
+  o.no_limb_search = true;
+  km_recon *r = NULL;
+  km_status s = km_recon_create(&c, &o, &r, err);
+  free(c.skin.joints), free(c.skin.weights);
+  if (!s)
+    s = km__recon_affine_register(r, V_start, target->V, target->n_vertices, features, n_features,
+                                  iterations, err);
+  if (!s) memcpy(V_out, km_recon_surface(r), nv * 3 * sizeof(double));
+  km_recon_free(&r);
+  if (s) return km__wrap(err, s, "km_recon_register_mesh");
+  return KM_OK;
+}

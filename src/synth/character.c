@@ -18,29 +18,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum {
-  J_HIP_C = 0,
-  J_SPINE,
-  J_SHOULDER_C,
-  J_HEAD,
-  J_SHOULDER_L,
-  J_ELBOW_L,
-  J_WRIST_L,
-  J_HAND_L,
-  J_SHOULDER_R,
-  J_ELBOW_R,
-  J_WRIST_R,
-  J_HAND_R,
-  J_HIP_L,
-  J_KNEE_L,
-  J_ANKLE_L,
-  J_FOOT_L,
-  J_HIP_R,
-  J_KNEE_R,
-  J_ANKLE_R,
-  J_FOOT_R
-};
-
 #define MAX_PRIMS 40
 #define CULL_ALL UINT64_MAX
 

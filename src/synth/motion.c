@@ -17,33 +17,12 @@
  *  s is +1 on the side whose limb points to +x at rest, -1 on the other (read from rest). */
 #include "core/core.h"
 #include "math/math.h"
+#include "motion/motion.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-enum {
-  HIP_C,
-  SPINE,
-  SHOULDER_C,
-  HEAD,
-  SHOULDER_L,
-  ELBOW_L,
-  WRIST_L,
-  HAND_L,
-  SHOULDER_R,
-  ELBOW_R,
-  WRIST_R,
-  HAND_R,
-  HIP_L,
-  KNEE_L,
-  ANKLE_L,
-  FOOT_L,
-  HIP_R,
-  KNEE_R,
-  ANKLE_R,
-  FOOT_R,
-  NJ
-};
+enum { NJ = KM_KINECT1_JOINTS };
 
 #define DEG (M_PI / 180.0)
 /* Seconds the take holds the rest pose, then blends into the motion (smoothstep). */
@@ -229,10 +208,10 @@ static void pose_to_positions(const double *rest, const double side_arm[2],
   double Q[NJ][9], W[NJ][9];
   for (int j = 0; j < NJ; ++j)
     km__m3_identity(Q[j]);
-  km__m3_axis(1, p->yaw * DEG, Q[HIP_C]);
-  rot3(1, p->spine_yaw, 0, p->spine_pitch, 2, p->spine_roll, Q[SPINE]);
-  km__m3_axis(0, p->neck_pitch * DEG, Q[SHOULDER_C]);
-  static const int shoulder[2] = {SHOULDER_L, SHOULDER_R}, hip[2] = {HIP_L, HIP_R};
+  km__m3_axis(1, p->yaw * DEG, Q[J_HIP_C]);
+  rot3(1, p->spine_yaw, 0, p->spine_pitch, 2, p->spine_roll, Q[J_SPINE]);
+  km__m3_axis(0, p->neck_pitch * DEG, Q[J_SHOULDER_C]);
+  static const int shoulder[2] = {J_SHOULDER_L, J_SHOULDER_R}, hip[2] = {J_HIP_L, J_HIP_R};
   for (int side = 0; side < 2; ++side) {
     const arm_pose *a = &p->arm[side];
     double s = side_arm[side];
@@ -256,10 +235,10 @@ static void pose_to_positions(const double *rest, const double side_arm[2],
     for (int i = 0; i < 3; ++i)
       out[3 * j + i] = par < 0 ? rest[3 * j + i] : rest[3 * j + i] - rest[3 * par + i];
   }
-  out[3 * HIP_C] += p->dx;
-  out[3 * HIP_C + 2] += p->dz;
+  out[3 * J_HIP_C] += p->dx;
+  out[3 * J_HIP_C + 2] += p->dz;
   km__forward_kinematics(NJ, parents, Q[0], out, W[0], out);
-  static const int feet[4] = {ANKLE_L, FOOT_L, ANKLE_R, FOOT_R};
+  static const int feet[4] = {J_ANKLE_L, J_FOOT_L, J_ANKLE_R, J_FOOT_R};
   double lo = INFINITY;
   for (int k = 0; k < 4; ++k)
     lo = fmin(lo, out[3 * feet[k] + 1]);
@@ -298,20 +277,20 @@ km_status km_motion_generate(const km_skeleton *s, km_motion_kind kind, size_t f
 
   const double *rest = s->rest;
   double side_arm[2], side_leg[2];
-  side_arm[0] = rest[3 * ELBOW_L] >= rest[3 * SHOULDER_L] ? 1 : -1;
-  side_arm[1] = rest[3 * ELBOW_R] > rest[3 * SHOULDER_R] ? 1 : -1;
-  side_leg[0] = rest[3 * HIP_L] >= rest[3 * HIP_C] ? 1 : -1;
-  side_leg[1] = rest[3 * HIP_R] > rest[3 * HIP_C] ? 1 : -1;
+  side_arm[0] = rest[3 * J_ELBOW_L] >= rest[3 * J_SHOULDER_L] ? 1 : -1;
+  side_arm[1] = rest[3 * J_ELBOW_R] > rest[3 * J_SHOULDER_R] ? 1 : -1;
+  side_leg[0] = rest[3 * J_HIP_L] >= rest[3 * J_HIP_C] ? 1 : -1;
+  side_leg[1] = rest[3 * J_HIP_R] > rest[3 * J_HIP_C] ? 1 : -1;
   if (side_arm[0] == side_arm[1]) side_arm[0] = 1, side_arm[1] = -1;
   if (side_leg[0] == side_leg[1]) side_leg[0] = 1, side_leg[1] = -1;
-  static const int feet[4] = {ANKLE_L, FOOT_L, ANKLE_R, FOOT_R};
+  static const int feet[4] = {J_ANKLE_L, J_FOOT_L, J_ANKLE_R, J_FOOT_R};
   double foot_min = INFINITY;
   for (int k = 0; k < 4; ++k)
     foot_min = fmin(foot_min, rest[3 * feet[k] + 1]);
-  double leg_length =
-      0.5 *
-      (dist3(rest + 3 * HIP_L, rest + 3 * KNEE_L) + dist3(rest + 3 * KNEE_L, rest + 3 * ANKLE_L) +
-       dist3(rest + 3 * HIP_R, rest + 3 * KNEE_R) + dist3(rest + 3 * KNEE_R, rest + 3 * ANKLE_R));
+  double leg_length = 0.5 * (dist3(rest + 3 * J_HIP_L, rest + 3 * J_KNEE_L) +
+                             dist3(rest + 3 * J_KNEE_L, rest + 3 * J_ANKLE_L) +
+                             dist3(rest + 3 * J_HIP_R, rest + 3 * J_KNEE_R) +
+                             dist3(rest + 3 * J_KNEE_R, rest + 3 * J_ANKLE_R));
 
   out->n_frames = frames;
   out->n_joints = NJ;

@@ -11,8 +11,8 @@ const km_mesh *km__transfer_source(const km_transfer *t);
 const int32_t *km__transfer_landmark_ids(const km_transfer *t);
 /* Surface area of the source. */
 double km__transfer_area(const km_transfer *t);
-/* size(source) / size(T) for positions T of the source's connectivity (geodesic landmark
- * distances, see KM_TRANSFER_ALIGN_SCALE). Uses the object's scratch. */
+/* size(source) / size(T) for positions T of the source's connectivity (median one-ring
+ * edge-length ratio, see KM_TRANSFER_ALIGN_SCALE). Uses the object's scratch. */
 double km__transfer_size_ratio(const km_transfer *t, const double *T);
 
 /* The solver's own per-iteration frames of positions V (#V*9, rows n, t, b), for tests: they

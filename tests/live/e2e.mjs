@@ -3,36 +3,18 @@
 // replay button, checks frames arrive, the mesh moves and its decoded positions fill the
 // frame's box (float32, or int16 with --quantize), adds a handle through the mapping panel (click on a projected vertex, pick the joint
 // on the diagram, add, save) and checks the rig file on disk. Keeps a screenshot.
-import { createRequire } from 'node:module';
 import dgram from 'node:dgram';
 import fs from 'node:fs';
 import path from 'node:path';
-import { fileURLToPath } from 'node:url';
-import { check, finish, status, waitFor, sleep, replayDone, OSCELETON_SKEL,
-  osceletonFrame, TOKEN } from './lib.mjs';
+import { check, status, waitFor, sleep, replayDone, OSCELETON_SKEL,
+  osceletonFrame, runLivePage } from './lib.mjs';
 
-const here = path.dirname(fileURLToPath(import.meta.url));
-const require = createRequire(path.join(here, '../../web/package.json'));
-const { chromium } = require('playwright-core');
 const [http, osc, , work] = process.argv.slice(2);
 const url = `http://127.0.0.1:${http}/`;
 const rigPath = path.join(work, 'c.rig.json');
 const rigBefore = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
 
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  headless: true,
-  args: ['--no-sandbox', '--enable-unsafe-swiftshader', '--use-angle=swiftshader',
-    '--ignore-gpu-blocklist', '--disable-dev-shm-usage'],
-});
-const errors = [];
-try {
-  const page = await browser.newPage({ viewport: { width: 1100, height: 700 } });
-  page.on('pageerror', (e) => errors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-  await page.goto(`${url}?token=${TOKEN}`);
-  await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
-    null, { timeout: 80000 });
+await runLivePage(http, 'live_e2e', path.join(work, 'live_page.png'), async (page) => {
   check(true, 'page loaded the mesh and the rig and opened the WebSocket');
   const s0 = await status(http);
   check(s0.clients >= 1, `/status counts the page as a client (${s0.clients})`);
@@ -154,12 +136,4 @@ try {
   await page.waitForFunction((n) => window.kmLive.inSeq === n, s3 ? s3.frames_in : -1, { timeout: 20000 }).catch(() => {});
   check(s3 && (await page.evaluate(() => window.kmLive.inSeq)) === s3.frames_in, 'page shows the last frame after the rig change');
   await sleep(600);
-  await page.screenshot({ path: path.join(work, 'live_page.png') });
-  check(fs.existsSync(path.join(work, 'live_page.png')), `screenshot ${path.join(work, 'live_page.png')}`);
-  check(errors.length === 0, `no page errors ${errors.join(' | ')}`);
-} catch (e) {
-  check(false, 'exception: ' + (e && e.stack || e));
-} finally {
-  await browser.close();
-}
-finish('live_e2e');
+});

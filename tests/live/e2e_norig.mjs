@@ -2,36 +2,17 @@
 // (km_autorig, printed) and writes nothing; the page's hover readout shows the id and position
 // of the vertex under the cursor; the first handle placed by a click is saved, which creates
 // c.rig.json. Keeps a screenshot.
-import { createRequire } from 'node:module';
 import fs from 'node:fs';
 import path from 'node:path';
-import { fileURLToPath } from 'node:url';
-import { check, finish, status, TOKEN } from './lib.mjs';
+import { check, status, runLivePage } from './lib.mjs';
 
-const here = path.dirname(fileURLToPath(import.meta.url));
-const require = createRequire(path.join(here, '../../web/package.json'));
-const { chromium } = require('playwright-core');
 const [http, , , work] = process.argv.slice(2);
-const url = `http://127.0.0.1:${http}/`;
 const rigPath = path.join(work, 'c.rig.json');
 const out = fs.readFileSync(path.join(work, 'server.out'), 'utf8');
 check(/no rig at .*rigged .* as a humanoid/.test(out), `server rigged the mesh itself: ${out.split('\n')[0]}`);
 check(!fs.existsSync(rigPath), 'no rig file written before the page saves');
 
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  headless: true,
-  args: ['--no-sandbox', '--enable-unsafe-swiftshader', '--use-angle=swiftshader',
-    '--ignore-gpu-blocklist', '--disable-dev-shm-usage'],
-});
-const errors = [];
-try {
-  const page = await browser.newPage({ viewport: { width: 1100, height: 700 } });
-  page.on('pageerror', (e) => errors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-  await page.goto(`${url}?token=${TOKEN}`);
-  await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
-    null, { timeout: 80000 });
+await runLivePage(http, 'live_e2e_norig', path.join(work, 'live_norig.png'), async (page) => {
   const s0 = await status(http);
   const auto = Object.keys(s0.handles);
   check(['head', 'hand_left', 'hand_right', 'foot_left', 'foot_right'].every((h) => auto.includes(h)),
@@ -72,11 +53,4 @@ try {
   check(rig && rig.handles.length === auto.length + 1 && m && m.joint === 'ShoulderCenter',
     `saved ${rigPath}: ${rig ? rig.handles.length : 0} handles, the new one on ${m && m.joint}`);
   check(rig && rig.joints && rig.skin, 'the saved rig keeps the automatic skeleton and skin');
-  await page.screenshot({ path: path.join(work, 'live_norig.png') });
-  check(errors.length === 0, `no page errors ${errors.join(' | ')}`);
-} catch (e) {
-  check(false, 'exception: ' + (e && e.stack || e));
-} finally {
-  await browser.close();
-}
-finish('live_e2e_norig');
+});

@@ -63,3 +63,50 @@ export const oscBundle = (msgs) => Buffer.concat([oscString('#bundle'), Buffer.a
 // An OSCeleton frame (/joint siiffff per joint) as one bundle.
 export const osceletonFrame = (skel, user = 1) => oscBundle(Object.entries(skel).map(([name, p]) =>
   oscMessage('/joint', 'siiffff', oscString(name), oscInt(0), oscInt(user), ...p.map(oscFloat), oscFloat(1))));
+
+// Headless Debian chromium (driven by playwright-core, no browser download) with the live
+// page open at ?token= and loaded (mesh, rig, WebSocket). Page errors and console errors are
+// collected in `errors`. Returns { browser, page, errors }; the caller closes the browser.
+export async function openLivePage(http, { viewport = { width: 1100, height: 700 }, args = [] } = {}) {
+  const { createRequire } = await import('node:module');
+  const require = createRequire(new URL('../../web/package.json', import.meta.url));
+  const { chromium } = require('playwright-core');
+  const browser = await chromium.launch({
+    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+    headless: true,
+    args: ['--no-sandbox', '--enable-unsafe-swiftshader', '--use-angle=swiftshader',
+      '--ignore-gpu-blocklist', '--disable-dev-shm-usage', ...args],
+  });
+  const errors = [];
+  try {
+    const page = await browser.newPage({ viewport });
+    page.on('pageerror', (e) => errors.push(String(e)));
+    page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
+    await page.goto(`http://127.0.0.1:${http}/?token=${TOKEN}`);
+    await page.waitForFunction(() => window.kmLive && window.kmLive.ready && window.kmLive.connected,
+      null, { timeout: 80000 });
+    return { browser, page, errors };
+  } catch (e) {
+    await browser.close();
+    throw e;
+  }
+}
+
+// A live-page test: opens the page (openLivePage), runs body(page), keeps a screenshot, checks
+// the page logged no error, closes the browser whatever happened and prints the summary.
+export async function runLivePage(http, name, screenshot, body, opts) {
+  let browser = null, errors = [];
+  try {
+    const o = await openLivePage(http, opts);
+    browser = o.browser;
+    errors = o.errors;
+    await body(o.page);
+    if (screenshot) await o.page.screenshot({ path: screenshot });
+    check(errors.length === 0, `no page errors ${errors.join(' | ')}`);
+  } catch (e) {
+    check(false, 'exception: ' + (e && e.stack || e));
+  } finally {
+    if (browser) await browser.close();
+  }
+  finish(name);
+}

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# ctest driver for live mode: run.sh e2e|e2e_quantize|e2e_norig|osc|garbage|vmc|security KINEMESH WORKDIR
+# ctest driver for live mode: run.sh e2e|e2e_quantize|e2e_norig|e2e_nohandles|osc|garbage|vmc|camera|security KINEMESH WORKDIR
 # (security: tests/security/run.sh, which names its script in KM_LIVE_SCRIPT)
 # Generates a small character and take, starts `kinemesh live` on loopback with random free
 # ports (retrying when a port is taken), runs the matching node script against it, stops the
@@ -13,8 +13,9 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 ROOT=$(cd "$HERE/../.." && pwd)
 command -v node >/dev/null || { echo "FAIL: node not found (scripts/deps.sh installs it)"; exit 1; }
 [ -d "$ROOT/web/node_modules/playwright-core" ] || { echo "FAIL: web/node_modules missing (run scripts/deps.sh)"; exit 1; }
-if [ "${MODE#e2e}" != "$MODE" ] && ! command -v chromium >/dev/null; then echo "FAIL: chromium not installed (scripts/deps.sh installs it)"; exit 1; fi
+if { [ "${MODE#e2e}" != "$MODE" ] || [ "$MODE" = camera ]; } && ! command -v chromium >/dev/null; then echo "FAIL: chromium not installed (scripts/deps.sh installs it)"; exit 1; fi
 if [ "$MODE" = osc ] && ! command -v oscsend >/dev/null; then echo "FAIL: oscsend not installed (scripts/deps.sh installs liblo-tools)"; exit 1; fi
+if [ "$MODE" = camera ] && [ ! -f "$ROOT/web/node_modules/@mediapipe/pose/pose.js" ]; then echo "FAIL: @mediapipe/pose missing (run scripts/deps.sh)"; exit 1; fi
 BVH="$ROOT/../shared/data/bvh/cmu_131_01.bvh"
 if [ "$MODE" = vmc ] && [ ! -f "$BVH" ]; then echo "SKIP: $BVH not found (../shared/data is absent)"; exit 77; fi
 rm -rf "$WORK" && mkdir -p "$WORK"
@@ -27,7 +28,9 @@ case $MODE in
   e2e) EXTRA=(--replay "$WORK/t.json" --no-autoplay) ;;
   e2e_quantize) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
   e2e_norig) rm -f "$WORK/c.rig.json"; EXTRA=(--no-autoplay) ;;
+  e2e_nohandles) EXTRA=(--no-handles --replay "$WORK/t.json" --no-autoplay) ;;
   osc) EXTRA=(--record "$WORK/rec.json") ;;
+  camera) EXTRA=(--record "$WORK/rec.json") ;;
   garbage) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
   security) EXTRA=(--replay "$WORK/t.json" --no-autoplay); chmod 600 "$WORK/c.rig.json" ;;
   vmc)
@@ -77,7 +80,10 @@ KM_LIVE_TOKEN=$(grep -o 'token=[A-Za-z0-9_-]*' "$WORK/server.out" | head -1 | cu
 [ -n "$KM_LIVE_TOKEN" ] || { echo "FAIL: no ?token= in the printed URL"; cat "$WORK/server.out"; exit 1; }
 export KM_LIVE_TOKEN
 SCRIPT=${KM_LIVE_SCRIPT:-$HERE/${MODE%_quantize}.mjs}
-KM_BIN="$BIN" KM_VMC=$VMC KM_VMC_OUT=$((BASE + 4)) KM_BVH="$BVH" timeout 90 node "$SCRIPT" "$HTTP" "$OSC" "$UDP" "$WORK"
+# The camera runs MediaPipe Pose on software WebGL: slow on a loaded machine, more time.
+TMO=90
+[ "$MODE" = camera ] && TMO=340
+KM_BIN="$BIN" KM_VMC=$VMC KM_VMC_OUT=$((BASE + 4)) KM_BVH="$BVH" timeout $TMO node "$SCRIPT" "$HTTP" "$OSC" "$UDP" "$WORK"
 rc=$?
 kill -0 $PID 2>/dev/null || { echo "FAIL: the server died"; cat "$WORK/server.err"; exit 1; }
 kill -TERM $PID
@@ -94,5 +100,9 @@ if [ "$MODE" = osc ]; then
   "$BIN" animate --mesh "$WORK/c.obj" --motion "$WORK/rec.json" -o "$WORK/rec.pc2" 2>"$WORK/animate.err" \
     || { echo "FAIL: animate on the recorded take"; cat "$WORK/animate.err"; exit 1; }
   echo "recorded take animates offline: ok"
+fi
+if [ "$MODE" = camera ]; then
+  # What the server received from the page's camera, against the clip.
+  node "$HERE/camera_check.mjs" "$WORK" || exit 1
 fi
 echo "live_$MODE: passed"
