@@ -4,7 +4,7 @@ BUILD ?= build
 ASAN_BUILD ?= build-asan
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 
-.PHONY: all deps deps-test build demo test test-sanitize bench format clean
+.PHONY: all deps deps-test build demo test test-sanitize fuzz bench format clean
 
 all: build
 
@@ -35,6 +35,13 @@ test-sanitize: deps $(ASAN_BUILD)/CMakeCache.txt
 	cmake --build $(ASAN_BUILD) -j $(JOBS)
 	cd $(ASAN_BUILD) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
 	  ctest --output-on-failure -j $(JOBS) -L sanitize
+
+# Every fuzz target (fuzz/fuzz_*.c) for FUZZ_SECONDS each (ctest `fuzz` runs them 5 s), or only
+# FUZZ_TARGETS; findings and corpora in $(BUILD)/fuzz-long/<target>/.
+FUZZ_SECONDS ?= 300
+FUZZ_TARGETS ?=
+fuzz: build
+	KM_FUZZ_CLI=$(BUILD)/kinemesh bash fuzz/run.sh . $(BUILD)/fuzz-long $(FUZZ_SECONDS) $(FUZZ_TARGETS)
 
 format:
 	clang-format -i $$(git ls-files '*.c' '*.h')

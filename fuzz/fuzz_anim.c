@@ -1,7 +1,8 @@
 /* Modules: anim.
- * libFuzzer target for the animation readers behind `kinemesh info` (km_anim_info_read on a
- * .glb and a .pc2, and km_pc2_read; they read files only, so through a scratch file,
- * fuzz_file.h). A .pc2 that reads has the frames its header promised. See fuzz_mesh.c. */
+ * libFuzzer target for the animation readers behind `kinemesh info` and `bake` (km_anim_info_read
+ * on a .glb and a .pc2, km_pc2_read, and km_anim_read: a .glb's rest mesh and its morph targets
+ * evaluated at the weight keys, a .pc2's frames; they read files only, so through a scratch
+ * file, fuzz_file.h). What reads has the frames its header promised. See fuzz_mesh.c. */
 #include "fuzz_file.h"
 #include "kinemesh.h"
 
@@ -14,6 +15,15 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   km_error err;
   if (km_fuzz_write_temp(data, size, "glb", path, sizeof path)) return 0;
   (void)km_anim_info_read(path, &info, &err);
+  km_mesh rest = {0};
+  double *baked = NULL;
+  if (km_anim_read(path, &rest, &baked, &info, &err) == KM_OK) {
+    volatile double sum = 0;
+    for (size_t k = 0; k < info.frames * rest.n_vertices * 3; ++k)
+      sum += baked[k];
+    free(baked);
+    km_mesh_free(&rest);
+  }
   remove(path);
   if (km_fuzz_write_temp(data, size, "pc2", path, sizeof path)) return 0;
   (void)km_anim_info_read(path, &info, &err);

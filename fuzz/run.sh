@@ -22,7 +22,7 @@ SECONDS_EACH=${3:-5}
 shift $(($# < 3 ? $# : 3))
 CC=${KM_FUZZ_CC:-clang}
 CFLAGS_EXT=${KM_FUZZ_CFLAGS:--I/usr/include/suitesparse -I/usr/include/arpack}
-LIBS=${KM_FUZZ_LIBS:--lcholmod -lsuitesparseconfig -larpack -llapacke -llapack -lopenblas -lembree3 -lcjson -lsvm -llbfgs -llo}
+LIBS=${KM_FUZZ_LIBS:--lcholmod -lsuitesparseconfig -larpack -llapacke -llapack -lopenblas -lembree3 -lcjson -lsvm -llbfgs -lmeshoptimizer -llo}
 
 if ! command -v "$CC" >/dev/null 2>&1; then
   echo "fuzz: $CC not found: fuzz targets not built (scripts/deps.sh installs clang)"

@@ -390,6 +390,22 @@ static void test_take_memory(void) {
             grew / 1e6);
 #endif
   km_take_free(&t);
+  /* the frames are read as strictly as cJSON reads JSON */
+  const char *bad[] = {"[[+1,0,0]]", "[[.5,0,0]]",  "[[1,0,0],]", "[[1,0,0]",
+                       "[[1 0,0]]",  "[[1,0,nul]]", "[]",         "[[1,0,0]]x"};
+  for (size_t b = 0; b < sizeof bad / sizeof bad[0]; ++b) {
+    f = fopen(path, "wb");
+    if (!f) break;
+    fprintf(f,
+            "{\"format\":\"kinemesh-take\",\"version\":1,\"fps\":30,\"joints\":[\"A\"],"
+            "\"frames\":%s}",
+            bad[b]);
+    fclose(f);
+    km_status st = km_take_read(path, &t, KM_E);
+    CHECK_MSG(st == KM_ERR_PARSE && km_test_err.message[0], "frames %s: %s", bad[b],
+              km_status_name(st));
+    if (st == KM_OK) km_take_free(&t);
+  }
   remove(path);
 }
 

@@ -118,7 +118,8 @@ static bool find_frames(const char *text, size_t n, size_t *a, size_t *b) {
 
 /* Reads the frames array text[a, b) strictly: '[' frames of `want` numbers or nulls ']'.
  * pos NULL: checks and counts (*nf); else fills pos (*nf frames, as counted before). Numbers
- * as cJSON reads them (a run of [0-9+-.eE] that strtod takes whole); non-finite refused. */
+ * as cJSON reads them (starting with '-' or a digit, a run of [0-9+-.eE] that strtod takes
+ * whole); non-finite refused. */
 static km_status read_frames(const char *path, const char *text, size_t a, size_t b, size_t want,
                              char *const *names, double *pos, size_t *nf, km_error *err) {
   scan c = {text, b, a};
@@ -165,7 +166,7 @@ static km_status read_frames(const char *path, const char *text, size_t a, size_
           num[n] = 0;
           char *end = NULL;
           v = n ? strtod(num, &end) : 0;
-          if (!n || end != num + n)
+          if (!n || end != num + n || !(num[0] == '-' || (num[0] >= '0' && num[0] <= '9')))
             FRAME_FAIL("frame %zu, value %zu%s%s%s is not a number or null", f, k,
                        k / 3 < want / 3 ? " (joint " : "", k / 3 < want / 3 ? names[k / 3] : "",
                        k / 3 < want / 3 ? ")" : "");
