@@ -632,6 +632,7 @@ static int pack_accessor(glb_pack *pk, int view, int component, bool normalized,
  * grid (s grows when a delta would not fit). Whoever displays the mesh dequantises through
  * the mesh node's scale s and translation off (morphs) or the inverse bind matrices (skin). */
 #define POS_BITS 14
+#define ROT_BITS 12 /* quaternion filter bits (gltfpack default): ~3e-4 rad */
 typedef struct qgrid {
   double off[3], s;
 } qgrid;
@@ -718,15 +719,20 @@ static int pack_uv(glb_pack *pk, const double *uv, size_t nv, unsigned char *b) 
       false, nv, "VEC2", NULL, NULL, 0);
 }
 
-/* Triangle indices: host uint32 for the index codec, little-endian bytes when plain. */
+/* Triangle indices: little-endian bytes when plain; compressed, host uint32 in an order the
+ * index codec packs well (meshopt_optimizeVertexCache reorders the triangles, never the
+ * vertices: vertex order and count stay the input's). b: nf*12 bytes. */
 static int pack_indices(glb_pack *pk, const int32_t *F, size_t nf, unsigned char *b) {
-  for (size_t i = 0; i < nf * 3; ++i) {
-    if (pk->compress) {
-      uint32_t u = (uint32_t)F[i];
-      memcpy(b + 4 * i, &u, 4);
-    } else {
+  if (pk->compress) {
+    unsigned int *in = km__malloc(nf * 3, sizeof *in);
+    if (!in) return -1;
+    for (size_t i = 0; i < nf * 3; ++i)
+      in[i] = (unsigned int)F[i];
+    meshopt_optimizeVertexCache((unsigned int *)b, in, nf * 3, pk->nv);
+    free(in);
+  } else {
+    for (size_t i = 0; i < nf * 3; ++i)
       km__put_u32le(b + 4 * i, (uint32_t)F[i]);
-    }
   }
   return pack_accessor(
       pk, pack_view(pk, b, nf * 3, 4, PACK_TRIANGLES, NULL, GL_ELEMENT_ARRAY_BUFFER, false),
@@ -1018,7 +1024,7 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
     }
     int a_r;
     if (z) {
-      meshopt_encodeFilterQuat(b, T, 8, 16, f4);
+      meshopt_encodeFilterQuat(b, T, 8, ROT_BITS, f4);
       memcpy(b2, b, T * 8);
       meshopt_decodeFilterQuat(b2, T, 8);
       for (size_t t = 0; t < T; ++t) {
