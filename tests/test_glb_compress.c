@@ -150,6 +150,12 @@ static unsigned char *accessor_bytes(const glb *g, int a, size_t *count, size_t 
   if (filter && !strcmp(filter, "QUATERNION")) meshopt_decodeFilterQuat(out, n, st);
   if (filter && !strcmp(filter, "EXPONENTIAL")) meshopt_decodeFilterExp(out, n, st);
   *stride = st;
+  size_t ao = (size_t)num(acc, "byteOffset"); /* bones share a view, each at its offset */
+  if (ao + *count * st > len) {
+    free(out);
+    return NULL;
+  }
+  memmove(out, out + ao, *count * st);
   return out;
 }
 
