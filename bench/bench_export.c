@@ -179,7 +179,7 @@ int km_bench_export(int argc, char **argv) {
       {"rig", 0, KM_OPT_STRING, &rig, "with --take: this rig instead of `kinemesh rig`'s"},
       {"kinds", 0, KM_OPT_STRING, &kinds_s,
        "export kinds, comma-separated; KIND+c: with --compress (default "
-       "morphs:all,skin:32,skin,skin+c,morphs:16+c)"},
+       "morphs:all,skin:32,skin,skin+c,morphs:48+c)"},
       {"repeat", 0, KM_OPT_SIZE, &repeat, "runs per kind (default 1; the median is printed)"},
       {"json", 0, KM_OPT_FLAG, &json, "print one JSON object per row, one per line"},
   };
@@ -198,7 +198,7 @@ int km_bench_export(int argc, char **argv) {
   if (repeat < 1) return km_cli_error("bench export", "--repeat must be at least 1");
   char kbuf[256];
   snprintf(kbuf, sizeof kbuf, "%s",
-           kinds_s ? kinds_s : "morphs:all,skin:32,skin,skin+c,morphs:16+c");
+           kinds_s ? kinds_s : "morphs:all,skin:32,skin,skin+c,morphs:48+c");
   const char *kinds[MAX_KINDS];
   size_t nk = 0;
   for (char *tok = strtok(kbuf, ","); tok && nk < MAX_KINDS; tok = strtok(NULL, ","))

@@ -610,11 +610,13 @@ static int pack_view(glb_pack *pk, const void *data, size_t count, size_t stride
 
 /* Appends an accessor over a whole view; min/max (n values each) may be NULL. Returns its
  * index, -1 when view is -1. */
-static int pack_accessor(glb_pack *pk, int view, int component, bool normalized, size_t count,
-                         const char *type, const double *mn, const double *mx, int n) {
+static int pack_accessor_at(glb_pack *pk, int view, size_t byte_offset, int component,
+                            bool normalized, size_t count, const char *type, const double *mn,
+                            const double *mx, int n) {
   if (view < 0) return -1;
   cJSON *a = cJSON_CreateObject();
   cJSON_AddNumberToObject(a, "bufferView", view);
+  if (byte_offset) cJSON_AddNumberToObject(a, "byteOffset", (double)byte_offset);
   cJSON_AddNumberToObject(a, "componentType", component);
   if (normalized) cJSON_AddBoolToObject(a, "normalized", 1);
   cJSON_AddNumberToObject(a, "count", (double)count);
@@ -626,12 +628,17 @@ static int pack_accessor(glb_pack *pk, int view, int component, bool normalized,
   cJSON_AddItemToArray(pk->accessors, a);
   return cJSON_GetArraySize(pk->accessors) - 1;
 }
+static int pack_accessor(glb_pack *pk, int view, int component, bool normalized, size_t count,
+                         const char *type, const double *mn, const double *mx, int n) {
+  return pack_accessor_at(pk, view, 0, component, normalized, count, type, mn, mx, n);
+}
 
 /* KHR_mesh_quantization grid: position p is stored as the integer round((p - off) / s) with
  * POS_BITS bits over the rest's largest extent; morph deltas as signed 16-bit on the same
  * grid (s grows when a delta would not fit). Whoever displays the mesh dequantises through
  * the mesh node's scale s and translation off (morphs) or the inverse bind matrices (skin). */
 #define POS_BITS 14
+#define ROT_BITS 12 /* quaternion filter bits (gltfpack default): ~3e-4 rad */
 typedef struct qgrid {
   double off[3], s;
 } qgrid;
@@ -718,15 +725,20 @@ static int pack_uv(glb_pack *pk, const double *uv, size_t nv, unsigned char *b) 
       false, nv, "VEC2", NULL, NULL, 0);
 }
 
-/* Triangle indices: host uint32 for the index codec, little-endian bytes when plain. */
+/* Triangle indices: little-endian bytes when plain; compressed, host uint32 in an order the
+ * index codec packs well (meshopt_optimizeVertexCache reorders the triangles, never the
+ * vertices: vertex order and count stay the input's). b: nf*12 bytes. */
 static int pack_indices(glb_pack *pk, const int32_t *F, size_t nf, unsigned char *b) {
-  for (size_t i = 0; i < nf * 3; ++i) {
-    if (pk->compress) {
-      uint32_t u = (uint32_t)F[i];
-      memcpy(b + 4 * i, &u, 4);
-    } else {
+  if (pk->compress) {
+    unsigned int *in = km__malloc(nf * 3, sizeof *in);
+    if (!in) return -1;
+    for (size_t i = 0; i < nf * 3; ++i)
+      in[i] = (unsigned int)F[i];
+    meshopt_optimizeVertexCache((unsigned int *)b, in, nf * 3, pk->nv);
+    free(in);
+  } else {
+    for (size_t i = 0; i < nf * 3; ++i)
       km__put_u32le(b + 4 * i, (uint32_t)F[i]);
-    }
   }
   return pack_accessor(
       pk, pack_view(pk, b, nf * 3, 4, PACK_TRIANGLES, NULL, GL_ELEMENT_ARRAY_BUFFER, false),
@@ -990,22 +1002,25 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
   cJSON_AddStringToObject(anim, "name", "kinemesh");
   cJSON *channels = cJSON_AddArrayToObject(anim, "channels");
   cJSON *samplers = cJSON_AddArrayToObject(anim, "samplers");
+  /* Compressed, all bones share one translation and one rotation view (an accessor per bone
+   * at its offset): far less JSON than two views per bone. Plain: a view per channel. */
+  float *tr = km__malloc(B * T * 3, sizeof *tr), *rq = km__malloc(B * T * 4, sizeof *rq);
+  unsigned char *eb = malloc(B * T * 16), *db = malloc(B * T * 16);
+  if (!tr || !rq || !eb || !db) {
+    free(tr);
+    free(rq);
+    free(eb);
+    free(db);
+    goto nomem;
+  }
   for (size_t j = 0; j < B; ++j) {
     const double *c = fit->centers + 3 * j;
-    for (size_t t = 0; t < T; ++t) {
-      const double *M = fit->transforms + (t * B + j) * 12;
-      for (int k = 0; k < 3; ++k)
-        f4[3 * t + k] =
-            (float)(M[4 * k] * c[0] + M[4 * k + 1] * c[1] + M[4 * k + 2] * c[2] + M[4 * k + 3]);
-    }
-    int a_t = pack_floats(&pk, f4, T, 3, 16, b, (float *)b2, "VEC3", NULL, NULL);
-    if (a_t < 0) goto nomem;
-    for (size_t t = 0; z && t < T; ++t)
-      for (int k = 0; k < 3; ++k)
-        rig[(t * B + j) * 12 + 4 * k + 3] = ((const float *)b2)[3 * t + k];
     double qprev[4] = {0, 0, 0, 1};
     for (size_t t = 0; t < T; ++t) {
       const double *M = fit->transforms + (t * B + j) * 12;
+      for (int k = 0; k < 3; ++k)
+        tr[(j * T + t) * 3 + k] =
+            (float)(M[4 * k] * c[0] + M[4 * k + 1] * c[1] + M[4 * k + 2] * c[2] + M[4 * k + 3]);
       double R[9] = {M[0], M[1], M[2], M[4], M[5], M[6], M[8], M[9], M[10]}, q[4];
       quat_from_m3(R, q);
       /* the shorter arc between keys: players interpolate (s)linearly */
@@ -1014,18 +1029,28 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
           q[k] = -q[k];
       memcpy(qprev, q, sizeof q);
       for (int k = 0; k < 4; ++k)
-        f4[4 * t + k] = (float)q[k];
+        rq[(j * T + t) * 4 + k] = (float)q[k];
     }
-    int a_r;
-    if (z) {
-      meshopt_encodeFilterQuat(b, T, 8, 16, f4);
-      memcpy(b2, b, T * 8);
-      meshopt_decodeFilterQuat(b2, T, 8);
+  }
+  int v_t = -1, v_r = -1;
+  if (z) {
+    meshopt_encodeFilterExp(eb, B * T, 12, 16, tr);
+    memcpy(db, eb, B * T * 12);
+    meshopt_decodeFilterExp(db, B * T, 12);
+    for (size_t j = 0; j < B; ++j)
+      for (size_t t = 0; t < T; ++t)
+        for (int k = 0; k < 3; ++k)
+          rig[(t * B + j) * 12 + 4 * k + 3] = ((const float *)db)[(j * T + t) * 3 + k];
+    v_t = pack_view(&pk, eb, B * T, 12, PACK_ATTRIBUTES, "EXPONENTIAL", 0, false);
+    meshopt_encodeFilterQuat(eb, B * T, 8, ROT_BITS, rq);
+    memcpy(db, eb, B * T * 8);
+    meshopt_decodeFilterQuat(db, B * T, 8);
+    for (size_t j = 0; j < B; ++j)
       for (size_t t = 0; t < T; ++t) {
         double q[4], R[9];
         for (int k = 0; k < 4; ++k) {
           int16_t v;
-          memcpy(&v, b2 + 8 * t + 2 * k, 2);
+          memcpy(&v, db + 8 * (j * T + t) + 2 * k, 2);
           q[k] = fmax(v / 32767.0, -1.0);
         }
         quat_to_m3(q, R);
@@ -1034,12 +1059,24 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
           for (int k = 0; k < 3; ++k)
             D[4 * r + k] = R[3 * r + k];
       }
-      a_r = pack_accessor(&pk, pack_view(&pk, b, T, 8, PACK_ATTRIBUTES, "QUATERNION", 0, false),
-                          GL_SHORT, true, T, "VEC4", NULL, NULL, 0);
+    v_r = pack_view(&pk, eb, B * T, 8, PACK_ATTRIBUTES, "QUATERNION", 0, false);
+  }
+  free(eb);
+  free(db);
+  for (size_t j = 0; j < B; ++j) {
+    int a_t, a_r;
+    if (z) {
+      a_t = pack_accessor_at(&pk, v_t, j * T * 12, GL_FLOAT, false, T, "VEC3", NULL, NULL, 0);
+      a_r = pack_accessor_at(&pk, v_r, j * T * 8, GL_SHORT, true, T, "VEC4", NULL, NULL, 0);
     } else {
-      a_r = pack_raw_floats(&pk, f4, T, "VEC4", 4, b, NULL, NULL);
+      a_t = pack_raw_floats(&pk, tr + j * T * 3, T, "VEC3", 3, b, NULL, NULL);
+      a_r = pack_raw_floats(&pk, rq + j * T * 4, T, "VEC4", 4, b, NULL, NULL);
     }
-    if (a_r < 0) goto nomem;
+    if (a_t < 0 || a_r < 0) {
+      free(tr);
+      free(rq);
+      goto nomem;
+    }
     const char *paths[2] = {"translation", "rotation"};
     int outs[2] = {a_t, a_r};
     for (int k = 0; k < 2; ++k) {
@@ -1056,6 +1093,9 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
       cJSON_AddItemToArray(channels, ch);
     }
   }
+
+  free(tr);
+  free(rq);
 
   /* ---- the error of what a player evaluates from the compressed file: dequantised rest and
    * weights, decoded rotations and translations, float32 bind centres */

@@ -576,6 +576,17 @@ static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
   cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
   if (!cJSON_GetArraySize(meshes))
     return km__fail(err, KM_ERR_PARSE, "%s: expected a non-empty 'meshes' array", d->name);
+  /* Compressed / quantised geometry (kinemesh's own --compress among them) is not decoded. */
+  const cJSON *req;
+  cJSON_ArrayForEach(req, cJSON_GetObjectItemCaseSensitive(d->json, "extensionsRequired")) {
+    if (cJSON_IsString(req) && (!strcmp(req->valuestring, "EXT_meshopt_compression") ||
+                                !strcmp(req->valuestring, "KHR_mesh_quantization") ||
+                                !strcmp(req->valuestring, "KHR_draco_mesh_compression")))
+      return km__fail(err, KM_ERR_UNSUPPORTED,
+                      "%s: JSON: extensionsRequired: %s is not read; use a file written without "
+                      "compression (kinemesh: without --compress)",
+                      d->name, req->valuestring);
+  }
   km_status s = load_buffers(d, err);
   if (s) return s;
   instances inst = {0};

@@ -33,6 +33,9 @@ cp "$WORK/c.rig.json" "$WORK/ct.rig.json"
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export skin --compress -o "$WORK/z_skin.glb"
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export morphs:5 --compress -o "$WORK/z_pca.glb"
 "$BIN" bake "$WORK/every.pc2" --mesh "$WORK/c.obj" --export skin:8 --compress -o "$WORK/z_baked.glb"
+if "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --compress -o "$WORK/z.pc2" 2>/dev/null; then
+  echo "FAIL: --compress accepted a .pc2 output"; exit 1
+fi
 for f in every keys textured skin baked baked_pc2 pca z_keys z_skin z_pca z_baked; do
   node "$HERE/validate.mjs" "$WORK/$f.glb" | tee "$WORK/$f.txt"
   grep -q ': 0 errors, 0 warnings' "$WORK/$f.txt" || { echo "FAIL: $f.glb has validator errors or warnings"; exit 1; }
