@@ -2130,7 +2130,9 @@ typedef struct km_recon_options {
                                 * still counts). Borrowed: must outlive the reconstructor. */
   size_t n_cameras;
   /* ---- limbs found, not assumed */
-  bool no_limb_search; /* true: skip the first frame's limb search (see km_recon_init) */
+  bool no_limb_search;       /* true: skip the first frame's limb search (see km_recon_init) */
+  bool no_surface_to_points; /* true: the surface refinement uses points -> surface only (no
+                              * pull of unclaimed template surface towards its nearest point) */
   /* ---- issue 16: how km_reconstruct writes out_anim (export kind, skin fit); NULL: per-frame
    * morphs at 30 fps. fps 0 in it: 30. Borrowed for the call. */
   const km_anim_options *anim;

@@ -229,15 +229,16 @@ static void test_two_sided_brute_force(void) {
   km_character_free(&tmpl);
 }
 
-/* The left arm cut out of frames 4..6 (every point within 5 cm of the subject's true left
- * arm removed, as an occluder would): exactly those frames are flagged and name the arm. */
+/* The left arm cut out of frames 4..23 (20 frames, as issue 13 asks: every point within 5 cm
+ * of the subject's true left arm removed, as an occluder would): exactly those frames are
+ * flagged and name the arm, and the frames after are recovered (not flagged). */
 static void test_occluded_arm(void) {
   km_character subj = {0}, tmpl = {0};
   km_character_options so = {.target_vertices = 3000, .seed = 7, .girth = 1.05};
   km_character_options to = {.target_vertices = 2000, .seed = 1};
   CHECK_OK(km_character_generate(&so, &subj, KM_E));
   CHECK_OK(km_character_generate(&to, &tmpl, KM_E));
-  enum { NF = 10, CUT0 = 4, CUT1 = 6 };
+  enum { NF = 28, CUT0 = 4, CUT1 = 23 };
   char dir[64], **paths = NULL;
   size_t n = 0;
   double *truth = NULL;
@@ -307,7 +308,9 @@ static void test_occluded_arm(void) {
     if (cut) {
       CHECK_MSG(names_arm && !names_other, "frame %zu names%s", f, parts);
       CHECK(rep.unsupported && rep.unsupported[f]);
-      CHECK_MSG(s->surface_max_mm > 100, "frame %zu: the hand %.0f mm from every point", f,
+      /* the hidden hand stays where it was carried: 95-350 mm from every point over the 20
+       * frames (the waving arm comes near the head late in the take) */
+      CHECK_MSG(s->surface_max_mm > 60, "frame %zu: the hand %.0f mm from every point", f,
                 s->surface_max_mm);
     }
   }

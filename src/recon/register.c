@@ -96,6 +96,8 @@ struct km_recon {
   /* surface -> points term of the skeletal step: per vertex nearest point and weight */
   int32_t *vnear;
   double *vw, *vdist, *vn;
+  double *vq;      /* nv*3: the affine stage's surface -> points targets */
+  bool *part_lost; /* nj: the skin joints the last frame flagged unsupported */
   /* template landmarks with a name (pseudo-correspondences without given ones) */
   int32_t lm[KM_CHARACTER_LANDMARKS];
   size_t n_lm;
@@ -301,6 +303,8 @@ void km_recon_free(km_recon **rp) {
   free(r->vw);
   free(r->vdist);
   free(r->vn);
+  free(r->vq);
+  free(r->part_lost);
   free(r->sup_dist);
   free(r->sup_idx);
   free(r->sup_list);
@@ -367,14 +371,16 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   r->vw = km__malloc(nv, sizeof(double));
   r->vdist = km__malloc(nv, sizeof(double));
   r->vn = km__malloc(nv, 3 * sizeof(double));
+  r->vq = km__malloc(nv, 3 * sizeof(double));
+  r->part_lost = calloc(nj ? nj : 1, sizeof *r->part_lost);
   r->sup_dist = km__malloc(nv, sizeof(double));
   r->sup_idx = km__malloc(nv, sizeof(int32_t));
   r->sup_list = km__malloc(nv, sizeof(int32_t));
   if (r->o.n_cameras) r->sup_N = km__malloc(nv, 3 * sizeof(double));
   if (!r->sup_dist || !r->sup_idx || !r->sup_list || (r->o.n_cameras && !r->sup_N) || !r->vnear ||
-      !r->vw || !r->vdist || !r->vn || !r->parents || !r->tmpl_joints || !r->names ||
-      !r->skin.joints || !r->skin.weights || !r->base || !r->base_joints || !r->Lrot || !r->Lprev ||
-      !r->Lprev2 || !r->global || !r->surface || !r->work || !r->joints || !r->G) {
+      !r->vw || !r->vq || !r->part_lost || !r->vdist || !r->vn || !r->parents || !r->tmpl_joints ||
+      !r->names || !r->skin.joints || !r->skin.weights || !r->base || !r->base_joints || !r->Lrot ||
+      !r->Lprev || !r->Lprev2 || !r->global || !r->surface || !r->work || !r->joints || !r->G) {
     km_recon_free(&r);
     return km__fail(err, KM_ERR_NOMEM, "km_recon_create: out of memory");
   }
@@ -508,8 +514,8 @@ static double correspond(km_recon *r, const double *X, const double *Q, const do
  * for fixed correspondences: one linear least-squares (Gauss-Newton) step. The tiny w_id
  * keeps the system SPD where neither data nor features reach. X receives the result. */
 static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, size_t nq, double wd,
-                              const km_recon_feature *feat, size_t nfeat, double wf, double *X,
-                              km_error *err) {
+                              const km_recon_feature *feat, size_t nfeat, double wf,
+                              const double *VQ, const double *vwt, double *X, km_error *err) {
   size_t nv = r->nv, ne = r->ne;
   double c[3] = {0, 0, 0};
   for (size_t i = 0; i < nv; ++i)
@@ -573,6 +579,19 @@ static km_status affine_solve(km_recon *r, const double *Vb, const double *Q, si
         for (int d = 0; d < 3; ++d)
           r->rhs[d * n4 + 4 * (size_t)v + a] += w * H(v, a) * (feat[k].point[d] - c[d]);
       }
+    }
+  }
+  /* surface -> points: vertex i towards the point VQ[i] with weight vwt[i] (point-to-point, so
+   * the three coordinates keep one matrix) */
+  for (size_t v = 0; VQ && vwt && v < nv; ++v) {
+    double w = vwt[v];
+    if (w <= 0) continue;
+    double *B = r->blocks + 16 * v;
+    for (int a = 0; a < 4; ++a) {
+      for (int b = 0; b < 4; ++b)
+        B[4 * a + b] += w * H(v, a) * H(v, b);
+      for (int d = 0; d < 3; ++d)
+        r->rhs[d * n4 + 4 * v + (size_t)a] += w * H(v, a) * (VQ[3 * v + d] - c[d]);
     }
   }
   double ws = r->o.w_smooth / (double)(ne ? ne : 1);
@@ -1104,6 +1123,47 @@ static void frame_error(km_recon *r, const frame_data *fd, const double *X,
           km_seconds() - t0, fd->n, r->nv);
 }
 
+/* Surface -> points in the affine stage: points -> surface alone cannot see surface that no
+ * point claims (a bulge on top of the forearm whose points are closer to the arm's sides
+ * stayed 47 mm off the truth). Each template vertex of X is drawn to its nearest captured
+ * point when that point is between KM__S2P_NEAR and KM__S2P_FAR away and the normals agree
+ * (within 60 degrees, either orientation); nearer vertices are already explained, farther
+ * ones may belong to a hidden limb that must stay unsupported (and flagged), and so do the
+ * vertices of the parts the last frame flagged (a hidden arm would otherwise creep onto the
+ * torso's points over the frames it is hidden, 6 cm at a time). Weight per vertex:
+ * KM__S2P_WEIGHT * w_data / #V. Returns false when no vertex qualifies. */
+#define KM__S2P_NEAR 0.006
+#define KM__S2P_FAR 0.06
+#define KM__S2P_WEIGHT 1.0
+static bool surface_targets(km_recon *r, const frame_data *fd, const double *X, double *VQ,
+                            double *w) {
+  size_t nv = r->nv;
+  if (!fd->ix || !fd->N || r->o.no_surface_to_points) return false;
+  km_mesh cur = {.V = (double *)X, .F = r->tmpl.F, .n_vertices = nv, .n_faces = r->nf};
+  if (km_vertex_normals(&cur, KM_NORMALS_AREA, r->vn, NULL) != KM_OK) return false;
+  km__point_index_nearest(fd->ix, X, nv, KM__S2P_FAR, r->vnear, r->vdist);
+  double wv = KM__S2P_WEIGHT * r->o.w_data / (double)nv;
+  size_t m = 0;
+  for (size_t v = 0; v < nv; ++v) {
+    w[v] = 0;
+    int32_t q = r->vnear[v];
+    if (q < 0 || r->vdist[v] < KM__S2P_NEAR || r->vdist[v] > KM__S2P_FAR) continue;
+    int best = 0;
+    for (int k = 1; k < 4; ++k)
+      if (r->skin.joints[4 * v + k] >= 0 &&
+          r->skin.weights[4 * v + k] > r->skin.weights[4 * v + best])
+        best = k;
+    int32_t j = r->skin.joints[4 * v + best];
+    if (j >= 0 && r->part_lost[j]) continue;
+    const double *pn = fd->N + 3 * (size_t)q, *vn = r->vn + 3 * v;
+    if (fabs(pn[0] * vn[0] + pn[1] * vn[1] + pn[2] * vn[2]) < 0.5) continue;
+    memcpy(VQ + 3 * v, fd->P + 3 * (size_t)q, 3 * sizeof(double));
+    w[v] = wv;
+    ++m;
+  }
+  return m > 0;
+}
+
 /* Surface refinement from Vb (coarse level first, full data for the last two rounds). */
 /* floor0/decay: the robust scale's floor starts at floor0 and shrinks by decay per round
  * (the first frame starts farther from the data than a tracked frame). */
@@ -1122,7 +1182,10 @@ static km_status refine(km_recon *r, const frame_data *fd, const double *Vb, int
     for (size_t i = 0; i < nq; ++i)
       if (r->pw[i] > 0) mean += r->pw[i] * r->pdist[i];
     mean /= ws > 0 ? ws : 1;
-    km_status s = affine_solve(r, Vb, Q, nq, r->o.w_data, feat, nfeat, wf, r->surface, err);
+    double *VQ = r->vq;
+    bool s2p = surface_targets(r, fd, r->work, VQ, r->vw);
+    km_status s = affine_solve(r, Vb, Q, nq, r->o.w_data, feat, nfeat, wf, s2p ? VQ : NULL, r->vw,
+                               r->surface, err);
     ++*count;
     if (s) return s;
     if (!full && fabs(prev - mean) < 1e-5) it = iters - 3 > it ? iters - 3 : it;
@@ -1158,6 +1221,17 @@ static double capped_residual(km_recon *r, const double *X, const double *Q, siz
   for (size_t i = 0; i < n; ++i)
     sum += fmin(r->ptri[i] >= 0 ? r->pdist[i] : INFINITY, KM__RESIDUAL_CAP);
   return sum / (double)(n ? n : 1);
+}
+
+/* Two-sided capped residual of the surface X: points -> surface over the coarse points plus
+ * surface -> points over the vertices (each distance counted at most KM__RESIDUAL_CAP). */
+static double two_sided_residual(km_recon *r, const frame_data *fd, const double *X) {
+  double a = capped_residual(r, X, fd->C, fd->nc), b = 0;
+  if (!fd->ix) return a;
+  km__point_index_nearest(fd->ix, X, r->nv, KM__RESIDUAL_CAP, r->vnear, r->vdist);
+  for (size_t i = 0; i < r->nv; ++i)
+    b += r->vnear[i] >= 0 ? fmin(r->vdist[i], KM__RESIDUAL_CAP) : KM__RESIDUAL_CAP;
+  return a + b / (double)(r->nv ? r->nv : 1);
 }
 
 /* Solves the 6x6 SPD system M x = b in place (Gaussian elimination, partial pivoting). */
@@ -1759,6 +1833,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
   memset(&r->init, 0, sizeof r->init);
   r->init.correspondences = nfeat;
   size_t nv = r->nv, nj = r->nj;
+  memset(r->part_lost, 0, nj * sizeof *r->part_lost);
   for (size_t k = 0; k < nfeat; ++k)
     if (feat[k].vertex < 0 || (size_t)feat[k].vertex >= nv)
       return km__fail(err, KM_ERR_INVALID, "feature %zu: vertex %d out of range (%zu vertices)", k,
@@ -1869,6 +1944,13 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
   /* limbs found, not assumed: a limb the local fit could not reach is searched for, then
    * the skeletal step refines from there */
   if (ps == KM_OK && !r->o.no_limb_search) {
+    /* the pose before the search, kept when the search does not explain the points better
+     * both ways (on FAUST tr_reg_000 rigged by kinemesh rig the search folded a leg into the
+     * pelvis: D-FAUST p99 70 mm, every frame flagged; 27 mm without it) */
+    double *keepL = km__malloc(nj, 9 * sizeof(double));
+    double keept[3] = {r->troot[0], r->troot[1], r->troot[2]};
+    double before = keepL ? two_sided_residual(r, &fd, r->global) : 0;
+    if (keepL) memcpy(keepL, r->Lrot, nj * 9 * sizeof(double));
     int turned = limb_search(r, &fd);
     if (turned) {
       memcpy(Lid, r->Lrot, nj * 9 * sizeof(double));
@@ -1876,7 +1958,20 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
       st->iterations +=
           skeleton_fit(r, fd.C, fd.CN, fd.nc, Lid, t1, r->o.skeleton_iterations, feat, nfeat, true,
                        nfeat >= 3 ? KM__FIRST_FRAME_POSE_WEIGHT : r->o.w_pose, &ps);
+      double after = keepL && ps == KM_OK ? two_sided_residual(r, &fd, r->global) : INFINITY;
+      km__log(KM_LOG_DEBUG, "first frame: limb search: two-sided residual %.2f -> %.2f mm, %s",
+              before * 1e3, after * 1e3, after < before ? "kept" : "not kept");
+      if (keepL && !(after < before)) {
+        memcpy(r->Lrot, keepL, nj * 9 * sizeof(double));
+        memcpy(r->troot, keept, sizeof keept);
+        forward_kinematics(r, r->Lrot, r->troot, r->work, r->work + 9 * nj, r->G);
+        memcpy(r->joints, r->work + 9 * nj, nj * 3 * sizeof(double));
+        lbs_apply(r, r->G, r->base, r->global);
+        turned = 0;
+        ps = KM_OK;
+      }
     }
+    free(keepL);
     r->init.limbs_turned = (size_t)turned;
     /* bone lengths: the limbs stretched to the subject's in the found pose, then the
      * skeletal step once more */
@@ -1937,7 +2032,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
     /* feature term alone is linear: one solve */
     for (size_t i = 0; i < n; ++i)
       r->pw[i] = 0;
-    s = affine_solve(r, V1, fd.C, 0, 0, f1, nf1, r->o.w_feature, r->surface, err);
+    s = affine_solve(r, V1, fd.C, 0, 0, f1, nf1, r->o.w_feature, NULL, NULL, r->surface, err);
     ++st->iterations;
     if (!s) memcpy(V1, r->surface, nv * 3 * sizeof(double));
   }
@@ -2145,6 +2240,9 @@ km_status km_recon_next_frame(km_recon *r, const double *P, size_t n, km_recon_f
   }
   frame_data_free(&fd);
   free(Lpred);
+  memset(r->part_lost, 0, nj * sizeof *r->part_lost);
+  for (int k = 0; st->unsupported && k < st->n_unsupported_joints; ++k)
+    r->part_lost[st->unsupported_joints[k]] = true;
   st->status = fs;
   if (fs && !st->message[0])
     snprintf(st->message, sizeof st->message, "did not converge (%s)", km_status_name(fs));
