@@ -569,9 +569,56 @@ static void test_pc2_header_bombs(void) {
   remove("test_anim_bomb.pc2");
 }
 
+/* A forged morph .glb whose accessors share their bytes (issue 18): 80 kB of zeros hold a
+ * 6,666-vertex mesh, its one morph target and 20,000 weight keys, which km_anim_read (bake)
+ * would expand to 20,000 x 6,666 positions (3.2 GB). Refused, naming the sizes. */
+static void test_glb_expansion_bomb(void) {
+  enum { BIN = 80000, NV = 6666, NK = 20000 };
+  char json[2048];
+  int n = snprintf(
+      json, sizeof json,
+      "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],"
+      "\"nodes\":[{\"mesh\":0}],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},"
+      "\"targets\":[{\"POSITION\":1}]}]}],\"animations\":[{\"channels\":[{\"sampler\":0,"
+      "\"target\":{\"node\":0,\"path\":\"weights\"}}],\"samplers\":[{\"input\":2,\"output\":3}]}],"
+      "\"buffers\":[{\"byteLength\":%d}],\"bufferViews\":[{\"buffer\":0,\"byteLength\":%d}],"
+      "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":%d,\"type\":\"VEC3\","
+      "\"min\":[0,0,0],\"max\":[0,0,0]},{\"bufferView\":0,\"componentType\":5126,\"count\":%d,"
+      "\"type\":\"VEC3\"},{\"bufferView\":0,\"componentType\":5126,\"count\":%d,\"type\":"
+      "\"SCALAR\",\"min\":[0],\"max\":[0]},{\"bufferView\":0,\"componentType\":5126,\"count\":%d,"
+      "\"type\":\"SCALAR\"}]}",
+      BIN, BIN, NV, NV, NK, NK);
+  while (n % 4)
+    json[n++] = ' ';
+  const char *path = "anim_bomb.glb";
+  FILE *f = fopen(path, "wb");
+  CHECK(f != NULL);
+  if (!f) return;
+  uint32_t hdr[5] = {0x46546C67u, 2, (uint32_t)(12 + 8 + n + 8 + BIN), (uint32_t)n, 0x4E4F534Au};
+  uint32_t bh[2] = {BIN, 0x004E4942u};
+  static unsigned char zeros[BIN];
+  fwrite(hdr, 1, sizeof hdr, f);
+  fwrite(json, 1, (size_t)n, f);
+  fwrite(bh, 1, sizeof bh, f);
+  fwrite(zeros, 1, sizeof zeros, f);
+  fclose(f);
+  km_mesh rest = {0};
+  double *frames = NULL;
+  km_anim_info info;
+  CHECK_STATUS(km_anim_read(path, &rest, &frames, &info, KM_E), KM_ERR_UNSUPPORTED);
+  CHECK_MSG(strstr(km_test_err.message, "20000 keys x 6666 vertices") &&
+                strstr(km_test_err.message, "anim_bomb.glb"),
+            "%s", km_test_err.message);
+  CHECK(frames == NULL);
+  free(frames);
+  km_mesh_free(&rest);
+  remove(path);
+}
+
 int main(void) {
   test_pc2_header_bombs();
   test_many_keys();
+  test_glb_expansion_bomb();
   km_mesh rest = {0};
   make_rest(&rest);
   double *frames = all_frames(&rest);

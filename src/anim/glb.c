@@ -1501,6 +1501,20 @@ km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n
   const cJSON *ex = get_path(get_path(get_path(root, "asset", -1), "extras", -1), "kinemesh", -1);
   const cJSON *efps = get_path(ex, "fps", -1);
   if (fps && cJSON_IsNumber(efps) && efps->valuedouble > 0) *fps = efps->valuedouble;
+  /* Keys and targets may share bytes, so a small forged file can ask for keys x vertices
+   * positions growing with the square of its size: refuse an expansion beyond 2000 times the
+   * file (a compact morph export of a long take expands ~400x) and beyond 1 GiB. */
+  {
+    double need = (double)nk * (double)nv * 3 * sizeof *out;
+    double cap = fmax((double)(1u << 30), 2000.0 * (double)size);
+    if (need > cap) {
+      s = km__fail(err, KM_ERR_UNSUPPORTED,
+                   "%s: %zu keys x %zu vertices would expand to %.3g GB, more than 2000 times the "
+                   "%zu-byte file: refused (a forged or degenerate animation)",
+                   path, nk, nv, need / 1e9, size);
+      goto done;
+    }
+  }
   if (!(out = km__malloc(nk * nv * 3, sizeof *out))) {
     s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames", path, nk);
     goto done;
