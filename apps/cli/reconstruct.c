@@ -201,8 +201,8 @@ int km_cli_reconstruct(int argc, char **argv) {
   km_anim_options ao = {0};
   km_ssdr_options so;
   double *seeds = NULL;
-  if (!one_segment && km_cli_parse_export("reconstruct", export_kind, max_error_mm, compress, out,
-                                           &ao, &so)) {
+  if (!one_segment &&
+      km_cli_parse_export("reconstruct", export_kind, max_error_mm, compress, out, &ao, &so)) {
     free(feat);
     km_paths_free(&paths, n);
     return KM_EXIT_FAIL;
