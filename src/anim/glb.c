@@ -130,6 +130,25 @@ static km_status write_glb_container(km_anim_writer *w, cJSON *root, const unsig
   return km__atomic_commit(&af, err);
 }
 
+/* The one animation of a morph file: node 0's morph weights, LINEAR, keyed by accessor a_in
+ * (times) with accessor a_out (#keys x #targets weights). */
+static void add_weights_animation(cJSON *root, int a_in, int a_out) {
+  cJSON *sampler = cJSON_CreateObject();
+  cJSON_AddNumberToObject(sampler, "input", a_in);
+  cJSON_AddStringToObject(sampler, "interpolation", "LINEAR");
+  cJSON_AddNumberToObject(sampler, "output", a_out);
+  cJSON *channel = cJSON_CreateObject();
+  cJSON_AddNumberToObject(channel, "sampler", 0);
+  cJSON *target = cJSON_AddObjectToObject(channel, "target");
+  cJSON_AddNumberToObject(target, "node", 0);
+  cJSON_AddStringToObject(target, "path", "weights");
+  cJSON *anim = cJSON_CreateObject();
+  cJSON_AddStringToObject(anim, "name", "kinemesh");
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(anim, "channels"), channel);
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(anim, "samplers"), sampler);
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "animations"), anim);
+}
+
 /* What the plain morph writer streams after the JSON. */
 typedef struct morph_stream {
   const float *times;
@@ -255,20 +274,7 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   int a_out = add_view_accessor(views, accessors, off, weights_len, 0, GL_FLOAT, nt * nk, "SCALAR",
                                 NULL, NULL, 0);
   off += weights_len;
-  cJSON *sampler = cJSON_CreateObject();
-  cJSON_AddNumberToObject(sampler, "input", a_in);
-  cJSON_AddStringToObject(sampler, "interpolation", "LINEAR");
-  cJSON_AddNumberToObject(sampler, "output", a_out);
-  cJSON *channel = cJSON_CreateObject();
-  cJSON_AddNumberToObject(channel, "sampler", 0);
-  cJSON *target = cJSON_AddObjectToObject(channel, "target");
-  cJSON_AddNumberToObject(target, "node", 0);
-  cJSON_AddStringToObject(target, "path", "weights");
-  cJSON *anim = cJSON_CreateObject();
-  cJSON_AddStringToObject(anim, "name", "kinemesh");
-  cJSON_AddItemToArray(cJSON_AddArrayToObject(anim, "channels"), channel);
-  cJSON_AddItemToArray(cJSON_AddArrayToObject(anim, "samplers"), sampler);
-  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "animations"), anim);
+  add_weights_animation(root, a_in, a_out);
   cJSON *buffer = cJSON_CreateObject();
   cJSON_AddNumberToObject(buffer, "byteLength", (double)bin_len);
   cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "buffers"), buffer);
@@ -1341,20 +1347,7 @@ static km_status glb_finish_packed(km_anim_writer *w, km_error *err) {
   cJSON_AddNumberToObject(ex, "rms_error_m", w->q_rms);
   cJSON_AddNumberToObject(ex, "max_error_m", w->q_max);
 
-  cJSON *sampler = cJSON_CreateObject();
-  cJSON_AddNumberToObject(sampler, "input", a_in);
-  cJSON_AddStringToObject(sampler, "interpolation", "LINEAR");
-  cJSON_AddNumberToObject(sampler, "output", a_w);
-  cJSON *channel = cJSON_CreateObject();
-  cJSON_AddNumberToObject(channel, "sampler", 0);
-  cJSON *target = cJSON_AddObjectToObject(channel, "target");
-  cJSON_AddNumberToObject(target, "node", 0);
-  cJSON_AddStringToObject(target, "path", "weights");
-  cJSON *anim = cJSON_CreateObject();
-  cJSON_AddStringToObject(anim, "name", "kinemesh");
-  cJSON_AddItemToArray(cJSON_AddArrayToObject(anim, "channels"), channel);
-  cJSON_AddItemToArray(cJSON_AddArrayToObject(anim, "samplers"), sampler);
-  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "animations"), anim);
+  add_weights_animation(root, a_in, a_w);
   pack_finish_json(&pk, root);
   s = write_glb_container(w, root, pk.bin.p, pk.bin.len, NULL, NULL, err);
   root = NULL;
