@@ -130,6 +130,22 @@ static km_status write_glb_container(km_anim_writer *w, cJSON *root, const unsig
   return km__atomic_commit(&af, err);
 }
 
+/* The "asset" object every writer puts in root (version, generator) and its
+ * extras.kinemesh object, returned for the writer's own figures: fps, frames, key_every and,
+ * when export_kind is not NULL, "export". */
+static cJSON *add_asset(cJSON *root, double fps, size_t frames, size_t key_every,
+                        const char *export_kind) {
+  cJSON *asset = cJSON_AddObjectToObject(root, "asset");
+  cJSON_AddStringToObject(asset, "version", "2.0");
+  cJSON_AddStringToObject(asset, "generator", "kinemesh");
+  cJSON *ex = cJSON_AddObjectToObject(cJSON_AddObjectToObject(asset, "extras"), "kinemesh");
+  cJSON_AddNumberToObject(ex, "fps", fps);
+  cJSON_AddNumberToObject(ex, "frames", (double)frames);
+  cJSON_AddNumberToObject(ex, "key_every", (double)key_every);
+  if (export_kind) cJSON_AddStringToObject(ex, "export", export_kind);
+  return ex;
+}
+
 /* The one animation of a morph file: node 0's morph weights, LINEAR, keyed by accessor a_in
  * (times) with accessor a_out (#keys x #targets weights). */
 static void add_weights_animation(cJSON *root, int a_in, int a_out) {
@@ -188,17 +204,10 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     times[k] = (float)((double)(pca ? k : w->key_frame[k]) / w->fps);
 
   cJSON *root = cJSON_CreateObject();
-  cJSON *asset = cJSON_AddObjectToObject(root, "asset");
-  cJSON_AddStringToObject(asset, "version", "2.0");
-  cJSON_AddStringToObject(asset, "generator", "kinemesh");
-  cJSON *ex = cJSON_AddObjectToObject(cJSON_AddObjectToObject(asset, "extras"), "kinemesh");
-  cJSON_AddNumberToObject(ex, "fps", w->fps);
-  cJSON_AddNumberToObject(ex, "frames", (double)w->frames);
-  cJSON_AddNumberToObject(ex, "key_every", (double)w->key_every);
+  char ek[32];
+  snprintf(ek, sizeof ek, "morphs:%zu", nk);
+  cJSON *ex = add_asset(root, w->fps, w->frames, w->key_every, pca ? ek : NULL);
   if (pca) {
-    char ek[32];
-    snprintf(ek, sizeof ek, "morphs:%zu", nk);
-    cJSON_AddStringToObject(ex, "export", ek);
     cJSON_AddNumberToObject(ex, "rms_error_m", w->pca_rms);
     cJSON_AddNumberToObject(ex, "max_error_m", w->pca_max);
   }
@@ -845,14 +854,7 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
   if (!root || !pk.views || !pk.accessors || !b || !b2 || !f4 || (z && (!vq || !wq || !rig)))
     goto nomem;
 
-  cJSON *asset = cJSON_AddObjectToObject(root, "asset");
-  cJSON_AddStringToObject(asset, "version", "2.0");
-  cJSON_AddStringToObject(asset, "generator", "kinemesh");
-  cJSON *ex = cJSON_AddObjectToObject(cJSON_AddObjectToObject(asset, "extras"), "kinemesh");
-  cJSON_AddNumberToObject(ex, "fps", w->fps);
-  cJSON_AddNumberToObject(ex, "frames", (double)T);
-  cJSON_AddNumberToObject(ex, "key_every", 1);
-  cJSON_AddStringToObject(ex, "export", "skin");
+  cJSON *ex = add_asset(root, w->fps, T, 1, "skin");
   cJSON_AddNumberToObject(ex, "bones", (double)B);
 
   /* ---- the mesh: indices, rest positions, normals, UVs, joints, weights */
@@ -1195,18 +1197,9 @@ static km_status glb_finish_packed(km_anim_writer *w, km_error *err) {
   if (!root || !pk.views || !pk.accessors || !b || !f4 || !wts || !wdec || !vq || (pca && !acc))
     goto nomem;
 
-  cJSON *asset = cJSON_AddObjectToObject(root, "asset");
-  cJSON_AddStringToObject(asset, "version", "2.0");
-  cJSON_AddStringToObject(asset, "generator", "kinemesh");
-  cJSON *ex = cJSON_AddObjectToObject(cJSON_AddObjectToObject(asset, "extras"), "kinemesh");
-  cJSON_AddNumberToObject(ex, "fps", w->fps);
-  cJSON_AddNumberToObject(ex, "frames", (double)w->frames);
-  cJSON_AddNumberToObject(ex, "key_every", (double)w->key_every);
-  if (pca) {
-    char ek[32];
-    snprintf(ek, sizeof ek, "morphs:%zu", nk);
-    cJSON_AddStringToObject(ex, "export", ek);
-  }
+  char ek[32];
+  snprintf(ek, sizeof ek, "morphs:%zu", nk);
+  cJSON *ex = add_asset(root, w->fps, w->frames, w->key_every, pca ? ek : NULL);
   add_grid_extras(ex, &g);
   cJSON_AddNumberToObject(root, "scene", 0);
   cJSON *scene = cJSON_CreateObject();
