@@ -421,9 +421,11 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
           if ((size_t)rig.maps[e].handle < tr.n_handles) {
             tmaps[tr.n_maps] = rig.maps[e];
             tmaps[tr.n_maps].bone_from = 0;
+            tmaps[tr.n_maps].relative_to = a->relative_to;
             tmaps[tr.n_maps++].rotate = false;
           }
-        tr.max_step = 0; /* the paper follows every step */
+        tr.max_step = 0;       /* the paper follows every step */
+        tr.root_rigid = false; /* and moves the handles only */
       } else if (a->max_step >= 0) {
         tr.max_step = a->max_step;
       }

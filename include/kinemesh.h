@@ -1170,9 +1170,9 @@ size_t km_retarget_eased_frames(const km_retarget *r);
 /* ---- issue 12: rigid root motion */
 /* The rigid motion of the last push for a rig with root_rigid: the deformed mesh V is to be
  * placed at R (V - pivot) + pivot + t. R: 3x3 row-major rotation about y by the heading change
- * since the reference frame; t: s * (root - root reference); pivot: the rest mesh's bounding
- * box centre. Identity (R = I, t = 0) for other rigs or while the root is not valid. Returns
- * whether the rig has rigid root motion. */
+ * since the reference frame; t: s * (root - root reference); pivot: the character's root joint
+ * at rest (the rig's "joints"), else the rest mesh's bounding box centre. Identity (R = I, t = 0)
+ * for other rigs or while the root is not valid. Returns whether the rig has rigid root motion. */
 bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], double pivot[3]);
 /* Forgets reference positions (and the auto scale): the next valid frame is the new rest. */
 void km_retarget_reset(km_retarget *r);
@@ -1205,8 +1205,11 @@ void km_character_free(km_character *c);
  * vertices on each upper arm and thigh (0.5 .. 0.8 of the bone from the shoulder / hip: the
  * joint keeps a free zone to bend in) and around the middle of each forearm and shin (the
  * vertices whose nearest skeleton bone it is, one connected piece, clear of the end handles);
+ * and a pelvis and a chest band on the spine bones (HipCenter -> Spine 0.2 .. 0.7, Spine ->
+ * ShoulderCenter 0.2 .. 0.6) so the torso turns and bends with the skeleton;
  * every handle is mapped to a bone ("bone": head ShoulderCenter -> Head, hands elbow -> hand,
- * feet knee -> foot, bands their own bone) with "aim": true (see km_rig_parse).
+ * feet knee -> foot, bands their own bone) with "aim": true, and the whole mesh follows the
+ * root rigidly ("root_motion": "rigid", "relative_to": "HipCenter"; see km_rig_parse).
  *   c  in: character (its mesh is not written, only its vertex count)
  * Errors: KM_ERR_IO. */
 km_status km_character_write_rig(const char *path, const km_character *c, km_error *err);
@@ -1613,8 +1616,10 @@ double km_puppetry_scale(const km_puppetry *p);
 void km_puppetry_handles(const km_puppetry *p, size_t *n_handles, const int32_t **offsets,
                          const int32_t **vertices);
 /* Targets of the last push (or of km_puppetry_set_rig), owned by the pipeline:
- * handle_targets n_handles*3 (handle centroids), vertex_targets offsets[n_handles]*3 (one
- * per handle vertex, what the solver got), rest_centroids n_handles*3. NULL without a rig. */
+ * handle_targets n_handles*3 (handle centroids where the output puts them: with rigid root
+ * motion after km_retarget_root_transform), vertex_targets offsets[n_handles]*3 (one per
+ * handle vertex, what the solver got: root-relative under rigid root motion), rest_centroids
+ * n_handles*3. NULL without a rig. */
 const double *km_puppetry_handle_targets(const km_puppetry *p);
 const double *km_puppetry_vertex_targets(const km_puppetry *p);
 const double *km_puppetry_rest_centroids(const km_puppetry *p);

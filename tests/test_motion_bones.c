@@ -165,7 +165,9 @@ static void unit_normal(const double *V, const int32_t *t, double n[3]) {
  * triangles that fold in some frame (a neighbour < 60 degrees from them at rest, > 120 degrees
  * now; bench motion's measure). Measured (4000 vertices, 60 frames), upper-arm bands on
  * 0.5 .. 0.8 of the bone against 0.3 .. 0.7 before: wave stretch 0.53 (0.65), no fold (none);
- * kungfu stretch 0.88 (0.83), 9 folded (2). */
+ * kungfu stretch 0.88 (0.83), 9 folded (2). With the pelvis and chest bands and rigid root
+ * motion (the demo's torso turning with the body) the torso no longer gives way under a raised
+ * arm and the armpit takes it: wave 0.71, kungfu 0.84, still no fold. */
 static void test_armpit_folds(km_motion_kind kind) {
   km_character_options co = {.target_vertices = 4000};
   km_character c = {0};
@@ -265,7 +267,7 @@ static void test_armpit_folds(km_motion_kind kind) {
          folded, n_near, stretch, t.n_frames, kind == KM_MOTION_WAVE ? "wave" : "kungfu");
   if (kind == KM_MOTION_WAVE) {
     CHECK_MSG(folded == 0, "%zu shoulder triangles folded", folded);
-    CHECK_MSG(stretch <= 0.6, "shoulder edge stretch %g", stretch);
+    CHECK_MSG(stretch <= 0.75, "shoulder edge stretch %g", stretch);
   } else {
     CHECK_MSG(folded <= 12, "%zu shoulder triangles folded", folded);
     CHECK_MSG(stretch <= 1.0, "shoulder edge stretch %g", stretch);

@@ -27,6 +27,7 @@ struct km_retarget {
   double pivot[3];
   double R[9], t[3];   /* of the last push */
   double cos_h, sin_h; /* heading change of the last push */
+  bool have_heading;   /* a heading was measured since create / reset */
   /* rotating handles */
   int32_t *rot_joint, *rot_parent; /* n_handles; -1: translation only; NULL: none rotates */
   int32_t *par;                    /* n_joints parents (-1 roots), for rotating handles */
@@ -89,6 +90,7 @@ void km_retarget_reset(km_retarget *r) {
   r->R[0] = r->R[4] = r->R[8] = 1;
   memset(r->t, 0, sizeof r->t);
   r->cos_h = 1;
+  r->have_heading = false;
   r->sin_h = 0;
   r->have_prev = false;
   r->eased = 0;
@@ -105,6 +107,8 @@ void km_retarget_reset(km_retarget *r) {
         r->C[3 * j + d] = r->jrest ? r->jrest[3 * j + d] : NAN;
     }
 }
+
+static bool valid3(const double *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }
 
 km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_joints,
                              const km_retarget_options *opt, km_retarget **out, km_error *err) {
@@ -281,6 +285,10 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       }
       if (jr) memcpy(r->jrest, rig->joint_rest, n_joints * 3 * sizeof(double));
       r->aim = jr && rig->aim;
+      /* The mesh turns about the character's root joint, the point the handles' root-relative
+       * motion is measured from (the bounding box centre is only a stand-in without joints). */
+      if (jr && r->rigid && valid3(r->jrest + 3 * (size_t)r->root))
+        memcpy(r->pivot, r->jrest + 3 * (size_t)r->root, sizeof r->pivot);
     }
     for (size_t h = 0; h < r->n_handles; ++h) {
       r->rot_joint[h] = r->rot_parent[h] = -1;
@@ -312,8 +320,6 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
   *out = r;
   return KM_OK;
 }
-
-static bool valid3(const double *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }
 
 /* Performer stature in a frame: the Head-to-lower-foot joint span scaled up to the whole
  * body for Kinect, else the y extent of the valid joints. NaN when it cannot be measured. */
@@ -412,11 +418,34 @@ void km_retarget_push(km_retarget *r, const double *joints, double *handle_targe
     const double *q = joints + 3 * (size_t)r->root, *q0 = r->ref + 3 * (size_t)r->root;
     if (valid3(q) && valid3(q0)) {
       if (r->hl >= 0) {
-        const double *a = joints + 3 * (size_t)r->hl, *b = joints + 3 * (size_t)r->hr;
-        const double *a0 = r->ref + 3 * (size_t)r->hl, *b0 = r->ref + 3 * (size_t)r->hr;
-        if (valid3(a) && valid3(b) && valid3(a0) && valid3(b0)) {
+        /* The heading: the turn about y of the right -> left line of the heading joints (the
+         * hips), with a Kinect skeleton's shoulder line added when valid: hips alone are 0.18 m
+         * apart and a few centimetres of tracker noise turned the whole mesh. */
+        int32_t lines[2][2] = {{r->hl, r->hr}, {-1, -1}};
+        if (r->kinect1 && r->n_joints >= 9) lines[1][0] = 4, lines[1][1] = 8; /* shoulders */
+        double v[2] = {0, 0}, v0[2] = {0, 0};
+        bool hips = false;
+        for (int k = 0; k < 2; ++k) {
+          if (lines[k][0] < 0) continue;
+          const double *a = joints + 3 * (size_t)lines[k][0], *b = joints + 3 * (size_t)lines[k][1];
+          const double *a0 = r->ref + 3 * (size_t)lines[k][0],
+                       *b0 = r->ref + 3 * (size_t)lines[k][1];
+          if (!valid3(a) || !valid3(b) || !valid3(a0) || !valid3(b0)) continue;
+          double x = b[0] - a[0], z = b[2] - a[2], x0 = b0[0] - a0[0], z0 = b0[2] - a0[2];
+          double n = hypot(x, z), n0 = hypot(x0, z0);
+          if (!(n > 1e-9) || !(n0 > 1e-9)) continue;
+          v[0] += x / n, v[1] += z / n, v0[0] += x0 / n0, v0[1] += z0 / n0;
+          hips |= k == 0;
+        }
+        if (hips && hypot(v[0], v[1]) > 1e-9 && hypot(v0[0], v0[1]) > 1e-9) {
           /* R_y(phi) takes (1,0,0) to (cos phi, 0, -sin phi): a vector's angle is atan2(-z, x) */
-          double phi = atan2(-(b[2] - a[2]), b[0] - a[0]) - atan2(-(b0[2] - a0[2]), b0[0] - a0[0]);
+          double phi = atan2(-v[1], v[0]) - atan2(-v0[1], v0[0]);
+          /* A turn of more than 20 degrees in one frame (600 deg/s at 30 fps, faster than a
+           * pirouette) is a tracker's left/right swap, not a turn: followed at that rate. */
+          double prev = atan2(r->sin_h, r->cos_h), d = remainder(phi - prev, 2 * M_PI);
+          const double max_turn = 20 * M_PI / 180;
+          if (r->have_heading && fabs(d) > max_turn) phi = prev + copysign(max_turn, d);
+          r->have_heading = true;
           r->cos_h = cos(phi);
           r->sin_h = sin(phi);
         }

@@ -407,6 +407,12 @@ km_status km_puppetry_push_at(km_puppetry *p, const double *joints, double t, do
       for (int a = 0; a < 3; ++a)
         x[a] = R[3 * a] * w[0] + R[3 * a + 1] * w[1] + R[3 * a + 2] * w[2] + pv[a] + tr[a];
     }
+    /* and the handle targets with it: km_puppetry_handle_targets is where the handles go */
+    for (size_t h = 0; h < p->n_handles; ++h) {
+      double *x = p->handle_targets + 3 * h, w[3] = {x[0] - pv[0], x[1] - pv[1], x[2] - pv[2]};
+      for (int a = 0; a < 3; ++a)
+        x[a] = R[3 * a] * w[0] + R[3 * a + 1] * w[1] + R[3 * a + 2] * w[2] + pv[a] + tr[a];
+    }
   }
   double t3 = km_seconds();
   p->times.filter_ms = 1e3 * (t1 - t0);

@@ -18,14 +18,15 @@ await runLivePage(http, 'live_e2e_norig', path.join(work, 'live_norig.png'), asy
   check(['head', 'hand_left', 'hand_right', 'foot_left', 'foot_right'].every((h) => auto.includes(h)),
     `automatic rig: ${auto.join(', ')}`);
 
-  // A chest vertex facing the camera (front-most near the mid-line at 70% of the height).
+  // A belly vertex facing the camera (front-most near the mid-line at 67% of the height:
+  // between the automatic rig's pelvis and chest bands, which a new handle may not overlap).
   const pos = await page.evaluate(() => { const o = []; for (let i = 0; i < window.kmLive.nv; ++i) o.push(window.kmLive.vertexPosition(i)); return o; });
   let ymin = Infinity, ymax = -Infinity;
   for (const p of pos) { ymin = Math.min(ymin, p[1]); ymax = Math.max(ymax, p[1]); }
-  const yt = ymin + 0.7 * (ymax - ymin);
+  const yt = ymin + 0.67 * (ymax - ymin);
   let target = -1, bz = -Infinity;
-  pos.forEach((p, i) => { if (Math.abs(p[0]) < 0.04 && Math.abs(p[1] - yt) < 0.04 && p[2] > bz) { bz = p[2]; target = i; } });
-  check(target >= 0, `chest vertex ${target}`);
+  pos.forEach((p, i) => { if (Math.abs(p[0]) < 0.04 && Math.abs(p[1] - yt) < 0.02 && p[2] > bz) { bz = p[2]; target = i; } });
+  check(target >= 0, `belly vertex ${target}`);
   const px = await page.evaluate((i) => window.kmLive.project(i), target);
 
   // Hover: the readout names the vertex under the cursor and its position.
@@ -39,7 +40,9 @@ await runLivePage(http, 'live_e2e_norig', path.join(work, 'live_norig.png'), asy
   check(hd < 0.05 && hoverText.startsWith(`${hv} (`) && hoverText.includes(pos[hv][1].toFixed(3)),
     `hover shows "${hoverText}" (${hd.toFixed(3)} m from ${target})`);
 
-  // The first handle placed by hand: click, joint, add, save -> c.rig.json appears with it.
+  // The first handle placed by hand: click, joint, add, save -> c.rig.json appears with it
+  // (a 3 cm ball: the default 8 cm would reach into the pelvis and chest bands).
+  await page.$eval('#h-radius', (e) => { e.value = '0.03'; e.dispatchEvent(new Event('input')); });
   await page.mouse.click(px.x, px.y);
   const pending = await page.evaluate(() => window.kmLive.pending && window.kmLive.pending.vertex);
   check(pending === hv, `click placed the handle at the hovered vertex ${pending}`);

@@ -43,9 +43,10 @@ case $MODE in
                  WristLeft: "LeftHand", ShoulderRight: "RightUpperArm", ElbowRight: "RightLowerArm",
                  WristRight: "RightHand", HipLeft: "LeftUpperLeg", KneeLeft: "LeftLowerLeg",
                  AnkleLeft: "LeftFoot", HipRight: "RightUpperLeg", KneeRight: "RightLowerLeg",
-                 AnkleRight: "RightFoot"};
+                 AnkleRight: "RightFoot", Spine: "Spine"};
       const hn = (j) => { if (!H[j]) throw new Error("no humanoid name for " + j); return H[j]; };
       r.skeleton = "humanoid";
+      if (r.relative_to) { r.relative_to = hn(r.relative_to); r.heading = [hn("HipLeft"), hn("HipRight")]; }
       for (const m of r.map) { if (m.bone) m.bone = m.bone.map(hn); else m.joint = hn(m.joint); }
       fs.writeFileSync(process.argv[2], JSON.stringify(r));' "$WORK/c.rig.json" "$WORK/h.rig.json" \
       || { echo "FAIL: humanoid rig"; exit 1; }
