@@ -105,10 +105,7 @@ static void hand_out(sched *s, int r) {
   long t = take_next(s, r);
   s->last_seen[r] = now();
   s->running[r] = R_WAITING; /* not busy, for worker_busy */
-  if (t < 0 && (!all_taken(s) || worker_busy(s))) {
-    s->running[r] = R_WAITING;
-    return;
-  }
+  if (t < 0 && (!all_taken(s) || worker_busy(s))) return;
   int msg[2] = {t >= 0 ? (int)s->todo[t] : -1, t >= 0 ? s->attempt[t] : 0};
   MPI_Send(msg, 2, MPI_INT, r, TAG_JOB, MPI_COMM_WORLD);
   s->running[r] = t >= 0 ? t : R_STOPPED;
@@ -213,8 +210,8 @@ static int worker(km_batch *b) {
  * bound to fewer than the node's, else the node's cores over the ranks on the node (at least
  * 1). Set in the environment the jobs inherit; returns it (0: left as the user set it). */
 static int threads_per_job(void) {
-  const char *env = getenv("OMP_NUM_THREADS");
-  if (env && *env) return 0;
+  /* the ranks on this node: a collective, so every rank calls it (the environment may differ
+   * from node to node) */
   MPI_Comm node;
   int local = 1;
   if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) ==
@@ -222,6 +219,8 @@ static int threads_per_job(void) {
     MPI_Comm_size(node, &local);
     MPI_Comm_free(&node);
   }
+  const char *env = getenv("OMP_NUM_THREADS");
+  if (env && *env) return 0;
   long cores = sysconf(_SC_NPROCESSORS_ONLN);
   if (cores < 1) cores = 1;
   long mine = cores;
