@@ -1,7 +1,9 @@
 /* kinemesh bench batch (issue 17): throughput of `kinemesh batch` on a batch of equal
- * reconstruction jobs (simulated captures) with 1 and 2 ranks (mpirun when the CLI has MPI,
- * else two shard processes side by side), the serial parts measured (manifest scan and plan,
- * the per-job start: template read and first-frame alignment), a segmented take through the
+ * reconstruction jobs (simulated captures) with 1 and 2 ranks (mpirun when the CLI has MPI:
+ * rank 0 hands the jobs out and runs jobs too, so 2 ranks are 2 job runners; else two shard
+ * processes side by side), the serial parts measured (manifest scan and plan, the MPI launch
+ * and teardown, the ranks' idle time between jobs; the per-job start, template read and
+ * first-frame alignment, is each job's own work and runs in parallel), a segmented take through the
  * batch's segment jobs and stitch (per-segment and stitch times), CPU seconds beside the wall
  * ones (a shared machine's wall times include waiting), and from those the projected wall time
  * of Dynamic FAUST's size (40,000 frames in 129 sequences) on 8, 64 and 512 ranks, one job per
@@ -15,7 +17,14 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
+#include <time.h>
 #include <unistd.h>
+
+static double unix_now(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_REALTIME, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
 
 static int sh(const char *cmd) {
   int st = system(cmd);
@@ -77,6 +86,47 @@ static void job_times(const char *report, bool segments, double *job_s, double *
   cJSON_Delete(r);
 }
 
+/* How a run spent its wall time, from the batch report's jobs ("rank", "started_unix",
+ * "seconds"): *sum, the seconds of all jobs; busy[r], those rank r ran; launch, from the
+ * command's start (t0, Unix seconds) to the first job's; tail, from the last job's end to the
+ * command's end (t1). Returns false when the report has no ranks (one process, the shards). */
+static bool rank_times(const char *report, double t0, double t1, double *sum, double busy[2],
+                       double *launch, double *tail) {
+  FILE *f = fopen(report, "rb");
+  *sum = busy[0] = busy[1] = 0;
+  *launch = *tail = NAN;
+  if (!f) return false;
+  fseek(f, 0, SEEK_END);
+  long size = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  char *buf = size > 0 ? malloc((size_t)size + 1) : NULL;
+  size_t got = buf ? fread(buf, 1, (size_t)size, f) : 0;
+  fclose(f);
+  if (!buf) return false;
+  buf[got] = '\0';
+  cJSON *r = cJSON_Parse(buf);
+  free(buf);
+  const cJSON *e;
+  double first = INFINITY, last = -INFINITY;
+  bool ranks = false;
+  cJSON_ArrayForEach(e, cJSON_GetObjectItemCaseSensitive(r, "jobs")) {
+    const cJSON *rk = cJSON_GetObjectItemCaseSensitive(e, "rank");
+    const cJSON *st = cJSON_GetObjectItemCaseSensitive(e, "started_unix");
+    const cJSON *s = cJSON_GetObjectItemCaseSensitive(e, "seconds");
+    if (!cJSON_IsNumber(st) || !cJSON_IsNumber(s)) continue;
+    *sum += s->valuedouble;
+    if (st->valuedouble < first) first = st->valuedouble;
+    if (st->valuedouble + s->valuedouble > last) last = st->valuedouble + s->valuedouble;
+    if (cJSON_IsNumber(rk) && rk->valueint >= 0 && rk->valueint < 2) {
+      busy[rk->valueint] += s->valuedouble;
+      ranks = true;
+    }
+  }
+  cJSON_Delete(r);
+  if (isfinite(first)) *launch = first - t0, *tail = t1 - last;
+  return ranks;
+}
+
 /* Measured costs, seconds: the manifest scan per job, a job's (or segment's) start (process,
  * template, first-frame alignment) beyond one frame, a frame, the stitch per frame; and the
  * ranks' efficiency (measured with 2). */
@@ -116,18 +166,19 @@ static void project(const costs *c, projection *p) {
 }
 
 int km_bench_batch(int argc, char **argv) {
-  size_t jobs = 4, frames = 4, vertices = 2000;
+  size_t jobs = 4, frames = 12, vertices = 2000;
   bool json = false;
   const km_cli_opt opts[] = {
       {"jobs", 0, KM_OPT_SIZE, &jobs, "equal reconstruction jobs (default 4)"},
-      {"frames", 'f', KM_OPT_SIZE, &frames, "frames per job (default 4)"},
+      {"frames", 'f', KM_OPT_SIZE, &frames,
+       "frames per job (default 12: a job's own start, its first frame, is not all of it)"},
       {"vertices", 'n', KM_OPT_SIZE, &vertices, "template vertices (default 2000)"},
       {"json", 0, KM_OPT_FLAG, &json, "one JSON object instead of the table"},
   };
   const char *pos[1];
   int n_pos;
   int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
-                       "kinemesh bench batch [--jobs 4] [--frames 4] [--vertices 2000] [--json]",
+                       "kinemesh bench batch [--jobs 4] [--frames 12] [--vertices 2000] [--json]",
                        "Throughput of kinemesh batch with 1 and 2 ranks on equal jobs, and the\n"
                        "projected wall time of a Dynamic FAUST-sized archive (40k frames).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
@@ -185,10 +236,14 @@ int km_bench_batch(int argc, char **argv) {
   snprintf(cmd, sizeof cmd, "cd %s && '%s' batch one.jsonl --force >/dev/null 2>&1", dir, self);
   double start = timed_cpu(cmd, &cpu_start);
   snprintf(cmd, sizeof cmd, "cd %s && '%s' batch m.jsonl --force >/dev/null 2>&1", dir, self);
+  double l0[3], sum1, sum2, busy1[2], launch1, tail1;
+  getloadavg(l0, 3);
+  const double u1 = unix_now();
   double t1 = timed_cpu(cmd, &cpu1);
+  snprintf(path, sizeof path, "%s/m.batch/report.json", dir);
+  rank_times(path, u1, unix_now(), &sum1, busy1, &launch1, &tail1);
   double job1, jcpu1, job2, jcpu2;
   size_t n1, n2;
-  snprintf(path, sizeof path, "%s/m.batch/report.json", dir);
   job_times(path, false, &job1, &jcpu1, &n1);
 #ifdef KM_HAVE_MPI
   const char *how = "mpirun -n 2 ... --mpi";
@@ -203,8 +258,19 @@ int km_bench_batch(int argc, char **argv) {
            "--shard 1/2 --force >/dev/null 2>&1; wait)",
            dir, self, self);
 #endif
+  double l1[3];
+  getloadavg(l1, 3);
+  const double u0 = unix_now();
   double t2 = timed_cpu(cmd, &cpu2);
   job_times(path, false, &job2, &jcpu2, &n2);
+  double busy[2], launch, tail;
+  const bool ranked = rank_times(path, u0, unix_now(), &sum2, busy, &launch, &tail);
+  /* the launch and teardown alone: the same command once every job verifies (no job runs) */
+  char *noop = strdup(cmd);
+  for (char *f = noop; f && (f = strstr(f, " --force"));)
+    memset(f, ' ', strlen(" --force"));
+  double cpu_noop, t_noop = noop ? timed_cpu(noop, &cpu_noop) : NAN;
+  free(noop);
   /* the segmented take, one process: segment jobs then the stitch */
   snprintf(cmd, sizeof cmd, "cd %s && '%s' batch seg.jsonl --force >/dev/null 2>&1", dir, self);
   double tseg = timed_cpu(cmd, &cpu_seg);
@@ -214,6 +280,14 @@ int km_bench_batch(int argc, char **argv) {
   job_times(path, true, &seg_job, &seg_cpu, &nseg);
   job_times(path, false, &stitch, &stitch_cpu, &nst);
   double speedup = t1 / t2;
+  /* less each run's cost with nothing to do (one process: the dry run's scan; 2 ranks: the
+   * launch and teardown): the jobs' part of the wall time */
+  double speedup_jobs = (t1 - scan) / (t2 - t_noop);
+  /* job-seconds per wall second: how many jobs ran at once on average. speedup = its ratio x
+   * (a job's wall seconds in the 1-rank run / in the 2-rank run); the second factor is the
+   * machine (a loaded one stretches the jobs of the run with more processes), the first the
+   * batch (2.0 at best) */
+  const double par1 = sum1 / t1, par2 = sum2 / t2;
   /* per frame beyond the first: (job - one-frame job) / (frames - 1); wall seconds (this
    * machine as it is) and CPU seconds (what a rank with a core of its own would take) */
   double one_job, one_cpu;
@@ -246,6 +320,8 @@ int km_bench_batch(int argc, char **argv) {
     cJSON_AddNumberToObject(o, "frames_per_job", (double)frames);
     cJSON_AddNumberToObject(o, "vertices", (double)vertices);
     cJSON_AddStringToObject(o, "two_ranks", how);
+    km_cli_json_number(o, "loadavg_1rank", l0[0]);
+    km_cli_json_number(o, "loadavg_2ranks", l1[0]);
     km_cli_json_number(o, "scan_s", scan);
     km_cli_json_number(o, "job_start_s", cw.start);
     km_cli_json_number(o, "frame_s", cw.frame);
@@ -258,6 +334,17 @@ int km_bench_batch(int argc, char **argv) {
     km_cli_json_number(o, "jobs_per_s_1rank", (double)jobs / t1);
     km_cli_json_number(o, "jobs_per_s_2ranks", (double)jobs / t2);
     km_cli_json_number(o, "speedup_2ranks", speedup);
+    km_cli_json_number(o, "speedup_2ranks_jobs", speedup_jobs);
+    km_cli_json_number(o, "parallelism_1rank", par1);
+    km_cli_json_number(o, "parallelism_2ranks", par2);
+    km_cli_json_number(o, "noop_2ranks_s", t_noop);
+    km_cli_json_number(o, "noop_2ranks_cpu_s", cpu_noop);
+    if (ranked) {
+      km_cli_json_number(o, "rank0_busy_s", busy[0]);
+      km_cli_json_number(o, "rank1_busy_s", busy[1]);
+      km_cli_json_number(o, "first_job_after_s", launch);
+      km_cli_json_number(o, "after_last_job_s", tail);
+    }
     km_cli_json_number(o, "cpu_scan_s", cpu_scan);
     km_cli_json_number(o, "cpu_job_start_s", cpu_start);
     km_cli_json_number(o, "cpu_1rank_s", cpu1);
@@ -306,6 +393,22 @@ int km_bench_batch(int argc, char **argv) {
     printf("\nspeedup 2 ranks / 1: %.2fx wall (target >= 1.8x); CPU 2 ranks / 1: %.2fx (1.0 = no "
            "extra work)\n",
            speedup, cpu2 / cpu1);
+    printf("2 ranks = %s%s\n", how,
+           ranked ? " (rank 0 hands the jobs out and runs jobs too: 2 job runners)" : "");
+    printf("the same with nothing to run: %.2f s wall (CPU %.2f s); speedup of the rest (each run "
+           "less its nothing-to-run cost): %.2fx\n",
+           t_noop, cpu_noop, speedup_jobs);
+    printf("jobs at once (job-seconds per wall second): 1 rank %.2f, 2 ranks %.2f (at best 2): the "
+           "batch's part of the speedup %.2fx; a job's wall time 1 rank / 2 ranks %.2f (the "
+           "machine's part: 1.0 on idle cores)\n",
+           par1, par2, par2 / par1, job1 / job2);
+    if (ranked)
+      printf("2 ranks' wall %.2f s: rank 0 ran jobs %.2f s (%.0f%%), rank 1 %.2f s (%.0f%%); first "
+             "job %.2f s after the start, the end %.2f s after the last job\n",
+             t2, busy[0], 100 * busy[0] / t2, busy[1], 100 * busy[1] / t2, launch, tail);
+    printf("load average (1 min) before the 1-rank run %.2f, before the 2-rank run %.2f, on %ld "
+           "cores: above 0 the ranks share the cores with others and wall speedups shrink\n",
+           l0[0], l1[0], sysconf(_SC_NPROCESSORS_ONLN));
     printf("serial parts: manifest scan + plan %.3f s (CPU %.3f s, %zu jobs); job start "
            "(process, template, first frame) %.2f s (CPU %.2f s); per frame %.2f s (CPU %.2f s)\n",
            scan, cpu_scan, jobs, cw.start, cc.start, cw.frame, cc.frame);

@@ -1,37 +1,16 @@
 /* Point clouds to mesh animation through the CLI: a simulated capture, then reconstruct with
  * a report and a plot; bad inputs exit non-zero with a message naming them. */
-#include "km_test.h"
-
-#include <cjson/cJSON.h>
+#include "capture_fixture.h"
 
 #define DIR "recon_cli"
-
-static cJSON *read_json(const char *path) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return NULL;
-  fseek(f, 0, SEEK_END);
-  size_t size = (size_t)ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *data = malloc(size + 1);
-  data[fread(data, 1, size, f)] = '\0';
-  fclose(f);
-  cJSON *j = cJSON_Parse(data);
-  free(data);
-  return j;
-}
 
 int main(void) {
   char *out = NULL;
   CHECK(km_test_run("rm -rf " DIR " && mkdir -p " DIR, NULL) == 0);
   CHECK(km_test_run(KM_CLI " gen character --vertices 6000 --shape stocky -o " DIR "/subject.obj",
                     NULL) == 0);
-  CHECK(km_test_run(KM_CLI " gen motion --kind wave --frames 5 --character " DIR
-                           "/subject.obj -o " DIR "/take.json",
-                    NULL) == 0);
-  CHECK(km_test_run(KM_CLI " gen capture --character " DIR "/subject.obj --motion " DIR
-                           "/take.json --cameras 8 --points 12000 --noise-mm 2 -o " DIR "/frames",
-                    &out) == 0);
-  free(out);
+  CHECK(km_test_capture(DIR "/subject.obj", "wave", 5, DIR "/take.json", 8, 12000, "--noise-mm 2",
+                        DIR "/frames", NULL) == 0);
   km_anim_info truth;
   CHECK_OK(km_anim_info_read(DIR "/frames/truth.pc2", &truth, KM_E));
   CHECK(truth.frames == 5);
@@ -50,7 +29,7 @@ int main(void) {
   km_anim_info info;
   CHECK_OK(km_anim_info_read(DIR "/recon.pc2", &info, KM_E));
   CHECK(info.frames == 5);
-  cJSON *rep = read_json(DIR "/report.json");
+  cJSON *rep = km_test_read_json(DIR "/report.json");
   CHECK(rep != NULL);
   const cJSON *frames = cJSON_GetObjectItemCaseSensitive(rep, "frames");
   CHECK(cJSON_GetArraySize(frames) == 5);
@@ -90,7 +69,7 @@ int main(void) {
                            "/frames/*.ply' -o " DIR "/glob.pc2 --report " DIR "/glob.json",
                     &out) == 0);
   free(out);
-  rep = read_json(DIR "/glob.json");
+  rep = km_test_read_json(DIR "/glob.json");
   CHECK_MSG(cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(rep, "frames")) ==
                 (int)truth.frames,
             "'frames/*.ply': %d frames in the report, %zu captured",
@@ -110,7 +89,7 @@ int main(void) {
                     &out) == 0);
   CHECK_MSG(out && strstr(out, "frame_00002.ply"), "warning names the file: %s", out);
   free(out);
-  rep = read_json(DIR "/corrupt.json");
+  rep = km_test_read_json(DIR "/corrupt.json");
   frames = cJSON_GetObjectItemCaseSensitive(rep, "frames");
   CHECK(cJSON_GetArraySize(frames) == (int)truth.frames);
   for (int i = 0; i < cJSON_GetArraySize(frames); ++i) {
@@ -143,7 +122,7 @@ int main(void) {
     ++warnings;
   CHECK_MSG(warnings == (int)truth.frames && strstr(out, "unsupported surface"), "%s", out);
   free(out);
-  rep = read_json(DIR "/tight.json");
+  rep = km_test_read_json(DIR "/tight.json");
   frames = cJSON_GetObjectItemCaseSensitive(rep, "frames");
   for (int i = 0; i < cJSON_GetArraySize(frames); ++i) {
     const cJSON *fr = cJSON_GetArrayItem(frames, i);

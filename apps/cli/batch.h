@@ -9,7 +9,8 @@
 
 typedef struct km_batch km_batch; /* the manifest, its jobs and where reports go (batch.c) */
 
-/* Called about every 0.2 s while a job's process runs (the MPI worker's heartbeat). */
+/* Called about every 20 ms while a job's process runs (rank 0's service of the other ranks, a
+ * worker's heartbeat); the job's end is noticed at once. */
 typedef void (*km_batch_tick)(void *user);
 
 /* Runs job j (an index into the manifest) as a child process and writes its report. Returns 0
@@ -32,6 +33,9 @@ long km_batch_job_parent(const km_batch *b, size_t j);
 /* The attempt the next km_batch_run_job of job j is (its report says "attempts"): 1, or 2 when
  * the job of a lost MPI rank is run again. */
 void km_batch_set_attempt(km_batch *b, size_t j, int attempt);
+/* The MPI rank this process is (its job reports then say "rank"); -1 (the default) outside
+ * MPI. */
+void km_batch_set_rank(km_batch *b, int rank);
 
 /* The MPI driver: rank 0 plans (km_batch_plan) and hands the jobs out, longest first, to the
  * ranks as they free up and writes the batch report; the other ranks run what they are given.

@@ -7,7 +7,14 @@
  * A rank that dies: plain MPI has no portable failure notice (ULFM is not in OpenMPI 4), so a
  * rank running a job sends a heartbeat every second and rank 0 takes a rank it has not heard
  * from for --mpi-timeout seconds as dead and gives it nothing more; its job goes to another
- * rank once (attempt 2) and is reported failed only when that one is lost too.
+ * rank once (attempt 2) and is reported failed only when that one is lost too. The second
+ * attempt goes to a worker rank, not to rank 0 (whose loss would end the batch) while a worker
+ * lives; so that one is there to take it, a worker with nothing left to do waits (instead of
+ * stopping) while another worker still runs a job that could be lost.
+ *
+ * Threads: without OMP_NUM_THREADS, every job gets the cores of its rank (a rank bound to a
+ * core: 1; ranks not bound: the node's cores over its ranks), never a thread per core of the
+ * node in every rank.
  *
  * One long take: its segment jobs are handed out like any other, its stitch once they have
  * all finished (a rank with nothing else to do waits for it).
@@ -18,6 +25,10 @@
 
 #include <mpi.h>
 
+#ifndef _GNU_SOURCE
+#define _GNU_SOURCE /* sched_getaffinity */
+#endif
+#include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <time.h>
@@ -50,14 +61,29 @@ static double now(void) {
 
 static void nap(void) { nanosleep(&(struct timespec){0, 20000000}, NULL); }
 
-/* The first job not handed out whose segments (if any) are all finished; -1 when none now. */
-static long take_next(sched *s) {
+static bool worker_alive(const sched *s) {
+  for (int r = 1; r < s->size; ++r)
+    if (s->running[r] != R_DEAD) return true;
+  return false;
+}
+
+/* The first job not handed out whose segments (if any) are all finished, for rank r; -1 when
+ * none now. A job whose rank was lost (attempt 2) is not rank 0's while a worker lives. */
+static long take_next(sched *s, int r) {
+  const bool second_ok = r != 0 || !worker_alive(s);
   for (size_t t = 0; t < s->n_todo; ++t)
-    if (!s->taken[t] && !s->waits[t]) {
+    if (!s->taken[t] && !s->waits[t] && (s->attempt[t] < 2 || second_ok)) {
       s->taken[t] = 1;
       return (long)t;
     }
   return -1;
+}
+
+/* Whether a worker rank runs a job (which may yet be lost and handed out again). */
+static bool worker_busy(const sched *s) {
+  for (int r = 1; r < s->size; ++r)
+    if (s->running[r] >= 0) return true;
+  return false;
 }
 
 static bool all_taken(const sched *s) {
@@ -72,15 +98,14 @@ static void finished(sched *s, long t, int failed) {
   if (s->parent_pos[t] >= 0) --s->waits[s->parent_pos[t]];
 }
 
-/* Gives rank r its next job, tells it to stop when every job is handed out, or (a stitch
- * waiting for segments still running) leaves it waiting for the next service. */
+/* Gives rank r its next job, tells it to stop when every job is handed out and no other
+ * worker runs one, or (a stitch waiting for segments still running, a job that may yet come
+ * back from a lost rank) leaves it waiting for the next service. */
 static void hand_out(sched *s, int r) {
-  long t = take_next(s);
+  long t = take_next(s, r);
   s->last_seen[r] = now();
-  if (t < 0 && !all_taken(s)) {
-    s->running[r] = R_WAITING;
-    return;
-  }
+  s->running[r] = R_WAITING; /* not busy, for worker_busy */
+  if (t < 0 && (!all_taken(s) || worker_busy(s))) return;
   int msg[2] = {t >= 0 ? (int)s->todo[t] : -1, t >= 0 ? s->attempt[t] : 0};
   MPI_Send(msg, 2, MPI_INT, r, TAG_JOB, MPI_COMM_WORLD);
   s->running[r] = t >= 0 ? t : R_STOPPED;
@@ -181,12 +206,50 @@ static int worker(km_batch *b) {
   return 0;
 }
 
+/* Threads per job when OMP_NUM_THREADS is not set: the cores this rank may run on when it is
+ * bound to fewer than the node's, else the node's cores over the ranks on the node (at least
+ * 1). Set in the environment the jobs inherit; returns it (0: left as the user set it). */
+static int threads_per_job(void) {
+  /* the ranks on this node: a collective, so every rank calls it (the environment may differ
+   * from node to node) */
+  MPI_Comm node;
+  int local = 1;
+  if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) ==
+      MPI_SUCCESS) {
+    MPI_Comm_size(node, &local);
+    MPI_Comm_free(&node);
+  }
+  const char *env = getenv("OMP_NUM_THREADS");
+  if (env && *env) return 0;
+  long cores = sysconf(_SC_NPROCESSORS_ONLN);
+  if (cores < 1) cores = 1;
+  long mine = cores;
+#ifdef __linux__
+  cpu_set_t set;
+  if (!sched_getaffinity(0, sizeof set, &set)) mine = CPU_COUNT(&set);
+#endif
+  long t = mine < cores ? mine : cores / (local > 0 ? local : 1);
+  if (t < 1) t = 1;
+  char buf[32];
+  snprintf(buf, sizeof buf, "%ld", t);
+  setenv("OMP_NUM_THREADS", buf, 1);
+  return (int)t;
+}
+
 int km_batch_mpi(km_batch *b, double timeout_s) {
   int provided = 0, rank = 0, size = 1;
   MPI_Init_thread(NULL, NULL, MPI_THREAD_SINGLE, &provided);
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   MPI_Comm_size(MPI_COMM_WORLD, &size);
+  /* a send to a rank that died must not end the batch (rank 0 tells waiting ranks to stop) */
+  MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
+  km_batch_set_rank(b, rank);
+  const int threads = threads_per_job(); /* collective: every rank */
   if (rank != 0) return worker(b);
+  if (threads > 0)
+    fprintf(stderr,
+            "kinemesh batch: OMP_NUM_THREADS not set: %d thread(s) per job (this rank's cores)\n",
+            threads);
 
   sched s = {.b = b, .size = size, .timeout = timeout_s};
   size_t *todo = NULL;
@@ -220,7 +283,7 @@ int km_batch_mpi(km_batch *b, double timeout_s) {
    * between them and, through the tick, while its own job runs */
   for (;;) {
     service(&s);
-    const long t = take_next(&s);
+    const long t = take_next(&s, 0);
     if (t >= 0) {
       km_batch_set_attempt(b, todo[t], s.attempt[t]);
       finished(&s, t, km_batch_run_job(b, todo[t], service, &s));
