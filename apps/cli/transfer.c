@@ -91,7 +91,13 @@ int km_cli_transfer(int argc, char **argv) {
   size_t xyz_frame = 0;
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
-      KM_CLI_FRAME_OPTIONS(fo),
+      /* KM_CLI_FRAME_OPTIONS's entries, but transfer never guesses */
+      {"up", 0, KM_OPT_STRING, &fo.up,
+       "SOURCE's up axis: +x -x +y -y +z -z (default: its rig sidecar's \"frame\", else as it is)"},
+      {"forward", 0, KM_OPT_STRING, &fo.forward,
+       "the axis SOURCE faces (default: its rig sidecar's \"frame\", else as it is)"},
+      {"units", 0, KM_OPT_STRING, &fo.units,
+       "SOURCE's units: m (default), cm, mm, in, ft, or metres per unit"},
       {"source", 's', KM_OPT_STRING, &source, "the avatar mesh S"},
       {"template", 't', KM_OPT_STRING, &templ, "the posed template T (same connectivity as S)"},
       {"output", 'o', KM_OPT_STRING, &out, "output mesh (.obj/.ply/.off)"},
