@@ -2141,6 +2141,10 @@ typedef struct km_recon_options {
   /* ---- issue 16: how km_reconstruct writes out_anim (export kind, skin fit); NULL: per-frame
    * morphs at 30 fps. fps 0 in it: 30. Borrowed for the call. */
   const km_anim_options *anim;
+  /* ---- issue 11: the frame of km_reconstruct's point cloud files (their up and forward axes
+   * and units), brought into kinemesh's (y up, facing +z, metres) as each file is read; NULL:
+   * already in it. Borrowed for the call. */
+  const km_frame *points_frame;
 } km_recon_options;
 
 /* A user-given feature correspondence: template vertex <-> point position (first frame). */

@@ -28,6 +28,74 @@ static bool skin_valid(const km_skin *s, size_t n) {
   return true;
 }
 
+/* Issue 11: landmarks are distinct vertices, each near the point of its joint that its ray
+ * starts from (within limit of the height H): the farthest hit along a ray put FAUST's head
+ * and neck on one vertex (the nose), its elbows on the shoulders and its hips on the hands. */
+static int joint_index(const km_skeleton *s, const char *name) {
+  for (size_t j = 0; j < s->n_joints; ++j)
+    if (!strcmp(s->names[j], name)) return (int)j;
+  CHECK_MSG(false, "no joint %s", name);
+  return 0;
+}
+
+static void check_landmarks(const char *label, const km_mesh *m, const km_character *c, double H,
+                            double limit) {
+  static const char *const joint_of[KM_CHARACTER_LANDMARKS][2] = {
+      {"Head", NULL},          {"ShoulderCenter", "Head"}, {"ShoulderLeft", NULL},
+      {"ShoulderRight", NULL}, {"ElbowLeft", NULL},        {"ElbowRight", NULL},
+      {"HandLeft", NULL},      {"HandRight", NULL},        {"Spine", "ShoulderCenter"},
+      {"HipCenter", NULL},     {"HipLeft", NULL},          {"HipRight", NULL},
+      {"KneeLeft", NULL},      {"KneeRight", NULL},        {"FootLeft", NULL},
+      {"FootRight", NULL}};
+  const km_skeleton *s = &c->skeleton;
+  double worst = 0;
+  int wi = 0;
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    int32_t v = c->landmarks[i].vertex;
+    CHECK(v >= 0 && (size_t)v < m->n_vertices);
+    if (v < 0 || (size_t)v >= m->n_vertices) continue;
+    for (int k = 0; k < i; ++k)
+      CHECK_MSG(c->landmarks[k].vertex != v, "%s: landmarks %s and %s on one vertex (%d)", label,
+                c->landmarks[k].name, c->landmarks[i].name, (int)v);
+    /* the ray's start: the joint, the neck half way up to the head, the chest 0.6 of the way
+     * from the spine to the shoulders (src/autorig/autorig.c compute_landmarks) */
+    const double *a = s->rest + 3 * joint_index(s, joint_of[i][0]);
+    double q[3] = {a[0], a[1], a[2]};
+    if (joint_of[i][1]) {
+      const double *b = s->rest + 3 * joint_index(s, joint_of[i][1]);
+      double t = i == 8 ? 0.6 : 0.5;
+      for (int k = 0; k < 3; ++k)
+        q[k] = a[k] + t * (b[k] - a[k]);
+    }
+    const double *p = m->V + 3 * (size_t)v;
+    double d = sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                    (p[2] - q[2]) * (p[2] - q[2]));
+    CHECK_MSG(d < limit * H,
+              "%s: landmark %s (vertex %d) is %.3f (%.1f%% of the height) from its "
+              "joint",
+              label, c->landmarks[i].name, (int)v, d, 100 * d / H);
+    if (d > worst) worst = d, wi = i;
+  }
+  printf("%s: landmarks: the farthest from its joint %s at %.1f%% of the height\n", label,
+         c->landmarks[wi].name, 100 * worst / H);
+}
+
+/* FAUST's first registration (a standing scan, arms down, y up): the rig's landmarks. */
+static void test_faust_landmarks(void) {
+  char buf[1024];
+  const char *path = km_test_shared("poses/tr_reg_000.off", buf, sizeof buf);
+  if (!path) return;
+  km_mesh m = {0};
+  km_character c = {0};
+  km_autorig_report rep;
+  CHECK_OK(km_mesh_read(path, &m, KM_E));
+  CHECK_OK(km_autorig(&m, NULL, &c, &rep, KM_E));
+  if (c.skeleton.n_joints == KM_KINECT1_JOINTS)
+    check_landmarks("FAUST tr_reg_000", &m, &c, rep.height, 0.10);
+  km_character_free(&c);
+  km_mesh_free(&m);
+}
+
 /* The true skeleton is known: every embedded joint within 5% of the height. */
 static void test_character(size_t nv, uint64_t seed, double belly, double girth) {
   km_character_options co = {0};
@@ -76,6 +144,9 @@ static void test_character(size_t nv, uint64_t seed, double belly, double girth)
                     (a[2] - b[2]) * (a[2] - b[2]));
     CHECK_MSG(d < 0.08 * H, "landmark %s is %.3f m from the truth", r.landmarks[i].name, d);
   }
+  char label[64];
+  snprintf(label, sizeof label, "character %zu seed %llu", nv, (unsigned long long)seed);
+  check_landmarks(label, &c.mesh, &r, H, 0.10);
   /* The sidecar round-trips and resolves as a puppetry rig. */
   char path[256];
   snprintf(path, sizeof path, "%s/char_%llu.rig.json", g_dir, (unsigned long long)seed);
@@ -477,6 +548,7 @@ int main(void) {
   test_character(10000, 0, 0, 0);
   test_character(20000, 7, 0.6, 1.15);
   test_isolated_vertex();
+  test_faust_landmarks();
   test_cli();
   char buf[1024];
   const char *csv = km_test_shared("skeleton/precog_Seq1_1.csv", buf, sizeof buf);

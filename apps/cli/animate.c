@@ -100,6 +100,7 @@ int km_cli_animate(int argc, char **argv) {
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK ||
       km_motion_read(motion, NULL, &take, NULL, &err) != KM_OK)
     goto fail;
+  fo.rig = rig_path; /* the frame its sidecar records (the default one when not given) */
   if ((rc = km_cli_orient_mesh("animate", mesh_path, &fo, &m)) ||
       (rc = km_cli_orient_take("animate", &fo, &take)))
     goto done;

@@ -27,8 +27,10 @@ int km_cli_avatar(int argc, char **argv) {
   double scale = 0, max_error_mm = 0;
   bool compress = false;
   const char *export_kind = NULL;
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
       KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm, compress),
+      KM_CLI_FRAME_OPTIONS(fo),
       {"source", 's', KM_OPT_STRING, &source, "the avatar mesh (same connectivity as the DB)"},
       {"db", 0, KM_OPT_STRING, &dbp, "pose database (kinemesh posedb build)"},
       {"track", 0, KM_OPT_STRING, &track, "tracked landmark positions (.json/.csv)"},
@@ -47,7 +49,10 @@ int km_cli_avatar(int argc, char **argv) {
                        "kinemesh avatar --source S --db DB --track TRACK -o OUT.glb [--interval K]",
                        "Drives AVATAR (same connectivity as DB's templates) from a TRACK of\n"
                        "landmark positions: key poses are recognised in DB and transferred, the\n"
-                       "frames in between interpolated; one output frame per track frame.");
+                       "frames in between interpolated; one output frame per track frame.\n"
+                       "AVATAR is brought into kinemesh's frame (y up, facing +z, metres), the\n"
+                       "frame of tracks, by --up/--forward/--units, else its rig sidecar's\n"
+                       "\"frame\", else a guess (printed); OUT is in kinemesh's frame.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (source && n_pos < 3) pos[n_pos++] = source;
   if (dbp && n_pos < 3) pos[n_pos++] = dbp;
@@ -71,6 +76,7 @@ int km_cli_avatar(int argc, char **argv) {
     rc = km_cli_fail("avatar", &err);
     goto done;
   }
+  if ((rc = km_cli_orient_mesh("avatar", pos[0], &fo, &avatar))) goto done;
   /* The avatar's landmark vertices in the database's landmark order, by name. */
   size_t dnl = km_posedb_landmark_count(db);
   const km_landmark *dlm = km_posedb_landmarks(db);

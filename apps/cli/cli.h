@@ -58,6 +58,8 @@ typedef struct km_cli_frame_opts {
   const char *up, *forward;               /* "+x" ... "-z"; NULL: guessed from the mesh */
   const char *units;                      /* m, cm, mm, in, ft, or metres per unit; NULL: metres */
   const char *motion_up, *motion_forward; /* the take's axes; NULL: y up, facing +z */
+  const char *rig; /* the sidecar whose "frame" is used; NULL: <mesh stem>.rig.json */
+  bool no_guess;   /* an axis neither given nor recorded is kinemesh's, not guessed */
 } km_cli_frame_opts;
 /* Entries for a verb's option array (a mesh's frame). */
 /* clang-format off */
@@ -75,9 +77,9 @@ typedef struct km_cli_frame_opts {
    "the axis the performer faces in the take (default +z)"}
 /* clang-format on */
 /* The frame the options say; with neither --up nor --forward, the "frame" object of the
- * mesh's rig sidecar (<stem>.rig.json: {"up": "+z", "forward": "-y", "scale": 0.01}, scale
- * optional, metres per file unit) when it has one; the missing axes guessed from m (printed
- * on stderr in one line naming path, so the user can see and override it, unless quiet).
+ * mesh's rig sidecar (fo->rig, else <stem>.rig.json: {"up": "+z", "forward": "-y", "scale":
+ * 0.01}, scale optional, metres per file unit) when it has one; the missing axes guessed from m
+ * (printed on stderr in one line naming path, so the user can see and override it, unless quiet).
  * *guessed: whether any axis was guessed (may be NULL). Prints the error and returns non-zero
  * on a bad option. */
 int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opts *fo,
@@ -87,6 +89,12 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
 int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo, km_mesh *m);
 /* The take's positions into kinemesh's frame by --motion-up/--motion-forward. */
 int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t);
+/* The frame named by options of data that is not a mesh (nothing to guess from): up (NULL:
+ * +y), forward (NULL: +z, or -y for a z-up frame), units (NULL: metres); opt names the
+ * options in messages ("motion": --motion-up ...). Returns 0, or prints the error and returns
+ * an exit status. */
+int km_cli_given_frame(const char *verb, const char *opt, const char *up, const char *forward,
+                       const char *units, km_frame *out);
 
 /* Exit codes */
 #define KM_EXIT_OK 0
@@ -111,6 +119,16 @@ int km_cli_batch(int argc, char **argv);
  * one with `vertices` vertices when mesh is NULL. */
 km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
                                 km_error *err);
+/* km_cli_load_character, then brought into kinemesh's frame as animate brings a mesh
+ * (km_cli_mesh_frame: --up/--forward/--units, else the rig sidecar's "frame", else glTF's,
+ * else guessed and printed). The mesh is rotated and scaled; a rig sidecar's joints are in
+ * kinemesh's frame already (`rig` writes them so; `gen character`'s frame is kinemesh's), a
+ * skinned glTF's own skeleton is turned with its mesh. The procedural character (mesh NULL)
+ * is not turned. f: the frame applied (identity when none; may be NULL). Returns 0, or
+ * prints the error and returns an exit status. */
+int km_cli_load_character_oriented(const char *verb, const char *mesh, const char *rig,
+                                   size_t vertices, const km_cli_frame_opts *fo, km_character *c,
+                                   km_frame *f);
 /* A skinned glTF's own skin as its rig (km_character_from_skin), when no rig is given and
  * <stem>.rig.json does not exist: *c (freed first) gets the mesh, skeleton, skin and landmarks,
  * the mapping is printed on stderr and *used is set. Otherwise *used is false, c untouched. */

@@ -474,16 +474,29 @@ static km_axis default_forward(km_axis up) {
   return (up == KM_AXIS_POS_Z || up == KM_AXIS_NEG_Z) ? KM_AXIS_NEG_Y : KM_AXIS_POS_Z;
 }
 
+static int parse_units_opt(const char *verb, const char *opt, const char *s, double *scale) {
+  if (!s) return 0;
+  char *end = NULL;
+  double x = km_units_scale(s);
+  if (x == 0) x = strtod(s, &end);
+  if (!(x > 0) || !isfinite(x) || (end && *end))
+    return km_cli_error(verb, "--%s must be m, cm, mm, in, ft or a positive number, not '%s'", opt,
+                        s);
+  *scale = x;
+  return 0;
+}
+
 static bool same_axis(km_axis a, km_axis b) { return a && b && (a - 1) / 2 == (b - 1) / 2; }
 
 /* The "frame" object of the mesh's rig sidecar (<stem>.rig.json), when it has a valid one:
  *   "frame": {"up": "+z", "forward": "-y", "scale": 0.01}
  * up/forward are the file's axes, scale metres per file unit (optional). */
-static bool sidecar_frame(const char *mesh_path, km_frame *out) {
+static bool sidecar_frame(const char *mesh_path, const char *rig_path, km_frame *out) {
   memset(out, 0, sizeof *out);
-  char *rig = mesh_path ? km_cli_rig_path(mesh_path) : NULL;
+  char *own = !rig_path && mesh_path ? km_cli_rig_path(mesh_path) : NULL;
+  const char *rig = rig_path ? rig_path : own;
   FILE *f = rig ? fopen(rig, "rb") : NULL;
-  free(rig);
+  free(own);
   if (!f) return false;
   char *text = NULL;
   long n = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
@@ -516,21 +529,13 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
   if (parse_axis_opt(verb, "up", fo->up, &out->up) ||
       parse_axis_opt(verb, "forward", fo->forward, &out->forward))
     return KM_EXIT_USAGE;
-  if (fo->units) {
-    char *end = NULL;
-    double x = km_units_scale(fo->units);
-    if (x == 0) x = strtod(fo->units, &end);
-    if (!(x > 0) || !isfinite(x) || (end && *end))
-      return km_cli_error(verb, "--units must be m, cm, mm, in, ft or a positive number, not '%s'",
-                          fo->units);
-    out->scale = x;
-  }
+  if (parse_units_opt(verb, "units", fo->units, &out->scale)) return KM_EXIT_USAGE;
   if (same_axis(out->up, out->forward))
     return km_cli_error(verb, "--up %s and --forward %s lie on the same axis", fo->up, fo->forward);
   if (out->up && out->forward) return 0;
   /* No axis given: the rig sidecar's record of them (written by whoever rigged the mesh). */
   km_frame sf;
-  if (!out->up && !out->forward && sidecar_frame(path, &sf)) {
+  if (!out->up && !out->forward && sidecar_frame(path, fo->rig, &sf)) {
     out->up = sf.up;
     out->forward = sf.forward;
     if (!fo->units && sf.scale > 0) out->scale = sf.scale;
@@ -547,7 +552,8 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
   }
   km_frame_guess g;
   km_error e = {0};
-  if (km_mesh_frame_guess(m, &g, &e) != KM_OK) { /* flat or empty: keep kinemesh's axes */
+  if (fo->no_guess ||
+      km_mesh_frame_guess(m, &g, &e) != KM_OK) { /* flat or empty: keep kinemesh's axes */
     if (!out->up) out->up = KM_AXIS_POS_Y;
     if (!out->forward || same_axis(out->up, out->forward)) out->forward = default_forward(out->up);
     return 0;
@@ -578,14 +584,30 @@ int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_op
   return 0;
 }
 
+int km_cli_given_frame(const char *verb, const char *opt, const char *up, const char *forward,
+                       const char *units, km_frame *out) {
+  char n_up[64], n_fw[64], n_un[64];
+  snprintf(n_up, sizeof n_up, "%s-up", opt);
+  snprintf(n_fw, sizeof n_fw, "%s-forward", opt);
+  snprintf(n_un, sizeof n_un, "%s-units", opt);
+  memset(out, 0, sizeof *out);
+  if (parse_axis_opt(verb, n_up, up, &out->up) ||
+      parse_axis_opt(verb, n_fw, forward, &out->forward) ||
+      parse_units_opt(verb, n_un, units, &out->scale))
+    return KM_EXIT_USAGE;
+  if (!out->up) out->up = KM_AXIS_POS_Y;
+  if (!out->forward) out->forward = default_forward(out->up);
+  if (same_axis(out->up, out->forward))
+    return km_cli_error(verb, "--%s %s and --%s %s lie on the same axis", n_up, up ? up : "+y",
+                        n_fw, forward ? forward : "+z");
+  return 0;
+}
+
 int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t) {
   if (!fo || (!fo->motion_up && !fo->motion_forward)) return 0;
-  km_frame f = {0};
-  if (parse_axis_opt(verb, "motion-up", fo->motion_up, &f.up) ||
-      parse_axis_opt(verb, "motion-forward", fo->motion_forward, &f.forward))
-    return KM_EXIT_USAGE;
-  if (!f.up) f.up = KM_AXIS_POS_Y;
-  if (!f.forward) f.forward = default_forward(f.up);
+  km_frame f;
+  int rc = km_cli_given_frame(verb, "motion", fo->motion_up, fo->motion_forward, NULL, &f);
+  if (rc) return rc;
   km_error e = {0};
   if (km_frame_apply(&f, t->positions, t->n_frames * t->n_joints, NULL, 0, &e) != KM_OK)
     return km_cli_fail(verb, &e);

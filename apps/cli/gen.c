@@ -96,21 +96,50 @@ static int gen_character(int argc, char **argv) {
   return rc;
 }
 
-km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
-                                km_error *err) {
+/* km_cli_load_character; *own: the character is a skinned glTF's own skin. */
+static km_status load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
+                                bool *own, km_error *err) {
+  *own = false;
   if (!mesh) {
     km_character_options co = {0};
     co.target_vertices = vertices;
     return km_character_generate(&co, c, err);
   }
-  bool own = false;
-  km_status s = km_cli_skin_character("template", mesh, rig, c, &own, err);
-  if (s != KM_OK || own) return s;
+  km_status s = km_cli_skin_character("template", mesh, rig, c, own, err);
+  if (s != KM_OK || *own) return s;
   char *rig_path = rig ? NULL : km_cli_rig_path(mesh);
   s = km_mesh_read(mesh, &c->mesh, err);
   if (s == KM_OK) s = km_character_read_rig(rig ? rig : rig_path, c->mesh.n_vertices, c, err);
   free(rig_path);
   return s;
+}
+
+km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
+                                km_error *err) {
+  bool own;
+  return load_character(mesh, rig, vertices, c, &own, err);
+}
+
+int km_cli_load_character_oriented(const char *verb, const char *mesh, const char *rig,
+                                   size_t vertices, const km_cli_frame_opts *fo, km_character *c,
+                                   km_frame *f) {
+  km_frame id = {KM_AXIS_POS_Y, KM_AXIS_POS_Z, 0}, fr = id;
+  if (f) *f = id;
+  km_error err = {0};
+  bool own = false;
+  if (load_character(mesh, rig, vertices, c, &own, &err) != KM_OK) return km_cli_fail(verb, &err);
+  if (!mesh) return 0;
+  km_cli_frame_opts o = fo ? *fo : (km_cli_frame_opts){0};
+  if (!o.rig) o.rig = rig;
+  int rc = km_cli_mesh_frame(verb, mesh, &o, &c->mesh, false, &fr, NULL);
+  if (rc) return rc;
+  if (fr.up == KM_AXIS_POS_Y && fr.forward == KM_AXIS_POS_Z && (fr.scale == 0 || fr.scale == 1))
+    return 0; /* already kinemesh's frame: the positions stay bit for bit */
+  if (km_mesh_frame_apply(&fr, &c->mesh, &err) != KM_OK ||
+      (own && km_frame_apply(&fr, c->skeleton.rest, c->skeleton.n_joints, NULL, 0, &err) != KM_OK))
+    return km_cli_fail(verb, &err);
+  if (f) *f = fr;
+  return 0;
 }
 
 static int gen_motion(int argc, char **argv) {

@@ -195,6 +195,7 @@ int km_cli_live(int argc, char **argv) {
   int rc = KM_EXIT_FAIL;
 
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK) goto fail;
+  fo.rig = rig_path; /* the frame its sidecar records (the default one when not given) */
   if ((rc = km_cli_orient_mesh("live", mesh_path, &fo, &m))) goto done;
   rc = KM_EXIT_FAIL;
   if (!cache && !(cache_default = km_cli_cache_path(&m))) {

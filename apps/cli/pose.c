@@ -16,9 +16,11 @@ int km_cli_pose(int argc, char **argv) {
   bool compress = false;
   const char *export_kind = NULL;
   double max_error_mm = 0;
-  /* The mesh stays in its file's frame: the rig sidecar's skeleton is stored in it. */
+  /* The mesh is brought into kinemesh's frame as animate brings it (the rig sidecar's
+   * skeleton is stored in that frame); the output is in it, as animate's is. */
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      KM_CLI_FRAME_OPTIONS(fo),
       KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh, "rigged mesh (gen character, rig, or a skinned .glb)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames (default 1)"},
@@ -53,9 +55,8 @@ int km_cli_pose(int argc, char **argv) {
   double *pos_frame = NULL, *xf = NULL, *V = NULL, *seed = NULL;
   int *map = NULL;
   int rc = KM_EXIT_FAIL;
-  if (km_cli_load_character(mesh, rig, 0, &c, &err) != KM_OK ||
-      km_take_read(motion, &t, &err) != KM_OK)
-    goto fail;
+  if ((rc = km_cli_load_character_oriented("pose", mesh, rig, 0, &fo, &c, NULL))) goto done;
+  if (km_take_read(motion, &t, &err) != KM_OK) goto fail;
   if ((rc = km_cli_orient_take("pose", &fo, &t))) goto done;
   rc = KM_EXIT_FAIL;
   if (fps > 0 && fps != t.fps && t.n_frames > 0) { /* resample, do not relabel */

@@ -57,7 +57,9 @@ static km_status track(char **paths, size_t n, const km_character *c, const km_r
   for (size_t f = p->a; f < p->e && !s; ++f) {
     km_recon_frame_stats st = {0};
     km_points_free(&pts);
-    if ((s = km_points_read(paths[f], &pts, err))) break;
+    if ((s = km_points_read(paths[f], &pts, err)) ||
+        (ro->points_frame && (s = km_frame_apply(ro->points_frame, pts.P, pts.n, NULL, 0, err))))
+      break;
     s = f == p->a ? km_recon_first_frame(r, pts.P, pts.n, k == 0 ? feat : NULL, k == 0 ? nfeat : 0,
                                          &st, err)
                   : km_recon_next_frame(r, pts.P, pts.n, &st, err);

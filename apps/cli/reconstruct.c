@@ -98,8 +98,17 @@ int km_cli_reconstruct(int argc, char **argv) {
   bool compress = false;
   const char *export_kind = NULL;
   double max_error_mm = 0;
+  km_cli_frame_opts fo = {0};
+  const char *clouds_up = NULL, *clouds_forward = NULL, *clouds_units = NULL;
   const km_cli_opt opts[] = {
       KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm, compress),
+      KM_CLI_FRAME_OPTIONS(fo),
+      {"clouds-up", 0, KM_OPT_STRING, &clouds_up,
+       "the point clouds' up axis (default: the template's, as given or found)"},
+      {"clouds-forward", 0, KM_OPT_STRING, &clouds_forward,
+       "the axis the captured subject faces in the clouds (default: the template's)"},
+      {"clouds-units", 0, KM_OPT_STRING, &clouds_units,
+       "the clouds' units (default: the template's)"},
       {"template", 't', KM_OPT_STRING, &tmpl,
        "template mesh with rig sidecar (default: procedural, --vertices)"},
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
@@ -146,7 +155,11 @@ int km_cli_reconstruct(int argc, char **argv) {
                    "both ways: points to surface, and surface to points (template vertices far\n"
                    "from every point: a limb left behind or hidden); a frame with too much\n"
                    "unsupported surface gets a warning line, and with --strict the exit status\n"
-                   "is 1.");
+                   "is 1. The template is brought into kinemesh's frame (y up, facing +z,\n"
+                   "metres) by --up/--forward/--units, else its rig sidecar's \"frame\", else a\n"
+                   "guess (printed); the clouds and correspondences are taken in the template\n"
+                   "file's frame unless --clouds-up/--clouds-forward/--clouds-units say\n"
+                   "otherwise. The output is in kinemesh's frame, as animate's is.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!clouds && n_pos == 1) clouds = pos[0];
   const bool one_segment = segment_only >= 0;
@@ -209,7 +222,24 @@ int km_cli_reconstruct(int argc, char **argv) {
   }
   ro.anim = &ao;
   double t0 = km_cli_now();
-  km_status s = km_cli_load_character(tmpl, rig, vertices, &c, &err);
+  km_frame tf, cf;
+  if ((rc = km_cli_load_character_oriented("reconstruct", tmpl, rig, vertices, &fo, &c, &tf)) ||
+      ((clouds_up || clouds_forward || clouds_units) &&
+       (rc = km_cli_given_frame("reconstruct", "clouds", clouds_up, clouds_forward, clouds_units,
+                                &cf)))) {
+    km_character_free(&c);
+    free(feat);
+    km_paths_free(&paths, n);
+    return rc;
+  }
+  if (!(clouds_up || clouds_forward || clouds_units)) cf = tf; /* the template file's frame */
+  if (!(cf.up == KM_AXIS_POS_Y && cf.forward == KM_AXIS_POS_Z &&
+        (cf.scale == 0 || cf.scale == 1))) {
+    ro.points_frame = &cf;
+    for (size_t i = 0; i < nfeat; ++i) /* the frame is valid: parsed or applied already */
+      (void)km_frame_apply(&cf, feat[i].point, 1, NULL, 0, NULL);
+  }
+  km_status s = KM_OK;
   /* The template is skinned: its parts seed a skin fit. */
   if (!s && !one_segment &&
       km_cli_skin_seeds("reconstruct", &ao, &c.mesh, &c.skin, c.skeleton.n_joints, &so, &seeds))

@@ -78,6 +78,10 @@ static int read_pairs(const char *path, size_t ns, size_t nt, int32_t **pairs, s
   return rc;
 }
 
+static bool is_identity(const km_frame *f) {
+  return f->up == KM_AXIS_POS_Y && f->forward == KM_AXIS_POS_Z && (f->scale == 0 || f->scale == 1);
+}
+
 int km_cli_transfer(int argc, char **argv) {
   const char *out = NULL, *lm_path = NULL, *encoding = "edge", *laplacian = "uniform",
              *align = "scale", *source = NULL, *templ = NULL, *xyz = NULL, *trest = NULL,
@@ -85,7 +89,15 @@ int km_cli_transfer(int argc, char **argv) {
   int iterations = 0;
   double damping = 0;
   size_t xyz_frame = 0;
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      /* KM_CLI_FRAME_OPTIONS's entries, but transfer never guesses */
+      {"up", 0, KM_OPT_STRING, &fo.up,
+       "SOURCE's up axis: +x -x +y -y +z -z (default: its rig sidecar's \"frame\", else as it is)"},
+      {"forward", 0, KM_OPT_STRING, &fo.forward,
+       "the axis SOURCE faces (default: its rig sidecar's \"frame\", else as it is)"},
+      {"units", 0, KM_OPT_STRING, &fo.units,
+       "SOURCE's units: m (default), cm, mm, in, ft, or metres per unit"},
       {"source", 's', KM_OPT_STRING, &source, "the avatar mesh S"},
       {"template", 't', KM_OPT_STRING, &templ, "the posed template T (same connectivity as S)"},
       {"output", 'o', KM_OPT_STRING, &out, "output mesh (.obj/.ply/.off)"},
@@ -122,12 +134,17 @@ int km_cli_transfer(int argc, char **argv) {
   };
   const char *pos[2];
   int n_pos;
-  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 2, &n_pos,
-                       "kinemesh transfer --source S --template T [--template-rest TR] -o OUT "
-                       "[--landmarks LM.json]",
-                       "SOURCE (the avatar) takes the pose of TEMPLATE (same connectivity) by\n"
-                       "locally encoded Laplacian offsets; landmark vertices follow TEMPLATE's,\n"
-                       "scaled to SOURCE's size.");
+  int r =
+      km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 2, &n_pos,
+                   "kinemesh transfer --source S --template T [--template-rest TR] -o OUT "
+                   "[--landmarks LM.json]",
+                   "SOURCE (the avatar) takes the pose of TEMPLATE (same connectivity) by\n"
+                   "locally encoded Laplacian offsets; landmark vertices follow TEMPLATE's,\n"
+                   "scaled to SOURCE's size. SOURCE is brought into kinemesh's frame (y up,\n"
+                   "facing +z, metres) by --up/--forward/--units or its rig sidecar's\n"
+                   "\"frame\" (never guessed: without them it stays as it is), TEMPLATE of its\n"
+                   "connectivity with it; TEMPLATE-REST and its TEMPLATE by TR's sidecar's\n"
+                   "\"frame\". OUT is in SOURCE's frame so brought in.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (source && n_pos < 2) pos[n_pos++] = source;
   if (templ && n_pos < 2) pos[n_pos++] = templ;
@@ -185,6 +202,20 @@ int km_cli_transfer(int argc, char **argv) {
     rc = km_cli_fail("transfer", &err);
     goto done;
   }
+  /* SOURCE's frame: said, or recorded by its rig; never guessed (transfer turns with its
+   * meshes, and a source in another frame than TR is registered onto it). TEMPLATE of
+   * SOURCE's connectivity (a posed copy) shares it; with --template-rest, TR's rig's record
+   * is TR's and TEMPLATE's frame. */
+  km_frame fr;
+  fo.no_guess = true;
+  if ((rc = km_cli_mesh_frame("transfer", pos[0], &fo, &s, true, &fr, NULL))) goto done;
+  bool same = t.n_vertices == s.n_vertices && t.n_faces == s.n_faces &&
+              memcmp(t.F, s.F, s.n_faces * 3 * sizeof(int32_t)) == 0;
+  if ((!is_identity(&fr) && km_mesh_frame_apply(&fr, &s, &err)) ||
+      (same && !is_identity(&fr) && km_mesh_frame_apply(&fr, &t, &err))) {
+    rc = km_cli_fail("transfer", &err);
+    goto done;
+  }
   /* Transfer takes any number of landmarks (at least 3, at least one vertex free). */
   lm = calloc(s.n_vertices ? s.n_vertices : 1, sizeof *lm);
   ids = calloc(s.n_vertices ? s.n_vertices : 1, sizeof *ids);
@@ -217,10 +248,16 @@ int km_cli_transfer(int argc, char **argv) {
     free(rig);
     goto done;
   }
-  bool same = t.n_vertices == s.n_vertices && t.n_faces == s.n_faces &&
-              memcmp(t.F, s.F, s.n_faces * 3 * sizeof(int32_t)) == 0;
   if (!same && trest) {
+    km_cli_frame_opts tfo = {.no_guess = true};
+    km_frame tf;
     if (km_mesh_read(trest, &tr_rest, &err)) {
+      rc = km_cli_fail("transfer", &err);
+      goto done;
+    }
+    if ((rc = km_cli_mesh_frame("transfer", trest, &tfo, &tr_rest, true, &tf, NULL))) goto done;
+    if (!is_identity(&tf) &&
+        (km_mesh_frame_apply(&tf, &tr_rest, &err) || km_mesh_frame_apply(&tf, &t, &err))) {
       rc = km_cli_fail("transfer", &err);
       goto done;
     }

@@ -668,22 +668,90 @@ static void compute_skin(const rigger *r, km_skin *skin) {
 
 /* ---------------------------------------------------------------- landmarks */
 
-/* The vertex farthest along dir among those within rho of the ray from o along dir (the
- * surface point the ray leaves through); the nearest vertex to o when none. */
-static int32_t ray_pick(const rigger *r, const double o[3], const double dir[3], double rho) {
-  int32_t best = -1;
-  double bt = -DBL_MAX;
-  for (size_t v = 0; v < r->n; ++v) {
-    if (!r->on_face[v]) continue;
-    const double *p = r->m->V + 3 * v;
-    double q[3] = {p[0] - o[0], p[1] - o[1], p[2] - o[2]};
-    double t = q[0] * dir[0] + q[1] * dir[1] + q[2] * dir[2];
-    if (t <= 0 || t > 0.4 * r->H) continue;
-    double e[3] = {q[0] - t * dir[0], q[1] - t * dir[1], q[2] - t * dir[2]};
-    if (e[0] * e[0] + e[1] * e[1] + e[2] * e[2] > rho * rho) continue;
-    if (t > bt) bt = t, best = (int32_t)v;
+/* Where a ray from a joint leaves the body: the first face the ray from o along dir (unit)
+ * crosses within 0.4 H (Moeller-Trumbore over all faces), and of that face the vertex nearest
+ * the crossing. The first crossing, not the farthest vertex near the ray: the farthest one
+ * is whatever sticks out along the ray (the nose for the neck's ray too, the shoulder for an
+ * elbow's ray up a hanging arm, the hand hanging beside the hip's ray). A vertex already
+ * taken (used, n_used) gives way to the nearest free one, so landmarks stay distinct. The
+ * vertex nearest o when the ray crosses nothing (a joint outside a thin part). A ray cast
+ * per landmark over the F faces: 16 * F tests, a few milliseconds at 100k faces, so no
+ * acceleration structure (Embree is in recon, above this module). */
+static int32_t ray_pick(const rigger *r, const double o[3], const double dir[3],
+                        const int32_t *used, int n_used) {
+  const km_mesh *m = r->m;
+  double best_t = 0.4 * r->H;
+  size_t best_f = SIZE_MAX;
+  for (size_t f = 0; f < m->n_faces; ++f) {
+    const int32_t *t = m->F + 3 * f;
+    if (t[0] < 0 || t[1] < 0 || t[2] < 0 || (size_t)t[0] >= r->n || (size_t)t[1] >= r->n ||
+        (size_t)t[2] >= r->n)
+      continue;
+    const double *a = P(r, t[0]), *b = P(r, t[1]), *c = P(r, t[2]);
+    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double pv[3] = {dir[1] * e2[2] - dir[2] * e2[1], dir[2] * e2[0] - dir[0] * e2[2],
+                    dir[0] * e2[1] - dir[1] * e2[0]};
+    double det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+    if (fabs(det) < 1e-300) continue;
+    double inv = 1 / det, tv[3] = {o[0] - a[0], o[1] - a[1], o[2] - a[2]};
+    double u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) * inv;
+    if (u < 0 || u > 1) continue;
+    double qv[3] = {tv[1] * e1[2] - tv[2] * e1[1], tv[2] * e1[0] - tv[0] * e1[2],
+                    tv[0] * e1[1] - tv[1] * e1[0]};
+    double w = (dir[0] * qv[0] + dir[1] * qv[1] + dir[2] * qv[2]) * inv;
+    if (w < 0 || u + w > 1) continue;
+    double d = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv;
+    if (d > 0 && d < best_t) best_t = d, best_f = f;
   }
-  return best >= 0 ? best : nearest_vertex(r, o);
+  double hit[3] = {o[0], o[1], o[2]};
+  if (best_f != SIZE_MAX)
+    for (int k = 0; k < 3; ++k)
+      hit[k] += best_t * dir[k];
+  int32_t best = -1;
+  double bd = DBL_MAX;
+  for (int k = 0; best_f != SIZE_MAX && k < 3; ++k) {
+    int32_t v = m->F[3 * best_f + k];
+    double d = dist3(P(r, v), hit);
+    if (d < bd) bd = d, best = v;
+  }
+  if (best < 0) best = nearest_vertex(r, hit);
+  bool taken = false;
+  for (int i = 0; i < n_used; ++i)
+    taken = taken || used[i] == best;
+  if (!taken) return best;
+  best = -1, bd = DBL_MAX;
+  for (size_t v = 0; v < r->n; ++v) {
+    if (r->on_face && !r->on_face[v]) continue;
+    bool u = false;
+    for (int i = 0; i < n_used && !u; ++i)
+      u = used[i] == (int32_t)v;
+    double d = dist3(r->m->V + 3 * v, hit);
+    if (!u && d < bd) bd = d, best = (int32_t)v;
+  }
+  return best >= 0 ? best : nearest_vertex(r, hit);
+}
+
+/* The unit direction of a limb landmark's ray from joint j: pref made perpendicular to the
+ * limb through j (from joint a to joint b), so the ray leaves through the side of the limb
+ * and not along it; when pref lies along the limb (an arm hanging down for an elbow's "up"),
+ * alt made perpendicular instead. */
+static void limb_ray(const double *J, int a, int b, const double pref[3], const double alt[3],
+                     double out[3]) {
+  double l[3] = {J[3 * b] - J[3 * a], J[3 * b + 1] - J[3 * a + 1], J[3 * b + 2] - J[3 * a + 2]};
+  double ll = sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+  const double *cand[2] = {pref, alt};
+  for (int c = 0; c < 2; ++c) {
+    const double *p = cand[c];
+    double d = ll > 0 ? (p[0] * l[0] + p[1] * l[1] + p[2] * l[2]) / (ll * ll) : 0;
+    double q[3] = {p[0] - d * l[0], p[1] - d * l[1], p[2] - d * l[2]};
+    double n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+    if (n > 0.5 || c == 1) { /* within 60 degrees of perpendicular to the limb */
+      for (int k = 0; k < 3; ++k)
+        out[k] = n > 0 ? q[k] / n : p[k];
+      return;
+    }
+  }
 }
 
 static void compute_landmarks(const rigger *r, const double fwd[3], km_landmark *lm) {
@@ -704,29 +772,61 @@ static void compute_landmarks(const rigger *r, const double fwd[3], km_landmark 
                                                                {"foot_left", "foot_right"},
                                                                {"foot_right", "foot_left"}};
   const double *J = r->J, up[3] = {0, 1, 0};
-  double rho = 0.04 * r->H, left[3] = {fwd[2], 0, -fwd[0]}, right[3] = {-fwd[2], 0, fwd[0]};
-  double o[3];
+  double left[3] = {fwd[2], 0, -fwd[0]}, right[3] = {-fwd[2], 0, fwd[0]};
+  double o[3], d_l[3], d_r[3];
   int32_t v[KM_CHARACTER_LANDMARKS];
-  v[0] = ray_pick(r, J + 3 * J_HEAD, fwd, rho);
-  for (int k = 0; k < 3; ++k)
-    o[k] = 0.5 * (J[3 * J_SHOULDER_C + k] + J[3 * J_HEAD + k]);
-  v[1] = ray_pick(r, o, fwd, rho);
-  v[2] = ray_pick(r, J + 3 * J_SHOULDER_L, up, rho);
-  v[3] = ray_pick(r, J + 3 * J_SHOULDER_R, up, rho);
-  v[4] = ray_pick(r, J + 3 * J_ELBOW_L, up, rho);
-  v[5] = ray_pick(r, J + 3 * J_ELBOW_R, up, rho);
-  v[6] = r->tip[J_HAND_L];
-  v[7] = r->tip[J_HAND_R];
-  for (int k = 0; k < 3; ++k)
-    o[k] = J[3 * J_SPINE + k] + 0.6 * (J[3 * J_SHOULDER_C + k] - J[3 * J_SPINE + k]);
-  v[8] = ray_pick(r, o, fwd, rho);
-  v[9] = ray_pick(r, J + 3 * J_HIP_C, fwd, rho);
-  v[10] = ray_pick(r, J + 3 * J_HIP_L, left, rho);
-  v[11] = ray_pick(r, J + 3 * J_HIP_R, right, rho);
-  v[12] = ray_pick(r, J + 3 * J_KNEE_L, fwd, rho);
-  v[13] = ray_pick(r, J + 3 * J_KNEE_R, fwd, rho);
-  v[14] = r->tip[J_FOOT_L];
-  v[15] = r->tip[J_FOOT_R];
+  int n = 0; /* landmarks placed so far (v[0..n-1]): a later one takes another vertex */
+  /* the tips first: they are vertices of their own (extremities) */
+  int order[KM_CHARACTER_LANDMARKS] = {6, 7, 14, 15, 0, 1, 2, 3, 4, 5, 8, 9, 10, 11, 12, 13};
+  int32_t placed[KM_CHARACTER_LANDMARKS];
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    int k = order[i];
+    const double *dir = fwd;
+    const double *from = J;
+    switch (k) {
+    case 0: from = J + 3 * J_HEAD; break;
+    case 1:
+      for (int a = 0; a < 3; ++a)
+        o[a] = 0.5 * (J[3 * J_SHOULDER_C + a] + J[3 * J_HEAD + a]);
+      from = o;
+      break;
+    case 2: from = J + 3 * J_SHOULDER_L, dir = up; break;
+    case 3: from = J + 3 * J_SHOULDER_R, dir = up; break;
+    case 4: /* the top of the elbow in a T pose, its outer side when the arm hangs */
+      limb_ray(J, J_SHOULDER_L, J_WRIST_L, up, left, d_l);
+      from = J + 3 * J_ELBOW_L, dir = d_l;
+      break;
+    case 5:
+      limb_ray(J, J_SHOULDER_R, J_WRIST_R, up, right, d_r);
+      from = J + 3 * J_ELBOW_R, dir = d_r;
+      break;
+    case 8:
+      for (int a = 0; a < 3; ++a)
+        o[a] = J[3 * J_SPINE + a] + 0.6 * (J[3 * J_SHOULDER_C + a] - J[3 * J_SPINE + a]);
+      from = o;
+      break;
+    case 9: from = J + 3 * J_HIP_C; break;
+    case 10: from = J + 3 * J_HIP_L, dir = left; break;
+    case 11: from = J + 3 * J_HIP_R, dir = right; break;
+    case 12: from = J + 3 * J_KNEE_L; break;
+    case 13: from = J + 3 * J_KNEE_R; break;
+    default: break;
+    }
+    int32_t tip = k == 6    ? r->tip[J_HAND_L]
+                  : k == 7  ? r->tip[J_HAND_R]
+                  : k == 14 ? r->tip[J_FOOT_L]
+                  : k == 15 ? r->tip[J_FOOT_R]
+                            : -2;
+    if (tip == -2)
+      v[k] = ray_pick(r, from, dir, placed, n);
+    else
+      v[k] = tip >= 0 ? tip
+                      : nearest_vertex(r, J + 3 * (k == 6    ? J_HAND_L
+                                                   : k == 7  ? J_HAND_R
+                                                   : k == 14 ? J_FOOT_L
+                                                             : J_FOOT_R));
+    placed[n++] = v[k];
+  }
   for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
     memset(&lm[i], 0, sizeof lm[i]);
     snprintf(lm[i].name, sizeof lm[i].name, "%s", names[i][0]);

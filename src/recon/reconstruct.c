@@ -254,6 +254,7 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
       km_recon_frame_stats *st = &rep->frames[f];
       km_error fe = {0};
       km_status rs = km_points_read(paths[f], &pts, &fe);
+      if (!rs && o.points_frame) rs = km_frame_apply(o.points_frame, pts.P, pts.n, NULL, 0, &fe);
       if (f == 0) {
         if (rs) {
           if (err) *err = fe;
