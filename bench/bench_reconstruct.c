@@ -144,10 +144,13 @@ int km_bench_reconstruct(int argc, char **argv) {
                    "both directions of the error and the mean and max to the truth.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (frames < 3) return km_cli_error("bench reconstruct", "--frames must be at least 3");
+  km_cli_serial_blas();
   {
     char machine[320];
     km_bench_machine(machine, sizeof machine);
-    printf("kinemesh bench reconstruct — %s\n", machine);
+    int blas = km_blas_threads(0);
+    printf("kinemesh bench reconstruct — %s, OpenBLAS %d thread%s\n", machine, blas,
+           blas == 1 ? "" : "s");
   }
   km_set_logger(logger, NULL);
   if (dfaust) return run_dfaust(dfaust, json);

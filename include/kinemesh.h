@@ -217,6 +217,14 @@ km_status km_cholesky_solve(km_cholesky *c, size_t nrhs, const double *B, double
 size_t km_cholesky_size(const km_cholesky *c);
 /* Frees *c and sets it to NULL. */
 void km_cholesky_free(km_cholesky **c);
+/* Threads OpenBLAS runs on (process-wide: CHOLMOD's supernodal factorisations and the dense
+ * products use it). OpenBLAS starts with one per core, and between calls its idle threads spin
+ * (sched_yield) for a while: a program that factorises often and runs OpenMP loops of its own
+ * (reconstruct: 4 factorisations of a 16k system per frame) spends about half its CPU time
+ * there; 1 keeps the factorisations in the calling thread.
+ *   n  in: >= 1 sets the count; <= 0 only queries
+ * Returns the count before the call. */
+int km_blas_threads(int n);
 
 /* ---- eigenpairs */
 

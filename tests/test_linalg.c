@@ -203,8 +203,22 @@ static void test_cholesky(void) {
   km_sparse_free(&A);
 }
 
+/* km_blas_threads: a query changes nothing, a count is set and read back, and a factorisation
+ * on one thread solves as before. */
+static void test_blas_threads(void) {
+  int before = km_blas_threads(0);
+  CHECK_MSG(before >= 1, "OpenBLAS threads %d", before);
+  CHECK(km_blas_threads(0) == before);
+  CHECK(km_blas_threads(1) == before);
+  CHECK(km_blas_threads(0) == 1);
+  test_cholesky();
+  CHECK(km_blas_threads(before) == 1);
+  CHECK(km_blas_threads(0) == before);
+}
+
 int main(void) {
   test_sparse();
   test_cholesky();
+  test_blas_threads();
   return km_test_finish("test_linalg");
 }

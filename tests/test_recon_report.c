@@ -332,7 +332,6 @@ static void test_occluded_arm(void) {
     CHECK(strstr(text, "\"ElbowLeft\"") || strstr(text, "\"WristLeft\"") ||
           strstr(text, "\"HandLeft\""));
   }
-  km_recon_report_free(&rep);
   free(truth);
   km_paths_free(&paths, n);
   remove_dir(dir);
@@ -421,6 +420,39 @@ static double mean_to_truth(const double *V, size_t nv, const double *T, const i
   return sum / (double)(nv ? nv : 1);
 }
 
+/* Reconstructs the nf frames paths[0..nf) (no correspondences, default options) into dir/out.pc2
+ * with the template tmpl and checks every frame against the true surface (truth: the subject's
+ * vertices per frame from paths[0] on, its faces subj->mesh.F): <= 5 mm mean (brute force) and
+ * not flagged. label names the case in the printed lines. */
+static void check_recovered(const char *label, const char *dir, char *const *paths, size_t nf,
+                            const km_character *tmpl, const km_character *subj,
+                            const double *truth) {
+  char out[300];
+  snprintf(out, sizeof out, "%s/out.pc2", dir);
+  km_recon_report rep = {0};
+  km_recon_options o = {0};
+  CHECK_OK(km_reconstruct((const char *const *)paths, nf, tmpl, NULL, 0, &o, out, &rep, KM_E));
+  double *R = NULL;
+  km_anim_info ri = {0};
+  CHECK_OK(km_pc2_read(out, &R, &ri, KM_E));
+  CHECK(R && ri.frames == nf && ri.vertices == tmpl->mesh.n_vertices);
+  for (size_t f = 0; R && f < rep.n_frames && f < ri.frames; ++f) {
+    const km_recon_frame_stats *s = &rep.frames[f];
+    double mx = 0;
+    double m =
+        mean_to_truth(R + f * ri.vertices * 3, ri.vertices, truth + f * subj->mesh.n_vertices * 3,
+                      subj->mesh.F, subj->mesh.n_faces, &mx);
+    printf("%s, frame %zu: %s, to the truth mean %.2f max %.1f mm; points->surface %.2f mm, "
+           "surface->points max %.1f mm, %zu unsupported (limbs turned %zu, scaled %zu)\n",
+           label, f, km_recon_frame_status(s), m * 1e3, mx * 1e3, s->mean_mm, s->surface_max_mm,
+           s->unsupported_vertices, rep.init.limbs_turned, rep.init.limbs_scaled);
+    CHECK_MSG(m <= 0.005, "%s, frame %zu: %.2f mm mean to the truth", label, f, m * 1e3);
+    CHECK_MSG(!s->unsupported, "%s, frame %zu flagged", label, f);
+  }
+  free(R);
+  km_recon_report_free(&rep);
+}
+
 /* Arms down against a template with arms out (issue 13): the subject walks (arms hanging,
  * 78 degrees down, swinging), the template stands in its T-pose and is longer in the arm
  * (another seed, another girth). Without correspondences, every frame is recovered to <= 5 mm
@@ -436,34 +468,9 @@ static void test_arms_down(void) {
   size_t n = 0;
   double *truth = NULL;
   capture(&subj, KM_MOTION_WALK, SKIP + NF, 24000, dir, &paths, &n, &truth);
-  char out[300];
-  snprintf(out, sizeof out, "%s/out.pc2", dir);
-  km_recon_report rep = {0};
-  km_recon_options o = {0};
-  if (n == SKIP + NF && truth) {
-    CHECK_OK(
-        km_reconstruct((const char *const *)paths + SKIP, NF, &tmpl, NULL, 0, &o, out, &rep, KM_E));
-    double *R = NULL;
-    km_anim_info ri = {0};
-    CHECK_OK(km_pc2_read(out, &R, &ri, KM_E));
-    CHECK(R && ri.frames == NF && ri.vertices == tmpl.mesh.n_vertices);
-    for (size_t f = 0; R && f < rep.n_frames && f < ri.frames; ++f) {
-      const km_recon_frame_stats *s = &rep.frames[f];
-      double mx = 0;
-      double m = mean_to_truth(R + f * ri.vertices * 3, ri.vertices,
-                               truth + (SKIP + f) * subj.mesh.n_vertices * 3, subj.mesh.F,
-                               subj.mesh.n_faces, &mx);
-      printf("arms down, frame %zu: %s, to the truth mean %.2f max %.1f mm; points->surface "
-             "%.2f mm, surface->points max %.1f mm, %zu unsupported (limbs turned %zu, scaled "
-             "%zu)\n",
-             f, km_recon_frame_status(s), m * 1e3, mx * 1e3, s->mean_mm, s->surface_max_mm,
-             s->unsupported_vertices, rep.init.limbs_turned, rep.init.limbs_scaled);
-      CHECK_MSG(m <= 0.005, "frame %zu: %.2f mm mean to the truth", f, m * 1e3);
-      CHECK_MSG(!s->unsupported, "frame %zu flagged", f);
-    }
-    free(R);
-  }
-  km_recon_report_free(&rep);
+  if (n == SKIP + NF && truth)
+    check_recovered("arms down", dir, paths + SKIP, NF, &tmpl, &subj,
+                    truth + SKIP * subj.mesh.n_vertices * 3);
   free(truth);
   km_paths_free(&paths, n);
   remove_dir(dir);
@@ -499,33 +506,8 @@ static void test_template_arms_down(void) {
   size_t n = 0;
   double *truth = NULL;
   capture(&subj, KM_MOTION_WALK, NF, 24000, dir, &paths, &n, &truth);
-  char out[300];
-  snprintf(out, sizeof out, "%s/out.pc2", dir);
-  km_recon_report rep = {0};
-  km_recon_options o = {0};
-  if (n == NF && truth) {
-    CHECK_OK(km_reconstruct((const char *const *)paths, NF, &tmpl, NULL, 0, &o, out, &rep, KM_E));
-    double *R = NULL;
-    km_anim_info ri = {0};
-    CHECK_OK(km_pc2_read(out, &R, &ri, KM_E));
-    CHECK(R && ri.frames == NF && ri.vertices == tv);
-    for (size_t f = 0; R && f < rep.n_frames && f < ri.frames; ++f) {
-      const km_recon_frame_stats *s = &rep.frames[f];
-      double mx = 0;
-      double m =
-          mean_to_truth(R + f * ri.vertices * 3, ri.vertices, truth + f * subj.mesh.n_vertices * 3,
-                        subj.mesh.F, subj.mesh.n_faces, &mx);
-      printf("template arms down, capture arms out, frame %zu: %s, to the truth mean %.2f max "
-             "%.1f mm; points->surface %.2f mm, surface->points max %.1f mm, %zu unsupported "
-             "(limbs turned %zu, scaled %zu)\n",
-             f, km_recon_frame_status(s), m * 1e3, mx * 1e3, s->mean_mm, s->surface_max_mm,
-             s->unsupported_vertices, rep.init.limbs_turned, rep.init.limbs_scaled);
-      CHECK_MSG(m <= 0.005, "frame %zu: %.2f mm mean to the truth", f, m * 1e3);
-      CHECK_MSG(!s->unsupported, "frame %zu flagged", f);
-    }
-    free(R);
-  }
-  km_recon_report_free(&rep);
+  if (n == NF && truth)
+    check_recovered("template arms down, capture arms out", dir, paths, NF, &tmpl, &subj, truth);
   free(truth);
   km_paths_free(&paths, n);
   remove_dir(dir);

@@ -43,6 +43,11 @@ int km_cli_error(const char *verb, const char *fmt, ...);
 
 void km_cli_install_logger(void);
 
+/* OpenBLAS on the calling thread only (km_blas_threads(1)) unless OPENBLAS_NUM_THREADS is set:
+ * for verbs that factorise many times and run OpenMP loops of their own (reconstruct), where
+ * OpenBLAS's spinning idle threads took about half the CPU time. */
+void km_cli_serial_blas(void);
+
 /* Monotonic seconds, for the timing lines verbs print. */
 double km_cli_now(void);
 

@@ -150,6 +150,11 @@ static void stderr_logger(km_log_level level, const char *msg, void *user) {
 
 void km_cli_install_logger(void) { km_set_logger(stderr_logger, NULL); }
 
+void km_cli_serial_blas(void) {
+  const char *env = getenv("OPENBLAS_NUM_THREADS");
+  if (!env || !*env) km_blas_threads(1);
+}
+
 /* Progress: on a terminal a redrawn bar; otherwise a line per stage and per 25%. */
 static struct {
   const char *label;

@@ -170,6 +170,7 @@ int km_cli_reconstruct(int argc, char **argv) {
   if (!clouds || (!out && !one_segment))
     return km_cli_error("reconstruct", "--clouds FRAMES and -o OUT are required");
   if (one_segment) report = plot = export_kind = NULL, strict = false;
+  km_cli_serial_blas();
   km_error err = {0};
   char **paths = NULL;
   size_t n = 0;

@@ -5,6 +5,12 @@
 #include <cblas.h>
 #include <lapacke.h>
 
+int km_blas_threads(int n) {
+  int before = openblas_get_num_threads();
+  if (n >= 1) openblas_set_num_threads(n);
+  return before;
+}
+
 int km__svd3(double A[9], double S[3], double U[9], double Vt[9]) {
   double superb[2];
   return (int)LAPACKE_dgesvd(LAPACK_ROW_MAJOR, 'A', 'A', 3, 3, A, 3, S, U, 3, Vt, 3, superb);

@@ -1034,6 +1034,16 @@ static double quantile(double *x, size_t n, double q) {
   return x[k];
 }
 
+/* The skin joint of vertex i's largest weight (its body part), -1 when it has none. */
+static int32_t dominant_joint(const km_recon *r, size_t i) {
+  int best = 0;
+  for (int k = 1; k < 4; ++k)
+    if (r->skin.joints[4 * i + k] >= 0 &&
+        r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
+      best = k;
+  return r->skin.joints[4 * i + best];
+}
+
 /* Surface -> points: every measured vertex of X to its nearest point, the unsupported
  * vertices and the skin joints they belong to. */
 static void surface_support(km_recon *r, const frame_data *fd, const double *X,
@@ -1070,12 +1080,7 @@ static void surface_support(km_recon *r, const frame_data *fd, const double *X,
     ++m;
     if (di > r->o.unsupported_distance) {
       r->sup_list[r->n_sup++] = (int32_t)i;
-      int best = 0;
-      for (int k = 1; k < 4; ++k)
-        if (r->skin.joints[4 * i + k] >= 0 &&
-            r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
-          best = k;
-      int32_t j = r->skin.joints[4 * i + best];
+      int32_t j = dominant_joint(r, i);
       if (per_joint && j >= 0) ++per_joint[j];
     }
   }
@@ -1148,12 +1153,7 @@ static bool surface_targets(km_recon *r, const frame_data *fd, const double *X, 
     w[v] = 0;
     int32_t q = r->vnear[v];
     if (q < 0 || r->vdist[v] < KM__S2P_NEAR || r->vdist[v] > KM__S2P_FAR) continue;
-    int best = 0;
-    for (int k = 1; k < 4; ++k)
-      if (r->skin.joints[4 * v + k] >= 0 &&
-          r->skin.weights[4 * v + k] > r->skin.weights[4 * v + best])
-        best = k;
-    int32_t j = r->skin.joints[4 * v + best];
+    int32_t j = dominant_joint(r, v);
     if (j >= 0 && r->part_lost[j]) continue;
     const double *pn = fd->N + 3 * (size_t)q, *vn = r->vn + 3 * v;
     if (fabs(pn[0] * vn[0] + pn[1] * vn[1] + pn[2] * vn[2]) < 0.5) continue;
@@ -1523,12 +1523,7 @@ static int limb_search(km_recon *r, const frame_data *fd) {
   if (!dom || !idx || !W || !cj || !Y || !Y0 || !dist || !U || !sel || !ptri || !pd || !in_sub)
     goto out;
   for (size_t i = 0; i < nv; ++i) {
-    int best = 0;
-    for (int k = 1; k < 4; ++k)
-      if (r->skin.joints[4 * i + k] >= 0 &&
-          r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
-        best = k;
-    dom[i] = r->skin.joints[4 * i + best];
+    dom[i] = dominant_joint(r, i);
   }
   double dirs[KM__LIMB_DIRECTIONS][3];
   for (int k = 0; k < KM__LIMB_DIRECTIONS; ++k) { /* Fibonacci sphere */
@@ -1716,12 +1711,7 @@ static int bone_lengths(km_recon *r, const frame_data *fd, double *scales_out, i
   for (size_t k = 0; k < nj; ++k)
     s[k] = 1;
   for (size_t i = 0; i < nv; ++i) {
-    int best = 0;
-    for (int k = 1; k < 4; ++k)
-      if (r->skin.joints[4 * i + k] >= 0 &&
-          r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
-        best = k;
-    dom[i] = r->skin.joints[4 * i + best];
+    dom[i] = dominant_joint(r, i);
   }
   for (int c = 0; c < nc; ++c) {
     int32_t j = chains[4 * c];

@@ -1,0 +1,77 @@
+/* A template rigged by `kinemesh rig` on real scans (issue 13): the FAUST body tr_reg_000
+ * (../shared/data/poses) rigged by the CLI, then `reconstruct` on the 17 D-FAUST clouds of
+ * subject 50002 hopping (~100k points each, no correspondences). Every frame: surface -> points
+ * p99 <= 30 mm, nothing flagged, the points on the surface (points -> surface mean <= 3 mm).
+ * Skips (77) with a message when ../shared/data is absent. */
+#include "km_test.h"
+
+#include <cjson/cJSON.h>
+
+#define DIR "recon_dfaust"
+#define CLOUDS "pointclouds/dfaust_50002_light_hopping_loose"
+
+static cJSON *read_json(const char *path) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  fseek(f, 0, SEEK_END);
+  long size = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  char *data = size >= 0 ? malloc((size_t)size + 1) : NULL;
+  if (data) data[fread(data, 1, (size_t)size, f)] = '\0';
+  fclose(f);
+  cJSON *j = data ? cJSON_Parse(data) : NULL;
+  free(data);
+  return j;
+}
+
+static double number(const cJSON *o, const char *key) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+  return cJSON_IsNumber(v) ? v->valuedouble : NAN;
+}
+
+int main(void) {
+  char body[512], clouds[512];
+  if (!km_test_shared("poses/tr_reg_000.off", body, sizeof body) ||
+      !km_test_shared(CLOUDS, clouds, sizeof clouds))
+    return KM_TEST_SKIP;
+  char cmd[2048], *out = NULL;
+  snprintf(cmd, sizeof cmd, "rm -rf " DIR " && mkdir -p " DIR " && cp '%s' " DIR "/body.off", body);
+  CHECK(km_test_run(cmd, NULL) == 0);
+  /* the user's path: rig the mesh, then reconstruct with it as the template */
+  CHECK(km_test_run(KM_CLI " rig " DIR "/body.off -o " DIR "/body.rig.json", &out) == 0);
+  free(out);
+  snprintf(cmd, sizeof cmd,
+           KM_CLI " reconstruct --template " DIR "/body.off --clouds '%s/*.ply' -o " DIR
+                  "/recon.pc2 --report " DIR "/report.json --strict",
+           clouds);
+  int rc = km_test_run(cmd, &out);
+  CHECK_MSG(rc == 0, "reconstruct --strict exit %d: %s", rc, out ? out : "");
+  free(out);
+  km_anim_info info;
+  CHECK_OK(km_anim_info_read(DIR "/recon.pc2", &info, KM_E));
+  CHECK(info.frames == 17 && info.vertices == 6890);
+  cJSON *rep = read_json(DIR "/report.json");
+  CHECK(rep != NULL);
+  const cJSON *frames = cJSON_GetObjectItemCaseSensitive(rep, "frames");
+  CHECK(cJSON_GetArraySize(frames) == 17);
+  double worst = 0;
+  for (int i = 0; i < cJSON_GetArraySize(frames); ++i) {
+    const cJSON *fr = cJSON_GetArrayItem(frames, i);
+    const cJSON *st = cJSON_GetObjectItemCaseSensitive(fr, "status");
+    double p99 = number(fr, "surface_p99_mm"), mean = number(fr, "mean_mm");
+    printf("frame %d: %s, points->surface %.2f mm, surface->points p99 %.1f max %.1f mm, %.0f "
+           "unsupported\n",
+           i, cJSON_IsString(st) ? st->valuestring : "?", mean, p99, number(fr, "surface_max_mm"),
+           number(fr, "unsupported_vertices"));
+    CHECK_MSG(cJSON_IsString(st) && strcmp(st->valuestring, "KM_OK") == 0, "frame %d: status %s", i,
+              cJSON_IsString(st) ? st->valuestring : "?");
+    CHECK_MSG(p99 <= 30, "frame %d: surface -> points p99 %.1f mm", i, p99);
+    CHECK_MSG(mean <= 3, "frame %d: points -> surface mean %.2f mm", i, mean);
+    worst = fmax(worst, p99);
+  }
+  printf("surface -> points p99 at most %.1f mm\n", worst);
+  CHECK(number(rep, "unsupported_frames") == 0 && number(rep, "failed_frames") == 0);
+  cJSON_Delete(rep);
+  if (!km_test_failed && !getenv("KM_TEST_KEEP")) km_test_run("rm -rf " DIR, NULL);
+  return km_test_finish("test_recon_dfaust");
+}
