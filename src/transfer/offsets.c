@@ -354,8 +354,8 @@ static inline double tr_rta(const double *R, const double *A) {
 /* Moves rotation R (row-major) towards the rotation maximising tr(R^T A), the polar factor of
  * A, by `iters` steps of Mueller et al.'s iteration ("A robust method to extract the
  * rotational part of deformations", 2016): omega = sum_c r_c x a_c / |sum_c r_c . a_c| over the
- * columns, R <- rot(omega) R, with the rotation taken as the normalised quaternion
- * (1, omega / 2) (no trigonometry). Started from the frames' guess, 2 steps suffice. The
+ * columns, R <- rot(omega) R, with the rotation taken as the quaternion (1, omega / 2)
+ * (no trigonometry). Started from the frames' guess, 2 steps suffice. The
  * result is kept only if it raises tr(R^T A) (never a worse fit than the guess). */
 static void polar_refine(const double *A, double *R, int iters) {
   double best = tr_rta(R, A);
@@ -369,14 +369,22 @@ static void polar_refine(const double *A, double *R, int iters) {
       w[0] += x[0], w[1] += x[1], w[2] += x[2];
       dot += km__dot3(r, a);
     }
-    double inv = 1.0 / (fabs(dot) + 1e-300);
-    double q[4] = {1, 0.5 * w[0] * inv, 0.5 * w[1] * inv, 0.5 * w[2] * inv};
-    double q2 = q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
-    if (!(q2 > 1e-24) || !isfinite(q2)) break;
-    double qi = 1.0 / sqrt(1 + q2);
-    for (int c = 0; c < 4; ++c)
-      q[c] *= qi;
-    km__rot3_from_quat(q, Q);
+    /* (1, omega / 2) scaled by |dot|: the quaternion (q0, h) of the same rotation, whose
+     * matrix needs one division and no square root (km__rot3_from_quat's entries times
+     * 2 / |q|^2). */
+    double q0 = fabs(dot), h0 = 0.5 * w[0], h1 = 0.5 * w[1], h2 = 0.5 * w[2];
+    double hh = h0 * h0 + h1 * h1 + h2 * h2;
+    if (!(q0 > 0) || !(hh > 1e-24 * q0 * q0) || !isfinite(hh)) break;
+    double sc = 2.0 / (q0 * q0 + hh);
+    Q[0] = 1 - sc * (h1 * h1 + h2 * h2);
+    Q[1] = sc * (h0 * h1 - q0 * h2);
+    Q[2] = sc * (h0 * h2 + q0 * h1);
+    Q[3] = sc * (h0 * h1 + q0 * h2);
+    Q[4] = 1 - sc * (h0 * h0 + h2 * h2);
+    Q[5] = sc * (h1 * h2 - q0 * h0);
+    Q[6] = sc * (h0 * h2 - q0 * h1);
+    Q[7] = sc * (h1 * h2 + q0 * h0);
+    Q[8] = 1 - sc * (h0 * h0 + h1 * h1);
     km__m3_mul(Q, Rn, Rn);
   }
   double tr = tr_rta(Rn, A);
