@@ -409,10 +409,22 @@ static int test_faust(void) {
     for (int k = 1; k < KP_CURVE; ++k)
       CHECK_MSG(mean[k] <= mean[k - 1] + 1e-6, "FAUST pair %d: solve %d raised the mean error",
                 pair, k + 1);
-    /* the default: 4 solves */
+    /* the default: 4 solves, i.e. the curve's 4th point (checked with the zero options) */
     CHECK_MSG(mean[3] <= 0.006 && max[3] <= 0.030, "FAUST pair %d: default %.2f / %.1f mm", pair,
               mean[3] * 1e3, max[3] * 1e3);
     CHECK(mean[3] <= mean[0]);
+    km_transfer *fd = NULL;
+    CHECK_OK(km_transfer_precompute(A, fid, fl, NULL, &fd, KM_E));
+    if (fd) {
+      km_transfer_stats st;
+      double dm, dx;
+      CHECK_OK(km_transfer_solve(fd, B->V, NULL, NULL, X, &st, KM_E));
+      kp_error(X, B->V, n, &dm, &dx);
+      CHECK_MSG(st.iterations == 4 && fabs(dm - mean[3]) < 1e-9,
+                "FAUST pair %d: the default ran %d solves, %.4f mm (4th point %.4f mm)", pair,
+                st.iterations, dm * 1e3, mean[3] * 1e3);
+      km_transfer_free(&fd);
+    }
     km_transfer_free(&ft);
   }
   /* SMPL-generated bodies (Neural Pose Transfer demo meshes): identity 13 takes the pose of
