@@ -1707,7 +1707,7 @@ typedef struct km_transfer_options {
   km_laplacian_kind laplacian; /* 0: uniform */
   km_offset_encoding encoding; /* 0: per edge (see above); KM_OFFSETS_VERTEX: Lifkooee eq. 3 */
   km_transfer_align align;     /* how landmark targets come from a template; 0: scale */
-  int max_iterations;          /* solves per transfer; 0: 5 (edge encoding), 10 (vertex, the
+  int max_iterations;          /* solves per transfer; 0: 4 (edge encoding), 10 (vertex, the
                                   paper's) */
   double tolerance;            /* stop when the largest vertex move between two solves is below
                                   tolerance * bbox diagonal of S and the largest frame (vertex
@@ -1759,7 +1759,8 @@ km_status km_transfer_solve(km_transfer *t, const double *template_V, const doub
                             km_error *err);
 /* Energies of the last km_transfer_solve, one per solve (edge encoding; the vertex encoding
  * has none and gives 0): E_k = E(x_k, S_(k-1)) of the energy above, which never rises from
- * one solve to the next.
+ * one solve to the next. The last one is evaluated here (one pass over the one-rings, about
+ * as long as one solve's local step), not in km_transfer_solve.
  *   energies  out: up to cap values, may be NULL
  * Returns the number of solves done (stats.iterations). */
 size_t km_transfer_energies(const km_transfer *t, double *energies, size_t cap);

@@ -1,5 +1,6 @@
 /* km_sparse and km_cholesky against dense references. */
 #include "km_test.h"
+#include "linalg/linalg.h"
 
 #include <stdint.h>
 
@@ -214,11 +215,48 @@ static void test_blas_threads(void) {
   test_cholesky();
   CHECK(km_blas_threads(before) == 1);
   CHECK(km_blas_threads(0) == before);
+/* The simplicial LDL' kind (km_transfer's) solves with kinemesh's own sweeps instead of
+ * cholmod_solve2: 1, 3 (the interleaved fast path) and 6 (chunks of 4 + 2) columns, aliased or
+ * not, against the residual and the LL' solution. */
+static void test_cholesky_ldl(void) {
+  const int n = 1500, nrhs = 6;
+  km_sparse *A = random_spd(n, 0.1);
+  km__cholesky_options co = {.kind = KM__CHOLESKY_SIMPLICIAL_LDL, .min_pivot = 1e-10};
+  km_cholesky *ldl = NULL, *ll = NULL;
+  CHECK_OK(km__cholesky_analyze_with(A, &co, &ldl, KM_E));
+  CHECK_OK(km_cholesky_analyze(A, &ll, KM_E));
+  if (!ldl || !ll) return;
+  CHECK_OK(km_cholesky_factorize(ldl, A, KM_E));
+  CHECK_OK(km_cholesky_factorize(ll, A, KM_E));
+  double *B = malloc(n * nrhs * sizeof *B), *X = malloc(n * nrhs * sizeof *X);
+  double *Y = malloc(n * nrhs * sizeof *Y);
+  for (int i = 0; i < n * nrhs; ++i)
+    B[i] = urand() - 0.5;
+  const int ks[3] = {1, 3, 6};
+  for (int t = 0; t < 3; ++t) {
+    int k = ks[t];
+    CHECK_OK(km_cholesky_solve(ldl, (size_t)k, B, X, KM_E));
+    CHECK_MSG(residual(A, n, k, X, B) < 1e-12, "LDL' %d columns: residual %g", k,
+              residual(A, n, k, X, B));
+    CHECK_OK(km_cholesky_solve(ll, (size_t)k, B, Y, KM_E));
+    double d = 0;
+    for (int i = 0; i < n * k; ++i)
+      d = fmax(d, fabs(X[i] - Y[i]));
+    CHECK_MSG(d < 1e-10, "LDL' vs LL' %d columns: %g", k, d);
+    memcpy(Y, B, n * k * sizeof *Y);
+    CHECK_OK(km_cholesky_solve(ldl, (size_t)k, Y, Y, KM_E));
+    CHECK(residual(A, n, k, Y, B) < 1e-12);
+  }
+  free(B), free(X), free(Y);
+  km_cholesky_free(&ldl);
+  km_cholesky_free(&ll);
+  km_sparse_free(&A);
 }
 
 int main(void) {
   test_sparse();
   test_cholesky();
   test_blas_threads();
+  test_cholesky_ldl();
   return km_test_finish("test_linalg");
 }
