@@ -559,8 +559,8 @@ static km_status close_skin(km_anim_writer *w, km_anim_report *rep, km_error *er
 /* Compact morphs: PCA of the frame displacements D (T x 3#V) through the T x T Gram matrix
  * D D^T (LAPACK dsyev in linalg): the K leading eigenvectors u_k give orthonormal basis
  * targets b_k = D^T u_k / sqrt(l_k) and weights w_tk = sqrt(l_k) u_k[t], each target scaled
- * so its weights stay in [-1, 1]. The keys are replaced by the targets, then the usual glb
- * writer runs with the weights. */
+ * and offset so its weights stay in [0, 1] (the offset: one more target, weighted 1). The keys are
+ * replaced by the targets, then the usual glb writer runs with the weights. */
 static km_status close_pca(km_anim_writer *w, km_anim_report *rep, km_error *err) {
   const size_t nv3 = w->n_vertices * 3, T = w->n_keys;
   size_t K = w->pca_k < T ? w->pca_k : T;
@@ -599,8 +599,9 @@ static km_status close_pca(km_anim_writer *w, km_anim_report *rep, km_error *err
   double lmax = ev[T - 1] > 0 ? ev[T - 1] : 0;
   while (K > 1 && !(ev[T - K] > 1e-18 * lmax))
     --K;
-  B = km__calloc(K * nv3, sizeof *B);
-  Wt = km__calloc(T * K, sizeof *Wt);
+  /* one more row and column for the offset target (below) */
+  B = km__calloc((K + 1) * nv3, sizeof *B);
+  Wt = km__calloc(T * (K + 1), sizeof *Wt);
   if (!B || !Wt) {
     s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
     goto done;
@@ -621,6 +622,34 @@ static km_status close_pca(km_anim_writer *w, km_anim_report *rep, km_error *err
     }
     for (size_t t = 0; m > 0 && t < T; ++t)
       Wt[t * K + k] /= m;
+  }
+  /* Every weight in [0, 1]: w' = (w - lo) / (hi - lo) over the frames, the target times
+   * (hi - lo), and sum_k lo_k b_k moved into one more target, the offset, weighted 1 at every
+   * frame. Blender 3.4's importer clamps a shape key's weight to a slider range of [0, 1]
+   * widened by the first frame's weight only (gltf2_blender_animation_weight.py), so weights
+   * below 0 or above 1 later in the take would play wrong there. The offset is a target rather
+   * than a shifted base mesh so that the base stays the rest mesh the file's readers (bake,
+   * km_mesh_read) and viewers take as the rest pose. */
+  bool offset = false;
+  for (size_t k = 0; k < K; ++k) {
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t t = 0; t < T; ++t)
+      lo = fmin(lo, Wt[t * K + k]), hi = fmax(hi, Wt[t * K + k]);
+    double span = hi - lo, *b = B + k * nv3, *o = B + K * nv3;
+    if (!(span > 0)) lo = hi, span = 1; /* a constant weight: all of it in the offset */
+    if (lo != 0) offset = true;
+    for (size_t i = 0; i < nv3; ++i)
+      o[i] += lo * b[i], b[i] *= span;
+    for (size_t t = 0; t < T; ++t)
+      Wt[t * K + k] = (Wt[t * K + k] - lo) / span;
+  }
+  if (offset) { /* the weights' rows grow by the offset's 1 */
+    for (size_t t = T; t-- > 0;) {
+      Wt[t * (K + 1) + K] = 1;
+      for (size_t k = K; k-- > 0;)
+        Wt[t * (K + 1) + k] = Wt[t * K + k];
+    }
+    ++K;
   }
   /* Error as a viewer evaluates it: float32 targets and weights. */
   if (!(w->pca_weights = km__malloc(T * K, sizeof *w->pca_weights))) {
@@ -651,7 +680,18 @@ static km_status close_pca(km_anim_writer *w, km_anim_report *rep, km_error *err
     rep->rms_error = w->pca_rms;
     rep->max_error = w->pca_max;
   }
-  /* the targets replace the keys */
+  /* the targets replace the keys (the offset may make one more than the frames) */
+  if (K > w->key_cap) {
+    size_t *kf = realloc(w->key_frame, K * sizeof *kf);
+    if (kf) w->key_frame = kf;
+    float *km = kf ? realloc(w->key_minmax, K * 6 * sizeof *km) : NULL;
+    if (km) w->key_minmax = km;
+    if (!kf || !km) {
+      s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+      goto done;
+    }
+    w->key_cap = K;
+  }
   if (!(nk = tmpfile())) {
     s = km__fail(err, KM_ERR_IO, "%s: cannot create a temporary file: %s", w->path,
                  strerror(errno));
@@ -677,6 +717,7 @@ static km_status close_pca(km_anim_writer *w, km_anim_report *rep, km_error *err
   nk = NULL;
   w->n_keys = K;
   w->pca_frames = T;
+  w->pca_offset = offset;
   w->pca_D = D;
   s = km__glb_finish(w, err);
   w->pca_D = NULL;

@@ -70,6 +70,7 @@ struct km_anim_writer {
   size_t pca_k;
   float *pca_weights; /* pca_frames * n_keys, row per frame */
   size_t pca_frames;
+  bool pca_offset;         /* the last target is the offset (weight 1 at every frame), named so */
   double pca_rms, pca_max; /* its error against the frames (m), kept in the extras */
   const double *pca_D;     /* the exact displacements (pca_frames * #V*3) while writing */
   /* --compress: KHR_mesh_quantization + EXT_meshopt_compression; the error a player sees of

@@ -264,7 +264,7 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     cJSON_AddItemToArray(targets, t);
     char nm[32];
     if (pca)
-      snprintf(nm, sizeof nm, "basis_%03zu", k);
+      snprintf(nm, sizeof nm, w->pca_offset && k + 1 == nk ? "basis_offset" : "basis_%03zu", k);
     else
       snprintf(nm, sizeof nm, "frame_%06zu", w->key_frame[k]);
     cJSON_AddItemToArray(names, cJSON_CreateString(nm));
@@ -1314,7 +1314,7 @@ static km_status glb_finish_packed(km_anim_writer *w, km_error *err) {
     }
     char nm[32];
     if (pca)
-      snprintf(nm, sizeof nm, "basis_%03zu", k);
+      snprintf(nm, sizeof nm, w->pca_offset && k + 1 == nk ? "basis_offset" : "basis_%03zu", k);
     else
       snprintf(nm, sizeof nm, "frame_%06zu", w->key_frame[k]);
     cJSON_AddItemToArray(names, cJSON_CreateString(nm));
