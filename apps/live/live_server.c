@@ -111,6 +111,8 @@ struct km_live {
   pthread_mutex_t in_mu;
   pthread_cond_t in_cv;
   double in_joints[NJ * 3];
+  double in_rot[NJ * 9]; /* the VMC bones' rotations of the newest frame (issue 15) */
+  bool in_has_rot;
   double in_t;
   uint64_t in_seq, taken_seq;
   bool reset_req;
@@ -301,10 +303,14 @@ fail:
 
 /* ================================================================ input */
 
-static void push_frame(km_live *l, const double *joints, double t_recv, bool reset) {
+/* A frame of joints (and rot: NJ*9 joint rotations, or NULL) for the deform thread. */
+static void push_frame_rot(km_live *l, const double *joints, const double *rot, double t_recv,
+                           bool reset) {
   pthread_mutex_lock(&l->in_mu);
   if (l->in_seq != l->taken_seq) atomic_fetch_add(&l->frames_dropped, 1);
   memcpy(l->in_joints, joints, sizeof l->in_joints);
+  l->in_has_rot = rot != NULL;
+  if (rot) memcpy(l->in_rot, rot, sizeof l->in_rot);
   l->in_t = t_recv;
   ++l->in_seq;
   if (reset) l->reset_req = true;
@@ -326,6 +332,10 @@ static void push_frame(km_live *l, const double *joints, double t_recv, bool res
   pthread_cond_signal(&l->in_cv);
   pthread_mutex_unlock(&l->in_mu);
   atomic_fetch_add(&l->frames_in, 1);
+}
+
+static void push_frame(km_live *l, const double *joints, double t_recv, bool reset) {
+  push_frame_rot(l, joints, NULL, t_recv, reset);
 }
 
 static bool valid3(const double *p) { return !isnan(p[0]) && !isnan(p[1]) && !isnan(p[2]); }
@@ -400,7 +410,8 @@ static void drain_vmc(km_live *l, unsigned char *buf, size_t cap) {
       ++v->bad;
       continue;
     }
-    if (km_live_vmc_packet(v, buf, (size_t)n, joints)) push_frame(l, joints, now, false);
+    if (km_live_vmc_packet(v, buf, (size_t)n, joints))
+      push_frame_rot(l, joints, v->rotations, now, false);
   }
   atomic_store(&l->vmc_packets, v->packets);
   atomic_store(&l->vmc_messages, v->messages);
@@ -574,7 +585,7 @@ static void pack_frame(km_live *l, unsigned char *dst, const double *filt, uint6
 
 static void *deform_main(void *arg) {
   km_live *l = arg;
-  double raw[3 * NJ];
+  double raw[3 * NJ], rot[9 * NJ];
   uint64_t produced = 0;
   for (;;) {
     pthread_mutex_lock(&l->in_mu);
@@ -596,7 +607,9 @@ static void *deform_main(void *arg) {
     double t_recv = l->in_t;
     bool reset = l->reset_req;
     l->reset_req = false;
+    bool have_rot = have && l->in_has_rot;
     if (have) memcpy(raw, l->in_joints, sizeof raw);
+    if (have_rot) memcpy(rot, l->in_rot, sizeof rot);
     l->taken_seq = l->in_seq;
     pthread_mutex_unlock(&l->in_mu);
 
@@ -618,7 +631,8 @@ static void *deform_main(void *arg) {
     if (!have) continue;
     if (l->rig.n_handles == 0) continue; /* no handles yet: input is counted, nothing moves */
     km_error err = {0};
-    if (km_puppetry_push_at(l->pipe, raw, t_recv, l->V, &err) != KM_OK) {
+    if (km_puppetry_push_rotations(l->pipe, raw, have_rot ? rot : NULL, t_recv, l->V, &err) !=
+        KM_OK) {
       atomic_fetch_add(&l->solve_errors, 1);
       continue;
     }

@@ -34,6 +34,7 @@ struct km_puppetry {
   int32_t *off, *hv;
   double *handle_targets, *targets;
   double *filt, *p0, *last; /* nj*3 each */
+  double *rot;              /* rotations in the rig's order: max(n_in, 20)*9 (issue 15) */
   bool have_last;
   km_puppetry_times times;
 };
@@ -304,6 +305,10 @@ km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig, const char 
   p->rest = rest;
   p->n_in = n_joints;
   km_status s = KM_OK;
+  /* a rig's joints are the pushed columns or the 20 Kinect v1 joints (rig_columns) */
+  if (!(p->rot = km__malloc(n_joints > KM_KINECT1_JOINTS ? n_joints : KM_KINECT1_JOINTS,
+                            9 * sizeof(double))))
+    goto nomem;
   if (p->opt.filter) {
     p->filter_opt = *p->opt.filter;
     p->opt.filter = &p->filter_opt;
@@ -374,6 +379,11 @@ km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, 
 
 km_status km_puppetry_push_at(km_puppetry *p, const double *joints, double t, double *V_out,
                               km_error *err) {
+  return km_puppetry_push_rotations(p, joints, NULL, t, V_out, err);
+}
+
+km_status km_puppetry_push_rotations(km_puppetry *p, const double *joints, const double *rotations,
+                                     double t, double *V_out, km_error *err) {
   if (!p->filter) return km__fail(err, KM_ERR_INVALID, "km_puppetry_push: no rig set");
   double t0 = km_seconds();
   if (p->col) {
@@ -393,7 +403,14 @@ km_status km_puppetry_push_at(km_puppetry *p, const double *joints, double t, do
   for (size_t k = 0; k < 3 * p->nj; ++k)
     if (isnan(p->p0[k]) && !isnan(p->filt[k])) p->p0[k] = p->filt[k];
   double t1 = km_seconds();
-  km_retarget_push(p->rt, p->filt, p->handle_targets);
+  const double *rot = rotations;
+  if (rotations && p->col) {
+    for (size_t j = 0; j < p->nj; ++j)
+      for (int a = 0; a < 9; ++a)
+        p->rot[9 * j + a] = p->col[j] < 0 ? NAN : rotations[9 * (size_t)p->col[j] + a];
+    rot = p->rot;
+  }
+  km_retarget_push_rotations(p->rt, p->filt, rot, p->handle_targets);
   km_retarget_vertex_targets(p->rt, p->targets);
   double t2 = km_seconds();
   km_status s = p->opt.solver == KM_PUPPETRY_FULL
@@ -483,6 +500,7 @@ void km_puppetry_free(km_puppetry **pp) {
   free(p->names);
   free(p->parents_in);
   free(p->take_name);
+  free(p->rot);
   free(p);
   *pp = NULL;
 }
