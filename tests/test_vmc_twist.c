@@ -150,6 +150,16 @@ int main(void) {
       CHECK_OK(km_puppetry_push_rotations(p, J1, with_rot ? R1 : NULL, 1 + 0.1 * k, V1, KM_E));
     memcpy(tb, km_puppetry_vertex_targets(p) + 3 * (size_t)off[h],
            sizeof(double) * 3 * H->n_vertices);
+    if (run == 0) { /* a rig swap keeps the rotations' reference and newest frame */
+      double *tc = malloc(sizeof(double) * 3 * H->n_vertices), ax[3];
+      CHECK_OK(km_puppetry_set_rig(p, &rig, KM_E));
+      km_puppetry_handles(p, NULL, &off, NULL);
+      memcpy(tc, km_puppetry_vertex_targets(p) + 3 * (size_t)off[h],
+             sizeof(double) * 3 * H->n_vertices);
+      double ang = fitted_angle(ta, tc, H->n_vertices, ax);
+      CHECK_MSG(fabs(ang - TWIST_DEG) < 1.0, "after a rig swap the targets turned %.2f deg", ang);
+      free(tc);
+    }
     for (size_t i = 0; i < H->n_vertices; ++i)
       for (int d = 0; d < 3; ++d) {
         a[3 * i + d] = V0[3 * (size_t)H->vertices[i] + d];

@@ -1589,9 +1589,9 @@ static void eval_full(km_puppet *p, double *V) {
 /* b = w_c^2 W_Phi^T (C - P_Phi) into b (nr x 3, column-major), C the handle vertices'
  * targets (world units). Every vertex's residual r enters row block I through p4 r^T
  * (4 x 3) times its weight in isoline I, so the 12 products are made once per vertex and
- * each isoline sums its pairs in registers and writes its rows once: 4x faster than
- * scattering 24 read-modify-writes per field and vertex (60k-vertex character, 4250 handle
- * vertices: 0.30 -> 0.07 ms). */
+ * each isoline sums its pairs in registers and writes its rows once, instead of scattering
+ * 24 read-modify-writes per field and vertex (60k-vertex character, 4250 handle vertices,
+ * perf samples on the shared 2-core machine under load: 0.50 -> 0.19 ms per frame). */
 KM__SIMD_CLONES
 static void handle_rhs(km_puppet *p, const double *targets, double *b) {
   size_t nr = p->nr;

@@ -34,7 +34,10 @@ struct km_puppetry {
   int32_t *off, *hv;
   double *handle_targets, *targets;
   double *filt, *p0, *last; /* nj*3 each */
-  double *rot;              /* rotations in the rig's order: max(n_in, 20)*9 (issue 15) */
+  /* issue 15: joint rotations in the rig's order, max(n_in, 20)*9 each: the pushed frame's
+   * (scratch), the first valid one per joint (the retarget's reference, carried over a rig
+   * swap like p0) and the newest frame's (NaN: none) */
+  double *rot, *rot0, *rotl;
   bool have_last;
   km_puppetry_times times;
 };
@@ -195,11 +198,15 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
   }
   bool have_last = keep && p->have_last;
   if (have_last) memcpy(r.last, p->last, sizeof(double) * 3 * r.nj);
-  if (seeded) km_retarget_push(r.rt, r.p0, NULL);
+  if (!keep)
+    for (size_t k = 0; k < 9 * r.nj; ++k)
+      p->rot0[k] = p->rotl[k] = NAN;
+  /* the rotations' reference and newest frame carry over with the positions' */
+  if (seeded) km_retarget_push_rotations(r.rt, r.p0, p->rot0, NULL);
   if (have_last) {
     km_filter_push(r.filter, r.last, r.filt);
     km__retarget_settle(r.rt);
-    km_retarget_push(r.rt, r.filt, r.handle_targets);
+    km_retarget_push_rotations(r.rt, r.filt, p->rotl, r.handle_targets);
   } else {
     for (size_t k = 0; k < 3 * r.nj; ++k)
       r.filt[k] = NAN;
@@ -306,9 +313,13 @@ km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig, const char 
   p->n_in = n_joints;
   km_status s = KM_OK;
   /* a rig's joints are the pushed columns or the 20 Kinect v1 joints (rig_columns) */
-  if (!(p->rot = km__malloc(n_joints > KM_KINECT1_JOINTS ? n_joints : KM_KINECT1_JOINTS,
-                            9 * sizeof(double))))
+  size_t nrot = 9 * (n_joints > KM_KINECT1_JOINTS ? n_joints : KM_KINECT1_JOINTS);
+  if (!(p->rot = km__malloc(nrot, sizeof(double))) ||
+      !(p->rot0 = km__malloc(nrot, sizeof(double))) ||
+      !(p->rotl = km__malloc(nrot, sizeof(double))))
     goto nomem;
+  for (size_t k = 0; k < nrot; ++k)
+    p->rot0[k] = p->rotl[k] = NAN;
   if (p->opt.filter) {
     p->filter_opt = *p->opt.filter;
     p->opt.filter = &p->filter_opt;
@@ -410,6 +421,11 @@ km_status km_puppetry_push_rotations(km_puppetry *p, const double *joints, const
         p->rot[9 * j + a] = p->col[j] < 0 ? NAN : rotations[9 * (size_t)p->col[j] + a];
     rot = p->rot;
   }
+  for (size_t k = 0; k < 9 * p->nj; ++k)
+    p->rotl[k] = rot ? rot[k] : NAN;
+  for (size_t j = 0; rot && j < p->nj; ++j)
+    if (isnan(p->rot0[9 * j]) && isfinite(rot[9 * j]))
+      memcpy(p->rot0 + 9 * j, rot + 9 * j, 9 * sizeof(double));
   km_retarget_push_rotations(p->rt, p->filt, rot, p->handle_targets);
   km_retarget_vertex_targets(p->rt, p->targets);
   double t2 = km_seconds();
@@ -440,6 +456,8 @@ void km_puppetry_reset(km_puppetry *p) {
     km_retarget_reset(p->rt);
     for (size_t k = 0; k < 3 * p->nj; ++k)
       p->p0[k] = NAN;
+    for (size_t k = 0; k < 9 * p->nj; ++k)
+      p->rot0[k] = p->rotl[k] = NAN;
   }
   p->have_last = false;
   if (p->puppet) km_puppet_reset(p->puppet);
@@ -501,6 +519,8 @@ void km_puppetry_free(km_puppetry **pp) {
   free(p->parents_in);
   free(p->take_name);
   free(p->rot);
+  free(p->rot0);
+  free(p->rotl);
   free(p);
   *pp = NULL;
 }
