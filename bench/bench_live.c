@@ -37,6 +37,17 @@ static double now_s(void) {
   return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
+static double clock_s(clockid_t id) {
+  struct timespec t;
+  if (clock_gettime(id, &t)) return NAN;
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* CPU seconds of the process less the calling thread's and the client thread's */
+static double server_cpu_s(clockid_t client) {
+  return clock_s(CLOCK_PROCESS_CPUTIME_ID) - clock_s(CLOCK_THREAD_CPUTIME_ID) - clock_s(client);
+}
+
 static int cmp_d(const void *a, const void *b) {
   double x = *(const double *)a, y = *(const double *)b;
   return x < y ? -1 : x > y;
@@ -317,7 +328,7 @@ int km_bench_live(int argc, char **argv) {
   }
   int fd = socket(AF_INET, SOCK_DGRAM, 0);
   raw_client rcl = {&c, -1};
-  double start = 0, send_end = 0;
+  double start = 0, send_end = 0, server_cpu_ms = NAN;
   km_live_stats st;
   memset(&st, 0, sizeof st);
   if (!c.recv_t || !c.recv_seq || !send_t || fd < 0 || (vmc && (!vmc_pk || !vmc_len))) {
@@ -375,6 +386,17 @@ int km_bench_live(int argc, char **argv) {
   a.sin_port = htons((uint16_t)udp_port);
   inet_pton(AF_INET, "127.0.0.1", &a.sin_addr);
   char buf[4096];
+  /* CPU time of the server's threads: the process's minus this thread's and the client's
+   * (scheduling delays on a loaded machine inflate the latencies, not this) */
+  clockid_t client_clock;
+  bool have_cpu = pthread_getcpuclockid(cth, &client_clock) == 0;
+  double cpu0 = have_cpu ? server_cpu_s(client_clock) : 0;
+  uint64_t out0 = 0;
+  {
+    km_live_stats st0;
+    km_live_get_stats(l, &st0);
+    out0 = st0.frames_out;
+  }
   start = now_s();
   for (size_t k = 0; k < frames; ++k) {
     double due = start + (double)k / rate;
@@ -422,6 +444,8 @@ int km_bench_live(int argc, char **argv) {
     }
   }
   km_live_get_stats(l, &st);
+  if (have_cpu && st.frames_out > out0)
+    server_cpu_ms = 1e3 * (server_cpu_s(client_clock) - cpu0) / (double)(st.frames_out - out0);
   rc = KM_EXIT_OK;
 stop:
   atomic_store(&c.done, 1);
@@ -468,6 +492,7 @@ stop:
       km_cli_json_number(j, "retarget_ms", st.t_retarget_ms);
       km_cli_json_number(j, "deform_ms", st.t_deform_ms);
       km_cli_json_number(j, "pack_ms", st.t_pack_ms);
+      km_cli_json_number(j, "server_cpu_ms_per_frame", server_cpu_ms);
       km_cli_json_number(j, "client_latency_median_ms", cmed);
       km_cli_json_number(j, "client_latency_p99_ms", cp99);
       cJSON_AddNumberToObject(j, "frames_in", (double)st.frames_in);
@@ -491,6 +516,7 @@ stop:
              lat_med, lat_p99, st.lat_count);
       printf("  stages (median): retarget %.4f ms, deform %.3f ms, pack %.3f ms\n",
              st.t_retarget_ms, st.t_deform_ms, st.t_pack_ms);
+      printf("  server CPU (all its threads): %.3f ms per deformed frame\n", server_cpu_ms);
       printf("  client  datagram sent -> frame received: median %.3f ms   p99 %.3f ms\n", cmed,
              cp99);
       printf("  client received %zu frames: sustained %.1f frames/s (input %.0f/s; %llu dropped "

@@ -1162,6 +1162,18 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
  *   joints          in: #J*3 (filtered) joint positions, NaN = not valid yet
  *   handle_targets  out: #H*3 handle centroid targets; may be NULL */
 void km_retarget_push(km_retarget *r, const double *joints, double *handle_targets);
+/* ---- issue 15: joint rotations from the tracker (VMC bones) */
+/* km_retarget_push with each joint's rotation as the tracker sent it, so that rotating and
+ * bone handles also turn about their bone (a forearm's twist), which positions cannot show.
+ *   rotations  in: #J*9 row-major world rotations (kinemesh's frame) of the bone ending at
+ *              each joint, NaN (any entry) = not given; NULL: as km_retarget_push
+ * A handle turning with the bone ending at joint j (segment q -> j, walked up past bones
+ * shorter than 0.15 m as for the swing) gets the twist of G = Q_j Q_j,ref^T about the
+ * segment's reference direction (Q_j,ref: the first valid rotation of j since create / reset;
+ * swing-twist decomposition), applied about its current direction after the swing the
+ * positions give: R = Twist(d, phi) R_swing. Joints without a valid rotation turn as before. */
+void km_retarget_push_rotations(km_retarget *r, const double *joints, const double *rotations,
+                                double *handle_targets);
 /* Per-vertex targets of the last push: for every handle in order, every vertex of it in
  * order, rest position + the handle's displacement (for a rotating handle: centroid +
  * displacement + R (rest position - centroid)).
@@ -1605,6 +1617,14 @@ km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, 
  * rejector's speed test uses (km_glitch_push_at): for live input, where frames are dropped. */
 km_status km_puppetry_push_at(km_puppetry *p, const double *joints, double t, double *V_out,
                               km_error *err);
+/* ---- issue 15: joint rotations from the tracker */
+/* km_puppetry_push_at with the joints' rotations (a VMC sender's bones): rotations
+ * n_joints*9 in the create-time column order, row-major world rotations of the bone ending at
+ * each joint, NaN = not given, or NULL (= km_puppetry_push_at). They add the twist about the
+ * bone to the rig's rotating and bone handles (km_retarget_push_rotations); they are not
+ * filtered (the positions are). Does not allocate. */
+km_status km_puppetry_push_rotations(km_puppetry *p, const double *joints, const double *rotations,
+                                     double t, double *V_out, km_error *err);
 /* Forgets the filter history, the retarget's reference pose and auto scale, the first valid
  * joints and the newest frame, and the reduced solver's warm start (the full solver keeps
  * its warm start). */

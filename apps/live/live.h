@@ -81,8 +81,11 @@ int km_live_osc_packet(const char *data, size_t size, km_live_osc_fn on_joint, v
 typedef struct km_live_vmc {
   km_humanoid_pose pose;                   /* the newest pose, kinemesh's frame */
   double positions[3 * KM_HUMANOID_BONES]; /* its FK at the last frame (NaN: never sent) */
-  bool pending;                            /* pose data since the last frame */
-  double sender_time;                      /* the last /VMC/Ext/T */
+  /* issue 15: the last frame's world rotation of the bone ending at each Kinect v1 joint
+   * (row-major, kinemesh's frame; NaN: its bone not sent), for km_puppetry_push_rotations */
+  double rotations[9 * KM_KINECT1_JOINTS];
+  bool pending;       /* pose data since the last frame */
+  double sender_time; /* the last /VMC/Ext/T */
   uint64_t packets, messages, frames;
   uint64_t bad;        /* packets with a malformed element: truncated bundle, bad type tags,
                           wrong argument types or counts, non-finite numbers */

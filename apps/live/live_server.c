@@ -111,6 +111,8 @@ struct km_live {
   pthread_mutex_t in_mu;
   pthread_cond_t in_cv;
   double in_joints[NJ * 3];
+  double in_rot[NJ * 9]; /* the VMC bones' rotations of the newest frame (issue 15) */
+  bool in_has_rot;
   double in_t;
   uint64_t in_seq, taken_seq;
   bool reset_req;
@@ -301,10 +303,14 @@ fail:
 
 /* ================================================================ input */
 
-static void push_frame(km_live *l, const double *joints, double t_recv, bool reset) {
+/* A frame of joints (and rot: NJ*9 joint rotations, or NULL) for the deform thread. */
+static void push_frame_rot(km_live *l, const double *joints, const double *rot, double t_recv,
+                           bool reset) {
   pthread_mutex_lock(&l->in_mu);
   if (l->in_seq != l->taken_seq) atomic_fetch_add(&l->frames_dropped, 1);
   memcpy(l->in_joints, joints, sizeof l->in_joints);
+  l->in_has_rot = rot != NULL;
+  if (rot) memcpy(l->in_rot, rot, sizeof l->in_rot);
   l->in_t = t_recv;
   ++l->in_seq;
   if (reset) l->reset_req = true;
@@ -326,6 +332,10 @@ static void push_frame(km_live *l, const double *joints, double t_recv, bool res
   pthread_cond_signal(&l->in_cv);
   pthread_mutex_unlock(&l->in_mu);
   atomic_fetch_add(&l->frames_in, 1);
+}
+
+static void push_frame(km_live *l, const double *joints, double t_recv, bool reset) {
+  push_frame_rot(l, joints, NULL, t_recv, reset);
 }
 
 static bool valid3(const double *p) { return !isnan(p[0]) && !isnan(p[1]) && !isnan(p[2]); }
@@ -400,7 +410,8 @@ static void drain_vmc(km_live *l, unsigned char *buf, size_t cap) {
       ++v->bad;
       continue;
     }
-    if (km_live_vmc_packet(v, buf, (size_t)n, joints)) push_frame(l, joints, now, false);
+    if (km_live_vmc_packet(v, buf, (size_t)n, joints))
+      push_frame_rot(l, joints, v->rotations, now, false);
   }
   atomic_store(&l->vmc_packets, v->packets);
   atomic_store(&l->vmc_messages, v->messages);
@@ -536,9 +547,13 @@ static void pack_frame(km_live *l, unsigned char *dst, const double *filt, uint6
   size_t n = l->mesh->n_vertices;
   const double *V = l->V;
   float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  unsigned char *out = dst + KM_LIVE_HEADER;
+  /* float32 frames: converted and boxed in one pass over V (the box goes in the header) */
+  float *pf = l->opt.quantize ? NULL : (float *)(void *)out;
   for (size_t v = 0; v < n; ++v)
     for (int a = 0; a < 3; ++a) {
       float x = (float)V[3 * v + a];
+      if (pf) pf[3 * v + a] = x;
       lo[a] = x < lo[a] ? x : lo[a];
       hi[a] = x > hi[a] ? x : hi[a];
     }
@@ -563,21 +578,14 @@ static void pack_frame(km_live *l, unsigned char *dst, const double *filt, uint6
     }
   memcpy(dst + 20, f, sizeof f);
   memset(dst + 300, 0, 4);
-  unsigned char *out = dst + KM_LIVE_HEADER;
-  if (l->opt.quantize) {
-    km_live_quantize(V, n, lo, hi, (int16_t *)(void *)out);
-  } else {
-    float *p = (float *)(void *)out;
-    for (size_t k = 0; k < 3 * n; ++k)
-      p[k] = (float)V[k];
-  }
+  if (l->opt.quantize) km_live_quantize(V, n, lo, hi, (int16_t *)(void *)out);
   float tp = (float)(1e3 * (km_seconds() - t0));
   memcpy(dst + 28, &tp, sizeof tp);
 }
 
 static void *deform_main(void *arg) {
   km_live *l = arg;
-  double raw[3 * NJ];
+  double raw[3 * NJ], rot[9 * NJ];
   uint64_t produced = 0;
   for (;;) {
     pthread_mutex_lock(&l->in_mu);
@@ -599,7 +607,9 @@ static void *deform_main(void *arg) {
     double t_recv = l->in_t;
     bool reset = l->reset_req;
     l->reset_req = false;
+    bool have_rot = have && l->in_has_rot;
     if (have) memcpy(raw, l->in_joints, sizeof raw);
+    if (have_rot) memcpy(rot, l->in_rot, sizeof rot);
     l->taken_seq = l->in_seq;
     pthread_mutex_unlock(&l->in_mu);
 
@@ -621,7 +631,8 @@ static void *deform_main(void *arg) {
     if (!have) continue;
     if (l->rig.n_handles == 0) continue; /* no handles yet: input is counted, nothing moves */
     km_error err = {0};
-    if (km_puppetry_push_at(l->pipe, raw, t_recv, l->V, &err) != KM_OK) {
+    if (km_puppetry_push_rotations(l->pipe, raw, have_rot ? rot : NULL, t_recv, l->V, &err) !=
+        KM_OK) {
       atomic_fetch_add(&l->solve_errors, 1);
       continue;
     }
@@ -777,8 +788,6 @@ typedef struct http_pss {
 } http_pss;
 
 typedef struct ws_pss {
-  unsigned char *buf;
-  size_t cap;
   char *rx; /* a text message from the page, assembled from its fragments */
   size_t rx_len;
   bool rx_skip; /* the message being received is too long: dropped */
@@ -1405,8 +1414,6 @@ static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, 
   case LWS_CALLBACK_CLOSED:
     if (p->counted) atomic_fetch_sub(&l->clients, 1);
     p->counted = false;
-    free(p->buf);
-    p->buf = NULL;
     free(p->rx);
     p->rx = NULL;
     return 0;
@@ -1415,20 +1422,20 @@ static int cb_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, 
       lws_callback_on_writable(wsi);
       return 0;
     }
-    if (!p->buf) {
-      p->cap = LWS_PRE + l->frame_size;
-      p->buf = malloc(p->cap);
-      if (!p->buf) return -1;
-    }
+    /* Written straight from the newest frame, under out_mu so the deform thread cannot swap
+     * it away meanwhile (it only takes the lock to swap, after packing the next frame):
+     * lws_write hands the frame to the kernel or keeps a copy of what it could not send, so
+     * the per-page copy that was made here (a frame's size per page and frame) is not
+     * needed. lws only writes the WebSocket header into the LWS_PRE bytes before it. */
     pthread_mutex_lock(&l->out_mu);
     uint64_t seq = l->out_seq;
     double t_recv = l->out_t_recv;
     bool fresh = seq && seq != p->sent_seq;
-    if (fresh) memcpy(p->buf + LWS_PRE, l->out_latest + LWS_PRE, l->frame_size);
+    int wrote =
+        fresh ? lws_write(wsi, l->out_latest + LWS_PRE, l->frame_size, LWS_WRITE_BINARY) : 0;
     pthread_mutex_unlock(&l->out_mu);
     if (!fresh) return 0;
-    if (lws_write(wsi, p->buf + LWS_PRE, l->frame_size, LWS_WRITE_BINARY) < (int)l->frame_size)
-      return -1;
+    if (wrote < (int)l->frame_size) return -1;
     p->sent_seq = seq;
     atomic_fetch_add(&l->frames_sent, 1);
     if (seq > l->lat_seq) {
@@ -1615,7 +1622,11 @@ rig_done:
     goto fail;
 
   l->protocols[0] = (struct lws_protocols){"http", cb_http, sizeof(http_pss), 0, 0, NULL, 0};
-  l->protocols[1] = (struct lws_protocols){"kinemesh", cb_ws, sizeof(ws_pss), 4096, 0, NULL, 0};
+  /* tx_packet_size: lws sends at most this much per send() (else rx_buffer_size, 4 KiB) and
+   * keeps the rest for later POLLOUTs: a 720 kB frame went out in ~180 send/poll rounds of
+   * the service thread. One frame per send() (the socket's SO_SNDBUF holds one). */
+  l->protocols[1] = (struct lws_protocols){"kinemesh", cb_ws, sizeof(ws_pss),         4096,
+                                           0,          NULL,  l->frame_size + LWS_PRE};
   lws_set_log_level(LLL_ERR, NULL);
   struct lws_context_creation_info info;
   memset(&info, 0, sizeof info);

@@ -88,12 +88,20 @@ km_live_vmc_kind km_live_vmc_message(km_live_vmc *v, const char *path, const cha
   return KM_LIVE_VMC_IGNORED;
 }
 
-/* The pose so far as Kinect v1 joints. */
+/* The pose so far as Kinect v1 joints, and their bones' rotations: the bone ending at
+ * Kinect joint j is the humanoid bone whose child stands at j's body point (LeftLowerArm for
+ * WristLeft, LeftHand for HandLeft). */
 static void frame_out(km_live_vmc *v, double *joints) {
-  double P[3 * KM_HUMANOID_BONES];
-  km_humanoid_fk(&v->pose, P, NULL);
+  double P[3 * KM_HUMANOID_BONES], R[9 * KM_HUMANOID_BONES];
+  km_humanoid_fk(&v->pose, P, R);
   memcpy(v->positions, P, sizeof P);
   km_skeleton_convert(KM_SKELETON_HUMANOID, P, KM_SKELETON_KINECT1, joints);
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
+    int b = km_skeleton_joint_map(KM_SKELETON_KINECT1, j, KM_SKELETON_HUMANOID);
+    int q = b >= 0 ? km_skeleton_joint_parent(KM_SKELETON_HUMANOID, b) : -1;
+    for (int k = 0; k < 9; ++k)
+      v->rotations[9 * j + k] = b < 0 ? NAN : R[9 * (q >= 0 ? q : b) + k];
+  }
   v->pending = false;
   ++v->frames;
 }

@@ -32,6 +32,9 @@ struct km_retarget {
   int32_t *rot_joint, *rot_parent; /* n_handles; -1: translation only; NULL: none rotates */
   int32_t *par;                    /* n_joints parents (-1 roots), for rotating handles */
   double *rot;                     /* n_handles*9 row-major, of the last valid frame */
+  /* joint rotations given with the frames (km_retarget_push_rotations, issue 15) */
+  double *qref;       /* n_joints*9: each joint's first valid given rotation (NaN: none yet) */
+  const double *jrot; /* n_joints*9 of the push under way; NULL: positions only */
   /* bone handles (issue 12) */
   int32_t *bone_from; /* n_handles: the bone's start joint for bone handles, -1 others; NULL:
                          no bone handle */
@@ -69,6 +72,7 @@ void km_retarget_free(km_retarget **r) {
   free(t->rot_parent);
   free(t->par);
   free(t->rot);
+  free(t->qref);
   free(t->bone_from);
   free(t->bone_rel);
   free(t->jrest);
@@ -99,6 +103,9 @@ void km_retarget_reset(km_retarget *r) {
       double I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
       memcpy(r->rot + 9 * h, I, sizeof I);
     }
+  if (r->qref)
+    for (size_t i = 0; i < 9 * r->n_joints; ++i)
+      r->qref[i] = NAN;
   if (r->Rb)
     for (size_t j = 0; j < r->n_joints; ++j) {
       double I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
@@ -262,7 +269,8 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
     r->rot_parent = km__malloc(r->n_handles, sizeof(int32_t));
     r->rot = km__malloc(r->n_handles, 9 * sizeof(double));
     r->par = km__malloc(n_joints ? n_joints : 1, sizeof(int32_t));
-    if (!r->rot_joint || !r->rot_parent || !r->rot || !r->par) {
+    r->qref = km__malloc(n_joints ? n_joints : 1, 9 * sizeof(double));
+    if (!r->rot_joint || !r->rot_parent || !r->rot || !r->par || !r->qref) {
       km_retarget_free(&r);
       return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
     }
@@ -406,10 +414,25 @@ static void ease(km_retarget *r) {
   r->have_prev = true;
 }
 
+static bool valid9(const double *R) {
+  for (int k = 0; k < 9; ++k)
+    if (!isfinite(R[k])) return false;
+  return true;
+}
+
 void km_retarget_push(km_retarget *r, const double *joints, double *handle_targets) {
+  km_retarget_push_rotations(r, joints, NULL, handle_targets);
+}
+
+void km_retarget_push_rotations(km_retarget *r, const double *joints, const double *rotations,
+                                double *handle_targets) {
   for (size_t j = 0; j < r->n_joints; ++j)
     if (!isfinite(r->ref[3 * j]) && valid3(joints + 3 * j))
       memcpy(r->ref + 3 * j, joints + 3 * j, 3 * sizeof(double));
+  r->jrot = r->qref ? rotations : NULL;
+  for (size_t j = 0; r->jrot && j < r->n_joints; ++j)
+    if (!isfinite(r->qref[9 * j]) && valid9(rotations + 9 * j))
+      memcpy(r->qref + 9 * j, rotations + 9 * j, 9 * sizeof(double));
   if (!isfinite(r->scale)) {
     double h = skeleton_height(r, joints);
     if (h > 1e-6) r->scale = r->mesh_height / h;
@@ -497,6 +520,7 @@ void km_retarget_push(km_retarget *r, const double *joints, double *handle_targe
     }
   }
   if (r->rot) update_rotations(r, joints);
+  r->jrot = NULL;
   if (r->max_step > 0) ease(r);
   if (handle_targets)
     for (size_t i = 0; i < 3 * r->n_handles; ++i)
@@ -524,6 +548,35 @@ static void rotation_between(const double a[3], const double b[3], double R[9]) 
         kk += K[3 * i + k] * K[3 * k + j];
       R[3 * i + j] = (i == j) + K[3 * i + j] + f * kk;
     }
+}
+
+/* Issue 15: the twist of a given joint rotation. The rotation since the reference frame,
+ * G = Q Q_ref^T (Q: the rotation given with the frame for the bone ending at joint j), splits
+ * into a twist about the bone's reference direction d0 followed by a swing (swing-twist
+ * decomposition: the twist quaternion is G's quaternion projected on d0); the swing is what
+ * the joint positions already give, the twist (a forearm turning about itself) is what they
+ * cannot. R (a rotation whose segment a -> b now points along d, unit, in R's frame) is
+ * premultiplied by the twist angle about d. Nothing happens without a valid given rotation
+ * and reference. */
+static void apply_twist(const km_retarget *r, int32_t j, const double d0[3], const double d[3],
+                        double R[9]) {
+  if (!r->jrot) return;
+  const double *Q = r->jrot + 9 * (size_t)j, *Q0 = r->qref + 9 * (size_t)j;
+  if (!valid9(Q) || !valid9(Q0)) return;
+  double G[9], q[4]; /* G = Q Q0^T; q = (w, x, y, z) */
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b)
+      G[3 * a + b] =
+          Q[3 * a] * Q0[3 * b] + Q[3 * a + 1] * Q0[3 * b + 1] + Q[3 * a + 2] * Q0[3 * b + 2];
+  km__quat_from_rot3(G, q);
+  double phi = 2 * atan2(q[1] * d0[0] + q[2] * d0[1] + q[3] * d0[2], q[0]);
+  double s = sin(0.5 * phi), T[9], B[9];
+  double qt[4] = {cos(0.5 * phi), s * d[0], s * d[1], s * d[2]};
+  km__rot3_from_quat(qt, T);
+  memcpy(B, R, sizeof B);
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b)
+      R[3 * a + b] = T[3 * a] * B[b] + T[3 * a + 1] * B[3 + b] + T[3 * a + 2] * B[6 + b];
 }
 
 /* Rotations of the rotating handles from the bones of this frame (kept when a bone is not
@@ -563,6 +616,7 @@ static void update_rotations(km_retarget *r, const double *J) {
       d0[c] /= n0;
     }
     rotation_between(d0, d, r->rot + 9 * h);
+    apply_twist(r, j, d0, d, r->rot + 9 * h);
   }
 }
 
@@ -619,6 +673,35 @@ static void mat_vec(const double R[9], const double x[3], double y[3]) {
     y[a] = R[3 * a] * x[0] + R[3 * a + 1] * x[1] + R[3 * a + 2] * x[2];
 }
 
+/* apply_twist with joint j's given rotation about the segment a -> b (walked up to an
+ * ancestor while shorter than 0.15 m, as for the swing: a Kinect wrist -> hand twists about
+ * the forearm) in this frame's direction (the root's heading frame under rigid root motion). */
+static void twist(const km_retarget *r, const double *J, int32_t j, int32_t a, int32_t b,
+                  double R[9]) {
+  if (!r->jrot) return;
+  while (r->par[a] >= 0 && valid3(r->ref + 3 * (size_t)a) && valid3(r->ref + 3 * (size_t)b) &&
+         dist3(r->ref + 3 * (size_t)a, r->ref + 3 * (size_t)b) < 0.15)
+    a = r->par[a];
+  const double *p = J + 3 * (size_t)b, *q = J + 3 * (size_t)a;
+  const double *p0 = r->ref + 3 * (size_t)b, *q0 = r->ref + 3 * (size_t)a;
+  if (!valid3(p) || !valid3(q) || !valid3(p0) || !valid3(q0)) return;
+  double d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+  double d0[3] = {p0[0] - q0[0], p0[1] - q0[1], p0[2] - q0[2]};
+  if (r->rigid) { /* R_y(-phi) d */
+    double c = r->cos_h, sn = r->sin_h, x = d[0], z = d[2];
+    d[0] = c * x - sn * z;
+    d[2] = sn * x + c * z;
+  }
+  double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  double n0 = sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]);
+  if (!(n > 1e-9) || !(n0 > 1e-9)) return;
+  for (int c = 0; c < 3; ++c) {
+    d[c] /= n;
+    d0[c] /= n0;
+  }
+  apply_twist(r, j, d0, d, R);
+}
+
 /* Bone rotations, the character's posed joints (forward kinematics) and the bone handles'
  * rigid motions (see km_retarget_create in kinemesh.h). A bone whose joints are not valid this
  * frame keeps its last rotation; a root that is not valid keeps its last position. */
@@ -663,6 +746,7 @@ static void update_bones(km_retarget *r, const double *J) {
     const double *c = r->centroid + 3 * h;
     if (r->par[b] == a) {
       memcpy(R, r->Rb + 9 * (size_t)b, 9 * sizeof(double));
+      twist(r, J, b, a, b, R);
     } else { /* a segment over several bones (elbow -> hand): aimed like the limb it is in */
       double aim[3], *ap = NULL;
       if (r->aim && r->kinect1 && kinect1_limb((size_t)b)) {
@@ -671,6 +755,7 @@ static void update_bones(km_retarget *r, const double *J) {
         if (isfinite(aim[0] + aim[1] + aim[2])) ap = aim;
       }
       segment_rotation(r, J, a, b, ap, R);
+      twist(r, J, b, a, b, R);
     }
     double rel[3] = {0, 0, 0};
     if (r->bone_rel[h] > 0) {

@@ -111,6 +111,12 @@ struct km_puppet {
   bool have_handles;
   size_t n_handles, n_hv;
   int32_t *h_off, *h_v;
+  /* W_Phi^T grouped by row block: the (handle vertex, weight) pairs of isoline li are
+   * [hw_off[li], hw_off[li+1]), so the right-hand side is gathered one isoline at a time in
+   * registers instead of scattered per vertex (a read-modify-write per field and vertex). */
+  int32_t *hw_off, *hw_i;
+  double *hw_w;
+  double *hM; /* n_hv*12 workspace: p4 (x) r of each handle vertex */
   double wc2, mu;
   double *K;     /* nr*nr Cholesky factor (upper) of U^T U + mu I */
   double *Kt;    /* its transpose (lower), so both substitutions run as contiguous axpys */
@@ -231,7 +237,8 @@ void km_puppet_free(km_puppet **pp) {
                   p->tri_v,  p->tri_iso, p->iso_off, p->tri_lv, p->tri_F0,  p->tri_a, p->cv,
                   p->cv_x,   p->K0,      p->G,       p->h_off,  p->h_v,     p->K,     p->KinvG,
                   p->KinvGf, p->dR,      p->dR0,     p->dRnew,  p->dRd,     p->quat,  p->A,
-                  p->D,      p->cv_br,   p->cv_t,    p->cv_pf,  p->cv_pn,   p->Kt,    p->lone};
+                  p->D,      p->cv_br,   p->cv_t,    p->cv_pf,  p->cv_pn,   p->Kt,    p->lone,
+                  p->hw_off, p->hw_i,    p->hw_w,    p->hM};
   for (size_t i = 0; i < sizeof ptrs / sizeof ptrs[0]; ++i)
     free(ptrs[i]);
   free(p);
@@ -1252,6 +1259,55 @@ km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *h
   off[0] = 0;
   for (size_t h = 0; h < n_handles; ++h)
     off[h + 1] = handle_offsets[h + 1];
+  /* the pairs (handle vertex, weight) of W_Phi grouped by isoline: each vertex and field
+   * adds one pair to its lower and one to its upper isoline */
+  size_t nI = p->n_isolines, npair = 2 * nhv * (size_t)p->ne;
+  int32_t *hw_off = km__calloc(nI + 1, sizeof(int32_t));
+  int32_t *hw_i = km__malloc(npair ? npair : 1, sizeof(int32_t));
+  double *hw_w = km__malloc(npair ? npair : 1, sizeof(double));
+  double *hM = km__malloc(nhv ? nhv * 12 : 1, sizeof(double));
+  if (!hw_off || !hw_i || !hw_w || !hM || npair > INT32_MAX) {
+    free(hw_off);
+    free(hw_i);
+    free(hw_w);
+    free(hM);
+    free(off);
+    free(hv);
+    return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
+  }
+  for (size_t i = 0; i < nhv; ++i)
+    for (int f = 0; f < p->ne; ++f) {
+      size_t I0;
+      double a0, a1;
+      w_entry(p, (size_t)hv[i], f, &I0, &a0, &a1);
+      ++hw_off[I0 + 1];
+      ++hw_off[I0 + 2];
+    }
+  for (size_t li = 0; li < nI; ++li)
+    hw_off[li + 1] += hw_off[li];
+  for (size_t i = 0; i < nhv; ++i)
+    for (int f = 0; f < p->ne; ++f) {
+      size_t I0;
+      double a0, a1;
+      w_entry(p, (size_t)hv[i], f, &I0, &a0, &a1);
+      /* hw_off[li] is isoline li's fill cursor here, shifted back to its start below */
+      int32_t k0 = hw_off[I0]++, k1 = hw_off[I0 + 1]++;
+      hw_i[k0] = (int32_t)i;
+      hw_w[k0] = a0;
+      hw_i[k1] = (int32_t)i;
+      hw_w[k1] = a1;
+    }
+  for (size_t li = nI; li > 0; --li)
+    hw_off[li] = hw_off[li - 1];
+  hw_off[0] = 0;
+  free(p->hw_off);
+  free(p->hw_i);
+  free(p->hw_w);
+  free(p->hM);
+  p->hw_off = hw_off;
+  p->hw_i = hw_i;
+  p->hw_w = hw_w;
+  p->hM = hM;
   free(p->h_off);
   free(p->h_v);
   p->h_off = off;
@@ -1530,6 +1586,39 @@ static void eval_full(km_puppet *p, double *V) {
 #endif
 }
 
+/* b = w_c^2 W_Phi^T (C - P_Phi) into b (nr x 3, column-major), C the handle vertices'
+ * targets (world units). Every vertex's residual r enters row block I through p4 r^T
+ * (4 x 3) times its weight in isoline I, so the 12 products are made once per vertex and
+ * each isoline sums its pairs in registers and writes its rows once, instead of scattering
+ * 24 read-modify-writes per field and vertex (60k-vertex character, 4250 handle vertices,
+ * perf samples on the shared 2-core machine under load: 0.50 -> 0.19 ms per frame). */
+KM__SIMD_CLONES
+static void handle_rhs(km_puppet *p, const double *targets, double *b) {
+  size_t nr = p->nr;
+  double *M = p->hM;
+  for (size_t i = 0; i < p->n_hv; ++i) {
+    const double *pv = p->Pn + 3 * (size_t)p->h_v[i];
+    double p4[4] = {pv[0], pv[1], pv[2], 1};
+    for (int c = 0; c < 3; ++c) {
+      double r = p->wc2 * ((targets[3 * i + c] - p->center[c]) / p->scale - pv[c]);
+      for (int k = 0; k < 4; ++k)
+        M[12 * i + 4 * c + k] = p4[k] * r;
+    }
+  }
+  for (size_t li = 0; li < p->n_isolines; ++li) {
+    double acc[12] = {0};
+    for (int32_t q = p->hw_off[li]; q < p->hw_off[li + 1]; ++q) {
+      const double *m = M + 12 * (size_t)p->hw_i[q];
+      double w = p->hw_w[q];
+      for (int k = 0; k < 12; ++k)
+        acc[k] += w * m[k];
+    }
+    for (int c = 0; c < 3; ++c)
+      for (int k = 0; k < 4; ++k)
+        b[li * 4 + k + (size_t)c * nr] = acc[4 * c + k];
+  }
+}
+
 km_status km_puppet_solve(km_puppet *p, const double *targets, double *V_out, km_error *err) {
   if (!p || !V_out) return km__fail(err, KM_ERR_INVALID, "puppet solve: NULL argument");
   if (!p->have_handles)
@@ -1541,24 +1630,7 @@ km_status km_puppet_solve(km_puppet *p, const double *targets, double *V_out, km
                       "puppet solve: target of handle vertex %zu is not finite", i / 3);
   size_t nr = p->nr;
   /* b = w_c^2 W_Phi^T (C - P_Phi), then dR0 = K^-1 b: the rotation-free part of the solve */
-  memset(p->dR0, 0, nr * 3 * sizeof(double));
-  for (size_t i = 0; i < p->n_hv; ++i) {
-    size_t v = (size_t)p->h_v[i];
-    const double *pv = p->Pn + 3 * v;
-    double p4[4] = {pv[0], pv[1], pv[2], 1}, r[3];
-    for (int c = 0; c < 3; ++c)
-      r[c] = p->wc2 * ((targets[3 * i + c] - p->center[c]) / p->scale - pv[c]);
-    for (int f = 0; f < p->ne; ++f) {
-      size_t I0;
-      double a0, a1;
-      w_entry(p, v, f, &I0, &a0, &a1);
-      for (int c = 0; c < 3; ++c)
-        for (int k = 0; k < 4; ++k) {
-          p->dR0[I0 * 4 + k + c * nr] += a0 * p4[k] * r[c];
-          p->dR0[I0 * 4 + 4 + k + c * nr] += a1 * p4[k] * r[c];
-        }
-    }
-  }
+  handle_rhs(p, targets, p->dR0);
   chol_solve3(p->K, p->Kt, nr, p->dR0);
   int it = 0;
   double change = 0;

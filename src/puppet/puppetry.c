@@ -34,6 +34,10 @@ struct km_puppetry {
   int32_t *off, *hv;
   double *handle_targets, *targets;
   double *filt, *p0, *last; /* nj*3 each */
+  /* issue 15: joint rotations in the rig's order, max(n_in, 20)*9 each: the pushed frame's
+   * (scratch), the first valid one per joint (the retarget's reference, carried over a rig
+   * swap like p0) and the newest frame's (NaN: none) */
+  double *rot, *rot0, *rotl;
   bool have_last;
   km_puppetry_times times;
 };
@@ -194,11 +198,15 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
   }
   bool have_last = keep && p->have_last;
   if (have_last) memcpy(r.last, p->last, sizeof(double) * 3 * r.nj);
-  if (seeded) km_retarget_push(r.rt, r.p0, NULL);
+  if (!keep)
+    for (size_t k = 0; k < 9 * r.nj; ++k)
+      p->rot0[k] = p->rotl[k] = NAN;
+  /* the rotations' reference and newest frame carry over with the positions' */
+  if (seeded) km_retarget_push_rotations(r.rt, r.p0, p->rot0, NULL);
   if (have_last) {
     km_filter_push(r.filter, r.last, r.filt);
     km__retarget_settle(r.rt);
-    km_retarget_push(r.rt, r.filt, r.handle_targets);
+    km_retarget_push_rotations(r.rt, r.filt, p->rotl, r.handle_targets);
   } else {
     for (size_t k = 0; k < 3 * r.nj; ++k)
       r.filt[k] = NAN;
@@ -304,6 +312,14 @@ km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig, const char 
   p->rest = rest;
   p->n_in = n_joints;
   km_status s = KM_OK;
+  /* a rig's joints are the pushed columns or the 20 Kinect v1 joints (rig_columns) */
+  size_t nrot = 9 * (n_joints > KM_KINECT1_JOINTS ? n_joints : KM_KINECT1_JOINTS);
+  if (!(p->rot = km__malloc(nrot, sizeof(double))) ||
+      !(p->rot0 = km__malloc(nrot, sizeof(double))) ||
+      !(p->rotl = km__malloc(nrot, sizeof(double))))
+    goto nomem;
+  for (size_t k = 0; k < nrot; ++k)
+    p->rot0[k] = p->rotl[k] = NAN;
   if (p->opt.filter) {
     p->filter_opt = *p->opt.filter;
     p->opt.filter = &p->filter_opt;
@@ -374,6 +390,11 @@ km_status km_puppetry_push(km_puppetry *p, const double *joints, double *V_out, 
 
 km_status km_puppetry_push_at(km_puppetry *p, const double *joints, double t, double *V_out,
                               km_error *err) {
+  return km_puppetry_push_rotations(p, joints, NULL, t, V_out, err);
+}
+
+km_status km_puppetry_push_rotations(km_puppetry *p, const double *joints, const double *rotations,
+                                     double t, double *V_out, km_error *err) {
   if (!p->filter) return km__fail(err, KM_ERR_INVALID, "km_puppetry_push: no rig set");
   double t0 = km_seconds();
   if (p->col) {
@@ -393,7 +414,19 @@ km_status km_puppetry_push_at(km_puppetry *p, const double *joints, double t, do
   for (size_t k = 0; k < 3 * p->nj; ++k)
     if (isnan(p->p0[k]) && !isnan(p->filt[k])) p->p0[k] = p->filt[k];
   double t1 = km_seconds();
-  km_retarget_push(p->rt, p->filt, p->handle_targets);
+  const double *rot = rotations;
+  if (rotations && p->col) {
+    for (size_t j = 0; j < p->nj; ++j)
+      for (int a = 0; a < 9; ++a)
+        p->rot[9 * j + a] = p->col[j] < 0 ? NAN : rotations[9 * (size_t)p->col[j] + a];
+    rot = p->rot;
+  }
+  for (size_t k = 0; k < 9 * p->nj; ++k)
+    p->rotl[k] = rot ? rot[k] : NAN;
+  for (size_t j = 0; rot && j < p->nj; ++j)
+    if (isnan(p->rot0[9 * j]) && isfinite(rot[9 * j]))
+      memcpy(p->rot0 + 9 * j, rot + 9 * j, 9 * sizeof(double));
+  km_retarget_push_rotations(p->rt, p->filt, rot, p->handle_targets);
   km_retarget_vertex_targets(p->rt, p->targets);
   double t2 = km_seconds();
   km_status s = p->opt.solver == KM_PUPPETRY_FULL
@@ -429,6 +462,8 @@ void km_puppetry_reset(km_puppetry *p) {
     km_retarget_reset(p->rt);
     for (size_t k = 0; k < 3 * p->nj; ++k)
       p->p0[k] = NAN;
+    for (size_t k = 0; k < 9 * p->nj; ++k)
+      p->rot0[k] = p->rotl[k] = NAN;
   }
   p->have_last = false;
   if (p->puppet) km_puppet_reset(p->puppet);
@@ -489,6 +524,9 @@ void km_puppetry_free(km_puppetry **pp) {
   free(p->names);
   free(p->parents_in);
   free(p->take_name);
+  free(p->rot);
+  free(p->rot0);
+  free(p->rotl);
   free(p);
   *pp = NULL;
 }
