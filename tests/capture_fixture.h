@@ -26,6 +26,12 @@ static inline cJSON *km_test_read_json(const char *path) {
   return j;
 }
 
+/* o[key] as a number, NaN when absent or not a number. */
+static inline double km_test_json_number(const cJSON *o, const char *key) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+  return cJSON_IsNumber(v) ? v->valuedouble : NAN;
+}
+
 /* A simulated capture of the character mesh CHARACTER (its rig sidecar beside it, as `gen
  * character` writes): `gen motion --kind KIND --frames FRAMES` into the take TAKE, then `gen
  * capture` of that take by `cameras` cameras and `points` points a frame, with EXTRA further

@@ -5,29 +5,10 @@
  * Skips (77) with a message when ../shared/data is absent. */
 #include "km_test.h"
 
-#include <cjson/cJSON.h>
+#include "capture_fixture.h"
 
 #define DIR "recon_dfaust"
 #define CLOUDS "pointclouds/dfaust_50002_light_hopping_loose"
-
-static cJSON *read_json(const char *path) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return NULL;
-  fseek(f, 0, SEEK_END);
-  long size = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *data = size >= 0 ? malloc((size_t)size + 1) : NULL;
-  if (data) data[fread(data, 1, (size_t)size, f)] = '\0';
-  fclose(f);
-  cJSON *j = data ? cJSON_Parse(data) : NULL;
-  free(data);
-  return j;
-}
-
-static double number(const cJSON *o, const char *key) {
-  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
-  return cJSON_IsNumber(v) ? v->valuedouble : NAN;
-}
 
 int main(void) {
   char body[512], clouds[512];
@@ -50,7 +31,7 @@ int main(void) {
   km_anim_info info;
   CHECK_OK(km_anim_info_read(DIR "/recon.pc2", &info, KM_E));
   CHECK(info.frames == 17 && info.vertices == 6890);
-  cJSON *rep = read_json(DIR "/report.json");
+  cJSON *rep = km_test_read_json(DIR "/report.json");
   CHECK(rep != NULL);
   const cJSON *frames = cJSON_GetObjectItemCaseSensitive(rep, "frames");
   CHECK(cJSON_GetArraySize(frames) == 17);
@@ -58,11 +39,13 @@ int main(void) {
   for (int i = 0; i < cJSON_GetArraySize(frames); ++i) {
     const cJSON *fr = cJSON_GetArrayItem(frames, i);
     const cJSON *st = cJSON_GetObjectItemCaseSensitive(fr, "status");
-    double p99 = number(fr, "surface_p99_mm"), mean = number(fr, "mean_mm");
+    double p99 = km_test_json_number(fr, "surface_p99_mm"),
+           mean = km_test_json_number(fr, "mean_mm");
     printf("frame %d: %s, points->surface %.2f mm, surface->points p99 %.1f max %.1f mm, %.0f "
            "unsupported\n",
-           i, cJSON_IsString(st) ? st->valuestring : "?", mean, p99, number(fr, "surface_max_mm"),
-           number(fr, "unsupported_vertices"));
+           i, cJSON_IsString(st) ? st->valuestring : "?", mean, p99,
+           km_test_json_number(fr, "surface_max_mm"),
+           km_test_json_number(fr, "unsupported_vertices"));
     CHECK_MSG(cJSON_IsString(st) && strcmp(st->valuestring, "KM_OK") == 0, "frame %d: status %s", i,
               cJSON_IsString(st) ? st->valuestring : "?");
     CHECK_MSG(p99 <= 30, "frame %d: surface -> points p99 %.1f mm", i, p99);
@@ -70,7 +53,8 @@ int main(void) {
     worst = fmax(worst, p99);
   }
   printf("surface -> points p99 at most %.1f mm\n", worst);
-  CHECK(number(rep, "unsupported_frames") == 0 && number(rep, "failed_frames") == 0);
+  CHECK(km_test_json_number(rep, "unsupported_frames") == 0 &&
+        km_test_json_number(rep, "failed_frames") == 0);
   cJSON_Delete(rep);
   if (!km_test_failed && !getenv("KM_TEST_KEEP")) km_test_run("rm -rf " DIR, NULL);
   return km_test_finish("test_recon_dfaust");

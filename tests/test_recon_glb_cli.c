@@ -7,28 +7,9 @@
  * no sidecar: test_skin_gltf. */
 #include "km_test.h"
 
-#include <cjson/cJSON.h>
+#include "capture_fixture.h"
 
 #define DIR "recon_glb_cli"
-
-static cJSON *read_json(const char *path) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return NULL;
-  fseek(f, 0, SEEK_END);
-  long size = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *data = size >= 0 ? malloc((size_t)size + 1) : NULL;
-  if (data) data[fread(data, 1, (size_t)size, f)] = '\0';
-  fclose(f);
-  cJSON *j = data ? cJSON_Parse(data) : NULL;
-  free(data);
-  return j;
-}
-
-static double number(const cJSON *o, const char *key) {
-  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
-  return cJSON_IsNumber(v) ? v->valuedouble : NAN;
-}
 
 int main(void) {
   char *out = NULL;
@@ -74,13 +55,14 @@ int main(void) {
   CHECK_OK(km_mesh_read(DIR "/tmpl.obj", &tm, KM_E));
   CHECK(info.vertices == tm.n_vertices);
   km_mesh_free(&tm);
-  cJSON *rep = read_json(DIR "/report.json");
+  cJSON *rep = km_test_read_json(DIR "/report.json");
   const cJSON *frames = cJSON_GetObjectItemCaseSensitive(rep, "frames");
   CHECK(rep && cJSON_GetArraySize(frames) == 4);
   for (int i = 0; i < cJSON_GetArraySize(frames); ++i) {
     const cJSON *fr = cJSON_GetArrayItem(frames, i);
     const cJSON *st = cJSON_GetObjectItemCaseSensitive(fr, "status");
-    double mean = number(fr, "mean_mm"), p99 = number(fr, "surface_p99_mm");
+    double mean = km_test_json_number(fr, "mean_mm"),
+           p99 = km_test_json_number(fr, "surface_p99_mm");
     printf("frame %d: %s, points->surface %.2f mm, surface->points p99 %.1f mm\n", i,
            cJSON_IsString(st) ? st->valuestring : "?", mean, p99);
     CHECK_MSG(cJSON_IsString(st) && strcmp(st->valuestring, "KM_OK") == 0, "frame %d", i);

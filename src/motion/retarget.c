@@ -583,6 +583,33 @@ static void apply_twist(const km_retarget *r, int32_t j, const double d0[3], con
  * valid). With rigid root motion the rotation is taken in the root's heading frame. */
 static void update_bones(km_retarget *r, const double *J);
 
+/* The unit directions of the segment a -> b in the reference frame (d0) and in this frame (d,
+ * in the root's heading frame under rigid root motion); false when a joint is not valid or the
+ * segment has no length. */
+static bool segment_dirs(const km_retarget *r, const double *J, int32_t a, int32_t b, double d0[3],
+                         double d[3]) {
+  const double *p = J + 3 * (size_t)b, *q = J + 3 * (size_t)a;
+  const double *p0 = r->ref + 3 * (size_t)b, *q0 = r->ref + 3 * (size_t)a;
+  if (!valid3(p) || !valid3(q) || !valid3(p0) || !valid3(q0)) return false;
+  for (int c = 0; c < 3; ++c) {
+    d[c] = p[c] - q[c];
+    d0[c] = p0[c] - q0[c];
+  }
+  if (r->rigid) { /* R_y(-phi) d */
+    double c = r->cos_h, sn = r->sin_h, x = d[0], z = d[2];
+    d[0] = c * x - sn * z;
+    d[2] = sn * x + c * z;
+  }
+  double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  double n0 = sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]);
+  if (!(n > 1e-9) || !(n0 > 1e-9)) return false;
+  for (int c = 0; c < 3; ++c) {
+    d[c] /= n;
+    d0[c] /= n0;
+  }
+  return true;
+}
+
 static void update_rotations(km_retarget *r, const double *J) {
   if (r->bone_from) update_bones(r, J);
   for (size_t h = 0; h < r->n_handles; ++h) {
@@ -598,23 +625,8 @@ static void update_rotations(km_retarget *r, const double *J) {
       if (l >= 0.15) break; /* metres of performer */
       q = r->par[q];
     }
-    const double *p = J + 3 * (size_t)j, *pq = J + 3 * (size_t)q;
-    const double *p0 = r->ref + 3 * (size_t)j, *q0 = r->ref + 3 * (size_t)q;
-    if (!valid3(p) || !valid3(pq) || !valid3(p0) || !valid3(q0)) continue;
-    double d[3] = {p[0] - pq[0], p[1] - pq[1], p[2] - pq[2]};
-    double d0[3] = {p0[0] - q0[0], p0[1] - q0[1], p0[2] - q0[2]};
-    if (r->rigid) { /* R_y(-phi) d */
-      double c = r->cos_h, sn = r->sin_h, x = d[0], z = d[2];
-      d[0] = c * x - sn * z;
-      d[2] = sn * x + c * z;
-    }
-    double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    double n0 = sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]);
-    if (!(n > 1e-9) || !(n0 > 1e-9)) continue;
-    for (int c = 0; c < 3; ++c) {
-      d[c] /= n;
-      d0[c] /= n0;
-    }
+    double d[3], d0[3];
+    if (!segment_dirs(r, J, q, j, d0, d)) continue;
     rotation_between(d0, d, r->rot + 9 * h);
     apply_twist(r, j, d0, d, r->rot + 9 * h);
   }
@@ -629,23 +641,8 @@ static double dist3(const double *a, const double *b) {
  * root's heading frame under rigid root motion); false when a joint is not valid. */
 static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, int32_t b,
                              const double *aim, double R[9]) {
-  const double *p = J + 3 * (size_t)b, *q = J + 3 * (size_t)a;
-  const double *p0 = r->ref + 3 * (size_t)b, *q0 = r->ref + 3 * (size_t)a;
-  if (!valid3(p) || !valid3(q) || !valid3(p0) || !valid3(q0)) return false;
-  double d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
-  double d0[3] = {p0[0] - q0[0], p0[1] - q0[1], p0[2] - q0[2]};
-  if (r->rigid) { /* R_y(-phi) d */
-    double c = r->cos_h, sn = r->sin_h, x = d[0], z = d[2];
-    d[0] = c * x - sn * z;
-    d[2] = sn * x + c * z;
-  }
-  double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-  double n0 = sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]);
-  if (!(n > 1e-9) || !(n0 > 1e-9)) return false;
-  for (int c = 0; c < 3; ++c) {
-    d[c] /= n;
-    d0[c] /= n0;
-  }
+  double d[3], d0[3];
+  if (!segment_dirs(r, J, a, b, d0, d)) return false;
   rotation_between(d0, d, R);
   if (aim) { /* then first the character's rest direction onto the reference direction */
     double u[3] = {aim[0], aim[1], aim[2]}, nu = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
@@ -682,23 +679,8 @@ static void twist(const km_retarget *r, const double *J, int32_t j, int32_t a, i
   while (r->par[a] >= 0 && valid3(r->ref + 3 * (size_t)a) && valid3(r->ref + 3 * (size_t)b) &&
          dist3(r->ref + 3 * (size_t)a, r->ref + 3 * (size_t)b) < 0.15)
     a = r->par[a];
-  const double *p = J + 3 * (size_t)b, *q = J + 3 * (size_t)a;
-  const double *p0 = r->ref + 3 * (size_t)b, *q0 = r->ref + 3 * (size_t)a;
-  if (!valid3(p) || !valid3(q) || !valid3(p0) || !valid3(q0)) return;
-  double d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
-  double d0[3] = {p0[0] - q0[0], p0[1] - q0[1], p0[2] - q0[2]};
-  if (r->rigid) { /* R_y(-phi) d */
-    double c = r->cos_h, sn = r->sin_h, x = d[0], z = d[2];
-    d[0] = c * x - sn * z;
-    d[2] = sn * x + c * z;
-  }
-  double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-  double n0 = sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]);
-  if (!(n > 1e-9) || !(n0 > 1e-9)) return;
-  for (int c = 0; c < 3; ++c) {
-    d[c] /= n;
-    d0[c] /= n0;
-  }
+  double d[3], d0[3];
+  if (!segment_dirs(r, J, a, b, d0, d)) return;
   apply_twist(r, j, d0, d, R);
 }
 
