@@ -26,6 +26,7 @@ struct km_cholesky {
   int32_t *Ap, *Ai; /* pattern given to analyze, to reject a different one */
   double min_pivot; /* LDL' pivot check, relative to the largest pivot (0: none) */
   int stype;        /* how CHOLMOD reads A: -1 lower triangle, 1 upper */
+  double *ws;       /* simplicial LDL': n*4 interleaved right-hand sides for ldl_solve */
   bool factorized;
 };
 
@@ -125,8 +126,85 @@ km_status km_cholesky_factorize(km_cholesky *c, const km_sparse *A, km_error *er
                     c->n, c->n, (size_t)c->L->minor);
   if (!ok || c->cc.status != CHOLMOD_OK)
     return cholmod_status(err, &c->cc, "km_cholesky_factorize");
+  if (!c->L->is_ll && !c->L->is_super && !c->ws) {
+    c->ws = km__malloc(c->n ? c->n * 4 : 1, sizeof *c->ws);
+    if (!c->ws) return km__fail(err, KM_ERR_NOMEM, "km_cholesky_factorize: out of memory");
+  }
   c->factorized = true;
   return KM_OK;
+}
+
+/* x = A^-1 b for k <= 4 interleaved columns (y[k * row + col]) with a simplicial LDL' factor
+ * P A P' = L D L' (CHOLMOD's layout: column j holds D_jj first, then L's entries below the
+ * unit diagonal). cholmod_solve2 does the same sweeps but frees and reallocates its row-major
+ * workspace on every call (two mallocs per solve, measured); here it is kept in c->ws. */
+static void ldl_sweeps(const cholmod_factor *L, double *y, size_t n, int k) {
+  const int *Lp = L->p, *Li = L->i, *Lnz = L->nz;
+  const double *Lx = L->x;
+  if (k == 3) {
+    for (size_t j = 0; j < n; ++j) {
+      const double *yj = y + 3 * j;
+      double a = yj[0], b = yj[1], c = yj[2];
+      for (int p = Lp[j] + 1, e = Lp[j] + Lnz[j]; p < e; ++p) {
+        double *yi = y + 3 * (size_t)Li[p], l = Lx[p];
+        yi[0] -= l * a, yi[1] -= l * b, yi[2] -= l * c;
+      }
+    }
+    for (size_t j = n; j-- > 0;) {
+      double *yj = y + 3 * j, d = 1.0 / Lx[Lp[j]];
+      double a = yj[0] * d, b = yj[1] * d, c = yj[2] * d;
+      for (int p = Lp[j] + 1, e = Lp[j] + Lnz[j]; p < e; ++p) {
+        const double *yi = y + 3 * (size_t)Li[p];
+        double l = Lx[p];
+        a -= l * yi[0], b -= l * yi[1], c -= l * yi[2];
+      }
+      yj[0] = a, yj[1] = b, yj[2] = c;
+    }
+    return;
+  }
+  for (size_t j = 0; j < n; ++j) {
+    const double *yj = y + (size_t)k * j;
+    for (int p = Lp[j] + 1, e = Lp[j] + Lnz[j]; p < e; ++p) {
+      double *yi = y + (size_t)k * (size_t)Li[p], l = Lx[p];
+      for (int q = 0; q < k; ++q)
+        yi[q] -= l * yj[q];
+    }
+  }
+  for (size_t j = n; j-- > 0;) {
+    double *yj = y + (size_t)k * j, d = 1.0 / Lx[Lp[j]], acc[4];
+    for (int q = 0; q < k; ++q)
+      acc[q] = yj[q] * d;
+    for (int p = Lp[j] + 1, e = Lp[j] + Lnz[j]; p < e; ++p) {
+      const double *yi = y + (size_t)k * (size_t)Li[p];
+      double l = Lx[p];
+      for (int q = 0; q < k; ++q)
+        acc[q] -= l * yi[q];
+    }
+    for (int q = 0; q < k; ++q)
+      yj[q] = acc[q];
+  }
+}
+
+/* km_cholesky_solve with a simplicial LDL' factor: column-major B -> X in chunks of up to 4
+ * columns, permuted into c->ws and back (B == X allowed: a chunk is read before written). */
+static void ldl_solve(km_cholesky *c, size_t nrhs, const double *B, double *X) {
+  size_t n = c->n;
+  const int *perm = c->L->Perm;
+  double *y = c->ws;
+  for (size_t c0 = 0; c0 < nrhs; c0 += 4) {
+    int k = (int)(nrhs - c0 < 4 ? nrhs - c0 : 4);
+    for (int q = 0; q < k; ++q) {
+      const double *b = B + (c0 + (size_t)q) * n;
+      for (size_t r = 0; r < n; ++r)
+        y[(size_t)k * r + (size_t)q] = b[perm ? (size_t)perm[r] : r];
+    }
+    ldl_sweeps(c->L, y, n, k);
+    for (int q = 0; q < k; ++q) {
+      double *x = X + (c0 + (size_t)q) * n;
+      for (size_t r = 0; r < n; ++r)
+        x[perm ? (size_t)perm[r] : r] = y[(size_t)k * r + (size_t)q];
+    }
+  }
 }
 
 km_status km_cholesky_solve(km_cholesky *c, size_t nrhs, const double *B, double *X,
@@ -138,6 +216,10 @@ km_status km_cholesky_solve(km_cholesky *c, size_t nrhs, const double *B, double
   if (!B || !X) return km__fail(err, KM_ERR_INVALID, "km_cholesky_solve: NULL B or X");
   if (nrhs > SIZE_MAX / c->n)
     return km__fail(err, KM_ERR_INVALID, "km_cholesky_solve: %zu right-hand sides overflow", nrhs);
+  if (c->ws && !c->L->is_ll && !c->L->is_super && c->L->xtype == CHOLMOD_REAL) {
+    ldl_solve(c, nrhs, B, X);
+    return KM_OK;
+  }
   /* Shallow dense header over the caller's B; solve2 writes into c->X, reused across calls
    * with the same nrhs, and Y/E are its kept workspace, so steady-state solves allocate
    * nothing. Copying out afterwards makes B == X aliasing safe. */
@@ -169,6 +251,7 @@ void km_cholesky_free(km_cholesky **c) {
   cholmod_finish(&f->cc);
   free(f->Ap);
   free(f->Ai);
+  free(f->ws);
   free(f);
   *c = NULL;
 }
