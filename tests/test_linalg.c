@@ -217,7 +217,7 @@ static void test_blas_threads(void) {
   CHECK(km_blas_threads(0) == before);
 }
 
-/* The simplicial LDL' kind (km_transfer's), through cholmod_solve2: 1, 3 and 6 columns,
+/* The simplicial LDL' kind (km_transfer's), solved by kinemesh's own sweeps: 1, 3 and 6 columns,
  * aliased or not, against the residual and the LL' solution. */
 static void test_cholesky_ldl(void) {
   const int n = 1500, nrhs = 6;
