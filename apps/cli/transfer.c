@@ -122,7 +122,7 @@ int km_cli_transfer(int argc, char **argv) {
        "targets, instead of TEMPLATE's landmarks"},
       {"frame", 0, KM_OPT_SIZE, &xyz_frame, "frame of --landmarks-xyz (default 0)"},
       {"iterations", 'i', KM_OPT_INT, &iterations,
-       "maximum solves (default 5; 10 with --encoding vertex); each lowers the energy printed"},
+       "maximum solves (default 4; 10 with --encoding vertex); each lowers the energy printed"},
       {"damping", 0, KM_OPT_DOUBLE, &damping,
        "pull of each one-ring's stretch towards none (default 0.3; negative: none)"},
       {"encoding", 0, KM_OPT_STRING, &encoding,
