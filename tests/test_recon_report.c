@@ -332,6 +332,7 @@ static void test_occluded_arm(void) {
     CHECK(strstr(text, "\"ElbowLeft\"") || strstr(text, "\"WristLeft\"") ||
           strstr(text, "\"HandLeft\""));
   }
+  km_recon_report_free(&rep);
   free(truth);
   km_paths_free(&paths, n);
   remove_dir(dir);
