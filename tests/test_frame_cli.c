@@ -4,7 +4,8 @@
  * result the y-up original gives. Every output is in kinemesh's frame (y up, facing +z), as
  * `animate`'s is, so the two runs are compared as they are. The copy's frame comes from its
  * rig sidecar's "frame" record (what `rig` writes), from --up/--forward, or, for the clouds,
- * from the template (the default rule) or --clouds-up/--clouds-forward. */
+ * from the template (the default rule) or --clouds-up/--clouds-forward. A copy in other units
+ * (x100) poses to the original's result up to that scale, with no flags. */
 #include "km_test.h"
 
 #include <unistd.h>
@@ -121,6 +122,69 @@ static void test_pose(void) {
   CHECK_MSG(d > 0.1, "pose in the wrong frame is only %g m off", d);
 }
 
+/* A copy of the character in centimetres (x100), rigged with no --units as `rig` rigs such a
+ * scan: its sidecar's joints are in the file's units and record no scale. */
+static void cm_copy(const char *mesh, const char *dst_mesh, const char *dst_rig) {
+  km_character c = {0};
+  CHECK_OK(km_mesh_read(mesh, &c.mesh, KM_E));
+  char rig[256];
+  snprintf(rig, sizeof rig, "%.*s.rig.json", (int)(strlen(mesh) - 4), mesh);
+  CHECK_OK(km_character_read_rig(rig, c.mesh.n_vertices, &c, KM_E));
+  for (size_t i = 0; i < 3 * c.mesh.n_vertices; ++i)
+    c.mesh.V[i] *= 100;
+  for (size_t i = 0; i < 3 * c.skeleton.n_joints; ++i)
+    c.skeleton.rest[i] *= 100;
+  CHECK_OK(km_mesh_write(dst_mesh, &c.mesh, NULL, KM_E));
+  CHECK_OK(km_character_write_rig(dst_rig, &c, KM_E));
+  km_character_free(&c);
+}
+
+/* Largest difference between .pc2 a scaled by k and b. */
+static double pc2_diff_scaled(const char *a, double k, const char *b) {
+  double *pa = NULL, *pb = NULL, worst = INFINITY;
+  km_anim_info ia, ib;
+  CHECK_OK(km_pc2_read(a, &pa, &ia, KM_E));
+  CHECK_OK(km_pc2_read(b, &pb, &ib, KM_E));
+  if (pa && pb && ia.frames == ib.frames && ia.vertices == ib.vertices && ia.frames > 0) {
+    worst = 0;
+    for (size_t i = 0; i < ia.frames * ia.vertices * 3; ++i)
+      worst = fmax(worst, fabs(k * pa[i] - pb[i]));
+  }
+  free(pa);
+  free(pb);
+  return worst;
+}
+
+/* Other units than the take's: a x100 copy posed with no flags is the original x100 (the
+ * performer-to-character scale follows the rig's bone lengths), and with --units cm the
+ * original itself (the sidecar's joints rescaled with the mesh). */
+static void test_pose_units(void) {
+  cm_copy(DIR "/c.obj", DIR "/c100.obj", DIR "/c100.rig.json");
+  char *out = NULL;
+  CHECK(km_test_run(KM_CLI " pose --mesh " DIR "/c100.obj --motion " DIR "/w.json -o " DIR
+                           "/pose_100.pc2",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "scale 100"), "pose prints the scale it found: %s", out ? out : "");
+  free(out);
+  double d = pc2_diff_scaled(DIR "/pose_y.pc2", 100, DIR "/pose_100.pc2");
+  CHECK_MSG(d < 1e-3, "pose: the x100 copy is %g cm off 100 x the original", d);
+  run_ok(KM_CLI " pose --mesh " DIR "/c100.obj --units cm --motion " DIR "/w.json -o " DIR
+                "/pose_100m.pc2");
+  d = pc2_diff(DIR "/pose_y.pc2", DIR "/pose_100m.pc2");
+  CHECK_MSG(d < 1e-5, "pose --units cm: the x100 copy is %g m off the original", d);
+  /* the take for the character itself: scale 1, its joint positions met as they are */
+  run_ok(KM_CLI " pose --mesh " DIR "/c.obj --scale 1 --motion " DIR "/w.json -o " DIR
+                "/pose_s1.pc2");
+  d = pc2_diff(DIR "/pose_y.pc2", DIR "/pose_s1.pc2");
+  CHECK_MSG(d < 1e-5, "pose: the character's own take is %g m off --scale 1", d);
+  /* the take's metres on the centimetre skeleton (the old collapse): far off, so the checks
+   * above can fail */
+  run_ok(KM_CLI " pose --mesh " DIR "/c100.obj --scale 1 --motion " DIR "/w.json -o " DIR
+                "/pose_100s1.pc2");
+  d = pc2_diff_scaled(DIR "/pose_y.pc2", 100, DIR "/pose_100s1.pc2");
+  CHECK_MSG(d > 10, "pose --scale 1 on the x100 copy is only %g cm off", d);
+}
+
 static void test_reconstruct(void) {
   run_ok(KM_CLI " gen capture --character " DIR "/c.obj --motion " DIR "/w3.json --cameras 6 "
                 "--points 6000 --noise-mm 1 -o " DIR "/frames");
@@ -232,6 +296,7 @@ int main(void) {
   zup_mesh(DIR "/b.obj", DIR "/bz.obj");
   zup_sidecar(DIR "/b.rig.json", DIR "/bz.rig.json");
   test_pose();
+  test_pose_units();
   test_reconstruct();
   test_transfer_avatar();
   if (!km_test_failed) km_test_run("rm -rf " DIR, NULL);

@@ -89,6 +89,10 @@ typedef struct km_cli_frame_opts {
  * on a bad option. */
 int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opts *fo,
                       const km_mesh *m, bool quiet, km_frame *out, bool *guessed);
+/* Metres per file unit that the mesh's rig sidecar (rig_path, else <mesh stem>.rig.json)
+ * records in its "frame" ("scale"): the unit its joints were written in; 1 when it records
+ * none (the joints are in the mesh file's own units). */
+double km_cli_sidecar_scale(const char *mesh_path, const char *rig_path);
 /* km_cli_mesh_frame, then the mesh is brought into kinemesh's frame (y up, facing +z,
  * metres). Returns 0, or prints the error and returns an exit status. */
 int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo, km_mesh *m);

@@ -525,6 +525,11 @@ static bool sidecar_frame(const char *mesh_path, const char *rig_path, km_frame 
   return ok;
 }
 
+double km_cli_sidecar_scale(const char *mesh_path, const char *rig_path) {
+  km_frame f;
+  return sidecar_frame(mesh_path, rig_path, &f) && f.scale > 0 ? f.scale : 1;
+}
+
 int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opts *fo,
                       const km_mesh *m, bool quiet, km_frame *out, bool *guessed) {
   memset(out, 0, sizeof *out);

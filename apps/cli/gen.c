@@ -133,6 +133,13 @@ int km_cli_load_character_oriented(const char *verb, const char *mesh, const cha
   if (!o.rig) o.rig = rig;
   int rc = km_cli_mesh_frame(verb, mesh, &o, &c->mesh, false, &fr, NULL);
   if (rc) return rc;
+  if (!own) {
+    /* The sidecar's joints are in kinemesh's axes and in the unit its "frame" records (the
+     * file's own when none): --units other than that one rescales them with the mesh. */
+    double k = (fr.scale > 0 ? fr.scale : 1) / km_cli_sidecar_scale(mesh, o.rig);
+    for (size_t i = 0; k != 1 && i < 3 * c->skeleton.n_joints; ++i)
+      c->skeleton.rest[i] *= k;
+  }
   if (fr.up == KM_AXIS_POS_Y && fr.forward == KM_AXIS_POS_Z && (fr.scale == 0 || fr.scale == 1))
     return 0; /* already kinemesh's frame: the positions stay bit for bit */
   if (km_mesh_frame_apply(&fr, &c->mesh, &err) != KM_OK ||

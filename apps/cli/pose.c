@@ -6,6 +6,39 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* The performer-to-character scale of a take on skeleton s (map: s's joint -> the take's, -1
+ * none): the summed rest bone lengths of s over the take's, each take bone its median length
+ * over the frames where both its joints are tracked (a posture-independent size, unlike a
+ * height, and robust to a tracker's noisy wrist and ankle bones). A take made for s itself
+ * (`gen motion --character`) keeps its bone lengths, so it gives 1 (to rounding); a character
+ * in centimetres gives about 100. 1 when no bone is tracked. The retargeter's automatic scale
+ * (mesh height over performer stature) is not used: it would change a take made for the
+ * character by a few percent, where joint positions are to be met as they are. */
+static double performer_scale(const km_skeleton *s, const km_take *t, const int *map) {
+  double sum_c = 0, sum_t = 0;
+  double *len = malloc(sizeof(double) * (t->n_frames ? t->n_frames : 1));
+  if (!len) return 1;
+  for (size_t j = 0; j < s->n_joints; ++j) {
+    int p = s->parents[j];
+    if (p < 0 || map[j] < 0 || map[p] < 0) continue;
+    size_t n = 0;
+    for (size_t f = 0; f < t->n_frames; ++f) {
+      const double *a = t->positions + (f * t->n_joints + (size_t)map[j]) * 3;
+      const double *b = t->positions + (f * t->n_joints + (size_t)map[p]) * 3;
+      double d = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                      (a[2] - b[2]) * (a[2] - b[2]));
+      if (isfinite(d)) len[n++] = d;
+    }
+    if (n == 0) continue;
+    const double *ra = s->rest + 3 * j, *rb = s->rest + 3 * p;
+    sum_c += sqrt((ra[0] - rb[0]) * (ra[0] - rb[0]) + (ra[1] - rb[1]) * (ra[1] - rb[1]) +
+                  (ra[2] - rb[2]) * (ra[2] - rb[2]));
+    sum_t += km_cli_median(len, n);
+  }
+  free(len);
+  return sum_t > 0 && sum_c > 0 ? sum_c / sum_t : 1;
+}
+
 /* Poses a skinned character along a take by linear blend skinning: the rig's skeleton is
  * driven by the take's joint positions (matched by name). */
 int km_cli_pose(int argc, char **argv) {
@@ -15,7 +48,7 @@ int km_cli_pose(int argc, char **argv) {
   size_t key_every = 0;
   bool compress = false;
   const char *export_kind = NULL;
-  double max_error_mm = 0;
+  double max_error_mm = 0, scale = 0;
   /* The mesh is brought into kinemesh's frame as animate brings it (the rig sidecar's
    * skeleton is stored in that frame); the output is in it, as animate's is. */
   km_cli_frame_opts fo = {0};
@@ -27,7 +60,11 @@ int km_cli_pose(int argc, char **argv) {
       KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm, compress),
       {"rig", 0, KM_OPT_STRING, &rig,
        "its rig sidecar (default <mesh stem>.rig.json, else a glTF's own skin)"},
-      {"motion", 0, KM_OPT_STRING, &motion, "take (.json) with the rig's joint names"},
+      {"motion", 0, KM_OPT_STRING, &motion,
+       "take: .json (kinemesh), .csv (Kinect v1 recording), .bvh; joints matched by name"},
+      {"scale", 0, KM_OPT_DOUBLE, &scale,
+       "performer-to-character scale: the take's positions are multiplied by it (default: the "
+       "rig's bone lengths over the take's; 1 meets the take's positions as they are)"},
       {"fps", 0, KM_OPT_DOUBLE, &fps,
        "frame rate of the output; the motion is resampled (default: the take's)"},
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
@@ -56,7 +93,7 @@ int km_cli_pose(int argc, char **argv) {
   int *map = NULL;
   int rc = KM_EXIT_FAIL;
   if ((rc = km_cli_load_character_oriented("pose", mesh, rig, 0, &fo, &c, NULL))) goto done;
-  if (km_take_read(motion, &t, &err) != KM_OK) goto fail;
+  if (km_motion_read(motion, NULL, &t, NULL, &err) != KM_OK) goto fail;
   if ((rc = km_cli_orient_take("pose", &fo, &t))) goto done;
   rc = KM_EXIT_FAIL;
   if (fps > 0 && fps != t.fps && t.n_frames > 0) { /* resample, do not relabel */
@@ -79,6 +116,9 @@ int km_cli_pose(int argc, char **argv) {
     for (size_t k = 0; k < t.n_joints; ++k)
       if (!strcmp(c.skeleton.names[j], t.joint_names[k])) map[j] = (int)k;
   }
+  /* A character in other units than the take's metres (a scan in centimetres, rigged with
+   * no --units) or of another size: the take is scaled to it, as animate scales it. */
+  if (!(scale > 0)) scale = performer_scale(&c.skeleton, &t, map);
   km_anim_options ao = {0};
   ao.fps = fps > 0 ? fps : t.fps;
   ao.key_every = key_every;
@@ -108,7 +148,7 @@ int km_cli_pose(int argc, char **argv) {
     for (size_t j = 0; j < nj; ++j)
       for (int a = 0; a < 3; ++a)
         pos_frame[3 * j + a] =
-            map[j] < 0 ? NAN : t.positions[(f * t.n_joints + (size_t)map[j]) * 3 + a];
+            map[j] < 0 ? NAN : scale * t.positions[(f * t.n_joints + (size_t)map[j]) * 3 + a];
     if (km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err) != KM_OK ||
         km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK ||
         (w && km_anim_writer_push(w, V, &err) != KM_OK))
@@ -123,8 +163,8 @@ int km_cli_pose(int argc, char **argv) {
   if (track_out && km_track_write(track_out, &trk, &err) != KM_OK) goto fail;
   km_cli_progress_done();
   if (out) km_cli_report_export("pose", &rep);
-  fprintf(stderr, "kinemesh pose: %zu frames of %zu vertices -> %s%s%s\n", t.n_frames,
-          c.mesh.n_vertices, out ? out : "", out && track_out ? ", landmark track " : "",
+  fprintf(stderr, "kinemesh pose: %zu frames of %zu vertices, scale %.4g -> %s%s%s\n", t.n_frames,
+          c.mesh.n_vertices, scale, out ? out : "", out && track_out ? ", landmark track " : "",
           track_out ? track_out : "");
   rc = KM_EXIT_OK;
   goto done;
