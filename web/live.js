@@ -258,19 +258,72 @@ canvas.addEventListener('pointermove', (e) => {
 });
 canvas.addEventListener('pointerleave', () => { state.hover = -1; $('hover').textContent = '–'; });
 
-// Preview of the handle region: a Euclidean ball on the rest mesh (the server resolves the
-// geodesic ball when the rig is saved; the colours then come from /handles).
-function setPending(v) {
-  const radius = +$('h-radius').value, R = state.rest, preview = [];
-  const x = R[3 * v], y = R[3 * v + 1], z = R[3 * v + 2];
-  for (let i = 0; i < state.nv; ++i) {
-    const dx = R[3 * i] - x, dy = R[3 * i + 1] - y, dz = R[3 * i + 2] - z;
-    if (dx * dx + dy * dy + dz * dz <= radius * radius) preview.push(i);
+// The handle region: the geodesic ball the server resolves for {"vertex", "radius"} (shortest
+// path along mesh edges <= radius, so it stays on the clicked limb), minus the vertices other
+// handles already hold (a vertex belongs to one handle only: the default rig's pelvis and
+// chest bands sit inside an 8 cm ball clicked on the torso). When nothing is taken the handle
+// is saved as {"vertex", "radius"}; otherwise as the explicit "vertices" left, so the save is
+// not refused as overlapping; when nothing is left the panel says which handle has them.
+function edgeGraph() {
+  if (state.graph) return state.graph;
+  const idx = geom.getIndex().array, nv = state.nv, ptr = new Int32Array(nv + 1);
+  for (let k = 0; k < idx.length; ++k) ptr[idx[k] + 1] += 2;
+  for (let v = 0; v < nv; ++v) ptr[v + 1] += ptr[v];
+  const adj = new Int32Array(ptr[nv]), fill = ptr.slice(0, nv);
+  for (let f = 0; f + 2 < idx.length; f += 3)
+    for (let k = 0; k < 3; ++k) {
+      const a = idx[f + k], b = idx[f + (k + 1) % 3];
+      adj[fill[a]++] = b; adj[fill[b]++] = a;
+    }
+  return (state.graph = { ptr, adj });
+}
+function geodesicBall(seed, radius) {
+  const R = state.rest, { ptr, adj } = edgeGraph(), dist = new Map([[seed, 0]]), out = [];
+  const heap = [[0, seed]], done = new Set();
+  const push = (e) => { heap.push(e); for (let i = heap.length - 1; i > 0;) { const p = (i - 1) >> 1; if (heap[p][0] <= heap[i][0]) break; [heap[p], heap[i]] = [heap[i], heap[p]]; i = p; } };
+  const pop = () => {
+    const top = heap[0], last = heap.pop();
+    if (heap.length) {
+      heap[0] = last;
+      for (let i = 0; ;) {
+        const l = 2 * i + 1, r = l + 1; let m = i;
+        if (l < heap.length && heap[l][0] < heap[m][0]) m = l;
+        if (r < heap.length && heap[r][0] < heap[m][0]) m = r;
+        if (m === i) break;
+        [heap[m], heap[i]] = [heap[i], heap[m]]; i = m;
+      }
+    }
+    return top;
+  };
+  while (heap.length) {
+    const [d, v] = pop();
+    if (done.has(v)) continue;
+    done.add(v); out.push(v);
+    for (let k = ptr[v]; k < ptr[v + 1]; ++k) {
+      const w = adj[k];
+      if (done.has(w)) continue;
+      const nd = d + Math.hypot(R[3 * w] - R[3 * v], R[3 * w + 1] - R[3 * v + 1], R[3 * w + 2] - R[3 * v + 2]);
+      if (nd <= radius && nd < (dist.get(w) ?? Infinity)) { dist.set(w, nd); push([nd, w]); }
+    }
   }
-  if (!preview.length) preview.push(v);
-  state.pending = { vertex: v, preview };
+  return out;
+}
+function setPending(v) {
+  const radius = +$('h-radius').value, owner = new Map();
+  for (const h of state.handleSets) for (const u of h.vertices) owner.set(u, h.name);
+  // The taken check uses a slightly larger ball: the server's double-precision distances must
+  // not find a taken vertex on the rim that this float32 copy missed.
+  const rim = geodesicBall(v, radius * 1.001 + 1e-9);
+  const ball = new Set(geodesicBall(v, radius));
+  const taken = rim.filter((u) => owner.has(u));
+  const free = rim.filter((u) => ball.has(u) && !owner.has(u));
+  state.pending = { vertex: v, preview: free, taken: taken.length,
+    explicit: taken.length > 0, owners: [...new Set(taken.map((u) => owner.get(u)))] };
   $('h-vertex').textContent = v;
-  $('h-add').disabled = false;
+  $('h-add').disabled = free.length === 0;
+  $('save-status').textContent = !taken.length ? ''
+    : free.length ? `${taken.length} vertices within the radius belong to ${state.pending.owners.join(', ')}: the new handle takes the ${free.length} others`
+      : `every vertex within the radius belongs to ${state.pending.owners.join(', ')}: click elsewhere, lower the radius or remove that handle`;
   recolor();
 }
 
@@ -356,7 +409,9 @@ $('h-add').addEventListener('click', () => {
   const radius = +$('h-radius').value;
   state.rig.handles = state.rig.handles || [];
   state.rig.map = state.rig.map || [];
-  state.rig.handles.push({ name, vertex: state.pending.vertex, radius });
+  state.rig.handles.push(state.pending.explicit
+    ? { name, seed: state.pending.vertex, vertices: state.pending.preview.slice().sort((a, b) => a - b) }
+    : { name, vertex: state.pending.vertex, radius });
   state.rig.map.push({ handle: name, joint, axes, scale: +$('h-scale').value || 1 });
   state.handleSets.push({ name, vertices: state.pending.preview });
   state.edits = (state.edits || 0) + 1;

@@ -2,7 +2,9 @@
 // the live page, draws the partial skeleton of an OSCeleton frame, plays the take with the
 // replay button, checks frames arrive, the mesh moves and its decoded positions fill the
 // frame's box (float32, or int16 with --quantize), adds a handle through the mapping panel (click on a projected vertex, pick the joint
-// on the diagram, add, save) and checks the rig file on disk. Keeps a screenshot.
+// on the diagram, add, save) and checks the rig file on disk; a torso handle with the default
+// 8 cm ball, which overlaps the default rig's chest and pelvis bands, takes the vertices left
+// and saves. Keeps a screenshot.
 import dgram from 'node:dgram';
 import fs from 'node:fs';
 import path from 'node:path';
@@ -124,6 +126,60 @@ await runLivePage(http, 'live_e2e', path.join(work, 'live_page.png'), async (pag
   const rig2 = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
   check(rig2.handles.length === nBefore - 1 && !rig2.handles.some((x) => x.name === 'foot_left') &&
     !rig2.map.some((x) => x.handle === 'foot_left'), 'removed foot_left: handle and map entry gone from the rig on disk');
+
+  // A handle on the torso with the default 8 cm ball: the default rig's chest and pelvis bands
+  // lie inside it, and a vertex may belong to one handle only. The page gives the new handle
+  // the vertices no other handle has (saved as an explicit list) and the save succeeds; a ball
+  // with nothing left says so and cannot be added. The vertices are picked on the rest mesh
+  // (front-most: facing the camera) and clicked where they are now.
+  const hsNow = (await (await fetch(`${url}handles`)).json()).handles;
+  const chest = hsNow.find((x) => x.name === 'chest'), pelvis = hsNow.find((x) => x.name === 'pelvis');
+  check(chest && pelvis, `the default rig has chest and pelvis band handles (${hsNow.map((x) => x.name).join(', ')})`);
+  const cur = await page.evaluate(() => Array.from(window.kmLive.rest));
+  const taken = new Set(hsNow.flatMap((x) => x.vertices));
+  const front = (cands) => cands.reduce((b, i) => (b < 0 || cur[3 * i + 2] > cur[3 * b + 2] ? i : b), -1);
+  const clickVertex = async (i) => {
+    const q = await page.evaluate((k) => window.kmLive.project(k), i);
+    await page.mouse.click(q.x, q.y);
+    return page.evaluate(() => window.kmLive.pending);
+  };
+  const mean = (h, a) => h.vertices.reduce((t, i) => t + cur[3 * i + a], 0) / h.vertices.length;
+  const xc = mean(pelvis, 0);
+  // (1) radius 0 on a pelvis-band vertex facing the camera: nothing left
+  const frontBand = pelvis.vertices.filter((i) => Math.abs(cur[3 * i] - xc) < 0.05);
+  const bandV = front(frontBand);
+  await page.fill('#h-radius', '0');
+  await page.dispatchEvent('#h-radius', 'input');
+  const p0 = await clickVertex(bandV);
+  const msg0 = await page.textContent('#save-status');
+  check(p0 && p0.preview.length === 0 && await page.isDisabled('#h-add') && /every vertex .*belongs to pelvis/.test(msg0),
+    `a ball inside the pelvis band cannot be added, and says why (vertex ${p0 && p0.vertex}: "${msg0}")`);
+  // (2) the default 8 cm ball on the belly, just above the pelvis band's front
+  const yb = Math.max(...frontBand.map((i) => cur[3 * i + 1])) + 0.03;
+  const belly = front([...Array(cur.length / 3).keys()].filter((i) => !taken.has(i) &&
+    Math.abs(cur[3 * i] - xc) < 0.03 && Math.abs(cur[3 * i + 1] - yb) < 0.02));
+  await page.fill('#h-radius', '0.08');
+  await page.dispatchEvent('#h-radius', 'input');
+  const p1 = await clickVertex(belly);
+  const msg1 = await page.textContent('#save-status');
+  check(p1 && p1.owners.includes('pelvis') && p1.preview.length > 0 && p1.preview.every((i) => !taken.has(i)) && /pelvis/.test(msg1),
+    `torso click (vertex ${p1 && p1.vertex}): the 8 cm ball overlaps ${p1 && p1.owners.join(', ')} (${p1 && p1.taken} vertices), the handle takes the ${p1 && p1.preview.length} free ones ("${msg1}")`);
+  await page.click('#diagram circle[data-joint="Spine"]');
+  await page.click('#h-add');
+  await page.click('#save');
+  await page.waitForFunction(() => window.kmLive.saved >= 3 || /error/.test(document.getElementById('save-status').textContent), null, { timeout: 40000 });
+  const msg2 = await page.textContent('#save-status');
+  check(/^saved/.test(msg2), `the torso handle saves (${msg2})`);
+  const rig3 = JSON.parse(fs.readFileSync(rigPath, 'utf8'));
+  const ht = p1 && rig3.handles.find((x) => x.seed === p1.vertex);
+  check(ht && Array.isArray(ht.vertices) && ht.vertices.length === p1.preview.length && rig3.map.some((x) => x.handle === ht.name && x.joint === 'Spine'),
+    `rig on disk: the torso handle as ${ht ? ht.vertices.length : 0} explicit vertices, mapped to Spine`);
+  const hs3 = (await (await fetch(`${url}handles`)).json()).handles;
+  const ht3 = ht && hs3.find((x) => x.name === ht.name);
+  const others = new Set(hs3.filter((x) => x !== ht3).flatMap((x) => x.vertices));
+  check(ht3 && ht3.vertices.length === ht.vertices.length && ht3.vertices.every((i) => !others.has(i)) &&
+    hs3.find((x) => x.name === 'chest').vertices.length === chest.vertices.length,
+    'the server resolved it with no vertex of another handle; chest keeps its own');
 
   // The deformation keeps running with the new rig: the whole replay is deformed (or
   // superseded by newer input) with no solve error, and the page gets its last frame.
