@@ -20,6 +20,8 @@ awk 'NR==FNR { if ($1 == "v") printf "vt %.6f %.6f\n", ($2 + 1) / 2, $3 / 2; nex
   "$WORK/c.obj" "$WORK/c.obj" > "$WORK/ct.obj"
 cp "$WORK/c.rig.json" "$WORK/ct.rig.json"
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --key-every 4 -o "$WORK/textured.glb"
+# Issue 11: the textured mesh through the puppetry pipeline (animate) too, its cache kept here.
+XDG_CACHE_HOME="$WORK/cache" "$BIN" animate --mesh "$WORK/ct.obj" --motion "$WORK/t.json" -o "$WORK/textured_anim.glb"
 # Issue 16: a skinned export (SSDR fit; JOINTS_0/WEIGHTS_0, inverse bind matrices, TRS channels).
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export skin -o "$WORK/skin.glb"  # seeded by the rig
 # kinemesh bake: the per-frame morph file back to a skin, and a pc2 + rest mesh to a skin.
@@ -36,10 +38,10 @@ cp "$WORK/c.rig.json" "$WORK/ct.rig.json"
 if "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --compress -o "$WORK/z.pc2" 2>/dev/null; then
   echo "FAIL: --compress accepted a .pc2 output"; exit 1
 fi
-for f in every keys textured skin baked baked_pc2 pca z_keys z_skin z_pca z_baked; do
+for f in every keys textured textured_anim skin baked baked_pc2 pca z_keys z_skin z_pca z_baked; do
   node "$HERE/validate.mjs" "$WORK/$f.glb" | tee "$WORK/$f.txt"
   grep -q ': 0 errors, 0 warnings' "$WORK/$f.txt" || { echo "FAIL: $f.glb has validator errors or warnings"; exit 1; }
 done
 "$BIN" info --json "$WORK/every.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames"; exit 1; }
 "$BIN" info --json "$WORK/skin.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames for the skin"; exit 1; }
-echo "gltf_validator: 13 passed, 0 failed"
+echo "gltf_validator: 14 passed, 0 failed"
