@@ -157,7 +157,8 @@ static double pc2_diff_scaled(const char *a, double k, const char *b) {
 
 /* Other units than the take's: a x100 copy posed with no flags is the original x100 (the
  * performer-to-character scale follows the rig's bone lengths), and with --units cm the
- * original itself (the sidecar's joints rescaled with the mesh). */
+ * original itself (the sidecar's joints rescaled with the mesh); animated with --units cm,
+ * the original too. */
 static void test_pose_units(void) {
   cm_copy(DIR "/c.obj", DIR "/c100.obj", DIR "/c100.rig.json");
   char *out = NULL;
@@ -183,6 +184,13 @@ static void test_pose_units(void) {
                 "/pose_100s1.pc2");
   d = pc2_diff_scaled(DIR "/pose_y.pc2", 100, DIR "/pose_100s1.pc2");
   CHECK_MSG(d > 10, "pose --scale 1 on the x100 copy is only %g cm off", d);
+  /* animate --units cm on that sidecar: its handle radii and joints are in the file's units,
+   * resolved as such (not 100 x too wide balls, refused as overlapping) */
+  run_ok(KM_CLI " animate --mesh " DIR "/c.obj --motion " DIR "/w.json -o " DIR "/anim_y.pc2");
+  run_ok(KM_CLI " animate --mesh " DIR "/c100.obj --units cm --motion " DIR "/w.json -o " DIR
+                "/anim_100m.pc2");
+  d = pc2_diff(DIR "/anim_y.pc2", DIR "/anim_100m.pc2");
+  CHECK_MSG(d < 1e-4, "animate --units cm: the x100 copy is %g m off the original", d);
 }
 
 static void test_reconstruct(void) {

@@ -101,9 +101,19 @@ int km_cli_animate(int argc, char **argv) {
       km_motion_read(motion, NULL, &take, NULL, &err) != KM_OK)
     goto fail;
   fo.rig = rig_path; /* the frame its sidecar records (the default one when not given) */
-  if ((rc = km_cli_orient_mesh("animate", mesh_path, &fo, &m)) ||
+  km_frame mf;
+  if ((rc = km_cli_mesh_frame("animate", mesh_path, &fo, &m, false, &mf, NULL)) ||
       (rc = km_cli_orient_take("animate", &fo, &take)))
     goto done;
+  if (!(mf.up == KM_AXIS_POS_Y && mf.forward == KM_AXIS_POS_Z &&
+        (mf.scale == 0 || mf.scale == 1)) &&
+      km_mesh_frame_apply(&mf, &m, &err) != KM_OK)
+    goto fail;
+  /* The sidecar's lengths (handle radii, joints) are in the unit its "frame" records (the
+   * file's own when none); --units other than that one: the rig is resolved on the mesh in
+   * that unit and its joints rescaled, so `rig` without --units then `animate --units cm`
+   * agree. */
+  double rig_k = (mf.scale > 0 ? mf.scale : 1) / km_cli_sidecar_scale(mesh_path, rig_path);
   rc = KM_EXIT_FAIL;
   if (!cache && !(cache_default = km_cli_cache_path(&m))) goto nomem;
   if (take.n_frames == 0) {
@@ -124,12 +134,23 @@ int km_cli_animate(int argc, char **argv) {
     km_character_free(&sc);
     if (ss != KM_OK) goto fail;
   }
-  if ((skin_json ? km_rig_parse(skin_json, skin_json_n, mesh_path, &m,
-                                (const char *const *)take.joint_names, take.n_joints, &rig, &err)
-                 : km_rig_read(rig_path ? rig_path : rig_default, &m,
-                               (const char *const *)take.joint_names, take.n_joints, &rig, &err)) !=
-      KM_OK)
-    goto fail;
+  km_mesh rig_mesh = m; /* m in the sidecar's unit when it differs (V replaced, not freed) */
+  double *rig_V = NULL;
+  if (!skin_json && rig_k != 1) {
+    if (!(rig_V = malloc(sizeof(double) * 3 * m.n_vertices))) goto nomem;
+    for (size_t i = 0; i < 3 * m.n_vertices; ++i)
+      rig_V[i] = m.V[i] / rig_k;
+    rig_mesh.V = rig_V;
+  }
+  km_status rs =
+      skin_json ? km_rig_parse(skin_json, skin_json_n, mesh_path, &m,
+                               (const char *const *)take.joint_names, take.n_joints, &rig, &err)
+                : km_rig_read(rig_path ? rig_path : rig_default, &rig_mesh,
+                              (const char *const *)take.joint_names, take.n_joints, &rig, &err);
+  free(rig_V);
+  if (rs != KM_OK) goto fail;
+  for (size_t i = 0; !skin_json && rig_k != 1 && rig.joint_rest && i < 3 * rig.n_joint_rest; ++i)
+    rig.joint_rest[i] *= rig_k;
 
   if (rig.n_maps == 0) { /* all anchors: a still animation nobody asked for */
     rc = km_cli_error("animate",
