@@ -474,6 +474,14 @@ typedef struct km_frame_guess {
  *   out  out: the guess
  * Errors: KM_ERR_INVALID for an empty or flat (zero extent) mesh. */
 km_status km_mesh_frame_guess(const km_mesh *m, km_frame_guess *out, km_error *err);
+/* km_mesh_frame_guess's forward for a given up axis (the user said only --up): the lateral
+ * axis and forward's sign are found with that up, not with the guessed one.
+ *   m    in: triangle mesh
+ *   up   in: the up axis; KM_AXIS_NONE: guessed (= km_mesh_frame_guess)
+ *   out  out: the guess, out->frame.up = up
+ * Errors: as km_mesh_frame_guess; KM_ERR_INVALID for an unknown axis value. */
+km_status km_mesh_frame_guess_forward(const km_mesh *m, km_axis up, km_frame_guess *out,
+                                      km_error *err);
 
 /* ---- topology and extent */
 

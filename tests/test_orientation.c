@@ -77,6 +77,34 @@ static void test_rotated_copies(void) {
   CHECK_OK(km_mesh_frame_guess(&m, &g, KM_E));
   CHECK_MSG(g.frame.up == KM_AXIS_POS_Y && g.frame.forward == KM_AXIS_POS_Z, "guess %s %s",
             km_axis_name(g.frame.up), km_axis_name(g.frame.forward));
+  /* only up known (--up alone): forward is found for that up, its height along it */
+  {
+    km_mesh z = m;
+    km_frame zf = {KM_AXIS_POS_Z, KM_AXIS_NEG_Y, 0};
+    double R[9];
+    CHECK_OK(km_frame_rotation(&zf, R, KM_E));
+    z.V = malloc(sizeof(double) * 3 * m.n_vertices);
+    z.N = NULL;
+    for (size_t i = 0; z.V && i < m.n_vertices; ++i)
+      for (int a = 0; a < 3; ++a) /* into the z-up file frame: p_file = R^T p */
+        z.V[3 * i + a] = R[a] * m.V[3 * i] + R[3 + a] * m.V[3 * i + 1] + R[6 + a] * m.V[3 * i + 2];
+    km_frame_guess gz, gy;
+    CHECK_OK(km_mesh_frame_guess_forward(&z, KM_AXIS_POS_Z, &gz, KM_E));
+    CHECK_MSG(gz.frame.up == KM_AXIS_POS_Z && gz.frame.forward == KM_AXIS_NEG_Y &&
+                  fabs(gz.height - g.height) < 1e-9 * g.height,
+              "z-up copy with up +z: guess %s %s, height %g (want +z -y, %g)",
+              km_axis_name(gz.frame.up), km_axis_name(gz.frame.forward), gz.height, g.height);
+    /* up given as the copy's y (its depth): forward still across the mirror plane, the
+     * height measured along y */
+    CHECK_OK(km_mesh_frame_guess_forward(&z, KM_AXIS_NEG_Y, &gy, KM_E));
+    CHECK_MSG(gy.frame.up == KM_AXIS_NEG_Y &&
+                  (gy.frame.forward == KM_AXIS_POS_Z || gy.frame.forward == KM_AXIS_NEG_Z) &&
+                  gy.height < 0.5 * g.height,
+              "z-up copy with up -y: guess %s %s, height %g", km_axis_name(gy.frame.up),
+              km_axis_name(gy.frame.forward), gy.height);
+    CHECK_STATUS(km_mesh_frame_guess_forward(&z, (km_axis)42, &gy, KM_E), KM_ERR_INVALID);
+    free(z.V);
+  }
 
   char *out = NULL, cmd[2048];
   CHECK(km_test_run(KM_CLI " animate --mesh orient_t/c.obj --motion orient_t/w.json -o "

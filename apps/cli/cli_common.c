@@ -563,7 +563,8 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
   km_frame_guess g;
   km_error e = {0};
   if (fo->no_guess ||
-      km_mesh_frame_guess(m, &g, &e) != KM_OK) { /* flat or empty: keep kinemesh's axes */
+      /* with --up alone, forward is guessed for that up, not for a guessed one */
+      km_mesh_frame_guess_forward(m, out->up, &g, &e) != KM_OK) { /* flat or empty */
     if (!out->up) out->up = KM_AXIS_POS_Y;
     if (!out->forward || same_axis(out->up, out->forward)) out->forward = default_forward(out->up);
     return 0;

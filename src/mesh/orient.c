@@ -124,8 +124,12 @@ static double slab_mean(const sample *S, size_t n, int a, double mn, double ext,
   return sw > 0 ? sb / sw : NAN;
 }
 
-km_status km_mesh_frame_guess(const km_mesh *m, km_frame_guess *out, km_error *err) {
+/* km_mesh_frame_guess with the up axis given (KM_AXIS_NONE: guessed). */
+static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess *out,
+                             km_error *err) {
   if (!m || !out) return km__fail(err, KM_ERR_INVALID, "km_mesh_frame_guess: NULL argument");
+  if (given_up < KM_AXIS_NONE || given_up > KM_AXIS_NEG_Z)
+    return km__fail(err, KM_ERR_INVALID, "km_mesh_frame_guess: unknown up axis value");
   memset(out, 0, sizeof *out);
   if (!m->n_vertices || !m->V)
     return km__fail(err, KM_ERR_INVALID, "km_mesh_frame_guess: the mesh has no vertices");
@@ -185,7 +189,11 @@ km_status km_mesh_frame_guess(const km_mesh *m, km_frame_guess *out, km_error *e
     if (fabs(mn[c]) <= 0.03 * ext[c] && mx[c] > 0) ++n_ground, ground = c;
   double all = 0;
   int up_sign = 1;
-  if (n_ground == 1) {
+  if (given_up != KM_AXIS_NONE) {
+    up = (given_up - KM_AXIS_POS_X) / 2;
+    up_sign = (given_up - KM_AXIS_POS_X) % 2 ? -1 : 1;
+    out->sure_up = true;
+  } else if (n_ground == 1) {
     up = ground;
     out->sure_up = true;
   } else {
@@ -244,4 +252,13 @@ km_status km_mesh_frame_guess(const km_mesh *m, km_frame_guess *out, km_error *e
   out->frame.forward = (km_axis)(KM_AXIS_POS_X + 2 * fwd + (fwd_sign < 0));
   out->height = h;
   return KM_OK;
+}
+
+km_status km_mesh_frame_guess(const km_mesh *m, km_frame_guess *out, km_error *err) {
+  return frame_guess(m, KM_AXIS_NONE, out, err);
+}
+
+km_status km_mesh_frame_guess_forward(const km_mesh *m, km_axis up, km_frame_guess *out,
+                                      km_error *err) {
+  return frame_guess(m, up, out, err);
 }
