@@ -1,6 +1,7 @@
 /* `kinemesh bench live` through the CLI on a small generated character: the --json object
  * (its keys, frames that went through the whole path), --take and --rig, and the error for
- * a mesh without a rig. Correctness only: no speed is checked. */
+ * a mesh without a rig; `live --units` against a sidecar in other units. Correctness only: no
+ * speed is checked. */
 #include "km_test.h"
 
 #include <cjson/cJSON.h>
@@ -107,6 +108,13 @@ int main(void) {
   rc =
       km_test_run(KM_CLI " bench live --mesh " DIR "/c.obj --take " DIR "/c.rig.json --json", &out);
   CHECK_MSG(rc == 1 && out && strstr(out, "c.rig.json"), "exit %d: %s", rc, out ? out : "");
+  free(out);
+  /* `live --units cm` on a sidecar in the file's own units (no "frame" scale): refused
+   * before any port is opened, saying why, not as overlapping handles */
+  rc = km_test_run("timeout 30 " KM_CLI " live --mesh " DIR "/c.obj --units cm", &out);
+  CHECK_MSG(rc == 1 && out && strstr(out, "c.rig.json") && strstr(out, "--units") &&
+                !strstr(out, "overlap"),
+            "exit %d: %s", rc, out ? out : "");
   free(out);
   /* --help documents the options and succeeds */
   rc = km_test_run(KM_CLI " bench live --help", &out);

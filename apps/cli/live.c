@@ -211,6 +211,24 @@ int km_cli_live(int argc, char **argv) {
     rc = km_cli_error("live", "cannot read the rig %s", rig_file);
     goto done;
   }
+  {
+    /* The sidecar's radii and joints are in the unit its "frame" records; the server resolves
+     * the rig on the mesh as oriented, so another --units would make every ball 100x too wide
+     * (or narrow). Said plainly rather than as overlapping handles. */
+    km_frame mf;
+    double rs = km_cli_sidecar_scale(mesh_path, rig_path);
+    if (km_cli_mesh_frame("live", mesh_path, &fo, &m, true, &mf, NULL) == 0 &&
+        fabs((mf.scale > 0 ? mf.scale : 1) / rs - 1) > 1e-12) {
+      fclose(f);
+      char unit[64] = "the mesh file's units (no \"frame\" scale)";
+      if (rs != 1) snprintf(unit, sizeof unit, "%g m per unit", rs);
+      rc = km_cli_error("live",
+                        "%s holds its handle radii and joints in %s, but --units says %s: run "
+                        "live without --units, or rig the mesh again with those --units",
+                        rig_file, unit, fo.units ? fo.units : "m");
+      goto done;
+    }
+  }
   fseek(f, 0, SEEK_END);
   long sz = ftell(f);
   fseek(f, 0, SEEK_SET);
