@@ -95,6 +95,16 @@ async function loadMesh() {
   camera.updateProjectionMatrix();
   grid.position.y = bb.min.y;
   state.radiusScale = Math.max(size.x, size.y, size.z);
+  // The radius slider is in metres (0..0.3, 8 cm by default) for a mesh of human size; a mesh
+  // in other units (a scan in centimetres or millimetres, served as in its file when no
+  // --units was given) gets the slider in the matching power of ten, so the default ball is
+  // still about 8 cm of the character and not a single vertex (or the whole mesh).
+  const k = 10 ** Math.round(Math.log10(Math.max(size.y, 1e-12) / 1.7));
+  if (k !== 1 && Number.isFinite(k)) {
+    const r = $('h-radius');
+    r.max = String(0.3 * k); r.step = String(0.005 * k); r.value = String(0.08 * k);
+    $('h-radius-v').textContent = (+r.value).toFixed(3);
+  }
   recolor();
 }
 
