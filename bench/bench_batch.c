@@ -55,20 +55,10 @@ static double timed_cpu(const char *cmd, double *cpu) {
  * no segment (plain jobs, a segmented take's stitch); true, the segment jobs ("part_of").
  * *n: how many. */
 static void job_times(const char *report, bool segments, double *job_s, double *cpu_s, size_t *n) {
-  FILE *f = fopen(report, "rb");
   *job_s = *cpu_s = NAN;
   *n = 0;
-  if (!f) return;
-  fseek(f, 0, SEEK_END);
-  long size = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *buf = size > 0 ? malloc((size_t)size + 1) : NULL;
-  size_t got = buf ? fread(buf, 1, (size_t)size, f) : 0;
-  fclose(f);
-  if (!buf) return;
-  buf[got] = '\0';
-  cJSON *r = cJSON_Parse(buf);
-  free(buf);
+  cJSON *r = km_cli_read_json(report);
+  if (!r) return;
   const cJSON *jobs = cJSON_GetObjectItemCaseSensitive(r, "jobs");
   int count = cJSON_GetArraySize(jobs);
   double *t = calloc(2 * (size_t)count + 2, sizeof *t), *c = t ? t + count + 1 : NULL;
@@ -92,20 +82,10 @@ static void job_times(const char *report, bool segments, double *job_s, double *
  * command's end (t1). Returns false when the report has no ranks (one process, the shards). */
 static bool rank_times(const char *report, double t0, double t1, double *sum, double busy[2],
                        double *launch, double *tail) {
-  FILE *f = fopen(report, "rb");
   *sum = busy[0] = busy[1] = 0;
   *launch = *tail = NAN;
-  if (!f) return false;
-  fseek(f, 0, SEEK_END);
-  long size = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *buf = size > 0 ? malloc((size_t)size + 1) : NULL;
-  size_t got = buf ? fread(buf, 1, (size_t)size, f) : 0;
-  fclose(f);
-  if (!buf) return false;
-  buf[got] = '\0';
-  cJSON *r = cJSON_Parse(buf);
-  free(buf);
+  cJSON *r = km_cli_read_json(report);
+  if (!r) return false;
   const cJSON *e;
   double first = INFINITY, last = -INFINITY;
   bool ranks = false;

@@ -1202,6 +1202,10 @@ size_t km_retarget_eased_frames(const km_retarget *r);
  * at rest (the rig's "joints"), else the rest mesh's bounding box centre. Identity (R = I, t = 0)
  * for other rigs or while the root is not valid. Returns whether the rig has rigid root motion. */
 bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], double pivot[3]);
+/* Places points[n]*3 (in place) by the last push's rigid root motion, x -> R (x - pivot) + pivot
+ * + t (see km_retarget_root_transform); leaves them as they are for a rig without rigid root
+ * motion. Returns whether it moved them. */
+bool km_retarget_apply_root(const km_retarget *r, double *points, size_t n);
 /* Forgets reference positions (and the auto scale): the next valid frame is the new rest. */
 void km_retarget_reset(km_retarget *r);
 /* Frees *r and sets it to NULL. */

@@ -40,13 +40,9 @@ static void check_follows(const km_mesh *m, const km_rig *rig, const km_take *ta
       double bone_want[3] = {0, 0, 0};
       if (bt && bt_targets) {
         km_retarget_push(bt, take->positions + f * take->n_joints * 3, bt_targets);
-        double tg[3], R[9], t[3], pv[3]; /* in the output frame (rigid root motion) */
+        double tg[3]; /* in the output frame (rigid root motion) */
         memcpy(tg, bt_targets + 3 * (size_t)rig->maps[e].handle, sizeof tg);
-        if (km_retarget_root_transform(bt, R, t, pv)) {
-          double w[3] = {tg[0] - pv[0], tg[1] - pv[1], tg[2] - pv[2]};
-          for (int a = 0; a < 3; ++a)
-            tg[a] = R[3 * a] * w[0] + R[3 * a + 1] * w[1] + R[3 * a + 2] * w[2] + pv[a] + t[a];
-        }
+        km_retarget_apply_root(bt, tg, 1);
         if (!j0 && isfinite(jf[0])) memcpy(bt0, tg, sizeof bt0);
         for (int a = 0; a < 3; ++a)
           bone_want[a] = tg[a] - bt0[a];

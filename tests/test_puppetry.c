@@ -118,13 +118,7 @@ static void manual_loop(const fixture *fx, bool full, double *Vs) {
       CHECK_OK(km_arap_solve(arap, targets, Vs + fr * 3 * nv, KM_E));
     else
       CHECK_OK(km_puppet_solve(pup, targets, Vs + fr * 3 * nv, KM_E));
-    double R[9], t[3], pv[3]; /* rigid root motion: the mesh follows the root */
-    if (km_retarget_root_transform(rt, R, t, pv))
-      for (size_t v = 0; v < nv; ++v) {
-        double *x = Vs + fr * 3 * nv + 3 * v, w[3] = {x[0] - pv[0], x[1] - pv[1], x[2] - pv[2]};
-        for (int a = 0; a < 3; ++a)
-          x[a] = R[3 * a] * w[0] + R[3 * a + 1] * w[1] + R[3 * a + 2] * w[2] + pv[a] + t[a];
-      }
+    km_retarget_apply_root(rt, Vs + fr * 3 * nv, nv); /* rigid root motion */
   }
   free(targets);
   free(off);

@@ -93,30 +93,6 @@ static char *dup_printf(const char *fmt, ...) {
   return s;
 }
 
-static char *read_text(const char *path, size_t *size) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return NULL;
-  char *buf = NULL;
-  size_t n = 0, cap = 0, got;
-  do {
-    if (cap - n < 4096) {
-      char *g = realloc(buf, cap = cap ? 2 * cap : 65536);
-      if (!g) {
-        free(buf);
-        fclose(f);
-        return NULL;
-      }
-      buf = g;
-    }
-    got = fread(buf + n, 1, cap - n - 1, f);
-    n += got;
-  } while (got > 0);
-  fclose(f);
-  buf[n] = '\0';
-  if (size) *size = n;
-  return buf;
-}
-
 static int mkdir_p(const char *path) {
   char tmp[PATH_MAX];
   if (snprintf(tmp, sizeof tmp, "%s", path) >= (int)sizeof tmp) return -1;
@@ -340,7 +316,7 @@ static bool valid_id(const char *s) {
  * non-zero on the first bad line. */
 static int read_manifest(km_batch *b, const char *path) {
   size_t size;
-  char *text = read_text(path, &size);
+  char *text = km_cli_read_text(path, &size);
   if (!text) return km_cli_error("batch", "%s: cannot read: %s", path, strerror(errno));
   int rc = 0, lineno = 0;
   size_t cap = 0;
@@ -499,20 +475,13 @@ static int write_json(const char *path, cJSON *o) {
   return st ? -1 : 0;
 }
 
-static cJSON *read_json(const char *path) {
-  char *t = read_text(path, NULL);
-  cJSON *o = t ? cJSON_Parse(t) : NULL;
-  free(t);
-  return o;
-}
-
 static void hex64(char out[17], uint64_t h) { snprintf(out, 17, "%016llx", (unsigned long long)h); }
 
 /* Whether the job's report says it succeeded with these very arguments and its outputs still
  * have the checksums it recorded. *why: what does not verify (static text). */
 static bool job_verifies(const km_batch *b, const job *jb, const char **why) {
   char *rp = report_path(b, jb);
-  cJSON *r = rp ? read_json(rp) : NULL;
+  cJSON *r = rp ? km_cli_read_json(rp) : NULL;
   free(rp);
   *why = "no report";
   if (!r) return false;
@@ -597,7 +566,7 @@ void km_batch_mark_failed(km_batch *b, size_t j, const char *why) {
 
 /* The last non-empty line of the job's log (its summary line: errors, timing). */
 static char *log_tail(const char *path) {
-  char *t = read_text(path, NULL);
+  char *t = km_cli_read_text(path, NULL);
   if (!t) return NULL;
   char *end = t + strlen(t);
   while (end > t && (end[-1] == '\n' || end[-1] == '\r' || end[-1] == ' '))
@@ -773,7 +742,7 @@ int km_batch_write_report(km_batch *b) {
   for (size_t j = 0; j < b->n_jobs; ++j) {
     const job *jb = &b->jobs[j];
     char *rp = report_path(b, jb);
-    cJSON *jr = rp ? read_json(rp) : NULL;
+    cJSON *jr = rp ? km_cli_read_json(rp) : NULL;
     free(rp);
     cJSON *e = cJSON_CreateObject();
     cJSON_AddStringToObject(e, "id", jb->id);

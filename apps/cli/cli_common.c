@@ -437,6 +437,37 @@ static int cmp_double(const void *a, const void *b) {
   return x < y ? -1 : x > y;
 }
 
+char *km_cli_read_text(const char *path, size_t *size) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  char *buf = NULL;
+  size_t n = 0, cap = 0, got;
+  do {
+    if (cap - n < 4096) {
+      char *g = realloc(buf, cap = cap ? 2 * cap : 65536);
+      if (!g) {
+        free(buf);
+        fclose(f);
+        return NULL;
+      }
+      buf = g;
+    }
+    got = fread(buf + n, 1, cap - n - 1, f);
+    n += got;
+  } while (got > 0);
+  fclose(f);
+  buf[n] = '\0';
+  if (size) *size = n;
+  return buf;
+}
+
+cJSON *km_cli_read_json(const char *path) {
+  char *t = km_cli_read_text(path, NULL);
+  cJSON *o = t ? cJSON_Parse(t) : NULL;
+  free(t);
+  return o;
+}
+
 double km_cli_median(double *v, size_t n) {
   if (!n) return NAN;
   qsort(v, n, sizeof *v, cmp_double);
@@ -500,19 +531,9 @@ static bool sidecar_frame(const char *mesh_path, const char *rig_path, km_frame 
   memset(out, 0, sizeof *out);
   char *own = !rig_path && mesh_path ? km_cli_rig_path(mesh_path) : NULL;
   const char *rig = rig_path ? rig_path : own;
-  FILE *f = rig ? fopen(rig, "rb") : NULL;
+  cJSON *j = rig ? km_cli_read_json(rig) : NULL;
   free(own);
-  if (!f) return false;
-  char *text = NULL;
-  long n = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
-  if (n > 0 && n < (1L << 30) && fseek(f, 0, SEEK_SET) == 0 && (text = malloc((size_t)n + 1)) &&
-      fread(text, 1, (size_t)n, f) == (size_t)n)
-    text[n] = '\0';
-  else
-    free(text), text = NULL;
-  fclose(f);
-  cJSON *j = text ? cJSON_Parse(text) : NULL;
-  free(text);
+  if (!j) return false;
   cJSON *fr = cJSON_GetObjectItemCaseSensitive(j, "frame");
   const char *up = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(fr, "up"));
   const char *fw = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(fr, "forward"));

@@ -15,16 +15,8 @@
  * ...]} or text/CSV lines "vertex x y z" / "vertex,x,y,z" (a header line and # comments are
  * skipped). Returns 0, -1 when unreadable, or the 1-based line (JSON: entry) that is wrong. */
 static int read_features(const char *path, km_recon_feature **out, size_t *n) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return -1;
-  fseek(f, 0, SEEK_END);
-  long size = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *text = size >= 0 ? malloc((size_t)size + 1) : NULL;
-  size_t got = text ? fread(text, 1, (size_t)size, f) : 0;
-  fclose(f);
+  char *text = km_cli_read_text(path, NULL);
   if (!text) return -1;
-  text[got] = '\0';
   *n = 0;
   *out = NULL;
   const char *q = text;

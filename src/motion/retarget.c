@@ -610,31 +610,32 @@ static bool segment_dirs(const km_retarget *r, const double *J, int32_t a, int32
   return true;
 }
 
+static double dist3(const double *a, const double *b) {
+  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+              (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/* A short bone (a Kinect wrist -> hand, ankle -> foot: a few noisy centimetres) gives a
+ * jittery direction: the nearest ancestor of a at least 0.15 m (of performer) from b stands in
+ * for a. */
+static int32_t long_ancestor(const km_retarget *r, int32_t a, int32_t b) {
+  while (r->par[a] >= 0 && valid3(r->ref + 3 * (size_t)a) && valid3(r->ref + 3 * (size_t)b) &&
+         dist3(r->ref + 3 * (size_t)a, r->ref + 3 * (size_t)b) < 0.15)
+    a = r->par[a];
+  return a;
+}
+
 static void update_rotations(km_retarget *r, const double *J) {
   if (r->bone_from) update_bones(r, J);
   for (size_t h = 0; h < r->n_handles; ++h) {
     int32_t j = r->rot_joint[h], q = r->rot_parent[h];
     if (j < 0 || (r->bone_from && r->bone_from[h] >= 0)) continue;
-    /* A short bone (a Kinect wrist -> hand, ankle -> foot: a few noisy centimetres) gives a
-     * jittery direction: the nearest ancestor at least 0.15 m away stands in. */
-    while (r->par[q] >= 0) {
-      const double *a = r->ref + 3 * (size_t)j, *b = r->ref + 3 * (size_t)q;
-      if (!valid3(a) || !valid3(b)) break;
-      double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
-                      (a[2] - b[2]) * (a[2] - b[2]));
-      if (l >= 0.15) break; /* metres of performer */
-      q = r->par[q];
-    }
+    q = long_ancestor(r, q, j);
     double d[3], d0[3];
     if (!segment_dirs(r, J, q, j, d0, d)) continue;
     rotation_between(d0, d, r->rot + 9 * h);
     apply_twist(r, j, d0, d, r->rot + 9 * h);
   }
-}
-
-static double dist3(const double *a, const double *b) {
-  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
-              (a[2] - b[2]) * (a[2] - b[2]));
 }
 
 /* The shortest rotation taking the reference direction of a -> b to this frame's (in the
@@ -676,9 +677,7 @@ static void mat_vec(const double R[9], const double x[3], double y[3]) {
 static void twist(const km_retarget *r, const double *J, int32_t j, int32_t a, int32_t b,
                   double R[9]) {
   if (!r->jrot) return;
-  while (r->par[a] >= 0 && valid3(r->ref + 3 * (size_t)a) && valid3(r->ref + 3 * (size_t)b) &&
-         dist3(r->ref + 3 * (size_t)a, r->ref + 3 * (size_t)b) < 0.15)
-    a = r->par[a];
+  a = long_ancestor(r, a, b);
   double d[3], d0[3];
   if (!segment_dirs(r, J, a, b, d0, d)) return;
   apply_twist(r, j, d0, d, R);
@@ -806,4 +805,15 @@ bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], 
   if (t) memcpy(t, r->t, sizeof r->t);
   if (pivot) memcpy(pivot, r->pivot, sizeof r->pivot);
   return r->rigid;
+}
+
+bool km_retarget_apply_root(const km_retarget *r, double *points, size_t n) {
+  if (!r->rigid) return false;
+  const double *R = r->R, *pv = r->pivot, *t = r->t;
+  for (size_t v = 0; v < n; ++v) {
+    double *x = points + 3 * v, w[3] = {x[0] - pv[0], x[1] - pv[1], x[2] - pv[2]};
+    for (int a = 0; a < 3; ++a)
+      x[a] = R[3 * a] * w[0] + R[3 * a + 1] * w[1] + R[3 * a + 2] * w[2] + pv[a] + t[a];
+  }
+  return true;
 }

@@ -432,20 +432,11 @@ km_status km_puppetry_push_rotations(km_puppetry *p, const double *joints, const
   km_status s = p->opt.solver == KM_PUPPETRY_FULL
                     ? km_arap_solve(p->arap, p->targets, V_out, err)
                     : km_puppet_solve(p->puppet, p->targets, V_out, err);
-  double R[9], tr[3], pv[3];
-  if (s == KM_OK && km_retarget_root_transform(p->rt, R, tr, pv)) {
-    /* rigid root motion: the deformed mesh (root-relative) follows the root as a whole */
-    for (size_t v = 0; v < p->rest->n_vertices; ++v) {
-      double *x = V_out + 3 * v, w[3] = {x[0] - pv[0], x[1] - pv[1], x[2] - pv[2]};
-      for (int a = 0; a < 3; ++a)
-        x[a] = R[3 * a] * w[0] + R[3 * a + 1] * w[1] + R[3 * a + 2] * w[2] + pv[a] + tr[a];
-    }
-    /* and the handle targets with it: km_puppetry_handle_targets is where the handles go */
-    for (size_t h = 0; h < p->n_handles; ++h) {
-      double *x = p->handle_targets + 3 * h, w[3] = {x[0] - pv[0], x[1] - pv[1], x[2] - pv[2]};
-      for (int a = 0; a < 3; ++a)
-        x[a] = R[3 * a] * w[0] + R[3 * a + 1] * w[1] + R[3 * a + 2] * w[2] + pv[a] + tr[a];
-    }
+  if (s == KM_OK) {
+    /* rigid root motion: the deformed mesh (root-relative) follows the root as a whole, and the
+     * handle targets with it (km_puppetry_handle_targets is where the handles go) */
+    km_retarget_apply_root(p->rt, V_out, p->rest->n_vertices);
+    km_retarget_apply_root(p->rt, p->handle_targets, p->n_handles);
   }
   double t3 = km_seconds();
   p->times.filter_ms = 1e3 * (t1 - t0);
