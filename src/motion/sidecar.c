@@ -2,6 +2,8 @@
  * read and written here and nowhere else. */
 #include "motion/motion.h"
 
+#include "math/math.h"
+
 #include <cjson/cJSON.h>
 #include <float.h>
 #include <math.h>
@@ -101,6 +103,12 @@ static const double band_t[N_BONE_HANDLES][2] = {{0.5, 0.8}, {0.3, 0.7}, {0.5, 0
  * cmu_131_01 and 370 of 392 on precog_Seq1_1 at the elbows, |l/l0 - 1| up to 0.94 there). */
 #define RING_T 0.08
 
+static double dist3(const double *a, const double *b) {
+  double w[3];
+  km__sub3(a, b, w);
+  return sqrt(km__dot3(w, w));
+}
+
 static int32_t uf_find(int32_t *p, int32_t v) {
   while (p[v] != v)
     v = p[v] = p[p[v]];
@@ -142,6 +150,21 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
     best[b] = INFINITY;
     seed[b] = -1;
   }
+  /* A ring's limb radius at its joint (the nearest vertex); the ring is the part within twice
+   * that of the joint (a t of 1 or 0 is also every vertex beyond the bone's end, the elephant's
+   * ear beside its elbow), and only on a limb whose bones are at least 3 radii long: on a stubby
+   * arm (the elephant's) a ring between the bands left the joint no room to bend (folded
+   * triangles on precog_Seq1_1 740 -> 1042). */
+  double ring_r[N_BONE_HANDLES];
+  for (int b = N_BANDS; b < N_BONE_HANDLES; ++b) {
+    ring_r[b] = INFINITY;
+    if (!bone_ok[b]) continue;
+    const double *cj = sk->rest + 3 * (size_t)sk->parents[jb[b]];
+    for (size_t v = 0; v < n; ++v)
+      ring_r[b] = fmin(ring_r[b], dist3(m->V + 3 * v, cj));
+    bone_ok[b] = dist3(cj, sk->rest + 3 * (size_t)ja[b]) >= 3 * ring_r[b] &&
+                 dist3(cj, sk->rest + 3 * (size_t)jb[b]) >= 3 * ring_r[b];
+  }
   for (size_t v = 0; v < n; ++v) {
     const double *x = m->V + 3 * v;
     band[v] = -1;
@@ -178,8 +201,9 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
       int jr = bone_ok[b] ? sk->parents[jb[b]] : -1;
       if (jr < 0 || !((jmin == jr && tmin >= 1 - RING_T) || (jmin == jb[b] && tmin <= RING_T)))
         continue;
+      double near = dist3(x, sk->rest + 3 * (size_t)jr);
+      if (near > 2 * ring_r[b]) continue;
       band[v] = (int8_t)b;
-      double near = jmin == jr ? 1 - tmin : tmin;
       if (near < best[b]) best[b] = near, seed[b] = (int32_t)v;
     }
   }
