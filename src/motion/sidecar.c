@@ -156,8 +156,18 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
    * arm (the elephant's) a ring between the bands left the joint no room to bend (folded
    * triangles on precog_Seq1_1 740 -> 1042). */
   double ring_r[N_BONE_HANDLES];
+  /* Rings only on an upright body (the spine closer to vertical than horizontal): on dog0, rigged
+   * as a quadruped, they cost folds (bench motion B precog_Seq3_2 330 -> 529, cmu_131_03
+   * 58 -> 139) where they spared the upright character's and armadillo's. */
+  int hc = skel_joint(sk, "HipCenter"), sc = skel_joint(sk, "ShoulderCenter");
+  bool upright = false;
+  if (hc >= 0 && sc >= 0) {
+    const double *a = sk->rest + 3 * (size_t)hc, *b = sk->rest + 3 * (size_t)sc;
+    upright = b[1] - a[1] > hypot(b[0] - a[0], b[2] - a[2]);
+  }
   for (int b = N_BANDS; b < N_BONE_HANDLES; ++b) {
     ring_r[b] = INFINITY;
+    if (!upright) bone_ok[b] = 0;
     if (!bone_ok[b]) continue;
     const double *cj = sk->rest + 3 * (size_t)sk->parents[jb[b]];
     for (size_t v = 0; v < n; ++v)
