@@ -1133,9 +1133,11 @@ void km_rig_free(km_rig *rig);
  *   C_j = C_q + R_j (C^0_j - C^0_q),
  * and a bone entry a -> b moves its handle's vertices x to C_a - s d_rel + R_b (x - C^0_a)
  * (d_rel: the displacement of the entry's relative_to joint, 0 if none), so neighbouring bone
- * handles agree at the joint between them whatever the performer's bone lengths. With the
- * rig's "aim" a kinect1 limb bone gets R_j = (reference -> current direction) (C^0 bone ->
- * reference direction) instead: the character's limb points where the performer's does. Without
+ * handles agree at the joint between them whatever the performer's bone lengths; an entry over
+ * several bones (a -> ... -> m -> b) turns about m instead, with slerp(R_m, R_b, 1/2). With the
+ * rig's "aim" a kinect1 limb bone gets R_j = (R_q (C^0_j - C^0_q) -> current direction) R_q
+ * instead (R_q: its parent bone's rotation; the shortest swing, no twist against the parent):
+ * the character's limb points where the performer's does. Without
  * joint_rest the handle turns about its centroid and moves with the bone's midpoint. */
 /* Kinect v1 Head-to-foot joint span as a fraction of stature (anthropometric head-centre and
  * foot-joint heights: 0.937 and 0.023 of stature on kinemesh's procedural character). */
@@ -1240,7 +1242,10 @@ void km_character_free(km_character *c);
  * and a pelvis and a chest band on the spine bones (HipCenter -> Spine 0.2 .. 0.7, Spine ->
  * ShoulderCenter 0.2 .. 0.6) so the torso turns and bends with the skeleton;
  * every handle is mapped to a bone ("bone": head ShoulderCenter -> Head, hands elbow -> hand,
- * feet knee -> foot, bands their own bone) with "aim": true, and the whole mesh follows the
+ * feet knee -> foot, bands their own bone), rings at the elbows and knees of an upright body
+ * (the vertices within 0.08 of either bone's length and twice the limb radius of the joint, on
+ * limbs whose bones are at least 3 radii long; mapped to shoulder -> wrist and hip -> ankle,
+ * they turn with half the bend), with "aim": true, and the whole mesh follows the
  * root rigidly ("root_motion": "rigid", "relative_to": "HipCenter"; see km_rig_parse).
  *   c  in: character (its mesh is not written, only its vertex count)
  * Errors: KM_ERR_IO. */

@@ -157,8 +157,9 @@ static void test_character(size_t nv, uint64_t seed, double belly, double girth)
   km_character_free(&back);
   km_rig rig = {0};
   CHECK_OK(km_rig_read(path, &c.mesh, NULL, 0, &rig, KM_E));
-  /* head, hands, feet, bone handles on the upper and lower arms and legs, pelvis and chest */
-  CHECK_MSG(rig.n_handles == 15 && rig.n_maps == 15, "%zu handles, %zu maps", rig.n_handles,
+  /* head, hands, feet, bone handles on the upper and lower arms and legs, pelvis and chest,
+   * rings at the elbows and knees */
+  CHECK_MSG(rig.n_handles == 19 && rig.n_maps == 19, "%zu handles, %zu maps", rig.n_handles,
             rig.n_maps);
   CHECK(rig.aim && rig.joint_rest && rig.n_joint_rest == KM_KINECT1_JOINTS);
   for (size_t e = 0; e < rig.n_maps; ++e)

@@ -198,6 +198,29 @@ static inline void km__rot3_from_quat(const double *q, double *R) {
   R[8] = 1 - 2 * (x * x + y * y);
 }
 
+/* out = slerp(A, B, alpha) for rotations A, B (row-major): the rotation alpha of the way from
+ * A to B along the shorter arc (alpha 0: A, 1: B). out may alias A or B. */
+static inline void km__rot3_slerp(const double *A, const double *B, double alpha, double *out) {
+  double q0[4], q1[4], q[4];
+  km__quat_from_rot3(A, q0);
+  km__quat_from_rot3(B, q1);
+  double dot = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3];
+  if (dot < 0) {
+    dot = -dot;
+    for (int i = 0; i < 4; ++i)
+      q1[i] = -q1[i];
+  }
+  double th = acos(fmin(1.0, dot)), w0 = 1 - alpha, w1 = alpha;
+  if (th > 1e-6) w0 = sin((1 - alpha) * th) / sin(th), w1 = sin(alpha * th) / sin(th);
+  double n = 0;
+  for (int i = 0; i < 4; ++i)
+    q[i] = w0 * q0[i] + w1 * q1[i], n += q[i] * q[i];
+  n = sqrt(n);
+  for (int i = 0; i < 4; ++i)
+    q[i] /= n;
+  km__rot3_from_quat(q, out);
+}
+
 /* Orthonormal frame of triangle (a,b,c) as rows: t (unit edge a->b), n x t, n (unit normal).
  * Returns twice the area (0: degenerate, frame undefined). */
 static inline double km__tri_frame(const double *a, const double *b, const double *c, double *F) {

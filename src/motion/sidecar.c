@@ -2,6 +2,8 @@
  * read and written here and nowhere else. */
 #include "motion/motion.h"
 
+#include "math/math.h"
+
 #include <cjson/cJSON.h>
 #include <float.h>
 #include <math.h>
@@ -65,15 +67,17 @@ static int find_landmark(const km_character *c, const char *name) {
 
 /* ---- bone handles (issue 12): a band around the middle of each limb bone */
 
-enum { N_BONE_HANDLES = 10, BAND_MAX = 64 };
+enum { N_BANDS = 10, N_RINGS = 4, N_BONE_HANDLES = N_BANDS + N_RINGS, BAND_MAX = 64 };
 static const char *const bone_handle_name[N_BONE_HANDLES] = {
     "upper_arm_left", "forearm_left", "upper_arm_right", "forearm_right", "thigh_left",
-    "shin_left",      "thigh_right",  "shin_right",      "pelvis",        "chest"};
+    "shin_left",      "thigh_right",  "shin_right",      "pelvis",        "chest",
+    "elbow_left",     "elbow_right",  "knee_left",       "knee_right"};
 static const char *const bone_handle_joints[N_BONE_HANDLES][2] = {
-    {"ShoulderLeft", "ElbowLeft"}, {"ElbowLeft", "WristLeft"},  {"ShoulderRight", "ElbowRight"},
-    {"ElbowRight", "WristRight"},  {"HipLeft", "KneeLeft"},     {"KneeLeft", "AnkleLeft"},
-    {"HipRight", "KneeRight"},     {"KneeRight", "AnkleRight"}, {"HipCenter", "Spine"},
-    {"Spine", "ShoulderCenter"}};
+    {"ShoulderLeft", "ElbowLeft"}, {"ElbowLeft", "WristLeft"},    {"ShoulderRight", "ElbowRight"},
+    {"ElbowRight", "WristRight"},  {"HipLeft", "KneeLeft"},       {"KneeLeft", "AnkleLeft"},
+    {"HipRight", "KneeRight"},     {"KneeRight", "AnkleRight"},   {"HipCenter", "Spine"},
+    {"Spine", "ShoulderCenter"},   {"ShoulderLeft", "WristLeft"}, {"ShoulderRight", "WristRight"},
+    {"HipLeft", "AnkleLeft"},      {"HipRight", "AnkleRight"}};
 /* Where along its bone (0: the bone's start joint, 1: its end) a band lies. The upper arm and
  * thigh bands sit on the outer part (0.5 .. 0.8), leaving the shoulder and hip a free zone of
  * half the bone: a limb swinging 90 degrees about a joint whose band starts at 0.3 stretched the
@@ -90,6 +94,20 @@ static const char *const bone_handle_joints[N_BONE_HANDLES][2] = {
 static const double band_t[N_BONE_HANDLES][2] = {{0.5, 0.8}, {0.3, 0.7}, {0.5, 0.8}, {0.3, 0.7},
                                                  {0.5, 0.8}, {0.3, 0.7}, {0.5, 0.8}, {0.3, 0.7},
                                                  {0.2, 0.7}, {0.2, 0.6}};
+/* Joint rings (elbows, knees): the vertices within RING_T of their bone's length from the
+ * joint, on both bones. Their map entry is the segment over both bones (shoulder -> wrist, hip
+ * -> ankle), which km_retarget turns about the middle joint along the segment's line: about
+ * half the joint's bend, as the helper joint a rigger puts at an elbow. Without them the
+ * reduced model put the whole bend between the two bands into a kink at the joint, whose inner
+ * side collapsed and folded (bench motion B, character: 100 of the 222 folded triangles on
+ * cmu_131_01 and 370 of 392 on precog_Seq1_1 at the elbows, |l/l0 - 1| up to 0.94 there). */
+#define RING_T 0.08
+
+static double dist3(const double *a, const double *b) {
+  double w[3];
+  km__sub3(a, b, w);
+  return sqrt(km__dot3(w, w));
+}
 
 static int32_t uf_find(int32_t *p, int32_t v) {
   while (p[v] != v)
@@ -125,9 +143,37 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
   for (int b = 0; b < N_BONE_HANDLES; ++b) {
     ja[b] = skel_joint(sk, bone_handle_joints[b][0]);
     jb[b] = skel_joint(sk, bone_handle_joints[b][1]);
-    bone_ok[b] = ja[b] >= 0 && jb[b] >= 0 && sk->parents[jb[b]] == ja[b];
+    bone_ok[b] =
+        ja[b] >= 0 && jb[b] >= 0 &&
+        (b < N_BANDS ? sk->parents[jb[b]] == ja[b]
+                     : sk->parents[jb[b]] >= 0 && sk->parents[sk->parents[jb[b]]] == ja[b]);
     best[b] = INFINITY;
     seed[b] = -1;
+  }
+  /* A ring's limb radius at its joint (the nearest vertex); the ring is the part within twice
+   * that of the joint (a t of 1 or 0 is also every vertex beyond the bone's end, the elephant's
+   * ear beside its elbow), and only on a limb whose bones are at least 3 radii long: on a stubby
+   * arm (the elephant's) a ring between the bands left the joint no room to bend (folded
+   * triangles on precog_Seq1_1 740 -> 1042). */
+  double ring_r[N_BONE_HANDLES];
+  /* Rings only on an upright body (the spine closer to vertical than horizontal): on dog0, rigged
+   * as a quadruped, they cost folds (bench motion B precog_Seq3_2 330 -> 529, cmu_131_03
+   * 58 -> 139) where they spared the upright character's and armadillo's. */
+  int hc = skel_joint(sk, "HipCenter"), sc = skel_joint(sk, "ShoulderCenter");
+  bool upright = false;
+  if (hc >= 0 && sc >= 0) {
+    const double *a = sk->rest + 3 * (size_t)hc, *b = sk->rest + 3 * (size_t)sc;
+    upright = b[1] - a[1] > hypot(b[0] - a[0], b[2] - a[2]);
+  }
+  for (int b = N_BANDS; b < N_BONE_HANDLES; ++b) {
+    ring_r[b] = INFINITY;
+    if (!upright) bone_ok[b] = 0;
+    if (!bone_ok[b]) continue;
+    const double *cj = sk->rest + 3 * (size_t)sk->parents[jb[b]];
+    for (size_t v = 0; v < n; ++v)
+      ring_r[b] = fmin(ring_r[b], dist3(m->V + 3 * v, cj));
+    bone_ok[b] = dist3(cj, sk->rest + 3 * (size_t)ja[b]) >= 3 * ring_r[b] &&
+                 dist3(cj, sk->rest + 3 * (size_t)jb[b]) >= 3 * ring_r[b];
   }
   for (size_t v = 0; v < n; ++v) {
     const double *x = m->V + 3 * v;
@@ -155,12 +201,21 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
       if (dd < dmin) dmin = dd, tmin = t, jmin = (int)j;
     }
     if (near_end) continue;
-    for (int b = 0; b < N_BONE_HANDLES; ++b)
+    for (int b = 0; b < N_BANDS; ++b)
       if (bone_ok[b] && jmin == jb[b] && tmin >= band_t[b][0] && tmin <= band_t[b][1]) {
         band[v] = (int8_t)b;
         double mid = fabs(tmin - 0.5 * (band_t[b][0] + band_t[b][1])) + sqrt(dmin);
         if (mid < best[b]) best[b] = mid, seed[b] = (int32_t)v;
       }
+    for (int b = N_BANDS; b < N_BONE_HANDLES; ++b) { /* ring: jb's parent is the middle joint */
+      int jr = bone_ok[b] ? sk->parents[jb[b]] : -1;
+      if (jr < 0 || !((jmin == jr && tmin >= 1 - RING_T) || (jmin == jb[b] && tmin <= RING_T)))
+        continue;
+      double near = dist3(x, sk->rest + 3 * (size_t)jr);
+      if (near > 2 * ring_r[b]) continue;
+      band[v] = (int8_t)b;
+      if (near < best[b]) best[b] = near, seed[b] = (int32_t)v;
+    }
   }
   for (size_t f = 0; f < m->n_faces; ++f)
     for (int k = 0; k < 3; ++k) {
