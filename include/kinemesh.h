@@ -460,6 +460,9 @@ typedef struct km_frame_guess {
   bool standing;  /* taller than long along forward (a standing figure) */
   bool sure_up;   /* up stood out: the ground plane, or a support 1.2x the next best */
   bool sure_forward;
+  char why[112]; /* the evidence in one short line, for printing: which rule chose up and
+                  * forward, e.g. "up: ground contact 1.35 vs 0.26; forward: mirror plane,
+                  * head higher / tail thinner" */
 } km_frame_guess;
 /* Guesses how a mesh is oriented, among the 24 axis-aligned frames. Heuristic (documented in
  * src/mesh/orient.c), following the file through those 24 rotations: up is (1) the axis of

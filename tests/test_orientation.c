@@ -140,6 +140,8 @@ static void test_shared_meshes(void) {
               "%s: guessed up %s forward %s, stored up %s forward %s", cases[k].rel,
               km_axis_name(g.frame.up), km_axis_name(g.frame.forward), km_axis_name(cases[k].up),
               km_axis_name(cases[k].forward));
+    CHECK_MSG(!strncmp(g.why, "up: ", 4) && strstr(g.why, "; forward: "), "%s: why '%s'",
+              cases[k].rel, g.why);
     if (cases[k].rotations) {
       km_frame f = {cases[k].up, cases[k].forward, 0};
       CHECK_OK(km_mesh_frame_apply(&f, &m, KM_E));
@@ -231,7 +233,8 @@ static void test_rotated_copies(void) {
                guessed ? (units ? "--units cm" : "") : copies[k].args, copies[k].name, guessed);
       CHECK_MSG(km_test_run(cmd, &out) == 0, "%s: %s", cmd, out ? out : "");
       if (guessed)
-        CHECK_MSG(out && strstr(out, "guessed"), "the guess is printed: %s", out ? out : "");
+        CHECK_MSG(out && strstr(out, "guessed") && strstr(out, "forward: "),
+                  "the guess is printed with its evidence: %s", out ? out : "");
       free(out);
       char pc2[256];
       snprintf(pc2, sizeof pc2, "orient_t/%s_%d.pc2", copies[k].name, guessed);

@@ -10,6 +10,7 @@
 
 #include <ctype.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -227,14 +228,17 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
   for (int d = 0; d < 6; ++d)
     support_max = fmax(support_max, support[d]);
   int up_sign = 1;
+  char up_why[48];
   if (given_up != KM_AXIS_NONE) {
     up = (given_up - KM_AXIS_POS_X) / 2;
     up_sign = (given_up - KM_AXIS_POS_X) % 2 ? -1 : 1;
     out->sure_up = true;
+    snprintf(up_why, sizeof up_why, "given");
   } else if (n_ground == 1 && (ground_sign > 0 || support[2 * ground + 1] >= 0.5 * support_max)) {
     up = ground;
     up_sign = ground_sign;
     out->sure_up = true;
+    snprintf(up_why, sizeof up_why, "on the ground plane");
   } else {
     int best = -1;
     for (int d = 0; d < 6; ++d) {
@@ -246,6 +250,7 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
     for (int d = 0; d < 6; ++d)
       if (d != best) second = fmax(second, support[d]);
     out->sure_up = support[best] > 1.2 * second;
+    snprintf(up_why, sizeof up_why, "ground contact %.2f vs %.2f", support[best], second);
   }
   /* Forward: of the two other axes, the one across the body's plane of mirror symmetry.
    * Humans and animals are left-right symmetric, so the centroid of each height slab stays
@@ -271,7 +276,11 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
    * and tail do (a head turned sideways wanders across the mirror plane). */
   double lng = fmax(ext[o1], ext[o2]), shrt = fmin(ext[o1], ext[o2]);
   bool clear = fmax(wander[0], wander[1]) >= 1.5 * fmin(wander[0], wander[1]);
-  if (!clear && ext[up] < lng && lng >= 1.2 * shrt) fwd = ext[o1] >= ext[o2] ? o1 : o2;
+  const char *axis_why = "mirror plane";
+  if (!clear && ext[up] < lng && lng >= 1.2 * shrt) {
+    fwd = ext[o1] >= ext[o2] ? o1 : o2;
+    axis_why = "body length";
+  }
   /* Upright (a human): taller than deep; else an animal on four legs. */
   out->standing = ext[up] >= ext[fwd];
   /* Forward's sign, measured with up pointing up: coordinates along up are negated when up
@@ -282,6 +291,7 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
       S[i].p[up] = -S[i].p[up];
   /* Fractions of the forward extent; out->sure_forward when one clue is clear. */
   double d = 0, ef = ext[fwd];
+  const char *sign_why = "unclear (+)";
   if (out->standing) {
     /* toes reach ahead of the shins; else the head (and a face, a snout) sits ahead of the
      * chest and belly */
@@ -293,9 +303,9 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
                   ef;
     out->sure_forward = true;
     if (isfinite(toes) && fabs(toes) >= 0.05)
-      d = toes;
+      d = toes, sign_why = "toes ahead";
     else if (isfinite(head) && fabs(head) >= 0.1)
-      d = head;
+      d = head, sign_why = "head ahead of chest";
     else
       out->sure_forward = false;
   } else {
@@ -316,12 +326,14 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
     double ends = front + back > 0 ? (front - back) / (front + back) : 0;
     d = (isfinite(top) ? top : 0) + 1.2 * ends;
     out->sure_forward = fabs(d) > 0.05;
+    if (out->sure_forward) sign_why = "head higher, tail thinner";
   }
   int fwd_sign = d < 0 ? -1 : 1;
   free(S);
   out->frame.up = (km_axis)(KM_AXIS_POS_X + 2 * up + (up_sign < 0));
   out->frame.forward = (km_axis)(KM_AXIS_POS_X + 2 * fwd + (fwd_sign < 0));
   out->height = h;
+  snprintf(out->why, sizeof out->why, "up: %s; forward: %s, %s", up_why, axis_why, sign_why);
   return KM_OK;
 }
 
