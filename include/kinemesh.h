@@ -457,18 +457,25 @@ km_status km_mesh_frame_apply(const km_frame *f, km_mesh *m, km_error *err);
 typedef struct km_frame_guess {
   km_frame frame; /* the guessed up and forward (scale 0: units are not guessed) */
   double height;  /* extent along the guessed up axis, in file units */
-  bool standing;  /* the up axis is clearly the longest (a standing figure) */
-  bool sure_up;   /* the sign of up was decided by a clear mass offset, not by default */
+  bool standing;  /* taller than long along forward (a standing figure) */
+  bool sure_up;   /* up stood out: the ground plane, or a support 1.2x the next best */
   bool sure_forward;
+  char why[112]; /* the evidence in one short line, for printing: which rule chose up and
+                  * forward, e.g. "up: ground contact 1.35 vs 0.26; forward: mirror plane,
+                  * head higher / tail thinner" */
 } km_frame_guess;
 /* Guesses how a mesh is oriented, among the 24 axis-aligned frames. Heuristic (documented in
- * src/mesh/orient.c): the up axis is the longest extent when it is clearly longest (a
- * standing figure), else y when the y extent is at least half of the longest (the common
- * convention), else z; up points to the side where the surface area's centroid sits (a body
- * carried above thinner legs). Forward is the shorter remaining axis for a standing figure
- * (depth < shoulder width) and the longer one otherwise (a quadruped's length); its sign: for
- * a standing figure the side the feet reach (toes ahead of the shins), otherwise the side of
- * the highest part (a head held up in front). Good for humanoids and quadrupeds made
+ * src/mesh/orient.c), following the file through those 24 rotations: up is (1) the axis of
+ * a model standing on the ground plane (its minimum, or its maximum when the support below
+ * agrees, within 6% of its extent from 0; no other axis so), else (2) the direction whose lowest 4%
+ * of surface (its support: feet, hooves, a flat base) spans the widest part of the cross-section
+ * with the centre of mass inside it, against a head, nose or tail tip touching in one small patch.
+ * Forward's axis is the one across the body's mirror plane (the centroids of height slabs wander
+ * along it and not sideways), or, when that is unclear and the figure is longer than tall, its
+ * length (a quadruped whose head is turned). Its sign: for a standing figure (taller than long) the
+ * side the toes reach ahead of the shins, else the side the head sits ahead of the chest; for
+ * an animal the side of its highest part plus the end of its length that carries more
+ * surface (a head and forelegs, not a thin tail). Good for humanoids and animals made
  * axis-aligned; the CLI prints it so a wrong guess is seen and overridden.
  *   m    in: triangle mesh (a point cloud uses vertex weights)
  *   out  out: the guess

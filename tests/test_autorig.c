@@ -169,16 +169,6 @@ static void test_character(size_t nv, uint64_t seed, double belly, double girth)
   km_character_free(&c);
 }
 
-/* z up -> y up: (x, y, z) -> (x, z, -y). kinemesh takes meshes as y up; the dog and the horse
- * of ../shared/data are z up. */
-static void z_up_to_y_up(km_mesh *m) {
-  for (size_t v = 0; v < m->n_vertices; ++v) {
-    double *p = m->V + 3 * v, y = p[1];
-    p[1] = p[2];
-    p[2] = -y;
-  }
-}
-
 static int cmp_double(const void *a, const void *b) {
   double x = *(const double *)a, y = *(const double *)b;
   return x < y ? -1 : x > y;
@@ -277,15 +267,24 @@ static void drive(const char *label, const km_mesh *m, const km_character *c, co
   km_rig_free(&rig);
 }
 
-/* Rig a real mesh, drive it with a real Kinect take through km_puppetry. */
-static void test_real(const char *rel, bool z_up, km_autorig_skeleton want, const km_take *take) {
+/* Rig a real mesh, drive it with a real Kinect take through km_puppetry. The mesh is brought
+ * into kinemesh's frame by the automatic guess, which must find how the file is stored
+ * (up, forward: the dog and the horse are z up). */
+static void test_real(const char *rel, km_axis up, km_axis forward, km_autorig_skeleton want,
+                      const km_take *take) {
   char buf[1024];
   const char *path = km_test_shared(rel, buf, sizeof buf);
   if (!path) return;
   km_mesh m = {0};
   CHECK_OK(km_mesh_read(path, &m, KM_E));
   if (!m.n_vertices) return;
-  if (z_up) z_up_to_y_up(&m);
+  km_frame_guess g;
+  CHECK_OK(km_mesh_frame_guess(&m, &g, KM_E));
+  CHECK_MSG(g.frame.up == up && g.frame.forward == forward,
+            "%s: guessed up %s forward %s, want %s %s", rel, km_axis_name(g.frame.up),
+            km_axis_name(g.frame.forward), km_axis_name(up), km_axis_name(forward));
+  g.frame.scale = 0;
+  CHECK_OK(km_mesh_frame_apply(&g.frame, &m, KM_E));
   km_character c = {0};
   km_autorig_report rep;
   km_status st = km_autorig(&m, NULL, &c, &rep, KM_E);
@@ -561,10 +560,10 @@ int main(void) {
     if (take.n_frames) {
       test_prop(&take);
       test_character_drive(&take);
-      test_real("meshes/armadillo.obj", false, KM_AUTORIG_KINECT1, &take);
-      test_real("meshes/dog0.off", true, KM_AUTORIG_QUADRUPED, &take);
-      test_real("meshes/elephant.obj", false, KM_AUTORIG_KINECT1, &take);
-      test_real("meshes/horse.ply", true, KM_AUTORIG_QUADRUPED, &take);
+      test_real("meshes/armadillo.obj", KM_AXIS_POS_Y, KM_AXIS_POS_Z, KM_AUTORIG_KINECT1, &take);
+      test_real("meshes/dog0.off", KM_AXIS_POS_Z, KM_AXIS_NEG_Y, KM_AUTORIG_QUADRUPED, &take);
+      test_real("meshes/elephant.obj", KM_AXIS_POS_Y, KM_AXIS_POS_Z, KM_AUTORIG_KINECT1, &take);
+      test_real("meshes/horse.ply", KM_AXIS_POS_Z, KM_AXIS_POS_Y, KM_AUTORIG_QUADRUPED, &take);
     }
     km_take_free(&take);
   }

@@ -596,11 +596,11 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
   if (guessed) *guessed = true;
   if (!quiet)
     fprintf(stderr,
-            "kinemesh %s: %s: up %s, forward %s (%s; height %.4g %s) - override with --up / "
+            "kinemesh %s: %s: up %s, forward %s (%s; height %.4g %s; %s) - override with --up / "
             "--forward\n",
             verb, path, km_axis_name(out->up), km_axis_name(out->forward),
             fo->up || fo->forward ? "partly guessed" : "guessed", g.height,
-            fo->units ? fo->units : "units");
+            fo->units ? fo->units : "units", g.why);
   return 0;
 }
 

@@ -112,6 +112,7 @@ int km_cli_info(int argc, char **argv) {
       cJSON_AddStringToObject(go, "forward", km_axis_name(g.frame.forward));
       cJSON_AddNumberToObject(go, "height", g.height);
       cJSON_AddBoolToObject(go, "standing", g.standing);
+      cJSON_AddStringToObject(go, "why", g.why);
     }
     return km_cli_print_json("info", o);
   }
@@ -133,9 +134,9 @@ int km_cli_info(int argc, char **argv) {
            "mapping)\n",
            skin_joints);
   if (have_guess)
-    printf(
-        "orientation (guess)   up %s, forward %s, height %.6g%s (override with --up/--forward)\n",
-        km_axis_name(g.frame.up), km_axis_name(g.frame.forward), g.height,
-        g.standing ? ", standing" : "");
+    printf("orientation (guess)   up %s, forward %s, height %.6g%s (override with --up/--forward)\n"
+           "                      %s\n",
+           km_axis_name(g.frame.up), km_axis_name(g.frame.forward), g.height,
+           g.standing ? ", standing" : "", g.why);
   return KM_EXIT_OK;
 }

@@ -10,6 +10,7 @@
 
 #include <ctype.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -180,31 +181,76 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
                     "km_mesh_frame_guess: the mesh is flat or a single point (extents %g, %g, %g)",
                     ext[0], ext[1], ext[2]);
   }
-  /* Up: (1) a model placed on the ground plane at the origin: the one axis whose minimum is
-   * within 3% of its extent from 0 (while the others are not); (2) a standing figure: the
-   * longest extent when it is 1.5x the next; (3) y when its extent is at least half the
-   * longest (the common convention), else z. Sign: (1) +; else the side of the centroid. */
-  int up = -1, n_ground = 0, ground = -1;
+  /* Up, among the 6 directions: (1) a model placed on the ground plane at the origin: the
+   * one axis with its minimum within 6% of its extent from 0 and its maximum well above (a
+   * maximum at 0, a model hanging below the origin, counts only when the support there
+   * agrees: FAUST registrations sit with their back at z = 0); (2) ground contact: the
+   * surface within 4% of the extent of the lowest point along each direction is its support
+   * (feet, hooves, a flat base); up is the direction whose support's bounding rectangle spans
+   * the widest part of the cross-section with the centre of mass inside it (it stands),
+   * against a head, a nose or a tail tip that touches in one small patch. No rule looks at
+   * which axis is longest: a cat's tail, a T-pose's arms and a horse's neck each make the
+   * wrong one longest. */
+  int up = -1, n_ground = 0, ground = -1, ground_sign = 1;
+  for (int c = 0; c < 3; ++c) {
+    if (fabs(mn[c]) <= 0.06 * ext[c] && mx[c] > 0.5 * ext[c])
+      ++n_ground, ground = c, ground_sign = 1;
+    else if (fabs(mx[c]) <= 0.06 * ext[c] && mn[c] < -0.5 * ext[c])
+      ++n_ground, ground = c, ground_sign = -1;
+  }
+  double com[3] = {0, 0, 0}, all = 0;
+  for (size_t i = 0; i < n; ++i) {
+    all += S[i].w;
+    for (int c = 0; c < 3; ++c)
+      com[c] += S[i].w * S[i].p[c];
+  }
   for (int c = 0; c < 3; ++c)
-    if (fabs(mn[c]) <= 0.03 * ext[c] && mx[c] > 0) ++n_ground, ground = c;
-  double all = 0;
+    com[c] = all > 0 ? com[c] / all : 0.5 * (mn[c] + mx[c]);
+  double support[6];
+  for (int d = 0; d < 6; ++d) {
+    int a = d / 2, b1 = (a + 1) % 3, b2 = (a + 2) % 3;
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    for (size_t i = 0; i < m->n_vertices; ++i) {
+      const double *p = m->V + 3 * i;
+      double t = d % 2 ? (mx[a] - p[a]) : (p[a] - mn[a]);
+      if (t > 0.04 * ext[a]) continue;
+      lo[0] = fmin(lo[0], p[b1]), hi[0] = fmax(hi[0], p[b1]);
+      lo[1] = fmin(lo[1], p[b2]), hi[1] = fmax(hi[1], p[b2]);
+    }
+    double w1 = (hi[0] - lo[0]) / ext[b1], w2 = (hi[1] - lo[1]) / ext[b2];
+    /* how far inside the support the centre of mass is (0 on its edge, 0.5 in its middle) */
+    double in1 = fmin(com[b1] - lo[0], hi[0] - com[b1]) / fmax(hi[0] - lo[0], 1e-300 * ext[b1]);
+    double in2 = fmin(com[b2] - lo[1], hi[1] - com[b2]) / fmax(hi[1] - lo[1], 1e-300 * ext[b2]);
+    double inside = fmax(0, fmin(in1, in2));
+    support[d] = (w1 + w2) * (0.5 + inside);
+  }
+  double support_max = 0;
+  for (int d = 0; d < 6; ++d)
+    support_max = fmax(support_max, support[d]);
   int up_sign = 1;
+  char up_why[48];
   if (given_up != KM_AXIS_NONE) {
     up = (given_up - KM_AXIS_POS_X) / 2;
     up_sign = (given_up - KM_AXIS_POS_X) % 2 ? -1 : 1;
     out->sure_up = true;
-  } else if (n_ground == 1) {
+    snprintf(up_why, sizeof up_why, "given");
+  } else if (n_ground == 1 && (ground_sign > 0 || support[2 * ground + 1] >= 0.5 * support_max)) {
     up = ground;
+    up_sign = ground_sign;
     out->sure_up = true;
+    snprintf(up_why, sizeof up_why, "on the ground plane");
   } else {
-    if (ext[order[0]] >= 1.5 * ext[order[1]])
-      up = order[0];
-    else
-      up = ext[1] >= 0.5 * ext[order[0]] ? 1 : 2;
-    double cu = slab_mean(S, n, up, mn[up], ext[up], -1, 2, up, &all);
-    double off = (cu - (mn[up] + 0.5 * ext[up])) / ext[up];
-    out->sure_up = fabs(off) > 0.01;
-    up_sign = out->sure_up && off < 0 ? -1 : 1;
+    int best = -1;
+    for (int d = 0; d < 6; ++d) {
+      if (best < 0 || support[d] > support[best]) best = d;
+    }
+    up = best / 2;
+    up_sign = best % 2 ? -1 : 1;
+    double second = 0;
+    for (int d = 0; d < 6; ++d)
+      if (d != best) second = fmax(second, support[d]);
+    out->sure_up = support[best] > 1.2 * second;
+    snprintf(up_why, sizeof up_why, "ground contact %.2f vs %.2f", support[best], second);
   }
   /* Forward: of the two other axes, the one across the body's plane of mirror symmetry.
    * Humans and animals are left-right symmetric, so the centroid of each height slab stays
@@ -226,6 +272,15 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
     if (sw > 0) wander[k] /= sw;
   }
   int fwd = wander[0] >= wander[1] ? o1 : o2;
+  /* An animal on four legs (lower than long): its length is forward-back whatever its head
+   * and tail do (a head turned sideways wanders across the mirror plane). */
+  double lng = fmax(ext[o1], ext[o2]), shrt = fmin(ext[o1], ext[o2]);
+  bool clear = fmax(wander[0], wander[1]) >= 1.5 * fmin(wander[0], wander[1]);
+  const char *axis_why = "mirror plane";
+  if (!clear && ext[up] < lng && lng >= 1.2 * shrt) {
+    fwd = ext[o1] >= ext[o2] ? o1 : o2;
+    axis_why = "body length";
+  }
   /* Upright (a human): taller than deep; else an animal on four legs. */
   out->standing = ext[up] >= ext[fwd];
   /* Forward's sign, measured with up pointing up: coordinates along up are negated when up
@@ -234,23 +289,51 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
   if (up_sign < 0)
     for (size_t i = 0; i < n; ++i)
       S[i].p[up] = -S[i].p[up];
-  double d = 0;
+  /* Fractions of the forward extent; out->sure_forward when one clue is clear. */
+  double d = 0, ef = ext[fwd];
+  const char *sign_why = "unclear (+)";
   if (out->standing) {
-    double feet = slab_mean(S, n, up, base, h, 0, 0.06, fwd, NULL);
-    double shins = slab_mean(S, n, up, base, h, 0.08, 0.22, fwd, NULL);
-    d = feet - shins;
+    /* toes reach ahead of the shins; else the head (and a face, a snout) sits ahead of the
+     * chest and belly */
+    double toes = (slab_mean(S, n, up, base, h, 0, 0.06, fwd, NULL) -
+                   slab_mean(S, n, up, base, h, 0.08, 0.22, fwd, NULL)) /
+                  ef;
+    double head = (slab_mean(S, n, up, base, h, 0.85, 1.01, fwd, NULL) -
+                   slab_mean(S, n, up, base, h, 0.5, 0.7, fwd, NULL)) /
+                  ef;
+    out->sure_forward = true;
+    if (isfinite(toes) && fabs(toes) >= 0.05)
+      d = toes, sign_why = "toes ahead";
+    else if (isfinite(head) && fabs(head) >= 0.1)
+      d = head, sign_why = "head ahead of chest";
+    else
+      out->sure_forward = false;
   } else {
-    double top = slab_mean(S, n, up, base, h, 0.7, 1.01, fwd, NULL);
-    double mid = slab_mean(S, n, up, base, h, -1, 2, fwd, NULL);
-    d = top - mid;
+    /* an animal: the head is held higher than the body's middle (top), and the front end of
+     * its length carries more surface (a head, forelegs) than the back end (a thin tail,
+     * which may also rise above the head: hence both) */
+    double top = (slab_mean(S, n, up, base, h, 0.7, 1.01, fwd, NULL) -
+                  slab_mean(S, n, up, base, h, -1, 2, fwd, NULL)) /
+                 ef;
+    double front = 0, back = 0;
+    for (size_t i = 0; i < n; ++i) {
+      double t = (S[i].p[fwd] - mn[fwd]) / ef;
+      if (t > 0.85)
+        front += S[i].w;
+      else if (t < 0.15)
+        back += S[i].w;
+    }
+    double ends = front + back > 0 ? (front - back) / (front + back) : 0;
+    d = (isfinite(top) ? top : 0) + 1.2 * ends;
+    out->sure_forward = fabs(d) > 0.05;
+    if (out->sure_forward) sign_why = "head higher, tail thinner";
   }
   int fwd_sign = d < 0 ? -1 : 1;
-  out->sure_forward = isfinite(d) && fabs(d) > 0.05 * ext[fwd];
-  if (!out->sure_forward) fwd_sign = 1;
   free(S);
   out->frame.up = (km_axis)(KM_AXIS_POS_X + 2 * up + (up_sign < 0));
   out->frame.forward = (km_axis)(KM_AXIS_POS_X + 2 * fwd + (fwd_sign < 0));
   out->height = h;
+  snprintf(out->why, sizeof out->why, "up: %s; forward: %s, %s", up_why, axis_why, sign_why);
   return KM_OK;
 }
 
