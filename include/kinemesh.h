@@ -908,11 +908,15 @@ typedef struct km_filter_options {
   double jitter_radius; /* metres (Kinect fJitterRadius). 0: off */
   double max_deviation; /* metres (Kinect fMaxDeviationRadius). 0: off */
   /* ---- issue 12: One Euro filter, overshoot clamp */
-  km_filter_kind kind; /* 0: Holt (above); KM_FILTER_ONE_EURO: Casiez et al. 2012 */
-  double fps;          /* frames per second of the pushed frames (One Euro). 0: 30 */
-  double min_cutoff;   /* One Euro minimum cutoff, Hz. 0: 1.5 */
-  double beta;         /* One Euro speed coefficient, Hz per m/s. 0: 1.0 */
-  double d_cutoff;     /* One Euro cutoff of the speed estimate, Hz. 0: 1.0 */
+  km_filter_kind kind;  /* 0: Holt (above); KM_FILTER_ONE_EURO: Casiez et al. 2012 */
+  double fps;           /* frames per second of the pushed frames (One Euro). 0: 30 */
+  double min_cutoff;    /* One Euro minimum cutoff, Hz. 0: 1.5 */
+  double beta;          /* One Euro speed coefficient, Hz per m/s. 0: 1.0 */
+  double d_cutoff;      /* One Euro cutoff of the speed estimate, Hz. 0: 1.0 */
+  double catchup_speed; /* m/s. A joint back after missing (or rejected) frames does not snap
+                           from where it was held to where it is now: the output eases over
+                           (the gap halves per frame, at most catchup_speed / fps of it per
+                           frame). 0: 3; < 0: off (snap) */
 } km_filter_options;
 #define KM_FILTER_ZERO (-1.0)
 
@@ -923,7 +927,8 @@ typedef struct km_filter km_filter;
 km_status km_filter_create(size_t n_joints, const km_filter_options *opt, km_filter **out,
                            km_error *err);
 /* Filters one frame. A NaN raw joint (missing) does not touch the joint's state and outputs
- * its last filtered value; before the joint's first good sample it outputs NaN.
+ * its last output (held); before the joint's first good sample it outputs NaN. When it comes
+ * back, the output eases from the held position (catchup_speed).
  *   raw       in: #J*3 joint positions
  *   filtered  out: #J*3; may alias raw */
 void km_filter_push(km_filter *f, const double *raw, double *filtered);

@@ -96,8 +96,9 @@ static void test_ramp(void) {
 
 static void test_missing(void) {
   km_filter *f = NULL, *g = NULL;
-  CHECK_OK(km_filter_create(2, NULL, &f, KM_E));
-  CHECK_OK(km_filter_create(2, NULL, &g, KM_E));
+  km_filter_options snap = {.catchup_speed = -1}; /* no catch-up: the state alone is compared */
+  CHECK_OK(km_filter_create(2, &snap, &f, KM_E));
+  CHECK_OK(km_filter_create(2, &snap, &g, KM_E));
   double out[6], outg[6];
   /* Joint 1 never seen yet: NaN; joint 0 fine. */
   double raw0[6] = {0, 0, 0, NAN, NAN, NAN};
@@ -135,6 +136,39 @@ static void test_missing(void) {
   CHECK(out[0] == prev0);
   km_filter_free(&f);
   km_filter_free(&g);
+}
+
+/* Catch-up (issue 12): a joint held for 3 frames comes back 0.6 m away (a lost and re-found
+ * foot). With catch-up on (the default) no output step exceeds catchup_speed / fps plus the
+ * joint's own motion (and the filter's lag behind that ramp), and the output reaches the new place
+ * within a second; off, it snaps. Both filters kinds. */
+static void test_catch_up(void) {
+  for (int kind = 0; kind < 2; ++kind) {
+    double worst[2] = {0, 0}, end_err[2] = {0, 0};
+    for (int on = 0; on < 2; ++on) {
+      km_filter_options o = {.kind = kind ? KM_FILTER_ONE_EURO : KM_FILTER_HOLT,
+                             .catchup_speed = on ? 0 : -1};
+      km_filter *f = NULL;
+      CHECK_OK(km_filter_create(1, &o, &f, KM_E));
+      double prev[3] = {0, 0, 0};
+      for (int t = 0; t < 60; ++t) {
+        double x[3] = {0.001 * t, t >= 20 ? 0.6 : 0, 0}, y[3];
+        if (t >= 17 && t < 20) x[0] = x[1] = x[2] = NAN;
+        km_filter_push(f, x, y);
+        if (t)
+          worst[on] = fmax(worst[on], hypot(hypot(y[0] - prev[0], y[1] - prev[1]), y[2] - prev[2]));
+        memcpy(prev, y, sizeof prev);
+        if (t == 59) end_err[on] = fabs(y[1] - 0.6);
+      }
+      km_filter_free(&f);
+    }
+    /* default 3 m/s at 30 fps: 0.1 m per frame; the Holt filter's lag behind that ramp adds
+     * a little when it ends */
+    CHECK_MSG(worst[1] <= 0.13, "kind %d: catch-up step %.3f m > 0.13", kind, worst[1]);
+    CHECK_MSG(worst[0] >= 0.2, "kind %d: without catch-up the step is %.3f m (a snap expected)",
+              kind, worst[0]);
+    CHECK_MSG(end_err[1] < 1e-3, "kind %d: catch-up did not arrive (%.4f m off)", kind, end_err[1]);
+  }
 }
 
 static double noise_rms(const km_filter_options *o, double amp) {
@@ -351,6 +385,7 @@ int main(void) {
   test_constant();
   test_ramp();
   test_missing();
+  test_catch_up();
   test_jitter();
   test_options();
   return km_test_finish("test_motion_filter");
