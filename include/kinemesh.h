@@ -1151,6 +1151,9 @@ typedef struct km_retarget_options {
                       move per push; a faster step (a pose snap of the tracker) is eased over
                       the next pushes, every handle by the same fraction (displacements
                       linearly, rotations by slerp). 0: rig->max_step (0: off) */
+  double fps;      /* pushes per second, for the rigid root's heading filter (at most 180 deg/s
+                      shown; a measured change faster than 720 deg/s, or a 180 deg left/right
+                      swap, is held). 0: 30 */
 } km_retarget_options;
 
 typedef struct km_retarget km_retarget;
