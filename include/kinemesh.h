@@ -913,10 +913,11 @@ typedef struct km_filter_options {
   double min_cutoff;    /* One Euro minimum cutoff, Hz. 0: 1.5 */
   double beta;          /* One Euro speed coefficient, Hz per m/s. 0: 1.0 */
   double d_cutoff;      /* One Euro cutoff of the speed estimate, Hz. 0: 1.0 */
-  double catchup_speed; /* m/s. A joint back after missing (or rejected) frames does not snap
-                           from where it was held to where it is now: the output eases over
-                           (the gap halves per frame, at most catchup_speed / fps of it per
-                           frame). 0: 3; < 0: off (snap) */
+  double catchup_speed; /* m/s. A joint back after missing frames does not snap from where
+                           it was held to where it is now: the output eases over (the gap
+                           halves per frame, at most catchup_speed / fps of it per frame). Per
+                           joint, so a bone may stretch meanwhile: km_glitch's catch-up (on by
+                           default) does it bone by bone. 0: off (snap) */
 } km_filter_options;
 #define KM_FILTER_ZERO (-1.0)
 
@@ -948,7 +949,9 @@ void km_filter_free(km_filter **f);
  *            few frames: the allowance grows while it is rejected);
  *   bone:    the bone from its parent (accepted this frame) departs from the running median
  *            of the bone's accepted lengths (last 31) by more than bone_tolerance * median +
- *            bone_slack (once 5 lengths were seen). */
+ *            bone_slack (once 5 lengths were seen).
+ * An accepted sample after a gap eases in (catchup_speed): the output is then the sample plus
+ * a shrinking offset, not the raw sample. */
 typedef struct km_glitch_options {
   double fps;            /* frames per second of the pushed frames. 0: 30 */
   double max_speed;      /* m/s. 0: 12 (a fast punch or kick peaks near 10 m/s; a 0.6 m
@@ -956,6 +959,12 @@ typedef struct km_glitch_options {
   double bone_tolerance; /* relative. 0: 0.4; < 0: no bone test */
   double bone_slack;     /* metres added to the bone tolerance (short, noisy bones). 0: 0.04 */
   int refound_frames;    /* 0: 1; < 0: none */
+  double catchup_speed;  /* m/s. A joint accepted again after rejected or missing frames is
+                            output with an offset that starts where it was held (relative to
+                            its parent when both are accepted: a bone keeps its length) and
+                            shrinks, halving per frame while small, at most catchup_speed / fps
+                            per frame; children are carried by their parent's offset. The mesh
+                            eases back in instead of snapping. 0: 3; < 0: off */
 } km_glitch_options;
 typedef struct km_glitch_stats {
   size_t frames;               /* frames pushed */

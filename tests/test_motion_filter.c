@@ -96,9 +96,8 @@ static void test_ramp(void) {
 
 static void test_missing(void) {
   km_filter *f = NULL, *g = NULL;
-  km_filter_options snap = {.catchup_speed = -1}; /* no catch-up: the state alone is compared */
-  CHECK_OK(km_filter_create(2, &snap, &f, KM_E));
-  CHECK_OK(km_filter_create(2, &snap, &g, KM_E));
+  CHECK_OK(km_filter_create(2, NULL, &f, KM_E));
+  CHECK_OK(km_filter_create(2, NULL, &g, KM_E));
   double out[6], outg[6];
   /* Joint 1 never seen yet: NaN; joint 0 fine. */
   double raw0[6] = {0, 0, 0, NAN, NAN, NAN};
@@ -139,15 +138,15 @@ static void test_missing(void) {
 }
 
 /* Catch-up (issue 12): a joint held for 3 frames comes back 0.6 m away (a lost and re-found
- * foot). With catch-up on (the default) no output step exceeds catchup_speed / fps plus the
- * joint's own motion (and the filter's lag behind that ramp), and the output reaches the new place
- * within a second; off, it snaps. Both filters kinds. */
+ * foot). With catch-up on (3 m/s; off by default) no output step exceeds catchup_speed / fps plus
+ * the joint's own motion (and the filter's lag behind that ramp), and the output reaches the new
+ * place within a second; off, it snaps. Both filters kinds. */
 static void test_catch_up(void) {
   for (int kind = 0; kind < 2; ++kind) {
     double worst[2] = {0, 0}, end_err[2] = {0, 0};
     for (int on = 0; on < 2; ++on) {
       km_filter_options o = {.kind = kind ? KM_FILTER_ONE_EURO : KM_FILTER_HOLT,
-                             .catchup_speed = on ? 0 : -1};
+                             .catchup_speed = on ? 3 : 0};
       km_filter *f = NULL;
       CHECK_OK(km_filter_create(1, &o, &f, KM_E));
       double prev[3] = {0, 0, 0};
@@ -169,6 +168,33 @@ static void test_catch_up(void) {
               kind, worst[0]);
     CHECK_MSG(end_err[1] < 1e-3, "kind %d: catch-up did not arrive (%.4f m off)", kind, end_err[1]);
   }
+}
+
+/* Glitch catch-up (issue 12): an arm (shoulder -> elbow -> wrist, forearm 0.25 m) whose
+ * wrist is lost for 3 frames and re-found with the forearm turned 90 degrees (0.35 m away):
+ * the wrist's output eases back in (no step above 0.15 m; a snap is 0.35 m) and arrives, and
+ * meanwhile the forearm keeps its length (the direction turns, not a chord). */
+static void test_glitch_catch_up(void) {
+  int32_t par[3] = {-1, 0, 1};
+  km_glitch *g = NULL;
+  CHECK_OK(km_glitch_create(3, par, NULL, &g, KM_E));
+  double prev[3] = {NAN, NAN, NAN}, worst = 0, stretch = 0, y[9];
+  for (int t = 0; t < 40; ++t) {
+    double x[9] = {0, 1.4, 0, 0.3, 1.4, 0, 0.55, 1.4, 0};
+    if (t >= 10 && t < 13) x[6] = x[7] = x[8] = NAN; /* wrist lost */
+    if (t >= 13) x[6] = 0.3, x[7] = 1.15;            /* re-found, the forearm pointing down */
+    km_glitch_push(g, x, y);
+    if (isnan(y[6])) continue;
+    if (!isnan(prev[0]))
+      worst = fmax(worst, hypot(hypot(y[6] - prev[0], y[7] - prev[1]), y[8] - prev[2]));
+    stretch = fmax(stretch, fabs(hypot(hypot(y[6] - y[3], y[7] - y[4]), y[8] - y[5]) - 0.25));
+    memcpy(prev, y + 6, sizeof prev);
+  }
+  CHECK_MSG(worst <= 0.15, "glitch catch-up: a wrist step of %.3f m", worst);
+  CHECK_MSG(fabs(y[6] - 0.3) < 1e-3 && fabs(y[7] - 1.15) < 1e-3,
+            "glitch catch-up did not arrive: wrist at %.3f %.3f", y[6], y[7]);
+  CHECK_MSG(stretch < 1e-9, "the forearm's length changed by %.3f m while easing in", stretch);
+  km_glitch_free(&g);
 }
 
 static double noise_rms(const km_filter_options *o, double amp) {
@@ -362,8 +388,11 @@ static void test_glitch(void) {
 
   /* Timed frames (live input): a 0.6 m move refused one frame (1/30 s) after the last
    * accepted sample is accepted when the frame comes 0.5 s later (a silent tracker, or
-   * frames the server dropped), and an untimed frame still counts as one frame. */
-  CHECK_OK(km_glitch_create(1, NULL, &o, &g, KM_E));
+   * frames the server dropped), and an untimed frame still counts as one frame (catch-up
+   * off: the accepted sample itself comes out). */
+  km_glitch_options o2 = o;
+  o2.catchup_speed = -1;
+  CHECK_OK(km_glitch_create(1, NULL, &o2, &g, KM_E));
   double p[3] = {0, 1, 0}, q[3];
   km_glitch_push_at(g, p, 10.0, q);
   CHECK(!isnan(q[0]));
@@ -386,6 +415,7 @@ int main(void) {
   test_ramp();
   test_missing();
   test_catch_up();
+  test_glitch_catch_up();
   test_jitter();
   test_options();
   return km_test_finish("test_motion_filter");

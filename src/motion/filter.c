@@ -73,7 +73,7 @@ km_status km_filter_create(size_t n_joints, const km_filter_options *opt, km_fil
   f->min_cutoff = mc;
   f->beta = beta;
   f->d_cutoff = dc;
-  f->catchup = o.catchup_speed < 0 ? 0 : (o.catchup_speed == 0 ? 3.0 : o.catchup_speed) / fps;
+  f->catchup = o.catchup_speed > 0 ? o.catchup_speed / fps : 0;
   f->decay = pow(0.5, 30.0 / fps);
   *out = f;
   return KM_OK;
