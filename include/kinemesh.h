@@ -940,8 +940,10 @@ void km_filter_free(km_filter **f);
 
 /* ---- issue 12: glitch rejection (before the filter) */
 
-/* Tracker glitches become missing samples, so the filter after it holds / predicts instead
- * of chasing them. Per joint and frame, in this order:
+/* Tracker glitches are rejected, so the filter after it does not chase them: a rejected joint
+ * is output carried by its parent (parent's output + the offset at the joint's last accepted
+ * sample) when catch-up is on (the default) and it has one, else missing (NaN; the filter
+ * holds it). Per joint and frame, in this order:
  *   refound: a joint that comes back after missing frames stays missing for refound_frames
  *            more frames (trackers re-acquire a lost joint at a wrong place first);
  *   speed:   the sample is farther than max_speed / fps * k from the joint's last accepted
@@ -982,8 +984,8 @@ typedef struct km_glitch km_glitch;
  * Errors: KM_ERR_INVALID for bad options or parents. */
 km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_glitch_options *opt,
                            km_glitch **out, km_error *err);
-/* One frame: raw #J*3 in, clean #J*3 out (rejected joints NaN); clean may alias raw. Frames
- * are taken as 1/fps apart. */
+/* One frame: raw #J*3 in, clean #J*3 out (rejected joints carried or NaN, see above); clean
+ * may alias raw. Frames are taken as 1/fps apart. */
 void km_glitch_push(km_glitch *g, const double *raw, double *clean);
 /* Same for a frame received at time t (seconds, any origin; NaN: untimed): the speed test
  * allows for the time since a joint's last accepted sample when that is longer than its

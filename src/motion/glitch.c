@@ -1,5 +1,7 @@
 /* Tracker glitch rejection before the joint filter (issue 12), see km_glitch_create. Three
- * tests per joint and frame, each turning the sample into "missing" (NaN) so that the filter
+ * tests per joint and frame, each rejecting the sample: with catch-up on (the default) the
+ * joint is then carried by its parent at its last accepted offset (a lost hand stays at the
+ * end of the forearm), else, or without a parent, it is "missing" (NaN) so that the filter
  * after it holds its state instead of chasing the glitch:
  *   refound: a joint that was missing stays missing for refound_frames more frames (trackers
  *            re-acquire a lost joint at a wrong place first);
@@ -43,7 +45,8 @@ struct km_glitch {
   int refound;
   double catchup, decay; /* catch-up: metres per frame at most, factor per frame when small */
   glitch_joint *j;
-  bool *ok; /* n, scratch: accepted this frame */
+  bool *ok;   /* n, scratch: accepted this frame */
+  double *in; /* n*3, scratch: the raw frame (clean may alias raw) */
   km_glitch_stats stats;
 };
 
@@ -76,7 +79,8 @@ km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_gli
   g->par_all = km__malloc(n, sizeof(int32_t));
   g->j = km__calloc(n, sizeof *g->j);
   g->ok = km__calloc(n, sizeof(bool));
-  if (!g->parents || !g->par_all || !g->j || !g->ok) {
+  g->in = km__malloc(3 * n, sizeof(double));
+  if (!g->parents || !g->par_all || !g->j || !g->ok || !g->in) {
     km_glitch_free(&g);
     return km__fail(err, KM_ERR_NOMEM, "km_glitch_create: out of memory (%zu joints)", n_joints);
   }
@@ -119,7 +123,9 @@ void km_glitch_push(km_glitch *g, const double *raw, double *clean) {
   km_glitch_push_at(g, raw, NAN, clean);
 }
 
-void km_glitch_push_at(km_glitch *g, const double *raw, double t, double *clean) {
+void km_glitch_push_at(km_glitch *g, const double *raw_in, double t, double *clean) {
+  memcpy(g->in, raw_in, 3 * g->n * sizeof(double));
+  const double *raw = g->in;
   ++g->stats.frames;
   for (size_t k = 0; k < g->n; ++k) {
     glitch_joint *s = &g->j[k];
@@ -183,7 +189,10 @@ void km_glitch_push_at(km_glitch *g, const double *raw, double t, double *clean)
     if (!g->ok[k] && isfinite(raw[3 * k]) && isfinite(raw[3 * k + 1]) && isfinite(raw[3 * k + 2]))
       ++g->stats.rejected;
     if (!g->ok[k]) {
-      clean[3 * k] = clean[3 * k + 1] = clean[3 * k + 2] = NAN;
+      int32_t pp = g->par_all[k];
+      bool carry = g->catchup > 0 && pp >= 0 && g->j[k].has_rel && isfinite(clean[3 * (size_t)pp]);
+      for (int c = 0; c < 3; ++c)
+        clean[3 * k + c] = carry ? clean[3 * (size_t)pp + c] + g->j[k].rel[c] : NAN;
       continue;
     }
     /* catch-up: the offset shrinks (halving per frame while small, at most catchup metres
@@ -228,6 +237,7 @@ void km_glitch_free(km_glitch **g) {
   free((*g)->par_all);
   free((*g)->j);
   free((*g)->ok);
+  free((*g)->in);
   free(*g);
   *g = NULL;
 }
