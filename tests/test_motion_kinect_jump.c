@@ -5,7 +5,7 @@
  * translation-only rig (T) and the bone rig (B) must keep the mesh's largest one-frame vertex
  * step well below that: glitches rejected, a re-found joint eased back in bone by bone
  * (km_glitch catch-up) rather than snapped, the root heading's glitches held. Before: T 14.9 %,
- * B 18.4 % of the diagonal; after: T 12.6 %, B 15.1 %. Skips when ../shared is absent. */
+ * B 18.4 % of the diagonal; after: T 11.1 %, B 14.5 %. Skips when ../shared is absent. */
 #include "km_test.h"
 
 #include <cjson/cJSON.h>
