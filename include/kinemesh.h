@@ -923,11 +923,16 @@ typedef struct km_filter_options {
   double jitter_radius; /* metres (Kinect fJitterRadius). 0: off */
   double max_deviation; /* metres (Kinect fMaxDeviationRadius). 0: off */
   /* ---- issue 12: One Euro filter, overshoot clamp */
-  km_filter_kind kind; /* 0: Holt (above); KM_FILTER_ONE_EURO: Casiez et al. 2012 */
-  double fps;          /* frames per second of the pushed frames (One Euro). 0: 30 */
-  double min_cutoff;   /* One Euro minimum cutoff, Hz. 0: 1.5 */
-  double beta;         /* One Euro speed coefficient, Hz per m/s. 0: 1.0 */
-  double d_cutoff;     /* One Euro cutoff of the speed estimate, Hz. 0: 1.0 */
+  km_filter_kind kind;  /* 0: Holt (above); KM_FILTER_ONE_EURO: Casiez et al. 2012 */
+  double fps;           /* frames per second of the pushed frames (One Euro). 0: 30 */
+  double min_cutoff;    /* One Euro minimum cutoff, Hz. 0: 1.5 */
+  double beta;          /* One Euro speed coefficient, Hz per m/s. 0: 1.0 */
+  double d_cutoff;      /* One Euro cutoff of the speed estimate, Hz. 0: 1.0 */
+  double catchup_speed; /* m/s. A joint back after missing frames does not snap from where
+                           it was held to where it is now: the output eases over (the gap
+                           halves per frame, at most catchup_speed / fps of it per frame). Per
+                           joint, so a bone may stretch meanwhile: km_glitch's catch-up (on by
+                           default) does it bone by bone. 0: off (snap) */
 } km_filter_options;
 #define KM_FILTER_ZERO (-1.0)
 
@@ -938,7 +943,8 @@ typedef struct km_filter km_filter;
 km_status km_filter_create(size_t n_joints, const km_filter_options *opt, km_filter **out,
                            km_error *err);
 /* Filters one frame. A NaN raw joint (missing) does not touch the joint's state and outputs
- * its last filtered value; before the joint's first good sample it outputs NaN.
+ * its last output (held); before the joint's first good sample it outputs NaN. When it comes
+ * back, the output eases from the held position (catchup_speed).
  *   raw       in: #J*3 joint positions
  *   filtered  out: #J*3; may alias raw */
 void km_filter_push(km_filter *f, const double *raw, double *filtered);
@@ -949,8 +955,10 @@ void km_filter_free(km_filter **f);
 
 /* ---- issue 12: glitch rejection (before the filter) */
 
-/* Tracker glitches become missing samples, so the filter after it holds / predicts instead
- * of chasing them. Per joint and frame, in this order:
+/* Tracker glitches are rejected, so the filter after it does not chase them: a rejected joint
+ * is output carried by its parent (parent's output + the offset at the joint's last accepted
+ * sample) when catch-up is on (the default) and it has one, else missing (NaN; the filter
+ * holds it). Per joint and frame, in this order:
  *   refound: a joint that comes back after missing frames stays missing for refound_frames
  *            more frames (trackers re-acquire a lost joint at a wrong place first);
  *   speed:   the sample is farther than max_speed / fps * k from the joint's last accepted
@@ -958,7 +966,9 @@ void km_filter_free(km_filter **f);
  *            few frames: the allowance grows while it is rejected);
  *   bone:    the bone from its parent (accepted this frame) departs from the running median
  *            of the bone's accepted lengths (last 31) by more than bone_tolerance * median +
- *            bone_slack (once 5 lengths were seen). */
+ *            bone_slack (once 5 lengths were seen).
+ * An accepted sample after a gap eases in (catchup_speed): the output is then the sample plus
+ * a shrinking offset, not the raw sample. */
 typedef struct km_glitch_options {
   double fps;            /* frames per second of the pushed frames. 0: 30 */
   double max_speed;      /* m/s. 0: 12 (a fast punch or kick peaks near 10 m/s; a 0.6 m
@@ -966,6 +976,12 @@ typedef struct km_glitch_options {
   double bone_tolerance; /* relative. 0: 0.4; < 0: no bone test */
   double bone_slack;     /* metres added to the bone tolerance (short, noisy bones). 0: 0.04 */
   int refound_frames;    /* 0: 1; < 0: none */
+  double catchup_speed;  /* m/s. A joint accepted again after rejected or missing frames is
+                            output with an offset that starts where it was held (relative to
+                            its parent when both are accepted: a bone keeps its length) and
+                            shrinks, halving per frame while small, at most catchup_speed / fps
+                            per frame; children are carried by their parent's offset. The mesh
+                            eases back in instead of snapping. 0: 3; < 0: off */
 } km_glitch_options;
 typedef struct km_glitch_stats {
   size_t frames;               /* frames pushed */
@@ -983,8 +999,8 @@ typedef struct km_glitch km_glitch;
  * Errors: KM_ERR_INVALID for bad options or parents. */
 km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_glitch_options *opt,
                            km_glitch **out, km_error *err);
-/* One frame: raw #J*3 in, clean #J*3 out (rejected joints NaN); clean may alias raw. Frames
- * are taken as 1/fps apart. */
+/* One frame: raw #J*3 in, clean #J*3 out (rejected joints carried or NaN, see above); clean
+ * may alias raw. Frames are taken as 1/fps apart. */
 void km_glitch_push(km_glitch *g, const double *raw, double *clean);
 /* Same for a frame received at time t (seconds, any origin; NaN: untimed): the speed test
  * allows for the time since a joint's last accepted sample when that is longer than its
@@ -1163,6 +1179,9 @@ typedef struct km_retarget_options {
                       move per push; a faster step (a pose snap of the tracker) is eased over
                       the next pushes, every handle by the same fraction (displacements
                       linearly, rotations by slerp). 0: rig->max_step (0: off) */
+  double fps;      /* pushes per second, for the rigid root's heading filter (at most 180 deg/s
+                      shown; a measured change faster than 720 deg/s, or a 180 deg left/right
+                      swap, is held). 0: 30 */
 } km_retarget_options;
 
 typedef struct km_retarget km_retarget;

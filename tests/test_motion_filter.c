@@ -137,6 +137,73 @@ static void test_missing(void) {
   km_filter_free(&g);
 }
 
+/* Catch-up (issue 12): a joint held for 3 frames comes back 0.6 m away (a lost and re-found
+ * foot). With catch-up on (3 m/s; off by default) no output step exceeds catchup_speed / fps plus
+ * the joint's own motion (and the filter's lag behind that ramp), and the output reaches the new
+ * place within a second; off, it snaps. Both filters kinds. */
+static void test_catch_up(void) {
+  for (int kind = 0; kind < 2; ++kind) {
+    double worst[2] = {0, 0}, end_err[2] = {0, 0};
+    for (int on = 0; on < 2; ++on) {
+      km_filter_options o = {.kind = kind ? KM_FILTER_ONE_EURO : KM_FILTER_HOLT,
+                             .catchup_speed = on ? 3 : 0};
+      km_filter *f = NULL;
+      CHECK_OK(km_filter_create(1, &o, &f, KM_E));
+      double prev[3] = {0, 0, 0};
+      for (int t = 0; t < 60; ++t) {
+        double x[3] = {0.001 * t, t >= 20 ? 0.6 : 0, 0}, y[3];
+        if (t >= 17 && t < 20) x[0] = x[1] = x[2] = NAN;
+        km_filter_push(f, x, y);
+        if (t)
+          worst[on] = fmax(worst[on], hypot(hypot(y[0] - prev[0], y[1] - prev[1]), y[2] - prev[2]));
+        memcpy(prev, y, sizeof prev);
+        if (t == 59) end_err[on] = fabs(y[1] - 0.6);
+      }
+      km_filter_free(&f);
+    }
+    /* default 3 m/s at 30 fps: 0.1 m per frame; the Holt filter's lag behind that ramp adds
+     * a little when it ends */
+    CHECK_MSG(worst[1] <= 0.13, "kind %d: catch-up step %.3f m > 0.13", kind, worst[1]);
+    CHECK_MSG(worst[0] >= 0.2, "kind %d: without catch-up the step is %.3f m (a snap expected)",
+              kind, worst[0]);
+    CHECK_MSG(end_err[1] < 1e-3, "kind %d: catch-up did not arrive (%.4f m off)", kind, end_err[1]);
+  }
+}
+
+/* Glitch catch-up (issue 12): an arm (shoulder -> elbow -> wrist, forearm 0.25 m) whose
+ * wrist is lost for 3 frames and re-found with the forearm turned 90 degrees (0.35 m away):
+ * the wrist's output eases back in (no step above 0.15 m; a snap is 0.35 m) and arrives, and
+ * meanwhile the forearm keeps its length (the direction turns, not a chord). */
+static void test_glitch_catch_up(void) {
+  int32_t par[3] = {-1, 0, 1};
+  km_glitch *g = NULL, *ga = NULL; /* ga: the same, in place (clean aliasing raw) */
+  CHECK_OK(km_glitch_create(3, par, NULL, &g, KM_E));
+  CHECK_OK(km_glitch_create(3, par, NULL, &ga, KM_E));
+  double prev[3] = {NAN, NAN, NAN}, worst = 0, stretch = 0, y[9];
+  size_t alias_diff = 0;
+  for (int t = 0; t < 40; ++t) {
+    double x[9] = {0, 1.4, 0, 0.3, 1.4, 0, 0.55, 1.4, 0};
+    if (t >= 10 && t < 13) x[6] = x[7] = x[8] = NAN; /* wrist lost */
+    if (t >= 13) x[6] = 0.3, x[7] = 1.15;            /* re-found, the forearm pointing down */
+    km_glitch_push(g, x, y);
+    km_glitch_push(ga, x, x);
+    for (int k = 0; k < 9; ++k)
+      alias_diff += !(x[k] == y[k] || (isnan(x[k]) && isnan(y[k])));
+    if (isnan(y[6])) continue;
+    if (!isnan(prev[0]))
+      worst = fmax(worst, hypot(hypot(y[6] - prev[0], y[7] - prev[1]), y[8] - prev[2]));
+    stretch = fmax(stretch, fabs(hypot(hypot(y[6] - y[3], y[7] - y[4]), y[8] - y[5]) - 0.25));
+    memcpy(prev, y + 6, sizeof prev);
+  }
+  CHECK_MSG(worst <= 0.15, "glitch catch-up: a wrist step of %.3f m", worst);
+  CHECK_MSG(fabs(y[6] - 0.3) < 1e-3 && fabs(y[7] - 1.15) < 1e-3,
+            "glitch catch-up did not arrive: wrist at %.3f %.3f", y[6], y[7]);
+  CHECK_MSG(stretch < 1e-9, "the forearm's length changed by %.3f m while easing in", stretch);
+  CHECK_MSG(alias_diff == 0, "in place: %zu values differ", alias_diff);
+  km_glitch_free(&g);
+  km_glitch_free(&ga);
+}
+
 static double noise_rms(const km_filter_options *o, double amp) {
   km_filter *f = NULL;
   if (km_filter_create(1, o, &f, NULL) != KM_OK) return NAN;
@@ -277,8 +344,9 @@ static void test_holt_no_overshoot(void) {
   }
 }
 
-/* Issue 12: the glitch rejector turns a one-frame spike, a too-long bone and a re-found joint
- * into missing samples, counts them, and lets a real move through after a few frames. */
+/* Issue 12: the glitch rejector rejects a one-frame spike, a too-long bone and a re-found
+ * joint (carried by its parent meanwhile, or missing without one), counts them, and lets a
+ * real move through after a few frames. */
 static void test_glitch(void) {
   const int32_t parents[2] = {-1, 0};
   km_glitch *g = NULL;
@@ -295,20 +363,24 @@ static void test_glitch(void) {
   km_glitch_stats st;
   km_glitch_stats_get(g, &st);
   CHECK(st.rejected == 0 && st.samples == 40 && st.frames == 20);
+  /* a rejected child comes out carried by its parent at the last accepted offset (0.3 m up),
+   * not at the glitch (catch-up on, the default; off, it would be NaN) */
+#define CARRIED (!isnan(y[0]) && y[3] == y[0] && fabs(y[4] - (y[1] + 0.3)) < 1e-12 && y[5] == y[2])
   x[4] += 0.6; /* spike on the child */
   km_glitch_push(g, x, y);
-  CHECK(isnan(y[3]) && !isnan(y[0]));
+  CHECK(CARRIED);
   x[4] -= 0.6;
   km_glitch_push(g, x, y);
   CHECK(!isnan(y[3]));
   x[4] += 0.2; /* slow enough, but the bone grows by 67% */
   km_glitch_push(g, x, y);
-  CHECK(isnan(y[3]));
+  CHECK(CARRIED);
   x[4] -= 0.2;
   double lost[6] = {x[0], x[1], x[2], NAN, NAN, NAN};
   km_glitch_push(g, lost, y);
   km_glitch_push(g, x, y); /* re-found: held one frame */
-  CHECK(isnan(y[3]));
+  CHECK(CARRIED);
+#undef CARRIED
   km_glitch_push(g, x, y);
   CHECK(!isnan(y[3]));
   km_glitch_stats_get(g, &st);
@@ -328,8 +400,11 @@ static void test_glitch(void) {
 
   /* Timed frames (live input): a 0.6 m move refused one frame (1/30 s) after the last
    * accepted sample is accepted when the frame comes 0.5 s later (a silent tracker, or
-   * frames the server dropped), and an untimed frame still counts as one frame. */
-  CHECK_OK(km_glitch_create(1, NULL, &o, &g, KM_E));
+   * frames the server dropped), and an untimed frame still counts as one frame (catch-up
+   * off: the accepted sample itself comes out). */
+  km_glitch_options o2 = o;
+  o2.catchup_speed = -1;
+  CHECK_OK(km_glitch_create(1, NULL, &o2, &g, KM_E));
   double p[3] = {0, 1, 0}, q[3];
   km_glitch_push_at(g, p, 10.0, q);
   CHECK(!isnan(q[0]));
@@ -351,6 +426,8 @@ int main(void) {
   test_constant();
   test_ramp();
   test_missing();
+  test_catch_up();
+  test_glitch_catch_up();
   test_jitter();
   test_options();
   return km_test_finish("test_motion_filter");

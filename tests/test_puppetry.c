@@ -541,9 +541,9 @@ static void test_root_rigid(const fixture *fx) {
     J[3 * j + 1] = J0[1] + w[1] + move[1];
     J[3 * j + 2] = J0[2] - w[0] + move[2];
   }
-  /* the heading follows at most 20 degrees a frame (a faster turn is a tracker's left/right
-   * swap): five frames to turn 90, then a few for the solve to settle */
-  for (int f = 0; f < 12; ++f)
+  /* a 90 degree turn in one frame is held as a glitch for a few frames, then the heading
+   * follows at most 180 degrees a second through its filter: 150 frames to settle exactly */
+  for (int f = 0; f < 150; ++f)
     CHECK_OK(km_puppetry_push(p, J, V, KM_E));
   double s = km_puppetry_scale(p), diag = km_bbox_diagonal(fx->c.mesh.V, nv);
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -569,6 +569,96 @@ static void test_root_rigid(const fixture *fx) {
   km_puppetry_free(&p);
 }
 
+/* Issue 12: the rigid root's heading ignores tracker glitches: a one-frame 60 degree re-fit
+ * of the hips and shoulders and a 180 degree left/right swap of them (3 frames) leave the mesh
+ * where it was (within 1% of the diagonal; following them at 20 degrees a frame moved it by
+ * a tenth), while a real turn of 90 degrees over a second is followed. */
+static void test_root_heading_glitch(const fixture *fx) {
+  /* translation-only handles at head, hands and feet, relative to the hips (the paper's):
+   * what turns the mesh is the heading alone; the other handles anchors */
+  km_rig rig = fx->rig;
+  rig.maps = malloc(rig.n_maps * sizeof *rig.maps);
+  rig.n_maps = 0;
+  for (size_t e = 0; e < fx->rig.n_maps; ++e) {
+    km_rig_map m = fx->rig.maps[e];
+    if (m.handle >= 5) continue;
+    m.bone_from = 0;
+    m.rotate = false;
+    m.axes = KM_AXIS_X | KM_AXIS_Y | KM_AXIS_Z;
+    m.scale = 1;
+    m.relative_to = 1; /* HipCenter */
+    rig.maps[rig.n_maps++] = m;
+  }
+  rig.root_rigid = true;
+  rig.root = 1;
+  rig.heading[0] = 1 + km_kinect1_joint_index("HipLeft");
+  rig.heading[1] = 1 + km_kinect1_joint_index("HipRight");
+  km_filter_options raw = {.smoothing = KM_FILTER_ZERO, .trend = KM_FILTER_ZERO};
+  km_puppetry_options o = {0}; /* the joints unfiltered: the heading sees the glitches */
+  o.filter = &raw;
+  km_puppetry *p = NULL;
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &rig, NULL, KM_KINECT1_JOINTS, &o, &p, NULL, KM_E));
+  free(rig.maps);
+  if (!p) return;
+  size_t nv = fx->c.mesh.n_vertices;
+  double diag = km_bbox_diagonal(fx->c.mesh.V, nv);
+  double *V = malloc(sizeof(double) * 3 * nv), *V0 = malloc(sizeof(double) * 3 * nv);
+  double J[3 * KM_KINECT1_JOINTS];
+  const double *J0 = fx->c.skeleton.rest;
+  for (int f = 0; f < 10; ++f)
+    CHECK_OK(km_puppetry_push(p, J0, V0, KM_E));
+  int lr[2][2] = {{12, 16}, {4, 8}}; /* hips, shoulders: the heading's joints */
+  double worst = 0;
+  for (int f = 0; f < 40; ++f) {
+    memcpy(J, J0, sizeof J);
+    if (f == 5) { /* a re-fit: hips and shoulders turned 60 degrees for one frame */
+      double c = cos(M_PI / 3), sn = sin(M_PI / 3);
+      for (int k = 0; k < 4; ++k) {
+        int j = lr[k / 2][k % 2];
+        double w[3] = {J0[3 * j] - J0[0], J0[3 * j + 1] - J0[1], J0[3 * j + 2] - J0[2]};
+        J[3 * j] = J0[0] + c * w[0] + sn * w[2];
+        J[3 * j + 2] = J0[2] - sn * w[0] + c * w[2];
+      }
+    }
+    if (f >= 20 && f < 23) /* left and right swapped */
+      for (int k = 0; k < 2; ++k)
+        for (int d = 0; d < 3; ++d) {
+          J[3 * lr[k][0] + d] = J0[3 * lr[k][1] + d];
+          J[3 * lr[k][1] + d] = J0[3 * lr[k][0] + d];
+        }
+    CHECK_OK(km_puppetry_push(p, J, V, KM_E));
+    for (size_t i = 0; i < 3 * nv; ++i)
+      worst = fmax(worst, fabs(V[i] - V0[i]));
+  }
+  CHECK_MSG(worst < 0.01 * diag, "heading glitches moved the mesh by %.1f%% of the diagonal",
+            100 * worst / diag);
+  /* a real turn: 90 degrees over 30 frames, then held: the heading arrives */
+  for (int f = 1; f <= 90; ++f) {
+    double a = 0.5 * M_PI * fmin(1.0, f / 30.0), c = cos(a), sn = sin(a);
+    for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
+      double w[3] = {J0[3 * j] - J0[0], J0[3 * j + 1] - J0[1], J0[3 * j + 2] - J0[2]};
+      J[3 * j] = J0[0] + c * w[0] + sn * w[2];
+      J[3 * j + 1] = J0[3 * j + 1];
+      J[3 * j + 2] = J0[2] - sn * w[0] + c * w[2];
+    }
+    CHECK_OK(km_puppetry_push(p, J, V, KM_E));
+  }
+  double m0[2] = {0, 0}, m1[2] = {0, 0}, sc = 0, cc = 0; /* the mesh's turn about y (2D fit) */
+  for (size_t v = 0; v < nv; ++v)
+    m0[0] += V0[3 * v] / nv, m0[1] += V0[3 * v + 2] / nv, m1[0] += V[3 * v] / nv,
+        m1[1] += V[3 * v + 2] / nv;
+  for (size_t v = 0; v < nv; ++v) {
+    double x0 = V0[3 * v] - m0[0], z0 = V0[3 * v + 2] - m0[1];
+    double x1 = V[3 * v] - m1[0], z1 = V[3 * v + 2] - m1[1];
+    sc += x1 * z0 - z1 * x0, cc += x1 * x0 + z1 * z0;
+  }
+  double turned = atan2(sc, cc) * 180 / M_PI;
+  CHECK_MSG(fabs(turned - 90) < 3, "a real 90 degree turn shown as %.1f degrees", turned);
+  free(V);
+  free(V0);
+  km_puppetry_free(&p);
+}
+
 int main(void) {
   if (!mkdtemp(g_dir)) {
     perror("mkdtemp");
@@ -584,6 +674,7 @@ int main(void) {
     test_motion_read(&fx);
     test_spike_rejected(&fx);
     test_root_rigid(&fx);
+    test_root_heading_glitch(&fx);
   }
   fixture_free(&fx);
   char cmd[128];

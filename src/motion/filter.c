@@ -12,6 +12,7 @@ typedef struct joint_state {
   double prev_x[3]; /* last good raw sample */
   double speed;     /* One Euro: filtered speed, m/s */
   int gap;          /* frames since the last good sample */
+  double off[3];    /* catch-up: added to the raw samples after a gap, shrinking */
   bool valid;       /* has seen a good sample */
 } joint_state;
 
@@ -20,6 +21,8 @@ struct km_filter {
   km_filter_kind kind;
   double smoothing, trend, prediction, jitter, max_dev;
   double te, min_cutoff, beta, d_cutoff; /* One Euro */
+  double catchup; /* metres per frame the catch-up offset shrinks by at most; 0: snap */
+  double decay;   /* the catch-up offset's factor per frame when small */
   joint_state *s;
 };
 
@@ -70,6 +73,8 @@ km_status km_filter_create(size_t n_joints, const km_filter_options *opt, km_fil
   f->min_cutoff = mc;
   f->beta = beta;
   f->d_cutoff = dc;
+  f->catchup = o.catchup_speed > 0 ? o.catchup_speed / fps : 0;
+  f->decay = pow(0.5, 30.0 / fps);
   *out = f;
   return KM_OK;
 }
@@ -90,6 +95,29 @@ static double one_euro_alpha(double fc, double te) {
   return 1.0 / (1.0 + tau / te);
 }
 
+/* Catch-up after a gap (issue 12): a joint that was missing or rejected for some frames comes
+ * back where the tracker now puts it, often far from where it was held; snapping there moves
+ * the mesh by a tenth of its size in one frame. Instead the filter is fed the new samples plus
+ * an offset that starts at the held position (the last sample it was fed) and goes: halving per
+ * frame (at 30 fps) while small, at most catchup metres per frame while large. The joint's own
+ * motion since it came back passes through unchanged.
+ *   x  in: the raw sample; out: what the filter is fed */
+static void catch_up(const km_filter *f, joint_state *s, int gap, double x[3]) {
+  if (!(f->catchup > 0) || !s->valid) return;
+  if (gap > 1) /* back after a gap: start from the held input */
+    for (int k = 0; k < 3; ++k)
+      s->off[k] = s->prev_x[k] - x[k];
+  double n = sqrt(s->off[0] * s->off[0] + s->off[1] * s->off[1] + s->off[2] * s->off[2]);
+  if (!(n > 0)) return;
+  double k = f->decay;
+  if (n * (1 - k) > f->catchup) k = 1 - f->catchup / n;
+  if (n * k < 1e-5) k = 0;
+  for (int c = 0; c < 3; ++c) {
+    s->off[c] *= k;
+    x[c] += s->off[c];
+  }
+}
+
 void km_filter_push(km_filter *f, const double *raw, double *filtered) {
   for (size_t j = 0; j < f->n; ++j) {
     joint_state *s = &f->s[j];
@@ -102,8 +130,9 @@ void km_filter_push(km_filter *f, const double *raw, double *filtered) {
         o[k] = s->valid ? s->out[k] : NAN;
       continue;
     }
-    double prev_x[3] = {s->prev_x[0], s->prev_x[1], s->prev_x[2]};
     int gap = s->gap;
+    catch_up(f, s, gap, x);
+    double prev_x[3] = {s->prev_x[0], s->prev_x[1], s->prev_x[2]};
     memcpy(s->prev_x, x, sizeof x);
     s->gap = 0;
     if (!s->valid) {
@@ -114,6 +143,7 @@ void km_filter_push(km_filter *f, const double *raw, double *filtered) {
       }
       s->speed = 0;
       s->valid = true;
+      memset(s->off, 0, sizeof s->off);
       if (f->kind == KM_FILTER_ONE_EURO) {
         for (int k = 0; k < 3; ++k)
           o[k] = x[k];

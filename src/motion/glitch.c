@@ -1,5 +1,7 @@
 /* Tracker glitch rejection before the joint filter (issue 12), see km_glitch_create. Three
- * tests per joint and frame, each turning the sample into "missing" (NaN) so that the filter
+ * tests per joint and frame, each rejecting the sample: with catch-up on (the default) the
+ * joint is then carried by its parent at its last accepted offset (a lost hand stays at the
+ * end of the forearm), else, or without a parent, it is "missing" (NaN) so that the filter
  * after it holds its state instead of chasing the glitch:
  *   refound: a joint that was missing stays missing for refound_frames more frames (trackers
  *            re-acquire a lost joint at a wrong place first);
@@ -22,6 +24,9 @@
 typedef struct glitch_joint {
   double last[3]; /* last accepted sample */
   bool has_last;
+  double rel[3]; /* last accepted sample minus its parent's raw sample then (both accepted) */
+  bool has_rel;
+  double off[3]; /* catch-up: added to the accepted samples after a gap, shrinking */
   int since;     /* frames since the last accepted sample (1 = the previous frame) */
   double t_last; /* time of the last accepted sample (seconds; NaN: frames are not timed) */
   int hold;      /* refound: frames still to treat as missing */
@@ -33,12 +38,15 @@ typedef struct glitch_joint {
 struct km_glitch {
   size_t n;
   int32_t *parents; /* n, -1: root or no bone test */
+  int32_t *par_all; /* n, -1: root (parents as given, for the catch-up) */
   double step;      /* max_speed / fps: metres per frame; <= 0: off */
   double fps;       /* frames per second the step is for */
   double tol, slack;
   int refound;
+  double catchup, decay; /* catch-up: metres per frame at most, factor per frame when small */
   glitch_joint *j;
-  bool *ok; /* n, scratch: accepted this frame */
+  bool *ok;   /* n, scratch: accepted this frame */
+  double *in; /* n*3, scratch: the raw frame (clean may alias raw) */
   km_glitch_stats stats;
 };
 
@@ -68,20 +76,26 @@ km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_gli
   if (!g) return km__fail(err, KM_ERR_NOMEM, "km_glitch_create: out of memory");
   size_t n = n_joints ? n_joints : 1;
   g->parents = km__malloc(n, sizeof(int32_t));
+  g->par_all = km__malloc(n, sizeof(int32_t));
   g->j = km__calloc(n, sizeof *g->j);
   g->ok = km__calloc(n, sizeof(bool));
-  if (!g->parents || !g->j || !g->ok) {
+  g->in = km__malloc(3 * n, sizeof(double));
+  if (!g->parents || !g->par_all || !g->j || !g->ok || !g->in) {
     km_glitch_free(&g);
     return km__fail(err, KM_ERR_NOMEM, "km_glitch_create: out of memory (%zu joints)", n_joints);
   }
   g->n = n_joints;
   for (size_t k = 0; k < n_joints; ++k)
     g->parents[k] = parents && tol > 0 ? parents[k] : -1;
+  for (size_t k = 0; k < n_joints; ++k)
+    g->par_all[k] = parents ? parents[k] : -1;
   g->step = speed > 0 ? speed / fps : 0;
   g->fps = fps;
   g->tol = tol;
   g->slack = slack;
   g->refound = o.refound_frames == 0 ? 1 : (o.refound_frames < 0 ? 0 : o.refound_frames);
+  g->catchup = o.catchup_speed < 0 ? 0 : (o.catchup_speed == 0 ? 3.0 : o.catchup_speed) / fps;
+  g->decay = pow(0.5, 30.0 / fps);
   *out = g;
   return KM_OK;
 }
@@ -109,13 +123,16 @@ void km_glitch_push(km_glitch *g, const double *raw, double *clean) {
   km_glitch_push_at(g, raw, NAN, clean);
 }
 
-void km_glitch_push_at(km_glitch *g, const double *raw, double t, double *clean) {
+void km_glitch_push_at(km_glitch *g, const double *raw_in, double t, double *clean) {
+  memcpy(g->in, raw_in, 3 * g->n * sizeof(double));
+  const double *raw = g->in;
   ++g->stats.frames;
   for (size_t k = 0; k < g->n; ++k) {
     glitch_joint *s = &g->j[k];
     const double *x = raw + 3 * k;
     g->ok[k] = false;
     if (s->has_last) ++s->since;
+    bool back = s->has_last && s->since > 1; /* if accepted: back after a gap */
     if (!isfinite(x[0]) || !isfinite(x[1]) || !isfinite(x[2])) {
       ++g->stats.missing;
       s->was_missing = true;
@@ -154,6 +171,15 @@ void km_glitch_push_at(km_glitch *g, const double *raw, double t, double *clean)
       if (s->n_len < KM_GLITCH_WINDOW) ++s->n_len;
     }
     g->ok[k] = true;
+    int32_t pa = g->par_all[k];
+    if (back && g->catchup > 0) { /* start from where it was held, relative to its parent */
+      bool rel = pa >= 0 && g->ok[pa] && s->has_rel;
+      for (int c = 0; c < 3; ++c)
+        s->off[c] = rel ? s->rel[c] - (x[c] - raw[3 * (size_t)pa + c]) : s->last[c] - x[c];
+    }
+    s->has_rel = pa >= 0 && g->ok[pa];
+    for (int c = 0; s->has_rel && c < 3; ++c)
+      s->rel[c] = x[c] - raw[3 * (size_t)pa + c];
     memcpy(s->last, x, sizeof s->last);
     s->has_last = true;
     s->since = 0;
@@ -162,8 +188,38 @@ void km_glitch_push_at(km_glitch *g, const double *raw, double t, double *clean)
   for (size_t k = 0; k < g->n; ++k) {
     if (!g->ok[k] && isfinite(raw[3 * k]) && isfinite(raw[3 * k + 1]) && isfinite(raw[3 * k + 2]))
       ++g->stats.rejected;
+    if (!g->ok[k]) {
+      int32_t pp = g->par_all[k];
+      bool carry = g->catchup > 0 && pp >= 0 && g->j[k].has_rel && isfinite(clean[3 * (size_t)pp]);
+      for (int c = 0; c < 3; ++c)
+        clean[3 * k + c] = carry ? clean[3 * (size_t)pp + c] + g->j[k].rel[c] : NAN;
+      continue;
+    }
+    /* catch-up: the offset shrinks (halving per frame while small, at most catchup metres
+     * per frame), and a joint is carried by its parent's offset (parents come first), so a
+     * bone keeps its length and direction while its end eases back in */
+    glitch_joint *s = &g->j[k];
+    double *off = s->off, n = sqrt(off[0] * off[0] + off[1] * off[1] + off[2] * off[2]);
+    if (n > 0) {
+      double f = g->decay;
+      if (n * (1 - f) > g->catchup) f = 1 - g->catchup / n;
+      if (n * f < 1e-5) f = 0;
+      for (int c = 0; c < 3; ++c)
+        off[c] *= f;
+    }
+    int32_t p = g->par_all[k];
+    bool carried = p >= 0 && g->ok[p];
+    double *o = clean + 3 * k;
     for (int c = 0; c < 3; ++c)
-      clean[3 * k + c] = g->ok[k] ? raw[3 * k + c] : NAN;
+      o[c] = raw[3 * k + c] + off[c] +
+             (carried ? clean[3 * (size_t)p + c] - raw[3 * (size_t)p + c] : 0);
+    if (carried && n > 0) { /* the bone turns back in at its current length, not a chord */
+      const double *q = clean + 3 * (size_t)p, *xq = raw + 3 * (size_t)p, *x = raw + 3 * k;
+      double b[3] = {o[0] - q[0], o[1] - q[1], o[2] - q[2]};
+      double lb = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]), l = dist3(x, xq);
+      for (int c = 0; lb > 1e-9 && c < 3; ++c)
+        o[c] = q[c] + b[c] * (l / lb);
+    }
   }
 }
 
@@ -178,8 +234,10 @@ void km_glitch_reset(km_glitch *g) {
 void km_glitch_free(km_glitch **g) {
   if (!g || !*g) return;
   free((*g)->parents);
+  free((*g)->par_all);
   free((*g)->j);
   free((*g)->ok);
+  free((*g)->in);
   free(*g);
   *g = NULL;
 }

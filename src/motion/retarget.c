@@ -28,6 +28,12 @@ struct km_retarget {
   double R[9], t[3];   /* of the last push */
   double cos_h, sin_h; /* heading change of the last push */
   bool have_heading;   /* a heading was measured since create / reset */
+  double h_phi;        /* the heading shown (radians, unwrapped) */
+  double h_meas;       /* the last accepted measurement (unwrapped) */
+  double h_filt;       /* the One Euro filter's value of the measurements */
+  double h_speed;      /* its filtered angular speed, rad/s */
+  int h_rejected;      /* measurements rejected in a row (swaps, glitches) */
+  double fps;          /* pushes per second */
   /* rotating handles */
   int32_t *rot_joint, *rot_parent; /* n_handles; -1: translation only; NULL: none rotates */
   int32_t *par;                    /* n_joints parents (-1 roots), for rotating handles */
@@ -96,6 +102,8 @@ void km_retarget_reset(km_retarget *r) {
   r->cos_h = 1;
   r->have_heading = false;
   r->sin_h = 0;
+  r->h_phi = r->h_meas = r->h_filt = r->h_speed = 0;
+  r->h_rejected = 0;
   r->have_prev = false;
   r->eased = 0;
   if (r->rot)
@@ -247,6 +255,7 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       return km__fail(err, KM_ERR_INVALID, "rigid root motion: root or heading joint out of range");
     }
     r->rigid = true;
+    r->fps = o.fps > 0 && isfinite(o.fps) ? o.fps : 30.0;
     r->root = rig->root - 1;
     r->hl = rig->heading[0] && rig->heading[1] ? rig->heading[0] - 1 : -1;
     r->hr = rig->heading[0] && rig->heading[1] ? rig->heading[1] - 1 : -1;
@@ -414,6 +423,49 @@ static void ease(km_retarget *r) {
   r->have_prev = true;
 }
 
+/* Heading of the rigid root motion (issue 12): the measured turn of the hip (+ shoulder)
+ * line is noisy and glitchy on a Kinect (one-frame changes of 40-70 degrees where the tracker
+ * re-fits the skeleton, 180 degrees where it swaps left and right), and the whole mesh turns
+ * with it: a 20 degree step moves a quadruped's nose by a sixth of its size. Per push:
+ *   - a measurement that differs from the last accepted one by more than
+ *     KM_HEADING_MAX_RATE / fps * (1 + measurements rejected in a row) is a glitch and held;
+ *     one more than 90 degrees off (a left/right swap) is held for up to a second, then taken
+ *     (the performer did turn round);
+ *   - the accepted ones go through a One Euro filter on the angle (min cutoff 1 Hz, beta
+ *     1 Hz per rad/s: hip noise is damped, a fast turn is followed), and the heading shown
+ *     follows the filter's value at most KM_HEADING_MAX_TURN degrees per second (a spin; the
+ *     demo's kung-fu spin needs about that).
+ * phi: the measured heading change since the reference frame, radians. */
+#define KM_HEADING_MAX_RATE 1200.0 /* deg/s: a faster measured change is a glitch */
+#define KM_HEADING_MAX_TURN 600.0  /* deg/s: the fastest turn shown */
+static void heading_push(km_retarget *r, double phi) {
+  if (!r->have_heading) {
+    r->have_heading = true;
+    r->h_phi = r->h_meas = r->h_filt = phi;
+    r->h_speed = 0;
+    r->h_rejected = 0;
+    return;
+  }
+  const double deg = M_PI / 180;
+  double te = 1.0 / r->fps;
+  double d = remainder(phi - r->h_meas, 2 * M_PI); /* since the last accepted measurement */
+  double allow = KM_HEADING_MAX_RATE * deg * te * (1 + r->h_rejected);
+  bool swap = fabs(d) > 90 * deg && r->h_rejected < r->fps;
+  if (fabs(d) > allow || swap) {
+    ++r->h_rejected;
+  } else {
+    te *= 1 + r->h_rejected; /* the time since the last accepted measurement */
+    r->h_rejected = 0;
+    r->h_meas += d;
+    double a_d = 1.0 / (1.0 + 1.0 / (2 * M_PI * 1.0 * te)); /* d_cutoff 1 Hz */
+    r->h_speed += a_d * (fabs(d) / te - r->h_speed);
+    double fc = 1.0 + 1.0 * r->h_speed;
+    r->h_filt += (r->h_meas - r->h_filt) / (1.0 + 1.0 / (2 * M_PI * fc * te));
+  }
+  double step = r->h_filt - r->h_phi, cap = KM_HEADING_MAX_TURN * deg / r->fps;
+  r->h_phi += fabs(step) > cap ? copysign(cap, step) : step;
+}
+
 static bool valid9(const double *R) {
   for (int k = 0; k < 9; ++k)
     if (!isfinite(R[k])) return false;
@@ -462,15 +514,9 @@ void km_retarget_push_rotations(km_retarget *r, const double *joints, const doub
         }
         if (hips && hypot(v[0], v[1]) > 1e-9 && hypot(v0[0], v0[1]) > 1e-9) {
           /* R_y(phi) takes (1,0,0) to (cos phi, 0, -sin phi): a vector's angle is atan2(-z, x) */
-          double phi = atan2(-v[1], v[0]) - atan2(-v0[1], v0[0]);
-          /* A turn of more than 20 degrees in one frame (600 deg/s at 30 fps, faster than a
-           * pirouette) is a tracker's left/right swap, not a turn: followed at that rate. */
-          double prev = atan2(r->sin_h, r->cos_h), d = remainder(phi - prev, 2 * M_PI);
-          const double max_turn = 20 * M_PI / 180;
-          if (r->have_heading && fabs(d) > max_turn) phi = prev + copysign(max_turn, d);
-          r->have_heading = true;
-          r->cos_h = cos(phi);
-          r->sin_h = sin(phi);
+          heading_push(r, atan2(-v[1], v[0]) - atan2(-v0[1], v0[0]));
+          r->cos_h = cos(r->h_phi);
+          r->sin_h = sin(r->h_phi);
         }
       }
       double c = r->cos_h, sn = r->sin_h;

@@ -168,6 +168,7 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
     }
   }
   km_retarget_options ro = p->opt.retarget; /* rotating handles: bones in the rig's order */
+  if (ro.fps == 0) ro.fps = fps;
   if (!ro.parents && rig->skeleton != KM_RIG_KINECT1 && !r.col) ro.parents = p->parents_in;
   if ((s = km_filter_create(r.nj, &fo, &r.filter, err)) != KM_OK ||
       (s = km_retarget_create(rig, p->rest, r.nj, &ro, &r.rt, err)) != KM_OK) {
