@@ -1537,13 +1537,14 @@ static int limb_search(km_recon *r, const frame_data *fd) {
   }
   double Lbest[18], Lstart[18], res_best = 0;
   for (int c = 0; c < nc; ++c) {
-    for (int step = 0; step < 8; ++step) {
+    for (int step = 0; step < 4; ++step) {
       /* two starts per chain: the current pose, then the second joint (elbow, knee) at the
        * template's own bend (a forearm the local fit folded back would otherwise hold the
-       * upper arm where it is); each: the first joint, the second, then both again. The
-       * start that explains the frame better both ways is kept. */
+       * upper arm where it is); each: the first joint, then the second. The start that
+       * explains the frame better both ways is kept. */
       int32_t j0 = chains[4 * c], j1 = chains[4 * c + 1];
-      if (step == 0 || step == 4) {
+      int stage = step & 1;
+      if (stage == 0) {
         forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
         lbs_apply(r, r->G, r->base, r->global);
         double res = two_sided_residual(r, fd, r->global);
@@ -1564,7 +1565,6 @@ static int limb_search(km_recon *r, const frame_data *fd) {
           L1[0] = L1[4] = L1[8] = 1;
         }
       }
-      int stage = step & 1;
       int32_t j = chains[4 * c + stage], child = chains[4 * c + stage + 1];
       forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
       lbs_apply(r, r->G, r->base, r->global);
@@ -1572,8 +1572,8 @@ static int limb_search(km_recon *r, const frame_data *fd) {
       for (size_t k = 0; k < nj; ++k)
         in_sub[k] =
             (int32_t)k == j || (k > (size_t)j && r->parents[k] >= 0 && in_sub[r->parents[k]]);
-      /* scored: the first joint by its own segment alone (upper arm, thigh: the joint
-       * below is not placed yet), the second by its whole subtree */
+      /* scored: the first joint from the pose by its own segment alone (upper arm, thigh:
+       * the joint below is not placed yet), otherwise by the whole subtree */
       size_t m = 0, all = 0;
 #define KM__LIMB_SCORED(i) (dom[i] >= 0 && (step != 0 ? in_sub[dom[i]] : dom[i] == j))
       for (size_t i = 0; i < nv; ++i)
