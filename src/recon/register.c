@@ -1443,7 +1443,10 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
 
 #define KM__LIMB_DIRECTIONS 160 /* bone directions tried per joint (about 16 degrees apart) */
 #define KM__LIMB_CAP 0.10       /* m: a distance counts at most this much in the score */
-#define KM__LIMB_GAIN 0.999     /* a searched direction is tried below this fraction of the score */
+#define KM__LIMB_BEND_MARGIN                                                                       \
+  3e-4 /* m: the start at the template's bend is kept when its two-sided residual is lower than    \
+        * the pose's start by this much (a near tie keeps the pose) */
+#define KM__LIMB_GAIN 0.999 /* a searched direction is tried below this fraction of the score */
 
 /* The limb chains of the skeleton: a joint whose parent branches (>= 2 children) and whose
  * subtree is a simple chain of at least 3 joints (shoulder -> elbow -> wrist -> hand,
@@ -1537,14 +1540,15 @@ static int limb_search(km_recon *r, const frame_data *fd) {
   }
   double Lbest[18], Lstart[18], res_best = 0;
   for (int c = 0; c < nc; ++c) {
-    for (int step = 0; step < 4; ++step) {
+    for (int step = 0; step < 8; ++step) {
       /* two starts per chain: the current pose, then the second joint (elbow, knee) at the
        * template's own bend (a forearm the local fit folded back would otherwise hold the
-       * upper arm where it is); each: the first joint, then the second. The start that
-       * explains the frame better both ways is kept. */
+       * upper arm where it is); each: the first joint, the second, then both again (the
+       * kick of test_recon_report needs the second round). The start that explains the
+       * frame better both ways is kept. */
       int32_t j0 = chains[4 * c], j1 = chains[4 * c + 1];
       int stage = step & 1;
-      if (stage == 0) {
+      if (step == 0 || step == 4) {
         forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
         lbs_apply(r, r->G, r->base, r->global);
         double res = two_sided_residual(r, fd, r->global);
@@ -1673,12 +1677,13 @@ static int limb_search(km_recon *r, const frame_data *fd) {
     forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
     lbs_apply(r, r->G, r->base, r->global);
     double res = two_sided_residual(r, fd, r->global);
-    if (!(res < res_best)) {
+    bool bend = res < res_best - KM__LIMB_BEND_MARGIN;
+    if (!bend) {
       memcpy(r->Lrot + 9 * (size_t)j0, Lbest, 9 * sizeof(double));
       memcpy(r->Lrot + 9 * (size_t)j1, Lbest + 9, 9 * sizeof(double));
     }
     km__log(KM_LOG_DEBUG, "limb search %s: start %s kept (two-sided %.2f, %.2f mm)", r->names[j0],
-            res < res_best ? "at the template's bend" : "from the pose", res_best * 1e3, res * 1e3);
+            bend ? "at the template's bend" : "from the pose", res_best * 1e3, res * 1e3);
     turned += (memcmp(r->Lrot + 9 * (size_t)j0, Lstart, 9 * sizeof(double)) != 0) +
               (memcmp(r->Lrot + 9 * (size_t)j1, Lstart + 9, 9 * sizeof(double)) != 0);
   }
