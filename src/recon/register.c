@@ -1446,6 +1446,8 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
 #define KM__LIMB_BEND_MARGIN                                                                       \
   3e-4 /* m: the start at the template's bend is kept when its two-sided residual is lower than    \
         * the pose's start by this much (a near tie keeps the pose) */
+#define KM__LIMB_STRONG 0.9        /* a direction this far below the score ... */
+#define KM__LIMB_STRONG_SLACK 1.05 /* ... is turned unless the whole body's residual grows 5% */
 #define KM__LIMB_GAIN 0.999 /* a searched direction is tried below this fraction of the score */
 
 /* The limb chains of the skeleton: a joint whose parent branches (>= 2 children) and whose
@@ -1508,11 +1510,12 @@ static double limb_score(const frame_data *fd, const double *Y, size_t m, const 
  * points along the best of KM__LIMB_DIRECTIONS directions (a Fibonacci sphere, the current
  * one included), scored two-sided over the vertices of the joint's subtree (by the skin
  * weights' largest joint) and the points the rest of the body leaves unexplained (each at
- * most its distance to the rest of the body). A turn is kept only when the whole body's
- * two-sided residual drops; each chain is searched from two starts (its pose, and its second
- * joint at the template's bend), then both joints again, and the better start is kept. A limb
- * the local fit left outside its capture radius is thus put where its points are; the
- * skeletal step then refines it. Returns how many joints were turned. */
+ * most its distance to the rest of the body). A turn is kept where the whole body's
+ * two-sided residual drops (or, for a direction below 90% of the score, grows less than
+ * 5%: the skeletal step refines it); each chain is searched from two starts (its pose, and
+ * its second joint at the template's bend), then both joints again, and the better start is
+ * kept. A limb the local fit left outside its capture radius is thus put where its points
+ * are; the skeletal step then refines it. Returns how many joints were turned. */
 static int limb_search(km_recon *r, const frame_data *fd) {
   size_t nv = r->nv, nj = r->nj;
   int32_t chains[4 * 8];
@@ -1664,9 +1667,13 @@ static int limb_search(km_recon *r, const frame_data *fd) {
       forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
       lbs_apply(r, r->G, r->base, r->global);
       double after = two_sided_residual(r, fd, r->global);
+      /* a turn the limb's score clearly wants may cost the whole body a little before the
+       * skeletal step refines it (the raised knee of a kick) */
+      bool keep = after < before ||
+                  (best < KM__LIMB_STRONG * score0 && after < KM__LIMB_STRONG_SLACK * before);
       km__log(KM_LOG_DEBUG, "limb search %s: two-sided %.2f -> %.2f mm%s", r->names[j],
-              before * 1e3, after * 1e3, after < before ? "" : " (not turned)");
-      if (!(after < before)) {
+              before * 1e3, after * 1e3, keep ? "" : " (not turned)");
+      if (!keep) {
         memcpy(r->Lrot + 9 * (size_t)j, Lkeep, sizeof Lkeep);
         forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
         lbs_apply(r, r->G, r->base, r->global);
