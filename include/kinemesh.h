@@ -2281,8 +2281,10 @@ typedef struct km_recon_init {
    * joints (shoulder then elbow, hip then knee: joints below a branching joint whose subtree
    * is a simple chain of >= 3) are turned to the best of 160 bone directions, scored
    * two-sided (limb vertices to points, unexplained points to the limb), then the skeletal
-   * step runs again. The joints turned (a direction is kept only well below the current
-   * score): */
+   * step runs again. The joints turned (a direction is kept only below the current score
+   * and where it lowers the whole body's two-sided residual, or raises it < 5% when the
+   * limb's score drops > 10%; each chain is also tried from its second joint at the
+   * template's bend, the better start kept): */
   size_t limbs_turned;
   /* ---- bone lengths: then each limb chain's three segments (upper arm, forearm, hand;
    * thigh, shin, foot) are stretched along their bones in the template by the best scale of

@@ -1443,7 +1443,12 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
 
 #define KM__LIMB_DIRECTIONS 160 /* bone directions tried per joint (about 16 degrees apart) */
 #define KM__LIMB_CAP 0.10       /* m: a distance counts at most this much in the score */
-#define KM__LIMB_GAIN 0.9       /* a searched direction is kept below this fraction of the score */
+#define KM__LIMB_BEND_MARGIN                                                                       \
+  3e-4 /* m: the start at the template's bend is kept when its two-sided residual is lower than    \
+        * the pose's start by this much (a near tie keeps the pose) */
+#define KM__LIMB_STRONG 0.9        /* a direction this far below the score ... */
+#define KM__LIMB_STRONG_SLACK 1.05 /* ... is turned unless the whole body's residual grows 5% */
+#define KM__LIMB_GAIN 0.999 /* a searched direction is tried below this fraction of the score */
 
 /* The limb chains of the skeleton: a joint whose parent branches (>= 2 children) and whose
  * subtree is a simple chain of at least 3 joints (shoulder -> elbow -> wrist -> hand,
@@ -1483,13 +1488,13 @@ static int limb_chains(const km_recon *r, int32_t *chain, int max) {
  * its nearest point) plus points -> limb over the points U no other part explains (each to
  * its nearest limb vertex), distances capped. */
 static double limb_score(const frame_data *fd, const double *Y, size_t m, const double *U,
-                         size_t nu, int32_t *idx, double *dist) {
+                         const double *Urest, size_t nu, int32_t *idx, double *dist) {
   km__point_index_nearest(fd->ix, Y, m, KM__LIMB_CAP, idx, dist);
   double a = 0, b = 0;
   for (size_t i = 0; i < m; ++i)
     a += idx[i] >= 0 ? dist[i] : KM__LIMB_CAP;
   for (size_t u = 0; u < nu; ++u) {
-    double best = KM__LIMB_CAP * KM__LIMB_CAP;
+    double best = Urest ? Urest[u] * Urest[u] : KM__LIMB_CAP * KM__LIMB_CAP;
     for (size_t i = 0; i < m; ++i) {
       double d[3] = {U[3 * u] - Y[3 * i], U[3 * u + 1] - Y[3 * i + 1], U[3 * u + 2] - Y[3 * i + 2]};
       double d2 = km__dot3(d, d);
@@ -1504,9 +1509,13 @@ static double limb_score(const frame_data *fd, const double *Y, size_t m, const 
  * first joint (shoulder, hip) and then its second (elbow, knee) is turned so that its bone
  * points along the best of KM__LIMB_DIRECTIONS directions (a Fibonacci sphere, the current
  * one included), scored two-sided over the vertices of the joint's subtree (by the skin
- * weights' largest joint) and the points the rest of the body leaves unexplained. A limb the
- * local fit left outside its capture radius is thus put where its points are; the skeletal
- * step then refines it. Returns how many joints were turned. */
+ * weights' largest joint) and the points the rest of the body leaves unexplained (each at
+ * most its distance to the rest of the body). A turn is kept where the whole body's
+ * two-sided residual drops (or, for a direction below 90% of the score, grows less than
+ * 5%: the skeletal step refines it); each chain is searched from two starts (its pose, and
+ * its second joint at the template's bend), then both joints again, and the better start is
+ * kept. A limb the local fit left outside its capture radius is thus put where its points
+ * are; the skeletal step then refines it. Returns how many joints were turned. */
 static int limb_search(km_recon *r, const frame_data *fd) {
   size_t nv = r->nv, nj = r->nj;
   int32_t chains[4 * 8];
@@ -1517,10 +1526,11 @@ static int limb_search(km_recon *r, const frame_data *fd) {
   double *Y = km__malloc(nv, 3 * sizeof(double)), *Y0 = km__malloc(nv, 3 * sizeof(double));
   double *dist = km__malloc(nv, sizeof(double)), *U = km__malloc(fd->nc, 3 * sizeof(double));
   int32_t *sel = km__malloc(nv, sizeof *sel), *ptri = km__malloc(fd->nc, sizeof *ptri);
-  double *pd = km__malloc(fd->nc, sizeof(double));
+  double *pd = km__malloc(fd->nc, sizeof(double)), *Urest = km__malloc(fd->nc, sizeof(double));
   bool *in_sub = km__malloc(nj, sizeof *in_sub);
   int turned = 0;
-  if (!dom || !idx || !W || !cj || !Y || !Y0 || !dist || !U || !sel || !ptri || !pd || !in_sub)
+  if (!dom || !idx || !W || !cj || !Y || !Y0 || !dist || !U || !sel || !ptri || !pd || !in_sub ||
+      !Urest)
     goto out;
   for (size_t i = 0; i < nv; ++i) {
     dom[i] = dominant_joint(r, i);
@@ -1531,8 +1541,37 @@ static int limb_search(km_recon *r, const frame_data *fd) {
     double ph = k * M_PI * (3 - sqrt(5.0));
     dirs[k][0] = rr * cos(ph), dirs[k][1] = z, dirs[k][2] = rr * sin(ph);
   }
-  for (int c = 0; c < nc; ++c)
-    for (int stage = 0; stage < 2; ++stage) {
+  double Lbest[18], Lstart[18], res_best = 0;
+  for (int c = 0; c < nc; ++c) {
+    for (int step = 0; step < 8; ++step) {
+      /* two starts per chain: the current pose, then the second joint (elbow, knee) at the
+       * template's own bend (a forearm the local fit folded back would otherwise hold the
+       * upper arm where it is); each: the first joint, the second, then both again (the
+       * kick of test_recon_report needs the second round). The start that explains the
+       * frame better both ways is kept. */
+      int32_t j0 = chains[4 * c], j1 = chains[4 * c + 1];
+      int stage = step & 1;
+      if (step == 0 || step == 4) {
+        forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+        lbs_apply(r, r->G, r->base, r->global);
+        double res = two_sided_residual(r, fd, r->global);
+        if (step == 0) {
+          memcpy(Lstart, r->Lrot + 9 * (size_t)j0, 9 * sizeof(double));
+          memcpy(Lstart + 9, r->Lrot + 9 * (size_t)j1, 9 * sizeof(double));
+          memcpy(Lbest, Lstart, sizeof Lbest);
+          res_best = res;
+        } else {
+          if (res < res_best) {
+            res_best = res;
+            memcpy(Lbest, r->Lrot + 9 * (size_t)j0, 9 * sizeof(double));
+            memcpy(Lbest + 9, r->Lrot + 9 * (size_t)j1, 9 * sizeof(double));
+          }
+          memcpy(r->Lrot + 9 * (size_t)j0, Lstart, 9 * sizeof(double));
+          double *L1 = r->Lrot + 9 * (size_t)j1;
+          memset(L1, 0, 9 * sizeof(double));
+          L1[0] = L1[4] = L1[8] = 1;
+        }
+      }
       int32_t j = chains[4 * c + stage], child = chains[4 * c + stage + 1];
       forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
       lbs_apply(r, r->G, r->base, r->global);
@@ -1540,10 +1579,10 @@ static int limb_search(km_recon *r, const frame_data *fd) {
       for (size_t k = 0; k < nj; ++k)
         in_sub[k] =
             (int32_t)k == j || (k > (size_t)j && r->parents[k] >= 0 && in_sub[r->parents[k]]);
-      /* scored: the first joint by its own segment alone (upper arm, thigh: the joint
-       * below is not placed yet), the second by its whole subtree */
+      /* scored: the first joint from the pose by its own segment alone (upper arm, thigh:
+       * the joint below is not placed yet), otherwise by the whole subtree */
       size_t m = 0, all = 0;
-#define KM__LIMB_SCORED(i) (dom[i] >= 0 && (stage ? in_sub[dom[i]] : dom[i] == j))
+#define KM__LIMB_SCORED(i) (dom[i] >= 0 && (step != 0 ? in_sub[dom[i]] : dom[i] == j))
       for (size_t i = 0; i < nv; ++i)
         if (KM__LIMB_SCORED(i)) ++all;
       size_t stride = all > 300 ? all / 300 + 1 : 1, cnt = 0;
@@ -1561,12 +1600,32 @@ static int limb_search(km_recon *r, const frame_data *fd) {
         bool mine = v0 >= 0 && dom[v0] >= 0 && in_sub[dom[v0]];
         if (pd[q] > 0.02 || mine) memcpy(U + 3 * nu++, fd->C + 3 * q, 3 * sizeof(double));
       }
+      /* each such point counts at most its distance to the rest of the body: a template
+       * slimmer than the subject leaves the torso's points unexplained too, and a limb must
+       * not win by lying on them (on FAUST tr_reg_000 the left arm stayed folded onto the
+       * torso of D-FAUST's subject while the subject held it out) */
+      size_t nrest = 0;
+      for (size_t i = 0; i < nv; ++i)
+        if (!(dom[i] >= 0 && in_sub[dom[i]]))
+          memcpy(Y + 3 * nrest++, r->global + 3 * i, 3 * sizeof(double));
+      bool have_rest = false;
+      if (nrest >= 8 && nu) {
+        km__point_index *rix = NULL;
+        if (km__point_index_create(Y, nrest, &rix, NULL) == KM_OK) {
+          km__point_index_nearest(rix, U, nu, KM__LIMB_CAP, ptri, Urest);
+          for (size_t u = 0; u < nu; ++u)
+            if (ptri[u] < 0) Urest[u] = KM__LIMB_CAP;
+          have_rest = true;
+        }
+        km__point_index_free(&rix);
+      }
+      const double *ur = have_rest ? Urest : NULL;
       for (size_t k = 0; k < m; ++k)
         memcpy(Y0 + 3 * k, r->global + 3 * (size_t)sel[k], 3 * sizeof(double));
       double bone[3] = {cj[3 * child] - cj[3 * j], cj[3 * child + 1] - cj[3 * j + 1],
                         cj[3 * child + 2] - cj[3 * j + 2]};
       if (km__normalize3(bone) < 1e-9) continue;
-      double score0 = limb_score(fd, Y0, m, U, nu, idx, dist), best = score0;
+      double score0 = limb_score(fd, Y0, m, U, ur, nu, idx, dist), best = score0;
       double Rbest[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
       for (int k = 0; k < KM__LIMB_DIRECTIONS; ++k) {
         double axis[3], R[9];
@@ -1582,7 +1641,7 @@ static int limb_search(km_recon *r, const frame_data *fd) {
           for (int a = 0; a < 3; ++a)
             Y[3 * i + a] += cj[3 * j + a];
         }
-        double sc = limb_score(fd, Y, m, U, nu, idx, dist);
+        double sc = limb_score(fd, Y, m, U, ur, nu, idx, dist);
         if (sc < best) best = sc, memcpy(Rbest, R, sizeof Rbest);
       }
       km__log(KM_LOG_DEBUG, "first frame: limb search %s: score %.1f -> %.1f mm", r->names[j],
@@ -1590,7 +1649,7 @@ static int limb_search(km_recon *r, const frame_data *fd) {
       if (!(best < KM__LIMB_GAIN * score0)) continue;
       /* world rotation Rbest about the joint: W_j' = Rbest W_j, so L_j' = W_p^T Rbest W_p L_j */
       int32_t p = r->parents[j];
-      double Wp[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, Wpt[9], T[9], L2[9];
+      double Wp[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, Wpt[9], T[9], L2[9], Lkeep[9];
       if (p >= 0) memcpy(Wp, W + 9 * (size_t)p, sizeof Wp);
       for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b)
@@ -1598,16 +1657,49 @@ static int limb_search(km_recon *r, const frame_data *fd) {
       km__m3_mul(Wpt, Rbest, T);
       km__m3_mul(T, Wp, L2);
       km__m3_mul(L2, r->Lrot + 9 * (size_t)j, T);
+      memcpy(Lkeep, r->Lrot + 9 * (size_t)j, sizeof Lkeep);
       memcpy(r->Lrot + 9 * (size_t)j, T, sizeof T);
       orthonormalize(r->Lrot + 9 * (size_t)j);
-      ++turned;
+      /* a turn is kept only when the whole body explains the frame better both ways: the
+       * limb's own score can prefer a leg folded onto the belly of a subject stouter than
+       * the template, which the rest of the body's points then contradict */
+      double before = two_sided_residual(r, fd, r->global);
+      forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+      lbs_apply(r, r->G, r->base, r->global);
+      double after = two_sided_residual(r, fd, r->global);
+      /* a turn the limb's score clearly wants may cost the whole body a little before the
+       * skeletal step refines it (the raised knee of a kick) */
+      bool keep = after < before ||
+                  (best < KM__LIMB_STRONG * score0 && after < KM__LIMB_STRONG_SLACK * before);
+      km__log(KM_LOG_DEBUG, "limb search %s: two-sided %.2f -> %.2f mm%s", r->names[j],
+              before * 1e3, after * 1e3, keep ? "" : " (not turned)");
+      if (!keep) {
+        memcpy(r->Lrot + 9 * (size_t)j, Lkeep, sizeof Lkeep);
+        forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+        lbs_apply(r, r->G, r->base, r->global);
+        continue;
+      }
     }
+    int32_t j0 = chains[4 * c], j1 = chains[4 * c + 1];
+    forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
+    lbs_apply(r, r->G, r->base, r->global);
+    double res = two_sided_residual(r, fd, r->global);
+    bool bend = res < res_best - KM__LIMB_BEND_MARGIN;
+    if (!bend) {
+      memcpy(r->Lrot + 9 * (size_t)j0, Lbest, 9 * sizeof(double));
+      memcpy(r->Lrot + 9 * (size_t)j1, Lbest + 9, 9 * sizeof(double));
+    }
+    km__log(KM_LOG_DEBUG, "limb search %s: start %s kept (two-sided %.2f, %.2f mm)", r->names[j0],
+            bend ? "at the template's bend" : "from the pose", res_best * 1e3, res * 1e3);
+    turned += (memcmp(r->Lrot + 9 * (size_t)j0, Lstart, 9 * sizeof(double)) != 0) +
+              (memcmp(r->Lrot + 9 * (size_t)j1, Lstart + 9, 9 * sizeof(double)) != 0);
+  }
   forward_kinematics(r, r->Lrot, r->troot, W, cj, r->G);
   memcpy(r->joints, cj, nj * 3 * sizeof(double));
   lbs_apply(r, r->G, r->base, r->global);
 out:
   free(dom), free(idx), free(W), free(cj), free(Y), free(Y0), free(dist), free(U), free(sel);
-  free(ptri), free(pd), free(in_sub);
+  free(ptri), free(pd), free(in_sub), free(Urest);
   return turned;
 }
 
@@ -1752,7 +1844,7 @@ static int bone_lengths(km_recon *r, const frame_data *fd, double *scales_out, i
     stretch_base(r, s, B0, J0, r->base, r->base_joints, Ub, Lb, Tb);
     for (size_t k = 0; k < m; ++k)
       memcpy(Y + 3 * k, r->global + 3 * (size_t)sel[k], 3 * sizeof(double));
-    double score0 = limb_score(fd, Y, m, U, nu, idx, dist), best = score0;
+    double score0 = limb_score(fd, Y, m, U, NULL, nu, idx, dist), best = score0;
     /* one scale for the whole chain first (a straight limb cannot tell where its elbow is
      * from its length alone), then each segment within KM__BONE_SEGMENT of it */
     for (int g = -1; g < 3; ++g) {
@@ -1771,7 +1863,7 @@ static int bone_lengths(km_recon *r, const frame_data *fd, double *scales_out, i
         lbs_apply(r, r->G, r->base, r->global);
         for (size_t k = 0; k < m; ++k)
           memcpy(Y + 3 * k, r->global + 3 * (size_t)sel[k], 3 * sizeof(double));
-        double sc = limb_score(fd, Y, m, U, nu, idx, dist);
+        double sc = limb_score(fd, Y, m, U, NULL, nu, idx, dist);
         if (sc < best) best = sc, keep = v;
       }
       if (g < 0)
