@@ -42,14 +42,17 @@ struct km_retarget {
   double *qref;       /* n_joints*9: each joint's first valid given rotation (NaN: none yet) */
   const double *jrot; /* n_joints*9 of the push under way; NULL: positions only */
   /* bone handles (issue 12) */
-  int32_t *bone_from; /* n_handles: the bone's start joint for bone handles, -1 others; NULL:
-                         no bone handle */
-  int32_t *bone_rel;  /* n_handles: the bone entry's relative_to (1 + joint, 0: none) */
-  double *jrest;      /* n_joints*3 character joints at rest (NaN unknown); NULL: none */
-  double *Rb;         /* n_joints*9 bone rotations (of the bone ending at the joint) */
-  double *C;          /* n_joints*3 posed character joints */
-  double floor_y;     /* the rest floor (lowest rest y) */
-  bool aim;           /* limb bones aim along the performer's (rig "aim": true) */
+  int32_t *bone_from;  /* n_handles: the bone's start joint for bone handles, -1 others; NULL:
+                          no bone handle */
+  int32_t *bone_rel;   /* n_handles: the bone entry's relative_to (1 + joint, 0: none) */
+  double *jrest;       /* n_joints*3 character joints at rest (NaN unknown); NULL: none */
+  double *Rb;          /* n_joints*9 bone rotations (of the bone ending at the joint) */
+  double *C;           /* n_joints*3 posed character joints */
+  int32_t *only_child; /* n_joints: the joint's one child, -1 for none or several */
+  double *jfill;       /* n_joints*3: this push's joints with the untracked ones filled */
+  bool *seen;          /* n_joints: the tracker has sent the joint since create / reset */
+  double floor_y;      /* the rest floor (lowest rest y) */
+  bool aim;            /* limb bones aim along the performer's (rig "aim": true) */
   /* snap easing (issue 12): no handle vertex moves more than max_step per push */
   double max_step;   /* metres per push; 0: off */
   double *prev;      /* n_handles*12: displacement (3) and rotation (9) of the last push */
@@ -84,6 +87,9 @@ void km_retarget_free(km_retarget **r) {
   free(t->jrest);
   free(t->Rb);
   free(t->C);
+  free(t->only_child);
+  free(t->jfill);
+  free(t->seen);
   free(t->prev);
   free(t->hv_radius);
   free(t);
@@ -95,6 +101,7 @@ void km_retarget_reset(km_retarget *r) {
   for (size_t i = 0; i < 3 * r->n_joints; ++i)
     r->ref[i] = NAN;
   memset(r->disp, 0, 3 * r->n_handles * sizeof(double));
+  if (r->seen) memset(r->seen, 0, r->n_joints * sizeof(bool));
   if (r->auto_scale) r->scale = NAN;
   memset(r->R, 0, sizeof r->R);
   r->R[0] = r->R[4] = r->R[8] = 1;
@@ -124,6 +131,11 @@ void km_retarget_reset(km_retarget *r) {
 }
 
 static bool valid3(const double *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }
+
+static double dist3(const double *a, const double *b) {
+  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+              (a[2] - b[2]) * (a[2] - b[2]));
+}
 
 km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_joints,
                              const km_retarget_options *opt, km_retarget **out, km_error *err) {
@@ -294,13 +306,25 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       r->bone_rel = km__calloc(r->n_handles, sizeof(int32_t));
       r->Rb = km__malloc(n_joints ? n_joints : 1, 9 * sizeof(double));
       r->C = km__malloc(n_joints ? n_joints : 1, 3 * sizeof(double));
+      r->only_child = km__malloc(n_joints ? n_joints : 1, sizeof(int32_t));
+      r->jfill = km__malloc(n_joints ? n_joints : 1, 3 * sizeof(double));
+      r->seen = km__calloc(n_joints ? n_joints : 1, sizeof(bool));
       bool jr = rig->joint_rest && rig->n_joint_rest == n_joints;
       if (jr) r->jrest = km__malloc(n_joints, 3 * sizeof(double));
-      if (!r->bone_from || !r->bone_rel || !r->Rb || !r->C || (jr && !r->jrest)) {
+      if (!r->bone_from || !r->bone_rel || !r->Rb || !r->C || !r->only_child || !r->jfill ||
+          !r->seen || (jr && !r->jrest)) {
         km_retarget_free(&r);
         return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
       }
       if (jr) memcpy(r->jrest, rig->joint_rest, n_joints * 3 * sizeof(double));
+      for (size_t j = 0; j < n_joints; ++j)
+        r->only_child[j] = -1;
+      for (size_t j = 0; j < n_joints; ++j) { /* -2: several children */
+        int32_t q = r->par[j];
+        if (q >= 0) r->only_child[q] = r->only_child[q] == -1 ? (int32_t)j : -2;
+      }
+      for (size_t j = 0; j < n_joints; ++j)
+        if (r->only_child[j] < 0) r->only_child[j] = -1;
       r->aim = jr && rig->aim;
       /* The mesh turns about the character's root joint, the point the handles' root-relative
        * motion is measured from (the bounding box centre is only a stand-in without joints). */
@@ -476,8 +500,39 @@ void km_retarget_push(km_retarget *r, const double *joints, double *handle_targe
   km_retarget_push_rotations(r, joints, NULL, handle_targets);
 }
 
+/* A joint the tracker never sends (OSCeleton has no wrists or ankles: its hand hangs off the
+ * elbow) would leave both bones through it without a direction, and the limb still. While a
+ * joint has never been valid (since create / reset) and its parent and its one child are valid,
+ * it is placed on the line between them at the character's rest proportion (the middle
+ * without a character skeleton). Returns joints, or r->jfill when it filled one. A joint that
+ * was seen and is lost now is not filled: it holds (glitch rejection, the bones' last
+ * rotations). */
+static const double *fill_untracked(km_retarget *r, const double *joints) {
+  if (!r->only_child) return joints;
+  bool copied = false;
+  for (size_t j = 0; j < r->n_joints; ++j) {
+    if (valid3(joints + 3 * j)) r->seen[j] = true;
+    int32_t p = r->par[j], c = r->only_child[j];
+    if (p < 0 || c < 0 || r->seen[j]) continue;
+    const double *a = joints + 3 * (size_t)p, *b = joints + 3 * (size_t)c;
+    if (!valid3(a) || !valid3(b)) continue;
+    double t = 0.5;
+    if (r->jrest) {
+      double l0 = dist3(r->jrest + 3 * (size_t)p, r->jrest + 3 * j),
+             l1 = dist3(r->jrest + 3 * j, r->jrest + 3 * (size_t)c);
+      if (l0 + l1 > 1e-12 && isfinite(l0 + l1)) t = l0 / (l0 + l1);
+    }
+    if (!copied) memcpy(r->jfill, joints, 3 * r->n_joints * sizeof(double));
+    copied = true;
+    for (int d = 0; d < 3; ++d)
+      r->jfill[3 * j + d] = a[d] + t * (b[d] - a[d]);
+  }
+  return copied ? r->jfill : joints;
+}
+
 void km_retarget_push_rotations(km_retarget *r, const double *joints, const double *rotations,
                                 double *handle_targets) {
+  joints = fill_untracked(r, joints);
   for (size_t j = 0; j < r->n_joints; ++j)
     if (!isfinite(r->ref[3 * j]) && valid3(joints + 3 * j))
       memcpy(r->ref + 3 * j, joints + 3 * j, 3 * sizeof(double));
@@ -654,11 +709,6 @@ static bool segment_dirs(const km_retarget *r, const double *J, int32_t a, int32
     d0[c] /= n0;
   }
   return true;
-}
-
-static double dist3(const double *a, const double *b) {
-  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
-              (a[2] - b[2]) * (a[2] - b[2]));
 }
 
 /* A short bone (a Kinect wrist -> hand, ankle -> foot: a few noisy centimetres) gives a
