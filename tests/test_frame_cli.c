@@ -51,8 +51,8 @@ static void run_ok(const char *cmd) {
   free(out);
 }
 
-/* Largest coordinate difference between two .pc2 files (INFINITY when they do not match). */
-static double pc2_diff(const char *a, const char *b) {
+/* Largest difference between .pc2 a scaled by k and b. */
+static double pc2_diff_scaled(const char *a, double k, const char *b) {
   double *pa = NULL, *pb = NULL, worst = INFINITY;
   km_anim_info ia, ib;
   CHECK_OK(km_pc2_read(a, &pa, &ia, KM_E));
@@ -60,12 +60,15 @@ static double pc2_diff(const char *a, const char *b) {
   if (pa && pb && ia.frames == ib.frames && ia.vertices == ib.vertices && ia.frames > 0) {
     worst = 0;
     for (size_t i = 0; i < ia.frames * ia.vertices * 3; ++i)
-      worst = fmax(worst, fabs(pa[i] - pb[i]));
+      worst = fmax(worst, fabs(k * pa[i] - pb[i]));
   }
   free(pa);
   free(pb);
   return worst;
 }
+
+/* Largest coordinate difference between two .pc2 files (INFINITY when they do not match). */
+static double pc2_diff(const char *a, const char *b) { return pc2_diff_scaled(a, 1.0, b); }
 
 static double mesh_diff(const char *a, const char *b) {
   km_mesh ma = {0}, mb = {0};
@@ -137,22 +140,6 @@ static void cm_copy(const char *mesh, const char *dst_mesh, const char *dst_rig)
   CHECK_OK(km_mesh_write(dst_mesh, &c.mesh, NULL, KM_E));
   CHECK_OK(km_character_write_rig(dst_rig, &c, KM_E));
   km_character_free(&c);
-}
-
-/* Largest difference between .pc2 a scaled by k and b. */
-static double pc2_diff_scaled(const char *a, double k, const char *b) {
-  double *pa = NULL, *pb = NULL, worst = INFINITY;
-  km_anim_info ia, ib;
-  CHECK_OK(km_pc2_read(a, &pa, &ia, KM_E));
-  CHECK_OK(km_pc2_read(b, &pb, &ib, KM_E));
-  if (pa && pb && ia.frames == ib.frames && ia.vertices == ib.vertices && ia.frames > 0) {
-    worst = 0;
-    for (size_t i = 0; i < ia.frames * ia.vertices * 3; ++i)
-      worst = fmax(worst, fabs(k * pa[i] - pb[i]));
-  }
-  free(pa);
-  free(pb);
-  return worst;
 }
 
 /* Other units than the take's: a x100 copy posed with no flags is the original x100 (the

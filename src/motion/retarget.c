@@ -417,24 +417,7 @@ static void ease(km_retarget *r) {
       for (int d = 0; d < 3; ++d)
         r->disp[3 * h + d] = pd[d] + alpha * (r->disp[3 * h + d] - pd[d]);
       if (!(r->rot && r->rot_joint[h] >= 0)) continue;
-      double q0[4], q1[4], q[4];
-      km__quat_from_rot3(pR, q0);
-      km__quat_from_rot3(r->rot + 9 * h, q1);
-      double dot = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3];
-      if (dot < 0) {
-        dot = -dot;
-        for (int i = 0; i < 4; ++i)
-          q1[i] = -q1[i];
-      }
-      double th = acos(fmin(1.0, dot)), w0 = 1 - alpha, w1 = alpha;
-      if (th > 1e-6) w0 = sin((1 - alpha) * th) / sin(th), w1 = sin(alpha * th) / sin(th);
-      double n = 0;
-      for (int i = 0; i < 4; ++i)
-        q[i] = w0 * q0[i] + w1 * q1[i], n += q[i] * q[i];
-      n = sqrt(n);
-      for (int i = 0; i < 4; ++i)
-        q[i] /= n;
-      km__rot3_from_quat(q, r->rot + 9 * h);
+      km__rot3_slerp(pR, r->rot + 9 * h, alpha, r->rot + 9 * h);
     }
   }
   for (size_t h = 0; h < r->n_handles; ++h) {
