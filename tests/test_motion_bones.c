@@ -349,7 +349,59 @@ static void test_clean_take_joints(void) {
   km_character_free(&c);
 }
 
+/* A tracker that never sends the wrists or ankles (OSCeleton: the hand hangs off the elbow):
+ * the character's default rig, the performer's forearm raised 60 degrees about a still elbow.
+ * The hand handle must rise as it does when the wrist is sent on the forearm, and not at all
+ * without the fill (the bones through a joint never seen had no direction). */
+static void test_untracked_wrist(void) {
+  km_character_options co = {.target_vertices = 3000};
+  km_character c = {0};
+  km_rig rig = {0};
+  char *json = NULL;
+  size_t len = 0;
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  CHECK_OK(km_character_rig_json(&c, &json, &len, KM_E));
+  CHECK_OK(km_rig_parse(json, len, "c.rig.json", &c.mesh, NULL, 0, &rig, KM_E));
+  int hand = -1;
+  for (size_t h = 0; h < rig.n_handles; ++h)
+    if (!strcmp(rig.handles[h].name, "hand_right")) hand = (int)h;
+  CHECK(hand >= 0 && c.skeleton.n_joints == KM_KINECT1_JOINTS);
+  enum { ELBOW = 9, WRIST = 10, HAND = 11 }; /* Kinect v1, right arm */
+  double rise[2];
+  for (int untracked = 0; untracked < 2 && hand >= 0; ++untracked) {
+    km_retarget *rt = NULL;
+    CHECK_OK(km_retarget_create(&rig, &c.mesh, KM_KINECT1_JOINTS, NULL, &rt, KM_E));
+    double J[3 * KM_KINECT1_JOINTS], *tg = malloc(3 * rig.n_handles * sizeof(double));
+    double before[3] = {0, 0, 0};
+    for (int f = 0; f < 2 && rt && tg; ++f) {
+      memcpy(J, c.skeleton.rest, sizeof J);
+      if (f == 1) /* the forearm (elbow -> wrist -> hand) turned 60 degrees up about z */
+        for (int j = WRIST; j <= HAND; ++j) {
+          double *x = J + 3 * j, *e = J + 3 * ELBOW, u = x[0] - e[0], v = x[1] - e[1];
+          double cs = cos(M_PI / 3), sn = sin(M_PI / 3) * (u > 0 ? 1 : -1);
+          x[0] = e[0] + cs * u - sn * v, x[1] = e[1] + sn * u + cs * v;
+        }
+      if (untracked)
+        for (int a = 0; a < 3; ++a)
+          J[3 * 6 + a] = J[3 * WRIST + a] = J[3 * 14 + a] = J[3 * 18 + a] = NAN;
+      km_retarget_push(rt, J, tg);
+      if (f == 0) memcpy(before, tg + 3 * hand, sizeof before);
+    }
+    rise[untracked] = tg ? tg[3 * hand + 1] - before[1] : 0;
+    free(tg);
+    km_retarget_free(&rt);
+  }
+  printf("  hand handle rises %.3f m with the wrist sent, %.3f m without\n", rise[0], rise[1]);
+  CHECK_MSG(rise[0] > 0.1, "forearm raised: the hand rose only %g m", rise[0]);
+  CHECK_MSG(fabs(rise[1] - rise[0]) < 0.02, "no wrist: the hand rose %g m, with it %g m", rise[1],
+            rise[0]);
+  free(json);
+  km_rig_free(&rig);
+  km_character_free(&c);
+}
+
 int main(void) {
+  test_untracked_wrist();
   test_armpit_folds(KM_MOTION_WAVE);
   test_armpit_folds(KM_MOTION_KUNGFU);
   test_clean_take_joints();
