@@ -256,21 +256,38 @@ static unsigned char *faces_near(const km_character *c, const char *const *names
   return near;
 }
 
-static void test_armpit_folds(km_motion_kind kind) {
+/* The procedural character (4000 vertices) and its default rig, built once for the tests below
+ * (generating it is the slow part of this file). */
+typedef struct {
+  km_character c;
+  km_rig rig;
+} fixture;
+
+static void fixture_make(fixture *fx) {
   km_character_options co = {.target_vertices = 4000};
-  km_character c = {0};
-  km_take t = {0};
-  km_rig rig = {0};
   char *json = NULL;
   size_t len = 0;
-  CHECK_OK(km_character_generate(&co, &c, KM_E));
-  CHECK_OK(km_character_rig_json(&c, &json, &len, KM_E));
-  CHECK_OK(km_rig_parse(json, len, "c.rig.json", &c.mesh, NULL, 0, &rig, KM_E));
+  memset(fx, 0, sizeof *fx);
+  CHECK_OK(km_character_generate(&co, &fx->c, KM_E));
+  CHECK_OK(km_character_rig_json(&fx->c, &json, &len, KM_E));
+  CHECK_OK(km_rig_parse(json, len, "c.rig.json", &fx->c.mesh, NULL, 0, &fx->rig, KM_E));
+  free(json);
+}
+
+static void fixture_free(fixture *fx) {
+  km_rig_free(&fx->rig);
+  km_character_free(&fx->c);
+}
+
+static void test_armpit_folds(const fixture *fx, km_motion_kind kind) {
+  const km_character c = fx->c;
+  const km_rig *rig = &fx->rig;
+  km_take t = {0};
   CHECK_OK(km_motion_generate(&c.skeleton, kind, 60, &t, KM_E));
   km_puppetry *p = NULL;
   km_puppetry_options o = {0};
   o.fps = t.fps;
-  CHECK_OK(km_puppetry_create(&c.mesh, &rig, NULL, t.n_joints, &o, &p, NULL, KM_E));
+  CHECK_OK(km_puppetry_create(&c.mesh, rig, NULL, t.n_joints, &o, &p, NULL, KM_E));
   static const char *const shoulders[] = {"ShoulderLeft", "ShoulderRight"};
   size_t n_near = 0, folded = 0;
   double stretch = 0;
@@ -288,11 +305,8 @@ static void test_armpit_folds(km_motion_kind kind) {
     CHECK_MSG(stretch <= 1.0, "shoulder edge stretch %g", stretch);
   }
   free(near);
-  free(json);
   km_puppetry_free(&p);
-  km_rig_free(&rig);
   km_take_free(&t);
-  km_character_free(&c);
 }
 
 /* Elbows and knees on a clean take (issue 12): the procedural character (4000 vertices) with
@@ -304,18 +318,12 @@ static void test_armpit_folds(km_motion_kind kind) {
  * (compression on the inside of a bend). The whole mesh's stretch max (1.19 -> 1.20) is the
  * crotch between spreading thighs, which the character's own skinning stretches as far (2.1x):
  * only bounded here. */
-static void test_clean_take_joints(void) {
+static void test_clean_take_joints(const fixture *fx) {
   char path[1024];
   if (!km_test_shared("bvh/cmu_131_01.bvh", path, sizeof path)) return;
-  km_character_options co = {.target_vertices = 4000};
-  km_character c = {0};
+  const km_character c = fx->c;
+  const km_rig *rig = &fx->rig;
   km_take raw = {0}, t = {0};
-  km_rig rig = {0};
-  char *json = NULL;
-  size_t len = 0;
-  CHECK_OK(km_character_generate(&co, &c, KM_E));
-  CHECK_OK(km_character_rig_json(&c, &json, &len, KM_E));
-  CHECK_OK(km_rig_parse(json, len, "c.rig.json", &c.mesh, NULL, 0, &rig, KM_E));
   km_motion_read_options ro = {0};
   ro.kinect1 = true;
   km_motion_read_info info;
@@ -324,7 +332,7 @@ static void test_clean_take_joints(void) {
   km_puppetry *p = NULL;
   km_puppetry_options o = {0};
   o.fps = t.fps;
-  CHECK_OK(km_puppetry_create(&c.mesh, &rig, (const char *const *)t.joint_names, t.n_joints, &o, &p,
+  CHECK_OK(km_puppetry_create(&c.mesh, rig, (const char *const *)t.joint_names, t.n_joints, &o, &p,
                               NULL, KM_E));
   size_t folded = 0, folded_j = 0, n_near = 0;
   double stretch = 0, stretch_j = 0;
@@ -341,27 +349,18 @@ static void test_clean_take_joints(void) {
   CHECK_MSG(stretch_j <= 0.94, "elbow and knee edge stretch %g", stretch_j);
   CHECK_MSG(stretch <= 1.3, "edge stretch %g", stretch);
   free(near);
-  free(json);
   km_puppetry_free(&p);
-  km_rig_free(&rig);
   km_take_free(&raw);
   km_take_free(&t);
-  km_character_free(&c);
 }
 
 /* A tracker that never sends the wrists or ankles (OSCeleton: the hand hangs off the elbow):
  * the character's default rig, the performer's forearm raised 60 degrees about a still elbow.
  * The hand handle must rise as it does when the wrist is sent on the forearm, and not at all
  * without the fill (the bones through a joint never seen had no direction). */
-static void test_untracked_wrist(void) {
-  km_character_options co = {.target_vertices = 3000};
-  km_character c = {0};
-  km_rig rig = {0};
-  char *json = NULL;
-  size_t len = 0;
-  CHECK_OK(km_character_generate(&co, &c, KM_E));
-  CHECK_OK(km_character_rig_json(&c, &json, &len, KM_E));
-  CHECK_OK(km_rig_parse(json, len, "c.rig.json", &c.mesh, NULL, 0, &rig, KM_E));
+static void test_untracked_wrist(const fixture *fx) {
+  const km_character c = fx->c;
+  const km_rig rig = fx->rig;
   int hand = -1;
   for (size_t h = 0; h < rig.n_handles; ++h)
     if (!strcmp(rig.handles[h].name, "hand_right")) hand = (int)h;
@@ -395,16 +394,16 @@ static void test_untracked_wrist(void) {
   CHECK_MSG(rise[0] > 0.1, "forearm raised: the hand rose only %g m", rise[0]);
   CHECK_MSG(fabs(rise[1] - rise[0]) < 0.02, "no wrist: the hand rose %g m, with it %g m", rise[1],
             rise[0]);
-  free(json);
-  km_rig_free(&rig);
-  km_character_free(&c);
 }
 
 int main(void) {
-  test_untracked_wrist();
-  test_armpit_folds(KM_MOTION_WAVE);
-  test_armpit_folds(KM_MOTION_KUNGFU);
-  test_clean_take_joints();
+  fixture fx;
+  fixture_make(&fx);
+  test_untracked_wrist(&fx);
+  test_armpit_folds(&fx, KM_MOTION_WAVE);
+  test_armpit_folds(&fx, KM_MOTION_KUNGFU);
+  test_clean_take_joints(&fx);
+  fixture_free(&fx);
   km_mesh m = bar();
   for (int solver = 0; solver < 2; ++solver) {
     km_puppetry_solver sv = solver ? KM_PUPPETRY_FULL : KM_PUPPETRY_REDUCED;

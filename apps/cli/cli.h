@@ -162,7 +162,8 @@ void km_cli_report_cache(const char *cache, const km_puppetry_info *info);
 km_status km_cli_puppet_open(const km_mesh *mesh, const char *cache, km_puppet **out,
                              km_puppetry_info *info, km_error *err);
 /* The whole file at path, '\0'-terminated (also a pipe); *size (may be NULL) its bytes. NULL
- * when unreadable (errno says why) or out of memory. Caller frees. */
+ * when unreadable (errno says why), out of memory (ENOMEM) or over 1 GiB (EFBIG). Caller
+ * frees. */
 char *km_cli_read_text(const char *path, size_t *size);
 /* The file at path parsed as JSON; NULL when unreadable or not JSON. Caller cJSON_Deletes. */
 cJSON *km_cli_read_json(const char *path);

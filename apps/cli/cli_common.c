@@ -437,6 +437,8 @@ static int cmp_double(const void *a, const void *b) {
   return x < y ? -1 : x > y;
 }
 
+#define KM_CLI_TEXT_MAX ((size_t)1 << 30)
+
 char *km_cli_read_text(const char *path, size_t *size) {
   FILE *f = fopen(path, "rb");
   if (!f) return NULL;
@@ -444,10 +446,14 @@ char *km_cli_read_text(const char *path, size_t *size) {
   size_t n = 0, cap = 0, got;
   do {
     if (cap - n < 4096) {
-      char *g = realloc(buf, cap = cap ? 2 * cap : 65536);
+      /* A text or JSON input (manifest, features, rig, report) larger than 1 GiB is not one;
+       * refuse it rather than try to hold it (a pipe or /dev/zero would never end). */
+      char *g = cap >= KM_CLI_TEXT_MAX ? NULL : realloc(buf, cap = cap ? 2 * cap : 65536);
       if (!g) {
+        int e = cap >= KM_CLI_TEXT_MAX ? EFBIG : ENOMEM;
         free(buf);
         fclose(f);
+        errno = e;
         return NULL;
       }
       buf = g;

@@ -89,8 +89,9 @@ static double clamp2(double v, double a, double b) {
   return v < lo ? lo : (v > hi ? hi : v);
 }
 
-/* Smoothing factor of a first-order low-pass with cutoff fc (Hz) over te seconds. */
-static double one_euro_alpha(double fc, double te) {
+/* Smoothing factor of a first-order low-pass with cutoff fc (Hz) over te seconds (One Euro
+ * filter's alpha; retarget.c's heading filter uses it too). */
+double km__one_euro_alpha(double fc, double te) {
   double tau = 1.0 / (2.0 * M_PI * fc);
   return 1.0 / (1.0 + tau / te);
 }
@@ -152,8 +153,8 @@ void km_filter_push(km_filter *f, const double *raw, double *filtered) {
     } else if (f->kind == KM_FILTER_ONE_EURO) {
       double te = f->te * (gap > 0 ? gap : 1);
       double v = dist3(x, prev_x) / te;
-      s->speed += one_euro_alpha(f->d_cutoff, te) * (v - s->speed);
-      double a = one_euro_alpha(f->min_cutoff + f->beta * s->speed, te);
+      s->speed += km__one_euro_alpha(f->d_cutoff, te) * (v - s->speed);
+      double a = km__one_euro_alpha(f->min_cutoff + f->beta * s->speed, te);
       for (int k = 0; k < 3; ++k)
         o[k] = s->out[k] = s->out[k] + a * (x[k] - s->out[k]);
       continue;

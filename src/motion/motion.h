@@ -65,4 +65,8 @@ void km__landmarks_write_json(FILE *f, const km_landmark *lm, size_t n);
  * the newest frame must land on the current pose, not ease toward it from the reference). */
 void km__retarget_settle(km_retarget *r);
 
+/* Smoothing factor of a first-order low-pass with cutoff fc (Hz) over te seconds: the One Euro
+ * filter's alpha, 1 / (1 + 1 / (2 pi fc te)). */
+double km__one_euro_alpha(double fc, double te);
+
 #endif

@@ -48,7 +48,7 @@ struct km_retarget {
   double *jrest;       /* n_joints*3 character joints at rest (NaN unknown); NULL: none */
   double *Rb;          /* n_joints*9 bone rotations (of the bone ending at the joint) */
   double *C;           /* n_joints*3 posed character joints */
-  int32_t *only_child; /* n_joints: the joint's one child, -1 for none or several */
+  int32_t *only_child; /* n_joints: the joint's one child, -1 for none, -2 for several */
   double *jfill;       /* n_joints*3: this push's joints with the untracked ones filled */
   bool *seen;          /* n_joints: the tracker has sent the joint since create / reset */
   double floor_y;      /* the rest floor (lowest rest y) */
@@ -319,12 +319,10 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       if (jr) memcpy(r->jrest, rig->joint_rest, n_joints * 3 * sizeof(double));
       for (size_t j = 0; j < n_joints; ++j)
         r->only_child[j] = -1;
-      for (size_t j = 0; j < n_joints; ++j) { /* -2: several children */
+      for (size_t j = 0; j < n_joints; ++j) { /* -2: several children (readers skip < 0) */
         int32_t q = r->par[j];
         if (q >= 0) r->only_child[q] = r->only_child[q] == -1 ? (int32_t)j : -2;
       }
-      for (size_t j = 0; j < n_joints; ++j)
-        if (r->only_child[j] < 0) r->only_child[j] = -1;
       r->aim = jr && rig->aim;
       /* The mesh turns about the character's root joint, the point the handles' root-relative
        * motion is measured from (the bounding box centre is only a stand-in without joints). */
@@ -464,10 +462,9 @@ static void heading_push(km_retarget *r, double phi) {
     te *= 1 + r->h_rejected; /* the time since the last accepted measurement */
     r->h_rejected = 0;
     r->h_meas += d;
-    double a_d = 1.0 / (1.0 + 1.0 / (2 * M_PI * 1.0 * te)); /* d_cutoff 1 Hz */
-    r->h_speed += a_d * (fabs(d) / te - r->h_speed);
+    r->h_speed += km__one_euro_alpha(1.0, te) * (fabs(d) / te - r->h_speed); /* d_cutoff 1 Hz */
     double fc = 1.0 + 1.0 * r->h_speed;
-    r->h_filt += (r->h_meas - r->h_filt) / (1.0 + 1.0 / (2 * M_PI * fc * te));
+    r->h_filt += km__one_euro_alpha(fc, te) * (r->h_meas - r->h_filt);
   }
   double step = r->h_filt - r->h_phi, cap = KM_HEADING_MAX_TURN * deg / r->fps;
   r->h_phi += fabs(step) > cap ? copysign(cap, step) : step;
