@@ -127,6 +127,15 @@ static int skel_joint(const km_skeleton *sk, const char *name) {
   return -1;
 }
 
+/* Whether the body stands upright: its spine (hip centre -> shoulder centre) closer to
+ * vertical than horizontal. */
+static bool upright_body(const km_skeleton *sk) {
+  int hc = skel_joint(sk, "HipCenter"), sc = skel_joint(sk, "ShoulderCenter");
+  if (hc < 0 || sc < 0) return false;
+  const double *a = sk->rest + 3 * (size_t)hc, *b = sk->rest + 3 * (size_t)sc;
+  return b[1] - a[1] > hypot(b[0] - a[0], b[2] - a[2]);
+}
+
 /* Bands: every vertex goes to the bone segment nearest to it (of all the skeleton's bones);
  * a bone's band is its vertices whose projection falls in band_t of the segment (a thin ring
  * on a stubby limb, below), cut to the connected part (along faces) holding the band vertex
@@ -216,12 +225,7 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
   /* Rings only on an upright body (the spine closer to vertical than horizontal): on dog0, rigged
    * as a quadruped, they cost folds (bench motion B precog_Seq3_2 330 -> 529, cmu_131_03
    * 58 -> 139) where they spared the upright character's and armadillo's. */
-  int hc = skel_joint(sk, "HipCenter"), sc = skel_joint(sk, "ShoulderCenter");
-  bool upright = false;
-  if (hc >= 0 && sc >= 0) {
-    const double *a = sk->rest + 3 * (size_t)hc, *b = sk->rest + 3 * (size_t)sc;
-    upright = b[1] - a[1] > hypot(b[0] - a[0], b[2] - a[2]);
-  }
+  bool upright = upright_body(sk);
   for (int b = N_BANDS; b < N_BONE_HANDLES; ++b) {
     ring_r[b] = INFINITY;
     if (!upright) bone_ok[b] = 0;
@@ -418,9 +422,13 @@ static km_status write_rig_stream(FILE *f, const char *path, const km_character 
    * the motion relative to it: with free-standing handles only, a performer who turns round
    * (the demo's kung-fu spin) turned the limbs but not the torso, which no handle holds, and
    * twisted the legs and neck into ropes. */
-  fputs("],\n\"root_motion\":\"rigid\",\"relative_to\":\"HipCenter\",\"aim\":true,"
-        "\"filter\":{\"smoothing\":0.5,\"trend\":0.5}}\n",
-        f);
+  fputs("],\n\"root_motion\":\"rigid\",\"relative_to\":\"HipCenter\",\"aim\":true,", f);
+  /* A quadruped's legs do not reach where a person's arms and legs do: a performer raising an
+   * arm overhead swung the horse's foreleg 150 degrees up to its nose, a thin tube stretched
+   * 4.3x out of the chest (precog_Seq1_1). Its limb bones swing at most 60 degrees from where
+   * their parent carries them. */
+  if (!upright_body(sk)) fputs("\"swing_limit\":60,", f);
+  fputs("\"filter\":{\"smoothing\":0.5,\"trend\":0.5}}\n", f);
   return KM_OK;
 }
 
