@@ -125,6 +125,70 @@ static double slab_mean(const sample *S, size_t n, int a, double mn, double ext,
   return sw > 0 ? sb / sw : NAN;
 }
 
+/* Separate patches of the support along direction d (0..5: +x, -x, +y, ...): the vertices
+ * within 4% of the extent of the lowest one, binned on a grid of 1/32 of the larger other
+ * extent and flood-filled (8-neighbours); patches holding at least 5% of those vertices count.
+ * Two feet or four paws make several; a flank, a back, a head or a base make one. Returns -1
+ * when out of memory. */
+#define PATCH_GRID 32
+static int contact_patches(const km_mesh *m, int d, const double mn[3], const double mx[3],
+                           const double ext[3]) {
+  int a = d / 2, b1 = (a + 1) % 3, b2 = (a + 2) % 3;
+  double cell = fmax(ext[b1], ext[b2]) / PATCH_GRID;
+  int n1 = (int)(ext[b1] / cell) + 1, n2 = (int)(ext[b2] / cell) + 1;
+  if (n1 > PATCH_GRID) n1 = PATCH_GRID;
+  if (n2 > PATCH_GRID) n2 = PATCH_GRID;
+  int count[PATCH_GRID * PATCH_GRID] = {0}, stack[PATCH_GRID * PATCH_GRID];
+  size_t total = 0;
+  for (size_t i = 0; i < m->n_vertices; ++i) {
+    const double *p = m->V + 3 * i;
+    double t = d % 2 ? (mx[a] - p[a]) : (p[a] - mn[a]);
+    if (!(t <= 0.04 * ext[a])) continue;
+    int i1 = (int)((p[b1] - mn[b1]) / cell), i2 = (int)((p[b2] - mn[b2]) / cell);
+    i1 = i1 < 0 ? 0 : i1 >= n1 ? n1 - 1 : i1;
+    i2 = i2 < 0 ? 0 : i2 >= n2 ? n2 - 1 : i2;
+    ++count[i1 * n2 + i2];
+    ++total;
+  }
+  int patches = 0;
+  for (int c0 = 0; c0 < n1 * n2; ++c0) {
+    if (count[c0] <= 0) continue;
+    size_t in = 0;
+    int top = 0;
+    stack[top++] = c0;
+    in += (size_t)count[c0];
+    count[c0] = -1;
+    while (top) {
+      int c = stack[--top], i1 = c / n2, i2 = c % n2;
+      for (int j1 = i1 - 1; j1 <= i1 + 1; ++j1)
+        for (int j2 = i2 - 1; j2 <= i2 + 1; ++j2) {
+          if (j1 < 0 || j2 < 0 || j1 >= n1 || j2 >= n2 || count[j1 * n2 + j2] <= 0) continue;
+          in += (size_t)count[j1 * n2 + j2];
+          count[j1 * n2 + j2] = -1;
+          stack[top++] = j1 * n2 + j2;
+        }
+    }
+    if (20 * in >= total) ++patches;
+  }
+  return patches;
+}
+
+/* Whether the ground-plane candidate g (a direction 0..5) is contradicted: the mesh stands
+ * on several feet along its longest axis, with a support at least twice as wide as g's (a FAUST
+ * registration's front lies at z = 0; a cat lying on its side on y = 0 has its longest axis
+ * along its body, not across the floor). */
+static bool stands_elsewhere(const km_mesh *m, const double support[6], int g, const double mn[3],
+                             const double mx[3], const double ext[3]) {
+  int best = 0;
+  for (int d = 1; d < 6; ++d)
+    if (support[d] > support[best]) best = d;
+  if (best / 2 == g / 2 || support[best] < 2 * support[g]) return false;
+  int a = best / 2;
+  for (int c = 0; c < 3; ++c)
+    if (c != a && ext[c] > ext[a] / 1.2) return false;
+  return contact_patches(m, best, mn, mx, ext) >= 2;
+}
+
 /* km_mesh_frame_guess with the up axis given (KM_AXIS_NONE: guessed). */
 static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess *out,
                              km_error *err) {
@@ -234,7 +298,8 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
     up_sign = (given_up - KM_AXIS_POS_X) % 2 ? -1 : 1;
     out->sure_up = true;
     snprintf(up_why, sizeof up_why, "given");
-  } else if (n_ground == 1 && (ground_sign > 0 || support[2 * ground + 1] >= 0.5 * support_max)) {
+  } else if (n_ground == 1 &&
+             !stands_elsewhere(m, support, 2 * ground + (ground_sign < 0), mn, mx, ext)) {
     up = ground;
     up_sign = ground_sign;
     out->sure_up = true;
