@@ -189,6 +189,74 @@ static bool stands_elsewhere(const km_mesh *m, const double support[6], int g, c
   return contact_patches(m, best, mn, mx, ext) >= 2;
 }
 
+/* Toes ahead of the shins: for each foot (a patch of the lowest 6% of the height, binned on a
+ * grid of 1/32 of the larger horizontal extent, cells 8-connected), the centroid along `fwd`
+ * of the foot against that of the 8-22% of the height right above it (the foot's cells
+ * dilated by one), averaged over the feet by the shins' area: a leg kicked forward, or a tail
+ * whose tip touches the ground behind, is not a shin. Samples' coordinates along up count
+ * from `base` upwards. In fractions of ext[fwd]; NAN when no foot has a shin above it. */
+static double toes_ahead(const sample *S, size_t n, int up, double base, double h, int fwd,
+                         const double mn[3], const double ext[3]) {
+  enum { G = PATCH_GRID * PATCH_GRID };
+  int lat = 3 - up - fwd;
+  double cell = fmax(ext[fwd], ext[lat]) / PATCH_GRID;
+  int nf = (int)(ext[fwd] / cell) + 1, nl = (int)(ext[lat] / cell) + 1;
+  if (nf > PATCH_GRID) nf = PATCH_GRID;
+  if (nl > PATCH_GRID) nl = PATCH_GRID;
+  static const double lo[2] = {0, 0.08}, hi[2] = {0.06, 0.22};
+  double w[2][G] = {{0}}, sf[2][G] = {{0}};
+  int label[G], grown[G], stack[G];
+  for (size_t i = 0; i < n; ++i) {
+    double t = (S[i].p[up] - base) / h;
+    for (int k = 0; k < 2; ++k) {
+      if (t < lo[k] || t >= hi[k]) continue;
+      int jf = (int)((S[i].p[fwd] - mn[fwd]) / cell), jl = (int)((S[i].p[lat] - mn[lat]) / cell);
+      jf = jf < 0 ? 0 : jf >= nf ? nf - 1 : jf;
+      jl = jl < 0 ? 0 : jl >= nl ? nl - 1 : jl;
+      w[k][jf * nl + jl] += S[i].w;
+      sf[k][jf * nl + jl] += S[i].w * S[i].p[fwd];
+    }
+  }
+  int n_labels = 0;
+  for (int c = 0; c < G; ++c)
+    label[c] = -1;
+  for (int c0 = 0; c0 < nf * nl; ++c0) {
+    if (!(w[0][c0] > 0) || label[c0] >= 0) continue;
+    int top = 0;
+    stack[top++] = c0;
+    label[c0] = n_labels;
+    while (top) {
+      int c = stack[--top], a0 = c / nl, b0 = c % nl;
+      for (int a = a0 - 1; a <= a0 + 1; ++a)
+        for (int b = b0 - 1; b <= b0 + 1; ++b)
+          if (a >= 0 && b >= 0 && a < nf && b < nl && w[0][a * nl + b] > 0 && label[a * nl + b] < 0)
+            label[a * nl + b] = n_labels, stack[top++] = a * nl + b;
+    }
+    ++n_labels;
+  }
+  for (int c = 0; c < nf * nl; ++c) { /* the cells next to a foot are above it too */
+    grown[c] = label[c];
+    for (int a = c / nl - 1; grown[c] < 0 && a <= c / nl + 1; ++a)
+      for (int b = c % nl - 1; b <= c % nl + 1; ++b)
+        if (a >= 0 && b >= 0 && a < nf && b < nl && label[a * nl + b] >= 0) {
+          grown[c] = label[a * nl + b];
+          break;
+        }
+  }
+  double d = 0, dw = 0;
+  for (int l = 0; l < n_labels; ++l) {
+    double fw = 0, fs = 0, sw = 0, ss = 0;
+    for (int c = 0; c < nf * nl; ++c) {
+      if (label[c] == l) fw += w[0][c], fs += sf[0][c];
+      if (grown[c] == l) sw += w[1][c], ss += sf[1][c];
+    }
+    if (!(fw > 0 && sw > 0)) continue;
+    d += sw * (fs / fw - ss / sw);
+    dw += sw;
+  }
+  return dw > 0 ? d / dw / ext[fwd] : NAN;
+}
+
 /* km_mesh_frame_guess with the up axis given (KM_AXIS_NONE: guessed). */
 static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess *out,
                              km_error *err) {
@@ -358,19 +426,24 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
   double d = 0, ef = ext[fwd];
   const char *sign_why = "unclear (+)";
   if (out->standing) {
-    /* toes reach ahead of the shins; else the head (and a face, a snout) sits ahead of the
-     * chest and belly */
-    double toes = (slab_mean(S, n, up, base, h, 0, 0.06, fwd, NULL) -
-                   slab_mean(S, n, up, base, h, 0.08, 0.22, fwd, NULL)) /
-                  ef;
+    /* toes reach ahead of the shins above them; else the head (and a face, a snout) sits
+     * ahead of the chest and belly; else the upper half reaches farther ahead of its centroid
+     * than behind it (a trunk, a muzzle, arms reaching forward; the back is flat) */
+    double toes = toes_ahead(S, n, up, base, h, fwd, mn, ext);
     double head = (slab_mean(S, n, up, base, h, 0.85, 1.01, fwd, NULL) -
                    slab_mean(S, n, up, base, h, 0.5, 0.7, fwd, NULL)) /
                   ef;
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t i = 0; i < n; ++i)
+      if (S[i].p[up] - base >= 0.5 * h) lo = fmin(lo, S[i].p[fwd]), hi = fmax(hi, S[i].p[fwd]);
+    double reach = (hi + lo - 2 * slab_mean(S, n, up, base, h, 0.5, 2, fwd, NULL)) / ef;
     out->sure_forward = true;
     if (isfinite(toes) && fabs(toes) >= 0.05)
       d = toes, sign_why = "toes ahead";
     else if (isfinite(head) && fabs(head) >= 0.1)
       d = head, sign_why = "head ahead of chest";
+    else if (isfinite(reach) && fabs(reach) >= 0.05)
+      d = reach, sign_why = "upper body reaches ahead";
     else
       out->sure_forward = false;
   } else {
