@@ -356,6 +356,32 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
     double inside = fmax(0, fmin(in1, in2));
     support[d] = (w1 + w2) * (0.5 + inside);
   }
+  /* The lateral axis, across the mirror plane: the centroids of slabs cut along either other
+   * axis stay on the centre of mass along it (a limb or a tail to one side moves them a
+   * little); -1 when no axis is clearly so (a cat lying curled). */
+  int lateral = -1;
+  {
+    double sw[3][10] = {{0}}, sp[3][10][3] = {{{0}}}, wander3[3] = {0, 0, 0};
+    for (size_t i = 0; i < n; ++i)
+      for (int b = 0; b < 3; ++b) {
+        int sl = (int)(10 * (S[i].p[b] - mn[b]) / ext[b]);
+        sl = sl < 0 ? 0 : sl > 9 ? 9 : sl;
+        sw[b][sl] += S[i].w;
+        for (int a = 0; a < 3; ++a)
+          sp[b][sl][a] += S[i].w * S[i].p[a];
+      }
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b)
+        for (int sl = 0; b != a && sl < 10; ++sl)
+          if (sw[b][sl] > 0) wander3[a] += fabs(sp[b][sl][a] - sw[b][sl] * com[a]) / ext[a];
+    int lo = 0;
+    for (int a = 1; a < 3; ++a)
+      if (wander3[a] < wander3[lo]) lo = a;
+    bool clear = true;
+    for (int a = 0; a < 3; ++a)
+      if (a != lo && wander3[lo] >= 0.85 * wander3[a]) clear = false;
+    if (clear) lateral = lo;
+  }
   double support_max = 0;
   for (int d = 0; d < 6; ++d)
     support_max = fmax(support_max, support[d]);
@@ -373,15 +399,17 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
     out->sure_up = true;
     snprintf(up_why, sizeof up_why, "on the ground plane");
   } else {
+    /* not on its side: up is not the lateral axis */
     int best = -1;
     for (int d = 0; d < 6; ++d) {
+      if (d / 2 == lateral) continue;
       if (best < 0 || support[d] > support[best]) best = d;
     }
     up = best / 2;
     up_sign = best % 2 ? -1 : 1;
     double second = 0;
     for (int d = 0; d < 6; ++d)
-      if (d != best) second = fmax(second, support[d]);
+      if (d != best && d / 2 != lateral) second = fmax(second, support[d]);
     out->sure_up = support[best] > 1.2 * second;
     snprintf(up_why, sizeof up_why, "ground contact %.2f vs %.2f", support[best], second);
   }
