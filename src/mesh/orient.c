@@ -314,15 +314,18 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
                     ext[0], ext[1], ext[2]);
   }
   /* Up, among the 6 directions: (1) a model placed on the ground plane at the origin: the
-   * one axis with its minimum within 6% of its extent from 0 and its maximum well above (a
-   * maximum at 0, a model hanging below the origin, counts only when the support there
-   * agrees: FAUST registrations sit with their back at z = 0); (2) ground contact: the
-   * surface within 4% of the extent of the lowest point along each direction is its support
-   * (feet, hooves, a flat base); up is the direction whose support's bounding rectangle spans
-   * the widest part of the cross-section with the centre of mass inside it (it stands),
-   * against a head, a nose or a tail tip that touches in one small patch. No rule looks at
-   * which axis is longest: a cat's tail, a T-pose's arms and a horse's neck each make the
-   * wrong one longest. */
+   * one axis with its minimum within 6% of its extent from 0 and its maximum well above, or
+   * its maximum so (a model hanging below the origin: both signs alike, so that a rotated
+   * copy is guessed as its original), unless the mesh plainly stands elsewhere (FAUST
+   * registrations have their front at z = 0 and stand on two feet along their longest axis;
+   * a cat lying on its side on y = 0 does not); (2) ground contact: the surface within 4% of
+   * the extent of the lowest point along each direction is its support (feet, hooves, a flat
+   * base); up is the direction whose support's bounding rectangle spans the widest part of
+   * the cross-section with the centre of mass inside it (it stands), against a head, a nose
+   * or a tail tip that touches in one small patch, and never the lateral axis (a standing
+   * cat's flank spans as wide as its paws). Only (1)'s refusal looks at which axis is
+   * longest: a cat's tail, a T-pose's arms and a horse's neck each make the wrong one
+   * longest. */
   int up = -1, n_ground = 0, ground = -1, ground_sign = 1;
   for (int c = 0; c < 3; ++c) {
     if (fabs(mn[c]) <= 0.06 * ext[c] && mx[c] > 0.5 * ext[c])
