@@ -413,7 +413,7 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
     double second = 0;
     for (int d = 0; d < 6; ++d)
       if (d != best && d / 2 != lateral) second = fmax(second, support[d]);
-    out->sure_up = support[best] > 1.2 * second;
+    out->sure_up = support[best] > 1.5 * second;
     snprintf(up_why, sizeof up_why, "ground contact %.2f vs %.2f", support[best], second);
   }
   /* Forward: of the two other axes, the one across the body's plane of mirror symmetry.
