@@ -125,11 +125,16 @@ static double slab_mean(const sample *S, size_t n, int a, double mn, double ext,
   return sw > 0 ? sb / sw : NAN;
 }
 
+/* Bin of coordinate x on a grid of n cells of size `cell` from lo, clamped (NaN: bin 0). */
+static int bin_of(double x, double lo, double cell, int n) {
+  double t = (x - lo) / cell;
+  return t >= 0 ? (t < n - 1 ? (int)t : n - 1) : 0;
+}
+
 /* Separate patches of the support along direction d (0..5: +x, -x, +y, ...): the vertices
  * within 4% of the extent of the lowest one, binned on a grid of 1/32 of the larger other
  * extent and flood-filled (8-neighbours); patches holding at least 5% of those vertices count.
- * Two feet or four paws make several; a flank, a back, a head or a base make one. Returns -1
- * when out of memory. */
+ * Two feet or four paws make several; a flank, a back, a head or a base make one. */
 #define PATCH_GRID 32
 static int contact_patches(const km_mesh *m, int d, const double mn[3], const double mx[3],
                            const double ext[3]) {
@@ -144,10 +149,7 @@ static int contact_patches(const km_mesh *m, int d, const double mn[3], const do
     const double *p = m->V + 3 * i;
     double t = d % 2 ? (mx[a] - p[a]) : (p[a] - mn[a]);
     if (!(t <= 0.04 * ext[a])) continue;
-    int i1 = (int)((p[b1] - mn[b1]) / cell), i2 = (int)((p[b2] - mn[b2]) / cell);
-    i1 = i1 < 0 ? 0 : i1 >= n1 ? n1 - 1 : i1;
-    i2 = i2 < 0 ? 0 : i2 >= n2 ? n2 - 1 : i2;
-    ++count[i1 * n2 + i2];
+    ++count[bin_of(p[b1], mn[b1], cell, n1) * n2 + bin_of(p[b2], mn[b2], cell, n2)];
     ++total;
   }
   int patches = 0;
@@ -209,12 +211,10 @@ static double toes_ahead(const sample *S, size_t n, int up, double base, double 
   for (size_t i = 0; i < n; ++i) {
     double t = (S[i].p[up] - base) / h;
     for (int k = 0; k < 2; ++k) {
-      if (t < lo[k] || t >= hi[k]) continue;
-      int jf = (int)((S[i].p[fwd] - mn[fwd]) / cell), jl = (int)((S[i].p[lat] - mn[lat]) / cell);
-      jf = jf < 0 ? 0 : jf >= nf ? nf - 1 : jf;
-      jl = jl < 0 ? 0 : jl >= nl ? nl - 1 : jl;
-      w[k][jf * nl + jl] += S[i].w;
-      sf[k][jf * nl + jl] += S[i].w * S[i].p[fwd];
+      if (!(t >= lo[k] && t < hi[k])) continue;
+      int c = bin_of(S[i].p[fwd], mn[fwd], cell, nf) * nl + bin_of(S[i].p[lat], mn[lat], cell, nl);
+      w[k][c] += S[i].w;
+      sf[k][c] += S[i].w * S[i].p[fwd];
     }
   }
   int n_labels = 0;
@@ -367,8 +367,7 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
     double sw[3][10] = {{0}}, sp[3][10][3] = {{{0}}}, wander3[3] = {0, 0, 0};
     for (size_t i = 0; i < n; ++i)
       for (int b = 0; b < 3; ++b) {
-        int sl = (int)(10 * (S[i].p[b] - mn[b]) / ext[b]);
-        sl = sl < 0 ? 0 : sl > 9 ? 9 : sl;
+        int sl = bin_of(S[i].p[b], mn[b], ext[b] / 10, 10);
         sw[b][sl] += S[i].w;
         for (int a = 0; a < 3; ++a)
           sp[b][sl][a] += S[i].w * S[i].p[a];
