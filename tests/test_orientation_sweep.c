@@ -170,8 +170,8 @@ int main(int argc, char **argv) {
     return KM_TEST_SKIP;
   }
   /* With every mesh present: the counts reached (issue 11's sweep), less a small margin
-   * (before this sweep's changes: up 528/600, up and forward 456/576 as stored; 456 and 456
-   * centred). */
+   * (before the changes this sweep measured: up 528/600, up and forward 456/576 as stored;
+   * centred, before the lateral-axis rule: 456 and 456). */
   if (found == (int)N_CASES) {
     CHECK_MSG(up >= 570, "as stored: up right in %d of %d", up, n);
     CHECK_MSG(both >= 545, "as stored: up and forward right in %d of %d", both, both_n);
