@@ -458,7 +458,7 @@ typedef struct km_frame_guess {
   km_frame frame; /* the guessed up and forward (scale 0: units are not guessed) */
   double height;  /* extent along the guessed up axis, in file units */
   bool standing;  /* taller than long along forward (a standing figure) */
-  bool sure_up;   /* up stood out: the ground plane, or a support 1.2x the next best */
+  bool sure_up;   /* up stood out: the ground plane, or a support 1.5x the next best */
   bool sure_forward;
   char why[112]; /* the evidence in one short line, for printing: which rule chose up and
                   * forward, e.g. "up: ground contact 1.35 vs 0.26; forward: mirror plane,
@@ -466,17 +466,22 @@ typedef struct km_frame_guess {
 } km_frame_guess;
 /* Guesses how a mesh is oriented, among the 24 axis-aligned frames. Heuristic (documented in
  * src/mesh/orient.c), following the file through those 24 rotations: up is (1) the axis of
- * a model standing on the ground plane (its minimum, or its maximum when the support below
- * agrees, within 6% of its extent from 0; no other axis so), else (2) the direction whose lowest 4%
- * of surface (its support: feet, hooves, a flat base) spans the widest part of the cross-section
- * with the centre of mass inside it, against a head, nose or tail tip touching in one small patch.
- * Forward's axis is the one across the body's mirror plane (the centroids of height slabs wander
- * along it and not sideways), or, when that is unclear and the figure is longer than tall, its
- * length (a quadruped whose head is turned). Its sign: for a standing figure (taller than long) the
- * side the toes reach ahead of the shins, else the side the head sits ahead of the chest; for
- * an animal the side of its highest part plus the end of its length that carries more
- * surface (a head and forelegs, not a thin tail). Good for humanoids and animals made
- * axis-aligned; the CLI prints it so a wrong guess is seen and overridden.
+ * a model standing on the ground plane (its minimum, or its maximum, within 6% of its extent
+ * from 0, no other axis so, and the mesh not plainly standing elsewhere: on several separate
+ * feet along its longest axis with twice the support), else (2) the direction whose lowest 4% of
+ * surface (its support: feet, hooves, a flat base) spans the widest part of the cross-section
+ * with the centre of mass inside it, against a head, nose or tail tip touching in one small
+ * patch, never along the lateral axis (across the mirror plane, where the centroids of slabs
+ * stay on the centre of mass) when that one is clear. Forward's axis is the one across the
+ * body's mirror plane (the centroids of height slabs wander along it and not sideways), or,
+ * when that is unclear and the figure is longer than tall, its length (a quadruped whose head
+ * is turned). Its sign: for a standing figure (taller than long) the side each foot's toes
+ * reach ahead of the shin right above it, else the side the head sits ahead of the chest,
+ * else the side the upper half reaches farther from its centroid (a trunk, a snout); for an
+ * animal the side of its highest part plus the end of its length that carries more surface (a
+ * head and forelegs, not a thin tail). Good for humanoids and animals made axis-aligned
+ * (tests/test_orientation_sweep.c: 552 of 576 frames right on ../shared/data); the CLI prints
+ * it so a wrong guess is seen and overridden.
  *   m    in: triangle mesh (a point cloud uses vertex weights)
  *   out  out: the guess
  * Errors: KM_ERR_INVALID for an empty or flat (zero extent) mesh. */

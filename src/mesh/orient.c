@@ -125,6 +125,138 @@ static double slab_mean(const sample *S, size_t n, int a, double mn, double ext,
   return sw > 0 ? sb / sw : NAN;
 }
 
+/* Bin of coordinate x on a grid of n cells of size `cell` from lo, clamped (NaN: bin 0). */
+static int bin_of(double x, double lo, double cell, int n) {
+  double t = (x - lo) / cell;
+  return t >= 0 ? (t < n - 1 ? (int)t : n - 1) : 0;
+}
+
+/* Separate patches of the support along direction d (0..5: +x, -x, +y, ...): the vertices
+ * within 4% of the extent of the lowest one, binned on a grid of 1/32 of the larger other
+ * extent and flood-filled (8-neighbours); patches holding at least 5% of those vertices count.
+ * Two feet or four paws make several; a flank, a back, a head or a base make one. */
+#define PATCH_GRID 32
+static int contact_patches(const km_mesh *m, int d, const double mn[3], const double mx[3],
+                           const double ext[3]) {
+  int a = d / 2, b1 = (a + 1) % 3, b2 = (a + 2) % 3;
+  double cell = fmax(ext[b1], ext[b2]) / PATCH_GRID;
+  int n1 = (int)(ext[b1] / cell) + 1, n2 = (int)(ext[b2] / cell) + 1;
+  if (n1 > PATCH_GRID) n1 = PATCH_GRID;
+  if (n2 > PATCH_GRID) n2 = PATCH_GRID;
+  int count[PATCH_GRID * PATCH_GRID] = {0}, stack[PATCH_GRID * PATCH_GRID];
+  size_t total = 0;
+  for (size_t i = 0; i < m->n_vertices; ++i) {
+    const double *p = m->V + 3 * i;
+    double t = d % 2 ? (mx[a] - p[a]) : (p[a] - mn[a]);
+    if (!(t <= 0.04 * ext[a])) continue;
+    ++count[bin_of(p[b1], mn[b1], cell, n1) * n2 + bin_of(p[b2], mn[b2], cell, n2)];
+    ++total;
+  }
+  int patches = 0;
+  for (int c0 = 0; c0 < n1 * n2; ++c0) {
+    if (count[c0] <= 0) continue;
+    size_t in = 0;
+    int top = 0;
+    stack[top++] = c0;
+    in += (size_t)count[c0];
+    count[c0] = -1;
+    while (top) {
+      int c = stack[--top], i1 = c / n2, i2 = c % n2;
+      for (int j1 = i1 - 1; j1 <= i1 + 1; ++j1)
+        for (int j2 = i2 - 1; j2 <= i2 + 1; ++j2) {
+          if (j1 < 0 || j2 < 0 || j1 >= n1 || j2 >= n2 || count[j1 * n2 + j2] <= 0) continue;
+          in += (size_t)count[j1 * n2 + j2];
+          count[j1 * n2 + j2] = -1;
+          stack[top++] = j1 * n2 + j2;
+        }
+    }
+    if (20 * in >= total) ++patches;
+  }
+  return patches;
+}
+
+/* Whether the ground-plane candidate g (a direction 0..5) is contradicted: the mesh stands
+ * on several feet along its longest axis, with a support at least twice as wide as g's (a FAUST
+ * registration's front lies at z = 0; a cat lying on its side on y = 0 has its longest axis
+ * along its body, not across the floor). */
+static bool stands_elsewhere(const km_mesh *m, const double support[6], int g, const double mn[3],
+                             const double mx[3], const double ext[3]) {
+  int best = 0;
+  for (int d = 1; d < 6; ++d)
+    if (support[d] > support[best]) best = d;
+  if (best / 2 == g / 2 || support[best] < 2 * support[g]) return false;
+  int a = best / 2;
+  for (int c = 0; c < 3; ++c)
+    if (c != a && ext[c] > ext[a] / 1.2) return false;
+  return contact_patches(m, best, mn, mx, ext) >= 2;
+}
+
+/* Toes ahead of the shins: for each foot (a patch of the lowest 6% of the height, binned on a
+ * grid of 1/32 of the larger horizontal extent, cells 8-connected), the centroid along `fwd`
+ * of the foot against that of the 8-22% of the height right above it (the foot's cells
+ * dilated by one), averaged over the feet by the shins' area: a leg kicked forward, or a tail
+ * whose tip touches the ground behind, is not a shin. Samples' coordinates along up count
+ * from `base` upwards. In fractions of ext[fwd]; NAN when no foot has a shin above it. */
+static double toes_ahead(const sample *S, size_t n, int up, double base, double h, int fwd,
+                         const double mn[3], const double ext[3]) {
+  enum { G = PATCH_GRID * PATCH_GRID };
+  int lat = 3 - up - fwd;
+  double cell = fmax(ext[fwd], ext[lat]) / PATCH_GRID;
+  int nf = (int)(ext[fwd] / cell) + 1, nl = (int)(ext[lat] / cell) + 1;
+  if (nf > PATCH_GRID) nf = PATCH_GRID;
+  if (nl > PATCH_GRID) nl = PATCH_GRID;
+  static const double lo[2] = {0, 0.08}, hi[2] = {0.06, 0.22};
+  double w[2][G] = {{0}}, sf[2][G] = {{0}};
+  int label[G], grown[G], stack[G];
+  for (size_t i = 0; i < n; ++i) {
+    double t = (S[i].p[up] - base) / h;
+    for (int k = 0; k < 2; ++k) {
+      if (!(t >= lo[k] && t < hi[k])) continue;
+      int c = bin_of(S[i].p[fwd], mn[fwd], cell, nf) * nl + bin_of(S[i].p[lat], mn[lat], cell, nl);
+      w[k][c] += S[i].w;
+      sf[k][c] += S[i].w * S[i].p[fwd];
+    }
+  }
+  int n_labels = 0;
+  for (int c = 0; c < G; ++c)
+    label[c] = -1;
+  for (int c0 = 0; c0 < nf * nl; ++c0) {
+    if (!(w[0][c0] > 0) || label[c0] >= 0) continue;
+    int top = 0;
+    stack[top++] = c0;
+    label[c0] = n_labels;
+    while (top) {
+      int c = stack[--top], a0 = c / nl, b0 = c % nl;
+      for (int a = a0 - 1; a <= a0 + 1; ++a)
+        for (int b = b0 - 1; b <= b0 + 1; ++b)
+          if (a >= 0 && b >= 0 && a < nf && b < nl && w[0][a * nl + b] > 0 && label[a * nl + b] < 0)
+            label[a * nl + b] = n_labels, stack[top++] = a * nl + b;
+    }
+    ++n_labels;
+  }
+  for (int c = 0; c < nf * nl; ++c) { /* the cells next to a foot are above it too */
+    grown[c] = label[c];
+    for (int a = c / nl - 1; grown[c] < 0 && a <= c / nl + 1; ++a)
+      for (int b = c % nl - 1; b <= c % nl + 1; ++b)
+        if (a >= 0 && b >= 0 && a < nf && b < nl && label[a * nl + b] >= 0) {
+          grown[c] = label[a * nl + b];
+          break;
+        }
+  }
+  double d = 0, dw = 0;
+  for (int l = 0; l < n_labels; ++l) {
+    double fw = 0, fs = 0, sw = 0, ss = 0;
+    for (int c = 0; c < nf * nl; ++c) {
+      if (label[c] == l) fw += w[0][c], fs += sf[0][c];
+      if (grown[c] == l) sw += w[1][c], ss += sf[1][c];
+    }
+    if (!(fw > 0 && sw > 0)) continue;
+    d += sw * (fs / fw - ss / sw);
+    dw += sw;
+  }
+  return dw > 0 ? d / dw / ext[fwd] : NAN;
+}
+
 /* km_mesh_frame_guess with the up axis given (KM_AXIS_NONE: guessed). */
 static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess *out,
                              km_error *err) {
@@ -182,15 +314,18 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
                     ext[0], ext[1], ext[2]);
   }
   /* Up, among the 6 directions: (1) a model placed on the ground plane at the origin: the
-   * one axis with its minimum within 6% of its extent from 0 and its maximum well above (a
-   * maximum at 0, a model hanging below the origin, counts only when the support there
-   * agrees: FAUST registrations sit with their back at z = 0); (2) ground contact: the
-   * surface within 4% of the extent of the lowest point along each direction is its support
-   * (feet, hooves, a flat base); up is the direction whose support's bounding rectangle spans
-   * the widest part of the cross-section with the centre of mass inside it (it stands),
-   * against a head, a nose or a tail tip that touches in one small patch. No rule looks at
-   * which axis is longest: a cat's tail, a T-pose's arms and a horse's neck each make the
-   * wrong one longest. */
+   * one axis with its minimum within 6% of its extent from 0 and its maximum well above, or
+   * its maximum so (a model hanging below the origin: both signs alike, so that a rotated
+   * copy is guessed as its original), unless the mesh plainly stands elsewhere (FAUST
+   * registrations have their front at z = 0 and stand on two feet along their longest axis;
+   * a cat lying on its side on y = 0 does not); (2) ground contact: the surface within 4% of
+   * the extent of the lowest point along each direction is its support (feet, hooves, a flat
+   * base); up is the direction whose support's bounding rectangle spans the widest part of
+   * the cross-section with the centre of mass inside it (it stands), against a head, a nose
+   * or a tail tip that touches in one small patch, and never the lateral axis (a standing
+   * cat's flank spans as wide as its paws). Only (1)'s refusal looks at which axis is
+   * longest: a cat's tail, a T-pose's arms and a horse's neck each make the wrong one
+   * longest. */
   int up = -1, n_ground = 0, ground = -1, ground_sign = 1;
   for (int c = 0; c < 3; ++c) {
     if (fabs(mn[c]) <= 0.06 * ext[c] && mx[c] > 0.5 * ext[c])
@@ -224,6 +359,31 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
     double inside = fmax(0, fmin(in1, in2));
     support[d] = (w1 + w2) * (0.5 + inside);
   }
+  /* The lateral axis, across the mirror plane: the centroids of slabs cut along either other
+   * axis stay on the centre of mass along it (a limb or a tail to one side moves them a
+   * little); -1 when no axis is clearly so (a cat lying curled). */
+  int lateral = -1;
+  {
+    double sw[3][10] = {{0}}, sp[3][10][3] = {{{0}}}, wander3[3] = {0, 0, 0};
+    for (size_t i = 0; i < n; ++i)
+      for (int b = 0; b < 3; ++b) {
+        int sl = bin_of(S[i].p[b], mn[b], ext[b] / 10, 10);
+        sw[b][sl] += S[i].w;
+        for (int a = 0; a < 3; ++a)
+          sp[b][sl][a] += S[i].w * S[i].p[a];
+      }
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b)
+        for (int sl = 0; b != a && sl < 10; ++sl)
+          if (sw[b][sl] > 0) wander3[a] += fabs(sp[b][sl][a] - sw[b][sl] * com[a]) / ext[a];
+    int lo = 0;
+    for (int a = 1; a < 3; ++a)
+      if (wander3[a] < wander3[lo]) lo = a;
+    bool clear = true;
+    for (int a = 0; a < 3; ++a)
+      if (a != lo && wander3[lo] >= 0.85 * wander3[a]) clear = false;
+    if (clear) lateral = lo;
+  }
   double support_max = 0;
   for (int d = 0; d < 6; ++d)
     support_max = fmax(support_max, support[d]);
@@ -234,22 +394,25 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
     up_sign = (given_up - KM_AXIS_POS_X) % 2 ? -1 : 1;
     out->sure_up = true;
     snprintf(up_why, sizeof up_why, "given");
-  } else if (n_ground == 1 && (ground_sign > 0 || support[2 * ground + 1] >= 0.5 * support_max)) {
+  } else if (n_ground == 1 &&
+             !stands_elsewhere(m, support, 2 * ground + (ground_sign < 0), mn, mx, ext)) {
     up = ground;
     up_sign = ground_sign;
     out->sure_up = true;
     snprintf(up_why, sizeof up_why, "on the ground plane");
   } else {
+    /* not on its side: up is not the lateral axis */
     int best = -1;
     for (int d = 0; d < 6; ++d) {
+      if (d / 2 == lateral) continue;
       if (best < 0 || support[d] > support[best]) best = d;
     }
     up = best / 2;
     up_sign = best % 2 ? -1 : 1;
     double second = 0;
     for (int d = 0; d < 6; ++d)
-      if (d != best) second = fmax(second, support[d]);
-    out->sure_up = support[best] > 1.2 * second;
+      if (d != best && d / 2 != lateral) second = fmax(second, support[d]);
+    out->sure_up = support[best] > 1.5 * second;
     snprintf(up_why, sizeof up_why, "ground contact %.2f vs %.2f", support[best], second);
   }
   /* Forward: of the two other axes, the one across the body's plane of mirror symmetry.
@@ -293,19 +456,24 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
   double d = 0, ef = ext[fwd];
   const char *sign_why = "unclear (+)";
   if (out->standing) {
-    /* toes reach ahead of the shins; else the head (and a face, a snout) sits ahead of the
-     * chest and belly */
-    double toes = (slab_mean(S, n, up, base, h, 0, 0.06, fwd, NULL) -
-                   slab_mean(S, n, up, base, h, 0.08, 0.22, fwd, NULL)) /
-                  ef;
+    /* toes reach ahead of the shins above them; else the head (and a face, a snout) sits
+     * ahead of the chest and belly; else the upper half reaches farther ahead of its centroid
+     * than behind it (a trunk, a muzzle, arms reaching forward; the back is flat) */
+    double toes = toes_ahead(S, n, up, base, h, fwd, mn, ext);
     double head = (slab_mean(S, n, up, base, h, 0.85, 1.01, fwd, NULL) -
                    slab_mean(S, n, up, base, h, 0.5, 0.7, fwd, NULL)) /
                   ef;
+    double lo = INFINITY, hi = -INFINITY;
+    for (size_t i = 0; i < n; ++i)
+      if (S[i].p[up] - base >= 0.5 * h) lo = fmin(lo, S[i].p[fwd]), hi = fmax(hi, S[i].p[fwd]);
+    double reach = (hi + lo - 2 * slab_mean(S, n, up, base, h, 0.5, 2, fwd, NULL)) / ef;
     out->sure_forward = true;
     if (isfinite(toes) && fabs(toes) >= 0.05)
       d = toes, sign_why = "toes ahead";
     else if (isfinite(head) && fabs(head) >= 0.1)
       d = head, sign_why = "head ahead of chest";
+    else if (isfinite(reach) && fabs(reach) >= 0.05)
+      d = reach, sign_why = "upper body reaches ahead";
     else
       out->sure_forward = false;
   } else {
