@@ -602,11 +602,16 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
   if (guessed) *guessed = true;
   if (!quiet)
     fprintf(stderr,
-            "kinemesh %s: %s: up %s, forward %s (%s; height %.4g %s; %s) - override with --up / "
-            "--forward\n",
+            "kinemesh %s: %s: up %s, forward %s (%s%s; height %.4g %s; %s) - override with "
+            "--up / --forward\n",
             verb, path, km_axis_name(out->up), km_axis_name(out->forward),
-            fo->up || fo->forward ? "partly guessed" : "guessed", g.height,
-            fo->units ? fo->units : "units", g.why);
+            fo->up || fo->forward ? "partly guessed" : "guessed",
+            /* an axis the guess is unsure of is said, so the user checks that one */
+            (!fo->up && !g.sure_up) && (!fo->forward && !g.sure_forward) ? ", unsure of both"
+            : !fo->up && !g.sure_up                                      ? ", unsure of up"
+            : !fo->forward && !g.sure_forward                            ? ", unsure of forward"
+                                                                         : "",
+            g.height, fo->units ? fo->units : "units", g.why);
   return 0;
 }
 

@@ -112,6 +112,8 @@ int km_cli_info(int argc, char **argv) {
       cJSON_AddStringToObject(go, "forward", km_axis_name(g.frame.forward));
       cJSON_AddNumberToObject(go, "height", g.height);
       cJSON_AddBoolToObject(go, "standing", g.standing);
+      cJSON_AddBoolToObject(go, "sure_up", g.sure_up);
+      cJSON_AddBoolToObject(go, "sure_forward", g.sure_forward);
       cJSON_AddStringToObject(go, "why", g.why);
     }
     return km_cli_print_json("info", o);
@@ -134,9 +136,10 @@ int km_cli_info(int argc, char **argv) {
            "mapping)\n",
            skin_joints);
   if (have_guess)
-    printf("orientation (guess)   up %s, forward %s, height %.6g%s (override with --up/--forward)\n"
+    printf("orientation (guess)   up %s%s, forward %s%s, height %.6g%s (override with "
+           "--up/--forward)\n"
            "                      %s\n",
-           km_axis_name(g.frame.up), km_axis_name(g.frame.forward), g.height,
-           g.standing ? ", standing" : "", g.why);
+           km_axis_name(g.frame.up), g.sure_up ? "" : " (unsure)", km_axis_name(g.frame.forward),
+           g.sure_forward ? "" : " (unsure)", g.height, g.standing ? ", standing" : "", g.why);
   return KM_EXIT_OK;
 }
