@@ -6,11 +6,12 @@
  * step well below that: glitches rejected, a re-found joint eased back in bone by bone
  * (km_glitch catch-up) rather than snapped, the root heading's glitches held. Before: T 14.9 %,
  * B 18.4 % of the diagonal; after: T 11.1 %, B 14.5 %. Skips when ../shared is absent.
- * The bone speed limit (km_retarget_options.bone_catchup): on precog_Seq1_1 a collapsing Kinect
- * forearm swung the character's hand 19.5 % of the diagonal in a frame (B; 14.8 % with the
- * limit), and on a synthetic two-bone arm (no ../shared needed) a forearm that collapses to
- * 7 cm and flips 135 degrees for a frame no longer swings the forearm band, while a real
- * full-length swing of 30 degrees a frame arrives unchanged. */
+ * The bone speed limit (km_retarget_options.bone_catchup) and the heading's re-fit easing: B
+ * on precog_Seq1_1 (a collapsing Kinect forearm swung the character's hand 19.5 % of the
+ * diagonal in a frame) and on dog0 (precog_Seq2_1's skeleton re-fit turned the quadruped 26 %
+ * of its diagonal in a frame) must stay well below; on a synthetic two-bone arm (no ../shared
+ * needed) a forearm that collapses to 7 cm and flips 135 degrees for a frame no longer swings
+ * the forearm band, while a real full-length swing of 30 degrees a frame arrives unchanged. */
 #include "bar_fixture.h"
 
 #include <cjson/cJSON.h>
@@ -134,7 +135,8 @@ int main(void) {
     setenv("XDG_CACHE_HOME", xdg, 1);
   }
   char *out = NULL;
-  int rc = km_test_run(KM_CLI " bench motion --meshes character:4000 --takes " KM_SHARED_DATA
+  int rc = km_test_run(KM_CLI " bench motion --meshes character:4000," KM_SHARED_DATA
+                              "/meshes/dog0.off --takes " KM_SHARED_DATA
                               "/skeleton/precog_Seq2_1.csv," KM_SHARED_DATA
                               "/skeleton/precog_Seq1_1.csv --json 2>/dev/null",
                        &out);
@@ -148,23 +150,30 @@ int main(void) {
     const cJSON *jb = cJSON_GetObjectItem(cJSON_GetObjectItem(row, "bones"), "jump_max_pct");
     const cJSON *jr = cJSON_GetObjectItem(row, "take_jump_max_pct");
     const cJSON *tk = cJSON_GetObjectItem(row, "take");
-    if (cJSON_IsNumber(jt) && cJSON_IsNumber(jr) && cJSON_IsNumber(jb) && cJSON_IsString(tk)) {
+    const cJSON *me = cJSON_GetObjectItem(row, "mesh");
+    if (cJSON_IsNumber(jt) && cJSON_IsNumber(jr) && cJSON_IsNumber(jb) && cJSON_IsString(tk) &&
+        cJSON_IsString(me)) {
       ++rows;
       bool seq1 = strstr(tk->valuestring, "Seq1_1") != NULL;
-      printf("%s on character:4000: take %.2f %%, T %.2f %%, B %.2f %% of the diagonal\n",
-             tk->valuestring, jr->valuedouble, jt->valuedouble, jb->valuedouble);
-      CHECK_MSG(jr->valuedouble > (seq1 ? 20 : 25),
+      bool dog = strstr(me->valuestring, "dog0") != NULL;
+      printf("%s on %s: take %.2f %%, T %.2f %%, B %.2f %% of the diagonal\n", tk->valuestring,
+             me->valuestring, jr->valuedouble, jt->valuedouble, jb->valuedouble);
+      CHECK_MSG(jr->valuedouble > (seq1 ? 18 : 25),
                 "the take's own largest step is %.2f %% (glitches expected)", jr->valuedouble);
       CHECK_MSG(jt->valuedouble < (seq1 ? 11.5 : 13.5),
                 "T's largest one-frame jump %.2f %% of the diagonal", jt->valuedouble);
-      /* precog_Seq1_1 frame 149 / 179: the collapsing left forearm (B 19.5 % without the bone
-       * speed limit); precog_Seq2_1: 15.3 % without it */
-      CHECK_MSG(jb->valuedouble < (seq1 ? 16.5 : 15),
-                "B's largest one-frame jump %.2f %% of the diagonal", jb->valuedouble);
+      /* B without the bone speed limit and the heading's re-fit easing (before / after):
+       * character:4000 precog_Seq1_1 19.5 / 12.9 % (a collapsing left forearm, frames 149 and
+       * 179), precog_Seq2_1 15.3 / 12.7 %; dog0 precog_Seq2_1 26.1 / 17.8 % (the tracker
+       * re-fits the skeleton 70 degrees round over frames 19-22 and the quadruped turned 20
+       * degrees a frame), precog_Seq1_1 15.3 / 15.3 % */
+      double limit = dog ? (seq1 ? 17 : 21) : (seq1 ? 14.5 : 14);
+      CHECK_MSG(jb->valuedouble < limit, "%s on %s: B's largest one-frame jump %.2f %% (>= %g)",
+                tk->valuestring, me->valuestring, jb->valuedouble, limit);
     }
     cJSON_Delete(row);
   }
-  CHECK_MSG(rows == 2, "%d rows with jumps in: %s", rows, out ? out : "");
+  CHECK_MSG(rows == 4, "%d rows with jumps in: %s", rows, out ? out : "");
   free(out);
   return km_test_finish("test_motion_kinect_jump");
 }

@@ -12,7 +12,7 @@
  * freely; the fastest turn of a bone, deg/s. */
 #define KM_BONE_CATCHUP 1.0
 #define KM_BONE_LEN_TOL 0.8
-#define KM_BONE_MAX_TURN 1500.0
+#define KM_BONE_MAX_TURN 1200.0
 
 struct km_retarget {
   size_t n_handles, n_joints, n_maps, n_hv;
@@ -33,13 +33,17 @@ struct km_retarget {
   int32_t root, hl, hr; /* joint indices; hl/hr -1: no heading */
   double pivot[3];
   double R[9], t[3];   /* of the last push */
-  double cos_h, sin_h; /* heading change of the last push */
+  double cos_h, sin_h; /* the body's heading change of the last push (the filter's: the frame
+                          the handles' motion is measured in) */
+  double cos_s, sin_s; /* the heading shown (the mesh turned by R) */
   bool have_heading;   /* a heading was measured since create / reset */
   double h_phi;        /* the heading shown (radians, unwrapped) */
   double h_meas;       /* the last accepted measurement (unwrapped) */
   double h_filt;       /* the One Euro filter's value of the measurements */
   double h_speed;      /* its filtered angular speed, rad/s */
   int h_rejected;      /* measurements rejected in a row (swaps, glitches) */
+  bool h_refit;        /* the heading shown is catching up with a measurement taken after
+                          rejections (a re-fit): at most KM_HEADING_REFIT_TURN */
   double fps;          /* pushes per second */
   /* rotating handles */
   int32_t *rot_joint, *rot_parent; /* n_handles; -1: translation only; NULL: none rotates */
@@ -127,11 +131,12 @@ void km_retarget_reset(km_retarget *r) {
   memset(r->R, 0, sizeof r->R);
   r->R[0] = r->R[4] = r->R[8] = 1;
   memset(r->t, 0, sizeof r->t);
-  r->cos_h = 1;
+  r->cos_h = r->cos_s = 1;
   r->have_heading = false;
-  r->sin_h = 0;
+  r->sin_h = r->sin_s = 0;
   r->h_phi = r->h_meas = r->h_filt = r->h_speed = 0;
   r->h_rejected = 0;
+  r->h_refit = false;
   r->have_prev = false;
   r->eased = 0;
   if (r->rot)
@@ -467,10 +472,18 @@ static void ease(km_retarget *r) {
  *   - the accepted ones go through a One Euro filter on the angle (min cutoff 1 Hz, beta
  *     1 Hz per rad/s: hip noise is damped, a fast turn is followed), and the heading shown
  *     follows the filter's value at most KM_HEADING_MAX_TURN degrees per second (a spin; the
- *     demo's kung-fu spin needs about that).
+ *     demo's kung-fu spin needs about that);
+ *   - a measurement taken after rejections (a re-fit that stayed, a swap held a second) is
+ *     shown at most KM_HEADING_REFIT_TURN degrees per second until the heading shown has
+ *     caught up with the filter (within a degree): the tracker re-fitting the skeleton is not
+ *     the performer spinning. precog_Seq2_1 frames 19-22 re-fit 30, 37, 25 and 9 degrees a
+ *     frame (1100 deg/s at most, taken as a turn at the old 1200 deg/s threshold: dog0 turned
+ *     20 degrees a frame, 26 % of its diagonal); the demo's spin measures 680 deg/s at most,
+ *     the CMU takes 440, so 900 deg/s leaves the spin a third of margin.
  * phi: the measured heading change since the reference frame, radians. */
-#define KM_HEADING_MAX_RATE 1200.0 /* deg/s: a faster measured change is a glitch */
-#define KM_HEADING_MAX_TURN 600.0  /* deg/s: the fastest turn shown */
+#define KM_HEADING_MAX_RATE 900.0   /* deg/s: a faster measured change is a glitch */
+#define KM_HEADING_MAX_TURN 600.0   /* deg/s: the fastest turn shown */
+#define KM_HEADING_REFIT_TURN 300.0 /* deg/s: the fastest turn shown onto a re-fit */
 static void heading_push(km_retarget *r, double phi) {
   if (!r->have_heading) {
     r->have_heading = true;
@@ -488,6 +501,7 @@ static void heading_push(km_retarget *r, double phi) {
     ++r->h_rejected;
   } else {
     te *= 1 + r->h_rejected; /* the time since the last accepted measurement */
+    if (r->h_rejected) r->h_refit = true;
     r->h_rejected = 0;
     r->h_meas += d;
     r->h_speed += km__one_euro_alpha(1.0, te) * (fabs(d) / te - r->h_speed); /* d_cutoff 1 Hz */
@@ -495,7 +509,9 @@ static void heading_push(km_retarget *r, double phi) {
     r->h_filt += km__one_euro_alpha(fc, te) * (r->h_meas - r->h_filt);
   }
   double step = r->h_filt - r->h_phi, cap = KM_HEADING_MAX_TURN * deg / r->fps;
+  if (r->h_refit) cap = fmin(cap, KM_HEADING_REFIT_TURN * deg / r->fps);
   r->h_phi += fabs(step) > cap ? copysign(cap, step) : step;
+  if (fabs(r->h_filt - r->h_phi) < 1 * deg) r->h_refit = false;
 }
 
 static bool valid9(const double *R) {
@@ -578,11 +594,19 @@ void km_retarget_push_rotations(km_retarget *r, const double *joints, const doub
         if (hips && hypot(v[0], v[1]) > 1e-9 && hypot(v0[0], v0[1]) > 1e-9) {
           /* R_y(phi) takes (1,0,0) to (cos phi, 0, -sin phi): a vector's angle is atan2(-z, x) */
           heading_push(r, atan2(-v[1], v[0]) - atan2(-v0[1], v0[0]));
-          r->cos_h = cos(r->h_phi);
-          r->sin_h = sin(r->h_phi);
+          /* While the heading shown catches up with a re-fit, the limbs are measured in the
+           * body's frame (the filtered heading) and the mesh turned by the heading shown: the
+           * body turns late as a whole, rather than its legs swung sideways against it
+           * (precog_Seq2_1 on armadillo: 1683 folded triangles against 1555). A spin's limbs
+           * stay in the frame shown (the demo's body follows the skinned character). */
+          double hb = r->h_refit ? r->h_filt : r->h_phi;
+          r->cos_h = cos(hb);
+          r->sin_h = sin(hb);
+          r->cos_s = cos(r->h_phi);
+          r->sin_s = sin(r->h_phi);
         }
       }
-      double c = r->cos_h, sn = r->sin_h;
+      double c = r->cos_s, sn = r->sin_s;
       double R[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
       memcpy(r->R, R, sizeof R);
       for (int d = 0; d < 3; ++d)
@@ -827,11 +851,13 @@ static void twist(const km_retarget *r, const double *J, int32_t j, int32_t a, i
  * turn held back before, else 0. The first term: as far as a bone of the performer's usual
  * length must turn for its end to move what the performer's bone end moved relative to its
  * start (a real swing of a full-length bone turns 2 asin(|u - u'| / (2 |u|)), within it); the
- * second: at most KM_BONE_MAX_TURN deg/s (the clean CMU takes turn a shin 40 degrees in a
- * frame at 30 fps, a forearm 33, the kung-fu demo 24), less for a bone measuring shorter than
- * tol of its usual length (a collapsed bone's direction is noise). The rest of a turn held
- * back follows over the next pushes. Neither term touches the CMU takes or the demo (no push
- * limited). Rprev: the bone's rotation of the last push; R in / out. */
+ * second: at most KM_BONE_MAX_TURN deg/s (the clean CMU takes turn a shin just under 40
+ * degrees in a frame at 30 fps, a forearm 33, the kung-fu demo 24; the Kinect re-fits of
+ * precog_Seq2_1 frames 21-24 swing a full-length thigh 44-52), less for a bone measuring
+ * shorter than tol of its usual length (a collapsed bone's direction is noise). The rest of a
+ * turn held back follows over the next pushes. Neither term touches the CMU takes, walk, wave
+ * or the demo on the character or the armadillo (no push limited). Rprev: the bone's rotation
+ * of the last push; R in / out. */
 static void limit_bone(km_retarget *r, const double *J, int32_t q, int32_t j, const double Rprev[9],
                        double R[9]) {
   const double *p = J + 3 * (size_t)j, *pq = J + 3 * (size_t)q;
@@ -883,7 +909,7 @@ static void limit_bone(km_retarget *r, const double *J, int32_t q, int32_t j, co
   double cap =
       KM_BONE_MAX_TURN * M_PI / 180 / r->fps * fmin(1, len / (KM_BONE_LEN_TOL * r->blen[j]));
   double tmax = fmin(x >= 1 ? M_PI : 2 * asin(x), cap);
-  if (!(theta > tmax)) return;
+  if (!(theta > tmax + 1e-6)) return; /* a still bone: rounding */
   r->blag[j] = true;
   /* d: a turned by tmax towards b; then R <- (b -> d) R */
   double e[3] = {b[0] - cs * a[0], b[1] - cs * a[1], b[2] - cs * a[2]};
