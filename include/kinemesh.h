@@ -1112,6 +1112,10 @@ typedef struct km_rig {
                legs, hands, feet) are aimed along the performer's bones instead of turned by
                their rotation since the first frame, so a character whose rest pose is not the
                performer's first pose (a T-pose against arms down) takes the performer's pose */
+  double swing_limit; /* "swing_limit": degrees, with aim: a limb bone swings at most this far
+                         from where its parent bone carries its rest direction (0: no limit).
+                         kinemesh rig writes 60 for a body that is not upright (a quadruped's
+                         legs do not reach where a person's arms do) */
 } km_rig;
 
 /* Parses a rig file and resolves its handles on a mesh.

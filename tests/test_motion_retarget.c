@@ -480,6 +480,17 @@ static void test_max_step(void) {
     CHECK_STATUS(parse(bad[i], &m, &rig), KM_ERR_PARSE);
     CHECK(strstr(km_test_err.message, "max_step") != NULL);
   }
+  /* "swing_limit": degrees in [0, 180] */
+  const char *bad_sl[] = {"{\"swing_limit\":-1,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}",
+                          "{\"swing_limit\":200,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}",
+                          "{\"swing_limit\":true,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}"};
+  for (int i = 0; i < 3; ++i) {
+    CHECK_STATUS(parse(bad_sl[i], &m, &rig), KM_ERR_PARSE);
+    CHECK(strstr(km_test_err.message, "swing_limit") != NULL);
+  }
+  CHECK_OK(parse("{\"swing_limit\":60,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}", &m, &rig));
+  CHECK(rig.swing_limit == 60);
+  km_rig_free(&rig);
   free_mesh(&m);
 }
 

@@ -31,6 +31,12 @@ void km__forward_kinematics(size_t n, const int32_t *parents, const double *L, c
 void km__joint_transforms(size_t n, const double *W, const double *P, const double *rest,
                           double *G);
 
+/* qsort comparator for doubles, ascending. */
+static inline int km__cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
 static inline void km__cross3(const double *a, const double *b, double *c) {
   c[0] = a[1] * b[2] - a[2] * b[1];
   c[1] = a[2] * b[0] - a[0] * b[2];

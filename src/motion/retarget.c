@@ -64,6 +64,8 @@ struct km_retarget {
   bool *seen;          /* n_joints: the tracker has sent the joint since create / reset */
   double floor_y;      /* the rest floor (lowest rest y) */
   bool aim;            /* limb bones aim along the performer's (rig "aim": true) */
+  double swing_limit;  /* radians, a limb bone's largest swing from its parent-carried rest
+                          direction (rig "swing_limit"); 0: none */
   /* bone speed limit (see limit_bone) */
   double bone_catchup; /* metres (of performer) per push a bone's end may turn beyond its
                           joint's own step; < 0: off */
@@ -357,6 +359,8 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
         if (q >= 0) r->only_child[q] = r->only_child[q] == -1 ? (int32_t)j : -2;
       }
       r->aim = jr && rig->aim;
+      r->swing_limit =
+          rig->swing_limit > 0 && rig->swing_limit < 180 ? rig->swing_limit * M_PI / 180 : 0;
       /* The mesh turns about the character's root joint, the point the handles' root-relative
        * motion is measured from (the bounding box centre is only a stand-in without joints). */
       if (jr && r->rigid && valid3(r->jrest + 3 * (size_t)r->root))
@@ -798,6 +802,15 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
         double w[3];
         for (int i = 0; i < 3; ++i)
           w[i] = Rp[3 * i] * u[0] + Rp[3 * i + 1] * u[1] + Rp[3 * i + 2] * u[2];
+        /* The swing limit: d is brought back towards w along the great circle to the limit
+         * (a clamp: continuous in d, nothing changes within the limit). */
+        double c = fmax(-1, fmin(1, km__dot3(w, d))), th = acos(c), sn = sin(th);
+        if (r->swing_limit > 0 && th > r->swing_limit && sn > 1e-6) {
+          double a0 = sin(th - r->swing_limit) / sn, a1 = sin(r->swing_limit) / sn;
+          for (int i = 0; i < 3; ++i)
+            d[i] = a0 * w[i] + a1 * d[i];
+          km__normalize3(d);
+        }
         rotation_between(w, d, A);
         mat_mul(A, Rp, R);
         return true;

@@ -608,6 +608,13 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     goto done;
   }
   out->aim = cJSON_IsTrue(jaim);
+  const cJSON *jsl = cJSON_GetObjectItemCaseSensitive(root, "swing_limit");
+  if (jsl && !(cJSON_IsNumber(jsl) && jsl->valuedouble >= 0 && jsl->valuedouble <= 180)) {
+    st = km__fail(err, KM_ERR_PARSE, "%s: \"swing_limit\" must be a number of degrees in [0, 180]",
+                  name);
+    goto done;
+  }
+  out->swing_limit = jsl ? jsl->valuedouble : 0;
   if ((st = parse_joints(name, cJSON_GetObjectItemCaseSensitive(root, "joints"), joint_names,
                          n_joint_names, out, err)) != KM_OK)
     goto done;

@@ -453,11 +453,6 @@ static km_status reserve_points(km_recon *r, size_t n, km_error *err) {
   return KM_OK;
 }
 
-static int cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
 /* Closest points of Q (n) on surface X, then robust weights: Geman-McClure with scale
  * c = outlier_scale * 1.4826 * median residual, floored (at 3 mm in the end, so sensor noise
  * is never treated as outliers; larger in early rounds, so a limb that moved far while the
@@ -473,7 +468,7 @@ static double correspond(km_recon *r, const double *X, const double *Q, const do
     if (r->ptri[i] >= 0) r->pw[m++] = r->pdist[i];
   double med = 0;
   if (m) {
-    qsort(r->pw, m, sizeof(double), cmp_double);
+    qsort(r->pw, m, sizeof(double), km__cmp_double);
     med = r->pw[m / 2];
   }
   double c = r->o.outlier_scale * 1.4826 * med;
@@ -888,7 +883,7 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
           if (r->vnear[v] >= 0) r->vw[m++] = r->vdist[v];
         double med = 0;
         if (m) {
-          qsort(r->vw, m, sizeof(double), cmp_double);
+          qsort(r->vw, m, sizeof(double), km__cmp_double);
           med = r->vw[m / 2];
         }
         double c = fmax(r->o.outlier_scale * 1.4826 * med, floor_m);
@@ -1387,7 +1382,7 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
       for (size_t i = 0; i < nq; ++i)
         if (r->ptri[i] >= 0) r->pw[m++] = r->pdist[i];
       if (m < 6) break;
-      qsort(r->pw, m, sizeof(double), cmp_double);
+      qsort(r->pw, m, sizeof(double), km__cmp_double);
       if (!icp_step(r, X, Q, nq, fmax(2.5 * r->pw[m / 2], 0.01), R, t)) break;
     }
     place(r, R, sc, t, X);
