@@ -480,7 +480,7 @@ static void ease(km_retarget *r) {
  *   - a measurement taken after rejections (a re-fit that stayed, a swap held a second) is
  *     shown at most KM_HEADING_REFIT_TURN degrees per second until the heading shown has
  *     caught up with the filter (within a degree): the tracker re-fitting the skeleton is not
- *     the performer spinning. precog_Seq2_1 frames 19-22 re-fit 30, 37, 25 and 9 degrees a
+ *     the performer spinning. precog_Seq2_1 frames 20-22 re-fit 37, 25 and 9 degrees a
  *     frame (1100 deg/s at most, taken as a turn at the old 1200 deg/s threshold: dog0 turned
  *     20 degrees a frame, 26 % of its diagonal); the demo's spin measures 680 deg/s at most,
  *     the CMU takes 440, so 900 deg/s leaves the spin a third of margin.
