@@ -1188,9 +1188,19 @@ typedef struct km_retarget_options {
                       move per push; a faster step (a pose snap of the tracker) is eased over
                       the next pushes, every handle by the same fraction (displacements
                       linearly, rotations by slerp). 0: rig->max_step (0: off) */
-  double fps;      /* pushes per second, for the rigid root's heading filter (at most 180 deg/s
-                      shown; a measured change faster than 720 deg/s, or a 180 deg left/right
-                      swap, is held). 0: 30 */
+  double fps;      /* pushes per second, for the rigid root's heading filter (at most 600 deg/s
+                      shown, 300 deg/s onto a re-fit; a measured change faster than 900 deg/s,
+                      or a 180 deg left/right swap, is held) and the bone speed limit. 0: 30 */
+  /* ---- issue 12: bone speed limit (bone handles) */
+  double bone_catchup; /* m/s of performer. Per push a bone's direction turns at most as far
+                          as a bone of the performer's usual length (running mean, 0.8 of it
+                          turning freely) must turn for its end to move what the performer's
+                          bone end moved relative to its start, and at most 1200 deg/s (less
+                          for a bone measuring under 0.8 of its usual length): a Kinect
+                          forearm collapsing to a few centimetres swung 50-130 degrees in a
+                          frame and the character's hand 3x farther than the wrist moved. A
+                          turn held back follows, its end at most bone_catchup faster than
+                          the performer's. 0: 1 m/s; < 0: off (bones turn as measured) */
 } km_retarget_options;
 
 typedef struct km_retarget km_retarget;

@@ -61,8 +61,9 @@ km_status km__landmarks_parse(const char *path, const char *data, size_t size, s
                               km_landmark *out, size_t capacity, size_t *n, km_error *err);
 /* The one landmark writer: the JSON array [{"name":..,"vertex":..,"mirror":..},...] to f. */
 void km__landmarks_write_json(FILE *f, const km_landmark *lm, size_t n);
-/* The next km_retarget_push is followed at once, not eased by max_step (a rig swap replaying
- * the newest frame must land on the current pose, not ease toward it from the reference). */
+/* The next km_retarget_push is followed at once, not eased by max_step nor held by the bone
+ * speed limit (a rig swap replaying the newest frame must land on the current pose, not ease
+ * toward it from the reference). */
 void km__retarget_settle(km_retarget *r);
 
 /* Smoothing factor of a first-order low-pass with cutoff fc (Hz) over te seconds: the One Euro

@@ -7,6 +7,13 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Bone speed limit (limit_bone): m/s (of performer) a lagging bone's end catches up beyond its
+ * joint's own motion; the fraction of its usual length a bone may measure and still turn
+ * freely; the fastest turn of a bone, deg/s. */
+#define KM_BONE_CATCHUP 1.0
+#define KM_BONE_LEN_TOL 0.8
+#define KM_BONE_MAX_TURN 1200.0
+
 struct km_retarget {
   size_t n_handles, n_joints, n_maps, n_hv;
   km_rig_map *maps;  /* sorted by handle */
@@ -26,13 +33,17 @@ struct km_retarget {
   int32_t root, hl, hr; /* joint indices; hl/hr -1: no heading */
   double pivot[3];
   double R[9], t[3];   /* of the last push */
-  double cos_h, sin_h; /* heading change of the last push */
+  double cos_h, sin_h; /* the body's heading change of the last push (the filter's: the frame
+                          the handles' motion is measured in) */
+  double cos_s, sin_s; /* the heading shown (the mesh turned by R) */
   bool have_heading;   /* a heading was measured since create / reset */
   double h_phi;        /* the heading shown (radians, unwrapped) */
   double h_meas;       /* the last accepted measurement (unwrapped) */
   double h_filt;       /* the One Euro filter's value of the measurements */
   double h_speed;      /* its filtered angular speed, rad/s */
   int h_rejected;      /* measurements rejected in a row (swaps, glitches) */
+  bool h_refit;        /* the heading shown is catching up with a measurement taken after
+                          rejections (a re-fit): at most KM_HEADING_REFIT_TURN */
   double fps;          /* pushes per second */
   /* rotating handles */
   int32_t *rot_joint, *rot_parent; /* n_handles; -1: translation only; NULL: none rotates */
@@ -55,6 +66,14 @@ struct km_retarget {
   bool aim;            /* limb bones aim along the performer's (rig "aim": true) */
   double swing_limit;  /* radians, a limb bone's largest swing from its parent-carried rest
                           direction (rig "swing_limit"); 0: none */
+  /* bone speed limit (see limit_bone) */
+  double bone_catchup; /* metres (of performer) per push a bone's end may turn beyond its
+                          joint's own step; < 0: off */
+  double *bvec;        /* n_joints*3: the performer's bone ending at the joint, last push (in
+                          the root's heading frame under rigid root motion) */
+  double *blen;        /* n_joints: its running length */
+  bool *bhave;         /* n_joints: bvec and blen hold a valid bone */
+  bool *blag;          /* n_joints: the bone was held back by the limit in the last push */
   /* snap easing (issue 12): no handle vertex moves more than max_step per push */
   double max_step;   /* metres per push; 0: off */
   double *prev;      /* n_handles*12: displacement (3) and rotation (9) of the last push */
@@ -92,6 +111,10 @@ void km_retarget_free(km_retarget **r) {
   free(t->only_child);
   free(t->jfill);
   free(t->seen);
+  free(t->bvec);
+  free(t->blen);
+  free(t->bhave);
+  free(t->blag);
   free(t->prev);
   free(t->hv_radius);
   free(t);
@@ -104,15 +127,18 @@ void km_retarget_reset(km_retarget *r) {
     r->ref[i] = NAN;
   memset(r->disp, 0, 3 * r->n_handles * sizeof(double));
   if (r->seen) memset(r->seen, 0, r->n_joints * sizeof(bool));
+  if (r->bhave) memset(r->bhave, 0, r->n_joints * sizeof(bool));
+  if (r->blag) memset(r->blag, 0, r->n_joints * sizeof(bool));
   if (r->auto_scale) r->scale = NAN;
   memset(r->R, 0, sizeof r->R);
   r->R[0] = r->R[4] = r->R[8] = 1;
   memset(r->t, 0, sizeof r->t);
-  r->cos_h = 1;
+  r->cos_h = r->cos_s = 1;
   r->have_heading = false;
-  r->sin_h = 0;
+  r->sin_h = r->sin_s = 0;
   r->h_phi = r->h_meas = r->h_filt = r->h_speed = 0;
   r->h_rejected = 0;
+  r->h_refit = false;
   r->have_prev = false;
   r->eased = 0;
   if (r->rot)
@@ -269,7 +295,6 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       return km__fail(err, KM_ERR_INVALID, "rigid root motion: root or heading joint out of range");
     }
     r->rigid = true;
-    r->fps = o.fps > 0 && isfinite(o.fps) ? o.fps : 30.0;
     r->root = rig->root - 1;
     r->hl = rig->heading[0] && rig->heading[1] ? rig->heading[0] - 1 : -1;
     r->hr = rig->heading[0] && rig->heading[1] ? rig->heading[1] - 1 : -1;
@@ -277,6 +302,10 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       r->pivot[d] = 0.5 * (lo[d] + hi[d]);
   }
   r->floor_y = lo[1];
+  r->fps = o.fps > 0 && isfinite(o.fps) ? o.fps : 30.0;
+  r->bone_catchup = o.bone_catchup < 0 || !isfinite(o.bone_catchup)
+                        ? -1
+                        : (o.bone_catchup == 0 ? KM_BONE_CATCHUP : o.bone_catchup) / r->fps;
   bool any_rot = false, any_bone = false;
   for (size_t e = 0; e < rig->n_maps; ++e) {
     any_rot |= rig->maps[e].rotate || rig->maps[e].bone_from > 0;
@@ -311,10 +340,14 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       r->only_child = km__malloc(n_joints ? n_joints : 1, sizeof(int32_t));
       r->jfill = km__malloc(n_joints ? n_joints : 1, 3 * sizeof(double));
       r->seen = km__calloc(n_joints ? n_joints : 1, sizeof(bool));
+      r->bvec = km__malloc(n_joints ? n_joints : 1, 3 * sizeof(double));
+      r->blen = km__malloc(n_joints ? n_joints : 1, sizeof(double));
+      r->bhave = km__calloc(n_joints ? n_joints : 1, sizeof(bool));
+      r->blag = km__calloc(n_joints ? n_joints : 1, sizeof(bool));
       bool jr = rig->joint_rest && rig->n_joint_rest == n_joints;
       if (jr) r->jrest = km__malloc(n_joints, 3 * sizeof(double));
       if (!r->bone_from || !r->bone_rel || !r->Rb || !r->C || !r->only_child || !r->jfill ||
-          !r->seen || (jr && !r->jrest)) {
+          !r->seen || !r->bvec || !r->blen || !r->bhave || !r->blag || (jr && !r->jrest)) {
         km_retarget_free(&r);
         return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
       }
@@ -443,10 +476,18 @@ static void ease(km_retarget *r) {
  *   - the accepted ones go through a One Euro filter on the angle (min cutoff 1 Hz, beta
  *     1 Hz per rad/s: hip noise is damped, a fast turn is followed), and the heading shown
  *     follows the filter's value at most KM_HEADING_MAX_TURN degrees per second (a spin; the
- *     demo's kung-fu spin needs about that).
+ *     demo's kung-fu spin needs about that);
+ *   - a measurement taken after rejections (a re-fit that stayed, a swap held a second) is
+ *     shown at most KM_HEADING_REFIT_TURN degrees per second until the heading shown has
+ *     caught up with the filter (within a degree): the tracker re-fitting the skeleton is not
+ *     the performer spinning. precog_Seq2_1 frames 20-22 re-fit 37, 25 and 9 degrees a
+ *     frame (1100 deg/s at most, taken as a turn at the old 1200 deg/s threshold: dog0 turned
+ *     20 degrees a frame, 26 % of its diagonal); the demo's spin measures 680 deg/s at most,
+ *     the CMU takes 440, so 900 deg/s leaves the spin a third of margin.
  * phi: the measured heading change since the reference frame, radians. */
-#define KM_HEADING_MAX_RATE 1200.0 /* deg/s: a faster measured change is a glitch */
-#define KM_HEADING_MAX_TURN 600.0  /* deg/s: the fastest turn shown */
+#define KM_HEADING_MAX_RATE 900.0   /* deg/s: a faster measured change is a glitch */
+#define KM_HEADING_MAX_TURN 600.0   /* deg/s: the fastest turn shown */
+#define KM_HEADING_REFIT_TURN 300.0 /* deg/s: the fastest turn shown onto a re-fit */
 static void heading_push(km_retarget *r, double phi) {
   if (!r->have_heading) {
     r->have_heading = true;
@@ -464,6 +505,7 @@ static void heading_push(km_retarget *r, double phi) {
     ++r->h_rejected;
   } else {
     te *= 1 + r->h_rejected; /* the time since the last accepted measurement */
+    if (r->h_rejected) r->h_refit = true;
     r->h_rejected = 0;
     r->h_meas += d;
     r->h_speed += km__one_euro_alpha(1.0, te) * (fabs(d) / te - r->h_speed); /* d_cutoff 1 Hz */
@@ -471,7 +513,9 @@ static void heading_push(km_retarget *r, double phi) {
     r->h_filt += km__one_euro_alpha(fc, te) * (r->h_meas - r->h_filt);
   }
   double step = r->h_filt - r->h_phi, cap = KM_HEADING_MAX_TURN * deg / r->fps;
+  if (r->h_refit) cap = fmin(cap, KM_HEADING_REFIT_TURN * deg / r->fps);
   r->h_phi += fabs(step) > cap ? copysign(cap, step) : step;
+  if (fabs(r->h_filt - r->h_phi) < 1 * deg) r->h_refit = false;
 }
 
 static bool valid9(const double *R) {
@@ -554,11 +598,19 @@ void km_retarget_push_rotations(km_retarget *r, const double *joints, const doub
         if (hips && hypot(v[0], v[1]) > 1e-9 && hypot(v0[0], v0[1]) > 1e-9) {
           /* R_y(phi) takes (1,0,0) to (cos phi, 0, -sin phi): a vector's angle is atan2(-z, x) */
           heading_push(r, atan2(-v[1], v[0]) - atan2(-v0[1], v0[0]));
-          r->cos_h = cos(r->h_phi);
-          r->sin_h = sin(r->h_phi);
+          /* While the heading shown catches up with a re-fit, the limbs are measured in the
+           * body's frame (the filtered heading) and the mesh turned by the heading shown: the
+           * body turns late as a whole, rather than its legs swung sideways against it
+           * (precog_Seq2_1 on armadillo: 1683 folded triangles against 1555). A spin's limbs
+           * stay in the frame shown (the demo's body follows the skinned character). */
+          double hb = r->h_refit ? r->h_filt : r->h_phi;
+          r->cos_h = cos(hb);
+          r->sin_h = sin(hb);
+          r->cos_s = cos(r->h_phi);
+          r->sin_s = sin(r->h_phi);
         }
       }
-      double c = r->cos_h, sn = r->sin_h;
+      double c = r->cos_s, sn = r->sin_s;
       double R[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
       memcpy(r->R, R, sizeof R);
       for (int d = 0; d < 3; ++d)
@@ -796,6 +848,97 @@ static void twist(const km_retarget *r, const double *J, int32_t j, int32_t a, i
   apply_twist(r, j, d0, d, R);
 }
 
+/* Bone speed limit (issue 12, the one-frame jumps on the Kinect takes). The direction of the
+ * performer's bone q -> j is measured from filtered joint positions, and a Kinect bone often
+ * measures much shorter than it is: the forearm collapses to 8-14 cm of its 22 when the hand
+ * passes in front of the elbow, and a filtered wrist that flips from below the elbow to above
+ * it passes close to it, so the measured direction swings 50-130 degrees in a frame while the
+ * wrist moves 10-30 cm (precog_Seq1_1 frames 147-149 and 179; an upper arm flips 77-126
+ * degrees where the tracker re-fits the elbow, precog_Seq3_2 frame 192). The character's bone
+ * keeps its length, so its end and the hand handle swept 3x farther than the performer's
+ * wrist moved: 19 % of the character's diagonal in one frame against 7 % for the wrist.
+ * Per push a bone's direction turns at most
+ *   theta_max = min(2 asin((|u - u'| + c) / (2 tol blen)), max_turn / fps * min(1, |u| / (tol
+ * blen))) u, u': the performer's bone this push and the last; blen: its running mean length (about
+ * two seconds); tol = KM_BONE_LEN_TOL; c = bone_catchup / fps while the bone lags behind a
+ * turn held back before, else 0. The first term: as far as a bone of the performer's usual
+ * length must turn for its end to move what the performer's bone end moved relative to its
+ * start (a real swing of a full-length bone turns 2 asin(|u - u'| / (2 |u|)), within it); the
+ * second: at most KM_BONE_MAX_TURN deg/s (the clean CMU takes turn a shin just under 40
+ * degrees in a frame at 30 fps, a forearm 33, the kung-fu demo 24; the Kinect re-fits of
+ * precog_Seq2_1 frames 21-24 swing a full-length thigh 44-52), less for a bone measuring
+ * shorter than tol of its usual length (a collapsed bone's direction is noise). The rest of a
+ * turn held back follows over the next pushes. Neither term touches the CMU takes, walk, wave
+ * or the demo on the character or the armadillo (no push limited). Rprev: the bone's rotation
+ * of the last push; R in / out. */
+static void limit_bone(km_retarget *r, const double *J, int32_t q, int32_t j, const double Rprev[9],
+                       double R[9]) {
+  const double *p = J + 3 * (size_t)j, *pq = J + 3 * (size_t)q;
+  if (r->bone_catchup < 0) return;
+  if (!valid3(p) || !valid3(pq)) {
+    r->bhave[j] = false;
+    return;
+  }
+  double u[3] = {p[0] - pq[0], p[1] - pq[1], p[2] - pq[2]};
+  if (r->rigid) { /* R_y(-phi) u, as segment_dirs */
+    double c = r->cos_h, sn = r->sin_h, x = u[0], z = u[2];
+    u[0] = c * x - sn * z;
+    u[2] = sn * x + c * z;
+  }
+  double len = sqrt(km__dot3(u, u)), *bv = r->bvec + 3 * (size_t)j;
+  bool lag = r->blag[j];
+  r->blag[j] = false;
+  if (!r->bhave[j]) {
+    memcpy(bv, u, sizeof u);
+    r->blen[j] = len;
+    r->bhave[j] = true;
+    return;
+  }
+  double du[3];
+  km__sub3(u, bv, du);
+  double step = sqrt(km__dot3(du, du));
+  memcpy(bv, u, sizeof u);
+  r->blen[j] += (1 - exp(-0.5 / r->fps)) * (len - r->blen[j]);
+  if (!(r->blen[j] > 1e-6)) return;
+  /* the character's bone direction before and after this push */
+  double w[3];
+  if (r->jrest && valid3(r->jrest + 3 * (size_t)j) && valid3(r->jrest + 3 * (size_t)q))
+    km__sub3(r->jrest + 3 * (size_t)j, r->jrest + 3 * (size_t)q, w);
+  else if (valid3(r->ref + 3 * (size_t)j) && valid3(r->ref + 3 * (size_t)q))
+    km__sub3(r->ref + 3 * (size_t)j, r->ref + 3 * (size_t)q, w);
+  else
+    return;
+  double a[3], b[3];
+  mat_vec(Rprev, w, a);
+  mat_vec(R, w, b);
+  double na = sqrt(km__dot3(a, a)), nb = sqrt(km__dot3(b, b));
+  if (!(na > 1e-12) || !(nb > 1e-12)) return;
+  for (int c = 0; c < 3; ++c) {
+    a[c] /= na;
+    b[c] /= nb;
+  }
+  double cs = fmax(-1.0, fmin(1.0, km__dot3(a, b))), theta = acos(cs);
+  double x = (step + (lag ? r->bone_catchup : 0)) / (2 * KM_BONE_LEN_TOL * r->blen[j]);
+  double cap =
+      KM_BONE_MAX_TURN * M_PI / 180 / r->fps * fmin(1, len / (KM_BONE_LEN_TOL * r->blen[j]));
+  double tmax = fmin(x >= 1 ? M_PI : 2 * asin(x), cap);
+  if (!(theta > tmax + 1e-6)) return; /* a still bone: rounding */
+  r->blag[j] = true;
+  /* d: a turned by tmax towards b; then R <- (b -> d) R */
+  double e[3] = {b[0] - cs * a[0], b[1] - cs * a[1], b[2] - cs * a[2]};
+  double ne = sqrt(km__dot3(e, e));
+  if (!(ne > 1e-9)) { /* b opposite a: no plane to turn in; keep the last rotation */
+    memcpy(R, Rprev, 9 * sizeof(double));
+    return;
+  }
+  double d[3], A[9], B[9];
+  for (int c = 0; c < 3; ++c)
+    d[c] = cos(tmax) * a[c] + sin(tmax) * e[c] / ne;
+  rotation_between(b, d, A);
+  memcpy(B, R, sizeof B);
+  mat_mul(A, B, R);
+}
+
 /* Bone rotations, the character's posed joints (forward kinematics) and the bone handles'
  * rigid motions (see km_retarget_create in kinemesh.h). A bone whose joints are not valid this
  * frame keeps its last rotation; a root that is not valid keeps its last position. */
@@ -821,10 +964,14 @@ static void update_bones(km_retarget *r, const double *J) {
         aim[d] = r->jrest[3 * j + d] - r->jrest[3 * (size_t)q + d];
       if (isfinite(aim[0] + aim[1] + aim[2])) ap = aim;
     }
-    if (valid3(a0) && valid3(b0) && dist3(a0, b0) < 0.15)
+    if (valid3(a0) && valid3(b0) && dist3(a0, b0) < 0.15) {
       memcpy(Rj, r->Rb + 9 * (size_t)q, 9 * sizeof(double));
-    else
+    } else {
+      double Rprev[9];
+      memcpy(Rprev, Rj, sizeof Rprev);
       segment_rotation(r, J, q, (int32_t)j, ap, r->Rb + 9 * (size_t)q, Rj);
+      limit_bone(r, J, q, (int32_t)j, Rprev, Rj);
+    }
     if (r->jrest) {
       const double *cj0 = r->jrest + 3 * j, *cq0 = r->jrest + 3 * (size_t)q;
       double w[3] = {cj0[0] - cq0[0], cj0[1] - cq0[1], cj0[2] - cq0[2]}, y[3];
@@ -932,7 +1079,10 @@ size_t km_retarget_vertex_count(const km_retarget *r) { return r->n_hv; }
 const double *km_retarget_rest_centroids(const km_retarget *r) { return r->centroid; }
 double km_retarget_scale(const km_retarget *r) { return r->scale; }
 size_t km_retarget_eased_frames(const km_retarget *r) { return r->eased; }
-void km__retarget_settle(km_retarget *r) { r->have_prev = false; }
+void km__retarget_settle(km_retarget *r) {
+  r->have_prev = false;
+  if (r->bhave) memset(r->bhave, 0, r->n_joints * sizeof(bool)); /* nor held by limit_bone */
+}
 
 bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], double pivot[3]) {
   if (R) memcpy(R, r->R, sizeof r->R);
