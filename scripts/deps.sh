@@ -9,7 +9,7 @@ set -euo pipefail
 TEST_PKGS=(blender python3-numpy)
 PKGS=(build-essential cmake pkg-config
       libsuitesparse-dev libarpack2-dev liblapacke-dev libopenblas-dev
-      libembree-dev libcjson-dev libsvm-dev liblbfgs-dev libmeshoptimizer-dev
+      libembree-dev libcjson-dev libsvm-dev liblbfgs-dev libmeshoptimizer-dev gltfpack
       liblo-dev liblo-tools libwebsockets-dev gnuplot-nox
       nodejs npm chromium
       libopenmpi-dev openmpi-bin

@@ -50,4 +50,16 @@ static double edge_stretch(const km_mesh *m, const double *V) {
   return worst;
 }
 
+/* Puppetry options that pass the joints through untouched (no filter, no glitch rejection,
+ * scale 1) for a rig over joints with the given parents; raw must outlive the options. */
+static km_puppetry_options bar_raw_options(const int32_t *parents, km_filter_options *raw) {
+  *raw = (km_filter_options){.smoothing = KM_FILTER_ZERO, .trend = KM_FILTER_ZERO};
+  km_puppetry_options o = {0};
+  o.filter = raw;
+  o.no_glitch = true;
+  o.joint_parents = parents;
+  o.retarget.scale = 1;
+  return o;
+}
+
 #endif

@@ -63,6 +63,20 @@ static inline int km_test_finish(const char *name) {
 }
 
 /* Path of a file in ../shared/data, or NULL (with a SKIP line) when it is absent. */
+/* n points brought from kinemesh's frame into frame f, the inverse of km_frame_apply:
+ * out = R^T p / scale (R: km_frame_rotation(f)); out may alias in. */
+static inline void km_test_to_frame(const km_frame *f, const double *in, double *out, size_t n) {
+  double R[9];
+  CHECK_OK(km_frame_rotation(f, R, KM_E));
+  double s = f->scale ? f->scale : 1;
+  for (size_t i = 0; i < n; ++i) {
+    double q[3];
+    for (int a = 0; a < 3; ++a)
+      q[a] = (R[a] * in[3 * i] + R[3 + a] * in[3 * i + 1] + R[6 + a] * in[3 * i + 2]) / s;
+    memcpy(out + 3 * i, q, sizeof q);
+  }
+}
+
 static inline const char *km_test_shared(const char *rel, char *buf, size_t n) {
   snprintf(buf, n, "%s/%s", KM_SHARED_DATA, rel);
   struct stat st;

@@ -14,24 +14,11 @@
 
 static const km_frame ZUP = {KM_AXIS_POS_Z, KM_AXIS_NEG_Y, 0};
 
-/* p (n points) brought from kinemesh's frame into f (the inverse of km_frame_apply). */
-static void to_frame(const km_frame *f, double *p, size_t n) {
-  double R[9];
-  CHECK_OK(km_frame_rotation(f, R, KM_E));
-  double s = f->scale ? f->scale : 1;
-  for (size_t i = 0; i < n; ++i) {
-    double q[3];
-    for (int a = 0; a < 3; ++a) /* p_file = R^T p / s */
-      q[a] = (R[a] * p[3 * i] + R[3 + a] * p[3 * i + 1] + R[6 + a] * p[3 * i + 2]) / s;
-    memcpy(p + 3 * i, q, sizeof q);
-  }
-}
-
 /* The mesh at src written at dst in frame ZUP. */
 static void zup_mesh(const char *src, const char *dst) {
   km_mesh m = {0};
   CHECK_OK(km_mesh_read(src, &m, KM_E));
-  to_frame(&ZUP, m.V, m.n_vertices);
+  km_test_to_frame(&ZUP, m.V, m.V, m.n_vertices);
   CHECK_OK(km_mesh_write(dst, &m, NULL, KM_E));
   km_mesh_free(&m);
 }
@@ -192,7 +179,7 @@ static void test_reconstruct(void) {
   for (size_t f = 0; f < n; ++f) {
     km_points p = {0};
     CHECK_OK(km_points_read(paths[f], &p, KM_E));
-    to_frame(&ZUP, p.P, p.n);
+    km_test_to_frame(&ZUP, p.P, p.P, p.n);
     char dst[256];
     snprintf(dst, sizeof dst, DIR "/frames_z/frame_%06zu.ply", f);
     CHECK_OK(km_points_write_ply(dst, p.P, p.n, KM_E));

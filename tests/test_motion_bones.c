@@ -56,12 +56,8 @@ static result run(const km_mesh *m, bool bones, km_puppetry_solver solver) {
           rig.maps[1].bone_from == 2 && rig.maps[1].joint == 2);
     CHECK(rig.joint_rest && rig.n_joint_rest == 3 && rig.joint_rest[3] == 1);
   }
-  km_filter_options raw = {.smoothing = KM_FILTER_ZERO, .trend = KM_FILTER_ZERO};
-  km_puppetry_options o = {0};
-  o.filter = &raw;
-  o.no_glitch = true;
-  o.joint_parents = parents;
-  o.retarget.scale = 1;
+  km_filter_options raw;
+  km_puppetry_options o = bar_raw_options(parents, &raw);
   o.solver = solver;
   o.puppet.fields = 4;
   o.puppet.isolines = 10;

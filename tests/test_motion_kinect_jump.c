@@ -44,12 +44,8 @@ static double arm_run(const km_mesh *m, const double (*frames)[9], int nf, doubl
   km_rig rig;
   double worst = NAN;
   CHECK_OK(km_rig_parse(json, strlen(json), "arm.rig.json", m, names, 3, &rig, KM_E));
-  km_filter_options raw = {.smoothing = KM_FILTER_ZERO, .trend = KM_FILTER_ZERO};
-  km_puppetry_options o = {0};
-  o.filter = &raw;
-  o.no_glitch = true;
-  o.joint_parents = parents;
-  o.retarget.scale = 1;
+  km_filter_options raw;
+  km_puppetry_options o = bar_raw_options(parents, &raw);
   o.retarget.bone_catchup = bone_catchup;
   o.solver = KM_PUPPETRY_FULL;
   o.arap.iterations = 100;

@@ -22,12 +22,8 @@ static double run(const km_mesh *m, bool rotate, km_puppetry_solver solver, doub
   double stretch = NAN;
   CHECK_OK(km_rig_parse(json, strlen(json), "bar.rig.json", m, names, 3, &rig, KM_E));
   CHECK(rig.n_maps == 1 && rig.maps[0].rotate == rotate);
-  km_filter_options raw = {.smoothing = KM_FILTER_ZERO, .trend = KM_FILTER_ZERO};
-  km_puppetry_options o = {0};
-  o.filter = &raw;
-  o.no_glitch = true;
-  o.joint_parents = parents;
-  o.retarget.scale = 1;
+  km_filter_options raw;
+  km_puppetry_options o = bar_raw_options(parents, &raw);
   o.solver = solver;
   o.puppet.fields = 4;
   o.puppet.isolines = 10;

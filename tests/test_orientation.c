@@ -46,15 +46,9 @@ static void test_axes(void) {
 
 /* Writes m brought from kinemesh's frame into frame f (the inverse of km_frame_apply). */
 static void write_copy(const km_mesh *m, const km_frame *f, const char *path) {
-  double R[9];
-  CHECK_OK(km_frame_rotation(f, R, KM_E));
   km_mesh c = {0};
   CHECK_OK(km_mesh_copy(m, &c, KM_E));
-  double s = f->scale ? f->scale : 1;
-  for (size_t i = 0; i < c.n_vertices; ++i)
-    for (int a = 0; a < 3; ++a) /* p_file = R^T p / s */
-      c.V[3 * i + a] =
-          (R[a] * m->V[3 * i] + R[3 + a] * m->V[3 * i + 1] + R[6 + a] * m->V[3 * i + 2]) / s;
+  if (c.V) km_test_to_frame(f, m->V, c.V, c.n_vertices);
   CHECK_OK(km_mesh_write(path, &c, NULL, KM_E));
   km_mesh_free(&c);
 }
@@ -67,15 +61,10 @@ static void check_rotations_follow(const km_mesh *c, const char *label) {
     for (int w = KM_AXIS_POS_X; w <= KM_AXIS_NEG_Z; ++w) {
       if ((u - 1) / 2 == (w - 1) / 2) continue;
       km_frame f = {(km_axis)u, (km_axis)w, 0};
-      double R[9];
-      CHECK_OK(km_frame_rotation(&f, R, KM_E));
       km_mesh r = {0};
       CHECK_OK(km_mesh_copy(c, &r, KM_E));
       if (!r.V) return;
-      for (size_t i = 0; i < r.n_vertices; ++i)
-        for (int a = 0; a < 3; ++a) /* p_file = R^T p */
-          r.V[3 * i + a] =
-              R[a] * c->V[3 * i] + R[3 + a] * c->V[3 * i + 1] + R[6 + a] * c->V[3 * i + 2];
+      km_test_to_frame(&f, c->V, r.V, r.n_vertices);
       km_frame_guess g;
       CHECK_OK(km_mesh_frame_guess(&r, &g, KM_E));
       ++n;
@@ -175,13 +164,9 @@ static void test_rotated_copies(void) {
   {
     km_mesh z = m;
     km_frame zf = {KM_AXIS_POS_Z, KM_AXIS_NEG_Y, 0};
-    double R[9];
-    CHECK_OK(km_frame_rotation(&zf, R, KM_E));
     z.V = malloc(sizeof(double) * 3 * m.n_vertices);
     z.N = NULL;
-    for (size_t i = 0; z.V && i < m.n_vertices; ++i)
-      for (int a = 0; a < 3; ++a) /* into the z-up file frame: p_file = R^T p */
-        z.V[3 * i + a] = R[a] * m.V[3 * i] + R[3 + a] * m.V[3 * i + 1] + R[6 + a] * m.V[3 * i + 2];
+    if (z.V) km_test_to_frame(&zf, m.V, z.V, m.n_vertices); /* into the z-up file frame */
     km_frame_guess gz, gy;
     CHECK_OK(km_mesh_frame_guess_forward(&z, KM_AXIS_POS_Z, &gz, KM_E));
     CHECK_MSG(gz.frame.up == KM_AXIS_POS_Z && gz.frame.forward == KM_AXIS_NEG_Y &&

@@ -65,12 +65,7 @@ static void sweep(const km_mesh *c, const char *label, bool fwd_defined, bool ve
     for (int w = KM_AXIS_POS_X; w <= KM_AXIS_NEG_Z; ++w) {
       if ((u - 1) / 2 == (w - 1) / 2) continue;
       km_frame f = {(km_axis)u, (km_axis)w, 0};
-      double R[9];
-      CHECK_OK(km_frame_rotation(&f, R, KM_E));
-      for (size_t i = 0; i < r.n_vertices; ++i)
-        for (int a = 0; a < 3; ++a) /* the file's coordinates: p_file = R^T p */
-          r.V[3 * i + a] =
-              R[a] * c->V[3 * i] + R[3 + a] * c->V[3 * i + 1] + R[6 + a] * c->V[3 * i + 2];
+      km_test_to_frame(&f, c->V, r.V, r.n_vertices); /* the file's coordinates */
       km_frame_guess g;
       CHECK_OK(km_mesh_frame_guess(&r, &g, KM_E));
       bool up = g.frame.up == f.up, both = up && g.frame.forward == f.forward;
