@@ -161,7 +161,6 @@ int km_bench_reconstruct(int argc, char **argv) {
   km_character_options so = {.target_vertices = 8000, .seed = 7, .girth = 1.08, .height = 1.72};
   km_character_options to = {.target_vertices = 4000, .seed = 1};
   if (km_character_generate(&so, &subj, &e)) die("subject", &e);
-  if (getenv("KM_BENCH_SAME")) to = so;
   if (km_character_generate(&to, &tmpl, &e)) die("template", &e);
   km_take take = {0};
   if (km_motion_generate(&subj.skeleton, KM_MOTION_KUNGFU, frames, &take, &e)) die("motion", &e);
@@ -211,7 +210,7 @@ int km_bench_reconstruct(int argc, char **argv) {
       if (!strcmp(tmpl.landmarks[k].name, subj.landmarks[l].name)) tl = k;
     if (tl < 0) continue;
     feat[nfeat].vertex = tmpl.landmarks[tl].vertex;
-    memcpy(feat[nfeat].point, getenv("KM_BENCH_EXACT") ? q : p0.P + 3 * bi, 3 * sizeof(double));
+    memcpy(feat[nfeat].point, p0.P + 3 * bi, 3 * sizeof(double));
     ++nfeat;
   }
   size_t npts0 = p0.n;
@@ -231,8 +230,6 @@ int km_bench_reconstruct(int argc, char **argv) {
   km_points_free(&p0);
   km_recon_options ro = {.cameras = cams, .n_cameras = 8};
   ro.rig_joints = g_rig_joints;
-  if (getenv("KM_BENCH_REFINE")) ro.refine_iterations = atoi(getenv("KM_BENCH_REFINE"));
-  if (getenv("KM_BENCH_WPOSE")) ro.w_pose = atof(getenv("KM_BENCH_WPOSE"));
   /* The incremental API (what km_reconstruct streams through) so both the refined and the
    * filtered sequences are at hand for the jitter measure. */
   km_recon *rc = NULL;
