@@ -1121,6 +1121,10 @@ typedef struct km_rig {
                          from where its parent bone carries its rest direction (0: no limit).
                          kinemesh rig writes 60 for a body that is not upright (a quadruped's
                          legs do not reach where a person's arms do) */
+  double bend_limit;  /* "bend_limit": degrees, with aim on a kinect1 skeleton: an elbow or knee
+                         (the forearm or shin against the upper arm or thigh) bends at most this
+                         far (0: no limit). kinemesh rig writes 150, about the human limit: a
+                         tracker's elbow folded further is its arm lost in front of the body */
 } km_rig;
 
 /* Parses a rig file and resolves its handles on a mesh.

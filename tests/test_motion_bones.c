@@ -392,52 +392,64 @@ static void test_untracked_wrist(const fixture *fx) {
             rise[0]);
 }
 
-/* The rig's swing limit (a quadruped's legs): the performer's right forearm turned 120 degrees
- * up about a still elbow turns the character's forearm, and with it the hand handle about the
- * elbow, 120 degrees without a limit and 60 with "swing_limit": 60; the upper arm, within the
- * limit, does not move. */
-static void test_swing_limit(const fixture *fx) {
+/* The performer's right forearm turned `angle` degrees up about a still elbow, in one push,
+ * through the character's default rig with the given "swing_limit" and "bend_limit": how far
+ * the hand handle turns about the elbow, degrees. */
+static double hand_turn(const fixture *fx, double swing, double bend, double angle) {
   const km_character c = fx->c;
   km_rig rig = fx->rig;
+  rig.swing_limit = swing;
+  rig.bend_limit = bend;
   int hand = -1;
   for (size_t h = 0; h < rig.n_handles; ++h)
     if (!strcmp(rig.handles[h].name, "hand_right")) hand = (int)h;
   CHECK(hand >= 0);
+  if (hand < 0) return NAN;
   enum { ELBOW = 9, WRIST = 10, HAND = 11 };
-  double turned[2] = {0, 0};
-  for (int lim = 0; lim < 2 && hand >= 0; ++lim) {
-    rig.swing_limit = lim ? 60 : 0;
-    km_retarget *rt = NULL;
-    /* the forearm turns 120 degrees in one push: the bone speed limit (at most 40 degrees a
-     * push at 30 fps) off */
-    km_retarget_options ro = {.bone_catchup = -1};
-    CHECK_OK(km_retarget_create(&rig, &c.mesh, KM_KINECT1_JOINTS, &ro, &rt, KM_E));
-    double J[3 * KM_KINECT1_JOINTS], *tg = malloc(3 * rig.n_handles * sizeof(double));
-    double v[2][3];
-    const double *e = c.skeleton.rest + 3 * ELBOW;
-    for (int f = 0; f < 2 && rt && tg; ++f) {
-      memcpy(J, c.skeleton.rest, sizeof J);
-      if (f == 1)
-        for (int j = WRIST; j <= HAND; ++j) {
-          double *x = J + 3 * j, u = x[0] - e[0], w = x[1] - e[1];
-          double cs = cos(2 * M_PI / 3), sn = sin(2 * M_PI / 3) * (u > 0 ? 1 : -1);
-          x[0] = e[0] + cs * u - sn * w, x[1] = e[1] + sn * u + cs * w;
-        }
-      km_retarget_push(rt, J, tg);
-      for (int a = 0; a < 3; ++a)
-        v[f][a] = tg[3 * hand + a] - e[a];
-    }
-    double cosang = (v[0][0] * v[1][0] + v[0][1] * v[1][1] + v[0][2] * v[1][2]) /
-                    (sqrt(v[0][0] * v[0][0] + v[0][1] * v[0][1] + v[0][2] * v[0][2]) *
-                     sqrt(v[1][0] * v[1][0] + v[1][1] * v[1][1] + v[1][2] * v[1][2]));
-    turned[lim] = acos(fmax(-1, fmin(1, cosang))) * 180 / M_PI;
-    free(tg);
-    km_retarget_free(&rt);
+  km_retarget *rt = NULL;
+  /* the whole turn in one push: the bone speed limit (at most 40 degrees a push) off */
+  km_retarget_options ro = {.bone_catchup = -1};
+  CHECK_OK(km_retarget_create(&rig, &c.mesh, KM_KINECT1_JOINTS, &ro, &rt, KM_E));
+  double J[3 * KM_KINECT1_JOINTS], *tg = malloc(3 * rig.n_handles * sizeof(double));
+  double v[2][3] = {{0}};
+  const double *e = c.skeleton.rest + 3 * ELBOW;
+  for (int f = 0; f < 2 && rt && tg; ++f) {
+    memcpy(J, c.skeleton.rest, sizeof J);
+    if (f == 1)
+      for (int j = WRIST; j <= HAND; ++j) {
+        double *x = J + 3 * j, u = x[0] - e[0], w = x[1] - e[1];
+        double cs = cos(angle * M_PI / 180), sn = sin(angle * M_PI / 180) * (u > 0 ? 1 : -1);
+        x[0] = e[0] + cs * u - sn * w, x[1] = e[1] + sn * u + cs * w;
+      }
+    km_retarget_push(rt, J, tg);
+    for (int a = 0; a < 3; ++a)
+      v[f][a] = tg[3 * hand + a] - e[a];
   }
-  printf("  hand handle turns %.1f deg about the elbow without a swing limit, %.1f with 60\n",
-         turned[0], turned[1]);
-  CHECK_MSG(fabs(turned[0] - 120) < 15, "no limit: the hand turned %g deg", turned[0]);
-  CHECK_MSG(fabs(turned[1] - 60) < 15, "swing_limit 60: the hand turned %g deg", turned[1]);
+  double cosang = (v[0][0] * v[1][0] + v[0][1] * v[1][1] + v[0][2] * v[1][2]) /
+                  (sqrt(v[0][0] * v[0][0] + v[0][1] * v[0][1] + v[0][2] * v[0][2]) *
+                   sqrt(v[1][0] * v[1][0] + v[1][1] * v[1][1] + v[1][2] * v[1][2]));
+  free(tg);
+  km_retarget_free(&rt);
+  return acos(fmax(-1, fmin(1, cosang))) * 180 / M_PI;
+}
+
+/* The rig's limits: a quadruped's legs ("swing_limit": 60, every limb bone) and the human elbow
+ * and knee ("bend_limit": 150, the default rig's). The forearm turns as the performer's within
+ * a limit and to the limit beyond it; the upper arm, within, does not move. */
+static void test_limits(const fixture *fx) {
+  CHECK_MSG(fx->rig.bend_limit == 150, "the default rig's bend_limit is %g", fx->rig.bend_limit);
+  double free120 = hand_turn(fx, 0, 0, 120), swing60 = hand_turn(fx, 60, 0, 120);
+  double free170 = hand_turn(fx, 0, 0, 170), bend150 = hand_turn(fx, 0, 150, 170);
+  double both = hand_turn(fx, 60, 150, 170);
+  printf("  hand handle turns about the elbow: 120 deg asked, %.1f free, %.1f with swing_limit "
+         "60; 170 asked, %.1f free, %.1f with bend_limit 150, %.1f with both\n",
+         free120, swing60, free170, bend150, both);
+  CHECK_MSG(fabs(free120 - 120) < 15, "no limit: the hand turned %g deg", free120);
+  CHECK_MSG(fabs(swing60 - 60) < 15, "swing_limit 60: the hand turned %g deg", swing60);
+  CHECK_MSG(fabs(free170 - 170) < 15, "no limit: the hand turned %g deg", free170);
+  CHECK_MSG(fabs(bend150 - 150) < 10 && bend150 < free170 - 10,
+            "bend_limit 150: the hand turned %g deg (free %g)", bend150, free170);
+  CHECK_MSG(fabs(both - 60) < 15, "both limits: the hand turned %g deg", both);
 }
 
 int main(void) {
@@ -447,7 +459,7 @@ int main(void) {
   test_armpit_folds(&fx, KM_MOTION_WAVE);
   test_armpit_folds(&fx, KM_MOTION_KUNGFU);
   test_clean_take_joints(&fx);
-  test_swing_limit(&fx);
+  test_limits(&fx);
   fixture_free(&fx);
   km_mesh m = bar();
   for (int solver = 0; solver < 2; ++solver) {

@@ -491,6 +491,16 @@ static void test_max_step(void) {
   CHECK_OK(parse("{\"swing_limit\":60,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}", &m, &rig));
   CHECK(rig.swing_limit == 60);
   km_rig_free(&rig);
+  const char *bad_bl[] = {"{\"bend_limit\":-1,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}",
+                          "{\"bend_limit\":181,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}",
+                          "{\"bend_limit\":\"150\",\"handles\":[{\"name\":\"h\",\"vertex\":0}]}"};
+  for (int i = 0; i < 3; ++i) {
+    CHECK_STATUS(parse(bad_bl[i], &m, &rig), KM_ERR_PARSE);
+    CHECK(strstr(km_test_err.message, "bend_limit") != NULL);
+  }
+  CHECK_OK(parse("{\"bend_limit\":150,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}", &m, &rig));
+  CHECK(rig.bend_limit == 150);
+  km_rig_free(&rig);
   free_mesh(&m);
 }
 

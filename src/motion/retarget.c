@@ -66,6 +66,8 @@ struct km_retarget {
   bool aim;            /* limb bones aim along the performer's (rig "aim": true) */
   double swing_limit;  /* radians, a limb bone's largest swing from its parent-carried rest
                           direction (rig "swing_limit"); 0: none */
+  double bend_limit;   /* radians, the largest bend of a kinect1 elbow or knee (rig
+                          "bend_limit"); 0: none */
   /* bone speed limit (see limit_bone) */
   double bone_catchup; /* metres (of performer) per push a bone's end may turn beyond its
                           joint's own step; < 0: off */
@@ -361,6 +363,8 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       r->aim = jr && rig->aim;
       r->swing_limit =
           rig->swing_limit > 0 && rig->swing_limit < 180 ? rig->swing_limit * M_PI / 180 : 0;
+      r->bend_limit =
+          rig->bend_limit > 0 && rig->bend_limit < 180 ? rig->bend_limit * M_PI / 180 : 0;
       /* The mesh turns about the character's root joint, the point the handles' root-relative
        * motion is measured from (the bounding box centre is only a stand-in without joints). */
       if (jr && r->rigid && valid3(r->jrest + 3 * (size_t)r->root))
@@ -777,6 +781,16 @@ static void mat_mul(const double A[9], const double B[9], double C[9]) {
       C[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j];
 }
 
+/* The largest swing allowed to the bone ending at joint b (rig "swing_limit", and for a
+ * kinect1 forearm or shin, the bone ending at a wrist or ankle, "bend_limit": the elbow's or
+ * knee's bend), radians; 0: none. Only aimed bones are limited (segment_rotation with aim). */
+static double limb_limit(const km_retarget *r, int32_t b) {
+  double lim = r->swing_limit;
+  bool hinge = r->kinect1 && (b == 6 || b == 10 || b == 14 || b == 18);
+  if (hinge && r->bend_limit > 0) lim = lim > 0 ? fmin(lim, r->bend_limit) : r->bend_limit;
+  return lim;
+}
+
 /* The shortest rotation taking the reference direction of a -> b to this frame's (in the
  * root's heading frame under rigid root motion); false when a joint is not valid.
  * aim (the character's rest direction of the segment) with Rp (the rotation of the bone the
@@ -805,8 +819,9 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
         /* The swing limit: d is brought back towards w along the great circle to the limit
          * (a clamp: continuous in d, nothing changes within the limit). */
         double c = fmax(-1, fmin(1, km__dot3(w, d))), th = acos(c), sn = sin(th);
-        if (r->swing_limit > 0 && th > r->swing_limit && sn > 1e-6) {
-          double a0 = sin(th - r->swing_limit) / sn, a1 = sin(r->swing_limit) / sn;
+        double lim = limb_limit(r, b);
+        if (lim > 0 && th > lim && sn > 1e-6) {
+          double a0 = sin(th - lim) / sn, a1 = sin(lim) / sn;
           for (int i = 0; i < 3; ++i)
             d[i] = a0 * w[i] + a1 * d[i];
           km__normalize3(d);

@@ -615,6 +615,13 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     goto done;
   }
   out->swing_limit = jsl ? jsl->valuedouble : 0;
+  const cJSON *jbl = cJSON_GetObjectItemCaseSensitive(root, "bend_limit");
+  if (jbl && !(cJSON_IsNumber(jbl) && jbl->valuedouble >= 0 && jbl->valuedouble <= 180)) {
+    st = km__fail(err, KM_ERR_PARSE, "%s: \"bend_limit\" must be a number of degrees in [0, 180]",
+                  name);
+    goto done;
+  }
+  out->bend_limit = jbl ? jbl->valuedouble : 0;
   if ((st = parse_joints(name, cJSON_GetObjectItemCaseSensitive(root, "joints"), joint_names,
                          n_joint_names, out, err)) != KM_OK)
     goto done;

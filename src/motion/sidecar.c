@@ -428,6 +428,12 @@ static km_status write_rig_stream(FILE *f, const char *path, const km_character 
    * 4.3x out of the chest (precog_Seq1_1). Its limb bones swing at most 60 degrees from where
    * their parent carries them. */
   if (!upright_body(sk)) fputs("\"swing_limit\":60,", f);
+  /* No elbow or knee bends much past 150 degrees; a tracker's that does has lost the forearm
+   * or shin in front of the body (precog_Seq1_1: the left elbow "bent" 163-175 degrees for
+   * frames on end, the wrist on the shoulder), and the character's forearm folded into its
+   * upper arm. bench motion B, character, Kinect takes: folded triangles 125/137/349 ->
+   * 81/127/329; the CMU takes, clean optical capture, never reach the limit (unchanged). */
+  fputs("\"bend_limit\":150,", f);
   fputs("\"filter\":{\"smoothing\":0.5,\"trend\":0.5}}\n", f);
   return KM_OK;
 }
