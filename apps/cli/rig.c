@@ -154,8 +154,19 @@ write:
   for (size_t h = 0; h < rig.n_handles; ++h)
     printf("%shandle %s: %zu vertices", h ? ", " : "", rig.handles[h].name,
            rig.handles[h].n_vertices);
+  printf("\n");
+  /* the limits the puppetry applies, so the user knows what to edit for a wider range */
+  if (rig.bend_limit > 0 || rig.swing_limit > 0) {
+    printf("limits:");
+    if (rig.bend_limit > 0)
+      printf(" elbows and knees bend at most %g deg (\"bend_limit\")", rig.bend_limit);
+    if (rig.swing_limit > 0)
+      printf("%s limb bones swing at most %g deg from rest (\"swing_limit\": not an upright body)",
+             rig.bend_limit > 0 ? ";" : "", rig.swing_limit);
+    printf("\n");
+  }
   km_rig_free(&rig);
-  printf("\nwrote %s\n", path);
+  printf("wrote %s\n", path);
 done:
   km_mesh_skin_free(&sk);
   free(def);
