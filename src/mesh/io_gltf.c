@@ -16,6 +16,13 @@
  * coordinates are turned to kinemesh's (OBJ's) bottom-left origin: v = 1 - v_gltf; a
  * primitive without NORMAL or TEXCOORD_0 among others that have them gets zeros.
  *
+ * Compressed files (gltfpack's, kinemesh's --compress): an EXT_meshopt_compression buffer view
+ * is decoded from its extension object's bytes (decode_view) and read like any other, its
+ * fallback buffer having no data; KHR_mesh_quantization's byte / short attributes are read
+ * through comp() (normalized or not) and dequantised by the node transforms / inverse bind
+ * matrices that carry the grid, texture coordinates also by the base colour texture's
+ * KHR_texture_transform (gltfpack's 12-bit UV range). Draco is refused.
+ *
  * Skins: a node with a `skin` whose primitive has JOINTS_0 / WEIGHTS_0 is placed as a viewer
  * shows it, by linear blend skinning with the scene's joint transforms (world matrix of each
  * joint node times its inverse bind matrix; the mesh node's own transform is ignored, as the
