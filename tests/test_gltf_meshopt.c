@@ -3,9 +3,12 @@
  * skin) read back with km_mesh_read: the vertex count and order of the mesh written, the same
  * triangles (the writer reorders triangles, never vertices), positions within the 14-bit grid's
  * rounding, UVs within 16-bit rounding, normals within the 8-bit octahedral encoding, and
- * equal to the plain file read the same way. (2) gltfpack's output (-c, -cc, and quantisation
- * alone) of an OBJ: every vertex on the original within gltfpack's quantisation, the same
- * triangle count; skipped with a message without gltfpack. (3) a corrupted compressed view
+ * equal to the plain file read the same way; the skin (km_mesh_read_skinned) has the plain
+ * file's joints and its weights within their 8-bit rounding. (2) gltfpack's output (-c, -cc,
+ * and quantisation alone) of a textured OBJ: every vertex on the original within gltfpack's
+ * quantisation, its UV too (dequantised by KHR_texture_transform), the same triangle count;
+ * and of kinemesh's plain skinned glb, read with its skin; skipped with a message without
+ * gltfpack. (3) a corrupted compressed view
  * (its bytes, its byteLength, byteStride, count, mode) is a KM_ERR_PARSE naming the file and
  * the bufferView. */
 #include "km_test.h"
@@ -116,6 +119,26 @@ static void own_files(const km_mesh *m, const double *N) {
     printf("# %s: %zu vertices in order, max position error %.2g m (half step %.2g m), UV %.2g, "
            "normal min dot %.5f\n",
            names[k], z.n_vertices, worst, 0.5 * step, worst_uv, worst_n);
+    if (kinds[k] == KM_ANIM_EXPORT_SKIN) { /* the skin: same joints, 8-bit weights */
+      km_mesh mp = {0}, mz = {0};
+      km_mesh_skin sp = {0}, sz = {0};
+      CHECK_OK(km_mesh_read_skinned(a, &mp, &sp, KM_E));
+      CHECK_OK(km_mesh_read_skinned(b, &mz, &sz, KM_E));
+      CHECK(sz.n_joints == sp.n_joints && sz.n_joints == 5 && sz.n_vertices == m->n_vertices);
+      double werr = 0;
+      bool same = sz.n_vertices == sp.n_vertices && sz.joints && sp.joints;
+      for (size_t i = 0; same && i < 4 * sz.n_vertices; ++i) {
+        if (sp.weights[i] > 1.0 / 255) same = sz.joints[i] == sp.joints[i];
+        werr = fmax(werr, fabs(sz.weights[i] - sp.weights[i]));
+      }
+      /* each rounded to 1/255, the largest absorbing the sum's rounding (<= 1.5/255 more) */
+      CHECK_MSG(same && werr <= 2.0 / 255, "skin: joints %s, weights off by %g",
+                same ? "same" : "differ", werr);
+      km_mesh_skin_free(&sp);
+      km_mesh_skin_free(&sz);
+      km_mesh_free(&mp);
+      km_mesh_free(&mz);
+    }
   next:
     km_mesh_free(&p);
     km_mesh_free(&z);
@@ -191,6 +214,40 @@ static void gltfpack_files(const km_mesh *m) {
            g.n_vertices, g.n_faces, worst, worst_uv);
     km_mesh_free(&g);
   }
+  /* a skinned file: kinemesh's plain skin export packed by gltfpack (which reorders the
+   * vertices) reads at the same place, with its skin */
+  char plain[96];
+  snprintf(plain, sizeof plain, "test_gltf_meshopt_%ld_skin.glb", (long)getpid());
+  CHECK(write_anim(plain, m, KM_ANIM_EXPORT_SKIN, false) == KM_OK);
+  snprintf(cmd, sizeof cmd, "gltfpack -i %s -o %s -cc", plain, out);
+  CHECK(km_test_run(cmd, NULL) == 0);
+  km_mesh g = {0};
+  km_mesh_skin sk = {0};
+  CHECK_OK(km_mesh_read_skinned(out, &g, &sk, KM_E));
+  CHECK_MSG(g.n_vertices == m->n_vertices && sk.n_joints == 5 && sk.n_vertices == g.n_vertices,
+            "gltfpack skin: %zu vertices, %zu joints", g.n_vertices, sk.n_joints);
+  double worst = 0, wsum_err = 0;
+  for (size_t i = 0; g.V && i < g.n_vertices; ++i) {
+    double best = INFINITY;
+    for (size_t j = 0; j < m->n_vertices; ++j) {
+      double d2 = 0;
+      for (int c = 0; c < 3; ++c)
+        d2 += (g.V[3 * i + c] - m->V[3 * j + c]) * (g.V[3 * i + c] - m->V[3 * j + c]);
+      best = fmin(best, d2);
+    }
+    worst = fmax(worst, sqrt(best));
+    double ws = 0;
+    for (int k = 0; sk.weights && k < 4; ++k)
+      ws += sk.weights[4 * i + k];
+    wsum_err = fmax(wsum_err, fabs(ws - 1));
+  }
+  CHECK_MSG(worst < 2e-4 && wsum_err < 1e-9, "gltfpack skin: %g m off, weight sums off by %g",
+            worst, wsum_err);
+  printf("# gltfpack -cc of a skinned glb: %zu vertices, %zu joints, max distance %.2g m\n",
+         g.n_vertices, sk.n_joints, worst);
+  km_mesh_skin_free(&sk);
+  km_mesh_free(&g);
+  remove(plain);
   remove(obj);
   remove(mtl);
   remove(out);
