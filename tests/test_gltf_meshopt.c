@@ -4,14 +4,16 @@
  * triangles (the writer reorders triangles, never vertices), positions within the 14-bit grid's
  * rounding, UVs within 16-bit rounding, normals within the 8-bit octahedral encoding, and
  * equal to the plain file read the same way; the skin (km_mesh_read_skinned) has the plain
- * file's joints and its weights within their 8-bit rounding. (2) gltfpack's output (-c, -cc,
- * and quantisation alone) of a textured OBJ: every vertex on the original within gltfpack's
- * quantisation, its UV too (dequantised by KHR_texture_transform), the same triangle count;
- * and of kinemesh's plain skinned glb, read with its skin; skipped with a message without
+ * file's joints and its weights within their 8-bit rounding. (1b) km__gltf_accessor_read (for
+ * the animation reader) gives a compressed morph target within half a grid step. (2) gltfpack's
+ * output (-c, -cc, and quantisation alone) of a textured OBJ: every vertex on the original within
+ * gltfpack's quantisation, its UV too (dequantised by KHR_texture_transform), the same triangle
+ * count; and of kinemesh's plain skinned glb, read with its skin; skipped with a message without
  * gltfpack. (3) a corrupted compressed view
  * (its bytes, its byteLength, byteStride, count, mode) is a KM_ERR_PARSE naming the file and
  * the bufferView. */
 #include "km_test.h"
+#include "mesh/mesh.h"
 #include "tube_fixture.h"
 
 #include <cjson/cJSON.h>
@@ -146,6 +148,63 @@ static void own_files(const km_mesh *m, const double *N) {
     remove(b);
   }
   free(t0);
+}
+
+/* (1b) km__gltf_accessor_read, for the animation reader: the last morph target of the
+ * compressed file (16-bit deltas on the grid, times the mesh node's scale) is the plain file's
+ * within half a grid step. */
+static int last_target(const char *path, unsigned char **data, size_t *size, double *scale) {
+  *data = read_all(path, size);
+  if (!*data || *size < 28) return -1;
+  cJSON *root = cJSON_ParseWithLength((const char *)*data + 20, getu32(*data + 12));
+  const cJSON *prim = cJSON_GetArrayItem(
+      cJSON_GetObjectItem(cJSON_GetArrayItem(cJSON_GetObjectItem(root, "meshes"), 0), "primitives"),
+      0);
+  const cJSON *ts = cJSON_GetObjectItem(prim, "targets"); /* the last: frame 0's is zero */
+  const cJSON *t =
+      cJSON_GetObjectItem(cJSON_GetArrayItem(ts, cJSON_GetArraySize(ts) - 1), "POSITION");
+  const cJSON *sc = NULL, *node;
+  cJSON_ArrayForEach(node, cJSON_GetObjectItem(root, "nodes")) {
+    if (cJSON_GetObjectItem(node, "mesh")) sc = cJSON_GetObjectItem(node, "scale");
+  }
+  *scale = sc ? cJSON_GetArrayItem(sc, 0)->valuedouble : 1.0;
+  int a = cJSON_IsNumber(t) ? t->valueint : -1;
+  cJSON_Delete(root);
+  return a;
+}
+
+static void accessor_helper(const km_mesh *m) {
+  char a[96], b[96];
+  snprintf(a, sizeof a, "test_gltf_meshopt_%ld_acc_p.glb", (long)getpid());
+  snprintf(b, sizeof b, "test_gltf_meshopt_%ld_acc_z.glb", (long)getpid());
+  CHECK(write_anim(a, m, KM_ANIM_EXPORT_MORPHS, false) == KM_OK);
+  CHECK(write_anim(b, m, KM_ANIM_EXPORT_MORPHS, true) == KM_OK);
+  unsigned char *dp = NULL, *dz = NULL;
+  size_t np = 0, nz = 0, cp = 0, cz = 0;
+  double sp = 1, sz = 1, *xp = NULL, *xz = NULL;
+  int ap = last_target(a, &dp, &np, &sp), az = last_target(b, &dz, &nz, &sz), kp = 0, kz = 0;
+  CHECK(ap >= 0 && az >= 0 && sp == 1.0 && sz < 1e-3);
+  CHECK_OK(km__gltf_accessor_read(dp, np, a, ap, &xp, &cp, &kp, KM_E));
+  CHECK_OK(km__gltf_accessor_read(dz, nz, b, az, &xz, &cz, &kz, KM_E));
+  CHECK(cp == m->n_vertices && cz == cp && kp == 3 && kz == 3);
+  double worst = 0;
+  for (size_t i = 0; xp && xz && cz == cp && i < 3 * cp; ++i)
+    worst = fmax(worst, fabs(sz * xz[i] - xp[i]));
+  CHECK_MSG(worst <= 0.5 * sz + 1e-6, "last target: off by %g m, grid step %g m", worst, sz);
+  printf("# km__gltf_accessor_read: compressed last morph target within %.2g m (step %.2g m)\n",
+         worst, sz);
+  /* a missing accessor: a clear error */
+  double *x = NULL;
+  size_t c = 0;
+  int k = 0;
+  CHECK_STATUS(km__gltf_accessor_read(dz, nz, b, 999, &x, &c, &k, KM_E), KM_ERR_PARSE);
+  CHECK(x == NULL && strstr(km_test_err.message, "999"));
+  free(xp);
+  free(xz);
+  free(dp);
+  free(dz);
+  remove(a);
+  remove(b);
 }
 
 /* (2) gltfpack's output of the tube as an OBJ */
@@ -364,6 +423,7 @@ int main(void) {
   double *N = malloc(m.n_vertices * 3 * sizeof *N);
   CHECK_OK(km_vertex_normals(&m, KM_NORMALS_AREA, N, KM_E));
   own_files(&m, N);
+  accessor_helper(&m);
   gltfpack_files(&m);
   corrupted(&m);
   free(N);

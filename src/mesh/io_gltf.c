@@ -33,6 +33,7 @@
  * JOINTS_0 / WEIGHTS_0 influences (weights normalised; with JOINTS_1 / WEIGHTS_1 too, the
  * position is placed by all 8 and the skin keeps the 4 largest, renormalised) and an unskinned
  * primitive is bound whole to the nearest joint above its node (none: no influence). */
+#include "mesh/mesh.h"
 #include "mesh/mesh_io.h"
 
 #include <cjson/cJSON.h>
@@ -977,13 +978,12 @@ nomem:
   return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
 }
 
-km_status km__gltf_parse(const char *data, size_t size, const char *name, const char *base_path,
-                         km_mesh *out, km_mesh_skin *skin, km_error *err) {
-  gltf_doc d = {0};
-  d.name = name;
-  d.skin = skin;
-  if (skin) memset(skin, 0, sizeof *skin);
-  d.base_path = base_path;
+/* The document of a .glb / .gltf in memory: its JSON and BIN chunk (buffers not loaded yet). */
+static km_status doc_open(gltf_doc *d, const char *data, size_t size, const char *name,
+                          const char *base_path, km_error *err) {
+  memset(d, 0, sizeof *d);
+  d->name = name;
+  d->base_path = base_path;
   const unsigned char *u = (const unsigned char *)data;
   if (size >= 4 && !memcmp(data, "glTF", 4)) {
     if (size < 20 || rd32(u + 4) != 2)
@@ -993,39 +993,78 @@ km_status km__gltf_parse(const char *data, size_t size, const char *name, const 
       return km__fail(err, KM_ERR_PARSE,
                       "%s: byte 12: the JSON chunk (%zu bytes) does not fit the %zu-byte file",
                       name, jl, size);
-    km_status s = parse_json(data + 20, jl, name, 20, &d.json, err);
+    km_status s = parse_json(data + 20, jl, name, 20, &d->json, err);
     if (s) return s;
     size_t bo = 20 + jl;
     if (bo + 8 <= total && rd32(u + bo + 4) == 0x004E4942u) {
       size_t bl = rd32(u + bo);
       if (bl > total - bo - 8) {
-        cJSON_Delete(d.json);
+        cJSON_Delete(d->json);
+        d->json = NULL;
         return km__fail(err, KM_ERR_PARSE, "%s: byte %zu: the BIN chunk is truncated", name, bo);
       }
-      d.bin = u + bo + 8;
-      d.bin_len = bl;
+      d->bin = u + bo + 8;
+      d->bin_len = bl;
     }
-  } else {
-    km_status s = parse_json(data, size, name, 0, &d.json, err);
-    if (s) return s;
+    return KM_OK;
   }
-  km_status s = parse_doc(&d, out, err);
+  return parse_json(data, size, name, 0, &d->json, err);
+}
+
+static void doc_close(gltf_doc *d) {
+  free(d->node_parent);
+  free(d->node_world);
+  free(d->joint_of_node);
+  free(d->S);
+  free(d->S_ids);
+  for (int i = 0; i < d->n_views && d->views; ++i)
+    free(d->views[i]);
+  free(d->views);
+  free(d->view_len);
+  for (int i = 0; i < d->n_bufs && d->bufs; ++i)
+    free(d->bufs[i]);
+  free(d->bufs);
+  free(d->buf_len);
+  cJSON_Delete(d->json);
+  memset(d, 0, sizeof *d);
+}
+
+km_status km__gltf_parse(const char *data, size_t size, const char *name, const char *base_path,
+                         km_mesh *out, km_mesh_skin *skin, km_error *err) {
+  gltf_doc d;
+  if (skin) memset(skin, 0, sizeof *skin);
+  km_status s = doc_open(&d, data, size, name, base_path, err);
+  if (s) return s;
+  d.skin = skin;
+  s = parse_doc(&d, out, err);
   if (s) km_mesh_free(out);
   if (s || (skin && !skin->n_joints)) km_mesh_skin_free(skin);
-  free(d.node_parent);
-  free(d.node_world);
-  free(d.joint_of_node);
-  free(d.S);
-  free(d.S_ids);
-  for (int i = 0; i < d.n_views && d.views; ++i)
-    free(d.views[i]);
-  free(d.views);
-  free(d.view_len);
-  for (int i = 0; i < d.n_bufs && d.bufs; ++i)
-    free(d.bufs[i]);
-  free(d.bufs);
-  free(d.buf_len);
-  cJSON_Delete(d.json);
+  doc_close(&d);
+  return s;
+}
+
+km_status km__gltf_accessor_read(const void *data, size_t size, const char *name,
+                                 int accessor_index, double **out, size_t *count, int *ncomp,
+                                 km_error *err) {
+  *out = NULL, *count = 0, *ncomp = 0;
+  gltf_doc d;
+  km_status s = doc_open(&d, data, size, name, NULL, err);
+  if (s) return s;
+  acc_view v;
+  char what[32];
+  snprintf(what, sizeof what, "accessors[%d]", accessor_index);
+  if (!(s = load_buffers(&d, err)) && !(s = accessor(&d, accessor_index, what, &v, err))) {
+    double *x = km__malloc(v.count * (size_t)v.ncomp + 1, sizeof *x);
+    if (!x) {
+      s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+    } else {
+      for (size_t i = 0; i < v.count; ++i)
+        for (int c = 0; c < v.ncomp; ++c)
+          x[i * (size_t)v.ncomp + (size_t)c] = comp(&v, i, c);
+      *out = x, *count = v.count, *ncomp = v.ncomp;
+    }
+  }
+  doc_close(&d);
   return s;
 }
 
