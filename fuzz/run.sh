@@ -10,7 +10,8 @@
 # sanitizers, so the fuzzer sees the library's code instrumented; the gcc-built archive is not
 # used. External libraries (CHOLMOD, cJSON, ...) are linked as installed.
 # Seeds: tests/data, plus, when KM_FUZZ_CLI names a kinemesh binary, a generated take, rig
-# sidecar, .glb and .pc2. Findings are kept in WORK/<target>/ (crash-*, leak-*, the corpus).
+# sidecar, .glb (plain, and compressed morphs and skin) and .pc2. Findings are kept in
+# WORK/<target>/ (crash-*, leak-*, the corpus).
 # Environment (set by CMake; Debian defaults otherwise): KM_FUZZ_CFLAGS (include flags of
 # the external libraries), KM_FUZZ_LIBS (their link flags), KM_FUZZ_CLI.
 # Exit status: 0 when every target ran clean, 1 on a finding or a build error, 77 (skipped)
@@ -111,8 +112,13 @@ if [ -n "${KM_FUZZ_CLI:-}" ] && [ -x "$KM_FUZZ_CLI" ]; then
   if "$KM_FUZZ_CLI" gen character --vertices 2000 -o "$g/c.obj" >/dev/null 2>&1 &&
     "$KM_FUZZ_CLI" gen motion --frames 3 -o "$g/take.json" >/dev/null 2>&1 &&
     "$KM_FUZZ_CLI" pose --mesh "$g/c.obj" --motion "$g/take.json" -o "$g/a.glb" >/dev/null 2>&1 &&
-    "$KM_FUZZ_CLI" pose --mesh "$g/c.obj" --motion "$g/take.json" -o "$g/a.pc2" >/dev/null 2>&1; then
-    cp "$g/c.rig.json" "$g/take.json" "$g/a.glb" "$g/a.pc2" "$WORK/seeds/"
+    "$KM_FUZZ_CLI" pose --mesh "$g/c.obj" --motion "$g/take.json" -o "$g/a.pc2" >/dev/null 2>&1 &&
+    "$KM_FUZZ_CLI" pose --mesh "$g/c.obj" --motion "$g/take.json" --compress -o "$g/z.glb" \
+      >/dev/null 2>&1 &&
+    "$KM_FUZZ_CLI" pose --mesh "$g/c.obj" --motion "$g/take.json" --export skin:4 --compress \
+      -o "$g/zs.glb" >/dev/null 2>&1; then
+    # z.glb, zs.glb: compressed (EXT_meshopt_compression + KHR_mesh_quantization) morphs, skin
+    cp "$g/c.rig.json" "$g/take.json" "$g/a.glb" "$g/a.pc2" "$g/z.glb" "$g/zs.glb" "$WORK/seeds/"
   else
     echo "note: the generated seeds (take, rig, .glb, .pc2) could not be made; tests/data only"
   fi

@@ -350,9 +350,15 @@ typedef struct km_mesh_write_options {
  * glTF: the triangles, POSITION, NORMAL and TEXCOORD_0 of the scene's meshes, merged in
  * order (nodes depth-first as listed, each node's mesh's primitives in order; vertex order =
  * accessor order, primitive after primitive) with the nodes' world transforms applied (a
- * file without nodes: its meshes in order, as stored); v = 1 - v_gltf (OBJ's origin). Vertex order
- * and count are exactly those of the file; polygons are fan-triangulated (0,i,i+1). A PLY without
- * faces reads as a point cloud (n_faces == 0).
+ * file without nodes: its meshes in order, as stored); v = 1 - v_gltf (OBJ's origin).
+ * Compressed glTF (gltfpack's, `--compress`) is decoded: EXT_meshopt_compression buffer views
+ * (ATTRIBUTES / TRIANGLES / INDICES, filters OCTAHEDRAL / QUATERNION / EXPONENTIAL) and
+ * KHR_mesh_quantization (byte / short POSITION, NORMAL, TEXCOORD_0, normalized or not,
+ * dequantised by the node transforms or inverse bind matrices; TEXCOORD_0 through the base
+ * colour texture's KHR_texture_transform when there is one); a malformed compressed view is
+ * KM_ERR_PARSE naming the bufferView; KHR_draco_mesh_compression is KM_ERR_UNSUPPORTED.
+ * Vertex order and count are exactly those of the file; polygons are fan-triangulated
+ * (0,i,i+1). A PLY without faces reads as a point cloud (n_faces == 0).
  * Attributes: OBJ `vt`/`vn` are attached to vertices through the faces' v/vt/vn references
  * (the vertex count stays that of the `v` lines: where a vertex is referenced with several
  * UVs or normals, at a texture seam, the first reference in file order wins and the others

@@ -4,9 +4,10 @@
 # sanitizer and libFuzzer runtimes) are for the fuzz test only (fuzz/run.sh skips without them).
 # `scripts/deps.sh --test` (what `make test` runs) also installs TEST_PKGS: packages only a test
 # needs and `make demo` does not (Blender, ~720 MB, for the ctest blender_import; its glTF
-# importer needs numpy, which Debian's blender package does not pull in).
+# importer needs numpy, which Debian's blender package does not pull in; gltfpack packs a mesh
+# for test_gltf_meshopt, which skips without it).
 set -euo pipefail
-TEST_PKGS=(blender python3-numpy)
+TEST_PKGS=(blender python3-numpy gltfpack)
 PKGS=(build-essential cmake pkg-config
       libsuitesparse-dev libarpack2-dev liblapacke-dev libopenblas-dev
       libembree-dev libcjson-dev libsvm-dev liblbfgs-dev libmeshoptimizer-dev gltfpack

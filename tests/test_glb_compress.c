@@ -367,11 +367,12 @@ int main(void) {
   CHECK_OK(km_anim_info_read(b, &info, KM_E));
   CHECK(info.frames == T && info.vertices == m.n_vertices && fabs(info.fps - 30) < 1e-9);
 
-  /* kinemesh's readers do not decode it: a clear refusal, not garbage */
+  /* The mesh reader decodes it (test_gltf_meshopt); the animation reader's frames
+   * (km__glb_frames) do not yet: a clear refusal, not garbage. */
   km_mesh back = {0};
   double *fr = NULL;
   CHECK_STATUS(km_anim_read(b, &back, &fr, &info, KM_E), KM_ERR_UNSUPPORTED);
-  CHECK(strstr(km_test_err.message, "EXT_meshopt_compression") != NULL);
+  CHECK(strstr(km_test_err.message, "float accessor") != NULL);
   km_mesh_free(&back);
   free(fr);
 

@@ -16,6 +16,13 @@
  * coordinates are turned to kinemesh's (OBJ's) bottom-left origin: v = 1 - v_gltf; a
  * primitive without NORMAL or TEXCOORD_0 among others that have them gets zeros.
  *
+ * Compressed files (gltfpack's, kinemesh's --compress): an EXT_meshopt_compression buffer view
+ * is decoded from its extension object's bytes (decode_view) and read like any other, its
+ * fallback buffer having no data; KHR_mesh_quantization's byte / short attributes are read
+ * through comp() (normalized or not) and dequantised by the node transforms / inverse bind
+ * matrices that carry the grid, texture coordinates also by the base colour texture's
+ * KHR_texture_transform (gltfpack's 12-bit UV range). Draco is refused.
+ *
  * Skins: a node with a `skin` whose primitive has JOINTS_0 / WEIGHTS_0 is placed as a viewer
  * shows it, by linear blend skinning with the scene's joint transforms (world matrix of each
  * joint node times its inverse bind matrix; the mesh node's own transform is ignored, as the
@@ -26,10 +33,12 @@
  * JOINTS_0 / WEIGHTS_0 influences (weights normalised; with JOINTS_1 / WEIGHTS_1 too, the
  * position is placed by all 8 and the skin keeps the 4 largest, renormalised) and an unskinned
  * primitive is bound whole to the nearest joint above its node (none: no influence). */
+#include "mesh/mesh.h"
 #include "mesh/mesh_io.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
+#include <meshoptimizer.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -42,6 +51,9 @@ typedef struct gltf_doc {
   size_t *buf_len;
   int n_bufs;
   const char *base_path; /* for relative buffer URIs; NULL: none allowed */
+  unsigned char **views; /* n_views: EXT_meshopt_compression views decoded (owned), or NULL */
+  size_t *view_len;
+  int n_views;
   int n_nodes;
   int *node_parent;   /* n_nodes: parent node, -1 for a root */
   double *node_world; /* n_nodes*16: world matrices (column-major) */
@@ -113,6 +125,13 @@ static km_status load_buffers(gltf_doc *d, km_error *err) {
     int blen = jint(b, "byteLength", -1);
     if (blen < 0)
       return km__fail(err, KM_ERR_PARSE, "%s: buffers[%d]: expected a byteLength", d->name, i);
+    if (!uri && cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(b, "extensions"),
+                                                 "EXT_meshopt_compression")) {
+      /* EXT_meshopt_compression's fallback buffer: no bytes; its views are decoded from their
+       * compressed source (decode_view), never read from here (length 0 keeps them out). */
+      d->buf_len[i] = 0;
+      continue;
+    }
     if (!uri) {
       if (i != 0 || !d->bin)
         return km__fail(err, KM_ERR_PARSE,
@@ -154,6 +173,96 @@ static km_status load_buffers(gltf_doc *d, km_error *err) {
                       i, d->buf_len[i], blen);
     d->buf_len[i] = (size_t)blen;
   }
+  return KM_OK;
+}
+
+/* EXT_meshopt_compression: bufferView bvi's bytes decoded from its extension object (buffer,
+ * byteOffset, byteLength: the compressed source; count elements of byteStride bytes; mode
+ * ATTRIBUTES / TRIANGLES / INDICES; filter NONE / OCTAHEDRAL / QUATERNION / EXPONENTIAL), once
+ * per view, into *out (count * byteStride bytes, *n). Everything is checked before the decoder
+ * sees it; a decoder failure or a size out of range is a KM_ERR_PARSE naming the view. The
+ * decoders write host byte order, which comp() reads as little-endian: kinemesh's platforms
+ * are little-endian (the writer, src/anim/glb.c, assumes the same). */
+static km_status decode_view(gltf_doc *d, int bvi, const cJSON *ext, const unsigned char **out,
+                             size_t *n, km_error *err) {
+  if (!d->views) {
+    d->n_views = cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(d->json, "bufferViews"));
+    d->views = km__calloc((size_t)d->n_views, sizeof *d->views);
+    d->view_len = km__calloc((size_t)d->n_views, sizeof *d->view_len);
+    if (!d->views || !d->view_len) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+  }
+  if (bvi < 0 || bvi >= d->n_views)
+    return km__fail(err, KM_ERR_PARSE, "%s: bufferView %d does not exist", d->name, bvi);
+  if (d->views[bvi]) {
+    *out = d->views[bvi], *n = d->view_len[bvi];
+    return KM_OK;
+  }
+  int bi = jint(ext, "buffer", -1), off = jint(ext, "byteOffset", 0);
+  int len = jint(ext, "byteLength", -1), stride = jint(ext, "byteStride", -1);
+  int count = jint(ext, "count", -1);
+  const char *mode = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(ext, "mode"));
+  const cJSON *jf = cJSON_GetObjectItemCaseSensitive(ext, "filter");
+  const char *filter = jf ? cJSON_GetStringValue(jf) : "NONE";
+  const char *why = NULL;
+  int m = !mode                         ? -1
+          : !strcmp(mode, "ATTRIBUTES") ? 0
+          : !strcmp(mode, "TRIANGLES")  ? 1
+          : !strcmp(mode, "INDICES")    ? 2
+                                        : -1;
+  int f = !filter                          ? -1
+          : !strcmp(filter, "NONE")        ? 0
+          : !strcmp(filter, "OCTAHEDRAL")  ? 1
+          : !strcmp(filter, "QUATERNION")  ? 2
+          : !strcmp(filter, "EXPONENTIAL") ? 3
+                                           : -1;
+  if (bi < 0 || off < 0 || len < 0 || stride < 0 || count < 0)
+    why = "expected buffer, byteOffset, byteLength, byteStride and count (non-negative integers)";
+  else if (m < 0)
+    why = "mode must be ATTRIBUTES, TRIANGLES or INDICES";
+  else if (f < 0)
+    why = "filter must be NONE, OCTAHEDRAL, QUATERNION or EXPONENTIAL";
+  else if (bi >= d->n_bufs || !d->buf_len[bi] || (uint64_t)off + (uint64_t)len > d->buf_len[bi])
+    why = "the compressed bytes (buffer, byteOffset, byteLength) are not inside a buffer with data";
+  else if (m == 0 && (stride == 0 || stride > 256 || stride % 4))
+    why = "ATTRIBUTES byteStride must be a multiple of 4 from 4 to 256";
+  else if (m != 0 && stride != 2 && stride != 4)
+    why = "TRIANGLES / INDICES byteStride must be 2 or 4";
+  else if (m == 1 && count % 3)
+    why = "TRIANGLES count must be a multiple of 3";
+  else if ((f == 1 && stride != 4 && stride != 8) || (f == 2 && stride != 8) || (f && m != 0))
+    why = "the filter does not fit the byteStride / mode (OCTAHEDRAL: 4 or 8, QUATERNION: 8, "
+          "ATTRIBUTES only)";
+  /* count * byteStride: the codecs spend at least 2 bits per 16 attribute bytes and a byte per
+   * triangle / index, so more than that many bytes cannot come from byteLength (no huge
+   * allocation for a tiny view). */
+  else if ((uint64_t)count * (uint64_t)stride > (uint64_t)1 << 31 ||
+           (m == 0 && (uint64_t)count * (uint64_t)stride > 64 * (uint64_t)len + 65536) ||
+           (m == 1 && (uint64_t)count / 3 > (uint64_t)len) ||
+           (m == 2 && (uint64_t)count > (uint64_t)len))
+    why = "count * byteStride is more than the compressed bytes can hold";
+  if (why)
+    return km__fail(err, KM_ERR_PARSE, "%s: bufferView %d: EXT_meshopt_compression: %s", d->name,
+                    bvi, why);
+  const unsigned char *src = (d->bufs[bi] ? d->bufs[bi] : d->bin) + off;
+  size_t raw = (size_t)count * (size_t)stride;
+  unsigned char *dst = km__malloc(raw ? raw : 1, 1);
+  if (!dst) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+  int rc = m == 0 ? meshopt_decodeVertexBuffer(dst, (size_t)count, (size_t)stride, src, (size_t)len)
+           : m == 1
+               ? meshopt_decodeIndexBuffer(dst, (size_t)count, (size_t)stride, src, (size_t)len)
+               : meshopt_decodeIndexSequence(dst, (size_t)count, (size_t)stride, src, (size_t)len);
+  if (rc) {
+    free(dst);
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: bufferView %d: EXT_meshopt_compression: the %s data does not decode "
+                    "(meshoptimizer error %d)",
+                    d->name, bvi, mode, rc);
+  }
+  if (f == 1) meshopt_decodeFilterOct(dst, (size_t)count, (size_t)stride);
+  if (f == 2) meshopt_decodeFilterQuat(dst, (size_t)count, (size_t)stride);
+  if (f == 3) meshopt_decodeFilterExp(dst, (size_t)count, (size_t)stride);
+  d->views[bvi] = dst, d->view_len[bvi] = raw;
+  *out = dst, *n = raw;
   return KM_OK;
 }
 
@@ -207,8 +316,16 @@ static km_status accessor(gltf_doc *d, int a, const char *what, acc_view *v, km_
     return km__fail(err, KM_ERR_PARSE, "%s: %s: bufferView %d is missing or invalid", d->name, what,
                     bvi);
   const unsigned char *buf = d->bufs[bi] ? d->bufs[bi] : d->bin;
+  size_t buf_len = d->buf_len[bi];
+  const cJSON *mo = cJSON_GetObjectItemCaseSensitive(
+      cJSON_GetObjectItemCaseSensitive(bv, "extensions"), "EXT_meshopt_compression");
+  if (mo) { /* the view's bytes are the decoded ones; byteLength must lie within them */
+    km_status s = decode_view(d, bvi, mo, &buf, &buf_len, err);
+    if (s) return s;
+    boff = 0;
+  }
   size_t elem = cs * (size_t)ncomp, st = stride ? (size_t)stride : elem;
-  if ((uint64_t)boff + (uint64_t)blen > d->buf_len[bi] || st < elem ||
+  if ((uint64_t)boff + (uint64_t)blen > buf_len || st < elem ||
       (count && (uint64_t)aoff + (uint64_t)st * (uint64_t)(count - 1) + elem > (uint64_t)blen))
     return km__fail(err, KM_ERR_PARSE,
                     "%s: %s: accessor %d (%d elements) does not fit its bufferView / buffer",
@@ -332,6 +449,33 @@ static km_status node_local(gltf_doc *d, const cJSON *node, int ni, double M[16]
       M[c * 4 + r] = R[r * 3 + c] * sc[c];
   M[12] = t[0], M[13] = t[1], M[14] = t[2];
   return KM_OK;
+}
+
+/* The primitive's material's base colour texture's KHR_texture_transform, when that texture
+ * reads TEXCOORD_0: uv' = A[0..1] + [A2 A3; A4 A5] uv (offset, rotation, scale as the extension
+ * composes them). gltfpack puts the dequantisation of its 12-bit texture coordinates there.
+ * Returns false (identity) without one. */
+static bool uv_transform(gltf_doc *d, const cJSON *pr, double A[6]) {
+  int mi = jint(pr, "material", -1);
+  if (mi < 0) return false;
+  const cJSON *mat = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "materials"), mi);
+  const cJSON *tex = cJSON_GetObjectItemCaseSensitive(
+      cJSON_GetObjectItemCaseSensitive(mat, "pbrMetallicRoughness"), "baseColorTexture");
+  const cJSON *tt = cJSON_GetObjectItemCaseSensitive(
+      cJSON_GetObjectItemCaseSensitive(tex, "extensions"), "KHR_texture_transform");
+  if (!tt || jint(tex, "texCoord", 0) != 0 || jint(tt, "texCoord", 0) != 0) return false;
+  double o[2] = {0, 0}, sc[2] = {1, 1}, r = 0;
+  const cJSON *jo = cJSON_GetObjectItemCaseSensitive(tt, "offset");
+  const cJSON *js = cJSON_GetObjectItemCaseSensitive(tt, "scale");
+  const cJSON *jr = cJSON_GetObjectItemCaseSensitive(tt, "rotation");
+  if ((jo && !num_array(jo, 2, o)) || (js && !num_array(js, 2, sc)) ||
+      (jr && (!cJSON_IsNumber(jr) || !isfinite(jr->valuedouble))))
+    return false;
+  if (jr) r = jr->valuedouble;
+  A[0] = o[0], A[1] = o[1];
+  A[2] = cos(r) * sc[0], A[3] = sin(r) * sc[1];
+  A[4] = -sin(r) * sc[0], A[5] = cos(r) * sc[1];
+  return true;
 }
 
 static km_status visit(gltf_doc *d, int ni, const double P[16], int depth, instances *out,
@@ -576,15 +720,15 @@ static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
   cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
   if (!cJSON_GetArraySize(meshes))
     return km__fail(err, KM_ERR_PARSE, "%s: expected a non-empty 'meshes' array", d->name);
-  /* Compressed / quantised geometry (kinemesh's own --compress among them) is not decoded. */
+  /* EXT_meshopt_compression and KHR_mesh_quantization are read (decode_view; comp()); Draco
+   * has no decoder here. */
   const cJSON *req;
   cJSON_ArrayForEach(req, cJSON_GetObjectItemCaseSensitive(d->json, "extensionsRequired")) {
-    if (cJSON_IsString(req) && (!strcmp(req->valuestring, "EXT_meshopt_compression") ||
-                                !strcmp(req->valuestring, "KHR_mesh_quantization") ||
-                                !strcmp(req->valuestring, "KHR_draco_mesh_compression")))
+    if (cJSON_IsString(req) && !strcmp(req->valuestring, "KHR_draco_mesh_compression"))
       return km__fail(err, KM_ERR_UNSUPPORTED,
-                      "%s: JSON: extensionsRequired: %s is not read; use a file written without "
-                      "compression (kinemesh: without --compress)",
+                      "%s: JSON: extensionsRequired: %s is not read (no Draco decoder); repack "
+                      "the file without it (e.g. gltfpack -i in.glb -o out.glb -c, which "
+                      "kinemesh reads)",
                       d->name, req->valuestring);
   }
   km_status s = load_buffers(d, err);
@@ -672,17 +816,22 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
         cJSON *at = cJSON_GetObjectItemCaseSensitive(pr, "attributes");
         acc_view pos, nrm, tex, idx;
         if ((s = accessor(d, jint(at, "POSITION", -1), what, &pos, err))) return s;
-        if (pos.ncomp != 3 || pos.ct != 5126)
-          return km__fail(err, KM_ERR_PARSE, "%s: %s: POSITION must be VEC3 float", d->name, what);
+        /* KHR_mesh_quantization: (normalized) byte / short components too, dequantised by
+         * comp() and the node transform / inverse bind matrices, like float ones. */
+        if (pos.ncomp != 3 || pos.ct == 5125)
+          return km__fail(err, KM_ERR_PARSE, "%s: %s: POSITION must be VEC3 float, byte or short",
+                          d->name, what);
         bool hn = cJSON_GetObjectItemCaseSensitive(at, "NORMAL") != NULL;
         bool ht = cJSON_GetObjectItemCaseSensitive(at, "TEXCOORD_0") != NULL;
         if (hn && (s = accessor(d, jint(at, "NORMAL", -1), what, &nrm, err))) return s;
         if (ht && (s = accessor(d, jint(at, "TEXCOORD_0", -1), what, &tex, err))) return s;
-        if ((hn && (nrm.ncomp != 3 || nrm.count != pos.count)) ||
-            (ht && (tex.ncomp != 2 || tex.count != pos.count)))
+        if ((hn && (nrm.ncomp != 3 || nrm.count != pos.count || nrm.ct == 5125)) ||
+            (ht && (tex.ncomp != 2 || tex.count != pos.count || tex.ct == 5125)))
           return km__fail(err, KM_ERR_PARSE,
                           "%s: %s: NORMAL (VEC3) / TEXCOORD_0 (VEC2) must have POSITION's count",
                           d->name, what);
+        double uvA[6] = {0, 0, 1, 0, 0, 1};
+        bool uvt = ht && uv_transform(d, pr, uvA);
         bool hi = cJSON_GetObjectItemCaseSensitive(pr, "indices") != NULL;
         if (hi && (s = accessor(d, jint(pr, "indices", -1), what, &idx, err))) return s;
         acc_view aj[2], aw[2];
@@ -730,6 +879,8 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
             if (hn) n[c] = comp(&nrm, i, c);
             if (ht && c < 2) {
               double t = comp(&tex, i, c);
+              if (uvt)
+                t = uvA[c] + uvA[2 + 2 * c] * comp(&tex, i, 0) + uvA[3 + 2 * c] * comp(&tex, i, 1);
               out->UV[2 * (v0 + i) + c] = c ? 1 - t : t;
             }
           }
@@ -827,13 +978,12 @@ nomem:
   return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
 }
 
-km_status km__gltf_parse(const char *data, size_t size, const char *name, const char *base_path,
-                         km_mesh *out, km_mesh_skin *skin, km_error *err) {
-  gltf_doc d = {0};
-  d.name = name;
-  d.skin = skin;
-  if (skin) memset(skin, 0, sizeof *skin);
-  d.base_path = base_path;
+/* The document of a .glb / .gltf in memory: its JSON and BIN chunk (buffers not loaded yet). */
+static km_status doc_open(gltf_doc *d, const char *data, size_t size, const char *name,
+                          const char *base_path, km_error *err) {
+  memset(d, 0, sizeof *d);
+  d->name = name;
+  d->base_path = base_path;
   const unsigned char *u = (const unsigned char *)data;
   if (size >= 4 && !memcmp(data, "glTF", 4)) {
     if (size < 20 || rd32(u + 4) != 2)
@@ -843,35 +993,78 @@ km_status km__gltf_parse(const char *data, size_t size, const char *name, const 
       return km__fail(err, KM_ERR_PARSE,
                       "%s: byte 12: the JSON chunk (%zu bytes) does not fit the %zu-byte file",
                       name, jl, size);
-    km_status s = parse_json(data + 20, jl, name, 20, &d.json, err);
+    km_status s = parse_json(data + 20, jl, name, 20, &d->json, err);
     if (s) return s;
     size_t bo = 20 + jl;
     if (bo + 8 <= total && rd32(u + bo + 4) == 0x004E4942u) {
       size_t bl = rd32(u + bo);
       if (bl > total - bo - 8) {
-        cJSON_Delete(d.json);
+        cJSON_Delete(d->json);
+        d->json = NULL;
         return km__fail(err, KM_ERR_PARSE, "%s: byte %zu: the BIN chunk is truncated", name, bo);
       }
-      d.bin = u + bo + 8;
-      d.bin_len = bl;
+      d->bin = u + bo + 8;
+      d->bin_len = bl;
     }
-  } else {
-    km_status s = parse_json(data, size, name, 0, &d.json, err);
-    if (s) return s;
+    return KM_OK;
   }
-  km_status s = parse_doc(&d, out, err);
+  return parse_json(data, size, name, 0, &d->json, err);
+}
+
+static void doc_close(gltf_doc *d) {
+  free(d->node_parent);
+  free(d->node_world);
+  free(d->joint_of_node);
+  free(d->S);
+  free(d->S_ids);
+  for (int i = 0; i < d->n_views && d->views; ++i)
+    free(d->views[i]);
+  free(d->views);
+  free(d->view_len);
+  for (int i = 0; i < d->n_bufs && d->bufs; ++i)
+    free(d->bufs[i]);
+  free(d->bufs);
+  free(d->buf_len);
+  cJSON_Delete(d->json);
+  memset(d, 0, sizeof *d);
+}
+
+km_status km__gltf_parse(const char *data, size_t size, const char *name, const char *base_path,
+                         km_mesh *out, km_mesh_skin *skin, km_error *err) {
+  gltf_doc d;
+  if (skin) memset(skin, 0, sizeof *skin);
+  km_status s = doc_open(&d, data, size, name, base_path, err);
+  if (s) return s;
+  d.skin = skin;
+  s = parse_doc(&d, out, err);
   if (s) km_mesh_free(out);
   if (s || (skin && !skin->n_joints)) km_mesh_skin_free(skin);
-  free(d.node_parent);
-  free(d.node_world);
-  free(d.joint_of_node);
-  free(d.S);
-  free(d.S_ids);
-  for (int i = 0; i < d.n_bufs && d.bufs; ++i)
-    free(d.bufs[i]);
-  free(d.bufs);
-  free(d.buf_len);
-  cJSON_Delete(d.json);
+  doc_close(&d);
+  return s;
+}
+
+km_status km__gltf_accessor_read(const void *data, size_t size, const char *name,
+                                 int accessor_index, double **out, size_t *count, int *ncomp,
+                                 km_error *err) {
+  *out = NULL, *count = 0, *ncomp = 0;
+  gltf_doc d;
+  km_status s = doc_open(&d, data, size, name, NULL, err);
+  if (s) return s;
+  acc_view v;
+  char what[32];
+  snprintf(what, sizeof what, "accessors[%d]", accessor_index);
+  if (!(s = load_buffers(&d, err)) && !(s = accessor(&d, accessor_index, what, &v, err))) {
+    double *x = km__malloc(v.count * (size_t)v.ncomp + 1, sizeof *x);
+    if (!x) {
+      s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+    } else {
+      for (size_t i = 0; i < v.count; ++i)
+        for (int c = 0; c < v.ncomp; ++c)
+          x[i * (size_t)v.ncomp + (size_t)c] = comp(&v, i, c);
+      *out = x, *count = v.count, *ncomp = v.ncomp;
+    }
+  }
+  doc_close(&d);
   return s;
 }
 

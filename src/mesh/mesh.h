@@ -1,4 +1,4 @@
-/* Requires: core, linalg, math. External: cJSON. */
+/* Requires: core, linalg, math. External: cJSON, meshoptimizer. */
 /* Meshes: reading and writing (OBJ, PLY, OFF, glTF in, point clouds), orientation, topology,
  * geometric operators (Laplacians, mass, normals, local frames), sampling. Nothing about characters
  * or motion. Its public API is in include/kinemesh.h; mesh_io.h and mesh_args.h are private to it.
@@ -23,5 +23,21 @@ const double *km__geodesic_run(km__geodesic *g, const double *V, int32_t seed, d
                                const int32_t *stop, size_t n_stop, const int32_t **reached,
                                size_t *n_reached);
 void km__geodesic_free(km__geodesic **g);
+
+/* One accessor of a glTF (.glb, or .gltf with data: URIs) in memory, as doubles: any component
+ * type (KHR_mesh_quantization's byte / short, normalized or not, as the specification reads
+ * them), its buffer view decoded when EXT_meshopt_compression compresses it (io_gltf.c, the
+ * mesh reader's code). No node transform is applied: a quantised accessor's dequantisation
+ * (the node's scale / translation, inverse bind matrices) is the caller's. For the animation
+ * reader's morph targets and samplers of a compressed .glb.
+ *   data, size      in: the file's bytes;  name: for messages
+ *   accessor_index  in: index into `accessors`
+ *   out             out: count*ncomp values (element i, component c at i*ncomp + c); free()
+ *   count, ncomp    out: elements and components per element (1 SCALAR ... 16 MAT4)
+ * Errors: KM_ERR_PARSE naming name and the accessor / bufferView, KM_ERR_UNSUPPORTED (sparse),
+ * KM_ERR_NOMEM. */
+km_status km__gltf_accessor_read(const void *data, size_t size, const char *name,
+                                 int accessor_index, double **out, size_t *count, int *ncomp,
+                                 km_error *err);
 
 #endif
