@@ -1,7 +1,8 @@
 /* Compressed glTF in through the CLI (issue 11): `animate --compress` writes a .glb with
  * KHR_mesh_quantization + EXT_meshopt_compression; `info` and `convert` read its mesh (the
  * template's 3012 vertices in their order, each within the 14-bit grid's half step of the
- * template), and `bake` takes it as the rest mesh (--mesh) of the plain animation. A file
+ * template), and `bake` takes it as the rest mesh (--mesh) of the plain animation and bakes
+ * the compressed animation itself. A file
  * whose extensionsRequired lists Draco is refused naming the extension. */
 #include "km_test.h"
 
@@ -56,6 +57,12 @@ int main(void) {
   rc = km_test_run(
       KM_CLI " bake " DIR "/p.glb --mesh " DIR "/z.glb --export skin:6 -o " DIR "/b.glb", &out);
   CHECK_MSG(rc == 0, "bake --mesh z.glb: %s", out ? out : "");
+  free(out);
+  out = NULL;
+  /* and bakes the compressed animation itself (its morph frames decoded) */
+  rc = km_test_run(KM_CLI " bake " DIR "/z.glb --export skin:6 -o " DIR "/bz.glb", &out);
+  CHECK_MSG(rc == 0 && out && strstr(out, "frames of 3012 vertices"), "bake z.glb: %s",
+            out ? out : "");
   free(out);
   out = NULL;
 

@@ -11,6 +11,7 @@
  * anything. A mesh without attributes is written as before (positions only; viewers then
  * shade flat from the morphed positions). */
 #include "anim/anim.h"
+#include "mesh/mesh.h"
 
 #include <cjson/cJSON.h>
 #include <errno.h>
@@ -1365,41 +1366,50 @@ done:
 
 /* ---------------------------------------------------------------- morph frames (issue 16) */
 
-/* Float data of accessor a (FLOAT, `comps` components, tightly packed or strided), checked
- * against the binary chunk; NULL with err filled otherwise. */
-static const unsigned char *float_accessor(const char *path, const cJSON *root,
-                                           const unsigned char *bin, size_t bin_len, int a,
-                                           int comps, size_t *count, size_t *stride,
-                                           km_error *err) {
-  const cJSON *acc = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "accessors"), a);
-  const cJSON *bv = cJSON_GetObjectItemCaseSensitive(acc, "bufferView");
-  const cJSON *ct = cJSON_GetObjectItemCaseSensitive(acc, "componentType");
-  const cJSON *cn = cJSON_GetObjectItemCaseSensitive(acc, "count");
-  if (!cJSON_IsNumber(bv) || !cJSON_IsNumber(ct) || ct->valueint != GL_FLOAT ||
-      !cJSON_IsNumber(cn) || cn->valuedouble < 0 ||
-      cJSON_IsObject(cJSON_GetObjectItemCaseSensitive(acc, "sparse"))) {
-    km__fail(err, KM_ERR_UNSUPPORTED,
-             "%s: JSON: accessors[%d] is not a dense float accessor in a bufferView", path, a);
+/* Accessor a of the file as doubles (any component type, decompressed: the mesh reader's
+ * km__gltf_accessor_read), which must have `comps` components; NULL with err filled
+ * otherwise. Caller frees. */
+static double *read_accessor(const char *path, const char *data, size_t size, int a, int comps,
+                             size_t *count, km_error *err) {
+  double *v = NULL;
+  int nc = 0;
+  if (km__gltf_accessor_read(data, size, path, a, &v, count, &nc, err) != KM_OK) return NULL;
+  if (nc != comps) {
+    free(v);
+    km__fail(err, KM_ERR_PARSE, "%s: JSON: accessors[%d] has %d components, expected %d", path, a,
+             nc, comps);
     return NULL;
   }
-  const cJSON *view =
-      cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "bufferViews"), bv->valueint);
-  const cJSON *vo = cJSON_GetObjectItemCaseSensitive(view, "byteOffset");
-  const cJSON *ao = cJSON_GetObjectItemCaseSensitive(acc, "byteOffset");
-  const cJSON *bs = cJSON_GetObjectItemCaseSensitive(view, "byteStride");
-  const cJSON *vl = cJSON_GetObjectItemCaseSensitive(view, "byteLength");
-  double off =
-      (cJSON_IsNumber(vo) ? vo->valuedouble : 0) + (cJSON_IsNumber(ao) ? ao->valuedouble : 0);
-  double st = cJSON_IsNumber(bs) && bs->valuedouble > 0 ? bs->valuedouble : 4.0 * comps;
-  double n = cn->valuedouble;
-  if (!view || !cJSON_IsNumber(vl) || off < 0 || st < 4.0 * comps ||
-      (n > 0 && off + st * (n - 1) + 4.0 * comps > (double)bin_len)) {
-    km__fail(err, KM_ERR_PARSE, "%s: JSON: accessors[%d] runs past the binary chunk", path, a);
-    return NULL;
+  return v;
+}
+
+/* Adds morph target k (its displacements turned by the mesh's world transform's linear part)
+ * to every frame with its weight (km__gltf_accessors_each's callback). */
+typedef struct {
+  const char *path;
+  double *out; /* nk*nv*3 */
+  size_t nv, nt, nk;
+  const double *w; /* nk*nt weights, or NULL: target k is frame k */
+  const double *M; /* column-major 4x4 */
+} morph_sum;
+
+static km_status add_target(void *ctx, size_t t, const double *td, size_t count, int ncomp,
+                            km_error *err) {
+  morph_sum *m = ctx;
+  if (count != m->nv || ncomp != 3)
+    return km__fail(err, KM_ERR_PARSE, "%s: morph target %zu has no POSITION of %zu vertices",
+                    m->path, t, m->nv);
+  const double *M = m->M;
+  for (size_t k = 0; k < m->nk; ++k) {
+    double wk = m->w ? m->w[k * m->nt + t] : (k == t ? 1.0 : 0.0);
+    if (wk == 0) continue;
+    double *o = m->out + k * m->nv * 3;
+    for (size_t i = 0; i < m->nv; ++i)
+      for (int c = 0; c < 3; ++c)
+        o[3 * i + c] +=
+            wk * (M[c] * td[3 * i] + M[4 + c] * td[3 * i + 1] + M[8 + c] * td[3 * i + 2]);
   }
-  *count = (size_t)n;
-  *stride = (size_t)st;
-  return bin + (size_t)off;
+  return KM_OK;
 }
 
 km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n_frames,
@@ -1412,15 +1422,14 @@ km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n
   if (s != KM_OK) return s;
   const unsigned char *b = (const unsigned char *)data;
   cJSON *root = NULL;
-  double *out = NULL;
+  double *out = NULL, *base = NULL, *tdata = NULL, *wdata = NULL;
   if (size < 28 || km__get_u32le(b) != GLB_MAGIC || km__get_u32le(b + 16) != GLB_JSON ||
       (uint64_t)km__get_u32le(b + 12) + 28 > size) {
     s = km__fail(err, KM_ERR_PARSE, "%s: byte 0: not a glTF binary with a JSON chunk", path);
     goto done;
   }
   size_t jl = km__get_u32le(b + 12);
-  const unsigned char *bin = b + 20 + jl + 8;
-  size_t bin_len = km__get_u32le(b + 20 + jl);
+  size_t bin_len = km__get_u32le(b + 20 + jl); /* the accessors are read (checked) from it below */
   if (km__get_u32le(b + 24 + jl) != GLB_BIN || bin_len > size - 28 - jl) {
     s = km__fail(err, KM_ERR_PARSE, "%s: byte %zu: missing or truncated BIN chunk", path, 20 + jl);
     goto done;
@@ -1433,16 +1442,18 @@ km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n
   const cJSON *prim = get_path(get_path(root, "meshes", 0), "primitives", 0);
   const cJSON *targets = cJSON_GetObjectItemCaseSensitive(prim, "targets");
   const cJSON *pos = get_path(get_path(prim, "attributes", -1), "POSITION", -1);
-  size_t nt = (size_t)cJSON_GetArraySize(targets), cnt = 0, st = 0;
+  size_t nt = (size_t)cJSON_GetArraySize(targets), cnt = 0;
   if (!cJSON_IsNumber(pos) || nt == 0) {
     s = km__fail(err, KM_ERR_UNSUPPORTED,
                  "%s: meshes[0].primitives[0] has no morph targets: not a morph animation", path);
     goto done;
   }
-  const unsigned char *base =
-      float_accessor(path, root, bin, bin_len, pos->valueint, 3, &cnt, &st, err);
-  if (!base) {
-    s = err ? err->status : KM_ERR_PARSE;
+  /* The mesh's world transform (a quantised file dequantises there): the base positions take
+   * all of it, the targets' displacements its linear part. */
+  double M[16];
+  if ((s = km__gltf_mesh_transform(data, size, path, 0, M, err)) != KM_OK) goto done;
+  if (!(base = read_accessor(path, data, size, pos->valueint, 3, &cnt, err))) {
+    s = err && err->status ? err->status : KM_ERR_PARSE;
     goto done;
   }
   if (cnt != nv) {
@@ -1460,13 +1471,12 @@ km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n
       break;
     }
   }
-  size_t nk = nt, wst = 0, tst = 0, wcnt = 0;
-  const unsigned char *wdata = NULL, *tdata = NULL;
+  size_t nk = nt, wcnt = 0;
   if (wsampler) {
     const cJSON *in = get_path(wsampler, "input", -1), *o = get_path(wsampler, "output", -1);
     if (!cJSON_IsNumber(in) || !cJSON_IsNumber(o) ||
-        !(tdata = float_accessor(path, root, bin, bin_len, in->valueint, 1, &nk, &tst, err)) ||
-        !(wdata = float_accessor(path, root, bin, bin_len, o->valueint, 1, &wcnt, &wst, err))) {
+        !(tdata = read_accessor(path, data, size, in->valueint, 1, &nk, err)) ||
+        !(wdata = read_accessor(path, data, size, o->valueint, 1, &wcnt, err))) {
       s = err && err->status ? err->status : KM_ERR_PARSE;
       if (!err || !err->status)
         km__fail(err, s, "%s: the weights sampler's input/output are not float accessors", path);
@@ -1480,7 +1490,7 @@ km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n
       goto done;
     }
     if (nk >= 2) {
-      double t0 = km__get_f32le(tdata), t1 = km__get_f32le(tdata + (nk - 1) * tst);
+      double t0 = tdata[0], t1 = tdata[nk - 1];
       if (t1 > t0 && fps) *fps = (double)(nk - 1) / (t1 - t0);
     }
   }
@@ -1507,28 +1517,28 @@ km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n
   }
   for (size_t k = 0; k < nk; ++k)
     for (size_t i = 0; i < nv; ++i)
-      for (int c = 0; c < 3; ++c)
-        out[(k * nv + i) * 3 + c] = km__get_f32le(base + i * st + 4 * c);
-  for (size_t t = 0; t < nt; ++t) {
-    const cJSON *tp = get_path(cJSON_GetArrayItem(targets, (int)t), "POSITION", -1);
-    size_t tc = 0, ts = 0;
-    const unsigned char *td = cJSON_IsNumber(tp) ? float_accessor(path, root, bin, bin_len,
-                                                                  tp->valueint, 3, &tc, &ts, err)
-                                                 : NULL;
-    if (!td || tc != nv) {
-      if (td || !cJSON_IsNumber(tp))
-        km__fail(err, KM_ERR_PARSE, "%s: morph target %zu has no POSITION of %zu vertices", path, t,
-                 nv);
-      s = err && err->status ? err->status : KM_ERR_PARSE;
+      for (int c = 0; c < 3; ++c) /* column-major M: x' = M[0..2] x + M[4..6] y + ... + M[12..14] */
+        out[(k * nv + i) * 3 + c] = M[c] * base[3 * i] + M[4 + c] * base[3 * i + 1] +
+                                    M[8 + c] * base[3 * i + 2] + M[12 + c];
+  {
+    int *ti = km__malloc(nt, sizeof *ti);
+    if (!ti) {
+      s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
       goto done;
     }
-    for (size_t k = 0; k < nk; ++k) {
-      double wk = wdata ? km__get_f32le(wdata + (k * nt + t) * wst) : (k == t ? 1.0 : 0.0);
-      if (wk == 0) continue;
-      for (size_t i = 0; i < nv; ++i)
-        for (int c = 0; c < 3; ++c)
-          out[(k * nv + i) * 3 + c] += wk * km__get_f32le(td + i * ts + 4 * c);
+    for (size_t t = 0; t < nt; ++t) {
+      const cJSON *tp = get_path(cJSON_GetArrayItem(targets, (int)t), "POSITION", -1);
+      if (!cJSON_IsNumber(tp)) {
+        free(ti);
+        s = km__fail(err, KM_ERR_PARSE, "%s: morph target %zu has no POSITION", path, t);
+        goto done;
+      }
+      ti[t] = tp->valueint;
     }
+    morph_sum ms = {path, out, nv, nt, nk, wdata, M};
+    s = km__gltf_accessors_each(data, size, path, ti, nt, add_target, &ms, err);
+    free(ti);
+    if (s != KM_OK) goto done;
   }
   *frames = out;
   *n_frames = nk;
@@ -1536,6 +1546,9 @@ km_status km__glb_frames(const char *path, size_t nv, double **frames, size_t *n
 done:
   cJSON_Delete(root);
   free(out);
+  free(base);
+  free(tdata);
+  free(wdata);
   free(data);
   return s;
 }

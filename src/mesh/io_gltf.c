@@ -1043,29 +1043,69 @@ km_status km__gltf_parse(const char *data, size_t size, const char *name, const 
   return s;
 }
 
+km_status km__gltf_accessors_each(const void *data, size_t size, const char *name,
+                                  const int *accessors, size_t n, km__gltf_accessor_fn fn,
+                                  void *ctx, km_error *err) {
+  gltf_doc d;
+  km_status s = doc_open(&d, data, size, name, NULL, err);
+  if (s) return s;
+  double *x = NULL;
+  size_t cap = 0;
+  if (!(s = load_buffers(&d, err)))
+    for (size_t k = 0; k < n && !s; ++k) {
+      acc_view v;
+      char what[32];
+      snprintf(what, sizeof what, "accessors[%d]", accessors[k]);
+      if ((s = accessor(&d, accessors[k], what, &v, err))) break;
+      size_t need = v.count * (size_t)v.ncomp + 1;
+      if (need > cap) {
+        double *g = realloc(x, need * sizeof *x);
+        if (!g) {
+          s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+          break;
+        }
+        x = g, cap = need;
+      }
+      for (size_t i = 0; i < v.count; ++i)
+        for (int c = 0; c < v.ncomp; ++c)
+          x[i * (size_t)v.ncomp + (size_t)c] = comp(&v, i, c);
+      s = fn(ctx, k, x, v.count, v.ncomp, err);
+    }
+  free(x);
+  doc_close(&d);
+  return s;
+}
+
+typedef struct {
+  double *out;
+  size_t count;
+  int ncomp;
+} one_accessor;
+
+static km_status keep_one(void *ctx, size_t k, const double *v, size_t count, int ncomp,
+                          km_error *err) {
+  (void)k;
+  one_accessor *o = ctx;
+  size_t n = count * (size_t)ncomp;
+  if (!(o->out = km__malloc(n + 1, sizeof *o->out)))
+    return km__fail(err, KM_ERR_NOMEM, "out of memory for an accessor of %zu values", n);
+  memcpy(o->out, v, n * sizeof *v);
+  o->count = count, o->ncomp = ncomp;
+  return KM_OK;
+}
+
 km_status km__gltf_accessor_read(const void *data, size_t size, const char *name,
                                  int accessor_index, double **out, size_t *count, int *ncomp,
                                  km_error *err) {
   *out = NULL, *count = 0, *ncomp = 0;
-  gltf_doc d;
-  km_status s = doc_open(&d, data, size, name, NULL, err);
-  if (s) return s;
-  acc_view v;
-  char what[32];
-  snprintf(what, sizeof what, "accessors[%d]", accessor_index);
-  if (!(s = load_buffers(&d, err)) && !(s = accessor(&d, accessor_index, what, &v, err))) {
-    double *x = km__malloc(v.count * (size_t)v.ncomp + 1, sizeof *x);
-    if (!x) {
-      s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
-    } else {
-      for (size_t i = 0; i < v.count; ++i)
-        for (int c = 0; c < v.ncomp; ++c)
-          x[i * (size_t)v.ncomp + (size_t)c] = comp(&v, i, c);
-      *out = x, *count = v.count, *ncomp = v.ncomp;
-    }
+  one_accessor o = {0};
+  km_status s = km__gltf_accessors_each(data, size, name, &accessor_index, 1, keep_one, &o, err);
+  if (s) {
+    free(o.out);
+    return s;
   }
-  doc_close(&d);
-  return s;
+  *out = o.out, *count = o.count, *ncomp = o.ncomp;
+  return KM_OK;
 }
 
 void km_mesh_skin_free(km_mesh_skin *s) {
@@ -1078,4 +1118,23 @@ void km_mesh_skin_free(km_mesh_skin *s) {
   free(s->joints);
   free(s->weights);
   memset(s, 0, sizeof *s);
+}
+
+km_status km__gltf_mesh_transform(const void *data, size_t size, const char *name, int mesh,
+                                  double M[16], km_error *err) {
+  static const double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  memcpy(M, I, sizeof I);
+  gltf_doc d;
+  km_status s = doc_open(&d, data, size, name, NULL, err);
+  if (s) return s;
+  instances inst = {0};
+  if (!(s = collect_instances(&d, &inst, err)))
+    for (size_t i = 0; i < inst.n; ++i)
+      if (inst.v[i].mesh == mesh) {
+        memcpy(M, inst.v[i].M, sizeof I);
+        break;
+      }
+  free(inst.v);
+  doc_close(&d);
+  return s;
 }

@@ -39,5 +39,20 @@ void km__geodesic_free(km__geodesic **g);
 km_status km__gltf_accessor_read(const void *data, size_t size, const char *name,
                                  int accessor_index, double **out, size_t *count, int *ncomp,
                                  km_error *err);
+/* km__gltf_accessor_read for n accessors with one parse of the file: fn(ctx, k, values, count,
+ * ncomp, err) is called for accessors[k] in order, values valid only during the call; a
+ * non-KM_OK return stops and is returned. For the animation reader's morph targets (one per
+ * frame: one parse each would reread the JSON of a long take per frame). */
+typedef km_status (*km__gltf_accessor_fn)(void *ctx, size_t k, const double *values, size_t count,
+                                          int ncomp, km_error *err);
+km_status km__gltf_accessors_each(const void *data, size_t size, const char *name,
+                                  const int *accessors, size_t n, km__gltf_accessor_fn fn,
+                                  void *ctx, km_error *err);
+/* The world transform (column-major 4x4) of the first instance of mesh `mesh` in the scene, as
+ * the mesh reader applies it (a quantised file's dequantisation among it); the identity when no
+ * node uses the mesh. For the animation reader's morph targets.
+ * Errors: KM_ERR_PARSE naming name (a bad node hierarchy), KM_ERR_NOMEM. */
+km_status km__gltf_mesh_transform(const void *data, size_t size, const char *name, int mesh,
+                                  double M[16], km_error *err);
 
 #endif
