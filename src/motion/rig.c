@@ -177,6 +177,17 @@ static km_status parse_joints(const char *name, const cJSON *jj, const char *con
   return KM_OK;
 }
 
+/* An optional number of degrees in [0, 180] (0 when absent). */
+static km_status parse_degrees(const char *name, const cJSON *root, const char *key, double *out,
+                               km_error *err) {
+  const cJSON *j = cJSON_GetObjectItemCaseSensitive(root, key);
+  if (j && !(cJSON_IsNumber(j) && j->valuedouble >= 0 && j->valuedouble <= 180))
+    return km__fail(err, KM_ERR_PARSE, "%s: \"%s\" must be a number of degrees in [0, 180]", name,
+                    key);
+  *out = j ? j->valuedouble : 0;
+  return KM_OK;
+}
+
 km_status km_rig_parse(const char *json, size_t size, const char *name, const km_mesh *mesh,
                        const char *const *joint_names, size_t n_joint_names, km_rig *out,
                        km_error *err) {
@@ -608,20 +619,9 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     goto done;
   }
   out->aim = cJSON_IsTrue(jaim);
-  const cJSON *jsl = cJSON_GetObjectItemCaseSensitive(root, "swing_limit");
-  if (jsl && !(cJSON_IsNumber(jsl) && jsl->valuedouble >= 0 && jsl->valuedouble <= 180)) {
-    st = km__fail(err, KM_ERR_PARSE, "%s: \"swing_limit\" must be a number of degrees in [0, 180]",
-                  name);
+  if ((st = parse_degrees(name, root, "swing_limit", &out->swing_limit, err)) != KM_OK ||
+      (st = parse_degrees(name, root, "bend_limit", &out->bend_limit, err)) != KM_OK)
     goto done;
-  }
-  out->swing_limit = jsl ? jsl->valuedouble : 0;
-  const cJSON *jbl = cJSON_GetObjectItemCaseSensitive(root, "bend_limit");
-  if (jbl && !(cJSON_IsNumber(jbl) && jbl->valuedouble >= 0 && jbl->valuedouble <= 180)) {
-    st = km__fail(err, KM_ERR_PARSE, "%s: \"bend_limit\" must be a number of degrees in [0, 180]",
-                  name);
-    goto done;
-  }
-  out->bend_limit = jbl ? jbl->valuedouble : 0;
   if ((st = parse_joints(name, cJSON_GetObjectItemCaseSensitive(root, "joints"), joint_names,
                          n_joint_names, out, err)) != KM_OK)
     goto done;
