@@ -143,7 +143,7 @@ static bool upright_body(const km_skeleton *sk) {
  * radius: the geodesic balls km_rig_parse grows are inside them). band[v] = the band of v, -1
  * none. Returns false when out of memory. */
 static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends, double radius,
-                       int8_t *band, int bone_ok[N_BONE_HANDLES]) {
+                       bool upright, int8_t *band, int bone_ok[N_BONE_HANDLES]) {
   const km_mesh *m = &c->mesh;
   const km_skeleton *sk = &c->skeleton;
   size_t n = m->n_vertices;
@@ -225,7 +225,6 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
   /* Rings only on an upright body (the spine closer to vertical than horizontal): on dog0, rigged
    * as a quadruped, they cost folds (bench motion B precog_Seq3_2 330 -> 529, cmu_131_03
    * 58 -> 139) where they spared the upright character's and armadillo's. */
-  bool upright = upright_body(sk);
   for (int b = N_BANDS; b < N_BONE_HANDLES; ++b) {
     ring_r[b] = INFINITY;
     if (!upright) bone_ok[b] = 0;
@@ -280,29 +279,54 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
   return true;
 }
 
+/* The end handles, in the rig's order. */
+static const char *const handle_names[5] = {"head", "hand_left", "hand_right", "foot_left",
+                                            "foot_right"};
+
+/* What a rig file says beyond the character itself: its handles and bands, computed once
+ * (rig_plan_make) and then streamed (write_rig_stream). */
+typedef struct rig_plan {
+  long handle_vertex[5];
+  double radius;
+  int8_t *band; /* n_vertices: the bone handle of each vertex, -1 none */
+  int bone_ok[N_BONE_HANDLES];
+  bool upright;
+} rig_plan;
+
+static km_status rig_plan_make(const char *path, const km_character *c, rig_plan *p, km_error *err);
+
 /* Streams the JSON with fprintf: a cJSON tree of 8M numbers for a 1M-vertex skin would cost
  * gigabytes. Weights are written with 7 significant digits. */
-static km_status write_rig_stream(FILE *f, const char *path, const km_character *c, km_error *err);
+static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p);
 
 km_status km_character_write_rig(const char *path, const km_character *c, km_error *err) {
   if (!path || !c) return km__fail(err, KM_ERR_INVALID, "write rig: NULL argument");
   km__atomic_file af;
-  km_status st = write_rig_stream(NULL, path, c, err); /* validate before creating the file */
+  rig_plan p;
+  km_status st = rig_plan_make(path, c, &p, err); /* validate before creating the file */
   if (st != KM_OK) return st;
-  if ((st = km__atomic_open(&af, path, err)) != KM_OK) return st;
-  write_rig_stream(af.f, path, c, err);
-  return km__atomic_commit(&af, err);
+  if ((st = km__atomic_open(&af, path, err)) == KM_OK) {
+    write_rig_stream(af.f, c, &p);
+    st = km__atomic_commit(&af, err);
+  }
+  free(p.band);
+  return st;
 }
 
 km_status km_character_rig_json(const km_character *c, char **json, size_t *size, km_error *err) {
   if (!c || !json || !size) return km__fail(err, KM_ERR_INVALID, "rig json: NULL argument");
   *json = NULL;
   *size = 0;
-  km_status st = write_rig_stream(NULL, "rig", c, err);
+  rig_plan p;
+  km_status st = rig_plan_make("rig", c, &p, err);
   if (st != KM_OK) return st;
   FILE *f = open_memstream(json, size);
-  if (!f) return km__fail(err, KM_ERR_NOMEM, "rig json: out of memory");
-  write_rig_stream(f, "rig", c, err);
+  if (!f) {
+    free(p.band);
+    return km__fail(err, KM_ERR_NOMEM, "rig json: out of memory");
+  }
+  write_rig_stream(f, c, &p);
+  free(p.band);
   if (fclose(f) != 0 || !*json) {
     free(*json);
     *json = NULL;
@@ -311,8 +335,10 @@ km_status km_character_rig_json(const km_character *c, char **json, size_t *size
   return KM_OK;
 }
 
-/* f NULL: only checks c. */
-static km_status write_rig_stream(FILE *f, const char *path, const km_character *c, km_error *err) {
+/* Checks c and places the handles; p->band is the caller's to free. */
+static km_status rig_plan_make(const char *path, const km_character *c, rig_plan *p,
+                               km_error *err) {
+  memset(p, 0, sizeof *p);
   const km_mesh *m = &c->mesh;
   const km_skeleton *sk = &c->skeleton;
   size_t n = m->n_vertices;
@@ -334,30 +360,33 @@ static km_status write_rig_stream(FILE *f, const char *path, const km_character 
     if (y < ymin) ymin = y;
   }
   double radius = 0.07 * (ymax - ymin);
-  static const char *const handle_names[5] = {"head", "hand_left", "hand_right", "foot_left",
-                                              "foot_right"};
-  static const char *const handle_joints[5] = {"Head", "HandLeft", "HandRight", "FootLeft",
-                                               "FootRight"};
-  long handle_vertex[5];
-  handle_vertex[0] = (long)top;
+  p->radius = radius;
+  p->handle_vertex[0] = (long)top;
   for (int h = 1; h < 5; ++h) {
     int li = find_landmark(c, handle_names[h]);
-    handle_vertex[h] = li >= 0 ? c->landmarks[li].vertex : (long)top;
+    p->handle_vertex[h] = li >= 0 ? c->landmarks[li].vertex : (long)top;
   }
-
-  int8_t *band = km__malloc(n, 1);
-  int bone_ok[N_BONE_HANDLES] = {0};
+  p->upright = upright_body(sk);
+  p->band = km__malloc(n, 1);
   int32_t ends[5];
   for (int h = 0; h < 5; ++h)
-    ends[h] = (int32_t)handle_vertex[h];
-  if (!band || !bone_bands(c, ends, 5, radius, band, bone_ok)) {
-    free(band);
+    ends[h] = (int32_t)p->handle_vertex[h];
+  if (!p->band || !bone_bands(c, ends, 5, radius, p->upright, p->band, p->bone_ok)) {
+    free(p->band);
+    p->band = NULL;
     return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
   }
-  if (!f) {
-    free(band);
-    return KM_OK;
-  }
+  return KM_OK;
+}
+
+static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) {
+  const km_mesh *m = &c->mesh;
+  const km_skeleton *sk = &c->skeleton;
+  size_t n = m->n_vertices;
+  const int8_t *band = p->band;
+  const int *bone_ok = p->bone_ok;
+  static const char *const handle_joints[5] = {"Head", "HandLeft", "HandRight", "FootLeft",
+                                               "FootRight"};
   fprintf(f,
           "{\"format\":\"kinemesh-rig\",\"version\":1,\"units\":\"m\",\"vertices\":%zu,"
           "\"skeleton\":\"kinect1\",\n\"joints\":[",
@@ -384,7 +413,7 @@ static km_status write_rig_stream(FILE *f, const char *path, const km_character 
   fputs(",\n\"handles\":[", f);
   for (int h = 0; h < 5; ++h)
     fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%ld,\"radius\":%.6g}", h ? "," : "",
-            handle_names[h], handle_vertex[h], radius);
+            handle_names[h], p->handle_vertex[h], p->radius);
   for (int b = 0; b < N_BONE_HANDLES; ++b) {
     if (!bone_ok[b]) continue;
     fprintf(f, ",\n{\"name\":\"%s\",\"vertices\":[", bone_handle_name[b]);
@@ -402,7 +431,6 @@ static km_status write_rig_stream(FILE *f, const char *path, const km_character 
       }
     fputs("]}", f);
   }
-  free(band);
   /* Every handle moves rigidly with a bone (the end handles with the bone ending at their
    * joint), posed on the character's own skeleton ("joints" above); see km_rig_parse. */
   /* Hands and feet turn about the elbow / knee with the elbow -> hand / knee -> foot line:
@@ -427,7 +455,7 @@ static km_status write_rig_stream(FILE *f, const char *path, const km_character 
    * arm overhead swung the horse's foreleg 150 degrees up to its nose, a thin tube stretched
    * 4.3x out of the chest (precog_Seq1_1). Its limb bones swing at most 60 degrees from where
    * their parent carries them. */
-  if (!upright_body(sk)) fputs("\"swing_limit\":60,", f);
+  if (!p->upright) fputs("\"swing_limit\":60,", f);
   /* No elbow or knee bends much past 150 degrees; a tracker's that does has lost the forearm
    * or shin in front of the body (precog_Seq1_1: the left elbow "bent" 163-175 degrees for
    * frames on end, the wrist on the shoulder), and the character's forearm folded into its
@@ -435,7 +463,6 @@ static km_status write_rig_stream(FILE *f, const char *path, const km_character 
    * 81/127/329; the CMU takes, clean optical capture, never reach the limit (unchanged). */
   fputs("\"bend_limit\":150,", f);
   fputs("\"filter\":{\"smoothing\":0.5,\"trend\":0.5}}\n", f);
-  return KM_OK;
 }
 
 static bool json_int(const cJSON *o, double lo, double hi, long *out) {
