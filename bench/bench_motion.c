@@ -218,7 +218,7 @@ static km_status load_take(const char *spec, const km_skeleton *skel, size_t fra
     snprintf(why, n_why, "no Kinect v1 joints: %.400s", err->message);
     return s;
   }
-  if (t->fps > 30.5) {
+  if (t->fps > 30.5 && !getenv("KM_NATIVE")) {
     km_take r = {0};
     if ((s = km_take_resample(t, 30, &r, err)) != KM_OK) return s;
     km_take_free(t);
@@ -285,6 +285,7 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
         if (!(d <= jump)) jump = d;
       }
     }
+    if (getenv("KM_JDBG") && f) fprintf(stderr, "JD %zu %.2f\n", f, 100 * jump / g->diag);
     if (!(100 * jump / g->diag <= out->jump_pct)) out->jump_pct = 100 * jump / g->diag;
     for (size_t e = 0; f && e < rig->n_maps; ++e) {
       const double *q = t->positions + (f * t->n_joints + (size_t)rig->maps[e].joint) * 3,

@@ -433,7 +433,8 @@ static double hand_turn(const fixture *fx, double swing, double bend, double ang
   return acos(fmax(-1, fmin(1, cosang))) * 180 / M_PI;
 }
 
-/* The rig's limits: a quadruped's legs ("swing_limit": 60, every limb bone) and the human elbow
+/* The rig's limits: a quadruped's legs ("swing_limit", every limb bone: 30 in the rig `rig`
+ * writes, 60 here) and the human elbow
  * and knee ("bend_limit": 150, the default rig's). The forearm turns as the performer's within
  * a limit and to the limit beyond it; the upper arm, within, does not move. */
 static void test_limits(const fixture *fx) {

@@ -204,6 +204,18 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
    * 1.31/1.14/1.10/0.98/1.11, folded triangles 664/719/695/500/426 -> 596/620/581/422/338 (the
    * table's take order). Narrowing the bands of the slimmer limbs to free zones of one radius
    * cost the armadillo stretch (precog_Seq3_2 1.10 -> 1.32), so they keep band_t. */
+  /* A quadruped's upper arm and thigh lie inside its trunk (a horse's humerus and femur): their
+   * bands were trunk skin, and a swinging leg dragged the chest and belly with it (the horse on
+   * precog_Seq1_1: the underside of the chest stretched 3.35x, a web to a foreleg swung level).
+   * Without them the trunk stays with the pelvis and chest bands and the leg turns below it.
+   * bench motion B, before -> after, the table's take order: horse stretch max
+   * 2.35/2.16/2.14/2.03/2.38 -> 0.95/0.93/0.90/0.72/0.67, folded triangles 384/397/522/617/464
+   * -> 0 on every take; dog0 stretch 1.15/0.95/0.97/0.94/0.91 -> 0.66/0.62/0.56/0.56/0.47,
+   * folded 2/15/0/14/0 -> 0 (with "swing_limit" 30, in the writer). On upright bodies the bands
+   * stay: without them the character's folds rose (81/127/329/42/70 -> 112/213/421/57/99). */
+  if (!upright)
+    for (int b = 0; b < N_LIMB_BANDS; b += 2)
+      bone_ok[b] = 0;
   double bt[N_BANDS][2];
   for (int b = 0; b < N_BANDS; ++b) {
     bt[b][0] = band_t[b][0], bt[b][1] = band_t[b][1];
@@ -453,9 +465,12 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
   fputs("],\n\"root_motion\":\"rigid\",\"relative_to\":\"HipCenter\",\"aim\":true,", f);
   /* A quadruped's legs do not reach where a person's arms and legs do: a performer raising an
    * arm overhead swung the horse's foreleg 150 degrees up to its nose, a thin tube stretched
-   * 4.3x out of the chest (precog_Seq1_1). Its limb bones swing at most 60 degrees from where
-   * their parent carries them. */
-  if (!p->upright) fputs("\"swing_limit\":60,", f);
+   * 4.3x out of the chest (precog_Seq1_1). Its limb bones swing at most 30 degrees from where
+   * their parent carries them (a leg has three, so a paw still reaches 90 degrees). bench
+   * motion B, dog0, 60 -> 30 degrees with the upper-leg bands gone (bone_bands): stretch max
+   * 0.95/0.71/0.89/0.91/0.84 -> 0.66/0.62/0.56/0.56/0.47; 20 degrees gained little more
+   * (0.67/0.62/0.45/0.54/0.42) and stiffened the legs. */
+  if (!p->upright) fputs("\"swing_limit\":30,", f);
   /* No elbow or knee bends much past 150 degrees; a tracker's that does has lost the forearm
    * or shin in front of the body (precog_Seq1_1: the left elbow "bent" 163-175 degrees for
    * frames on end, the wrist on the shoulder), and the character's forearm folded into its
