@@ -5,14 +5,18 @@
  * Per (mesh, take): the mesh is oriented (km_mesh_frame_guess + km_mesh_frame_apply), rigged by
  * km_autorig (its sidecar's default puppetry rig, read back with km_rig_read), its reduced
  * model built once and shared by both variants; the take is read with km_motion_read
- * (kinect1 = true: columns matched to the Kinect v1 joints by name or body point), resampled
- * to 30 fps when faster, and its first --frames frames pushed through km_puppetry (default
- * glitch rejection and filter). Metrics over the output frames:
+ * (kinect1 = true: columns matched to the Kinect v1 joints by name or body point), at its own
+ * frame rate (--fps F: resampled to F when faster), and its frames (--frames N: the first N)
+ * pushed through km_puppetry (default glitch rejection and filter). A one-frame jump is a step
+ * between two of the take's frames: resampling a 120 fps take to 30 fps makes every step four
+ * times longer, the motion's own steps then reaching 10-15 % of the diagonal. Metrics over the
+ * output frames:
  *   stretch   max over frames and edges of |l / l0 - 1|
  *   folded    triangles that, in some frame, have a neighbour (across an edge) whose normal
  *             made < 60 degrees with theirs at rest and makes > 120 degrees now (distinct
  *             triangles over the take)
  *   jump      max over frames f >= 1 and vertices of |V_f - V_{f-1}|, % of the bbox diagonal
+ *             (--json adds the 95th percentile over frames and the frames above 3 %)
  *   below     frames with a vertex more than 0.5% of the diagonal below the rest floor
  *   t (ms)    median over frames of the wall time of km_puppetry_push
  *   eased     B only: frames whose handle motion the rig's max_step eased (snap easing)
@@ -32,6 +36,7 @@
 typedef struct bm_args {
   const char *data;
   size_t frames;
+  double fps; /* > 0: takes faster than this are resampled to it; 0: their own rate */
   bool json, floor;
   double max_step;     /* B's rig max_step; < 0: as the sidecar writes it */
   int32_t relative_to; /* 1 + a Kinect joint subtracted from every map entry; 0: as rigged */
@@ -40,6 +45,8 @@ typedef struct bm_args {
 
 typedef struct bm_metrics {
   double stretch, jump_pct, tper_ms;
+  double jump_p95_pct; /* 95th percentile over frames of the frame's largest vertex step */
+  size_t jump_over3;   /* frames whose largest vertex step is above 3 % of the diagonal */
   double raw_jump_pct; /* the take's largest one-frame joint step (mapped joints, times the
                           performer-to-character scale), % of the diagonal: the motion itself */
   size_t folded, below, eased;
@@ -200,27 +207,31 @@ static const char *base_name(const char *p) {
 }
 
 /* A take: a motion file, or walk / wave / kungfu generated on the mesh's skeleton. */
-static km_status load_take(const char *spec, const km_skeleton *skel, size_t frames, km_take *t,
-                           char *why, size_t n_why, km_error *err) {
+static km_status load_take(const char *spec, const km_skeleton *skel, size_t frames, double fps,
+                           km_take *t, char *why, size_t n_why, km_error *err) {
   static const char *const gen[] = {"walk", "wave", "kungfu"};
-  for (int k = 0; k < 3; ++k)
+  km_status s = KM_ERR_IO;
+  for (int k = 0; k < 3 && s == KM_ERR_IO; ++k)
     if (!strcmp(spec, gen[k]) || (!strncmp(spec, "gen:", 4) && !strcmp(spec + 4, gen[k])))
-      return km_motion_generate(skel, (km_motion_kind)k, frames ? frames : 150, t, err);
-  if (access(spec, R_OK) != 0) {
-    snprintf(why, n_why, "%s not found", spec);
-    return KM_ERR_IO;
-  }
-  km_motion_read_options ro = {0};
-  ro.kinect1 = true;
-  km_motion_read_info ri;
-  km_status s = km_motion_read(spec, &ro, t, &ri, err);
+      if ((s = km_motion_generate(skel, (km_motion_kind)k, frames ? frames : 150, t, err)) != KM_OK)
+        return s;
   if (s != KM_OK) {
-    snprintf(why, n_why, "no Kinect v1 joints: %.400s", err->message);
-    return s;
+    if (access(spec, R_OK) != 0) {
+      snprintf(why, n_why, "%s not found", spec);
+      return KM_ERR_IO;
+    }
+    km_motion_read_options ro = {0};
+    ro.kinect1 = true;
+    km_motion_read_info ri;
+    s = km_motion_read(spec, &ro, t, &ri, err);
+    if (s != KM_OK) {
+      snprintf(why, n_why, "no Kinect v1 joints: %.400s", err->message);
+      return s;
+    }
   }
-  if (t->fps > 30.5 && !getenv("KM_NATIVE")) {
+  if (fps > 0 && t->fps > fps + 0.5) {
     km_take r = {0};
-    if ((s = km_take_resample(t, 30, &r, err)) != KM_OK) return s;
+    if ((s = km_take_resample(t, fps, &r, err)) != KM_OK) return s;
     km_take_free(t);
     *t = r;
   }
@@ -244,11 +255,11 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   size_t nv = m->n_vertices;
   double *V = malloc(3 * nv * sizeof *V), *Vp = malloc(3 * nv * sizeof *Vp);
   double *N = malloc(3 * (m->n_faces ? m->n_faces : 1) * sizeof *N);
-  double *tm = malloc((nf ? nf : 1) * sizeof *tm);
+  double *tm = malloc((nf ? nf : 1) * sizeof *tm), *jf = malloc((nf ? nf : 1) * sizeof *jf);
   unsigned char *ever = calloc(m->n_faces ? m->n_faces : 1, 1);
   km_status s = KM_OK;
   memset(out, 0, sizeof *out);
-  if (!V || !Vp || !N || !tm || !ever) {
+  if (!V || !Vp || !N || !tm || !jf || !ever) {
     s = KM_ERR_NOMEM;
     snprintf(err->message, sizeof err->message, "out of memory");
     goto done;
@@ -285,7 +296,8 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
         if (!(d <= jump)) jump = d;
       }
     }
-    if (getenv("KM_JDBG") && f) fprintf(stderr, "JD %zu %.2f\n", f, 100 * jump / g->diag);
+    if (f) jf[f - 1] = 100 * jump / g->diag;
+    if (f && jf[f - 1] > 3) out->jump_over3++;
     if (!(100 * jump / g->diag <= out->jump_pct)) out->jump_pct = 100 * jump / g->diag;
     for (size_t e = 0; f && e < rig->n_maps; ++e) {
       const double *q = t->positions + (f * t->n_joints + (size_t)rig->maps[e].joint) * 3,
@@ -304,6 +316,10 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     out->folded += ever[k];
   out->eased = km_puppetry_eased_frames(p);
   qsort(tm, nf, sizeof *tm, dcmp);
+  if (nf > 1) {
+    qsort(jf, nf - 1, sizeof *jf, dcmp);
+    out->jump_p95_pct = jf[(size_t)(0.95 * (double)(nf - 2) + 0.5)];
+  }
   out->tper_ms = nf ? (nf % 2 ? tm[nf / 2] : 0.5 * (tm[nf / 2 - 1] + tm[nf / 2])) : NAN;
 done:
   km_puppetry_free(&p);
@@ -311,6 +327,7 @@ done:
   free(Vp);
   free(N);
   free(tm);
+  free(jf);
   free(ever);
   return s;
 }
@@ -320,6 +337,8 @@ static cJSON *metrics_json(const bm_metrics *x) {
   km_cli_json_number(o, "stretch_max", x->stretch);
   cJSON_AddNumberToObject(o, "folded", (double)x->folded);
   km_cli_json_number(o, "jump_max_pct", x->jump_pct);
+  km_cli_json_number(o, "jump_p95_pct", x->jump_p95_pct);
+  cJSON_AddNumberToObject(o, "jump_frames_over_3pct", (double)x->jump_over3);
   cJSON_AddNumberToObject(o, "below_floor_frames", (double)x->below);
   km_cli_json_number(o, "tper_ms", x->tper_ms);
   cJSON_AddNumberToObject(o, "eased_frames", (double)x->eased);
@@ -377,7 +396,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
     km_take t = {0};
     char why[600] = "";
     km_error te = {0};
-    if (load_take(takes[i], &c.skeleton, a->frames, &t, why, sizeof why, &te) != KM_OK) {
+    if (load_take(takes[i], &c.skeleton, a->frames, a->fps, &t, why, sizeof why, &te) != KM_OK) {
       print_skip(a, tname, mname, why[0] ? why : te.message);
       km_take_free(&t);
       continue;
@@ -529,7 +548,7 @@ static void split_list(const char *s, char ***list, size_t *n) {
 
 int km_bench_motion(int argc, char **argv) {
   const char *takes_opt = NULL, *meshes_opt = NULL, *relative_opt = NULL;
-  bm_args a = {"../shared/data", 300, false, false, -1, 0, ""};
+  bm_args a = {"../shared/data", 0, 0, false, false, -1, 0, ""};
   const km_cli_opt opts[] = {
       {"takes", 0, KM_OPT_STRING, &takes_opt,
        "comma list of motion files (Kinect CSV, BVH, take JSON) or walk, wave, kungfu "
@@ -537,9 +556,10 @@ int km_bench_motion(int argc, char **argv) {
       {"meshes", 0, KM_OPT_STRING, &meshes_opt,
        "comma list of mesh files, names in DATA/meshes, or character:N; default: armadillo, "
        "dog0, elephant, character:10000"},
-      {"frames", 0, KM_OPT_SIZE, &a.frames,
-       "frames per take at most (default 300: every frame of the shipped takes, well under "
-       "a minute on 2 cores; 0: all)"},
+      {"frames", 0, KM_OPT_SIZE, &a.frames, "frames per take at most (default 0: all)"},
+      {"fps", 0, KM_OPT_DOUBLE, &a.fps,
+       "resample takes faster than this to it (default 0: each take at its own rate; a jump "
+       "is a step between two of its frames)"},
       {"relative-to", 0, KM_OPT_STRING, &relative_opt,
        "a Kinect joint (HipCenter) whose motion every map entry subtracts (root-relative "
        "motion); default: the rig as km_autorig writes it (absolute)"},
@@ -555,8 +575,8 @@ int km_bench_motion(int argc, char **argv) {
   const char *pos[1];
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
-      "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames 300] [--max-step F] "
-      "[--json]",
+      "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames N] [--fps F] "
+      "[--max-step F] [--json]",
       "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
       "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"
       "paper's, T) and bone handles (B) side by side. Per row: edge stretch max\n"
@@ -567,6 +587,11 @@ int km_bench_motion(int argc, char **argv) {
       "standing for the Kinect v1 ones\n"
       "(Kinect names, or another skeleton's: docs/skeletons.md); otherwise skipped.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  if (!(a.fps >= 0 && a.fps <= 1000))
+    return km_cli_error("bench motion",
+                        "--fps %g: expected a frame rate in 0..1000 (0: each "
+                        "take's own)",
+                        a.fps);
   if (relative_opt) {
     int j = km_kinect1_joint_index(relative_opt);
     if (j < 0)
@@ -593,11 +618,14 @@ int km_bench_motion(int argc, char **argv) {
     print_skip(&a, "*", "*", "no takes (none given, none found in the data folder)");
   } else {
     if (!a.json) {
+      char fps_s[64] = "their own rate", frames_s[64] = "all";
+      if (a.fps > 0) snprintf(fps_s, sizeof fps_s, "%g fps at most", a.fps);
+      if (a.frames) snprintf(frames_s, sizeof frames_s, "the first %zu", a.frames);
       printf("kinemesh bench motion — %s; km_autorig rigs, default glitch rejection and filter, "
-             "takes at 30 fps, first %zu frames; T = translation-only handles (Wu, Lu & Song), "
+             "takes at %s, %s frames; T = translation-only handles (Wu, Lu & Song), "
              "B = bone handles; jump 'take' = the mapped joints' own largest step (scaled); t = "
              "median of per-frame push times%s%s%s\n",
-             a.machine, a.frames, a.floor ? "; floor constraint on" : "",
+             a.machine, fps_s, frames_s, a.floor ? "; floor constraint on" : "",
              a.relative_to ? "; motion relative to " : "",
              a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
       printf("%-18s %-16s %7s %5s  %13s  %11s  %20s  %11s  %15s  %5s\n", "", "", "", "",

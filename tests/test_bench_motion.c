@@ -20,13 +20,18 @@ static void check_variant(const cJSON *row, const char *name, int r, double fram
   if (!cJSON_IsObject(o)) return;
   double stretch = num(o, "stretch_max", r), folded = num(o, "folded", r),
          jump = num(o, "jump_max_pct", r), below = num(o, "below_floor_frames", r),
-         t = num(o, "tper_ms", r);
+         t = num(o, "tper_ms", r), p95 = num(o, "jump_p95_pct", r),
+         over3 = num(o, "jump_frames_over_3pct", r);
   /* a few frames of a take that starts in the rest pose and blends into a walk: the mesh
    * barely moves, so nothing may stretch, fold or jump much */
   CHECK_MSG(stretch >= 0 && stretch < 0.3, "row %d %s: stretch %g", r, name, stretch);
   CHECK_MSG(folded >= 0 && folded == floor(folded) && folded < 50, "row %d %s: folded %g", r, name,
             folded);
   CHECK_MSG(jump >= 0 && jump < 5, "row %d %s: jump %g%%", r, name, jump);
+  CHECK_MSG(p95 >= 0 && p95 <= jump, "row %d %s: jump 95th percentile %g%%, max %g%%", r, name, p95,
+            jump);
+  CHECK_MSG(over3 >= 0 && over3 <= frames - 1 && (jump > 3 || over3 == 0),
+            "row %d %s: %g frames with a jump above 3 %% (max %g%%)", r, name, over3, jump);
   CHECK_MSG(below >= 0 && below <= frames, "row %d %s: %g frames below the floor", r, name, below);
   CHECK_MSG(t > 0, "row %d %s: per-frame time %g", r, name, t);
 }
@@ -98,9 +103,33 @@ int main(void) {
   free(out);
   remove("bench_motion_wave.json");
 
+  /* --fps resamples a faster take: the generated walk (30 fps, 9 frames over 0.27 s) at 10 fps
+   * keeps its duration in a third of the frames */
+  out = NULL;
+  rc = km_test_run(KM_CLI " bench motion --meshes character:3000 --takes walk --frames 9 "
+                          "--fps 10 --json 2>/dev/null",
+                   &out);
+  CHECK_MSG(rc == 0, "--fps 10: exit status %d", rc);
+  rows = 0;
+  for (char *line = out ? strtok(out, "\n") : NULL; line; line = strtok(NULL, "\n")) {
+    if (line[0] != '{') continue;
+    cJSON *o = cJSON_Parse(line);
+    if (!o) continue;
+    double fr = num(o, "frames", rows), fps = num(o, "fps", rows);
+    CHECK_MSG(fabs(fps - 10) < 1e-9 && fr == 3, "--fps 10: %g frames at %g fps, want 3 at 10", fr,
+              fps);
+    cJSON_Delete(o);
+    ++rows;
+  }
+  CHECK_MSG(rows == 1, "--fps 10: %d rows", rows);
+  free(out);
+
   /* a bad option is a usage error */
   CHECK(km_test_run(KM_CLI " bench motion --relative-to NoSuchJoint --takes walk "
                            "--meshes character:3000 >/dev/null",
+                    NULL) == 1);
+  CHECK(km_test_run(KM_CLI " bench motion --fps -5 --takes walk --meshes character:3000 "
+                           ">/dev/null 2>&1",
                     NULL) == 1);
   return km_test_finish("test_bench_motion");
 }
