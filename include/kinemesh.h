@@ -1124,9 +1124,11 @@ typedef struct km_rig {
                their rotation since the first frame, so a character whose rest pose is not the
                performer's first pose (a T-pose against arms down) takes the performer's pose */
   double swing_limit; /* "swing_limit": degrees, with aim: a limb bone swings at most this far
-                         from where its parent bone carries its rest direction (0: no limit).
-                         kinemesh rig writes 60 for a body that is not upright (a quadruped's
-                         legs do not reach where a person's arms do) */
+                         from where its parent bone carries its rest direction, and a torso,
+                         neck or head bone (turned by its rotation since the first frame) at
+                         most this far from where its parent carries its first direction (0: no
+                         limit). kinemesh rig writes 30 for a body that is not upright (a
+                         quadruped's legs do not reach where a person's arms do) */
   double bend_limit;  /* "bend_limit": degrees, with aim on a kinect1 skeleton: an elbow or knee
                          (the forearm or shin against the upper arm or thigh) bends at most this
                          far (0: no limit). kinemesh rig writes 150, about the human limit: a

@@ -433,6 +433,45 @@ static double hand_turn(const fixture *fx, double swing, double bend, double ang
   return acos(fmax(-1, fmin(1, cosang))) * 180 / M_PI;
 }
 
+/* The performer's head tilted `angle` degrees forward about a still shoulder centre, in one
+ * push, through the character's default rig with the given "swing_limit": how far the head
+ * handle turns about the shoulder centre, degrees (the head is not aimed: it turns by its
+ * rotation since the first frame). */
+static double head_turn(const fixture *fx, double swing, double angle) {
+  const km_character c = fx->c;
+  km_rig rig = fx->rig;
+  rig.swing_limit = swing;
+  int head = -1;
+  for (size_t h = 0; h < rig.n_handles; ++h)
+    if (!strcmp(rig.handles[h].name, "head")) head = (int)h;
+  CHECK(head >= 0);
+  if (head < 0) return NAN;
+  enum { SHOULDER_CENTER = 2, HEAD = 3 };
+  km_retarget *rt = NULL;
+  km_retarget_options ro = {.bone_catchup = -1};
+  CHECK_OK(km_retarget_create(&rig, &c.mesh, KM_KINECT1_JOINTS, &ro, &rt, KM_E));
+  double J[3 * KM_KINECT1_JOINTS], *tg = malloc(3 * rig.n_handles * sizeof(double));
+  double v[2][3] = {{0}};
+  const double *e = c.skeleton.rest + 3 * SHOULDER_CENTER;
+  for (int f = 0; f < 2 && rt && tg; ++f) {
+    memcpy(J, c.skeleton.rest, sizeof J);
+    if (f == 1) {
+      double *x = J + 3 * HEAD, u = x[1] - e[1], w = x[2] - e[2];
+      double cs = cos(angle * M_PI / 180), sn = sin(angle * M_PI / 180);
+      x[1] = e[1] + cs * u - sn * w, x[2] = e[2] + sn * u + cs * w;
+    }
+    km_retarget_push(rt, J, tg);
+    for (int a = 0; a < 3; ++a)
+      v[f][a] = tg[3 * head + a] - e[a];
+  }
+  double cosang = (v[0][0] * v[1][0] + v[0][1] * v[1][1] + v[0][2] * v[1][2]) /
+                  (sqrt(v[0][0] * v[0][0] + v[0][1] * v[0][1] + v[0][2] * v[0][2]) *
+                   sqrt(v[1][0] * v[1][0] + v[1][1] * v[1][1] + v[1][2] * v[1][2]));
+  free(tg);
+  km_retarget_free(&rt);
+  return acos(fmax(-1, fmin(1, cosang))) * 180 / M_PI;
+}
+
 /* The rig's limits: a quadruped's legs ("swing_limit", every limb bone: 30 in the rig `rig`
  * writes, 60 here) and the human elbow
  * and knee ("bend_limit": 150, the default rig's). The forearm turns as the performer's within
@@ -451,6 +490,16 @@ static void test_limits(const fixture *fx) {
   CHECK_MSG(fabs(bend150 - 150) < 10 && bend150 < free170 - 10,
             "bend_limit 150: the hand turned %g deg (free %g)", bend150, free170);
   CHECK_MSG(fabs(both - 60) < 15, "both limits: the hand turned %g deg", both);
+  /* the head, turned by its rotation since the first frame, is held to the swing limit too */
+  double head_free = head_turn(fx, 0, 60), head30 = head_turn(fx, 30, 60),
+         head_within = head_turn(fx, 30, 20);
+  printf("  head handle turns about the shoulder centre: 60 deg asked, %.1f free, %.1f with "
+         "swing_limit 30; 20 asked, %.1f with swing_limit 30\n",
+         head_free, head30, head_within);
+  CHECK_MSG(fabs(head_free - 60) < 10, "no limit: the head turned %g deg", head_free);
+  CHECK_MSG(fabs(head30 - 30) < 8, "swing_limit 30: the head turned %g deg", head30);
+  CHECK_MSG(fabs(head_within - 20) < 5, "within swing_limit 30: the head turned %g deg (20 asked)",
+            head_within);
 }
 
 int main(void) {

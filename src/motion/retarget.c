@@ -64,8 +64,9 @@ struct km_retarget {
   bool *seen;          /* n_joints: the tracker has sent the joint since create / reset */
   double floor_y;      /* the rest floor (lowest rest y) */
   bool aim;            /* limb bones aim along the performer's (rig "aim": true) */
-  double swing_limit;  /* radians, a limb bone's largest swing from its parent-carried rest
-                          direction (rig "swing_limit"); 0: none */
+  double swing_limit;  /* radians, a bone's largest swing from its parent-carried rest (aimed
+                          limb bones) or first (the others) direction (rig "swing_limit");
+                          0: none */
   double bend_limit;   /* radians, the largest bend of a kinect1 elbow or knee (rig
                           "bend_limit"); 0: none */
   /* bone speed limit (see limit_bone) */
@@ -834,6 +835,25 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
       rotation_between(d0, d, B);
       mat_mul(B, A, R);
       return true;
+    }
+  }
+  /* A bone turned by its rotation since the first frame (the torso's, the neck and head): the
+   * swing limit from where its parent carries that first direction. A quadruped's rig (limit
+   * 30) otherwise bent its neck as far as the performer's head tilts: dog0's neck squeezed to
+   * 0.34 of its length (bench motion B, stretch max before -> after: dog0 on precog_Seq1_1
+   * 0.66 -> 0.59, cmu_131_01 0.56 -> 0.52, the horse on precog_Seq1_1 0.95 -> 0.90; no row
+   * worse). */
+  if (Rp && r->swing_limit > 0) {
+    double w[3];
+    for (int i = 0; i < 3; ++i)
+      w[i] = Rp[3 * i] * d0[0] + Rp[3 * i + 1] * d0[1] + Rp[3 * i + 2] * d0[2];
+    double c = fmax(-1, fmin(1, km__dot3(w, d))), th = acos(c), sn = sin(th);
+    double lim = r->swing_limit;
+    if (th > lim && sn > 1e-6) {
+      double a0 = sin(th - lim) / sn, a1 = sin(lim) / sn;
+      for (int i = 0; i < 3; ++i)
+        d[i] = a0 * w[i] + a1 * d[i];
+      km__normalize3(d);
     }
   }
   rotation_between(d0, d, R);
