@@ -161,7 +161,8 @@ write:
     if (rig.bend_limit > 0)
       printf(" elbows and knees bend at most %g deg (\"bend_limit\")", rig.bend_limit);
     if (rig.swing_limit > 0)
-      printf("%s limb bones swing at most %g deg from rest (\"swing_limit\": not an upright body)",
+      printf("%s every bone swings at most %g deg from where its parent carries it "
+             "(\"swing_limit\": not an upright body)",
              rig.bend_limit > 0 ? ";" : "", rig.swing_limit);
     printf("\n");
   }
