@@ -1048,7 +1048,10 @@ void km_glitch_free(km_glitch **g);
  * "root_motion": "rigid" (needs the rig-level "relative_to": the root) moves the whole mesh
  * rigidly with the root: its translation and its heading (rotation about y of the line from
  * the "heading" joints' left to right one, kinect1 default ["HipLeft", "HipRight"]), while the
- * handles take the motion relative to the root, expressed in the root's heading frame.
+ * handles take the motion relative to the root, expressed in the root's heading frame. With
+ * "joints" on a kinect1 skeleton the translation's scale is the character's leg length (hip ->
+ * knee -> ankle) over the performer's in the first frame (within 0.3 .. 1.5 of the stature
+ * scale), else the stature scale.
  * "root_motion": "none" (default) leaves the mesh where the handles put it.
  * A map entry {"handle": "forearm_left", "bone": ["ElbowLeft", "WristLeft"]} (instead of
  * "joint") is a bone handle: the handle moves rigidly with that bone segment (see

@@ -33,6 +33,8 @@ struct km_retarget {
   int32_t root, hl, hr; /* joint indices; hl/hr -1: no heading */
   double pivot[3];
   double R[9], t[3];   /* of the last push */
+  double root_s;       /* the root translation's scale (root_scale); NaN until the first push
+                          with a scale */
   double cos_h, sin_h; /* the body's heading change of the last push (the filter's: the frame
                           the handles' motion is measured in) */
   double cos_s, sin_s; /* the heading shown (the mesh turned by R) */
@@ -136,6 +138,7 @@ void km_retarget_reset(km_retarget *r) {
   memset(r->R, 0, sizeof r->R);
   r->R[0] = r->R[4] = r->R[8] = 1;
   memset(r->t, 0, sizeof r->t);
+  r->root_s = NAN;
   r->cos_h = r->cos_s = 1;
   r->have_heading = false;
   r->sin_h = r->sin_s = 0;
@@ -424,6 +427,35 @@ static double skeleton_height(const km_retarget *r, const double *J) {
 
 static void update_rotations(km_retarget *r, const double *J);
 
+/* The scale of the rigid root's translation: the character's leg length (hip -> knee ->
+ * ankle, both legs, from its skeleton) over the performer's in the reference frame, where both
+ * are known (a kinect1 character skeleton), else the stature scale. A performer whose hips
+ * drop 10 cm with bent knees drops a character with shorter legs (for its height) by as much
+ * of its own leg as the legs fold, no further: with the stature's scale the elephant (legs a
+ * quarter of its height, a person's half) sank through the floor whenever the performer's knees
+ * bent (bench motion B, cmu_131_03: a vertex below the rest floor in 1061 of 1102 frames), as
+ * Unity's humanoid retargeting scales body motion by the hips' height. Kept within
+ * 0.3 .. 1.5 of the stature scale; a leg the tracker has not sent in the reference frame: the
+ * stature scale. */
+static double root_scale(const km_retarget *r) {
+  if (!r->jrest || !r->kinect1 || r->n_joints < KM_KINECT1_JOINTS) return r->scale;
+  static const int legs[2][3] = {{12, 13, 14}, {16, 17, 18}}; /* hip, knee, ankle */
+  double lp = 0, lc = 0;
+  int n = 0;
+  for (int k = 0; k < 2; ++k) {
+    const double *h = r->ref + 3 * legs[k][0], *kn = r->ref + 3 * legs[k][1],
+                 *a = r->ref + 3 * legs[k][2];
+    const double *H = r->jrest + 3 * legs[k][0], *K = r->jrest + 3 * legs[k][1],
+                 *A = r->jrest + 3 * legs[k][2];
+    if (!valid3(h) || !valid3(kn) || !valid3(a) || !valid3(H) || !valid3(K) || !valid3(A)) continue;
+    lp += dist3(h, kn) + dist3(kn, a);
+    lc += dist3(H, K) + dist3(K, A);
+    ++n;
+  }
+  if (!n || !(lp > 0) || !(lc > 0)) return r->scale;
+  return fmax(0.3 * r->scale, fmin(1.5 * r->scale, lc / lp));
+}
+
 /* Snap easing: the largest step of a handle vertex since the last push is at most
  * |d - d'| + 2 sin(theta / 2) rho (d: displacement, theta: the angle of R R'^T, rho: the
  * handle's radius). When some handle's bound exceeds max_step, every handle goes only the
@@ -618,8 +650,9 @@ void km_retarget_push_rotations(km_retarget *r, const double *joints, const doub
       double c = r->cos_s, sn = r->sin_s;
       double R[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
       memcpy(r->R, R, sizeof R);
+      if (!isfinite(r->root_s)) r->root_s = root_scale(r);
       for (int d = 0; d < 3; ++d)
-        r->t[d] = r->scale * (q[d] - q0[d]);
+        r->t[d] = r->root_s * (q[d] - q0[d]);
     }
   }
   if (isfinite(r->scale)) {
