@@ -1260,7 +1260,9 @@ size_t km_retarget_eased_frames(const km_retarget *r);
 /* ---- issue 12: rigid root motion */
 /* The rigid motion of the last push for a rig with root_rigid: the deformed mesh V is to be
  * placed at R (V - pivot) + pivot + t. R: 3x3 row-major rotation about y by the heading change
- * since the reference frame; t: s * (root - root reference); pivot: the character's root joint
+ * since the reference frame; t: the root scale (the legs' ratio, see "root_motion" in km_rig)
+ * times (root - root reference), raised so that no ankle of the posed character skeleton (nor
+ * a quadruped's wrist) is below its rest height; pivot: the character's root joint
  * at rest (the rig's "joints"), else the rest mesh's bounding box centre. Identity (R = I, t = 0)
  * for other rigs or while the root is not valid. Returns whether the rig has rigid root motion. */
 bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], double pivot[3]);

@@ -502,6 +502,67 @@ static void test_limits(const fixture *fx) {
             head_within);
 }
 
+/* Feet on the floor (the sidecar's rig: rigid root motion, aimed limbs): a performer who sinks
+ * 0.1 m as a whole (the tracker's floor drifting, or legs measured short) leaves the character
+ * standing (lift_root), and a squat, shins leaning 30 degrees forward over still ankles, leaves
+ * the feet flat (flatten_foot; a foot turned with its shin put its toe under the floor): no
+ * handle vertex below the rest floor. */
+static void test_feet_on_floor(const fixture *fx) {
+  km_rig rig = fx->rig;
+  CHECK_MSG(rig.root_rigid && rig.aim, "the default rig has rigid root motion and aimed limbs");
+  km_retarget *rt = NULL;
+  km_retarget_options ro = {.bone_catchup = -1};
+  CHECK_OK(km_retarget_create(&rig, &fx->c.mesh, KM_KINECT1_JOINTS, &ro, &rt, KM_E));
+  if (!rt) return;
+  size_t nv = km_retarget_vertex_count(rt);
+  double *X = malloc(3 * nv * sizeof(double)), J[3 * KM_KINECT1_JOINTS];
+  double floor_y = INFINITY, diag = km_bbox_diagonal(fx->c.mesh.V, fx->c.mesh.n_vertices);
+  for (size_t v = 0; v < fx->c.mesh.n_vertices; ++v)
+    floor_y = fmin(floor_y, fx->c.mesh.V[3 * v + 1]);
+  const double *J0 = fx->c.skeleton.rest;
+  double lowest[3];
+  for (int f = 0; f < 3 && X; ++f) {
+    memcpy(J, J0, sizeof J);
+    if (f == 1)
+      for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+        J[3 * j + 1] -= 0.1;
+    if (f == 2) { /* a squat: ankles and feet still, shins leaning 30 degrees forward, thighs
+                     30 degrees back, the upper body lowered with the hips */
+      double cs = cos(30 * M_PI / 180), sn = sin(30 * M_PI / 180), D[3] = {0, 0, 0};
+      for (int k = 0; k < 2; ++k) {
+        const int hip = k ? 16 : 12, knee = hip + 1, ankle = hip + 2;
+        const double *a = J0 + 3 * ankle, *k0 = J0 + 3 * knee, *h0 = J0 + 3 * hip;
+        double *kn = J + 3 * knee, *h = J + 3 * hip;
+        double u = k0[1] - a[1], w = k0[2] - a[2]; /* shin, ankle -> knee: y, z */
+        kn[1] = a[1] + cs * u - sn * w, kn[2] = a[2] + sn * u + cs * w;
+        u = h0[1] - k0[1], w = h0[2] - k0[2]; /* thigh, knee -> hip */
+        h[1] = kn[1] + cs * u + sn * w, h[2] = kn[2] - sn * u + cs * w;
+        for (int d = 0; d < 3; ++d)
+          D[d] += 0.5 * (h[d] - h0[d]);
+      }
+      for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+        if (!(j >= 12 && j <= 19))
+          for (int d = 0; d < 3; ++d)
+            J[3 * j + d] += D[d];
+    }
+    km_retarget_push(rt, J, NULL);
+    km_retarget_vertex_targets(rt, X);
+    km_retarget_apply_root(rt, X, nv);
+    lowest[f] = INFINITY;
+    for (size_t k = 0; k < nv; ++k)
+      lowest[f] = fmin(lowest[f], X[3 * k + 1]);
+  }
+  printf("  feet: lowest handle vertex above the rest floor %.4f (rest), %.4f (performer 0.1 m "
+         "lower), %.4f (a squat, shins leaning 30 deg forward), diagonal %.3f\n",
+         lowest[0] - floor_y, lowest[1] - floor_y, lowest[2] - floor_y, diag);
+  CHECK_MSG(lowest[1] > floor_y - 1e-3 * diag, "the sunk performer put a foot %.4f under the floor",
+            floor_y - lowest[1]);
+  CHECK_MSG(lowest[2] > floor_y - 0.002 * diag, "the squat put a toe %.4f under the floor",
+            floor_y - lowest[2]);
+  free(X);
+  km_retarget_free(&rt);
+}
+
 int main(void) {
   fixture fx;
   fixture_make(&fx);
@@ -510,6 +571,7 @@ int main(void) {
   test_armpit_folds(&fx, KM_MOTION_KUNGFU);
   test_clean_take_joints(&fx);
   test_limits(&fx);
+  test_feet_on_floor(&fx);
   fixture_free(&fx);
   km_mesh m = bar();
   for (int solver = 0; solver < 2; ++solver) {

@@ -691,7 +691,10 @@ void km_retarget_push_rotations(km_retarget *r, const double *joints, const doub
       if (!ok) continue; /* a joint is not valid: the handle keeps its last target */
       for (int c = 0; c < 3; ++c)
         r->disp[3 * h + c] = r->scale * d[c];
-      if (r->floor_dy && r->disp[3 * h + 1] < r->floor_dy[h]) r->disp[3 * h + 1] = r->floor_dy[h];
+      /* under rigid root motion the root's translation lowers the handle too */
+      double ty = r->rigid ? r->t[1] : 0;
+      if (r->floor_dy && r->disp[3 * h + 1] + ty < r->floor_dy[h])
+        r->disp[3 * h + 1] = r->floor_dy[h] - ty;
     }
   }
   if (r->rot) update_rotations(r, joints);
@@ -1007,6 +1010,64 @@ static void limit_bone(km_retarget *r, const double *J, int32_t q, int32_t j, co
   mat_mul(A, B, R);
 }
 
+/* The rigid root is lifted so that no ankle (nor a quadruped's wrist: one whose rest height is
+ * under 0.15 of the character's) of the posed character is below its rest height:
+ * the body rises rather than a foot going through the floor, as a retargeter adjusts the
+ * pelvis. The root follows the performer's hips and the legs their directions, and the two
+ * disagree whenever the performer's measured legs are shorter than in the first frame (a
+ * Kinect knee or ankle a few centimetres off) or bend otherwise than the character's legs can:
+ * the character's feet went through the floor. bench motion B, frames with a vertex below the
+ * rest floor (Kinect takes; CMU takes), before -> after: armadillo 137/43/89; 268/134 ->
+ * 20/31/26; 227/112, elephant 38/16/3 -> 0/0/0, character 41/16/3 -> 0/0/0, dog0 (its front
+ * paws too) 80/37/60; 430/417 -> 16/2/23; 78/87; no other column moved. */
+static void lift_root(km_retarget *r) {
+  if (!r->rigid || !r->jrest || !r->kinect1 || r->n_joints < KM_KINECT1_JOINTS) return;
+  double lift = 0;
+  static const int ends[4] = {14, 18, 6, 10}; /* ankles; wrists where they are a paw's */
+  for (int k = 0; k < 4; ++k) {
+    const double *A0 = r->jrest + 3 * ends[k], *A = r->C + 3 * ends[k];
+    if (!valid3(A0) || !valid3(A)) continue;
+    if (k >= 2 && !(A0[1] - r->floor_y < 0.15 * r->mesh_height)) continue;
+    double need = A0[1] - (A[1] + r->t[1]);
+    if (need > lift) lift = need;
+  }
+  r->t[1] += lift;
+}
+
+/* A foot on the ground stands flat (an upright body's, below): its handle's rotation R (about
+ * the ankle) loses its tilt,
+ * keeping the turn about y of the foot's direction (ankle -> foot), in full while the posed
+ * ankle is at or below its rest height (with the rigid root's translation), fading out as the
+ * ankle rises by its own rest height above the floor. A performer's foot, measured from a
+ * tracker's ankle and toe joints, tilts 10-30 degrees when it is flat on the floor (a
+ * shoe's sole, a toe joint at the ball of the foot), and the character's foot turned with it:
+ * the rim of a round foot dipped under the floor. bench motion B, frames with a vertex below the
+ * rest floor, CMU takes: elephant 760 / 1026 -> 95 / 0 (of 994 / 1102), character 360 / 664 ->
+ * 66 / 39, armadillo 528 / 687 -> 268 / 134; a flat foot whose ankle is lower than at rest is
+ * under the floor whole (the armadillo's Kinect takes 72 / 24 / 8 -> 137 / 43 / 89), which
+ * lift_root answers. */
+static void flatten_foot(const km_retarget *r, int32_t ankle, int32_t foot, double R[9]) {
+  /* an upright body's feet only: a horse's hoof held flat while its cannon swung bent the
+   * fetlock (bench motion B on cmu_131_01: stretch max 0.73 -> 0.98, 64 folded triangles) */
+  const double *h = r->jrest, *sc = r->jrest + 6; /* HipCenter, ShoulderCenter */
+  if (!valid3(h) || !valid3(sc) || !(sc[1] - h[1] > hypot(sc[0] - h[0], sc[2] - h[2]))) return;
+  const double *A0 = r->jrest + 3 * (size_t)ankle, *F0 = r->jrest + 3 * (size_t)foot;
+  const double *A = r->C + 3 * (size_t)ankle;
+  if (!valid3(A0) || !valid3(F0) || !valid3(A)) return;
+  double ha = A0[1] - r->floor_y; /* the ankle's rest height above the floor */
+  if (!(ha > 0) || !(ha < 0.15 * r->mesh_height)) return;
+  double rise = A[1] + (r->rigid ? r->t[1] : 0) - A0[1];
+  double w = fmax(0, fmin(1, 1 - rise / ha));
+  if (!(w > 0)) return;
+  double u[3] = {F0[0] - A0[0], F0[1] - A0[1], F0[2] - A0[2]}, v[3];
+  mat_vec(R, u, v);
+  if (!(hypot(u[0], u[2]) > 1e-9 && hypot(v[0], v[2]) > 1e-9)) return;
+  /* R_y(phi) takes (1,0,0) to (cos phi, 0, -sin phi): a vector's angle is atan2(-z, x) */
+  double phi = atan2(-v[2], v[0]) - atan2(-u[2], u[0]), c = cos(phi), sn = sin(phi);
+  double Ry[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
+  km__rot3_slerp(R, Ry, w, R);
+}
+
 /* Bone rotations, the character's posed joints (forward kinematics) and the bone handles'
  * rigid motions (see km_retarget_create in kinemesh.h). A bone whose joints are not valid this
  * frame keeps its last rotation; a root that is not valid keeps its last position. */
@@ -1048,6 +1109,7 @@ static void update_bones(km_retarget *r, const double *J) {
         Cj[d] = r->C[3 * (size_t)q + d] + y[d];
     }
   }
+  lift_root(r);
   for (size_t h = 0; h < r->n_handles; ++h) {
     int32_t a = r->bone_from[h], b = r->rot_joint[h];
     if (a < 0) continue;
@@ -1087,6 +1149,7 @@ static void update_bones(km_retarget *r, const double *J) {
       segment_rotation(r, J, a, b, ap, r->Rb + 9 * (size_t)a, R);
       twist(r, J, b, a, b, R);
     }
+    if (r->kinect1 && r->aim && (b == 15 || b == 19) && pv != a) flatten_foot(r, pv, b, R);
     double rel[3] = {0, 0, 0};
     if (r->bone_rel[h] > 0) {
       const double *q = J + 3 * (size_t)(r->bone_rel[h] - 1),
@@ -1119,6 +1182,7 @@ static void update_bones(km_retarget *r, const double *J) {
         double y = R[3] * (x[0] - c[0]) + R[4] * (x[1] - c[1]) + R[5] * (x[2] - c[2]);
         ymin = fmin(ymin, c[1] + disp[1] + y);
       }
+      if (r->rigid) ymin += r->t[1]; /* the root's translation lowers it too */
       if (ymin < r->floor_y) disp[1] += r->floor_y - ymin;
     }
   }
