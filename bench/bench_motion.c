@@ -555,7 +555,7 @@ int km_bench_motion(int argc, char **argv) {
        "(generated on the mesh's skeleton); default: every file in DATA/skeleton and DATA/bvh"},
       {"meshes", 0, KM_OPT_STRING, &meshes_opt,
        "comma list of mesh files, names in DATA/meshes, or character:N; default: armadillo, "
-       "dog0, elephant, character:10000"},
+       "dog0, elephant, horse, character:10000"},
       {"frames", 0, KM_OPT_SIZE, &a.frames, "frames per take at most (default 0: all)"},
       {"fps", 0, KM_OPT_DOUBLE, &a.fps,
        "resample takes faster than this to it (default 0: each take at its own rate; a jump "
@@ -611,7 +611,7 @@ int km_bench_motion(int argc, char **argv) {
     snprintf(dir, sizeof dir, "%s/bvh", a.data);
     list_dir(dir, ".bvh", &takes, &n_takes);
   }
-  split_list(meshes_opt ? meshes_opt : "armadillo,dog0,elephant,character:10000", &meshes,
+  split_list(meshes_opt ? meshes_opt : "armadillo,dog0,elephant,horse,character:10000", &meshes,
              &n_meshes);
   int rc = KM_EXIT_OK;
   if (!n_takes) {
