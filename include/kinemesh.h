@@ -1262,9 +1262,11 @@ size_t km_retarget_eased_frames(const km_retarget *r);
  * placed at R (V - pivot) + pivot + t. R: 3x3 row-major rotation about y by the heading change
  * since the reference frame; t: the root scale (the legs' ratio, see "root_motion" in km_rig)
  * times (root - root reference), raised so that no ankle of the posed character skeleton (nor
- * a quadruped's wrist) is below its rest height; pivot: the character's root joint
- * at rest (the rig's "joints"), else the rest mesh's bounding box centre. Identity (R = I, t = 0)
- * for other rigs or while the root is not valid. Returns whether the rig has rigid root motion. */
+ * a quadruped's wrist) is below its rest height; pivot: the character's root joint at rest (the
+ * rig's "joints"; on a kinect1 skeleton its x and z half-way to ShoulderCenter's: a quadruped
+ * turns about the middle of its trunk), else the rest mesh's bounding box centre. Identity (R = I,
+ * t = 0) for other rigs or while the root is not valid. Returns whether the rig has rigid root
+ * motion. */
 bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], double pivot[3]);
 /* Places points[n]*3 (in place) by the last push's rigid root motion, x -> R (x - pivot) + pivot
  * + t (see km_retarget_root_transform); leaves them as they are for a rig without rigid root

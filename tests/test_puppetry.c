@@ -557,10 +557,12 @@ static void test_root_rigid(const fixture *fx) {
       lo[d] = fmin(lo[d], fx->c.mesh.V[3 * v + d]);
       hi[d] = fmax(hi[d], fx->c.mesh.V[3 * v + d]);
     }
-  /* about the character's root joint when the rig has joints, else the box centre */
+  /* about the vertical through the middle of the spine (HipCenter -> ShoulderCenter) when the
+   * rig has kinect1 joints, else the box centre */
   double cx = 0.5 * (lo[0] + hi[0]), cz = 0.5 * (lo[2] + hi[2]);
   if (fx->rig.joint_rest && fx->rig.n_joint_rest == KM_KINECT1_JOINTS)
-    cx = fx->rig.joint_rest[0], cz = fx->rig.joint_rest[2];
+    cx = 0.5 * (fx->rig.joint_rest[0] + fx->rig.joint_rest[6]),
+    cz = 0.5 * (fx->rig.joint_rest[2] + fx->rig.joint_rest[8]);
   double worst = 0;
   for (size_t v = 0; v < nv; ++v) {
     const double *x = fx->c.mesh.V + 3 * v;
