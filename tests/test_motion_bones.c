@@ -392,38 +392,40 @@ static void test_untracked_wrist(const fixture *fx) {
             rise[0]);
 }
 
-/* The performer's right forearm turned `angle` degrees up about a still elbow, in one push,
- * through the character's default rig with the given "swing_limit" and "bend_limit": how far
- * the hand handle turns about the elbow, degrees. */
-static double hand_turn(const fixture *fx, double swing, double bend, double angle) {
+/* The performer's joints first..last turned `angle` degrees about the still joint `pivot` in
+ * the plane of axes p -> q (by_side: the sense mirrored for a joint on the -p side, so a right
+ * or left forearm both turn "up"), in one push, through the character's default rig with the
+ * given "swing_limit" and "bend_limit": how far handle `name` turns about the pivot, degrees. */
+static double handle_turn(const fixture *fx, const char *name, int pivot, int first, int last,
+                          int p, int q, bool by_side, double swing, double bend, double angle) {
   const km_character c = fx->c;
   km_rig rig = fx->rig;
   rig.swing_limit = swing;
   rig.bend_limit = bend;
-  int hand = -1;
+  int hh = -1;
   for (size_t h = 0; h < rig.n_handles; ++h)
-    if (!strcmp(rig.handles[h].name, "hand_right")) hand = (int)h;
-  CHECK(hand >= 0);
-  if (hand < 0) return NAN;
-  enum { ELBOW = 9, WRIST = 10, HAND = 11 };
+    if (!strcmp(rig.handles[h].name, name)) hh = (int)h;
+  CHECK_MSG(hh >= 0, "no handle %s", name);
+  if (hh < 0) return NAN;
   km_retarget *rt = NULL;
   /* the whole turn in one push: the bone speed limit (at most 40 degrees a push) off */
   km_retarget_options ro = {.bone_catchup = -1};
   CHECK_OK(km_retarget_create(&rig, &c.mesh, KM_KINECT1_JOINTS, &ro, &rt, KM_E));
   double J[3 * KM_KINECT1_JOINTS], *tg = malloc(3 * rig.n_handles * sizeof(double));
   double v[2][3] = {{0}};
-  const double *e = c.skeleton.rest + 3 * ELBOW;
+  const double *e = c.skeleton.rest + 3 * pivot;
   for (int f = 0; f < 2 && rt && tg; ++f) {
     memcpy(J, c.skeleton.rest, sizeof J);
     if (f == 1)
-      for (int j = WRIST; j <= HAND; ++j) {
-        double *x = J + 3 * j, u = x[0] - e[0], w = x[1] - e[1];
-        double cs = cos(angle * M_PI / 180), sn = sin(angle * M_PI / 180) * (u > 0 ? 1 : -1);
-        x[0] = e[0] + cs * u - sn * w, x[1] = e[1] + sn * u + cs * w;
+      for (int j = first; j <= last; ++j) {
+        double *x = J + 3 * j, u = x[p] - e[p], w = x[q] - e[q];
+        double cs = cos(angle * M_PI / 180),
+               sn = sin(angle * M_PI / 180) * (by_side && u < 0 ? -1 : 1);
+        x[p] = e[p] + cs * u - sn * w, x[q] = e[q] + sn * u + cs * w;
       }
     km_retarget_push(rt, J, tg);
     for (int a = 0; a < 3; ++a)
-      v[f][a] = tg[3 * hand + a] - e[a];
+      v[f][a] = tg[3 * hh + a] - e[a];
   }
   double cosang = (v[0][0] * v[1][0] + v[0][1] * v[1][1] + v[0][2] * v[1][2]) /
                   (sqrt(v[0][0] * v[0][0] + v[0][1] * v[0][1] + v[0][2] * v[0][2]) *
@@ -433,43 +435,18 @@ static double hand_turn(const fixture *fx, double swing, double bend, double ang
   return acos(fmax(-1, fmin(1, cosang))) * 180 / M_PI;
 }
 
-/* The performer's head tilted `angle` degrees forward about a still shoulder centre, in one
- * push, through the character's default rig with the given "swing_limit": how far the head
- * handle turns about the shoulder centre, degrees (the head is not aimed: it turns by its
- * rotation since the first frame). */
+/* The right forearm (wrist and hand) turned up about a still elbow, in the x-y plane. */
+static double hand_turn(const fixture *fx, double swing, double bend, double angle) {
+  enum { ELBOW = 9, WRIST = 10, HAND = 11 };
+  return handle_turn(fx, "hand_right", ELBOW, WRIST, HAND, 0, 1, true, swing, bend, angle);
+}
+
+/* The head tilted forward about a still shoulder centre, in the y-z plane (the head is not
+ * aimed: it turns by its rotation since the first frame). */
 static double head_turn(const fixture *fx, double swing, double angle) {
-  const km_character c = fx->c;
-  km_rig rig = fx->rig;
-  rig.swing_limit = swing;
-  int head = -1;
-  for (size_t h = 0; h < rig.n_handles; ++h)
-    if (!strcmp(rig.handles[h].name, "head")) head = (int)h;
-  CHECK(head >= 0);
-  if (head < 0) return NAN;
   enum { SHOULDER_CENTER = 2, HEAD = 3 };
-  km_retarget *rt = NULL;
-  km_retarget_options ro = {.bone_catchup = -1};
-  CHECK_OK(km_retarget_create(&rig, &c.mesh, KM_KINECT1_JOINTS, &ro, &rt, KM_E));
-  double J[3 * KM_KINECT1_JOINTS], *tg = malloc(3 * rig.n_handles * sizeof(double));
-  double v[2][3] = {{0}};
-  const double *e = c.skeleton.rest + 3 * SHOULDER_CENTER;
-  for (int f = 0; f < 2 && rt && tg; ++f) {
-    memcpy(J, c.skeleton.rest, sizeof J);
-    if (f == 1) {
-      double *x = J + 3 * HEAD, u = x[1] - e[1], w = x[2] - e[2];
-      double cs = cos(angle * M_PI / 180), sn = sin(angle * M_PI / 180);
-      x[1] = e[1] + cs * u - sn * w, x[2] = e[2] + sn * u + cs * w;
-    }
-    km_retarget_push(rt, J, tg);
-    for (int a = 0; a < 3; ++a)
-      v[f][a] = tg[3 * head + a] - e[a];
-  }
-  double cosang = (v[0][0] * v[1][0] + v[0][1] * v[1][1] + v[0][2] * v[1][2]) /
-                  (sqrt(v[0][0] * v[0][0] + v[0][1] * v[0][1] + v[0][2] * v[0][2]) *
-                   sqrt(v[1][0] * v[1][0] + v[1][1] * v[1][1] + v[1][2] * v[1][2]));
-  free(tg);
-  km_retarget_free(&rt);
-  return acos(fmax(-1, fmin(1, cosang))) * 180 / M_PI;
+  return handle_turn(fx, "head", SHOULDER_CENTER, HEAD, HEAD, 1, 2, false, swing,
+                     fx->rig.bend_limit, angle);
 }
 
 /* The rig's limits: a quadruped's legs ("swing_limit", every limb bone: 30 in the rig `rig`
