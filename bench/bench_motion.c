@@ -210,12 +210,15 @@ static const char *base_name(const char *p) {
 static km_status load_take(const char *spec, const km_skeleton *skel, size_t frames, double fps,
                            km_take *t, char *why, size_t n_why, km_error *err) {
   static const char *const gen[] = {"walk", "wave", "kungfu"};
-  km_status s = KM_ERR_IO;
-  for (int k = 0; k < 3 && s == KM_ERR_IO; ++k)
-    if (!strcmp(spec, gen[k]) || (!strncmp(spec, "gen:", 4) && !strcmp(spec + 4, gen[k])))
-      if ((s = km_motion_generate(skel, (km_motion_kind)k, frames ? frames : 150, t, err)) != KM_OK)
-        return s;
-  if (s != KM_OK) {
+  int kind = -1;
+  for (int k = 0; k < 3; ++k)
+    if (!strcmp(spec, gen[k]) || (!strncmp(spec, "gen:", 4) && !strcmp(spec + 4, gen[k]))) kind = k;
+  km_status s;
+  if (kind >= 0) {
+    if ((s = km_motion_generate(skel, (km_motion_kind)kind, frames ? frames : 150, t, err)) !=
+        KM_OK)
+      return s;
+  } else {
     if (access(spec, R_OK) != 0) {
       snprintf(why, n_why, "%s not found", spec);
       return KM_ERR_IO;
@@ -223,8 +226,7 @@ static km_status load_take(const char *spec, const km_skeleton *skel, size_t fra
     km_motion_read_options ro = {0};
     ro.kinect1 = true;
     km_motion_read_info ri;
-    s = km_motion_read(spec, &ro, t, &ri, err);
-    if (s != KM_OK) {
+    if ((s = km_motion_read(spec, &ro, t, &ri, err)) != KM_OK) {
       snprintf(why, n_why, "no Kinect v1 joints: %.400s", err->message);
       return s;
     }

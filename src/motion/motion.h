@@ -70,4 +70,9 @@ void km__retarget_settle(km_retarget *r);
  * filter's alpha, 1 / (1 + 1 / (2 pi fc te)). */
 double km__one_euro_alpha(double fc, double te);
 
+/* Whether a body stands upright: its spine (hip centre hc -> shoulder centre sc, y up) closer to
+ * vertical than horizontal; false when either is not finite. The rig writer gives a body that
+ * is not upright a quadruped's rig, and km_retarget flattens only an upright body's feet. */
+bool km__spine_upright(const double hc[3], const double sc[3]);
+
 #endif

@@ -1,5 +1,6 @@
 #include "motion/motion.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -8,4 +9,10 @@ char *km__strdup(const char *s) {
   char *d = malloc(n);
   if (d) memcpy(d, s, n);
   return d;
+}
+
+bool km__spine_upright(const double hc[3], const double sc[3]) {
+  for (int d = 0; d < 3; ++d)
+    if (!isfinite(hc[d]) || !isfinite(sc[d])) return false;
+  return sc[1] - hc[1] > hypot(sc[0] - hc[0], sc[2] - hc[2]);
 }

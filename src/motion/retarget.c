@@ -66,6 +66,7 @@ struct km_retarget {
   bool *seen;          /* n_joints: the tracker has sent the joint since create / reset */
   double floor_y;      /* the rest floor (lowest rest y) */
   bool aim;            /* limb bones aim along the performer's (rig "aim": true) */
+  bool upright;        /* the character skeleton's spine is upright (km__spine_upright) */
   double swing_limit;  /* radians, a bone's largest swing from its parent-carried rest (aimed
                           limb bones) or first (the others) direction (rig "swing_limit");
                           0: none */
@@ -379,6 +380,9 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
        * after: dog0 15.4/17.7/13.8/3.3/4.3 -> 10.0/14.3/14.7/2.3/2.9 %, the horse
        * 17.3/19.4/16.3/3.7/4.8 -> 12.2/16.9/17.4/2.8/3.4 % (the table's take order); the upright
        * bodies within 0.1 % of before. */
+      /* HipCenter, ShoulderCenter */
+      r->upright = jr && rig->skeleton == KM_RIG_KINECT1 && n_joints >= KM_KINECT1_JOINTS &&
+                   km__spine_upright(r->jrest, r->jrest + 3 * 2);
       if (jr && r->rigid && valid3(r->jrest + 3 * (size_t)r->root)) {
         memcpy(r->pivot, r->jrest + 3 * (size_t)r->root, sizeof r->pivot);
         const double *sc = r->jrest + 3 * 2; /* ShoulderCenter */
@@ -853,6 +857,17 @@ static double limb_limit(const km_retarget *r, int32_t b) {
  * an upper arm and forearm twisted apart wring the elbow between their handles (bench motion,
  * character on cmu_131_01: the elbows stretched 0.9 from the first frame on). aim without Rp:
  * that composition (a segment with no parent rotation). */
+/* The swing limit: unit d is brought back towards unit w along the great circle to at most lim
+ * radians from it (a clamp: continuous in d, nothing changes within the limit; lim <= 0: none). */
+static void clamp_swing(const double w[3], double lim, double d[3]) {
+  double c = fmax(-1, fmin(1, km__dot3(w, d))), th = acos(c), sn = sin(th);
+  if (!(lim > 0 && th > lim && sn > 1e-6)) return;
+  double a0 = sin(th - lim) / sn, a1 = sin(lim) / sn;
+  for (int i = 0; i < 3; ++i)
+    d[i] = a0 * w[i] + a1 * d[i];
+  km__normalize3(d);
+}
+
 static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, int32_t b,
                              const double *aim, const double *Rp, double R[9]) {
   double d[3], d0[3];
@@ -867,16 +882,7 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
         double w[3];
         for (int i = 0; i < 3; ++i)
           w[i] = Rp[3 * i] * u[0] + Rp[3 * i + 1] * u[1] + Rp[3 * i + 2] * u[2];
-        /* The swing limit: d is brought back towards w along the great circle to the limit
-         * (a clamp: continuous in d, nothing changes within the limit). */
-        double c = fmax(-1, fmin(1, km__dot3(w, d))), th = acos(c), sn = sin(th);
-        double lim = limb_limit(r, b);
-        if (lim > 0 && th > lim && sn > 1e-6) {
-          double a0 = sin(th - lim) / sn, a1 = sin(lim) / sn;
-          for (int i = 0; i < 3; ++i)
-            d[i] = a0 * w[i] + a1 * d[i];
-          km__normalize3(d);
-        }
+        clamp_swing(w, limb_limit(r, b), d);
         rotation_between(w, d, A);
         mat_mul(A, Rp, R);
         return true;
@@ -897,14 +903,7 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
     double w[3];
     for (int i = 0; i < 3; ++i)
       w[i] = Rp[3 * i] * d0[0] + Rp[3 * i + 1] * d0[1] + Rp[3 * i + 2] * d0[2];
-    double c = fmax(-1, fmin(1, km__dot3(w, d))), th = acos(c), sn = sin(th);
-    double lim = r->swing_limit;
-    if (th > lim && sn > 1e-6) {
-      double a0 = sin(th - lim) / sn, a1 = sin(lim) / sn;
-      for (int i = 0; i < 3; ++i)
-        d[i] = a0 * w[i] + a1 * d[i];
-      km__normalize3(d);
-    }
+    clamp_swing(w, r->swing_limit, d);
   }
   rotation_between(d0, d, R);
   return true;
@@ -1063,8 +1062,7 @@ static void lift_root(km_retarget *r) {
 static void flatten_foot(const km_retarget *r, int32_t ankle, int32_t foot, double R[9]) {
   /* an upright body's feet only: a horse's hoof held flat while its cannon swung bent the
    * fetlock (bench motion B on cmu_131_01: stretch max 0.73 -> 0.98, 64 folded triangles) */
-  const double *h = r->jrest, *sc = r->jrest + 6; /* HipCenter, ShoulderCenter */
-  if (!valid3(h) || !valid3(sc) || !(sc[1] - h[1] > hypot(sc[0] - h[0], sc[2] - h[2]))) return;
+  if (!r->upright) return;
   const double *A0 = r->jrest + 3 * (size_t)ankle, *F0 = r->jrest + 3 * (size_t)foot;
   const double *A = r->C + 3 * (size_t)ankle;
   if (!valid3(A0) || !valid3(F0) || !valid3(A)) return;

@@ -131,9 +131,8 @@ static int skel_joint(const km_skeleton *sk, const char *name) {
  * vertical than horizontal. */
 static bool upright_body(const km_skeleton *sk) {
   int hc = skel_joint(sk, "HipCenter"), sc = skel_joint(sk, "ShoulderCenter");
-  if (hc < 0 || sc < 0) return false;
-  const double *a = sk->rest + 3 * (size_t)hc, *b = sk->rest + 3 * (size_t)sc;
-  return b[1] - a[1] > hypot(b[0] - a[0], b[2] - a[2]);
+  return hc >= 0 && sc >= 0 &&
+         km__spine_upright(sk->rest + 3 * (size_t)hc, sk->rest + 3 * (size_t)sc);
 }
 
 /* Bands: every vertex goes to the bone segment nearest to it (of all the skeleton's bones);
