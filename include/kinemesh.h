@@ -1126,16 +1126,27 @@ typedef struct km_rig {
                legs, hands, feet) are aimed along the performer's bones instead of turned by
                their rotation since the first frame, so a character whose rest pose is not the
                performer's first pose (a T-pose against arms down) takes the performer's pose */
-  double swing_limit; /* "swing_limit": degrees, with aim: a limb bone swings at most this far
-                         from where its parent bone carries its rest direction, and a torso,
-                         neck or head bone (turned by its rotation since the first frame) at
-                         most this far from where its parent carries its first direction (0: no
-                         limit). kinemesh rig writes 30 for a body that is not upright (a
-                         quadruped's legs do not reach where a person's arms do) */
-  double bend_limit;  /* "bend_limit": degrees, with aim on a kinect1 skeleton: an elbow or knee
-                         (the forearm or shin against the upper arm or thigh) bends at most this
-                         far (0: no limit). kinemesh rig writes 150, about the human limit: a
-                         tracker's elbow folded further is its arm lost in front of the body */
+  double swing_limit;      /* "swing_limit": degrees, with aim: a limb bone swings at most this far
+                              from where its parent bone carries its rest direction, and a torso,
+                              neck or head bone (turned by its rotation since the first frame) at
+                              most this far from where its parent carries its first direction (0: no
+                              limit). kinemesh rig writes 30 for a body that is not upright (a
+                              quadruped's legs do not reach where a person's arms do) and for
+                              one with a stubby limb (radius half its bone or more: the
+                              elephant's) */
+  double upper_limb_limit; /* "upper_limb_limit": degrees, with aim on a kinect1 skeleton: an
+                              upper arm or thigh (the bone ending at an elbow or knee) swings at
+                              most this far from where its parent carries its rest direction
+                              (0: swing_limit). kinemesh rig writes 5 for a body that is not
+                              upright (a quadruped's humerus and femur lie inside its trunk)
+                              and 15 for an upright one with a stubby limb */
+  double bend_limit; /* "bend_limit": degrees, with aim on a kinect1 skeleton: an elbow or knee
+                        (the forearm or shin against the upper arm or thigh) bends at most this
+                        far (0: no limit). kinemesh rig writes 150 for an upright body, about
+                        the human limit (a tracker's elbow folded further is its arm lost in
+                        front of the body), and 20 for one that is not (a quadruped's foreleg
+                        below its trunk; with upper_limb_limit 5 a paw reaches 25 degrees plus
+                        its own bone's swing) */
 } km_rig;
 
 /* Parses a rig file and resolves its handles on a mesh.

@@ -395,13 +395,16 @@ static void test_untracked_wrist(const fixture *fx) {
 /* The performer's joints first..last turned `angle` degrees about the still joint `pivot` in
  * the plane of axes p -> q (by_side: the sense mirrored for a joint on the -p side, so a right
  * or left forearm both turn "up"), in one push, through the character's default rig with the
- * given "swing_limit" and "bend_limit": how far handle `name` turns about the pivot, degrees. */
+ * given "swing_limit", "bend_limit" and "upper_limb_limit": how far handle `name` turns about
+ * the pivot, degrees. */
 static double handle_turn(const fixture *fx, const char *name, int pivot, int first, int last,
-                          int p, int q, bool by_side, double swing, double bend, double angle) {
+                          int p, int q, bool by_side, double swing, double bend, double upper,
+                          double angle) {
   const km_character c = fx->c;
   km_rig rig = fx->rig;
   rig.swing_limit = swing;
   rig.bend_limit = bend;
+  rig.upper_limb_limit = upper;
   int hh = -1;
   for (size_t h = 0; h < rig.n_handles; ++h)
     if (!strcmp(rig.handles[h].name, name)) hh = (int)h;
@@ -438,7 +441,7 @@ static double handle_turn(const fixture *fx, const char *name, int pivot, int fi
 /* The right forearm (wrist and hand) turned up about a still elbow, in the x-y plane. */
 static double hand_turn(const fixture *fx, double swing, double bend, double angle) {
   enum { ELBOW = 9, WRIST = 10, HAND = 11 };
-  return handle_turn(fx, "hand_right", ELBOW, WRIST, HAND, 0, 1, true, swing, bend, angle);
+  return handle_turn(fx, "hand_right", ELBOW, WRIST, HAND, 0, 1, true, swing, bend, 0, angle);
 }
 
 /* The head tilted forward about a still shoulder centre, in the y-z plane (the head is not
@@ -446,7 +449,7 @@ static double hand_turn(const fixture *fx, double swing, double bend, double ang
 static double head_turn(const fixture *fx, double swing, double angle) {
   enum { SHOULDER_CENTER = 2, HEAD = 3 };
   return handle_turn(fx, "head", SHOULDER_CENTER, HEAD, HEAD, 1, 2, false, swing,
-                     fx->rig.bend_limit, angle);
+                     fx->rig.bend_limit, 0, angle);
 }
 
 /* The rig's limits: a quadruped's legs ("swing_limit", every limb bone: 30 in the rig `rig`
@@ -457,9 +460,9 @@ static void test_limits(const fixture *fx) {
   CHECK_MSG(fx->rig.bend_limit == 150, "the default rig's bend_limit is %g", fx->rig.bend_limit);
   double free120 = hand_turn(fx, 0, 0, 120), swing60 = hand_turn(fx, 60, 0, 120);
   double free170 = hand_turn(fx, 0, 0, 170), bend150 = hand_turn(fx, 0, 150, 170);
-  double both = hand_turn(fx, 60, 150, 170);
+  double both = hand_turn(fx, 60, 150, 120);
   printf("  hand handle turns about the elbow: 120 deg asked, %.1f free, %.1f with swing_limit "
-         "60; 170 asked, %.1f free, %.1f with bend_limit 150, %.1f with both\n",
+         "60; 170 asked, %.1f free, %.1f with bend_limit 150; 120 asked, %.1f with both\n",
          free120, swing60, free170, bend150, both);
   CHECK_MSG(fabs(free120 - 120) < 15, "no limit: the hand turned %g deg", free120);
   CHECK_MSG(fabs(swing60 - 60) < 15, "swing_limit 60: the hand turned %g deg", swing60);
@@ -477,6 +480,28 @@ static void test_limits(const fixture *fx) {
   CHECK_MSG(fabs(head30 - 30) < 8, "swing_limit 30: the head turned %g deg", head30);
   CHECK_MSG(fabs(head_within - 20) < 5, "within swing_limit 30: the head turned %g deg (20 asked)",
             head_within);
+  /* Past 135 degrees from its limit cone's centre the swing allowed fades to none at the
+   * point opposite (clamp_swing): a forearm pointed straight back along the upper arm leaves
+   * the hand at rest, and one 10 degrees short of that turns it about 13 degrees (60 * 10 / 45),
+   * not the whole 60 a plain clamp gives with a side that flips across the antipode. */
+  double back180 = hand_turn(fx, 60, 0, 180), back170 = hand_turn(fx, 60, 0, 170);
+  printf("  with swing_limit 60: 180 deg asked, the hand turns %.1f; 170 asked, %.1f\n", back180,
+         back170);
+  CHECK_MSG(back180 < 3, "swing_limit 60, the forearm pointed back: the hand turned %g deg",
+            back180);
+  CHECK_MSG(fabs(back170 - 13.3) < 6, "swing_limit 60, 170 deg asked: the hand turned %g deg",
+            back170);
+  /* "upper_limb_limit" (a quadruped's rig: 5): the upper arm, the whole arm turned 40 degrees
+   * about the shoulder, turns 5; without it, with the arm */
+  enum { SHOULDER = 8, ELBOW = 9, HAND = 11 };
+  double up_free =
+             handle_turn(fx, "upper_arm_right", SHOULDER, ELBOW, HAND, 0, 1, true, 0, 0, 0, 40),
+         up5 = handle_turn(fx, "upper_arm_right", SHOULDER, ELBOW, HAND, 0, 1, true, 0, 0, 5, 40);
+  printf("  upper arm turns about the shoulder: 40 deg asked, %.1f free, %.1f with "
+         "upper_limb_limit 5\n",
+         up_free, up5);
+  CHECK_MSG(fabs(up_free - 40) < 6, "no limit: the upper arm turned %g deg", up_free);
+  CHECK_MSG(fabs(up5 - 5) < 3, "upper_limb_limit 5: the upper arm turned %g deg", up5);
 }
 
 /* Feet on the floor (the sidecar's rig: rigid root motion, aimed limbs): a performer who sinks

@@ -156,14 +156,22 @@ write:
            rig.handles[h].n_vertices);
   printf("\n");
   /* the limits the puppetry applies, so the user knows what to edit for a wider range */
-  if (rig.bend_limit > 0 || rig.swing_limit > 0) {
+  if (rig.bend_limit > 0 || rig.swing_limit > 0 || rig.upper_limb_limit > 0) {
     printf("limits:");
-    if (rig.bend_limit > 0)
+    const char *sep = "";
+    if (rig.bend_limit > 0) {
       printf(" elbows and knees bend at most %g deg (\"bend_limit\")", rig.bend_limit);
-    if (rig.swing_limit > 0)
+      sep = ";";
+    }
+    if (rig.swing_limit > 0) {
       printf("%s every bone swings at most %g deg from where its parent carries it "
-             "(\"swing_limit\": not an upright body)",
-             rig.bend_limit > 0 ? ";" : "", rig.swing_limit);
+             "(\"swing_limit\": not an upright body, or a stubby limb)",
+             sep, rig.swing_limit);
+      sep = ";";
+    }
+    if (rig.upper_limb_limit > 0)
+      printf("%s upper arms and thighs at most %g deg (\"upper_limb_limit\")", sep,
+             rig.upper_limb_limit);
     printf("\n");
   }
   km_rig_free(&rig);

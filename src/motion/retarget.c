@@ -72,6 +72,8 @@ struct km_retarget {
                           0: none */
   double bend_limit;   /* radians, the largest bend of a kinect1 elbow or knee (rig
                           "bend_limit"); 0: none */
+  double upper_limit;  /* radians, the largest swing of a kinect1 upper arm or thigh (rig
+                          "upper_limb_limit"); 0: swing_limit */
   /* bone speed limit (see limit_bone) */
   double bone_catchup; /* metres (of performer) per push a bone's end may turn beyond its
                           joint's own step; < 0: off */
@@ -370,6 +372,9 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
           rig->swing_limit > 0 && rig->swing_limit < 180 ? rig->swing_limit * M_PI / 180 : 0;
       r->bend_limit =
           rig->bend_limit > 0 && rig->bend_limit < 180 ? rig->bend_limit * M_PI / 180 : 0;
+      r->upper_limit = rig->upper_limb_limit > 0 && rig->upper_limb_limit < 180
+                           ? rig->upper_limb_limit * M_PI / 180
+                           : 0;
       /* The mesh turns about the character's root joint, the point the handles' root-relative
        * motion is measured from (the bounding box centre is only a stand-in without joints),
        * or on a kinect1 skeleton about the vertical through the middle of the spine (root ->
@@ -836,12 +841,16 @@ static void mat_mul(const double A[9], const double B[9], double C[9]) {
       C[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j];
 }
 
-/* The largest swing allowed to the bone ending at joint b (rig "swing_limit", and for a
- * kinect1 forearm or shin, the bone ending at a wrist or ankle, "bend_limit": the elbow's or
- * knee's bend), radians; 0: none. Only aimed bones are limited (segment_rotation with aim). */
+/* The largest swing allowed to the bone ending at joint b (rig "swing_limit"; for a kinect1
+ * upper arm or thigh, the bone ending at an elbow or knee, "upper_limb_limit" where it is set;
+ * for a forearm or shin, the bone ending at a wrist or ankle, "bend_limit": the elbow's or
+ * knee's bend, where it is the smaller), radians; 0: none. Only aimed bones are limited
+ * (segment_rotation with aim). */
 static double limb_limit(const km_retarget *r, int32_t b) {
   double lim = r->swing_limit;
+  bool upper = r->kinect1 && (b == 5 || b == 9 || b == 13 || b == 17);
   bool hinge = r->kinect1 && (b == 6 || b == 10 || b == 14 || b == 18);
+  if (upper && r->upper_limit > 0) lim = r->upper_limit;
   if (hinge && r->bend_limit > 0) lim = lim > 0 ? fmin(lim, r->bend_limit) : r->bend_limit;
   return lim;
 }
@@ -858,11 +867,27 @@ static double limb_limit(const km_retarget *r, int32_t b) {
  * character on cmu_131_01: the elbows stretched 0.9 from the first frame on). aim without Rp:
  * that composition (a segment with no parent rotation). */
 /* The swing limit: unit d is brought back towards unit w along the great circle to at most lim
- * radians from it (a clamp: continuous in d, nothing changes within the limit; lim <= 0: none). */
+ * radians from it (nothing changes within the limit; lim <= 0: none). For a limit of at most
+ * 90 degrees, where d points more than 135 degrees away from w, the swing allowed falls
+ * linearly to 0 at the antipode: a plain clamp takes the great circle's side from d, which flips
+ * as d crosses the point opposite w, and a limb held near its limit swung across its cone in
+ * one frame (a quadruped's foreleg, upper leg held to 5 degrees, forearm to 20, with a
+ * performer's forearm pointing up: the horse on cmu_131_01 stepped 3.6 % of its diagonal in a
+ * frame, 2.7 % with the fade); continuous in d everywhere. A wider limit (a human elbow's 150)
+ * is a plain clamp: a fade would fold back (an elbow asked 170 degrees would bend 50). */
 static void clamp_swing(const double w[3], double lim, double d[3]) {
   double c = fmax(-1, fmin(1, km__dot3(w, d))), th = acos(c), sn = sin(th);
-  if (!(lim > 0 && th > lim && sn > 1e-6)) return;
-  double a0 = sin(th - lim) / sn, a1 = sin(lim) / sn;
+  if (!(lim > 0 && th > lim)) return;
+  double th1 = 0.75 * M_PI, s = lim;
+  if (lim <= 0.5 * M_PI && th > th1)
+    s = lim * (M_PI - th) / (M_PI - th1);
+  else if (!(sn > 1e-6))
+    return;           /* opposite, no fade: no great circle to clamp along */
+  if (!(sn > 1e-6)) { /* d opposite w: the swing has faded to none */
+    memcpy(d, w, 3 * sizeof(double));
+    return;
+  }
+  double a0 = sin(th - s) / sn, a1 = sin(s) / sn;
   for (int i = 0; i < 3; ++i)
     d[i] = a0 * w[i] + a1 * d[i];
   km__normalize3(d);
@@ -1049,8 +1074,9 @@ static void lift_root(km_retarget *r) {
 
 /* A foot on the ground stands flat (an upright body's, below): its handle's rotation R (about
  * the ankle) loses its tilt,
- * keeping the turn about y of the foot's direction (ankle -> foot), in full while the posed
- * ankle is at or below its rest height (with the rigid root's translation), fading out as the
+ * keeping its turn about y (the twist about y of R's swing-twist decomposition), in full while
+ * the posed ankle is at or below its rest height (with the rigid root's translation), fading
+ * out as the
  * ankle rises by its own rest height above the floor. A performer's foot, measured from a
  * tracker's ankle and toe joints, tilts 10-30 degrees when it is flat on the floor (a
  * shoe's sole, a toe joint at the ball of the foot), and the character's foot turned with it:
@@ -1058,7 +1084,10 @@ static void lift_root(km_retarget *r) {
  * rest floor, CMU takes: elephant 760 / 1026 -> 95 / 0 (of 994 / 1102), character 360 / 664 ->
  * 66 / 39, armadillo 528 / 687 -> 268 / 134; a flat foot whose ankle is lower than at rest is
  * under the floor whole (the armadillo's Kinect takes 72 / 24 / 8 -> 137 / 43 / 89), which
- * lift_root answers. */
+ * lift_root answers. The turn about y was first taken from the foot's direction (ankle -> foot)
+ * seen from above, which spins where the posed foot points nearly straight down: the elephant's
+ * stubby foot (41 degrees from vertical at rest) under "swing_limit" 30 flipped its heading in
+ * one frame, a one-frame jump of 11.4 % of the diagonal on cmu_131_01 (1.7 % with the twist). */
 static void flatten_foot(const km_retarget *r, int32_t ankle, int32_t foot, double R[9]) {
   /* an upright body's feet only: a horse's hoof held flat while its cannon swung bent the
    * fetlock (bench motion B on cmu_131_01: stretch max 0.73 -> 0.98, 64 folded triangles) */
@@ -1071,11 +1100,12 @@ static void flatten_foot(const km_retarget *r, int32_t ankle, int32_t foot, doub
   double rise = A[1] + (r->rigid ? r->t[1] : 0) - A0[1];
   double w = fmax(0, fmin(1, 1 - rise / ha));
   if (!(w > 0)) return;
-  double u[3] = {F0[0] - A0[0], F0[1] - A0[1], F0[2] - A0[2]}, v[3];
-  mat_vec(R, u, v);
-  if (!(hypot(u[0], u[2]) > 1e-9 && hypot(v[0], v[2]) > 1e-9)) return;
-  /* R_y(phi) takes (1,0,0) to (cos phi, 0, -sin phi): a vector's angle is atan2(-z, x) */
-  double phi = atan2(-v[2], v[0]) - atan2(-u[2], u[0]), c = cos(phi), sn = sin(phi);
+  /* R = S T: T the twist about y (the quaternion's w and y parts), S a swing about a
+   * horizontal axis; undefined only for a half turn about a horizontal axis (w = y = 0) */
+  double q[4];
+  km__quat_from_rot3(R, q);
+  if (!(hypot(q[0], q[2]) > 1e-9)) return;
+  double phi = 2 * atan2(q[2], q[0]), c = cos(phi), sn = sin(phi);
   double Ry[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
   km__rot3_slerp(R, Ry, w, R);
 }

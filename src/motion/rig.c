@@ -620,6 +620,7 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
   }
   out->aim = cJSON_IsTrue(jaim);
   if ((st = parse_degrees(name, root, "swing_limit", &out->swing_limit, err)) != KM_OK ||
+      (st = parse_degrees(name, root, "upper_limb_limit", &out->upper_limb_limit, err)) != KM_OK ||
       (st = parse_degrees(name, root, "bend_limit", &out->bend_limit, err)) != KM_OK)
     goto done;
   if ((st = parse_joints(name, cJSON_GetObjectItemCaseSensitive(root, "joints"), joint_names,

@@ -140,9 +140,10 @@ static bool upright_body(const km_skeleton *sk) {
  * on a stubby limb, below), cut to the connected part (along faces) holding the band vertex
  * nearest to the band's middle, and kept off the end handles' balls (centre ends[e], Euclidean
  * radius: the geodesic balls km_rig_parse grows are inside them). band[v] = the band of v, -1
- * none. Returns false when out of memory. */
+ * none; *stubby: some limb bone is stubby (its band a thin ring, below). Returns false when out
+ * of memory. */
 static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends, double radius,
-                       bool upright, int8_t *band, int bone_ok[N_BONE_HANDLES]) {
+                       bool upright, int8_t *band, int bone_ok[N_BONE_HANDLES], bool *stubby) {
   const km_mesh *m = &c->mesh;
   const km_skeleton *sk = &c->skeleton;
   size_t n = m->n_vertices;
@@ -225,7 +226,7 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
     double len = dist3(sk->rest + 3 * (size_t)ja[b], sk->rest + 3 * (size_t)jb[b]);
     if (!k || !(len > 0)) continue;
     qsort(dists, k, sizeof(double), km__cmp_double);
-    if (dists[k / 2] >= 0.5 * len) bt[b][0] = 0.45, bt[b][1] = 0.55;
+    if (dists[k / 2] >= 0.5 * len) bt[b][0] = 0.45, bt[b][1] = 0.55, *stubby = true;
   }
   /* A ring's limb radius at its joint (the nearest vertex); the ring is the part within twice
    * that of the joint (a t of 1 or 0 is also every vertex beyond the bone's end, the elephant's
@@ -302,6 +303,7 @@ typedef struct rig_plan {
   int8_t *band; /* n_vertices: the bone handle of each vertex, -1 none */
   int bone_ok[N_BONE_HANDLES];
   bool upright;
+  bool stubby; /* some limb's radius is half its bone or more (bone_bands) */
 } rig_plan;
 
 static km_status rig_plan_make(const char *path, const km_character *c, rig_plan *p, km_error *err);
@@ -382,7 +384,8 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
   int32_t ends[5];
   for (int h = 0; h < 5; ++h)
     ends[h] = (int32_t)p->handle_vertex[h];
-  if (!p->band || !bone_bands(c, ends, 5, radius, p->upright, p->band, p->bone_ok)) {
+  p->stubby = false;
+  if (!p->band || !bone_bands(c, ends, 5, radius, p->upright, p->band, p->bone_ok, &p->stubby)) {
     free(p->band);
     p->band = NULL;
     return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
@@ -469,13 +472,37 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
    * motion B, dog0, 60 -> 30 degrees with the upper-leg bands gone (bone_bands): stretch max
    * 0.95/0.71/0.89/0.91/0.84 -> 0.66/0.62/0.56/0.56/0.47; 20 degrees gained little more
    * (0.67/0.62/0.45/0.54/0.42) and stiffened the legs. */
-  if (!p->upright) fputs("\"swing_limit\":30,", f);
+  /* So are stubby limbs (the elephant's arms and legs, about as thick as they are long), with
+   * their upper arms and thighs at most 15 degrees ("upper_limb_limit", below): a stubby arm
+   * swung as far as a person's, or brought down from the rest pose to a performer's arms
+   * hanging, crushed and folded the skin between it and the body (the armpits), and the big
+   * head tilted as far as the performer's hung an ear on its shoulder. bench motion B,
+   * elephant, the table's take order, before -> after: stretch max 1.32/1.14/1.13/0.99/1.06 ->
+   * 0.84/0.77/0.78/0.74/0.75, folded triangles 590/596/578/397/372 -> 4/4/6/4/2; one-frame
+   * jump within 0.4 % (the CMU takes 1.9/2.2 -> 1.8/2.2 %). With "swing_limit" 30 alone:
+   * stretch 0.93/0.91/0.93/0.88/0.88, folds 30/16/36/25/17. */
+  if (!p->upright || p->stubby) fputs("\"swing_limit\":30,", f);
+  /* A quadruped's upper arm and thigh, inside the trunk, swing at most 5 degrees, and its elbow and
+   * knee bend at most 20 (below): the leg turns below the trunk about the elbow or knee, and its
+   * shoulder and hip skin, which no band holds, is not dragged by a swinging humerus or femur.
+   * bench motion B (own rates), the table's take order, stretch max before -> after: dog0
+   * 0.59/0.60/0.56/0.52/0.45 -> 0.38/0.40/0.36/0.35/0.34, horse 0.90/0.90/0.90/0.73/0.67 ->
+   * 0.51/0.65/0.52/0.30/0.27; no fold before or after; one-frame jump on precog_Seq3_2 dog0
+   * 14.7 -> 8.9 %, horse 17.4 -> 10.1 %, the other rows within 0.7 % (the horse's cmu_131_01
+   * 2.8 -> 2.7 % with clamp_swing's fade at the antipode, 3.6 % without). 10 and 30 degrees
+   * (swing_limit's): dog0 0.42/0.45/0.40/0.35/0.36, horse 0.62/0.71/0.62/0.41/0.35. Moving the
+   * forearm and shin bands (0.4-0.7, 0.5-0.8, 0.2-0.6) or the chest band's end (0.75, 0.9)
+   * changed the stretch by 0.04 at most. */
+  if (!p->upright)
+    fputs("\"upper_limb_limit\":5,", f);
+  else if (p->stubby)
+    fputs("\"upper_limb_limit\":15,", f);
   /* No elbow or knee bends much past 150 degrees; a tracker's that does has lost the forearm
    * or shin in front of the body (precog_Seq1_1: the left elbow "bent" 163-175 degrees for
    * frames on end, the wrist on the shoulder), and the character's forearm folded into its
    * upper arm. bench motion B, character, Kinect takes: folded triangles 125/137/349 ->
    * 81/127/329; the CMU takes, clean optical capture, never reach the limit (unchanged). */
-  fputs("\"bend_limit\":150,", f);
+  fputs(p->upright ? "\"bend_limit\":150," : "\"bend_limit\":20,", f);
   fputs("\"filter\":{\"smoothing\":0.5,\"trend\":0.5}}\n", f);
 }
 
