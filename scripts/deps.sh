@@ -18,7 +18,7 @@ PKGS=(build-essential cmake pkg-config
 if [ "${1:-}" = --test ]; then PKGS+=("${TEST_PKGS[@]}"); fi
 missing=()
 for p in "${PKGS[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  [[ "$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null)" == *"install ok installed"* ]] || missing+=("$p")
 done
 # Debian's nodejs/npm are skipped when another node installation is already on PATH.
 if command -v node >/dev/null 2>&1 && command -v npm >/dev/null 2>&1; then

@@ -47,7 +47,9 @@ check() {
     break
   done
   echo "$out" | grep -E '^(ok|FAIL|note|/)' || true
-  if [ $brc -ne 0 ] || ! echo "$out" | grep -q '^ok:'; then
+  # a here-string, not `echo | grep -q`: under pipefail that fails when grep exits at its first
+  # match before echo has written all of Blender's output (SIGPIPE)
+  if [ $brc -ne 0 ] || ! grep -q '^ok:' <<<"$out"; then
     [ $brc -eq 1 ] || { echo "$out" | tail -20; echo "Blender's exit status: $brc"; }
     rc=1
   fi

@@ -18,7 +18,10 @@ fresh() { # a clean copy of the tree in $WORK/tree
   cp -r "$SRC/src" "$SRC/include" "$SRC/scripts" "$WORK/tree/"
 }
 
-# expect_fail NAME FILE [check_layers args...]: exit 1 and FILE named in a violation line
+# expect_fail NAME FILE [check_layers args...]: exit 1 and FILE named in a violation line.
+# grep reads a here-string, not a pipe: under pipefail, `printf ... | grep -q` fails whenever
+# grep exits at its match before printf has written everything (SIGPIPE; a CI run under load
+# reported "no violation names libplanted.a" beside the very line naming it).
 expect_fail() {
   local name=$1 file=$2
   shift 2
@@ -28,7 +31,7 @@ expect_fail() {
   if [ $rc -ne 1 ]; then
     bad "$name: check_layers exited $rc, expected 1"
     printf '%s\n' "$out" | head -5
-  elif ! printf '%s\n' "$out" | grep -q "^layers: .*$file"; then
+  elif ! grep -q "^layers: .*$file" <<<"$out"; then
     bad "$name: no violation names $file"
     printf '%s\n' "$out" | head -5
   else
@@ -63,7 +66,7 @@ fresh
 echo '#include "mesh/mesh_args.h"' >>"$f"
 expect_fail "recon includes the private mesh/mesh_args.h" "src/recon/$(basename "$f")"
 out=$(bash "$WORK/tree/scripts/check_layers.sh" --root "$WORK/tree" 2>&1)
-if ! printf '%s\n' "$out" | grep -q "private header of module mesh"; then
+if ! grep -q "private header of module mesh" <<<"$out"; then
   bad "recon includes mesh/mesh_args.h: not reported as a private header"
 fi
 
