@@ -855,17 +855,6 @@ static double limb_limit(const km_retarget *r, int32_t b) {
   return lim;
 }
 
-/* The shortest rotation taking the reference direction of a -> b to this frame's (in the
- * root's heading frame under rigid root motion); false when a joint is not valid.
- * aim (the character's rest direction of the segment) with Rp (the rotation of the bone the
- * segment hangs from): R = (Rp aim -> current direction) Rp, the parent's rotation and then the
- * shortest swing onto the performer's direction, so the segment turns about its joint without
- * twisting against its parent (the forward kinematics of km_skeleton_pose_from_positions).
- * Composing two shortest arcs instead, (reference -> current)(aim -> reference), gives each
- * limb bone a twist of its own that depends on the path through the first frame's direction:
- * an upper arm and forearm twisted apart wring the elbow between their handles (bench motion,
- * character on cmu_131_01: the elbows stretched 0.9 from the first frame on). aim without Rp:
- * that composition (a segment with no parent rotation). */
 /* The swing limit: unit d is brought back towards unit w along the great circle to at most lim
  * radians from it (nothing changes within the limit; lim <= 0: none). For a limit of at most
  * 90 degrees, where d points more than 135 degrees away from w, the swing allowed falls
@@ -878,21 +867,29 @@ static double limb_limit(const km_retarget *r, int32_t b) {
 static void clamp_swing(const double w[3], double lim, double d[3]) {
   double c = fmax(-1, fmin(1, km__dot3(w, d))), th = acos(c), sn = sin(th);
   if (!(lim > 0 && th > lim)) return;
-  double th1 = 0.75 * M_PI, s = lim;
-  if (lim <= 0.5 * M_PI && th > th1)
-    s = lim * (M_PI - th) / (M_PI - th1);
-  else if (!(sn > 1e-6))
-    return;           /* opposite, no fade: no great circle to clamp along */
-  if (!(sn > 1e-6)) { /* d opposite w: the swing has faded to none */
-    memcpy(d, w, 3 * sizeof(double));
+  bool fade = lim <= 0.5 * M_PI && th > 0.75 * M_PI;
+  if (!(sn > 1e-6)) { /* d opposite w: no great circle to clamp along; a fade allows none */
+    if (fade) memcpy(d, w, 3 * sizeof(double));
     return;
   }
+  double s = fade ? lim * (M_PI - th) / (0.25 * M_PI) : lim;
   double a0 = sin(th - s) / sn, a1 = sin(s) / sn;
   for (int i = 0; i < 3; ++i)
     d[i] = a0 * w[i] + a1 * d[i];
   km__normalize3(d);
 }
 
+/* The shortest rotation taking the reference direction of a -> b to this frame's (in the
+ * root's heading frame under rigid root motion); false when a joint is not valid.
+ * aim (the character's rest direction of the segment) with Rp (the rotation of the bone the
+ * segment hangs from): R = (Rp aim -> current direction) Rp, the parent's rotation and then the
+ * shortest swing onto the performer's direction, so the segment turns about its joint without
+ * twisting against its parent (the forward kinematics of km_skeleton_pose_from_positions).
+ * Composing two shortest arcs instead, (reference -> current)(aim -> reference), gives each
+ * limb bone a twist of its own that depends on the path through the first frame's direction:
+ * an upper arm and forearm twisted apart wring the elbow between their handles (bench motion,
+ * character on cmu_131_01: the elbows stretched 0.9 from the first frame on). aim without Rp:
+ * that composition (a segment with no parent rotation). */
 static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, int32_t b,
                              const double *aim, const double *Rp, double R[9]) {
   double d[3], d0[3];
@@ -1076,18 +1073,17 @@ static void lift_root(km_retarget *r) {
  * the ankle) loses its tilt,
  * keeping its turn about y (the twist about y of R's swing-twist decomposition), in full while
  * the posed ankle is at or below its rest height (with the rigid root's translation), fading
- * out as the
- * ankle rises by its own rest height above the floor. A performer's foot, measured from a
- * tracker's ankle and toe joints, tilts 10-30 degrees when it is flat on the floor (a
- * shoe's sole, a toe joint at the ball of the foot), and the character's foot turned with it:
- * the rim of a round foot dipped under the floor. bench motion B, frames with a vertex below the
- * rest floor, CMU takes: elephant 760 / 1026 -> 95 / 0 (of 994 / 1102), character 360 / 664 ->
- * 66 / 39, armadillo 528 / 687 -> 268 / 134; a flat foot whose ankle is lower than at rest is
- * under the floor whole (the armadillo's Kinect takes 72 / 24 / 8 -> 137 / 43 / 89), which
- * lift_root answers. The turn about y was first taken from the foot's direction (ankle -> foot)
- * seen from above, which spins where the posed foot points nearly straight down: the elephant's
- * stubby foot (41 degrees from vertical at rest) under "swing_limit" 30 flipped its heading in
- * one frame, a one-frame jump of 11.4 % of the diagonal on cmu_131_01 (1.7 % with the twist). */
+ * out as the ankle rises by its own rest height above the floor. A performer's foot, measured from
+ * a tracker's ankle and toe joints, tilts 10-30 degrees when it is flat on the floor (a shoe's
+ * sole, a toe joint at the ball of the foot), and the character's foot turned with it: the rim of a
+ * round foot dipped under the floor. bench motion B, frames with a vertex below the rest floor, CMU
+ * takes: elephant 760 / 1026 -> 95 / 0 (of 994 / 1102), character 360 / 664 -> 66 / 39, armadillo
+ * 528 / 687 -> 268 / 134; a flat foot whose ankle is lower than at rest is under the floor whole
+ * (the armadillo's Kinect takes 72 / 24 / 8 -> 137 / 43 / 89), which lift_root answers. The turn
+ * about y was first taken from the foot's direction (ankle -> foot) seen from above, which spins
+ * where the posed foot points nearly straight down: the elephant's stubby foot (41 degrees from
+ * vertical at rest) under "swing_limit" 30 flipped its heading in one frame, a one-frame jump
+ * of 11.4 % of the diagonal on cmu_131_01 (1.7 % with the twist). */
 static void flatten_foot(const km_retarget *r, int32_t ankle, int32_t foot, double R[9]) {
   /* an upright body's feet only: a horse's hoof held flat while its cannon swung bent the
    * fetlock (bench motion B on cmu_131_01: stretch max 0.73 -> 0.98, 64 folded triangles) */
