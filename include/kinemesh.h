@@ -464,7 +464,8 @@ typedef struct km_frame_guess {
   km_frame frame; /* the guessed up and forward (scale 0: units are not guessed) */
   double height;  /* extent along the guessed up axis, in file units */
   bool standing;  /* taller than long along forward (a standing figure) */
-  bool sure_up;   /* up stood out: the ground plane, or a support 1.5x the next best */
+  bool sure_up;   /* up stood out: the ground plane, or a support 1.5x the next best; never
+                   * for a body lower than long and as wide as long (lying or sprawled) */
   bool sure_forward;
   char why[112]; /* the evidence in one short line, for printing: which rule chose up and
                   * forward, e.g. "up: ground contact 1.35 vs 0.26; forward: mirror plane,

@@ -6,7 +6,8 @@
  * stored (rotated about the origin, so a model standing on the ground plane stays on it) and
  * centred (only the shape tells). Prints the tables (up right, up and forward right, of 24,
  * per mesh) and asserts counts that can fail. Known wrong: npt_13 (a man leaning back, one
- * leg kicked up: his back is the widest support), and centred, the elephant (top-heavy: its
+ * leg kicked up: his back is the widest support; guessed unsure, since a body lying so is as
+ * wide as long), and centred, the elephant (top-heavy: its
  * head and ears outspan its two feet), cat-04 (lying on its side) and cat-07 (curled up).
  *   test_orientation_sweep [-v]   (-v: every wrong guess with its evidence) */
 #include "km_test.h"
@@ -170,14 +171,15 @@ int main(int argc, char **argv) {
   if (found == (int)N_CASES) {
     CHECK_MSG(up >= 570, "as stored: up right in %d of %d", up, n);
     CHECK_MSG(both >= 545, "as stored: up and forward right in %d of %d", both, both_n);
-    /* weak evidence says so: only npt_13 is wrong and sure */
-    CHECK_MSG(sure_wrong <= 30, "as stored: %d wrong guesses said sure", sure_wrong);
+    /* no wrong guess is called sure (npt_13, lying on his back as guessed, is as wide as
+     * long: not a four-legged stance, so its up is unsure) */
+    CHECK_MSG(sure_wrong == 0, "as stored: %d wrong guesses said sure", sure_wrong);
   }
   found = sweep_all(true, verbose, &up, &both, &n, &both_n, &sure_wrong);
   if (found == (int)N_CASES) {
     CHECK_MSG(up >= 495, "centred: up right in %d of %d", up, n);
     CHECK_MSG(both >= 495, "centred: up and forward right in %d of %d", both, both_n);
-    CHECK_MSG(sure_wrong <= 30, "centred: %d wrong guesses said sure", sure_wrong);
+    CHECK_MSG(sure_wrong == 0, "centred: %d wrong guesses said sure", sure_wrong);
   }
   return km_test_finish("test_orientation_sweep");
 }

@@ -388,7 +388,7 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
   for (int d = 0; d < 6; ++d)
     support_max = fmax(support_max, support[d]);
   int up_sign = 1;
-  char up_why[48];
+  char up_why[64];
   if (given_up != KM_AXIS_NONE) {
     up = (given_up - KM_AXIS_POS_X) / 2;
     up_sign = (given_up - KM_AXIS_POS_X) % 2 ? -1 : 1;
@@ -446,6 +446,17 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
   }
   /* Upright (a human): taller than deep; else an animal on four legs. */
   out->standing = ext[up] >= ext[fwd];
+  /* An animal on four legs is longer than wide (the cats, dogs and horses of ../shared/data:
+   * width 0.2-0.8 of length). A body lower than long and about as wide as long is more
+   * likely a figure lying down or sprawled (npt_13_643, a man leaning far back with a leg
+   * kicked up, rests on his back) or curled up: whatever up the support chose, it is a
+   * guess a person should check, so it is not called sure. */
+  bool sprawled = !out->standing && ext[3 - up - fwd] >= 0.85 * ext[fwd];
+  if (given_up == KM_AXIS_NONE && sprawled && out->sure_up) {
+    out->sure_up = false;
+    size_t l = strlen(up_why);
+    snprintf(up_why + l, sizeof up_why - l, ", as wide as long");
+  }
   /* Forward's sign, measured with up pointing up: coordinates along up are negated when up
    * is negative, so fractions count from the bottom. */
   double h = ext[up], base = up_sign > 0 ? mn[up] : -mx[up];
