@@ -1148,6 +1148,12 @@ typedef struct km_rig {
                         front of the body), and 20 for one that is not (a quadruped's foreleg
                         below its trunk; with upper_limb_limit 5 a paw reaches 25 degrees plus
                         its own bone's swing) */
+  double max_turn;   /* "max_turn": degrees per second, under rigid root motion: the fastest the
+                        whole mesh turns about the vertical (its heading) while following the
+                        performer's (0: 600, a dancer's fast spin). kinemesh rig writes 360 for a
+                        body that is not upright: an animal turns its long body about one turn a
+                        second at most (a reining horse's spin), and one turned at a performer's
+                        spin swept its head round at the far end of its length */
 } km_rig;
 
 /* Parses a rig file and resolves its handles on a mesh.

@@ -498,6 +498,18 @@ static void test_max_step(void) {
       CHECK(got[o] == (o == k ? 60 : 0));
     km_rig_free(&rig);
   }
+  /* "max_turn": degrees per second in [0, 1e5] */
+  const char *bad_t[] = {"-1", "1e6", "true", "\"360\""};
+  for (int i = 0; i < 4; ++i) {
+    char js[160];
+    snprintf(js, sizeof js, "{\"max_turn\":%s,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}",
+             bad_t[i]);
+    CHECK_STATUS(parse(js, &m, &rig), KM_ERR_PARSE);
+    CHECK(strstr(km_test_err.message, "max_turn") != NULL);
+  }
+  CHECK_OK(parse("{\"max_turn\":360,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}", &m, &rig));
+  CHECK(rig.max_turn == 360);
+  km_rig_free(&rig);
   free_mesh(&m);
 }
 

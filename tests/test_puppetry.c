@@ -580,9 +580,11 @@ static void test_root_rigid(const fixture *fx) {
  * of the hips and shoulders and a 180 degree left/right swap of them (3 frames) leave the mesh
  * where it was (within 1% of the diagonal; following them at 20 degrees a frame moved it by
  * a tenth), while a real turn of 90 degrees over a second is followed. */
-static void test_root_heading_glitch(const fixture *fx) {
-  /* translation-only handles at head, hands and feet, relative to the hips (the paper's):
-   * what turns the mesh is the heading alone; the other handles anchors */
+/* A puppetry of fx's character whose mesh is turned by the heading alone: translation-only
+ * handles at head, hands and feet, relative to the hips (the paper's), the other handles
+ * anchors, rigid root motion with the hips as heading, the joints unfiltered (the heading sees
+ * every push); max_turn: the rig's "max_turn" (0: default). NULL on failure (checked). */
+static km_puppetry *heading_puppetry(const fixture *fx, double max_turn) {
   km_rig rig = fx->rig;
   rig.maps = malloc(rig.n_maps * sizeof *rig.maps);
   rig.n_maps = 0;
@@ -600,12 +602,47 @@ static void test_root_heading_glitch(const fixture *fx) {
   rig.root = 1;
   rig.heading[0] = 1 + km_kinect1_joint_index("HipLeft");
   rig.heading[1] = 1 + km_kinect1_joint_index("HipRight");
+  rig.max_turn = max_turn;
   km_filter_options raw = {.smoothing = KM_FILTER_ZERO, .trend = KM_FILTER_ZERO};
-  km_puppetry_options o = {0}; /* the joints unfiltered: the heading sees the glitches */
+  km_puppetry_options o = {0};
   o.filter = &raw;
   km_puppetry *p = NULL;
   CHECK_OK(km_puppetry_create(&fx->c.mesh, &rig, NULL, KM_KINECT1_JOINTS, &o, &p, NULL, KM_E));
   free(rig.maps);
+  return p;
+}
+
+/* The turn about y (degrees) taking the mesh V0 to V, #V = nv vertices (a 2D fit about the
+ * centroids), of the vertices with mask[v] (NULL: all). */
+static double mesh_turn(const double *V0, const double *V, size_t nv, const bool *mask) {
+  double m0[2] = {0, 0}, m1[2] = {0, 0}, sc = 0, cc = 0, n = 0;
+  for (size_t v = 0; v < nv; ++v)
+    if (!mask || mask[v])
+      m0[0] += V0[3 * v], m0[1] += V0[3 * v + 2], m1[0] += V[3 * v], m1[1] += V[3 * v + 2], ++n;
+  for (int k = 0; k < 2; ++k)
+    m0[k] /= n, m1[k] /= n;
+  for (size_t v = 0; v < nv; ++v) {
+    if (mask && !mask[v]) continue;
+    double x0 = V0[3 * v] - m0[0], z0 = V0[3 * v + 2] - m0[1];
+    double x1 = V[3 * v] - m1[0], z1 = V[3 * v + 2] - m1[1];
+    sc += x1 * z0 - z1 * x0, cc += x1 * x0 + z1 * z0;
+  }
+  return atan2(sc, cc) * 180 / M_PI;
+}
+
+/* J: the rest joints J0 turned by a radians about the vertical through the root. */
+static void turn_joints(const double *J0, double a, double *J) {
+  double c = cos(a), sn = sin(a);
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
+    double w[3] = {J0[3 * j] - J0[0], J0[3 * j + 1] - J0[1], J0[3 * j + 2] - J0[2]};
+    J[3 * j] = J0[0] + c * w[0] + sn * w[2];
+    J[3 * j + 1] = J0[3 * j + 1];
+    J[3 * j + 2] = J0[2] - sn * w[0] + c * w[2];
+  }
+}
+
+static void test_root_heading_glitch(const fixture *fx) {
+  km_puppetry *p = heading_puppetry(fx, 0);
   if (!p) return;
   size_t nv = fx->c.mesh.n_vertices;
   double diag = km_bbox_diagonal(fx->c.mesh.V, nv);
@@ -641,29 +678,65 @@ static void test_root_heading_glitch(const fixture *fx) {
             100 * worst / diag);
   /* a real turn: 90 degrees over 30 frames, then held: the heading arrives */
   for (int f = 1; f <= 90; ++f) {
-    double a = 0.5 * M_PI * fmin(1.0, f / 30.0), c = cos(a), sn = sin(a);
-    for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
-      double w[3] = {J0[3 * j] - J0[0], J0[3 * j + 1] - J0[1], J0[3 * j + 2] - J0[2]};
-      J[3 * j] = J0[0] + c * w[0] + sn * w[2];
-      J[3 * j + 1] = J0[3 * j + 1];
-      J[3 * j + 2] = J0[2] - sn * w[0] + c * w[2];
-    }
+    turn_joints(J0, 0.5 * M_PI * fmin(1.0, f / 30.0), J);
     CHECK_OK(km_puppetry_push(p, J, V, KM_E));
   }
-  double m0[2] = {0, 0}, m1[2] = {0, 0}, sc = 0, cc = 0; /* the mesh's turn about y (2D fit) */
-  for (size_t v = 0; v < nv; ++v)
-    m0[0] += V0[3 * v] / nv, m0[1] += V0[3 * v + 2] / nv, m1[0] += V[3 * v] / nv,
-        m1[1] += V[3 * v + 2] / nv;
-  for (size_t v = 0; v < nv; ++v) {
-    double x0 = V0[3 * v] - m0[0], z0 = V0[3 * v + 2] - m0[1];
-    double x1 = V[3 * v] - m1[0], z1 = V[3 * v + 2] - m1[1];
-    sc += x1 * z0 - z1 * x0, cc += x1 * x0 + z1 * z0;
-  }
-  double turned = atan2(sc, cc) * 180 / M_PI;
+  double turned = mesh_turn(V0, V, nv, NULL);
   CHECK_MSG(fabs(turned - 90) < 3, "a real 90 degree turn shown as %.1f degrees", turned);
   free(V);
   free(V0);
   km_puppetry_free(&p);
+}
+
+/* The rig's "max_turn" (deg/s): a performer's spin of 540 deg/s (18 degrees a frame at 30 fps,
+ * below the heading's glitch rate) turns the torso (the vertices skinned mostly to the spine;
+ * the handles at hands, head and feet lead it while the heading lags) at most max_turn / fps
+ * a frame, and the turn arrives in full once the performer stops; without it (600 deg/s) the
+ * spin is followed at its own pace. */
+static void test_root_max_turn(const fixture *fx) {
+  static const double limits[2] = {0, 180};
+  size_t nv = fx->c.mesh.n_vertices;
+  bool *torso = calloc(nv, sizeof(bool));
+  for (size_t v = 0; v < nv; ++v) {
+    const double *w = fx->c.skin.weights + KM_SKIN_INFLUENCES * v;
+    int best = 0;
+    for (int i = 1; i < KM_SKIN_INFLUENCES; ++i)
+      if (w[i] > w[best]) best = i;
+    int32_t j = fx->c.skin.joints[KM_SKIN_INFLUENCES * v + best];
+    torso[v] = j == km_kinect1_joint_index("Spine") || j == km_kinect1_joint_index("HipCenter");
+  }
+  for (int k = 0; k < 2; ++k) {
+    km_puppetry *p = heading_puppetry(fx, limits[k]);
+    if (!p) break;
+    double *V = malloc(sizeof(double) * 3 * nv), *V0 = malloc(sizeof(double) * 3 * nv);
+    double J[3 * KM_KINECT1_JOINTS], prev = 0, step_max = 0, at_stop = 0;
+    const double *J0 = fx->c.skeleton.rest;
+    for (int f = 0; f < 10; ++f)
+      CHECK_OK(km_puppetry_push(p, J0, V0, KM_E));
+    for (int f = 1; f <= 60; ++f) { /* 90 degrees in 5 frames, then held */
+      turn_joints(J0, 0.5 * M_PI * fmin(1.0, f / 5.0), J);
+      CHECK_OK(km_puppetry_push(p, J, V, KM_E));
+      double t = mesh_turn(V0, V, nv, torso);
+      step_max = fmax(step_max, fabs(t - prev));
+      prev = t;
+      if (f == 5) at_stop = t;
+    }
+    if (limits[k] > 0) {
+      CHECK_MSG(step_max <= limits[k] / 30 + 0.5, "max_turn %g: %.1f degrees in a frame", limits[k],
+                step_max);
+      CHECK_MSG(at_stop <= 5 * limits[k] / 30 + 0.5, "max_turn %g: %.1f degrees after 5 frames",
+                limits[k], at_stop);
+    } else {
+      CHECK_MSG(step_max > 12, "default: the spin followed at %.1f degrees a frame at most",
+                step_max);
+    }
+    CHECK_MSG(fabs(prev - 90) < 3, "max_turn %g: a 90 degree turn shown as %.1f degrees", limits[k],
+              prev);
+    free(V);
+    free(V0);
+    km_puppetry_free(&p);
+  }
+  free(torso);
 }
 
 int main(void) {
@@ -682,6 +755,7 @@ int main(void) {
     test_spike_rejected(&fx);
     test_root_rigid(&fx);
     test_root_heading_glitch(&fx);
+    test_root_max_turn(&fx);
   }
   fixture_free(&fx);
   char cmd[128];

@@ -156,7 +156,7 @@ write:
            rig.handles[h].n_vertices);
   printf("\n");
   /* the limits the puppetry applies, so the user knows what to edit for a wider range */
-  if (rig.bend_limit > 0 || rig.swing_limit > 0 || rig.upper_limb_limit > 0) {
+  if (rig.bend_limit > 0 || rig.swing_limit > 0 || rig.upper_limb_limit > 0 || rig.max_turn > 0) {
     printf("limits:");
     const char *sep = "";
     if (rig.bend_limit > 0) {
@@ -169,9 +169,13 @@ write:
              sep, rig.swing_limit);
       sep = ";";
     }
-    if (rig.upper_limb_limit > 0)
+    if (rig.upper_limb_limit > 0) {
       printf("%s upper arms and thighs at most %g deg (\"upper_limb_limit\")", sep,
              rig.upper_limb_limit);
+      sep = ";";
+    }
+    if (rig.max_turn > 0)
+      printf("%s the whole body turns at most %g deg/s (\"max_turn\")", sep, rig.max_turn);
     printf("\n");
   }
   km_rig_free(&rig);

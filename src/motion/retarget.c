@@ -13,6 +13,9 @@
 #define KM_BONE_CATCHUP 1.0
 #define KM_BONE_LEN_TOL 0.8
 #define KM_BONE_MAX_TURN 1200.0
+/* The fastest heading turn shown under rigid root motion, deg/s, when the rig sets no
+ * "max_turn" (heading_push). */
+#define KM_HEADING_MAX_TURN 600.0
 
 struct km_retarget {
   size_t n_handles, n_joints, n_maps, n_hv;
@@ -46,6 +49,8 @@ struct km_retarget {
   int h_rejected;      /* measurements rejected in a row (swaps, glitches) */
   bool h_refit;        /* the heading shown is catching up with a measurement taken after
                           rejections (a re-fit): at most KM_HEADING_REFIT_TURN */
+  double h_max_turn;   /* rad/s: the fastest turn shown (rig "max_turn", else
+                          KM_HEADING_MAX_TURN) */
   double fps;          /* pushes per second */
   /* rotating handles */
   int32_t *rot_joint, *rot_parent; /* n_handles; -1: translation only; NULL: none rotates */
@@ -305,6 +310,7 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
     }
     r->rigid = true;
     r->root = rig->root - 1;
+    r->h_max_turn = (rig->max_turn > 0 ? rig->max_turn : KM_HEADING_MAX_TURN) * M_PI / 180;
     r->hl = rig->heading[0] && rig->heading[1] ? rig->heading[0] - 1 : -1;
     r->hr = rig->heading[0] && rig->heading[1] ? rig->heading[1] - 1 : -1;
     for (int d = 0; d < 3; ++d)
@@ -536,7 +542,9 @@ static void ease(km_retarget *r) {
  *   - the accepted ones go through a One Euro filter on the angle (min cutoff 1 Hz, beta
  *     1 Hz per rad/s: hip noise is damped, a fast turn is followed), and the heading shown
  *     follows the filter's value at most KM_HEADING_MAX_TURN degrees per second (a spin; the
- *     demo's kung-fu spin needs about that);
+ *     demo's kung-fu spin needs about that), or the rig's "max_turn" (kinemesh rig writes 360
+ *     for a body that is not upright: a quadruped turning at a performer's 440 deg/s spin in
+ *     cmu_131_03 swept the horse's head 3.4 % of the diagonal in a frame at 120 fps);
  *   - a measurement taken after rejections (a re-fit that stayed, a swap held a second) is
  *     shown at most KM_HEADING_REFIT_TURN degrees per second until the heading shown has
  *     caught up with the filter (within a degree): the tracker re-fitting the skeleton is not
@@ -546,7 +554,6 @@ static void ease(km_retarget *r) {
  *     the CMU takes 440, so 900 deg/s leaves the spin a third of margin.
  * phi: the measured heading change since the reference frame, radians. */
 #define KM_HEADING_MAX_RATE 900.0   /* deg/s: a faster measured change is a glitch */
-#define KM_HEADING_MAX_TURN 600.0   /* deg/s: the fastest turn shown */
 #define KM_HEADING_REFIT_TURN 300.0 /* deg/s: the fastest turn shown onto a re-fit */
 static void heading_push(km_retarget *r, double phi) {
   if (!r->have_heading) {
@@ -572,7 +579,7 @@ static void heading_push(km_retarget *r, double phi) {
     double fc = 1.0 + 1.0 * r->h_speed;
     r->h_filt += km__one_euro_alpha(fc, te) * (r->h_meas - r->h_filt);
   }
-  double step = r->h_filt - r->h_phi, cap = KM_HEADING_MAX_TURN * deg / r->fps;
+  double step = r->h_filt - r->h_phi, cap = r->h_max_turn / r->fps;
   if (r->h_refit) cap = fmin(cap, KM_HEADING_REFIT_TURN * deg / r->fps);
   r->h_phi += fabs(step) > cap ? copysign(cap, step) : step;
   if (fabs(r->h_filt - r->h_phi) < 1 * deg) r->h_refit = false;
@@ -1084,13 +1091,12 @@ static void lift_root(km_retarget *r) {
  * where the posed foot points nearly straight down: the elephant's stubby foot (41 degrees from
  * vertical at rest) under "swing_limit" 30 flipped its heading in one frame, a one-frame jump
  * of 11.4 % of the diagonal on cmu_131_01 (1.7 % with the twist). */
-static void flatten_foot(const km_retarget *r, int32_t ankle, int32_t foot, double R[9]) {
+static void flatten_foot(const km_retarget *r, int32_t ankle, double R[9]) {
   /* an upright body's feet only: a horse's hoof held flat while its cannon swung bent the
    * fetlock (bench motion B on cmu_131_01: stretch max 0.73 -> 0.98, 64 folded triangles) */
   if (!r->upright) return;
-  const double *A0 = r->jrest + 3 * (size_t)ankle, *F0 = r->jrest + 3 * (size_t)foot;
-  const double *A = r->C + 3 * (size_t)ankle;
-  if (!valid3(A0) || !valid3(F0) || !valid3(A)) return;
+  const double *A0 = r->jrest + 3 * (size_t)ankle, *A = r->C + 3 * (size_t)ankle;
+  if (!valid3(A0) || !valid3(A)) return;
   double ha = A0[1] - r->floor_y; /* the ankle's rest height above the floor */
   if (!(ha > 0) || !(ha < 0.15 * r->mesh_height)) return;
   double rise = A[1] + (r->rigid ? r->t[1] : 0) - A0[1];
@@ -1187,7 +1193,7 @@ static void update_bones(km_retarget *r, const double *J) {
       segment_rotation(r, J, a, b, ap, r->Rb + 9 * (size_t)a, R);
       twist(r, J, b, a, b, R);
     }
-    if (r->kinect1 && r->aim && (b == 15 || b == 19) && pv != a) flatten_foot(r, pv, b, R);
+    if (r->kinect1 && r->aim && (b == 15 || b == 19) && pv != a) flatten_foot(r, pv, R);
     double rel[3] = {0, 0, 0};
     if (r->bone_rel[h] > 0) {
       const double *q = J + 3 * (size_t)(r->bone_rel[h] - 1),

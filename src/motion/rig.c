@@ -623,6 +623,15 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
       (st = parse_degrees(name, root, "upper_limb_limit", &out->upper_limb_limit, err)) != KM_OK ||
       (st = parse_degrees(name, root, "bend_limit", &out->bend_limit, err)) != KM_OK)
     goto done;
+  const cJSON *jmt = cJSON_GetObjectItemCaseSensitive(root, "max_turn");
+  if (jmt && !(cJSON_IsNumber(jmt) && jmt->valuedouble >= 0 && jmt->valuedouble <= 1e5)) {
+    st = km__fail(err, KM_ERR_PARSE,
+                  "%s: \"max_turn\" must be a number of degrees per second in [0, 100000] "
+                  "(0: the default, 600)",
+                  name);
+    goto done;
+  }
+  out->max_turn = jmt ? jmt->valuedouble : 0;
   if ((st = parse_joints(name, cJSON_GetObjectItemCaseSensitive(root, "joints"), joint_names,
                          n_joint_names, out, err)) != KM_OK)
     goto done;
