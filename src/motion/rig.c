@@ -178,14 +178,22 @@ static km_status parse_joints(const char *name, const cJSON *jj, const char *con
 }
 
 /* An optional number of degrees in [0, 180] (0 when absent). */
-static km_status parse_degrees(const char *name, const cJSON *root, const char *key, double *out,
-                               km_error *err) {
+/* The optional number root[key] in [lo, hi] ([lo, hi) with hi_open) into *out (absent: 0);
+ * else KM_ERR_PARSE saying it must be `expected`. */
+static km_status parse_number(const char *name, const cJSON *root, const char *key, double lo,
+                              double hi, bool hi_open, const char *expected, double *out,
+                              km_error *err) {
   const cJSON *j = cJSON_GetObjectItemCaseSensitive(root, key);
-  if (j && !(cJSON_IsNumber(j) && j->valuedouble >= 0 && j->valuedouble <= 180))
-    return km__fail(err, KM_ERR_PARSE, "%s: \"%s\" must be a number of degrees in [0, 180]", name,
-                    key);
+  if (j && !(cJSON_IsNumber(j) && j->valuedouble >= lo &&
+             (hi_open ? j->valuedouble < hi : j->valuedouble <= hi)))
+    return km__fail(err, KM_ERR_PARSE, "%s: \"%s\" must be %s", name, key, expected);
   *out = j ? j->valuedouble : 0;
   return KM_OK;
+}
+
+static km_status parse_degrees(const char *name, const cJSON *root, const char *key, double *out,
+                               km_error *err) {
+  return parse_number(name, root, key, 0, 180, false, "a number of degrees in [0, 180]", out, err);
 }
 
 km_status km_rig_parse(const char *json, size_t size, const char *name, const km_mesh *mesh,
@@ -604,15 +612,10 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     st = km__fail(err, KM_ERR_PARSE, "%s: \"floor\" must be true or false", name);
     goto done;
   }
-  const cJSON *jms = cJSON_GetObjectItemCaseSensitive(root, "max_step");
-  if (jms && (!cJSON_IsNumber(jms) || !(jms->valuedouble >= 0) || !(jms->valuedouble < 1))) {
-    st = km__fail(err, KM_ERR_PARSE,
-                  "%s: \"max_step\" must be a number in [0, 1) (a fraction of the mesh "
-                  "diagonal per frame)",
-                  name);
+  if ((st = parse_number(name, root, "max_step", 0, 1, true,
+                         "a number in [0, 1) (a fraction of the mesh diagonal per frame)",
+                         &out->max_step, err)) != KM_OK)
     goto done;
-  }
-  out->max_step = jms ? jms->valuedouble : 0;
   const cJSON *jaim = cJSON_GetObjectItemCaseSensitive(root, "aim");
   if (jaim && !cJSON_IsBool(jaim)) {
     st = km__fail(err, KM_ERR_PARSE, "%s: \"aim\" must be true or false", name);
@@ -623,15 +626,10 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
       (st = parse_degrees(name, root, "upper_limb_limit", &out->upper_limb_limit, err)) != KM_OK ||
       (st = parse_degrees(name, root, "bend_limit", &out->bend_limit, err)) != KM_OK)
     goto done;
-  const cJSON *jmt = cJSON_GetObjectItemCaseSensitive(root, "max_turn");
-  if (jmt && !(cJSON_IsNumber(jmt) && jmt->valuedouble >= 0 && jmt->valuedouble <= 1e5)) {
-    st = km__fail(err, KM_ERR_PARSE,
-                  "%s: \"max_turn\" must be a number of degrees per second in [0, 100000] "
-                  "(0: the default, 600)",
-                  name);
+  if ((st = parse_number(name, root, "max_turn", 0, 1e5, false,
+                         "a number of degrees per second in [0, 100000] (0: the default, 600)",
+                         &out->max_turn, err)) != KM_OK)
     goto done;
-  }
-  out->max_turn = jmt ? jmt->valuedouble : 0;
   if ((st = parse_joints(name, cJSON_GetObjectItemCaseSensitive(root, "joints"), joint_names,
                          n_joint_names, out, err)) != KM_OK)
     goto done;
