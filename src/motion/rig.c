@@ -177,7 +177,6 @@ static km_status parse_joints(const char *name, const cJSON *jj, const char *con
   return KM_OK;
 }
 
-/* An optional number of degrees in [0, 180] (0 when absent). */
 /* The optional number root[key] in [lo, hi] ([lo, hi) with hi_open) into *out (absent: 0);
  * else KM_ERR_PARSE saying it must be `expected`. */
 static km_status parse_number(const char *name, const cJSON *root, const char *key, double lo,
@@ -191,6 +190,7 @@ static km_status parse_number(const char *name, const cJSON *root, const char *k
   return KM_OK;
 }
 
+/* An optional number of degrees in [0, 180] (0 when absent). */
 static km_status parse_degrees(const char *name, const cJSON *root, const char *key, double *out,
                                km_error *err) {
   return parse_number(name, root, key, 0, 180, false, "a number of degrees in [0, 180]", out, err);
