@@ -612,22 +612,17 @@ static km_puppetry *heading_puppetry(const fixture *fx, double max_turn) {
   return p;
 }
 
-/* The turn about y (degrees) taking the mesh V0 to V, #V = nv vertices (a 2D fit about the
- * centroids), of the vertices with mask[v] (NULL: all). */
+/* The turn about y (degrees) taking the mesh V0 to V, #V = nv vertices, of the vertices with
+ * mask[v] (NULL: all): the library's rigid fit (km_similarity_fit), read as the angle of its
+ * rotation about y (the meshes only turn about y here). */
 static double mesh_turn(const double *V0, const double *V, size_t nv, const bool *mask) {
-  double m0[2] = {0, 0}, m1[2] = {0, 0}, sc = 0, cc = 0, n = 0;
-  for (size_t v = 0; v < nv; ++v)
-    if (!mask || mask[v])
-      m0[0] += V0[3 * v], m0[1] += V0[3 * v + 2], m1[0] += V[3 * v], m1[1] += V[3 * v + 2], ++n;
-  for (int k = 0; k < 2; ++k)
-    m0[k] /= n, m1[k] /= n;
-  for (size_t v = 0; v < nv; ++v) {
-    if (mask && !mask[v]) continue;
-    double x0 = V0[3 * v] - m0[0], z0 = V0[3 * v + 2] - m0[1];
-    double x1 = V[3 * v] - m1[0], z1 = V[3 * v + 2] - m1[1];
-    sc += x1 * z0 - z1 * x0, cc += x1 * x0 + z1 * z0;
-  }
-  return atan2(sc, cc) * 180 / M_PI;
+  double *w = NULL, R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, t[3];
+  if (mask && (w = malloc(nv * sizeof *w)))
+    for (size_t v = 0; v < nv; ++v)
+      w[v] = mask[v] ? 1 : 0;
+  CHECK_OK(km_similarity_fit(V0, V, w, nv, false, NULL, R, t, KM_E));
+  free(w);
+  return atan2(R[2], R[0]) * 180 / M_PI;
 }
 
 /* J: the rest joints J0 turned by a radians about the vertical through the root. */
