@@ -20,7 +20,9 @@
  *   below     frames with a vertex more than 0.5% of the diagonal below the rest floor
  *   t (ms)    median over frames of the wall time of km_puppetry_push
  *   eased     B only: frames whose handle motion the rig's max_step eased (snap easing)
- * A mesh or take that is missing or cannot be used gives a "skipped" line with the reason. */
+ * A mesh or take that is missing or cannot be used gives a "skipped" line with the reason.
+ * KM_BENCH_WHERE=DIR (for developers): where B's worst stretch, folds and jumps sit, on stderr,
+ * and the rest mesh, its handles and the frames of the worst stretch and most folds in DIR. */
 #include "bench.h"
 #include "cli.h"
 
@@ -245,10 +247,65 @@ static int dcmp(const void *x, const void *y) {
   return a < b ? -1 : a > b;
 }
 
-/* One variant over the take: the metrics. */
+/* KM_BENCH_WHERE=DIR (a developer's aid, like bench reconstruct's KM_BENCH_DUMP): for B, where
+ * the worst stretch and the folds sit (nearest handle at rest), printed on stderr, and the
+ * frames of the worst stretch and of the most folds written as OBJ into DIR to look at. */
+static void where_write(const char *dir, const char *tag, const km_mesh *m, const double *V) {
+  char p[1200];
+  snprintf(p, sizeof p, "%s/%s.obj", dir, tag);
+  FILE *f = fopen(p, "w");
+  if (!f) return;
+  for (size_t v = 0; v < m->n_vertices; ++v)
+    fprintf(f, "v %.6f %.6f %.6f\n", V[3 * v], V[3 * v + 1], V[3 * v + 2]);
+  for (size_t k = 0; k < m->n_faces; ++k)
+    fprintf(f, "f %d %d %d\n", m->F[3 * k] + 1, m->F[3 * k + 1] + 1, m->F[3 * k + 2] + 1);
+  fclose(f);
+}
+
+static int32_t where_handle(const km_mesh *m, const km_rig *rig, const double *x) {
+  double best = INFINITY;
+  int32_t h = -1;
+  for (size_t i = 0; i < rig->n_handles; ++i)
+    for (size_t k = 0; k < rig->handles[i].n_vertices; ++k) {
+      const double *q = m->V + 3 * (size_t)rig->handles[i].vertices[k];
+      double d = (q[0] - x[0]) * (q[0] - x[0]) + (q[1] - x[1]) * (q[1] - x[1]) +
+                 (q[2] - x[2]) * (q[2] - x[2]);
+      if (d < best) best = d, h = (int32_t)i;
+    }
+  return h;
+}
+
+static void where_report(const char *tag, const km_mesh *m, const km_rig *rig, const bm_geom *g,
+                         size_t worst_e, size_t worst_f, double worst, const unsigned char *ever,
+                         const int32_t *first) {
+  const int32_t *e = g->edges + 2 * worst_e;
+  double x[3];
+  for (int k = 0; k < 3; ++k)
+    x[k] = 0.5 * (m->V[3 * (size_t)e[0] + k] + m->V[3 * (size_t)e[1] + k]);
+  int32_t h = where_handle(m, rig, x);
+  fprintf(stderr, "WHERE %s: stretch %.3f frame %zu edge %d-%d near %s\n", tag, worst, worst_f,
+          e[0], e[1], h >= 0 ? rig->handles[h].name : "-");
+  size_t cnt[64] = {0}, fr[64] = {0};
+  for (size_t f = 0; f < m->n_faces; ++f) {
+    if (!ever[f]) continue;
+    const int32_t *t = m->F + 3 * f;
+    for (int k = 0; k < 3; ++k)
+      x[k] =
+          (m->V[3 * (size_t)t[0] + k] + m->V[3 * (size_t)t[1] + k] + m->V[3 * (size_t)t[2] + k]) /
+          3;
+    h = where_handle(m, rig, x);
+    if (h >= 0 && h < 64) cnt[h]++, fr[h] = (size_t)first[f];
+  }
+  fprintf(stderr, "WHERE %s: folds", tag);
+  for (size_t i = 0; i < rig->n_handles && i < 64; ++i)
+    if (cnt[i]) fprintf(stderr, " %s:%zu(f%zu)", rig->handles[i].name, cnt[i], fr[i]);
+  fprintf(stderr, "\n");
+}
+
+/* One variant over the take: the metrics (where: KM_BENCH_WHERE's folder, or NULL). */
 static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *rig,
                              km_puppet *model, const km_take *t, size_t nf, bm_metrics *out,
-                             km_error *err) {
+                             const char *where, km_error *err) {
   km_puppetry_options o = {0};
   o.model = model;
   o.fps = t->fps;
@@ -259,9 +316,11 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   double *N = malloc(3 * (m->n_faces ? m->n_faces : 1) * sizeof *N);
   double *tm = malloc((nf ? nf : 1) * sizeof *tm), *jf = malloc((nf ? nf : 1) * sizeof *jf);
   unsigned char *ever = calloc(m->n_faces ? m->n_faces : 1, 1);
+  int32_t *first = where ? calloc(m->n_faces ? m->n_faces : 1, sizeof *first) : NULL;
+  size_t worst_e = 0, worst_f = 0, most_folds = 0;
   km_status s = KM_OK;
   memset(out, 0, sizeof *out);
-  if (!V || !Vp || !N || !tm || !jf || !ever) {
+  if (!V || !Vp || !N || !tm || !jf || !ever || (where && !first)) {
     s = KM_ERR_NOMEM;
     snprintf(err->message, sizeof err->message, "out of memory");
     goto done;
@@ -274,31 +333,50 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     s = km_puppetry_push(p, t->positions + f * t->n_joints * 3, V, err);
     tm[f] = 1e3 * (km_cli_now() - t0);
     if (s != KM_OK) goto done;
+    bool new_worst = false;
     for (size_t e = 0; e < g->n_edges; ++e) {
       const double *a = V + 3 * (size_t)g->edges[2 * e], *b = V + 3 * (size_t)g->edges[2 * e + 1];
       double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
                       (a[2] - b[2]) * (a[2] - b[2]));
       double r = fabs(l / g->len0[e] - 1);
+      if (where && r > out->stretch) worst_e = e, worst_f = f, new_worst = true;
       if (!(r <= out->stretch)) out->stretch = r; /* NaN propagates */
     }
+    if (new_worst) where_write(where, "stretch", m, V);
     for (size_t k = 0; k < m->n_faces; ++k)
       face_normal(V, m->F + 3 * k, N + 3 * k);
+    size_t nfold_now = 0;
     for (size_t q = 0; q < g->n_pairs; ++q) {
       const double *n1 = N + 3 * (size_t)g->pairs[2 * q], *n2 = N + 3 * (size_t)g->pairs[2 * q + 1];
-      if (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2] < -0.5)
+      if (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2] < -0.5) {
+        if (first && !ever[g->pairs[2 * q]]) first[g->pairs[2 * q]] = (int32_t)f;
+        if (first && !ever[g->pairs[2 * q + 1]]) first[g->pairs[2 * q + 1]] = (int32_t)f;
         ever[g->pairs[2 * q]] = ever[g->pairs[2 * q + 1]] = 1;
+        nfold_now++;
+      }
+    }
+    if (where && nfold_now > most_folds) {
+      most_folds = nfold_now;
+      where_write(where, "folds", m, V);
+      fprintf(stderr, "WHERE folds frame %zu: %zu pairs\n", f, nfold_now);
     }
     double ymin = INFINITY, jump = 0;
+    size_t jv = 0;
     for (size_t v = 0; v < nv; ++v) {
       if (V[3 * v + 1] < ymin) ymin = V[3 * v + 1];
       if (f) {
         double dx = V[3 * v] - Vp[3 * v], dy = V[3 * v + 1] - Vp[3 * v + 1],
                dz = V[3 * v + 2] - Vp[3 * v + 2];
         double d = sqrt(dx * dx + dy * dy + dz * dz);
-        if (!(d <= jump)) jump = d;
+        if (!(d <= jump)) jump = d, jv = v;
       }
     }
     if (f) jf[f - 1] = 100 * jump / g->diag;
+    if (where && f && 100 * jump / g->diag > out->jump_pct) {
+      int32_t h = where_handle(m, rig, m->V + 3 * jv);
+      fprintf(stderr, "WHERE jump frame %zu: %.2f%% vertex %zu near %s\n", f, 100 * jump / g->diag,
+              jv, h >= 0 ? rig->handles[h].name : "-");
+    }
     if (f && jf[f - 1] > 3) out->jump_over3++;
     if (!(100 * jump / g->diag <= out->jump_pct)) out->jump_pct = 100 * jump / g->diag;
     for (size_t e = 0; f && e < rig->n_maps; ++e) {
@@ -317,6 +395,7 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   for (size_t k = 0; k < m->n_faces; ++k)
     out->folded += ever[k];
   out->eased = km_puppetry_eased_frames(p);
+  if (where) where_report("B", m, rig, g, worst_e, worst_f, out->stretch, ever, first);
   qsort(tm, nf, sizeof *tm, dcmp);
   if (nf > 1) {
     qsort(jf, nf - 1, sizeof *jf, dcmp);
@@ -331,6 +410,7 @@ done:
   free(tm);
   free(jf);
   free(ever);
+  free(first);
   return s;
 }
 
@@ -385,6 +465,19 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
   if (!geom_build(&m, &g)) {
     snprintf(err.message, sizeof err.message, "out of memory");
     goto skip_mesh;
+  }
+  if (getenv("KM_BENCH_WHERE")) {
+    where_write(getenv("KM_BENCH_WHERE"), "rest", &m, m.V);
+    char hp[1200];
+    snprintf(hp, sizeof hp, "%s/handles.txt", getenv("KM_BENCH_WHERE"));
+    FILE *hf = fopen(hp, "w");
+    for (size_t i = 0; hf && i < rig.n_handles; ++i) {
+      fprintf(hf, "%s", rig.handles[i].name);
+      for (size_t k = 0; k < rig.handles[i].n_vertices; ++k)
+        fprintf(hf, " %d", rig.handles[i].vertices[k]);
+      fprintf(hf, "\n");
+    }
+    if (hf) fclose(hf);
   }
   if (!a->json)
     printf("# %s: %zu vertices, %s, rigged as %s (%zu handles) in %.2f s, model %.2f s\n", mname,
@@ -451,7 +544,8 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       } else if (a->max_step >= 0) {
         tr.max_step = a->max_step;
       }
-      if (run_variant(&m, &g, &tr, model, &t, nf, &r[v], &te) != KM_OK) {
+      if (run_variant(&m, &g, &tr, model, &t, nf, &r[v], v ? getenv("KM_BENCH_WHERE") : NULL,
+                      &te) != KM_OK) {
         snprintf(why, sizeof why, "%.500s", te.message);
         ok = false;
       }

@@ -178,10 +178,11 @@ static int cmp_double(const void *a, const void *b) {
  * (max_stretch: bound on the worst edge; INFINITY: no stretch checks, for props whose handles
  * were placed by position only)
  * and handles following their targets. Stretch: per edge, its largest length over the take
- * / its rest length. The puppetry deformer moves its handles by translation only, so a limb
- * whose handle travels far (this take's performer starts with the arms down: the T-posed
- * hands travel a metre) stretches: even the procedural character's true rig reaches 2.5x on
- * its worst edge and 1.5x at the 95th percentile. The median edge must stay below 1.5x on
+ * / its rest length. The sidecar's handles turn with their bones, but the skin between them
+ * takes each joint's bend (this take's performer starts with the arms down: the T-posed arms
+ * swing 90 degrees, and kicks raise a thigh level): even the procedural character's true rig
+ * reaches 2.2x on its worst edge (the crotch) and 1.4x at the 99th percentile, measured. The
+ * median edge must stay below 1.5x on
  * every mesh; the automatic rig's 99th percentile on the character is compared with the true
  * rig's in test_character_drive. *stretch_out: the 99th percentile; *jump_out: the largest
  * one-frame vertex step, % of the rest mesh's bounding-box diagonal (either may be NULL). */
@@ -314,7 +315,10 @@ static void test_real(const char *rel, km_axis up, km_axis forward, km_autorig_s
       CHECK(isfinite(c.skeleton.rest[j]));
     /* The sidecar's bone handles pose the limbs as the performer's (issue 12): joints bend,
      * which concentrates strain in a few edges at the crotch and armpits (worst edge measured
-     * 2.15x armadillo, 1.37x dog0, 1.66x elephant, 1.51x horse; 99th percentile 1.2x to 1.6x).
+     * 1.83x armadillo, 1.37x dog0, 1.64x elephant, 1.50x horse; 99th percentile 1.2x to 1.5x).
+     * The armadillo's was 2.15x while its foot handle was a ball round the outer claw: the other
+     * claws, free skin, were drawn out when a kick raised the foot (a hand or foot handle now
+     * holds every vertex nearest its bone; on cmu_131_01 1.97x, the armpit).
      * The elephant's was 4.2x while its stubby limbs had bands touching at the elbows and knees
      * (km_character_write_rig now gives such a limb a thin ring in its middle), the horse's 4.3x
      * while its forelegs swung as far as the performer's arms and 3.3x while its upper-leg
@@ -599,7 +603,7 @@ int main(void) {
       test_prop(&take);
       test_character_drive(&take);
       test_real("meshes/armadillo.obj", KM_AXIS_POS_Y, KM_AXIS_POS_Z, KM_AUTORIG_KINECT1, &take,
-                3.0, cm);
+                2.1, cm);
       test_real("meshes/dog0.off", KM_AXIS_POS_Z, KM_AXIS_NEG_Y, KM_AUTORIG_QUADRUPED, &take, 1.5,
                 cm);
       test_real("meshes/elephant.obj", KM_AXIS_POS_Y, KM_AXIS_POS_Z, KM_AUTORIG_KINECT1, &take, 1.8,

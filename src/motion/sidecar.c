@@ -3,6 +3,7 @@
 #include "motion/motion.h"
 
 #include "math/math.h"
+#include "mesh/mesh.h"
 
 #include <cjson/cJSON.h>
 #include <float.h>
@@ -140,10 +141,12 @@ static bool upright_body(const km_skeleton *sk) {
  * on a stubby limb, below), cut to the connected part (along faces) holding the band vertex
  * nearest to the band's middle, and kept off the end handles' balls (centre ends[e], Euclidean
  * radius: the geodesic balls km_rig_parse grows are inside them). band[v] = the band of v, -1
- * none; *stubby: some limb bone is stubby (its band a thin ring, below). Returns false when out
+ * none; *stubby: some limb bone is stubby (its band a thin ring, below); nearest (n, or NULL):
+ * the child joint of each vertex's nearest bone, -1 none. Returns false when out
  * of memory. */
 static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends, double radius,
-                       bool upright, int8_t *band, int bone_ok[N_BONE_HANDLES], bool *stubby) {
+                       bool upright, int8_t *band, int bone_ok[N_BONE_HANDLES], bool *stubby,
+                       int32_t *nearest) {
   const km_mesh *m = &c->mesh;
   const km_skeleton *sk = &c->skeleton;
   size_t n = m->n_vertices;
@@ -192,6 +195,7 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
     vt[v] = tmin;
     vd[v] = sqrt(dmin);
   }
+  if (nearest) memcpy(nearest, vj, n * sizeof(int32_t));
   /* Stubby limbs: a bend of a joint needs skin to take it, about the limb's radius on each side
    * of it. The radius of a limb bone is the median distance of its vertices in the middle of its
    * length; where it is at least half the bone's length (the elephant's arms and legs: 0.76-0.97;
@@ -299,6 +303,8 @@ static const char *const handle_names[5] = {"head", "hand_left", "hand_right", "
  * (rig_plan_make) and then streamed (write_rig_stream). */
 typedef struct rig_plan {
   long handle_vertex[5];
+  int32_t *end_list[5]; /* an end handle's vertices (end_handles); NULL: "vertex" + "radius" */
+  size_t n_end[5];
   double radius;
   int8_t *band; /* n_vertices: the bone handle of each vertex, -1 none */
   int bone_ok[N_BONE_HANDLES];
@@ -307,6 +313,15 @@ typedef struct rig_plan {
 } rig_plan;
 
 static km_status rig_plan_make(const char *path, const km_character *c, rig_plan *p, km_error *err);
+
+static void plan_free(rig_plan *p) {
+  free(p->band);
+  p->band = NULL;
+  for (int h = 0; h < 5; ++h) {
+    free(p->end_list[h]);
+    p->end_list[h] = NULL;
+  }
+}
 
 /* Streams the JSON with fprintf: a cJSON tree of 8M numbers for a 1M-vertex skin would cost
  * gigabytes. Weights are written with 7 significant digits. */
@@ -322,7 +337,7 @@ km_status km_character_write_rig(const char *path, const km_character *c, km_err
     write_rig_stream(af.f, c, &p);
     st = km__atomic_commit(&af, err);
   }
-  free(p.band);
+  plan_free(&p);
   return st;
 }
 
@@ -335,17 +350,95 @@ km_status km_character_rig_json(const km_character *c, char **json, size_t *size
   if (st != KM_OK) return st;
   FILE *f = open_memstream(json, size);
   if (!f) {
-    free(p.band);
+    plan_free(&p);
     return km__fail(err, KM_ERR_NOMEM, "rig json: out of memory");
   }
   write_rig_stream(f, c, &p);
-  free(p.band);
+  plan_free(&p);
   if (fclose(f) != 0 || !*json) {
     free(*json);
     *json = NULL;
     return km__fail(err, KM_ERR_NOMEM, "rig json: out of memory");
   }
   return KM_OK;
+}
+
+/* Hands and feet: the end handle is its geodesic ball (radius p->radius around the finger or
+ * toe tip, as km_rig_parse grows it for "vertex" + "radius") and, joined to it along faces,
+ * every vertex whose nearest bone (nearest[v], the bone's child joint) ends at the hand or foot
+ * joint: the whole hand or foot, heel, sole and every claw, held rigid as a game rig's hand and
+ * foot bones hold them. With the ball alone a splayed foot kept only the claw nearest the tip
+ * (the armadillo's outer claw, 13 cm from its foot joint): the other claws and the heel were
+ * free skin between the ball and the shin band, stretched 2.1x on a kick and sagging below the
+ * floor. The vertices of another handle (a band, another end's ball) are left out, so handles
+ * stay disjoint. bench motion B, before -> after, the table's take order: armadillo stretch max
+ * 1.143/1.733/1.105/1.013/1.308 -> 0.987/1.260/0.991/0.996/1.012, folded triangles
+ * 1697/1557/1430/1100/1007 -> 1181/1234/1082/1131/840, frames below the floor
+ * 24/31/26/227/118 -> 8/0/0/227/91; character stretch 1.150/1.308/1.046/1.175/1.281 ->
+ * 1.118/1.244/1.041/1.121/1.240, folded 83/131/331/36/61 -> 117/131/366/32/14; horse and dog0
+ * within 0.01, elephant within 0.04 (0.780 -> 0.819 on precog_Seq3_2). The head stays a ball:
+ * a rigid head and neck cost dog0 0.38 -> 0.70. A handle's every vertex constrains the solve:
+ * keeping every k-th of the foot's own (at most 64, as bands) lost most of the gain (armadillo
+ * 1.670 on precog_Seq2_1). p->end_list[h]: NULL where the handle stays a plain ball (the head,
+ * a skeleton without the joint, a point cloud). */
+static km_status end_handles(const km_character *c, const int32_t *nearest, rig_plan *p,
+                             km_error *err) {
+  const km_mesh *m = &c->mesh;
+  size_t n = m->n_vertices;
+  static const char *const joint[5] = {"Head", "HandLeft", "HandRight", "FootLeft", "FootRight"};
+  if (!m->n_faces) return KM_OK; /* a point cloud: km_rig_parse's Euclidean balls */
+  km__geodesic *geo = NULL;
+  km_status st = km__geodesic_create(m, &geo, err);
+  if (st != KM_OK) return st;
+  int32_t *uf = km__malloc(n, sizeof(int32_t));
+  int8_t *ball = km__malloc(n, 1); /* the end handle whose ball holds v, -1 none */
+  int8_t *mark = km__calloc(n, 1); /* the end handle whose own vertices hold v, 0 none */
+  unsigned char *in = km__malloc(n, 1);
+  if (!uf || !ball || !mark || !in) {
+    st = km__fail(err, KM_ERR_NOMEM, "out of memory");
+    goto done;
+  }
+  memset(ball, -1, n);
+  for (int h = 0; h < 5; ++h) {
+    const int32_t *reached;
+    size_t nr;
+    km__geodesic_run(geo, m->V, (int32_t)p->handle_vertex[h], p->radius, NULL, 0, &reached, &nr);
+    for (size_t k = 0; k < nr; ++k)
+      if (ball[reached[k]] < 0) ball[reached[k]] = (int8_t)h;
+  }
+  for (int h = 1; h < 5; ++h) {
+    int j = skel_joint(&c->skeleton, joint[h]);
+    if (j < 0) continue;
+    for (size_t v = 0; v < n; ++v) {
+      bool taken = p->band[v] >= 0 || (ball[v] >= 0 && ball[v] != h);
+      for (int e = 1; e < h && !taken; ++e) /* an earlier end's own vertices */
+        taken = mark[v] == e;
+      in[v] = ball[v] == h ? 2 : !taken && nearest[v] == j ? 1 : 0;
+      uf[v] = (int32_t)v;
+    }
+    for (size_t f = 0; f < m->n_faces; ++f)
+      for (int k = 0; k < 3; ++k) {
+        int32_t a = m->F[3 * f + k], b = m->F[3 * f + (k + 1) % 3];
+        if (in[a] && in[b]) uf[uf_find(uf, a)] = uf_find(uf, b);
+      }
+    int32_t root = uf_find(uf, (int32_t)p->handle_vertex[h]);
+    size_t cnt = 0;
+    for (size_t v = 0; v < n; ++v)
+      cnt += in[v] && uf_find(uf, (int32_t)v) == root;
+    if (!(p->end_list[h] = km__malloc(cnt ? cnt : 1, sizeof(int32_t)))) {
+      st = km__fail(err, KM_ERR_NOMEM, "out of memory");
+      goto done;
+    }
+    for (size_t v = 0; v < n; ++v)
+      if (in[v] && uf_find(uf, (int32_t)v) == root) {
+        p->end_list[h][p->n_end[h]++] = (int32_t)v;
+        mark[v] = (int8_t)h;
+      }
+  }
+done:
+  free(uf), free(ball), free(mark), free(in);
+  km__geodesic_free(&geo);
+  return st;
 }
 
 /* Checks c and places the handles; p->band is the caller's to free. */
@@ -385,10 +478,18 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
   for (int h = 0; h < 5; ++h)
     ends[h] = (int32_t)p->handle_vertex[h];
   p->stubby = false;
-  if (!p->band || !bone_bands(c, ends, 5, radius, p->upright, p->band, p->bone_ok, &p->stubby)) {
-    free(p->band);
-    p->band = NULL;
+  int32_t *nearest = km__malloc(n, sizeof(int32_t));
+  if (!p->band || !nearest ||
+      !bone_bands(c, ends, 5, radius, p->upright, p->band, p->bone_ok, &p->stubby, nearest)) {
+    free(nearest);
+    plan_free(p);
     return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  }
+  km_status st = end_handles(c, nearest, p, err);
+  free(nearest);
+  if (st != KM_OK) {
+    plan_free(p);
+    return km__wrap(err, st, "%s", path);
   }
   return KM_OK;
 }
@@ -425,9 +526,17 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
   fputs("]},\n\"landmarks\":", f);
   km__landmarks_write_json(f, c->landmarks, KM_CHARACTER_LANDMARKS);
   fputs(",\n\"handles\":[", f);
-  for (int h = 0; h < 5; ++h)
+  for (int h = 0; h < 5; ++h) {
+    if (p->end_list[h]) {
+      fprintf(f, "%s\n{\"name\":\"%s\",\"vertices\":[", h ? "," : "", handle_names[h]);
+      for (size_t k = 0; k < p->n_end[h]; ++k)
+        fprintf(f, k ? ",%d" : "%d", p->end_list[h][k]);
+      fputs("]}", f);
+      continue;
+    }
     fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%ld,\"radius\":%.6g}", h ? "," : "",
             handle_names[h], p->handle_vertex[h], p->radius);
+  }
   for (int b = 0; b < N_BONE_HANDLES; ++b) {
     if (!bone_ok[b]) continue;
     fprintf(f, ",\n{\"name\":\"%s\",\"vertices\":[", bone_handle_name[b]);
