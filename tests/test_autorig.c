@@ -315,10 +315,10 @@ static void test_real(const char *rel, km_axis up, km_axis forward, km_autorig_s
       CHECK(isfinite(c.skeleton.rest[j]));
     /* The sidecar's bone handles pose the limbs as the performer's (issue 12): joints bend,
      * which concentrates strain in a few edges at the crotch and armpits (worst edge measured
-     * 1.83x armadillo, 1.37x dog0, 1.64x elephant, 1.50x horse; 99th percentile 1.2x to 1.5x).
-     * The armadillo's was 2.15x while its foot handle was a ball round the outer claw: the other
-     * claws, free skin, were drawn out when a kick raised the foot (a hand or foot handle now
-     * holds every vertex nearest its bone; on cmu_131_01 1.97x, the armpit).
+     * 1.80x armadillo, 1.37x dog0, 1.645x elephant, 1.505x horse; 99th percentile 1.2x to
+     * 1.5x). The armadillo's was 2.15x while its hand and foot handles were balls round one claw:
+     * the other claws, free skin, were drawn out when a kick raised a foot or a hand rose (a hand
+     * or foot handle now holds the whole hand or foot; on cmu_131_01 1.93x, the armpit).
      * The elephant's was 4.2x while its stubby limbs had bands touching at the elbows and knees
      * (km_character_write_rig now gives such a limb a thin ring in its middle), the horse's 4.3x
      * while its forelegs swung as far as the performer's arms and 3.3x while its upper-leg

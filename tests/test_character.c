@@ -147,6 +147,42 @@ static double volume(const km_mesh *m) {
   return t.volume;
 }
 
+static int cmp_i32(const void *a, const void *b) {
+  int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
+  return x < y ? -1 : x > y;
+}
+
+/* A hand or foot handle holds the whole hand or foot (issue 12): every vertex beyond the wrist
+ * (the arms lie along x in the T-pose) and every vertex of the sole and heel (below half the
+ * ankle's height), not only a ball round the finger or toe tip (which left the heel free). */
+static void check_end_handles(const char *path, const km_character *c) {
+  km_rig rig = {0};
+  CHECK_OK(km_rig_read(path, &c->mesh, NULL, 0, &rig, KM_E));
+  static const char *const names[4] = {"hand_left", "hand_right", "foot_left", "foot_right"};
+  static const int joint[4] = {6, 10, 14, 18}; /* WristLeft, WristRight, AnkleLeft, AnkleRight */
+  for (int e = 0; e < 4; ++e) {
+    const km_rig_handle *h = NULL;
+    for (size_t i = 0; i < rig.n_handles; ++i)
+      if (!strcmp(rig.handles[i].name, names[e])) h = &rig.handles[i];
+    CHECK_MSG(h != NULL, "%s: no handle %s", path, names[e]);
+    if (!h) continue;
+    const double *j = c->skeleton.rest + 3 * joint[e];
+    size_t want = 0, held = 0;
+    for (size_t v = 0; v < c->mesh.n_vertices; ++v) {
+      const double *x = c->mesh.V + 3 * v;
+      bool side = (x[0] > 0) == (j[0] > 0);
+      bool in_part = side && (e < 2 ? fabs(x[0]) > fabs(j[0]) + 0.03 : x[1] < 0.5 * j[1]);
+      if (!in_part) continue;
+      ++want;
+      int32_t key = (int32_t)v;
+      held += bsearch(&key, h->vertices, h->n_vertices, sizeof key, cmp_i32) != NULL;
+    }
+    CHECK_MSG(want > 0 && held == want, "%s: %s holds %zu of the %zu vertices of its %s", path,
+              names[e], held, want, e < 2 ? "hand" : "sole and heel");
+  }
+  km_rig_free(&rig);
+}
+
 static void test_target(size_t target) {
   km_character_options o = {0};
   o.target_vertices = target;
@@ -224,6 +260,7 @@ static void test_target(size_t target) {
           strstr(text, "\"FootRight\"") && strstr(text, "\"filter\""));
     free(text);
   }
+  check_end_handles(path, &c);
   remove(path);
   km_character_free(&c);
   CHECK(c.mesh.V == NULL && c.skin.weights == NULL && c.skeleton.names == NULL);

@@ -146,7 +146,7 @@ static bool upright_body(const km_skeleton *sk) {
  * of memory. */
 static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends, double radius,
                        bool upright, int8_t *band, int bone_ok[N_BONE_HANDLES], bool *stubby,
-                       int32_t *nearest) {
+                       int32_t *nearest, double *nearest_t) {
   const km_mesh *m = &c->mesh;
   const km_skeleton *sk = &c->skeleton;
   size_t n = m->n_vertices;
@@ -196,6 +196,7 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
     vd[v] = sqrt(dmin);
   }
   if (nearest) memcpy(nearest, vj, n * sizeof(int32_t));
+  if (nearest_t) memcpy(nearest_t, vt, n * sizeof(double));
   /* Stubby limbs: a bend of a joint needs skin to take it, about the limb's radius on each side
    * of it. The radius of a limb bone is the median distance of its vertices in the middle of its
    * length; where it is at least half the bone's length (the elephant's arms and legs: 0.76-0.97;
@@ -366,7 +367,9 @@ km_status km_character_rig_json(const km_character *c, char **json, size_t *size
 /* Hands and feet: the end handle is its geodesic ball (radius p->radius around the finger or
  * toe tip, as km_rig_parse grows it for "vertex" + "radius") and, joined to it along faces,
  * every vertex whose nearest bone (nearest[v], the bone's child joint) ends at the hand or foot
- * joint: the whole hand or foot, heel, sole and every claw, held rigid as a game rig's hand and
+ * joint, or ends at the wrist or ankle with the vertex beyond its end (nearest_t[v] 1: the back
+ * of a heel is as near the shin's end as the foot bone's start, and went to the shin): the whole
+ * hand or foot, heel, sole and every claw, held rigid as a game rig's hand and
  * foot bones hold them. With the ball alone a splayed foot kept only the claw nearest the tip
  * (the armadillo's outer claw, 13 cm from its foot joint): the other claws and the heel were
  * free skin between the ball and the shin band, stretched 2.1x on a kick and sagging below the
@@ -381,8 +384,8 @@ km_status km_character_rig_json(const km_character *c, char **json, size_t *size
  * keeping every k-th of the foot's own (at most 64, as bands) lost most of the gain (armadillo
  * 1.670 on precog_Seq2_1). p->end_list[h]: NULL where the handle stays a plain ball (the head,
  * a skeleton without the joint, a point cloud). */
-static km_status end_handles(const km_character *c, const int32_t *nearest, rig_plan *p,
-                             km_error *err) {
+static km_status end_handles(const km_character *c, const int32_t *nearest, const double *nearest_t,
+                             rig_plan *p, km_error *err) {
   const km_mesh *m = &c->mesh;
   size_t n = m->n_vertices;
   static const char *const joint[5] = {"Head", "HandLeft", "HandRight", "FootLeft", "FootRight"};
@@ -409,11 +412,13 @@ static km_status end_handles(const km_character *c, const int32_t *nearest, rig_
   for (int h = 1; h < 5; ++h) {
     int j = skel_joint(&c->skeleton, joint[h]);
     if (j < 0) continue;
+    int jp = c->skeleton.parents[j]; /* the wrist or ankle */
     for (size_t v = 0; v < n; ++v) {
       bool taken = p->band[v] >= 0 || (ball[v] >= 0 && ball[v] != h);
       for (int e = 1; e < h && !taken; ++e) /* an earlier end's own vertices */
         taken = mark[v] == e;
-      in[v] = ball[v] == h ? 2 : !taken && nearest[v] == j ? 1 : 0;
+      bool own = nearest[v] == j || (jp >= 0 && nearest[v] == jp && nearest_t[v] >= 1);
+      in[v] = ball[v] == h ? 2 : !taken && own ? 1 : 0;
       uf[v] = (int32_t)v;
     }
     for (size_t f = 0; f < m->n_faces; ++f)
@@ -479,14 +484,18 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
     ends[h] = (int32_t)p->handle_vertex[h];
   p->stubby = false;
   int32_t *nearest = km__malloc(n, sizeof(int32_t));
-  if (!p->band || !nearest ||
-      !bone_bands(c, ends, 5, radius, p->upright, p->band, p->bone_ok, &p->stubby, nearest)) {
+  double *nearest_t = km__malloc(n, sizeof(double));
+  if (!p->band || !nearest || !nearest_t ||
+      !bone_bands(c, ends, 5, radius, p->upright, p->band, p->bone_ok, &p->stubby, nearest,
+                  nearest_t)) {
     free(nearest);
+    free(nearest_t);
     plan_free(p);
     return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
   }
-  km_status st = end_handles(c, nearest, p, err);
+  km_status st = end_handles(c, nearest, nearest_t, p, err);
   free(nearest);
+  free(nearest_t);
   if (st != KM_OK) {
     plan_free(p);
     return km__wrap(err, st, "%s", path);
