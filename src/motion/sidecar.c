@@ -369,21 +369,22 @@ km_status km_character_rig_json(const km_character *c, char **json, size_t *size
  * every vertex whose nearest bone (nearest[v], the bone's child joint) ends at the hand or foot
  * joint, or ends at the wrist or ankle with the vertex beyond its end (nearest_t[v] 1: the back
  * of a heel is as near the shin's end as the foot bone's start, and went to the shin): the whole
- * hand or foot, heel, sole and every claw, held rigid as a game rig's hand and
- * foot bones hold them. With the ball alone a splayed foot kept only the claw nearest the tip
+ * hand or foot, heel, sole and every claw, held rigid as a game rig's hand and foot bones hold
+ * them. With the ball alone a splayed foot kept only the claw nearest the tip
  * (the armadillo's outer claw, 13 cm from its foot joint): the other claws and the heel were
  * free skin between the ball and the shin band, stretched 2.1x on a kick and sagging below the
  * floor. The vertices of another handle (a band, another end's ball) are left out, so handles
  * stay disjoint. bench motion B, before -> after, the table's take order: armadillo stretch max
- * 1.143/1.733/1.105/1.013/1.308 -> 0.987/1.260/0.991/0.996/1.012, folded triangles
- * 1697/1557/1430/1100/1007 -> 1181/1234/1082/1131/840, frames below the floor
- * 24/31/26/227/118 -> 8/0/0/227/91; character stretch 1.150/1.308/1.046/1.175/1.281 ->
- * 1.118/1.244/1.041/1.121/1.240, folded 83/131/331/36/61 -> 117/131/366/32/14; horse and dog0
- * within 0.01, elephant within 0.04 (0.780 -> 0.819 on precog_Seq3_2). The head stays a ball:
- * a rigid head and neck cost dog0 0.38 -> 0.70. A handle's every vertex constrains the solve:
- * keeping every k-th of the foot's own (at most 64, as bands) lost most of the gain (armadillo
- * 1.670 on precog_Seq2_1). p->end_list[h]: NULL where the handle stays a plain ball (the head,
- * a skeleton without the joint, a point cloud). */
+ * 1.143/1.733/1.105/1.013/1.308 -> 0.985/1.195/0.992/0.994/1.001, folded triangles
+ * 1697/1557/1430/1100/1007 -> 1265/1205/1079/1074/803, frames below the floor
+ * 24/31/26/227/118 -> 0/0/0/227/91; character stretch 1.150/1.308/1.046/1.175/1.281 ->
+ * 1.119/1.240/1.043/1.128/1.236, folded 83/131/331/36/61 -> 116/132/367/32/12; horse and dog0
+ * within 0.01, elephant within 0.06 (0.835/0.768/0.780/0.735/0.752 ->
+ * 0.776/0.772/0.820/0.759/0.779). The head stays a ball: a rigid head and neck cost dog0
+ * 0.38 -> 0.70. A handle's every vertex constrains the solve: keeping every k-th of the foot's
+ * own (at most 64, as bands) lost most of the gain (armadillo 1.670 on precog_Seq2_1).
+ * p->end_list[h]: NULL where the handle stays a plain ball (the head,
+ * a skeleton without the joint, a tip another end's ball holds, a point cloud). */
 static km_status end_handles(const km_character *c, const int32_t *nearest, const double *nearest_t,
                              rig_plan *p, km_error *err) {
   const km_mesh *m = &c->mesh;
@@ -426,6 +427,7 @@ static km_status end_handles(const km_character *c, const int32_t *nearest, cons
         int32_t a = m->F[3 * f + k], b = m->F[3 * f + (k + 1) % 3];
         if (in[a] && in[b]) uf[uf_find(uf, a)] = uf_find(uf, b);
       }
+    if (!in[p->handle_vertex[h]]) continue; /* its tip in another's ball: km_rig_parse says */
     int32_t root = uf_find(uf, (int32_t)p->handle_vertex[h]);
     size_t cnt = 0;
     for (size_t v = 0; v < n; ++v)
