@@ -253,13 +253,9 @@ static int dcmp(const void *x, const void *y) {
 static void where_write(const char *dir, const char *tag, const km_mesh *m, const double *V) {
   char p[1200];
   snprintf(p, sizeof p, "%s/%s.obj", dir, tag);
-  FILE *f = fopen(p, "w");
-  if (!f) return;
-  for (size_t v = 0; v < m->n_vertices; ++v)
-    fprintf(f, "v %.6f %.6f %.6f\n", V[3 * v], V[3 * v + 1], V[3 * v + 2]);
-  for (size_t k = 0; k < m->n_faces; ++k)
-    fprintf(f, "f %d %d %d\n", m->F[3 * k] + 1, m->F[3 * k + 1] + 1, m->F[3 * k + 2] + 1);
-  fclose(f);
+  km_mesh frame = {.V = (double *)V, .F = m->F, .n_vertices = m->n_vertices, .n_faces = m->n_faces};
+  km_error err = {0};
+  if (km_mesh_write(p, &frame, NULL, &err) != KM_OK) fprintf(stderr, "WHERE: %s\n", err.message);
 }
 
 static int32_t where_handle(const km_mesh *m, const km_rig *rig, const double *x) {

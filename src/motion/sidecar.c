@@ -141,24 +141,22 @@ static bool upright_body(const km_skeleton *sk) {
  * on a stubby limb, below), cut to the connected part (along faces) holding the band vertex
  * nearest to the band's middle, and kept off the end handles' balls (centre ends[e], Euclidean
  * radius: the geodesic balls km_rig_parse grows are inside them). band[v] = the band of v, -1
- * none; *stubby: some limb bone is stubby (its band a thin ring, below); nearest (n, or NULL):
- * the child joint of each vertex's nearest bone, -1 none. Returns false when out
- * of memory. */
+ * none; *stubby: some limb bone is stubby (its band a thin ring, below); vj, vt (n, the
+ * caller's, filled): the child joint of each vertex's nearest bone (-1 none) and the vertex's
+ * projection on it, 0..1. Returns false when out of memory. */
 static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends, double radius,
                        bool upright, int8_t *band, int bone_ok[N_BONE_HANDLES], bool *stubby,
-                       int32_t *nearest, double *nearest_t) {
+                       int32_t *vj, double *vt) {
   const km_mesh *m = &c->mesh;
   const km_skeleton *sk = &c->skeleton;
   size_t n = m->n_vertices;
   int32_t *uf = km__malloc(n, sizeof(int32_t));
   double *best = km__malloc(N_BONE_HANDLES, sizeof(double));
   int32_t *seed = km__malloc(N_BONE_HANDLES, sizeof(int32_t));
-  int32_t *vj = km__malloc(n, sizeof(int32_t));  /* nearest bone (its child joint), -1 none */
-  double *vt = km__malloc(n, sizeof(double));    /* projection on it, 0..1 */
   double *vd = km__malloc(n, sizeof(double));    /* distance to it */
   double *dists = km__malloc(n, sizeof(double)); /* scratch for a median */
-  if (!uf || !best || !seed || !vj || !vt || !vd || !dists) {
-    free(uf), free(best), free(seed), free(vj), free(vt), free(vd), free(dists);
+  if (!uf || !best || !seed || !vd || !dists) {
+    free(uf), free(best), free(seed), free(vd), free(dists);
     return false;
   }
   int ja[N_BONE_HANDLES], jb[N_BONE_HANDLES];
@@ -195,8 +193,6 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
     vt[v] = tmin;
     vd[v] = sqrt(dmin);
   }
-  if (nearest) memcpy(nearest, vj, n * sizeof(int32_t));
-  if (nearest_t) memcpy(nearest_t, vt, n * sizeof(double));
   /* Stubby limbs: a bend of a joint needs skin to take it, about the limb's radius on each side
    * of it. The radius of a limb bone is the median distance of its vertices in the middle of its
    * length; where it is at least half the bone's length (the elephant's arms and legs: 0.76-0.97;
@@ -292,7 +288,7 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
     if (band[v] >= 0 &&
         (!bone_ok[band[v]] || uf_find(uf, (int32_t)v) != uf_find(uf, seed[band[v]])))
       band[v] = -1;
-  free(uf), free(best), free(seed), free(vj), free(vt), free(vd), free(dists);
+  free(uf), free(best), free(seed), free(vd), free(dists);
   return true;
 }
 
@@ -395,10 +391,9 @@ static km_status end_handles(const km_character *c, const int32_t *nearest, cons
   km_status st = km__geodesic_create(m, &geo, err);
   if (st != KM_OK) return st;
   int32_t *uf = km__malloc(n, sizeof(int32_t));
-  int8_t *ball = km__malloc(n, 1); /* the end handle whose ball holds v, -1 none */
-  int8_t *mark = km__calloc(n, 1); /* the end handle whose own vertices hold v, 0 none */
-  unsigned char *in = km__malloc(n, 1);
-  if (!uf || !ball || !mark || !in) {
+  int8_t *ball = km__malloc(n, 1); /* the end handle whose ball holds v (the first), -1 none */
+  int8_t *end = km__malloc(n, 1);  /* the hand or foot v may join, -1 none */
+  if (!uf || !ball || !end) {
     st = km__fail(err, KM_ERR_NOMEM, "out of memory");
     goto done;
   }
@@ -410,40 +405,44 @@ static km_status end_handles(const km_character *c, const int32_t *nearest, cons
     for (size_t k = 0; k < nr; ++k)
       if (ball[reached[k]] < 0) ball[reached[k]] = (int8_t)h;
   }
+  /* A vertex joins the end whose ball holds it, else the hand or foot whose bone it is nearest
+   * (off the bands and the other balls); the bones differ, so the ends' sets are disjoint. */
+  int js[5], jps[5];
   for (int h = 1; h < 5; ++h) {
-    int j = skel_joint(&c->skeleton, joint[h]);
-    if (j < 0) continue;
-    int jp = c->skeleton.parents[j]; /* the wrist or ankle */
-    for (size_t v = 0; v < n; ++v) {
-      bool taken = p->band[v] >= 0 || (ball[v] >= 0 && ball[v] != h);
-      for (int e = 1; e < h && !taken; ++e) /* an earlier end's own vertices */
-        taken = mark[v] == e;
-      bool own = nearest[v] == j || (jp >= 0 && nearest[v] == jp && nearest_t[v] >= 1);
-      in[v] = ball[v] == h ? 2 : !taken && own ? 1 : 0;
-      uf[v] = (int32_t)v;
+    js[h] = skel_joint(&c->skeleton, joint[h]);
+    jps[h] = js[h] >= 0 ? c->skeleton.parents[js[h]] : -1; /* the wrist or ankle */
+  }
+  for (size_t v = 0; v < n; ++v) {
+    end[v] = ball[v];
+    uf[v] = (int32_t)v;
+    if (ball[v] >= 0 || p->band[v] >= 0) continue;
+    for (int h = 1; h < 5 && end[v] < 0; ++h)
+      if (js[h] >= 0 &&
+          (nearest[v] == js[h] || (jps[h] >= 0 && nearest[v] == jps[h] && nearest_t[v] >= 1)))
+        end[v] = (int8_t)h;
+  }
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int k = 0; k < 3; ++k) {
+      int32_t a = m->F[3 * f + k], b = m->F[3 * f + (k + 1) % 3];
+      if (end[a] >= 0 && end[a] == end[b]) uf[uf_find(uf, a)] = uf_find(uf, b);
     }
-    for (size_t f = 0; f < m->n_faces; ++f)
-      for (int k = 0; k < 3; ++k) {
-        int32_t a = m->F[3 * f + k], b = m->F[3 * f + (k + 1) % 3];
-        if (in[a] && in[b]) uf[uf_find(uf, a)] = uf_find(uf, b);
-      }
-    if (!in[p->handle_vertex[h]]) continue; /* its tip in another's ball: km_rig_parse says */
-    int32_t root = uf_find(uf, (int32_t)p->handle_vertex[h]);
+  for (int h = 1; h < 5; ++h) {
+    int32_t tip = (int32_t)p->handle_vertex[h];
+    if (js[h] < 0 || end[tip] != h) continue; /* its tip in another's ball: km_rig_parse says */
+    int32_t root = uf_find(uf, tip);
     size_t cnt = 0;
     for (size_t v = 0; v < n; ++v)
-      cnt += in[v] && uf_find(uf, (int32_t)v) == root;
-    if (!(p->end_list[h] = km__malloc(cnt ? cnt : 1, sizeof(int32_t)))) {
+      cnt += end[v] == h && uf_find(uf, (int32_t)v) == root;
+    if (!(p->end_list[h] = km__malloc(cnt, sizeof(int32_t)))) {
       st = km__fail(err, KM_ERR_NOMEM, "out of memory");
       goto done;
     }
     for (size_t v = 0; v < n; ++v)
-      if (in[v] && uf_find(uf, (int32_t)v) == root) {
+      if (end[v] == h && uf_find(uf, (int32_t)v) == root)
         p->end_list[h][p->n_end[h]++] = (int32_t)v;
-        mark[v] = (int8_t)h;
-      }
   }
 done:
-  free(uf), free(ball), free(mark), free(in);
+  free(uf), free(ball), free(end);
   km__geodesic_free(&geo);
   return st;
 }
