@@ -117,6 +117,21 @@ struct km_puppet {
   int32_t *hw_off, *hw_i;
   double *hw_w;
   double *hM; /* n_hv*12 workspace: p4 (x) r of each handle vertex */
+  /* Rigid handles. Every rig handle km_puppetry drives moves as an affine map of its rest
+   * vertices (R x + t, or x + t), so its residual is r_i = G_h p4_i and its share of isoline
+   * li's right-hand side, sum_i w_i p4_i r_i^T, is M_{li,h} G_h^T with the moments
+   * M_{li,h} = sum_i w_i p4_i p4_i^T fixed once per handle set: 48 products per (isoline,
+   * handle) instead of 12 per (handle vertex, field, isoline). G_h is fitted per frame and
+   * checked against every vertex's target (handle_rhs), so a handle whose targets are not
+   * affine (a floor clamp, a caller's own targets) still sums its vertices one by one. The
+   * pairs of isoline li are in handle vertex order, hence grouped by handle: segment s is
+   * pairs [seg_q[s], seg_q[s+1]) of handle seg_h[s], isoline li's segments are
+   * [seg_off[li], seg_off[li+1]). */
+  int32_t *seg_off, *seg_h, *seg_q;
+  double *seg_m;  /* n_seg*16 moments (row-major 4x4) */
+  double *h_pinv; /* n_handles*16 pseudo-inverse of sum p4 p4^T over the handle's vertices */
+  double *h_G;    /* n_handles*12 workspace: fitted G_h^T (4x3, row-major) */
+  unsigned char *h_affine; /* n_handles workspace: G_h reproduces every target */
   double wc2, mu;
   double *K;     /* nr*nr Cholesky factor (upper) of U^T U + mu I */
   double *Kt;    /* its transpose (lower), so both substitutions run as contiguous axpys */
@@ -233,12 +248,13 @@ static km_status find_lone(km_puppet *p, const km_mesh *rest, km_error *err) {
 void km_puppet_free(km_puppet **pp) {
   if (!pp || !*pp) return;
   km_puppet *p = *pp;
-  void *ptrs[] = {p->P,      p->Pn,      p->wfield,  p->iso,    p->bracket, p->tpar,  p->tparf,
-                  p->tri_v,  p->tri_iso, p->iso_off, p->tri_lv, p->tri_F0,  p->tri_a, p->cv,
-                  p->cv_x,   p->K0,      p->G,       p->h_off,  p->h_v,     p->K,     p->KinvG,
-                  p->KinvGf, p->dR,      p->dR0,     p->dRnew,  p->dRd,     p->quat,  p->A,
-                  p->D,      p->cv_br,   p->cv_t,    p->cv_pf,  p->cv_pn,   p->Kt,    p->lone,
-                  p->hw_off, p->hw_i,    p->hw_w,    p->hM};
+  void *ptrs[] = {p->P,      p->Pn,      p->wfield,  p->iso,     p->bracket, p->tpar,  p->tparf,
+                  p->tri_v,  p->tri_iso, p->iso_off, p->tri_lv,  p->tri_F0,  p->tri_a, p->cv,
+                  p->cv_x,   p->K0,      p->G,       p->h_off,   p->h_v,     p->K,     p->KinvG,
+                  p->KinvGf, p->dR,      p->dR0,     p->dRnew,   p->dRd,     p->quat,  p->A,
+                  p->D,      p->cv_br,   p->cv_t,    p->cv_pf,   p->cv_pn,   p->Kt,    p->lone,
+                  p->hw_off, p->hw_i,    p->hw_w,    p->hM,      p->seg_off, p->seg_h, p->seg_q,
+                  p->seg_m,  p->h_pinv,  p->h_G,     p->h_affine};
   for (size_t i = 0; i < sizeof ptrs / sizeof ptrs[0]; ++i)
     free(ptrs[i]);
   free(p);
@@ -1214,6 +1230,96 @@ static void add_handle_terms(const km_puppet *p, double *K) {
   }
 }
 
+/* The rigid-handle tables (see seg_off in km_puppet) for the handle set in h_off, h_v,
+ * hw_*: segments and their moments, and each handle's pseudo-inverse of sum p4 p4^T (LAPACK
+ * dsyev; eigenvalues below 1e-12 of the largest are dropped, so a ring, a line or a single
+ * vertex, whose G_h is not unique, gets one that reproduces its targets). false: out of
+ * memory. */
+static bool rigid_moments(km_puppet *p) {
+  size_t nI = p->n_isolines, nh = p->n_handles, nhv = p->n_hv;
+  int32_t *hid = km__malloc(nhv ? nhv : 1, sizeof(int32_t));
+  int32_t *seg_off = km__calloc(nI + 1, sizeof(int32_t));
+  if (!hid || !seg_off) goto nomem;
+  for (size_t h = 0; h < nh; ++h)
+    for (int32_t i = p->h_off[h]; i < p->h_off[h + 1]; ++i)
+      hid[i] = (int32_t)h;
+  size_t nseg = 0;
+  for (size_t li = 0; li < nI; ++li) {
+    for (int32_t q = p->hw_off[li]; q < p->hw_off[li + 1]; ++q)
+      nseg += q == p->hw_off[li] || hid[p->hw_i[q]] != hid[p->hw_i[q - 1]];
+    seg_off[li + 1] = (int32_t)nseg;
+  }
+  int32_t *seg_h = km__malloc(nseg ? nseg : 1, sizeof(int32_t));
+  int32_t *seg_q = km__malloc(nseg + 1, sizeof(int32_t));
+  double *seg_m = km__calloc(nseg ? nseg * 16 : 1, sizeof(double));
+  double *pinv = km__calloc(nh ? nh * 16 : 1, sizeof(double));
+  double *G = km__malloc(nh ? nh * 12 : 1, sizeof(double));
+  unsigned char *aff = km__malloc(nh ? nh : 1, 1);
+  if (!seg_h || !seg_q || !seg_m || !pinv || !G || !aff) {
+    free(seg_h);
+    free(seg_q);
+    free(seg_m);
+    free(pinv);
+    free(G);
+    free(aff);
+    goto nomem;
+  }
+  size_t sg = 0;
+  for (size_t li = 0; li < nI; ++li)
+    for (int32_t q = p->hw_off[li]; q < p->hw_off[li + 1]; ++q) {
+      int32_t i = p->hw_i[q];
+      if (q == p->hw_off[li] || hid[i] != hid[p->hw_i[q - 1]]) {
+        seg_h[sg] = hid[i];
+        seg_q[sg++] = q;
+      }
+      const double *pv = p->Pn + 3 * (size_t)p->h_v[i];
+      double p4[4] = {pv[0], pv[1], pv[2], 1}, *m = seg_m + 16 * (sg - 1);
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b)
+          m[4 * a + b] += p->hw_w[q] * p4[a] * p4[b];
+    }
+  seg_q[nseg] = nI ? p->hw_off[nI] : 0;
+  for (size_t h = 0; h < nh; ++h) {
+    double A[16] = {0}, w[4];
+    for (int32_t i = p->h_off[h]; i < p->h_off[h + 1]; ++i) {
+      const double *pv = p->Pn + 3 * (size_t)p->h_v[i];
+      double p4[4] = {pv[0], pv[1], pv[2], 1};
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b)
+          A[4 * a + b] += p4[a] * p4[b];
+    }
+    /* an empty handle, or dsyev failing, leaves pinv 0: G_h = 0, which the per-frame check
+     * accepts only for zero residuals (the sum is then 0 either way) */
+    if (p->h_off[h + 1] == p->h_off[h] || km__syev(4, A, w) != 0) continue;
+    for (int k = 0; k < 4; ++k) {
+      if (!(w[k] > 1e-12 * w[3])) continue;
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b)
+          pinv[16 * h + 4 * a + b] += A[4 * a + k] * A[4 * b + k] / w[k];
+    }
+  }
+  free(hid);
+  free(p->seg_off);
+  free(p->seg_h);
+  free(p->seg_q);
+  free(p->seg_m);
+  free(p->h_pinv);
+  free(p->h_G);
+  free(p->h_affine);
+  p->seg_off = seg_off;
+  p->seg_h = seg_h;
+  p->seg_q = seg_q;
+  p->seg_m = seg_m;
+  p->h_pinv = pinv;
+  p->h_G = G;
+  p->h_affine = aff;
+  return true;
+nomem:
+  free(hid);
+  free(seg_off);
+  return false;
+}
+
 km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *handle_offsets,
                                 const int32_t *handle_vertices, km_error *err) {
   if (!p) return km__fail(err, KM_ERR_INVALID, "puppet: NULL model");
@@ -1315,6 +1421,7 @@ km_status km_puppet_set_handles(km_puppet *p, size_t n_handles, const int32_t *h
   p->n_handles = n_handles;
   p->n_hv = nhv;
   p->have_handles = false;
+  if (!rigid_moments(p)) return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
 
   size_t nr = p->nr;
   double *K = p->K;
@@ -1591,27 +1698,70 @@ static void eval_full(km_puppet *p, double *V) {
  * (4 x 3) times its weight in isoline I, so the 12 products are made once per vertex and
  * each isoline sums its pairs in registers and writes its rows once, instead of scattering
  * 24 read-modify-writes per field and vertex (60k-vertex character, 4250 handle vertices,
- * perf samples on the shared 2-core machine under load: 0.50 -> 0.19 ms per frame). */
+ * perf samples on the shared 2-core machine under load: 0.50 -> 0.19 ms per frame). A rigid
+ * handle (its targets an affine map of its rest vertices) adds its precomputed moments
+ * instead (seg_off in km_puppet): the armadillo's rig, 6220 handle vertices, spent 0.21-0.24
+ * ms of its 0.90-0.98 ms solve here before. */
 KM__SIMD_CLONES
 static void handle_rhs(km_puppet *p, const double *targets, double *b) {
   size_t nr = p->nr;
   double *M = p->hM;
-  for (size_t i = 0; i < p->n_hv; ++i) {
-    const double *pv = p->Pn + 3 * (size_t)p->h_v[i];
-    double p4[4] = {pv[0], pv[1], pv[2], 1};
-    for (int c = 0; c < 3; ++c) {
-      double r = p->wc2 * ((targets[3 * i + c] - p->center[c]) / p->scale - pv[c]);
-      for (int k = 0; k < 4; ++k)
-        M[12 * i + 4 * c + k] = p4[k] * r;
+  for (size_t h = 0; h < p->n_handles; ++h) {
+    /* r_i, then G_h^T = pinv_h sum_i p4_i r_i^T (4 x 3), then every r_i checked against
+     * G_h p4_i: a relative 1e-9 leaves the sum exact to that digit, and rigid targets,
+     * made in double, meet it by six orders */
+    double S[12] = {0}, rmax = 0, *G = p->h_G + 12 * h;
+    for (int32_t i = p->h_off[h]; i < p->h_off[h + 1]; ++i) {
+      const double *pv = p->Pn + 3 * (size_t)p->h_v[i];
+      double p4[4] = {pv[0], pv[1], pv[2], 1}, *r = M + 12 * (size_t)i;
+      for (int c = 0; c < 3; ++c) {
+        r[c] = p->wc2 * ((targets[3 * (size_t)i + c] - p->center[c]) / p->scale - pv[c]);
+        rmax = fmax(rmax, fabs(r[c]));
+        for (int a = 0; a < 4; ++a)
+          S[3 * a + c] += p4[a] * r[c];
+      }
+    }
+    const double *P = p->h_pinv + 16 * h;
+    for (int a = 0; a < 4; ++a)
+      for (int c = 0; c < 3; ++c)
+        G[3 * a + c] = P[4 * a] * S[c] + P[4 * a + 1] * S[3 + c] + P[4 * a + 2] * S[6 + c] +
+                       P[4 * a + 3] * S[9 + c];
+    bool affine = true;
+    double tol = 1e-9 * fmax(rmax, 1e-9 * p->wc2); /* r below 1e-9 of the unit size: 0 */
+    for (int32_t i = p->h_off[h]; i < p->h_off[h + 1] && affine; ++i) {
+      const double *pv = p->Pn + 3 * (size_t)p->h_v[i], *r = M + 12 * (size_t)i;
+      for (int c = 0; c < 3; ++c)
+        affine &= fabs(pv[0] * G[c] + pv[1] * G[3 + c] + pv[2] * G[6 + c] + G[9 + c] - r[c]) <= tol;
+    }
+    p->h_affine[h] = affine;
+    if (affine) continue;
+    for (int32_t i = p->h_off[h]; i < p->h_off[h + 1]; ++i) {
+      const double *pv = p->Pn + 3 * (size_t)p->h_v[i];
+      double p4[4] = {pv[0], pv[1], pv[2], 1}, *m = M + 12 * (size_t)i, r[3] = {m[0], m[1], m[2]};
+      for (int c = 0; c < 3; ++c)
+        for (int k = 0; k < 4; ++k)
+          m[4 * c + k] = p4[k] * r[c];
     }
   }
   for (size_t li = 0; li < p->n_isolines; ++li) {
     double acc[12] = {0};
-    for (int32_t q = p->hw_off[li]; q < p->hw_off[li + 1]; ++q) {
-      const double *m = M + 12 * (size_t)p->hw_i[q];
-      double w = p->hw_w[q];
-      for (int k = 0; k < 12; ++k)
-        acc[k] += w * m[k];
+    for (int32_t sg = p->seg_off[li]; sg < p->seg_off[li + 1]; ++sg) {
+      int32_t h = p->seg_h[sg];
+      if (p->h_affine[h]) {
+        /* acc(c, k) += sum_j M_{li,h}(k, j) G_h^T(j, c) */
+        const double *m = p->seg_m + 16 * (size_t)sg, *G = p->h_G + 12 * (size_t)h;
+        for (int c = 0; c < 3; ++c)
+          for (int k = 0; k < 4; ++k)
+            acc[4 * c + k] += m[4 * k] * G[c] + m[4 * k + 1] * G[3 + c] + m[4 * k + 2] * G[6 + c] +
+                              m[4 * k + 3] * G[9 + c];
+        continue;
+      }
+      for (int32_t q = p->seg_q[sg]; q < p->seg_q[sg + 1]; ++q) {
+        const double *m = M + 12 * (size_t)p->hw_i[q];
+        double w = p->hw_w[q];
+        for (int k = 0; k < 12; ++k)
+          acc[k] += w * m[k];
+      }
     }
     for (int c = 0; c < 3; ++c)
       for (int k = 0; k < 4; ++k)
