@@ -1727,7 +1727,7 @@ static void handle_rhs(km_puppet *p, const double *targets, double *b) {
         G[3 * a + c] = P[4 * a] * S[c] + P[4 * a + 1] * S[3 + c] + P[4 * a + 2] * S[6 + c] +
                        P[4 * a + 3] * S[9 + c];
     bool affine = true;
-    double tol = 1e-9 * fmax(rmax, 1e-9 * p->wc2); /* r below 1e-9 of the unit size: 0 */
+    double tol = 1e-9 * rmax + 1e-12 * p->wc2; /* and 1e-12 of the model's unit size */
     for (int32_t i = p->h_off[h]; i < p->h_off[h + 1] && affine; ++i) {
       const double *pv = p->Pn + 3 * (size_t)p->h_v[i], *r = M + 12 * (size_t)i;
       for (int c = 0; c < 3; ++c)
