@@ -25,7 +25,8 @@
  *             the table ends with how many rows meet every target
  * A mesh or take that is missing or cannot be used gives a "skipped" line with the reason.
  * KM_BENCH_WHERE=DIR (for developers): where B's worst stretch, folds and jumps sit, on stderr,
- * and the rest mesh, its handles and the frames of the worst stretch and most folds in DIR. */
+ * and the rest mesh, its handles and the frames of the worst stretch and most folds in DIR
+ * (with --skin also skin.obj, L's frame of the worst stretch, and skin_b.obj, B's same frame). */
 #include "bench.h"
 #include "cli.h"
 
@@ -43,6 +44,7 @@ typedef struct bm_args {
   size_t frames;
   double fps; /* > 0: takes faster than this are resampled to it; 0: their own rate */
   bool json, floor;
+  bool skin;           /* --skin: the skinned reference beside B (bm_skin) */
   double max_step;     /* B's rig max_step; < 0: as the sidecar writes it */
   int32_t relative_to; /* 1 + a Kinect joint subtracted from every map entry; 0: as rigged */
   char machine[320];
@@ -306,10 +308,113 @@ static void where_report(const char *tag, const km_mesh *m, const km_rig *rig, c
   fprintf(stderr, "\n");
 }
 
-/* One variant over the take: the metrics (where: KM_BENCH_WHERE's folder, or NULL). */
+/* Largest |l / l0 - 1| over the edges of frame V (NaN propagates); *worst: its edge. */
+static double frame_stretch(const bm_geom *g, const double *V, size_t *worst) {
+  double m = 0;
+  for (size_t e = 0; e < g->n_edges; ++e) {
+    const double *a = V + 3 * (size_t)g->edges[2 * e], *b = V + 3 * (size_t)g->edges[2 * e + 1];
+    double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                    (a[2] - b[2]) * (a[2] - b[2]));
+    double r = fabs(l / g->len0[e] - 1);
+    if (!(r <= m)) m = r, *worst = e;
+  }
+  return m;
+}
+
+/* Folded pairs of frame f (V, face normals into N): marks their triangles in ever (and, when
+ * first is not NULL, the frame a triangle first folded). Returns the pairs folded now. */
+static size_t frame_folds(const km_mesh *m, const bm_geom *g, const double *V, double *N,
+                          unsigned char *ever, int32_t *first, size_t f) {
+  for (size_t k = 0; k < m->n_faces; ++k)
+    face_normal(V, m->F + 3 * k, N + 3 * k);
+  size_t now = 0;
+  for (size_t q = 0; q < g->n_pairs; ++q) {
+    const double *n1 = N + 3 * (size_t)g->pairs[2 * q], *n2 = N + 3 * (size_t)g->pairs[2 * q + 1];
+    if (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2] < -0.5) {
+      for (int s = 0; s < 2; ++s) {
+        int32_t t = g->pairs[2 * q + s];
+        if (first && !ever[t]) first[t] = (int32_t)f;
+        ever[t] = 1;
+      }
+      now++;
+    }
+  }
+  return now;
+}
+
+/* Largest vertex step from Vp to V (*jv: its vertex) and the lowest y of V. */
+static double frame_step(size_t nv, const double *V, const double *Vp, size_t *jv, double *ymin) {
+  double jump = 0;
+  *ymin = INFINITY;
+  for (size_t v = 0; v < nv; ++v) {
+    if (V[3 * v + 1] < *ymin) *ymin = V[3 * v + 1];
+    if (Vp) {
+      double dx = V[3 * v] - Vp[3 * v], dy = V[3 * v + 1] - Vp[3 * v + 1],
+             dz = V[3 * v + 2] - Vp[3 * v + 2];
+      double d = sqrt(dx * dx + dy * dy + dz * dz);
+      if (!(d <= jump)) jump = d, *jv = v;
+    }
+  }
+  return jump;
+}
+
+/* The median per-frame time (tm, nf frames) and the jump's 95th percentile (jf, nf - 1 steps),
+ * both sorted in place. */
+static void finish_times(bm_metrics *out, double *tm, double *jf, size_t nf) {
+  qsort(tm, nf, sizeof *tm, dcmp);
+  if (nf > 1) {
+    qsort(jf, nf - 1, sizeof *jf, dcmp);
+    out->jump_p95_pct = jf[(size_t)(0.95 * (double)(nf - 2) + 0.5)];
+  }
+  out->tper_ms = nf ? (nf % 2 ? tm[nf / 2] : 0.5 * (tm[nf / 2 - 1] + tm[nf / 2])) : NAN;
+}
+
+/* The skinned reference (--skin): the character's skeleton, posed by the pipeline's own
+ * retargeted joints (km_puppetry_posed_joints), skins the rest mesh with the rig's weights
+ * (km_skeleton_pose_from_positions + km_lbs: linear blend skinning, what a game engine or
+ * Blender's armature does with a skinned export of the same motion). Stretch, folds, jump and
+ * floor as for the variants; tper_ms the pose + skinning time. */
+typedef struct bm_skin {
+  const km_character *c;
+  bm_metrics out;
+  double *J, *T, *V, *Vp, *tm, *jf;
+  unsigned char *ever;
+} bm_skin;
+
+static void skin_frame(bm_skin *sk, const km_mesh *m, const bm_geom *g, const km_puppetry *p,
+                       double *N, size_t f, const char *where, const double *Vb) {
+  size_t nv = m->n_vertices, worst, jv;
+  double t0 = km_cli_now();
+  km_error e = {0};
+  if (!km_puppetry_posed_joints(p, sk->J) ||
+      km_skeleton_pose_from_positions(&sk->c->skeleton, sk->J, sk->T, &e) != KM_OK ||
+      km_lbs(m->V, nv, &sk->c->skin, sk->T, sk->c->skeleton.n_joints, sk->V, &e) != KM_OK) {
+    sk->out.stretch = NAN; /* no skeleton to pose: the row says so with NaN */
+    return;
+  }
+  sk->tm[f] = 1e3 * (km_cli_now() - t0);
+  double r = frame_stretch(g, sk->V, &worst), ymin;
+  if (where && r > sk->out.stretch) {
+    where_write(where, "skin", m, sk->V);
+    where_write(where, "skin_b", m, Vb); /* B's frame beside it */
+    fprintf(stderr, "WHERE L: stretch %.3f frame %zu\n", r, f);
+  }
+  if (!(r <= sk->out.stretch)) sk->out.stretch = r;
+  frame_folds(m, g, sk->V, N, sk->ever, NULL, f);
+  double jump = 100 * frame_step(nv, sk->V, f ? sk->Vp : NULL, &jv, &ymin) / g->diag;
+  if (f && !(jump <= sk->out.jump_pct)) sk->out.jump_pct = jump;
+  if (f) sk->jf[f - 1] = jump, sk->out.jump_over3 += jump > 3;
+  if (ymin < g->floor_y - BM_FLOOR_TOL * g->diag) sk->out.below++;
+  double *sw = sk->V;
+  sk->V = sk->Vp;
+  sk->Vp = sw;
+}
+
+/* One variant over the take: the metrics (where: KM_BENCH_WHERE's folder, or NULL; sk: the
+ * skinned reference driven by this variant's joints, or NULL). */
 static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *rig,
                              km_puppet *model, const km_take *t, size_t nf, bm_metrics *out,
-                             const char *where, km_error *err) {
+                             const char *where, bm_skin *sk, km_error *err) {
   km_puppetry_options o = {0};
   o.model = model;
   o.fps = t->fps;
@@ -324,7 +429,19 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   size_t worst_e = 0, worst_f = 0, most_folds = 0;
   km_status s = KM_OK;
   memset(out, 0, sizeof *out);
-  if (!V || !Vp || !N || !tm || !jf || !ever || (where && !first)) {
+  if (sk) {
+    size_t nj = sk->c->skeleton.n_joints;
+    memset(&sk->out, 0, sizeof sk->out);
+    sk->J = malloc(3 * (nj > 20 ? nj : 20) * sizeof(double));
+    sk->T = malloc(12 * (nj ? nj : 1) * sizeof(double));
+    sk->V = malloc(3 * nv * sizeof(double));
+    sk->Vp = malloc(3 * nv * sizeof(double));
+    sk->tm = calloc(nf ? nf : 1, sizeof(double));
+    sk->jf = calloc(nf ? nf : 1, sizeof(double));
+    sk->ever = calloc(m->n_faces ? m->n_faces : 1, 1);
+  }
+  if (!V || !Vp || !N || !tm || !jf || !ever || (where && !first) ||
+      (sk && (!sk->J || !sk->T || !sk->V || !sk->Vp || !sk->tm || !sk->jf || !sk->ever))) {
     s = KM_ERR_NOMEM;
     snprintf(err->message, sizeof err->message, "out of memory");
     goto done;
@@ -337,44 +454,19 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     s = km_puppetry_push(p, t->positions + f * t->n_joints * 3, V, err);
     tm[f] = 1e3 * (km_cli_now() - t0);
     if (s != KM_OK) goto done;
-    bool new_worst = false;
-    for (size_t e = 0; e < g->n_edges; ++e) {
-      const double *a = V + 3 * (size_t)g->edges[2 * e], *b = V + 3 * (size_t)g->edges[2 * e + 1];
-      double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
-                      (a[2] - b[2]) * (a[2] - b[2]));
-      double r = fabs(l / g->len0[e] - 1);
-      if (where && r > out->stretch) worst_e = e, worst_f = f, new_worst = true;
-      if (!(r <= out->stretch)) out->stretch = r; /* NaN propagates */
-    }
-    if (new_worst) where_write(where, "stretch", m, V);
-    for (size_t k = 0; k < m->n_faces; ++k)
-      face_normal(V, m->F + 3 * k, N + 3 * k);
-    size_t nfold_now = 0;
-    for (size_t q = 0; q < g->n_pairs; ++q) {
-      const double *n1 = N + 3 * (size_t)g->pairs[2 * q], *n2 = N + 3 * (size_t)g->pairs[2 * q + 1];
-      if (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2] < -0.5) {
-        if (first && !ever[g->pairs[2 * q]]) first[g->pairs[2 * q]] = (int32_t)f;
-        if (first && !ever[g->pairs[2 * q + 1]]) first[g->pairs[2 * q + 1]] = (int32_t)f;
-        ever[g->pairs[2 * q]] = ever[g->pairs[2 * q + 1]] = 1;
-        nfold_now++;
-      }
-    }
+    size_t e = 0;
+    double r = frame_stretch(g, V, &e);
+    if (where && r > out->stretch) where_write(where, "stretch", m, V), worst_e = e, worst_f = f;
+    if (!(r <= out->stretch)) out->stretch = r; /* NaN propagates */
+    size_t nfold_now = frame_folds(m, g, V, N, ever, first, f);
     if (where && nfold_now > most_folds) {
       most_folds = nfold_now;
       where_write(where, "folds", m, V);
       fprintf(stderr, "WHERE folds frame %zu: %zu pairs\n", f, nfold_now);
     }
-    double ymin = INFINITY, jump = 0;
+    double ymin;
     size_t jv = 0;
-    for (size_t v = 0; v < nv; ++v) {
-      if (V[3 * v + 1] < ymin) ymin = V[3 * v + 1];
-      if (f) {
-        double dx = V[3 * v] - Vp[3 * v], dy = V[3 * v + 1] - Vp[3 * v + 1],
-               dz = V[3 * v + 2] - Vp[3 * v + 2];
-        double d = sqrt(dx * dx + dy * dy + dz * dz);
-        if (!(d <= jump)) jump = d, jv = v;
-      }
-    }
+    double jump = frame_step(nv, V, f ? Vp : NULL, &jv, &ymin);
     if (f) jf[f - 1] = 100 * jump / g->diag;
     if (where && f && 100 * jump / g->diag > out->jump_pct) {
       int32_t h = where_handle(m, rig, m->V + 3 * jv);
@@ -395,18 +487,30 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     double *sw = V;
     V = Vp;
     Vp = sw;
+    if (sk && !isnan(sk->out.stretch)) skin_frame(sk, m, g, p, N, f, where, Vp);
   }
   for (size_t k = 0; k < m->n_faces; ++k)
     out->folded += ever[k];
   out->eased = km_puppetry_eased_frames(p);
   if (where) where_report("B", m, rig, g, worst_e, worst_f, out->stretch, ever, first);
-  qsort(tm, nf, sizeof *tm, dcmp);
-  if (nf > 1) {
-    qsort(jf, nf - 1, sizeof *jf, dcmp);
-    out->jump_p95_pct = jf[(size_t)(0.95 * (double)(nf - 2) + 0.5)];
+  finish_times(out, tm, jf, nf);
+  if (sk) {
+    for (size_t k = 0; k < m->n_faces; ++k)
+      sk->out.folded += sk->ever[k];
+    finish_times(&sk->out, sk->tm, sk->jf, nf);
   }
-  out->tper_ms = nf ? (nf % 2 ? tm[nf / 2] : 0.5 * (tm[nf / 2 - 1] + tm[nf / 2])) : NAN;
 done:
+  if (sk) {
+    free(sk->J);
+    free(sk->T);
+    free(sk->V);
+    free(sk->Vp);
+    free(sk->tm);
+    free(sk->jf);
+    free(sk->ever);
+    sk->J = sk->T = sk->V = sk->Vp = sk->tm = sk->jf = NULL;
+    sk->ever = NULL;
+  }
   km_puppetry_free(&p);
   free(V);
   free(Vp);
@@ -534,6 +638,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       continue;
     }
     bm_metrics r[2];
+    bm_skin sk = {.c = &c};
     bool ok = true;
     for (int v = 0; v < 2 && ok; ++v) {
       for (size_t e = 0; e < rig.n_maps; ++e)
@@ -560,7 +665,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
         tr.max_step = a->max_step;
       }
       if (run_variant(&m, &g, &tr, model, &t, nf, &r[v], v ? getenv("KM_BENCH_WHERE") : NULL,
-                      &te) != KM_OK) {
+                      v && a->skin ? &sk : NULL, &te) != KM_OK) {
         snprintf(why, sizeof why, "%.500s", te.message);
         ok = false;
       }
@@ -590,6 +695,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       cJSON_AddItemToObject(o, "translate", metrics_json(&r[0]));
       cJSON_AddItemToObject(o, "bones", metrics_json(&r[1]));
       cJSON_AddStringToObject(o, "bones_misses", miss[0] == '-' ? "" : miss);
+      if (a->skin) cJSON_AddItemToObject(o, "skin", metrics_json(&sk.out));
       char *s = cJSON_PrintUnformatted(o);
       cJSON_Delete(o);
       if (s) puts(s);
@@ -600,6 +706,11 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
              tname, mname, m.n_vertices, nf, r[0].stretch, r[1].stretch, r[0].folded, r[1].folded,
              r[0].raw_jump_pct, r[0].jump_pct, r[1].jump_pct, r[0].below, r[1].below, r[0].tper_ms,
              r[1].tper_ms, r[1].eased, miss);
+      if (a->skin)
+        printf("%-18.18s %-16.16s %7s %5s  %6s %6.3f  %5s %5zu  %6s %6s %6.2f  %5s %5zu  %7s %7.2f"
+               "  (L: skinned by the rig's weights)\n",
+               "", "", "", "", "", sk.out.stretch, "", sk.out.folded, "", "", sk.out.jump_pct, "",
+               sk.out.below, "", sk.out.tper_ms);
     }
     fflush(stdout);
     km_take_free(&t);
@@ -664,7 +775,7 @@ static void split_list(const char *s, char ***list, size_t *n) {
 
 int km_bench_motion(int argc, char **argv) {
   const char *takes_opt = NULL, *meshes_opt = NULL, *relative_opt = NULL;
-  bm_args a = {"../shared/data", 0, 0, false, false, -1, 0, ""};
+  bm_args a = {"../shared/data", 0, 0, false, false, false, -1, 0, ""};
   const km_cli_opt opts[] = {
       {"takes", 0, KM_OPT_STRING, &takes_opt,
        "comma list of motion files (Kinect CSV, BVH, take JSON) or walk, wave, kungfu "
@@ -686,13 +797,16 @@ int km_bench_motion(int argc, char **argv) {
        "B's snap easing: fraction of the diagonal a handle vertex may move per frame (0: off; "
        "default: the rig's; the sidecar writes none: off)"},
       {"json", 0, KM_OPT_FLAG, &a.json, "print one JSON object per row, one per line"},
+      {"skin", 0, KM_OPT_FLAG, &a.skin,
+       "also L: the rig's skeleton, posed by B's own retargeted joints, skinning the mesh with "
+       "the rig's weights (linear blend skinning, what an engine does with a skinned export)"},
   };
   int n_pos;
   const char *pos[1];
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
       "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames N] [--fps F] "
-      "[--max-step F] [--json]",
+      "[--max-step F] [--skin] [--json]",
       "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
       "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"
       "paper's, T) and bone handles (B) side by side. Per row: edge stretch max\n"

@@ -1290,6 +1290,12 @@ bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], 
  * + t (see km_retarget_root_transform); leaves them as they are for a rig without rigid root
  * motion. Returns whether it moved them. */
 bool km_retarget_apply_root(const km_retarget *r, double *points, size_t n);
+/* The character's own joints as the last push posed them (the skeleton its bone handles hang
+ * from, with the rigid root motion applied): what a skinned export of the same motion would
+ * pose its skeleton to.
+ *   out  out: n_joints*3 (the take's joint order), NaN for a joint the rig's "joints" lacks
+ * Returns false, leaving out as it is, for a rig without a character skeleton ("joints"). */
+bool km_retarget_joints(const km_retarget *r, double *out);
 /* Forgets reference positions (and the auto scale): the next valid frame is the new rest. */
 void km_retarget_reset(km_retarget *r);
 /* Frees *r and sets it to NULL. */
@@ -1757,6 +1763,11 @@ const double *km_puppetry_rest_centroids(const km_puppetry *p);
 const double *km_puppetry_filtered_joints(const km_puppetry *p);
 const double *km_puppetry_reference_joints(const km_puppetry *p);
 const double *km_puppetry_last_joints(const km_puppetry *p);
+/* The character's own joints as the last push posed them (km_retarget_joints: the skeleton
+ * the bone handles hang from, root motion applied), in the rig's joint order.
+ *   out  out: n*3 with n as for km_puppetry_filtered_joints
+ * Returns false (out untouched) without a rig or when the rig has no "joints" skeleton. */
+bool km_puppetry_posed_joints(const km_puppetry *p, double *out);
 /* Glitch rejection counts since the current rig was set (or reset); zeroed when off. */
 void km_puppetry_glitch_stats(const km_puppetry *p, km_glitch_stats *out);
 /* Frames whose handle motion the rig's max_step eased (km_retarget_eased_frames) since the

@@ -72,7 +72,7 @@ int main(void) {
   char *out = NULL;
   int rc = km_test_run(KM_CLI " bench motion --meshes character:3000,no_such_mesh "
                               "--takes walk,bench_motion_wave.json,no_such_take.csv --frames 8 "
-                              "--json 2>/dev/null",
+                              "--skin --json 2>/dev/null",
                        &out);
   CHECK_MSG(rc == 0, "exit status %d: %s", rc, out ? out : "");
   int rows = 0, skipped = 0;
@@ -109,6 +109,7 @@ int main(void) {
     CHECK(tj >= 0);
     check_variant(o, "translate", rows, fr);
     check_variant(o, "bones", rows, fr);
+    check_variant(o, "skin", rows, fr); /* --skin: the rig's skeleton skinning the mesh */
     check_misses(o, rows);
     cJSON_Delete(o);
     ++rows;

@@ -70,6 +70,34 @@ static void test_rest_reproduces_rest(const fixture *fx) {
         1e-12 * diag);
   CHECK(km_puppetry_last_joints(p) != NULL);
   CHECK(max_abs_diff(km_puppetry_reference_joints(p), fx->c.skeleton.rest, 3 * 20) < 1e-12);
+  /* the character's own joints, posed: at rest where they are; in a waving frame the limbs
+   * turn with their bone lengths kept, and the raised wrist leaves its rest place */
+  double J[60];
+  CHECK(km_puppetry_posed_joints(p, J));
+  CHECK_MSG(max_abs_diff(J, fx->c.skeleton.rest, 60) < 1e-9 * diag, "posed rest joints off %g",
+            max_abs_diff(J, fx->c.skeleton.rest, 60));
+  size_t wf = fx->take.n_frames - 1;
+  for (int f = 0; f < 30; ++f) /* let the filter settle on the frame */
+    CHECK_OK(km_puppetry_push(p, fx->take.positions + wf * 60, V, KM_E));
+  CHECK(km_puppetry_posed_joints(p, J));
+  const double *R0 = fx->c.skeleton.rest;
+  double worst = 0, moved = 0;
+  for (size_t j = 1; j < 20; ++j) {
+    size_t q = (size_t)fx->c.skeleton.parents[j];
+    double l = 0, l0 = 0;
+    for (int a = 0; a < 3; ++a) {
+      l += (J[3 * j + a] - J[3 * q + a]) * (J[3 * j + a] - J[3 * q + a]);
+      l0 += (R0[3 * j + a] - R0[3 * q + a]) * (R0[3 * j + a] - R0[3 * q + a]);
+    }
+    worst = fmax(worst, fabs(sqrt(l) - sqrt(l0)));
+  }
+  for (size_t j = 0; j < 20; ++j)
+    moved = fmax(moved, sqrt((J[3 * j] - R0[3 * j]) * (J[3 * j] - R0[3 * j]) +
+                             (J[3 * j + 1] - R0[3 * j + 1]) * (J[3 * j + 1] - R0[3 * j + 1]) +
+                             (J[3 * j + 2] - R0[3 * j + 2]) * (J[3 * j + 2] - R0[3 * j + 2])));
+  CHECK_MSG(worst < 1e-9 * diag && moved > 0.05 * diag,
+            "posed joints: bone lengths off by %g, largest move %g (diagonal %g)", worst, moved,
+            diag);
   km_puppetry_times t;
   km_puppetry_times_get(p, &t);
   CHECK(t.filter_ms >= 0 && t.retarget_ms >= 0 && t.solve_ms > 0);
@@ -83,6 +111,33 @@ static void test_rest_reproduces_rest(const fixture *fx) {
   km_puppetry_free(&p);
   CHECK(p == NULL);
   km_puppetry_free(&p); /* NULL-safe */
+}
+
+/* A rig without the character's skeleton (no "joints": one translation-only handle, as a
+ * user writes by hand) has no posed joints to give. */
+static void test_no_posed_joints(const fixture *fx) {
+  char path[300];
+  snprintf(path, sizeof path, "%s/plain.rig.json", g_dir);
+  FILE *f = fopen(path, "w");
+  CHECK(f != NULL);
+  if (!f) return;
+  fprintf(f, "{\"format\":\"kinemesh-rig\",\"version\":1,\"handles\":[{\"name\":\"hand\","
+             "\"vertex\":0,\"radius\":0.1}],\"map\":[{\"handle\":\"hand\",\"joint\":"
+             "\"HandLeft\"}]}\n");
+  fclose(f);
+  km_rig rig = {0};
+  CHECK_OK(km_rig_read(path, &fx->c.mesh, NULL, 0, &rig, KM_E));
+  km_puppetry *p = NULL;
+  if (rig.n_handles)
+    CHECK_OK(km_puppetry_create(&fx->c.mesh, &rig, NULL, KM_KINECT1_JOINTS, NULL, &p, NULL, KM_E));
+  if (p) {
+    double J[60] = {0}, *V = malloc(sizeof(double) * 3 * fx->c.mesh.n_vertices);
+    CHECK_OK(km_puppetry_push(p, fx->c.skeleton.rest, V, KM_E));
+    CHECK(!km_puppetry_posed_joints(p, J) && J[0] == 0);
+    free(V);
+  }
+  km_puppetry_free(&p);
+  km_rig_free(&rig);
 }
 
 /* The hand-written loop every front end used to carry. */
@@ -742,6 +797,7 @@ int main(void) {
   fixture fx;
   if (fixture_make(&fx)) {
     test_rest_reproduces_rest(&fx);
+    test_no_posed_joints(&fx);
     test_same_as_manual_loop(&fx);
     test_cache_policy(&fx);
     test_forged_cache(&fx);

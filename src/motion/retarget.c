@@ -1267,6 +1267,13 @@ bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], 
   return r->rigid;
 }
 
+bool km_retarget_joints(const km_retarget *r, double *out) {
+  if (!r->C || !r->jrest) return false;
+  memcpy(out, r->C, r->n_joints * 3 * sizeof(double));
+  km_retarget_apply_root(r, out, r->n_joints);
+  return true;
+}
+
 bool km_retarget_apply_root(const km_retarget *r, double *points, size_t n) {
   if (!r->rigid) return false;
   const double *R = r->R, *pv = r->pivot, *t = r->t;

@@ -490,6 +490,10 @@ void km_puppetry_glitch_stats(const km_puppetry *p, km_glitch_stats *out) {
     memset(out, 0, sizeof *out);
 }
 
+bool km_puppetry_posed_joints(const km_puppetry *p, double *out) {
+  return p && p->rt && out && km_retarget_joints(p->rt, out);
+}
+
 size_t km_puppetry_eased_frames(const km_puppetry *p) {
   return p->rt ? km_retarget_eased_frames(p->rt) : 0;
 }
