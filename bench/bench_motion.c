@@ -813,9 +813,11 @@ int km_bench_motion(int argc, char **argv) {
       "|l/l0 - 1|, folded triangles (a neighbour's normal < 60 deg at rest, > 120 deg\n"
       "in a frame), the largest one-frame vertex jump (% of the bbox diagonal), frames\n"
       "with a vertex below the rest floor (by more than 0.5% of the diagonal) and the\n"
-      "median per-frame time, and for B the frames the snap easing slowed. BVH takes need joints "
-      "standing for the Kinect v1 ones\n"
-      "(Kinect names, or another skeleton's: docs/skeletons.md); otherwise skipped.");
+      "median per-frame time, and for B the frames the snap easing slowed and the\n"
+      "targets it misses (s stretch > 0.5, f a fold, j jump > 3%, t time > 1.3x T);\n"
+      "the last line counts the rows that meet them all. BVH takes need joints\n"
+      "standing for the Kinect v1 ones (Kinect names, or another skeleton's:\n"
+      "docs/skeletons.md); otherwise skipped.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!(a.fps >= 0 && a.fps <= 1000))
     return km_cli_error("bench motion",
