@@ -45,6 +45,7 @@ typedef struct bm_args {
   double fps; /* > 0: takes faster than this are resampled to it; 0: their own rate */
   bool json, floor;
   bool skin;           /* --skin: the skinned reference beside B (bm_skin) */
+  bool reach;          /* --weights reach: km_autorig's reach-limited skin weights */
   double max_step;     /* B's rig max_step; < 0: as the sidecar writes it */
   int32_t relative_to; /* 1 + a Kinect joint subtracted from every map entry; 0: as rigged */
   char machine[320];
@@ -568,7 +569,9 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
   double t0 = km_cli_now();
   if (load_mesh(path, &m, note, sizeof note, &err) != KM_OK) goto skip_mesh;
   km_autorig_report rep;
-  if (km_autorig(&m, NULL, &c, &rep, &err) != KM_OK) goto skip_mesh;
+  km_autorig_options ao = {0};
+  ao.skin = a->reach ? KM_AUTORIG_SKIN_REACH : KM_AUTORIG_SKIN_DISTANCE;
+  if (km_autorig(&m, &ao, &c, &rep, &err) != KM_OK) goto skip_mesh;
   fd = mkstemp(tmp);
   if (fd < 0) {
     snprintf(err.message, sizeof err.message, "cannot create a temporary file");
@@ -774,8 +777,8 @@ static void split_list(const char *s, char ***list, size_t *n) {
 }
 
 int km_bench_motion(int argc, char **argv) {
-  const char *takes_opt = NULL, *meshes_opt = NULL, *relative_opt = NULL;
-  bm_args a = {"../shared/data", 0, 0, false, false, false, -1, 0, ""};
+  const char *takes_opt = NULL, *meshes_opt = NULL, *relative_opt = NULL, *weights_opt = NULL;
+  bm_args a = {.data = "../shared/data", .max_step = -1};
   const km_cli_opt opts[] = {
       {"takes", 0, KM_OPT_STRING, &takes_opt,
        "comma list of motion files (Kinect CSV, BVH, take JSON) or walk, wave, kungfu "
@@ -800,13 +803,16 @@ int km_bench_motion(int argc, char **argv) {
       {"skin", 0, KM_OPT_FLAG, &a.skin,
        "also L: the rig's skeleton, posed by B's own retargeted joints, skinning the mesh with "
        "the rig's weights (linear blend skinning, what an engine does with a skinned export)"},
+      {"weights", 0, KM_OPT_STRING, &weights_opt,
+       "the rig's skin weights: distance (default) or reach (limited along the surface; "
+       "rig --weights); only L uses them"},
   };
   int n_pos;
   const char *pos[1];
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
       "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames N] [--fps F] "
-      "[--max-step F] [--skin] [--json]",
+      "[--max-step F] [--skin [--weights reach]] [--json]",
       "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
       "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"
       "paper's, T) and bone handles (B) side by side. Per row: edge stretch max\n"
@@ -824,6 +830,9 @@ int km_bench_motion(int argc, char **argv) {
                         "--fps %g: expected a frame rate in 0..1000 (0: each "
                         "take's own)",
                         a.fps);
+  if (weights_opt && strcmp(weights_opt, "distance") && strcmp(weights_opt, "reach"))
+    return km_cli_error("bench motion", "--weights %s: expected distance or reach", weights_opt);
+  a.reach = weights_opt && !strcmp(weights_opt, "reach");
   if (relative_opt) {
     int j = km_kinect1_joint_index(relative_opt);
     if (j < 0)

@@ -2533,11 +2533,15 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * Skin: every vertex is weighted on the bones nearest to it (distance to the bone segment,
  * the segment from a joint to its child weighting that joint, leaf joints reaching to their
  * extremity), w = (1 - (d - dmin) / band)^2 within band = 0.06 H of the nearest, at most 4
- * influences, summing to 1. Landmarks: the surface vertex hit by a ray from a joint
- * (forward, up or sideways, like the procedural character's), hands and feet at their tips.
- * Meshes it refuses: no faces, several components (each connected set of faces), non-manifold
- * edges (three or more faces), too few extremities for the requested skeleton (kinect1 or
- * quadruped asked for), a surface too small for five separate handles. */
+ * influences, summing to 1. With skin = KM_AUTORIG_SKIN_REACH each bone's w is also
+ * multiplied by its reach along the surface: 1 within band (along the edges, Dijkstra) of the
+ * bone's own patch (the largest connected group of vertices nearest to it), falling smoothly
+ * to 0 at 4 band, so a part near a bone in space but far from it along the skin (an ear beside
+ * a raised hand, a trunk beside an arm) does not follow it. Landmarks: the surface vertex hit by a
+ * ray from a joint (forward, up or sideways, like the procedural character's), hands and feet at
+ * their tips. Meshes it refuses: no faces, several components (each connected set of faces),
+ * non-manifold edges (three or more faces), too few extremities for the requested skeleton (kinect1
+ * or quadruped asked for), a surface too small for five separate handles. */
 typedef enum km_autorig_skeleton {
   KM_AUTORIG_AUTO = 0,  /* humanoid or quadruped from where the extremities are, else prop */
   KM_AUTORIG_KINECT1,   /* humanoid: Kinect v1 joints embedded in the body */
@@ -2546,8 +2550,15 @@ typedef enum km_autorig_skeleton {
 } km_autorig_skeleton;
 
 #define KM_AUTORIG_MAX_EXTREMITIES 16
+/* How km_autorig weights the skin (see km_autorig). */
+typedef enum km_autorig_skin {
+  KM_AUTORIG_SKIN_DISTANCE = 0, /* distance to the bones in space (what reconstruct expects) */
+  KM_AUTORIG_SKIN_REACH         /* the same, limited by each bone's reach along the surface */
+} km_autorig_skin;
+
 typedef struct km_autorig_options {
   km_autorig_skeleton skeleton; /* 0: auto */
+  km_autorig_skin skin;         /* 0: distance */
   double min_extremity; /* extremity prominence, fraction of the largest bbox extent; 0: 0.2 */
   size_t
       max_extremities; /* most extremities sought; 0: KM_AUTORIG_MAX_EXTREMITIES (also the cap) */

@@ -34,7 +34,7 @@ static int write_sidecar(const char *path, const km_character *c, const km_frame
 }
 
 int km_cli_rig(int argc, char **argv) {
-  const char *out = NULL, *skel = NULL;
+  const char *out = NULL, *skel = NULL, *weights = NULL;
   double min_ext = 0;
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
@@ -43,6 +43,10 @@ int km_cli_rig(int argc, char **argv) {
       {"skeleton", 0, KM_OPT_STRING, &skel,
        "auto (default: a skinned glTF's own skin, else humanoid or quadruped from the "
        "extremities, else prop), kinect1 (humanoid), quadruped or prop (handles by position)"},
+      {"weights", 0, KM_OPT_STRING, &weights,
+       "skin weights: distance (default: by the distance to the bones, what reconstruct "
+       "expects) or reach (also limited along the surface: an ear beside a raised hand does "
+       "not follow the hand; for pose and skinned exports)"},
       {"min-extremity", 0, KM_OPT_DOUBLE, &min_ext,
        "extremity prominence as a fraction of the largest extent (default 0.2)"},
   };
@@ -51,7 +55,7 @@ int km_cli_rig(int argc, char **argv) {
   int r =
       km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
                    "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop] "
-                   "[--up +z --forward -y]",
+                   "[--weights distance|reach] [--up +z --forward -y]",
                    "Rigs a mesh kinemesh did not make: finds its extremities (geodesic\n"
                    "extremes), embeds the 20 Kinect v1 joints in its interior, computes\n"
                    "skin weights and the 16 landmarks, and writes the rig sidecar that\n"
@@ -79,6 +83,12 @@ int km_cli_rig(int argc, char **argv) {
     o.skeleton = KM_AUTORIG_PROP;
   else
     return km_cli_error("rig", "--skeleton %s: expected auto, kinect1, quadruped or prop", skel);
+  if (!weights || !strcmp(weights, "distance"))
+    o.skin = KM_AUTORIG_SKIN_DISTANCE;
+  else if (!strcmp(weights, "reach"))
+    o.skin = KM_AUTORIG_SKIN_REACH;
+  else
+    return km_cli_error("rig", "--weights %s: expected distance or reach", weights);
   o.min_extremity = min_ext;
   km_error err = {0};
   km_mesh m = {0};

@@ -76,6 +76,12 @@ km_status km__geodesic_create(const km_mesh *m, km__geodesic **out, km_error *er
 const double *km__geodesic_run(km__geodesic *g, const double *V, int32_t seed, double radius,
                                const int32_t *stop, size_t n_stop, const int32_t **reached,
                                size_t *n_reached) {
+  return km__geodesic_run_set(g, V, &seed, 1, radius, stop, n_stop, reached, n_reached);
+}
+
+const double *km__geodesic_run_set(km__geodesic *g, const double *V, const int32_t *seeds,
+                                   size_t n_seeds, double radius, const int32_t *stop,
+                                   size_t n_stop, const int32_t **reached, size_t *n_reached) {
   for (size_t i = 0; i < g->n_touched; ++i) { /* undo the last run */
     int32_t v = g->touched[i];
     g->dist[v] = INFINITY, g->hpos[v] = -1;
@@ -86,10 +92,14 @@ const double *km__geodesic_run(km__geodesic *g, const double *V, int32_t seed, d
     if (!g->stop[stop[k]]) g->stop[stop[k]] = 1, ++left;
   int32_t *hp = g->hp, *hpos = g->hpos;
   double *dist = g->dist;
-  dist[seed] = 0;
-  hp[hn++] = seed;
-  hpos[seed] = 0;
-  g->touched[g->n_touched++] = seed;
+  for (size_t k = 0; k < n_seeds; ++k) { /* every seed at 0: a heap of equal keys */
+    int32_t seed = seeds[k];
+    if (dist[seed] == 0) continue;
+    dist[seed] = 0;
+    hpos[seed] = (int32_t)hn;
+    hp[hn++] = seed;
+    g->touched[g->n_touched++] = seed;
+  }
   while (hn > 0 && (n_stop == 0 || left > 0)) {
     int32_t u = hp[0];
     hpos[u] = -2; /* settled */

@@ -22,6 +22,11 @@ km_status km__geodesic_create(const km_mesh *m, km__geodesic **out, km_error *er
 const double *km__geodesic_run(km__geodesic *g, const double *V, int32_t seed, double radius,
                                const int32_t *stop, size_t n_stop, const int32_t **reached,
                                size_t *n_reached);
+/* The same from a set of seeds (n_seeds >= 1, repeats allowed): each vertex's distance to the
+ * nearest seed along edges; reached lists the seeds first. */
+const double *km__geodesic_run_set(km__geodesic *g, const double *V, const int32_t *seeds,
+                                   size_t n_seeds, double radius, const int32_t *stop,
+                                   size_t n_stop, const int32_t **reached, size_t *n_reached);
 void km__geodesic_free(km__geodesic **g);
 
 /* One accessor of a glTF (.glb, or .gltf with data: URIs) in memory, as doubles: any component
