@@ -25,7 +25,8 @@ static km_status rig_bench_mesh(const char *spec, km_mesh *m, km_error *err) {
   return km_mesh_read(spec, m, err);
 }
 
-static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header) {
+static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header,
+                         km_autorig_skin skin) {
   km_error err = {0};
   km_mesh m = {0};
   km_character c = {0};
@@ -46,10 +47,12 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
     rc = km_cli_error("bench rig", "cannot create a temporary file");
     goto done;
   }
+  km_autorig_options o = {0};
+  o.skin = skin;
   for (size_t i = 0; i < repeat; ++i) {
     km_character_free(&c);
     double t0 = km_cli_now();
-    if (km_autorig(&m, NULL, &c, &rep, &err) != KM_OK) {
+    if (km_autorig(&m, &o, &c, &rep, &err) != KM_OK) {
       rc = km_cli_fail("bench rig", &err);
       goto done;
     }
@@ -71,6 +74,7 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
     cJSON_AddStringToObject(o, "machine", machine);
     cJSON_AddNumberToObject(o, "n_ver", (double)m.n_vertices);
     cJSON_AddStringToObject(o, "kind", kind);
+    cJSON_AddStringToObject(o, "weights", skin == KM_AUTORIG_SKIN_REACH ? "reach" : "distance");
     cJSON_AddNumberToObject(o, "extremities", (double)rep.n_extremities);
     cJSON_AddNumberToObject(o, "repeat", (double)repeat);
     cJSON_AddNumberToObject(o, "rig_s", mt);
@@ -82,8 +86,9 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
   } else {
     if (header) {
       printf("kinemesh bench rig — %s; medians of %zu runs; rig = km_autorig (extremities, "
-             "skeleton, skin, landmarks), write = the sidecar (km_character_write_rig)\n",
-             machine, repeat);
+             "skeleton, skin weights by %s, landmarks), write = the sidecar "
+             "(km_character_write_rig)\n",
+             machine, repeat, skin == KM_AUTORIG_SKIN_REACH ? "reach" : "distance");
       printf("%-28s %8s %10s %5s %9s %9s\n", "model", "n_ver", "kind", "n_ext", "rig(s)",
              "write(s)");
     }
@@ -107,20 +112,27 @@ done:
 int km_bench_rig(int argc, char **argv) {
   size_t repeat = 3;
   bool json = false;
+  const char *weights = NULL;
   const km_cli_opt opts[] = {
       {"repeat", 0, KM_OPT_SIZE, &repeat, "runs per mesh (default 3; the median is printed)"},
       {"json", 0, KM_OPT_FLAG, &json, "print one JSON object per mesh, one per line"},
+      {"weights", 0, KM_OPT_STRING, &weights,
+       "skin weights: distance (default) or reach (rig --weights)"},
   };
   enum { MAX_MESHES = 32 };
   const char *pos[MAX_MESHES];
   int n_pos;
   int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, MAX_MESHES, &n_pos,
-                       "kinemesh bench rig [MESH ...] [--repeat 3] [--json]",
+                       "kinemesh bench rig [MESH ...] [--repeat 3] [--weights reach] [--json]",
                        "Times automatic rigging (kinemesh rig) per mesh: a file, or character:N\n"
                        "for the procedural character with N vertices. Default: character:10000\n"
                        "character:50000 character:100000. Target: <= 2 s at 50k vertices.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (repeat < 1) return km_cli_error("bench rig", "--repeat must be at least 1");
+  if (weights && strcmp(weights, "distance") && strcmp(weights, "reach"))
+    return km_cli_error("bench rig", "--weights %s: expected distance or reach", weights);
+  km_autorig_skin skin =
+      weights && !strcmp(weights, "reach") ? KM_AUTORIG_SKIN_REACH : KM_AUTORIG_SKIN_DISTANCE;
   static const char *const defaults[] = {"character:10000", "character:50000", "character:100000"};
   if (!n_pos) {
     for (int i = 0; i < 3; ++i)
@@ -129,7 +141,7 @@ int km_bench_rig(int argc, char **argv) {
   }
   int rc = KM_EXIT_OK;
   for (int i = 0; i < n_pos; ++i) {
-    int ri = bench_rig_one(pos[i], repeat, json, i == 0);
+    int ri = bench_rig_one(pos[i], repeat, json, i == 0, skin);
     if (ri != KM_EXIT_OK) rc = ri;
     fflush(stdout);
   }
