@@ -830,9 +830,9 @@ int km_bench_motion(int argc, char **argv) {
                         "--fps %g: expected a frame rate in 0..1000 (0: each "
                         "take's own)",
                         a.fps);
-  if (weights_opt && strcmp(weights_opt, "distance") && strcmp(weights_opt, "reach"))
-    return km_cli_error("bench motion", "--weights %s: expected distance or reach", weights_opt);
-  a.reach = weights_opt && !strcmp(weights_opt, "reach");
+  km_autorig_skin skin;
+  if (km_cli_parse_weights("bench motion", weights_opt, &skin)) return KM_EXIT_USAGE;
+  a.reach = skin == KM_AUTORIG_SKIN_REACH;
   if (relative_opt) {
     int j = km_kinect1_joint_index(relative_opt);
     if (j < 0)

@@ -129,10 +129,8 @@ int km_bench_rig(int argc, char **argv) {
                        "character:50000 character:100000. Target: <= 2 s at 50k vertices.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (repeat < 1) return km_cli_error("bench rig", "--repeat must be at least 1");
-  if (weights && strcmp(weights, "distance") && strcmp(weights, "reach"))
-    return km_cli_error("bench rig", "--weights %s: expected distance or reach", weights);
-  km_autorig_skin skin =
-      weights && !strcmp(weights, "reach") ? KM_AUTORIG_SKIN_REACH : KM_AUTORIG_SKIN_DISTANCE;
+  km_autorig_skin skin;
+  if (km_cli_parse_weights("bench rig", weights, &skin)) return KM_EXIT_USAGE;
   static const char *const defaults[] = {"character:10000", "character:50000", "character:100000"};
   if (!n_pos) {
     for (int i = 0; i < 3; ++i)

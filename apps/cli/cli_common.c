@@ -656,3 +656,16 @@ int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t
     return km_cli_fail(verb, &e);
   return 0;
 }
+
+int km_cli_parse_weights(const char *verb, const char *s, km_autorig_skin *out) {
+  if (!s || !strcmp(s, "distance")) {
+    *out = KM_AUTORIG_SKIN_DISTANCE;
+    return 0;
+  }
+  if (!strcmp(s, "reach")) {
+    *out = KM_AUTORIG_SKIN_REACH;
+    return 0;
+  }
+  km_cli_error(verb, "--weights %s: expected distance or reach", s);
+  return KM_EXIT_USAGE;
+}

@@ -83,12 +83,7 @@ int km_cli_rig(int argc, char **argv) {
     o.skeleton = KM_AUTORIG_PROP;
   else
     return km_cli_error("rig", "--skeleton %s: expected auto, kinect1, quadruped or prop", skel);
-  if (!weights || !strcmp(weights, "distance"))
-    o.skin = KM_AUTORIG_SKIN_DISTANCE;
-  else if (!strcmp(weights, "reach"))
-    o.skin = KM_AUTORIG_SKIN_REACH;
-  else
-    return km_cli_error("rig", "--weights %s: expected distance or reach", weights);
+  if (km_cli_parse_weights("rig", weights, &o.skin)) return KM_EXIT_USAGE;
   o.min_extremity = min_ext;
   km_error err = {0};
   km_mesh m = {0};
