@@ -1,6 +1,7 @@
 /* Automatic rigging (km_autorig): geodesic extremities, a Kinect v1 skeleton embedded from
- * height-normalised slices and geodesic rings, distance-to-bone skin, landmarks. The method
- * is described at km_autorig in include/kinemesh.h. */
+ * height-normalised slices and geodesic rings, distance-to-bone skin (optionally limited by each
+ * bone's reach along the surface), landmarks. The method is described at km_autorig in
+ * include/kinemesh.h. */
 #include "autorig/autorig.h"
 
 #include "mesh/mesh.h"
