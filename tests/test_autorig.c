@@ -425,14 +425,16 @@ static void test_cli(void) {
   snprintf(cmd, sizeof cmd, KM_CLI " rig '%s/g.obj' -o '%s/g.auto.rig.json'", g_dir, g_dir);
   int rc = km_test_run(cmd, &out);
   CHECK_MSG(rc == 0, "rig: %s", out ? out : "");
-  CHECK(out && strstr(out, "HandLeft") && strstr(out, "humanoid"));
+  CHECK(out && strstr(out, "HandLeft") && strstr(out, "humanoid") &&
+        strstr(out, "skin weights: by distance to the bones (--weights reach"));
   /* --weights: reach writes a valid sidecar; anything else is refused, naming the choices */
   snprintf(cmd, sizeof cmd, KM_CLI " rig '%s/g.obj' --weights reach -o '%s/g.reach.rig.json'",
            g_dir, g_dir);
   free(out);
   out = NULL;
   rc = km_test_run(cmd, &out);
-  CHECK_MSG(rc == 0, "rig --weights reach: %s", out ? out : "");
+  CHECK_MSG(rc == 0 && out && strstr(out, "each limited by its reach along the surface"),
+            "rig --weights reach: %s", out ? out : "");
   snprintf(cmd, sizeof cmd, KM_CLI " rig '%s/g.obj' --weights heat -o '%s/g.heat.rig.json'", g_dir,
            g_dir);
   free(out);

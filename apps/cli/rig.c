@@ -146,6 +146,12 @@ int km_cli_rig(int argc, char **argv) {
   for (size_t j = 0; j < c.skeleton.n_joints; ++j)
     printf("  %-14s (%8.4f %8.4f %8.4f)\n", c.skeleton.names[j], c.skeleton.rest[3 * j],
            c.skeleton.rest[3 * j + 1], c.skeleton.rest[3 * j + 2]);
+  printf("skin weights: %s\n",
+         o.skin == KM_AUTORIG_SKIN_REACH
+             ? "by distance to the bones, each limited by its reach along the surface"
+             : "by distance to the bones (--weights reach limits each along the surface, so "
+               "a part near a bone in space but not along the skin does not follow it: for "
+               "pose and skinned exports; keep these for a reconstruct template)");
 write:
   if ((rc = write_sidecar(path, &c, oriented ? &frame : NULL))) goto done;
   /* The puppetry rig in the sidecar must resolve on the mesh (handles apart, in range). */
