@@ -42,20 +42,32 @@ check(Math.abs(h1[0] - h0[0]) < dy, `and more up than sideways (${(h1[0] - h0[0]
 const s2 = await status(http);
 check(s2.frames_in > s1.frames_in, `frame counter advanced (${s1.frames_in} -> ${s2.frames_in})`);
 
-// KinectV2-OSC: another body takes over after 0.5 s of silence; metres, y up.
+// KinectV2-OSC: another body takes over after 0.5 s of silence; metres, y up. Its right hand
+// is where the OSCeleton body's was, beside the right shoulder (KinectV2 camera space and
+// OSCeleton's are mirrored in x), at shoulder height, then raised 0.3 m. (The hand at
+// x = -0.7 reached 0.9 m across the body: the arm then hung at its swing limit, which a raise
+// does not move, and the check passed only while the handle was still gliding there.)
 await sleep(700);
 const v2 = (x, y, z) => send('/bodies/72057594037928100/joints/HandRight', 'fffs', x, y, z, 'Tracked');
 // several frames per position so the Holt filter settles
-for (let i = 0; i < 8; ++i) v2(-0.7, 0.5, 2.0);
+for (let i = 0; i < 8; ++i) v2(0.7, 0.5, 2.0);
 send('/bodies/72057594037928100/hands/Right', 's', 'Open'); // valid, carries no joint
-await sleep(200);
-const h2 = await hand();
 // The server keeps the latest frame when frames come faster than it deforms (a slow build
-// deforms fewer of them), so keep the hand there until the filtered handle has followed, or
-// 4 s have passed.
-let h3 = h2;
+// deforms fewer of them): keep the hand there until the handle has settled (moves less than
+// 2 mm in 150 ms), or 4 s have passed.
+let h2 = await hand();
 for (const t0 = Date.now(); Date.now() - t0 < 4000; ) {
-  for (let i = 0; i < 4; ++i) v2(-0.7, 0.8, 2.0);
+  for (let i = 0; i < 4; ++i) v2(0.7, 0.5, 2.0);
+  await sleep(150);
+  const h = await hand();
+  const moved = Math.hypot(h[0] - h2[0], h[1] - h2[1], h[2] - h2[2]);
+  h2 = h;
+  if (moved < 0.002) break;
+}
+// then raised, until the filtered handle has followed, or 8 s have passed
+let h3 = h2;
+for (const t0 = Date.now(); Date.now() - t0 < 8000; ) {
+  for (let i = 0; i < 4; ++i) v2(0.7, 0.8, 2.0);
   await sleep(100);
   h3 = await hand();
   if (h3[1] - h2[1] > 0.1) break;
