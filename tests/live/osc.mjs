@@ -42,11 +42,11 @@ check(Math.abs(h1[0] - h0[0]) < dy, `and more up than sideways (${(h1[0] - h0[0]
 const s2 = await status(http);
 check(s2.frames_in > s1.frames_in, `frame counter advanced (${s1.frames_in} -> ${s2.frames_in})`);
 
-// KinectV2-OSC: another body takes over after 0.5 s of silence; metres, y up. Its right hand
-// is where the OSCeleton body's was, beside the right shoulder (KinectV2 camera space and
-// OSCeleton's are mirrored in x), at shoulder height, then raised 0.3 m. (The hand at
-// x = -0.7 reached 0.9 m across the body: the arm then hung at its swing limit, which a raise
-// does not move, and the check passed only while the handle was still gliding there.)
+// KinectV2-OSC: another body takes over after 0.5 s of silence; metres, y up, the same camera
+// space as OSCeleton's centimetres. Its right hand is where the OSCeleton body's was (x = 0.7),
+// beside the right shoulder at shoulder height, then raised 0.3 m. (At x = -0.7 it reached
+// 0.9 m across the body: the arm hung at its swing limit, which a raise does not move, and the
+// check passed only while the handle was still gliding there.)
 await sleep(700);
 const v2 = (x, y, z) => send('/bodies/72057594037928100/joints/HandRight', 'fffs', x, y, z, 'Tracked');
 // several frames per position so the Holt filter settles
