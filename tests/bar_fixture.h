@@ -1,7 +1,7 @@
 /* The two-bone bar of issue 12's rotation tests, shared by test_motion_rotate and
  * test_motion_bones: a thin tube along +x (2 m long, radius 2 cm) of SEGS + 1 rings of RING
- * vertices (ring i at x = 2 i / SEGS, vertex k of ring i is i * RING + k), and the largest edge
- * stretch of a deformed copy. */
+ * vertices (ring i at x = 2 i / SEGS, vertex k of ring i is i * RING + k); the largest edge
+ * stretch of a deformed copy is km_test.h's km_test_edge_stretch. */
 #ifndef KM_BAR_FIXTURE_H
 #define KM_BAR_FIXTURE_H
 
@@ -32,22 +32,6 @@ static km_mesh bar(void) {
       f += 2;
     }
   return m;
-}
-
-/* max over edges of |l / l0 - 1|, V: the deformed positions of m (#V*3). */
-static double edge_stretch(const km_mesh *m, const double *V) {
-  double worst = 0;
-  for (size_t f = 0; f < m->n_faces; ++f)
-    for (int e = 0; e < 3; ++e) {
-      int32_t a = m->F[3 * f + e], b = m->F[3 * f + (e + 1) % 3];
-      double l = 0, l0 = 0;
-      for (int c = 0; c < 3; ++c) {
-        l += (V[3 * a + c] - V[3 * b + c]) * (V[3 * a + c] - V[3 * b + c]);
-        l0 += (m->V[3 * a + c] - m->V[3 * b + c]) * (m->V[3 * a + c] - m->V[3 * b + c]);
-      }
-      worst = fmax(worst, fabs(sqrt(l / l0) - 1));
-    }
-  return worst;
 }
 
 /* Puppetry options that pass the joints through untouched (no filter, no glitch rejection,

@@ -87,6 +87,22 @@ static inline const char *km_test_shared(const char *rel, char *buf, size_t n) {
   return buf;
 }
 
+/* max over edges of |l / l0 - 1|, V: the deformed positions of m (#V*3). */
+static inline double km_test_edge_stretch(const km_mesh *m, const double *V) {
+  double worst = 0;
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int e = 0; e < 3; ++e) {
+      int32_t a = m->F[3 * f + e], b = m->F[3 * f + (e + 1) % 3];
+      double l = 0, l0 = 0;
+      for (int c = 0; c < 3; ++c) {
+        l += (V[3 * a + c] - V[3 * b + c]) * (V[3 * a + c] - V[3 * b + c]);
+        l0 += (m->V[3 * a + c] - m->V[3 * b + c]) * (m->V[3 * a + c] - m->V[3 * b + c]);
+      }
+      worst = fmax(worst, fabs(sqrt(l / l0) - 1));
+    }
+  return worst;
+}
+
 #define KM_TEST_SKIP 77
 
 #include <sys/wait.h>

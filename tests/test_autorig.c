@@ -454,7 +454,6 @@ static void test_cli(void) {
   /* (the reader checks that every vertex's weights sum to 1) */
   CHECK(reach.skin.weights && reach.skin.n_vertices == m.n_vertices);
   km_character_free(&reach);
-  snprintf(gen_path, sizeof gen_path, "%s/g.obj", g_dir);
   km_character back = {0};
   snprintf(gen_path, sizeof gen_path, "%s/g.auto.rig.json", g_dir);
   CHECK_OK(km_character_read_rig(gen_path, m.n_vertices, &back, KM_E));
@@ -631,18 +630,7 @@ static double posed_stretch(const km_mesh *m, const km_character *c) {
   }
   CHECK_OK(km_skeleton_pose_from_positions(sk, P, T, KM_E));
   CHECK_OK(km_lbs(m->V, m->n_vertices, &c->skin, T, nj, V, KM_E));
-  worst = 0;
-  for (size_t f = 0; f < m->n_faces; ++f)
-    for (int e = 0; e < 3; ++e) {
-      int32_t a = m->F[3 * f + e], b = m->F[3 * f + (e + 1) % 3];
-      double l0 = 0, l = 0;
-      for (int k = 0; k < 3; ++k) {
-        double d0 = m->V[3 * (size_t)a + k] - m->V[3 * (size_t)b + k],
-               d = V[3 * (size_t)a + k] - V[3 * (size_t)b + k];
-        l0 += d0 * d0, l += d * d;
-      }
-      if (l0 > 0) worst = fmax(worst, fabs(sqrt(l / l0) - 1));
-    }
+  worst = km_test_edge_stretch(m, V);
 out:
   free(P), free(T), free(V);
   return worst;

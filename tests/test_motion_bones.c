@@ -73,7 +73,7 @@ static result run(const km_mesh *m, bool bones, km_puppetry_solver solver) {
     CHECK_OK(km_puppetry_push(p, straight, V, KM_E));
     for (int f = 0; f < 20; ++f)
       CHECK_OK(km_puppetry_push(p, bent, V, KM_E));
-    res.stretch = edge_stretch(m, V);
+    res.stretch = km_test_edge_stretch(m, V);
     double ylo = INFINITY, yhi = -INFINITY, c[3] = {0, 0, 0};
     for (int k = 0; k < RING; ++k) {
       const double *v = V + 3 * (size_t)(30 * RING + k);

@@ -76,7 +76,6 @@ static double arm_run(const km_mesh *m, const double (*frames)[9], int nf, doubl
 }
 
 static void test_collapsing_forearm(void) {
-  (void)edge_stretch; /* bar_fixture.h's, unused here */
   km_mesh m = bar();
   /* The wrist (0.8 m from the elbow along x) collapses onto the elbow for two frames, the
    * second time on the far side (7 cm away, 135 degrees round), then comes back: the wrist
