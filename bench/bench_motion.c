@@ -44,10 +44,10 @@ typedef struct bm_args {
   size_t frames;
   double fps; /* > 0: takes faster than this are resampled to it; 0: their own rate */
   bool json, floor;
-  bool skin;           /* --skin: the skinned reference beside B (bm_skin) */
-  bool reach;          /* --weights reach: km_autorig's reach-limited skin weights */
-  double max_step;     /* B's rig max_step; < 0: as the sidecar writes it */
-  int32_t relative_to; /* 1 + a Kinect joint subtracted from every map entry; 0: as rigged */
+  bool skin;               /* --skin: the skinned reference beside B (bm_skin) */
+  km_autorig_skin weights; /* --weights: the skin weights km_autorig writes (only L uses them) */
+  double max_step;         /* B's rig max_step; < 0: as the sidecar writes it */
+  int32_t relative_to;     /* 1 + a Kinect joint subtracted from every map entry; 0: as rigged */
   char machine[320];
 } bm_args;
 
@@ -570,7 +570,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
   if (load_mesh(path, &m, note, sizeof note, &err) != KM_OK) goto skip_mesh;
   km_autorig_report rep;
   km_autorig_options ao = {0};
-  ao.skin = a->reach ? KM_AUTORIG_SKIN_REACH : KM_AUTORIG_SKIN_DISTANCE;
+  ao.skin = a->weights;
   if (km_autorig(&m, &ao, &c, &rep, &err) != KM_OK) goto skip_mesh;
   fd = mkstemp(tmp);
   if (fd < 0) {
@@ -830,9 +830,7 @@ int km_bench_motion(int argc, char **argv) {
                         "--fps %g: expected a frame rate in 0..1000 (0: each "
                         "take's own)",
                         a.fps);
-  km_autorig_skin skin;
-  if (km_cli_parse_weights("bench motion", weights_opt, &skin)) return KM_EXIT_USAGE;
-  a.reach = skin == KM_AUTORIG_SKIN_REACH;
+  if (km_cli_parse_weights("bench motion", weights_opt, &a.weights)) return KM_EXIT_USAGE;
   if (relative_opt) {
     int j = km_kinect1_joint_index(relative_opt);
     if (j < 0)

@@ -613,18 +613,19 @@ static double seg_dist(const double *p, const double *a, const double *b) {
 }
 
 /* Each joint's reach (compute_skin): G n*NJ, 1 within band along the edges of the joint's
- * own patch of nearest vertices (near n), smoothstep to 0 at 4 band. seeds: scratch of n. */
-static km_status skin_reach(const rigger *r, const int32_t *near, int32_t *seeds, double band,
-                            double *G, km_error *err) {
+ * own patch of nearest vertices (near n), smoothstep to 0 at 4 band. */
+static km_status skin_reach(const rigger *r, const int32_t *near, double band, double *G,
+                            km_error *err) {
   enum { NJ = KM_KINECT1_JOINTS };
   size_t n = r->n;
   double r0 = band, r1 = 4 * band;
   /* a bone's own patch: the largest group of its nearest vertices joined along faces (a hand
    * raised beside the head is also nearest to some cheek or shoulder vertices: a patch of its
    * own, not a seed of the hand's reach) */
-  int32_t *par = km__malloc(n, sizeof *par), *size = km__calloc(n, sizeof *size);
-  if (!par || !size) {
-    free(par), free(size);
+  int32_t *par = km__malloc(n, sizeof *par), *size = km__calloc(n, sizeof *size),
+          *seeds = km__malloc(n, sizeof *seeds);
+  if (!par || !size || !seeds) {
+    free(par), free(size), free(seeds);
     return km__fail(err, KM_ERR_NOMEM, "rig: out of memory (skin of %zu vertices)", n);
   }
   for (size_t v = 0; v < n; ++v)
@@ -659,7 +660,7 @@ static km_status skin_reach(const rigger *r, const int32_t *near, int32_t *seeds
       G[NJ * (size_t)hit[i] + j] = x <= 0 ? 1 : x >= 1 ? 0 : 1 - x * x * (3 - 2 * x);
     }
   }
-  free(par), free(size);
+  free(par), free(size), free(seeds);
   return KM_OK;
 }
 
@@ -693,11 +694,12 @@ static km_status compute_skin(const rigger *r, bool reach, km_skin *skin, km_err
     }
   size_t n = r->n;
   double *D = km__malloc(n * NJ, sizeof *D), *G = reach ? km__calloc(n * NJ, sizeof *G) : NULL;
-  int32_t *near = km__malloc(n, sizeof *near), *seeds = km__malloc(n, sizeof *seeds);
-  if (!D || (reach && !G) || !near || !seeds) {
-    free(D), free(G), free(near), free(seeds);
+  int32_t *near = km__malloc(n, sizeof *near);
+  if (!D || (reach && !G) || !near) {
+    free(D), free(G), free(near);
     return km__fail(err, KM_ERR_NOMEM, "rig: out of memory (skin of %zu vertices)", n);
   }
+  /* D: each vertex's distance to each joint's bones; near: its nearest bone's joint */
 #pragma omp parallel for schedule(static)
   for (size_t v = 0; v < n; ++v) {
     const double *p = r->m->V + 3 * v;
@@ -712,59 +714,47 @@ static km_status compute_skin(const rigger *r, bool reach, km_skin *skin, km_err
     }
   }
   double band = 0.06 * r->H;
-  km_status st = reach ? skin_reach(r, near, seeds, band, G, err) : KM_OK;
-  if (st != KM_OK) {
-    free(D), free(G), free(near), free(seeds);
-    return st;
-  }
-  /* the weights before truncation, n*NJ, over D (read first, row by row) */
+  km_status st = reach ? skin_reach(r, near, band, G, err) : KM_OK;
+  if (st == KM_OK)
 #pragma omp parallel for schedule(static)
-  for (size_t v = 0; v < n; ++v) {
-    double *d = D + NJ * v;
-    const double *gv = G ? G + NJ * v : NULL;
-    /* the nearest bone that reaches the vertex (its own patch's bone unless cut off); a
-     * vertex no face uses has no surface to reach along: distance alone */
-    bool all = !gv || !r->on_face[v];
-    double dmin = DBL_MAX, sum = 0;
-    for (int j = 0; j < NJ; ++j)
-      if ((all || gv[j] > 0) && d[j] < dmin) dmin = d[j];
-    if (dmin == DBL_MAX) dmin = d[near[v]];
-    for (int j = 0; j < NJ; ++j) {
-      double t = (d[j] - dmin) / band;
-      d[j] = t >= 1 ? 0 : (1 - t) * (1 - t) * (all ? 1 : gv[j]);
-      sum += d[j];
+    for (size_t v = 0; v < n; ++v) {
+      const double *d = D + NJ * v, *gv = G ? G + NJ * v : NULL;
+      /* the nearest bone that reaches the vertex (its own patch's bone unless cut off); a
+       * vertex no face uses has no surface to reach along: distance alone */
+      bool all = !gv || !r->on_face[v];
+      double dmin = DBL_MAX;
+      for (int j = 0; j < NJ; ++j)
+        if ((all || gv[j] > 0) && d[j] < dmin) dmin = d[j];
+      if (dmin == DBL_MAX) dmin = d[near[v]];
+      /* the KM_SKIN_INFLUENCES largest weights, largest first */
+      int32_t jj[KM_SKIN_INFLUENCES];
+      double ww[KM_SKIN_INFLUENCES];
+      int cnt = 0;
+      for (int j = 0; j < NJ; ++j) {
+        double t = (d[j] - dmin) / band;
+        double w = t >= 1 ? 0 : (1 - t) * (1 - t) * (all ? 1 : gv[j]);
+        if (!(w > 0)) continue;
+        int pos = cnt;
+        while (pos > 0 && ww[pos - 1] < w)
+          --pos;
+        if (pos >= KM_SKIN_INFLUENCES) continue;
+        int last = cnt < KM_SKIN_INFLUENCES ? cnt : KM_SKIN_INFLUENCES - 1;
+        for (int q = last; q > pos; --q)
+          ww[q] = ww[q - 1], jj[q] = jj[q - 1];
+        ww[pos] = w, jj[pos] = j;
+        if (cnt < KM_SKIN_INFLUENCES) ++cnt;
+      }
+      if (!cnt) ww[0] = 1, jj[0] = near[v], cnt = 1; /* no bone reaches it within band */
+      double sum = 0;
+      for (int q = 0; q < cnt; ++q)
+        sum += ww[q];
+      for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
+        skin->joints[4 * v + q] = q < cnt ? jj[q] : -1;
+        skin->weights[4 * v + q] = q < cnt ? ww[q] / sum : 0.0;
+      }
     }
-    if (!(sum > 0)) d[near[v]] = 1;
-  }
-#pragma omp parallel for schedule(static)
-  for (size_t v = 0; v < n; ++v) {
-    const double *d = D + NJ * v;
-    int32_t jj[KM_SKIN_INFLUENCES];
-    double ww[KM_SKIN_INFLUENCES];
-    int cnt = 0;
-    for (int j = 0; j < NJ; ++j) {
-      double w = d[j];
-      if (!(w > 0)) continue;
-      int pos = cnt;
-      while (pos > 0 && ww[pos - 1] < w)
-        --pos;
-      if (pos >= KM_SKIN_INFLUENCES) continue;
-      int last = cnt < KM_SKIN_INFLUENCES ? cnt : KM_SKIN_INFLUENCES - 1;
-      for (int q = last; q > pos; --q)
-        ww[q] = ww[q - 1], jj[q] = jj[q - 1];
-      ww[pos] = w, jj[pos] = j;
-      if (cnt < KM_SKIN_INFLUENCES) ++cnt;
-    }
-    double sum = 0;
-    for (int q = 0; q < cnt; ++q)
-      sum += ww[q];
-    for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
-      skin->joints[4 * v + q] = q < cnt ? jj[q] : -1;
-      skin->weights[4 * v + q] = q < cnt ? ww[q] / sum : 0.0;
-    }
-  }
-  free(D), free(G), free(near), free(seeds);
-  return KM_OK;
+  free(D), free(G), free(near);
+  return st;
 }
 
 /* ---------------------------------------------------------------- landmarks */
