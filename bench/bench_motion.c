@@ -11,7 +11,10 @@
  * between two of the take's frames: resampling a 120 fps take to 30 fps makes every step four
  * times longer, the motion's own steps then reaching 10-15 % of the diagonal. Metrics over the
  * output frames:
- *   stretch   max over frames and edges of |l / l0 - 1|
+ *   stretch   max over frames and edges of |l / l0 - 1| (issue 12's measure: a squashed edge
+ *             counts as much as a stretched one); --json adds the two sides apart: the
+ *             shortest and longest l / l0 over the take and the frames with an edge over
+ *             1.5x or under 0.5x its rest length, so a miss reads as a stretch or a squash
  *   folded    triangles that, in some frame, have a neighbour (across an edge) whose normal
  *             made < 60 degrees with theirs at rest and makes > 120 degrees now (distinct
  *             triangles over the take)
@@ -44,6 +47,7 @@ typedef struct bm_args {
   size_t frames;
   double fps; /* > 0: takes faster than this are resampled to it; 0: their own rate */
   bool json, floor;
+  bool full;               /* --solver full: both variants through the full-space ARAP */
   bool skin;               /* --skin: the skinned reference beside B (bm_skin) */
   km_autorig_skin weights; /* --weights: the skin weights km_autorig writes (only L uses them) */
   double max_step;         /* B's rig max_step; < 0: as the sidecar writes it */
@@ -58,10 +62,13 @@ typedef struct bm_count {
 
 typedef struct bm_metrics {
   double stretch, jump_pct, tper_ms;
-  double jump_p95_pct; /* 95th percentile over frames of the frame's largest vertex step */
-  size_t jump_over3;   /* frames whose largest vertex step is above 3 % of the diagonal */
-  double raw_jump_pct; /* the take's largest one-frame joint step (mapped joints, times the
-                          performer-to-character scale), % of the diagonal: the motion itself */
+  double ratio_min, ratio_max; /* shortest and longest l / l0 over the take */
+  size_t long_frames;          /* frames with an edge longer than 1.5x its rest length */
+  size_t short_frames;         /* frames with an edge shorter than 0.5x */
+  double jump_p95_pct;         /* 95th percentile over frames of the frame's largest vertex step */
+  size_t jump_over3;           /* frames whose largest vertex step is above 3 % of the diagonal */
+  double raw_jump_pct;         /* the take's largest one-frame joint step (mapped joints, times the
+                                  performer-to-character scale), % of the diagonal: the motion itself */
   size_t folded, below, eased;
 } bm_metrics;
 
@@ -310,15 +317,23 @@ static void where_report(const char *tag, const km_mesh *m, const km_rig *rig, c
 }
 
 /* Largest |l / l0 - 1| over the edges of frame V (NaN propagates); *worst: its edge. */
-static double frame_stretch(const bm_geom *g, const double *V, size_t *worst) {
-  double m = 0;
+/* The frame's largest |l / l0 - 1| (its edge in *worst); x's shortest and longest l / l0 and
+ * its frame counts take this frame's in. */
+static double frame_stretch(const bm_geom *g, const double *V, size_t *worst, bm_metrics *x) {
+  double m = 0, lo = INFINITY, hi = 0;
   for (size_t e = 0; e < g->n_edges; ++e) {
     const double *a = V + 3 * (size_t)g->edges[2 * e], *b = V + 3 * (size_t)g->edges[2 * e + 1];
     double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
                     (a[2] - b[2]) * (a[2] - b[2]));
-    double r = fabs(l / g->len0[e] - 1);
+    double q = l / g->len0[e], r = fabs(q - 1);
     if (!(r <= m)) m = r, *worst = e;
+    if (!(q >= lo)) lo = q; /* NaN propagates, as in m */
+    if (!(q <= hi)) hi = q;
   }
+  if (!(lo >= x->ratio_min)) x->ratio_min = lo;
+  if (!(hi <= x->ratio_max)) x->ratio_max = hi;
+  x->long_frames += hi > 1.5;
+  x->short_frames += lo < 0.5;
   return m;
 }
 
@@ -394,7 +409,7 @@ static void skin_frame(bm_skin *sk, const km_mesh *m, const bm_geom *g, const km
     return;
   }
   sk->tm[f] = 1e3 * (km_cli_now() - t0);
-  double r = frame_stretch(g, sk->V, &worst), ymin;
+  double r = frame_stretch(g, sk->V, &worst, &sk->out), ymin;
   if (where && r > sk->out.stretch) {
     where_write(where, "skin", m, sk->V);
     where_write(where, "skin_b", m, Vb); /* B's frame beside it */
@@ -418,6 +433,7 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
                              const char *where, bm_skin *sk, km_error *err) {
   km_puppetry_options o = {0};
   o.model = model;
+  if (!model) o.solver = KM_PUPPETRY_FULL; /* --solver full */
   o.fps = t->fps;
   o.take_name = "take";
   km_puppetry *p = NULL;
@@ -430,9 +446,11 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   size_t worst_e = 0, worst_f = 0, most_folds = 0;
   km_status s = KM_OK;
   memset(out, 0, sizeof *out);
+  out->ratio_min = INFINITY;
   if (sk) {
     size_t nj = sk->c->skeleton.n_joints;
     memset(&sk->out, 0, sizeof sk->out);
+    sk->out.ratio_min = INFINITY;
     sk->J = malloc(3 * (nj > 20 ? nj : 20) * sizeof(double));
     sk->T = malloc(12 * (nj ? nj : 1) * sizeof(double));
     sk->V = malloc(3 * nv * sizeof(double));
@@ -456,7 +474,7 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     tm[f] = 1e3 * (km_cli_now() - t0);
     if (s != KM_OK) goto done;
     size_t e = 0;
-    double r = frame_stretch(g, V, &e);
+    double r = frame_stretch(g, V, &e, out);
     if (where && r > out->stretch) where_write(where, "stretch", m, V), worst_e = e, worst_f = f;
     if (!(r <= out->stretch)) out->stretch = r; /* NaN propagates */
     size_t nfold_now = frame_folds(m, g, V, N, ever, first, f);
@@ -526,6 +544,10 @@ done:
 static cJSON *metrics_json(const bm_metrics *x) {
   cJSON *o = cJSON_CreateObject();
   km_cli_json_number(o, "stretch_max", x->stretch);
+  km_cli_json_number(o, "edge_ratio_min", x->ratio_min);
+  km_cli_json_number(o, "edge_ratio_max", x->ratio_max);
+  cJSON_AddNumberToObject(o, "frames_edge_over_1_5x", (double)x->long_frames);
+  cJSON_AddNumberToObject(o, "frames_edge_under_0_5x", (double)x->short_frames);
   cJSON_AddNumberToObject(o, "folded", (double)x->folded);
   km_cli_json_number(o, "jump_max_pct", x->jump_pct);
   km_cli_json_number(o, "jump_p95_pct", x->jump_p95_pct);
@@ -582,7 +604,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
   double t_rig = km_cli_now() - t0;
   t0 = km_cli_now();
   km_puppetry_options mo = {0};
-  if (km_puppetry_model_open(&m, &mo, &model, NULL, &err) != KM_OK) goto skip_mesh;
+  if (!a->full && km_puppetry_model_open(&m, &mo, &model, NULL, &err) != KM_OK) goto skip_mesh;
   double t_model = km_cli_now() - t0;
   if (!geom_build(&m, &g)) {
     snprintf(err.message, sizeof err.message, "out of memory");
@@ -601,13 +623,15 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
     }
     if (hf) fclose(hf);
   }
+  char model_s[64] = "full solver: no reduced model";
+  if (!a->full) snprintf(model_s, sizeof model_s, "model %.2f s", t_model);
   if (!a->json)
-    printf("# %s: %zu vertices, %s, rigged as %s (%zu handles) in %.2f s, model %.2f s\n", mname,
+    printf("# %s: %zu vertices, %s, rigged as %s (%zu handles) in %.2f s, %s\n", mname,
            m.n_vertices, note,
            rep.kind == KM_AUTORIG_QUADRUPED ? "quadruped"
            : rep.kind == KM_AUTORIG_PROP    ? "prop"
                                             : "humanoid",
-           rig.n_handles, t_rig, t_model);
+           rig.n_handles, t_rig, model_s);
   for (size_t i = 0; i < n_takes; ++i) {
     const char *tname = base_name(takes[i]);
     km_take t = {0};
@@ -692,6 +716,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       cJSON_AddNumberToObject(o, "frames", (double)nf);
       cJSON_AddNumberToObject(o, "fps", t.fps);
       cJSON_AddBoolToObject(o, "floor", a->floor);
+      cJSON_AddStringToObject(o, "solver", a->full ? "full" : "reduced");
       cJSON_AddStringToObject(o, "relative_to",
                               a->relative_to ? km_kinect1_joint_name(a->relative_to - 1) : "");
       km_cli_json_number(o, "take_jump_max_pct", r[0].raw_jump_pct);
@@ -704,16 +729,16 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       if (s) puts(s);
       free(s);
     } else {
-      printf("%-18.18s %-16.16s %7zu %5zu  %6.3f %6.3f  %5zu %5zu  %6.2f %6.2f %6.2f  %5zu %5zu  "
-             "%7.2f %7.2f  %5zu  %6s\n",
-             tname, mname, m.n_vertices, nf, r[0].stretch, r[1].stretch, r[0].folded, r[1].folded,
-             r[0].raw_jump_pct, r[0].jump_pct, r[1].jump_pct, r[0].below, r[1].below, r[0].tper_ms,
-             r[1].tper_ms, r[1].eased, miss);
+      printf("%-18.18s %-16.16s %7zu %5zu  %6.3f %6.3f  %5.3f %5.3f  %5zu %5zu  %6.2f %6.2f %6.2f  "
+             "%5zu %5zu  %7.2f %7.2f  %5zu  %6s\n",
+             tname, mname, m.n_vertices, nf, r[0].stretch, r[1].stretch, r[1].ratio_min,
+             r[1].ratio_max, r[0].folded, r[1].folded, r[0].raw_jump_pct, r[0].jump_pct,
+             r[1].jump_pct, r[0].below, r[1].below, r[0].tper_ms, r[1].tper_ms, r[1].eased, miss);
       if (a->skin)
-        printf("%-18.18s %-16.16s %7s %5s  %6s %6.3f  %5s %5zu  %6s %6s %6.2f  %5s %5zu  %7s %7.2f"
-               "  (L: skinned by the rig's weights)\n",
-               "", "", "", "", "", sk.out.stretch, "", sk.out.folded, "", "", sk.out.jump_pct, "",
-               sk.out.below, "", sk.out.tper_ms);
+        printf("%-18.18s %-16.16s %7s %5s  %6s %6.3f  %5.3f %5.3f  %5s %5zu  %6s %6s %6.2f  %5s "
+               "%5zu  %7s %7.2f  (L: skinned by the rig's weights)\n",
+               "", "", "", "", "", sk.out.stretch, sk.out.ratio_min, sk.out.ratio_max, "",
+               sk.out.folded, "", "", sk.out.jump_pct, "", sk.out.below, "", sk.out.tper_ms);
     }
     fflush(stdout);
     km_take_free(&t);
@@ -777,7 +802,8 @@ static void split_list(const char *s, char ***list, size_t *n) {
 }
 
 int km_bench_motion(int argc, char **argv) {
-  const char *takes_opt = NULL, *meshes_opt = NULL, *relative_opt = NULL, *weights_opt = NULL;
+  const char *takes_opt = NULL, *meshes_opt = NULL, *relative_opt = NULL, *weights_opt = NULL,
+             *solver_opt = NULL;
   bm_args a = {.data = "../shared/data", .max_step = -1};
   const km_cli_opt opts[] = {
       {"takes", 0, KM_OPT_STRING, &takes_opt,
@@ -799,6 +825,10 @@ int km_bench_motion(int argc, char **argv) {
       {"max-step", 0, KM_OPT_DOUBLE, &a.max_step,
        "B's snap easing: fraction of the diagonal a handle vertex may move per frame (0: off; "
        "default: the rig's; the sidecar writes none: off)"},
+      {"solver", 0, KM_OPT_STRING, &solver_opt,
+       "reduced (default: the isoline model every verb uses) or full: both variants through "
+       "the full-space ARAP reference (hard handles, a sparse solve per iteration; slow), to "
+       "tell the reduced model's share of a miss from the rig's"},
       {"json", 0, KM_OPT_FLAG, &a.json, "print one JSON object per row, one per line"},
       {"skin", 0, KM_OPT_FLAG, &a.skin,
        "also L: the rig's skeleton, posed by B's own retargeted joints, skinning the mesh with "
@@ -812,7 +842,7 @@ int km_bench_motion(int argc, char **argv) {
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
       "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames N] [--fps F] "
-      "[--max-step F] [--skin [--weights reach]] [--json]",
+      "[--max-step F] [--solver reduced|full] [--skin [--weights reach]] [--json]",
       "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
       "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"
       "paper's, T) and bone handles (B) side by side. Per row: edge stretch max\n"
@@ -831,6 +861,9 @@ int km_bench_motion(int argc, char **argv) {
                         "take's own)",
                         a.fps);
   if (km_cli_parse_weights("bench motion", weights_opt, &a.weights)) return KM_EXIT_USAGE;
+  if (solver_opt && strcmp(solver_opt, "reduced") && strcmp(solver_opt, "full"))
+    return km_cli_error("bench motion", "--solver %s: expected reduced or full", solver_opt);
+  a.full = solver_opt && !strcmp(solver_opt, "full");
   if (relative_opt) {
     int j = km_kinect1_joint_index(relative_opt);
     if (j < 0)
@@ -863,16 +896,18 @@ int km_bench_motion(int argc, char **argv) {
       printf("kinemesh bench motion — %s; km_autorig rigs, default glitch rejection and filter, "
              "takes at %s, %s frames; T = translation-only handles (Wu, Lu & Song), "
              "B = bone handles; jump 'take' = the mapped joints' own largest step (scaled); t = "
-             "median of per-frame push times%s%s%s\n",
-             a.machine, fps_s, frames_s, a.floor ? "; floor constraint on" : "",
-             a.relative_to ? "; motion relative to " : "",
+             "median of per-frame push times%s%s%s%s\n",
+             a.machine, fps_s, frames_s,
+             a.full ? "; full-space ARAP solver (hard handles), not the reduced model" : "",
+             a.floor ? "; floor constraint on" : "", a.relative_to ? "; motion relative to " : "",
              a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
-      printf("%-18s %-16s %7s %5s  %13s  %11s  %20s  %11s  %15s  %5s  %6s\n", "", "", "", "",
-             "stretch max", "folded", "jump %diag", "below floor", "t/frame (ms)", "eased",
-             "misses");
-      printf("%-18s %-16s %7s %5s  %6s %6s  %5s %5s  %6s %6s %6s  %5s %5s  %7s %7s  %5s  %6s\n",
-             "take", "mesh", "n_ver", "fr", "T", "B", "T", "B", "take", "T", "B", "T", "B", "T",
-             "B", "B", "B");
+      printf("%-18s %-16s %7s %5s  %13s  %11s  %11s  %20s  %11s  %15s  %5s  %6s\n", "", "", "", "",
+             "stretch max", "B l/l0", "folded", "jump %diag", "below floor", "t/frame (ms)",
+             "eased", "misses");
+      printf("%-18s %-16s %7s %5s  %6s %6s  %5s %5s  %5s %5s  %6s %6s %6s  %5s %5s  %7s %7s  %5s  "
+             "%6s\n",
+             "take", "mesh", "n_ver", "fr", "T", "B", "min", "max", "T", "B", "take", "T", "B", "T",
+             "B", "T", "B", "B", "B");
     }
     fflush(stdout);
     bm_count count = {0};

@@ -1513,8 +1513,9 @@ typedef struct km_puppet km_puppet;
 /* Both energies use the same reduced unknowns, the same prefactored U^T U structure and the
  * same rotations estimated on isoline-crossed triangles and interpolated (W_delta R_delta).
  * ARAP is the default because it tracks the full-space reference closer: mean deviation
- * 1.2% / 1.7% of the diagonal on armadillo / horse against 1.9% / 2.3% for Wu, Lu & Song's
- * Laplacian energy (kinemesh bench deform, README), at the same per-frame cost. */
+ * 1.2% / 1.6% of the diagonal on armadillo / horse against 1.9% / 2.3% for Wu, Lu & Song's
+ * Laplacian energy (kinemesh bench deform, with the reference's negative cotangent weights
+ * floored; 1.2% / 1.7% before), at the same per-frame cost. */
 typedef enum km_puppet_energy {
   KM_PUPPET_ENERGY_ARAP = 0,  /* reduced ARAP (membrane) energy (default) */
   KM_PUPPET_ENERGY_LAPLACIAN, /* Wu, Lu & Song eq. 8-9: |L X - rotated rest Laplacian|^2 */
@@ -1597,9 +1598,11 @@ void km_puppet_free(km_puppet **p);
 /* ---- full-space ARAP reference */
 
 /* Full-space as-rigid-as-possible deformation (Sorkine & Alexa 2007), the quality
- * reference: cotangent weights, handle vertices eliminated (hard constraints), a CHOLMOD
- * factor of the free part of -L, per-vertex rotations by a closed-form 3x3 polar
- * decomposition. Every connected component needs at least one handle vertex. */
+ * reference: cotangent weights (a negative one, two obtuse angles opposite an edge, raised to
+ * a small positive floor in both steps, so that handles at rest give back the rest mesh on a
+ * scan too), handle vertices eliminated (hard constraints), a CHOLMOD factor of the free part
+ * of -L, per-vertex rotations by a closed-form 3x3 polar decomposition. Every connected
+ * component needs at least one handle vertex. */
 typedef struct km_arap km_arap;
 typedef struct km_arap_options {
   int iterations;   /* local/global iterations per solve; 0: 4 */

@@ -34,6 +34,20 @@ static void check_variant(const cJSON *row, const char *name, int r, double fram
             "row %d %s: %g frames with a jump above 3 %% (max %g%%)", r, name, over3, jump);
   CHECK_MSG(below >= 0 && below <= frames, "row %d %s: %g frames below the floor", r, name, below);
   CHECK_MSG(t > 0, "row %d %s: per-frame time %g", r, name, t);
+  /* the two sides of the stretch: |l/l0 - 1| at its worst is the longer of the two */
+  double lo = num(o, "edge_ratio_min", r), hi = num(o, "edge_ratio_max", r),
+         nl = num(o, "frames_edge_over_1_5x", r), ns = num(o, "frames_edge_under_0_5x", r);
+  CHECK_MSG(lo > 0 && lo <= hi, "row %d %s: edge ratio %g .. %g", r, name, lo, hi);
+  CHECK_MSG(fabs(stretch - fmax(hi - 1, 1 - lo)) < 1e-12,
+            "row %d %s: stretch %.15g, edge ratio %.15g .. %.15g", r, name, stretch, lo, hi);
+  CHECK_MSG(nl >= 0 && nl <= frames && (nl > 0) == (hi > 1.5),
+            "row %d %s: %g frames over 1.5x, "
+            "longest %g",
+            r, name, nl, hi);
+  CHECK_MSG(ns >= 0 && ns <= frames && (ns > 0) == (lo < 0.5),
+            "row %d %s: %g frames under 0.5x, "
+            "shortest %g",
+            r, name, ns, lo);
 }
 
 /* "bones_misses" names exactly the targets of issue 12 B's own figures miss */
@@ -94,8 +108,10 @@ int main(void) {
       cJSON_Delete(o);
       continue;
     }
-    const cJSON *mach = cJSON_GetObjectItem(o, "machine");
+    const cJSON *mach = cJSON_GetObjectItem(o, "machine"), *sv = cJSON_GetObjectItem(o, "solver");
     CHECK(cJSON_IsString(mach) && mach->valuestring[0]);
+    CHECK_MSG(cJSON_IsString(sv) && !strcmp(sv->valuestring, "reduced"), "row %d: solver %s", rows,
+              cJSON_IsString(sv) ? sv->valuestring : "(none)");
     if (cJSON_IsString(take_s)) {
       saw_walk |= !strcmp(take_s->valuestring, "walk");
       saw_file |= !strcmp(take_s->valuestring, "bench_motion_wave.json");
@@ -153,7 +169,32 @@ int main(void) {
             "table: no 'on N of 1 rows' line: %s", out ? out : "");
   free(out);
 
+  /* --solver full runs both variants through the full ARAP reference and says so */
+  out = NULL;
+  rc = km_test_run(KM_CLI " bench motion --meshes character:3000 --takes walk --frames 4 "
+                          "--solver full --json 2>/dev/null",
+                   &out);
+  CHECK_MSG(rc == 0, "--solver full: exit status %d", rc);
+  rows = 0;
+  for (char *line = out ? strtok(out, "\n") : NULL; line; line = strtok(NULL, "\n")) {
+    if (line[0] != '{') continue;
+    cJSON *o = cJSON_Parse(line);
+    if (!o) continue;
+    const cJSON *sv = cJSON_GetObjectItem(o, "solver");
+    CHECK_MSG(cJSON_IsString(sv) && !strcmp(sv->valuestring, "full"), "--solver full: solver %s",
+              cJSON_IsString(sv) ? sv->valuestring : "(none)");
+    check_variant(o, "translate", rows, 4);
+    check_variant(o, "bones", rows, 4);
+    cJSON_Delete(o);
+    ++rows;
+  }
+  CHECK_MSG(rows == 1, "--solver full: %d rows", rows);
+  free(out);
+
   /* a bad option is a usage error */
+  CHECK(km_test_run(KM_CLI " bench motion --solver fast --takes walk --meshes character:3000 "
+                           ">/dev/null 2>&1",
+                    NULL) == 1);
   CHECK(km_test_run(KM_CLI " bench motion --relative-to NoSuchJoint --takes walk "
                            "--meshes character:3000 >/dev/null",
                     NULL) == 1);

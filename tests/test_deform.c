@@ -637,6 +637,79 @@ static void test_errors(void) {
   km_arap_free(NULL);
 }
 
+/* ARAP keeps the rest mesh when the handles stay at rest, also on a mesh whose triangulation
+ * has obtuse angles (scans: dog0, the horse). Two such angles opposite one edge give it a
+ * negative cotangent weight; in the rotation fit such weights can outweigh the positive ones
+ * at a vertex, whose fitted rotation at rest is then not the identity, and the rest pose was
+ * not a fixed point: the first frame of dog0, handles at rest, came out with edges 3.3x their
+ * length and 304 folded triangles (bench motion --solver full). The grid here is jittered
+ * until many edges are negative; its rest must come back to round-off, and a small pull must
+ * stay small (no vertex further than the pull from rest). */
+static void test_arap_obtuse(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_grid(24, 24, 1.0, 1.0, &m, KM_E));
+  if (!m.V) return;
+  size_t n = m.n_vertices;
+  uint32_t seed = 12345u;
+  double cell = 1.0 / 24;
+  for (size_t v = 0; v < n; ++v) {
+    for (int k = 0; k < 2; ++k) {
+      seed = seed * 1664525u + 1013904223u;
+      double r = (double)(seed >> 8) / (double)(1u << 24) - 0.5; /* -0.5 .. 0.5 */
+      m.V[3 * v + k] += 0.8 * r * cell;
+    }
+    m.V[3 * v + 2] = 0.05 * sin(6 * m.V[3 * v]) * cos(5 * m.V[3 * v + 1]);
+  }
+  /* how many edges the jitter made negative (the test is void without them) */
+  km_sparse *L = NULL;
+  CHECK_OK(km_cotmatrix(&m, &L, KM_E));
+  size_t negative = 0;
+  if (L) {
+    const int32_t *cp, *ri;
+    const double *lx;
+    km_sparse_csc(L, &cp, &ri, &lx);
+    for (size_t j = 0; j < n; ++j)
+      for (int32_t q = cp[j]; q < cp[j + 1]; ++q)
+        negative += (size_t)ri[q] != j && lx[q] < 0;
+  }
+  km_sparse_free(&L);
+  printf("arap_obtuse: %zu vertices, %zu negative cotangent weights\n", n, negative / 2);
+  CHECK_MSG(negative / 2 >= 50, "only %zu negative edges", negative / 2);
+  /* handles: the vertices near two opposite corners */
+  int32_t off[3] = {0}, hv[64];
+  size_t k = 0;
+  for (int h = 0; h < 2; ++h) {
+    for (size_t v = 0; v < n && k < 64; ++v) {
+      double dx = m.V[3 * v] - (h ? 1.0 : 0.0), dy = m.V[3 * v + 1] - (h ? 1.0 : 0.0);
+      if (dx * dx + dy * dy < 0.12 * 0.12) hv[k++] = (int32_t)v;
+    }
+    off[h + 1] = (int32_t)k;
+  }
+  km_arap_options ao = {.iterations = 20};
+  km_arap *a = NULL;
+  CHECK_OK(km_arap_precompute(&m, 2, off, hv, &ao, &a, KM_E));
+  double *T = malloc(k * 3 * sizeof(double)), *X = malloc(n * 3 * sizeof(double));
+  if (a && T && X) {
+    for (size_t i = 0; i < k; ++i)
+      memcpy(T + 3 * i, m.V + 3 * (size_t)hv[i], 3 * sizeof(double));
+    CHECK_OK(km_arap_solve(a, T, X, KM_E));
+    double dev = max_dev(X, m.V, n);
+    printf("arap_obtuse: rest targets, largest move %.3g\n", dev);
+    CHECK_MSG(dev < 1e-9, "rest targets moved a vertex by %.3g", dev);
+    /* lift the far corner by 2 % of the size: nothing may move further than that */
+    for (size_t i = (size_t)off[1]; i < k; ++i)
+      T[3 * i + 2] += 0.02;
+    CHECK_OK(km_arap_solve(a, T, X, KM_E));
+    dev = max_dev(X, m.V, n);
+    printf("arap_obtuse: far corner lifted by 0.02, largest move %.3g\n", dev);
+    CHECK_MSG(dev <= 0.02 + 1e-9, "a 0.02 lift moved a vertex by %.3g", dev);
+  }
+  free(T);
+  free(X);
+  km_arap_free(&a);
+  km_mesh_free(&m);
+}
+
 int main(void) {
   test_errors();
   test_invariants();
@@ -646,5 +719,6 @@ int main(void) {
   test_rigid_handles();
   test_cache();
   test_real_mesh();
+  test_arap_obtuse();
   return km_test_finish("test_deform");
 }

@@ -1,11 +1,12 @@
 /* Full-space as-rigid-as-possible surface deformation (Sorkine & Alexa 2007), the quality
  * yardstick for the reduced puppet solver.
  *
- * Energy sum_i sum_j w_ij |(x_i - x_j) - R_i (p_i - p_j)|^2 with cotangent weights w_ij.
- * Global step: -L x = b with b_i = sum_j w_ij/2 (R_i + R_j)(p_i - p_j); handle vertices are
- * eliminated (hard constraints), so the CHOLMOD factor of -L_ff is computed once per handle
- * set and each iteration is one 3-column solve. Local step: R_i = nearest rotation to
- * sum_j w_ij (x_i - x_j)(p_i - p_j)^T, closed form (rot3.h). */
+ * Energy sum_i sum_j w_ij |(x_i - x_j) - R_i (p_i - p_j)|^2 with cotangent weights w_ij, a
+ * negative one raised to a small floor (km_arap_precompute says why).
+ * Global step: -L x = b (L of those weights) with b_i = sum_j w_ij/2 (R_i + R_j)(p_i - p_j); handle
+ * vertices are eliminated (hard constraints), so the CHOLMOD factor of -L_ff is computed once per
+ * handle set and each iteration is one 3-column solve. Local step: R_i = nearest rotation to sum_j
+ * w_ij (x_i - x_j)(p_i - p_j)^T, closed form (rot3.h). */
 #include "core/core.h"
 
 #include "math/math.h"
@@ -180,15 +181,30 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_
   a->adj = km__malloc(nnz ? nnz : 1, sizeof(int32_t));
   a->w = km__malloc(nnz ? nnz : 1, sizeof(double));
   if (!a->adj || !a->w) goto nomem;
+  /* Edge weights: the cotangent weights, negative ones raised to a small positive floor.
+   * Two obtuse angles opposite an edge make its cotangent weight negative (scanned meshes
+   * have many: dog0, the horse). In the rotation fit such weights can outweigh the positive
+   * ones at a vertex, whose best rotation at rest is then not the identity, so the rest pose
+   * was not a fixed point: dog0's first frame, handles at rest, came out with edges 3.3x their
+   * length and 304 folded triangles (bench motion --solver full). Both steps use the same
+   * weights, so each still lowers one energy; the floor (1e-6 of the mean positive weight)
+   * keeps every edge in the system, which stays as connected as the mesh. */
+  double wsum = 0;
+  size_t wpos = 0;
+  for (size_t j = 0; j < n; ++j)
+    for (int32_t q = cp[j]; q < cp[j + 1]; ++q)
+      if ((size_t)ri[q] != j && lx[q] > 0) wsum += lx[q], ++wpos;
+  double wfloor = wpos ? 1e-6 * wsum / (double)wpos : 1e-12;
   for (size_t j = 0, k = 0; j < n; ++j)
     for (int32_t q = cp[j]; q < cp[j + 1]; ++q)
       if ((size_t)ri[q] != j) {
         a->adj[k] = ri[q];
-        a->w[k++] = lx[q];
+        a->w[k++] = lx[q] > wfloor ? lx[q] : wfloor;
       }
   if (nfree > 0) {
-    /* -L restricted to the free vertices */
-    size_t cap = (size_t)cp[n];
+    /* -L restricted to the free vertices, of the weights above: off the diagonal minus an
+     * edge's weight, on it the sum of the vertex's weights (its handle neighbours' too) */
+    size_t cap = (size_t)cp[n] + n; /* a used vertex without a stored diagonal still gets one */
     ti = km__malloc(cap ? cap : 1, sizeof(int32_t));
     tj = km__malloc(cap ? cap : 1, sizeof(int32_t));
     tv = km__malloc(cap ? cap : 1, sizeof(double));
@@ -197,12 +213,16 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_
     size_t m = 0;
     for (size_t j = 0; j < n; ++j) {
       if (a->map[j] < 0) continue;
-      for (int32_t q = cp[j]; q < cp[j + 1]; ++q) {
-        if (a->map[ri[q]] < 0) continue;
-        ti[m] = a->map[ri[q]];
+      double diag = 0;
+      for (int32_t k = a->adj_off[j]; k < a->adj_off[j + 1]; ++k) {
+        diag += a->w[k];
+        if (a->map[a->adj[k]] < 0) continue;
+        ti[m] = a->map[a->adj[k]];
         tj[m] = a->map[j];
-        tv[m++] = -lx[q];
+        tv[m++] = -a->w[k];
       }
+      ti[m] = tj[m] = a->map[j];
+      tv[m++] = diag;
     }
     if ((s = km_sparse_from_triplets(nfree, nfree, m, ti, tj, tv, &A, err))) goto fail;
     if ((s = km_cholesky_analyze(A, &a->chol, err))) goto fail;
