@@ -48,6 +48,7 @@ typedef struct bm_args {
   double fps; /* > 0: takes faster than this are resampled to it; 0: their own rate */
   bool json, floor;
   bool full;               /* --solver full: both variants through the full-space ARAP */
+  double handle_weight;    /* its km_arap_options.handle_weight (NaN: KM_ARAP_SOFT_HANDLES) */
   bool skin;               /* --skin: the skinned reference beside B (bm_skin) */
   km_autorig_skin weights; /* --weights: the skin weights km_autorig writes (only L uses them) */
   double max_step;         /* B's rig max_step; < 0: as the sidecar writes it */
@@ -429,11 +430,11 @@ static void skin_frame(bm_skin *sk, const km_mesh *m, const bm_geom *g, const km
 /* One variant over the take: the metrics (where: KM_BENCH_WHERE's folder, or NULL; sk: the
  * skinned reference driven by this variant's joints, or NULL). */
 static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *rig,
-                             km_puppet *model, const km_take *t, size_t nf, bm_metrics *out,
-                             const char *where, bm_skin *sk, km_error *err) {
+                             km_puppet *model, double handle_weight, const km_take *t, size_t nf,
+                             bm_metrics *out, const char *where, bm_skin *sk, km_error *err) {
   km_puppetry_options o = {0};
   o.model = model;
-  if (!model) o.solver = KM_PUPPETRY_FULL; /* --solver full */
+  if (!model) o.solver = KM_PUPPETRY_FULL, o.arap.handle_weight = handle_weight; /* --solver full */
   o.fps = t->fps;
   o.take_name = "take";
   km_puppetry *p = NULL;
@@ -691,8 +692,9 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       } else if (a->max_step >= 0) {
         tr.max_step = a->max_step;
       }
-      if (run_variant(&m, &g, &tr, model, &t, nf, &r[v], v ? getenv("KM_BENCH_WHERE") : NULL,
-                      v && a->skin ? &sk : NULL, &te) != KM_OK) {
+      if (run_variant(&m, &g, &tr, model, a->handle_weight, &t, nf, &r[v],
+                      v ? getenv("KM_BENCH_WHERE") : NULL, v && a->skin ? &sk : NULL,
+                      &te) != KM_OK) {
         snprintf(why, sizeof why, "%.500s", te.message);
         ok = false;
       }
@@ -717,6 +719,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       cJSON_AddNumberToObject(o, "fps", t.fps);
       cJSON_AddBoolToObject(o, "floor", a->floor);
       cJSON_AddStringToObject(o, "solver", a->full ? "full" : "reduced");
+      if (a->full) cJSON_AddNumberToObject(o, "handle_weight", a->handle_weight);
       cJSON_AddStringToObject(o, "relative_to",
                               a->relative_to ? km_kinect1_joint_name(a->relative_to - 1) : "");
       km_cli_json_number(o, "take_jump_max_pct", r[0].raw_jump_pct);
@@ -804,7 +807,7 @@ static void split_list(const char *s, char ***list, size_t *n) {
 int km_bench_motion(int argc, char **argv) {
   const char *takes_opt = NULL, *meshes_opt = NULL, *relative_opt = NULL, *weights_opt = NULL,
              *solver_opt = NULL;
-  bm_args a = {.data = "../shared/data", .max_step = -1};
+  bm_args a = {.data = "../shared/data", .max_step = -1, .handle_weight = NAN};
   const km_cli_opt opts[] = {
       {"takes", 0, KM_OPT_STRING, &takes_opt,
        "comma list of motion files (Kinect CSV, BVH, take JSON) or walk, wave, kungfu "
@@ -829,6 +832,9 @@ int km_bench_motion(int argc, char **argv) {
        "reduced (default: the isoline model every verb uses) or full: both variants through "
        "the full-space ARAP reference (hard handles, a sparse solve per iteration; slow), to "
        "tell the reduced model's share of a miss from the rig's"},
+      {"handle-weight", 0, KM_OPT_DOUBLE, &a.handle_weight,
+       "full solver: handle weight relative to the mean Laplacian diagonal (default 0.03, "
+       "soft, as animate; 0: hard handles, the exact reference)"},
       {"json", 0, KM_OPT_FLAG, &a.json, "print one JSON object per row, one per line"},
       {"skin", 0, KM_OPT_FLAG, &a.skin,
        "also L: the rig's skeleton, posed by B's own retargeted joints, skinning the mesh with "
@@ -842,7 +848,8 @@ int km_bench_motion(int argc, char **argv) {
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
       "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames N] [--fps F] "
-      "[--max-step F] [--solver reduced|full] [--skin [--weights reach]] [--json]",
+      "[--max-step F] [--solver reduced|full [--handle-weight W]] [--skin [--weights reach]] "
+      "[--json]",
       "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
       "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"
       "paper's, T) and bone handles (B) side by side. Per row: edge stretch max\n"
@@ -864,6 +871,12 @@ int km_bench_motion(int argc, char **argv) {
   if (solver_opt && strcmp(solver_opt, "reduced") && strcmp(solver_opt, "full"))
     return km_cli_error("bench motion", "--solver %s: expected reduced or full", solver_opt);
   a.full = solver_opt && !strcmp(solver_opt, "full");
+  if (!isnan(a.handle_weight) && !(a.handle_weight >= 0 && isfinite(a.handle_weight) && a.full))
+    return km_cli_error("bench motion",
+                        "--handle-weight %g: expected a number >= 0, with --solver "
+                        "full",
+                        a.handle_weight);
+  if (isnan(a.handle_weight)) a.handle_weight = KM_ARAP_SOFT_HANDLES;
   if (relative_opt) {
     int j = km_kinect1_joint_index(relative_opt);
     if (j < 0)
@@ -898,7 +911,11 @@ int km_bench_motion(int argc, char **argv) {
              "B = bone handles; jump 'take' = the mapped joints' own largest step (scaled); t = "
              "median of per-frame push times%s%s%s%s\n",
              a.machine, fps_s, frames_s,
-             a.full ? "; full-space ARAP solver (hard handles), not the reduced model" : "",
+             a.full ? (a.handle_weight > 0 ? "; full-space ARAP solver (soft handles), not the "
+                                             "reduced model"
+                                           : "; full-space ARAP solver (hard handles), not the "
+                                             "reduced model")
+                    : "",
              a.floor ? "; floor constraint on" : "", a.relative_to ? "; motion relative to " : "",
              a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
       printf("%-18s %-16s %7s %5s  %13s  %11s  %11s  %20s  %11s  %15s  %5s  %6s\n", "", "", "", "",

@@ -183,6 +183,9 @@ int main(void) {
     const cJSON *sv = cJSON_GetObjectItem(o, "solver");
     CHECK_MSG(cJSON_IsString(sv) && !strcmp(sv->valuestring, "full"), "--solver full: solver %s",
               cJSON_IsString(sv) ? sv->valuestring : "(none)");
+    CHECK_MSG(fabs(num(o, "handle_weight", rows) - KM_ARAP_SOFT_HANDLES) < 1e-12,
+              "--solver full: handle weight %g, animate's is %g", num(o, "handle_weight", rows),
+              KM_ARAP_SOFT_HANDLES);
     check_variant(o, "translate", rows, 4);
     check_variant(o, "bones", rows, 4);
     cJSON_Delete(o);
@@ -195,6 +198,9 @@ int main(void) {
   CHECK(km_test_run(KM_CLI " bench motion --solver fast --takes walk --meshes character:3000 "
                            ">/dev/null 2>&1",
                     NULL) == 1);
+  CHECK(km_test_run(KM_CLI " bench motion --handle-weight 1 --takes walk --meshes character:3000 "
+                           ">/dev/null 2>&1",
+                    NULL) == 1); /* without --solver full */
   CHECK(km_test_run(KM_CLI " bench motion --relative-to NoSuchJoint --takes walk "
                            "--meshes character:3000 >/dev/null",
                     NULL) == 1);

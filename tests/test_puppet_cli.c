@@ -175,7 +175,38 @@ static void test_real_mesh_real_skeleton(const char *mesh_src, const char *csv) 
   CHECK_OK(km_pc2_read("puppet_a1k_full.pc2", &frames2, &info2, KM_E));
   CHECK(info2.frames == take.n_frames && frames2 &&
         all_finite(frames2, info2.frames * info2.vertices * 3));
+  /* its handles are soft by default; --handle-weight 0 makes them hard, another result */
+  CHECK(km_test_run(
+            KM_CLI
+            " animate --solver full --handle-weight 0 --mesh puppet_a1k.off --rig " KM_TEST_DATA
+            "/armadillo_1k.rig.json --motion '" KM_SHARED_DATA
+            "/skeleton/precog_Seq1_1.csv' -o puppet_a1k_hard.pc2",
+            NULL) == 0);
+  double *frames3 = NULL;
+  km_anim_info info3;
+  CHECK_OK(km_pc2_read("puppet_a1k_hard.pc2", &frames3, &info3, KM_E));
+  if (frames2 && frames3 && info3.frames == info2.frames && info3.vertices == info2.vertices) {
+    double d = 0;
+    for (size_t i = 0; i < info2.frames * info2.vertices * 3; ++i)
+      d = fmax(d, fabs(frames2[i] - frames3[i]));
+    CHECK_MSG(d > 1e-6, "hard and soft handles gave the same frames (max difference %g)", d);
+  }
+  free(frames3);
   free(frames2);
+  CHECK(km_test_run(KM_CLI " animate --solver full --handle-weight -1 --mesh puppet_a1k.off "
+                           "--rig " KM_TEST_DATA "/armadillo_1k.rig.json --motion '" KM_SHARED_DATA
+                           "/skeleton/precog_Seq1_1.csv' -o puppet_a1k_bad.pc2 2>&1",
+                    &out) == 1);
+  CHECK(out && strstr(out, "--handle-weight -1: expected a number >= 0"));
+  free(out);
+  out = NULL;
+  CHECK(km_test_run(KM_CLI " animate --handle-weight 0.1 --mesh puppet_a1k.off --rig " KM_TEST_DATA
+                           "/armadillo_1k.rig.json --motion '" KM_SHARED_DATA
+                           "/skeleton/precog_Seq1_1.csv' -o puppet_a1k_bad.pc2 2>&1",
+                    &out) == 1);
+  CHECK(out && strstr(out, "--handle-weight is for --solver full"));
+  free(out);
+  CHECK(access("puppet_a1k_bad.pc2", F_OK) != 0);
 
   free(frames);
   km_rig_free(&rig);

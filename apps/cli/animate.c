@@ -28,7 +28,7 @@ int km_cli_animate(int argc, char **argv) {
   const char *frame_format = NULL, *filter_kind = NULL;
   bool no_glitch = false, floor_on = false;
   int iterations = 0, fields = 0, isolines = 0;
-  double scale = 0, fps = 0;
+  double scale = 0, fps = 0, handle_weight = NAN;
   size_t key_every = 0;
   bool compress = false;
   const char *export_kind = NULL;
@@ -45,7 +45,11 @@ int km_cli_animate(int argc, char **argv) {
       {"cache", 0, KM_OPT_STRING, &cache,
        "reduced-model cache (default: $XDG_CACHE_HOME/kinemesh/<mesh hash>.kmcache)"},
       {"solver", 0, KM_OPT_STRING, &solver,
-       "reduced (default, real time) or full (ARAP reference)"},
+       "reduced (default, real time) or full (full-space ARAP, 15-150 ms a frame)"},
+      {"handle-weight", 0, KM_OPT_DOUBLE, &handle_weight,
+       "full solver: how hard handle vertices are pulled to their targets, relative to the mean "
+       "Laplacian diagonal (default 0.03: soft, a band may give a little; 0: hard handles, the "
+       "exact ARAP reference)"},
       {"energy", 0, KM_OPT_STRING, &energy,
        "reduced model energy: arap (default) or laplacian (the paper's eq. 8-9)"},
       {"fields", 0, KM_OPT_INT, &fields,
@@ -74,7 +78,8 @@ int km_cli_animate(int argc, char **argv) {
                    "kinemesh animate --mesh MESH [--rig RIG] --motion TAKE [--cache FILE] -o OUT",
                    "Puppetry: skeleton joints are smoothed (Holt-Winters), mapped to the rig's\n"
                    "handles and the mesh is deformed per frame by the reduced isoline model\n"
-                   "(precomputed once and cached) or, with --solver full, by full-space ARAP.");
+                   "(precomputed once and cached) or, with --solver full, by full-space ARAP\n"
+                   "(offline quality: soft handles by default, --handle-weight 0 for hard ones).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!mesh_path || !motion || !out)
     return km_cli_error("animate", "--mesh, --motion and -o are required (see --help)");
@@ -84,6 +89,12 @@ int km_cli_animate(int argc, char **argv) {
   if (parse_solver("animate", solver, &full) || km_cli_parse_energy("animate", energy, &pe) ||
       km_cli_parse_frame_format("animate", frame_format, &af))
     return KM_EXIT_FAIL;
+  if (!isnan(handle_weight) && !(handle_weight >= 0 && isfinite(handle_weight)))
+    return km_cli_error("animate", "--handle-weight %g: expected a number >= 0 (0: hard handles)",
+                        handle_weight);
+  if (!isnan(handle_weight) && !full)
+    return km_cli_error("animate", "--handle-weight is for --solver full (the reduced model's "
+                                   "handles are soft by construction)");
 
   km_error err = {0};
   km_mesh m = {0};
@@ -181,6 +192,7 @@ int km_cli_animate(int argc, char **argv) {
   o.joint_parents = take.parents;
   o.solver = full ? KM_PUPPETRY_FULL : KM_PUPPETRY_REDUCED;
   o.arap.iterations = iterations;
+  o.arap.handle_weight = isnan(handle_weight) ? KM_ARAP_SOFT_HANDLES : handle_weight;
   const char *cpath = cache ? cache : cache_default;
   if (!full) {
     /* A cache made by `precompute --fields/--isolines/--energy` is used as built unless this

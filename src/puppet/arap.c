@@ -26,9 +26,11 @@ struct km_arap {
   int32_t *map;     /* vertex -> free index, or -(handle vertex index)-1 */
   int32_t *h_v;     /* n_hv */
   km_cholesky *chol;
-  double *X; /* n*3 current (warm start) */
-  double *R; /* n*9 */
-  double *B; /* n_free*3 column-major rhs / solution */
+  double *X;    /* n*3 current (warm start) */
+  double *R;    /* n*9 */
+  double *B;    /* n_free*3 column-major rhs / solution */
+  double soft;  /* > 0: soft handles, the weight of a handle vertex's pull to its target */
+  int32_t *hix; /* soft handles: n, the handle vertex index of a vertex, -1 none */
 };
 
 static int32_t uf_find(int32_t *parent, int32_t x) {
@@ -71,6 +73,7 @@ void km_arap_free(km_arap **pa) {
   free(a->adj);
   free(a->w);
   free(a->map);
+  free(a->hix);
   free(a->h_v);
   free(a->X);
   free(a->R);
@@ -105,8 +108,9 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_
   if (opt) o = *opt;
   if (o.iterations == 0) o.iterations = 4;
   if (o.tolerance == 0) o.tolerance = 1e-6;
-  if (o.iterations < 0 || !(o.tolerance >= 0))
-    return km__fail(err, KM_ERR_INVALID, "arap: iterations and tolerance must be >= 0");
+  if (o.iterations < 0 || !(o.tolerance >= 0) || !(o.handle_weight >= 0))
+    return km__fail(err, KM_ERR_INVALID,
+                    "arap: iterations, tolerance and handle_weight must be >= 0");
 
   km_arap *a = calloc(1, sizeof *a);
   if (!a) return km__fail(err, KM_ERR_NOMEM, "arap: out of memory");
@@ -201,6 +205,19 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_
         a->adj[k] = ri[q];
         a->w[k++] = lx[q] > wfloor ? lx[q] : wfloor;
       }
+  if (o.handle_weight > 0) { /* soft handles: their vertices are unknowns too */
+    a->hix = km__malloc(n, sizeof(int32_t));
+    if (!a->hix) goto nomem;
+    double dsum = 0;
+    for (size_t k = 0; k < (size_t)a->adj_off[n]; ++k)
+      dsum += a->w[k];
+    a->soft = o.handle_weight * dsum / (double)n; /* relative to the mean diagonal of -L */
+    for (size_t v = 0; v < n; ++v) {
+      a->hix[v] = a->map[v] < 0 && a->map[v] != INT32_MIN ? -a->map[v] - 1 : -1;
+      if (a->hix[v] >= 0) a->map[v] = (int32_t)nfree++;
+    }
+    a->n_free = nfree;
+  }
   if (nfree > 0) {
     /* -L restricted to the free vertices, of the weights above: off the diagonal minus an
      * edge's weight, on it the sum of the vertex's weights (its handle neighbours' too) */
@@ -222,7 +239,7 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_
         tv[m++] = -a->w[k];
       }
       ti[m] = tj[m] = a->map[j];
-      tv[m++] = diag;
+      tv[m++] = diag + (a->hix && a->hix[j] >= 0 ? a->soft : 0);
     }
     if ((s = km_sparse_from_triplets(nfree, nfree, m, ti, tj, tv, &A, err))) goto fail;
     if ((s = km_cholesky_analyze(A, &a->chol, err))) goto fail;
@@ -282,7 +299,7 @@ km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_err
     if (!isfinite(targets[i]))
       return km__fail(err, KM_ERR_INVALID, "arap solve: target of handle vertex %zu is not finite",
                       i / 3);
-  for (size_t i = 0; i < a->n_hv; ++i)
+  for (size_t i = 0; i < a->n_hv && !a->hix; ++i)
     memcpy(a->X + 3 * (size_t)a->h_v[i], targets + 3 * i, 3 * sizeof(double));
   size_t n = a->n, nf = a->n_free;
   const double *P = a->P;
@@ -308,6 +325,9 @@ km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_err
           for (int r = 0; r < 3; ++r)
             b[r] += a->w[k] * a->X[3 * j + r];
       }
+      if (a->hix && a->hix[i] >= 0) /* a soft handle's pull to its target */
+        for (int r = 0; r < 3; ++r)
+          b[r] += a->soft * targets[3 * (size_t)a->hix[i] + r];
       for (int r = 0; r < 3; ++r)
         B[fi + r * nf] = b[r];
     }
