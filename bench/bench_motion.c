@@ -317,9 +317,8 @@ static void where_report(const char *tag, const km_mesh *m, const km_rig *rig, c
   fprintf(stderr, "\n");
 }
 
-/* Largest |l / l0 - 1| over the edges of frame V (NaN propagates); *worst: its edge. */
-/* The frame's largest |l / l0 - 1| (its edge in *worst); x's shortest and longest l / l0 and
- * its frame counts take this frame's in. */
+/* The largest |l / l0 - 1| over the edges of frame V (NaN propagates; *worst: its edge); x's
+ * shortest and longest l / l0 and its frame counts take this frame's in. */
 static double frame_stretch(const bm_geom *g, const double *V, size_t *worst, bm_metrics *x) {
   double m = 0, lo = INFINITY, hi = 0;
   for (size_t e = 0; e < g->n_edges; ++e) {

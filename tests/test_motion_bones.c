@@ -193,17 +193,9 @@ static void deform_stats(const km_mesh *m, km_puppetry *p, const km_take *t, siz
     CHECK_OK(km_puppetry_push(p, t->positions + fr * t->n_joints * 3, V, KM_E));
     for (size_t f = 0; f < nfc; ++f)
       unit_normal(V, m->F + 3 * f, N + 3 * f);
+    *stretch = fmax(*stretch, km_test_edge_stretch_in(m, V, mask));
     for (size_t f = 0; f < nfc; ++f) {
       if (mask && !mask[f]) continue;
-      for (int k = 0; k < 3; ++k) {
-        int32_t a = m->F[3 * f + k], b = m->F[3 * f + (k + 1) % 3];
-        double l = 0, l0 = 0;
-        for (int d = 0; d < 3; ++d) {
-          l += (V[3 * a + d] - V[3 * b + d]) * (V[3 * a + d] - V[3 * b + d]);
-          l0 += (m->V[3 * a + d] - m->V[3 * b + d]) * (m->V[3 * a + d] - m->V[3 * b + d]);
-        }
-        *stretch = fmax(*stretch, fabs(sqrt(l / l0) - 1));
-      }
       for (int k = 0; k < 3; ++k) {
         int32_t v = m->F[3 * f + k];
         for (size_t i = cnt[v]; i < cnt[v + 1]; ++i) {

@@ -4,6 +4,7 @@
  * include/kinemesh.h. */
 #include "autorig/autorig.h"
 
+#include "math/math.h"
 #include "mesh/mesh.h"
 #include "motion/motion.h"
 
@@ -726,32 +727,13 @@ static km_status compute_skin(const rigger *r, bool reach, km_skin *skin, km_err
       for (int j = 0; j < NJ; ++j)
         if ((all || gv[j] > 0) && d[j] < dmin) dmin = d[j];
       if (dmin == DBL_MAX) dmin = d[near[v]];
-      /* the KM_SKIN_INFLUENCES largest weights, largest first */
-      int32_t jj[KM_SKIN_INFLUENCES];
-      double ww[KM_SKIN_INFLUENCES];
-      int cnt = 0;
+      double w[NJ];
       for (int j = 0; j < NJ; ++j) {
         double t = (d[j] - dmin) / band;
-        double w = t >= 1 ? 0 : (1 - t) * (1 - t) * (all ? 1 : gv[j]);
-        if (!(w > 0)) continue;
-        int pos = cnt;
-        while (pos > 0 && ww[pos - 1] < w)
-          --pos;
-        if (pos >= KM_SKIN_INFLUENCES) continue;
-        int last = cnt < KM_SKIN_INFLUENCES ? cnt : KM_SKIN_INFLUENCES - 1;
-        for (int q = last; q > pos; --q)
-          ww[q] = ww[q - 1], jj[q] = jj[q - 1];
-        ww[pos] = w, jj[pos] = j;
-        if (cnt < KM_SKIN_INFLUENCES) ++cnt;
+        w[j] = t >= 1 ? 0 : (1 - t) * (1 - t) * (all ? 1 : gv[j]);
       }
-      if (!cnt) ww[0] = 1, jj[0] = near[v], cnt = 1; /* no bone reaches it within band */
-      double sum = 0;
-      for (int q = 0; q < cnt; ++q)
-        sum += ww[q];
-      for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
-        skin->joints[4 * v + q] = q < cnt ? jj[q] : -1;
-        skin->weights[4 * v + q] = q < cnt ? ww[q] / sum : 0.0;
-      }
+      if (!km__skin_keep_largest(w, NJ, skin->joints + 4 * v, skin->weights + 4 * v))
+        skin->joints[4 * v] = near[v], skin->weights[4 * v] = 1; /* no bone within band */
     }
   free(D), free(G), free(near);
   return st;

@@ -4,6 +4,7 @@
  * mapped ancestor. The method is described at km_character_from_skin in include/kinemesh.h. */
 #include "autorig/autorig.h"
 
+#include "math/math.h"
 #include "motion/motion.h"
 
 #include <float.h>
@@ -245,29 +246,9 @@ km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_cha
       if (j >= 0 && (size_t)j < nj && x > 0 && isfinite(x)) w[target[j]] += x, sum += x;
     }
     if (!(sum > 0)) w[J_HIP_C] = 1;
-    int32_t jj[KM_SKIN_INFLUENCES];
-    double ww[KM_SKIN_INFLUENCES];
-    int cnt = 0;
-    for (int k = 0; k < KM_KINECT1_JOINTS; ++k) { /* the 4 largest, largest first */
-      if (!(w[k] > 0)) continue;
-      int pos = cnt;
-      while (pos > 0 && ww[pos - 1] < w[k])
-        --pos;
-      if (pos >= KM_SKIN_INFLUENCES) continue;
-      int last = cnt < KM_SKIN_INFLUENCES ? cnt : KM_SKIN_INFLUENCES - 1;
-      for (int q = last; q > pos; --q)
-        ww[q] = ww[q - 1], jj[q] = jj[q - 1];
-      ww[pos] = w[k], jj[pos] = k;
-      if (cnt < KM_SKIN_INFLUENCES) ++cnt;
-    }
-    double tot = 0;
-    for (int q = 0; q < cnt; ++q)
-      tot += ww[q];
-    for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
-      out->skin.joints[4 * v + q] = q < cnt ? jj[q] : -1;
-      out->skin.weights[4 * v + q] = q < cnt ? ww[q] / tot : 0.0;
-    }
-    dom[v] = jj[0];
+    km__skin_keep_largest(w, KM_KINECT1_JOINTS, out->skin.joints + 4 * v,
+                          out->skin.weights + 4 * v);
+    dom[v] = out->skin.joints[4 * v];
   }
   /* Tips for the landmarks: the hand's vertex farthest along wrist -> hand, the foot's
    * farthest along ankle -> foot (horizontally), among the vertices they dominate. */

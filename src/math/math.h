@@ -31,6 +31,12 @@ void km__forward_kinematics(size_t n, const int32_t *parents, const double *L, c
 void km__joint_transforms(size_t n, const double *W, const double *P, const double *rest,
                           double *G);
 
+/* The one "keep the largest influences" step of every skin writer (skinning.c): one vertex's
+ * weight per joint w (n of them; a weight <= 0 or NaN is no influence) becomes its
+ * KM_SKIN_INFLUENCES slots, the largest first (a tie keeps the lower joint), normalised to sum
+ * 1; unused slots are joint -1, weight 0. Returns how many it kept (0: no joint had weight). */
+int km__skin_keep_largest(const double *w, int n, int32_t *joints, double *weights);
+
 /* qsort comparator for doubles, ascending. */
 static inline int km__cmp_double(const void *a, const void *b) {
   double x = *(const double *)a, y = *(const double *)b;

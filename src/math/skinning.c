@@ -184,6 +184,32 @@ void km__joint_transforms(size_t n, const double *W, const double *P, const doub
   }
 }
 
+int km__skin_keep_largest(const double *w, int n, int32_t *joints, double *weights) {
+  int32_t jj[KM_SKIN_INFLUENCES];
+  double ww[KM_SKIN_INFLUENCES];
+  int cnt = 0;
+  for (int j = 0; j < n; ++j) { /* insertion into the sorted few */
+    if (!(w[j] > 0)) continue;
+    int pos = cnt;
+    while (pos > 0 && ww[pos - 1] < w[j])
+      --pos;
+    if (pos >= KM_SKIN_INFLUENCES) continue;
+    int last = cnt < KM_SKIN_INFLUENCES ? cnt : KM_SKIN_INFLUENCES - 1;
+    for (int q = last; q > pos; --q)
+      ww[q] = ww[q - 1], jj[q] = jj[q - 1];
+    ww[pos] = w[j], jj[pos] = j;
+    if (cnt < KM_SKIN_INFLUENCES) ++cnt;
+  }
+  double sum = 0;
+  for (int q = 0; q < cnt; ++q)
+    sum += ww[q];
+  for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
+    joints[q] = q < cnt ? jj[q] : -1;
+    weights[q] = q < cnt ? ww[q] / sum : 0.0;
+  }
+  return cnt;
+}
+
 km_status km_lbs(const double *rest, size_t n_vertices, const km_skin *skin,
                  const double *transforms, size_t n_joints, double *out, km_error *err) {
   if (!rest || !skin || !transforms || !out || (n_vertices && (!skin->joints || !skin->weights)))

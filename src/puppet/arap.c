@@ -23,7 +23,8 @@ struct km_arap {
   int32_t *adj_off; /* n+1 */
   int32_t *adj;     /* neighbours */
   double *w;        /* cot weights (L_ij) */
-  int32_t *map;     /* vertex -> free index, or -(handle vertex index)-1 */
+  int32_t *map;     /* vertex -> free index, or -(handle vertex index)-1 (hard handles only: a
+                       soft handle's vertex is free, hix names its handle vertex) */
   int32_t *h_v;     /* n_hv */
   km_cholesky *chol;
   double *X;    /* n*3 current (warm start) */
@@ -221,7 +222,7 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_
   if (nfree > 0) {
     /* -L restricted to the free vertices, of the weights above: off the diagonal minus an
      * edge's weight, on it the sum of the vertex's weights (its handle neighbours' too) */
-    size_t cap = (size_t)cp[n] + n; /* a used vertex without a stored diagonal still gets one */
+    size_t cap = (size_t)a->adj_off[n] + n; /* every edge both ways, and the diagonals */
     ti = km__malloc(cap ? cap : 1, sizeof(int32_t));
     tj = km__malloc(cap ? cap : 1, sizeof(int32_t));
     tv = km__malloc(cap ? cap : 1, sizeof(double));

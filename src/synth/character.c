@@ -9,6 +9,7 @@
  * Kinect v1 skeleton, polygonised by marching tetrahedra (polygonize.c). Each primitive
  * belongs to one joint (the joint whose bone to its child it surrounds; leaf joints own the
  * end blobs), which gives the skin weights directly. */
+#include "math/math.h"
 #include "motion/motion.h"
 #include "synth/polygonize.h"
 
@@ -344,34 +345,12 @@ static void compute_skin(const body *b, const km_mesh *m, km_skin *skin) {
       if (x < d[j]) d[j] = x;
       if (x < dmin) dmin = x;
     }
-    int32_t jj[KM_SKIN_INFLUENCES];
-    double ww[KM_SKIN_INFLUENCES];
-    int cnt = 0;
+    double w[KM_KINECT1_JOINTS];
     for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
       double t = (d[j] - dmin) / band;
-      if (t >= 1) continue;
-      double w = (1 - t) * (1 - t);
-      /* Keep the 4 largest (insertion into a sorted list; ties keep the lower joint). */
-      int pos = cnt < KM_SKIN_INFLUENCES ? cnt : KM_SKIN_INFLUENCES;
-      while (pos > 0 && ww[pos - 1] < w)
-        --pos;
-      if (pos >= KM_SKIN_INFLUENCES) continue;
-      int last = cnt < KM_SKIN_INFLUENCES ? cnt : KM_SKIN_INFLUENCES - 1;
-      for (int q = last; q > pos; --q) {
-        ww[q] = ww[q - 1];
-        jj[q] = jj[q - 1];
-      }
-      ww[pos] = w;
-      jj[pos] = j;
-      if (cnt < KM_SKIN_INFLUENCES) ++cnt;
+      w[j] = t >= 1 ? 0 : (1 - t) * (1 - t);
     }
-    double sum = 0;
-    for (int q = 0; q < cnt; ++q)
-      sum += ww[q];
-    for (int q = 0; q < KM_SKIN_INFLUENCES; ++q) {
-      skin->joints[4 * v + q] = q < cnt ? jj[q] : -1;
-      skin->weights[4 * v + q] = q < cnt ? ww[q] / sum : 0.0;
-    }
+    km__skin_keep_largest(w, KM_KINECT1_JOINTS, skin->joints + 4 * v, skin->weights + 4 * v);
   }
 }
 
