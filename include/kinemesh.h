@@ -2533,13 +2533,19 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * is left out); short legs or low arms (where the feet's geodesics part, where an arm's
  * ring near its root is) lower the hips or the shoulders and the joints between follow.
  * Hands: the extremity on each side maximising limb length * (1 - t), t being where along
- * the head-to-foot path its geodesics part (an arm beats an ear or a horn). Arm joints are
+ * the head-to-foot path its geodesics part (an arm beats an ear or a horn), among those off
+ * the mid-line joining below the top, else those that are not a second tip of a foot, join
+ * the body above the legs' middle and do not reach back 0.2 H behind the feet (a tail), else
+ * any. Arm joints are
  * centroids of geodesic rings (vertices at one geodesic distance from the hand tip) at
  * proportional distances between the tip and the shoulder, which follows the arm whatever
  * its pose. Those centroids lie inside tubular parts. A non-humanoid (quadruped):
  * the four lowest extremities are its limbs, split front/hind along the feet's principal
  * horizontal axis (front = towards the head) and left/right across it; the highest other
- * extremity is the head. Front limbs take the Kinect arm joints (HandLeft/Right at the
+ * extremity ahead of the feet (+z) is the head (a raised tail is not). Auto takes a mesh for
+ * a quadruped when three or more distinct extremities lie within 0.1 H of the ground, not
+ * counting one at the back end (0.1 of the z extent) that lies on the mid-line or 0.025 H
+ * above the ground (a resting tail). Front limbs take the Kinect arm joints (HandLeft/Right at the
  * tips), hind limbs the leg joints, the head Head; limb joints are geodesic ring centroids,
  * the spine runs between the hind and front limb roots at the centroid's height. A prop (a
  * bust, an object; what auto falls back to when neither fits, the reason in the report):

@@ -684,6 +684,64 @@ static void test_reach_weights(void) {
   km_mesh_free(&m);
 }
 
+/* Meshes no rule was tuned on, rigged by the automatic choice: the roles must be the body's.
+ * The dinosaur (a biped whose tail tip hangs 6 % of its height above the ground) was taken for
+ * a quadruped with its tail as a hind leg; armadillo_1k's left hand was a toe of its left foot
+ * (the hand up by its ear left out); the walking and the stretching cat had their raised tails
+ * for heads. Every foot on the ground, every hand of an upright body above the knees and
+ * its head in the upper half, a quadruped's head ahead of its feet, and a tail or toe given no
+ * role. */
+static void test_roles(const char *rel, km_autorig_skeleton want) {
+  char buf[1024];
+  const char *path = km_test_shared(rel, buf, sizeof buf);
+  if (!path) return;
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_read(path, &m, KM_E));
+  if (!m.n_vertices) return;
+  km_frame_guess g;
+  CHECK_OK(km_mesh_frame_guess(&m, &g, KM_E));
+  g.frame.scale = 0;
+  CHECK_OK(km_mesh_frame_apply(&g.frame, &m, KM_E));
+  double lo = INFINITY, hi = -INFINITY;
+  for (size_t v = 0; v < m.n_vertices; ++v)
+    lo = fmin(lo, m.V[3 * v + 1]), hi = fmax(hi, m.V[3 * v + 1]);
+  km_character c = {0};
+  km_autorig_report rep;
+  km_status st = km_autorig(&m, NULL, &c, &rep, KM_E);
+  CHECK_MSG(st == KM_OK, "%s: %s", rel, km_test_err.message);
+  if (st == KM_OK) {
+    CHECK_MSG(rep.kind == want, "%s: rigged as kind %d, want %d", rel, (int)rep.kind, (int)want);
+    int roles = 0;
+    double limb_z = 0, head_z = NAN;
+    for (size_t e = 0; e < rep.n_extremities; ++e) {
+      const double *q = m.V + 3 * (size_t)rep.extremity[e];
+      if (!strncmp(rep.role[e], "Foot", 4) || !strncmp(rep.role[e], "Hand", 4)) limb_z += q[2] / 4;
+      if (!strcmp(rep.role[e], "Head")) head_z = q[2];
+    }
+    /* a quadruped's head is ahead of its feet (kinemesh's frame faces +z), not a tail held up */
+    if (want == KM_AUTORIG_QUADRUPED)
+      CHECK_MSG(head_z > limb_z, "%s: head at z %.3f behind the feet's middle %.3f", rel, head_z,
+                limb_z);
+    for (size_t e = 0; e < rep.n_extremities; ++e) {
+      if (!rep.role[e][0]) continue;
+      double h = (m.V[3 * (size_t)rep.extremity[e] + 1] - lo) / (hi - lo);
+      printf("%s: %-10s vertex %6d at %.3f of the height\n", rel, rep.role[e], rep.extremity[e], h);
+      bool foot = !strncmp(rep.role[e], "Foot", 4), hand = !strncmp(rep.role[e], "Hand", 4);
+      bool head = !strcmp(rep.role[e], "Head");
+      if (foot) /* a walking cat lifts a hind paw 5 % of its height */
+        CHECK_MSG(h < 0.1, "%s: %s %.3f of the height above the ground", rel, rep.role[e], h);
+      if (hand && want == KM_AUTORIG_KINECT1)
+        CHECK_MSG(h > 0.3, "%s: %s at %.3f of the height (a foot's toe?)", rel, rep.role[e], h);
+      if (head && want == KM_AUTORIG_KINECT1) /* a cat bowing to play holds its head low */
+        CHECK_MSG(h > 0.5, "%s: head at %.3f of the height", rel, h);
+      roles += foot || hand || head;
+    }
+    CHECK_MSG(roles == 5, "%s: %d roles given", rel, roles);
+  }
+  km_character_free(&c);
+  km_mesh_free(&m);
+}
+
 int main(void) {
   if (!mkdtemp(g_dir)) {
     perror("mkdtemp");
@@ -697,6 +755,13 @@ int main(void) {
   test_faust_landmarks();
   test_cli();
   test_reach_weights();
+  test_roles("meshes/dino.off", KM_AUTORIG_KINECT1);
+  test_roles("meshes/armadillo_1k.off", KM_AUTORIG_KINECT1);
+  test_roles("meshes/horse.ply", KM_AUTORIG_QUADRUPED);
+  test_roles("meshes/dog0.off", KM_AUTORIG_QUADRUPED);
+  test_roles("poses/cat-poses/cat-03.obj", KM_AUTORIG_QUADRUPED);
+  test_roles("poses/cat-poses/cat-06.obj", KM_AUTORIG_QUADRUPED);
+  test_roles("poses/cat-poses/cat-reference.obj", KM_AUTORIG_QUADRUPED);
   char buf[1024];
   const char *csv = km_test_shared("skeleton/precog_Seq1_1.csv", buf, sizeof buf);
   if (csv) {

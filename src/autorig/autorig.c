@@ -271,22 +271,23 @@ static void limb_chain(const rigger *r, size_t e, const double root[3], const do
 
 /* ---------------------------------------------------------------- roles */
 
-/* The lowest unused extremity that is not a second tip of a limb already chosen (a heel
- * beside its toes is skipped): apart from each chosen one by half the height along the
- * surface, or by a surface path 1.6 times their straight distance (legs parted by a
- * crotch). */
+/* Extremities e and c are two tips of one limb (a heel beside its toes, two claws) unless apart
+ * by half the height along the surface, or the surface path between them is 1.6 times their
+ * straight distance or more (legs parted by a crotch). */
+static bool same_limb(const rigger *r, int e, int c) {
+  int32_t a = r->ext_v[e], b = r->ext_v[c];
+  double g = r->dist[(size_t)e * r->n + (size_t)b];
+  return g < 0.5 * r->H && g < 1.6 * dist3(P(r, a), P(r, b));
+}
+
+/* The lowest unused extremity that is not a second tip of a limb already chosen. */
 static int lowest_distinct(const rigger *r, const bool *used, const int *chosen, int n_chosen) {
   int best = -1;
   for (size_t e = 0; e < r->n_ext; ++e) {
     if (used[e]) continue;
     bool near = false;
-    for (int c = 0; c < n_chosen; ++c) {
-      int32_t a = r->ext_v[e], b = r->ext_v[chosen[c]];
-      double g = r->dist[e * r->n + (size_t)b];
-      /* same limb unless far apart along the surface, or the surface path detours (a crotch
-       * between two short legs) */
-      if (g < 0.5 * r->H && g < 1.6 * dist3(P(r, a), P(r, b))) near = true;
-    }
+    for (int c = 0; c < n_chosen; ++c)
+      if (same_limb(r, (int)e, chosen[c])) near = true;
     if (near) continue;
     if (best < 0 || P(r, r->ext_v[e])[1] < P(r, r->ext_v[best])[1]) best = (int)e;
   }
@@ -335,14 +336,24 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
    * `a` of the head-to-foot path: t = (d_foot - d_head) / d(head, feet) is where along the
    * body (1 at the head top, -1 at the feet) and len = (d_head + d_foot - d(head, feet)) / 2
    * how long the limb is from there. An arm is long and joins at the shoulders; an ear or a
-   * horn joins near the top; a bump (knee, shoulder) is short. On each side, among extremities
-   * off the mid-line joining below t = 0.9, the hand maximises len * (1 - t). */
+   * horn joins near the top; a bump (knee, shoulder) is short. On each side the hand maximises
+   * len * (1 - t) among the extremities that pass the strictest filter some extremity on that
+   * side passes:
+   *   pass 0: joins below t = 0.9 (not an ear or a horn) and off the mid-line (a trunk, a
+   *           tail seen from the front), and as pass 1;
+   *   pass 1: not a second tip of a foot nor joining the body down a leg (t >= -0.5: a toe
+   *           or claw beside the one taken as the foot; armadillo_1k's left foot has both, and
+   *           its other toe outscored the hand up by its ear), not reaching back behind the
+   *           feet by 0.2 of the height (a tail: the dinosaur's, and the cat standing up with
+   *           its paws raised overhead, whose left paw's tip is on the mid-line);
+   *   pass 2: any. */
   int hand_l = -1, hand_r = -1;
   double best_l = -1, best_r = -1, len_l = 0, len_r = 0;
   const int32_t hv = r->ext_v[head], flv = r->ext_v[foot_l], frv = r->ext_v[foot_r];
   const double *Dh = r->dist + (size_t)head * r->n;
   double A = 0.5 * (Dh[flv] + Dh[frv]);
-  for (int pass = 0; pass < 2; ++pass) {
+  double heel_z = fmin(P(r, flv)[2], P(r, frv)[2]) - 0.2 * r->H;
+  for (int pass = 0; pass < 3; ++pass) {
     bool need_l = hand_l < 0, need_r = hand_r < 0;
     for (size_t e = 0; e < r->n_ext; ++e) {
       if (used[e]) continue;
@@ -351,6 +362,9 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
       double x = P(r, r->ext_v[e])[0] - xm;
       double len = 0.5 * (De[hv] + fmin(De[flv], De[frv]) - A);
       if (pass == 0 && (t > 0.9 || fabs(x) < 0.08 * r->H)) continue;
+      if (pass <= 1 && (t < -0.5 || P(r, r->ext_v[e])[2] < heel_z || same_limb(r, (int)e, foot_l) ||
+                        same_limb(r, (int)e, foot_r)))
+        continue;
       double sc = fmax(len, 1e-9 * A) * (1 - fmin(t, 0.99));
       if (need_l && x > 0 && sc > best_l) best_l = sc, hand_l = (int)e, len_l = len;
       if (need_r && x < 0 && sc > best_r) best_r = sc, hand_r = (int)e, len_r = len;
@@ -449,9 +463,15 @@ static km_status rig_quadruped(rigger *r, km_autorig_report *rep, km_error *err)
     for (int k = 0; k < 3; ++k)
       fc[k] += 0.25 * P(r, r->ext_v[limb[i]])[k];
   }
+  /* Head: the highest other extremity ahead of the feet (kinemesh's frame faces +z), so a
+   * tail held up is not taken for it (cat-03 walking, cat-06 stretching); the highest of all
+   * when none is ahead. */
   int head = -1;
-  for (size_t e = 0; e < r->n_ext; ++e)
-    if (!used[e] && (head < 0 || P(r, r->ext_v[e])[1] > P(r, r->ext_v[head])[1])) head = (int)e;
+  for (int pass = 0; pass < 2 && head < 0; ++pass)
+    for (size_t e = 0; e < r->n_ext; ++e)
+      if (!used[e] && (pass || P(r, r->ext_v[e])[2] > fc[2]) &&
+          (head < 0 || P(r, r->ext_v[e])[1] > P(r, r->ext_v[head])[1]))
+        head = (int)e;
   /* Principal horizontal axis of the four feet, pointing to the head. */
   double sxx = 0, sxz = 0, szz = 0;
   for (int i = 0; i < 4; ++i) {
@@ -910,8 +930,9 @@ static void compute_landmarks(const rigger *r, const double fwd[3], km_landmark 
 
 /* ---------------------------------------------------------------- public */
 
-static bool looks_quadruped(const rigger *r) {
-  /* Three or more distinct limbs on the ground (a humanoid stands on two). */
+/* How many legs the body stands on: distinct extremities within 0.1 H of the ground, resting
+ * tails left out (at most 4). Three or more: a quadruped (a humanoid stands on two). */
+static int ground_legs(const rigger *r) {
   bool used[KM_AUTORIG_MAX_EXTREMITIES] = {false};
   int chosen[KM_AUTORIG_MAX_EXTREMITIES] = {0}, n = 0;
   while (n < 4) {
@@ -920,7 +941,30 @@ static bool looks_quadruped(const rigger *r) {
     used[e] = true;
     chosen[n++] = e;
   }
-  return n >= 3;
+  /* A tip at the back end of the body (kinemesh's frame faces +z) that lies on the mid-line,
+   * or does not touch the ground (2.5 % of the height above it), is a tail resting there, not
+   * a leg: legs stand under the body, with their soles down (the horse's and dog0's within
+   * 1.1 %; a cat's front paws stretched forward can be the front end).
+   * The dinosaur in ../shared/data (a biped whose tail tip is 6 % of its height above the
+   * ground) and the cat standing up to reach (cat-05, its tail tip 3.8 %, curled aside) were
+   * taken for quadrupeds with the tail as a hind leg. The mid-line: half way between the two
+   * ground tips farthest apart across the body (x). */
+  double zlo = DBL_MAX, zhi = -DBL_MAX, wide = -1, xm = 0;
+  for (size_t v = 0; v < r->n; ++v)
+    if (r->on_face[v]) zlo = fmin(zlo, P(r, (int32_t)v)[2]), zhi = fmax(zhi, P(r, (int32_t)v)[2]);
+  for (int i = 0; i < n; ++i)
+    for (int j = i + 1; j < n; ++j) {
+      double xi = P(r, r->ext_v[chosen[i]])[0], xj = P(r, r->ext_v[chosen[j]])[0];
+      if (fabs(xi - xj) > wide) wide = fabs(xi - xj), xm = 0.5 * (xi + xj);
+    }
+  int legs = n;
+  for (int i = 0; i < n; ++i) {
+    const double *p = P(r, r->ext_v[chosen[i]]);
+    bool mid = fabs(p[0] - xm) < 0.25 * wide;
+    bool end = p[2] < zlo + 0.1 * (zhi - zlo);
+    if (n > 1 && end && (mid || p[1] > r->ymin + 0.025 * r->H)) --legs;
+  }
+  return legs;
 }
 
 km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_character *out,
@@ -964,7 +1008,7 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   st = find_extremities(&r, &o, err);
   km_autorig_skeleton kind = o.skeleton;
   if (st == KM_OK && kind == KM_AUTORIG_AUTO)
-    kind = looks_quadruped(&r) ? KM_AUTORIG_QUADRUPED : KM_AUTORIG_KINECT1;
+    kind = ground_legs(&r) >= 3 ? KM_AUTORIG_QUADRUPED : KM_AUTORIG_KINECT1;
   if (report) {
     report->kind = kind;
     report->height = r.H;
