@@ -27,8 +27,9 @@
  *             folded triangle, j jump > 3 %, t time > 1.3x T's (measured in the same run);
  *             the table ends with how many rows meet every target
  * A mesh or take that is missing or cannot be used gives a "skipped" line with the reason.
- * KM_BENCH_WHERE=DIR (for developers): where B's worst stretch, folds and jumps sit, on stderr,
- * and the rest mesh, its handles and the frames of the worst stretch and most folds in DIR
+ * KM_BENCH_WHERE=DIR (for developers): where B's worst stretch, longest edge, folds and jumps
+ * sit, on stderr, and the rest mesh, its handles and the frames of the worst stretch, the
+ * longest edge (long.obj) and most folds in DIR
  * (with --skin also skin.obj, L's frame of the worst stretch, and skin_b.obj, B's same frame). */
 #include "bench.h"
 #include "cli.h"
@@ -443,7 +444,8 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   double *tm = malloc((nf ? nf : 1) * sizeof *tm), *jf = malloc((nf ? nf : 1) * sizeof *jf);
   unsigned char *ever = calloc(m->n_faces ? m->n_faces : 1, 1);
   int32_t *first = where ? calloc(m->n_faces ? m->n_faces : 1, sizeof *first) : NULL;
-  size_t worst_e = 0, worst_f = 0, most_folds = 0;
+  size_t worst_e = 0, worst_f = 0, most_folds = 0, long_e = 0, long_f = 0;
+  double long_q = 0;
   km_status s = KM_OK;
   memset(out, 0, sizeof *out);
   out->ratio_min = INFINITY;
@@ -477,6 +479,15 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     double r = frame_stretch(g, V, &e, out);
     if (where && r > out->stretch) where_write(where, "stretch", m, V), worst_e = e, worst_f = f;
     if (!(r <= out->stretch)) out->stretch = r; /* NaN propagates */
+    if (where) { /* the longest edge (a miss can be a squash; this is where it stretches) */
+      for (size_t k = 0; k < g->n_edges; ++k) {
+        const double *a = V + 3 * (size_t)g->edges[2 * k], *b = V + 3 * (size_t)g->edges[2 * k + 1];
+        double q = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                        (a[2] - b[2]) * (a[2] - b[2])) /
+                   g->len0[k];
+        if (q > long_q) long_q = q, long_e = k, long_f = f, where_write(where, "long", m, V);
+      }
+    }
     size_t nfold_now = frame_folds(m, g, V, N, ever, first, f);
     if (where && nfold_now > most_folds) {
       most_folds = nfold_now;
@@ -511,7 +522,13 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   for (size_t k = 0; k < m->n_faces; ++k)
     out->folded += ever[k];
   out->eased = km_puppetry_eased_frames(p);
-  if (where) where_report("B", m, rig, g, worst_e, worst_f, out->stretch, ever, first);
+  if (where) {
+    where_report("B", m, rig, g, worst_e, worst_f, out->stretch, ever, first);
+    const int32_t *le = g->edges + 2 * long_e;
+    int32_t h = where_handle(m, rig, m->V + 3 * (size_t)le[0]);
+    fprintf(stderr, "WHERE B: longest l/l0 %.3f frame %zu edge %d-%d near %s (long.obj)\n", long_q,
+            long_f, le[0], le[1], h >= 0 ? rig->handles[h].name : "-");
+  }
   finish_times(out, tm, jf, nf);
   if (sk) {
     for (size_t k = 0; k < m->n_faces; ++k)
