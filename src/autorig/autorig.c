@@ -318,15 +318,18 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
   const double *p1 = P(r, r->ext_v[f1]), *p2 = P(r, r->ext_v[f2]);
   int foot_l = p1[0] >= p2[0] ? f1 : f2, foot_r = foot_l == f1 ? f2 : f1;
   double xm = 0.5 * (p1[0] + p2[0]);
-  /* Head: the most prominent extremity near the feet's mid-line above mid-height (ears and
-   * horns are less prominent than the head they sit on). */
+  /* Head: the most prominent extremity near the feet's mid-line in the top 30 % of the height,
+   * else above mid-height (ears and horns are less prominent than the head they sit on; a hand
+   * resting on a knee of a body bent forward is more, and was taken for the head of FAUST's
+   * tr_reg_001, whose Head joint then sat below its shoulders). */
   int head = -1;
-  for (size_t e = 0; e < r->n_ext; ++e) {
-    if (used[e]) continue;
-    const double *p = P(r, r->ext_v[e]);
-    if (fabs(p[0] - xm) > 0.15 * r->H || p[1] < r->ymin + 0.5 * r->H) continue;
-    if (head < 0 || r->ext_d[e] > r->ext_d[head]) head = (int)e;
-  }
+  for (int pass = 0; pass < 2 && head < 0; ++pass)
+    for (size_t e = 0; e < r->n_ext; ++e) {
+      if (used[e]) continue;
+      const double *p = P(r, r->ext_v[e]);
+      if (fabs(p[0] - xm) > 0.15 * r->H || p[1] < r->ymin + (pass ? 0.5 : 0.7) * r->H) continue;
+      if (head < 0 || r->ext_d[e] > r->ext_d[head]) head = (int)e;
+    }
   if (head < 0)
     for (size_t e = 0; e < r->n_ext; ++e)
       if (!used[e] && (head < 0 || P(r, r->ext_v[e])[1] > P(r, r->ext_v[head])[1])) head = (int)e;

@@ -128,6 +128,16 @@ static int skel_joint(const km_skeleton *sk, const char *name) {
   return -1;
 }
 
+/* The joint with the largest skin weight on vertex v (-1: none). */
+static int skin_dominant(const km_skin *s, size_t v) {
+  int j = -1;
+  double w = 0;
+  for (int k = 0; k < KM_SKIN_INFLUENCES; ++k)
+    if (s->weights[v * KM_SKIN_INFLUENCES + k] > w)
+      w = s->weights[v * KM_SKIN_INFLUENCES + k], j = s->joints[v * KM_SKIN_INFLUENCES + k];
+  return j;
+}
+
 /* Whether the body stands upright: its spine (hip centre -> shoulder centre) closer to
  * vertical than horizontal. */
 static bool upright_body(const km_skeleton *sk) {
@@ -463,7 +473,13 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
     if (c->landmarks[i].vertex < 0 || (size_t)c->landmarks[i].vertex >= n)
       return km__fail(err, KM_ERR_INVALID, "%s: landmark %s has vertex %d outside 0..%zu", path,
                       c->landmarks[i].name, (int)c->landmarks[i].vertex, n - 1);
-  /* Handles: top of the head (highest vertex), finger tips and toe tips (landmarks). */
+  /* Handles: top of the head, finger tips and toe tips (landmarks). The top of the head is the
+   * highest vertex, unless it lies over 0.3 of the height from the Head joint and the skin
+   * gives it mostly to another joint: then the highest vertex the skin gives mostly to Head.
+   * The highest of all can be a raised tail (the walking cat, cat-03, had its tail tip for a
+   * head handle, turned by the performer's neck while its head hung free) or a hand held up
+   * (FAUST's npt_14_664). An ear tip stays (the armadillo's, which the distance skin gives to
+   * the hand beside it: on the skull top instead, bench motion B's folds rose 3-17 %). */
   size_t top = 0;
   double ymin = DBL_MAX, ymax = -DBL_MAX;
   for (size_t v = 0; v < n; ++v) {
@@ -472,6 +488,14 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
     if (y < ymin) ymin = y;
   }
   double radius = 0.07 * (ymax - ymin);
+  int jh = skel_joint(sk, "Head");
+  if (jh >= 0 && dist3(m->V + 3 * top, sk->rest + 3 * jh) > 0.3 * (ymax - ymin) &&
+      skin_dominant(&c->skin, top) != jh) {
+    double best = -DBL_MAX;
+    for (size_t v = 0; v < n; ++v)
+      if (m->V[3 * v + 1] > best && skin_dominant(&c->skin, v) == jh)
+        best = m->V[3 * v + 1], top = v;
+  }
   p->radius = radius;
   p->handle_vertex[0] = (long)top;
   for (int h = 1; h < 5; ++h) {
