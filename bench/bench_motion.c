@@ -856,8 +856,9 @@ int km_bench_motion(int argc, char **argv) {
        "also L: the rig's skeleton, posed by B's own retargeted joints, skinning the mesh with "
        "the rig's weights (linear blend skinning, what an engine does with a skinned export)"},
       {"weights", 0, KM_OPT_STRING, &weights_opt,
-       "the rig's skin weights: distance (default) or reach (limited along the surface; "
-       "rig --weights); only L uses them"},
+       "the rig's skin weights: distance or reach (limited along the surface; rig --weights); "
+       "default: as rig writes them (reach for a quadruped, distance otherwise); only L uses "
+       "them"},
   };
   int n_pos;
   const char *pos[1];

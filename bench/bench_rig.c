@@ -74,7 +74,7 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
     cJSON_AddStringToObject(o, "machine", machine);
     cJSON_AddNumberToObject(o, "n_ver", (double)m.n_vertices);
     cJSON_AddStringToObject(o, "kind", kind);
-    cJSON_AddStringToObject(o, "weights", skin == KM_AUTORIG_SKIN_REACH ? "reach" : "distance");
+    cJSON_AddStringToObject(o, "weights", rep.skin == KM_AUTORIG_SKIN_REACH ? "reach" : "distance");
     cJSON_AddNumberToObject(o, "extremities", (double)rep.n_extremities);
     cJSON_AddNumberToObject(o, "repeat", (double)repeat);
     cJSON_AddNumberToObject(o, "rig_s", mt);
@@ -88,7 +88,10 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
       printf("kinemesh bench rig — %s; medians of %zu runs; rig = km_autorig (extremities, "
              "skeleton, skin weights by %s, landmarks), write = the sidecar "
              "(km_character_write_rig)\n",
-             machine, repeat, skin == KM_AUTORIG_SKIN_REACH ? "reach" : "distance");
+             machine, repeat,
+             skin == KM_AUTORIG_SKIN_REACH      ? "reach"
+             : skin == KM_AUTORIG_SKIN_DISTANCE ? "distance"
+                                                : "distance (a humanoid), reach (a quadruped)");
       printf("%-28s %8s %10s %5s %9s %9s\n", "model", "n_ver", "kind", "n_ext", "rig(s)",
              "write(s)");
     }

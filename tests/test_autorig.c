@@ -625,7 +625,10 @@ static void test_pick(void) {
  * the worst edge |l/l0 - 1| over the mesh, measured 29 by distance (an ear and the face
  * drawn down with a hand) and 1.7 by reach (a shear where the hunched face is weighted to
  * the upper arms too; rendered, the session's notes). */
-static double posed_stretch(const km_mesh *m, const km_character *c) {
+/* The mesh skinned by its own skeleton with each chain (4 joint names from the root) turned by
+ * angle[a] about the x axis through its root; the worst edge |l/l0 - 1|. */
+static double posed_chains(const km_mesh *m, const km_character *c, const char *const (*chain)[4],
+                           const double *angle, int n_chains) {
   const km_skeleton *sk = &c->skeleton;
   size_t nj = sk->n_joints;
   double *P = malloc(3 * nj * sizeof *P), *T = malloc(16 * nj * sizeof *T);
@@ -633,14 +636,11 @@ static double posed_stretch(const km_mesh *m, const km_character *c) {
   double worst = INFINITY;
   if (!P || !T || !V) goto out;
   memcpy(P, sk->rest, 3 * nj * sizeof *P);
-  static const char *const arm_names[2][4] = {
-      {"ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft"},
-      {"ShoulderRight", "ElbowRight", "WristRight", "HandRight"}};
-  double cs = cos(M_PI / 3), sn = sin(M_PI / 3);
-  for (int a = 0; a < 2; ++a) {
-    const double *o = sk->rest + 3 * km_kinect1_joint_index(arm_names[a][0]);
-    for (int k = 1; k < 4; ++k) { /* about the x axis through the shoulder: hands down */
-      int j = km_kinect1_joint_index(arm_names[a][k]);
+  for (int a = 0; a < n_chains; ++a) {
+    double cs = cos(angle[a]), sn = sin(angle[a]);
+    const double *o = sk->rest + 3 * km_kinect1_joint_index(chain[a][0]);
+    for (int k = 1; k < 4; ++k) {
+      int j = km_kinect1_joint_index(chain[a][k]);
       const double *q = sk->rest + 3 * j;
       double y = q[1] - o[1], z = q[2] - o[2];
       P[3 * j + 1] = o[1] + cs * y - sn * z;
@@ -653,6 +653,51 @@ static double posed_stretch(const km_mesh *m, const km_character *c) {
 out:
   free(P), free(T), free(V);
   return worst;
+}
+
+static double posed_stretch(const km_mesh *m, const km_character *c) {
+  static const char *const arm_names[2][4] = {
+      {"ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft"},
+      {"ShoulderRight", "ElbowRight", "WristRight", "HandRight"}};
+  const double down[2] = {M_PI / 3, M_PI / 3}; /* about the x axis through the shoulder */
+  return posed_chains(m, c, arm_names, down, 2);
+}
+
+/* A quadruped's default weights are limited by reach (KM_AUTORIG_SKIN_AUTO): the walking cat
+ * (cat-03) has a front paw beside a hind paw, and by distance the one followed the other's
+ * leg. Its own skeleton with the legs swung 30 degrees (the front ones forward, the hind ones
+ * back), skinned: the worst edge |l/l0 - 1| must be under 1.5 and a quarter or less of the
+ * distance weights' (measured 1.13 and 22.0). */
+static void test_quadruped_skin(void) {
+  char buf[1024];
+  const char *path = km_test_shared("poses/cat-poses/cat-03.obj", buf, sizeof buf);
+  if (!path) return;
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_read(path, &m, KM_E));
+  if (!m.n_vertices) return;
+  static const char *const legs[4][4] = {{"ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft"},
+                                         {"ShoulderRight", "ElbowRight", "WristRight", "HandRight"},
+                                         {"HipLeft", "KneeLeft", "AnkleLeft", "FootLeft"},
+                                         {"HipRight", "KneeRight", "AnkleRight", "FootRight"}};
+  const double swing[4] = {-M_PI / 6, -M_PI / 6, M_PI / 6, M_PI / 6};
+  double worst[2] = {0, 0};
+  for (int w = 0; w < 2; ++w) {
+    km_autorig_options o = {0};
+    o.skin = w ? KM_AUTORIG_SKIN_DISTANCE : KM_AUTORIG_SKIN_AUTO;
+    km_character c = {0};
+    km_autorig_report rep;
+    CHECK_OK(km_autorig(&m, &o, &c, &rep, KM_E));
+    CHECK_MSG(rep.kind == KM_AUTORIG_QUADRUPED, "cat-03 rigged as kind %d", (int)rep.kind);
+    if (!w) CHECK_MSG(rep.skin == KM_AUTORIG_SKIN_REACH, "cat-03: default weights %d", rep.skin);
+    if (c.skin.weights) worst[w] = posed_chains(&m, &c, legs, swing, 4);
+    km_character_free(&c);
+  }
+  printf("cat-03, legs swung 30 deg, skinned: worst edge |l/l0 - 1| %.3f by the default (reach), "
+         "%.3f by distance\n",
+         worst[0], worst[1]);
+  CHECK_MSG(worst[0] < 1.5, "cat-03 default weights: an edge stretched %.3f", worst[0]);
+  CHECK_MSG(worst[1] > 4 * worst[0], "cat-03 distance weights: the worst edge only %.3f", worst[1]);
+  km_mesh_free(&m);
 }
 
 static void test_reach_weights(void) {
@@ -780,6 +825,7 @@ int main(void) {
   test_faust_landmarks();
   test_cli();
   test_reach_weights();
+  test_quadruped_skin();
   test_roles("meshes/dino.off", KM_AUTORIG_KINECT1, 0.1);
   test_roles("meshes/armadillo_1k.off", KM_AUTORIG_KINECT1, 0.1);
   test_roles("meshes/horse.ply", KM_AUTORIG_QUADRUPED, 0.1);

@@ -658,7 +658,11 @@ int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t
 }
 
 int km_cli_parse_weights(const char *verb, const char *s, km_autorig_skin *out) {
-  if (!s || !strcmp(s, "distance")) {
+  if (!s) {
+    *out = KM_AUTORIG_SKIN_AUTO;
+    return 0;
+  }
+  if (!strcmp(s, "distance")) {
     *out = KM_AUTORIG_SKIN_DISTANCE;
     return 0;
   }

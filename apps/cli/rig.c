@@ -44,9 +44,10 @@ int km_cli_rig(int argc, char **argv) {
        "auto (default: a skinned glTF's own skin, else humanoid or quadruped from the "
        "extremities, else prop), kinect1 (humanoid), quadruped or prop (handles by position)"},
       {"weights", 0, KM_OPT_STRING, &weights,
-       "skin weights: distance (default: by the distance to the bones, what reconstruct "
-       "expects) or reach (also limited along the surface: an ear beside a raised hand does "
-       "not follow the hand; for pose and skinned exports)"},
+       "skin weights: distance (by the distance to the bones, what reconstruct expects; the "
+       "default for a humanoid or prop) or reach (also limited along the surface: an ear "
+       "beside a raised hand does not follow the hand; for pose and skinned exports; the "
+       "default for a quadruped, whose paws lie close together)"},
       {"min-extremity", 0, KM_OPT_DOUBLE, &min_ext,
        "extremity prominence as a fraction of the largest extent (default 0.2)"},
   };
@@ -147,8 +148,12 @@ int km_cli_rig(int argc, char **argv) {
     printf("  %-14s (%8.4f %8.4f %8.4f)\n", c.skeleton.names[j], c.skeleton.rest[3 * j],
            c.skeleton.rest[3 * j + 1], c.skeleton.rest[3 * j + 2]);
   printf("skin weights: %s\n",
-         o.skin == KM_AUTORIG_SKIN_REACH
-             ? "by distance to the bones, each limited by its reach along the surface"
+         rep.skin == KM_AUTORIG_SKIN_REACH
+             ? (o.skin == KM_AUTORIG_SKIN_REACH
+                    ? "by distance to the bones, each limited by its reach along the surface"
+                    : "by distance to the bones, each limited by its reach along the surface "
+                      "(a quadruped's default: its limbs lie close together; --weights distance "
+                      "for the unlimited ones)")
              : "by distance to the bones (--weights reach limits each along the surface, so "
                "a part near a bone in space but not along the skin does not follow it: for "
                "pose and skinned exports; keep these for a reconstruct template)");

@@ -1058,7 +1058,11 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
     if (st == KM_OK) memcpy(sk->rest, r.J, sizeof r.J);
   }
   if (st == KM_OK) {
-    st = compute_skin(&r, o.skin == KM_AUTORIG_SKIN_REACH, &out->skin, err);
+    km_autorig_skin skin = o.skin != KM_AUTORIG_SKIN_AUTO ? o.skin
+                           : kind == KM_AUTORIG_QUADRUPED ? KM_AUTORIG_SKIN_REACH
+                                                          : KM_AUTORIG_SKIN_DISTANCE;
+    if (report) report->skin = skin;
+    st = compute_skin(&r, skin == KM_AUTORIG_SKIN_REACH, &out->skin, err);
   }
   if (st == KM_OK) {
     double fwd[3] = {0, 0, 1};
