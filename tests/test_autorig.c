@@ -291,6 +291,20 @@ static void drive(const char *label, const km_mesh *m, const km_character *c, co
   drive_with(label, m, c, take, stretch_out, jump_out, max_stretch, false);
 }
 
+/* Reads the shared mesh rel and turns it into kinemesh's frame by the automatic guess (g: the
+ * guess, at the file's scale). False when it is absent (the test skips) or empty. */
+static bool read_oriented(const char *rel, km_mesh *m, km_frame_guess *g) {
+  char buf[1024];
+  const char *path = km_test_shared(rel, buf, sizeof buf);
+  if (!path) return false;
+  CHECK_OK(km_mesh_read(path, m, KM_E));
+  if (!m->n_vertices) return false;
+  CHECK_OK(km_mesh_frame_guess(m, g, KM_E));
+  g->frame.scale = 0;
+  CHECK_OK(km_mesh_frame_apply(&g->frame, m, KM_E));
+  return true;
+}
+
 /* Rig a real mesh, drive it with a real Kinect take through km_puppetry. The mesh is brought
  * into kinemesh's frame by the automatic guess, which must find how the file is stored
  * (up, forward: the dog and the horse are z up). cmu (NULL: none): a clean optical take at its
@@ -298,19 +312,12 @@ static void drive(const char *label, const km_mesh *m, const km_character *c, co
  * spike; bench motion B measures 1.8-3.2 % on these meshes, the take's own steps 3-4 %). */
 static void test_real(const char *rel, km_axis up, km_axis forward, km_autorig_skeleton want,
                       const km_take *take, double max_stretch, const km_take *cmu) {
-  char buf[1024];
-  const char *path = km_test_shared(rel, buf, sizeof buf);
-  if (!path) return;
   km_mesh m = {0};
-  CHECK_OK(km_mesh_read(path, &m, KM_E));
-  if (!m.n_vertices) return;
   km_frame_guess g;
-  CHECK_OK(km_mesh_frame_guess(&m, &g, KM_E));
+  if (!read_oriented(rel, &m, &g)) return;
   CHECK_MSG(g.frame.up == up && g.frame.forward == forward,
             "%s: guessed up %s forward %s, want %s %s", rel, km_axis_name(g.frame.up),
             km_axis_name(g.frame.forward), km_axis_name(up), km_axis_name(forward));
-  g.frame.scale = 0;
-  CHECK_OK(km_mesh_frame_apply(&g.frame, &m, KM_E));
   km_character c = {0};
   km_autorig_report rep;
   km_status st = km_autorig(&m, NULL, &c, &rep, KM_E);
@@ -618,13 +625,6 @@ static void test_pick(void) {
   km_character_free(&c);
 }
 
-/* Skin weights limited by reach (km_autorig_options.skin = KM_AUTORIG_SKIN_REACH): the
- * armadillo holds its hands up beside its ears at rest, so weights by the distance to the
- * bones in space give the ears and the face to the hands. Its own skeleton, both arms swung
- * 60 degrees down about the shoulders, skins the mesh (km_lbs, what pose and an engine do):
- * the worst edge |l/l0 - 1| over the mesh, measured 29 by distance (an ear and the face
- * drawn down with a hand) and 1.7 by reach (a shear where the hunched face is weighted to
- * the upper arms too; rendered, the session's notes). */
 /* The mesh skinned by its own skeleton with each chain (4 joint names from the root) turned by
  * angle[a] about the x axis through its root; the worst edge |l/l0 - 1|. */
 static double posed_chains(const km_mesh *m, const km_character *c, const char *const (*chain)[4],
@@ -655,12 +655,32 @@ out:
   return worst;
 }
 
-static double posed_stretch(const km_mesh *m, const km_character *c) {
-  static const char *const arm_names[2][4] = {
-      {"ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft"},
-      {"ShoulderRight", "ElbowRight", "WristRight", "HandRight"}};
-  const double down[2] = {M_PI / 3, M_PI / 3}; /* about the x axis through the shoulder */
-  return posed_chains(m, c, arm_names, down, 2);
+/* Rigs the shared mesh rel twice, with skin[0] and skin[1], and skins each by its own
+ * skeleton posed as posed_chains; worst[w]: the worst edge, rep[w]: what km_autorig chose.
+ * False when the mesh is absent (the test skips). */
+static bool rig_twice_posed(const char *rel, const km_autorig_skin skin[2],
+                            const char *const (*chain)[4], const double *angle, int n_chains,
+                            double worst[2], km_autorig_report rep[2]) {
+  char buf[1024];
+  const char *path = km_test_shared(rel, buf, sizeof buf);
+  if (!path) return false;
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_read(path, &m, KM_E));
+  if (!m.n_vertices) return false;
+  for (int w = 0; w < 2; ++w) {
+    km_autorig_options o = {0};
+    o.skin = skin[w];
+    km_character c = {0};
+    CHECK_OK(km_autorig(&m, &o, &c, &rep[w], KM_E));
+    worst[w] = NAN;
+    if (c.skin.weights) {
+      CHECK(skin_valid(&c.skin, m.n_vertices));
+      worst[w] = posed_chains(&m, &c, chain, angle, n_chains);
+    }
+    km_character_free(&c);
+  }
+  km_mesh_free(&m);
+  return true;
 }
 
 /* A quadruped's default weights are limited by reach (KM_AUTORIG_SKIN_AUTO): the walking cat
@@ -669,64 +689,48 @@ static double posed_stretch(const km_mesh *m, const km_character *c) {
  * back), skinned: the worst edge |l/l0 - 1| must be under 1.5 and a quarter or less of the
  * distance weights' (measured 1.13 and 22.0). */
 static void test_quadruped_skin(void) {
-  char buf[1024];
-  const char *path = km_test_shared("poses/cat-poses/cat-03.obj", buf, sizeof buf);
-  if (!path) return;
-  km_mesh m = {0};
-  CHECK_OK(km_mesh_read(path, &m, KM_E));
-  if (!m.n_vertices) return;
   static const char *const legs[4][4] = {{"ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft"},
                                          {"ShoulderRight", "ElbowRight", "WristRight", "HandRight"},
                                          {"HipLeft", "KneeLeft", "AnkleLeft", "FootLeft"},
                                          {"HipRight", "KneeRight", "AnkleRight", "FootRight"}};
   const double swing[4] = {-M_PI / 6, -M_PI / 6, M_PI / 6, M_PI / 6};
-  double worst[2] = {0, 0};
-  for (int w = 0; w < 2; ++w) {
-    km_autorig_options o = {0};
-    o.skin = w ? KM_AUTORIG_SKIN_DISTANCE : KM_AUTORIG_SKIN_AUTO;
-    km_character c = {0};
-    km_autorig_report rep;
-    CHECK_OK(km_autorig(&m, &o, &c, &rep, KM_E));
-    CHECK_MSG(rep.kind == KM_AUTORIG_QUADRUPED, "cat-03 rigged as kind %d", (int)rep.kind);
-    if (!w) CHECK_MSG(rep.skin == KM_AUTORIG_SKIN_REACH, "cat-03: default weights %d", rep.skin);
-    if (c.skin.weights) worst[w] = posed_chains(&m, &c, legs, swing, 4);
-    km_character_free(&c);
-  }
+  const km_autorig_skin skin[2] = {KM_AUTORIG_SKIN_AUTO, KM_AUTORIG_SKIN_DISTANCE};
+  double worst[2];
+  km_autorig_report rep[2];
+  if (!rig_twice_posed("poses/cat-poses/cat-03.obj", skin, legs, swing, 4, worst, rep)) return;
+  CHECK_MSG(rep[0].kind == KM_AUTORIG_QUADRUPED, "cat-03 rigged as kind %d", (int)rep[0].kind);
+  CHECK_MSG(rep[0].skin == KM_AUTORIG_SKIN_REACH, "cat-03: default weights %d", rep[0].skin);
   printf("cat-03, legs swung 30 deg, skinned: worst edge |l/l0 - 1| %.3f by the default (reach), "
          "%.3f by distance\n",
          worst[0], worst[1]);
   CHECK_MSG(worst[0] < 1.5, "cat-03 default weights: an edge stretched %.3f", worst[0]);
   CHECK_MSG(worst[1] > 4 * worst[0], "cat-03 distance weights: the worst edge only %.3f", worst[1]);
-  km_mesh_free(&m);
 }
 
+/* Skin weights limited by reach (km_autorig_options.skin = KM_AUTORIG_SKIN_REACH): the
+ * armadillo holds its hands up beside its ears at rest, so weights by the distance to the
+ * bones in space give the ears and the face to the hands. Its own skeleton, both arms swung
+ * 60 degrees down about the shoulders, skins the mesh (km_lbs, what pose and an engine do):
+ * the worst edge |l/l0 - 1| over the mesh, measured 29 by distance (an ear and the face
+ * drawn down with a hand) and 1.7 by reach (a shear where the hunched face is weighted to
+ * the upper arms too; rendered, the session's notes). */
 static void test_reach_weights(void) {
-  char buf[1024];
-  const char *path = km_test_shared("meshes/armadillo.obj", buf, sizeof buf);
-  if (!path) return;
-  km_mesh m = {0};
-  CHECK_OK(km_mesh_read(path, &m, KM_E));
-  if (!m.n_vertices) return;
-  double worst[2] = {0, 0};
-  for (int w = 0; w < 2; ++w) {
-    km_autorig_options o = {0};
-    o.skin = w ? KM_AUTORIG_SKIN_REACH : KM_AUTORIG_SKIN_DISTANCE;
-    km_character c = {0};
-    km_autorig_report rep;
-    CHECK_OK(km_autorig(&m, &o, &c, &rep, KM_E));
-    if (c.skin.weights) {
-      CHECK(skin_valid(&c.skin, m.n_vertices));
-      worst[w] = posed_stretch(&m, &c);
-    }
-    km_character_free(&c);
-  }
+  static const char *const arms[2][4] = {
+      {"ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft"},
+      {"ShoulderRight", "ElbowRight", "WristRight", "HandRight"}};
+  const double down[2] = {M_PI / 3, M_PI / 3}; /* about the x axis through the shoulder */
+  const km_autorig_skin skin[2] = {KM_AUTORIG_SKIN_DISTANCE, KM_AUTORIG_SKIN_REACH};
+  double worst[2];
+  km_autorig_report rep[2];
+  if (!rig_twice_posed("meshes/armadillo.obj", skin, arms, down, 2, worst, rep)) return;
   printf("armadillo, arms swung 60 deg down, skinned: worst edge |l/l0 - 1| %.3f by distance, "
          "%.3f by reach\n",
          worst[0], worst[1]);
   CHECK_MSG(worst[1] < 2.5, "reach weights: an edge stretched %.3f", worst[1]);
   /* the bound means something: the default weights tear the ears and the face */
   CHECK_MSG(worst[0] > 4 * worst[1], "distance weights: the worst edge only %.3f", worst[0]);
-  km_mesh_free(&m);
+  /* a humanoid's default stays distance (reconstruct's limb search expects it) */
+  CHECK_MSG(rep[0].skin == KM_AUTORIG_SKIN_DISTANCE, "armadillo: weights %d", rep[0].skin);
 }
 
 /* Meshes no rule was tuned on, rigged by the automatic choice: the roles must be the body's.
@@ -738,16 +742,9 @@ static void test_reach_weights(void) {
  * its head in the upper half, a quadruped's head ahead of its feet, and a tail or toe given no
  * role. */
 static void test_roles(const char *rel, km_autorig_skeleton want, double foot_max) {
-  char buf[1024];
-  const char *path = km_test_shared(rel, buf, sizeof buf);
-  if (!path) return;
   km_mesh m = {0};
-  CHECK_OK(km_mesh_read(path, &m, KM_E));
-  if (!m.n_vertices) return;
   km_frame_guess g;
-  CHECK_OK(km_mesh_frame_guess(&m, &g, KM_E));
-  g.frame.scale = 0;
-  CHECK_OK(km_mesh_frame_apply(&g.frame, &m, KM_E));
+  if (!read_oriented(rel, &m, &g)) return;
   double lo = INFINITY, hi = -INFINITY;
   for (size_t v = 0; v < m.n_vertices; ++v)
     lo = fmin(lo, m.V[3 * v + 1]), hi = fmax(hi, m.V[3 * v + 1]);
