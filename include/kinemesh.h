@@ -1660,7 +1660,9 @@ typedef struct km_puppetry_options {
   km_arap_options arap;            /* full solver settings */
   km_puppetry_solver solver;       /* 0: reduced */
   /* An already built reduced model of the rest mesh to use (borrowed: it stays the caller's
-   * and must outlive the pipeline, which sets its handles). NULL: km_puppetry_model_open. */
+   * and must outlive the pipeline, which sets its handles and resets its solve state, so the
+   * pipeline starts from the rest pose whatever used the model before). NULL:
+   * km_puppetry_model_open. */
   km_puppet *model;
   /* Reduced model cache: loaded when up to date for this mesh and model parameters, else
    * the model is precomputed and written there. NULL: always precompute, write nothing. */
