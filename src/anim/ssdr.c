@@ -414,12 +414,8 @@ static bool rigid_clusters(ssdr_ctx *c) {
 
 /* c->label[i] = the bone of vertex i's largest weight. */
 static void main_labels(ssdr_ctx *c) {
-  for (size_t i = 0; i < c->n; ++i) {
-    int best = 0;
-    for (int k = 1; k < 4; ++k)
-      if (c->J[4 * i + k] >= 0 && c->W[4 * i + k] > c->W[4 * i + best]) best = k;
-    c->label[i] = c->J[4 * i + best];
-  }
+  for (size_t i = 0; i < c->n; ++i)
+    c->label[i] = km__skin_dominant(c->J + 4 * i, c->W + 4 * i);
 }
 
 /* Error budget (Dem Bones' way of growing a rig): the bones whose worst vertex is furthest

@@ -37,6 +37,10 @@ void km__joint_transforms(size_t n, const double *W, const double *P, const doub
  * 1; unused slots are joint -1, weight 0. Returns how many it kept (0: no joint had weight). */
 int km__skin_keep_largest(const double *w, int n, int32_t *joints, double *weights);
 
+/* The joint of one vertex's largest skin weight (its body part): joints, weights its
+ * KM_SKIN_INFLUENCES slots; slot 0's joint when no used slot (joint >= 0) weighs more. */
+int32_t km__skin_dominant(const int32_t *joints, const double *weights);
+
 /* qsort comparator for doubles, ascending. */
 static inline int km__cmp_double(const void *a, const void *b) {
   double x = *(const double *)a, y = *(const double *)b;

@@ -210,6 +210,13 @@ int km__skin_keep_largest(const double *w, int n, int32_t *joints, double *weigh
   return cnt;
 }
 
+int32_t km__skin_dominant(const int32_t *joints, const double *weights) {
+  int best = 0;
+  for (int k = 1; k < KM_SKIN_INFLUENCES; ++k)
+    if (joints[k] >= 0 && weights[k] > weights[best]) best = k;
+  return joints[best];
+}
+
 km_status km_lbs(const double *rest, size_t n_vertices, const km_skin *skin,
                  const double *transforms, size_t n_joints, double *out, km_error *err) {
   if (!rest || !skin || !transforms || !out || (n_vertices && (!skin->joints || !skin->weights)))

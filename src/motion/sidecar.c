@@ -128,16 +128,6 @@ static int skel_joint(const km_skeleton *sk, const char *name) {
   return -1;
 }
 
-/* The joint with the largest skin weight on vertex v (-1: none). */
-static int skin_dominant(const km_skin *s, size_t v) {
-  int j = -1;
-  double w = 0;
-  for (int k = 0; k < KM_SKIN_INFLUENCES; ++k)
-    if (s->weights[v * KM_SKIN_INFLUENCES + k] > w)
-      w = s->weights[v * KM_SKIN_INFLUENCES + k], j = s->joints[v * KM_SKIN_INFLUENCES + k];
-  return j;
-}
-
 /* Whether the body stands upright: its spine (hip centre -> shoulder centre) closer to
  * vertical than horizontal. */
 static bool upright_body(const km_skeleton *sk) {
@@ -490,10 +480,11 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
   double radius = 0.07 * (ymax - ymin);
   int jh = skel_joint(sk, "Head");
   if (jh >= 0 && dist3(m->V + 3 * top, sk->rest + 3 * jh) > 0.3 * (ymax - ymin) &&
-      skin_dominant(&c->skin, top) != jh) {
+      km__skin_dominant(c->skin.joints + 4 * top, c->skin.weights + 4 * top) != jh) {
     double best = -DBL_MAX;
     for (size_t v = 0; v < n; ++v)
-      if (m->V[3 * v + 1] > best && skin_dominant(&c->skin, v) == jh)
+      if (m->V[3 * v + 1] > best &&
+          km__skin_dominant(c->skin.joints + 4 * v, c->skin.weights + 4 * v) == jh)
         best = m->V[3 * v + 1], top = v;
   }
   p->radius = radius;

@@ -1031,12 +1031,7 @@ static double quantile(double *x, size_t n, double q) {
 
 /* The skin joint of vertex i's largest weight (its body part), -1 when it has none. */
 static int32_t dominant_joint(const km_recon *r, size_t i) {
-  int best = 0;
-  for (int k = 1; k < 4; ++k)
-    if (r->skin.joints[4 * i + k] >= 0 &&
-        r->skin.weights[4 * i + k] > r->skin.weights[4 * i + best])
-      best = k;
-  return r->skin.joints[4 * i + best];
+  return km__skin_dominant(r->skin.joints + 4 * i, r->skin.weights + 4 * i);
 }
 
 /* Surface -> points: every measured vertex of X to its nearest point, the unsupported
