@@ -35,6 +35,7 @@ typedef struct rigger {
   const km_mesh *m;
   size_t n;
   double ymin, ymax, H, ext;
+  double zlo, zhi; /* the body's extent along +z (forward) */
   km__geodesic *geo;
   double *dist; /* per extremity: n distances */
   size_t n_ext;
@@ -933,8 +934,9 @@ static void compute_landmarks(const rigger *r, const double fwd[3], km_landmark 
 
 /* ---------------------------------------------------------------- public */
 
-/* How many legs the body stands on: distinct extremities within 0.1 H of the ground, resting
- * tails left out (at most 4). Three or more: a quadruped (a humanoid stands on two). */
+/* How many legs the body stands on: distinct extremities within 0.1 H of the ground (at most
+ * 4), resting tails left out when there are three or more. Three or more: a quadruped (a
+ * humanoid stands on two). */
 static int ground_legs(const rigger *r) {
   bool used[KM_AUTORIG_MAX_EXTREMITIES] = {false};
   int chosen[KM_AUTORIG_MAX_EXTREMITIES] = {0}, n = 0;
@@ -944,6 +946,7 @@ static int ground_legs(const rigger *r) {
     used[e] = true;
     chosen[n++] = e;
   }
+  if (n < 3) return n;
   /* A tip at the back end of the body (kinemesh's frame faces +z) that lies on the mid-line,
    * or does not touch the ground (2.5 % of the height above it), is a tail resting there, not
    * a leg: legs stand under the body, with their soles down (the horse's and dog0's within
@@ -952,9 +955,7 @@ static int ground_legs(const rigger *r) {
    * ground) and the cat standing up to reach (cat-05, its tail tip 3.8 %, curled aside) were
    * taken for quadrupeds with the tail as a hind leg. The mid-line: half way between the two
    * ground tips farthest apart across the body (x). */
-  double zlo = DBL_MAX, zhi = -DBL_MAX, wide = -1, xm = 0;
-  for (size_t v = 0; v < r->n; ++v)
-    if (r->on_face[v]) zlo = fmin(zlo, P(r, (int32_t)v)[2]), zhi = fmax(zhi, P(r, (int32_t)v)[2]);
+  double wide = -1, xm = 0;
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j < n; ++j) {
       double xi = P(r, r->ext_v[chosen[i]])[0], xj = P(r, r->ext_v[chosen[j]])[0];
@@ -964,8 +965,8 @@ static int ground_legs(const rigger *r) {
   for (int i = 0; i < n; ++i) {
     const double *p = P(r, r->ext_v[chosen[i]]);
     bool mid = fabs(p[0] - xm) < 0.25 * wide;
-    bool end = p[2] < zlo + 0.1 * (zhi - zlo);
-    if (n > 1 && end && (mid || p[1] > r->ymin + 0.025 * r->H)) --legs;
+    bool end = p[2] < r->zlo + 0.1 * (r->zhi - r->zlo);
+    if (end && (mid || p[1] > r->ymin + 0.025 * r->H)) --legs;
   }
   return legs;
 }
@@ -997,7 +998,7 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
       if (x < lo[k]) lo[k] = x;
       if (x > hi[k]) hi[k] = x;
     }
-  r.ymin = lo[1], r.ymax = hi[1], r.H = hi[1] - lo[1];
+  r.ymin = lo[1], r.ymax = hi[1], r.H = hi[1] - lo[1], r.zlo = lo[2], r.zhi = hi[2];
   r.ext = fmax(hi[0] - lo[0], fmax(r.H, hi[2] - lo[2]));
   if (!km__progress(&o.progress, 0.0, "geodesics")) {
     free(r.on_face);
