@@ -318,9 +318,11 @@ static void where_report(const char *tag, const km_mesh *m, const km_rig *rig, c
   fprintf(stderr, "\n");
 }
 
-/* The largest |l / l0 - 1| over the edges of frame V (NaN propagates; *worst: its edge); x's
- * shortest and longest l / l0 and its frame counts take this frame's in. */
-static double frame_stretch(const bm_geom *g, const double *V, size_t *worst, bm_metrics *x) {
+/* The largest |l / l0 - 1| over the edges of frame V (NaN propagates; *worst: its edge,
+ * *longest: the edge of the largest l / l0); x's shortest and longest l / l0 and its frame
+ * counts take this frame's in. */
+static double frame_stretch(const bm_geom *g, const double *V, size_t *worst, size_t *longest,
+                            bm_metrics *x) {
   double m = 0, lo = INFINITY, hi = 0;
   for (size_t e = 0; e < g->n_edges; ++e) {
     const double *a = V + 3 * (size_t)g->edges[2 * e], *b = V + 3 * (size_t)g->edges[2 * e + 1];
@@ -329,7 +331,7 @@ static double frame_stretch(const bm_geom *g, const double *V, size_t *worst, bm
     double q = l / g->len0[e], r = fabs(q - 1);
     if (!(r <= m)) m = r, *worst = e;
     if (!(q >= lo)) lo = q; /* NaN propagates, as in m */
-    if (!(q <= hi)) hi = q;
+    if (!(q <= hi)) hi = q, *longest = e;
   }
   if (!(lo >= x->ratio_min)) x->ratio_min = lo;
   if (!(hi <= x->ratio_max)) x->ratio_max = hi;
@@ -410,7 +412,8 @@ static void skin_frame(bm_skin *sk, const km_mesh *m, const bm_geom *g, const km
     return;
   }
   sk->tm[f] = 1e3 * (km_cli_now() - t0);
-  double r = frame_stretch(g, sk->V, &worst, &sk->out), ymin;
+  size_t longest = 0;
+  double r = frame_stretch(g, sk->V, &worst, &longest, &sk->out), ymin;
   if (where && r > sk->out.stretch) {
     where_write(where, "skin", m, sk->V);
     where_write(where, "skin_b", m, Vb); /* B's frame beside it */
@@ -445,7 +448,6 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   unsigned char *ever = calloc(m->n_faces ? m->n_faces : 1, 1);
   int32_t *first = where ? calloc(m->n_faces ? m->n_faces : 1, sizeof *first) : NULL;
   size_t worst_e = 0, worst_f = 0, most_folds = 0, long_e = 0, long_f = 0;
-  double long_q = 0;
   km_status s = KM_OK;
   memset(out, 0, sizeof *out);
   out->ratio_min = INFINITY;
@@ -475,19 +477,14 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     s = km_puppetry_push(p, t->positions + f * t->n_joints * 3, V, err);
     tm[f] = 1e3 * (km_cli_now() - t0);
     if (s != KM_OK) goto done;
-    size_t e = 0;
-    double r = frame_stretch(g, V, &e, out);
+    size_t e = 0, le = 0;
+    double longest_before = out->ratio_max;
+    double r = frame_stretch(g, V, &e, &le, out);
     if (where && r > out->stretch) where_write(where, "stretch", m, V), worst_e = e, worst_f = f;
     if (!(r <= out->stretch)) out->stretch = r; /* NaN propagates */
-    if (where) { /* the longest edge (a miss can be a squash; this is where it stretches) */
-      for (size_t k = 0; k < g->n_edges; ++k) {
-        const double *a = V + 3 * (size_t)g->edges[2 * k], *b = V + 3 * (size_t)g->edges[2 * k + 1];
-        double q = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
-                        (a[2] - b[2]) * (a[2] - b[2])) /
-                   g->len0[k];
-        if (q > long_q) long_q = q, long_e = k, long_f = f, where_write(where, "long", m, V);
-      }
-    }
+    /* the longest edge so far (a miss can be a squash; this is where the mesh stretches) */
+    if (where && out->ratio_max > longest_before)
+      where_write(where, "long", m, V), long_e = le, long_f = f;
     size_t nfold_now = frame_folds(m, g, V, N, ever, first, f);
     if (where && nfold_now > most_folds) {
       most_folds = nfold_now;
@@ -526,8 +523,8 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     where_report("B", m, rig, g, worst_e, worst_f, out->stretch, ever, first);
     const int32_t *le = g->edges + 2 * long_e;
     int32_t h = where_handle(m, rig, m->V + 3 * (size_t)le[0]);
-    fprintf(stderr, "WHERE B: longest l/l0 %.3f frame %zu edge %d-%d near %s (long.obj)\n", long_q,
-            long_f, le[0], le[1], h >= 0 ? rig->handles[h].name : "-");
+    fprintf(stderr, "WHERE B: longest l/l0 %.3f frame %zu edge %d-%d near %s (long.obj)\n",
+            out->ratio_max, long_f, le[0], le[1], h >= 0 ? rig->handles[h].name : "-");
   }
   finish_times(out, tm, jf, nf);
   if (sk) {
