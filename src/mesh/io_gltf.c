@@ -103,13 +103,19 @@ static bool b64_decode(const char *s, unsigned char **out, size_t *n) {
   return true;
 }
 
-static int jint(const cJSON *o, const char *k, int def) {
-  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
-  if (!v) return def;
+/* v as an index (a whole number in 0 .. INT_MAX), else -2: a file's number is only cast to
+ * int once it fits (a scene root of 8.9e83 was cast unchecked, undefined behaviour that
+ * fuzz_gltf found). */
+static int jindex(const cJSON *v) {
   if (!cJSON_IsNumber(v) || v->valuedouble != floor(v->valuedouble) || v->valuedouble < 0 ||
       v->valuedouble > 2147483647.0)
     return -2; /* invalid */
   return (int)v->valuedouble;
+}
+
+static int jint(const cJSON *o, const char *k, int def) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
+  return v ? jindex(v) : def;
 }
 
 static km_status load_buffers(gltf_doc *d, km_error *err) {
@@ -482,8 +488,12 @@ static km_status visit(gltf_doc *d, int ni, const double P[16], int depth, insta
                        km_error *err) {
   cJSON *nodes = cJSON_GetObjectItemCaseSensitive(d->json, "nodes");
   cJSON *node = cJSON_GetArrayItem(nodes, ni);
-  if (ni < 0 || !node)
-    return km__fail(err, KM_ERR_PARSE, "%s: node %d does not exist", d->name, ni);
+  if (ni < 0)
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: a node index (in a scene's \"nodes\" or a node's \"children\") is not "
+                    "a whole number from 0 to %d",
+                    d->name, INT32_MAX);
+  if (!node) return km__fail(err, KM_ERR_PARSE, "%s: node %d does not exist", d->name, ni);
   if (depth > 64 || ++out->visits > MAX_INSTANCES)
     return km__fail(err, KM_ERR_UNSUPPORTED,
                     "%s: the node hierarchy is deeper than 64 or has more than %d node visits "
@@ -509,11 +519,7 @@ static km_status visit(gltf_doc *d, int ni, const double P[16], int depth, insta
   }
   cJSON *ch = cJSON_GetObjectItemCaseSensitive(node, "children");
   for (int i = 0; i < cJSON_GetArraySize(ch) && !s; ++i) {
-    cJSON *c = cJSON_GetArrayItem(ch, i);
-    int ci = cJSON_IsNumber(c) && c->valuedouble >= 0 && c->valuedouble < 2147483647.0
-                 ? (int)c->valuedouble
-                 : -1;
-    s = visit(d, ci, M, depth + 1, out, err);
+    s = visit(d, jindex(cJSON_GetArrayItem(ch, i)), M, depth + 1, out, err);
   }
   return s;
 }
@@ -542,8 +548,7 @@ static km_status collect_instances(gltf_doc *d, instances *out, km_error *err) {
   cJSON *roots = cJSON_GetObjectItemCaseSensitive(scene, "nodes");
   if (scene) {
     for (int i = 0; i < cJSON_GetArraySize(roots) && !s; ++i) {
-      cJSON *r = cJSON_GetArrayItem(roots, i);
-      s = visit(d, cJSON_IsNumber(r) ? (int)r->valuedouble : -1, I, 0, out, err);
+      s = visit(d, jindex(cJSON_GetArrayItem(roots, i)), I, 0, out, err);
     }
     return s;
   }
