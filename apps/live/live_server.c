@@ -77,6 +77,7 @@ typedef struct live_rig {
   km_rig rig;
   char *text;
   size_t len;
+  uint64_t gen; /* the POST /rig it came from (1, 2, ...); 0 for the rig the server started with */
 } live_rig;
 
 /* A POST /rig handed to the rig thread (parse, merge, write, apply) so the service thread
@@ -140,6 +141,7 @@ struct km_live {
   char *rig_text; /* GET /rig */
   size_t rig_len;
   char *handles_json; /* GET /handles */
+  uint64_t rig_gen;   /* POST /rig requests saved so far (st_mu) */
   atomic_uint_fast64_t frames_in, frames_out, frames_sent, frames_dropped, osc_messages,
       udp_datagrams, bad_packets, solve_errors;
   atomic_uint_fast64_t ws_messages; /* joint frames from pages (the camera), good or bad */
@@ -230,22 +232,30 @@ static int rig_text_without_handles(const char *text, size_t len) {
 }
 
 /* Publishes the handle list of the active rig (all taken over) for /status, /rig and
- * /handles, freeing the previous one. */
-static void publish_handles(km_live *l, char **names, double *hpos, size_t n, char *text,
-                            size_t len, char *hj) {
+ * /handles, freeing the previous one. `gen` is the POST /rig the rig came from: /rig and
+ * /handles already answer with a newer saved rig when the deformation thread applies an older
+ * one (two saves in quick succession), and keep that answer, so a page that saved rig 3 never
+ * reads rig 2 back. */
+static void publish_handles(km_live *l, uint64_t gen, char **names, double *hpos, size_t n,
+                            char *text, size_t len, char *hj) {
   pthread_mutex_lock(&l->st_mu);
   for (size_t h = 0; h < l->n_handles; ++h)
     free(l->handle_names[h]);
   free(l->handle_names);
   free(l->handle_pos);
-  free(l->rig_text);
-  free(l->handles_json);
   l->handle_names = names;
   l->handle_pos = hpos;
   l->n_handles = n;
-  l->rig_text = text;
-  l->rig_len = len;
-  l->handles_json = hj;
+  if (gen >= l->rig_gen) {
+    free(l->rig_text);
+    free(l->handles_json);
+    l->rig_text = text;
+    l->rig_len = len;
+    l->handles_json = hj;
+  } else {
+    free(text);
+    free(hj);
+  }
   pthread_mutex_unlock(&l->st_mu);
 }
 
@@ -257,7 +267,7 @@ static km_status apply_idle_rig(km_live *l, char *text, size_t len, km_error *er
   read_rest_joints(l, text, len);
   km_rig_free(&l->rig);
   memset(&l->rig, 0, sizeof l->rig);
-  publish_handles(l, NULL, NULL, 0, text, len, hj);
+  publish_handles(l, 0, NULL, NULL, 0, text, len, hj);
   return KM_OK;
 }
 
@@ -289,7 +299,7 @@ static km_status apply_rig(km_live *l, live_rig *nr, km_error *err) {
   l->rig = *rig;
   memset(rig, 0, sizeof *rig);
 
-  publish_handles(l, names, hpos, l->rig.n_handles, nr->text, nr->len, hj);
+  publish_handles(l, nr->gen, names, hpos, l->rig.n_handles, nr->text, nr->len, hj);
   nr->text = NULL;
   return KM_OK;
 fail:
@@ -1103,15 +1113,19 @@ static unsigned rig_post(km_live *l, const char *body, size_t len, char **reply)
   if (hj && copy) {
     memcpy(copy, nr.text, nr.len + 1);
     pthread_mutex_lock(&l->st_mu);
+    nr.gen = ++l->rig_gen;
     free(l->rig_text);
     free(l->handles_json);
     l->rig_text = copy;
     l->rig_len = nr.len;
     l->handles_json = hj;
     pthread_mutex_unlock(&l->st_mu);
-  } else {
+  } else { /* out of memory: /rig and /handles switch when the rig is applied */
     free(hj);
     free(copy);
+    pthread_mutex_lock(&l->st_mu);
+    nr.gen = ++l->rig_gen;
+    pthread_mutex_unlock(&l->st_mu);
   }
   pthread_mutex_lock(&l->in_mu);
   if (l->has_pending) {
@@ -1734,7 +1748,7 @@ void km_live_free(km_live **lp) {
     km_rig_free(&l->pending.rig);
     free(l->pending.text);
   }
-  publish_handles(l, NULL, NULL, 0, NULL, 0, NULL); /* frees the handle list */
+  publish_handles(l, UINT64_MAX, NULL, NULL, 0, NULL, 0, NULL); /* frees the handle list */
   free(l->V);
   free(l->out_latest);
   free(l->out_work);
