@@ -587,6 +587,34 @@ static void test_forged_database(const char *tmpdir) {
     km_posedb_free(&db);
   }
 
+  /* Numbers the file stores for integers: an option far outside int's range (casting it was
+   * undefined behaviour) is refused, naming the key; a group that is no whole int32 is no
+   * group, and the database still loads. */
+  static const char *const bad_opts[] = {"{\"tree_max_depth\":1e30}", "{\"cv_folds\":-1e300}",
+                                         "{\"mirror\":7}", "{\"kernel\":0.5}"};
+  for (int b = 0; b < 4; ++b) {
+    char extra[256];
+    snprintf(extra, sizeof extra, "null,\"options\":%s", bad_opts[b]);
+    json = forged_json(40, 60, extra);
+    write_db(path, 1, json, V, 40 * 48 * sizeof *V);
+    free(json);
+    CHECK_STATUS(km_posedb_load(path, &db, KM_E), KM_ERR_PARSE);
+    CHECK_MSG(db == NULL && strstr(km_test_err.message, "options.") &&
+                  strstr(km_test_err.message, "forged.kmposedb"),
+              "options %s: %s", bad_opts[b], km_test_err.message);
+  }
+  {
+    char extra[1024] = "null,\"groups\":[1e30,-1e30,1.5";
+    for (int i = 3; i < 40; ++i)
+      strcat(extra, i & 1 ? ",1" : ",2");
+    strcat(extra, "]");
+    json = forged_json(40, 60, extra);
+    write_db(path, 1, json, V, 40 * 48 * sizeof *V);
+    free(json);
+    CHECK_OK(km_posedb_load(path, &db, KM_E));
+    km_posedb_free(&db);
+  }
+
   /* Version 2 must carry the model in its bytes: the same big header claiming a model it does
    * not hold (no descriptors, no support vectors) is refused by its size, before allocating. */
   json = forged_json(NBIG, dall,

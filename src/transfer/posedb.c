@@ -666,7 +666,10 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
     }
   i = 0;
   if (!s && gr) cJSON_ArrayForEach(it, gr) {
-      db->groups[i++] = cJSON_IsNumber(it) ? (int32_t)it->valuedouble : 0;
+      /* a group is a whole number in int32's range; anything else is no group (0): a cast of
+       * 1e30 to int32_t is undefined behaviour */
+      double g = cJSON_IsNumber(it) ? it->valuedouble : 0;
+      db->groups[i++] = g == floor(g) && g >= INT32_MIN && g <= INT32_MAX ? (int32_t)g : 0;
     }
   i = 0;
   if (!s) cJSON_ArrayForEach(it, fe) {
@@ -696,24 +699,35 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
     o.features = d;
     if (op) {
       cJSON *v;
-      if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(op, "tree_max_depth")))
-        o.tree_max_depth = (int)v->valuedouble;
-      if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(op, "mirror")))
-        o.mirror = (km_pose_mirror)(int)v->valuedouble;
-      if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(op, "kernel")))
-        o.kernel = (km_svm_kernel)(int)v->valuedouble;
+      /* the integer options are used only as whole numbers in range (casting 1e30 to int is
+       * undefined behaviour); a value outside is the file's error. cv_folds may be negative
+       * (the API's int: anything under 2 is no cross-validation). */
+      static const char *const ikeys[] = {"tree_max_depth", "mirror", "kernel", "cv_folds"};
+      static const double ilo[] = {-1e6, 0, 0, -1e6};
+      static const double ihi[] = {1e6, KM_POSE_MIRROR_NONE, KM_SVM_LINEAR, 1e6};
+      int iv[4] = {0};
+      for (int k = 0; k < 4 && !s; ++k) {
+        v = cJSON_GetObjectItemCaseSensitive(op, ikeys[k]);
+        if (!v) continue;
+        double x = cJSON_IsNumber(v) ? v->valuedouble : NAN;
+        if (!(x >= ilo[k] && x <= ihi[k]) || x != floor(x))
+          s = km__fail(err, KM_ERR_PARSE, "options.%s is not a whole number from %.0f to %.0f",
+                       ikeys[k], ilo[k], ihi[k]); /* km__wrap below names the file */
+        else
+          iv[k] = (int)x;
+      }
+      o.tree_max_depth = iv[0];
+      o.mirror = (km_pose_mirror)iv[1];
+      o.kernel = (km_svm_kernel)iv[2];
+      o.cv_folds = iv[3];
       if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(op, "svm_c")))
         o.svm_c = v->valuedouble;
       if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(op, "svm_gamma")))
         o.svm_gamma = v->valuedouble;
-      if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(op, "cv_folds")))
-        o.cv_folds = (int)v->valuedouble;
     }
-    if (o.mirror > KM_POSE_MIRROR_NONE) o.mirror = KM_POSE_MIRROR_SELECTION;
-    if (o.kernel > KM_SVM_LINEAR) o.kernel = KM_SVM_RBF;
     db->opt = km__posedb_defaults(&o, nl);
     int32_t mirror[KM_POSE_MAX_LANDMARKS];
-    s = km__landmark_mirrors(db->lm, nl, mirror, err);
+    if (!s) s = km__landmark_mirrors(db->lm, nl, mirror, err);
     if (!s && version == 1) s = finish(db, tri, d, err);
     if (!s && version == 2)
       s = restore_model(db, mirror, tri, d, k, l, sla, sna, data + 20 + hl + nf * 12 + nm * nv * 24,
@@ -733,9 +747,8 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
         db->report.cv_accuracy = v->valuedouble;
       if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(rp, "cv_accuracy_eq8")))
         db->report.cv_accuracy_eq8 = v->valuedouble;
-      if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(rp, "cv_folds")) &&
-          v->valuedouble >= 0)
-        db->report.cv_folds = (size_t)v->valuedouble;
+      size_t folds;
+      if (get_size(rp, "cv_folds", 1000000, &folds)) db->report.cv_folds = folds;
       if (cJSON_IsNumber(v = cJSON_GetObjectItemCaseSensitive(rp, "build_ms")))
         db->report.build_ms = v->valuedouble;
     }
