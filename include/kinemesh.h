@@ -1141,6 +1141,13 @@ typedef struct km_rig {
                               (0: swing_limit). kinemesh rig writes 5 for a body that is not
                               upright (a quadruped's humerus and femur lie inside its trunk)
                               and 15 for an upright one with a stubby limb */
+  double girdle_limit;     /* "girdle_limit": degrees, on a kinect1 skeleton: a shoulder or hip bone
+                              (ShoulderCenter -> Shoulder*, HipCenter -> Hip*), which carries the
+                              arm or leg, turns at most this far from where its parent carries its
+                              first direction (0: swing_limit). kinemesh rig writes 5 for a body
+                              that is not upright and for one with a stubby limb: a performer's
+                              shrug or torso lean otherwise swung a whole foreleg about the trunk's
+                              middle, stretching the skin between chest and leg */
   double bend_limit; /* "bend_limit": degrees, with aim on a kinect1 skeleton: an elbow or knee
                         (the forearm or shin against the upper arm or thigh) bends at most this
                         far (0: no limit). kinemesh rig writes 150 for an upright body, about

@@ -387,16 +387,17 @@ static void test_untracked_wrist(const fixture *fx) {
 /* The performer's joints first..last turned `angle` degrees about the still joint `pivot` in
  * the plane of axes p -> q (by_side: the sense mirrored for a joint on the -p side, so a right
  * or left forearm both turn "up"), in one push, through the character's default rig with the
- * given "swing_limit", "bend_limit" and "upper_limb_limit": how far handle `name` turns about
- * the pivot, degrees. */
+ * given "swing_limit", "bend_limit", "upper_limb_limit" and "girdle_limit": how far handle
+ * `name` turns about the pivot, degrees. */
 static double handle_turn(const fixture *fx, const char *name, int pivot, int first, int last,
                           int p, int q, bool by_side, double swing, double bend, double upper,
-                          double angle) {
+                          double girdle, double angle) {
   const km_character c = fx->c;
   km_rig rig = fx->rig;
   rig.swing_limit = swing;
   rig.bend_limit = bend;
   rig.upper_limb_limit = upper;
+  rig.girdle_limit = girdle;
   int hh = -1;
   for (size_t h = 0; h < rig.n_handles; ++h)
     if (!strcmp(rig.handles[h].name, name)) hh = (int)h;
@@ -433,7 +434,7 @@ static double handle_turn(const fixture *fx, const char *name, int pivot, int fi
 /* The right forearm (wrist and hand) turned up about a still elbow, in the x-y plane. */
 static double hand_turn(const fixture *fx, double swing, double bend, double angle) {
   enum { ELBOW = 9, WRIST = 10, HAND = 11 };
-  return handle_turn(fx, "hand_right", ELBOW, WRIST, HAND, 0, 1, true, swing, bend, 0, angle);
+  return handle_turn(fx, "hand_right", ELBOW, WRIST, HAND, 0, 1, true, swing, bend, 0, 0, angle);
 }
 
 /* The head tilted forward about a still shoulder centre, in the y-z plane (the head is not
@@ -441,7 +442,7 @@ static double hand_turn(const fixture *fx, double swing, double bend, double ang
 static double head_turn(const fixture *fx, double swing, double angle) {
   enum { SHOULDER_CENTER = 2, HEAD = 3 };
   return handle_turn(fx, "head", SHOULDER_CENTER, HEAD, HEAD, 1, 2, false, swing,
-                     fx->rig.bend_limit, 0, angle);
+                     fx->rig.bend_limit, 0, 0, angle);
 }
 
 /* The rig's limits: a quadruped's legs ("swing_limit", every limb bone: 30 in the rig `rig`
@@ -487,13 +488,28 @@ static void test_limits(const fixture *fx) {
    * about the shoulder, turns 5; without it, with the arm */
   enum { SHOULDER = 8, ELBOW = 9, HAND = 11 };
   double up_free =
-             handle_turn(fx, "upper_arm_right", SHOULDER, ELBOW, HAND, 0, 1, true, 0, 0, 0, 40),
-         up5 = handle_turn(fx, "upper_arm_right", SHOULDER, ELBOW, HAND, 0, 1, true, 0, 0, 5, 40);
+             handle_turn(fx, "upper_arm_right", SHOULDER, ELBOW, HAND, 0, 1, true, 0, 0, 0, 0, 40),
+         up5 =
+             handle_turn(fx, "upper_arm_right", SHOULDER, ELBOW, HAND, 0, 1, true, 0, 0, 5, 0, 40);
   printf("  upper arm turns about the shoulder: 40 deg asked, %.1f free, %.1f with "
          "upper_limb_limit 5\n",
          up_free, up5);
   CHECK_MSG(fabs(up_free - 40) < 6, "no limit: the upper arm turned %g deg", up_free);
   CHECK_MSG(fabs(up5 - 5) < 3, "upper_limb_limit 5: the upper arm turned %g deg", up5);
+  /* "girdle_limit" (a quadruped's rig: 5): the whole arm, shoulder joint included, turned 40
+   * degrees about the shoulder centre (a shrug): with upper_limb_limit 5 alone the shoulder bone
+   * carries the arm the whole way; with girdle_limit 5 too the shoulder turns 5 and the upper
+   * arm 5 more at most */
+  enum { SHOULDER_CENTER = 2 };
+  double sh_free = handle_turn(fx, "upper_arm_right", SHOULDER_CENTER, SHOULDER, HAND, 0, 1, true,
+                               0, 0, 5, 0, 40),
+         sh5 = handle_turn(fx, "upper_arm_right", SHOULDER_CENTER, SHOULDER, HAND, 0, 1, true, 0, 0,
+                           5, 5, 40);
+  printf("  upper arm turns about the shoulder centre: 40 deg asked, %.1f with upper_limb_limit "
+         "5, %.1f with girdle_limit 5 too\n",
+         sh_free, sh5);
+  CHECK_MSG(fabs(sh_free - 40) < 6, "no girdle limit: the upper arm turned %g deg", sh_free);
+  CHECK_MSG(sh5 < 12, "girdle_limit 5: the upper arm turned %g deg about the shoulder centre", sh5);
 }
 
 /* Feet on the floor (the sidecar's rig: rigid root motion, aimed limbs): a performer who sinks

@@ -480,9 +480,10 @@ static void test_max_step(void) {
     CHECK_STATUS(parse(bad[i], &m, &rig), KM_ERR_PARSE);
     CHECK(strstr(km_test_err.message, "max_step") != NULL);
   }
-  /* "swing_limit" and "bend_limit": degrees in [0, 180] */
-  static const char *const keys[] = {"swing_limit", "bend_limit", "upper_limb_limit"};
-  for (int k = 0; k < 3; ++k) {
+  /* "swing_limit", "bend_limit", "upper_limb_limit", "girdle_limit": degrees in [0, 180] */
+  static const char *const keys[] = {"swing_limit", "bend_limit", "upper_limb_limit",
+                                     "girdle_limit"};
+  for (int k = 0; k < 4; ++k) {
     const char *bad_v[] = {"-1", "181", "true", "\"150\""};
     char js[160];
     for (int i = 0; i < 4; ++i) {
@@ -493,8 +494,8 @@ static void test_max_step(void) {
     }
     snprintf(js, sizeof js, "{\"%s\":60,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}", keys[k]);
     CHECK_OK(parse(js, &m, &rig));
-    double got[3] = {rig.swing_limit, rig.bend_limit, rig.upper_limb_limit};
-    for (int o = 0; o < 3; ++o)
+    double got[4] = {rig.swing_limit, rig.bend_limit, rig.upper_limb_limit, rig.girdle_limit};
+    for (int o = 0; o < 4; ++o)
       CHECK(got[o] == (o == k ? 60 : 0));
     km_rig_free(&rig);
   }

@@ -172,7 +172,8 @@ write:
            rig.handles[h].n_vertices);
   printf("\n");
   /* the limits the puppetry applies, so the user knows what to edit for a wider range */
-  if (rig.bend_limit > 0 || rig.swing_limit > 0 || rig.upper_limb_limit > 0 || rig.max_turn > 0) {
+  if (rig.bend_limit > 0 || rig.swing_limit > 0 || rig.upper_limb_limit > 0 ||
+      rig.girdle_limit > 0 || rig.max_turn > 0) {
     printf("limits:");
     const char *sep = "";
     if (rig.bend_limit > 0) {
@@ -188,6 +189,12 @@ write:
     if (rig.upper_limb_limit > 0) {
       printf("%s upper arms and thighs at most %g deg (\"upper_limb_limit\")", sep,
              rig.upper_limb_limit);
+      sep = ";";
+    }
+    if (rig.girdle_limit > 0) {
+      printf("%s shoulders and hips, which carry the limbs, turn at most %g deg "
+             "(\"girdle_limit\")",
+             sep, rig.girdle_limit);
       sep = ";";
     }
     if (rig.max_turn > 0)

@@ -79,6 +79,8 @@ struct km_retarget {
                           "bend_limit"); 0: none */
   double upper_limit;  /* radians, the largest swing of a kinect1 upper arm or thigh (rig
                           "upper_limb_limit"); 0: swing_limit */
+  double girdle_limit; /* radians, the largest turn of a kinect1 shoulder or hip bone (rig
+                          "girdle_limit"); 0: swing_limit */
   /* bone speed limit (see limit_bone) */
   double bone_catchup; /* metres (of performer) per push a bone's end may turn beyond its
                           joint's own step; < 0: off */
@@ -381,6 +383,8 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       r->upper_limit = rig->upper_limb_limit > 0 && rig->upper_limb_limit < 180
                            ? rig->upper_limb_limit * M_PI / 180
                            : 0;
+      r->girdle_limit =
+          rig->girdle_limit > 0 && rig->girdle_limit < 180 ? rig->girdle_limit * M_PI / 180 : 0;
       /* The mesh turns about the character's root joint, the point the handles' root-relative
        * motion is measured from (the bounding box centre is only a stand-in without joints),
        * or on a kinect1 skeleton about the vertical through the middle of the spine (root ->
@@ -927,12 +931,16 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
    * 30) otherwise bent its neck as far as the performer's head tilts: dog0's neck squeezed to
    * 0.34 of its length (bench motion B, stretch max before -> after: dog0 on precog_Seq1_1
    * 0.66 -> 0.59, cmu_131_01 0.56 -> 0.52, the horse on precog_Seq1_1 0.95 -> 0.90; no row
-   * worse). */
-  if (Rp && r->swing_limit > 0) {
+   * worse). A kinect1 shoulder or hip bone, which carries a whole limb, is held to the rig's
+   * "girdle_limit" where it is the smaller (see km_rig). */
+  double lim = r->swing_limit;
+  if (r->kinect1 && (b == 4 || b == 8 || b == 12 || b == 16) && r->girdle_limit > 0)
+    lim = lim > 0 ? fmin(lim, r->girdle_limit) : r->girdle_limit; /* a shoulder or hip bone */
+  if (Rp && lim > 0) {
     double w[3];
     for (int i = 0; i < 3; ++i)
       w[i] = Rp[3 * i] * d0[0] + Rp[3 * i + 1] * d0[1] + Rp[3 * i + 2] * d0[2];
-    clamp_swing(w, r->swing_limit, d);
+    clamp_swing(w, lim, d);
   }
   rotation_between(d0, d, R);
   return true;

@@ -624,6 +624,7 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
   out->aim = cJSON_IsTrue(jaim);
   if ((st = parse_degrees(name, root, "swing_limit", &out->swing_limit, err)) != KM_OK ||
       (st = parse_degrees(name, root, "upper_limb_limit", &out->upper_limb_limit, err)) != KM_OK ||
+      (st = parse_degrees(name, root, "girdle_limit", &out->girdle_limit, err)) != KM_OK ||
       (st = parse_degrees(name, root, "bend_limit", &out->bend_limit, err)) != KM_OK)
     goto done;
   if ((st = parse_number(name, root, "max_turn", 0, 1e5, false,

@@ -631,6 +631,20 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
     fputs("\"upper_limb_limit\":5,", f);
   else if (p->stubby)
     fputs("\"upper_limb_limit\":15,", f);
+  /* The shoulder and hip bones of such a body (ShoulderCenter -> Shoulder*, HipCenter -> Hip*)
+   * turn at most 5 degrees: they turned with the performer's shoulders and hips (a shrug, a
+   * lean, a hip roll) up to swing_limit's 30 and carried the whole leg with them about the
+   * trunk's middle, stretching the free skin between the chest band and the forearm ring (the
+   * horse on precog_Seq1_1 frame 54: the foreleg 3 cm forward, 1.505x above its ring). bench
+   * motion B, the table's take order, stretch max before -> after: horse
+   * 0.505/0.640/0.504/0.297/0.272 -> 0.301/0.264/0.300/0.287/0.272 (longest edge 1.64x ->
+   * 1.30x), dog0 0.377/0.401/0.356/0.347/0.335 -> 0.381/0.282/0.352/0.346/0.336 (1.40x -> 1.29x),
+   * elephant 0.776/0.772/0.820/0.759/0.779 -> 0.588/0.554/0.594/0.608/0.599 with no fold
+   * (2/2/14/4/2 before; longest 1.75x -> 1.52x); the horse's Kinect jumps 16.2/10.1 -> 12.6/7.3
+   * %. The elephant with its upper_limb_limit, 15, instead: 0.653-0.760, folds 0-2; 1 degree:
+   * no better than 5. Upright bodies keep the performer's shrug (armadillo and character with 5
+   * or 10: within 0.01 of before). */
+  if (!p->upright || p->stubby) fputs("\"girdle_limit\":5,", f);
   /* No elbow or knee bends much past 150 degrees; a tracker's that does has lost the forearm
    * or shin in front of the body (precog_Seq1_1: the left elbow "bent" 163-175 degrees for
    * frames on end, the wrist on the shoulder), and the character's forearm folded into its
