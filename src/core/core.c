@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <math.h>
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
@@ -90,6 +91,12 @@ void *km__malloc(size_t count, size_t size) {
 void *km__calloc(size_t count, size_t size) {
   if (size && count > SIZE_MAX / size) return NULL;
   return calloc(count ? count : 1, size ? size : 1);
+}
+
+bool km__whole_number(double v, double lo, double hi, int64_t *out) {
+  if (!(v >= lo && v <= hi) || v != floor(v)) return false;
+  *out = (int64_t)v;
+  return true;
 }
 
 km_status km__make_parents(const char *path, km_error *err) {

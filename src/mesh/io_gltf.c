@@ -103,14 +103,12 @@ static bool b64_decode(const char *s, unsigned char **out, size_t *n) {
   return true;
 }
 
-/* v as an index (a whole number in 0 .. INT_MAX), else -2: a file's number is only cast to
- * int once it fits (a scene root of 8.9e83 was cast unchecked, undefined behaviour that
- * fuzz_gltf found). */
+/* v as an index (a whole number in 0 .. INT_MAX), else -2 (km__whole_number). */
 static int jindex(const cJSON *v) {
-  if (!cJSON_IsNumber(v) || v->valuedouble != floor(v->valuedouble) || v->valuedouble < 0 ||
-      v->valuedouble > 2147483647.0)
+  int64_t i;
+  if (!cJSON_IsNumber(v) || !km__whole_number(v->valuedouble, 0, 2147483647.0, &i))
     return -2; /* invalid */
-  return (int)v->valuedouble;
+  return (int)i;
 }
 
 static int jint(const cJSON *o, const char *k, int def) {
@@ -558,9 +556,8 @@ static km_status collect_instances(gltf_doc *d, instances *out, km_error *err) {
   for (int i = 0; i < nn; ++i) {
     cJSON *ch = cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(nodes, i), "children");
     for (int k = 0; k < cJSON_GetArraySize(ch); ++k) {
-      cJSON *c = cJSON_GetArrayItem(ch, k);
-      if (cJSON_IsNumber(c) && c->valuedouble >= 0 && c->valuedouble < nn)
-        child[(int)c->valuedouble] = 1;
+      int c = jindex(cJSON_GetArrayItem(ch, k));
+      if (c >= 0 && c < nn) child[c] = 1;
     }
   }
   for (int i = 0; i < nn && !s; ++i)
@@ -591,10 +588,8 @@ static km_status node_worlds(gltf_doc *d, km_error *err) {
   for (int i = 0; i < nn; ++i) {
     cJSON *ch = cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(nodes, i), "children");
     for (int k = 0; k < cJSON_GetArraySize(ch); ++k) {
-      cJSON *c = cJSON_GetArrayItem(ch, k);
-      if (cJSON_IsNumber(c) && c->valuedouble >= 0 && c->valuedouble < nn &&
-          d->node_parent[(int)c->valuedouble] < 0 && (int)c->valuedouble != i)
-        d->node_parent[(int)c->valuedouble] = i;
+      int c = jindex(cJSON_GetArrayItem(ch, k));
+      if (c >= 0 && c < nn && d->node_parent[c] < 0 && c != i) d->node_parent[c] = i;
     }
   }
   for (int i = 0; i < nn && !s; ++i) {
@@ -647,10 +642,8 @@ static km_status skin_matrices(gltf_doc *d, int si, double **S, int32_t **ids, s
     return km__fail(err, KM_ERR_PARSE, "%s: %s: inverseBindMatrices must be %d float MAT4", d->name,
                     what, n);
   for (int k = 0; k < n; ++k) {
-    cJSON *jn = cJSON_GetArrayItem(js, k);
-    int node = cJSON_IsNumber(jn) && jn->valuedouble >= 0 && jn->valuedouble < d->n_nodes
-                   ? (int)jn->valuedouble
-                   : -1;
+    int node = jindex(cJSON_GetArrayItem(js, k));
+    if (node >= d->n_nodes) node = -1;
     if (node < 0)
       return km__fail(err, KM_ERR_PARSE, "%s: %s: joints[%d] is not a node", d->name, what, k);
     double B[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
@@ -687,9 +680,8 @@ static km_status gather_joints(gltf_doc *d, const instances *inst, km_error *err
     if (si < 0) continue;
     cJSON *js = cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(skins, si), "joints");
     for (int k = 0; k < cJSON_GetArraySize(js); ++k) {
-      cJSON *jn = cJSON_GetArrayItem(js, k);
-      if (!cJSON_IsNumber(jn) || !(jn->valuedouble >= 0 && jn->valuedouble < d->n_nodes)) continue;
-      int node = (int)jn->valuedouble;
+      int node = jindex(cJSON_GetArrayItem(js, k));
+      if (node < 0 || node >= d->n_nodes) continue;
       if (d->joint_of_node[node] >= 0) continue;
       d->joint_of_node[node] = (int)n;
       order[n++] = node;

@@ -51,11 +51,7 @@ static bool geodesic_ball(km__geodesic *g, const double *V, int32_t seed, double
 /* ---- JSON helpers */
 
 static bool json_int(const cJSON *j, double lo, double hi, int64_t *out) {
-  if (!cJSON_IsNumber(j)) return false;
-  double v = j->valuedouble;
-  if (!(v >= lo && v <= hi) || v != floor(v)) return false;
-  *out = (int64_t)v;
-  return true;
+  return cJSON_IsNumber(j) && km__whole_number(j->valuedouble, lo, hi, out);
 }
 
 static bool json_finite(const cJSON *j, double *out) {

@@ -664,9 +664,8 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
 }
 
 static bool json_int(const cJSON *o, double lo, double hi, long *out) {
-  if (!cJSON_IsNumber(o)) return false;
-  double v = o->valuedouble;
-  if (!(v >= lo && v <= hi) || v != floor(v)) return false;
+  int64_t v;
+  if (!cJSON_IsNumber(o) || !km__whole_number(o->valuedouble, lo, hi, &v)) return false;
   *out = (long)v;
   return true;
 }

@@ -502,10 +502,9 @@ done:
 
 static bool get_size(cJSON *o, const char *k, size_t max, size_t *out) {
   cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
-  if (!cJSON_IsNumber(v) || !(v->valuedouble >= 0) || v->valuedouble > (double)max ||
-      v->valuedouble != floor(v->valuedouble))
-    return false;
-  *out = (size_t)v->valuedouble;
+  int64_t x;
+  if (!cJSON_IsNumber(v) || !km__whole_number(v->valuedouble, 0, (double)max, &x)) return false;
+  *out = (size_t)x;
   return true;
 }
 
@@ -668,8 +667,10 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
   if (!s && gr) cJSON_ArrayForEach(it, gr) {
       /* a group is a whole number in int32's range; anything else is no group (0): a cast of
        * 1e30 to int32_t is undefined behaviour */
-      double g = cJSON_IsNumber(it) ? it->valuedouble : 0;
-      db->groups[i++] = g == floor(g) && g >= INT32_MIN && g <= INT32_MAX ? (int32_t)g : 0;
+      int64_t g = 0;
+      if (!cJSON_IsNumber(it) || !km__whole_number(it->valuedouble, INT32_MIN, INT32_MAX, &g))
+        g = 0;
+      db->groups[i++] = (int32_t)g;
     }
   i = 0;
   if (!s) cJSON_ArrayForEach(it, fe) {
@@ -709,8 +710,8 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
       for (int k = 0; k < 4 && !s; ++k) {
         v = cJSON_GetObjectItemCaseSensitive(op, ikeys[k]);
         if (!v) continue;
-        double x = cJSON_IsNumber(v) ? v->valuedouble : NAN;
-        if (!(x >= ilo[k] && x <= ihi[k]) || x != floor(x))
+        int64_t x;
+        if (!cJSON_IsNumber(v) || !km__whole_number(v->valuedouble, ilo[k], ihi[k], &x))
           s = km__fail(err, KM_ERR_PARSE, "options.%s is not a whole number from %.0f to %.0f",
                        ikeys[k], ilo[k], ihi[k]); /* km__wrap below names the file */
         else
