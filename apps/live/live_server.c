@@ -1110,23 +1110,23 @@ static unsigned rig_post(km_live *l, const char *body, size_t len, char **reply)
   /* GET /rig and /handles answer with the saved rig from now on, even before the deform
    * thread has switched to it. */
   char *hj = handles_json(&nr.rig), *copy = malloc(nr.len + 1);
-  if (hj && copy) {
+  if (!hj || !copy) { /* out of memory: /rig and /handles switch when the rig is applied */
+    free(hj);
+    free(copy);
+    hj = copy = NULL;
+  } else {
     memcpy(copy, nr.text, nr.len + 1);
-    pthread_mutex_lock(&l->st_mu);
-    nr.gen = ++l->rig_gen;
+  }
+  pthread_mutex_lock(&l->st_mu);
+  nr.gen = ++l->rig_gen;
+  if (copy) {
     free(l->rig_text);
     free(l->handles_json);
     l->rig_text = copy;
     l->rig_len = nr.len;
     l->handles_json = hj;
-    pthread_mutex_unlock(&l->st_mu);
-  } else { /* out of memory: /rig and /handles switch when the rig is applied */
-    free(hj);
-    free(copy);
-    pthread_mutex_lock(&l->st_mu);
-    nr.gen = ++l->rig_gen;
-    pthread_mutex_unlock(&l->st_mu);
   }
+  pthread_mutex_unlock(&l->st_mu);
   pthread_mutex_lock(&l->in_mu);
   if (l->has_pending) {
     km_rig_free(&l->pending.rig);
