@@ -852,17 +852,27 @@ static void mat_mul(const double A[9], const double B[9], double C[9]) {
       C[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j];
 }
 
-/* The largest swing allowed to the bone ending at joint b (rig "swing_limit"; for a kinect1
- * upper arm or thigh, the bone ending at an elbow or knee, "upper_limb_limit" where it is set;
- * for a forearm or shin, the bone ending at a wrist or ankle, "bend_limit": the elbow's or
- * knee's bend, where it is the smaller), radians; 0: none. Only aimed bones are limited
- * (segment_rotation with aim). */
-static double limb_limit(const km_retarget *r, int32_t b) {
+/* The smaller of two limits (radians, 0: none). */
+static double tighter_limit(double a, double b) {
+  return a > 0 && b > 0 ? fmin(a, b) : a > 0 ? a : b;
+}
+
+/* The largest swing allowed to the bone ending at joint b, radians; 0: none. Every bone has
+ * the rig's "swing_limit". On a kinect1 skeleton also: a shoulder or hip bone (ending at joint
+ * 4, 8, 12 or 16), which carries a whole limb, "girdle_limit" where it is the smaller; and an
+ * aimed bone (segment_rotation with aim): an upper arm or thigh (ending at an elbow or knee)
+ * "upper_limb_limit" instead where it is set, a forearm or shin (ending at a wrist or ankle)
+ * "bend_limit", the elbow's or knee's bend, where it is the smaller. The limb limits apply to
+ * aimed bones only: a rig without "aim" keeps its limbs as free as before. */
+static double limb_limit(const km_retarget *r, int32_t b, bool aimed) {
   double lim = r->swing_limit;
-  bool upper = r->kinect1 && (b == 5 || b == 9 || b == 13 || b == 17);
-  bool hinge = r->kinect1 && (b == 6 || b == 10 || b == 14 || b == 18);
+  if (!r->kinect1) return lim;
+  bool girdle = b == 4 || b == 8 || b == 12 || b == 16;
+  bool upper = aimed && (b == 5 || b == 9 || b == 13 || b == 17);
+  bool hinge = aimed && (b == 6 || b == 10 || b == 14 || b == 18);
   if (upper && r->upper_limit > 0) lim = r->upper_limit;
-  if (hinge && r->bend_limit > 0) lim = lim > 0 ? fmin(lim, r->bend_limit) : r->bend_limit;
+  if (hinge) lim = tighter_limit(lim, r->bend_limit);
+  if (girdle) lim = tighter_limit(lim, r->girdle_limit);
   return lim;
 }
 
@@ -915,7 +925,7 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
         double w[3];
         for (int i = 0; i < 3; ++i)
           w[i] = Rp[3 * i] * u[0] + Rp[3 * i + 1] * u[1] + Rp[3 * i + 2] * u[2];
-        clamp_swing(w, limb_limit(r, b), d);
+        clamp_swing(w, limb_limit(r, b, true), d);
         rotation_between(w, d, A);
         mat_mul(A, Rp, R);
         return true;
@@ -931,11 +941,8 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
    * 30) otherwise bent its neck as far as the performer's head tilts: dog0's neck squeezed to
    * 0.34 of its length (bench motion B, stretch max before -> after: dog0 on precog_Seq1_1
    * 0.66 -> 0.59, cmu_131_01 0.56 -> 0.52, the horse on precog_Seq1_1 0.95 -> 0.90; no row
-   * worse). A kinect1 shoulder or hip bone, which carries a whole limb, is held to the rig's
-   * "girdle_limit" where it is the smaller (see km_rig). */
-  double lim = r->swing_limit;
-  if (r->kinect1 && (b == 4 || b == 8 || b == 12 || b == 16) && r->girdle_limit > 0)
-    lim = lim > 0 ? fmin(lim, r->girdle_limit) : r->girdle_limit; /* a shoulder or hip bone */
+   * worse). A kinect1 shoulder or hip bone is held to "girdle_limit" (limb_limit). */
+  double lim = limb_limit(r, b, false);
   if (Rp && lim > 0) {
     double w[3];
     for (int i = 0; i < 3; ++i)
