@@ -1,6 +1,7 @@
 #include "core/core.h"
 #include "km_test.h"
 
+#include <math.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -108,7 +109,24 @@ static void test_errors(void) {
   CHECK(km__malloc(SIZE_MAX / 2, 4) == NULL);
 }
 
+/* km__whole_number: the one door from a file's number to an integer. */
+static void test_whole_number(void) {
+  int64_t x = -7;
+  CHECK(km__whole_number(3, 0, 10, &x) && x == 3);
+  CHECK(km__whole_number(-1, -1, 10, &x) && x == -1);
+  CHECK(km__whole_number(2147483647.0, 0, 2147483647.0, &x) && x == 2147483647);
+  x = 42;
+  CHECK(!km__whole_number(2.5, 0, 10, &x) && x == 42);     /* a fraction */
+  CHECK(!km__whole_number(11, 0, 10, &x) && x == 42);      /* above hi */
+  CHECK(!km__whole_number(-1, 0, 10, &x) && x == 42);      /* below lo */
+  CHECK(!km__whole_number(8.9e83, 0, 1e9, &x) && x == 42); /* fuzz_gltf's scene root */
+  CHECK(!km__whole_number(NAN, -1e9, 1e9, &x) && x == 42);
+  CHECK(!km__whole_number(INFINITY, -1e18, 1e18, &x) && x == 42);
+  CHECK(!km__whole_number(-INFINITY, -1e18, 1e18, &x) && x == 42);
+}
+
 int main(void) {
+  test_whole_number();
   test_atomic_file();
   test_atomic_hardening();
   test_errors();
