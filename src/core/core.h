@@ -67,9 +67,9 @@ km_status km__list_files(const char *pattern, const char *const *exts, bool filt
                          char ***paths, size_t *n, km_error *err);
 
 /* A number read from a file as an integer: true and *out = v when v is a whole number in
- * lo .. hi, else false (NaN, infinities and fractions too). The one door from a file's double to
- * an integer type: casting a value outside the type's range is undefined behaviour (a glTF
- * scene root of 8.9e83 found by fuzz_gltf). lo and hi must lie within int64's range. */
+ * lo .. hi, else false with *out untouched (NaN, infinities and fractions too). The one door from a
+ * file's double to an integer type: casting a value outside the type's range is undefined behaviour
+ * (a glTF scene root of 8.9e83 found by fuzz_gltf). lo and hi must lie within int64's range. */
 bool km__whole_number(double v, double lo, double hi, int64_t *out);
 
 /* File extension (lowercase, without the dot) into out; "" when none. */

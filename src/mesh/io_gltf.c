@@ -643,8 +643,7 @@ static km_status skin_matrices(gltf_doc *d, int si, double **S, int32_t **ids, s
                     what, n);
   for (int k = 0; k < n; ++k) {
     int node = jindex(cJSON_GetArrayItem(js, k));
-    if (node >= d->n_nodes) node = -1;
-    if (node < 0)
+    if (node < 0 || node >= d->n_nodes)
       return km__fail(err, KM_ERR_PARSE, "%s: %s: joints[%d] is not a node", d->name, what, k);
     double B[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
     for (int c = 0; has_ibm && c < 16; ++c) {

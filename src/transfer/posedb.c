@@ -667,9 +667,8 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
   if (!s && gr) cJSON_ArrayForEach(it, gr) {
       /* a group is a whole number in int32's range; anything else is no group (0): a cast of
        * 1e30 to int32_t is undefined behaviour */
-      int64_t g = 0;
-      if (!cJSON_IsNumber(it) || !km__whole_number(it->valuedouble, INT32_MIN, INT32_MAX, &g))
-        g = 0;
+      int64_t g = 0; /* km__whole_number leaves it 0 when it refuses */
+      if (cJSON_IsNumber(it)) km__whole_number(it->valuedouble, INT32_MIN, INT32_MAX, &g);
       db->groups[i++] = (int32_t)g;
     }
   i = 0;
