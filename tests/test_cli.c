@@ -72,7 +72,21 @@ static void test_bad_input(void) {
 static void test_convert_roundtrip(void) {
   CHECK(km_test_run(KM_CLI " convert " KM_TEST_DATA "/tetra.obj cli_a.ply", NULL) == 0);
   CHECK(km_test_run(KM_CLI " convert cli_a.ply cli_b.off", NULL) == 0);
-  CHECK(km_test_run(KM_CLI " convert cli_b.off cli_c.obj", NULL) == 0);
+  /* -o as every other verb takes it, into a folder that does not exist yet */
+  remove("cli_conv_dir/c.obj");
+  remove("cli_conv_dir");
+  CHECK(km_test_run(KM_CLI " convert cli_b.off -o cli_conv_dir/c.obj", NULL) == 0);
+  CHECK(rename("cli_conv_dir/c.obj", "cli_c.obj") == 0);
+  remove("cli_conv_dir");
+  /* two different outputs are refused, and nothing is written */
+  char *msg = NULL;
+  CHECK(km_test_run(KM_CLI " convert cli_b.off cli_d.obj -o cli_e.obj", &msg) == 1);
+  CHECK_MSG(msg && strstr(msg, "two outputs"), "message: %s", msg ? msg : "");
+  free(msg);
+  FILE *d = fopen("cli_d.obj", "r"), *e = fopen("cli_e.obj", "r");
+  CHECK(!d && !e);
+  if (d) fclose(d);
+  if (e) fclose(e);
   km_mesh a = {0}, c = {0};
   CHECK_OK(km_mesh_read(KM_TEST_DATA "/tetra.obj", &a, KM_E));
   CHECK_OK(km_mesh_read("cli_c.obj", &c, KM_E));

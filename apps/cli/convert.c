@@ -7,10 +7,11 @@
 #include <string.h>
 
 int km_cli_convert(int argc, char **argv) {
-  const char *ply = NULL;
+  const char *ply = NULL, *out = NULL;
   double scale = 0;
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      {"output", 'o', KM_OPT_STRING, &out, "output mesh (.obj, .ply, .off), or OUT"},
       {"ply", 0, KM_OPT_STRING, &ply, "PLY encoding: binary (default), binary-be, ascii"},
       KM_CLI_FRAME_OPTIONS(fo),
       {"scale", 0, KM_OPT_DOUBLE, &scale, "multiply coordinates by X (after --units)"},
@@ -18,7 +19,7 @@ int km_cli_convert(int argc, char **argv) {
   const char *pos[2];
   int n_pos;
   int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 2, &n_pos,
-                       "kinemesh convert IN OUT [--ply ascii] [--up +z --forward -y] "
+                       "kinemesh convert IN OUT|-o OUT [--ply ascii] [--up +z --forward -y] "
                        "[--units cm] [--scale X]",
                        "Converts between OBJ, PLY and OFF by file extension. Vertex order and\n"
                        "coordinates are kept exactly; polygons are fan-triangulated; texture\n"
@@ -26,8 +27,12 @@ int km_cli_convert(int argc, char **argv) {
                        "--units or --scale the mesh is rotated and scaled into kinemesh's frame\n"
                        "(y up, facing +z, metres; a missing axis is guessed and printed).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
+  /* OUT as every other verb takes it (-o) or as the second argument, as cp does */
+  if (n_pos == 2 && out && strcmp(out, pos[1]))
+    return km_cli_error("convert", "two outputs given ('%s' and -o '%s'): give one", pos[1], out);
+  if (n_pos == 1 && out) pos[n_pos++] = out;
   if (n_pos != 2)
-    return km_cli_error("convert", "expected IN and OUT (see kinemesh convert --help)");
+    return km_cli_error("convert", "expected IN and OUT (or -o OUT; see kinemesh convert --help)");
   if (scale < 0 || !isfinite(scale))
     return km_cli_error("convert", "--scale must be positive, not %g", scale);
   km_mesh_write_options wo = {0};
