@@ -198,6 +198,11 @@ static void test_take_io(void) {
              "\"parents\":[-1,1],\"frames\":[[0,0,0,1,1,1]]}");
   CHECK_STATUS(km_take_read("test_motion_bad.json", &b, KM_E), KM_ERR_PARSE);
   CHECK(strstr(km_test_err.message, "parents[1]") != NULL);
+  write_text("test_motion_bad.json", /* a parent is a joint's index, not a fraction of one */
+             "{\"format\":\"kinemesh-take\",\"version\":1,\"fps\":30,\"joints\":[\"A\",\"B\"],"
+             "\"parents\":[-1,0.5],\"frames\":[[0,0,0,1,1,1]]}");
+  CHECK_STATUS(km_take_read("test_motion_bad.json", &b, KM_E), KM_ERR_PARSE);
+  CHECK(strstr(km_test_err.message, "parents[1]") != NULL);
   write_text("test_motion_bad.json",
              "{\"format\":\"kinemesh-take\",\"version\":1,\"fps\":30,\"joints\":[\"A\"],"
              "\"frames\":[[0,\"x\",0]]}");

@@ -615,6 +615,34 @@ static void test_forged_database(const char *tmpdir) {
     km_posedb_free(&db);
   }
 
+  /* Indices the file stores (a landmark's vertex, a label, a feature's landmark) are whole
+   * numbers: 3.5 is refused, naming what is wrong, where the cast used to take vertex 3. */
+  {
+    /* the text before the index, and the message naming it */
+    static const char *const what[3][2] = {{"\"vertex\":3", "landmark 3"},
+                                           {"\"labels\":[", "label 0"},
+                                           {"\"features\":[[", "feature 0"}};
+    for (int w = 0; w < 3; ++w) {
+      json = forged_json(40, 60, NULL);
+      char *at = strstr(json, what[w][0]);
+      CHECK_MSG(at != NULL, "forged header lacks %s", what[w][0]);
+      if (at) {
+        const char *num = at + strlen(what[w][0]), *end = num;
+        while (*end >= '0' && *end <= '9')
+          ++end;
+        size_t cap = strlen(json) + 16;
+        char *j2 = malloc(cap);
+        snprintf(j2, cap, "%.*s.5%s", (int)(end - json), json, end); /* the index and a half */
+        write_db(path, 1, j2, V, 40 * 48 * sizeof *V);
+        free(j2);
+        CHECK_STATUS(km_posedb_load(path, &db, KM_E), KM_ERR_PARSE);
+        CHECK_MSG(db == NULL && strstr(km_test_err.message, what[w][1]), "%s: %s", what[w][0],
+                  km_test_err.message);
+      }
+      free(json);
+    }
+  }
+
   /* Version 2 must carry the model in its bytes: the same big header claiming a model it does
    * not hold (no descriptors, no support vectors) is refused by its size, before allocating. */
   json = forged_json(NBIG, dall,

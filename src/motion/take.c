@@ -268,12 +268,12 @@ static km_status take_from_json(const char *path, const cJSON *root, const char 
     j = 0;
     cJSON_ArrayForEach(it, parents) {
       /* Parents before children keeps every hierarchy walk a single forward pass. */
-      if (!cJSON_IsNumber(it) || it->valuedouble != floor(it->valuedouble) ||
-          it->valuedouble < -1 || it->valuedouble >= j)
+      int64_t pj;
+      if (!cJSON_IsNumber(it) || !km__whole_number(it->valuedouble, -1, j - 1, &pj))
         return km__fail(err, KM_ERR_PARSE,
                         "%s: parents[%d] must be -1 or the index of an earlier joint (0..%d)", path,
                         j, j - 1);
-      t->parents[j] = (int32_t)it->valuedouble;
+      t->parents[j] = (int32_t)pj;
       ++j;
     }
   }

@@ -451,6 +451,16 @@ km_status km_posedb_save(const km_posedb *db, const char *path, km_error *err) {
 /* Samples^2 x features that a version 1 database may cost to retrain on load (a few seconds). */
 #define KM__POSEDB_V1_WORK 4.0e9
 
+/* An index read from the file: a whole number in 0 .. n - 1 (a fraction, which the cast used to
+ * truncate, is no index). */
+static bool json_index(const cJSON *v, size_t n, int32_t *out) {
+  int64_t x;
+  if (!n || !cJSON_IsNumber(v) || !km__whole_number(v->valuedouble, 0, (double)n - 1, &x))
+    return false;
+  *out = (int32_t)x;
+  return true;
+}
+
 /* Version 2: the stored descriptors and SVM (q: the bytes after V) into db; k, l checked
  * against the file by the caller. */
 static km_status restore_model(km_posedb *db, const int32_t *mirror, const int32_t *tri, size_t d,
@@ -472,14 +482,14 @@ static km_status restore_model(km_posedb *db, const int32_t *mirror, const int32
   size_t c = 0;
   cJSON *a = sla->child, *b = sna->child;
   for (; a && b && c < k; a = a->next, b = b->next, ++c) {
-    if (!cJSON_IsNumber(a) || !(a->valuedouble >= 0) || a->valuedouble >= (double)db->n_classes ||
-        !cJSON_IsNumber(b) || !(b->valuedouble >= 0) || b->valuedouble > (double)l) {
+    int32_t la, nb;
+    if (!json_index(a, db->n_classes, &la) || !json_index(b, (size_t)l + 1, &nb)) {
       s = km__fail(err, KM_ERR_PARSE, "pose database: svm class %zu: label or n_sv out of range",
                    c);
       goto done;
     }
-    label[c] = (int)a->valuedouble;
-    nsv[c] = (int)b->valuedouble;
+    label[c] = la;
+    nsv[c] = nb;
   }
   const double *lo = tail, *hi = lo + d, *rho = hi + d, *coef = rho + nrho;
   int32_t *sv_row = km__malloc(l ? l : 1, sizeof *sv_row);
@@ -626,15 +636,13 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
     cJSON *a = cJSON_GetObjectItemCaseSensitive(it, "name"),
           *b = cJSON_GetObjectItemCaseSensitive(it, "vertex"),
           *c = cJSON_GetObjectItemCaseSensitive(it, "mirror");
-    if (!cJSON_IsString(a) || !cJSON_IsString(c) || !cJSON_IsNumber(b) ||
-        strlen(a->valuestring) > 31 || strlen(c->valuestring) > 31 || !(b->valuedouble >= 0) ||
-        b->valuedouble >= (double)nv) {
+    if (!cJSON_IsString(a) || !cJSON_IsString(c) || strlen(a->valuestring) > 31 ||
+        strlen(c->valuestring) > 31 || !json_index(b, nv, &db->lm[i].vertex)) {
       s = km__fail(err, KM_ERR_PARSE, "%s: landmark %zu is malformed", path, i);
       break;
     }
     strcpy(db->lm[i].name, a->valuestring);
     strcpy(db->lm[i].mirror, c->valuestring);
-    db->lm[i].vertex = (int32_t)b->valuedouble;
     ++i;
   }
   i = 0;
@@ -657,11 +665,11 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
   }
   i = 0;
   if (!s) cJSON_ArrayForEach(it, lb) {
-      if (!cJSON_IsNumber(it) || !(it->valuedouble >= 0) || it->valuedouble >= (double)nc) {
+      if (!json_index(it, nc, &db->labels[i])) {
         s = km__fail(err, KM_ERR_PARSE, "%s: label %zu is not a class index", path, i);
         break;
       }
-      db->labels[i++] = (int32_t)it->valuedouble;
+      ++i;
     }
   i = 0;
   if (!s && gr) cJSON_ArrayForEach(it, gr) {
@@ -676,8 +684,7 @@ km_status km_posedb_load(const char *path, km_posedb **out, km_error *err) {
       bool ok = cJSON_IsArray(it) && cJSON_GetArraySize(it) == 3;
       for (int k = 0; ok && k < 3; ++k) {
         cJSON *v = cJSON_GetArrayItem(it, k);
-        ok = cJSON_IsNumber(v) && v->valuedouble >= 0 && v->valuedouble < (double)nl;
-        if (ok) tri[3 * i + k] = (int32_t)v->valuedouble;
+        ok = json_index(v, nl, &tri[3 * i + k]);
       }
       if (!ok) {
         s = km__fail(err, KM_ERR_PARSE, "%s: feature %zu is not a landmark triple", path, i);
