@@ -393,6 +393,89 @@ static void test_cache_params_and_formats(void) {
   km_test_run("rm -rf puppet_p", NULL);
 }
 
+static double pc2_max_diff(const char *a, const char *b) {
+  double *fa = NULL, *fb = NULL, d = INFINITY;
+  km_anim_info ia = {0}, ib = {0};
+  CHECK_OK(km_pc2_read(a, &fa, &ia, KM_E));
+  CHECK_OK(km_pc2_read(b, &fb, &ib, KM_E));
+  if (fa && fb && ia.frames == ib.frames && ia.vertices == ib.vertices && ia.frames) {
+    d = 0;
+    for (size_t i = 0; i < 3 * ia.frames * ia.vertices; ++i)
+      d = fmax(d, isfinite(fa[i]) && isfinite(fb[i]) ? fabs(fa[i] - fb[i]) : INFINITY);
+  }
+  free(fa);
+  free(fb);
+  return d;
+}
+
+/* Issue 11: a mesh with no rig file animates and poses with a rig made on the spot (said in
+ * one line, nothing written beside the mesh), the same as after `kinemesh rig`; a mesh that
+ * cannot be rigged says so and why. */
+static void test_no_rig(void) {
+  char *out = NULL;
+  CHECK(km_test_run("rm -rf puppet_n && mkdir puppet_n", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2000 -o puppet_n/c.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen motion --kind wave --frames 8 --character puppet_n/c.obj -o "
+                           "puppet_n/w.json",
+                    NULL) == 0);
+  CHECK(km_test_run("cp puppet_n/c.obj puppet_n/u.obj", NULL) == 0); /* the mesh alone */
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_n/u.obj --motion puppet_n/w.json -o "
+                           "puppet_n/auto.pc2",
+                    &out) == 0);
+  CHECK_MSG(out &&
+                strstr(out, "no rig at puppet_n/u.rig.json: rigged puppet_n/u.obj as a humanoid"),
+            "%s", out ? out : "");
+  free(out);
+  CHECK(access("puppet_n/u.rig.json", F_OK) != 0); /* nothing written beside the input */
+  CHECK(km_test_run(KM_CLI " rig puppet_n/u.obj -o puppet_n/r/u.rig.json", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_n/u.obj --rig puppet_n/r/u.rig.json --motion "
+                           "puppet_n/w.json -o puppet_n/file.pc2",
+                    NULL) == 0);
+  /* the written rig rounds weights to 7 digits: equal to a few micrometres */
+  double d = pc2_max_diff("puppet_n/auto.pc2", "puppet_n/file.pc2");
+  CHECK_MSG(d < 1e-5, "animate with no rig differs from animate after kinemesh rig by %g m", d);
+  CHECK(km_test_run(KM_CLI " pose --mesh puppet_n/u.obj --motion puppet_n/w.json -o "
+                           "puppet_n/pose.pc2",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "no rig at"), "%s", out ? out : "");
+  free(out);
+  km_anim_info info = {0};
+  double *frames = NULL;
+  CHECK_OK(km_pc2_read("puppet_n/pose.pc2", &frames, &info, KM_E));
+  CHECK(info.frames == 8 && frames && all_finite(frames, 3 * info.frames * info.vertices));
+  free(frames);
+  /* and a template for reconstruct */
+  CHECK(km_test_run(KM_CLI " gen capture --character puppet_n/c.obj --motion puppet_n/w.json "
+                           "--frames 2 --cameras 4 --points 3000 -o puppet_n/clouds",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " reconstruct --template puppet_n/u.obj --clouds "
+                           "'puppet_n/clouds/frame_*.ply' -o puppet_n/recon.pc2",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "no rig at") && access("puppet_n/recon.pc2", F_OK) == 0, "%s",
+            out ? out : "");
+  free(out);
+  CHECK(access("puppet_n/u.rig.json", F_OK) != 0);
+  /* two separate tetrahedra: no rig can be made, and the message says why */
+  FILE *f = fopen("puppet_n/two.obj", "w");
+  CHECK(f != NULL);
+  if (f) {
+    for (int k = 0; k < 2; ++k)
+      fprintf(f, "v %d 0 0\nv %d 0 0\nv %d 1 0\nv %d 0 1\n", 3 * k, 3 * k + 1, 3 * k, 3 * k);
+    for (int k = 0; k < 2; ++k)
+      fprintf(f, "f %d %d %d\nf %d %d %d\nf %d %d %d\nf %d %d %d\n", 4 * k + 1, 4 * k + 3,
+              4 * k + 2, 4 * k + 1, 4 * k + 2, 4 * k + 4, 4 * k + 1, 4 * k + 4, 4 * k + 3,
+              4 * k + 2, 4 * k + 3, 4 * k + 4);
+    fclose(f);
+  }
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_n/two.obj --motion puppet_n/w.json -o "
+                           "puppet_n/two.pc2",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "has no rig") && strstr(out, "2 components"), "%s", out ? out : "");
+  free(out);
+  CHECK(access("puppet_n/two.pc2", F_OK) != 0);
+  km_test_run("rm -rf puppet_n", NULL);
+}
+
 /* bench deform: one JSON object per mesh with the issue's keys (values, not speed). */
 static void test_bench_deform_json(void) {
   char *out = NULL;
@@ -429,6 +512,7 @@ int main(void) {
   }
   test_bad_rig_and_motion();
   test_cache_params_and_formats();
+  test_no_rig();
   test_bench_deform_json();
   test_demo();
   if (km_test_shared("meshes/armadillo_1k.off", a, sizeof a) &&

@@ -6,6 +6,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 static int parse_solver(const char *verb, const char *s, bool *full) {
   if (!s || !strcmp(s, "reduced"))
@@ -39,7 +40,8 @@ int km_cli_animate(int argc, char **argv) {
       KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh_path, "mesh to animate (OBJ/PLY/OFF)"},
       {"rig", 0, KM_OPT_STRING, &rig_path,
-       "rig: handles, joint map, filter (default <mesh stem>.rig.json)"},
+       "rig: handles, joint map, filter (default <mesh stem>.rig.json, else a glTF's own skin, "
+       "else one made on the spot as kinemesh rig makes it)"},
       {"motion", 0, KM_OPT_STRING, &motion,
        "take: .json (kinemesh), .csv (Kinect v1 recording), .bvh"},
       {"cache", 0, KM_OPT_STRING, &cache,
@@ -144,6 +146,16 @@ int km_cli_animate(int argc, char **argv) {
     if (ss == KM_OK && own) ss = km_character_rig_json(&sc, &skin_json, &skin_json_n, &err);
     km_character_free(&sc);
     if (ss != KM_OK) goto fail;
+  }
+  if (!rig_path && !skin_json && access(rig_default, F_OK) != 0) {
+    /* no rig file: one made on the spot, as `kinemesh rig` would write it */
+    km_character ac = {0};
+    char then[1200];
+    snprintf(then, sizeof then, "kinemesh rig %s writes it, to edit", mesh_path);
+    km_status as = km_cli_auto_rig("animate", mesh_path, rig_default, &m, stderr, then, &ac, &err);
+    if (as == KM_OK) as = km_character_rig_json(&ac, &skin_json, &skin_json_n, &err);
+    km_character_free(&ac);
+    if (as != KM_OK) goto fail;
   }
   km_mesh rig_mesh = m; /* m in the sidecar's unit when it differs (V replaced, not freed) */
   double *rig_V = NULL;

@@ -261,6 +261,39 @@ km_status km_cli_skin_character(const char *verb, const char *mesh_path, const c
   return s;
 }
 
+km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *rig_file,
+                          const km_mesh *m, FILE *say, const char *then, km_character *c,
+                          km_error *err) {
+  km_character tmp = {0};
+  km_autorig_report rep;
+  km_status s = km_autorig(m, NULL, &tmp, &rep, err);
+  if (s != KM_OK) {
+    char why[sizeof err->message]; /* the message is rewritten in place: a copy to read from */
+    snprintf(why, sizeof why, "%s", err->message);
+    km_error_set(err, s,
+                 "%s has no rig (%s) and cannot be rigged automatically: %s; place handles "
+                 "by hand (kinemesh pick) in a rig file and pass --rig",
+                 mesh_path, rig_file, why);
+    return s;
+  }
+  km_character_free(c);
+  *c = tmp;
+  fprintf(say, "kinemesh %s: no rig at %s: rigged %s as %s in %.2f s:", verb, rig_file, mesh_path,
+          rep.kind == KM_AUTORIG_QUADRUPED ? "a quadruped"
+          : rep.kind == KM_AUTORIG_PROP    ? "a prop"
+                                           : "a humanoid",
+          rep.seconds);
+  const char *sep = " ";
+  for (size_t e = 0; e < rep.n_extremities; ++e)
+    if (rep.role[e][0]) {
+      fprintf(say, "%s%s at vertex %d", sep, rep.role[e], (int)rep.extremity[e]);
+      sep = ", ";
+    }
+  if (rep.fallback[0]) fprintf(say, " (not a humanoid or quadruped: %s)", rep.fallback);
+  fprintf(say, "; %s\n", then);
+  return KM_OK;
+}
+
 void km_cli_json_number(cJSON *o, const char *key, double v) {
   if (isfinite(v))
     cJSON_AddNumberToObject(o, key, v);

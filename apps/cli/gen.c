@@ -6,6 +6,7 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 /* --shape takes a preset name or key=value pairs: "stocky", "height=1.6,girth=1.3,belly=0.6". */
 static int parse_shape(const char *shape, km_character_options *co) {
@@ -96,10 +97,13 @@ static int gen_character(int argc, char **argv) {
   return rc;
 }
 
-/* km_cli_load_character; *own: the character is a skinned glTF's own skin. */
+/* km_cli_load_character; *own: the character is a skinned glTF's own skin; unrigged (may be
+ * NULL: then a missing rig file is an error): set when no rig is given and MESH has no
+ * <stem>.rig.json, with only c->mesh read (the caller rigs it once it is in kinemesh's frame). */
 static km_status load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
-                                bool *own, km_error *err) {
+                                bool *own, bool *unrigged, km_error *err) {
   *own = false;
+  if (unrigged) *unrigged = false;
   if (!mesh) {
     km_character_options co = {0};
     co.target_vertices = vertices;
@@ -108,8 +112,16 @@ static km_status load_character(const char *mesh, const char *rig, size_t vertic
   km_status s = km_cli_skin_character("template", mesh, rig, c, own, err);
   if (s != KM_OK || *own) return s;
   char *rig_path = rig ? NULL : km_cli_rig_path(mesh);
+  if (!rig && !rig_path) return km_error_set(err, KM_ERR_NOMEM, "out of memory");
   s = km_mesh_read(mesh, &c->mesh, err);
-  if (s == KM_OK) s = km_character_read_rig(rig ? rig : rig_path, c->mesh.n_vertices, c, err);
+  if (s == KM_OK && !rig && access(rig_path, F_OK) != 0) {
+    if (unrigged)
+      *unrigged = true;
+    else
+      s = km_error_set(err, KM_ERR_IO, "%s has no rig (%s): make one with kinemesh rig %s", mesh,
+                       rig_path, mesh);
+  } else if (s == KM_OK)
+    s = km_character_read_rig(rig ? rig : rig_path, c->mesh.n_vertices, c, err);
   free(rig_path);
   return s;
 }
@@ -117,7 +129,7 @@ static km_status load_character(const char *mesh, const char *rig, size_t vertic
 km_status km_cli_load_character(const char *mesh, const char *rig, size_t vertices, km_character *c,
                                 km_error *err) {
   bool own;
-  return load_character(mesh, rig, vertices, c, &own, err);
+  return load_character(mesh, rig, vertices, c, &own, NULL, err);
 }
 
 int km_cli_load_character_oriented(const char *verb, const char *mesh, const char *rig,
@@ -126,26 +138,40 @@ int km_cli_load_character_oriented(const char *verb, const char *mesh, const cha
   km_frame id = {KM_AXIS_POS_Y, KM_AXIS_POS_Z, 0}, fr = id;
   if (f) *f = id;
   km_error err = {0};
-  bool own = false;
-  if (load_character(mesh, rig, vertices, c, &own, &err) != KM_OK) return km_cli_fail(verb, &err);
+  bool own = false, unrigged = false;
+  if (load_character(mesh, rig, vertices, c, &own, &unrigged, &err) != KM_OK)
+    return km_cli_fail(verb, &err);
   if (!mesh) return 0;
   km_cli_frame_opts o = fo ? *fo : (km_cli_frame_opts){0};
   if (!o.rig) o.rig = rig;
   int rc = km_cli_mesh_frame(verb, mesh, &o, &c->mesh, false, &fr, NULL);
   if (rc) return rc;
-  if (!own) {
+  if (!own && !unrigged) {
     /* The sidecar's joints are in kinemesh's axes and in the unit its "frame" records (the
      * file's own when none): --units other than that one rescales them with the mesh. */
     double k = (fr.scale > 0 ? fr.scale : 1) / km_cli_sidecar_scale(mesh, o.rig);
     for (size_t i = 0; k != 1 && i < 3 * c->skeleton.n_joints; ++i)
       c->skeleton.rest[i] *= k;
   }
-  if (fr.up == KM_AXIS_POS_Y && fr.forward == KM_AXIS_POS_Z && (fr.scale == 0 || fr.scale == 1))
-    return 0; /* already kinemesh's frame: the positions stay bit for bit */
-  if (km_mesh_frame_apply(&fr, &c->mesh, &err) != KM_OK ||
-      (own && km_frame_apply(&fr, c->skeleton.rest, c->skeleton.n_joints, NULL, 0, &err) != KM_OK))
-    return km_cli_fail(verb, &err);
-  if (f) *f = fr;
+  if (!(fr.up == KM_AXIS_POS_Y && fr.forward == KM_AXIS_POS_Z &&
+        (fr.scale == 0 || fr.scale == 1))) { /* else already kinemesh's frame: kept bit for bit */
+    if (km_mesh_frame_apply(&fr, &c->mesh, &err) != KM_OK ||
+        (own &&
+         km_frame_apply(&fr, c->skeleton.rest, c->skeleton.n_joints, NULL, 0, &err) != KM_OK))
+      return km_cli_fail(verb, &err);
+    if (f) *f = fr;
+  }
+  if (unrigged) { /* no rig file: one made on the spot, in kinemesh's frame */
+    char *def = km_cli_rig_path(mesh), then[1200];
+    snprintf(then, sizeof then, "kinemesh rig %s writes it, to edit", mesh);
+    km_mesh m = c->mesh;
+    c->mesh = (km_mesh){0}; /* km_cli_auto_rig frees *c, and the character copies m */
+    km_status s =
+        km_cli_auto_rig(verb, mesh, def ? def : "<stem>.rig.json", &m, stderr, then, c, &err);
+    km_mesh_free(&m);
+    free(def);
+    if (s != KM_OK) return km_cli_fail(verb, &err);
+  }
   return 0;
 }
 

@@ -32,24 +32,9 @@ static km_status auto_rig(const char *mesh_path, const km_mesh *m, const char *r
   bool own = false;
   km_status s = km_cli_skin_character("live", mesh_path, NULL, &c, &own, err);
   if (s != KM_OK) return s;
-  km_autorig_report rep;
-  if (!own) {
-    s = km_autorig(m, NULL, &c, &rep, err);
-    if (s != KM_OK) {
-      km_error_set(err, s,
-                   "%s has no rig (%s) and cannot be rigged automatically: %s; place handles "
-                   "by hand (kinemesh pick) in a rig file and pass --rig",
-                   mesh_path, rig_file, err->message);
-      return s;
-    }
-    printf("kinemesh live: no rig at %s: rigged %s as %s (kinemesh rig):", rig_file, mesh_path,
-           rep.kind == KM_AUTORIG_QUADRUPED ? "a quadruped"
-           : rep.kind == KM_AUTORIG_PROP    ? "a prop"
-                                            : "a humanoid");
-    for (size_t e = 0; e < rep.n_extremities; ++e)
-      if (rep.role[e][0]) printf(" %s at vertex %d", rep.role[e], (int)rep.extremity[e]);
-    printf("; \"save rig\" in the page writes it\n");
-  }
+  if (!own && (s = km_cli_auto_rig("live", mesh_path, rig_file, m, stdout,
+                                   "\"save rig\" in the page writes it", &c, err)) != KM_OK)
+    return s;
   s = km_character_rig_json(&c, json, size, err);
   km_character_free(&c);
   return s;

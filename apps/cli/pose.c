@@ -59,7 +59,8 @@ int km_cli_pose(int argc, char **argv) {
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames (default 1)"},
       KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm, compress),
       {"rig", 0, KM_OPT_STRING, &rig,
-       "its rig sidecar (default <mesh stem>.rig.json, else a glTF's own skin)"},
+       "its rig sidecar (default <mesh stem>.rig.json, else a glTF's own skin, else one made on "
+       "the spot as kinemesh rig makes it)"},
       {"motion", 0, KM_OPT_STRING, &motion,
        "take: .json (kinemesh), .csv (Kinect v1 recording), .bvh; joints matched by name"},
       {"scale", 0, KM_OPT_DOUBLE, &scale,

@@ -103,7 +103,9 @@ int km_cli_reconstruct(int argc, char **argv) {
        "the clouds' units (default: the template's)"},
       {"template", 't', KM_OPT_STRING, &tmpl,
        "template mesh with rig sidecar (default: procedural, --vertices)"},
-      {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
+      {"rig", 0, KM_OPT_STRING, &rig,
+       "its rig sidecar (default <stem>.rig.json, else a glTF's own skin, else "
+       "one made on the spot as kinemesh rig makes it)"},
       {"vertices", 'n', KM_OPT_SIZE, &vertices, "procedural template size (default 4000)"},
       {"clouds", 0, KM_OPT_STRING, &clouds, "point cloud frames: a directory or a quoted glob"},
       {"correspondences", 0, KM_OPT_STRING, &features,
