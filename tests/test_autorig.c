@@ -779,6 +779,17 @@ static void test_roles(const char *rel, km_autorig_skeleton want, double foot_ma
         CHECK_MSG(h > 0.3, "%s: %s at %.3f of the height (a foot's toe?)", rel, rep.role[e], h);
       if (head && want == KM_AUTORIG_KINECT1) /* a cat bowing to play holds its head low */
         CHECK_MSG(h > 0.75, "%s: head at %.3f of the height", rel, h);
+      /* SMPL's topology (FAUST registrations, the NPT bodies) names its fingertips: a hand is
+       * at its own (npt_14_664, arms raised behind it while its feet kick forward, had a bump
+       * at its hips for a right hand: 0.38 of the height, which the check above lets pass) */
+      if (hand && m.n_vertices == 6890) {
+        const double *q = m.V + 3 * (size_t)rep.extremity[e];
+        const double *tip = m.V + 3 * (rep.role[e][4] == 'L' ? 2445 : 5905);
+        double d = sqrt((q[0] - tip[0]) * (q[0] - tip[0]) + (q[1] - tip[1]) * (q[1] - tip[1]) +
+                        (q[2] - tip[2]) * (q[2] - tip[2]));
+        CHECK_MSG(d < 0.1 * (hi - lo), "%s: %s %.3f of the height from SMPL's fingertip", rel,
+                  rep.role[e], d / (hi - lo));
+      }
       roles += foot || hand || head;
     }
     CHECK_MSG(roles == 5, "%s: %d roles given", rel, roles);
@@ -836,6 +847,8 @@ int main(void) {
              0.1); /* bent forward, hands on its knees */
   test_roles("poses/npt_14_664.obj", KM_AUTORIG_KINECT1,
              0.25); /* a hand raised above the head, a foot 18 % up */
+  test_roles("poses/tr_reg_000.off", KM_AUTORIG_KINECT1, 0.1);
+  test_roles("poses/tr_reg_025.ply", KM_AUTORIG_KINECT1, 0.1);
   char buf[1024];
   const char *csv = km_test_shared("skeleton/precog_Seq1_1.csv", buf, sizeof buf);
   if (csv) {

@@ -30,6 +30,7 @@
 #define F_ELBOW_ARM 0.394
 #define F_WRIST_ARM 0.746
 #define F_HAND_ARM 0.859
+#define TAIL_T 0.3 /* a tail joins the body below this t (rig_humanoid's hands) */
 
 typedef struct rigger {
   const km_mesh *m;
@@ -348,8 +349,11 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
    *   pass 1: not a second tip of a foot nor joining the body down a leg (t >= -0.5: a toe
    *           or claw beside the one taken as the foot; armadillo_1k's left foot has both, and
    *           its other toe outscored the hand up by its ear), not reaching back behind the
-   *           feet by 0.2 of the height (a tail: the dinosaur's, and the cat standing up with
-   *           its paws raised overhead, whose left paw's tip is on the mid-line);
+   *           feet by 0.2 of the height while joining below TAIL_T (a tail: the dinosaur's,
+   *           and the cat standing up with its paws raised overhead, whose left paw's tip is on
+   *           the mid-line: t below 0.15; an arm joins at the shoulders, t 0.5-0.8, and reaches
+   * back behind feet kicked forward: SMPL's npt_14_664, leaning back with its arms raised behind,
+   *           lost its right hand to a bump on the mid-line at the hips);
    *   pass 2: any. */
   int hand_l = -1, hand_r = -1;
   double best_l = -1, best_r = -1, len_l = 0, len_r = 0;
@@ -366,8 +370,8 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
       double x = P(r, r->ext_v[e])[0] - xm;
       double len = 0.5 * (De[hv] + fmin(De[flv], De[frv]) - A);
       if (pass == 0 && (t > 0.9 || fabs(x) < 0.08 * r->H)) continue;
-      if (pass <= 1 && (t < -0.5 || P(r, r->ext_v[e])[2] < heel_z || same_limb(r, (int)e, foot_l) ||
-                        same_limb(r, (int)e, foot_r)))
+      if (pass <= 1 && (t < -0.5 || (P(r, r->ext_v[e])[2] < heel_z && t < TAIL_T) ||
+                        same_limb(r, (int)e, foot_l) || same_limb(r, (int)e, foot_r)))
         continue;
       double sc = fmax(len, 1e-9 * A) * (1 - fmin(t, 0.99));
       if (need_l && x > 0 && sc > best_l) best_l = sc, hand_l = (int)e, len_l = len;
