@@ -793,6 +793,19 @@ static void test_roles(const char *rel, km_autorig_skeleton want, double foot_ma
       roles += foot || hand || head;
     }
     CHECK_MSG(roles == 5, "%s: %d roles given", rel, roles);
+    /* a person's shoulders lie about 0.18 of the stature (feet to head top) below the head
+     * top, whatever the hands do (npt_14_664's raised hand made the mesh's height its stature:
+     * 0.08, the shoulders at its chin) */
+    if (m.n_vertices == 6890 && want == KM_AUTORIG_KINECT1) {
+      double top = -INFINITY;
+      for (size_t e = 0; e < rep.n_extremities; ++e)
+        if (!strcmp(rep.role[e], "Head")) top = m.V[3 * (size_t)rep.extremity[e] + 1];
+      double sc = c.skeleton.rest[3 * km_kinect1_joint_index("ShoulderCenter") + 1];
+      double f = (top - sc) / (top - lo);
+      printf("%s: shoulders %.3f of the stature below the head top\n", rel, f);
+      CHECK_MSG(f > 0.12 && f < 0.3, "%s: shoulders %.3f of the stature below the head top", rel,
+                f);
+    }
     /* The sidecar's head handle sits on the head: its vertices within 0.3 of the height of
      * the Head joint (it was a ball round the highest vertex: the walking cat's raised tail
      * tip, the raised hand of FAUST's npt_14_664). */

@@ -389,7 +389,13 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
   set_role(rep, hand_l, "HandLeft");
   set_role(rep, hand_r, "HandRight");
 
-  double *J = r->J, y0 = r->ymin, H = r->H, hw = 0.2 * H, xc = xm;
+  /* The body's proportions are fractions of its stature, feet to head top: a hand raised
+   * above the head is not the body's height (npt_14_664's, 0.22 of the mesh's height over its
+   * head, put its shoulders at its chin and its hips at its waist). */
+  double top_y = P(r, r->ext_v[head])[1], H = r->H;
+  if (fmax(P(r, r->ext_v[hand_l])[1], P(r, r->ext_v[hand_r])[1]) > top_y && top_y > r->ymin)
+    H = top_y - r->ymin;
+  double *J = r->J, y0 = r->ymin, hw = 0.2 * H, xc = xm;
   /* Heights: a person's proportions (fractions of H), unless the body says otherwise. The
    * legs part at the crotch, found as the ring of one foot at the distance where its
    * geodesics to the other foot and to the head part; the arms join where their ring near
@@ -414,7 +420,6 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
       if (root[1] < sh_y[side] - 0.12 * H) sh_y[side] = root[1];
     }
   }
-  double top_y = P(r, r->ext_v[head])[1];
   double hipc_y = hip_y + (F_HIP_C - F_HIP) * H;
   double sc_y = fmax(sh_y[0], sh_y[1]) + (F_SHOULDER_C - F_SHOULDER) * H;
   double knee_y = ankle_y + (F_KNEE - F_ANKLE) / (F_HIP - F_ANKLE) * (hip_y - ankle_y);
