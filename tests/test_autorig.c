@@ -793,6 +793,14 @@ static void test_roles(const char *rel, km_autorig_skeleton want, double foot_ma
       roles += foot || hand || head;
     }
     CHECK_MSG(roles == 5, "%s: %d roles given", rel, roles);
+    /* level shoulders (the decimated knight's right one was 5 % of its height below its left:
+     * inside the armpit) */
+    if (want == KM_AUTORIG_KINECT1) {
+      double yl = c.skeleton.rest[3 * km_kinect1_joint_index("ShoulderLeft") + 1],
+             yr = c.skeleton.rest[3 * km_kinect1_joint_index("ShoulderRight") + 1];
+      CHECK_MSG(fabs(yl - yr) < 0.01 * (hi - lo), "%s: shoulders %.3f and %.3f of the height", rel,
+                (yl - lo) / (hi - lo), (yr - lo) / (hi - lo));
+    }
     /* a person's shoulders lie about 0.18 of the stature (feet to head top) below the head
      * top, whatever the hands do (npt_14_664's raised hand made the mesh's height its stature:
      * 0.08, the shoulders at its chin) */
@@ -861,6 +869,7 @@ int main(void) {
   test_roles("poses/npt_14_664.obj", KM_AUTORIG_KINECT1,
              0.25); /* a hand raised above the head, a foot 18 % up */
   test_roles("poses/tr_reg_000.off", KM_AUTORIG_KINECT1, 0.1);
+  test_roles("meshes/decimated-knight.off", KM_AUTORIG_KINECT1, 0.1); /* Baran's own model */
   test_roles("poses/tr_reg_025.ply", KM_AUTORIG_KINECT1, 0.1);
   char buf[1024];
   const char *csv = km_test_shared("skeleton/precog_Seq1_1.csv", buf, sizeof buf);

@@ -420,6 +420,10 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
       if (root[1] < sh_y[side] - 0.12 * H) sh_y[side] = root[1];
     }
   }
+  /* Shoulders are level: the higher of the two (the decimated knight's rings from its two hands,
+   * 2.5 cm apart along its arms, put its right shoulder 5 % of its height below its left, inside
+   * the armpit); the shoulder centre already sat above the higher. */
+  sh_y[0] = sh_y[1] = fmax(sh_y[0], sh_y[1]);
   double hipc_y = hip_y + (F_HIP_C - F_HIP) * H;
   double sc_y = fmax(sh_y[0], sh_y[1]) + (F_SHOULDER_C - F_SHOULDER) * H;
   double knee_y = ankle_y + (F_KNEE - F_ANKLE) / (F_HIP - F_ANKLE) * (hip_y - ankle_y);
