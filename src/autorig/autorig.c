@@ -409,7 +409,17 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
     double crotch[3];
     if (cd > 0) {
       ring_centroid(r, (size_t)foot_l, cd, crotch);
-      if (crotch[1] + 0.065 * H < hip_y - 0.1 * H) hip_y = crotch[1] + 0.065 * H;
+      /* The hip joints at most 0.04 of the stature above the crotch ring, where a person's
+       * hip joint centres are (6-8 cm above the perineum). At a person's proportions (0.523)
+       * the procedural character's sat 0.069 above it and the armadillo's 0.088: a thigh
+       * swinging forward about a pivot that high drags the skin between the legs, which lies
+       * below it (a kick or a lunge: the character's crotch 2.1-2.2x). bench motion B, longest
+       * edge l/l0, the table's take order, before -> after: character
+       * 2.119/2.240/2.043/2.128/2.236 -> 1.817/1.988/1.755/1.857/1.972, armadillo
+       * 1.798/2.195/1.789/1.930/2.001 -> 1.763/2.144/1.784/1.972/1.846, elephant within
+       * 0.01. Lower still eases the crotch further (at the ring: character 1.56-1.68) but
+       * leaves a person's anatomy, and the generator's own skeleton (0.075 above it). */
+      hip_y = fmin(hip_y, crotch[1] + 0.04 * H);
     }
   }
   for (int side = 0; side < 2; ++side) {
