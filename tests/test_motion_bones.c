@@ -530,15 +530,25 @@ static void test_feet_on_floor(const fixture *fx) {
   for (size_t v = 0; v < fx->c.mesh.n_vertices; ++v)
     floor_y = fmin(floor_y, fx->c.mesh.V[3 * v + 1]);
   const double *J0 = fx->c.skeleton.rest;
-  double lowest[3];
-  for (int f = 0; f < 3 && X; ++f) {
+  /* the foot_left handle's vertices among the targets */
+  size_t off = 0, n_foot = 0;
+  for (size_t h = 0; h < rig.n_handles && !n_foot; ++h) {
+    if (!strcmp(rig.handles[h].name, "foot_left"))
+      n_foot = rig.handles[h].n_vertices;
+    else
+      off += rig.handles[h].n_vertices;
+  }
+  CHECK_MSG(n_foot >= 3, "no foot_left handle");
+  double *X0 = malloc(3 * nv * sizeof(double)), lowest[4], foot_turn = NAN;
+  for (int f = 0; f < 4 && X && X0; ++f) {
     memcpy(J, J0, sizeof J);
     if (f == 1)
       for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
         J[3 * j + 1] -= 0.1;
-    if (f == 2) { /* a squat: ankles and feet still, shins leaning 30 degrees forward, thighs
-                     30 degrees back, the upper body lowered with the hips */
-      double cs = cos(30 * M_PI / 180), sn = sin(30 * M_PI / 180), D[3] = {0, 0, 0};
+    if (f >= 2) { /* a squat: ankles and feet still, shins leaning 30 degrees forward, thighs
+                     30 degrees back, the upper body lowered with the hips; a deep one, 60 */
+      double ang = (f == 2 ? 30 : 60) * M_PI / 180;
+      double cs = cos(ang), sn = sin(ang), D[3] = {0, 0, 0};
       for (int k = 0; k < 2; ++k) {
         const int hip = k ? 16 : 12, knee = hip + 1, ankle = hip + 2;
         const double *a = J0 + 3 * ankle, *k0 = J0 + 3 * knee, *h0 = J0 + 3 * hip;
@@ -561,7 +571,21 @@ static void test_feet_on_floor(const fixture *fx) {
     lowest[f] = INFINITY;
     for (size_t k = 0; k < nv; ++k)
       lowest[f] = fmin(lowest[f], X[3 * k + 1]);
+    if (f == 0) memcpy(X0, X, 3 * nv * sizeof(double));
+    double R[9], t[3];
+    if (f == 3 && n_foot >= 3 &&
+        km_similarity_fit(X0 + 3 * off, X + 3 * off, NULL, n_foot, false, NULL, R, t, KM_E) ==
+            KM_OK)
+      foot_turn = acos(fmax(-1, fmin(1, 0.5 * (R[0] + R[4] + R[8] - 1)))) * 180 / M_PI;
   }
+  free(X0);
+  /* The deep squat: the flattening turns the foot at most 30 degrees off its shin's rotation (a
+   * foot held flat under a shin leaning far over it bent the ankle more than the skin between
+   * the foot handle and the shin band can take): the foot turns about 30 of the shin's 60. */
+  printf("  feet: a deep squat, shins leaning 60 deg forward: the foot turns %.1f deg\n",
+         foot_turn);
+  CHECK_MSG(foot_turn > 20 && foot_turn < 40,
+            "the foot under a shin leaning 60 deg turned %.1f deg (want about 30)", foot_turn);
   printf("  feet: lowest handle vertex above the rest floor %.4f (rest), %.4f (performer 0.1 m "
          "lower), %.4f (a squat, shins leaning 30 deg forward), diagonal %.3f\n",
          lowest[0] - floor_y, lowest[1] - floor_y, lowest[2] - floor_y, diag);
