@@ -336,15 +336,25 @@ static void test_demo(void) {
   km_test_run("rm -rf puppet_demo", NULL);
 }
 
+/* A fresh folder DIR with a generated character DIR/c.obj (and its rig) of `vertices` and a
+ * wave take DIR/w.json of `frames` frames for it. */
+static void character_and_wave(const char *dir, int vertices, int frames) {
+  char cmd[512];
+  snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir %s", dir, dir);
+  CHECK(km_test_run(cmd, NULL) == 0);
+  snprintf(cmd, sizeof cmd, KM_CLI " gen character --vertices %d -o %s/c.obj", vertices, dir);
+  CHECK(km_test_run(cmd, NULL) == 0);
+  snprintf(cmd, sizeof cmd,
+           KM_CLI " gen motion --kind wave --frames %d --character %s/c.obj -o %s/w.json", frames,
+           dir, dir);
+  CHECK(km_test_run(cmd, NULL) == 0);
+}
+
 /* precompute keeps an up-to-date cache and builds with its own parameters, which animate then
  * adopts; --frame-format ply; a motion without the joints a kinect1 rig maps is an error. */
 static void test_cache_params_and_formats(void) {
   char *out = NULL;
-  CHECK(km_test_run("rm -rf puppet_p && mkdir puppet_p", NULL) == 0);
-  CHECK(km_test_run(KM_CLI " gen character --vertices 2500 -o puppet_p/c.obj", NULL) == 0);
-  CHECK(km_test_run(KM_CLI " gen motion --kind wave --frames 12 --character puppet_p/c.obj -o "
-                           "puppet_p/w.json",
-                    NULL) == 0);
+  character_and_wave("puppet_p", 2500, 12);
   CHECK(km_test_run(KM_CLI " precompute puppet_p/c.obj --fields 6 --isolines 12", &out) == 0);
   CHECK_MSG(out && strstr(out, "6 fields x 12 isolines") && strstr(out, "built"), "%s",
             out ? out : "");
@@ -413,11 +423,7 @@ static double pc2_max_diff(const char *a, const char *b) {
  * cannot be rigged says so and why. */
 static void test_no_rig(void) {
   char *out = NULL;
-  CHECK(km_test_run("rm -rf puppet_n && mkdir puppet_n", NULL) == 0);
-  CHECK(km_test_run(KM_CLI " gen character --vertices 2000 -o puppet_n/c.obj", NULL) == 0);
-  CHECK(km_test_run(KM_CLI " gen motion --kind wave --frames 8 --character puppet_n/c.obj -o "
-                           "puppet_n/w.json",
-                    NULL) == 0);
+  character_and_wave("puppet_n", 2000, 8);
   CHECK(km_test_run("cp puppet_n/c.obj puppet_n/u.obj", NULL) == 0); /* the mesh alone */
   CHECK(km_test_run(KM_CLI " animate --mesh puppet_n/u.obj --motion puppet_n/w.json -o "
                            "puppet_n/auto.pc2",
