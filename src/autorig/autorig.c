@@ -351,9 +351,9 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
    *           its other toe outscored the hand up by its ear), not reaching back behind the
    *           feet by 0.2 of the height while joining below TAIL_T (a tail: the dinosaur's,
    *           and the cat standing up with its paws raised overhead, whose left paw's tip is on
-   *           the mid-line: t below 0.15; an arm joins at the shoulders, t 0.5-0.8, and reaches
-   * back behind feet kicked forward: SMPL's npt_14_664, leaning back with its arms raised behind,
-   *           lost its right hand to a bump on the mid-line at the hips);
+   *           the mid-line: t below 0.15; an arm joins at the shoulders, t 0.5-0.8, and may
+   *           reach back behind feet kicked forward: SMPL's npt_14_664, leaning back with its
+   *           arms raised behind it, lost its right hand to a bump at its hips);
    *   pass 2: any. */
   int hand_l = -1, hand_r = -1;
   double best_l = -1, best_r = -1, len_l = 0, len_r = 0;

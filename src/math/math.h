@@ -237,6 +237,15 @@ static inline void km__rot3_slerp(const double *A, const double *B, double alpha
   km__rot3_from_quat(q, out);
 }
 
+/* The angle (radians, 0 .. pi) of the rotation taking B to A (row-major 3x3 rotations):
+ * trace(A B^T) = 1 + 2 cos(angle). */
+static inline double km__rot3_angle_between(const double *A, const double *B) {
+  double tr = 0;
+  for (int i = 0; i < 9; ++i)
+    tr += A[i] * B[i];
+  return acos(fmax(-1.0, fmin(1.0, 0.5 * (tr - 1))));
+}
+
 /* Orthonormal frame of triangle (a,b,c) as rows: t (unit edge a->b), n x t, n (unit normal).
  * Returns twice the area (0: degenerate, frame undefined). */
 static inline double km__tri_frame(const double *a, const double *b, const double *c, double *F) {

@@ -505,12 +505,7 @@ static void ease(km_retarget *r) {
       dd[d] = r->disp[3 * h + d] - pd[d];
     double step = sqrt(km__dot3(dd, dd));
     if (r->rot && r->rot_joint[h] >= 0) {
-      const double *R = r->rot + 9 * h;
-      double tr = 0; /* trace(R R'^T) = 1 + 2 cos theta */
-      for (int i = 0; i < 9; ++i)
-        tr += R[i] * pR[i];
-      double c = fmax(-1.0, fmin(1.0, 0.5 * (tr - 1)));
-      step += 2 * sin(0.5 * acos(c)) * r->hv_radius[h];
+      step += 2 * sin(0.5 * km__rot3_angle_between(r->rot + 9 * h, pR)) * r->hv_radius[h];
     }
     worst = fmax(worst, step);
   }
@@ -1132,10 +1127,7 @@ static void flatten_foot(const km_retarget *r, int32_t ankle, double R[9]) {
    * ankle); frames with a vertex below the floor 0/0/0/244/93 -> 1/0/0/244/93, the character's
    * 0 -> 1 on precog_Seq1_1 and otherwise the same, the elephant's unchanged. 20 degrees: 1.727
    * and 1.811 / 1.737 but the elephant's foot under the floor in 17 frames of cmu_131_01. */
-  double c3 = 0; /* the angle between R and Ry: tr(R^T Ry) = 1 + 2 cos */
-  for (int i = 0; i < 9; ++i)
-    c3 += R[i] * Ry[i];
-  double ang = acos(fmax(-1, fmin(1, 0.5 * (c3 - 1)))), cap = 30 * M_PI / 180;
+  double ang = km__rot3_angle_between(R, Ry), cap = 30 * M_PI / 180;
   if (ang * w > cap) w = cap / ang;
   km__rot3_slerp(R, Ry, w, R);
 }
