@@ -150,9 +150,7 @@ int km_cli_animate(int argc, char **argv) {
   if (!rig_path && !skin_json && access(rig_default, F_OK) != 0) {
     /* no rig file: one made on the spot, as `kinemesh rig` would write it */
     km_character ac = {0};
-    char then[1200];
-    snprintf(then, sizeof then, "kinemesh rig %s writes it, to edit", mesh_path);
-    km_status as = km_cli_auto_rig("animate", mesh_path, rig_default, &m, stderr, then, &ac, &err);
+    km_status as = km_cli_auto_rig("animate", mesh_path, rig_default, &m, stderr, NULL, &ac, &err);
     if (as == KM_OK) as = km_character_rig_json(&ac, &skin_json, &skin_json_n, &err);
     km_character_free(&ac);
     if (as != KM_OK) goto fail;

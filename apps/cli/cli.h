@@ -145,9 +145,10 @@ km_status km_cli_skin_character(const char *verb, const char *mesh_path, const c
                                 km_character *c, bool *used, km_error *err);
 /* A rig made on the spot for a mesh that has none (issue 11: a user's own mesh animates, poses
  * or serves as a template with no rig file): km_autorig on m (in kinemesh's frame), what it
- * chose printed in one line on `say` (stdout or stderr) with `then` after it (how to keep it).
- * Nothing is written. *c (freed first) gets the character. On failure err says that the mesh
- * has no rig at rig_file and why km_autorig refused it. */
+ * chose printed in one line on `say` (stdout or stderr) with `then` after it (how to keep it;
+ * NULL: "kinemesh rig MESH writes it, to edit"). Nothing is written. *c (freed first) gets the
+ * character. On failure err says that the mesh has no rig at rig_file and why km_autorig refused
+ * it. */
 km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *rig_file,
                           const km_mesh *m, FILE *say, const char *then, km_character *c,
                           km_error *err);

@@ -290,7 +290,10 @@ km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *r
       sep = ", ";
     }
   if (rep.fallback[0]) fprintf(say, " (not a humanoid or quadruped: %s)", rep.fallback);
-  fprintf(say, "; %s\n", then);
+  if (then)
+    fprintf(say, "; %s\n", then);
+  else
+    fprintf(say, "; kinemesh rig %s writes it, to edit\n", mesh_path);
   return KM_OK;
 }
 
