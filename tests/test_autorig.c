@@ -339,7 +339,7 @@ static void test_real(const char *rel, km_axis up, km_axis forward, km_autorig_s
      * claws, free skin, were drawn out when a kick raised a foot or a hand rose (a hand or foot
      * handle now holds the whole hand or foot; on cmu_131_01 1.93x, the armpit). The elephant's
      * was 4.2x while its stubby limbs had bands touching at the elbows and knees
-     * (km_character_write_rig now gives such a limb a thin ring in its middle), the horse's 4.3x
+     * (km_character_write_rig now gives such a limb no band), the horse's 4.3x
      * while its forelegs swung as far as the performer's arms and 3.3x while its upper-leg
      * bands, trunk skin, dragged the belly with a swinging leg (a quadruped's rig now has no
      * upper-leg bands and limits each limb bone's swing to 30 degrees; dog0 was 2.2x), and 1.95x

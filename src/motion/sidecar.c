@@ -137,11 +137,11 @@ static bool upright_body(const km_skeleton *sk) {
 }
 
 /* Bands: every vertex goes to the bone segment nearest to it (of all the skeleton's bones);
- * a bone's band is its vertices whose projection falls in band_t of the segment (a thin ring
- * on a stubby limb, below), cut to the connected part (along faces) holding the band vertex
+ * a bone's band is its vertices whose projection falls in band_t of the segment (none on a
+ * stubby limb, below), cut to the connected part (along faces) holding the band vertex
  * nearest to the band's middle, and kept off the end handles' balls (centre ends[e], Euclidean
  * radius: the geodesic balls km_rig_parse grows are inside them). band[v] = the band of v, -1
- * none; *stubby: some limb bone is stubby (its band a thin ring, below); vj, vt (n, the
+ * none; *stubby: some limb bone is stubby (it has no band, below); vj, vt (n, the
  * caller's, filled): the child joint of each vertex's nearest bone (-1 none) and the vertex's
  * projection on it, 0..1. Returns false when out of memory. */
 static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends, double radius,
@@ -198,13 +198,18 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
    * length; where it is at least half the bone's length (the elephant's arms and legs: 0.76-0.97;
    * the character's 0.1-0.2, the armadillo's 0.27-0.47) no band fits between two free zones, and
    * the bands of upper arm and forearm touched at the elbow (thigh and shin at the knee, thighs
-   * across the crotch), whose edges tore to 4.7-7x when the joint bent (precog_Seq2_1). There the
-   * band is a thin ring around the bone's middle (0.45 .. 0.55), leaving each joint half of both
-   * bones; with no band at all, a stubby arm driven by its hand alone caved in to a cone. bench
-   * motion B, elephant, before -> after: stretch max 2.37/3.71/2.51/2.47/2.31 ->
-   * 1.31/1.14/1.10/0.98/1.11, folded triangles 664/719/695/500/426 -> 596/620/581/422/338 (the
-   * table's take order). Narrowing the bands of the slimmer limbs to free zones of one radius
-   * cost the armadillo stretch (precog_Seq3_2 1.10 -> 1.32), so they keep band_t. */
+   * across the crotch), whose edges tore to 4.7-7x when the joint bent (precog_Seq2_1). Such a
+   * bone has no band: its limb turns between the chest or pelvis band and the hand or foot
+   * handle, which turns with the elbow -> hand (knee -> foot) line. A thin ring around the
+   * bone's middle (0.45 .. 0.55) was tried before: on the elephant's coarse mesh it came apart
+   * along faces and the cut below kept 1-4 of its 9-45 vertices, a point pinned in free skin
+   * where the longest edge sat (precog_Seq3_2: 1.53x beside the right upper arm's two); the
+   * whole ring, pinned rigid, was worse (longest edge 1.62/1.62/1.66/1.51/1.51x). bench motion
+   * B, elephant, the table's take order, ring -> no band: longest edge
+   * 1.444/1.445/1.530/1.434/1.426 -> 1.440/1.450/1.430/1.416/1.408x, shortest
+   * 0.416/0.447/0.406/0.392/0.403 -> 0.455/0.438/0.403/0.364/0.374x, no fold before or after.
+   * Narrowing the bands of the slimmer limbs to free zones of one radius cost the armadillo
+   * stretch (precog_Seq3_2 1.10 -> 1.32), so they keep band_t. */
   /* A quadruped's upper arm and thigh lie inside its trunk (a horse's humerus and femur): their
    * bands were trunk skin, and a swinging leg dragged the chest and belly with it (the horse on
    * precog_Seq1_1: the underside of the chest stretched 3.35x, a web to a foreleg swung level).
@@ -217,17 +222,15 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
   if (!upright)
     for (int b = 0; b < N_LIMB_BANDS; b += 2)
       bone_ok[b] = 0;
-  double bt[N_BANDS][2];
-  for (int b = 0; b < N_BANDS; ++b) {
-    bt[b][0] = band_t[b][0], bt[b][1] = band_t[b][1];
-    if (!bone_ok[b] || b >= N_LIMB_BANDS) continue; /* the spine's bands hold a torso */
+  for (int b = 0; b < N_LIMB_BANDS; ++b) { /* the spine's bands hold a torso */
+    if (!bone_ok[b]) continue;
     size_t k = 0;
     for (size_t v = 0; v < n; ++v)
       if (vj[v] == jb[b] && vt[v] > 0.2 && vt[v] < 0.8) dists[k++] = vd[v];
     double len = dist3(sk->rest + 3 * (size_t)ja[b], sk->rest + 3 * (size_t)jb[b]);
     if (!k || !(len > 0)) continue;
     qsort(dists, k, sizeof(double), km__cmp_double);
-    if (dists[k / 2] >= 0.5 * len) bt[b][0] = 0.45, bt[b][1] = 0.55, *stubby = true;
+    if (dists[k / 2] >= 0.5 * len) bone_ok[b] = 0, *stubby = true;
   }
   /* A ring's limb radius at its joint (the nearest vertex); the ring is the part within twice
    * that of the joint (a t of 1 or 0 is also every vertex beyond the bone's end, the elephant's
@@ -262,9 +265,9 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
     int jmin = vj[v];
     double tmin = vt[v];
     for (int b = 0; b < N_BANDS; ++b)
-      if (bone_ok[b] && jmin == jb[b] && tmin >= bt[b][0] && tmin <= bt[b][1]) {
+      if (bone_ok[b] && jmin == jb[b] && tmin >= band_t[b][0] && tmin <= band_t[b][1]) {
         band[v] = (int8_t)b;
-        double mid = fabs(tmin - 0.5 * (bt[b][0] + bt[b][1])) + vd[v];
+        double mid = fabs(tmin - 0.5 * (band_t[b][0] + band_t[b][1])) + vd[v];
         if (mid < best[b]) best[b] = mid, seed[b] = (int32_t)v;
       }
     for (int b = N_BANDS; b < N_BONE_HANDLES; ++b) { /* ring: jb's parent is the middle joint */
