@@ -1132,9 +1132,9 @@ typedef struct km_rig {
                               neck or head bone (turned by its rotation since the first frame) at
                               most this far from where its parent carries its first direction (0: no
                               limit). kinemesh rig writes 30 for a body that is not upright (a
-                              quadruped's legs do not reach where a person's arms do) and for
-                              one with a stubby limb (radius half its bone or more: the
-                              elephant's) */
+                              quadruped's legs do not reach where a person's arms do) and 12
+                              for an upright one with a stubby limb (radius half its bone or
+                              more: the elephant's) */
   double upper_limb_limit; /* "upper_limb_limit": degrees, with aim on a kinect1 skeleton: an
                               upper arm or thigh (the bone ending at an elbow or knee) swings at
                               most this far from where its parent carries its rest direction

@@ -346,11 +346,11 @@ static void test_real(const char *rel, km_axis up, km_axis forward, km_autorig_s
      * (dog0 1.65x) while its upper legs, inside the trunk, swung 30 degrees: the rig now holds
      * them to 5 ("upper_limb_limit") and its elbows and knees to 20 ("bend_limit"). The
      * elephant's was 2.3x while its stubby limbs swung as far as a person's (a body with a
-     * stubby limb now has "swing_limit" 30 and "upper_limb_limit" 15). */
+     * stubby limb now has "swing_limit" 12 and "upper_limb_limit" 15). */
     drive(rel, &m, &c, take, NULL, NULL, max_stretch);
     if (m.n_vertices < 10000) {
       /* animate --solver full (offline: soft handles, full-space ARAP) keeps every edge under
-       * 1.5x: the elephant's worst edge 1.43x reduced, 1.26x full (1.645x and 1.396x before
+       * 1.5x: the elephant's worst edge 1.33x reduced, 1.19x full (1.645x and 1.396x before
        * "girdle_limit"; bench motion --solver full on this take, before it: dog0 1.444x, the
        * horse 1.332x; not driven here, at 90-150 ms a frame) */
       char label[512];

@@ -182,7 +182,7 @@ write:
     }
     if (rig.swing_limit > 0) {
       printf("%s every bone swings at most %g deg from where its parent carries it "
-             "(\"swing_limit\": not an upright body, or a stubby limb)",
+             "(\"swing_limit\": 30 for a body that is not upright, 12 for a stubby limb)",
              sep, rig.swing_limit);
       sep = ";";
     }
