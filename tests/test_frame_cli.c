@@ -186,6 +186,26 @@ static void test_reconstruct(void) {
     km_points_free(&p);
   }
   km_paths_free(&paths, n);
+  /* the z-up copy as the subject (its sidecar's frame): the same truth, in kinemesh's frame */
+  run_ok(KM_CLI " gen capture --character " DIR "/cz.obj --motion " DIR "/w3.json --cameras 6 "
+                "--points 2000 --noise-mm 1 -o " DIR "/frames_cz");
+  double dz = pc2_diff(DIR "/frames/truth.pc2", DIR "/frames_cz/truth.pc2");
+  CHECK_MSG(dz < 1e-5, "gen capture: the z-up subject's truth is %g m off the original's", dz);
+  /* and gen motion, whose take is the character's skeleton in kinemesh's frame */
+  run_ok(KM_CLI " gen motion --kind walk --frames 4 --character " DIR "/cz.obj -o " DIR
+                "/walk_z.json");
+  run_ok(KM_CLI " gen motion --kind walk --frames 4 --character " DIR "/c.obj -o " DIR
+                "/walk_y.json");
+  km_take ty = {0}, tz = {0};
+  CHECK_OK(km_motion_read(DIR "/walk_y.json", NULL, &ty, NULL, KM_E));
+  CHECK_OK(km_motion_read(DIR "/walk_z.json", NULL, &tz, NULL, KM_E));
+  CHECK(ty.n_frames == 4 && tz.n_frames == 4 && ty.n_joints == tz.n_joints);
+  double wz = ty.n_frames == tz.n_frames && ty.n_joints == tz.n_joints ? 0 : INFINITY;
+  for (size_t i = 0; isfinite(wz) && i < 3 * ty.n_frames * ty.n_joints; ++i)
+    wz = fmax(wz, fabs(ty.positions[i] - tz.positions[i]));
+  CHECK_MSG(wz < 1e-6, "gen motion: the z-up character's take is %g m off", wz);
+  km_take_free(&ty);
+  km_take_free(&tz);
   run_ok(KM_CLI " reconstruct --template " DIR "/c.obj --clouds '" DIR
                 "/frames/frame_*.ply' --coarse 800 -o " DIR "/rec_y.pc2");
   /* the template's sidecar frame, and the clouds taken in the template file's frame */

@@ -177,7 +177,11 @@ int km_cli_load_character_oriented(const char *verb, const char *mesh, const cha
 static int gen_motion(int argc, char **argv) {
   const char *kind = "kungfu", *out = NULL, *rig = NULL, *character = NULL;
   size_t frames = 150;
+  /* The character is brought into kinemesh's frame as animate brings it (a mesh with no rig
+   * file is rigged on the spot, and needs its up axis for that); the take is in that frame. */
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      KM_CLI_FRAME_OPTIONS(fo),
       {"kind", 0, KM_OPT_STRING, &kind, "walk, wave or kungfu (default kungfu)"},
       {"frames", 'f', KM_OPT_SIZE, &frames, "number of frames at 30 Hz (default 150)"},
       {"character", 'c', KM_OPT_STRING, &character,
@@ -206,9 +210,12 @@ static int gen_motion(int argc, char **argv) {
   km_error err = {0};
   km_character c = {0};
   km_take t = {0};
-  int rc = KM_EXIT_OK;
-  if (km_cli_load_character(character, rig, 2000, &c, &err) != KM_OK ||
-      km_motion_generate(&c.skeleton, mk, frames, &t, &err) != KM_OK ||
+  int rc = km_cli_load_character_oriented("gen motion", character, rig, 2000, &fo, &c, NULL);
+  if (rc) {
+    km_character_free(&c);
+    return rc;
+  }
+  if (km_motion_generate(&c.skeleton, mk, frames, &t, &err) != KM_OK ||
       km_take_write(out, &t, &err) != KM_OK)
     rc = km_cli_fail("gen motion", &err);
   else
@@ -223,9 +230,16 @@ int km_cli_gen_capture(int argc, char **argv) {
   const char *character = NULL, *rig = NULL, *kind = "kungfu", *out = NULL, *motion = NULL;
   size_t frames = 60, cameras = 8, points = 30000, seed = 1, vertices = 8000;
   double noise = 2;
+  /* The subject is brought into kinemesh's frame as animate brings it, the take by
+   * --motion-up/--motion-forward; the clouds and the truth are written in kinemesh's frame
+   * (y up, facing +z, metres), as reconstruct's output is. */
+  km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
+      KM_CLI_FRAME_OPTIONS(fo),
+      KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"character", 'c', KM_OPT_STRING, &character,
-       "subject mesh with a rig sidecar (default: procedural, --vertices)"},
+       "subject mesh (default: procedural, --vertices); its rig sidecar, a glTF's own skin, or "
+       "one made on the spot as kinemesh rig makes it"},
       {"rig", 0, KM_OPT_STRING, &rig, "its rig sidecar (default <stem>.rig.json)"},
       {"vertices", 'n', KM_OPT_SIZE, &vertices, "procedural subject size (default 8000)"},
       {"motion", 'm', KM_OPT_STRING, &motion,
@@ -246,7 +260,8 @@ int km_cli_gen_capture(int argc, char **argv) {
       "Ray-casts the animated character from depth cameras (Embree): one binary\n"
       "PLY point cloud per frame with occlusion holes and noise, plus the\n"
       "ground truth as DIR/truth.pc2 (faces: DIR/truth_rest.obj, which a\n"
-      "directory or 'DIR/*.ply' given to reconstruct does not read as a frame).");
+      "directory or 'DIR/*.ply' given to reconstruct does not read as a frame),\n"
+      "all in kinemesh's frame (y up, facing +z, metres).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!out) return km_cli_error("gen capture", "-o DIR is required");
   km_motion_kind mk = !strcmp(kind, "walk")     ? KM_MOTION_WALK
@@ -262,12 +277,17 @@ int km_cli_gen_capture(int argc, char **argv) {
                            .points_per_frame = points,
                            .noise_mm = noise > 0 ? noise : -1,
                            .seed = seed};
-  co.progress = km_cli_progress("capture");
   double t0 = km_cli_now();
-  if (km_cli_load_character(character, rig, vertices, &c, &err) ||
-      (motion ? km_motion_read(motion, NULL, &take, NULL, &err)
-              : km_motion_generate(&c.skeleton, mk, frames, &take, &err)) ||
-      km_capture_simulate(&c, &take, &co, out, &err))
+  if ((rc = km_cli_load_character_oriented("gen capture", character, rig, vertices, &fo, &c, NULL)))
+    goto done;
+  if (motion ? km_motion_read(motion, NULL, &take, NULL, &err)
+             : km_motion_generate(&c.skeleton, mk, frames, &take, &err)) {
+    rc = km_cli_fail("gen capture", &err);
+    goto done;
+  }
+  if (motion && (rc = km_cli_orient_take("gen capture", &fo, &take))) goto done;
+  co.progress = km_cli_progress("capture");
+  if (km_capture_simulate(&c, &take, &co, out, &err))
     rc = km_cli_fail("gen capture", &err);
   else
     fprintf(stderr,
@@ -275,6 +295,7 @@ int km_cli_gen_capture(int argc, char **argv) {
             "truth_rest.obj\n",
             take.n_frames, km_cli_now() - t0, out);
   km_cli_progress_done();
+done:
   km_take_free(&take);
   km_character_free(&c);
   return rc;
