@@ -641,11 +641,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
   if (!a->full) snprintf(model_s, sizeof model_s, "model %.2f s", t_model);
   if (!a->json)
     printf("# %s: %zu vertices, %s, rigged as %s (%zu handles) in %.2f s, %s\n", mname,
-           m.n_vertices, note,
-           rep.kind == KM_AUTORIG_QUADRUPED ? "quadruped"
-           : rep.kind == KM_AUTORIG_PROP    ? "prop"
-                                            : "humanoid",
-           rig.n_handles, t_rig, model_s);
+           m.n_vertices, note, km_autorig_kind_name(rep.kind), rig.n_handles, t_rig, model_s);
   for (size_t i = 0; i < n_takes; ++i) {
     const char *tname = base_name(takes[i]);
     km_take t = {0};

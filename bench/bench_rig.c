@@ -65,7 +65,7 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
     tw[i] = km_cli_now() - t0;
   }
   double mt = km_cli_median(t, repeat), mw = km_cli_median(tw, repeat);
-  const char *kind = rep.kind == KM_AUTORIG_QUADRUPED ? "quadruped" : "humanoid";
+  const char *kind = km_autorig_kind_name(rep.kind);
   char machine[320];
   km_bench_machine(machine, sizeof machine);
   if (json) {

@@ -525,6 +525,14 @@ typedef struct km_mesh_info {
  *   out  out: counts and bounding box */
 km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *err);
 
+/* Boundary loops: the connected groups of boundary edges (edges used by exactly one face).
+ *   m        in: mesh, #V vertices, #F faces
+ *   loop     out: #V (the caller's): the loop through vertex v, 0 .. n_loops-1 in the order of
+ *            each loop's lowest vertex id, -1 for a vertex on no boundary edge (a closed mesh:
+ *            all -1). Two holes that touch at a vertex are one loop.
+ *   n_loops  out: the number of loops */
+km_status km_boundary_loops(const km_mesh *m, int32_t *loop, size_t *n_loops, km_error *err);
+
 /* Mean and maximum point-to-point distance |A_i - B_i|.
  *   A, B       in: n*3 positions each
  *   mean, max  out: the statistics (0 for n == 0) */
@@ -2574,10 +2582,16 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * non-manifold edges (three or more faces), too few extremities for the requested skeleton (kinect1
  * or quadruped asked for), a surface too small for five separate handles. */
 typedef enum km_autorig_skeleton {
-  KM_AUTORIG_AUTO = 0,  /* humanoid or quadruped from where the extremities are, else prop */
+  KM_AUTORIG_AUTO = 0,  /* a bust when it has a bust's cut; else humanoid or quadruped from
+                           where the extremities are, else prop */
   KM_AUTORIG_KINECT1,   /* humanoid: Kinect v1 joints embedded in the body */
   KM_AUTORIG_QUADRUPED, /* four limbs and a head mapped onto the Kinect v1 joints */
-  KM_AUTORIG_PROP       /* a bust, an object: five handle points by position (below) */
+  KM_AUTORIG_PROP,      /* an object: five handle points by position (below) */
+  KM_AUTORIG_BUST       /* a bust: an open cut at its bottom (a boundary loop within 0.06 of
+                           the height of the lowest vertex, 0.3 of the width wide); the Kinect
+                           v1 joints placed in its neck, head and shoulders (arms and legs
+                           folded into the shoulders and the base); the rig sidecar's handles:
+                           the head, turning with the neck, and the base, held still */
 } km_autorig_skeleton;
 
 #define KM_AUTORIG_MAX_EXTREMITIES 16
@@ -2604,7 +2618,7 @@ typedef struct km_autorig_options {
 
 /* What km_autorig chose (the library never prints: the caller reports it). */
 typedef struct km_autorig_report {
-  km_autorig_skeleton kind; /* KM_AUTORIG_KINECT1 (humanoid), _QUADRUPED or _PROP */
+  km_autorig_skeleton kind; /* KM_AUTORIG_KINECT1 (humanoid), _QUADRUPED, _PROP or _BUST */
   size_t n_extremities;
   int32_t extremity[KM_AUTORIG_MAX_EXTREMITIES];         /* vertex ids, most prominent first */
   double extremity_distance[KM_AUTORIG_MAX_EXTREMITIES]; /* geodesic prominence, metres */
@@ -2617,6 +2631,10 @@ typedef struct km_autorig_report {
   char fallback[256];
   km_autorig_skin skin; /* the weights written: KM_AUTORIG_SKIN_DISTANCE or _REACH */
 } km_autorig_report;
+
+/* The kind's name: "humanoid" (KM_AUTORIG_KINECT1), "quadruped", "prop", "bust"; "auto" for
+ * KM_AUTORIG_AUTO; "unknown" otherwise. */
+const char *km_autorig_kind_name(km_autorig_skeleton kind);
 
 /* Rigs a mesh.
  *   m       in: triangle mesh, #V vertices, #F faces (one component, manifold edges)

@@ -278,11 +278,8 @@ km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *r
   }
   km_character_free(c);
   *c = tmp;
-  fprintf(say, "kinemesh %s: no rig at %s: rigged %s as %s in %.2f s:", verb, rig_file, mesh_path,
-          rep.kind == KM_AUTORIG_QUADRUPED ? "a quadruped"
-          : rep.kind == KM_AUTORIG_PROP    ? "a prop"
-                                           : "a humanoid",
-          rep.seconds);
+  fprintf(say, "kinemesh %s: no rig at %s: rigged %s as a %s in %.2f s:", verb, rig_file, mesh_path,
+          km_autorig_kind_name(rep.kind), rep.seconds);
   const char *sep = " ";
   for (size_t e = 0; e < rep.n_extremities; ++e)
     if (rep.role[e][0]) {

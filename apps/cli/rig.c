@@ -41,8 +41,9 @@ int km_cli_rig(int argc, char **argv) {
       KM_CLI_FRAME_OPTIONS(fo),
       {"output", 'o', KM_OPT_STRING, &out, "rig sidecar to write (default MESH.rig.json)"},
       {"skeleton", 0, KM_OPT_STRING, &skel,
-       "auto (default: a skinned glTF's own skin, else humanoid or quadruped from the "
-       "extremities, else prop), kinect1 (humanoid), quadruped or prop (handles by position)"},
+       "auto (default: a skinned glTF's own skin, else a bust when it has an open cut at its "
+       "bottom, else humanoid or quadruped from the extremities, else prop), kinect1 "
+       "(humanoid), quadruped, prop (handles by position) or bust"},
       {"weights", 0, KM_OPT_STRING, &weights,
        "skin weights: distance (by the distance to the bones, what reconstruct expects; the "
        "default for a humanoid or prop) or reach (also limited along the surface: an ear "
@@ -53,24 +54,26 @@ int km_cli_rig(int argc, char **argv) {
   };
   const char *pos[1];
   int n_pos;
-  int r =
-      km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
-                   "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop] "
-                   "[--weights distance|reach] [--up +z --forward -y]",
-                   "Rigs a mesh kinemesh did not make: finds its extremities (geodesic\n"
-                   "extremes), embeds the 20 Kinect v1 joints in its interior, computes\n"
-                   "skin weights and the 16 landmarks, and writes the rig sidecar that\n"
-                   "animate, live, pose and reconstruct read (skeleton, skin, landmarks and\n"
-                   "a puppetry rig: handles at the head, hands and feet). A quadruped's\n"
-                   "front limbs take the hands, its hind limbs the feet, its highest other\n"
-                   "extremity the head. A mesh with neither (a bust, an object) gets five\n"
-                   "handles by position: highest -> head, upper sides -> hands, lower sides\n"
-                   "-> feet. The mesh is rigged in kinemesh's frame (y up, facing +z): its up\n"
-                   "and forward axes come from --up/--forward, else are guessed (printed);\n"
-                   "the sidecar records them (\"frame\") and holds the joints in that frame,\n"
-                   "so animate and live orient the mesh the same way. A skinned glTF is rigged\n"
-                   "from its own skeleton and weights (joint names mapped from Mixamo, VRM /\n"
-                   "Unity HumanBodyBones or rigify) unless --skeleton names another.");
+  int r = km_cli_parse(
+      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
+      "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop|bust] "
+      "[--weights distance|reach] [--up +z --forward -y]",
+      "Rigs a mesh kinemesh did not make: finds its extremities (geodesic\n"
+      "extremes), embeds the 20 Kinect v1 joints in its interior, computes\n"
+      "skin weights and the 16 landmarks, and writes the rig sidecar that\n"
+      "animate, live, pose and reconstruct read (skeleton, skin, landmarks and\n"
+      "a puppetry rig: handles at the head, hands and feet). A quadruped's\n"
+      "front limbs take the hands, its hind limbs the feet, its highest other\n"
+      "extremity the head. A bust (an open cut at its bottom) gets a head\n"
+      "handle that turns with the performer's neck and a base that stays. A mesh\n"
+      "with none of these (an object) gets five handles by position: highest ->\n"
+      "head, upper sides -> hands, lower sides -> feet. The mesh is rigged in kinemesh's frame (y "
+      "up, facing +z): its up\n"
+      "and forward axes come from --up/--forward, else are guessed (printed);\n"
+      "the sidecar records them (\"frame\") and holds the joints in that frame,\n"
+      "so animate and live orient the mesh the same way. A skinned glTF is rigged\n"
+      "from its own skeleton and weights (joint names mapped from Mixamo, VRM /\n"
+      "Unity HumanBodyBones or rigify) unless --skeleton names another.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (n_pos != 1) return km_cli_error("rig", "expected one MESH");
   km_autorig_options o = {0};
@@ -82,8 +85,11 @@ int km_cli_rig(int argc, char **argv) {
     o.skeleton = KM_AUTORIG_QUADRUPED;
   else if (!strcmp(skel, "prop"))
     o.skeleton = KM_AUTORIG_PROP;
+  else if (!strcmp(skel, "bust"))
+    o.skeleton = KM_AUTORIG_BUST;
   else
-    return km_cli_error("rig", "--skeleton %s: expected auto, kinect1, quadruped or prop", skel);
+    return km_cli_error("rig", "--skeleton %s: expected auto, kinect1, quadruped, prop or bust",
+                        skel);
   if (km_cli_parse_weights("rig", weights, &o.skin)) return KM_EXIT_USAGE;
   o.min_extremity = min_ext;
   km_error err = {0};
@@ -134,6 +140,8 @@ int km_cli_rig(int argc, char **argv) {
          rep.height,
          rep.kind == KM_AUTORIG_QUADRUPED ? "a quadruped"
          : rep.kind == KM_AUTORIG_PROP    ? "a prop (handles by position)"
+         : rep.kind == KM_AUTORIG_BUST    ? "a bust (the head turns with the neck, the base "
+                                            "stays)"
                                           : "a humanoid (kinect1)",
          rep.seconds);
   printf(rep.kind == KM_AUTORIG_PROP ? "extremities and handle points:\n"
@@ -182,7 +190,8 @@ write:
     }
     if (rig.swing_limit > 0) {
       printf("%s every bone swings at most %g deg from where its parent carries it "
-             "(\"swing_limit\": 30 for a body that is not upright, 12 for a stubby limb)",
+             "(\"swing_limit\": 30 for a body that is not upright, 12 for a stubby limb, 45 for a "
+             "bust's neck)",
              sep, rig.swing_limit);
       sep = ";";
     }

@@ -648,6 +648,98 @@ static km_status rig_prop(rigger *r, km_autorig_report *rep, km_error *err) {
   return KM_OK;
 }
 
+/* Bust (an open cut at its bottom, km__bust_base): the torso joints on the mid-line of the
+ * height slices (HipCenter at the cut, ShoulderCenter at the neck: the narrowest slice between
+ * 0.2 and 0.85 of the height, Head half way from there to the top), the shoulders at 0.35 of
+ * the width on either side of the highest slice below the neck that is 0.8 as wide as the
+ * widest there, the arms folded into the shoulders and the
+ * legs into the base (short bones that no handle drives; bust_skin gives their weights to the
+ * shoulders and HipCenter). */
+#define BUST_SLICES 24
+static km_status rig_bust(rigger *r, km_autorig_report *rep, km_error *err) {
+  double lo[BUST_SLICES], hi[BUST_SLICES], sx[BUST_SLICES] = {0}, sz[BUST_SLICES] = {0},
+                                           cnt[BUST_SLICES] = {0};
+  for (int i = 0; i < BUST_SLICES; ++i)
+    lo[i] = DBL_MAX, hi[i] = -DBL_MAX;
+  int32_t top = -1;
+  for (size_t v = 0; v < r->n; ++v) {
+    if (!r->on_face[v]) continue;
+    const double *p = P(r, (int32_t)v);
+    int i = (int)((p[1] - r->ymin) / r->H * BUST_SLICES);
+    i = i < 0 ? 0 : i >= BUST_SLICES ? BUST_SLICES - 1 : i;
+    lo[i] = fmin(lo[i], p[0]), hi[i] = fmax(hi[i], p[0]);
+    sx[i] += p[0], sz[i] += p[2], cnt[i] += 1;
+    if (top < 0 || p[1] > P(r, top)[1]) top = (int32_t)v;
+  }
+  int neck = -1, shoulder = -1;
+  for (int i = (int)(0.2 * BUST_SLICES); i <= (int)(0.85 * BUST_SLICES); ++i)
+    if (cnt[i] > 0 && (neck < 0 || hi[i] - lo[i] < hi[neck] - lo[neck])) neck = i;
+  if (neck < 0 || top < 0)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH, "rig: the bust has no vertices at its neck");
+  double wmax = 0; /* the shoulders: the highest slice below the neck at 0.8 of its widest */
+  for (int i = 0; i < neck; ++i)
+    if (cnt[i] > 0) wmax = fmax(wmax, hi[i] - lo[i]);
+  for (int i = neck - 1; i >= 0 && shoulder < 0; --i)
+    if (cnt[i] > 0 && hi[i] - lo[i] >= 0.8 * wmax) shoulder = i;
+  if (shoulder < 0) shoulder = neck;
+  int base = 0;
+  while (base < neck && cnt[base] <= 0)
+    ++base;
+  double slice = r->H / BUST_SLICES, *J = r->J;
+#define MID(i, a) (a == 0 ? sx[i] / cnt[i] : sz[i] / cnt[i])
+  double yneck = r->ymin + (neck + 0.5) * slice, ysh = r->ymin + (shoulder + 0.5) * slice;
+  set3(J + 3 * J_HIP_C, MID(base, 0), r->ymin, MID(base, 2));
+  set3(J + 3 * J_SHOULDER_C, MID(neck, 0), yneck, MID(neck, 2));
+  for (int k = 0; k < 3; ++k)
+    J[3 * J_SPINE + k] = 0.5 * (J[3 * J_HIP_C + k] + J[3 * J_SHOULDER_C + k]);
+  double hx = 0, hz = 0, hn = 0;
+  for (int i = neck + 1; i < BUST_SLICES; ++i)
+    hx += sx[i], hz += sz[i], hn += cnt[i];
+  set3(J + 3 * J_HEAD, hn > 0 ? hx / hn : MID(neck, 0), 0.5 * (yneck + P(r, top)[1]),
+       hn > 0 ? hz / hn : MID(neck, 2));
+  double cx = MID(shoulder, 0), cz = MID(shoulder, 2), w = hi[shoulder] - lo[shoulder];
+  double hb = 0.15 * (hi[base] - lo[base]);
+#undef MID
+  for (int side = 0; side < 2; ++side) {
+    double sgn = side ? -1 : 1; /* kinemesh's frame faces +z: the left is +x */
+    int j0 = side ? J_SHOULDER_R : J_SHOULDER_L, h0 = side ? J_HIP_R : J_HIP_L;
+    static const double arm[4] = {0.35, 0.40, 0.43, 0.45};
+    for (int k = 0; k < 4; ++k)
+      set3(J + 3 * (j0 + k), cx + sgn * arm[k] * w, ysh - 0.02 * k * r->H, cz);
+    for (int k = 0; k < 4; ++k)
+      set3(J + 3 * (h0 + k), J[3 * J_HIP_C] + sgn * hb, r->ymin + 0.03 * (3 - k) * r->H,
+           J[3 * J_HIP_C + 2] + (k == 3 ? 0.02 * r->H : 0));
+  }
+  r->tip[J_HEAD] = top;
+  if (rep) {
+    rep->n_extremities = 1;
+    rep->extremity[0] = top;
+    rep->extremity_distance[0] = 0;
+    snprintf(rep->role[0], sizeof rep->role[0], "Head");
+  }
+  return KM_OK;
+}
+
+/* A bust's skin: the weights of the arms' joints below the shoulders go to the shoulder, the
+ * legs' to HipCenter (bones folded into the body that no handle drives). */
+static void bust_skin(km_skin *skin, size_t n) {
+  for (size_t v = 0; v < n; ++v) {
+    int32_t *jv = skin->joints + KM_SKIN_INFLUENCES * v;
+    double *wv = skin->weights + KM_SKIN_INFLUENCES * v;
+    for (int k = 0; k < KM_SKIN_INFLUENCES; ++k) {
+      int32_t j = jv[k];
+      if (j >= J_ELBOW_L && j <= J_HAND_L) jv[k] = J_SHOULDER_L;
+      if (j >= J_ELBOW_R && j <= J_HAND_R) jv[k] = J_SHOULDER_R;
+      if (j >= J_HIP_L && j <= J_FOOT_R) jv[k] = J_HIP_C;
+    }
+    for (int a = 0; a < KM_SKIN_INFLUENCES; ++a) /* one entry per joint */
+      for (int b = a + 1; b < KM_SKIN_INFLUENCES; ++b)
+        if (wv[b] > 0 && jv[b] == jv[a]) wv[a] += wv[b], wv[b] = 0;
+    for (int a = 0; a < KM_SKIN_INFLUENCES; ++a) /* a sum of 0.7 and 0.3 may pass 1 */
+      if (wv[a] > 1) wv[a] = 1;
+  }
+}
+
 /* ---------------------------------------------------------------- skin */
 
 static double seg_dist(const double *p, const double *a, const double *b) {
@@ -994,6 +1086,17 @@ static int ground_legs(const rigger *r) {
   return legs;
 }
 
+const char *km_autorig_kind_name(km_autorig_skeleton kind) {
+  switch (kind) {
+  case KM_AUTORIG_AUTO: return "auto";
+  case KM_AUTORIG_KINECT1: return "humanoid";
+  case KM_AUTORIG_QUADRUPED: return "quadruped";
+  case KM_AUTORIG_PROP: return "prop";
+  case KM_AUTORIG_BUST: return "bust";
+  }
+  return "unknown";
+}
+
 km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_character *out,
                      km_autorig_report *report, km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "rig: NULL output");
@@ -1032,8 +1135,17 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
     free(r.on_face);
     return st;
   }
-  st = find_extremities(&r, &o, err);
   km_autorig_skeleton kind = o.skeleton;
+  bool bust = false;
+  double cut_top;
+  if (kind == KM_AUTORIG_AUTO || kind == KM_AUTORIG_BUST)
+    st = km__bust_base(m, &bust, &cut_top, err);
+  if (st == KM_OK && kind == KM_AUTORIG_BUST && !bust)
+    st = km__fail(err, KM_ERR_DEGENERATE_MESH,
+                  "rig: not a bust: no open cut at its bottom (a boundary loop within 0.06 of "
+                  "the height of the lowest vertex, 0.3 of the width wide)");
+  if (st == KM_OK && bust && kind == KM_AUTORIG_AUTO) kind = KM_AUTORIG_BUST;
+  if (st == KM_OK && kind != KM_AUTORIG_BUST) st = find_extremities(&r, &o, err);
   if (st == KM_OK && kind == KM_AUTORIG_AUTO)
     kind = ground_legs(&r) >= 3 ? KM_AUTORIG_QUADRUPED : KM_AUTORIG_KINECT1;
   if (report) {
@@ -1044,7 +1156,9 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
     memcpy(report->extremity_distance, r.ext_d, sizeof r.ext_d);
   }
   if (st == KM_OK) {
-    if (kind == KM_AUTORIG_PROP)
+    if (kind == KM_AUTORIG_BUST)
+      st = rig_bust(&r, report, err);
+    else if (kind == KM_AUTORIG_PROP)
       st = rig_prop(&r, report, err);
     else
       st = kind == KM_AUTORIG_QUADRUPED ? rig_quadruped(&r, report, err)
@@ -1087,6 +1201,7 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
                                                           : KM_AUTORIG_SKIN_DISTANCE;
     if (report) report->skin = skin;
     st = compute_skin(&r, skin == KM_AUTORIG_SKIN_REACH, &out->skin, err);
+    if (st == KM_OK && kind == KM_AUTORIG_BUST) bust_skin(&out->skin, r.n);
   }
   if (st == KM_OK) {
     double fwd[3] = {0, 0, 1};

@@ -4,6 +4,7 @@
  * qsort: the keys are plain 64-bit integers and 8 byte-passes beat a comparison sort's
  * indirect calls by ~5x at a million faces. No dependency in the project offers one. */
 #include "core/core.h"
+#include "mesh/mesh.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -303,4 +304,92 @@ void km_vertex_distance_stats(const double *A, const double *B, size_t n, double
   }
   *mean = n ? s / (double)n : 0;
   *max = m;
+}
+
+km_status km_boundary_loops(const km_mesh *m, int32_t *loop, size_t *n_loops, km_error *err) {
+  if (!loop || !n_loops) return km__fail(err, KM_ERR_INVALID, "km_boundary_loops: NULL output");
+  *n_loops = 0;
+  km_status s = check_faces(m, "km_boundary_loops", err);
+  if (s) return s;
+  size_t nv = m->n_vertices, nf = m->n_faces;
+  uint64_t *keys = km__malloc(nf ? nf * 3 : 1, sizeof *keys);
+  uint64_t *tmp = km__malloc(nf ? nf * 3 : 1, sizeof *tmp);
+  int32_t *parent = km__malloc(nv ? nv : 1, sizeof *parent);
+  if (!keys || !tmp || !parent) {
+    free(keys), free(tmp), free(parent);
+    return km__fail(err, KM_ERR_NOMEM, "km_boundary_loops: out of memory for %zu faces", nf);
+  }
+  size_t nk = 0;
+  for (size_t f = 0; f < nf; ++f)
+    nk += face_edges(m->F + 3 * f, keys + nk);
+  radix_sort_u64(keys, tmp, nk);
+  for (size_t v = 0; v < nv; ++v)
+    parent[v] = (int32_t)v, loop[v] = -1;
+  for (size_t i = 0; i < nk;) {
+    size_t j = i + 1;
+    while (j < nk && keys[j] == keys[i])
+      ++j;
+    if (j - i == 1) {
+      int32_t a = (int32_t)(keys[i] >> 32), b = (int32_t)(keys[i] & 0xffffffffu);
+      uf_union(parent, a, b);
+      loop[a] = loop[b] = 0; /* on a boundary; labelled below */
+    }
+    i = j;
+  }
+  /* label each root once, in the order of the loops' lowest vertex ids */
+  for (size_t v = 0; v < nv; ++v)
+    if (loop[v] == 0) loop[v] = -2; /* on a boundary, not yet labelled */
+  for (size_t v = 0; v < nv; ++v) {
+    if (loop[v] != -2) continue;
+    int32_t r = uf_find(parent, (int32_t)v);
+    if (loop[r] < 0) loop[r] = (int32_t)(*n_loops)++;
+    loop[v] = loop[r];
+  }
+  free(keys), free(tmp), free(parent);
+  return KM_OK;
+}
+
+km_status km__bust_base(const km_mesh *m, bool *found, double *cut_top, km_error *err) {
+  *found = false;
+  *cut_top = NAN;
+  if (!m || !m->n_vertices || !m->n_faces) return KM_OK;
+  int32_t *loop = km__malloc(m->n_vertices, sizeof *loop);
+  if (!loop) return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  size_t nl = 0;
+  km_status s = km_boundary_loops(m, loop, &nl, err);
+  if (s != KM_OK || nl == 0) {
+    free(loop);
+    return s;
+  }
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t i = 0; i < 3 * m->n_faces; ++i)
+    for (int k = 0; k < 3; ++k) {
+      double x = m->V[3 * (size_t)m->F[i] + (size_t)k];
+      lo[k] = fmin(lo[k], x), hi[k] = fmax(hi[k], x);
+    }
+  double H = hi[1] - lo[1], W = hi[0] - lo[0], best = 0;
+  double *xlo = km__malloc(nl, sizeof *xlo), *xhi = km__malloc(nl, sizeof *xhi),
+         *yhi = km__malloc(nl, sizeof *yhi);
+  if (!xlo || !xhi || !yhi) {
+    free(loop), free(xlo), free(xhi), free(yhi);
+    return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  }
+  for (size_t l = 0; l < nl; ++l)
+    xlo[l] = INFINITY, xhi[l] = yhi[l] = -INFINITY;
+  for (size_t v = 0; v < m->n_vertices; ++v) {
+    if (loop[v] < 0) continue;
+    const double *p = m->V + 3 * v;
+    size_t l = (size_t)loop[v];
+    xlo[l] = fmin(xlo[l], p[0]), xhi[l] = fmax(xhi[l], p[0]), yhi[l] = fmax(yhi[l], p[1]);
+  }
+  for (size_t l = 0; l < nl && H > 0 && W > 0; ++l) {
+    double span = xhi[l] - xlo[l];
+    if (yhi[l] - lo[1] <= 0.06 * H && span >= 0.3 * W && span > best) {
+      best = span;
+      *found = true;
+      *cut_top = yhi[l];
+    }
+  }
+  free(loop), free(xlo), free(xhi), free(yhi);
+  return KM_OK;
 }

@@ -310,6 +310,11 @@ typedef struct rig_plan {
   int bone_ok[N_BONE_HANDLES];
   bool upright;
   bool stubby; /* some limb's radius is half its bone or more (bone_bands) */
+  /* A bust (km__bust_base: an open cut at its bottom): a head handle turning with the neck and
+   * a base anchor instead of the end handles and bands (bust_handles) */
+  bool bust;
+  int32_t *base_list; /* the base anchor's vertices */
+  size_t n_base;
 } rig_plan;
 
 static km_status rig_plan_make(const char *path, const km_character *c, rig_plan *p, km_error *err);
@@ -317,6 +322,8 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
 static void plan_free(rig_plan *p) {
   free(p->band);
   p->band = NULL;
+  free(p->base_list);
+  p->base_list = NULL;
   for (int h = 0; h < 5; ++h) {
     free(p->end_list[h]);
     p->end_list[h] = NULL;
@@ -450,6 +457,62 @@ done:
   return st;
 }
 
+/* A bust's handles: the head (end_list[0]: the vertices above the middle of the neck bone,
+ * ShoulderCenter -> Head, joined to the top vertex along faces), held rigid and turned with
+ * the performer's neck, and the base (the vertices within 0.15 of the height of the bottom,
+ * off the head, every k-th of at most BAND_MAX) held still: a bust stands on its cut. With the
+ * quadruped's or a prop's hands and feet on the corners of its cut, a performer's steps
+ * crumpled its chest. */
+static km_status bust_handles(const km_character *c, rig_plan *p, km_error *err) {
+  const km_mesh *m = &c->mesh;
+  const km_skeleton *sk = &c->skeleton;
+  size_t n = m->n_vertices;
+  int sc = skel_joint(sk, "ShoulderCenter"), hd = skel_joint(sk, "Head");
+  if (sc < 0 || hd < 0)
+    return km__fail(err, KM_ERR_INVALID, "rig: a bust needs ShoulderCenter and Head joints");
+  double ymin = DBL_MAX, ymax = -DBL_MAX;
+  for (size_t v = 0; v < n; ++v)
+    ymin = fmin(ymin, m->V[3 * v + 1]), ymax = fmax(ymax, m->V[3 * v + 1]);
+  double yneck = 0.5 * (sk->rest[3 * (size_t)sc + 1] + sk->rest[3 * (size_t)hd + 1]);
+  double ybase = ymin + 0.15 * (ymax - ymin);
+  int32_t *uf = km__malloc(n, sizeof(int32_t));
+  p->end_list[0] = km__malloc(n, sizeof(int32_t));
+  p->base_list = km__malloc(n, sizeof(int32_t));
+  if (!uf || !p->end_list[0] || !p->base_list) {
+    free(uf);
+    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  }
+  for (size_t v = 0; v < n; ++v)
+    uf[v] = (int32_t)v;
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int k = 0; k < 3; ++k) {
+      int32_t a = m->F[3 * f + k], b = m->F[3 * f + (k + 1) % 3];
+      if (m->V[3 * (size_t)a + 1] >= yneck && m->V[3 * (size_t)b + 1] >= yneck)
+        uf[uf_find(uf, a)] = uf_find(uf, b);
+    }
+  int32_t top = uf_find(uf, (int32_t)p->handle_vertex[0]);
+  size_t base_all = 0;
+  for (size_t v = 0; v < n; ++v) {
+    double y = m->V[3 * v + 1];
+    if (y >= yneck && uf_find(uf, (int32_t)v) == top)
+      p->end_list[0][p->n_end[0]++] = (int32_t)v;
+    else if (y <= ybase)
+      ++base_all;
+  }
+  size_t every = (base_all + BAND_MAX - 1) / BAND_MAX, i = 0;
+  for (size_t v = 0; v < n && every; ++v) {
+    double y = m->V[3 * v + 1];
+    if ((y >= yneck && uf_find(uf, (int32_t)v) == top) || y > ybase) continue;
+    if (i++ % every == 0) p->base_list[p->n_base++] = (int32_t)v;
+  }
+  free(uf);
+  if (!p->n_end[0] || !p->n_base)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: the bust's head (above y %.4g) or base (below y %.4g) has no vertex",
+                    yneck, ybase);
+  return KM_OK;
+}
+
 /* Checks c and places the handles; p->band is the caller's to free. */
 static km_status rig_plan_make(const char *path, const km_character *c, rig_plan *p,
                                km_error *err) {
@@ -497,6 +560,16 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
     p->handle_vertex[h] = li >= 0 ? c->landmarks[li].vertex : (long)top;
   }
   p->upright = upright_body(sk);
+  double cut_top;
+  km_status bs = km__bust_base(m, &p->bust, &cut_top, err);
+  if (bs != KM_OK) return bs;
+  if (p->bust) {
+    if ((bs = bust_handles(c, p, err)) != KM_OK) {
+      plan_free(p);
+      return km__wrap(err, bs, "%s", path);
+    }
+    return KM_OK;
+  }
   p->band = km__malloc(n, 1);
   int32_t ends[5];
   for (int h = 0; h < 5; ++h)
@@ -554,6 +627,21 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
   fputs("]},\n\"landmarks\":", f);
   km__landmarks_write_json(f, c->landmarks, KM_CHARACTER_LANDMARKS);
   fputs(",\n\"handles\":[", f);
+  if (p->bust) { /* the head turns with the neck about the root, the base stays */
+    fputs("\n{\"name\":\"head\",\"vertices\":[", f);
+    for (size_t k = 0; k < p->n_end[0]; ++k)
+      fprintf(f, k ? ",%d" : "%d", p->end_list[0][k]);
+    fputs("]},\n{\"name\":\"base\",\"vertices\":[", f);
+    for (size_t k = 0; k < p->n_base; ++k)
+      fprintf(f, k ? ",%d" : "%d", p->base_list[k]);
+    /* A bust's neck turns at most 45 degrees from where the chest carries its first
+     * direction: a performer bending over would fold the head into the chest. */
+    fputs("]}],\n\"map\":[{\"handle\":\"head\",\"bone\":[\"ShoulderCenter\",\"Head\"]}],"
+          "\n\"relative_to\":\"HipCenter\",\"swing_limit\":45,"
+          "\"filter\":{\"smoothing\":0.5,\"trend\":0.5}}\n",
+          f);
+    return;
+  }
   for (int h = 0; h < 5; ++h) {
     if (p->end_list[h]) {
       fprintf(f, "%s\n{\"name\":\"%s\",\"vertices\":[", h ? "," : "", handle_names[h]);
