@@ -1,5 +1,6 @@
-/* km_mesh_info_compute, km_bbox_diagonal and km_adjacency_list on hand-made meshes whose
- * counts are known by construction, and against brute-force recounts on random meshes. */
+/* km_mesh_info_compute, km_bbox_diagonal, km_adjacency_list and km_boundary_loops on hand-made
+ * meshes whose counts are known by construction, and against brute-force recounts on random meshes.
+ */
 #include "core/core.h"
 #include "km_test.h"
 #include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
@@ -304,7 +305,62 @@ static void test_farthest_points(void) {
   km_mesh_free(&s);
 }
 
+/* km_boundary_loops: none on a closed mesh; a grid with a hole in its middle has its outer
+ * loop (4 n vertices, numbered first: it holds vertex 0) and the hole's (4); two triangles
+ * touching at a vertex make one loop. */
+static void test_boundary_loops(void) {
+  const double V[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1, 0};
+  const int32_t T[] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+  km_mesh m = make(4, V, 4, T);
+  int32_t loop[64];
+  size_t nl = 99;
+  CHECK_OK(km_boundary_loops(&m, loop, &nl, KM_E));
+  CHECK(nl == 0);
+  for (int v = 0; v < 4; ++v)
+    CHECK(loop[v] == -1);
+  km_mesh_free(&m);
+  const int n = 5; /* 6 x 6 vertices, the middle quad (2, 2) removed */
+  CHECK_OK(km_mesh_alloc((size_t)((n + 1) * (n + 1)), (size_t)(2 * n * n - 2), &m, KM_E));
+  for (int y = 0; m.V && y <= n; ++y)
+    for (int x = 0; x <= n; ++x) {
+      double *p = m.V + 3 * (y * (n + 1) + x);
+      p[0] = x, p[1] = y, p[2] = 0;
+    }
+  int32_t *f = m.F;
+  for (int y = 0; f && y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      if (x == 2 && y == 2) continue;
+      int32_t a = y * (n + 1) + x, b = a + 1, c = a + n + 2, d = a + n + 1;
+      f[0] = a, f[1] = b, f[2] = c, f[3] = a, f[4] = c, f[5] = d;
+      f += 6;
+    }
+  CHECK_OK(km_boundary_loops(&m, loop, &nl, KM_E));
+  CHECK(nl == 2);
+  size_t on[2] = {0, 0}, off = 0;
+  for (int v = 0; v < (n + 1) * (n + 1); ++v) {
+    if (loop[v] < 0) {
+      ++off;
+      continue;
+    }
+    if (loop[v] < 2) ++on[loop[v]];
+    int x = v % (n + 1), y = v / (n + 1);
+    bool outer = x == 0 || y == 0 || x == n || y == n;
+    CHECK_MSG(loop[v] == (outer ? 0 : 1), "vertex %d (%d, %d) in loop %d", v, x, y, loop[v]);
+  }
+  CHECK(on[0] == 4 * (size_t)n && on[1] == 4 && off == 36 - 20 - 4);
+  km_mesh_free(&m);
+  const int32_t B[] = {0, 1, 4, 0, 2, 3}; /* bowtie: triangles touching at vertex 0 */
+  m = make(5, V, 2, B);
+  CHECK_OK(km_boundary_loops(&m, loop, &nl, KM_E));
+  CHECK(nl == 1);
+  for (int v = 0; v < 5; ++v)
+    CHECK(loop[v] == 0);
+  CHECK_STATUS(km_boundary_loops(&m, NULL, &nl, KM_E), KM_ERR_INVALID);
+  km_mesh_free(&m);
+}
+
 int main(void) {
+  test_boundary_loops();
   test_farthest_points();
   test_tetrahedron();
   test_open_square_and_extras();
