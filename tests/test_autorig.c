@@ -593,6 +593,34 @@ static void test_bust(const km_take *take) {
   cut_below(&body, 0.7, &m);
   km_mesh_free(&body);
   if (!m.V) return;
+  /* Its axes, as a modelling tool stores a bust (centred, standing on y = 0): up from the cut
+   * on the ground plane, forward's sign from the jaw ahead of the neck (FAUST faces +z), also
+   * when it faces -z */
+  km_mesh g = {0};
+  CHECK_OK(km_mesh_copy(&m, &g, KM_E));
+  if (g.V) {
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < g.n_vertices; ++v)
+      for (int k = 0; k < 3; ++k)
+        lo[k] = fmin(lo[k], g.V[3 * v + k]), hi[k] = fmax(hi[k], g.V[3 * v + k]);
+    for (int turn = 0; turn < 2; ++turn) {
+      for (size_t v = 0; v < g.n_vertices; ++v) {
+        double *q = g.V + 3 * v;
+        if (turn) { /* half a turn about y */
+          q[0] = -q[0], q[2] = -q[2];
+          continue;
+        }
+        q[0] -= 0.5 * (lo[0] + hi[0]), q[1] -= lo[1], q[2] -= 0.5 * (lo[2] + hi[2]);
+      }
+      km_frame_guess fg;
+      CHECK_OK(km_mesh_frame_guess(&g, &fg, KM_E));
+      km_axis want = turn ? KM_AXIS_NEG_Z : KM_AXIS_POS_Z;
+      CHECK_MSG(fg.frame.up == KM_AXIS_POS_Y && fg.frame.forward == want,
+                "the bust (turn %d): up %s forward %s (%s)", turn, km_axis_name(fg.frame.up),
+                km_axis_name(fg.frame.forward), fg.why);
+    }
+  }
+  km_mesh_free(&g);
   CHECK_OK(km_autorig(&m, NULL, &c, &rep, KM_E));
   CHECK_MSG(rep.kind == KM_AUTORIG_BUST, "the bust rigged as a %s", km_autorig_kind_name(rep.kind));
   if (c.skeleton.rest && rep.kind == KM_AUTORIG_BUST) {

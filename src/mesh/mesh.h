@@ -35,6 +35,10 @@ void km__geodesic_free(km__geodesic **g);
  * the mesh's width (x extent): a bust's chest or neck cut, not the small holes of a scan's
  * soles. *found: whether there is one; *cut_top: the highest y of the widest such loop. */
 km_status km__bust_base(const km_mesh *m, bool *found, double *cut_top, km_error *err);
+/* The same in a mesh's own axes: up (0..2: x, y, z) pointing up_sign (+1, -1), widths along
+ * lat (the lateral axis); *cut_top along up as stored. */
+km_status km__bust_base_axes(const km_mesh *m, int up, int up_sign, int lat, bool *found,
+                             double *cut_top, km_error *err);
 
 /* One accessor of a glTF (.glb, or .gltf with data: URIs) in memory, as doubles: any component
  * type (KHR_mesh_quantization's byte / short, normalized or not, as the specification reads

@@ -350,6 +350,11 @@ km_status km_boundary_loops(const km_mesh *m, int32_t *loop, size_t *n_loops, km
 }
 
 km_status km__bust_base(const km_mesh *m, bool *found, double *cut_top, km_error *err) {
+  return km__bust_base_axes(m, 1, 1, 0, found, cut_top, err);
+}
+
+km_status km__bust_base_axes(const km_mesh *m, int up, int up_sign, int lat, bool *found,
+                             double *cut_top, km_error *err) {
   *found = false;
   *cut_top = NAN;
   if (!m || !m->n_vertices || !m->n_faces) return KM_OK;
@@ -367,7 +372,9 @@ km_status km__bust_base(const km_mesh *m, bool *found, double *cut_top, km_error
       double x = m->V[3 * (size_t)m->F[i] + (size_t)k];
       lo[k] = fmin(lo[k], x), hi[k] = fmax(hi[k], x);
     }
-  double H = hi[1] - lo[1], W = hi[0] - lo[0], best = 0;
+  /* heights along up counted upwards (negated for a negative up) */
+  double H = hi[up] - lo[up], W = hi[lat] - lo[lat], best = 0,
+         bottom = up_sign > 0 ? lo[up] : -hi[up];
   double *xlo = km__malloc(nl, sizeof *xlo), *xhi = km__malloc(nl, sizeof *xhi),
          *yhi = km__malloc(nl, sizeof *yhi);
   if (!xlo || !xhi || !yhi) {
@@ -380,14 +387,15 @@ km_status km__bust_base(const km_mesh *m, bool *found, double *cut_top, km_error
     if (loop[v] < 0) continue;
     const double *p = m->V + 3 * v;
     size_t l = (size_t)loop[v];
-    xlo[l] = fmin(xlo[l], p[0]), xhi[l] = fmax(xhi[l], p[0]), yhi[l] = fmax(yhi[l], p[1]);
+    double y = up_sign > 0 ? p[up] : -p[up];
+    xlo[l] = fmin(xlo[l], p[lat]), xhi[l] = fmax(xhi[l], p[lat]), yhi[l] = fmax(yhi[l], y);
   }
   for (size_t l = 0; l < nl && H > 0 && W > 0; ++l) {
     double span = xhi[l] - xlo[l];
-    if (yhi[l] - lo[1] <= 0.06 * H && span >= 0.3 * W && span > best) {
+    if (yhi[l] - bottom <= 0.06 * H && span >= 0.3 * W && span > best) {
       best = span;
       *found = true;
-      *cut_top = yhi[l];
+      *cut_top = up_sign > 0 ? yhi[l] : -yhi[l];
     }
   }
   free(loop), free(xlo), free(xhi), free(yhi);
