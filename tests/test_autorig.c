@@ -678,6 +678,52 @@ static void test_bust(const km_take *take) {
   }
   km_character_free(&c);
   km_mesh_free(&m);
+  /* A head cut at its neck (the top 13 %): a bust whose neck is its cut, its head handle most
+   * of it (the neck was taken at the crown's narrowing, and the head handle was 16 vertices) */
+  CHECK_OK(km_mesh_read(path, &body, KM_E));
+  if (body.V) cut_below(&body, 0.87, &m);
+  km_mesh_free(&body);
+  if (m.V) {
+    CHECK_OK(km_autorig(&m, NULL, &c, &rep, KM_E));
+    CHECK_MSG(rep.kind == KM_AUTORIG_BUST, "the head rigged as a %s",
+              km_autorig_kind_name(rep.kind));
+    char *json = NULL;
+    size_t size = 0;
+    km_rig rig = {0};
+    if (c.skeleton.rest) CHECK_OK(km_character_rig_json(&c, &json, &size, KM_E));
+    if (json) CHECK_OK(km_rig_parse(json, size, "head", &m, NULL, 0, &rig, KM_E));
+    free(json);
+    CHECK_MSG(rig.n_handles == 2 && rig.handles[0].n_vertices > m.n_vertices / 2,
+              "the head's handle: %zu of %zu vertices",
+              rig.n_handles ? rig.handles[0].n_vertices : 0, m.n_vertices);
+    km_rig_free(&rig);
+    km_character_free(&c);
+    km_mesh_free(&m);
+  }
+}
+
+/* An upper body with its arms reaching out (the procedural character, T-posed, cut at the
+ * waist) is open at its bottom but no bust: its hands stand out from the cut. */
+static void test_not_bust(void) {
+  km_character_options co = {0};
+  co.target_vertices = 4000;
+  km_character full = {0}, c = {0};
+  CHECK_OK(km_character_generate(&co, &full, KM_E));
+  km_mesh m = {0};
+  if (full.mesh.V) cut_below(&full.mesh, 0.55, &m);
+  km_character_free(&full);
+  if (!m.V) return;
+  bool found = false;
+  km_autorig_report rep;
+  km_status st = km_autorig(&m, NULL, &c, &rep, KM_E);
+  if (st == KM_OK) {
+    found = true;
+    CHECK_MSG(rep.kind != KM_AUTORIG_BUST, "the T-posed upper body rigged as a %s",
+              km_autorig_kind_name(rep.kind));
+  }
+  CHECK_MSG(found, "the upper body: %s", km_test_err.message);
+  km_character_free(&c);
+  km_mesh_free(&m);
 }
 
 /* A prop (an ellipsoid: no limbs) gets five handles by position, and puppetry runs on it. */
@@ -990,6 +1036,7 @@ static void test_roles(const char *rel, km_autorig_skeleton want, double foot_ma
 }
 
 int main(void) {
+  test_not_bust();
   if (!mkdtemp(g_dir)) {
     perror("mkdtemp");
     return 1;

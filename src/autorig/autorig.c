@@ -649,9 +649,9 @@ static km_status rig_prop(rigger *r, km_autorig_report *rep, km_error *err) {
 }
 
 /* Bust (an open cut at its bottom, km__bust_base): the torso joints on the mid-line of the
- * height slices (HipCenter at the cut, ShoulderCenter at the neck: the narrowest slice between
- * 0.2 and 0.85 of the height, Head half way from there to the top), the shoulders at 0.35 of
- * the width on either side of the highest slice below the neck that is 0.8 as wide as the
+ * height slices (HipCenter at the cut, ShoulderCenter at the neck: below the head's widest
+ * slice, the narrowest above the shoulders, Head half way from there to the top), the shoulders at
+ * 0.35 of the width on either side of the highest slice below the neck that is 0.8 as wide as the
  * widest there, the arms folded into the shoulders and the
  * legs into the base (short bones that no handle drives; bust_skin gives their weights to the
  * shoulders and HipCenter). */
@@ -671,9 +671,24 @@ static km_status rig_bust(rigger *r, km_autorig_report *rep, km_error *err) {
     sx[i] += p[0], sz[i] += p[2], cnt[i] += 1;
     if (top < 0 || p[1] > P(r, top)[1]) top = (int32_t)v;
   }
+  /* The neck: from the top down, past the head's widest slice, the narrowest before the
+   * width grows a quarter again (the shoulders) or the cut is reached (a head cut at its
+   * neck) */
   int neck = -1, shoulder = -1;
-  for (int i = (int)(0.2 * BUST_SLICES); i <= (int)(0.85 * BUST_SLICES); ++i)
-    if (cnt[i] > 0 && (neck < 0 || hi[i] - lo[i] < hi[neck] - lo[neck])) neck = i;
+  double wpeak = 0, wmin = DBL_MAX;
+  for (int i = BUST_SLICES - 1; i >= 0; --i) {
+    if (!(cnt[i] > 0)) continue;
+    double w = hi[i] - lo[i];
+    if (neck < 0 && w >= wpeak) { /* still widening: the head */
+      wpeak = w;
+      continue;
+    }
+    if (w < wmin) wmin = w, neck = i;
+    if (w > 1.25 * wmin) break;
+  }
+  if (neck < 0) /* a shape that only widens downwards: the middle */
+    for (int i = BUST_SLICES / 2; i >= 0 && neck < 0; --i)
+      if (cnt[i] > 0) neck = i;
   if (neck < 0 || top < 0)
     return km__fail(err, KM_ERR_DEGENERATE_MESH, "rig: the bust has no vertices at its neck");
   double wmax = 0; /* the shoulders: the highest slice below the neck at 0.8 of its widest */
@@ -1136,7 +1151,7 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
     return st;
   }
   km_autorig_skeleton kind = o.skeleton;
-  bool bust = false;
+  bool bust = false, searched = false;
   double cut_top;
   if (kind == KM_AUTORIG_AUTO || kind == KM_AUTORIG_BUST)
     st = km__bust_base(m, &bust, &cut_top, err);
@@ -1144,8 +1159,39 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
     st = km__fail(err, KM_ERR_DEGENERATE_MESH,
                   "rig: not a bust: no open cut at its bottom (a boundary loop within 0.06 of "
                   "the height of the lowest vertex, 0.3 of the width wide)");
-  if (st == KM_OK && bust && kind == KM_AUTORIG_AUTO) kind = KM_AUTORIG_BUST;
-  if (st == KM_OK && kind != KM_AUTORIG_BUST) st = find_extremities(&r, &o, err);
+  if (st == KM_OK && bust && kind == KM_AUTORIG_AUTO) {
+    /* An upper body with free limbs (a T-posed character cut at the waist: two hands far
+     * above the cut) is not a bust: its arms would be left to hang. Extremities other than the
+     * highest, 0.2 of the height above the cut and farther from the cut's middle (across the
+     * height) than twice the cut's width (limbs reaching out; a head cut at its neck reaches
+     * 1.2 neck widths with its nose and the back of its skull): two or more, and it is rigged
+     * by its extremities as before. A bust's extremities are its head and the corners of its cut;
+     * one with too few for that is a bust all the same. */
+    km_error ee = {0};
+    searched = true;
+    if (find_extremities(&r, &o, &ee) == KM_OK) {
+      int free_tips = 0, top = -1;
+      for (size_t e = 0; e < r.n_ext; ++e)
+        if (top < 0 || P(&r, r.ext_v[e])[1] > P(&r, r.ext_v[top])[1]) top = (int)e;
+      double cx = 0, cz = 0, cn = 0, xlo = DBL_MAX, xhi = -DBL_MAX; /* the cut */
+      for (size_t v = 0; v < r.n; ++v) {
+        const double *q = P(&r, (int32_t)v);
+        if (!r.on_face[v] || q[1] > cut_top) continue;
+        cx += q[0], cz += q[2], cn += 1, xlo = fmin(xlo, q[0]), xhi = fmax(xhi, q[0]);
+      }
+      cx /= cn > 0 ? cn : 1, cz /= cn > 0 ? cn : 1;
+      for (size_t e = 0; e < r.n_ext; ++e) { /* a limb reaching out, not an ear */
+        const double *q = P(&r, r.ext_v[e]);
+        free_tips += (int)e != top && q[1] > cut_top + 0.2 * r.H &&
+                     hypot(q[0] - cx, q[2] - cz) >= 2 * (xhi - xlo);
+      }
+      bust = free_tips < 2;
+    } else if (ee.status == KM_ERR_CANCELLED) {
+      st = km__fail(err, KM_ERR_CANCELLED, "rig: cancelled");
+    }
+    if (bust) kind = KM_AUTORIG_BUST;
+  }
+  if (st == KM_OK && kind != KM_AUTORIG_BUST && !searched) st = find_extremities(&r, &o, err);
   if (st == KM_OK && kind == KM_AUTORIG_AUTO)
     kind = ground_legs(&r) >= 3 ? KM_AUTORIG_QUADRUPED : KM_AUTORIG_KINECT1;
   if (report) {

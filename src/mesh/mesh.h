@@ -31,7 +31,8 @@ void km__geodesic_free(km__geodesic **g);
 
 /* A bust's base (the autorig's and the rig writer's one test): an open cut at the bottom of a
  * mesh in kinemesh's frame (y up), i.e. a boundary loop (km_boundary_loops) whose vertices all
- * lie within 0.06 of the height (y extent) of the lowest vertex and which spans at least 0.3 of
+ * lie within 0.06 of the height (y extent), or 2.5 mean edge lengths when that is more (a
+ * coarse mesh's cut is ragged), of the lowest vertex and which spans at least 0.3 of
  * the mesh's width (x extent): a bust's chest or neck cut, not the small holes of a scan's
  * soles. *found: whether there is one; *cut_top: the highest y of the widest such loop. */
 km_status km__bust_base(const km_mesh *m, bool *found, double *cut_top, km_error *err);

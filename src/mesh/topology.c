@@ -390,9 +390,22 @@ km_status km__bust_base_axes(const km_mesh *m, int up, int up_sign, int lat, boo
     double y = up_sign > 0 ? p[up] : -p[up];
     xlo[l] = fmin(xlo[l], p[lat]), xhi[l] = fmax(xhi[l], p[lat]), yhi[l] = fmax(yhi[l], y);
   }
+  /* A cut through a coarse mesh is as ragged as its edges are long: the faces wholly above
+   * a plane leave a boundary one edge deep (FAUST's head cut at the neck, 1-2 cm edges on a
+   * 23 cm mesh) */
+  double elen = 0;
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const double *a = m->V + 3 * (size_t)m->F[3 * f + (size_t)k],
+                   *b = m->V + 3 * (size_t)m->F[3 * f + (size_t)(k + 1) % 3];
+      elen += sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                   (a[2] - b[2]) * (a[2] - b[2]));
+    }
+  elen /= 3.0 * (double)m->n_faces;
+  double depth = fmax(0.06 * H, 2.5 * elen);
   for (size_t l = 0; l < nl && H > 0 && W > 0; ++l) {
     double span = xhi[l] - xlo[l];
-    if (yhi[l] - bottom <= 0.06 * H && span >= 0.3 * W && span > best) {
+    if (yhi[l] - bottom <= depth && depth < 0.5 * H && span >= 0.3 * W && span > best) {
       best = span;
       *found = true;
       *cut_top = up_sign > 0 ? yhi[l] : -yhi[l];

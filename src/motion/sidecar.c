@@ -560,9 +560,24 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
     p->handle_vertex[h] = li >= 0 ? c->landmarks[li].vertex : (long)top;
   }
   p->upright = upright_body(sk);
+  /* A bust: open at its bottom (km__bust_base) with its arms folded into its shoulders (as
+   * km_autorig places a bust's: each hand within 0.4 of the shoulders' span of its shoulder).
+   * An upper body cut at the waist whose arms reach out is rigged with hands and bands. */
   double cut_top;
   km_status bs = km__bust_base(m, &p->bust, &cut_top, err);
   if (bs != KM_OK) return bs;
+  {
+    int sl = skel_joint(sk, "ShoulderLeft"), sr = skel_joint(sk, "ShoulderRight"),
+        hl = skel_joint(sk, "HandLeft"), hr = skel_joint(sk, "HandRight");
+    if (sl < 0 || sr < 0 || hl < 0 || hr < 0)
+      p->bust = false;
+    else {
+      double span = dist3(sk->rest + 3 * (size_t)sl, sk->rest + 3 * (size_t)sr);
+      p->bust = p->bust &&
+                dist3(sk->rest + 3 * (size_t)hl, sk->rest + 3 * (size_t)sl) < 0.4 * span &&
+                dist3(sk->rest + 3 * (size_t)hr, sk->rest + 3 * (size_t)sr) < 0.4 * span;
+    }
+  }
   if (p->bust) {
     if ((bs = bust_handles(c, p, err)) != KM_OK) {
       plan_free(p);
