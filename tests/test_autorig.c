@@ -572,6 +572,15 @@ static void cut_below(const km_mesh *src, double keep, km_mesh *out) {
   free(id);
 }
 
+/* The puppetry rig of c's sidecar (km_character_rig_json), resolved on m (name: for messages). */
+static void sidecar_rig(const km_character *c, const km_mesh *m, const char *name, km_rig *rig) {
+  char *json = NULL;
+  size_t size = 0;
+  if (c->skeleton.rest) CHECK_OK(km_character_rig_json(c, &json, &size, KM_E));
+  if (json) CHECK_OK(km_rig_parse(json, size, name, m, NULL, 0, rig, KM_E));
+  free(json);
+}
+
 /* A bust (the top 30 % of a FAUST body, cut open at the chest: its arms hang, so they are cut
  * too) is rigged as one: the head handle above the neck, the base held still while a real take
  * turns the head. Rigged as a quadruped before (the corners of its cut stood for four legs),
@@ -634,12 +643,8 @@ static void test_bust(const km_take *take) {
     CHECK_MSG(sc[1] > ymin + 0.4 * (ymax - ymin) && sc[1] < ymin + 0.7 * (ymax - ymin),
               "neck at %.3f of the bust's height", (sc[1] - ymin) / (ymax - ymin));
     CHECK_MSG(hd[1] > sc[1] && hd[1] < ymax, "head joint at y %.3f", hd[1]);
-    char *json = NULL;
-    size_t size = 0;
-    CHECK_OK(km_character_rig_json(&c, &json, &size, KM_E));
     km_rig rig = {0};
-    if (json) CHECK_OK(km_rig_parse(json, size, "bust", &m, NULL, 0, &rig, KM_E));
-    free(json);
+    sidecar_rig(&c, &m, "bust", &rig);
     CHECK_MSG(rig.n_handles == 2 && rig.n_maps == 1, "%zu handles, %zu map entries", rig.n_handles,
               rig.n_maps);
     if (rig.n_handles == 2 && take) {
@@ -687,12 +692,8 @@ static void test_bust(const km_take *take) {
     CHECK_OK(km_autorig(&m, NULL, &c, &rep, KM_E));
     CHECK_MSG(rep.kind == KM_AUTORIG_BUST, "the head rigged as a %s",
               km_autorig_kind_name(rep.kind));
-    char *json = NULL;
-    size_t size = 0;
     km_rig rig = {0};
-    if (c.skeleton.rest) CHECK_OK(km_character_rig_json(&c, &json, &size, KM_E));
-    if (json) CHECK_OK(km_rig_parse(json, size, "head", &m, NULL, 0, &rig, KM_E));
-    free(json);
+    sidecar_rig(&c, &m, "head", &rig);
     CHECK_MSG(rig.n_handles == 2 && rig.handles[0].n_vertices > m.n_vertices / 2,
               "the head's handle: %zu of %zu vertices",
               rig.n_handles ? rig.handles[0].n_vertices : 0, m.n_vertices);

@@ -1101,6 +1101,31 @@ static int ground_legs(const rigger *r) {
   return legs;
 }
 
+/* An upper body with free limbs (a T-posed character cut at the waist: two hands far above
+ * the cut) is not a bust: its arms would be left to hang. Extremities other than the highest,
+ * 0.2 of the height above the cut (cut_top: its highest y) and farther from the cut's middle
+ * (across the height) than twice the cut's width (limbs reaching out; a head cut at its neck
+ * reaches 1.2 neck widths with its nose and the back of its skull): two or more, and it is
+ * rigged by its extremities as before. */
+static bool limbs_reach_out(const rigger *r, double cut_top) {
+  int free_tips = 0, top = -1;
+  for (size_t e = 0; e < r->n_ext; ++e)
+    if (top < 0 || P(r, r->ext_v[e])[1] > P(r, r->ext_v[top])[1]) top = (int)e;
+  double cx = 0, cz = 0, cn = 0, xlo = DBL_MAX, xhi = -DBL_MAX; /* the cut */
+  for (size_t v = 0; v < r->n; ++v) {
+    const double *q = P(r, (int32_t)v);
+    if (!r->on_face[v] || q[1] > cut_top) continue;
+    cx += q[0], cz += q[2], cn += 1, xlo = fmin(xlo, q[0]), xhi = fmax(xhi, q[0]);
+  }
+  cx /= cn > 0 ? cn : 1, cz /= cn > 0 ? cn : 1;
+  for (size_t e = 0; e < r->n_ext; ++e) {
+    const double *q = P(r, r->ext_v[e]);
+    free_tips += (int)e != top && q[1] > cut_top + 0.2 * r->H &&
+                 hypot(q[0] - cx, q[2] - cz) >= 2 * (xhi - xlo);
+  }
+  return free_tips >= 2;
+}
+
 const char *km_autorig_kind_name(km_autorig_skeleton kind) {
   switch (kind) {
   case KM_AUTORIG_AUTO: return "auto";
@@ -1160,35 +1185,14 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
                   "rig: not a bust: no open cut at its bottom (a boundary loop within 0.06 of "
                   "the height of the lowest vertex, 0.3 of the width wide)");
   if (st == KM_OK && bust && kind == KM_AUTORIG_AUTO) {
-    /* An upper body with free limbs (a T-posed character cut at the waist: two hands far
-     * above the cut) is not a bust: its arms would be left to hang. Extremities other than the
-     * highest, 0.2 of the height above the cut and farther from the cut's middle (across the
-     * height) than twice the cut's width (limbs reaching out; a head cut at its neck reaches
-     * 1.2 neck widths with its nose and the back of its skull): two or more, and it is rigged
-     * by its extremities as before. A bust's extremities are its head and the corners of its cut;
-     * one with too few for that is a bust all the same. */
+    /* A bust's extremities are its head and the corners of its cut; one with too few for
+     * that is a bust all the same. */
     km_error ee = {0};
     searched = true;
-    if (find_extremities(&r, &o, &ee) == KM_OK) {
-      int free_tips = 0, top = -1;
-      for (size_t e = 0; e < r.n_ext; ++e)
-        if (top < 0 || P(&r, r.ext_v[e])[1] > P(&r, r.ext_v[top])[1]) top = (int)e;
-      double cx = 0, cz = 0, cn = 0, xlo = DBL_MAX, xhi = -DBL_MAX; /* the cut */
-      for (size_t v = 0; v < r.n; ++v) {
-        const double *q = P(&r, (int32_t)v);
-        if (!r.on_face[v] || q[1] > cut_top) continue;
-        cx += q[0], cz += q[2], cn += 1, xlo = fmin(xlo, q[0]), xhi = fmax(xhi, q[0]);
-      }
-      cx /= cn > 0 ? cn : 1, cz /= cn > 0 ? cn : 1;
-      for (size_t e = 0; e < r.n_ext; ++e) { /* a limb reaching out, not an ear */
-        const double *q = P(&r, r.ext_v[e]);
-        free_tips += (int)e != top && q[1] > cut_top + 0.2 * r.H &&
-                     hypot(q[0] - cx, q[2] - cz) >= 2 * (xhi - xlo);
-      }
-      bust = free_tips < 2;
-    } else if (ee.status == KM_ERR_CANCELLED) {
+    if (find_extremities(&r, &o, &ee) == KM_OK)
+      bust = !limbs_reach_out(&r, cut_top);
+    else if (ee.status == KM_ERR_CANCELLED)
       st = km__fail(err, KM_ERR_CANCELLED, "rig: cancelled");
-    }
     if (bust) kind = KM_AUTORIG_BUST;
   }
   if (st == KM_OK && kind != KM_AUTORIG_BUST && !searched) st = find_extremities(&r, &o, err);

@@ -457,6 +457,18 @@ done:
   return st;
 }
 
+/* Whether the arms are folded into the shoulders, as km_autorig places a bust's: each hand
+ * within 0.4 of the shoulders' span of its shoulder (an arm is about that span long or more). */
+static bool arms_folded(const km_skeleton *sk) {
+  int sl = skel_joint(sk, "ShoulderLeft"), sr = skel_joint(sk, "ShoulderRight"),
+      hl = skel_joint(sk, "HandLeft"), hr = skel_joint(sk, "HandRight");
+  if (sl < 0 || sr < 0 || hl < 0 || hr < 0) return false;
+  const double *J = sk->rest;
+  double span = dist3(J + 3 * (size_t)sl, J + 3 * (size_t)sr);
+  return dist3(J + 3 * (size_t)hl, J + 3 * (size_t)sl) < 0.4 * span &&
+         dist3(J + 3 * (size_t)hr, J + 3 * (size_t)sr) < 0.4 * span;
+}
+
 /* A bust's handles: the head (end_list[0]: the vertices above the middle of the neck bone,
  * ShoulderCenter -> Head, joined to the top vertex along faces), held rigid and turned with
  * the performer's neck, and the base (the vertices within 0.15 of the height of the bottom,
@@ -466,16 +478,14 @@ done:
  * holds only its bottom 0.03 and turns everything above 0.25: a base of 0.15 held its chin
  * while the head nodded, shearing the jaw (bench motion on FAUST's top 13 %, longest edge on
  * precog_Seq1_1 / cmu_131_01 1.74 / 1.90 -> 1.55 / 1.73x; the head from 0.08: 1.81 / 2.29x). */
-static km_status bust_handles(const km_character *c, rig_plan *p, km_error *err) {
+static km_status bust_handles(const km_character *c, double ymin, double ymax, rig_plan *p,
+                              km_error *err) {
   const km_mesh *m = &c->mesh;
   const km_skeleton *sk = &c->skeleton;
   size_t n = m->n_vertices;
   int sc = skel_joint(sk, "ShoulderCenter"), hd = skel_joint(sk, "Head");
   if (sc < 0 || hd < 0)
     return km__fail(err, KM_ERR_INVALID, "rig: a bust needs ShoulderCenter and Head joints");
-  double ymin = DBL_MAX, ymax = -DBL_MAX;
-  for (size_t v = 0; v < n; ++v)
-    ymin = fmin(ymin, m->V[3 * v + 1]), ymax = fmax(ymax, m->V[3 * v + 1]);
   double H = ymax - ymin, ysc = sk->rest[3 * (size_t)sc + 1];
   double yneck = 0.5 * (ysc + sk->rest[3 * (size_t)hd + 1]);
   double ybase = ymin + 0.15 * H;
@@ -568,26 +578,15 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
     p->handle_vertex[h] = li >= 0 ? c->landmarks[li].vertex : (long)top;
   }
   p->upright = upright_body(sk);
-  /* A bust: open at its bottom (km__bust_base) with its arms folded into its shoulders (as
-   * km_autorig places a bust's: each hand within 0.4 of the shoulders' span of its shoulder).
-   * An upper body cut at the waist whose arms reach out is rigged with hands and bands. */
+  /* A bust: its arms folded into its shoulders (arms_folded) and open at its bottom
+   * (km__bust_base, only looked for then). An upper body cut at the waist whose arms reach out
+   * is rigged with hands and bands. */
   double cut_top;
-  km_status bs = km__bust_base(m, &p->bust, &cut_top, err);
+  km_status bs = KM_OK;
+  if (arms_folded(sk)) bs = km__bust_base(m, &p->bust, &cut_top, err);
   if (bs != KM_OK) return bs;
-  {
-    int sl = skel_joint(sk, "ShoulderLeft"), sr = skel_joint(sk, "ShoulderRight"),
-        hl = skel_joint(sk, "HandLeft"), hr = skel_joint(sk, "HandRight");
-    if (sl < 0 || sr < 0 || hl < 0 || hr < 0)
-      p->bust = false;
-    else {
-      double span = dist3(sk->rest + 3 * (size_t)sl, sk->rest + 3 * (size_t)sr);
-      p->bust = p->bust &&
-                dist3(sk->rest + 3 * (size_t)hl, sk->rest + 3 * (size_t)sl) < 0.4 * span &&
-                dist3(sk->rest + 3 * (size_t)hr, sk->rest + 3 * (size_t)sr) < 0.4 * span;
-    }
-  }
   if (p->bust) {
-    if ((bs = bust_handles(c, p, err)) != KM_OK) {
+    if ((bs = bust_handles(c, ymin, ymax, p, err)) != KM_OK) {
       plan_free(p);
       return km__wrap(err, bs, "%s", path);
     }
