@@ -2582,13 +2582,16 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * non-manifold edges (three or more faces), too few extremities for the requested skeleton (kinect1
  * or quadruped asked for), a surface too small for five separate handles. */
 typedef enum km_autorig_skeleton {
-  KM_AUTORIG_AUTO = 0,  /* a bust when it has a bust's cut; else humanoid or quadruped from
-                           where the extremities are, else prop */
+  KM_AUTORIG_AUTO = 0,  /* a bust when it has a bust's cut or sits on a broad base; else
+                           humanoid or quadruped from where the extremities are, else prop */
   KM_AUTORIG_KINECT1,   /* humanoid: Kinect v1 joints embedded in the body */
   KM_AUTORIG_QUADRUPED, /* four limbs and a head mapped onto the Kinect v1 joints */
   KM_AUTORIG_PROP,      /* an object: five handle points by position (below) */
   KM_AUTORIG_BUST       /* a bust: an open cut at its bottom (a boundary loop within 0.06 of
-                           the height of the lowest vertex, 0.3 of the width wide); the Kinect
+                           the height of the lowest vertex, 0.3 of the width wide) or a closed
+                           body sitting on a broad base (its faces within 0.05 of the height of
+                           the lowest vertex one part, at least 0.5 of the mesh's width and
+                           depth: a sitting rabbit, a figure on a plinth); the Kinect
                            v1 joints placed in its neck, head and shoulders (arms and legs
                            folded into the shoulders and the base); the rig sidecar's handles:
                            the head, turning with the neck, and the base, held still */

@@ -42,8 +42,8 @@ int km_cli_rig(int argc, char **argv) {
       {"output", 'o', KM_OPT_STRING, &out, "rig sidecar to write (default MESH.rig.json)"},
       {"skeleton", 0, KM_OPT_STRING, &skel,
        "auto (default: a skinned glTF's own skin, else a bust when it has an open cut at its "
-       "bottom, else humanoid or quadruped from the extremities, else prop), kinect1 "
-       "(humanoid), quadruped, prop (handles by position) or bust"},
+       "bottom or sits on a broad base, else humanoid or quadruped from the extremities, else "
+       "prop), kinect1 (humanoid), quadruped, prop (handles by position) or bust"},
       {"weights", 0, KM_OPT_STRING, &weights,
        "skin weights: distance (by the distance to the bones, what reconstruct expects; the "
        "default for a humanoid or prop) or reach (also limited along the surface: an ear "
@@ -64,8 +64,10 @@ int km_cli_rig(int argc, char **argv) {
       "animate, live, pose and reconstruct read (skeleton, skin, landmarks and\n"
       "a puppetry rig: handles at the head, hands and feet). A quadruped's\n"
       "front limbs take the hands, its hind limbs the feet, its highest other\n"
-      "extremity the head. A bust (an open cut at its bottom) gets a head\n"
-      "handle that turns with the performer's neck and a base that stays. A mesh\n"
+      "extremity the head. A bust (an open cut at its bottom) or a body sitting\n"
+      "on a broad base (a sitting rabbit: its bottom 5 % one part, half as\n"
+      "wide and deep as the mesh) gets a head handle that turns with the\n"
+      "performer's neck and a base that stays. A mesh\n"
       "with none of these (an object) gets five handles by position: highest ->\n"
       "head, upper sides -> hands, lower sides -> feet. The mesh is rigged in\n"
       "kinemesh's frame (y up, facing +z): its up and forward axes come from\n"
@@ -140,8 +142,8 @@ int km_cli_rig(int argc, char **argv) {
          rep.height,
          rep.kind == KM_AUTORIG_QUADRUPED ? "a quadruped"
          : rep.kind == KM_AUTORIG_PROP    ? "a prop (handles by position)"
-         : rep.kind == KM_AUTORIG_BUST    ? "a bust (the head turns with the neck, the base "
-                                            "stays)"
+         : rep.kind == KM_AUTORIG_BUST    ? "a bust or seated body (the head turns with the "
+                                            "neck, the base stays)"
                                           : "a humanoid (kinect1)",
          rep.seconds);
   printf(rep.kind == KM_AUTORIG_PROP ? "extremities and handle points:\n"

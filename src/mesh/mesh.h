@@ -40,6 +40,16 @@ km_status km__bust_base(const km_mesh *m, bool *found, double *cut_top, km_error
  * lat (the lateral axis); *cut_top along up as stored. */
 km_status km__bust_base_axes(const km_mesh *m, int up, int up_sign, int lat, bool *found,
                              double *cut_top, km_error *err);
+/* A seated body's base (a mesh in kinemesh's frame, y up, that sits on its bottom: a sitting
+ * rabbit, a figure on a plinth): the faces wholly within 0.05 of the height (y extent) of the
+ * lowest vertex form one part (joined along faces; parts of under 0.2 of its vertices left
+ * out) that spans at least 0.5 of the mesh's width (x extent) and of its depth (z extent) and
+ * holds under half the vertices. A
+ * standing body's bottom 0.05 is its separate feet (two or four parts, each 0.12 to 0.25 of the
+ * width on the meshes in ../shared/data; the Stanford bunny's one part spans 0.71 x 0.74), a
+ * round body's a small cap (an ellipsoid's spans 0.44), a cat lying on its side a strip of its
+ * flank (0.16 x 0.15). *found: whether it sits; *base_top: the y of the top of that 0.05. */
+km_status km__seated_base(const km_mesh *m, bool *found, double *base_top, km_error *err);
 
 /* One accessor of a glTF (.glb, or .gltf with data: URIs) in memory, as doubles: any component
  * type (KHR_mesh_quantization's byte / short, normalized or not, as the specification reads

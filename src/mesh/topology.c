@@ -414,3 +414,62 @@ km_status km__bust_base_axes(const km_mesh *m, int up, int up_sign, int lat, boo
   free(loop), free(xlo), free(xhi), free(yhi);
   return KM_OK;
 }
+
+km_status km__seated_base(const km_mesh *m, bool *found, double *base_top, km_error *err) {
+  *found = false;
+  *base_top = NAN;
+  if (!m || !m->n_vertices || !m->n_faces) return KM_OK;
+  size_t nv = m->n_vertices;
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t i = 0; i < 3 * m->n_faces; ++i)
+    for (int k = 0; k < 3; ++k) {
+      double x = m->V[3 * (size_t)m->F[i] + (size_t)k];
+      lo[k] = fmin(lo[k], x), hi[k] = fmax(hi[k], x);
+    }
+  double H = hi[1] - lo[1], W = hi[0] - lo[0], D = hi[2] - lo[2], ytop = lo[1] + 0.05 * H;
+  if (!(H > 0 && W > 0 && D > 0)) return KM_OK;
+  int32_t *parent = km__malloc(nv, sizeof *parent);
+  size_t *count = km__calloc(nv, sizeof *count);
+  if (!parent || !count) {
+    free(parent), free(count);
+    return km__fail(err, KM_ERR_NOMEM, "out of memory");
+  }
+  for (size_t v = 0; v < nv; ++v)
+    parent[v] = -1; /* -1: not in the bottom slab */
+  for (size_t f = 0; f < m->n_faces; ++f) {
+    const int32_t *t = m->F + 3 * f;
+    if (!(m->V[3 * (size_t)t[0] + 1] <= ytop && m->V[3 * (size_t)t[1] + 1] <= ytop &&
+          m->V[3 * (size_t)t[2] + 1] <= ytop))
+      continue;
+    for (int k = 0; k < 3; ++k)
+      if (parent[t[k]] < 0) parent[t[k]] = t[k];
+    uf_union(parent, t[0], t[1]);
+    uf_union(parent, t[0], t[2]);
+  }
+  int32_t big = -1;
+  for (size_t v = 0; v < nv; ++v)
+    if (parent[v] >= 0) {
+      int32_t r = uf_find(parent, (int32_t)v);
+      if (++count[r] > (big < 0 ? 0 : count[big])) big = r;
+    }
+  if (big >= 0) {
+    double xl = INFINITY, xh = -INFINITY, zl = INFINITY, zh = -INFINITY;
+    bool alone = true;
+    for (size_t v = 0; v < nv; ++v) {
+      if (parent[v] < 0) continue;
+      int32_t r = uf_find(parent, (int32_t)v);
+      if (r != big) {
+        alone = alone && !(count[r] >= 0.2 * (double)count[big]);
+        continue;
+      }
+      const double *p = m->V + 3 * v;
+      xl = fmin(xl, p[0]), xh = fmax(xh, p[0]), zl = fmin(zl, p[2]), zh = fmax(zh, p[2]);
+    }
+    /* under half the vertices: a body above its base (a lone tetrahedron's bottom face is 3 of
+     * its 4) */
+    *found = alone && xh - xl >= 0.5 * W && zh - zl >= 0.5 * D && 2 * count[big] < nv;
+    if (*found) *base_top = ytop;
+  }
+  free(parent), free(count);
+  return KM_OK;
+}
