@@ -2582,12 +2582,13 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * non-manifold edges (three or more faces), too few extremities for the requested skeleton (kinect1
  * or quadruped asked for), a surface too small for five separate handles. */
 typedef enum km_autorig_skeleton {
-  KM_AUTORIG_AUTO = 0,  /* a bust when it has a bust's cut or sits on a broad base; else
-                           humanoid or quadruped from where the extremities are, else prop */
+  KM_AUTORIG_AUTO = 0,  /* a bust when it has a bust's cut or sits on a broad base (an upper
+                           body when hands reach out from it); else humanoid or quadruped from
+                           where the extremities are, else prop */
   KM_AUTORIG_KINECT1,   /* humanoid: Kinect v1 joints embedded in the body */
   KM_AUTORIG_QUADRUPED, /* four limbs and a head mapped onto the Kinect v1 joints */
   KM_AUTORIG_PROP,      /* an object: five handle points by position (below) */
-  KM_AUTORIG_BUST       /* a bust: an open cut at its bottom (a boundary loop within 0.06 of
+  KM_AUTORIG_BUST,      /* a bust: an open cut at its bottom (a boundary loop within 0.06 of
                            the height of the lowest vertex, 0.3 of the width wide) or a closed
                            body sitting on a broad base (its faces within 0.05 of the height of
                            the lowest vertex one part, at least 0.5 of the mesh's width and
@@ -2595,6 +2596,13 @@ typedef enum km_autorig_skeleton {
                            v1 joints placed in its neck, head and shoulders (arms and legs
                            folded into the shoulders and the base); the rig sidecar's handles:
                            the head, turning with the neck, and the base, held still */
+  KM_AUTORIG_UPPER      /* an upper body: a bust's base (either kind) with a hand reaching
+                           out on either side (an extremity 0.2 of the height above the base,
+                           farther from its middle than twice its width: a VR avatar or a
+                           T-posed character cut at the waist); torso, neck and head as a
+                           bust's, arms along rings from the hand tips as a humanoid's, legs
+                           folded into the base; the sidecar's handles: head, hands and arm
+                           bands, chest, and the base, held still */
 } km_autorig_skeleton;
 
 #define KM_AUTORIG_MAX_EXTREMITIES 16

@@ -42,8 +42,9 @@ int km_cli_rig(int argc, char **argv) {
       {"output", 'o', KM_OPT_STRING, &out, "rig sidecar to write (default MESH.rig.json)"},
       {"skeleton", 0, KM_OPT_STRING, &skel,
        "auto (default: a skinned glTF's own skin, else a bust when it has an open cut at its "
-       "bottom or sits on a broad base, else humanoid or quadruped from the extremities, else "
-       "prop), kinect1 (humanoid), quadruped, prop (handles by position) or bust"},
+       "bottom or sits on a broad base (an upper body when a hand reaches out from it on either "
+       "side), else humanoid or quadruped from the extremities, else prop), kinect1 (humanoid), "
+       "quadruped, prop (handles by position), bust or upper"},
       {"weights", 0, KM_OPT_STRING, &weights,
        "skin weights: distance (by the distance to the bones, what reconstruct expects; the "
        "default for a humanoid or prop) or reach (also limited along the surface: an ear "
@@ -56,7 +57,7 @@ int km_cli_rig(int argc, char **argv) {
   int n_pos;
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
-      "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop|bust] "
+      "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop|bust|upper] "
       "[--weights distance|reach] [--up +z --forward -y]",
       "Rigs a mesh kinemesh did not make: finds its extremities (geodesic\n"
       "extremes), embeds the 20 Kinect v1 joints in its interior, computes\n"
@@ -67,7 +68,9 @@ int km_cli_rig(int argc, char **argv) {
       "extremity the head. A bust (an open cut at its bottom) or a body sitting\n"
       "on a broad base (a sitting rabbit: its bottom 5 % one part, half as\n"
       "wide and deep as the mesh) gets a head handle that turns with the\n"
-      "performer's neck and a base that stays. A mesh\n"
+      "performer's neck and a base that stays; with a hand reaching out on\n"
+      "either side (an upper body: a VR avatar) its arms move as a humanoid's\n"
+      "too. A mesh\n"
       "with none of these (an object) gets five handles by position: highest ->\n"
       "head, upper sides -> hands, lower sides -> feet. The mesh is rigged in\n"
       "kinemesh's frame (y up, facing +z): its up and forward axes come from\n"
@@ -89,9 +92,11 @@ int km_cli_rig(int argc, char **argv) {
     o.skeleton = KM_AUTORIG_PROP;
   else if (!strcmp(skel, "bust"))
     o.skeleton = KM_AUTORIG_BUST;
+  else if (!strcmp(skel, "upper"))
+    o.skeleton = KM_AUTORIG_UPPER;
   else
-    return km_cli_error("rig", "--skeleton %s: expected auto, kinect1, quadruped, prop or bust",
-                        skel);
+    return km_cli_error(
+        "rig", "--skeleton %s: expected auto, kinect1, quadruped, prop, bust or upper", skel);
   if (km_cli_parse_weights("rig", weights, &o.skin)) return KM_EXIT_USAGE;
   o.min_extremity = min_ext;
   km_error err = {0};
@@ -144,6 +149,8 @@ int km_cli_rig(int argc, char **argv) {
          : rep.kind == KM_AUTORIG_PROP    ? "a prop (handles by position)"
          : rep.kind == KM_AUTORIG_BUST    ? "a bust or seated body (the head turns with the "
                                             "neck, the base stays)"
+         : rep.kind == KM_AUTORIG_UPPER   ? "an upper body (head and arms move, the base "
+                                            "stays)"
                                           : "a humanoid (kinect1)",
          rep.seconds);
   printf(rep.kind == KM_AUTORIG_PROP ? "extremities and handle points:\n"

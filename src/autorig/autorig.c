@@ -656,15 +656,26 @@ static km_status rig_prop(rigger *r, km_autorig_report *rep, km_error *err) {
  * legs into the base (short bones that no handle drives; bust_skin gives their weights to the
  * shoulders and HipCenter). */
 #define BUST_SLICES 24
-static km_status rig_bust(rigger *r, km_autorig_report *rep, km_error *err) {
+static km_status rig_bust(rigger *r, const int *hands, km_autorig_report *rep, km_error *err) {
   double lo[BUST_SLICES], hi[BUST_SLICES], sx[BUST_SLICES] = {0}, sz[BUST_SLICES] = {0},
                                            cnt[BUST_SLICES] = {0};
   for (int i = 0; i < BUST_SLICES; ++i)
     lo[i] = DBL_MAX, hi[i] = -DBL_MAX;
+  /* An upper body (hands: its two free tips): the slices see only the torso and head, within
+   * a quarter of the cut's width beyond it on either side (the arms reach further) */
+  double xwin[2] = {-DBL_MAX, DBL_MAX};
+  if (hands) {
+    double clo = DBL_MAX, chi = -DBL_MAX;
+    for (size_t v = 0; v < r->n; ++v)
+      if (r->on_face[v] && P(r, (int32_t)v)[1] < r->ymin + r->H / BUST_SLICES)
+        clo = fmin(clo, P(r, (int32_t)v)[0]), chi = fmax(chi, P(r, (int32_t)v)[0]);
+    xwin[0] = clo - 0.25 * (chi - clo), xwin[1] = chi + 0.25 * (chi - clo);
+  }
   int32_t top = -1;
   for (size_t v = 0; v < r->n; ++v) {
     if (!r->on_face[v]) continue;
     const double *p = P(r, (int32_t)v);
+    if (p[0] < xwin[0] || p[0] > xwin[1]) continue;
     int i = (int)((p[1] - r->ymin) / r->H * BUST_SLICES);
     i = i < 0 ? 0 : i >= BUST_SLICES ? BUST_SLICES - 1 : i;
     lo[i] = fmin(lo[i], p[0]), hi[i] = fmax(hi[i], p[0]);
@@ -724,27 +735,41 @@ static km_status rig_bust(rigger *r, km_autorig_report *rep, km_error *err) {
     for (int k = 0; k < 4; ++k)
       set3(J + 3 * (h0 + k), J[3 * J_HIP_C] + sgn * hb, r->ymin + 0.03 * (3 - k) * r->H,
            J[3 * J_HIP_C + 2] + (k == 3 ? 0.02 * r->H : 0));
+    if (hands) { /* the arm: rings from the hand tip, as a humanoid's (rig_humanoid) */
+      static const double af[3] = {F_ELBOW_ARM, F_WRIST_ARM, F_HAND_ARM};
+      int aj[3] = {j0 + 1, j0 + 2, j0 + 3};
+      limb_chain(r, (size_t)hands[side], J + 3 * j0, af, 3, aj, J);
+      r->tip[j0 + 3] = r->ext_v[hands[side]];
+    }
   }
   r->tip[J_HEAD] = top;
   if (rep) {
+    memset(rep->role, 0, sizeof rep->role);
     rep->n_extremities = 1;
     rep->extremity[0] = top;
     rep->extremity_distance[0] = 0;
     snprintf(rep->role[0], sizeof rep->role[0], "Head");
+    for (int side = 0; hands && side < 2; ++side) {
+      size_t e = rep->n_extremities++;
+      rep->extremity[e] = r->ext_v[hands[side]];
+      rep->extremity_distance[e] = r->ext_d[hands[side]];
+      snprintf(rep->role[e], sizeof rep->role[e], "%s", side ? "HandRight" : "HandLeft");
+    }
   }
   return KM_OK;
 }
 
-/* A bust's skin: the weights of the arms' joints below the shoulders go to the shoulder, the
- * legs' to HipCenter (bones folded into the body that no handle drives). */
-static void bust_skin(km_skin *skin, size_t n) {
+/* A bust's skin: the weights of the arms' joints below the shoulders go to the shoulder (unless
+ * arms: an upper body's), the legs' to HipCenter (bones folded into the body that no handle
+ * drives). */
+static void bust_skin(km_skin *skin, size_t n, bool arms) {
   for (size_t v = 0; v < n; ++v) {
     int32_t *jv = skin->joints + KM_SKIN_INFLUENCES * v;
     double *wv = skin->weights + KM_SKIN_INFLUENCES * v;
     for (int k = 0; k < KM_SKIN_INFLUENCES; ++k) {
       int32_t j = jv[k];
-      if (j >= J_ELBOW_L && j <= J_HAND_L) jv[k] = J_SHOULDER_L;
-      if (j >= J_ELBOW_R && j <= J_HAND_R) jv[k] = J_SHOULDER_R;
+      if (!arms && j >= J_ELBOW_L && j <= J_HAND_L) jv[k] = J_SHOULDER_L;
+      if (!arms && j >= J_ELBOW_R && j <= J_HAND_R) jv[k] = J_SHOULDER_R;
       if (j >= J_HIP_L && j <= J_FOOT_R) jv[k] = J_HIP_C;
     }
     for (int a = 0; a < KM_SKIN_INFLUENCES; ++a) /* one entry per joint */
@@ -1105,10 +1130,12 @@ static int ground_legs(const rigger *r) {
  * the cut) is not a bust: its arms would be left to hang. Extremities other than the highest,
  * 0.2 of the height above the cut (cut_top: its highest y) and farther from the cut's middle
  * (across the height) than twice the cut's width (limbs reaching out; a head cut at its neck
- * reaches 1.2 neck widths with its nose and the back of its skull): two or more, and it is
- * rigged by its extremities as before. */
-static bool limbs_reach_out(const rigger *r, double cut_top) {
+ * reaches 1.2 neck widths with its nose and the back of its skull): two or more. hands: the
+ * farthest such tip on the left (+x of the cut's middle) and on the right, -1 none. */
+static bool limbs_reach_out(const rigger *r, double cut_top, int hands[2]) {
   int free_tips = 0, top = -1;
+  double far[2] = {0, 0};
+  hands[0] = hands[1] = -1;
   for (size_t e = 0; e < r->n_ext; ++e)
     if (top < 0 || P(r, r->ext_v[e])[1] > P(r, r->ext_v[top])[1]) top = (int)e;
   double cx = 0, cz = 0, cn = 0, xlo = DBL_MAX, xhi = -DBL_MAX; /* the cut */
@@ -1120,8 +1147,11 @@ static bool limbs_reach_out(const rigger *r, double cut_top) {
   cx /= cn > 0 ? cn : 1, cz /= cn > 0 ? cn : 1;
   for (size_t e = 0; e < r->n_ext; ++e) {
     const double *q = P(r, r->ext_v[e]);
-    free_tips += (int)e != top && q[1] > cut_top + 0.2 * r->H &&
-                 hypot(q[0] - cx, q[2] - cz) >= 2 * (xhi - xlo);
+    double d = hypot(q[0] - cx, q[2] - cz);
+    bool free_tip = (int)e != top && q[1] > cut_top + 0.2 * r->H && d >= 2 * (xhi - xlo);
+    free_tips += free_tip;
+    int side = q[0] < cx; /* kinemesh's frame faces +z: the left is +x */
+    if (free_tip && d > far[side]) far[side] = d, hands[side] = (int)e;
   }
   return free_tips >= 2;
 }
@@ -1133,6 +1163,7 @@ const char *km_autorig_kind_name(km_autorig_skeleton kind) {
   case KM_AUTORIG_QUADRUPED: return "quadruped";
   case KM_AUTORIG_PROP: return "prop";
   case KM_AUTORIG_BUST: return "bust";
+  case KM_AUTORIG_UPPER: return "upper body";
   }
   return "unknown";
 }
@@ -1177,33 +1208,45 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   }
   km_autorig_skeleton kind = o.skeleton;
   bool bust = false, searched = false;
+  bool based = kind == KM_AUTORIG_AUTO || kind == KM_AUTORIG_BUST || kind == KM_AUTORIG_UPPER;
   double cut_top;
-  if (kind == KM_AUTORIG_AUTO || kind == KM_AUTORIG_BUST)
-    st = km__bust_base(m, &bust, &cut_top, err);
+  int hands[2] = {-1, -1};
+  if (based) st = km__bust_base(m, &bust, &cut_top, err);
   /* A body sitting on a broad base (km__seated_base: a sitting rabbit, a figure on a plinth) is
    * rigged as a bust too: the head turns, the base stays. Rigged by its extremities, the Stanford
    * bunny took an ear and its snout for hands and its tail for a foot, and a performer's step
    * tore its haunch (bench motion B, longest edge 2.4-3.3x, 62-88 folded triangles). */
-  if (st == KM_OK && !bust && (kind == KM_AUTORIG_AUTO || kind == KM_AUTORIG_BUST))
-    st = km__seated_base(m, &bust, &cut_top, err);
-  if (st == KM_OK && kind == KM_AUTORIG_BUST && !bust)
+  if (st == KM_OK && !bust && based) st = km__seated_base(m, &bust, &cut_top, err);
+  if (st == KM_OK && kind != KM_AUTORIG_AUTO && based && !bust)
     st = km__fail(err, KM_ERR_DEGENERATE_MESH,
-                  "rig: not a bust: no open cut at its bottom (a boundary loop within 0.06 of "
+                  "rig: not a %s: no open cut at its bottom (a boundary loop within 0.06 of "
                   "the height of the lowest vertex, 0.3 of the width wide) and no broad base it "
                   "sits on (its bottom 0.05 of the height one part, half as wide and deep as the "
-                  "mesh)");
-  if (st == KM_OK && bust && kind == KM_AUTORIG_AUTO) {
+                  "mesh)",
+                  km_autorig_kind_name(kind));
+  if (st == KM_OK && bust && kind != KM_AUTORIG_BUST) {
     /* A bust's extremities are its head and the corners of its cut; one with too few for
-     * that is a bust all the same. */
+     * that is a bust all the same. An upper body's hands reach out from its base, one on
+     * either side: its arms are rigged as a humanoid's, its legs folded into the base. */
     km_error ee = {0};
     searched = true;
+    bool reach = false;
     if (find_extremities(&r, &o, &ee) == KM_OK)
-      bust = !limbs_reach_out(&r, cut_top);
+      reach = limbs_reach_out(&r, cut_top, hands);
     else if (ee.status == KM_ERR_CANCELLED)
       st = km__fail(err, KM_ERR_CANCELLED, "rig: cancelled");
-    if (bust) kind = KM_AUTORIG_BUST;
+    bool two = reach && hands[0] >= 0 && hands[1] >= 0;
+    if (st == KM_OK && kind == KM_AUTORIG_AUTO)
+      kind = !reach ? KM_AUTORIG_BUST : two ? KM_AUTORIG_UPPER : kind;
+    if (st == KM_OK && kind == KM_AUTORIG_UPPER && !two)
+      st = km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: not an upper body: no %s hand reaching out from its base (an extremity "
+                    "0.2 of the height above it, farther from its middle than twice its width, "
+                    "on the %s side)",
+                    hands[0] < 0 ? "left" : "right", hands[0] < 0 ? "+x" : "-x");
   }
-  if (st == KM_OK && kind != KM_AUTORIG_BUST && !searched) st = find_extremities(&r, &o, err);
+  if (st == KM_OK && kind != KM_AUTORIG_BUST && kind != KM_AUTORIG_UPPER && !searched)
+    st = find_extremities(&r, &o, err);
   if (st == KM_OK && kind == KM_AUTORIG_AUTO)
     kind = ground_legs(&r) >= 3 ? KM_AUTORIG_QUADRUPED : KM_AUTORIG_KINECT1;
   if (report) {
@@ -1214,8 +1257,8 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
     memcpy(report->extremity_distance, r.ext_d, sizeof r.ext_d);
   }
   if (st == KM_OK) {
-    if (kind == KM_AUTORIG_BUST)
-      st = rig_bust(&r, report, err);
+    if (kind == KM_AUTORIG_BUST || kind == KM_AUTORIG_UPPER)
+      st = rig_bust(&r, kind == KM_AUTORIG_UPPER ? hands : NULL, report, err);
     else if (kind == KM_AUTORIG_PROP)
       st = rig_prop(&r, report, err);
     else
@@ -1259,7 +1302,8 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
                                                           : KM_AUTORIG_SKIN_DISTANCE;
     if (report) report->skin = skin;
     st = compute_skin(&r, skin == KM_AUTORIG_SKIN_REACH, &out->skin, err);
-    if (st == KM_OK && kind == KM_AUTORIG_BUST) bust_skin(&out->skin, r.n);
+    if (st == KM_OK && (kind == KM_AUTORIG_BUST || kind == KM_AUTORIG_UPPER))
+      bust_skin(&out->skin, r.n, kind == KM_AUTORIG_UPPER);
   }
   if (st == KM_OK) {
     double fwd[3] = {0, 0, 1};

@@ -33,8 +33,9 @@ void km__geodesic_free(km__geodesic **g);
  * mesh in kinemesh's frame (y up), i.e. a boundary loop (km_boundary_loops) whose vertices all
  * lie within 0.06 of the height (y extent), or 2.5 mean edge lengths when that is more (a
  * coarse mesh's cut is ragged), of the lowest vertex and which spans at least 0.3 of
- * the mesh's width (x extent): a bust's chest or neck cut, not the small holes of a scan's
- * soles. *found: whether there is one; *cut_top: the highest y of the widest such loop. */
+ * the mesh's width (x extent) or 0.8 of its bottom's (the vertices that low; a T-posed upper
+ * body's waist is 0.2 of its arm span): a bust's chest or neck cut, not the small holes of a
+ * scan's soles. *found: whether there is one; *cut_top: the highest y of the widest such loop. */
 km_status km__bust_base(const km_mesh *m, bool *found, double *cut_top, km_error *err);
 /* The same in a mesh's own axes: up (0..2: x, y, z) pointing up_sign (+1, -1), widths along
  * lat (the lateral axis); *cut_top along up as stored. */

@@ -403,9 +403,18 @@ km_status km__bust_base_axes(const km_mesh *m, int up, int up_sign, int lat, boo
     }
   elen /= 3.0 * (double)m->n_faces;
   double depth = fmax(0.06 * H, 2.5 * elen);
+  /* The bottom's own width: a cut at the waist of a T-posed upper body spans 0.2 of the arms'
+   * width, and all of its bottom; a scan's open sole a third of the bottom's (two feet) */
+  double blo = INFINITY, bhi = -INFINITY;
+  for (size_t v = 0; v < m->n_vertices; ++v) {
+    double y = up_sign > 0 ? m->V[3 * v + (size_t)up] : -m->V[3 * v + (size_t)up];
+    if (y - bottom <= depth)
+      blo = fmin(blo, m->V[3 * v + (size_t)lat]), bhi = fmax(bhi, m->V[3 * v + (size_t)lat]);
+  }
   for (size_t l = 0; l < nl && H > 0 && W > 0; ++l) {
     double span = xhi[l] - xlo[l];
-    if (yhi[l] - bottom <= depth && depth < 0.5 * H && span >= 0.3 * W && span > best) {
+    if (yhi[l] - bottom <= depth && depth < 0.5 * H &&
+        (span >= 0.3 * W || span >= 0.8 * (bhi - blo)) && span > best) {
       best = span;
       *found = true;
       *cut_top = up_sign > 0 ? yhi[l] : -yhi[l];

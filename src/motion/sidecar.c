@@ -145,8 +145,8 @@ static bool upright_body(const km_skeleton *sk) {
  * caller's, filled): the child joint of each vertex's nearest bone (-1 none) and the vertex's
  * projection on it, 0..1. Returns false when out of memory. */
 static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends, double radius,
-                       bool upright, int8_t *band, int bone_ok[N_BONE_HANDLES], bool *stubby,
-                       int32_t *vj, double *vt) {
+                       bool upright, bool legs, int8_t *band, int bone_ok[N_BONE_HANDLES],
+                       bool *stubby, int32_t *vj, double *vt) {
   const km_mesh *m = &c->mesh;
   const km_skeleton *sk = &c->skeleton;
   size_t n = m->n_vertices;
@@ -223,6 +223,7 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
     for (int b = 0; b < N_LIMB_BANDS; b += 2)
       bone_ok[b] = 0;
   for (int b = 0; b < N_LIMB_BANDS; ++b) { /* the spine's bands hold a torso */
+    if (!legs && b >= 4) bone_ok[b] = 0;   /* an upper body's, folded into its base */
     if (!bone_ok[b]) continue;
     size_t k = 0;
     for (size_t v = 0; v < n; ++v)
@@ -314,6 +315,9 @@ typedef struct rig_plan {
    * (km__seated_base): a head handle turning with the neck and a base anchor instead of the end
    * handles and bands (bust_handles) */
   bool bust;
+  /* An upper body (legs_folded, on a bust's base): the humanoid's head, hands and arm and chest
+   * bands, no feet nor leg bands, and the base anchor (upper_base) */
+  bool upper;
   int32_t *base_list; /* the base anchor's vertices */
   size_t n_base;
 } rig_plan;
@@ -458,16 +462,37 @@ done:
   return st;
 }
 
+/* Whether both ends lie near their roots (each end_k within frac of the distance between
+ * joints ref0 and ref1 of root_k): limbs folded into the body, as km_autorig places a bust's
+ * arms and an upper body's legs. */
+static bool ends_near(const km_skeleton *sk, const char *const root[2], const char *const end[2],
+                      const char *ref0, const char *ref1, double frac) {
+  int r0 = skel_joint(sk, ref0), r1 = skel_joint(sk, ref1);
+  if (r0 < 0 || r1 < 0) return false;
+  const double *J = sk->rest;
+  double len = dist3(J + 3 * (size_t)r0, J + 3 * (size_t)r1);
+  for (int k = 0; k < 2; ++k) {
+    int a = skel_joint(sk, root[k]), b = skel_joint(sk, end[k]);
+    if (a < 0 || b < 0 || !(dist3(J + 3 * (size_t)a, J + 3 * (size_t)b) < frac * len)) return false;
+  }
+  return true;
+}
+
 /* Whether the arms are folded into the shoulders, as km_autorig places a bust's: each hand
  * within 0.4 of the shoulders' span of its shoulder (an arm is about that span long or more). */
 static bool arms_folded(const km_skeleton *sk) {
-  int sl = skel_joint(sk, "ShoulderLeft"), sr = skel_joint(sk, "ShoulderRight"),
-      hl = skel_joint(sk, "HandLeft"), hr = skel_joint(sk, "HandRight");
-  if (sl < 0 || sr < 0 || hl < 0 || hr < 0) return false;
-  const double *J = sk->rest;
-  double span = dist3(J + 3 * (size_t)sl, J + 3 * (size_t)sr);
-  return dist3(J + 3 * (size_t)hl, J + 3 * (size_t)sl) < 0.4 * span &&
-         dist3(J + 3 * (size_t)hr, J + 3 * (size_t)sr) < 0.4 * span;
+  static const char *const root[2] = {"ShoulderLeft", "ShoulderRight"}, *const end[2] = {
+                                                                            "HandLeft",
+                                                                            "HandRight"};
+  return ends_near(sk, root, end, "ShoulderLeft", "ShoulderRight", 0.4);
+}
+
+/* Whether the legs are folded into the base, as km_autorig places an upper body's: each foot
+ * within a quarter of the spine (HipCenter -> ShoulderCenter) of HipCenter. */
+static bool legs_folded(const km_skeleton *sk) {
+  static const char *const root[2] = {"HipCenter", "HipCenter"}, *const end[2] = {"FootLeft",
+                                                                                  "FootRight"};
+  return ends_near(sk, root, end, "HipCenter", "ShoulderCenter", 0.25);
 }
 
 /* A bust's handles: the head (end_list[0]: the vertices above the middle of the neck bone,
@@ -532,6 +557,54 @@ static km_status bust_handles(const km_character *c, double ymin, double ymax, r
   return KM_OK;
 }
 
+/* An upper body's base anchor: the vertices within 0.15 of the height of the bottom that no
+ * other handle holds (off the bands and the hand and head balls), every k-th of at most
+ * BAND_MAX; the leg bands (thighs, shins, knees, pelvis) and the feet's handles go: its legs
+ * are folded into the base, which no map entry moves (it follows the root). */
+static km_status upper_base(const km_character *c, double ymin, double ymax, rig_plan *p,
+                            km_error *err) {
+  const km_mesh *m = &c->mesh;
+  size_t n = m->n_vertices;
+  static const int legs[] = {4, 5, 6, 7, 8, 12, 13}; /* bone_handle_name's */
+  for (size_t i = 0; i < sizeof legs / sizeof legs[0]; ++i)
+    p->bone_ok[legs[i]] = 0;
+  for (size_t v = 0; v < n; ++v)
+    if (p->band[v] >= 0 && !p->bone_ok[p->band[v]]) p->band[v] = -1;
+  for (int h = 3; h < 5; ++h) {
+    free(p->end_list[h]);
+    p->end_list[h] = NULL;
+    p->n_end[h] = 0;
+  }
+  uint8_t *held = km__calloc(n, 1);
+  p->base_list = km__malloc(n, sizeof(int32_t));
+  if (!held || !p->base_list) {
+    free(held);
+    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  }
+  for (int h = 0; h < 3; ++h) {
+    for (size_t k = 0; k < p->n_end[h]; ++k)
+      held[p->end_list[h][k]] = 1;
+    if (!p->end_list[h]) { /* a ball: km_rig_parse grows it within radius along the surface */
+      const double *y = m->V + 3 * (size_t)p->handle_vertex[h];
+      for (size_t v = 0; v < n; ++v)
+        held[v] |= dist3(m->V + 3 * v, y) <= 1.05 * p->radius;
+    }
+  }
+  double ybase = ymin + 0.15 * (ymax - ymin);
+  size_t all = 0, i = 0;
+  for (size_t v = 0; v < n; ++v)
+    all += m->V[3 * v + 1] <= ybase && p->band[v] < 0 && !held[v];
+  size_t every = (all + BAND_MAX - 1) / BAND_MAX;
+  for (size_t v = 0; v < n && every; ++v)
+    if (m->V[3 * v + 1] <= ybase && p->band[v] < 0 && !held[v] && i++ % every == 0)
+      p->base_list[p->n_base++] = (int32_t)v;
+  free(held);
+  if (!p->n_base)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: the upper body's base (below y %.4g) has no free vertex", ybase);
+  return KM_OK;
+}
+
 /* Checks c and places the handles; p->band is the caller's to free. */
 static km_status rig_plan_make(const char *path, const km_character *c, rig_plan *p,
                                km_error *err) {
@@ -589,6 +662,11 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
     if (bs == KM_OK && !p->bust) bs = km__seated_base(m, &p->bust, &cut_top, err);
   }
   if (bs != KM_OK) return bs;
+  if (!p->bust && !arms_folded(sk) && legs_folded(sk)) {
+    bs = km__bust_base(m, &p->upper, &cut_top, err);
+    if (bs == KM_OK && !p->upper) bs = km__seated_base(m, &p->upper, &cut_top, err);
+    if (bs != KM_OK) return bs;
+  }
   if (p->bust) {
     if ((bs = bust_handles(c, ymin, ymax, p, err)) != KM_OK) {
       plan_free(p);
@@ -604,8 +682,8 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
   int32_t *nearest = km__malloc(n, sizeof(int32_t));
   double *nearest_t = km__malloc(n, sizeof(double));
   if (!p->band || !nearest || !nearest_t ||
-      !bone_bands(c, ends, 5, radius, p->upright, p->band, p->bone_ok, &p->stubby, nearest,
-                  nearest_t)) {
+      !bone_bands(c, ends, 5, radius, p->upright, !p->upper, p->band, p->bone_ok, &p->stubby,
+                  nearest, nearest_t)) {
     free(nearest);
     free(nearest_t);
     plan_free(p);
@@ -614,6 +692,7 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
   km_status st = end_handles(c, nearest, nearest_t, p, err);
   free(nearest);
   free(nearest_t);
+  if (st == KM_OK && p->upper) st = upper_base(c, ymin, ymax, p, err);
   if (st != KM_OK) {
     plan_free(p);
     return km__wrap(err, st, "%s", path);
@@ -678,7 +757,8 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
           f);
     return;
   }
-  for (int h = 0; h < 5; ++h) {
+  int n_ends = p->upper ? 3 : 5; /* an upper body's feet are folded into its base */
+  for (int h = 0; h < n_ends; ++h) {
     if (p->end_list[h]) {
       fprintf(f, "%s\n{\"name\":\"%s\",\"vertices\":[", h ? "," : "", handle_names[h]);
       for (size_t k = 0; k < p->n_end[h]; ++k)
@@ -713,8 +793,14 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
    * that sends a hand alone (OSC) still moves the hand. */
   static const char *const handle_bone_start[5] = {"ShoulderCenter", "ElbowLeft", "ElbowRight",
                                                    "KneeLeft", "KneeRight"};
+  if (p->upper) {
+    fputs(",\n{\"name\":\"base\",\"vertices\":[", f);
+    for (size_t k = 0; k < p->n_base; ++k)
+      fprintf(f, k ? ",%d" : "%d", p->base_list[k]);
+    fputs("]}", f);
+  }
   fputs("],\n\"map\":[", f);
-  for (int h = 0; h < 5; ++h)
+  for (int h = 0; h < n_ends; ++h)
     fprintf(f, "%s\n{\"handle\":\"%s\",\"bone\":[\"%s\",\"%s\"]}", h ? "," : "", handle_names[h],
             handle_bone_start[h], handle_joints[h]);
   for (int b = 0; b < N_BONE_HANDLES; ++b)
@@ -725,6 +811,11 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
    * the motion relative to it: with free-standing handles only, a performer who turns round
    * (the demo's kung-fu spin) turned the limbs but not the torso, which no handle holds, and
    * twisted the legs and neck into ropes. */
+  /* An upper body too (a VR avatar): its base, which no map entry moves, follows the root
+   * rigidly, and the avatar turns whole with the performer. Held still in the world instead (as
+   * a bust's), the base kept the chest from turning and a performer's turn twisted the torso
+   * (bench motion B, a T-posed character cut at the waist: longest edge on cmu_131_01 /
+   * cmu_131_03 1.83 / 2.10 -> 1.51 / 1.51x, folded triangles 84 / 278 -> 35 / 25). */
   fputs("],\n\"root_motion\":\"rigid\",\"relative_to\":\"HipCenter\",\"aim\":true,", f);
   /* A quadruped's legs do not reach where a person's arms and legs do: a performer raising an
    * arm overhead swung the horse's foreleg 150 degrees up to its nose, a thin tube stretched
