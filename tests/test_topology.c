@@ -3,6 +3,7 @@
  */
 #include "core/core.h"
 #include "km_test.h"
+#include "mesh/mesh.h"   /* km__seated_base */
 #include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
 static km_mesh make(size_t nv, const double *V, size_t nf, const int32_t *F) {
@@ -359,7 +360,45 @@ static void test_boundary_loops(void) {
   km_mesh_free(&m);
 }
 
+/* km__seated_base: a standing cylinder sits on its flat cap (a plinth); a sphere touches the
+ * ground in a small cap; two cylinders side by side stand on two parts (two feet); a lone
+ * tetrahedron's bottom face is most of its vertices. */
+static void test_seated_base(void) {
+  km_mesh c = {0}, two = {0}, s = {0};
+  CHECK_OK(km_cylinder(24, 8, 0.2, 1.0, &c, KM_E));
+  for (size_t v = 0; c.V && v < c.n_vertices; ++v) { /* its axis along y */
+    double y = c.V[3 * v + 2];
+    c.V[3 * v + 2] = c.V[3 * v + 1], c.V[3 * v + 1] = y;
+  }
+  bool found = false;
+  double top = 0;
+  CHECK_OK(km__seated_base(&c, &found, &top, KM_E));
+  CHECK_MSG(found && fabs(top - 0.05) < 1e-9, "the cylinder: found %d, base top %g", found, top);
+  CHECK_OK(km_mesh_alloc(2 * c.n_vertices, 2 * c.n_faces, &two, KM_E));
+  for (size_t v = 0; two.V && v < c.n_vertices; ++v)
+    for (int k = 0; k < 3; ++k) {
+      two.V[3 * v + k] = c.V[3 * v + k] - (k == 0 ? 0.3 : 0);
+      two.V[3 * (v + c.n_vertices) + k] = c.V[3 * v + k] + (k == 0 ? 0.3 : 0);
+    }
+  for (size_t i = 0; two.F && i < 3 * c.n_faces; ++i) {
+    two.F[i] = c.F[i];
+    two.F[i + 3 * c.n_faces] = c.F[i] + (int32_t)c.n_vertices;
+  }
+  CHECK_OK(km__seated_base(&two, &found, &top, KM_E));
+  CHECK_MSG(!found, "two cylinders (two feet) taken for a seated body");
+  CHECK_OK(km_icosphere(3, 0.5, &s, KM_E));
+  CHECK_OK(km__seated_base(&s, &found, &top, KM_E));
+  CHECK_MSG(!found, "a sphere taken for a seated body");
+  const double V[] = {0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 1, 0};
+  const int32_t T[] = {0, 1, 2, 0, 3, 1, 0, 2, 3, 1, 3, 2};
+  km_mesh t = make(4, V, 4, T);
+  CHECK_OK(km__seated_base(&t, &found, &top, KM_E));
+  CHECK_MSG(!found, "a lone tetrahedron taken for a seated body");
+  km_mesh_free(&t), km_mesh_free(&s), km_mesh_free(&two), km_mesh_free(&c);
+}
+
 int main(void) {
+  test_seated_base();
   test_boundary_loops();
   test_farthest_points();
   test_tetrahedron();
