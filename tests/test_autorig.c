@@ -332,7 +332,7 @@ static void test_real(const char *rel, km_axis up, km_axis forward, km_autorig_s
       CHECK(isfinite(c.skeleton.rest[j]));
     /* The sidecar's bone handles pose the limbs as the performer's (issue 12): joints bend,
      * which concentrates strain in a few edges at the crotch and armpits (worst edge measured
-     * 1.80x armadillo, 1.29x dog0, 1.43x elephant, 1.30x horse; 99th percentile 1.2x to
+     * 1.75x armadillo, 1.26x dog0, 1.33x elephant, 1.31x horse; 99th percentile 1.2x to
      * 1.5x). The animals' were 1.37x, 1.645x and 1.505x while their shoulder and hip bones
      * turned with the performer's shrugs and leans and carried the legs ("girdle_limit"). The
      * armadillo's was 2.15x while its hand and foot handles were balls round one claw: the other
