@@ -2629,7 +2629,7 @@ typedef struct km_autorig_options {
 
 /* What km_autorig chose (the library never prints: the caller reports it). */
 typedef struct km_autorig_report {
-  km_autorig_skeleton kind; /* KM_AUTORIG_KINECT1 (humanoid), _QUADRUPED, _PROP or _BUST */
+  km_autorig_skeleton kind; /* KM_AUTORIG_KINECT1 (humanoid), _QUADRUPED, _PROP, _BUST, _UPPER */
   size_t n_extremities;
   int32_t extremity[KM_AUTORIG_MAX_EXTREMITIES];         /* vertex ids, most prominent first */
   double extremity_distance[KM_AUTORIG_MAX_EXTREMITIES]; /* geodesic prominence, metres */
@@ -2643,8 +2643,8 @@ typedef struct km_autorig_report {
   km_autorig_skin skin; /* the weights written: KM_AUTORIG_SKIN_DISTANCE or _REACH */
 } km_autorig_report;
 
-/* The kind's name: "humanoid" (KM_AUTORIG_KINECT1), "quadruped", "prop", "bust"; "auto" for
- * KM_AUTORIG_AUTO; "unknown" otherwise. */
+/* The kind's name: "humanoid" (KM_AUTORIG_KINECT1), "quadruped", "prop", "bust", "upper body"
+ * (KM_AUTORIG_UPPER); "auto" for KM_AUTORIG_AUTO; "unknown" otherwise. */
 const char *km_autorig_kind_name(km_autorig_skeleton kind);
 
 /* Rigs a mesh.

@@ -1227,12 +1227,12 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   bool based = kind == KM_AUTORIG_AUTO || kind == KM_AUTORIG_BUST || kind == KM_AUTORIG_UPPER;
   double cut_top;
   int hands[2] = {-1, -1};
-  if (based) st = km__bust_base(m, &bust, &cut_top, err);
-  /* A body sitting on a broad base (km__seated_base: a sitting rabbit, a figure on a plinth) is
-   * rigged as a bust too: the head turns, the base stays. Rigged by its extremities, the Stanford
-   * bunny took an ear and its snout for hands and its tail for a foot, and a performer's step
-   * tore its haunch (bench motion B, longest edge 2.4-3.3x, 62-88 folded triangles). */
-  if (st == KM_OK && !bust && based) st = km__seated_base(m, &bust, &cut_top, err);
+  /* An open cut, or a broad base the body sits on (km__rest_base): a body sitting on one (a
+   * sitting rabbit, a figure on a plinth) is rigged as a bust too: the head turns, the base
+   * stays. Rigged by its extremities, the Stanford bunny took an ear and its snout for hands
+   * and its tail for a foot, and a performer's step tore its haunch (bench motion B, longest
+   * edge 2.4-3.3x, 62-88 folded triangles). */
+  if (based) st = km__rest_base(m, &bust, &cut_top, err);
   if (st == KM_OK && kind != KM_AUTORIG_AUTO && based && !bust)
     st = km__fail(err, KM_ERR_DEGENERATE_MESH,
                   "rig: not a %s: no open cut at its bottom (a boundary loop within 0.06 of "

@@ -51,6 +51,10 @@ km_status km__bust_base_axes(const km_mesh *m, int up, int up_sign, int lat, boo
  * round body's a small cap (an ellipsoid's spans 0.44), a cat lying on its side a strip of its
  * flank (0.16 x 0.15). *found: whether it sits; *base_top: the y of the top of that 0.05. */
 km_status km__seated_base(const km_mesh *m, bool *found, double *base_top, km_error *err);
+/* The base a bust or an upper body stands on (the autorig's and the rig writer's one test):
+ * an open cut (km__bust_base), else a broad base it sits on (km__seated_base). *top: the cut's
+ * or the seated base's top y. */
+km_status km__rest_base(const km_mesh *m, bool *found, double *top, km_error *err);
 
 /* One accessor of a glTF (.glb, or .gltf with data: URIs) in memory, as doubles: any component
  * type (KHR_mesh_quantization's byte / short, normalized or not, as the specification reads

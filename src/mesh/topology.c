@@ -482,3 +482,9 @@ km_status km__seated_base(const km_mesh *m, bool *found, double *base_top, km_er
   free(parent), free(count);
   return KM_OK;
 }
+
+km_status km__rest_base(const km_mesh *m, bool *found, double *top, km_error *err) {
+  km_status s = km__bust_base(m, found, top, err);
+  if (s == KM_OK && !*found) s = km__seated_base(m, found, top, err);
+  return s;
+}

@@ -222,8 +222,12 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
   if (!upright)
     for (int b = 0; b < N_LIMB_BANDS; b += 2)
       bone_ok[b] = 0;
+  /* An upper body's legs are folded into its base, which holds the pelvis too: no thigh,
+   * shin, pelvis or knee band */
+  static const int leg_bands[] = {4, 5, 6, 7, 8, 12, 13};
+  for (size_t i = 0; !legs && i < sizeof leg_bands / sizeof leg_bands[0]; ++i)
+    bone_ok[leg_bands[i]] = 0;
   for (int b = 0; b < N_LIMB_BANDS; ++b) { /* the spine's bands hold a torso */
-    if (!legs && b >= 4) bone_ok[b] = 0;   /* an upper body's, folded into its base */
     if (!bone_ok[b]) continue;
     size_t k = 0;
     for (size_t v = 0; v < n; ++v)
@@ -495,10 +499,23 @@ static bool legs_folded(const km_skeleton *sk) {
   return ends_near(sk, root, end, "HipCenter", "ShoulderCenter", 0.25);
 }
 
+/* Every k-th of the vertices v with take[v] == 1 (n of them), in order, k chosen so that at
+ * most BAND_MAX are kept: an anchor needs a few points spread over its region, and the
+ * per-frame solve costs per handle vertex. out: the caller's (n); returns the count. */
+static size_t pick_spread(const uint8_t *take, size_t n, int32_t *out) {
+  size_t all = 0, i = 0, kept = 0;
+  for (size_t v = 0; v < n; ++v)
+    all += take[v] == 1;
+  size_t every = (all + BAND_MAX - 1) / BAND_MAX;
+  for (size_t v = 0; v < n && every; ++v)
+    if (take[v] == 1 && i++ % every == 0) out[kept++] = (int32_t)v;
+  return kept;
+}
+
 /* A bust's handles: the head (end_list[0]: the vertices above the middle of the neck bone,
  * ShoulderCenter -> Head, joined to the top vertex along faces), held rigid and turned with
  * the performer's neck, and the base (the vertices within 0.15 of the height of the bottom,
- * off the head, every k-th of at most BAND_MAX) held still: a bust stands on its cut. With the
+ * off the head, spread: pick_spread) held still: a bust stands on its cut. With the
  * quadruped's or a prop's hands and feet on the corners of its cut, a performer's steps
  * crumpled its chest. A head cut at its neck (ShoulderCenter in the bottom 0.1 of the height)
  * holds only its bottom 0.03 and turns everything above 0.25: a base of 0.15 held its chin
@@ -520,10 +537,11 @@ static km_status bust_handles(const km_character *c, double ymin, double ymax, r
     yneck = ymin + 0.25 * H;
   }
   int32_t *uf = km__malloc(n, sizeof(int32_t));
+  uint8_t *take = km__malloc(n, 1); /* the base's vertices, before pick_spread */
   p->end_list[0] = km__malloc(n, sizeof(int32_t));
   p->base_list = km__malloc(n, sizeof(int32_t));
-  if (!uf || !p->end_list[0] || !p->base_list) {
-    free(uf);
+  if (!uf || !take || !p->end_list[0] || !p->base_list) {
+    free(uf), free(take);
     return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
   }
   for (size_t v = 0; v < n; ++v)
@@ -535,21 +553,15 @@ static km_status bust_handles(const km_character *c, double ymin, double ymax, r
         uf[uf_find(uf, a)] = uf_find(uf, b);
     }
   int32_t top = uf_find(uf, (int32_t)p->handle_vertex[0]);
-  size_t base_all = 0;
   for (size_t v = 0; v < n; ++v) {
     double y = m->V[3 * v + 1];
-    if (y >= yneck && uf_find(uf, (int32_t)v) == top)
-      p->end_list[0][p->n_end[0]++] = (int32_t)v;
-    else if (y <= ybase)
-      ++base_all;
-  }
-  size_t every = (base_all + BAND_MAX - 1) / BAND_MAX, i = 0;
-  for (size_t v = 0; v < n && every; ++v) {
-    double y = m->V[3 * v + 1];
-    if ((y >= yneck && uf_find(uf, (int32_t)v) == top) || y > ybase) continue;
-    if (i++ % every == 0) p->base_list[p->n_base++] = (int32_t)v;
+    bool head = y >= yneck && uf_find(uf, (int32_t)v) == top;
+    if (head) p->end_list[0][p->n_end[0]++] = (int32_t)v;
+    take[v] = !head && y <= ybase;
   }
   free(uf);
+  p->n_base = pick_spread(take, n, p->base_list);
+  free(take);
   if (!p->n_end[0] || !p->n_base)
     return km__fail(err, KM_ERR_DEGENERATE_MESH,
                     "rig: the bust's head (above y %.4g) or base (below y %.4g) has no vertex",
@@ -558,47 +570,38 @@ static km_status bust_handles(const km_character *c, double ymin, double ymax, r
 }
 
 /* An upper body's base anchor: the vertices within 0.15 of the height of the bottom that no
- * other handle holds (off the bands and the hand and head balls), every k-th of at most
- * BAND_MAX; the leg bands (thighs, shins, knees, pelvis) and the feet's handles go: its legs
- * are folded into the base, which no map entry moves (it follows the root). */
+ * other handle holds (off the bands and the hand and head balls), spread (pick_spread); its
+ * legs are folded into the base (bone_bands gave them no band), and the feet's handles go. The
+ * base, which no map entry moves, follows the root. */
 static km_status upper_base(const km_character *c, double ymin, double ymax, rig_plan *p,
                             km_error *err) {
   const km_mesh *m = &c->mesh;
   size_t n = m->n_vertices;
-  static const int legs[] = {4, 5, 6, 7, 8, 12, 13}; /* bone_handle_name's */
-  for (size_t i = 0; i < sizeof legs / sizeof legs[0]; ++i)
-    p->bone_ok[legs[i]] = 0;
-  for (size_t v = 0; v < n; ++v)
-    if (p->band[v] >= 0 && !p->bone_ok[p->band[v]]) p->band[v] = -1;
   for (int h = 3; h < 5; ++h) {
     free(p->end_list[h]);
     p->end_list[h] = NULL;
     p->n_end[h] = 0;
   }
-  uint8_t *held = km__calloc(n, 1);
+  uint8_t *take = km__calloc(n, 1); /* 1: a base vertex; 2: another handle holds it */
   p->base_list = km__malloc(n, sizeof(int32_t));
-  if (!held || !p->base_list) {
-    free(held);
+  if (!take || !p->base_list) {
+    free(take);
     return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
   }
   for (int h = 0; h < 3; ++h) {
     for (size_t k = 0; k < p->n_end[h]; ++k)
-      held[p->end_list[h][k]] = 1;
+      take[p->end_list[h][k]] = 2;
     if (!p->end_list[h]) { /* a ball: km_rig_parse grows it within radius along the surface */
       const double *y = m->V + 3 * (size_t)p->handle_vertex[h];
       for (size_t v = 0; v < n; ++v)
-        held[v] |= dist3(m->V + 3 * v, y) <= 1.05 * p->radius;
+        if (dist3(m->V + 3 * v, y) <= 1.05 * p->radius) take[v] = 2;
     }
   }
   double ybase = ymin + 0.15 * (ymax - ymin);
-  size_t all = 0, i = 0;
   for (size_t v = 0; v < n; ++v)
-    all += m->V[3 * v + 1] <= ybase && p->band[v] < 0 && !held[v];
-  size_t every = (all + BAND_MAX - 1) / BAND_MAX;
-  for (size_t v = 0; v < n && every; ++v)
-    if (m->V[3 * v + 1] <= ybase && p->band[v] < 0 && !held[v] && i++ % every == 0)
-      p->base_list[p->n_base++] = (int32_t)v;
-  free(held);
+    if (take[v] == 0 && p->band[v] < 0 && m->V[3 * v + 1] <= ybase) take[v] = 1;
+  p->n_base = pick_spread(take, n, p->base_list);
+  free(take);
   if (!p->n_base)
     return km__fail(err, KM_ERR_DEGENERATE_MESH,
                     "rig: the upper body's base (below y %.4g) has no free vertex", ybase);
@@ -652,23 +655,20 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
     p->handle_vertex[h] = li >= 0 ? c->landmarks[li].vertex : (long)top;
   }
   p->upright = upright_body(sk);
-  /* A bust: its arms folded into its shoulders (arms_folded) and open at its bottom
-   * (km__bust_base, only looked for then) or sitting on a broad base (km__seated_base). An
-   * upper body cut at the waist whose arms reach out is rigged with hands and bands. */
+  /* On a base (km__rest_base: an open cut or a broad base it sits on, only looked for then):
+   * a bust with its arms folded into its shoulders (arms_folded), an upper body with its arms
+   * reaching out and its legs folded into the base (legs_folded), rigged with hands and bands. */
+  bool arms_in = arms_folded(sk), based = false;
   double cut_top;
-  km_status bs = KM_OK;
-  if (arms_folded(sk)) {
-    bs = km__bust_base(m, &p->bust, &cut_top, err);
-    if (bs == KM_OK && !p->bust) bs = km__seated_base(m, &p->bust, &cut_top, err);
-  }
-  if (bs != KM_OK) return bs;
-  if (!p->bust && !arms_folded(sk) && legs_folded(sk)) {
-    bs = km__bust_base(m, &p->upper, &cut_top, err);
-    if (bs == KM_OK && !p->upper) bs = km__seated_base(m, &p->upper, &cut_top, err);
+  if (arms_in || legs_folded(sk)) {
+    km_status bs = km__rest_base(m, &based, &cut_top, err);
     if (bs != KM_OK) return bs;
   }
+  p->bust = based && arms_in;
+  p->upper = based && !arms_in;
   if (p->bust) {
-    if ((bs = bust_handles(c, ymin, ymax, p, err)) != KM_OK) {
+    km_status bs = bust_handles(c, ymin, ymax, p, err);
+    if (bs != KM_OK) {
       plan_free(p);
       return km__wrap(err, bs, "%s", path);
     }
@@ -698,6 +698,14 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
     return km__wrap(err, st, "%s", path);
   }
   return KM_OK;
+}
+
+/* One handle of the rig file: sep ("," after another handle), then {"name":..,"vertices":[..]}. */
+static void write_handle(FILE *f, const char *sep, const char *name, const int32_t *v, size_t n) {
+  fprintf(f, "%s\n{\"name\":\"%s\",\"vertices\":[", sep, name);
+  for (size_t k = 0; k < n; ++k)
+    fprintf(f, k ? ",%d" : "%d", v[k]);
+  fputs("]}", f);
 }
 
 static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) {
@@ -733,12 +741,8 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
   km__landmarks_write_json(f, c->landmarks, KM_CHARACTER_LANDMARKS);
   fputs(",\n\"handles\":[", f);
   if (p->bust) { /* the head turns with the neck about the root, the base stays */
-    fputs("\n{\"name\":\"head\",\"vertices\":[", f);
-    for (size_t k = 0; k < p->n_end[0]; ++k)
-      fprintf(f, k ? ",%d" : "%d", p->end_list[0][k]);
-    fputs("]},\n{\"name\":\"base\",\"vertices\":[", f);
-    for (size_t k = 0; k < p->n_base; ++k)
-      fprintf(f, k ? ",%d" : "%d", p->base_list[k]);
+    write_handle(f, "", "head", p->end_list[0], p->n_end[0]);
+    write_handle(f, ",", "base", p->base_list, p->n_base);
     /* A bust's neck turns at most 45 degrees from where the chest carries its first
      * direction: a performer bending over would fold the head into the chest. Its filter is
      * One Euro (Casiez et al.; min cutoff 1 Hz, beta 0.5), not the other rigs' Holt (smoothing
@@ -751,7 +755,7 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
      * 2.6/3.7/2.2, FAUST's top 30 % 4.0/6.9/3.7 -> 1.7/2.5/2.2, its head 7.6/16.8/8.0 ->
      * 4.5/6.1/3.9; shortest edge bunny 0.30/0.51/0.53 -> 0.47/0.67/0.58x, longest edge within
      * 0.06x or shorter; the CMU takes within 0.3 % and 0.02x. */
-    fputs("]}],\n\"map\":[{\"handle\":\"head\",\"bone\":[\"ShoulderCenter\",\"Head\"]}],"
+    fputs("],\n\"map\":[{\"handle\":\"head\",\"bone\":[\"ShoulderCenter\",\"Head\"]}],"
           "\n\"relative_to\":\"HipCenter\",\"swing_limit\":45,"
           "\"filter\":{\"kind\":\"one_euro\",\"min_cutoff\":1.0,\"beta\":0.5}}\n",
           f);
@@ -760,10 +764,7 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
   int n_ends = p->upper ? 3 : 5; /* an upper body's feet are folded into its base */
   for (int h = 0; h < n_ends; ++h) {
     if (p->end_list[h]) {
-      fprintf(f, "%s\n{\"name\":\"%s\",\"vertices\":[", h ? "," : "", handle_names[h]);
-      for (size_t k = 0; k < p->n_end[h]; ++k)
-        fprintf(f, k ? ",%d" : "%d", p->end_list[h][k]);
-      fputs("]}", f);
+      write_handle(f, h ? "," : "", handle_names[h], p->end_list[h], p->n_end[h]);
       continue;
     }
     fprintf(f, "%s\n{\"name\":\"%s\",\"vertex\":%ld,\"radius\":%.6g}", h ? "," : "",
@@ -793,12 +794,7 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
    * that sends a hand alone (OSC) still moves the hand. */
   static const char *const handle_bone_start[5] = {"ShoulderCenter", "ElbowLeft", "ElbowRight",
                                                    "KneeLeft", "KneeRight"};
-  if (p->upper) {
-    fputs(",\n{\"name\":\"base\",\"vertices\":[", f);
-    for (size_t k = 0; k < p->n_base; ++k)
-      fprintf(f, k ? ",%d" : "%d", p->base_list[k]);
-    fputs("]}", f);
-  }
+  if (p->upper) write_handle(f, ",", "base", p->base_list, p->n_base);
   fputs("],\n\"map\":[", f);
   for (int h = 0; h < n_ends; ++h)
     fprintf(f, "%s\n{\"handle\":\"%s\",\"bone\":[\"%s\",\"%s\"]}", h ? "," : "", handle_names[h],
