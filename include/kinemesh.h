@@ -464,15 +464,17 @@ typedef struct km_frame_guess {
   km_frame frame; /* the guessed up and forward (scale 0: units are not guessed) */
   double height;  /* extent along the guessed up axis, in file units */
   bool standing;  /* taller than long along forward (a standing figure) */
-  bool sure_up;   /* up stood out: the ground plane, or a support 1.5x the next best; never
-                   * for a body lower than long and as wide as long (lying or sprawled) */
+  bool sure_up;   /* up stood out: an open cut, the ground plane, or a support 1.5x the next best;
+                   * never   for a body lower than long and as wide as long (lying or sprawled) */
   bool sure_forward;
   char why[112]; /* the evidence in one short line, for printing: which rule chose up and
                   * forward, e.g. "up: ground contact 1.35 vs 0.26; forward: mirror plane,
                   * head higher / tail thinner" */
 } km_frame_guess;
 /* Guesses how a mesh is oriented, among the 24 axis-aligned frames. Heuristic (documented in
- * src/mesh/orient.c), following the file through those 24 rotations: up is (1) the axis of
+ * src/mesh/orient.c), following the file through those 24 rotations: up is (0) away from an
+ * open cut at one end (a boundary loop within the lowest 6% that spans the width: a bust, a
+ * head cut at the neck, an upper body; in one direction only), else (1) the axis of
  * a model standing on the ground plane (its minimum, or its maximum, within 6% of its extent
  * from 0, no other axis so, and the mesh not plainly standing elsewhere: on several separate
  * feet along its longest axis with twice the support), else (2) the direction whose lowest 4% of

@@ -645,6 +645,23 @@ static void test_bust(const km_take *take) {
   cut_below(&body, 0.7, &m);
   km_mesh_free(&body);
   if (!m.V) return;
+  /* As cut, in FAUST's own coordinates (its face at z = 0, which was taken for the ground
+   * plane: up +z), and turned into each of the 24 axis-aligned frames: up from the open cut */
+  for (int u = KM_AXIS_POS_X; u <= KM_AXIS_NEG_Z; ++u)
+    for (int w = KM_AXIS_POS_X; w <= KM_AXIS_NEG_Z; ++w) {
+      if ((u - 1) / 2 == (w - 1) / 2) continue;
+      km_frame f = {(km_axis)u, (km_axis)w, 0};
+      km_mesh r = {0};
+      CHECK_OK(km_mesh_copy(&m, &r, KM_E));
+      if (!r.V) continue;
+      km_test_to_frame(&f, m.V, r.V, r.n_vertices);
+      km_frame_guess fg;
+      CHECK_OK(km_mesh_frame_guess(&r, &fg, KM_E));
+      CHECK_MSG(fg.frame.up == f.up && fg.sure_up && strstr(fg.why, "open cut"),
+                "the bust stored up %s forward %s: guessed up %s (%s)", km_axis_name(f.up),
+                km_axis_name(f.forward), km_axis_name(fg.frame.up), fg.why);
+      km_mesh_free(&r);
+    }
   /* Its axes, as a modelling tool stores a bust (centred, standing on y = 0): up from the cut
    * on the ground plane, forward's sign from the jaw ahead of the neck (FAUST faces +z), also
    * when it faces -z */
