@@ -1051,7 +1051,8 @@ void km_glitch_free(km_glitch **g);
  *              "kind": "holt" | "one_euro", "min_cutoff": 1.5, "beta": 1.0, "d_cutoff": 1.0} }
  * "floor": true keeps every handle vertex above the rest floor (km_retarget_options.floor).
  * "max_step": 0.02 eases a faster handle step (a tracker's pose snap) over the next frames: no
- * handle vertex moves more than that fraction of the mesh diagonal per frame
+ * handle vertex moves more than that fraction of the mesh diagonal per frame, the rigid root's
+ * translation and heading included under "root_motion": "rigid"
  * (km_retarget_options.max_step; a speed limit, off by default).
  * "rotate": true (rig level: every entry; or per map entry) makes the handle turn with the bone
  * that ends at the entry's joint: the handle's vertices get rest + displacement rotated about
@@ -1236,8 +1237,9 @@ typedef struct km_retarget_options {
   /* ---- issue 12: snap easing */
   double max_step; /* fraction of the rest mesh's bounding-box diagonal a handle vertex may
                       move per push; a faster step (a pose snap of the tracker) is eased over
-                      the next pushes, every handle by the same fraction (displacements
-                      linearly, rotations by slerp). 0: rig->max_step (0: off) */
+                      the next pushes, every handle and the rigid root by the same fraction
+                      (displacements linearly, rotations by slerp, the root's heading by its
+                      angle). 0: rig->max_step (0: off) */
   double fps;      /* pushes per second, for the rigid root's heading filter (at most 600 deg/s
                       shown, 300 deg/s onto a re-fit; a measured change faster than 900 deg/s,
                       or a 180 deg left/right swap, is held) and the bone speed limit. 0: 30 */

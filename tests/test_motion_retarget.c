@@ -473,6 +473,43 @@ static void test_max_step(void) {
   CHECK(km_retarget_eased_frames(r) == 0);
   km_retarget_free(&r);
   km_rig_free(&rig);
+  /* Under rigid root motion the root's translation counts too: the performer steps 0.6 m in
+   * one frame, the hand's handle (root-relative) stays put in the root's frame, and the whole
+   * mesh, carried by the root, moves at most max_step of the diagonal per push (it moved the
+   * full step at once: the limit covered the handles only) and arrives. */
+  snprintf(json, sizeof json,
+           "{\"max_step\":0.02,\"relative_to\":\"HipCenter\",\"root_motion\":\"rigid\","
+           "\"handles\":[{\"name\":\"hand\",\"vertices\":[%d]}],"
+           "\"map\":[{\"handle\":\"hand\",\"joint\":\"HandLeft\"}]}",
+           vid(0, NY));
+  CHECK_OK(parse(json, &m, &rig));
+  CHECK_OK(km_retarget_create(&rig, &m, KM_KINECT1_JOINTS, NULL, &r, KM_E));
+  standing(Jt);
+  km_retarget_push(r, Jt, T);
+  double t[3], tprev[3];
+  CHECK(km_retarget_root_transform(r, NULL, tprev, NULL));
+  CHECK(tprev[0] == 0 && tprev[1] == 0 && tprev[2] == 0);
+  for (int k = 0; k < 3 * KM_KINECT1_JOINTS; k += 3)
+    Jt[k] += 0.6;
+  pushes = worst_bad = 0;
+  double far = 0;
+  for (int i = 0; i < 400; ++i) {
+    km_retarget_push(r, Jt, T);
+    km_retarget_root_transform(r, NULL, t, NULL);
+    double d = sqrt((t[0] - tprev[0]) * (t[0] - tprev[0]) + (t[1] - tprev[1]) * (t[1] - tprev[1]) +
+                    (t[2] - tprev[2]) * (t[2] - tprev[2]));
+    worst_bad += d > lim * (1 + 1e-9);
+    far = fmax(far, d);
+    memcpy(tprev, t, sizeof t);
+    if (d == 0) break;
+    ++pushes;
+  }
+  CHECK_MSG(worst_bad == 0 && pushes > 1, "the root stepped %.4f (limit %.4f) in %zu pushes", far,
+            lim, pushes);
+  CHECK_MSG(t[0] > 0.1 && t[1] == 0 && t[2] == 0, "the root arrived at %g %g %g", t[0], t[1], t[2]);
+  CHECK(km_retarget_eased_frames(r) + 1 == pushes);
+  km_retarget_free(&r);
+  km_rig_free(&rig);
   /* bad values */
   const char *bad[] = {"{\"max_step\":-0.1,\"handles\":[{\"name\":\"h\",\"vertex\":0}]}",
                        "{\"max_step\":\"x\",\"handles\":[{\"name\":\"h\",\"vertex\":0}]}"};

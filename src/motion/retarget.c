@@ -90,9 +90,13 @@ struct km_retarget {
   bool *bhave;         /* n_joints: bvec and blen hold a valid bone */
   bool *blag;          /* n_joints: the bone was held back by the limit in the last push */
   /* snap easing (issue 12): no handle vertex moves more than max_step per push */
-  double max_step;   /* metres per push; 0: off */
-  double *prev;      /* n_handles*12: displacement (3) and rotation (9) of the last push */
-  double *hv_radius; /* n_handles: largest distance of a handle vertex from its centroid */
+  double max_step;            /* metres per push; 0: off */
+  double *prev;               /* n_handles*12: displacement (3) and rotation (9) of the last push */
+  double *hv_radius;          /* n_handles: largest distance of a handle vertex from its centroid */
+  double root_rho;            /* under rigid root motion: the farthest corner of the rest mesh's
+                                 bounding box from the vertical through the pivot */
+  double prev_t[3], prev_phi; /* the rigid root's translation and heading shown, last push */
+  double bb_lo[3], bb_hi[3];  /* the rest mesh's bounding box (for root_rho) */
   bool have_prev;
   size_t eased; /* pushes whose motion was eased */
 };
@@ -317,6 +321,8 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
     r->hr = rig->heading[0] && rig->heading[1] ? rig->heading[1] - 1 : -1;
     for (int d = 0; d < 3; ++d)
       r->pivot[d] = 0.5 * (lo[d] + hi[d]);
+    memcpy(r->bb_lo, lo, sizeof r->bb_lo);
+    memcpy(r->bb_hi, hi, sizeof r->bb_hi);
   }
   r->floor_y = lo[1];
   r->fps = o.fps > 0 && isfinite(o.fps) ? o.fps : 30.0;
@@ -491,13 +497,32 @@ static double root_scale(const km_retarget *r) {
 
 /* Snap easing: the largest step of a handle vertex since the last push is at most
  * |d - d'| + 2 sin(theta / 2) rho (d: displacement, theta: the angle of R R'^T, rho: the
- * handle's radius). When some handle's bound exceeds max_step, every handle goes only the
- * fraction alpha = max_step / (largest bound) of the way (displacements linearly, rotations by
- * slerp), so the handles stay in step with each other and the rest of the snap follows over
- * the next pushes. It limits every fast move, not only snaps (a walk's root translation too):
- * the rig opts in. */
+ * handle's radius), and under rigid root motion the whole mesh's step adds |t - t'| +
+ * 2 sin(|phi - phi'| / 2) root_rho (the root's translation and heading: a quadruped turning
+ * with the performer's hips sweeps its head and tail, a lunge carries the whole body; eased
+ * handles under an uneased root left dog0's one-frame jumps at 9-10 % of its diagonal on the
+ * Kinect takes). When the largest bound exceeds max_step, every handle and the root go only
+ * the fraction alpha = max_step / (largest bound) of the way (displacements linearly,
+ * rotations by slerp, the heading by its angle), so they stay in step with each other and the
+ * rest of the move follows over the next pushes. It limits every fast move, not only snaps: the
+ * rig opts in. */
 static void ease(km_retarget *r) {
-  double worst = 0;
+  double worst = 0, root_step = 0;
+  if (r->rigid && r->have_prev) {
+    if (!(r->root_rho > 0)) {
+      double m = 0;
+      for (int c = 0; c < 4; ++c) {
+        double x = (c & 1 ? r->bb_hi[0] : r->bb_lo[0]) - r->pivot[0],
+               z = (c & 2 ? r->bb_hi[2] : r->bb_lo[2]) - r->pivot[2];
+        m = fmax(m, hypot(x, z));
+      }
+      r->root_rho = m;
+    }
+    double dt[3];
+    km__sub3(r->t, r->prev_t, dt);
+    root_step = sqrt(km__dot3(dt, dt)) + 2 * sin(0.5 * fabs(r->h_phi - r->prev_phi)) * r->root_rho;
+    if (!isfinite(root_step)) root_step = 0;
+  }
   for (size_t h = 0; r->have_prev && h < r->n_handles; ++h) {
     const double *pd = r->prev + 12 * h, *pR = pd + 3;
     double dd[3];
@@ -509,9 +534,19 @@ static void ease(km_retarget *r) {
     }
     worst = fmax(worst, step);
   }
+  worst += root_step;
   if (worst > r->max_step) {
     double alpha = r->max_step / worst;
     ++r->eased;
+    if (r->rigid) {
+      for (int d = 0; d < 3; ++d)
+        r->t[d] = r->prev_t[d] + alpha * (r->t[d] - r->prev_t[d]);
+      /* the heading shown: heading_push catches up from here over the next pushes */
+      r->h_phi = r->prev_phi + alpha * (r->h_phi - r->prev_phi);
+      r->cos_s = cos(r->h_phi), r->sin_s = sin(r->h_phi);
+      double c = r->cos_s, sn = r->sin_s, R[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
+      memcpy(r->R, R, sizeof R);
+    }
     for (size_t h = 0; h < r->n_handles; ++h) {
       const double *pd = r->prev + 12 * h, *pR = pd + 3;
       for (int d = 0; d < 3; ++d)
@@ -527,6 +562,8 @@ static void ease(km_retarget *r) {
     else
       km__m3_identity(r->prev + 12 * h + 3);
   }
+  memcpy(r->prev_t, r->t, sizeof r->prev_t);
+  r->prev_phi = r->h_phi;
   r->have_prev = true;
 }
 
