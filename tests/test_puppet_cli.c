@@ -433,7 +433,23 @@ static void test_no_rig(void) {
             "%s", out ? out : "");
   free(out);
   CHECK(access("puppet_n/u.rig.json", F_OK) != 0); /* nothing written beside the input */
-  CHECK(km_test_run(KM_CLI " rig puppet_n/u.obj -o puppet_n/r/u.rig.json", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " rig puppet_n/u.obj -o puppet_n/r/u.rig.json", &out) == 0);
+  CHECK_MSG(out && !strstr(out, "warning"), "%s", out ? out : ""); /* a standing body */
+  free(out);
+  out = NULL;
+  /* A cat lying on its side is rigged all the same, with a warning: its head handle is a point
+   * (rigged as a body standing along +y) */
+  char buf[1024], cmd[1400];
+  const char *cat = km_test_shared("poses/cat-poses/cat-04.obj", buf, sizeof buf);
+  if (cat) {
+    snprintf(cmd, sizeof cmd, KM_CLI " rig %s -o puppet_n/r/cat.rig.json", cat);
+    CHECK(km_test_run(cmd, &out) == 0);
+    CHECK_MSG(out && strstr(out, "warning: handle head holds 1 vertices") &&
+                  strstr(out, "lying or curled up") && strstr(out, "kinemesh live"),
+              "%s", out ? out : "");
+    free(out);
+    out = NULL;
+  }
   CHECK(km_test_run(KM_CLI " animate --mesh puppet_n/u.obj --rig puppet_n/r/u.rig.json --motion "
                            "puppet_n/w.json -o puppet_n/file.pc2",
                     NULL) == 0);
