@@ -473,8 +473,9 @@ typedef struct km_frame_guess {
 } km_frame_guess;
 /* Guesses how a mesh is oriented, among the 24 axis-aligned frames. Heuristic (documented in
  * src/mesh/orient.c), following the file through those 24 rotations: up is (0) away from an
- * open cut at one end (a boundary loop within the lowest 6% that spans the width: a bust, a
- * head cut at the neck, an upper body; in one direction only), else (1) the axis of
+ * open cut at one end (a boundary loop within the lowest 6% that spans the width both ways: a
+ * bust, a head cut at the neck, an upper body; in one direction only, and the broadest
+ * support of (2): not a crown a scanner missed), else (1) the axis of
  * a model standing on the ground plane (its minimum, or its maximum, within 6% of its extent
  * from 0, no other axis so, and the mesh not plainly standing elsewhere: on several separate
  * feet along its longest axis with twice the support), else (2) the direction whose lowest 4% of
