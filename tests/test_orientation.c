@@ -263,6 +263,38 @@ static void test_rotated_copies(void) {
       free(fr);
     }
   }
+  /* --keep-frame: the same animation written back in the file's own axes and units, so it lines
+   * up with the file (a point cache on the object imported from it); a .glb stays in glTF's
+   * frame and refuses the flag */
+  CHECK(km_test_run(KM_CLI " animate --mesh orient_t/all.obj --motion orient_t/w.json --up +z "
+                           "--forward -x --units 0.01 --keep-frame -o orient_t/keep.pc2",
+                    &out) == 0);
+  free(out);
+  {
+    double *kf = NULL, *want = NULL;
+    km_anim_info ki;
+    CHECK_OK(km_pc2_read("orient_t/keep.pc2", &kf, &ki, KM_E));
+    const km_frame fall = {KM_AXIS_POS_Z, KM_AXIS_NEG_X, 0.01};
+    if (kf && ref && ki.frames == ri.frames && ki.vertices == ri.vertices &&
+        (want = malloc(sizeof(double) * 3 * ri.vertices * ri.frames))) {
+      km_test_to_frame(&fall, ref, want, ri.vertices * ri.frames);
+      double worst = 0, moved = 0;
+      for (size_t i = 0; i < ki.frames * ki.vertices * 3; ++i)
+        worst = fmax(worst, fabs(kf[i] - want[i])), moved = fmax(moved, fabs(kf[i] - ref[i]));
+      /* centimetres: the float32 reference's 1e-4 m is 1e-2 here */
+      CHECK_MSG(worst < 2e-2 && moved > 10, "--keep-frame: %.3g cm from the file's frame", worst);
+    } else {
+      CHECK(false);
+    }
+    free(want);
+    free(kf);
+  }
+  CHECK(km_test_run(KM_CLI " animate --mesh orient_t/all.obj --motion orient_t/w.json --up +z "
+                           "--forward -x --units 0.01 --keep-frame -o orient_t/keep.glb",
+                    &out) != 0);
+  CHECK_MSG(out && strstr(out, "--keep-frame") && strstr(out, "glTF"), "%s", out ? out : "");
+  free(out);
+  CHECK(access("orient_t/keep.glb", F_OK) != 0);
   /* The rig sidecar's "frame" says it all (the `rig` verb records it): no flags, no guess. */
   CHECK(km_test_run("sed '0,/{/s//{\"frame\": {\"up\": \"+z\", \"forward\": \"-x\", "
                     "\"scale\": 0.01},/' orient_t/c.rig.json > orient_t/all.rig.json",

@@ -6,6 +6,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <unistd.h>
 
 static int parse_solver(const char *verb, const char *s, bool *full) {
@@ -27,7 +28,7 @@ int km_cli_animate(int argc, char **argv) {
   const char *mesh_path = NULL, *rig_path = NULL, *motion = NULL, *cache = NULL, *out = NULL;
   const char *solver = NULL, *energy = NULL;
   const char *frame_format = NULL, *filter_kind = NULL;
-  bool no_glitch = false, floor_on = false;
+  bool no_glitch = false, floor_on = false, keep_frame = false;
   int iterations = 0, fields = 0, isolines = 0;
   double scale = 0, fps = 0, handle_weight = NAN;
   size_t key_every = 0;
@@ -72,6 +73,11 @@ int km_cli_animate(int argc, char **argv) {
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
        "directory output: obj (default) or ply (binary) per frame"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory of per-frame meshes"},
+      {"keep-frame", 0, KM_OPT_FLAG, &keep_frame,
+       ".pc2 and frame directories in the mesh file's own axes and units (its --up/--forward/"
+       "--units, given, recorded or guessed, undone), to line up with the file: a point cache "
+       "on the object imported from it (default: kinemesh's frame, y up, facing +z, metres; a "
+       ".glb is always in glTF's, which is that one)"},
   };
   const char *pos[1];
   int n_pos;
@@ -85,6 +91,13 @@ int km_cli_animate(int argc, char **argv) {
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!mesh_path || !motion || !out)
     return km_cli_error("animate", "--mesh, --motion and -o are required (see --help)");
+  size_t on = strlen(out);
+  if (keep_frame && ((on > 4 && !strcasecmp(out + on - 4, ".glb")) ||
+                     (on > 5 && !strcasecmp(out + on - 5, ".gltf"))))
+    return km_cli_error("animate",
+                        "--keep-frame is for .pc2 and frame directories: a glTF file is in "
+                        "glTF's frame (y up, facing +z, metres) by its specification, which "
+                        "kinemesh writes as it is");
   bool full = false;
   km_puppet_energy pe = KM_PUPPET_ENERGY_ARAP;
   km_anim_format af = 0;
@@ -105,6 +118,10 @@ int km_cli_animate(int argc, char **argv) {
   km_puppetry *pl = NULL;
   km_anim_writer *w = NULL;
   double *V = NULL, *t23 = NULL, *t4 = NULL;
+  /* --keep-frame: the file's frame undone on output (set where the writer opens) */
+  bool undo = false;
+  double Rf[9] = {0}, sf = 1, *Vf = NULL, *Vrest = NULL;
+  km_mesh mrest = {0};
   char *rig_default = rig_path ? NULL : km_cli_rig_path(mesh_path);
   char *cache_default = NULL, *skin_json = NULL;
   size_t skin_json_n = 0;
@@ -240,7 +257,22 @@ int km_cli_animate(int argc, char **argv) {
   wo.format = af;
   km_ssdr_options so;
   if (km_cli_parse_export("animate", export_kind, max_error_mm, compress, out, &wo, &so)) goto done;
-  if (km_anim_writer_open(out, &m, &wo, &w, &err) != KM_OK) goto fail;
+  /* --keep-frame: each frame taken back into the file's axes and units (the inverse of the
+   * rotation and scale that brought the mesh in), the rest mesh with it */
+  undo = keep_frame && !(mf.up == KM_AXIS_POS_Y && mf.forward == KM_AXIS_POS_Z &&
+                         (mf.scale == 0 || mf.scale == 1));
+  mrest = m;
+  if (undo) {
+    if (km_frame_rotation(&mf, Rf, &err) != KM_OK) goto fail;
+    sf = mf.scale > 0 ? mf.scale : 1;
+    Vrest = malloc(sizeof(double) * 3 * m.n_vertices);
+    Vf = malloc(sizeof(double) * 3 * m.n_vertices);
+    if (!Vrest || !Vf) goto nomem;
+    km_cli_frame_undo(Rf, sf, m.V, Vrest, m.n_vertices);
+    mrest.V = Vrest;
+    mrest.N = NULL; /* recomputed from the positions by the writers that write normals */
+  }
+  if (km_anim_writer_open(out, &mrest, &wo, &w, &err) != KM_OK) goto fail;
   km_progress prog = km_cli_progress("animate");
   for (size_t f = 0; f < take.n_frames; ++f) {
     if (km_puppetry_push(pl, take.positions + f * take.n_joints * 3, V, &err) != KM_OK) goto fail;
@@ -248,7 +280,8 @@ int km_cli_animate(int argc, char **argv) {
     km_puppetry_times_get(pl, &tm);
     t23[f] = tm.filter_ms + tm.retarget_ms;
     t4[f] = tm.solve_ms;
-    if (km_anim_writer_push(w, V, &err) != KM_OK) goto fail;
+    if (undo) km_cli_frame_undo(Rf, sf, V, Vf, m.n_vertices);
+    if (km_anim_writer_push(w, undo ? Vf : V, &err) != KM_OK) goto fail;
     prog.fn((double)(f + 1) / (double)take.n_frames, full ? "full ARAP" : "reduced model", NULL);
   }
   km_anim_report rep;
@@ -282,6 +315,8 @@ fail:
   rc = km_cli_fail("animate", &err);
 done:
   km_anim_writer_free(&w);
+  free(Vrest);
+  free(Vf);
   free(V);
   free(t23);
   free(t4);
