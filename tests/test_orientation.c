@@ -316,6 +316,34 @@ static void test_rotated_copies(void) {
     CHECK(false);
   }
   free(fr);
+  /* pose --keep-frame too: the skinned playback of the copy whose sidecar records its frame,
+   * written in that frame, equals the original's taken into it */
+  CHECK(km_test_run(KM_CLI " pose --mesh orient_t/c.obj --motion orient_t/w.json -o "
+                           "orient_t/pose_ref.pc2",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " pose --mesh orient_t/all.obj --motion orient_t/w.json --keep-frame "
+                           "-o orient_t/pose_keep.pc2",
+                    NULL) == 0);
+  {
+    double *pr = NULL, *pk = NULL, *want = NULL;
+    km_anim_info pri, pki;
+    CHECK_OK(km_pc2_read("orient_t/pose_ref.pc2", &pr, &pri, KM_E));
+    CHECK_OK(km_pc2_read("orient_t/pose_keep.pc2", &pk, &pki, KM_E));
+    const km_frame fall = {KM_AXIS_POS_Z, KM_AXIS_NEG_X, 0.01};
+    if (pr && pk && pri.frames == pki.frames && pri.vertices == pki.vertices &&
+        (want = malloc(sizeof(double) * 3 * pri.vertices * pri.frames))) {
+      km_test_to_frame(&fall, pr, want, pri.vertices * pri.frames);
+      double worst = 0;
+      for (size_t i = 0; i < pki.frames * pki.vertices * 3; ++i)
+        worst = fmax(worst, fabs(pk[i] - want[i]));
+      CHECK_MSG(worst < 2e-2, "pose --keep-frame: %.3g cm from the file's frame", worst);
+    } else {
+      CHECK(false);
+    }
+    free(want);
+    free(pr);
+    free(pk);
+  }
   free(ref);
   km_mesh_free(&m);
   km_test_run("rm -rf orient_t", NULL);

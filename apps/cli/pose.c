@@ -5,6 +5,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 /* The performer-to-character scale of a take on skeleton s (map: s's joint -> the take's, -1
  * none): the summed rest bone lengths of s over the take's, each take bone its median length
@@ -49,6 +50,7 @@ int km_cli_pose(int argc, char **argv) {
   bool compress = false;
   const char *export_kind = NULL;
   double max_error_mm = 0, scale = 0;
+  bool keep_frame = false;
   /* The mesh is brought into kinemesh's frame as animate brings it (the rig sidecar's
    * skeleton is stored in that frame); the output is in it, as animate's is. */
   km_cli_frame_opts fo = {0};
@@ -71,6 +73,9 @@ int km_cli_pose(int argc, char **argv) {
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
        "directory output: obj (default) or ply (binary) per frame"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory"},
+      {"keep-frame", 0, KM_OPT_FLAG, &keep_frame,
+       ".pc2 and frame directories in the mesh file's own axes and units, as animate "
+       "--keep-frame (default: kinemesh's frame; a .glb is always in glTF's, which is that one)"},
       {"track", 0, KM_OPT_STRING, &track_out,
        "also (or only) write the rig's landmarks per frame as a landmark track (.json/.csv) for "
        "posedb query, avatar and transfer --landmarks-xyz"},
@@ -85,15 +90,26 @@ int km_cli_pose(int argc, char **argv) {
     return km_cli_error("pose", "--mesh, --motion and -o (or --track) are required");
   km_anim_format af = 0;
   if (km_cli_parse_frame_format("pose", frame_format, &af)) return KM_EXIT_FAIL;
+  size_t on = out ? strlen(out) : 0;
+  if (keep_frame && ((on > 4 && !strcasecmp(out + on - 4, ".glb")) ||
+                     (on > 5 && !strcasecmp(out + on - 5, ".gltf"))))
+    return km_cli_error("pose", "--keep-frame is for .pc2 and frame directories: a glTF file is "
+                                "in glTF's frame (y up, facing +z, metres) by its specification, "
+                                "which kinemesh writes as it is");
   km_error err = {0};
   km_character c = {0};
   km_take t = {0};
   km_anim_writer *w = NULL;
   km_track trk = {0};
   double *pos_frame = NULL, *xf = NULL, *V = NULL, *seed = NULL;
+  /* --keep-frame: the file's frame undone on output */
+  km_frame mf = {KM_AXIS_POS_Y, KM_AXIS_POS_Z, 0};
+  bool undo = false;
+  double Rf[9] = {0}, sf = 1, *Vf = NULL, *Vrest = NULL;
+  km_mesh mrest = {0};
   int *map = NULL;
   int rc = KM_EXIT_FAIL;
-  if ((rc = km_cli_load_character_oriented("pose", mesh, rig, 0, &fo, &c, NULL))) goto done;
+  if ((rc = km_cli_load_character_oriented("pose", mesh, rig, 0, &fo, &c, &mf))) goto done;
   if (km_motion_read(motion, NULL, &t, NULL, &err) != KM_OK) goto fail;
   if ((rc = km_cli_orient_take("pose", &fo, &t))) goto done;
   rc = KM_EXIT_FAIL;
@@ -129,7 +145,23 @@ int km_cli_pose(int argc, char **argv) {
     if (km_cli_parse_export("pose", export_kind, max_error_mm, compress, out, &ao, &so)) goto done;
     /* The animation comes from a skeleton: its skinned parts seed the fit. */
     if (km_cli_skin_seeds("pose", &ao, &c.mesh, &c.skin, nj, &so, &seed)) goto done;
-    if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
+    undo = keep_frame && !(mf.up == KM_AXIS_POS_Y && mf.forward == KM_AXIS_POS_Z &&
+                           (mf.scale == 0 || mf.scale == 1));
+    mrest = c.mesh;
+    if (undo) {
+      if (km_frame_rotation(&mf, Rf, &err) != KM_OK) goto fail;
+      sf = mf.scale > 0 ? mf.scale : 1;
+      Vrest = malloc(sizeof(double) * 3 * c.mesh.n_vertices);
+      Vf = malloc(sizeof(double) * 3 * c.mesh.n_vertices);
+      if (!Vrest || !Vf) {
+        rc = km_cli_error("pose", "out of memory");
+        goto done;
+      }
+      km_cli_frame_undo(Rf, sf, c.mesh.V, Vrest, c.mesh.n_vertices);
+      mrest.V = Vrest;
+      mrest.N = NULL; /* recomputed from the positions by the writers that write normals */
+    }
+    if (km_anim_writer_open(out, &mrest, &ao, &w, &err) != KM_OK) goto fail;
   }
   if (track_out) {
     trk.n_frames = t.n_frames;
@@ -151,9 +183,10 @@ int km_cli_pose(int argc, char **argv) {
         pos_frame[3 * j + a] =
             map[j] < 0 ? NAN : scale * t.positions[(f * t.n_joints + (size_t)map[j]) * 3 + a];
     if (km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err) != KM_OK ||
-        km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK ||
-        (w && km_anim_writer_push(w, V, &err) != KM_OK))
+        km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK)
       goto fail;
+    if (undo) km_cli_frame_undo(Rf, sf, V, Vf, c.mesh.n_vertices);
+    if (w && km_anim_writer_push(w, undo ? Vf : V, &err) != KM_OK) goto fail;
     for (size_t l = 0; track_out && l < KM_CHARACTER_LANDMARKS; ++l)
       memcpy(trk.positions + 3 * (f * KM_CHARACTER_LANDMARKS + l),
              V + 3 * (size_t)c.landmarks[l].vertex, 3 * sizeof(double));
@@ -173,6 +206,8 @@ fail:
   rc = km_cli_fail("pose", &err);
 done:
   km_anim_writer_free(&w);
+  free(Vrest);
+  free(Vf);
   km_track_free(&trk);
   free(map);
   free(pos_frame);
