@@ -456,6 +456,12 @@ km_status km_frame_rotation(const km_frame *f, double R[9], km_error *err);
  * Errors: as km_frame_rotation; KM_ERR_INVALID for a non-positive or non-finite scale. */
 km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *N, size_t n_normals,
                          km_error *err);
+/* The inverse of km_frame_apply: points and normals from kinemesh's frame back into the file's
+ * (its axes; points divided by the scale), in place: what `animate --keep-frame` writes.
+ *   P  in/out: #n_points*3; N in/out: #n_normals*3 (may be NULL when n_normals is 0)
+ * Errors: as km_frame_apply. */
+km_status km_frame_unapply(const km_frame *f, double *P, size_t n_points, double *N,
+                           size_t n_normals, km_error *err);
 /* km_frame_apply to a mesh's V and N (UV and faces are unchanged; a rotation keeps the
  * winding). */
 km_status km_mesh_frame_apply(const km_frame *f, km_mesh *m, km_error *err);
@@ -1405,6 +1411,12 @@ typedef struct km_anim_options {
    * extensions are required to read the file. The report's error is then of what a player
    * decodes. false: plain float32. */
   bool compress;
+  /* ---- issue 11: the file frame to write positions in (a mesh file's axes and units, as
+   * km_frame_apply brought it into kinemesh's frame): km_frame_unapply on the rest mesh and on
+   * every pushed frame, so a .pc2 or a frame directory lines up with that file. NULL (or the
+   * identity): kinemesh's frame. A .glb refuses one (KM_ERR_INVALID): glTF's frame is
+   * kinemesh's by the specification. Copied at open. */
+  const km_frame *frame;
 } km_anim_options;
 
 /* Streams an animation of a fixed-connectivity mesh to disk. Nothing appears at `path`

@@ -213,6 +213,33 @@ static void test_reconstruct(void) {
                 "/frames_z/frame_*.ply' --coarse 800 -o " DIR "/rec_z.pc2");
   double d = pc2_diff(DIR "/rec_y.pc2", DIR "/rec_z.pc2");
   CHECK_MSG(d < 1e-4, "reconstruct: z-up template and clouds are %g m off the original", d);
+  /* --keep-frame: the same reconstruction written back in the z-up template file's frame (the
+   * original's taken into it), with the segmented path's writer too */
+  run_ok(KM_CLI " reconstruct --template " DIR "/cz.obj --clouds '" DIR
+                "/frames_z/frame_*.ply' --coarse 800 --keep-frame -o " DIR "/rec_zk.pc2");
+  run_ok(KM_CLI " reconstruct --template " DIR "/cz.obj --clouds '" DIR
+                "/frames_z/frame_*.ply' --coarse 800 --segment-frames 2 --overlap 1 --keep-frame "
+                "-o " DIR "/rec_zks.pc2");
+  run_ok(KM_CLI " reconstruct --template " DIR "/cz.obj --clouds '" DIR
+                "/frames_z/frame_*.ply' --coarse 800 --segment-frames 2 --overlap 1 -o " DIR
+                "/rec_zs.pc2");
+  for (int seg = 0; seg < 2; ++seg) {
+    double *py = NULL, *pk = NULL;
+    km_anim_info iy, ik;
+    CHECK_OK(km_pc2_read(seg ? DIR "/rec_zs.pc2" : DIR "/rec_z.pc2", &py, &iy, KM_E));
+    CHECK_OK(km_pc2_read(seg ? DIR "/rec_zks.pc2" : DIR "/rec_zk.pc2", &pk, &ik, KM_E));
+    double worst = INFINITY;
+    if (py && pk && iy.frames == ik.frames && iy.vertices == ik.vertices && iy.frames > 0) {
+      km_test_to_frame(&ZUP, py, py, iy.frames * iy.vertices);
+      worst = 0;
+      for (size_t i = 0; i < iy.frames * iy.vertices * 3; ++i)
+        worst = fmax(worst, fabs(py[i] - pk[i]));
+    }
+    CHECK_MSG(worst < 1e-6, "reconstruct --keep-frame%s: %g m off the z-up frame",
+              seg ? " (segments)" : "", worst);
+    free(py);
+    free(pk);
+  }
   /* a z-up template with y-up clouds, said by --clouds-up/--clouds-forward */
   run_ok(KM_CLI " reconstruct --template " DIR "/cz.obj --clouds '" DIR
                 "/frames/frame_*.ply' --clouds-up +y --clouds-forward +z --coarse 800 -o " DIR

@@ -41,7 +41,31 @@ static void test_axes(void) {
       double det = R[0] * (R[4] * R[8] - R[5] * R[7]) - R[1] * (R[3] * R[8] - R[5] * R[6]) +
                    R[2] * (R[3] * R[7] - R[4] * R[6]);
       CHECK(det == 1);
+      /* km_frame_unapply undoes km_frame_apply (points and normals), with a scale */
+      km_frame gs = {(km_axis)u, (km_axis)w, 0.01};
+      double q[6] = {0.3, -1.25, 2.5, NAN, 4, -0.5}, q0[6], nn[3] = {0, 0.6, 0.8};
+      memcpy(q0, q, sizeof q);
+      CHECK_OK(km_frame_apply(&gs, q, 2, nn, 1, KM_E));
+      CHECK_OK(km_frame_unapply(&gs, q, 2, nn, 1, KM_E));
+      CHECK(fabs(q[0] - q0[0]) < 1e-12 && fabs(q[1] - q0[1]) < 1e-12 &&
+            fabs(q[2] - q0[2]) < 1e-12 && isnan(q[3]) && fabs(q[4] - q0[4]) < 1e-12 &&
+            fabs(q[5] - q0[5]) < 1e-12 && nn[0] == 0 && nn[1] == 0.6 && nn[2] == 0.8);
     }
+  km_frame bad = {KM_AXIS_POS_Y, KM_AXIS_NEG_Y, 0};
+  CHECK_STATUS(km_frame_unapply(&bad, p, 1, NULL, 0, KM_E), KM_ERR_INVALID);
+  /* the animation writer: a frame to write in, refused for a .glb (glTF's frame is fixed) */
+  {
+    double V[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    int32_t F[3] = {0, 1, 2};
+    km_mesh tri = {.V = V, .F = F, .n_vertices = 3, .n_faces = 1};
+    km_frame zf = {KM_AXIS_POS_Z, KM_AXIS_NEG_Y, 0};
+    km_anim_options ao = {.frame = &zf};
+    km_anim_writer *aw = NULL;
+    CHECK_STATUS(km_anim_writer_open("orient_glb_refused.glb", &tri, &ao, &aw, KM_E),
+                 KM_ERR_INVALID);
+    CHECK(strstr(km_test_err.message, "glTF's frame") != NULL && aw == NULL &&
+          access("orient_glb_refused.glb", F_OK) != 0);
+  }
 }
 
 /* Writes m brought from kinemesh's frame into frame f (the inverse of km_frame_apply). */

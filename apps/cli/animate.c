@@ -118,10 +118,6 @@ int km_cli_animate(int argc, char **argv) {
   km_puppetry *pl = NULL;
   km_anim_writer *w = NULL;
   double *V = NULL, *t23 = NULL, *t4 = NULL;
-  /* --keep-frame: the file's frame undone on output (set where the writer opens) */
-  bool undo = false;
-  double Rf[9] = {0}, sf = 1, *Vf = NULL, *Vrest = NULL;
-  km_mesh mrest = {0};
   char *rig_default = rig_path ? NULL : km_cli_rig_path(mesh_path);
   char *cache_default = NULL, *skin_json = NULL;
   size_t skin_json_n = 0;
@@ -259,20 +255,9 @@ int km_cli_animate(int argc, char **argv) {
   if (km_cli_parse_export("animate", export_kind, max_error_mm, compress, out, &wo, &so)) goto done;
   /* --keep-frame: each frame taken back into the file's axes and units (the inverse of the
    * rotation and scale that brought the mesh in), the rest mesh with it */
-  undo = keep_frame && !(mf.up == KM_AXIS_POS_Y && mf.forward == KM_AXIS_POS_Z &&
-                         (mf.scale == 0 || mf.scale == 1));
-  mrest = m;
-  if (undo) {
-    if (km_frame_rotation(&mf, Rf, &err) != KM_OK) goto fail;
-    sf = mf.scale > 0 ? mf.scale : 1;
-    Vrest = malloc(sizeof(double) * 3 * m.n_vertices);
-    Vf = malloc(sizeof(double) * 3 * m.n_vertices);
-    if (!Vrest || !Vf) goto nomem;
-    km_cli_frame_undo(Rf, sf, m.V, Vrest, m.n_vertices);
-    mrest.V = Vrest;
-    mrest.N = NULL; /* recomputed from the positions by the writers that write normals */
-  }
-  if (km_anim_writer_open(out, &mrest, &wo, &w, &err) != KM_OK) goto fail;
+  /* --keep-frame: the writer takes each frame back into the file's axes and units */
+  if (keep_frame) wo.frame = &mf;
+  if (km_anim_writer_open(out, &m, &wo, &w, &err) != KM_OK) goto fail;
   km_progress prog = km_cli_progress("animate");
   for (size_t f = 0; f < take.n_frames; ++f) {
     if (km_puppetry_push(pl, take.positions + f * take.n_joints * 3, V, &err) != KM_OK) goto fail;
@@ -280,8 +265,7 @@ int km_cli_animate(int argc, char **argv) {
     km_puppetry_times_get(pl, &tm);
     t23[f] = tm.filter_ms + tm.retarget_ms;
     t4[f] = tm.solve_ms;
-    if (undo) km_cli_frame_undo(Rf, sf, V, Vf, m.n_vertices);
-    if (km_anim_writer_push(w, undo ? Vf : V, &err) != KM_OK) goto fail;
+    if (km_anim_writer_push(w, V, &err) != KM_OK) goto fail;
     prog.fn((double)(f + 1) / (double)take.n_frames, full ? "full ARAP" : "reduced model", NULL);
   }
   km_anim_report rep;
@@ -315,8 +299,6 @@ fail:
   rc = km_cli_fail("animate", &err);
 done:
   km_anim_writer_free(&w);
-  free(Vrest);
-  free(Vf);
   free(V);
   free(t23);
   free(t4);

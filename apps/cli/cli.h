@@ -96,10 +96,6 @@ double km_cli_sidecar_scale(const char *mesh_path, const char *rig_path);
 /* km_cli_mesh_frame, then the mesh is brought into kinemesh's frame (y up, facing +z,
  * metres). Returns 0, or prints the error and returns an exit status. */
 int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo, km_mesh *m);
-/* Points from kinemesh's frame back into a file's (the inverse of km_frame_apply with the
- * frame's rotation R and scale s, metres per file unit): out = R^T in / s, for #n points;
- * out may not alias in. */
-void km_cli_frame_undo(const double R[9], double s, const double *in, double *out, size_t n);
 /* The take's positions into kinemesh's frame by --motion-up/--motion-forward. */
 int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t);
 /* The frame named by options of data that is not a mesh (nothing to guess from): up (NULL:

@@ -261,14 +261,6 @@ km_status km_cli_skin_character(const char *verb, const char *mesh_path, const c
   return s;
 }
 
-void km_cli_frame_undo(const double R[9], double s, const double *in, double *out, size_t n) {
-  for (size_t i = 0; i < n; ++i) {
-    const double *p = in + 3 * i;
-    for (int a = 0; a < 3; ++a)
-      out[3 * i + a] = (R[a] * p[0] + R[3 + a] * p[1] + R[6 + a] * p[2]) / s;
-  }
-}
-
 km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *rig_file,
                           const km_mesh *m, FILE *say, const char *then, km_character *c,
                           km_error *err) {

@@ -102,11 +102,7 @@ int km_cli_pose(int argc, char **argv) {
   km_anim_writer *w = NULL;
   km_track trk = {0};
   double *pos_frame = NULL, *xf = NULL, *V = NULL, *seed = NULL;
-  /* --keep-frame: the file's frame undone on output */
-  km_frame mf = {KM_AXIS_POS_Y, KM_AXIS_POS_Z, 0};
-  bool undo = false;
-  double Rf[9] = {0}, sf = 1, *Vf = NULL, *Vrest = NULL;
-  km_mesh mrest = {0};
+  km_frame mf = {KM_AXIS_POS_Y, KM_AXIS_POS_Z, 0}; /* the mesh file's frame (--keep-frame) */
   int *map = NULL;
   int rc = KM_EXIT_FAIL;
   if ((rc = km_cli_load_character_oriented("pose", mesh, rig, 0, &fo, &c, &mf))) goto done;
@@ -145,23 +141,9 @@ int km_cli_pose(int argc, char **argv) {
     if (km_cli_parse_export("pose", export_kind, max_error_mm, compress, out, &ao, &so)) goto done;
     /* The animation comes from a skeleton: its skinned parts seed the fit. */
     if (km_cli_skin_seeds("pose", &ao, &c.mesh, &c.skin, nj, &so, &seed)) goto done;
-    undo = keep_frame && !(mf.up == KM_AXIS_POS_Y && mf.forward == KM_AXIS_POS_Z &&
-                           (mf.scale == 0 || mf.scale == 1));
-    mrest = c.mesh;
-    if (undo) {
-      if (km_frame_rotation(&mf, Rf, &err) != KM_OK) goto fail;
-      sf = mf.scale > 0 ? mf.scale : 1;
-      Vrest = malloc(sizeof(double) * 3 * c.mesh.n_vertices);
-      Vf = malloc(sizeof(double) * 3 * c.mesh.n_vertices);
-      if (!Vrest || !Vf) {
-        rc = km_cli_error("pose", "out of memory");
-        goto done;
-      }
-      km_cli_frame_undo(Rf, sf, c.mesh.V, Vrest, c.mesh.n_vertices);
-      mrest.V = Vrest;
-      mrest.N = NULL; /* recomputed from the positions by the writers that write normals */
-    }
-    if (km_anim_writer_open(out, &mrest, &ao, &w, &err) != KM_OK) goto fail;
+    /* --keep-frame: the writer takes each frame back into the file's axes and units */
+    if (keep_frame) ao.frame = &mf;
+    if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
   }
   if (track_out) {
     trk.n_frames = t.n_frames;
@@ -185,8 +167,7 @@ int km_cli_pose(int argc, char **argv) {
     if (km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err) != KM_OK ||
         km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK)
       goto fail;
-    if (undo) km_cli_frame_undo(Rf, sf, V, Vf, c.mesh.n_vertices);
-    if (w && km_anim_writer_push(w, undo ? Vf : V, &err) != KM_OK) goto fail;
+    if (w && km_anim_writer_push(w, V, &err) != KM_OK) goto fail;
     for (size_t l = 0; track_out && l < KM_CHARACTER_LANDMARKS; ++l)
       memcpy(trk.positions + 3 * (f * KM_CHARACTER_LANDMARKS + l),
              V + 3 * (size_t)c.landmarks[l].vertex, 3 * sizeof(double));
@@ -206,8 +187,6 @@ fail:
   rc = km_cli_fail("pose", &err);
 done:
   km_anim_writer_free(&w);
-  free(Vrest);
-  free(Vf);
   km_track_free(&trk);
   free(map);
   free(pos_frame);

@@ -9,6 +9,7 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 /* Features file: one "vertex x y z" per line ('#' comments). */
 /* First-frame correspondences: JSON {"correspondences": [{"vertex": 12, "point": [x, y, z]},
@@ -82,7 +83,7 @@ static int read_features(const char *path, km_recon_feature **out, size_t *n) {
 int km_cli_reconstruct(int argc, char **argv) {
   const char *tmpl = NULL, *rig = NULL, *features = NULL, *out = NULL, *report = NULL, *plot = NULL;
   const char *clouds = NULL;
-  bool rig_joints = false, strict = false;
+  bool rig_joints = false, strict = false, keep_frame = false;
   double unsupported_mm = 0, unsupported_fraction = 0;
   size_t coarse = 0, vertices = 4000, segment = 0, overlap = 5;
   int radius = 0, segment_only = -1;
@@ -125,6 +126,9 @@ int km_cli_reconstruct(int argc, char **argv) {
       {"report", 0, KM_OPT_STRING, &report, "per-frame report (JSON)"},
       {"plot", 0, KM_OPT_STRING, &plot, "error plot (PNG, through gnuplot)"},
       {"output", 'o', KM_OPT_STRING, &out, "output animation (.glb, .pc2 or a directory)"},
+      {"keep-frame", 0, KM_OPT_FLAG, &keep_frame,
+       ".pc2 and frame directories in the template file's own axes and units, as animate "
+       "--keep-frame (default: kinemesh's frame; a .glb is always in glTF's, which is that one)"},
       {"segment-frames", 0, KM_OPT_SIZE, &segment,
        "split the take into segments of this many frames, each started on its own first frame, "
        "stitched (default: one segment)"},
@@ -153,9 +157,17 @@ int km_cli_reconstruct(int argc, char **argv) {
                    "metres) by --up/--forward/--units, else its rig sidecar's \"frame\", else a\n"
                    "guess (printed); the clouds and correspondences are taken in the template\n"
                    "file's frame unless --clouds-up/--clouds-forward/--clouds-units say\n"
-                   "otherwise. The output is in kinemesh's frame, as animate's is.");
+                   "otherwise. The output is in kinemesh's frame, as animate's is (--keep-frame:\n"
+                   "in the template file's).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!clouds && n_pos == 1) clouds = pos[0];
+  size_t on = out ? strlen(out) : 0;
+  if (keep_frame && ((on > 4 && !strcasecmp(out + on - 4, ".glb")) ||
+                     (on > 5 && !strcasecmp(out + on - 5, ".gltf"))))
+    return km_cli_error("reconstruct",
+                        "--keep-frame is for .pc2 and frame directories: a glTF file is in "
+                        "glTF's frame (y up, facing +z, metres) by its specification, which "
+                        "kinemesh writes as it is");
   const bool one_segment = segment_only >= 0;
   if (segment_only < -1 || ((one_segment || segment_dir) && !segment) ||
       (one_segment && !segment_dir))
@@ -228,6 +240,7 @@ int km_cli_reconstruct(int argc, char **argv) {
     return rc;
   }
   if (!(clouds_up || clouds_forward || clouds_units)) cf = tf; /* the template file's frame */
+  if (keep_frame) ao.frame = &tf; /* the writer takes each frame back into the template file's */
   if (!(cf.up == KM_AXIS_POS_Y && cf.forward == KM_AXIS_POS_Z &&
         (cf.scale == 0 || cf.scale == 1))) {
     ro.points_frame = &cf;

@@ -104,6 +104,7 @@ static void writer_discard(km_anim_writer *w) {
   free(w->uv);
   free(w->nbuf);
   free(w->vbuf);
+  free(w->ubuf);
   free(w->pca_weights);
   free(w);
 }
@@ -193,6 +194,26 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   if (!w->path || !w->rest || !w->F) goto nomem;
   memcpy(w->rest, rest->V, nv * 3 * sizeof *w->rest);
   if (nf) memcpy(w->F, rest->F, nf * 3 * sizeof *w->F);
+  /* Written in a file's frame (issue 11: a point cache on the object a z-up tool imported from
+   * the file): the rest copy now, every frame as it is pushed. */
+  if (o.frame && !(o.frame->up == KM_AXIS_POS_Y && o.frame->forward == KM_AXIS_POS_Z &&
+                   (o.frame->scale == 0 || o.frame->scale == 1))) {
+    if (w->format == KM_ANIM_GLB) {
+      km_anim_writer_free(&w);
+      return km__fail(err, KM_ERR_INVALID,
+                      "%s: a glTF file is in glTF's frame (y up, facing +z, metres) by its "
+                      "specification: no other frame is written into one",
+                      path);
+    }
+    w->undo = true;
+    w->frame = *o.frame;
+    if (!(w->ubuf = km__malloc(nv * 3, sizeof *w->ubuf))) goto nomem;
+    km_status fs = km_frame_unapply(&w->frame, w->rest, nv, NULL, 0, err);
+    if (fs) {
+      km_anim_writer_free(&w);
+      return fs;
+    }
+  }
   if (rest->UV) {
     if (!(w->uv = km__malloc(nv * 2, sizeof *w->uv))) goto nomem;
     memcpy(w->uv, rest->UV, nv * 2 * sizeof *w->uv);
@@ -448,6 +469,12 @@ km_status km_anim_writer_push(km_anim_writer *w, const double *V, km_error *err)
                     w->path);
   if (w->frames >= (size_t)INT32_MAX)
     return km__fail(err, KM_ERR_UNSUPPORTED, "%s: too many frames", w->path);
+  if (w->undo) { /* the file's frame: a signed permutation and a scale, exact but for that */
+    memcpy(w->ubuf, V, w->n_vertices * 3 * sizeof *w->ubuf);
+    km_status fs = km_frame_unapply(&w->frame, w->ubuf, w->n_vertices, NULL, 0, err);
+    if (fs) return fs;
+    V = w->ubuf;
+  }
   /* A rejected frame is not written, so the writer stays usable. */
   for (size_t i = 0; i < w->n_vertices * 3; ++i)
     if (!(fabs(V[i]) <= FLT_MAX && fabs(V[i] - w->rest[i]) <= FLT_MAX))

@@ -63,6 +63,11 @@ struct km_anim_writer {
   bool normals; /* rest had UV or N */
   double *nbuf; /* #V*3 scratch: one frame's normals */
   double *vbuf; /* #V*3 scratch: one key's positions (glb) */
+  /* A file frame to write in (km_anim_options.frame): the rest copy is in it already, each
+   * pushed frame is taken into it through ubuf (km_frame_unapply). */
+  bool undo;
+  km_frame frame;
+  double *ubuf; /* #V*3 scratch: one pushed frame in the file's frame */
   /* issue 16: a skinned glb fits km_ssdr at close over every frame (stored as keys). */
   km_anim_export export_kind;
   km_ssdr_options skin;

@@ -102,6 +102,32 @@ km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *
   return KM_OK;
 }
 
+km_status km_frame_unapply(const km_frame *f, double *P, size_t n_points, double *N,
+                           size_t n_normals, km_error *err) {
+  double R[9];
+  km_status s = km_frame_rotation(f, R, err);
+  if (s) return s;
+  double sc = f && f->scale != 0 ? f->scale : 1;
+  if (!(sc > 0) || !isfinite(sc))
+    return km__fail(err, KM_ERR_INVALID, "frame: scale must be positive and finite, got %g", sc);
+  if ((n_points && !P) || (n_normals && !N))
+    return km__fail(err, KM_ERR_INVALID, "km_frame_unapply: NULL array with a non-zero count");
+  for (int pass = 0; pass < 2; ++pass) {
+    double *X = pass ? N : P;
+    size_t n = pass ? n_normals : n_points;
+    double k = pass ? 1 : sc;
+    for (size_t i = 0; i < n; ++i) {
+      double *x = X + 3 * i, y[3] = {0, 0, 0};
+      /* R^T, the inverse of a signed permutation: exact but for the division by the scale */
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          if (R[3 * c + r] != 0) y[r] = R[3 * c + r] * x[c] / k;
+      memcpy(x, y, sizeof y);
+    }
+  }
+  return KM_OK;
+}
+
 km_status km_mesh_frame_apply(const km_frame *f, km_mesh *m, km_error *err) {
   if (!m) return km__fail(err, KM_ERR_INVALID, "km_mesh_frame_apply: mesh is NULL");
   return km_frame_apply(f, m->V, m->n_vertices, m->N, m->N ? m->n_vertices : 0, err);
