@@ -6,7 +6,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 #include <unistd.h>
 
 static int parse_solver(const char *verb, const char *s, bool *full) {
@@ -91,13 +90,8 @@ int km_cli_animate(int argc, char **argv) {
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!mesh_path || !motion || !out)
     return km_cli_error("animate", "--mesh, --motion and -o are required (see --help)");
-  size_t on = strlen(out);
-  if (keep_frame && ((on > 4 && !strcasecmp(out + on - 4, ".glb")) ||
-                     (on > 5 && !strcasecmp(out + on - 5, ".gltf"))))
-    return km_cli_error("animate",
-                        "--keep-frame is for .pc2 and frame directories: a glTF file is in "
-                        "glTF's frame (y up, facing +z, metres) by its specification, which "
-                        "kinemesh writes as it is");
+  int kf = km_cli_keep_frame_output("animate", out, keep_frame);
+  if (kf) return kf;
   bool full = false;
   km_puppet_energy pe = KM_PUPPET_ENERGY_ARAP;
   km_anim_format af = 0;

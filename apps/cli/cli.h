@@ -96,6 +96,9 @@ double km_cli_sidecar_scale(const char *mesh_path, const char *rig_path);
 /* km_cli_mesh_frame, then the mesh is brought into kinemesh's frame (y up, facing +z,
  * metres). Returns 0, or prints the error and returns an exit status. */
 int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo, km_mesh *m);
+/* --keep-frame (animate, pose, reconstruct) is for a .pc2 or a frame directory: with keep and
+ * a glTF output (.glb / .gltf) prints why not and returns an exit status; 0 otherwise. */
+int km_cli_keep_frame_output(const char *verb, const char *out, bool keep);
 /* The take's positions into kinemesh's frame by --motion-up/--motion-forward. */
 int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t);
 /* The frame named by options of data that is not a mesh (nothing to guess from): up (NULL:

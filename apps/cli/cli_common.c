@@ -224,13 +224,17 @@ char *km_cli_rig_path(const char *mesh_path) {
   return out;
 }
 
+/* Whether path names a glTF file (.glb or .gltf, any case). */
+static bool gltf_path(const char *path) {
+  size_t n = strlen(path);
+  return (n > 4 && !strcasecmp(path + n - 4, ".glb")) ||
+         (n > 5 && !strcasecmp(path + n - 5, ".gltf"));
+}
+
 km_status km_cli_skin_character(const char *verb, const char *mesh_path, const char *rig,
                                 km_character *c, bool *used, km_error *err) {
   *used = false;
-  size_t n = strlen(mesh_path);
-  bool gltf = (n > 4 && !strcasecmp(mesh_path + n - 4, ".glb")) ||
-              (n > 5 && !strcasecmp(mesh_path + n - 5, ".gltf"));
-  if (rig || !gltf) return KM_OK;
+  if (rig || !gltf_path(mesh_path)) return KM_OK;
   char *def = km_cli_rig_path(mesh_path);
   bool have = def && access(def, F_OK) == 0;
   free(def);
@@ -259,6 +263,14 @@ km_status km_cli_skin_character(const char *verb, const char *mesh_path, const c
   km_mesh_free(&m);
   km_mesh_skin_free(&sk);
   return s;
+}
+
+int km_cli_keep_frame_output(const char *verb, const char *out, bool keep) {
+  if (keep && out && gltf_path(out))
+    return km_cli_error(verb, "--keep-frame is for .pc2 and frame directories: a glTF file is in "
+                              "glTF's frame (y up, facing +z, metres) by its specification, "
+                              "which kinemesh writes as it is");
+  return 0;
 }
 
 km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *rig_file,

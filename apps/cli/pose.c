@@ -5,7 +5,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
 /* The performer-to-character scale of a take on skeleton s (map: s's joint -> the take's, -1
  * none): the summed rest bone lengths of s over the take's, each take bone its median length
@@ -90,12 +89,8 @@ int km_cli_pose(int argc, char **argv) {
     return km_cli_error("pose", "--mesh, --motion and -o (or --track) are required");
   km_anim_format af = 0;
   if (km_cli_parse_frame_format("pose", frame_format, &af)) return KM_EXIT_FAIL;
-  size_t on = out ? strlen(out) : 0;
-  if (keep_frame && ((on > 4 && !strcasecmp(out + on - 4, ".glb")) ||
-                     (on > 5 && !strcasecmp(out + on - 5, ".gltf"))))
-    return km_cli_error("pose", "--keep-frame is for .pc2 and frame directories: a glTF file is "
-                                "in glTF's frame (y up, facing +z, metres) by its specification, "
-                                "which kinemesh writes as it is");
+  int kf = km_cli_keep_frame_output("pose", out, keep_frame);
+  if (kf) return kf;
   km_error err = {0};
   km_character c = {0};
   km_take t = {0};

@@ -9,7 +9,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
 /* Features file: one "vertex x y z" per line ('#' comments). */
 /* First-frame correspondences: JSON {"correspondences": [{"vertex": 12, "point": [x, y, z]},
@@ -161,13 +160,8 @@ int km_cli_reconstruct(int argc, char **argv) {
                    "in the template file's).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (!clouds && n_pos == 1) clouds = pos[0];
-  size_t on = out ? strlen(out) : 0;
-  if (keep_frame && ((on > 4 && !strcasecmp(out + on - 4, ".glb")) ||
-                     (on > 5 && !strcasecmp(out + on - 5, ".gltf"))))
-    return km_cli_error("reconstruct",
-                        "--keep-frame is for .pc2 and frame directories: a glTF file is in "
-                        "glTF's frame (y up, facing +z, metres) by its specification, which "
-                        "kinemesh writes as it is");
+  int kf = km_cli_keep_frame_output("reconstruct", out, keep_frame);
+  if (kf) return kf;
   const bool one_segment = segment_only >= 0;
   if (segment_only < -1 || ((one_segment || segment_dir) && !segment) ||
       (one_segment && !segment_dir))

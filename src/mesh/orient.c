@@ -75,8 +75,11 @@ km_status km_frame_rotation(const km_frame *f, double R[9], km_error *err) {
   return KM_OK;
 }
 
-km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *N, size_t n_normals,
-                         km_error *err) {
+/* km_frame_apply (inverse false) and km_frame_unapply (true): R is a signed permutation, so
+ * each output is one input times +-k (or over k): NaN stays in its own coordinate and nothing
+ * is rounded but the scale. */
+static km_status frame_map(const km_frame *f, double *P, size_t n_points, double *N,
+                           size_t n_normals, bool inverse, km_error *err) {
   double R[9];
   km_status s = km_frame_rotation(f, R, err);
   if (s) return s;
@@ -84,48 +87,33 @@ km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *
   if (!(sc > 0) || !isfinite(sc))
     return km__fail(err, KM_ERR_INVALID, "frame: scale must be positive and finite, got %g", sc);
   if ((n_points && !P) || (n_normals && !N))
-    return km__fail(err, KM_ERR_INVALID, "km_frame_apply: NULL array with a non-zero count");
+    return km__fail(err, KM_ERR_INVALID, "%s: NULL array with a non-zero count",
+                    inverse ? "km_frame_unapply" : "km_frame_apply");
   for (int pass = 0; pass < 2; ++pass) {
     double *X = pass ? N : P;
     size_t n = pass ? n_normals : n_points;
     double k = pass ? 1 : sc;
     for (size_t i = 0; i < n; ++i) {
       double *x = X + 3 * i, y[3] = {0, 0, 0};
-      /* R is a signed permutation: each output is one input times +-k, so NaN stays in its
-       * own coordinate and nothing is rounded but the scale. */
       for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c)
-          if (R[3 * r + c] != 0) y[r] = k * R[3 * r + c] * x[c];
+        for (int c = 0; c < 3; ++c) {
+          double e = inverse ? R[3 * c + r] : R[3 * r + c]; /* R^T for the inverse */
+          if (e != 0) y[r] = inverse ? e * x[c] / k : k * e * x[c];
+        }
       memcpy(x, y, sizeof y);
     }
   }
   return KM_OK;
 }
 
+km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *N, size_t n_normals,
+                         km_error *err) {
+  return frame_map(f, P, n_points, N, n_normals, false, err);
+}
+
 km_status km_frame_unapply(const km_frame *f, double *P, size_t n_points, double *N,
                            size_t n_normals, km_error *err) {
-  double R[9];
-  km_status s = km_frame_rotation(f, R, err);
-  if (s) return s;
-  double sc = f && f->scale != 0 ? f->scale : 1;
-  if (!(sc > 0) || !isfinite(sc))
-    return km__fail(err, KM_ERR_INVALID, "frame: scale must be positive and finite, got %g", sc);
-  if ((n_points && !P) || (n_normals && !N))
-    return km__fail(err, KM_ERR_INVALID, "km_frame_unapply: NULL array with a non-zero count");
-  for (int pass = 0; pass < 2; ++pass) {
-    double *X = pass ? N : P;
-    size_t n = pass ? n_normals : n_points;
-    double k = pass ? 1 : sc;
-    for (size_t i = 0; i < n; ++i) {
-      double *x = X + 3 * i, y[3] = {0, 0, 0};
-      /* R^T, the inverse of a signed permutation: exact but for the division by the scale */
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c)
-          if (R[3 * c + r] != 0) y[r] = R[3 * c + r] * x[c] / k;
-      memcpy(x, y, sizeof y);
-    }
-  }
-  return KM_OK;
+  return frame_map(f, P, n_points, N, n_normals, true, err);
 }
 
 km_status km_mesh_frame_apply(const km_frame *f, km_mesh *m, km_error *err) {
