@@ -41,6 +41,11 @@ km_status km__bust_base(const km_mesh *m, bool *found, double *cut_top, km_error
  * lat (the lateral axis); *cut_top along up as stored. */
 km_status km__bust_base_axes(const km_mesh *m, int up, int up_sign, int lat, bool *found,
                              double *cut_top, km_error *err);
+/* The same with the mesh's boundary loops given (km_boundary_loops: loop #V, nl loops), for a
+ * caller that asks along several axes (km_mesh_frame_guess: six directions, two widths). */
+km_status km__bust_base_axes_loops(const km_mesh *m, const int32_t *loop, size_t nl, int up,
+                                   int up_sign, int lat, bool *found, double *cut_top,
+                                   km_error *err);
 /* A seated body's base (a mesh in kinemesh's frame, y up, that sits on its bottom: a sitting
  * rabbit, a figure on a plinth): the faces wholly within 0.05 of the height (y extent) of the
  * lowest vertex form one part (joined along faces; parts of under 0.2 of its vertices left

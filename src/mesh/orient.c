@@ -434,17 +434,22 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
    * cut at the head's narrow top, whose support is no match for the feet's; a tube open at both
    * ends has two and is left to the rules below. */
   int cut_dir = -1, n_cut = 0;
-  for (int d = 0; d < 6 && given_up == KM_AXIS_NONE && m->n_faces; ++d) {
+  size_t n_loops = 0; /* the loops found once, asked along every axis (none: a closed mesh) */
+  int32_t *loop =
+      given_up == KM_AXIS_NONE && m->n_faces ? km__malloc(m->n_vertices, sizeof *loop) : NULL;
+  if (loop && km_boundary_loops(m, loop, &n_loops, NULL) != KM_OK) n_loops = 0;
+  for (int d = 0; d < 6 && n_loops; ++d) {
     bool both = true;
     for (int k = 1; k <= 2 && both; ++k) {
       bool found = false;
       double top;
-      both = km__bust_base_axes(m, d / 2, d % 2 ? -1 : 1, (d / 2 + k) % 3, &found, &top, NULL) ==
-                 KM_OK &&
+      both = km__bust_base_axes_loops(m, loop, n_loops, d / 2, d % 2 ? -1 : 1, (d / 2 + k) % 3,
+                                      &found, &top, NULL) == KM_OK &&
              found;
     }
     if (both) cut_dir = d, ++n_cut;
   }
+  free(loop);
   if (given_up != KM_AXIS_NONE) {
     up = (given_up - KM_AXIS_POS_X) / 2;
     up_sign = (given_up - KM_AXIS_POS_X) % 2 ? -1 : 1;

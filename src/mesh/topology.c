@@ -362,10 +362,17 @@ km_status km__bust_base_axes(const km_mesh *m, int up, int up_sign, int lat, boo
   if (!loop) return km__fail(err, KM_ERR_NOMEM, "out of memory");
   size_t nl = 0;
   km_status s = km_boundary_loops(m, loop, &nl, err);
-  if (s != KM_OK || nl == 0) {
-    free(loop);
-    return s;
-  }
+  if (s == KM_OK) s = km__bust_base_axes_loops(m, loop, nl, up, up_sign, lat, found, cut_top, err);
+  free(loop);
+  return s;
+}
+
+km_status km__bust_base_axes_loops(const km_mesh *m, const int32_t *loop, size_t nl, int up,
+                                   int up_sign, int lat, bool *found, double *cut_top,
+                                   km_error *err) {
+  *found = false;
+  *cut_top = NAN;
+  if (!m || !m->n_vertices || !m->n_faces || nl == 0) return KM_OK;
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (size_t i = 0; i < 3 * m->n_faces; ++i)
     for (int k = 0; k < 3; ++k) {
@@ -378,7 +385,7 @@ km_status km__bust_base_axes(const km_mesh *m, int up, int up_sign, int lat, boo
   double *xlo = km__malloc(nl, sizeof *xlo), *xhi = km__malloc(nl, sizeof *xhi),
          *yhi = km__malloc(nl, sizeof *yhi);
   if (!xlo || !xhi || !yhi) {
-    free(loop), free(xlo), free(xhi), free(yhi);
+    free(xlo), free(xhi), free(yhi);
     return km__fail(err, KM_ERR_NOMEM, "out of memory");
   }
   for (size_t l = 0; l < nl; ++l)
@@ -420,7 +427,7 @@ km_status km__bust_base_axes(const km_mesh *m, int up, int up_sign, int lat, boo
       *cut_top = up_sign > 0 ? yhi[l] : -yhi[l];
     }
   }
-  free(loop), free(xlo), free(xhi), free(yhi);
+  free(xlo), free(xhi), free(yhi);
   return KM_OK;
 }
 
