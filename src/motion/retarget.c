@@ -96,7 +96,6 @@ struct km_retarget {
   double root_rho;            /* under rigid root motion: the farthest corner of the rest mesh's
                                  bounding box from the vertical through the pivot */
   double prev_t[3], prev_phi; /* the rigid root's translation and heading shown, last push */
-  double bb_lo[3], bb_hi[3];  /* the rest mesh's bounding box (for root_rho) */
   bool have_prev;
   size_t eased; /* pushes whose motion was eased */
 };
@@ -321,8 +320,6 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
     r->hr = rig->heading[0] && rig->heading[1] ? rig->heading[1] - 1 : -1;
     for (int d = 0; d < 3; ++d)
       r->pivot[d] = 0.5 * (lo[d] + hi[d]);
-    memcpy(r->bb_lo, lo, sizeof r->bb_lo);
-    memcpy(r->bb_hi, hi, sizeof r->bb_hi);
   }
   r->floor_y = lo[1];
   r->fps = o.fps > 0 && isfinite(o.fps) ? o.fps : 30.0;
@@ -436,6 +433,11 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       }
     }
   }
+  /* the farthest corner of the rest bounding box from the vertical through the pivot (final
+   * now): how far a heading change moves a vertex, for the snap easing (ease) */
+  for (int c = 0; r->rigid && c < 4; ++c)
+    r->root_rho = fmax(r->root_rho, hypot((c & 1 ? hi[0] : lo[0]) - r->pivot[0],
+                                          (c & 2 ? hi[2] : lo[2]) - r->pivot[2]));
   r->kinect1 = rig->skeleton == KM_RIG_KINECT1;
   r->auto_scale = o.scale == 0;
   r->scale = r->auto_scale ? NAN : o.scale;
@@ -495,6 +497,12 @@ static double root_scale(const km_retarget *r) {
   return fmax(0.3 * r->scale, fmin(1.5 * r->scale, lc / lp));
 }
 
+/* The rigid root's rotation R: about y by the heading shown (cos_s, sin_s). */
+static void root_rotation(km_retarget *r) {
+  double c = r->cos_s, sn = r->sin_s, R[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
+  memcpy(r->R, R, sizeof R);
+}
+
 /* Snap easing: the largest step of a handle vertex since the last push is at most
  * |d - d'| + 2 sin(theta / 2) rho (d: displacement, theta: the angle of R R'^T, rho: the
  * handle's radius), and under rigid root motion the whole mesh's step adds |t - t'| +
@@ -509,15 +517,6 @@ static double root_scale(const km_retarget *r) {
 static void ease(km_retarget *r) {
   double worst = 0, root_step = 0;
   if (r->rigid && r->have_prev) {
-    if (!(r->root_rho > 0)) {
-      double m = 0;
-      for (int c = 0; c < 4; ++c) {
-        double x = (c & 1 ? r->bb_hi[0] : r->bb_lo[0]) - r->pivot[0],
-               z = (c & 2 ? r->bb_hi[2] : r->bb_lo[2]) - r->pivot[2];
-        m = fmax(m, hypot(x, z));
-      }
-      r->root_rho = m;
-    }
     double dt[3];
     km__sub3(r->t, r->prev_t, dt);
     root_step = sqrt(km__dot3(dt, dt)) + 2 * sin(0.5 * fabs(r->h_phi - r->prev_phi)) * r->root_rho;
@@ -544,8 +543,7 @@ static void ease(km_retarget *r) {
       /* the heading shown: heading_push catches up from here over the next pushes */
       r->h_phi = r->prev_phi + alpha * (r->h_phi - r->prev_phi);
       r->cos_s = cos(r->h_phi), r->sin_s = sin(r->h_phi);
-      double c = r->cos_s, sn = r->sin_s, R[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
-      memcpy(r->R, R, sizeof R);
+      root_rotation(r);
     }
     for (size_t h = 0; h < r->n_handles; ++h) {
       const double *pd = r->prev + 12 * h, *pR = pd + 3;
@@ -713,9 +711,7 @@ void km_retarget_push_rotations(km_retarget *r, const double *joints, const doub
           r->sin_s = sin(r->h_phi);
         }
       }
-      double c = r->cos_s, sn = r->sin_s;
-      double R[9] = {c, 0, sn, 0, 1, 0, -sn, 0, c};
-      memcpy(r->R, R, sizeof R);
+      root_rotation(r);
       if (!isfinite(r->root_s)) r->root_s = root_scale(r);
       for (int d = 0; d < 3; ++d)
         r->t[d] = r->root_s * (q[d] - q0[d]);
