@@ -456,6 +456,10 @@ km_status km_frame_rotation(const km_frame *f, double R[9], km_error *err);
  * Errors: as km_frame_rotation; KM_ERR_INVALID for a non-positive or non-finite scale. */
 km_status km_frame_apply(const km_frame *f, double *P, size_t n_points, double *N, size_t n_normals,
                          km_error *err);
+/* Whether f is kinemesh's own frame (up +y, forward +z, scale 0 or 1; an axis left
+ * KM_AXIS_NONE is its default, as km_frame_rotation reads it): applying or undoing it changes
+ * nothing, so callers keep positions bit for bit. NULL: true. */
+bool km_frame_is_identity(const km_frame *f);
 /* The inverse of km_frame_apply: points and normals from kinemesh's frame back into the file's
  * (its axes; points divided by the scale), in place: what `animate --keep-frame` writes.
  *   P  in/out: #n_points*3; N in/out: #n_normals*3 (may be NULL when n_normals is 0)

@@ -51,6 +51,16 @@ static void test_axes(void) {
             fabs(q[2] - q0[2]) < 1e-12 && isnan(q[3]) && fabs(q[4] - q0[4]) < 1e-12 &&
             fabs(q[5] - q0[5]) < 1e-12 && nn[0] == 0 && nn[1] == 0.6 && nn[2] == 0.8);
     }
+  /* the identity, its defaults (axes unset, scale 0) and a scale of 1; not a turn or a scale */
+  const km_frame idf[3] = {{KM_AXIS_POS_Y, KM_AXIS_POS_Z, 0},
+                           {KM_AXIS_NONE, KM_AXIS_NONE, 1},
+                           {KM_AXIS_POS_Y, KM_AXIS_NONE, 0}},
+                 notf[3] = {{KM_AXIS_POS_Z, KM_AXIS_NEG_Y, 0},
+                            {KM_AXIS_POS_Y, KM_AXIS_NEG_Z, 0},
+                            {KM_AXIS_POS_Y, KM_AXIS_POS_Z, 0.01}};
+  for (int i = 0; i < 3; ++i)
+    CHECK(km_frame_is_identity(&idf[i]) && !km_frame_is_identity(&notf[i]));
+  CHECK(km_frame_is_identity(NULL));
   km_frame bad = {KM_AXIS_POS_Y, KM_AXIS_NEG_Y, 0};
   CHECK_STATUS(km_frame_unapply(&bad, p, 1, NULL, 0, KM_E), KM_ERR_INVALID);
   /* the animation writer: a frame to write in, refused for a .glb (glTF's frame is fixed) */

@@ -125,10 +125,7 @@ int km_cli_animate(int argc, char **argv) {
   if ((rc = km_cli_mesh_frame("animate", mesh_path, &fo, &m, false, &mf, NULL)) ||
       (rc = km_cli_orient_take("animate", &fo, &take)))
     goto done;
-  if (!(mf.up == KM_AXIS_POS_Y && mf.forward == KM_AXIS_POS_Z &&
-        (mf.scale == 0 || mf.scale == 1)) &&
-      km_mesh_frame_apply(&mf, &m, &err) != KM_OK)
-    goto fail;
+  if (!km_frame_is_identity(&mf) && km_mesh_frame_apply(&mf, &m, &err) != KM_OK) goto fail;
   /* The sidecar's lengths (handle radii, joints) are in the unit its "frame" records (the
    * file's own when none); --units other than that one: the rig is resolved on the mesh in
    * that unit and its joints rescaled, so `rig` without --units then `animate --units cm`
@@ -247,8 +244,6 @@ int km_cli_animate(int argc, char **argv) {
   wo.format = af;
   km_ssdr_options so;
   if (km_cli_parse_export("animate", export_kind, max_error_mm, compress, out, &wo, &so)) goto done;
-  /* --keep-frame: each frame taken back into the file's axes and units (the inverse of the
-   * rotation and scale that brought the mesh in), the rest mesh with it */
   /* --keep-frame: the writer takes each frame back into the file's axes and units */
   if (keep_frame) wo.frame = &mf;
   if (km_anim_writer_open(out, &m, &wo, &w, &err) != KM_OK) goto fail;

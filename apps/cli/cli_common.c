@@ -665,8 +665,7 @@ int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_op
   km_frame f;
   int rc = km_cli_mesh_frame(verb, path, fo, m, false, &f, NULL);
   if (rc) return rc;
-  if (f.up == KM_AXIS_POS_Y && f.forward == KM_AXIS_POS_Z && (f.scale == 0 || f.scale == 1))
-    return 0; /* already kinemesh's frame: the positions stay bit for bit */
+  if (km_frame_is_identity(&f)) return 0; /* already kinemesh's frame: kept bit for bit */
   km_error e = {0};
   if (km_mesh_frame_apply(&f, m, &e) != KM_OK) return km_cli_fail(verb, &e);
   return 0;

@@ -153,8 +153,7 @@ int km_cli_load_character_oriented(const char *verb, const char *mesh, const cha
     for (size_t i = 0; k != 1 && i < 3 * c->skeleton.n_joints; ++i)
       c->skeleton.rest[i] *= k;
   }
-  if (!(fr.up == KM_AXIS_POS_Y && fr.forward == KM_AXIS_POS_Z &&
-        (fr.scale == 0 || fr.scale == 1))) { /* else already kinemesh's frame: kept bit for bit */
+  if (!km_frame_is_identity(&fr)) { /* else already kinemesh's frame: kept bit for bit */
     if (km_mesh_frame_apply(&fr, &c->mesh, &err) != KM_OK ||
         (own &&
          km_frame_apply(&fr, c->skeleton.rest, c->skeleton.n_joints, NULL, 0, &err) != KM_OK))

@@ -235,8 +235,7 @@ int km_cli_reconstruct(int argc, char **argv) {
   }
   if (!(clouds_up || clouds_forward || clouds_units)) cf = tf; /* the template file's frame */
   if (keep_frame) ao.frame = &tf; /* the writer takes each frame back into the template file's */
-  if (!(cf.up == KM_AXIS_POS_Y && cf.forward == KM_AXIS_POS_Z &&
-        (cf.scale == 0 || cf.scale == 1))) {
+  if (!km_frame_is_identity(&cf)) {
     ro.points_frame = &cf;
     for (size_t i = 0; i < nfeat; ++i) /* the frame is valid: parsed or applied already */
       (void)km_frame_apply(&cf, feat[i].point, 1, NULL, 0, NULL);

@@ -132,8 +132,7 @@ int km_cli_rig(int argc, char **argv) {
   /* Orientation: the mesh is rigged in kinemesh's frame (a z-up scan rigged as if y were up
    * puts both legs on its tail); the sidecar records the frame for the verbs that orient. */
   if ((rc = km_cli_mesh_frame("rig", pos[0], &fo, &m, false, &frame, NULL))) goto done;
-  oriented = !(frame.up == KM_AXIS_POS_Y && frame.forward == KM_AXIS_POS_Z &&
-               (frame.scale == 0 || frame.scale == 1));
+  oriented = !km_frame_is_identity(&frame);
   if (oriented && km_mesh_frame_apply(&frame, &m, &err) != KM_OK) {
     rc = km_cli_fail("rig", &err);
     goto done;

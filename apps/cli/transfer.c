@@ -78,10 +78,6 @@ static int read_pairs(const char *path, size_t ns, size_t nt, int32_t **pairs, s
   return rc;
 }
 
-static bool is_identity(const km_frame *f) {
-  return f->up == KM_AXIS_POS_Y && f->forward == KM_AXIS_POS_Z && (f->scale == 0 || f->scale == 1);
-}
-
 int km_cli_transfer(int argc, char **argv) {
   const char *out = NULL, *lm_path = NULL, *encoding = "edge", *laplacian = "uniform",
              *align = "scale", *source = NULL, *templ = NULL, *xyz = NULL, *trest = NULL,
@@ -211,8 +207,8 @@ int km_cli_transfer(int argc, char **argv) {
   if ((rc = km_cli_mesh_frame("transfer", pos[0], &fo, &s, true, &fr, NULL))) goto done;
   bool same = t.n_vertices == s.n_vertices && t.n_faces == s.n_faces &&
               memcmp(t.F, s.F, s.n_faces * 3 * sizeof(int32_t)) == 0;
-  if ((!is_identity(&fr) && km_mesh_frame_apply(&fr, &s, &err)) ||
-      (same && !is_identity(&fr) && km_mesh_frame_apply(&fr, &t, &err))) {
+  if ((!km_frame_is_identity(&fr) && km_mesh_frame_apply(&fr, &s, &err)) ||
+      (same && !km_frame_is_identity(&fr) && km_mesh_frame_apply(&fr, &t, &err))) {
     rc = km_cli_fail("transfer", &err);
     goto done;
   }
@@ -256,7 +252,7 @@ int km_cli_transfer(int argc, char **argv) {
       goto done;
     }
     if ((rc = km_cli_mesh_frame("transfer", trest, &tfo, &tr_rest, true, &tf, NULL))) goto done;
-    if (!is_identity(&tf) &&
+    if (!km_frame_is_identity(&tf) &&
         (km_mesh_frame_apply(&tf, &tr_rest, &err) || km_mesh_frame_apply(&tf, &t, &err))) {
       rc = km_cli_fail("transfer", &err);
       goto done;

@@ -196,8 +196,7 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   if (nf) memcpy(w->F, rest->F, nf * 3 * sizeof *w->F);
   /* Written in a file's frame (issue 11: a point cache on the object a z-up tool imported from
    * the file): the rest copy now, every frame as it is pushed. */
-  if (o.frame && !(o.frame->up == KM_AXIS_POS_Y && o.frame->forward == KM_AXIS_POS_Z &&
-                   (o.frame->scale == 0 || o.frame->scale == 1))) {
+  if (!km_frame_is_identity(o.frame)) {
     if (w->format == KM_ANIM_GLB) {
       km_anim_writer_free(&w);
       return km__fail(err, KM_ERR_INVALID,

@@ -75,6 +75,12 @@ km_status km_frame_rotation(const km_frame *f, double R[9], km_error *err) {
   return KM_OK;
 }
 
+bool km_frame_is_identity(const km_frame *f) {
+  return !f || ((f->up == KM_AXIS_NONE || f->up == KM_AXIS_POS_Y) &&
+                (f->forward == KM_AXIS_NONE || f->forward == KM_AXIS_POS_Z) &&
+                (f->scale == 0 || f->scale == 1));
+}
+
 /* km_frame_apply (inverse false) and km_frame_unapply (true): R is a signed permutation, so
  * each output is one input times +-k (or over k): NaN stays in its own coordinate and nothing
  * is rounded but the scale. */
