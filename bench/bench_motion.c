@@ -849,8 +849,9 @@ int km_bench_motion(int argc, char **argv) {
        "also L: the rig's skeleton, posed by B's own retargeted joints, skinning the mesh with "
        "the rig's weights (linear blend skinning, what an engine does with a skinned export)"},
       {"weights", 0, KM_OPT_STRING, &weights_opt,
-       "the rig's skin weights: distance or reach (limited along the surface; rig --weights); "
-       "default: as rig writes them (reach for a quadruped, distance otherwise); only L uses "
+       "the rig's skin weights: heat, distance or reach (limited along the surface; rig "
+       "--weights); "
+       "default: as rig writes them (heat); only L uses "
        "them"},
   };
   int n_pos;
@@ -858,7 +859,8 @@ int km_bench_motion(int argc, char **argv) {
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
       "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames N] [--fps F] "
-      "[--max-step F] [--solver reduced|full [--handle-weight W]] [--skin [--weights reach]] "
+      "[--max-step F] [--solver reduced|full [--handle-weight W]] [--skin [--weights "
+      "heat|distance|reach]] "
       "[--json]",
       "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
       "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"

@@ -74,7 +74,10 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
     cJSON_AddStringToObject(o, "machine", machine);
     cJSON_AddNumberToObject(o, "n_ver", (double)m.n_vertices);
     cJSON_AddStringToObject(o, "kind", kind);
-    cJSON_AddStringToObject(o, "weights", rep.skin == KM_AUTORIG_SKIN_REACH ? "reach" : "distance");
+    cJSON_AddStringToObject(o, "weights",
+                            rep.skin == KM_AUTORIG_SKIN_REACH      ? "reach"
+                            : rep.skin == KM_AUTORIG_SKIN_DISTANCE ? "distance"
+                                                                   : "heat");
     cJSON_AddNumberToObject(o, "extremities", (double)rep.n_extremities);
     cJSON_AddNumberToObject(o, "repeat", (double)repeat);
     cJSON_AddNumberToObject(o, "rig_s", mt);
@@ -91,7 +94,7 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
              machine, repeat,
              skin == KM_AUTORIG_SKIN_REACH      ? "reach"
              : skin == KM_AUTORIG_SKIN_DISTANCE ? "distance"
-                                                : "distance (a humanoid), reach (a quadruped)");
+                                                : "bone heat");
       printf("%-28s %8s %10s %5s %9s %9s\n", "model", "n_ver", "kind", "n_ext", "rig(s)",
              "write(s)");
     }
@@ -120,16 +123,17 @@ int km_bench_rig(int argc, char **argv) {
       {"repeat", 0, KM_OPT_SIZE, &repeat, "runs per mesh (default 3; the median is printed)"},
       {"json", 0, KM_OPT_FLAG, &json, "print one JSON object per mesh, one per line"},
       {"weights", 0, KM_OPT_STRING, &weights,
-       "skin weights: distance (default) or reach (rig --weights)"},
+       "skin weights: heat (default), distance or reach (rig --weights)"},
   };
   enum { MAX_MESHES = 32 };
   const char *pos[MAX_MESHES];
   int n_pos;
-  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, MAX_MESHES, &n_pos,
-                       "kinemesh bench rig [MESH ...] [--repeat 3] [--weights reach] [--json]",
-                       "Times automatic rigging (kinemesh rig) per mesh: a file, or character:N\n"
-                       "for the procedural character with N vertices. Default: character:10000\n"
-                       "character:50000 character:100000. Target: <= 2 s at 50k vertices.");
+  int r = km_cli_parse(
+      argc, argv, opts, sizeof opts / sizeof opts[0], pos, MAX_MESHES, &n_pos,
+      "kinemesh bench rig [MESH ...] [--repeat 3] [--weights heat|distance|reach] [--json]",
+      "Times automatic rigging (kinemesh rig) per mesh: a file, or character:N\n"
+      "for the procedural character with N vertices. Default: character:10000\n"
+      "character:50000 character:100000. Target: <= 2 s at 50k vertices.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (repeat < 1) return km_cli_error("bench rig", "--repeat must be at least 1");
   km_autorig_skin skin;

@@ -2590,14 +2590,21 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * the highest vertex drives Head, the outermost upper vertex on each side HandLeft /
  * HandRight, the lowest outer one on each side FootLeft / FootRight (each at least 0.2 H
  * along the surface from the others), the joints on straight lines from the centroid.
- * Skin: every vertex is weighted on the bones nearest to it (distance to the bone segment,
- * the segment from a joint to its child weighting that joint, leaf joints reaching to their
- * extremity), w = (1 - (d - dmin) / band)^2 within band = 0.06 H of the nearest, at most 4
- * influences, summing to 1. With skin = KM_AUTORIG_SKIN_REACH each bone's w is also
- * multiplied by its reach along the surface: 1 within band (along the edges, Dijkstra) of the
- * bone's own patch (the largest connected group of vertices nearest to it), falling smoothly
- * to 0 at 4 band, so a part near a bone in space but far from it along the skin (an ear beside
- * a raised hand, a trunk beside an arm) does not follow it. Landmarks: the surface vertex hit by a
+ * Skin (skin = KM_AUTORIG_SKIN_HEAT, the default): bone heat (Baran & Popovic 2007). Each
+ * bone is a segment from a joint to its child, weighting that joint (leaf joints reaching to
+ * their extremity). Joint j's weights w_j solve (-L + M H) w_j = M H p_j on the surface (L the
+ * cotangent Laplacian, M the Voronoi areas), H = 1/d^2 at a vertex whose nearest bone (among
+ * its four nearest joints' bones, nearest first) it sees (the segment to the bone's closest
+ * point crosses no face), p_j = 1 there for that joint (shared at a tie), H = 0 at a vertex
+ * that sees none; the weights diffuse along the surface, so a part near a bone in space but far
+ * from it along the skin (an ear beside a raised hand, a shell beside a shoulder) follows where
+ * it joins the body. Kept: the 4 largest less the 5th (continuous where two swap), summing to
+ * 1. One CHOLMOD factorisation, one solve of 20 right-hand sides. KM_AUTORIG_SKIN_DISTANCE:
+ * every vertex is weighted on the bones nearest to it, w = (1 - (d - dmin) / band)^2 within
+ * band = 0.06 H of the nearest, at most 4 influences, summing to 1. KM_AUTORIG_SKIN_REACH: each
+ * bone's distance w also multiplied by its reach along the surface: 1 within band (along the
+ * edges, Dijkstra) of the bone's own patch (the largest connected group of vertices nearest to
+ * it), falling smoothly to 0 at 4 band. Landmarks: the surface vertex hit by a
  * ray from a joint (forward, up or sideways, like the procedural character's), hands and feet at
  * their tips. Meshes it refuses: no faces, several components (each connected set of faces),
  * non-manifold edges (three or more faces), too few extremities for the requested skeleton (kinect1
@@ -2629,19 +2636,22 @@ typedef enum km_autorig_skeleton {
 #define KM_AUTORIG_MAX_EXTREMITIES 16
 /* How km_autorig weights the skin (see km_autorig). */
 typedef enum km_autorig_skin {
-  /* distance for a humanoid or a prop (what reconstruct's limb search expects), reach for a
-   * quadruped: a walking cat's paws lie close together in space, and with distance weights its
-   * front paw followed the hind leg beside it (bench motion --skin, cat-03: worst edge 10.8x
-   * on cmu_131_01, 18.2x on precog_Seq1_1; by reach 1.46x and 2.24x; dog0, the horse and the
-   * standing cat within 0.03 or better) */
+  /* bone heat for every kind of body. bench motion --skin (L: the rig's skeleton posed by the
+   * take skinning the mesh), worst edge over the 5 takes, before (distance for a humanoid,
+   * reach for a quadruped) -> heat: armadillo 55-92x -> 3.4-5.1x, elephant 16-18x -> 1.5-1.7x,
+   * FAUST tr_reg_000 10-14x -> 2.0-5.6x, horse 1.9-2.6x -> 1.5-2.1x, the walking cat (cat-03)
+   * 1.7-2.2x -> 1.4-1.6x with no fold; the procedural character 2.3-3.1x -> 1.7-2.1x but a bent
+   * knee's back collapses (folds 0-125 -> 105-321), SMPL's npt_14_664 3.2-4.9x -> 3.5-5.6x */
   KM_AUTORIG_SKIN_AUTO = 0,
-  KM_AUTORIG_SKIN_DISTANCE, /* distance to the bones in space (what reconstruct expects) */
-  KM_AUTORIG_SKIN_REACH     /* the same, limited by each bone's reach along the surface */
+  KM_AUTORIG_SKIN_DISTANCE, /* distance to the bones in space, within a 0.06 H band */
+  KM_AUTORIG_SKIN_REACH,    /* the same, limited by each bone's reach along the surface */
+  KM_AUTORIG_SKIN_HEAT      /* bone heat (Baran & Popovic 2007): diffused along the surface from
+                               each vertex's nearest visible bone */
 } km_autorig_skin;
 
 typedef struct km_autorig_options {
   km_autorig_skeleton skeleton; /* 0: auto */
-  km_autorig_skin skin;         /* 0: auto (reach for a quadruped, distance otherwise) */
+  km_autorig_skin skin;         /* 0: auto (bone heat) */
   double min_extremity; /* extremity prominence, fraction of the largest bbox extent; 0: 0.2 */
   size_t
       max_extremities; /* most extremities sought; 0: KM_AUTORIG_MAX_EXTREMITIES (also the cap) */

@@ -461,7 +461,7 @@ static void test_cli(void) {
   int rc = km_test_run(cmd, &out);
   CHECK_MSG(rc == 0, "rig: %s", out ? out : "");
   CHECK(out && strstr(out, "HandLeft") && strstr(out, "humanoid") &&
-        strstr(out, "skin weights: by distance to the bones (--weights reach"));
+        strstr(out, "skin weights: bone heat ("));
   /* --weights: reach writes a valid sidecar; anything else is refused, naming the choices */
   snprintf(cmd, sizeof cmd, KM_CLI " rig '%s/g.obj' --weights reach -o '%s/g.reach.rig.json'",
            g_dir, g_dir);
@@ -470,15 +470,15 @@ static void test_cli(void) {
   rc = km_test_run(cmd, &out);
   CHECK_MSG(rc == 0 && out && strstr(out, "each limited by its reach along the surface"),
             "rig --weights reach: %s", out ? out : "");
-  snprintf(cmd, sizeof cmd, KM_CLI " rig '%s/g.obj' --weights heat -o '%s/g.heat.rig.json'", g_dir,
+  snprintf(cmd, sizeof cmd, KM_CLI " rig '%s/g.obj' --weights bbw -o '%s/g.bbw.rig.json'", g_dir,
            g_dir);
   free(out);
   out = NULL;
   rc = km_test_run(cmd, &out);
-  CHECK_MSG(rc != 0 && out && strstr(out, "--weights heat: expected distance or reach"),
-            "rig --weights heat: exit %d: %s", rc, out ? out : "");
+  CHECK_MSG(rc != 0 && out && strstr(out, "--weights bbw: expected heat, distance or reach"),
+            "rig --weights bbw: exit %d: %s", rc, out ? out : "");
   char gen_path[512];
-  snprintf(gen_path, sizeof gen_path, "%s/g.heat.rig.json", g_dir);
+  snprintf(gen_path, sizeof gen_path, "%s/g.bbw.rig.json", g_dir);
   CHECK_MSG(access(gen_path, F_OK) != 0, "a refused rig wrote %s", gen_path);
   snprintf(gen_path, sizeof gen_path, "%s/g.obj", g_dir);
   km_mesh m = {0};
@@ -985,11 +985,12 @@ static bool rig_twice_posed(const char *rel, const km_autorig_skin skin[2],
   return true;
 }
 
-/* A quadruped's default weights are limited by reach (KM_AUTORIG_SKIN_AUTO): the walking cat
- * (cat-03) has a front paw beside a hind paw, and by distance the one followed the other's
- * leg. Its own skeleton with the legs swung 30 degrees (the front ones forward, the hind ones
- * back), skinned: the worst edge |l/l0 - 1| must be under 1.5 and a quarter or less of the
- * distance weights' (measured 1.13 and 22.0). */
+/* A quadruped's default weights (KM_AUTORIG_SKIN_AUTO: bone heat) follow the surface: the
+ * walking cat (cat-03) has a front paw beside a hind paw, and by distance the one followed the
+ * other's leg. Its own skeleton with the legs swung 30 degrees (the front ones forward, the
+ * hind ones back), skinned: the worst edge |l/l0 - 1| must be under 1.0 and a quarter or less
+ * of the distance weights' (measured: heat 0.57; reach, the default before heat, 1.13;
+ * distance 23.7). */
 static void test_quadruped_skin(void) {
   static const char *const legs[4][4] = {{"ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft"},
                                          {"ShoulderRight", "ElbowRight", "WristRight", "HandRight"},
@@ -1001,38 +1002,42 @@ static void test_quadruped_skin(void) {
   km_autorig_report rep[2];
   if (!rig_twice_posed("poses/cat-poses/cat-03.obj", skin, legs, swing, 4, worst, rep)) return;
   CHECK_MSG(rep[0].kind == KM_AUTORIG_QUADRUPED, "cat-03 rigged as kind %d", (int)rep[0].kind);
-  CHECK_MSG(rep[0].skin == KM_AUTORIG_SKIN_REACH, "cat-03: default weights %d", rep[0].skin);
-  printf("cat-03, legs swung 30 deg, skinned: worst edge |l/l0 - 1| %.3f by the default (reach), "
+  CHECK_MSG(rep[0].skin == KM_AUTORIG_SKIN_HEAT, "cat-03: default weights %d", rep[0].skin);
+  printf("cat-03, legs swung 30 deg, skinned: worst edge |l/l0 - 1| %.3f by the default (heat), "
          "%.3f by distance\n",
          worst[0], worst[1]);
-  CHECK_MSG(worst[0] < 1.5, "cat-03 default weights: an edge stretched %.3f", worst[0]);
+  CHECK_MSG(worst[0] < 1.0, "cat-03 default weights: an edge stretched %.3f", worst[0]);
   CHECK_MSG(worst[1] > 4 * worst[0], "cat-03 distance weights: the worst edge only %.3f", worst[1]);
 }
 
-/* Skin weights limited by reach (km_autorig_options.skin = KM_AUTORIG_SKIN_REACH): the
- * armadillo holds its hands up beside its ears at rest, so weights by the distance to the
- * bones in space give the ears and the face to the hands. Its own skeleton, both arms swung
- * 60 degrees down about the shoulders, skins the mesh (km_lbs, what pose and an engine do):
- * the worst edge |l/l0 - 1| over the mesh, measured 29 by distance (an ear and the face
- * drawn down with a hand) and 1.7 by reach (a shear where the hunched face is weighted to
- * the upper arms too; rendered, the session's notes). */
+/* Skin weights along the surface: the armadillo holds its hands up beside its ears at rest,
+ * so weights by the distance to the bones in space give the ears and the face to the hands.
+ * Its own skeleton, both arms swung 60 degrees down about the shoulders, skins the mesh
+ * (km_lbs, what pose and an engine do): the worst edge |l/l0 - 1| over the mesh, measured 29
+ * by distance (an ear and the face drawn down with a hand), 1.7 by reach (a shear where the
+ * hunched face is weighted to the upper arms too; rendered, the session's notes) and 0.51
+ * by bone heat, the default (bound 1.0). */
 static void test_reach_weights(void) {
   static const char *const arms[2][4] = {
       {"ShoulderLeft", "ElbowLeft", "WristLeft", "HandLeft"},
       {"ShoulderRight", "ElbowRight", "WristRight", "HandRight"}};
   const double down[2] = {M_PI / 3, M_PI / 3}; /* about the x axis through the shoulder */
-  const km_autorig_skin skin[2] = {KM_AUTORIG_SKIN_DISTANCE, KM_AUTORIG_SKIN_REACH};
-  double worst[2];
-  km_autorig_report rep[2];
+  const km_autorig_skin skin[2] = {KM_AUTORIG_SKIN_DISTANCE, KM_AUTORIG_SKIN_REACH},
+                        heat[2] = {KM_AUTORIG_SKIN_DISTANCE, KM_AUTORIG_SKIN_AUTO};
+  double worst[2], worst_heat[2];
+  km_autorig_report rep[2], rep_heat[2];
   if (!rig_twice_posed("meshes/armadillo.obj", skin, arms, down, 2, worst, rep)) return;
+  if (!rig_twice_posed("meshes/armadillo.obj", heat, arms, down, 2, worst_heat, rep_heat)) return;
   printf("armadillo, arms swung 60 deg down, skinned: worst edge |l/l0 - 1| %.3f by distance, "
-         "%.3f by reach\n",
-         worst[0], worst[1]);
+         "%.3f by reach, %.3f by bone heat (the default)\n",
+         worst[0], worst[1], worst_heat[1]);
   CHECK_MSG(worst[1] < 2.5, "reach weights: an edge stretched %.3f", worst[1]);
-  /* the bound means something: the default weights tear the ears and the face */
-  CHECK_MSG(worst[0] > 4 * worst[1], "distance weights: the worst edge only %.3f", worst[0]);
-  /* a humanoid's default stays distance (reconstruct's limb search expects it) */
-  CHECK_MSG(rep[0].skin == KM_AUTORIG_SKIN_DISTANCE, "armadillo: weights %d", rep[0].skin);
+  CHECK_MSG(worst_heat[1] < 1.0, "heat weights: an edge stretched %.3f", worst_heat[1]);
+  /* the bounds mean something: distance weights tear the ears and the face */
+  CHECK_MSG(worst[0] > 4 * worst[1] && worst[0] > 4 * worst_heat[1],
+            "distance weights: the worst edge only %.3f", worst[0]);
+  CHECK_MSG(rep_heat[1].skin == KM_AUTORIG_SKIN_HEAT, "armadillo: default weights %d",
+            rep_heat[1].skin);
 }
 
 /* Meshes no rule was tuned on, rigged by the automatic choice: the roles must be the body's.

@@ -203,8 +203,8 @@ int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f
         "glb: KHR_mesh_quantization + EXT_meshopt_compression (engines and three.js with "         \
         "MeshoptDecoder read it; the printed error includes the quantisation)"                     \
   }
-/* `--weights` of rig and the benches: NULL -> KM_AUTORIG_SKIN_AUTO (reach for a quadruped,
- * distance otherwise), "distance" -> KM_AUTORIG_SKIN_DISTANCE, "reach" ->
+/* `--weights` of rig and the benches: NULL -> KM_AUTORIG_SKIN_AUTO (bone heat), "heat" ->
+ * KM_AUTORIG_SKIN_HEAT, "distance" -> KM_AUTORIG_SKIN_DISTANCE, "reach" ->
  * KM_AUTORIG_SKIN_REACH; anything else prints an error naming the choices and returns
  * KM_EXIT_USAGE (0 otherwise). */
 int km_cli_parse_weights(const char *verb, const char *s, km_autorig_skin *out);

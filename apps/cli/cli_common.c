@@ -714,6 +714,10 @@ int km_cli_parse_weights(const char *verb, const char *s, km_autorig_skin *out) 
     *out = KM_AUTORIG_SKIN_REACH;
     return 0;
   }
-  km_cli_error(verb, "--weights %s: expected distance or reach", s);
+  if (!strcmp(s, "heat")) {
+    *out = KM_AUTORIG_SKIN_HEAT;
+    return 0;
+  }
+  km_cli_error(verb, "--weights %s: expected heat, distance or reach", s);
   return KM_EXIT_USAGE;
 }

@@ -46,10 +46,9 @@ int km_cli_rig(int argc, char **argv) {
        "side), else humanoid or quadruped from the extremities, else prop), kinect1 (humanoid), "
        "quadruped, prop (handles by position), bust or upper"},
       {"weights", 0, KM_OPT_STRING, &weights,
-       "skin weights: distance (by the distance to the bones, what reconstruct expects; the "
-       "default for a humanoid or prop) or reach (also limited along the surface: an ear "
-       "beside a raised hand does not follow the hand; for pose and skinned exports; the "
-       "default for a quadruped, whose paws lie close together)"},
+       "skin weights: heat (the default: bone heat, diffused along the surface from each "
+       "vertex's nearest visible bone, Baran & Popovic), distance (by the distance to the "
+       "bones in space) or reach (distance, limited along the surface)"},
       {"min-extremity", 0, KM_OPT_DOUBLE, &min_ext,
        "extremity prominence as a fraction of the largest extent (default 0.2)"},
   };
@@ -58,7 +57,7 @@ int km_cli_rig(int argc, char **argv) {
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
       "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop|bust|upper] "
-      "[--weights distance|reach] [--up +z --forward -y]",
+      "[--weights heat|distance|reach] [--up +z --forward -y]",
       "Rigs a mesh kinemesh did not make: finds its extremities (geodesic\n"
       "extremes), embeds the 20 Kinect v1 joints in its interior, computes\n"
       "skin weights and the 16 landmarks, and writes the rig sidecar that\n"
@@ -165,15 +164,12 @@ int km_cli_rig(int argc, char **argv) {
     printf("  %-14s (%8.4f %8.4f %8.4f)\n", c.skeleton.names[j], c.skeleton.rest[3 * j],
            c.skeleton.rest[3 * j + 1], c.skeleton.rest[3 * j + 2]);
   printf("skin weights: %s\n",
-         rep.skin == KM_AUTORIG_SKIN_REACH
-             ? (o.skin == KM_AUTORIG_SKIN_REACH
-                    ? "by distance to the bones, each limited by its reach along the surface"
-                    : "by distance to the bones, each limited by its reach along the surface "
-                      "(a quadruped's default: its limbs lie close together; --weights distance "
-                      "for the unlimited ones)")
-             : "by distance to the bones (--weights reach limits each along the surface, so "
-               "a part near a bone in space but not along the skin does not follow it: for "
-               "pose and skinned exports; keep these for a reconstruct template)");
+         rep.skin == KM_AUTORIG_SKIN_HEAT
+             ? "bone heat (diffused along the surface from each vertex's nearest visible bone; "
+               "--weights distance or reach for the others)"
+         : rep.skin == KM_AUTORIG_SKIN_REACH
+             ? "by distance to the bones, each limited by its reach along the surface"
+             : "by distance to the bones");
 write:
   if ((rc = write_sidecar(path, &c, oriented ? &frame : NULL))) goto done;
   /* The puppetry rig in the sidecar must resolve on the mesh (handles apart, in range). */

@@ -1,12 +1,13 @@
 /* Automatic rigging (km_autorig): geodesic extremities, a Kinect v1 skeleton embedded from
- * height-normalised slices and geodesic rings, distance-to-bone skin (optionally limited by each
- * bone's reach along the surface), landmarks. The method is described at km_autorig in
- * include/kinemesh.h. */
+ * height-normalised slices and geodesic rings, bone heat skin (or distance-to-bone, optionally
+ * limited by each bone's reach along the surface), landmarks. The method is described at km_autorig
+ * in include/kinemesh.h. */
 #include "autorig/autorig.h"
 
 #include "math/math.h"
 #include "mesh/mesh.h"
 #include "motion/motion.h"
+#include "recon/recon.h"
 
 #include <float.h>
 #include <math.h>
@@ -824,13 +825,14 @@ static void bust_skin(km_skin *skin, size_t n, bool arms) {
 
 /* ---------------------------------------------------------------- skin */
 
-static double seg_dist(const double *p, const double *a, const double *b) {
+/* Distance from p to the segment a-b; q (3): the closest point on it. */
+static double seg_closest(const double *p, const double *a, const double *b, double *q) {
   double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
          ap[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
   double l2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
   double t = l2 > 0 ? (ap[0] * ab[0] + ap[1] * ab[1] + ap[2] * ab[2]) / l2 : 0;
   t = t < 0 ? 0 : t > 1 ? 1 : t;
-  double q[3] = {a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]};
+  set3(q, a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]);
   return dist3(p, q);
 }
 
@@ -898,7 +900,136 @@ static km_status skin_reach(const rigger *r, const int32_t *near, double band, d
  * diffusion) tore seams, and a reach ending at 2 band left a coarse mesh's weights jagged
  * (measured in the README). Not the default: reconstruct's limb search leaves D-FAUST's arm
  * behind with these weights on the FAUST body (README). */
-static km_status compute_skin(const rigger *r, bool reach, km_skin *skin, km_error *err) {
+/* Bone heat (Baran & Popovic 2007, section 4): each joint's weight w_j solves
+ *     (-L + M H) w_j = M H p_j
+ * over the surface (L the cotangent Laplacian, M the Voronoi areas: the area-weighted form of
+ * their -Laplacian(w) + H w = H p), where a vertex whose nearest bone is visible from it (the
+ * segment to its closest point on the bone crosses no face, Embree) has H = 1/d^2 (d that
+ * distance) and p_j = 1 for that bone's joint (shared on a tie, at a joint), and a vertex that
+ * sees no bone H = 0: its weights diffuse from its neighbours'. Every p sums to 1 and L 1 = 0,
+ * so the weights sum to 1 without normalising. A vertex tests its four nearest joints' bones,
+ * nearest first. One factorisation (CHOLMOD) and one solve of NJ right-hand sides.
+ * Out: W n*NJ. */
+static km_status skin_heat(const rigger *r, const double *D, const double *Q, double *W,
+                           km_error *err) {
+  enum { NJ = KM_KINECT1_JOINTS, TRY = 4 };
+  const km_mesh *m = r->m;
+  size_t n = r->n;
+  km_status st = KM_OK;
+  km_sparse *L = NULL, *M = NULL, *MH = NULL, *A = NULL;
+  km_cholesky *chol = NULL;
+  km__surface *surf = NULL;
+  double *h = km__calloc(n, sizeof *h), *B = km__calloc(n * NJ, sizeof *B);
+  int32_t *order = km__malloc(n * TRY, sizeof *order), *todo = km__malloc(n, sizeof *todo);
+  double *org = km__malloc(3 * n, sizeof *org), *tgt = km__malloc(3 * n, sizeof *tgt);
+  uint8_t *occ = km__malloc(n, 1), *done = km__calloc(n, 1);
+  if (!h || !B || !order || !todo || !org || !tgt || !occ || !done) {
+    st = km__fail(err, KM_ERR_NOMEM, "rig: out of memory (heat weights of %zu vertices)", n);
+    goto out;
+  }
+  for (size_t v = 0; v < n; ++v) {
+    int32_t *o = order + TRY * v;
+    for (int k = 0; k < TRY; ++k)
+      o[k] = -1;
+    for (int j = 0; j < NJ; ++j) {
+      double d = D[NJ * v + j];
+      if (d == DBL_MAX) continue;
+      for (int k = 0; k < TRY; ++k)
+        if (o[k] < 0 || d < D[NJ * v + o[k]]) {
+          for (int l = TRY - 1; l > k; --l)
+            o[l] = o[l - 1];
+          o[k] = j;
+          break;
+        }
+    }
+  }
+  if ((st = km__surface_create(m->V, m->n_vertices, m->F, m->n_faces, &surf, err)) != KM_OK)
+    goto out;
+  double tnear = 1e-4 * r->H, tie = 1e-6 * r->H;
+  for (int k = 0; k < TRY; ++k) {
+    size_t nt = 0;
+    for (size_t v = 0; v < n; ++v)
+      if (!done[v] && r->on_face[v] && order[TRY * v + k] >= 0) {
+        int j = order[TRY * v + k];
+        memcpy(org + 3 * nt, m->V + 3 * v, 3 * sizeof(double));
+        memcpy(tgt + 3 * nt, Q + 3 * (NJ * v + j), 3 * sizeof(double));
+        todo[nt++] = (int32_t)v;
+      }
+    km__surface_occluded(surf, org, tgt, nt, tnear, occ);
+    for (size_t i = 0; i < nt; ++i) {
+      if (occ[i]) continue;
+      size_t v = (size_t)todo[i];
+      done[v] = 1;
+      double d = D[NJ * v + order[TRY * v + k]];
+      h[v] = 1 / (d * d + tie * tie); /* their c = 1 */
+      int nb = 0;
+      for (int j = 0; j < NJ; ++j)
+        if (D[NJ * v + j] <= d + tie) ++nb;
+      for (int j = 0; j < NJ; ++j)
+        if (D[NJ * v + j] <= d + tie) B[n * j + v] = 1.0 / nb;
+    }
+  }
+  size_t seen = 0;
+  for (size_t v = 0; v < n; ++v)
+    seen += done[v];
+  for (size_t v = 0; v < n; ++v)
+    /* a vertex no face uses has no surface to diffuse along, and when no vertex sees a bone
+     * (every bone outside the surface) nothing would anchor the heat: the nearest bone */
+    if (!r->on_face[v] || !seen) {
+      double d = D[NJ * v + order[TRY * v]];
+      h[v] = 1 / (d * d + tie * tie);
+      B[n * order[TRY * v] + v] = 1;
+    }
+  if ((st = km_cotmatrix(m, &L, err)) != KM_OK ||
+      (st = km_massmatrix(m, KM_MASS_VORONOI, &M, err)) != KM_OK)
+    goto out;
+  for (size_t v = 0; v < n; ++v) {
+    h[v] *= km_sparse_coeff(M, v, v);
+    for (int j = 0; j < NJ; ++j)
+      B[n * j + v] *= h[v];
+  }
+  if ((st = km_sparse_diagonal(n, h, &MH, err)) != KM_OK ||
+      (st = km_sparse_add(-1, L, 1, MH, &A, err)) != KM_OK ||
+      (st = km_cholesky_analyze(A, &chol, err)) != KM_OK ||
+      (st = km_cholesky_factorize(chol, A, err)) != KM_OK)
+    goto out;
+  {
+    double *X = km__malloc(n * NJ, sizeof *X);
+    if (!X) {
+      st = km__fail(err, KM_ERR_NOMEM, "rig: out of memory (heat weights)");
+      goto out;
+    }
+    st = km_cholesky_solve(chol, NJ, B, X, err);
+    for (size_t v = 0; st == KM_OK && v < n; ++v)
+      for (int j = 0; j < NJ; ++j)
+        W[NJ * v + j] = X[n * j + v];
+    free(X);
+  }
+out:
+  km_cholesky_free(&chol);
+  km_sparse_free(&L), km_sparse_free(&M), km_sparse_free(&MH), km_sparse_free(&A);
+  km__surface_free(&surf);
+  free(h), free(B), free(order), free(todo), free(org), free(tgt), free(occ), free(done);
+  return st;
+}
+
+/* the KM_SKIN_INFLUENCES largest of w (n) less the next one (continuous when two swap) */
+static void skin_sparsify(double *w, int n) {
+  double top[KM_SKIN_INFLUENCES + 1] = {0};
+  for (int j = 0; j < n; ++j) {
+    double x = w[j];
+    for (int q = 0; q <= KM_SKIN_INFLUENCES; ++q)
+      if (x > top[q]) {
+        double t = top[q];
+        top[q] = x, x = t;
+      }
+  }
+  for (int j = 0; j < n; ++j)
+    w[j] = w[j] > top[KM_SKIN_INFLUENCES] ? w[j] - top[KM_SKIN_INFLUENCES] : 0;
+}
+
+static km_status compute_skin(const rigger *r, km_autorig_skin mode, km_skin *skin, km_error *err) {
+  bool reach = mode == KM_AUTORIG_SKIN_REACH, heat = mode == KM_AUTORIG_SKIN_HEAT;
   enum { NJ = KM_KINECT1_JOINTS };
   double seg[2 * NJ][6];
   int segj[2 * NJ], ns = 0;
@@ -916,12 +1047,14 @@ static km_status compute_skin(const rigger *r, bool reach, km_skin *skin, km_err
     }
   size_t n = r->n;
   double *D = km__malloc(n * NJ, sizeof *D), *G = reach ? km__calloc(n * NJ, sizeof *G) : NULL;
+  double *Q = heat ? km__malloc(3 * n * NJ, sizeof *Q) : NULL;
   int32_t *near = km__malloc(n, sizeof *near);
-  if (!D || (reach && !G) || !near) {
-    free(D), free(G), free(near);
+  if (!D || (reach && !G) || (heat && !Q) || !near) {
+    free(D), free(G), free(Q), free(near);
     return km__fail(err, KM_ERR_NOMEM, "rig: out of memory (skin of %zu vertices)", n);
   }
-  /* D: each vertex's distance to each joint's bones; near: its nearest bone's joint */
+  /* D: each vertex's distance to each joint's bones (Q: the closest point on them); near: its
+   * nearest bone's joint */
 #pragma omp parallel for schedule(static)
   for (size_t v = 0; v < n; ++v) {
     const double *p = r->m->V + 3 * v;
@@ -930,14 +1063,31 @@ static km_status compute_skin(const rigger *r, bool reach, km_skin *skin, km_err
       d[j] = DBL_MAX;
     near[v] = 0;
     for (int s = 0; s < ns; ++s) {
-      double x = seg_dist(p, seg[s], seg[s] + 3);
-      if (x < d[segj[s]]) d[segj[s]] = x;
+      double q[3], x = seg_closest(p, seg[s], seg[s] + 3, q);
+      if (x < d[segj[s]]) {
+        d[segj[s]] = x;
+        if (Q) memcpy(Q + 3 * (NJ * v + segj[s]), q, sizeof q);
+      }
       if (x < dmin) dmin = x, near[v] = segj[s];
     }
   }
   double band = 0.06 * r->H;
   km_status st = reach ? skin_reach(r, near, band, G, err) : KM_OK;
-  if (st == KM_OK)
+  if (heat) {
+    double *W = km__malloc(n * NJ, sizeof *W);
+    st = W ? skin_heat(r, D, Q, W, err)
+           : km__fail(err, KM_ERR_NOMEM, "rig: out of memory (skin of %zu vertices)", n);
+    for (size_t v = 0; st == KM_OK && v < n; ++v) {
+      double *w = W + NJ * v;
+      /* small negative weights from obtuse triangles' negative cotangents: dropped */
+      for (int j = 0; j < NJ; ++j)
+        w[j] = w[j] > 1e-4 ? w[j] : 0;
+      skin_sparsify(w, NJ);
+      if (!km__skin_keep_largest(w, NJ, skin->joints + 4 * v, skin->weights + 4 * v))
+        skin->joints[4 * v] = near[v], skin->weights[4 * v] = 1;
+    }
+    free(W);
+  } else if (st == KM_OK)
 #pragma omp parallel for schedule(static)
     for (size_t v = 0; v < n; ++v) {
       const double *d = D + NJ * v, *gv = G ? G + NJ * v : NULL;
@@ -956,7 +1106,7 @@ static km_status compute_skin(const rigger *r, bool reach, km_skin *skin, km_err
       if (!km__skin_keep_largest(w, NJ, skin->joints + 4 * v, skin->weights + 4 * v))
         skin->joints[4 * v] = near[v], skin->weights[4 * v] = 1; /* no bone within band */
     }
-  free(D), free(G), free(near);
+  free(D), free(G), free(Q), free(near);
   return st;
 }
 
@@ -1339,11 +1489,9 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
     if (st == KM_OK) memcpy(sk->rest, r.J, sizeof r.J);
   }
   if (st == KM_OK) {
-    km_autorig_skin skin = o.skin != KM_AUTORIG_SKIN_AUTO ? o.skin
-                           : kind == KM_AUTORIG_QUADRUPED ? KM_AUTORIG_SKIN_REACH
-                                                          : KM_AUTORIG_SKIN_DISTANCE;
+    km_autorig_skin skin = o.skin != KM_AUTORIG_SKIN_AUTO ? o.skin : KM_AUTORIG_SKIN_HEAT;
     if (report) report->skin = skin;
-    st = compute_skin(&r, skin == KM_AUTORIG_SKIN_REACH, &out->skin, err);
+    st = compute_skin(&r, skin, &out->skin, err);
     if (st == KM_OK && (kind == KM_AUTORIG_BUST || kind == KM_AUTORIG_UPPER))
       bust_skin(&out->skin, r.n, kind == KM_AUTORIG_UPPER);
   }

@@ -1,4 +1,4 @@
-/* Requires: core, linalg, math, mesh, motion. */
+/* Requires: core, linalg, math, mesh, motion, recon. */
 /* Automatic rigging of a mesh kinemesh did not make (km_autorig): extremities by geodesic
  * extremes, a Kinect v1 skeleton embedded from height-normalised slices and geodesic rings,
  * distance-to-bone skin weights, the 16 named landmarks. Its public API is in

@@ -193,6 +193,37 @@ void km__surface_closest(const km__surface *s, const double *Q, size_t n, double
   }
 }
 
+/* For each segment org[i] -> tgt[i]: whether a face of the surface crosses it strictly inside
+ * (beyond tnear, a length, from both ends, so the faces at a vertex the segment starts on do
+ * not count). Embree's occlusion query (rtcOccluded1) on the closest-point structure's BVH. */
+void km__surface_occluded(const km__surface *s, const double *org, const double *tgt, size_t n,
+                          double tnear, uint8_t *occluded) {
+#pragma omp parallel for schedule(dynamic, 256) if (n > KM__OMP_MIN)
+  for (size_t i = 0; i < n; ++i) {
+    const double *o = org + 3 * i, *t = tgt + 3 * i;
+    double d[3] = {t[0] - o[0], t[1] - o[1], t[2] - o[2]};
+    double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (len <= 2 * tnear) {
+      occluded[i] = 0;
+      continue;
+    }
+    struct RTCRay ray = {.org_x = (float)o[0],
+                         .org_y = (float)o[1],
+                         .org_z = (float)o[2],
+                         .tnear = (float)tnear,
+                         .dir_x = (float)(d[0] / len),
+                         .dir_y = (float)(d[1] / len),
+                         .dir_z = (float)(d[2] / len),
+                         .tfar = (float)(len - tnear),
+                         .mask = (unsigned)-1,
+                         .flags = 0};
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    rtcOccluded1(s->scene, &ctx, &ray);
+    occluded[i] = ray.tfar < 0; /* Embree sets tfar to -inf on a hit */
+  }
+}
+
 void km__surface_free(km__surface **s) {
   if (!s || !*s) return;
   rtcReleaseGeometry((*s)->geom);

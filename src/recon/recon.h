@@ -24,6 +24,10 @@ void km__surface_update(km__surface *s, const double *V);
  * farther than max_dist (<= 0: unlimited) get tri = -1. Parallel (OpenMP). */
 void km__surface_closest(const km__surface *s, const double *Q, size_t n, double max_dist,
                          int32_t *tri, double *bary, double *dist);
+/* Segments org -> tgt (n*3 each) crossed by a face beyond tnear (a length) from either end:
+ * occluded n (1/0). Parallel (OpenMP). */
+void km__surface_occluded(const km__surface *s, const double *org, const double *tgt, size_t n,
+                          double tnear, uint8_t *occluded);
 void km__surface_free(km__surface **s);
 
 /* Closest point on triangle (a,b,c) to p: barycentrics w (3), returns squared distance. */
