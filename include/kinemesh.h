@@ -2595,10 +2595,11 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * their extremity). Joint j's weights w_j solve (-L + M H) w_j = M H p_j on the surface (L the
  * cotangent Laplacian, M the Voronoi areas), H = 1/d^2 at a vertex whose nearest bone (among
  * its four nearest joints' bones, nearest first) it sees (the segment to the bone's closest
- * point crosses no face), p_j = 1 there for that joint (shared at a tie), H = 0 at a vertex
- * that sees none; the weights diffuse along the surface, so a part near a bone in space but far
- * from it along the skin (an ear beside a raised hand, a shell beside a shoulder) follows where
- * it joins the body. Kept: the 4 largest less the 5th (continuous where two swap), summing to
+ * point crosses no face), p_j = 1 there for that joint (shared at a tie), H = 1e-4/d^2 (its
+ * nearest bone's) at a vertex that sees none; the weights diffuse along the surface, so a part near
+ * a bone in space but far from it along the skin (an ear beside a raised hand, a shell beside a
+ * shoulder) follows where it joins the body. Kept: the 4 largest less the 5th (continuous where two
+ * swap), summing to
  * 1. One CHOLMOD factorisation, one solve of 20 right-hand sides. KM_AUTORIG_SKIN_DISTANCE:
  * every vertex is weighted on the bones nearest to it, w = (1 - (d - dmin) / band)^2 within
  * band = 0.06 H of the nearest, at most 4 influences, summing to 1. KM_AUTORIG_SKIN_REACH: each

@@ -888,28 +888,16 @@ static km_status skin_reach(const rigger *r, const int32_t *near, double band, d
   return KM_OK;
 }
 
-/* Skin weights: a vertex takes the bones within `band` (6 % of the height) of its nearest bone,
- * weighted by (1 - (d - dmin) / band)^2. With `reach`, each bone's weight is also multiplied by
- * its reach at the vertex: 1 within `band` along the edges of the bone's own patch (the
- * largest connected group of vertices nearest to it), falling to 0 at 4 band by a smoothstep
- * (one multi-source Dijkstra per joint), and dmin is the nearest bone that reaches. Distance
- * in space alone leaks through the air: the armadillo's ears, beside its raised hands at rest,
- * are the hands' and fly off with them (posed by the rig's skeleton, 54-91x stretch), the
- * elephant's ears and trunk its arms'. The reach is continuous along the surface, so the
- * weights stay smooth; a cut by visibility (Baran & Popovic's rule without their heat
- * diffusion) tore seams, and a reach ending at 2 band left a coarse mesh's weights jagged
- * (measured in the README). Not the default: reconstruct's limb search leaves D-FAUST's arm
- * behind with these weights on the FAUST body (README). */
 /* Bone heat (Baran & Popovic 2007, section 4): each joint's weight w_j solves
  *     (-L + M H) w_j = M H p_j
  * over the surface (L the cotangent Laplacian, M the Voronoi areas: the area-weighted form of
  * their -Laplacian(w) + H w = H p), where a vertex whose nearest bone is visible from it (the
  * segment to its closest point on the bone crosses no face, Embree) has H = 1/d^2 (d that
  * distance) and p_j = 1 for that bone's joint (shared on a tie, at a joint), and a vertex that
- * sees no bone H = 0: its weights diffuse from its neighbours'. Every p sums to 1 and L 1 = 0,
- * so the weights sum to 1 without normalising. A vertex tests its four nearest joints' bones,
- * nearest first. One factorisation (CHOLMOD) and one solve of NJ right-hand sides.
- * Out: W n*NJ. */
+ * sees no bone 1e-4 of that toward its nearest bone: its weights diffuse from its neighbours'.
+ * Every p sums to 1 and L 1 = 0, so the weights sum to 1 without normalising. A vertex tests its
+ * four nearest joints' bones, nearest first. One factorisation (CHOLMOD) and one solve of NJ
+ * right-hand sides. Out: W n*NJ. */
 static km_status skin_heat(const rigger *r, const double *D, const double *Q, double *W,
                            km_error *err) {
   enum { NJ = KM_KINECT1_JOINTS, TRY = 4 };
@@ -969,15 +957,14 @@ static km_status skin_heat(const rigger *r, const double *D, const double *Q, do
         if (D[NJ * v + j] <= d + tie) B[n * j + v] = 1.0 / nb;
     }
   }
-  size_t seen = 0;
   for (size_t v = 0; v < n; ++v)
-    seen += done[v];
-  for (size_t v = 0; v < n; ++v)
-    /* a vertex no face uses has no surface to diffuse along, and when no vertex sees a bone
-     * (every bone outside the surface) nothing would anchor the heat: the nearest bone */
-    if (!r->on_face[v] || !seen) {
+    if (!done[v]) {
+      /* a vertex no face uses has no surface to diffuse along: its nearest bone. One that sees
+       * no bone is held to its nearest by 1e-4 of the heat, which changes no weight
+       * measurably but keeps every part of the surface anchored (a part that saw no bone at
+       * all, every bone outside it, would leave the system singular) */
       double d = D[NJ * v + order[TRY * v]];
-      h[v] = 1 / (d * d + tie * tie);
+      h[v] = (r->on_face[v] ? 1e-4 : 1) / (d * d + tie * tie);
       B[n * order[TRY * v] + v] = 1;
     }
   if ((st = km_cotmatrix(m, &L, err)) != KM_OK ||
@@ -1028,6 +1015,16 @@ static void skin_sparsify(double *w, int n) {
     w[j] = w[j] > top[KM_SKIN_INFLUENCES] ? w[j] - top[KM_SKIN_INFLUENCES] : 0;
 }
 
+/* Skin weights (mode): bone heat (skin_heat, the default), or by distance: a vertex takes the
+ * bones within `band` (6 % of the height) of its nearest bone, weighted by
+ * (1 - (d - dmin) / band)^2; with `reach`, each bone's weight also multiplied by its reach at
+ * the vertex: 1 within `band` along the edges of the bone's own patch (the largest connected
+ * group of vertices nearest to it), falling to 0 at 4 band by a smoothstep (one multi-source
+ * Dijkstra per joint), and dmin is the nearest bone that reaches. Distance in space alone leaks
+ * through the air: the armadillo's ears, beside its raised hands at rest, are the hands' and
+ * fly off with them (posed by the rig's skeleton, 54-91x stretch), the elephant's ears and
+ * trunk its arms'. The reach follows the surface but still blends by distance, so a shell far
+ * from every bone takes a steep mix (the armadillo's back, 5-10x); heat diffuses (README). */
 static km_status compute_skin(const rigger *r, km_autorig_skin mode, km_skin *skin, km_error *err) {
   bool reach = mode == KM_AUTORIG_SKIN_REACH, heat = mode == KM_AUTORIG_SKIN_HEAT;
   enum { NJ = KM_KINECT1_JOINTS };
