@@ -264,6 +264,14 @@ typedef struct km_skin km_skin;
  *   transforms  out: #J*12, per joint row-major 3x4 [R | t] */
 km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *positions,
                                           double *transforms, km_error *err);
+/* The same rotations, with the skeleton's own bone lengths: the root goes to its posed
+ * position, and every other joint where its parent's transform carries its rest position, so
+ * each skinned part moves rigidly and a take of other proportions (a performer's, another
+ * skeleton's) turns the limbs without pulling them apart. What `pose` plays.
+ *   s, positions, transforms  as km_skeleton_pose_from_positions (the positions give only
+ *                             directions below the root) */
+km_status km_skeleton_pose_from_directions(const km_skeleton *s, const double *positions,
+                                           double *transforms, km_error *err);
 /* Joint rest positions at the boundaries of the skinned parts (Park & Lim 2014: the skeleton
  * of a template that has only weights). Joint j sits at the weighted centroid of the
  * vertices its part shares with its parent's part (weight min(w_j, w_parent)); a root, or a

@@ -1010,6 +1010,86 @@ static void test_quadruped_skin(void) {
   CHECK_MSG(worst[1] > 4 * worst[0], "cat-03 distance weights: the worst edge only %.3f", worst[1]);
 }
 
+/* pose drives a rig of the Kinect v1 joints from a take of another skeleton by body point: a
+ * CMU BVH (LeftForeArm, Head, ...) on the FAUST body rigged by `kinemesh rig`. pose used to
+ * match the take's joints by exact name, so only the BVH's Head met the rig's, was put where
+ * the BVH has it (CMU units) and pulled the head into a spike 1.5 m long while the rest of the
+ * body stayed at rest. Mapped, but with every joint put where the take has it, the
+ * performer's other proportions pulled the parts apart (worst edge |l/l0 - 1| 5.6, a hand);
+ * turning the rig's bones, which keep their lengths, 1.08 at worst over 92 frames at 10 fps
+ * (the crotch in a kick; bound 1.5). A take with none of the joints is refused. */
+static void test_pose_bvh(void) {
+  char body[512], bvh[512], cmd[4096], path[600], *out = NULL;
+  if (!km_test_shared("poses/tr_reg_000.off", body, sizeof body) ||
+      !km_test_shared("bvh/cmu_131_03.bvh", bvh, sizeof bvh)) {
+    printf("SKIP pose from a BVH: ../shared/data absent\n");
+    return;
+  }
+  snprintf(cmd, sizeof cmd, KM_CLI " rig '%s' -o '%s/faust.rig.json'", body, g_dir);
+  CHECK(km_test_run(cmd, NULL) == 0);
+  snprintf(cmd, sizeof cmd,
+           KM_CLI " pose --mesh '%s' --rig '%s/faust.rig.json' --motion '%s' --fps 10 -o "
+                  "'%s/faust_bvh.pc2'",
+           body, g_dir, bvh, g_dir);
+  int rc = km_test_run(cmd, &out);
+  CHECK_MSG(rc == 0 && out && !strstr(out, "warning"), "pose from a BVH: exit %d: %s", rc,
+            out ? out : "");
+  free(out);
+  km_mesh m = {0};
+  double *frames = NULL;
+  km_anim_info info;
+  snprintf(path, sizeof path, "%s/faust_bvh.pc2", g_dir);
+  CHECK_OK(km_mesh_read(body, &m, KM_E));
+  if (km_pc2_read(path, &frames, &info, KM_E) == KM_OK) {
+    CHECK(info.vertices == m.n_vertices && info.frames > 80);
+    double worst = 0;
+    for (size_t f = 0; f < info.frames; ++f)
+      worst = fmax(worst, km_test_edge_stretch(&m, frames + 3 * m.n_vertices * f));
+    printf("pose, FAUST body from cmu_131_03.bvh at 10 fps: worst edge |l/l0 - 1| %.3f over %zu "
+           "frames\n",
+           worst, info.frames);
+    CHECK_MSG(worst < 1.5, "pose from a BVH: an edge stretched %.3f", worst);
+    /* --exact-positions: every joint where the take has it, the parts pulled apart */
+    snprintf(cmd, sizeof cmd,
+             KM_CLI " pose --mesh '%s' --rig '%s/faust.rig.json' --motion '%s' --fps 10 "
+                    "--exact-positions -o '%s/faust_exact.pc2'",
+             body, g_dir, bvh, g_dir);
+    CHECK(km_test_run(cmd, NULL) == 0);
+    double *ex = NULL, worst_exact = 0;
+    snprintf(path, sizeof path, "%s/faust_exact.pc2", g_dir);
+    if (km_pc2_read(path, &ex, &info, KM_E) == KM_OK)
+      for (size_t f = 0; f < info.frames; ++f)
+        worst_exact = fmax(worst_exact, km_test_edge_stretch(&m, ex + 3 * m.n_vertices * f));
+    free(ex);
+    printf("pose --exact-positions: worst edge %.3f\n", worst_exact);
+    CHECK_MSG(worst_exact > 2 * worst, "--exact-positions: the worst edge only %.3f", worst_exact);
+  } else
+    CHECK(0);
+  free(frames);
+  km_mesh_free(&m);
+  /* no joint in common: an error naming the rig's joints, no output */
+  snprintf(path, sizeof path, "%s/foo_take.json", g_dir);
+  FILE *tf = fopen(path, "w");
+  CHECK(tf != NULL);
+  if (tf) {
+    fputs("{\"format\": \"kinemesh-take\", \"version\": 1, \"fps\": 30, \"units\": \"m\", "
+          "\"joints\": [\"Foo\", \"Bar\"], \"parents\": [-1, 0], "
+          "\"frames\": [[0, 1, 0, 0, 1.5, 0]]}\n",
+          tf);
+    fclose(tf);
+  }
+  snprintf(cmd, sizeof cmd,
+           KM_CLI " pose --mesh '%s' --rig '%s/faust.rig.json' --motion '%s' -o '%s/foo.pc2'", body,
+           g_dir, path, g_dir);
+  rc = km_test_run(cmd, &out);
+  CHECK_MSG(rc != 0 && out && strstr(out, "none of the 20 Kinect v1 joints") &&
+                strstr(out, "foo_take.json"),
+            "pose with no joint in common: exit %d: %s", rc, out ? out : "");
+  free(out);
+  snprintf(path, sizeof path, "%s/foo.pc2", g_dir);
+  CHECK_MSG(access(path, F_OK) != 0, "a refused pose wrote %s", path);
+}
+
 /* Skin weights along the surface: the armadillo holds its hands up beside its ears at rest,
  * so weights by the distance to the bones in space give the ears and the face to the hands.
  * Its own skeleton, both arms swung 60 degrees down about the shoulders, skins the mesh
@@ -1160,6 +1240,7 @@ int main(void) {
   test_isolated_vertex();
   test_faust_landmarks();
   test_cli();
+  test_pose_bvh();
   test_reach_weights();
   test_quadruped_skin();
   test_roles("meshes/dino.off", KM_AUTORIG_KINECT1, 0.1);

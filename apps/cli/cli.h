@@ -101,6 +101,16 @@ int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_op
 int km_cli_keep_frame_output(const char *verb, const char *out, bool keep);
 /* The take's positions into kinemesh's frame by --motion-up/--motion-forward. */
 int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t);
+/* Reads the motion that drives the skeleton sk by joint name (pose, gen capture): for a
+ * skeleton of the Kinect v1 joints (kinemesh rig, gen character, a mapped skinned glTF) the
+ * take's columns by body point as km_motion_read's kinect1 option maps them (a CMU BVH's
+ * LeftForeArm is ElbowLeft, ...), else as the file names them. Returns 0, or prints the error
+ * and returns an exit status. */
+int km_cli_read_motion_for(const char *verb, const char *path, const km_skeleton *sk, km_take *t);
+/* map (sk->n_joints): each joint's column in t by exact name, -1 where the take has none.
+ * None matched: prints an error naming the rig's joints and returns an exit status; some
+ * missing: prints a warning naming them (they hold their rest pose) and returns 0. */
+int km_cli_map_joints(const char *verb, const km_skeleton *sk, const km_take *t, int *map);
 /* The frame named by options of data that is not a mesh (nothing to guess from): up (NULL:
  * +y), forward (NULL: +z, or -y for a z-up frame), units (NULL: metres); opt names the
  * options in messages ("motion": --motion-up ...). Returns 0, or prints the error and returns

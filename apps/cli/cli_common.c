@@ -690,6 +690,42 @@ int km_cli_given_frame(const char *verb, const char *opt, const char *up, const 
   return 0;
 }
 
+int km_cli_read_motion_for(const char *verb, const char *path, const km_skeleton *sk, km_take *t) {
+  bool kinect1 = sk->n_joints == KM_KINECT1_JOINTS;
+  for (size_t j = 0; kinect1 && j < sk->n_joints; ++j)
+    kinect1 = sk->names[j] && km_kinect1_joint_index(sk->names[j]) == (int)j;
+  km_motion_read_options mo = {.kinect1 = kinect1};
+  km_error e = {0};
+  if (km_motion_read(path, &mo, t, NULL, &e) != KM_OK) return km_cli_fail(verb, &e);
+  return 0;
+}
+
+int km_cli_map_joints(const char *verb, const km_skeleton *sk, const km_take *t, int *map) {
+  size_t found = 0;
+  for (size_t j = 0; j < sk->n_joints; ++j) {
+    map[j] = -1;
+    for (size_t k = 0; k < t->n_joints; ++k)
+      if (sk->names[j] && t->joint_names[k] && !strcmp(sk->names[j], t->joint_names[k]))
+        map[j] = (int)k;
+    found += map[j] >= 0;
+  }
+  if (found == sk->n_joints) return 0;
+  char names[512] = "";
+  size_t len = 0;
+  for (size_t j = 0; j < sk->n_joints && len + 40 < sizeof names; ++j)
+    if (map[j] < 0)
+      len += (size_t)snprintf(names + len, sizeof names - len, "%s%s", len ? ", " : "",
+                              sk->names[j] ? sk->names[j] : "?");
+  if (!found)
+    return km_cli_error(verb, "the take has none of the rig's %zu joints by name (%s)",
+                        sk->n_joints, names);
+  fprintf(stderr,
+          "kinemesh %s: warning: the take has %zu of the rig's %zu joints; these hold their rest "
+          "pose: %s\n",
+          verb, found, sk->n_joints, names);
+  return 0;
+}
+
 int km_cli_orient_take(const char *verb, const km_cli_frame_opts *fo, km_take *t) {
   if (!fo || (!fo->motion_up && !fo->motion_forward)) return 0;
   km_frame f;

@@ -279,8 +279,9 @@ int km_cli_gen_capture(int argc, char **argv) {
   double t0 = km_cli_now();
   if ((rc = km_cli_load_character_oriented("gen capture", character, rig, vertices, &fo, &c, NULL)))
     goto done;
-  if (motion ? km_motion_read(motion, NULL, &take, NULL, &err)
-             : km_motion_generate(&c.skeleton, mk, frames, &take, &err)) {
+  if (motion) {
+    if ((rc = km_cli_read_motion_for("gen capture", motion, &c.skeleton, &take))) goto done;
+  } else if (km_motion_generate(&c.skeleton, mk, frames, &take, &err)) {
     rc = km_cli_fail("gen capture", &err);
     goto done;
   }

@@ -40,7 +40,9 @@ static double performer_scale(const km_skeleton *s, const km_take *t, const int 
 }
 
 /* Poses a skinned character along a take by linear blend skinning: the rig's skeleton is
- * driven by the take's joint positions (matched by name). */
+ * driven by the take's joints (matched by name; a Kinect v1 rig takes any skeleton's by body
+ * point): their directions turn the rig's bones, which keep their lengths, and the root goes
+ * where the take has it (--exact-positions: every joint where the take has it). */
 int km_cli_pose(int argc, char **argv) {
   const char *mesh = NULL, *rig = NULL, *motion = NULL, *out = NULL, *frame_format = NULL,
              *track_out = NULL;
@@ -49,7 +51,7 @@ int km_cli_pose(int argc, char **argv) {
   bool compress = false;
   const char *export_kind = NULL;
   double max_error_mm = 0, scale = 0;
-  bool keep_frame = false;
+  bool keep_frame = false, exact = false;
   /* The mesh is brought into kinemesh's frame as animate brings it (the rig sidecar's
    * skeleton is stored in that frame); the output is in it, as animate's is. */
   km_cli_frame_opts fo = {0};
@@ -71,6 +73,10 @@ int km_cli_pose(int argc, char **argv) {
        "frame rate of the output; the motion is resampled (default: the take's)"},
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
        "directory output: obj (default) or ply (binary) per frame"},
+      {"exact-positions", 0, KM_OPT_FLAG, &exact,
+       "put every joint where the take has it (default: the take turns the bones and the "
+       "rig keeps their lengths, so a performer of other proportions does not pull the parts "
+       "apart; the root goes where the take has it either way)"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory"},
       {"keep-frame", 0, KM_OPT_FLAG, &keep_frame,
        ".pc2 and frame directories in the mesh file's own axes and units, as animate "
@@ -101,7 +107,7 @@ int km_cli_pose(int argc, char **argv) {
   int *map = NULL;
   int rc = KM_EXIT_FAIL;
   if ((rc = km_cli_load_character_oriented("pose", mesh, rig, 0, &fo, &c, &mf))) goto done;
-  if (km_motion_read(motion, NULL, &t, NULL, &err) != KM_OK) goto fail;
+  if ((rc = km_cli_read_motion_for("pose", motion, &c.skeleton, &t))) goto done;
   if ((rc = km_cli_orient_take("pose", &fo, &t))) goto done;
   rc = KM_EXIT_FAIL;
   if (fps > 0 && fps != t.fps && t.n_frames > 0) { /* resample, do not relabel */
@@ -119,11 +125,8 @@ int km_cli_pose(int argc, char **argv) {
     rc = km_cli_error("pose", "out of memory");
     goto done;
   }
-  for (size_t j = 0; j < nj; ++j) {
-    map[j] = -1;
-    for (size_t k = 0; k < t.n_joints; ++k)
-      if (!strcmp(c.skeleton.names[j], t.joint_names[k])) map[j] = (int)k;
-  }
+  if ((rc = km_cli_map_joints("pose", &c.skeleton, &t, map))) goto done;
+  rc = KM_EXIT_FAIL;
   /* A character in other units than the take's metres (a scan in centimetres, rigged with
    * no --units) or of another size: the take is scaled to it, as animate scales it. */
   if (!(scale > 0)) scale = performer_scale(&c.skeleton, &t, map);
@@ -159,7 +162,8 @@ int km_cli_pose(int argc, char **argv) {
       for (int a = 0; a < 3; ++a)
         pos_frame[3 * j + a] =
             map[j] < 0 ? NAN : scale * t.positions[(f * t.n_joints + (size_t)map[j]) * 3 + a];
-    if (km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err) != KM_OK ||
+    if ((exact ? km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err)
+               : km_skeleton_pose_from_directions(&c.skeleton, pos_frame, xf, &err)) != KM_OK ||
         km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK)
       goto fail;
     if (w && km_anim_writer_push(w, V, &err) != KM_OK) goto fail;

@@ -46,10 +46,13 @@ static void min_rotation(const double a[3], const double b[3], double R[9]) {
     R[i] = (i % 4 == 0) + K[i] + f * K2[i];
 }
 
-km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *positions,
-                                          double *transforms, km_error *err) {
+/* km_skeleton_pose_from_positions (lengths false) and km_skeleton_pose_from_directions (true:
+ * a joint below the root is placed where its parent's transform carries its rest position). */
+static km_status pose_from(const km_skeleton *s, const double *positions, bool lengths,
+                           double *transforms, km_error *err) {
   if (!s || !positions || !transforms || !s->parents || !s->rest)
-    return km__fail(err, KM_ERR_INVALID, "km_skeleton_pose_from_positions: NULL argument");
+    return km__fail(err, KM_ERR_INVALID, "km_skeleton_pose_from_%s: NULL argument",
+                    lengths ? "directions" : "positions");
   const size_t n = s->n_joints;
   for (size_t j = 0; j < n; ++j) {
     if (s->parents[j] < -1 || s->parents[j] >= (int32_t)j)
@@ -102,7 +105,13 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
     memcpy(R, Rp, sizeof R);
     const double *pj = positions + 3 * j;
     if (km__finite3(pj)) {
-      memcpy(P + 3 * j, pj, 3 * sizeof *P);
+      if (lengths && p >= 0) { /* the rig's bone: where the parent carries the rest joint */
+        double q[3];
+        km__m3_apply(Rp, rj, q);
+        for (int i = 0; i < 3; ++i)
+          P[3 * j + i] = q[i] + tp[i];
+      } else
+        memcpy(P + 3 * j, pj, 3 * sizeof *P);
       int m = 0;
       for (int32_t k = first[j]; k < first[j + 1]; ++k) {
         const double *pc = positions + 3 * kids[k], *rc = s->rest + 3 * kids[k];
@@ -150,6 +159,16 @@ km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *po
   }
   free(first), free(kids), free(P), free(dir);
   return KM_OK;
+}
+
+km_status km_skeleton_pose_from_positions(const km_skeleton *s, const double *positions,
+                                          double *transforms, km_error *err) {
+  return pose_from(s, positions, false, transforms, err);
+}
+
+km_status km_skeleton_pose_from_directions(const km_skeleton *s, const double *positions,
+                                           double *transforms, km_error *err) {
+  return pose_from(s, positions, true, transforms, err);
 }
 
 void km__forward_kinematics(size_t n, const int32_t *parents, const double *L, const double *o,
