@@ -850,18 +850,15 @@ int km_bench_motion(int argc, char **argv) {
        "the rig's weights (linear blend skinning, what an engine does with a skinned export)"},
       {"weights", 0, KM_OPT_STRING, &weights_opt,
        "the rig's skin weights: heat, distance or reach (limited along the surface; rig "
-       "--weights); "
-       "default: as rig writes them (heat); only L uses "
-       "them"},
+       "--weights); default: as rig writes them (heat); only L uses them"},
   };
   int n_pos;
   const char *pos[1];
   int r = km_cli_parse(
       argc, argv, opts, sizeof opts / sizeof opts[0], pos, 0, &n_pos,
       "kinemesh bench motion [--takes T,...] [--meshes M,...] [--frames N] [--fps F] "
-      "[--max-step F] [--solver reduced|full [--handle-weight W]] [--skin [--weights "
-      "heat|distance|reach]] "
-      "[--json]",
+      "[--max-step F] [--solver reduced|full [--handle-weight W]] "
+      "[--skin [--weights heat|distance|reach]] [--json]",
       "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
       "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"
       "paper's, T) and bone handles (B) side by side. Per row: edge stretch max\n"

@@ -45,9 +45,8 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
   /* a file in its own axes is rigged as `rig` rigs it: brought into kinemesh's frame by the
    * guess `rig` makes (the horse, z up, was rigged lying down, as a humanoid) */
   km_cli_frame_opts fo = {0};
-  if (strncmp(spec, "character:", 10) && (rc = km_cli_orient_mesh("bench rig", spec, &fo, &m)))
-    goto done;
-  rc = KM_EXIT_FAIL;
+  if (strncmp(spec, "character:", 10) && km_cli_orient_mesh("bench rig", spec, &fo, &m))
+    goto done; /* printed; rc stays KM_EXIT_FAIL */
   fd = mkstemp(tmp);
   if (fd < 0) {
     rc = km_cli_error("bench rig", "cannot create a temporary file");

@@ -104,14 +104,17 @@ static km_status pose_from(const km_skeleton *s, const double *positions, bool l
     double R[9];
     memcpy(R, Rp, sizeof R);
     const double *pj = positions + 3 * j;
-    if (km__finite3(pj)) {
-      if (lengths && p >= 0) { /* the rig's bone: where the parent carries the rest joint */
-        double q[3];
-        km__m3_apply(Rp, rj, q);
-        for (int i = 0; i < 3; ++i)
-          P[3 * j + i] = q[i] + tp[i];
-      } else
-        memcpy(P + 3 * j, pj, 3 * sizeof *P);
+    bool tracked = km__finite3(pj);
+    if (tracked && !(lengths && p >= 0)) {
+      memcpy(P + 3 * j, pj, 3 * sizeof *P);
+    } else {
+      /* carried rigidly by its parent: a missing joint, or (lengths) the rig's own bone */
+      double q[3];
+      km__m3_apply(Rp, rj, q);
+      for (int i = 0; i < 3; ++i)
+        P[3 * j + i] = q[i] + tp[i];
+    }
+    if (tracked) {
       int m = 0;
       for (int32_t k = first[j]; k < first[j + 1]; ++k) {
         const double *pc = positions + 3 * kids[k], *rc = s->rest + 3 * kids[k];
@@ -143,12 +146,6 @@ static km_status pose_from(const km_skeleton *s, const double *positions, bool l
         min_rotation(a, dir + 3, Rm);
         km__m3_mul(Rm, Rp, R);
       }
-    } else {
-      /* Missing joint: carried rigidly by its parent. */
-      double q[3];
-      km__m3_apply(Rp, rj, q);
-      for (int i = 0; i < 3; ++i)
-        P[3 * j + i] = q[i] + tp[i];
     }
     double Rr[3];
     km__m3_apply(R, rj, Rr);
