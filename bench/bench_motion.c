@@ -47,13 +47,13 @@ typedef struct bm_args {
   const char *data;
   size_t frames;
   double fps; /* > 0: takes faster than this are resampled to it; 0: their own rate */
-  bool json, floor;
-  bool full;               /* --solver full: both variants through the full-space ARAP */
-  double handle_weight;    /* its km_arap_options.handle_weight (NaN: KM_ARAP_SOFT_HANDLES) */
-  bool skin;               /* --skin: the skinned reference beside B (bm_skin) */
-  km_autorig_skin weights; /* --weights: the skin weights km_autorig writes (only L uses them) */
-  double max_step;         /* B's rig max_step; < 0: as the sidecar writes it */
-  int32_t relative_to;     /* 1 + a Kinect joint subtracted from every map entry; 0: as rigged */
+  bool json, floor, no_floor; /* --floor / --no-floor: the rig's "floor" forced (else as written) */
+  bool full;                  /* --solver full: both variants through the full-space ARAP */
+  double handle_weight;       /* its km_arap_options.handle_weight (NaN: KM_ARAP_SOFT_HANDLES) */
+  bool skin;                  /* --skin: the skinned reference beside B (bm_skin) */
+  km_autorig_skin weights;    /* --weights: the skin weights km_autorig writes (only L uses them) */
+  double max_step;            /* B's rig max_step; < 0: as the sidecar writes it */
+  int32_t relative_to;        /* 1 + a Kinect joint subtracted from every map entry; 0: as rigged */
   char machine[320];
 } bm_args;
 
@@ -680,7 +680,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
     for (int v = 0; v < 2 && ok; ++v) {
       for (size_t e = 0; e < rig.n_maps; ++e)
         if (a->relative_to) rig.maps[e].relative_to = a->relative_to;
-      rig.floor = a->floor;
+      if (a->floor || a->no_floor) rig.floor = a->floor;
       /* T: the paper's rig, the sidecar's first five handles (head, hands, feet) translated
        * by their end joints; B: the sidecar's rig as written, every handle on a bone. */
       km_rig tr = rig;
@@ -726,7 +726,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       cJSON_AddNumberToObject(o, "n_han", (double)rig.n_handles);
       cJSON_AddNumberToObject(o, "frames", (double)nf);
       cJSON_AddNumberToObject(o, "fps", t.fps);
-      cJSON_AddBoolToObject(o, "floor", a->floor);
+      cJSON_AddBoolToObject(o, "floor", rig.floor);
       cJSON_AddStringToObject(o, "solver", a->full ? "full" : "reduced");
       if (a->full) cJSON_AddNumberToObject(o, "handle_weight", a->handle_weight);
       cJSON_AddStringToObject(o, "relative_to",
@@ -833,7 +833,10 @@ int km_bench_motion(int argc, char **argv) {
        "motion); default: the rig as km_autorig writes it (absolute)"},
       {"data", 0, KM_OPT_STRING, &a.data, "the data folder (default ../shared/data)"},
       {"floor", 0, KM_OPT_FLAG, &a.floor,
-       "the rig's floor constraint on (no handle vertex below the rest floor)"},
+       "the rig's floor constraint on (no handle vertex below the rest floor; default: as the "
+       "rig says, and rig writes it on)"},
+      {"no-floor", 0, KM_OPT_FLAG, &a.no_floor,
+       "the rig's floor constraint off (handles may go below the rest floor)"},
       {"max-step", 0, KM_OPT_DOUBLE, &a.max_step,
        "B's snap easing: fraction of the diagonal a handle vertex may move per frame (0: off; "
        "default: the rig's; the sidecar writes none: off)"},
@@ -877,6 +880,8 @@ int km_bench_motion(int argc, char **argv) {
                         "take's own)",
                         a.fps);
   if (km_cli_parse_weights("bench motion", weights_opt, &a.weights)) return KM_EXIT_USAGE;
+  if (a.floor && a.no_floor)
+    return km_cli_error("bench motion", "--floor and --no-floor: give one of them, not both");
   if (solver_opt && strcmp(solver_opt, "reduced") && strcmp(solver_opt, "full"))
     return km_cli_error("bench motion", "--solver %s: expected reduced or full", solver_opt);
   a.full = solver_opt && !strcmp(solver_opt, "full");
@@ -925,7 +930,10 @@ int km_bench_motion(int argc, char **argv) {
                                            : "; full-space ARAP solver (hard handles), not the "
                                              "reduced model")
                     : "",
-             a.floor ? "; floor constraint on" : "", a.relative_to ? "; motion relative to " : "",
+             a.floor      ? "; floor constraint on"
+             : a.no_floor ? "; floor constraint off"
+                          : "",
+             a.relative_to ? "; motion relative to " : "",
              a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
       printf("%-18s %-16s %7s %5s  %13s  %11s  %11s  %20s  %11s  %15s  %5s  %6s\n", "", "", "", "",
              "stretch max", "B l/l0", "folded", "jump %diag", "below floor", "t/frame (ms)",

@@ -27,7 +27,7 @@ int km_cli_animate(int argc, char **argv) {
   const char *mesh_path = NULL, *rig_path = NULL, *motion = NULL, *cache = NULL, *out = NULL;
   const char *solver = NULL, *energy = NULL;
   const char *frame_format = NULL, *filter_kind = NULL;
-  bool no_glitch = false, floor_on = false, keep_frame = false;
+  bool no_glitch = false, floor_on = false, no_floor = false, keep_frame = false;
   int iterations = 0, fields = 0, isolines = 0;
   double scale = 0, fps = 0, handle_weight = NAN;
   size_t key_every = 0;
@@ -68,7 +68,10 @@ int km_cli_animate(int argc, char **argv) {
        "joint filter: holt or one_euro (default: the rig's \"filter\", else holt)"},
       {"no-glitch", 0, KM_OPT_FLAG, &no_glitch,
        "do not reject tracker glitches (jumps, bone-length outliers) before the filter"},
-      {"floor", 0, KM_OPT_FLAG, &floor_on, "keep every handle vertex above the rest floor"},
+      {"floor", 0, KM_OPT_FLAG, &floor_on,
+       "keep every handle vertex above the rest floor (a rig from kinemesh rig says so already)"},
+      {"no-floor", 0, KM_OPT_FLAG, &no_floor,
+       "let handles go below the rest floor (turns the rig's \"floor\": true off)"},
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
        "directory output: obj (default) or ply (binary) per frame"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory of per-frame meshes"},
@@ -95,6 +98,8 @@ int km_cli_animate(int argc, char **argv) {
   bool full = false;
   km_puppet_energy pe = KM_PUPPET_ENERGY_ARAP;
   km_anim_format af = 0;
+  if (floor_on && no_floor)
+    return km_cli_error("animate", "--floor and --no-floor: give one of them, not both");
   if (parse_solver("animate", solver, &full) || km_cli_parse_energy("animate", energy, &pe) ||
       km_cli_parse_frame_format("animate", frame_format, &af))
     return KM_EXIT_FAIL;
@@ -199,6 +204,7 @@ int km_cli_animate(int argc, char **argv) {
   km_puppetry_options o = {0};
   if (filter_kind) o.filter = &filt;
   o.no_glitch = no_glitch;
+  if (no_floor) rig.floor = false;
   o.retarget.floor = floor_on;
   o.retarget.scale = scale;
   o.take_name = motion;

@@ -813,6 +813,16 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
    * (bench motion B, a T-posed character cut at the waist: longest edge on cmu_131_01 /
    * cmu_131_03 1.83 / 2.10 -> 1.51 / 1.51x, folded triangles 84 / 278 -> 35 / 25). */
   fputs("],\n\"root_motion\":\"rigid\",\"relative_to\":\"HipCenter\",\"aim\":true,", f);
+  /* No handle vertex below the rest floor (km_retarget_options.floor): a foot whose ankle the
+   * performer's sinks below its rest height, or whose toes a tracker's ankle -> foot line tips
+   * down, stops at the ground instead of going through it. bench motion, frames with a vertex
+   * more than 0.5 % of the diagonal under the rest floor, the table's take order, B before ->
+   * after: armadillo 1/0/0/244/93, character 1/0/0/92/39, dog0 13/12/12/0/0, horse
+   * 23/0/0/42/28 -> 0 on every row (T's 229/31/70/183/0 and the like too); the other columns
+   * within 0.03 of l/l0 and 30 folded triangles, the jump within 0.1 % of the diagonal, no
+   * time. A rig that wants feet to sink (a swimmer) says "floor": false. An upper body (no
+   * feet; its base is a cut at the waist, not the ground) has none. */
+  if (!p->upper) fputs("\"floor\":true,", f);
   /* A quadruped's legs do not reach where a person's arms and legs do: a performer raising an
    * arm overhead swung the horse's foreleg 150 degrees up to its nose, a thin tube stretched
    * 4.3x out of the chest (precog_Seq1_1). Its limb bones swing at most 30 degrees from where
