@@ -1152,6 +1152,18 @@ static void test_roles(const char *rel, km_autorig_skeleton want, double foot_ma
   double lo = INFINITY, hi = -INFINITY;
   for (size_t v = 0; v < m.n_vertices; ++v)
     lo = fmin(lo, m.V[3 * v + 1]), hi = fmax(hi, m.V[3 * v + 1]);
+  /* the reference cat, when rel is one of its poses (same vertices) */
+  km_mesh ref = {0};
+  double ref_lo = INFINITY, ref_hi = -INFINITY, ref_zm = 0;
+  char rbuf[1024];
+  const char *rp = strstr(rel, "cat-poses/")
+                       ? km_test_shared("poses/cat-poses/cat-reference.obj", rbuf, sizeof rbuf)
+                       : NULL;
+  if (rp) CHECK_OK(km_mesh_read(rp, &ref, KM_E));
+  if (ref.n_vertices != m.n_vertices) km_mesh_free(&ref);
+  for (size_t v = 0; v < ref.n_vertices; ++v)
+    ref_lo = fmin(ref_lo, ref.V[3 * v + 1]), ref_hi = fmax(ref_hi, ref.V[3 * v + 1]),
+    ref_zm += ref.V[3 * v + 2] / (double)ref.n_vertices;
   km_character c = {0};
   km_autorig_report rep;
   km_status st = km_autorig(&m, NULL, &c, &rep, KM_E);
@@ -1191,6 +1203,19 @@ static void test_roles(const char *rel, km_autorig_skeleton want, double foot_ma
                         (q[2] - tip[2]) * (q[2] - tip[2]));
         CHECK_MSG(d < 0.1 * (hi - lo), "%s: %s %.3f of the height from SMPL's fingertip", rel,
                   rep.role[e], d / (hi - lo));
+      }
+      /* The cat poses share the reference cat's vertices: there a hand is a front paw, on the
+       * ground ahead of the body's middle, and the head is high (cat-05, standing up with its
+       * forepaws raised over its head, had a paw for its head and an ear for a hand) */
+      if ((hand || head) && ref.n_vertices == m.n_vertices) {
+        const double *q = ref.V + 3 * (size_t)rep.extremity[e];
+        double rh = (q[1] - ref_lo) / (ref_hi - ref_lo);
+        if (hand)
+          CHECK_MSG(rh < 0.15 && q[2] > ref_zm,
+                    "%s: %s is no front paw (reference cat: %.3f of "
+                    "the height, z %.3f against the middle %.3f)",
+                    rel, rep.role[e], rh, q[2], ref_zm);
+        if (head) CHECK_MSG(rh > 0.6, "%s: head at %.3f of the reference cat's height", rel, rh);
       }
       roles += foot || hand || head;
     }
@@ -1243,6 +1268,7 @@ static void test_roles(const char *rel, km_autorig_skeleton want, double foot_ma
   }
   km_character_free(&c);
   km_mesh_free(&m);
+  km_mesh_free(&ref);
 }
 
 int main(void) {
@@ -1267,6 +1293,8 @@ int main(void) {
   test_roles("poses/cat-poses/cat-03.obj", KM_AUTORIG_QUADRUPED, 0.1);
   test_roles("poses/cat-poses/cat-06.obj", KM_AUTORIG_QUADRUPED, 0.1);
   test_roles("poses/cat-poses/cat-reference.obj", KM_AUTORIG_QUADRUPED, 0.1);
+  test_roles("poses/cat-poses/cat-05.obj", KM_AUTORIG_KINECT1,
+             0.1); /* standing up, forepaws raised over its head */
   test_roles("poses/tr_reg_001.off", KM_AUTORIG_KINECT1,
              0.1); /* bent forward, hands on its knees */
   test_roles("poses/npt_14_664.obj", KM_AUTORIG_KINECT1,

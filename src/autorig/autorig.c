@@ -260,6 +260,23 @@ static void ring_centroid(const rigger *r, size_t e, double d0, double out[3]) {
   memcpy(out, P(r, r->ext_v[e]), 3 * sizeof *out);
 }
 
+/* Mean distance of the geodesic ring of extremity e at distance d0 (as ring_centroid) from its
+ * centroid: the thickness of the body part that far from the tip (a head's radius, a
+ * forearm's). */
+static double ring_radius(const rigger *r, size_t e, double d0) {
+  const double *D = r->dist + e * r->n;
+  double c[3];
+  ring_centroid(r, e, d0, c);
+  for (double band = 0.01 * r->H; band < 0.2 * r->H; band *= 1.6) {
+    double s = 0;
+    size_t cnt = 0;
+    for (size_t v = 0; v < r->n; ++v)
+      if (fabs(D[v] - d0) <= band) s += dist3(r->m->V + 3 * v, c), ++cnt;
+    if (cnt >= 3) return s / (double)cnt;
+  }
+  return 0;
+}
+
 /* A limb chain from extremity e (tip) to the root point `root` (a joint already placed):
  * joints[k] at fraction f[k] of the way from the root to the tip, as ring centroids of e at
  * the matching geodesic distance (the root vertex's distance scaled). */
@@ -324,15 +341,28 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
   /* Head: the most prominent extremity near the feet's mid-line in the top 30 % of the height,
    * else above mid-height (ears and horns are less prominent than the head they sit on; a hand
    * resting on a knee of a body bent forward is more, and was taken for the head of FAUST's
-   * tr_reg_001, whose Head joint then sat below its shoulders). */
+   * tr_reg_001, whose Head joint then sat below its shoulders), among those whose body part a
+   * tenth of the height from the tip is at least half as thick as the thickest's (ring_radius):
+   * a head is thick there, a raised hand or paw is at its forearm. The cat standing up with its
+   * forepaws raised together over its head (cat-05) had the higher paw, on the mid-line, for
+   * its head, and an ear for a hand; no other mesh of ../shared/data changed roles. */
   int head = -1;
-  for (int pass = 0; pass < 2 && head < 0; ++pass)
+  for (int pass = 0; pass < 2 && head < 0; ++pass) {
+    double rad[KM_AUTORIG_MAX_EXTREMITIES] = {0}, rmax = 0;
+    bool cand[KM_AUTORIG_MAX_EXTREMITIES] = {false};
     for (size_t e = 0; e < r->n_ext; ++e) {
       if (used[e]) continue;
       const double *p = P(r, r->ext_v[e]);
       if (fabs(p[0] - xm) > 0.15 * r->H || p[1] < r->ymin + (pass ? 0.5 : 0.7) * r->H) continue;
+      cand[e] = true;
+      rad[e] = ring_radius(r, e, 0.1 * r->H);
+      rmax = fmax(rmax, rad[e]);
+    }
+    for (size_t e = 0; e < r->n_ext; ++e) {
+      if (!cand[e] || rad[e] < 0.5 * rmax) continue;
       if (head < 0 || r->ext_d[e] > r->ext_d[head]) head = (int)e;
     }
+  }
   if (head < 0)
     for (size_t e = 0; e < r->n_ext; ++e)
       if (!used[e] && (head < 0 || P(r, r->ext_v[e])[1] > P(r, r->ext_v[head])[1])) head = (int)e;
