@@ -530,14 +530,12 @@ static km_status rig_quadruped(rigger *r, km_autorig_report *rep, km_error *err)
       if (!used[e] && (pass || P(r, r->ext_v[e])[2] > fc[2]) &&
           (head < 0 || P(r, r->ext_v[e])[1] > P(r, r->ext_v[head])[1]))
         head = (int)e;
-  /* Principal horizontal axis of the four feet, pointing to the head. */
-  double sxx = 0, sxz = 0, szz = 0;
-  for (int i = 0; i < 4; ++i) {
-    const double *p = P(r, r->ext_v[limb[i]]);
-    double dx = p[0] - fc[0], dz = p[2] - fc[2];
-    sxx += dx * dx, sxz += dx * dz, szz += dz * dz;
-  }
-  double th = 0.5 * atan2(2 * sxz, sxx - szz), fw[3] = {cos(th), 0, sin(th)};
+  /* Forward: kinemesh's (+z; the mesh is oriented before it is rigged), pointing to the head.
+   * The feet's principal horizontal axis, used before, lies across the body when the paws
+   * spread wider than long: a sitting animal's hind paws stand beside its front ones (the
+   * sitting cat cat-02 had a hind paw and a front paw for its hands, cat-08 two); dog0's, the
+   * horse's and the other cats' roles are the same either way. */
+  double fw[3] = {0, 0, 1};
   const double *hp = P(r, r->ext_v[head]);
   if ((hp[0] - fc[0]) * fw[0] + (hp[2] - fc[2]) * fw[2] < 0) fw[0] = -fw[0], fw[2] = -fw[2];
   double left[3] = {fw[2], 0, -fw[0]}; /* up x forward */
