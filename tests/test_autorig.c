@@ -1299,6 +1299,8 @@ int main(void) {
              0.1); /* sitting: hind paws beside the front ones */
   test_roles("poses/cat-poses/cat-08.obj", KM_AUTORIG_QUADRUPED,
              0.1); /* sitting, its tail on the ground round its paws */
+  test_roles("poses/cat-poses/cat-09.obj", KM_AUTORIG_QUADRUPED,
+             0.1); /* sitting, licking a forepaw raised to its mouth */
   test_roles("poses/tr_reg_001.off", KM_AUTORIG_KINECT1,
              0.1); /* bent forward, hands on its knees */
   test_roles("poses/npt_14_664.obj", KM_AUTORIG_KINECT1,

@@ -513,43 +513,47 @@ static km_status rig_quadruped(rigger *r, km_autorig_report *rep, km_error *err)
   int limb[4] = {-1, -1, -1, -1};
   double fc[3] = {0, 0, 0};
   /* Limbs: the most prominent of the low extremities (the bottom quarter of the height) that
-   * are as thin a tenth of the height from their tip as limbs (ring_radius within 1.4 times
-   * the median of the four thinnest), leaving out a tail (an extremity 1.3 times as prominent
-   * as any other: a cat's tail tip, 1.45-1.65 times its most prominent paw's); the lowest
-   * distinct ones when too few are left. A sitting animal has more on the ground than its
-   * paws: its rump, its hocks and its tail (the sitting cat cat-08 had a point of its tail
-   * for a hind paw, cat-09 its rump and its tail tip), which the lowest four took. */
-  bool thin[KM_AUTORIG_MAX_EXTREMITIES] = {false};
+   * are as thin a tenth of the height from their tip as limbs (ring_radius within 1.25 times
+   * the median of the four thinnest low ones), leaving out a tail (an extremity 1.3 times as
+   * prominent as any other: a cat's tail tip, 1.45-1.65 times its most prominent paw's); when
+   * fewer than four, the most prominent others below half the height and within 1.4 times (a
+   * paw raised to the mouth); when still too few, the lowest distinct ones. A sitting animal
+   * has more on the ground than its paws: its rump, its hocks and its tail (the sitting cat
+   * cat-08 had a point of its tail for a hind paw, cat-09, licking a raised forepaw, its rump
+   * and its tail tip), which the lowest four took. Paws measure 1.02-1.14 times that median on
+   * the cats, dog0 and the horse; cat-09's point of its tail 1.32, rumps and hocks 1.6-2.5. */
+  int tier[KM_AUTORIG_MAX_EXTREMITIES] = {0}; /* 1: a limb, 2: one if too few, 0: none */
   {
     double rad[KM_AUTORIG_MAX_EXTREMITIES], sorted[KM_AUTORIG_MAX_EXTREMITIES];
     size_t n_low = 0;
     for (size_t e = 0; e < r->n_ext; ++e) {
-      rad[e] = INFINITY;
-      if (P(r, r->ext_v[e])[1] - r->ymin >= 0.25 * r->H) continue;
-      rad[e] = ring_radius(r, e, 0.1 * r->H);
-      sorted[n_low++] = rad[e];
+      double y = P(r, r->ext_v[e])[1] - r->ymin;
+      rad[e] = y < 0.5 * r->H ? ring_radius(r, e, 0.1 * r->H) : INFINITY;
+      if (y < 0.25 * r->H) sorted[n_low++] = rad[e];
     }
     qsort(sorted, n_low, sizeof *sorted, km__cmp_double);
     size_t k = n_low < 4 ? n_low : 4;
     double ref = k ? (k % 2 ? sorted[k / 2] : 0.5 * (sorted[k / 2 - 1] + sorted[k / 2])) : 0;
     int top = -1;
     for (size_t e = 0; e < r->n_ext; ++e) {
-      thin[e] = rad[e] <= 1.4 * ref;
+      bool low = P(r, r->ext_v[e])[1] - r->ymin < 0.25 * r->H;
+      tier[e] = low && rad[e] <= 1.25 * ref ? 1 : rad[e] <= 1.4 * ref ? 2 : 0;
       if (top < 0 || r->ext_d[e] > r->ext_d[top]) top = (int)e;
     }
     bool tail = top >= 0;
     for (size_t e = 0; tail && e < r->n_ext; ++e)
       if ((int)e != top && !(r->ext_d[top] >= 1.3 * r->ext_d[e])) tail = false;
-    if (tail) thin[top] = false;
+    if (tail) tier[top] = 0;
   }
   for (int i = 0; i < 4; ++i) {
-    for (size_t e = 0; e < r->n_ext; ++e) {
-      if (used[e] || !thin[e]) continue;
-      bool near = false;
-      for (int c = 0; c < i; ++c)
-        near |= same_limb(r, (int)e, limb[c]);
-      if (!near && (limb[i] < 0 || r->ext_d[e] > r->ext_d[limb[i]])) limb[i] = (int)e;
-    }
+    for (int t = 1; t <= 2 && limb[i] < 0; ++t)
+      for (size_t e = 0; e < r->n_ext; ++e) {
+        if (used[e] || tier[e] != t) continue;
+        bool near = false;
+        for (int c = 0; c < i; ++c)
+          near |= same_limb(r, (int)e, limb[c]);
+        if (!near && (limb[i] < 0 || r->ext_d[e] > r->ext_d[limb[i]])) limb[i] = (int)e;
+      }
     if (limb[i] < 0) limb[i] = lowest_distinct(r, used, limb, i);
     if (limb[i] < 0)
       return km__fail(err, KM_ERR_DEGENERATE_MESH,
