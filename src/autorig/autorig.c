@@ -239,9 +239,12 @@ static bool slice_centroid(rigger *r, double y0, double xc, double hw, double xm
   return found;
 }
 
-/* Centroid of the geodesic ring of extremity e at distance d0 (vertices with distance in
- * [d0 - band, d0 + band], band widening until it holds some). */
-static void ring_centroid(const rigger *r, size_t e, double d0, double out[3]) {
+/* The geodesic ring of extremity e at distance d0: the vertices with distance in
+ * [d0 - band, d0 + band], band widening until it holds some. Its centroid in out (the tip when
+ * none); returns its vertices' mean distance from the centroid when radius is asked for (the
+ * thickness of the body part that far from the tip: a head's radius, a forearm's; 0 when
+ * none), else 0. */
+static double ring_at(const rigger *r, size_t e, double d0, bool radius, double out[3]) {
   const double *D = r->dist + e * r->n;
   for (double band = 0.01 * r->H; band < 0.2 * r->H; band *= 1.6) {
     double s[3] = {0, 0, 0};
@@ -252,29 +255,24 @@ static void ring_centroid(const rigger *r, size_t e, double d0, double out[3]) {
       s[0] += p[0], s[1] += p[1], s[2] += p[2];
       ++cnt;
     }
-    if (cnt >= 3) {
-      set3(out, s[0] / (double)cnt, s[1] / (double)cnt, s[2] / (double)cnt);
-      return;
-    }
+    if (cnt < 3) continue;
+    set3(out, s[0] / (double)cnt, s[1] / (double)cnt, s[2] / (double)cnt);
+    double rad = 0;
+    for (size_t v = 0; radius && v < r->n; ++v)
+      if (fabs(D[v] - d0) <= band) rad += dist3(r->m->V + 3 * v, out);
+    return rad / (double)cnt;
   }
   memcpy(out, P(r, r->ext_v[e]), 3 * sizeof *out);
+  return 0;
 }
 
-/* Mean distance of the geodesic ring of extremity e at distance d0 (as ring_centroid) from its
- * centroid: the thickness of the body part that far from the tip (a head's radius, a
- * forearm's). */
+static void ring_centroid(const rigger *r, size_t e, double d0, double out[3]) {
+  ring_at(r, e, d0, false, out);
+}
+
 static double ring_radius(const rigger *r, size_t e, double d0) {
-  const double *D = r->dist + e * r->n;
   double c[3];
-  ring_centroid(r, e, d0, c);
-  for (double band = 0.01 * r->H; band < 0.2 * r->H; band *= 1.6) {
-    double s = 0;
-    size_t cnt = 0;
-    for (size_t v = 0; v < r->n; ++v)
-      if (fabs(D[v] - d0) <= band) s += dist3(r->m->V + 3 * v, c), ++cnt;
-    if (cnt >= 3) return s / (double)cnt;
-  }
-  return 0;
+  return ring_at(r, e, d0, true, c);
 }
 
 /* A limb chain from extremity e (tip) to the root point `root` (a joint already placed):
@@ -525,19 +523,19 @@ static km_status rig_quadruped(rigger *r, km_autorig_report *rep, km_error *err)
   int tier[KM_AUTORIG_MAX_EXTREMITIES] = {0}; /* 1: a limb, 2: one if too few, 0: none */
   {
     double rad[KM_AUTORIG_MAX_EXTREMITIES], sorted[KM_AUTORIG_MAX_EXTREMITIES];
+    bool low[KM_AUTORIG_MAX_EXTREMITIES];
     size_t n_low = 0;
     for (size_t e = 0; e < r->n_ext; ++e) {
       double y = P(r, r->ext_v[e])[1] - r->ymin;
       rad[e] = y < 0.5 * r->H ? ring_radius(r, e, 0.1 * r->H) : INFINITY;
-      if (y < 0.25 * r->H) sorted[n_low++] = rad[e];
+      if ((low[e] = y < 0.25 * r->H)) sorted[n_low++] = rad[e];
     }
     qsort(sorted, n_low, sizeof *sorted, km__cmp_double);
     size_t k = n_low < 4 ? n_low : 4;
     double ref = k ? (k % 2 ? sorted[k / 2] : 0.5 * (sorted[k / 2 - 1] + sorted[k / 2])) : 0;
     int top = -1;
     for (size_t e = 0; e < r->n_ext; ++e) {
-      bool low = P(r, r->ext_v[e])[1] - r->ymin < 0.25 * r->H;
-      tier[e] = low && rad[e] <= 1.25 * ref ? 1 : rad[e] <= 1.4 * ref ? 2 : 0;
+      tier[e] = low[e] && rad[e] <= 1.25 * ref ? 1 : rad[e] <= 1.4 * ref ? 2 : 0;
       if (top < 0 || r->ext_d[e] > r->ext_d[top]) top = (int)e;
     }
     bool tail = top >= 0;
