@@ -833,10 +833,10 @@ int km_bench_motion(int argc, char **argv) {
        "motion); default: the rig as km_autorig writes it (absolute)"},
       {"data", 0, KM_OPT_STRING, &a.data, "the data folder (default ../shared/data)"},
       {"floor", 0, KM_OPT_FLAG, &a.floor,
-       "the rig's floor constraint on (no handle vertex below the rest floor; default: as the "
+       "the rig's floor constraint on (no vertex below the rest floor; default: as the "
        "rig says, and rig writes it on)"},
       {"no-floor", 0, KM_OPT_FLAG, &a.no_floor,
-       "the rig's floor constraint off (handles may go below the rest floor)"},
+       "the rig's floor constraint off (the mesh may go below the rest floor)"},
       {"max-step", 0, KM_OPT_DOUBLE, &a.max_step,
        "B's snap easing: fraction of the diagonal a handle vertex may move per frame (0: off; "
        "default: the rig's; the sidecar writes none: off)"},

@@ -1068,7 +1068,7 @@ void km_glitch_free(km_glitch **g);
  *   "filter": {"smoothing": 0.5, "trend": 0.5, "prediction": 0, "jitter_radius": 0,
  *              "max_deviation": 0,
  *              "kind": "holt" | "one_euro", "min_cutoff": 1.5, "beta": 1.0, "d_cutoff": 1.0} }
- * "floor": true keeps every handle vertex above the rest floor (km_retarget_options.floor).
+ * "floor": true keeps every vertex above the rest floor (km_retarget_options.floor).
  * "max_step": 0.02 eases a faster handle step (a tracker's pose snap) over the next frames: no
  * handle vertex moves more than that fraction of the mesh diagonal per frame, the rigid root's
  * translation and heading included under "root_motion": "rigid"
@@ -1247,8 +1247,9 @@ void km_rig_free(km_rig *rig);
 typedef struct km_retarget_options {
   double scale; /* performer-to-character factor s; 0: automatic (above) */
   /* ---- issue 12: floor constraint */
-  bool floor; /* no handle vertex goes below the rest mesh's lowest y (the rest floor): a
-                 handle's y displacement is clamped from below. Also on when rig->floor */
+  bool floor; /* no vertex goes below the rest mesh's lowest y (the rest floor): a handle's y
+                 displacement is clamped from below, and km_puppetry then raises any other
+                 vertex still under it onto it. Also on when rig->floor */
   /* ---- issue 12: rotating handles */
   const int32_t *parents; /* #J joint parents (read at create only) for map entries with
                              rotate; NULL: the Kinect v1 tree for kinect1 rigs, else such
@@ -1324,6 +1325,10 @@ size_t km_retarget_eased_frames(const km_retarget *r);
  * t = 0) for other rigs or while the root is not valid. Returns whether the rig has rigid root
  * motion. */
 bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], double pivot[3]);
+/* The floor constraint (km_retarget_options.floor or the rig's "floor"): returns whether it is
+ * on, and then sets *floor_y to the rest floor, the rest mesh's lowest y. km_puppetry holds every
+ * vertex of the solved mesh there (handles are raised by their own displacement first). */
+bool km_retarget_floor(const km_retarget *r, double *floor_y);
 /* Places points[n]*3 (in place) by the last push's rigid root motion, x -> R (x - pivot) + pivot
  * + t (see km_retarget_root_transform); leaves them as they are for a rig without rigid root
  * motion. Returns whether it moved them. */

@@ -1327,6 +1327,12 @@ bool km_retarget_joints(const km_retarget *r, double *out) {
   return true;
 }
 
+bool km_retarget_floor(const km_retarget *r, double *floor_y) {
+  if (!r || !r->floor_dy) return false;
+  if (floor_y) *floor_y = r->floor_y;
+  return true;
+}
+
 bool km_retarget_apply_root(const km_retarget *r, double *points, size_t n) {
   if (!r->rigid) return false;
   const double *R = r->R, *pv = r->pivot, *t = r->t;

@@ -813,7 +813,7 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
    * (bench motion B, a T-posed character cut at the waist: longest edge on cmu_131_01 /
    * cmu_131_03 1.83 / 2.10 -> 1.51 / 1.51x, folded triangles 84 / 278 -> 35 / 25). */
   fputs("],\n\"root_motion\":\"rigid\",\"relative_to\":\"HipCenter\",\"aim\":true,", f);
-  /* No handle vertex below the rest floor (km_retarget_options.floor): a foot whose ankle the
+  /* No vertex below the rest floor (km_retarget_options.floor): a foot whose ankle the
    * performer's sinks below its rest height, or whose toes a tracker's ankle -> foot line tips
    * down, stops at the ground instead of going through it. bench motion, frames with a vertex
    * more than 0.5 % of the diagonal under the rest floor, the table's take order, B before ->

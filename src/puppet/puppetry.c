@@ -444,6 +444,14 @@ km_status km_puppetry_push_rotations(km_puppetry *p, const double *joints, const
      * handle targets with it (km_puppetry_handle_targets is where the handles go) */
     km_retarget_apply_root(p->rt, V_out, p->rest->n_vertices);
     km_retarget_apply_root(p->rt, p->handle_targets, p->n_handles);
+    /* The floor: the handles were raised above it before the solve, but free skin next to a
+     * handle (a toe outside a small foot handle, a knee, a soft handle's give) can still sink:
+     * armadillo_1k's toe went 3 cm under it on cmu_131_01. Held on the floor, like skin
+     * pressed on the ground; a per-vertex clamp, continuous in the solve's result. */
+    double fy;
+    if (km_retarget_floor(p->rt, &fy))
+      for (size_t v = 0; v < p->rest->n_vertices; ++v)
+        if (V_out[3 * v + 1] < fy) V_out[3 * v + 1] = fy;
   }
   double t3 = km_seconds();
   p->times.filter_ms = 1e3 * (t1 - t0);
