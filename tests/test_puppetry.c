@@ -174,6 +174,10 @@ static void manual_loop(const fixture *fx, bool full, double *Vs) {
     else
       CHECK_OK(km_puppet_solve(pup, targets, Vs + fr * 3 * nv, KM_E));
     km_retarget_apply_root(rt, Vs + fr * 3 * nv, nv); /* rigid root motion */
+    double fy;                                        /* the floor: no vertex under it */
+    if (km_retarget_floor(rt, &fy))
+      for (size_t v = 0; v < nv; ++v)
+        Vs[fr * 3 * nv + 3 * v + 1] = fmax(Vs[fr * 3 * nv + 3 * v + 1], fy);
   }
   free(targets);
   free(off);
