@@ -1356,6 +1356,12 @@ typedef struct km_landmark {
 /* A rigged character: what km_character_generate makes, a rig sidecar stores and the
  * reconstructor takes as its template. */
 #define KM_CHARACTER_LANDMARKS 16
+/* The 16 landmarks of a character, in their order (km_character.landmarks, the sidecar's
+ * "landmarks"): head, neck, shoulder, elbow and hand left and right, chest, pelvis, hip, knee
+ * and foot left and right. Returns the name of landmark i (0 .. KM_CHARACTER_LANDMARKS-1) and
+ * sets *mirror (when not NULL) to its left/right counterpart's (its own on the mid-line);
+ * static strings; NULL for an i out of range. */
+const char *km_character_landmark_name(int i, const char **mirror);
 typedef struct km_character {
   km_mesh mesh;         /* closed, manifold, one component */
   km_skeleton skeleton; /* the 20 Kinect v1 joints at rest */

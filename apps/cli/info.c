@@ -36,9 +36,10 @@ int km_cli_info(int argc, char **argv) {
   const km_cli_opt opts[] = {{"json", 0, KM_OPT_FLAG, &json, "print JSON instead of text"}};
   const char *pos[1];
   int n_pos;
-  int r = km_cli_parse(argc, argv, opts, 1, pos, 1, &n_pos, "kinemesh info FILE [--json]",
-                       "Mesh (OBJ/PLY/OFF/glTF): vertex/face counts, topology counts and bounding box.\n"
-                       "Animation (.glb, .pc2, frame directory): frames, vertices, frame rate.");
+  int r = km_cli_parse(
+      argc, argv, opts, 1, pos, 1, &n_pos, "kinemesh info FILE [--json]",
+      "Mesh (OBJ/PLY/OFF/glTF): vertex/face counts, topology counts and bounding box.\n"
+      "Animation (.glb, .pc2, frame directory): frames, vertices, frame rate.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (n_pos != 1) return km_cli_error("info", "expected one FILE (see kinemesh info --help)");
   km_error err = {0};

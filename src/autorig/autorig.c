@@ -1263,22 +1263,6 @@ static void limb_ray(const double *J, int a, int b, const double pref[3], const 
 }
 
 static void compute_landmarks(const rigger *r, const double fwd[3], km_landmark *lm) {
-  static const char *const names[KM_CHARACTER_LANDMARKS][2] = {{"head", "head"},
-                                                               {"neck", "neck"},
-                                                               {"shoulder_left", "shoulder_right"},
-                                                               {"shoulder_right", "shoulder_left"},
-                                                               {"elbow_left", "elbow_right"},
-                                                               {"elbow_right", "elbow_left"},
-                                                               {"hand_left", "hand_right"},
-                                                               {"hand_right", "hand_left"},
-                                                               {"chest", "chest"},
-                                                               {"pelvis", "pelvis"},
-                                                               {"hip_left", "hip_right"},
-                                                               {"hip_right", "hip_left"},
-                                                               {"knee_left", "knee_right"},
-                                                               {"knee_right", "knee_left"},
-                                                               {"foot_left", "foot_right"},
-                                                               {"foot_right", "foot_left"}};
   const double *J = r->J, up[3] = {0, 1, 0};
   double left[3] = {fwd[2], 0, -fwd[0]}, right[3] = {-fwd[2], 0, fwd[0]};
   double o[3], d_l[3], d_r[3];
@@ -1337,8 +1321,9 @@ static void compute_landmarks(const rigger *r, const double fwd[3], km_landmark 
   }
   for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
     memset(&lm[i], 0, sizeof lm[i]);
-    snprintf(lm[i].name, sizeof lm[i].name, "%s", names[i][0]);
-    snprintf(lm[i].mirror, sizeof lm[i].mirror, "%s", names[i][1]);
+    const char *mirror, *name = km_character_landmark_name(i, &mirror);
+    snprintf(lm[i].name, sizeof lm[i].name, "%s", name);
+    snprintf(lm[i].mirror, sizeof lm[i].mirror, "%s", mirror);
     lm[i].vertex = v[i];
   }
 }

@@ -300,6 +300,28 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
   return true;
 }
 
+const char *km_character_landmark_name(int i, const char **mirror) {
+  static const char *const names[KM_CHARACTER_LANDMARKS][2] = {{"head", "head"},
+                                                               {"neck", "neck"},
+                                                               {"shoulder_left", "shoulder_right"},
+                                                               {"shoulder_right", "shoulder_left"},
+                                                               {"elbow_left", "elbow_right"},
+                                                               {"elbow_right", "elbow_left"},
+                                                               {"hand_left", "hand_right"},
+                                                               {"hand_right", "hand_left"},
+                                                               {"chest", "chest"},
+                                                               {"pelvis", "pelvis"},
+                                                               {"hip_left", "hip_right"},
+                                                               {"hip_right", "hip_left"},
+                                                               {"knee_left", "knee_right"},
+                                                               {"knee_right", "knee_left"},
+                                                               {"foot_left", "foot_right"},
+                                                               {"foot_right", "foot_left"}};
+  if (i < 0 || i >= KM_CHARACTER_LANDMARKS) return NULL;
+  if (mirror) *mirror = names[i][1];
+  return names[i][0];
+}
+
 /* The end handles, in the rig's order. */
 static const char *const handle_names[5] = {"head", "hand_left", "hand_right", "foot_left",
                                             "foot_right"};

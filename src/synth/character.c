@@ -369,27 +369,6 @@ static int32_t nearest_vertex(const km_mesh *m, const double p[3]) {
   return bi;
 }
 
-typedef struct landmark_def {
-  const char *name, *mirror;
-} landmark_def;
-static const landmark_def landmark_defs[KM_CHARACTER_LANDMARKS] = {
-    {"head", "head"},
-    {"neck", "neck"},
-    {"shoulder_left", "shoulder_right"},
-    {"shoulder_right", "shoulder_left"},
-    {"elbow_left", "elbow_right"},
-    {"elbow_right", "elbow_left"},
-    {"hand_left", "hand_right"},
-    {"hand_right", "hand_left"},
-    {"chest", "chest"},
-    {"pelvis", "pelvis"},
-    {"hip_left", "hip_right"},
-    {"hip_right", "hip_left"},
-    {"knee_left", "knee_right"},
-    {"knee_right", "knee_left"},
-    {"foot_left", "foot_right"},
-    {"foot_right", "foot_left"}};
-
 /* Landmarks are the surface vertices nearest to points on the primitives' surfaces, so they
  * are defined for any shape and resolution. */
 static void compute_landmarks(const body *b, const km_mesh *m, km_landmark *lm) {
@@ -416,8 +395,9 @@ static void compute_landmarks(const body *b, const km_mesh *m, km_landmark *lm) 
   }
   for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
     memset(&lm[i], 0, sizeof lm[i]);
-    snprintf(lm[i].name, sizeof lm[i].name, "%s", landmark_defs[i].name);
-    snprintf(lm[i].mirror, sizeof lm[i].mirror, "%s", landmark_defs[i].mirror);
+    const char *mirror, *name = km_character_landmark_name(i, &mirror);
+    snprintf(lm[i].name, sizeof lm[i].name, "%s", name);
+    snprintf(lm[i].mirror, sizeof lm[i].mirror, "%s", mirror);
     lm[i].vertex = nearest_vertex(m, t[i]);
   }
 }
