@@ -69,8 +69,16 @@ static void check_landmarks(const km_character *c, double height, double tol) {
       "head",      "neck",       "shoulder_left", "shoulder_right", "elbow_left", "elbow_right",
       "hand_left", "hand_right", "chest",         "pelvis",         "hip_left",   "hip_right",
       "knee_left", "knee_right", "foot_left",     "foot_right"};
-  for (int i = 0; i < 16; ++i)
+  for (int i = 0; i < 16; ++i) {
     CHECK_MSG(landmark(c, names[i]) >= 0, "landmark %s", names[i]);
+    /* in the order the public table gives (the sidecar's order, rig's too) */
+    const char *mirror = NULL, *name = km_character_landmark_name(i, &mirror);
+    CHECK_MSG(name && !strcmp(name, names[i]) && !strcmp(c->landmarks[i].name, name) &&
+                  !strcmp(c->landmarks[i].mirror, mirror),
+              "landmark %d: %s, table %s", i, c->landmarks[i].name, name ? name : "NULL");
+  }
+  CHECK(km_character_landmark_name(-1, NULL) == NULL &&
+        km_character_landmark_name(KM_CHARACTER_LANDMARKS, NULL) == NULL);
   for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
     const km_landmark *l = &c->landmarks[i];
     CHECK(l->vertex >= 0 && (size_t)l->vertex < c->mesh.n_vertices);
