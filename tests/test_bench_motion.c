@@ -168,6 +168,24 @@ int main(void) {
                 (strstr(out, " on 0 of 1 rows\n") || strstr(out, " on 1 of 1 rows\n")),
             "table: no 'on N of 1 rows' line: %s", out ? out : "");
   free(out);
+  /* with --skin, the shape and jump targets counted for B and for L (skinning the same joints)
+   * under the table */
+  out = NULL;
+  rc = km_test_run(KM_CLI " bench motion --meshes character:3000 --takes walk --frames 4 --skin "
+                          "2>/dev/null",
+                   &out);
+  {
+    const char *l = out ? strstr(out, "# stretch <= 0.5 with no fold: B on ") : NULL;
+    unsigned sb = 9, rows_n = 9, sl = 9, jb = 9, jl = 9;
+    int got = l ? sscanf(l,
+                         "# stretch <= 0.5 with no fold: B on %u of %u rows, L (linear blend "
+                         "skinning of the same joints) on %u; jump <= 3 %%: B on %u, L on %u",
+                         &sb, &rows_n, &sl, &jb, &jl)
+                : 0;
+    CHECK_MSG(rc == 0 && got == 5 && rows_n == 1 && sb <= 1 && sl <= 1 && jb <= 1 && jl <= 1,
+              "--skin: no B / L target counts under the table: %s", out ? out : "");
+  }
+  free(out);
 
   /* --solver full runs both variants through the full ARAP reference and says so */
   out = NULL;
