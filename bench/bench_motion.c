@@ -21,7 +21,9 @@
  *   jump      max over frames f >= 1 and vertices of |V_f - V_{f-1}|, % of the bbox diagonal
  *             (--json adds the 95th percentile over frames and the frames above 3 %)
  *   below     frames with a vertex more than 0.5% of the diagonal below the rest floor
- *   t (ms)    median over frames of the wall time of km_puppetry_push
+ *   t (ms)    median over frames of the wall time of km_puppetry_push, T's and B's pushes taken
+ *             in turn over the first 300 frames (time_variants; --solver full: over the take,
+ *             one variant after the other)
  *   eased     B only: frames whose handle motion the rig's max_step eased (snap easing)
  *   misses    B only: issue 12's targets the row misses, "-" for none: s stretch > 0.5, f a
  *             folded triangle, j jump > 3 %, t time > 1.3x T's (measured in the same run);
@@ -558,6 +560,56 @@ done:
   return s;
 }
 
+/* Per-frame time, measured apart from the metrics: T's and B's pipelines (each on its own copy
+ * of the reduced model: a model keeps solver state between pushes) push the same frames in
+ * turn, each first on every other frame, so that both see the same load on the machine. Timed
+ * one after the other over a whole take, B/T read 0.87-1.85 on the 25 rows of a run that
+ * shared the cores (dog0 on cmu_131_03 1.85, 1.14 quiet); in turn, 1.02-1.15 both quiet and
+ * with one core busy half the time. The first BM_TIME_FRAMES frames; tper[v]: the median of
+ * variant v's push times (ms). */
+#define BM_TIME_FRAMES 300
+static km_status time_variants(const km_mesh *m, const km_rig *const rigs[2],
+                               km_puppet *const models[2], double handle_weight, const km_take *t,
+                               size_t nf, double tper[2], km_error *err) {
+  size_t n = nf < BM_TIME_FRAMES ? nf : BM_TIME_FRAMES, nv = m->n_vertices;
+  km_puppetry *p[2] = {NULL, NULL};
+  double *V = malloc(3 * nv * sizeof *V),
+         *tm[2] = {malloc((n ? n : 1) * sizeof(double)), malloc((n ? n : 1) * sizeof(double))};
+  km_status s = KM_OK;
+  if (!V || !tm[0] || !tm[1]) {
+    s = KM_ERR_NOMEM;
+    snprintf(err->message, sizeof err->message, "out of memory");
+    goto done;
+  }
+  for (int v = 0; v < 2 && s == KM_OK; ++v) {
+    km_puppetry_options o = {0};
+    o.model = models[v];
+    if (!models[v]) o.solver = KM_PUPPETRY_FULL, o.arap.handle_weight = handle_weight;
+    o.fps = t->fps;
+    o.take_name = "take";
+    s = km_puppetry_create(m, rigs[v], (const char *const *)t->joint_names, t->n_joints, &o, &p[v],
+                           NULL, err);
+  }
+  for (size_t f = 0; f < n && s == KM_OK; ++f)
+    for (int k = 0; k < 2 && s == KM_OK; ++k) {
+      int v = k ^ (int)(f & 1);
+      double t0 = km_cli_now();
+      s = km_puppetry_push(p[v], t->positions + f * t->n_joints * 3, V, err);
+      tm[v][f] = 1e3 * (km_cli_now() - t0);
+    }
+  for (int v = 0; v < 2 && s == KM_OK; ++v) {
+    qsort(tm[v], n, sizeof(double), dcmp);
+    tper[v] = n ? (n % 2 ? tm[v][n / 2] : 0.5 * (tm[v][n / 2 - 1] + tm[v][n / 2])) : NAN;
+  }
+done:
+  km_puppetry_free(&p[0]);
+  km_puppetry_free(&p[1]);
+  free(V);
+  free(tm[0]);
+  free(tm[1]);
+  return s;
+}
+
 static cJSON *metrics_json(const bm_metrics *x) {
   cJSON *o = cJSON_CreateObject();
   km_cli_json_number(o, "stretch_max", x->stretch);
@@ -594,7 +646,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
   km_mesh m = {0};
   km_character c = {0};
   km_rig rig = {0};
-  km_puppet *model = NULL;
+  km_puppet *model = NULL, *model2 = NULL;
   bm_geom g = {0};
   char tmp[] = "/tmp/km_bench_motion_XXXXXX";
   int fd = -1, rc = KM_EXIT_OK;
@@ -623,6 +675,8 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
   km_puppetry_options mo = {0};
   if (!a->full && km_puppetry_model_open(&m, &mo, &model, NULL, &err) != KM_OK) goto skip_mesh;
   double t_model = km_cli_now() - t0;
+  /* the timing pass's second model (time_variants), read back from the cache just written */
+  if (!a->full && km_puppetry_model_open(&m, &mo, &model2, NULL, &err) != KM_OK) goto skip_mesh;
   if (!geom_build(&m, &g)) {
     snprintf(err.message, sizeof err.message, "out of memory");
     goto skip_mesh;
@@ -680,37 +734,50 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
     bm_metrics r[2];
     bm_skin sk = {.c = &c};
     bool ok = true;
+    km_rig trs[2];
+    km_rig_map tmaps[32];
     for (int v = 0; v < 2 && ok; ++v) {
       for (size_t e = 0; e < rig.n_maps; ++e)
         if (a->relative_to) rig.maps[e].relative_to = a->relative_to;
       if (a->floor || a->no_floor) rig.floor = a->floor;
       /* T: the paper's rig, the sidecar's first five handles (head, hands, feet) translated
        * by their end joints; B: the sidecar's rig as written, every handle on a bone. */
-      km_rig tr = rig;
-      km_rig_map tmaps[32];
+      trs[v] = rig;
+      km_rig *trp = &trs[v];
       if (v == 0) {
-        tr.n_handles = rig.n_handles < 5 ? rig.n_handles : 5;
-        tr.maps = tmaps;
-        tr.n_maps = 0;
-        for (size_t e = 0; e < rig.n_maps && tr.n_maps < 32; ++e)
-          if ((size_t)rig.maps[e].handle < tr.n_handles) {
-            tmaps[tr.n_maps] = rig.maps[e];
-            tmaps[tr.n_maps].bone_from = 0;
-            tmaps[tr.n_maps].relative_to = a->relative_to;
-            tmaps[tr.n_maps++].rotate = false;
+        trp->n_handles = rig.n_handles < 5 ? rig.n_handles : 5;
+        trp->maps = tmaps;
+        trp->n_maps = 0;
+        for (size_t e = 0; e < rig.n_maps && trp->n_maps < 32; ++e)
+          if ((size_t)rig.maps[e].handle < trp->n_handles) {
+            tmaps[trp->n_maps] = rig.maps[e];
+            tmaps[trp->n_maps].bone_from = 0;
+            tmaps[trp->n_maps].relative_to = a->relative_to;
+            tmaps[trp->n_maps++].rotate = false;
           }
-        tr.max_step = 0;       /* the paper follows every step */
-        tr.root_rigid = false; /* and moves the handles only */
+        trp->max_step = 0;       /* the paper follows every step */
+        trp->root_rigid = false; /* and moves the handles only */
       } else if (a->max_step >= 0) {
-        tr.max_step = a->max_step;
+        trp->max_step = a->max_step;
       }
-      if (run_variant(&m, &g, &tr, model, a->handle_weight, &t, nf, &r[v],
+      if (run_variant(&m, &g, trp, model, a->handle_weight, &t, nf, &r[v],
                       v ? getenv("KM_BENCH_WHERE") : NULL, v && a->skin ? &sk : NULL,
                       &te) != KM_OK) {
         snprintf(why, sizeof why, "%.500s", te.message);
         ok = false;
       }
     }
+    const km_rig *const rigs[2] = {&trs[0], &trs[1]};
+    km_puppet *const models[2] = {model, model2};
+    double tper[2];
+    /* the full solver (15-150 ms a frame) keeps the metric pass's times: a second pass would
+     * double its minutes */
+    if (ok && !a->full &&
+        time_variants(&m, rigs, models, a->handle_weight, &t, nf, tper, &te) != KM_OK) {
+      snprintf(why, sizeof why, "%.500s", te.message);
+      ok = false;
+    }
+    if (ok && !a->full) r[0].tper_ms = tper[0], r[1].tper_ms = tper[1];
     if (!ok) {
       print_skip(a, tname, mname, why);
       km_take_free(&t);
@@ -774,6 +841,7 @@ done:
   }
   geom_free(&g);
   km_puppet_free(&model);
+  km_puppet_free(&model2);
   km_rig_free(&rig);
   km_character_free(&c);
   km_mesh_free(&m);
@@ -932,7 +1000,7 @@ int km_bench_motion(int argc, char **argv) {
       printf("kinemesh bench motion — %s; km_autorig rigs, default glitch rejection and filter, "
              "takes at %s, %s frames; T = translation-only handles (Wu, Lu & Song), "
              "B = bone handles; jump 'take' = the mapped joints' own largest step (scaled); t = "
-             "median of per-frame push times%s%s%s%s\n",
+             "median of per-frame push times (T's and B's in turn, first 300 frames)%s%s%s%s\n",
              a.machine, fps_s, frames_s,
              a.full ? (a.handle_weight > 0 ? "; full-space ARAP solver (soft handles), not the "
                                              "reduced model"
