@@ -118,7 +118,9 @@ int main(void) {
     }
     double nv = num(o, "n_ver", rows), nh = num(o, "n_han", rows), fr = num(o, "frames", rows);
     num(o, "fps", rows);
-    double tj = num(o, "take_jump_max_pct", rows);
+    double tj = num(o, "take_jump_max_pct", rows), tp = num(o, "take_jump_p95_pct", rows);
+    CHECK_MSG(tp >= 0 && tp <= tj, "row %d: the take's 95th-percentile step %g, its largest %g",
+              rows, tp, tj);
     CHECK_MSG(nv > 2500 && nv < 3500, "row %d: %g vertices", rows, nv);
     CHECK_MSG(nh >= 2, "row %d: %g handles", rows, nh);
     CHECK_MSG(fr == 8, "row %d: %g frames (--frames 8)", rows, fr);
@@ -167,6 +169,15 @@ int main(void) {
   CHECK_MSG(rc == 0 && out &&
                 (strstr(out, " on 0 of 1 rows\n") || strstr(out, " on 1 of 1 rows\n")),
             "table: no 'on N of 1 rows' line: %s", out ? out : "");
+  {
+    /* and the jump misses, with those on a take that itself steps more than 3 % on 1 frame in
+     * 20 */
+    const char *l = out ? strstr(out, "# B misses the jump on ") : NULL;
+    unsigned jm = 9, jf = 9;
+    CHECK_MSG(l && sscanf(l, "# B misses the jump on %u rows; on %u of them", &jm, &jf) == 2 &&
+                  jm <= 1 && jf <= jm,
+              "table: no jump-miss line: %s", out ? out : "");
+  }
   free(out);
   /* with --skin, the shape and jump targets counted for B and for L (skinning the same joints)
    * under the table */
