@@ -386,15 +386,29 @@ static double frame_step(size_t nv, const double *V, const double *Vp, size_t *j
   return jump;
 }
 
+/* The 95th percentile of x (n > 0 values, sorted in place). */
+static double p95(double *x, size_t n) {
+  qsort(x, n, sizeof *x, dcmp);
+  return x[(size_t)(0.95 * (double)(n - 1) + 0.5)];
+}
+
 /* The median per-frame time (tm, nf frames) and the jump's 95th percentile (jf, nf - 1 steps),
  * both sorted in place. */
 static void finish_times(bm_metrics *out, double *tm, double *jf, size_t nf) {
-  qsort(tm, nf, sizeof *tm, dcmp);
-  if (nf > 1) {
-    qsort(jf, nf - 1, sizeof *jf, dcmp);
-    out->jump_p95_pct = jf[(size_t)(0.95 * (double)(nf - 2) + 0.5)];
-  }
-  out->tper_ms = nf ? (nf % 2 ? tm[nf / 2] : 0.5 * (tm[nf / 2 - 1] + tm[nf / 2])) : NAN;
+  if (nf > 1) out->jump_p95_pct = p95(jf, nf - 1);
+  out->tper_ms = km_cli_median(tm, nf);
+}
+
+/* A variant's pipeline options: the shared reduced model, or the full-space solver (--solver
+ * full, model NULL) with its handle weight. */
+static km_puppetry_options variant_options(km_puppet *model, double handle_weight,
+                                           const km_take *t) {
+  km_puppetry_options o = {0};
+  o.model = model;
+  if (!model) o.solver = KM_PUPPETRY_FULL, o.arap.handle_weight = handle_weight;
+  o.fps = t->fps;
+  o.take_name = "take";
+  return o;
 }
 
 /* The skinned reference (--skin): the character's skeleton, posed by the pipeline's own
@@ -444,11 +458,7 @@ static void skin_frame(bm_skin *sk, const km_mesh *m, const bm_geom *g, const km
 static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *rig,
                              km_puppet *model, double handle_weight, const km_take *t, size_t nf,
                              bm_metrics *out, const char *where, bm_skin *sk, km_error *err) {
-  km_puppetry_options o = {0};
-  o.model = model;
-  if (!model) o.solver = KM_PUPPETRY_FULL, o.arap.handle_weight = handle_weight; /* --solver full */
-  o.fps = t->fps;
-  o.take_name = "take";
+  km_puppetry_options o = variant_options(model, handle_weight, t);
   km_puppetry *p = NULL;
   size_t nv = m->n_vertices;
   double *V = malloc(3 * nv * sizeof *V), *Vp = malloc(3 * nv * sizeof *Vp);
@@ -539,10 +549,7 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
             out->ratio_max, long_f, le[0], le[1], h >= 0 ? rig->handles[h].name : "-");
   }
   finish_times(out, tm, jf, nf);
-  if (nf > 1) {
-    qsort(rf, nf - 1, sizeof *rf, dcmp);
-    out->raw_jump_p95_pct = rf[(size_t)(0.95 * (double)(nf - 2) + 0.5)];
-  }
+  if (nf > 1) out->raw_jump_p95_pct = p95(rf, nf - 1);
   if (sk) {
     for (size_t k = 0; k < m->n_faces; ++k)
       sk->out.folded += sk->ever[k];
@@ -594,11 +601,7 @@ static km_status time_variants(const km_mesh *m, const km_rig *const rigs[2],
     goto done;
   }
   for (int v = 0; v < 2 && s == KM_OK; ++v) {
-    km_puppetry_options o = {0};
-    o.model = models[v];
-    if (!models[v]) o.solver = KM_PUPPETRY_FULL, o.arap.handle_weight = handle_weight;
-    o.fps = t->fps;
-    o.take_name = "take";
+    km_puppetry_options o = variant_options(models[v], handle_weight, t);
     s = km_puppetry_create(m, rigs[v], (const char *const *)t->joint_names, t->n_joints, &o, &p[v],
                            NULL, err);
   }
@@ -609,10 +612,8 @@ static km_status time_variants(const km_mesh *m, const km_rig *const rigs[2],
       s = km_puppetry_push(p[v], t->positions + f * t->n_joints * 3, V, err);
       tm[v][f] = 1e3 * (km_cli_now() - t0);
     }
-  for (int v = 0; v < 2 && s == KM_OK; ++v) {
-    qsort(tm[v], n, sizeof(double), dcmp);
-    tper[v] = n ? (n % 2 ? tm[v][n / 2] : 0.5 * (tm[v][n / 2 - 1] + tm[v][n / 2])) : NAN;
-  }
+  for (int v = 0; v < 2 && s == KM_OK; ++v)
+    tper[v] = km_cli_median(tm[v], n);
 done:
   km_puppetry_free(&p[0]);
   km_puppetry_free(&p[1]);
