@@ -50,8 +50,10 @@ function loadScript(src) {
 // (the library's glitch test allows a bone 4 cm on top of 40 %, which the 13 cm half-width
 // from the neck mostly stays inside). The guard holds a frame whose 3D shoulder width departs
 // by more than 40 % from the upper quartile of the widths of the last 31 frames (this one, and
-// the held ones, included), from the 3rd frame on: it is not sent, so the server keeps the last
-// good pose. The upper quartile, because misreads are narrow: it stays on the body's width
+// the held ones, included): it is not sent, so the server keeps the last good pose. The first
+// two frames are held too, unjudged: the first frame the server takes is the reference every
+// later one is measured from (the heading, the root), and a misread one turned the mesh sideways
+// for a whole recording (shoulders 0.11 m apart facing away, hips 0.03 m apart, in one run). The upper quartile, because misreads are narrow: it stays on the body's width
 // while fewer than three frames in four are misread (a median of the accepted frames alone,
 // tried first, held 32 of 41 frames in one loaded run). Another performer is taken from their
 // 8th frame when wider, from their 24th when narrower (a quarter and four fifths of a second at
@@ -71,7 +73,7 @@ export function spanGuard() {
     if (win.length > SPAN_WINDOW) win.shift();
     guard.widths.push(Math.round(w * 1000) / 1000);
     if (guard.widths.length > 100) guard.widths.shift();
-    if (win.length < SPAN_MIN) return true;
+    if (win.length < SPAN_MIN) return false;
     const ref = win.slice().sort((x, y) => x - y)[Math.floor(0.75 * win.length)];
     return Math.abs(w - ref) <= SPAN_TOL * ref;
   };
