@@ -103,7 +103,9 @@ if [ "$MODE" = osc ]; then
   echo "recorded take animates offline: ok"
 fi
 if [ "$MODE" = camera ]; then
-  # What the server received from the page's camera, against the clip.
+  # What the server received from the page's camera, against the clip, and animated.
+  "$BIN" animate --mesh "$WORK/c.obj" --motion "$WORK/rec.json" -o "$WORK/rec.pc2" 2>"$WORK/animate.err" \
+    || { echo "FAIL: animate on the recorded take"; cat "$WORK/animate.err"; exit 1; }
   node "$HERE/camera_check.mjs" "$WORK" || exit 1
 fi
 echo "live_$MODE: passed"
