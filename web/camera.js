@@ -43,23 +43,23 @@ function loadScript(src) {
   });
 }
 
-// MediaPipe's world landmarks now and then lift a body facing the camera into one turned
-// sideways: on the test's rendered figure 10-35 % of the frames, the shoulders 0.03-0.16 m apart
-// in 3D against 0.25-0.32, an arm across the chest. A body's shoulder width does not change, in
-// 3D, as it turns; sent, such a frame twisted the mesh's chest 55 degrees for a frame and back
-// (the library's glitch test allows a bone 4 cm on top of 40 %, which the 13 cm half-width
-// from the neck mostly stays inside). The guard holds a frame whose 3D shoulder width departs
-// by more than 40 % from the upper quartile of the widths of the last 31 frames (this one, and
-// the held ones, included): it is not sent, so the server keeps the last good pose. The first
-// two frames are held too, unjudged: the first frame the server takes is the reference every
-// later one is measured from (the heading, the root), and a misread one turned the mesh sideways
-// for a whole recording (shoulders 0.11 m apart facing away, hips 0.03 m apart, in one run). The upper quartile, because misreads are narrow: it stays on the body's width
-// while fewer than three frames in four are misread (a median of the accepted frames alone,
-// tried first, held 32 of 41 frames in one loaded run). Another performer is taken from their
-// 8th frame when wider, from their 24th when narrower (a quarter and four fifths of a second at
-// 30 fps). The hips are not judged: on the same figure their 3D width reads 0.01-0.21 m, half
-// the frames under 0.1, so a test on it would hold most of them (the library's heading filter
-// takes a hip line that turns too fast for a body).
+// MediaPipe's world landmarks now and then lift a body facing the camera into one turned sideways:
+// on the test's rendered figure 10-35 % of the frames, the shoulders 0.03-0.16 m apart in 3D
+// against 0.25-0.32, an arm across the chest. A body's shoulder width does not change, in 3D, as
+// it turns; sent, such a frame twisted the mesh's chest 55 degrees for a frame and back (the
+// library's glitch test allows a bone 4 cm on top of 40 %, which the 13 cm half-width from the
+// neck mostly stays inside). The guard holds a frame whose 3D shoulder width departs by more than
+// 40 % from the upper quartile of the widths of the last 31 frames (this one, and the held ones,
+// included): it is not sent, so the server keeps the last good pose. The first two frames are held
+// too, unjudged: the first frame the server takes is the reference every later one is measured
+// from (the heading, the root), and a misread one turned the mesh sideways for a whole recording
+// (shoulders 0.11 m apart facing away, hips 0.03 m apart, in one run). The upper quartile, because
+// misreads are narrow: it stays on the body's width while fewer than three frames in four are
+// misread (a median of the accepted frames alone, tried first, held 32 of 41 frames in one loaded
+// run). Another performer is taken from their 8th frame when wider, from their 24th when narrower
+// (a quarter and four fifths of a second at 30 fps). The hips are not judged: on the same figure
+// their 3D width reads 0.01-0.21 m, half the frames under 0.1, so a test on it would hold most of
+// them (the library's heading filter takes a hip line that turns too fast for a body).
 export const SPAN_WINDOW = 31, SPAN_MIN = 3, SPAN_TOL = 0.4;
 export function spanGuard() {
   const win = [];
@@ -168,7 +168,7 @@ export function initCamera(state, $) {
     cam.widths = guard.widths;
     if (!sent) {
       cam.held++;
-      say(`tracking (${cam.detected} frames, ${cam.held} held: body misread)`);
+      say(`tracking (${cam.detected} frames, ${cam.held} held)`);
       return;
     }
     if (f.turned) cam.turned++;
@@ -178,7 +178,7 @@ export function initCamera(state, $) {
       ws.send(JSON.stringify(f));
       cam.sent++;
     }
-    say(`tracking (${cam.detected} frames${cam.held ? `, ${cam.held} held: body misread` : ''})`);
+    say(`tracking (${cam.detected} frames${cam.held ? `, ${cam.held} held` : ''})`);
   }
 
   // One detection per new camera frame, the next one asked for when it is done: the page
