@@ -529,8 +529,7 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
       double d = sqrt((q[0] - q0[0]) * (q[0] - q0[0]) + (q[1] - q0[1]) * (q[1] - q0[1]) +
                       (q[2] - q0[2]) * (q[2] - q0[2])) *
                  km_puppetry_scale(p) / g->diag;
-      if (d > out->raw_jump_pct / 100) out->raw_jump_pct = 100 * d; /* NaN: missing, skipped */
-      if (d > rf[f - 1] / 100) rf[f - 1] = 100 * d;
+      if (d > rf[f - 1] / 100) rf[f - 1] = 100 * d; /* NaN: missing, skipped */
     }
     if (ymin < g->floor_y - BM_FLOOR_TOL * g->diag) out->below++;
     double *sw = V;
@@ -549,7 +548,10 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
             out->ratio_max, long_f, le[0], le[1], h >= 0 ? rig->handles[h].name : "-");
   }
   finish_times(out, tm, jf, nf);
-  if (nf > 1) out->raw_jump_p95_pct = p95(rf, nf - 1);
+  if (nf > 1) { /* rf sorted by p95: its last is the largest step */
+    out->raw_jump_p95_pct = p95(rf, nf - 1);
+    out->raw_jump_pct = rf[nf - 2];
+  }
   if (sk) {
     for (size_t k = 0; k < m->n_faces; ++k)
       sk->out.folded += sk->ever[k];

@@ -32,8 +32,8 @@ check(L.length >= 16 && lo < LOW / 2 && hi > HIGH / 2,
 check(hi - lo > 0.6 * (HIGH - LOW), `the sweep is most of the clip's (${(hi - lo).toFixed(0)} of ${HIGH - LOW} deg)`);
 // MediaPipe (the lite model especially) now and then swaps the arms for a frame: the right arm
 // is judged on most frames, not all.
-const Rs = R.slice().sort((a, b) => a - b), down = R.filter((e) => e < 0).length / R.length;
-const rmed = Rs[Math.floor(Rs.length / 2)];
+const med = (a) => a.slice().sort((x, y) => x - y)[Math.floor(a.length / 2)];
+const down = R.filter((e) => e < 0).length / R.length, rmed = med(R);
 check(R.length >= 16 && down >= 0.85 && rmed < -40,
   `the right wrist stays down: ${(100 * down).toFixed(0)}% of frames below the shoulder, median ${rmed.toFixed(0)} deg`);
 // The raised hand's height follows the sweep: in the frames where the left arm is up (elevation
@@ -47,11 +47,10 @@ check(R.length >= 16 && down >= 0.85 && rmed < -40,
 // sideways, the shoulders 0.02-0.15 m apart against 0.25, the arms merged.
 const span = (f) => Math.hypot(at(f, 'ShoulderLeft')[0] - at(f, 'ShoulderRight')[0],
   at(f, 'ShoulderLeft')[1] - at(f, 'ShoulderRight')[1]);
-const spans = frames.map(span).sort((a, b) => a - b), smed = spans[Math.floor(spans.length / 2)];
+const smed = med(frames.map(span));
 const wide = frames.filter((f) => span(f) >= 0.75 * smed);
 check(wide.length >= frames.length / 2,
   `${wide.length} of ${frames.length} frames read with the shoulders at least 3/4 of their median width (${smed.toFixed(2)} m) apart`);
-const med = (a) => a.slice().sort((x, y) => x - y)[Math.floor(a.length / 2)];
 const raised = wide.filter((f) => elev(f, 'ShoulderLeft', 'WristLeft') > HIGH / 2);
 const overR = med(raised.map((f) => at(f, 'WristLeft')[1] - at(f, 'WristRight')[1]));
 const overHead = med(raised.map((f) => at(f, 'WristLeft')[1] - at(f, 'Head')[1]));
@@ -77,19 +76,18 @@ const pc2 = path.join(work, 'rec.pc2');
 if (fs.existsSync(pc2)) {
   const rig = JSON.parse(fs.readFileSync(path.join(work, 'c.rig.json'), 'utf8'));
   const lm = (n) => rig.landmarks.find((l) => l.name === n).vertex;
+  // the turn about y (degrees) of the line from landmark b to landmark a, 0 along +x
   const line = (X, a, b) => {
     const dx = X[3 * lm(a)] - X[3 * lm(b)], dz = X[3 * lm(a) + 2] - X[3 * lm(b) + 2];
-    return Math.abs(Math.atan2(-dz, dx) * 180 / Math.PI);
+    return Math.atan2(-dz, dx) * 180 / Math.PI;
   };
   const mesh = readPc2(pc2);
-  const turn = mesh.map((X) => Math.max(line(X, 'hip_left', 'hip_right'), line(X, 'shoulder_left', 'shoulder_right')));
+  const turn = mesh.map((X) => Math.max(Math.abs(line(X, 'hip_left', 'hip_right')),
+    Math.abs(line(X, 'shoulder_left', 'shoulder_right'))));
   const off = turn.filter((t) => t > 60).length;
   check(mesh.length >= 16 && off <= 0.1 * mesh.length,
     `the animated recording faces the camera: hips and shoulders within 60 deg of +x on ${mesh.length - off} of ${mesh.length} frames (at worst ${Math.max(...turn).toFixed(0)} deg)`);
-  const yaw = mesh.map((X) => {
-    const a = 3 * lm('shoulder_left'), b = 3 * lm('shoulder_right');
-    return Math.atan2(-(X[a + 2] - X[b + 2]), X[a] - X[b]) * 180 / Math.PI;
-  });
+  const yaw = mesh.map((X) => line(X, 'shoulder_left', 'shoulder_right'));
   const ysteps = yaw.slice(1).map((v, i) => Math.abs(((v - yaw[i] + 540) % 360) - 180));
   const ymax = Math.max(...ysteps);
   check(ymax <= 30, `the mesh's shoulder line turns at most ${ymax.toFixed(0)} deg between frames (at most 30)`);
