@@ -241,6 +241,14 @@ static void test_osc_packet(void) {
     CHECK(km_live_osc_packet(data, n, count_joint, seen, &msgs) == 1);
     CHECK(msgs == 2 && seen[11] == 1 && seen[3] == 1);
   }
+  /* a blob message, whole or with its size word missing, never reaches liblo: bad on
+   * OSCeleton's path, ignored on another */
+  char blob[] = "/joint\0\0,sb\0r_hand\0\0\0\0\0\0\0";
+  msgs = 0;
+  CHECK(km_live_osc_packet(blob, sizeof blob - 1, count_joint, seen, &msgs) == 1 && msgs == 0);
+  CHECK(km_live_osc_packet(blob, sizeof blob - 5, count_joint, seen, &msgs) == 1 && msgs == 0);
+  blob[1] = 'p'; /* "/point" */
+  CHECK(km_live_osc_packet(blob, sizeof blob - 5, count_joint, seen, &msgs) == 0 && msgs == 0);
   CHECK(km_live_osc_packet("#bundle", 8, NULL, NULL, NULL) == 1);
   CHECK(km_live_osc_packet("joint", 6, NULL, NULL, NULL) == 1);
   free(data);

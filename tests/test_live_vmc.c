@@ -196,6 +196,13 @@ static void test_garbage(void) {
   put_str(&m, ",iiii");
   put_i(&m, 1);
   CHECK(km_live_vmc_packet(&v, m.d, m.n, J) == 0 && v.bad == bad + 5);
+  /* a blob, its size word cut off, never reaches liblo (live.h): bad on a bone's path */
+  m.n = 0;
+  put_str(&m, "/VMC/Ext/Bone/Pos");
+  put_str(&m, ",sb");
+  put_str(&m, "Hips");
+  CHECK(km_live_vmc_packet(&v, m.d, m.n, J) == 0 && v.bad == bad + 6);
+  bad += 1;
   /* unknown addresses and bones are counted, not bad; a bundle of them makes no frame */
   uint64_t frames = v.frames;
   bundle_begin(&b);

@@ -10,6 +10,7 @@
 
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 /* Overflow-checked allocations for the server (NULL on overflow or failure). */
 static inline void *live_alloc(size_t count, size_t size) {
@@ -20,6 +21,18 @@ static inline void *live_zalloc(size_t count, size_t size) {
 }
 
 /* ---------------------------------------------------------------- input parsing */
+
+/* Whether an OSC message (msg[0..size), its path NUL-terminated inside) has a blob ('b') among
+ * its type tags. Such a message must not reach lo_message_deserialise: liblo 0.31's
+ * lo_validate_blob reads a blob's 4-byte size word before checking that 4 bytes are left, a
+ * read past the end of its copy of the message (fuzz_osc found it: a ",b" tag with the data
+ * used up). No message kinemesh reads has a blob, so a caller judges one by its path alone. */
+static inline int km_live_osc_has_blob(const char *msg, size_t size) {
+  size_t tags = (strlen(msg) / 4 + 1) * 4; /* the path, NUL-padded to 4 bytes */
+  if (tags >= size || msg[tags] != ',') return 0;
+  const char *end = memchr(msg + tags, 0, size - tags);
+  return end && memchr(msg + tags, 'b', (size_t)(end - (msg + tags))) != NULL;
+}
 
 /* Index of a tracker joint name in KM_KINECT1 order: Kinect v1 names (HandLeft), OSCeleton/
  * OpenNI names (l_hand, torso, waist, ...), then any skeleton of km_skeleton_kinect1_joint,
@@ -64,7 +77,8 @@ km_live_osc_kind km_live_parse_osc(const char *path, const char *types, void *co
  * decoded by liblo and km_live_parse_osc; on_joint (may be NULL) gets every joint message.
  * *messages (may be NULL) grows by the messages liblo decoded. Returns the number of malformed
  * elements: a bundle with bad framing (the rest of that bundle is skipped), a message liblo
- * refuses, a KM_LIVE_OSC_BAD message. */
+ * refuses, a KM_LIVE_OSC_BAD message. A message with a blob argument is not decoded (liblo 0.31
+ * reads past the data on a truncated one): bad on a tracker's path, ignored on any other. */
 typedef void (*km_live_osc_fn)(void *ctx, const km_live_osc_joint *j);
 int km_live_osc_packet(const char *data, size_t size, km_live_osc_fn on_joint, void *ctx,
                        uint64_t *messages);

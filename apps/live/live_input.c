@@ -270,6 +270,10 @@ static int osc_element(const char *data, size_t size, int depth, km_live_osc_fn 
     return bad;
   }
   if (!size || !memchr(data, 0, size) || data[0] != '/') return 1;
+  if (km_live_osc_has_blob(data, size)) { /* (why: live.h) bad on a tracker's path */
+    km_live_osc_joint j;
+    return km_live_parse_osc(data, "", NULL, 0, &j) == KM_LIVE_OSC_BAD;
+  }
   int res = 0;
   /* lo_message_deserialise validates sizes, padding and type tags. */
   lo_message m = lo_message_deserialise((void *)data, size, &res);

@@ -140,6 +140,8 @@ static bool element(km_live_vmc *v, const unsigned char *d, size_t n, int depth,
     return ok;
   }
   if (!n || d[0] != '/' || !memchr(d, 0, n)) return false;
+  if (km_live_osc_has_blob((const char *)d, n)) /* (why: live.h) judged by its path alone */
+    return km_live_vmc_message(v, (const char *)d, "", NULL, 0) != KM_LIVE_VMC_BAD;
   int res = 0;
   /* lo_message_deserialise checks sizes, padding and type tags against the payload. */
   lo_message m = lo_message_deserialise((void *)d, n, &res);
