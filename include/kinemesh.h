@@ -991,6 +991,9 @@ km_status km_filter_create(size_t n_joints, const km_filter_options *opt, km_fil
 void km_filter_push(km_filter *f, const double *raw, double *filtered);
 /* Forgets all history (as if just created). */
 void km_filter_reset(km_filter *f);
+/* Forgets joint j's history only: its next sample is taken as it comes (a joint whose earlier
+ * samples were found wrong, km_glitch_restarted). j >= #J: nothing. */
+void km_filter_restart_joint(km_filter *f, size_t j);
 /* Frees *f and sets it to NULL. */
 void km_filter_free(km_filter **f);
 
@@ -1009,7 +1012,15 @@ void km_filter_free(km_filter **f);
  *            of the bone's accepted lengths (last 31) by more than bone_tolerance * median +
  *            bone_slack (once 5 lengths were seen).
  * An accepted sample after a gap eases in (catchup_speed): the output is then the sample plus
- * a shrinking offset, not the raw sample. */
+ * a shrinking offset, not the raw sample.
+ * A joint's first sample has nothing to be judged by and is accepted. When it was the glitch
+ * (a hand 0.6 m off in frame 0), the true samples after it are rejected as too fast, then
+ * re-acquired far from where the start put them: a joint accepted again after a gap within
+ * start_seconds of its first sample, after a start of at most 3 accepted samples, more than
+ * 10 cm + half its bone (relative to its parent; else 10 cm + a frame's max_speed move) from
+ * where it was held, is restarted: output as it comes (no catch-up), its start and bone
+ * lengths forgotten, and listed by km_glitch_restarted for the user to redo what it built on
+ * the start (km_puppetry re-anchors the joint's reference). */
 typedef struct km_glitch_options {
   double fps;            /* frames per second of the pushed frames. 0: 30 */
   double max_speed;      /* m/s. 0: 12 (a fast punch or kick peaks near 10 m/s; a 0.6 m
@@ -1023,6 +1034,7 @@ typedef struct km_glitch_options {
                             shrinks, halving per frame while small, at most catchup_speed / fps
                             per frame; children are carried by their parent's offset. The mesh
                             eases back in instead of snapping. 0: 3; < 0: off */
+  double start_seconds;  /* the start window for restarts (above), seconds. 0: 1; < 0: none */
 } km_glitch_options;
 typedef struct km_glitch_stats {
   size_t frames;               /* frames pushed */
@@ -1030,6 +1042,7 @@ typedef struct km_glitch_stats {
   size_t missing;              /* joint samples that were NaN already */
   size_t rejected;             /* present samples turned missing (the sum of the three reasons) */
   size_t refound, speed, bone; /* rejections by reason */
+  size_t restarted;            /* joints restarted (their start was a glitch, see above) */
 } km_glitch_stats;
 typedef struct km_glitch km_glitch;
 /* Creates a glitch rejector for #J = n_joints joints.
@@ -1049,6 +1062,9 @@ void km_glitch_push(km_glitch *g, const double *raw, double *clean);
 void km_glitch_push_at(km_glitch *g, const double *raw, double t, double *clean);
 /* Counts since create / reset. */
 void km_glitch_stats_get(const km_glitch *g, km_glitch_stats *out);
+/* The joints the last push restarted (#J flags; see above), or NULL when it restarted none.
+ * Valid until the next push, reset or free. */
+const bool *km_glitch_restarted(const km_glitch *g);
 /* Forgets history and counts. */
 void km_glitch_reset(km_glitch *g);
 /* Frees *g and sets it to NULL. */
@@ -1339,6 +1355,13 @@ bool km_retarget_apply_root(const km_retarget *r, double *points, size_t n);
  *   out  out: n_joints*3 (the take's joint order), NaN for a joint the rig's "joints" lacks
  * Returns false, leaving out as it is, for a rig without a character skeleton ("joints"). */
 bool km_retarget_joints(const km_retarget *r, double *out);
+/* The reference positions (#J*3: each joint's first valid position, NaN until seen), which
+ * the motion is measured from. Valid until the next call on r. */
+const double *km_retarget_reference(const km_retarget *r);
+/* Replaces joint j's reference with p[3] (a start found wrong: km_glitch_restarted), and redoes
+ * what was built on it: the auto scale, the root's scale, the bone speed limit's memory. An
+ * invalid j or a non-finite p: nothing. */
+void km_retarget_set_reference(km_retarget *r, size_t j, const double p[3]);
 /* Forgets reference positions (and the auto scale): the next valid frame is the new rest. */
 void km_retarget_reset(km_retarget *r);
 /* Frees *r and sets it to NULL. */

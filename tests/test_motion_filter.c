@@ -419,10 +419,66 @@ static void test_glitch(void) {
   km_glitch_free(&g);
 }
 
+/* A joint whose first sample was the glitch (a hand 0.6 m off in frame 0): the true samples
+ * are rejected as too fast, then re-acquired; within the start window the joint is restarted
+ * (listed by km_glitch_restarted, output as it comes, counted) instead of easing back to the
+ * glitch's offset. A start of more samples, or no start window, keeps the catch-up; so does a
+ * root glitched alone, which restarts too (absolute). km_filter_restart_joint forgets one
+ * joint's history. */
+static void test_glitch_restart(void) {
+  const int32_t parents[2] = {-1, 0};
+  for (int c = 0; c < 4; ++c) { /* 0: child glitched in frame 0, 1: no start window,
+                                   2: a good start of 5 frames, 3: the root glitched */
+    km_glitch *g = NULL;
+    km_glitch_options o = {.fps = 30, .start_seconds = c == 1 ? -1 : 0};
+    CHECK_OK(km_glitch_create(2, parents, &o, &g, KM_E));
+    int t0 = c == 2 ? 5 : 0, restarted_at = -1;
+    double y[6];
+    bool raw_out = false;
+    for (int t = 0; t < 12; ++t) {
+      double a = 0.005 * t, x[6] = {a, 1, 0, a, 1.3, 0};
+      if (t == t0 && c != 3) x[4] += 0.6;
+      if (c == 2 && t > t0) x[4] += 0.6;              /* the good start, then it moves and stays */
+      if (t == 0 && c == 3) x[1] += 0.6, x[4] += 0.6; /* the whole body, frame 0 */
+      km_glitch_push(g, x, y);
+      const bool *re = km_glitch_restarted(g);
+      if (re) {
+        CHECK(restarted_at < 0);
+        restarted_at = t;
+        CHECK(re[c == 3 ? 0 : 1] && !re[c == 3 ? 1 : 0]);
+        raw_out = memcmp(x, y, sizeof x) == 0;
+      }
+    }
+    km_glitch_stats st;
+    km_glitch_stats_get(g, &st);
+    if (c == 0 || c == 3) {
+      CHECK_MSG(restarted_at == 2 && raw_out && st.restarted == 1,
+                "case %d: restarted at frame %d (raw out %d), %zu restarts", c, restarted_at,
+                raw_out, st.restarted);
+    } else {
+      CHECK_MSG(restarted_at == -1 && st.restarted == 0, "case %d: restarted at frame %d", c,
+                restarted_at);
+    }
+    km_glitch_free(&g);
+  }
+  km_filter *f = NULL;
+  CHECK_OK(km_filter_create(2, NULL, &f, KM_E));
+  double x[6] = {0, 0, 0, 0, 0, 0}, y[6];
+  for (int t = 0; t < 10; ++t)
+    km_filter_push(f, x, y);
+  km_filter_restart_joint(f, 1);
+  km_filter_restart_joint(f, 2); /* out of range: nothing */
+  x[0] = x[3] = 1;
+  km_filter_push(f, x, y);
+  CHECK_MSG(y[3] == 1 && y[0] < 1, "restarted joint %g (1), the other %g (< 1)", y[3], y[0]);
+  km_filter_free(&f);
+}
+
 int main(void) {
   test_one_euro();
   test_holt_no_overshoot();
   test_glitch();
+  test_glitch_restart();
   test_constant();
   test_ramp();
   test_missing();

@@ -270,11 +270,12 @@ int km_cli_animate(int argc, char **argv) {
   double m23 = km_cli_median(t23, take.n_frames), m4 = km_cli_median(t4, take.n_frames);
   km_glitch_stats gs;
   km_puppetry_glitch_stats(pl, &gs);
-  char glitch_line[160] = "";
+  char glitch_line[256] = "";
   if (!no_glitch)
     snprintf(glitch_line, sizeof glitch_line,
-             "  glitches rejected: %zu of %zu joint samples (speed %zu, bone %zu, re-found %zu)\n",
-             gs.rejected, gs.samples, gs.speed, gs.bone, gs.refound);
+             "  glitches rejected: %zu of %zu joint samples (speed %zu, bone %zu, re-found "
+             "%zu); joints whose start was the glitch, reference redone: %zu\n",
+             gs.rejected, gs.samples, gs.speed, gs.bone, gs.refound, gs.restarted);
   fprintf(stderr,
           "kinemesh animate: %zu frames, %zu vertices, %zu handles (%zu vertices), scale %.3f\n"
           "  %-22s %10s %12s %12s %12s\n"

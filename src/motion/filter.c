@@ -197,6 +197,10 @@ void km_filter_reset(km_filter *f) {
   if (f) memset(f->s, 0, f->n * sizeof *f->s);
 }
 
+void km_filter_restart_joint(km_filter *f, size_t j) {
+  if (f && j < f->n) memset(&f->s[j], 0, sizeof f->s[j]);
+}
+
 void km_filter_free(km_filter **f) {
   if (!f || !*f) return;
   free((*f)->s);

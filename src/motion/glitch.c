@@ -10,6 +10,11 @@
  *            so a joint that really moved is re-acquired after a few frames);
  *   bone:    the bone from the (accepted) parent departs from the running median of its
  *            accepted lengths by more than bone_tolerance * median + bone_slack.
+ * A joint's first samples have nothing to be judged against: the first is accepted as it
+ * comes. When that start was the glitch (a hand placed 0.6 m off in frame 0), the true samples
+ * after it are rejected as too fast and then re-acquired far from where the start put them;
+ * within the start window such a re-acquired joint is restarted (km_glitch_restarted): taken
+ * as it comes, its start forgotten, and its user told to redo what it built on that start.
  * A plain ring buffer and a selection over it give the running median; the window is small
  * (KM_GLITCH_WINDOW samples), so nothing cleverer (two heaps) pays for itself. */
 #include "motion/motion.h"
@@ -20,6 +25,7 @@
 
 #define KM_GLITCH_WINDOW 31
 #define KM_GLITCH_MIN_SAMPLES 5 /* bone lengths seen before the bone test starts */
+#define KM_GLITCH_START_RUN 3   /* a start of at most this many accepted samples may be wrong */
 
 typedef struct glitch_joint {
   double last[3]; /* last accepted sample */
@@ -33,6 +39,8 @@ typedef struct glitch_joint {
   bool was_missing;
   double len[KM_GLITCH_WINDOW]; /* accepted bone lengths to the parent */
   int n_len, next_len;
+  size_t first; /* the frame (count before it) of the first accepted sample, or of a restart */
+  int run;      /* samples accepted since then */
 } glitch_joint;
 
 struct km_glitch {
@@ -44,7 +52,10 @@ struct km_glitch {
   double tol, slack;
   int refound;
   double catchup, decay; /* catch-up: metres per frame at most, factor per frame when small */
+  size_t start;          /* the start window, frames; 0: no restarts */
   glitch_joint *j;
+  bool *restarted; /* n: restarted in the last push */
+  bool any_restarted;
   bool *ok;   /* n, scratch: accepted this frame */
   double *in; /* n*3, scratch: the raw frame (clean may alias raw) */
   km_glitch_stats stats;
@@ -79,8 +90,9 @@ km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_gli
   g->par_all = km__malloc(n, sizeof(int32_t));
   g->j = km__calloc(n, sizeof *g->j);
   g->ok = km__calloc(n, sizeof(bool));
+  g->restarted = km__calloc(n, sizeof(bool));
   g->in = km__malloc(3 * n, sizeof(double));
-  if (!g->parents || !g->par_all || !g->j || !g->ok || !g->in) {
+  if (!g->parents || !g->par_all || !g->j || !g->ok || !g->restarted || !g->in) {
     km_glitch_free(&g);
     return km__fail(err, KM_ERR_NOMEM, "km_glitch_create: out of memory (%zu joints)", n_joints);
   }
@@ -96,6 +108,8 @@ km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_gli
   g->refound = o.refound_frames == 0 ? 1 : (o.refound_frames < 0 ? 0 : o.refound_frames);
   g->catchup = o.catchup_speed < 0 ? 0 : (o.catchup_speed == 0 ? 3.0 : o.catchup_speed) / fps;
   g->decay = pow(0.5, 30.0 / fps);
+  double start = o.start_seconds < 0 ? 0 : (o.start_seconds == 0 ? 1.0 : o.start_seconds);
+  g->start = isfinite(start) ? (size_t)ceil(start * fps) : 0;
   *out = g;
   return KM_OK;
 }
@@ -126,7 +140,9 @@ void km_glitch_push(km_glitch *g, const double *raw, double *clean) {
 void km_glitch_push_at(km_glitch *g, const double *raw_in, double t, double *clean) {
   memcpy(g->in, raw_in, 3 * g->n * sizeof(double));
   const double *raw = g->in;
-  ++g->stats.frames;
+  if (g->any_restarted) memset(g->restarted, 0, g->n * sizeof(bool));
+  g->any_restarted = false;
+  size_t frame = g->stats.frames++;
   for (size_t k = 0; k < g->n; ++k) {
     glitch_joint *s = &g->j[k];
     const double *x = raw + 3 * k;
@@ -172,11 +188,33 @@ void km_glitch_push_at(km_glitch *g, const double *raw_in, double t, double *cle
     }
     g->ok[k] = true;
     int32_t pa = g->par_all[k];
-    if (back && g->catchup > 0) { /* start from where it was held, relative to its parent */
+    if (!s->has_last) s->first = frame;
+    if (back) { /* where it was held minus where it is, relative to its parent if it can */
       bool rel = pa >= 0 && g->ok[pa] && s->has_rel;
+      double o[3];
       for (int c = 0; c < 3; ++c)
-        s->off[c] = rel ? s->rel[c] - (x[c] - raw[3 * (size_t)pa + c]) : s->last[c] - x[c];
+        o[c] = rel ? s->rel[c] - (x[c] - raw[3 * (size_t)pa + c]) : s->last[c] - x[c];
+      /* Back far from where its short start put it, early on: the start was the glitch. The
+       * bar: 10 cm plus half the bone it hung from (a hand 8 cm off its wrist: 14 cm), or
+       * plus a frame's allowed move for a joint held absolutely. */
+      double bar =
+          0.1 +
+          (rel ? 0.5 * sqrt(s->rel[0] * s->rel[0] + s->rel[1] * s->rel[1] + s->rel[2] * s->rel[2])
+               : g->step);
+      if (g->start && s->run <= KM_GLITCH_START_RUN && frame - s->first <= g->start &&
+          sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) > bar) {
+        memset(o, 0, sizeof o);
+        g->restarted[k] = g->any_restarted = true;
+        ++g->stats.restarted;
+        s->first = frame;
+        s->run = 0;
+        s->n_len = s->next_len = 0; /* lengths measured from the wrong start, its own and */
+        for (size_t c = k + 1; c < g->n; ++c) /* its children's */
+          if (g->parents[c] == (int32_t)k) g->j[c].n_len = g->j[c].next_len = 0;
+      }
+      if (g->catchup > 0) memcpy(s->off, o, sizeof o); /* eases in from where it was held */
     }
+    ++s->run;
     s->has_rel = pa >= 0 && g->ok[pa];
     for (int c = 0; s->has_rel && c < 3; ++c)
       s->rel[c] = x[c] - raw[3 * (size_t)pa + c];
@@ -225,9 +263,15 @@ void km_glitch_push_at(km_glitch *g, const double *raw_in, double t, double *cle
 
 void km_glitch_stats_get(const km_glitch *g, km_glitch_stats *out) { *out = g->stats; }
 
+const bool *km_glitch_restarted(const km_glitch *g) {
+  return g && g->any_restarted ? g->restarted : NULL;
+}
+
 void km_glitch_reset(km_glitch *g) {
   if (!g) return;
   memset(g->j, 0, g->n * sizeof *g->j);
+  memset(g->restarted, 0, g->n * sizeof(bool));
+  g->any_restarted = false;
   memset(&g->stats, 0, sizeof g->stats);
 }
 
@@ -237,6 +281,7 @@ void km_glitch_free(km_glitch **g) {
   free((*g)->par_all);
   free((*g)->j);
   free((*g)->ok);
+  free((*g)->restarted);
   free((*g)->in);
   free(*g);
   *g = NULL;

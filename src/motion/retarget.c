@@ -179,6 +179,24 @@ void km_retarget_reset(km_retarget *r) {
 
 static bool valid3(const double *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }
 
+static double skeleton_height(const km_retarget *r, const double *J);
+
+const double *km_retarget_reference(const km_retarget *r) { return r->ref; }
+
+void km_retarget_set_reference(km_retarget *r, size_t j, const double p[3]) {
+  if (!r || j >= r->n_joints || !valid3(p)) return;
+  memcpy(r->ref + 3 * j, p, 3 * sizeof(double));
+  /* what was built on the old reference: the auto scale (the stature, from the head and feet
+   * of the first frame: now from the reference), the root translation's scale (recomputed at
+   * the next push) and the bone speed limit's memory of the performer's bones */
+  if (r->auto_scale && isfinite(r->scale)) {
+    double h = skeleton_height(r, r->ref);
+    if (h > 1e-6) r->scale = r->mesh_height / h;
+  }
+  r->root_s = NAN;
+  if (r->bhave) memset(r->bhave, 0, r->n_joints * sizeof(bool));
+}
+
 static double dist3(const double *a, const double *b) {
   return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
               (a[2] - b[2]) * (a[2] - b[2]));

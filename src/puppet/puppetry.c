@@ -29,6 +29,7 @@ struct km_puppetry {
   int32_t *col; /* nj source columns (-1: absent) or NULL for the identity */
   km_filter *filter;
   km_glitch *glitch; /* NULL: off */
+  int32_t *par;      /* nj parents in the rig's joint order (-1: root); NULL: unknown */
   km_retarget *rt;
   size_t n_handles;
   int32_t *off, *hv;
@@ -99,6 +100,7 @@ typedef struct rig_state {
   km_arap *arap;
   double *handle_targets, *targets, *filt, *p0, *last;
   km_glitch *glitch;
+  int32_t *par;
 } rig_state;
 
 static void rig_state_free(rig_state *r) {
@@ -107,6 +109,7 @@ static void rig_state_free(rig_state *r) {
   free(r->hv);
   km_filter_free(&r->filter);
   km_glitch_free(&r->glitch);
+  free(r->par);
   km_retarget_free(&r->rt);
   km_arap_free(&r->arap);
   free(r->handle_targets);
@@ -149,20 +152,20 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
   km_filter_options fo = p->opt.filter ? p->filter_opt : rig->filter;
   double fps = p->opt.fps > 0 ? p->opt.fps : 30.0;
   if (fo.fps == 0) fo.fps = fps;
+  /* Bones in the rig's joint order: the Kinect v1 tree, or the take's own. */
+  bool kinect_tree = rig->skeleton == KM_RIG_KINECT1 && r.nj == KM_KINECT1_JOINTS;
+  if (kinect_tree || (!r.col && p->parents_in)) {
+    if (!(r.par = km__malloc(r.nj ? r.nj : 1, sizeof(int32_t)))) {
+      rig_state_free(&r);
+      return km__fail(err, KM_ERR_NOMEM, "out of memory for the rig");
+    }
+    for (size_t j = 0; j < r.nj; ++j)
+      r.par[j] = kinect_tree ? km_kinect1_joint_parent((int)j) : p->parents_in[j];
+  }
   if (!p->opt.no_glitch) {
     km_glitch_options go = p->opt.glitch;
     if (go.fps == 0) go.fps = fps;
-    /* Bones in the rig's joint order: the Kinect v1 tree, or the take's own. */
-    int32_t kpar[KM_KINECT1_JOINTS];
-    const int32_t *par = NULL;
-    if (rig->skeleton == KM_RIG_KINECT1 && r.nj == KM_KINECT1_JOINTS) {
-      for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
-        kpar[j] = km_kinect1_joint_parent(j);
-      par = kpar;
-    } else if (!r.col && p->parents_in) {
-      par = p->parents_in;
-    }
-    if ((s = km_glitch_create(r.nj, par, &go, &r.glitch, err)) != KM_OK) {
+    if ((s = km_glitch_create(r.nj, r.par, &go, &r.glitch, err)) != KM_OK) {
       rig_state_free(&r);
       return s;
     }
@@ -216,7 +219,8 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
   km_retarget_vertex_targets(r.rt, r.targets);
 
   rig_state old = {p->nj, p->n_handles,      p->col,     p->off,  p->hv, p->filter, p->rt,
-                   NULL,  p->handle_targets, p->targets, p->filt, p->p0, p->last,   p->glitch};
+                   NULL,  p->handle_targets, p->targets, p->filt, p->p0, p->last,   p->glitch,
+                   p->par};
   if (r.arap) {
     old.arap = p->arap;
     p->arap = r.arap;
@@ -229,6 +233,7 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
   p->hv = r.hv;
   p->filter = r.filter;
   p->glitch = r.glitch;
+  p->par = r.par;
   p->rt = r.rt;
   p->handle_targets = r.handle_targets;
   p->targets = r.targets;
@@ -400,6 +405,40 @@ km_status km_puppetry_push_at(km_puppetry *p, const double *joints, double t, do
   return km_puppetry_push_rotations(p, joints, NULL, t, V_out, err);
 }
 
+static bool valid3(const double *x) { return isfinite(x[0]) && isfinite(x[1]) && isfinite(x[2]); }
+
+/* Joints whose start the glitch rejector found wrong (km_glitch_restarted): the reference the
+ * motion is measured from was that start, so a hand placed 0.6 m off in the first frame held
+ * the mesh's hand 0.6 m off for the whole take (precog_Seq1_1 on the character: up to 11 % of
+ * the diagonal over 185 of 232 frames). The joint's reference is redone as where it is now less
+ * the motion since their references of its neighbours (parent and children) that kept theirs,
+ * else of every such joint. */
+static void restart_references(km_puppetry *p, const bool *re) {
+  const double *ref = km_retarget_reference(p->rt), *x = p->filt;
+  for (size_t j = 0; j < p->nj; ++j) {
+    if (!re[j] || !valid3(x + 3 * j)) continue;
+    double d[3] = {0, 0, 0};
+    int n = 0;
+    for (int pass = 0; pass < 2 && n == 0; ++pass)
+      for (size_t q = 0; q < p->nj; ++q) {
+        bool near = p->par && (p->par[j] == (int32_t)q || p->par[q] == (int32_t)j);
+        /* a joint restarted in this push counts once its own reference is redone (q < j) */
+        if (q == j || (re[q] && q > j) || (pass == 0 && !near) || !valid3(x + 3 * q) ||
+            !valid3(ref + 3 * q))
+          continue;
+        for (int c = 0; c < 3; ++c)
+          d[c] += x[3 * q + c] - ref[3 * q + c];
+        ++n;
+      }
+    if (n == 0) continue;
+    double r0[3];
+    for (int c = 0; c < 3; ++c)
+      r0[c] = x[3 * j + c] - d[c] / n;
+    km_retarget_set_reference(p->rt, j, r0);
+    memcpy(p->p0 + 3 * j, r0, sizeof r0);
+  }
+}
+
 km_status km_puppetry_push_rotations(km_puppetry *p, const double *joints, const double *rotations,
                                      double t, double *V_out, km_error *err) {
   if (!p->filter) return km__fail(err, KM_ERR_INVALID, "km_puppetry_push: no rig set");
@@ -414,7 +453,11 @@ km_status km_puppetry_push_rotations(km_puppetry *p, const double *joints, const
   p->have_last = true;
   if (p->glitch) {
     km_glitch_push_at(p->glitch, p->last, t, p->filt); /* filt as scratch: the filter may alias */
+    const bool *re = km_glitch_restarted(p->glitch);
+    for (size_t j = 0; re && j < p->nj; ++j)
+      if (re[j]) km_filter_restart_joint(p->filter, j);
     km_filter_push(p->filter, p->filt, p->filt);
+    if (re) restart_references(p, re);
   } else {
     km_filter_push(p->filter, p->last, p->filt);
   }
@@ -525,7 +568,8 @@ void km_puppetry_free(km_puppetry **pp) {
   if (!pp || !*pp) return;
   km_puppetry *p = *pp;
   rig_state r = {p->nj,   p->n_handles,      p->col,     p->off,  p->hv, p->filter, p->rt,
-                 p->arap, p->handle_targets, p->targets, p->filt, p->p0, p->last,   p->glitch};
+                 p->arap, p->handle_targets, p->targets, p->filt, p->p0, p->last,   p->glitch,
+                 p->par};
   rig_state_free(&r);
   if (p->own_puppet) km_puppet_free(&p->puppet);
   if (p->names)
