@@ -1014,13 +1014,16 @@ void km_filter_free(km_filter **f);
  * An accepted sample after a gap eases in (catchup_speed): the output is then the sample plus
  * a shrinking offset, not the raw sample.
  * A joint's first sample has nothing to be judged by and is accepted. When it was the glitch
- * (a hand 0.6 m off in frame 0), the true samples after it are rejected as too fast, then
- * re-acquired far from where the start put them: a joint accepted again after a gap within
- * start_seconds of its first sample, after a start of at most 3 accepted samples, more than
- * 10 cm + half its bone (relative to its parent; else 10 cm + a frame's max_speed move) from
- * where it was held, is restarted: output as it comes (no catch-up), its start and bone
- * lengths forgotten, and listed by km_glitch_restarted for the user to redo what it built on
- * the start (km_puppetry re-anchors the joint's reference). */
+ * (a hand 0.6 m off in frame 0), the true samples after it are rejected. Within start_seconds
+ * of a joint's first sample, a joint back after a rejection more than 10 cm + half its bone
+ * (relative to its parent; else 10 cm + a frame's max_speed move) from where it is held is
+ * restarted when it is accepted after a start of at most 0.1 s of samples (3 at 30 fps), or
+ * when its rejected samples have come there steadily (each within a frame's move of the one
+ * before) for at least 2 frames and as many as its start had (a longer glitched start fills
+ * the bone test's lengths): taken as it comes (no catch-up), its start and bone lengths
+ * forgotten, and listed by km_glitch_restarted for the user to redo what it built on the start
+ * (km_puppetry re-anchors the joint's reference). A longer start accepted again far away
+ * eases in as any re-found joint. */
 typedef struct km_glitch_options {
   double fps;            /* frames per second of the pushed frames. 0: 30 */
   double max_speed;      /* m/s. 0: 12 (a fast punch or kick peaks near 10 m/s; a 0.6 m

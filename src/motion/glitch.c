@@ -12,9 +12,10 @@
  *            accepted lengths by more than bone_tolerance * median + bone_slack.
  * A joint's first samples have nothing to be judged against: the first is accepted as it
  * comes. When that start was the glitch (a hand placed 0.6 m off in frame 0), the true samples
- * after it are rejected as too fast and then re-acquired far from where the start put them;
- * within the start window such a re-acquired joint is restarted (km_glitch_restarted): taken
- * as it comes, its start forgotten, and its user told to redo what it built on that start.
+ * after it are rejected (too fast, or, after a longer start, a bone unlike the start's); once
+ * they have come steadily for as many frames as the start had, within the start window, the
+ * joint is restarted (km_glitch_restarted): taken as it comes, its start and bone lengths
+ * forgotten, and its user told to redo what it built on that start.
  * A plain ring buffer and a selection over it give the running median; the window is small
  * (KM_GLITCH_WINDOW samples), so nothing cleverer (two heaps) pays for itself. */
 #include "motion/motion.h"
@@ -25,7 +26,6 @@
 
 #define KM_GLITCH_WINDOW 31
 #define KM_GLITCH_MIN_SAMPLES 5 /* bone lengths seen before the bone test starts */
-#define KM_GLITCH_START_RUN 3   /* a start of at most this many accepted samples may be wrong */
 
 typedef struct glitch_joint {
   double last[3]; /* last accepted sample */
@@ -39,8 +39,12 @@ typedef struct glitch_joint {
   bool was_missing;
   double len[KM_GLITCH_WINDOW]; /* accepted bone lengths to the parent */
   int n_len, next_len;
-  size_t first; /* the frame (count before it) of the first accepted sample, or of a restart */
-  int run;      /* samples accepted since then */
+  size_t first;   /* the frame (count before it) of the first accepted sample, or of a restart */
+  int run;        /* samples accepted since then */
+  double prev[3]; /* the previous frame's sample (has_prev: it was present) */
+  bool has_prev;
+  int streak; /* rejected samples since the last accepted one, each steady (within a frame's
+                 allowed move) with the one before */
 } glitch_joint;
 
 struct km_glitch {
@@ -53,6 +57,7 @@ struct km_glitch {
   int refound;
   double catchup, decay; /* catch-up: metres per frame at most, factor per frame when small */
   size_t start;          /* the start window, frames; 0: no restarts */
+  int short_start;       /* a start this short (0.1 s of samples) may be wholly wrong */
   glitch_joint *j;
   bool *restarted; /* n: restarted in the last push */
   bool any_restarted;
@@ -110,6 +115,7 @@ km_status km_glitch_create(size_t n_joints, const int32_t *parents, const km_gli
   g->decay = pow(0.5, 30.0 / fps);
   double start = o.start_seconds < 0 ? 0 : (o.start_seconds == 0 ? 1.0 : o.start_seconds);
   g->start = isfinite(start) ? (size_t)ceil(start * fps) : 0;
+  g->short_start = (int)fmax(3, ceil(0.1 * fps));
   *out = g;
   return KM_OK;
 }
@@ -133,6 +139,21 @@ static double dist3(const double *a, const double *b) {
   return sqrt(dx * dx + dy * dy + dz * dz);
 }
 
+/* Joint k's start was the glitch: it is taken as it comes (o, the catch-up offset, zeroed),
+ * listed and counted, and the bone lengths measured from the wrong start forgotten: its own
+ * and its children's. */
+static void restart_joint(km_glitch *g, size_t k, size_t frame, double o[3]) {
+  glitch_joint *s = &g->j[k];
+  memset(o, 0, 3 * sizeof(double));
+  g->restarted[k] = g->any_restarted = true;
+  ++g->stats.restarted;
+  s->first = frame;
+  s->run = 0;
+  s->n_len = s->next_len = 0;
+  for (size_t c = k + 1; c < g->n; ++c)
+    if (g->parents[c] == (int32_t)k) g->j[c].n_len = g->j[c].next_len = 0;
+}
+
 void km_glitch_push(km_glitch *g, const double *raw, double *clean) {
   km_glitch_push_at(g, raw, NAN, clean);
 }
@@ -152,14 +173,42 @@ void km_glitch_push_at(km_glitch *g, const double *raw_in, double t, double *cle
     if (!isfinite(x[0]) || !isfinite(x[1]) || !isfinite(x[2])) {
       ++g->stats.missing;
       s->was_missing = true;
+      s->has_prev = false;
       continue;
     }
     ++g->stats.samples;
+    bool steady = s->has_prev && dist3(x, s->prev) <= (g->step > 0 ? g->step : 0.1);
+    memcpy(s->prev, x, sizeof s->prev);
+    s->has_prev = true;
+    int streak = back && steady ? s->streak + 1 : 1; /* with this sample, if it is rejected */
+    int32_t pa = g->par_all[k];
+    bool rel = pa >= 0 && g->ok[pa] && s->has_rel;
+    double o[3]; /* where it was held minus where it is, relative to its parent if it can */
+    for (int c = 0; back && c < 3; ++c)
+      o[c] = rel ? s->rel[c] - (x[c] - raw[3 * (size_t)pa + c]) : s->last[c] - x[c];
+    /* Restart (see the top): early on (within the start window of its first sample), back
+     * after a rejection far from where it is held (farther than 10 cm plus half the bone it
+     * hangs from, a hand 8 cm off its wrist: 14 cm; or 10 cm plus a frame's allowed move for a
+     * joint held absolutely), and either accepted again after a short start (0.1 s of
+     * samples), or rejected steadily there for at least 2 frames and as many as its start had
+     * (a start of 5 glitched frames fills the bone test's lengths, which would then reject the
+     * true joint for good). A longer start is trusted: a joint lost and re-found far away
+     * after it eases in (catch-up). */
+    bool far = false;
+    if (back && g->start && frame - s->first <= g->start) {
+      double bar =
+          0.1 +
+          (rel ? 0.5 * sqrt(s->rel[0] * s->rel[0] + s->rel[1] * s->rel[1] + s->rel[2] * s->rel[2])
+               : g->step);
+      far = sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) > bar;
+    }
+    bool restart = far && streak >= 2 && streak >= s->run && !s->hold;
     if (s->was_missing && s->has_last) s->hold = g->refound;
     s->was_missing = false;
     if (s->hold > 0) {
       --s->hold;
       ++g->stats.refound;
+      s->streak = streak;
       continue;
     }
     /* The allowance grows with the frames since the last accepted sample, or with the time
@@ -168,8 +217,11 @@ void km_glitch_push_at(km_glitch *g, const double *raw_in, double t, double *cle
     double frames = s->since;
     if (isfinite(t) && isfinite(s->t_last) && t - s->t_last > 0)
       frames = fmax(frames, (t - s->t_last) * g->fps);
-    if (s->has_last && g->step > 0 && dist3(x, s->last) > g->step * frames) {
+    if (restart) {
+      restart_joint(g, k, frame, o);
+    } else if (s->has_last && g->step > 0 && dist3(x, s->last) > g->step * frames) {
       ++g->stats.speed;
+      s->streak = streak;
       continue;
     }
     int32_t p = g->parents[k];
@@ -179,6 +231,7 @@ void km_glitch_push_at(km_glitch *g, const double *raw_in, double t, double *cle
         double med = median(s->len, s->n_len);
         if (fabs(len - med) > g->tol * med + g->slack) {
           ++g->stats.bone;
+          s->streak = streak;
           continue;
         }
       }
@@ -187,34 +240,11 @@ void km_glitch_push_at(km_glitch *g, const double *raw_in, double t, double *cle
       if (s->n_len < KM_GLITCH_WINDOW) ++s->n_len;
     }
     g->ok[k] = true;
-    int32_t pa = g->par_all[k];
     if (!s->has_last) s->first = frame;
-    if (back) { /* where it was held minus where it is, relative to its parent if it can */
-      bool rel = pa >= 0 && g->ok[pa] && s->has_rel;
-      double o[3];
-      for (int c = 0; c < 3; ++c)
-        o[c] = rel ? s->rel[c] - (x[c] - raw[3 * (size_t)pa + c]) : s->last[c] - x[c];
-      /* Back far from where its short start put it, early on: the start was the glitch. The
-       * bar: 10 cm plus half the bone it hung from (a hand 8 cm off its wrist: 14 cm), or
-       * plus a frame's allowed move for a joint held absolutely. */
-      double bar =
-          0.1 +
-          (rel ? 0.5 * sqrt(s->rel[0] * s->rel[0] + s->rel[1] * s->rel[1] + s->rel[2] * s->rel[2])
-               : g->step);
-      if (g->start && s->run <= KM_GLITCH_START_RUN && frame - s->first <= g->start &&
-          sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) > bar) {
-        memset(o, 0, sizeof o);
-        g->restarted[k] = g->any_restarted = true;
-        ++g->stats.restarted;
-        s->first = frame;
-        s->run = 0;
-        s->n_len = s->next_len = 0; /* lengths measured from the wrong start, its own and */
-        for (size_t c = k + 1; c < g->n; ++c) /* its children's */
-          if (g->parents[c] == (int32_t)k) g->j[c].n_len = g->j[c].next_len = 0;
-      }
-      if (g->catchup > 0) memcpy(s->off, o, sizeof o); /* eases in from where it was held */
-    }
+    if (far && !restart && s->run <= g->short_start) restart_joint(g, k, frame, o);
+    if (back && g->catchup > 0) memcpy(s->off, o, sizeof o); /* eases in from where it was held */
     ++s->run;
+    s->streak = 0;
     s->has_rel = pa >= 0 && g->ok[pa];
     for (int c = 0; s->has_rel && c < 3; ++c)
       s->rel[c] = x[c] - raw[3 * (size_t)pa + c];
