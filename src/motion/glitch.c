@@ -19,6 +19,7 @@
  * A plain ring buffer and a selection over it give the running median; the window is small
  * (KM_GLITCH_WINDOW samples), so nothing cleverer (two heaps) pays for itself. */
 #include "motion/motion.h"
+#include "math/math.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -183,7 +184,8 @@ void km_glitch_push_at(km_glitch *g, const double *raw_in, double t, double *cle
     int streak = back && steady ? s->streak + 1 : 1; /* with this sample, if it is rejected */
     int32_t pa = g->par_all[k];
     bool rel = pa >= 0 && g->ok[pa] && s->has_rel;
-    double o[3]; /* where it was held minus where it is, relative to its parent if it can */
+    double o[3] = {0, 0, 0}; /* where it was held minus where it is (back only), relative to
+                                its parent if it can */
     for (int c = 0; back && c < 3; ++c)
       o[c] = rel ? s->rel[c] - (x[c] - raw[3 * (size_t)pa + c]) : s->last[c] - x[c];
     /* Restart (see the top): early on (within the start window of its first sample), back
@@ -196,11 +198,8 @@ void km_glitch_push_at(km_glitch *g, const double *raw_in, double t, double *cle
      * after it eases in (catch-up). */
     bool far = false;
     if (back && g->start && frame - s->first <= g->start) {
-      double bar =
-          0.1 +
-          (rel ? 0.5 * sqrt(s->rel[0] * s->rel[0] + s->rel[1] * s->rel[1] + s->rel[2] * s->rel[2])
-               : g->step);
-      far = sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) > bar;
+      double bar = 0.1 + (rel ? 0.5 * sqrt(km__dot3(s->rel, s->rel)) : g->step);
+      far = sqrt(km__dot3(o, o)) > bar;
     }
     bool restart = far && streak >= 2 && streak >= s->run && !s->hold;
     if (s->was_missing && s->has_last) s->hold = g->refound;

@@ -5,6 +5,7 @@
 #include "puppet/puppet.h"
 
 #include "motion/motion.h"
+#include "math/math.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -405,8 +406,6 @@ km_status km_puppetry_push_at(km_puppetry *p, const double *joints, double t, do
   return km_puppetry_push_rotations(p, joints, NULL, t, V_out, err);
 }
 
-static bool valid3(const double *x) { return isfinite(x[0]) && isfinite(x[1]) && isfinite(x[2]); }
-
 /* Joints whose start the glitch rejector found wrong (km_glitch_restarted): the reference the
  * motion is measured from was that start, so a hand placed 0.6 m off in the first frame held
  * the mesh's hand 0.6 m off for the whole take (precog_Seq1_1 on the character: up to 11 % of
@@ -416,15 +415,15 @@ static bool valid3(const double *x) { return isfinite(x[0]) && isfinite(x[1]) &&
 static void restart_references(km_puppetry *p, const bool *re) {
   const double *ref = km_retarget_reference(p->rt), *x = p->filt;
   for (size_t j = 0; j < p->nj; ++j) {
-    if (!re[j] || !valid3(x + 3 * j)) continue;
+    if (!re[j] || !km__finite3(x + 3 * j)) continue;
     double d[3] = {0, 0, 0};
     int n = 0;
     for (int pass = 0; pass < 2 && n == 0; ++pass)
       for (size_t q = 0; q < p->nj; ++q) {
         bool near = p->par && (p->par[j] == (int32_t)q || p->par[q] == (int32_t)j);
         /* a joint restarted in this push counts once its own reference is redone (q < j) */
-        if (q == j || (re[q] && q > j) || (pass == 0 && !near) || !valid3(x + 3 * q) ||
-            !valid3(ref + 3 * q))
+        if (q == j || (re[q] && q > j) || (pass == 0 && !near) || !km__finite3(x + 3 * q) ||
+            !km__finite3(ref + 3 * q))
           continue;
         for (int c = 0; c < 3; ++c)
           d[c] += x[3 * q + c] - ref[3 * q + c];
