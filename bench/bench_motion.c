@@ -83,97 +83,16 @@ typedef struct bm_metrics {
   size_t folded, below, eased;
 } bm_metrics;
 
-/* Mesh topology and rest measures shared by both variants. */
+/* Rest measures shared by both variants (the edges and folds are km_deform_check's). */
 typedef struct bm_geom {
-  size_t n_edges, n_pairs;
-  int32_t *edges; /* n_edges*2 */
-  double *len0;   /* n_edges */
-  int32_t *pairs; /* n_pairs*2 faces sharing an edge, < 60 degrees apart at rest */
   double diag, floor_y;
 } bm_geom;
 
-typedef struct bm_half {
-  int32_t a, b, f;
-} bm_half;
-
-static int half_cmp(const void *x, const void *y) {
-  const bm_half *p = x, *q = y;
-  if (p->a != q->a) return p->a < q->a ? -1 : 1;
-  if (p->b != q->b) return p->b < q->b ? -1 : 1;
-  return p->f < q->f ? -1 : p->f > q->f;
-}
-
-static void face_normal(const double *V, const int32_t *t, double n[3]) {
-  const double *a = V + 3 * (size_t)t[0], *b = V + 3 * (size_t)t[1], *c = V + 3 * (size_t)t[2];
-  double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-  double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-  n[0] = u[1] * v[2] - u[2] * v[1];
-  n[1] = u[2] * v[0] - u[0] * v[2];
-  n[2] = u[0] * v[1] - u[1] * v[0];
-  double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-  for (int k = 0; k < 3; ++k)
-    n[k] = l > 0 ? n[k] / l : 0;
-}
-
-static void geom_free(bm_geom *g) {
-  free(g->edges);
-  free(g->len0);
-  free(g->pairs);
-  memset(g, 0, sizeof *g);
-}
-
-static bool geom_build(const km_mesh *m, bm_geom *g) {
-  memset(g, 0, sizeof *g);
-  size_t nh = 3 * m->n_faces;
-  bm_half *h = malloc((nh ? nh : 1) * sizeof *h);
-  double *N = malloc(3 * (m->n_faces ? m->n_faces : 1) * sizeof *N);
-  g->edges = malloc(2 * (nh ? nh : 1) * sizeof *g->edges);
-  g->len0 = malloc((nh ? nh : 1) * sizeof *g->len0);
-  g->pairs = malloc(2 * (nh ? nh : 1) * sizeof *g->pairs);
-  if (!h || !N || !g->edges || !g->len0 || !g->pairs) {
-    free(h);
-    free(N);
-    geom_free(g);
-    return false;
-  }
-  for (size_t f = 0; f < m->n_faces; ++f) {
-    const int32_t *t = m->F + 3 * f;
-    face_normal(m->V, t, N + 3 * f);
-    for (int k = 0; k < 3; ++k) {
-      int32_t a = t[k], b = t[(k + 1) % 3];
-      h[3 * f + k] = (bm_half){a < b ? a : b, a < b ? b : a, (int32_t)f};
-    }
-  }
-  qsort(h, nh, sizeof *h, half_cmp);
-  for (size_t i = 0; i < nh;) {
-    size_t j = i + 1;
-    while (j < nh && h[j].a == h[i].a && h[j].b == h[i].b)
-      ++j;
-    const double *p = m->V + 3 * (size_t)h[i].a, *q = m->V + 3 * (size_t)h[i].b;
-    double l = sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
-                    (p[2] - q[2]) * (p[2] - q[2]));
-    if (l > 0) {
-      g->edges[2 * g->n_edges] = h[i].a;
-      g->edges[2 * g->n_edges + 1] = h[i].b;
-      g->len0[g->n_edges++] = l;
-    }
-    if (j - i == 2) { /* manifold interior edge */
-      const double *n1 = N + 3 * (size_t)h[i].f, *n2 = N + 3 * (size_t)h[i + 1].f;
-      if (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2] > 0.5) {
-        g->pairs[2 * g->n_pairs] = h[i].f;
-        g->pairs[2 * g->n_pairs + 1] = h[i + 1].f;
-        g->n_pairs++;
-      }
-    }
-    i = j;
-  }
-  free(h);
-  free(N);
+static void geom_build(const km_mesh *m, bm_geom *g) {
   g->diag = km_bbox_diagonal(m->V, m->n_vertices);
   g->floor_y = INFINITY;
   for (size_t v = 0; v < m->n_vertices; ++v)
     if (m->V[3 * v + 1] < g->floor_y) g->floor_y = m->V[3 * v + 1];
-  return true;
 }
 
 /* MESH: a path, "character:N", or a name looked up in DATA/meshes (.obj, .off, .ply). */
@@ -287,38 +206,23 @@ static void where_write(const char *dir, const char *tag, const km_mesh *m, cons
   if (km_mesh_write(p, &frame, NULL, &err) != KM_OK) fprintf(stderr, "WHERE: %s\n", err.message);
 }
 
-static int32_t where_handle(const km_mesh *m, const km_rig *rig, const double *x) {
-  double best = INFINITY;
-  int32_t h = -1;
-  for (size_t i = 0; i < rig->n_handles; ++i)
-    for (size_t k = 0; k < rig->handles[i].n_vertices; ++k) {
-      const double *q = m->V + 3 * (size_t)rig->handles[i].vertices[k];
-      double d = (q[0] - x[0]) * (q[0] - x[0]) + (q[1] - x[1]) * (q[1] - x[1]) +
-                 (q[2] - x[2]) * (q[2] - x[2]);
-      if (d < best) best = d, h = (int32_t)i;
-    }
-  return h;
-}
-
-static void where_report(const char *tag, const km_mesh *m, const km_rig *rig, const bm_geom *g,
-                         size_t worst_e, size_t worst_f, double worst, const unsigned char *ever,
-                         const int32_t *first) {
-  const int32_t *e = g->edges + 2 * worst_e;
+static void where_report(const char *tag, const km_mesh *m, const km_rig *rig, const int32_t e[2],
+                         size_t worst_f, double worst, const int32_t *first) {
   double x[3];
   for (int k = 0; k < 3; ++k)
     x[k] = 0.5 * (m->V[3 * (size_t)e[0] + k] + m->V[3 * (size_t)e[1] + k]);
-  int32_t h = where_handle(m, rig, x);
+  int32_t h = km_rig_nearest_handle(rig, m, x);
   fprintf(stderr, "WHERE %s: stretch %.3f frame %zu edge %d-%d near %s\n", tag, worst, worst_f,
           e[0], e[1], h >= 0 ? rig->handles[h].name : "-");
   size_t cnt[64] = {0}, fr[64] = {0};
   for (size_t f = 0; f < m->n_faces; ++f) {
-    if (!ever[f]) continue;
+    if (first[f] < 0) continue;
     const int32_t *t = m->F + 3 * f;
     for (int k = 0; k < 3; ++k)
       x[k] =
           (m->V[3 * (size_t)t[0] + k] + m->V[3 * (size_t)t[1] + k] + m->V[3 * (size_t)t[2] + k]) /
           3;
-    h = where_handle(m, rig, x);
+    h = km_rig_nearest_handle(rig, m, x);
     if (h >= 0 && h < 64) cnt[h]++, fr[h] = (size_t)first[f];
   }
   fprintf(stderr, "WHERE %s: folds", tag);
@@ -327,63 +231,13 @@ static void where_report(const char *tag, const km_mesh *m, const km_rig *rig, c
   fprintf(stderr, "\n");
 }
 
-/* The largest |l / l0 - 1| over the edges of frame V (NaN propagates; *worst: its edge,
- * *longest: the edge of the largest l / l0); x's shortest and longest l / l0 and its frame
- * counts take this frame's in. */
-static double frame_stretch(const bm_geom *g, const double *V, size_t *worst, size_t *longest,
-                            bm_metrics *x) {
-  double m = 0, lo = INFINITY, hi = 0;
-  for (size_t e = 0; e < g->n_edges; ++e) {
-    const double *a = V + 3 * (size_t)g->edges[2 * e], *b = V + 3 * (size_t)g->edges[2 * e + 1];
-    double l = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
-                    (a[2] - b[2]) * (a[2] - b[2]));
-    double q = l / g->len0[e], r = fabs(q - 1);
-    if (!(r <= m)) m = r, *worst = e;
-    if (!(q >= lo)) lo = q; /* NaN propagates, as in m */
-    if (!(q <= hi)) hi = q, *longest = e;
-  }
-  if (!(lo >= x->ratio_min)) x->ratio_min = lo;
-  if (!(hi <= x->ratio_max)) x->ratio_max = hi;
-  x->long_frames += hi > 1.5;
-  x->short_frames += lo < 0.5;
-  return m;
-}
-
-/* Folded pairs of frame f (V, face normals into N): marks their triangles in ever (and, when
- * first is not NULL, the frame a triangle first folded). Returns the pairs folded now. */
-static size_t frame_folds(const km_mesh *m, const bm_geom *g, const double *V, double *N,
-                          unsigned char *ever, int32_t *first, size_t f) {
-  for (size_t k = 0; k < m->n_faces; ++k)
-    face_normal(V, m->F + 3 * k, N + 3 * k);
-  size_t now = 0;
-  for (size_t q = 0; q < g->n_pairs; ++q) {
-    const double *n1 = N + 3 * (size_t)g->pairs[2 * q], *n2 = N + 3 * (size_t)g->pairs[2 * q + 1];
-    if (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2] < -0.5) {
-      for (int s = 0; s < 2; ++s) {
-        int32_t t = g->pairs[2 * q + s];
-        if (first && !ever[t]) first[t] = (int32_t)f;
-        ever[t] = 1;
-      }
-      now++;
-    }
-  }
-  return now;
-}
-
-/* Largest vertex step from Vp to V (*jv: its vertex) and the lowest y of V. */
-static double frame_step(size_t nv, const double *V, const double *Vp, size_t *jv, double *ymin) {
-  double jump = 0;
-  *ymin = INFINITY;
-  for (size_t v = 0; v < nv; ++v) {
-    if (V[3 * v + 1] < *ymin) *ymin = V[3 * v + 1];
-    if (Vp) {
-      double dx = V[3 * v] - Vp[3 * v], dy = V[3 * v + 1] - Vp[3 * v + 1],
-             dz = V[3 * v + 2] - Vp[3 * v + 2];
-      double d = sqrt(dx * dx + dy * dy + dz * dz);
-      if (!(d <= jump)) jump = d, *jv = v;
-    }
-  }
-  return jump;
+/* Takes frame fr's shortest and longest l / l0 and its frame counts into x; returns its stretch. */
+static double take_frame(const km_deform_frame *fr, bm_metrics *x) {
+  if (!(fr->ratio_min >= x->ratio_min)) x->ratio_min = fr->ratio_min;
+  if (!(fr->ratio_max <= x->ratio_max)) x->ratio_max = fr->ratio_max;
+  x->long_frames += fr->ratio_max > 1.5;
+  x->short_frames += fr->ratio_min < 0.5;
+  return fr->stretch;
 }
 
 /* The 95th percentile of x (n > 0 values, sorted in place). */
@@ -419,13 +273,13 @@ static km_puppetry_options variant_options(km_puppet *model, double handle_weigh
 typedef struct bm_skin {
   const km_character *c;
   bm_metrics out;
-  double *J, *T, *V, *Vp, *tm, *jf;
-  unsigned char *ever;
+  double *J, *T, *V, *tm, *jf;
+  km_deform_check *dc;
 } bm_skin;
 
 static void skin_frame(bm_skin *sk, const km_mesh *m, const bm_geom *g, const km_puppetry *p,
-                       double *N, size_t f, const char *where, const double *Vb) {
-  size_t nv = m->n_vertices, worst, jv;
+                       size_t f, const char *where, const double *Vb) {
+  size_t nv = m->n_vertices;
   double t0 = km_cli_now();
   km_error e = {0};
   if (!km_puppetry_posed_joints(p, sk->J) ||
@@ -435,22 +289,22 @@ static void skin_frame(bm_skin *sk, const km_mesh *m, const bm_geom *g, const km
     return;
   }
   sk->tm[f] = 1e3 * (km_cli_now() - t0);
-  size_t longest = 0;
-  double r = frame_stretch(g, sk->V, &worst, &longest, &sk->out), ymin;
+  km_deform_frame fr;
+  if (km_deform_check_add(sk->dc, sk->V, &fr, &e) != KM_OK) {
+    sk->out.stretch = NAN;
+    return;
+  }
+  double r = take_frame(&fr, &sk->out);
   if (where && r > sk->out.stretch) {
     where_write(where, "skin", m, sk->V);
     where_write(where, "skin_b", m, Vb); /* B's frame beside it */
     fprintf(stderr, "WHERE L: stretch %.3f frame %zu\n", r, f);
   }
   if (!(r <= sk->out.stretch)) sk->out.stretch = r;
-  frame_folds(m, g, sk->V, N, sk->ever, NULL, f);
-  double jump = 100 * frame_step(nv, sk->V, f ? sk->Vp : NULL, &jv, &ymin) / g->diag;
+  double jump = 100 * fr.step / g->diag;
   if (f && !(jump <= sk->out.jump_pct)) sk->out.jump_pct = jump;
   if (f) sk->jf[f - 1] = jump, sk->out.jump_over3 += jump > 3;
-  if (ymin < g->floor_y - BM_FLOOR_TOL * g->diag) sk->out.below++;
-  double *sw = sk->V;
-  sk->V = sk->Vp;
-  sk->Vp = sw;
+  if (fr.y_min < g->floor_y - BM_FLOOR_TOL * g->diag) sk->out.below++;
 }
 
 /* One variant over the take: the metrics (where: KM_BENCH_WHERE's folder, or NULL; sk: the
@@ -461,13 +315,12 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   km_puppetry_options o = variant_options(model, handle_weight, t);
   km_puppetry *p = NULL;
   size_t nv = m->n_vertices;
-  double *V = malloc(3 * nv * sizeof *V), *Vp = malloc(3 * nv * sizeof *Vp);
-  double *N = malloc(3 * (m->n_faces ? m->n_faces : 1) * sizeof *N);
+  double *V = malloc(3 * nv * sizeof *V);
+  km_deform_check *dc = NULL;
   double *tm = malloc((nf ? nf : 1) * sizeof *tm), *jf = malloc((nf ? nf : 1) * sizeof *jf);
   double *rf = malloc((nf ? nf : 1) * sizeof *rf); /* the take's own step per frame (% diag) */
-  unsigned char *ever = calloc(m->n_faces ? m->n_faces : 1, 1);
-  int32_t *first = where ? calloc(m->n_faces ? m->n_faces : 1, sizeof *first) : NULL;
-  size_t worst_e = 0, worst_f = 0, most_folds = 0, long_e = 0, long_f = 0;
+  int32_t worst_e[2] = {0, 0}, long_e[2] = {0, 0};
+  size_t worst_f = 0, most_folds = 0, long_f = 0;
   km_status s = KM_OK;
   memset(out, 0, sizeof *out);
   out->ratio_min = INFINITY;
@@ -478,17 +331,17 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     sk->J = malloc(3 * (nj > 20 ? nj : 20) * sizeof(double));
     sk->T = malloc(12 * (nj ? nj : 1) * sizeof(double));
     sk->V = malloc(3 * nv * sizeof(double));
-    sk->Vp = malloc(3 * nv * sizeof(double));
     sk->tm = calloc(nf ? nf : 1, sizeof(double));
     sk->jf = calloc(nf ? nf : 1, sizeof(double));
-    sk->ever = calloc(m->n_faces ? m->n_faces : 1, 1);
   }
-  if (!V || !Vp || !N || !tm || !jf || !rf || !ever || (where && !first) ||
-      (sk && (!sk->J || !sk->T || !sk->V || !sk->Vp || !sk->tm || !sk->jf || !sk->ever))) {
+  if (!V || !tm || !jf || !rf || (sk && (!sk->J || !sk->T || !sk->V || !sk->tm || !sk->jf))) {
     s = KM_ERR_NOMEM;
     snprintf(err->message, sizeof err->message, "out of memory");
     goto done;
   }
+  if ((s = km_deform_check_create(m, &dc, err)) != KM_OK ||
+      (sk && (s = km_deform_check_create(m, &sk->dc, err)) != KM_OK))
+    goto done;
   s = km_puppetry_create(m, rig, (const char *const *)t->joint_names, t->n_joints, &o, &p, NULL,
                          err);
   if (s != KM_OK) goto done;
@@ -497,26 +350,31 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     s = km_puppetry_push(p, t->positions + f * t->n_joints * 3, V, err);
     tm[f] = 1e3 * (km_cli_now() - t0);
     if (s != KM_OK) goto done;
-    size_t e = 0, le = 0;
+    km_deform_frame fr;
+    if ((s = km_deform_check_add(dc, V, &fr, err)) != KM_OK) goto done;
     double longest_before = out->ratio_max;
-    double r = frame_stretch(g, V, &e, &le, out);
-    if (where && r > out->stretch) where_write(where, "stretch", m, V), worst_e = e, worst_f = f;
+    double r = take_frame(&fr, out);
+    if (where && r > out->stretch) {
+      where_write(where, "stretch", m, V), worst_f = f;
+      memcpy(worst_e, fr.stretch_edge, sizeof worst_e);
+    }
     if (!(r <= out->stretch)) out->stretch = r; /* NaN propagates */
     /* the longest edge so far (a miss can be a squash; this is where the mesh stretches) */
-    if (where && out->ratio_max > longest_before)
-      where_write(where, "long", m, V), long_e = le, long_f = f;
-    size_t nfold_now = frame_folds(m, g, V, N, ever, first, f);
+    if (where && out->ratio_max > longest_before) {
+      where_write(where, "long", m, V), long_f = f;
+      memcpy(long_e, fr.long_edge, sizeof long_e);
+    }
+    size_t nfold_now = fr.folded_pairs;
     if (where && nfold_now > most_folds) {
       most_folds = nfold_now;
       where_write(where, "folds", m, V);
       fprintf(stderr, "WHERE folds frame %zu: %zu pairs\n", f, nfold_now);
     }
-    double ymin;
-    size_t jv = 0;
-    double jump = frame_step(nv, V, f ? Vp : NULL, &jv, &ymin);
+    double jump = fr.step;
+    size_t jv = fr.step_vertex >= 0 ? (size_t)fr.step_vertex : 0;
     if (f) jf[f - 1] = 100 * jump / g->diag;
     if (where && f && 100 * jump / g->diag > out->jump_pct) {
-      int32_t h = where_handle(m, rig, m->V + 3 * jv);
+      int32_t h = km_rig_nearest_handle(rig, m, m->V + 3 * jv);
       fprintf(stderr, "WHERE jump frame %zu: %.2f%% vertex %zu near %s\n", f, 100 * jump / g->diag,
               jv, h >= 0 ? rig->handles[h].name : "-");
     }
@@ -531,19 +389,17 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
                  km_puppetry_scale(p) / g->diag;
       if (d > rf[f - 1] / 100) rf[f - 1] = 100 * d; /* NaN: missing, skipped */
     }
-    if (ymin < g->floor_y - BM_FLOOR_TOL * g->diag) out->below++;
-    double *sw = V;
-    V = Vp;
-    Vp = sw;
-    if (sk && !isnan(sk->out.stretch)) skin_frame(sk, m, g, p, N, f, where, Vp);
+    if (fr.y_min < g->floor_y - BM_FLOOR_TOL * g->diag) out->below++;
+    if (sk && !isnan(sk->out.stretch)) skin_frame(sk, m, g, p, f, where, V);
   }
-  for (size_t k = 0; k < m->n_faces; ++k)
-    out->folded += ever[k];
+  km_deform_summary sum;
+  km_deform_check_summary(dc, &sum);
+  out->folded = sum.folded;
   out->eased = km_puppetry_eased_frames(p);
   if (where) {
-    where_report("B", m, rig, g, worst_e, worst_f, out->stretch, ever, first);
-    const int32_t *le = g->edges + 2 * long_e;
-    int32_t h = where_handle(m, rig, m->V + 3 * (size_t)le[0]);
+    where_report("B", m, rig, worst_e, worst_f, out->stretch, km_deform_check_first_fold(dc));
+    const int32_t *le = long_e;
+    int32_t h = km_rig_nearest_handle(rig, m, m->V + 3 * (size_t)le[0]);
     fprintf(stderr, "WHERE B: longest l/l0 %.3f frame %zu edge %d-%d near %s (long.obj)\n",
             out->ratio_max, long_f, le[0], le[1], h >= 0 ? rig->handles[h].name : "-");
   }
@@ -553,8 +409,8 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     out->raw_jump_pct = rf[nf - 2];
   }
   if (sk) {
-    for (size_t k = 0; k < m->n_faces; ++k)
-      sk->out.folded += sk->ever[k];
+    km_deform_check_summary(sk->dc, &sum);
+    sk->out.folded = sum.folded;
     finish_times(&sk->out, sk->tm, sk->jf, nf);
   }
 done:
@@ -562,22 +418,17 @@ done:
     free(sk->J);
     free(sk->T);
     free(sk->V);
-    free(sk->Vp);
     free(sk->tm);
     free(sk->jf);
-    free(sk->ever);
-    sk->J = sk->T = sk->V = sk->Vp = sk->tm = sk->jf = NULL;
-    sk->ever = NULL;
+    sk->J = sk->T = sk->V = sk->tm = sk->jf = NULL;
+    km_deform_check_free(&sk->dc);
   }
   km_puppetry_free(&p);
+  km_deform_check_free(&dc);
   free(V);
-  free(Vp);
-  free(N);
   free(tm);
   free(jf);
   free(rf);
-  free(ever);
-  free(first);
   return s;
 }
 
@@ -692,10 +543,7 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
   double t_model = km_cli_now() - t0;
   /* the timing pass's second model (time_variants), read back from the cache just written */
   if (!a->full && km_puppetry_model_open(&m, &mo, &model2, NULL, &err) != KM_OK) goto skip_mesh;
-  if (!geom_build(&m, &g)) {
-    snprintf(err.message, sizeof err.message, "out of memory");
-    goto skip_mesh;
-  }
+  geom_build(&m, &g);
   if (getenv("KM_BENCH_WHERE")) {
     where_write(getenv("KM_BENCH_WHERE"), "rest", &m, m.V);
     char hp[1200];
@@ -859,7 +707,6 @@ done:
     close(fd);
     remove(tmp);
   }
-  geom_free(&g);
   km_puppet_free(&model);
   km_puppet_free(&model2);
   km_rig_free(&rig);

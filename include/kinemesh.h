@@ -563,6 +563,76 @@ void km_vertex_distance_stats(const double *A, const double *B, size_t n, double
 /* Returns the length of the bounding-box diagonal of V (#V*3), 0 for an empty set. */
 double km_bbox_diagonal(const double *V, size_t n_vertices);
 
+/* Deformation check: how far the frames of an animation of a mesh depart from its rest shape,
+ * by the measures of `bench motion` (issue 12): edge length ratios l / l0, folded triangles,
+ * one-frame vertex steps. A person sees a stretched limb, a fold or a spike; these are the
+ * numbers that find the frame and the place. Create once per rest mesh, add every frame in
+ * order, read the summary, free.
+ *   A folded pair: two triangles across an edge whose normals are less than 60 degrees apart at
+ *   rest and more than 120 degrees apart in the frame (a crease turned inside out). */
+typedef struct km_deform_check km_deform_check;
+
+/* One frame's measures (km_deform_check_add). A NaN position propagates into the ratios. */
+typedef struct km_deform_frame {
+  double stretch;              /* max over edges of |l / l0 - 1| (a squash counts as a stretch) */
+  int32_t stretch_edge[2];     /* that edge's vertices */
+  double ratio_min, ratio_max; /* shortest and longest l / l0 */
+  int32_t long_edge[2];        /* the vertices of the longest one */
+  size_t folded_pairs;         /* folded pairs in this frame */
+  double step; /* largest vertex move from the previous frame (mesh units); 0 on the first */
+  int32_t step_vertex; /* its vertex (-1 on the first frame) */
+  double y_min;        /* lowest y of the frame */
+} km_deform_frame;
+
+/* The measures over every frame added so far. */
+typedef struct km_deform_summary {
+  size_t frames;
+  double diagonal;      /* of the rest mesh's bounding box (steps are read against it) */
+  double stretch;       /* the largest frame stretch */
+  size_t stretch_frame; /* its frame */
+  int32_t stretch_edge[2];
+  double ratio_min, ratio_max; /* over all frames (INFINITY and 0 before the first) */
+  size_t ratio_max_frame;      /* the frame of the longest edge */
+  int32_t long_edge[2];        /* its vertices */
+  size_t long_frames;          /* frames with an edge longer than 1.5 times its rest length */
+  size_t short_frames;         /* frames with an edge shorter than 0.5 times */
+  size_t folded;               /* triangles folded in some frame (each counted once) */
+  size_t most_folded_pairs;    /* the most folded pairs in one frame */
+  size_t most_folded_frame;    /* that frame */
+  double step;                 /* the largest one-frame vertex step (mesh units) */
+  size_t step_frame;           /* the frame it ends in */
+  int32_t step_vertex;         /* its vertex (-1 with fewer than two frames) */
+} km_deform_summary;
+
+/* Precompute: the rest mesh's edges and lengths and the pairs of triangles that can fold.
+ *   rest  in: triangle mesh, #V vertices, #F faces (read here only: the check keeps what it needs)
+ *   out   out: the check (free with km_deform_check_free) */
+km_status km_deform_check_create(const km_mesh *rest, km_deform_check **out, km_error *err);
+/* Adds the next frame.
+ *   V      in: #V*3 positions of the frame, in the rest mesh's units and vertex order
+ *   frame  out (may be NULL): this frame's measures */
+km_status km_deform_check_add(km_deform_check *c, const double *V, km_deform_frame *frame,
+                              km_error *err);
+/* The summary of the frames added so far. */
+void km_deform_check_summary(const km_deform_check *c, km_deform_summary *out);
+/* Per triangle (#F), the first frame in which it was folded, -1 for never (owned by c). */
+const int32_t *km_deform_check_first_fold(const km_deform_check *c);
+/* The frames added so far, in order (owned by c; valid until the next add).
+ *   frames  out: the measures of each frame; may be NULL
+ * Returns their count. */
+size_t km_deform_check_frames(const km_deform_check *c, const km_deform_frame **frames);
+/* Writes the summary and every frame's measures as JSON, atomically (parent folders made):
+ * {"format":"kinemesh-deform-report","version":1,"frames":N,"diagonal":..,"stretch_max":..,
+ * "stretch_frame":..,"stretch_edge":[a,b],"edge_ratio_min":..,"edge_ratio_max":..,
+ * "edge_ratio_max_frame":..,"long_edge":[a,b],"frames_edge_over_1_5x":..,
+ * "frames_edge_under_0_5x":..,"folded_triangles":..,"most_folded_pairs":..,
+ * "most_folded_frame":..,"step_max_pct":..,"step_frame":..,"step_vertex":..,
+ * "per_frame":[{"stretch":..,"edge_ratio_min":..,"edge_ratio_max":..,"long_edge":[a,b],
+ * "folded_pairs":..,"step_pct":..,"y_min":..}, ...]}; frames count from 0, steps are % of the
+ * rest diagonal, a NaN is null. Errors: KM_ERR_IO naming path. */
+km_status km_deform_check_write_json(const km_deform_check *c, const char *path, km_error *err);
+void km_deform_check_free(km_deform_check **c);
+
 /* k vertices spread over the mesh by farthest-point sampling (Euclidean, deterministic: the
  * first is the vertex farthest from the centroid, each next one the farthest from those
  * taken). For landmarks on a mesh without a rig: meshes of one connectivity share the ids.
@@ -1229,6 +1299,13 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
                        km_error *err);
 /* Frees the handles and maps of rig and zeroes the struct. */
 void km_rig_free(km_rig *rig);
+/* The handle with a vertex nearest to x at rest: where on a character a place is, in the rig's
+ * words ("near hand_left").
+ *   rig   in: rig resolved on mesh
+ *   mesh  in: its rest mesh (#V*3 positions)
+ *   x     in: 3 coordinates in the mesh's units
+ * Returns the handle's index, -1 when the rig has no handle vertex. */
+int32_t km_rig_nearest_handle(const km_rig *rig, const km_mesh *mesh, const double x[3]);
 
 /* ---- retargeting */
 

@@ -5,6 +5,16 @@
 #include <cjson/cJSON.h>
 #include <unistd.h>
 
+static char *slurp(const char *path, size_t *n) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  char *buf = malloc(1 << 22);
+  *n = buf ? fread(buf, 1, (1 << 22) - 1, f) : 0;
+  if (buf) buf[*n] = 0;
+  fclose(f);
+  return buf;
+}
+
 static bool all_finite(const double *x, size_t n) {
   for (size_t i = 0; i < n; ++i)
     if (!isfinite(x[i])) return false;
@@ -413,6 +423,59 @@ static void character_and_wave(const char *dir, int vertices, int frames) {
   CHECK(km_test_run(cmd, NULL) == 0);
 }
 
+/* animate's deformation check: the summary line, and --report's JSON, whose per-frame stretch
+ * is the tests' own edge measure on the frames written; a report that cannot be written is an
+ * error naming it, and leaves no animation behind. */
+static void test_report(void) {
+  char *out = NULL;
+  character_and_wave("puppet_r", 2500, 16);
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_r/c.obj --motion puppet_r/w.json "
+                           "-o puppet_r/x.pc2 --report puppet_r/new/r.json",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "shape: longest edge") && strstr(out, "frames have an edge over") &&
+                strstr(out, "deformation check -> puppet_r/new/r.json"),
+            "%s", out ? out : "");
+  free(out);
+  km_mesh m = {0};
+  km_error err = {0};
+  double *frames = NULL;
+  km_anim_info info = {0};
+  size_t n = 0;
+  char *text = slurp("puppet_r/new/r.json", &n);
+  cJSON *j = text ? cJSON_Parse(text) : NULL;
+  CHECK_MSG(j != NULL, "report: %s", text ? text : "(none)");
+  if (j && km_mesh_read("puppet_r/c.obj", &m, &err) == KM_OK &&
+      km_pc2_read("puppet_r/x.pc2", &frames, &info, &err) == KM_OK) {
+    cJSON *pf = cJSON_GetObjectItem(j, "per_frame");
+    CHECK(cJSON_GetArraySize(pf) == (int)info.frames && info.frames == 16);
+    CHECK(cJSON_GetNumberValue(cJSON_GetObjectItem(j, "frames")) == 16);
+    double worst = 0;
+    for (size_t f = 0; f < info.frames; ++f) {
+      double ref = km_test_edge_stretch(&m, frames + 3 * f * m.n_vertices);
+      double got =
+          cJSON_GetNumberValue(cJSON_GetObjectItem(cJSON_GetArrayItem(pf, (int)f), "stretch"));
+      /* the pc2 holds floats */
+      CHECK_MSG(fabs(got - ref) < 1e-4, "frame %zu: report %g, frames %g", f, got, ref);
+      worst = fmax(worst, ref);
+    }
+    CHECK(fabs(cJSON_GetNumberValue(cJSON_GetObjectItem(j, "stretch_max")) - worst) < 1e-4);
+    CHECK(worst > 0); /* the wave moves the mesh */
+  } else {
+    CHECK_MSG(0, "reading back: %s", err.message);
+  }
+  cJSON_Delete(j);
+  free(text);
+  free(frames);
+  km_mesh_free(&m);
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_r/c.obj --motion puppet_r/w.json "
+                           "-o puppet_r/y.pc2 --report /proc/no_such/r.json",
+                    &out) == 1);
+  CHECK_MSG(out && strstr(out, "/proc/no_such/r.json"), "%s", out ? out : "");
+  free(out);
+  CHECK(access("puppet_r/y.pc2", F_OK) != 0);
+  km_test_run("rm -rf puppet_r", NULL);
+}
+
 /* precompute keeps an up-to-date cache and builds with its own parameters, which animate then
  * adopts; --frame-format ply; a motion without the joints a kinect1 rig maps is an error. */
 static void test_cache_params_and_formats(void) {
@@ -597,6 +660,7 @@ int main(void) {
   }
   test_bad_rig_and_motion();
   test_cache_params_and_formats();
+  test_report();
   test_no_rig();
   test_bench_deform_json();
   test_demo();

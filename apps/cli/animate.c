@@ -8,6 +8,37 @@
 #include <string.h>
 #include <unistd.h>
 
+/* The rig's handle nearest to the middle of edge e at rest ("-" with none). */
+static const char *near_handle(const km_rig *rig, const km_mesh *m, const int32_t e[2]) {
+  if (e[0] < 0 || e[1] < 0) return "-";
+  double x[3];
+  for (int k = 0; k < 3; ++k)
+    x[k] = 0.5 * (m->V[3 * (size_t)e[0] + k] + m->V[3 * (size_t)e[1] + k]);
+  int32_t h = km_rig_nearest_handle(rig, m, x);
+  return h >= 0 ? rig->handles[h].name : "-";
+}
+
+/* The deformation check in one line: the longest and shortest edge against its rest length,
+ * the frames over 1.5x, the folds and the largest one-frame step (frames count from 0). */
+static void shape_summary(const km_deform_check *dc, const km_mesh *m, const km_rig *rig,
+                          char *line, size_t n) {
+  km_deform_summary s;
+  km_deform_check_summary(dc, &s);
+  if (!s.frames) {
+    line[0] = 0;
+    return;
+  }
+  int32_t sv[2] = {s.step_vertex, s.step_vertex};
+  snprintf(line, n,
+           "  shape: longest edge %.2fx its rest length (frame %zu, near %s), shortest %.2fx; "
+           "%zu of %zu frames have an edge over 1.5x; %zu triangles folded in some frame "
+           "(most: %zu pairs, frame %zu); largest one-frame step %.1f %% of the mesh's size "
+           "(frame %zu, near %s)\n",
+           s.ratio_max, s.ratio_max_frame, near_handle(rig, m, s.long_edge), s.ratio_min,
+           s.long_frames, s.frames, s.folded, s.most_folded_pairs, s.most_folded_frame,
+           s.diagonal > 0 ? 100 * s.step / s.diagonal : 0.0, s.step_frame, near_handle(rig, m, sv));
+}
+
 static int parse_solver(const char *verb, const char *s, bool *full) {
   if (!s || !strcmp(s, "reduced"))
     *full = false;
@@ -32,7 +63,7 @@ int km_cli_animate(int argc, char **argv) {
   double scale = 0, fps = 0, handle_weight = NAN;
   size_t key_every = 0;
   bool compress = false;
-  const char *export_kind = NULL;
+  const char *export_kind = NULL, *report = NULL;
   double max_error_mm = 0;
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
@@ -75,6 +106,9 @@ int km_cli_animate(int argc, char **argv) {
       {"frame-format", 0, KM_OPT_STRING, &frame_format,
        "directory output: obj (default) or ply (binary) per frame"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory of per-frame meshes"},
+      {"report", 0, KM_OPT_STRING, &report,
+       "write the deformation check as JSON: per frame the edge length ratios l/l0, folded "
+       "triangles and one-frame step (the summary line's measures)"},
       {"keep-frame", 0, KM_OPT_FLAG, &keep_frame,
        ".pc2 and frame directories in the mesh file's own axes and units (its --up/--forward/"
        "--units, given, recorded or guessed, undone), to line up with the file: a point cache "
@@ -117,6 +151,7 @@ int km_cli_animate(int argc, char **argv) {
   km_puppetry *pl = NULL;
   km_anim_writer *w = NULL;
   double *V = NULL, *t23 = NULL, *t4 = NULL;
+  km_deform_check *dc = NULL;
   char *rig_default = rig_path ? NULL : km_cli_rig_path(mesh_path);
   char *cache_default = NULL, *skin_json = NULL;
   size_t skin_json_n = 0;
@@ -253,6 +288,8 @@ int km_cli_animate(int argc, char **argv) {
   /* --keep-frame: the writer takes each frame back into the file's axes and units */
   if (keep_frame) wo.frame = &mf;
   if (km_anim_writer_open(out, &m, &wo, &w, &err) != KM_OK) goto fail;
+  /* every frame checked against the rest mesh, so the user reads where the mesh stretched */
+  if (km_deform_check_create(&m, &dc, &err) != KM_OK) goto fail;
   km_progress prog = km_cli_progress("animate");
   for (size_t f = 0; f < take.n_frames; ++f) {
     if (km_puppetry_push(pl, take.positions + f * take.n_joints * 3, V, &err) != KM_OK) goto fail;
@@ -260,9 +297,15 @@ int km_cli_animate(int argc, char **argv) {
     km_puppetry_times_get(pl, &tm);
     t23[f] = tm.filter_ms + tm.retarget_ms;
     t4[f] = tm.solve_ms;
-    if (km_anim_writer_push(w, V, &err) != KM_OK) goto fail;
+    if (km_anim_writer_push(w, V, &err) != KM_OK || km_deform_check_add(dc, V, NULL, &err) != KM_OK)
+      goto fail;
     prog.fn((double)(f + 1) / (double)take.n_frames, full ? "full ARAP" : "reduced model", NULL);
   }
+  /* the report before the animation is finished: a report that cannot be written leaves no
+   * animation behind either */
+  char shape_line[1024];
+  shape_summary(dc, &m, &rig, shape_line, sizeof shape_line);
+  if (report && km_deform_check_write_json(dc, report, &err) != KM_OK) goto fail;
   km_anim_report rep;
   if (km_anim_writer_finish(&w, &rep, &err) != KM_OK) goto fail;
   km_cli_progress_done();
@@ -280,12 +323,13 @@ int km_cli_animate(int argc, char **argv) {
           "kinemesh animate: %zu frames, %zu vertices, %zu handles (%zu vertices), scale %.3f\n"
           "  %-22s %10s %12s %12s %12s\n"
           "  %-22s %10.3f %12.4f %12.3f %12.3f\n"
-          "%s"
-          "-> %s\n",
+          "%s%s"
+          "-> %s%s%s\n",
           take.n_frames, m.n_vertices, rig.n_handles, n_hv, km_puppetry_scale(pl),
           full ? "stage (full ARAP)" : (loaded ? "stage (cache loaded)" : "stage (precomputed)"),
           full ? "t1 (s)" : (loaded ? "t~1 (s)" : "t1 (s)"), "t2,3 (ms)", "t4 (ms)", "tper (ms)",
-          "median per frame", pi.model_seconds, m23, m4, m23 + m4, glitch_line, out);
+          "median per frame", pi.model_seconds, m23, m4, m23 + m4, glitch_line, shape_line, out,
+          report ? ", deformation check -> " : "", report ? report : "");
   rc = KM_EXIT_OK;
   goto done;
 nomem:
@@ -295,6 +339,7 @@ fail:
   rc = km_cli_fail("animate", &err);
 done:
   km_anim_writer_free(&w);
+  km_deform_check_free(&dc);
   free(V);
   free(t23);
   free(t4);

@@ -1,5 +1,6 @@
 /* Puppetry rig: JSON parsing (cJSON) and handle resolution on a mesh (see km_rig_parse). */
 #include "motion/motion.h"
+#include "math/math.h"
 #include "mesh/mesh.h"
 
 #include <cjson/cJSON.h>
@@ -30,6 +31,22 @@ void km_rig_free(km_rig *rig) {
   free(rig->maps);
   free(rig->joint_rest);
   memset(rig, 0, sizeof *rig);
+}
+
+int32_t km_rig_nearest_handle(const km_rig *rig, const km_mesh *mesh, const double x[3]) {
+  double best = INFINITY;
+  int32_t h = -1;
+  if (!rig || !mesh || !x) return -1;
+  for (size_t i = 0; i < rig->n_handles; ++i)
+    for (size_t k = 0; k < rig->handles[i].n_vertices; ++k) {
+      int32_t v = rig->handles[i].vertices[k];
+      if (v < 0 || (size_t)v >= mesh->n_vertices) continue;
+      double d[3];
+      km__sub3(mesh->V + 3 * (size_t)v, x, d);
+      double dd = km__dot3(d, d);
+      if (dd < best) best = dd, h = (int32_t)i;
+    }
+  return h;
 }
 
 /* ---- geodesic balls: km__geodesic (mesh) with the radius as its bound, so a run only touches

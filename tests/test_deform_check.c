@@ -1,0 +1,174 @@
+/* km_deform_check (the measures `bench motion` and `animate` report): edge length ratios,
+ * folded triangles, one-frame steps, NaN frames, the JSON report, and km_rig_nearest_handle;
+ * checked against frames whose answers are known by construction and against the tests' own
+ * edge measure (km_test_edge_stretch) on a deformed character. */
+#include "km_test.h"
+
+#include <cjson/cJSON.h>
+#include <unistd.h>
+
+static char *read_file(const char *path, size_t *n) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  char *buf = malloc(1 << 20);
+  *n = buf ? fread(buf, 1, (1 << 20) - 1, f) : 0;
+  if (buf) buf[*n] = 0;
+  fclose(f);
+  return buf;
+}
+
+/* A flat unit square in the x-z plane, split along its diagonal 0-2 into two triangles,
+ * normals +y. */
+static const double k_square[] = {0, 0, 0, 1, 0, 0, 1, 0, 1, 0, 0, 1};
+static const int32_t k_square_f[] = {0, 2, 1, 0, 3, 2};
+
+static void test_known_frames(void) {
+  km_mesh m = {.V = (double *)k_square, .F = (int32_t *)k_square_f, .n_vertices = 4, .n_faces = 2};
+  km_deform_check *c = NULL;
+  km_error err = {0};
+  CHECK(km_deform_check_create(&m, &c, &err) == KM_OK);
+  km_deform_frame fr;
+  /* frame 0: the rest itself */
+  CHECK(km_deform_check_add(c, k_square, &fr, &err) == KM_OK);
+  CHECK(fr.stretch == 0 && fr.ratio_min == 1 && fr.ratio_max == 1);
+  CHECK(fr.folded_pairs == 0 && fr.step == 0 && fr.step_vertex == -1);
+  /* frame 1: x doubled: the x edges and the diagonal stretch; vertex 1 and 2 move 1 */
+  double V[12];
+  memcpy(V, k_square, sizeof V);
+  for (int v = 0; v < 4; ++v)
+    V[3 * v] *= 2;
+  CHECK(km_deform_check_add(c, V, &fr, &err) == KM_OK);
+  CHECK_MSG(fabs(fr.ratio_max - 2) < 1e-12, "longest %g", fr.ratio_max);
+  CHECK(fabs(fr.stretch - 1) < 1e-12 && fr.ratio_min == 1);
+  CHECK((fr.long_edge[0] == 0 && fr.long_edge[1] == 1) ||
+        (fr.long_edge[0] == 2 && fr.long_edge[1] == 3));
+  CHECK(fabs(fr.step - 1) < 1e-12 && (fr.step_vertex == 1 || fr.step_vertex == 2));
+  CHECK(fr.folded_pairs == 0);
+  /* frame 2: vertex 3 folded over the diagonal onto the other triangle (mirrored through the
+   * diagonal: (0,0,1) -> (1,0,0) would be degenerate, so lift it a little) */
+  memcpy(V, k_square, sizeof V);
+  V[9] = 0.9, V[10] = 0.05, V[11] = 0.1;
+  CHECK(km_deform_check_add(c, V, &fr, &err) == KM_OK);
+  CHECK_MSG(fr.folded_pairs == 1, "folded pairs %zu", fr.folded_pairs);
+  /* frame 3: a NaN vertex: the ratios are NaN, and the summary keeps the NaN */
+  memcpy(V, k_square, sizeof V);
+  V[0] = NAN;
+  CHECK(km_deform_check_add(c, V, &fr, &err) == KM_OK);
+  CHECK(isnan(fr.stretch));
+  memcpy(V, k_square, sizeof V);
+  CHECK(km_deform_check_add(c, V, NULL, &err) == KM_OK); /* a clean frame after it */
+  km_deform_summary s;
+  km_deform_check_summary(c, &s);
+  CHECK(s.frames == 5);
+  CHECK_MSG(isnan(s.stretch) && s.stretch_frame == 3, "stretch %g frame %zu", s.stretch,
+            s.stretch_frame);
+  CHECK(s.folded == 2 && s.most_folded_pairs == 1 && s.most_folded_frame == 2);
+  const int32_t *first = km_deform_check_first_fold(c);
+  CHECK(first[0] == 2 && first[1] == 2);
+  CHECK(s.long_frames == 1); /* frame 1 only: 2x; the NaN frame is no "over 1.5x" */
+  CHECK(fabs(s.diagonal - sqrt(2)) < 1e-12);
+  const km_deform_frame *all = NULL;
+  CHECK(km_deform_check_frames(c, &all) == 5 && all && all[2].folded_pairs == 1);
+  /* the JSON report: the summary's numbers, one entry per frame, null for the NaN */
+  km_test_run("rm -rf dcheck_out", NULL);
+  CHECK(km_deform_check_write_json(c, "dcheck_out/sub/r.json", &err) == KM_OK);
+  size_t n = 0;
+  char *text = read_file("dcheck_out/sub/r.json", &n);
+  cJSON *j = text ? cJSON_Parse(text) : NULL;
+  CHECK_MSG(j != NULL, "report not JSON: %s", text ? text : "(none)");
+  if (j) {
+    CHECK(!strcmp(cJSON_GetStringValue(cJSON_GetObjectItem(j, "format")),
+                  "kinemesh-deform-report"));
+    CHECK(cJSON_GetNumberValue(cJSON_GetObjectItem(j, "frames")) == 5);
+    CHECK(cJSON_IsNull(cJSON_GetObjectItem(j, "stretch_max")));
+    CHECK(cJSON_GetNumberValue(cJSON_GetObjectItem(j, "folded_triangles")) == 2);
+    CHECK(cJSON_IsNull(cJSON_GetObjectItem(j, "edge_ratio_max"))); /* the NaN frame's */
+    cJSON *pf = cJSON_GetObjectItem(j, "per_frame");
+    CHECK(fabs(cJSON_GetNumberValue(
+                   cJSON_GetObjectItem(cJSON_GetArrayItem(pf, 1), "edge_ratio_max")) -
+               2) < 1e-6);
+    CHECK(cJSON_GetArraySize(pf) == 5);
+    CHECK(cJSON_IsNull(cJSON_GetObjectItem(cJSON_GetArrayItem(pf, 3), "stretch")));
+    /* step 1 in a diagonal of sqrt 2 */
+    CHECK(fabs(cJSON_GetNumberValue(cJSON_GetObjectItem(cJSON_GetArrayItem(pf, 1), "step_pct")) -
+               100 / sqrt(2)) < 1e-4);
+    cJSON_Delete(j);
+  }
+  free(text);
+  /* no temporary left beside it */
+  CHECK(km_test_run("ls dcheck_out/sub | grep -c tmp", NULL) != 0);
+  /* an unwritable path: an error naming it, nothing written */
+  CHECK(km_deform_check_write_json(c, "/proc/no/such/r.json", &err) != KM_OK);
+  CHECK_MSG(strstr(err.message, "/proc/no/such") != NULL, "%s", err.message);
+  km_deform_check_free(&c);
+  CHECK(c == NULL);
+  km_deform_check_free(&c); /* twice is fine */
+  /* bad input: NULLs are errors, not crashes; no faces is an error naming the function */
+  CHECK(km_deform_check_create(&m, NULL, &err) == KM_ERR_INVALID);
+  km_mesh bad = m;
+  int32_t F_bad[] = {0, 1, 7};
+  bad.F = F_bad, bad.n_faces = 1;
+  CHECK(km_deform_check_create(&bad, &c, &err) != KM_OK && c == NULL);
+  CHECK_MSG(strstr(err.message, "km_deform_check_create") != NULL, "%s", err.message);
+  km_test_run("rm -rf dcheck_out", NULL);
+}
+
+/* On a character bent by the puppetry pipeline, the check's stretch per frame is the tests' own
+ * edge measure, and the summary is the largest of the frames. */
+static void test_against_edge_measure(void) {
+  km_character c = {0};
+  km_error err = {0};
+  km_character_options co = {0};
+  co.target_vertices = 3000;
+  if (km_character_generate(&co, &c, &err) != KM_OK) {
+    CHECK_MSG(0, "character: %s", err.message);
+    return;
+  }
+  const km_mesh *m = &c.mesh;
+  km_deform_check *dc = NULL;
+  CHECK(km_deform_check_create(m, &dc, &err) == KM_OK);
+  double *V = malloc(3 * m->n_vertices * sizeof *V);
+  double worst = 0;
+  for (int f = 0; f < 6 && V; ++f) {
+    /* a shear growing with the frame, and a bulge: every edge changes a different amount */
+    for (size_t v = 0; v < m->n_vertices; ++v) {
+      const double *p = m->V + 3 * v;
+      V[3 * v] = p[0] * (1 + 0.1 * f * p[1]);
+      V[3 * v + 1] = p[1] + 0.05 * f * p[0] * p[0];
+      V[3 * v + 2] = p[2] * (1 + 0.2 * f);
+    }
+    km_deform_frame fr;
+    CHECK(km_deform_check_add(dc, V, &fr, &err) == KM_OK);
+    double ref = km_test_edge_stretch(m, V);
+    CHECK_MSG(fabs(fr.stretch - ref) < 1e-9, "frame %d: %g vs %g", f, fr.stretch, ref);
+    worst = fmax(worst, ref);
+  }
+  km_deform_summary s;
+  km_deform_check_summary(dc, &s);
+  CHECK(fabs(s.stretch - worst) < 1e-9 && s.stretch_frame == 5 && worst > 0.1);
+  km_deform_check_free(&dc);
+  free(V);
+  km_character_free(&c);
+}
+
+/* km_rig_nearest_handle: the handle with the nearest vertex; -1 without handles. */
+static void test_nearest_handle(void) {
+  km_mesh m = {.V = (double *)k_square, .F = (int32_t *)k_square_f, .n_vertices = 4, .n_faces = 2};
+  int32_t a[] = {0}, b[] = {2, 3};
+  km_rig_handle h[2] = {{.name = "a", .vertices = a, .n_vertices = 1},
+                        {.name = "b", .vertices = b, .n_vertices = 2}};
+  km_rig rig = {.handles = h, .n_handles = 2};
+  double near_a[3] = {0.1, 0, 0.2}, near_b[3] = {0.4, 0, 0.9}, far[3] = {5, 5, 5};
+  CHECK(km_rig_nearest_handle(&rig, &m, near_a) == 0);
+  CHECK(km_rig_nearest_handle(&rig, &m, near_b) == 1);
+  CHECK(km_rig_nearest_handle(&rig, &m, far) == 1); /* (1,0,1) is b's */
+  km_rig none = {0};
+  CHECK(km_rig_nearest_handle(&none, &m, near_a) == -1);
+}
+
+int main(void) {
+  test_known_frames();
+  test_against_edge_measure();
+  test_nearest_handle();
+  return km_test_finish("test_deform_check");
+}
