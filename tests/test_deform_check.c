@@ -77,8 +77,8 @@ static void test_known_frames(void) {
   cJSON *j = text ? cJSON_Parse(text) : NULL;
   CHECK_MSG(j != NULL, "report not JSON: %s", text ? text : "(none)");
   if (j) {
-    CHECK(!strcmp(cJSON_GetStringValue(cJSON_GetObjectItem(j, "format")),
-                  "kinemesh-deform-report"));
+    CHECK(
+        !strcmp(cJSON_GetStringValue(cJSON_GetObjectItem(j, "format")), "kinemesh-deform-report"));
     CHECK(cJSON_GetNumberValue(cJSON_GetObjectItem(j, "frames")) == 5);
     CHECK(cJSON_IsNull(cJSON_GetObjectItem(j, "stretch_max")));
     CHECK(cJSON_GetNumberValue(cJSON_GetObjectItem(j, "folded_triangles")) == 2);

@@ -467,6 +467,54 @@ static void test_report(void) {
   free(text);
   free(frames);
   km_mesh_free(&m);
+  /* kinemesh check on the files written: the same measures */
+  CHECK(km_test_run(KM_CLI " check puppet_r/x.pc2 --mesh puppet_r/c.obj --report puppet_r/r2.json",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "16 frames") && strstr(out, "shape: longest edge"), "%s",
+            out ? out : "");
+  free(out);
+  char *t1 = slurp("puppet_r/new/r.json", &n), *t2 = slurp("puppet_r/r2.json", &n);
+  cJSON *j1 = t1 ? cJSON_Parse(t1) : NULL, *j2 = t2 ? cJSON_Parse(t2) : NULL;
+  CHECK(j1 && j2);
+  if (j1 && j2) {
+    static const char *const keys[] = {"stretch_max", "edge_ratio_min", "edge_ratio_max",
+                                       "step_max_pct", "folded_triangles"};
+    for (int k = 0; k < 5; ++k) {
+      double a = cJSON_GetNumberValue(cJSON_GetObjectItem(j1, keys[k])),
+             b = cJSON_GetNumberValue(cJSON_GetObjectItem(j2, keys[k]));
+      CHECK_MSG(fabs(a - b) <= 1e-4 * fmax(1, fabs(a)), "%s: animate %g, check %g", keys[k], a, b);
+    }
+  }
+  cJSON_Delete(j1);
+  cJSON_Delete(j2);
+  free(t1);
+  free(t2);
+  /* a .glb is checked against its base mesh: animate's own line, word for word */
+  CHECK(km_test_run(KM_CLI " animate --mesh puppet_r/c.obj --motion puppet_r/w.json "
+                           "-o puppet_r/x.glb",
+                    &out) == 0);
+  char *line = out ? strstr(out, "  shape:") : NULL, *eol = line ? strchr(line, '\n') : NULL;
+  if (eol) *eol = 0;
+  char *out2 = NULL;
+  CHECK(km_test_run(KM_CLI " check puppet_r/x.glb", &out2) == 0);
+  /* near: the handle in animate, a vertex id without --rig; compare up to "near" */
+  char *cut = line ? strstr(line, ", near") : NULL;
+  if (cut) *cut = 0;
+  CHECK_MSG(line && out2 && strstr(out2, line), "animate: %s\ncheck: %s", line ? line : "",
+            out2 ? out2 : "");
+  free(out);
+  free(out2);
+  /* bad input: named, exit 1 */
+  CHECK(km_test_run(KM_CLI " check puppet_r/x.pc2", &out) == 1);
+  CHECK_MSG(out && strstr(out, "--mesh"), "%s", out ? out : "");
+  free(out);
+  CHECK(km_test_run(KM_CLI " check puppet_r/x.pc2 --mesh puppet_r/c.obj --units cm", &out) == 1);
+  CHECK_MSG(out && strstr(out, "not in its units"), "%s", out ? out : "");
+  free(out);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2000 -o puppet_r/small.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " check puppet_r/x.pc2 --mesh puppet_r/small.obj", &out) == 1);
+  CHECK_MSG(out && strstr(out, "not the same mesh"), "%s", out ? out : "");
+  free(out);
   CHECK(km_test_run(KM_CLI " animate --mesh puppet_r/c.obj --motion puppet_r/w.json "
                            "-o puppet_r/y.pc2 --report /proc/no_such/r.json",
                     &out) == 1);

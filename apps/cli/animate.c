@@ -8,37 +8,6 @@
 #include <string.h>
 #include <unistd.h>
 
-/* The rig's handle nearest to the middle of edge e at rest ("-" with none). */
-static const char *near_handle(const km_rig *rig, const km_mesh *m, const int32_t e[2]) {
-  if (e[0] < 0 || e[1] < 0) return "-";
-  double x[3];
-  for (int k = 0; k < 3; ++k)
-    x[k] = 0.5 * (m->V[3 * (size_t)e[0] + k] + m->V[3 * (size_t)e[1] + k]);
-  int32_t h = km_rig_nearest_handle(rig, m, x);
-  return h >= 0 ? rig->handles[h].name : "-";
-}
-
-/* The deformation check in one line: the longest and shortest edge against its rest length,
- * the frames over 1.5x, the folds and the largest one-frame step (frames count from 0). */
-static void shape_summary(const km_deform_check *dc, const km_mesh *m, const km_rig *rig,
-                          char *line, size_t n) {
-  km_deform_summary s;
-  km_deform_check_summary(dc, &s);
-  if (!s.frames) {
-    line[0] = 0;
-    return;
-  }
-  int32_t sv[2] = {s.step_vertex, s.step_vertex};
-  snprintf(line, n,
-           "  shape: longest edge %.2fx its rest length (frame %zu, near %s), shortest %.2fx; "
-           "%zu of %zu frames have an edge over 1.5x; %zu triangles folded in some frame "
-           "(most: %zu pairs, frame %zu); largest one-frame step %.1f %% of the mesh's size "
-           "(frame %zu, near %s)\n",
-           s.ratio_max, s.ratio_max_frame, near_handle(rig, m, s.long_edge), s.ratio_min,
-           s.long_frames, s.frames, s.folded, s.most_folded_pairs, s.most_folded_frame,
-           s.diagonal > 0 ? 100 * s.step / s.diagonal : 0.0, s.step_frame, near_handle(rig, m, sv));
-}
-
 static int parse_solver(const char *verb, const char *s, bool *full) {
   if (!s || !strcmp(s, "reduced"))
     *full = false;
@@ -304,7 +273,7 @@ int km_cli_animate(int argc, char **argv) {
   /* the report before the animation is finished: a report that cannot be written leaves no
    * animation behind either */
   char shape_line[1024];
-  shape_summary(dc, &m, &rig, shape_line, sizeof shape_line);
+  km_cli_shape_line(dc, &m, &rig, shape_line, sizeof shape_line);
   if (report && km_deform_check_write_json(dc, report, &err) != KM_OK) goto fail;
   km_anim_report rep;
   if (km_anim_writer_finish(&w, &rep, &err) != KM_OK) goto fail;

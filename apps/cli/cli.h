@@ -118,6 +118,16 @@ int km_cli_map_joints(const char *verb, const km_skeleton *sk, const km_take *t,
 int km_cli_given_frame(const char *verb, const char *opt, const char *up, const char *forward,
                        const char *units, km_frame *out);
 
+/* --OPT's units s (m, cm, mm, in, ft or metres per unit) into *scale (untouched when s is
+ * NULL). Returns 0, or prints the error and returns an exit status. */
+int km_cli_parse_units(const char *verb, const char *opt, const char *s, double *scale);
+/* The deformation check in one line ("  shape: longest edge ...\n"; empty with no frame):
+ * the longest and shortest edge against its rest length, the frames over 1.5x, the folds and
+ * the largest one-frame step, with frames (from 0) and places: the nearest handle of rig, or a
+ * vertex id when rig is NULL or has no handle. */
+void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig *rig, char *line,
+                       size_t n);
+
 /* Exit codes */
 #define KM_EXIT_OK 0
 #define KM_EXIT_FAIL 1
@@ -169,6 +179,7 @@ int km_cli_live(int argc, char **argv);
 int km_cli_vmc(int argc, char **argv);
 int km_cli_rig(int argc, char **argv);
 int km_cli_pick(int argc, char **argv);
+int km_cli_check(int argc, char **argv);
 
 /* Puppetry helpers shared by animate, bench and live. */
 /* The default reduced-model cache of a mesh as read (and oriented): in the user's cache

@@ -561,7 +561,7 @@ static km_axis default_forward(km_axis up) {
   return (up == KM_AXIS_POS_Z || up == KM_AXIS_NEG_Z) ? KM_AXIS_NEG_Y : KM_AXIS_POS_Z;
 }
 
-static int parse_units_opt(const char *verb, const char *opt, const char *s, double *scale) {
+int km_cli_parse_units(const char *verb, const char *opt, const char *s, double *scale) {
   if (!s) return 0;
   char *end = NULL;
   double x = km_units_scale(s);
@@ -611,7 +611,7 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
   if (parse_axis_opt(verb, "up", fo->up, &out->up) ||
       parse_axis_opt(verb, "forward", fo->forward, &out->forward))
     return KM_EXIT_USAGE;
-  if (parse_units_opt(verb, "units", fo->units, &out->scale)) return KM_EXIT_USAGE;
+  if (km_cli_parse_units(verb, "units", fo->units, &out->scale)) return KM_EXIT_USAGE;
   if (same_axis(out->up, out->forward))
     return km_cli_error(verb, "--up %s and --forward %s lie on the same axis", fo->up, fo->forward);
   if (out->up && out->forward) return 0;
@@ -680,7 +680,7 @@ int km_cli_given_frame(const char *verb, const char *opt, const char *up, const 
   memset(out, 0, sizeof *out);
   if (parse_axis_opt(verb, n_up, up, &out->up) ||
       parse_axis_opt(verb, n_fw, forward, &out->forward) ||
-      parse_units_opt(verb, n_un, units, &out->scale))
+      km_cli_parse_units(verb, n_un, units, &out->scale))
     return KM_EXIT_USAGE;
   if (!out->up) out->up = KM_AXIS_POS_Y;
   if (!out->forward) out->forward = default_forward(out->up);
@@ -756,4 +756,45 @@ int km_cli_parse_weights(const char *verb, const char *s, km_autorig_skin *out) 
   }
   km_cli_error(verb, "--weights %s: expected heat, distance or reach", s);
   return KM_EXIT_USAGE;
+}
+
+/* ---- the deformation check in one line (animate, check) */
+
+/* Where edge e (two vertices; a vertex twice) is: the rig's handle nearest to its middle at
+ * rest, or its first vertex without a rig ("-" with no edge). */
+static const char *near_place(const km_rig *rig, const km_mesh *m, const int32_t e[2], char *buf,
+                              size_t n) {
+  if (e[0] < 0 || e[1] < 0) return "-";
+  if (!rig || !rig->n_handles) {
+    snprintf(buf, n, "vertex %d", (int)e[0]);
+    return buf;
+  }
+  double x[3];
+  for (int k = 0; k < 3; ++k)
+    x[k] = 0.5 * (m->V[3 * (size_t)e[0] + k] + m->V[3 * (size_t)e[1] + k]);
+  int32_t h = km_rig_nearest_handle(rig, m, x);
+  return h >= 0 ? rig->handles[h].name : "-";
+}
+
+/* The deformation check in one line: the longest and shortest edge against its rest length,
+ * the frames over 1.5x, the folds and the largest one-frame step (frames count from 0). */
+void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig *rig, char *line,
+                       size_t n) {
+  km_deform_summary s;
+  km_deform_check_summary(dc, &s);
+  if (!s.frames) {
+    line[0] = 0;
+    return;
+  }
+  int32_t sv[2] = {s.step_vertex, s.step_vertex};
+  char b1[32], b2[32];
+  snprintf(line, n,
+           "  shape: longest edge %.2fx its rest length (frame %zu, near %s), shortest %.2fx; "
+           "%zu of %zu frames have an edge over 1.5x; %zu triangles folded in some frame "
+           "(most: %zu pairs, frame %zu); largest one-frame step %.1f %% of the mesh's size "
+           "(frame %zu, near %s)\n",
+           s.ratio_max, s.ratio_max_frame, near_place(rig, m, s.long_edge, b1, sizeof b1),
+           s.ratio_min, s.long_frames, s.frames, s.folded, s.most_folded_pairs, s.most_folded_frame,
+           s.diagonal > 0 ? 100 * s.step / s.diagonal : 0.0, s.step_frame,
+           near_place(rig, m, sv, b2, sizeof b2));
 }

@@ -36,6 +36,8 @@ static const km_cli_verb VERBS[] = {
     {"batch", "run a manifest of jobs (JSON lines): resumable, sharded for Slurm, MPI",
      km_cli_batch},
     {"pick", "vertex ids and positions nearest to a point (for rigs and scripts)", km_cli_pick},
+    {"check", "where an animation stretches, folds or jumps: every frame against the rest mesh",
+     km_cli_check},
     {"bench", "benchmarks printing the papers' tables (bench deform)", km_bench},
 };
 

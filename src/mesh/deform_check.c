@@ -13,13 +13,13 @@
 
 struct km_deform_check {
   size_t n_vertices, n_faces, n_edges, n_pairs;
-  int32_t *F;     /* n_faces*3 (a copy: the caller's mesh may go) */
-  int32_t *edges; /* n_edges*2, each edge once, a < b, rest length > 0 */
-  double *len0;   /* n_edges */
-  int32_t *pairs; /* n_pairs*2 faces across a manifold edge, < 60 degrees apart at rest */
-  double *N;      /* n_faces*3 scratch: the frame's unit normals */
-  double *prev;   /* n_vertices*3: the last frame */
-  int32_t *first; /* n_faces: the frame a triangle first folded, -1 never */
+  int32_t *F;              /* n_faces*3 (a copy: the caller's mesh may go) */
+  int32_t *edges;          /* n_edges*2, each edge once, a < b, rest length > 0 */
+  double *len0;            /* n_edges */
+  int32_t *pairs;          /* n_pairs*2 faces across a manifold edge, < 60 degrees apart at rest */
+  double *N;               /* n_faces*3 scratch: the frame's unit normals */
+  double *prev;            /* n_vertices*3: the last frame */
+  int32_t *first;          /* n_faces: the frame a triangle first folded, -1 never */
   km_deform_frame *frames; /* cap_frames; sum.frames of them filled */
   size_t cap_frames;
   km_deform_summary sum;
@@ -74,8 +74,7 @@ km_status km_deform_check_create(const km_mesh *rest, km_deform_check **out, km_
     c->prev = km__malloc(3 * (nv ? nv : 1), sizeof *c->prev);
     c->first = km__malloc(nf ? nf : 1, sizeof *c->first);
   }
-  if (!c || !h || !c->F || !c->edges || !c->len0 || !c->pairs || !c->N || !c->prev ||
-      !c->first) {
+  if (!c || !h || !c->F || !c->edges || !c->len0 || !c->pairs || !c->N || !c->prev || !c->first) {
     free(h);
     km_deform_check_free(&c);
     return km__fail(err, KM_ERR_NOMEM, "km_deform_check_create: out of memory");
