@@ -111,6 +111,23 @@ static inline double km_test_edge_stretch(const km_mesh *m, const double *V) {
 
 #define KM_TEST_SKIP 77
 
+/* The whole file, NUL-terminated (the caller frees); *n its size. NULL when it cannot be read. */
+static inline char *km_test_read_file(const char *path, size_t *n) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  fseek(f, 0, SEEK_END);
+  long sz = ftell(f);
+  fseek(f, 0, SEEK_SET);
+  char *b = sz >= 0 ? malloc((size_t)sz + 1) : NULL;
+  if (b && fread(b, 1, (size_t)sz, f) != (size_t)sz) {
+    free(b);
+    b = NULL;
+  }
+  fclose(f);
+  if (b) b[sz] = 0, *n = (size_t)sz;
+  return b;
+}
+
 #include <sys/wait.h>
 
 /* Runs a shell command with stderr folded into stdout; *out (if given) receives the output

@@ -7,16 +7,6 @@
 #include <cjson/cJSON.h>
 #include <unistd.h>
 
-static char *read_file(const char *path, size_t *n) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return NULL;
-  char *buf = malloc(1 << 20);
-  *n = buf ? fread(buf, 1, (1 << 20) - 1, f) : 0;
-  if (buf) buf[*n] = 0;
-  fclose(f);
-  return buf;
-}
-
 /* A flat unit square in the x-z plane, split along its diagonal 0-2 into two triangles,
  * normals +y. */
 static const double k_square[] = {0, 0, 0, 1, 0, 0, 1, 0, 1, 0, 0, 1};
@@ -73,7 +63,7 @@ static void test_known_frames(void) {
   km_test_run("rm -rf dcheck_out", NULL);
   CHECK(km_deform_check_write_json(c, "dcheck_out/sub/r.json", &err) == KM_OK);
   size_t n = 0;
-  char *text = read_file("dcheck_out/sub/r.json", &n);
+  char *text = km_test_read_file("dcheck_out/sub/r.json", &n);
   cJSON *j = text ? cJSON_Parse(text) : NULL;
   CHECK_MSG(j != NULL, "report not JSON: %s", text ? text : "(none)");
   if (j) {

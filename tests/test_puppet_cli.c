@@ -5,16 +5,6 @@
 #include <cjson/cJSON.h>
 #include <unistd.h>
 
-static char *slurp(const char *path, size_t *n) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return NULL;
-  char *buf = malloc(1 << 22);
-  *n = buf ? fread(buf, 1, (1 << 22) - 1, f) : 0;
-  if (buf) buf[*n] = 0;
-  fclose(f);
-  return buf;
-}
-
 static bool all_finite(const double *x, size_t n) {
   for (size_t i = 0; i < n; ++i)
     if (!isfinite(x[i])) return false;
@@ -441,7 +431,7 @@ static void test_report(void) {
   double *frames = NULL;
   km_anim_info info = {0};
   size_t n = 0;
-  char *text = slurp("puppet_r/new/r.json", &n);
+  char *text = km_test_read_file("puppet_r/new/r.json", &n);
   cJSON *j = text ? cJSON_Parse(text) : NULL;
   CHECK_MSG(j != NULL, "report: %s", text ? text : "(none)");
   if (j && km_mesh_read("puppet_r/c.obj", &m, &err) == KM_OK &&
@@ -473,7 +463,8 @@ static void test_report(void) {
   CHECK_MSG(out && strstr(out, "16 frames") && strstr(out, "shape: longest edge"), "%s",
             out ? out : "");
   free(out);
-  char *t1 = slurp("puppet_r/new/r.json", &n), *t2 = slurp("puppet_r/r2.json", &n);
+  char *t1 = km_test_read_file("puppet_r/new/r.json", &n),
+       *t2 = km_test_read_file("puppet_r/r2.json", &n);
   cJSON *j1 = t1 ? cJSON_Parse(t1) : NULL, *j2 = t2 ? cJSON_Parse(t2) : NULL;
   CHECK(j1 && j2);
   if (j1 && j2) {

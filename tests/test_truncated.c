@@ -10,22 +10,6 @@
 
 static char g_dir[] = "/tmp/km_trunc_XXXXXX";
 
-static char *slurp(const char *path, size_t *n) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return NULL;
-  fseek(f, 0, SEEK_END);
-  long sz = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *b = sz >= 0 ? malloc((size_t)sz + 1) : NULL;
-  if (b && fread(b, 1, (size_t)sz, f) != (size_t)sz) {
-    free(b);
-    b = NULL;
-  }
-  fclose(f);
-  if (b) *n = (size_t)sz;
-  return b;
-}
-
 static bool spit(const char *path, const char *data, size_t n) {
   FILE *f = fopen(path, "wb");
   if (!f) return false;
@@ -42,7 +26,7 @@ typedef km_status (*reader_fn)(const char *path, void *ctx, km_error *err);
 static size_t prefix_loop(const char *what, const char *src, const char *ext, reader_fn read,
                           void *ctx, size_t strict_below) {
   size_t n = 0;
-  char *data = slurp(src, &n);
+  char *data = km_test_read_file(src, &n);
   CHECK_MSG(data && n > 0, "%s: cannot read %s", what, src);
   if (!data) return 0;
   char path[512];
@@ -199,7 +183,7 @@ int main(void) {
   snprintf(path, sizeof path, "%s/t.json", g_dir);
   CHECK_OK(km_take_write(path, &take, KM_E));
   size_t n = 0;
-  free(slurp(path, &n));
+  free(km_test_read_file(path, &n));
   prefix_loop("take", path, "json", read_take, NULL, n > 2 ? n - 2 : 0);
 
   /* landmark track, JSON and CSV */
@@ -216,7 +200,7 @@ int main(void) {
   tr.positions = pos;
   snprintf(path, sizeof path, "%s/tr.json", g_dir);
   CHECK_OK(km_track_write(path, &tr, KM_E));
-  free(slurp(path, &n));
+  free(km_test_read_file(path, &n));
   prefix_loop("track (json)", path, "json", read_track, NULL, n > 2 ? n - 2 : 0);
   snprintf(path, sizeof path, "%s/tr.csv", g_dir);
   CHECK_OK(km_track_write(path, &tr, KM_E));
@@ -225,7 +209,7 @@ int main(void) {
   /* rig sidecar: the puppetry rig and the character parts */
   snprintf(path, sizeof path, "%s/c.rig.json", g_dir);
   CHECK_OK(km_character_write_rig(path, &c, KM_E));
-  free(slurp(path, &n));
+  free(km_test_read_file(path, &n));
   prefix_loop("rig", path, "json", read_rig, &c.mesh, n > 2 ? n - 2 : 0);
   prefix_loop("character rig", path, "json", read_char_rig, &c.mesh, n > 2 ? n - 2 : 0);
 
@@ -235,13 +219,13 @@ int main(void) {
   snprintf(path, sizeof path, "%s/c.kmcache", g_dir);
   CHECK_OK(km_puppet_save(pp, path, KM_E));
   km_puppet_free(&pp);
-  free(slurp(path, &n));
+  free(km_test_read_file(path, &n));
   prefix_loop("puppet cache", path, "kmcache", read_cache, &c.mesh, n);
 
   /* pose database: sizes and checksum, every prefix refused */
   snprintf(path, sizeof path, "%s/p.kmposedb", g_dir);
   CHECK_OK(write_posedb(path, KM_E));
-  free(slurp(path, &n));
+  free(km_test_read_file(path, &n));
   prefix_loop("pose database", path, "kmposedb", read_posedb, NULL, n);
 
   /* pc2 and glb animations */
@@ -256,7 +240,7 @@ int main(void) {
       CHECK_OK(km_anim_writer_push(w, c.mesh.V, KM_E));
     }
     CHECK_OK(km_anim_writer_close(&w, KM_E));
-    free(slurp(path, &n));
+    free(km_test_read_file(path, &n));
     if (k == 0) {
       prefix_loop("pc2", path, "pc2", read_pc2, NULL, n);
       prefix_loop("pc2 info", path, "pc2", read_anim_info, NULL, n);

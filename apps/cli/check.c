@@ -16,17 +16,19 @@ int km_cli_check(int argc, char **argv) {
       {"units", 0, KM_OPT_STRING, &units,
        "the rest mesh's units, as given to animate --units: m (default), cm, mm, in, ft, or "
        "metres per unit (animate writes metres)"},
-      {"rig", 0, KM_OPT_STRING, &rig_path, "name places by this rig's handles (default: vertex ids)"},
+      {"rig", 0, KM_OPT_STRING, &rig_path,
+       "name places by this rig's handles (default: vertex ids)"},
       {"report", 0, KM_OPT_STRING, &report, "write every frame's measures as JSON"},
   };
   const char *pos[1];
   int n_pos;
-  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
-                       "kinemesh check ANIM [--mesh REST] [--units U] [--rig RIG] [--report R.json]",
-                       "Measures every frame of a mesh animation against its rest mesh, as\n"
-                       "animate does for its own (edge length ratios l/l0, folded triangles,\n"
-                       "one-frame steps), prints one line saying where the mesh suffered and,\n"
-                       "with --report, every frame's measures as JSON.");
+  int r =
+      km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
+                   "kinemesh check ANIM [--mesh REST] [--units U] [--rig RIG] [--report R.json]",
+                   "Measures every frame of a mesh animation against its rest mesh, as\n"
+                   "animate does for its own (edge length ratios l/l0, folded triangles,\n"
+                   "one-frame steps), prints one line saying where the mesh suffered and,\n"
+                   "with --report, every frame's measures as JSON.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (n_pos != 1) return km_cli_error("check", "expected one animation (.glb, .pc2 or a folder)");
   double scale = 1;
@@ -52,8 +54,9 @@ int km_cli_check(int argc, char **argv) {
     rest = given;
     memset(&given, 0, sizeof given);
   } else if (!rest.n_faces) {
-    rc = km_cli_error("check", "%s has no faces (a .pc2 holds positions only): give the rest "
-                               "mesh with --mesh",
+    rc = km_cli_error("check",
+                      "%s has no faces (a .pc2 holds positions only): give the rest "
+                      "mesh with --mesh",
                       pos[0]);
     goto done;
   }
@@ -62,7 +65,8 @@ int km_cli_check(int argc, char **argv) {
     goto done;
   }
   /* units: a frame many times the rest's size is in other units, not a stretch */
-  double d0 = km_bbox_diagonal(rest.V, rest.n_vertices), d1 = km_bbox_diagonal(frames, info.vertices);
+  double d0 = km_bbox_diagonal(rest.V, rest.n_vertices),
+         d1 = km_bbox_diagonal(frames, info.vertices);
   if (!(d1 <= 4 * d0 && d1 >= 0.25 * d0)) {
     rc = km_cli_error("check",
                       "%s: its first frame is %.3g times the size of the rest mesh: not in its "
@@ -78,8 +82,7 @@ int km_cli_check(int argc, char **argv) {
   char line[1024];
   km_cli_shape_line(dc, &rest, rig_path ? &rig : NULL, line, sizeof line);
   printf("%s: %zu frames, %zu vertices, against %s\n%s", pos[0], info.frames, info.vertices,
-         mesh_path ? mesh_path
-                   : (info.format == KM_ANIM_GLB ? "its base mesh" : "its first frame"),
+         mesh_path ? mesh_path : (info.format == KM_ANIM_GLB ? "its base mesh" : "its first frame"),
          line);
   if (report) printf("-> %s\n", report);
   rc = KM_EXIT_OK;
