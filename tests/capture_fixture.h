@@ -9,19 +9,9 @@
 
 /* A JSON file parsed, or NULL when it cannot be read or parsed (caller cJSON_Deletes). */
 static inline cJSON *km_test_read_json(const char *path) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return NULL;
-  fseek(f, 0, SEEK_END);
-  long size = ftell(f);
-  fseek(f, 0, SEEK_SET);
-  char *data = size >= 0 ? malloc((size_t)size + 1) : NULL;
-  if (!data) {
-    fclose(f);
-    return NULL;
-  }
-  data[fread(data, 1, (size_t)size, f)] = '\0';
-  fclose(f);
-  cJSON *j = cJSON_Parse(data);
+  size_t n = 0;
+  char *data = km_test_read_file(path, &n);
+  cJSON *j = data ? cJSON_Parse(data) : NULL;
   free(data);
   return j;
 }

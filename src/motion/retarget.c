@@ -177,14 +177,13 @@ void km_retarget_reset(km_retarget *r) {
     }
 }
 
-static bool valid3(const double *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }
 
 static double skeleton_height(const km_retarget *r, const double *J);
 
 const double *km_retarget_reference(const km_retarget *r) { return r->ref; }
 
 void km_retarget_set_reference(km_retarget *r, size_t j, const double p[3]) {
-  if (!r || j >= r->n_joints || !valid3(p)) return;
+  if (!r || j >= r->n_joints || !km__finite3(p)) return;
   memcpy(r->ref + 3 * j, p, 3 * sizeof(double));
   /* what was built on the old reference: the auto scale (the stature, from the head and feet
    * of the first frame: now from the reference), the root translation's scale (recomputed at
@@ -419,10 +418,10 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       /* HipCenter, ShoulderCenter */
       r->upright = jr && rig->skeleton == KM_RIG_KINECT1 && n_joints >= KM_KINECT1_JOINTS &&
                    km__spine_upright(r->jrest, r->jrest + 3 * 2);
-      if (jr && r->rigid && valid3(r->jrest + 3 * (size_t)r->root)) {
+      if (jr && r->rigid && km__finite3(r->jrest + 3 * (size_t)r->root)) {
         memcpy(r->pivot, r->jrest + 3 * (size_t)r->root, sizeof r->pivot);
         const double *sc = r->jrest + 3 * 2; /* ShoulderCenter */
-        if (rig->skeleton == KM_RIG_KINECT1 && r->n_joints >= KM_KINECT1_JOINTS && valid3(sc)) {
+        if (rig->skeleton == KM_RIG_KINECT1 && r->n_joints >= KM_KINECT1_JOINTS && km__finite3(sc)) {
           r->pivot[0] = 0.5 * (r->pivot[0] + sc[0]);
           r->pivot[2] = 0.5 * (r->pivot[2] + sc[2]);
         }
@@ -470,14 +469,14 @@ static double skeleton_height(const km_retarget *r, const double *J) {
   if (r->kinect1) {
     enum { HEAD = 3, FOOT_L = 15, FOOT_R = 19 };
     const double *h = J + 3 * HEAD, *fl = J + 3 * FOOT_L, *fr = J + 3 * FOOT_R;
-    if (valid3(h) && (valid3(fl) || valid3(fr))) {
-      double foot = valid3(fl) && valid3(fr) ? fmin(fl[1], fr[1]) : valid3(fl) ? fl[1] : fr[1];
+    if (km__finite3(h) && (km__finite3(fl) || km__finite3(fr))) {
+      double foot = km__finite3(fl) && km__finite3(fr) ? fmin(fl[1], fr[1]) : km__finite3(fl) ? fl[1] : fr[1];
       if (h[1] - foot > 0) return (h[1] - foot) / KM_KINECT1_SPAN_OF_STATURE;
     }
   }
   double lo = INFINITY, hi = -INFINITY;
   for (size_t j = 0; j < r->n_joints; ++j)
-    if (valid3(J + 3 * j)) {
+    if (km__finite3(J + 3 * j)) {
       lo = fmin(lo, J[3 * j + 1]);
       hi = fmax(hi, J[3 * j + 1]);
     }
@@ -506,7 +505,7 @@ static double root_scale(const km_retarget *r) {
                  *a = r->ref + 3 * legs[k][2];
     const double *H = r->jrest + 3 * legs[k][0], *K = r->jrest + 3 * legs[k][1],
                  *A = r->jrest + 3 * legs[k][2];
-    if (!valid3(h) || !valid3(kn) || !valid3(a) || !valid3(H) || !valid3(K) || !valid3(A)) continue;
+    if (!km__finite3(h) || !km__finite3(kn) || !km__finite3(a) || !km__finite3(H) || !km__finite3(K) || !km__finite3(A)) continue;
     lp += dist3(h, kn) + dist3(kn, a);
     lc += dist3(H, K) + dist3(K, A);
     ++n;
@@ -658,11 +657,11 @@ static const double *fill_untracked(km_retarget *r, const double *joints) {
   if (!r->only_child) return joints;
   bool copied = false;
   for (size_t j = 0; j < r->n_joints; ++j) {
-    if (valid3(joints + 3 * j)) r->seen[j] = true;
+    if (km__finite3(joints + 3 * j)) r->seen[j] = true;
     int32_t p = r->par[j], c = r->only_child[j];
     if (p < 0 || c < 0 || r->seen[j]) continue;
     const double *a = joints + 3 * (size_t)p, *b = joints + 3 * (size_t)c;
-    if (!valid3(a) || !valid3(b)) continue;
+    if (!km__finite3(a) || !km__finite3(b)) continue;
     double t = 0.5;
     if (r->jrest) {
       double l0 = dist3(r->jrest + 3 * (size_t)p, r->jrest + 3 * j),
@@ -681,7 +680,7 @@ void km_retarget_push_rotations(km_retarget *r, const double *joints, const doub
                                 double *handle_targets) {
   joints = fill_untracked(r, joints);
   for (size_t j = 0; j < r->n_joints; ++j)
-    if (!isfinite(r->ref[3 * j]) && valid3(joints + 3 * j))
+    if (!isfinite(r->ref[3 * j]) && km__finite3(joints + 3 * j))
       memcpy(r->ref + 3 * j, joints + 3 * j, 3 * sizeof(double));
   r->jrot = r->qref ? rotations : NULL;
   for (size_t j = 0; r->jrot && j < r->n_joints; ++j)
@@ -693,7 +692,7 @@ void km_retarget_push_rotations(km_retarget *r, const double *joints, const doub
   }
   if (r->rigid && isfinite(r->scale)) {
     const double *q = joints + 3 * (size_t)r->root, *q0 = r->ref + 3 * (size_t)r->root;
-    if (valid3(q) && valid3(q0)) {
+    if (km__finite3(q) && km__finite3(q0)) {
       if (r->hl >= 0) {
         /* The heading: the turn about y of the right -> left line of the heading joints (the
          * hips), with a Kinect skeleton's shoulder line added when valid: hips alone are 0.18 m
@@ -715,7 +714,7 @@ void km_retarget_push_rotations(km_retarget *r, const double *joints, const doub
           const double *a = joints + 3 * (size_t)lines[k][0], *b = joints + 3 * (size_t)lines[k][1];
           const double *a0 = r->ref + 3 * (size_t)lines[k][0],
                        *b0 = r->ref + 3 * (size_t)lines[k][1];
-          if (!valid3(a) || !valid3(b) || !valid3(a0) || !valid3(b0)) continue;
+          if (!km__finite3(a) || !km__finite3(b) || !km__finite3(a0) || !km__finite3(b0)) continue;
           double x = b[0] - a[0], z = b[2] - a[2], x0 = b0[0] - a0[0], z0 = b0[2] - a0[2];
           double n = hypot(x, z), n0 = hypot(x0, z0);
           if (!(n > 1e-9) || !(n0 > 1e-9)) continue;
@@ -753,12 +752,12 @@ void km_retarget_push_rotations(km_retarget *r, const double *joints, const doub
       for (size_t e = a; e < b && ok; ++e) {
         const km_rig_map *m = &r->maps[e];
         const double *p = joints + 3 * (size_t)m->joint, *p0 = r->ref + 3 * (size_t)m->joint;
-        ok = valid3(p) && valid3(p0);
+        ok = km__finite3(p) && km__finite3(p0);
         double root[3] = {0, 0, 0};
         if (ok && m->relative_to > 0) { /* root-relative: subtract the reference's motion */
           const double *q = joints + 3 * (size_t)(m->relative_to - 1),
                        *q0 = r->ref + 3 * (size_t)(m->relative_to - 1);
-          ok = valid3(q) && valid3(q0);
+          ok = km__finite3(q) && km__finite3(q0);
           for (int c = 0; ok && c < 3; ++c)
             root[c] = q[c] - q0[c];
         }
@@ -856,7 +855,7 @@ static bool segment_dirs(const km_retarget *r, const double *J, int32_t a, int32
                          double d[3]) {
   const double *p = J + 3 * (size_t)b, *q = J + 3 * (size_t)a;
   const double *p0 = r->ref + 3 * (size_t)b, *q0 = r->ref + 3 * (size_t)a;
-  if (!valid3(p) || !valid3(q) || !valid3(p0) || !valid3(q0)) return false;
+  if (!km__finite3(p) || !km__finite3(q) || !km__finite3(p0) || !km__finite3(q0)) return false;
   for (int c = 0; c < 3; ++c) {
     d[c] = p[c] - q[c];
     d0[c] = p0[c] - q0[c];
@@ -880,7 +879,7 @@ static bool segment_dirs(const km_retarget *r, const double *J, int32_t a, int32
  * jittery direction: the nearest ancestor of a at least 0.15 m (of performer) from b stands in
  * for a. */
 static int32_t long_ancestor(const km_retarget *r, int32_t a, int32_t b) {
-  while (r->par[a] >= 0 && valid3(r->ref + 3 * (size_t)a) && valid3(r->ref + 3 * (size_t)b) &&
+  while (r->par[a] >= 0 && km__finite3(r->ref + 3 * (size_t)a) && km__finite3(r->ref + 3 * (size_t)b) &&
          dist3(r->ref + 3 * (size_t)a, r->ref + 3 * (size_t)b) < 0.15)
     a = r->par[a];
   return a;
@@ -1057,7 +1056,7 @@ static void limit_bone(km_retarget *r, const double *J, int32_t q, int32_t j, co
                        double R[9]) {
   const double *p = J + 3 * (size_t)j, *pq = J + 3 * (size_t)q;
   if (r->bone_catchup < 0) return;
-  if (!valid3(p) || !valid3(pq)) {
+  if (!km__finite3(p) || !km__finite3(pq)) {
     r->bhave[j] = false;
     return;
   }
@@ -1084,9 +1083,9 @@ static void limit_bone(km_retarget *r, const double *J, int32_t q, int32_t j, co
   if (!(r->blen[j] > 1e-6)) return;
   /* the character's bone direction before and after this push */
   double w[3];
-  if (r->jrest && valid3(r->jrest + 3 * (size_t)j) && valid3(r->jrest + 3 * (size_t)q))
+  if (r->jrest && km__finite3(r->jrest + 3 * (size_t)j) && km__finite3(r->jrest + 3 * (size_t)q))
     km__sub3(r->jrest + 3 * (size_t)j, r->jrest + 3 * (size_t)q, w);
-  else if (valid3(r->ref + 3 * (size_t)j) && valid3(r->ref + 3 * (size_t)q))
+  else if (km__finite3(r->ref + 3 * (size_t)j) && km__finite3(r->ref + 3 * (size_t)q))
     km__sub3(r->ref + 3 * (size_t)j, r->ref + 3 * (size_t)q, w);
   else
     return;
@@ -1137,7 +1136,7 @@ static void lift_root(km_retarget *r) {
   static const int ends[4] = {14, 18, 6, 10}; /* ankles; wrists where they are a paw's */
   for (int k = 0; k < 4; ++k) {
     const double *A0 = r->jrest + 3 * ends[k], *A = r->C + 3 * ends[k];
-    if (!valid3(A0) || !valid3(A)) continue;
+    if (!km__finite3(A0) || !km__finite3(A)) continue;
     if (k >= 2 && !(A0[1] - r->floor_y < 0.15 * r->mesh_height)) continue;
     double need = A0[1] - (A[1] + r->t[1]);
     if (need > lift) lift = need;
@@ -1165,7 +1164,7 @@ static void flatten_foot(const km_retarget *r, int32_t ankle, double R[9]) {
    * fetlock (bench motion B on cmu_131_01: stretch max 0.73 -> 0.98, 64 folded triangles) */
   if (!r->upright) return;
   const double *A0 = r->jrest + 3 * (size_t)ankle, *A = r->C + 3 * (size_t)ankle;
-  if (!valid3(A0) || !valid3(A)) return;
+  if (!km__finite3(A0) || !km__finite3(A)) return;
   double ha = A0[1] - r->floor_y; /* the ankle's rest height above the floor */
   if (!(ha > 0) || !(ha < 0.15 * r->mesh_height)) return;
   double rise = A[1] + (r->rigid ? r->t[1] : 0) - A0[1];
@@ -1202,7 +1201,7 @@ static void update_bones(km_retarget *r, const double *J) {
     double *Rj = r->Rb + 9 * j, *Cj = r->C + 3 * j;
     if (q < 0) {
       const double *p = J + 3 * j, *p0 = r->ref + 3 * j;
-      if (r->jrest && valid3(p) && valid3(p0))
+      if (r->jrest && km__finite3(p) && km__finite3(p0))
         for (int d = 0; d < 3; ++d)
           Cj[d] = r->jrest[3 * j + d] + (r->rigid ? 0 : s * (p[d] - p0[d]));
       continue;
@@ -1216,7 +1215,7 @@ static void update_bones(km_retarget *r, const double *J) {
         aim[d] = r->jrest[3 * j + d] - r->jrest[3 * (size_t)q + d];
       if (isfinite(aim[0] + aim[1] + aim[2])) ap = aim;
     }
-    if (valid3(a0) && valid3(b0) && dist3(a0, b0) < 0.15) {
+    if (km__finite3(a0) && km__finite3(b0) && dist3(a0, b0) < 0.15) {
       memcpy(Rj, r->Rb + 9 * (size_t)q, 9 * sizeof(double));
     } else {
       double Rprev[9];
@@ -1252,8 +1251,8 @@ static void update_bones(km_retarget *r, const double *J) {
       int32_t q = r->par[b];
       while (q >= 0 && q != a)
         q = r->par[q];
-      if (q == a && valid3(r->C + 3 * (size_t)r->par[b]) &&
-          valid3(r->jrest + 3 * (size_t)r->par[b]))
+      if (q == a && km__finite3(r->C + 3 * (size_t)r->par[b]) &&
+          km__finite3(r->jrest + 3 * (size_t)r->par[b]))
         pv = r->par[b];
     }
     if (r->par[b] == a) {
@@ -1277,13 +1276,13 @@ static void update_bones(km_retarget *r, const double *J) {
     if (r->bone_rel[h] > 0) {
       const double *q = J + 3 * (size_t)(r->bone_rel[h] - 1),
                    *q0 = r->ref + 3 * (size_t)(r->bone_rel[h] - 1);
-      if (!valid3(q) || !valid3(q0)) continue;
+      if (!km__finite3(q) || !km__finite3(q0)) continue;
       if (!(r->rigid && r->bone_rel[h] - 1 == r->root))
         for (int d = 0; d < 3; ++d)
           rel[d] = s * (q[d] - q0[d]);
     }
     const double *Ca = r->C + 3 * (size_t)pv;
-    if (r->jrest && valid3(Ca) && valid3(r->jrest + 3 * (size_t)pv)) {
+    if (r->jrest && km__finite3(Ca) && km__finite3(r->jrest + 3 * (size_t)pv)) {
       /* x -> C_pv - rel + R (x - C^0_pv), written as the centroid's displacement */
       double w[3], y[3];
       for (int d = 0; d < 3; ++d)
@@ -1294,7 +1293,7 @@ static void update_bones(km_retarget *r, const double *J) {
     } else { /* no character skeleton: about the centroid, with the bone's midpoint */
       const double *p = J + 3 * (size_t)b, *q = J + 3 * (size_t)a;
       const double *p0 = r->ref + 3 * (size_t)b, *q0 = r->ref + 3 * (size_t)a;
-      if (!valid3(p) || !valid3(q) || !valid3(p0) || !valid3(q0)) continue;
+      if (!km__finite3(p) || !km__finite3(q) || !km__finite3(p0) || !km__finite3(q0)) continue;
       for (int d = 0; d < 3; ++d)
         disp[d] = 0.5 * s * (p[d] + q[d] - p0[d] - q0[d]) - rel[d];
     }
