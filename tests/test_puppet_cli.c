@@ -495,6 +495,20 @@ static void test_report(void) {
             out2 ? out2 : "");
   free(out);
   free(out2);
+  /* limits: exit 3 when exceeded (a folded-triangle limit below the count, a stretch limit
+   * below the measured one), 0 within (the measured values themselves) */
+  CHECK(km_test_run(KM_CLI " check puppet_r/x.glb --max-stretch 0.000001 --max-step 1000", &out) ==
+        3);
+  CHECK_MSG(out && strstr(out, "limits exceeded: stretch") && !strstr(out, "> 1000"), "%s",
+            out ? out : "");
+  free(out);
+  CHECK(km_test_run(KM_CLI " check puppet_r/x.glb --max-stretch 100 --max-folded 1000000 "
+                           "--max-step 1000",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "within the limits"), "%s", out ? out : "");
+  free(out);
+  CHECK(km_test_run(KM_CLI " check puppet_r/x.glb --max-folded -2", &out) == 1);
+  free(out);
   /* bad input: named, exit 1 */
   CHECK(km_test_run(KM_CLI " check puppet_r/x.pc2", &out) == 1);
   CHECK_MSG(out && strstr(out, "--mesh"), "%s", out ? out : "");

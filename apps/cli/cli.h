@@ -132,6 +132,7 @@ void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig
 #define KM_EXIT_OK 0
 #define KM_EXIT_FAIL 1
 #define KM_EXIT_USAGE 2
+#define KM_EXIT_LIMITS 3 /* check: the animation exceeds a limit it was given */
 
 int km_cli_info(int argc, char **argv);
 int km_cli_convert(int argc, char **argv);

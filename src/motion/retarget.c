@@ -177,7 +177,6 @@ void km_retarget_reset(km_retarget *r) {
     }
 }
 
-
 static double skeleton_height(const km_retarget *r, const double *J);
 
 const double *km_retarget_reference(const km_retarget *r) { return r->ref; }
@@ -421,7 +420,8 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
       if (jr && r->rigid && km__finite3(r->jrest + 3 * (size_t)r->root)) {
         memcpy(r->pivot, r->jrest + 3 * (size_t)r->root, sizeof r->pivot);
         const double *sc = r->jrest + 3 * 2; /* ShoulderCenter */
-        if (rig->skeleton == KM_RIG_KINECT1 && r->n_joints >= KM_KINECT1_JOINTS && km__finite3(sc)) {
+        if (rig->skeleton == KM_RIG_KINECT1 && r->n_joints >= KM_KINECT1_JOINTS &&
+            km__finite3(sc)) {
           r->pivot[0] = 0.5 * (r->pivot[0] + sc[0]);
           r->pivot[2] = 0.5 * (r->pivot[2] + sc[2]);
         }
@@ -470,7 +470,9 @@ static double skeleton_height(const km_retarget *r, const double *J) {
     enum { HEAD = 3, FOOT_L = 15, FOOT_R = 19 };
     const double *h = J + 3 * HEAD, *fl = J + 3 * FOOT_L, *fr = J + 3 * FOOT_R;
     if (km__finite3(h) && (km__finite3(fl) || km__finite3(fr))) {
-      double foot = km__finite3(fl) && km__finite3(fr) ? fmin(fl[1], fr[1]) : km__finite3(fl) ? fl[1] : fr[1];
+      double foot = km__finite3(fl) && km__finite3(fr) ? fmin(fl[1], fr[1])
+                    : km__finite3(fl)                  ? fl[1]
+                                                       : fr[1];
       if (h[1] - foot > 0) return (h[1] - foot) / KM_KINECT1_SPAN_OF_STATURE;
     }
   }
@@ -505,7 +507,9 @@ static double root_scale(const km_retarget *r) {
                  *a = r->ref + 3 * legs[k][2];
     const double *H = r->jrest + 3 * legs[k][0], *K = r->jrest + 3 * legs[k][1],
                  *A = r->jrest + 3 * legs[k][2];
-    if (!km__finite3(h) || !km__finite3(kn) || !km__finite3(a) || !km__finite3(H) || !km__finite3(K) || !km__finite3(A)) continue;
+    if (!km__finite3(h) || !km__finite3(kn) || !km__finite3(a) || !km__finite3(H) ||
+        !km__finite3(K) || !km__finite3(A))
+      continue;
     lp += dist3(h, kn) + dist3(kn, a);
     lc += dist3(H, K) + dist3(K, A);
     ++n;
@@ -879,7 +883,8 @@ static bool segment_dirs(const km_retarget *r, const double *J, int32_t a, int32
  * jittery direction: the nearest ancestor of a at least 0.15 m (of performer) from b stands in
  * for a. */
 static int32_t long_ancestor(const km_retarget *r, int32_t a, int32_t b) {
-  while (r->par[a] >= 0 && km__finite3(r->ref + 3 * (size_t)a) && km__finite3(r->ref + 3 * (size_t)b) &&
+  while (r->par[a] >= 0 && km__finite3(r->ref + 3 * (size_t)a) &&
+         km__finite3(r->ref + 3 * (size_t)b) &&
          dist3(r->ref + 3 * (size_t)a, r->ref + 3 * (size_t)b) < 0.15)
     a = r->par[a];
   return a;
