@@ -145,8 +145,13 @@ static void test_gen_and_pose(void) {
                     " gen motion --kind walk --frames 7 --character cli_char.obj -o cli_take.json",
                     NULL) == 0);
   CHECK(km_test_run(KM_CLI " gen motion --kind moonwalk --frames 7 -o cli_x.json", NULL) == 1);
+  char *pout = NULL;
   CHECK(km_test_run(KM_CLI " pose --mesh cli_char.obj --motion cli_take.json -o cli_anim.pc2",
-                    NULL) == 0);
+                    &pout) == 0);
+  /* pose checks its frames as animate does; the character's sidecar names places by handle */
+  CHECK_MSG(pout && strstr(pout, "shape: longest edge") && !strstr(pout, "near vertex"), "%s",
+            pout ? pout : "");
+  free(pout);
   j = run_json(KM_CLI " info --json cli_anim.pc2", &code);
   CHECK(code == 0 && j && num(j, "frames") == 7);
   cJSON_Delete(j);

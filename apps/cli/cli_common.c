@@ -787,14 +787,19 @@ void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig
     return;
   }
   int32_t sv[2] = {s.step_vertex, s.step_vertex};
-  char b1[32], b2[32];
+  char b1[32], b2[32], step[160];
+  if (s.step_vertex >= 0)
+    snprintf(step, sizeof step,
+             "largest one-frame step %.1f %% of the mesh's size (frame %zu, near %s)",
+             s.diagonal > 0 ? 100 * s.step / s.diagonal : 0.0, s.step_frame,
+             near_place(rig, m, sv, b2, sizeof b2));
+  else
+    snprintf(step, sizeof step, "no vertex moves from one frame to the next");
   snprintf(line, n,
            "  shape: longest edge %.2fx its rest length (frame %zu, near %s), shortest %.2fx; "
            "%zu of %zu frames have an edge over 1.5x; %zu triangles folded in some frame "
-           "(most: %zu pairs, frame %zu); largest one-frame step %.1f %% of the mesh's size "
-           "(frame %zu, near %s)\n",
+           "(most: %zu pairs, frame %zu); %s\n",
            s.ratio_max, s.ratio_max_frame, near_place(rig, m, s.long_edge, b1, sizeof b1),
            s.ratio_min, s.long_frames, s.frames, s.folded, s.most_folded_pairs, s.most_folded_frame,
-           s.diagonal > 0 ? 100 * s.step / s.diagonal : 0.0, s.step_frame,
-           near_place(rig, m, sv, b2, sizeof b2));
+           step);
 }

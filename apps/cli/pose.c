@@ -101,6 +101,7 @@ int km_cli_pose(int argc, char **argv) {
   km_character c = {0};
   km_take t = {0};
   km_anim_writer *w = NULL;
+  km_deform_check *dc = NULL;
   km_track trk = {0};
   double *pos_frame = NULL, *xf = NULL, *V = NULL, *seed = NULL;
   km_frame mf = {KM_AXIS_POS_Y, KM_AXIS_POS_Z, 0}; /* the mesh file's frame (--keep-frame) */
@@ -142,6 +143,8 @@ int km_cli_pose(int argc, char **argv) {
     /* --keep-frame: the writer takes each frame back into the file's axes and units */
     if (keep_frame) ao.frame = &mf;
     if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
+    /* every frame checked against the rest mesh, as animate does: where skinning collapses */
+    if (km_deform_check_create(&c.mesh, &dc, &err) != KM_OK) goto fail;
   }
   if (track_out) {
     trk.n_frames = t.n_frames;
@@ -166,7 +169,9 @@ int km_cli_pose(int argc, char **argv) {
                : km_skeleton_pose_from_directions(&c.skeleton, pos_frame, xf, &err)) != KM_OK ||
         km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK)
       goto fail;
-    if (w && km_anim_writer_push(w, V, &err) != KM_OK) goto fail;
+    if (w && (km_anim_writer_push(w, V, &err) != KM_OK ||
+              km_deform_check_add(dc, V, NULL, &err) != KM_OK))
+      goto fail;
     for (size_t l = 0; track_out && l < KM_CHARACTER_LANDMARKS; ++l)
       memcpy(trk.positions + 3 * (f * KM_CHARACTER_LANDMARKS + l),
              V + 3 * (size_t)c.landmarks[l].vertex, 3 * sizeof(double));
@@ -177,6 +182,18 @@ int km_cli_pose(int argc, char **argv) {
   if (track_out && km_track_write(track_out, &trk, &err) != KM_OK) goto fail;
   km_cli_progress_done();
   if (out) km_cli_report_export("pose", &rep);
+  char shape_line[1024] = "";
+  if (dc) {
+    /* places named by the rig's handles when its sidecar has them (else vertex ids) */
+    char *own = rig ? NULL : km_cli_rig_path(mesh);
+    km_rig hr = {0};
+    km_error e2 = {0};
+    bool named = (rig || own) && km_rig_read(rig ? rig : own, &c.mesh, NULL, 0, &hr, &e2) == KM_OK;
+    km_cli_shape_line(dc, &c.mesh, named ? &hr : NULL, shape_line, sizeof shape_line);
+    km_rig_free(&hr);
+    free(own);
+  }
+  fputs(shape_line, stderr);
   fprintf(stderr, "kinemesh pose: %zu frames of %zu vertices, scale %.4g -> %s%s%s\n", t.n_frames,
           c.mesh.n_vertices, scale, out ? out : "", out && track_out ? ", landmark track " : "",
           track_out ? track_out : "");
@@ -186,6 +203,7 @@ fail:
   rc = km_cli_fail("pose", &err);
 done:
   km_anim_writer_free(&w);
+  km_deform_check_free(&dc);
   km_track_free(&trk);
   free(map);
   free(pos_frame);
