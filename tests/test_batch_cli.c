@@ -425,5 +425,28 @@ int main(void) {
   CHECK(km_test_run(KM_CLI " batch " DIR "/seg.jsonl --dry-run 2>/dev/null", &out) == 0);
   CHECK_MSG(out && !strchr(out, '{'), "%s", out ? out : "");
   free(out);
+
+  /* ---- a QA pass over the takes: check jobs, one within its limits, one beyond (exit 3: the
+   * job is failed, its report names the code and the limit) */
+  write_text(DIR "/qa.jsonl",
+             "{\"id\": \"q1\", \"verb\": \"check\", \"args\": [\"out/long.pc2\", \"--mesh\", "
+             "\"t.obj\", \"--report\", \"out/q1.json\", \"--max-stretch\", \"100\"]}\n"
+             "{\"id\": \"q2\", \"verb\": \"check\", \"args\": [\"out/long.pc2\", \"--mesh\", "
+             "\"t.obj\", \"--max-stretch\", \"0\"]}\n");
+  CHECK(km_test_run(KM_CLI " batch " DIR "/qa.jsonl", &out) == 1);
+  CHECK_MSG(out && strstr(out, "q1: ok") && strstr(out, "q2: FAILED") &&
+                strstr(out, "exit status 3"),
+            "%s", out ? out : "");
+  free(out);
+  report_counts(DIR "/qa.batch/report.json", &ok, &failed);
+  CHECK_MSG(ok == 1 && failed == 1, "qa: ok %d failed %d", ok, failed);
+  cJSON *q2 = km_test_read_json(DIR "/qa.batch/jobs/q2.json");
+  const cJSON *code = cJSON_GetObjectItemCaseSensitive(q2, "exit_code");
+  const cJSON *sum = cJSON_GetObjectItemCaseSensitive(q2, "summary");
+  CHECK(cJSON_IsNumber(code) && code->valueint == 3);
+  CHECK_MSG(cJSON_IsString(sum) && strstr(sum->valuestring, "limits exceeded: stretch"), "%s",
+            cJSON_IsString(sum) ? sum->valuestring : "(no summary)");
+  cJSON_Delete(q2);
+  CHECK(km_test_run("grep -q kinemesh-deform-report " DIR "/out/q1.json", NULL) == 0);
   return km_test_finish("test_batch_cli");
 }

@@ -38,7 +38,7 @@
 
 /* The verbs a job may name: those that take files in and write files out. */
 static const char *const JOB_VERBS[] = {"reconstruct", "animate",    "pose", "avatar",
-                                        "transfer",    "precompute", "bake"};
+                                        "transfer",    "precompute", "bake", "check"};
 /* The options whose value is an output file of the job (checksummed, verified on resume). */
 static const char *const OUTPUT_OPTS[] = {"-o", "--output", "--report", "--plot"};
 
@@ -972,7 +972,7 @@ int km_cli_batch(int argc, char **argv) {
       "  {\"id\": \"s01\", \"verb\": \"reconstruct\", \"args\": [\"--template\", \"t.obj\", "
       "\"--clouds\",\n"
       "   \"s01/*.ply\", \"-o\", \"out/s01.pc2\", \"--report\", \"out/s01.json\"]}\n"
-      "(verbs: reconstruct, animate, pose, avatar, transfer, precompute, bake), each as a\n"
+      "(verbs: reconstruct, animate, pose, avatar, transfer, precompute, bake, check), each as a\n"
       "child process `kinemesh VERB ARGS...` in the manifest's folder (relative paths resolve\n"
       "there). Each job gets a report (status, times, exact command line, checksums of its\n"
       "outputs: -o/--output/--report/--plot) and a log; report.json gathers them. A rerun skips\n"
