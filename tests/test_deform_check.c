@@ -45,6 +45,7 @@ static void test_known_frames(void) {
   V[0] = NAN;
   CHECK(km_deform_check_add(c, V, &fr, &err) == KM_OK);
   CHECK(isnan(fr.stretch));
+  CHECK_MSG(isnan(fr.step) && fr.step_vertex == 0, "step %g at %d", fr.step, (int)fr.step_vertex);
   memcpy(V, k_square, sizeof V);
   CHECK(km_deform_check_add(c, V, NULL, &err) == KM_OK); /* a clean frame after it */
   km_deform_summary s;
@@ -53,6 +54,7 @@ static void test_known_frames(void) {
   CHECK_MSG(isnan(s.stretch) && s.stretch_frame == 3, "stretch %g frame %zu", s.stretch,
             s.stretch_frame);
   CHECK(s.folded == 2 && s.most_folded_pairs == 1 && s.most_folded_frame == 2);
+  CHECK(isnan(s.step) && s.step_frame == 3); /* the NaN step stays too */
   const int32_t *first = km_deform_check_first_fold(c);
   CHECK(first[0] == 2 && first[1] == 2);
   CHECK(s.long_frames == 1); /* frame 1 only: 2x; the NaN frame is no "over 1.5x" */

@@ -79,10 +79,11 @@ int km_cli_check(int argc, char **argv) {
     rc = km_cli_error("check", "%s has no frames", pos[0]);
     goto done;
   }
-  /* units: a frame many times the rest's size is in other units, not a stretch */
+  /* units: a frame many times the rest's size is in other units, not a stretch (a NaN frame
+   * is left to the check, which reports it) */
   double d0 = km_bbox_diagonal(rest.V, rest.n_vertices),
          d1 = km_bbox_diagonal(frames, info.vertices);
-  if (!(d1 <= 4 * d0 && d1 >= 0.25 * d0)) {
+  if (!isnan(d1) && !(d1 <= 4 * d0 && d1 >= 0.25 * d0)) {
     rc = km_cli_error("check",
                       "%s: its first frame is %.3g times the size of the rest mesh: not in its "
                       "units (animate writes metres; --units gives the rest mesh's)",

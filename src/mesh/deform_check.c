@@ -169,7 +169,7 @@ km_status km_deform_check_add(km_deform_check *c, const double *V, km_deform_fra
     double d[3];
     km__sub3(p, c->prev + 3 * v, d);
     double l = sqrt(km__dot3(d, d));
-    if (!(l <= x.step)) x.step = l, x.step_vertex = (int32_t)v;
+    if (!isnan(x.step) && !(l <= x.step)) x.step = l, x.step_vertex = (int32_t)v; /* NaN stays */
   }
   if (c->n_vertices) memcpy(c->prev, V, 3 * c->n_vertices * sizeof *V);
   /* the summary: a NaN, once in, stays (the frame where it came is the one kept) */
