@@ -231,13 +231,20 @@ static void where_report(const char *tag, const km_mesh *m, const km_rig *rig, c
   fprintf(stderr, "\n");
 }
 
-/* Takes frame fr's shortest and longest l / l0 and its frame counts into x; returns its stretch. */
-static double take_frame(const km_deform_frame *fr, bm_metrics *x) {
-  if (!(fr->ratio_min >= x->ratio_min)) x->ratio_min = fr->ratio_min;
-  if (!(fr->ratio_max <= x->ratio_max)) x->ratio_max = fr->ratio_max;
-  x->long_frames += fr->ratio_max > 1.5;
-  x->short_frames += fr->ratio_min < 0.5;
-  return fr->stretch;
+/* The shape measures of x over the frames the check dc saw: its summary's (the stretch, the
+ * edge ratios and frames over 1.5x / under 0.5x, the folded triangles, the largest step in % of
+ * diag). The per-frame ones (steps' percentile and count over 3 %, below the floor) stay the
+ * caller's. */
+static void take_summary(const km_deform_check *dc, double diag, bm_metrics *x) {
+  km_deform_summary s;
+  km_deform_check_summary(dc, &s);
+  x->stretch = s.stretch;
+  x->ratio_min = s.ratio_min;
+  x->ratio_max = s.ratio_max;
+  x->long_frames = s.long_frames;
+  x->short_frames = s.short_frames;
+  x->folded = s.folded;
+  x->jump_pct = 100 * s.step / diag;
 }
 
 /* The 95th percentile of x (n > 0 values, sorted in place). */
@@ -289,20 +296,20 @@ static void skin_frame(bm_skin *sk, const km_mesh *m, const bm_geom *g, const km
     return;
   }
   sk->tm[f] = 1e3 * (km_cli_now() - t0);
+  km_deform_summary was;
+  km_deform_check_summary(sk->dc, &was);
   km_deform_frame fr;
   if (km_deform_check_add(sk->dc, sk->V, &fr, &e) != KM_OK) {
     sk->out.stretch = NAN;
     return;
   }
-  double r = take_frame(&fr, &sk->out);
-  if (where && r > sk->out.stretch) {
+  double r = fr.stretch;
+  if (where && r > was.stretch) {
     where_write(where, "skin", m, sk->V);
     where_write(where, "skin_b", m, Vb); /* B's frame beside it */
     fprintf(stderr, "WHERE L: stretch %.3f frame %zu\n", r, f);
   }
-  if (!(r <= sk->out.stretch)) sk->out.stretch = r;
   double jump = 100 * fr.step / g->diag;
-  if (f && !(jump <= sk->out.jump_pct)) sk->out.jump_pct = jump;
   if (f) sk->jf[f - 1] = jump, sk->out.jump_over3 += jump > 3;
   if (fr.y_min < g->floor_y - BM_FLOOR_TOL * g->diag) sk->out.below++;
 }
@@ -319,15 +326,11 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   km_deform_check *dc = NULL;
   double *tm = malloc((nf ? nf : 1) * sizeof *tm), *jf = malloc((nf ? nf : 1) * sizeof *jf);
   double *rf = malloc((nf ? nf : 1) * sizeof *rf); /* the take's own step per frame (% diag) */
-  int32_t worst_e[2] = {0, 0}, long_e[2] = {0, 0};
-  size_t worst_f = 0, most_folds = 0, long_f = 0;
   km_status s = KM_OK;
   memset(out, 0, sizeof *out);
-  out->ratio_min = INFINITY;
   if (sk) {
     size_t nj = sk->c->skeleton.n_joints;
     memset(&sk->out, 0, sizeof sk->out);
-    sk->out.ratio_min = INFINITY;
     sk->J = malloc(3 * (nj > 20 ? nj : 20) * sizeof(double));
     sk->T = malloc(12 * (nj ? nj : 1) * sizeof(double));
     sk->V = malloc(3 * nv * sizeof(double));
@@ -350,36 +353,25 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     s = km_puppetry_push(p, t->positions + f * t->n_joints * 3, V, err);
     tm[f] = 1e3 * (km_cli_now() - t0);
     if (s != KM_OK) goto done;
+    km_deform_summary was; /* the frames before this one, for where it got worse */
+    km_deform_check_summary(dc, &was);
     km_deform_frame fr;
     if ((s = km_deform_check_add(dc, V, &fr, err)) != KM_OK) goto done;
-    double longest_before = out->ratio_max;
-    double r = take_frame(&fr, out);
-    if (where && r > out->stretch) {
-      where_write(where, "stretch", m, V), worst_f = f;
-      memcpy(worst_e, fr.stretch_edge, sizeof worst_e);
-    }
-    if (!(r <= out->stretch)) out->stretch = r; /* NaN propagates */
+    if (where && fr.stretch > was.stretch) where_write(where, "stretch", m, V);
     /* the longest edge so far (a miss can be a squash; this is where the mesh stretches) */
-    if (where && out->ratio_max > longest_before) {
-      where_write(where, "long", m, V), long_f = f;
-      memcpy(long_e, fr.long_edge, sizeof long_e);
-    }
-    size_t nfold_now = fr.folded_pairs;
-    if (where && nfold_now > most_folds) {
-      most_folds = nfold_now;
+    if (where && fr.ratio_max > was.ratio_max) where_write(where, "long", m, V);
+    if (where && fr.folded_pairs > was.most_folded_pairs) {
       where_write(where, "folds", m, V);
-      fprintf(stderr, "WHERE folds frame %zu: %zu pairs\n", f, nfold_now);
+      fprintf(stderr, "WHERE folds frame %zu: %zu pairs\n", f, fr.folded_pairs);
     }
-    double jump = fr.step;
-    size_t jv = fr.step_vertex >= 0 ? (size_t)fr.step_vertex : 0;
-    if (f) jf[f - 1] = 100 * jump / g->diag;
-    if (where && f && 100 * jump / g->diag > out->jump_pct) {
+    if (f) jf[f - 1] = 100 * fr.step / g->diag;
+    if (where && f && fr.step > was.step) {
+      size_t jv = (size_t)fr.step_vertex;
       int32_t h = km_rig_nearest_handle(rig, m, m->V + 3 * jv);
-      fprintf(stderr, "WHERE jump frame %zu: %.2f%% vertex %zu near %s\n", f, 100 * jump / g->diag,
-              jv, h >= 0 ? rig->handles[h].name : "-");
+      fprintf(stderr, "WHERE jump frame %zu: %.2f%% vertex %zu near %s\n", f, jf[f - 1], jv,
+              h >= 0 ? rig->handles[h].name : "-");
     }
     if (f && jf[f - 1] > 3) out->jump_over3++;
-    if (!(100 * jump / g->diag <= out->jump_pct)) out->jump_pct = 100 * jump / g->diag;
     if (f) rf[f - 1] = 0;
     for (size_t e = 0; f && e < rig->n_maps; ++e) {
       const double *q = t->positions + (f * t->n_joints + (size_t)rig->maps[e].joint) * 3,
@@ -392,16 +384,17 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     if (fr.y_min < g->floor_y - BM_FLOOR_TOL * g->diag) out->below++;
     if (sk && !isnan(sk->out.stretch)) skin_frame(sk, m, g, p, f, where, V);
   }
-  km_deform_summary sum;
-  km_deform_check_summary(dc, &sum);
-  out->folded = sum.folded;
+  take_summary(dc, g->diag, out);
   out->eased = km_puppetry_eased_frames(p);
   if (where) {
-    where_report("B", m, rig, worst_e, worst_f, out->stretch, km_deform_check_first_fold(dc));
-    const int32_t *le = long_e;
+    km_deform_summary sum;
+    km_deform_check_summary(dc, &sum);
+    where_report("B", m, rig, sum.stretch_edge, sum.stretch_frame, sum.stretch,
+                 km_deform_check_first_fold(dc));
+    const int32_t *le = sum.long_edge;
     int32_t h = km_rig_nearest_handle(rig, m, m->V + 3 * (size_t)le[0]);
     fprintf(stderr, "WHERE B: longest l/l0 %.3f frame %zu edge %d-%d near %s (long.obj)\n",
-            out->ratio_max, long_f, le[0], le[1], h >= 0 ? rig->handles[h].name : "-");
+            sum.ratio_max, sum.ratio_max_frame, le[0], le[1], h >= 0 ? rig->handles[h].name : "-");
   }
   finish_times(out, tm, jf, nf);
   if (nf > 1) { /* rf sorted by p95: its last is the largest step */
@@ -409,8 +402,9 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     out->raw_jump_pct = rf[nf - 2];
   }
   if (sk) {
-    km_deform_check_summary(sk->dc, &sum);
-    sk->out.folded = sum.folded;
+    double no_skeleton = sk->out.stretch; /* NaN: skin_frame found none to pose */
+    take_summary(sk->dc, g->diag, &sk->out);
+    if (isnan(no_skeleton)) sk->out.stretch = NAN;
     finish_times(&sk->out, sk->tm, sk->jf, nf);
   }
 done:

@@ -495,8 +495,8 @@ static void test_report(void) {
             out2 ? out2 : "");
   free(out);
   free(out2);
-  /* limits: exit 3 when exceeded (a folded-triangle limit below the count, a stretch limit
-   * below the measured one), 0 within (the measured values themselves) */
+  /* limits: exit 3 when exceeded (a stretch limit below the measured one, and only it named:
+   * the step's limit is far above), 0 within (every limit far above) */
   CHECK(km_test_run(KM_CLI " check puppet_r/x.glb --max-stretch 0.000001 --max-step 1000", &out) ==
         3);
   CHECK_MSG(out && strstr(out, "limits exceeded: stretch") && !strstr(out, "> 1000"), "%s",
