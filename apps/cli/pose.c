@@ -51,7 +51,7 @@ int km_cli_pose(int argc, char **argv) {
   bool compress = false;
   const char *export_kind = NULL;
   double max_error_mm = 0, scale = 0;
-  bool keep_frame = false, exact = false;
+  bool keep_frame = false, exact = false, no_glitch = false;
   /* The mesh is brought into kinemesh's frame as animate brings it (the rig sidecar's
    * skeleton is stored in that frame); the output is in it, as animate's is. */
   km_cli_frame_opts fo = {0};
@@ -77,6 +77,10 @@ int km_cli_pose(int argc, char **argv) {
        "put every joint where the take has it (default: the take turns the bones and the "
        "rig keeps their lengths, so a performer of other proportions does not pull the parts "
        "apart; the root goes where the take has it either way)"},
+      {"no-glitch", 0, KM_OPT_FLAG, &no_glitch,
+       "do not reject tracker glitches (jumps, bone-length outliers, re-found joints) before "
+       "skinning (default: rejected as animate rejects them, so a lost hand does not throw the "
+       "arm)"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory"},
       {"keep-frame", 0, KM_OPT_FLAG, &keep_frame,
        ".pc2 and frame directories in the mesh file's own axes and units, as animate "
@@ -103,7 +107,8 @@ int km_cli_pose(int argc, char **argv) {
   km_anim_writer *w = NULL;
   km_deform_check *dc = NULL;
   km_track trk = {0};
-  double *pos_frame = NULL, *xf = NULL, *V = NULL, *seed = NULL;
+  double *pos_frame = NULL, *xf = NULL, *V = NULL, *seed = NULL, *clean = NULL;
+  km_glitch *g = NULL;
   km_frame mf = {KM_AXIS_POS_Y, KM_AXIS_POS_Z, 0}; /* the mesh file's frame (--keep-frame) */
   int *map = NULL;
   int rc = KM_EXIT_FAIL;
@@ -122,7 +127,8 @@ int km_cli_pose(int argc, char **argv) {
   pos_frame = malloc(sizeof(double) * 3 * nj);
   xf = malloc(sizeof(double) * 12 * nj);
   V = malloc(sizeof(double) * 3 * c.mesh.n_vertices);
-  if (!map || !pos_frame || !xf || !V) {
+  clean = malloc(sizeof(double) * 3 * (t.n_joints ? t.n_joints : 1));
+  if (!map || !pos_frame || !xf || !V || !clean) {
     rc = km_cli_error("pose", "out of memory");
     goto done;
   }
@@ -159,12 +165,24 @@ int km_cli_pose(int argc, char **argv) {
     for (size_t l = 0; l < KM_CHARACTER_LANDMARKS; ++l)
       snprintf(trk.names[l], sizeof trk.names[l], "%s", c.landmarks[l].name);
   }
+  /* Tracker glitches (a hand lost and re-found 0.6 m away) are rejected on the take's own
+   * joints, in metres, before anything is built on them, as animate rejects them: skinning
+   * follows a joint wherever it goes, and the armadillo on precog_Seq3_2 stepped 55 % of its
+   * size in one frame. A clean capture (a BVH) has none: no move is faster than the limit and
+   * no bone changes length. */
+  if (!no_glitch) {
+    km_glitch_options go = {0};
+    go.fps = t.fps > 0 ? t.fps : 30;
+    if (km_glitch_create(t.n_joints, t.parents, &go, &g, &err) != KM_OK) goto fail;
+  }
   km_progress prog = km_cli_progress("pose");
   for (size_t f = 0; f < t.n_frames; ++f) {
+    const double *raw = t.positions + f * t.n_joints * 3;
+    if (g) km_glitch_push(g, raw, clean);
+    const double *in = g ? clean : raw;
     for (size_t j = 0; j < nj; ++j)
       for (int a = 0; a < 3; ++a)
-        pos_frame[3 * j + a] =
-            map[j] < 0 ? NAN : scale * t.positions[(f * t.n_joints + (size_t)map[j]) * 3 + a];
+        pos_frame[3 * j + a] = map[j] < 0 ? NAN : scale * in[(size_t)map[j] * 3 + a];
     if ((exact ? km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err)
                : km_skeleton_pose_from_directions(&c.skeleton, pos_frame, xf, &err)) != KM_OK ||
         km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK)
@@ -193,6 +211,13 @@ int km_cli_pose(int argc, char **argv) {
     km_rig_free(&hr);
     free(own);
   }
+  if (g) {
+    km_glitch_stats gs;
+    km_glitch_stats_get(g, &gs);
+    fprintf(stderr,
+            "  glitches rejected: %zu of %zu joint samples (speed %zu, bone %zu, re-found %zu)\n",
+            gs.rejected, gs.samples, gs.speed, gs.bone, gs.refound);
+  }
   fputs(shape_line, stderr);
   fprintf(stderr, "kinemesh pose: %zu frames of %zu vertices, scale %.4g -> %s%s%s\n", t.n_frames,
           c.mesh.n_vertices, scale, out ? out : "", out && track_out ? ", landmark track " : "",
@@ -204,6 +229,8 @@ fail:
 done:
   km_anim_writer_free(&w);
   km_deform_check_free(&dc);
+  km_glitch_free(&g);
+  free(clean);
   km_track_free(&trk);
   free(map);
   free(pos_frame);
