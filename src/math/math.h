@@ -309,6 +309,28 @@ static inline void km__m3_from_rotvec(const double r[3], double R[9]) {
     R[i] = (i % 4 == 0) + a * K[i] + b * K2[i];
 }
 
+/* The shortest rotation R (row-major) taking unit a onto unit b (Rodrigues: I + K + K^2 / (1 + c),
+ * K the cross-product matrix of a x b, c = a . b); opposite directions give a half turn about
+ * km__any_perp3(a). The one used by skinning, the retargeter and the glitch rejector. */
+static inline void km__rot3_between(const double a[3], const double b[3], double R[9]) {
+  double c = km__dot3(a, b);
+  if (c < -1 + 1e-12) {
+    double u[3];
+    km__any_perp3(a, u);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        R[3 * i + j] = 2 * u[i] * u[j] - (i == j);
+    return;
+  }
+  double v[3];
+  km__cross3(a, b, v);
+  double K[9] = {0, -v[2], v[1], v[2], 0, -v[0], -v[1], v[0], 0}, K2[9];
+  km__m3_mul(K, K, K2);
+  double f = 1 / (1 + c);
+  for (int i = 0; i < 9; ++i)
+    R[i] = (i % 4 == 0) + K[i] + f * K2[i];
+}
+
 /* Rotation by angle a (radians) about a coordinate axis (0 x, 1 y, 2 z), right-handed. */
 static inline void km__m3_axis(int axis, double a, double R[9]) {
   double c = cos(a), s = sin(a);

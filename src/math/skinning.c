@@ -20,32 +20,6 @@
 
 static double norm3(const double v[3]) { return sqrt(km__dot3(v, v)); }
 
-/* Minimal rotation taking unit a onto unit b (Rodrigues). */
-static void min_rotation(const double a[3], const double b[3], double R[9]) {
-  double v[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-  double c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-  if (c < -1 + 1e-12) {
-    /* Opposite directions: half turn about any axis perpendicular to a. */
-    int k = fabs(a[0]) < fabs(a[1]) ? (fabs(a[0]) < fabs(a[2]) ? 0 : 2)
-                                    : (fabs(a[1]) < fabs(a[2]) ? 1 : 2);
-    double e[3] = {0, 0, 0};
-    e[k] = 1;
-    double u[3] = {a[1] * e[2] - a[2] * e[1], a[2] * e[0] - a[0] * e[2], a[0] * e[1] - a[1] * e[0]};
-    double n = norm3(u);
-    for (int i = 0; i < 3; ++i)
-      u[i] /= n;
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        R[3 * i + j] = 2 * u[i] * u[j] - (i == j);
-    return;
-  }
-  double K[9] = {0, -v[2], v[1], v[2], 0, -v[0], -v[1], v[0], 0}, K2[9];
-  km__m3_mul(K, K, K2);
-  double f = 1 / (1 + c);
-  for (int i = 0; i < 9; ++i)
-    R[i] = (i % 4 == 0) + K[i] + f * K2[i];
-}
-
 /* km_skeleton_pose_from_positions (lengths false) and km_skeleton_pose_from_directions (true:
  * a joint below the root is placed where its parent's transform carries its rest position). */
 static km_status pose_from(const km_skeleton *s, const double *positions, bool lengths,
@@ -143,7 +117,7 @@ static km_status pose_from(const km_skeleton *s, const double *positions, bool l
       if (!done && m >= 1) {
         double a[3], Rm[9];
         km__m3_apply(Rp, dir, a);
-        min_rotation(a, dir + 3, Rm);
+        km__rot3_between(a, dir + 3, Rm);
         km__m3_mul(Rm, Rp, R);
       }
     }

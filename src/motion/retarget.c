@@ -796,29 +796,6 @@ void km_retarget_push_rotations(km_retarget *r, const double *joints, const doub
       handle_targets[i] = r->centroid[i] + r->disp[i];
 }
 
-/* The shortest rotation taking unit a to unit b (Rodrigues), row-major. */
-static void rotation_between(const double a[3], const double b[3], double R[9]) {
-  double v[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-  double c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-  if (c < -1 + 1e-12) { /* opposite: half a turn about any axis perpendicular to a */
-    double p[3] = {0, -a[2], a[1]};
-    if (fabs(a[0]) > 0.9) p[0] = -a[1], p[1] = a[0], p[2] = 0;
-    double n = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        R[3 * i + j] = 2 * p[i] * p[j] / (n * n) - (i == j);
-    return;
-  }
-  double K[9] = {0, -v[2], v[1], v[2], 0, -v[0], -v[1], v[0], 0}, f = 1 / (1 + c);
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) {
-      double kk = 0;
-      for (int k = 0; k < 3; ++k)
-        kk += K[3 * i + k] * K[3 * k + j];
-      R[3 * i + j] = (i == j) + K[3 * i + j] + f * kk;
-    }
-}
-
 /* Issue 15: the twist of a given joint rotation. The rotation since the reference frame,
  * G = Q Q_ref^T (Q: the rotation given with the frame for the bone ending at joint j), splits
  * into a twist about the bone's reference direction d0 followed by a swing (swing-twist
@@ -898,7 +875,7 @@ static void update_rotations(km_retarget *r, const double *J) {
     q = long_ancestor(r, q, j);
     double d[3], d0[3];
     if (!segment_dirs(r, J, q, j, d0, d)) continue;
-    rotation_between(d0, d, r->rot + 9 * h);
+    km__rot3_between(d0, d, r->rot + 9 * h);
     apply_twist(r, j, d0, d, r->rot + 9 * h);
   }
 }
@@ -984,12 +961,12 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
         for (int i = 0; i < 3; ++i)
           w[i] = Rp[3 * i] * u[0] + Rp[3 * i + 1] * u[1] + Rp[3 * i + 2] * u[2];
         clamp_swing(w, limb_limit(r, b, true), d);
-        rotation_between(w, d, A);
+        km__rot3_between(w, d, A);
         mat_mul(A, Rp, R);
         return true;
       }
-      rotation_between(u, d0, A); /* first the character's rest direction onto the reference */
-      rotation_between(d0, d, B);
+      km__rot3_between(u, d0, A); /* first the character's rest direction onto the reference */
+      km__rot3_between(d0, d, B);
       mat_mul(B, A, R);
       return true;
     }
@@ -1007,7 +984,7 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
       w[i] = Rp[3 * i] * d0[0] + Rp[3 * i + 1] * d0[1] + Rp[3 * i + 2] * d0[2];
     clamp_swing(w, lim, d);
   }
-  rotation_between(d0, d, R);
+  km__rot3_between(d0, d, R);
   return true;
 }
 
@@ -1120,7 +1097,7 @@ static void limit_bone(km_retarget *r, const double *J, int32_t q, int32_t j, co
   double d[3], A[9], B[9];
   for (int c = 0; c < 3; ++c)
     d[c] = cos(tmax) * a[c] + sin(tmax) * e[c] / ne;
-  rotation_between(b, d, A);
+  km__rot3_between(b, d, A);
   memcpy(B, R, sizeof B);
   mat_mul(A, B, R);
 }
