@@ -965,8 +965,8 @@ static km_status skin_reach(const rigger *r, const int32_t *near, double band, d
  * Every p sums to 1 and L 1 = 0, so the weights sum to 1 without normalising. A vertex tests its
  * four nearest joints' bones, nearest first. One factorisation (CHOLMOD) and one solve of NJ
  * right-hand sides. Out: W n*NJ. */
-static km_status skin_heat(const rigger *r, const double *D, const double *Q, double *W,
-                           km_error *err) {
+static km_status skin_heat(const rigger *r, const double *D, const double *Q, size_t n_c,
+                           const double *cs, double *W, km_error *err) {
   enum { NJ = KM_KINECT1_JOINTS, TRY = 4 };
   const km_mesh *m = r->m;
   size_t n = r->n;
@@ -1016,7 +1016,7 @@ static km_status skin_heat(const rigger *r, const double *D, const double *Q, do
       size_t v = (size_t)todo[i];
       done[v] = 1;
       double d = D[NJ * v + order[TRY * v + k]];
-      h[v] = 1 / (d * d + tie * tie); /* their c = 1 */
+      h[v] = 1 / (d * d + tie * tie); /* their c = 1; scaled by cs below */
       int nb = 0;
       for (int j = 0; j < NJ; ++j)
         if (D[NJ * v + j] <= d + tie) ++nb;
@@ -1042,21 +1042,26 @@ static km_status skin_heat(const rigger *r, const double *D, const double *Q, do
     for (int j = 0; j < NJ; ++j)
       B[n * j + v] *= h[v];
   }
-  if ((st = km_sparse_diagonal(n, h, &MH, err)) != KM_OK ||
-      (st = km_sparse_add(-1, L, 1, MH, &A, err)) != KM_OK ||
-      (st = km_cholesky_analyze(A, &chol, err)) != KM_OK ||
-      (st = km_cholesky_factorize(chol, A, err)) != KM_OK)
-    goto out;
-  {
+  if ((st = km_sparse_diagonal(n, h, &MH, err)) != KM_OK) goto out;
+  /* (-L + c M H) w = c M H p for each c: one visibility pass and one symbolic analysis, a
+   * factorisation and a solve per c */
+  for (size_t ci = 0; ci < n_c && st == KM_OK; ++ci) {
+    km_sparse_free(&A);
+    if ((st = km_sparse_add(-1, L, cs[ci], MH, &A, err)) != KM_OK ||
+        (!chol && (st = km_cholesky_analyze(A, &chol, err)) != KM_OK) ||
+        (st = km_cholesky_factorize(chol, A, err)) != KM_OK)
+      goto out;
     double *X = km__malloc(n * NJ, sizeof *X);
     if (!X) {
       st = km__fail(err, KM_ERR_NOMEM, "rig: out of memory (heat weights)");
       goto out;
     }
     st = km_cholesky_solve(chol, NJ, B, X, err);
+    /* the right-hand side is c M H p: scaling the solution by c is the same */
+    double *Wc = W + n * NJ * ci;
     for (size_t v = 0; st == KM_OK && v < n; ++v)
       for (int j = 0; j < NJ; ++j)
-        W[NJ * v + j] = X[n * j + v];
+        Wc[NJ * v + j] = cs[ci] * X[n * j + v];
     free(X);
   }
 out:
@@ -1082,6 +1087,67 @@ static void skin_sparsify(double *w, int n) {
     w[j] = w[j] > top[KM_SKIN_INFLUENCES] ? w[j] - top[KM_SKIN_INFLUENCES] : 0;
 }
 
+/* The mean over 13 probe poses of the worst edge stretch l/l0 of the mesh skinned by (joints,
+ * weights) (n*4, the 4-influence skin; X: n*3 scratch). The poses, of the rig's own skeleton: each
+ * upper arm and thigh swung 90 degrees about the body's x axis and about its z axis (outwards),
+ * each forearm and shin bent 90 degrees about x, and the spine bent 30 degrees forward (each
+ * rotation about the joint that starts the bone, carrying the whole subtree below it; a vertex
+ * weighted to joint k follows the bone that starts at k, as km_lbs does). O(13 (n + F)). */
+static double probe_stretch(const rigger *r, const int32_t *joints, const double *weights,
+                            double *X) {
+  enum { NJ = KM_KINECT1_JOINTS };
+  static const struct {
+    int joint, axis;
+    double deg;
+  } poses[] = {{4, 0, -90}, {4, 2, 90},   {8, 0, -90}, {8, 2, 90},  {12, 0, -90},
+               {12, 2, 90}, {16, 0, -90}, {16, 2, 90}, {5, 0, -90}, {9, 0, -90},
+               {13, 0, 90}, {17, 0, 90},  {1, 0, 30}};
+  const km_mesh *m = r->m;
+  double sum = 0;
+  for (size_t q = 0; q < sizeof poses / sizeof poses[0]; ++q) {
+    int j0 = poses[q].joint;
+    /* outwards: towards the joint's own side of the body (left +x, right -x) */
+    double a = poses[q].deg * M_PI / 180;
+    if (poses[q].axis == 2 && r->J[3 * j0] < r->J[0]) a = -a;
+    double R[9], T[12];
+    km__m3_axis(poses[q].axis, a, R);
+    const double *c = r->J + 3 * j0;
+    double Rc[3];
+    km__m3_apply(R, c, Rc);
+    for (int i = 0; i < 3; ++i) {
+      memcpy(T + 4 * i, R + 3 * i, 3 * sizeof(double));
+      T[4 * i + 3] = c[i] - Rc[i];
+    }
+    bool moved[NJ];
+    for (int j = 0; j < NJ; ++j) {
+      int k = j;
+      while (k >= 0 && k != j0)
+        k = km_kinect1_joint_parent(k);
+      moved[j] = k == j0;
+    }
+    for (size_t v = 0; v < r->n; ++v) {
+      const double *p = m->V + 3 * v;
+      double w = 0; /* the weight of the moved joints */
+      for (int i = 0; i < KM_SKIN_INFLUENCES; ++i) {
+        int32_t j = joints[KM_SKIN_INFLUENCES * v + i];
+        if (j >= 0 && j < NJ && moved[j]) w += weights[KM_SKIN_INFLUENCES * v + i];
+      }
+      for (int i = 0; i < 3; ++i)
+        X[3 * v + i] = (1 - w) * p[i] + w * (T[4 * i] * p[0] + T[4 * i + 1] * p[1] +
+                                             T[4 * i + 2] * p[2] + T[4 * i + 3]);
+    }
+    double pw = 0;
+    for (size_t f = 0; f < m->n_faces; ++f)
+      for (int e = 0; e < 3; ++e) {
+        size_t u = (size_t)m->F[3 * f + e], v = (size_t)m->F[3 * f + (e + 1) % 3];
+        double l0 = dist3(m->V + 3 * u, m->V + 3 * v);
+        if (l0 > 1e-12 * r->H) pw = fmax(pw, dist3(X + 3 * u, X + 3 * v) / l0);
+      }
+    sum += pw;
+  }
+  return sum / (double)(sizeof poses / sizeof poses[0]);
+}
+
 /* Skin weights (mode): bone heat (skin_heat, the default), or by distance: a vertex takes the
  * bones within `band` (6 % of the height) of its nearest bone, weighted by
  * (1 - (d - dmin) / band)^2; with `reach`, each bone's weight also multiplied by its reach at
@@ -1092,7 +1158,8 @@ static void skin_sparsify(double *w, int n) {
  * fly off with them (posed by the rig's skeleton, 54-91x stretch), the elephant's ears and
  * trunk its arms'. The reach follows the surface but still blends by distance, so a shell far
  * from every bone takes a steep mix (the armadillo's back, 5-10x); heat diffuses (README). */
-static km_status compute_skin(const rigger *r, km_autorig_skin mode, km_skin *skin, km_error *err) {
+static km_status compute_skin(const rigger *r, km_autorig_skin mode, bool probe, km_skin *skin,
+                              km_error *err) {
   bool reach = mode == KM_AUTORIG_SKIN_REACH, heat = mode == KM_AUTORIG_SKIN_HEAT;
   enum { NJ = KM_KINECT1_JOINTS };
   double seg[2 * NJ][6];
@@ -1138,19 +1205,45 @@ static km_status compute_skin(const rigger *r, km_autorig_skin mode, km_skin *sk
   double band = 0.06 * r->H;
   km_status st = reach ? skin_reach(r, near, band, G, err) : KM_OK;
   if (heat) {
-    double *W = km__malloc(n * NJ, sizeof *W);
-    st = W ? skin_heat(r, D, Q, W, err)
-           : km__fail(err, KM_ERR_NOMEM, "rig: out of memory (skin of %zu vertices)", n);
-    for (size_t v = 0; st == KM_OK && v < n; ++v) {
-      double *w = W + NJ * v;
-      /* small negative weights from obtuse triangles' negative cotangents: dropped */
-      for (int j = 0; j < NJ; ++j)
-        w[j] = w[j] > 1e-4 ? w[j] : 0;
-      skin_sparsify(w, NJ);
-      if (!km__skin_keep_largest(w, NJ, skin->joints + 4 * v, skin->weights + 4 * v))
-        skin->joints[4 * v] = near[v], skin->weights[4 * v] = 1;
+    /* Baran & Popovic's heat constant c (H = c / d^2) sets how far a bone's weight diffuses
+     * (about d / sqrt(c)). Their c = 1 suits a slim body; a bulky one (the armadillo's chest
+     * and back, far from the spine) gets steep blends from it that stretch 3-5x under skinning,
+     * and a smoother c = 0.5 halves that, while a slim one (the procedural character) lets a
+     * thigh's weight climb into the waist with it. Each c is tried and the one whose skin
+     * stretches least in the probe poses kept (probe_stretch). Not on a quadruped (probe
+     * false: c = 1): there the probe's choice did not follow bench motion --skin (cat-03 took
+     * 0.5 and its worst edge rose 1.57-1.65x -> 1.68-1.78x; dog0 kept 1, which 0.5 beat). */
+    static const double heat_c[] = {1, 0.5};
+    const size_t NC = probe ? sizeof heat_c / sizeof heat_c[0] : 1;
+    double *W = km__malloc(NC * n * NJ, sizeof *W),
+           *X = probe ? km__malloc(3 * n, sizeof *X) : NULL;
+    double best = INFINITY;
+    int32_t *tj = km__malloc(KM_SKIN_INFLUENCES * n, sizeof *tj);
+    double *tw = km__malloc(KM_SKIN_INFLUENCES * n, sizeof *tw);
+    if (!W || (probe && !X) || !tj || !tw)
+      st = km__fail(err, KM_ERR_NOMEM, "rig: out of memory (skin of %zu vertices)", n);
+    if (st == KM_OK) st = skin_heat(r, D, Q, NC, heat_c, W, err);
+    for (size_t ci = 0; st == KM_OK && ci < NC; ++ci) {
+      for (size_t v = 0; v < n; ++v) {
+        double *w = W + n * NJ * ci + NJ * v;
+        /* small negative weights from obtuse triangles' negative cotangents: dropped */
+        for (int j = 0; j < NJ; ++j)
+          w[j] = w[j] > 1e-4 ? w[j] : 0;
+        skin_sparsify(w, NJ);
+        if (!km__skin_keep_largest(w, NJ, tj + 4 * v, tw + 4 * v)) {
+          for (int i = 0; i < 4; ++i)
+            tj[4 * v + i] = -1, tw[4 * v + i] = 0;
+          tj[4 * v] = near[v], tw[4 * v] = 1;
+        }
+      }
+      double score = probe ? probe_stretch(r, tj, tw, X) : 0;
+      if (ci == 0 || score < best) {
+        best = score;
+        memcpy(skin->joints, tj, KM_SKIN_INFLUENCES * n * sizeof *tj);
+        memcpy(skin->weights, tw, KM_SKIN_INFLUENCES * n * sizeof *tw);
+      }
     }
-    free(W);
+    free(W), free(X), free(tj), free(tw);
   } else if (st == KM_OK)
 #pragma omp parallel for schedule(static)
     for (size_t v = 0; v < n; ++v) {
@@ -1540,7 +1633,7 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   if (st == KM_OK) {
     km_autorig_skin skin = o.skin != KM_AUTORIG_SKIN_AUTO ? o.skin : KM_AUTORIG_SKIN_HEAT;
     if (report) report->skin = skin;
-    st = compute_skin(&r, skin, &out->skin, err);
+    st = compute_skin(&r, skin, kind != KM_AUTORIG_QUADRUPED, &out->skin, err);
     if (st == KM_OK && (kind == KM_AUTORIG_BUST || kind == KM_AUTORIG_UPPER))
       bust_skin(&out->skin, r.n, kind == KM_AUTORIG_UPPER);
   }
