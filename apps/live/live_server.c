@@ -348,7 +348,8 @@ static void push_frame(km_live *l, const double *joints, double t_recv, bool res
   push_frame_rot(l, joints, NULL, t_recv, reset);
 }
 
-static bool valid3(const double *p) { return !isnan(p[0]) && !isnan(p[1]) && !isnan(p[2]); }
+/* a usable joint: every coordinate finite (an OSC float may carry inf as well as NaN) */
+static bool valid3(const double *p) { return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]); }
 
 static void asm_commit(km_live *l, assembler *a) {
   if (!a->pending) return;
