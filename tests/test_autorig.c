@@ -1030,6 +1030,10 @@ static void test_heat_constant(void) {
            "|l/l0 - 1| %.3f\n",
            worst);
     CHECK_MSG(worst < 2.2, "armadillo arms forward: an edge stretched %.3f", worst);
+    /* the report says which constant and why */
+    CHECK_MSG(rep.heat_c == 0.5 && rep.heat_probe[1] > 0 && rep.heat_probe[1] < rep.heat_probe[0],
+              "armadillo: heat c %g, probe %g (c 1) %g (c 0.5)", rep.heat_c, rep.heat_probe[0],
+              rep.heat_probe[1]);
   }
   km_character_free(&c);
   km_mesh_free(&m);
@@ -1053,6 +1057,9 @@ static void test_quadruped_skin(void) {
   if (!rig_twice_posed("poses/cat-poses/cat-03.obj", skin, legs, swing, 4, worst, rep)) return;
   CHECK_MSG(rep[0].kind == KM_AUTORIG_QUADRUPED, "cat-03 rigged as kind %d", (int)rep[0].kind);
   CHECK_MSG(rep[0].skin == KM_AUTORIG_SKIN_HEAT, "cat-03: default weights %d", rep[0].skin);
+  /* a quadruped keeps Baran & Popovic's constant, unprobed */
+  CHECK_MSG(rep[0].heat_c == 1 && rep[0].heat_probe[0] == 0, "cat-03: heat c %g, probe %g",
+            rep[0].heat_c, rep[0].heat_probe[0]);
   printf("cat-03, legs swung 30 deg, skinned: worst edge |l/l0 - 1| %.3f by the default (heat), "
          "%.3f by distance\n",
          worst[0], worst[1]);

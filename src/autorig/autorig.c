@@ -1159,7 +1159,7 @@ static double probe_stretch(const rigger *r, const int32_t *joints, const double
  * trunk its arms'. The reach follows the surface but still blends by distance, so a shell far
  * from every bone takes a steep mix (the armadillo's back, 5-10x); heat diffuses (README). */
 static km_status compute_skin(const rigger *r, km_autorig_skin mode, bool probe, km_skin *skin,
-                              km_error *err) {
+                              km_autorig_report *report, km_error *err) {
   bool reach = mode == KM_AUTORIG_SKIN_REACH, heat = mode == KM_AUTORIG_SKIN_HEAT;
   enum { NJ = KM_KINECT1_JOINTS };
   double seg[2 * NJ][6];
@@ -1237,8 +1237,10 @@ static km_status compute_skin(const rigger *r, km_autorig_skin mode, bool probe,
         }
       }
       double score = probe ? probe_stretch(r, tj, tw, X) : 0;
+      if (report && probe) report->heat_probe[ci] = score;
       if (ci == 0 || score < best) {
         best = score;
+        if (report) report->heat_c = heat_c[ci];
         memcpy(skin->joints, tj, KM_SKIN_INFLUENCES * n * sizeof *tj);
         memcpy(skin->weights, tw, KM_SKIN_INFLUENCES * n * sizeof *tw);
       }
@@ -1633,7 +1635,7 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   if (st == KM_OK) {
     km_autorig_skin skin = o.skin != KM_AUTORIG_SKIN_AUTO ? o.skin : KM_AUTORIG_SKIN_HEAT;
     if (report) report->skin = skin;
-    st = compute_skin(&r, skin, kind != KM_AUTORIG_QUADRUPED, &out->skin, err);
+    st = compute_skin(&r, skin, kind != KM_AUTORIG_QUADRUPED, &out->skin, report, err);
     if (st == KM_OK && (kind == KM_AUTORIG_BUST || kind == KM_AUTORIG_UPPER))
       bust_skin(&out->skin, r.n, kind == KM_AUTORIG_UPPER);
   }
