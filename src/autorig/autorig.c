@@ -1087,14 +1087,15 @@ static void skin_sparsify(double *w, int n) {
     w[j] = w[j] > top[KM_SKIN_INFLUENCES] ? w[j] - top[KM_SKIN_INFLUENCES] : 0;
 }
 
-/* The mean over 13 probe poses of the worst edge stretch l/l0 of the mesh skinned by (joints,
- * weights) (n*4, the 4-influence skin; X: n*3 scratch). The poses, of the rig's own skeleton: each
- * upper arm and thigh swung 90 degrees about the body's x axis and about its z axis (outwards),
- * each forearm and shin bent 90 degrees about x, and the spine bent 30 degrees forward (each
- * rotation about the joint that starts the bone, carrying the whole subtree below it; a vertex
- * weighted to joint k follows the bone that starts at k, as km_lbs does). O(13 (n + F)). */
-static double probe_stretch(const rigger *r, const int32_t *joints, const double *weights,
-                            double *X) {
+/* The mean over 13 probe poses of the worst edge stretch l/l0 of the mesh skinned by skin (the
+ * 4-influence skin being weighed), in *score. The poses, of the rig's own skeleton: each upper
+ * arm and thigh swung 90 degrees about the body's x axis and about its z axis (outwards), each
+ * forearm and shin bent 90 degrees about x, and the spine bent 30 degrees forward (each
+ * rotation about the joint that starts the bone, carrying the whole subtree below it). Posed by
+ * km_lbs and measured by the deformation check dc (on the rest mesh; its frame-to-frame steps
+ * are not read); X: n*3 scratch. */
+static km_status probe_stretch(const rigger *r, const km_skin *skin, km_deform_check *dc, double *X,
+                               double *score, km_error *err) {
   enum { NJ = KM_KINECT1_JOINTS };
   static const struct {
     int joint, axis;
@@ -1102,50 +1103,35 @@ static double probe_stretch(const rigger *r, const int32_t *joints, const double
   } poses[] = {{4, 0, -90}, {4, 2, 90},   {8, 0, -90}, {8, 2, 90},  {12, 0, -90},
                {12, 2, 90}, {16, 0, -90}, {16, 2, 90}, {5, 0, -90}, {9, 0, -90},
                {13, 0, 90}, {17, 0, 90},  {1, 0, 30}};
-  const km_mesh *m = r->m;
-  double sum = 0;
+  static const double identity[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+  double sum = 0, T[12 * NJ];
   for (size_t q = 0; q < sizeof poses / sizeof poses[0]; ++q) {
     int j0 = poses[q].joint;
     /* outwards: towards the joint's own side of the body (left +x, right -x) */
     double a = poses[q].deg * M_PI / 180;
     if (poses[q].axis == 2 && r->J[3 * j0] < r->J[0]) a = -a;
-    double R[9], T[12];
+    double R[9], Tq[12], Rc[3];
     km__m3_axis(poses[q].axis, a, R);
     const double *c = r->J + 3 * j0;
-    double Rc[3];
     km__m3_apply(R, c, Rc);
     for (int i = 0; i < 3; ++i) {
-      memcpy(T + 4 * i, R + 3 * i, 3 * sizeof(double));
-      T[4 * i + 3] = c[i] - Rc[i];
+      memcpy(Tq + 4 * i, R + 3 * i, 3 * sizeof(double));
+      Tq[4 * i + 3] = c[i] - Rc[i];
     }
-    bool moved[NJ];
-    for (int j = 0; j < NJ; ++j) {
+    for (int j = 0; j < NJ; ++j) { /* j turns when j0 is j or one of its ancestors */
       int k = j;
       while (k >= 0 && k != j0)
         k = km_kinect1_joint_parent(k);
-      moved[j] = k == j0;
+      memcpy(T + 12 * j, k == j0 ? Tq : identity, sizeof Tq);
     }
-    for (size_t v = 0; v < r->n; ++v) {
-      const double *p = m->V + 3 * v;
-      double w = 0; /* the weight of the moved joints */
-      for (int i = 0; i < KM_SKIN_INFLUENCES; ++i) {
-        int32_t j = joints[KM_SKIN_INFLUENCES * v + i];
-        if (j >= 0 && j < NJ && moved[j]) w += weights[KM_SKIN_INFLUENCES * v + i];
-      }
-      for (int i = 0; i < 3; ++i)
-        X[3 * v + i] = (1 - w) * p[i] + w * (T[4 * i] * p[0] + T[4 * i + 1] * p[1] +
-                                             T[4 * i + 2] * p[2] + T[4 * i + 3]);
-    }
-    double pw = 0;
-    for (size_t f = 0; f < m->n_faces; ++f)
-      for (int e = 0; e < 3; ++e) {
-        size_t u = (size_t)m->F[3 * f + e], v = (size_t)m->F[3 * f + (e + 1) % 3];
-        double l0 = dist3(m->V + 3 * u, m->V + 3 * v);
-        if (l0 > 1e-12 * r->H) pw = fmax(pw, dist3(X + 3 * u, X + 3 * v) / l0);
-      }
-    sum += pw;
+    km_deform_frame fr;
+    km_status st = km_lbs(r->m->V, r->n, skin, T, NJ, X, err);
+    if (st == KM_OK) st = km_deform_check_add(dc, X, &fr, err);
+    if (st != KM_OK) return st;
+    sum += fr.ratio_max;
   }
-  return sum / (double)(sizeof poses / sizeof poses[0]);
+  *score = sum / (double)(sizeof poses / sizeof poses[0]);
+  return KM_OK;
 }
 
 /* Skin weights (mode): bone heat (skin_heat, the default), or by distance: a vertex takes the
@@ -1220,8 +1206,11 @@ static km_status compute_skin(const rigger *r, km_autorig_skin mode, bool probe,
     double best = INFINITY;
     int32_t *tj = km__malloc(KM_SKIN_INFLUENCES * n, sizeof *tj);
     double *tw = km__malloc(KM_SKIN_INFLUENCES * n, sizeof *tw);
+    km_skin trial = {n, tj, tw};
+    km_deform_check *dc = NULL;
     if (!W || (probe && !X) || !tj || !tw)
       st = km__fail(err, KM_ERR_NOMEM, "rig: out of memory (skin of %zu vertices)", n);
+    if (st == KM_OK && probe) st = km_deform_check_create(r->m, &dc, err);
     if (st == KM_OK) st = skin_heat(r, D, Q, NC, heat_c, W, err);
     for (size_t ci = 0; st == KM_OK && ci < NC; ++ci) {
       for (size_t v = 0; v < n; ++v) {
@@ -1236,7 +1225,8 @@ static km_status compute_skin(const rigger *r, km_autorig_skin mode, bool probe,
           tj[4 * v] = near[v], tw[4 * v] = 1;
         }
       }
-      double score = probe ? probe_stretch(r, tj, tw, X) : 0;
+      double score = 0;
+      if (probe && (st = probe_stretch(r, &trial, dc, X, &score, err)) != KM_OK) break;
       if (report && probe) report->heat_probe[ci] = score;
       if (ci == 0 || score < best) {
         best = score;
@@ -1245,6 +1235,7 @@ static km_status compute_skin(const rigger *r, km_autorig_skin mode, bool probe,
         memcpy(skin->weights, tw, KM_SKIN_INFLUENCES * n * sizeof *tw);
       }
     }
+    km_deform_check_free(&dc);
     free(W), free(X), free(tj), free(tw);
   } else if (st == KM_OK)
 #pragma omp parallel for schedule(static)

@@ -311,7 +311,7 @@ static inline void km__m3_from_rotvec(const double r[3], double R[9]) {
 
 /* The shortest rotation R (row-major) taking unit a onto unit b (Rodrigues: I + K + K^2 / (1 + c),
  * K the cross-product matrix of a x b, c = a . b); opposite directions give a half turn about
- * km__any_perp3(a). The one used by skinning, the retargeter and the glitch rejector. */
+ * km__any_perp3(a). The one used by skinning and the retargeter. */
 static inline void km__rot3_between(const double a[3], const double b[3], double R[9]) {
   double c = km__dot3(a, b);
   if (c < -1 + 1e-12) {
