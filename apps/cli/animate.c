@@ -284,10 +284,8 @@ int km_cli_animate(int argc, char **argv) {
   km_puppetry_glitch_stats(pl, &gs);
   char glitch_line[256] = "";
   if (!no_glitch)
-    snprintf(glitch_line, sizeof glitch_line,
-             "  glitches rejected: %zu of %zu joint samples (speed %zu, bone %zu, re-found "
-             "%zu); joints whose start was the glitch, reference redone: %zu\n",
-             gs.rejected, gs.samples, gs.speed, gs.bone, gs.refound, gs.restarted);
+    km_cli_glitch_line(&gs, "joints whose start was the glitch, reference redone", glitch_line,
+                       sizeof glitch_line);
   fprintf(stderr,
           "kinemesh animate: %zu frames, %zu vertices, %zu handles (%zu vertices), scale %.3f\n"
           "  %-22s %10s %12s %12s %12s\n"

@@ -127,6 +127,10 @@ int km_cli_parse_units(const char *verb, const char *opt, const char *s, double 
  * vertex id when rig is NULL or has no handle. */
 void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig *rig, char *line,
                        size_t n);
+/* The glitch rejector's counts in one line, as animate and pose print them; restarted: what
+ * the caller did with the joints whose start was the glitch (their count follows), NULL to leave
+ * them out. */
+void km_cli_glitch_line(const km_glitch_stats *gs, const char *restarted, char *line, size_t n);
 
 /* Exit codes */
 #define KM_EXIT_OK 0

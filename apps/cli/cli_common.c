@@ -803,3 +803,13 @@ void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig
            s.ratio_min, s.long_frames, s.frames, s.folded, s.most_folded_pairs, s.most_folded_frame,
            step);
 }
+
+void km_cli_glitch_line(const km_glitch_stats *gs, const char *restarted, char *line, size_t n) {
+  int k = snprintf(line, n,
+                   "  glitches rejected: %zu of %zu joint samples (speed %zu, bone %zu, re-found "
+                   "%zu)",
+                   gs->rejected, gs->samples, gs->speed, gs->bone, gs->refound);
+  if (restarted && k >= 0 && (size_t)k < n)
+    k += snprintf(line + k, n - (size_t)k, "; %s: %zu", restarted, gs->restarted);
+  if (k >= 0 && (size_t)k < n) snprintf(line + k, n - (size_t)k, "\n");
+}

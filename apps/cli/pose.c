@@ -213,10 +213,10 @@ int km_cli_pose(int argc, char **argv) {
   }
   if (g) {
     km_glitch_stats gs;
+    char glitch_line[256];
     km_glitch_stats_get(g, &gs);
-    fprintf(stderr,
-            "  glitches rejected: %zu of %zu joint samples (speed %zu, bone %zu, re-found %zu)\n",
-            gs.rejected, gs.samples, gs.speed, gs.bone, gs.refound);
+    km_cli_glitch_line(&gs, NULL, glitch_line, sizeof glitch_line);
+    fputs(glitch_line, stderr);
   }
   fputs(shape_line, stderr);
   fprintf(stderr, "kinemesh pose: %zu frames of %zu vertices, scale %.4g -> %s%s%s\n", t.n_frames,
