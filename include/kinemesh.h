@@ -2796,11 +2796,12 @@ typedef struct km_autorig_report {
   char fallback[256];
   km_autorig_skin skin; /* the weights written: KM_AUTORIG_SKIN_DISTANCE or _REACH */
   /* Bone heat: the heat constant c written (H = c / d^2: 1, Baran & Popovic's, or 0.5,
-   * smoother) and, where both were tried (not on a quadruped), each one's probe score: the
-   * mean over 13 probe poses of the rig's own skeleton of the skin's worst edge l/l0 (0: not
-   * tried). */
+   * smoother, kept when its score is more than 4 % lower) and each one's probe score: the mean
+   * over heat_probe_poses probe poses of the rig's own skeleton (13; 24 for a quadruped, bent
+   * as far as its rig lets a take bend it) of the skin's worst edge l/l0 (0: not tried). */
   double heat_c;
   double heat_probe[2]; /* c = 1, c = 0.5 */
+  int heat_probe_poses;
 } km_autorig_report;
 
 /* The kind's name: "humanoid" (KM_AUTORIG_KINECT1), "quadruped", "prop", "bust", "upper body"

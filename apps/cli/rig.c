@@ -170,9 +170,9 @@ int km_cli_rig(int argc, char **argv) {
              ? "by distance to the bones, each limited by its reach along the surface"
              : "by distance to the bones");
   if (rep.skin == KM_AUTORIG_SKIN_HEAT && rep.heat_probe[0] > 0)
-    printf("  heat constant c %g: the skin's worst edge in 13 probe poses of the skeleton, mean "
-           "%.2fx at c 1, %.2fx at c 0.5\n",
-           rep.heat_c, rep.heat_probe[0], rep.heat_probe[1]);
+    printf("  heat constant c %g: the skin's worst edge in %d probe poses of the skeleton, mean "
+           "%.2fx at c 1, %.2fx at c 0.5 (0.5 is kept when 4 %% lower)\n",
+           rep.heat_c, rep.heat_probe_poses, rep.heat_probe[0], rep.heat_probe[1]);
 write:
   if ((rc = write_sidecar(path, &c, oriented ? &frame : NULL))) goto done;
   /* The puppetry rig in the sidecar must resolve on the mesh (handles apart, in range). */
