@@ -389,11 +389,11 @@ static void test_untracked_wrist(const fixture *fx) {
  * or left forearm both turn "up"), in one push, through the character's default rig with the
  * given "swing_limit", "bend_limit", "upper_limb_limit" and "girdle_limit": how far handle
  * `name` turns about the pivot, degrees. */
-static double handle_turn(const fixture *fx, const char *name, int pivot, int first, int last,
-                          int p, int q, bool by_side, double swing, double bend, double upper,
-                          double girdle, double angle) {
+static double handle_turn_rig(const fixture *fx, const km_rig *base, const char *name, int pivot,
+                              int first, int last, int p, int q, bool by_side, double swing,
+                              double bend, double upper, double girdle, double angle) {
   const km_character c = fx->c;
-  km_rig rig = fx->rig;
+  km_rig rig = *base;
   rig.swing_limit = swing;
   rig.bend_limit = bend;
   rig.upper_limb_limit = upper;
@@ -431,10 +431,49 @@ static double handle_turn(const fixture *fx, const char *name, int pivot, int fi
   return acos(fmax(-1, fmin(1, cosang))) * 180 / M_PI;
 }
 
+static double handle_turn(const fixture *fx, const char *name, int pivot, int first, int last,
+                          int p, int q, bool by_side, double swing, double bend, double upper,
+                          double girdle, double angle) {
+  return handle_turn_rig(fx, &fx->rig, name, pivot, first, last, p, q, by_side, swing, bend, upper,
+                         girdle, angle);
+}
+
 /* The right forearm (wrist and hand) turned up about a still elbow, in the x-y plane. */
 static double hand_turn(const fixture *fx, double swing, double bend, double angle) {
   enum { ELBOW = 9, WRIST = 10, HAND = 11 };
   return handle_turn(fx, "hand_right", ELBOW, WRIST, HAND, 0, 1, true, swing, bend, 0, 0, angle);
+}
+
+/* The elbow's bend limit (150, an upright body's "bend_limit") counts from the straight arm,
+ * whatever the character's rest elbow. A character whose right forearm hangs 50 degrees down at
+ * rest (the armadillo's elbows are bent 50 degrees, its knees 23), driven by a straight-armed
+ * performer who turns the forearm up: 140 asked turns the hand 140, 170 asked stops at 150.
+ * Counted from where the upper arm carries the bent rest forearm, the limit let the 170 through
+ * (140 degrees from the rest direction the other way round) and bent the 140 to 160. */
+static void test_bend_from_straight(const fixture *fx) {
+  enum { ELBOW = 9, WRIST = 10, HAND = 11 };
+  km_rig rig = fx->rig;
+  size_t nr = rig.n_joint_rest;
+  CHECK_MSG(rig.joint_rest && nr > HAND, "the default rig has %zu rest joints", nr);
+  if (!rig.joint_rest || nr <= HAND) return;
+  double *jr = malloc(3 * nr * sizeof *jr);
+  memcpy(jr, rig.joint_rest, 3 * nr * sizeof *jr);
+  const double *e = jr + 3 * ELBOW, a = -50 * M_PI / 180;
+  for (int j = WRIST; j <= HAND; ++j) { /* the right arm points -x: turned down about z */
+    double *x = jr + 3 * j, u = x[0] - e[0], w = x[1] - e[1];
+    x[0] = e[0] + cos(a) * u + sin(a) * w, x[1] = e[1] - sin(a) * u + cos(a) * w;
+  }
+  rig.joint_rest = jr;
+  double t140 = handle_turn_rig(fx, &rig, "hand_right", ELBOW, WRIST, HAND, 0, 1, true, 0, 150, 0,
+                                0, 140),
+         t170 = handle_turn_rig(fx, &rig, "hand_right", ELBOW, WRIST, HAND, 0, 1, true, 0, 150, 0,
+                                0, 170);
+  printf("  rest forearm bent 50 deg, bend_limit 150: 140 deg asked, the hand turns %.1f; 170 "
+         "asked, %.1f\n",
+         t140, t170);
+  CHECK_MSG(fabs(t140 - 140) < 8, "bent rest, 140 asked: the hand turned %g deg", t140);
+  CHECK_MSG(fabs(t170 - 150) < 8, "bent rest, 170 asked: the hand turned %g deg", t170);
+  free(jr);
 }
 
 /* The head tilted forward about a still shoulder centre, in the y-z plane (the head is not
@@ -605,6 +644,7 @@ int main(void) {
   test_armpit_folds(&fx, KM_MOTION_KUNGFU);
   test_clean_take_joints(&fx);
   test_limits(&fx);
+  test_bend_from_straight(&fx);
   test_feet_on_floor(&fx);
   fixture_free(&fx);
   km_mesh m = bar();

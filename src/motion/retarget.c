@@ -897,8 +897,9 @@ static double tighter_limit(double a, double b) {
  * 4, 8, 12 or 16), which carries a whole limb, "girdle_limit" where it is the smaller; and an
  * aimed bone (segment_rotation with aim): an upper arm or thigh (ending at an elbow or knee)
  * "upper_limb_limit" instead where it is set, a forearm or shin (ending at a wrist or ankle)
- * "bend_limit", the elbow's or knee's bend, where it is the smaller. The limb limits apply to
- * aimed bones only: a rig without "aim" keeps its limbs as free as before. */
+ * "bend_limit", the elbow's or knee's bend, where it is the smaller (a bend limit wider than 90
+ * degrees is the anatomical one, counted from the straight limb: hinge_bend). The limb limits apply
+ * to aimed bones only: a rig without "aim" keeps its limbs as free as before. */
 static double limb_limit(const km_retarget *r, int32_t b, bool aimed) {
   double lim = r->swing_limit;
   if (!r->kinect1) return lim;
@@ -935,6 +936,31 @@ static void clamp_swing(const double w[3], double lim, double d[3]) {
   km__normalize3(d);
 }
 
+/* An elbow's or knee's anatomical bend limit (kinect1 "bend_limit" wider than 90 degrees, an
+ * upright body's 150): the forearm or shin a -> b is held within bend_limit of the straight
+ * limb, the direction its parent bone (par[a] -> a, turned by Rp) points in now; true when it
+ * was applied (the bone's other limit is then the rig's "swing_limit" alone). Measured from
+ * where the parent carries the character's rest forearm instead (clamp_swing's w), the limit
+ * was the bend only on a straight-armed rest pose: the armadillo's elbows are bent 50 degrees
+ * at rest, so the performer's 142-degree elbow on precog_Seq1_1 (frames 114-116) swung its
+ * forearm about 170 degrees from the carried rest direction, where the clamp's great circle
+ * turns quickly with d, and the clamped forearm swept 17 degrees a frame while the
+ * performer's turned 4: the hand stepped 10-12 cm (15 % of the diagonal) with the performer's
+ * wrist still. Narrower bend limits (a quadruped's 20) are swings from the rest shape and
+ * stay with clamp_swing's w. */
+static bool hinge_bend(const km_retarget *r, int32_t a, int32_t b, const double Rp[9],
+                       double d[3]) {
+  if (!r->kinect1 || !(r->bend_limit > 0.5 * M_PI) || !r->jrest) return false;
+  if (!(b == 6 || b == 10 || b == 14 || b == 18) || r->par[a] < 0) return false;
+  const double *pa = r->jrest + 3 * (size_t)a, *pp = r->jrest + 3 * (size_t)r->par[a];
+  double s0[3] = {pa[0] - pp[0], pa[1] - pp[1], pa[2] - pp[2]}, s[3];
+  if (!(km__normalize3(s0) > 1e-12)) return false;
+  for (int i = 0; i < 3; ++i)
+    s[i] = Rp[3 * i] * s0[0] + Rp[3 * i + 1] * s0[1] + Rp[3 * i + 2] * s0[2];
+  clamp_swing(s, r->bend_limit, d);
+  return true;
+}
+
 /* The shortest rotation taking the reference direction of a -> b to this frame's (in the
  * root's heading frame under rigid root motion); false when a joint is not valid.
  * aim (the character's rest direction of the segment) with Rp (the rotation of the bone the
@@ -960,7 +986,8 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
         double w[3];
         for (int i = 0; i < 3; ++i)
           w[i] = Rp[3 * i] * u[0] + Rp[3 * i + 1] * u[1] + Rp[3 * i + 2] * u[2];
-        clamp_swing(w, limb_limit(r, b, true), d);
+        bool bent = hinge_bend(r, a, b, Rp, d);
+        clamp_swing(w, bent ? r->swing_limit : limb_limit(r, b, true), d);
         km__rot3_between(w, d, A);
         mat_mul(A, Rp, R);
         return true;
