@@ -188,6 +188,78 @@ static double max_pc2_diff(const char *a, const char *b, double *diag) {
   return worst;
 }
 
+/* Mean over frames of the largest one-frame vertex step of a .pc2 (-1 when unreadable). */
+static double mean_pc2_step(const char *path) {
+  double *fa = NULL, sum = -1;
+  km_anim_info ia;
+  if (km_pc2_read(path, &fa, &ia, KM_E) == KM_OK && ia.frames > 1) {
+    sum = 0;
+    for (size_t f = 1; f < ia.frames; ++f) {
+      double worst = 0;
+      for (size_t v = 0; v < ia.vertices; ++v) {
+        const double *a = fa + 3 * ((f - 1) * ia.vertices + v), *b = a + 3 * ia.vertices;
+        worst = fmax(worst, sqrt(pow(b[0] - a[0], 2) + pow(b[1] - a[1], 2) + pow(b[2] - a[2], 2)));
+      }
+      sum += worst;
+    }
+    sum /= (double)(ia.frames - 1);
+  }
+  free(fa);
+  return sum;
+}
+
+/* pose --filter: the walk of test_pose_glitch with tracker jitter (every joint coordinate off
+ * by up to 2 cm, a fixed pseudo-random sequence) skinned raw and smoothed by the Holt filter:
+ * the mesh's mean one-frame step falls (by at least a fifth); an unknown filter is an error
+ * that names it. Uses cli_pg.obj and cli_pg_take.json. */
+static void test_pose_filter(void) {
+  size_t n = 0;
+  char *text = km_test_read_file("cli_pg_take.json", &n);
+  cJSON *take = text ? cJSON_Parse(text) : NULL;
+  free(text);
+  CHECK(take != NULL);
+  if (!take) return;
+  cJSON *frames = cJSON_GetObjectItem(take, "frames");
+  unsigned lcg = 12345;
+  for (int f = 0; f < cJSON_GetArraySize(frames); ++f) {
+    cJSON *fr = cJSON_GetArrayItem(frames, f);
+    for (int i = 0; i < cJSON_GetArraySize(fr); ++i) {
+      cJSON *x = cJSON_GetArrayItem(fr, i);
+      lcg = lcg * 1103515245u + 12345u;
+      if (cJSON_IsNumber(x))
+        cJSON_SetNumberValue(x,
+                             x->valuedouble + 0.02 * ((double)(lcg >> 8 & 0xffff) / 32768.0 - 1));
+    }
+  }
+  char *jit = cJSON_PrintUnformatted(take);
+  cJSON_Delete(take);
+  FILE *f = fopen("cli_pf_jitter.json", "w");
+  CHECK(f && jit);
+  if (f && jit) fputs(jit, f);
+  if (f) fclose(f);
+  free(jit);
+  CHECK(km_test_run(KM_CLI " pose --mesh cli_pg.obj --motion cli_pf_jitter.json -o cli_pf_raw.pc2",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " pose --mesh cli_pg.obj --motion cli_pf_jitter.json --filter holt -o "
+                           "cli_pf_holt.pc2",
+                    NULL) == 0);
+  double raw = mean_pc2_step("cli_pf_raw.pc2"), holt = mean_pc2_step("cli_pf_holt.pc2");
+  printf("pose on a jittered walk: mean one-frame step %.4f m raw, %.4f m with --filter holt\n",
+         raw, holt);
+  CHECK_MSG(raw > 0 && holt > 0 && holt < 0.8 * raw, "--filter holt: mean step %.4f, raw %.4f",
+            holt, raw);
+  char *out = NULL;
+  CHECK(km_test_run(KM_CLI " pose --mesh cli_pg.obj --motion cli_pf_jitter.json --filter kalman "
+                           "-o cli_pf_bad.pc2",
+                    &out) != 0);
+  CHECK_MSG(out && strstr(out, "kalman"), "%s", out ? out : "");
+  CHECK(access("cli_pf_bad.pc2", F_OK) != 0);
+  free(out);
+  remove("cli_pf_jitter.json");
+  remove("cli_pf_raw.pc2");
+  remove("cli_pf_holt.pc2");
+}
+
 static void test_pose_glitch(void) {
   CHECK(km_test_run(KM_CLI " gen character --vertices 3000 -o cli_pg.obj", NULL) == 0);
   CHECK(km_test_run(KM_CLI " gen motion --kind walk --frames 30 --character cli_pg.obj -o "
@@ -233,6 +305,7 @@ static void test_pose_glitch(void) {
          d_glitch, d_raw, diag);
   CHECK_MSG(d_glitch >= 0 && d_glitch <= 0.02 * diag, "spike reached the mesh: %.4f m", d_glitch);
   CHECK_MSG(d_raw > 0.05 * diag, "--no-glitch: the spike moved the mesh only %.4f m", d_raw);
+  test_pose_filter();
   remove("cli_pg.obj");
   remove("cli_pg.rig.json");
   remove("cli_pg_take.json");

@@ -52,6 +52,7 @@ int km_cli_pose(int argc, char **argv) {
   const char *export_kind = NULL;
   double max_error_mm = 0, scale = 0;
   bool keep_frame = false, exact = false, no_glitch = false;
+  const char *filter_kind = NULL;
   /* The mesh is brought into kinemesh's frame as animate brings it (the rig sidecar's
    * skeleton is stored in that frame); the output is in it, as animate's is. */
   km_cli_frame_opts fo = {0};
@@ -81,6 +82,10 @@ int km_cli_pose(int argc, char **argv) {
        "do not reject tracker glitches (jumps, bone-length outliers, re-found joints) before "
        "skinning (default: rejected as animate rejects them, so a lost hand does not throw the "
        "arm)"},
+      {"filter", 0, KM_OPT_STRING, &filter_kind,
+       "smooth the take's joints before skinning: holt or one_euro, as animate's filter with "
+       "its defaults (default: none, the take as recorded; a Kinect take's jitter and fast "
+       "re-fits then reach the mesh)"},
       {"output", 'o', KM_OPT_STRING, &out, "output: .glb, .pc2 or a directory"},
       {"keep-frame", 0, KM_OPT_FLAG, &keep_frame,
        ".pc2 and frame directories in the mesh file's own axes and units, as animate "
@@ -109,6 +114,11 @@ int km_cli_pose(int argc, char **argv) {
   km_track trk = {0};
   double *pos_frame = NULL, *xf = NULL, *V = NULL, *seed = NULL, *clean = NULL;
   km_glitch *g = NULL;
+  km_filter *jf = NULL;
+  km_filter_options filt = {0};
+  if (filter_kind && strcmp(filter_kind, "holt") && strcmp(filter_kind, "one_euro"))
+    return km_cli_error("pose", "--filter must be holt or one_euro, not '%s'", filter_kind);
+  if (filter_kind && !strcmp(filter_kind, "one_euro")) filt.kind = KM_FILTER_ONE_EURO;
   km_frame mf = {KM_AXIS_POS_Y, KM_AXIS_POS_Z, 0}; /* the mesh file's frame (--keep-frame) */
   int *map = NULL;
   int rc = KM_EXIT_FAIL;
@@ -175,11 +185,24 @@ int km_cli_pose(int argc, char **argv) {
     go.fps = t.fps > 0 ? t.fps : 30;
     if (km_glitch_create(t.n_joints, t.parents, &go, &g, &err) != KM_OK) goto fail;
   }
+  /* --filter: the joint filter animate runs after the glitch rejection, at the take's rate
+   * (after --fps), on the take's own joints in metres. */
+  if (filter_kind) {
+    filt.fps = t.fps > 0 ? t.fps : 30;
+    if (km_filter_create(t.n_joints, &filt, &jf, &err) != KM_OK) goto fail;
+  }
   km_progress prog = km_cli_progress("pose");
   for (size_t f = 0; f < t.n_frames; ++f) {
     const double *raw = t.positions + f * t.n_joints * 3;
     if (g) km_glitch_push(g, raw, clean);
     const double *in = g ? clean : raw;
+    if (jf) {
+      const bool *restarted = g ? km_glitch_restarted(g) : NULL;
+      for (size_t j = 0; restarted && j < t.n_joints; ++j)
+        if (restarted[j]) km_filter_restart_joint(jf, j);
+      km_filter_push(jf, in, clean);
+      in = clean;
+    }
     for (size_t j = 0; j < nj; ++j)
       for (int a = 0; a < 3; ++a)
         pos_frame[3 * j + a] = map[j] < 0 ? NAN : scale * in[(size_t)map[j] * 3 + a];
@@ -230,6 +253,7 @@ done:
   km_anim_writer_free(&w);
   km_deform_check_free(&dc);
   km_glitch_free(&g);
+  km_filter_free(&jf);
   free(clean);
   km_track_free(&trk);
   free(map);
