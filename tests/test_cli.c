@@ -188,6 +188,25 @@ static double max_pc2_diff(const char *a, const char *b, double *diag) {
   return worst;
 }
 
+/* A take (.json) as cJSON (NULL when unreadable), and written back (take deleted). */
+static cJSON *read_json_file(const char *path) {
+  size_t n = 0;
+  char *text = km_test_read_file(path, &n);
+  cJSON *j = text ? cJSON_Parse(text) : NULL;
+  free(text);
+  CHECK_MSG(j != NULL, "%s: not readable JSON", path);
+  return j;
+}
+static void write_json_file(const char *path, cJSON *j) {
+  char *text = cJSON_PrintUnformatted(j);
+  cJSON_Delete(j);
+  FILE *f = fopen(path, "w");
+  CHECK(f && text);
+  if (f && text) fputs(text, f);
+  if (f) fclose(f);
+  free(text);
+}
+
 /* Mean over frames of the largest one-frame vertex step of a .pc2 (-1 when unreadable). */
 static double mean_pc2_step(const char *path) {
   double *fa = NULL, sum = -1;
@@ -213,11 +232,7 @@ static double mean_pc2_step(const char *path) {
  * the mesh's mean one-frame step falls (by at least a fifth); an unknown filter is an error
  * that names it. Uses cli_pg.obj and cli_pg_take.json. */
 static void test_pose_filter(void) {
-  size_t n = 0;
-  char *text = km_test_read_file("cli_pg_take.json", &n);
-  cJSON *take = text ? cJSON_Parse(text) : NULL;
-  free(text);
-  CHECK(take != NULL);
+  cJSON *take = read_json_file("cli_pg_take.json");
   if (!take) return;
   cJSON *frames = cJSON_GetObjectItem(take, "frames");
   unsigned lcg = 12345;
@@ -231,13 +246,7 @@ static void test_pose_filter(void) {
                              x->valuedouble + 0.02 * ((double)(lcg >> 8 & 0xffff) / 32768.0 - 1));
     }
   }
-  char *jit = cJSON_PrintUnformatted(take);
-  cJSON_Delete(take);
-  FILE *f = fopen("cli_pf_jitter.json", "w");
-  CHECK(f && jit);
-  if (f && jit) fputs(jit, f);
-  if (f) fclose(f);
-  free(jit);
+  write_json_file("cli_pf_jitter.json", take);
   CHECK(km_test_run(KM_CLI " pose --mesh cli_pg.obj --motion cli_pf_jitter.json -o cli_pf_raw.pc2",
                     NULL) == 0);
   CHECK(km_test_run(KM_CLI " pose --mesh cli_pg.obj --motion cli_pf_jitter.json --filter holt -o "
@@ -265,11 +274,7 @@ static void test_pose_glitch(void) {
   CHECK(km_test_run(KM_CLI " gen motion --kind walk --frames 30 --character cli_pg.obj -o "
                            "cli_pg_take.json",
                     NULL) == 0);
-  size_t n = 0;
-  char *text = km_test_read_file("cli_pg_take.json", &n);
-  cJSON *take = text ? cJSON_Parse(text) : NULL;
-  free(text);
-  CHECK(take != NULL);
+  cJSON *take = read_json_file("cli_pg_take.json");
   if (!take) return;
   cJSON *joints = cJSON_GetObjectItem(take, "joints"),
         *frames = cJSON_GetObjectItem(take, "frames");
@@ -279,13 +284,7 @@ static void test_pose_glitch(void) {
   cJSON *x = cJSON_GetArrayItem(cJSON_GetArrayItem(frames, 15), 3 * hand);
   CHECK(hand >= 0 && cJSON_IsNumber(x));
   if (hand >= 0 && cJSON_IsNumber(x)) cJSON_SetNumberValue(x, x->valuedouble + 0.6);
-  char *spiked = cJSON_PrintUnformatted(take);
-  cJSON_Delete(take);
-  FILE *f = fopen("cli_pg_spike.json", "w");
-  CHECK(f && spiked);
-  if (f && spiked) fputs(spiked, f);
-  if (f) fclose(f);
-  free(spiked);
+  write_json_file("cli_pg_spike.json", take);
   char *out = NULL;
   CHECK(km_test_run(KM_CLI " pose --mesh cli_pg.obj --motion cli_pg_take.json -o cli_pg_clean.pc2",
                     NULL) == 0);

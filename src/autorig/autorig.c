@@ -1088,6 +1088,33 @@ static void skin_sparsify(double *w, int n) {
     w[j] = w[j] > top[KM_SKIN_INFLUENCES] ? w[j] - top[KM_SKIN_INFLUENCES] : 0;
 }
 
+/* One probe pose: the subtree of joint j0 (j0 and its descendants) turned by R about point c,
+ * the rest of the skeleton at rest; the mesh skinned by skin (km_lbs into X, n*3) and its worst
+ * edge l/l0 from the deformation check dc in *ratio. */
+static km_status probe_pose(const rigger *r, const km_skin *skin, km_deform_check *dc, double *X,
+                            int j0, const double c[3], const double R[9], double *ratio,
+                            km_error *err) {
+  enum { NJ = KM_KINECT1_JOINTS };
+  static const double identity[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+  double T[12 * NJ], Tq[12], Rc[3];
+  km__m3_apply(R, c, Rc);
+  for (int i = 0; i < 3; ++i) {
+    memcpy(Tq + 4 * i, R + 3 * i, 3 * sizeof(double));
+    Tq[4 * i + 3] = c[i] - Rc[i];
+  }
+  for (int j = 0; j < NJ; ++j) { /* j turns when j0 is j or one of its ancestors */
+    int k = j;
+    while (k >= 0 && k != j0)
+      k = km_kinect1_joint_parent(k);
+    memcpy(T + 12 * j, k == j0 ? Tq : identity, sizeof Tq);
+  }
+  km_deform_frame fr;
+  km_status st = km_lbs(r->m->V, r->n, skin, T, NJ, X, err);
+  if (st == KM_OK) st = km_deform_check_add(dc, X, &fr, err);
+  if (st == KM_OK) *ratio = fr.ratio_max;
+  return st;
+}
+
 /* The quadruped's probe: the bends its rig lets a take make ("bend_limit" 20 at the elbows and
  * knees, "swing_limit" 30 below them and along the spine and neck; the upper legs, inside the
  * trunk, hardly move): each forearm and shin swung 20 degrees forwards and backwards, each paw
@@ -1098,7 +1125,6 @@ static void skin_sparsify(double *w, int n) {
  * dog0, which 0.5 improves); this one chooses 1 and 0.5 there (KM_HEAT_MARGIN). */
 static km_status probe_stretch_quadruped(const rigger *r, const km_skin *skin, km_deform_check *dc,
                                          double *X, double *score, int *n_poses, km_error *err) {
-  enum { NJ = KM_KINECT1_JOINTS };
   static const struct {
     int joint, pivot, axis; /* axis 0: lateral, 1: vertical */
     double deg;
@@ -1108,35 +1134,20 @@ static km_status probe_stretch_quadruped(const rigger *r, const km_skin *skin, k
                {14, 14, 0, 30}, {14, 14, 0, -30}, {18, 18, 0, 30}, {18, 18, 0, -30},
                {1, 1, 0, 30},   {1, 1, 0, -30},   {1, 1, 1, 30},   {1, 1, 1, -30},
                {3, 2, 0, 30},   {3, 2, 0, -30},   {3, 2, 1, 30},   {3, 2, 1, -30}};
-  static const double identity[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
   double fwd[3] = {r->J[3 * 2] - r->J[0], 0, r->J[3 * 2 + 2] - r->J[2]}, up[3] = {0, 1, 0}, lat[3];
   if (!(km__normalize3(fwd) > 0)) set3(fwd, 0, 0, 1);
   km__cross3(up, fwd, lat);
-  double sum = 0, T[12 * NJ];
+  double sum = 0;
   for (size_t q = 0; q < sizeof poses / sizeof poses[0]; ++q) {
-    int j0 = poses[q].joint;
-    double a = poses[q].deg * M_PI / 180, rv[3], R[9], Tq[12], Rc[3];
+    double a = poses[q].deg * M_PI / 180, rv[3], R[9], ratio = 0;
     const double *ax = poses[q].axis ? up : lat;
     for (int i = 0; i < 3; ++i)
       rv[i] = a * ax[i];
     km__m3_from_rotvec(rv, R);
-    const double *c = r->J + 3 * poses[q].pivot;
-    km__m3_apply(R, c, Rc);
-    for (int i = 0; i < 3; ++i) {
-      memcpy(Tq + 4 * i, R + 3 * i, 3 * sizeof(double));
-      Tq[4 * i + 3] = c[i] - Rc[i];
-    }
-    for (int j = 0; j < NJ; ++j) {
-      int k = j;
-      while (k >= 0 && k != j0)
-        k = km_kinect1_joint_parent(k);
-      memcpy(T + 12 * j, k == j0 ? Tq : identity, sizeof Tq);
-    }
-    km_deform_frame fr;
-    km_status st = km_lbs(r->m->V, r->n, skin, T, NJ, X, err);
-    if (st == KM_OK) st = km_deform_check_add(dc, X, &fr, err);
+    km_status st =
+        probe_pose(r, skin, dc, X, poses[q].joint, r->J + 3 * poses[q].pivot, R, &ratio, err);
     if (st != KM_OK) return st;
-    sum += fr.ratio_max;
+    sum += ratio;
   }
   *score = sum / (double)(sizeof poses / sizeof poses[0]);
   *n_poses = (int)(sizeof poses / sizeof poses[0]);
@@ -1154,39 +1165,22 @@ static km_status probe_stretch_quadruped(const rigger *r, const km_skin *skin, k
 static km_status probe_stretch(const rigger *r, const km_skin *skin, km_deform_check *dc, double *X,
                                double *score, int *n_poses, km_error *err) {
   if (r->quadruped) return probe_stretch_quadruped(r, skin, dc, X, score, n_poses, err);
-  enum { NJ = KM_KINECT1_JOINTS };
   static const struct {
     int joint, axis;
     double deg;
   } poses[] = {{4, 0, -90}, {4, 2, 90},   {8, 0, -90}, {8, 2, 90},  {12, 0, -90},
                {12, 2, 90}, {16, 0, -90}, {16, 2, 90}, {5, 0, -90}, {9, 0, -90},
                {13, 0, 90}, {17, 0, 90},  {1, 0, 30}};
-  static const double identity[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-  double sum = 0, T[12 * NJ];
+  double sum = 0;
   for (size_t q = 0; q < sizeof poses / sizeof poses[0]; ++q) {
     int j0 = poses[q].joint;
     /* outwards: towards the joint's own side of the body (left +x, right -x) */
-    double a = poses[q].deg * M_PI / 180;
+    double a = poses[q].deg * M_PI / 180, R[9], ratio = 0;
     if (poses[q].axis == 2 && r->J[3 * j0] < r->J[0]) a = -a;
-    double R[9], Tq[12], Rc[3];
     km__m3_axis(poses[q].axis, a, R);
-    const double *c = r->J + 3 * j0;
-    km__m3_apply(R, c, Rc);
-    for (int i = 0; i < 3; ++i) {
-      memcpy(Tq + 4 * i, R + 3 * i, 3 * sizeof(double));
-      Tq[4 * i + 3] = c[i] - Rc[i];
-    }
-    for (int j = 0; j < NJ; ++j) { /* j turns when j0 is j or one of its ancestors */
-      int k = j;
-      while (k >= 0 && k != j0)
-        k = km_kinect1_joint_parent(k);
-      memcpy(T + 12 * j, k == j0 ? Tq : identity, sizeof Tq);
-    }
-    km_deform_frame fr;
-    km_status st = km_lbs(r->m->V, r->n, skin, T, NJ, X, err);
-    if (st == KM_OK) st = km_deform_check_add(dc, X, &fr, err);
+    km_status st = probe_pose(r, skin, dc, X, j0, r->J + 3 * j0, R, &ratio, err);
     if (st != KM_OK) return st;
-    sum += fr.ratio_max;
+    sum += ratio;
   }
   *score = sum / (double)(sizeof poses / sizeof poses[0]);
   *n_poses = (int)(sizeof poses / sizeof poses[0]);
