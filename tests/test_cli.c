@@ -1,6 +1,7 @@
 /* End-to-end checks of the kinemesh command-line tool: exit codes, JSON keys, messages. */
 #include "km_test.h"
-#include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
+#include "capture_fixture.h" /* km_test_read_json */
+#include "synth/synth.h"     /* test fixtures: primitive meshes, one capture frame */
 
 #include <cjson/cJSON.h>
 #include <unistd.h>
@@ -188,12 +189,10 @@ static double max_pc2_diff(const char *a, const char *b, double *diag) {
   return worst;
 }
 
-/* A take (.json) as cJSON (NULL when unreadable), and written back (take deleted). */
+/* A take (.json) as cJSON (km_test_read_json; NULL when unreadable), and written back (j
+ * deleted). */
 static cJSON *read_json_file(const char *path) {
-  size_t n = 0;
-  char *text = km_test_read_file(path, &n);
-  cJSON *j = text ? cJSON_Parse(text) : NULL;
-  free(text);
+  cJSON *j = km_test_read_json(path);
   CHECK_MSG(j != NULL, "%s: not readable JSON", path);
   return j;
 }

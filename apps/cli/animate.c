@@ -195,16 +195,7 @@ int km_cli_animate(int argc, char **argv) {
     goto done;
   }
   km_filter_options filt = rig.filter;
-  if (filter_kind) {
-    if (!strcmp(filter_kind, "holt")) {
-      filt.kind = KM_FILTER_HOLT;
-    } else if (!strcmp(filter_kind, "one_euro")) {
-      filt.kind = KM_FILTER_ONE_EURO;
-    } else {
-      rc = km_cli_error("animate", "--filter must be holt or one_euro, not '%s'", filter_kind);
-      goto done;
-    }
-  }
+  if (filter_kind && (rc = km_cli_parse_filter("animate", filter_kind, &filt))) goto done;
   km_puppetry_options o = {0};
   if (filter_kind) o.filter = &filt;
   o.no_glitch = no_glitch;

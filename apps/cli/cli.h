@@ -213,6 +213,9 @@ void km_cli_json_number(cJSON *o, const char *key, double v);
 /* --frame-format obj|ply for directory outputs (NULL: from the path, obj for a directory);
  * prints the error and returns non-zero when unknown. */
 int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f);
+/* --filter holt|one_euro (animate, pose): sets o->kind, other fields kept; prints the error and
+ * returns non-zero when unknown. */
+int km_cli_parse_filter(const char *verb, const char *s, km_filter_options *o);
 
 /* Issue 16: what a .glb holds. --export morphs[:all] (one morph target per frame, exact) or
  * skin[:BONES] (a fitted skinned mesh, km_ssdr_fit), and --max-error-mm (skin: bones are added

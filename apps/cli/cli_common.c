@@ -337,6 +337,16 @@ int km_cli_parse_frame_format(const char *verb, const char *s, km_anim_format *f
   return 0;
 }
 
+int km_cli_parse_filter(const char *verb, const char *s, km_filter_options *o) {
+  if (!strcmp(s, "holt"))
+    o->kind = KM_FILTER_HOLT;
+  else if (!strcmp(s, "one_euro"))
+    o->kind = KM_FILTER_ONE_EURO;
+  else
+    return km_cli_error(verb, "--filter must be holt or one_euro, not '%s'", s);
+  return 0;
+}
+
 int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, bool compress,
                         const char *out, km_anim_options *ao, km_ssdr_options *ssdr) {
   memset(ssdr, 0, sizeof *ssdr);

@@ -116,9 +116,7 @@ int km_cli_pose(int argc, char **argv) {
   km_glitch *g = NULL;
   km_filter *jf = NULL;
   km_filter_options filt = {0};
-  if (filter_kind && strcmp(filter_kind, "holt") && strcmp(filter_kind, "one_euro"))
-    return km_cli_error("pose", "--filter must be holt or one_euro, not '%s'", filter_kind);
-  if (filter_kind && !strcmp(filter_kind, "one_euro")) filt.kind = KM_FILTER_ONE_EURO;
+  if (filter_kind && km_cli_parse_filter("pose", filter_kind, &filt)) return KM_EXIT_FAIL;
   km_frame mf = {KM_AXIS_POS_Y, KM_AXIS_POS_Z, 0}; /* the mesh file's frame (--keep-frame) */
   int *map = NULL;
   int rc = KM_EXIT_FAIL;

@@ -1155,8 +1155,8 @@ static km_status probe_stretch_quadruped(const rigger *r, const km_skin *skin, k
 }
 
 /* The mean over 13 probe poses (24 for a quadruped: probe_stretch_quadruped) of the worst edge
- * stretch l/l0 of the mesh skinned by skin (the
- * 4-influence skin being weighed), in *score. The poses, of the rig's own skeleton: each upper
+ * stretch l/l0 of the mesh skinned by skin (the 4-influence skin being weighed), in *score, and
+ * the number of poses in *n_poses. The poses, of the rig's own skeleton: each upper
  * arm and thigh swung 90 degrees about the body's x axis and about its z axis (outwards), each
  * forearm and shin bent 90 degrees about x, and the spine bent 30 degrees forward (each
  * rotation about the joint that starts the bone, carrying the whole subtree below it). Posed by

@@ -887,6 +887,15 @@ static void mat_mul(const double A[9], const double B[9], double C[9]) {
       C[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j];
 }
 
+static void mat_vec(const double R[9], const double x[3], double y[3]) {
+  for (int a = 0; a < 3; ++a)
+    y[a] = R[3 * a] * x[0] + R[3 * a + 1] * x[1] + R[3 * a + 2] * x[2];
+}
+
+/* A kinect1 forearm or shin: the bone ending at a wrist or ankle (joint 6, 10, 14 or 18), the
+ * one an elbow's or knee's bend turns. */
+static bool kinect1_hinge(int32_t b) { return b == 6 || b == 10 || b == 14 || b == 18; }
+
 /* The smaller of two limits (radians, 0: none). */
 static double tighter_limit(double a, double b) {
   return a > 0 && b > 0 ? fmin(a, b) : a > 0 ? a : b;
@@ -905,7 +914,7 @@ static double limb_limit(const km_retarget *r, int32_t b, bool aimed) {
   if (!r->kinect1) return lim;
   bool girdle = b == 4 || b == 8 || b == 12 || b == 16;
   bool upper = aimed && (b == 5 || b == 9 || b == 13 || b == 17);
-  bool hinge = aimed && (b == 6 || b == 10 || b == 14 || b == 18);
+  bool hinge = aimed && kinect1_hinge(b);
   if (upper && r->upper_limit > 0) lim = r->upper_limit;
   if (hinge) lim = tighter_limit(lim, r->bend_limit);
   if (girdle) lim = tighter_limit(lim, r->girdle_limit);
@@ -951,12 +960,11 @@ static void clamp_swing(const double w[3], double lim, double d[3]) {
 static bool hinge_bend(const km_retarget *r, int32_t a, int32_t b, const double Rp[9],
                        double d[3]) {
   if (!r->kinect1 || !(r->bend_limit > 0.5 * M_PI) || !r->jrest) return false;
-  if (!(b == 6 || b == 10 || b == 14 || b == 18) || r->par[a] < 0) return false;
+  if (!kinect1_hinge(b) || r->par[a] < 0) return false;
   const double *pa = r->jrest + 3 * (size_t)a, *pp = r->jrest + 3 * (size_t)r->par[a];
   double s0[3] = {pa[0] - pp[0], pa[1] - pp[1], pa[2] - pp[2]}, s[3];
   if (!(km__normalize3(s0) > 1e-12)) return false;
-  for (int i = 0; i < 3; ++i)
-    s[i] = Rp[3 * i] * s0[0] + Rp[3 * i + 1] * s0[1] + Rp[3 * i + 2] * s0[2];
+  mat_vec(Rp, s0, s);
   clamp_swing(s, r->bend_limit, d);
   return true;
 }
@@ -984,8 +992,7 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
       double A[9], B[9];
       if (Rp) { /* R = (Rp u -> d) Rp */
         double w[3];
-        for (int i = 0; i < 3; ++i)
-          w[i] = Rp[3 * i] * u[0] + Rp[3 * i + 1] * u[1] + Rp[3 * i + 2] * u[2];
+        mat_vec(Rp, u, w);
         bool bent = hinge_bend(r, a, b, Rp, d);
         clamp_swing(w, bent ? r->swing_limit : limb_limit(r, b, true), d);
         km__rot3_between(w, d, A);
@@ -1007,8 +1014,7 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
   double lim = limb_limit(r, b, false);
   if (Rp && lim > 0) {
     double w[3];
-    for (int i = 0; i < 3; ++i)
-      w[i] = Rp[3 * i] * d0[0] + Rp[3 * i + 1] * d0[1] + Rp[3 * i + 2] * d0[2];
+    mat_vec(Rp, d0, w);
     clamp_swing(w, lim, d);
   }
   km__rot3_between(d0, d, R);
@@ -1019,11 +1025,6 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
  * performer's bone (see km_retarget_create); the torso's bones turn relatively. */
 static bool kinect1_limb(size_t j) {
   return (j >= 5 && j <= 7) || (j >= 9 && j <= 11) || (j >= 13 && j <= 15) || j >= 17;
-}
-
-static void mat_vec(const double R[9], const double x[3], double y[3]) {
-  for (int a = 0; a < 3; ++a)
-    y[a] = R[3 * a] * x[0] + R[3 * a + 1] * x[1] + R[3 * a + 2] * x[2];
 }
 
 /* apply_twist with joint j's given rotation about the segment a -> b (walked up to an
