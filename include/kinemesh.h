@@ -1807,7 +1807,13 @@ typedef struct km_puppetry km_puppetry;
 
 typedef enum km_puppetry_solver {
   KM_PUPPETRY_REDUCED = 0, /* reduced isoline model (km_puppet), cached on disk */
-  KM_PUPPETRY_FULL         /* full-space ARAP (km_arap), rebuilt per handle set, no cache */
+  KM_PUPPETRY_FULL,        /* full-space ARAP (km_arap), rebuilt per handle set, no cache */
+  /* No mesh solve: glitch rejection, filter and retarget only, for a caller that poses the
+   * character's own skeleton (km_puppetry_posed_joints) and skins it itself (`pose
+   * --retarget`). No model is built or cached (info: KM_PUPPETRY_MODEL_BUILT, 0 s); a push
+   * leaves V_out untouched (it may be NULL); the handle targets and the posed joints are its
+   * output. */
+  KM_PUPPETRY_RETARGET
 } km_puppetry_solver;
 
 typedef struct km_puppetry_options {
@@ -1944,6 +1950,10 @@ const double *km_puppetry_last_joints(const km_puppetry *p);
  *   out  out: n*3 with n as for km_puppetry_filtered_joints
  * Returns false (out untouched) without a rig or when the rig has no "joints" skeleton. */
 bool km_puppetry_posed_joints(const km_puppetry *p, double *out);
+/* The floor constraint of the current rig (km_retarget_floor): returns whether it is on, and then
+ * sets *floor_y to the rest floor, where km_puppetry_push holds the solved mesh's vertices (a
+ * caller skinning the posed joints itself holds its vertices there the same way). */
+bool km_puppetry_floor(const km_puppetry *p, double *floor_y);
 /* Glitch rejection counts since the current rig was set (or reset); zeroed when off. */
 void km_puppetry_glitch_stats(const km_puppetry *p, km_glitch_stats *out);
 /* Frames whose handle motion the rig's max_step eased (km_retarget_eased_frames) since the

@@ -268,6 +268,108 @@ static void test_pose_filter(void) {
   remove("cli_pf_holt.pc2");
 }
 
+/* Edge length ratios l/l0 of a .pc2's frames against mesh m (the same vertex order; any
+ * rotation): the shortest and longest over every frame and edge, and the lowest y of any frame
+ * (the pc2 in kinemesh's frame). false when the file cannot be read or does not match m. */
+static bool pc2_edge_ratios(const char *path, const km_mesh *m, double *rmin, double *rmax,
+                            double *ymin) {
+  double *X = NULL;
+  km_anim_info in;
+  if (km_pc2_read(path, &X, &in, KM_E) != KM_OK) return false;
+  bool ok = in.vertices == m->n_vertices && in.frames > 0;
+  *rmin = INFINITY, *rmax = 0, *ymin = INFINITY;
+  for (size_t f = 0; ok && f < in.frames; ++f) {
+    const double *V = X + 3 * m->n_vertices * f;
+    for (size_t v = 0; v < m->n_vertices; ++v)
+      if (V[3 * v + 1] < *ymin) *ymin = V[3 * v + 1];
+    for (size_t t = 0; t < m->n_faces; ++t)
+      for (int e = 0; e < 3; ++e) {
+        int32_t a = m->F[3 * t + e], b = m->F[3 * t + (e + 1) % 3];
+        double l = 0, l0 = 0;
+        for (int c = 0; c < 3; ++c) {
+          l += (V[3 * a + c] - V[3 * b + c]) * (V[3 * a + c] - V[3 * b + c]);
+          l0 += (m->V[3 * a + c] - m->V[3 * b + c]) * (m->V[3 * a + c] - m->V[3 * b + c]);
+        }
+        if (l0 <= 0) continue;
+        double r = sqrt(l / l0);
+        if (r < *rmin) *rmin = r;
+        if (r > *rmax) *rmax = r;
+      }
+  }
+  free(X);
+  return ok;
+}
+
+/* pose on a quadruped (issues 11 and 12): a person's bone directions stand dog0 up on its hind
+ * legs (precog_Seq1_1 turned bone by bone: longest edge 3.6x, 600 triangles folded). Its rig
+ * limits its limbs' swing, so pose drives it through the rig's retargeter by default, as
+ * animate does, and skins the skeleton posed there (1.45x, shortest 0.48x; what bench motion
+ * --skin's L row shows for it), says so, and keeps it on its rest floor; --direct still turns
+ * the bones; --retarget with --direct or --exact-positions is an error. */
+static void test_pose_quadruped(void) {
+  char mb[1024], tb[1024];
+  const char *mesh = km_test_shared("meshes/dog0.off", mb, sizeof mb);
+  const char *take = km_test_shared("skeleton/precog_Seq1_1.csv", tb, sizeof tb);
+  if (!mesh || !take) return;
+  char cmd[4096], *out = NULL;
+  snprintf(cmd, sizeof cmd, KM_CLI " rig %s -o cli_dog.rig.json", mesh);
+  CHECK(km_test_run(cmd, NULL) == 0);
+  snprintf(cmd, sizeof cmd,
+           KM_CLI " pose --mesh %s --rig cli_dog.rig.json --motion %s -o cli_dog.pc2", mesh, take);
+  CHECK(km_test_run(cmd, &out) == 0);
+  CHECK_MSG(out && strstr(out, "limits how far its limbs swing") && strstr(out, "--direct"), "%s",
+            out ? out : "");
+  free(out);
+  snprintf(cmd, sizeof cmd,
+           KM_CLI " pose --mesh %s --rig cli_dog.rig.json --motion %s --direct -o cli_dog_d.pc2",
+           mesh, take);
+  CHECK(km_test_run(cmd, NULL) == 0);
+  km_mesh m = {0};
+  km_frame_guess g;
+  CHECK_OK(km_mesh_read(mesh, &m, KM_E));
+  CHECK_OK(km_mesh_frame_guess(&m, &g, KM_E));
+  g.frame.scale = 0;
+  CHECK_OK(km_mesh_frame_apply(&g.frame, &m, KM_E)); /* pose writes kinemesh's frame */
+  double floor = INFINITY, lo[3], hi[3] = {-INFINITY, -INFINITY, -INFINITY}, diag = 0;
+  for (int c = 0; c < 3; ++c)
+    lo[c] = INFINITY;
+  for (size_t v = 0; v < m.n_vertices; ++v)
+    for (int c = 0; c < 3; ++c) {
+      lo[c] = fmin(lo[c], m.V[3 * v + c]);
+      hi[c] = fmax(hi[c], m.V[3 * v + c]);
+    }
+  for (int c = 0; c < 3; ++c)
+    diag += (hi[c] - lo[c]) * (hi[c] - lo[c]);
+  diag = sqrt(diag), floor = lo[1];
+  double rmin, rmax, ymin, dmin, dmax, dy;
+  CHECK(pc2_edge_ratios("cli_dog.pc2", &m, &rmin, &rmax, &ymin));
+  CHECK(pc2_edge_ratios("cli_dog_d.pc2", &m, &dmin, &dmax, &dy));
+  printf("dog0 posed by precog_Seq1_1: through its rig edges %.3f-%.3fx, lowest point %.2f %% of "
+         "the diagonal under the floor; bone by bone (--direct) %.3f-%.3fx\n",
+         rmin, rmax, 100 * (floor - ymin) / diag, dmin, dmax);
+  CHECK_MSG(rmax < 1.6 && rmin > 0.35, "through its rig: edges %.3f-%.3fx", rmin, rmax);
+  CHECK_MSG(dmax > 2.5, "--direct: longest edge %.3fx (it turns the bones as the take has them)",
+            dmax);
+  CHECK_MSG(ymin >= floor - 1e-6 * diag, "a vertex %.4g under the rest floor", floor - ymin);
+  snprintf(cmd, sizeof cmd,
+           KM_CLI " pose --mesh %s --rig cli_dog.rig.json --motion %s --retarget --direct -o "
+                  "cli_dog_x.pc2",
+           mesh, take);
+  CHECK(km_test_run(cmd, &out) == 1);
+  CHECK_MSG(out && strstr(out, "--retarget and --direct"), "%s", out ? out : "");
+  free(out);
+  snprintf(cmd, sizeof cmd,
+           KM_CLI " pose --mesh %s --rig cli_dog.rig.json --motion %s --retarget "
+                  "--exact-positions -o cli_dog_x.pc2",
+           mesh, take);
+  CHECK(km_test_run(cmd, NULL) == 1);
+  CHECK(access("cli_dog_x.pc2", F_OK) != 0);
+  km_mesh_free(&m);
+  remove("cli_dog.rig.json");
+  remove("cli_dog.pc2");
+  remove("cli_dog_d.pc2");
+}
+
 static void test_pose_glitch(void) {
   CHECK(km_test_run(KM_CLI " gen character --vertices 3000 -o cli_pg.obj", NULL) == 0);
   CHECK(km_test_run(KM_CLI " gen motion --kind walk --frames 30 --character cli_pg.obj -o "
@@ -372,5 +474,6 @@ int main(void) {
   test_eigen_sphere();
   test_gen_and_pose();
   test_pose_glitch();
+  test_pose_quadruped();
   return km_test_finish("test_cli");
 }

@@ -258,6 +258,45 @@ static void test_same_as_manual_loop(const fixture *fx) {
   free(B);
 }
 
+/* KM_PUPPETRY_RETARGET (pose --retarget): the pipeline without its mesh solve poses the
+ * character's skeleton exactly as the reduced pipeline does from the same frames (the joints
+ * are the retargeter's, before any solve), with the same handle targets; it builds no model,
+ * takes V_out NULL, and refuses to be created without a rig. */
+static void test_retarget_only(const fixture *fx) {
+  size_t nf = fx->take.n_frames;
+  km_puppetry_options o = {0};
+  km_puppetry *a = NULL, *b = NULL;
+  km_puppetry_info ia, ib;
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, 20, &o, &a, &ia, KM_E));
+  o.solver = KM_PUPPETRY_RETARGET;
+  CHECK_OK(km_puppetry_create(&fx->c.mesh, &fx->rig, NULL, 20, &o, &b, &ib, KM_E));
+  if (a && b) {
+    CHECK(km_puppetry_model(b) == NULL && ib.model_seconds == 0 && ia.model_seconds > 0);
+    double *V = malloc(sizeof(double) * 3 * fx->c.mesh.n_vertices), Ja[60], Jb[60];
+    double worst = 0, moved = 0;
+    for (size_t fr = 0; fr < nf; ++fr) {
+      const double *J = fx->take.positions + fr * fx->take.n_joints * 3;
+      CHECK_OK(km_puppetry_push(a, J, V, KM_E));
+      CHECK_OK(km_puppetry_push(b, J, NULL, KM_E));
+      CHECK(km_puppetry_posed_joints(a, Ja) && km_puppetry_posed_joints(b, Jb));
+      worst = fmax(worst, max_abs_diff(Ja, Jb, 60));
+      worst = fmax(worst, max_abs_diff(km_puppetry_handle_targets(a), km_puppetry_handle_targets(b),
+                                       3 * fx->rig.n_handles));
+      moved = fmax(moved, max_abs_diff(Jb, fx->c.skeleton.rest, 60));
+    }
+    CHECK_MSG(worst == 0, "retarget-only differs from the reduced pipeline by %g", worst);
+    CHECK_MSG(moved > 0.05, "the posed joints moved only %g m over the take", moved);
+    double fa, fb;
+    CHECK(km_puppetry_floor(a, &fa) == km_puppetry_floor(b, &fb));
+    free(V);
+  }
+  km_puppetry_free(&a);
+  km_puppetry_free(&b);
+  km_puppetry *c = NULL;
+  CHECK_STATUS(km_puppetry_create(&fx->c.mesh, NULL, NULL, 20, &o, &c, NULL, KM_E), KM_ERR_INVALID);
+  CHECK(c == NULL);
+}
+
 static void corrupt(const char *path) {
   FILE *f = fopen(path, "r+b");
   CHECK(f != NULL);
@@ -852,6 +891,7 @@ int main(void) {
     test_rest_reproduces_rest(&fx);
     test_no_posed_joints(&fx);
     test_same_as_manual_loop(&fx);
+    test_retarget_only(&fx);
     test_cache_policy(&fx);
     test_forged_cache(&fx);
     test_set_rig(&fx);

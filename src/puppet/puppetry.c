@@ -183,7 +183,7 @@ static km_status install_rig(km_puppetry *p, const km_rig *rig, km_error *err) {
     double t0 = km_seconds();
     s = km_arap_precompute(p->rest, rig->n_handles, r.off, r.hv, &p->opt.arap, &r.arap, err);
     p->arap_seconds = km_seconds() - t0;
-  } else {
+  } else if (p->opt.solver != KM_PUPPETRY_RETARGET) {
     s = km_puppet_set_handles(p->puppet, rig->n_handles, r.off, r.hv, err);
     if (s != KM_OK && p->filter) { /* the puppet may hold a half-set handle set */
       km_error e2 = {0};
@@ -358,7 +358,12 @@ km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig, const char 
       goto fail;
     }
   }
-  if (p->opt.solver == KM_PUPPETRY_FULL) {
+  if (p->opt.solver == KM_PUPPETRY_RETARGET) {
+    if (!rig) {
+      s = km__fail(err, KM_ERR_INVALID, "a retarget-only pipeline needs a rig at creation");
+      goto fail;
+    }
+  } else if (p->opt.solver == KM_PUPPETRY_FULL) {
     if (!rig) {
       s = km__fail(err, KM_ERR_INVALID, "the full solver needs a rig at creation");
       goto fail;
@@ -478,6 +483,13 @@ km_status km_puppetry_push_rotations(km_puppetry *p, const double *joints, const
   km_retarget_push_rotations(p->rt, p->filt, rot, p->handle_targets);
   km_retarget_vertex_targets(p->rt, p->targets);
   double t2 = km_seconds();
+  if (p->opt.solver == KM_PUPPETRY_RETARGET) { /* the caller skins the posed joints */
+    km_retarget_apply_root(p->rt, p->handle_targets, p->n_handles);
+    p->times.filter_ms = 1e3 * (t1 - t0);
+    p->times.retarget_ms = 1e3 * (t2 - t1);
+    p->times.solve_ms = 0;
+    return KM_OK;
+  }
   km_status s = p->opt.solver == KM_PUPPETRY_FULL
                     ? km_arap_solve(p->arap, p->targets, V_out, err)
                     : km_puppet_solve(p->puppet, p->targets, V_out, err);
@@ -544,6 +556,10 @@ void km_puppetry_glitch_stats(const km_puppetry *p, km_glitch_stats *out) {
     km_glitch_stats_get(p->glitch, out);
   else
     memset(out, 0, sizeof *out);
+}
+
+bool km_puppetry_floor(const km_puppetry *p, double *floor_y) {
+  return p && p->rt && floor_y && km_retarget_floor(p->rt, floor_y);
 }
 
 bool km_puppetry_posed_joints(const km_puppetry *p, double *out) {
