@@ -2788,6 +2788,11 @@ typedef struct km_autorig_options {
   double min_extremity; /* extremity prominence, fraction of the largest bbox extent; 0: 0.2 */
   size_t
       max_extremities; /* most extremities sought; 0: KM_AUTORIG_MAX_EXTREMITIES (also the cap) */
+  /* The skeleton when it is known (a generated character's, or one placed by hand): the 20
+   * Kinect v1 joints' rest positions (20*3, km_kinect1_joint_name order), which replace the
+   * embedded ones; the extremities are still found (the leaf bones reach to them), and the
+   * skin and landmarks are computed around these joints. NULL: embedded. */
+  const double *joints;
   km_progress progress;
 } km_autorig_options;
 

@@ -875,6 +875,39 @@ static void test_prop(const km_take *take) {
   km_mesh_free(&m);
 }
 
+/* km_autorig_options.joints (gen character's heat weights): a known skeleton replaces the
+ * embedded one exactly, the skin computed around it is valid and differs from the skin around
+ * the embedded joints (the generated character's hips sit 5-6 cm above where rig puts them); a
+ * joint that is not finite is refused, naming it. */
+static void test_given_joints(void) {
+  km_character_options co = {0};
+  co.target_vertices = 5000;
+  km_character c = {0}, a = {0}, b = {0};
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  km_autorig_options o = {0};
+  o.skeleton = KM_AUTORIG_KINECT1;
+  CHECK_OK(km_autorig(&c.mesh, &o, &a, NULL, KM_E));
+  o.joints = c.skeleton.rest;
+  CHECK_OK(km_autorig(&c.mesh, &o, &b, NULL, KM_E));
+  if (a.skeleton.rest && b.skeleton.rest) {
+    CHECK(memcmp(b.skeleton.rest, c.skeleton.rest, sizeof(double) * 3 * KM_KINECT1_JOINTS) == 0);
+    CHECK(skin_valid(&b.skin, c.mesh.n_vertices));
+    size_t differ = 0;
+    for (size_t i = 0; i < 4 * c.mesh.n_vertices; ++i)
+      differ += fabs(a.skin.weights[i] - b.skin.weights[i]) > 1e-3;
+    CHECK_MSG(differ > c.mesh.n_vertices / 100, "%zu weights differ", differ);
+  }
+  km_character_free(&a);
+  km_character_free(&b);
+  double J[3 * KM_KINECT1_JOINTS];
+  memcpy(J, c.skeleton.rest, sizeof J);
+  J[3 * 5 + 1] = NAN; /* ElbowLeft */
+  o.joints = J;
+  CHECK_STATUS(km_autorig(&c.mesh, &o, &b, NULL, KM_E), KM_ERR_INVALID);
+  CHECK_MSG(strstr(km_test_err.message, "ElbowLeft") != NULL, "%s", km_test_err.message);
+  km_character_free(&c);
+}
+
 /* A vertex no face uses, far away, changes nothing: same skeleton as without it. */
 static void test_isolated_vertex(void) {
   km_character_options co = {0};
@@ -1352,6 +1385,7 @@ int main(void) {
   test_character(10000, 0, 0, 0);
   test_character(20000, 7, 0.6, 1.15);
   test_isolated_vertex();
+  test_given_joints();
   test_faust_landmarks();
   test_cli();
   test_pose_bvh();

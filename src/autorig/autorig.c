@@ -1666,6 +1666,14 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
       st = rig_prop(&r, report, err);
     }
   }
+  /* a known skeleton replaces the embedded joints; the tips found for the leaf bones stay */
+  if (st == KM_OK && o.joints) {
+    for (int k = 0; k < 3 * KM_KINECT1_JOINTS; ++k)
+      if (!isfinite(o.joints[k]))
+        st = km__fail(err, KM_ERR_INVALID, "rig: the given joint %s is not finite",
+                      km_kinect1_joint_name(k / 3));
+    if (st == KM_OK) memcpy(r.J, o.joints, sizeof r.J);
+  }
   if (st == KM_OK && !km__progress(&o.progress, 0.6, "skin"))
     st = km__fail(err, KM_ERR_CANCELLED, "rig: cancelled");
   if (st == KM_OK) st = km_mesh_copy(m, &out->mesh, err);
