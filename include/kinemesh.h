@@ -1520,6 +1520,11 @@ typedef enum km_anim_export {
                                 close): what engines play on the GPU, 20-60x smaller */
   KM_ANIM_EXPORT_MORPHS_PCA, /* `morphs` basis targets (PCA of the frame displacements) and
                                 per-frame weights: compact, exact as morphs -> frames */
+  KM_ANIM_EXPORT_SKELETON,   /* a skinned mesh over a given skeleton and weights
+                                (km_anim_options.skeleton, .weights) whose bone transforms the
+                                caller pushes with each frame (km_anim_writer_push_pose): no
+                                fit, exact for frames skinned by those transforms (pose), one
+                                TRS channel per joint, named after it */
 } km_anim_export;
 
 typedef struct km_anim_options {
@@ -1543,6 +1548,11 @@ typedef struct km_anim_options {
    * identity): kinemesh's frame. A .glb refuses one (KM_ERR_INVALID): glTF's frame is
    * kinemesh's by the specification. Copied at open. */
   const km_frame *frame;
+  /* ---- KM_ANIM_EXPORT_SKELETON: the skeleton (its joints' names and rest positions: each
+   * bone is bound at its joint, no rotation) and the weights (#V vertices, joints indexing
+   * skeleton's) of the skinned mesh; copied at open */
+  const km_skeleton *skeleton;
+  const km_skin *weights;
 } km_anim_options;
 
 /* Streams an animation of a fixed-connectivity mesh to disk. Nothing appears at `path`
@@ -1561,6 +1571,15 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
  *   V  in: #V*3 positions in metres
  * Errors: KM_ERR_IO. */
 km_status km_anim_writer_push(km_anim_writer *w, const double *V, km_error *err);
+/* Appends one frame with the bone transforms that skinned it (KM_ANIM_EXPORT_SKELETON; other
+ * writers ignore the transforms, as km_anim_writer_push).
+ *   V           in: #V*3 positions in metres (the file's error is measured against them)
+ *   transforms  in: skeleton->n_joints * 12, row-major 3x4 [R | t] rest -> frame per joint
+ *               (km_skeleton_pose_from_*'s), R a rotation
+ * Errors: KM_ERR_INVALID (a transform not finite, or NULL), KM_ERR_IO. A skeleton writer
+ * refuses km_anim_writer_push (KM_ERR_INVALID): it has no transforms to store. */
+km_status km_anim_writer_push_pose(km_anim_writer *w, const double *V, const double *transforms,
+                                   km_error *err);
 /* Finishes the file, renames it into place, frees *w and sets it to NULL (on failure too).
  * Errors: KM_ERR_IO; KM_ERR_INVALID when no frame was pushed (nothing is written then). */
 km_status km_anim_writer_close(km_anim_writer **w, km_error *err);

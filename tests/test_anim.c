@@ -615,6 +615,74 @@ static void test_glb_expansion_bomb(void) {
   remove(path);
 }
 
+/* KM_ANIM_EXPORT_SKELETON (pose --export skeleton): a two-bone skeleton bends the rest mesh by
+ * linear blend skinning; the writer stores the pushed transforms as the bones' motion, so the
+ * file is exact (its reported error only float rounding), keeps the joints' names, and has a
+ * frame per push. A plain push, weights for another vertex count or a joint out of range, and a
+ * transform that is not finite are refused, naming the problem. */
+static void test_skeleton_export(const km_mesh *rest) {
+  const size_t nv = rest->n_vertices;
+  const char *names[2] = {"Upper", "Lower"};
+  int32_t par[2] = {-1, 0};
+  double jr[6] = {0, 0, 0, 0.5, 0, 0};
+  km_skeleton sk = {2, (char **)names, par, jr};
+  km_skin sw = {nv, malloc(sizeof(int32_t) * 4 * nv), malloc(sizeof(double) * 4 * nv)};
+  for (size_t i = 0; i < nv; ++i) { /* blended across x = 0.5 */
+    double t = fmin(1, fmax(0, (rest->V[3 * i] - 0.3) / 0.4));
+    int32_t j[4] = {0, 1, -1, -1};
+    double w[4] = {1 - t, t, 0, 0};
+    memcpy(sw.joints + 4 * i, j, sizeof j);
+    memcpy(sw.weights + 4 * i, w, sizeof w);
+  }
+  km_anim_options o = {.fps = FPS, .export_kind = KM_ANIM_EXPORT_SKELETON};
+  o.skeleton = &sk;
+  o.weights = &sw;
+  km_anim_writer *w = NULL;
+  const char *path = "test_anim_skel.glb";
+  remove(path);
+  CHECK_OK(km_anim_writer_open(path, rest, &o, &w, KM_E));
+  double *V = malloc(sizeof(double) * 3 * nv), X[24];
+  CHECK_STATUS(km_anim_writer_push(w, rest->V, KM_E), KM_ERR_INVALID);
+  CHECK(strstr(km_test_err.message, "km_anim_writer_push_pose") != NULL);
+  for (int f = 0; f < FRAMES && w; ++f) {
+    double a = 0.1 * f, c = cos(a), sn = sin(a);
+    double X0[12] = {1, 0, 0, 0, 0, 1, 0, 0.01 * f, 0, 0, 1, 0};
+    /* the lower bone turns by a about z around its joint (0.5, 0, 0) */
+    double X1[12] = {c, -sn, 0, 0.5 - 0.5 * c, sn, c, 0, -0.5 * sn + 0.01 * f, 0, 0, 1, 0};
+    memcpy(X, X0, sizeof X0);
+    memcpy(X + 12, X1, sizeof X1);
+    CHECK_OK(km_lbs(rest->V, nv, &sw, X, 2, V, KM_E));
+    if (f == 3) {
+      X[5] = NAN;
+      CHECK_STATUS(km_anim_writer_push_pose(w, V, X, KM_E), KM_ERR_INVALID);
+      CHECK(strstr(km_test_err.message, "Upper") != NULL);
+      X[5] = 1;
+    }
+    CHECK_OK(km_anim_writer_push_pose(w, V, X, KM_E));
+  }
+  km_anim_report rep = {0};
+  CHECK_OK(km_anim_writer_finish(&w, &rep, KM_E));
+  CHECK(rep.export_kind == KM_ANIM_EXPORT_SKELETON && rep.bones == 2 && rep.frames == FRAMES);
+  CHECK_MSG(rep.max_error < 1e-6, "max error %g m", rep.max_error);
+  km_anim_info info;
+  CHECK_OK(km_anim_info_read(path, &info, KM_E));
+  CHECK(info.frames == FRAMES && info.vertices == nv);
+  size_t n = 0;
+  char *json = km_test_read_file(path, &n);
+  CHECK(json && memmem(json, n, "\"name\":\"Lower\"", 14) != NULL);
+  free(json);
+  remove(path);
+  sw.n_vertices = nv - 1;
+  CHECK_STATUS(km_anim_writer_open(path, rest, &o, &w, KM_E), KM_ERR_INVALID);
+  sw.n_vertices = nv;
+  sw.joints[0] = 2;
+  CHECK_STATUS(km_anim_writer_open(path, rest, &o, &w, KM_E), KM_ERR_INVALID);
+  CHECK(strstr(km_test_err.message, "joint 2") != NULL && access(path, F_OK) != 0);
+  free(V);
+  free(sw.joints);
+  free(sw.weights);
+}
+
 int main(void) {
   test_pc2_header_bombs();
   test_many_keys();
@@ -627,6 +695,7 @@ int main(void) {
   test_dirs(&rest, frames);
   test_failures(&rest, frames);
   test_point_cloud(&rest, frames);
+  test_skeleton_export(&rest);
   free(frames);
   free(rest.V);
   free(rest.F);

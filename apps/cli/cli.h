@@ -220,11 +220,15 @@ int km_cli_parse_filter(const char *verb, const char *s, km_filter_options *o);
 /* Issue 16: what a .glb holds. --export morphs[:all] (one morph target per frame, exact) or
  * skin[:BONES] (a fitted skinned mesh, km_ssdr_fit), and --max-error-mm (skin: bones are added
  * until the max error is below it), --compress (any kind: quantised + meshopt-encoded). */
+#define KM_CLI_EXPORT_HELP                                                                         \
+  "glb content: morphs[:all] (one target per frame, exact; default), morphs:K (K PCA basis "       \
+  "targets + per-frame weights) or skin[:BONES] (skinned "                                         \
+  "mesh + bone animation fitted by SSDR; plain skin: 32 bones grown to meet 15 mm)"
 #define KM_CLI_EXPORT_OPTIONS(exp, max_mm, zip)                                                    \
-  {"export", 0, KM_OPT_STRING, &(exp),                                                             \
-   "glb content: morphs[:all] (one target per frame, exact; default), morphs:K (K PCA basis "      \
-   "targets + per-frame weights) or skin[:BONES] (skinned "                                        \
-   "mesh + bone animation fitted by SSDR; plain skin: 32 bones grown to meet 15 mm)"},             \
+  KM_CLI_EXPORT_OPTIONS_HELP(exp, max_mm, zip, KM_CLI_EXPORT_HELP)
+/* the same with the --export help given (pose adds its skeleton export) */
+#define KM_CLI_EXPORT_OPTIONS_HELP(exp, max_mm, zip, help)                                         \
+  {"export", 0, KM_OPT_STRING, &(exp), help},                                                      \
       {"max-error-mm", 0, KM_OPT_DOUBLE, &(max_mm),                                                \
        "skin: split bones until the max error is below this (up to 4x BONES)"},                    \
   {                                                                                                \

@@ -379,9 +379,23 @@ int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, bo
     ao->morphs = (size_t)k;
     return 0;
   }
+  if (!strcmp(s, "skeleton")) {
+    /* the frames' own bones: only pose skins its frames by a skeleton it can hand over */
+    if (strcmp(verb, "pose"))
+      return km_cli_error(verb, "--export skeleton is pose's (its frames are skinned by the rig's "
+                                "skeleton); use --export skin to fit bones to these frames");
+    if (max_error_mm > 0)
+      return km_cli_error(verb, "--max-error-mm applies to --export skin only (skeleton is exact)");
+    const char *dot = out ? strrchr(out, '.') : NULL;
+    if (!dot || strcasecmp(dot, ".glb") != 0)
+      return km_cli_error(verb, "--export skeleton writes a .glb; the output is '%s'",
+                          out ? out : "");
+    ao->export_kind = KM_ANIM_EXPORT_SKELETON;
+    return 0;
+  }
   if (strncmp(s, "skin", 4) != 0 || (s[4] != '\0' && s[4] != ':'))
-    return km_cli_error(verb, "--export must be morphs[:all], morphs:K or skin[:BONES], not '%s'",
-                        s);
+    return km_cli_error(verb, "--export must be morphs[:all], morphs:K, skin[:BONES]%s, not '%s'",
+                        strcmp(verb, "pose") ? "" : " or skeleton", s);
   if (s[4] == ':') {
     char *end = NULL;
     long b = strtol(s + 5, &end, 10);
@@ -444,6 +458,14 @@ void km_cli_report_export(const char *verb, const km_anim_report *rep) {
   if (rep->export_kind == KM_ANIM_EXPORT_MORPHS && (rep->rms_error > 0 || rep->max_error > 0)) {
     fprintf(stderr, "kinemesh %s: morphs (compressed): %zu frames, rms %.4f mm, max %.4f mm\n",
             verb, rep->frames, rep->rms_error * 1e3, rep->max_error * 1e3);
+    return;
+  }
+  if (rep->export_kind == KM_ANIM_EXPORT_SKELETON) {
+    fprintf(
+        stderr,
+        "kinemesh %s: skeleton: %zu joints, %zu frames, rms %.4f mm, max %.4f mm (the rig's own "
+        "bones and weights, no fit)\n",
+        verb, rep->bones, rep->frames, rep->rms_error * 1e3, rep->max_error * 1e3);
     return;
   }
   if (rep->export_kind != KM_ANIM_EXPORT_SKIN) return;

@@ -120,7 +120,10 @@ int km_cli_pose(int argc, char **argv) {
       KM_CLI_MOTION_FRAME_OPTIONS(fo),
       {"mesh", 0, KM_OPT_STRING, &mesh, "rigged mesh (gen character, rig, or a skinned .glb)"},
       {"key-every", 0, KM_OPT_SIZE, &key_every, "glb: one morph target every N frames (default 1)"},
-      KM_CLI_EXPORT_OPTIONS(export_kind, max_error_mm, compress),
+      KM_CLI_EXPORT_OPTIONS_HELP(
+          export_kind, max_error_mm, compress,
+          KM_CLI_EXPORT_HELP "; skeleton: the rig's own skeleton (its joints, named) and weights "
+                             "with each frame's bone transforms, exact and with no fit"),
       {"rig", 0, KM_OPT_STRING, &rig,
        "its rig sidecar (default <mesh stem>.rig.json, else a glTF's own skin, else one made on "
        "the spot as kinemesh rig makes it)"},
@@ -286,6 +289,9 @@ int km_cli_pose(int argc, char **argv) {
     if (km_cli_skin_seeds("pose", &ao, &c.mesh, &c.skin, nj, &so, &seed)) goto done;
     /* --keep-frame: the writer takes each frame back into the file's axes and units */
     if (keep_frame) ao.frame = &mf;
+    /* --export skeleton: the rig's own bones and weights, each frame's bone transforms pushed */
+    ao.skeleton = &c.skeleton;
+    ao.weights = &c.skin;
     if (km_anim_writer_open(out, &c.mesh, &ao, &w, &err) != KM_OK) goto fail;
     /* every frame checked against the rest mesh, as animate does: where skinning collapses */
     if (km_deform_check_create(&c.mesh, &dc, &err) != KM_OK) goto fail;
@@ -340,6 +346,8 @@ int km_cli_pose(int argc, char **argv) {
         if (V[3 * v + 1] < low) low = V[3 * v + 1];
       for (size_t v = 0; floor_on && low < floor_y && v < c.mesh.n_vertices; ++v)
         V[3 * v + 1] += floor_y - low;
+      for (size_t j = 0; floor_on && low < floor_y && j < nj; ++j)
+        xf[12 * j + 7] += floor_y - low; /* the bones carry the lift (--export skeleton) */
       goto frame_done;
     }
     if (g) km_glitch_push(g, raw, clean);
@@ -359,7 +367,7 @@ int km_cli_pose(int argc, char **argv) {
         km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK)
       goto fail;
   frame_done:
-    if (w && (km_anim_writer_push(w, V, &err) != KM_OK ||
+    if (w && (km_anim_writer_push_pose(w, V, xf, &err) != KM_OK ||
               km_deform_check_add(dc, V, NULL, &err) != KM_OK))
       goto fail;
     for (size_t l = 0; track_out && l < KM_CHARACTER_LANDMARKS; ++l)

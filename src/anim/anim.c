@@ -106,6 +106,13 @@ static void writer_discard(km_anim_writer *w) {
   free(w->vbuf);
   free(w->ubuf);
   free(w->pca_weights);
+  free(w->bskin.joints);
+  free(w->bskin.weights);
+  free(w->bcenter);
+  for (size_t j = 0; w->bone_names && j < w->n_bones; ++j)
+    free(w->bone_names[j]);
+  free(w->bone_names);
+  free(w->bxf);
   free(w);
 }
 
@@ -128,6 +135,49 @@ static void minmax_init(float mm[6]) {
     mm[c] = INFINITY;
     mm[3 + c] = -INFINITY;
   }
+}
+
+/* KM_ANIM_EXPORT_SKELETON: the skeleton and weights copied (checked against the rest mesh's
+ * vertex count and the skeleton's joints). */
+static km_status skeleton_setup(km_anim_writer *w, const km_anim_options *o, const char *path,
+                                km_error *err) {
+  const km_skeleton *sk = o->skeleton;
+  const km_skin *sw = o->weights;
+  if (!sk || !sw || !sk->rest || sk->n_joints == 0 || !sw->joints || !sw->weights)
+    return km__fail(err, KM_ERR_INVALID,
+                    "%s: a skeleton export needs the skeleton (with its rest joints) and the "
+                    "weights",
+                    path);
+  if (sw->n_vertices != w->n_vertices)
+    return km__fail(err, KM_ERR_INVALID, "%s: the weights are for %zu vertices, the mesh has %zu",
+                    path, sw->n_vertices, w->n_vertices);
+  if (sk->n_joints > 65535)
+    return km__fail(err, KM_ERR_UNSUPPORTED, "%s: %zu joints, at most 65535", path, sk->n_joints);
+  const size_t nv = w->n_vertices, nb = sk->n_joints;
+  for (size_t i = 0; i < KM_SKIN_INFLUENCES * nv; ++i)
+    if (sw->joints[i] >= (int32_t)nb)
+      return km__fail(err, KM_ERR_INVALID, "%s: vertex %zu is weighted to joint %d of %zu", path,
+                      i / KM_SKIN_INFLUENCES, (int)sw->joints[i], nb);
+  w->export_kind = KM_ANIM_EXPORT_SKELETON;
+  w->key_every = 1;
+  w->n_bones = nb;
+  w->bskin.n_vertices = nv;
+  w->bskin.joints = km__malloc(KM_SKIN_INFLUENCES * nv, sizeof *w->bskin.joints);
+  w->bskin.weights = km__malloc(KM_SKIN_INFLUENCES * nv, sizeof *w->bskin.weights);
+  w->bcenter = km__malloc(3 * nb, sizeof *w->bcenter);
+  w->bone_names = km__calloc(nb, sizeof *w->bone_names);
+  if (!w->bskin.joints || !w->bskin.weights || !w->bcenter || !w->bone_names)
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  memcpy(w->bskin.joints, sw->joints, KM_SKIN_INFLUENCES * nv * sizeof *w->bskin.joints);
+  memcpy(w->bskin.weights, sw->weights, KM_SKIN_INFLUENCES * nv * sizeof *w->bskin.weights);
+  memcpy(w->bcenter, sk->rest, 3 * nb * sizeof *w->bcenter);
+  for (size_t j = 0; j < nb; ++j) {
+    char nm[32];
+    snprintf(nm, sizeof nm, "joint_%03zu", j);
+    if (!(w->bone_names[j] = dup_str(sk->names && sk->names[j] ? sk->names[j] : nm)))
+      return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  }
+  return KM_OK;
 }
 
 km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_anim_options *opt,
@@ -170,7 +220,7 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   w->fps = o.fps;
   w->key_every = o.key_every;
   if (o.export_kind != KM_ANIM_EXPORT_MORPHS && o.export_kind != KM_ANIM_EXPORT_SKIN &&
-      o.export_kind != KM_ANIM_EXPORT_MORPHS_PCA) {
+      o.export_kind != KM_ANIM_EXPORT_MORPHS_PCA && o.export_kind != KM_ANIM_EXPORT_SKELETON) {
     free(w);
     return km__fail(err, KM_ERR_INVALID, "%s: unknown export kind %d", path, (int)o.export_kind);
   }
@@ -183,6 +233,13 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     w->export_kind = KM_ANIM_EXPORT_MORPHS_PCA;
     w->key_every = 1; /* the basis sees every frame */
     w->pca_k = o.morphs ? o.morphs : 16;
+  }
+  if (o.format == KM_ANIM_GLB && o.export_kind == KM_ANIM_EXPORT_SKELETON) {
+    km_status ks = skeleton_setup(w, &o, path, err);
+    if (ks != KM_OK) {
+      km_anim_writer_free(&w);
+      return ks;
+    }
   }
   w->compress = o.format == KM_ANIM_GLB && o.compress;
   w->path = dup_str(path);
@@ -460,7 +517,42 @@ static km_status push_dir(km_anim_writer *w, const double *V, km_error *err) {
   return s;
 }
 
+static km_status writer_push(km_anim_writer *w, const double *V, km_error *err);
+
 km_status km_anim_writer_push(km_anim_writer *w, const double *V, km_error *err) {
+  if (w && w->export_kind == KM_ANIM_EXPORT_SKELETON)
+    return km__fail(err, KM_ERR_INVALID,
+                    "%s: a skeleton export takes each frame's bone transforms "
+                    "(km_anim_writer_push_pose)",
+                    w->path);
+  return writer_push(w, V, err);
+}
+
+km_status km_anim_writer_push_pose(km_anim_writer *w, const double *V, const double *transforms,
+                                   km_error *err) {
+  if (!w || w->export_kind != KM_ANIM_EXPORT_SKELETON) return writer_push(w, V, err);
+  if (!transforms)
+    return km__fail(err, KM_ERR_INVALID, "%s: frame %zu: no bone transforms", w->path, w->frames);
+  for (size_t i = 0; i < 12 * w->n_bones; ++i)
+    if (!isfinite(transforms[i]))
+      return km__fail(err, KM_ERR_INVALID, "%s: frame %zu: joint %s's transform is not finite",
+                      w->path, w->frames, w->bone_names[i / 12]);
+  if (w->frames >= w->bxf_cap) {
+    size_t cap = w->bxf_cap ? 2 * w->bxf_cap : 64;
+    double *x = realloc(w->bxf, cap * 12 * w->n_bones * sizeof *x);
+    if (!x)
+      return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for the bone transforms", w->path);
+    w->bxf = x;
+    w->bxf_cap = cap;
+  }
+  size_t f = w->frames;
+  km_status s = writer_push(w, V, err);
+  if (s == KM_OK)
+    memcpy(w->bxf + f * 12 * w->n_bones, transforms, 12 * w->n_bones * sizeof(double));
+  return s;
+}
+
+static km_status writer_push(km_anim_writer *w, const double *V, km_error *err) {
   if (!w) return km__fail(err, KM_ERR_INVALID, "km_anim_writer_push: writer is NULL (closed?)");
   if (!V) return km__fail(err, KM_ERR_INVALID, "%s: frame %zu: V is NULL", w->path, w->frames);
   if (w->failed)
@@ -579,6 +671,61 @@ static km_status close_skin(km_anim_writer *w, km_anim_report *rep, km_error *er
     rep->max_error = w->q_max;
   }
   km_ssdr_free(&fit);
+  return s;
+}
+
+/* The given skeleton's skin: the pushed transforms are the bones' motion (no fit); the error
+ * is that of skinning the rest by them against the pushed frames (0 up to rounding for frames
+ * skinned by the same transforms and weights). */
+static km_status close_skeleton(km_anim_writer *w, km_anim_report *rep, km_error *err) {
+  const size_t nv = w->n_vertices, T = w->n_keys, B = w->n_bones;
+  double *frames = km__malloc(T * nv * 3, sizeof *frames);
+  if (!frames) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames", w->path, T);
+  km_status s = KM_OK;
+  if (fseek(w->keys, 0, SEEK_SET) != 0)
+    s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the frame temporary", w->path);
+  double se = 0, emax = 0;
+  for (size_t t = 0; s == KM_OK && t < T; ++t) {
+    if (fread(w->fbuf, sizeof *w->fbuf, nv * 3, w->keys) != nv * 3) {
+      s = km__fail(err, KM_ERR_IO, "%s: cannot read frame %zu back from its temporary", w->path, t);
+      break;
+    }
+    double *V = frames + t * nv * 3;
+    const double *X = w->bxf + t * 12 * B;
+    for (size_t i = 0; i < nv; ++i) {
+      double p[3] = {0, 0, 0};
+      const double *r = w->rest + 3 * i;
+      for (int k = 0; k < KM_SKIN_INFLUENCES; ++k) {
+        int32_t j = w->bskin.joints[KM_SKIN_INFLUENCES * i + k];
+        double wk = w->bskin.weights[KM_SKIN_INFLUENCES * i + k];
+        if (j < 0 || wk == 0) continue;
+        const double *M = X + 12 * (size_t)j;
+        for (int a = 0; a < 3; ++a)
+          p[a] += wk * (M[4 * a] * r[0] + M[4 * a + 1] * r[1] + M[4 * a + 2] * r[2] + M[4 * a + 3]);
+      }
+      double d2 = 0;
+      for (int a = 0; a < 3; ++a) {
+        V[3 * i + a] = w->rest[3 * i + a] + (double)w->fbuf[3 * i + a];
+        d2 += (p[a] - V[3 * i + a]) * (p[a] - V[3 * i + a]);
+      }
+      se += d2;
+      if (d2 > emax) emax = d2;
+    }
+  }
+  km_ssdr fit = {nv, T, B, w->bskin, w->bxf, w->bcenter, 0, 0};
+  fit.rms_error = T && nv ? sqrt(se / (double)(T * nv)) : 0;
+  fit.max_error = sqrt(emax);
+  if (rep) {
+    rep->bones = B;
+    rep->rms_error = fit.rms_error;
+    rep->max_error = fit.max_error;
+  }
+  if (s == KM_OK) s = km__glb_write_skin(w, &fit, frames, err);
+  free(frames);
+  if (s == KM_OK && rep && w->compress) {
+    rep->rms_error = w->q_rms;
+    rep->max_error = w->q_max;
+  }
   return s;
 }
 
@@ -783,6 +930,8 @@ km_status km_anim_writer_finish(km_anim_writer **wp, km_anim_report *rep, km_err
     s = close_pc2(w, err);
   else if (w->format == KM_ANIM_GLB && w->export_kind == KM_ANIM_EXPORT_SKIN)
     s = close_skin(w, rep, err);
+  else if (w->format == KM_ANIM_GLB && w->export_kind == KM_ANIM_EXPORT_SKELETON)
+    s = close_skeleton(w, rep, err);
   else if (w->format == KM_ANIM_GLB && w->export_kind == KM_ANIM_EXPORT_MORPHS_PCA)
     s = close_pca(w, rep, err);
   else if (w->format == KM_ANIM_GLB) {

@@ -82,6 +82,14 @@ struct km_anim_writer {
    * what was written (m; the quantisation's on top of the fit's) */
   bool compress;
   double q_rms, q_max;
+  /* KM_ANIM_EXPORT_SKELETON: the given skeleton and weights (copies), the pushed transforms
+   * (n_frames * n_bones * 12, grown as frames come) */
+  size_t n_bones;
+  km_skin bskin;
+  double *bcenter;   /* n_bones*3: joint rest positions, where each bone is bound */
+  char **bone_names; /* n_bones */
+  double *bxf;
+  size_t bxf_cap; /* frames bxf holds room for */
 };
 
 /* Unit area-weighted normals of positions V over the writer's faces into w->nbuf; a vertex

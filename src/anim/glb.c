@@ -970,7 +970,7 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
     cJSON *nj = cJSON_CreateObject();
     char nm[32];
     snprintf(nm, sizeof nm, "bone_%03zu", j);
-    cJSON_AddStringToObject(nj, "name", nm);
+    cJSON_AddStringToObject(nj, "name", w->bone_names && w->bone_names[j] ? w->bone_names[j] : nm);
     float c[3] = {(float)fit->centers[3 * j], (float)fit->centers[3 * j + 1],
                   (float)fit->centers[3 * j + 2]};
     cJSON_AddItemToObject(nj, "translation", num_array(c, 3));

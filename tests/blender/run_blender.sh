@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # ctest blender (issue 16): Debian's Blender, headless, imports each glTF export kind of a short
 # puppetry run (kinemesh gen + animate: per-frame morphs, compact morphs:K, a skin, and a
-# compressed skin, which Blender 3.4 refuses: see blender_check.py) with its own
+# compressed skin, which Blender 3.4 refuses: see blender_check.py), and pose's skeleton export
+# (the rig's own bones against pose's exact frames), with its own
 # glTF importer and, at frames 0, the middle and the last, the evaluated vertex positions match
 # the exact frames (.pc2 of the same run) within the file's reported error (skin, morphs:K; plus
 # 0.1 mm for float32) or 0.1 mm (morphs:all). See blender_check.py. And `animate --keep-frame`'s
@@ -34,6 +35,9 @@ run -o "$WORK/morphs.glb"
 run --export morphs:6 -o "$WORK/pca.glb"
 run --export skin:16 -o "$WORK/skin.glb"
 run --export skin:16 --compress -o "$WORK/skin_z.glb"
+# pose --export skeleton: the rig's own skeleton and weights with each frame's bone transforms
+"$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" -o "$WORK/pose_exact.pc2" >/dev/null 2>&1
+"$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/skel.glb" >/dev/null 2>&1
 rc=0
 check() {
   # --python-exit-code: an exception in the script fails Blender (it exits 0 otherwise);
@@ -59,6 +63,7 @@ check() {
 check "$WORK/morphs.glb" "$WORK/exact.pc2" "$WORK/c.obj" 0.1
 check "$WORK/pca.glb" "$WORK/exact.pc2" "$WORK/c.obj" auto
 check "$WORK/skin.glb" "$WORK/exact.pc2" "$WORK/c.obj" auto
+check "$WORK/skel.glb" "$WORK/pose_exact.pc2" "$WORK/c.obj" auto
 # --compress: Blender 3.4 refuses EXT_meshopt_compression (passes as documented; a Blender that
 # decodes it must play it within the reported error)
 check "$WORK/skin_z.glb" "$WORK/exact.pc2" "$WORK/c.obj" auto compressed

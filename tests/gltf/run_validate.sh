@@ -24,6 +24,14 @@ cp "$WORK/c.rig.json" "$WORK/ct.rig.json"
 XDG_CACHE_HOME="$WORK/cache" "$BIN" animate --mesh "$WORK/ct.obj" --motion "$WORK/t.json" -o "$WORK/textured_anim.glb"
 # Issue 16: a skinned export (SSDR fit; JOINTS_0/WEIGHTS_0, inverse bind matrices, TRS channels).
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export skin -o "$WORK/skin.glb"  # seeded by the rig
+# pose --export skeleton: the rig's own skeleton (named joints) and weights, exact, no fit;
+# plain and compressed
+"$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/skel.glb"
+"$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export skeleton --compress -o "$WORK/z_skel.glb"
+grep -aq '"name":"ElbowLeft"' "$WORK/skel.glb" || { echo "FAIL: skel.glb has no joint named ElbowLeft"; exit 1; }
+if "$BIN" animate --mesh "$WORK/c.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/x.glb" 2>/dev/null; then
+  echo "FAIL: animate accepted --export skeleton (its frames are not skinned by a skeleton)"; exit 1
+fi
 # kinemesh bake: the per-frame morph file back to a skin, and a pc2 + rest mesh to a skin.
 "$BIN" bake "$WORK/every.glb" --export skin:8 -o "$WORK/baked.glb"
 "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" -o "$WORK/every.pc2"
@@ -38,10 +46,10 @@ XDG_CACHE_HOME="$WORK/cache" "$BIN" animate --mesh "$WORK/ct.obj" --motion "$WOR
 if "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --compress -o "$WORK/z.pc2" 2>/dev/null; then
   echo "FAIL: --compress accepted a .pc2 output"; exit 1
 fi
-for f in every keys textured textured_anim skin baked baked_pc2 pca z_keys z_skin z_pca z_baked; do
+for f in every keys textured textured_anim skin skel z_skel baked baked_pc2 pca z_keys z_skin z_pca z_baked; do
   node "$HERE/validate.mjs" "$WORK/$f.glb" | tee "$WORK/$f.txt"
   grep -q ': 0 errors, 0 warnings' "$WORK/$f.txt" || { echo "FAIL: $f.glb has validator errors or warnings"; exit 1; }
 done
 "$BIN" info --json "$WORK/every.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames"; exit 1; }
 "$BIN" info --json "$WORK/skin.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames for the skin"; exit 1; }
-echo "gltf_validator: 14 passed, 0 failed"
+echo "gltf_validator: 16 passed, 0 failed"
