@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # ctest (issue 16): three.js in headless chromium plays kinemesh's exports — per-frame morphs
 # (exact within 0.01 mm), a skinned and a PCA-morph export (within their reported max error) — at frames
-# 0, the middle and the last, against the exact frames (.pc2) of the same LBS playback; the same
-# three kinds with --compress (MeshoptDecoder).
+# 0, the middle and the last, against the exact frames (.pc2) of the same LBS playback, and pose's
+# skeleton export (exact within 0.01 mm); the same four kinds with --compress (MeshoptDecoder).
 # Skipped (77) with a message when node, chromium or web/node_modules is missing.
 set -euo pipefail
 BIN=$1
@@ -25,8 +25,11 @@ node "$HERE/three_check.mjs" "$WORK/skin.glb" "$WORK/exact.pc2" auto
 node "$HERE/three_check.mjs" "$WORK/pca.glb" "$WORK/exact.pc2" auto
 # --compress: decoded by three.js's MeshoptDecoder, within the error the file reports (which
 # includes the quantisation).
-for k in morphs:all skin:16 morphs:6; do
+# pose --export skeleton: the rig's own bones, exact (within 0.01 mm)
+"$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/skel.glb" 2>/dev/null
+node "$HERE/three_check.mjs" "$WORK/skel.glb" "$WORK/exact.pc2" 0.01
+for k in morphs:all skin:16 morphs:6 skeleton; do
   "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --export $k --compress -o "$WORK/z.glb" 2>/dev/null
   node "$HERE/three_check.mjs" "$WORK/z.glb" "$WORK/exact.pc2" auto
 done
-echo "gltf_three: 6 passed, 0 failed"
+echo "gltf_three: 8 passed, 0 failed"
