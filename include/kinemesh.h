@@ -1524,7 +1524,8 @@ typedef enum km_anim_export {
                                 (km_anim_options.skeleton, .weights) whose bone transforms the
                                 caller pushes with each frame (km_anim_writer_push_pose): no
                                 fit, exact for frames skinned by those transforms (pose), one
-                                TRS channel per joint, named after it */
+                                joint node per skeleton joint, named after it and parented as
+                                the skeleton's parents say, TRS channels local to the parent */
 } km_anim_export;
 
 typedef struct km_anim_options {

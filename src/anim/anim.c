@@ -112,6 +112,7 @@ static void writer_discard(km_anim_writer *w) {
   for (size_t j = 0; w->bone_names && j < w->n_bones; ++j)
     free(w->bone_names[j]);
   free(w->bone_names);
+  free(w->bone_parent);
   free(w->bxf);
   free(w);
 }
@@ -166,8 +167,16 @@ static km_status skeleton_setup(km_anim_writer *w, const km_anim_options *o, con
   w->bskin.weights = km__malloc(KM_SKIN_INFLUENCES * nv, sizeof *w->bskin.weights);
   w->bcenter = km__malloc(3 * nb, sizeof *w->bcenter);
   w->bone_names = km__calloc(nb, sizeof *w->bone_names);
-  if (!w->bskin.joints || !w->bskin.weights || !w->bcenter || !w->bone_names)
+  if (sk->parents) w->bone_parent = km__malloc(nb, sizeof *w->bone_parent);
+  if (!w->bskin.joints || !w->bskin.weights || !w->bcenter || !w->bone_names ||
+      (sk->parents && !w->bone_parent))
     return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  for (size_t j = 0; sk->parents && j < nb; ++j) {
+    if (sk->parents[j] < -1 || sk->parents[j] >= (int32_t)j)
+      return km__fail(err, KM_ERR_INVALID, "%s: joint %zu's parent %d is not an earlier joint",
+                      path, j, (int)sk->parents[j]);
+    w->bone_parent[j] = sk->parents[j];
+  }
   memcpy(w->bskin.joints, sw->joints, KM_SKIN_INFLUENCES * nv * sizeof *w->bskin.joints);
   memcpy(w->bskin.weights, sw->weights, KM_SKIN_INFLUENCES * nv * sizeof *w->bskin.weights);
   memcpy(w->bcenter, sk->rest, 3 * nb * sizeof *w->bcenter);

@@ -86,8 +86,9 @@ struct km_anim_writer {
    * (n_frames * n_bones * 12, grown as frames come) */
   size_t n_bones;
   km_skin bskin;
-  double *bcenter;   /* n_bones*3: joint rest positions, where each bone is bound */
-  char **bone_names; /* n_bones */
+  double *bcenter;      /* n_bones*3: joint rest positions, where each bone is bound */
+  char **bone_names;    /* n_bones */
+  int32_t *bone_parent; /* n_bones, -1 a root: the joints' hierarchy (NULL: flat bones) */
   double *bxf;
   size_t bxf_cap; /* frames bxf holds room for */
 };

@@ -964,18 +964,32 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
   cJSON *children = cJSON_AddArrayToObject(n1, "children");
   cJSON_AddItemToArray(nodes, n1);
   cJSON *joints = cJSON_CreateArray();
+  /* A skeleton export's joints keep their hierarchy (each node under its parent's, at its rest
+   * offset from it, its channels local to it), so an animator gets a bone chain to edit and an
+   * engine one to retarget; SSDR's bones are siblings under the root. Either way every bone is
+   * bound at its rest centre with no rotation, so the inverse bind matrices are the same. */
+  const int32_t *par = w->bone_parent;
   for (size_t j = 0; j < B; ++j) {
-    cJSON_AddItemToArray(children, cJSON_CreateNumber((double)(j + 2)));
     cJSON_AddItemToArray(joints, cJSON_CreateNumber((double)(j + 2)));
+    if (!par || par[j] < 0) cJSON_AddItemToArray(children, cJSON_CreateNumber((double)(j + 2)));
     cJSON *nj = cJSON_CreateObject();
     char nm[32];
     snprintf(nm, sizeof nm, "bone_%03zu", j);
     cJSON_AddStringToObject(nj, "name", w->bone_names && w->bone_names[j] ? w->bone_names[j] : nm);
-    float c[3] = {(float)fit->centers[3 * j], (float)fit->centers[3 * j + 1],
-                  (float)fit->centers[3 * j + 2]};
+    float c[3];
+    for (int k = 0; k < 3; ++k)
+      c[k] = (float)(fit->centers[3 * j + k] -
+                     (par && par[j] >= 0 ? fit->centers[3 * (size_t)par[j] + k] : 0.0));
     cJSON_AddItemToObject(nj, "translation", num_array(c, 3));
     cJSON_AddItemToArray(nodes, nj);
   }
+  for (size_t j = 0; par && j < B; ++j)
+    if (par[j] >= 0) {
+      cJSON *pn = cJSON_GetArrayItem(nodes, par[j] + 2);
+      cJSON *ch = cJSON_GetObjectItemCaseSensitive(pn, "children");
+      if (!ch) ch = cJSON_AddArrayToObject(pn, "children");
+      cJSON_AddItemToArray(ch, cJSON_CreateNumber((double)(j + 2)));
+    }
   for (size_t j = 0; j < B; ++j) {
     float m[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
     for (int c = 0; c < 3; ++c) {
@@ -1027,10 +1041,26 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
     double qprev[4] = {0, 0, 0, 1};
     for (size_t t = 0; t < T; ++t) {
       const double *M = fit->transforms + (t * B + j) * 12;
+      /* the node's world pose: rotation R, its bind centre carried to x */
+      double x[3], R[9] = {M[0], M[1], M[2], M[4], M[5], M[6], M[8], M[9], M[10]}, q[4];
       for (int k = 0; k < 3; ++k)
-        tr[(j * T + t) * 3 + k] =
-            (float)(M[4 * k] * c[0] + M[4 * k + 1] * c[1] + M[4 * k + 2] * c[2] + M[4 * k + 3]);
-      double R[9] = {M[0], M[1], M[2], M[4], M[5], M[6], M[8], M[9], M[10]}, q[4];
+        x[k] = M[4 * k] * c[0] + M[4 * k + 1] * c[1] + M[4 * k + 2] * c[2] + M[4 * k + 3];
+      if (par && par[j] >= 0) { /* local to the parent's pose: Rp^T R, Rp^T (x - xp) */
+        const double *P = fit->transforms + (t * B + (size_t)par[j]) * 12,
+                     *cp = fit->centers + 3 * (size_t)par[j];
+        double d[3], L[9];
+        for (int k = 0; k < 3; ++k)
+          d[k] = x[k] -
+                 (P[4 * k] * cp[0] + P[4 * k + 1] * cp[1] + P[4 * k + 2] * cp[2] + P[4 * k + 3]);
+        for (int r = 0; r < 3; ++r) {
+          x[r] = P[r] * d[0] + P[4 + r] * d[1] + P[8 + r] * d[2];
+          for (int k = 0; k < 3; ++k)
+            L[3 * r + k] = P[r] * R[k] + P[4 + r] * R[3 + k] + P[8 + r] * R[6 + k];
+        }
+        memcpy(R, L, sizeof L);
+      }
+      for (int k = 0; k < 3; ++k)
+        tr[(j * T + t) * 3 + k] = (float)x[k];
       quat_from_m3(R, q);
       /* the shorter arc between keys: players interpolate (s)linearly */
       if (q[0] * qprev[0] + q[1] * qprev[1] + q[2] * qprev[2] + q[3] * qprev[3] < 0)
@@ -1069,6 +1099,21 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
             D[4 * r + k] = R[3 * r + k];
       }
     v_r = pack_view(&pk, eb, B * T, 8, PACK_ATTRIBUTES, "QUATERNION", 0, false);
+    /* a hierarchy's channels are local: the decoded poses composed down the chain (parents
+     * come first), as a player composes them */
+    for (size_t t = 0; par && t < T; ++t)
+      for (size_t j = 0; j < B; ++j) {
+        if (par[j] < 0) continue;
+        const double *P = rig + (t * B + (size_t)par[j]) * 12;
+        double *D = rig + (t * B + j) * 12, W[12];
+        for (int r = 0; r < 3; ++r) {
+          for (int k = 0; k < 3; ++k)
+            W[4 * r + k] = P[4 * r] * D[k] + P[4 * r + 1] * D[4 + k] + P[4 * r + 2] * D[8 + k];
+          W[4 * r + 3] =
+              P[4 * r] * D[3] + P[4 * r + 1] * D[7] + P[4 * r + 2] * D[11] + P[4 * r + 3];
+        }
+        memcpy(D, W, sizeof W);
+      }
   }
   free(eb);
   free(db);

@@ -28,7 +28,15 @@ XDG_CACHE_HOME="$WORK/cache" "$BIN" animate --mesh "$WORK/ct.obj" --motion "$WOR
 # plain and compressed
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/skel.glb"
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --export skeleton --compress -o "$WORK/z_skel.glb"
-grep -aq '"name":"ElbowLeft"' "$WORK/skel.glb" || { echo "FAIL: skel.glb has no joint named ElbowLeft"; exit 1; }
+# its joints keep the rig's hierarchy: ElbowLeft's node is a child of ShoulderLeft's
+node -e '
+const b = require("fs").readFileSync(process.argv[1]);
+const j = JSON.parse(b.subarray(20, 20 + b.readUInt32LE(12)).toString());
+const idx = (n) => j.nodes.findIndex((x) => x.name === n);
+const s = idx("ShoulderLeft"), e = idx("ElbowLeft");
+if (s < 0 || e < 0 || !(j.nodes[s].children || []).includes(e) || j.skins[0].joints.length !== 20) {
+  console.log("FAIL: skel.glb: ElbowLeft is not a child of ShoulderLeft"); process.exit(1);
+}' "$WORK/skel.glb"
 if "$BIN" animate --mesh "$WORK/c.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/x.glb" 2>/dev/null; then
   echo "FAIL: animate accepted --export skeleton (its frames are not skinned by a skeleton)"; exit 1
 fi
