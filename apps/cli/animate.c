@@ -168,23 +168,13 @@ int km_cli_animate(int argc, char **argv) {
     km_character_free(&ac);
     if (as != KM_OK) goto fail;
   }
-  km_mesh rig_mesh = m; /* m in the sidecar's unit when it differs (V replaced, not freed) */
-  double *rig_V = NULL;
-  if (!skin_json && rig_k != 1) {
-    if (!(rig_V = malloc(sizeof(double) * 3 * m.n_vertices))) goto nomem;
-    for (size_t i = 0; i < 3 * m.n_vertices; ++i)
-      rig_V[i] = m.V[i] / rig_k;
-    rig_mesh.V = rig_V;
-  }
   km_status rs =
       skin_json ? km_rig_parse(skin_json, skin_json_n, mesh_path, &m,
                                (const char *const *)take.joint_names, take.n_joints, &rig, &err)
-                : km_rig_read(rig_path ? rig_path : rig_default, &rig_mesh,
-                              (const char *const *)take.joint_names, take.n_joints, &rig, &err);
-  free(rig_V);
+                : km_cli_rig_read_scaled(rig_path ? rig_path : rig_default, &m, rig_k,
+                                         (const char *const *)take.joint_names, take.n_joints, &rig,
+                                         &err);
   if (rs != KM_OK) goto fail;
-  for (size_t i = 0; !skin_json && rig_k != 1 && rig.joint_rest && i < 3 * rig.n_joint_rest; ++i)
-    rig.joint_rest[i] *= rig_k;
 
   if (rig.n_maps == 0) { /* all anchors: a still animation nobody asked for */
     rc = km_cli_error("animate",

@@ -93,6 +93,12 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
  * records in its "frame" ("scale"): the unit its joints were written in; 1 when it records
  * none (the joints are in the mesh file's own units). */
 double km_cli_sidecar_scale(const char *mesh_path, const char *rig_path);
+/* km_rig_read of a sidecar whose lengths are in another unit than m's: resolved on m scaled by
+ * 1/k (k: m's metres per unit over the sidecar's, see km_cli_sidecar_scale), its joints then
+ * scaled by k back to m's unit (animate, pose). */
+km_status km_cli_rig_read_scaled(const char *path, const km_mesh *m, double k,
+                                 const char *const *joint_names, size_t n_joint_names, km_rig *out,
+                                 km_error *err);
 /* km_cli_mesh_frame, then the mesh is brought into kinemesh's frame (y up, facing +z,
  * metres). Returns 0, or prints the error and returns an exit status. */
 int km_cli_orient_mesh(const char *verb, const char *path, const km_cli_frame_opts *fo, km_mesh *m);

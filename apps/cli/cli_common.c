@@ -347,6 +347,25 @@ int km_cli_parse_filter(const char *verb, const char *s, km_filter_options *o) {
   return 0;
 }
 
+km_status km_cli_rig_read_scaled(const char *path, const km_mesh *m, double k,
+                                 const char *const *joint_names, size_t n_joint_names, km_rig *out,
+                                 km_error *err) {
+  km_mesh rm = *m; /* m in the sidecar's unit when it differs (V replaced, not freed) */
+  double *V = NULL;
+  if (k != 1) {
+    if (!(V = malloc(sizeof(double) * 3 * m->n_vertices)))
+      return km_error_set(err, KM_ERR_NOMEM, "out of memory");
+    for (size_t i = 0; i < 3 * m->n_vertices; ++i)
+      V[i] = m->V[i] / k;
+    rm.V = V;
+  }
+  km_status s = km_rig_read(path, &rm, joint_names, n_joint_names, out, err);
+  free(V);
+  for (size_t i = 0; s == KM_OK && k != 1 && out->joint_rest && i < 3 * out->n_joint_rest; ++i)
+    out->joint_rest[i] *= k;
+  return s;
+}
+
 int km_cli_parse_export(const char *verb, const char *s, double max_error_mm, bool compress,
                         const char *out, km_anim_options *ao, km_ssdr_options *ssdr) {
   memset(ssdr, 0, sizeof *ssdr);

@@ -54,21 +54,8 @@ static km_status pose_rig(const char *mesh, const char *rig_path, const km_chara
     /* the sidecar's lengths are in the unit its "frame" records: resolved on the mesh in that
      * unit, its joints then rescaled to c's (as animate does) */
     double k = (mf->scale > 0 ? mf->scale : 1) / km_cli_sidecar_scale(mesh, rig_path);
-    km_mesh rm = c->mesh;
-    double *V = NULL;
-    if (k != 1) {
-      if (!(V = malloc(sizeof(double) * 3 * c->mesh.n_vertices))) {
-        free(own);
-        return km_error_set(err, KM_ERR_NOMEM, "out of memory");
-      }
-      for (size_t i = 0; i < 3 * c->mesh.n_vertices; ++i)
-        V[i] = c->mesh.V[i] / k;
-      rm.V = V;
-    }
-    s = km_rig_read(path, &rm, (const char *const *)t->joint_names, t->n_joints, out, err);
-    free(V);
-    for (size_t i = 0; s == KM_OK && k != 1 && out->joint_rest && i < 3 * out->n_joint_rest; ++i)
-      out->joint_rest[i] *= k;
+    s = km_cli_rig_read_scaled(path, &c->mesh, k, (const char *const *)t->joint_names, t->n_joints,
+                               out, err);
   } else {
     char *json = NULL;
     size_t n = 0;
@@ -330,43 +317,45 @@ int km_cli_pose(int argc, char **argv) {
   km_progress prog = km_cli_progress("pose");
   for (size_t f = 0; f < t.n_frames; ++f) {
     const double *raw = t.positions + f * t.n_joints * 3;
-    if (pl) {
+    if (pl) { /* the character's skeleton as the rig's retargeter posed it */
       if (km_puppetry_push(pl, raw, NULL, &err) != KM_OK) goto fail;
       km_puppetry_posed_joints(pl, pos_frame); /* a kinect1 rig with joints: checked above */
-      if (km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err) != KM_OK ||
-          km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK)
-        goto fail;
-      /* The rig's floor: the retargeter keeps the ankles above their rest height, but a
-       * tilted paw's toes can still dip under it (dog0 on precog_Seq1_1: 1.4 units, 0.7 % of
-       * its size, in 29 frames). The whole mesh is raised by that much, as an engine grounds a
-       * character; holding those vertices on the floor one by one, as animate does with its
-       * solved mesh's few, pressed the skinned paw flat (edges 0.05x, 88 triangles folded). */
-      double low = INFINITY;
-      for (size_t v = 0; floor_on && v < c.mesh.n_vertices; ++v)
-        if (V[3 * v + 1] < low) low = V[3 * v + 1];
-      for (size_t v = 0; floor_on && low < floor_y && v < c.mesh.n_vertices; ++v)
-        V[3 * v + 1] += floor_y - low;
-      for (size_t j = 0; floor_on && low < floor_y && j < nj; ++j)
-        xf[12 * j + 7] += floor_y - low; /* the bones carry the lift (--export skeleton) */
-      goto frame_done;
+    } else { /* the take's own joints, glitches rejected and (--filter) smoothed */
+      if (g) km_glitch_push(g, raw, clean);
+      const double *in = g ? clean : raw;
+      if (jf) {
+        const bool *restarted = g ? km_glitch_restarted(g) : NULL;
+        for (size_t j = 0; restarted && j < t.n_joints; ++j)
+          if (restarted[j]) km_filter_restart_joint(jf, j);
+        km_filter_push(jf, in, clean);
+        in = clean;
+      }
+      for (size_t j = 0; j < nj; ++j)
+        for (int a = 0; a < 3; ++a)
+          pos_frame[3 * j + a] = map[j] < 0 ? NAN : scale * in[(size_t)map[j] * 3 + a];
     }
-    if (g) km_glitch_push(g, raw, clean);
-    const double *in = g ? clean : raw;
-    if (jf) {
-      const bool *restarted = g ? km_glitch_restarted(g) : NULL;
-      for (size_t j = 0; restarted && j < t.n_joints; ++j)
-        if (restarted[j]) km_filter_restart_joint(jf, j);
-      km_filter_push(jf, in, clean);
-      in = clean;
-    }
-    for (size_t j = 0; j < nj; ++j)
-      for (int a = 0; a < 3; ++a)
-        pos_frame[3 * j + a] = map[j] < 0 ? NAN : scale * in[(size_t)map[j] * 3 + a];
-    if ((exact ? km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err)
-               : km_skeleton_pose_from_directions(&c.skeleton, pos_frame, xf, &err)) != KM_OK ||
+    if ((pl || exact
+             ? km_skeleton_pose_from_positions(&c.skeleton, pos_frame, xf, &err)
+             : km_skeleton_pose_from_directions(&c.skeleton, pos_frame, xf, &err)) != KM_OK ||
         km_lbs(c.mesh.V, c.mesh.n_vertices, &c.skin, xf, nj, V, &err) != KM_OK)
       goto fail;
-  frame_done:
+    if (floor_on) {
+      /* The rig's floor (retargeted only): the retargeter keeps the ankles above their rest
+       * height, but a tilted paw's toes can still dip under it (dog0 on precog_Seq1_1: 1.4
+       * units, 0.7 % of its size, in 29 frames). The whole mesh is raised by that much, as an
+       * engine grounds a character; holding those vertices on the floor one by one, as animate
+       * does with its solved mesh's few, pressed the skinned paw flat (edges 0.05x, 88
+       * triangles folded). */
+      double low = INFINITY;
+      for (size_t v = 0; v < c.mesh.n_vertices; ++v)
+        if (V[3 * v + 1] < low) low = V[3 * v + 1];
+      if (low < floor_y) {
+        for (size_t v = 0; v < c.mesh.n_vertices; ++v)
+          V[3 * v + 1] += floor_y - low;
+        for (size_t j = 0; j < nj; ++j)
+          xf[12 * j + 7] += floor_y - low; /* the bones carry the lift (--export skeleton) */
+      }
+    }
     if (w && (km_anim_writer_push_pose(w, V, xf, &err) != KM_OK ||
               km_deform_check_add(dc, V, NULL, &err) != KM_OK))
       goto fail;

@@ -6,6 +6,7 @@
  * km__atomic_open/commit, a directory is filled under "<dir>.tmp.<pid>" and renamed. */
 #include "anim/anim.h"
 #include "linalg/linalg.h"
+#include "math/math.h" /* km_lbs */
 
 #include <dirent.h>
 #include <float.h>
@@ -640,24 +641,36 @@ static km_status close_dir(km_anim_writer *w, km_error *err) {
   return KM_OK;
 }
 
+/* Every pushed frame read back from the key temporary (a skin's keys are every frame), as
+ * positions: *frames w->n_keys * #V*3, allocated (NULL on failure). */
+static km_status read_frames(km_anim_writer *w, double **frames, km_error *err) {
+  const size_t nv3 = w->n_vertices * 3, T = w->n_keys;
+  double *F = km__malloc(T * nv3, sizeof *F);
+  *frames = NULL;
+  if (!F) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames", w->path, T);
+  if (fseek(w->keys, 0, SEEK_SET) != 0) {
+    free(F);
+    return km__fail(err, KM_ERR_IO, "%s: cannot rewind the frame temporary", w->path);
+  }
+  for (size_t t = 0; t < T; ++t) {
+    if (fread(w->fbuf, sizeof *w->fbuf, nv3, w->keys) != nv3) {
+      free(F);
+      return km__fail(err, KM_ERR_IO, "%s: cannot read frame %zu back from its temporary", w->path,
+                      t);
+    }
+    for (size_t i = 0; i < nv3; ++i)
+      F[t * nv3 + i] = w->rest[i] + (double)w->fbuf[i];
+  }
+  *frames = F;
+  return KM_OK;
+}
+
 /* Fits the rig over every frame (read back from the key temporary) and writes it. */
 static km_status close_skin(km_anim_writer *w, km_anim_report *rep, km_error *err) {
   const size_t nv = w->n_vertices, T = w->n_keys;
-  double *frames = km__malloc(T * nv * 3, sizeof *frames);
-  if (!frames)
-    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames to fit", w->path, T);
-  km_status s = KM_OK;
-  if (fseek(w->keys, 0, SEEK_SET) != 0)
-    s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the frame temporary", w->path);
-  for (size_t t = 0; s == KM_OK && t < T; ++t) {
-    if (fread(w->fbuf, sizeof *w->fbuf, nv * 3, w->keys) != nv * 3) {
-      s = km__fail(err, KM_ERR_IO, "%s: cannot read frame %zu back from its temporary", w->path, t);
-      break;
-    }
-    double *V = frames + t * nv * 3;
-    for (size_t i = 0; i < nv * 3; ++i)
-      V[i] = w->rest[i] + (double)w->fbuf[i];
-  }
+  double *frames = NULL;
+  km_status s = read_frames(w, &frames, err);
+  if (s != KM_OK) return s;
   km_ssdr fit = {0};
   struct timespec t0, t1;
   clock_gettime(CLOCK_MONOTONIC, &t0);
@@ -688,39 +701,22 @@ static km_status close_skin(km_anim_writer *w, km_anim_report *rep, km_error *er
  * skinned by the same transforms and weights). */
 static km_status close_skeleton(km_anim_writer *w, km_anim_report *rep, km_error *err) {
   const size_t nv = w->n_vertices, T = w->n_keys, B = w->n_bones;
-  double *frames = km__malloc(T * nv * 3, sizeof *frames);
-  if (!frames) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu frames", w->path, T);
-  km_status s = KM_OK;
-  if (fseek(w->keys, 0, SEEK_SET) != 0)
-    s = km__fail(err, KM_ERR_IO, "%s: cannot rewind the frame temporary", w->path);
+  double *frames = NULL, *P = km__malloc(nv * 3, sizeof *P);
+  km_status s =
+      P ? read_frames(w, &frames, err) : km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
   double se = 0, emax = 0;
   for (size_t t = 0; s == KM_OK && t < T; ++t) {
-    if (fread(w->fbuf, sizeof *w->fbuf, nv * 3, w->keys) != nv * 3) {
-      s = km__fail(err, KM_ERR_IO, "%s: cannot read frame %zu back from its temporary", w->path, t);
-      break;
-    }
-    double *V = frames + t * nv * 3;
-    const double *X = w->bxf + t * 12 * B;
-    for (size_t i = 0; i < nv; ++i) {
-      double p[3] = {0, 0, 0};
-      const double *r = w->rest + 3 * i;
-      for (int k = 0; k < KM_SKIN_INFLUENCES; ++k) {
-        int32_t j = w->bskin.joints[KM_SKIN_INFLUENCES * i + k];
-        double wk = w->bskin.weights[KM_SKIN_INFLUENCES * i + k];
-        if (j < 0 || wk == 0) continue;
-        const double *M = X + 12 * (size_t)j;
-        for (int a = 0; a < 3; ++a)
-          p[a] += wk * (M[4 * a] * r[0] + M[4 * a + 1] * r[1] + M[4 * a + 2] * r[2] + M[4 * a + 3]);
-      }
+    const double *V = frames + t * nv * 3;
+    s = km_lbs(w->rest, nv, &w->bskin, w->bxf + t * 12 * B, B, P, err);
+    for (size_t i = 0; s == KM_OK && i < nv; ++i) {
       double d2 = 0;
-      for (int a = 0; a < 3; ++a) {
-        V[3 * i + a] = w->rest[3 * i + a] + (double)w->fbuf[3 * i + a];
-        d2 += (p[a] - V[3 * i + a]) * (p[a] - V[3 * i + a]);
-      }
+      for (int a = 0; a < 3; ++a)
+        d2 += (P[3 * i + a] - V[3 * i + a]) * (P[3 * i + a] - V[3 * i + a]);
       se += d2;
       if (d2 > emax) emax = d2;
     }
   }
+  free(P);
   km_ssdr fit = {nv, T, B, w->bskin, w->bxf, w->bcenter, 0, 0};
   fit.rms_error = T && nv ? sqrt(se / (double)(T * nv)) : 0;
   fit.max_error = sqrt(emax);
