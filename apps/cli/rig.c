@@ -174,7 +174,11 @@ int km_cli_rig(int argc, char **argv) {
            "%.2fx at c 1, %.2fx at c 0.5 (0.5 is kept when 4 %% lower)\n",
            rep.heat_c, rep.heat_probe_poses, rep.heat_probe[0], rep.heat_probe[1]);
 write:
-  if ((rc = write_sidecar(path, &c, oriented ? &frame : NULL))) goto done;
+  /* The frame is recorded also when it is kinemesh's own (y up, facing +z): a mesh whose guess
+   * was wrong and was rigged with --up +y --forward +z was otherwise guessed again, wrongly, by
+   * every verb that read it with this sidecar (npt_13_643, a body leaning back on one leg,
+   * guessed z up: animated lying on its back, rigged as a quadruped). */
+  if ((rc = write_sidecar(path, &c, frame.up && frame.forward ? &frame : NULL))) goto done;
   /* The puppetry rig in the sidecar must resolve on the mesh (handles apart, in range). */
   km_rig rig = {0};
   if (km_rig_read(path, &m, NULL, 0, &rig, &err) != KM_OK) {

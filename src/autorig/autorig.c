@@ -344,19 +344,29 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
    * tenth of the height from the tip is at least half as thick as the thickest's (ring_radius):
    * a head is thick there, a raised hand or paw is at its forearm. The cat standing up with its
    * forepaws raised together over its head (cat-05) had the higher paw, on the mid-line, for
-   * its head, and an ear for a hand; no other mesh of ../shared/data changed roles. */
+   * its head, and an ear for a hand; no other mesh of ../shared/data changed roles. The
+   * thickest is taken among the candidates that stick out (the ring's centre at least 0.4 of
+   * its geodesic distance from the tip: a head, a paw, a hand) where there are any: a bump on a
+   * belly or chest is no body part, and its ring, a tenth of the height round it, is the torso
+   * (npt_13_643, an SMPL body leaning back on one leg: its belly, 0.3 there, ring 0.083 of the
+   * height, made the head's neck, 0.73 and 0.039, too thin, and the belly was its head; a dome
+   * of a head such as the armadillo's, 0.25, or the elephant's still counts where nothing sticks
+   * out, and no other mesh of ../shared/data changed roles). */
   int head = -1;
   for (int pass = 0; pass < 2 && head < 0; ++pass) {
-    double rad[KM_AUTORIG_MAX_EXTREMITIES] = {0}, rmax = 0;
+    double rad[KM_AUTORIG_MAX_EXTREMITIES] = {0}, rmax = 0, rmax_out = 0;
     bool cand[KM_AUTORIG_MAX_EXTREMITIES] = {false};
     for (size_t e = 0; e < r->n_ext; ++e) {
       if (used[e]) continue;
       const double *p = P(r, r->ext_v[e]);
       if (fabs(p[0] - xm) > 0.15 * r->H || p[1] < r->ymin + (pass ? 0.5 : 0.7) * r->H) continue;
+      double c[3];
       cand[e] = true;
-      rad[e] = ring_radius(r, e, 0.1 * r->H);
+      rad[e] = ring_at(r, e, 0.1 * r->H, true, c);
       rmax = fmax(rmax, rad[e]);
+      if (dist3(c, p) >= 0.4 * 0.1 * r->H) rmax_out = fmax(rmax_out, rad[e]);
     }
+    if (rmax_out > 0) rmax = rmax_out;
     for (size_t e = 0; e < r->n_ext; ++e) {
       if (!cand[e] || rad[e] < 0.5 * rmax) continue;
       if (head < 0 || r->ext_d[e] > r->ext_d[head]) head = (int)e;
