@@ -295,6 +295,10 @@ static void skin_frame(bm_skin *sk, const km_mesh *m, const bm_geom *g, const km
     sk->out.stretch = NAN; /* no skeleton to pose: the row says so with NaN */
     return;
   }
+  /* grounded on the rig's floor as pose grounds it (a tilted paw's toes dipped under the floor
+   * in 29 frames of dog0 on precog_Seq1_1 before) */
+  double floor_y;
+  if (km_puppetry_floor(p, &floor_y)) km_cli_floor_lift(sk->V, nv, floor_y);
   sk->tm[f] = 1e3 * (km_cli_now() - t0);
   km_deform_summary was;
   km_deform_check_summary(sk->dc, &was);

@@ -133,6 +133,11 @@ int km_cli_parse_units(const char *verb, const char *opt, const char *s, double 
  * vertex id when rig is NULL or has no handle. */
 void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig *rig, char *line,
                        size_t n);
+/* A skinned frame grounded as an engine grounds a character: V (#V*3, y up) raised whole by
+ * as far as its lowest vertex is under floor_y; returns that lift (0: none). Holding the low
+ * vertices on the floor one by one, as animate does with its solved mesh's few, pressed a
+ * skinned paw flat. pose and bench motion --skin (L) use it on the rig's floor. */
+double km_cli_floor_lift(double *V, size_t nv, double floor_y);
 /* The glitch rejector's counts in one line, as animate and pose print them; restarted: what
  * the caller did with the joints whose start was the glitch (their count follows), NULL to leave
  * them out. */

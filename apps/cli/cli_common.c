@@ -829,6 +829,16 @@ static const char *near_place(const km_rig *rig, const km_mesh *m, const int32_t
 
 /* The deformation check in one line: the longest and shortest edge against its rest length,
  * the frames over 1.5x, the folds and the largest one-frame step (frames count from 0). */
+double km_cli_floor_lift(double *V, size_t nv, double floor_y) {
+  double low = INFINITY;
+  for (size_t v = 0; v < nv; ++v)
+    low = fmin(low, V[3 * v + 1]);
+  if (!(low < floor_y)) return 0;
+  for (size_t v = 0; v < nv; ++v)
+    V[3 * v + 1] += floor_y - low;
+  return floor_y - low;
+}
+
 void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig *rig, char *line,
                        size_t n) {
   km_deform_summary s;

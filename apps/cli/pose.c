@@ -346,15 +346,9 @@ int km_cli_pose(int argc, char **argv) {
        * engine grounds a character; holding those vertices on the floor one by one, as animate
        * does with its solved mesh's few, pressed the skinned paw flat (edges 0.05x, 88
        * triangles folded). */
-      double low = INFINITY;
-      for (size_t v = 0; v < c.mesh.n_vertices; ++v)
-        if (V[3 * v + 1] < low) low = V[3 * v + 1];
-      if (low < floor_y) {
-        for (size_t v = 0; v < c.mesh.n_vertices; ++v)
-          V[3 * v + 1] += floor_y - low;
-        for (size_t j = 0; j < nj; ++j)
-          xf[12 * j + 7] += floor_y - low; /* the bones carry the lift (--export skeleton) */
-      }
+      double lift = km_cli_floor_lift(V, c.mesh.n_vertices, floor_y);
+      for (size_t j = 0; lift > 0 && j < nj; ++j)
+        xf[12 * j + 7] += lift; /* the bones carry the lift (--export skeleton) */
     }
     if (w && (km_anim_writer_push_pose(w, V, xf, &err) != KM_OK ||
               km_deform_check_add(dc, V, NULL, &err) != KM_OK))
