@@ -839,7 +839,7 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
                         ? 2
                         : 1;
         for (int k = 0; hs && k < nsets; ++k) {
-          char jn[16], wn[16];
+          char jn[24], wn[24]; /* room for any int: no -Wformat-truncation */
           snprintf(jn, sizeof jn, "JOINTS_%d", k);
           snprintf(wn, sizeof wn, "WEIGHTS_%d", k);
           if ((s = accessor(d, jint(at, jn, -1), what, &aj[k], err)) ||
