@@ -1263,10 +1263,11 @@ typedef struct km_rig {
   double girdle_limit;     /* "girdle_limit": degrees, on a kinect1 skeleton: a shoulder or hip bone
                               (ShoulderCenter -> Shoulder*, HipCenter -> Hip*), which carries the
                               arm or leg, turns at most this far from where its parent carries its
-                              first direction (0: swing_limit). kinemesh rig writes 5 for a body
-                              that is not upright and for one with a stubby limb: a performer's
-                              shrug or torso lean otherwise swung a whole foreleg about the trunk's
-                              middle, stretching the skin between chest and leg */
+                              first direction (0: swing_limit). kinemesh rig writes 5 for every
+                              body: a performer's shrug or torso lean otherwise swung a whole
+                              foreleg about the trunk's middle, stretching the skin between chest
+                              and leg, and a Kinect's shoulder joints riding up with a raised arm
+                              pulled a person's shoulder skin into a tent */
   double bend_limit; /* "bend_limit": degrees, with aim on a kinect1 skeleton: an elbow or knee
                         (the forearm or shin against the upper arm or thigh) bends at most this
                         far (0: no limit). kinemesh rig writes 150 for an upright body, about
