@@ -827,8 +827,6 @@ static const char *near_place(const km_rig *rig, const km_mesh *m, const int32_t
   return h >= 0 ? rig->handles[h].name : "-";
 }
 
-/* The deformation check in one line: the longest and shortest edge against its rest length,
- * the frames over 1.5x, the folds and the largest one-frame step (frames count from 0). */
 double km_cli_floor_lift(double *V, size_t nv, double floor_y) {
   double low = INFINITY;
   for (size_t v = 0; v < nv; ++v)
@@ -839,6 +837,8 @@ double km_cli_floor_lift(double *V, size_t nv, double floor_y) {
   return floor_y - low;
 }
 
+/* The deformation check in one line: the longest and shortest edge against its rest length,
+ * the frames over 1.5x, the folds and the largest one-frame step (frames count from 0). */
 void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig *rig, char *line,
                        size_t n) {
   km_deform_summary s;
