@@ -34,6 +34,18 @@ static void check_variant(const cJSON *row, const char *name, int r, double fram
             "row %d %s: %g frames with a jump above 3 %% (max %g%%)", r, name, over3, jump);
   CHECK_MSG(below >= 0 && below <= frames, "row %d %s: %g frames below the floor", r, name, below);
   CHECK_MSG(t > 0, "row %d %s: per-frame time %g", r, name, t);
+  /* the handles follow their targets (issue 11); the skinned mesh (L) has none */
+  const cJSON *fo = cJSON_GetObjectItem(o, "handle_miss_pct"),
+              *fm = cJSON_GetObjectItem(o, "handle_miss_max_pct");
+  if (!strcmp(name, "skin")) {
+    CHECK_MSG(!fo && !fm, "row %d skin: follow figures for a mesh without handles", r);
+  } else {
+    double f = num(o, "handle_miss_pct", r), fmax_pct = num(o, "handle_miss_max_pct", r);
+    CHECK_MSG(f >= 0 && f <= fmax_pct && fmax_pct < 1,
+              "row %d %s: handles %g %% of the diagonal "
+              "off their targets on average, %g %% at most",
+              r, name, f, fmax_pct);
+  }
   /* the two sides of the stretch: |l/l0 - 1| at its worst is the longer of the two */
   double lo = num(o, "edge_ratio_min", r), hi = num(o, "edge_ratio_max", r),
          nl = num(o, "frames_edge_over_1_5x", r), ns = num(o, "frames_edge_under_0_5x", r);
