@@ -1214,7 +1214,11 @@ typedef struct km_rig_map {
   /* ---- issue 12: handles that carry rotation */
   bool rotate; /* "rotate": true: the handle also turns with the bone that ends at this joint
                   (parent -> joint direction, relative to the reference frame; the shortest
-                  rotation, no twist). false (default): translation only, as in the paper */
+                  rotation), and about it with the joint's child (the twist carrying the
+                  reference joint -> child direction onto the current one; several children:
+                  the pair most across the bone; none from a leaf; a take's own joint
+                  rotations instead where it gives them). false (default): translation
+                  only, as in the paper */
   /* ---- issue 12: bone handles */
   int32_t bone_from; /* 0: the entry maps a joint. Else a bone entry ("bone": ["ElbowLeft",
                         "WristLeft"]): 1 + the bone's start joint, `joint` its end. The handle

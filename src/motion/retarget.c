@@ -867,6 +867,62 @@ static int32_t long_ancestor(const km_retarget *r, int32_t a, int32_t b) {
   return a;
 }
 
+static void mat_mul(const double A[9], const double B[9], double C[9]);
+static void mat_vec(const double R[9], const double x[3], double y[3]);
+
+/* Issue 12: a rotating handle's twist from its joint's child (positions only: a take that
+ * gives joint rotations has its own twist, apply_twist). The bone q -> j gives the handle's
+ * swing (the shortest rotation R from its reference direction d0 to its direction d now),
+ * which leaves its turn about d open; the joint's child c fixes it: R is turned about d until
+ * it carries the reference direction j -> c onto the current one, both seen across d. A
+ * joint with several children (a Kinect ShoulderCenter: head and both shoulders; a hip
+ * centre) takes the line between the two of them that lies most across the bone (left ->
+ * right shoulder), a leaf (a hand, a head) none. A child nearly along the bone tells little
+ * about the turn: the twist counts in full where both directions stand 30 degrees or more off
+ * the bone, fading out at 10 (so the turn follows continuously as an elbow straightens). */
+static void child_twist(const km_retarget *r, const double *J, int32_t j, const double d0[3],
+                        const double d[3], double R[9]) {
+  if (r->jrot) return;
+  int32_t a = -1, b = -1;
+  double best = -1;
+  for (size_t c = 0; c < r->n_joints; ++c) {
+    if (r->par[c] != j) continue;
+    if (a < 0 && b < 0) { /* one child: j -> c */
+      a = j, b = (int32_t)c;
+      best = 0;
+      continue;
+    }
+    for (size_t e = 0; e < c; ++e) { /* several: the pair most across the bone */
+      if (r->par[e] != j || !km__finite3(r->ref + 3 * e) || !km__finite3(r->ref + 3 * c)) continue;
+      double t[3];
+      km__sub3(r->ref + 3 * c, r->ref + 3 * e, t);
+      double along = km__dot3(t, d0), across = km__dot3(t, t) - along * along;
+      if (best <= 0 || across > best) best = across, a = (int32_t)e, b = (int32_t)c;
+    }
+  }
+  double t0[3], t[3];
+  if (a < 0 || b < 0 || !segment_dirs(r, J, a, b, t0, t)) return;
+  double pc[3], k;
+  mat_vec(R, t0, pc); /* the reference child direction as R carries it, then across d */
+  k = km__dot3(pc, d);
+  for (int i = 0; i < 3; ++i)
+    pc[i] -= k * d[i];
+  k = km__dot3(t, d);
+  for (int i = 0; i < 3; ++i)
+    t[i] -= k * d[i];
+  double sc = km__normalize3(pc), st = km__normalize3(t);
+  double w = fmax(0, fmin(1, (fmin(sc, st) - sin(10 * M_PI / 180)) /
+                                 (sin(30 * M_PI / 180) - sin(10 * M_PI / 180))));
+  if (!(w > 0)) return;
+  double x[3];
+  km__cross3(pc, t, x);
+  double th = w * atan2(km__dot3(x, d), km__dot3(pc, t)), s = sin(0.5 * th);
+  double qt[4] = {cos(0.5 * th), s * d[0], s * d[1], s * d[2]}, T[9], B[9];
+  km__rot3_from_quat(qt, T);
+  memcpy(B, R, sizeof B);
+  mat_mul(T, B, R);
+}
+
 static void update_rotations(km_retarget *r, const double *J) {
   if (r->bone_from) update_bones(r, J);
   for (size_t h = 0; h < r->n_handles; ++h) {
@@ -877,6 +933,7 @@ static void update_rotations(km_retarget *r, const double *J) {
     if (!segment_dirs(r, J, q, j, d0, d)) continue;
     km__rot3_between(d0, d, r->rot + 9 * h);
     apply_twist(r, j, d0, d, r->rot + 9 * h);
+    child_twist(r, J, j, d0, d, r->rot + 9 * h);
   }
 }
 
