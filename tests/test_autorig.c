@@ -1256,6 +1256,44 @@ static void test_reach_weights(void) {
  * and the belly (0.72 of the height) was taken for the head. The sidecar records the frame even
  * though it is kinemesh's own, so animate does not guess again (it animated the body lying on
  * its back). */
+/* A tail lying on the ground beside a foot: the knee and ankle are those of the leg, not of
+ * the tail the same horizontal cuts pass through (the dinosaur's tail behind its right foot, a
+ * standing cat's, cat-05, beside its left). Each ankle lies over its leg (within 0.12 of the
+ * skeleton's height of its knee, across) and near its foot tip (0.25). Measured before: the
+ * dinosaur's right knee 0.19 and ankle 0.78 off, cat-05's left 0.28 and 0.33; the other shared
+ * bodies 0.10 (the armadillo's leaning right shin) and 0.22 (its long-clawed feet) at most. */
+static void test_tail_beside_foot(const char *rel) {
+  km_mesh m = {0};
+  km_frame_guess g;
+  if (!read_oriented(rel, &m, &g)) return;
+  km_character c = {0};
+  km_autorig_report rep;
+  CHECK_OK(km_autorig(&m, NULL, &c, &rep, KM_E));
+  if (c.skeleton.rest) {
+    const double *J = c.skeleton.rest;
+    double ylo = INFINITY, yhi = -INFINITY;
+    for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+      ylo = fmin(ylo, J[3 * j + 1]), yhi = fmax(yhi, J[3 * j + 1]);
+    for (int side = 0; side < 2; ++side) {
+      const char *foot = side ? "FootRight" : "FootLeft";
+      const double *kn = J + 3 * (side ? 17 : 13), *an = J + 3 * (side ? 18 : 14), *tip = NULL;
+      for (size_t e = 0; e < rep.n_extremities; ++e)
+        if (!strcmp(rep.role[e], foot)) tip = m.V + 3 * (size_t)rep.extremity[e];
+      double across = hypot(kn[0] - an[0], kn[2] - an[2]) / (yhi - ylo);
+      double to_tip = tip ? hypot(tip[0] - an[0], tip[2] - an[2]) / (yhi - ylo) : INFINITY;
+      printf("%s: %s side: knee %.3f of the height from its ankle across, ankle %.3f from the "
+             "foot tip\n",
+             rel, side ? "right" : "left", across, to_tip);
+      CHECK_MSG(across < 0.12, "%s: the %s knee %.3f of the height off its ankle", rel,
+                side ? "right" : "left", across);
+      CHECK_MSG(to_tip < 0.25, "%s: the %s ankle %.3f of the height off its foot tip", rel,
+                side ? "right" : "left", to_tip);
+    }
+  }
+  km_character_free(&c);
+  km_mesh_free(&m);
+}
+
 static void test_leaning_body(void) {
   char buf[1024];
   const char *path = km_test_shared("poses/npt_13_643.obj", buf, sizeof buf);
@@ -1464,6 +1502,8 @@ int main(void) {
   test_roles("meshes/decimated-knight.off", KM_AUTORIG_KINECT1, 0.1); /* Baran's own model */
   test_roles("poses/tr_reg_025.ply", KM_AUTORIG_KINECT1, 0.1);
   test_leaning_body();
+  test_tail_beside_foot("meshes/dino.off");
+  test_tail_beside_foot("poses/cat-poses/cat-05.obj");
   char buf[1024];
   const char *csv = km_test_shared("skeleton/precog_Seq1_1.csv", buf, sizeof buf);
   if (csv) {

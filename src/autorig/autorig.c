@@ -192,15 +192,20 @@ static int32_t uf_find(int32_t *par, int32_t a) {
  * contours (faces joined through shared vertices). Among the contours whose centroid c has
  * |c.x - xc| < hw and, when side != 0, (c.x - xm) * side > 0, the longest one's centroid
  * (segment midpoints weighted by length) goes to out: the middle of that cross-section of
- * the body (torso, a leg), clear of other parts the plane also cuts (hands, a trunk). False
+ * the body (torso, a leg), clear of other parts the plane also cuts (hands, a trunk). With D
+ * (n geodesic distances from a foot's tip), the contour of that leg: of the qualifying
+ * contours at least 0.3 as long as the longest, the one nearest the tip along the surface. A
+ * tail lying on the ground beside a foot is cut at ankle and knee height too, and as the
+ * longer contour it took the leg's joints: a standing cat's (cat-05) left ankle went 21 cm
+ * behind its foot, the dinosaur's right knee and ankle 21 and 31 cm back along its tail. False
  * when no contour qualifies. */
 static bool slice_centroid(rigger *r, double y0, double xc, double hw, double xm, int side,
-                           double out[3]) {
+                           const double *D, double out[3]) {
   const km_mesh *m = r->m;
   int32_t *par = r->uf;
   for (size_t v = 0; v < r->n; ++v)
-    par[v] = (int32_t)v,
-    r->acc[4 * v] = r->acc[4 * v + 1] = r->acc[4 * v + 2] = r->acc[4 * v + 3] = 0;
+    par[v] = (int32_t)v, r->acc[4 * v] = r->acc[4 * v + 2] = r->acc[4 * v + 3] = 0,
+    r->acc[4 * v + 1] = INFINITY; /* acc[1]: the contour's least D */
   for (size_t f = 0; f < m->n_faces; ++f) {
     const int32_t *t = m->F + 3 * f;
     double ya = P(r, t[0])[1], yb = P(r, t[1])[1], yc = P(r, t[2])[1];
@@ -227,16 +232,28 @@ static bool slice_centroid(rigger *r, double y0, double xc, double hw, double xm
     a[0] += len * 0.5 * (q[0][0] + q[1][0]);
     a[2] += len * 0.5 * (q[0][2] + q[1][2]);
     a[3] += len;
+    for (int e = 0; D && e < 3; ++e)
+      if (D[t[e]] < a[1]) a[1] = D[t[e]];
   }
-  double best = 0;
+  double longest = 0, best = 0;
   bool found = false;
-  for (size_t v = 0; v < r->n; ++v) {
-    const double *a = r->acc + 4 * v;
-    if (!(a[3] > 0)) continue;
-    double cx = a[0] / a[3], cz = a[2] / a[3];
-    if (fabs(cx - xc) >= hw || (side && (cx - xm) * side <= 0)) continue;
-    if (a[3] > best) best = a[3], found = true, set3(out, cx, y0, cz);
-  }
+  for (int pass = D ? 0 : 1; pass < 2; ++pass)
+    for (size_t v = 0; v < r->n; ++v) {
+      const double *a = r->acc + 4 * v;
+      if (!(a[3] > 0)) continue;
+      double cx = a[0] / a[3], cz = a[2] / a[3];
+      if (fabs(cx - xc) >= hw || (side && (cx - xm) * side <= 0)) continue;
+      if (pass == 0) { /* with D: the longest qualifying contour first */
+        longest = fmax(longest, a[3]);
+        continue;
+      }
+      if (D) {
+        if (a[3] >= 0.3 * longest && (!found || a[1] < best))
+          best = a[1], found = true, set3(out, cx, y0, cz);
+      } else if (a[3] > best) {
+        best = a[3], found = true, set3(out, cx, y0, cz);
+      }
+    }
   return found;
 }
 
@@ -481,7 +498,7 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
                   sc_y, sc_y + (F_HEAD - F_SHOULDER_C) / (1 - F_SHOULDER_C) * (top_y - sc_y)};
   static const int tj[4] = {J_HIP_C, J_SPINE, J_SHOULDER_C, J_HEAD};
   for (int i = 0; i < 4; ++i)
-    if (!slice_centroid(r, ty[i], xc, hw, 0, 0, J + 3 * tj[i]))
+    if (!slice_centroid(r, ty[i], xc, hw, 0, 0, NULL, J + 3 * tj[i]))
       set3(J + 3 * tj[i], xc, ty[i], P(r, r->ext_v[head])[2]);
   for (int side = 0; side < 2; ++side) {
     int o4 = 4 * side, foot = side ? foot_r : foot_l, hand = side ? hand_r : hand_l;
@@ -489,9 +506,10 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
     const double *toe = P(r, r->ext_v[foot]);
     double *kn = J + 3 * (J_KNEE_L + o4), *an = J + 3 * (J_ANKLE_L + o4),
            *ft = J + 3 * (J_FOOT_L + o4), *hp = J + 3 * (J_HIP_L + o4);
-    if (!slice_centroid(r, knee_y, toe[0], 0.15 * H, xm, side ? -1 : 1, kn))
+    const double *Df = r->dist + (size_t)foot * r->n;
+    if (!slice_centroid(r, knee_y, toe[0], 0.15 * H, xm, side ? -1 : 1, Df, kn))
       set3(kn, toe[0], knee_y, toe[2]);
-    if (!slice_centroid(r, y0 + F_ANKLE_SLICE * H, toe[0], 0.15 * H, xm, side ? -1 : 1, an))
+    if (!slice_centroid(r, y0 + F_ANKLE_SLICE * H, toe[0], 0.15 * H, xm, side ? -1 : 1, Df, an))
       set3(an, toe[0], ankle_y, toe[2]);
     an[1] = ankle_y;
     set3(ft, an[0], y0 + F_FOOT * H, an[2] + 0.5 * (toe[2] - an[2]));
