@@ -1294,6 +1294,61 @@ static void test_tail_beside_foot(const char *rel) {
   km_mesh_free(&m);
 }
 
+/* Whether p lies inside the closed mesh m: the parity of a ray's crossings (a fixed,
+ * slightly skewed direction, so it meets no edge of these meshes exactly). */
+static bool inside_mesh(const km_mesh *m, const double p[3]) {
+  const double d[3] = {0.8017837, 0.2672612, 0.5345225};
+  int hits = 0;
+  for (size_t f = 0; f < m->n_faces; ++f) {
+    const double *a = m->V + 3 * (size_t)m->F[3 * f], *b = m->V + 3 * (size_t)m->F[3 * f + 1],
+                 *c = m->V + 3 * (size_t)m->F[3 * f + 2];
+    double e1[3], e2[3], s[3], h[3], q[3];
+    for (int k = 0; k < 3; ++k)
+      e1[k] = b[k] - a[k], e2[k] = c[k] - a[k], s[k] = p[k] - a[k];
+    h[0] = d[1] * e2[2] - d[2] * e2[1], h[1] = d[2] * e2[0] - d[0] * e2[2],
+    h[2] = d[0] * e2[1] - d[1] * e2[0];
+    double det = e1[0] * h[0] + e1[1] * h[1] + e1[2] * h[2];
+    if (fabs(det) < 1e-15) continue;
+    double u = (s[0] * h[0] + s[1] * h[1] + s[2] * h[2]) / det;
+    q[0] = s[1] * e1[2] - s[2] * e1[1], q[1] = s[2] * e1[0] - s[0] * e1[2],
+    q[2] = s[0] * e1[1] - s[1] * e1[0];
+    double v = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) / det,
+           t = (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) / det;
+    hits += u >= 0 && v >= 0 && u + v <= 1 && t > 0;
+  }
+  return hits % 2 == 1;
+}
+
+/* A sitting animal's spine runs up its trunk inside the body, from where its hind legs part
+ * to its chest, not along the ground between its paws (cat-08's hip centre, spine and
+ * shoulder centre lay outside it, below the body) nor at chest height through the haunches
+ * (cat-02's hips at its chest). */
+static void test_sitting_spine(const char *rel) {
+  km_mesh m = {0};
+  km_frame_guess g;
+  if (!read_oriented(rel, &m, &g)) return;
+  km_character c = {0};
+  km_autorig_report rep;
+  CHECK_OK(km_autorig(&m, NULL, &c, &rep, KM_E));
+  CHECK_MSG(rep.kind == KM_AUTORIG_QUADRUPED, "%s: rigged as kind %d", rel, (int)rep.kind);
+  if (c.skeleton.rest) {
+    const double *J = c.skeleton.rest, *hip = J + 3 * 0, *sc = J + 3 * 2;
+    double ylo = INFINITY, yhi = -INFINITY;
+    for (size_t v = 0; v < m.n_vertices; ++v)
+      ylo = fmin(ylo, m.V[3 * v + 1]), yhi = fmax(yhi, m.V[3 * v + 1]);
+    printf("%s: hip centre %.3f, shoulder centre %.3f of the height; inside: %d %d %d\n", rel,
+           (hip[1] - ylo) / (yhi - ylo), (sc[1] - ylo) / (yhi - ylo), inside_mesh(&m, J),
+           inside_mesh(&m, J + 3), inside_mesh(&m, J + 6));
+    for (int j = 0; j < 3; ++j)
+      CHECK_MSG(inside_mesh(&m, J + 3 * j), "%s: spine joint %d outside the body", rel, j);
+    CHECK_MSG(sc[1] - hip[1] > 0.12 * (yhi - ylo),
+              "%s: the shoulder centre only %.3f of the height above the hip centre", rel,
+              (sc[1] - hip[1]) / (yhi - ylo));
+  }
+  km_character_free(&c);
+  km_mesh_free(&m);
+}
+
 static void test_leaning_body(void) {
   char buf[1024];
   const char *path = km_test_shared("poses/npt_13_643.obj", buf, sizeof buf);
@@ -1504,6 +1559,8 @@ int main(void) {
   test_leaning_body();
   test_tail_beside_foot("meshes/dino.off");
   test_tail_beside_foot("poses/cat-poses/cat-05.obj");
+  test_sitting_spine("poses/cat-poses/cat-02.obj");
+  test_sitting_spine("poses/cat-poses/cat-08.obj");
   char buf[1024];
   const char *csv = km_test_shared("skeleton/precog_Seq1_1.csv", buf, sizeof buf);
   if (csv) {
