@@ -1256,6 +1256,15 @@ static void test_reach_weights(void) {
  * and the belly (0.72 of the height) was taken for the head. The sidecar records the frame even
  * though it is kinemesh's own, so animate does not guess again (it animated the body lying on
  * its back). */
+/* A shared mesh read in its guessed frame (read_oriented) and rigged by km_autorig's
+ * defaults into c and rep; false when the mesh is absent (the test skips). */
+static bool rig_oriented(const char *rel, km_mesh *m, km_character *c, km_autorig_report *rep) {
+  km_frame_guess g;
+  if (!read_oriented(rel, m, &g)) return false;
+  CHECK_OK(km_autorig(m, NULL, c, rep, KM_E));
+  return true;
+}
+
 /* A tail lying on the ground beside a foot: the knee and ankle are those of the leg, not of
  * the tail the same horizontal cuts pass through (the dinosaur's tail behind its right foot, a
  * standing cat's, cat-05, beside its left). Each ankle lies over its leg (within 0.12 of the
@@ -1264,11 +1273,9 @@ static void test_reach_weights(void) {
  * bodies 0.10 (the armadillo's leaning right shin) and 0.22 (its long-clawed feet) at most. */
 static void test_tail_beside_foot(const char *rel) {
   km_mesh m = {0};
-  km_frame_guess g;
-  if (!read_oriented(rel, &m, &g)) return;
   km_character c = {0};
   km_autorig_report rep;
-  CHECK_OK(km_autorig(&m, NULL, &c, &rep, KM_E));
+  if (!rig_oriented(rel, &m, &c, &rep)) return;
   if (c.skeleton.rest) {
     const double *J = c.skeleton.rest;
     double ylo = INFINITY, yhi = -INFINITY;
@@ -1325,11 +1332,9 @@ static bool inside_mesh(const km_mesh *m, const double p[3]) {
  * (cat-02's hips at its chest). */
 static void test_sitting_spine(const char *rel) {
   km_mesh m = {0};
-  km_frame_guess g;
-  if (!read_oriented(rel, &m, &g)) return;
   km_character c = {0};
   km_autorig_report rep;
-  CHECK_OK(km_autorig(&m, NULL, &c, &rep, KM_E));
+  if (!rig_oriented(rel, &m, &c, &rep)) return;
   CHECK_MSG(rep.kind == KM_AUTORIG_QUADRUPED, "%s: rigged as kind %d", rel, (int)rep.kind);
   if (c.skeleton.rest) {
     const double *J = c.skeleton.rest, *hip = J + 3 * 0, *sc = J + 3 * 2;

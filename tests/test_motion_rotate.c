@@ -5,18 +5,25 @@
  * turns about its bone with the joint's child (test_child_twist). */
 #include "bar_fixture.h"
 
+/* A rig over the bar's joints root, elbow, end: an anchor "base" (ring 0) and a handle `name`
+ * (ring `ring`) mapped to joint `joint` with "rotate": rotate. */
+static void bar_rig(char *json, size_t size, const char *name, int ring, const char *joint,
+                    bool rotate) {
+  int n =
+      snprintf(json, size, "{\"skeleton\":\"bvh\",\"handles\":[{\"name\":\"base\",\"vertices\":[");
+  for (int k = 0; k < RING; ++k)
+    n += snprintf(json + n, size - (size_t)n, "%s%d", k ? "," : "", k);
+  n += snprintf(json + n, size - (size_t)n, "]},{\"name\":\"%s\",\"vertices\":[", name);
+  for (int k = 0; k < RING; ++k)
+    n += snprintf(json + n, size - (size_t)n, "%s%d", k ? "," : "", ring * RING + k);
+  snprintf(json + n, size - (size_t)n,
+           "]}],\"map\":[{\"handle\":\"%s\",\"joint\":\"%s\",\"rotate\":%s}]}", name, joint,
+           rotate ? "true" : "false");
+}
+
 static double run(const km_mesh *m, bool rotate, km_puppetry_solver solver, double *end_ring_y) {
   char json[2048];
-  int n = snprintf(json, sizeof json,
-                   "{\"skeleton\":\"bvh\",\"handles\":[{\"name\":\"base\",\"vertices\":[");
-  for (int k = 0; k < RING; ++k)
-    n += snprintf(json + n, sizeof json - (size_t)n, "%s%d", k ? "," : "", k);
-  n += snprintf(json + n, sizeof json - (size_t)n, "]},{\"name\":\"end\",\"vertices\":[");
-  for (int k = 0; k < RING; ++k)
-    n += snprintf(json + n, sizeof json - (size_t)n, "%s%d", k ? "," : "", SEGS * RING + k);
-  snprintf(json + n, sizeof json - (size_t)n,
-           "]}],\"map\":[{\"handle\":\"end\",\"joint\":\"end\",\"rotate\":%s}]}",
-           rotate ? "true" : "false");
+  bar_rig(json, sizeof json, "end", SEGS, "end", rotate);
   const char *names[3] = {"root", "elbow", "end"};
   const int32_t parents[3] = {-1, 0, 1};
   km_rig rig;
@@ -57,16 +64,8 @@ static double run(const km_mesh *m, bool rotate, km_puppetry_solver solver, doub
  * to +z about it: the handle turns 90 degrees about x (its swing alone is none). With the child
  * along the bone there is no turn to tell, and the handle keeps its rest orientation. */
 static void test_child_twist(const km_mesh *m) {
-  char json[1024];
-  int n = snprintf(json, sizeof json,
-                   "{\"skeleton\":\"bvh\",\"handles\":[{\"name\":\"base\",\"vertices\":[");
-  for (int k = 0; k < RING; ++k)
-    n += snprintf(json + n, sizeof json - (size_t)n, "%s%d", k ? "," : "", k);
-  n += snprintf(json + n, sizeof json - (size_t)n, "]},{\"name\":\"mid\",\"vertices\":[");
-  for (int k = 0; k < RING; ++k)
-    n += snprintf(json + n, sizeof json - (size_t)n, "%s%d", k ? "," : "", SEGS / 2 * RING + k);
-  snprintf(json + n, sizeof json - (size_t)n,
-           "]}],\"map\":[{\"handle\":\"mid\",\"joint\":\"elbow\",\"rotate\":true}]}");
+  char json[2048];
+  bar_rig(json, sizeof json, "mid", SEGS / 2, "elbow", true);
   const char *names[3] = {"root", "elbow", "end"};
   const int32_t parents[3] = {-1, 0, 1};
   km_rig rig;
