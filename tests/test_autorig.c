@@ -1354,6 +1354,25 @@ static void test_sitting_spine(const char *rel) {
   km_mesh_free(&m);
 }
 
+/* A foot raised off the ground (npt_14_664 kicks its left leg forward, the foot 18 % of its
+ * height up): its ankle and foot joints lie in the foot, not on the floor under its toes
+ * (0.12 and 0.14 of the height outside the body before), and its shin runs along the leg. */
+static void test_raised_foot(void) {
+  const char *rel = "poses/npt_14_664.obj";
+  km_mesh m = {0};
+  km_character c = {0};
+  km_autorig_report rep;
+  if (!rig_oriented(rel, &m, &c, &rep)) return;
+  if (c.skeleton.rest) {
+    const double *J = c.skeleton.rest;
+    for (int j = 13; j <= 15; ++j) /* KneeLeft, AnkleLeft, FootLeft */
+      CHECK_MSG(inside_mesh(&m, J + 3 * j), "%s: %s outside the body", rel,
+                km_kinect1_joint_name(j));
+  }
+  km_character_free(&c);
+  km_mesh_free(&m);
+}
+
 static void test_leaning_body(void) {
   char buf[1024];
   const char *path = km_test_shared("poses/npt_13_643.obj", buf, sizeof buf);
@@ -1566,6 +1585,7 @@ int main(void) {
   test_tail_beside_foot("poses/cat-poses/cat-05.obj");
   test_sitting_spine("poses/cat-poses/cat-02.obj");
   test_sitting_spine("poses/cat-poses/cat-08.obj");
+  test_raised_foot();
   char buf[1024];
   const char *csv = km_test_shared("skeleton/precog_Seq1_1.csv", buf, sizeof buf);
   if (csv) {

@@ -500,19 +500,38 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
   for (int i = 0; i < 4; ++i)
     if (!slice_centroid(r, ty[i], xc, hw, 0, 0, NULL, J + 3 * tj[i]))
       set3(J + 3 * tj[i], xc, ty[i], P(r, r->ext_v[head])[2]);
-  for (int side = 0; side < 2; ++side) {
+  /* A raised foot (a kick, a step: its tip above the ankle's cut) is not met by the cuts at
+   * ankle and knee height: its ankle went to the floor under its toes, npt_14_664's left one
+   * 0.12 of the height outside the body, the shin running down to it. Its ankle and knee are
+   * the rings of its tip's geodesics as far from the tip as the grounded foot's ankle and knee
+   * are from that one's tip (the legs placed grounded first). */
+  double raise_y = y0 + F_ANKLE_SLICE * H, d_ankle = -1, d_knee = -1;
+  int first = P(r, r->ext_v[foot_l])[1] > raise_y && !(P(r, r->ext_v[foot_r])[1] > raise_y);
+  for (int k = 0; k < 2; ++k) {
+    int side = k ^ first;
     int o4 = 4 * side, foot = side ? foot_r : foot_l, hand = side ? hand_r : hand_l;
     double sx = side ? -1 : 1;
     const double *toe = P(r, r->ext_v[foot]);
     double *kn = J + 3 * (J_KNEE_L + o4), *an = J + 3 * (J_ANKLE_L + o4),
            *ft = J + 3 * (J_FOOT_L + o4), *hp = J + 3 * (J_HIP_L + o4);
     const double *Df = r->dist + (size_t)foot * r->n;
-    if (!slice_centroid(r, knee_y, toe[0], 0.15 * H, xm, side ? -1 : 1, Df, kn))
-      set3(kn, toe[0], knee_y, toe[2]);
-    if (!slice_centroid(r, y0 + F_ANKLE_SLICE * H, toe[0], 0.15 * H, xm, side ? -1 : 1, Df, an))
-      set3(an, toe[0], ankle_y, toe[2]);
-    an[1] = ankle_y;
-    set3(ft, an[0], y0 + F_FOOT * H, an[2] + 0.5 * (toe[2] - an[2]));
+    if (toe[1] > raise_y && d_ankle > 0) {
+      ring_centroid(r, (size_t)foot, d_knee, kn);
+      ring_centroid(r, (size_t)foot, d_ankle, an);
+      for (int c = 0; c < 3; ++c)
+        ft[c] = an[c] + 0.5 * (toe[c] - an[c]);
+    } else {
+      if (!slice_centroid(r, knee_y, toe[0], 0.15 * H, xm, side ? -1 : 1, Df, kn))
+        set3(kn, toe[0], knee_y, toe[2]);
+      if (!slice_centroid(r, y0 + F_ANKLE_SLICE * H, toe[0], 0.15 * H, xm, side ? -1 : 1, Df, an))
+        set3(an, toe[0], ankle_y, toe[2]);
+      an[1] = ankle_y;
+      set3(ft, an[0], y0 + F_FOOT * H, an[2] + 0.5 * (toe[2] - an[2]));
+      if (!(toe[1] > raise_y)) {
+        d_ankle = Df[nearest_vertex(r, an)];
+        d_knee = Df[nearest_vertex(r, kn)];
+      }
+    }
     const double *hc = J + 3 * J_HIP_C;
     set3(hp, hc[0] + 0.82 * (kn[0] - hc[0]), hip_y, hc[2]);
     /* Arm: the shoulder beside the shoulder centre, then rings from the hand tip. */
