@@ -1216,8 +1216,8 @@ typedef struct km_rig_map {
                   (parent -> joint direction, relative to the reference frame; the shortest
                   rotation), and about it with the joint's child (the twist carrying the
                   reference joint -> child direction onto the current one; several children:
-                  the pair most across the bone; none from a leaf; a take's own joint
-                  rotations instead where it gives them). false (default): translation
+                  the pair most across the bone; none from a leaf nor a child under 0.15 m; a take's
+                  own joint rotations instead where it gives them). false (default): translation
                   only, as in the paper */
   /* ---- issue 12: bone handles */
   int32_t bone_from; /* 0: the entry maps a joint. Else a bone entry ("bone": ["ElbowLeft",

@@ -877,7 +877,8 @@ static void mat_vec(const double R[9], const double x[3], double y[3]);
  * it carries the reference direction j -> c onto the current one, both seen across d. A
  * joint with several children (a Kinect ShoulderCenter: head and both shoulders; a hip
  * centre) takes the line between the two of them that lies most across the bone (left ->
- * right shoulder), a leaf (a hand, a head) none. A child nearly along the bone tells little
+ * right shoulder), a leaf (a hand, a head) none, nor a child under 0.15 m (a Kinect hand, a
+ * foot). A child nearly along the bone tells little
  * about the turn: the twist counts in full where both directions stand 30 degrees or more off
  * the bone, fading out at 10 (so the turn follows continuously as an elbow straightens). */
 static void child_twist(const km_retarget *r, const double *J, int32_t j, const double d0[3],
@@ -901,7 +902,13 @@ static void child_twist(const km_retarget *r, const double *J, int32_t j, const 
     }
   }
   double t0[3], t[3];
-  if (a < 0 || b < 0 || !segment_dirs(r, J, a, b, t0, t)) return;
+  if (a < 0 || b < 0) return;
+  /* a short child (a Kinect wrist -> hand, ankle -> foot: a few noisy centimetres, as
+   * long_ancestor skips) would twist the handle with its noise */
+  if (!km__finite3(r->ref + 3 * (size_t)a) || !km__finite3(r->ref + 3 * (size_t)b) ||
+      dist3(r->ref + 3 * (size_t)a, r->ref + 3 * (size_t)b) < 0.15)
+    return;
+  if (!segment_dirs(r, J, a, b, t0, t)) return;
   double pc[3], k;
   mat_vec(R, t0, pc); /* the reference child direction as R carries it, then across d */
   k = km__dot3(pc, d);
