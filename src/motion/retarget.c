@@ -856,19 +856,20 @@ static bool segment_dirs(const km_retarget *r, const double *J, int32_t a, int32
   return true;
 }
 
-/* A short bone (a Kinect wrist -> hand, ankle -> foot: a few noisy centimetres) gives a
- * jittery direction: the nearest ancestor of a at least 0.15 m (of performer) from b stands in
- * for a. */
+/* Joints a and b under 0.15 m apart (of performer) in the reference frame: a short bone (a
+ * Kinect wrist -> hand, ankle -> foot: a few noisy centimetres), whose direction jitters.
+ * False when either reference is not known. */
+static bool short_bone(const km_retarget *r, int32_t a, int32_t b) {
+  const double *pa = r->ref + 3 * (size_t)a, *pb = r->ref + 3 * (size_t)b;
+  return km__finite3(pa) && km__finite3(pb) && dist3(pa, pb) < 0.15;
+}
+
+/* The nearest ancestor of a at least 0.15 m from b stands in for a (short_bone). */
 static int32_t long_ancestor(const km_retarget *r, int32_t a, int32_t b) {
-  while (r->par[a] >= 0 && km__finite3(r->ref + 3 * (size_t)a) &&
-         km__finite3(r->ref + 3 * (size_t)b) &&
-         dist3(r->ref + 3 * (size_t)a, r->ref + 3 * (size_t)b) < 0.15)
+  while (r->par[a] >= 0 && short_bone(r, a, b))
     a = r->par[a];
   return a;
 }
-
-static void mat_mul(const double A[9], const double B[9], double C[9]);
-static void mat_vec(const double R[9], const double x[3], double y[3]);
 
 /* Issue 12: a rotating handle's twist from its joint's child (positions only: a take that
  * gives joint rotations has its own twist, apply_twist). The bone q -> j gives the handle's
@@ -902,15 +903,10 @@ static void child_twist(const km_retarget *r, const double *J, int32_t j, const 
     }
   }
   double t0[3], t[3];
-  if (a < 0 || b < 0) return;
-  /* a short child (a Kinect wrist -> hand, ankle -> foot: a few noisy centimetres, as
-   * long_ancestor skips) would twist the handle with its noise */
-  if (!km__finite3(r->ref + 3 * (size_t)a) || !km__finite3(r->ref + 3 * (size_t)b) ||
-      dist3(r->ref + 3 * (size_t)a, r->ref + 3 * (size_t)b) < 0.15)
-    return;
-  if (!segment_dirs(r, J, a, b, t0, t)) return;
+  /* a short child would twist the handle with its noise */
+  if (a < 0 || b < 0 || short_bone(r, a, b) || !segment_dirs(r, J, a, b, t0, t)) return;
   double pc[3], k;
-  mat_vec(R, t0, pc); /* the reference child direction as R carries it, then across d */
+  km__m3_apply(R, t0, pc); /* the reference child direction as R carries it, then across d */
   k = km__dot3(pc, d);
   for (int i = 0; i < 3; ++i)
     pc[i] -= k * d[i];
@@ -923,11 +919,10 @@ static void child_twist(const km_retarget *r, const double *J, int32_t j, const 
   if (!(w > 0)) return;
   double x[3];
   km__cross3(pc, t, x);
-  double th = w * atan2(km__dot3(x, d), km__dot3(pc, t)), s = sin(0.5 * th);
-  double qt[4] = {cos(0.5 * th), s * d[0], s * d[1], s * d[2]}, T[9], B[9];
-  km__rot3_from_quat(qt, T);
-  memcpy(B, R, sizeof B);
-  mat_mul(T, B, R);
+  double th = w * atan2(km__dot3(x, d), km__dot3(pc, t));
+  double rv[3] = {th * d[0], th * d[1], th * d[2]}, T[9];
+  km__m3_from_rotvec(rv, T);
+  km__m3_mul(T, R, R);
 }
 
 static void update_rotations(km_retarget *r, const double *J) {
@@ -1280,7 +1275,6 @@ static void update_bones(km_retarget *r, const double *J) {
           Cj[d] = r->jrest[3 * j + d] + (r->rigid ? 0 : s * (p[d] - p0[d]));
       continue;
     }
-    const double *a0 = r->ref + 3 * j, *b0 = r->ref + 3 * (size_t)q;
     /* A short bone (Kinect wrist -> hand, ankle -> foot: a few noisy centimetres) turns with
      * its parent bone. */
     double aim[3], *ap = NULL;
@@ -1289,7 +1283,7 @@ static void update_bones(km_retarget *r, const double *J) {
         aim[d] = r->jrest[3 * j + d] - r->jrest[3 * (size_t)q + d];
       if (isfinite(aim[0] + aim[1] + aim[2])) ap = aim;
     }
-    if (km__finite3(a0) && km__finite3(b0) && dist3(a0, b0) < 0.15) {
+    if (short_bone(r, (int32_t)j, q)) {
       memcpy(Rj, r->Rb + 9 * (size_t)q, 9 * sizeof(double));
     } else {
       double Rprev[9];
