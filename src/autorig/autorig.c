@@ -293,6 +293,14 @@ static double ring_radius(const rigger *r, size_t e, double d0) {
   return ring_at(r, e, d0, true, c);
 }
 
+/* How far along extremity a's geodesics the paths from a to b and from a to h part (the
+ * geodesic branch point): 0.5 (d(a,b) + d(a,h) - d(b,h)). From one foot with the other foot
+ * and the head: the crotch; from a paw with its pair and the head: the legs' root. */
+static double branch_distance(const rigger *r, int a, int b, int h) {
+  const double *Da = r->dist + (size_t)a * r->n, *Db = r->dist + (size_t)b * r->n;
+  return 0.5 * (Da[r->ext_v[b]] + Da[r->ext_v[h]] - Db[r->ext_v[h]]);
+}
+
 /* A limb chain from extremity e (tip) to the root point `root` (a joint already placed):
  * joints[k] at fraction f[k] of the way from the root to the tip, as ring centroids of e at
  * the matching geodesic distance (the root vertex's distance scaled). */
@@ -460,9 +468,7 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
    * or the shoulders, and the joints between follow. */
   double hip_y = y0 + F_HIP * H, ankle_y = y0 + F_ANKLE * H, sh_y[2];
   {
-    const double *Dl = r->dist + (size_t)foot_l * r->n;
-    double cd = 0.5 * (Dl[r->ext_v[head]] + Dl[r->ext_v[foot_r]] -
-                       r->dist[(size_t)foot_r * r->n + (size_t)r->ext_v[head]]);
+    double cd = branch_distance(r, foot_l, foot_r, head);
     double crotch[3];
     if (cd > 0) {
       ring_centroid(r, (size_t)foot_l, cd, crotch);
@@ -548,15 +554,13 @@ static km_status rig_humanoid(rigger *r, km_autorig_report *rep, km_error *err) 
   return KM_OK;
 }
 
-/* Where the paths from two paws a and b part from the path to the head h (the geodesic
- * branch point: along a's field at 0.5 (d(a,b) + d(a,h) - d(b,h)), and along b's the same),
- * as the middle of the two rings there: between the legs, at their root, whatever the pose. */
+/* Where the paths from two paws a and b part from the path to the head h (branch_distance
+ * along a's field and along b's), as the middle of the two rings there: between the legs, at
+ * their root, whatever the pose. */
 static void branch_point(const rigger *r, int a, int b, int h, double out[3]) {
-  const double *Da = r->dist + (size_t)a * r->n, *Db = r->dist + (size_t)b * r->n;
-  int32_t va = r->ext_v[a], vb = r->ext_v[b], vh = r->ext_v[h];
   double p[3], q[3];
-  ring_centroid(r, (size_t)a, 0.5 * (Da[vb] + Da[vh] - Db[vh]), p);
-  ring_centroid(r, (size_t)b, 0.5 * (Db[va] + Db[vh] - Da[vh]), q);
+  ring_centroid(r, (size_t)a, branch_distance(r, a, b, h), p);
+  ring_centroid(r, (size_t)b, branch_distance(r, b, a, h), q);
   for (int k = 0; k < 3; ++k)
     out[k] = 0.5 * (p[k] + q[k]);
 }
