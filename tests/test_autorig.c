@@ -1241,21 +1241,6 @@ static void test_reach_weights(void) {
             rep_heat[1].skin);
 }
 
-/* Meshes no rule was tuned on, rigged by the automatic choice: the roles must be the body's.
- * The dinosaur (a biped whose tail tip hangs 6 % of its height above the ground) was taken for
- * a quadruped with its tail as a hind leg; armadillo_1k's left hand was a toe of its left foot
- * (the hand up by its ear left out); the walking and the stretching cat had their raised tails
- * for heads; FAUST's tr_reg_001, bent forward with its hands on its knees, a hand. Every foot
- * on the ground, every hand of an upright body above the knees and
- * its head in the upper half, a quadruped's head ahead of its feet, and a tail or toe given no
- * role. */
-/* npt_13_643: an SMPL body leaning back on one leg, the other kicked forward, stored y up and
- * facing +z, which the orientation guess takes for z up (its back flat). Rigged in its own frame
- * (--up +y --forward +z), its head is the top of its head: the ring a tenth of the height below
- * a belly's bump is the wide torso, and measured against it the head's neck ring was too thin
- * and the belly (0.72 of the height) was taken for the head. The sidecar records the frame even
- * though it is kinemesh's own, so animate does not guess again (it animated the body lying on
- * its back). */
 /* A shared mesh read in its guessed frame (read_oriented) and rigged by km_autorig's
  * defaults into c and rep; false when the mesh is absent (the test skips). */
 static bool rig_oriented(const char *rel, km_mesh *m, km_character *c, km_autorig_report *rep) {
@@ -1373,6 +1358,13 @@ static void test_raised_foot(void) {
   km_mesh_free(&m);
 }
 
+/* npt_13_643: an SMPL body leaning back on one leg, the other kicked forward, stored y up and
+ * facing +z, which the orientation guess takes for z up (its back flat). Rigged in its own frame
+ * (--up +y --forward +z), its head is the top of its head: the ring a tenth of the height below
+ * a belly's bump is the wide torso, and measured against it the head's neck ring was too thin
+ * and the belly (0.72 of the height) was taken for the head. The sidecar records the frame even
+ * though it is kinemesh's own, so animate does not guess again (it animated the body lying on
+ * its back). */
 static void test_leaning_body(void) {
   char buf[1024];
   const char *path = km_test_shared("poses/npt_13_643.obj", buf, sizeof buf);
@@ -1414,6 +1406,14 @@ static void test_leaning_body(void) {
   free(out);
 }
 
+/* Meshes no rule was tuned on, rigged by the automatic choice: the roles must be the body's.
+ * The dinosaur (a biped whose tail tip hangs 6 % of its height above the ground) was taken for
+ * a quadruped with its tail as a hind leg; armadillo_1k's left hand was a toe of its left foot
+ * (the hand up by its ear left out); the walking and the stretching cat had their raised tails
+ * for heads; FAUST's tr_reg_001, bent forward with its hands on its knees, a hand. Every foot
+ * on the ground, every hand of an upright body above the knees and
+ * its head in the upper half, a quadruped's head ahead of its feet, and a tail or toe given no
+ * role. */
 static void test_roles(const char *rel, km_autorig_skeleton want, double foot_max) {
   km_mesh m = {0};
   km_frame_guess g;
