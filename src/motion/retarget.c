@@ -939,18 +939,6 @@ static void update_rotations(km_retarget *r, const double *J) {
   }
 }
 
-/* C = A B for row-major 3x3 (C may not alias A or B). */
-static void mat_mul(const double A[9], const double B[9], double C[9]) {
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      C[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j];
-}
-
-static void mat_vec(const double R[9], const double x[3], double y[3]) {
-  for (int a = 0; a < 3; ++a)
-    y[a] = R[3 * a] * x[0] + R[3 * a + 1] * x[1] + R[3 * a + 2] * x[2];
-}
-
 /* A kinect1 forearm or shin: the bone ending at a wrist or ankle (joint 6, 10, 14 or 18), the
  * one an elbow's or knee's bend turns. */
 static bool kinect1_hinge(int32_t b) { return b == 6 || b == 10 || b == 14 || b == 18; }
@@ -1023,7 +1011,7 @@ static bool hinge_bend(const km_retarget *r, int32_t a, int32_t b, const double 
   const double *pa = r->jrest + 3 * (size_t)a, *pp = r->jrest + 3 * (size_t)r->par[a];
   double s0[3] = {pa[0] - pp[0], pa[1] - pp[1], pa[2] - pp[2]}, s[3];
   if (!(km__normalize3(s0) > 1e-12)) return false;
-  mat_vec(Rp, s0, s);
+  km__m3_apply(Rp, s0, s);
   clamp_swing(s, r->bend_limit, d);
   return true;
 }
@@ -1051,16 +1039,16 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
       double A[9], B[9];
       if (Rp) { /* R = (Rp u -> d) Rp */
         double w[3];
-        mat_vec(Rp, u, w);
+        km__m3_apply(Rp, u, w);
         bool bent = hinge_bend(r, a, b, Rp, d);
         clamp_swing(w, bent ? r->swing_limit : limb_limit(r, b, true), d);
         km__rot3_between(w, d, A);
-        mat_mul(A, Rp, R);
+        km__m3_mul(A, Rp, R);
         return true;
       }
       km__rot3_between(u, d0, A); /* first the character's rest direction onto the reference */
       km__rot3_between(d0, d, B);
-      mat_mul(B, A, R);
+      km__m3_mul(B, A, R);
       return true;
     }
   }
@@ -1073,7 +1061,7 @@ static bool segment_rotation(const km_retarget *r, const double *J, int32_t a, i
   double lim = limb_limit(r, b, false);
   if (Rp && lim > 0) {
     double w[3];
-    mat_vec(Rp, d0, w);
+    km__m3_apply(Rp, d0, w);
     clamp_swing(w, lim, d);
   }
   km__rot3_between(d0, d, R);
@@ -1159,8 +1147,8 @@ static void limit_bone(km_retarget *r, const double *J, int32_t q, int32_t j, co
   else
     return;
   double a[3], b[3];
-  mat_vec(Rprev, w, a);
-  mat_vec(R, w, b);
+  km__m3_apply(Rprev, w, a);
+  km__m3_apply(R, w, b);
   double na = sqrt(km__dot3(a, a)), nb = sqrt(km__dot3(b, b));
   if (!(na > 1e-12) || !(nb > 1e-12)) return;
   for (int c = 0; c < 3; ++c) {
@@ -1186,7 +1174,7 @@ static void limit_bone(km_retarget *r, const double *J, int32_t q, int32_t j, co
     d[c] = cos(tmax) * a[c] + sin(tmax) * e[c] / ne;
   km__rot3_between(b, d, A);
   memcpy(B, R, sizeof B);
-  mat_mul(A, B, R);
+  km__m3_mul(A, B, R);
 }
 
 /* The rigid root is lifted so that no ankle (nor a quadruped's wrist: one whose rest height is
@@ -1294,7 +1282,7 @@ static void update_bones(km_retarget *r, const double *J) {
     if (r->jrest) {
       const double *cj0 = r->jrest + 3 * j, *cq0 = r->jrest + 3 * (size_t)q;
       double w[3] = {cj0[0] - cq0[0], cj0[1] - cq0[1], cj0[2] - cq0[2]}, y[3];
-      mat_vec(Rj, w, y);
+      km__m3_apply(Rj, w, y);
       for (int d = 0; d < 3; ++d)
         Cj[d] = r->C[3 * (size_t)q + d] + y[d];
     }
@@ -1355,7 +1343,7 @@ static void update_bones(km_retarget *r, const double *J) {
       double w[3], y[3];
       for (int d = 0; d < 3; ++d)
         w[d] = c[d] - r->jrest[3 * (size_t)pv + d];
-      mat_vec(R, w, y);
+      km__m3_apply(R, w, y);
       for (int d = 0; d < 3; ++d)
         disp[d] = Ca[d] - rel[d] + y[d] - c[d];
     } else { /* no character skeleton: about the centroid, with the bone's midpoint */
