@@ -816,13 +816,10 @@ static void apply_twist(const km_retarget *r, int32_t j, const double d0[3], con
           Q[3 * a] * Q0[3 * b] + Q[3 * a + 1] * Q0[3 * b + 1] + Q[3 * a + 2] * Q0[3 * b + 2];
   km__quat_from_rot3(G, q);
   double phi = 2 * atan2(q[1] * d0[0] + q[2] * d0[1] + q[3] * d0[2], q[0]);
-  double s = sin(0.5 * phi), T[9], B[9];
+  double s = sin(0.5 * phi), T[9];
   double qt[4] = {cos(0.5 * phi), s * d[0], s * d[1], s * d[2]};
   km__rot3_from_quat(qt, T);
-  memcpy(B, R, sizeof B);
-  for (int a = 0; a < 3; ++a)
-    for (int b = 0; b < 3; ++b)
-      R[3 * a + b] = T[3 * a] * B[b] + T[3 * a + 1] * B[3 + b] + T[3 * a + 2] * B[6 + b];
+  km__m3_mul(T, R, R);
 }
 
 /* Rotations of the rotating handles from the bones of this frame (kept when a bone is not
