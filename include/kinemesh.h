@@ -2842,6 +2842,11 @@ typedef struct km_autorig_report {
   double heat_c;
   double heat_probe[2]; /* c = 1, c = 0.5 */
   int heat_probe_poses;
+  /* Joints the embedding left outside the surface and moved in (humanoid and quadruped: along
+   * a bone to the first point inside, then to the middle of the body's cross-section there) */
+  int joints_moved_inside;
+  uint32_t joints_outside; /* bit j set: joint j (KM_KINECT1 order) is still outside, too far
+                              from the body part it should be in to move it safely */
 } km_autorig_report;
 
 /* The kind's name: "humanoid" (KM_AUTORIG_KINECT1), "quadruped", "prop", "bust", "upper body"

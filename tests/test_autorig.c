@@ -1358,6 +1358,26 @@ static void test_raised_foot(void) {
   km_mesh_free(&m);
 }
 
+/* Every joint inside the body, or named as outside in the report. rig left a FAUST body's
+ * wrist and feet a little past its skin (tr_reg_025: 0.02-0.025 of the height), the
+ * armadillo's left hip beside its groin and a crouching cat's head joint between its ears: a
+ * bone turning about a point in the air. moved_min: how many joints rig must have moved in. */
+static void test_joints_inside(const char *rel, int moved_min) {
+  km_mesh m = {0};
+  km_character c = {0};
+  km_autorig_report rep;
+  if (!rig_oriented(rel, &m, &c, &rep)) return;
+  printf("%s: %d joints moved inside, outside mask 0x%x\n", rel, rep.joints_moved_inside,
+         (unsigned)rep.joints_outside);
+  CHECK_MSG(rep.joints_moved_inside >= moved_min, "%s: %d joints moved inside, expected %d", rel,
+            rep.joints_moved_inside, moved_min);
+  for (int j = 0; c.skeleton.rest && j < KM_KINECT1_JOINTS; ++j)
+    CHECK_MSG(inside_mesh(&m, c.skeleton.rest + 3 * j) || (rep.joints_outside >> j & 1u),
+              "%s: %s outside the body and not reported", rel, km_kinect1_joint_name(j));
+  km_character_free(&c);
+  km_mesh_free(&m);
+}
+
 /* npt_13_643: an SMPL body leaning back on one leg, the other kicked forward, stored y up and
  * facing +z, which the orientation guess takes for z up (its back flat). Rigged in its own frame
  * (--up +y --forward +z), its head is the top of its head: the ring a tenth of the height below
@@ -1586,6 +1606,11 @@ int main(void) {
   test_sitting_spine("poses/cat-poses/cat-02.obj");
   test_sitting_spine("poses/cat-poses/cat-08.obj");
   test_raised_foot();
+  test_joints_inside("poses/tr_reg_025.ply", 3);
+  test_joints_inside("meshes/armadillo.obj", 1);
+  test_joints_inside("poses/cat-poses/cat-01.obj", 3);
+  test_joints_inside("poses/cat-poses/cat-06.obj", 0); /* its hips: reported */
+  test_joints_inside("meshes/dog0.off", 2);
   char buf[1024];
   const char *csv = km_test_shared("skeleton/precog_Seq1_1.csv", buf, sizeof buf);
   if (csv) {

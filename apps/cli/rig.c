@@ -159,6 +159,15 @@ int km_cli_rig(int argc, char **argv) {
            p[0], p[1], p[2], rep.extremity_distance[e], rep.role[e][0] ? rep.role[e] : "(unused)");
   }
   printf("joints%s:\n", oriented ? " (in kinemesh's frame: y up, facing +z)" : "");
+  if (rep.joints_moved_inside)
+    printf("  (%d joint%s the embedding put outside the surface moved into the body)\n",
+           rep.joints_moved_inside, rep.joints_moved_inside > 1 ? "s" : "");
+  if (rep.joints_outside) {
+    printf("  (outside the surface, left where the embedding put them:");
+    for (int j = 0; j < 32; ++j)
+      if (rep.joints_outside >> j & 1u) printf(" %s", km_kinect1_joint_name(j));
+    printf("; their \"rest\" in the sidecar's \"joints\" can be edited)\n");
+  }
   for (size_t j = 0; j < c.skeleton.n_joints; ++j)
     printf("  %-14s (%8.4f %8.4f %8.4f)\n", c.skeleton.names[j], c.skeleton.rest[3 * j],
            c.skeleton.rest[3 * j + 1], c.skeleton.rest[3 * j + 2]);

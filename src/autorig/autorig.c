@@ -1420,6 +1420,58 @@ static km_status compute_skin(const rigger *r, km_autorig_skin mode, km_skin *sk
 
 /* ---------------------------------------------------------------- landmarks */
 
+/* Where the ray o + t dir (dir a unit vector) crosses face f (Moller-Trumbore): t, or -1 when it
+ * misses (or the face has an index out of range). */
+static double ray_triangle(const rigger *r, size_t f, const double o[3], const double dir[3]) {
+  const int32_t *t = r->m->F + 3 * f;
+  if (t[0] < 0 || t[1] < 0 || t[2] < 0 || (size_t)t[0] >= r->n || (size_t)t[1] >= r->n ||
+      (size_t)t[2] >= r->n)
+    return -1;
+  const double *a = P(r, t[0]), *b = P(r, t[1]), *c = P(r, t[2]);
+  double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  double e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  double pv[3] = {dir[1] * e2[2] - dir[2] * e2[1], dir[2] * e2[0] - dir[0] * e2[2],
+                  dir[0] * e2[1] - dir[1] * e2[0]};
+  double det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+  if (fabs(det) < 1e-300) return -1;
+  double inv = 1 / det, tv[3] = {o[0] - a[0], o[1] - a[1], o[2] - a[2]};
+  double u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) * inv;
+  if (u < 0 || u > 1) return -1;
+  double qv[3] = {tv[1] * e1[2] - tv[2] * e1[1], tv[2] * e1[0] - tv[0] * e1[2],
+                  tv[0] * e1[1] - tv[1] * e1[0]};
+  double w = (dir[0] * qv[0] + dir[1] * qv[1] + dir[2] * qv[2]) * inv;
+  if (w < 0 || u + w > 1) return -1;
+  double d = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv;
+  return d > 0 ? d : -1;
+}
+
+/* The ray o + t dir's crossings with the surface for t > 0: how many, and the nearest one's t
+ * (INFINITY when none). */
+static size_t ray_crossings(const rigger *r, const double o[3], const double dir[3],
+                            double *nearest) {
+  size_t n = 0;
+  double best = INFINITY;
+  for (size_t f = 0; f < r->m->n_faces; ++f) {
+    double d = ray_triangle(r, f, o, dir);
+    if (d > 0) ++n, best = fmin(best, d);
+  }
+  if (nearest) *nearest = best;
+  return n;
+}
+
+/* Whether p lies inside the closed surface: the parity of three rays' crossings in fixed
+ * directions off every axis, by majority, so that a ray grazing an edge (counted twice or not
+ * at all) or a small hole does not decide alone. */
+static bool inside_body(const rigger *r, const double p[3]) {
+  static const double dirs[3][3] = {{0.8017837, 0.2672612, 0.5345225},
+                                    {-0.4850713, 0.7276069, -0.4850713},
+                                    {0.2357023, -0.9428090, -0.2357023}};
+  int odd = 0;
+  for (int k = 0; k < 3; ++k)
+    odd += (int)(ray_crossings(r, p, dirs[k], NULL) & 1);
+  return odd >= 2;
+}
+
 /* Where a ray from a joint leaves the body: the first face the ray from o along dir (unit)
  * crosses within 0.4 H (Moeller-Trumbore over all faces), and of that face the vertex nearest
  * the crossing. The first crossing, not the farthest vertex near the ray: the farthest one
@@ -1435,25 +1487,7 @@ static int32_t ray_pick(const rigger *r, const double o[3], const double dir[3],
   double best_t = 0.4 * r->H;
   size_t best_f = SIZE_MAX;
   for (size_t f = 0; f < m->n_faces; ++f) {
-    const int32_t *t = m->F + 3 * f;
-    if (t[0] < 0 || t[1] < 0 || t[2] < 0 || (size_t)t[0] >= r->n || (size_t)t[1] >= r->n ||
-        (size_t)t[2] >= r->n)
-      continue;
-    const double *a = P(r, t[0]), *b = P(r, t[1]), *c = P(r, t[2]);
-    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-    double e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double pv[3] = {dir[1] * e2[2] - dir[2] * e2[1], dir[2] * e2[0] - dir[0] * e2[2],
-                    dir[0] * e2[1] - dir[1] * e2[0]};
-    double det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
-    if (fabs(det) < 1e-300) continue;
-    double inv = 1 / det, tv[3] = {o[0] - a[0], o[1] - a[1], o[2] - a[2]};
-    double u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) * inv;
-    if (u < 0 || u > 1) continue;
-    double qv[3] = {tv[1] * e1[2] - tv[2] * e1[1], tv[2] * e1[0] - tv[0] * e1[2],
-                    tv[0] * e1[1] - tv[1] * e1[0]};
-    double w = (dir[0] * qv[0] + dir[1] * qv[1] + dir[2] * qv[2]) * inv;
-    if (w < 0 || u + w > 1) continue;
-    double d = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv;
+    double d = ray_triangle(r, f, o, dir);
     if (d > 0 && d < best_t) best_t = d, best_f = f;
   }
   double hit[3] = {o[0], o[1], o[2]};
@@ -1573,6 +1607,66 @@ static void compute_landmarks(const rigger *r, const double fwd[3], km_landmark 
 }
 
 /* ---------------------------------------------------------------- public */
+
+/* Joints into the body. A joint the embedding left outside the surface (a sitting cat's hips
+ * under its haunches, a head joint between the ears, a foot joint past the toe tip: rig on the
+ * shared meshes, 1-8 joints of 14 of 25 bodies) turns its bones about a point in the air: the
+ * skin weights, the bone bands and the exported skeleton all hang off it.
+ * - A leaf joint (head, hand, foot) walks back along its bone towards its parent, in 1/32
+ *   steps, to the second step inside: it stays at the end of its limb.
+ * - Any other joint goes to the middle of the body part nearest to it: of the chord along the
+ *   line from the joint to its nearest surface vertex, between where that line enters the
+ *   surface and where it leaves it again. Walking along a bone instead, a hip joint beside the
+ *   groin went into the thigh and then, centred across the bone from the hip centre, to the
+ *   middle of the belly (the armadillo's thighs 0.14 and 0.22 of the height long).
+ * A joint neither finds inside, or that would move farther than FAR_* of the height (not its
+ * own part), stays, and its bit (1 << joint) is set in *outside. Returns how many moved. */
+static int joints_inside(rigger *r, uint32_t *outside) {
+  enum { NJ = KM_KINECT1_JOINTS, STEPS = 32 };
+  const double NEAR_SURFACE = 0.03, FAR_JOINT = 0.05, FAR_LEAF = 0.15;
+  int moved = 0;
+  for (int j = 0; j < NJ; ++j) {
+    double *p = r->J + 3 * j, x[3];
+    if (inside_body(r, p)) continue;
+    *outside |= 1u << j;
+    bool leaf = true, ok = false;
+    for (int n = 0; n < NJ; ++n)
+      leaf = leaf && km_kinect1_joint_parent(n) != j;
+    int par = km_kinect1_joint_parent(j);
+    if (leaf && par >= 0) {
+      const double *q = r->J + 3 * par;
+      for (int k = 1, in = 0; k < STEPS && !ok; ++k) {
+        for (int c = 0; c < 3; ++c)
+          x[c] = p[c] + (q[c] - p[c]) * k / STEPS;
+        if (inside_body(r, x)) ok = ++in == 2;
+      }
+    } else if (!leaf) {
+      const double *s = P(r, nearest_vertex(r, p));
+      double w[3] = {s[0] - p[0], s[1] - p[1], s[2] - p[2]}, l = dist3(s, p), t1, t2;
+      if (l > 0) {
+        for (int c = 0; c < 3; ++c)
+          w[c] /= l;
+        ray_crossings(r, p, w, &t1);
+        if (t1 <= NEAR_SURFACE * r->H) {
+          double e[3];
+          for (int c = 0; c < 3; ++c)
+            e[c] = p[c] + w[c] * (t1 + 1e-9 * r->H);
+          ray_crossings(r, e, w, &t2);
+          for (int c = 0; c < 3 && isfinite(t2); ++c)
+            x[c] = e[c] + w[c] * 0.5 * t2;
+          ok = isfinite(t2) && inside_body(r, x);
+        }
+      }
+    }
+    /* a longer way in is not the joint's own part (a cat's shoulder beside its chest went
+     * down into the leg, 0.07-0.14 of the height) */
+    if (!ok || dist3(p, x) > (leaf ? FAR_LEAF : FAR_JOINT) * r->H) continue;
+    memcpy(p, x, sizeof x);
+    *outside &= ~(1u << j);
+    ++moved;
+  }
+  return moved;
+}
 
 /* How many legs the body stands on: distinct extremities within 0.1 H of the ground (at most
  * 4), resting tails left out when there are three or more. Three or more: a quadruped (a
@@ -1761,6 +1855,11 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
         r.tip[j] = -1;
       st = rig_prop(&r, report, err);
     }
+  }
+  if (st == KM_OK && (kind == KM_AUTORIG_KINECT1 || kind == KM_AUTORIG_QUADRUPED)) {
+    uint32_t outside = 0;
+    int moved = joints_inside(&r, &outside);
+    if (report) report->joints_moved_inside = moved, report->joints_outside = outside;
   }
   /* a known skeleton replaces the embedded joints; the tips found for the leaf bones stay */
   if (st == KM_OK && o.joints) {
