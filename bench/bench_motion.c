@@ -24,6 +24,13 @@
  *   t (ms)    median over frames of the wall time of km_puppetry_push, T's and B's pushes taken
  *             in turn over the first 300 frames (time_variants; --solver full: over the take,
  *             one variant after the other)
+ *   forced    B only: the longest edge l / l0 that the handle targets force wherever the handles
+ *             are met (km_stretch_bound over pairs of handle vertices of different handles
+ *             within 0.1 of the diagonal along the surface: their distance in the frame over
+ *             their shortest rest path along edges), the largest over frames; "-" when no
+ *             handles are that close. Above 1.5, no deformation that meets the handles keeps
+ *             every edge under 1.5x: the soft handles give, or the mesh stretches (--json:
+ *             forced_edge_ratio and forced_frame, for T too)
  *   handle miss  how far the handles stay from where the rig puts them (issue 11 asks
  *             that they follow their joints; the reduced model's handles are soft): the mean
  *             over frames and handles of |centroid of the solved handle vertices - its
@@ -92,6 +99,10 @@ typedef struct bm_metrics {
                             |centroid of the solved handle vertices - target|, % of the
                             diagonal */
   double miss_max_pct; /* the largest such miss of a handle in a frame, % of the diagonal */
+  double forced;       /* the longest edge l / l0 the handle targets force (km_stretch_bound:
+                          a lower bound when the handles are met), the largest over frames */
+  size_t forced_frame;
+  int32_t forced_pair[2]; /* its two handle vertices (mesh ids) */
 } bm_metrics;
 
 /* Rest measures shared by both variants (the edges and folds are km_deform_check's). */
@@ -363,6 +374,7 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   size_t nv = m->n_vertices;
   double *V = malloc(3 * nv * sizeof *V);
   km_deform_check *dc = NULL;
+  km_stretch_bound *sb = NULL;
   double *tm = malloc((nf ? nf : 1) * sizeof *tm), *jf = malloc((nf ? nf : 1) * sizeof *jf);
   double *rf = malloc((nf ? nf : 1) * sizeof *rf); /* the take's own step per frame (% diag) */
   km_status s = KM_OK;
@@ -388,6 +400,12 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   s = km_puppetry_create(m, rig, (const char *const *)t->joint_names, t->n_joints, &o, &p, NULL,
                          err);
   if (s != KM_OK) goto done;
+  size_t nh = 0;
+  const int32_t *hoff = NULL, *hv = NULL;
+  km_puppetry_handles(p, &nh, &hoff, &hv);
+  if ((s = km_stretch_bound_create(m, nh, hoff, hv, NULL, &sb, err)) != KM_OK) goto done;
+  out->forced_pair[0] = out->forced_pair[1] = -1;
+  if (!km_stretch_bound_pairs(sb)) out->forced = NAN; /* handles too far apart to pair */
   for (size_t f = 0; f < nf; ++f) {
     double t0 = km_cli_now();
     s = km_puppetry_push(p, t->positions + f * t->n_joints * 3, V, err);
@@ -423,6 +441,11 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     }
     if (fr.y_min < g->floor_y - BM_FLOOR_TOL * g->diag) out->below++;
     handle_miss_frame(p, V, g->diag, &miss_sum, &miss_n, &out->miss_max_pct);
+    int32_t pr[2];
+    double fb = km_stretch_bound_eval(sb, km_puppetry_vertex_targets(p), pr);
+    if (fb > out->forced)
+      out->forced = fb, out->forced_frame = f, out->forced_pair[0] = hv[pr[0]],
+      out->forced_pair[1] = hv[pr[1]];
     if (sk && !isnan(sk->out.stretch)) skin_frame(sk, m, g, p, f, where, V);
   }
   take_summary(dc, g->diag, out);
@@ -437,6 +460,13 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     int32_t h = km_rig_nearest_handle(rig, m, m->V + 3 * (size_t)le[0]);
     fprintf(stderr, "WHERE B: longest l/l0 %.3f frame %zu edge %d-%d near %s (long.obj)\n",
             sum.ratio_max, sum.ratio_max_frame, le[0], le[1], h >= 0 ? rig->handles[h].name : "-");
+    if (out->forced_pair[0] >= 0) {
+      int32_t h0 = km_rig_nearest_handle(rig, m, m->V + 3 * (size_t)out->forced_pair[0]),
+              h1 = km_rig_nearest_handle(rig, m, m->V + 3 * (size_t)out->forced_pair[1]);
+      fprintf(stderr, "WHERE B: the targets force l/l0 >= %.3f in frame %zu, between %s and %s\n",
+              out->forced, out->forced_frame, h0 >= 0 ? rig->handles[h0].name : "-",
+              h1 >= 0 ? rig->handles[h1].name : "-");
+    }
   }
   finish_times(out, tm, jf, nf);
   if (nf > 1) { /* rf sorted by p95: its last is the largest step */
@@ -461,6 +491,7 @@ done:
   }
   km_puppetry_free(&p);
   km_deform_check_free(&dc);
+  km_stretch_bound_free(&sb);
   free(V);
   free(tm);
   free(jf);
@@ -530,6 +561,8 @@ static cJSON *metrics_json(const bm_metrics *x, bool handles) {
   if (handles) {
     km_cli_json_number(o, "handle_miss_pct", x->miss_pct);
     km_cli_json_number(o, "handle_miss_max_pct", x->miss_max_pct);
+    km_cli_json_number(o, "forced_edge_ratio", x->forced);
+    cJSON_AddNumberToObject(o, "forced_frame", (double)x->forced_frame);
   }
   return o;
 }
@@ -726,16 +759,18 @@ static int bench_motion_mesh(const char *spec, const char *const *takes, size_t 
       if (s) puts(s);
       free(s);
     } else {
-      printf("%-18.18s %-16.16s %7zu %5zu  %6.3f %6.3f  %5.3f %5.3f  %5zu %5zu  %6.2f %6.2f %6.2f  "
-             "%5zu %5zu  %5.1f %5.1f  %7.2f %7.2f  %5zu  %6s\n",
+      char forced[16] = "-";
+      if (isfinite(r[1].forced)) snprintf(forced, sizeof forced, "%.3f", r[1].forced);
+      printf("%-18.18s %-16.16s %7zu %5zu  %6.3f %6.3f  %5.3f %5.3f %6s  %5zu %5zu  %6.2f %6.2f "
+             "%6.2f  %5zu %5zu  %5.1f %5.1f  %7.2f %7.2f  %5zu  %6s\n",
              tname, mname, m.n_vertices, nf, r[0].stretch, r[1].stretch, r[1].ratio_min,
-             r[1].ratio_max, r[0].folded, r[1].folded, r[0].raw_jump_pct, r[0].jump_pct,
+             r[1].ratio_max, forced, r[0].folded, r[1].folded, r[0].raw_jump_pct, r[0].jump_pct,
              r[1].jump_pct, r[0].below, r[1].below, r[0].miss_pct, r[1].miss_pct, r[0].tper_ms,
              r[1].tper_ms, r[1].eased, miss);
       if (a->skin)
-        printf("%-18.18s %-16.16s %7s %5s  %6s %6.3f  %5.3f %5.3f  %5s %5zu  %6s %6s %6.2f  %5s "
-               "%5zu  %5s %5s  %7s %7.2f  (L: skinned by the rig's weights)\n",
-               "", "", "", "", "", sk.out.stretch, sk.out.ratio_min, sk.out.ratio_max, "",
+        printf("%-18.18s %-16.16s %7s %5s  %6s %6.3f  %5.3f %5.3f %6s  %5s %5zu  %6s %6s %6.2f  "
+               "%5s %5zu  %5s %5s  %7s %7.2f  (L: skinned by the rig's weights)\n",
+               "", "", "", "", "", sk.out.stretch, sk.out.ratio_min, sk.out.ratio_max, "", "",
                sk.out.folded, "", "", sk.out.jump_pct, "", sk.out.below, "", "", "",
                sk.out.tper_ms);
     }
@@ -852,7 +887,9 @@ int km_bench_motion(int argc, char **argv) {
       "Issue 12's benchmark: each take drives each mesh (oriented by guess, rigged by\n"
       "km_autorig) through the puppetry pipeline, with translation-only handles (the\n"
       "paper's, T) and bone handles (B) side by side. Per row: edge stretch max\n"
-      "|l/l0 - 1|, folded triangles (a neighbour's normal < 60 deg at rest, > 120 deg\n"
+      "|l/l0 - 1|, B's shortest and longest l/l0 and the longest its handle targets\n"
+      "force (\"forced\": any deformation meeting the handles has an edge that long),\n"
+      "folded triangles (a neighbour's normal < 60 deg at rest, > 120 deg\n"
       "in a frame), the largest one-frame vertex jump (% of the bbox diagonal), frames\n"
       "with a vertex below the rest floor (by more than 0.5% of the diagonal) and the\n"
       "median per-frame time, and for B the frames the snap easing slowed and the\n"
@@ -922,13 +959,13 @@ int km_bench_motion(int argc, char **argv) {
                           : "",
              a.relative_to ? "; motion relative to " : "",
              a.relative_to ? km_kinect1_joint_name(a.relative_to - 1) : "");
-      printf("%-18s %-16s %7s %5s  %13s  %11s  %11s  %20s  %11s  %11s  %15s  %5s  %6s\n", "", "",
+      printf("%-18s %-16s %7s %5s  %13s  %18s  %11s  %20s  %11s  %11s  %15s  %5s  %6s\n", "", "",
              "", "", "stretch max", "B l/l0", "folded", "jump %diag", "below floor", "handle miss",
              "t/frame (ms)", "eased", "misses");
-      printf("%-18s %-16s %7s %5s  %6s %6s  %5s %5s  %5s %5s  %6s %6s %6s  %5s %5s  %5s %5s  %7s "
-             "%7s  %5s  %6s\n",
-             "take", "mesh", "n_ver", "fr", "T", "B", "min", "max", "T", "B", "take", "T", "B", "T",
-             "B", "T", "B", "T", "B", "B", "B");
+      printf("%-18s %-16s %7s %5s  %6s %6s  %5s %5s %6s  %5s %5s  %6s %6s %6s  %5s %5s  %5s %5s  "
+             "%7s %7s  %5s  %6s\n",
+             "take", "mesh", "n_ver", "fr", "T", "B", "min", "max", "forced", "T", "B", "take", "T",
+             "B", "T", "B", "T", "B", "T", "B", "B", "B");
     }
     fflush(stdout);
     bm_count count = {0};

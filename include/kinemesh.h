@@ -633,6 +633,45 @@ size_t km_deform_check_frames(const km_deform_check *c, const km_deform_frame **
 km_status km_deform_check_write_json(const km_deform_check *c, const char *path, km_error *err);
 void km_deform_check_free(km_deform_check **c);
 
+/* Stretch bound: the edge stretch that vertex sets held at given targets (a rig's handles)
+ * force on the mesh, whatever the deformation does between them. For two held vertices a, b of
+ * different sets, every path along edges between them is at least |x_a - x_b| long in the
+ * frame and at most r times its rest length when no edge stretches more than r, so the longest
+ * edge ratio l / l0 of any frame that puts them there is at least |x_a - x_b| / D(a, b), with
+ * D the shortest rest path along edges (Dijkstra). Over sampled pairs this is a lower bound
+ * on the deform check's longest edge when the handles are met exactly (hard handles); a soft
+ * solver under it has moved its handles off their targets. issue 12: whether a rig's targets
+ * let the mesh stay under 1.5x at all. */
+typedef struct km_stretch_bound km_stretch_bound;
+typedef struct km_stretch_bound_options {
+  double radius; /* pairs joined by a rest path at most this long, a fraction of the rest
+                    bounding-box diagonal (the bound holds for any pair; far ones are loose and
+                    cost time); 0: 0.1 */
+  int samples;   /* a set's boundary vertices (a face neighbour outside it) sampled, spread
+                    over its list; 0: 48 */
+} km_stretch_bound_options;
+/* Precompute the pairs (one bounded Dijkstra per sampled vertex).
+ *   rest      in: triangle mesh, #V vertices
+ *   n_sets    in: number of vertex sets (handles)
+ *   offsets   in: n_sets+1; set h holds vertices[offsets[h] .. offsets[h+1]-1]
+ *   vertices  in: offsets[n_sets] vertex ids, each in at most one set (km_puppetry_handles'
+ *             layout)
+ *   opt       in: may be NULL (defaults)
+ *   out       out: free with km_stretch_bound_free
+ * Errors: KM_ERR_INVALID (a vertex out of range), KM_ERR_NOMEM. */
+km_status km_stretch_bound_create(const km_mesh *rest, size_t n_sets, const int32_t *offsets,
+                                  const int32_t *vertices, const km_stretch_bound_options *opt,
+                                  km_stretch_bound **out, km_error *err);
+/* The bound for one frame's targets.
+ *   targets  in: offsets[n_sets]*3 positions of the sets' vertices, in the vertices' order
+ *            (km_puppetry_vertex_targets); a NaN pair is skipped
+ *   pair     out (may be NULL): the two indices into vertices that give it (-1 when no pair)
+ * Returns the bound, a ratio (0 without pairs). */
+double km_stretch_bound_eval(const km_stretch_bound *b, const double *targets, int32_t pair[2]);
+/* The number of pairs. */
+size_t km_stretch_bound_pairs(const km_stretch_bound *b);
+void km_stretch_bound_free(km_stretch_bound **b);
+
 /* k vertices spread over the mesh by farthest-point sampling (Euclidean, deterministic: the
  * first is the vertex farthest from the centroid, each next one the farthest from those
  * taken). For landmarks on a mesh without a rig: meshes of one connectivity share the ids.

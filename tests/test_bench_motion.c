@@ -235,6 +235,30 @@ int main(void) {
   CHECK_MSG(rows == 1, "--solver full: %d rows", rows);
   free(out);
 
+  /* forced: with hard handles (the full solver, handle weight 0) the handles sit on their
+   * targets, so B's longest edge is at least what the targets force (km_stretch_bound's
+   * promise, on a real rig and take); the kung-fu take bends the elbows, so it is above 1 */
+  out = NULL;
+  rc = km_test_run(KM_CLI " bench motion --meshes character:3000 --takes kungfu --frames 40 "
+                          "--solver full --handle-weight 0 --json 2>/dev/null",
+                   &out);
+  CHECK_MSG(rc == 0, "forced: exit status %d", rc);
+  rows = 0;
+  for (char *line = out ? strtok(out, "\n") : NULL; line; line = strtok(NULL, "\n")) {
+    if (line[0] != '{') continue;
+    cJSON *o = cJSON_Parse(line);
+    if (!o) continue;
+    const cJSON *b = cJSON_GetObjectItem(o, "bones");
+    double forced = num(b, "forced_edge_ratio", rows), longest = num(b, "edge_ratio_max", rows);
+    printf("hard handles: forced %.4f, longest edge %.4f\n", forced, longest);
+    CHECK_MSG(forced > 1.05 && longest >= forced - 1e-6,
+              "hard handles: the targets force %.6f, the longest edge is %.6f", forced, longest);
+    cJSON_Delete(o);
+    ++rows;
+  }
+  CHECK_MSG(rows == 1, "forced: %d rows", rows);
+  free(out);
+
   /* a bad option is a usage error */
   CHECK(km_test_run(KM_CLI " bench motion --solver fast --takes walk --meshes character:3000 "
                            ">/dev/null 2>&1",

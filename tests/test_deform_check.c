@@ -158,9 +158,91 @@ static void test_nearest_handle(void) {
   CHECK(km_rig_nearest_handle(&none, &m, near_a) == -1);
 }
 
+/* km_stretch_bound: the longest edge l / l0 that vertex sets held at targets force. On a strip
+ * along x (a grid of 41 x 3 vertices, 2 by 0.2) with a set at each end: at rest a pair along a
+ * row is as far apart as its path, so the bound is 1; with x doubled it is 2; and for any
+ * deformation, its targets' bound is at most that deformation's longest edge (the bound's
+ * promise: with the sets met, no mesh does better). */
+static void test_stretch_bound(void) {
+  enum { NX = 41, NZ = 3 };
+  double V0[NX * NZ * 3], V[NX * NZ * 3];
+  int32_t F[(NX - 1) * (NZ - 1) * 6], sets[NX * NZ], off[3];
+  for (int i = 0; i < NX; ++i)
+    for (int k = 0; k < NZ; ++k) {
+      double *p = V0 + 3 * (i * NZ + k);
+      p[0] = 2.0 * i / (NX - 1), p[1] = 0, p[2] = 0.1 * k;
+    }
+  size_t nf = 0;
+  for (int i = 0; i + 1 < NX; ++i)
+    for (int k = 0; k + 1 < NZ; ++k) {
+      int32_t a = i * NZ + k, b = (i + 1) * NZ + k, c = (i + 1) * NZ + k + 1, d = i * NZ + k + 1;
+      int32_t t[6] = {a, c, b, a, d, c};
+      memcpy(F + 6 * nf / 2, t, sizeof t);
+      nf += 2;
+    }
+  km_mesh m = {.V = V0, .F = F, .n_vertices = NX * NZ, .n_faces = nf};
+  size_t n = 0; /* set 0: x <= 0.3, set 1: x >= 1.7 */
+  off[0] = 0;
+  for (int v = 0; v < NX * NZ; ++v)
+    if (V0[3 * v] <= 0.3 + 1e-9) sets[n++] = v;
+  off[1] = (int32_t)n;
+  for (int v = 0; v < NX * NZ; ++v)
+    if (V0[3 * v] >= 1.7 - 1e-9) sets[n++] = v;
+  off[2] = (int32_t)n;
+  km_stretch_bound_options o = {.radius = 1.0};
+  km_stretch_bound *b = NULL;
+  km_error err = {0};
+  CHECK_OK(km_stretch_bound_create(&m, 2, off, sets, &o, &b, KM_E));
+  CHECK_MSG(km_stretch_bound_pairs(b) > 0, "no pairs");
+  double T[NX * NZ * 3];
+  int32_t pr[2];
+  for (size_t i = 0; i < n; ++i)
+    memcpy(T + 3 * i, V0 + 3 * (size_t)sets[i], 3 * sizeof(double));
+  double at_rest = km_stretch_bound_eval(b, T, pr);
+  CHECK_MSG(fabs(at_rest - 1) < 1e-9, "at rest: %.12f", at_rest);
+  CHECK_MSG(pr[0] >= 0 && pr[0] < off[1] && pr[1] >= off[1] && pr[1] < off[2], "pair %d %d",
+            (int)pr[0], (int)pr[1]);
+  for (size_t i = 0; i < n; ++i)
+    T[3 * i] *= 2;
+  double doubled = km_stretch_bound_eval(b, T, NULL);
+  CHECK_MSG(fabs(doubled - 2) < 1e-9, "x doubled: %.12f", doubled);
+  /* deformations: a bend of the right half up about x = 1, and a wave; each one's longest edge
+   * is at least its targets' bound */
+  for (int d = 0; d < 2; ++d) {
+    for (int v = 0; v < NX * NZ; ++v) {
+      const double *p = V0 + 3 * v;
+      double *q = V + 3 * v;
+      if (d == 0) {
+        double a = p[0] > 1 ? 1.2 * (p[0] - 1) : 0; /* up to 72 degrees at the far end */
+        q[0] = p[0] > 1 ? 1 + sin(a) / 1.2 : p[0], q[1] = p[0] > 1 ? (1 - cos(a)) / 1.2 : 0;
+        q[0] += 0.1 * p[0] * p[0], q[2] = p[2];
+      } else {
+        q[0] = p[0] + 0.2 * sin(3 * p[0]), q[1] = 0.3 * sin(5 * p[0]) * p[2], q[2] = p[2];
+      }
+    }
+    for (size_t i = 0; i < n; ++i)
+      memcpy(T + 3 * i, V + 3 * (size_t)sets[i], 3 * sizeof(double));
+    km_deform_check *dc = NULL;
+    CHECK_OK(km_deform_check_create(&m, &dc, KM_E));
+    km_deform_frame fr = {0};
+    CHECK_OK(km_deform_check_add(dc, V, &fr, KM_E));
+    double bound = km_stretch_bound_eval(b, T, NULL);
+    printf("stretch bound, deformation %d: %.4f <= longest edge %.4f\n", d, bound, fr.ratio_max);
+    CHECK_MSG((d || bound > 1.1) && bound <= fr.ratio_max + 1e-12,
+              "deformation %d: bound %.6f, longest %.6f", d, bound, fr.ratio_max);
+    km_deform_check_free(&dc);
+  }
+  km_stretch_bound_free(&b);
+  CHECK(b == NULL);
+  sets[0] = NX * NZ; /* out of range */
+  CHECK(km_stretch_bound_create(&m, 2, off, sets, NULL, &b, &err) == KM_ERR_INVALID && !b);
+  CHECK_MSG(strstr(err.message, "out of range") != NULL, "%s", err.message);
+}
+
 int main(void) {
   test_known_frames();
   test_against_edge_measure();
   test_nearest_handle();
+  test_stretch_bound();
   return km_test_finish("test_deform_check");
 }

@@ -1,0 +1,153 @@
+/* Stretch bound (km_stretch_bound_*): the edge stretch that vertex sets held at targets force on
+ * a mesh, whatever the solver does between them. Written here because it is a measure of this
+ * project's own (issue 12's benchmark asks whether a rig's handle targets let the mesh stay
+ * under 1.5x); the one Dijkstra of the library (km__geodesic) gives the rest path lengths. */
+#include "core/core.h"
+#include "mesh/mesh.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct km_stretch_bound {
+  size_t n_pairs, n_targets;
+  int32_t *pairs; /* n_pairs*2: indices into the targets (the sets' vertex list) */
+  double *len0;   /* n_pairs: the shortest rest path along edges between them */
+};
+
+void km_stretch_bound_free(km_stretch_bound **pb) {
+  if (!pb || !*pb) return;
+  free((*pb)->pairs);
+  free((*pb)->len0);
+  free(*pb);
+  *pb = NULL;
+}
+
+size_t km_stretch_bound_pairs(const km_stretch_bound *b) { return b ? b->n_pairs : 0; }
+
+/* A set's boundary vertices (a face neighbour outside the set), up to k spread evenly over
+ * them in the list's order, as indices into the vertex list; their count. */
+static size_t sample_boundary(const int32_t *verts, int32_t lo, int32_t hi,
+                              const unsigned char *edge_of, size_t k, int32_t *out) {
+  size_t nb = 0;
+  for (int32_t i = lo; i < hi; ++i)
+    nb += edge_of[verts[i]];
+  size_t taken = 0, seen = 0;
+  for (int32_t i = lo; i < hi && taken < k; ++i) {
+    if (!edge_of[verts[i]]) continue;
+    /* the seen-th of nb boundary vertices is taken when it starts a new k-th of them */
+    if (nb <= k || (seen * k) / nb != ((seen + 1) * k) / nb) out[taken++] = i;
+    ++seen;
+  }
+  return taken;
+}
+
+km_status km_stretch_bound_create(const km_mesh *rest, size_t n_sets, const int32_t *offsets,
+                                  const int32_t *vertices, const km_stretch_bound_options *opt,
+                                  km_stretch_bound **out, km_error *err) {
+  if (!out) return km__fail(err, KM_ERR_INVALID, "km_stretch_bound_create: out is NULL");
+  *out = NULL;
+  if (!rest || !rest->V || (!rest->F && rest->n_faces) || (n_sets && (!offsets || !vertices)))
+    return km__fail(err, KM_ERR_INVALID, "km_stretch_bound_create: NULL mesh or sets");
+  km_stretch_bound_options o = {0};
+  if (opt) o = *opt;
+  if (!(o.radius > 0)) o.radius = 0.1;
+  if (o.samples <= 0) o.samples = 48;
+  size_t n = rest->n_vertices, nt = n_sets ? (size_t)offsets[n_sets] : 0;
+  for (size_t i = 0; i < nt; ++i)
+    if (vertices[i] < 0 || (size_t)vertices[i] >= n)
+      return km__fail(err, KM_ERR_INVALID,
+                      "km_stretch_bound_create: set vertex %d out of range (%zu vertices)",
+                      (int)vertices[i], n);
+  km_stretch_bound *b = calloc(1, sizeof *b);
+  int32_t *set_of = malloc((n ? n : 1) * sizeof *set_of);  /* vertex -> set, -1 none */
+  int32_t *idx_of = malloc((n ? n : 1) * sizeof *idx_of);  /* vertex -> index in vertices */
+  unsigned char *edge_of = calloc(n ? n : 1, 1);           /* on its set's boundary */
+  int32_t *samp = malloc((n_sets * (size_t)o.samples + 1) * sizeof *samp);
+  size_t *samp_off = malloc((n_sets + 1) * sizeof *samp_off);
+  unsigned char *is_samp = calloc(nt ? nt : 1, 1);
+  km__geodesic *g = NULL;
+  size_t cap = 0;
+  km_status st = KM_OK;
+  if (!b || !set_of || !idx_of || !edge_of || !samp || !samp_off || !is_samp) {
+    st = km__fail(err, KM_ERR_NOMEM, "stretch bound: out of memory");
+    goto done;
+  }
+  for (size_t v = 0; v < n; ++v)
+    set_of[v] = -1, idx_of[v] = -1;
+  for (size_t h = 0; h < n_sets; ++h)
+    for (int32_t i = offsets[h]; i < offsets[h + 1]; ++i)
+      set_of[vertices[i]] = (int32_t)h, idx_of[vertices[i]] = i;
+  for (size_t f = 0; f < rest->n_faces; ++f)
+    for (int k = 0; k < 3; ++k) {
+      int32_t a = rest->F[3 * f + k], c = rest->F[3 * f + (k + 1) % 3];
+      if (a < 0 || c < 0 || (size_t)a >= n || (size_t)c >= n) continue;
+      if (set_of[a] >= 0 && set_of[a] != set_of[c]) edge_of[a] = 1;
+      if (set_of[c] >= 0 && set_of[c] != set_of[a]) edge_of[c] = 1;
+    }
+  samp_off[0] = 0;
+  for (size_t h = 0; h < n_sets; ++h) {
+    size_t k = sample_boundary(vertices, offsets[h], offsets[h + 1], edge_of, (size_t)o.samples,
+                               samp + samp_off[h]);
+    samp_off[h + 1] = samp_off[h] + k;
+  }
+  for (size_t s = 0; s < samp_off[n_sets]; ++s)
+    is_samp[samp[s]] = 1;
+  if ((st = km__geodesic_create(rest, &g, err)) != KM_OK) goto done;
+  double radius = o.radius * km_bbox_diagonal(rest->V, n);
+  for (size_t h = 0; h < n_sets; ++h)
+    for (size_t s = samp_off[h]; s < samp_off[h + 1]; ++s) {
+      const int32_t *reached = NULL;
+      size_t nr = 0;
+      const double *d = km__geodesic_run(g, rest->V, vertices[samp[s]], radius, NULL, 0, &reached,
+                                         &nr);
+      for (size_t r = 0; r < nr; ++r) {
+        int32_t v = reached[r];
+        /* each pair once: from the set with the lower index; sampled ends only */
+        if (set_of[v] <= (int32_t)h || !is_samp[idx_of[v]] || !(d[v] > 0) || !isfinite(d[v]))
+          continue;
+        if (b->n_pairs == cap) {
+          size_t nc = cap ? 2 * cap : 1024;
+          int32_t *np = realloc(b->pairs, 2 * nc * sizeof *np);
+          if (np) b->pairs = np;
+          double *nl = np ? realloc(b->len0, nc * sizeof *nl) : NULL;
+          if (nl) b->len0 = nl;
+          if (!np || !nl) {
+            st = km__fail(err, KM_ERR_NOMEM, "stretch bound: out of memory");
+            goto done;
+          }
+          cap = nc;
+        }
+        b->pairs[2 * b->n_pairs] = samp[s];
+        b->pairs[2 * b->n_pairs + 1] = idx_of[v];
+        b->len0[b->n_pairs++] = d[v];
+      }
+    }
+  b->n_targets = nt;
+done:
+  km__geodesic_free(&g);
+  free(set_of), free(idx_of), free(edge_of), free(samp), free(samp_off), free(is_samp);
+  if (st != KM_OK) {
+    km_stretch_bound_free(&b);
+    return st;
+  }
+  *out = b;
+  return KM_OK;
+}
+
+double km_stretch_bound_eval(const km_stretch_bound *b, const double *targets, int32_t pair[2]) {
+  double best = 0;
+  if (pair) pair[0] = pair[1] = -1;
+  for (size_t p = 0; b && targets && p < b->n_pairs; ++p) {
+    const double *x = targets + 3 * (size_t)b->pairs[2 * p],
+                 *y = targets + 3 * (size_t)b->pairs[2 * p + 1];
+    double d = sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) +
+                    (x[2] - y[2]) * (x[2] - y[2])) /
+               b->len0[p];
+    if (d > best) { /* NaN (a target not known) is skipped */
+      best = d;
+      if (pair) pair[0] = b->pairs[2 * p], pair[1] = b->pairs[2 * p + 1];
+    }
+  }
+  return best;
+}
