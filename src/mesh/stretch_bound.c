@@ -60,9 +60,9 @@ km_status km_stretch_bound_create(const km_mesh *rest, size_t n_sets, const int3
                       "km_stretch_bound_create: set vertex %d out of range (%zu vertices)",
                       (int)vertices[i], n);
   km_stretch_bound *b = calloc(1, sizeof *b);
-  int32_t *set_of = malloc((n ? n : 1) * sizeof *set_of);  /* vertex -> set, -1 none */
-  int32_t *idx_of = malloc((n ? n : 1) * sizeof *idx_of);  /* vertex -> index in vertices */
-  unsigned char *edge_of = calloc(n ? n : 1, 1);           /* on its set's boundary */
+  int32_t *set_of = malloc((n ? n : 1) * sizeof *set_of); /* vertex -> set, -1 none */
+  int32_t *idx_of = malloc((n ? n : 1) * sizeof *idx_of); /* vertex -> index in vertices */
+  unsigned char *edge_of = calloc(n ? n : 1, 1);          /* on its set's boundary */
   int32_t *samp = malloc((n_sets * (size_t)o.samples + 1) * sizeof *samp);
   size_t *samp_off = malloc((n_sets + 1) * sizeof *samp_off);
   unsigned char *is_samp = calloc(nt ? nt : 1, 1);
@@ -99,8 +99,8 @@ km_status km_stretch_bound_create(const km_mesh *rest, size_t n_sets, const int3
     for (size_t s = samp_off[h]; s < samp_off[h + 1]; ++s) {
       const int32_t *reached = NULL;
       size_t nr = 0;
-      const double *d = km__geodesic_run(g, rest->V, vertices[samp[s]], radius, NULL, 0, &reached,
-                                         &nr);
+      const double *d =
+          km__geodesic_run(g, rest->V, vertices[samp[s]], radius, NULL, 0, &reached, &nr);
       for (size_t r = 0; r < nr; ++r) {
         int32_t v = reached[r];
         /* each pair once: from the set with the lower index; sampled ends only */
