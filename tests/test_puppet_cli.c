@@ -529,6 +529,34 @@ static void test_report(void) {
   km_test_run("rm -rf puppet_r", NULL);
 }
 
+/* animate says when the rig itself asks for a stretch (km_stretch_bound over the handle
+ * targets): a kung-fu take bends the character's knees and elbows, and its bone handles ask for
+ * more than 1.5x across them. With hard handles (the full solver, --handle-weight 0) every handle
+ * is met, so the longest edge printed is at least what the handles ask for. */
+static void test_forced_line(void) {
+  char *out = NULL;
+  CHECK(km_test_run("rm -rf puppet_f && mkdir puppet_f", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen character --vertices 2500 -o puppet_f/c.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " gen motion --kind kungfu --frames 60 --character puppet_f/c.obj "
+                           "-o puppet_f/k.json",
+                    NULL) == 0);
+  int rc = km_test_run(KM_CLI " animate --mesh puppet_f/c.obj --motion puppet_f/k.json "
+                              "-o puppet_f/k.pc2 --solver full --handle-weight 0",
+                       &out);
+  const char *sh = out ? strstr(out, "shape: longest edge ") : NULL,
+             *fl = out ? strstr(out, "  handles: ") : NULL;
+  double longest = 0, forced = 0;
+  const char *at = fl ? strstr(fl, "at least ") : NULL;
+  CHECK_MSG(rc == 0 && sh && at && sscanf(sh, "shape: longest edge %lfx", &longest) == 1 &&
+                sscanf(at, "at least %lfx", &forced) == 1,
+            "no shape or handles line: %s", out ? out : "");
+  printf("kung fu, hard handles: longest edge %.2fx, the handles ask for %.2fx\n", longest, forced);
+  CHECK_MSG(forced > 1.5 && longest >= forced - 0.01, "longest edge %.2fx, handles ask %.2fx",
+            longest, forced);
+  free(out);
+  km_test_run("rm -rf puppet_f", NULL);
+}
+
 /* precompute keeps an up-to-date cache and builds with its own parameters, which animate then
  * adopts; --frame-format ply; a motion without the joints a kinect1 rig maps is an error. */
 static void test_cache_params_and_formats(void) {
@@ -714,6 +742,7 @@ int main(void) {
   test_bad_rig_and_motion();
   test_cache_params_and_formats();
   test_report();
+  test_forced_line();
   test_no_rig();
   test_bench_deform_json();
   test_demo();

@@ -121,6 +121,7 @@ int km_cli_animate(int argc, char **argv) {
   km_anim_writer *w = NULL;
   double *V = NULL, *t23 = NULL, *t4 = NULL;
   km_deform_check *dc = NULL;
+  km_stretch_bound *sb = NULL;
   char *rig_default = rig_path ? NULL : km_cli_rig_path(mesh_path);
   char *cache_default = NULL, *skin_json = NULL;
   size_t skin_json_n = 0;
@@ -221,9 +222,15 @@ int km_cli_animate(int argc, char **argv) {
             pi.puppet.energy == KM_PUPPET_ENERGY_LAPLACIAN ? "laplacian" : "arap");
   km_cli_report_cache(cpath, &pi);
   bool loaded = pi.model == KM_PUPPETRY_MODEL_LOADED;
-  const int32_t *offsets = NULL;
-  km_puppetry_handles(pl, NULL, &offsets, NULL);
+  const int32_t *offsets = NULL, *hverts = NULL;
+  km_puppetry_handles(pl, NULL, &offsets, &hverts);
   size_t n_hv = (size_t)offsets[rig.n_handles];
+  /* what the handle targets force: when the mesh stretches, whether the rig asked for it */
+  if (km_stretch_bound_create(&m, rig.n_handles, offsets, hverts, NULL, &sb, &err) != KM_OK)
+    goto fail;
+  double forced = 0;
+  size_t forced_frame = 0;
+  int32_t forced_pair[2] = {-1, -1};
   V = malloc(sizeof(double) * 3 * m.n_vertices);
   t23 = malloc(sizeof(double) * take.n_frames);
   t4 = malloc(sizeof(double) * take.n_frames);
@@ -249,12 +256,19 @@ int km_cli_animate(int argc, char **argv) {
     t4[f] = tm.solve_ms;
     if (km_anim_writer_push(w, V, &err) != KM_OK || km_deform_check_add(dc, V, NULL, &err) != KM_OK)
       goto fail;
+    int32_t pr[2];
+    double fb = km_stretch_bound_eval(sb, km_puppetry_vertex_targets(pl), pr);
+    if (fb > forced)
+      forced = fb, forced_frame = f, forced_pair[0] = hverts[pr[0]], forced_pair[1] = hverts[pr[1]];
     prog.fn((double)(f + 1) / (double)take.n_frames, full ? "full ARAP" : "reduced model", NULL);
   }
   /* the report before the animation is finished: a report that cannot be written leaves no
    * animation behind either */
-  char shape_line[1024];
+  char shape_line[1024], forced_line[512] = "";
   km_cli_shape_line(dc, &m, &rig, shape_line, sizeof shape_line);
+  if (forced > 1.5)
+    km_cli_forced_line(&m, &rig, forced, forced_frame, forced_pair, forced_line,
+                       sizeof forced_line);
   if (report && km_deform_check_write_json(dc, report, &err) != KM_OK) goto fail;
   km_anim_report rep;
   if (km_anim_writer_finish(&w, &rep, &err) != KM_OK) goto fail;
@@ -271,13 +285,13 @@ int km_cli_animate(int argc, char **argv) {
           "kinemesh animate: %zu frames, %zu vertices, %zu handles (%zu vertices), scale %.3f\n"
           "  %-22s %10s %12s %12s %12s\n"
           "  %-22s %10.3f %12.4f %12.3f %12.3f\n"
-          "%s%s"
+          "%s%s%s"
           "-> %s%s%s\n",
           take.n_frames, m.n_vertices, rig.n_handles, n_hv, km_puppetry_scale(pl),
           full ? "stage (full ARAP)" : (loaded ? "stage (cache loaded)" : "stage (precomputed)"),
           full ? "t1 (s)" : (loaded ? "t~1 (s)" : "t1 (s)"), "t2,3 (ms)", "t4 (ms)", "tper (ms)",
-          "median per frame", pi.model_seconds, m23, m4, m23 + m4, glitch_line, shape_line, out,
-          report ? ", deformation check -> " : "", report ? report : "");
+          "median per frame", pi.model_seconds, m23, m4, m23 + m4, glitch_line, shape_line,
+          forced_line, out, report ? ", deformation check -> " : "", report ? report : "");
   rc = KM_EXIT_OK;
   goto done;
 nomem:
@@ -288,6 +302,7 @@ fail:
 done:
   km_anim_writer_free(&w);
   km_deform_check_free(&dc);
+  km_stretch_bound_free(&sb);
   free(V);
   free(t23);
   free(t4);

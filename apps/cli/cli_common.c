@@ -865,6 +865,23 @@ void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig
            step);
 }
 
+/* What the handle targets force (km_stretch_bound), when it is over 1.5x: the two handles,
+ * and that no deformation meeting them does better, so the rig, not the solver, sets it. */
+void km_cli_forced_line(const km_mesh *m, const km_rig *rig, double forced, size_t frame,
+                        const int32_t pair[2], char *line, size_t n) {
+  const char *h[2] = {"-", "-"};
+  for (int k = 0; k < 2 && rig; ++k) {
+    int32_t i = pair[k] >= 0 ? km_rig_nearest_handle(rig, m, m->V + 3 * (size_t)pair[k]) : -1;
+    if (i >= 0) h[k] = rig->handles[i].name;
+  }
+  snprintf(line, n,
+           "  handles: %s and %s ask for an edge of at least %.2fx between them (frame %zu): "
+           "no deformation that meets them keeps every edge under 1.5x, and the solver's soft "
+           "handles give there (to ask less, move those handles apart or shrink them in the "
+           "rig)\n",
+           h[0], h[1], forced, frame);
+}
+
 void km_cli_glitch_line(const km_glitch_stats *gs, const char *restarted, char *line, size_t n) {
   int k = snprintf(line, n,
                    "  glitches rejected: %zu of %zu joint samples (speed %zu, bone %zu, re-found "
