@@ -400,16 +400,16 @@ static void test_demo(void) {
 }
 
 /* A fresh folder DIR with a generated character DIR/c.obj (and its rig) of `vertices` and a
- * wave take DIR/w.json of `frames` frames for it. */
-static void character_and_wave(const char *dir, int vertices, int frames) {
+ * generated take DIR/w.json of `frames` frames for it (gen motion --kind: wave, kungfu, ...). */
+static void character_and_take(const char *dir, int vertices, int frames, const char *kind) {
   char cmd[512];
   snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir %s", dir, dir);
   CHECK(km_test_run(cmd, NULL) == 0);
   snprintf(cmd, sizeof cmd, KM_CLI " gen character --vertices %d -o %s/c.obj", vertices, dir);
   CHECK(km_test_run(cmd, NULL) == 0);
   snprintf(cmd, sizeof cmd,
-           KM_CLI " gen motion --kind wave --frames %d --character %s/c.obj -o %s/w.json", frames,
-           dir, dir);
+           KM_CLI " gen motion --kind %s --frames %d --character %s/c.obj -o %s/w.json", kind,
+           frames, dir, dir);
   CHECK(km_test_run(cmd, NULL) == 0);
 }
 
@@ -418,7 +418,7 @@ static void character_and_wave(const char *dir, int vertices, int frames) {
  * error naming it, and leaves no animation behind. */
 static void test_report(void) {
   char *out = NULL;
-  character_and_wave("puppet_r", 2500, 16);
+  character_and_take("puppet_r", 2500, 16, "wave");
   CHECK(km_test_run(KM_CLI " animate --mesh puppet_r/c.obj --motion puppet_r/w.json "
                            "-o puppet_r/x.pc2 --report puppet_r/new/r.json",
                     &out) == 0);
@@ -535,12 +535,8 @@ static void test_report(void) {
  * is met, so the longest edge printed is at least what the handles ask for. */
 static void test_forced_line(void) {
   char *out = NULL;
-  CHECK(km_test_run("rm -rf puppet_f && mkdir puppet_f", NULL) == 0);
-  CHECK(km_test_run(KM_CLI " gen character --vertices 2500 -o puppet_f/c.obj", NULL) == 0);
-  CHECK(km_test_run(KM_CLI " gen motion --kind kungfu --frames 60 --character puppet_f/c.obj "
-                           "-o puppet_f/k.json",
-                    NULL) == 0);
-  int rc = km_test_run(KM_CLI " animate --mesh puppet_f/c.obj --motion puppet_f/k.json "
+  character_and_take("puppet_f", 2500, 60, "kungfu");
+  int rc = km_test_run(KM_CLI " animate --mesh puppet_f/c.obj --motion puppet_f/w.json "
                               "-o puppet_f/k.pc2 --solver full --handle-weight 0",
                        &out);
   const char *sh = out ? strstr(out, "shape: longest edge ") : NULL,
@@ -561,7 +557,7 @@ static void test_forced_line(void) {
  * adopts; --frame-format ply; a motion without the joints a kinect1 rig maps is an error. */
 static void test_cache_params_and_formats(void) {
   char *out = NULL;
-  character_and_wave("puppet_p", 2500, 12);
+  character_and_take("puppet_p", 2500, 12, "wave");
   CHECK(km_test_run(KM_CLI " precompute puppet_p/c.obj --fields 6 --isolines 12", &out) == 0);
   CHECK_MSG(out && strstr(out, "6 fields x 12 isolines") && strstr(out, "built"), "%s",
             out ? out : "");
@@ -630,7 +626,7 @@ static double pc2_max_diff(const char *a, const char *b) {
  * cannot be rigged says so and why. */
 static void test_no_rig(void) {
   char *out = NULL;
-  character_and_wave("puppet_n", 2000, 8);
+  character_and_take("puppet_n", 2000, 8, "wave");
   CHECK(km_test_run("cp puppet_n/c.obj puppet_n/u.obj", NULL) == 0); /* the mesh alone */
   CHECK(km_test_run(KM_CLI " animate --mesh puppet_n/u.obj --motion puppet_n/w.json -o "
                            "puppet_n/auto.pc2",
