@@ -2786,6 +2786,11 @@ km_status km_reconstruct(const char *const *frame_paths, size_t n_frames,
  * the highest vertex drives Head, the outermost upper vertex on each side HandLeft /
  * HandRight, the lowest outer one on each side FootLeft / FootRight (each at least 0.2 H
  * along the surface from the others), the joints on straight lines from the centroid.
+ * Last, a humanoid's or quadruped's joints are checked against the surface (the parity of
+ * three rays' crossings, by majority): one outside moves in, a leaf (head, hand, foot) back
+ * along its bone to the second of 32 steps inside, another to the middle of the chord through
+ * the body along the line to its nearest vertex; one more than 0.03 H outside or whose way in
+ * is longer than 0.05 H (0.15 H for a leaf) stays, named in the report (joints_outside).
  * Skin (skin = KM_AUTORIG_SKIN_HEAT, the default): bone heat (Baran & Popovic 2007). Each
  * bone is a segment from a joint to its child, weighting that joint (leaf joints reaching to
  * their extremity). Joint j's weights w_j solve (-L + M H) w_j = M H p_j on the surface (L the
