@@ -1466,10 +1466,8 @@ static bool inside_body(const rigger *r, const double p[3]) {
   static const double dirs[3][3] = {{0.8017837, 0.2672612, 0.5345225},
                                     {-0.4850713, 0.7276069, -0.4850713},
                                     {0.2357023, -0.9428090, -0.2357023}};
-  int odd = 0;
-  for (int k = 0; k < 3; ++k)
-    odd += (int)(ray_crossings(r, p, dirs[k], NULL) & 1);
-  return odd >= 2;
+  size_t a = ray_crossings(r, p, dirs[0], NULL) & 1, b = ray_crossings(r, p, dirs[1], NULL) & 1;
+  return a == b ? a : ray_crossings(r, p, dirs[2], NULL) & 1; /* the third only to break a tie */
 }
 
 /* Where a ray from a joint leaves the body: the first face the ray from o along dir (unit)
@@ -1650,7 +1648,7 @@ static int joints_inside(rigger *r, uint32_t *outside) {
         if (t1 <= NEAR_SURFACE * r->H) {
           double e[3];
           for (int c = 0; c < 3; ++c)
-            e[c] = p[c] + w[c] * (t1 + 1e-9 * r->H);
+            e[c] = p[c] + w[c] * (t1 + 1e-6 * r->H); /* past the entry, not on it */
           ray_crossings(r, e, w, &t2);
           for (int c = 0; c < 3 && isfinite(t2); ++c)
             x[c] = e[c] + w[c] * 0.5 * t2;
