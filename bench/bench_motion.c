@@ -100,7 +100,8 @@ typedef struct bm_metrics {
                             diagonal */
   double miss_max_pct; /* the largest such miss of a handle in a frame, % of the diagonal */
   double forced;       /* the longest edge l / l0 the handle targets force (km_stretch_bound:
-                          a lower bound when the handles are met), the largest over frames */
+                          a lower bound when the handles are met), the largest over frames;
+                          NaN: no two handles close enough to pair */
   size_t forced_frame;
   int32_t forced_pair[2]; /* its two handle vertices (mesh ids) */
 } bm_metrics;
@@ -404,8 +405,6 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
   const int32_t *hoff = NULL, *hv = NULL;
   km_puppetry_handles(p, &nh, &hoff, &hv);
   if ((s = km_stretch_bound_create(m, nh, hoff, hv, NULL, &sb, err)) != KM_OK) goto done;
-  out->forced_pair[0] = out->forced_pair[1] = -1;
-  if (!km_stretch_bound_pairs(sb)) out->forced = NAN; /* handles too far apart to pair */
   for (size_t f = 0; f < nf; ++f) {
     double t0 = km_cli_now();
     s = km_puppetry_push(p, t->positions + f * t->n_joints * 3, V, err);
@@ -443,12 +442,16 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     handle_miss_frame(p, V, g->diag, &miss_sum, &miss_n, &out->miss_max_pct);
     int32_t pr[2];
     double fb = km_stretch_bound_eval(sb, km_puppetry_vertex_targets(p), pr);
-    if (fb > out->forced)
-      out->forced = fb, out->forced_frame = f, out->forced_pair[0] = hv[pr[0]],
-      out->forced_pair[1] = hv[pr[1]];
+    int32_t pv[2] = {pr[0] >= 0 ? hv[pr[0]] : -1, pr[1] >= 0 ? hv[pr[1]] : -1};
+    km_deform_check_set_forced(dc, fb, pv);
     if (sk && !isnan(sk->out.stretch)) skin_frame(sk, m, g, p, f, where, V);
   }
   take_summary(dc, g->diag, out);
+  km_deform_summary ds;
+  km_deform_check_summary(dc, &ds);
+  out->forced = km_stretch_bound_pairs(sb) ? ds.forced : NAN; /* NaN: no handles to pair */
+  out->forced_frame = ds.forced_frame;
+  memcpy(out->forced_pair, ds.forced_pair, sizeof out->forced_pair);
   out->miss_pct = miss_n > 0 ? miss_sum / miss_n : 0;
   out->eased = km_puppetry_eased_frames(p);
   if (where) {

@@ -582,6 +582,8 @@ typedef struct km_deform_frame {
   double step; /* largest vertex move from the previous frame (mesh units); 0 on the first */
   int32_t step_vertex; /* its vertex (-1 on the first frame) */
   double y_min;        /* lowest y of the frame */
+  double forced; /* the longest l / l0 the frame's handle targets force (km_deform_check_set_forced;
+                    km_stretch_bound), NaN when not given */
 } km_deform_frame;
 
 /* The measures over every frame added so far. */
@@ -602,6 +604,9 @@ typedef struct km_deform_summary {
   double step;                 /* the largest one-frame vertex step (mesh units) */
   size_t step_frame;           /* the frame it ends in */
   int32_t step_vertex;         /* its vertex (-1 with fewer than two frames) */
+  double forced;               /* the largest frame forced (0 when none was given) */
+  size_t forced_frame;         /* its frame */
+  int32_t forced_pair[2];      /* its two handle vertices (-1 when none) */
 } km_deform_summary;
 
 /* Precompute: the rest mesh's edges and lengths and the pairs of triangles that can fold.
@@ -613,6 +618,12 @@ km_status km_deform_check_create(const km_mesh *rest, km_deform_check **out, km_
  *   frame  out (may be NULL): this frame's measures */
 km_status km_deform_check_add(km_deform_check *c, const double *V, km_deform_frame *frame,
                               km_error *err);
+/* What the last frame's handle targets force: km_stretch_bound_eval of the targets the frame was
+ * solved for, so the summary and the report tell a stretch the rig asks for from one the
+ * solver adds. Call after km_deform_check_add (no frame yet: nothing happens).
+ *   forced  in: the bound, a ratio (NaN: not known)
+ *   pair    in: its two vertex ids in the mesh (may be NULL) */
+void km_deform_check_set_forced(km_deform_check *c, double forced, const int32_t pair[2]);
 /* The summary of the frames added so far. */
 void km_deform_check_summary(const km_deform_check *c, km_deform_summary *out);
 /* Per triangle (#F), the first frame in which it was folded, -1 for never (owned by c). */
@@ -629,7 +640,9 @@ size_t km_deform_check_frames(const km_deform_check *c, const km_deform_frame **
  * "most_folded_frame":..,"step_max_pct":..,"step_frame":..,"step_vertex":..,
  * "per_frame":[{"stretch":..,"edge_ratio_min":..,"edge_ratio_max":..,"long_edge":[a,b],
  * "folded_pairs":..,"step_pct":..,"y_min":..}, ...]}; frames count from 0, steps are % of the
- * rest diagonal, a NaN is null. Errors: KM_ERR_IO naming path. */
+ * rest diagonal, a NaN is null. With km_deform_check_set_forced called on some frame, also
+ * "forced_edge_ratio_max":..,"forced_frame":..,"forced_pair":[a,b] and each frame's
+ * "forced_edge_ratio" (null where not given). Errors: KM_ERR_IO naming path. */
 km_status km_deform_check_write_json(const km_deform_check *c, const char *path, km_error *err);
 void km_deform_check_free(km_deform_check **c);
 

@@ -81,6 +81,9 @@ static void test_known_frames(void) {
                2) < 1e-6);
     CHECK(cJSON_GetArraySize(pf) == 5);
     CHECK(cJSON_IsNull(cJSON_GetObjectItem(cJSON_GetArrayItem(pf, 3), "stretch")));
+    /* no handle targets were given: no forced fields */
+    CHECK(!cJSON_GetObjectItem(j, "forced_edge_ratio_max") &&
+          !cJSON_GetObjectItem(cJSON_GetArrayItem(pf, 1), "forced_edge_ratio"));
     /* step 1 in a diagonal of sqrt 2 */
     CHECK(fabs(cJSON_GetNumberValue(cJSON_GetObjectItem(cJSON_GetArrayItem(pf, 1), "step_pct")) -
                100 / sqrt(2)) < 1e-4);
@@ -232,6 +235,44 @@ static void test_stretch_bound(void) {
               "deformation %d: bound %.6f, longest %.6f", d, bound, fr.ratio_max);
     km_deform_check_free(&dc);
   }
+  /* the deform check keeps each frame's bound (km_deform_check_set_forced): summary and report */
+  km_deform_check *dc = NULL;
+  CHECK_OK(km_deform_check_create(&m, &dc, KM_E));
+  km_deform_check_set_forced(dc, 5, NULL); /* before any frame: nothing */
+  for (int k = 0; k < 3; ++k) {
+    for (int v = 0; v < NX * NZ; ++v)
+      for (int c = 0; c < 3; ++c)
+        V[3 * v + c] = V0[3 * v + c] * (c == 0 && k == 1 ? 2 : 1);
+    for (size_t i = 0; i < n; ++i)
+      memcpy(T + 3 * i, V + 3 * (size_t)sets[i], 3 * sizeof(double));
+    CHECK_OK(km_deform_check_add(dc, V, NULL, KM_E));
+    double fb = km_stretch_bound_eval(b, T, pr);
+    int32_t pv[2] = {sets[pr[0]], sets[pr[1]]};
+    if (k < 2) km_deform_check_set_forced(dc, fb, pv); /* frame 2: not given */
+  }
+  km_deform_summary sum;
+  km_deform_check_summary(dc, &sum);
+  CHECK_MSG(fabs(sum.forced - 2) < 1e-9 && sum.forced_frame == 1 && sum.forced_pair[0] >= 0 &&
+                V0[3 * (size_t)sum.forced_pair[1]] >= 1.7 - 1e-9,
+            "summary forced %g frame %zu pair %d %d", sum.forced, sum.forced_frame,
+            (int)sum.forced_pair[0], (int)sum.forced_pair[1]);
+  km_test_run("rm -rf dcheck_forced", NULL);
+  CHECK_OK(km_deform_check_write_json(dc, "dcheck_forced/r.json", KM_E));
+  size_t tn = 0;
+  char *text = km_test_read_file("dcheck_forced/r.json", &tn);
+  cJSON *j = text ? cJSON_Parse(text) : NULL, *pf = j ? cJSON_GetObjectItem(j, "per_frame") : NULL;
+  CHECK_MSG(
+      j && fabs(cJSON_GetNumberValue(cJSON_GetObjectItem(j, "forced_edge_ratio_max")) - 2) < 1e-6 &&
+          cJSON_GetNumberValue(cJSON_GetObjectItem(j, "forced_frame")) == 1 &&
+          fabs(cJSON_GetNumberValue(
+                   cJSON_GetObjectItem(cJSON_GetArrayItem(pf, 0), "forced_edge_ratio")) -
+               1) < 1e-6 &&
+          cJSON_IsNull(cJSON_GetObjectItem(cJSON_GetArrayItem(pf, 2), "forced_edge_ratio")),
+      "report: %s", text ? text : "(none)");
+  cJSON_Delete(j);
+  free(text);
+  km_test_run("rm -rf dcheck_forced", NULL);
+  km_deform_check_free(&dc);
   km_stretch_bound_free(&b);
   CHECK(b == NULL);
   sets[0] = NX * NZ; /* out of range */

@@ -450,6 +450,10 @@ static void test_report(void) {
     }
     CHECK(fabs(cJSON_GetNumberValue(cJSON_GetObjectItem(j, "stretch_max")) - worst) < 1e-4);
     CHECK(worst > 0); /* the wave moves the mesh */
+    /* animate gives every frame what its handle targets force (a check of a file has none) */
+    CHECK_MSG(cJSON_IsNumber(cJSON_GetObjectItem(j, "forced_edge_ratio_max")) &&
+                  cJSON_GetObjectItem(cJSON_GetArrayItem(pf, 3), "forced_edge_ratio"),
+              "no forced fields in the report");
   } else {
     CHECK_MSG(0, "reading back: %s", err.message);
   }

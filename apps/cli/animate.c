@@ -228,9 +228,7 @@ int km_cli_animate(int argc, char **argv) {
   /* what the handle targets force: when the mesh stretches, whether the rig asked for it */
   if (km_stretch_bound_create(&m, rig.n_handles, offsets, hverts, NULL, &sb, &err) != KM_OK)
     goto fail;
-  double forced = 0;
-  size_t forced_frame = 0;
-  int32_t forced_pair[2] = {-1, -1};
+
   V = malloc(sizeof(double) * 3 * m.n_vertices);
   t23 = malloc(sizeof(double) * take.n_frames);
   t4 = malloc(sizeof(double) * take.n_frames);
@@ -258,16 +256,18 @@ int km_cli_animate(int argc, char **argv) {
       goto fail;
     int32_t pr[2];
     double fb = km_stretch_bound_eval(sb, km_puppetry_vertex_targets(pl), pr);
-    if (fb > forced)
-      forced = fb, forced_frame = f, forced_pair[0] = hverts[pr[0]], forced_pair[1] = hverts[pr[1]];
+    int32_t pv[2] = {pr[0] >= 0 ? hverts[pr[0]] : -1, pr[1] >= 0 ? hverts[pr[1]] : -1};
+    km_deform_check_set_forced(dc, km_stretch_bound_pairs(sb) ? fb : NAN, pv);
     prog.fn((double)(f + 1) / (double)take.n_frames, full ? "full ARAP" : "reduced model", NULL);
   }
   /* the report before the animation is finished: a report that cannot be written leaves no
    * animation behind either */
   char shape_line[1024], forced_line[512] = "";
   km_cli_shape_line(dc, &m, &rig, shape_line, sizeof shape_line);
-  if (forced > 1.5)
-    km_cli_forced_line(&m, &rig, forced, forced_frame, forced_pair, forced_line,
+  km_deform_summary ds;
+  km_deform_check_summary(dc, &ds);
+  if (ds.forced > 1.5)
+    km_cli_forced_line(&m, &rig, ds.forced, ds.forced_frame, ds.forced_pair, forced_line,
                        sizeof forced_line);
   if (report && km_deform_check_write_json(dc, report, &err) != KM_OK) goto fail;
   km_anim_report rep;

@@ -22,6 +22,7 @@ struct km_deform_check {
   int32_t *first;          /* n_faces: the frame a triangle first folded, -1 never */
   km_deform_frame *frames; /* cap_frames; sum.frames of them filled */
   size_t cap_frames;
+  bool has_forced; /* km_deform_check_set_forced was called */
   km_deform_summary sum;
 };
 
@@ -115,6 +116,7 @@ km_status km_deform_check_create(const km_mesh *rest, km_deform_check **out, km_
   c->sum.diagonal = km_bbox_diagonal(rest->V, nv);
   c->sum.ratio_min = INFINITY;
   c->sum.step_vertex = -1;
+  c->sum.forced_pair[0] = c->sum.forced_pair[1] = -1;
   *out = c;
   return KM_OK;
 }
@@ -129,7 +131,7 @@ km_status km_deform_check_add(km_deform_check *c, const double *V, km_deform_fra
     if (!fr) return km__fail(err, KM_ERR_NOMEM, "km_deform_check_add: out of memory");
     c->frames = fr, c->cap_frames = cap;
   }
-  km_deform_frame x = {.ratio_min = INFINITY, .step_vertex = -1, .y_min = INFINITY};
+  km_deform_frame x = {.ratio_min = INFINITY, .step_vertex = -1, .y_min = INFINITY, .forced = NAN};
   size_t worst = 0, longest = 0;
   for (size_t e = 0; e < c->n_edges; ++e) {
     double d[3];
@@ -194,12 +196,24 @@ km_status km_deform_check_add(km_deform_check *c, const double *V, km_deform_fra
   return KM_OK;
 }
 
+void km_deform_check_set_forced(km_deform_check *c, double forced, const int32_t pair[2]) {
+  if (!c || !c->sum.frames) return;
+  size_t f = c->sum.frames - 1;
+  c->frames[f].forced = forced;
+  c->has_forced = true;
+  if (forced > c->sum.forced) { /* NaN is not kept */
+    c->sum.forced = forced, c->sum.forced_frame = f;
+    c->sum.forced_pair[0] = pair ? pair[0] : -1, c->sum.forced_pair[1] = pair ? pair[1] : -1;
+  }
+}
+
 void km_deform_check_summary(const km_deform_check *c, km_deform_summary *out) {
   if (!out) return;
   if (!c) {
     memset(out, 0, sizeof *out);
     out->ratio_min = INFINITY;
     out->step_vertex = -1;
+    out->forced_pair[0] = out->forced_pair[1] = -1;
     return;
   }
   *out = c->sum;
@@ -248,8 +262,13 @@ km_status km_deform_check_write_json(const km_deform_check *c, const char *path,
           s->ratio_max_frame, (int)s->long_edge[0], (int)s->long_edge[1], s->long_frames,
           s->short_frames, s->folded, s->most_folded_pairs, s->most_folded_frame);
   jnum(f, "step_max_pct", s->step * pct);
-  fprintf(f, ",\"step_frame\":%zu,\"step_vertex\":%d,\"per_frame\":[", s->step_frame,
-          (int)s->step_vertex);
+  fprintf(f, ",\"step_frame\":%zu,\"step_vertex\":%d,", s->step_frame, (int)s->step_vertex);
+  if (c->has_forced) {
+    jnum(f, "forced_edge_ratio_max", s->forced);
+    fprintf(f, ",\"forced_frame\":%zu,\"forced_pair\":[%d,%d],", s->forced_frame,
+            (int)s->forced_pair[0], (int)s->forced_pair[1]);
+  }
+  fputs("\"per_frame\":[", f);
   for (size_t k = 0; k < s->frames; ++k) {
     const km_deform_frame *x = c->frames + k;
     fputs(k ? ",\n{" : "\n{", f);
@@ -263,6 +282,10 @@ km_status km_deform_check_write_json(const km_deform_check *c, const char *path,
     jnum(f, "step_pct", x->step * pct);
     fputc(',', f);
     jnum(f, "y_min", x->y_min);
+    if (c->has_forced) {
+      fputc(',', f);
+      jnum(f, "forced_edge_ratio", x->forced);
+    }
     fputc('}', f);
   }
   fputs("]}\n", f);
