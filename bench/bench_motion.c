@@ -442,8 +442,7 @@ static km_status run_variant(const km_mesh *m, const bm_geom *g, const km_rig *r
     handle_miss_frame(p, V, g->diag, &miss_sum, &miss_n, &out->miss_max_pct);
     int32_t pr[2];
     double fb = km_stretch_bound_eval(sb, km_puppetry_vertex_targets(p), pr);
-    int32_t pv[2] = {pr[0] >= 0 ? hv[pr[0]] : -1, pr[1] >= 0 ? hv[pr[1]] : -1};
-    km_deform_check_set_forced(dc, fb, pv);
+    km_deform_check_set_forced(dc, fb, pr);
     if (sk && !isnan(sk->out.stretch)) skin_frame(sk, m, g, p, f, where, V);
   }
   take_summary(dc, g->diag, out);

@@ -678,7 +678,8 @@ km_status km_stretch_bound_create(const km_mesh *rest, size_t n_sets, const int3
 /* The bound for one frame's targets.
  *   targets  in: offsets[n_sets]*3 positions of the sets' vertices, in the vertices' order
  *            (km_puppetry_vertex_targets); a NaN pair is skipped
- *   pair     out (may be NULL): the two indices into vertices that give it (-1 when no pair)
+ *   pair     out (may be NULL): the mesh ids of the two vertices that give it (-1 when no
+ *            pair)
  * Returns the bound, a ratio (0 without pairs). */
 double km_stretch_bound_eval(const km_stretch_bound *b, const double *targets, int32_t pair[2]);
 /* The number of pairs. */
@@ -2899,8 +2900,8 @@ typedef struct km_autorig_report {
   double heat_c;
   double heat_probe[2]; /* c = 1, c = 0.5 */
   int heat_probe_poses;
-  /* Joints the embedding left outside the surface and moved in (humanoid and quadruped: along
-   * a bone to the first point inside, then to the middle of the body's cross-section there) */
+  /* Joints the embedding left outside the surface and moved in (humanoid and quadruped: a leaf
+   * back along its bone, another to the middle of the chord through the nearest part) */
   int joints_moved_inside;
   uint32_t joints_outside; /* bit j set: joint j (KM_KINECT1 order) is still outside, too far
                               from the body part it should be in to move it safely */

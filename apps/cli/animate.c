@@ -228,7 +228,6 @@ int km_cli_animate(int argc, char **argv) {
   /* what the handle targets force: when the mesh stretches, whether the rig asked for it */
   if (km_stretch_bound_create(&m, rig.n_handles, offsets, hverts, NULL, &sb, &err) != KM_OK)
     goto fail;
-
   V = malloc(sizeof(double) * 3 * m.n_vertices);
   t23 = malloc(sizeof(double) * take.n_frames);
   t4 = malloc(sizeof(double) * take.n_frames);
@@ -256,8 +255,7 @@ int km_cli_animate(int argc, char **argv) {
       goto fail;
     int32_t pr[2];
     double fb = km_stretch_bound_eval(sb, km_puppetry_vertex_targets(pl), pr);
-    int32_t pv[2] = {pr[0] >= 0 ? hverts[pr[0]] : -1, pr[1] >= 0 ? hverts[pr[1]] : -1};
-    km_deform_check_set_forced(dc, km_stretch_bound_pairs(sb) ? fb : NAN, pv);
+    km_deform_check_set_forced(dc, km_stretch_bound_pairs(sb) ? fb : NAN, pr);
     prog.fn((double)(f + 1) / (double)take.n_frames, full ? "full ARAP" : "reduced model", NULL);
   }
   /* the report before the animation is finished: a report that cannot be written leaves no

@@ -131,12 +131,12 @@ int km_cli_parse_units(const char *verb, const char *opt, const char *s, double 
  * the longest and shortest edge against its rest length, the frames over 1.5x, the folds and
  * the largest one-frame step, with frames (from 0) and places: the nearest handle of rig, or a
  * vertex id when rig is NULL or has no handle. */
+void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig *rig, char *line,
+                       size_t n);
 /* The line saying what the handle targets force (forced > 1.5: km_stretch_bound's largest
  * over the take, in frame; pair: its two mesh vertices) and between which handles. */
 void km_cli_forced_line(const km_mesh *m, const km_rig *rig, double forced, size_t frame,
                         const int32_t pair[2], char *line, size_t n);
-void km_cli_shape_line(const km_deform_check *dc, const km_mesh *m, const km_rig *rig, char *line,
-                       size_t n);
 /* A skinned frame grounded as an engine grounds a character: V (#V*3, y up) raised whole by
  * as far as its lowest vertex is under floor_y; returns that lift (0: none). Holding the low
  * vertices on the floor one by one, as animate does with its solved mesh's few, pressed a

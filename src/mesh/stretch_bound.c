@@ -10,14 +10,16 @@
 #include <string.h>
 
 struct km_stretch_bound {
-  size_t n_pairs, n_targets;
+  size_t n_pairs;
   int32_t *pairs; /* n_pairs*2: indices into the targets (the sets' vertex list) */
+  int32_t *ids;   /* n_pairs*2: the same two vertices' ids in the mesh */
   double *len0;   /* n_pairs: the shortest rest path along edges between them */
 };
 
 void km_stretch_bound_free(km_stretch_bound **pb) {
   if (!pb || !*pb) return;
   free((*pb)->pairs);
+  free((*pb)->ids);
   free((*pb)->len0);
   free(*pb);
   *pb = NULL;
@@ -110,9 +112,11 @@ km_status km_stretch_bound_create(const km_mesh *rest, size_t n_sets, const int3
           size_t nc = cap ? 2 * cap : 1024;
           int32_t *np = realloc(b->pairs, 2 * nc * sizeof *np);
           if (np) b->pairs = np;
-          double *nl = np ? realloc(b->len0, nc * sizeof *nl) : NULL;
+          int32_t *ni = np ? realloc(b->ids, 2 * nc * sizeof *ni) : NULL;
+          if (ni) b->ids = ni;
+          double *nl = ni ? realloc(b->len0, nc * sizeof *nl) : NULL;
           if (nl) b->len0 = nl;
-          if (!np || !nl) {
+          if (!np || !ni || !nl) {
             st = km__fail(err, KM_ERR_NOMEM, "stretch bound: out of memory");
             goto done;
           }
@@ -120,10 +124,11 @@ km_status km_stretch_bound_create(const km_mesh *rest, size_t n_sets, const int3
         }
         b->pairs[2 * b->n_pairs] = samp[s];
         b->pairs[2 * b->n_pairs + 1] = idx_of[v];
+        b->ids[2 * b->n_pairs] = vertices[samp[s]];
+        b->ids[2 * b->n_pairs + 1] = v;
         b->len0[b->n_pairs++] = d[v];
       }
     }
-  b->n_targets = nt;
 done:
   km__geodesic_free(&g);
   free(set_of), free(idx_of), free(edge_of), free(samp), free(samp_off), free(is_samp);
@@ -146,7 +151,7 @@ double km_stretch_bound_eval(const km_stretch_bound *b, const double *targets, i
                b->len0[p];
     if (d > best) { /* NaN (a target not known) is skipped */
       best = d;
-      if (pair) pair[0] = b->pairs[2 * p], pair[1] = b->pairs[2 * p + 1];
+      if (pair) pair[0] = b->ids[2 * p], pair[1] = b->ids[2 * p + 1];
     }
   }
   return best;

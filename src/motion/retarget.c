@@ -1166,12 +1166,11 @@ static void limit_bone(km_retarget *r, const double *J, int32_t q, int32_t j, co
     memcpy(R, Rprev, 9 * sizeof(double));
     return;
   }
-  double d[3], A[9], B[9];
+  double d[3], A[9];
   for (int c = 0; c < 3; ++c)
     d[c] = cos(tmax) * a[c] + sin(tmax) * e[c] / ne;
   km__rot3_between(b, d, A);
-  memcpy(B, R, sizeof B);
-  km__m3_mul(A, B, R);
+  km__m3_mul(A, R, R);
 }
 
 /* The rigid root is lifted so that no ankle (nor a quadruped's wrist: one whose rest height is
