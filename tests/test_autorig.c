@@ -1242,12 +1242,29 @@ static void test_reach_weights(void) {
 }
 
 /* A shared mesh read in its guessed frame (read_oriented) and rigged by km_autorig's
- * defaults into c and rep; false when the mesh is absent (the test skips). */
-static bool rig_oriented(const char *rel, km_mesh *m, km_character *c, km_autorig_report *rep) {
-  km_frame_guess g;
-  if (!read_oriented(rel, m, &g)) return false;
-  CHECK_OK(km_autorig(m, NULL, c, rep, KM_E));
-  return true;
+ * defaults: the mesh, the character and the report. */
+typedef struct rigged {
+  km_mesh m;
+  km_character c;
+  km_autorig_report rep;
+} rigged;
+
+static void rigged_free(rigged *g) {
+  km_character_free(&g->c);
+  km_mesh_free(&g->m);
+}
+
+/* Rigs rel into g; false (g freed) when the mesh is absent (the test skips) or km_autorig
+ * failed (a failed check already). Free a true one with rigged_free. */
+static bool rig_shared(const char *rel, rigged *g) {
+  km_frame_guess fg;
+  memset(g, 0, sizeof *g);
+  if (read_oriented(rel, &g->m, &fg)) {
+    CHECK_OK(km_autorig(&g->m, NULL, &g->c, &g->rep, KM_E));
+    if (g->c.skeleton.rest) return true;
+  }
+  rigged_free(g);
+  return false;
 }
 
 /* A tail lying on the ground beside a foot: the knee and ankle are those of the leg, not of
@@ -1257,33 +1274,28 @@ static bool rig_oriented(const char *rel, km_mesh *m, km_character *c, km_autori
  * dinosaur's right knee 0.19 and ankle 0.78 off, cat-05's left 0.28 and 0.33; the other shared
  * bodies 0.10 (the armadillo's leaning right shin) and 0.22 (its long-clawed feet) at most. */
 static void test_tail_beside_foot(const char *rel) {
-  km_mesh m = {0};
-  km_character c = {0};
-  km_autorig_report rep;
-  if (!rig_oriented(rel, &m, &c, &rep)) return;
-  if (c.skeleton.rest) {
-    const double *J = c.skeleton.rest;
-    double ylo = INFINITY, yhi = -INFINITY;
-    for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
-      ylo = fmin(ylo, J[3 * j + 1]), yhi = fmax(yhi, J[3 * j + 1]);
-    for (int side = 0; side < 2; ++side) {
-      const char *foot = side ? "FootRight" : "FootLeft";
-      const double *kn = J + 3 * (side ? 17 : 13), *an = J + 3 * (side ? 18 : 14), *tip = NULL;
-      for (size_t e = 0; e < rep.n_extremities; ++e)
-        if (!strcmp(rep.role[e], foot)) tip = m.V + 3 * (size_t)rep.extremity[e];
-      double across = hypot(kn[0] - an[0], kn[2] - an[2]) / (yhi - ylo);
-      double to_tip = tip ? hypot(tip[0] - an[0], tip[2] - an[2]) / (yhi - ylo) : INFINITY;
-      printf("%s: %s side: knee %.3f of the height from its ankle across, ankle %.3f from the "
-             "foot tip\n",
-             rel, side ? "right" : "left", across, to_tip);
-      CHECK_MSG(across < 0.12, "%s: the %s knee %.3f of the height off its ankle", rel,
-                side ? "right" : "left", across);
-      CHECK_MSG(to_tip < 0.25, "%s: the %s ankle %.3f of the height off its foot tip", rel,
-                side ? "right" : "left", to_tip);
-    }
+  rigged g;
+  if (!rig_shared(rel, &g)) return;
+  const double *J = g.c.skeleton.rest;
+  double ylo = INFINITY, yhi = -INFINITY;
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+    ylo = fmin(ylo, J[3 * j + 1]), yhi = fmax(yhi, J[3 * j + 1]);
+  for (int side = 0; side < 2; ++side) {
+    const char *foot = side ? "FootRight" : "FootLeft";
+    const double *kn = J + 3 * (side ? 17 : 13), *an = J + 3 * (side ? 18 : 14), *tip = NULL;
+    for (size_t e = 0; e < g.rep.n_extremities; ++e)
+      if (!strcmp(g.rep.role[e], foot)) tip = g.m.V + 3 * (size_t)g.rep.extremity[e];
+    double across = hypot(kn[0] - an[0], kn[2] - an[2]) / (yhi - ylo);
+    double to_tip = tip ? hypot(tip[0] - an[0], tip[2] - an[2]) / (yhi - ylo) : INFINITY;
+    printf("%s: %s side: knee %.3f of the height from its ankle across, ankle %.3f from the "
+           "foot tip\n",
+           rel, side ? "right" : "left", across, to_tip);
+    CHECK_MSG(across < 0.12, "%s: the %s knee %.3f of the height off its ankle", rel,
+              side ? "right" : "left", across);
+    CHECK_MSG(to_tip < 0.25, "%s: the %s ankle %.3f of the height off its foot tip", rel,
+              side ? "right" : "left", to_tip);
   }
-  km_character_free(&c);
-  km_mesh_free(&m);
+  rigged_free(&g);
 }
 
 /* Whether p lies inside the closed mesh m: the parity of a ray's crossings (a fixed,
@@ -1316,27 +1328,23 @@ static bool inside_mesh(const km_mesh *m, const double p[3]) {
  * shoulder centre lay outside it, below the body) nor at chest height through the haunches
  * (cat-02's hips at its chest). */
 static void test_sitting_spine(const char *rel) {
-  km_mesh m = {0};
-  km_character c = {0};
-  km_autorig_report rep;
-  if (!rig_oriented(rel, &m, &c, &rep)) return;
-  CHECK_MSG(rep.kind == KM_AUTORIG_QUADRUPED, "%s: rigged as kind %d", rel, (int)rep.kind);
-  if (c.skeleton.rest) {
-    const double *J = c.skeleton.rest, *hip = J + 3 * 0, *sc = J + 3 * 2;
-    double ylo = INFINITY, yhi = -INFINITY;
-    for (size_t v = 0; v < m.n_vertices; ++v)
-      ylo = fmin(ylo, m.V[3 * v + 1]), yhi = fmax(yhi, m.V[3 * v + 1]);
-    printf("%s: hip centre %.3f, shoulder centre %.3f of the height; inside: %d %d %d\n", rel,
-           (hip[1] - ylo) / (yhi - ylo), (sc[1] - ylo) / (yhi - ylo), inside_mesh(&m, J),
-           inside_mesh(&m, J + 3), inside_mesh(&m, J + 6));
-    for (int j = 0; j < 3; ++j)
-      CHECK_MSG(inside_mesh(&m, J + 3 * j), "%s: spine joint %d outside the body", rel, j);
-    CHECK_MSG(sc[1] - hip[1] > 0.12 * (yhi - ylo),
-              "%s: the shoulder centre only %.3f of the height above the hip centre", rel,
-              (sc[1] - hip[1]) / (yhi - ylo));
-  }
-  km_character_free(&c);
-  km_mesh_free(&m);
+  rigged g;
+  if (!rig_shared(rel, &g)) return;
+  const km_mesh *m = &g.m;
+  CHECK_MSG(g.rep.kind == KM_AUTORIG_QUADRUPED, "%s: rigged as kind %d", rel, (int)g.rep.kind);
+  const double *J = g.c.skeleton.rest, *hip = J + 3 * 0, *sc = J + 3 * 2;
+  double ylo = INFINITY, yhi = -INFINITY;
+  for (size_t v = 0; v < m->n_vertices; ++v)
+    ylo = fmin(ylo, m->V[3 * v + 1]), yhi = fmax(yhi, m->V[3 * v + 1]);
+  printf("%s: hip centre %.3f, shoulder centre %.3f of the height; inside: %d %d %d\n", rel,
+         (hip[1] - ylo) / (yhi - ylo), (sc[1] - ylo) / (yhi - ylo), inside_mesh(m, J),
+         inside_mesh(m, J + 3), inside_mesh(m, J + 6));
+  for (int j = 0; j < 3; ++j)
+    CHECK_MSG(inside_mesh(m, J + 3 * j), "%s: spine joint %d outside the body", rel, j);
+  CHECK_MSG(sc[1] - hip[1] > 0.12 * (yhi - ylo),
+            "%s: the shoulder centre only %.3f of the height above the hip centre", rel,
+            (sc[1] - hip[1]) / (yhi - ylo));
+  rigged_free(&g);
 }
 
 /* A foot raised off the ground (npt_14_664 kicks its left leg forward, the foot 18 % of its
@@ -1344,18 +1352,12 @@ static void test_sitting_spine(const char *rel) {
  * (0.12 and 0.14 of the height outside the body before), and its shin runs along the leg. */
 static void test_raised_foot(void) {
   const char *rel = "poses/npt_14_664.obj";
-  km_mesh m = {0};
-  km_character c = {0};
-  km_autorig_report rep;
-  if (!rig_oriented(rel, &m, &c, &rep)) return;
-  if (c.skeleton.rest) {
-    const double *J = c.skeleton.rest;
-    for (int j = 13; j <= 15; ++j) /* KneeLeft, AnkleLeft, FootLeft */
-      CHECK_MSG(inside_mesh(&m, J + 3 * j), "%s: %s outside the body", rel,
-                km_kinect1_joint_name(j));
-  }
-  km_character_free(&c);
-  km_mesh_free(&m);
+  rigged g;
+  if (!rig_shared(rel, &g)) return;
+  for (int j = 13; j <= 15; ++j) /* KneeLeft, AnkleLeft, FootLeft */
+    CHECK_MSG(inside_mesh(&g.m, g.c.skeleton.rest + 3 * j), "%s: %s outside the body", rel,
+              km_kinect1_joint_name(j));
+  rigged_free(&g);
 }
 
 /* Every joint inside the body, or named as outside in the report. rig left a FAUST body's
@@ -1363,19 +1365,17 @@ static void test_raised_foot(void) {
  * armadillo's left hip beside its groin and a crouching cat's head joint between its ears: a
  * bone turning about a point in the air. moved_min: how many joints rig must have moved in. */
 static void test_joints_inside(const char *rel, int moved_min) {
-  km_mesh m = {0};
-  km_character c = {0};
-  km_autorig_report rep;
-  if (!rig_oriented(rel, &m, &c, &rep)) return;
-  printf("%s: %d joints moved inside, outside mask 0x%x\n", rel, rep.joints_moved_inside,
-         (unsigned)rep.joints_outside);
-  CHECK_MSG(rep.joints_moved_inside >= moved_min, "%s: %d joints moved inside, expected %d", rel,
-            rep.joints_moved_inside, moved_min);
-  for (int j = 0; c.skeleton.rest && j < KM_KINECT1_JOINTS; ++j)
-    CHECK_MSG(inside_mesh(&m, c.skeleton.rest + 3 * j) || (rep.joints_outside >> j & 1u),
+  rigged g;
+  if (!rig_shared(rel, &g)) return;
+  const km_autorig_report *rep = &g.rep;
+  printf("%s: %d joints moved inside, outside mask 0x%x\n", rel, rep->joints_moved_inside,
+         (unsigned)rep->joints_outside);
+  CHECK_MSG(rep->joints_moved_inside >= moved_min, "%s: %d joints moved inside, expected %d", rel,
+            rep->joints_moved_inside, moved_min);
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+    CHECK_MSG(inside_mesh(&g.m, g.c.skeleton.rest + 3 * j) || (rep->joints_outside >> j & 1u),
               "%s: %s outside the body and not reported", rel, km_kinect1_joint_name(j));
-  km_character_free(&c);
-  km_mesh_free(&m);
+  rigged_free(&g);
 }
 
 /* npt_13_643: an SMPL body leaning back on one leg, the other kicked forward, stored y up and
