@@ -1309,14 +1309,14 @@ typedef struct km_rig {
                               most this far from where its parent carries its first direction (0: no
                               limit). kinemesh rig writes 30 for a body that is not upright (a
                               quadruped's legs do not reach where a person's arms do) and 12
-                              for an upright one with a stubby limb (radius half its bone or
-                              more: the elephant's) */
+                              for an upright one with stubby limbs (the median limb bone's
+                              radius half its length or more: the elephant's) */
   double upper_limb_limit; /* "upper_limb_limit": degrees, with aim on a kinect1 skeleton: an
                               upper arm or thigh (the bone ending at an elbow or knee) swings at
                               most this far from where its parent carries its rest direction
                               (0: swing_limit). kinemesh rig writes 5 for a body that is not
                               upright (a quadruped's humerus and femur lie inside its trunk)
-                              and 15 for an upright one with a stubby limb */
+                              and 15 for an upright one with stubby limbs */
   double girdle_limit;     /* "girdle_limit": degrees, on a kinect1 skeleton: a shoulder or hip bone
                               (ShoulderCenter -> Shoulder*, HipCenter -> Hip*), which carries the
                               arm or leg, turns at most this far from where its parent carries its

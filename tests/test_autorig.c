@@ -1267,6 +1267,35 @@ static bool rig_shared(const char *rel, rigged *g) {
   return false;
 }
 
+/* Stubby limbs are the build, not one thick bone: the elephant (every limb bone's radius
+ * 0.77-1.0 of its length) has its swing limited to 12 degrees and no limb bands; the decimated
+ * knight (its right pauldron's spikes put that upper arm at 0.503, the left at 0.459, the rest
+ * 0.21-0.36) swings freely and keeps a band on both upper arms. It took the elephant's limits
+ * before: its arms hung still while the performer reached overhead. */
+static void test_stubby_build(const char *rel, bool stubby) {
+  rigged g;
+  if (!rig_shared(rel, &g)) return;
+  km_rig rig = {0};
+  sidecar_rig(&g.c, &g.m, rel, &rig);
+  int arms = 0;
+  for (size_t h = 0; h < rig.n_handles; ++h)
+    arms += !strcmp(rig.handles[h].name, "upper_arm_left") ||
+            !strcmp(rig.handles[h].name, "upper_arm_right");
+  printf("  %s: swing_limit %g, upper_limb_limit %g, %d upper-arm bands\n", rel, rig.swing_limit,
+         rig.upper_limb_limit, arms);
+  if (stubby) {
+    CHECK_MSG(rig.swing_limit == 12 && rig.upper_limb_limit == 15 && arms == 0,
+              "%s: a stubby build: swing_limit %g, upper_limb_limit %g, %d upper-arm bands", rel,
+              rig.swing_limit, rig.upper_limb_limit, arms);
+  } else {
+    CHECK_MSG(rig.swing_limit == 0 && rig.upper_limb_limit == 0 && arms == 2,
+              "%s: not stubby: swing_limit %g, upper_limb_limit %g, %d upper-arm bands", rel,
+              rig.swing_limit, rig.upper_limb_limit, arms);
+  }
+  km_rig_free(&rig);
+  rigged_free(&g);
+}
+
 /* A tail lying on the ground beside a foot: the knee and ankle are those of the leg, not of
  * the tail the same horizontal cuts pass through (the dinosaur's tail behind its right foot, a
  * standing cat's, cat-05, beside its left). Each ankle lies over its leg (within 0.12 of the
@@ -1606,6 +1635,8 @@ int main(void) {
   test_sitting_spine("poses/cat-poses/cat-02.obj");
   test_sitting_spine("poses/cat-poses/cat-08.obj");
   test_raised_foot();
+  test_stubby_build("meshes/elephant.obj", true);
+  test_stubby_build("meshes/decimated-knight.off", false);
   test_joints_inside("poses/tr_reg_025.ply", 3);
   test_joints_inside("meshes/armadillo.obj", 1);
   test_joints_inside("poses/cat-poses/cat-01.obj", 3);

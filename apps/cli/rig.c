@@ -229,7 +229,7 @@ write:
     }
     if (rig.swing_limit > 0) {
       printf("%s every bone swings at most %g deg from where its parent carries it "
-             "(\"swing_limit\": 30 for a body that is not upright, 12 for a stubby limb, 45 for a "
+             "(\"swing_limit\": 30 for a body that is not upright, 12 for stubby limbs, 45 for a "
              "bust's neck)",
              sep, rig.swing_limit);
       sep = ";";

@@ -227,7 +227,17 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
   static const int leg_bands[] = {4, 5, 6, 7, 8, 12, 13};
   for (size_t i = 0; !legs && i < sizeof leg_bands / sizeof leg_bands[0]; ++i)
     bone_ok[leg_bands[i]] = 0;
+  /* A limb bone is stubby by the mean of its ratio and its mirror's (the body is left-right
+   * symmetric; a scan's or a model's two sides are not quite), and the body's limbs are
+   * (*stubby: the rig limits their swing, km_character_write_rig) when the median limb bone's
+   * ratio is: one thick bone is a part, not the build. The decimated knight's right pauldron
+   * spikes put its right upper arm at 0.503 (its left 0.459, its other limb bones 0.21-0.36):
+   * that arm lost its band, and the whole knight took the elephant's 12 degrees of swing, so its
+   * arms hung still while the performer reached overhead (precog_Seq3_2 frame 60). */
+  double ratio[N_LIMB_BANDS], sorted[N_LIMB_BANDS];
+  int n_ratio = 0;
   for (int b = 0; b < N_LIMB_BANDS; ++b) { /* the spine's bands hold a torso */
+    ratio[b] = NAN;
     if (!bone_ok[b]) continue;
     size_t k = 0;
     for (size_t v = 0; v < n; ++v)
@@ -235,7 +245,16 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
     double len = dist3(sk->rest + 3 * (size_t)ja[b], sk->rest + 3 * (size_t)jb[b]);
     if (!k || !(len > 0)) continue;
     qsort(dists, k, sizeof(double), km__cmp_double);
-    if (dists[k / 2] >= 0.5 * len) bone_ok[b] = 0, *stubby = true;
+    sorted[n_ratio++] = ratio[b] = dists[k / 2] / len;
+  }
+  for (int b = 0; b < N_LIMB_BANDS; ++b) {
+    double r = ratio[b], mirror = ratio[b ^ 2]; /* left <-> right: 0 <-> 2, 1 <-> 3, ... */
+    if (isfinite(mirror)) r = 0.5 * (r + mirror);
+    if (r >= 0.5) bone_ok[b] = 0;
+  }
+  if (n_ratio) {
+    qsort(sorted, (size_t)n_ratio, sizeof(double), km__cmp_double);
+    *stubby = 0.5 * (sorted[(n_ratio - 1) / 2] + sorted[n_ratio / 2]) >= 0.5;
   }
   /* A ring's limb radius at its joint (the nearest vertex); the ring is the part within twice
    * that of the joint (a t of 1 or 0 is also every vertex beyond the bone's end, the elephant's
