@@ -74,5 +74,12 @@ double km__one_euro_alpha(double fc, double te);
  * vertical than horizontal; false when either is not finite. The rig writer gives a body that
  * is not upright a quadruped's rig, and km_retarget flattens only an upright body's feet. */
 bool km__spine_upright(const double hc[3], const double sc[3]);
+/* Whether a body stands upright as a person does: its spine upright (km__spine_upright) and,
+ * where it has hands and knees (hl, hr, kl, kr; NULL: not asked), both hands higher than both
+ * knees (y up). A cat sitting up has an upright spine, but its front paws stand on the ground
+ * below its haunches: it is a four-legged body sitting, not a person. The rig writer gives a body
+ * that is not upright a quadruped's rig, and km_retarget flattens only an upright body's feet. */
+bool km__body_upright(const double hc[3], const double sc[3], const double *hl, const double *hr,
+                      const double *kl, const double *kr);
 
 #endif

@@ -71,7 +71,7 @@ struct km_retarget {
   bool *seen;          /* n_joints: the tracker has sent the joint since create / reset */
   double floor_y;      /* the rest floor (lowest rest y) */
   bool aim;            /* limb bones aim along the performer's (rig "aim": true) */
-  bool upright;        /* the character skeleton's spine is upright (km__spine_upright) */
+  bool upright;        /* the character skeleton stands upright (km__body_upright) */
   double swing_limit;  /* radians, a bone's largest swing from its parent-carried rest (aimed
                           limb bones) or first (the others) direction (rig "swing_limit");
                           0: none */
@@ -416,7 +416,8 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
        * bodies within 0.1 % of before. */
       /* HipCenter, ShoulderCenter */
       r->upright = jr && rig->skeleton == KM_RIG_KINECT1 && n_joints >= KM_KINECT1_JOINTS &&
-                   km__spine_upright(r->jrest, r->jrest + 3 * 2);
+                   km__body_upright(r->jrest, r->jrest + 3 * 2, r->jrest + 3 * 7, r->jrest + 3 * 11,
+                                    r->jrest + 3 * 13, r->jrest + 3 * 17);
       if (jr && r->rigid && km__finite3(r->jrest + 3 * (size_t)r->root)) {
         memcpy(r->pivot, r->jrest + 3 * (size_t)r->root, sizeof r->pivot);
         const double *sc = r->jrest + 3 * 2; /* ShoulderCenter */
