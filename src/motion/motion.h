@@ -70,9 +70,8 @@ void km__retarget_settle(km_retarget *r);
  * filter's alpha, 1 / (1 + 1 / (2 pi fc te)). */
 double km__one_euro_alpha(double fc, double te);
 
-/* Whether a body stands upright: its spine (hip centre hc -> shoulder centre sc, y up) closer to
- * vertical than horizontal; false when either is not finite. The rig writer gives a body that
- * is not upright a quadruped's rig, and km_retarget flattens only an upright body's feet. */
+/* Whether a body's spine (hip centre hc -> shoulder centre sc, y up) is closer to vertical than
+ * horizontal; false when either is not finite. */
 bool km__spine_upright(const double hc[3], const double sc[3]);
 /* Whether a body stands upright as a person does: its spine upright (km__spine_upright) and,
  * where it has hands and knees (hl, hr, kl, kr; NULL: not asked), both hands higher than both

@@ -414,7 +414,7 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
        * after: dog0 15.4/17.7/13.8/3.3/4.3 -> 10.0/14.3/14.7/2.3/2.9 %, the horse
        * 17.3/19.4/16.3/3.7/4.8 -> 12.2/16.9/17.4/2.8/3.4 % (the table's take order); the upright
        * bodies within 0.1 % of before. */
-      /* HipCenter, ShoulderCenter */
+      /* HipCenter, ShoulderCenter; HandLeft, HandRight, KneeLeft, KneeRight */
       r->upright = jr && rig->skeleton == KM_RIG_KINECT1 && n_joints >= KM_KINECT1_JOINTS &&
                    km__body_upright(r->jrest, r->jrest + 3 * 2, r->jrest + 3 * 7, r->jrest + 3 * 11,
                                     r->jrest + 3 * 13, r->jrest + 3 * 17);

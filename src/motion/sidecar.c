@@ -141,9 +141,9 @@ static bool upright_body(const km_skeleton *sk) {
       kl = skel_joint(sk, "KneeLeft"), kr = skel_joint(sk, "KneeRight");
   const double *J = sk->rest;
   return hc >= 0 && sc >= 0 &&
-         km__body_upright(J + 3 * (size_t)hc, J + 3 * (size_t)sc, hl >= 0 ? J + 3 * hl : NULL,
-                          hr >= 0 ? J + 3 * hr : NULL, kl >= 0 ? J + 3 * kl : NULL,
-                          kr >= 0 ? J + 3 * kr : NULL);
+         km__body_upright(J + 3 * (size_t)hc, J + 3 * (size_t)sc,
+                          hl >= 0 ? J + 3 * (size_t)hl : NULL, hr >= 0 ? J + 3 * (size_t)hr : NULL,
+                          kl >= 0 ? J + 3 * (size_t)kl : NULL, kr >= 0 ? J + 3 * (size_t)kr : NULL);
 }
 
 /* Bands: every vertex goes to the bone segment nearest to it (of all the skeleton's bones);
@@ -151,7 +151,7 @@ static bool upright_body(const km_skeleton *sk) {
  * stubby limb, below), cut to the connected part (along faces) holding the band vertex
  * nearest to the band's middle, and kept off the end handles' balls (centre ends[e], Euclidean
  * radius: the geodesic balls km_rig_parse grows are inside them). band[v] = the band of v, -1
- * none; *stubby: some limb bone is stubby (it has no band, below); vj, vt (n, the
+ * none; *stubby: the median limb bone is stubby (the body's build, below); vj, vt (n, the
  * caller's, filled): the child joint of each vertex's nearest bone (-1 none) and the vertex's
  * projection on it, 0..1. Returns false when out of memory. */
 static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends, double radius,
@@ -365,7 +365,7 @@ typedef struct rig_plan {
   int8_t *band; /* n_vertices: the bone handle of each vertex, -1 none */
   int bone_ok[N_BONE_HANDLES];
   bool upright;
-  bool stubby; /* some limb's radius is half its bone or more (bone_bands) */
+  bool stubby; /* the median limb bone's radius is half its length or more (bone_bands) */
   /* A bust (km__bust_base: an open cut at its bottom) or a body sitting on a broad base
    * (km__seated_base): a head handle turning with the neck and a base anchor instead of the end
    * handles and bands (bust_handles) */
