@@ -1389,8 +1389,12 @@ static void test_raised_foot(void) {
 /* Every joint inside the body, or named as outside in the report. rig left a FAUST body's
  * wrist and feet a little past its skin (tr_reg_025: 0.02-0.025 of the height), the
  * armadillo's left hip beside its groin and a crouching cat's head joint between its ears: a
- * bone turning about a point in the air. moved_min: how many joints rig must have moved in. */
-static void test_joints_inside(const char *rel, int moved_min) {
+ * bone turning about a point in the air. moved_min: how many joints rig must have moved in;
+ * outside_max: how many it may leave out (named), -1 any. A shoulder just outside a chest's
+ * side (the dinosaur's left, 0.02 of the height; the standing cat-05's right) had the whole
+ * chest as its chord, whose middle is not its part's, and was left out: it now goes in as far
+ * as a joint may move. */
+static void test_joints_inside(const char *rel, int moved_min, int outside_max) {
   rigged g;
   if (!rig_shared(rel, &g)) return;
   const km_autorig_report *rep = &g.rep;
@@ -1398,9 +1402,14 @@ static void test_joints_inside(const char *rel, int moved_min) {
          (unsigned)rep->joints_outside);
   CHECK_MSG(rep->joints_moved_inside >= moved_min, "%s: %d joints moved inside, expected %d", rel,
             rep->joints_moved_inside, moved_min);
-  for (int j = 0; j < KM_KINECT1_JOINTS; ++j)
+  int left_out = 0;
+  for (int j = 0; j < KM_KINECT1_JOINTS; ++j) {
     CHECK_MSG(inside_mesh(&g.m, g.c.skeleton.rest + 3 * j) || (rep->joints_outside >> j & 1u),
               "%s: %s outside the body and not reported", rel, km_kinect1_joint_name(j));
+    left_out += (int)(rep->joints_outside >> j & 1u);
+  }
+  CHECK_MSG(outside_max < 0 || left_out <= outside_max, "%s: %d joints left outside, at most %d",
+            rel, left_out, outside_max);
   rigged_free(&g);
 }
 
@@ -1536,11 +1545,13 @@ static void test_roles(const char *rel, km_autorig_skeleton want, double foot_ma
     }
     CHECK_MSG(roles == 5, "%s: %d roles given", rel, roles);
     /* level shoulders (the decimated knight's right one was 5 % of its height below its left:
-     * inside the armpit) */
+     * inside the armpit). Within 1.5 %: the dinosaur's left shoulder, placed level with its
+     * right but 0.026 of the height outside its chest (the body is not symmetric there), goes
+     * in along the line to its nearest vertex, which climbs: 1.2 % above the right one. */
     if (want == KM_AUTORIG_KINECT1) {
       double yl = c.skeleton.rest[3 * km_kinect1_joint_index("ShoulderLeft") + 1],
              yr = c.skeleton.rest[3 * km_kinect1_joint_index("ShoulderRight") + 1];
-      CHECK_MSG(fabs(yl - yr) < 0.01 * (hi - lo), "%s: shoulders %.3f and %.3f of the height", rel,
+      CHECK_MSG(fabs(yl - yr) < 0.015 * (hi - lo), "%s: shoulders %.3f and %.3f of the height", rel,
                 (yl - lo) / (hi - lo), (yr - lo) / (hi - lo));
     }
     /* a person's shoulders lie about 0.18 of the stature (feet to head top) below the head
@@ -1636,11 +1647,13 @@ int main(void) {
   test_build_limits("meshes/decimated-knight.off", 0, 0, 2);
   test_build_limits("poses/cat-poses/cat-08.obj", 30, 5, 0);
   test_build_limits("poses/cat-poses/cat-02.obj", 30, 5, 0);
-  test_joints_inside("poses/tr_reg_025.ply", 3);
-  test_joints_inside("meshes/armadillo.obj", 1);
-  test_joints_inside("poses/cat-poses/cat-01.obj", 3);
-  test_joints_inside("poses/cat-poses/cat-06.obj", 0); /* its hips: reported */
-  test_joints_inside("meshes/dog0.off", 2);
+  test_joints_inside("poses/tr_reg_025.ply", 3, 0);
+  test_joints_inside("meshes/armadillo.obj", 1, 0);
+  test_joints_inside("poses/cat-poses/cat-01.obj", 4, 0);
+  test_joints_inside("poses/cat-poses/cat-06.obj", 0, -1); /* its hips: reported */
+  test_joints_inside("meshes/dog0.off", 2, 0);
+  test_joints_inside("meshes/dino.off", 1, 0);
+  test_joints_inside("poses/cat-poses/cat-05.obj", 1, 0);
   char buf[1024];
   const char *csv = km_test_shared("skeleton/precog_Seq1_1.csv", buf, sizeof buf);
   if (csv) {
