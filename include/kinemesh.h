@@ -540,6 +540,12 @@ typedef struct km_mesh_info {
   size_t degenerate_faces;
   int64_t euler_characteristic; /* V - E + F over non-isolated vertices */
   double bbox_min[3], bbox_max[3];
+  size_t seam_vertices; /* vertices used by faces whose position is exactly another such
+                           vertex's: a surface split where its texture coordinates or normals
+                           jump (glTF exporters write every textured mesh so). Its pieces meet
+                           there in space but share no vertex, so a rig or a deformation sees
+                           separate parts: kinemesh does not weld them (vertex order and count
+                           are the file's) */
 } km_mesh_info;
 /* Topology and extent of a mesh.
  *   m    in: mesh (a point cloud is fine)

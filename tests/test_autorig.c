@@ -429,6 +429,20 @@ static void test_refused(void) {
   CHECK_MSG(strstr(km_test_err.message, "2 components") != NULL, "message: %s",
             km_test_err.message);
   CHECK(c.mesh.V == NULL && c.skin.joints == NULL);
+  CHECK_MSG(strstr(km_test_err.message, "seams") == NULL, "message: %s", km_test_err.message);
+  /* The first tetrahedron with its last face on copies of its vertices: split at a seam, the
+   * message says so and what to do (merge by distance) */
+  km_mesh sm = {0};
+  CHECK_OK(km_mesh_alloc(7, 4, &sm, KM_E));
+  memcpy(sm.V, V, 12 * sizeof(double));
+  memcpy(sm.V + 12, V + 3, 9 * sizeof(double));
+  memcpy(sm.F, F, 9 * sizeof(int32_t));
+  sm.F[9] = 4, sm.F[10] = 5, sm.F[11] = 6;
+  CHECK_STATUS(km_autorig(&sm, NULL, &c, NULL, KM_E), KM_ERR_DEGENERATE_MESH);
+  CHECK_MSG(strstr(km_test_err.message, "6 vertices lying exactly on another") &&
+                strstr(km_test_err.message, "Merge by Distance"),
+            "message: %s", km_test_err.message);
+  km_mesh_free(&sm);
   /* A non-manifold edge: a third triangle on edge 0-1 of the first tetrahedron. */
   km_mesh nm = {0};
   CHECK_OK(km_mesh_alloc(5, 5, &nm, KM_E));

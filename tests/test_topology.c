@@ -51,6 +51,24 @@ static void test_tetrahedron(void) {
   km_mesh_free(&m);
 }
 
+/* A tetrahedron whose last face has its own copies of vertices 1, 2, 3 (as a glTF exporter
+ * splits a textured mesh at a seam), and a lone vertex on vertex 0's position (no face: not
+ * counted). */
+static void test_seams(void) {
+  const double V[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+  const int32_t F[] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 4, 5, 6};
+  km_mesh m = make(8, V, 4, F);
+  km_mesh_info i = info_of(&m);
+  CHECK_MSG(i.seam_vertices == 6 && i.components == 2 && i.isolated_vertices == 1,
+            "seam vertices %zu, components %zu, isolated %zu", i.seam_vertices, i.components,
+            i.isolated_vertices);
+  km_mesh_free(&m);
+  const int32_t G[] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+  m = make(4, V, 4, G);
+  CHECK(info_of(&m).seam_vertices == 0);
+  km_mesh_free(&m);
+}
+
 static void test_open_square_and_extras(void) {
   /* Two triangles forming a unit square, plus an isolated vertex and a degenerate
    * (collinear) face on a separate strip. */
@@ -402,6 +420,7 @@ int main(void) {
   test_boundary_loops();
   test_farthest_points();
   test_tetrahedron();
+  test_seams();
   test_open_square_and_extras();
   test_nonmanifold();
   test_grid();

@@ -129,6 +129,29 @@ int km_cli_fail(const char *verb, const km_error *err) {
   return KM_EXIT_FAIL;
 }
 
+void km_cli_warn_seams(const char *verb, const char *path, const km_mesh *m) {
+  km_mesh_info info;
+  km_error e = {0};
+  /* coincident vertices inside a closed piece (the dinosaur's 8) cut nothing */
+  if (km_mesh_info_compute(m, &info, &e) != KM_OK || !info.seam_vertices ||
+      (info.components < 2 && info.boundary_edges == 0))
+    return;
+  if (info.components > 1)
+    fprintf(stderr,
+            "kinemesh %s: warning: %s is %zu pieces with %zu vertices lying exactly on others "
+            "(split at its texture or normal seams, as glTF exporters write it): kinemesh keeps "
+            "the file's vertices, so the pieces deform apart there; merge the vertices by "
+            "distance (Blender: Mesh > Clean Up > Merge by Distance) and export again\n",
+            verb, path, info.components, info.seam_vertices);
+  else
+    fprintf(stderr,
+            "kinemesh %s: warning: %s has %zu vertices lying exactly on others, on its open "
+            "edges (a cut along a texture seam, as glTF exporters write it): kinemesh keeps the "
+            "file's vertices, so the cut can open as the mesh deforms; merge the vertices by "
+            "distance (Blender: Mesh > Clean Up > Merge by Distance) and export again\n",
+            verb, path, info.seam_vertices);
+}
+
 int km_cli_error(const char *verb, const char *fmt, ...) {
   km_cli_progress_done();
   fprintf(stderr, "kinemesh %s: error: ", verb);

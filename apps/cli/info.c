@@ -101,6 +101,7 @@ int km_cli_info(int argc, char **argv) {
     cJSON_AddNumberToObject(o, "components", (double)info.components);
     cJSON_AddNumberToObject(o, "isolated_vertices", (double)info.isolated_vertices);
     cJSON_AddNumberToObject(o, "degenerate_faces", (double)info.degenerate_faces);
+    cJSON_AddNumberToObject(o, "seam_vertices", (double)info.seam_vertices);
     cJSON_AddNumberToObject(o, "euler_characteristic", (double)info.euler_characteristic);
     cJSON_AddItemToObject(o, "bbox_min", vec3(info.bbox_min));
     cJSON_AddItemToObject(o, "bbox_max", vec3(info.bbox_max));
@@ -127,6 +128,14 @@ int km_cli_info(int argc, char **argv) {
   printf("components            %zu\nisolated vertices     %zu\ndegenerate faces      %zu\n",
          info.components, info.isolated_vertices, info.degenerate_faces);
   printf("euler characteristic  %lld\n", (long long)info.euler_characteristic);
+  if (info.seam_vertices)
+    printf("seam vertices         %zu (each lies exactly on another vertex, but the faces do not "
+           "join there%s)\n",
+           info.seam_vertices,
+           info.components > 1 ? ": glTF exporters split a textured mesh at its seams so; in "
+                                 "pieces it cannot be rigged and deforms apart, merge them by "
+                                 "distance first"
+                               : "");
   printf("bbox min              %.6g %.6g %.6g\nbbox max              %.6g %.6g %.6g\n",
          info.bbox_min[0], info.bbox_min[1], info.bbox_min[2], info.bbox_max[0], info.bbox_max[1],
          info.bbox_max[2]);

@@ -79,6 +79,15 @@ static km_status check_mesh(const km_mesh *m, km_error *err) {
   km_mesh_info info;
   km_status st = km_mesh_info_compute(m, &info, err);
   if (st != KM_OK) return st;
+  if (info.components != 1 && info.seam_vertices)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: the mesh has %zu components (separate pieces of connected faces) and "
+                    "%zu vertices lying exactly on another one: it is split along its texture "
+                    "or normal seams, as glTF exporters write a textured mesh; kinemesh keeps "
+                    "the file's vertices and does not weld them, so it needs one piece: merge "
+                    "the vertices by distance (Blender: Mesh > Clean Up > Merge by Distance) and "
+                    "export again",
+                    info.components, info.seam_vertices);
   if (info.components != 1)
     return km__fail(err, KM_ERR_DEGENERATE_MESH,
                     "rig: the mesh has %zu components (separate pieces of connected faces); "

@@ -96,6 +96,45 @@ double km_bbox_diagonal(const double *V, size_t n_vertices) {
   return sqrt(dx * dx + dy * dy + dz * dz);
 }
 
+typedef struct pos_key {
+  double p[3];
+  int32_t v;
+} pos_key;
+
+static int cmp_pos(const void *a, const void *b) {
+  const double *p = ((const pos_key *)a)->p, *q = ((const pos_key *)b)->p;
+  for (int c = 0; c < 3; ++c)
+    if (p[c] != q[c]) return p[c] < q[c] ? -1 : 1;
+  return 0;
+}
+
+/* Used vertices (vf_off[v + 1] > vf_off[v] after the degree count) that share their exact
+ * position with another used vertex: the seams a glTF exporter cuts a textured mesh at. */
+static km_status count_seam_vertices(const km_mesh *m, const int32_t *degree_off, size_t *out,
+                                     km_error *err) {
+  size_t nv = m->n_vertices, n = 0;
+  pos_key *k = km__malloc(nv ? nv : 1, sizeof *k);
+  if (!k)
+    return km__fail(err, KM_ERR_NOMEM, "km_mesh_info_compute: cannot allocate for %zu vertices",
+                    nv);
+  for (size_t v = 0; v < nv; ++v)
+    if (degree_off[v + 1] > 0) {
+      memcpy(k[n].p, m->V + 3 * v, sizeof k[n].p);
+      k[n++].v = (int32_t)v;
+    }
+  qsort(k, n, sizeof *k, cmp_pos);
+  *out = 0;
+  for (size_t i = 0; i < n;) {
+    size_t j = i + 1;
+    while (j < n && cmp_pos(k + i, k + j) == 0)
+      ++j;
+    if (j - i > 1) *out += j - i;
+    i = j;
+  }
+  free(k);
+  return KM_OK;
+}
+
 km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "km_mesh_info_compute: out is NULL");
   km_status s = check_faces(m, "km_mesh_info_compute", err);
@@ -166,6 +205,7 @@ km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *er
     }
   }
   out->euler_characteristic = (int64_t)used - (int64_t)out->edges + (int64_t)nf;
+  if ((s = count_seam_vertices(m, vf_off, &out->seam_vertices, err)) != KM_OK) goto done;
 
   /* Degenerate faces. */
   double diag = km_bbox_diagonal(m->V, nv);
