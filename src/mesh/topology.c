@@ -101,8 +101,12 @@ typedef struct pos_key {
   int32_t v;
 } pos_key;
 
+/* By the coordinates' bit patterns: a total order whatever the values (a NaN in a caller's
+ * mesh leaves qsort's comparisons consistent), and equal keys are the same position. */
 static int cmp_pos(const void *a, const void *b) {
-  const double *p = ((const pos_key *)a)->p, *q = ((const pos_key *)b)->p;
+  uint64_t p[3], q[3];
+  memcpy(p, ((const pos_key *)a)->p, sizeof p);
+  memcpy(q, ((const pos_key *)b)->p, sizeof q);
   for (int c = 0; c < 3; ++c)
     if (p[c] != q[c]) return p[c] < q[c] ? -1 : 1;
   return 0;
