@@ -2,6 +2,7 @@
  * bending, cache round trip and staleness, handle changes without eigen-decomposition, and
  * the reduced-vs-full deviation. */
 #include "km_test.h"
+#include "mesh/mesh.h"   /* km__geodesic: distances across a seam */
 #include "synth/synth.h" /* test fixtures: primitive meshes, one capture frame */
 
 #include <stdint.h>
@@ -789,7 +790,103 @@ static void test_arap_soft(void) {
   km_mesh_free(&m);
 }
 
+/* A bar split in two at its middle ring, as a glTF exporter splits a mesh at a texture seam:
+ * the faces above the ring use copies of its vertices (appended after the file's). Bent by the
+ * reduced model, every copy moves exactly with its vertex (the seam stays shut) and the bar
+ * bends as the unsplit one does. Before the fields were taken on the welded mesh, the two
+ * halves were separate pieces: each its own zero mode, and the seam opened. */
+static void test_seam(void) {
+  km_mesh m = {0}, sm = {0};
+  CHECK_OK(km_cylinder(24, 60, 0.08, 1.0, &m, KM_E));
+  size_t n = m.n_vertices, segs = 24, ring = 30;
+  CHECK_OK(km_mesh_alloc(n + segs, m.n_faces, &sm, KM_E));
+  memcpy(sm.V, m.V, 3 * n * sizeof(double));
+  memcpy(sm.V + 3 * n, m.V + 3 * ring * segs, 3 * segs * sizeof(double));
+  memcpy(sm.F, m.F, 3 * m.n_faces * sizeof(int32_t));
+  double zr = m.V[3 * ring * segs + 2];
+  for (size_t f = 0; f < m.n_faces; ++f) {
+    const int32_t *t = m.F + 3 * f;
+    double zc = (m.V[3 * t[0] + 2] + m.V[3 * t[1] + 2] + m.V[3 * t[2] + 2]) / 3;
+    for (int k = 0; k < 3 && zc > zr; ++k)
+      if ((size_t)t[k] / segs == ring) sm.F[3 * f + k] = (int32_t)(n + (size_t)t[k] % segs);
+  }
+  /* a distance crosses the seam: from the middle ring's vertex 0, 0.1 along the bar reaches
+   * the rings above it (its copies first, at 0) */
+  km__geodesic *geo = NULL;
+  CHECK_OK(km__geodesic_create(&sm, &geo, KM_E));
+  if (geo) {
+    const double *d = km__geodesic_run(geo, sm.V, (int32_t)(ring * segs), 0.1, NULL, 0, NULL, NULL);
+    size_t above = (ring + 2) * segs; /* a vertex of the ring two above, reached through a copy */
+    printf("seam: geodesic to the copy %g, to the ring two above %g\n", d[n], d[above]);
+    CHECK_MSG(d[n] == 0 && isfinite(d[above]) && d[above] < 0.1, "across the seam: %g, %g", d[n],
+              d[above]);
+    km__geodesic_free(&geo);
+  }
+  km_mesh_info info;
+  CHECK_OK(km_mesh_info_compute(&sm, &info, KM_E));
+  CHECK_MSG(info.components == 2 && info.seam_vertices == 2 * segs,
+            "split bar: %zu pieces, %zu "
+            "seam vertices",
+            info.components, info.seam_vertices);
+  size_t nhv;
+  int32_t *hv = malloc(n * sizeof(int32_t)), off[3];
+  bar_handles(&m, 0.03, 0.97, off, hv, &nhv);
+  km_puppet *p = NULL, *q = NULL;
+  CHECK_OK(km_puppet_precompute(&m, NULL, &p, KM_E));
+  CHECK_OK(km_puppet_precompute(&sm, NULL, &q, KM_E));
+  if (!p || !q) return;
+  CHECK_OK(km_puppet_set_handles(p, 2, off, hv, KM_E));
+  CHECK_OK(km_puppet_set_handles(q, 2, off, hv, KM_E));
+  double *T = malloc(nhv * 3 * sizeof(double)), *X = malloc(n * 3 * sizeof(double)),
+         *Y = malloc((n + segs) * 3 * sizeof(double));
+  for (int f = 1; f <= 10; ++f)
+    for (size_t i = 0; i < nhv; ++i) {
+      memcpy(T + 3 * i, m.V + 3 * (size_t)hv[i], 3 * sizeof(double));
+      if ((int32_t)i >= off[1]) T[3 * i] += 0.035 * f;
+    }
+  CHECK_OK(km_puppet_solve(p, T, X, KM_E));
+  CHECK_OK(km_puppet_solve(q, T, Y, KM_E));
+  double gap = 0, diag = km_bbox_diagonal(m.V, n);
+  for (size_t k = 0; k < segs; ++k)
+    for (int c = 0; c < 3; ++c)
+      gap = fmax(gap, fabs(Y[3 * (n + k) + (size_t)c] - Y[3 * (ring * segs + k) + (size_t)c]));
+  double moved = fabs(Y[3 * (ring * segs)] - m.V[3 * ring * segs]), dev = max_dev(X, Y, n);
+  printf("seam: copies %.3g apart, middle ring moved %.3f, split vs whole %.4f of the diagonal\n",
+         gap, moved, dev / diag);
+  CHECK_MSG(gap == 0, "the seam opened by %g", gap);
+  CHECK_MSG(moved > 0.05, "the middle ring moved only %g: nothing bent", moved);
+  CHECK_MSG(dev < 0.01 * diag, "split bar %.4f of the diagonal from the whole one", dev / diag);
+  /* the full ARAP reference too (split, the upper half had turned on its own) */
+  km_arap *a = NULL, *b = NULL;
+  km_arap_options ao = {.iterations = 10};
+  CHECK_OK(km_arap_precompute(&m, 2, off, hv, &ao, &a, KM_E));
+  CHECK_OK(km_arap_precompute(&sm, 2, off, hv, &ao, &b, KM_E));
+  if (a && b) {
+    CHECK_OK(km_arap_solve(a, T, X, KM_E));
+    CHECK_OK(km_arap_solve(b, T, Y, KM_E));
+    gap = 0;
+    for (size_t k = 0; k < segs; ++k)
+      for (int c = 0; c < 3; ++c)
+        gap = fmax(gap, fabs(Y[3 * (n + k) + (size_t)c] - Y[3 * (ring * segs + k) + (size_t)c]));
+    dev = max_dev(X, Y, n);
+    printf("seam, full ARAP: copies %.3g apart, split vs whole %.4f of the diagonal\n", gap,
+           dev / diag);
+    CHECK_MSG(gap == 0 && dev < 1e-9 * diag, "full ARAP: seam %g, %g from the whole bar", gap, dev);
+  }
+  km_arap_free(&a);
+  km_arap_free(&b);
+  free(T);
+  free(X);
+  free(Y);
+  free(hv);
+  km_puppet_free(&p);
+  km_puppet_free(&q);
+  km_mesh_free(&m);
+  km_mesh_free(&sm);
+}
+
 int main(void) {
+  test_seam();
   test_errors();
   test_invariants();
   test_bend(KM_PUPPET_ENERGY_LAPLACIAN);

@@ -130,7 +130,6 @@ int km_cli_animate(int argc, char **argv) {
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK ||
       km_motion_read(motion, NULL, &take, NULL, &err) != KM_OK)
     goto fail;
-  km_cli_warn_seams("animate", mesh_path, &m);
   fo.rig = rig_path; /* the frame its sidecar records (the default one when not given) */
   km_frame mf;
   if ((rc = km_cli_mesh_frame("animate", mesh_path, &fo, &m, false, &mf, NULL)) ||

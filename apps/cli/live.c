@@ -180,7 +180,6 @@ int km_cli_live(int argc, char **argv) {
   int rc = KM_EXIT_FAIL;
 
   if (km_mesh_read(mesh_path, &m, &err) != KM_OK) goto fail;
-  km_cli_warn_seams("live", mesh_path, &m);
   fo.rig = rig_path; /* the frame its sidecar records (the default one when not given) */
   if ((rc = km_cli_orient_mesh("live", mesh_path, &fo, &m))) goto done;
   rc = KM_EXIT_FAIL;

@@ -118,7 +118,6 @@ int km_cli_rig(int argc, char **argv) {
       rc = km_cli_fail("rig", &err);
       goto done;
     }
-    km_cli_warn_seams("rig", pos[0], &m);
     printf("%s: %zu vertices, rigged from its own skin (%zu joints, %zu merged into an "
            "ancestor's weights):\n",
            pos[0], m.n_vertices, sk.n_joints, map.n_merged);

@@ -8,6 +8,14 @@
 
 #include "core/core.h"
 
+/* The mesh with its coincident vertices (the same position, bit for bit) merged into one: the
+ * surface a glTF exporter split at its texture seams, joined again. Faces keep their order
+ * and count (a face may come out degenerate where a seam ran across it).
+ *   w     out: #W <= #V vertices, in the order of each class's lowest vertex id; free with
+ *         km_mesh_free (no attributes)
+ *   to_w  out: #V (the caller's), the welded vertex of each vertex */
+km_status km__mesh_weld(const km_mesh *m, km_mesh *w, int32_t *to_w, km_error *err);
+
 /* Edge-graph geodesic distances: Dijkstra over the mesh's edges with an indexed binary heap,
  * the one Dijkstra of the library (geodesic.c). Created once per connectivity (faces of m;
  * m's positions are not kept); each run reuses its scratch and does not allocate. */

@@ -139,6 +139,47 @@ static km_status count_seam_vertices(const km_mesh *m, const int32_t *degree_off
   return KM_OK;
 }
 
+km_status km__mesh_weld(const km_mesh *m, km_mesh *w, int32_t *to_w, km_error *err) {
+  memset(w, 0, sizeof *w);
+  size_t n = m->n_vertices, nw = 0;
+  pos_key *k = km__malloc(n ? n : 1, sizeof *k);
+  int32_t *first = km__malloc(n ? n : 1, sizeof *first);
+  if (!k || !first) {
+    free(k);
+    free(first);
+    return km__fail(err, KM_ERR_NOMEM, "weld: out of memory for %zu vertices", n);
+  }
+  for (size_t v = 0; v < n; ++v) {
+    memcpy(k[v].p, m->V + 3 * v, sizeof k[v].p);
+    k[v].v = (int32_t)v;
+  }
+  qsort(k, n, sizeof *k, cmp_pos);
+  /* each class's representative: its lowest vertex id */
+  for (size_t i = 0; i < n;) {
+    size_t j = i + 1;
+    int32_t lo = k[i].v;
+    while (j < n && cmp_pos(k + i, k + j) == 0)
+      lo = k[j].v < lo ? k[j].v : lo, ++j;
+    for (size_t q = i; q < j; ++q)
+      first[k[q].v] = lo;
+    i = j;
+  }
+  free(k);
+  /* welded ids in the order of the representatives' ids */
+  for (size_t v = 0; v < n; ++v)
+    to_w[v] = first[v] == (int32_t)v ? (int32_t)nw++ : -1;
+  for (size_t v = 0; v < n; ++v)
+    if (to_w[v] < 0) to_w[v] = to_w[first[v]];
+  free(first);
+  km_status s = km_mesh_alloc(nw, m->n_faces, w, err);
+  if (s != KM_OK) return s;
+  for (size_t v = 0; v < n; ++v)
+    memcpy(w->V + 3 * (size_t)to_w[v], m->V + 3 * v, 3 * sizeof(double));
+  for (size_t i = 0; i < 3 * m->n_faces; ++i)
+    w->F[i] = to_w[m->F[i]];
+  return KM_OK;
+}
+
 km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "km_mesh_info_compute: out is NULL");
   km_status s = check_faces(m, "km_mesh_info_compute", err);

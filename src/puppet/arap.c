@@ -10,6 +10,7 @@
 #include "core/core.h"
 
 #include "math/math.h"
+#include "mesh/mesh.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -32,6 +33,14 @@ struct km_arap {
   double *B;    /* n_free*3 column-major rhs / solution */
   double soft;  /* > 0: soft handles, the weight of a handle vertex's pull to its target */
   int32_t *hix; /* soft handles: n, the handle vertex index of a vertex, -1 none */
+  /* A mesh split at its texture seams (km_arap_precompute) is solved welded: the caller's
+   * n_out vertices and n_hv_out handle vertices map onto the welded ones. NULL: not split. */
+  km_arap *welded;
+  size_t n_out, n_hv_out;
+  int32_t *to_w;   /* n_out: the welded vertex of each vertex */
+  int32_t *hsrc;   /* welded->n_hv: the caller's handle vertex each welded one takes its target
+                      from (the first copy listed) */
+  double *Tw, *Vw; /* welded targets and result (the solve does not allocate) */
 };
 
 static int32_t uf_find(int32_t *parent, int32_t x) {
@@ -79,13 +88,92 @@ void km_arap_free(km_arap **pa) {
   free(a->X);
   free(a->R);
   free(a->B);
+  km_arap_free(&a->welded);
+  free(a->to_w);
+  free(a->hsrc);
+  free(a->Tw);
+  free(a->Vw);
   free(a);
   *pa = NULL;
 }
 
+static km_status arap_precompute(const km_mesh *rest, size_t n_handles,
+                                 const int32_t *handle_offsets, const int32_t *handle_vertices,
+                                 const km_arap_options *opt, km_arap **out, km_error *err);
+
+/* A mesh split at its texture seams (coincident vertices that cut it into pieces or open it:
+ * km_mesh_info.seam_vertices) is solved on the mesh welded there, so the seams stay shut:
+ * split, each piece turned on its own and a piece without a handle had no solution. Each
+ * handle keeps one copy of each welded vertex (the first listed). */
 km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_t *handle_offsets,
                              const int32_t *handle_vertices, const km_arap_options *opt,
                              km_arap **out, km_error *err) {
+  km_mesh_info info;
+  if (!rest || !rest->V || !rest->F || !handle_offsets || !handle_vertices || !n_handles ||
+      km_mesh_info_compute(rest, &info, NULL) != KM_OK || !info.seam_vertices ||
+      (info.components < 2 && info.boundary_edges == 0))
+    return arap_precompute(rest, n_handles, handle_offsets, handle_vertices, opt, out, err);
+  if (!out) return km__fail(err, KM_ERR_INVALID, "arap: out is NULL");
+  *out = NULL;
+  size_t n = rest->n_vertices,
+         nhv = handle_offsets[n_handles] > 0 ? (size_t)handle_offsets[n_handles] : 0;
+  for (size_t i = 0; i < nhv; ++i)
+    if (handle_vertices[i] < 0 || (size_t)handle_vertices[i] >= n)
+      return km__fail(err, KM_ERR_INVALID, "arap: handle vertex %zu is %d (out of range)", i,
+                      (int)handle_vertices[i]);
+  km_arap *a = calloc(1, sizeof *a);
+  km_mesh w = {0};
+  int32_t *seen = NULL, *off = km__malloc(n_handles + 1, sizeof *off),
+          *hv = km__malloc(nhv ? nhv : 1, sizeof *hv);
+  km_status s = KM_OK;
+  if (!a || !off || !hv || !(a->to_w = km__malloc(n, sizeof *a->to_w)) ||
+      !(a->hsrc = km__malloc(nhv ? nhv : 1, sizeof *a->hsrc))) {
+    s = km__fail(err, KM_ERR_NOMEM, "arap: out of memory");
+    goto done;
+  }
+  if ((s = km__mesh_weld(rest, &w, a->to_w, err)) != KM_OK) goto done;
+  if (!(seen = km__malloc(w.n_vertices, sizeof *seen))) {
+    s = km__fail(err, KM_ERR_NOMEM, "arap: out of memory");
+    goto done;
+  }
+  for (size_t v = 0; v < w.n_vertices; ++v)
+    seen[v] = -1;
+  size_t k = 0;
+  off[0] = 0;
+  for (size_t h = 0; h < n_handles; ++h) {
+    for (int32_t i = handle_offsets[h]; i < handle_offsets[h + 1] && (size_t)i < nhv; ++i) {
+      int32_t v = a->to_w[handle_vertices[i]];
+      if (seen[v] >= 0) continue; /* another copy (or a repeat, refused below as before) */
+      seen[v] = (int32_t)k;
+      a->hsrc[k] = i;
+      hv[k++] = v;
+    }
+    off[h + 1] = (int32_t)k;
+  }
+  if ((s = arap_precompute(&w, n_handles, off, hv, opt, &a->welded, err)) != KM_OK) goto done;
+  a->n = n;
+  a->n_out = n;
+  a->n_hv = nhv;
+  a->n_hv_out = nhv;
+  if (!(a->Tw = km__malloc(3 * (k ? k : 1), sizeof(double))) ||
+      !(a->Vw = km__malloc(3 * w.n_vertices, sizeof(double))))
+    s = km__fail(err, KM_ERR_NOMEM, "arap: out of memory");
+done:
+  free(seen);
+  free(off);
+  free(hv);
+  km_mesh_free(&w);
+  if (s != KM_OK) {
+    km_arap_free(&a);
+    return s;
+  }
+  *out = a;
+  return KM_OK;
+}
+
+static km_status arap_precompute(const km_mesh *rest, size_t n_handles,
+                                 const int32_t *handle_offsets, const int32_t *handle_vertices,
+                                 const km_arap_options *opt, km_arap **out, km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "arap: out is NULL");
   *out = NULL;
   if (!rest || !rest->V || !rest->F || rest->n_vertices < 3 || rest->n_faces < 1)
@@ -300,6 +388,15 @@ km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_err
     if (!isfinite(targets[i]))
       return km__fail(err, KM_ERR_INVALID, "arap solve: target of handle vertex %zu is not finite",
                       i / 3);
+  if (a->welded) { /* split at its seams: solved welded, every copy takes its vertex's place */
+    for (size_t k = 0; k < a->welded->n_hv; ++k)
+      memcpy(a->Tw + 3 * k, targets + 3 * (size_t)a->hsrc[k], 3 * sizeof(double));
+    km_status s = km_arap_solve(a->welded, a->Tw, a->Vw, err);
+    if (s != KM_OK) return s;
+    for (size_t v = 0; v < a->n_out; ++v)
+      memcpy(V_out + 3 * v, a->Vw + 3 * (size_t)a->to_w[v], 3 * sizeof(double));
+    return KM_OK;
+  }
   for (size_t i = 0; i < a->n_hv && !a->hix; ++i)
     memcpy(a->X + 3 * (size_t)a->h_v[i], targets + 3 * i, 3 * sizeof(double));
   size_t n = a->n, nf = a->n_free;

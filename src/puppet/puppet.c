@@ -38,6 +38,7 @@
 #include "core/core.h"
 
 #include "math/math.h"
+#include "mesh/mesh.h"
 
 #include <errno.h>
 #include "linalg/linalg.h"
@@ -50,7 +51,10 @@
 #endif
 
 #define KM_PUPPET_MAGIC "KMPUPPET"
-#define KM_PUPPET_FORMAT 2u /* 2: energy enum renumbered (ARAP = 0) */
+#define KM_PUPPET_FORMAT                                                                           \
+  3u /* 2: energy enum renumbered (ARAP = 0); 3: a mesh split at its seams                         \
+      * gets the welded mesh's fields (a format-2 cache of one holds                               \
+      * its pieces' own, which let the seams open) */
 #define KM_PUPPET_ENDIAN 0x01020304u
 #define KM_PUPPET_HEADER 64u
 
@@ -860,6 +864,47 @@ static bool eigs_progress(double fraction, const char *stage, void *user) {
   return km__progress(outer, 0.05 + 0.65 * fraction, stage);
 }
 
+/* The fields of a mesh split at its texture seams (coincident vertices that no face joins: a
+ * glTF exporter's output) are those of the mesh welded there, each copy of a vertex taking its
+ * vertex's values: split into pieces, the Laplacian has one zero mode per piece and the fields
+ * are the pieces' indicators, so each piece moved on its own and the seams opened; with equal
+ * brackets and parameters, X = W R moves every copy exactly alike. The rest of the model keeps
+ * the file's vertices: the Laplacian and ARAP terms over the split faces sum to the welded
+ * mesh's (a seam edge's two one-sided cotangents are the welded edge's), the crossed triangles
+ * are faces. *done false: no coincident vertices, the caller solves on the mesh itself. */
+static km_status fields_welded(const km_mesh *rest, int k, const km_eigs_options *eo, double *evals,
+                               double *evecs, bool *done, km_error *err) {
+  size_t n = rest->n_vertices;
+  *done = false;
+  km_mesh_info
+      info; /* coincident vertices inside one closed piece (the dinosaur's 8) cut nothing */
+  km_status si = km_mesh_info_compute(rest, &info, err);
+  if (si != KM_OK) return si;
+  if (!info.seam_vertices || (info.components < 2 && info.boundary_edges == 0)) return KM_OK;
+  int32_t *to_w = km__malloc(n, sizeof *to_w);
+  if (!to_w) return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
+  km_mesh w = {0};
+  km_sparse *L = NULL, *M = NULL;
+  double *ev = NULL;
+  km_status s = km__mesh_weld(rest, &w, to_w, err);
+  size_t nw = w.n_vertices;
+  *done = s == KM_OK && nw < n;
+  if (*done && !(ev = km__malloc(nw * (size_t)k, sizeof *ev)))
+    s = km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
+  if (*done && s == KM_OK && !(s = km_cotmatrix(&w, &L, err)) &&
+      !(s = km_massmatrix(&w, KM_MASS_VORONOI, &M, err)) &&
+      !(s = km_eigs(L, M, k, eo, evals, ev, err)))
+    for (int f = 0; f < k; ++f)
+      for (size_t v = 0; v < n; ++v)
+        evecs[(size_t)f * n + v] = ev[(size_t)f * nw + (size_t)to_w[v]];
+  km_sparse_free(&L);
+  km_sparse_free(&M);
+  km_mesh_free(&w);
+  free(ev);
+  free(to_w);
+  return s;
+}
+
 km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt, km_puppet **out,
                                km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "puppet: out is NULL");
@@ -897,7 +942,10 @@ km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt
     eo.progress.fn = eigs_progress;
     eo.progress.user = &o.progress;
   }
-  if ((s = km_eigs(L, M, k, &eo, evals, evecs, err))) {
+  bool welded = false;
+  if (!(s = fields_welded(rest, k, &eo, evals, evecs, &welded, err)) && !welded)
+    s = km_eigs(L, M, k, &eo, evals, evecs, err);
+  if (s) {
     km__wrap(err, s, "puppet: propagation fields");
     goto fail;
   }
