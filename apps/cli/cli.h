@@ -36,10 +36,6 @@ typedef struct km_cli_opt {
 int km_cli_parse(int argc, char **argv, const km_cli_opt *opts, size_t n_opts, const char **pos,
                  int max_pos, int *n_pos, const char *usage, const char *description);
 
-/* A warning on stderr, after an automatic rig, when m is one piece cut open along coincident
- * vertices (km_mesh_info.seam_vertices: a texture seam): the skin is made on the cut surface. */
-void km_cli_warn_seams(const char *verb, const char *path, const km_mesh *m);
-
 /* Prints "kinemesh <verb>: <message>" for a library error and returns the exit status 1. */
 int km_cli_fail(const char *verb, const km_error *err);
 /* Same for a message of the CLI itself. Returns 1 (2 for usage errors). */

@@ -129,24 +129,6 @@ int km_cli_fail(const char *verb, const km_error *err) {
   return KM_EXIT_FAIL;
 }
 
-void km_cli_warn_seams(const char *verb, const char *path, const km_mesh *m) {
-  km_mesh_info info;
-  km_error e = {0};
-  /* pieces are refused by km_autorig; coincident vertices inside one closed piece (the
-   * dinosaur's 8) cut nothing */
-  if (km_mesh_info_compute(m, &info, &e) != KM_OK || !info.seam_vertices || info.components > 1 ||
-      info.boundary_edges == 0)
-    return;
-  fprintf(stderr,
-          "kinemesh %s: warning: %s has %zu vertices lying exactly on others along its open "
-          "edges (cut at a texture seam, as glTF exporters write it): puppetry keeps them "
-          "together, but the automatic rig's skin weights are made on the surface as cut and "
-          "can differ across it, so a skinned export or pose may part there; merging the "
-          "vertices by distance (Blender: Mesh > Clean Up > Merge by Distance) gives the best "
-          "rig\n",
-          verb, path, info.seam_vertices);
-}
-
 int km_cli_error(const char *verb, const char *fmt, ...) {
   km_cli_progress_done();
   fprintf(stderr, "kinemesh %s: error: ", verb);
@@ -308,7 +290,6 @@ km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *r
   }
   km_character_free(c);
   *c = tmp;
-  km_cli_warn_seams(verb, mesh_path, m);
   fprintf(say, "kinemesh %s: no rig at %s: rigged %s as a %s in %.2f s:", verb, rig_file, mesh_path,
           km_autorig_kind_name(rep.kind), rep.seconds);
   const char *sep = " ";

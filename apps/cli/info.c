@@ -129,13 +129,12 @@ int km_cli_info(int argc, char **argv) {
          info.components, info.isolated_vertices, info.degenerate_faces);
   printf("euler characteristic  %lld\n", (long long)info.euler_characteristic);
   if (info.seam_vertices)
-    printf("seam vertices         %zu (each lies exactly on another vertex, but the faces do not "
-           "join there%s)\n",
+    printf("seam vertices         %zu (each lies exactly on another vertex%s)\n",
            info.seam_vertices,
-           info.components > 1 ? ": glTF exporters split a textured mesh at its seams so; in "
-                                 "pieces it cannot be rigged and deforms apart, merge them by "
-                                 "distance first"
-                               : "");
+           info.components > 1 || info.boundary_edges
+               ? ", the faces not joined there: a glTF split at its texture seams; rig and the "
+                 "solvers join them, the outputs keep every vertex"
+               : "");
   printf("bbox min              %.6g %.6g %.6g\nbbox max              %.6g %.6g %.6g\n",
          info.bbox_min[0], info.bbox_min[1], info.bbox_min[2], info.bbox_max[0], info.bbox_max[1],
          info.bbox_max[2]);

@@ -139,7 +139,6 @@ int km_cli_rig(int argc, char **argv) {
     rc = km_cli_fail("rig", &err);
     goto done;
   }
-  km_cli_warn_seams("rig", pos[0], &m); /* one piece, cut open along a seam */
   autorigged = true;
   if (rep.fallback[0]) printf("not a humanoid or quadruped (%s): rigged as a prop\n", rep.fallback);
   printf("%s: %zu vertices, height %.4g, rigged as %s in %.3f s\n", pos[0], m.n_vertices,

@@ -79,15 +79,6 @@ static km_status check_mesh(const km_mesh *m, km_error *err) {
   km_mesh_info info;
   km_status st = km_mesh_info_compute(m, &info, err);
   if (st != KM_OK) return st;
-  if (info.components != 1 && info.seam_vertices)
-    return km__fail(err, KM_ERR_DEGENERATE_MESH,
-                    "rig: the mesh has %zu components (separate pieces of connected faces) and "
-                    "%zu vertices lying exactly on another one: it is split along its texture "
-                    "or normal seams, as glTF exporters write a textured mesh; kinemesh keeps "
-                    "the file's vertices and does not weld them, so it needs one piece: merge "
-                    "the vertices by distance (Blender: Mesh > Clean Up > Merge by Distance) and "
-                    "export again",
-                    info.components, info.seam_vertices);
   if (info.components != 1)
     return km__fail(err, KM_ERR_DEGENERATE_MESH,
                     "rig: the mesh has %zu components (separate pieces of connected faces); "
@@ -1775,11 +1766,70 @@ const char *km_autorig_kind_name(km_autorig_skeleton kind) {
   return "unknown";
 }
 
+/* A mesh split at its texture seams (coincident vertices that cut it into pieces or open it,
+ * km_mesh_info.seam_vertices: what a glTF exporter writes) is rigged welded there, and the
+ * character comes back on the file's vertices: the mesh as given, every copy with its vertex's
+ * skin, landmarks and extremities on the lowest id of their copies. Split, the rig saw pieces
+ * (refused) or a cut (extremities and heat stopped at it). *done false: nothing to weld. */
+static km_status autorig_welded(const km_mesh *m, const km_autorig_options *opt, km_character *out,
+                                km_autorig_report *report, bool *done, km_error *err) {
+  *done = false;
+  km_mesh_info info;
+  if (!m || !m->V || !m->F || !m->n_faces || km_mesh_info_compute(m, &info, NULL) != KM_OK ||
+      !info.seam_vertices || (info.components < 2 && info.boundary_edges == 0))
+    return KM_OK;
+  size_t n = m->n_vertices;
+  int32_t *to_w = km__malloc(n, sizeof *to_w), *first = NULL;
+  km_mesh w = {0};
+  km_character cw = {0};
+  km_status s = to_w ? km__mesh_weld(m, &w, to_w, err)
+                     : km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", n);
+  if (s == KM_OK && w.n_vertices == n) goto done; /* coincident but unused: nothing joins */
+  if (s == KM_OK && !(first = km__malloc(w.n_vertices, sizeof *first)))
+    s = km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", n);
+  if (s != KM_OK) goto done;
+  *done = true;
+  for (size_t v = n; v-- > 0;)
+    first[to_w[v]] = (int32_t)v;
+  if ((s = km_autorig(&w, opt, &cw, report, err)) != KM_OK) goto done;
+  if ((s = km_mesh_copy(m, &out->mesh, err)) != KM_OK) goto done;
+  out->skeleton = cw.skeleton;
+  memset(&cw.skeleton, 0, sizeof cw.skeleton);
+  out->skin.n_vertices = n;
+  out->skin.joints = km__malloc(4 * n, sizeof(int32_t));
+  out->skin.weights = km__malloc(4 * n, sizeof(double));
+  if (!out->skin.joints || !out->skin.weights) {
+    s = km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", n);
+    goto done;
+  }
+  for (size_t v = 0; v < n; ++v)
+    for (int k = 0; k < 4; ++k) {
+      out->skin.joints[4 * v + (size_t)k] = cw.skin.joints[4 * (size_t)to_w[v] + (size_t)k];
+      out->skin.weights[4 * v + (size_t)k] = cw.skin.weights[4 * (size_t)to_w[v] + (size_t)k];
+    }
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    out->landmarks[i] = cw.landmarks[i];
+    if (cw.landmarks[i].vertex >= 0) out->landmarks[i].vertex = first[cw.landmarks[i].vertex];
+  }
+  for (size_t e = 0; report && e < report->n_extremities; ++e)
+    if (report->extremity[e] >= 0) report->extremity[e] = first[report->extremity[e]];
+done:
+  if (s != KM_OK) km_character_free(out);
+  km_character_free(&cw);
+  km_mesh_free(&w);
+  free(first);
+  free(to_w);
+  return s;
+}
+
 km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_character *out,
                      km_autorig_report *report, km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "rig: NULL output");
   memset(out, 0, sizeof *out);
   if (report) memset(report, 0, sizeof *report);
+  bool welded = false;
+  km_status sw = autorig_welded(m, opt, out, report, &welded, err);
+  if (sw != KM_OK || welded) return sw;
   km_autorig_options o = {0};
   if (opt) o = *opt;
   double t0 = km_seconds();

@@ -660,8 +660,102 @@ static km_status upper_base(const km_character *c, double ymin, double ymax, rig
 }
 
 /* Checks c and places the handles; p->band is the caller's to free. */
+static km_status rig_plan_make_on(const char *path, const km_character *c, rig_plan *p,
+                                  km_error *err);
+
+/* Expands a vertex list of the welded mesh (ids < nw) to every copy: the vertices v of the
+ * file whose to_w[v] is in it, ascending. *list is replaced (NULL stays NULL). */
+static km_status expand_list(int32_t **list, size_t *n_list, const int32_t *to_w, size_t n,
+                             size_t nw, km_error *err) {
+  if (!*list) return KM_OK;
+  unsigned char *in = km__calloc(nw ? nw : 1, 1);
+  int32_t *out = km__malloc(n ? n : 1, sizeof *out);
+  if (!in || !out) {
+    free(in);
+    free(out);
+    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  }
+  for (size_t i = 0; i < *n_list; ++i)
+    in[(*list)[i]] = 1;
+  size_t k = 0;
+  for (size_t v = 0; v < n; ++v)
+    if (in[to_w[v]]) out[k++] = (int32_t)v;
+  free(in);
+  free(*list);
+  *list = out;
+  *n_list = k;
+  return KM_OK;
+}
+
+/* A character whose mesh is split at its texture seams (coincident vertices that cut it into
+ * pieces or open it: a glTF exporter's output) is planned on the mesh welded there (bands cut to
+ * one connected part, a bust's open cut, the hands' and feet's balls all look at the surface),
+ * and the plan comes back on the file's vertices: every copy in its vertex's band and lists, a
+ * handle's centre on the lowest id of its copies. */
 static km_status rig_plan_make(const char *path, const km_character *c, rig_plan *p,
                                km_error *err) {
+  const km_mesh *m = &c->mesh;
+  km_mesh_info info;
+  size_t n = m->n_vertices;
+  if (!m->V || !m->F || !m->n_faces || c->skin.n_vertices != n || !c->skin.joints ||
+      !c->skin.weights || km_mesh_info_compute(m, &info, NULL) != KM_OK || !info.seam_vertices ||
+      (info.components < 2 && info.boundary_edges == 0))
+    return rig_plan_make_on(path, c, p, err);
+  int32_t *to_w = km__malloc(n, sizeof *to_w), *first = NULL;
+  km_character cw;
+  memset(&cw, 0, sizeof cw);
+  memset(p, 0, sizeof *p);
+  km_status s = to_w ? km__mesh_weld(m, &cw.mesh, to_w, err)
+                     : km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  size_t nw = cw.mesh.n_vertices;
+  if (s == KM_OK && (!(first = km__malloc(nw, sizeof *first)) ||
+                     !(cw.skin.joints = km__malloc(4 * nw, sizeof(int32_t))) ||
+                     !(cw.skin.weights = km__malloc(4 * nw, sizeof(double)))))
+    s = km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  if (s != KM_OK) goto done;
+  for (size_t v = n; v-- > 0;)
+    first[to_w[v]] = (int32_t)v;
+  cw.skin.n_vertices = nw;
+  for (size_t q = 0; q < nw; ++q)
+    for (int k = 0; k < 4; ++k) {
+      cw.skin.joints[4 * q + (size_t)k] = c->skin.joints[4 * (size_t)first[q] + (size_t)k];
+      cw.skin.weights[4 * q + (size_t)k] = c->skin.weights[4 * (size_t)first[q] + (size_t)k];
+    }
+  cw.skeleton = c->skeleton; /* borrowed, not freed */
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    cw.landmarks[i] = c->landmarks[i];
+    if (c->landmarks[i].vertex >= 0 && (size_t)c->landmarks[i].vertex < n)
+      cw.landmarks[i].vertex = to_w[c->landmarks[i].vertex];
+  }
+  if ((s = rig_plan_make_on(path, &cw, p, err)) != KM_OK) goto done;
+  for (int h = 0; h < 5 && s == KM_OK; ++h) {
+    if (p->handle_vertex[h] >= 0 && (size_t)p->handle_vertex[h] < nw)
+      p->handle_vertex[h] = first[p->handle_vertex[h]];
+    s = expand_list(&p->end_list[h], &p->n_end[h], to_w, n, nw, err);
+  }
+  if (s == KM_OK) s = expand_list(&p->base_list, &p->n_base, to_w, n, nw, err);
+  if (s == KM_OK && p->band) {
+    int8_t *band = km__malloc(n, 1);
+    if (!band) {
+      s = km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+    } else {
+      for (size_t v = 0; v < n; ++v)
+        band[v] = p->band[to_w[v]];
+      free(p->band);
+      p->band = band;
+    }
+  }
+  if (s != KM_OK) plan_free(p);
+done:
+  memset(&cw.skeleton, 0, sizeof cw.skeleton);
+  km_character_free(&cw);
+  free(first);
+  free(to_w);
+  return s;
+}
+
+static km_status rig_plan_make_on(const char *path, const km_character *c, rig_plan *p,
+                                  km_error *err) {
   memset(p, 0, sizeof *p);
   const km_mesh *m = &c->mesh;
   const km_skeleton *sk = &c->skeleton;
