@@ -1774,24 +1774,14 @@ const char *km_autorig_kind_name(km_autorig_skeleton kind) {
 static km_status autorig_welded(const km_mesh *m, const km_autorig_options *opt, km_character *out,
                                 km_autorig_report *report, bool *done, km_error *err) {
   *done = false;
-  km_mesh_info info;
-  if (!m || !m->V || !m->F || !m->n_faces || km_mesh_info_compute(m, &info, NULL) != KM_OK ||
-      !info.seam_vertices || (info.components < 2 && info.boundary_edges == 0))
-    return KM_OK;
+  km__weld wd;
+  km_status s = km__mesh_weld(m, &wd, err);
+  if (s != KM_OK || !wd.to_w) return s;
   size_t n = m->n_vertices;
-  int32_t *to_w = km__malloc(n, sizeof *to_w), *first = NULL;
-  km_mesh w = {0};
+  const int32_t *to_w = wd.to_w, *first = wd.first;
   km_character cw = {0};
-  km_status s = to_w ? km__mesh_weld(m, &w, to_w, err)
-                     : km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", n);
-  if (s == KM_OK && w.n_vertices == n) goto done; /* coincident but unused: nothing joins */
-  if (s == KM_OK && !(first = km__malloc(w.n_vertices, sizeof *first)))
-    s = km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", n);
-  if (s != KM_OK) goto done;
   *done = true;
-  for (size_t v = n; v-- > 0;)
-    first[to_w[v]] = (int32_t)v;
-  if ((s = km_autorig(&w, opt, &cw, report, err)) != KM_OK) goto done;
+  if ((s = km_autorig(&wd.w, opt, &cw, report, err)) != KM_OK) goto done;
   if ((s = km_mesh_copy(m, &out->mesh, err)) != KM_OK) goto done;
   out->skeleton = cw.skeleton;
   memset(&cw.skeleton, 0, sizeof cw.skeleton);
@@ -1816,9 +1806,7 @@ static km_status autorig_welded(const km_mesh *m, const km_autorig_options *opt,
 done:
   if (s != KM_OK) km_character_free(out);
   km_character_free(&cw);
-  km_mesh_free(&w);
-  free(first);
-  free(to_w);
+  km__weld_free(&wd);
   return s;
 }
 

@@ -55,37 +55,23 @@ km_status km__geodesic_create(const km_mesh *m, km__geodesic **out, km_error *er
   /* Copies of a vertex (the same position: a mesh split at its texture seams) are joined by
    * an edge of length 0 to the next copy, so a distance crosses the seam as the surface does:
    * a handle grown round a vertex near a glTF's seam covers both sides. */
-  km_mesh_info info; /* coincident vertices inside one closed piece (the dinosaur's 8) stay apart */
-  bool seams = nf && km_mesh_info_compute(m, &info, NULL) == KM_OK && info.seam_vertices &&
-               (info.components > 1 || info.boundary_edges > 0);
-  int32_t *to_w = km__malloc(n ? n : 1, sizeof *to_w), *next = km__malloc(n ? n : 1, sizeof *next);
-  km_mesh w = {0};
-  if (!to_w || !next || (seams && km__mesh_weld(m, &w, to_w, NULL) != KM_OK)) {
-    free(to_w), free(next), free(fill);
+  km__weld wd;
+  int32_t *next = km__malloc(n ? n : 1, sizeof *next);
+  if (!next || km__mesh_weld(m, &wd, NULL) != KM_OK) {
+    free(next), free(fill);
     km__geodesic_free(&g);
     return km__fail(err, KM_ERR_NOMEM, "geodesics: out of memory (%zu vertices)", n);
   }
-  size_t nw = seams ? w.n_vertices : n, n_links = 0;
-  km_mesh_free(&w);
+  size_t n_links = 0;
   for (size_t v = 0; v < n; ++v)
     next[v] = -1;
-  if (seams && nw < n) { /* chain each class: last[c] is its latest member */
-    int32_t *last = km__malloc(nw, sizeof *last);
-    if (!last) {
-      free(to_w), free(next), free(fill);
-      km__geodesic_free(&g);
-      return km__fail(err, KM_ERR_NOMEM, "geodesics: out of memory (%zu vertices)", n);
-    }
-    for (size_t c = 0; c < nw; ++c)
-      last[c] = -1;
+  if (wd.to_w) { /* chain each class: first[c] becomes its latest member */
     for (size_t v = 0; v < n; ++v) {
-      int32_t c = to_w[v];
-      if (last[c] >= 0) next[last[c]] = (int32_t)v, ++n_links;
-      last[c] = (int32_t)v;
+      int32_t c = wd.to_w[v], *last = wd.first + c;
+      if (*last != (int32_t)v) next[*last] = (int32_t)v, *last = (int32_t)v, ++n_links;
     }
-    free(last);
   }
-  free(to_w);
+  km__weld_free(&wd);
   if (n_links) {
     int32_t *adj = realloc(g->adj, (6 * nf + 2 * n_links) * sizeof *g->adj);
     if (!adj) {

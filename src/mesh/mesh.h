@@ -9,12 +9,21 @@
 #include "core/core.h"
 
 /* The mesh with its coincident vertices (the same position, bit for bit) merged into one: the
- * surface a glTF exporter split at its texture seams, joined again. Faces keep their order
- * and count (a face may come out degenerate where a seam ran across it).
- *   w     out: #W <= #V vertices, in the order of each class's lowest vertex id; free with
- *         km_mesh_free (no attributes)
- *   to_w  out: #V (the caller's), the welded vertex of each vertex */
-km_status km__mesh_weld(const km_mesh *m, km_mesh *w, int32_t *to_w, km_error *err);
+ * surface a glTF exporter split at its texture seams, joined again. Only where that joins
+ * something: two used vertices coincide and the mesh is in pieces or open (coincident vertices
+ * inside one closed piece, the dinosaur's 8, cut nothing and are left apart). Faces keep their
+ * order and count (a face may come out degenerate where a seam ran across it).
+ *   out->w      #W < #V vertices, in the order of each class's lowest vertex id (no attributes)
+ *   out->to_w   #V: the welded vertex of each vertex
+ *   out->first  #W: the lowest vertex id of each welded vertex's copies
+ * All empty (to_w NULL) when nothing joins: the caller works on m itself. Free with
+ * km__weld_free. */
+typedef struct km__weld {
+  km_mesh w;
+  int32_t *to_w, *first;
+} km__weld;
+km_status km__mesh_weld(const km_mesh *m, km__weld *out, km_error *err);
+void km__weld_free(km__weld *w);
 
 /* Edge-graph geodesic distances: Dijkstra over the mesh's edges with an indexed binary heap,
  * the one Dijkstra of the library (geodesic.c). Created once per connectivity (faces of m;

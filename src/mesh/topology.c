@@ -139,48 +139,93 @@ static km_status count_seam_vertices(const km_mesh *m, const int32_t *degree_off
   return KM_OK;
 }
 
-km_status km__mesh_weld(const km_mesh *m, km_mesh *w, int32_t *to_w, km_error *err) {
+static km_status mesh_info(const km_mesh *m, bool seams, km_mesh_info *out, km_error *err);
+
+void km__weld_free(km__weld *w) {
+  if (!w) return;
+  km_mesh_free(&w->w);
+  free(w->to_w);
+  free(w->first);
   memset(w, 0, sizeof *w);
-  size_t n = m->n_vertices, nw = 0;
+}
+
+km_status km__mesh_weld(const km_mesh *m, km__weld *out, km_error *err) {
+  memset(out, 0, sizeof *out);
+  if (!m || !m->V || !m->F || !m->n_faces) return KM_OK;
+  size_t n = m->n_vertices, nf = m->n_faces, nw = 0;
   pos_key *k = km__malloc(n ? n : 1, sizeof *k);
   int32_t *first = km__malloc(n ? n : 1, sizeof *first);
-  if (!k || !first) {
-    free(k);
-    free(first);
-    return km__fail(err, KM_ERR_NOMEM, "weld: out of memory for %zu vertices", n);
+  bool *used = km__calloc(n ? n : 1, sizeof *used);
+  km_status s = KM_OK;
+  if (!k || !first || !used) {
+    s = km__fail(err, KM_ERR_NOMEM, "weld: out of memory for %zu vertices", n);
+    goto fail;
   }
+  for (size_t i = 0; i < 3 * nf; ++i)
+    if (m->F[i] >= 0 && (size_t)m->F[i] < n) used[m->F[i]] = true;
   for (size_t v = 0; v < n; ++v) {
     memcpy(k[v].p, m->V + 3 * v, sizeof k[v].p);
     k[v].v = (int32_t)v;
   }
   qsort(k, n, sizeof *k, cmp_pos);
-  /* each class's representative: its lowest vertex id */
+  /* each class's representative: its lowest vertex id; joins: a class with two used members */
+  bool joins = false;
   for (size_t i = 0; i < n;) {
     size_t j = i + 1;
     int32_t lo = k[i].v;
-    while (j < n && cmp_pos(k + i, k + j) == 0)
-      lo = k[j].v < lo ? k[j].v : lo, ++j;
+    int n_used = used[k[i].v];
+    while (j < n && cmp_pos(k + i, k + j) == 0) {
+      lo = k[j].v < lo ? k[j].v : lo;
+      n_used += used[k[j].v];
+      ++j;
+    }
+    joins |= n_used > 1;
     for (size_t q = i; q < j; ++q)
       first[k[q].v] = lo;
     i = j;
   }
-  free(k);
+  free(k), k = NULL;
+  free(used), used = NULL;
+  /* coincident vertices inside one closed piece (the dinosaur's 8) cut nothing: left alone */
+  km_mesh_info info;
+  if (!joins || mesh_info(m, false, &info, NULL) != KM_OK ||
+      (info.components < 2 && info.boundary_edges == 0)) {
+    free(first);
+    return KM_OK;
+  }
+  if (!(out->to_w = km__malloc(n, sizeof *out->to_w))) {
+    s = km__fail(err, KM_ERR_NOMEM, "weld: out of memory for %zu vertices", n);
+    goto fail;
+  }
   /* welded ids in the order of the representatives' ids */
   for (size_t v = 0; v < n; ++v)
-    to_w[v] = first[v] == (int32_t)v ? (int32_t)nw++ : -1;
+    out->to_w[v] = first[v] == (int32_t)v ? (int32_t)nw++ : -1;
   for (size_t v = 0; v < n; ++v)
-    if (to_w[v] < 0) to_w[v] = to_w[first[v]];
-  free(first);
-  km_status s = km_mesh_alloc(nw, m->n_faces, w, err);
-  if (s != KM_OK) return s;
+    if (out->to_w[v] < 0) out->to_w[v] = out->to_w[first[v]];
+  /* first[] now per welded vertex: the lowest file id of its class */
+  for (size_t v = n; v-- > 0;)
+    first[out->to_w[v]] = (int32_t)v;
+  out->first = first, first = NULL;
+  if ((s = km_mesh_alloc(nw, nf, &out->w, err)) != KM_OK) goto fail;
   for (size_t v = 0; v < n; ++v)
-    memcpy(w->V + 3 * (size_t)to_w[v], m->V + 3 * v, 3 * sizeof(double));
-  for (size_t i = 0; i < 3 * m->n_faces; ++i)
-    w->F[i] = to_w[m->F[i]];
+    memcpy(out->w.V + 3 * (size_t)out->to_w[v], m->V + 3 * v, 3 * sizeof(double));
+  for (size_t i = 0; i < 3 * nf; ++i)
+    out->w.F[i] = out->to_w[m->F[i]];
   return KM_OK;
+fail:
+  free(k);
+  free(used);
+  free(first);
+  km__weld_free(out);
+  return s;
 }
 
 km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *err) {
+  return mesh_info(m, true, out, err);
+}
+
+/* seams false: seam_vertices left 0 (the weld, which has sorted the positions itself). */
+static km_status mesh_info(const km_mesh *m, bool seams, km_mesh_info *out, km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "km_mesh_info_compute: out is NULL");
   km_status s = check_faces(m, "km_mesh_info_compute", err);
   if (s) return s;
@@ -250,7 +295,7 @@ km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *er
     }
   }
   out->euler_characteristic = (int64_t)used - (int64_t)out->edges + (int64_t)nf;
-  if ((s = count_seam_vertices(m, vf_off, &out->seam_vertices, err)) != KM_OK) goto done;
+  if (seams && (s = count_seam_vertices(m, vf_off, &out->seam_vertices, err)) != KM_OK) goto done;
 
   /* Degenerate faces. */
   double diag = km_bbox_diagonal(m->V, nv);

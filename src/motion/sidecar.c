@@ -695,26 +695,25 @@ static km_status expand_list(int32_t **list, size_t *n_list, const int32_t *to_w
 static km_status rig_plan_make(const char *path, const km_character *c, rig_plan *p,
                                km_error *err) {
   const km_mesh *m = &c->mesh;
-  km_mesh_info info;
   size_t n = m->n_vertices;
+  km__weld wd;
   if (!m->V || !m->F || !m->n_faces || c->skin.n_vertices != n || !c->skin.joints ||
-      !c->skin.weights || km_mesh_info_compute(m, &info, NULL) != KM_OK || !info.seam_vertices ||
-      (info.components < 2 && info.boundary_edges == 0))
+      !c->skin.weights)
     return rig_plan_make_on(path, c, p, err);
-  int32_t *to_w = km__malloc(n, sizeof *to_w), *first = NULL;
+  km_status s = km__mesh_weld(m, &wd, err);
+  if (s != KM_OK) return s;
+  if (!wd.to_w) return rig_plan_make_on(path, c, p, err);
+  const int32_t *to_w = wd.to_w, *first = wd.first;
   km_character cw;
   memset(&cw, 0, sizeof cw);
   memset(p, 0, sizeof *p);
-  km_status s = to_w ? km__mesh_weld(m, &cw.mesh, to_w, err)
-                     : km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  cw.mesh = wd.w; /* borrowed, not freed */
   size_t nw = cw.mesh.n_vertices;
-  if (s == KM_OK && (!(first = km__malloc(nw, sizeof *first)) ||
-                     !(cw.skin.joints = km__malloc(4 * nw, sizeof(int32_t))) ||
-                     !(cw.skin.weights = km__malloc(4 * nw, sizeof(double)))))
+  if (!(cw.skin.joints = km__malloc(4 * nw, sizeof(int32_t))) ||
+      !(cw.skin.weights = km__malloc(4 * nw, sizeof(double)))) {
     s = km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
-  if (s != KM_OK) goto done;
-  for (size_t v = n; v-- > 0;)
-    first[to_w[v]] = (int32_t)v;
+    goto done;
+  }
   cw.skin.n_vertices = nw;
   for (size_t q = 0; q < nw; ++q)
     for (int k = 0; k < 4; ++k) {
@@ -748,9 +747,9 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
   if (s != KM_OK) plan_free(p);
 done:
   memset(&cw.skeleton, 0, sizeof cw.skeleton);
+  memset(&cw.mesh, 0, sizeof cw.mesh);
   km_character_free(&cw);
-  free(first);
-  free(to_w);
+  km__weld_free(&wd);
   return s;
 }
 

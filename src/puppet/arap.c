@@ -108,35 +108,38 @@ static km_status arap_precompute(const km_mesh *rest, size_t n_handles,
 km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_t *handle_offsets,
                              const int32_t *handle_vertices, const km_arap_options *opt,
                              km_arap **out, km_error *err) {
-  km_mesh_info info;
+  km__weld wd = {0};
+  km_status s = KM_OK;
   if (!rest || !rest->V || !rest->F || !handle_offsets || !handle_vertices || !n_handles ||
-      km_mesh_info_compute(rest, &info, NULL) != KM_OK || !info.seam_vertices ||
-      (info.components < 2 && info.boundary_edges == 0))
-    return arap_precompute(rest, n_handles, handle_offsets, handle_vertices, opt, out, err);
-  if (!out) return km__fail(err, KM_ERR_INVALID, "arap: out is NULL");
-  *out = NULL;
+      (s = km__mesh_weld(rest, &wd, err)) != KM_OK || !wd.to_w)
+    return s != KM_OK
+               ? s
+               : arap_precompute(rest, n_handles, handle_offsets, handle_vertices, opt, out, err);
   size_t n = rest->n_vertices,
          nhv = handle_offsets[n_handles] > 0 ? (size_t)handle_offsets[n_handles] : 0;
+  km_arap *a = NULL;
+  int32_t *seen = NULL, *off = NULL, *hv = NULL;
+  if (!out) {
+    s = km__fail(err, KM_ERR_INVALID, "arap: out is NULL");
+    goto done;
+  }
+  *out = NULL;
   for (size_t i = 0; i < nhv; ++i)
-    if (handle_vertices[i] < 0 || (size_t)handle_vertices[i] >= n)
-      return km__fail(err, KM_ERR_INVALID, "arap: handle vertex %zu is %d (out of range)", i,
-                      (int)handle_vertices[i]);
-  km_arap *a = calloc(1, sizeof *a);
-  km_mesh w = {0};
-  int32_t *seen = NULL, *off = km__malloc(n_handles + 1, sizeof *off),
-          *hv = km__malloc(nhv ? nhv : 1, sizeof *hv);
-  km_status s = KM_OK;
-  if (!a || !off || !hv || !(a->to_w = km__malloc(n, sizeof *a->to_w)) ||
-      !(a->hsrc = km__malloc(nhv ? nhv : 1, sizeof *a->hsrc))) {
+    if (handle_vertices[i] < 0 || (size_t)handle_vertices[i] >= n) {
+      s = km__fail(err, KM_ERR_INVALID, "arap: handle vertex %zu is %d (out of range)", i,
+                   (int)handle_vertices[i]);
+      goto done;
+    }
+  a = calloc(1, sizeof *a);
+  off = km__malloc(n_handles + 1, sizeof *off);
+  hv = km__malloc(nhv ? nhv : 1, sizeof *hv);
+  seen = km__malloc(wd.w.n_vertices, sizeof *seen);
+  if (!a || !off || !hv || !seen || !(a->hsrc = km__malloc(nhv ? nhv : 1, sizeof *a->hsrc))) {
     s = km__fail(err, KM_ERR_NOMEM, "arap: out of memory");
     goto done;
   }
-  if ((s = km__mesh_weld(rest, &w, a->to_w, err)) != KM_OK) goto done;
-  if (!(seen = km__malloc(w.n_vertices, sizeof *seen))) {
-    s = km__fail(err, KM_ERR_NOMEM, "arap: out of memory");
-    goto done;
-  }
-  for (size_t v = 0; v < w.n_vertices; ++v)
+  a->to_w = wd.to_w, wd.to_w = NULL; /* kept for the solve */
+  for (size_t v = 0; v < wd.w.n_vertices; ++v)
     seen[v] = -1;
   size_t k = 0;
   off[0] = 0;
@@ -150,19 +153,19 @@ km_status km_arap_precompute(const km_mesh *rest, size_t n_handles, const int32_
     }
     off[h + 1] = (int32_t)k;
   }
-  if ((s = arap_precompute(&w, n_handles, off, hv, opt, &a->welded, err)) != KM_OK) goto done;
+  if ((s = arap_precompute(&wd.w, n_handles, off, hv, opt, &a->welded, err)) != KM_OK) goto done;
   a->n = n;
   a->n_out = n;
   a->n_hv = nhv;
   a->n_hv_out = nhv;
   if (!(a->Tw = km__malloc(3 * (k ? k : 1), sizeof(double))) ||
-      !(a->Vw = km__malloc(3 * w.n_vertices, sizeof(double))))
+      !(a->Vw = km__malloc(3 * wd.w.n_vertices, sizeof(double))))
     s = km__fail(err, KM_ERR_NOMEM, "arap: out of memory");
 done:
   free(seen);
   free(off);
   free(hv);
-  km_mesh_free(&w);
+  km__weld_free(&wd);
   if (s != KM_OK) {
     km_arap_free(&a);
     return s;

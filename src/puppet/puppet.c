@@ -51,10 +51,10 @@
 #endif
 
 #define KM_PUPPET_MAGIC "KMPUPPET"
-#define KM_PUPPET_FORMAT                                                                           \
-  3u /* 2: energy enum renumbered (ARAP = 0); 3: a mesh split at its seams                         \
-      * gets the welded mesh's fields (a format-2 cache of one holds                               \
-      * its pieces' own, which let the seams open) */
+/* Cache format. 2: energy enum renumbered (ARAP = 0); 3: a mesh split at its seams gets the
+ * welded mesh's fields (a format-2 cache of one holds its pieces' own, which let the seams
+ * open). */
+#define KM_PUPPET_FORMAT 3u
 #define KM_PUPPET_ENDIAN 0x01020304u
 #define KM_PUPPET_HEADER 64u
 
@@ -876,32 +876,25 @@ static km_status fields_welded(const km_mesh *rest, int k, const km_eigs_options
                                double *evecs, bool *done, km_error *err) {
   size_t n = rest->n_vertices;
   *done = false;
-  km_mesh_info
-      info; /* coincident vertices inside one closed piece (the dinosaur's 8) cut nothing */
-  km_status si = km_mesh_info_compute(rest, &info, err);
-  if (si != KM_OK) return si;
-  if (!info.seam_vertices || (info.components < 2 && info.boundary_edges == 0)) return KM_OK;
-  int32_t *to_w = km__malloc(n, sizeof *to_w);
-  if (!to_w) return km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
-  km_mesh w = {0};
+  km__weld wd;
+  km_status s = km__mesh_weld(rest, &wd, err);
+  if (s != KM_OK || !wd.to_w) return s;
+  size_t nw = wd.w.n_vertices;
   km_sparse *L = NULL, *M = NULL;
-  double *ev = NULL;
-  km_status s = km__mesh_weld(rest, &w, to_w, err);
-  size_t nw = w.n_vertices;
-  *done = s == KM_OK && nw < n;
-  if (*done && !(ev = km__malloc(nw * (size_t)k, sizeof *ev)))
-    s = km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
-  if (*done && s == KM_OK && !(s = km_cotmatrix(&w, &L, err)) &&
-      !(s = km_massmatrix(&w, KM_MASS_VORONOI, &M, err)) &&
-      !(s = km_eigs(L, M, k, eo, evals, ev, err)))
+  double *ev = km__malloc(nw * (size_t)k, sizeof *ev);
+  if (!ev) s = km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
+  if (s == KM_OK && !(s = km_cotmatrix(&wd.w, &L, err)) &&
+      !(s = km_massmatrix(&wd.w, KM_MASS_VORONOI, &M, err)) &&
+      !(s = km_eigs(L, M, k, eo, evals, ev, err))) {
     for (int f = 0; f < k; ++f)
       for (size_t v = 0; v < n; ++v)
-        evecs[(size_t)f * n + v] = ev[(size_t)f * nw + (size_t)to_w[v]];
+        evecs[(size_t)f * n + v] = ev[(size_t)f * nw + (size_t)wd.to_w[v]];
+    *done = true;
+  }
   km_sparse_free(&L);
   km_sparse_free(&M);
-  km_mesh_free(&w);
+  km__weld_free(&wd);
   free(ev);
-  free(to_w);
   return s;
 }
 
