@@ -106,6 +106,14 @@ struct km_transfer {
    * work (about 8% of a default solve) off the real-time path. */
   double *x_last;
   bool energy_pending;
+  /* A source split at its texture seams (km__mesh_weld) is solved welded: the outer object
+   * keeps the file's mesh (mesh), n, nc, lm (the file's landmark ids), area and opt, and
+   * everything else is the welded object's; the per-vertex arrays in and out are gathered
+   * from each welded vertex's first copy (w_*: scratch, the solve does not allocate) and
+   * scattered back to every copy. NULL: not split. */
+  km_transfer *welded;
+  int32_t *to_w, *first;
+  double *w_T, *w_warm, *w_V, *w_R;
 };
 
 double km_surface_area(const km_mesh *m) {
@@ -129,6 +137,13 @@ double km_surface_area(const km_mesh *m) {
 void km_transfer_free(km_transfer **tp) {
   if (!tp || !*tp) return;
   km_transfer *t = *tp;
+  km_transfer_free(&t->welded);
+  free(t->to_w);
+  free(t->first);
+  free(t->w_T);
+  free(t->w_warm);
+  free(t->w_V);
+  free(t->w_R);
   km_mesh_free(&t->mesh);
   free(t->rest);
   free(t->W);
@@ -480,9 +495,89 @@ static void rotations_init(km_transfer *t, const double *X) {
   }
 }
 
+static km_status transfer_precompute(const km_mesh *source, const int32_t *landmarks,
+                                     size_t n_landmarks, const km_transfer_options *opt,
+                                     km_transfer **out, km_error *err);
+
+/* #V*k values of the file's vertices -> #W*k of the welded ones (each from its first copy). */
+static const double *gather(const km_transfer *t, const double *x, double *w, int k) {
+  if (!x) return NULL;
+  for (size_t q = 0; q < t->welded->n; ++q)
+    memcpy(w + (size_t)k * q, x + (size_t)k * (size_t)t->first[q], (size_t)k * sizeof(double));
+  return w;
+}
+
+static void scatter(const km_transfer *t, const double *w, double *x) {
+  for (size_t v = 0; v < t->n; ++v)
+    memcpy(x + 3 * v, w + 3 * (size_t)t->to_w[v], 3 * sizeof(double));
+}
+
+/* A source split at its texture seams (a game character's glTF: copies of a vertex at one
+ * position, the mesh in pieces or open there) is solved on the mesh welded there: split, each
+ * piece's Laplacian stood alone, the pieces moved apart (a character split at its waist
+ * opened there by 8 cm in a kung-fu pose) and a piece without a landmark had no solution. */
 km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks,
                                  size_t n_landmarks, const km_transfer_options *opt,
                                  km_transfer **out, km_error *err) {
+  km__weld wd = {0};
+  km_status s = KM_OK;
+  if (!out || !source || !source->V || !source->F || !landmarks || n_landmarks < 3 ||
+      (s = km__mesh_weld(source, &wd, err)) != KM_OK || !wd.to_w)
+    return s != KM_OK ? s : transfer_precompute(source, landmarks, n_landmarks, opt, out, err);
+  *out = NULL;
+  size_t n = source->n_vertices, nw = wd.w.n_vertices;
+  km_transfer *t = calloc(1, sizeof *t);
+  int32_t *wl = km__malloc(n_landmarks, sizeof *wl);
+  if (!t || !wl || !(t->lm = km__malloc(n_landmarks, sizeof *t->lm)) ||
+      !(t->w_T = km__malloc(3 * nw, sizeof(double))) ||
+      !(t->w_warm = km__malloc(3 * nw, sizeof(double))) ||
+      !(t->w_V = km__malloc(3 * nw, sizeof(double))) ||
+      !(t->w_R = km__malloc(9 * nw, sizeof(double)))) {
+    s = km__fail(err, KM_ERR_NOMEM, "km_transfer_precompute: out of memory (%zu vertices)", n);
+    goto done;
+  }
+  for (size_t c = 0; c < n_landmarks; ++c) {
+    int32_t v = landmarks[c];
+    if (v < 0 || (size_t)v >= n) {
+      s = km__fail(err, KM_ERR_INVALID,
+                   "km_transfer_precompute: landmark %zu is vertex %d, expected 0..%zu", c, (int)v,
+                   n - 1);
+      goto done;
+    }
+    t->lm[c] = v;
+    wl[c] = wd.to_w[v];
+    for (size_t b = 0; b < c; ++b)
+      if (wl[b] == wl[c]) {
+        s = km__fail(err, KM_ERR_INVALID,
+                     "km_transfer_precompute: landmarks %zu and %zu are vertices %d and %d, "
+                     "copies of one vertex at a texture seam: give one of them",
+                     b, c, (int)landmarks[b], (int)v);
+        goto done;
+      }
+  }
+  if ((s = transfer_precompute(&wd.w, wl, n_landmarks, opt, &t->welded, err)) != KM_OK) goto done;
+  if ((s = km_mesh_copy(source, &t->mesh, err)) != KM_OK) goto done;
+  t->n = n;
+  t->nc = n_landmarks;
+  t->opt = t->welded->opt;
+  t->area = t->welded->area;
+  t->diag = t->welded->diag;
+  t->to_w = wd.to_w, wd.to_w = NULL;
+  t->first = wd.first, wd.first = NULL;
+done:
+  free(wl);
+  km__weld_free(&wd);
+  if (s != KM_OK) {
+    km_transfer_free(&t);
+    return s;
+  }
+  *out = t;
+  return KM_OK;
+}
+
+static km_status transfer_precompute(const km_mesh *source, const int32_t *landmarks,
+                                     size_t n_landmarks, const km_transfer_options *opt,
+                                     km_transfer **out, km_error *err) {
   if (!out) return km__fail(err, KM_ERR_INVALID, "km_transfer_precompute: out is NULL");
   *out = NULL;
   if (!source || !source->V || !source->F || source->n_faces == 0)
@@ -838,17 +933,28 @@ fail:
 }
 
 void km__transfer_frames(km_transfer *t, const double *V, double *frames) {
+  if (t->welded) { /* test use only: allocates */
+    double *wf = km__malloc(9 * t->welded->n, sizeof *wf);
+    if (!wf) return;
+    frames_of(t->welded, gather(t, V, t->w_T, 3), wf, NULL);
+    for (size_t v = 0; v < t->n; ++v)
+      memcpy(frames + 9 * v, wf + 9 * (size_t)t->to_w[v], 9 * sizeof(double));
+    free(wf);
+    return;
+  }
   frames_of(t, V, frames, NULL);
 }
 
 size_t km_transfer_vertices(const km_transfer *t) { return t ? t->n : 0; }
 void km__transfer_set_iterations(km_transfer *t, int max_iterations, double tolerance) {
   if (!t || max_iterations < 1) return;
+  if (t->welded) km__transfer_set_iterations(t->welded, max_iterations, tolerance);
   /* t->energy holds the precompute's count: never more */
   if (!t->energy || max_iterations <= t->energy_cap) t->opt.max_iterations = max_iterations;
   if (tolerance > 0) t->opt.tolerance = tolerance;
 }
 size_t km_transfer_energies(const km_transfer *t, double *energies, size_t cap) {
+  if (t && t->welded) return km_transfer_energies(t->welded, energies, cap);
   if (!t || !t->energy) return 0;
   size_t k = (size_t)t->n_energy;
   for (size_t i = 0; i < k && i < cap && energies; ++i)
@@ -861,10 +967,13 @@ size_t km_transfer_energies(const km_transfer *t, double *energies, size_t cap) 
 const km_mesh *km__transfer_source(const km_transfer *t) { return t ? &t->mesh : NULL; }
 const int32_t *km__transfer_landmark_ids(const km_transfer *t) { return t ? t->lm : NULL; }
 double km__transfer_area(const km_transfer *t) { return t ? t->area : 0; }
-double km__transfer_size_ratio(const km_transfer *t, const double *T) { return size_ratio(t, T); }
+double km__transfer_size_ratio(const km_transfer *t, const double *T) {
+  return t->welded ? size_ratio(t->welded, gather(t, T, t->w_T, 3)) : size_ratio(t, T);
+}
 size_t km_transfer_landmarks(const km_transfer *t) { return t ? t->nc : 0; }
 
 void km_transfer_precompute_ms(const km_transfer *t, double *laplacian_ms, double *cholesky_ms) {
+  if (t && t->welded) t = t->welded;
   if (laplacian_ms) *laplacian_ms = t ? t->laplacian_ms : 0;
   if (cholesky_ms) *cholesky_ms = t ? t->cholesky_ms : 0;
 }
@@ -873,6 +982,7 @@ km_status km_transfer_targets(const km_transfer *t, const double *T, double *tar
                               km_error *err) {
   if (!t || !T || !targets)
     return km__fail(err, KM_ERR_INVALID, "km_transfer_targets: NULL argument");
+  if (t->welded) return km_transfer_targets(t->welded, gather(t, T, t->w_T, 3), targets, err);
   for (size_t c = 0; c < t->nc; ++c)
     for (int d = 0; d < 3; ++d)
       targets[3 * c + d] = T[3 * (size_t)t->lm[c] + d];
@@ -931,6 +1041,13 @@ km_status km_transfer_solve(km_transfer *t, const double *T, const double *targe
                     "km_transfer_solve: landmark targets are needed when there is no template");
   if (T == V_out)
     return km__fail(err, KM_ERR_INVALID, "km_transfer_solve: V_out aliases the template");
+  if (t->welded) {
+    km_status sw = km_transfer_solve(t->welded, gather(t, T, t->w_T, 3), targets,
+                                     gather(t, warm_start, t->w_warm, 3), t->w_V, stats, err);
+    if (sw == KM_OK) scatter(t, t->w_V, V_out);
+    if (stats) stats->total_ms = (km_seconds() - t_start) * 1e3;
+    return sw;
+  }
   size_t n = t->n, nf = t->nf, nc = t->nc;
   km_status s;
   if (!targets) {
@@ -1087,6 +1204,16 @@ km_status km_transfer_solve_rotations(km_transfer *t, const double *R, const dou
                                       double *V_out, km_transfer_stats *stats, km_error *err) {
   if (!t || !R || !targets || !V_out)
     return km__fail(err, KM_ERR_INVALID, "km_transfer_solve_rotations: NULL argument");
+  if (t->welded) {
+    for (size_t i = 0; i < t->n * 9; ++i)
+      if (!isfinite(R[i]))
+        return km__fail(err, KM_ERR_INVALID,
+                        "km_transfer_solve_rotations: rotation %zu is not finite", i / 9);
+    km_status sw = km_transfer_solve_rotations(t->welded, gather(t, R, t->w_R, 9), targets, t->w_V,
+                                               stats, err);
+    if (sw == KM_OK) scatter(t, t->w_V, V_out);
+    return sw;
+  }
   if (!t->rot)
     return km__fail(err, KM_ERR_INVALID,
                     "km_transfer_solve_rotations: needs the edge encoding (the default)");
