@@ -1,0 +1,118 @@
+# Blender as the exporter of a textured mesh split at its texture seams (what every glTF
+# exporter writes, issue 11): run headless in two steps by run_blender_seams.sh.
+#
+#   export SRC.obj OUT.glb
+#     imports SRC.obj, unwraps it with Smart UV Project (islands: the mesh is cut along every
+#     island border) and exports OUT.glb with its texture coordinates and smooth normals; the
+#     glTF exporter splits every vertex on an island border into copies at one position.
+#   check SRC_UV.glb ANIM.pc2 ANIM.glb
+#     after kinemesh rig + animate of SRC_UV.glb: every vertex of the point cache that lay
+#     exactly on another at rest (a seam's copies) is still exactly on it in every frame (the
+#     seams stay shut), the mesh moved, and Blender's import of ANIM.glb has SRC_UV.glb's
+#     texture coordinates loop for loop (kinemesh kept the vertex order and the UVs).
+# Exits 1 when a check fails, 2 on usage or import errors.
+import struct
+import sys
+
+import numpy
+
+if "bool" not in vars(numpy):  # Debian's Blender 3.4 glTF importer uses numpy.bool
+    numpy.bool = bool
+
+import bpy  # noqa: E402
+
+
+def fail(msg, rc=1):
+    print(f"FAIL: {msg}")
+    sys.exit(rc)
+
+
+def glb_positions(path):
+    """POSITION of the first primitive, in the file's order (y up, as kinemesh reads it)."""
+    import json
+
+    b = open(path, "rb").read()
+    if b[:4] != b"glTF":
+        fail(f"{path}: not a .glb", 2)
+    jl = struct.unpack("<I", b[12:16])[0]
+    j = json.loads(b[20 : 20 + jl])
+    blob = b[20 + jl + 8 :]
+    a = j["accessors"][j["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]
+    v = j["bufferViews"][a["bufferView"]]
+    off = v.get("byteOffset", 0) + a.get("byteOffset", 0)
+    return numpy.frombuffer(blob, numpy.float32, a["count"] * 3, off).reshape(-1, 3)
+
+
+def pc2(path):
+    b = open(path, "rb").read()
+    nv, _, _, nf = struct.unpack("<iffi", b[16:32])
+    return numpy.frombuffer(b, numpy.float32, nf * nv * 3, 32).reshape(nf, nv, 3)
+
+
+def import_uvs(path):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_scene.gltf(filepath=path)
+    me = [o for o in bpy.context.scene.objects if o.type == "MESH"][0].data
+    if not me.uv_layers:
+        fail(f"{path}: Blender finds no texture coordinates")
+    uv = numpy.zeros(2 * len(me.loops))
+    me.uv_layers[0].data.foreach_get("uv", uv)
+    vi = numpy.zeros(len(me.loops), dtype=numpy.int64)
+    me.loops.foreach_get("vertex_index", vi)
+    return len(me.vertices), vi, uv
+
+
+argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
+if len(argv) == 3 and argv[0] == "export":
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.obj_import(filepath=argv[1])
+    ob = bpy.context.selected_objects[0]
+    bpy.context.view_layer.objects.active = ob
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="SELECT")
+    bpy.ops.uv.smart_project(angle_limit=1.15)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    bpy.ops.object.shade_smooth()
+    bpy.ops.export_scene.gltf(
+        filepath=argv[2], export_format="GLB", export_texcoords=True, export_normals=True
+    )
+    print(f"ok: exported {argv[2]}: {len(ob.data.vertices)} vertices unwrapped")
+elif len(argv) == 4 and argv[0] == "check":
+    rest = glb_positions(argv[1]).astype(numpy.float64)
+    anim = pc2(argv[2])
+    if anim.shape[1] != len(rest):
+        fail(f"{argv[2]}: {anim.shape[1]} vertices, the glb {len(rest)}: the order is not kept")
+    _, inv, cnt = numpy.unique(rest, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    first = {}
+    pairs = []
+    for i, c in enumerate(inv):
+        if cnt[c] > 1:
+            if c in first:
+                pairs.append((first[c], i))
+            else:
+                first[c] = i
+    if len(pairs) < 100:
+        fail(f"{argv[1]}: only {len(pairs)} coincident vertices: the export was not split")
+    a = numpy.array([p[0] for p in pairs])
+    b = numpy.array([p[1] for p in pairs])
+    gap = max(float(numpy.linalg.norm(f[a] - f[b], axis=1).max()) for f in anim)
+    moved = float(numpy.linalg.norm(anim - anim[0], axis=2).max())
+    print(f"note: {len(pairs)} seam copies, largest gap over {len(anim)} frames {gap:.3g} m, "
+          f"largest move {moved:.3f} m")
+    if gap > 0:
+        fail(f"the seams opened by {gap:.3g} m")
+    if moved < 0.05:
+        fail(f"the mesh moved {moved:.3g} m: no animation")
+    n0, vi0, uv0 = import_uvs(argv[1])
+    n1, vi1, uv1 = import_uvs(argv[3])
+    if n0 != n1 or not numpy.array_equal(vi0, vi1):
+        fail(f"Blender imports {n1} vertices from {argv[3]} and {n0} from {argv[1]}, "
+             "or other loops")
+    duv = float(numpy.abs(uv0 - uv1).max())
+    if duv > 1e-6:
+        fail(f"texture coordinates differ by {duv:.3g} after animate")
+    print(f"ok: seams shut, {n1} vertices, texture coordinates kept ({duv:.2g})")
+else:
+    fail("usage: blender -b --python blender_seams.py -- export SRC.obj OUT.glb | "
+         "check SRC_UV.glb ANIM.pc2 ANIM.glb", 2)
