@@ -1781,7 +1781,12 @@ static km_status autorig_welded(const km_mesh *m, const km_autorig_options *opt,
   const int32_t *to_w = wd.to_w, *first = wd.first;
   km_character cw = {0};
   *done = true;
-  if ((s = km_autorig(&wd.w, opt, &cw, report, err)) != KM_OK) goto done;
+  if ((s = km_autorig(&wd.w, opt, &cw, report, err)) != KM_OK) {
+    /* what is wrong is the joined mesh's, which info does not show: say so */
+    km__wrap(err, s, "joined at its texture seams (%zu vertices lying on others merged)",
+             n - wd.w.n_vertices);
+    goto done;
+  }
   if ((s = km_mesh_copy(m, &out->mesh, err)) != KM_OK) goto done;
   out->skeleton = cw.skeleton;
   memset(&cw.skeleton, 0, sizeof cw.skeleton);
