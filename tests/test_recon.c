@@ -315,6 +315,18 @@ static double *sample(const km_mesh *m, const double *V, size_t *n) {
   return P;
 }
 
+/* Four correspondences on the limb (positions V of its nv vertices): both ends, two between;
+ * returns their vertex ids. */
+static const int32_t *limb_features(const double *V, size_t nv, km_recon_feature feat[4]) {
+  static int32_t fv[4];
+  const int32_t ids[4] = {0, 30, 200, (int32_t)nv - 1};
+  for (int k = 0; k < 4; ++k) {
+    fv[k] = feat[k].vertex = ids[k];
+    memcpy(feat[k].point, V + 3 * (size_t)ids[k], 3 * sizeof(double));
+  }
+  return fv;
+}
+
 static void test_registration(void) {
   km_character c;
   limb(&c);
@@ -331,11 +343,7 @@ static void test_registration(void) {
   size_t n;
   double *P = sample(&c.mesh, V0, &n);
   km_recon_feature feat[4];
-  const int32_t fv[4] = {0, 30, 200, (int32_t)nv - 1};
-  for (int k = 0; k < 4; ++k) {
-    feat[k].vertex = fv[k];
-    memcpy(feat[k].point, V0 + 3 * (size_t)fv[k], 3 * sizeof(double));
-  }
+  const int32_t *fv = limb_features(V0, nv, feat);
   km_recon_options o = {.coarse_points = 300};
   km_recon *r = NULL;
   CHECK_OK(km_recon_create(&c, &o, &r, KM_E));
@@ -891,11 +899,7 @@ static void test_seam_split(void) {
   size_t n0, n1;
   double *P0 = sample(&c.mesh, V0, &n0), *P1 = sample(&c.mesh, V1, &n1);
   km_recon_feature feat[4];
-  const int32_t fv[4] = {0, 30, 200, (int32_t)n - 1};
-  for (int k = 0; k < 4; ++k) {
-    feat[k].vertex = fv[k];
-    memcpy(feat[k].point, V0 + 3 * (size_t)fv[k], 3 * sizeof(double));
-  }
+  limb_features(V0, n, feat);
   km_recon_options o = {.coarse_points = 300};
   km_recon *rw = NULL, *rs = NULL;
   CHECK_OK(km_recon_create(&c, &o, &rw, KM_E));

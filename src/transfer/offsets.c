@@ -499,6 +499,13 @@ static km_status transfer_precompute(const km_mesh *source, const int32_t *landm
                                      size_t n_landmarks, const km_transfer_options *opt,
                                      km_transfer **out, km_error *err);
 
+static km_status check_landmark(const int32_t *landmarks, size_t c, size_t n, km_error *err) {
+  if (landmarks[c] >= 0 && (size_t)landmarks[c] < n) return KM_OK;
+  return km__fail(err, KM_ERR_INVALID,
+                  "km_transfer_precompute: landmark %zu is vertex %d, expected 0..%zu", c,
+                  (int)landmarks[c], n - 1);
+}
+
 /* #V*k values of the file's vertices -> #W*k of the welded ones (each from its first copy). */
 static const double *gather(const km_transfer *t, const double *x, double *w, int k) {
   if (!x) return NULL;
@@ -538,12 +545,7 @@ km_status km_transfer_precompute(const km_mesh *source, const int32_t *landmarks
   }
   for (size_t c = 0; c < n_landmarks; ++c) {
     int32_t v = landmarks[c];
-    if (v < 0 || (size_t)v >= n) {
-      s = km__fail(err, KM_ERR_INVALID,
-                   "km_transfer_precompute: landmark %zu is vertex %d, expected 0..%zu", c, (int)v,
-                   n - 1);
-      goto done;
-    }
+    if ((s = check_landmark(landmarks, c, n, err)) != KM_OK) goto done;
     t->lm[c] = v;
     wl[c] = wd.to_w[v];
     for (size_t b = 0; b < c; ++b)
@@ -654,12 +656,7 @@ static km_status transfer_precompute(const km_mesh *source, const int32_t *landm
     t->free_of[v] = 0;
   for (size_t c = 0; c < n_landmarks; ++c) {
     int32_t v = landmarks[c];
-    if (v < 0 || (size_t)v >= n) {
-      s = km__fail(err, KM_ERR_INVALID,
-                   "km_transfer_precompute: landmark %zu is vertex %d, expected 0..%zu", c, (int)v,
-                   n - 1);
-      goto fail;
-    }
+    if ((s = check_landmark(landmarks, c, n, err)) != KM_OK) goto fail;
     if (t->free_of[v] < 0) {
       s = km__fail(err, KM_ERR_INVALID,
                    "km_transfer_precompute: vertex %d is given twice as a landmark", (int)v);

@@ -10,18 +10,8 @@ set -euo pipefail
 BIN=$1
 WORK=$2
 HERE=$(cd "$(dirname "$0")" && pwd)
-BLENDER=${BLENDER:-blender}
-missing() {
-  if [ "${CI:-}" = true ]; then
-    echo "FAIL: $1 (CI must run this test: scripts/deps.sh --test installs blender)"
-    exit 1
-  fi
-  echo "SKIP: $1 (scripts/deps.sh --test installs it)"
-  exit 77
-}
-command -v "$BLENDER" >/dev/null || missing "blender not found"
-"$BLENDER" -b --factory-startup --python-expr "import numpy" >/dev/null 2>&1 ||
-  missing "Blender's Python has no numpy (Debian: python3-numpy)"
+# shellcheck source=common.sh
+. "$HERE/common.sh"
 rm -rf "$WORK" && mkdir -p "$WORK"
 blend() { # runs blender_seams.py with the arguments; prints its verdict lines
   local out brc=0
