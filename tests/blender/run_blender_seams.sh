@@ -31,10 +31,11 @@ info=$("$BIN" info "$WORK/c_uv.glb" --json)
 echo "$info" | grep -E '"(components|seam_vertices)"' | tr -d ' \n'; echo
 "$BIN" rig "$WORK/c_uv.glb" -o "$WORK/c_uv.rig.json" >"$WORK/rig.log" 2>&1 ||
   { cat "$WORK/rig.log"; echo "blender_seams: rig FAILED"; exit 1; }
-for out in anim.pc2 anim.glb; do
+for out in anim.pc2 anim.glb "skin.glb --export skin:16"; do
+  # shellcheck disable=SC2086 # the export option is meant to split
   "$BIN" animate --mesh "$WORK/c_uv.glb" --rig "$WORK/c_uv.rig.json" --motion "$WORK/t.json" \
-    -o "$WORK/$out" >"$WORK/animate.log" 2>&1 ||
+    -o "$WORK/"$out >"$WORK/animate.log" 2>&1 ||
     { cat "$WORK/animate.log"; echo "blender_seams: animate FAILED"; exit 1; }
 done
-blend check "$WORK/c_uv.glb" "$WORK/anim.pc2" "$WORK/anim.glb"
+blend check "$WORK/c_uv.glb" "$WORK/anim.pc2" "$WORK/anim.glb" "$WORK/skin.glb"
 echo "blender_seams: passed"
