@@ -12,6 +12,14 @@
 #     texture coordinates loop for loop (kinemesh kept the vertex order and the UVs); SKIN.glb
 #     (animate --export skin), played by Blender's armature, keeps every copy on its vertex too
 #     (within 1e-5 m: float32 skinning of the same weights).
+#   export-skinned SRC.obj SRC.rig.json OUT.glb
+#     the same, with an armature first: Mixamo's bone names (mixamorig:Hips, LeftArm,
+#     LeftForeArm, ...) on the joints of kinemesh's sidecar, the mesh bound to it with
+#     Blender's automatic weights (bone heat), exported skinned: a game character as Blender
+#     writes one.
+#   gaps SRC_UV.glb OUT...
+#     every OUT (.pc2, or a .glb of per-frame morph targets) keeps each seam copy exactly on
+#     its vertex in every frame.
 # Exits 1 when a check fails, 2 on usage or import errors.
 import struct
 import sys
@@ -45,6 +53,43 @@ def glb_positions(path):
     return numpy.frombuffer(blob, numpy.float32, a["count"] * 3, off).reshape(-1, 3)
 
 
+def glb_frames(path):
+    """Per-frame positions of a morph-target .glb (base + each target), file order."""
+    import json
+
+    b = open(path, "rb").read()
+    jl = struct.unpack("<I", b[12:16])[0]
+    j = json.loads(b[20 : 20 + jl])
+    blob = b[20 + jl + 8 :]
+
+    def acc(i):
+        a = j["accessors"][i]
+        v = j["bufferViews"][a["bufferView"]]
+        off = v.get("byteOffset", 0) + a.get("byteOffset", 0)
+        if a["componentType"] != 5126 or "sparse" in a:
+            fail(f"{path}: accessor {i} is not plain float32 (write it without --compress)", 2)
+        return numpy.frombuffer(blob, numpy.float32, a["count"] * 3, off).reshape(-1, 3)
+
+    p = j["meshes"][0]["primitives"][0]
+    base = acc(p["attributes"]["POSITION"])
+    targets = p.get("targets", [])
+    if not targets:
+        fail(f"{path}: no morph targets", 2)
+    return numpy.stack([base + acc(t["POSITION"]) for t in targets])
+
+
+def seam_pairs(rest):
+    _, inv, cnt = numpy.unique(rest, axis=0, return_inverse=True, return_counts=True)
+    first, pairs = {}, []
+    for i, c in enumerate(inv.ravel()):
+        if cnt[c] > 1:
+            if c in first:
+                pairs.append((first[c], i))
+            else:
+                first[c] = i
+    return numpy.array([q[0] for q in pairs]), numpy.array([q[1] for q in pairs])
+
+
 def pc2(path):
     b = open(path, "rb").read()
     nv, _, _, nf = struct.unpack("<iffi", b[16:32])
@@ -65,42 +110,104 @@ def import_uvs(path):
 
 
 argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
-if len(argv) == 3 and argv[0] == "export":
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.wm.obj_import(filepath=argv[1])
-    ob = bpy.context.selected_objects[0]
+def unwrap_and_export(ob, out, skins):
     bpy.context.view_layer.objects.active = ob
     bpy.ops.object.mode_set(mode="EDIT")
     bpy.ops.mesh.select_all(action="SELECT")
     bpy.ops.uv.smart_project(angle_limit=1.15)
     bpy.ops.object.mode_set(mode="OBJECT")
     bpy.ops.object.shade_smooth()
-    bpy.ops.export_scene.gltf(
-        filepath=argv[2], export_format="GLB", export_texcoords=True, export_normals=True
-    )
+    bpy.ops.export_scene.gltf(filepath=out, export_format="GLB", export_texcoords=True,
+                              export_normals=True, export_skins=skins, export_animations=False)
+
+
+def armature_on(body, rig_path):
+    """Mixamo-named bones on the sidecar's joints, body bound with Blender's bone heat."""
+    import json
+
+    from mathutils import Vector
+
+    J = {j["name"]: j["rest"] for j in json.load(open(rig_path))["joints"]}
+
+    def bl(p):  # y up (kinemesh, OBJ) -> Blender's z up, as the OBJ importer maps it
+        return Vector((p[0], -p[2], p[1]))
+
+    bpy.ops.object.armature_add(enter_editmode=True)
+    arm = bpy.context.object
+    eb = arm.data.edit_bones
+    eb.remove(eb[0])
+    up, fwd = Vector((0, 0, 0.08)), Vector((0, -0.06, 0))
+    spec = [("Hips", "HipCenter", "Spine", None), ("Spine", "Spine", "ShoulderCenter", "Hips"),
+            ("Neck", "ShoulderCenter", "Head", "Spine"), ("Head", "Head", up, "Neck")]
+    for s_ in ("Left", "Right"):
+        spec += [(s_ + "Shoulder", "ShoulderCenter", "Shoulder" + s_, "Spine"),
+                 (s_ + "Arm", "Shoulder" + s_, "Elbow" + s_, s_ + "Shoulder"),
+                 (s_ + "ForeArm", "Elbow" + s_, "Wrist" + s_, s_ + "Arm"),
+                 (s_ + "Hand", "Wrist" + s_, "Hand" + s_, s_ + "ForeArm"),
+                 (s_ + "UpLeg", "Hip" + s_, "Knee" + s_, "Hips"),
+                 (s_ + "Leg", "Knee" + s_, "Ankle" + s_, s_ + "UpLeg"),
+                 (s_ + "Foot", "Ankle" + s_, "Foot" + s_, s_ + "Leg"),
+                 (s_ + "ToeBase", "Foot" + s_, fwd, s_ + "Foot")]
+    for name, h, t, parent in spec:
+        b = eb.new("mixamorig:" + name)
+        b.head = bl(J[h])
+        b.tail = b.head + t if isinstance(t, Vector) else bl(J[t])
+        if parent:
+            b.parent = eb["mixamorig:" + parent]
+    bpy.ops.object.mode_set(mode="OBJECT")
+    bpy.ops.object.select_all(action="DESELECT")
+    body.select_set(True)
+    arm.select_set(True)
+    bpy.context.view_layer.objects.active = arm
+    bpy.ops.object.parent_set(type="ARMATURE_AUTO")
+    bare = sum(1 for v in body.data.vertices if not v.groups)
+    if bare:
+        fail(f"Blender's automatic weights left {bare} vertices without a bone", 2)
+    return len(spec)
+
+
+if len(argv) == 4 and argv[0] == "export-skinned":
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.obj_import(filepath=argv[1])
+    ob = bpy.context.selected_objects[0]
+    nb = armature_on(ob, argv[2])
+    unwrap_and_export(ob, argv[3], True)
+    print(f"ok: exported {argv[3]}: {len(ob.data.vertices)} vertices on {nb} bones, unwrapped")
+elif len(argv) >= 3 and argv[0] == "gaps":
+    rest = glb_positions(argv[1]).astype(numpy.float64)
+    a, b = seam_pairs(rest)
+    if len(a) < 100:
+        fail(f"{argv[1]}: only {len(a)} coincident vertices: the export was not split")
+    for path in argv[2:]:
+        frames = pc2(path) if path.endswith(".pc2") else glb_frames(path)
+        if frames.shape[1] != len(rest):
+            fail(f"{path}: {frames.shape[1]} vertices, the glb {len(rest)}")
+        gap = max(float(numpy.linalg.norm(f[a] - f[b], axis=1).max()) for f in frames)
+        moved = float(numpy.linalg.norm(frames - frames[0], axis=2).max())
+        print(f"note: {path.rsplit('/', 1)[-1]}: {len(frames)} frames, largest seam gap {gap:.3g} m,"
+              f" largest move {moved:.3f} m")
+        if gap > 0:
+            fail(f"{path}: the seams opened by {gap:.3g} m")
+        if moved < 0.01:
+            fail(f"{path}: the mesh moved {moved:.3g} m: no animation")
+    print(f"ok: {len(argv) - 2} outputs with {len(a)} seam copies each, every seam shut")
+elif len(argv) == 3 and argv[0] == "export":
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.obj_import(filepath=argv[1])
+    ob = bpy.context.selected_objects[0]
+    unwrap_and_export(ob, argv[2], False)
     print(f"ok: exported {argv[2]}: {len(ob.data.vertices)} vertices unwrapped")
 elif len(argv) == 5 and argv[0] == "check":
     rest = glb_positions(argv[1]).astype(numpy.float64)
     anim = pc2(argv[2])
     if anim.shape[1] != len(rest):
         fail(f"{argv[2]}: {anim.shape[1]} vertices, the glb {len(rest)}: the order is not kept")
-    _, inv, cnt = numpy.unique(rest, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.ravel()
-    first = {}
-    pairs = []
-    for i, c in enumerate(inv):
-        if cnt[c] > 1:
-            if c in first:
-                pairs.append((first[c], i))
-            else:
-                first[c] = i
-    if len(pairs) < 100:
-        fail(f"{argv[1]}: only {len(pairs)} coincident vertices: the export was not split")
-    a = numpy.array([p[0] for p in pairs])
-    b = numpy.array([p[1] for p in pairs])
+    a, b = seam_pairs(rest)
+    if len(a) < 100:
+        fail(f"{argv[1]}: only {len(a)} coincident vertices: the export was not split")
     gap = max(float(numpy.linalg.norm(f[a] - f[b], axis=1).max()) for f in anim)
     moved = float(numpy.linalg.norm(anim - anim[0], axis=2).max())
-    print(f"note: {len(pairs)} seam copies, largest gap over {len(anim)} frames {gap:.3g} m, "
+    print(f"note: {len(a)} seam copies, largest gap over {len(anim)} frames {gap:.3g} m, "
           f"largest move {moved:.3f} m")
     if gap > 0:
         fail(f"the seams opened by {gap:.3g} m")
@@ -137,4 +244,5 @@ elif len(argv) == 5 and argv[0] == "check":
     print(f"ok: seams shut, {n1} vertices, texture coordinates kept ({duv:.2g})")
 else:
     fail("usage: blender -b --python blender_seams.py -- export SRC.obj OUT.glb | "
-         "check SRC_UV.glb ANIM.pc2 ANIM.glb SKIN.glb", 2)
+         "check SRC_UV.glb ANIM.pc2 ANIM.glb SKIN.glb | export-skinned SRC.obj SRC.rig.json OUT.glb | "
+         "gaps SRC_UV.glb OUT...", 2)

@@ -1,3 +1,4 @@
+# shellcheck shell=bash
 # Sourced by the Blender tests (run_blender.sh, run_blender_seams.sh): BLENDER (default: blender
 # on PATH) is checked to be there with its numpy. Without it the test is skipped (exit 77) with a
 # message, except in CI (CI=true), where scripts/deps.sh --test installs it and it fails.
