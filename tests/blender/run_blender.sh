@@ -14,7 +14,7 @@ set -euo pipefail
 BIN=$1
 WORK=$2
 HERE=$(cd "$(dirname "$0")" && pwd)
-# shellcheck source=common.sh
+# shellcheck source-path=SCRIPTDIR source=common.sh
 . "$HERE/common.sh"
 rm -rf "$WORK" && mkdir -p "$WORK"
 "$BIN" gen character --vertices 2000 -o "$WORK/c.obj" 2>/dev/null

@@ -10,7 +10,7 @@ set -euo pipefail
 BIN=$1
 WORK=$2
 HERE=$(cd "$(dirname "$0")" && pwd)
-# shellcheck source=common.sh
+# shellcheck source-path=SCRIPTDIR source=common.sh
 . "$HERE/common.sh"
 rm -rf "$WORK" && mkdir -p "$WORK"
 blend() { # runs blender_seams.py with the arguments; prints its verdict lines
