@@ -281,8 +281,34 @@ static void test_stretch_bound(void) {
   CHECK_MSG(strstr(err.message, "out of range") != NULL, "%s", err.message);
 }
 
+/* The square split along its diagonal as a glTF exporter splits a mesh at a texture seam: the
+ * second triangle uses copies 4 and 5 of vertices 0 and 2. Folding it over the diagonal is a
+ * fold across the seam, which the check finds as it does on the whole square (before, the two
+ * triangles shared no edge and the fold went unseen); the copies' edges are measured too. */
+static void test_seam_fold(void) {
+  const double V0[] = {0, 0, 0, 1, 0, 0, 1, 0, 1, 0, 0, 1, 0, 0, 0, 1, 0, 1};
+  const int32_t F[] = {0, 2, 1, 4, 3, 5};
+  km_mesh m = {.V = (double *)V0, .F = (int32_t *)F, .n_vertices = 6, .n_faces = 2};
+  km_deform_check *c = NULL;
+  CHECK_OK(km_deform_check_create(&m, &c, KM_E));
+  if (!c) return;
+  km_deform_frame fr;
+  double V[18];
+  memcpy(V, V0, sizeof V);
+  V[9] = 0.9, V[10] = 0.05, V[11] = 0.1; /* vertex 3 over the diagonal, as test_known_frames */
+  CHECK_OK(km_deform_check_add(c, V, &fr, KM_E));
+  CHECK_MSG(fr.folded_pairs == 1, "folded pairs across the seam %zu", fr.folded_pairs);
+  memcpy(V, V0, sizeof V);
+  V[15] = 2; /* copy 5 of vertex 2 pulled out along x: the edges 3-5 and 4-5 stretch */
+  CHECK_OK(km_deform_check_add(c, V, &fr, KM_E));
+  CHECK_MSG(fr.ratio_max > 1.3 && (fr.long_edge[0] == 5 || fr.long_edge[1] == 5),
+            "longest %g at %d-%d", fr.ratio_max, (int)fr.long_edge[0], (int)fr.long_edge[1]);
+  km_deform_check_free(&c);
+}
+
 int main(void) {
   test_known_frames();
+  test_seam_fold();
   test_against_edge_measure();
   test_nearest_handle();
   test_stretch_bound();

@@ -4,6 +4,7 @@
  * this module, as `animate` does for its summary line. */
 #include "core/core.h"
 #include "math/math.h"
+#include "mesh/mesh.h" /* km__mesh_weld: triangles across a texture seam are neighbours */
 #include "mesh/mesh_args.h"
 
 #include <math.h>
@@ -81,37 +82,56 @@ km_status km_deform_check_create(const km_mesh *rest, km_deform_check **out, km_
     return km__fail(err, KM_ERR_NOMEM, "km_deform_check_create: out of memory");
   }
   if (nh) memcpy(c->F, rest->F, nh * sizeof *c->F);
-  for (size_t f = 0; f < nf; ++f) {
-    const int32_t *t = rest->F + 3 * f;
-    unit_normal(rest->V, t, c->N + 3 * f);
-    c->first[f] = -1;
-    for (int k = 0; k < 3; ++k) {
-      int32_t a = t[k], b = t[(k + 1) % 3];
-      h[3 * f + k] = (half){a < b ? a : b, a < b ? b : a, (int32_t)f};
+  /* A mesh split at its texture seams: its triangles on either side of a seam are neighbours
+   * for the folds (their edge is one edge of the mesh welded there); the edges keep the file's
+   * vertices, each side's copy measured. */
+  km__weld wd;
+  if ((s = km__mesh_weld(rest, &wd, err)) != KM_OK) {
+    free(h);
+    km_deform_check_free(&c);
+    return s;
+  }
+  for (int pass = 0; pass < (wd.to_w ? 2 : 1); ++pass) {
+    for (size_t f = 0; f < nf; ++f) {
+      const int32_t *t = rest->F + 3 * f;
+      if (pass == 0) {
+        unit_normal(rest->V, t, c->N + 3 * f);
+        c->first[f] = -1;
+      }
+      for (int k = 0; k < 3; ++k) {
+        int32_t a = t[k], b = t[(k + 1) % 3];
+        if (pass) a = wd.to_w[a], b = wd.to_w[b];
+        h[3 * f + k] = (half){a < b ? a : b, a < b ? b : a, (int32_t)f};
+      }
+    }
+    qsort(h, nh, sizeof *h, half_cmp);
+    bool edges = pass == 0, pairs = pass == 1 || !wd.to_w;
+    for (size_t i = 0; i < nh;) {
+      size_t j = i + 1;
+      while (j < nh && h[j].a == h[i].a && h[j].b == h[i].b)
+        ++j;
+      double d[3], l = 0;
+      if (edges) {
+        km__sub3(rest->V + 3 * (size_t)h[i].a, rest->V + 3 * (size_t)h[i].b, d);
+        l = sqrt(km__dot3(d, d));
+      }
+      if (l > 0) { /* a zero-length edge has no ratio */
+        c->edges[2 * c->n_edges] = h[i].a;
+        c->edges[2 * c->n_edges + 1] = h[i].b;
+        c->len0[c->n_edges++] = l;
+      }
+      /* a manifold interior edge whose triangles are nearly flat at rest (a sharp crease at
+       * rest, a fin or an ear's rim, is no fold when it stays sharp) */
+      if (pairs && j - i == 2 && h[i].a != h[i].b &&
+          km__dot3(c->N + 3 * (size_t)h[i].f, c->N + 3 * (size_t)h[i + 1].f) > 0.5) {
+        c->pairs[2 * c->n_pairs] = h[i].f;
+        c->pairs[2 * c->n_pairs + 1] = h[i + 1].f;
+        c->n_pairs++;
+      }
+      i = j;
     }
   }
-  qsort(h, nh, sizeof *h, half_cmp);
-  for (size_t i = 0; i < nh;) {
-    size_t j = i + 1;
-    while (j < nh && h[j].a == h[i].a && h[j].b == h[i].b)
-      ++j;
-    double d[3];
-    km__sub3(rest->V + 3 * (size_t)h[i].a, rest->V + 3 * (size_t)h[i].b, d);
-    double l = sqrt(km__dot3(d, d));
-    if (l > 0) { /* a zero-length edge has no ratio */
-      c->edges[2 * c->n_edges] = h[i].a;
-      c->edges[2 * c->n_edges + 1] = h[i].b;
-      c->len0[c->n_edges++] = l;
-    }
-    /* a manifold interior edge whose triangles are nearly flat at rest (a sharp crease at rest,
-     * a fin or an ear's rim, is no fold when it stays sharp) */
-    if (j - i == 2 && km__dot3(c->N + 3 * (size_t)h[i].f, c->N + 3 * (size_t)h[i + 1].f) > 0.5) {
-      c->pairs[2 * c->n_pairs] = h[i].f;
-      c->pairs[2 * c->n_pairs + 1] = h[i + 1].f;
-      c->n_pairs++;
-    }
-    i = j;
-  }
+  km__weld_free(&wd);
   free(h);
   c->sum.diagonal = km_bbox_diagonal(rest->V, nv);
   c->sum.ratio_min = INFINITY;
