@@ -317,7 +317,22 @@ typedef struct km_mesh {
    * ignores them. */
   double *UV; /* #V*2 texture coordinates (u, v), OBJ vt / PLY u v, s t, texture_u texture_v */
   double *N;  /* #V*3 normals as read (OBJ vn / PLY nx ny nz; not renormalised) */
+  /* The file's surface colour (a glTF's first primitive's material: its base colour factor
+   * and base colour texture image), carried to the .glb outputs so a textured model does not
+   * come out grey; NULL: none. Owned like UV. */
+  struct km_mesh_material *material;
 } km_mesh;
+
+/* A mesh's base colour: what a .glb output writes as its material (pbrMetallicRoughness). */
+typedef struct km_mesh_material {
+  double base_color[4]; /* RGBA factor, linear (glTF baseColorFactor; 1,1,1,1 by default) */
+  double metallic;      /* glTF metallicFactor (1 by default) */
+  double roughness;     /* glTF roughnessFactor (1 by default) */
+  unsigned char *image; /* the base colour texture as encoded in the file (PNG or JPEG bytes);
+                           NULL: none */
+  size_t image_size;    /* bytes */
+  char image_mime[16];  /* "image/png" or "image/jpeg" */
+} km_mesh_material;
 
 /* Allocates a mesh with uninitialised V and F.
  *   n_vertices, n_faces  in: #V (<= INT32_MAX) and #F
@@ -327,7 +342,8 @@ km_status km_mesh_alloc(size_t n_vertices, size_t n_faces, km_mesh *out, km_erro
  *   src  in: mesh
  *   out  out: allocated copy; free with km_mesh_free */
 km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err);
-/* Frees m->V, m->F, m->UV, m->N and zeroes the struct (the struct itself is the caller's). */
+/* Frees m->V, m->F, m->UV, m->N, m->material and zeroes the struct (the struct itself is the
+ * caller's). */
 void km_mesh_free(km_mesh *m);
 /* 64-bit FNV-1a hash of the counts, positions and faces (attributes are not included): the
  * key of the default reduced-model cache. Same mesh bytes, same hash. 0 for NULL. */

@@ -143,7 +143,7 @@ static void test_options_and_errors(void) {
 /* Issue 18: meshes without a spectrum are refused (KM_ERR_DEGENERATE_MESH), not answered
  * with -0 or NaN: all vertices coincident, no faces, coordinates whose areas overflow. */
 static km_status eigs_of(double *V, size_t nv, int32_t *F, size_t nf, double *ev) {
-  km_mesh m = {V, F, nv, nf, NULL, NULL};
+  km_mesh m = {.V = V, .F = F, .n_vertices = nv, .n_faces = nf};
   km_sparse *L = NULL, *M = NULL;
   km_status s = km_cotmatrix(&m, &L, NULL);
   if (s == KM_OK) s = km_massmatrix(&m, KM_MASS_VORONOI, &M, NULL);

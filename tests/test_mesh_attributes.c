@@ -392,8 +392,75 @@ static void test_gltf_in(void) {
   km_test_run("rm -rf attr_g", NULL);
 }
 
+/* A glTF's material (issue 11: a textured model must not come out grey): the first
+ * primitive's base colour factor, metallic and roughness factors and base colour texture (a
+ * 1x1 PNG in a data: URI) are read, and a .glb written from the mesh carries them: the image
+ * bytes identical, the factors the same, read back as glTF in. An image that is neither PNG nor
+ * JPEG is left out with a warning, the mesh still read. */
+static void test_material(void) {
+  static const char png_b64[] = "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8BQDw"
+                                "AEhQGAhKmMIQAAAABJRU5ErkJggg==";
+  char json[4096], *quad = NULL;
+  size_t qn = 0;
+  CHECK_OK(km__read_file(KM_TEST_DATA "/quad.gltf", &quad, &qn, KM_E));
+  if (!quad) return;
+  /* quad.gltf with a material on its primitive */
+  cJSON *j = cJSON_Parse(quad);
+  free(quad);
+  CHECK(j != NULL);
+  if (!j) return;
+  cJSON *pr = cJSON_GetArrayItem(
+      cJSON_GetObjectItem(cJSON_GetArrayItem(cJSON_GetObjectItem(j, "meshes"), 0), "primitives"),
+      0);
+  cJSON_AddNumberToObject(pr, "material", 0);
+  snprintf(json, sizeof json,
+           "{\"materials\":[{\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.5,0.25,1,1],"
+           "\"metallicFactor\":0,\"roughnessFactor\":0.75,\"baseColorTexture\":{\"index\":0}}}],"
+           "\"textures\":[{\"source\":0}],\"images\":[{\"uri\":\"data:image/png;base64,%s\"}]}",
+           png_b64);
+  cJSON *add = cJSON_Parse(json), *it;
+  cJSON_ArrayForEach(it, add) cJSON_AddItemToObject(j, it->string, cJSON_Duplicate(it, 1));
+  char *text = cJSON_PrintUnformatted(j);
+  km_mesh m = {0}, r = {0};
+  CHECK_OK(km_mesh_parse(text, strlen(text), KM_FORMAT_GLTF, "mat.gltf", &m, KM_E));
+  const km_mesh_material *mm = m.material;
+  CHECK_MSG(mm && mm->image && mm->image_size == 70 && !memcmp(mm->image, "\x89PNG", 4) &&
+                !strcmp(mm->image_mime, "image/png"),
+            "material read: image %zu bytes", mm ? mm->image_size : 0);
+  CHECK(mm && mm->base_color[0] == 0.5 && mm->base_color[1] == 0.25 && mm->metallic == 0 &&
+        mm->roughness == 0.75);
+  /* written to a .glb (the rest frame twice) and read back */
+  CHECK(km_test_run("rm -rf attr_m && mkdir attr_m", NULL) == 0);
+  km_anim_writer *w = NULL;
+  CHECK_OK(km_anim_writer_open("attr_m/out.glb", &m, NULL, &w, KM_E));
+  for (int k = 0; w && k < 2; ++k)
+    CHECK_OK(km_anim_writer_push(w, m.V, KM_E));
+  if (w) CHECK_OK(km_anim_writer_close(&w, KM_E));
+  CHECK_OK(km_mesh_read("attr_m/out.glb", &r, KM_E));
+  const km_mesh_material *rm = r.material;
+  CHECK_MSG(rm && mm && rm->image_size == mm->image_size &&
+                !memcmp(rm->image, mm->image, mm->image_size) &&
+                !memcmp(rm->base_color, mm->base_color, sizeof rm->base_color) &&
+                rm->metallic == 0 && rm->roughness == 0.75,
+            "material written: %s", rm ? "differs" : "missing");
+  km_mesh_free(&r);
+  km_mesh_free(&m);
+  /* an image that is not PNG or JPEG: left out, the factors and the mesh kept */
+  cJSON *img = cJSON_GetArrayItem(cJSON_GetObjectItem(j, "images"), 0);
+  cJSON_ReplaceItemInObject(img, "uri", cJSON_CreateString("data:image/png;base64,AAAAAAAAAAAA"));
+  free(text);
+  text = cJSON_PrintUnformatted(j);
+  CHECK_OK(km_mesh_parse(text, strlen(text), KM_FORMAT_GLTF, "bad.gltf", &m, KM_E));
+  CHECK(m.n_vertices == 4 && m.material && !m.material->image && m.material->base_color[0] == 0.5);
+  km_mesh_free(&m);
+  free(text);
+  cJSON_Delete(add);
+  cJSON_Delete(j);
+}
+
 int main(void) {
   test_gltf_in();
+  test_material();
   test_obj_read();
   test_ply_names();
   test_cli_textured();

@@ -103,6 +103,7 @@ static void writer_discard(km_anim_writer *w) {
   free(w->key_minmax);
   free(w->last);
   free(w->uv);
+  km_mesh_free(&w->material_mesh);
   free(w->nbuf);
   free(w->vbuf);
   free(w->ubuf);
@@ -284,6 +285,10 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     if (!(w->uv = km__malloc(nv * 2, sizeof *w->uv))) goto nomem;
     memcpy(w->uv, rest->UV, nv * 2 * sizeof *w->uv);
   }
+  if (rest->material && w->format == KM_ANIM_GLB) { /* a glb carries the file's material */
+    km_mesh only = {.material = rest->material};
+    if (km_mesh_copy(&only, &w->material_mesh, NULL) != KM_OK) goto nomem;
+  }
   w->normals = (rest->UV || rest->N) && nf && w->format != KM_ANIM_PC2;
   if (w->normals && (!(w->nbuf = km__malloc(nv * 3, sizeof(double))) ||
                      !(w->vbuf = km__malloc(nv * 3, sizeof(double)))))
@@ -436,7 +441,7 @@ static km_status push_glb(km_anim_writer *w, const double *V, km_error *err) {
 }
 
 void km__anim_normals(km_anim_writer *w, const double *V) {
-  km_mesh view = {(double *)V, w->F, w->n_vertices, w->n_faces, NULL, NULL};
+  km_mesh view = {.V = (double *)V, .F = w->F, .n_vertices = w->n_vertices, .n_faces = w->n_faces};
   if (km_vertex_normals(&view, KM_NORMALS_AREA, w->nbuf, NULL) != KM_OK)
     memset(w->nbuf, 0, w->n_vertices * 3 * sizeof *w->nbuf);
   for (size_t i = 0; i < w->n_vertices; ++i) {

@@ -59,10 +59,11 @@ struct km_anim_writer {
   /* Attributes of a rest mesh that has them (issue 11): its texture coordinates, copied, and
    * whether normals are written (recomputed from each frame's positions: a deformed mesh's
    * normals are not the rest's). NULL / false: positions only, as before. */
-  double *uv;   /* #V*2 */
-  bool normals; /* rest had UV or N */
-  double *nbuf; /* #V*3 scratch: one frame's normals */
-  double *vbuf; /* #V*3 scratch: one key's positions (glb) */
+  double *uv;            /* #V*2 */
+  km_mesh material_mesh; /* holds only a copy of the rest mesh's material (glb), or none */
+  bool normals;          /* rest had UV or N */
+  double *nbuf;          /* #V*3 scratch: one frame's normals */
+  double *vbuf;          /* #V*3 scratch: one key's positions (glb) */
   /* A file frame to write in (km_anim_options.frame): the rest copy is in it already, each
    * pushed frame is taken into it through ubuf (km_frame_unapply). */
   bool undo;

@@ -61,6 +61,44 @@ static int add_view_accessor(cJSON *views, cJSON *accessors, uint64_t offset, ui
   return cJSON_GetArraySize(accessors) - 1;
 }
 
+/* The rest mesh's material (km_mesh.material; issue 11: a textured model must not come out
+ * grey): materials[0] with its base colour, metallic and roughness factors and, where the file
+ * had one, its base colour texture, whose image (PNG or JPEG, as read) lies in bufferView
+ * `view` (-1: none); the primitive takes material 0. */
+static void add_material(cJSON *root, cJSON *prim, const km_mesh_material *m, int view) {
+  if (!m) return;
+  cJSON *mat = cJSON_CreateObject();
+  cJSON_AddStringToObject(mat, "name", "kinemesh");
+  cJSON *pbr = cJSON_AddObjectToObject(mat, "pbrMetallicRoughness");
+  cJSON_AddItemToObject(pbr, "baseColorFactor", cJSON_CreateDoubleArray(m->base_color, 4));
+  cJSON_AddNumberToObject(pbr, "metallicFactor", m->metallic);
+  cJSON_AddNumberToObject(pbr, "roughnessFactor", m->roughness);
+  if (view >= 0) {
+    cJSON_AddNumberToObject(cJSON_AddObjectToObject(pbr, "baseColorTexture"), "index", 0);
+    cJSON *tex = cJSON_CreateObject();
+    cJSON_AddNumberToObject(tex, "source", 0);
+    cJSON_AddNumberToObject(tex, "sampler", 0);
+    cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "textures"), tex);
+    cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "samplers"), cJSON_CreateObject());
+    cJSON *img = cJSON_CreateObject();
+    cJSON_AddNumberToObject(img, "bufferView", view);
+    cJSON_AddStringToObject(img, "mimeType", m->image_mime);
+    cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "images"), img);
+  }
+  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "materials"), mat);
+  cJSON_AddNumberToObject(prim, "material", 0);
+}
+
+/* Appends a plain bufferView (no accessor, no target: an image) and returns its index. */
+static int add_view(cJSON *views, uint64_t offset, uint64_t length) {
+  cJSON *v = cJSON_CreateObject();
+  cJSON_AddNumberToObject(v, "buffer", 0);
+  cJSON_AddNumberToObject(v, "byteOffset", (double)offset);
+  cJSON_AddNumberToObject(v, "byteLength", (double)length);
+  cJSON_AddItemToArray(views, v);
+  return cJSON_GetArraySize(views) - 1;
+}
+
 static km_status write_all(km_anim_writer *w, FILE *f, const void *p, size_t n, km_error *err) {
   if (n && fwrite(p, 1, n, f) != n)
     return km__fail(err, KM_ERR_IO, "%s: write failed: %s", w->path, strerror(errno));
@@ -191,8 +229,10 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   const uint64_t times_len = (uint64_t)nt * 4, weights_len = (uint64_t)nt * nk * 4;
   const bool with_n = w->normals;
   const uint64_t uv_len = w->uv ? (uint64_t)nv * 8 : 0;
+  const km_mesh_material *mat = w->material_mesh.material;
+  const uint64_t img_len = mat && mat->image ? mat->image_size : 0, img_pad = (img_len + 3) & ~3ull;
   uint64_t bin_len =
-      idx_len + pos_len * (1 + nk) * (with_n ? 2 : 1) + uv_len + times_len + weights_len;
+      idx_len + pos_len * (1 + nk) * (with_n ? 2 : 1) + uv_len + times_len + weights_len + img_pad;
   if (bin_len + (64u << 20) > UINT32_MAX)
     return km__fail(err, KM_ERR_UNSUPPORTED,
                     "%s: %zu key frames of %zu vertices exceed the 4 GiB glb limit; use "
@@ -285,6 +325,8 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
                                 NULL, NULL, 0);
   off += weights_len;
   add_weights_animation(root, a_in, a_out);
+  add_material(root, prim, mat, img_len ? add_view(views, off, img_len) : -1);
+  off += img_pad;
   cJSON *buffer = cJSON_CreateObject();
   cJSON_AddNumberToObject(buffer, "byteLength", (double)bin_len);
   cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "buffers"), buffer);
@@ -388,6 +430,13 @@ static km_status stream_morph_bin(km_anim_writer *w, FILE *f, void *ctx, km_erro
     km__put_f32le(row + 4 * k, 0.0f);
   }
   free(row);
+  /* the material's image last, padded to 4 bytes (finish's layout) */
+  const km_mesh_material *mat = w->material_mesh.material;
+  if (s == KM_OK && mat && mat->image && mat->image_size) {
+    static const unsigned char zero[3] = {0, 0, 0};
+    s = write_all(w, f, mat->image, mat->image_size, err);
+    if (s == KM_OK && mat->image_size % 4) s = write_all(w, f, zero, 4 - mat->image_size % 4, err);
+  }
   return s;
 }
 
@@ -622,6 +671,22 @@ static int pack_view(glb_pack *pk, const void *data, size_t count, size_t stride
   if (vertex_stride) cJSON_AddNumberToObject(v, "byteStride", (double)stride);
   if (target) cJSON_AddNumberToObject(v, "target", target);
   return cJSON_GetArraySize(pk->views) - 1;
+}
+
+/* The rest mesh's material with its image as a plain view in the real buffer (0: never
+ * meshopt-encoded, which is for vertex data); -1 on out of memory. */
+static int pack_material(glb_pack *pk, cJSON *root, cJSON *prim, const km_mesh_material *m) {
+  if (!m) return 0;
+  int view = -1;
+  if (m->image && m->image_size) {
+    size_t off = pk->bin.len;
+    unsigned char *p = bin_grow(&pk->bin, m->image_size);
+    if (!p) return -1;
+    memcpy(p, m->image, m->image_size);
+    view = add_view(pk->views, off, m->image_size);
+  }
+  add_material(root, prim, m, view);
+  return 0;
 }
 
 /* Appends an accessor over a whole view; min/max (n values each) may be NULL. Returns its
@@ -1185,6 +1250,7 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
   cJSON_AddNumberToObject(ex, "rms_error_m", rms);
   cJSON_AddNumberToObject(ex, "max_error_m", emax);
   if (z) add_grid_extras(ex, &g);
+  if (pack_material(&pk, root, prim, w->material_mesh.material) < 0) goto nomem;
   pack_finish_json(&pk, root);
   free(b);
   free(b2);
@@ -1387,6 +1453,7 @@ static km_status glb_finish_packed(km_anim_writer *w, km_error *err) {
   cJSON_AddNumberToObject(ex, "max_error_m", w->q_max);
 
   add_weights_animation(root, a_in, a_w);
+  if (pack_material(&pk, root, prim, w->material_mesh.material) < 0) goto nomem;
   pack_finish_json(&pk, root);
   s = write_glb_container(w, root, pk.bin.p, pk.bin.len, NULL, NULL, err);
   root = NULL;

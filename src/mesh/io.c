@@ -41,6 +41,16 @@ km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err) {
   if (src->N && !(tmp.N = km__malloc(nv * 3, sizeof(double)))) goto nomem;
   if (src->UV && src->n_vertices) memcpy(tmp.UV, src->UV, src->n_vertices * 2 * sizeof(double));
   if (src->N && src->n_vertices) memcpy(tmp.N, src->N, src->n_vertices * 3 * sizeof(double));
+  if (src->material) {
+    if (!(tmp.material = km__malloc(1, sizeof *tmp.material))) goto nomem;
+    *tmp.material = *src->material;
+    tmp.material->image = NULL;
+    if (src->material->image && src->material->image_size &&
+        !(tmp.material->image = km__malloc(src->material->image_size, 1)))
+      goto nomem;
+    if (tmp.material->image)
+      memcpy(tmp.material->image, src->material->image, src->material->image_size);
+  }
   *out = tmp;
   return KM_OK;
 nomem:
@@ -63,6 +73,8 @@ void km_mesh_free(km_mesh *m) {
   free(m->F);
   free(m->UV);
   free(m->N);
+  if (m->material) free(m->material->image);
+  free(m->material);
   memset(m, 0, sizeof *m);
 }
 

@@ -712,6 +712,90 @@ static km_status gather_joints(gltf_doc *d, const instances *inst, km_error *err
   return s;
 }
 
+/* The first placed primitive's material (the one the .glb outputs carry, so a textured model
+ * does not come out grey): its base colour factor and its base colour texture's image, the
+ * encoded PNG or JPEG bytes as stored (a bufferView, a data: URI, or a file beside a .gltf
+ * read from disk). Nothing when the primitive has no material; an image that cannot be read is
+ * left out with a warning (the geometry is what was asked for), never an error. */
+static km_status read_material(gltf_doc *d, const instance *in, km_mesh *out, km_error *err) {
+  const cJSON *mesh =
+      cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "meshes"), in->mesh);
+  const cJSON *pr = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(mesh, "primitives"), 0);
+  int mi = jint(pr, "material", -1);
+  const cJSON *mat =
+      mi < 0 ? NULL
+             : cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "materials"), mi);
+  if (!mat) return KM_OK;
+  km_mesh_material *m = km__calloc(1, sizeof *m);
+  if (!m) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+  const cJSON *pbr = cJSON_GetObjectItemCaseSensitive(mat, "pbrMetallicRoughness");
+  if (!num_array(cJSON_GetObjectItemCaseSensitive(pbr, "baseColorFactor"), 4, m->base_color))
+    m->base_color[0] = m->base_color[1] = m->base_color[2] = m->base_color[3] = 1;
+  const cJSON *mf = cJSON_GetObjectItemCaseSensitive(pbr, "metallicFactor"),
+              *rf = cJSON_GetObjectItemCaseSensitive(pbr, "roughnessFactor");
+  m->metallic = cJSON_IsNumber(mf) && isfinite(mf->valuedouble) ? mf->valuedouble : 1;
+  m->roughness = cJSON_IsNumber(rf) && isfinite(rf->valuedouble) ? rf->valuedouble : 1;
+  int ti = jint(cJSON_GetObjectItemCaseSensitive(pbr, "baseColorTexture"), "index", -1);
+  const cJSON *tex =
+      ti < 0 ? NULL : cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "textures"), ti);
+  int ii = jint(tex, "source", -1);
+  const cJSON *img =
+      ii < 0 ? NULL : cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "images"), ii);
+  const char *uri = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(img, "uri"));
+  int bvi = jint(img, "bufferView", -1);
+  unsigned char *bytes = NULL;
+  size_t n = 0;
+  const char *why = NULL;
+  if (!img) {
+    /* no texture: the factor alone */
+  } else if (bvi >= 0) {
+    const cJSON *bv =
+        cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "bufferViews"), bvi);
+    int bi = jint(bv, "buffer", -1), boff = jint(bv, "byteOffset", 0),
+        blen = jint(bv, "byteLength", -1);
+    if (!bv || bi < 0 || bi >= d->n_bufs || boff < 0 || blen <= 0 ||
+        (size_t)boff + (size_t)blen > d->buf_len[bi])
+      why = "its bufferView is missing or out of its buffer";
+    else if ((bytes = km__malloc((size_t)blen, 1)))
+      memcpy(bytes, (d->bufs[bi] ? d->bufs[bi] : d->bin) + boff, n = (size_t)blen);
+  } else if (uri && !strncmp(uri, "data:", 5)) {
+    const char *comma = strstr(uri, ";base64,");
+    if (!comma || !b64_decode(comma + 8, &bytes, &n)) why = "its data: URI is not base64";
+  } else if (uri) {
+    if (!d->base_path || strstr(uri, "..") || uri[0] == '/' || strchr(uri, ':')) {
+      why = "it is an external file that cannot be read here";
+    } else {
+      const char *slash = strrchr(d->base_path, '/');
+      size_t dir = slash ? (size_t)(slash - d->base_path) + 1 : 0;
+      char *p = malloc(dir + strlen(uri) + 1), *data = NULL;
+      if (p) {
+        memcpy(p, d->base_path, dir);
+        strcpy(p + dir, uri);
+        if (km__read_file(p, &data, &n, NULL) == KM_OK)
+          bytes = (unsigned char *)data;
+        else
+          why = "its file cannot be read";
+        free(p);
+      }
+    }
+  }
+  /* the outputs embed what a glTF viewer decodes: PNG or JPEG, recognised by its signature */
+  bool png = n >= 8 && !memcmp(bytes, "\x89PNG\r\n\x1a\n", 8),
+       jpg = n >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
+  if (bytes && !png && !jpg) why = "it is neither PNG nor JPEG";
+  if (why || (img && !bytes)) {
+    km__log(KM_LOG_WARN, "%s: images[%d] (the base colour texture) is left out: %s", d->name, ii,
+            why ? why : "out of memory");
+    free(bytes);
+    bytes = NULL, n = 0;
+  }
+  m->image = bytes;
+  m->image_size = n;
+  if (bytes) snprintf(m->image_mime, sizeof m->image_mime, "%s", png ? "image/png" : "image/jpeg");
+  out->material = m;
+  return KM_OK;
+}
+
 static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
   cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
   if (!cJSON_GetArraySize(meshes))
@@ -743,6 +827,7 @@ static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
     return s;
   }
   s = read_instances(d, &inst, out, err);
+  if (s == KM_OK && inst.n) s = read_material(d, &inst.v[0], out, err);
   free(inst.v);
   return s;
 }

@@ -3,13 +3,15 @@
 #
 #   export SRC.obj OUT.glb
 #     imports SRC.obj, unwraps it with Smart UV Project (islands: the mesh is cut along every
-#     island border) and exports OUT.glb with its texture coordinates and smooth normals; the
+#     island border), gives it a material whose base colour is a generated 64x32 image, and
+#     exports OUT.glb with its texture coordinates and smooth normals; the
 #     glTF exporter splits every vertex on an island border into copies at one position.
 #   check SRC_UV.glb ANIM.pc2 ANIM.glb SKIN.glb
 #     after kinemesh rig + animate of SRC_UV.glb: every vertex of the point cache that lay
 #     exactly on another at rest (a seam's copies) is still exactly on it in every frame (the
 #     seams stay shut), the mesh moved, and Blender's import of ANIM.glb has SRC_UV.glb's
-#     texture coordinates loop for loop (kinemesh kept the vertex order and the UVs); SKIN.glb
+#     texture coordinates loop for loop (kinemesh kept the vertex order and the UVs) and its
+#     base colour texture, pixel for pixel (the material carried over); SKIN.glb
 #     (animate --export skin), played by Blender's armature, keeps every copy on its vertex too
 #     (within 1e-5 m: float32 skinning of the same weights).
 #   export-skinned SRC.obj SRC.rig.json OUT.glb
@@ -97,6 +99,8 @@ def pc2(path):
 
 
 def import_uvs(path):
+    """Blender's import: vertex count, loops' vertices, UVs, and its material's base colour
+    texture's pixels (None: no textured material)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.import_scene.gltf(filepath=path)
     me = [o for o in bpy.context.scene.objects if o.type == "MESH"][0].data
@@ -106,17 +110,38 @@ def import_uvs(path):
     me.uv_layers[0].data.foreach_get("uv", uv)
     vi = numpy.zeros(len(me.loops), dtype=numpy.int64)
     me.loops.foreach_get("vertex_index", vi)
-    return len(me.vertices), vi, uv
+    px = None
+    for mat in me.materials:
+        for node in (mat.node_tree.nodes if mat and mat.use_nodes else []):
+            if node.type == "TEX_IMAGE" and node.image is not None:
+                px = (tuple(node.image.size), numpy.array(node.image.pixels[:]))
+    return len(me.vertices), vi, uv, px
 
 
 argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
 def unwrap_and_export(ob, out, skins):
+    """Smart UV Project, a generated 64x32 image as its base colour texture, exported."""
     bpy.context.view_layer.objects.active = ob
     bpy.ops.object.mode_set(mode="EDIT")
     bpy.ops.mesh.select_all(action="SELECT")
     bpy.ops.uv.smart_project(angle_limit=1.15)
     bpy.ops.object.mode_set(mode="OBJECT")
     bpy.ops.object.shade_smooth()
+    img = bpy.data.images.new("skin", 64, 32)
+    px = numpy.zeros((32, 64, 4))
+    px[:, :, 0] = numpy.linspace(0, 1, 64)[None, :]
+    px[:, :, 1] = numpy.linspace(0, 1, 32)[:, None]
+    px[:, :, 2] = 0.5
+    px[:, :, 3] = 1
+    img.pixels = px.ravel().tolist()
+    img.pack()
+    mat = bpy.data.materials.new("skin")
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    ob.data.materials.append(mat)
     bpy.ops.export_scene.gltf(filepath=out, export_format="GLB", export_texcoords=True,
                               export_normals=True, export_skins=skins, export_animations=False)
 
@@ -213,8 +238,15 @@ elif len(argv) == 5 and argv[0] == "check":
         fail(f"the seams opened by {gap:.3g} m")
     if moved < 0.05:
         fail(f"the mesh moved {moved:.3g} m: no animation")
-    n0, vi0, uv0 = import_uvs(argv[1])
-    n1, vi1, uv1 = import_uvs(argv[3])
+    n0, vi0, uv0, px0 = import_uvs(argv[1])
+    n1, vi1, uv1, px1 = import_uvs(argv[3])
+    if px0 is None:
+        fail(f"{argv[1]}: Blender finds no base colour texture in its own export", 2)
+    if px1 is None:
+        fail(f"{argv[3]}: no base colour texture: the textured model comes out grey")
+    if px1[0] != px0[0] or float(numpy.abs(px1[1] - px0[1]).max()) > 1e-6:
+        fail(f"{argv[3]}: its texture ({px1[0]}) differs from the source's ({px0[0]})")
+    print(f"note: the animation's material has the source's {px0[0][0]}x{px0[0][1]} texture")
     if n0 != n1 or not numpy.array_equal(vi0, vi1):
         fail(f"Blender imports {n1} vertices from {argv[3]} and {n0} from {argv[1]}, "
              "or other loops")

@@ -38,6 +38,21 @@ for out in anim.pc2 anim.glb "skin.glb --export skin:16"; do
     { cat "$WORK/animate.log"; echo "blender_seams: animate FAILED"; exit 1; }
 done
 blend check "$WORK/c_uv.glb" "$WORK/anim.pc2" "$WORK/anim.glb" "$WORK/skin.glb"
+# the outputs with the source's material and texture are valid glTF (the Khronos validator)
+VALIDATE=$HERE/../gltf/validate.mjs
+if command -v node >/dev/null && [ -d "$HERE/../gltf/node_modules/gltf-validator" ]; then
+  for f in anim skin; do
+    node "$VALIDATE" "$WORK/$f.glb" >"$WORK/$f.valid.txt" 2>&1 || true
+    grep -q ': 0 errors, 0 warnings' "$WORK/$f.valid.txt" ||
+      { cat "$WORK/$f.valid.txt"; echo "blender_seams: $f.glb is not valid glTF"; exit 1; }
+  done
+  echo "validator: anim.glb and skin.glb with the texture, 0 errors, 0 warnings"
+elif [ "${CI:-}" = true ]; then
+  echo "FAIL: node or the glTF validator is missing (scripts/deps.sh installs them)"
+  exit 1
+else
+  echo "note: node or the glTF validator is missing: the outputs' validity is not checked"
+fi
 # A game character as Blender writes it: Mixamo-named armature, Blender's bone-heat weights,
 # unwrapped and exported skinned. With no rig given it is its own template: pose and animate
 # use its skin, reconstruct fits it to a capture of a stockier body; every output keeps the
