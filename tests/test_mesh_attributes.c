@@ -458,9 +458,59 @@ static void test_material(void) {
   cJSON_Delete(j);
 }
 
+/* An OBJ's material (mtllib + usemtl): the library beside it, the used material's Kd, Ns and
+ * map_Kd image (options before the file name skipped) read into km_mesh.material; a texture
+ * is the colour (factor 1, not Kd's 0.8); without a texture, Kd; a missing library or image is
+ * a warning and the mesh still reads. */
+static void test_obj_material(void) {
+  static const unsigned char png[70] = {
+      0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48,
+      0x44, 0x52, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00,
+      0x00, 0x1f, 0x15, 0xc4, 0x89, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x44, 0x41, 0x54, 0x78,
+      0xda, 0x63, 0xfc, 0xcf, 0xc0, 0x50, 0x0f, 0x00, 0x04, 0x85, 0x01, 0x80, 0x84, 0xa9,
+      0x8c, 0x21, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+  CHECK(km_test_run("rm -rf attr_o && mkdir -p attr_o/tex", NULL) == 0);
+  FILE *f = fopen("attr_o/tex/skin.png", "wb");
+  if (f) fwrite(png, 1, sizeof png, f), fclose(f);
+  f = fopen("attr_o/q.mtl", "w");
+  if (f)
+    fputs("newmtl red\nKd 1 0 0\n\nnewmtl skin\nNs 250\nKd 0.8 0.8 0.8\n"
+          "map_Kd -s 1 1 1 tex\\skin.png\n\nnewmtl plain\nKd 0.2 0.4 0.6\n",
+          f),
+        fclose(f);
+  const char *quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                     "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+  const char *use[3] = {"skin", "plain", "none"};
+  for (int k = 0; k < 3; ++k) {
+    f = fopen("attr_o/q.obj", "w");
+    if (f) fprintf(f, "mtllib q.mtl\nusemtl %s\n%s", use[k], quad), fclose(f);
+    km_mesh m = {0};
+    CHECK_OK(km_mesh_read("attr_o/q.obj", &m, KM_E));
+    const km_mesh_material *mm = m.material;
+    if (k == 0)
+      CHECK_MSG(mm && mm->image_size == sizeof png && !memcmp(mm->image, png, sizeof png) &&
+                    mm->base_color[0] == 1 && fabs(mm->roughness - 0.5) < 1e-12 &&
+                    mm->metallic == 0,
+                "skin: %s", mm ? "differs" : "no material");
+    if (k == 1)
+      CHECK_MSG(mm && !mm->image && mm->base_color[0] == 0.2 && mm->base_color[2] == 0.6,
+                "plain: %s", mm ? "differs" : "no material");
+    if (k == 2) CHECK_MSG(!mm, "a material that is not in the library was made up");
+    CHECK(m.n_vertices == 4 && m.UV);
+    km_mesh_free(&m);
+  }
+  /* the library gone: the mesh reads, no material */
+  CHECK(km_test_run("rm attr_o/q.mtl", NULL) == 0);
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_read("attr_o/q.obj", &m, KM_E));
+  CHECK(m.n_vertices == 4 && !m.material);
+  km_mesh_free(&m);
+}
+
 int main(void) {
   test_gltf_in();
   test_material();
+  test_obj_material();
   test_obj_read();
   test_ply_names();
   test_cli_textured();

@@ -149,6 +149,7 @@ km_status km_mesh_read_skinned(const char *path, km_mesh *out, km_mesh_skin *ski
     s = km__gltf_parse(data, size, path, path, out, skin, err);
   else
     s = km_mesh_parse(data, size, fmt, path, out, err);
+  if (s == KM_OK && fmt == KM_FORMAT_OBJ) km__obj_read_material(data, size, path, out);
   free(data);
   if (!s)
     km__log(KM_LOG_DEBUG, "%s: %zu vertices, %zu faces in %.3f s", path, out->n_vertices,

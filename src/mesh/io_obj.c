@@ -5,6 +5,7 @@
  * range-checked and V allocated once), one pass to parse. */
 #include "mesh/mesh_io.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -270,6 +271,120 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
   out->n_vertices = nv;
   out->n_faces = tris.n;
   return KM_OK;
+}
+
+/* One line of text starting at p (up to end): its first token (keyword) and the rest, both
+ * trimmed; returns the start of the next line. */
+static const char *next_line(const char *p, const char *end, char *kw, size_t kn, char *rest,
+                             size_t rn) {
+  const char *e = memchr(p, '\n', (size_t)(end - p));
+  const char *le = e ? e : end, *q = p;
+  while (q < le && (*q == ' ' || *q == '\t'))
+    ++q;
+  size_t k = 0;
+  while (q < le && *q != ' ' && *q != '\t' && *q != '\r' && k + 1 < kn)
+    kw[k++] = *q++;
+  kw[k] = 0;
+  while (q < le && (*q == ' ' || *q == '\t'))
+    ++q;
+  size_t r = 0;
+  while (q < le && r + 1 < rn)
+    rest[r++] = *q++;
+  while (r && (rest[r - 1] == '\r' || rest[r - 1] == ' ' || rest[r - 1] == '\t'))
+    --r;
+  rest[r] = 0;
+  return e ? e + 1 : end;
+}
+
+/* dir of path (up to its last '/') joined with a relative name ('\\' read as '/'); an
+ * absolute name as it is. Caller frees. */
+static char *beside(const char *path, const char *name) {
+  const char *slash = strrchr(path, '/');
+  size_t dir = name[0] == '/' || !slash ? 0 : (size_t)(slash - path) + 1;
+  char *p = malloc(dir + strlen(name) + 1);
+  if (!p) return NULL;
+  memcpy(p, path, dir);
+  strcpy(p + dir, name);
+  for (char *c = p + dir; *c; ++c)
+    if (*c == '\\') *c = '/';
+  return p;
+}
+
+void km__obj_read_material(const char *data, size_t size, const char *path, km_mesh *out) {
+  char kw[32], rest[1024], lib[1024] = "", use[1024] = "";
+  for (const char *p = data, *end = data + size; p < end && (!lib[0] || !use[0]);) {
+    p = next_line(p, end, kw, sizeof kw, rest, sizeof rest);
+    if (!strcmp(kw, "mtllib") && !lib[0]) snprintf(lib, sizeof lib, "%s", rest);
+    if (!strcmp(kw, "usemtl") && !use[0]) snprintf(use, sizeof use, "%s", rest);
+  }
+  if (!lib[0]) return;
+  char *mpath = beside(path, lib), *mdata = NULL;
+  size_t mn = 0;
+  if (!mpath || km__read_file(mpath, &mdata, &mn, NULL) != KM_OK) {
+    km__log(KM_LOG_WARN, "%s: its material library %s cannot be read: no material carried", path,
+            mpath ? mpath : lib);
+    free(mpath);
+    return;
+  }
+  /* the material the first face uses (else the library's first): Kd, Ns, map_Kd */
+  double kd[3] = {1, 1, 1}, ns = -1;
+  char map[1024] = "";
+  bool in = false, found = false;
+  for (const char *p = mdata, *end = mdata + mn; p < end;) {
+    p = next_line(p, end, kw, sizeof kw, rest, sizeof rest);
+    if (!strcmp(kw, "newmtl")) {
+      if (found) break;
+      in = found = !use[0] || !strcmp(rest, use);
+    } else if (in && !strcmp(kw, "Kd")) {
+      sscanf(rest, "%lf %lf %lf", &kd[0], &kd[1], &kd[2]);
+    } else if (in && !strcmp(kw, "Ns")) {
+      sscanf(rest, "%lf", &ns);
+    } else if (in && !strcmp(kw, "map_Kd")) {
+      const char *last = strrchr(rest, ' '); /* options (-s u v w ...) come before the file */
+      snprintf(map, sizeof map, "%s", last ? last + 1 : rest);
+    }
+  }
+  free(mdata);
+  if (!found) {
+    km__log(KM_LOG_WARN, "%s: material '%s' is not in %s: no material carried", path, use, mpath);
+    free(mpath);
+    return;
+  }
+  km_mesh_material *m = km__calloc(1, sizeof *m);
+  if (!m) {
+    free(mpath);
+    return;
+  }
+  /* a texture is the colour (Blender's OBJ exporter writes Kd 0.8 beside it, and its importer,
+   * as glTF viewers would with a factor, would darken it); roughness from the Phong exponent
+   * as Blender's importer maps it */
+  for (int c = 0; c < 3; ++c)
+    m->base_color[c] = map[0] ? 1 : fmin(1, fmax(0, kd[c]));
+  m->base_color[3] = 1;
+  m->metallic = 0;
+  m->roughness = ns >= 0 ? fmin(1, fmax(0, 1 - sqrt(fmin(ns, 1000) / 1000))) : 1;
+  if (map[0]) {
+    char *ipath = beside(mpath, map), *img = NULL;
+    size_t n = 0;
+    if (ipath && km__read_file(ipath, &img, &n, NULL) == KM_OK) {
+      const unsigned char *b = (const unsigned char *)img;
+      bool png = n >= 8 && !memcmp(b, "\x89PNG\r\n\x1a\n", 8),
+           jpg = n >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF;
+      if (png || jpg) {
+        m->image = (unsigned char *)img, img = NULL;
+        m->image_size = n;
+        snprintf(m->image_mime, sizeof m->image_mime, "%s", png ? "image/png" : "image/jpeg");
+      } else {
+        km__log(KM_LOG_WARN, "%s: texture %s is neither PNG nor JPEG: left out", path, ipath);
+      }
+    } else {
+      km__log(KM_LOG_WARN, "%s: texture %s cannot be read: left out", path, ipath ? ipath : map);
+    }
+    free(img);
+    free(ipath);
+  }
+  free(mpath);
+  out->material = m;
 }
 
 static void write_double(FILE *f, double x, char sep) {
