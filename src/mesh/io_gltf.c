@@ -62,6 +62,11 @@ typedef struct gltf_doc {
   double *S;          /* the current instance's skin matrices (S_n*16), or NULL */
   int32_t *S_ids;     /* their joints' indices in the gathered list */
   size_t S_n;
+  /* the primitive with the most triangles (its material is the one carried: read_material),
+   * and the materials the primitives use: the first, and whether another differs */
+  size_t best_faces;
+  int best_inst, best_prim, first_mat;
+  bool other_mat;
 } gltf_doc;
 
 static uint32_t rd32(const unsigned char *p) {
@@ -712,16 +717,24 @@ static km_status gather_joints(gltf_doc *d, const instances *inst, km_error *err
   return s;
 }
 
-/* The first placed primitive's material (the one the .glb outputs carry, so a textured model
- * does not come out grey): its base colour factor and its base colour texture's image, the
+/* The material of the primitive with the most triangles (the one the .glb outputs carry, so a
+ * textured model does not come out grey; the writers have one primitive, so a file of several
+ * materials keeps that one, with a warning): its base colour factor and its base colour
+ * texture's image, the
  * encoded PNG or JPEG bytes as stored (a bufferView, a data: URI, or a file beside a .gltf
  * read from disk). Nothing when the primitive has no material; an image that cannot be read is
  * left out with a warning (the geometry is what was asked for), never an error. */
-static km_status read_material(gltf_doc *d, const instance *in, km_mesh *out, km_error *err) {
+static km_status read_material(gltf_doc *d, const instance *in, int prim, km_mesh *out,
+                               km_error *err) {
   const cJSON *mesh =
       cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "meshes"), in->mesh);
-  const cJSON *pr = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(mesh, "primitives"), 0);
+  const cJSON *pr = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(mesh, "primitives"), prim);
   int mi = jint(pr, "material", -1);
+  if (d->other_mat)
+    km__log(KM_LOG_WARN,
+            "%s: its primitives use several materials; the outputs carry one, materials[%d] of "
+            "the primitive with the most triangles (%zu)",
+            d->name, mi, d->best_faces);
   const cJSON *mat =
       mi < 0 ? NULL
              : cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "materials"), mi);
@@ -827,7 +840,8 @@ static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
     return s;
   }
   s = read_instances(d, &inst, out, err);
-  if (s == KM_OK && inst.n) s = read_material(d, &inst.v[0], out, err);
+  if (s == KM_OK && d->best_inst >= 0)
+    s = read_material(d, &inst.v[d->best_inst], d->best_prim, out, err);
   free(inst.v);
   return s;
 }
@@ -1050,6 +1064,11 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
           }
         v0 += pos.count;
         f0 += ni / 3;
+        int pm = jint(pr, "material", -1);
+        if (ii == 0 && pi == 0) d->first_mat = pm, d->best_inst = -1;
+        d->other_mat |= pm != d->first_mat;
+        if (d->best_inst < 0 || ni / 3 > d->best_faces)
+          d->best_faces = ni / 3, d->best_inst = (int)ii, d->best_prim = pi;
       }
     }
   }
