@@ -317,10 +317,12 @@ typedef struct km_mesh {
    * ignores them. */
   double *UV; /* #V*2 texture coordinates (u, v), OBJ vt / PLY u v, s t, texture_u texture_v */
   double *N;  /* #V*3 normals as read (OBJ vn / PLY nx ny nz; not renormalised) */
-  /* The file's surface colour (a glTF's first primitive's material: its base colour factor
-   * and base colour texture image), carried to the .glb outputs so a textured model does not
-   * come out grey; NULL: none. Owned like UV. */
-  struct km_mesh_material *material;
+  /* The file's surface colours (a glTF's primitives' materials, an OBJ's usemtl groups: base
+   * colour factor and texture image), carried to the .glb outputs so a textured model does not
+   * come out grey: n_materials of them, each over a run of faces, the runs in face order
+   * covering every face; NULL / 0: none. Owned like UV. */
+  struct km_mesh_material *materials;
+  size_t n_materials;
 } km_mesh;
 
 /* A mesh's base colour: what a .glb output writes as its material (pbrMetallicRoughness). */
@@ -332,6 +334,8 @@ typedef struct km_mesh_material {
                            NULL: none */
   size_t image_size;    /* bytes */
   char image_mime[16];  /* "image/png" or "image/jpeg" */
+  size_t first_face;    /* the faces it colours: first_face .. first_face + n_faces - 1 */
+  size_t n_faces;
 } km_mesh_material;
 
 /* Allocates a mesh with uninitialised V and F.
@@ -342,7 +346,7 @@ km_status km_mesh_alloc(size_t n_vertices, size_t n_faces, km_mesh *out, km_erro
  *   src  in: mesh
  *   out  out: allocated copy; free with km_mesh_free */
 km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err);
-/* Frees m->V, m->F, m->UV, m->N, m->material and zeroes the struct (the struct itself is the
+/* Frees m->V, m->F, m->UV, m->N, m->materials and zeroes the struct (the struct itself is the
  * caller's). */
 void km_mesh_free(km_mesh *m);
 /* 64-bit FNV-1a hash of the counts, positions and faces (attributes are not included): the

@@ -423,7 +423,8 @@ static void test_material(void) {
   char *text = cJSON_PrintUnformatted(j);
   km_mesh m = {0}, r = {0};
   CHECK_OK(km_mesh_parse(text, strlen(text), KM_FORMAT_GLTF, "mat.gltf", &m, KM_E));
-  const km_mesh_material *mm = m.material;
+  const km_mesh_material *mm = m.n_materials == 1 ? m.materials : NULL;
+  CHECK(mm && mm->first_face == 0 && mm->n_faces == m.n_faces);
   CHECK_MSG(mm && mm->image && mm->image_size == 70 && !memcmp(mm->image, "\x89PNG", 4) &&
                 !strcmp(mm->image_mime, "image/png"),
             "material read: image %zu bytes", mm ? mm->image_size : 0);
@@ -437,12 +438,43 @@ static void test_material(void) {
     CHECK_OK(km_anim_writer_push(w, m.V, KM_E));
   if (w) CHECK_OK(km_anim_writer_close(&w, KM_E));
   CHECK_OK(km_mesh_read("attr_m/out.glb", &r, KM_E));
-  const km_mesh_material *rm = r.material;
+  const km_mesh_material *rm = r.n_materials == 1 ? r.materials : NULL;
   CHECK_MSG(rm && mm && rm->image_size == mm->image_size &&
                 !memcmp(rm->image, mm->image, mm->image_size) &&
                 !memcmp(rm->base_color, mm->base_color, sizeof rm->base_color) &&
                 rm->metallic == 0 && rm->roughness == 0.75,
             "material written: %s", rm ? "differs" : "missing");
+  km_mesh_free(&r);
+  km_mesh_free(&m);
+  /* a second primitive (the quad again, the same attributes: its vertices are shared, read
+   * once) with a plain material: two runs of faces, each its material, written as two
+   * primitives over one set of vertices and read back so */
+  cJSON *pr2 = cJSON_Duplicate(pr, 1);
+  cJSON_ReplaceItemInObject(pr2, "material", cJSON_CreateNumber(1));
+  cJSON_AddItemToArray(
+      cJSON_GetObjectItem(cJSON_GetArrayItem(cJSON_GetObjectItem(j, "meshes"), 0), "primitives"),
+      pr2);
+  cJSON *plain = cJSON_Parse("{\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.2,0.4,0.6,1]}}");
+  cJSON_AddItemToArray(cJSON_GetObjectItem(j, "materials"), plain);
+  free(text);
+  text = cJSON_PrintUnformatted(j);
+  CHECK_OK(km_mesh_parse(text, strlen(text), KM_FORMAT_GLTF, "two.gltf", &m, KM_E));
+  CHECK_MSG(m.n_materials == 2 && m.n_faces == 4 && m.n_vertices == 4 &&
+                m.materials[0].first_face == 0 && m.materials[0].n_faces == 2 &&
+                m.materials[1].first_face == 2 && m.materials[1].n_faces == 2 &&
+                m.materials[0].image && !m.materials[1].image &&
+                m.materials[1].base_color[1] == 0.4 && m.materials[1].metallic == 1,
+            "two materials: %zu", m.n_materials);
+  CHECK_OK(km_anim_writer_open("attr_m/two.glb", &m, NULL, &w, KM_E));
+  for (int k = 0; w && k < 2; ++k)
+    CHECK_OK(km_anim_writer_push(w, m.V, KM_E));
+  if (w) CHECK_OK(km_anim_writer_close(&w, KM_E));
+  CHECK_OK(km_mesh_read("attr_m/two.glb", &r, KM_E));
+  CHECK_MSG(r.n_materials == 2 && r.n_faces == 4 && r.n_vertices == 4 &&
+                r.materials[1].first_face == 2 && r.materials[1].n_faces == 2 &&
+                r.materials[0].image_size == 70 && r.materials[1].base_color[2] == 0.6 &&
+                !memcmp(r.F, m.F, sizeof(int32_t) * 12),
+            "two materials written: %zu", r.n_materials);
   km_mesh_free(&r);
   km_mesh_free(&m);
   /* an image that is not PNG or JPEG: left out, the factors and the mesh kept */
@@ -451,7 +483,8 @@ static void test_material(void) {
   free(text);
   text = cJSON_PrintUnformatted(j);
   CHECK_OK(km_mesh_parse(text, strlen(text), KM_FORMAT_GLTF, "bad.gltf", &m, KM_E));
-  CHECK(m.n_vertices == 4 && m.material && !m.material->image && m.material->base_color[0] == 0.5);
+  CHECK(m.n_vertices == 4 && m.n_materials == 2 && !m.materials[0].image &&
+        m.materials[0].base_color[0] == 0.5);
   km_mesh_free(&m);
   free(text);
   cJSON_Delete(add);
@@ -486,7 +519,7 @@ static void test_obj_material(void) {
     if (f) fprintf(f, "mtllib q.mtl\nusemtl %s\n%s", use[k], quad), fclose(f);
     km_mesh m = {0};
     CHECK_OK(km_mesh_read("attr_o/q.obj", &m, KM_E));
-    const km_mesh_material *mm = m.material;
+    const km_mesh_material *mm = m.n_materials == 1 ? m.materials : NULL;
     if (k == 0)
       CHECK_MSG(mm && mm->image_size == sizeof png && !memcmp(mm->image, png, sizeof png) &&
                     mm->base_color[0] == 1 && fabs(mm->roughness - 0.5) < 1e-12 &&
@@ -495,7 +528,7 @@ static void test_obj_material(void) {
     if (k == 1)
       CHECK_MSG(mm && !mm->image && mm->base_color[0] == 0.2 && mm->base_color[2] == 0.6,
                 "plain: %s", mm ? "differs" : "no material");
-    if (k == 2) CHECK_MSG(!mm, "a material that is not in the library was made up");
+    if (k == 2) CHECK_MSG(!m.materials, "a material that is not in the library was made up");
     CHECK(m.n_vertices == 4 && m.UV);
     km_mesh_free(&m);
   }
@@ -503,7 +536,7 @@ static void test_obj_material(void) {
   CHECK(km_test_run("rm attr_o/q.mtl", NULL) == 0);
   km_mesh m = {0};
   CHECK_OK(km_mesh_read("attr_o/q.obj", &m, KM_E));
-  CHECK(m.n_vertices == 4 && !m.material);
+  CHECK(m.n_vertices == 4 && !m.materials && !m.n_materials);
   km_mesh_free(&m);
 }
 

@@ -285,9 +285,27 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     if (!(w->uv = km__malloc(nv * 2, sizeof *w->uv))) goto nomem;
     memcpy(w->uv, rest->UV, nv * 2 * sizeof *w->uv);
   }
-  if (rest->material && w->format == KM_ANIM_GLB) { /* a glb carries the file's material */
-    km_mesh only = {.material = rest->material};
+  if (rest->n_materials && w->format == KM_ANIM_GLB) { /* a glb carries the file's materials */
+    km_mesh only = {.materials = rest->materials, .n_materials = rest->n_materials};
     if (km_mesh_copy(&only, &w->material_mesh, NULL) != KM_OK) goto nomem;
+    /* the runs must tile the faces in order (the writers split the primitive by them): a mesh
+     * whose faces changed after reading keeps its first material over every face */
+    size_t next = 0;
+    for (size_t k = 0; k < w->material_mesh.n_materials; ++k)
+      next = w->material_mesh.materials[k].first_face == next
+                 ? next + w->material_mesh.materials[k].n_faces
+                 : SIZE_MAX;
+    if (next != nf) {
+      km__log(KM_LOG_WARN,
+              "%s: the mesh's materials do not cover its %zu faces in order: its "
+              "first material is written over all of them",
+              path, nf);
+      for (size_t k = 1; k < w->material_mesh.n_materials; ++k)
+        free(w->material_mesh.materials[k].image);
+      w->material_mesh.n_materials = 1;
+      w->material_mesh.materials[0].first_face = 0;
+      w->material_mesh.materials[0].n_faces = nf;
+    }
   }
   w->normals = (rest->UV || rest->N) && nf && w->format != KM_ANIM_PC2;
   if (w->normals && (!(w->nbuf = km__malloc(nv * 3, sizeof(double))) ||

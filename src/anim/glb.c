@@ -61,32 +61,94 @@ static int add_view_accessor(cJSON *views, cJSON *accessors, uint64_t offset, ui
   return cJSON_GetArraySize(accessors) - 1;
 }
 
-/* The rest mesh's material (km_mesh.material; issue 11: a textured model must not come out
- * grey): materials[0] with its base colour, metallic and roughness factors and, where the file
- * had one, its base colour texture, whose image (PNG or JPEG, as read) lies in bufferView
- * `view` (-1: none); the primitive takes material 0. */
-static void add_material(cJSON *root, cJSON *prim, const km_mesh_material *m, int view) {
-  if (!m) return;
-  cJSON *mat = cJSON_CreateObject();
-  cJSON_AddStringToObject(mat, "name", "kinemesh");
-  cJSON *pbr = cJSON_AddObjectToObject(mat, "pbrMetallicRoughness");
-  cJSON_AddItemToObject(pbr, "baseColorFactor", cJSON_CreateDoubleArray(m->base_color, 4));
-  cJSON_AddNumberToObject(pbr, "metallicFactor", m->metallic);
-  cJSON_AddNumberToObject(pbr, "roughnessFactor", m->roughness);
-  if (view >= 0) {
-    cJSON_AddNumberToObject(cJSON_AddObjectToObject(pbr, "baseColorTexture"), "index", 0);
-    cJSON *tex = cJSON_CreateObject();
-    cJSON_AddNumberToObject(tex, "source", 0);
-    cJSON_AddNumberToObject(tex, "sampler", 0);
-    cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "textures"), tex);
-    cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "samplers"), cJSON_CreateObject());
-    cJSON *img = cJSON_CreateObject();
-    cJSON_AddNumberToObject(img, "bufferView", view);
-    cJSON_AddStringToObject(img, "mimeType", m->image_mime);
-    cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "images"), img);
+/* The number under key in o, -1 when absent. */
+static int jint_item(const cJSON *o, const char *key) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+  return cJSON_IsNumber(v) ? v->valueint : -1;
+}
+
+/* For each material, the first material whose image has the same bytes (itself when none
+ * before; -1: no image): one copy of each image goes into the file. */
+static void unique_images(const km_mesh_material *m, size_t n, int *uniq) {
+  for (size_t k = 0; k < n; ++k) {
+    uniq[k] = -1;
+    if (!m[k].image || !m[k].image_size) continue;
+    size_t q = 0;
+    while (q < k && !(uniq[q] == (int)q && m[q].image_size == m[k].image_size &&
+                      !memcmp(m[q].image, m[k].image, m[k].image_size)))
+      ++q;
+    uniq[k] = (int)q;
   }
-  cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "materials"), mat);
-  cJSON_AddNumberToObject(prim, "material", 0);
+}
+
+/* The rest mesh's materials (km_mesh.materials; issue 11: a textured model must not come out
+ * grey): materials[k] with its base colour, metallic and roughness factors and, where the file
+ * had one, its base colour texture, whose image (PNG or JPEG, as read) lies in bufferView
+ * view[k] (-1: none; materials with identical images share one view, texture and image). The
+ * mesh's one primitive `prim` (built over every face) becomes one per material, each over its
+ * run of faces (an accessor on the same index view at the run's offset; the attributes and
+ * morph targets shared), so each part keeps its own colour. */
+static void add_materials(cJSON *root, cJSON *accessors, cJSON *mesh, cJSON *prim,
+                          const km_mesh_material *m, size_t n, const int *view) {
+  if (!n) return;
+  cJSON *mats = cJSON_AddArrayToObject(root, "materials"), *texs = NULL, *imgs = NULL;
+  int *tex_of = calloc(n, sizeof *tex_of); /* the texture of each view's first material */
+  int n_tex = 0;
+  for (size_t k = 0; k < n; ++k) {
+    cJSON *mat = cJSON_CreateObject();
+    char nm[32];
+    snprintf(nm, sizeof nm, "kinemesh_%zu", k);
+    cJSON_AddStringToObject(mat, "name", nm);
+    cJSON *pbr = cJSON_AddObjectToObject(mat, "pbrMetallicRoughness");
+    cJSON_AddItemToObject(pbr, "baseColorFactor", cJSON_CreateDoubleArray(m[k].base_color, 4));
+    cJSON_AddNumberToObject(pbr, "metallicFactor", m[k].metallic);
+    cJSON_AddNumberToObject(pbr, "roughnessFactor", m[k].roughness);
+    if (view[k] >= 0 && tex_of) {
+      size_t q = 0;
+      while (q < k && view[q] != view[k])
+        ++q;
+      if (q == k) {
+        if (!texs) {
+          texs = cJSON_AddArrayToObject(root, "textures");
+          imgs = cJSON_AddArrayToObject(root, "images");
+          cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "samplers"), cJSON_CreateObject());
+        }
+        cJSON *tex = cJSON_CreateObject();
+        cJSON_AddNumberToObject(tex, "source", n_tex);
+        cJSON_AddNumberToObject(tex, "sampler", 0);
+        cJSON_AddItemToArray(texs, tex);
+        cJSON *img = cJSON_CreateObject();
+        cJSON_AddNumberToObject(img, "bufferView", view[k]);
+        cJSON_AddStringToObject(img, "mimeType", m[k].image_mime);
+        cJSON_AddItemToArray(imgs, img);
+        tex_of[k] = n_tex++;
+      } else {
+        tex_of[k] = tex_of[q];
+      }
+      cJSON_AddNumberToObject(cJSON_AddObjectToObject(pbr, "baseColorTexture"), "index", tex_of[k]);
+    }
+    cJSON_AddItemToArray(mats, mat);
+  }
+  free(tex_of);
+  cJSON *prims = cJSON_GetObjectItemCaseSensitive(mesh, "primitives");
+  int a_idx = jint_item(prim, "indices");
+  for (size_t k = n; k-- > 0;) { /* copies of the pristine primitive first, itself last */
+    cJSON *p = k ? cJSON_Duplicate(prim, 1) : prim;
+    if (k) cJSON_InsertItemInArray(prims, 1, p);
+    cJSON_AddNumberToObject(p, "material", (double)k);
+    if (a_idx < 0 || n == 1) continue;
+    /* the run's indices: the whole index accessor's view from the run's first face */
+    cJSON *acc = k ? cJSON_Duplicate(cJSON_GetArrayItem(accessors, a_idx), 1)
+                   : cJSON_GetArrayItem(accessors, a_idx);
+    cJSON_DeleteItemFromObject(acc, "byteOffset");
+    cJSON_AddNumberToObject(acc, "byteOffset", (double)(12 * m[k].first_face));
+    cJSON_ReplaceItemInObject(acc, "count", cJSON_CreateNumber((double)(3 * m[k].n_faces)));
+    if (k) {
+      cJSON_AddItemToArray(accessors, acc);
+      cJSON_ReplaceItemInObject(p, "indices",
+                                cJSON_CreateNumber((double)(cJSON_GetArraySize(accessors) - 1)));
+    }
+  }
 }
 
 /* Appends a plain bufferView (no accessor, no target: an image) and returns its index. */
@@ -229,8 +291,18 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   const uint64_t times_len = (uint64_t)nt * 4, weights_len = (uint64_t)nt * nk * 4;
   const bool with_n = w->normals;
   const uint64_t uv_len = w->uv ? (uint64_t)nv * 8 : 0;
-  const km_mesh_material *mat = w->material_mesh.material;
-  const uint64_t img_len = mat && mat->image ? mat->image_size : 0, img_pad = (img_len + 3) & ~3ull;
+  const km_mesh_material *mat = w->material_mesh.materials;
+  const size_t n_mat = w->material_mesh.n_materials;
+  int *uniq = km__malloc(n_mat ? n_mat : 1, sizeof *uniq),
+      *view = km__malloc(n_mat ? n_mat : 1, sizeof *view);
+  if (!uniq || !view) {
+    free(uniq), free(view);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+  }
+  unique_images(mat, n_mat, uniq);
+  uint64_t img_pad = 0;
+  for (size_t k = 0; k < n_mat; ++k)
+    if (uniq[k] == (int)k) img_pad += (mat[k].image_size + 3) & ~(uint64_t)3;
   uint64_t bin_len =
       idx_len + pos_len * (1 + nk) * (with_n ? 2 : 1) + uv_len + times_len + weights_len + img_pad;
   if (bin_len + (64u << 20) > UINT32_MAX)
@@ -325,8 +397,14 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
                                 NULL, NULL, 0);
   off += weights_len;
   add_weights_animation(root, a_in, a_out);
-  add_material(root, prim, mat, img_len ? add_view(views, off, img_len) : -1);
-  off += img_pad;
+  for (size_t k = 0; k < n_mat; ++k) { /* the images last, in material order */
+    view[k] = uniq[k] == (int)k ? add_view(views, off, mat[k].image_size)
+              : uniq[k] >= 0    ? view[uniq[k]]
+                                : -1;
+    if (uniq[k] == (int)k) off += (mat[k].image_size + 3) & ~(uint64_t)3;
+  }
+  add_materials(root, accessors, mesh, prim, mat, n_mat, view);
+  free(uniq), free(view);
   cJSON *buffer = cJSON_CreateObject();
   cJSON_AddNumberToObject(buffer, "byteLength", (double)bin_len);
   cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "buffers"), buffer);
@@ -430,13 +508,20 @@ static km_status stream_morph_bin(km_anim_writer *w, FILE *f, void *ctx, km_erro
     km__put_f32le(row + 4 * k, 0.0f);
   }
   free(row);
-  /* the material's image last, padded to 4 bytes (finish's layout) */
-  const km_mesh_material *mat = w->material_mesh.material;
-  if (s == KM_OK && mat && mat->image && mat->image_size) {
+  /* the materials' images last, each once, padded to 4 bytes (finish's layout) */
+  const km_mesh_material *mat = w->material_mesh.materials;
+  const size_t n_mat = w->material_mesh.n_materials;
+  int *uniq = n_mat ? km__malloc(n_mat, sizeof *uniq) : NULL;
+  if (n_mat && !uniq && s == KM_OK) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+  if (uniq) unique_images(mat, n_mat, uniq);
+  for (size_t k = 0; uniq && s == KM_OK && k < n_mat; ++k) {
     static const unsigned char zero[3] = {0, 0, 0};
-    s = write_all(w, f, mat->image, mat->image_size, err);
-    if (s == KM_OK && mat->image_size % 4) s = write_all(w, f, zero, 4 - mat->image_size % 4, err);
+    if (uniq[k] != (int)k) continue;
+    s = write_all(w, f, mat[k].image, mat[k].image_size, err);
+    if (s == KM_OK && mat[k].image_size % 4)
+      s = write_all(w, f, zero, 4 - mat[k].image_size % 4, err);
   }
+  free(uniq);
   return s;
 }
 
@@ -673,20 +758,30 @@ static int pack_view(glb_pack *pk, const void *data, size_t count, size_t stride
   return cJSON_GetArraySize(pk->views) - 1;
 }
 
-/* The rest mesh's material with its image as a plain view in the real buffer (0: never
- * meshopt-encoded, which is for vertex data); -1 on out of memory. */
-static int pack_material(glb_pack *pk, cJSON *root, cJSON *prim, const km_mesh_material *m) {
-  if (!m) return 0;
-  int view = -1;
-  if (m->image && m->image_size) {
+/* The rest mesh's materials with their images as plain views in the real buffer (0: never
+ * meshopt-encoded, which is for vertex data), prim split per material (add_materials); -1 on
+ * out of memory. */
+static int pack_materials(glb_pack *pk, cJSON *root, cJSON *mesh, cJSON *prim,
+                          const km_mesh_material *m, size_t n) {
+  if (!n) return 0;
+  int *uniq = km__malloc(n, sizeof *uniq), *view = km__malloc(n, sizeof *view), rc = 0;
+  if (!uniq || !view) rc = -1;
+  if (!rc) unique_images(m, n, uniq);
+  for (size_t k = 0; !rc && k < n; ++k) {
+    view[k] = uniq[k] >= 0 && uniq[k] < (int)k ? view[uniq[k]] : -1;
+    if (uniq[k] != (int)k) continue;
     size_t off = pk->bin.len;
-    unsigned char *p = bin_grow(&pk->bin, m->image_size);
-    if (!p) return -1;
-    memcpy(p, m->image, m->image_size);
-    view = add_view(pk->views, off, m->image_size);
+    unsigned char *p = bin_grow(&pk->bin, m[k].image_size);
+    if (!p) {
+      rc = -1;
+      break;
+    }
+    memcpy(p, m[k].image, m[k].image_size);
+    view[k] = add_view(pk->views, off, m[k].image_size);
   }
-  add_material(root, prim, m, view);
-  return 0;
+  if (!rc) add_materials(root, pk->accessors, mesh, prim, m, n, view);
+  free(uniq), free(view);
+  return rc;
 }
 
 /* Appends an accessor over a whole view; min/max (n values each) may be NULL. Returns its
@@ -809,13 +904,18 @@ static int pack_uv(glb_pack *pk, const double *uv, size_t nv, unsigned char *b) 
 /* Triangle indices: little-endian bytes when plain; compressed, host uint32 in an order the
  * index codec packs well (meshopt_optimizeVertexCache reorders the triangles, never the
  * vertices: vertex order and count stay the input's). b: nf*12 bytes. */
-static int pack_indices(glb_pack *pk, const int32_t *F, size_t nf, unsigned char *b) {
+static int pack_indices(glb_pack *pk, const int32_t *F, size_t nf, unsigned char *b,
+                        const km_mesh_material *m, size_t n_mat) {
   if (pk->compress) {
     unsigned int *in = km__malloc(nf * 3, sizeof *in);
     if (!in) return -1;
     for (size_t i = 0; i < nf * 3; ++i)
       in[i] = (unsigned int)F[i];
-    meshopt_optimizeVertexCache((unsigned int *)b, in, nf * 3, pk->nv);
+    /* reordered within each material's run of faces only (the runs stay where they are) */
+    for (size_t k = 0; k < (n_mat ? n_mat : 1); ++k) {
+      size_t f0 = n_mat ? m[k].first_face : 0, fn = n_mat ? m[k].n_faces : nf;
+      meshopt_optimizeVertexCache((unsigned int *)b + 3 * f0, in + 3 * f0, 3 * fn, pk->nv);
+    }
     free(in);
   } else {
     for (size_t i = 0; i < nf * 3; ++i)
@@ -932,7 +1032,9 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
   cJSON *attrs = cJSON_AddObjectToObject(prim, "attributes");
   int a;
   if (nf) {
-    if ((a = pack_indices(&pk, w->F, nf, b)) < 0) goto nomem;
+    if ((a = pack_indices(&pk, w->F, nf, b, w->material_mesh.materials,
+                          w->material_mesh.n_materials)) < 0)
+      goto nomem;
     cJSON_AddNumberToObject(prim, "indices", a);
   }
   double mn[3], mx[3];
@@ -1250,7 +1352,9 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
   cJSON_AddNumberToObject(ex, "rms_error_m", rms);
   cJSON_AddNumberToObject(ex, "max_error_m", emax);
   if (z) add_grid_extras(ex, &g);
-  if (pack_material(&pk, root, prim, w->material_mesh.material) < 0) goto nomem;
+  if (pack_materials(&pk, root, mesh, prim, w->material_mesh.materials,
+                     w->material_mesh.n_materials) < 0)
+    goto nomem;
   pack_finish_json(&pk, root);
   free(b);
   free(b2);
@@ -1342,7 +1446,9 @@ static km_status glb_finish_packed(km_anim_writer *w, km_error *err) {
   if (a_w < 0 || a_in < 0) goto nomem;
   int a;
   if (nf) {
-    if ((a = pack_indices(&pk, w->F, nf, b)) < 0) goto nomem;
+    if ((a = pack_indices(&pk, w->F, nf, b, w->material_mesh.materials,
+                          w->material_mesh.n_materials)) < 0)
+      goto nomem;
     cJSON_AddNumberToObject(prim, "indices", a);
   }
   double mn[3], mx[3];
@@ -1453,7 +1559,9 @@ static km_status glb_finish_packed(km_anim_writer *w, km_error *err) {
   cJSON_AddNumberToObject(ex, "max_error_m", w->q_max);
 
   add_weights_animation(root, a_in, a_w);
-  if (pack_material(&pk, root, prim, w->material_mesh.material) < 0) goto nomem;
+  if (pack_materials(&pk, root, mesh, prim, w->material_mesh.materials,
+                     w->material_mesh.n_materials) < 0)
+    goto nomem;
   pack_finish_json(&pk, root);
   s = write_glb_container(w, root, pk.bin.p, pk.bin.len, NULL, NULL, err);
   root = NULL;

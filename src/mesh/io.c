@@ -41,15 +41,16 @@ km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err) {
   if (src->N && !(tmp.N = km__malloc(nv * 3, sizeof(double)))) goto nomem;
   if (src->UV && src->n_vertices) memcpy(tmp.UV, src->UV, src->n_vertices * 2 * sizeof(double));
   if (src->N && src->n_vertices) memcpy(tmp.N, src->N, src->n_vertices * 3 * sizeof(double));
-  if (src->material) {
-    if (!(tmp.material = km__malloc(1, sizeof *tmp.material))) goto nomem;
-    *tmp.material = *src->material;
-    tmp.material->image = NULL;
-    if (src->material->image && src->material->image_size &&
-        !(tmp.material->image = km__malloc(src->material->image_size, 1)))
-      goto nomem;
-    if (tmp.material->image)
-      memcpy(tmp.material->image, src->material->image, src->material->image_size);
+  if (src->materials && src->n_materials) {
+    if (!(tmp.materials = km__calloc(src->n_materials, sizeof *tmp.materials))) goto nomem;
+    tmp.n_materials = src->n_materials;
+    for (size_t k = 0; k < src->n_materials; ++k) {
+      tmp.materials[k] = src->materials[k];
+      tmp.materials[k].image = NULL;
+      size_t n = src->materials[k].image ? src->materials[k].image_size : 0;
+      if (n && !(tmp.materials[k].image = km__malloc(n, 1))) goto nomem;
+      if (n) memcpy(tmp.materials[k].image, src->materials[k].image, n);
+    }
   }
   *out = tmp;
   return KM_OK;
@@ -73,8 +74,9 @@ void km_mesh_free(km_mesh *m) {
   free(m->F);
   free(m->UV);
   free(m->N);
-  if (m->material) free(m->material->image);
-  free(m->material);
+  for (size_t k = 0; m->materials && k < m->n_materials; ++k)
+    free(m->materials[k].image);
+  free(m->materials);
   memset(m, 0, sizeof *m);
 }
 

@@ -62,11 +62,12 @@ typedef struct gltf_doc {
   double *S;          /* the current instance's skin matrices (S_n*16), or NULL */
   int32_t *S_ids;     /* their joints' indices in the gathered list */
   size_t S_n;
-  /* the primitive with the most triangles (its material is the one carried: read_material),
-   * and the materials the primitives use: the first, and whether another differs */
-  size_t best_faces;
-  int best_inst, best_prim, first_mat;
-  bool other_mat;
+  /* each placed primitive's run of faces and material index (-1: none), in face order */
+  size_t *run_first, *run_n;
+  int *run_mat;
+  size_t n_runs, cap_runs;
+  size_t *prim_base; /* the current mesh's primitives' first vertices (read_instances) */
+  size_t cap_base;
 } gltf_doc;
 
 static uint32_t rd32(const unsigned char *p) {
@@ -717,30 +718,14 @@ static km_status gather_joints(gltf_doc *d, const instances *inst, km_error *err
   return s;
 }
 
-/* The material of the primitive with the most triangles (the one the .glb outputs carry, so a
- * textured model does not come out grey; the writers have one primitive, so a file of several
- * materials keeps that one, with a warning): its base colour factor and its base colour
- * texture's image, the
- * encoded PNG or JPEG bytes as stored (a bufferView, a data: URI, or a file beside a .gltf
- * read from disk). Nothing when the primitive has no material; an image that cannot be read is
- * left out with a warning (the geometry is what was asked for), never an error. */
-static km_status read_material(gltf_doc *d, const instance *in, int prim, km_mesh *out,
-                               km_error *err) {
-  const cJSON *mesh =
-      cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "meshes"), in->mesh);
-  const cJSON *pr = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(mesh, "primitives"), prim);
-  int mi = jint(pr, "material", -1);
-  if (d->other_mat)
-    km__log(KM_LOG_WARN,
-            "%s: its primitives use several materials; the outputs carry one, materials[%d] of "
-            "the primitive with the most triangles (%zu)",
-            d->name, mi, d->best_faces);
+/* materials[mi]: its base colour, metallic and roughness factors and its base colour
+ * texture's image, the encoded PNG or JPEG bytes as stored (a bufferView, a data: URI, or a
+ * file beside a .gltf read from disk). An image that cannot be read is left out with a warning
+ * (the geometry is what was asked for), never an error. mi -1: glTF's default material. */
+static void material_def(gltf_doc *d, int mi, km_mesh_material *m) {
   const cJSON *mat =
       mi < 0 ? NULL
              : cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "materials"), mi);
-  if (!mat) return KM_OK;
-  km_mesh_material *m = km__calloc(1, sizeof *m);
-  if (!m) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
   const cJSON *pbr = cJSON_GetObjectItemCaseSensitive(mat, "pbrMetallicRoughness");
   if (!num_array(cJSON_GetObjectItemCaseSensitive(pbr, "baseColorFactor"), 4, m->base_color))
     m->base_color[0] = m->base_color[1] = m->base_color[2] = m->base_color[3] = 1;
@@ -754,14 +739,13 @@ static km_status read_material(gltf_doc *d, const instance *in, int prim, km_mes
   int ii = jint(tex, "source", -1);
   const cJSON *img =
       ii < 0 ? NULL : cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "images"), ii);
+  if (!img) return;
   const char *uri = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(img, "uri"));
   int bvi = jint(img, "bufferView", -1);
   unsigned char *bytes = NULL;
   size_t n = 0;
   const char *why = NULL;
-  if (!img) {
-    /* no texture: the factor alone */
-  } else if (bvi >= 0) {
+  if (bvi >= 0) {
     const cJSON *bv =
         cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "bufferViews"), bvi);
     int bi = jint(bv, "buffer", -1), boff = jint(bv, "byteOffset", 0),
@@ -796,16 +780,45 @@ static km_status read_material(gltf_doc *d, const instance *in, int prim, km_mes
   bool png = n >= 8 && !memcmp(bytes, "\x89PNG\r\n\x1a\n", 8),
        jpg = n >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
   if (bytes && !png && !jpg) why = "it is neither PNG nor JPEG";
-  if (why || (img && !bytes)) {
-    km__log(KM_LOG_WARN, "%s: images[%d] (the base colour texture) is left out: %s", d->name, ii,
-            why ? why : "out of memory");
+  if (why || !bytes) {
+    km__log(KM_LOG_WARN, "%s: images[%d] (materials[%d]'s base colour texture) is left out: %s",
+            d->name, ii, mi, why ? why : "out of memory");
     free(bytes);
-    bytes = NULL, n = 0;
+    return;
   }
   m->image = bytes;
   m->image_size = n;
-  if (bytes) snprintf(m->image_mime, sizeof m->image_mime, "%s", png ? "image/png" : "image/jpeg");
-  out->material = m;
+  snprintf(m->image_mime, sizeof m->image_mime, "%s", png ? "image/png" : "image/jpeg");
+}
+
+/* The primitives' materials, one per run of faces (km_mesh.materials), so a textured model does
+ * not come out grey; none when no primitive has a material. */
+static km_status read_materials(gltf_doc *d, km_mesh *out, km_error *err) {
+  bool any = false;
+  for (size_t r = 0; r < d->n_runs; ++r)
+    any |= d->run_mat[r] >= 0;
+  if (!any) return KM_OK;
+  if (!(out->materials = km__calloc(d->n_runs, sizeof *out->materials)))
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+  out->n_materials = d->n_runs;
+  for (size_t r = 0; r < d->n_runs; ++r) {
+    km_mesh_material *m = out->materials + r;
+    m->first_face = d->run_first[r];
+    m->n_faces = d->run_n[r];
+    /* a material met before shares its image (one copy read) */
+    size_t q = 0;
+    while (q < r && d->run_mat[q] != d->run_mat[r])
+      ++q;
+    if (q < r) {
+      *m = out->materials[q];
+      m->first_face = d->run_first[r], m->n_faces = d->run_n[r];
+      if (m->image && !(m->image = km__malloc(m->image_size, 1)))
+        return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+      if (m->image) memcpy(m->image, out->materials[q].image, m->image_size);
+    } else {
+      material_def(d, d->run_mat[r], m);
+    }
+  }
   return KM_OK;
 }
 
@@ -840,8 +853,7 @@ static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
     return s;
   }
   s = read_instances(d, &inst, out, err);
-  if (s == KM_OK && d->best_inst >= 0)
-    s = read_material(d, &inst.v[d->best_inst], d->best_prim, out, err);
+  if (s == KM_OK) s = read_materials(d, out, err);
   free(inst.v);
   return s;
 }
@@ -959,15 +971,31 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
         if (ni % 3)
           return km__fail(err, KM_ERR_PARSE, "%s: %s: %zu indices is not a multiple of 3", d->name,
                           what, ni);
+        /* A primitive whose attributes are an earlier one's of this mesh (kinemesh's own
+         * output of several materials: one set of vertices, a primitive per material) shares
+         * that one's vertices, read once: the file's vertex count, not one copy per material. */
+        size_t vb = v0;
+        bool shared = false;
+        if ((size_t)pi >= d->cap_base) {
+          size_t c = 2 * (size_t)pi + 8, *b = realloc(d->prim_base, c * sizeof *b);
+          if (!b) goto nomem;
+          d->prim_base = b, d->cap_base = c;
+        }
+        for (int q = 0; q < pi && !shared; ++q)
+          if (cJSON_Compare(
+                  cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(prims, q), "attributes"), at,
+                  true))
+            shared = true, vb = d->prim_base[q];
+        d->prim_base[pi] = vb;
         if (pass == 0) {
-          nv += pos.count;
+          if (!shared) nv += pos.count;
           nf += ni / 3;
           any_n |= hn;
           any_t |= ht;
           if (nv > INT32_MAX) break;
           continue;
         }
-        for (size_t i = 0; i < pos.count; ++i) {
+        for (size_t i = 0; !shared && i < pos.count; ++i) {
           double p[3], n[3] = {0, 0, 0};
           for (int c = 0; c < 3; ++c) {
             p[c] = comp(&pos, i, c);
@@ -1053,7 +1081,7 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
             return km__fail(err, KM_ERR_PARSE,
                             "%s: %s: index %zu is %.0f, outside the primitive's %zu vertices",
                             d->name, what, k, ix, pos.count);
-          out->F[3 * f0 + k] = (int32_t)(v0 + (size_t)ix);
+          out->F[3 * f0 + k] = (int32_t)(vb + (size_t)ix);
         }
         if (det < 0 && !hs) /* a mirror: keep the outward winding */
           for (size_t t = 0; t < ni / 3; ++t) {
@@ -1062,13 +1090,28 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
             f[1] = f[2];
             f[2] = tmp;
           }
-        v0 += pos.count;
+        if (!shared) v0 += pos.count;
         f0 += ni / 3;
-        int pm = jint(pr, "material", -1);
-        if (ii == 0 && pi == 0) d->first_mat = pm, d->best_inst = -1;
-        d->other_mat |= pm != d->first_mat;
-        if (d->best_inst < 0 || ni / 3 > d->best_faces)
-          d->best_faces = ni / 3, d->best_inst = (int)ii, d->best_prim = pi;
+        if (pass == 1 && ni >= 3) { /* its run of faces (one with the last if same material) */
+          int pm = jint(pr, "material", -1);
+          if (d->n_runs && d->run_mat[d->n_runs - 1] == pm) {
+            d->run_n[d->n_runs - 1] += ni / 3;
+          } else {
+            if (d->n_runs == d->cap_runs) {
+              size_t c = d->cap_runs ? 2 * d->cap_runs : 8;
+              size_t *a = realloc(d->run_first, c * sizeof *a), *b = NULL;
+              if (a) d->run_first = a;
+              if (a && (b = realloc(d->run_n, c * sizeof *b))) d->run_n = b;
+              int *m = a && b ? realloc(d->run_mat, c * sizeof *m) : NULL;
+              if (!m) goto nomem;
+              d->run_mat = m;
+              d->cap_runs = c;
+            }
+            d->run_first[d->n_runs] = f0 - ni / 3;
+            d->run_n[d->n_runs] = ni / 3;
+            d->run_mat[d->n_runs++] = pm;
+          }
+        }
       }
     }
   }
@@ -1117,6 +1160,10 @@ static void doc_close(gltf_doc *d) {
   free(d->joint_of_node);
   free(d->S);
   free(d->S_ids);
+  free(d->run_first);
+  free(d->run_n);
+  free(d->run_mat);
+  free(d->prim_base);
   for (int i = 0; i < d->n_views && d->views; ++i)
     free(d->views[i]);
   free(d->views);

@@ -310,81 +310,157 @@ static char *beside(const char *path, const char *name) {
   return p;
 }
 
+/* One material of a .mtl: what km_mesh_material needs. */
+typedef struct mtl_def {
+  char name[1024];
+  double kd[3], ns;
+  char map[1024];
+} mtl_def;
+
+/* The material name's definition in the library (NULL: not there). */
+static const mtl_def *mtl_find(const mtl_def *t, size_t n, const char *name) {
+  for (size_t i = 0; i < n; ++i)
+    if (!strcmp(t[i].name, name)) return t + i;
+  return NULL;
+}
+
+/* def (NULL: none, white) as a km_mesh_material over faces first .. first + n - 1; its map_Kd
+ * image read relative to the library. */
+static void mtl_material(const mtl_def *def, const char *mpath, const char *path, size_t first,
+                         size_t n, km_mesh_material *m) {
+  memset(m, 0, sizeof *m);
+  m->first_face = first, m->n_faces = n;
+  /* a texture is the colour (Blender's OBJ exporter writes Kd 0.8 beside it, which a factor
+   * would darken it by); roughness from the Phong exponent as Blender's importer maps it */
+  for (int c = 0; c < 3; ++c)
+    m->base_color[c] = !def || def->map[0] ? 1 : fmin(1, fmax(0, def->kd[c]));
+  m->base_color[3] = 1;
+  m->metallic = 0;
+  m->roughness = def && def->ns >= 0 ? fmin(1, fmax(0, 1 - sqrt(fmin(def->ns, 1000) / 1000))) : 1;
+  if (!def || !def->map[0]) return;
+  char *ipath = beside(mpath, def->map), *img = NULL;
+  size_t bytes = 0;
+  if (ipath && km__read_file(ipath, &img, &bytes, NULL) == KM_OK) {
+    const unsigned char *b = (const unsigned char *)img;
+    bool png = bytes >= 8 && !memcmp(b, "\x89PNG\r\n\x1a\n", 8),
+         jpg = bytes >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF;
+    if (png || jpg) {
+      m->image = (unsigned char *)img, img = NULL;
+      m->image_size = bytes;
+      snprintf(m->image_mime, sizeof m->image_mime, "%s", png ? "image/png" : "image/jpeg");
+    } else {
+      km__log(KM_LOG_WARN, "%s: texture %s is neither PNG nor JPEG: left out", path, ipath);
+    }
+  } else {
+    km__log(KM_LOG_WARN, "%s: texture %s cannot be read: left out", path, ipath ? ipath : def->map);
+  }
+  free(img);
+  free(ipath);
+}
+
 void km__obj_read_material(const char *data, size_t size, const char *path, km_mesh *out) {
-  char kw[32], rest[1024], lib[1024] = "", use[1024] = "";
-  for (const char *p = data, *end = data + size; p < end && (!lib[0] || !use[0]);) {
+  char kw[32], rest[1024], lib[1024] = "";
+  /* runs of triangles by the usemtl in force (a face of k corners is k - 2 triangles, as the
+   * parser fans it) */
+  typedef struct run {
+    char name[1024];
+    size_t first, n;
+  } run;
+  run *runs = NULL;
+  size_t n_runs = 0, cap = 0, tri = 0;
+  bool any_use = false;
+  for (const char *p = data, *end = data + size; p < end;) {
     p = next_line(p, end, kw, sizeof kw, rest, sizeof rest);
     if (!strcmp(kw, "mtllib") && !lib[0]) snprintf(lib, sizeof lib, "%s", rest);
-    if (!strcmp(kw, "usemtl") && !use[0]) snprintf(use, sizeof use, "%s", rest);
+    bool use = !strcmp(kw, "usemtl"), face = !strcmp(kw, "f");
+    if (!use && !face) continue;
+    size_t k = 0;
+    if (face)
+      for (const char *q = rest; *q;) {
+        while (*q == ' ' || *q == '\t')
+          ++q;
+        if (*q) ++k;
+        while (*q && *q != ' ' && *q != '\t')
+          ++q;
+      }
+    if (face && k < 3) continue;
+    const char *name = use ? rest : n_runs ? runs[n_runs - 1].name : "";
+    any_use |= use;
+    if (!n_runs || strcmp(runs[n_runs - 1].name, name) != 0) {
+      if (n_runs && !runs[n_runs - 1].n) --n_runs; /* a usemtl with no face after it */
+      if (n_runs == cap) {
+        run *r = realloc(runs, (cap = cap ? 2 * cap : 8) * sizeof *r);
+        if (!r) {
+          free(runs);
+          return;
+        }
+        runs = r;
+      }
+      snprintf(runs[n_runs].name, sizeof runs[n_runs].name, "%s", name);
+      runs[n_runs].first = tri, runs[n_runs++].n = 0;
+    }
+    if (face) runs[n_runs - 1].n += k - 2, tri += k - 2;
   }
-  if (!lib[0]) return;
+  if (n_runs && !runs[n_runs - 1].n) --n_runs;
+  if (!lib[0] || !any_use || !n_runs) {
+    free(runs);
+    return;
+  }
   char *mpath = beside(path, lib), *mdata = NULL;
   size_t mn = 0;
   if (!mpath || km__read_file(mpath, &mdata, &mn, NULL) != KM_OK) {
     km__log(KM_LOG_WARN, "%s: its material library %s cannot be read: no material carried", path,
             mpath ? mpath : lib);
     free(mpath);
+    free(runs);
     return;
   }
-  /* the material the first face uses (else the library's first): Kd, Ns, map_Kd */
-  double kd[3] = {1, 1, 1}, ns = -1;
-  char map[1024] = "";
-  bool in = false, found = false;
+  mtl_def *defs = NULL;
+  size_t n_defs = 0, dcap = 0;
   for (const char *p = mdata, *end = mdata + mn; p < end;) {
     p = next_line(p, end, kw, sizeof kw, rest, sizeof rest);
     if (!strcmp(kw, "newmtl")) {
-      if (found) break;
-      in = found = !use[0] || !strcmp(rest, use);
-    } else if (in && !strcmp(kw, "Kd")) {
-      sscanf(rest, "%lf %lf %lf", &kd[0], &kd[1], &kd[2]);
-    } else if (in && !strcmp(kw, "Ns")) {
-      sscanf(rest, "%lf", &ns);
-    } else if (in && !strcmp(kw, "map_Kd")) {
+      if (n_defs == dcap) {
+        mtl_def *t = realloc(defs, (dcap = dcap ? 2 * dcap : 8) * sizeof *t);
+        if (!t) break;
+        defs = t;
+      }
+      mtl_def *d = defs + n_defs++;
+      memset(d, 0, sizeof *d);
+      snprintf(d->name, sizeof d->name, "%s", rest);
+      d->kd[0] = d->kd[1] = d->kd[2] = 1;
+      d->ns = -1;
+    } else if (n_defs && !strcmp(kw, "Kd")) {
+      double *kd = defs[n_defs - 1].kd;
+      if (sscanf(rest, "%lf %lf %lf", &kd[0], &kd[1], &kd[2]) != 3) kd[0] = kd[1] = kd[2] = 1;
+    } else if (n_defs && !strcmp(kw, "Ns")) {
+      sscanf(rest, "%lf", &defs[n_defs - 1].ns);
+    } else if (n_defs && !strcmp(kw, "map_Kd")) {
       const char *last = strrchr(rest, ' '); /* options (-s u v w ...) come before the file */
-      snprintf(map, sizeof map, "%s", last ? last + 1 : rest);
+      snprintf(defs[n_defs - 1].map, sizeof defs[n_defs - 1].map, "%s", last ? last + 1 : rest);
     }
   }
   free(mdata);
-  if (!found) {
-    km__log(KM_LOG_WARN, "%s: material '%s' is not in %s: no material carried", path, use, mpath);
-    free(mpath);
-    return;
+  if (tri != out->n_faces) { /* the parser saw other faces: one material over all */
+    runs[0].first = 0, runs[0].n = out->n_faces, n_runs = 1;
+    km__log(KM_LOG_WARN, "%s: its faces do not match its usemtl groups: one material carried",
+            path);
   }
-  km_mesh_material *m = km__calloc(1, sizeof *m);
-  if (!m) {
-    free(mpath);
-    return;
+  bool any = false;
+  for (size_t r = 0; r < n_runs; ++r) {
+    if (runs[r].name[0] && !mtl_find(defs, n_defs, runs[r].name))
+      km__log(KM_LOG_WARN, "%s: material '%s' is not in %s: white", path, runs[r].name, mpath);
+    any |= mtl_find(defs, n_defs, runs[r].name) != NULL;
   }
-  /* a texture is the colour (Blender's OBJ exporter writes Kd 0.8 beside it, and its importer,
-   * as glTF viewers would with a factor, would darken it); roughness from the Phong exponent
-   * as Blender's importer maps it */
-  for (int c = 0; c < 3; ++c)
-    m->base_color[c] = map[0] ? 1 : fmin(1, fmax(0, kd[c]));
-  m->base_color[3] = 1;
-  m->metallic = 0;
-  m->roughness = ns >= 0 ? fmin(1, fmax(0, 1 - sqrt(fmin(ns, 1000) / 1000))) : 1;
-  if (map[0]) {
-    char *ipath = beside(mpath, map), *img = NULL;
-    size_t n = 0;
-    if (ipath && km__read_file(ipath, &img, &n, NULL) == KM_OK) {
-      const unsigned char *b = (const unsigned char *)img;
-      bool png = n >= 8 && !memcmp(b, "\x89PNG\r\n\x1a\n", 8),
-           jpg = n >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF;
-      if (png || jpg) {
-        m->image = (unsigned char *)img, img = NULL;
-        m->image_size = n;
-        snprintf(m->image_mime, sizeof m->image_mime, "%s", png ? "image/png" : "image/jpeg");
-      } else {
-        km__log(KM_LOG_WARN, "%s: texture %s is neither PNG nor JPEG: left out", path, ipath);
-      }
-    } else {
-      km__log(KM_LOG_WARN, "%s: texture %s cannot be read: left out", path, ipath ? ipath : map);
-    }
-    free(img);
-    free(ipath);
+  if (any && (out->materials = km__calloc(n_runs, sizeof *out->materials))) {
+    out->n_materials = n_runs;
+    for (size_t r = 0; r < n_runs; ++r)
+      mtl_material(mtl_find(defs, n_defs, runs[r].name), mpath, path, runs[r].first, runs[r].n,
+                   out->materials + r);
   }
+  free(defs);
+  free(runs);
   free(mpath);
-  out->material = m;
 }
 
 static void write_double(FILE *f, double x, char sep) {

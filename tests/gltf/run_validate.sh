@@ -21,8 +21,12 @@ awk 'NR==FNR { if ($1 == "v") printf "vt %.6f %.6f\n", ($2 + 1) / 2, $3 / 2; nex
 # with a material: a 1x1 PNG as its base colour texture (mtllib / usemtl / map_Kd), which every
 # .glb made from it carries (images, textures, materials validated with the rest)
 base64 -d >"$WORK/ct.png" <<<"iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8BQDwAEhQGAhKmMIQAAAABJRU5ErkJggg=="
-printf 'newmtl skin\nKd 0.8 0.8 0.8\nmap_Kd ct.png\n' >"$WORK/ct.mtl"
-{ printf 'mtllib ct.mtl\nusemtl skin\n'; cat "$WORK/ct.obj"; } >"$WORK/ct2.obj" && mv "$WORK/ct2.obj" "$WORK/ct.obj"
+# and a second, plain material on the second half of its faces (two primitives in the .glb)
+printf 'newmtl skin\nKd 0.8 0.8 0.8\nmap_Kd ct.png\nnewmtl plain\nKd 0.2 0.4 0.6\n' >"$WORK/ct.mtl"
+awk 'BEGIN { print "mtllib ct.mtl"; print "usemtl skin" }
+     NR == FNR { if ($1 == "f") nf++; next }
+     $1 == "f" && ++k == int(nf / 2) + 1 { print "usemtl plain" } { print }' \
+  "$WORK/ct.obj" "$WORK/ct.obj" >"$WORK/ct2.obj" && mv "$WORK/ct2.obj" "$WORK/ct.obj"
 cp "$WORK/c.rig.json" "$WORK/ct.rig.json"
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --key-every 4 -o "$WORK/textured.glb"
 # Issue 11: the textured mesh through the puppetry pipeline (animate) too, its cache kept here.
@@ -63,14 +67,20 @@ for f in every keys textured textured_anim skin skel z_skel baked baked_pc2 pca 
   node "$HERE/validate.mjs" "$WORK/$f.glb" | tee "$WORK/$f.txt"
   grep -q ': 0 errors, 0 warnings' "$WORK/$f.txt" || { echo "FAIL: $f.glb has validator errors or warnings"; exit 1; }
 done
-# the textured mesh's outputs carry its material and image
+# the textured mesh's outputs carry its two materials (and the image) on two primitives
+nf=$(grep -c '^f ' "$WORK/ct.obj")
+export nf
 for f in textured textured_anim skin skel z_skel pca z_keys z_skin z_pca; do
   node -e '
+const nf = Number(process.env.nf);
 const b = require("fs").readFileSync(process.argv[1]);
 const j = JSON.parse(b.subarray(20, 20 + b.readUInt32LE(12)).toString());
-const m = (j.materials || [])[0], p = j.meshes[0].primitives[0];
-if (!m || p.material !== 0 || !m.pbrMetallicRoughness.baseColorTexture || (j.images || []).length !== 1) {
-  console.log("FAIL: " + process.argv[1] + ": the material or its texture is missing"); process.exit(1);
+const m = j.materials || [], p = j.meshes[0].primitives;
+if (m.length !== 2 || p.length !== 2 || p[0].material !== 0 || p[1].material !== 1 ||
+    !m[0].pbrMetallicRoughness.baseColorTexture || m[1].pbrMetallicRoughness.baseColorTexture ||
+    (j.images || []).length !== 1 || p[0].indices === p[1].indices ||
+    j.accessors[p[0].indices].count + j.accessors[p[1].indices].count !== 3 * nf) {
+  console.log("FAIL: " + process.argv[1] + ": expected the two materials on two primitives, the textured one first"); process.exit(1);
 }' "$WORK/$f.glb"
 done
 "$BIN" info --json "$WORK/every.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames"; exit 1; }
