@@ -92,6 +92,21 @@ def seam_pairs(rest):
     return numpy.array([q[0] for q in pairs]), numpy.array([q[1] for q in pairs])
 
 
+def seams_shut(path, frames, rest, a, b, min_move):
+    """Fails unless every seam pair (a[i], b[i]) is exactly together in every frame of path
+    (its vertex count the glb's: the order kept) and the mesh moved at least min_move m."""
+    if frames.shape[1] != len(rest):
+        fail(f"{path}: {frames.shape[1]} vertices, the glb {len(rest)}: the order is not kept")
+    gap = max(float(numpy.linalg.norm(f[a] - f[b], axis=1).max()) for f in frames)
+    moved = float(numpy.linalg.norm(frames - frames[0], axis=2).max())
+    print(f"note: {path.rsplit('/', 1)[-1]}: {len(a)} seam copies, {len(frames)} frames, largest "
+          f"seam gap {gap:.3g} m, largest move {moved:.3f} m")
+    if gap > 0:
+        fail(f"{path}: the seams opened by {gap:.3g} m")
+    if moved < min_move:
+        fail(f"{path}: the mesh moved {moved:.3g} m: no animation")
+
+
 def pc2(path):
     b = open(path, "rb").read()
     nv, _, _, nf = struct.unpack("<iffi", b[16:32])
@@ -204,17 +219,8 @@ elif len(argv) >= 3 and argv[0] == "gaps":
     if len(a) < 100:
         fail(f"{argv[1]}: only {len(a)} coincident vertices: the export was not split")
     for path in argv[2:]:
-        frames = pc2(path) if path.endswith(".pc2") else glb_frames(path)
-        if frames.shape[1] != len(rest):
-            fail(f"{path}: {frames.shape[1]} vertices, the glb {len(rest)}")
-        gap = max(float(numpy.linalg.norm(f[a] - f[b], axis=1).max()) for f in frames)
-        moved = float(numpy.linalg.norm(frames - frames[0], axis=2).max())
-        print(f"note: {path.rsplit('/', 1)[-1]}: {len(frames)} frames, largest seam gap {gap:.3g} m,"
-              f" largest move {moved:.3f} m")
-        if gap > 0:
-            fail(f"{path}: the seams opened by {gap:.3g} m")
-        if moved < 0.01:
-            fail(f"{path}: the mesh moved {moved:.3g} m: no animation")
+        seams_shut(path, pc2(path) if path.endswith(".pc2") else glb_frames(path), rest, a, b,
+                   0.01)
     print(f"ok: {len(argv) - 2} outputs with {len(a)} seam copies each, every seam shut")
 elif len(argv) == 3 and argv[0] == "export":
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -224,20 +230,10 @@ elif len(argv) == 3 and argv[0] == "export":
     print(f"ok: exported {argv[2]}: {len(ob.data.vertices)} vertices unwrapped")
 elif len(argv) == 5 and argv[0] == "check":
     rest = glb_positions(argv[1]).astype(numpy.float64)
-    anim = pc2(argv[2])
-    if anim.shape[1] != len(rest):
-        fail(f"{argv[2]}: {anim.shape[1]} vertices, the glb {len(rest)}: the order is not kept")
     a, b = seam_pairs(rest)
     if len(a) < 100:
         fail(f"{argv[1]}: only {len(a)} coincident vertices: the export was not split")
-    gap = max(float(numpy.linalg.norm(f[a] - f[b], axis=1).max()) for f in anim)
-    moved = float(numpy.linalg.norm(anim - anim[0], axis=2).max())
-    print(f"note: {len(a)} seam copies, largest gap over {len(anim)} frames {gap:.3g} m, "
-          f"largest move {moved:.3f} m")
-    if gap > 0:
-        fail(f"the seams opened by {gap:.3g} m")
-    if moved < 0.05:
-        fail(f"the mesh moved {moved:.3g} m: no animation")
+    seams_shut(argv[2], pc2(argv[2]), rest, a, b, 0.05)
     n0, vi0, uv0, px0 = import_uvs(argv[1])
     n1, vi1, uv1, px1 = import_uvs(argv[3])
     if px0 is None:
