@@ -87,8 +87,36 @@ int km_cli_info(int argc, char **argv) {
   km_error gerr = {0};
   bool have_guess = s == KM_OK && km_mesh_frame_guess(&m, &g, &gerr) == KM_OK;
   bool has_uv = m.UV != NULL, has_n = m.N != NULL;
+  /* the materials the .glb outputs will carry: each its run of faces, colour and texture */
+  cJSON *mats = cJSON_CreateArray();
+  char mat_line[512] = "";
+  size_t ml = 0;
+  for (size_t k = 0; k < m.n_materials; ++k) {
+    const km_mesh_material *mk = m.materials + k;
+    cJSON *mo = cJSON_CreateObject();
+    cJSON_AddNumberToObject(mo, "first_face", (double)mk->first_face);
+    cJSON_AddNumberToObject(mo, "faces", (double)mk->n_faces);
+    cJSON_AddItemToObject(mo, "base_color", cJSON_CreateDoubleArray(mk->base_color, 4));
+    cJSON_AddNumberToObject(mo, "metallic", mk->metallic);
+    cJSON_AddNumberToObject(mo, "roughness", mk->roughness);
+    if (mk->image) {
+      cJSON_AddStringToObject(mo, "texture", mk->image_mime);
+      cJSON_AddNumberToObject(mo, "texture_bytes", (double)mk->image_size);
+    }
+    cJSON_AddItemToArray(mats, mo);
+    if (k < 4 && ml < sizeof mat_line)
+      ml +=
+          (size_t)snprintf(mat_line + ml, sizeof mat_line - ml, "%s%zu faces, %s", k ? "; " : " (",
+                           mk->n_faces, mk->image ? mk->image_mime : "colour only");
+  }
+  if (m.n_materials && ml < sizeof mat_line)
+    snprintf(mat_line + ml, sizeof mat_line - ml, "%s)", m.n_materials > 4 ? "; ..." : "");
+  size_t n_mat = m.n_materials;
   km_mesh_free(&m);
-  if (s != KM_OK) return km_cli_fail("info", &err);
+  if (s != KM_OK) {
+    cJSON_Delete(mats);
+    return km_cli_fail("info", &err);
+  }
   if (json) {
     cJSON *o = cJSON_CreateObject();
     cJSON_AddStringToObject(o, "file", path);
@@ -107,6 +135,7 @@ int km_cli_info(int argc, char **argv) {
     cJSON_AddItemToObject(o, "bbox_max", vec3(info.bbox_max));
     cJSON_AddBoolToObject(o, "texcoords", has_uv);
     cJSON_AddBoolToObject(o, "normals", has_n);
+    cJSON_AddItemToObject(o, "materials", mats);
     cJSON_AddNumberToObject(o, "skin_joints", (double)skin_joints);
     if (have_guess) {
       cJSON *go = cJSON_AddObjectToObject(o, "orientation_guess");
@@ -140,6 +169,8 @@ int km_cli_info(int argc, char **argv) {
          info.bbox_max[2]);
   printf("attributes            %s%s%s\n", has_uv ? "texcoords " : "", has_n ? "normals" : "",
          has_uv || has_n ? "" : "none");
+  cJSON_Delete(mats);
+  if (n_mat) printf("materials             %zu%s\n", n_mat, mat_line);
   if (skin_joints)
     printf("skin                  %zu joints (a rigged template as it is: kinemesh rig shows the "
            "mapping)\n",

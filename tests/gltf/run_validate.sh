@@ -67,6 +67,11 @@ for f in every keys textured textured_anim skin skel z_skel baked baked_pc2 pca 
   node "$HERE/validate.mjs" "$WORK/$f.glb" | tee "$WORK/$f.txt"
   grep -q ': 0 errors, 0 warnings' "$WORK/$f.txt" || { echo "FAIL: $f.glb has validator errors or warnings"; exit 1; }
 done
+# info lists the two materials as read (the runs of faces, the texture on the first)
+"$BIN" info --json "$WORK/ct.obj" | node -e '
+const m = JSON.parse(require("fs").readFileSync(0)).materials;
+if (m.length !== 2 || m[0].texture !== "image/png" || m[1].texture !== undefined ||
+    m[1].first_face !== m[0].faces) { console.log("FAIL: info --json materials", JSON.stringify(m)); process.exit(1); }'
 # the textured mesh's outputs carry its two materials (and the image) on two primitives
 nf=$(grep -c '^f ' "$WORK/ct.obj")
 export nf
