@@ -305,14 +305,19 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     if (uniq[k] == (int)k) img_pad += (mat[k].image_size + 3) & ~(uint64_t)3;
   uint64_t bin_len =
       idx_len + pos_len * (1 + nk) * (with_n ? 2 : 1) + uv_len + times_len + weights_len + img_pad;
-  if (bin_len + (64u << 20) > UINT32_MAX)
+  if (bin_len + (64u << 20) > UINT32_MAX) {
+    free(uniq), free(view);
     return km__fail(err, KM_ERR_UNSUPPORTED,
                     "%s: %zu key frames of %zu vertices exceed the 4 GiB glb limit; use "
                     "key_every > 1 or pc2",
                     w->path, nk, nv);
+  }
 
   float *times = km__malloc(nt, sizeof *times);
-  if (!times) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+  if (!times) {
+    free(uniq), free(view);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+  }
   for (size_t k = 0; k < nt; ++k)
     times[k] = (float)((double)(pca ? k : w->key_frame[k]) / w->fps);
 
