@@ -477,6 +477,41 @@ static void test_material(void) {
             "two materials written: %zu", r.n_materials);
   km_mesh_free(&r);
   km_mesh_free(&m);
+  /* the image as a file beside a .gltf read from disk, its uri percent-encoded as Blender
+   * writes a name with a space; a uri that leaves the folder once decoded is refused */
+  {
+    unsigned char *png = NULL; /* the data: URI's image, as read */
+    size_t pn = 0;
+    char *t0 = cJSON_PrintUnformatted(j);
+    CHECK_OK(km_mesh_parse(t0, strlen(t0), KM_FORMAT_GLTF, "uri.gltf", &m, KM_E));
+    free(t0);
+    if (m.n_materials && m.materials[0].image) {
+      png = m.materials[0].image, pn = m.materials[0].image_size;
+      m.materials[0].image = NULL;
+    }
+    km_mesh_free(&m);
+    CHECK(png && pn == 70);
+    FILE *pf = fopen("attr_m/my skin.png", "wb");
+    if (pf && png) fwrite(png, 1, pn, pf);
+    if (pf) fclose(pf);
+    const char *uris[2] = {"my%20skin.png", "%2E%2E/attr_m/my%20skin.png"};
+    for (int k = 0; k < 2; ++k) {
+      cJSON *im = cJSON_GetArrayItem(cJSON_GetObjectItem(j, "images"), 0);
+      cJSON_ReplaceItemInObject(im, "uri", cJSON_CreateString(uris[k]));
+      char *t = cJSON_PrintUnformatted(j);
+      pf = fopen("attr_m/pct.gltf", "w");
+      if (pf && t) fputs(t, pf);
+      if (pf) fclose(pf);
+      free(t);
+      CHECK_OK(km_mesh_read("attr_m/pct.gltf", &m, KM_E));
+      bool got = m.n_materials == 2 && m.materials[0].image_size == pn && png &&
+                 !memcmp(m.materials[0].image, png, pn);
+      CHECK_MSG(k == 0 ? got : m.n_materials == 2 && !m.materials[0].image, "%s: the image %s",
+                uris[k], got ? "was read" : "was not read");
+      km_mesh_free(&m);
+    }
+    free(png);
+  }
   /* an image that is not PNG or JPEG: left out, the factors and the mesh kept */
   cJSON *img = cJSON_GetArrayItem(cJSON_GetObjectItem(j, "images"), 0);
   cJSON_ReplaceItemInObject(img, "uri", cJSON_CreateString("data:image/png;base64,AAAAAAAAAAAA"));
@@ -540,10 +575,137 @@ static void test_obj_material(void) {
   km_mesh_free(&m);
 }
 
+/* Materials written with an OBJ (issue 11: a textured model must not come out grey in
+ * Blender): km_mesh_write's "<stem>.mtl" + images and a frame folder's materials.mtl, read back
+ * by kinemesh's own OBJ reader with every material's colour, alpha, metallic, roughness, image
+ * and run of faces as written. */
+static bool same_material(const km_mesh_material *a, const km_mesh_material *b) {
+  for (int c = 0; c < 4; ++c)
+    if (fabs(a->base_color[c] - b->base_color[c]) > 1e-15) return false;
+  return fabs(a->metallic - b->metallic) < 1e-15 && fabs(a->roughness - b->roughness) < 1e-15 &&
+         a->first_face == b->first_face && a->n_faces == b->n_faces &&
+         a->image_size == b->image_size &&
+         (!a->image_size || !memcmp(a->image, b->image, a->image_size)) &&
+         !strcmp(a->image_mime, b->image_mime);
+}
+
+static void test_obj_material_out(void) {
+  static unsigned char png[70] = {
+      0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48,
+      0x44, 0x52, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00,
+      0x00, 0x1f, 0x15, 0xc4, 0x89, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x44, 0x41, 0x54, 0x78,
+      0xda, 0x63, 0xfc, 0xcf, 0xc0, 0x50, 0x0f, 0x00, 0x04, 0x85, 0x01, 0x80, 0x84, 0xa9,
+      0x8c, 0x21, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+  CHECK(km_test_run("rm -rf attr_m && mkdir attr_m", NULL) == 0);
+  /* a strip of 4 quads (8 triangles): textured, plain, textured with the same image */
+  double V[10 * 3], UV[10 * 2];
+  int32_t F[8 * 3];
+  for (int i = 0; i < 5; ++i)
+    for (int r = 0; r < 2; ++r) {
+      int v = 2 * i + r;
+      V[3 * v] = i, V[3 * v + 1] = r, V[3 * v + 2] = 0.1 * i * i;
+      UV[2 * v] = i / 4.0, UV[2 * v + 1] = r;
+    }
+  for (int i = 0; i < 4; ++i) {
+    int32_t a = 2 * i, b = a + 1, c = a + 2, d = a + 3;
+    int32_t *t = F + 6 * i;
+    t[0] = a, t[1] = c, t[2] = d, t[3] = a, t[4] = d, t[5] = b;
+  }
+  km_mesh_material mat[3] = {{.base_color = {1, 1, 1, 1},
+                              .metallic = 0,
+                              .roughness = 0.5,
+                              .image = png,
+                              .image_size = sizeof png,
+                              .image_mime = "image/png",
+                              .first_face = 0,
+                              .n_faces = 2},
+                             {.base_color = {0.25, 0.5, 0.125, 0.75},
+                              .metallic = 0.5,
+                              .roughness = 0.25,
+                              .first_face = 2,
+                              .n_faces = 4},
+                             {.base_color = {1, 1, 1, 1},
+                              .metallic = 0,
+                              .roughness = 1,
+                              .image = png,
+                              .image_size = sizeof png,
+                              .image_mime = "image/png",
+                              .first_face = 6,
+                              .n_faces = 2}};
+  km_mesh m = {
+      .V = V, .F = F, .n_vertices = 10, .n_faces = 8, .UV = UV, .materials = mat, .n_materials = 3};
+  CHECK_OK(km_mesh_write("attr_m/out/strip.obj", &m, NULL, KM_E));
+  /* one image for the two materials that share it, the library beside the OBJ */
+  CHECK(access("attr_m/out/strip.mtl", F_OK) == 0);
+  CHECK(access("attr_m/out/strip_texture_0.png", F_OK) == 0);
+  CHECK(access("attr_m/out/strip_texture_2.png", F_OK) != 0);
+  km_mesh r = {0};
+  CHECK_OK(km_mesh_read("attr_m/out/strip.obj", &r, KM_E));
+  CHECK_MSG(r.n_materials == 3, "%zu materials read back", r.n_materials);
+  for (size_t k = 0; k < 3 && k < r.n_materials; ++k)
+    CHECK_MSG(same_material(&mat[k], &r.materials[k]), "material %zu differs after the OBJ", k);
+  CHECK(r.n_vertices == 10 && r.UV && !memcmp(r.UV, UV, sizeof UV));
+  km_mesh_free(&r);
+
+  /* runs that do not tile the faces: the first material over all, as the glb writer does */
+  mat[1].first_face = 3;
+  CHECK_OK(km_mesh_write("attr_m/odd.obj", &m, NULL, KM_E));
+  CHECK_OK(km_mesh_read("attr_m/odd.obj", &r, KM_E));
+  CHECK(r.n_materials == 1 && r.materials[0].n_faces == 8 && r.materials[0].image_size == 70);
+  km_mesh_free(&r);
+  mat[1].first_face = 2;
+
+  /* a frame folder: materials.mtl and the image once, every frame naming them; a second run
+   * replaces the folder (its material files are the writer's own) */
+  for (int run = 0; run < 2; ++run) {
+    km_anim_writer *w = NULL;
+    CHECK_OK(km_anim_writer_open("attr_m/frames", &m, NULL, &w, KM_E));
+    double X[30];
+    for (int f = 0; f < 3 && w; ++f) {
+      memcpy(X, V, sizeof X);
+      for (int v = 0; v < 10; ++v)
+        X[3 * v + 1] += 0.1 * f * v;
+      CHECK_OK(km_anim_writer_push(w, X, KM_E));
+    }
+    CHECK_OK(km_anim_writer_close(&w, KM_E));
+  }
+  CHECK(access("attr_m/frames/materials.mtl", F_OK) == 0);
+  CHECK(access("attr_m/frames/texture_0.png", F_OK) == 0);
+  CHECK_OK(km_mesh_read("attr_m/frames/frame_000002.obj", &r, KM_E));
+  CHECK_MSG(r.n_materials == 3, "%zu materials in a frame", r.n_materials);
+  for (size_t k = 0; k < 3 && k < r.n_materials; ++k)
+    CHECK_MSG(same_material(&mat[k], &r.materials[k]), "material %zu differs in a frame", k);
+  CHECK(r.n_vertices == 10 && fabs(r.V[3 * 9 + 1] - (1 + 0.2 * 9)) < 1e-12);
+  km_mesh_free(&r);
+  km_anim_info info;
+  CHECK_OK(km_anim_info_read("attr_m/frames", &info, KM_E));
+  CHECK(info.frames == 3 && info.vertices == 10);
+  /* a PLY folder has no material file (PLY has no materials) */
+  km_anim_options po = {.format = KM_ANIM_PLY_DIR};
+  km_anim_writer *w = NULL;
+  CHECK_OK(km_anim_writer_open("attr_m/plys", &m, &po, &w, KM_E));
+  if (w) CHECK_OK(km_anim_writer_push(w, V, KM_E));
+  CHECK_OK(km_anim_writer_close(&w, KM_E));
+  CHECK(access("attr_m/plys/frame_000000.ply", F_OK) == 0 &&
+        access("attr_m/plys/materials.mtl", F_OK) != 0);
+  /* what a SIGINT handler calls removes a half-written folder with its material files */
+  CHECK_OK(km_anim_writer_open("attr_m/sig", &m, NULL, &w, KM_E));
+  if (w) CHECK_OK(km_anim_writer_push(w, V, KM_E));
+  CHECK(km_test_run("ls attr_m | grep -q '^sig.tmp'", NULL) == 0);
+  km_remove_temporaries();
+  CHECK_MSG(km_test_run("ls attr_m | grep -q '^sig'", NULL) != 0,
+            "a temporary frame folder is left after the cleanup");
+  km_anim_writer_free(&w);
+  /* a folder holding something else is still not replaced */
+  CHECK(km_test_run("touch attr_m/frames/notes.txt", NULL) == 0);
+  CHECK(km_anim_writer_open("attr_m/frames", &m, NULL, &w, NULL) == KM_ERR_IO && !w);
+}
+
 int main(void) {
   test_gltf_in();
   test_material();
   test_obj_material();
+  test_obj_material_out();
   test_obj_read();
   test_ply_names();
   test_cli_textured();

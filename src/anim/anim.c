@@ -7,6 +7,7 @@
 #include "anim/anim.h"
 #include "linalg/linalg.h"
 #include "math/math.h" /* km_lbs */
+#include "mesh/mesh.h" /* km__obj_write */
 
 #include <dirent.h>
 #include <float.h>
@@ -48,6 +49,18 @@ static int frame_file_kind(const char *name) {
   return 0;
 }
 
+/* "materials.mtl" or "texture_<k>.png|.jpg": an OBJ folder's material library and images
+ * (km__obj_write_materials, written once beside the frames). */
+static bool material_file(const char *name) {
+  if (!strcmp(name, "materials.mtl")) return true;
+  if (strncmp(name, "texture_", 8) != 0) return false;
+  const char *p = name + 8;
+  size_t digits = 0;
+  while (*p >= '0' && *p <= '9')
+    ++p, ++digits;
+  return digits && (!strcmp(p, ".png") || !strcmp(p, ".jpg"));
+}
+
 /* Checks that an existing directory holds only frame files (ours, from an earlier run), so
  * replacing it cannot destroy anything else. */
 static km_status check_replaceable_dir(const char *path, km_error *err) {
@@ -57,7 +70,7 @@ static km_status check_replaceable_dir(const char *path, km_error *err) {
   struct dirent *e;
   while ((e = readdir(d)) != NULL) {
     if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
-    if (!frame_file_kind(e->d_name)) {
+    if (!frame_file_kind(e->d_name) && !material_file(e->d_name)) {
       s = km__fail(err, KM_ERR_IO,
                    "%s: directory exists and holds '%s', which is not a frame file; refusing to "
                    "replace it",
@@ -69,14 +82,15 @@ static km_status check_replaceable_dir(const char *path, km_error *err) {
   return s;
 }
 
-/* Removes the frame files of a directory, then the directory (if it is then empty). */
+/* Removes the frame and material files of a directory, then the directory (if it is then
+ * empty). */
 static void remove_frame_dir(const char *dir) {
   DIR *d = opendir(dir);
   if (!d) return;
   size_t n = strlen(dir);
   struct dirent *e;
   while ((e = readdir(d)) != NULL) {
-    if (!frame_file_kind(e->d_name)) continue;
+    if (!frame_file_kind(e->d_name) && !material_file(e->d_name)) continue;
     size_t m = n + strlen(e->d_name) + 2;
     char *p = malloc(m);
     if (!p) break;
@@ -285,17 +299,15 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     if (!(w->uv = km__malloc(nv * 2, sizeof *w->uv))) goto nomem;
     memcpy(w->uv, rest->UV, nv * 2 * sizeof *w->uv);
   }
-  if (rest->n_materials && w->format == KM_ANIM_GLB) { /* a glb carries the file's materials */
+  /* a glb and an OBJ folder carry the file's materials (PLY has no material) */
+  if (rest->n_materials && (w->format == KM_ANIM_GLB || w->format == KM_ANIM_OBJ_DIR)) {
     km_mesh only = {.materials = rest->materials, .n_materials = rest->n_materials};
     if (km_mesh_copy(&only, &w->material_mesh, NULL) != KM_OK) goto nomem;
     /* the runs must tile the faces in order (the writers split the primitive by them): a mesh
      * whose faces changed after reading keeps its first material over every face */
-    size_t next = 0;
-    for (size_t k = 0; k < w->material_mesh.n_materials; ++k)
-      next = w->material_mesh.materials[k].first_face == next
-                 ? next + w->material_mesh.materials[k].n_faces
-                 : SIZE_MAX;
-    if (next != nf) {
+    only.n_faces = nf;
+    only.materials = w->material_mesh.materials;
+    if (!km__obj_materials_cover(&only)) {
       km__log(KM_LOG_WARN,
               "%s: the mesh's materials do not cover its %zu faces in order: its "
               "first material is written over all of them",
@@ -382,6 +394,13 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     }
     w->tmp_dir_slot =
         km__tmp_dir_register(w->tmp_dir, w->format == KM_ANIM_PLY_DIR ? "ply" : "obj");
+    if (w->material_mesh.n_materials) { /* once for every frame's mtllib */
+      km__tmp_dir_materials(w->tmp_dir_slot, w->material_mesh.n_materials);
+      if ((s = km__obj_write_materials(w->tmp_dir, "materials.mtl", "texture_",
+                                       w->material_mesh.materials, w->material_mesh.n_materials,
+                                       err)) != KM_OK)
+        goto fail;
+    }
     size_t vb = nv * 64, fb = nf * 13;
     w->bytes = malloc((vb > fb ? vb : fb) + 1);
     if (!w->bytes) goto nomem;
@@ -514,30 +533,19 @@ static km_status push_dir(km_anim_writer *w, const double *V, km_error *err) {
     }
     fwrite(w->bytes, 13, nf, f);
   } else {
-    fprintf(f, "# kinemesh animation frame %zu fps %.17g\n", w->frames, w->fps);
-    for (size_t i = 0; i < nv; ++i)
-      fprintf(f, "v %.17g %.17g %.17g\n", V[3 * i], V[3 * i + 1], V[3 * i + 2]);
-    /* One vt / vn per vertex in vertex order (vt as read, vn recomputed for this frame), so
-     * every face reference is i/i/i and the vertex order stays the rest mesh's. */
-    for (size_t i = 0; w->uv && i < nv; ++i)
-      fprintf(f, "vt %.17g %.17g\n", w->uv[2 * i], w->uv[2 * i + 1]);
-    for (size_t i = 0; w->normals && i < nv; ++i)
-      fprintf(f, "vn %.9g %.9g %.9g\n", w->nbuf[3 * i], w->nbuf[3 * i + 1], w->nbuf[3 * i + 2]);
-    for (size_t i = 0; i < nf; ++i) {
-      fputc('f', f);
-      for (int k = 0; k < 3; ++k) {
-        long v = (long)w->F[3 * i + k] + 1;
-        if (w->uv && w->normals)
-          fprintf(f, " %ld/%ld/%ld", v, v, v);
-        else if (w->uv)
-          fprintf(f, " %ld/%ld", v, v);
-        else if (w->normals)
-          fprintf(f, " %ld//%ld", v, v);
-        else
-          fprintf(f, " %ld", v);
-      }
-      fputc('\n', f);
-    }
+    char header[96];
+    snprintf(header, sizeof header, "kinemesh animation frame %zu fps %.17g", w->frames, w->fps);
+    /* one vt / vn per vertex in vertex order (vt as read, vn recomputed for this frame), so
+     * every face reference is i/i/i and the vertex order stays the rest mesh's */
+    km_mesh view = {.V = (double *)V,
+                    .F = w->F,
+                    .n_vertices = nv,
+                    .n_faces = nf,
+                    .UV = w->uv,
+                    .N = w->normals ? w->nbuf : NULL,
+                    .materials = w->material_mesh.materials,
+                    .n_materials = w->material_mesh.n_materials};
+    km__obj_write(f, &view, header, "materials.mtl");
   }
   int bad = ferror(f);
   bad |= fclose(f) != 0;

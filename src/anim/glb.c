@@ -67,20 +67,6 @@ static int jint_item(const cJSON *o, const char *key) {
   return cJSON_IsNumber(v) ? v->valueint : -1;
 }
 
-/* For each material, the first material whose image has the same bytes (itself when none
- * before; -1: no image): one copy of each image goes into the file. */
-static void unique_images(const km_mesh_material *m, size_t n, int *uniq) {
-  for (size_t k = 0; k < n; ++k) {
-    uniq[k] = -1;
-    if (!m[k].image || !m[k].image_size) continue;
-    size_t q = 0;
-    while (q < k && !(uniq[q] == (int)q && m[q].image_size == m[k].image_size &&
-                      !memcmp(m[q].image, m[k].image, m[k].image_size)))
-      ++q;
-    uniq[k] = (int)q;
-  }
-}
-
 /* The rest mesh's materials (km_mesh.materials; issue 11: a textured model must not come out
  * grey): materials[k] with its base colour, metallic and roughness factors and, where the file
  * had one, its base colour texture, whose image (PNG or JPEG, as read) lies in bufferView
@@ -299,7 +285,7 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
     free(uniq), free(view);
     return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
   }
-  unique_images(mat, n_mat, uniq);
+  km__material_images_unique(mat, n_mat, uniq);
   uint64_t img_pad = 0;
   for (size_t k = 0; k < n_mat; ++k)
     if (uniq[k] == (int)k) img_pad += (mat[k].image_size + 3) & ~(uint64_t)3;
@@ -518,7 +504,7 @@ static km_status stream_morph_bin(km_anim_writer *w, FILE *f, void *ctx, km_erro
   const size_t n_mat = w->material_mesh.n_materials;
   int *uniq = n_mat ? km__malloc(n_mat, sizeof *uniq) : NULL;
   if (n_mat && !uniq && s == KM_OK) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
-  if (uniq) unique_images(mat, n_mat, uniq);
+  if (uniq) km__material_images_unique(mat, n_mat, uniq);
   for (size_t k = 0; uniq && s == KM_OK && k < n_mat; ++k) {
     static const unsigned char zero[3] = {0, 0, 0};
     if (uniq[k] != (int)k) continue;
@@ -771,7 +757,7 @@ static int pack_materials(glb_pack *pk, cJSON *root, cJSON *mesh, cJSON *prim,
   if (!n) return 0;
   int *uniq = km__malloc(n, sizeof *uniq), *view = km__malloc(n, sizeof *view), rc = 0;
   if (!uniq || !view) rc = -1;
-  if (!rc) unique_images(m, n, uniq);
+  if (!rc) km__material_images_unique(m, n, uniq);
   for (size_t k = 0; !rc && k < n; ++k) {
     view[k] = uniq[k] >= 0 && uniq[k] < (int)k ? view[uniq[k]] : -1;
     if (uniq[k] != (int)k) continue;

@@ -99,6 +99,18 @@ bool km__whole_number(double v, double lo, double hi, int64_t *out) {
   return true;
 }
 
+char *km__path_beside(const char *path, const char *name) {
+  const char *slash = strrchr(path, '/');
+  size_t dir = name[0] == '/' || !slash ? 0 : (size_t)(slash - path) + 1;
+  char *p = malloc(dir + strlen(name) + 1);
+  if (!p) return NULL;
+  memcpy(p, path, dir);
+  strcpy(p + dir, name);
+  for (char *c = p + dir; *c; ++c)
+    if (*c == '\\') *c = '/';
+  return p;
+}
+
 km_status km__make_parents(const char *path, km_error *err) {
   size_t n = path ? strlen(path) : 0;
   char *d = malloc(n + 1);
@@ -155,6 +167,7 @@ static void tmp_unregister(const char *path) {
 static char g_dir_paths[KM__DIR_SLOTS][KM__TMP_MAX];
 static char g_dir_ext[KM__DIR_SLOTS][8];
 static size_t g_dir_frames[KM__DIR_SLOTS];
+static size_t g_dir_materials[KM__DIR_SLOTS];
 static sig_atomic_t g_dir_used[KM__DIR_SLOTS];
 
 int km__tmp_dir_register(const char *dir, const char *ext) {
@@ -166,6 +179,7 @@ int km__tmp_dir_register(const char *dir, const char *ext) {
       strcpy(g_dir_paths[i], dir);
       strcpy(g_dir_ext[i], ext);
       __atomic_store_n(&g_dir_frames[i], 0, __ATOMIC_RELAXED);
+      __atomic_store_n(&g_dir_materials[i], 0, __ATOMIC_RELAXED);
       __atomic_store_n(&g_dir_used[i], 1, __ATOMIC_RELEASE);
       return i;
     }
@@ -178,23 +192,32 @@ void km__tmp_dir_frames(int slot, size_t frames) {
     __atomic_store_n(&g_dir_frames[slot], frames, __ATOMIC_RELEASE);
 }
 
+void km__tmp_dir_materials(int slot, size_t n) {
+  if (slot >= 0 && slot < KM__DIR_SLOTS)
+    __atomic_store_n(&g_dir_materials[slot], n, __ATOMIC_RELEASE);
+}
+
 void km__tmp_dir_unregister(int slot) {
   if (slot >= 0 && slot < KM__DIR_SLOTS) __atomic_store_n(&g_dir_used[slot], 0, __ATOMIC_RELEASE);
 }
 
-/* "<dir>/frame_%06zu.<ext>" without stdio (async-signal-safe). */
-static void frame_name(char *out, const char *dir, size_t k, const char *ext) {
-  size_t n = strlen(dir);
+/* "<dir>/<prefix><k, at least `width` digits>.<ext>" without stdio (async-signal-safe);
+ * width < 0: no number. */
+static void numbered_name(char *out, const char *dir, const char *prefix, size_t k, int width,
+                          const char *ext) {
+  size_t n = strlen(dir), p = strlen(prefix);
   memcpy(out, dir, n);
-  memcpy(out + n, "/frame_", 7);
-  n += 7;
+  out[n++] = '/';
+  memcpy(out + n, prefix, p);
+  n += p;
   char d[24];
   int nd = 0;
   do {
     d[nd++] = (char)('0' + k % 10);
     k /= 10;
-  } while (k);
-  while (nd < 6)
+  } while (k && width >= 0);
+  if (width < 0) nd = 0;
+  while (nd < width)
     d[nd++] = '0';
   while (nd)
     out[n++] = d[--nd];
@@ -211,7 +234,19 @@ void km_remove_temporaries(void) {
     if (__atomic_load_n(&g_dir_used[i], __ATOMIC_ACQUIRE) != 1) continue;
     size_t nf = __atomic_load_n(&g_dir_frames[i], __ATOMIC_ACQUIRE);
     for (size_t k = 0; k <= nf; ++k) {
-      frame_name(p, g_dir_paths[i], k, g_dir_ext[i]);
+      numbered_name(p, g_dir_paths[i], "frame_", k, 6, g_dir_ext[i]);
+      unlink(p);
+    }
+    /* an OBJ folder's material library and images (km__obj_write_materials' names) */
+    size_t nm = __atomic_load_n(&g_dir_materials[i], __ATOMIC_ACQUIRE);
+    for (size_t k = 0; k < nm; ++k) {
+      numbered_name(p, g_dir_paths[i], "texture_", k, 1, "png");
+      unlink(p);
+      numbered_name(p, g_dir_paths[i], "texture_", k, 1, "jpg");
+      unlink(p);
+    }
+    if (nm) {
+      numbered_name(p, g_dir_paths[i], "materials", 0, -1, "mtl");
       unlink(p);
     }
     rmdir(g_dir_paths[i]);

@@ -40,16 +40,23 @@ typedef struct km__atomic_file {
  * without a prior mkdir. */
 km_status km__atomic_open(km__atomic_file *af, const char *path, km_error *err);
 /* Frame directories being filled (anim's "<dir>.tmp.<pid>"): km_remove_temporaries removes
- * their frame files frame_NNNNNN.<ext> (the first `frames` + 1 of them) and the directory.
- * register returns a slot (-1 when full: no cleanup, no error); frames updates the count;
- * unregister forgets it (published or removed). */
+ * their frame files frame_NNNNNN.<ext> (the first `frames` + 1 of them), the material files of
+ * an OBJ folder with materials (materials.mtl, texture_<k>.png|.jpg for k < materials) and the
+ * directory. register returns a slot (-1 when full: no cleanup, no error); frames and
+ * materials update the counts; unregister forgets it (published or removed). */
 int km__tmp_dir_register(const char *dir, const char *ext);
 void km__tmp_dir_frames(int slot, size_t frames);
+void km__tmp_dir_materials(int slot, size_t n);
 void km__tmp_dir_unregister(int slot);
 /* Creates the missing folders above path ("a/b/c.obj": a and a/b), like mkdir -p of its
  * dirname. The one place outputs get their folders: km__atomic_open and the frame-directory
  * writer call it. KM_ERR_IO naming the folder that could not be made. */
 km_status km__make_parents(const char *path, km_error *err);
+/* The path of `name` in the folder of the file `path` ("a/b.gltf", "t.png": "a/t.png"; no
+ * folder: name itself; an absolute name as it is), '\\' in name read as '/' (Windows-made
+ * OBJ libraries). The one path join of the readers that follow a file to its neighbours (an
+ * OBJ's mtllib and map_Kd, a .gltf's buffers and images). NULL when out of memory; free(). */
+char *km__path_beside(const char *path, const char *name);
 /* Flushes, checks for write errors, fsyncs and renames. Closes in every case. */
 km_status km__atomic_commit(km__atomic_file *af, km_error *err);
 /* Closes and removes the temporary. Safe on a zeroed or already closed handle. */

@@ -1,5 +1,6 @@
 /* Mesh allocation, format dispatch for reading/writing, and the number helpers shared by
  * the text parsers. */
+#include "mesh/mesh.h"
 #include "mesh/mesh_io.h"
 
 #include <ctype.h>
@@ -173,6 +174,48 @@ static km_status check_mesh(const char *path, const km_mesh *m, km_error *err) {
   return KM_OK;
 }
 
+/* An OBJ's materials (issue 11: a textured model must not come out grey): "<stem>.mtl" and its
+ * images "<stem>_texture_<k>.png|.jpg" beside path (the output the user named, never an input's
+ * folder); *mtl: the library's name for the OBJ's mtllib line. A mesh whose materials do not
+ * tile its faces writes its first over all of them, as the glb writer does. */
+static km_status write_obj_materials(const char *path, const km_mesh *m, char **mtl,
+                                     km_error *err) {
+  const char *slash = strrchr(path, '/');
+  const char *base = slash ? slash + 1 : path, *dot = strrchr(base, '.');
+  size_t stem = dot && dot > base ? (size_t)(dot - base) : strlen(base);
+  size_t dir_n = slash ? (size_t)(slash - path) : 1;
+  char *dir = malloc(dir_n + 1), *name = malloc(stem + 5), *prefix = malloc(stem + 10);
+  if (!dir || !name || !prefix) {
+    free(dir), free(name), free(prefix);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  }
+  if (slash)
+    memcpy(dir, path, dir_n), dir[dir_n] = 0;
+  else
+    strcpy(dir, ".");
+  if (slash == path) strcpy(dir, "/");
+  snprintf(name, stem + 5, "%.*s.mtl", (int)stem, base);
+  snprintf(prefix, stem + 10, "%.*s_texture_", (int)stem, base);
+  km_mesh_material one;
+  const km_mesh_material *mats = m->materials;
+  size_t n = m->n_materials;
+  if (!km__obj_materials_cover(m)) {
+    km__log(KM_LOG_WARN,
+            "%s: the mesh's materials do not cover its %zu faces in order: its first material is "
+            "written over all of them",
+            path, m->n_faces);
+    one = m->materials[0];
+    mats = &one, n = 1;
+  }
+  km_status s = km__obj_write_materials(dir, name, prefix, mats, n, err);
+  free(dir), free(prefix);
+  if (s)
+    free(name);
+  else
+    *mtl = name;
+  return s;
+}
+
 km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_options *opt,
                         km_error *err) {
   if (!path) return km__fail(err, KM_ERR_INVALID, "km_mesh_write: path is NULL");
@@ -193,13 +236,27 @@ km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_
     return km__fail(err, KM_ERR_INVALID, "%s: unknown mesh format %d", path, (int)fmt);
   if (enc != KM_PLY_BINARY_LE && enc != KM_PLY_BINARY_BE && enc != KM_PLY_ASCII)
     return km__fail(err, KM_ERR_INVALID, "%s: unknown PLY encoding %d", path, (int)enc);
+  char *mtl = NULL;
+  if (fmt == KM_FORMAT_OBJ && m->n_materials && (s = write_obj_materials(path, m, &mtl, err)))
+    return s;
   km__atomic_file af;
   s = km__atomic_open(&af, path, err);
-  if (s) return s;
+  if (s) {
+    free(mtl);
+    return s;
+  }
   /* Writers only fail through the FILE error state, which commit reports. */
-  if (fmt == KM_FORMAT_OBJ)
-    km__obj_write(af.f, m);
-  else if (fmt == KM_FORMAT_PLY)
+  if (fmt == KM_FORMAT_OBJ) {
+    km_mesh view = *m;
+    km_mesh_material one;
+    if (mtl && !km__obj_materials_cover(m)) { /* as the glb writer: the first over all */
+      one = m->materials[0];
+      one.first_face = 0, one.n_faces = m->n_faces;
+      view.materials = &one, view.n_materials = 1;
+    }
+    km__obj_write(af.f, &view, NULL, mtl);
+    free(mtl);
+  } else if (fmt == KM_FORMAT_PLY)
     km__ply_write(af.f, m, enc);
   else
     km__off_write(af.f, m);

@@ -122,6 +122,59 @@ static int jint(const cJSON *o, const char *k, int def) {
   return v ? jindex(v) : def;
 }
 
+static int hex_digit(char c) {
+  return c >= '0' && c <= '9'   ? c - '0'
+         : c >= 'a' && c <= 'f' ? c - 'a' + 10
+         : c >= 'A' && c <= 'F' ? c - 'A' + 10
+                                : -1;
+}
+
+/* The bytes a glTF uri names (buffers' and images'): a base64 data: URI, or a file beside a
+ * .gltf read from disk (a relative path, percent-decoded as the specification's URIs are:
+ * Blender writes "my%20skin.png"; none that leaves the folder, is absolute or has a scheme).
+ * On failure *why says what is wrong and the status is KM_ERR_PARSE (a bad data: URI),
+ * KM_ERR_UNSUPPORTED (a file that cannot be read here), KM_ERR_IO (it cannot be read) or
+ * KM_ERR_NOMEM. *bytes: allocated, free(). */
+static km_status read_uri(const gltf_doc *d, const char *uri, unsigned char **bytes, size_t *n,
+                          const char **why) {
+  *bytes = NULL, *n = 0;
+  if (!strncmp(uri, "data:", 5)) {
+    const char *comma = strstr(uri, ";base64,");
+    if (comma && b64_decode(comma + 8, bytes, n)) return KM_OK;
+    *why = "its data: URI is not base64";
+    return KM_ERR_PARSE;
+  }
+  size_t len = strlen(uri);
+  char *name = malloc(len + 1);
+  if (!name) return *why = "out of memory", KM_ERR_NOMEM;
+  size_t k = 0;
+  for (size_t i = 0; i < len; ++i) {
+    int hi = i + 2 < len ? hex_digit(uri[i + 1]) : -1, lo = hi >= 0 ? hex_digit(uri[i + 2]) : -1;
+    if (uri[i] == '%' && lo >= 0 && (hi | lo)) {
+      name[k++] = (char)(hi << 4 | lo);
+      i += 2;
+    } else {
+      name[k++] = uri[i];
+    }
+  }
+  name[k] = 0;
+  if (!d->base_path || !name[0] || strstr(name, "..") || name[0] == '/' || strchr(name, ':') ||
+      strchr(name, '\\')) {
+    free(name);
+    *why = "it is an external file that cannot be read here (only a file beside a .gltf read "
+           "from disk)";
+    return KM_ERR_UNSUPPORTED;
+  }
+  char *p = km__path_beside(d->base_path, name), *data = NULL;
+  free(name);
+  if (!p) return *why = "out of memory", KM_ERR_NOMEM;
+  km_status s = km__read_file(p, &data, n, NULL);
+  free(p);
+  if (s) return *why = "its file cannot be read", KM_ERR_IO;
+  *bytes = (unsigned char *)data;
+  return KM_OK;
+}
+
 static km_status load_buffers(gltf_doc *d, km_error *err) {
   cJSON *bufs = cJSON_GetObjectItemCaseSensitive(d->json, "buffers");
   d->n_bufs = cJSON_GetArraySize(bufs);
@@ -155,29 +208,9 @@ static km_status load_buffers(gltf_doc *d, km_error *err) {
       d->buf_len[i] = (size_t)blen;
       continue;
     }
-    if (!strncmp(uri, "data:", 5)) {
-      const char *comma = strstr(uri, ";base64,");
-      if (!comma || !b64_decode(comma + 8, &d->bufs[i], &d->buf_len[i]))
-        return km__fail(err, KM_ERR_PARSE, "%s: buffers[%d]: expected a base64 data: URI", d->name,
-                        i);
-    } else {
-      if (!d->base_path || strstr(uri, "..") || uri[0] == '/' || strchr(uri, ':'))
-        return km__fail(err, KM_ERR_UNSUPPORTED,
-                        "%s: buffers[%d]: external buffer '%.80s' cannot be read here (only a "
-                        "file beside a .gltf read from disk)",
-                        d->name, i, uri);
-      const char *slash = strrchr(d->base_path, '/');
-      size_t dir = slash ? (size_t)(slash - d->base_path) + 1 : 0;
-      char *p = malloc(dir + strlen(uri) + 1);
-      if (!p) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
-      memcpy(p, d->base_path, dir);
-      strcpy(p + dir, uri);
-      char *data = NULL;
-      km_status s = km__read_file(p, &data, &d->buf_len[i], err);
-      free(p);
-      if (s) return s;
-      d->bufs[i] = (unsigned char *)data;
-    }
+    const char *why = NULL;
+    km_status s = read_uri(d, uri, &d->bufs[i], &d->buf_len[i], &why);
+    if (s) return km__fail(err, s, "%s: buffers[%d] ('%.80s'): %s", d->name, i, uri, why);
     if (d->buf_len[i] < (size_t)blen)
       return km__fail(err, KM_ERR_PARSE, "%s: buffers[%d]: %zu bytes, byteLength says %d", d->name,
                       i, d->buf_len[i], blen);
@@ -755,26 +788,8 @@ static void material_def(gltf_doc *d, int mi, km_mesh_material *m) {
       why = "its bufferView is missing or out of its buffer";
     else if ((bytes = km__malloc((size_t)blen, 1)))
       memcpy(bytes, (d->bufs[bi] ? d->bufs[bi] : d->bin) + boff, n = (size_t)blen);
-  } else if (uri && !strncmp(uri, "data:", 5)) {
-    const char *comma = strstr(uri, ";base64,");
-    if (!comma || !b64_decode(comma + 8, &bytes, &n)) why = "its data: URI is not base64";
   } else if (uri) {
-    if (!d->base_path || strstr(uri, "..") || uri[0] == '/' || strchr(uri, ':')) {
-      why = "it is an external file that cannot be read here";
-    } else {
-      const char *slash = strrchr(d->base_path, '/');
-      size_t dir = slash ? (size_t)(slash - d->base_path) + 1 : 0;
-      char *p = malloc(dir + strlen(uri) + 1), *data = NULL;
-      if (p) {
-        memcpy(p, d->base_path, dir);
-        strcpy(p + dir, uri);
-        if (km__read_file(p, &data, &n, NULL) == KM_OK)
-          bytes = (unsigned char *)data;
-        else
-          why = "its file cannot be read";
-        free(p);
-      }
-    }
+    read_uri(d, uri, &bytes, &n, &why);
   }
   /* the outputs embed what a glTF viewer decodes: PNG or JPEG, recognised by its signature */
   bool png = n >= 8 && !memcmp(bytes, "\x89PNG\r\n\x1a\n", 8),

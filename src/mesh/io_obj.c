@@ -3,6 +3,7 @@
  * vertex order and count stay the `v` lines'); everything else that is a keyword is skipped. Parsed
  * in place from the memory buffer, one pass to count vertices (so that positive indices can be
  * range-checked and V allocated once), one pass to parse. */
+#include "mesh/mesh.h"
 #include "mesh/mesh_io.h"
 
 #include <math.h>
@@ -296,24 +297,10 @@ static const char *next_line(const char *p, const char *end, char *kw, size_t kn
   return e ? e + 1 : end;
 }
 
-/* dir of path (up to its last '/') joined with a relative name ('\\' read as '/'); an
- * absolute name as it is. Caller frees. */
-static char *beside(const char *path, const char *name) {
-  const char *slash = strrchr(path, '/');
-  size_t dir = name[0] == '/' || !slash ? 0 : (size_t)(slash - path) + 1;
-  char *p = malloc(dir + strlen(name) + 1);
-  if (!p) return NULL;
-  memcpy(p, path, dir);
-  strcpy(p + dir, name);
-  for (char *c = p + dir; *c; ++c)
-    if (*c == '\\') *c = '/';
-  return p;
-}
-
 /* One material of a .mtl: what km_mesh_material needs. */
 typedef struct mtl_def {
   char name[1024];
-  double kd[3], ns;
+  double kd[3], ns, d, pr, pm; /* pr, pm < 0: not given */
   char map[1024];
 } mtl_def;
 
@@ -334,11 +321,13 @@ static void mtl_material(const mtl_def *def, const char *mpath, const char *path
    * would darken it by); roughness from the Phong exponent as Blender's importer maps it */
   for (int c = 0; c < 3; ++c)
     m->base_color[c] = !def || def->map[0] ? 1 : fmin(1, fmax(0, def->kd[c]));
-  m->base_color[3] = 1;
-  m->metallic = 0;
-  m->roughness = def && def->ns >= 0 ? fmin(1, fmax(0, 1 - sqrt(fmin(def->ns, 1000) / 1000))) : 1;
+  m->base_color[3] = def ? fmin(1, fmax(0, def->d)) : 1;
+  m->metallic = def && def->pm >= 0 ? fmin(1, def->pm) : 0;
+  m->roughness = def && def->pr >= 0   ? fmin(1, def->pr)
+                 : def && def->ns >= 0 ? fmin(1, fmax(0, 1 - sqrt(fmin(def->ns, 1000) / 1000)))
+                                       : 1;
   if (!def || !def->map[0]) return;
-  char *ipath = beside(mpath, def->map), *img = NULL;
+  char *ipath = km__path_beside(mpath, def->map), *img = NULL;
   size_t bytes = 0;
   if (ipath && km__read_file(ipath, &img, &bytes, NULL) == KM_OK) {
     const unsigned char *b = (const unsigned char *)img;
@@ -406,7 +395,7 @@ void km__obj_read_material(const char *data, size_t size, const char *path, km_m
     free(runs);
     return;
   }
-  char *mpath = beside(path, lib), *mdata = NULL;
+  char *mpath = km__path_beside(path, lib), *mdata = NULL;
   size_t mn = 0;
   if (!mpath || km__read_file(mpath, &mdata, &mn, NULL) != KM_OK) {
     km__log(KM_LOG_WARN, "%s: its material library %s cannot be read: no material carried", path,
@@ -429,12 +418,19 @@ void km__obj_read_material(const char *data, size_t size, const char *path, km_m
       memset(d, 0, sizeof *d);
       snprintf(d->name, sizeof d->name, "%s", rest);
       d->kd[0] = d->kd[1] = d->kd[2] = 1;
-      d->ns = -1;
+      d->d = 1;
+      d->ns = d->pr = d->pm = -1;
     } else if (n_defs && !strcmp(kw, "Kd")) {
       double *kd = defs[n_defs - 1].kd;
       if (sscanf(rest, "%lf %lf %lf", &kd[0], &kd[1], &kd[2]) != 3) kd[0] = kd[1] = kd[2] = 1;
     } else if (n_defs && !strcmp(kw, "Ns")) {
       sscanf(rest, "%lf", &defs[n_defs - 1].ns);
+    } else if (n_defs && !strcmp(kw, "d")) { /* dissolve: the alpha */
+      if (sscanf(rest, "%lf", &defs[n_defs - 1].d) != 1) defs[n_defs - 1].d = 1;
+    } else if (n_defs && (!strcmp(kw, "Pr") || !strcmp(kw, "Pm"))) { /* the PBR extension */
+      double x;
+      if (sscanf(rest, "%lf", &x) == 1 && x >= 0)
+        *(kw[1] == 'r' ? &defs[n_defs - 1].pr : &defs[n_defs - 1].pm) = x;
     } else if (n_defs && !strcmp(kw, "map_Kd")) {
       const char *last = strrchr(rest, ' '); /* options (-s u v w ...) come before the file */
       snprintf(defs[n_defs - 1].map, sizeof defs[n_defs - 1].map, "%s", last ? last + 1 : rest);
@@ -470,8 +466,10 @@ static void write_double(FILE *f, double x, char sep) {
   fwrite(buf, 1, (size_t)n + 1, f);
 }
 
-km_status km__obj_write(FILE *f, const km_mesh *m) {
-  fputs("# kinemesh\n", f);
+km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const char *mtllib) {
+  fprintf(f, "# %s\n", header ? header : "kinemesh");
+  bool mats = mtllib && m->n_materials;
+  if (mats) fprintf(f, "mtllib %s\n", mtllib);
   for (size_t i = 0; i < m->n_vertices; ++i) {
     fputs("v ", f);
     write_double(f, m->V[3 * i], ' ');
@@ -490,7 +488,10 @@ km_status km__obj_write(FILE *f, const km_mesh *m) {
     write_double(f, m->N[3 * i + 1], ' ');
     write_double(f, m->N[3 * i + 2], '\n');
   }
+  size_t run = 0; /* the material whose run the next face starts, or continues */
   for (size_t i = 0; i < m->n_faces; ++i) {
+    for (; mats && run < m->n_materials && m->materials[run].first_face == i; ++run)
+      if (m->materials[run].n_faces) fprintf(f, "usemtl kinemesh_%zu\n", run);
     fputc('f', f);
     for (int k = 0; k < 3; ++k) {
       int v = m->F[3 * i + k] + 1;
@@ -506,4 +507,84 @@ km_status km__obj_write(FILE *f, const km_mesh *m) {
     fputc('\n', f);
   }
   return ferror(f) ? KM_ERR_IO : KM_OK;
+}
+
+void km__material_images_unique(const km_mesh_material *m, size_t n, int *uniq) {
+  for (size_t k = 0; k < n; ++k) {
+    uniq[k] = -1;
+    if (!m[k].image || !m[k].image_size) continue;
+    size_t q = 0;
+    while (q < k && !(uniq[q] == (int)q && m[q].image_size == m[k].image_size &&
+                      !memcmp(m[q].image, m[k].image, m[k].image_size)))
+      ++q;
+    uniq[k] = (int)q;
+  }
+}
+
+bool km__obj_materials_cover(const km_mesh *m) {
+  size_t next = 0;
+  for (size_t k = 0; k < m->n_materials; ++k) {
+    if (m->materials[k].first_face != next) return false;
+    next += m->materials[k].n_faces;
+  }
+  return m->n_materials && next == m->n_faces;
+}
+
+void km__obj_texture_name(char *buf, size_t n, const char *prefix, int k,
+                          const km_mesh_material *m) {
+  snprintf(buf, n, "%s%d.%s", prefix, k, strcmp(m->image_mime, "image/jpeg") ? "png" : "jpg");
+}
+
+km_status km__obj_write_materials(const char *dir, const char *mtl_name, const char *tex_prefix,
+                                  const km_mesh_material *m, size_t n, km_error *err) {
+  int *uniq = km__calloc(n ? n : 1, sizeof *uniq);
+  size_t dn = strlen(dir), pn = dn + strlen(mtl_name) + strlen(tex_prefix) + 64;
+  char *path = malloc(pn);
+  if (!uniq || !path) {
+    free(uniq), free(path);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for its materials", dir);
+  }
+  km__material_images_unique(m, n, uniq);
+  km_status s = KM_OK;
+  char tex[64 + 256];
+  /* the images first: a library is only there once what it names is */
+  for (size_t k = 0; k < n && s == KM_OK; ++k) {
+    if (uniq[k] != (int)k) continue;
+    km__obj_texture_name(tex, sizeof tex, tex_prefix, (int)k, m + k);
+    snprintf(path, pn, "%s/%s", dir, tex);
+    km__atomic_file af;
+    if ((s = km__atomic_open(&af, path, err)) != KM_OK) break;
+    fwrite(m[k].image, 1, m[k].image_size, af.f);
+    s = km__atomic_commit(&af, err);
+  }
+  snprintf(path, pn, "%s/%s", dir, mtl_name);
+  km__atomic_file af;
+  if (s == KM_OK && (s = km__atomic_open(&af, path, err)) == KM_OK) {
+    /* Kd the base colour (linear, as glTF's factor and as Blender's importer takes Kd), d its
+     * alpha, Pr / Pm the PBR extension's roughness and metallic (what Blender's and most
+     * engines' importers read), Ns the Phong exponent older readers take roughness from. */
+    fputs("# kinemesh materials\n", af.f);
+    for (size_t k = 0; k < n; ++k) {
+      const km_mesh_material *q = m + k;
+      fprintf(af.f, "\nnewmtl kinemesh_%zu\nKd ", k);
+      for (int c = 0; c < 3; ++c)
+        write_double(af.f, q->base_color[c], c < 2 ? ' ' : '\n');
+      fputs("d ", af.f);
+      write_double(af.f, q->base_color[3], '\n');
+      fputs("Pr ", af.f);
+      write_double(af.f, q->roughness, '\n');
+      fputs("Pm ", af.f);
+      write_double(af.f, q->metallic, '\n');
+      fputs("Ns ", af.f);
+      write_double(af.f, 1000 * (1 - q->roughness) * (1 - q->roughness), '\n');
+      if (uniq[k] >= 0) {
+        km__obj_texture_name(tex, sizeof tex, tex_prefix, uniq[k], m + uniq[k]);
+        fprintf(af.f, "map_Kd %s\n", tex);
+      }
+    }
+    s = km__atomic_commit(&af, err);
+  }
+  free(uniq);
+  free(path);
+  return s;
 }

@@ -109,4 +109,27 @@ km_status km__gltf_accessors_each(const void *data, size_t size, const char *nam
 km_status km__gltf_mesh_transform(const void *data, size_t size, const char *name, int mesh,
                                   double M[16], km_error *err);
 
+/* ---- OBJ output with its materials (io_obj.c): what convert, pose and the frame folders
+ * write, so a textured model does not come out grey in Blender or an engine's OBJ import. */
+/* Writes m as OBJ text: "# header" (NULL: "kinemesh"), then, when mtllib is not NULL and m has
+ * materials, "mtllib <mtllib>" and "usemtl kinemesh_<k>" before each material's run of faces
+ * (km__obj_write_materials writes the library). Vertex order and count as in m. */
+km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const char *mtllib);
+/* Identical base colour images among materials (a glTF's primitives often share one):
+ *   m, n  in: materials
+ *   uniq  out: n; uniq[k] = the lowest q whose image is byte-equal to material k's (q == k: the
+ *         first of its kind), -1 where material k has no image */
+void km__material_images_unique(const km_mesh_material *m, size_t n, int *uniq);
+/* True when m's materials tile its faces in order (the runs km_mesh.materials documents). */
+bool km__obj_materials_cover(const km_mesh *m);
+/* The name material m's image k is written under: prefix + k + ".png" or ".jpg". */
+void km__obj_texture_name(char *buf, size_t n, const char *prefix, int k,
+                          const km_mesh_material *m);
+/* Writes the library km__obj_write's "mtllib" names: dir/mtl_name with newmtl kinemesh_<k> per
+ * material (Kd, d, Pr, Pm, Ns, map_Kd), and each distinct image once as
+ * dir/<tex_prefix><k>.png|.jpg; every file atomically (temporary, then rename), images first.
+ * Errors: KM_ERR_IO naming the file, KM_ERR_NOMEM. */
+km_status km__obj_write_materials(const char *dir, const char *mtl_name, const char *tex_prefix,
+                                  const km_mesh_material *m, size_t n, km_error *err);
+
 #endif

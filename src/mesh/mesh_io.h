@@ -27,10 +27,9 @@ km_status km__gltf_parse(const char *data, size_t size, const char *name, const 
 km_status km__off_parse(const char *data, size_t size, const char *name, km_mesh *out,
                         km_error *err);
 
-km_status km__obj_write(FILE *f, const km_mesh *m);
-/* An OBJ read from path: its usemtl groups' materials from the mtllib beside it (Kd, Ns and
- * map_Kd's image, PNG or JPEG bytes), one per run of faces, into out->materials.
- * Anything missing or unreadable is a warning, never an error (the geometry was asked for). */
+/* An OBJ read from path: its usemtl groups' materials from the mtllib beside it (Kd, d, Pr or Ns,
+ * Pm and map_Kd's image, PNG or JPEG bytes), one per run of faces, into out->materials. Anything
+ * missing or unreadable is a warning, never an error (the geometry was asked for). */
 void km__obj_read_material(const char *data, size_t size, const char *path, km_mesh *out);
 km_status km__ply_write(FILE *f, const km_mesh *m, km_ply_encoding enc);
 km_status km__off_write(FILE *f, const km_mesh *m);

@@ -23,6 +23,7 @@
 #     every OUT (.pc2, or a .glb of per-frame morph targets) keeps each seam copy exactly on
 #     its vertex in every frame.
 # Exits 1 when a check fails, 2 on usage or import errors.
+import os
 import struct
 import sys
 
@@ -114,10 +115,13 @@ def pc2(path):
 
 
 def import_uvs(path):
-    """Blender's import: vertex count, loops' vertices, UVs, and its material's base colour
-    texture's pixels (None: no textured material)."""
+    """Blender's import (glTF, or OBJ with its .mtl): vertex count, loops' vertices, UVs, and
+    its material's base colour texture's pixels (None: no textured material)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.import_scene.gltf(filepath=path)
+    if path.endswith(".obj"):
+        bpy.ops.wm.obj_import(filepath=path)
+    else:
+        bpy.ops.import_scene.gltf(filepath=path)
     me = [o for o in bpy.context.scene.objects if o.type == "MESH"][0].data
     if not me.uv_layers:
         fail(f"{path}: Blender finds no texture coordinates")
@@ -222,6 +226,27 @@ elif len(argv) >= 3 and argv[0] == "gaps":
         seams_shut(path, pc2(path) if path.endswith(".pc2") else glb_frames(path), rest, a, b,
                    0.01)
     print(f"ok: {len(argv) - 2} outputs with {len(a)} seam copies each, every seam shut")
+elif len(argv) >= 3 and argv[0] == "objcheck":
+    # OBJ outputs (convert, animate's frame folder) as Blender's OBJ importer reads them: the
+    # same vertices and loops as the source, its UVs, and its texture through the .mtl
+    n0, vi0, uv0, px0 = import_uvs(argv[1])
+    if px0 is None:
+        fail(f"{argv[1]}: Blender finds no base colour texture in its own export", 2)
+    for path in argv[2:]:
+        n1, vi1, uv1, px1 = import_uvs(path)
+        if px1 is None:
+            fail(f"{path}: no base colour texture: the textured model comes out grey")
+        if px1[0] != px0[0] or float(numpy.abs(px1[1] - px0[1]).max()) > 1e-6:
+            fail(f"{path}: its texture ({px1[0]}) differs from the source's ({px0[0]})")
+        if n0 != n1 or not numpy.array_equal(vi0, vi1):
+            fail(f"Blender imports {n1} vertices from {path} and {n0} from {argv[1]}, "
+                 "or other loops")
+        duv = float(numpy.abs(uv0 - uv1).max())
+        if duv > 1e-6:
+            fail(f"{path}: texture coordinates differ by {duv:.3g}")
+        print(f"note: {os.path.basename(path)}: {n1} vertices, the source's "
+              f"{px0[0][0]}x{px0[0][1]} texture, UVs within {duv:.2g}")
+    print(f"ok: {len(argv) - 2} OBJ outputs textured as the source")
 elif len(argv) == 3 and argv[0] == "export":
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.wm.obj_import(filepath=argv[1])
@@ -273,4 +298,4 @@ elif len(argv) == 5 and argv[0] == "check":
 else:
     fail("usage: blender -b --python blender_seams.py -- export SRC.obj OUT.glb | "
          "check SRC_UV.glb ANIM.pc2 ANIM.glb SKIN.glb | export-skinned SRC.obj SRC.rig.json OUT.glb | "
-         "gaps SRC_UV.glb OUT...", 2)
+         "gaps SRC_UV.glb OUT... | objcheck SRC_UV.glb OUT.obj...", 2)

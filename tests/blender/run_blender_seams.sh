@@ -38,6 +38,15 @@ for out in anim.pc2 anim.glb "skin.glb --export skin:16"; do
     { cat "$WORK/animate.log"; echo "blender_seams: animate FAILED"; exit 1; }
 done
 blend check "$WORK/c_uv.glb" "$WORK/anim.pc2" "$WORK/anim.glb" "$WORK/skin.glb"
+# OBJ outputs carry the material too: convert's .mtl beside the OBJ, a frame folder's
+# materials.mtl, each with the texture image, as Blender's OBJ importer reads them
+"$BIN" convert "$WORK/c_uv.glb" "$WORK/conv/c_uv.obj" >"$WORK/convert.log" 2>&1 ||
+  { cat "$WORK/convert.log"; echo "blender_seams: convert FAILED"; exit 1; }
+"$BIN" animate --mesh "$WORK/c_uv.glb" --rig "$WORK/c_uv.rig.json" --motion "$WORK/t.json" \
+  -o "$WORK/frames" >"$WORK/animate.log" 2>&1 ||
+  { cat "$WORK/animate.log"; echo "blender_seams: animate FAILED"; exit 1; }
+blend objcheck "$WORK/c_uv.glb" "$WORK/conv/c_uv.obj" "$WORK/frames/frame_000000.obj" \
+  "$WORK/frames/frame_000023.obj"
 # the outputs with the source's material and texture are valid glTF (the Khronos validator)
 VALIDATE=$HERE/../gltf/validate.mjs
 if command -v node >/dev/null && [ -d "$HERE/../gltf/node_modules/gltf-validator" ]; then
