@@ -567,6 +567,31 @@ static void test_obj_material(void) {
     CHECK(m.n_vertices == 4 && m.UV);
     km_mesh_free(&m);
   }
+  /* what other exporters write: a texture name with a space after options (-s takes three
+   * numbers, -bm one, -o two here), a Windows path from the machine that wrote it (its file
+   * beside the library), several libraries on one mtllib line, and Tr for the alpha */
+  f = fopen("attr_o/my skin.png", "wb");
+  if (f) fwrite(png, 1, sizeof png, f), fclose(f);
+  f = fopen("attr_o/q2.mtl", "w");
+  if (f)
+    fputs("newmtl spaced\nmap_Kd -s 1 1 1 -bm 0.5 -o 0.5 0.5 my skin.png\n\n"
+          "newmtl windows\nTr 0.25\nmap_Kd C:\\Users\\me\\Textures\\my skin.png\n",
+          f),
+        fclose(f);
+  const char *use2[2] = {"spaced", "windows"};
+  for (int k = 0; k < 2; ++k) {
+    f = fopen("attr_o/q.obj", "w");
+    if (f) fprintf(f, "mtllib none.mtl q2.mtl\nusemtl %s\n%s", use2[k], quad), fclose(f);
+    km_mesh m = {0};
+    CHECK_OK(km_mesh_read("attr_o/q.obj", &m, KM_E));
+    const km_mesh_material *mm = m.n_materials == 1 ? m.materials : NULL;
+    CHECK_MSG(mm && mm->image_size == sizeof png && !memcmp(mm->image, png, sizeof png) &&
+                  mm->base_color[3] == (k ? 0.75 : 1),
+              "%s: %s", use2[k], mm ? "differs" : "no material");
+    km_mesh_free(&m);
+  }
+  f = fopen("attr_o/q.obj", "w");
+  if (f) fprintf(f, "mtllib q.mtl\nusemtl skin\n%s", quad), fclose(f);
   /* the library gone: the mesh reads, no material */
   CHECK(km_test_run("rm attr_o/q.mtl", NULL) == 0);
   km_mesh m = {0};

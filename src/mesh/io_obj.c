@@ -297,10 +297,36 @@ static const char *next_line(const char *p, const char *end, char *kw, size_t kn
   return e ? e + 1 : end;
 }
 
+/* The file a map statement names: its options skipped (-o, -s and -t take one to three numbers,
+ * -mm two, every other option one argument), then the rest of the line, spaces kept (Blender
+ * writes "map_Kd my skin.png"). */
+static const char *map_file(const char *rest) {
+  const char *p = rest;
+  for (;;) {
+    while (*p == ' ' || *p == '\t')
+      ++p;
+    if (*p != '-') return p;
+    size_t ol = strcspn(p, " \t");
+    int min = ol == 3 && !strncmp(p, "-mm", 3) ? 2 : 1;
+    int max = ol == 2 && strchr("ost", p[1]) ? 3 : min;
+    p += ol;
+    for (int k = 0; k < max; ++k) {
+      const char *q = p;
+      while (*q == ' ' || *q == '\t')
+        ++q;
+      size_t tl = strcspn(q, " \t");
+      double x;
+      if (!tl || (k >= min && !km__parse_double(q, tl, &x))) break;
+      p = q + tl;
+    }
+  }
+}
+
 /* One material of a .mtl: what km_mesh_material needs. */
 typedef struct mtl_def {
   char name[1024];
   double kd[3], ns, d, pr, pm; /* pr, pm < 0: not given */
+  bool d_given;                /* d wins over Tr */
   char map[1024];
 } mtl_def;
 
@@ -329,7 +355,21 @@ static void mtl_material(const mtl_def *def, const char *mpath, const char *path
   if (!def || !def->map[0]) return;
   char *ipath = km__path_beside(mpath, def->map), *img = NULL;
   size_t bytes = 0;
-  if (ipath && km__read_file(ipath, &img, &bytes, NULL) == KM_OK) {
+  bool read = ipath && km__read_file(ipath, &img, &bytes, NULL) == KM_OK;
+  const char *base = def->map + strlen(def->map);
+  while (base > def->map && base[-1] != '/' && base[-1] != '\\')
+    --base;
+  if (!read && ipath && base != def->map) {
+    /* a path from the machine that wrote it (C:\Users\...\skin.png, /home/...): its file
+     * beside the library, where the textures travel with it */
+    char *alt = km__path_beside(mpath, base);
+    if (alt && km__read_file(alt, &img, &bytes, NULL) == KM_OK) {
+      free(ipath);
+      ipath = alt, alt = NULL, read = true;
+    }
+    free(alt);
+  }
+  if (read) {
     const unsigned char *b = (const unsigned char *)img;
     bool png = bytes >= 8 && !memcmp(b, "\x89PNG\r\n\x1a\n", 8),
          jpg = bytes >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF;
@@ -345,6 +385,37 @@ static void mtl_material(const mtl_def *def, const char *mpath, const char *path
   }
   free(img);
   free(ipath);
+}
+
+/* The libraries of an "mtllib a.mtl b.mtl" line (the specification's list; a name with a space
+ * was tried whole first), each beside path, those that read, one after the other. NULL: none
+ * read. */
+static char *read_libraries(const char *path, const char *list, size_t *n) {
+  char *all = NULL, name[1024];
+  *n = 0;
+  for (const char *p = list; *p;) {
+    while (*p == ' ' || *p == '\t')
+      ++p;
+    size_t tl = strcspn(p, " \t");
+    if (!tl) break;
+    snprintf(name, sizeof name, "%.*s", (int)tl, p);
+    p += tl;
+    char *lp = km__path_beside(path, name), *data = NULL;
+    size_t dn = 0;
+    if (lp && km__read_file(lp, &data, &dn, NULL) == KM_OK) {
+      char *t = realloc(all, *n + dn + 2);
+      if (t) {
+        all = t;
+        memcpy(all + *n, data, dn);
+        all[*n + dn] = '\n';
+        *n += dn + 1;
+        all[*n] = 0;
+      }
+    }
+    free(data);
+    free(lp);
+  }
+  return all;
 }
 
 void km__obj_read_material(const char *data, size_t size, const char *path, km_mesh *out) {
@@ -397,7 +468,9 @@ void km__obj_read_material(const char *data, size_t size, const char *path, km_m
   }
   char *mpath = km__path_beside(path, lib), *mdata = NULL;
   size_t mn = 0;
-  if (!mpath || km__read_file(mpath, &mdata, &mn, NULL) != KM_OK) {
+  if (mpath && km__read_file(mpath, &mdata, &mn, NULL) != KM_OK && strchr(lib, ' '))
+    mdata = read_libraries(path, lib, &mn); /* "mtllib a.mtl b.mtl": several */
+  if (!mpath || !mdata) {
     km__log(KM_LOG_WARN, "%s: its material library %s cannot be read: no material carried", path,
             mpath ? mpath : lib);
     free(mpath);
@@ -427,13 +500,16 @@ void km__obj_read_material(const char *data, size_t size, const char *path, km_m
       sscanf(rest, "%lf", &defs[n_defs - 1].ns);
     } else if (n_defs && !strcmp(kw, "d")) { /* dissolve: the alpha */
       if (sscanf(rest, "%lf", &defs[n_defs - 1].d) != 1) defs[n_defs - 1].d = 1;
+      defs[n_defs - 1].d_given = true;
     } else if (n_defs && (!strcmp(kw, "Pr") || !strcmp(kw, "Pm"))) { /* the PBR extension */
       double x;
       if (sscanf(rest, "%lf", &x) == 1 && x >= 0)
         *(kw[1] == 'r' ? &defs[n_defs - 1].pr : &defs[n_defs - 1].pm) = x;
+    } else if (n_defs && !strcmp(kw, "Tr") && !defs[n_defs - 1].d_given) { /* 1 - d */
+      double x;
+      if (sscanf(rest, "%lf", &x) == 1) defs[n_defs - 1].d = 1 - x;
     } else if (n_defs && !strcmp(kw, "map_Kd")) {
-      const char *last = strrchr(rest, ' '); /* options (-s u v w ...) come before the file */
-      snprintf(defs[n_defs - 1].map, sizeof defs[n_defs - 1].map, "%s", last ? last + 1 : rest);
+      snprintf(defs[n_defs - 1].map, sizeof defs[n_defs - 1].map, "%s", map_file(rest));
     }
   }
   free(mdata);
