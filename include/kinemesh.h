@@ -325,7 +325,40 @@ typedef struct km_mesh {
   size_t n_materials;
 } km_mesh;
 
-/* A mesh's base colour: what a .glb output writes as its material (pbrMetallicRoughness). */
+/* How a texture is sampled, as glTF's sampler says (pixel art keeps its pixels with NEAREST,
+ * a decal CLAMP_TO_EDGE), in its OpenGL enums (9728 NEAREST, 9729 LINEAR, 9984..9987 the
+ * mipmap filters; 33071 CLAMP_TO_EDGE, 33648 MIRRORED_REPEAT, 10497 REPEAT); 0: not given
+ * (the viewer's default: linear, repeat). */
+typedef struct km_mesh_sampler {
+  int mag_filter, min_filter, wrap_s, wrap_t;
+} km_mesh_sampler;
+
+/* One texture image as encoded in the file it came from (PNG or JPEG bytes). */
+typedef struct km_mesh_image {
+  unsigned char *bytes;    /* NULL: none */
+  size_t size;             /* bytes */
+  char mime[16];           /* "image/png" or "image/jpeg" */
+  km_mesh_sampler sampler; /* how the texture using it is sampled */
+} km_mesh_image;
+
+/* A material's textures besides the base colour (glTF's), indexing km_mesh_material.maps. */
+typedef enum km_mesh_map {
+  KM_MAP_METALLIC_ROUGHNESS = 0, /* glTF metallicRoughnessTexture: B metallic, G roughness */
+  KM_MAP_NORMAL,                 /* glTF normalTexture: tangent-space normals (OBJ norm) */
+  KM_MAP_OCCLUSION,              /* glTF occlusionTexture: R ambient occlusion */
+  KM_MAP_EMISSIVE,               /* glTF emissiveTexture: RGB emitted colour (OBJ map_Ke) */
+  KM_MAP_COUNT
+} km_mesh_map;
+
+/* glTF's alphaMode. */
+typedef enum km_mesh_alpha_mode {
+  KM_ALPHA_OPAQUE = 0, /* alpha ignored */
+  KM_ALPHA_MASK,       /* drawn where alpha >= alpha_cutoff, else not at all */
+  KM_ALPHA_BLEND       /* blended over what is behind */
+} km_mesh_alpha_mode;
+
+/* A mesh's surface: what a .glb output writes as its material (pbrMetallicRoughness, normal,
+ * occlusion and emissive textures), an OBJ output as its .mtl entry. */
 typedef struct km_mesh_material {
   double base_color[4]; /* RGBA factor, linear (glTF baseColorFactor; 1,1,1,1 by default) */
   double metallic;      /* glTF metallicFactor (1 by default) */
@@ -334,8 +367,21 @@ typedef struct km_mesh_material {
                            NULL: none */
   size_t image_size;    /* bytes */
   char image_mime[16];  /* "image/png" or "image/jpeg" */
-  size_t first_face;    /* the faces it colours: first_face .. first_face + n_faces - 1 */
+  km_mesh_sampler image_sampler; /* how the base colour texture is sampled */
+  size_t first_face;             /* the faces it colours: first_face .. first_face + n_faces - 1 */
   size_t n_faces;
+  /* The other textures, each over TEXCOORD_0 (a glTF texture on another set is left out with
+   * a warning: only the first set is carried) and their factors, as glTF defines them. */
+  km_mesh_image maps[KM_MAP_COUNT];
+  double normal_scale;       /* normalTexture.scale; 0: 1 */
+  double occlusion_strength; /* occlusionTexture.strength; 0: 1 */
+  double emissive[3];        /* emissiveFactor, linear RGB (0, 0, 0 by default) */
+  /* How the alpha (base_color[3] times the texture's) is drawn, as glTF's alphaMode: hair cards
+   * and leaves are cut out (MASK), glass and cloth edges blended (BLEND); and whether the back
+   * of each face is drawn too (doubleSided: thin cloth, hair). */
+  km_mesh_alpha_mode alpha_mode; /* 0: KM_ALPHA_OPAQUE */
+  double alpha_cutoff;           /* KM_ALPHA_MASK's threshold; 0: 0.5 */
+  bool double_sided;
 } km_mesh_material;
 
 /* Allocates a mesh with uninitialised V and F.

@@ -609,7 +609,9 @@ static bool same_material(const km_mesh_material *a, const km_mesh_material *b) 
     if (fabs(a->base_color[c] - b->base_color[c]) > 1e-15) return false;
   return fabs(a->metallic - b->metallic) < 1e-15 && fabs(a->roughness - b->roughness) < 1e-15 &&
          a->first_face == b->first_face && a->n_faces == b->n_faces &&
-         a->image_size == b->image_size &&
+         a->image_size == b->image_size && a->alpha_mode == b->alpha_mode &&
+         !memcmp(&a->image_sampler, &b->image_sampler, sizeof a->image_sampler) &&
+         a->double_sided == b->double_sided &&
          (!a->image_size || !memcmp(a->image, b->image, a->image_size)) &&
          !strcmp(a->image_mime, b->image_mime);
 }
@@ -648,7 +650,8 @@ static void test_obj_material_out(void) {
                               .metallic = 0.5,
                               .roughness = 0.25,
                               .first_face = 2,
-                              .n_faces = 4},
+                              .n_faces = 4,
+                              .alpha_mode = KM_ALPHA_BLEND},
                              {.base_color = {1, 1, 1, 1},
                               .metallic = 0,
                               .roughness = 1,
@@ -671,6 +674,72 @@ static void test_obj_material_out(void) {
     CHECK_MSG(same_material(&mat[k], &r.materials[k]), "material %zu differs after the OBJ", k);
   CHECK(r.n_vertices == 10 && r.UV && !memcmp(r.UV, UV, sizeof UV));
   km_mesh_free(&r);
+
+  /* the other textures: through a .glb all four with their factors (the images stored once:
+   * occlusion is the base colour's bytes, emissive the normal map's); through an OBJ the normal
+   * (map_Bump -bm) and emissive (map_Ke, Ke) maps, which an .mtl can name */
+  static unsigned char png2[70], png3[70];
+  memcpy(png2, png, 70), memcpy(png3, png, 70);
+  png2[69] ^= 1, png3[69] ^= 2; /* other bytes after the signature: other images */
+  km_mesh_image im0 = {.bytes = png, .size = 70, .mime = "image/png"},
+                im2 = {.bytes = png2, .size = 70, .mime = "image/png"},
+                im3 = {.bytes = png3, .size = 70, .mime = "image/png"};
+  mat[0].maps[KM_MAP_NORMAL] = im2, mat[0].maps[KM_MAP_EMISSIVE] = im2;
+  mat[0].maps[KM_MAP_METALLIC_ROUGHNESS] = im3, mat[0].maps[KM_MAP_OCCLUSION] = im0;
+  mat[0].normal_scale = 0.5, mat[0].occlusion_strength = 0.8;
+  /* and how alpha is drawn: hair cut out (MASK at 0.3), both sides drawn; an OBJ says neither,
+   * only d (its material 1, alpha 0.75, reads back as BLEND) */
+  mat[0].alpha_mode = KM_ALPHA_MASK, mat[0].alpha_cutoff = 0.3, mat[0].double_sided = true;
+  /* pixel art: its base colour sampled NEAREST and clamped, its normal map mirrored; the same
+   * image (png) as material 2's default-sampled base colour: one image, two textures */
+  mat[0].image_sampler = (km_mesh_sampler){9728, 9728, 33071, 33071};
+  mat[0].maps[KM_MAP_NORMAL].sampler.wrap_s = 33648;
+  mat[0].emissive[0] = 0.1, mat[0].emissive[1] = 0.2, mat[0].emissive[2] = 0.3;
+  for (int out = 0; out < 3; ++out) { /* glb, compressed glb (the packed writer), OBJ */
+    const char *path = out < 2 ? "attr_m/maps.glb" : "attr_m/maps/maps.obj";
+    if (out < 2) {
+      km_anim_options ao = {.compress = out == 1};
+      km_anim_writer *w = NULL;
+      CHECK_OK(km_anim_writer_open(path, &m, &ao, &w, KM_E));
+      for (int k = 0; w && k < 2; ++k)
+        CHECK_OK(km_anim_writer_push(w, V, KM_E));
+      if (w) CHECK_OK(km_anim_writer_close(&w, KM_E));
+    } else {
+      CHECK_OK(km_mesh_write(path, &m, NULL, KM_E));
+    }
+    CHECK_OK(km_mesh_read(path, &r, KM_E));
+    const km_mesh_material *q = r.n_materials == 3 ? r.materials : NULL;
+    CHECK_MSG(q != NULL, "%s: %zu materials", path, r.n_materials);
+    /* every run of faces in its place (a third material's faces were once dropped from a glb;
+     * the glb writer may reorder faces within a run for the vertex cache) */
+    CHECK_MSG(q && r.n_faces == 8 && same_material(&mat[1], q + 1) && same_material(&mat[2], q + 2),
+              "%s: the faces or their materials differ", path);
+    for (int k = 0; q && k < KM_MAP_COUNT; ++k) {
+      bool carried = out < 2 || k == KM_MAP_NORMAL || k == KM_MAP_EMISSIVE;
+      const km_mesh_image *a = &mat[0].maps[k], *b = &q->maps[k];
+      CHECK_MSG(carried ? b->size == a->size && b->bytes && !memcmp(b->bytes, a->bytes, a->size) &&
+                              !strcmp(b->mime, a->mime) &&
+                              b->sampler.wrap_s == (out < 2 ? a->sampler.wrap_s : 0)
+                        : !b->bytes,
+                "%s: map %d %s", path, k, b->bytes ? "differs" : "missing");
+      CHECK(!q[1].maps[k].bytes && !q[2].maps[k].bytes);
+    }
+    km_mesh_material want = mat[0];
+    if (out == 2) /* what an .mtl cannot say */
+      want.alpha_mode = KM_ALPHA_OPAQUE, want.double_sided = false,
+      want.image_sampler = (km_mesh_sampler){0};
+    CHECK_MSG(q && q->normal_scale == 0.5 && q->emissive[1] == 0.2 &&
+                  (out == 2 || (q->occlusion_strength == 0.8 && q->alpha_cutoff == 0.3)) &&
+                  same_material(&want, q),
+              "%s: the factors differ", path);
+    km_mesh_free(&r);
+  }
+  /* one image per distinct bytes: the base colour, the normal / emissive, the OBJ's two */
+  CHECK(km_test_run("test $(ls attr_m/maps | grep -c texture) = 2", NULL) == 0);
+  for (int k = 0; k < KM_MAP_COUNT; ++k)
+    mat[0].maps[k] = (km_mesh_image){0};
+  mat[0].alpha_mode = KM_ALPHA_OPAQUE, mat[0].double_sided = false;
+  mat[0].image_sampler = (km_mesh_sampler){0};
 
   /* runs that do not tile the faces: the first material over all, as the glb writer does */
   mat[1].first_face = 3;

@@ -103,11 +103,29 @@ int km_cli_info(int argc, char **argv) {
       cJSON_AddStringToObject(mo, "texture", mk->image_mime);
       cJSON_AddNumberToObject(mo, "texture_bytes", (double)mk->image_size);
     }
+    /* the other textures, by glTF's names */
+    static const char *const map_name[KM_MAP_COUNT] = {"metallic_roughness", "normal", "occlusion",
+                                                       "emissive"};
+    cJSON *maps = cJSON_AddArrayToObject(mo, "maps");
+    char maps_line[96] = "";
+    size_t mll = 0;
+    for (int q = 0; q < KM_MAP_COUNT; ++q)
+      if (mk->maps[q].bytes) {
+        cJSON_AddItemToArray(maps, cJSON_CreateString(map_name[q]));
+        if (mll < sizeof maps_line)
+          mll += (size_t)snprintf(maps_line + mll, sizeof maps_line - mll, " + %s", map_name[q]);
+      }
+    if (mk->emissive[0] || mk->emissive[1] || mk->emissive[2])
+      cJSON_AddItemToObject(mo, "emissive", cJSON_CreateDoubleArray(mk->emissive, 3));
+    static const char *const alpha_name[3] = {"opaque", "mask", "blend"};
+    cJSON_AddStringToObject(mo, "alpha_mode",
+                            alpha_name[mk->alpha_mode <= KM_ALPHA_BLEND ? mk->alpha_mode : 0]);
+    if (mk->double_sided) cJSON_AddBoolToObject(mo, "double_sided", 1);
     cJSON_AddItemToArray(mats, mo);
     if (k < 4 && ml < sizeof mat_line)
-      ml +=
-          (size_t)snprintf(mat_line + ml, sizeof mat_line - ml, "%s%zu faces, %s", k ? "; " : " (",
-                           mk->n_faces, mk->image ? mk->image_mime : "colour only");
+      ml += (size_t)snprintf(mat_line + ml, sizeof mat_line - ml, "%s%zu faces, %s%s",
+                             k ? "; " : " (", mk->n_faces,
+                             mk->image ? mk->image_mime : "colour only", maps_line);
   }
   if (m.n_materials && ml < sizeof mat_line)
     snprintf(mat_line + ml, sizeof mat_line - ml, "%s)", m.n_materials > 4 ? "; ..." : "");

@@ -313,7 +313,7 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
               "first material is written over all of them",
               path, nf);
       for (size_t k = 1; k < w->material_mesh.n_materials; ++k)
-        free(w->material_mesh.materials[k].image);
+        km__material_free_images(w->material_mesh.materials + k);
       w->material_mesh.n_materials = 1;
       w->material_mesh.materials[0].first_face = 0;
       w->material_mesh.materials[0].n_faces = nf;
@@ -395,7 +395,7 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     w->tmp_dir_slot =
         km__tmp_dir_register(w->tmp_dir, w->format == KM_ANIM_PLY_DIR ? "ply" : "obj");
     if (w->material_mesh.n_materials) { /* once for every frame's mtllib */
-      km__tmp_dir_materials(w->tmp_dir_slot, w->material_mesh.n_materials);
+      km__tmp_dir_materials(w->tmp_dir_slot, w->material_mesh.n_materials * KM__SLOTS);
       if ((s = km__obj_write_materials(w->tmp_dir, "materials.mtl", "texture_",
                                        w->material_mesh.materials, w->material_mesh.n_materials,
                                        err)) != KM_OK)

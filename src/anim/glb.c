@@ -67,65 +67,149 @@ static int jint_item(const cJSON *o, const char *key) {
   return cJSON_IsNumber(v) ? v->valueint : -1;
 }
 
+static bool same_sampler(km_mesh_sampler a, km_mesh_sampler b) {
+  return a.mag_filter == b.mag_filter && a.min_filter == b.min_filter && a.wrap_s == b.wrap_s &&
+         a.wrap_t == b.wrap_t;
+}
+
+/* The sampler of texture slot i (km__material_images_unique's numbering). */
+static km_mesh_sampler slot_sampler(const km_mesh_material *m, size_t i) {
+  return km__material_slot(m + i / KM__SLOTS, (int)(i % KM__SLOTS)).sampler;
+}
+
+/* The index in `samplers` (whose 0 is the default, {}) of a sampler with these settings,
+ * appended when none has them. */
+static int sampler_index(cJSON *samplers, km_mesh_sampler s) {
+  if (!s.mag_filter && !s.min_filter && !s.wrap_s && !s.wrap_t) return 0;
+  int n = cJSON_GetArraySize(samplers);
+  for (int k = 1; k < n; ++k) {
+    const cJSON *o = cJSON_GetArrayItem(samplers, k);
+    int v[4] = {jint_item(o, "magFilter"), jint_item(o, "minFilter"), jint_item(o, "wrapS"),
+                jint_item(o, "wrapT")}; /* -1: absent, i.e. 0 */
+    km_mesh_sampler t = {v[0] > 0 ? v[0] : 0, v[1] > 0 ? v[1] : 0, v[2] > 0 ? v[2] : 0,
+                         v[3] > 0 ? v[3] : 0};
+    if (same_sampler(s, t)) return k;
+  }
+  cJSON *o = cJSON_CreateObject();
+  if (s.mag_filter) cJSON_AddNumberToObject(o, "magFilter", s.mag_filter);
+  if (s.min_filter) cJSON_AddNumberToObject(o, "minFilter", s.min_filter);
+  if (s.wrap_s) cJSON_AddNumberToObject(o, "wrapS", s.wrap_s);
+  if (s.wrap_t) cJSON_AddNumberToObject(o, "wrapT", s.wrap_t);
+  cJSON_AddItemToArray(samplers, o);
+  return n;
+}
+
+/* The size of texture slot i (km__material_images_unique's numbering). */
+static size_t slot_size(const km_mesh_material *m, size_t i) {
+  return km__material_slot(m + i / KM__SLOTS, (int)(i % KM__SLOTS)).size;
+}
+
 /* The rest mesh's materials (km_mesh.materials; issue 11: a textured model must not come out
- * grey): materials[k] with its base colour, metallic and roughness factors and, where the file
- * had one, its base colour texture, whose image (PNG or JPEG, as read) lies in bufferView
- * view[k] (-1: none; materials with identical images share one view, texture and image). The
+ * grey): materials[k] with its base colour, metallic, roughness and emissive factors and, where
+ * the file had them, its textures (base colour, metallic-roughness, normal with its scale,
+ * occlusion with its strength, emissive), slot s's image (PNG or JPEG, as read) in bufferView
+ * view[k * KM__SLOTS + s] (-1: none; slots with identical images share one view, texture and
+ * image). The
  * mesh's one primitive `prim` (built over every face) becomes one per material, each over its
  * run of faces (an accessor on the same index view at the run's offset; the attributes and
  * morph targets shared), so each part keeps its own colour. */
 static void add_materials(cJSON *root, cJSON *accessors, cJSON *mesh, cJSON *prim,
                           const km_mesh_material *m, size_t n, const int *view) {
   if (!n) return;
-  cJSON *mats = cJSON_AddArrayToObject(root, "materials"), *texs = NULL, *imgs = NULL;
-  int *tex_of = calloc(n, sizeof *tex_of); /* the texture of each view's first material */
-  int n_tex = 0;
+  cJSON *mats = cJSON_AddArrayToObject(root, "materials"), *texs = NULL, *imgs = NULL, *smps = NULL;
+  size_t ni = n * KM__SLOTS;
+  int *tex_of = calloc(ni, sizeof *tex_of), /* each slot's texture and image */
+      *img_of = calloc(ni, sizeof *img_of);
+  int n_tex = 0, n_img = 0;
+  if (!img_of) free(tex_of), tex_of = NULL;
   for (size_t k = 0; k < n; ++k) {
+    const km_mesh_material *q = m + k;
     cJSON *mat = cJSON_CreateObject();
     char nm[32];
     snprintf(nm, sizeof nm, "kinemesh_%zu", k);
     cJSON_AddStringToObject(mat, "name", nm);
     cJSON *pbr = cJSON_AddObjectToObject(mat, "pbrMetallicRoughness");
-    cJSON_AddItemToObject(pbr, "baseColorFactor", cJSON_CreateDoubleArray(m[k].base_color, 4));
-    cJSON_AddNumberToObject(pbr, "metallicFactor", m[k].metallic);
-    cJSON_AddNumberToObject(pbr, "roughnessFactor", m[k].roughness);
-    if (view[k] >= 0 && tex_of) {
-      size_t q = 0;
-      while (q < k && view[q] != view[k])
-        ++q;
-      if (q == k) {
+    cJSON_AddItemToObject(pbr, "baseColorFactor", cJSON_CreateDoubleArray(q->base_color, 4));
+    cJSON_AddNumberToObject(pbr, "metallicFactor", q->metallic);
+    cJSON_AddNumberToObject(pbr, "roughnessFactor", q->roughness);
+    for (int sl = 0; sl < KM__SLOTS && tex_of; ++sl) {
+      size_t i = k * KM__SLOTS + (size_t)sl;
+      if (view[i] < 0) continue;
+      /* one image per view, one texture per image and sampler, one sampler per setting */
+      km_mesh_sampler smp = km__material_slot(q, sl).sampler;
+      size_t j = 0, jv = 0;
+      while (j < i && !(view[j] == view[i] && same_sampler(slot_sampler(m, j), smp)))
+        ++j;
+      while (jv < i && view[jv] != view[i])
+        ++jv;
+      if (j == i) {
         if (!texs) {
           texs = cJSON_AddArrayToObject(root, "textures");
           imgs = cJSON_AddArrayToObject(root, "images");
-          cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "samplers"), cJSON_CreateObject());
+          smps = cJSON_AddArrayToObject(root, "samplers");
+          cJSON_AddItemToArray(smps, cJSON_CreateObject()); /* 0: the default */
+        }
+        if (jv == i) { /* the view's first use: its image */
+          cJSON *img = cJSON_CreateObject();
+          cJSON_AddNumberToObject(img, "bufferView", view[i]);
+          cJSON_AddStringToObject(img, "mimeType", km__material_slot(q, sl).mime);
+          cJSON_AddItemToArray(imgs, img);
+          img_of[i] = n_img++;
+        } else {
+          img_of[i] = img_of[jv];
         }
         cJSON *tex = cJSON_CreateObject();
-        cJSON_AddNumberToObject(tex, "source", n_tex);
-        cJSON_AddNumberToObject(tex, "sampler", 0);
+        cJSON_AddNumberToObject(tex, "source", img_of[i]);
+        cJSON_AddNumberToObject(tex, "sampler", sampler_index(smps, smp));
         cJSON_AddItemToArray(texs, tex);
-        cJSON *img = cJSON_CreateObject();
-        cJSON_AddNumberToObject(img, "bufferView", view[k]);
-        cJSON_AddStringToObject(img, "mimeType", m[k].image_mime);
-        cJSON_AddItemToArray(imgs, img);
-        tex_of[k] = n_tex++;
+        tex_of[i] = n_tex++;
       } else {
-        tex_of[k] = tex_of[q];
+        tex_of[i] = tex_of[j];
+        img_of[i] = img_of[j];
       }
-      cJSON_AddNumberToObject(cJSON_AddObjectToObject(pbr, "baseColorTexture"), "index", tex_of[k]);
+      static const char *const name[KM__SLOTS] = {"baseColorTexture", "metallicRoughnessTexture",
+                                                  "normalTexture", "occlusionTexture",
+                                                  "emissiveTexture"};
+      cJSON *info = cJSON_AddObjectToObject(sl < 2 ? pbr : mat, name[sl]);
+      cJSON_AddNumberToObject(info, "index", tex_of[i]);
+      if (sl == 1 + KM_MAP_NORMAL && q->normal_scale && q->normal_scale != 1)
+        cJSON_AddNumberToObject(info, "scale", q->normal_scale);
+      if (sl == 1 + KM_MAP_OCCLUSION && q->occlusion_strength && q->occlusion_strength != 1)
+        cJSON_AddNumberToObject(info, "strength", q->occlusion_strength);
     }
+    if (q->emissive[0] || q->emissive[1] || q->emissive[2])
+      cJSON_AddItemToObject(mat, "emissiveFactor", cJSON_CreateDoubleArray(q->emissive, 3));
+    if (q->alpha_mode == KM_ALPHA_MASK || q->alpha_mode == KM_ALPHA_BLEND)
+      cJSON_AddStringToObject(mat, "alphaMode", q->alpha_mode == KM_ALPHA_MASK ? "MASK" : "BLEND");
+    if (q->alpha_mode == KM_ALPHA_MASK && q->alpha_cutoff && q->alpha_cutoff != 0.5)
+      cJSON_AddNumberToObject(mat, "alphaCutoff", q->alpha_cutoff);
+    if (q->double_sided) cJSON_AddBoolToObject(mat, "doubleSided", 1);
     cJSON_AddItemToArray(mats, mat);
   }
-  free(tex_of);
+  free(tex_of), free(img_of);
   cJSON *prims = cJSON_GetObjectItemCaseSensitive(mesh, "primitives");
   int a_idx = jint_item(prim, "indices");
-  for (size_t k = n; k-- > 0;) { /* copies of the pristine primitive first, itself last */
-    cJSON *p = k ? cJSON_Duplicate(prim, 1) : prim;
-    if (k) cJSON_InsertItemInArray(prims, 1, p);
+  /* Every copy is taken from the pristine primitive (and index accessor) before any is changed,
+   * and appended in material order: cJSON 1.7.15's (Debian 12's) cJSON_InsertItemInArray loses
+   * an item inserted before the last one, which dropped the third material's faces. */
+  cJSON **ps = calloc(n, sizeof *ps), **as = calloc(n, sizeof *as);
+  if (!ps || !as) {
+    free(ps), free(as);
+    cJSON_AddNumberToObject(prim, "material", 0); /* out of memory: the first over all */
+    return;
+  }
+  cJSON *acc0 = a_idx >= 0 ? cJSON_GetArrayItem(accessors, a_idx) : NULL;
+  for (size_t k = 0; k < n; ++k) {
+    ps[k] = k ? cJSON_Duplicate(prim, 1) : prim;
+    as[k] = k && acc0 && n > 1 ? cJSON_Duplicate(acc0, 1) : acc0;
+  }
+  for (size_t k = 0; k < n; ++k) {
+    cJSON *p = ps[k];
+    if (k) cJSON_AddItemToArray(prims, p);
     cJSON_AddNumberToObject(p, "material", (double)k);
-    if (a_idx < 0 || n == 1) continue;
+    if (!as[k] || n == 1) continue;
     /* the run's indices: the whole index accessor's view from the run's first face */
-    cJSON *acc = k ? cJSON_Duplicate(cJSON_GetArrayItem(accessors, a_idx), 1)
-                   : cJSON_GetArrayItem(accessors, a_idx);
+    cJSON *acc = as[k];
     cJSON_DeleteItemFromObject(acc, "byteOffset");
     cJSON_AddNumberToObject(acc, "byteOffset", (double)(12 * m[k].first_face));
     cJSON_ReplaceItemInObject(acc, "count", cJSON_CreateNumber((double)(3 * m[k].n_faces)));
@@ -135,6 +219,7 @@ static void add_materials(cJSON *root, cJSON *accessors, cJSON *mesh, cJSON *pri
                                 cJSON_CreateNumber((double)(cJSON_GetArraySize(accessors) - 1)));
     }
   }
+  free(ps), free(as);
 }
 
 /* Appends a plain bufferView (no accessor, no target: an image) and returns its index. */
@@ -279,16 +364,17 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   const uint64_t uv_len = w->uv ? (uint64_t)nv * 8 : 0;
   const km_mesh_material *mat = w->material_mesh.materials;
   const size_t n_mat = w->material_mesh.n_materials;
-  int *uniq = km__malloc(n_mat ? n_mat : 1, sizeof *uniq),
-      *view = km__malloc(n_mat ? n_mat : 1, sizeof *view);
+  const size_t n_img = n_mat * KM__SLOTS; /* every material's texture slots */
+  int *uniq = km__malloc(n_img ? n_img : 1, sizeof *uniq),
+      *view = km__malloc(n_img ? n_img : 1, sizeof *view);
   if (!uniq || !view) {
     free(uniq), free(view);
     return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
   }
   km__material_images_unique(mat, n_mat, uniq);
   uint64_t img_pad = 0;
-  for (size_t k = 0; k < n_mat; ++k)
-    if (uniq[k] == (int)k) img_pad += (mat[k].image_size + 3) & ~(uint64_t)3;
+  for (size_t i = 0; i < n_img; ++i)
+    if (uniq[i] == (int)i) img_pad += (slot_size(mat, i) + 3) & ~(uint64_t)3;
   uint64_t bin_len =
       idx_len + pos_len * (1 + nk) * (with_n ? 2 : 1) + uv_len + times_len + weights_len + img_pad;
   if (bin_len + (64u << 20) > UINT32_MAX) {
@@ -388,11 +474,11 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
                                 NULL, NULL, 0);
   off += weights_len;
   add_weights_animation(root, a_in, a_out);
-  for (size_t k = 0; k < n_mat; ++k) { /* the images last, in material order */
-    view[k] = uniq[k] == (int)k ? add_view(views, off, mat[k].image_size)
-              : uniq[k] >= 0    ? view[uniq[k]]
+  for (size_t i = 0; i < n_img; ++i) { /* the images last, in material and slot order */
+    view[i] = uniq[i] == (int)i ? add_view(views, off, slot_size(mat, i))
+              : uniq[i] >= 0    ? view[uniq[i]]
                                 : -1;
-    if (uniq[k] == (int)k) off += (mat[k].image_size + 3) & ~(uint64_t)3;
+    if (uniq[i] == (int)i) off += (slot_size(mat, i) + 3) & ~(uint64_t)3;
   }
   add_materials(root, accessors, mesh, prim, mat, n_mat, view);
   free(uniq), free(view);
@@ -502,15 +588,16 @@ static km_status stream_morph_bin(km_anim_writer *w, FILE *f, void *ctx, km_erro
   /* the materials' images last, each once, padded to 4 bytes (finish's layout) */
   const km_mesh_material *mat = w->material_mesh.materials;
   const size_t n_mat = w->material_mesh.n_materials;
-  int *uniq = n_mat ? km__malloc(n_mat, sizeof *uniq) : NULL;
-  if (n_mat && !uniq && s == KM_OK) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
+  const size_t n_img = n_mat * KM__SLOTS;
+  int *uniq = n_img ? km__malloc(n_img, sizeof *uniq) : NULL;
+  if (n_img && !uniq && s == KM_OK) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
   if (uniq) km__material_images_unique(mat, n_mat, uniq);
-  for (size_t k = 0; uniq && s == KM_OK && k < n_mat; ++k) {
+  for (size_t i = 0; uniq && s == KM_OK && i < n_img; ++i) {
     static const unsigned char zero[3] = {0, 0, 0};
-    if (uniq[k] != (int)k) continue;
-    s = write_all(w, f, mat[k].image, mat[k].image_size, err);
-    if (s == KM_OK && mat[k].image_size % 4)
-      s = write_all(w, f, zero, 4 - mat[k].image_size % 4, err);
+    if (uniq[i] != (int)i) continue;
+    km_mesh_image im = km__material_slot(mat + i / KM__SLOTS, (int)(i % KM__SLOTS));
+    s = write_all(w, f, im.bytes, im.size, err);
+    if (s == KM_OK && im.size % 4) s = write_all(w, f, zero, 4 - im.size % 4, err);
   }
   free(uniq);
   return s;
@@ -755,20 +842,22 @@ static int pack_view(glb_pack *pk, const void *data, size_t count, size_t stride
 static int pack_materials(glb_pack *pk, cJSON *root, cJSON *mesh, cJSON *prim,
                           const km_mesh_material *m, size_t n) {
   if (!n) return 0;
-  int *uniq = km__malloc(n, sizeof *uniq), *view = km__malloc(n, sizeof *view), rc = 0;
+  size_t ni = n * KM__SLOTS;
+  int *uniq = km__malloc(ni, sizeof *uniq), *view = km__malloc(ni, sizeof *view), rc = 0;
   if (!uniq || !view) rc = -1;
   if (!rc) km__material_images_unique(m, n, uniq);
-  for (size_t k = 0; !rc && k < n; ++k) {
-    view[k] = uniq[k] >= 0 && uniq[k] < (int)k ? view[uniq[k]] : -1;
-    if (uniq[k] != (int)k) continue;
+  for (size_t i = 0; !rc && i < ni; ++i) {
+    view[i] = uniq[i] >= 0 && uniq[i] < (int)i ? view[uniq[i]] : -1;
+    if (uniq[i] != (int)i) continue;
+    km_mesh_image im = km__material_slot(m + i / KM__SLOTS, (int)(i % KM__SLOTS));
     size_t off = pk->bin.len;
-    unsigned char *p = bin_grow(&pk->bin, m[k].image_size);
+    unsigned char *p = bin_grow(&pk->bin, im.size);
     if (!p) {
       rc = -1;
       break;
     }
-    memcpy(p, m[k].image, m[k].image_size);
-    view[k] = add_view(pk->views, off, m[k].image_size);
+    memcpy(p, im.bytes, im.size);
+    view[i] = add_view(pk->views, off, im.size);
   }
   if (!rc) add_materials(root, pk->accessors, mesh, prim, m, n, view);
   free(uniq), free(view);

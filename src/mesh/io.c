@@ -46,11 +46,7 @@ km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err) {
     if (!(tmp.materials = km__calloc(src->n_materials, sizeof *tmp.materials))) goto nomem;
     tmp.n_materials = src->n_materials;
     for (size_t k = 0; k < src->n_materials; ++k) {
-      tmp.materials[k] = src->materials[k];
-      tmp.materials[k].image = NULL;
-      size_t n = src->materials[k].image ? src->materials[k].image_size : 0;
-      if (n && !(tmp.materials[k].image = km__malloc(n, 1))) goto nomem;
-      if (n) memcpy(tmp.materials[k].image, src->materials[k].image, n);
+      if (!km__material_copy(tmp.materials + k, src->materials + k)) goto nomem;
     }
   }
   *out = tmp;
@@ -69,6 +65,31 @@ uint64_t km_mesh_hash(const km_mesh *m) {
   return h;
 }
 
+bool km__material_copy(km_mesh_material *dst, const km_mesh_material *src) {
+  *dst = *src;
+  dst->image = NULL;
+  for (int q = 0; q < KM_MAP_COUNT; ++q)
+    dst->maps[q].bytes = NULL;
+  size_t n = src->image ? src->image_size : 0;
+  if (n && !(dst->image = km__malloc(n, 1))) return false;
+  if (n) memcpy(dst->image, src->image, n);
+  for (int q = 0; q < KM_MAP_COUNT; ++q) {
+    n = src->maps[q].bytes ? src->maps[q].size : 0;
+    if (n && !(dst->maps[q].bytes = km__malloc(n, 1))) return false;
+    if (n) memcpy(dst->maps[q].bytes, src->maps[q].bytes, n);
+  }
+  return true;
+}
+
+void km__material_free_images(km_mesh_material *m) {
+  free(m->image);
+  m->image = NULL;
+  for (int q = 0; q < KM_MAP_COUNT; ++q) {
+    free(m->maps[q].bytes);
+    m->maps[q].bytes = NULL;
+  }
+}
+
 void km_mesh_free(km_mesh *m) {
   if (!m) return;
   free(m->V);
@@ -76,7 +97,7 @@ void km_mesh_free(km_mesh *m) {
   free(m->UV);
   free(m->N);
   for (size_t k = 0; m->materials && k < m->n_materials; ++k)
-    free(m->materials[k].image);
+    km__material_free_images(m->materials + k);
   free(m->materials);
   memset(m, 0, sizeof *m);
 }

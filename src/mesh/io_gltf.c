@@ -751,22 +751,14 @@ static km_status gather_joints(gltf_doc *d, const instances *inst, km_error *err
   return s;
 }
 
-/* materials[mi]: its base colour, metallic and roughness factors and its base colour
- * texture's image, the encoded PNG or JPEG bytes as stored (a bufferView, a data: URI, or a
- * file beside a .gltf read from disk). An image that cannot be read is left out with a warning
- * (the geometry is what was asked for), never an error. mi -1: glTF's default material. */
-static void material_def(gltf_doc *d, int mi, km_mesh_material *m) {
-  const cJSON *mat =
-      mi < 0 ? NULL
-             : cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "materials"), mi);
-  const cJSON *pbr = cJSON_GetObjectItemCaseSensitive(mat, "pbrMetallicRoughness");
-  if (!num_array(cJSON_GetObjectItemCaseSensitive(pbr, "baseColorFactor"), 4, m->base_color))
-    m->base_color[0] = m->base_color[1] = m->base_color[2] = m->base_color[3] = 1;
-  const cJSON *mf = cJSON_GetObjectItemCaseSensitive(pbr, "metallicFactor"),
-              *rf = cJSON_GetObjectItemCaseSensitive(pbr, "roughnessFactor");
-  m->metallic = cJSON_IsNumber(mf) && isfinite(mf->valuedouble) ? mf->valuedouble : 1;
-  m->roughness = cJSON_IsNumber(rf) && isfinite(rf->valuedouble) ? rf->valuedouble : 1;
-  int ti = jint(cJSON_GetObjectItemCaseSensitive(pbr, "baseColorTexture"), "index", -1);
+/* The image of a material's textureInfo `info` (NULL: none), the encoded PNG or JPEG bytes as
+ * stored (a bufferView, a data: URI, or a file beside a .gltf read from disk), into *out. An
+ * image that cannot be read, or a texture on another set than TEXCOORD_0 (the only one carried),
+ * is left out with a warning (the geometry is what was asked for), never an error. */
+static void texture_image(gltf_doc *d, const cJSON *info, int mi, const char *what,
+                          km_mesh_image *out) {
+  memset(out, 0, sizeof *out);
+  int ti = jint(info, "index", -1);
   const cJSON *tex =
       ti < 0 ? NULL : cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "textures"), ti);
   int ii = jint(tex, "source", -1);
@@ -778,7 +770,9 @@ static void material_def(gltf_doc *d, int mi, km_mesh_material *m) {
   unsigned char *bytes = NULL;
   size_t n = 0;
   const char *why = NULL;
-  if (bvi >= 0) {
+  if (jint(info, "texCoord", 0) != 0) {
+    why = "it is on another texture coordinate set than TEXCOORD_0, the one carried";
+  } else if (bvi >= 0) {
     const cJSON *bv =
         cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "bufferViews"), bvi);
     int bi = jint(bv, "buffer", -1), boff = jint(bv, "byteOffset", 0),
@@ -796,14 +790,66 @@ static void material_def(gltf_doc *d, int mi, km_mesh_material *m) {
        jpg = n >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
   if (bytes && !png && !jpg) why = "it is neither PNG nor JPEG";
   if (why || !bytes) {
-    km__log(KM_LOG_WARN, "%s: images[%d] (materials[%d]'s base colour texture) is left out: %s",
-            d->name, ii, mi, why ? why : "out of memory");
+    km__log(KM_LOG_WARN, "%s: images[%d] (materials[%d]'s %s) is left out: %s", d->name, ii, mi,
+            what, why ? why : "out of memory");
     free(bytes);
     return;
   }
-  m->image = bytes;
-  m->image_size = n;
-  snprintf(m->image_mime, sizeof m->image_mime, "%s", png ? "image/png" : "image/jpeg");
+  out->bytes = bytes;
+  out->size = n;
+  snprintf(out->mime, sizeof out->mime, "%s", png ? "image/png" : "image/jpeg");
+  /* its sampler, each value one of glTF's enums (anything else: not given) */
+  int si = jint(tex, "sampler", -1);
+  const cJSON *smp =
+      si < 0 ? NULL : cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "samplers"), si);
+  int mag = jint(smp, "magFilter", 0), min = jint(smp, "minFilter", 0);
+  int ws = jint(smp, "wrapS", 0), wt = jint(smp, "wrapT", 0);
+  out->sampler.mag_filter = mag == 9728 || mag == 9729 ? mag : 0;
+  out->sampler.min_filter = min == 9728 || min == 9729 || (min >= 9984 && min <= 9987) ? min : 0;
+  out->sampler.wrap_s = ws == 33071 || ws == 33648 || ws == 10497 ? ws : 0;
+  out->sampler.wrap_t = wt == 33071 || wt == 33648 || wt == 10497 ? wt : 0;
+}
+
+/* A finite number member of o, else def. */
+static double jnum(const cJSON *o, const char *k, double def) {
+  const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
+  return cJSON_IsNumber(v) && isfinite(v->valuedouble) ? v->valuedouble : def;
+}
+
+/* materials[mi]: its base colour, metallic, roughness and emissive factors and its textures
+ * (texture_image). mi -1: glTF's default material. */
+static void material_def(gltf_doc *d, int mi, km_mesh_material *m) {
+  const cJSON *mat =
+      mi < 0 ? NULL
+             : cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "materials"), mi);
+  const cJSON *pbr = cJSON_GetObjectItemCaseSensitive(mat, "pbrMetallicRoughness");
+  if (!num_array(cJSON_GetObjectItemCaseSensitive(pbr, "baseColorFactor"), 4, m->base_color))
+    m->base_color[0] = m->base_color[1] = m->base_color[2] = m->base_color[3] = 1;
+  m->metallic = jnum(pbr, "metallicFactor", 1);
+  m->roughness = jnum(pbr, "roughnessFactor", 1);
+  if (!num_array(cJSON_GetObjectItemCaseSensitive(mat, "emissiveFactor"), 3, m->emissive))
+    m->emissive[0] = m->emissive[1] = m->emissive[2] = 0;
+  km_mesh_image im;
+  texture_image(d, cJSON_GetObjectItemCaseSensitive(pbr, "baseColorTexture"), mi,
+                "base colour texture", &im);
+  m->image = im.bytes, m->image_size = im.size, m->image_sampler = im.sampler;
+  memcpy(m->image_mime, im.mime, sizeof m->image_mime);
+  const cJSON *nt = cJSON_GetObjectItemCaseSensitive(mat, "normalTexture"),
+              *ot = cJSON_GetObjectItemCaseSensitive(mat, "occlusionTexture");
+  texture_image(d, cJSON_GetObjectItemCaseSensitive(pbr, "metallicRoughnessTexture"), mi,
+                "metallic-roughness texture", &m->maps[KM_MAP_METALLIC_ROUGHNESS]);
+  texture_image(d, nt, mi, "normal texture", &m->maps[KM_MAP_NORMAL]);
+  texture_image(d, ot, mi, "occlusion texture", &m->maps[KM_MAP_OCCLUSION]);
+  texture_image(d, cJSON_GetObjectItemCaseSensitive(mat, "emissiveTexture"), mi, "emissive texture",
+                &m->maps[KM_MAP_EMISSIVE]);
+  m->normal_scale = jnum(nt, "scale", 1);
+  m->occlusion_strength = jnum(ot, "strength", 1);
+  const char *am = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(mat, "alphaMode"));
+  m->alpha_mode = am && !strcmp(am, "MASK")    ? KM_ALPHA_MASK
+                  : am && !strcmp(am, "BLEND") ? KM_ALPHA_BLEND
+                                               : KM_ALPHA_OPAQUE;
+  m->alpha_cutoff = jnum(mat, "alphaCutoff", 0.5);
+  m->double_sided = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(mat, "doubleSided"));
 }
 
 /* The primitives' materials, one per run of faces (km_mesh.materials), so a textured model does
@@ -825,11 +871,9 @@ static km_status read_materials(gltf_doc *d, km_mesh *out, km_error *err) {
     while (q < r && d->run_mat[q] != d->run_mat[r])
       ++q;
     if (q < r) {
-      *m = out->materials[q];
-      m->first_face = d->run_first[r], m->n_faces = d->run_n[r];
-      if (m->image && !(m->image = km__malloc(m->image_size, 1)))
+      if (!km__material_copy(m, out->materials + q))
         return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
-      if (m->image) memcpy(m->image, out->materials[q].image, m->image_size);
+      m->first_face = d->run_first[r], m->n_faces = d->run_n[r];
     } else {
       material_def(d, d->run_mat[r], m);
     }

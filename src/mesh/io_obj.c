@@ -297,16 +297,24 @@ static const char *next_line(const char *p, const char *end, char *kw, size_t kn
   return e ? e + 1 : end;
 }
 
-/* The file a map statement names: its options skipped (-o, -s and -t take one to three numbers,
+/* The file a map statement names (*bm, if not NULL: its -bm value, when given): its options
+ * skipped (-o, -s and -t take one to three numbers,
  * -mm two, every other option one argument), then the rest of the line, spaces kept (Blender
  * writes "map_Kd my skin.png"). */
-static const char *map_file(const char *rest) {
+static const char *map_file(const char *rest, double *bm) {
   const char *p = rest;
   for (;;) {
     while (*p == ' ' || *p == '\t')
       ++p;
     if (*p != '-') return p;
     size_t ol = strcspn(p, " \t");
+    if (bm && ol == 3 && !strncmp(p, "-bm", 3)) { /* the bump multiplier: a normal map's scale */
+      const char *q = p + 3;
+      while (*q == ' ' || *q == '\t')
+        ++q;
+      double x;
+      if (km__parse_double(q, strcspn(q, " \t"), &x)) *bm = x;
+    }
     int min = ol == 3 && !strncmp(p, "-mm", 3) ? 2 : 1;
     int max = ol == 2 && strchr("ost", p[1]) ? 3 : min;
     p += ol;
@@ -327,6 +335,8 @@ typedef struct mtl_def {
   char name[1024];
   double kd[3], ns, d, pr, pm; /* pr, pm < 0: not given */
   bool d_given;                /* d wins over Tr */
+  double ke[3], bm;            /* emissive factor; the normal map's -bm (0: none given) */
+  char bump[1024], map_ke[1024];
   char map[1024];
 } mtl_def;
 
@@ -339,29 +349,18 @@ static const mtl_def *mtl_find(const mtl_def *t, size_t n, const char *name) {
 
 /* def (NULL: none, white) as a km_mesh_material over faces first .. first + n - 1; its map_Kd
  * image read relative to the library. */
-static void mtl_material(const mtl_def *def, const char *mpath, const char *path, size_t first,
-                         size_t n, km_mesh_material *m) {
-  memset(m, 0, sizeof *m);
-  m->first_face = first, m->n_faces = n;
-  /* a texture is the colour (Blender's OBJ exporter writes Kd 0.8 beside it, which a factor
-   * would darken it by); roughness from the Phong exponent as Blender's importer maps it */
-  for (int c = 0; c < 3; ++c)
-    m->base_color[c] = !def || def->map[0] ? 1 : fmin(1, fmax(0, def->kd[c]));
-  m->base_color[3] = def ? fmin(1, fmax(0, def->d)) : 1;
-  m->metallic = def && def->pm >= 0 ? fmin(1, def->pm) : 0;
-  m->roughness = def && def->pr >= 0   ? fmin(1, def->pr)
-                 : def && def->ns >= 0 ? fmin(1, fmax(0, 1 - sqrt(fmin(def->ns, 1000) / 1000)))
-                                       : 1;
-  if (!def || !def->map[0]) return;
-  char *ipath = km__path_beside(mpath, def->map), *img = NULL;
+/* The image a map statement names (map: its file), read beside the library; a path from the
+ * machine that wrote it (C:\\Users\\...\\skin.png, /home/...) is looked for by its name beside
+ * the library, where the textures travel with it. PNG or JPEG, else left out with a warning. */
+static void mtl_image(const char *map, const char *mpath, const char *path, km_mesh_image *out) {
+  memset(out, 0, sizeof *out);
+  char *ipath = km__path_beside(mpath, map), *img = NULL;
   size_t bytes = 0;
   bool read = ipath && km__read_file(ipath, &img, &bytes, NULL) == KM_OK;
-  const char *base = def->map + strlen(def->map);
-  while (base > def->map && base[-1] != '/' && base[-1] != '\\')
+  const char *base = map + strlen(map);
+  while (base > map && base[-1] != '/' && base[-1] != '\\')
     --base;
-  if (!read && ipath && base != def->map) {
-    /* a path from the machine that wrote it (C:\Users\...\skin.png, /home/...): its file
-     * beside the library, where the textures travel with it */
+  if (!read && ipath && base != map) {
     char *alt = km__path_beside(mpath, base);
     if (alt && km__read_file(alt, &img, &bytes, NULL) == KM_OK) {
       free(ipath);
@@ -374,17 +373,47 @@ static void mtl_material(const mtl_def *def, const char *mpath, const char *path
     bool png = bytes >= 8 && !memcmp(b, "\x89PNG\r\n\x1a\n", 8),
          jpg = bytes >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF;
     if (png || jpg) {
-      m->image = (unsigned char *)img, img = NULL;
-      m->image_size = bytes;
-      snprintf(m->image_mime, sizeof m->image_mime, "%s", png ? "image/png" : "image/jpeg");
+      out->bytes = (unsigned char *)img, img = NULL;
+      out->size = bytes;
+      snprintf(out->mime, sizeof out->mime, "%s", png ? "image/png" : "image/jpeg");
     } else {
       km__log(KM_LOG_WARN, "%s: texture %s is neither PNG nor JPEG: left out", path, ipath);
     }
   } else {
-    km__log(KM_LOG_WARN, "%s: texture %s cannot be read: left out", path, ipath ? ipath : def->map);
+    km__log(KM_LOG_WARN, "%s: texture %s cannot be read: left out", path, ipath ? ipath : map);
   }
   free(img);
   free(ipath);
+}
+
+/* def (NULL: none, white) as a km_mesh_material over faces first .. first + n - 1; its maps'
+ * images read relative to the library. */
+static void mtl_material(const mtl_def *def, const char *mpath, const char *path, size_t first,
+                         size_t n, km_mesh_material *m) {
+  memset(m, 0, sizeof *m);
+  m->first_face = first, m->n_faces = n;
+  /* a texture is the colour (Blender's OBJ exporter writes Kd 0.8 beside it, which a factor
+   * would darken it by); roughness from the Phong exponent as Blender's importer maps it */
+  for (int c = 0; c < 3; ++c)
+    m->base_color[c] = !def || def->map[0] ? 1 : fmin(1, fmax(0, def->kd[c]));
+  m->base_color[3] = def ? fmin(1, fmax(0, def->d)) : 1;
+  if (m->base_color[3] < 1) m->alpha_mode = KM_ALPHA_BLEND; /* a dissolved material shows through */
+  m->metallic = def && def->pm >= 0 ? fmin(1, def->pm) : 0;
+  m->roughness = def && def->pr >= 0   ? fmin(1, def->pr)
+                 : def && def->ns >= 0 ? fmin(1, fmax(0, 1 - sqrt(fmin(def->ns, 1000) / 1000)))
+                                       : 1;
+  if (!def) return;
+  for (int c = 0; c < 3; ++c)
+    m->emissive[c] = fmax(0, def->ke[c]);
+  m->normal_scale = def->bm;
+  if (def->map[0]) {
+    km_mesh_image im;
+    mtl_image(def->map, mpath, path, &im);
+    m->image = im.bytes, m->image_size = im.size;
+    memcpy(m->image_mime, im.mime, sizeof m->image_mime);
+  }
+  if (def->bump[0]) mtl_image(def->bump, mpath, path, &m->maps[KM_MAP_NORMAL]);
+  if (def->map_ke[0]) mtl_image(def->map_ke, mpath, path, &m->maps[KM_MAP_EMISSIVE]);
 }
 
 /* The libraries of an "mtllib a.mtl b.mtl" line (the specification's list; a name with a space
@@ -509,7 +538,17 @@ void km__obj_read_material(const char *data, size_t size, const char *path, km_m
       double x;
       if (sscanf(rest, "%lf", &x) == 1) defs[n_defs - 1].d = 1 - x;
     } else if (n_defs && !strcmp(kw, "map_Kd")) {
-      snprintf(defs[n_defs - 1].map, sizeof defs[n_defs - 1].map, "%s", map_file(rest));
+      snprintf(defs[n_defs - 1].map, sizeof defs[n_defs - 1].map, "%s", map_file(rest, NULL));
+    } else if (n_defs && (!strcmp(kw, "map_Bump") || !strcmp(kw, "map_bump") ||
+                          !strcmp(kw, "bump") || !strcmp(kw, "norm"))) {
+      /* a normal map (Blender writes map_Bump; the PBR extension norm) */
+      snprintf(defs[n_defs - 1].bump, sizeof defs[n_defs - 1].bump, "%s",
+               map_file(rest, &defs[n_defs - 1].bm));
+    } else if (n_defs && !strcmp(kw, "map_Ke")) {
+      snprintf(defs[n_defs - 1].map_ke, sizeof defs[n_defs - 1].map_ke, "%s", map_file(rest, NULL));
+    } else if (n_defs && !strcmp(kw, "Ke")) {
+      double *ke = defs[n_defs - 1].ke;
+      if (sscanf(rest, "%lf %lf %lf", &ke[0], &ke[1], &ke[2]) != 3) ke[0] = ke[1] = ke[2] = 0;
     }
   }
   free(mdata);
@@ -585,15 +624,26 @@ km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const cha
   return ferror(f) ? KM_ERR_IO : KM_OK;
 }
 
+km_mesh_image km__material_slot(const km_mesh_material *m, int s) {
+  if (s > 0) return m->maps[s - 1];
+  km_mesh_image im = {.bytes = m->image, .size = m->image_size, .sampler = m->image_sampler};
+  memcpy(im.mime, m->image_mime, sizeof im.mime);
+  return im;
+}
+
 void km__material_images_unique(const km_mesh_material *m, size_t n, int *uniq) {
-  for (size_t k = 0; k < n; ++k) {
-    uniq[k] = -1;
-    if (!m[k].image || !m[k].image_size) continue;
-    size_t q = 0;
-    while (q < k && !(uniq[q] == (int)q && m[q].image_size == m[k].image_size &&
-                      !memcmp(m[q].image, m[k].image, m[k].image_size)))
-      ++q;
-    uniq[k] = (int)q;
+  size_t ni = n * KM__SLOTS;
+  for (size_t i = 0; i < ni; ++i) {
+    uniq[i] = -1;
+    km_mesh_image a = km__material_slot(m + i / KM__SLOTS, (int)(i % KM__SLOTS));
+    if (!a.bytes || !a.size) continue;
+    size_t j = 0;
+    for (; j < i; ++j) {
+      if (uniq[j] != (int)j) continue;
+      km_mesh_image b = km__material_slot(m + j / KM__SLOTS, (int)(j % KM__SLOTS));
+      if (b.size == a.size && !memcmp(b.bytes, a.bytes, a.size)) break;
+    }
+    uniq[i] = (int)j;
   }
 }
 
@@ -606,14 +656,31 @@ bool km__obj_materials_cover(const km_mesh *m) {
   return m->n_materials && next == m->n_faces;
 }
 
-void km__obj_texture_name(char *buf, size_t n, const char *prefix, int k,
-                          const km_mesh_material *m) {
-  snprintf(buf, n, "%s%d.%s", prefix, k, strcmp(m->image_mime, "image/jpeg") ? "png" : "jpg");
+void km__obj_texture_name(char *buf, size_t n, const char *prefix, int i, const char *mime) {
+  snprintf(buf, n, "%s%d.%s", prefix, i, strcmp(mime, "image/jpeg") ? "png" : "jpg");
+}
+
+/* Slot i of km__material_images_unique's numbering has an .mtl statement (map_Kd, map_Bump,
+ * map_Ke). */
+static bool obj_slot(size_t i) {
+  int sl = (int)(i % KM__SLOTS);
+  return sl == 0 || sl == 1 + KM_MAP_NORMAL || sl == 1 + KM_MAP_EMISSIVE;
+}
+
+/* The image file an .mtl statement of slot i names: the first slot with a statement holding the
+ * same bytes (km__material_images_unique's uniq), so an image shared only with a slot the .mtl
+ * cannot name is still written once. */
+static size_t obj_file_index(const int *uniq, size_t i) {
+  size_t j = (size_t)uniq[i];
+  while (!(obj_slot(j) && uniq[j] == uniq[i]))
+    ++j;
+  return j;
 }
 
 km_status km__obj_write_materials(const char *dir, const char *mtl_name, const char *tex_prefix,
                                   const km_mesh_material *m, size_t n, km_error *err) {
-  int *uniq = km__calloc(n ? n : 1, sizeof *uniq);
+  size_t ni = n * KM__SLOTS;
+  int *uniq = km__calloc(ni ? ni : 1, sizeof *uniq);
   size_t dn = strlen(dir), pn = dn + strlen(mtl_name) + strlen(tex_prefix) + 64;
   char *path = malloc(pn);
   if (!uniq || !path) {
@@ -624,13 +691,16 @@ km_status km__obj_write_materials(const char *dir, const char *mtl_name, const c
   km_status s = KM_OK;
   char tex[64 + 256];
   /* the images first: a library is only there once what it names is */
-  for (size_t k = 0; k < n && s == KM_OK; ++k) {
-    if (uniq[k] != (int)k) continue;
-    km__obj_texture_name(tex, sizeof tex, tex_prefix, (int)k, m + k);
+  for (size_t i = 0; i < ni && s == KM_OK; ++i) {
+    /* what an OBJ library can say: the base colour, the normal and the emissive maps (glTF's
+     * packed metallic-roughness and occlusion maps have no .mtl statement) */
+    if (uniq[i] < 0 || !obj_slot(i) || obj_file_index(uniq, i) != i) continue;
+    km_mesh_image im = km__material_slot(m + i / KM__SLOTS, (int)(i % KM__SLOTS));
+    km__obj_texture_name(tex, sizeof tex, tex_prefix, (int)i, im.mime);
     snprintf(path, pn, "%s/%s", dir, tex);
     km__atomic_file af;
     if ((s = km__atomic_open(&af, path, err)) != KM_OK) break;
-    fwrite(m[k].image, 1, m[k].image_size, af.f);
+    fwrite(im.bytes, 1, im.size, af.f);
     s = km__atomic_commit(&af, err);
   }
   snprintf(path, pn, "%s/%s", dir, mtl_name);
@@ -638,7 +708,9 @@ km_status km__obj_write_materials(const char *dir, const char *mtl_name, const c
   if (s == KM_OK && (s = km__atomic_open(&af, path, err)) == KM_OK) {
     /* Kd the base colour (linear, as glTF's factor and as Blender's importer takes Kd), d its
      * alpha, Pr / Pm the PBR extension's roughness and metallic (what Blender's and most
-     * engines' importers read), Ns the Phong exponent older readers take roughness from. */
+     * engines' importers read), Ns the Phong exponent older readers take roughness from, Ke
+     * the emissive factor; map_Kd, map_Bump (a tangent-space normal map, as Blender's importer
+     * takes it, -bm its scale) and map_Ke the textures. */
     fputs("# kinemesh materials\n", af.f);
     for (size_t k = 0; k < n; ++k) {
       const km_mesh_material *q = m + k;
@@ -653,9 +725,24 @@ km_status km__obj_write_materials(const char *dir, const char *mtl_name, const c
       write_double(af.f, q->metallic, '\n');
       fputs("Ns ", af.f);
       write_double(af.f, 1000 * (1 - q->roughness) * (1 - q->roughness), '\n');
-      if (uniq[k] >= 0) {
-        km__obj_texture_name(tex, sizeof tex, tex_prefix, uniq[k], m + uniq[k]);
-        fprintf(af.f, "map_Kd %s\n", tex);
+      if (q->emissive[0] || q->emissive[1] || q->emissive[2]) {
+        fputs("Ke ", af.f);
+        for (int c = 0; c < 3; ++c)
+          write_double(af.f, q->emissive[c], c < 2 ? ' ' : '\n');
+      }
+      static const char *const stmt[KM__SLOTS] = {"map_Kd", NULL, "map_Bump", NULL, "map_Ke"};
+      for (int sl = 0; sl < KM__SLOTS; ++sl) {
+        size_t i = k * KM__SLOTS + (size_t)sl;
+        if (uniq[i] < 0 || !stmt[sl]) continue;
+        int u = (int)obj_file_index(uniq, i);
+        km__obj_texture_name(tex, sizeof tex, tex_prefix, u,
+                             km__material_slot(m + u / KM__SLOTS, u % KM__SLOTS).mime);
+        fprintf(af.f, "%s ", stmt[sl]);
+        if (sl == 1 + KM_MAP_NORMAL) {
+          fputs("-bm ", af.f);
+          write_double(af.f, q->normal_scale ? q->normal_scale : 1, ' ');
+        }
+        fprintf(af.f, "%s\n", tex);
       }
     }
     s = km__atomic_commit(&af, err);

@@ -115,16 +115,26 @@ km_status km__gltf_mesh_transform(const void *data, size_t size, const char *nam
  * materials, "mtllib <mtllib>" and "usemtl kinemesh_<k>" before each material's run of faces
  * (km__obj_write_materials writes the library). Vertex order and count as in m. */
 km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const char *mtllib);
-/* Identical base colour images among materials (a glTF's primitives often share one):
+/* A deep copy of src (its images too) into dst; false when out of memory (dst then holds what
+ * was copied: free it with km__material_free_images). */
+bool km__material_copy(km_mesh_material *dst, const km_mesh_material *src);
+/* Frees a material's images (base colour and maps) and sets them NULL. */
+void km__material_free_images(km_mesh_material *m);
+/* A material's texture slot s as one image: s 0 the base colour (image, image_size,
+ * image_mime), s 1 + q maps[q]; bytes NULL when it has none. KM__SLOTS slots. */
+#define KM__SLOTS (1 + KM_MAP_COUNT)
+km_mesh_image km__material_slot(const km_mesh_material *m, int s);
+/* Identical images among materials' texture slots (a glTF's primitives often share one; a
+ * normal map is never a base colour, but bytes decide):
  *   m, n  in: materials
- *   uniq  out: n; uniq[k] = the lowest q whose image is byte-equal to material k's (q == k: the
- *         first of its kind), -1 where material k has no image */
+ *   uniq  out: n * KM__SLOTS, entry i = k * KM__SLOTS + s for material k's slot s: the lowest j
+ *         whose image is byte-equal to it (j == i: the first of its kind), -1 where it has none */
 void km__material_images_unique(const km_mesh_material *m, size_t n, int *uniq);
 /* True when m's materials tile its faces in order (the runs km_mesh.materials documents). */
 bool km__obj_materials_cover(const km_mesh *m);
-/* The name material m's image k is written under: prefix + k + ".png" or ".jpg". */
-void km__obj_texture_name(char *buf, size_t n, const char *prefix, int k,
-                          const km_mesh_material *m);
+/* The name image i (km__material_images_unique's index) is written under: prefix + i +
+ * ".png" or ".jpg" by its mime type. */
+void km__obj_texture_name(char *buf, size_t n, const char *prefix, int i, const char *mime);
 /* Writes the library km__obj_write's "mtllib" names: dir/mtl_name with newmtl kinemesh_<k> per
  * material (Kd, d, Pr, Pm, Ns, map_Kd), and each distinct image once as
  * dir/<tex_prefix><k>.png|.jpg; every file atomically (temporary, then rename), images first.
