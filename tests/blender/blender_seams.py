@@ -114,9 +114,19 @@ def pc2(path):
     return numpy.frombuffer(b, numpy.float32, nf * nv * 3, 32).reshape(nf, nv, 3)
 
 
+def image_into(node_input):
+    """The image of the Image Texture node linked into a shader input: (size, pixels), or None."""
+    for link in node_input.links:
+        node = link.from_node
+        if node.type == "TEX_IMAGE" and node.image is not None:
+            return tuple(node.image.size), numpy.array(node.image.pixels[:])
+    return None
+
+
 def import_uvs(path):
-    """Blender's import (glTF, or OBJ with its .mtl): vertex count, loops' vertices, UVs, and
-    its material's base colour texture's pixels (None: no textured material)."""
+    """Blender's import (glTF, or OBJ with its .mtl): vertex count, loops' vertices, UVs, its
+    material's base colour texture's pixels (None: no textured material), and its normal map
+    as (size, pixels, strength) (None: none)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if path.endswith(".obj"):
         bpy.ops.wm.obj_import(filepath=path)
@@ -129,12 +139,28 @@ def import_uvs(path):
     me.uv_layers[0].data.foreach_get("uv", uv)
     vi = numpy.zeros(len(me.loops), dtype=numpy.int64)
     me.loops.foreach_get("vertex_index", vi)
-    px = None
+    px = nm = None
     for mat in me.materials:
         for node in (mat.node_tree.nodes if mat and mat.use_nodes else []):
-            if node.type == "TEX_IMAGE" and node.image is not None:
-                px = (tuple(node.image.size), numpy.array(node.image.pixels[:]))
-    return len(me.vertices), vi, uv, px
+            if node.type != "BSDF_PRINCIPLED":
+                continue
+            px = image_into(node.inputs["Base Color"]) or px
+            for link in node.inputs["Normal"].links:
+                if link.from_node.type == "NORMAL_MAP":
+                    im = image_into(link.from_node.inputs["Color"])
+                    strength = link.from_node.inputs["Strength"].default_value
+                    nm = im + (strength,) if im else nm
+    return len(me.vertices), vi, uv, px, nm
+
+
+def same_normal_map(path, nm0, nm1):
+    """The output's normal map is the source's: same pixels, same strength."""
+    if nm1 is None:
+        fail(f"{path}: no normal map: the surface detail is lost")
+    if nm1[0] != nm0[0] or float(numpy.abs(nm1[1] - nm0[1]).max()) > 1e-6:
+        fail(f"{path}: its normal map ({nm1[0]}) differs from the source's ({nm0[0]})")
+    if abs(nm1[2] - nm0[2]) > 1e-6:
+        fail(f"{path}: its normal map's strength {nm1[2]} is not the source's {nm0[2]}")
 
 
 argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
@@ -160,6 +186,23 @@ def unwrap_and_export(ob, out, skins):
     tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
     tex.image = img
     mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    # and a normal map (16x16 ridges, strength 0.7: glTF's normalTexture.scale)
+    nimg = bpy.data.images.new("ridges", 16, 16)
+    nimg.colorspace_settings.name = "Non-Color"
+    npx = numpy.zeros((16, 16, 4))
+    ridge = 0.5 + 0.4 * numpy.sin(numpy.arange(16) * numpy.pi / 4)
+    npx[:, :, 0] = ridge[None, :]
+    npx[:, :, 1] = 0.5
+    npx[:, :, 2] = 1.0
+    npx[:, :, 3] = 1.0
+    nimg.pixels = npx.ravel().tolist()
+    nimg.pack()
+    ntex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    ntex.image = nimg
+    nmap = mat.node_tree.nodes.new("ShaderNodeNormalMap")
+    nmap.inputs["Strength"].default_value = 0.7
+    mat.node_tree.links.new(ntex.outputs["Color"], nmap.inputs["Color"])
+    mat.node_tree.links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
     ob.data.materials.append(mat)
     bpy.ops.export_scene.gltf(filepath=out, export_format="GLB", export_texcoords=True,
                               export_normals=True, export_skins=skins, export_animations=False)
@@ -229,11 +272,12 @@ elif len(argv) >= 3 and argv[0] == "gaps":
 elif len(argv) >= 3 and argv[0] == "objcheck":
     # OBJ outputs (convert, animate's frame folder) as Blender's OBJ importer reads them: the
     # same vertices and loops as the source, its UVs, and its texture through the .mtl
-    n0, vi0, uv0, px0 = import_uvs(argv[1])
-    if px0 is None:
-        fail(f"{argv[1]}: Blender finds no base colour texture in its own export", 2)
+    n0, vi0, uv0, px0, nm0 = import_uvs(argv[1])
+    if px0 is None or nm0 is None:
+        fail(f"{argv[1]}: Blender finds no base colour texture or normal map in its own export", 2)
     for path in argv[2:]:
-        n1, vi1, uv1, px1 = import_uvs(path)
+        n1, vi1, uv1, px1, nm1 = import_uvs(path)
+        same_normal_map(path, nm0, nm1)
         if px1 is None:
             fail(f"{path}: no base colour texture: the textured model comes out grey")
         if px1[0] != px0[0] or float(numpy.abs(px1[1] - px0[1]).max()) > 1e-6:
@@ -245,7 +289,7 @@ elif len(argv) >= 3 and argv[0] == "objcheck":
         if duv > 1e-6:
             fail(f"{path}: texture coordinates differ by {duv:.3g}")
         print(f"note: {os.path.basename(path)}: {n1} vertices, the source's "
-              f"{px0[0][0]}x{px0[0][1]} texture, UVs within {duv:.2g}")
+              f"{px0[0][0]}x{px0[0][1]} texture and normal map, UVs within {duv:.2g}")
     print(f"ok: {len(argv) - 2} OBJ outputs textured as the source")
 elif len(argv) == 3 and argv[0] == "export":
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -259,10 +303,12 @@ elif len(argv) == 5 and argv[0] == "check":
     if len(a) < 100:
         fail(f"{argv[1]}: only {len(a)} coincident vertices: the export was not split")
     seams_shut(argv[2], pc2(argv[2]), rest, a, b, 0.05)
-    n0, vi0, uv0, px0 = import_uvs(argv[1])
-    n1, vi1, uv1, px1 = import_uvs(argv[3])
-    if px0 is None:
-        fail(f"{argv[1]}: Blender finds no base colour texture in its own export", 2)
+    n0, vi0, uv0, px0, nm0 = import_uvs(argv[1])
+    n1, vi1, uv1, px1, nm1 = import_uvs(argv[3])
+    if px0 is None or nm0 is None:
+        fail(f"{argv[1]}: Blender finds no base colour texture or normal map in its own export", 2)
+    same_normal_map(argv[3], nm0, nm1)
+    print(f"note: the animation's material has the source's normal map, strength {nm1[2]:.2f}")
     if px1 is None:
         fail(f"{argv[3]}: no base colour texture: the textured model comes out grey")
     if px1[0] != px0[0] or float(numpy.abs(px1[1] - px0[1]).max()) > 1e-6:
