@@ -323,6 +323,12 @@ typedef struct km_mesh {
    * covering every face; NULL / 0: none. Owned like UV. */
   struct km_mesh_material *materials;
   size_t n_materials;
+  /* #V*4 vertex colours, RGBA in [0, 1], sRGB-encoded as PLY (red green blue [alpha], uchar or
+   * float; diffuse_red ...), OBJ (v x y z r g b) and scanners store them: a scan or a
+   * photogrammetry model carries its colour so, not as a texture. A glTF's COLOR_0 (linear) is
+   * converted on the way in and out. Carried by every writer (.glb COLOR_0, PLY uchar, OBJ v
+   * lines). Owned like UV. */
+  double *colors;
 } km_mesh;
 
 /* How a texture is sampled, as glTF's sampler says (pixel art keeps its pixels with NEAREST,

@@ -795,11 +795,99 @@ static void test_obj_material_out(void) {
   CHECK(km_anim_writer_open("attr_m/frames", &m, NULL, &w, NULL) == KM_ERR_IO && !w);
 }
 
+/* Vertex colours (a scan's, a photogrammetry model's): read from PLY (uchar and float, with and
+ * without alpha) and OBJ (v x y z r g b, 0..1 or 0..255), carried by every writer (PLY, OBJ,
+ * .glb plain and compressed, frame folders) and read back. */
+static double color_dev(const km_mesh *r, const double *c, size_t n, bool alpha) {
+  if (!r->colors || r->n_vertices != n) return INFINITY;
+  double d = 0;
+  for (size_t i = 0; i < n; ++i)
+    for (int k = 0; k < (alpha ? 4 : 3); ++k)
+      d = fmax(d, fabs(r->colors[4 * i + k] - c[4 * i + k]));
+  return d;
+}
+
+static void test_colors(void) {
+  CHECK(km_test_run("rm -rf attr_col && mkdir attr_col", NULL) == 0);
+  FILE *f = fopen("attr_col/a.ply", "w");
+  if (f)
+    fputs("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+          "property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+          "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+          "0 0 0 255 0 0\n1 0 0 0 128 0\n0 1 0 0 0 51\n3 0 1 2\n",
+          f),
+        fclose(f);
+  km_mesh m = {0}, r = {0};
+  CHECK_OK(km_mesh_read("attr_col/a.ply", &m, KM_E));
+  const double want[12] = {1, 0, 0, 1, 0, 128 / 255.0, 0, 1, 0, 0, 0.2, 1};
+  CHECK_MSG(color_dev(&m, want, 3, true) < 1e-12, "PLY uchar colours: off by %g",
+            color_dev(&m, want, 3, true));
+  km_mesh_free(&m);
+  f = fopen("attr_col/b.obj", "w");
+  if (f) fputs("v 0 0 0 255 0 0\nv 1 0 0 0 128 0\nv 0 1 0 0 0 51\nf 1 2 3\n", f), fclose(f);
+  CHECK_OK(km_mesh_read("attr_col/b.obj", &m, KM_E));
+  CHECK_MSG(color_dev(&m, want, 3, true) < 1e-12, "OBJ 0..255 colours: off by %g",
+            color_dev(&m, want, 3, true));
+  km_mesh_free(&m);
+  /* a strip with colours and alpha, through every writer */
+  double V[8 * 3], C[8 * 4];
+  int32_t F[6 * 3];
+  for (int i = 0; i < 4; ++i)
+    for (int k = 0; k < 2; ++k) {
+      int v = 2 * i + k;
+      V[3 * v] = i, V[3 * v + 1] = k, V[3 * v + 2] = 0.2 * i;
+      C[4 * v] = v / 7.0, C[4 * v + 1] = 1 - v / 7.0, C[4 * v + 2] = (v % 3) / 2.0;
+      C[4 * v + 3] = v == 5 ? 0.6 : 1;
+    }
+  for (int i = 0; i < 3; ++i) {
+    int32_t *t = F + 6 * i, a = 2 * i;
+    t[0] = a, t[1] = a + 2, t[2] = a + 3, t[3] = a, t[4] = a + 3, t[5] = a + 1;
+  }
+  m = (km_mesh){.V = V, .F = F, .n_vertices = 8, .n_faces = 6, .colors = C};
+  const char *paths[4] = {"attr_col/o/s.ply", "attr_col/o/s.obj", "attr_col/o/s.glb",
+                          "attr_col/o/z.glb"};
+  for (int k = 0; k < 4; ++k) {
+    if (k < 2) {
+      km_mesh_write_options wo = {.ply = KM_PLY_ASCII};
+      CHECK_OK(km_mesh_write(paths[k], &m, &wo, KM_E));
+    } else {
+      km_anim_options ao = {.compress = k == 3};
+      km_anim_writer *w = NULL;
+      CHECK_OK(km_anim_writer_open(paths[k], &m, &ao, &w, KM_E));
+      for (int q = 0; w && q < 2; ++q)
+        CHECK_OK(km_anim_writer_push(w, V, KM_E));
+      if (w) CHECK_OK(km_anim_writer_close(&w, KM_E));
+    }
+    CHECK_OK(km_mesh_read(paths[k], &r, KM_E));
+    /* PLY: 8 bits; OBJ: exact, no alpha; glb: 16-bit linear */
+    double tol = k == 0 ? 0.5 / 255 + 1e-12 : k == 1 ? 1e-15 : 1e-4;
+    double dev = color_dev(&r, C, 8, k != 1);
+    CHECK_MSG(dev <= tol, "%s: colours off by %g", paths[k], dev);
+    km_mesh_free(&r);
+  }
+  /* frame folders, PLY and OBJ */
+  for (int k = 0; k < 2; ++k) {
+    km_anim_options ao = {.format = k ? KM_ANIM_OBJ_DIR : KM_ANIM_PLY_DIR};
+    km_anim_writer *w = NULL;
+    const char *dir = k ? "attr_col/fo" : "attr_col/fp";
+    CHECK_OK(km_anim_writer_open(dir, &m, &ao, &w, KM_E));
+    if (w) CHECK_OK(km_anim_writer_push(w, V, KM_E));
+    CHECK_OK(km_anim_writer_close(&w, KM_E));
+    char fp[64];
+    snprintf(fp, sizeof fp, "%s/frame_000000.%s", dir, k ? "obj" : "ply");
+    CHECK_OK(km_mesh_read(fp, &r, KM_E));
+    double dev = color_dev(&r, C, 8, !k);
+    CHECK_MSG(dev <= (k ? 1e-15 : 0.5 / 255 + 1e-12), "%s: colours off by %g", fp, dev);
+    km_mesh_free(&r);
+  }
+}
+
 int main(void) {
   test_gltf_in();
   test_material();
   test_obj_material();
   test_obj_material_out();
+  test_colors();
   test_obj_read();
   test_ply_names();
   test_cli_textured();

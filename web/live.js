@@ -80,6 +80,16 @@ async function loadMesh() {
   const pos = new Float32Array(buf, 16, 3 * nv).slice();
   const idx = new Uint32Array(buf.slice(16 + 12 * nv, 16 + 12 * nv + 12 * nf));
   state.rest = pos.slice();
+  // flags bit 0: the mesh's own vertex colours (a scan's), sRGB bytes, shown where no handle is
+  // (the colour attribute is linear)
+  state.base = null;
+  if (dv.getUint32(12, true) & 1) {
+    const c8 = new Uint8Array(buf, 16 + 12 * nv + 12 * nf, 4 * nv);
+    const lin = (x) => (x <= 0.04045 ? x / 12.92 : ((x + 0.055) / 1.055) ** 2.4);
+    state.base = new Float32Array(3 * nv);
+    for (let i = 0; i < nv; ++i)
+      for (let k = 0; k < 3; ++k) state.base[3 * i + k] = lin(c8[4 * i + k] / 255);
+  }
   geom.setAttribute('position', new THREE.BufferAttribute(pos, 3));
   geom.setAttribute('color', new THREE.BufferAttribute(new Float32Array(3 * nv), 3));
   geom.setIndex(new THREE.BufferAttribute(idx, 1));
@@ -126,7 +136,8 @@ function recolor() {
   const col = geom.getAttribute('color');
   if (!col) return;
   const a = col.array;
-  for (let i = 0; i < state.nv; ++i) a.set(BASE, 3 * i);
+  if (state.base) a.set(state.base);
+  else for (let i = 0; i < state.nv; ++i) a.set(BASE, 3 * i);
   state.handleSets.forEach((h, k) => {
     const c = HANDLE_COLORS[k % HANDLE_COLORS.length];
     for (const v of h.vertices) if (v < state.nv) a.set(c, 3 * v);
@@ -350,6 +361,7 @@ state.project = (i) => {
   return { x: r.left + (p.x + 1) / 2 * r.width, y: r.top + (1 - p.y) / 2 * r.height, z: p.z };
 };
 state.vertexPosition = (i) => Array.from(geom.getAttribute('position').array.slice(3 * i, 3 * i + 3));
+state.vertexColor = (i) => Array.from(geom.getAttribute('color').array.slice(3 * i, 3 * i + 3));
 
 // ---------------------------------------------------------------- panel
 const sel = $('h-joint');

@@ -86,7 +86,7 @@ int km_cli_info(int argc, char **argv) {
   km_frame_guess g;
   km_error gerr = {0};
   bool have_guess = s == KM_OK && km_mesh_frame_guess(&m, &g, &gerr) == KM_OK;
-  bool has_uv = m.UV != NULL, has_n = m.N != NULL;
+  bool has_uv = m.UV != NULL, has_n = m.N != NULL, has_c = m.colors != NULL;
   /* the materials the .glb outputs will carry: each its run of faces, colour and texture */
   cJSON *mats = cJSON_CreateArray();
   char mat_line[512] = "";
@@ -153,6 +153,7 @@ int km_cli_info(int argc, char **argv) {
     cJSON_AddItemToObject(o, "bbox_max", vec3(info.bbox_max));
     cJSON_AddBoolToObject(o, "texcoords", has_uv);
     cJSON_AddBoolToObject(o, "normals", has_n);
+    cJSON_AddBoolToObject(o, "colors", has_c);
     cJSON_AddItemToObject(o, "materials", mats);
     cJSON_AddNumberToObject(o, "skin_joints", (double)skin_joints);
     if (have_guess) {
@@ -185,8 +186,8 @@ int km_cli_info(int argc, char **argv) {
   printf("bbox min              %.6g %.6g %.6g\nbbox max              %.6g %.6g %.6g\n",
          info.bbox_min[0], info.bbox_min[1], info.bbox_min[2], info.bbox_max[0], info.bbox_max[1],
          info.bbox_max[2]);
-  printf("attributes            %s%s%s\n", has_uv ? "texcoords " : "", has_n ? "normals" : "",
-         has_uv || has_n ? "" : "none");
+  printf("attributes            %s%s%s%s\n", has_uv ? "texcoords " : "", has_n ? "normals " : "",
+         has_c ? "colors" : "", has_uv || has_n || has_c ? "" : "none");
   cJSON_Delete(mats);
   if (n_mat) printf("materials             %zu%s\n", n_mat, mat_line);
   if (skin_joints)

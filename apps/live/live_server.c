@@ -1492,12 +1492,16 @@ static int udp_socket(const char *bind_addr, int port, km_error *err, const char
   return fd;
 }
 
+/* GET /mesh: 'KMM1', #V, #F, flags (bit 0: vertex colours follow), #V*3 float positions, #F*3
+ * uint32 indices, then with bit 0 #V*4 bytes RGBA (sRGB, as km_mesh.colors), so a scan shows
+ * its own colours under the handles. */
 static bool build_mesh_blob(km_live *l) {
   const km_mesh *m = l->mesh;
-  size_t n = 16 + 12 * m->n_vertices + 12 * m->n_faces;
+  size_t n = 16 + 12 * m->n_vertices + 12 * m->n_faces + (m->colors ? 4 * m->n_vertices : 0);
   l->mesh_blob = malloc(n);
   if (!l->mesh_blob) return false;
-  uint32_t h[4] = {0x314d4d4bu /* 'KMM1' */, (uint32_t)m->n_vertices, (uint32_t)m->n_faces, 0};
+  uint32_t h[4] = {0x314d4d4bu /* 'KMM1' */, (uint32_t)m->n_vertices, (uint32_t)m->n_faces,
+                   m->colors ? 1u : 0u};
   memcpy(l->mesh_blob, h, 16);
   float *v = (float *)(void *)(l->mesh_blob + 16);
   for (size_t k = 0; k < 3 * m->n_vertices; ++k)
@@ -1505,6 +1509,11 @@ static bool build_mesh_blob(km_live *l) {
   uint32_t *f = (uint32_t *)(void *)(l->mesh_blob + 16 + 12 * m->n_vertices);
   for (size_t k = 0; k < 3 * m->n_faces; ++k)
     f[k] = (uint32_t)m->F[k];
+  unsigned char *c = l->mesh_blob + 16 + 12 * m->n_vertices + 12 * m->n_faces;
+  for (size_t k = 0; m->colors && k < 4 * m->n_vertices; ++k) {
+    double x = m->colors[k] * 255 + 0.5;
+    c[k] = (unsigned char)(x > 255 ? 255 : x > 0 ? x : 0);
+  }
   l->mesh_len = n;
   return true;
 }

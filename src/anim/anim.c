@@ -21,13 +21,6 @@
 #define PC2_HEADER 32
 #define PC2_NSAMPLES_OFFSET 28
 
-static void put_f64le(unsigned char *p, double d) {
-  uint64_t u;
-  memcpy(&u, &d, 8);
-  for (int i = 0; i < 8; ++i)
-    p[i] = (unsigned char)(u >> (8 * i));
-}
-
 static char *dup_str(const char *s) {
   size_t n = strlen(s) + 1;
   char *d = malloc(n);
@@ -117,6 +110,7 @@ static void writer_discard(km_anim_writer *w) {
   free(w->key_minmax);
   free(w->last);
   free(w->uv);
+  free(w->colors);
   km_mesh_free(&w->material_mesh);
   free(w->nbuf);
   free(w->vbuf);
@@ -299,6 +293,21 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     if (!(w->uv = km__malloc(nv * 2, sizeof *w->uv))) goto nomem;
     memcpy(w->uv, rest->UV, nv * 2 * sizeof *w->uv);
   }
+  if (rest->colors && w->format != KM_ANIM_PC2) { /* a point cache has no colour */
+    if (!(w->colors = km__malloc(nv * 4, sizeof *w->colors))) goto nomem;
+    memcpy(w->colors, rest->colors, nv * 4 * sizeof *w->colors);
+  }
+  /* A coloured mesh without a material (a scan) gets a plain one in a .glb: glTF's default
+   * material is fully metallic (metallicFactor 1), which three.js and engines draw near black
+   * without an environment map; a scan is a matte surface its colours paint. */
+  if (rest->colors && !rest->n_materials && nf && w->format == KM_ANIM_GLB) {
+    if (!(w->material_mesh.materials = km__calloc(1, sizeof *w->material_mesh.materials)))
+      goto nomem;
+    km_mesh_material *q = w->material_mesh.materials;
+    w->material_mesh.n_materials = 1;
+    q->base_color[0] = q->base_color[1] = q->base_color[2] = q->base_color[3] = 1;
+    q->metallic = 0, q->roughness = 1, q->n_faces = nf;
+  }
   /* a glb and an OBJ folder carry the file's materials (PLY has no material) */
   if (rest->n_materials && (w->format == KM_ANIM_GLB || w->format == KM_ANIM_OBJ_DIR)) {
     km_mesh only = {.materials = rest->materials, .n_materials = rest->n_materials};
@@ -401,9 +410,6 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
                                        err)) != KM_OK)
         goto fail;
     }
-    size_t vb = nv * 64, fb = nf * 13;
-    w->bytes = malloc((vb > fb ? vb : fb) + 1);
-    if (!w->bytes) goto nomem;
     break;
   }
   default: break;
@@ -502,49 +508,24 @@ static km_status push_dir(km_anim_writer *w, const double *V, km_error *err) {
     return s;
   }
   const size_t nv = w->n_vertices, nf = w->n_faces;
-  /* Coordinates are written exactly (%.17g / raw doubles), as km_mesh_write does; the fps is
-   * kept in a comment so km_anim_info_read can report it. */
+  /* the frame as a mesh: one vt / vn per vertex in vertex order (vt as read, vn recomputed
+   * for this frame), so every OBJ face reference is i/i/i and the vertex order stays the rest
+   * mesh's; coordinates exact (%.17g / raw doubles), as km_mesh_write writes them; the fps in
+   * the header comment, for km_anim_info_read */
+  char header[96];
+  snprintf(header, sizeof header, "kinemesh animation frame %zu fps %.17g", w->frames, w->fps);
+  km_mesh view = {.V = (double *)V,
+                  .F = w->F,
+                  .n_vertices = nv,
+                  .n_faces = nf,
+                  .UV = w->uv,
+                  .N = w->normals ? w->nbuf : NULL,
+                  .materials = w->material_mesh.materials,
+                  .n_materials = w->material_mesh.n_materials,
+                  .colors = w->colors};
   if (ply) {
-    fprintf(f,
-            "ply\nformat binary_little_endian 1.0\ncomment kinemesh animation frame %zu fps "
-            "%.17g\nelement vertex %zu\nproperty double x\nproperty double y\nproperty double "
-            "z\n",
-            w->frames, w->fps, nv);
-    if (w->uv) fputs("property double u\nproperty double v\n", f);
-    if (w->normals) fputs("property double nx\nproperty double ny\nproperty double nz\n", f);
-    if (nf) fprintf(f, "element face %zu\nproperty list uchar int vertex_indices\n", nf);
-    fputs("end_header\n", f);
-    size_t per = 3 + (w->uv ? 2 : 0) + (w->normals ? 3 : 0);
-    for (size_t i = 0; i < nv; ++i) {
-      unsigned char *p = w->bytes + 8 * per * i;
-      for (int k = 0; k < 3; ++k, p += 8)
-        put_f64le(p, V[3 * i + k]);
-      for (int k = 0; w->uv && k < 2; ++k, p += 8)
-        put_f64le(p, w->uv[2 * i + k]);
-      for (int k = 0; w->normals && k < 3; ++k, p += 8)
-        put_f64le(p, w->nbuf[3 * i + k]);
-    }
-    fwrite(w->bytes, 8 * per, nv, f);
-    for (size_t i = 0; i < nf; ++i) {
-      unsigned char *p = w->bytes + 13 * i;
-      p[0] = 3;
-      for (int k = 0; k < 3; ++k)
-        km__put_u32le(p + 1 + 4 * k, (uint32_t)w->F[3 * i + k]);
-    }
-    fwrite(w->bytes, 13, nf, f);
+    km__ply_write(f, &view, KM_PLY_BINARY_LE, header);
   } else {
-    char header[96];
-    snprintf(header, sizeof header, "kinemesh animation frame %zu fps %.17g", w->frames, w->fps);
-    /* one vt / vn per vertex in vertex order (vt as read, vn recomputed for this frame), so
-     * every face reference is i/i/i and the vertex order stays the rest mesh's */
-    km_mesh view = {.V = (double *)V,
-                    .F = w->F,
-                    .n_vertices = nv,
-                    .n_faces = nf,
-                    .UV = w->uv,
-                    .N = w->normals ? w->nbuf : NULL,
-                    .materials = w->material_mesh.materials,
-                    .n_materials = w->material_mesh.n_materials};
     km__obj_write(f, &view, header, "materials.mtl");
   }
   int bad = ferror(f);

@@ -60,6 +60,7 @@ struct km_anim_writer {
    * whether normals are written (recomputed from each frame's positions: a deformed mesh's
    * normals are not the rest's). NULL / false: positions only, as before. */
   double *uv;            /* #V*2 */
+  double *colors;        /* #V*4 (km_mesh.colors), NULL: none */
   km_mesh material_mesh; /* holds only a copy of the rest mesh's material (glb), or none */
   bool normals;          /* rest had UV or N */
   double *nbuf;          /* #V*3 scratch: one frame's normals */

@@ -61,6 +61,19 @@ static int add_view_accessor(cJSON *views, cJSON *accessors, uint64_t offset, ui
   return cJSON_GetArraySize(accessors) - 1;
 }
 
+/* COLOR_0 from km_mesh.colors (sRGB-encoded RGBA): linear RGBA as normalised unsigned shorts,
+ * 8 bytes a vertex (16 bits keep an 8-bit sRGB value apart from its neighbours once linear,
+ * which 8-bit linear would not in the darks). */
+static void color_u16(const double *c, size_t nv, unsigned char *b) {
+  for (size_t i = 0; i < nv; ++i)
+    for (int k = 0; k < 4; ++k) {
+      double x = k < 3 ? km__srgb_decode(c[4 * i + k]) : fmin(1, fmax(0, c[4 * i + k]));
+      unsigned v = (unsigned)lround(x * 65535);
+      b[8 * i + 2 * k] = (unsigned char)(v & 0xff);
+      b[8 * i + 2 * k + 1] = (unsigned char)(v >> 8);
+    }
+}
+
 /* The number under key in o, -1 when absent. */
 static int jint_item(const cJSON *o, const char *key) {
   const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
@@ -362,6 +375,7 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   const uint64_t times_len = (uint64_t)nt * 4, weights_len = (uint64_t)nt * nk * 4;
   const bool with_n = w->normals;
   const uint64_t uv_len = w->uv ? (uint64_t)nv * 8 : 0;
+  const uint64_t col_len = w->colors ? (uint64_t)nv * 8 : 0;
   const km_mesh_material *mat = w->material_mesh.materials;
   const size_t n_mat = w->material_mesh.n_materials;
   const size_t n_img = n_mat * KM__SLOTS; /* every material's texture slots */
@@ -375,8 +389,8 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   uint64_t img_pad = 0;
   for (size_t i = 0; i < n_img; ++i)
     if (uniq[i] == (int)i) img_pad += (slot_size(mat, i) + 3) & ~(uint64_t)3;
-  uint64_t bin_len =
-      idx_len + pos_len * (1 + nk) * (with_n ? 2 : 1) + uv_len + times_len + weights_len + img_pad;
+  uint64_t bin_len = idx_len + pos_len * (1 + nk) * (with_n ? 2 : 1) + uv_len + col_len +
+                     times_len + weights_len + img_pad;
   if (bin_len + (64u << 20) > UINT32_MAX) {
     free(uniq), free(view);
     return km__fail(err, KM_ERR_UNSUPPORTED,
@@ -434,6 +448,13 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
                                 "VEC2", NULL, NULL, 0);
     off += uv_len;
     cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a_t);
+  }
+  if (w->colors) {
+    int a_c = add_view_accessor(views, accessors, off, col_len, GL_ARRAY_BUFFER, GL_UNSIGNED_SHORT,
+                                nv, "VEC4", NULL, NULL, 0);
+    cJSON_AddBoolToObject(cJSON_GetArrayItem(accessors, a_c), "normalized", 1);
+    off += col_len;
+    cJSON_AddNumberToObject(attrs, "COLOR_0", a_c);
   }
   cJSON_AddNumberToObject(prim, "mode", nf ? 4 : 0); /* triangles, or points for a cloud */
   cJSON *targets = cJSON_AddArrayToObject(prim, "targets");
@@ -540,6 +561,10 @@ static km_status stream_morph_bin(km_anim_writer *w, FILE *f, void *ctx, km_erro
       km__put_f32le(b + 8 * i, (float)w->uv[2 * i]);
       km__put_f32le(b + 8 * i + 4, (float)(1.0 - w->uv[2 * i + 1]));
     }
+    s = write_all(w, f, b, nv * 8, err);
+  }
+  if (s == KM_OK && w->colors) {
+    color_u16(w->colors, nv, b);
     s = write_all(w, f, b, nv * 8, err);
   }
   if (s == KM_OK && fseek(w->keys, 0, SEEK_SET) != 0)
@@ -981,6 +1006,14 @@ static int pack_uv(glb_pack *pk, const double *uv, size_t nv, unsigned char *b) 
       false, nv, "VEC2", NULL, NULL, 0);
 }
 
+/* COLOR_0 (color_u16), meshopt-encoded when compress. */
+static int pack_colors(glb_pack *pk, const double *c, size_t nv, unsigned char *b) {
+  color_u16(c, nv, b);
+  return pack_accessor(
+      pk, pack_view(pk, b, nv, 8, PACK_ATTRIBUTES, NULL, GL_ARRAY_BUFFER, pk->compress),
+      GL_UNSIGNED_SHORT, true, nv, "VEC4", NULL, NULL, 0);
+}
+
 /* Triangle indices: little-endian bytes when plain; compressed, host uint32 in an order the
  * index codec packs well (meshopt_optimizeVertexCache reorders the triangles, never the
  * vertices: vertex order and count stay the input's). b: nf*12 bytes. */
@@ -1142,6 +1175,10 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
   if (w->uv) {
     if ((a = pack_uv(&pk, w->uv, nv, b)) < 0) goto nomem;
     cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a);
+  }
+  if (w->colors) {
+    if ((a = pack_colors(&pk, w->colors, nv, b)) < 0) goto nomem;
+    cJSON_AddNumberToObject(attrs, "COLOR_0", a);
   }
   const bool wide = B > 256;
   for (size_t i = 0; i < nv; ++i)
@@ -1547,6 +1584,10 @@ static km_status glb_finish_packed(km_anim_writer *w, km_error *err) {
   if (w->uv) {
     if ((a = pack_uv(&pk, w->uv, nv, b)) < 0) goto nomem;
     cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a);
+  }
+  if (w->colors) {
+    if ((a = pack_colors(&pk, w->colors, nv, b)) < 0) goto nomem;
+    cJSON_AddNumberToObject(attrs, "COLOR_0", a);
   }
   cJSON_AddNumberToObject(prim, "mode", nf ? 4 : 0);
   cJSON *targets = cJSON_AddArrayToObject(prim, "targets");

@@ -42,6 +42,9 @@ km_status km_mesh_copy(const km_mesh *src, km_mesh *out, km_error *err) {
   if (src->N && !(tmp.N = km__malloc(nv * 3, sizeof(double)))) goto nomem;
   if (src->UV && src->n_vertices) memcpy(tmp.UV, src->UV, src->n_vertices * 2 * sizeof(double));
   if (src->N && src->n_vertices) memcpy(tmp.N, src->N, src->n_vertices * 3 * sizeof(double));
+  if (src->colors && !(tmp.colors = km__malloc(nv * 4, sizeof(double)))) goto nomem;
+  if (src->colors && src->n_vertices)
+    memcpy(tmp.colors, src->colors, src->n_vertices * 4 * sizeof(double));
   if (src->materials && src->n_materials) {
     if (!(tmp.materials = km__calloc(src->n_materials, sizeof *tmp.materials))) goto nomem;
     tmp.n_materials = src->n_materials;
@@ -96,6 +99,7 @@ void km_mesh_free(km_mesh *m) {
   free(m->F);
   free(m->UV);
   free(m->N);
+  free(m->colors);
   for (size_t k = 0; m->materials && k < m->n_materials; ++k)
     km__material_free_images(m->materials + k);
   free(m->materials);
@@ -278,7 +282,7 @@ km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_
     km__obj_write(af.f, &view, NULL, mtl);
     free(mtl);
   } else if (fmt == KM_FORMAT_PLY)
-    km__ply_write(af.f, m, enc);
+    km__ply_write(af.f, m, enc, NULL);
   else
     km__off_write(af.f, m);
   return km__atomic_commit(&af, err);

@@ -922,7 +922,7 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
   km_status s = KM_OK;
   /* Pass 1: count; pass 2: fill. */
   size_t nv = 0, nf = 0;
-  bool any_n = false, any_t = false;
+  bool any_n = false, any_t = false, any_c = false;
   for (int pass = 0; pass < 2; ++pass) {
     if (pass == 1) {
       if (nv > INT32_MAX)
@@ -939,6 +939,9 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
       }
       if (any_n && !(out->N = km__calloc(nv ? nv : 1, 3 * sizeof(double)))) goto nomem;
       if (any_t && !(out->UV = km__calloc(nv ? nv : 1, 2 * sizeof(double)))) goto nomem;
+      if (any_c && !(out->colors = km__malloc(nv ? nv : 1, 4 * sizeof(double)))) goto nomem;
+      for (size_t i = 0; any_c && i < 4 * nv; ++i)
+        out->colors[i] = 1; /* a primitive without COLOR_0 among others: white */
     }
     size_t v0 = 0, f0 = 0;
     for (size_t ii = 0; ii < inst->n; ++ii) {
@@ -980,7 +983,7 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
                           "%s: %s: mode %d (only triangles, mode 4, are read)", d->name, what,
                           mode);
         cJSON *at = cJSON_GetObjectItemCaseSensitive(pr, "attributes");
-        acc_view pos, nrm, tex, idx;
+        acc_view pos, nrm, tex, idx, col;
         if ((s = accessor(d, jint(at, "POSITION", -1), what, &pos, err))) return s;
         /* KHR_mesh_quantization: (normalized) byte / short components too, dequantised by
          * comp() and the node transform / inverse bind matrices, like float ones. */
@@ -995,6 +998,14 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
             (ht && (tex.ncomp != 2 || tex.count != pos.count || tex.ct == 5125)))
           return km__fail(err, KM_ERR_PARSE,
                           "%s: %s: NORMAL (VEC3) / TEXCOORD_0 (VEC2) must have POSITION's count",
+                          d->name, what);
+        bool hc = cJSON_GetObjectItemCaseSensitive(at, "COLOR_0") != NULL;
+        if (hc && (s = accessor(d, jint(at, "COLOR_0", -1), what, &col, err))) return s;
+        if (hc && ((col.ncomp != 3 && col.ncomp != 4) || col.count != pos.count ||
+                   (col.ct != 5126 && !col.normalized)))
+          return km__fail(err, KM_ERR_PARSE,
+                          "%s: %s: COLOR_0 must be VEC3 or VEC4 (float, or normalized unsigned "
+                          "byte or short) with POSITION's count",
                           d->name, what);
         double uvA[6] = {0, 0, 1, 0, 0, 1};
         bool uvt = ht && uv_transform(d, pr, uvA);
@@ -1051,6 +1062,7 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
           nf += ni / 3;
           any_n |= hn;
           any_t |= ht;
+          any_c |= hc;
           if (nv > INT32_MAX) break;
           continue;
         }
@@ -1066,6 +1078,9 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
               out->UV[2 * (v0 + i) + c] = c ? 1 - t : t;
             }
           }
+          for (int c = 0; hc && c < col.ncomp; ++c) /* linear in glTF, sRGB in km_mesh */
+            out->colors[4 * (v0 + i) + c] =
+                c < 3 ? km__srgb_encode(comp(&col, i, c)) : fmin(1, fmax(0, comp(&col, i, c)));
           double nl = 0, Mv[16];
           const double *Mp = M;
           if (hs) { /* linear blend skinning by the scene's joint transforms */

@@ -99,6 +99,7 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
   }
   bool any_t = false, any_n = false;
   size_t nt = 0, nn = 0, seams = 0;
+  double *C = NULL, c_max = 0; /* vertex colours, the largest component */
   km_status s = KM_OK;
   size_t nv = 0, line = 0;
   int32_t poly_buf[64];
@@ -131,7 +132,27 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
           break;
         }
       }
-      ++nv; /* extra numbers (w, colours) are ignored */
+      /* "v x y z r g b": a vertex colour (MeshLab's, ZBrush's and scanners' extension);
+       * other extra numbers (w) are ignored */
+      double rgb[3];
+      int extra = 0;
+      while (!s && extra < 4 && next_token(&c, &tok, &len) && tok[0] != '#') {
+        if (extra < 3 && !km__parse_double(tok, len, &rgb[extra])) extra = 4;
+        ++extra;
+      }
+      if (!s && extra == 3) {
+        if (!C && (C = km__malloc(nv_total, 4 * sizeof(double))))
+          for (size_t i = 0; i < 4 * nv_total; ++i)
+            C[i] = 1; /* vertices without a colour: white */
+        if (!C) {
+          s = km__fail(err, KM_ERR_NOMEM, "%s:%zu: out of memory", name, line);
+          break;
+        }
+        memcpy(C + 4 * nv, rgb, sizeof rgb);
+        for (int k = 0; k < 3; ++k)
+          c_max = fmax(c_max, rgb[k]);
+      }
+      ++nv;
     } else if ((keyword_is(tok, len, "vt") && nt < nt_total) ||
                (keyword_is(tok, len, "vn") && nn < nn_total)) {
       bool is_t = tok[1] == 't';
@@ -255,9 +276,16 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
                  line);
   free(T), free(Nn), free(set);
   if (s) {
-    free(V), free(tris.F), free(UV), free(NV);
+    free(V), free(tris.F), free(UV), free(NV), free(C);
     return s;
   }
+  /* colours written 0..255 (some exporters) rather than 0..1 */
+  for (size_t i = 0; C && c_max > 1 && i < nv; ++i)
+    for (int k = 0; k < 3; ++k)
+      C[4 * i + k] /= 255;
+  for (size_t i = 0; C && i < 4 * nv; ++i)
+    C[i] = fmin(1, fmax(0, C[i]));
+  out->colors = C;
   if (!any_t) free(UV), UV = NULL;
   if (!any_n) free(NV), NV = NULL;
   if (seams)
@@ -589,7 +617,10 @@ km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const cha
     fputs("v ", f);
     write_double(f, m->V[3 * i], ' ');
     write_double(f, m->V[3 * i + 1], ' ');
-    write_double(f, m->V[3 * i + 2], '\n');
+    write_double(f, m->V[3 * i + 2], m->colors ? ' ' : '\n');
+    if (m->colors) /* the vertex colour extension: r g b in 0..1 (alpha has no place) */
+      for (int k = 0; k < 3; ++k)
+        write_double(f, m->colors[4 * i + k], k < 2 ? ' ' : '\n');
   }
   /* One vt and one vn per vertex, in vertex order, so every face reference is i/i/i. */
   for (size_t i = 0; m->UV && i < m->n_vertices; ++i) {

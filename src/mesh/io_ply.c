@@ -6,6 +6,7 @@
  * rply and miniply were considered; neither is packaged here, rply reads through FILE*
  * callbacks (we parse from memory for fuzzing and speed) and both leave error positions to
  * the caller, so the reader is written out. */
+#include "mesh/mesh.h"
 #include "mesh/mesh_io.h"
 
 #include <math.h>
@@ -38,18 +39,40 @@ enum {
   ROLE_V,
   ROLE_NX,
   ROLE_NY,
-  ROLE_NZ
+  ROLE_NZ,
+  ROLE_R, /* vertex colour red, green, blue, alpha */
+  ROLE_G,
+  ROLE_B,
+  ROLE_A
 };
 
 /* Vertex attribute names: texture coordinates as Blender/MeshLab (s t), Paraview/Open3D
- * (u v) and PCL/others (texture_u texture_v) write them; normals nx ny nz. */
+ * (u v) and PCL/others (texture_u texture_v) write them; normals nx ny nz; colours red green
+ * blue alpha as MeshLab, Blender, Open3D and scanners write them (diffuse_red ... in older
+ * Stanford files). */
 static int attribute_role(const char *t, size_t l) {
   static const struct {
     const char *name;
     int role;
-  } k[] = {{"u", ROLE_U},   {"s", ROLE_U},   {"texture_u", ROLE_U}, {"texture_s", ROLE_U},
-           {"v", ROLE_V},   {"t", ROLE_V},   {"texture_v", ROLE_V}, {"texture_t", ROLE_V},
-           {"nx", ROLE_NX}, {"ny", ROLE_NY}, {"nz", ROLE_NZ}};
+  } k[] = {{"u", ROLE_U},
+           {"s", ROLE_U},
+           {"texture_u", ROLE_U},
+           {"texture_s", ROLE_U},
+           {"v", ROLE_V},
+           {"t", ROLE_V},
+           {"texture_v", ROLE_V},
+           {"texture_t", ROLE_V},
+           {"nx", ROLE_NX},
+           {"ny", ROLE_NY},
+           {"nz", ROLE_NZ},
+           {"red", ROLE_R},
+           {"green", ROLE_G},
+           {"blue", ROLE_B},
+           {"alpha", ROLE_A},
+           {"diffuse_red", ROLE_R},
+           {"diffuse_green", ROLE_G},
+           {"diffuse_blue", ROLE_B},
+           {"diffuse_alpha", ROLE_A}};
   for (size_t i = 0; i < sizeof k / sizeof k[0]; ++i)
     if (strlen(k[i].name) == l && !memcmp(k[i].name, t, l)) return k[i].role;
   return ROLE_NONE;
@@ -448,7 +471,7 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
   const char *body = NULL;
   size_t line = 0;
   km_status s = parse_header(data, size, name, h, &body, &line, err);
-  double *V = NULL, *UV = NULL, *NV = NULL;
+  double *V = NULL, *UV = NULL, *NV = NULL, *C = NULL;
   km__tris tris = {0};
   if (s) goto done;
 
@@ -476,6 +499,7 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
     attrs |= 1 << h->props[ve->first_prop + k].role;
   bool want_uv = (attrs & (1 << ROLE_U)) && (attrs & (1 << ROLE_V));
   bool want_n = (attrs & (7 << ROLE_NX)) == (7 << ROLE_NX);
+  bool want_c = (attrs & (7 << ROLE_R)) == (7 << ROLE_R);
   bool has_indices = false;
   if (fe)
     for (size_t k = 0; k < fe->n_props; ++k)
@@ -524,7 +548,10 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
   V = km__malloc(nv ? nv * 3 : 1, sizeof(double));
   if (want_uv) UV = km__malloc(nv ? nv * 2 : 1, sizeof(double));
   if (want_n) NV = km__malloc(nv ? nv * 3 : 1, sizeof(double));
-  if (!V || (want_uv && !UV) || (want_n && !NV) ||
+  if (want_c) C = km__malloc(nv ? nv * 4 : 1, sizeof(double));
+  for (size_t i = 0; C && i < nv; ++i)
+    C[4 * i + 3] = 1; /* no alpha property: opaque */
+  if (!V || (want_uv && !UV) || (want_n && !NV) || (want_c && !C) ||
       (fe && !km__tris_reserve(&tris, fe->count ? (size_t)fe->count : 1))) {
     s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu vertices", name, nv);
     goto done;
@@ -568,9 +595,18 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
         } else if (e->is_vertex && pr->role >= ROLE_U && pr->role <= ROLE_V && UV) {
           s = read_value(&r, pr->type, false, &UV[n * 2 + (size_t)(pr->role - ROLE_U)], NULL,
                          "a texture coordinate");
-        } else if (e->is_vertex && pr->role >= ROLE_NX && NV) {
+        } else if (e->is_vertex && pr->role >= ROLE_NX && pr->role <= ROLE_NZ && NV) {
           s = read_value(&r, pr->type, false, &NV[n * 3 + (size_t)(pr->role - ROLE_NX)], NULL,
                          "a normal component");
+        } else if (e->is_vertex && pr->role >= ROLE_R && C && pr->count_type == T_NONE) {
+          /* integers over their type's range (uchar 0..255, ushort 0..65535), floats as they
+           * are; clamped to [0, 1] */
+          double *c = &C[n * 4 + (size_t)(pr->role - ROLE_R)];
+          s = read_value(&r, pr->type, false, c, NULL, "a colour component");
+          double full = pr->type == T_U16 || pr->type == T_I16 ? 65535
+                        : type_is_int(pr->type)                ? 255
+                                                               : 1;
+          *c = fmin(1, fmax(0, *c / full));
         } else if (pr->count_type == T_NONE) {
           s = skip_values(&r, pr->type, 1);
         } else if (pr->role != ROLE_INDICES) {
@@ -634,7 +670,8 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
   out->n_faces = tris.n;
   out->UV = UV;
   out->N = NV;
-  V = UV = NV = NULL;
+  out->colors = C;
+  V = UV = NV = C = NULL;
   tris.F = NULL;
   if (!fe) { /* point cloud: keep a valid (empty) face array */
     out->F = km__malloc(1, 3 * sizeof(int32_t));
@@ -647,6 +684,7 @@ done:
   free(V);
   free(UV);
   free(NV);
+  free(C);
   free(tris.F);
   free(h);
   return s;
@@ -661,16 +699,37 @@ static void store_bits(unsigned char *p, uint64_t v, size_t n, bool be) {
   }
 }
 
-km_status km__ply_write(FILE *f, const km_mesh *m, km_ply_encoding enc) {
+double km__srgb_encode(double x) {
+  x = fmin(1, fmax(0, x));
+  return x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1 / 2.4) - 0.055;
+}
+
+double km__srgb_decode(double x) {
+  x = fmin(1, fmax(0, x));
+  return x <= 0.04045 ? x / 12.92 : pow((x + 0.055) / 1.055, 2.4);
+}
+
+void km__color8(const double c[4], unsigned char out[4]) {
+  for (int k = 0; k < 4; ++k) {
+    double x = c[k] * 255 + 0.5;
+    out[k] = (unsigned char)(x > 255 ? 255 : x > 0 ? x : 0);
+  }
+}
+
+km_status km__ply_write(FILE *f, const km_mesh *m, km_ply_encoding enc, const char *comment) {
   const char *fmt = enc == KM_PLY_ASCII       ? "ascii"
                     : enc == KM_PLY_BINARY_BE ? "binary_big_endian"
                                               : "binary_little_endian";
   fprintf(f,
-          "ply\nformat %s 1.0\ncomment kinemesh\nelement vertex %zu\nproperty double x\n"
+          "ply\nformat %s 1.0\ncomment %s\nelement vertex %zu\nproperty double x\n"
           "property double y\nproperty double z\n",
-          fmt, m->n_vertices);
+          fmt, comment ? comment : "kinemesh", m->n_vertices);
   if (m->UV) fputs("property double u\nproperty double v\n", f);
   if (m->N) fputs("property double nx\nproperty double ny\nproperty double nz\n", f);
+  /* colours as every PLY reader takes them: uchar 0..255 (8 bits: what they were read as) */
+  if (m->colors)
+    fputs("property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n",
+          f);
   if (m->n_faces)
     fprintf(f, "element face %zu\nproperty list uchar int vertex_indices\n", m->n_faces);
   fputs("end_header\n", f);
@@ -687,15 +746,20 @@ km_status km__ply_write(FILE *f, const km_mesh *m, km_ply_encoding enc) {
         rec[n_rec++] = m->N[3 * i + (size_t)k];
       for (int k = 0; k < n_rec; ++k) {
         int n = km__format_double(buf, sizeof buf - 1, rec[k]);
-        buf[n] = k == n_rec - 1 ? '\n' : ' ';
+        buf[n] = k == n_rec - 1 && !m->colors ? '\n' : ' ';
         fwrite(buf, 1, (size_t)n + 1, f);
+      }
+      if (m->colors) {
+        unsigned char c8[4];
+        km__color8(m->colors + 4 * i, c8);
+        fprintf(f, "%u %u %u %u\n", c8[0], c8[1], c8[2], c8[3]);
       }
     }
     for (size_t i = 0; i < m->n_faces; ++i)
       fprintf(f, "3 %d %d %d\n", m->F[3 * i], m->F[3 * i + 1], m->F[3 * i + 2]);
   } else {
     bool be = enc == KM_PLY_BINARY_BE;
-    unsigned char rec[64];
+    unsigned char rec[8 * 8 + 4]; /* 8 doubles (x y z u v nx ny nz) and 4 colour bytes */
     for (size_t i = 0; i < m->n_vertices; ++i) {
       double val[8];
       int n_val = 0;
@@ -710,7 +774,9 @@ km_status km__ply_write(FILE *f, const km_mesh *m, km_ply_encoding enc) {
         memcpy(&b, &val[k], 8);
         store_bits(rec + 8 * k, b, 8, be);
       }
-      fwrite(rec, 1, 8 * (size_t)n_val, f);
+      size_t nb = 8 * (size_t)n_val;
+      if (m->colors) km__color8(m->colors + 4 * i, rec + nb), nb += 4;
+      fwrite(rec, 1, nb, f);
     }
     for (size_t i = 0; i < m->n_faces; ++i) {
       rec[0] = 3;

@@ -118,12 +118,22 @@ km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const cha
 /* A deep copy of src (its images too) into dst; false when out of memory (dst then holds what
  * was copied: free it with km__material_free_images). */
 bool km__material_copy(km_mesh_material *dst, const km_mesh_material *src);
+/* The sRGB transfer function (IEC 61966-2-1) one way and the other, on [0, 1] (clamped):
+ * km_mesh.colors are sRGB-encoded, glTF's COLOR_0 linear. */
+double km__srgb_encode(double linear);
+double km__srgb_decode(double srgb);
+/* A colour in [0, 1] (km_mesh.colors) as the 8-bit values files store: round(255 c), clamped. */
+void km__color8(const double c[4], unsigned char out[4]);
 /* Frees a material's images (base colour and maps) and sets them NULL. */
 void km__material_free_images(km_mesh_material *m);
 /* A material's texture slot s as one image: s 0 the base colour (image, image_size,
  * image_mime), s 1 + q maps[q]; bytes NULL when it has none. KM__SLOTS slots. */
 #define KM__SLOTS (1 + KM_MAP_COUNT)
 km_mesh_image km__material_slot(const km_mesh_material *m, int s);
+/* Writes m as PLY (x y z as doubles, u v, nx ny nz, colours as uchar red green blue alpha,
+ * triangles) with "comment <comment>" (NULL: "kinemesh") in the header. Vertex order and count
+ * as in m. */
+km_status km__ply_write(FILE *f, const km_mesh *m, km_ply_encoding enc, const char *comment);
 /* Identical images among materials' texture slots (a glTF's primitives often share one; a
  * normal map is never a base colour, but bytes decide):
  *   m, n  in: materials

@@ -31,7 +31,7 @@ km_status km__off_parse(const char *data, size_t size, const char *name, km_mesh
  * Pm and map_Kd's image, PNG or JPEG bytes), one per run of faces, into out->materials. Anything
  * missing or unreadable is a warning, never an error (the geometry was asked for). */
 void km__obj_read_material(const char *data, size_t size, const char *path, km_mesh *out);
-km_status km__ply_write(FILE *f, const km_mesh *m, km_ply_encoding enc);
+
 km_status km__off_write(FILE *f, const km_mesh *m);
 
 /* Parses a whole token as a finite double, locale-independently (strtod in the "C" locale,

@@ -31,6 +31,22 @@ awk 'BEGIN { print "mtllib ct.mtl"; print "usemtl skin" }
      $1 == "f" && ++k == int(nf / 2) + 1 { print "usemtl plain" } { print }' \
   "$WORK/ct.obj" "$WORK/ct.obj" >"$WORK/ct2.obj" && mv "$WORK/ct2.obj" "$WORK/ct.obj"
 cp "$WORK/c.rig.json" "$WORK/ct.rig.json"
+# A scan's vertex colours (v x y z r g b): COLOR_0 on every .glb made from it, plain and
+# compressed, a linear normalised unsigned short VEC4
+awk '$1 == "v" { printf "%s %s %s %s %.4f %.4f 0.5\n", $1, $2, $3, $4, ($2 + 1) / 2, $3 / 2; next } { print }' \
+  "$WORK/c.obj" >"$WORK/cc.obj"
+cp "$WORK/c.rig.json" "$WORK/cc.rig.json"
+"$BIN" pose --mesh "$WORK/cc.obj" --motion "$WORK/t.json" --key-every 4 -o "$WORK/colors.glb"
+"$BIN" animate --mesh "$WORK/cc.obj" --motion "$WORK/t.json" --export skin:8 --compress -o "$WORK/z_colors.glb"
+for f in colors z_colors; do
+  node -e '
+const b = require("fs").readFileSync(process.argv[1]);
+const j = JSON.parse(b.subarray(20, 20 + b.readUInt32LE(12)).toString());
+const a = j.accessors[j.meshes[0].primitives[0].attributes.COLOR_0];
+if (!a || a.type !== "VEC4" || a.componentType !== 5123 || !a.normalized) {
+  console.log("FAIL: " + process.argv[1] + ": no COLOR_0 (VEC4 normalised unsigned short)"); process.exit(1);
+}' "$WORK/$f.glb"
+done
 "$BIN" pose --mesh "$WORK/ct.obj" --motion "$WORK/t.json" --key-every 4 -o "$WORK/textured.glb"
 # Issue 11: the textured mesh through the puppetry pipeline (animate) too, its cache kept here.
 XDG_CACHE_HOME="$WORK/cache" "$BIN" animate --mesh "$WORK/ct.obj" --motion "$WORK/t.json" -o "$WORK/textured_anim.glb"
@@ -66,10 +82,10 @@ fi
 if "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --compress -o "$WORK/z.pc2" 2>/dev/null; then
   echo "FAIL: --compress accepted a .pc2 output"; exit 1
 fi
-for f in every keys textured textured_anim skin skel z_skel baked baked_pc2 pca z_keys z_skin z_pca z_baked; do
+for f in every keys textured textured_anim skin skel z_skel baked baked_pc2 pca z_keys z_skin z_pca z_baked colors z_colors; do
   # the textured mesh's outputs have a normal map and no TANGENT, as intended (validate.mjs)
   allow=()
-  case $f in every | keys | baked | z_baked) ;; *) allow=(--allow MESH_PRIMITIVE_GENERATED_TANGENT_SPACE) ;; esac
+  case $f in every | keys | baked | z_baked | colors | z_colors) ;; *) allow=(--allow MESH_PRIMITIVE_GENERATED_TANGENT_SPACE) ;; esac
   node "$HERE/validate.mjs" "${allow[@]}" "$WORK/$f.glb" | tee "$WORK/$f.txt"
   grep -q ': 0 errors, 0 warnings' "$WORK/$f.txt" || { echo "FAIL: $f.glb has validator errors or warnings"; exit 1; }
 done

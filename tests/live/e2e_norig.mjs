@@ -1,5 +1,5 @@
 // End-to-end without a rig: `kinemesh live --mesh c.obj` with no c.rig.json rigs the mesh itself
-// (km_autorig, printed) and writes nothing; the page's hover readout shows the id and position
+// (km_autorig, printed) and writes nothing; the page paints the mesh's own vertex colours; the page's hover readout shows the id and position
 // of the vertex under the cursor; the first handle placed by a click is saved, which creates
 // c.rig.json. Keeps a screenshot.
 import fs from 'node:fs';
@@ -27,6 +27,12 @@ await runLivePage(http, 'live_e2e_norig', path.join(work, 'live_norig.png'), asy
   let target = -1, bz = -Infinity;
   pos.forEach((p, i) => { if (Math.abs(p[0]) < 0.04 && Math.abs(p[1] - yt) < 0.02 && p[2] > bz) { bz = p[2]; target = i; } });
   check(target >= 0, `belly vertex ${target}`);
+  // the mesh's own colour (0.9 0.4 0.1 in the file, sRGB) where no handle is, linear in the page
+  const lin = (x) => (x <= 0.04045 ? x / 12.92 : ((x + 0.055) / 1.055) ** 2.4);
+  const want = [0.9, 0.4, 0.1].map((x) => lin(Math.round(x * 255) / 255));
+  const got = await page.evaluate((i) => window.kmLive.vertexColor(i), target);
+  check(got.every((x, k) => Math.abs(x - want[k]) < 1e-5),
+    `the page paints the mesh's own colour: ${got.map((x) => x.toFixed(4))} (want ${want.map((x) => x.toFixed(4))})`);
   const px = await page.evaluate((i) => window.kmLive.project(i), target);
 
   // Hover: the readout names the vertex under the cursor and its position.

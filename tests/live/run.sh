@@ -27,7 +27,11 @@ EXTRA=()
 case $MODE in
   e2e) EXTRA=(--replay "$WORK/t.json" --no-autoplay) ;;
   e2e_quantize) EXTRA=(--replay "$WORK/t.json" --no-autoplay --quantize) ;;
-  e2e_norig) rm -f "$WORK/c.rig.json"; EXTRA=(--no-autoplay) ;;
+  e2e_norig) # a scan's own colours (v x y z r g b): the page shows them where no handle is
+    rm -f "$WORK/c.rig.json"
+    awk '$1 == "v" { print $1, $2, $3, $4, 0.9, 0.4, 0.1; next } { print }' "$WORK/c.obj" >"$WORK/cc.obj" &&
+      mv "$WORK/cc.obj" "$WORK/c.obj"
+    EXTRA=(--no-autoplay) ;;
   e2e_nohandles) EXTRA=(--no-handles --replay "$WORK/t.json" --no-autoplay) ;;
   osc) EXTRA=(--record "$WORK/rec.json") ;;
   camera) EXTRA=(--record "$WORK/rec.json") ;;
