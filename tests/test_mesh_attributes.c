@@ -530,33 +530,47 @@ static void test_material(void) {
  * map_Kd image (options before the file name skipped) read into km_mesh.material; a texture
  * is the colour (factor 1, not Kd's 0.8); without a texture, Kd; a missing library or image is
  * a warning and the mesh still reads. */
+/* A 1x1 RGBA PNG, 70 bytes. */
+static const unsigned char k_png[70] = {
+    0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48,
+    0x44, 0x52, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00,
+    0x00, 0x1f, 0x15, 0xc4, 0x89, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x44, 0x41, 0x54, 0x78,
+    0xda, 0x63, 0xfc, 0xcf, 0xc0, 0x50, 0x0f, 0x00, 0x04, 0x85, 0x01, 0x80, 0x84, 0xa9,
+    0x8c, 0x21, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+
+/* Writes n bytes (put_file) or a string (put_text) to path. */
+static void put_file(const char *path, const void *data, size_t n) {
+  FILE *f = fopen(path, "wb");
+  CHECK_MSG(f != NULL, "cannot write %s", path);
+  if (f) fwrite(data, 1, n, f), fclose(f);
+}
+static void put_text(const char *path, const char *text) { put_file(path, text, strlen(text)); }
+
+/* attr_o/q.obj: quad with "mtllib <lib>" and "usemtl <use>", read into *m; its one material,
+ * or NULL. */
+static const km_mesh_material *read_quad_material(const char *quad, const char *lib,
+                                                  const char *use, km_mesh *m) {
+  char obj[512];
+  snprintf(obj, sizeof obj, "mtllib %s\nusemtl %s\n%s", lib, use, quad);
+  put_text("attr_o/q.obj", obj);
+  CHECK_OK(km_mesh_read("attr_o/q.obj", m, KM_E));
+  return m->n_materials == 1 ? m->materials : NULL;
+}
+
 static void test_obj_material(void) {
-  static const unsigned char png[70] = {
-      0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48,
-      0x44, 0x52, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00,
-      0x00, 0x1f, 0x15, 0xc4, 0x89, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x44, 0x41, 0x54, 0x78,
-      0xda, 0x63, 0xfc, 0xcf, 0xc0, 0x50, 0x0f, 0x00, 0x04, 0x85, 0x01, 0x80, 0x84, 0xa9,
-      0x8c, 0x21, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+  const unsigned char *png = k_png;
   CHECK(km_test_run("rm -rf attr_o && mkdir -p attr_o/tex", NULL) == 0);
-  FILE *f = fopen("attr_o/tex/skin.png", "wb");
-  if (f) fwrite(png, 1, sizeof png, f), fclose(f);
-  f = fopen("attr_o/q.mtl", "w");
-  if (f)
-    fputs("newmtl red\nKd 1 0 0\n\nnewmtl skin\nNs 250\nKd 0.8 0.8 0.8\n"
-          "map_Kd -s 1 1 1 tex\\skin.png\n\nnewmtl plain\nKd 0.2 0.4 0.6\n",
-          f),
-        fclose(f);
+  put_file("attr_o/tex/skin.png", png, sizeof k_png);
+  put_text("attr_o/q.mtl", "newmtl red\nKd 1 0 0\n\nnewmtl skin\nNs 250\nKd 0.8 0.8 0.8\n"
+                           "map_Kd -s 1 1 1 tex\\skin.png\n\nnewmtl plain\nKd 0.2 0.4 0.6\n");
   const char *quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
                      "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
   const char *use[3] = {"skin", "plain", "none"};
   for (int k = 0; k < 3; ++k) {
-    f = fopen("attr_o/q.obj", "w");
-    if (f) fprintf(f, "mtllib q.mtl\nusemtl %s\n%s", use[k], quad), fclose(f);
     km_mesh m = {0};
-    CHECK_OK(km_mesh_read("attr_o/q.obj", &m, KM_E));
-    const km_mesh_material *mm = m.n_materials == 1 ? m.materials : NULL;
+    const km_mesh_material *mm = read_quad_material(quad, "q.mtl", use[k], &m);
     if (k == 0)
-      CHECK_MSG(mm && mm->image_size == sizeof png && !memcmp(mm->image, png, sizeof png) &&
+      CHECK_MSG(mm && mm->image_size == sizeof k_png && !memcmp(mm->image, png, sizeof k_png) &&
                     mm->base_color[0] == 1 && fabs(mm->roughness - 0.5) < 1e-12 &&
                     mm->metallic == 0,
                 "skin: %s", mm ? "differs" : "no material");
@@ -570,28 +584,22 @@ static void test_obj_material(void) {
   /* what other exporters write: a texture name with a space after options (-s takes three
    * numbers, -bm one, -o two here), a Windows path from the machine that wrote it (its file
    * beside the library), several libraries on one mtllib line, and Tr for the alpha */
-  f = fopen("attr_o/my skin.png", "wb");
-  if (f) fwrite(png, 1, sizeof png, f), fclose(f);
-  f = fopen("attr_o/q2.mtl", "w");
-  if (f)
-    fputs("newmtl spaced\nmap_Kd -s 1 1 1 -bm 0.5 -o 0.5 0.5 my skin.png\n\n"
-          "newmtl windows\nTr 0.25\nmap_Kd C:\\Users\\me\\Textures\\my skin.png\n",
-          f),
-        fclose(f);
+  put_file("attr_o/my skin.png", png, sizeof k_png);
+  put_text("attr_o/q2.mtl", "newmtl spaced\nmap_Kd -s 1 1 1 -bm 0.5 -o 0.5 0.5 my skin.png\n\n"
+                            "newmtl windows\nTr 0.25\nmap_Kd C:\\Users\\me\\Textures\\my "
+                            "skin.png\n");
   const char *use2[2] = {"spaced", "windows"};
   for (int k = 0; k < 2; ++k) {
-    f = fopen("attr_o/q.obj", "w");
-    if (f) fprintf(f, "mtllib none.mtl q2.mtl\nusemtl %s\n%s", use2[k], quad), fclose(f);
     km_mesh m = {0};
-    CHECK_OK(km_mesh_read("attr_o/q.obj", &m, KM_E));
-    const km_mesh_material *mm = m.n_materials == 1 ? m.materials : NULL;
-    CHECK_MSG(mm && mm->image_size == sizeof png && !memcmp(mm->image, png, sizeof png) &&
+    const km_mesh_material *mm = read_quad_material(quad, "none.mtl q2.mtl", use2[k], &m);
+    CHECK_MSG(mm && mm->image_size == sizeof k_png && !memcmp(mm->image, png, sizeof k_png) &&
                   mm->base_color[3] == (k ? 0.75 : 1),
               "%s: %s", use2[k], mm ? "differs" : "no material");
     km_mesh_free(&m);
   }
-  f = fopen("attr_o/q.obj", "w");
-  if (f) fprintf(f, "mtllib q.mtl\nusemtl skin\n%s", quad), fclose(f);
+  km_mesh m0 = {0}; /* q.obj back on q.mtl */
+  read_quad_material(quad, "q.mtl", "skin", &m0);
+  km_mesh_free(&m0);
   /* the library gone: the mesh reads, no material */
   CHECK(km_test_run("rm attr_o/q.mtl", NULL) == 0);
   km_mesh m = {0};
@@ -617,12 +625,7 @@ static bool same_material(const km_mesh_material *a, const km_mesh_material *b) 
 }
 
 static void test_obj_material_out(void) {
-  static unsigned char png[70] = {
-      0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48,
-      0x44, 0x52, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00,
-      0x00, 0x1f, 0x15, 0xc4, 0x89, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x44, 0x41, 0x54, 0x78,
-      0xda, 0x63, 0xfc, 0xcf, 0xc0, 0x50, 0x0f, 0x00, 0x04, 0x85, 0x01, 0x80, 0x84, 0xa9,
-      0x8c, 0x21, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+  unsigned char *png = (unsigned char *)k_png; /* km_mesh_material.image is not const: only read */
   CHECK(km_test_run("rm -rf attr_m && mkdir attr_m", NULL) == 0);
   /* a strip of 4 quads (8 triangles): textured, plain, textured with the same image */
   double V[10 * 3], UV[10 * 2];
@@ -642,7 +645,7 @@ static void test_obj_material_out(void) {
                               .metallic = 0,
                               .roughness = 0.5,
                               .image = png,
-                              .image_size = sizeof png,
+                              .image_size = sizeof k_png,
                               .image_mime = "image/png",
                               .first_face = 0,
                               .n_faces = 2},
@@ -656,7 +659,7 @@ static void test_obj_material_out(void) {
                               .metallic = 0,
                               .roughness = 1,
                               .image = png,
-                              .image_size = sizeof png,
+                              .image_size = sizeof k_png,
                               .image_mime = "image/png",
                               .first_face = 6,
                               .n_faces = 2}};
@@ -809,22 +812,18 @@ static double color_dev(const km_mesh *r, const double *c, size_t n, bool alpha)
 
 static void test_colors(void) {
   CHECK(km_test_run("rm -rf attr_col && mkdir attr_col", NULL) == 0);
-  FILE *f = fopen("attr_col/a.ply", "w");
-  if (f)
-    fputs("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-          "property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
-          "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
-          "0 0 0 255 0 0\n1 0 0 0 128 0\n0 1 0 0 0 51\n3 0 1 2\n",
-          f),
-        fclose(f);
+  put_text("attr_col/a.ply",
+           "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+           "property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+           "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+           "0 0 0 255 0 0\n1 0 0 0 128 0\n0 1 0 0 0 51\n3 0 1 2\n");
   km_mesh m = {0}, r = {0};
   CHECK_OK(km_mesh_read("attr_col/a.ply", &m, KM_E));
   const double want[12] = {1, 0, 0, 1, 0, 128 / 255.0, 0, 1, 0, 0, 0.2, 1};
   CHECK_MSG(color_dev(&m, want, 3, true) < 1e-12, "PLY uchar colours: off by %g",
             color_dev(&m, want, 3, true));
   km_mesh_free(&m);
-  f = fopen("attr_col/b.obj", "w");
-  if (f) fputs("v 0 0 0 255 0 0\nv 1 0 0 0 128 0\nv 0 1 0 0 0 51\nf 1 2 3\n", f), fclose(f);
+  put_text("attr_col/b.obj", "v 0 0 0 255 0 0\nv 1 0 0 0 128 0\nv 0 1 0 0 0 51\nf 1 2 3\n");
   CHECK_OK(km_mesh_read("attr_col/b.obj", &m, KM_E));
   CHECK_MSG(color_dev(&m, want, 3, true) < 1e-12, "OBJ 0..255 colours: off by %g",
             color_dev(&m, want, 3, true));

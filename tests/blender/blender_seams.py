@@ -153,6 +153,26 @@ def import_uvs(path):
     return len(me.vertices), vi, uv, px, nm
 
 
+def same_surface(src_path, src, path):
+    """path as Blender imports it is src (import_uvs of src_path): its vertices and loops, its
+    UVs, its base colour texture and its normal map; returns (vertices, largest UV change)."""
+    n0, vi0, uv0, px0, nm0 = src
+    if px0 is None or nm0 is None:
+        fail(f"{src_path}: Blender finds no base colour texture or normal map in its own export", 2)
+    n1, vi1, uv1, px1, nm1 = import_uvs(path)
+    same_normal_map(path, nm0, nm1)
+    if px1 is None:
+        fail(f"{path}: no base colour texture: the textured model comes out grey")
+    if px1[0] != px0[0] or float(numpy.abs(px1[1] - px0[1]).max()) > 1e-6:
+        fail(f"{path}: its texture ({px1[0]}) differs from the source's ({px0[0]})")
+    if n0 != n1 or not numpy.array_equal(vi0, vi1):
+        fail(f"Blender imports {n1} vertices from {path} and {n0} from {src_path}, or other loops")
+    duv = float(numpy.abs(uv0 - uv1).max())
+    if duv > 1e-6:
+        fail(f"{path}: texture coordinates differ by {duv:.3g}")
+    return n1, duv
+
+
 def same_normal_map(path, nm0, nm1):
     """The output's normal map is the source's: same pixels, same strength."""
     if nm1 is None:
@@ -272,24 +292,11 @@ elif len(argv) >= 3 and argv[0] == "gaps":
 elif len(argv) >= 3 and argv[0] == "objcheck":
     # OBJ outputs (convert, animate's frame folder) as Blender's OBJ importer reads them: the
     # same vertices and loops as the source, its UVs, and its texture through the .mtl
-    n0, vi0, uv0, px0, nm0 = import_uvs(argv[1])
-    if px0 is None or nm0 is None:
-        fail(f"{argv[1]}: Blender finds no base colour texture or normal map in its own export", 2)
+    src = import_uvs(argv[1])
     for path in argv[2:]:
-        n1, vi1, uv1, px1, nm1 = import_uvs(path)
-        same_normal_map(path, nm0, nm1)
-        if px1 is None:
-            fail(f"{path}: no base colour texture: the textured model comes out grey")
-        if px1[0] != px0[0] or float(numpy.abs(px1[1] - px0[1]).max()) > 1e-6:
-            fail(f"{path}: its texture ({px1[0]}) differs from the source's ({px0[0]})")
-        if n0 != n1 or not numpy.array_equal(vi0, vi1):
-            fail(f"Blender imports {n1} vertices from {path} and {n0} from {argv[1]}, "
-                 "or other loops")
-        duv = float(numpy.abs(uv0 - uv1).max())
-        if duv > 1e-6:
-            fail(f"{path}: texture coordinates differ by {duv:.3g}")
+        n1, duv = same_surface(argv[1], src, path)
         print(f"note: {os.path.basename(path)}: {n1} vertices, the source's "
-              f"{px0[0][0]}x{px0[0][1]} texture and normal map, UVs within {duv:.2g}")
+              f"{src[3][0][0]}x{src[3][0][1]} texture and normal map, UVs within {duv:.2g}")
     print(f"ok: {len(argv) - 2} OBJ outputs textured as the source")
 elif len(argv) == 3 and argv[0] == "export":
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -303,23 +310,10 @@ elif len(argv) == 5 and argv[0] == "check":
     if len(a) < 100:
         fail(f"{argv[1]}: only {len(a)} coincident vertices: the export was not split")
     seams_shut(argv[2], pc2(argv[2]), rest, a, b, 0.05)
-    n0, vi0, uv0, px0, nm0 = import_uvs(argv[1])
-    n1, vi1, uv1, px1, nm1 = import_uvs(argv[3])
-    if px0 is None or nm0 is None:
-        fail(f"{argv[1]}: Blender finds no base colour texture or normal map in its own export", 2)
-    same_normal_map(argv[3], nm0, nm1)
-    print(f"note: the animation's material has the source's normal map, strength {nm1[2]:.2f}")
-    if px1 is None:
-        fail(f"{argv[3]}: no base colour texture: the textured model comes out grey")
-    if px1[0] != px0[0] or float(numpy.abs(px1[1] - px0[1]).max()) > 1e-6:
-        fail(f"{argv[3]}: its texture ({px1[0]}) differs from the source's ({px0[0]})")
-    print(f"note: the animation's material has the source's {px0[0][0]}x{px0[0][1]} texture")
-    if n0 != n1 or not numpy.array_equal(vi0, vi1):
-        fail(f"Blender imports {n1} vertices from {argv[3]} and {n0} from {argv[1]}, "
-             "or other loops")
-    duv = float(numpy.abs(uv0 - uv1).max())
-    if duv > 1e-6:
-        fail(f"texture coordinates differ by {duv:.3g} after animate")
+    src = import_uvs(argv[1])
+    n1, duv = same_surface(argv[1], src, argv[3])
+    print(f"note: the animation's material has the source's {src[3][0][0]}x{src[3][0][1]} "
+          f"texture and normal map (strength {src[4][2]:.2f})")
     # the skinned export, as Blender's armature plays it
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.import_scene.gltf(filepath=argv[4])
