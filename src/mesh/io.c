@@ -209,7 +209,7 @@ static km_status write_obj_materials(const char *path, const km_mesh *m, char **
   const char *base = slash ? slash + 1 : path, *dot = strrchr(base, '.');
   size_t stem = dot && dot > base ? (size_t)(dot - base) : strlen(base);
   size_t dir_n = slash ? (size_t)(slash - path) : 1;
-  char *dir = malloc(dir_n + 1), *name = malloc(stem + 5), *prefix = malloc(stem + 10);
+  char *dir = malloc(dir_n + 2), *name = malloc(stem + 5), *prefix = malloc(stem + 10);
   if (!dir || !name || !prefix) {
     free(dir), free(name), free(prefix);
     return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
