@@ -298,6 +298,35 @@ elif len(argv) >= 3 and argv[0] == "objcheck":
         print(f"note: {os.path.basename(path)}: {n1} vertices, the source's "
               f"{src[3][0][0]}x{src[3][0][1]} texture and normal map, UVs within {duv:.2g}")
     print(f"ok: {len(argv) - 2} OBJ outputs textured as the source")
+elif len(argv) >= 3 and argv[0] == "colors":
+    # vertex colours (a scan's) as Blender's PLY and glTF importers read kinemesh's outputs:
+    # every corner's sRGB colour within 1.5/255 of its vertex's in the source OBJ (v x y z r g b)
+    want = numpy.array([[float(t) for t in line.split()[4:7]]
+                        for line in open(argv[1]) if line.startswith("v ")])
+    for path in argv[2:]:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        if path.endswith(".ply"):
+            bpy.ops.import_mesh.ply(filepath=path)
+        else:
+            bpy.ops.import_scene.gltf(filepath=path)
+        me = [o for o in bpy.context.scene.objects if o.type == "MESH"][0].data
+        if len(me.vertices) != len(want) or not me.color_attributes:
+            fail(f"{path}: Blender imports {len(me.vertices)} vertices and "
+                 f"{len(me.color_attributes)} colour attributes (want {len(want)} and 1)")
+        col = me.color_attributes[0]
+        got = numpy.array([tuple(d.color_srgb)[:3] for d in col.data])
+        if col.domain == "CORNER":
+            vi = numpy.zeros(len(me.loops), dtype=numpy.int64)
+            me.loops.foreach_get("vertex_index", vi)
+            ref = want[vi]
+        else:
+            ref = want
+        dev = float(numpy.abs(got - ref).max())
+        if dev > 1.5 / 255:
+            fail(f"{path}: vertex colours off by {dev * 255:.2f}/255 as Blender reads them")
+        print(f"note: {os.path.basename(path)}: {len(me.vertices)} vertices, colours within "
+              f"{dev * 255:.2f}/255")
+    print(f"ok: {len(argv) - 2} outputs with the source's vertex colours")
 elif len(argv) == 3 and argv[0] == "export":
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.wm.obj_import(filepath=argv[1])
@@ -338,4 +367,4 @@ elif len(argv) == 5 and argv[0] == "check":
 else:
     fail("usage: blender -b --python blender_seams.py -- export SRC.obj OUT.glb | "
          "check SRC_UV.glb ANIM.pc2 ANIM.glb SKIN.glb | export-skinned SRC.obj SRC.rig.json OUT.glb | "
-         "gaps SRC_UV.glb OUT... | objcheck SRC_UV.glb OUT.obj...", 2)
+         "gaps SRC_UV.glb OUT... | objcheck SRC_UV.glb OUT.obj... | colors SRC.obj OUT...", 2)

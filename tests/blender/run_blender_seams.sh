@@ -47,6 +47,19 @@ blend check "$WORK/c_uv.glb" "$WORK/anim.pc2" "$WORK/anim.glb" "$WORK/skin.glb"
   { cat "$WORK/animate.log"; echo "blender_seams: animate FAILED"; exit 1; }
 blend objcheck "$WORK/c_uv.glb" "$WORK/conv/c_uv.obj" "$WORK/frames/frame_000000.obj" \
   "$WORK/frames/frame_000023.obj"
+# a scan's vertex colours (v x y z r g b) through convert (PLY), animate (.glb) and a PLY frame
+# folder, as Blender's importers read them
+awk '$1 == "v" { t = $3 / 1.8; t = t < 0 ? 0 : t > 1 ? 1 : t; printf "v %s %s %s %.4f 0.5 %.4f\n", $2, $3, $4, t, 1 - t; next } { print }' \
+  "$WORK/c.obj" >"$WORK/cc.obj"
+"$BIN" convert "$WORK/cc.obj" "$WORK/cc.ply" >"$WORK/convert.log" 2>&1 ||
+  { cat "$WORK/convert.log"; echo "blender_seams: convert FAILED"; exit 1; }
+for out in cc.glb "cc_frames --frame-format ply"; do
+  # shellcheck disable=SC2086 # the frame format option is meant to split
+  "$BIN" animate --mesh "$WORK/cc.obj" --rig "$WORK/c.rig.json" --motion "$WORK/t.json" \
+    -o "$WORK/"$out >"$WORK/animate.log" 2>&1 ||
+    { cat "$WORK/animate.log"; echo "blender_seams: animate FAILED"; exit 1; }
+done
+blend colors "$WORK/cc.obj" "$WORK/cc.ply" "$WORK/cc.glb" "$WORK/cc_frames/frame_000010.ply"
 # the outputs with the source's material and texture are valid glTF (the Khronos validator)
 VALIDATE=$HERE/../gltf/validate.mjs
 if command -v node >/dev/null && [ -d "$HERE/../gltf/node_modules/gltf-validator" ]; then
