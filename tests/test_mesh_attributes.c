@@ -824,6 +824,13 @@ static void test_colors(void) {
             color_dev(&m, want, 3, true));
   km_mesh_free(&m);
   put_text("attr_col/b.obj", "v 0 0 0 255 0 0\nv 1 0 0 0 128 0\nv 0 1 0 0 0 51\nf 1 2 3\n");
+  /* a vertex without a colour among coloured ones (0..255) is white, not 1/255 */
+  put_text("attr_col/c.obj", "v 0 0 0 255 0 0\nv 1 0 0\nv 0 1 0 0 0 51\nf 1 2 3\n");
+  CHECK_OK(km_mesh_read("attr_col/c.obj", &m, KM_E));
+  CHECK_MSG(m.colors && m.colors[4] == 1 && m.colors[5] == 1 && m.colors[6] == 1 &&
+                m.colors[0] == 1 && fabs(m.colors[10] - 0.2) < 1e-12,
+            "OBJ: a vertex without a colour is not white");
+  km_mesh_free(&m);
   CHECK_OK(km_mesh_read("attr_col/b.obj", &m, KM_E));
   CHECK_MSG(color_dev(&m, want, 3, true) < 1e-12, "OBJ 0..255 colours: off by %g",
             color_dev(&m, want, 3, true));

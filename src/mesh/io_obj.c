@@ -143,7 +143,7 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
       if (!s && extra == 3) {
         if (!C && (C = km__malloc(nv_total, 4 * sizeof(double))))
           for (size_t i = 0; i < 4 * nv_total; ++i)
-            C[i] = 1; /* vertices without a colour: white */
+            C[i] = i % 4 == 3 ? 1 : NAN; /* no colour yet (white, below) */
         if (!C) {
           s = km__fail(err, KM_ERR_NOMEM, "%s:%zu: out of memory", name, line);
           break;
@@ -283,8 +283,8 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
   for (size_t i = 0; C && c_max > 1 && i < nv; ++i)
     for (int k = 0; k < 3; ++k)
       C[4 * i + k] /= 255;
-  for (size_t i = 0; C && i < 4 * nv; ++i)
-    C[i] = fmin(1, fmax(0, C[i]));
+  for (size_t i = 0; C && i < 4 * nv; ++i) /* vertices without a colour: white */
+    C[i] = isnan(C[i]) ? 1 : fmin(1, fmax(0, C[i]));
   out->colors = C;
   if (!any_t) free(UV), UV = NULL;
   if (!any_n) free(NV), NV = NULL;
@@ -375,8 +375,6 @@ static const mtl_def *mtl_find(const mtl_def *t, size_t n, const char *name) {
   return NULL;
 }
 
-/* def (NULL: none, white) as a km_mesh_material over faces first .. first + n - 1; its map_Kd
- * image read relative to the library. */
 /* The image a map statement names (map: its file), read beside the library; a path from the
  * machine that wrote it (C:\\Users\\...\\skin.png, /home/...) is looked for by its name beside
  * the library, where the textures travel with it. PNG or JPEG, else left out with a warning. */
