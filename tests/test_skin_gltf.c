@@ -76,7 +76,42 @@ static void add_view(cJSON *views, cJSON *accs, size_t off, size_t len, int ct, 
 }
 
 /* Writes c as a skinned .glb with the bone names of a convention, or "bone<i>" (names NULL). */
+/* VRM's humanoid bone names for the bones above (NULL: none) */
+static const char *const vrm_bones[23] = {"hips",
+                                          "spine",
+                                          "neck",
+                                          "head",
+                                          "leftUpperArm",
+                                          "leftLowerArm",
+                                          "leftHand",
+                                          "leftMiddleProximal",
+                                          "rightUpperArm",
+                                          "rightLowerArm",
+                                          "rightHand",
+                                          "rightMiddleProximal",
+                                          "leftUpperLeg",
+                                          "leftLowerLeg",
+                                          "leftFoot",
+                                          "leftToes",
+                                          "rightUpperLeg",
+                                          "rightLowerLeg",
+                                          "rightFoot",
+                                          "rightToes",
+                                          "leftShoulder",
+                                          "leftMiddleIntermediate",
+                                          NULL};
+
+/* vrm 0: a plain glTF; 1: a VRM 0.x avatar (its armature turned half about y, so it faces -z
+ * as UniVRM writes them, and extensions.VRM.humanoid.humanBones); 2: a VRM 1.0 one (facing +z,
+ * extensions.VRMC_vrm.humanoid.humanBones). */
+static void write_skinned_glb_vrm(const char *path, const km_character *c, const char *const *names,
+                                  int vrm);
 static void write_skinned_glb(const char *path, const km_character *c, const char *const *names) {
+  write_skinned_glb_vrm(path, c, names, 0);
+}
+
+static void write_skinned_glb_vrm(const char *path, const km_character *c, const char *const *names,
+                                  int vrm) {
   const km_mesh *m = &c->mesh;
   const double *R = c->skeleton.rest;
   size_t nv = m->n_vertices, nf = m->n_faces;
@@ -141,7 +176,32 @@ static void write_skinned_glb(const char *path, const km_character *c, const cha
   for (int k = 0; k < 3; ++k)
     cJSON_AddItemToArray(sc, cJSON_CreateNumber(0.01));
   cJSON_AddItemToArray(cJSON_AddArrayToObject(arm, "children"), cJSON_CreateNumber(1));
+  if (vrm == 1) { /* half a turn about y: (x, y, z, w) = (0, 1, 0, 0) */
+    cJSON *r = cJSON_AddArrayToObject(arm, "rotation");
+    for (int k = 0; k < 4; ++k)
+      cJSON_AddItemToArray(r, cJSON_CreateNumber(k == 1));
+  }
   cJSON_AddItemToArray(nodes, arm);
+  if (vrm) {
+    cJSON *ext = cJSON_AddObjectToObject(root, "extensions");
+    cJSON *hum = cJSON_AddObjectToObject(
+        cJSON_AddObjectToObject(ext, vrm == 1 ? "VRM" : "VRMC_vrm"), "humanoid");
+    cJSON *hb = vrm == 1 ? cJSON_AddArrayToObject(hum, "humanBones")
+                         : cJSON_AddObjectToObject(hum, "humanBones");
+    for (int j = 0; j < N_BONES; ++j) {
+      if (!vrm_bones[j]) continue;
+      cJSON *e = cJSON_CreateObject();
+      cJSON_AddNumberToObject(e, "node", 1 + j);
+      if (vrm == 1) {
+        cJSON_AddStringToObject(e, "bone", vrm_bones[j]);
+        cJSON_AddItemToArray(hb, e);
+      } else {
+        cJSON_AddItemToObject(hb, vrm_bones[j], e);
+      }
+    }
+    cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "extensionsUsed"),
+                         cJSON_CreateString(vrm == 1 ? "VRM" : "VRMC_vrm"));
+  }
   for (int j = 0; j < N_BONES; ++j) { /* node 1 + j */
     cJSON *n = cJSON_CreateObject();
     char name[64];
@@ -334,6 +394,32 @@ int main(void) {
     km_mesh_skin_free(&sk);
     km_mesh_free(&m);
   }
+  /* VRM avatars (.vrm): bones named freely ("bone<j>"), mapped by the file's humanoid table;
+   * a VRM 0.x one faces -z and is turned to +z on the way in: the same mesh, joints and rig as
+   * the plain glTF, and every verb takes the .vrm extension */
+  for (int v = 1; v <= 2; ++v) {
+    const char *vp = v == 1 ? DIR "/avatar0.vrm" : DIR "/avatar1.vrm";
+    write_skinned_glb_vrm(vp, &c, NULL, v);
+    CHECK_OK(km_mesh_read_skinned(vp, &m, &sk, KM_E));
+    double dvv = m.V && m.n_vertices == c.mesh.n_vertices ? 0 : 1;
+    for (size_t i = 0; !dvv && i < 3 * m.n_vertices; ++i)
+      dvv = fmax(dvv, fabs(m.V[i] - c.mesh.V[i]));
+    CHECK_MSG(dvv < 1e-5, "%s: positions off the plain glTF's by %g", vp, dvv);
+    CHECK_OK(km_character_from_skin(&m, &sk, &g, &map, KM_E));
+    double dj = g.skeleton.rest ? 0 : 1;
+    for (int j = 0; j < 3 * KM_KINECT1_JOINTS && g.skeleton.rest; ++j)
+      dj = fmax(dj, fabs(g.skeleton.rest[j] - c.skeleton.rest[j]));
+    CHECK_MSG(dj < 1e-5 && !strcmp(map.source[0], "bone0|hips") &&
+                  !strcmp(map.source[5], "bone5|leftLowerArm"),
+              "%s: joints off by %g, HipCenter <- %s", vp, dj, map.source[0]);
+    km_character_free(&g);
+    km_mesh_skin_free(&sk);
+    km_mesh_free(&m);
+  }
+  CHECK(km_test_run(KM_CLI " info " DIR "/avatar0.vrm", &out) == 0 && out &&
+        strstr(out, "vertices") && strstr(out, "up +y, forward +z"));
+  free(out), out = NULL;
+
   /* a non-glTF has no skin; a skin whose names follow no convention is refused by name */
   CHECK_OK(km_mesh_read_skinned(DIR "/char.obj", &m, &sk, KM_E));
   CHECK(sk.n_joints == 0 && sk.joints == NULL);

@@ -224,11 +224,12 @@ char *km_cli_rig_path(const char *mesh_path) {
   return out;
 }
 
-/* Whether path names a glTF file (.glb or .gltf, any case). */
+/* Whether path names a glTF file (.glb, .gltf or a VRM avatar's .vrm, any case). */
 static bool gltf_path(const char *path) {
-  size_t n = strlen(path);
+  size_t n = path ? strlen(path) : 0;
   return (n > 4 && !strcasecmp(path + n - 4, ".glb")) ||
-         (n > 5 && !strcasecmp(path + n - 5, ".gltf"));
+         (n > 5 && !strcasecmp(path + n - 5, ".gltf")) ||
+         (n > 4 && !strcasecmp(path + n - 4, ".vrm"));
 }
 
 km_status km_cli_skin_character(const char *verb, const char *mesh_path, const char *rig,
@@ -674,11 +675,9 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
     if (!fo->units && sf.scale > 0) out->scale = sf.scale;
     return 0;
   }
-  /* glTF says it itself: +y up, the front facing +z, metres (glTF 2.0, 3.4). */
-  size_t pl = path ? strlen(path) : 0;
-  if (!out->up && !out->forward &&
-      ((pl > 4 && !strcasecmp(path + pl - 4, ".glb")) ||
-       (pl > 5 && !strcasecmp(path + pl - 5, ".gltf")))) {
+  /* glTF says it itself: +y up, the front facing +z, metres (glTF 2.0, 3.4); a VRM 0.x
+   * avatar, which faces -z, is turned by the reader. */
+  if (!out->up && !out->forward && gltf_path(path)) {
     out->up = KM_AXIS_POS_Y;
     out->forward = KM_AXIS_POS_Z;
     return 0;

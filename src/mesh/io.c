@@ -115,11 +115,12 @@ static km_status format_from_name(const char *name, km_mesh_format *fmt, km_erro
     *fmt = KM_FORMAT_PLY;
   else if (!strcmp(ext, "off"))
     *fmt = KM_FORMAT_OFF;
-  else if (!strcmp(ext, "glb") || !strcmp(ext, "gltf"))
+  else if (!strcmp(ext, "glb") || !strcmp(ext, "gltf") || !strcmp(ext, "vrm")) /* VRM: a .glb */
     *fmt = KM_FORMAT_GLTF;
   else
     return km__fail(err, KM_ERR_UNSUPPORTED,
-                    "%s: unknown mesh extension '%s' (expected .obj, .ply, .off, .glb or .gltf)",
+                    "%s: unknown mesh extension '%s' (expected .obj, .ply, .off, .glb, .gltf or "
+                    ".vrm)",
                     name ? name : "(unnamed)", ext);
   return KM_OK;
 }

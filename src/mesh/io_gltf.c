@@ -698,6 +698,29 @@ static km_status skin_matrices(gltf_doc *d, int si, double **S, int32_t **ids, s
   return KM_OK;
 }
 
+/* A VRM avatar's (.vrm: a .glb with VRoid / UniVRM's extension) humanoid bone on node `node`
+ * ("hips", "leftUpperArm", ... as VRM and Unity's HumanBodyBones name them), NULL when the file
+ * maps none there: VRM 0.x lists {"bone", "node"} pairs in extensions.VRM.humanoid.humanBones,
+ * VRM 1.0 keys {"node"} by bone in extensions.VRMC_vrm.humanoid.humanBones. The avatar's own
+ * node names are free (VRoid's J_Bip_L_UpperArm, a modeller's Bone.017), so this mapping is what
+ * makes any VRM a rigged template. */
+static const char *vrm_bone(const gltf_doc *d, int node) {
+  const cJSON *ext = cJSON_GetObjectItemCaseSensitive(d->json, "extensions"), *b;
+  const cJSON *h1 = cJSON_GetObjectItemCaseSensitive(
+      cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(ext, "VRMC_vrm"),
+                                       "humanoid"),
+      "humanBones");
+  cJSON_ArrayForEach(b, h1) if (b->string && jint(b, "node", -1) == node) return b->string;
+  const cJSON *h0 = cJSON_GetObjectItemCaseSensitive(
+      cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(ext, "VRM"), "humanoid"),
+      "humanBones");
+  cJSON_ArrayForEach(b, h0) {
+    const char *bone = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(b, "bone"));
+    if (bone && bone[0] && jint(b, "node", -1) == node) return bone;
+  }
+  return NULL;
+}
+
 /* The joint list of the skins the instances use (each joint node once, first use first). */
 static km_status gather_joints(gltf_doc *d, const instances *inst, km_error *err) {
   km_mesh_skin *sk = d->skin;
@@ -737,9 +760,12 @@ static km_status gather_joints(gltf_doc *d, const instances *inst, km_error *err
     int node = order[j];
     const char *nm = cJSON_GetStringValue(
         cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(nodes, node), "name"));
-    char buf[32];
+    char buf[32], named[300];
     snprintf(buf, sizeof buf, "node%d", node);
-    sk->names[j] = strdup(nm && nm[0] ? nm : buf);
+    const char *bone = vrm_bone(d, node);
+    if (bone) /* "J_Bip_C_Hips|hips": the joint mapper reads the part after '|' */
+      snprintf(named, sizeof named, "%.200s|%.64s", nm && nm[0] ? nm : buf, bone);
+    sk->names[j] = strdup(bone ? named : nm && nm[0] ? nm : buf);
     if (!sk->names[j]) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
     int a = d->node_parent[node];
     for (int depth = 0; a >= 0 && d->joint_of_node[a] < 0 && depth < 65; ++depth)
@@ -1258,6 +1284,20 @@ km_status km__gltf_parse(const char *data, size_t size, const char *name, const 
   if (s) return s;
   d.skin = skin;
   s = parse_doc(&d, out, err);
+  /* A VRM 0.x avatar faces -z (UniVRM flipped Unity's z on export); glTF's front, VRM 1.0's
+   * and kinemesh's is +z: turned half about y on the way in, the vertex order kept, so it
+   * walks forward and its outputs face as every other glTF does. */
+  const cJSON *ext = cJSON_GetObjectItemCaseSensitive(d.json, "extensions");
+  if (!s && cJSON_GetObjectItemCaseSensitive(ext, "VRM") &&
+      !cJSON_GetObjectItemCaseSensitive(ext, "VRMC_vrm")) {
+    for (size_t i = 0; i < out->n_vertices; ++i) {
+      out->V[3 * i] = -out->V[3 * i], out->V[3 * i + 2] = -out->V[3 * i + 2];
+      if (out->N) out->N[3 * i] = -out->N[3 * i], out->N[3 * i + 2] = -out->N[3 * i + 2];
+    }
+    for (size_t j = 0; skin && j < skin->n_joints; ++j)
+      skin->rest[3 * j] = -skin->rest[3 * j], skin->rest[3 * j + 2] = -skin->rest[3 * j + 2];
+    km__log(KM_LOG_INFO, "%s: a VRM 0.x avatar (facing -z): turned to face +z", name);
+  }
   if (s) km_mesh_free(out);
   if (s || (skin && !skin->n_joints)) km_mesh_skin_free(skin);
   doc_close(&d);
