@@ -526,7 +526,7 @@ static km_status push_dir(km_anim_writer *w, const double *V, km_error *err) {
   if (ply) {
     km__ply_write(f, &view, KM_PLY_BINARY_LE, header);
   } else {
-    km__obj_write(f, &view, header, "materials.mtl");
+    km__obj_write(f, &view, header, "materials.mtl", true);
   }
   int bad = ferror(f);
   bad |= fclose(f) != 0;

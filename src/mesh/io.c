@@ -280,7 +280,7 @@ km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_
       one.first_face = 0, one.n_faces = m->n_faces;
       view.materials = &one, view.n_materials = 1;
     }
-    km__obj_write(af.f, &view, NULL, mtl);
+    km__obj_write(af.f, &view, NULL, mtl, false);
     free(mtl);
   } else if (fmt == KM_FORMAT_PLY)
     km__ply_write(af.f, m, enc, NULL);
@@ -327,12 +327,16 @@ bool km__parse_int64(const char *s, size_t len, int64_t *out) {
   return true;
 }
 
-int km__format_double(char *buf, size_t n, double x) {
+int km__format_double_digits(char *buf, size_t n, double x, int digits) {
   pthread_once(&g_c_locale_once, make_c_locale);
   locale_t old = g_c_locale ? uselocale(g_c_locale) : (locale_t)0;
-  int len = snprintf(buf, n, "%.17g", x);
+  int len = snprintf(buf, n, "%.*g", digits, x);
   if (g_c_locale) uselocale(old);
   return len;
+}
+
+int km__format_double(char *buf, size_t n, double x) {
+  return km__format_double_digits(buf, n, x, 17);
 }
 
 void km__quote_token(const char *s, size_t len, char *out, size_t out_size) {

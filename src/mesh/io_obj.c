@@ -600,14 +600,17 @@ void km__obj_read_material(const char *data, size_t size, const char *path, km_m
   free(mpath);
 }
 
-static void write_double(FILE *f, double x, char sep) {
+static void write_double_digits(FILE *f, double x, char sep, int digits) {
   char buf[40];
-  int n = km__format_double(buf, sizeof buf - 1, x);
+  int n = km__format_double_digits(buf, sizeof buf - 1, x, digits);
   buf[n] = sep;
   fwrite(buf, 1, (size_t)n + 1, f);
 }
 
-km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const char *mtllib) {
+static void write_double(FILE *f, double x, char sep) { write_double_digits(f, x, sep, 17); }
+
+km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const char *mtllib,
+                        bool float_normals) {
   fprintf(f, "# %s\n", header ? header : "kinemesh");
   bool mats = mtllib && m->n_materials;
   if (mats) fprintf(f, "mtllib %s\n", mtllib);
@@ -626,11 +629,13 @@ km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const cha
     write_double(f, m->UV[2 * i], ' ');
     write_double(f, m->UV[2 * i + 1], '\n');
   }
+  /* a frame's recomputed normals to a float's 9 digits: a smaller file than 17 would make */
+  int nd = float_normals ? 9 : 17;
   for (size_t i = 0; m->N && i < m->n_vertices; ++i) {
     fputs("vn ", f);
-    write_double(f, m->N[3 * i], ' ');
-    write_double(f, m->N[3 * i + 1], ' ');
-    write_double(f, m->N[3 * i + 2], '\n');
+    write_double_digits(f, m->N[3 * i], ' ', nd);
+    write_double_digits(f, m->N[3 * i + 1], ' ', nd);
+    write_double_digits(f, m->N[3 * i + 2], '\n', nd);
   }
   size_t run = 0; /* the material whose run the next face starts, or continues */
   for (size_t i = 0; i < m->n_faces; ++i) {

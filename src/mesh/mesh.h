@@ -113,8 +113,11 @@ km_status km__gltf_mesh_transform(const void *data, size_t size, const char *nam
  * write, so a textured model does not come out grey in Blender or an engine's OBJ import. */
 /* Writes m as OBJ text: "# header" (NULL: "kinemesh"), then, when mtllib is not NULL and m has
  * materials, "mtllib <mtllib>" and "usemtl kinemesh_<k>" before each material's run of faces
- * (km__obj_write_materials writes the library). Vertex order and count as in m. */
-km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const char *mtllib);
+ * (km__obj_write_materials writes the library). Vertex order and count as in m. Coordinates,
+ * texture coordinates and colours exactly (%.17g); normals so too, or with float_normals to a
+ * float's 9 digits (an animation frame's, recomputed per frame). */
+km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const char *mtllib,
+                        bool float_normals);
 /* A deep copy of src (its images too) into dst; false when out of memory (dst then holds what
  * was copied: free it with km__material_free_images). */
 bool km__material_copy(km_mesh_material *dst, const km_mesh_material *src);

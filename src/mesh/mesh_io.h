@@ -43,6 +43,8 @@ bool km__parse_double(const char *s, size_t len, double *out);
 bool km__parse_int64(const char *s, size_t len, int64_t *out);
 /* Writes %.17g of x into buf (always with '.' as decimal point), returns its length. */
 int km__format_double(char *buf, size_t n, double x);
+/* The same with `digits` significant digits (9: a float's). */
+int km__format_double_digits(char *buf, size_t n, double x, int digits);
 
 /* Shows at most ~40 bytes of a token in an error message, escaping non-printables. */
 void km__quote_token(const char *s, size_t len, char *out, size_t out_size);
