@@ -123,16 +123,23 @@ def image_into(node_input):
     return None
 
 
+def blender_import(path):
+    """A fresh scene with path imported by Blender's own importer (OBJ, PLY or glTF): its mesh."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if path.endswith(".obj"):
+        bpy.ops.wm.obj_import(filepath=path)
+    elif path.endswith(".ply"):
+        bpy.ops.import_mesh.ply(filepath=path)
+    else:
+        bpy.ops.import_scene.gltf(filepath=path)
+    return [o for o in bpy.context.scene.objects if o.type == "MESH"][0].data
+
+
 def import_uvs(path):
     """Blender's import (glTF, or OBJ with its .mtl): vertex count, loops' vertices, UVs, its
     material's base colour texture's pixels (None: no textured material), and its normal map
     as (size, pixels, strength) (None: none)."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    if path.endswith(".obj"):
-        bpy.ops.wm.obj_import(filepath=path)
-    else:
-        bpy.ops.import_scene.gltf(filepath=path)
-    me = [o for o in bpy.context.scene.objects if o.type == "MESH"][0].data
+    me = blender_import(path)
     if not me.uv_layers:
         fail(f"{path}: Blender finds no texture coordinates")
     uv = numpy.zeros(2 * len(me.loops))
@@ -184,6 +191,17 @@ def same_normal_map(path, nm0, nm1):
 
 
 argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
+def packed_image(name, r, g, b, colorspace):
+    """A Blender image of these channels (rows bottom-up, alpha 1), packed into the .blend."""
+    h, w = r.shape
+    img = bpy.data.images.new(name, w, h)
+    if colorspace:
+        img.colorspace_settings.name = colorspace
+    img.pixels = numpy.stack([r, g, b, numpy.ones_like(r)], axis=-1).ravel().tolist()
+    img.pack()
+    return img
+
+
 def unwrap_and_export(ob, out, skins):
     """Smart UV Project, a generated 64x32 image as its base colour texture, exported."""
     bpy.context.view_layer.objects.active = ob
@@ -192,14 +210,8 @@ def unwrap_and_export(ob, out, skins):
     bpy.ops.uv.smart_project(angle_limit=1.15)
     bpy.ops.object.mode_set(mode="OBJECT")
     bpy.ops.object.shade_smooth()
-    img = bpy.data.images.new("skin", 64, 32)
-    px = numpy.zeros((32, 64, 4))
-    px[:, :, 0] = numpy.linspace(0, 1, 64)[None, :]
-    px[:, :, 1] = numpy.linspace(0, 1, 32)[:, None]
-    px[:, :, 2] = 0.5
-    px[:, :, 3] = 1
-    img.pixels = px.ravel().tolist()
-    img.pack()
+    u, v = numpy.meshgrid(numpy.linspace(0, 1, 64), numpy.linspace(0, 1, 32))
+    img = packed_image("skin", u, v, numpy.full_like(u, 0.5), None)
     mat = bpy.data.materials.new("skin")
     mat.use_nodes = True
     bsdf = mat.node_tree.nodes["Principled BSDF"]
@@ -207,16 +219,9 @@ def unwrap_and_export(ob, out, skins):
     tex.image = img
     mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
     # and a normal map (16x16 ridges, strength 0.7: glTF's normalTexture.scale)
-    nimg = bpy.data.images.new("ridges", 16, 16)
-    nimg.colorspace_settings.name = "Non-Color"
-    npx = numpy.zeros((16, 16, 4))
-    ridge = 0.5 + 0.4 * numpy.sin(numpy.arange(16) * numpy.pi / 4)
-    npx[:, :, 0] = ridge[None, :]
-    npx[:, :, 1] = 0.5
-    npx[:, :, 2] = 1.0
-    npx[:, :, 3] = 1.0
-    nimg.pixels = npx.ravel().tolist()
-    nimg.pack()
+    ridge = numpy.tile(0.5 + 0.4 * numpy.sin(numpy.arange(16) * numpy.pi / 4), (16, 1))
+    nimg = packed_image("ridges", ridge, numpy.full_like(ridge, 0.5), numpy.ones_like(ridge),
+                        "Non-Color")
     ntex = mat.node_tree.nodes.new("ShaderNodeTexImage")
     ntex.image = nimg
     nmap = mat.node_tree.nodes.new("ShaderNodeNormalMap")
@@ -304,12 +309,7 @@ elif len(argv) >= 3 and argv[0] == "colors":
     want = numpy.array([[float(t) for t in line.split()[4:7]]
                         for line in open(argv[1]) if line.startswith("v ")])
     for path in argv[2:]:
-        bpy.ops.wm.read_factory_settings(use_empty=True)
-        if path.endswith(".ply"):
-            bpy.ops.import_mesh.ply(filepath=path)
-        else:
-            bpy.ops.import_scene.gltf(filepath=path)
-        me = [o for o in bpy.context.scene.objects if o.type == "MESH"][0].data
+        me = blender_import(path)
         if len(me.vertices) != len(want) or not me.color_attributes:
             fail(f"{path}: Blender imports {len(me.vertices)} vertices and "
                  f"{len(me.color_attributes)} colour attributes (want {len(want)} and 1)")
