@@ -130,8 +130,9 @@ static int hex_digit(char c) {
 }
 
 /* The bytes a glTF uri names (buffers' and images'): a base64 data: URI, or a file beside a
- * .gltf read from disk (a relative path, percent-decoded as the specification's URIs are:
- * Blender writes "my%20skin.png"; none that leaves the folder, is absolute or has a scheme).
+ * .gltf read from disk (a relative path, percent-decoded as the specification's URIs are: a
+ * file "my skin.png" is "my%20skin.png"; none that leaves the folder, is absolute or has a
+ * scheme).
  * On failure *why says what is wrong and the status is KM_ERR_PARSE (a bad data: URI),
  * KM_ERR_UNSUPPORTED (a file that cannot be read here), KM_ERR_IO (it cannot be read) or
  * KM_ERR_NOMEM. *bytes: allocated, free(). */
@@ -561,9 +562,28 @@ static km_status visit(gltf_doc *d, int ni, const double P[16], int depth, insta
   return s;
 }
 
+/* Whether the document is a VRM 0.x avatar (extensions.VRM without VRM 1.0's VRMC_vrm). */
+static bool vrm0(const gltf_doc *d) {
+  const cJSON *ext = cJSON_GetObjectItemCaseSensitive(d->json, "extensions");
+  return cJSON_GetObjectItemCaseSensitive(ext, "VRM") &&
+         !cJSON_GetObjectItemCaseSensitive(ext, "VRMC_vrm");
+}
+
+/* The transform above the scene's root nodes (column-major): the identity, or for a VRM 0.x
+ * avatar, which faces -z (UniVRM flipped Unity's z on export) where glTF's front, VRM 1.0's and
+ * kinemesh's is +z, half a turn about y. Every world matrix starts from it (the mesh instances,
+ * the joints), so positions, normals, skinning and joint positions all come out turned alike,
+ * the vertex order kept. */
+static void root_matrix(const gltf_doc *d, double R[16]) {
+  static const double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  memcpy(R, I, sizeof I);
+  if (vrm0(d)) R[0] = R[10] = -1;
+}
+
 /* The meshes to read with their transforms, in the order described at the top. */
 static km_status collect_instances(gltf_doc *d, instances *out, km_error *err) {
-  static const double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  double I[16];
+  root_matrix(d, I);
   cJSON *nodes = cJSON_GetObjectItemCaseSensitive(d->json, "nodes");
   cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
   int nn = cJSON_GetArraySize(nodes);
@@ -609,7 +629,8 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
 
 /* Parent and world matrix of every node (the scene's pose; joints need not be in the scene). */
 static km_status node_worlds(gltf_doc *d, km_error *err) {
-  static const double I[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  double I[16];
+  root_matrix(d, I);
   cJSON *nodes = cJSON_GetObjectItemCaseSensitive(d->json, "nodes");
   int nn = cJSON_GetArraySize(nodes);
   d->n_nodes = nn;
@@ -1284,20 +1305,8 @@ km_status km__gltf_parse(const char *data, size_t size, const char *name, const 
   if (s) return s;
   d.skin = skin;
   s = parse_doc(&d, out, err);
-  /* A VRM 0.x avatar faces -z (UniVRM flipped Unity's z on export); glTF's front, VRM 1.0's
-   * and kinemesh's is +z: turned half about y on the way in, the vertex order kept, so it
-   * walks forward and its outputs face as every other glTF does. */
-  const cJSON *ext = cJSON_GetObjectItemCaseSensitive(d.json, "extensions");
-  if (!s && cJSON_GetObjectItemCaseSensitive(ext, "VRM") &&
-      !cJSON_GetObjectItemCaseSensitive(ext, "VRMC_vrm")) {
-    for (size_t i = 0; i < out->n_vertices; ++i) {
-      out->V[3 * i] = -out->V[3 * i], out->V[3 * i + 2] = -out->V[3 * i + 2];
-      if (out->N) out->N[3 * i] = -out->N[3 * i], out->N[3 * i + 2] = -out->N[3 * i + 2];
-    }
-    for (size_t j = 0; skin && j < skin->n_joints; ++j)
-      skin->rest[3 * j] = -skin->rest[3 * j], skin->rest[3 * j + 2] = -skin->rest[3 * j + 2];
+  if (!s && vrm0(&d)) /* root_matrix turned it */
     km__log(KM_LOG_INFO, "%s: a VRM 0.x avatar (facing -z): turned to face +z", name);
-  }
   if (s) km_mesh_free(out);
   if (s || (skin && !skin->n_joints)) km_mesh_skin_free(skin);
   doc_close(&d);
