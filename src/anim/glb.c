@@ -85,11 +85,6 @@ static bool same_sampler(km_mesh_sampler a, km_mesh_sampler b) {
          a.wrap_t == b.wrap_t;
 }
 
-/* The sampler of texture slot i (km__material_images_unique's numbering). */
-static km_mesh_sampler slot_sampler(const km_mesh_material *m, size_t i) {
-  return km__material_slot(m + i / KM__SLOTS, (int)(i % KM__SLOTS)).sampler;
-}
-
 /* The index in `samplers` (whose 0 is the default, {}) of a sampler with these settings,
  * appended when none has them. */
 static int sampler_index(cJSON *samplers, km_mesh_sampler s) {
@@ -110,11 +105,6 @@ static int sampler_index(cJSON *samplers, km_mesh_sampler s) {
   if (s.wrap_t) cJSON_AddNumberToObject(o, "wrapT", s.wrap_t);
   cJSON_AddItemToArray(samplers, o);
   return n;
-}
-
-/* The size of texture slot i (km__material_images_unique's numbering). */
-static size_t slot_size(const km_mesh_material *m, size_t i) {
-  return km__material_slot(m + i / KM__SLOTS, (int)(i % KM__SLOTS)).size;
 }
 
 /* The rest mesh's materials (km_mesh.materials; issue 11: a textured model must not come out
@@ -149,9 +139,9 @@ static void add_materials(cJSON *root, cJSON *accessors, cJSON *mesh, cJSON *pri
       size_t i = k * KM__SLOTS + (size_t)sl;
       if (view[i] < 0) continue;
       /* one image per view, one texture per image and sampler, one sampler per setting */
-      km_mesh_sampler smp = km__material_slot(q, sl).sampler;
+      km_mesh_sampler smp = km__material_slot(m, i).sampler;
       size_t j = 0, jv = 0;
-      while (j < i && !(view[j] == view[i] && same_sampler(slot_sampler(m, j), smp)))
+      while (j < i && !(view[j] == view[i] && same_sampler(km__material_slot(m, j).sampler, smp)))
         ++j;
       while (jv < i && view[jv] != view[i])
         ++jv;
@@ -165,7 +155,7 @@ static void add_materials(cJSON *root, cJSON *accessors, cJSON *mesh, cJSON *pri
         if (jv == i) { /* the view's first use: its image */
           cJSON *img = cJSON_CreateObject();
           cJSON_AddNumberToObject(img, "bufferView", view[i]);
-          cJSON_AddStringToObject(img, "mimeType", km__material_slot(q, sl).mime);
+          cJSON_AddStringToObject(img, "mimeType", km__material_slot(m, i).mime);
           cJSON_AddItemToArray(imgs, img);
           img_of[i] = n_img++;
         } else {
@@ -355,6 +345,7 @@ typedef struct morph_stream {
   const float *times;
   size_t nt, nk;
   bool pca, with_n;
+  const int *uniq; /* km__material_images_unique of the materials, as finish laid them out */
 } morph_stream;
 static km_status stream_morph_bin(km_anim_writer *w, FILE *f, void *ctx, km_error *err);
 static km_status glb_finish_packed(km_anim_writer *w, km_error *err);
@@ -388,7 +379,7 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   km__material_images_unique(mat, n_mat, uniq);
   uint64_t img_pad = 0;
   for (size_t i = 0; i < n_img; ++i)
-    if (uniq[i] == (int)i) img_pad += (slot_size(mat, i) + 3) & ~(uint64_t)3;
+    if (uniq[i] == (int)i) img_pad += (km__material_slot(mat, i).size + 3) & ~(uint64_t)3;
   uint64_t bin_len = idx_len + pos_len * (1 + nk) * (with_n ? 2 : 1) + uv_len + col_len +
                      times_len + weights_len + img_pad;
   if (bin_len + (64u << 20) > UINT32_MAX) {
@@ -496,13 +487,13 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
   off += weights_len;
   add_weights_animation(root, a_in, a_out);
   for (size_t i = 0; i < n_img; ++i) { /* the images last, in material and slot order */
-    view[i] = uniq[i] == (int)i ? add_view(views, off, slot_size(mat, i))
+    view[i] = uniq[i] == (int)i ? add_view(views, off, km__material_slot(mat, i).size)
               : uniq[i] >= 0    ? view[uniq[i]]
                                 : -1;
-    if (uniq[i] == (int)i) off += (slot_size(mat, i) + 3) & ~(uint64_t)3;
+    if (uniq[i] == (int)i) off += (km__material_slot(mat, i).size + 3) & ~(uint64_t)3;
   }
   add_materials(root, accessors, mesh, prim, mat, n_mat, view);
-  free(uniq), free(view);
+  free(view);
   cJSON *buffer = cJSON_CreateObject();
   cJSON_AddNumberToObject(buffer, "byteLength", (double)bin_len);
   cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "buffers"), buffer);
@@ -511,12 +502,12 @@ km_status km__glb_finish(km_anim_writer *w, km_error *err) {
 
   if (off != bin_len) {
     cJSON_Delete(root);
-    free(times);
+    free(times), free(uniq);
     return km__fail(err, KM_ERR_NOMEM, "%s: glb layout mismatch", w->path);
   }
-  morph_stream ms = {times, nt, nk, pca, with_n};
+  morph_stream ms = {times, nt, nk, pca, with_n, uniq};
   km_status s = write_glb_container(w, root, NULL, bin_len, stream_morph_bin, &ms, err);
-  free(times);
+  free(times), free(uniq);
   return s;
 }
 
@@ -612,19 +603,14 @@ static km_status stream_morph_bin(km_anim_writer *w, FILE *f, void *ctx, km_erro
   free(row);
   /* the materials' images last, each once, padded to 4 bytes (finish's layout) */
   const km_mesh_material *mat = w->material_mesh.materials;
-  const size_t n_mat = w->material_mesh.n_materials;
-  const size_t n_img = n_mat * KM__SLOTS;
-  int *uniq = n_img ? km__malloc(n_img, sizeof *uniq) : NULL;
-  if (n_img && !uniq && s == KM_OK) s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", w->path);
-  if (uniq) km__material_images_unique(mat, n_mat, uniq);
-  for (size_t i = 0; uniq && s == KM_OK && i < n_img; ++i) {
+  const size_t n_img = w->material_mesh.n_materials * KM__SLOTS;
+  for (size_t i = 0; s == KM_OK && i < n_img; ++i) {
     static const unsigned char zero[3] = {0, 0, 0};
-    if (uniq[i] != (int)i) continue;
-    km_mesh_image im = km__material_slot(mat + i / KM__SLOTS, (int)(i % KM__SLOTS));
+    if (ms->uniq[i] != (int)i) continue;
+    km_mesh_image im = km__material_slot(mat, i);
     s = write_all(w, f, im.bytes, im.size, err);
     if (s == KM_OK && im.size % 4) s = write_all(w, f, zero, 4 - im.size % 4, err);
   }
-  free(uniq);
   return s;
 }
 
@@ -874,7 +860,7 @@ static int pack_materials(glb_pack *pk, cJSON *root, cJSON *mesh, cJSON *prim,
   for (size_t i = 0; !rc && i < ni; ++i) {
     view[i] = uniq[i] >= 0 && uniq[i] < (int)i ? view[uniq[i]] : -1;
     if (uniq[i] != (int)i) continue;
-    km_mesh_image im = km__material_slot(m + i / KM__SLOTS, (int)(i % KM__SLOTS));
+    km_mesh_image im = km__material_slot(m, i);
     size_t off = pk->bin.len;
     unsigned char *p = bin_grow(&pk->bin, im.size);
     if (!p) {

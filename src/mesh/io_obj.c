@@ -658,7 +658,9 @@ km_status km__obj_write(FILE *f, const km_mesh *m, const char *header, const cha
   return ferror(f) ? KM_ERR_IO : KM_OK;
 }
 
-km_mesh_image km__material_slot(const km_mesh_material *m, int s) {
+km_mesh_image km__material_slot(const km_mesh_material *materials, size_t i) {
+  const km_mesh_material *m = materials + i / KM__SLOTS;
+  size_t s = i % KM__SLOTS;
   if (s > 0) return m->maps[s - 1];
   km_mesh_image im = {.bytes = m->image, .size = m->image_size, .sampler = m->image_sampler};
   memcpy(im.mime, m->image_mime, sizeof im.mime);
@@ -669,12 +671,12 @@ void km__material_images_unique(const km_mesh_material *m, size_t n, int *uniq) 
   size_t ni = n * KM__SLOTS;
   for (size_t i = 0; i < ni; ++i) {
     uniq[i] = -1;
-    km_mesh_image a = km__material_slot(m + i / KM__SLOTS, (int)(i % KM__SLOTS));
+    km_mesh_image a = km__material_slot(m, i);
     if (!a.bytes || !a.size) continue;
     size_t j = 0;
     for (; j < i; ++j) {
       if (uniq[j] != (int)j) continue;
-      km_mesh_image b = km__material_slot(m + j / KM__SLOTS, (int)(j % KM__SLOTS));
+      km_mesh_image b = km__material_slot(m, j);
       if (b.size == a.size && !memcmp(b.bytes, a.bytes, a.size)) break;
     }
     uniq[i] = (int)j;
@@ -694,12 +696,13 @@ void km__obj_texture_name(char *buf, size_t n, const char *prefix, int i, const 
   snprintf(buf, n, "%s%d.%s", prefix, i, strcmp(mime, "image/jpeg") ? "png" : "jpg");
 }
 
-/* Slot i of km__material_images_unique's numbering has an .mtl statement (map_Kd, map_Bump,
- * map_Ke). */
-static bool obj_slot(size_t i) {
-  int sl = (int)(i % KM__SLOTS);
-  return sl == 0 || sl == 1 + KM_MAP_NORMAL || sl == 1 + KM_MAP_EMISSIVE;
-}
+/* The .mtl statement of each texture slot (km__material_slot's s): the base colour, the normal
+ * map (as Blender's importer takes map_Bump) and the emissive map; glTF's packed
+ * metallic-roughness and occlusion maps have none. */
+static const char *const k_mtl_map[KM__SLOTS] = {"map_Kd", NULL, "map_Bump", NULL, "map_Ke"};
+
+/* Slot i (km__material_slot's numbering) has an .mtl statement. */
+static bool obj_slot(size_t i) { return k_mtl_map[i % KM__SLOTS] != NULL; }
 
 /* The image file an .mtl statement of slot i names: the first slot with a statement holding the
  * same bytes (km__material_images_unique's uniq), so an image shared only with a slot the .mtl
@@ -726,10 +729,9 @@ km_status km__obj_write_materials(const char *dir, const char *mtl_name, const c
   char tex[64 + 256];
   /* the images first: a library is only there once what it names is */
   for (size_t i = 0; i < ni && s == KM_OK; ++i) {
-    /* what an OBJ library can say: the base colour, the normal and the emissive maps (glTF's
-     * packed metallic-roughness and occlusion maps have no .mtl statement) */
+    /* what an OBJ library can say (k_mtl_map) */
     if (uniq[i] < 0 || !obj_slot(i) || obj_file_index(uniq, i) != i) continue;
-    km_mesh_image im = km__material_slot(m + i / KM__SLOTS, (int)(i % KM__SLOTS));
+    km_mesh_image im = km__material_slot(m, i);
     km__obj_texture_name(tex, sizeof tex, tex_prefix, (int)i, im.mime);
     snprintf(path, pn, "%s/%s", dir, tex);
     km__atomic_file af;
@@ -764,14 +766,12 @@ km_status km__obj_write_materials(const char *dir, const char *mtl_name, const c
         for (int c = 0; c < 3; ++c)
           write_double(af.f, q->emissive[c], c < 2 ? ' ' : '\n');
       }
-      static const char *const stmt[KM__SLOTS] = {"map_Kd", NULL, "map_Bump", NULL, "map_Ke"};
       for (int sl = 0; sl < KM__SLOTS; ++sl) {
         size_t i = k * KM__SLOTS + (size_t)sl;
-        if (uniq[i] < 0 || !stmt[sl]) continue;
+        if (uniq[i] < 0 || !obj_slot(i)) continue;
         int u = (int)obj_file_index(uniq, i);
-        km__obj_texture_name(tex, sizeof tex, tex_prefix, u,
-                             km__material_slot(m + u / KM__SLOTS, u % KM__SLOTS).mime);
-        fprintf(af.f, "%s ", stmt[sl]);
+        km__obj_texture_name(tex, sizeof tex, tex_prefix, u, km__material_slot(m, (size_t)u).mime);
+        fprintf(af.f, "%s ", k_mtl_map[sl]);
         if (sl == 1 + KM_MAP_NORMAL) {
           fputs("-bm ", af.f);
           write_double(af.f, q->normal_scale ? q->normal_scale : 1, ' ');

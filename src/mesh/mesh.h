@@ -129,10 +129,11 @@ double km__srgb_decode(double srgb);
 void km__color8(const double c[4], unsigned char out[4]);
 /* Frees a material's images (base colour and maps) and sets them NULL. */
 void km__material_free_images(km_mesh_material *m);
-/* A material's texture slot s as one image: s 0 the base colour (image, image_size,
- * image_mime), s 1 + q maps[q]; bytes NULL when it has none. KM__SLOTS slots. */
+/* The materials' texture slots as one numbering: slot i = k * KM__SLOTS + s is material k's
+ * base colour (s 0: image, image_size, image_mime, image_sampler) or maps[s - 1]; bytes NULL
+ * when it has none. */
 #define KM__SLOTS (1 + KM_MAP_COUNT)
-km_mesh_image km__material_slot(const km_mesh_material *m, int s);
+km_mesh_image km__material_slot(const km_mesh_material *m, size_t i);
 /* Writes m as PLY (x y z as doubles, u v, nx ny nz, colours as uchar red green blue alpha,
  * triangles) with "comment <comment>" (NULL: "kinemesh") in the header. Vertex order and count
  * as in m. */
