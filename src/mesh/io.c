@@ -327,6 +327,12 @@ bool km__parse_int64(const char *s, size_t len, int64_t *out) {
   return true;
 }
 
+const char *km__image_mime(const unsigned char *b, size_t n) {
+  if (n >= 8 && !memcmp(b, "\x89PNG\r\n\x1a\n", 8)) return "image/png";
+  if (n >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF) return "image/jpeg";
+  return NULL;
+}
+
 int km__format_double_digits(char *buf, size_t n, double x, int digits) {
   pthread_once(&g_c_locale_once, make_c_locale);
   locale_t old = g_c_locale ? uselocale(g_c_locale) : (locale_t)0;

@@ -832,10 +832,9 @@ static void texture_image(gltf_doc *d, const cJSON *info, int mi, const char *wh
   } else if (uri) {
     read_uri(d, uri, &bytes, &n, &why);
   }
-  /* the outputs embed what a glTF viewer decodes: PNG or JPEG, recognised by its signature */
-  bool png = n >= 8 && !memcmp(bytes, "\x89PNG\r\n\x1a\n", 8),
-       jpg = n >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
-  if (bytes && !png && !jpg) why = "it is neither PNG nor JPEG";
+  /* the outputs embed what a glTF viewer decodes: PNG or JPEG */
+  const char *mime = bytes ? km__image_mime(bytes, n) : NULL;
+  if (bytes && !mime) why = "it is neither PNG nor JPEG";
   if (why || !bytes) {
     km__log(KM_LOG_WARN, "%s: images[%d] (materials[%d]'s %s) is left out: %s", d->name, ii, mi,
             what, why ? why : "out of memory");
@@ -844,7 +843,7 @@ static void texture_image(gltf_doc *d, const cJSON *info, int mi, const char *wh
   }
   out->bytes = bytes;
   out->size = n;
-  snprintf(out->mime, sizeof out->mime, "%s", png ? "image/png" : "image/jpeg");
+  snprintf(out->mime, sizeof out->mime, "%s", mime);
   /* its sampler, each value one of glTF's enums (anything else: not given) */
   int si = jint(tex, "sampler", -1);
   const cJSON *smp =

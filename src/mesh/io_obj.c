@@ -395,13 +395,11 @@ static void mtl_image(const char *map, const char *mpath, const char *path, km_m
     free(alt);
   }
   if (read) {
-    const unsigned char *b = (const unsigned char *)img;
-    bool png = bytes >= 8 && !memcmp(b, "\x89PNG\r\n\x1a\n", 8),
-         jpg = bytes >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF;
-    if (png || jpg) {
+    const char *mime = km__image_mime((const unsigned char *)img, bytes);
+    if (mime) {
       out->bytes = (unsigned char *)img, img = NULL;
       out->size = bytes;
-      snprintf(out->mime, sizeof out->mime, "%s", png ? "image/png" : "image/jpeg");
+      snprintf(out->mime, sizeof out->mime, "%s", mime);
     } else {
       km__log(KM_LOG_WARN, "%s: texture %s is neither PNG nor JPEG: left out", path, ipath);
     }

@@ -34,6 +34,10 @@ void km__obj_read_material(const char *data, size_t size, const char *path, km_m
 
 km_status km__off_write(FILE *f, const km_mesh *m);
 
+/* The MIME type of an encoded image by its signature: "image/png", "image/jpeg", or NULL for
+ * anything else (what a glTF viewer decodes, so what the readers keep as a texture). */
+const char *km__image_mime(const unsigned char *bytes, size_t n);
+
 /* Parses a whole token as a finite double, locale-independently (strtod in the "C" locale,
  * correctly rounded). False for anything else (garbage, trailing characters, NaN, inf,
  * overflow). */
