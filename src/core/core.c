@@ -212,11 +212,10 @@ static void numbered_name(char *out, const char *dir, const char *prefix, size_t
   n += p;
   char d[24];
   int nd = 0;
-  do {
+  while (width >= 0 && (nd == 0 || k)) { /* at least one digit when numbered */
     d[nd++] = (char)('0' + k % 10);
     k /= 10;
-  } while (k && width >= 0);
-  if (width < 0) nd = 0;
+  }
   while (nd < width)
     d[nd++] = '0';
   while (nd)
