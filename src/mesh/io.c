@@ -209,17 +209,12 @@ static km_status write_obj_materials(const char *path, const km_mesh *m, char **
   const char *slash = strrchr(path, '/');
   const char *base = slash ? slash + 1 : path, *dot = strrchr(base, '.');
   size_t stem = dot && dot > base ? (size_t)(dot - base) : strlen(base);
-  size_t dir_n = slash ? (size_t)(slash - path) : 1;
-  char *dir = malloc(dir_n + 2), *name = malloc(stem + 5), *prefix = malloc(stem + 10);
+  /* the output's folder: "a/." for a/x.obj, "." for x.obj, "/." for /x.obj */
+  char *dir = km__path_beside(path, "."), *name = malloc(stem + 5), *prefix = malloc(stem + 10);
   if (!dir || !name || !prefix) {
     free(dir), free(name), free(prefix);
     return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
   }
-  if (slash)
-    memcpy(dir, path, dir_n), dir[dir_n] = 0;
-  else
-    strcpy(dir, ".");
-  if (slash == path) strcpy(dir, "/");
   snprintf(name, stem + 5, "%.*s.mtl", (int)stem, base);
   snprintf(prefix, stem + 10, "%.*s_texture_", (int)stem, base);
   km_mesh_material one;
