@@ -1000,6 +1000,23 @@ static int pack_colors(glb_pack *pk, const double *c, size_t nv, unsigned char *
       GL_UNSIGNED_SHORT, true, nv, "VEC4", NULL, NULL, 0);
 }
 
+/* The surface attributes a mesh carries besides its shape, TEXCOORD_0 (pack_uv) and COLOR_0
+ * (pack_colors), where it has them (uv, colors NULL: none), added to attrs. b: scratch of nv*8
+ * bytes. Returns false out of memory. */
+static bool pack_surface(glb_pack *pk, const double *uv, const double *colors, size_t nv,
+                         unsigned char *b, cJSON *attrs) {
+  int a;
+  if (uv) {
+    if ((a = pack_uv(pk, uv, nv, b)) < 0) return false;
+    cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a);
+  }
+  if (colors) {
+    if ((a = pack_colors(pk, colors, nv, b)) < 0) return false;
+    cJSON_AddNumberToObject(attrs, "COLOR_0", a);
+  }
+  return true;
+}
+
 /* Triangle indices: little-endian bytes when plain; compressed, host uint32 in an order the
  * index codec packs well (meshopt_optimizeVertexCache reorders the triangles, never the
  * vertices: vertex order and count stay the input's). b: nf*12 bytes. */
@@ -1158,14 +1175,7 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
     if ((a = pack_normals(&pk, w->nbuf, nv, b, f4)) < 0) goto nomem;
     cJSON_AddNumberToObject(attrs, "NORMAL", a);
   }
-  if (w->uv) {
-    if ((a = pack_uv(&pk, w->uv, nv, b)) < 0) goto nomem;
-    cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a);
-  }
-  if (w->colors) {
-    if ((a = pack_colors(&pk, w->colors, nv, b)) < 0) goto nomem;
-    cJSON_AddNumberToObject(attrs, "COLOR_0", a);
-  }
+  if (!pack_surface(&pk, w->uv, w->colors, nv, b, attrs)) goto nomem;
   const bool wide = B > 256;
   for (size_t i = 0; i < nv; ++i)
     for (int k = 0; k < 4; ++k) {
@@ -1567,14 +1577,7 @@ static km_status glb_finish_packed(km_anim_writer *w, km_error *err) {
     if ((a = pack_normals(&pk, rest_n, nv, b, f4)) < 0) goto nomem;
     cJSON_AddNumberToObject(attrs, "NORMAL", a);
   }
-  if (w->uv) {
-    if ((a = pack_uv(&pk, w->uv, nv, b)) < 0) goto nomem;
-    cJSON_AddNumberToObject(attrs, "TEXCOORD_0", a);
-  }
-  if (w->colors) {
-    if ((a = pack_colors(&pk, w->colors, nv, b)) < 0) goto nomem;
-    cJSON_AddNumberToObject(attrs, "COLOR_0", a);
-  }
+  if (!pack_surface(&pk, w->uv, w->colors, nv, b, attrs)) goto nomem;
   cJSON_AddNumberToObject(prim, "mode", nf ? 4 : 0);
   cJSON *targets = cJSON_AddArrayToObject(prim, "targets");
   cJSON *names = cJSON_CreateArray();
