@@ -192,6 +192,14 @@ km_status km_cli_skin_character(const char *verb, const char *mesh_path, const c
  * NULL: "kinemesh rig MESH writes it, to edit"). Nothing is written. *c (freed first) gets the
  * character. On failure err says that the mesh has no rig at rig_file and why km_autorig refused
  * it. */
+/* An end handle (head, hand, foot) of rig holding fewer than 5 vertices pulls a spike out of
+ * the surface instead of carrying a part: the automatic rig took a body lying or curled up for
+ * one standing. Writes one warning line per such handle to say ("kinemesh VERB: warning: ...",
+ * naming mesh_path, the kind rigged and the up axis it stood the body along: up NULL when
+ * that axis was printed just before, as the verbs that rig on the spot do). Returns how many
+ * it warned of. */
+size_t km_cli_warn_point_handles(const char *verb, const char *mesh_path, const km_rig *rig,
+                                 const char *kind, const char *up, FILE *say);
 km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *rig_file,
                           const km_mesh *m, FILE *say, const char *then, km_character *c,
                           km_error *err);

@@ -200,24 +200,9 @@ write:
     printf("%shandle %s: %zu vertices", h ? ", " : "", rig.handles[h].name,
            rig.handles[h].n_vertices);
   printf("\n");
-  /* An end handle (head, hand, foot) of a point or two pulls a spike out of the surface instead
-   * of carrying a part: the rig took a body for standing that lies or curls up (cat-04 lying on
-   * its side, cat-07 curled asleep: heads of 1 and 2 vertices; on the meshes of ../shared/data
-   * that stand the smallest is 6, the 502-vertex knight's head, most hold 30 to 500). Said,
-   * not refused: the user decides. */
-  for (size_t h = 0; autorigged && h < rig.n_handles; ++h) {
-    const char *name = rig.handles[h].name;
-    bool end = !strcmp(name, "head") || !strncmp(name, "hand_", 5) || !strncmp(name, "foot_", 5);
-    if (end && rig.handles[h].n_vertices < 5)
-      fprintf(stderr,
-              "kinemesh rig: warning: handle %s holds %zu vertices: a point drags a spike out "
-              "of the surface, not a part; the rig takes %s for a %s standing along %s, and "
-              "a body lying or curled up is none: its animation may not read (place the "
-              "handles by clicking in kinemesh live, or list vertices found with kinemesh "
-              "pick in a rig file)\n",
-              name, rig.handles[h].n_vertices, pos[0], km_autorig_kind_name(rep.kind),
-              frame.up != KM_AXIS_NONE ? km_axis_name(frame.up) : "+y");
-  }
+  if (autorigged)
+    km_cli_warn_point_handles("rig", pos[0], &rig, km_autorig_kind_name(rep.kind),
+                              frame.up != KM_AXIS_NONE ? km_axis_name(frame.up) : "+y", stderr);
   /* the limits the puppetry applies, so the user knows what to edit for a wider range */
   if (rig.bend_limit > 0 || rig.swing_limit > 0 || rig.upper_limb_limit > 0 ||
       rig.girdle_limit > 0 || rig.max_turn > 0) {
