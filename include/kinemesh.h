@@ -2925,6 +2925,14 @@ typedef enum km_autorig_skeleton {
                            bust's, arms along rings from the hand tips as a humanoid's, legs
                            folded into the base; the sidecar's handles: head, hands and arm
                            bands, chest, and the base, held still */
+  ,
+  KM_AUTORIG_RESTING /* a body lying or curled up (asked for: never chosen automatically):
+                        a cat asleep on its side or curled up, a person lying down; the
+                        Kinect v1 joints along the geodesic rings from the head's tip
+                        (km_autorig_options.head), the neck at the narrowest ring past the
+                        skull's widest, arms and legs folded into the shoulders and hips;
+                        the sidecar's handles: the head, turning with the neck, and the
+                        body behind the shoulders, held still */
 } km_autorig_skeleton;
 
 #define KM_AUTORIG_MAX_EXTREMITIES 16
@@ -2954,12 +2962,16 @@ typedef struct km_autorig_options {
    * embedded ones; the extremities are still found (the leaf bones reach to them), and the
    * skin and landmarks are computed around these joints. NULL: embedded. */
   const double *joints;
+  /* KM_AUTORIG_RESTING: the vertex at the tip of the head (an ear tip, the top of a skull, a
+   * snout: kinemesh pick finds ids). NULL: the most prominent extremity. */
+  const int32_t *head;
   km_progress progress;
 } km_autorig_options;
 
 /* What km_autorig chose (the library never prints: the caller reports it). */
 typedef struct km_autorig_report {
-  km_autorig_skeleton kind; /* KM_AUTORIG_KINECT1 (humanoid), _QUADRUPED, _PROP, _BUST, _UPPER */
+  km_autorig_skeleton kind; /* KM_AUTORIG_KINECT1 (humanoid), _QUADRUPED, _PROP, _BUST, _UPPER,
+                               _RESTING */
   size_t n_extremities;
   int32_t extremity[KM_AUTORIG_MAX_EXTREMITIES];         /* vertex ids, most prominent first */
   double extremity_distance[KM_AUTORIG_MAX_EXTREMITIES]; /* geodesic prominence, metres */

@@ -196,12 +196,19 @@ static void drive_with(const char *label, const km_mesh *m, const km_character *
   CHECK_OK(km_rig_read(rig_path, m, NULL, 0, &rig, KM_E));
   /* A body with feet keeps them out of the ground ("floor": true): without it the armadillo
    * had a vertex under its rest floor in 244 of cmu_131_01's 994 frames (bench motion B). A
-   * bust or an upper body has no feet and no floor. */
+   * bust or an upper body has no feet and no floor; a resting body (a head and a base, its
+   * spine, HipCenter -> ShoulderCenter, closer to level than upright) keeps its head out of the
+   * ground. */
   bool feet = false;
   for (size_t h = 0; h < rig.n_handles; ++h)
     feet |= !strcmp(rig.handles[h].name, "foot_left");
-  CHECK_MSG(rig.floor == feet, "%s: the sidecar's rig has \"floor\" %d with feet %d", label,
-            (int)rig.floor, (int)feet);
+  bool lying = false;
+  if (c->skeleton.rest && rig.n_handles == 2) {
+    const double *hc = c->skeleton.rest, *sc = c->skeleton.rest + 3 * 2;
+    lying = fabs(sc[1] - hc[1]) < hypot(sc[0] - hc[0], sc[2] - hc[2]);
+  }
+  CHECK_MSG(rig.floor == (feet || lying), "%s: the sidecar's rig has \"floor\" %d with feet %d",
+            label, (int)rig.floor, (int)feet);
   km_puppetry *p = NULL;
   km_puppetry_options po = {0};
   po.fps = take->fps; /* the take's own rate (a CMU BVH: 120 fps) */
@@ -709,7 +716,7 @@ static void sidecar_rig(const km_character *c, const km_mesh *m, const char *nam
  * the performer's steps crumpled its chest. A closed mesh, and a mesh with only small holes
  * at its bottom (the soles), is no bust. */
 /* Drives m by rig (a bust's: handles "head" and "base") with take: the base stays within 2 % of
- * the height H while the head moves more than 4 % of it. */
+ * the height H (a lying body's: its largest extent) while the head moves more than 4 % of it. */
 static void base_holds(const char *label, const km_mesh *m, const km_rig *rig, const km_take *take,
                        double H) {
   const km_rig_handle *head = &rig->handles[0], *base = &rig->handles[1];
@@ -851,6 +858,119 @@ static void test_bust(const km_take *take) {
     km_character_free(&c);
     km_mesh_free(&m);
   }
+}
+
+/* A body lying or curled up, rigged with --skeleton resting and its head's tip given: its head
+ * handle is the whole head (cut across the neck), the body behind the shoulders is held still
+ * while a real take turns the head, and no edge stretches past max. Returns the head handle's
+ * vertex flags (n_vertices, caller frees) or NULL. */
+static unsigned char *resting(const char *label, const km_mesh *m, int32_t tip, const km_take *take,
+                              double max, double *neck_out) {
+  km_autorig_options o = {0};
+  o.skeleton = KM_AUTORIG_RESTING;
+  o.head = &tip;
+  km_character c = {0};
+  km_autorig_report rep;
+  CHECK_OK(km_autorig(m, &o, &c, &rep, KM_E));
+  CHECK_MSG(rep.kind == KM_AUTORIG_RESTING && rep.n_extremities == 1 && rep.extremity[0] == tip &&
+                !strcmp(rep.role[0], "Head"),
+            "%s: rigged as a %s, head at vertex %d", label, km_autorig_kind_name(rep.kind),
+            rep.n_extremities ? (int)rep.extremity[0] : -1);
+  unsigned char *in_head = NULL;
+  km_rig rig = {0};
+  if (c.skeleton.rest) {
+    CHECK(skin_valid(&c.skin, m->n_vertices));
+    if (neck_out) memcpy(neck_out, c.skeleton.rest + 3 * 2, 3 * sizeof(double));
+    sidecar_rig(&c, m, label, &rig);
+    CHECK_MSG(rig.n_handles == 2 && rig.n_maps == 1 && rig.floor,
+              "%s: %zu handles, %zu map entries", label, rig.n_handles, rig.n_maps);
+  }
+  if (rig.n_handles == 2) {
+    const km_rig_handle *h = &rig.handles[0];
+    in_head = calloc(m->n_vertices, 1);
+    for (size_t i = 0; in_head && i < h->n_vertices; ++i)
+      in_head[h->vertices[i]] = 1;
+    CHECK_MSG(in_head && in_head[tip], "%s: the head handle does not hold its tip", label);
+    /* measured against the body's largest extent: lying, its height is a fraction of it */
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < m->n_vertices; ++v)
+      for (int k = 0; k < 3; ++k)
+        lo[k] = fmin(lo[k], m->V[3 * v + k]), hi[k] = fmax(hi[k], m->V[3 * v + k]);
+    if (take) {
+      base_holds(label, m, &rig, take, fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2])));
+      drive(label, m, &c, take, NULL, NULL, max);
+    }
+  }
+  km_rig_free(&rig);
+  km_character_free(&c);
+  return in_head;
+}
+
+/* Lying and curled bodies (issue 11): rigged automatically as standing, their head, hand and
+ * foot handles were points dragging spikes out of the flank (rig warns, test_puppet_cli);
+ * --skeleton resting with the head's tip given rigs them as a bust along the neck. A FAUST body
+ * laid on its back: its head handle is its head (every vertex of it above 0.8 of the standing
+ * height, 300 or more) and its neck between 0.78 and 0.92 of the standing height. The curled
+ * cat-07 and cat-04 lying on its side, an ear tip each: their head handles are the same part of
+ * the shared cat connectivity (more than half in common). */
+static void test_resting(const km_take *take) {
+  char buf[1024];
+  const char *path = km_test_shared("poses/tr_reg_000.off", buf, sizeof buf);
+  km_mesh m = {0};
+  if (path) CHECK_OK(km_mesh_read(path, &m, KM_E));
+  if (m.V) {
+    double lo = INFINITY, hi = -INFINITY;
+    int32_t crown = 0;
+    for (size_t v = 0; v < m.n_vertices; ++v) {
+      double y = m.V[3 * v + 1];
+      if (y > hi) hi = y, crown = (int32_t)v;
+      lo = fmin(lo, y);
+    }
+    double *y0 = malloc(m.n_vertices * sizeof *y0);
+    for (size_t v = 0; y0 && v < m.n_vertices; ++v) { /* on its back: (x, y, z) -> (x, z, -y) */
+      double *q = m.V + 3 * v, y = q[1];
+      y0[v] = y;
+      q[1] = q[2], q[2] = -y;
+    }
+    double neck[3];
+    unsigned char *head = y0 ? resting("lying body", &m, crown, take, 1.5, neck) : NULL;
+    if (head) {
+      size_t n = 0, low = 0;
+      for (size_t v = 0; v < m.n_vertices; ++v)
+        if (head[v]) ++n, low += y0[v] < lo + 0.8 * (hi - lo);
+      double f = (-neck[2] - lo) / (hi - lo);
+      printf("lying body: head handle %zu vertices (%zu below 0.8 of the height), neck at %.3f\n",
+             n, low, f);
+      CHECK_MSG(n >= 300 && low == 0, "lying body: head handle %zu vertices, %zu below 0.8", n,
+                low);
+      CHECK_MSG(f > 0.78 && f < 0.92, "lying body: neck at %.3f of the standing height", f);
+    }
+    free(head);
+    free(y0);
+  }
+  km_mesh_free(&m);
+  unsigned char *heads[2] = {NULL, NULL};
+  static const char *const cats[2] = {"poses/cat-poses/cat-07.obj", "poses/cat-poses/cat-04.obj"};
+  static const int32_t tips[2] = {3666, 3799};
+  static const double max[2] = {1.8, 1.5}; /* measured 1.65x and 1.25x */
+  size_t nv = 0;
+  for (int k = 0; k < 2; ++k) {
+    km_frame_guess g;
+    km_mesh c = {0};
+    if (!read_oriented(cats[k], &c, &g)) continue;
+    nv = c.n_vertices;
+    heads[k] = resting(cats[k], &c, tips[k], take, max[k], NULL);
+    km_mesh_free(&c);
+  }
+  if (heads[0] && heads[1]) {
+    size_t both = 0, either = 0;
+    for (size_t v = 0; v < nv; ++v)
+      both += heads[0][v] && heads[1][v], either += heads[0][v] || heads[1][v];
+    printf("cats' head handles: %zu in common of %zu\n", both, either);
+    CHECK_MSG(2 * both > either, "the cats' head handles share %zu of %zu vertices", both, either);
+  }
+  free(heads[0]);
+  free(heads[1]);
 }
 
 /* A body sitting on a broad base (the Stanford bunny: closed, its bottom 5 % one part) is
@@ -1770,6 +1890,7 @@ int main(void) {
       test_bust(&take);
       test_seated(&take, cm);
       test_upper_body(&take);
+      test_resting(&take);
       test_character_drive(&take);
       test_real("meshes/armadillo.obj", KM_AXIS_POS_Y, KM_AXIS_POS_Z, KM_AUTORIG_KINECT1, &take,
                 2.1, cm);

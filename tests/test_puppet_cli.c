@@ -661,10 +661,41 @@ static void test_no_rig(void) {
              KM_CLI " animate --mesh %s --motion puppet_n/w.json -o puppet_n/cat.pc2", cat);
     CHECK(km_test_run(cmd, &out) == 0);
     CHECK_MSG(out && strstr(out, "kinemesh animate: warning: handle head holds 1 vertices") &&
-                  strstr(out, "lying or curled up"),
+                  strstr(out, "lying or curled up") && strstr(out, "--skeleton resting --head V"),
               "%s", out ? out : "");
     free(out);
     out = NULL;
+    /* what the warning says to do: rigged lying with its head's tip (an ear tip), it animates
+     * with no warning; --head is refused without --skeleton resting, or when it is no vertex */
+    snprintf(cmd, sizeof cmd,
+             KM_CLI " rig %s --skeleton resting --head 3799 -o puppet_n/r/cat_rest.rig.json", cat);
+    CHECK(km_test_run(cmd, &out) == 0);
+    CHECK_MSG(out && strstr(out, "rigged as a resting body") && strstr(out, "handle head:") &&
+                  strstr(out, "handle base:") && !strstr(out, "warning"),
+              "%s", out ? out : "");
+    free(out);
+    out = NULL;
+    snprintf(cmd, sizeof cmd,
+             KM_CLI
+             " animate --mesh %s --rig puppet_n/r/cat_rest.rig.json --motion puppet_n/w.json "
+             "-o puppet_n/cat_rest.pc2",
+             cat);
+    CHECK(km_test_run(cmd, &out) == 0);
+    CHECK_MSG(out && !strstr(out, "warning"), "%s", out ? out : "");
+    free(out);
+    out = NULL;
+    static const char *const bad[3][2] = {
+        {"--head 3799", "--head is for --skeleton resting"},
+        {"--skeleton resting --head ear", "--head ear: expected a vertex id"},
+        {"--skeleton resting --head 999999", "the head vertex 999999 is not a vertex"}};
+    for (int k = 0; k < 3; ++k) {
+      snprintf(cmd, sizeof cmd, KM_CLI " rig %s %s -o puppet_n/r/bad.rig.json", cat, bad[k][0]);
+      CHECK(km_test_run(cmd, &out) != 0);
+      CHECK_MSG(out && strstr(out, bad[k][1]), "%s: %s", bad[k][0], out ? out : "");
+      free(out);
+      out = NULL;
+    }
+    CHECK(access("puppet_n/r/bad.rig.json", F_OK) != 0);
   }
   CHECK(km_test_run(KM_CLI " animate --mesh puppet_n/u.obj --rig puppet_n/r/u.rig.json --motion "
                            "puppet_n/w.json -o puppet_n/file.pc2",

@@ -287,10 +287,13 @@ size_t km_cli_warn_point_handles(const char *verb, const char *mesh_path, const 
     fprintf(say,
             "kinemesh %s: warning: handle %s holds %zu vertices: a point drags a spike out of "
             "the surface, not a part; the rig takes %s for a %s standing along %s, and a body "
-            "lying or curled up is none: its animation may not read (place the handles by "
-            "clicking in kinemesh live, or list vertices found with kinemesh pick in a rig "
-            "file)\n",
-            verb, name, rig->handles[h].n_vertices, mesh_path, kind, up ? up : "the up axis above");
+            "lying or curled up is none: its animation may not read (kinemesh rig %s "
+            "--skeleton resting --head V rigs it lying: its head, V the vertex at its tip, "
+            "turns with the performer's neck and its body stays; kinemesh pick --near x,y,z or "
+            "the live page's hover shows vertex ids; or place the handles by clicking in "
+            "kinemesh live)\n",
+            verb, name, rig->handles[h].n_vertices, mesh_path, kind, up ? up : "the up axis above",
+            mesh_path);
     ++n;
   }
   return n;

@@ -36,6 +36,7 @@ static int write_sidecar(const char *path, const km_character *c, const km_frame
 int km_cli_rig(int argc, char **argv) {
   const char *out = NULL, *skel = NULL, *weights = NULL;
   double min_ext = 0;
+  const char *head_s = NULL;
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
       KM_CLI_FRAME_OPTIONS(fo),
@@ -44,7 +45,12 @@ int km_cli_rig(int argc, char **argv) {
        "auto (default: a skinned glTF's own skin, else a bust when it has an open cut at its "
        "bottom or sits on a broad base (an upper body when a hand reaches out from it on either "
        "side), else humanoid or quadruped from the extremities, else prop), kinect1 (humanoid), "
-       "quadruped, prop (handles by position), bust or upper"},
+       "quadruped, prop (handles by position), bust, upper or resting (a body lying or curled "
+       "up: the head turns with the neck, the body stays; with --head)"},
+      {"head", 0, KM_OPT_STRING, &head_s,
+       "--skeleton resting: the vertex id at the tip of the head (an ear tip, the top of a "
+       "skull, a snout; kinemesh pick --near x,y,z or the live page's hover shows ids; default: "
+       "the most prominent extremity)"},
       {"weights", 0, KM_OPT_STRING, &weights,
        "skin weights: heat (the default: bone heat, diffused along the surface from each "
        "vertex's nearest visible bone, Baran & Popovic), distance (by the distance to the "
@@ -54,29 +60,29 @@ int km_cli_rig(int argc, char **argv) {
   };
   const char *pos[1];
   int n_pos;
-  int r = km_cli_parse(
-      argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
-      "kinemesh rig MESH [-o MESH.rig.json] [--skeleton auto|kinect1|quadruped|prop|bust|upper] "
-      "[--weights heat|distance|reach] [--up +z --forward -y]",
-      "Rigs a mesh kinemesh did not make: finds its extremities (geodesic\n"
-      "extremes), embeds the 20 Kinect v1 joints in its interior, computes\n"
-      "skin weights and the 16 landmarks, and writes the rig sidecar that\n"
-      "animate, live, pose and reconstruct read (skeleton, skin, landmarks and\n"
-      "a puppetry rig: handles at the head, hands and feet). A quadruped's\n"
-      "front limbs take the hands, its hind limbs the feet, its highest other\n"
-      "extremity the head. A bust (an open cut at its bottom) or a body sitting\n"
-      "on a broad base (a sitting rabbit: its bottom 5 % one part, half as\n"
-      "wide and deep as the mesh) gets a head handle that turns with the\n"
-      "performer's neck and a base that stays; with a hand reaching out on\n"
-      "either side (an upper body: a VR avatar) its arms move as a humanoid's\n"
-      "too. A mesh with none of these (an object) gets five handles by\n"
-      "position: highest -> head, upper sides -> hands, lower sides -> feet.\n"
-      "The mesh is rigged in kinemesh's frame (y up, facing +z): its up and\n"
-      "forward axes come from --up/--forward, else are guessed (printed); the\n"
-      "sidecar records them (\"frame\") and holds the joints in that frame, so\n"
-      "animate and live orient the mesh the same way. A skinned glTF is rigged\n"
-      "from its own skeleton and weights (joint names mapped from Mixamo, VRM /\n"
-      "Unity HumanBodyBones or rigify) unless --skeleton names another.");
+  int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 1, &n_pos,
+                       "kinemesh rig MESH [-o MESH.rig.json] "
+                       "[--skeleton auto|kinect1|quadruped|prop|bust|upper|resting [--head V]] "
+                       "[--weights heat|distance|reach] [--up +z --forward -y]",
+                       "Rigs a mesh kinemesh did not make: finds its extremities (geodesic\n"
+                       "extremes), embeds the 20 Kinect v1 joints in its interior, computes\n"
+                       "skin weights and the 16 landmarks, and writes the rig sidecar that\n"
+                       "animate, live, pose and reconstruct read (skeleton, skin, landmarks and\n"
+                       "a puppetry rig: handles at the head, hands and feet). A quadruped's\n"
+                       "front limbs take the hands, its hind limbs the feet, its highest other\n"
+                       "extremity the head. A bust (an open cut at its bottom) or a body sitting\n"
+                       "on a broad base (a sitting rabbit: its bottom 5 % one part, half as\n"
+                       "wide and deep as the mesh) gets a head handle that turns with the\n"
+                       "performer's neck and a base that stays; with a hand reaching out on\n"
+                       "either side (an upper body: a VR avatar) its arms move as a humanoid's\n"
+                       "too. A mesh with none of these (an object) gets five handles by\n"
+                       "position: highest -> head, upper sides -> hands, lower sides -> feet.\n"
+                       "The mesh is rigged in kinemesh's frame (y up, facing +z): its up and\n"
+                       "forward axes come from --up/--forward, else are guessed (printed); the\n"
+                       "sidecar records them (\"frame\") and holds the joints in that frame, so\n"
+                       "animate and live orient the mesh the same way. A skinned glTF is rigged\n"
+                       "from its own skeleton and weights (joint names mapped from Mixamo, VRM /\n"
+                       "Unity HumanBodyBones or rigify) unless --skeleton names another.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (n_pos != 1) return km_cli_error("rig", "expected one MESH");
   km_autorig_options o = {0};
@@ -92,11 +98,25 @@ int km_cli_rig(int argc, char **argv) {
     o.skeleton = KM_AUTORIG_BUST;
   else if (!strcmp(skel, "upper"))
     o.skeleton = KM_AUTORIG_UPPER;
+  else if (!strcmp(skel, "resting"))
+    o.skeleton = KM_AUTORIG_RESTING;
   else
     return km_cli_error(
-        "rig", "--skeleton %s: expected auto, kinect1, quadruped, prop, bust or upper", skel);
+        "rig", "--skeleton %s: expected auto, kinect1, quadruped, prop, bust, upper or resting",
+        skel);
   if (km_cli_parse_weights("rig", weights, &o.skin)) return KM_EXIT_USAGE;
   o.min_extremity = min_ext;
+  int32_t head = -1;
+  if (head_s) {
+    char *end = NULL;
+    long hv = strtol(head_s, &end, 10);
+    if (!*head_s || *end || hv < 0 || hv > INT32_MAX)
+      return km_cli_error("rig", "--head %s: expected a vertex id (0, 1, 2, ...)", head_s);
+    if (o.skeleton != KM_AUTORIG_RESTING)
+      return km_cli_error("rig", "--head is for --skeleton resting (a body lying or curled up)");
+    head = (int32_t)hv;
+    o.head = &head;
+  }
   km_error err = {0};
   km_mesh m = {0};
   km_character c = {0};
@@ -147,6 +167,8 @@ int km_cli_rig(int argc, char **argv) {
          : rep.kind == KM_AUTORIG_PROP    ? "a prop (handles by position)"
          : rep.kind == KM_AUTORIG_BUST    ? "a bust or seated body (the head turns with the "
                                             "neck, the base stays)"
+         : rep.kind == KM_AUTORIG_RESTING ? "a resting body, lying or curled up (the head turns "
+                                            "with the neck, the body stays)"
          : rep.kind == KM_AUTORIG_UPPER   ? "an upper body (head and arms move, the base "
                                             "stays)"
                                           : "a humanoid (kinect1)",

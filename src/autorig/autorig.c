@@ -257,13 +257,14 @@ static bool slice_centroid(rigger *r, double y0, double xc, double hw, double xm
   return found;
 }
 
-/* The geodesic ring of extremity e at distance d0: the vertices with distance in
+/* The geodesic ring at distance d0 from tip (D: every vertex's distance from it; ring_at: of
+ * extremity e): the vertices with distance in
  * [d0 - band, d0 + band], band widening until it holds some. Its centroid in out (the tip when
  * none); returns its vertices' mean distance from the centroid when radius is asked for (the
  * thickness of the body part that far from the tip: a head's radius, a forearm's; 0 when
  * none), else 0. */
-static double ring_at(const rigger *r, size_t e, double d0, bool radius, double out[3]) {
-  const double *D = r->dist + e * r->n;
+static double ring_at_field(const rigger *r, const double *D, int32_t tip, double d0, bool radius,
+                            double out[3]) {
   for (double band = 0.01 * r->H; band < 0.2 * r->H; band *= 1.6) {
     double s[3] = {0, 0, 0};
     size_t cnt = 0;
@@ -280,8 +281,12 @@ static double ring_at(const rigger *r, size_t e, double d0, bool radius, double 
       if (fabs(D[v] - d0) <= band) rad += dist3(r->m->V + 3 * v, out);
     return rad / (double)cnt;
   }
-  memcpy(out, P(r, r->ext_v[e]), 3 * sizeof *out);
+  memcpy(out, P(r, tip), 3 * sizeof *out);
   return 0;
+}
+
+static double ring_at(const rigger *r, size_t e, double d0, bool radius, double out[3]) {
+  return ring_at_field(r, r->dist + e * r->n, r->ext_v[e], d0, radius, out);
 }
 
 static void ring_centroid(const rigger *r, size_t e, double d0, double out[3]) {
@@ -962,6 +967,96 @@ static km_status rig_bust(rigger *r, const int *hands, km_autorig_report *rep, k
       rep->extremity_distance[e] = r->ext_d[hands[side]];
       snprintf(rep->role[e], sizeof rep->role[e], "%s", side ? "HandRight" : "HandLeft");
     }
+  }
+  return KM_OK;
+}
+
+/* A body lying or curled up (KM_AUTORIG_RESTING, asked for: a cat asleep on its side, cat-04,
+ * or curled up, cat-07, a person lying down). Rigged automatically as a standing humanoid, its
+ * head, hand and foot handles were points of one or two vertices that dragged spikes out of its
+ * flank; and no rule tried here told its head from its rump or a paw reliably (the geodesic
+ * rings' widths along each extremity split where a ring crosses a tucked paw or a tail). So
+ * the head's tip is the user's (head: an ear tip, the top of a skull, a snout; NULL: the most
+ * prominent extremity), and the rest is a bust's rig along the head's own geodesic rings
+ * instead of horizontal slices, at fractions of L, the farthest any vertex lies from the tip
+ * along the surface. Their width w(d), every 0.01 L, averaged over three: the neck is the
+ * narrowest ring past the widest between 0.05 and 0.16 L when it is under 0.7 of that (FAUST's
+ * tr_reg_000 from its crown: 0.042 L at 0.08 L, then 0.021 L at 0.13 L), else 0.12 L from the
+ * tip (a cat's neck is as thick as its skull: from an ear tip the rings only widen, or narrow
+ * where they cross a tucked paw). ShoulderCenter is the neck ring's centroid, Head the ring
+ * half-way to the tip's, Spine and HipCenter the rings 0.2 and 0.4 L beyond the neck; arms and legs
+ * folded beside the shoulders and the hips (bust_skin gives their weights to them), so the sidecar
+ * (arms and legs folded, no base it sits on: resting_handles) gives it a bust's two handles: the
+ * head, turning with the performer's neck, and the body behind the shoulders, held still. */
+static km_status rig_resting(rigger *r, const int32_t *head_tip, km_autorig_report *rep,
+                             km_error *err) {
+  if (!head_tip && r->n_ext == 0)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH, "rig: a resting body needs a head (no extremity)");
+  int32_t tip = head_tip ? *head_tip : r->ext_v[0];
+  if (tip < 0 || (size_t)tip >= r->n || !r->on_face[tip])
+    return km__fail(err, KM_ERR_INVALID,
+                    "rig: the head vertex %ld is not a vertex of a face (0..%zu)", (long)tip,
+                    r->n ? r->n - 1 : 0);
+  double *D = km__malloc(r->n, sizeof *D);
+  if (!D) return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  memcpy(D, km__geodesic_run(r->geo, r->m->V, tip, INFINITY, NULL, 0, NULL, NULL),
+         r->n * sizeof *D);
+  /* lengths are fractions of L, the farthest any vertex lies from the tip along the surface
+   * (crown to toe, ear to tail tip) */
+  double L = 0, c[3];
+  for (size_t v = 0; v < r->n; ++v)
+    if (isfinite(D[v]) && D[v] > L) L = D[v];
+  if (!(L > 0)) {
+    free(D);
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: the head vertex %ld has no surface around it", (long)tip);
+  }
+  enum { STEPS = 18 }; /* widths every 0.01 L from 0.01 to 0.18, averaged over three */
+  double w[STEPS], ws[STEPS];
+  for (int i = 0; i < STEPS; ++i)
+    w[i] = ring_at_field(r, D, tip, 0.01 * (i + 1) * L, true, c);
+  for (int i = 0; i < STEPS; ++i)
+    ws[i] = (w[i > 0 ? i - 1 : 0] + w[i] + w[i < STEPS - 1 ? i + 1 : i]) / 3;
+  int skull = 4, neck = -1; /* the widest from 0.05 to 0.16, the narrowest after it */
+  for (int i = 4; i < 16; ++i)
+    if (ws[i] > ws[skull]) skull = i;
+  for (int i = skull + 1; i < 16; ++i)
+    if (neck < 0 || ws[i] < ws[neck]) neck = i;
+  double dn = neck >= 0 && ws[neck] < 0.7 * ws[skull] ? 0.01 * (neck + 1) * L : 0.12 * L;
+  double *J = r->J;
+  ring_at_field(r, D, tip, dn, false, J + 3 * J_SHOULDER_C);
+  ring_at_field(r, D, tip, 0.5 * dn, false, J + 3 * J_HEAD);
+  ring_at_field(r, D, tip, dn + 0.2 * L, false, J + 3 * J_SPINE);
+  ring_at_field(r, D, tip, dn + 0.4 * L, false, J + 3 * J_HIP_C);
+  double rn = ring_at_field(r, D, tip, dn, true, c);
+  free(D);
+  /* the limbs folded beside the shoulders and hips, across the neck's direction on the ground */
+  const double *sc = J + 3 * J_SHOULDER_C, *hd = J + 3 * J_HEAD, *hc = J + 3 * J_HIP_C;
+  double ax = hd[0] - sc[0], az = hd[2] - sc[2], al = hypot(ax, az);
+  double lat[3] = {1, 0, 0};
+  if (al > 0) set3(lat, -az / al, 0, ax / al);
+  if (!(rn > 0)) rn = 0.03 * L;
+  double spine = dist3(hc, sc);
+  if (!(spine > 0)) spine = 0.4 * L;
+  for (int side = 0; side < 2; ++side) {
+    double sgn = side ? -1 : 1;
+    int j0 = side ? J_SHOULDER_R : J_SHOULDER_L, h0 = side ? J_HIP_R : J_HIP_L;
+    for (int k = 0; k < 4; ++k) {
+      /* the sidecar's arms_folded: a hand within 0.4 of the shoulders' span (rn) of its
+       * shoulder; legs_folded: a foot within a quarter of the spine of HipCenter */
+      set3(J + 3 * (j0 + k), sc[0] + sgn * 0.5 * rn * lat[0], sc[1] - 0.1 * k * rn,
+           sc[2] + sgn * 0.5 * rn * lat[2]);
+      set3(J + 3 * (h0 + k), hc[0] + sgn * 0.05 * spine * lat[0], hc[1] - 0.03 * k * spine,
+           hc[2] + sgn * 0.05 * spine * lat[2]);
+    }
+  }
+  r->tip[J_HEAD] = tip;
+  if (rep) {
+    memset(rep->role, 0, sizeof rep->role);
+    rep->n_extremities = 1;
+    rep->extremity[0] = tip;
+    rep->extremity_distance[0] = 0;
+    snprintf(rep->role[0], sizeof rep->role[0], "Head");
   }
   return KM_OK;
 }
@@ -1762,6 +1857,7 @@ const char *km_autorig_kind_name(km_autorig_skeleton kind) {
   case KM_AUTORIG_PROP: return "prop";
   case KM_AUTORIG_BUST: return "bust";
   case KM_AUTORIG_UPPER: return "upper body";
+  case KM_AUTORIG_RESTING: return "resting body";
   }
   return "unknown";
 }
@@ -1781,7 +1877,12 @@ static km_status autorig_welded(const km_mesh *m, const km_autorig_options *opt,
   const int32_t *to_w = wd.to_w, *first = wd.first;
   km_character cw = {0};
   *done = true;
-  if ((s = km_autorig(&wd.w, opt, &cw, report, err)) != KM_OK) {
+  /* the head's tip, a vertex of the file, on the joined mesh */
+  km_autorig_options ow = {0};
+  if (opt) ow = *opt;
+  int32_t head_w = -1;
+  if (ow.head && *ow.head >= 0 && (size_t)*ow.head < n) head_w = to_w[*ow.head], ow.head = &head_w;
+  if ((s = km_autorig(&wd.w, &ow, &cw, report, err)) != KM_OK) {
     /* what is wrong is the joined mesh's, which info does not show: say so */
     km__wrap(err, s, "joined at its texture seams (%zu vertices lying on others merged)",
              n - wd.w.n_vertices);
@@ -1897,8 +1998,9 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   }
   if (st == KM_OK && kind != KM_AUTORIG_BUST && kind != KM_AUTORIG_UPPER && !searched)
     st = find_extremities(&r, &o, err);
-  if (st == KM_OK && kind == KM_AUTORIG_AUTO)
+  if (st == KM_OK && kind == KM_AUTORIG_AUTO) {
     kind = ground_legs(&r) >= 3 ? KM_AUTORIG_QUADRUPED : KM_AUTORIG_KINECT1;
+  }
   if (report) {
     report->kind = kind;
     report->height = r.H;
@@ -1911,6 +2013,8 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
       st = rig_bust(&r, kind == KM_AUTORIG_UPPER ? hands : NULL, report, err);
     else if (kind == KM_AUTORIG_PROP)
       st = rig_prop(&r, report, err);
+    else if (kind == KM_AUTORIG_RESTING)
+      st = rig_resting(&r, o.head, report, err);
     else
       st = kind == KM_AUTORIG_QUADRUPED ? rig_quadruped(&r, report, err)
                                         : rig_humanoid(&r, report, err);
@@ -1964,7 +2068,8 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
     if (report) report->skin = skin;
     r.quadruped = kind == KM_AUTORIG_QUADRUPED;
     st = compute_skin(&r, skin, &out->skin, report, err);
-    if (st == KM_OK && (kind == KM_AUTORIG_BUST || kind == KM_AUTORIG_UPPER))
+    if (st == KM_OK &&
+        (kind == KM_AUTORIG_BUST || kind == KM_AUTORIG_UPPER || kind == KM_AUTORIG_RESTING))
       bust_skin(&out->skin, r.n, kind == KM_AUTORIG_UPPER);
   }
   if (st == KM_OK) {

@@ -370,6 +370,7 @@ typedef struct rig_plan {
    * (km__seated_base): a head handle turning with the neck and a base anchor instead of the end
    * handles and bands (bust_handles) */
   bool bust;
+  bool resting; /* a bust's handles on a body lying or curled up (resting_handles) */
   /* An upper body (legs_folded, on a bust's base): the humanoid's head, hands and arm and chest
    * bands, no feet nor leg bands, and the base anchor (upper_base) */
   bool upper;
@@ -620,6 +621,74 @@ static km_status bust_handles(const km_character *c, double ymin, double ymax, r
   return KM_OK;
 }
 
+/* A resting body's handles (km_autorig's KM_AUTORIG_RESTING: arms and legs folded, no base
+ * it sits on; a cat lying on its side or curled up): a bust's, cut across its neck instead of
+ * by height. With a = the unit direction Spine -> ShoulderCenter (the body's at the neck) and
+ * s(v) = (v - ShoulderCenter) . a: the head (end_list[0]) is the vertices ahead of the neck
+ * (s >= 0) joined along faces, through such vertices only, to the vertex nearest the Head
+ * joint (a paw or tail curled up by the face is not, it joins the head only through the body);
+ * the base is the vertices behind the shoulders by two thirds of the spine bone (Spine ->
+ * ShoulderCenter), off the head, spread (pick_spread): the body lies still while the head
+ * turns with the performer's neck. animate, longest edge on precog_Seq1_1 / cmu_131_01, the
+ * curled cat-07 and cat-04 lying on its side (heads given: an ear tip each): base from a third
+ * 2.19x / - and 1.37x / -, from two thirds 1.65 / 1.45x and 1.25 / 1.52x, from a whole spine
+ * bone 1.64 / 1.44x and 1.24 / 1.51x. */
+static km_status resting_handles(const km_character *c, rig_plan *p, km_error *err) {
+  const km_mesh *m = &c->mesh;
+  const km_skeleton *sk = &c->skeleton;
+  size_t n = m->n_vertices;
+  int sc = skel_joint(sk, "ShoulderCenter"), hd = skel_joint(sk, "Head"),
+      sp = skel_joint(sk, "Spine");
+  if (sc < 0 || hd < 0 || sp < 0)
+    return km__fail(err, KM_ERR_INVALID,
+                    "rig: a resting body needs Spine, ShoulderCenter and Head joints");
+  const double *S = sk->rest + 3 * (size_t)sc, *Hj = sk->rest + 3 * (size_t)hd,
+               *B = sk->rest + 3 * (size_t)sp;
+  double a[3] = {S[0] - B[0], S[1] - B[1], S[2] - B[2]}, len = sqrt(km__dot3(a, a));
+  if (!(len > 0))
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: the resting body's spine (Spine -> ShoulderCenter) has no length");
+  for (int k = 0; k < 3; ++k)
+    a[k] /= len;
+  int32_t *uf = km__malloc(n, sizeof(int32_t));
+  uint8_t *take = km__malloc(n, 1);
+  double *sv = km__malloc(n, sizeof(double));
+  p->end_list[0] = km__malloc(n, sizeof(int32_t));
+  p->base_list = km__malloc(n, sizeof(int32_t));
+  if (!uf || !take || !sv || !p->end_list[0] || !p->base_list) {
+    free(uf), free(take), free(sv);
+    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  }
+  size_t near = 0;
+  for (size_t v = 0; v < n; ++v) {
+    const double *x = m->V + 3 * v;
+    double d[3] = {x[0] - S[0], x[1] - S[1], x[2] - S[2]};
+    sv[v] = km__dot3(d, a);
+    uf[v] = (int32_t)v;
+    if (dist3(x, Hj) < dist3(m->V + 3 * near, Hj)) near = v;
+  }
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int k = 0; k < 3; ++k) {
+      int32_t u = m->F[3 * f + k], w = m->F[3 * f + (k + 1) % 3];
+      if (sv[u] >= 0 && sv[w] >= 0) uf[uf_find(uf, u)] = uf_find(uf, w);
+    }
+  int32_t top = uf_find(uf, (int32_t)near);
+  p->handle_vertex[0] = (long)near;
+  for (size_t v = 0; v < n; ++v) {
+    bool head = sv[v] >= 0 && uf_find(uf, (int32_t)v) == top;
+    if (head) p->end_list[0][p->n_end[0]++] = (int32_t)v;
+    take[v] = !head && sv[v] <= -len * 2 / 3;
+  }
+  free(uf), free(sv);
+  p->n_base = pick_spread(take, n, p->base_list);
+  free(take);
+  if (!p->n_end[0] || !p->n_base)
+    return km__fail(err, KM_ERR_DEGENERATE_MESH,
+                    "rig: the resting body's head (ahead of its neck) or body (behind its "
+                    "shoulders) has no vertex");
+  return KM_OK;
+}
+
 /* An upper body's base anchor: the vertices within 0.15 of the height of the bottom that no
  * other handle holds (off the bands and the hand and head balls), spread (pick_spread); its
  * legs are folded into the base (bone_bands gave them no band), and the feet's handles go. The
@@ -808,10 +877,14 @@ static km_status rig_plan_make_on(const char *path, const km_character *c, rig_p
     km_status bs = km__rest_base(m, &based, &cut_top, err);
     if (bs != KM_OK) return bs;
   }
-  p->bust = based && arms_in;
+  /* arms and legs folded with no base under it: km_autorig's resting body (lying, curled up),
+   * rigged as a bust along its neck (resting_handles) */
+  bool resting = !based && arms_in && legs_folded(sk);
+  p->resting = resting;
+  p->bust = (based && arms_in) || resting;
   p->upper = based && !arms_in;
   if (p->bust) {
-    km_status bs = bust_handles(c, ymin, ymax, p, err);
+    km_status bs = resting ? resting_handles(c, p, err) : bust_handles(c, ymin, ymax, p, err);
     if (bs != KM_OK) {
       plan_free(p);
       return km__wrap(err, bs, "%s", path);
@@ -900,9 +973,13 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
      * 4.5/6.1/3.9; shortest edge bunny 0.30/0.51/0.53 -> 0.47/0.67/0.58x, longest edge within
      * 0.06x or shorter; the CMU takes within 0.3 % and 0.02x. */
     fputs("],\n\"map\":[{\"handle\":\"head\",\"bone\":[\"ShoulderCenter\",\"Head\"]}],"
-          "\n\"relative_to\":\"HipCenter\",\"swing_limit\":45,"
-          "\"filter\":{\"kind\":\"one_euro\",\"min_cutoff\":1.0,\"beta\":0.5}}\n",
+          "\n\"relative_to\":\"HipCenter\",\"swing_limit\":45,",
           f);
+    /* A resting body's head lies on or near the ground: a performer bending forward turned
+     * the curled cat's (cat-07) into it, 4 % of the diagonal under the rest floor (precog_Seq1_1
+     * frame 195); held above it */
+    if (p->resting) fputs("\"floor\":true,", f);
+    fputs("\"filter\":{\"kind\":\"one_euro\",\"min_cutoff\":1.0,\"beta\":0.5}}\n", f);
     return;
   }
   int n_ends = p->upper ? 3 : 5; /* an upper body's feet are folded into its base */
