@@ -868,6 +868,17 @@ static km_status rig_prop(rigger *r, km_autorig_report *rep, km_error *err) {
  * legs into the base (short bones that no handle drives; bust_skin gives their weights to the
  * shoulders and HipCenter). */
 #define BUST_SLICES 24
+/* The report of a bust-like rig (a bust's, a resting body's): one extremity, the head's tip
+ * (rep NULL: none). */
+static void report_head(km_autorig_report *rep, int32_t tip) {
+  if (!rep) return;
+  memset(rep->role, 0, sizeof rep->role);
+  rep->n_extremities = 1;
+  rep->extremity[0] = tip;
+  rep->extremity_distance[0] = 0;
+  snprintf(rep->role[0], sizeof rep->role[0], "Head");
+}
+
 static km_status rig_bust(rigger *r, const int *hands, km_autorig_report *rep, km_error *err) {
   double lo[BUST_SLICES], hi[BUST_SLICES], sx[BUST_SLICES] = {0}, sz[BUST_SLICES] = {0},
                                            cnt[BUST_SLICES] = {0};
@@ -955,18 +966,12 @@ static km_status rig_bust(rigger *r, const int *hands, km_autorig_report *rep, k
     }
   }
   r->tip[J_HEAD] = top;
-  if (rep) {
-    memset(rep->role, 0, sizeof rep->role);
-    rep->n_extremities = 1;
-    rep->extremity[0] = top;
-    rep->extremity_distance[0] = 0;
-    snprintf(rep->role[0], sizeof rep->role[0], "Head");
-    for (int side = 0; hands && side < 2; ++side) {
-      size_t e = rep->n_extremities++;
-      rep->extremity[e] = r->ext_v[hands[side]];
-      rep->extremity_distance[e] = r->ext_d[hands[side]];
-      snprintf(rep->role[e], sizeof rep->role[e], "%s", side ? "HandRight" : "HandLeft");
-    }
+  report_head(rep, top);
+  for (int side = 0; rep && hands && side < 2; ++side) {
+    size_t e = rep->n_extremities++;
+    rep->extremity[e] = r->ext_v[hands[side]];
+    rep->extremity_distance[e] = r->ext_d[hands[side]];
+    snprintf(rep->role[e], sizeof rep->role[e], "%s", side ? "HandRight" : "HandLeft");
   }
   return KM_OK;
 }
@@ -1051,13 +1056,7 @@ static km_status rig_resting(rigger *r, const int32_t *head_tip, km_autorig_repo
     }
   }
   r->tip[J_HEAD] = tip;
-  if (rep) {
-    memset(rep->role, 0, sizeof rep->role);
-    rep->n_extremities = 1;
-    rep->extremity[0] = tip;
-    rep->extremity_distance[0] = 0;
-    snprintf(rep->role[0], sizeof rep->role[0], "Head");
-  }
+  report_head(rep, tip);
   return KM_OK;
 }
 
