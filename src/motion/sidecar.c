@@ -975,9 +975,9 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
     fputs("],\n\"map\":[{\"handle\":\"head\",\"bone\":[\"ShoulderCenter\",\"Head\"]}],"
           "\n\"relative_to\":\"HipCenter\",\"swing_limit\":45,",
           f);
-    /* A resting body's head lies on or near the ground: a performer bending forward turned
-     * the curled cat's (cat-07) into it, 4 % of the diagonal under the rest floor (precog_Seq1_1
-     * frame 195); held above it */
+    /* A resting body's head lies on or near the ground: without the floor the performer's
+     * moves turned the curled cat's (cat-07) into it, 8.3 % of the diagonal under the rest
+     * floor at precog_Seq1_1's frame 196, 42 frames more than 0.5 % under; held above it */
     if (p->resting) fputs("\"floor\":true,", f);
     fputs("\"filter\":{\"kind\":\"one_euro\",\"min_cutoff\":1.0,\"beta\":0.5}}\n", f);
     return;
