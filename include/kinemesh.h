@@ -2918,21 +2918,20 @@ typedef enum km_autorig_skeleton {
                            v1 joints placed in its neck, head and shoulders (arms and legs
                            folded into the shoulders and the base); the rig sidecar's handles:
                            the head, turning with the neck, and the base, held still */
-  KM_AUTORIG_UPPER      /* an upper body: a bust's base (either kind) with a hand reaching
+  KM_AUTORIG_UPPER,     /* an upper body: a bust's base (either kind) with a hand reaching
                            out on either side (an extremity 0.2 of the height above the base,
                            farther from its middle than twice its width: a VR avatar or a
                            T-posed character cut at the waist); torso, neck and head as a
                            bust's, arms along rings from the hand tips as a humanoid's, legs
                            folded into the base; the sidecar's handles: head, hands and arm
                            bands, chest, and the base, held still */
-  ,
-  KM_AUTORIG_RESTING /* a body lying or curled up (asked for: never chosen automatically):
-                        a cat asleep on its side or curled up, a person lying down; the
-                        Kinect v1 joints along the geodesic rings from the head's tip
-                        (km_autorig_options.head), the neck at the narrowest ring past the
-                        skull's widest, arms and legs folded into the shoulders and hips;
-                        the sidecar's handles: the head, turning with the neck, and the
-                        body behind the shoulders, held still */
+  KM_AUTORIG_RESTING    /* a body lying or curled up (asked for: never chosen automatically):
+                           a cat asleep on its side or curled up, a person lying down; the
+                           Kinect v1 joints along the geodesic rings from the head's tip
+                           (km_autorig_options.head), the neck at the narrowest ring past the
+                           skull's widest, arms and legs folded into the shoulders and hips;
+                           the sidecar's handles: the head, turning with the neck, and the
+                           body behind the shoulders, held still */
 } km_autorig_skeleton;
 
 #define KM_AUTORIG_MAX_EXTREMITIES 16

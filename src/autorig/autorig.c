@@ -860,14 +860,6 @@ static km_status rig_prop(rigger *r, km_autorig_report *rep, km_error *err) {
   return KM_OK;
 }
 
-/* Bust (an open cut at its bottom, km__bust_base): the torso joints on the mid-line of the
- * height slices (HipCenter at the cut, ShoulderCenter at the neck: below the head's widest
- * slice, the narrowest above the shoulders, Head half way from there to the top), the shoulders at
- * 0.35 of the width on either side of the highest slice below the neck that is 0.8 as wide as the
- * widest there, the arms folded into the shoulders and the
- * legs into the base (short bones that no handle drives; bust_skin gives their weights to the
- * shoulders and HipCenter). */
-#define BUST_SLICES 24
 /* The report of a bust-like rig (a bust's, a resting body's): one extremity, the head's tip
  * (rep NULL: none). */
 static void report_head(km_autorig_report *rep, int32_t tip) {
@@ -879,6 +871,14 @@ static void report_head(km_autorig_report *rep, int32_t tip) {
   snprintf(rep->role[0], sizeof rep->role[0], "Head");
 }
 
+/* Bust (an open cut at its bottom, km__bust_base): the torso joints on the mid-line of the
+ * height slices (HipCenter at the cut, ShoulderCenter at the neck: below the head's widest
+ * slice, the narrowest above the shoulders, Head half way from there to the top), the shoulders at
+ * 0.35 of the width on either side of the highest slice below the neck that is 0.8 as wide as the
+ * widest there, the arms folded into the shoulders and the
+ * legs into the base (short bones that no handle drives; bust_skin gives their weights to the
+ * shoulders and HipCenter). */
+#define BUST_SLICES 24
 static km_status rig_bust(rigger *r, const int *hands, km_autorig_report *rep, km_error *err) {
   double lo[BUST_SLICES], hi[BUST_SLICES], sx[BUST_SLICES] = {0}, sz[BUST_SLICES] = {0},
                                            cnt[BUST_SLICES] = {0};
@@ -1029,11 +1029,10 @@ static km_status rig_resting(rigger *r, const int32_t *head_tip, km_autorig_repo
     if (neck < 0 || ws[i] < ws[neck]) neck = i;
   double dn = neck >= 0 && ws[neck] < 0.7 * ws[skull] ? 0.01 * (neck + 1) * L : 0.12 * L;
   double *J = r->J;
-  ring_at_field(r, D, tip, dn, false, J + 3 * J_SHOULDER_C);
+  double rn = ring_at_field(r, D, tip, dn, true, J + 3 * J_SHOULDER_C); /* the neck's width */
   ring_at_field(r, D, tip, 0.5 * dn, false, J + 3 * J_HEAD);
   ring_at_field(r, D, tip, dn + 0.2 * L, false, J + 3 * J_SPINE);
   ring_at_field(r, D, tip, dn + 0.4 * L, false, J + 3 * J_HIP_C);
-  double rn = ring_at_field(r, D, tip, dn, true, c);
   free(D);
   /* the limbs folded beside the shoulders and hips, across the neck's direction on the ground */
   const double *sc = J + 3 * J_SHOULDER_C, *hd = J + 3 * J_HEAD, *hc = J + 3 * J_HIP_C;
@@ -1997,9 +1996,8 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   }
   if (st == KM_OK && kind != KM_AUTORIG_BUST && kind != KM_AUTORIG_UPPER && !searched)
     st = find_extremities(&r, &o, err);
-  if (st == KM_OK && kind == KM_AUTORIG_AUTO) {
+  if (st == KM_OK && kind == KM_AUTORIG_AUTO)
     kind = ground_legs(&r) >= 3 ? KM_AUTORIG_QUADRUPED : KM_AUTORIG_KINECT1;
-  }
   if (report) {
     report->kind = kind;
     report->height = r.H;
