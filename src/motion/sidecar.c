@@ -564,6 +564,46 @@ static size_t pick_spread(const uint8_t *take, size_t n, int32_t *out) {
   return kept;
 }
 
+/* The two handles of a bust-like rig (bust_handles, resting_handles): with s(v) = (v - o) . a
+ * (a a unit axis), the head (end_list[0]) is the vertices with s >= neck joined along faces,
+ * through such vertices only, to seed; the base (base_list) the others with s <= base, spread
+ * (pick_spread). Either may come out empty (the caller says why). */
+static km_status split_head_base(const km_mesh *m, const double o[3], const double a[3],
+                                 double neck, double base, int32_t seed, rig_plan *p,
+                                 km_error *err) {
+  size_t n = m->n_vertices;
+  int32_t *uf = km__malloc(n, sizeof(int32_t));
+  uint8_t *take = km__malloc(n, 1); /* the base's vertices, before pick_spread */
+  double *sv = km__malloc(n, sizeof(double));
+  p->end_list[0] = km__malloc(n, sizeof(int32_t));
+  p->base_list = km__malloc(n, sizeof(int32_t));
+  if (!uf || !take || !sv || !p->end_list[0] || !p->base_list) {
+    free(uf), free(take), free(sv);
+    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  }
+  for (size_t v = 0; v < n; ++v) {
+    const double *x = m->V + 3 * v;
+    double d[3] = {x[0] - o[0], x[1] - o[1], x[2] - o[2]};
+    sv[v] = km__dot3(d, a);
+    uf[v] = (int32_t)v;
+  }
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int k = 0; k < 3; ++k) {
+      int32_t u = m->F[3 * f + k], w = m->F[3 * f + (k + 1) % 3];
+      if (sv[u] >= neck && sv[w] >= neck) uf[uf_find(uf, u)] = uf_find(uf, w);
+    }
+  int32_t top = uf_find(uf, seed);
+  for (size_t v = 0; v < n; ++v) {
+    bool head = sv[v] >= neck && uf_find(uf, (int32_t)v) == top;
+    if (head) p->end_list[0][p->n_end[0]++] = (int32_t)v;
+    take[v] = !head && sv[v] <= base;
+  }
+  free(uf), free(sv);
+  p->n_base = pick_spread(take, n, p->base_list);
+  free(take);
+  return KM_OK;
+}
+
 /* A bust's handles: the head (end_list[0]: the vertices above the middle of the neck bone,
  * ShoulderCenter -> Head, joined to the top vertex along faces), held rigid and turned with
  * the performer's neck, and the base (the vertices within 0.15 of the height of the bottom,
@@ -577,7 +617,6 @@ static km_status bust_handles(const km_character *c, double ymin, double ymax, r
                               km_error *err) {
   const km_mesh *m = &c->mesh;
   const km_skeleton *sk = &c->skeleton;
-  size_t n = m->n_vertices;
   int sc = skel_joint(sk, "ShoulderCenter"), hd = skel_joint(sk, "Head");
   if (sc < 0 || hd < 0)
     return km__fail(err, KM_ERR_INVALID, "rig: a bust needs ShoulderCenter and Head joints");
@@ -588,32 +627,9 @@ static km_status bust_handles(const km_character *c, double ymin, double ymax, r
     ybase = ymin + 0.03 * H;
     yneck = ymin + 0.25 * H;
   }
-  int32_t *uf = km__malloc(n, sizeof(int32_t));
-  uint8_t *take = km__malloc(n, 1); /* the base's vertices, before pick_spread */
-  p->end_list[0] = km__malloc(n, sizeof(int32_t));
-  p->base_list = km__malloc(n, sizeof(int32_t));
-  if (!uf || !take || !p->end_list[0] || !p->base_list) {
-    free(uf), free(take);
-    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
-  }
-  for (size_t v = 0; v < n; ++v)
-    uf[v] = (int32_t)v;
-  for (size_t f = 0; f < m->n_faces; ++f)
-    for (int k = 0; k < 3; ++k) {
-      int32_t a = m->F[3 * f + k], b = m->F[3 * f + (k + 1) % 3];
-      if (m->V[3 * (size_t)a + 1] >= yneck && m->V[3 * (size_t)b + 1] >= yneck)
-        uf[uf_find(uf, a)] = uf_find(uf, b);
-    }
-  int32_t top = uf_find(uf, (int32_t)p->handle_vertex[0]);
-  for (size_t v = 0; v < n; ++v) {
-    double y = m->V[3 * v + 1];
-    bool head = y >= yneck && uf_find(uf, (int32_t)v) == top;
-    if (head) p->end_list[0][p->n_end[0]++] = (int32_t)v;
-    take[v] = !head && y <= ybase;
-  }
-  free(uf);
-  p->n_base = pick_spread(take, n, p->base_list);
-  free(take);
+  static const double o[3] = {0, 0, 0}, up[3] = {0, 1, 0}; /* s(v) = y */
+  km_status st = split_head_base(m, o, up, yneck, ybase, (int32_t)p->handle_vertex[0], p, err);
+  if (st != KM_OK) return st;
   if (!p->n_end[0] || !p->n_base)
     return km__fail(err, KM_ERR_DEGENERATE_MESH,
                     "rig: the bust's head (above y %.4g) or base (below y %.4g) has no vertex",
@@ -650,38 +666,12 @@ static km_status resting_handles(const km_character *c, rig_plan *p, km_error *e
                     "rig: the resting body's spine (Spine -> ShoulderCenter) has no length");
   for (int k = 0; k < 3; ++k)
     a[k] /= len;
-  int32_t *uf = km__malloc(n, sizeof(int32_t));
-  uint8_t *take = km__malloc(n, 1);
-  double *sv = km__malloc(n, sizeof(double));
-  p->end_list[0] = km__malloc(n, sizeof(int32_t));
-  p->base_list = km__malloc(n, sizeof(int32_t));
-  if (!uf || !take || !sv || !p->end_list[0] || !p->base_list) {
-    free(uf), free(take), free(sv);
-    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
-  }
   size_t near = 0;
-  for (size_t v = 0; v < n; ++v) {
-    const double *x = m->V + 3 * v;
-    double d[3] = {x[0] - S[0], x[1] - S[1], x[2] - S[2]};
-    sv[v] = km__dot3(d, a);
-    uf[v] = (int32_t)v;
-    if (dist3(x, Hj) < dist3(m->V + 3 * near, Hj)) near = v;
-  }
-  for (size_t f = 0; f < m->n_faces; ++f)
-    for (int k = 0; k < 3; ++k) {
-      int32_t u = m->F[3 * f + k], w = m->F[3 * f + (k + 1) % 3];
-      if (sv[u] >= 0 && sv[w] >= 0) uf[uf_find(uf, u)] = uf_find(uf, w);
-    }
-  int32_t top = uf_find(uf, (int32_t)near);
+  for (size_t v = 1; v < n; ++v)
+    if (dist3(m->V + 3 * v, Hj) < dist3(m->V + 3 * near, Hj)) near = v;
   p->handle_vertex[0] = (long)near;
-  for (size_t v = 0; v < n; ++v) {
-    bool head = sv[v] >= 0 && uf_find(uf, (int32_t)v) == top;
-    if (head) p->end_list[0][p->n_end[0]++] = (int32_t)v;
-    take[v] = !head && sv[v] <= -len * 2 / 3;
-  }
-  free(uf), free(sv);
-  p->n_base = pick_spread(take, n, p->base_list);
-  free(take);
+  km_status st = split_head_base(m, S, a, 0, -len * 2 / 3, (int32_t)near, p, err);
+  if (st != KM_OK) return st;
   if (!p->n_end[0] || !p->n_base)
     return km__fail(err, KM_ERR_DEGENERATE_MESH,
                     "rig: the resting body's head (ahead of its neck) or body (behind its "
