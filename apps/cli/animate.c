@@ -164,8 +164,9 @@ int km_cli_animate(int argc, char **argv) {
   if (!rig_path && !skin_json && access(rig_default, F_OK) != 0) {
     /* no rig file: one made on the spot, as `kinemesh rig` would write it */
     km_character ac = {0};
-    km_status as = km_cli_auto_rig("animate", mesh_path, rig_default, &m, stderr, NULL, &ac, &err);
-    if (as == KM_OK) as = km_character_rig_json(&ac, &skin_json, &skin_json_n, &err);
+    km_status as = km_cli_auto_rig("animate", mesh_path, rig_default, &m, stderr, NULL, &ac,
+                                   &skin_json, &skin_json_n, &err);
+    if (as == KM_OK && !skin_json) as = km_character_rig_json(&ac, &skin_json, &skin_json_n, &err);
     km_character_free(&ac);
     if (as != KM_OK) goto fail;
   }

@@ -186,12 +186,6 @@ int km_cli_load_character_oriented(const char *verb, const char *mesh, const cha
  * the mapping is printed on stderr and *used is set. Otherwise *used is false, c untouched. */
 km_status km_cli_skin_character(const char *verb, const char *mesh_path, const char *rig,
                                 km_character *c, bool *used, km_error *err);
-/* A rig made on the spot for a mesh that has none (issue 11: a user's own mesh animates, poses
- * or serves as a template with no rig file): km_autorig on m (in kinemesh's frame), what it
- * chose printed in one line on `say` (stdout or stderr) with `then` after it (how to keep it;
- * NULL: "kinemesh rig MESH writes it, to edit"). Nothing is written. *c (freed first) gets the
- * character. On failure err says that the mesh has no rig at rig_file and why km_autorig refused
- * it. */
 /* An end handle (head, hand, foot) of rig holding fewer than 5 vertices pulls a spike out of
  * the surface instead of carrying a part: the automatic rig took a body lying or curled up for
  * one standing. Writes one warning line per such handle to say ("kinemesh VERB: warning: ...",
@@ -200,9 +194,17 @@ km_status km_cli_skin_character(const char *verb, const char *mesh_path, const c
  * it warned of. */
 size_t km_cli_warn_point_handles(const char *verb, const char *mesh_path, const km_rig *rig,
                                  const char *kind, const char *up, FILE *say);
+/* A rig made on the spot for a mesh that has none (issue 11: a user's own mesh animates, poses
+ * or serves as a template with no rig file): km_autorig on m (in kinemesh's frame), what it
+ * chose printed in one line on `say` (stdout or stderr) with `then` after it (how to keep it;
+ * NULL: "kinemesh rig MESH writes it, to edit"). Nothing is written. *c (freed first) gets the
+ * character, json (NULL: not wanted) its rig sidecar's text (km_character_rig_json, made to warn
+ * of point handles: km_cli_warn_point_handles; the caller frees it; NULL when it could not be
+ * made, and the caller that needs it makes it, to say why). On failure err says that the mesh
+ * has no rig at rig_file and why km_autorig refused it. */
 km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *rig_file,
                           const km_mesh *m, FILE *say, const char *then, km_character *c,
-                          km_error *err);
+                          char **json, size_t *json_size, km_error *err);
 int km_cli_live(int argc, char **argv);
 int km_cli_vmc(int argc, char **argv);
 int km_cli_rig(int argc, char **argv);

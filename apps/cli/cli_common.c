@@ -301,7 +301,7 @@ size_t km_cli_warn_point_handles(const char *verb, const char *mesh_path, const 
 
 km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *rig_file,
                           const km_mesh *m, FILE *say, const char *then, km_character *c,
-                          km_error *err) {
+                          char **json, size_t *json_size, km_error *err) {
   km_character tmp = {0};
   km_autorig_report rep;
   km_status s = km_autorig(m, NULL, &tmp, &rep, err);
@@ -329,16 +329,22 @@ km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *r
     fprintf(say, "; %s\n", then);
   else
     fprintf(say, "; kinemesh rig %s writes it, to edit\n", mesh_path);
-  /* what `kinemesh rig` warns of, said here too: the rig on the spot is the same rig */
-  char *json = NULL;
+  /* what `kinemesh rig` warns of, said here too: the rig on the spot is the same rig; its
+   * sidecar text, made for that, goes to the caller that puppets with it */
+  char *text = NULL;
   size_t size = 0;
   km_rig rig = {0};
   km_error ee = {0};
-  if (km_character_rig_json(c, &json, &size, &ee) == KM_OK &&
-      km_rig_parse(json, size, mesh_path, m, NULL, 0, &rig, &ee) == KM_OK)
+  if (km_character_rig_json(c, &text, &size, &ee) == KM_OK &&
+      km_rig_parse(text, size, mesh_path, m, NULL, 0, &rig, &ee) == KM_OK)
     km_cli_warn_point_handles(verb, mesh_path, &rig, km_autorig_kind_name(rep.kind), NULL, say);
   km_rig_free(&rig);
-  free(json);
+  if (json) {
+    *json = text;
+    *json_size = size;
+  } else {
+    free(text);
+  }
   return KM_OK;
 }
 

@@ -193,8 +193,8 @@ int km_cli_load_character_oriented(const char *verb, const char *mesh, const cha
     char *def = km_cli_rig_path(mesh);
     km_mesh m = c->mesh;
     c->mesh = (km_mesh){0}; /* km_cli_auto_rig frees *c, and the character copies m */
-    km_status s =
-        km_cli_auto_rig(verb, mesh, def ? def : "<stem>.rig.json", &m, stderr, NULL, c, &err);
+    km_status s = km_cli_auto_rig(verb, mesh, def ? def : "<stem>.rig.json", &m, stderr, NULL, c,
+                                  NULL, NULL, &err);
     km_mesh_free(&m);
     free(def);
     if (s != KM_OK) return km_cli_fail(verb, &err);

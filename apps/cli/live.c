@@ -32,10 +32,12 @@ static km_status auto_rig(const char *mesh_path, const km_mesh *m, const char *r
   bool own = false;
   km_status s = km_cli_skin_character("live", mesh_path, NULL, &c, &own, err);
   if (s != KM_OK) return s;
-  if (!own && (s = km_cli_auto_rig("live", mesh_path, rig_file, m, stdout,
-                                   "\"save rig\" in the page writes it", &c, err)) != KM_OK)
+  *json = NULL;
+  if (!own &&
+      (s = km_cli_auto_rig("live", mesh_path, rig_file, m, stdout,
+                           "\"save rig\" in the page writes it", &c, json, size, err)) != KM_OK)
     return s;
-  s = km_character_rig_json(&c, json, size, err);
+  if (!*json) s = km_character_rig_json(&c, json, size, err);
   km_character_free(&c);
   return s;
 }
