@@ -1567,7 +1567,10 @@ bool km_retarget_floor(const km_retarget *r, double *floor_y);
 bool km_retarget_apply_root(const km_retarget *r, double *points, size_t n);
 /* The character's own joints as the last push posed them (the skeleton its bone handles hang
  * from, with the rigid root motion applied): what a skinned export of the same motion would
- * pose its skeleton to.
+ * pose its skeleton to. A bone the rig's map does not move (no entry's joint nor above one; on
+ * a map that holds the root still and has an anchor, as a bust's, every bone off the entries'
+ * own segments) stays as its parent carries it, and on a map whose every entry is relative to
+ * the root (no rigid root motion) the root's travel is taken off, as the handles take it off.
  *   out  out: n_joints*3 (the take's joint order), NaN for a joint the rig's "joints" lacks
  * Returns false, leaving out as it is, for a rig without a character skeleton ("joints"). */
 bool km_retarget_joints(const km_retarget *r, double *out);

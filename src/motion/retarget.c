@@ -98,6 +98,10 @@ struct km_retarget {
   double prev_t[3], prev_phi; /* the rigid root's translation and heading shown, last push */
   bool have_prev;
   size_t eased; /* pushes whose motion was eased */
+  /* Joints no map entry reaches (see held_joints); NULL: none. */
+  bool *held;      /* n_joints: the bone ending here is carried by its parent's */
+  bool root_fixed; /* every entry is relative to the root, which does not move rigidly: the
+                      posed joints (km_retarget_joints) stay where the handles see them */
 };
 
 static int cmp_map(const void *a, const void *b) {
@@ -135,6 +139,7 @@ void km_retarget_free(km_retarget **r) {
   free(t->blag);
   free(t->prev);
   free(t->hv_radius);
+  free(t->held);
   free(t);
   *r = NULL;
 }
@@ -198,6 +203,48 @@ void km_retarget_set_reference(km_retarget *r, size_t j, const double p[3]) {
 static double dist3(const double *a, const double *b) {
   return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
               (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/* The joints of the character's skeleton the rig's map does not move (r->held; NULL when it
+ * moves every one): neither an entry's joint nor an ancestor of one (a bust's or a resting
+ * body's arms and legs, folded inside it; an upper body's legs); and, when the map holds the
+ * root still (root_fixed below) and a handle is an anchor (one no entry drives: the base of a
+ * bust or of a resting body, which holds the body still), every joint but those along a bone
+ * entry's segment (the neck: the head turns about ShoulderCenter at rest). The posed skeleton
+ * (km_retarget_joints, which `pose` and `bench motion --skin` skin) keeps a held bone as its
+ * parent carries it, as the mesh keeps the body there. Driven by the take instead, `pose` on
+ * cmu_131_03 walked the bunny's folded legs inside its body and bent its trunk over its base
+ * with a performer's spine: longest edge 4.25x at its base, 940 of 1102 frames over 1.5x.
+ * Also sets r->root_fixed: every entry relative to the root and no rigid root motion (the
+ * bust's map), the posed joints then stay where the handles see them, off the root's travel. */
+static km_status held_joints(km_retarget *r) {
+  bool *reached = km__calloc(r->n_joints ? r->n_joints : 1, sizeof(bool));
+  if (!reached) return KM_ERR_NOMEM;
+  bool all_rel_root = r->n_maps > 0 && !r->rigid, anchor = false;
+  for (size_t e = 0; e < r->n_maps; ++e) {
+    int32_t q = r->maps[e].relative_to - 1;
+    all_rel_root &= q >= 0 && r->par[q] < 0;
+  }
+  for (size_t h = 0; h < r->n_handles; ++h)
+    anchor |= r->map_start[h] == r->map_start[h + 1];
+  r->root_fixed = all_rel_root;
+  for (size_t e = 0; e < r->n_maps; ++e) {
+    const km_rig_map *m = &r->maps[e];
+    int32_t stop = all_rel_root && anchor && m->bone_from > 0 ? m->bone_from - 1 : -1;
+    for (int32_t j = m->joint; j >= 0 && j != stop && !reached[j]; j = r->par[j])
+      reached[j] = true;
+  }
+  size_t n_held = 0;
+  for (size_t j = 0; j < r->n_joints; ++j)
+    n_held += !reached[j] && r->par[j] >= 0;
+  if (n_held == 0) {
+    free(reached);
+    return KM_OK;
+  }
+  for (size_t j = 0; j < r->n_joints; ++j)
+    reached[j] = !reached[j] && r->par[j] >= 0;
+  r->held = reached;
+  return KM_OK;
 }
 
 km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_joints,
@@ -450,6 +497,10 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
         r->rot_parent[h] = par;
       }
     }
+  }
+  if (r->C && r->jrest && held_joints(r) != KM_OK) {
+    km_retarget_free(&r);
+    return km__fail(err, KM_ERR_NOMEM, "km_retarget_create: out of memory");
   }
   /* the farthest corner of the rest bounding box from the vertical through the pivot (final
    * now): how far a heading change moves a vertex, for the snap easing (ease) */
@@ -1401,7 +1452,49 @@ bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], 
 bool km_retarget_joints(const km_retarget *r, double *out) {
   if (!r->C || !r->jrest) return false;
   memcpy(out, r->C, r->n_joints * 3 * sizeof(double));
+  /* A held joint is where its parent's bone carries it, and a bone below a held one turns
+   * by its own turn from its parent (R_j = R'_q Rb_q^T Rb_j, R' the bones as posed here), not
+   * with the ones held above it: a bust's head turns with the neck alone (with the whole lean
+   * of the performer's spine, under a trunk held still, the bunny's neck took 3.1x on
+   * precog_Seq1_1). Parents come first. The handles (and lift_root) keep the take's own bones:
+   * animate's mesh is the same either way. */
+  if (r->held) {
+    double *R = km__malloc(r->n_joints, 9 * sizeof(double));
+    if (!R) return false;
+    for (size_t j = 0; j < r->n_joints; ++j) {
+      int32_t q = r->par[j];
+      double *Rj = R + 9 * j;
+      if (q < 0) {
+        memcpy(Rj, r->Rb + 9 * j, 9 * sizeof(double));
+        continue;
+      }
+      if (r->held[j]) {
+        memcpy(Rj, R + 9 * (size_t)q, 9 * sizeof(double));
+      } else { /* R'_q (Rb_q^T Rb_j) */
+        double L[9];
+        km__m3_tmul(r->Rb + 9 * (size_t)q, r->Rb + 9 * j, L);
+        km__m3_mul(R + 9 * (size_t)q, L, Rj);
+      }
+      double w[3], y[3];
+      km__sub3(r->jrest + 3 * j, r->jrest + 3 * (size_t)q, w);
+      km__m3_apply(Rj, w, y);
+      for (int d = 0; d < 3; ++d)
+        out[3 * j + d] = out[3 * (size_t)q + d] + y[d];
+    }
+    free(R);
+  }
   km_retarget_apply_root(r, out, r->n_joints);
+  /* The handles take the root's travel off their motion (every entry relative to it): so do
+   * the joints, each by its own root's. */
+  for (size_t k = 0; r->root_fixed && k < r->n_joints; ++k) {
+    int32_t q = (int32_t)k;
+    while (r->par[q] >= 0)
+      q = r->par[q];
+    const double *c = r->C + 3 * (size_t)q, *c0 = r->jrest + 3 * (size_t)q;
+    if (km__finite3(c) && km__finite3(c0))
+      for (int d = 0; d < 3; ++d)
+        out[3 * k + d] -= c[d] - c0[d];
+  }
   return true;
 }
 
