@@ -394,6 +394,12 @@ typedef struct km_mesh_material {
  *   n_vertices, n_faces  in: #V (<= INT32_MAX) and #F
  *   out                  out: V #V*3 and F #F*3 allocated; free with km_mesh_free */
 km_status km_mesh_alloc(size_t n_vertices, size_t n_faces, km_mesh *out, km_error *err);
+/* The vertex colours as 8-bit RGBA, as PLY's uchar colours and the live page's mesh carry
+ * them: each channel of km_mesh.colors (sRGB, [0, 1]) times 255, rounded, clamped to 0..255.
+ *   m    in: mesh with colors (#V*4)
+ *   out  out: #V*4 bytes; left as it is when m has no colours
+ * Returns whether m has colours. */
+bool km_mesh_colors_rgba8(const km_mesh *m, unsigned char *out);
 /* Deep copy.
  *   src  in: mesh
  *   out  out: allocated copy; free with km_mesh_free */

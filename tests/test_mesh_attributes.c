@@ -850,6 +850,15 @@ static void test_colors(void) {
     t[0] = a, t[1] = a + 2, t[2] = a + 3, t[3] = a, t[4] = a + 3, t[5] = a + 1;
   }
   m = (km_mesh){.V = V, .F = F, .n_vertices = 8, .n_faces = 6, .colors = C};
+  /* 8-bit RGBA (the live page's /mesh, PLY uchar): rounded, and clamped where out of [0, 1] */
+  unsigned char c8[8 * 4];
+  CHECK(km_mesh_colors_rgba8(&m, c8));
+  CHECK_MSG(c8[4 * 3] == 109 && c8[4 * 3 + 1] == 146 && c8[4 * 5 + 3] == 153 && c8[4 * 7] == 255,
+            "8-bit colours %d %d %d %d", c8[12], c8[13], c8[23], c8[28]);
+  C[0] = -0.2, C[1] = 1.3;
+  CHECK(km_mesh_colors_rgba8(&m, c8) && c8[0] == 0 && c8[1] == 255);
+  C[0] = 0, C[1] = 1;
+  CHECK(!km_mesh_colors_rgba8(&(km_mesh){.V = V, .n_vertices = 8}, c8));
   const char *paths[4] = {"attr_col/o/s.ply", "attr_col/o/s.obj", "attr_col/o/s.glb",
                           "attr_col/o/z.glb"};
   for (int k = 0; k < 4; ++k) {

@@ -1510,10 +1510,7 @@ static bool build_mesh_blob(km_live *l) {
   for (size_t k = 0; k < 3 * m->n_faces; ++k)
     f[k] = (uint32_t)m->F[k];
   unsigned char *c = l->mesh_blob + 16 + 12 * m->n_vertices + 12 * m->n_faces;
-  for (size_t k = 0; m->colors && k < 4 * m->n_vertices; ++k) {
-    double x = m->colors[k] * 255 + 0.5;
-    c[k] = (unsigned char)(x > 255 ? 255 : x > 0 ? x : 0);
-  }
+  km_mesh_colors_rgba8(m, c);
   l->mesh_len = n;
   return true;
 }

@@ -716,6 +716,13 @@ void km__color8(const double c[4], unsigned char out[4]) {
   }
 }
 
+bool km_mesh_colors_rgba8(const km_mesh *m, unsigned char *out) {
+  if (!m || !m->colors || !out) return false;
+  for (size_t i = 0; i < m->n_vertices; ++i)
+    km__color8(m->colors + 4 * i, out + 4 * i);
+  return true;
+}
+
 km_status km__ply_write(FILE *f, const km_mesh *m, km_ply_encoding enc, const char *comment) {
   const char *fmt = enc == KM_PLY_ASCII       ? "ascii"
                     : enc == KM_PLY_BINARY_BE ? "binary_big_endian"
