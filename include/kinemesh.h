@@ -1383,6 +1383,13 @@ typedef struct km_rig {
                          joint order (kinect1: KM_KINECT1 order) from the rig's "joints" array
                          (a rig sidecar's), NaN for a joint it lacks; NULL: no "joints" */
   size_t n_joint_rest;
+  bool local_turn; /* "local_turn": true (needs joint_rest): a bone entry's handle turns as
+                      the performer's bone turns about itself, re-expressed about the
+                      character's bone (the rotation conjugated by the shortest turn from the
+                      performer's first direction of the bone onto the character's rest one),
+                      about the bone's start at rest; a body lying down nods and tilts its head
+                      as it lies instead of turning it as an upright head turns (kinemesh rig
+                      writes it for --skeleton resting) */
   bool aim; /* "aim": true (needs joint_rest, kinect1): the limb bones (upper and lower arms and
                legs, hands, feet) are aimed along the performer's bones instead of turned by
                their rotation since the first frame, so a character whose rest pose is not the

@@ -102,8 +102,11 @@ static void test_bad_bone(const km_mesh *m) {
       "\"map\":[{\"handle\":\"h\",\"bone\":[\"shoulder\",\"elbow\"],\"joint\":\"elbow\"}]}",
       "{\"skeleton\":\"bvh\",\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],\"aim\":1,"
       "\"map\":[{\"handle\":\"h\",\"bone\":[\"shoulder\",\"elbow\"]}]}",
+      "{\"skeleton\":\"bvh\",\"handles\":[{\"name\":\"h\",\"vertices\":[0]}],"
+      "\"local_turn\":\"yes\",\"map\":[{\"handle\":\"h\",\"bone\":[\"shoulder\",\"elbow\"]}]}",
   };
-  const char *want[] = {"\"bone\"", "knee", "\"bone\"", "\"aim\""};
+  const char *want[] = {"\"bone\"", "knee", "\"bone\"", "\"aim\"",
+                        "\"local_turn\" must be true or false"};
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
     km_rig rig;
     km_error e = {0};
@@ -484,6 +487,73 @@ static double head_turn(const fixture *fx, double swing, double angle) {
                      fx->rig.bend_limit, 0, 0, angle);
 }
 
+/* "local_turn" (a resting body's rig): the character's neck laid along +z (its rest Head
+ * joint in front of ShoulderCenter, as a body lying down has it) and the performer tilting
+ * their head sideways (ear to shoulder: about their forward axis z). In the neck's own frame
+ * that tilt is a turn about the character's vertical (the performer's bone up -> the
+ * character's forward takes z to -y), so no head vertex moves up or down; turned in the world
+ * frame (without local_turn) the head rolls about z instead, its vertices above the pivot
+ * dropping. Returns the largest |dy| and |dx| of the head handle's vertex targets. */
+static void tilt_lying_head(const fixture *fx, bool local, double *dy, double *dx) {
+  enum { SHOULDER_CENTER = 2, HEAD = 3 };
+  *dy = *dx = NAN;
+  km_rig rig = fx->rig;
+  size_t nr = rig.n_joint_rest;
+  if (!rig.joint_rest || nr <= HEAD) return;
+  double *jr = malloc(3 * nr * sizeof *jr);
+  memcpy(jr, rig.joint_rest, 3 * nr * sizeof *jr);
+  const double *sc = jr + 3 * SHOULDER_CENTER;
+  double *hd = jr + 3 * HEAD, l = hypot(hypot(hd[0] - sc[0], hd[1] - sc[1]), hd[2] - sc[2]);
+  hd[0] = sc[0], hd[1] = sc[1], hd[2] = sc[2] + l;
+  rig.joint_rest = jr;
+  rig.local_turn = local;
+  km_retarget *rt = NULL;
+  km_retarget_options ro = {.bone_catchup = -1};
+  CHECK_OK(km_retarget_create(&rig, &fx->c.mesh, KM_KINECT1_JOINTS, &ro, &rt, KM_E));
+  size_t nv = rt ? km_retarget_vertex_count(rt) : 0, first = 0, nh = 0;
+  for (size_t h = 0; h < rig.n_handles; ++h) {
+    if (!strcmp(rig.handles[h].name, "head")) {
+      nh = rig.handles[h].n_vertices;
+      break;
+    }
+    first += rig.handles[h].n_vertices;
+  }
+  double J[3 * KM_KINECT1_JOINTS], *tg = malloc(3 * rig.n_handles * sizeof(double));
+  double *x[2] = {malloc(3 * (nv + 1) * sizeof(double)), malloc(3 * (nv + 1) * sizeof(double))};
+  for (int f = 0; f < 2 && rt && tg && x[0] && x[1] && nh; ++f) {
+    memcpy(J, fx->c.skeleton.rest, sizeof J);
+    if (f == 1) { /* the performer's head tilted 30 degrees about z round ShoulderCenter */
+      const double *e = J + 3 * SHOULDER_CENTER;
+      double *h = J + 3 * HEAD, u = h[0] - e[0], w = h[1] - e[1], a = 30 * M_PI / 180;
+      h[0] = e[0] + cos(a) * u - sin(a) * w, h[1] = e[1] + sin(a) * u + cos(a) * w;
+    }
+    km_retarget_push(rt, J, tg);
+    km_retarget_vertex_targets(rt, x[f]);
+  }
+  if (rt && nh && x[0] && x[1]) {
+    *dy = *dx = 0;
+    for (size_t k = first; k < first + nh; ++k) {
+      *dy = fmax(*dy, fabs(x[1][3 * k + 1] - x[0][3 * k + 1]));
+      *dx = fmax(*dx, fabs(x[1][3 * k] - x[0][3 * k]));
+    }
+  }
+  free(x[0]), free(x[1]), free(tg), free(jr);
+  km_retarget_free(&rt);
+}
+
+static void test_local_turn(const fixture *fx) {
+  double dy, dx, dy0, dx0;
+  tilt_lying_head(fx, true, &dy, &dx);
+  tilt_lying_head(fx, false, &dy0, &dx0);
+  printf("  neck laid along +z, performer's head tilted 30 deg sideways: head vertices move "
+         "up/down %.4f, sideways %.4f (local_turn); %.4f, %.4f (world turn)\n",
+         dy, dx, dy0, dx0);
+  CHECK_MSG(dx > 0.02 && dy < 0.02 * dx,
+            "local_turn: the lying head's tilt moved it %g up/down, %g sideways", dy, dx);
+  CHECK_MSG(dy0 > 0.2 * dx0, "without local_turn the head rolls (%g up/down, %g sideways)", dy0,
+            dx0);
+}
+
 /* The rig's limits: a quadruped's legs ("swing_limit", every limb bone: 30 in the rig `rig`
  * writes, 60 here) and the human elbow
  * and knee ("bend_limit": 150, the default rig's). The forearm turns as the performer's within
@@ -645,6 +715,7 @@ int main(void) {
   test_clean_take_joints(&fx);
   test_limits(&fx);
   test_bend_from_straight(&fx);
+  test_local_turn(&fx);
   test_feet_on_floor(&fx);
   fixture_free(&fx);
   km_mesh m = bar();

@@ -100,6 +100,7 @@ struct km_retarget {
   size_t eased; /* pushes whose motion was eased */
   /* Joints no map entry reaches (see held_joints); NULL: none. */
   bool *held;      /* n_joints: the bone ending here is carried by its parent's */
+  bool local_turn; /* rig "local_turn": bone handles turn about the character's bone */
   bool root_fixed; /* every entry is relative to the root, which does not move rigidly: the
                       posed joints (km_retarget_joints) stay where the handles see them */
 };
@@ -442,6 +443,7 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
         if (q >= 0) r->only_child[q] = r->only_child[q] == -1 ? (int32_t)j : -2;
       }
       r->aim = jr && rig->aim;
+      r->local_turn = jr && rig->local_turn;
       r->swing_limit =
           rig->swing_limit > 0 && rig->swing_limit < 180 ? rig->swing_limit * M_PI / 180 : 0;
       r->bend_limit =
@@ -1295,6 +1297,32 @@ static void flatten_foot(const km_retarget *r, int32_t ankle, double R[9]) {
   km__rot3_slerp(R, Ry, w, R);
 }
 
+/* "local_turn": M, the shortest turn from the performer's bone a -> b as first seen (the
+ * reference) onto the character's at rest; a rotation G of the performer's bone is taken as
+ * M G M^T about the character's. False (M unset) while either is unknown or degenerate. */
+static bool local_frame(const km_retarget *r, int32_t a, int32_t b, double M[9]) {
+  if (!r->local_turn || a < 0 || b < 0) return false;
+  const double *p = r->ref + 3 * (size_t)b, *q = r->ref + 3 * (size_t)a;
+  const double *c = r->jrest + 3 * (size_t)b, *c0 = r->jrest + 3 * (size_t)a;
+  if (!km__finite3(p) || !km__finite3(q) || !km__finite3(c) || !km__finite3(c0)) return false;
+  double u[3], w[3];
+  km__sub3(p, q, u);
+  km__sub3(c, c0, w);
+  if (!(km__normalize3(u) > 1e-9) || !(km__normalize3(w) > 1e-9)) return false;
+  km__rot3_between(u, w, M);
+  return true;
+}
+
+/* R <- M R M^T */
+static void conjugate(const double M[9], double R[9]) {
+  double T[9];
+  km__m3_mul(M, R, T);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      R[3 * i + j] =
+          T[3 * i] * M[3 * j] + T[3 * i + 1] * M[3 * j + 1] + T[3 * i + 2] * M[3 * j + 2];
+}
+
 /* Bone rotations, the character's posed joints (forward kinematics) and the bone handles'
  * rigid motions (see km_retarget_create in kinemesh.h). A bone whose joints are not valid this
  * frame keeps its last rotation; a root that is not valid keeps its last position. */
@@ -1376,6 +1404,20 @@ static void update_bones(km_retarget *r, const double *J) {
       twist(r, J, b, a, b, R);
     }
     if (r->kinect1 && r->aim && (b == 15 || b == 19) && pv != a) flatten_foot(r, pv, R);
+    double M[9];
+    if (local_frame(r, a, b, M)) {
+      /* the performer's turn about the character's own bone, about its start at rest: the
+       * chain above (a performer's spine, upright) says nothing of where a body lying down
+       * holds its neck */
+      conjugate(M, R);
+      const double *p0 = r->jrest + 3 * (size_t)a;
+      double w[3], y[3];
+      km__sub3(c, p0, w);
+      km__m3_apply(R, w, y);
+      for (int d = 0; d < 3; ++d)
+        disp[d] = p0[d] + y[d] - c[d];
+      goto floor;
+    }
     double rel[3] = {0, 0, 0};
     if (r->bone_rel[h] > 0) {
       const double *q = J + 3 * (size_t)(r->bone_rel[h] - 1),
@@ -1401,6 +1443,7 @@ static void update_bones(km_retarget *r, const double *J) {
       for (int d = 0; d < 3; ++d)
         disp[d] = 0.5 * s * (p[d] + q[d] - p0[d] - q0[d]) - rel[d];
     }
+  floor:
     if (r->floor_dy) { /* no vertex of the turned handle below the rest floor */
       double ymin = INFINITY;
       for (size_t k = r->hv_start[h]; k < r->hv_start[h + 1]; ++k) {
@@ -1474,6 +1517,13 @@ bool km_retarget_joints(const km_retarget *r, double *out) {
         double L[9];
         km__m3_tmul(r->Rb + 9 * (size_t)q, r->Rb + 9 * j, L);
         km__m3_mul(R + 9 * (size_t)q, L, Rj);
+        /* a local_turn entry's bone turns as its handle does (update_bones) */
+        for (size_t h = 0; r->bone_from && h < r->n_handles; ++h)
+          if (r->rot_joint[h] == (int32_t)j && r->bone_from[h] == q && local_frame(r, q, j, L)) {
+            memcpy(Rj, r->Rb + 9 * j, 9 * sizeof(double));
+            conjugate(L, Rj);
+            break;
+          }
       }
       double w[3], y[3];
       km__sub3(r->jrest + 3 * j, r->jrest + 3 * (size_t)q, w);

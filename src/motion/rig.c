@@ -635,6 +635,12 @@ km_status km_rig_parse(const char *json, size_t size, const char *name, const km
     goto done;
   }
   out->aim = cJSON_IsTrue(jaim);
+  const cJSON *jlocal = cJSON_GetObjectItemCaseSensitive(root, "local_turn");
+  if (jlocal && !cJSON_IsBool(jlocal)) {
+    st = km__fail(err, KM_ERR_PARSE, "%s: \"local_turn\" must be true or false", name);
+    goto done;
+  }
+  out->local_turn = cJSON_IsTrue(jlocal);
   if ((st = parse_degrees(name, root, "swing_limit", &out->swing_limit, err)) != KM_OK ||
       (st = parse_degrees(name, root, "upper_limb_limit", &out->upper_limb_limit, err)) != KM_OK ||
       (st = parse_degrees(name, root, "girdle_limit", &out->girdle_limit, err)) != KM_OK ||

@@ -969,6 +969,9 @@ static void write_rig_stream(FILE *f, const km_character *c, const rig_plan *p) 
      * moves turned the curled cat's (cat-07) into it, 8.3 % of the diagonal under the rest
      * floor at precog_Seq1_1's frame 196, 42 frames more than 0.5 % under; held above it */
     if (p->resting) fputs("\"floor\":true,", f);
+    /* and its head turns about its own neck, lying as it is: a performer's nod (about their
+     * left-right axis) nods it, not rolls it about its neck (local_turn in kinemesh.h) */
+    if (p->resting) fputs("\"local_turn\":true,", f);
     fputs("\"filter\":{\"kind\":\"one_euro\",\"min_cutoff\":1.0,\"beta\":0.5}}\n", f);
     return;
   }
