@@ -279,15 +279,6 @@ static inline void km__m3_mul(const double A[9], const double B[9], double C[9])
   memcpy(C, T, sizeof T);
 }
 
-/* C = A^T B (C may alias A or B): B's rotation relative to A's. */
-static inline void km__m3_tmul(const double A[9], const double B[9], double C[9]) {
-  double T[9];
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      T[3 * i + j] = A[i] * B[j] + A[3 + i] * B[3 + j] + A[6 + i] * B[6 + j];
-  memcpy(C, T, sizeof T);
-}
-
 /* y = R x (y may alias x). */
 static inline void km__m3_apply(const double R[9], const double x[3], double y[3]) {
   double t0 = R[0] * x[0] + R[1] * x[1] + R[2] * x[2];

@@ -101,6 +101,8 @@ struct km_retarget {
   /* Joints no map entry reaches (see held_joints); NULL: none. */
   bool *held;      /* n_joints: the bone ending here is carried by its parent's */
   bool local_turn; /* rig "local_turn": bone handles turn about the character's bone */
+  bool neck_held;  /* root_fixed with an anchor: held joints beside an entry's bone (a bust's
+                      shoulders) turn with it in km_retarget_joints */
   bool root_fixed; /* every entry is relative to the root, which does not move rigidly: the
                       posed joints (km_retarget_joints) stay where the handles see them */
 };
@@ -229,6 +231,7 @@ static km_status held_joints(km_retarget *r) {
   for (size_t h = 0; h < r->n_handles; ++h)
     anchor |= r->map_start[h] == r->map_start[h + 1];
   r->root_fixed = all_rel_root;
+  r->neck_held = all_rel_root && anchor;
   for (size_t e = 0; e < r->n_maps; ++e) {
     const km_rig_map *m = &r->maps[e];
     int32_t stop = all_rel_root && anchor && m->bone_from > 0 ? m->bone_from - 1 : -1;
@@ -1495,33 +1498,33 @@ bool km_retarget_root_transform(const km_retarget *r, double R[9], double t[3], 
 bool km_retarget_joints(const km_retarget *r, double *out) {
   if (!r->C || !r->jrest) return false;
   memcpy(out, r->C, r->n_joints * 3 * sizeof(double));
-  /* A held joint is where its parent's bone carries it, and a bone below a held one turns
-   * by its own turn from its parent (R_j = R'_q Rb_q^T Rb_j, R' the bones as posed here), not
-   * with the ones held above it: a bust's head turns with the neck alone (with the whole lean
-   * of the performer's spine, under a trunk held still, the bunny's neck took 3.1x on
-   * precog_Seq1_1). Parents come first. The handles (and lift_root) keep the take's own bones:
-   * animate's mesh is the same either way. */
+  /* A held joint is where its parent's bone carries it; a bone the map turns keeps its turn
+   * (R_j = Rb_j, the world turn its handle takes: a bust's head the performer's, lean
+   * included, as animate shows it; about the character's own bone with local_turn). Where the
+   * map holds the root and has an anchor (a bust's), a held joint beside a turned bone turns
+   * with it (the bust's shoulders with its neck): ShoulderCenter's vertices (the head and neck
+   * of the rig's bust skin) follow the fit of its three children's directions, which held
+   * still kept it to a third to a half of the head's turn. Parents come first. The handles
+   * (and lift_root) keep the take's own bones: animate's mesh is the same either way. */
   if (r->held) {
     double *R = km__malloc(r->n_joints, 9 * sizeof(double));
     if (!R) return false;
     for (size_t j = 0; j < r->n_joints; ++j) {
       int32_t q = r->par[j];
-      double *Rj = R + 9 * j;
-      if (q < 0) {
-        memcpy(Rj, r->Rb + 9 * j, 9 * sizeof(double));
-        continue;
-      }
+      double *Rj = R + 9 * j, M[9];
+      memcpy(Rj, r->Rb + 9 * j, 9 * sizeof(double));
+      if (q < 0) continue;
       if (r->held[j]) {
         memcpy(Rj, R + 9 * (size_t)q, 9 * sizeof(double));
-      } else { /* R'_q (Rb_q^T Rb_j) */
-        double L[9];
-        km__m3_tmul(r->Rb + 9 * (size_t)q, r->Rb + 9 * j, L);
-        km__m3_mul(R + 9 * (size_t)q, L, Rj);
-        /* a local_turn entry's bone turns as its handle does (update_bones) */
+        for (size_t c = 0; r->neck_held && c < j; ++c)
+          if (r->par[c] == q && !r->held[c]) {
+            memcpy(Rj, R + 9 * c, 9 * sizeof(double));
+            break;
+          }
+      } else {
         for (size_t h = 0; r->bone_from && h < r->n_handles; ++h)
-          if (r->rot_joint[h] == (int32_t)j && r->bone_from[h] == q && local_frame(r, q, j, L)) {
-            memcpy(Rj, r->Rb + 9 * j, 9 * sizeof(double));
-            conjugate(L, Rj);
+          if (r->rot_joint[h] == (int32_t)j && r->bone_from[h] == q && local_frame(r, q, j, M)) {
+            conjugate(M, Rj);
             break;
           }
       }
