@@ -342,6 +342,7 @@ function setPending(v) {
     explicit: taken.length > 0, owners: [...new Set(taken.map((u) => owner.get(u)))] };
   $('h-vertex').textContent = v;
   $('h-add').disabled = free.length === 0;
+  $('rig-resting').disabled = false;
   $('save-status').textContent = !taken.length ? ''
     : free.length ? `${taken.length} vertices within the radius belong to ${state.pending.owners.join(', ')}: the new handle takes the ${free.length} others`
       : `every vertex within the radius belongs to ${state.pending.owners.join(', ')}: click elsewhere, lower the radius or remove that handle`;
@@ -440,6 +441,7 @@ $('h-add').addEventListener('click', () => {
   state.pending = null;
   $('h-vertex').textContent = '–';
   $('h-add').disabled = true;
+  $('rig-resting').disabled = true;
   renderHandles(); drawDiagram(); recolor();
 });
 
@@ -454,6 +456,30 @@ $('save').addEventListener('click', async () => {
     state.saved = (state.saved || 0) + 1;
   } else {
     $('save-status').textContent = 'error: ' + (j.error || r.status);
+  }
+});
+
+// A body lying or curled up: the server rigs the mesh anew from the clicked vertex, the tip of
+// its head (`kinemesh rig MESH --skeleton resting --head V`), and replaces the whole rig.
+$('rig-resting').addEventListener('click', async () => {
+  if (!state.pending) return;
+  const head = state.pending.vertex;
+  $('rest-status').textContent = 'rigging…';
+  const r = await fetch(api('rig'), { method: 'POST', headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify({ autorig: { skeleton: 'resting', head } }) });
+  const j = await r.json().catch(() => ({}));
+  if (r.ok) {
+    state.pending = null;
+    $('h-vertex').textContent = '–';
+    $('save-status').textContent = '';
+    $('h-add').disabled = true;
+    $('rig-resting').disabled = true;
+    state.edits = (state.edits || 0) + 1; // the panel shows the new rig, not a reload in flight
+    await loadRig();
+    $('rest-status').textContent = `rigged lying from vertex ${head} (${j.handles} handles)`;
+    state.rested = (state.rested || 0) + 1;
+  } else {
+    $('rest-status').textContent = 'error: ' + (j.error || r.status);
   }
 });
 

@@ -290,8 +290,8 @@ size_t km_cli_warn_point_handles(const char *verb, const char *mesh_path, const 
             "lying or curled up is none: its animation may not read (kinemesh rig %s "
             "--skeleton resting --head V rigs it lying: its head, V the vertex at its tip, "
             "turns with the performer's neck and its body stays; kinemesh pick --near x,y,z or "
-            "the live page's hover shows vertex ids; or place the handles by clicking in "
-            "kinemesh live)\n",
+            "the live page's hover shows vertex ids; or in kinemesh live click the head's tip "
+            "and press \"rig lying\")\n",
             verb, name, rig->handles[h].n_vertices, mesh_path, kind, up ? up : "the up axis above",
             mesh_path);
     ++n;

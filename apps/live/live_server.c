@@ -1038,7 +1038,8 @@ static char *rig_print(const cJSON *doc) {
   return out;
 }
 
-/* Merges the puppetry part of a posted rig (handles, map, filter) into the sidecar, checks
+/* Merges the puppetry part of a posted rig (handles, map, filter) into the sidecar (or, with
+ * "autorig", into a rig made anew: below), checks
  * the result against the mesh, writes it (atomically, mode kept) and queues it for the
  * deform thread. Runs on the rig thread. Returns the HTTP status; *reply: JSON. */
 static unsigned rig_post(km_live *l, const char *body, size_t len, char **reply) {
@@ -1064,6 +1065,61 @@ static unsigned rig_post(km_live *l, const char *body, size_t len, char **reply)
       cJSON_Delete(base);
       base = cJSON_CreateObject();
     }
+  }
+  /* {"autorig": {"skeleton": "resting", "head": V}}: the page's "rig lying" button. The mesh
+   * is rigged anew (km_autorig, as `kinemesh rig MESH --skeleton resting --head V`) and the
+   * whole rig replaced: skeleton, skin, handles, map and limits; the sidecar's "frame" record
+   * (how the file's mesh was turned, which is the mesh rigged here) is kept. */
+  cJSON *ar = cJSON_DetachItemFromObjectCaseSensitive(posted, "autorig");
+  if (ar) {
+    const cJSON *sk = cJSON_GetObjectItemCaseSensitive(ar, "skeleton"),
+                *hd = cJSON_GetObjectItemCaseSensitive(ar, "head");
+    double hv = cJSON_IsNumber(hd) ? hd->valuedouble : -1;
+    char got[40] = "none";
+    if (cJSON_IsNumber(hd)) snprintf(got, sizeof got, "%.10g", hv);
+    bool ok = cJSON_IsObject(ar) && cJSON_IsString(sk) && !strcmp(sk->valuestring, "resting");
+    cJSON_Delete(ar); /* sk and hd with it */
+    if (!ok) {
+      cJSON_Delete(base);
+      cJSON_Delete(posted);
+      snprintf(msg, sizeof msg,
+               "POST /rig: \"autorig\" takes {\"skeleton\": \"resting\", \"head\": V}");
+      goto bad;
+    }
+    if (!(hv >= 0 && hv < (double)l->mesh->n_vertices && hv == floor(hv))) {
+      cJSON_Delete(base);
+      cJSON_Delete(posted);
+      snprintf(msg, sizeof msg,
+               "POST /rig: \"autorig\": the head must be a vertex id (0..%zu), got %s",
+               l->mesh->n_vertices - 1, got);
+      goto bad;
+    }
+    int32_t head = (int32_t)hv;
+    km_autorig_options ao = {0};
+    ao.skeleton = KM_AUTORIG_RESTING;
+    ao.head = &head;
+    km_character c = {0};
+    km_error e = {0};
+    char *json = NULL;
+    size_t jlen = 0;
+    cJSON *fresh = NULL;
+    if (km_autorig(l->mesh, &ao, &c, NULL, &e) == KM_OK &&
+        km_character_rig_json(&c, &json, &jlen, &e) == KM_OK)
+      fresh = cJSON_ParseWithLength(json, jlen);
+    km_character_free(&c);
+    free(json);
+    if (!cJSON_IsObject(fresh)) {
+      cJSON_Delete(fresh);
+      cJSON_Delete(base);
+      cJSON_Delete(posted);
+      snprintf(msg, sizeof msg, "POST /rig: the mesh could not be rigged lying: %s",
+               e.message[0] ? e.message : "out of memory");
+      goto bad;
+    }
+    cJSON *fr = cJSON_DetachItemFromObjectCaseSensitive(base, "frame");
+    if (fr) cJSON_AddItemToObject(fresh, "frame", fr);
+    cJSON_Delete(base);
+    base = fresh;
   }
   static const char *const keys[] = {"handles", "map", "filter"};
   for (size_t k = 0; k < sizeof keys / sizeof keys[0]; ++k) {

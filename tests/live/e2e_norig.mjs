@@ -4,7 +4,7 @@
 // c.rig.json. Keeps a screenshot.
 import fs from 'node:fs';
 import path from 'node:path';
-import { check, status, runLivePage } from './lib.mjs';
+import { check, status, runLivePage, waitFor, TOKEN } from './lib.mjs';
 
 const [http, , , work] = process.argv.slice(2);
 const rigPath = path.join(work, 'c.rig.json');
@@ -62,4 +62,43 @@ await runLivePage(http, 'live_e2e_norig', path.join(work, 'live_norig.png'), asy
   check(rig && rig.handles.length === auto.length + 1 && m && m.joint === 'ShoulderCenter',
     `saved ${rigPath}: ${rig ? rig.handles.length : 0} handles, the new one on ${m && m.joint}`);
   check(rig && rig.joints && rig.skin, 'the saved rig keeps the automatic skeleton and skin');
+
+  // "Lying or curled up": a click on the head's tip (the top vertex), then "rig lying" rigs
+  // the mesh anew as `kinemesh rig --skeleton resting --head V` does and replaces the whole rig
+  // (skeleton, skin, two handles: the head turning with the neck, the body held), written to
+  // c.rig.json and applied by the server.
+  // the head's tip as the camera sees it: the front-most vertex of the top 6 cm, near the
+  // mid-line (the crown itself faces up, away from the camera)
+  let top = -1, tz = -Infinity;
+  pos.forEach((p, i) => { if (p[1] > ymax - 0.06 && Math.abs(p[0]) < 0.03 && p[2] > tz) { tz = p[2]; top = i; } });
+  check(await page.isDisabled('#rig-resting'), '"rig lying" waits for a clicked vertex');
+  // a head that is no vertex, or another skeleton, is refused, naming what is expected
+  const post = async (b) => {
+    const r = await fetch(`http://127.0.0.1:${http}/rig${TOKEN ? `?token=${encodeURIComponent(TOKEN)}` : ''}`,
+      { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(b) });
+    return [r.status, (await r.json()).error || ''];
+  };
+  const bad = [await post({ autorig: { skeleton: 'resting', head: 1e9 } }),
+    await post({ autorig: { skeleton: 'bust', head: 0 } })];
+  check(bad[0][0] === 400 && /head must be a vertex id \(0\.\.\d+\), got 1000000000/.test(bad[0][1]) &&
+    bad[1][0] === 400 && bad[1][1].includes('"skeleton": "resting"'), `bad autorig refused: ${bad.map((b) => b.join(' ')).join(' | ')}`);
+  const tp = await page.evaluate((i) => window.kmLive.project(i), top);
+  await page.mouse.click(tp.x, tp.y);
+  const tip = await page.evaluate(() => window.kmLive.pending && window.kmLive.pending.vertex);
+  const td = tip == null ? Infinity : Math.hypot(...[0, 1, 2].map((k) => pos[tip][k] - pos[top][k]));
+  check(td < 0.03 && !(await page.isDisabled('#rig-resting')), `clicked the head's tip: vertex ${tip}, ${td.toFixed(3)} m from ${top}`);
+  await page.click('#rig-resting');
+  await page.waitForFunction(() => window.kmLive.rested >= 1, null, { timeout: 40000 });
+  const rr = fs.existsSync(rigPath) ? JSON.parse(fs.readFileSync(rigPath, 'utf8')) : null;
+  const names = rr ? rr.handles.map((x) => x.name).sort().join(',') : '';
+  check(rr && names === 'base,head' && rr.local_turn === true && rr.map.length === 1 &&
+    rr.map[0].bone && rr.map[0].bone.join() === 'ShoulderCenter,Head' && rr.joints && rr.skin,
+    `rigged lying from vertex ${tip}: handles ${names}, local_turn ${rr && rr.local_turn}`);
+  const ok = await waitFor(async () => {
+    const s = await status(http);
+    return Object.keys(s.handles).sort().join(',') === 'base,head';
+  }, 10000);
+  check(ok, 'the server drives the lying rig (status: handles base, head)');
+  check((await page.textContent('#rest-status')).includes(`vertex ${tip}`),
+    `page says: ${await page.textContent('#rest-status')}`);
 });
