@@ -773,6 +773,76 @@ static void test_no_rig(void) {
             out ? out : "");
   free(out);
   CHECK(access("puppet_n/u.rig.json", F_OK) != 0);
+  /* the character with an eye of its own (an octahedron of 6 vertices in front of its face,
+   * appended): animate rigs the body on the spot and the eye follows it; the body moves as it
+   * does alone (the reduced model's fields are the body's, the eye takes its nearest body
+   * vertex's). Refused before as "2 components". */
+  {
+    km_mesh u = {0};
+    CHECK_OK(km_mesh_read("puppet_n/u.obj", &u, KM_E));
+    FILE *e = u.V ? fopen("puppet_n/eye.obj", "w") : NULL;
+    size_t n = u.n_vertices, top = 0;
+    for (size_t v = 0; v < n; ++v)
+      if (u.V[3 * v + 1] > u.V[3 * top + 1]) top = v;
+    double c0[3] = {u.V ? u.V[3 * top] : 0, u.V ? u.V[3 * top + 1] - 0.1 : 0, 0.2}, r = 0.015;
+    for (size_t v = 0; e && v < n; ++v)
+      if (fabs(u.V[3 * v + 1] - c0[1]) < 0.03 && fabs(u.V[3 * v]) < 0.05)
+        c0[2] = fmax(c0[2], u.V[3 * v + 2] + 0.02);
+    static const double oct[6][3] = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},
+                                     {0, -1, 0}, {0, 0, 1},  {0, 0, -1}};
+    static const int of[8][3] = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4},
+                                 {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+    if (e) {
+      for (size_t v = 0; v < n; ++v)
+        fprintf(e, "v %.9g %.9g %.9g\n", u.V[3 * v], u.V[3 * v + 1], u.V[3 * v + 2]);
+      for (int k = 0; k < 6; ++k)
+        fprintf(e, "v %.9g %.9g %.9g\n", c0[0] + r * oct[k][0], c0[1] + r * oct[k][1],
+                c0[2] + r * oct[k][2]);
+      for (size_t f = 0; f < u.n_faces; ++f)
+        fprintf(e, "f %d %d %d\n", u.F[3 * f] + 1, u.F[3 * f + 1] + 1, u.F[3 * f + 2] + 1);
+      for (int f = 0; f < 8; ++f)
+        fprintf(e, "f %zu %zu %zu\n", n + 1 + (size_t)of[f][0], n + 1 + (size_t)of[f][1],
+                n + 1 + (size_t)of[f][2]);
+      fclose(e);
+      CHECK(km_test_run(KM_CLI " animate --mesh puppet_n/eye.obj --motion puppet_n/w.json -o "
+                               "puppet_n/eye.pc2",
+                        &out) == 0);
+      CHECK_MSG(out && strstr(out, "no rig at") && strstr(out, "as a humanoid"), "%s",
+                out ? out : "");
+      free(out);
+      out = NULL;
+      double *X = NULL, *Y = NULL;
+      km_anim_info ix = {0}, iy = {0};
+      CHECK_OK(km_pc2_read("puppet_n/auto.pc2", &X, &ix, KM_E));
+      CHECK_OK(km_pc2_read("puppet_n/eye.pc2", &Y, &iy, KM_E));
+      if (X && Y && ix.frames == iy.frames && iy.vertices == n + 6 && ix.vertices == n) {
+        double body = 0, gap_dev = 0, gap0 = -1;
+        for (size_t f = 0; f < ix.frames; ++f) {
+          const double *x = X + 3 * f * n, *y = Y + 3 * f * (n + 6);
+          for (size_t i = 0; i < 3 * n; ++i)
+            body = fmax(body, fabs(x[i] - y[i]));
+          double c[3] = {0, 0, 0}; /* the eye's centre against the top of the head */
+          for (int k = 0; k < 6; ++k)
+            for (int d = 0; d < 3; ++d)
+              c[d] += y[3 * (n + (size_t)k) + (size_t)d] / 6;
+          double g = sqrt(pow(c[0] - y[3 * top], 2) + pow(c[1] - y[3 * top + 1], 2) +
+                          pow(c[2] - y[3 * top + 2], 2));
+          if (gap0 < 0) gap0 = g;
+          gap_dev = fmax(gap_dev, fabs(g - gap0));
+        }
+        printf("character with an eye (animate, no rig): body within %.2g m of it alone, the "
+               "eye's distance to the top of the head %.3f, off by %.4f at most\n",
+               body, gap0, gap_dev);
+        CHECK_MSG(body < 0.005, "the body %g m off its animation alone", body);
+        CHECK_MSG(gap_dev < 0.25 * gap0, "the eye's gap to the head off by %g (%g)", gap_dev, gap0);
+      } else {
+        CHECK_MSG(false, "eye.pc2: %zu frames of %zu vertices", iy.frames, iy.vertices);
+      }
+      free(X);
+      free(Y);
+    }
+    km_mesh_free(&u);
+  }
   /* two separate tetrahedra: no rig can be made, and the message says why */
   FILE *f = fopen("puppet_n/two.obj", "w");
   CHECK(f != NULL);

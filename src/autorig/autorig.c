@@ -79,11 +79,20 @@ static km_status check_mesh(const km_mesh *m, km_error *err) {
   km_mesh_info info;
   km_status st = km_mesh_info_compute(m, &info, err);
   if (st != KM_OK) return st;
-  if (info.components != 1)
+  if (info.components != 1) { /* autorig_pieces took a body with small loose pieces */
+    km__body bd;
+    bool found = false;
+    km_status sb = km__mesh_body(m, &bd, &found, err);
+    if (sb != KM_OK) return sb;
+    size_t nb = bd.body_vertices, no = bd.largest_other;
+    km__body_free(&bd);
     return km__fail(err, KM_ERR_DEGENERATE_MESH,
-                    "rig: the mesh has %zu components (separate pieces of connected faces); "
-                    "it needs exactly one: keep the body or join the pieces",
-                    info.components);
+                    "rig: the mesh has %zu components (separate pieces of connected faces), the "
+                    "two largest of %zu and %zu vertices: rig rigs one body, whose small pieces "
+                    "(at most a quarter of its vertices: eyes, teeth) follow it; keep one body or "
+                    "join the pieces",
+                    info.components, nb, no);
+  }
   if (info.nonmanifold_edges)
     return km__fail(err, KM_ERR_DEGENERATE_MESH,
                     "rig: the mesh has %zu non-manifold edges (shared by three or more faces); "
@@ -1863,6 +1872,42 @@ const char *km_autorig_kind_name(km_autorig_skeleton kind) {
  * character comes back on the file's vertices: the mesh as given, every copy with its vertex's
  * skin, landmarks and extremities on the lowest id of their copies. Split, the rig saw pieces
  * (refused) or a cut (extremities and heat stopped at it). *done false: nothing to weld. */
+/* A character rigged on a part of m (the mesh welded at its seams, or its body without its
+ * loose pieces) brought back onto m's vertices: m's mesh, the part's skeleton (moved out of
+ * part), each vertex v the skin of the part's vertex to_part[v] (-1: unskinned, a vertex in no
+ * face), and the landmarks' and the report's extremities' vertices from_part[] of theirs. */
+static km_status character_from_part(const km_mesh *m, km_character *part, const int32_t *to_part,
+                                     const int32_t *from_part, km_character *out,
+                                     km_autorig_report *report, km_error *err) {
+  size_t n = m->n_vertices;
+  km_status s = km_mesh_copy(m, &out->mesh, err);
+  if (s != KM_OK) return s;
+  out->skeleton = part->skeleton;
+  memset(&part->skeleton, 0, sizeof part->skeleton);
+  out->skin.n_vertices = n;
+  out->skin.joints = km__malloc(4 * n, sizeof(int32_t));
+  out->skin.weights = km__malloc(4 * n, sizeof(double));
+  if (!out->skin.joints || !out->skin.weights)
+    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", n);
+  for (size_t v = 0; v < n; ++v) {
+    int32_t b = to_part[v];
+    for (int k = 0; k < 4; ++k) {
+      out->skin.joints[4 * v + (size_t)k] =
+          b >= 0 ? part->skin.joints[4 * (size_t)b + (size_t)k] : -1;
+      out->skin.weights[4 * v + (size_t)k] =
+          b >= 0 ? part->skin.weights[4 * (size_t)b + (size_t)k] : 0;
+    }
+  }
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    out->landmarks[i] = part->landmarks[i];
+    if (part->landmarks[i].vertex >= 0)
+      out->landmarks[i].vertex = from_part[part->landmarks[i].vertex];
+  }
+  for (size_t e = 0; report && e < report->n_extremities; ++e)
+    if (report->extremity[e] >= 0) report->extremity[e] = from_part[report->extremity[e]];
+  return KM_OK;
+}
+
 static km_status autorig_welded(const km_mesh *m, const km_autorig_options *opt, km_character *out,
                                 km_autorig_report *report, bool *done, km_error *err) {
   *done = false;
@@ -1884,31 +1929,44 @@ static km_status autorig_welded(const km_mesh *m, const km_autorig_options *opt,
              n - wd.w.n_vertices);
     goto done;
   }
-  if ((s = km_mesh_copy(m, &out->mesh, err)) != KM_OK) goto done;
-  out->skeleton = cw.skeleton;
-  memset(&cw.skeleton, 0, sizeof cw.skeleton);
-  out->skin.n_vertices = n;
-  out->skin.joints = km__malloc(4 * n, sizeof(int32_t));
-  out->skin.weights = km__malloc(4 * n, sizeof(double));
-  if (!out->skin.joints || !out->skin.weights) {
-    s = km__fail(err, KM_ERR_NOMEM, "rig: out of memory (%zu vertices)", n);
-    goto done;
-  }
-  for (size_t v = 0; v < n; ++v)
-    for (int k = 0; k < 4; ++k) {
-      out->skin.joints[4 * v + (size_t)k] = cw.skin.joints[4 * (size_t)to_w[v] + (size_t)k];
-      out->skin.weights[4 * v + (size_t)k] = cw.skin.weights[4 * (size_t)to_w[v] + (size_t)k];
-    }
-  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
-    out->landmarks[i] = cw.landmarks[i];
-    if (cw.landmarks[i].vertex >= 0) out->landmarks[i].vertex = first[cw.landmarks[i].vertex];
-  }
-  for (size_t e = 0; report && e < report->n_extremities; ++e)
-    if (report->extremity[e] >= 0) report->extremity[e] = first[report->extremity[e]];
+  s = character_from_part(m, &cw, to_w, first, out, report, err);
 done:
   if (s != KM_OK) km_character_free(out);
   km_character_free(&cw);
   km__weld_free(&wd);
+  return s;
+}
+
+/* A body with small loose pieces (km__mesh_body: a game character's eyes, teeth or buckles,
+ * each at most a quarter of the largest piece's vertices) is rigged as its largest piece, the
+ * body, and each vertex of a loose piece takes the skin weights of the body vertex nearest to
+ * it, so it moves as the body there does (an eye with the head); the landmarks and extremities
+ * are the body's. Refused before (issue 11: "several components" was the first wall of a game
+ * character whose eyes are separate meshes); the reduced model glues such pieces alike
+ * (km_puppet_precompute). *done false: m is one piece, or two pieces are comparable
+ * (check_mesh refuses it, naming their sizes). */
+static km_status autorig_pieces(const km_mesh *m, const km_autorig_options *opt, km_character *out,
+                                km_autorig_report *report, bool *done, km_error *err) {
+  *done = false;
+  km__body bd;
+  km_status s = km__mesh_body(m, &bd, done, err);
+  if (s != KM_OK || !*done) return s;
+  size_t n = m->n_vertices;
+  km_character cb = {0};
+  km_autorig_options ob = {0};
+  if (opt) ob = *opt;
+  int32_t head_b = -1; /* the head's tip, a vertex of the file, on the body */
+  if (ob.head && *ob.head >= 0 && (size_t)*ob.head < n) head_b = bd.to_body[*ob.head], ob.head = &head_b;
+  if ((s = km_autorig(&bd.body, &ob, &cb, report, err)) != KM_OK) {
+    km__wrap(err, s, "its body, the largest of %zu pieces (%zu of %zu vertices)", bd.n_pieces,
+             bd.body_vertices, n);
+    goto done;
+  }
+  s = character_from_part(m, &cb, bd.to_body, bd.from_body, out, report, err);
+done:
+  if (s != KM_OK) km_character_free(out);
+  km_character_free(&cb);
+  km__body_free(&bd);
   return s;
 }
 
@@ -1919,6 +1977,8 @@ km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_charact
   if (report) memset(report, 0, sizeof *report);
   bool welded = false;
   km_status sw = autorig_welded(m, opt, out, report, &welded, err);
+  if (sw != KM_OK || welded) return sw;
+  sw = autorig_pieces(m, opt, out, report, &welded, err);
   if (sw != KM_OK || welded) return sw;
   km_autorig_options o = {0};
   if (opt) o = *opt;

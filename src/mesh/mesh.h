@@ -25,6 +25,28 @@ typedef struct km__weld {
 km_status km__mesh_weld(const km_mesh *m, km__weld *out, km_error *err);
 void km__weld_free(km__weld *w);
 
+/* A body and its small loose pieces (issue 11: a game character's eyes, teeth or buckles, a
+ * scan's loose bits): pieces are the connected components of m's faces; the body is the
+ * largest (most vertices), and it counts as one only when every other piece has at most a
+ * quarter of its vertices (two bodies side by side do not).
+ *   out->body       the largest piece as a mesh of its own: #B vertices (V, F; no attributes),
+ *                   in m's order
+ *   out->to_body    #V: each vertex's body vertex; for a loose piece's vertex the body vertex
+ *                   nearest to it (Euclidean, at rest), for a vertex in no face -1
+ *   out->from_body  #B: the vertex of m of each body vertex
+ *   out->n_pieces   pieces in all; out->largest_other: vertices of the largest other piece
+ * *found false with out->body empty (to_body NULL) when m is one piece, or another piece is more
+ * than a quarter of the body (n_pieces and largest_other still say so). The nearest body vertex
+ * is a scan of the body per loose vertex (km_nearest_vertices): #loose * #B. Free with
+ * km__body_free. */
+typedef struct km__body {
+  km_mesh body;
+  int32_t *to_body, *from_body;
+  size_t n_pieces, body_vertices, largest_other;
+} km__body;
+km_status km__mesh_body(const km_mesh *m, km__body *out, bool *found, km_error *err);
+void km__body_free(km__body *b);
+
 /* Edge-graph geodesic distances: Dijkstra over the mesh's edges with an indexed binary heap,
  * the one Dijkstra of the library (geodesic.c). Created once per connectivity (faces of m;
  * m's positions are not kept); each run reuses its scratch and does not allocate. */

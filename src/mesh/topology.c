@@ -149,6 +149,80 @@ void km__weld_free(km__weld *w) {
   memset(w, 0, sizeof *w);
 }
 
+void km__body_free(km__body *b) {
+  if (!b) return;
+  km_mesh_free(&b->body);
+  free(b->to_body);
+  free(b->from_body);
+  memset(b, 0, sizeof *b);
+}
+
+km_status km__mesh_body(const km_mesh *m, km__body *out, bool *found, km_error *err) {
+  memset(out, 0, sizeof *out);
+  *found = false;
+  if (!m || !m->V || !m->F || !m->n_faces) return KM_OK;
+  size_t n = m->n_vertices;
+  int32_t *piece = km__malloc(n ? n : 1, sizeof *piece);
+  size_t *cnt = km__calloc(n ? n : 1, sizeof *cnt);
+  km_status s = KM_OK;
+  if (!piece || !cnt) {
+    s = km__fail(err, KM_ERR_NOMEM, "pieces: out of memory for %zu vertices", n);
+    goto done;
+  }
+  for (size_t v = 0; v < n; ++v)
+    piece[v] = -1;
+  for (size_t i = 0; i < 3 * m->n_faces; ++i)
+    piece[m->F[i]] = m->F[i];
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int c = 1; c < 3; ++c)
+      uf_union(piece, m->F[3 * f], m->F[3 * f + (size_t)c]);
+  int32_t root = -1;
+  for (size_t v = 0; v < n; ++v) {
+    if (piece[v] < 0) continue;
+    piece[v] = uf_find(piece, (int32_t)v);
+    out->n_pieces += cnt[piece[v]]++ == 0;
+  }
+  for (size_t v = 0; v < n; ++v)
+    if (cnt[v] > out->body_vertices)
+      out->largest_other = out->body_vertices, out->body_vertices = cnt[v], root = (int32_t)v;
+    else if (cnt[v] > out->largest_other)
+      out->largest_other = cnt[v];
+  if (out->n_pieces < 2 || 4 * out->largest_other > out->body_vertices) goto done;
+  km_mesh *b = &out->body;
+  size_t nb = out->body_vertices, nf = 0;
+  for (size_t f = 0; f < m->n_faces; ++f)
+    nf += piece[m->F[3 * f]] == root;
+  out->to_body = km__malloc(n, sizeof(int32_t));
+  out->from_body = km__malloc(nb, sizeof(int32_t));
+  b->V = km__malloc(3 * nb, sizeof(double));
+  b->F = km__malloc(3 * nf, sizeof(int32_t));
+  if (!out->to_body || !out->from_body || !b->V || !b->F) {
+    s = km__fail(err, KM_ERR_NOMEM, "pieces: out of memory for %zu vertices", n);
+    goto done;
+  }
+  for (size_t v = 0; v < n; ++v) {
+    out->to_body[v] = piece[v] == root ? (int32_t)b->n_vertices : -1;
+    if (piece[v] != root) continue;
+    out->from_body[b->n_vertices] = (int32_t)v;
+    memcpy(b->V + 3 * b->n_vertices++, m->V + 3 * v, 3 * sizeof(double));
+  }
+  for (size_t f = 0; f < m->n_faces; ++f)
+    if (piece[m->F[3 * f]] == root) {
+      for (int c = 0; c < 3; ++c)
+        b->F[3 * b->n_faces + (size_t)c] = out->to_body[m->F[3 * f + (size_t)c]];
+      ++b->n_faces;
+    }
+  for (size_t v = 0; v < n; ++v)
+    if (piece[v] >= 0 && piece[v] != root)
+      km_nearest_vertices(b->V, nb, m->V + 3 * v, 1, &out->to_body[v], NULL);
+  *found = true;
+done:
+  if (s != KM_OK) km__body_free(out);
+  free(piece);
+  free(cnt);
+  return s;
+}
+
 km_status km__mesh_weld(const km_mesh *m, km__weld *out, km_error *err) {
   memset(out, 0, sizeof *out);
   if (!m || !m->V || !m->F || !m->n_faces) return KM_OK;

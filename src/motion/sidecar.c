@@ -746,6 +746,90 @@ static km_status expand_list(int32_t **list, size_t *n_list, const int32_t *to_w
   return KM_OK;
 }
 
+/* The character a plan is made on when it is made on a part of c's mesh (welded at its seams,
+ * or its body without its loose pieces): part's mesh and c's skeleton borrowed (cp's are to be
+ * zeroed, not freed), each part vertex q the skin of c's vertex from[q], landmarks on to[] of
+ * theirs (-1: the part's vertex 0). */
+static km_status part_character(const km_character *c, const km_mesh *part, const int32_t *from,
+                                const int32_t *to, km_character *cp, km_error *err) {
+  size_t n = c->mesh.n_vertices, np = part->n_vertices;
+  memset(cp, 0, sizeof *cp);
+  cp->mesh = *part;
+  cp->skeleton = c->skeleton;
+  if (!(cp->skin.joints = km__malloc(4 * np, sizeof(int32_t))) ||
+      !(cp->skin.weights = km__malloc(4 * np, sizeof(double))))
+    return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  cp->skin.n_vertices = np;
+  for (size_t q = 0; q < np; ++q)
+    for (int k = 0; k < 4; ++k) {
+      cp->skin.joints[4 * q + (size_t)k] = c->skin.joints[4 * (size_t)from[q] + (size_t)k];
+      cp->skin.weights[4 * q + (size_t)k] = c->skin.weights[4 * (size_t)from[q] + (size_t)k];
+    }
+  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
+    cp->landmarks[i] = c->landmarks[i];
+    int32_t v = c->landmarks[i].vertex;
+    if (v >= 0 && (size_t)v < n) cp->landmarks[i].vertex = to[v] >= 0 ? to[v] : 0;
+  }
+  return KM_OK;
+}
+
+/* Frees a part_character (its borrowed mesh and skeleton left alone). */
+static void part_character_free(km_character *cp) {
+  memset(&cp->skeleton, 0, sizeof cp->skeleton);
+  memset(&cp->mesh, 0, sizeof cp->mesh);
+  km_character_free(cp);
+}
+
+/* A character with small loose pieces (km__mesh_body: eyes, teeth, a buckle beside the body)
+ * is planned on its body alone, and the plan comes back on the file's vertices: no handle
+ * holds a loose piece's vertex (each follows the body where it is nearest: its skin weights
+ * are that body vertex's, km_autorig, and so are its reduced-model fields, km_puppet), and the
+ * head's centre is the body's highest vertex, not an eye above the brow. */
+static km_status rig_plan_pieces(const char *path, const km_character *c, rig_plan *p,
+                                 km_error *err) {
+  const km_mesh *m = &c->mesh;
+  size_t n = m->n_vertices;
+  km__body bd;
+  bool found = false;
+  memset(p, 0, sizeof *p);
+  if (!m->V || !m->F || !m->n_faces || c->skin.n_vertices != n || !c->skin.joints ||
+      !c->skin.weights)
+    return rig_plan_make_on(path, c, p, err);
+  km_status s = km__mesh_body(m, &bd, &found, err);
+  if (s != KM_OK) return s;
+  if (!found) return rig_plan_make_on(path, c, p, err);
+  const int32_t *from_b = bd.from_body;
+  size_t nb = bd.body.n_vertices;
+  km_character cb;
+  if ((s = part_character(c, &bd.body, from_b, bd.to_body, &cb, err)) != KM_OK) goto done;
+  if ((s = rig_plan_make_on(path, &cb, p, err)) != KM_OK) goto done;
+  for (int h = 0; h < 5; ++h) {
+    if (p->handle_vertex[h] >= 0 && (size_t)p->handle_vertex[h] < nb)
+      p->handle_vertex[h] = from_b[p->handle_vertex[h]];
+    for (size_t i = 0; p->end_list[h] && i < p->n_end[h]; ++i)
+      p->end_list[h][i] = from_b[p->end_list[h][i]];
+  }
+  for (size_t i = 0; p->base_list && i < p->n_base; ++i)
+    p->base_list[i] = from_b[p->base_list[i]];
+  if (p->band) {
+    int8_t *band = km__malloc(n, 1);
+    if (!band) {
+      s = km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+      plan_free(p);
+      goto done;
+    }
+    memset(band, -1, n);
+    for (size_t q = 0; q < nb; ++q)
+      band[from_b[q]] = p->band[q];
+    free(p->band);
+    p->band = band;
+  }
+done:
+  part_character_free(&cb);
+  km__body_free(&bd);
+  return s;
+}
+
 /* A character whose mesh is split at its texture seams (coincident vertices that cut it into
  * pieces or open it: a glTF exporter's output) is planned on the mesh welded there (bands cut to
  * one connected part, a bust's open cut, the hands' and feet's balls all look at the surface),
@@ -758,34 +842,16 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
   km__weld wd;
   if (!m->V || !m->F || !m->n_faces || c->skin.n_vertices != n || !c->skin.joints ||
       !c->skin.weights)
-    return rig_plan_make_on(path, c, p, err);
+    return rig_plan_pieces(path, c, p, err);
   km_status s = km__mesh_weld(m, &wd, err);
   if (s != KM_OK) return s;
-  if (!wd.to_w) return rig_plan_make_on(path, c, p, err);
+  if (!wd.to_w) return rig_plan_pieces(path, c, p, err);
   const int32_t *to_w = wd.to_w, *first = wd.first;
+  size_t nw = wd.w.n_vertices;
   km_character cw;
-  memset(&cw, 0, sizeof cw);
   memset(p, 0, sizeof *p);
-  cw.mesh = wd.w; /* borrowed, not freed */
-  size_t nw = cw.mesh.n_vertices;
-  if (!(cw.skin.joints = km__malloc(4 * nw, sizeof(int32_t))) ||
-      !(cw.skin.weights = km__malloc(4 * nw, sizeof(double)))) {
-    s = km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
-    goto done;
-  }
-  cw.skin.n_vertices = nw;
-  for (size_t q = 0; q < nw; ++q)
-    for (int k = 0; k < 4; ++k) {
-      cw.skin.joints[4 * q + (size_t)k] = c->skin.joints[4 * (size_t)first[q] + (size_t)k];
-      cw.skin.weights[4 * q + (size_t)k] = c->skin.weights[4 * (size_t)first[q] + (size_t)k];
-    }
-  cw.skeleton = c->skeleton; /* borrowed, not freed */
-  for (int i = 0; i < KM_CHARACTER_LANDMARKS; ++i) {
-    cw.landmarks[i] = c->landmarks[i];
-    if (c->landmarks[i].vertex >= 0 && (size_t)c->landmarks[i].vertex < n)
-      cw.landmarks[i].vertex = to_w[c->landmarks[i].vertex];
-  }
-  if ((s = rig_plan_make_on(path, &cw, p, err)) != KM_OK) goto done;
+  if ((s = part_character(c, &wd.w, first, to_w, &cw, err)) != KM_OK) goto done;
+  if ((s = rig_plan_pieces(path, &cw, p, err)) != KM_OK) goto done;
   for (int h = 0; h < 5 && s == KM_OK; ++h) {
     if (p->handle_vertex[h] >= 0 && (size_t)p->handle_vertex[h] < nw)
       p->handle_vertex[h] = first[p->handle_vertex[h]];
@@ -805,9 +871,7 @@ static km_status rig_plan_make(const char *path, const km_character *c, rig_plan
   }
   if (s != KM_OK) plan_free(p);
 done:
-  memset(&cw.skeleton, 0, sizeof cw.skeleton);
-  memset(&cw.mesh, 0, sizeof cw.mesh);
-  km_character_free(&cw);
+  part_character_free(&cw);
   km__weld_free(&wd);
   return s;
 }

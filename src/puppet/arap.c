@@ -41,6 +41,10 @@ struct km_arap {
   int32_t *hsrc;   /* welded->n_hv: the caller's handle vertex each welded one takes its target
                       from (the first copy listed) */
   double *Tw, *Vw; /* welded targets and result (the solve does not allocate) */
+  /* A small loose piece holding no handle vertex (km__mesh_body: an eye, a buckle): n, the
+   * body vertex each of its vertices follows (the nearest at rest), -1 for every other vertex;
+   * NULL: no such piece. Left out of the solve, then placed by that vertex's rotation. */
+  int32_t *att;
 };
 
 static int32_t uf_find(int32_t *parent, int32_t x) {
@@ -54,7 +58,8 @@ static int32_t uf_find(int32_t *parent, int32_t x) {
 /* -L_ff is only semidefinite when a connected component holds no handle vertex, and CHOLMOD
  * may still "factor" it with a round-off pivot, so check the topology instead (union-find
  * over the faces). Returns the first unanchored vertex or -1. */
-static int32_t unanchored_vertex(const km_mesh *m, const int32_t *map, int32_t *parent) {
+static int32_t unanchored_vertex(const km_mesh *m, const int32_t *map, const int32_t *att,
+                                 int32_t *parent) {
   size_t n = m->n_vertices;
   for (size_t v = 0; v < n; ++v)
     parent[v] = (int32_t)v;
@@ -66,7 +71,8 @@ static int32_t unanchored_vertex(const km_mesh *m, const int32_t *map, int32_t *
   unsigned char *anchored = calloc(n, 1);
   if (!anchored) return -1;
   for (size_t v = 0; v < n; ++v)
-    if (map[v] < 0 && map[v] != INT32_MIN) anchored[uf_find(parent, (int32_t)v)] = 1;
+    if ((map[v] < 0 && map[v] != INT32_MIN) || (att && att[v] >= 0))
+      anchored[uf_find(parent, (int32_t)v)] = 1;
   int32_t bad = -1;
   for (size_t f = 0; f < m->n_faces * 3 && bad < 0; ++f)
     if (!anchored[uf_find(parent, m->F[f])]) bad = m->F[f];
@@ -93,6 +99,7 @@ void km_arap_free(km_arap **pa) {
   free(a->hsrc);
   free(a->Tw);
   free(a->Vw);
+  free(a->att);
   free(a);
   *pa = NULL;
 }
@@ -100,6 +107,47 @@ void km_arap_free(km_arap **pa) {
 static km_status arap_precompute(const km_mesh *rest, size_t n_handles,
                                  const int32_t *handle_offsets, const int32_t *handle_vertices,
                                  const km_arap_options *opt, km_arap **out, km_error *err);
+
+/* The small loose pieces holding no handle vertex (a->att): with its handles only on the body,
+ * a mesh with eyes or teeth of their own had pieces of no solution and was refused, while the
+ * reduced model carries them with the body (km_puppet_precompute); here each of their vertices
+ * follows its nearest body vertex, turned as that vertex's neighbourhood turns. A piece that
+ * holds a handle vertex is solved as any. */
+static km_status attach_loose(km_arap *a, const km_mesh *rest, km_error *err) {
+  km__body bd;
+  bool found = false;
+  km_status s = km__mesh_body(rest, &bd, &found, err);
+  if (s != KM_OK || !found) return s;
+  size_t n = a->n, n_att = 0;
+  int32_t *parent = km__malloc(n, sizeof *parent);
+  unsigned char *held = km__calloc(n, 1);
+  if (!parent || !held || !(a->att = km__malloc(n, sizeof *a->att))) {
+    s = km__fail(err, KM_ERR_NOMEM, "arap: out of memory");
+    goto done;
+  }
+  for (size_t v = 0; v < n; ++v)
+    parent[v] = (int32_t)v, a->att[v] = -1;
+  for (size_t f = 0; f < rest->n_faces; ++f)
+    for (int k = 1; k < 3; ++k) {
+      int32_t x = uf_find(parent, rest->F[3 * f]), y = uf_find(parent, rest->F[3 * f + k]);
+      if (x != y) parent[x] = y;
+    }
+  for (size_t i = 0; i < a->n_hv; ++i)
+    held[uf_find(parent, a->h_v[i])] = 1;
+  for (size_t v = 0; v < n; ++v) {
+    int32_t b = bd.to_body[v];
+    if (b < 0 || bd.from_body[b] == (int32_t)v || held[uf_find(parent, (int32_t)v)]) continue;
+    a->att[v] = bd.from_body[b]; /* a loose piece's vertex, its piece holding no handle */
+    a->map[v] = INT32_MIN;       /* out of the solve */
+    ++n_att;
+  }
+  if (!n_att) free(a->att), a->att = NULL;
+done:
+  free(parent);
+  free(held);
+  km__body_free(&bd);
+  return s;
+}
 
 /* A mesh split at its texture seams (coincident vertices that cut it into pieces or open it:
  * km_mesh_info.seam_vertices) is solved on the mesh welded there, so the seams stay shut:
@@ -236,6 +284,7 @@ static km_status arap_precompute(const km_mesh *rest, size_t n_handles,
     a->map[v] = -(int32_t)i - 1;
     a->h_v[i] = v;
   }
+  if ((s = attach_loose(a, rest, err)) != KM_OK) goto fail;
   /* vertices used by no face have no Laplacian row: they stay where they are (INT32_MIN) */
   unsigned char *used = km__calloc(n, 1);
   if (!used) goto nomem;
@@ -250,12 +299,13 @@ static km_status arap_precompute(const km_mesh *rest, size_t n_handles,
   {
     int32_t *parent = km__malloc(n, sizeof(int32_t));
     if (!parent) goto nomem;
-    int32_t bad = unanchored_vertex(rest, a->map, parent);
+    int32_t bad = unanchored_vertex(rest, a->map, a->att, parent);
     free(parent);
     if (bad >= 0) {
       s = km__fail(err, KM_ERR_INVALID,
                    "arap: the connected component of vertex %d has no handle vertex (its "
-                   "position would be undetermined)",
+                   "position would be undetermined; the reduced solver, the default, carries a "
+                   "small loose piece with the body nearest to it)",
                    (int)bad);
       goto fail;
     }
@@ -445,6 +495,18 @@ km_status km_arap_solve(km_arap *a, const double *targets, double *V_out, km_err
       }
     }
     if (move < a->tolerance * a->diag) break;
+  }
+  if (a->att) { /* loose pieces: each vertex as its body vertex turns, the rotation of now */
+    local_step(a);
+    for (size_t v = 0; v < n; ++v) {
+      int32_t b = a->att[v];
+      if (b < 0) continue;
+      double e[3] = {P[3 * v] - P[3 * b], P[3 * v + 1] - P[3 * b + 1], P[3 * v + 2] - P[3 * b + 2]};
+      const double *Rb = a->R + 9 * (size_t)b;
+      for (int r = 0; r < 3; ++r)
+        a->X[3 * v + r] =
+            a->X[3 * b + r] + Rb[3 * r] * e[0] + Rb[3 * r + 1] * e[1] + Rb[3 * r + 2] * e[2];
+    }
   }
   memcpy(V_out, a->X, n * 3 * sizeof(double));
   return KM_OK;
