@@ -415,7 +415,88 @@ static void test_seated_base(void) {
   km_mesh_free(&t), km_mesh_free(&s), km_mesh_free(&two), km_mesh_free(&c);
 }
 
+/* km__nearest_x against km_nearest_vertices (a brute-force scan) on random points with
+ * duplicates (ties: the lower id) and a NaN point; km__mesh_body on two tetrahedra (comparable:
+ * no body) and on a tetrahedron beside a mesh of 20 vertices (the body, the tetrahedron's
+ * vertices mapped to their nearest body vertex). */
+static void test_nearest_and_body(void) {
+  enum { N = 2000, Q = 500 };
+  double *V = malloc(3 * N * sizeof(double));
+  uint32_t seed = 7;
+  for (size_t i = 0; V && i < 3 * N; ++i) {
+    seed = seed * 1664525u + 1013904223u;
+    V[i] = (double)(seed >> 8) / (double)(1u << 24);
+  }
+  if (!V) return;
+  for (int i = 0; i < 20; ++i) /* duplicates: ties */
+    memcpy(V + 3 * (100 + i), V + 3 * i, 3 * sizeof(double));
+  V[3 * 50] = NAN;
+  km__nearest_x ix;
+  CHECK_OK(km__nearest_x_build(V, N, &ix, KM_E));
+  size_t same = 0;
+  for (int q = 0; q < Q; ++q) {
+    double p[3];
+    for (int c = 0; c < 3; ++c) {
+      seed = seed * 1664525u + 1013904223u;
+      p[c] = 1.2 * (double)(seed >> 8) / (double)(1u << 24) - 0.1;
+    }
+    if (q < 20) memcpy(p, V + 3 * q, sizeof p); /* on a duplicated point */
+    int32_t a = -1;
+    km_nearest_vertices(V, N, p, 1, &a, NULL);
+    same += km__nearest_x_query(&ix, p) == a;
+  }
+  CHECK_MSG(same == Q, "km__nearest_x: %zu of %d queries as the brute force", same, Q);
+  km__nearest_x_free(&ix);
+  free(V);
+
+  static const double T[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  static const int32_t TF[12] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+  km_mesh two = {0};
+  CHECK_OK(km_mesh_alloc(8, 8, &two, KM_E));
+  for (int k = 0; k < 2; ++k)
+    for (int i = 0; i < 12; ++i) {
+      two.V[12 * k + i] = T[i] + (i % 3 == 0 ? 3.0 * k : 0);
+      two.F[12 * k + i] = TF[i] + 4 * k;
+    }
+  km__body bd;
+  bool found = true;
+  CHECK_OK(km__mesh_body(&two, &bd, &found, KM_E));
+  CHECK(!found && bd.to_body == NULL && bd.n_pieces == 2 && bd.body_vertices == 4 &&
+        bd.largest_other == 4);
+  km__body_free(&bd);
+  km_mesh_free(&two);
+  /* a body: a strip of 18 triangles (20 vertices), and a small tetrahedron beside it */
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_alloc(24, 22, &m, KM_E));
+  for (int i = 0; i < 20; ++i)
+    m.V[3 * i] = 0.5 * (i / 2), m.V[3 * i + 1] = i % 2, m.V[3 * i + 2] = 0;
+  for (int t = 0; t < 18; ++t)
+    for (int c = 0; c < 3; ++c)
+      m.F[3 * t + c] = t + (t % 2 ? (c == 1 ? 2 : c == 2 ? 1 : 0) : c);
+  for (int i = 0; i < 12; ++i) {
+    m.V[60 + i] = 0.1 * T[i] + (i % 3 == 0 ? 2.02 : i % 3 == 2 ? 0.3 : 0);
+    m.F[54 + i] = TF[i] + 20;
+  }
+  CHECK_OK(km__mesh_body(&m, &bd, &found, KM_E));
+  CHECK(found && bd.n_pieces == 2 && bd.body_vertices == 20 && bd.largest_other == 4);
+  if (found) {
+    CHECK(bd.body.n_vertices == 20 && bd.body.n_faces == 18);
+    bool ok = true;
+    for (int i = 0; i < 20; ++i)
+      ok = ok && bd.to_body[i] == i && bd.from_body[i] == i;
+    for (int i = 20; i < 24; ++i) {
+      int32_t a = -1;
+      km_nearest_vertices(m.V, 20, m.V + 3 * i, 1, &a, NULL);
+      ok = ok && bd.to_body[i] == a;
+    }
+    CHECK_MSG(ok, "km__mesh_body: the body's vertices and the loose ones' nearest");
+  }
+  km__body_free(&bd);
+  km_mesh_free(&m);
+}
+
 int main(void) {
+  test_nearest_and_body();
   test_seated_base();
   test_boundary_loops();
   test_farthest_points();

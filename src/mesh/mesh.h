@@ -25,6 +25,22 @@ typedef struct km__weld {
 km_status km__mesh_weld(const km_mesh *m, km__weld *out, km_error *err);
 void km__weld_free(km__weld *w);
 
+/* The nearest of many queries to one point set: the points sorted along x once, each query
+ * scanning outward from its x until the slab is wider than its best distance (for points on a
+ * surface, a few hundred of a body's 50k instead of all). Ties go to the lower id, NaN points
+ * never match, as km_nearest_vertices.
+ *   V  #V*3 points, kept (not copied) until km__nearest_x_free
+ *   km__nearest_x_query returns the nearest point's id, -1 when there is none */
+typedef struct km__nearest_x {
+  const double *V;
+  double *xs;   /* #n x coordinates, ascending */
+  int32_t *ord; /* #n point ids in that order */
+  size_t n;
+} km__nearest_x;
+km_status km__nearest_x_build(const double *V, size_t n, km__nearest_x *out, km_error *err);
+int32_t km__nearest_x_query(const km__nearest_x *ix, const double p[3]);
+void km__nearest_x_free(km__nearest_x *ix);
+
 /* A body and its small loose pieces (issue 11: a game character's eyes, teeth or buckles, a
  * scan's loose bits): pieces are the connected components of m's faces; the body is the
  * largest (most vertices), and it counts as one only when every other piece has at most a
@@ -37,8 +53,7 @@ void km__weld_free(km__weld *w);
  *   out->n_pieces   pieces in all; out->largest_other: vertices of the largest other piece
  * *found false with out->body empty (to_body NULL) when m is one piece, or another piece is more
  * than a quarter of the body (n_pieces and largest_other still say so). The nearest body vertex
- * is a scan of the body per loose vertex (km_nearest_vertices): #loose * #B. Free with
- * km__body_free. */
+ * comes from km__nearest_x. Free with km__body_free. */
 typedef struct km__body {
   km_mesh body;
   int32_t *to_body, *from_body;

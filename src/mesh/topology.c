@@ -212,9 +212,11 @@ km_status km__mesh_body(const km_mesh *m, km__body *out, bool *found, km_error *
         b->F[3 * b->n_faces + (size_t)c] = out->to_body[m->F[3 * f + (size_t)c]];
       ++b->n_faces;
     }
+  km__nearest_x ix;
+  if ((s = km__nearest_x_build(b->V, nb, &ix, err)) != KM_OK) goto done;
   for (size_t v = 0; v < n; ++v)
-    if (piece[v] >= 0 && piece[v] != root)
-      km_nearest_vertices(b->V, nb, m->V + 3 * v, 1, &out->to_body[v], NULL);
+    if (piece[v] >= 0 && piece[v] != root) out->to_body[v] = km__nearest_x_query(&ix, m->V + 3 * v);
+  km__nearest_x_free(&ix);
   *found = true;
 done:
   if (s != KM_OK) km__body_free(out);
