@@ -3010,6 +3010,10 @@ typedef struct km_autorig_report {
   int joints_moved_inside;
   uint32_t joints_outside; /* bit j set: joint j (KM_KINECT1 order) is still outside, too far
                               from the body part it should be in to move it safely */
+  /* Small loose pieces (eyes, teeth, buckles: each at most a quarter of the largest piece's
+   * vertices) rigged to follow the body, the largest piece: how many, and their vertices in
+   * all (0, 0: one piece) */
+  size_t loose_pieces, loose_vertices;
 } km_autorig_report;
 
 /* The kind's name: "humanoid" (KM_AUTORIG_KINECT1), "quadruped", "prop", "bust", "upper body"
@@ -3017,13 +3021,15 @@ typedef struct km_autorig_report {
 const char *km_autorig_kind_name(km_autorig_skeleton kind);
 
 /* Rigs a mesh.
- *   m       in: triangle mesh, #V vertices, #F faces (one component, manifold edges)
+ *   m       in: triangle mesh, #V vertices, #F faces (manifold edges; one piece, or a body
+ *           with small loose pieces that follow it: report->loose_pieces)
  *   opt     in: may be NULL (defaults)
  *   out     out: a character: mesh (a copy of m, vertex order kept), skeleton (the 20 Kinect
  *           v1 joints), skin (#V vertices) and 16 landmarks; free with km_character_free
  *   report  out: what was chosen; may be NULL
- * Errors: KM_ERR_DEGENERATE_MESH naming what is wrong (no faces, N components, N
- * non-manifold edges, zero height, too few extremities, too small for five handles);
+ * Errors: KM_ERR_DEGENERATE_MESH naming what is wrong (no faces, N components of which two
+ * are comparable, N non-manifold edges, zero height, too few extremities, too small for five
+ * handles);
  * KM_ERR_NOMEM; KM_ERR_CANCELLED. */
 km_status km_autorig(const km_mesh *m, const km_autorig_options *opt, km_character *out,
                      km_autorig_report *report, km_error *err);

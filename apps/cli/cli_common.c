@@ -325,6 +325,9 @@ km_status km_cli_auto_rig(const char *verb, const char *mesh_path, const char *r
       sep = ", ";
     }
   if (rep.fallback[0]) fprintf(say, " (not a humanoid or quadruped: %s)", rep.fallback);
+  if (rep.loose_pieces)
+    fprintf(say, "; %zu loose piece%s (%zu vertices) follow%s the body", rep.loose_pieces,
+            rep.loose_pieces > 1 ? "s" : "", rep.loose_vertices, rep.loose_pieces > 1 ? "" : "s");
   if (then)
     fprintf(say, "; %s\n", then);
   else

@@ -173,6 +173,10 @@ int km_cli_rig(int argc, char **argv) {
                                             "stays)"
                                           : "a humanoid (kinect1)",
          rep.seconds);
+  if (rep.loose_pieces)
+    printf("%zu loose piece%s (%zu vertices: eyes, teeth, ...) follow%s the body where %s\n",
+           rep.loose_pieces, rep.loose_pieces > 1 ? "s" : "", rep.loose_vertices,
+           rep.loose_pieces > 1 ? "" : "s", rep.loose_pieces > 1 ? "they sit" : "it sits");
   printf(rep.kind == KM_AUTORIG_PROP ? "extremities and handle points:\n"
                                      : "extremities (geodesic extremes, most prominent first):\n");
   for (size_t e = 0; e < rep.n_extremities; ++e) {

@@ -1956,13 +1956,21 @@ static km_status autorig_pieces(const km_mesh *m, const km_autorig_options *opt,
   km_autorig_options ob = {0};
   if (opt) ob = *opt;
   int32_t head_b = -1; /* the head's tip, a vertex of the file, on the body */
-  if (ob.head && *ob.head >= 0 && (size_t)*ob.head < n) head_b = bd.to_body[*ob.head], ob.head = &head_b;
+  if (ob.head && *ob.head >= 0 && (size_t)*ob.head < n)
+    head_b = bd.to_body[*ob.head], ob.head = &head_b;
   if ((s = km_autorig(&bd.body, &ob, &cb, report, err)) != KM_OK) {
     km__wrap(err, s, "its body, the largest of %zu pieces (%zu of %zu vertices)", bd.n_pieces,
              bd.body_vertices, n);
     goto done;
   }
   s = character_from_part(m, &cb, bd.to_body, bd.from_body, out, report, err);
+  if (report) { /* the loose pieces of this mesh, besides any the body's own rigging found */
+    size_t lone = 0;
+    for (size_t v = 0; v < n; ++v)
+      lone += bd.to_body[v] < 0;
+    report->loose_pieces = bd.n_pieces - 1;
+    report->loose_vertices = n - bd.body_vertices - lone;
+  }
 done:
   if (s != KM_OK) km_character_free(out);
   km_character_free(&cb);
