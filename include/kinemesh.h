@@ -607,16 +607,18 @@ km_status km_mesh_frame_guess_forward(const km_mesh *m, km_axis up, km_frame_gue
  * faces connected through shared vertices; vertices used by no face are counted as
  * isolated, not as components. A face is degenerate when two of its indices are equal or
  * its area is below 1e-14 * bbox_diagonal^2. */
+/* Edges, boundaries, non-manifold edges and components leave out collapsed faces (a repeated
+ * vertex index: no surface), which degenerate_faces counts. */
 typedef struct km_mesh_info {
   size_t vertices, faces;
   size_t edges;
   size_t boundary_edges;       /* used by exactly one face */
   size_t nonmanifold_edges;    /* used by three or more faces */
   size_t nonmanifold_vertices; /* faces around the vertex form more than one fan */
-  size_t components;
+  size_t components;           /* pieces of faces joined by shared vertices */
   size_t isolated_vertices;
-  size_t degenerate_faces;
-  int64_t euler_characteristic; /* V - E + F over non-isolated vertices */
+  size_t degenerate_faces;      /* a repeated vertex index, or (nearly) zero area */
+  int64_t euler_characteristic; /* V - E + F over non-isolated vertices and faces not collapsed */
   double bbox_min[3], bbox_max[3];
   size_t seam_vertices; /* vertices used by faces whose position is exactly another such
                            vertex's: a surface split where its texture coordinates or normals

@@ -83,15 +83,15 @@ km_status km__geodesic_create(const km_mesh *m, km__geodesic **out, km_error *er
   }
   for (size_t v = 0; v < n; ++v)
     if (next[v] >= 0) g->ptr[v + 1] += 1, g->ptr[next[v] + 1] += 1;
-  for (size_t f = 0; f < nf; ++f)
-    for (int k = 0; k < 3; ++k)
+  for (size_t f = 0; f < nf; ++f) /* a collapsed face: no surface to cross */
+    for (int k = 0; k < 3 && !km__face_collapsed(m->F + 3 * f); ++k)
       g->ptr[m->F[3 * f + k] + 1] += 2;
   for (size_t v = 0; v < n; ++v)
     g->ptr[v + 1] += g->ptr[v];
   memcpy(fill, g->ptr, (n + 1) * sizeof *fill);
   for (size_t f = 0; f < nf; ++f) {
     const int32_t *t = m->F + 3 * f;
-    for (int k = 0; k < 3; ++k) {
+    for (int k = 0; k < 3 && !km__face_collapsed(t); ++k) {
       int32_t a = t[k], b = t[(k + 1) % 3];
       g->adj[fill[a]++] = b;
       g->adj[fill[b]++] = a;

@@ -25,6 +25,15 @@ typedef struct km__weld {
 km_status km__mesh_weld(const km_mesh *m, km__weld *out, km_error *err);
 void km__weld_free(km__weld *w);
 
+/* A face with a repeated vertex index (a triangle collapsed onto an edge or a point, as
+ * decimation and welding leave them): no surface. Topology (edges, boundaries, non-manifold
+ * edges, pieces) and geodesics leave it out: counted, one collapsed triangle on an edge made
+ * that edge non-manifold and rig refused the mesh; one joining two far vertices opened a
+ * boundary between them and armadillo_1k rigged as a bust. */
+static inline bool km__face_collapsed(const int32_t *t) {
+  return t[0] == t[1] || t[1] == t[2] || t[0] == t[2];
+}
+
 /* The nearest of many queries to one point set: the points sorted along x once, each query
  * scanning outward from its x until the slab is wider than its best distance (for points on a
  * surface, a few hundred of a body's 50k instead of all). Ties go to the lower id, NaN points

@@ -48,10 +48,11 @@ static km_status check_faces(const km_mesh *m, const char *fn, km_error *err) {
   return KM_OK;
 }
 
-/* Appends the distinct undirected edges of face f as packed (min<<32 | max) keys: a face
- * with a repeated index uses each of its remaining edges once, and never a self-edge. */
+/* Appends the undirected edges of face f as packed (min<<32 | max) keys; none for a face with
+ * a repeated index (km__face_collapsed). */
 static size_t face_edges(const int32_t *t, uint64_t *keys) {
   size_t n = 0;
+  if (km__face_collapsed(t)) return 0;
   for (int k = 0; k < 3; ++k) {
     uint32_t a = (uint32_t)t[k], b = (uint32_t)t[(k + 1) % 3];
     if (a == b) continue;
@@ -171,10 +172,11 @@ km_status km__mesh_body(const km_mesh *m, km__body *out, bool *found, km_error *
   }
   for (size_t v = 0; v < n; ++v)
     piece[v] = -1;
-  for (size_t i = 0; i < 3 * m->n_faces; ++i)
-    piece[m->F[i]] = m->F[i];
   for (size_t f = 0; f < m->n_faces; ++f)
-    for (int c = 1; c < 3; ++c)
+    for (int c = 0; c < 3 && !km__face_collapsed(m->F + 3 * f); ++c)
+      piece[m->F[3 * f + (size_t)c]] = m->F[3 * f + (size_t)c];
+  for (size_t f = 0; f < m->n_faces; ++f)
+    for (int c = 1; c < 3 && !km__face_collapsed(m->F + 3 * f); ++c)
       uf_union(piece, m->F[3 * f], m->F[3 * f + (size_t)c]);
   int32_t root = -1;
   for (size_t v = 0; v < n; ++v) {
@@ -191,7 +193,7 @@ km_status km__mesh_body(const km_mesh *m, km__body *out, bool *found, km_error *
   km_mesh *b = &out->body;
   size_t nb = out->body_vertices, nf = 0;
   for (size_t f = 0; f < m->n_faces; ++f)
-    nf += piece[m->F[3 * f]] == root;
+    nf += piece[m->F[3 * f]] == root && !km__face_collapsed(m->F + 3 * f);
   out->to_body = km__malloc(n, sizeof(int32_t));
   out->from_body = km__malloc(nb, sizeof(int32_t));
   b->V = km__malloc(3 * nb, sizeof(double));
@@ -207,7 +209,7 @@ km_status km__mesh_body(const km_mesh *m, km__body *out, bool *found, km_error *
     memcpy(b->V + 3 * b->n_vertices++, m->V + 3 * v, 3 * sizeof(double));
   }
   for (size_t f = 0; f < m->n_faces; ++f)
-    if (piece[m->F[3 * f]] == root) {
+    if (piece[m->F[3 * f]] == root && !km__face_collapsed(m->F + 3 * f)) {
       for (int c = 0; c < 3; ++c)
         b->F[3 * b->n_faces + (size_t)c] = out->to_body[m->F[3 * f + (size_t)c]];
       ++b->n_faces;
@@ -355,22 +357,29 @@ static km_status mesh_info(const km_mesh *m, bool seams, km_mesh_info *out, km_e
   /* Components (union-find through shared vertices), isolated vertices. */
   for (size_t v = 0; v < nv; ++v)
     parent[v] = (int32_t)v;
+  for (size_t v = 0; v < nv; ++v)
+    local[v] = 0; /* 1: in a face that is not collapsed */
   for (size_t f = 0; f < nf; ++f) {
     const int32_t *t = m->F + 3 * f;
-    uf_union(parent, t[0], t[1]);
-    uf_union(parent, t[0], t[2]);
+    if (!km__face_collapsed(t)) {
+      uf_union(parent, t[0], t[1]);
+      uf_union(parent, t[0], t[2]);
+      local[t[0]] = local[t[1]] = local[t[2]] = 1;
+    }
     vf_off[t[0] + 1]++, vf_off[t[1] + 1]++, vf_off[t[2] + 1]++;
   }
-  size_t used = 0;
+  size_t used = 0, proper = 0;
   for (size_t v = 0; v < nv; ++v) {
     if (vf_off[v + 1] == 0)
       out->isolated_vertices++;
     else {
       ++used;
-      if (uf_find(parent, (int32_t)v) == (int32_t)v) out->components++;
+      if (local[v] && uf_find(parent, (int32_t)v) == (int32_t)v) out->components++;
     }
   }
-  out->euler_characteristic = (int64_t)used - (int64_t)out->edges + (int64_t)nf;
+  for (size_t f = 0; f < nf; ++f)
+    proper += !km__face_collapsed(m->F + 3 * f);
+  out->euler_characteristic = (int64_t)used - (int64_t)out->edges + (int64_t)proper;
   if (seams && (s = count_seam_vertices(m, vf_off, &out->seam_vertices, err)) != KM_OK) goto done;
 
   /* Degenerate faces. */

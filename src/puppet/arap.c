@@ -128,7 +128,7 @@ static km_status attach_loose(km_arap *a, const km_mesh *rest, km_error *err) {
   for (size_t v = 0; v < n; ++v)
     parent[v] = (int32_t)v, a->att[v] = -1;
   for (size_t f = 0; f < rest->n_faces; ++f)
-    for (int k = 1; k < 3; ++k) {
+    for (int k = 1; k < 3 && !km__face_collapsed(rest->F + 3 * f); ++k) {
       int32_t x = uf_find(parent, rest->F[3 * f]), y = uf_find(parent, rest->F[3 * f + k]);
       if (x != y) parent[x] = y;
     }
