@@ -100,6 +100,7 @@ km_status km_deform_check_create(const km_mesh *rest, km_deform_check **out, km_
       }
       for (int k = 0; k < 3; ++k) {
         int32_t a = t[k], b = t[(k + 1) % 3];
+        if (km__face_collapsed(t)) a = b = t[0]; /* no surface: no edge, no neighbour */
         if (pass) a = wd.to_w[a], b = wd.to_w[b];
         h[3 * f + k] = (half){a < b ? a : b, a < b ? b : a, (int32_t)f};
       }

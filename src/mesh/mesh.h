@@ -56,8 +56,9 @@ void km__nearest_x_free(km__nearest_x *ix);
  * quarter of its vertices (two bodies side by side do not).
  *   out->body       the largest piece as a mesh of its own: #B vertices (V, F; no attributes),
  *                   in m's order
- *   out->to_body    #V: each vertex's body vertex; for a loose piece's vertex the body vertex
- *                   nearest to it (Euclidean, at rest), for a vertex in no face -1
+ *   out->to_body    #V: each vertex's body vertex; for a loose piece's vertex (or one only
+ *                   collapsed faces use) the body vertex nearest to it (Euclidean, at rest),
+ *                   for a vertex in no face -1
  *   out->from_body  #B: the vertex of m of each body vertex
  *   out->n_pieces   pieces in all; out->largest_other: vertices of the largest other piece
  * *found false with out->body empty (to_body NULL) when m is one piece, or another piece is more

@@ -216,6 +216,9 @@ km_status km__mesh_body(const km_mesh *m, km__body *out, bool *found, km_error *
     }
   km__nearest_x ix;
   if ((s = km__nearest_x_build(b->V, nb, &ix, err)) != KM_OK) goto done;
+  for (size_t f = 0; f < m->n_faces; ++f) /* a vertex of collapsed faces only: as a loose one */
+    for (int c = 0; c < 3 && km__face_collapsed(m->F + 3 * f); ++c)
+      if (piece[m->F[3 * f + (size_t)c]] < 0) piece[m->F[3 * f + (size_t)c]] = INT32_MAX;
   for (size_t v = 0; v < n; ++v)
     if (piece[v] >= 0 && piece[v] != root) out->to_body[v] = km__nearest_x_query(&ix, m->V + 3 * v);
   km__nearest_x_free(&ix);

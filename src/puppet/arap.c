@@ -64,7 +64,7 @@ static int32_t unanchored_vertex(const km_mesh *m, const int32_t *map, const int
   for (size_t v = 0; v < n; ++v)
     parent[v] = (int32_t)v;
   for (size_t f = 0; f < m->n_faces; ++f)
-    for (int k = 1; k < 3; ++k) {
+    for (int k = 1; k < 3 && !km__face_collapsed(m->F + 3 * f); ++k) {
       int32_t a = uf_find(parent, m->F[3 * f]), b = uf_find(parent, m->F[3 * f + k]);
       if (a != b) parent[a] = b;
     }
@@ -75,7 +75,7 @@ static int32_t unanchored_vertex(const km_mesh *m, const int32_t *map, const int
       anchored[uf_find(parent, (int32_t)v)] = 1;
   int32_t bad = -1;
   for (size_t f = 0; f < m->n_faces * 3 && bad < 0; ++f)
-    if (!anchored[uf_find(parent, m->F[f])]) bad = m->F[f];
+    if (!km__face_collapsed(m->F + f / 3 * 3) && !anchored[uf_find(parent, m->F[f])]) bad = m->F[f];
   free(anchored);
   return bad;
 }
