@@ -626,6 +626,11 @@ typedef struct km_mesh_info {
                            there in space but share no vertex, so a rig or a deformation sees
                            separate parts: kinemesh does not weld them (vertex order and count
                            are the file's) */
+  /* The pieces rig and the solvers see: components of the mesh joined at its seams (1: one
+   * piece). loose_vertices: when every piece but the largest has at most a quarter of its
+   * vertices, the file's vertices of those small pieces, which follow the largest, the body
+   * (eyes, teeth); 0 otherwise (one piece, or bodies of comparable size, which rig refuses). */
+  size_t pieces, loose_vertices;
 } km_mesh_info;
 /* Topology and extent of a mesh.
  *   m    in: mesh (a point cloud is fine)

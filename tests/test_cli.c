@@ -44,7 +44,26 @@ static void test_info_json(void) {
       CHECK_MSG(cJSON_GetObjectItemCaseSensitive(j, keys[i]) != NULL, "key %s", keys[i]);
     CHECK(num(j, "vertices") == 4 && num(j, "faces") == 4);
     CHECK(num(j, "boundary_edges") == 0 && num(j, "components") == 1);
+    CHECK(num(j, "pieces") == 1 && num(j, "loose_vertices") == 0);
     CHECK(cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(j, "bbox_max")) == 3);
+    cJSON_Delete(j);
+  }
+  /* pieces: a strip of 18 triangles (20 vertices, the body) and a small tetrahedron beside it
+   * (4 vertices, a loose piece) */
+  FILE *f = fopen("cli_pieces.obj", "w");
+  if (f) {
+    for (int i = 0; i < 20; ++i) /* a strip of 18 triangles: the body */
+      fprintf(f, "v %g %d 0\n", 0.5 * (i / 2), i % 2);
+    fputs("v 2 0 1\nv 2.1 0 1\nv 2 0.1 1\nv 2 0 1.1\n", f); /* a small tetrahedron */
+    for (int t = 0; t < 18; ++t)
+      fprintf(f, "f %d %d %d\n", t + 1, t + (t % 2 ? 3 : 2), t + (t % 2 ? 2 : 3));
+    fputs("f 21 23 22\nf 21 22 24\nf 21 24 23\nf 22 23 24\n", f);
+    fclose(f);
+    j = run_json(KM_CLI " info --json cli_pieces.obj", &code);
+    CHECK(code == 0 && j);
+    if (j)
+      CHECK_MSG(num(j, "components") == 2 && num(j, "pieces") == 2 && num(j, "loose_vertices") == 4,
+                "pieces %g, loose vertices %g", num(j, "pieces"), num(j, "loose_vertices"));
     cJSON_Delete(j);
   }
 }

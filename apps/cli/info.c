@@ -148,6 +148,8 @@ int km_cli_info(int argc, char **argv) {
     cJSON_AddNumberToObject(o, "isolated_vertices", (double)info.isolated_vertices);
     cJSON_AddNumberToObject(o, "degenerate_faces", (double)info.degenerate_faces);
     cJSON_AddNumberToObject(o, "seam_vertices", (double)info.seam_vertices);
+    cJSON_AddNumberToObject(o, "pieces", (double)info.pieces);
+    cJSON_AddNumberToObject(o, "loose_vertices", (double)info.loose_vertices);
     cJSON_AddNumberToObject(o, "euler_characteristic", (double)info.euler_characteristic);
     cJSON_AddItemToObject(o, "bbox_min", vec3(info.bbox_min));
     cJSON_AddItemToObject(o, "bbox_max", vec3(info.bbox_max));
@@ -183,6 +185,15 @@ int km_cli_info(int argc, char **argv) {
                ? ", the faces not joined there: a glTF split at its texture seams; rig and the "
                  "solvers join them, the outputs keep every vertex"
                : "");
+  const char *joined = info.seam_vertices ? " (after joining the seams)" : "";
+  if (info.pieces > 1 && info.loose_vertices)
+    printf("pieces                %zu%s: a body and %zu small piece%s (%zu of the file's vertices: "
+           "eyes, teeth, ...) that rig and the solvers carry with it\n",
+           info.pieces, joined, info.pieces - 1, info.pieces > 2 ? "s" : "", info.loose_vertices);
+  else if (info.pieces > 1)
+    printf("pieces                %zu%s, two of comparable size: rig animates one body (small "
+           "pieces follow it) and refuses this mesh\n",
+           info.pieces, joined);
   printf("bbox min              %.6g %.6g %.6g\nbbox max              %.6g %.6g %.6g\n",
          info.bbox_min[0], info.bbox_min[1], info.bbox_min[2], info.bbox_max[0], info.bbox_max[1],
          info.bbox_max[2]);

@@ -302,7 +302,27 @@ fail:
 }
 
 km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *err) {
-  return mesh_info(m, true, out, err);
+  km_status s = mesh_info(m, true, out, err);
+  if (s != KM_OK || !m->n_faces) return s;
+  out->pieces = out->components;
+  if (out->components < 2) return KM_OK;
+  /* the pieces rig sees: joined at the seams first, then a body and its loose pieces */
+  km__weld wd;
+  km__body bd;
+  bool found = false;
+  if ((s = km__mesh_weld(m, &wd, err)) != KM_OK) return s;
+  const km_mesh *w = wd.to_w ? &wd.w : m;
+  if ((s = km__mesh_body(w, &bd, &found, err)) == KM_OK) {
+    out->pieces = bd.n_pieces;
+    for (size_t v = 0; found && v < m->n_vertices; ++v) {
+      size_t u = wd.to_w ? (size_t)wd.to_w[v] : v;
+      int32_t b = bd.to_body[u];
+      out->loose_vertices += b >= 0 && bd.from_body[b] != (int32_t)u;
+    }
+  }
+  km__body_free(&bd);
+  km__weld_free(&wd);
+  return s;
 }
 
 /* seams false: seam_vertices left 0 (the weld, which has sorted the positions itself). */
