@@ -1930,6 +1930,9 @@ static km_status autorig_welded(const km_mesh *m, const km_autorig_options *opt,
     goto done;
   }
   s = character_from_part(m, &cw, to_w, first, out, report, err);
+  km_mesh_info mi; /* loose pieces counted in the file's vertices, as info counts them */
+  if (s == KM_OK && report && report->loose_pieces && km_mesh_info_compute(m, &mi, NULL) == KM_OK)
+    report->loose_vertices = mi.loose_vertices;
 done:
   if (s != KM_OK) km_character_free(out);
   km_character_free(&cw);
