@@ -370,9 +370,45 @@ static void test_rotated_copies(void) {
   km_test_run("rm -rf orient_t", NULL);
 }
 
+/* A vertex no face uses (an exporter's leftover, a scan's stray point) is no part of the shape:
+ * the procedural character with one above its head and behind it guesses as without it (its
+ * height was the stray vertex's, 2.61 instead of 1.75, and the performer-to-character scale
+ * follows the height), and with one collapsed face added too. */
+static void test_stray_vertex(void) {
+  km_character_options co = {0};
+  co.target_vertices = 3000;
+  km_character c = {0};
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  const km_mesh *m = &c.mesh;
+  size_t n = m->n_vertices, nf = m->n_faces;
+  km_mesh e = {0};
+  CHECK_OK(km_mesh_alloc(n + 1, nf + 1, &e, KM_E));
+  if (e.V) {
+    memcpy(e.V, m->V, 3 * n * sizeof(double));
+    memcpy(e.F, m->F, 3 * nf * sizeof(int32_t));
+    e.V[3 * n] = 0.3, e.V[3 * n + 1] = 2.6, e.V[3 * n + 2] = -0.8;
+    km_frame_guess a, b;
+    CHECK_OK(km_mesh_frame_guess(m, &a, KM_E));
+    for (int collapsed = 0; collapsed < 2; ++collapsed) {
+      e.n_faces = nf + (size_t)collapsed; /* and a face (0, 0, stray): no surface either */
+      e.F[3 * nf] = 0, e.F[3 * nf + 1] = 0, e.F[3 * nf + 2] = (int32_t)n;
+      CHECK_OK(km_mesh_frame_guess(&e, &b, KM_E));
+      printf("stray vertex%s: up %s forward %s height %.4f (without it: %s %s %.4f)\n",
+             collapsed ? " and a collapsed face" : "", km_axis_name(b.frame.up),
+             km_axis_name(b.frame.forward), b.height, km_axis_name(a.frame.up),
+             km_axis_name(a.frame.forward), a.height);
+      CHECK(b.frame.up == a.frame.up && b.frame.forward == a.frame.forward &&
+            fabs(b.height - a.height) < 1e-12 && b.sure_up == a.sure_up);
+    }
+  }
+  km_mesh_free(&e);
+  km_character_free(&c);
+}
+
 int main(void) {
   test_axes();
   test_shared_meshes();
   test_rotated_copies();
+  test_stray_vertex();
   return km_test_finish("test_orientation");
 }

@@ -973,6 +973,50 @@ done:
   km_mesh_free(&b);
 }
 
+/* A vertex no face uses (an exporter's leftover) does not set the performer-to-character scale
+ * (the surface's height: one above the head made it 1.514 instead of 1.020 on a walk): the
+ * pipeline on the character with one at 1.5x its height scales as without it. (The reduced
+ * model still differs a little, up to 1.5 cm on this wave: the lone vertex is a row of the
+ * Laplacian the fields are computed on; left for later.) */
+static void test_stray_vertex(const fixture *fx) {
+  const km_mesh *a = &fx->c.mesh;
+  size_t n = a->n_vertices;
+  km_mesh b = *a; /* the same faces, one vertex more */
+  b.V = malloc(sizeof(double) * 3 * (n + 1));
+  b.n_vertices = n + 1;
+  b.UV = b.N = b.colors = NULL;
+  b.materials = NULL, b.n_materials = 0;
+  double *X = malloc(sizeof(double) * 3 * (n + 1)), *Y = malloc(sizeof(double) * 3 * (n + 1));
+  km_puppetry *pa = NULL, *pb = NULL;
+  if (!b.V || !X || !Y) goto done;
+  memcpy(b.V, a->V, sizeof(double) * 3 * n);
+  double hi = -INFINITY;
+  for (size_t v = 0; v < n; ++v)
+    hi = fmax(hi, a->V[3 * v + 1]);
+  b.V[3 * n] = 0.1, b.V[3 * n + 1] = 1.5 * hi, b.V[3 * n + 2] = -0.2;
+  km_puppetry_options o = {0};
+  CHECK_OK(km_puppetry_create(a, &fx->rig, NULL, 20, &o, &pa, NULL, KM_E));
+  CHECK_OK(km_puppetry_create(&b, &fx->rig, NULL, 20, &o, &pb, NULL, KM_E));
+  if (!pa || !pb) goto done;
+  double d = 0;
+  for (size_t fr = 0; fr < fx->take.n_frames; ++fr) {
+    const double *j = fx->take.positions + fr * 20 * 3;
+    CHECK_OK(km_puppetry_push(pa, j, X, KM_E));
+    CHECK_OK(km_puppetry_push(pb, j, Y, KM_E));
+    d = fmax(d, max_abs_diff(X, Y, 3 * n));
+  }
+  printf("stray vertex: scale %.4f (without it %.4f), the mesh within %.2g m\n",
+         km_puppetry_scale(pb), km_puppetry_scale(pa), d);
+  CHECK(fabs(km_puppetry_scale(pb) - km_puppetry_scale(pa)) < 1e-12);
+  CHECK_MSG(d < 0.05, "the mesh %g m off without the stray vertex", d);
+done:
+  km_puppetry_free(&pa);
+  km_puppetry_free(&pb);
+  free(b.V);
+  free(X);
+  free(Y);
+}
+
 int main(void) {
   if (!mkdtemp(g_dir)) {
     perror("mkdtemp");
@@ -995,6 +1039,7 @@ int main(void) {
     test_root_heading_short_line(&fx);
     test_root_max_turn(&fx);
     test_loose_piece(&fx);
+    test_stray_vertex(&fx);
   }
   fixture_free(&fx);
   char cmd[128];
