@@ -79,20 +79,9 @@ static km_status check_mesh(const km_mesh *m, km_error *err) {
   km_mesh_info info;
   km_status st = km_mesh_info_compute(m, &info, err);
   if (st != KM_OK) return st;
-  if (info.components != 1) { /* autorig_pieces took a body with small loose pieces */
-    km__body bd;
-    bool found = false;
-    km_status sb = km__mesh_body(m, &bd, &found, err);
-    if (sb != KM_OK) return sb;
-    size_t nb = bd.body_vertices, no = bd.largest_other;
-    km__body_free(&bd);
-    return km__fail(err, KM_ERR_DEGENERATE_MESH,
-                    "rig: the mesh has %zu components (separate pieces of connected faces), the "
-                    "two largest of %zu and %zu vertices: rig rigs one body, whose small pieces "
-                    "(at most a quarter of its vertices: eyes, teeth) follow it; keep one body or "
-                    "join the pieces",
-                    info.components, nb, no);
-  }
+  if (info.components != 1) /* autorig_pieces took or refused several pieces */
+    return km__fail(err, KM_ERR_DEGENERATE_MESH, "rig: the mesh has %zu components",
+                    info.components);
   if (info.nonmanifold_edges)
     return km__fail(err, KM_ERR_DEGENERATE_MESH,
                     "rig: the mesh has %zu non-manifold edges (shared by three or more faces); "
@@ -1930,9 +1919,14 @@ static km_status autorig_welded(const km_mesh *m, const km_autorig_options *opt,
     goto done;
   }
   s = character_from_part(m, &cw, to_w, first, out, report, err);
-  km_mesh_info mi; /* loose pieces counted in the file's vertices, as info counts them */
-  if (s == KM_OK && report && report->loose_pieces && km_mesh_info_compute(m, &mi, NULL) == KM_OK)
-    report->loose_vertices = mi.loose_vertices;
+  if (s == KM_OK && report && report->loose_pieces) {
+    /* loose pieces counted in the file's vertices, as info counts them */
+    km__body bd;
+    bool found = false;
+    if (km__mesh_body(&wd.w, &bd, &found, NULL) == KM_OK && found)
+      report->loose_vertices = km__body_loose_vertices(&bd, to_w, n);
+    km__body_free(&bd);
+  }
 done:
   if (s != KM_OK) km_character_free(out);
   km_character_free(&cw);
@@ -1946,13 +1940,21 @@ done:
  * it, so it moves as the body there does (an eye with the head); the landmarks and extremities
  * are the body's. Refused before (issue 11: "several components" was the first wall of a game
  * character whose eyes are separate meshes); the reduced model glues such pieces alike
- * (km_puppet_precompute). *done false: m is one piece, or two pieces are comparable
- * (check_mesh refuses it, naming their sizes). */
+ * (km_puppet_precompute). *done false: m is one piece; two or more pieces none of which is a
+ * body (another piece has over a quarter of the largest's vertices) are refused here, naming
+ * the two largest sizes. */
 static km_status autorig_pieces(const km_mesh *m, const km_autorig_options *opt, km_character *out,
                                 km_autorig_report *report, bool *done, km_error *err) {
   *done = false;
   km__body bd;
   km_status s = km__mesh_body(m, &bd, done, err);
+  if (s == KM_OK && !*done && bd.n_pieces > 1)
+    s = km__fail(err, KM_ERR_DEGENERATE_MESH,
+                 "rig: the mesh has %zu components (separate pieces of connected faces), the "
+                 "two largest of %zu and %zu vertices: rig rigs one body, whose small pieces "
+                 "(at most a quarter of its vertices: eyes, teeth) follow it; keep one body or "
+                 "join the pieces",
+                 bd.n_pieces, bd.body_vertices, bd.largest_other);
   if (s != KM_OK || !*done) return s;
   size_t n = m->n_vertices;
   km_character cb = {0};
@@ -1968,11 +1970,8 @@ static km_status autorig_pieces(const km_mesh *m, const km_autorig_options *opt,
   }
   s = character_from_part(m, &cb, bd.to_body, bd.from_body, out, report, err);
   if (report) { /* the loose pieces of this mesh, besides any the body's own rigging found */
-    size_t lone = 0;
-    for (size_t v = 0; v < n; ++v)
-      lone += bd.to_body[v] < 0;
     report->loose_pieces = bd.n_pieces - 1;
-    report->loose_vertices = n - bd.body_vertices - lone;
+    report->loose_vertices = km__body_loose_vertices(&bd, NULL, n);
   }
 done:
   if (s != KM_OK) km_character_free(out);

@@ -71,6 +71,10 @@ typedef struct km__body {
 } km__body;
 km_status km__mesh_body(const km_mesh *m, km__body *out, bool *found, km_error *err);
 void km__body_free(km__body *b);
+/* How many of a file's n vertices lie in a loose piece of bd (found by km__mesh_body on the
+ * file's mesh, to_w NULL, or on its seam-welded mesh, to_w #n: each file vertex's welded one):
+ * the count info and rig print, in the file's vertices. */
+size_t km__body_loose_vertices(const km__body *bd, const int32_t *to_w, size_t n);
 
 /* Edge-graph geodesic distances: Dijkstra over the mesh's edges with an indexed binary heap,
  * the one Dijkstra of the library (geodesic.c). Created once per connectivity (faces of m;

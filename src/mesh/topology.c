@@ -230,6 +230,16 @@ done:
   return s;
 }
 
+size_t km__body_loose_vertices(const km__body *bd, const int32_t *to_w, size_t n) {
+  size_t loose = 0;
+  for (size_t v = 0; bd->to_body && v < n; ++v) {
+    size_t u = to_w ? (size_t)to_w[v] : v;
+    int32_t b = bd->to_body[u];
+    loose += b >= 0 && bd->from_body[b] != (int32_t)u;
+  }
+  return loose;
+}
+
 km_status km__mesh_weld(const km_mesh *m, km__weld *out, km_error *err) {
   memset(out, 0, sizeof *out);
   if (!m || !m->V || !m->F || !m->n_faces) return KM_OK;
@@ -314,11 +324,7 @@ km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *er
   const km_mesh *w = wd.to_w ? &wd.w : m;
   if ((s = km__mesh_body(w, &bd, &found, err)) == KM_OK) {
     out->pieces = bd.n_pieces;
-    for (size_t v = 0; found && v < m->n_vertices; ++v) {
-      size_t u = wd.to_w ? (size_t)wd.to_w[v] : v;
-      int32_t b = bd.to_body[u];
-      out->loose_vertices += b >= 0 && bd.from_body[b] != (int32_t)u;
-    }
+    if (found) out->loose_vertices = km__body_loose_vertices(&bd, wd.to_w, m->n_vertices);
   }
   km__body_free(&bd);
   km__weld_free(&wd);
