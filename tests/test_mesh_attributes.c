@@ -352,6 +352,26 @@ static void test_gltf_in(void) {
   CHECK_MSG(strstr(km_test_err.message, "meshes[1].primitives[0]") &&
                 strstr(km_test_err.message, "triangles"),
             "%s", km_test_err.message);
+  /* the same indices as a strip (mode 5) and as a fan (6): the triangles they stand for, in
+   * the spec's order and winding (strip t: t, t + 1 + t % 2, t + 2 - t % 2; fan t: t + 1,
+   * t + 2, 0), a repeated index giving a collapsed face; mesh 1's vertices start at 7 */
+  for (int fan = 0; fan < 2; ++fan) {
+    snprintf(bad, sizeof bad, "%s", json);
+    char *md = strstr(bad, "\"mode\":4");
+    if (md) md[7] = fan ? '6' : '5';
+    CHECK_OK(km_mesh_parse(bad, strlen(bad), KM_FORMAT_GLTF, "strip.gltf", &m, KM_E));
+    CHECK(m.n_vertices == 11 && m.n_faces == 7);
+    if (m.n_faces == 7) {
+      const int32_t strip[12] = {0, 1, 2, 1, 0, 2, 2, 0, 2, 0, 3, 2};
+      const int32_t fanf[12] = {1, 2, 0, 2, 0, 0, 0, 2, 0, 2, 3, 0};
+      bool same = true;
+      for (int k = 0; k < 12; ++k)
+        same = same && m.F[9 + k] == 7 + (fan ? fanf : strip)[k];
+      CHECK_MSG(same, "%s: faces %d %d %d, %d %d %d, ...", fan ? "fan" : "strip", m.F[9], m.F[10],
+                m.F[11], m.F[12], m.F[13], m.F[14]);
+    }
+    km_mesh_free(&m);
+  }
   snprintf(bad, sizeof bad, "%s", json);
   char *cnt = strstr(bad, "\"count\":6");
   if (cnt) cnt[8] = '9';

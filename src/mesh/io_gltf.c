@@ -1,5 +1,5 @@
 /* glTF 2.0 meshes in (.glb, and .gltf with embedded data: URIs or buffer files beside it):
- * triangles, POSITION, NORMAL, TEXCOORD_0.
+ * triangles (and strips and fans, as the triangles they stand for), POSITION, NORMAL, TEXCOORD_0.
  *
  * Written by hand on cJSON: cgltf (the reference C reader) is not packaged in Debian, and
  * the part a mesh needs (accessors over buffer views over buffers) is small; every offset,
@@ -1023,11 +1023,14 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
         cJSON *pr = cJSON_GetArrayItem(prims, pi);
         char what[64];
         snprintf(what, sizeof what, "meshes[%d].primitives[%d]", mi, pi);
+        /* Triangles (4), and strips (5) and fans (6) as the triangles they stand for, in the
+         * spec's order and winding; their vertices are the file's either way. */
         int mode = jint(pr, "mode", 4);
-        if (mode != 4)
+        if (mode < 4 || mode > 6)
           return km__fail(err, KM_ERR_UNSUPPORTED,
-                          "%s: %s: mode %d (only triangles, mode 4, are read)", d->name, what,
-                          mode);
+                          "%s: %s: mode %d (points or lines; triangles, strips and fans, modes "
+                          "4-6, are read)",
+                          d->name, what, mode);
         cJSON *at = cJSON_GetObjectItemCaseSensitive(pr, "attributes");
         acc_view pos, nrm, tex, idx, col;
         if ((s = accessor(d, jint(at, "POSITION", -1), what, &pos, err))) return s;
@@ -1084,9 +1087,10 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
           return km__fail(err, KM_ERR_PARSE, "%s: %s: indices must be unsigned SCALAR", d->name,
                           what);
         size_t ni = hi ? idx.count : pos.count;
-        if (ni % 3)
+        if (mode == 4 && ni % 3)
           return km__fail(err, KM_ERR_PARSE, "%s: %s: %zu indices is not a multiple of 3", d->name,
                           what, ni);
+        size_t nt = mode == 4 ? ni / 3 : ni >= 3 ? ni - 2 : 0; /* triangles */
         /* A primitive whose attributes are an earlier one's of this mesh (kinemesh's own
          * output of several materials: one set of vertices, a primitive per material) shares
          * that one's vertices, read once: the file's vertex count, not one copy per material. */
@@ -1105,7 +1109,7 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
         d->prim_base[pi] = vb;
         if (pass == 0) {
           if (!shared) nv += pos.count;
-          nf += ni / 3;
+          nf += nt;
           any_n |= hn;
           any_t |= ht;
           any_c |= hc;
@@ -1195,27 +1199,35 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
             for (int r = 0; r < 3; ++r)
               out->N[3 * (v0 + i) + r] /= sqrt(nl);
         }
-        for (size_t k = 0; k < ni; ++k) {
-          double ix = hi ? comp(&idx, k, 0) : (double)k;
-          if (!(ix < (double)pos.count))
-            return km__fail(err, KM_ERR_PARSE,
-                            "%s: %s: index %zu is %.0f, outside the primitive's %zu vertices",
-                            d->name, what, k, ix, pos.count);
-          out->F[3 * f0 + k] = (int32_t)(vb + (size_t)ix);
-        }
+        for (size_t t = 0; t < nt; ++t)
+          for (size_t c = 0; c < 3; ++c) {
+            /* strip: {t, t + 1 + t % 2, t + 2 - t % 2}; fan: {t + 1, t + 2, 0} (glTF 2.0, 3.7.2.1)
+             */
+            size_t k = mode == 4   ? 3 * t + c
+                       : mode == 5 ? (c == 0   ? t
+                                      : c == 1 ? t + 1 + t % 2
+                                               : t + 2 - t % 2)
+                                   : (c == 2 ? 0 : t + 1 + c);
+            double ix = hi ? comp(&idx, k, 0) : (double)k;
+            if (!(ix < (double)pos.count))
+              return km__fail(err, KM_ERR_PARSE,
+                              "%s: %s: index %zu is %.0f, outside the primitive's %zu vertices",
+                              d->name, what, k, ix, pos.count);
+            out->F[3 * (f0 + t) + c] = (int32_t)(vb + (size_t)ix);
+          }
         if (det < 0 && !hs) /* a mirror: keep the outward winding */
-          for (size_t t = 0; t < ni / 3; ++t) {
+          for (size_t t = 0; t < nt; ++t) {
             int32_t *f = out->F + 3 * (f0 + t);
             int32_t tmp = f[1];
             f[1] = f[2];
             f[2] = tmp;
           }
         if (!shared) v0 += pos.count;
-        f0 += ni / 3;
-        if (pass == 1 && ni >= 3) { /* its run of faces (one with the last if same material) */
+        f0 += nt;
+        if (pass == 1 && nt > 0) { /* its run of faces (one with the last if same material) */
           int pm = jint(pr, "material", -1);
           if (d->n_runs && d->run_mat[d->n_runs - 1] == pm) {
-            d->run_n[d->n_runs - 1] += ni / 3;
+            d->run_n[d->n_runs - 1] += nt;
           } else {
             if (d->n_runs == d->cap_runs) {
               size_t c = d->cap_runs ? 2 * d->cap_runs : 8;
@@ -1227,8 +1239,8 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
               d->run_mat = m;
               d->cap_runs = c;
             }
-            d->run_first[d->n_runs] = f0 - ni / 3;
-            d->run_n[d->n_runs] = ni / 3;
+            d->run_first[d->n_runs] = f0 - nt;
+            d->run_n[d->n_runs] = nt;
             d->run_mat[d->n_runs++] = pm;
           }
         }
