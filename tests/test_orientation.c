@@ -405,10 +405,57 @@ static void test_stray_vertex(void) {
   km_character_free(&c);
 }
 
+/* Loose pieces that are no part of the character (km__shape_vertices): a ground quad 4 m wide
+ * at its feet, or a small tetrahedron 100 m away, leave the guess and the height as without
+ * them (before: armadillo_1k with the quad was guessed unsure of both axes, with the far piece
+ * up +x, height 100.4). */
+static void test_loose_props(void) {
+  km_character_options co = {0};
+  co.target_vertices = 3000;
+  km_character c = {0};
+  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  const km_mesh *m = &c.mesh;
+  size_t n = m->n_vertices, nf = m->n_faces;
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t v = 0; v < n; ++v)
+    for (int d = 0; d < 3; ++d)
+      lo[d] = fmin(lo[d], m->V[3 * v + d]), hi[d] = fmax(hi[d], m->V[3 * v + d]);
+  km_frame_guess a;
+  CHECK_OK(km_mesh_frame_guess(m, &a, KM_E));
+  for (int prop = 0; prop < 2; ++prop) {
+    km_mesh e = {0};
+    CHECK_OK(km_mesh_alloc(n + 4, nf + 4, &e, KM_E));
+    if (!e.V) break;
+    memcpy(e.V, m->V, 3 * n * sizeof(double));
+    memcpy(e.F, m->F, 3 * nf * sizeof(int32_t));
+    double *q = e.V + 3 * n, cx = (lo[0] + hi[0]) / 2, cz = (lo[2] + hi[2]) / 2;
+    const double quad[12] = {cx - 2, lo[1], cz - 2, cx + 2, lo[1], cz - 2,
+                             cx + 2, lo[1], cz + 2, cx - 2, lo[1], cz + 2};
+    const double tet[12] = {100, 0, 0, 100.05, 0, 0, 100, 0.05, 0, 100, 0, 0.05};
+    memcpy(q, prop ? tet : quad, sizeof quad);
+    const int32_t fq[12] = {0, 2, 1, 0, 3, 2, 0, 0, 0, 0, 0, 0};
+    const int32_t ft[12] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+    e.n_faces = nf + (prop ? 4 : 2);
+    for (int k = 0; k < (prop ? 12 : 6); ++k)
+      e.F[3 * nf + (size_t)k] = (int32_t)n + (prop ? ft : fq)[k];
+    km_frame_guess b;
+    CHECK_OK(km_mesh_frame_guess(&e, &b, KM_E));
+    printf("%s: up %s forward %s height %.4f (without it: %s %s %.4f)\n",
+           prop ? "a small piece 100 m away" : "a ground quad at the feet",
+           km_axis_name(b.frame.up), km_axis_name(b.frame.forward), b.height,
+           km_axis_name(a.frame.up), km_axis_name(a.frame.forward), a.height);
+    CHECK(b.frame.up == a.frame.up && b.frame.forward == a.frame.forward &&
+          fabs(b.height - a.height) < 1e-12 && b.sure_up == a.sure_up);
+    km_mesh_free(&e);
+  }
+  km_character_free(&c);
+}
+
 int main(void) {
   test_axes();
   test_shared_meshes();
   test_rotated_copies();
   test_stray_vertex();
+  test_loose_props();
   return km_test_finish("test_orientation");
 }

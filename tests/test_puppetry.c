@@ -1016,6 +1016,66 @@ done:
   free(X);
   free(Y);
 }
+/* A ground quad exported with the character (4 m wide at its feet; a loose piece that does not
+ * wrap the body, km__mesh_body): the performer-to-character scale and the rest floor are the
+ * character's (its height measured without the quad), the body moves as without it, and the
+ * quad turns rigidly with one body vertex instead of being torn between the feet and whatever
+ * body vertex is nearest to each corner (armadillo_1k on a walk: 2.05x). */
+static void test_ground_quad(const fixture *fx) {
+  const km_mesh *a = &fx->c.mesh;
+  size_t n = a->n_vertices, nf = a->n_faces;
+  km_mesh b = {0};
+  double *X = malloc(sizeof(double) * 3 * (n + 4)), *Y = malloc(sizeof(double) * 3 * (n + 4));
+  km_puppetry *pa = NULL, *pb = NULL;
+  CHECK_OK(km_mesh_alloc(n + 4, nf + 2, &b, KM_E));
+  if (!b.V || !X || !Y) goto done;
+  memcpy(b.V, a->V, sizeof(double) * 3 * n);
+  memcpy(b.F, a->F, sizeof(int32_t) * 3 * nf);
+  double lo = INFINITY;
+  for (size_t v = 0; v < n; ++v)
+    lo = fmin(lo, a->V[3 * v + 1]);
+  const double quad[12] = {-2, lo, -2, 2, lo, -2, 2, lo, 2, -2, lo, 2};
+  const int32_t qf[6] = {0, 2, 1, 0, 3, 2};
+  memcpy(b.V + 3 * n, quad, sizeof quad);
+  for (int k = 0; k < 6; ++k)
+    b.F[3 * nf + (size_t)k] = (int32_t)n + qf[k];
+  km_puppetry_options o = {0};
+  km_rig rig = fx->rig; /* the floor off (animate --no-floor): it would lift the quad's corners */
+  rig.floor = false;
+  CHECK_OK(km_puppetry_create(a, &rig, NULL, 20, &o, &pa, NULL, KM_E));
+  CHECK_OK(km_puppetry_create(&b, &rig, NULL, 20, &o, &pb, NULL, KM_E));
+  if (!pa || !pb) goto done;
+  double d = 0, rlo = INFINITY, rhi = 0;
+  for (size_t fr = 0; fr < fx->take.n_frames; ++fr) {
+    const double *j = fx->take.positions + fr * 20 * 3;
+    CHECK_OK(km_puppetry_push(pa, j, X, KM_E));
+    CHECK_OK(km_puppetry_push(pb, j, Y, KM_E));
+    d = fmax(d, max_abs_diff(X, Y, 3 * n));
+    for (int e = 0; e < 4; ++e) { /* the quad's sides */
+      const double *p = Y + 3 * (n + (size_t)e), *q = Y + 3 * (n + (size_t)(e + 1) % 4);
+      double l = sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                      (p[2] - q[2]) * (p[2] - q[2])) /
+                 4;
+      rlo = fmin(rlo, l), rhi = fmax(rhi, l);
+    }
+  }
+  printf("ground quad: scale %.4f (without it %.4f), the body within %.2g m, the quad's sides "
+         "%.9f-%.9f of their length\n",
+         km_puppetry_scale(pb), km_puppetry_scale(pa), d, rlo, rhi);
+  CHECK(fabs(km_puppetry_scale(pb) - km_puppetry_scale(pa)) < 1e-12);
+  CHECK_MSG(d < 0.05, "the body %g m off without the quad", d);
+  /* rigid: the quad turns about the body vertex it follows (find_held), its sides kept */
+  CHECK_MSG(fabs(rlo - 1) < 1e-9 && fabs(rhi - 1) < 1e-9,
+            "the quad's sides %.12g-%.12g of their "
+            "length",
+            rlo, rhi);
+done:
+  km_puppetry_free(&pa);
+  km_puppetry_free(&pb);
+  km_mesh_free(&b);
+  free(X);
+  free(Y);
+}
 
 int main(void) {
   if (!mkdtemp(g_dir)) {
@@ -1039,6 +1099,7 @@ int main(void) {
     test_root_heading_short_line(&fx);
     test_root_max_turn(&fx);
     test_loose_piece(&fx);
+    test_ground_quad(&fx);
     test_stray_vertex(&fx);
   }
   fixture_free(&fx);

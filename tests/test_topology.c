@@ -483,9 +483,11 @@ static void test_nearest_and_body(void) {
         bd.largest_other == 4);
   km__body_free(&bd);
   km_mesh_free(&two);
-  /* a body: a strip of 18 triangles (20 vertices), and a small tetrahedron beside it */
+  /* a body: a strip of 18 triangles (20 vertices, 4.5 x 1), a small tetrahedron beside it,
+   * which follows the one body vertex nearest to it as a whole, and a quad lying 0.01 over the
+   * whole strip (it wraps the body), whose vertices follow their own nearest ones */
   km_mesh m = {0};
-  CHECK_OK(km_mesh_alloc(24, 22, &m, KM_E));
+  CHECK_OK(km_mesh_alloc(28, 24, &m, KM_E));
   for (int i = 0; i < 20; ++i)
     m.V[3 * i] = 0.5 * (i / 2), m.V[3 * i + 1] = i % 2, m.V[3 * i + 2] = 0;
   for (int t = 0; t < 18; ++t)
@@ -495,19 +497,32 @@ static void test_nearest_and_body(void) {
     m.V[60 + i] = 0.1 * T[i] + (i % 3 == 0 ? 2.02 : i % 3 == 2 ? 0.3 : 0);
     m.F[54 + i] = TF[i] + 20;
   }
+  static const double QV[12] = {0, 0, 0.01, 4.5, 0, 0.01, 4.5, 1, 0.01, 0, 1, 0.01};
+  static const int32_t QF[6] = {24, 25, 26, 24, 26, 27};
+  memcpy(m.V + 72, QV, sizeof QV);
+  memcpy(m.F + 66, QF, sizeof QF);
   CHECK_OK(km__mesh_body(&m, &bd, &found, KM_E));
-  CHECK(found && bd.n_pieces == 2 && bd.body_vertices == 20 && bd.largest_other == 4);
+  CHECK(found && bd.n_pieces == 3 && bd.body_vertices == 20 && bd.largest_other == 4);
   if (found) {
     CHECK(bd.body.n_vertices == 20 && bd.body.n_faces == 18);
     bool ok = true;
     for (int i = 0; i < 20; ++i)
       ok = ok && bd.to_body[i] == i && bd.from_body[i] == i;
-    for (int i = 20; i < 24; ++i) {
-      int32_t a = -1;
-      km_nearest_vertices(m.V, 20, m.V + 3 * i, 1, &a, NULL);
-      ok = ok && bd.to_body[i] == a;
+    CHECK_MSG(ok, "km__mesh_body: the body's vertices");
+    int32_t held = -1, a = -1;
+    double best = INFINITY, d = 0;
+    for (int i = 20; i < 24; ++i) { /* the body vertex nearest to the tetrahedron */
+      km_nearest_vertices(m.V, 20, m.V + 3 * i, 1, &a, &d);
+      if (d < best) best = d, held = a;
     }
-    CHECK_MSG(ok, "km__mesh_body: the body's vertices and the loose ones' nearest");
+    for (int i = 20; i < 24; ++i)
+      CHECK_MSG(bd.to_body[i] == held, "tetrahedron vertex %d follows body vertex %d, not %d", i,
+                bd.to_body[i], held);
+    for (int i = 24; i < 28; ++i) {
+      km_nearest_vertices(m.V, 20, m.V + 3 * i, 1, &a, NULL);
+      CHECK_MSG(bd.to_body[i] == a, "quad vertex %d follows body vertex %d, not its nearest %d", i,
+                bd.to_body[i], a);
+    }
   }
   km__body_free(&bd);
   km_mesh_free(&m);

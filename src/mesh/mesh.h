@@ -58,6 +58,10 @@ void km__nearest_x_free(km__nearest_x *ix);
  *                   in m's order
  *   out->to_body    #V: each vertex's body vertex; for a loose piece's vertex (or one only
  *                   collapsed faces use) the body vertex nearest to it (Euclidean, at rest),
+ *                   when its piece wraps the body (a belt, a shirt: nine in ten of its vertices
+ *                   or more within 0.05 of the body's diagonal from it, and spanning more than
+ *                   0.1 of it), otherwise (eyes, a buckle, a sword, a ground plane) the one
+ *                   body vertex nearest to the piece, which the piece then follows rigidly;
  *                   for a vertex in no face -1
  *   out->from_body  #B: the vertex of m of each body vertex
  *   out->n_pieces   pieces in all; out->largest_other: vertices of the largest other piece
@@ -67,6 +71,7 @@ void km__nearest_x_free(km__nearest_x *ix);
 typedef struct km__body {
   km_mesh body;
   int32_t *to_body, *from_body;
+  bool *rigid; /* #V: the vertex's piece follows its to_body vertex as a whole (NULL: none) */
   size_t n_pieces, body_vertices, largest_other;
 } km__body;
 km_status km__mesh_body(const km_mesh *m, km__body *out, bool *found, km_error *err);
@@ -75,6 +80,13 @@ void km__body_free(km__body *b);
  * file's mesh, to_w NULL, or on its seam-welded mesh, to_w #n: each file vertex's welded one):
  * the count info and rig print, in the file's vertices. */
 size_t km__body_loose_vertices(const km__body *bd, const int32_t *to_w, size_t n);
+/* The vertices that make m's shape, keep #V: the body's when m (joined at its seams, as
+ * km__mesh_weld joins them) is a body with small loose pieces (km__mesh_body), otherwise every
+ * vertex of a face that is not collapsed; every vertex when m has no faces. What the
+ * orientation guess, the character's height (the performer-to-character scale) and its rest
+ * floor measure: a ground plane exported with a character, a prop beside it or a vertex no face
+ * uses is not the character. With a face index out of range: the vertices the faces name. */
+km_status km__shape_vertices(const km_mesh *m, bool *keep, km_error *err);
 
 /* Edge-graph geodesic distances: Dijkstra over the mesh's edges with an indexed binary heap,
  * the one Dijkstra of the library (geodesic.c). Created once per connectivity (faces of m;

@@ -299,46 +299,51 @@ static double jaw_ahead(const sample *S, size_t n, int up, double base, double h
   return sf[neck + 1] / w[neck + 1] - sf[neck] / w[neck];
 }
 
-/* km_mesh_frame_guess with the up axis given (KM_AXIS_NONE: guessed). */
-/* The mesh's surface alone: the vertices of faces that are not collapsed, in order, and those
- * faces (out->V NULL when that is every vertex and face: use m). A vertex no face uses (an
- * exporter's leftover, a scan's stray point) moved the extent the guess measures: one at
- * (0.5, 0.5, 0.5) beside armadillo_1k turned its guess from facing -z to +z (unsure) and its
- * height from 0.997 to 1.077. */
+/* The mesh's shape alone (km__shape_vertices): its body's vertices, in order, and the faces
+ * among them that are not collapsed (out->V NULL when that is every vertex and face: use m).
+ * A vertex no face uses (an exporter's leftover, a scan's stray point) moved the extent the
+ * guess measures: one at (0.5, 0.5, 0.5) beside armadillo_1k turned its guess from facing -z to
+ * +z (unsure) and its height from 0.997 to 1.077; so did loose pieces that are no part of the
+ * body: armadillo_1k with a ground quad 4 m wide at its feet was guessed unsure of both axes
+ * ("stands on its open cut"), with a small piece 100 m away up +x with a height of 100.4, with
+ * 300 small pieces scattered in its box (1200 vertices to its 864) up -y. */
 static km_status surface_only(const km_mesh *m, km_mesh *out, km_error *err) {
   size_t n = m->n_vertices, nf = 0, nv = 0;
-  int32_t *map = km__malloc(n ? n : 1, sizeof *map);
-  if (!map) return km__fail(err, KM_ERR_NOMEM, "km_mesh_frame_guess: out of memory");
-  for (size_t v = 0; v < n; ++v)
-    map[v] = -1;
   for (size_t i = 0; i < 3 * m->n_faces; ++i)
-    if (m->F[i] < 0 || (size_t)m->F[i] >= n) { /* not a mesh this can compact: as it is */
-      free(map);
-      return KM_OK;
-    }
-  for (size_t f = 0; f < m->n_faces; ++f)
-    if (!km__face_collapsed(m->F + 3 * f)) {
-      ++nf;
-      for (int c = 0; c < 3; ++c)
-        map[m->F[3 * f + (size_t)c]] = 0;
-    }
-  for (size_t v = 0; v < n; ++v)
-    if (map[v] == 0) map[v] = (int32_t)nv++;
+    if (m->F[i] < 0 || (size_t)m->F[i] >= n) return KM_OK; /* not one to compact: as it is */
+  int32_t *map = km__malloc(n ? n : 1, sizeof *map);
+  bool *keep = km__malloc(n ? n : 1, sizeof *keep);
   km_status s = KM_OK;
-  if ((nv < n || nf < m->n_faces) && nv > 0 && (s = km_mesh_alloc(nv, nf, out, err)) == KM_OK) {
+  if (!map || !keep) {
+    s = km__fail(err, KM_ERR_NOMEM, "km_mesh_frame_guess: out of memory");
+    goto done;
+  }
+  if ((s = km__shape_vertices(m, keep, err)) != KM_OK) goto done;
+  for (size_t v = 0; v < n; ++v)
+    map[v] = keep[v] ? (int32_t)nv++ : -1;
+  for (size_t f = 0; f < m->n_faces; ++f) {
+    const int32_t *t = m->F + 3 * f;
+    nf += !km__face_collapsed(t) && keep[t[0]] && keep[t[1]] && keep[t[2]];
+  }
+  if ((nv < n || nf < m->n_faces) && nv > 0 && nf > 0 &&
+      (s = km_mesh_alloc(nv, nf, out, err)) == KM_OK) {
     for (size_t v = 0; v < n; ++v)
       if (map[v] >= 0) memcpy(out->V + 3 * (size_t)map[v], m->V + 3 * v, 3 * sizeof(double));
-    for (size_t f = 0, k = 0; f < m->n_faces; ++f)
-      if (!km__face_collapsed(m->F + 3 * f)) {
-        for (int c = 0; c < 3; ++c)
-          out->F[3 * k + (size_t)c] = map[m->F[3 * f + (size_t)c]];
-        ++k;
-      }
+    for (size_t f = 0, k = 0; f < m->n_faces; ++f) {
+      const int32_t *t = m->F + 3 * f;
+      if (km__face_collapsed(t) || !keep[t[0]] || !keep[t[1]] || !keep[t[2]]) continue;
+      for (int c = 0; c < 3; ++c)
+        out->F[3 * k + (size_t)c] = map[t[c]];
+      ++k;
+    }
   }
+done:
   free(map);
+  free(keep);
   return s;
 }
 
+/* km_mesh_frame_guess with the up axis given (KM_AXIS_NONE: guessed). */
 static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess *out,
                              km_error *err) {
   if (!m || !out) return km__fail(err, KM_ERR_INVALID, "km_mesh_frame_guess: NULL argument");
@@ -347,7 +352,7 @@ static km_status frame_guess(const km_mesh *m, km_axis given_up, km_frame_guess 
   memset(out, 0, sizeof *out);
   if (!m->n_vertices || !m->V)
     return km__fail(err, KM_ERR_INVALID, "km_mesh_frame_guess: the mesh has no vertices");
-  if (m->n_faces) { /* the surface alone (surface_only): a leftover vertex is no shape */
+  if (m->n_faces) { /* the shape alone (surface_only): a leftover vertex, a loose prop */
     km_mesh sm = {0};
     km_status ss = surface_only(m, &sm, err);
     if (ss != KM_OK) return ss;

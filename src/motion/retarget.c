@@ -329,24 +329,28 @@ km_status km_retarget_create(const km_rig *rig, const km_mesh *rest, size_t n_jo
   }
   r->hv_start[r->n_handles] = k;
 
-  /* the height of the surface: a vertex no face uses (an exporter's leftover) is no part of
-   * it, and one above the head set the performer-to-character scale (the procedural character
-   * with one at y = 2.6 on a walk: 1.514 instead of 1.020) */
+  /* the height of the shape (km__shape_vertices): a vertex no face uses (an exporter's
+   * leftover) is no part of it, and one above the head set the performer-to-character scale
+   * (the procedural character with one at y = 2.6 on a walk: 1.514 instead of 1.020); nor is a
+   * loose piece beside the body (a ground plane, a prop) */
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (size_t i = 0; i < (rest->n_faces ? 3 * rest->n_faces : rest->n_vertices); ++i) {
-    size_t v = rest->n_faces ? (size_t)rest->F[i] : i;
-    if (v >= rest->n_vertices || (rest->n_faces && km__face_collapsed(rest->F + i / 3 * 3)))
-      continue;
-    for (int d = 0; d < 3; ++d) {
-      lo[d] = fmin(lo[d], rest->V[3 * v + d]);
-      hi[d] = fmax(hi[d], rest->V[3 * v + d]);
-    }
+  bool *shape = km__malloc(rest->n_vertices ? rest->n_vertices : 1, sizeof *shape);
+  if (!shape) {
+    km_retarget_free(&r);
+    return km__fail(err, KM_ERR_NOMEM, "retarget: out of memory");
   }
-  for (size_t v = 0; !(lo[0] <= hi[0]) && v < rest->n_vertices; ++v) /* no face: every vertex */
-    for (int d = 0; d < 3; ++d) {
+  km_status s = km__shape_vertices(rest, shape, err);
+  if (s != KM_OK) {
+    free(shape);
+    km_retarget_free(&r);
+    return s;
+  }
+  for (size_t v = 0; v < rest->n_vertices; ++v)
+    for (int d = 0; d < 3 && shape[v]; ++d) {
       lo[d] = fmin(lo[d], rest->V[3 * v + d]);
       hi[d] = fmax(hi[d], rest->V[3 * v + d]);
     }
+  free(shape);
   double ext_max = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
   r->mesh_height = hi[1] - lo[1];
   /* A mesh lying flat in y (a sheet, a grid) has no height; its largest extent stands in. */

@@ -42,7 +42,8 @@ struct km_arap {
                       from (the first copy listed) */
   double *Tw, *Vw; /* welded targets and result (the solve does not allocate) */
   /* A small loose piece holding no handle vertex (km__mesh_body: an eye, a buckle): n, the
-   * body vertex each of its vertices follows (the nearest at rest), -1 for every other vertex;
+   * body vertex each of its vertices follows (km__mesh_body's to_body: its nearest at rest, or
+   * the one its whole piece follows, which then turns rigidly), -1 for every other vertex;
    * NULL: no such piece. Left out of the solve, then placed by that vertex's rotation. */
   int32_t *att;
 };

@@ -53,8 +53,9 @@
 #define KM_PUPPET_MAGIC "KMPUPPET"
 /* Cache format. 2: energy enum renumbered (ARAP = 0); 3: a mesh split at its seams gets the
  * welded mesh's fields (a format-2 cache of one holds its pieces' own, which let the seams
- * open); 4: a body's small loose pieces take its fields (fields_welded). */
-#define KM_PUPPET_FORMAT 4u
+ * open); 4: a body's small loose pieces take its fields (fields_welded); 5: a loose piece that
+ * does not wrap the body takes one body vertex's fields (km__mesh_body). */
+#define KM_PUPPET_FORMAT 5u
 #define KM_PUPPET_ENDIAN 0x01020304u
 #define KM_PUPPET_HEADER 64u
 
@@ -105,8 +106,14 @@ struct km_puppet {
   double *cv_pn;  /* ncv*3 */
   int32_t *lone;  /* n_lone vertices no face uses: they keep their rest position */
   size_t n_lone;
-  double *K0; /* nr*nr  W^T L^T L W */
-  double *G;  /* nr*nd  W^T L^T W_d */
+  /* Loose pieces that follow one body vertex as a whole (km__mesh_body's rigid: a sword, a
+   * ground plane): held_v[i] turns rigidly about anchor held_a[i] (an index into anc_v), by the
+   * rotation fitted to that anchor's neighbours anc_nb[anc_off[k] .. anc_off[k+1]) (find_held) */
+  int32_t *held_v, *held_a, *anc_v, *anc_off, *anc_nb;
+  size_t n_held, n_anc;
+  double *anc_R; /* n_anc*9 workspace */
+  double *K0;    /* nr*nr  W^T L^T L W */
+  double *G;     /* nr*nd  W^T L^T W_d */
   double trK0;
   /* ---- solve settings */
   int iterations;
@@ -249,16 +256,127 @@ static km_status find_lone(km_puppet *p, const km_mesh *rest, km_error *err) {
   return KM_OK;
 }
 
+/* The vertices of loose pieces that follow one body vertex as a whole, and that vertex's
+ * neighbours: X = W R gives each of them the anchor's affine transform (its fields), scale and
+ * shear included, which a piece far from its anchor magnifies: a 0.5 m blade in armadillo_1k's
+ * hand, waving, was 0.70-0.85 of its length (full ARAP, which turns it with the rotation it fits
+ * at the anchor, 1.00). The solve places each such vertex at the anchor's solved position plus
+ * its rest offset turned by the rotation fitted to the anchor's neighbours (km__rotation_fit3). */
+static km_status find_held(km_puppet *p, const km_mesh *rest, km_error *err) {
+  size_t n = rest->n_vertices;
+  void *old[] = {p->held_v, p->held_a, p->anc_v, p->anc_off, p->anc_nb, p->anc_R};
+  for (size_t i = 0; i < sizeof old / sizeof old[0]; ++i)
+    free(old[i]);
+  p->held_v = p->held_a = p->anc_v = p->anc_off = p->anc_nb = NULL;
+  p->anc_R = NULL;
+  p->n_held = p->n_anc = 0;
+  km__weld wd;
+  km__body bd = {0};
+  bool found = false;
+  int32_t *slot = NULL;
+  km_status s = km__mesh_weld(rest, &wd, err);
+  if (s == KM_OK) s = km__mesh_body(wd.to_w ? &wd.w : rest, &bd, &found, err);
+  if (s != KM_OK || !found || !bd.rigid) goto done;
+  if (!(slot = km__malloc(n, sizeof *slot))) goto nomem;
+  for (size_t v = 0; v < n; ++v)
+    slot[v] = -1;
+  size_t nh = 0, na = 0;
+  for (size_t v = 0; v < n; ++v) {
+    size_t u = wd.to_w ? (size_t)wd.to_w[v] : v;
+    if (!bd.rigid[u]) continue;
+    size_t ua = (size_t)bd.from_body[bd.to_body[u]];
+    size_t a = wd.to_w ? (size_t)wd.first[ua] : ua; /* the anchor, a vertex of the file */
+    if (slot[a] < 0) slot[a] = (int32_t)na++;
+    ++nh;
+  }
+  p->held_v = km__malloc(nh, sizeof(int32_t));
+  p->held_a = km__malloc(nh, sizeof(int32_t));
+  p->anc_v = km__malloc(na, sizeof(int32_t));
+  p->anc_off = km__calloc(na + 1, sizeof(int32_t));
+  p->anc_R = km__malloc(na, 9 * sizeof(double));
+  if (!p->held_v || !p->held_a || !p->anc_v || !p->anc_off || !p->anc_R) goto nomem;
+  for (size_t v = 0; v < n; ++v) {
+    size_t u = wd.to_w ? (size_t)wd.to_w[v] : v;
+    if (!bd.rigid[u]) continue;
+    size_t ua = (size_t)bd.from_body[bd.to_body[u]];
+    size_t a = wd.to_w ? (size_t)wd.first[ua] : ua;
+    p->anc_v[slot[a]] = (int32_t)a;
+    p->held_v[p->n_held] = (int32_t)v;
+    p->held_a[p->n_held++] = slot[a];
+  }
+  p->n_anc = na;
+  /* each anchor's neighbours: the other corners of its faces (two passes: count, fill) */
+  for (int pass = 0; pass < 2; ++pass) {
+    if (pass == 1) {
+      for (size_t k = 0; k < na; ++k)
+        p->anc_off[k + 1] += p->anc_off[k];
+      if (!(p->anc_nb = km__malloc(p->anc_off[na] ? (size_t)p->anc_off[na] : 1, sizeof(int32_t))))
+        goto nomem;
+    }
+    int32_t *fill = pass ? km__malloc(na ? na : 1, sizeof *fill) : NULL;
+    if (pass && !fill) goto nomem;
+    for (size_t k = 0; pass && k < na; ++k)
+      fill[k] = p->anc_off[k];
+    for (size_t f = 0; f < rest->n_faces; ++f) {
+      const int32_t *t = rest->F + 3 * f;
+      if (km__face_collapsed(t)) continue;
+      for (int c = 0; c < 3; ++c) {
+        int32_t k = slot[t[c]];
+        if (k < 0 || p->anc_v[k] != t[c]) continue;
+        for (int e = 1; e < 3; ++e)
+          if (pass)
+            p->anc_nb[fill[k]++] = t[(c + e) % 3];
+          else
+            ++p->anc_off[k + 1];
+      }
+    }
+    free(fill);
+  }
+  goto done;
+nomem:
+  s = km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
+done:
+  free(slot);
+  km__body_free(&bd);
+  km__weld_free(&wd);
+  return s;
+}
+
+/* Places the held vertices (find_held) from the solved positions of their anchors. */
+static void place_held(const km_puppet *p, double *V) {
+  for (size_t k = 0; k < p->n_anc; ++k) {
+    const double *pa = p->P + 3 * (size_t)p->anc_v[k], *xa = V + 3 * (size_t)p->anc_v[k];
+    double H[9] = {0}, S[3], *R = p->anc_R + 9 * k;
+    for (int32_t i = p->anc_off[k]; i < p->anc_off[k + 1]; ++i) {
+      const double *pj = p->P + 3 * (size_t)p->anc_nb[i], *xj = V + 3 * (size_t)p->anc_nb[i];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          H[3 * r + c] += (pj[r] - pa[r]) * (xj[c] - xa[c]);
+    }
+    km__rotation_fit3(H, R, S); /* identity when it fails */
+  }
+  for (size_t i = 0; i < p->n_held; ++i) {
+    size_t v = (size_t)p->held_v[i], a = (size_t)p->anc_v[p->held_a[i]];
+    double d[3] = {p->P[3 * v] - p->P[3 * a], p->P[3 * v + 1] - p->P[3 * a + 1],
+                   p->P[3 * v + 2] - p->P[3 * a + 2]},
+           y[3];
+    km__m3_apply(p->anc_R + 9 * (size_t)p->held_a[i], d, y);
+    for (int c = 0; c < 3; ++c)
+      V[3 * v + (size_t)c] = V[3 * a + (size_t)c] + y[c];
+  }
+}
+
 void km_puppet_free(km_puppet **pp) {
   if (!pp || !*pp) return;
   km_puppet *p = *pp;
-  void *ptrs[] = {p->P,      p->Pn,      p->wfield,  p->iso,     p->bracket, p->tpar,  p->tparf,
-                  p->tri_v,  p->tri_iso, p->iso_off, p->tri_lv,  p->tri_F0,  p->tri_a, p->cv,
-                  p->cv_x,   p->K0,      p->G,       p->h_off,   p->h_v,     p->K,     p->KinvG,
-                  p->KinvGf, p->dR,      p->dR0,     p->dRnew,   p->dRd,     p->quat,  p->A,
-                  p->D,      p->cv_br,   p->cv_t,    p->cv_pf,   p->cv_pn,   p->Kt,    p->lone,
-                  p->hw_off, p->hw_i,    p->hw_w,    p->hM,      p->seg_off, p->seg_h, p->seg_q,
-                  p->seg_m,  p->h_pinv,  p->h_G,     p->h_affine};
+  void *ptrs[] = {p->P,       p->Pn,      p->wfield,  p->iso,      p->bracket, p->tpar,   p->tparf,
+                  p->tri_v,   p->tri_iso, p->iso_off, p->tri_lv,   p->tri_F0,  p->tri_a,  p->cv,
+                  p->cv_x,    p->K0,      p->G,       p->h_off,    p->h_v,     p->K,      p->KinvG,
+                  p->KinvGf,  p->dR,      p->dR0,     p->dRnew,    p->dRd,     p->quat,   p->A,
+                  p->D,       p->cv_br,   p->cv_t,    p->cv_pf,    p->cv_pn,   p->Kt,     p->lone,
+                  p->hw_off,  p->hw_i,    p->hw_w,    p->hM,       p->seg_off, p->seg_h,  p->seg_q,
+                  p->seg_m,   p->h_pinv,  p->h_G,     p->h_affine, p->held_v,  p->held_a, p->anc_v,
+                  p->anc_off, p->anc_nb,  p->anc_R};
   for (size_t i = 0; i < sizeof ptrs / sizeof ptrs[0]; ++i)
     free(ptrs[i]);
   free(p);
@@ -876,16 +994,17 @@ static bool eigs_progress(double fraction, const char *stage, void *user) {
  *   triangles are faces.
  * - A body with small separate pieces (issue 11: a game character's eyes, teeth or buckles, a
  *   scan's loose bits, each at most a quarter of the largest piece's vertices) gets the fields
- *   of its largest piece alone, and a vertex of another piece takes the values of the body's
- *   vertex nearest to it at rest (Euclidean), so it moves as the body there moves: an eye with
- *   the head. Computed over the whole mesh, each loose piece took one of the fields for its own
- *   indicator and did not follow the body: armadillo_1k with a 12-vertex ball beside its head
- *   (0.09 m from the nearest head vertices), driven by precog_Seq1_1, left the ball hanging in
- *   the air 0.17-0.19 m from them, and the body lost a field (0.5-1.6 % of the diagonal off its
- *   animation alone, longest edge 2.03x against 1.96x); now the ball keeps 0.089-0.092 m, the
- *   body within 0.1 % (test_puppetry's loose-piece test). Pieces of comparable size (two
- *   bodies) keep their own fields, as before: each needs its own handles (km__mesh_body says
- *   which is which).
+ *   of its largest piece alone, and a vertex of another piece takes the values of the body
+ *   vertex it follows (km__mesh_body: the one nearest to it at rest, or for a piece that does
+ *   not wrap the body the one nearest to the piece, find_held), so it moves as the body there
+ *   moves: an eye with the head. Computed over the whole mesh, each loose piece took one of
+ *   the fields for its own indicator and did not follow the body: armadillo_1k with a 12-vertex
+ *   ball beside its head (0.09 m from the nearest head vertices), driven by precog_Seq1_1, left
+ *   the ball hanging in the air 0.17-0.19 m from them, and the body lost a field (0.5-1.6 % of
+ *   the diagonal off its animation alone, longest edge 2.03x against 1.96x); now the ball keeps
+ *   0.089-0.092 m, the body within 0.1 % (test_puppetry's loose-piece test). Pieces of
+ *   comparable size (two bodies) keep their own fields, as before: each needs its own handles
+ *   (km__mesh_body says which is which).
  *
  * *done false: neither applies, the caller solves on the mesh itself. */
 static km_status fields_welded(const km_mesh *rest, int k, const km_eigs_options *eo, double *evals,
@@ -976,18 +1095,30 @@ km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt
   sparse_diag(M, mass);
   /* eq. 2-3 with the M-inner product: the fields are M-orthonormal, so xi = <X, e_i>_M are
    * the coordinates' spectral coefficients (the plain dot product would weight vertices by
-   * sampling density instead of area). */
+   * sampling density instead of area). Over the shape's vertices (km__shape_vertices): a
+   * loose piece's (a ground quad 4 m wide at armadillo_1k's feet, its area and its distance)
+   * changed the weights and the body's deformation (longest edge on a walk 1.72x -> 1.77x). */
+  bool *shape = km__malloc(n, sizeof *shape);
+  if (!shape) {
+    s = km__fail(err, KM_ERR_NOMEM, "puppet: out of memory");
+    goto fail;
+  }
+  if ((s = km__shape_vertices(rest, shape, err)) != KM_OK) {
+    free(shape);
+    goto fail;
+  }
   double wsum = 0;
   for (int f = 0; f < o.fields; ++f) {
     const double *e = evecs + (size_t)(f + 1) * n;
     double xi[3] = {0, 0, 0};
     for (size_t v = 0; v < n; ++v)
-      for (int c = 0; c < 3; ++c)
+      for (int c = 0; c < 3 && shape[v]; ++c)
         xi[c] += mass[v] * p->Pn[v * 3 + c] * e[v];
     p->wfield[f] = sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
     if (!isfinite(p->wfield[f])) p->wfield[f] = 0;
     wsum += p->wfield[f];
   }
+  free(shape);
   for (int f = 0; f < o.fields; ++f)
     p->wfield[f] = wsum > 0 ? p->wfield[f] / wsum : 1.0 / o.fields;
   for (size_t i = 0; i < n * (size_t)k; ++i)
@@ -1021,7 +1152,7 @@ km_status km_puppet_precompute(const km_mesh *rest, const km_puppet_options *opt
   free(mass);
   free(delta0);
   free(cm);
-  if ((s = find_lone(p, rest, err))) {
+  if ((s = find_lone(p, rest, err)) || (s = find_held(p, rest, err))) {
     km_puppet_free(&p);
     return s;
   }
@@ -1260,7 +1391,7 @@ km_status km_puppet_load(const char *path, const km_mesh *rest, const km_puppet_
     if (!isfinite(p->G[i])) STALE("%s: puppet cache has non-finite values", path);
   if ((s = finish_model(p, err))) goto done;
   finish_trace(p);
-  if ((s = find_lone(p, rest, err))) goto done;
+  if ((s = find_lone(p, rest, err)) || (s = find_held(p, rest, err))) goto done;
   *out = p;
   p = NULL;
   s = KM_OK;
@@ -1878,6 +2009,7 @@ km_status km_puppet_solve(km_puppet *p, const double *targets, double *V_out, km
   p->last_iters = it;
   p->last_change = change;
   eval_full(p, V_out);
+  place_held(p, V_out);
   for (size_t k = 0; k < p->n_lone; ++k)
     memcpy(V_out + 3 * (size_t)p->lone[k], p->P + 3 * (size_t)p->lone[k], 3 * sizeof(double));
   return KM_OK;
