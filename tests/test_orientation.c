@@ -370,22 +370,33 @@ static void test_rotated_copies(void) {
   km_test_run("rm -rf orient_t", NULL);
 }
 
+/* The procedural character (3000 vertices) in *c, and in *e its mesh with room for extra_v
+ * more vertices and extra_f more faces after its own (e->n_faces its own); false on failure. */
+static bool character_with_room(km_character *c, size_t extra_v, size_t extra_f, km_mesh *e) {
+  km_character_options co = {0};
+  co.target_vertices = 3000;
+  memset(c, 0, sizeof *c);
+  memset(e, 0, sizeof *e);
+  CHECK_OK(km_character_generate(&co, c, KM_E));
+  const km_mesh *m = &c->mesh;
+  CHECK_OK(km_mesh_alloc(m->n_vertices + extra_v, m->n_faces + extra_f, e, KM_E));
+  if (!m->V || !e->V) return false;
+  memcpy(e->V, m->V, 3 * m->n_vertices * sizeof(double));
+  memcpy(e->F, m->F, 3 * m->n_faces * sizeof(int32_t));
+  e->n_faces = m->n_faces;
+  return true;
+}
+
 /* A vertex no face uses (an exporter's leftover, a scan's stray point) is no part of the shape:
  * the procedural character with one above its head and behind it guesses as without it (its
  * height was the stray vertex's, 2.61 instead of 1.75, and the performer-to-character scale
  * follows the height), and with one collapsed face added too. */
 static void test_stray_vertex(void) {
-  km_character_options co = {0};
-  co.target_vertices = 3000;
-  km_character c = {0};
-  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  km_character c;
+  km_mesh e;
   const km_mesh *m = &c.mesh;
-  size_t n = m->n_vertices, nf = m->n_faces;
-  km_mesh e = {0};
-  CHECK_OK(km_mesh_alloc(n + 1, nf + 1, &e, KM_E));
-  if (e.V) {
-    memcpy(e.V, m->V, 3 * n * sizeof(double));
-    memcpy(e.F, m->F, 3 * nf * sizeof(int32_t));
+  if (character_with_room(&c, 1, 1, &e)) {
+    size_t n = m->n_vertices, nf = m->n_faces;
     e.V[3 * n] = 0.3, e.V[3 * n + 1] = 2.6, e.V[3 * n + 2] = -0.8;
     km_frame_guess a, b;
     CHECK_OK(km_mesh_frame_guess(m, &a, KM_E));
@@ -410,11 +421,10 @@ static void test_stray_vertex(void) {
  * them (before: armadillo_1k with the quad was guessed unsure of both axes, with the far piece
  * up +x, height 100.4). */
 static void test_loose_props(void) {
-  km_character_options co = {0};
-  co.target_vertices = 3000;
-  km_character c = {0};
-  CHECK_OK(km_character_generate(&co, &c, KM_E));
+  km_character c;
+  km_mesh e;
   const km_mesh *m = &c.mesh;
+  bool ok = character_with_room(&c, 4, 4, &e);
   size_t n = m->n_vertices, nf = m->n_faces;
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (size_t v = 0; v < n; ++v)
@@ -422,12 +432,7 @@ static void test_loose_props(void) {
       lo[d] = fmin(lo[d], m->V[3 * v + d]), hi[d] = fmax(hi[d], m->V[3 * v + d]);
   km_frame_guess a;
   CHECK_OK(km_mesh_frame_guess(m, &a, KM_E));
-  for (int prop = 0; prop < 2; ++prop) {
-    km_mesh e = {0};
-    CHECK_OK(km_mesh_alloc(n + 4, nf + 4, &e, KM_E));
-    if (!e.V) break;
-    memcpy(e.V, m->V, 3 * n * sizeof(double));
-    memcpy(e.F, m->F, 3 * nf * sizeof(int32_t));
+  for (int prop = 0; ok && prop < 2; ++prop) {
     double *q = e.V + 3 * n, cx = (lo[0] + hi[0]) / 2, cz = (lo[2] + hi[2]) / 2;
     const double quad[12] = {cx - 2, lo[1], cz - 2, cx + 2, lo[1], cz - 2,
                              cx + 2, lo[1], cz + 2, cx - 2, lo[1], cz + 2};
@@ -446,8 +451,8 @@ static void test_loose_props(void) {
            km_axis_name(a.frame.up), km_axis_name(a.frame.forward), a.height);
     CHECK(b.frame.up == a.frame.up && b.frame.forward == a.frame.forward &&
           fabs(b.height - a.height) < 1e-12 && b.sure_up == a.sure_up);
-    km_mesh_free(&e);
   }
+  km_mesh_free(&e);
   km_character_free(&c);
 }
 
