@@ -277,16 +277,19 @@ static km_status find_held(km_puppet *p, const km_mesh *rest, km_error *err) {
   km_status s = km__mesh_weld(rest, &wd, err);
   if (s == KM_OK) s = km__mesh_body(wd.to_w ? &wd.w : rest, &bd, &found, err);
   if (s != KM_OK || !found || !bd.rigid) goto done;
-  if (!(slot = km__malloc(n, sizeof *slot))) goto nomem;
-  for (size_t v = 0; v < n; ++v)
-    slot[v] = -1;
+  /* anchors keyed by their vertex of the joined mesh, whose faces give their neighbours (a
+   * seam's copies of a vertex move alike, and the lowest copy, wd.first, may be in no face) */
+  const km_mesh *wm = wd.to_w ? &wd.w : rest;
+  size_t nw = wm->n_vertices;
+  if (!(slot = km__malloc(nw ? nw : 1, sizeof *slot))) goto nomem;
+  for (size_t u = 0; u < nw; ++u)
+    slot[u] = -1;
   size_t nh = 0, na = 0;
   for (size_t v = 0; v < n; ++v) {
     size_t u = wd.to_w ? (size_t)wd.to_w[v] : v;
     if (!bd.rigid[u]) continue;
     size_t ua = (size_t)bd.from_body[bd.to_body[u]];
-    size_t a = wd.to_w ? (size_t)wd.first[ua] : ua; /* the anchor, a vertex of the file */
-    if (slot[a] < 0) slot[a] = (int32_t)na++;
+    if (slot[ua] < 0) slot[ua] = (int32_t)na++;
     ++nh;
   }
   p->held_v = km__malloc(nh, sizeof(int32_t));
@@ -299,10 +302,9 @@ static km_status find_held(km_puppet *p, const km_mesh *rest, km_error *err) {
     size_t u = wd.to_w ? (size_t)wd.to_w[v] : v;
     if (!bd.rigid[u]) continue;
     size_t ua = (size_t)bd.from_body[bd.to_body[u]];
-    size_t a = wd.to_w ? (size_t)wd.first[ua] : ua;
-    p->anc_v[slot[a]] = (int32_t)a;
+    p->anc_v[slot[ua]] = wd.to_w ? wd.first[ua] : (int32_t)ua; /* a vertex of the file */
     p->held_v[p->n_held] = (int32_t)v;
-    p->held_a[p->n_held++] = slot[a];
+    p->held_a[p->n_held++] = slot[ua];
   }
   p->n_anc = na;
   /* each anchor's neighbours: the other corners of its faces (two passes: count, fill) */
@@ -317,17 +319,19 @@ static km_status find_held(km_puppet *p, const km_mesh *rest, km_error *err) {
     if (pass && !fill) goto nomem;
     for (size_t k = 0; pass && k < na; ++k)
       fill[k] = p->anc_off[k];
-    for (size_t f = 0; f < rest->n_faces; ++f) {
-      const int32_t *t = rest->F + 3 * f;
+    for (size_t f = 0; f < wm->n_faces; ++f) {
+      const int32_t *t = wm->F + 3 * f;
       if (km__face_collapsed(t)) continue;
       for (int c = 0; c < 3; ++c) {
         int32_t k = slot[t[c]];
-        if (k < 0 || p->anc_v[k] != t[c]) continue;
-        for (int e = 1; e < 3; ++e)
+        if (k < 0) continue;
+        for (int e = 1; e < 3; ++e) {
+          int32_t nb = t[(c + e) % 3];
           if (pass)
-            p->anc_nb[fill[k]++] = t[(c + e) % 3];
+            p->anc_nb[fill[k]++] = wd.to_w ? wd.first[nb] : nb;
           else
             ++p->anc_off[k + 1];
+        }
       }
     }
     free(fill);
