@@ -58,10 +58,10 @@ void km__nearest_x_free(km__nearest_x *ix);
  *                   in m's order
  *   out->to_body    #V: each vertex's body vertex; for a loose piece's vertex (or one only
  *                   collapsed faces use) the body vertex nearest to it (Euclidean, at rest),
- *                   when its piece wraps the body (a belt, a shirt: nine in ten of its vertices
- *                   or more within 0.05 of the body's diagonal from it, and spanning more than
- *                   0.1 of it), otherwise (eyes, a buckle, a sword, a ground plane) the one
- *                   body vertex nearest to the piece, which the piece then follows rigidly;
+ *                   when its piece wraps the body (a belt, a coat: half its vertices or more
+ *                   within 0.05 of the body's diagonal from it, and spanning more than 0.1 of
+ *                   it), otherwise (eyes, a buckle, a sword, a ground plane) the one body
+ *                   vertex nearest to the piece, which the piece then follows rigidly;
  *                   for a vertex in no face -1
  *   out->from_body  #B: the vertex of m of each body vertex
  *   out->n_pieces   pieces in all; out->largest_other: vertices of the largest other piece

@@ -159,18 +159,19 @@ void km__body_free(km__body *b) {
   memset(b, 0, sizeof *b);
 }
 
-/* How a loose piece follows the body. One that wraps the body (it lies against it, nine in ten
- * of its vertices or more within KM_LOOSE_AGAINST of the body's bounding-box diagonal from it
- * (a sword's hilt in the hand is half of a box), and it
- * spans more than KM_LOOSE_WRAPS of that diagonal: a belt, a shirt, a cape) keeps each vertex's
- * own nearest body vertex and bends with the body under it. Any other (eyes, teeth, a buckle, a
- * hair card, a sword held in a hand, a ground plane under the feet, a scan's stray bit) follows
- * one body vertex as a whole, the one nearest to the piece (where it sits or is held: the
- * hilt's nearest hand vertex), and moves rigidly instead of being torn between the body
- * vertices nearest to each of its vertices: armadillo_1k on a walk (its longest edge 1.72x
- * alone) with a ground quad 4 m wide at its feet stretched the quad to 2.05x, with a strip
- * 2 m long above its head 1.90x, with 300 small pieces scattered in its box 18x. to_body (#V)
- * is rewritten for the vertices of such pieces; piece holds each face vertex's piece root
+/* How a loose piece follows the body. One that wraps the body (it lies against it, half of its
+ * vertices or more within KM_LOOSE_AGAINST of the body's bounding-box diagonal from it, and it
+ * spans more than KM_LOOSE_WRAPS of that diagonal: a belt, a shirt, a coat, a cape) keeps each
+ * vertex's own nearest body vertex and bends with the body under it: a coat moved whole with
+ * one body point would leave the legs walking through it, the worse mistake, so a piece half
+ * against the body counts as wrapping it. Any other (eyes, teeth, a buckle, a hair card, a
+ * sword held in a hand, its blade away from the body, a ground plane under the feet, a scan's
+ * stray bit) follows one body vertex as a whole, the one nearest to the piece (where it sits or
+ * is held: the hilt's nearest hand vertex), and moves rigidly instead of being torn between
+ * the body vertices nearest to each of its vertices: armadillo_1k on a walk (its longest edge
+ * 1.72x alone) with a ground quad 4 m wide at its feet stretched the quad to 2.05x, with a
+ * strip 2 m long above its head 1.90x, with 300 small pieces scattered in its box 18x. to_body
+ * (#V) is rewritten for the vertices of such pieces; piece holds each face vertex's piece root
  * (INT32_MAX: a vertex of collapsed faces only, left as it is). */
 #define KM_LOOSE_AGAINST 0.05
 #define KM_LOOSE_WRAPS 0.1
@@ -231,7 +232,7 @@ static km_status attach_rigid(const km_mesh *m, km__body *bd, const int32_t *pie
     int32_t q = piece[v];
     if (q < 0 || q == root || q == INT32_MAX || id[q] < 0) continue;
     const loose_piece *z = lp + id[q];
-    bool wraps = 10 * z->far <= z->n && diag3(z->lo, z->hi) > KM_LOOSE_WRAPS * diag;
+    bool wraps = 2 * z->far <= z->n && diag3(z->lo, z->hi) > KM_LOOSE_WRAPS * diag;
     if (wraps || z->held < 0) continue;
     if (!bd->rigid && !(bd->rigid = km__calloc(n, sizeof *bd->rigid))) {
       free(id), free(lp);
