@@ -629,8 +629,12 @@ typedef struct km_mesh_info {
   /* The pieces rig and the solvers see: components of the mesh joined at its seams (1: one
    * piece). loose_vertices: when every piece but the largest has at most a quarter of its
    * vertices, the file's vertices of those small pieces, which follow the largest, the body
-   * (eyes, teeth); 0 otherwise (one piece, or bodies of comparable size, which rig refuses). */
-  size_t pieces, loose_vertices;
+   * (eyes, teeth); 0 otherwise (one piece, or bodies of comparable size, which rig refuses).
+   * rigid_pieces: those small pieces that turn rigidly with the one body vertex nearest to them
+   * (all but the ones that wrap the body, a belt or a coat, which bend with the body under
+   * them: half their vertices within 0.05 of the body's diagonal from it and spanning more
+   * than 0.1 of it). */
+  size_t pieces, loose_vertices, rigid_pieces;
 } km_mesh_info;
 /* Topology and extent of a mesh.
  *   m    in: mesh (a point cloud is fine)
@@ -3019,8 +3023,9 @@ typedef struct km_autorig_report {
                               from the body part it should be in to move it safely */
   /* Small loose pieces (eyes, teeth, buckles: each at most a quarter of the largest piece's
    * vertices) rigged to follow the body, the largest piece: how many, and their vertices in
-   * all (0, 0: one piece) */
-  size_t loose_pieces, loose_vertices;
+   * all (0, 0: one piece); rigid_pieces: those that turn rigidly with one body vertex (see
+   * km_mesh_info.rigid_pieces) */
+  size_t loose_pieces, loose_vertices, rigid_pieces;
 } km_autorig_report;
 
 /* The kind's name: "humanoid" (KM_AUTORIG_KINECT1), "quadruped", "prop", "bust", "upper body"

@@ -1868,8 +1868,10 @@ static void test_loose_pieces(void) {
   CHECK_OK(km_autorig(&e, NULL, &b, &rb, KM_E));
   if (!a.skin.joints || !b.skin.joints || b.skin.n_vertices != n + 12) goto done;
   CHECK(ra.kind == rb.kind && ra.n_extremities == rb.n_extremities);
-  CHECK_MSG(ra.loose_pieces == 0 && rb.loose_pieces == 2 && rb.loose_vertices == 12,
-            "loose pieces %zu (%zu vertices)", rb.loose_pieces, rb.loose_vertices);
+  CHECK_MSG(ra.loose_pieces == 0 && rb.loose_pieces == 2 && rb.loose_vertices == 12 &&
+                rb.rigid_pieces == 2,
+            "loose pieces %zu (%zu vertices, %zu rigid)", rb.loose_pieces, rb.loose_vertices,
+            rb.rigid_pieces);
   double dj = 0;
   for (size_t i = 0; i < 3 * a.skeleton.n_joints; ++i)
     dj = fmax(dj, fabs(a.skeleton.rest[i] - b.skeleton.rest[i]));

@@ -62,8 +62,10 @@ static void test_info_json(void) {
     j = run_json(KM_CLI " info --json cli_pieces.obj", &code);
     CHECK(code == 0 && j);
     if (j)
-      CHECK_MSG(num(j, "components") == 2 && num(j, "pieces") == 2 && num(j, "loose_vertices") == 4,
-                "pieces %g, loose vertices %g", num(j, "pieces"), num(j, "loose_vertices"));
+      CHECK_MSG(num(j, "components") == 2 && num(j, "pieces") == 2 &&
+                    num(j, "loose_vertices") == 4 && num(j, "rigid_pieces") == 1,
+                "pieces %g, loose vertices %g, rigid pieces %g", num(j, "pieces"),
+                num(j, "loose_vertices"), num(j, "rigid_pieces"));
     cJSON_Delete(j);
   }
 }

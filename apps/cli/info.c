@@ -150,6 +150,7 @@ int km_cli_info(int argc, char **argv) {
     cJSON_AddNumberToObject(o, "seam_vertices", (double)info.seam_vertices);
     cJSON_AddNumberToObject(o, "pieces", (double)info.pieces);
     cJSON_AddNumberToObject(o, "loose_vertices", (double)info.loose_vertices);
+    cJSON_AddNumberToObject(o, "rigid_pieces", (double)info.rigid_pieces);
     cJSON_AddNumberToObject(o, "euler_characteristic", (double)info.euler_characteristic);
     cJSON_AddItemToObject(o, "bbox_min", vec3(info.bbox_min));
     cJSON_AddItemToObject(o, "bbox_max", vec3(info.bbox_max));
@@ -186,11 +187,21 @@ int km_cli_info(int argc, char **argv) {
                  "solvers join them, the outputs keep every vertex"
                : "");
   const char *joined = info.seam_vertices ? " (after joining the seams)" : "";
-  if (info.pieces > 1 && info.loose_vertices)
+  if (info.pieces > 1 && info.loose_vertices) {
+    size_t nl = info.pieces - 1, nr = info.rigid_pieces;
     printf("pieces                %zu%s: a body and %zu small piece%s (%zu of the file's vertices: "
-           "eyes, teeth, ...) that rig and the solvers carry with it\n",
-           info.pieces, joined, info.pieces - 1, info.pieces > 2 ? "s" : "", info.loose_vertices);
-  else if (info.pieces > 1)
+           "eyes, teeth, ...) that rig and the solvers carry with it",
+           info.pieces, joined, nl, nl > 1 ? "s" : "", info.loose_vertices);
+    if (nr == nl)
+      printf(", %s rigidly with the body point nearest to it\n",
+             nl > 1 ? "each turning" : "turning");
+    else if (nr == 0)
+      printf(", %s the body, bending with it\n", nl > 1 ? "each wrapping" : "wrapping");
+    else
+      printf(": %zu turning rigidly with the body point nearest to %s, %zu wrapping the body and "
+             "bending with it\n",
+             nr, nr > 1 ? "them" : "it", nl - nr);
+  } else if (info.pieces > 1)
     printf("pieces                %zu%s, two of comparable size: rig animates one body (small "
            "pieces follow it) and refuses this mesh\n",
            info.pieces, joined);

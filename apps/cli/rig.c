@@ -173,10 +173,21 @@ int km_cli_rig(int argc, char **argv) {
                                             "stays)"
                                           : "a humanoid (kinect1)",
          rep.seconds);
-  if (rep.loose_pieces)
-    printf("%zu loose piece%s (%zu vertices: eyes, teeth, ...) follow%s the body where %s\n",
-           rep.loose_pieces, rep.loose_pieces > 1 ? "s" : "", rep.loose_vertices,
-           rep.loose_pieces > 1 ? "" : "s", rep.loose_pieces > 1 ? "they sit" : "it sits");
+  if (rep.loose_pieces) {
+    size_t nl = rep.loose_pieces, nr = rep.rigid_pieces;
+    printf("%zu loose piece%s (%zu vertices: eyes, teeth, ...) follow%s the body where %s", nl,
+           nl > 1 ? "s" : "", rep.loose_vertices, nl > 1 ? "" : "s",
+           nl > 1 ? "they sit" : "it sits");
+    if (nr == nl)
+      printf(", %s rigidly with the body point nearest to it\n",
+             nl > 1 ? "each turning" : "turning");
+    else if (nr == 0)
+      printf(", %s the body, bending with it\n", nl > 1 ? "each wrapping" : "wrapping");
+    else
+      printf(": %zu turning rigidly with the body point nearest to %s, %zu wrapping the body and "
+             "bending with it\n",
+             nr, nr > 1 ? "them" : "it", nl - nr);
+  }
   printf(rep.kind == KM_AUTORIG_PROP ? "extremities and handle points:\n"
                                      : "extremities (geodesic extremes, most prominent first):\n");
   for (size_t e = 0; e < rep.n_extremities; ++e) {

@@ -1972,6 +1972,7 @@ static km_status autorig_pieces(const km_mesh *m, const km_autorig_options *opt,
   if (report) { /* the loose pieces of this mesh, besides any the body's own rigging found */
     report->loose_pieces = bd.n_pieces - 1;
     report->loose_vertices = km__body_loose_vertices(&bd, NULL, n);
+    report->rigid_pieces = bd.rigid_pieces;
   }
 done:
   if (s != KM_OK) km_character_free(out);

@@ -73,6 +73,7 @@ typedef struct km__body {
   int32_t *to_body, *from_body;
   bool *rigid; /* #V: the vertex's piece follows its to_body vertex as a whole (NULL: none) */
   size_t n_pieces, body_vertices, largest_other;
+  size_t rigid_pieces; /* the loose pieces that do so */
 } km__body;
 km_status km__mesh_body(const km_mesh *m, km__body *out, bool *found, km_error *err);
 void km__body_free(km__body *b);

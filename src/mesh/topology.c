@@ -228,12 +228,16 @@ static km_status attach_rigid(const km_mesh *m, km__body *bd, const int32_t *pie
     z->far += !(dist <= KM_LOOSE_AGAINST * diag);
     if (dist < z->best) z->best = dist, z->held = t;
   }
+  for (size_t k = 0; k < np; ++k) { /* rigid: held >= 0 stays; wrapping: held = -1 */
+    loose_piece *z = lp + k;
+    if (2 * z->far <= z->n && diag3(z->lo, z->hi) > KM_LOOSE_WRAPS * diag) z->held = -1;
+    bd->rigid_pieces += z->held >= 0;
+  }
   for (size_t v = 0; v < n; ++v) {
     int32_t q = piece[v];
     if (q < 0 || q == root || q == INT32_MAX || id[q] < 0) continue;
     const loose_piece *z = lp + id[q];
-    bool wraps = 2 * z->far <= z->n && diag3(z->lo, z->hi) > KM_LOOSE_WRAPS * diag;
-    if (wraps || z->held < 0) continue;
+    if (z->held < 0) continue;
     if (!bd->rigid && !(bd->rigid = km__calloc(n, sizeof *bd->rigid))) {
       free(id), free(lp);
       return km__fail(err, KM_ERR_NOMEM, "pieces: out of memory for %zu vertices", n);
@@ -445,6 +449,7 @@ km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *er
   if ((s = km__mesh_body(w, &bd, &found, err)) == KM_OK) {
     out->pieces = bd.n_pieces;
     if (found) out->loose_vertices = km__body_loose_vertices(&bd, wd.to_w, m->n_vertices);
+    if (found) out->rigid_pieces = bd.rigid_pieces;
   }
   km__body_free(&bd);
   km__weld_free(&wd);
