@@ -71,7 +71,9 @@ void km__nearest_x_free(km__nearest_x *ix);
 typedef struct km__body {
   km_mesh body;
   int32_t *to_body, *from_body;
-  bool *rigid; /* #V: the vertex's piece follows its to_body vertex as a whole (NULL: none) */
+  bool *rigid;    /* #V: the vertex's piece follows its to_body vertex as a whole (NULL: none) */
+  int32_t *piece; /* #V: the loose piece of each vertex, 0 .. n_pieces - 2; -1: the body's, or
+                     in no face */
   size_t n_pieces, body_vertices, largest_other;
   size_t rigid_pieces; /* the loose pieces that do so */
 } km__body;
@@ -81,6 +83,12 @@ void km__body_free(km__body *b);
  * file's mesh, to_w NULL, or on its seam-welded mesh, to_w #n: each file vertex's welded one):
  * the count info and rig print, in the file's vertices. */
 size_t km__body_loose_vertices(const km__body *bd, const int32_t *to_w, size_t n);
+/* The vertices of m's loose pieces that lie on its floor, ground #V: pieces of a body with
+ * small loose pieces (km__mesh_body, after joining the seams) whose highest point is within
+ * 0.01 of the body's height (y extent) above the body's lowest point, along y (m in kinemesh's
+ * frame, y up): a ground plane or a plinth exported with the character, which an animation
+ * keeps still instead of carrying it with a foot. *n_pieces: how many such pieces. */
+km_status km__ground_vertices(const km_mesh *m, bool *ground, size_t *n_pieces, km_error *err);
 /* The vertices that make m's shape, keep #V: the body's when m (joined at its seams, as
  * km__mesh_weld joins them) is a body with small loose pieces (km__mesh_body), otherwise every
  * vertex of a face that is not collapsed; every vertex when m has no faces. What the

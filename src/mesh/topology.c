@@ -156,6 +156,7 @@ void km__body_free(km__body *b) {
   free(b->to_body);
   free(b->from_body);
   free(b->rigid);
+  free(b->piece);
   memset(b, 0, sizeof *b);
 }
 
@@ -232,6 +233,14 @@ static km_status attach_rigid(const km_mesh *m, km__body *bd, const int32_t *pie
     loose_piece *z = lp + k;
     if (2 * z->far <= z->n && diag3(z->lo, z->hi) > KM_LOOSE_WRAPS * diag) z->held = -1;
     bd->rigid_pieces += z->held >= 0;
+  }
+  if (!(bd->piece = km__malloc(n, sizeof *bd->piece))) {
+    free(id), free(lp);
+    return km__fail(err, KM_ERR_NOMEM, "pieces: out of memory for %zu vertices", n);
+  }
+  for (size_t v = 0; v < n; ++v) {
+    int32_t q = piece[v];
+    bd->piece[v] = q < 0 || q == root || q == INT32_MAX ? -1 : id[q];
   }
   for (size_t v = 0; v < n; ++v) {
     int32_t q = piece[v];
@@ -330,6 +339,47 @@ size_t km__body_loose_vertices(const km__body *bd, const int32_t *to_w, size_t n
     loose += b >= 0 && bd->from_body[b] != (int32_t)u;
   }
   return loose;
+}
+
+km_status km__ground_vertices(const km_mesh *m, bool *ground, size_t *n_pieces, km_error *err) {
+  size_t n = m->n_vertices;
+  *n_pieces = 0;
+  for (size_t v = 0; v < n; ++v)
+    ground[v] = false;
+  for (size_t i = 0; i < 3 * m->n_faces; ++i)
+    if (m->F[i] < 0 || (size_t)m->F[i] >= n) return KM_OK;
+  km__weld wd;
+  km__body bd;
+  bool found = false;
+  km_status s = km__mesh_weld(m, &wd, err);
+  if (s != KM_OK) return s;
+  const int32_t *to_w = wd.to_w;
+  if ((s = km__mesh_body(to_w ? &wd.w : m, &bd, &found, err)) != KM_OK || !found) goto done;
+  size_t np = bd.n_pieces - 1;
+  double lo = INFINITY, hi = -INFINITY, *top = km__malloc(np ? np : 1, sizeof *top);
+  if (!top) {
+    s = km__fail(err, KM_ERR_NOMEM, "pieces: out of memory");
+    goto done;
+  }
+  for (size_t k = 0; k < np; ++k)
+    top[k] = -INFINITY;
+  for (size_t b = 0; b < bd.body.n_vertices; ++b)
+    lo = fmin(lo, bd.body.V[3 * b + 1]), hi = fmax(hi, bd.body.V[3 * b + 1]);
+  size_t nw = to_w ? wd.w.n_vertices : n;
+  const double *W = to_w ? wd.w.V : m->V;
+  for (size_t u = 0; u < nw; ++u)
+    if (bd.piece[u] >= 0) top[bd.piece[u]] = fmax(top[bd.piece[u]], W[3 * u + 1]);
+  for (size_t k = 0; k < np; ++k)
+    *n_pieces += top[k] <= lo + 0.01 * (hi - lo);
+  for (size_t v = 0; *n_pieces && v < n; ++v) {
+    int32_t q = bd.piece[to_w ? (size_t)to_w[v] : v];
+    ground[v] = q >= 0 && top[q] <= lo + 0.01 * (hi - lo);
+  }
+  free(top);
+done:
+  km__body_free(&bd);
+  km__weld_free(&wd);
+  return s;
 }
 
 km_status km__shape_vertices(const km_mesh *m, bool *keep, km_error *err) {

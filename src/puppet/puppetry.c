@@ -3,6 +3,7 @@
  * object for the file animation, the benchmark and the live server, so the three cannot
  * drift apart. */
 #include "puppet/puppet.h"
+#include "mesh/mesh.h"
 
 #include "motion/motion.h"
 #include "math/math.h"
@@ -40,6 +41,12 @@ struct km_puppetry {
    * (scratch), the first valid one per joint (the retarget's reference, carried over a rig
    * swap like p0) and the newest frame's (NaN: none) */
   double *rot, *rot0, *rotl;
+  /* the vertices of loose pieces lying on the floor (km__ground_vertices: a ground plane or a
+   * plinth exported with the character), kept at rest: carried rigidly with the foot nearest
+   * to it, a ground quad under armadillo_1k tilted with every step and, pushed under the floor
+   * by the tilt, folded into a tent */
+  int32_t *ground;
+  size_t n_ground;
   bool have_last;
   km_puppetry_times times;
 };
@@ -319,6 +326,25 @@ km_status km_puppetry_create(const km_mesh *rest, const km_rig *rig, const char 
   p->rest = rest;
   p->n_in = n_joints;
   km_status s = KM_OK;
+  if (rest->n_faces) {
+    size_t n_gp = 0;
+    bool *g = km__malloc(rest->n_vertices ? rest->n_vertices : 1, sizeof *g);
+    if (!g) goto nomem;
+    if ((s = km__ground_vertices(rest, g, &n_gp, err)) != KM_OK) {
+      free(g);
+      km_puppetry_free(&p);
+      return s;
+    }
+    for (size_t v = 0; v < rest->n_vertices; ++v)
+      p->n_ground += g[v];
+    if (p->n_ground && !(p->ground = km__malloc(p->n_ground, sizeof *p->ground))) {
+      free(g);
+      goto nomem;
+    }
+    for (size_t v = 0, k = 0; v < rest->n_vertices; ++v)
+      if (g[v]) p->ground[k++] = (int32_t)v;
+    free(g);
+  }
   /* a rig's joints are the pushed columns or the 20 Kinect v1 joints (rig_columns) */
   size_t nrot = 9 * (n_joints > KM_KINECT1_JOINTS ? n_joints : KM_KINECT1_JOINTS);
   if (!(p->rot = km__malloc(nrot, sizeof(double))) ||
@@ -506,6 +532,9 @@ km_status km_puppetry_push_rotations(km_puppetry *p, const double *joints, const
     if (km_retarget_floor(p->rt, &fy))
       for (size_t v = 0; v < p->rest->n_vertices; ++v)
         if (V_out[3 * v + 1] < fy) V_out[3 * v + 1] = fy;
+    for (size_t k = 0; k < p->n_ground; ++k) /* the ground stays */
+      memcpy(V_out + 3 * (size_t)p->ground[k], p->rest->V + 3 * (size_t)p->ground[k],
+             3 * sizeof(double));
   }
   double t3 = km_seconds();
   p->times.filter_ms = 1e3 * (t1 - t0);
@@ -596,6 +625,7 @@ void km_puppetry_free(km_puppetry **pp) {
   free(p->rot);
   free(p->rot0);
   free(p->rotl);
+  free(p->ground);
   free(p);
   *pp = NULL;
 }
