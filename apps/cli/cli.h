@@ -145,6 +145,10 @@ double km_cli_floor_lift(double *V, size_t nv, double floor_y);
 /* The glitch rejector's counts in one line, as animate and pose print them; restarted: what
  * the caller did with the joints whose start was the glitch (their count follows), NULL to leave
  * them out. */
+/* How loose pieces follow the body, after "... follow(s) the body": ", each turning rigidly
+ * with the body point nearest to it", ", wrapping the body, bending with it" or a count of each;
+ * and a newline. loose > 0, rigid <= loose. */
+void km_cli_pieces_how(FILE *f, size_t loose, size_t rigid);
 void km_cli_glitch_line(const km_glitch_stats *gs, const char *restarted, char *line, size_t n);
 
 /* Exit codes */

@@ -934,3 +934,16 @@ void km_cli_glitch_line(const km_glitch_stats *gs, const char *restarted, char *
     k += snprintf(line + k, n - (size_t)k, "; %s: %zu", restarted, gs->restarted);
   if (k >= 0 && (size_t)k < n) snprintf(line + k, n - (size_t)k, "\n");
 }
+
+void km_cli_pieces_how(FILE *f, size_t loose, size_t rigid) {
+  if (rigid == loose)
+    fprintf(f, ", %s rigidly with the body point nearest to it\n",
+            loose > 1 ? "each turning" : "turning");
+  else if (rigid == 0)
+    fprintf(f, ", %s the body, bending with it\n", loose > 1 ? "each wrapping" : "wrapping");
+  else
+    fprintf(f,
+            ": %zu turning rigidly with the body point nearest to %s, %zu wrapping the body and "
+            "bending with it\n",
+            rigid, rigid > 1 ? "them" : "it", loose - rigid);
+}

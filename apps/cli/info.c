@@ -192,15 +192,7 @@ int km_cli_info(int argc, char **argv) {
     printf("pieces                %zu%s: a body and %zu small piece%s (%zu of the file's vertices: "
            "eyes, teeth, ...) that rig and the solvers carry with it",
            info.pieces, joined, nl, nl > 1 ? "s" : "", info.loose_vertices);
-    if (nr == nl)
-      printf(", %s rigidly with the body point nearest to it\n",
-             nl > 1 ? "each turning" : "turning");
-    else if (nr == 0)
-      printf(", %s the body, bending with it\n", nl > 1 ? "each wrapping" : "wrapping");
-    else
-      printf(": %zu turning rigidly with the body point nearest to %s, %zu wrapping the body and "
-             "bending with it\n",
-             nr, nr > 1 ? "them" : "it", nl - nr);
+    km_cli_pieces_how(stdout, nl, nr);
   } else if (info.pieces > 1)
     printf("pieces                %zu%s, two of comparable size: rig animates one body (small "
            "pieces follow it) and refuses this mesh\n",

@@ -178,15 +178,7 @@ int km_cli_rig(int argc, char **argv) {
     printf("%zu loose piece%s (%zu vertices: eyes, teeth, ...) follow%s the body where %s", nl,
            nl > 1 ? "s" : "", rep.loose_vertices, nl > 1 ? "" : "s",
            nl > 1 ? "they sit" : "it sits");
-    if (nr == nl)
-      printf(", %s rigidly with the body point nearest to it\n",
-             nl > 1 ? "each turning" : "turning");
-    else if (nr == 0)
-      printf(", %s the body, bending with it\n", nl > 1 ? "each wrapping" : "wrapping");
-    else
-      printf(": %zu turning rigidly with the body point nearest to %s, %zu wrapping the body and "
-             "bending with it\n",
-             nr, nr > 1 ? "them" : "it", nl - nr);
+    km_cli_pieces_how(stdout, nl, nr);
   }
   printf(rep.kind == KM_AUTORIG_PROP ? "extremities and handle points:\n"
                                      : "extremities (geodesic extremes, most prominent first):\n");

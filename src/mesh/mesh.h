@@ -83,6 +83,10 @@ void km__body_free(km__body *b);
  * file's mesh, to_w NULL, or on its seam-welded mesh, to_w #n: each file vertex's welded one):
  * the count info and rig print, in the file's vertices. */
 size_t km__body_loose_vertices(const km__body *bd, const int32_t *to_w, size_t n);
+/* The body of a file as rig and the solvers see it: km__mesh_weld (wd->to_w NULL when no seam
+ * joins anything), then km__mesh_body on the joined mesh, or on m itself. On success free both
+ * (km__weld_free, km__body_free); on failure both are freed. */
+km_status km__file_body(const km_mesh *m, km__weld *wd, km__body *bd, bool *found, km_error *err);
 /* The vertices of m's loose pieces that lie on its floor, ground #V: pieces of a body with
  * small loose pieces (km__mesh_body, after joining the seams) whose highest point is within
  * 0.01 of the body's height (y extent) above the body's lowest point, along y (m in kinemesh's

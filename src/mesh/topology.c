@@ -341,6 +341,15 @@ size_t km__body_loose_vertices(const km__body *bd, const int32_t *to_w, size_t n
   return loose;
 }
 
+km_status km__file_body(const km_mesh *m, km__weld *wd, km__body *bd, bool *found, km_error *err) {
+  memset(bd, 0, sizeof *bd);
+  *found = false;
+  km_status s = km__mesh_weld(m, wd, err);
+  if (s == KM_OK) s = km__mesh_body(wd->to_w ? &wd->w : m, bd, found, err);
+  if (s != KM_OK) km__weld_free(wd);
+  return s;
+}
+
 km_status km__ground_vertices(const km_mesh *m, bool *ground, size_t *n_pieces, km_error *err) {
   size_t n = m->n_vertices;
   *n_pieces = 0;
@@ -351,10 +360,10 @@ km_status km__ground_vertices(const km_mesh *m, bool *ground, size_t *n_pieces, 
   km__weld wd;
   km__body bd;
   bool found = false;
-  km_status s = km__mesh_weld(m, &wd, err);
+  km_status s = km__file_body(m, &wd, &bd, &found, err);
   if (s != KM_OK) return s;
   const int32_t *to_w = wd.to_w;
-  if ((s = km__mesh_body(to_w ? &wd.w : m, &bd, &found, err)) != KM_OK || !found) goto done;
+  if (!found) goto done;
   size_t np = bd.n_pieces - 1;
   double lo = INFINITY, hi = -INFINITY, *top = km__malloc(np ? np : 1, sizeof *top);
   if (!top) {
@@ -400,10 +409,10 @@ km_status km__shape_vertices(const km_mesh *m, bool *keep, km_error *err) {
   km__weld wd;
   km__body bd;
   bool found = false;
-  km_status s = km__mesh_weld(m, &wd, err);
+  km_status s = km__file_body(m, &wd, &bd, &found, err);
   if (s != KM_OK) return s;
   const int32_t *to_w = wd.to_w;
-  if ((s = km__mesh_body(to_w ? &wd.w : m, &bd, &found, err)) == KM_OK && found)
+  if (found)
     for (size_t v = 0; v < n; ++v) {
       size_t u = to_w ? (size_t)to_w[v] : v;
       int32_t b = bd.to_body[u];
@@ -494,13 +503,10 @@ km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *er
   km__weld wd;
   km__body bd;
   bool found = false;
-  if ((s = km__mesh_weld(m, &wd, err)) != KM_OK) return s;
-  const km_mesh *w = wd.to_w ? &wd.w : m;
-  if ((s = km__mesh_body(w, &bd, &found, err)) == KM_OK) {
-    out->pieces = bd.n_pieces;
-    if (found) out->loose_vertices = km__body_loose_vertices(&bd, wd.to_w, m->n_vertices);
-    if (found) out->rigid_pieces = bd.rigid_pieces;
-  }
+  if ((s = km__file_body(m, &wd, &bd, &found, err)) != KM_OK) return s;
+  out->pieces = bd.n_pieces;
+  if (found) out->loose_vertices = km__body_loose_vertices(&bd, wd.to_w, m->n_vertices);
+  if (found) out->rigid_pieces = bd.rigid_pieces;
   km__body_free(&bd);
   km__weld_free(&wd);
   return s;

@@ -274,9 +274,9 @@ static km_status find_held(km_puppet *p, const km_mesh *rest, km_error *err) {
   km__body bd = {0};
   bool found = false;
   int32_t *slot = NULL;
-  km_status s = km__mesh_weld(rest, &wd, err);
-  if (s == KM_OK) s = km__mesh_body(wd.to_w ? &wd.w : rest, &bd, &found, err);
-  if (s != KM_OK || !found || !bd.rigid) goto done;
+  km_status s = km__file_body(rest, &wd, &bd, &found, err);
+  if (s != KM_OK) return s;
+  if (!found || !bd.rigid) goto done;
   /* anchors keyed by their vertex of the joined mesh, whose faces give their neighbours (a
    * seam's copies of a vertex move alike, and the lowest copy, wd.first, may be in no face) */
   const km_mesh *wm = wd.to_w ? &wd.w : rest;
