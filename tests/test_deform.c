@@ -612,6 +612,31 @@ static void test_errors(void) {
     free(Y);
     km_arap_free(&a);
   }
+  /* two vertices only a collapsed face uses (a repeated index: no area, no Laplacian row)
+   * stay where they are too: a singular system before, and --solver full refused the mesh */
+  {
+    km_mesh c = {0};
+    CHECK_OK(km_mesh_alloc(m.n_vertices + 2, m.n_faces + 1, &c, KM_E));
+    if (c.V) {
+      memcpy(c.V, m.V, m.n_vertices * 3 * sizeof(double));
+      memcpy(c.F, m.F, m.n_faces * 3 * sizeof(int32_t));
+      const double extra[6] = {5, 6, 7, 5.1, 6, 7};
+      memcpy(c.V + 3 * m.n_vertices, extra, sizeof extra);
+      int32_t *t = c.F + 3 * m.n_faces;
+      t[0] = t[1] = (int32_t)m.n_vertices, t[2] = (int32_t)m.n_vertices + 1;
+      CHECK_OK(km_arap_precompute(&c, 1, off, hv, NULL, &a, KM_E));
+      if (a) {
+        double *Y = malloc(c.n_vertices * 3 * sizeof(double)),
+               T0[3] = {c.V[0] + 0.1, c.V[1], c.V[2]};
+        CHECK_OK(km_arap_solve(a, T0, Y, KM_E));
+        CHECK(all_finite(Y, c.n_vertices * 3));
+        CHECK(memcmp(Y + 3 * m.n_vertices, extra, sizeof extra) == 0);
+        free(Y);
+        km_arap_free(&a);
+      }
+    }
+    km_mesh_free(&c);
+  }
   /* ... and in the reduced solver too (issue 18: it moved with the fields) */
   km_puppet *pr = NULL;
   CHECK_OK(km_puppet_precompute(&two, NULL, &pr, KM_E));

@@ -286,11 +286,14 @@ static km_status arap_precompute(const km_mesh *rest, size_t n_handles,
     a->h_v[i] = v;
   }
   if ((s = attach_loose(a, rest, err)) != KM_OK) goto fail;
-  /* vertices used by no face have no Laplacian row: they stay where they are (INT32_MIN) */
+  /* vertices used by no face, or only by collapsed ones (a repeated index: no area, so no
+   * Laplacian row either: a lone one made the system singular and --solver full refused the
+   * mesh), stay where they are (INT32_MIN); they draw nothing */
   unsigned char *used = km__calloc(n, 1);
   if (!used) goto nomem;
-  for (size_t i = 0; i < rest->n_faces * 3; ++i)
-    used[rest->F[i]] = 1;
+  for (size_t f = 0; f < rest->n_faces; ++f)
+    for (int k = 0; k < 3 && !km__face_collapsed(rest->F + 3 * f); ++k)
+      used[rest->F[3 * f + (size_t)k]] = 1;
   size_t nfree = 0;
   for (size_t v = 0; v < n; ++v)
     if (a->map[v] == 0) a->map[v] = used[v] ? (int32_t)nfree++ : INT32_MIN;
