@@ -95,7 +95,9 @@ km_status km__file_body(const km_mesh *m, km__weld *wd, km__body *bd, bool *foun
 km_status km__ground_vertices(const km_mesh *m, bool *ground, size_t *n_pieces, km_error *err);
 /* The vertices that make m's shape, keep #V: the body's when m (joined at its seams, as
  * km__mesh_weld joins them) is a body with small loose pieces (km__mesh_body), otherwise every
- * vertex of a face that is not collapsed; every vertex when m has no faces. What the
+ * vertex of a face that is not collapsed; every vertex when m has no faces, or when every face
+ * is collapsed (the retargeter's height was NaN on such a mesh, its stray-vertex fallback
+ * having gone into this function). What the
  * orientation guess, the character's height (the performer-to-character scale) and its rest
  * floor measure: a ground plane exported with a character, a prop beside it or a vertex no face
  * uses is not the character. With a face index out of range: the vertices the faces name. */

@@ -406,6 +406,14 @@ km_status km__shape_vertices(const km_mesh *m, bool *keep, km_error *err) {
         in_range = false;
     }
   if (!in_range) return KM_OK; /* not a mesh to take apart: the vertices its faces name */
+  bool any = false;
+  for (size_t v = 0; v < n && !any; ++v)
+    any = keep[v];
+  if (!any) { /* every face collapsed: no surface to tell, so every vertex, as with no faces */
+    for (size_t v = 0; v < n; ++v)
+      keep[v] = true;
+    return KM_OK;
+  }
   km__weld wd;
   km__body bd;
   bool found = false;
