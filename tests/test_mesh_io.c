@@ -51,6 +51,16 @@ static void test_obj_forms(void) {
   CHECK(face_is(&m, 5, 4, 2, 1));
   km_mesh_free(&m);
   CHECK(m.V == NULL && m.F == NULL && m.n_vertices == 0);
+  /* A statement continued on the next line with a backslash (the OBJ spec's "\", as a long
+   * face is exported; CRLF or blanks after it too); a backslash inside a line (a Windows
+   * path) is a character as any other. */
+  const char cont[] = "mtllib C:\\art\\a.mtl\nv 0 0 0\nv 1 0 \\\n  0\nv 0 1 0\nv 0 0 1\n"
+                      "f 1 2 \\\r\n 3\nf 1 \\ \n 2 \\\n 4\n";
+  CHECK_OK(km_mesh_parse(cont, sizeof cont - 1, KM_FORMAT_OBJ, "cont.obj", &m, KM_E));
+  CHECK(m.n_vertices == 4 && m.n_faces == 2);
+  CHECK(vertex_is(&m, 1, 1, 0, 0) && vertex_is(&m, 3, 0, 0, 1));
+  CHECK(face_is(&m, 0, 0, 1, 2) && face_is(&m, 1, 0, 1, 3));
+  km_mesh_free(&m);
 }
 
 static void test_ply_ascii(void) {
@@ -268,6 +278,9 @@ static void test_bad_obj(void) {
   /* 2^64 + 2 must not wrap around to a valid index. */
   EXPECT_FAIL("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 18446744073709551618 2 3\n", KM_FORMAT_OBJ, "a.obj",
               KM_ERR_PARSE, ":4:", "face vertex");
+  /* a continued statement's lines still count: the bad face is on line 7 */
+  EXPECT_FAIL("v 0 0 0\nv 1 0 \\\n 0\nv 1 1 0\nf 1 \\\n 2 3\nf 1 2 x\n", KM_FORMAT_OBJ, "a.obj",
+              KM_ERR_PARSE, ":7:", "'x'");
   EXPECT_FAIL("# nothing\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE, ":", "'v'");
   EXPECT_FAIL("v 0 0 0\n\x7f\x45\x4c\x46\x02\x01\n", KM_FORMAT_OBJ, "a.obj", KM_ERR_PARSE,
               ":2:", "keyword");

@@ -52,8 +52,52 @@ static bool parse_face_ref(const char *tok, size_t len, int64_t *idx, int64_t tn
   return true;
 }
 
+/* OBJ's line continuation (the spec's "\" at the end of a line: the statement goes on on the
+ * next line, as exporters write long `f` lines). NULL when data has none (or out of memory:
+ * *nomem); else a copy that keeps every byte offset, the backslash and any '\r' or blanks
+ * after it spaces and the newline a vertical tab, which the tokenizer reads as a space and the
+ * parser counts as a line, so that errors still name the file's own lines. A backslash
+ * elsewhere (a Windows path in a `mtllib`) is left as it is. */
+static char *join_continued(const char *data, size_t size, bool *nomem) {
+  char *copy = NULL;
+  *nomem = false;
+  for (const char *p = data, *end = data + size; (p = memchr(p, '\\', (size_t)(end - p)));) {
+    const char *q = p + 1;
+    while (q < end && (*q == ' ' || *q == '\t' || *q == '\r'))
+      ++q;
+    if (q == end || *q != '\n') {
+      p = q;
+      continue;
+    }
+    if (!copy) {
+      if (!(copy = malloc(size))) {
+        *nomem = true;
+        return NULL;
+      }
+      memcpy(copy, data, size);
+    }
+    memset(copy + (p - data), ' ', (size_t)(q - p));
+    copy[q - data] = '\v';
+    p = q + 1;
+  }
+  return copy;
+}
+
+static km_status obj_parse_joined(const char *data, size_t size, bool joined, const char *name,
+                                  km_mesh *out, km_error *err);
+
 km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh *out,
                         km_error *err) {
+  bool nomem;
+  char *joined = join_continued(data, size, &nomem);
+  if (nomem) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+  km_status s = obj_parse_joined(joined ? joined : data, size, joined != NULL, name, out, err);
+  free(joined);
+  return s;
+}
+
+static km_status obj_parse_joined(const char *data, size_t size, bool joined, const char *name,
+                                  km_mesh *out, km_error *err) {
   const char *end = data + size;
   char q[64];
 
@@ -101,7 +145,7 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
   size_t nt = 0, nn = 0, seams = 0;
   double *C = NULL, c_max = 0; /* vertex colours, the largest component */
   km_status s = KM_OK;
-  size_t nv = 0, line = 0;
+  size_t nv = 0, line = 0, continued = 0; /* the lines the last statement went on over */
   int32_t poly_buf[64];
   int32_t *poly = poly_buf;
   size_t poly_cap = 64;
@@ -109,7 +153,10 @@ km_status km__obj_parse(const char *data, size_t size, const char *name, km_mesh
     const char *nl = memchr(p, '\n', (size_t)(end - p));
     line_cursor c = {p, nl ? nl : end};
     p = nl ? nl + 1 : end;
-    ++line;
+    line += 1 + continued;
+    continued = 0;
+    for (const char *q = c.p; joined && (q = memchr(q, '\v', (size_t)(c.end - q))); ++q)
+      ++continued;
     const char *tok;
     size_t len;
     if (!next_token(&c, &tok, &len) || tok[0] == '#') continue;
