@@ -82,6 +82,27 @@ bool km__whole_number(double v, double lo, double hi, int64_t *out);
 /* File extension (lowercase, without the dot) into out; "" when none. */
 void km__extension(const char *path, char *out, size_t out_size);
 
+/* Union-find over int32 ids (parent[x] == x: a root), with path halving; union keeps the
+ * smaller id as the root, so a set's root is its smallest member. The one union-find of the
+ * library (topology's components and pieces, ARAP's anchored check, the polygoniser's welds,
+ * the puppet model's isoline loops). */
+static inline void km__uf_init(int32_t *parent, size_t n) {
+  for (size_t i = 0; i < n; ++i)
+    parent[i] = (int32_t)i;
+}
+static inline int32_t km__uf_find(int32_t *parent, int32_t x) {
+  while (parent[x] != x) {
+    parent[x] = parent[parent[x]];
+    x = parent[x];
+  }
+  return x;
+}
+static inline void km__uf_union(int32_t *parent, int32_t a, int32_t b) {
+  a = km__uf_find(parent, a);
+  b = km__uf_find(parent, b);
+  if (a != b) parent[a < b ? b : a] = a < b ? a : b;
+}
+
 /* FNV-1a 64-bit over bytes, chained from `h` (start with KM__FNV_SEED). */
 #define KM__FNV_SEED 0xcbf29ce484222325ULL
 uint64_t km__fnv1a(uint64_t h, const void *data, size_t size);

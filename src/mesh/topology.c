@@ -70,20 +70,6 @@ static size_t face_edges(const int32_t *t, uint64_t *keys) {
   return n;
 }
 
-static int32_t uf_find(int32_t *parent, int32_t x) {
-  while (parent[x] != x) {
-    parent[x] = parent[parent[x]];
-    x = parent[x];
-  }
-  return x;
-}
-
-static void uf_union(int32_t *parent, int32_t a, int32_t b) {
-  a = uf_find(parent, a);
-  b = uf_find(parent, b);
-  if (a != b) parent[a < b ? b : a] = a < b ? a : b;
-}
-
 double km_bbox_diagonal(const double *V, size_t n_vertices) {
   if (!V || !n_vertices) return 0.0;
   double lo[3] = {V[0], V[1], V[2]}, hi[3] = {V[0], V[1], V[2]};
@@ -277,11 +263,11 @@ km_status km__mesh_body(const km_mesh *m, km__body *out, bool *found, km_error *
       piece[m->F[3 * f + (size_t)c]] = m->F[3 * f + (size_t)c];
   for (size_t f = 0; f < m->n_faces; ++f)
     for (int c = 1; c < 3 && !km__face_collapsed(m->F + 3 * f); ++c)
-      uf_union(piece, m->F[3 * f], m->F[3 * f + (size_t)c]);
+      km__uf_union(piece, m->F[3 * f], m->F[3 * f + (size_t)c]);
   int32_t root = -1;
   for (size_t v = 0; v < n; ++v) {
     if (piece[v] < 0) continue;
-    piece[v] = uf_find(piece, (int32_t)v);
+    piece[v] = km__uf_find(piece, (int32_t)v);
     out->n_pieces += cnt[piece[v]]++ == 0;
   }
   for (size_t v = 0; v < n; ++v)
@@ -580,8 +566,8 @@ static km_status mesh_info(const km_mesh *m, bool seams, km_mesh_info *out, km_e
   for (size_t f = 0; f < nf; ++f) {
     const int32_t *t = m->F + 3 * f;
     if (!km__face_collapsed(t)) {
-      uf_union(parent, t[0], t[1]);
-      uf_union(parent, t[0], t[2]);
+      km__uf_union(parent, t[0], t[1]);
+      km__uf_union(parent, t[0], t[2]);
       local[t[0]] = local[t[1]] = local[t[2]] = 1;
     }
     vf_off[t[0] + 1]++, vf_off[t[1] + 1]++, vf_off[t[2] + 1]++;
@@ -592,7 +578,7 @@ static km_status mesh_info(const km_mesh *m, bool seams, km_mesh_info *out, km_e
       out->isolated_vertices++;
     else {
       ++used;
-      if (local[v] && uf_find(parent, (int32_t)v) == (int32_t)v) out->components++;
+      if (local[v] && km__uf_find(parent, (int32_t)v) == (int32_t)v) out->components++;
     }
   }
   for (size_t f = 0; f < nf; ++f)
@@ -648,11 +634,11 @@ static km_status mesh_info(const km_mesh *m, bool seams, km_mesh_info *out, km_e
           lparent[n_local] = n_local;
           touched[n_local++] = opp[k];
         }
-      uf_union(lparent, local[opp[0]], local[opp[1]]);
+      km__uf_union(lparent, local[opp[0]], local[opp[1]]);
     }
     int32_t fans = 0;
     for (int32_t i = 0; i < n_local; ++i) {
-      if (uf_find(lparent, i) == i) ++fans;
+      if (km__uf_find(lparent, i) == i) ++fans;
       local[touched[i]] = -1;
     }
     if (fans > 1) out->nonmanifold_vertices++;
@@ -764,7 +750,7 @@ km_status km_boundary_loops(const km_mesh *m, int32_t *loop, size_t *n_loops, km
       ++j;
     if (j - i == 1) {
       int32_t a = (int32_t)(keys[i] >> 32), b = (int32_t)(keys[i] & 0xffffffffu);
-      uf_union(parent, a, b);
+      km__uf_union(parent, a, b);
       loop[a] = loop[b] = 0; /* on a boundary; labelled below */
     }
     i = j;
@@ -774,7 +760,7 @@ km_status km_boundary_loops(const km_mesh *m, int32_t *loop, size_t *n_loops, km
     if (loop[v] == 0) loop[v] = -2; /* on a boundary, not yet labelled */
   for (size_t v = 0; v < nv; ++v) {
     if (loop[v] != -2) continue;
-    int32_t r = uf_find(parent, (int32_t)v);
+    int32_t r = km__uf_find(parent, (int32_t)v);
     if (loop[r] < 0) loop[r] = (int32_t)(*n_loops)++;
     loop[v] = loop[r];
   }
@@ -892,13 +878,13 @@ km_status km__seated_base(const km_mesh *m, bool *found, double *base_top, km_er
       continue;
     for (int k = 0; k < 3; ++k)
       if (parent[t[k]] < 0) parent[t[k]] = t[k];
-    uf_union(parent, t[0], t[1]);
-    uf_union(parent, t[0], t[2]);
+    km__uf_union(parent, t[0], t[1]);
+    km__uf_union(parent, t[0], t[2]);
   }
   int32_t big = -1;
   for (size_t v = 0; v < nv; ++v)
     if (parent[v] >= 0) {
-      int32_t r = uf_find(parent, (int32_t)v);
+      int32_t r = km__uf_find(parent, (int32_t)v);
       if (++count[r] > (big < 0 ? 0 : count[big])) big = r;
     }
   if (big >= 0) {
@@ -906,7 +892,7 @@ km_status km__seated_base(const km_mesh *m, bool *found, double *base_top, km_er
     bool alone = true;
     for (size_t v = 0; v < nv; ++v) {
       if (parent[v] < 0) continue;
-      int32_t r = uf_find(parent, (int32_t)v);
+      int32_t r = km__uf_find(parent, (int32_t)v);
       if (r != big) {
         alone = alone && !(count[r] >= 0.2 * (double)count[big]);
         continue;

@@ -48,14 +48,6 @@ struct km_arap {
   int32_t *att;
 };
 
-static int32_t uf_find(int32_t *parent, int32_t x) {
-  while (parent[x] != x) {
-    parent[x] = parent[parent[x]];
-    x = parent[x];
-  }
-  return x;
-}
-
 /* -L_ff is only semidefinite when a connected component holds no handle vertex, and CHOLMOD
  * may still "factor" it with a round-off pivot, so check the topology instead (union-find
  * over the faces). Returns the first unanchored vertex or -1. */
@@ -66,17 +58,18 @@ static int32_t unanchored_vertex(const km_mesh *m, const int32_t *map, const int
     parent[v] = (int32_t)v;
   for (size_t f = 0; f < m->n_faces; ++f)
     for (int k = 1; k < 3 && !km__face_collapsed(m->F + 3 * f); ++k) {
-      int32_t a = uf_find(parent, m->F[3 * f]), b = uf_find(parent, m->F[3 * f + k]);
+      int32_t a = km__uf_find(parent, m->F[3 * f]), b = km__uf_find(parent, m->F[3 * f + k]);
       if (a != b) parent[a] = b;
     }
   unsigned char *anchored = calloc(n, 1);
   if (!anchored) return -1;
   for (size_t v = 0; v < n; ++v)
     if ((map[v] < 0 && map[v] != INT32_MIN) || (att && att[v] >= 0))
-      anchored[uf_find(parent, (int32_t)v)] = 1;
+      anchored[km__uf_find(parent, (int32_t)v)] = 1;
   int32_t bad = -1;
   for (size_t f = 0; f < m->n_faces * 3 && bad < 0; ++f)
-    if (!km__face_collapsed(m->F + f / 3 * 3) && !anchored[uf_find(parent, m->F[f])]) bad = m->F[f];
+    if (!km__face_collapsed(m->F + f / 3 * 3) && !anchored[km__uf_find(parent, m->F[f])])
+      bad = m->F[f];
   free(anchored);
   return bad;
 }
@@ -130,14 +123,14 @@ static km_status attach_loose(km_arap *a, const km_mesh *rest, km_error *err) {
     parent[v] = (int32_t)v, a->att[v] = -1;
   for (size_t f = 0; f < rest->n_faces; ++f)
     for (int k = 1; k < 3 && !km__face_collapsed(rest->F + 3 * f); ++k) {
-      int32_t x = uf_find(parent, rest->F[3 * f]), y = uf_find(parent, rest->F[3 * f + k]);
+      int32_t x = km__uf_find(parent, rest->F[3 * f]), y = km__uf_find(parent, rest->F[3 * f + k]);
       if (x != y) parent[x] = y;
     }
   for (size_t i = 0; i < a->n_hv; ++i)
-    held[uf_find(parent, a->h_v[i])] = 1;
+    held[km__uf_find(parent, a->h_v[i])] = 1;
   for (size_t v = 0; v < n; ++v) {
     int32_t b = bd.to_body[v];
-    if (b < 0 || bd.from_body[b] == (int32_t)v || held[uf_find(parent, (int32_t)v)]) continue;
+    if (b < 0 || bd.from_body[b] == (int32_t)v || held[km__uf_find(parent, (int32_t)v)]) continue;
     a->att[v] = bd.from_body[b]; /* a loose piece's vertex, its piece holding no handle */
     a->map[v] = INT32_MIN;       /* out of the solve */
     ++n_att;

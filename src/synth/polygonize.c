@@ -10,6 +10,7 @@
  * is a closed 2-manifold. Only blocks of BxBxB cells whose centre value does not prove them
  * to be entirely inside or outside (the field is 1-Lipschitz) are evaluated, so memory and
  * time scale with the surface area, not the volume. */
+#include "core/core.h"
 #include "synth/polygonize.h"
 #include "math/math.h"
 
@@ -326,27 +327,6 @@ static bool reserve(void **p, size_t *cap, size_t need, size_t elem) {
   return true;
 }
 
-static void uf_init(int32_t *p, size_t n) {
-  for (size_t i = 0; i < n; ++i)
-    p[i] = (int32_t)i;
-}
-static int32_t uf_find(int32_t *p, int32_t x) {
-  while (p[x] != x) {
-    p[x] = p[p[x]];
-    x = p[x];
-  }
-  return x;
-}
-static void uf_union(int32_t *p, int32_t a, int32_t b) {
-  a = uf_find(p, a);
-  b = uf_find(p, b);
-  if (a == b) return;
-  if (a < b)
-    p[b] = a;
-  else
-    p[a] = b;
-}
-
 /* Keeps the largest connected component (ties: the one with the smallest vertex index). */
 static km_status keep_largest(out_buf *o, km_mesh *out, km_error *err) {
   size_t nv = o->nv, nf = o->nf;
@@ -357,21 +337,21 @@ static km_status keep_largest(out_buf *o, km_mesh *out, km_error *err) {
     free(cnt);
     return km__fail(err, KM_ERR_NOMEM, "polygonise: out of memory (%zu vertices)", nv);
   }
-  uf_init(par, nv);
+  km__uf_init(par, nv);
   for (size_t f = 0; f < nf; ++f) {
-    uf_union(par, o->F[3 * f], o->F[3 * f + 1]);
-    uf_union(par, o->F[3 * f], o->F[3 * f + 2]);
+    km__uf_union(par, o->F[3 * f], o->F[3 * f + 1]);
+    km__uf_union(par, o->F[3 * f], o->F[3 * f + 2]);
   }
   int32_t best = -1;
   for (size_t i = 0; i < nv; ++i) {
-    int32_t r = uf_find(par, (int32_t)i);
+    int32_t r = km__uf_find(par, (int32_t)i);
     ++cnt[r];
     if (best < 0 || cnt[r] > cnt[best] || (cnt[r] == cnt[best] && r < best)) best = r;
   }
   /* Remap: cnt reused as the new index. */
   size_t nnv = 0;
   for (size_t i = 0; i < nv; ++i)
-    cnt[i] = uf_find(par, (int32_t)i) == best ? (int32_t)nnv++ : -1;
+    cnt[i] = km__uf_find(par, (int32_t)i) == best ? (int32_t)nnv++ : -1;
   double *V = km__malloc(nnv * 3, sizeof *V);
   int32_t *F = km__malloc(nf * 3, sizeof *F);
   if (!V || !F) {
