@@ -116,12 +116,6 @@ static double dist3(const double *a, const double *b) {
   return sqrt(km__dot3(w, w));
 }
 
-static int32_t uf_find(int32_t *p, int32_t v) {
-  while (p[v] != v)
-    v = p[v] = p[p[v]];
-  return v;
-}
-
 static int skel_joint(const km_skeleton *sk, const char *name) {
   for (size_t j = 0; j < sk->n_joints; ++j)
     if (sk->names[j] && !strcmp(sk->names[j], name)) return (int)j;
@@ -317,13 +311,13 @@ static bool bone_bands(const km_character *c, const int32_t *ends, size_t n_ends
   for (size_t f = 0; f < m->n_faces; ++f)
     for (int k = 0; k < 3; ++k) {
       int32_t a = m->F[3 * f + k], b = m->F[3 * f + (k + 1) % 3];
-      if (band[a] >= 0 && band[a] == band[b]) uf[uf_find(uf, a)] = uf_find(uf, b);
+      if (band[a] >= 0 && band[a] == band[b]) km__uf_union(uf, a, b);
     }
   for (int b = 0; b < N_BONE_HANDLES; ++b)
     bone_ok[b] = bone_ok[b] && seed[b] >= 0;
   for (size_t v = 0; v < n; ++v)
     if (band[v] >= 0 &&
-        (!bone_ok[band[v]] || uf_find(uf, (int32_t)v) != uf_find(uf, seed[band[v]])))
+        (!bone_ok[band[v]] || km__uf_find(uf, (int32_t)v) != km__uf_find(uf, seed[band[v]])))
       band[v] = -1;
   free(uf), free(best), free(seed), free(vd), free(dists);
   return true;
@@ -495,21 +489,21 @@ static km_status end_handles(const km_character *c, const int32_t *nearest, cons
   for (size_t f = 0; f < m->n_faces; ++f)
     for (int k = 0; k < 3; ++k) {
       int32_t a = m->F[3 * f + k], b = m->F[3 * f + (k + 1) % 3];
-      if (end[a] >= 0 && end[a] == end[b]) uf[uf_find(uf, a)] = uf_find(uf, b);
+      if (end[a] >= 0 && end[a] == end[b]) km__uf_union(uf, a, b);
     }
   for (int h = 1; h < 5; ++h) {
     int32_t tip = (int32_t)p->handle_vertex[h];
     if (js[h] < 0 || end[tip] != h) continue; /* its tip in another's ball: km_rig_parse says */
-    int32_t root = uf_find(uf, tip);
+    int32_t root = km__uf_find(uf, tip);
     size_t cnt = 0;
     for (size_t v = 0; v < n; ++v)
-      cnt += end[v] == h && uf_find(uf, (int32_t)v) == root;
+      cnt += end[v] == h && km__uf_find(uf, (int32_t)v) == root;
     if (!(p->end_list[h] = km__malloc(cnt, sizeof(int32_t)))) {
       st = km__fail(err, KM_ERR_NOMEM, "out of memory");
       goto done;
     }
     for (size_t v = 0; v < n; ++v)
-      if (end[v] == h && uf_find(uf, (int32_t)v) == root)
+      if (end[v] == h && km__uf_find(uf, (int32_t)v) == root)
         p->end_list[h][p->n_end[h]++] = (int32_t)v;
   }
 done:
@@ -590,11 +584,11 @@ static km_status split_head_base(const km_mesh *m, const double o[3], const doub
   for (size_t f = 0; f < m->n_faces; ++f)
     for (int k = 0; k < 3; ++k) {
       int32_t u = m->F[3 * f + k], w = m->F[3 * f + (k + 1) % 3];
-      if (sv[u] >= neck && sv[w] >= neck) uf[uf_find(uf, u)] = uf_find(uf, w);
+      if (sv[u] >= neck && sv[w] >= neck) km__uf_union(uf, u, w);
     }
-  int32_t top = uf_find(uf, seed);
+  int32_t top = km__uf_find(uf, seed);
   for (size_t v = 0; v < n; ++v) {
-    bool head = sv[v] >= neck && uf_find(uf, (int32_t)v) == top;
+    bool head = sv[v] >= neck && km__uf_find(uf, (int32_t)v) == top;
     if (head) p->end_list[0][p->n_end[0]++] = (int32_t)v;
     take[v] = !head && sv[v] <= base;
   }
