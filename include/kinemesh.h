@@ -633,8 +633,11 @@ typedef struct km_mesh_info {
    * rigid_pieces: those small pieces that turn rigidly with the one body vertex nearest to them
    * (all but the ones that wrap the body, a belt or a coat, which bend with the body under
    * them: half their vertices within 0.05 of the body's diagonal from it and spanning more
-   * than 0.1 of it). */
-  size_t pieces, loose_vertices, rigid_pieces;
+   * than 0.1 of it). ground_pieces: those small pieces lying on the floor, taking y as up
+   * (kinemesh's frame: call it on the mesh km_mesh_frame_apply turned): their top within 0.01
+   * of the body's height above the body's lowest point, a ground plane or a plinth exported
+   * with the character, which animate and live leave where they lie. */
+  size_t pieces, loose_vertices, rigid_pieces, ground_pieces;
 } km_mesh_info;
 /* Topology and extent of a mesh.
  *   m    in: mesh (a point cloud is fine)

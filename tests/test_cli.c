@@ -1,9 +1,11 @@
 /* End-to-end checks of the kinemesh command-line tool: exit codes, JSON keys, messages. */
 #include "km_test.h"
+
 #include "capture_fixture.h" /* km_test_read_json */
 #include "synth/synth.h"     /* test fixtures: primitive meshes, one capture frame */
 
 #include <cjson/cJSON.h>
+#include <math.h>
 #include <unistd.h>
 
 static cJSON *run_json(const char *cmd, int *code) {
@@ -162,6 +164,46 @@ static void test_gen_and_pose(void) {
     CHECK(num(j, "components") == 1 && num(j, "degenerate_faces") == 0);
     cJSON_Delete(j);
   }
+  /* the character with a ground quad under its feet, the whole turned z-up: info guesses up +z
+   * and says the quad lies on the floor (asked in the guessed frame) */
+  km_mesh c = {0}, g = {0};
+  if (km_mesh_read("cli_char.obj", &c, KM_E) == KM_OK &&
+      km_mesh_alloc(c.n_vertices + 4, c.n_faces + 2, &g, KM_E) == KM_OK) {
+    double lo = INFINITY;
+    for (size_t v = 0; v < c.n_vertices; ++v)
+      lo = fmin(lo, c.V[3 * v + 1]);
+    memcpy(g.V, c.V, c.n_vertices * 3 * sizeof(double));
+    memcpy(g.F, c.F, c.n_faces * 3 * sizeof(int32_t));
+    const double q[12] = {-1, lo, -1, 1, lo, -1, 1, lo, 1, -1, lo, 1};
+    memcpy(g.V + 3 * c.n_vertices, q, sizeof q);
+    int32_t b = (int32_t)c.n_vertices, qf[6] = {b, b + 2, b + 1, b, b + 3, b + 2};
+    memcpy(g.F + 3 * c.n_faces, qf, sizeof qf);
+    for (size_t v = 0; v < g.n_vertices; ++v) { /* (x, y, z) -> (x, -z, y): z up */
+      double y = g.V[3 * v + 1];
+      g.V[3 * v + 1] = -g.V[3 * v + 2], g.V[3 * v + 2] = y;
+    }
+    CHECK_OK(km_mesh_write("cli_char_ground.obj", &g, NULL, KM_E));
+    j = run_json(KM_CLI " info --json cli_char_ground.obj", &code);
+    CHECK(code == 0 && j);
+    if (j) {
+      const cJSON *go = cJSON_GetObjectItemCaseSensitive(j, "orientation_guess");
+      const cJSON *up = go ? cJSON_GetObjectItemCaseSensitive(go, "up") : NULL;
+      CHECK_MSG(cJSON_IsString(up) && !strcmp(up->valuestring, "+z"), "guessed up %s",
+                cJSON_IsString(up) ? up->valuestring : "(none)");
+      CHECK_MSG(num(j, "pieces") == 2 && num(j, "rigid_pieces") == 1 &&
+                    num(j, "ground_pieces") == 1,
+                "pieces %g, rigid %g, on the floor %g", num(j, "pieces"), num(j, "rigid_pieces"),
+                num(j, "ground_pieces"));
+      cJSON_Delete(j);
+    }
+    char *iout = NULL;
+    CHECK(km_test_run(KM_CLI " info cli_char_ground.obj", &iout) == 0);
+    CHECK_MSG(iout && strstr(iout, "it lies on the floor"), "info: %s", iout ? iout : "");
+    free(iout);
+    remove("cli_char_ground.obj");
+  }
+  km_mesh_free(&c);
+  km_mesh_free(&g);
   CHECK(km_test_run(KM_CLI " gen character --vertices 3000 --shape bogus -o cli_x.obj", NULL) == 1);
   CHECK(km_test_run(KM_CLI
                     " gen motion --kind walk --frames 7 --character cli_char.obj -o cli_take.json",

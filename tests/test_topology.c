@@ -525,6 +525,31 @@ static void test_nearest_and_body(void) {
     }
   }
   km__body_free(&bd);
+  km_mesh_info mi;
+  CHECK_OK(km_mesh_info_compute(&m, &mi, KM_E));
+  CHECK_MSG(mi.pieces == 3 && mi.ground_pieces == 0, "pieces %zu, on the floor %zu", mi.pieces,
+            mi.ground_pieces);
+  /* a quad 0.2 under the strip (y up: a ground plane) lies on the floor; turned so that y
+   * points sideways it does not (ground_pieces asks with y as up) */
+  km_mesh g = {0};
+  CHECK_OK(km_mesh_alloc(32, 26, &g, KM_E));
+  memcpy(g.V, m.V, 28 * 3 * sizeof(double));
+  memcpy(g.F, m.F, 24 * 3 * sizeof(int32_t));
+  static const double GV[12] = {-1, -0.2, -2, 5.5, -0.2, -2, 5.5, -0.2, 2, -1, -0.2, 2};
+  static const int32_t GF[6] = {28, 30, 29, 28, 31, 30};
+  memcpy(g.V + 84, GV, sizeof GV);
+  memcpy(g.F + 72, GF, sizeof GF);
+  CHECK_OK(km_mesh_info_compute(&g, &mi, KM_E));
+  CHECK_MSG(mi.pieces == 4 && mi.ground_pieces == 1, "pieces %zu, on the floor %zu", mi.pieces,
+            mi.ground_pieces);
+  for (size_t v = 0; v < g.n_vertices; ++v) { /* (x, y, z) -> (x, z, -y) */
+    double y = g.V[3 * v + 1];
+    g.V[3 * v + 1] = g.V[3 * v + 2], g.V[3 * v + 2] = -y;
+  }
+  CHECK_OK(km_mesh_info_compute(&g, &mi, KM_E));
+  CHECK_MSG(mi.pieces == 4 && mi.ground_pieces == 0, "turned: pieces %zu, on the floor %zu",
+            mi.pieces, mi.ground_pieces);
+  km_mesh_free(&g);
   km_mesh_free(&m);
 }
 

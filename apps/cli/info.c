@@ -86,6 +86,19 @@ int km_cli_info(int argc, char **argv) {
   km_frame_guess g;
   km_error gerr = {0};
   bool have_guess = s == KM_OK && km_mesh_frame_guess(&m, &g, &gerr) == KM_OK;
+  /* which loose pieces lie on the floor is a question of which way is up: asked of the mesh
+   * turned into kinemesh's frame by the guess (animate and live turn it so too) */
+  if (have_guess && info.loose_vertices) {
+    km_mesh t = {0};
+    km_mesh_info ti;
+    if (km_mesh_copy(&m, &t, &err) != KM_OK || km_mesh_frame_apply(&g.frame, &t, &err) != KM_OK ||
+        km_mesh_info_compute(&t, &ti, &err) != KM_OK)
+      s = err.status;
+    else
+      info.ground_pieces = ti.ground_pieces;
+    km_mesh_free(&t);
+  } else
+    info.ground_pieces = 0;
   bool has_uv = m.UV != NULL, has_n = m.N != NULL, has_c = m.colors != NULL;
   /* the materials the .glb outputs will carry: each its run of faces, colour and texture */
   cJSON *mats = cJSON_CreateArray();
@@ -151,6 +164,7 @@ int km_cli_info(int argc, char **argv) {
     cJSON_AddNumberToObject(o, "pieces", (double)info.pieces);
     cJSON_AddNumberToObject(o, "loose_vertices", (double)info.loose_vertices);
     cJSON_AddNumberToObject(o, "rigid_pieces", (double)info.rigid_pieces);
+    cJSON_AddNumberToObject(o, "ground_pieces", (double)info.ground_pieces);
     cJSON_AddNumberToObject(o, "euler_characteristic", (double)info.euler_characteristic);
     cJSON_AddItemToObject(o, "bbox_min", vec3(info.bbox_min));
     cJSON_AddItemToObject(o, "bbox_max", vec3(info.bbox_max));
@@ -193,6 +207,16 @@ int km_cli_info(int argc, char **argv) {
            "eyes, teeth, ...) that rig and the solvers carry with it",
            info.pieces, joined, nl, nl > 1 ? "s" : "", info.loose_vertices);
     km_cli_pieces_how(stdout, nl, nr);
+    if (info.ground_pieces == 1 && nl == 1)
+      printf("                      it lies on the floor (up as guessed below): animate and live "
+             "leave it where it lies; rig's skin carries it with the nearest foot\n");
+    else if (info.ground_pieces)
+      printf("                      %zu of them lie%s on the floor (up as guessed below): animate "
+             "and live leave %s where %s; rig's skin carries %s with the foot nearest to %s\n",
+             info.ground_pieces, info.ground_pieces > 1 ? "" : "s",
+             info.ground_pieces > 1 ? "them" : "it",
+             info.ground_pieces > 1 ? "they lie" : "it lies",
+             info.ground_pieces > 1 ? "each" : "it", info.ground_pieces > 1 ? "it" : "it");
   } else if (info.pieces > 1)
     printf("pieces                %zu%s, two of comparable size: rig animates one body (small "
            "pieces follow it) and refuses this mesh\n",

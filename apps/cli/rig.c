@@ -179,6 +179,20 @@ int km_cli_rig(int argc, char **argv) {
            nl > 1 ? "s" : "", rep.loose_vertices, nl > 1 ? "" : "s",
            nl > 1 ? "they sit" : "it sits");
     km_cli_pieces_how(stdout, nl, nr);
+    km_mesh_info mi; /* in kinemesh's frame here: which pieces lie on the floor */
+    if (km_mesh_info_compute(&m, &mi, NULL) != KM_OK) mi.ground_pieces = 0;
+    if (mi.ground_pieces == 1 && nl == 1)
+      printf("  it lies on the floor (a ground plane?): animate and live leave it where it lies, "
+             "but this rig's skin carries it with the nearest foot, so pose and a skinned export "
+             "move it: delete it from the mesh before exporting a skin\n");
+    else if (mi.ground_pieces)
+      printf("  %zu of them lie%s on the floor (a ground plane?): animate and live leave %s "
+             "where %s, but this rig's skin carries %s with the nearest foot, so pose and a "
+             "skinned export move %s: delete %s from the mesh before exporting a skin\n",
+             mi.ground_pieces, mi.ground_pieces > 1 ? "" : "s",
+             mi.ground_pieces > 1 ? "them" : "it", mi.ground_pieces > 1 ? "they lie" : "it lies",
+             mi.ground_pieces > 1 ? "each" : "it", mi.ground_pieces > 1 ? "them" : "it",
+             mi.ground_pieces > 1 ? "them" : "it");
   }
   printf(rep.kind == KM_AUTORIG_PROP ? "extremities and handle points:\n"
                                      : "extremities (geodesic extremes, most prominent first):\n");

@@ -336,6 +336,35 @@ km_status km__file_body(const km_mesh *m, km__weld *wd, km__body *bd, bool *foun
   return s;
 }
 
+/* The loose pieces of bd lying on the floor (km__ground_vertices), counted; with ground, the
+ * file's vertices in them flagged (ground[v], n entries, all written). false: out of memory. */
+static bool ground_of_body(const km_mesh *m, const km__weld *wd, const km__body *bd,
+                           size_t *n_pieces, bool *ground) {
+  size_t n = m->n_vertices, np = bd->n_pieces - 1;
+  const int32_t *to_w = wd->to_w;
+  *n_pieces = 0;
+  for (size_t v = 0; ground && v < n; ++v)
+    ground[v] = false;
+  double lo = INFINITY, hi = -INFINITY, *top = km__malloc(np ? np : 1, sizeof *top);
+  if (!top) return false;
+  for (size_t k = 0; k < np; ++k)
+    top[k] = -INFINITY;
+  for (size_t b = 0; b < bd->body.n_vertices; ++b)
+    lo = fmin(lo, bd->body.V[3 * b + 1]), hi = fmax(hi, bd->body.V[3 * b + 1]);
+  size_t nw = to_w ? wd->w.n_vertices : n;
+  const double *W = to_w ? wd->w.V : m->V;
+  for (size_t u = 0; u < nw; ++u)
+    if (bd->piece[u] >= 0) top[bd->piece[u]] = fmax(top[bd->piece[u]], W[3 * u + 1]);
+  for (size_t k = 0; k < np; ++k)
+    *n_pieces += top[k] <= lo + 0.01 * (hi - lo);
+  for (size_t v = 0; ground && *n_pieces && v < n; ++v) {
+    int32_t q = bd->piece[to_w ? (size_t)to_w[v] : v];
+    ground[v] = q >= 0 && top[q] <= lo + 0.01 * (hi - lo);
+  }
+  free(top);
+  return true;
+}
+
 km_status km__ground_vertices(const km_mesh *m, bool *ground, size_t *n_pieces, km_error *err) {
   size_t n = m->n_vertices;
   *n_pieces = 0;
@@ -348,30 +377,8 @@ km_status km__ground_vertices(const km_mesh *m, bool *ground, size_t *n_pieces, 
   bool found = false;
   km_status s = km__file_body(m, &wd, &bd, &found, err);
   if (s != KM_OK) return s;
-  const int32_t *to_w = wd.to_w;
-  if (!found) goto done;
-  size_t np = bd.n_pieces - 1;
-  double lo = INFINITY, hi = -INFINITY, *top = km__malloc(np ? np : 1, sizeof *top);
-  if (!top) {
+  if (found && !ground_of_body(m, &wd, &bd, n_pieces, ground))
     s = km__fail(err, KM_ERR_NOMEM, "pieces: out of memory");
-    goto done;
-  }
-  for (size_t k = 0; k < np; ++k)
-    top[k] = -INFINITY;
-  for (size_t b = 0; b < bd.body.n_vertices; ++b)
-    lo = fmin(lo, bd.body.V[3 * b + 1]), hi = fmax(hi, bd.body.V[3 * b + 1]);
-  size_t nw = to_w ? wd.w.n_vertices : n;
-  const double *W = to_w ? wd.w.V : m->V;
-  for (size_t u = 0; u < nw; ++u)
-    if (bd.piece[u] >= 0) top[bd.piece[u]] = fmax(top[bd.piece[u]], W[3 * u + 1]);
-  for (size_t k = 0; k < np; ++k)
-    *n_pieces += top[k] <= lo + 0.01 * (hi - lo);
-  for (size_t v = 0; *n_pieces && v < n; ++v) {
-    int32_t q = bd.piece[to_w ? (size_t)to_w[v] : v];
-    ground[v] = q >= 0 && top[q] <= lo + 0.01 * (hi - lo);
-  }
-  free(top);
-done:
   km__body_free(&bd);
   km__weld_free(&wd);
   return s;
@@ -501,6 +508,8 @@ km_status km_mesh_info_compute(const km_mesh *m, km_mesh_info *out, km_error *er
   out->pieces = bd.n_pieces;
   if (found) out->loose_vertices = km__body_loose_vertices(&bd, wd.to_w, m->n_vertices);
   if (found) out->rigid_pieces = bd.rigid_pieces;
+  if (found && !ground_of_body(m, &wd, &bd, &out->ground_pieces, NULL))
+    s = km__fail(err, KM_ERR_NOMEM, "km_mesh_info_compute: out of memory");
   km__body_free(&bd);
   km__weld_free(&wd);
   return s;
