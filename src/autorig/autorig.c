@@ -180,12 +180,6 @@ static km_status find_extremities(rigger *r, const km_autorig_options *o, km_err
 
 /* ---------------------------------------------------------------- centroids */
 
-static int32_t uf_find(int32_t *par, int32_t a) {
-  while (par[a] != a)
-    a = par[a] = par[par[a]];
-  return a;
-}
-
 /* The mesh cut by the plane y = y0: the cut segments of the faces it crosses, grouped into
  * contours (faces joined through shared vertices). Among the contours whose centroid c has
  * |c.x - xc| < hw and, when side != 0, (c.x - xm) * side > 0, the longest one's centroid
@@ -208,9 +202,8 @@ static bool slice_centroid(rigger *r, double y0, double xc, double hw, double xm
     const int32_t *t = m->F + 3 * f;
     double ya = P(r, t[0])[1], yb = P(r, t[1])[1], yc = P(r, t[2])[1];
     if (fmin(ya, fmin(yb, yc)) > y0 || fmax(ya, fmax(yb, yc)) < y0) continue;
-    int32_t a = uf_find(par, t[0]), b = uf_find(par, t[1]), c = uf_find(par, t[2]);
-    par[b] = a;
-    par[uf_find(par, c)] = a;
+    km__uf_union(par, t[0], t[1]);
+    km__uf_union(par, t[0], t[2]);
   }
   for (size_t f = 0; f < m->n_faces; ++f) {
     const int32_t *t = m->F + 3 * f;
@@ -226,7 +219,7 @@ static bool slice_centroid(rigger *r, double y0, double xc, double hw, double xm
     }
     if (k < 2) continue;
     double len = dist3(q[0], q[1]);
-    double *a = r->acc + 4 * (size_t)uf_find(par, t[0]);
+    double *a = r->acc + 4 * (size_t)km__uf_find(par, t[0]);
     a[0] += len * 0.5 * (q[0][0] + q[1][0]);
     a[2] += len * 0.5 * (q[0][2] + q[1][2]);
     a[3] += len;
@@ -1111,14 +1104,13 @@ static km_status skin_reach(const rigger *r, const int32_t *near, double band, d
     for (int c = 0; c < 3; ++c) {
       int32_t a = r->m->F[3 * f + c], b = r->m->F[3 * f + (c + 1) % 3];
       if (near[a] != near[b]) continue;
-      a = uf_find(par, a), b = uf_find(par, b);
-      if (a != b) par[b] = a;
+      km__uf_union(par, a, b);
     }
   int32_t best[NJ];
   for (int j = 0; j < NJ; ++j)
     best[j] = -1;
   for (size_t v = 0; v < n; ++v) /* every vertex straight to its root */
-    ++size[par[v] = uf_find(par, (int32_t)v)];
+    ++size[par[v] = km__uf_find(par, (int32_t)v)];
   for (size_t v = 0; v < n; ++v) {
     int32_t root = par[v], j = near[v];
     if (r->on_face[v] && (best[j] < 0 || size[root] > size[best[j]])) best[j] = root;
