@@ -525,6 +525,27 @@ static void test_nearest_and_body(void) {
     }
   }
   km__body_free(&bd);
+  /* a sliver 2 long standing on the strip, half its vertices at the strip's surface (a prop
+   * held in a hand, half inside it): it reaches away from the body, so it turns rigidly with
+   * one body vertex instead of wrapping the body */
+  km_mesh bx = {0};
+  CHECK_OK(km_mesh_alloc(24, 22, &bx, KM_E));
+  memcpy(bx.V, m.V, 20 * 3 * sizeof(double));
+  memcpy(bx.F, m.F, 18 * 3 * sizeof(int32_t));
+  static const double SV[12] = {2, 0, 0.02, 2.05, 0.05, 0.02, 2, 0, 2, 2.05, 0.1, 2};
+  memcpy(bx.V + 60, SV, sizeof SV);
+  for (int i = 0; i < 12; ++i)
+    bx.F[54 + i] = TF[i] + 20;
+  CHECK_OK(km__mesh_body(&bx, &bd, &found, KM_E));
+  CHECK_MSG(found && bd.n_pieces == 2 && bd.rigid_pieces == 1,
+            "a sliver reaching away from the body: %zu pieces, %zu rigid", bd.n_pieces,
+            bd.rigid_pieces);
+  bool one = found;
+  for (int k = 1; found && k < 4; ++k)
+    one = one && bd.to_body[20 + k] == bd.to_body[20];
+  CHECK_MSG(one, "the sliver's vertices follow one body vertex");
+  km__body_free(&bd);
+  km_mesh_free(&bx);
   km_mesh_info mi;
   CHECK_OK(km_mesh_info_compute(&m, &mi, KM_E));
   CHECK_MSG(mi.pieces == 3 && mi.ground_pieces == 0, "pieces %zu, on the floor %zu", mi.pieces,

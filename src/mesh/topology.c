@@ -147,11 +147,14 @@ void km__body_free(km__body *b) {
 }
 
 /* How a loose piece follows the body. One that wraps the body (it lies against it, half of its
- * vertices or more within KM_LOOSE_AGAINST of the body's bounding-box diagonal from it, and it
- * spans more than KM_LOOSE_WRAPS of that diagonal: a belt, a shirt, a coat, a cape) keeps each
- * vertex's own nearest body vertex and bends with the body under it: a coat moved whole with
- * one body point would leave the legs walking through it, the worse mistake, so a piece half
- * against the body counts as wrapping it. Any other (eyes, teeth, a buckle, a hair card, a
+ * vertices or more within KM_LOOSE_AGAINST of the body's bounding-box diagonal from it, none
+ * further than KM_LOOSE_REACH, and it spans more than KM_LOOSE_WRAPS of that diagonal: a belt,
+ * a shirt, a coat) keeps each vertex's own nearest body vertex and bends with the body under
+ * it: a coat moved whole with one body point would leave the legs walking through it, the
+ * worse mistake, so a piece half against the body counts as wrapping it. A prop reaching away
+ * from the body does not, however much of it is held: a 0.5 m box with half its 8 vertices
+ * inside armadillo_1k's hand (diagonal 1.5) counted as wrapping, and on a wave its edges bent
+ * to 0.70-1.20 of their length. Any other (eyes, teeth, a buckle, a hair card, a
  * sword held in a hand, its blade away from the body, a ground plane under the feet, a scan's
  * stray bit) follows one body vertex as a whole, the one nearest to the piece (where it sits or
  * is held: the hilt's nearest hand vertex), and moves rigidly instead of being torn between
@@ -162,8 +165,9 @@ void km__body_free(km__body *b) {
  * (INT32_MAX: a vertex of collapsed faces only, left as it is). */
 #define KM_LOOSE_AGAINST 0.05
 #define KM_LOOSE_WRAPS 0.1
+#define KM_LOOSE_REACH 0.2
 typedef struct loose_piece {
-  double lo[3], hi[3], best;
+  double lo[3], hi[3], best, reach; /* reach: its vertices' largest distance to the body */
   size_t n, far;
   int32_t held;
 } loose_piece;
@@ -213,11 +217,14 @@ static km_status attach_rigid(const km_mesh *m, km__body *bd, const int32_t *pie
                        (x[2] - y[2]) * (x[2] - y[2]));
     ++z->n;
     z->far += !(dist <= KM_LOOSE_AGAINST * diag);
+    z->reach = fmax(z->reach, dist);
     if (dist < z->best) z->best = dist, z->held = t;
   }
   for (size_t k = 0; k < np; ++k) { /* rigid: held >= 0 stays; wrapping: held = -1 */
     loose_piece *z = lp + k;
-    if (2 * z->far <= z->n && diag3(z->lo, z->hi) > KM_LOOSE_WRAPS * diag) z->held = -1;
+    if (2 * z->far <= z->n && diag3(z->lo, z->hi) > KM_LOOSE_WRAPS * diag &&
+        z->reach <= KM_LOOSE_REACH * diag)
+      z->held = -1;
     bd->rigid_pieces += z->held >= 0;
   }
   if (!(bd->piece = km__malloc(n, sizeof *bd->piece))) {
