@@ -54,8 +54,9 @@
 /* Cache format. 2: energy enum renumbered (ARAP = 0); 3: a mesh split at its seams gets the
  * welded mesh's fields (a format-2 cache of one holds its pieces' own, which let the seams
  * open); 4: a body's small loose pieces take its fields (fields_welded); 5: a loose piece that
- * does not wrap the body takes one body vertex's fields (km__mesh_body). */
-#define KM_PUPPET_FORMAT 5u
+ * does not wrap the body takes one body vertex's fields (km__mesh_body); 6: a piece reaching
+ * further than 0.2 of the body's diagonal from it no longer counts as wrapping the body. */
+#define KM_PUPPET_FORMAT 6u
 #define KM_PUPPET_ENDIAN 0x01020304u
 #define KM_PUPPET_HEADER 64u
 
