@@ -2,6 +2,7 @@
  * of one connectivity: the tangent is always the projected edge to the same neighbour. */
 #include "core/core.h"
 #include "math/math.h"
+#include "mesh/mesh.h"
 #include "mesh/mesh_args.h"
 
 #include <math.h>
@@ -53,24 +54,12 @@ km_status km_local_frames(const km_mesh *m, const double *N, const int32_t *ref,
     } else {
       nn[0] = 0, nn[1] = 0, nn[2] = 1;
     }
-    double e[3] = {0, 0, 0}, le = 0;
+    double e[3] = {0, 0, 0};
     if (ref[v] >= 0) {
       const double *p = m->V + 3 * v, *q = m->V + 3 * (size_t)ref[v];
       e[0] = q[0] - p[0], e[1] = q[1] - p[1], e[2] = q[2] - p[2];
-      le = sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
     }
-    double d = e[0] * nn[0] + e[1] * nn[1] + e[2] * nn[2];
-    t[0] = e[0] - d * nn[0], t[1] = e[1] - d * nn[1], t[2] = e[2] - d * nn[2];
-    double lt = sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
-    if (!(le > 0) || !isfinite(lt) || !(lt > 1e-12 * le)) {
-      int ax = 0;
-      for (int c = 1; c < 3; ++c)
-        if (fabs(nn[c]) < fabs(nn[ax])) ax = c;
-      double a[3] = {0, 0, 0};
-      a[ax] = 1;
-      d = nn[ax];
-      t[0] = a[0] - d * nn[0], t[1] = a[1] - d * nn[1], t[2] = a[2] - d * nn[2];
-    }
+    km__frame_tangent(nn, e, t);
     km__normalize3(t);
     b[0] = nn[1] * t[2] - nn[2] * t[1];
     b[1] = nn[2] * t[0] - nn[0] * t[2];

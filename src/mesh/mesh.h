@@ -7,6 +7,7 @@
 #define KM_MESH_MESH_H
 
 #include "core/core.h"
+#include <math.h>
 
 /* The mesh with its coincident vertices (the same position, bit for bit) merged into one: the
  * surface a glTF exporter split at its texture seams, joined again. Only where that joins
@@ -32,6 +33,26 @@ void km__weld_free(km__weld *w);
  * boundary between them and armadillo_1k rigged as a bust. */
 static inline bool km__face_collapsed(const int32_t *t) {
   return t[0] == t[1] || t[1] == t[2] || t[0] == t[2];
+}
+
+/* A local frame's tangent before normalisation (km_local_frames, and the pose transfer's
+ * per-frame frames, transfer/offsets.c): the edge e to the reference neighbour projected on
+ * the plane of the unit normal n; when e is zero, not finite or (almost) along n (|t| <= 1e-12
+ * |e|), the coordinate axis least aligned with n, projected. t (3) out; returns |t|^2. */
+static inline double km__frame_tangent(const double n[3], const double e[3], double t[3]) {
+  double le2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+  double d = e[0] * n[0] + e[1] * n[1] + e[2] * n[2];
+  t[0] = e[0] - d * n[0], t[1] = e[1] - d * n[1], t[2] = e[2] - d * n[2];
+  double lt2 = t[0] * t[0] + t[1] * t[1] + t[2] * t[2];
+  if (!(le2 > 0) || !isfinite(lt2) || !(lt2 > 1e-24 * le2)) {
+    int ax = 0;
+    for (int c = 1; c < 3; ++c)
+      if (fabs(n[c]) < fabs(n[ax])) ax = c;
+    t[0] = -n[ax] * n[0], t[1] = -n[ax] * n[1], t[2] = -n[ax] * n[2];
+    t[ax] += 1;
+    lt2 = t[0] * t[0] + t[1] * t[1] + t[2] * t[2];
+  }
+  return lt2;
 }
 
 /* The nearest of many queries to one point set: the points sorted along x once, each query

@@ -232,27 +232,13 @@ static double frames_of(km_transfer *t, const double *V, double *frames, const d
     } else {
       nn[0] = 0, nn[1] = 0, nn[2] = 1;
     }
-    double e[3] = {0, 0, 0}, le2 = 0;
+    double e[3] = {0, 0, 0};
     int32_t r = t->ref[i];
     if (r >= 0) {
       const double *p = V + 3 * i, *q = V + 3 * (size_t)r;
       e[0] = q[0] - p[0], e[1] = q[1] - p[1], e[2] = q[2] - p[2];
-      le2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
     }
-    double d = e[0] * nn[0] + e[1] * nn[1] + e[2] * nn[2];
-    tt[0] = e[0] - d * nn[0], tt[1] = e[1] - d * nn[1], tt[2] = e[2] - d * nn[2];
-    double lt2 = tt[0] * tt[0] + tt[1] * tt[1] + tt[2] * tt[2];
-    if (!(le2 > 0) || !isfinite(lt2) || !(lt2 > 1e-24 * le2)) {
-      /* Degenerate edge: the axis least aligned with n, as km_local_frames does. */
-      int ax = 0;
-      for (int c = 1; c < 3; ++c)
-        if (fabs(nn[c]) < fabs(nn[ax])) ax = c;
-      double a[3] = {0, 0, 0};
-      a[ax] = 1;
-      d = nn[ax];
-      tt[0] = a[0] - d * nn[0], tt[1] = a[1] - d * nn[1], tt[2] = a[2] - d * nn[2];
-      lt2 = tt[0] * tt[0] + tt[1] * tt[1] + tt[2] * tt[2];
-    }
+    double lt2 = km__frame_tangent(nn, e, tt);
     qt[i] = lt2;
   }
   rsqrt_all(qt, n);
