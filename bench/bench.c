@@ -4,6 +4,7 @@
 #include "cli.h"
 
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -26,6 +27,21 @@ void km_bench_machine(char *out, size_t n) {
     fclose(f);
   }
   snprintf(out, n, "%s, %ld cores", model, sysconf(_SC_NPROCESSORS_ONLN));
+}
+
+km_status km_bench_mesh(const char *spec, km_mesh *m, bool *procedural, km_error *err) {
+  if (procedural) *procedural = false;
+  if (strncmp(spec, "character:", 10)) return km_mesh_read(spec, m, err);
+  km_character_options co = {0};
+  co.target_vertices = (size_t)strtoull(spec + 10, NULL, 10);
+  km_character c = {0};
+  km_status s = km_character_generate(&co, &c, err);
+  if (s != KM_OK) return s;
+  *m = c.mesh; /* the character's mesh, taken out of it */
+  memset(&c.mesh, 0, sizeof c.mesh);
+  km_character_free(&c);
+  if (procedural) *procedural = true;
+  return KM_OK;
 }
 
 int km_bench(int argc, char **argv) {

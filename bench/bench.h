@@ -9,12 +9,17 @@
 #ifndef KM_BENCH_H
 #define KM_BENCH_H
 
+#include "kinemesh.h"
+
 #include <stddef.h>
 
 /* `kinemesh bench <what> ...`: dispatches to the verbs below (bench/bench.c). */
 int km_bench(int argc, char **argv);
 /* "<CPU model>, <n> cores" for the table headers (bench/bench.c). */
 void km_bench_machine(char *out, size_t n);
+/* A bench's mesh (bench/bench.c): SPEC is a mesh file (read as it is), or "character:N" for
+ * the procedural character of about N vertices (*procedural true: in kinemesh's frame). */
+km_status km_bench_mesh(const char *spec, km_mesh *m, bool *procedural, km_error *err);
 /* bench/bench_deform.c: Table 1 of Wu, Lu & Song (2012). */
 int km_bench_deform(int argc, char **argv);
 

@@ -9,22 +9,6 @@
 #include <string.h>
 #include <unistd.h>
 
-/* MESH is a file, or "character:N" for the procedural character with N vertices. */
-static km_status bench_mesh(const char *spec, km_mesh *m, km_error *err) {
-  if (!strncmp(spec, "character:", 10)) {
-    km_character_options co = {0};
-    co.target_vertices = (size_t)strtoull(spec + 10, NULL, 10);
-    km_character c = {0};
-    km_status s = km_character_generate(&co, &c, err);
-    if (s != KM_OK) return s;
-    *m = c.mesh;
-    memset(&c.mesh, 0, sizeof c.mesh);
-    km_character_free(&c);
-    return KM_OK;
-  }
-  return km_mesh_read(spec, m, err);
-}
-
 /* Farthest-point seeds over the vertices, then the `per` nearest untaken vertices of each. */
 static void pick_handles(const km_mesh *m, size_t nh, size_t per, km_rig *rig) {
   size_t n = m->n_vertices;
@@ -132,7 +116,7 @@ static int bench_deform_one(const char *mesh_path, const deform_args *da) {
   char cache[64];
   snprintf(cache, sizeof cache, "/tmp/kinemesh-bench-%ld.kmcache", (long)getpid());
 
-  if (bench_mesh(mesh_path, &m, &err) != KM_OK) goto fail;
+  if (km_bench_mesh(mesh_path, &m, NULL, &err) != KM_OK) goto fail;
   if (!repeat) repeat = m.n_vertices > 200000 ? 1 : 3;
   double diag = km_bbox_diagonal(m.V, m.n_vertices);
   size_t per = m.n_vertices / 400;

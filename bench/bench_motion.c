@@ -136,20 +136,13 @@ static bool resolve_mesh(const char *spec, const char *data, char *path, size_t 
 static km_status load_mesh(const char *path, km_mesh *m, char *frame_note, size_t n,
                            km_error *err) {
   frame_note[0] = '\0';
-  if (!strncmp(path, "character:", 10)) {
-    km_character_options co = {0};
-    co.target_vertices = (size_t)strtoull(path + 10, NULL, 10);
-    km_character c = {0};
-    km_status s = km_character_generate(&co, &c, err);
-    if (s != KM_OK) return s;
-    *m = c.mesh;
-    memset(&c.mesh, 0, sizeof c.mesh);
-    km_character_free(&c);
+  bool procedural = false;
+  km_status s = km_bench_mesh(path, m, &procedural, err);
+  if (s != KM_OK) return s;
+  if (procedural) {
     snprintf(frame_note, n, "procedural, y up");
     return KM_OK;
   }
-  km_status s = km_mesh_read(path, m, err);
-  if (s != KM_OK) return s;
   km_frame_guess g;
   if ((s = km_mesh_frame_guess(m, &g, err)) != KM_OK) return s;
   g.frame.scale = 0;

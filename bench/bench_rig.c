@@ -9,22 +9,6 @@
 #include <string.h>
 #include <unistd.h>
 
-/* MESH is a file, or "character:N" for the procedural character with N vertices. */
-static km_status rig_bench_mesh(const char *spec, km_mesh *m, km_error *err) {
-  if (!strncmp(spec, "character:", 10)) {
-    km_character_options co = {0};
-    co.target_vertices = (size_t)strtoull(spec + 10, NULL, 10);
-    km_character c = {0};
-    km_status s = km_character_generate(&co, &c, err);
-    if (s != KM_OK) return s;
-    *m = c.mesh;
-    memset(&c.mesh, 0, sizeof c.mesh);
-    km_character_free(&c);
-    return KM_OK;
-  }
-  return km_mesh_read(spec, m, err);
-}
-
 static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header,
                          km_autorig_skin skin) {
   km_error err = {0};
@@ -38,7 +22,7 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
     rc = km_cli_error("bench rig", "out of memory");
     goto done;
   }
-  if (rig_bench_mesh(spec, &m, &err) != KM_OK) {
+  if (km_bench_mesh(spec, &m, NULL, &err) != KM_OK) {
     rc = km_cli_fail("bench rig", &err);
     goto done;
   }
