@@ -98,12 +98,11 @@ static km_status check_mesh(const km_mesh *m, km_error *err) {
 
 /* ---------------------------------------------------------------- extremities */
 
-static km_status find_extremities(rigger *r, const km_autorig_options *o, km_error *err) {
-  size_t n = r->n, maxe = o->max_extremities ? o->max_extremities : KM_AUTORIG_MAX_EXTREMITIES;
-  if (maxe > KM_AUTORIG_MAX_EXTREMITIES) maxe = KM_AUTORIG_MAX_EXTREMITIES;
-  double thr = (o->min_extremity > 0 ? o->min_extremity : 0.2) * r->ext;
-  double c[3] = {0, 0, 0}, cnt = 0;
-  for (size_t v = 0; v < n; ++v)
+/* The mean of the vertices faces use (c, 3); the origin when there are none. */
+static void face_centroid(const rigger *r, double c[3]) {
+  double cnt = 0;
+  c[0] = c[1] = c[2] = 0;
+  for (size_t v = 0; v < r->n; ++v)
     if (r->on_face[v]) {
       for (int k = 0; k < 3; ++k)
         c[k] += r->m->V[3 * v + k];
@@ -111,6 +110,14 @@ static km_status find_extremities(rigger *r, const km_autorig_options *o, km_err
     }
   for (int k = 0; k < 3; ++k)
     c[k] /= cnt > 0 ? cnt : 1;
+}
+
+static km_status find_extremities(rigger *r, const km_autorig_options *o, km_error *err) {
+  size_t n = r->n, maxe = o->max_extremities ? o->max_extremities : KM_AUTORIG_MAX_EXTREMITIES;
+  if (maxe > KM_AUTORIG_MAX_EXTREMITIES) maxe = KM_AUTORIG_MAX_EXTREMITIES;
+  double thr = (o->min_extremity > 0 ? o->min_extremity : 0.2) * r->ext;
+  double c[3];
+  face_centroid(r, c);
   int32_t root = nearest_vertex(r, c);
   double *dmin = km__malloc(n, sizeof *dmin);
   r->dist = km__malloc(n * maxe, sizeof *r->dist);
@@ -778,15 +785,8 @@ static km_status rig_quadruped(rigger *r, km_autorig_report *rep, km_error *err)
  * the others; the joints on straight lines from the centroid to them. */
 static km_status rig_prop(rigger *r, km_autorig_report *rep, km_error *err) {
   size_t n = r->n;
-  double c[3] = {0, 0, 0}, cnt = 0, H = r->H;
-  for (size_t v = 0; v < n; ++v)
-    if (r->on_face[v]) {
-      for (int k = 0; k < 3; ++k)
-        c[k] += r->m->V[3 * v + k];
-      cnt += 1;
-    }
-  for (int k = 0; k < 3; ++k)
-    c[k] /= cnt;
+  double c[3], H = r->H;
+  face_centroid(r, c);
   double *dmin = km__malloc(n, sizeof *dmin);
   if (!dmin) return km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
   for (size_t v = 0; v < n; ++v)
