@@ -3,9 +3,14 @@
  * checked against frames whose answers are known by construction and against the tests' own
  * edge measure (km_test_edge_stretch) on a deformed character. */
 #include "km_test.h"
+#include "synth/synth.h" /* test fixtures: km_icosphere */
 
 #include <cjson/cJSON.h>
+#include <math.h>
 #include <unistd.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 /* A flat unit square in the x-z plane, split along its diagonal 0-2 into two triangles,
  * normals +y. */
@@ -306,7 +311,70 @@ static void test_seam_fold(void) {
   km_deform_check_free(&c);
 }
 
+/* The bound over a mesh large enough for its Dijkstra runs to share the cores: the same pairs,
+ * in the same order, whatever the number of threads (an icosphere of 10242 vertices, four caps
+ * held, each turned by its own small rotation). */
+static void test_stretch_bound_threads(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_icosphere(5, 1.0, &m, KM_E));
+  if (!m.V) return;
+  const double c[4][3] = {{1, 0, 0}, {0, 1, 0}, {-1, 0, 0}, {0, 0, 1}};
+  int32_t off[5] = {0}, *sets = malloc(m.n_vertices * sizeof *sets);
+  size_t k = 0;
+  for (int h = 0; sets && h < 4; ++h) {
+    for (size_t v = 0; v < m.n_vertices; ++v) {
+      const double *x = m.V + 3 * v;
+      double d2 = (x[0] - c[h][0]) * (x[0] - c[h][0]) + (x[1] - c[h][1]) * (x[1] - c[h][1]) +
+                  (x[2] - c[h][2]) * (x[2] - c[h][2]);
+      if (d2 < 0.3) sets[k++] = (int32_t)v;
+    }
+    off[h + 1] = (int32_t)k;
+  }
+  double *T = malloc(k * 3 * sizeof *T);
+  for (size_t i = 0; T && i < k; ++i) { /* each cap turned about z by its own angle */
+    int h = 0;
+    while (h < 3 && (int32_t)i >= off[h + 1])
+      ++h;
+    const double *x = m.V + 3 * (size_t)sets[i];
+    double a = 0.3 * (h + 1), ca = cos(a), sa = sin(a);
+    T[3 * i] = ca * x[0] - sa * x[1], T[3 * i + 1] = sa * x[0] + ca * x[1], T[3 * i + 2] = x[2];
+  }
+  km_stretch_bound_options o = {.radius = 0.5};
+  km_stretch_bound *b1 = NULL, *b2 = NULL;
+  double f1 = NAN, f2 = NAN;
+  int32_t p1[2] = {-1, -1}, p2[2] = {-2, -2};
+#ifdef _OPENMP
+  int was = omp_get_max_threads();
+  omp_set_num_threads(1);
+#endif
+  if (sets && T) CHECK_OK(km_stretch_bound_create(&m, 4, off, sets, &o, &b1, KM_E));
+#ifdef _OPENMP
+  omp_set_num_threads(2);
+#endif
+  if (sets && T) CHECK_OK(km_stretch_bound_create(&m, 4, off, sets, &o, &b2, KM_E));
+#ifdef _OPENMP
+  omp_set_num_threads(was);
+#endif
+  if (b1 && b2) {
+    f1 = km_stretch_bound_eval(b1, T, p1);
+    f2 = km_stretch_bound_eval(b2, T, p2);
+  }
+  printf("stretch bound on %zu vertices, 1 and 2 threads: %zu and %zu pairs, %.6f and %.6f\n",
+         m.n_vertices, km_stretch_bound_pairs(b1), km_stretch_bound_pairs(b2), f1, f2);
+  CHECK_MSG(km_stretch_bound_pairs(b1) > 0 &&
+                km_stretch_bound_pairs(b1) == km_stretch_bound_pairs(b2) && f1 > 1 && f1 == f2 &&
+                p1[0] == p2[0] && p1[1] == p2[1],
+            "threads changed the bound: %g (%d-%d) vs %g (%d-%d)", f1, (int)p1[0], (int)p1[1], f2,
+            (int)p2[0], (int)p2[1]);
+  km_stretch_bound_free(&b1);
+  km_stretch_bound_free(&b2);
+  free(sets);
+  free(T);
+  km_mesh_free(&m);
+}
+
 int main(void) {
+  test_stretch_bound_threads();
   test_known_frames();
   test_seam_fold();
   test_against_edge_measure();
