@@ -212,11 +212,11 @@ int km_cli_info(int argc, char **argv) {
              "leave it where it lies; rig's skin carries it with the nearest foot\n");
     else if (info.ground_pieces)
       printf("                      %zu of them lie%s on the floor (up as guessed below): animate "
-             "and live leave %s where %s; rig's skin carries %s with the foot nearest to %s\n",
+             "and live leave %s where %s; rig's skin carries %s with the foot nearest to it\n",
              info.ground_pieces, info.ground_pieces > 1 ? "" : "s",
              info.ground_pieces > 1 ? "them" : "it",
              info.ground_pieces > 1 ? "they lie" : "it lies",
-             info.ground_pieces > 1 ? "each" : "it", info.ground_pieces > 1 ? "it" : "it");
+             info.ground_pieces > 1 ? "each" : "it");
   } else if (info.pieces > 1)
     printf("pieces                %zu%s, two of comparable size: rig animates one body (small "
            "pieces follow it) and refuses this mesh\n",
