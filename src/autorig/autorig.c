@@ -1098,8 +1098,7 @@ static km_status skin_reach(const rigger *r, const int32_t *near, double band, d
     free(par), free(size), free(seeds);
     return km__fail(err, KM_ERR_NOMEM, "rig: out of memory (skin of %zu vertices)", n);
   }
-  for (size_t v = 0; v < n; ++v)
-    par[v] = (int32_t)v;
+  km__uf_init(par, n);
   for (size_t f = 0; f < r->m->n_faces; ++f)
     for (int c = 0; c < 3; ++c) {
       int32_t a = r->m->F[3 * f + c], b = r->m->F[3 * f + (c + 1) % 3];

@@ -84,8 +84,8 @@ void km__extension(const char *path, char *out, size_t out_size);
 
 /* Union-find over int32 ids (parent[x] == x: a root), with path halving; union keeps the
  * smaller id as the root, so a set's root is its smallest member. The one union-find of the
- * library (topology's components and pieces, ARAP's anchored check, the polygoniser's welds,
- * the puppet model's isoline loops). */
+ * library (topology's components, pieces and boundary loops, ARAP's anchored check, the
+ * polygoniser's largest part, the sidecar's bands, the autorig's slices and skin patches). */
 static inline void km__uf_init(int32_t *parent, size_t n) {
   for (size_t i = 0; i < n; ++i)
     parent[i] = (int32_t)i;

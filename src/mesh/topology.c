@@ -153,14 +153,14 @@ void km__body_free(km__body *b) {
  * it: a coat moved whole with one body point would leave the legs walking through it, the
  * worse mistake, so a piece half against the body counts as wrapping it. A prop reaching away
  * from the body does not, however much of it is held: a 0.5 m box with half its 8 vertices
- * inside armadillo_1k's hand (diagonal 1.5) counted as wrapping, and on a wave its edges bent
- * to 0.70-1.20 of their length. Any other (eyes, teeth, a buckle, a hair card, a
- * sword held in a hand, its blade away from the body, a ground plane under the feet, a scan's
- * stray bit) follows one body vertex as a whole, the one nearest to the piece (where it sits or
- * is held: the hilt's nearest hand vertex), and moves rigidly instead of being torn between
- * the body vertices nearest to each of its vertices: armadillo_1k on a walk (its longest edge
- * 1.72x alone) with a ground quad 4 m wide at its feet stretched the quad to 2.05x, with a
- * strip 2 m long above its head 1.90x, with 300 small pieces scattered in its box 18x. to_body
+ * inside armadillo_1k's hand (diagonal 1.5) counted as wrapping, and on a wave (gen motion
+ * --kind wave) its edges bent to 0.56-1.02 of their length. Any other (eyes, teeth, a buckle, a
+ * hair card, a sword held in a hand, its blade away from the body, a ground plane under the feet, a
+ * scan's stray bit) follows one body vertex as a whole, the one nearest to the piece (where it sits
+ * or is held: the hilt's nearest hand vertex), and moves rigidly instead of being torn between the
+ * body vertices nearest to each of its vertices: armadillo_1k on a walk (its longest edge 1.72x
+ * alone) with a ground quad 4 m wide at its feet stretched the quad to 2.05x, with a strip 2 m long
+ * above its head 1.90x, with 300 small pieces scattered in its box 18x. to_body
  * (#V) is rewritten for the vertices of such pieces; piece holds each face vertex's piece root
  * (INT32_MAX: a vertex of collapsed faces only, left as it is). */
 #define KM_LOOSE_AGAINST 0.05
@@ -575,8 +575,7 @@ static km_status mesh_info(const km_mesh *m, bool seams, km_mesh_info *out, km_e
   }
 
   /* Components (union-find through shared vertices), isolated vertices. */
-  for (size_t v = 0; v < nv; ++v)
-    parent[v] = (int32_t)v;
+  km__uf_init(parent, nv);
   for (size_t v = 0; v < nv; ++v)
     local[v] = 0; /* 1: in a face that is not collapsed */
   for (size_t f = 0; f < nf; ++f) {

@@ -54,13 +54,10 @@ struct km_arap {
 static int32_t unanchored_vertex(const km_mesh *m, const int32_t *map, const int32_t *att,
                                  int32_t *parent) {
   size_t n = m->n_vertices;
-  for (size_t v = 0; v < n; ++v)
-    parent[v] = (int32_t)v;
+  km__uf_init(parent, n);
   for (size_t f = 0; f < m->n_faces; ++f)
-    for (int k = 1; k < 3 && !km__face_collapsed(m->F + 3 * f); ++k) {
-      int32_t a = km__uf_find(parent, m->F[3 * f]), b = km__uf_find(parent, m->F[3 * f + k]);
-      if (a != b) parent[a] = b;
-    }
+    for (int k = 1; k < 3 && !km__face_collapsed(m->F + 3 * f); ++k)
+      km__uf_union(parent, m->F[3 * f], m->F[3 * f + k]);
   unsigned char *anchored = calloc(n, 1);
   if (!anchored) return -1;
   for (size_t v = 0; v < n; ++v)
@@ -122,10 +119,8 @@ static km_status attach_loose(km_arap *a, const km_mesh *rest, km_error *err) {
   for (size_t v = 0; v < n; ++v)
     parent[v] = (int32_t)v, a->att[v] = -1;
   for (size_t f = 0; f < rest->n_faces; ++f)
-    for (int k = 1; k < 3 && !km__face_collapsed(rest->F + 3 * f); ++k) {
-      int32_t x = km__uf_find(parent, rest->F[3 * f]), y = km__uf_find(parent, rest->F[3 * f + k]);
-      if (x != y) parent[x] = y;
-    }
+    for (int k = 1; k < 3 && !km__face_collapsed(rest->F + 3 * f); ++k)
+      km__uf_union(parent, rest->F[3 * f], rest->F[3 * f + k]);
   for (size_t i = 0; i < a->n_hv; ++i)
     held[km__uf_find(parent, a->h_v[i])] = 1;
   for (size_t v = 0; v < n; ++v) {
