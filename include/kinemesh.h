@@ -1028,7 +1028,9 @@ void km_skeleton_free(km_skeleton *s);
 typedef struct km_skin {
   size_t n_vertices;
   int32_t *joints; /* n_vertices*4, -1 for an unused slot */
-  double *weights; /* n_vertices*4, summing to 1 */
+  double *weights; /* n_vertices*4, summing to 1; or a row with no influence (every slot -1,
+                      weights 0): the vertex stays where it is at rest (km_lbs), as a ground
+                      plane exported with a character does (km_autorig) */
 } km_skin;
 /* Frees the joints and weights arrays of s and zeroes the struct. */
 void km_skin_free(km_skin *s);
@@ -3027,8 +3029,10 @@ typedef struct km_autorig_report {
   /* Small loose pieces (eyes, teeth, buckles: each at most a quarter of the largest piece's
    * vertices) rigged to follow the body, the largest piece: how many, and their vertices in
    * all (0, 0: one piece); rigid_pieces: those that turn rigidly with one body vertex (see
-   * km_mesh_info.rigid_pieces) */
-  size_t loose_pieces, loose_vertices, rigid_pieces;
+   * km_mesh_info.rigid_pieces); ground_pieces: those lying on the floor (a ground plane, a
+   * plinth: km_mesh_info.ground_pieces), whose vertices the skin leaves without influence, so
+   * they stay where they are */
+  size_t loose_pieces, loose_vertices, rigid_pieces, ground_pieces;
 } km_autorig_report;
 
 /* The kind's name: "humanoid" (KM_AUTORIG_KINECT1), "quadruped", "prop", "bust", "upper body"
@@ -3040,7 +3044,9 @@ const char *km_autorig_kind_name(km_autorig_skeleton kind);
  *           with small loose pieces that follow it: report->loose_pieces)
  *   opt     in: may be NULL (defaults)
  *   out     out: a character: mesh (a copy of m, vertex order kept), skeleton (the 20 Kinect
- *           v1 joints), skin (#V vertices) and 16 landmarks; free with km_character_free
+ *           v1 joints), skin (#V vertices; a loose piece lying on the floor with no
+ *           influence, so it stays: m in kinemesh's frame, y up) and 16 landmarks; free with
+ *           km_character_free
  *   report  out: what was chosen; may be NULL
  * Errors: KM_ERR_DEGENERATE_MESH naming what is wrong (no faces, N components of which two
  * are comparable, N non-manifold edges, zero height, too few extremities, too small for five
@@ -3058,6 +3064,8 @@ typedef struct km_skin_mapping {
    * or foot end without its own joint). */
   char source[KM_KINECT1_JOINTS][64];
   size_t n_merged; /* the file's joints whose weights went to a mapped ancestor's joint */
+  size_t n_still;  /* vertices weighted only to joints above the hips (the armature's root: a
+                      ground plane): left with no influence, they stay */
 } km_skin_mapping;
 
 /* A rigged template from a mesh's own skin (a skinned glTF, km_mesh_read_skinned): the 20
@@ -3072,8 +3080,11 @@ typedef struct km_skin_mapping {
  * Head -> Head. HipCenter is the joint both legs hang from, ShoulderCenter the Neck (else the
  * joint both arms hang from), Spine the joint between them nearest 48% of the way up (every
  * joint between them weights it). Every other joint (fingers, clavicles, twist bones, toes'
- * ends, a root above the hips) gives its weights to its nearest mapped ancestor's joint (none:
- * HipCenter); each vertex keeps its 4 largest sums, normalised.
+ * ends) gives its weights to its nearest mapped ancestor's joint (none: HipCenter); each vertex
+ * keeps its 4 largest sums, normalised. A joint above the hips (the armature's root) gives
+ * none: a vertex weighted only to such joints (a ground plane bound to the root, as
+ * km_anim_writer's skeleton export binds a vertex with no influence) gets no influence and
+ * stays (map->n_still counts them); a vertex with some weight below the hips keeps only that.
  *   m    in: the mesh as read with the skin (#V vertices)
  *   s    in: its skin (s->n_vertices == #V)
  *   out  out: mesh (a copy of m), skeleton (20 Kinect v1 joints), skin, landmarks, as

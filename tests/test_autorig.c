@@ -1149,6 +1149,27 @@ static void test_isolated_vertex(void) {
       d = fmax(d, fabs(a.skeleton.rest[i] - b.skeleton.rest[i]));
     CHECK_MSG(d < 1e-9, "isolated vertex moved a joint by %g", d);
     CHECK(skin_valid(&b.skin, m.n_vertices));
+    /* the sidecar's handles are the same: the stray point 10 m up took the head handle alone
+     * (the highest vertex) before */
+    km_rig ra = {0}, rb = {0};
+    CHECK_OK(km_character_write_rig("autorig_stray_a.rig.json", &a, KM_E));
+    CHECK_OK(km_character_write_rig("autorig_stray_b.rig.json", &b, KM_E));
+    CHECK_OK(km_rig_read("autorig_stray_a.rig.json", &c.mesh, NULL, 0, &ra, KM_E));
+    CHECK_OK(km_rig_read("autorig_stray_b.rig.json", &m, NULL, 0, &rb, KM_E));
+    bool same = ra.n_handles == rb.n_handles && ra.n_handles > 0;
+    for (size_t h = 0; same && h < ra.n_handles; ++h) {
+      same = ra.handles[h].n_vertices == rb.handles[h].n_vertices &&
+             !strcmp(ra.handles[h].name, rb.handles[h].name);
+      for (size_t i = 0; same && i < ra.handles[h].n_vertices; ++i)
+        same = ra.handles[h].vertices[i] == rb.handles[h].vertices[i];
+    }
+    CHECK_MSG(same, "the stray vertex changed the handles (head: %zu vertices, first %d)",
+              rb.n_handles ? rb.handles[0].n_vertices : 0,
+              rb.n_handles && rb.handles[0].n_vertices ? (int)rb.handles[0].vertices[0] : -1);
+    km_rig_free(&ra);
+    km_rig_free(&rb);
+    remove("autorig_stray_a.rig.json");
+    remove("autorig_stray_b.rig.json");
   }
   km_character_free(&a);
   km_character_free(&b);

@@ -152,6 +152,80 @@ static void test_eigen_sphere(void) {
   remove("cli_sphere.off");
 }
 
+static cJSON *read_json_file(const char *path);
+
+/* The ground quad of cli_char_ground.obj (its last 4 vertices, from b on) stays where it lies:
+ * rig leaves its skin rows without influence, pose keeps it at rest in every frame (in the
+ * file's frame: --keep-frame), pose's
+ * skeleton export binds it to the armature's root (the validator and three.js check that
+ * file elsewhere), and rig reads that back as no influence (km_character_from_skin). */
+static void ground_stays(size_t b) {
+  if (!b) return;
+  char *out = NULL;
+  CHECK(km_test_run(KM_CLI " rig cli_char_ground.obj", &out) == 0);
+  CHECK_MSG(out && strstr(out, "the skin leaves it out"), "rig: %s", out ? out : "");
+  free(out);
+  cJSON *r = read_json_file("cli_char_ground.rig.json");
+  const cJSON *sk = r ? cJSON_GetObjectItemCaseSensitive(r, "skin") : NULL;
+  const cJSON *sj = sk ? cJSON_GetObjectItemCaseSensitive(sk, "joints") : NULL;
+  int none = 0;
+  for (size_t v = b; sj && v < b + 4; ++v)
+    for (int k = 0; k < 4; ++k)
+      none += cJSON_GetArrayItem(sj, (int)(4 * v + (size_t)k))->valueint == -1;
+  CHECK_MSG(none == 16, "%d of the quad's 16 skin slots without a joint", none);
+  cJSON_Delete(r);
+  CHECK(km_test_run(KM_CLI " pose --mesh cli_char_ground.obj --motion cli_take.json "
+                           "--keep-frame -o cli_ground.pc2",
+                    NULL) == 0);
+  km_mesh rest = {0};
+  double *fr = NULL;
+  km_anim_info ai;
+  if (km_mesh_read("cli_char_ground.obj", &rest, KM_E) == KM_OK &&
+      km_pc2_read("cli_ground.pc2", &fr, &ai, KM_E) == KM_OK) {
+    double quad = 0, body = 0;
+    for (size_t t = 0; t < ai.frames; ++t)
+      for (size_t v = 0; v < rest.n_vertices; ++v)
+        for (int c = 0; c < 3; ++c) {
+          double d =
+              fabs(fr[(t * rest.n_vertices + v) * 3 + (size_t)c] - rest.V[3 * v + (size_t)c]);
+          if (v >= b)
+            quad = fmax(quad, d);
+          else
+            body = fmax(body, d);
+        }
+    CHECK_MSG(ai.frames == 7 && quad < 1e-6 && body > 0.05,
+              "%zu frames: the quad moved %g, the body %g", ai.frames, quad, body);
+  } else
+    CHECK_MSG(false, "cli_char_ground.obj / cli_ground.pc2 unreadable: %s", km_test_err.message);
+  free(fr);
+  km_mesh_free(&rest);
+  CHECK(km_test_run(KM_CLI " pose --mesh cli_char_ground.obj --motion cli_take.json "
+                           "--export skeleton -o cli_ground.glb",
+                    NULL) == 0);
+  km_mesh gm = {0};
+  km_mesh_skin gs = {0};
+  CHECK_OK(km_mesh_read_skinned("cli_ground.glb", &gm, &gs, KM_E));
+  if (gs.n_joints) {
+    int bound = 0; /* the quad on the armature's root: a joint above the hips */
+    for (size_t v = b; v < b + 4 && v < gs.n_vertices; ++v) {
+      int32_t jq = gs.joints[4 * v];
+      bound += jq >= 0 && gs.weights[4 * v] == 1 && !strcmp(gs.names[jq], "armature");
+    }
+    CHECK_MSG(bound == 4 && gs.n_joints == 21, "%d of 4 on the root, %zu joints", bound,
+              gs.n_joints);
+  }
+  km_mesh_skin_free(&gs);
+  km_mesh_free(&gm);
+  out = NULL;
+  CHECK(km_test_run(KM_CLI " rig cli_ground.glb -o cli_ground_glb.rig.json", &out) == 0);
+  CHECK_MSG(out && strstr(out, "4 vertices weighted only to the armature's root"), "rig: %s",
+            out ? out : "");
+  free(out);
+  remove("cli_ground.pc2");
+  remove("cli_ground.glb");
+  remove("cli_ground_glb.rig.json");
+}
+
 static void test_gen_and_pose(void) {
   CHECK(km_test_run(KM_CLI " gen character --vertices 3000 --shape stocky -o cli_char.obj", NULL) ==
         0);
@@ -167,6 +241,7 @@ static void test_gen_and_pose(void) {
   /* the character with a ground quad under its feet, the whole turned z-up: info guesses up +z
    * and says the quad lies on the floor (asked in the guessed frame) */
   km_mesh c = {0}, g = {0};
+  size_t ground_b = 0; /* the quad's first vertex in cli_char_ground.obj */
   if (km_mesh_read("cli_char.obj", &c, KM_E) == KM_OK &&
       km_mesh_alloc(c.n_vertices + 4, c.n_faces + 2, &g, KM_E) == KM_OK) {
     double lo = INFINITY;
@@ -183,6 +258,7 @@ static void test_gen_and_pose(void) {
       g.V[3 * v + 1] = -g.V[3 * v + 2], g.V[3 * v + 2] = y;
     }
     CHECK_OK(km_mesh_write("cli_char_ground.obj", &g, NULL, KM_E));
+    ground_b = c.n_vertices;
     j = run_json(KM_CLI " info --json cli_char_ground.obj", &code);
     CHECK(code == 0 && j);
     if (j) {
@@ -198,9 +274,8 @@ static void test_gen_and_pose(void) {
     }
     char *iout = NULL;
     CHECK(km_test_run(KM_CLI " info cli_char_ground.obj", &iout) == 0);
-    CHECK_MSG(iout && strstr(iout, "it lies on the floor"), "info: %s", iout ? iout : "");
+    CHECK_MSG(iout && strstr(iout, "lying on the floor"), "info: %s", iout ? iout : "");
     free(iout);
-    remove("cli_char_ground.obj");
   }
   km_mesh_free(&c);
   km_mesh_free(&g);
@@ -219,6 +294,9 @@ static void test_gen_and_pose(void) {
   j = run_json(KM_CLI " info --json cli_anim.pc2", &code);
   CHECK(code == 0 && j && num(j, "frames") == 7);
   cJSON_Delete(j);
+  ground_stays(ground_b);
+  remove("cli_char_ground.obj");
+  remove("cli_char_ground.rig.json");
   remove("cli_char.obj");
   remove("cli_char.rig.json");
   remove("cli_take.json");

@@ -202,21 +202,23 @@ int km_cli_info(int argc, char **argv) {
                : "");
   const char *joined = info.seam_vertices ? " (after joining the seams)" : "";
   if (info.pieces > 1 && info.loose_vertices) {
-    size_t nl = info.pieces - 1, nr = info.rigid_pieces;
-    printf("pieces                %zu%s: a body and %zu small piece%s (%zu of the file's vertices: "
-           "eyes, teeth, ...) that rig and the solvers carry with it",
-           info.pieces, joined, nl, nl > 1 ? "s" : "", info.loose_vertices);
-    km_cli_pieces_how(stdout, nl, nr);
-    if (info.ground_pieces == 1 && nl == 1)
-      printf("                      it lies on the floor (up as guessed below): animate and live "
-             "leave it where it lies; rig's skin carries it with the nearest foot\n");
-    else if (info.ground_pieces)
-      printf("                      %zu of them lie%s on the floor (up as guessed below): animate "
-             "and live leave %s where %s; rig's skin carries %s with the foot nearest to it\n",
-             info.ground_pieces, info.ground_pieces > 1 ? "" : "s",
-             info.ground_pieces > 1 ? "them" : "it",
-             info.ground_pieces > 1 ? "they lie" : "it lies",
-             info.ground_pieces > 1 ? "each" : "it");
+    size_t nl = info.pieces - 1, nr = info.rigid_pieces, ng = info.ground_pieces;
+    if (ng == nl) /* only a ground plane (or several) */
+      printf("pieces                %zu%s: a body and %zu small piece%s (%zu of the file's "
+             "vertices) lying on the floor (up as guessed below): animate, live and rig's skin "
+             "leave %s where %s\n",
+             info.pieces, joined, nl, nl > 1 ? "s" : "", info.loose_vertices,
+             nl > 1 ? "them" : "it", nl > 1 ? "they lie" : "it lies");
+    else {
+      printf("pieces                %zu%s: a body and %zu small piece%s (%zu of the file's "
+             "vertices: eyes, teeth, ...) that rig and the solvers carry with it",
+             info.pieces, joined, nl, nl > 1 ? "s" : "", info.loose_vertices);
+      km_cli_pieces_how(stdout, nl, nr);
+    }
+    if (ng && ng < nl)
+      printf("                      but %zu of them lie%s on the floor (up as guessed below): "
+             "animate, live and rig's skin leave %s where %s\n",
+             ng, ng > 1 ? "" : "s", ng > 1 ? "them" : "it", ng > 1 ? "they lie" : "it lies");
   } else if (info.pieces > 1)
     printf("pieces                %zu%s, two of comparable size: rig animates one body (small "
            "pieces follow it) and refuses this mesh\n",

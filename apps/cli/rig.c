@@ -141,6 +141,10 @@ int km_cli_rig(int argc, char **argv) {
     printf("%s: %zu vertices, rigged from its own skin (%zu joints, %zu merged into an "
            "ancestor's weights):\n",
            pos[0], m.n_vertices, sk.n_joints, map.n_merged);
+    if (map.n_still)
+      printf("  %zu vertices weighted only to the armature's root, above the hips (a ground "
+             "plane?): no influence, they stay where they are\n",
+             map.n_still);
     for (size_t j = 0; j < c.skeleton.n_joints; ++j)
       printf("  %-14s <- %-28s (%8.4f %8.4f %8.4f)\n", c.skeleton.names[j],
              map.source[j][0] ? map.source[j] : "(derived)", c.skeleton.rest[3 * j],
@@ -175,24 +179,25 @@ int km_cli_rig(int argc, char **argv) {
          rep.seconds);
   if (rep.loose_pieces) {
     size_t nl = rep.loose_pieces, nr = rep.rigid_pieces;
-    printf("%zu loose piece%s (%zu vertices: eyes, teeth, ...) follow%s the body where %s", nl,
-           nl > 1 ? "s" : "", rep.loose_vertices, nl > 1 ? "" : "s",
-           nl > 1 ? "they sit" : "it sits");
-    km_cli_pieces_how(stdout, nl, nr);
-    km_mesh_info mi; /* in kinemesh's frame here: which pieces lie on the floor */
-    if (km_mesh_info_compute(&m, &mi, NULL) != KM_OK) mi.ground_pieces = 0;
-    if (mi.ground_pieces == 1 && nl == 1)
-      printf("  it lies on the floor (a ground plane?): animate and live leave it where it lies, "
-             "but this rig's skin carries it with the nearest foot, so pose and a skinned export "
-             "move it: delete it from the mesh before exporting a skin\n");
-    else if (mi.ground_pieces)
-      printf("  %zu of them lie%s on the floor (a ground plane?): animate and live leave %s "
-             "where %s, but this rig's skin carries %s with the nearest foot, so pose and a "
-             "skinned export move %s: delete %s from the mesh before exporting a skin\n",
-             mi.ground_pieces, mi.ground_pieces > 1 ? "" : "s",
-             mi.ground_pieces > 1 ? "them" : "it", mi.ground_pieces > 1 ? "they lie" : "it lies",
-             mi.ground_pieces > 1 ? "each" : "it", mi.ground_pieces > 1 ? "them" : "it",
-             mi.ground_pieces > 1 ? "them" : "it");
+    size_t ng = rep.ground_pieces; /* found in kinemesh's frame, y up */
+    if (ng == nl)                  /* only a ground plane (or several) */
+      printf("%zu loose piece%s (%zu vertices) lie%s on the floor (a ground plane?): the skin "
+             "leaves %s out, so %s where %s in animate, live, pose and a skinned export (bound "
+             "to the armature's root)\n",
+             nl, nl > 1 ? "s" : "", rep.loose_vertices, nl > 1 ? "" : "s", nl > 1 ? "them" : "it",
+             nl > 1 ? "they stay" : "it stays", nl > 1 ? "they lie" : "it lies");
+    else {
+      printf("%zu loose piece%s (%zu vertices: eyes, teeth, ...) follow%s the body where %s", nl,
+             nl > 1 ? "s" : "", rep.loose_vertices, nl > 1 ? "" : "s",
+             nl > 1 ? "they sit" : "it sits");
+      km_cli_pieces_how(stdout, nl, nr);
+    }
+    if (ng && ng < nl)
+      printf("  but %zu of them lie%s on the floor (a ground plane?): the skin leaves %s out, so "
+             "%s where %s in animate, live, pose and a skinned export (bound to the armature's "
+             "root)\n",
+             ng, ng > 1 ? "" : "s", ng > 1 ? "them" : "it", ng > 1 ? "they stay" : "it stays",
+             ng > 1 ? "they lie" : "it lies");
   }
   printf(rep.kind == KM_AUTORIG_PROP ? "extremities and handle points:\n"
                                      : "extremities (geodesic extremes, most prominent first):\n");

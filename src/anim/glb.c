@@ -1114,10 +1114,25 @@ static void add_grid_extras(cJSON *ex, const qgrid *g) {
   cJSON_AddNumberToObject(q, "position_bits", POS_BITS);
 }
 
+/* Whether vertex i of sk has no influence (every slot unused or weighing 0: km_skin). */
+static bool still_row(const km_skin *sk, size_t i) {
+  for (int k = 0; k < KM_SKIN_INFLUENCES; ++k)
+    if (sk->joints[KM_SKIN_INFLUENCES * i + k] >= 0 && sk->weights[KM_SKIN_INFLUENCES * i + k] > 0)
+      return false;
+  return true;
+}
+
 km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double *frames,
                              km_error *err) {
   const size_t nv = w->n_vertices, nf = w->n_faces, B = fit->n_bones, T = fit->n_frames;
   const bool z = w->compress;
+  /* A vertex with no influence (a ground plane km_autorig left out of the skin) stays where it
+   * is: glTF wants every vertex's weights to sum to 1, so it is bound to one more joint, the
+   * armature root (node 1), which no channel moves. BJ: the skin's joints. */
+  bool any_still = false;
+  for (size_t i = 0; i < nv && !any_still; ++i)
+    any_still = still_row(&fit->skin, i);
+  const size_t BJ = B + any_still;
   glb_pack pk = {.compress = z, .nv = nv};
   pk.views = cJSON_CreateArray();
   pk.accessors = cJSON_CreateArray();
@@ -1125,7 +1140,7 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
   size_t scratch = nv * 16;
   if (nf * 12 > scratch) scratch = nf * 12;
   if (T * 16 > scratch) scratch = T * 16;
-  if (B * 64 > scratch) scratch = B * 64;
+  if (BJ * 64 > scratch) scratch = BJ * 64;
   unsigned char *b = malloc(scratch), *b2 = malloc(T * 16 + 16);
   float *f4 = km__malloc((nv > T ? nv : T) * 4, sizeof *f4);
   double *vq = z ? km__malloc(nv * 3, sizeof *vq) : NULL;       /* dequantised rest */
@@ -1176,11 +1191,11 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
     cJSON_AddNumberToObject(attrs, "NORMAL", a);
   }
   if (!pack_surface(&pk, w->uv, w->colors, nv, b, attrs)) goto nomem;
-  const bool wide = B > 256;
+  const bool wide = BJ > 256;
   for (size_t i = 0; i < nv; ++i)
     for (int k = 0; k < 4; ++k) {
       int32_t j = fit->skin.joints[4 * i + k];
-      uint32_t v = j < 0 ? 0 : (uint32_t)j;
+      uint32_t v = still_row(&fit->skin, i) && k == 0 ? (uint32_t)B : j < 0 ? 0 : (uint32_t)j;
       if (wide)
         put_u16le(b + 8 * i + 2 * k, v);
       else
@@ -1200,6 +1215,7 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
       x[k] = fit->skin.joints[4 * i + k] < 0 ? 0 : fit->skin.weights[4 * i + k];
       if (x[k] > x[big]) big = k;
     }
+    if (still_row(&fit->skin, i)) x[0] = 1, x[1] = x[2] = x[3] = 0, big = 0;
     if (z) {
       int q[4], sum = 0;
       for (int k = 0; k < 4; ++k)
@@ -1263,6 +1279,7 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
     cJSON_AddItemToObject(nj, "translation", num_array(c, 3));
     cJSON_AddItemToArray(nodes, nj);
   }
+  if (any_still) cJSON_AddItemToArray(joints, cJSON_CreateNumber(1)); /* joint B */
   for (size_t j = 0; par && j < B; ++j)
     if (par[j] >= 0) {
       cJSON *pn = cJSON_GetArrayItem(nodes, par[j] + 2);
@@ -1270,17 +1287,18 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
       if (!ch) ch = cJSON_AddArrayToObject(pn, "children");
       cJSON_AddItemToArray(ch, cJSON_CreateNumber((double)(j + 2)));
     }
-  for (size_t j = 0; j < B; ++j) {
+  for (size_t j = 0; j < BJ; ++j) { /* the armature root (j == B) is bound where it is */
     float m[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
     for (int c = 0; c < 3; ++c) {
       m[5 * c] = z ? (float)g.s : 1.0f;
-      m[12 + c] = (float)((z ? g.off[c] : 0.0) - fit->centers[3 * j + c]); /* column-major */
+      m[12 + c] = (float)((z ? g.off[c] : 0.0) -
+                          (j < B ? fit->centers[3 * j + c] : 0.0)); /* column-major */
     }
     for (int k = 0; k < 16; ++k)
       km__put_f32le(b + 64 * j + 4 * k, m[k]);
   }
-  a = pack_accessor(&pk, pack_view(&pk, b, B, 64, PACK_ATTRIBUTES, NULL, 0, false), GL_FLOAT, false,
-                    B, "MAT4", NULL, NULL, 0);
+  a = pack_accessor(&pk, pack_view(&pk, b, BJ, 64, PACK_ATTRIBUTES, NULL, 0, false), GL_FLOAT,
+                    false, BJ, "MAT4", NULL, NULL, 0);
   if (a < 0) goto nomem;
   cJSON *skin = cJSON_CreateObject();
   cJSON_AddNumberToObject(skin, "inverseBindMatrices", a);
@@ -1440,6 +1458,8 @@ km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double
     for (size_t t = 0; t < T; ++t)
       for (size_t i = 0; i < nv; ++i) {
         double p[3] = {0, 0, 0};
+        if (still_row(&fit->skin, i)) /* bound to the armature root, which stays */
+          p[0] = vq[3 * i], p[1] = vq[3 * i + 1], p[2] = vq[3 * i + 2];
         for (int k = 0; k < 4; ++k) {
           int32_t j = fit->skin.joints[4 * i + k];
           if (j < 0 || wq[4 * i + k] == 0) continue;

@@ -1960,10 +1960,22 @@ static km_status autorig_pieces(const km_mesh *m, const km_autorig_options *opt,
     goto done;
   }
   s = character_from_part(m, &cb, bd.to_body, bd.from_body, out, report, err);
+  /* A piece lying on the floor (a ground plane, a plinth exported with the character) is not
+   * carried by the foot nearest to it: its rows get no influence, so it stays where it is in
+   * pose, a skinned export and reconstruct, as animate and live leave it (km_puppet). */
+  bool *ground = s == KM_OK ? km__malloc(n, sizeof *ground) : NULL;
+  size_t n_ground = 0;
+  if (s == KM_OK && !ground) s = km__fail(err, KM_ERR_NOMEM, "rig: out of memory");
+  if (s == KM_OK && (s = km__body_ground(m, &bd, ground, &n_ground, err)) == KM_OK)
+    for (size_t v = 0; v < n; ++v)
+      for (int k = 0; ground[v] && k < KM_SKIN_INFLUENCES; ++k)
+        out->skin.joints[4 * v + (size_t)k] = -1, out->skin.weights[4 * v + (size_t)k] = 0;
+  free(ground);
   if (report) { /* the loose pieces of this mesh, besides any the body's own rigging found */
     report->loose_pieces = bd.n_pieces - 1;
     report->loose_vertices = km__body_loose_vertices(&bd, NULL, n);
     report->rigid_pieces = bd.rigid_pieces;
+    report->ground_pieces = n_ground;
   }
 done:
   if (s != KM_OK) km_character_free(out);

@@ -18,7 +18,10 @@ enum { R_NONE = -1, R_HIPS = 100, R_NECK = 101 };
 /* A joint name's role: the Kinect v1 joint of the one name matcher (km__bone_name_kinect1),
  * with the centre line kept apart (the spine and shoulders are found from the hierarchy). */
 static int classify(const char *name) {
-  int j = km__bone_name_kinect1(name);
+  /* kinemesh's own names first (pose --export skeleton writes them: ShoulderLeft is where the
+   * upper arm starts, HandLeft the hand's end), then the conventions' */
+  int j = km_skeleton_joint_index(KM_SKELETON_KINECT1, name);
+  if (j < 0) j = km__bone_name_kinect1(name);
   if (j == J_HIP_C) return R_HIPS;
   if (j == J_SHOULDER_C) return R_NECK;
   if (j == J_SPINE) return R_NONE;
@@ -209,14 +212,18 @@ km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_cha
     }
   }
   /* Every other joint weights the Kinect joint of its nearest mapped ancestor (none: the
-   * hips). */
+   * hips), except a joint above the hips (the armature's root, which kinemesh's own skinned
+   * export binds a ground plane to): its vertices stay (target -1, a skin row with no
+   * influence), as they do in the file, where nothing moves that root. */
   size_t merged = 0;
   for (size_t j = 0; j < nj; ++j) {
     int x = (int)j;
     while (x >= 0 && owner[x] < 0)
       x = s->parents[x];
-    target[j] = x >= 0 ? owner[x] : J_HIP_C;
-    merged += owner[j] < 0;
+    target[j] = x >= 0                                              ? owner[x]
+                : (int)j != hip_c && is_ancestor(&t, (int)j, hip_c) ? -1
+                                                                    : J_HIP_C;
+    merged += owner[j] < 0 && target[j] >= 0;
   }
   if (map) map->n_merged = merged;
   if ((st = km_mesh_copy(m, &out->mesh, err)) || (st = km__skin_alloc(&out->skin, nv, err)))
@@ -238,18 +245,28 @@ km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_cha
     sk->parents[j] = km_kinect1_joint_parent(j);
   }
   memcpy(sk->rest, J, sizeof J);
+  size_t still = 0;
   for (size_t v = 0; v < nv; ++v) {
-    double w[KM_KINECT1_JOINTS] = {0}, sum = 0;
+    double w[KM_KINECT1_JOINTS] = {0}, sum = 0, above = 0;
     for (int q = 0; q < 4; ++q) {
       int32_t j = s->joints[4 * v + q];
       double x = s->weights[4 * v + q];
-      if (j >= 0 && (size_t)j < nj && x > 0 && isfinite(x)) w[target[j]] += x, sum += x;
+      if (!(j >= 0 && (size_t)j < nj && x > 0 && isfinite(x))) continue;
+      if (target[j] >= 0)
+        w[target[j]] += x, sum += x;
+      else
+        above += x;
     }
-    if (!(sum > 0)) w[J_HIP_C] = 1;
+    /* wholly on the root above the hips: no influence (km__skin_keep_largest of all zeros) */
+    if (!(sum > 0) && above > 0)
+      ++still;
+    else if (!(sum > 0))
+      w[J_HIP_C] = 1;
     km__skin_keep_largest(w, KM_KINECT1_JOINTS, out->skin.joints + 4 * v,
                           out->skin.weights + 4 * v);
     dom[v] = out->skin.joints[4 * v];
   }
+  if (map) map->n_still = still;
   /* Tips for the landmarks: the hand's vertex farthest along wrist -> hand, the foot's
    * farthest along ankle -> foot (horizontally), among the vertices they dominate. */
   int32_t tips[4];

@@ -114,6 +114,10 @@ km_status km__file_body(const km_mesh *m, km__weld *wd, km__body *bd, bool *foun
  * frame, y up): a ground plane or a plinth exported with the character, which an animation
  * keeps still instead of carrying it with a foot. *n_pieces: how many such pieces. */
 km_status km__ground_vertices(const km_mesh *m, bool *ground, size_t *n_pieces, km_error *err);
+/* km__ground_vertices for a body bd that km__mesh_body found on m itself (no seam joined):
+ * ground #V, every entry written. */
+km_status km__body_ground(const km_mesh *m, const km__body *bd, bool *ground, size_t *n_pieces,
+                          km_error *err);
 /* The vertices that make m's shape, keep #V: the body's when m (joined at its seams, as
  * km__mesh_weld joins them) is a body with small loose pieces (km__mesh_body), otherwise every
  * vertex of a face that is not collapsed; every vertex when m has no faces, or when every face

@@ -344,11 +344,12 @@ km_status km__file_body(const km_mesh *m, km__weld *wd, km__body *bd, bool *foun
 }
 
 /* The loose pieces of bd lying on the floor (km__ground_vertices), counted; with ground, the
- * file's vertices in them flagged (ground[v], n entries, all written). false: out of memory. */
+ * file's vertices in them flagged (ground[v], n entries, all written). wd NULL: bd was found on
+ * m itself. false: out of memory. */
 static bool ground_of_body(const km_mesh *m, const km__weld *wd, const km__body *bd,
                            size_t *n_pieces, bool *ground) {
   size_t n = m->n_vertices, np = bd->n_pieces - 1;
-  const int32_t *to_w = wd->to_w;
+  const int32_t *to_w = wd ? wd->to_w : NULL;
   *n_pieces = 0;
   for (size_t v = 0; ground && v < n; ++v)
     ground[v] = false;
@@ -370,6 +371,13 @@ static bool ground_of_body(const km_mesh *m, const km__weld *wd, const km__body 
   }
   free(top);
   return true;
+}
+
+km_status km__body_ground(const km_mesh *m, const km__body *bd, bool *ground, size_t *n_pieces,
+                          km_error *err) {
+  if (!ground_of_body(m, NULL, bd, n_pieces, ground))
+    return km__fail(err, KM_ERR_NOMEM, "pieces: out of memory");
+  return KM_OK;
 }
 
 km_status km__ground_vertices(const km_mesh *m, bool *ground, size_t *n_pieces, km_error *err) {

@@ -891,11 +891,19 @@ static km_status rig_plan_make_on(const char *path, const km_character *c, rig_p
    * The highest of all can be a raised tail (the walking cat, cat-03, had its tail tip for a
    * head handle, turned by the performer's neck while its head hung free) or a hand held up
    * (FAUST's npt_14_664). An ear tip stays (the armadillo's, which the distance skin gives to
-   * the hand beside it: on the skull top instead, bench motion B's folds rose 3-17 %). */
+   * the hand beside it: on the skull top instead, bench motion B's folds rose 3-17 %). A
+   * vertex in no face (a stray point a scan or an exporter left in the file) is none of these:
+   * one above the head took the head handle alone, a point dragging nothing. */
+  unsigned char *on_face = km__calloc(n, 1);
+  if (!on_face) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", path);
+  for (size_t i = 0; i < 3 * m->n_faces; ++i)
+    if (m->F[i] >= 0 && (size_t)m->F[i] < n) on_face[m->F[i]] = 1;
+  if (!m->n_faces) memset(on_face, 1, n);
   size_t top = 0;
   double ymin = DBL_MAX, ymax = -DBL_MAX;
   for (size_t v = 0; v < n; ++v) {
     double y = m->V[3 * v + 1];
+    if (!on_face[v]) continue;
     if (y > ymax) ymax = y, top = v;
     if (y < ymin) ymin = y;
   }
@@ -905,10 +913,11 @@ static km_status rig_plan_make_on(const char *path, const km_character *c, rig_p
       km__skin_dominant(c->skin.joints + 4 * top, c->skin.weights + 4 * top) != jh) {
     double best = -DBL_MAX;
     for (size_t v = 0; v < n; ++v)
-      if (m->V[3 * v + 1] > best &&
+      if (on_face[v] && m->V[3 * v + 1] > best &&
           km__skin_dominant(c->skin.joints + 4 * v, c->skin.weights + 4 * v) == jh)
         best = m->V[3 * v + 1], top = v;
   }
+  free(on_face);
   p->radius = radius;
   p->handle_vertex[0] = (long)top;
   for (int h = 1; h < 5; ++h) {
@@ -1510,7 +1519,14 @@ km_status km_character_read_rig(const char *path, size_t n_vertices, km_characte
       if (skin.joints[e] < 0) skin.weights[e] = 0;
       sum += skin.weights[e];
     }
-    if (fabs(sum - 1) > 1e-4) FAIL("%s: skin weights of vertex %zu sum to %g, not 1", path, v, sum);
+    /* sum 0: a vertex with no influence, which stays where it is (rig writes one for a vertex
+     * in no face and for a piece lying on the floor) */
+    if (fabs(sum - 1) > 1e-4 && sum != 0)
+      FAIL("%s: skin weights of vertex %zu sum to %g, not 1 (or 0 with every joint -1: no "
+           "influence, the vertex stays)",
+           path, v, sum);
+    for (int q = 0; sum == 0 && q < KM_SKIN_INFLUENCES; ++q)
+      skin.joints[v * KM_SKIN_INFLUENCES + (size_t)q] = -1;
   }
   const cJSON *lms = cJSON_GetObjectItemCaseSensitive(root, "landmarks");
   if (!cJSON_IsArray(lms) || cJSON_GetArraySize(lms) != KM_CHARACTER_LANDMARKS)

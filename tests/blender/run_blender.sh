@@ -2,7 +2,8 @@
 # ctest blender (issue 16): Debian's Blender, headless, imports each glTF export kind of a short
 # puppetry run (kinemesh gen + animate: per-frame morphs, compact morphs:K, a skin, and a
 # compressed skin, which Blender 3.4 refuses: see blender_check.py), and pose's skeleton export
-# (the rig's own bones against pose's exact frames), with its own
+# (the rig's own bones against pose's exact frames; and with a ground quad bound to the
+# armature's root), with its own
 # glTF importer and, at frames 0, the middle and the last, the evaluated vertex positions match
 # the exact frames (.pc2 of the same run) within the file's reported error (skin, morphs:K; plus
 # 0.1 mm for float32) or 0.1 mm (morphs:all). See blender_check.py. And `animate --keep-frame`'s
@@ -54,6 +55,15 @@ check "$WORK/morphs.glb" "$WORK/exact.pc2" "$WORK/c.obj" 0.1
 check "$WORK/pca.glb" "$WORK/exact.pc2" "$WORK/c.obj" auto
 check "$WORK/skin.glb" "$WORK/exact.pc2" "$WORK/c.obj" auto
 check "$WORK/skel.glb" "$WORK/pose_exact.pc2" "$WORK/c.obj" auto
+# with a ground quad under its feet: rig leaves the quad out of the skin, the export binds it to
+# the armature's root (a joint no channel moves), and Blender keeps it where pose does
+awk '$1=="v"{n++; if(min==""||$3<min)min=$3} {print}
+     END{y=min-0.002; printf "v -1 %g -1\nv 1 %g -1\nv 1 %g 1\nv -1 %g 1\nf %d %d %d\nf %d %d %d\n",
+         y,y,y,y,n+1,n+3,n+2,n+1,n+4,n+3}' "$WORK/c.obj" >"$WORK/cg.obj"
+"$BIN" rig "$WORK/cg.obj" -o "$WORK/cg.rig.json" >/dev/null 2>&1
+"$BIN" pose --mesh "$WORK/cg.obj" --motion "$WORK/t.json" -o "$WORK/ground_exact.pc2" >/dev/null 2>&1
+"$BIN" pose --mesh "$WORK/cg.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/ground_skel.glb" >/dev/null 2>&1
+check "$WORK/ground_skel.glb" "$WORK/ground_exact.pc2" "$WORK/cg.obj" auto
 # --compress: Blender 3.4 refuses EXT_meshopt_compression (passes as documented; a Blender that
 # decodes it must play it within the reported error)
 check "$WORK/skin_z.glb" "$WORK/exact.pc2" "$WORK/c.obj" auto compressed
@@ -79,5 +89,5 @@ frame_check() { # CACHE WANT(0: lines up, 1: off)
 }
 frame_check "$WORK/keep.pc2" 0
 frame_check "$WORK/plain.pc2" 1
-[ $rc -eq 0 ] && echo "blender: 4 exports and the z-up point cache passed" || echo "blender: FAILED"
+[ $rc -eq 0 ] && echo "blender: 5 exports and the z-up point cache passed" || echo "blender: FAILED"
 exit $rc

@@ -65,6 +65,22 @@ const s = idx("ShoulderLeft"), e = idx("ElbowLeft");
 if (s < 0 || e < 0 || !(j.nodes[s].children || []).includes(e) || j.skins[0].joints.length !== 20) {
   console.log("FAIL: skel.glb: ElbowLeft is not a child of ShoulderLeft"); process.exit(1);
 }' "$WORK/skel.glb"
+# a ground quad under the character's feet: rig leaves it out of the skin, and the skeleton
+# export binds it to the armature's root, one more joint (21), which no channel moves
+awk '$1=="v"{n++; if(min==""||$3<min)min=$3} {print}
+     END{y=min-0.002; printf "v -1 %g -1\nv 1 %g -1\nv 1 %g 1\nv -1 %g 1\nf %d %d %d\nf %d %d %d\n",
+         y,y,y,y,n+1,n+3,n+2,n+1,n+4,n+3}' "$WORK/c.obj" > "$WORK/cg.obj"
+"$BIN" rig "$WORK/cg.obj" -o "$WORK/cg.rig.json" >/dev/null
+"$BIN" pose --mesh "$WORK/cg.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/ground_skel.glb"
+"$BIN" pose --mesh "$WORK/cg.obj" --motion "$WORK/t.json" --export skeleton --compress -o "$WORK/z_ground_skel.glb"
+node -e '
+const b = require("fs").readFileSync(process.argv[1]);
+const j = JSON.parse(b.subarray(20, 20 + b.readUInt32LE(12)).toString());
+const js = j.skins[0].joints;
+if (js.length !== 21 || js[20] !== 1 || j.nodes[1].name !== "armature" ||
+    j.animations[0].channels.some((c) => c.target.node === 1)) {
+  console.log("FAIL: ground_skel.glb: the ground is not bound to the armature root, joint 21"); process.exit(1);
+}' "$WORK/ground_skel.glb"
 if "$BIN" animate --mesh "$WORK/c.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/x.glb" 2>/dev/null; then
   echo "FAIL: animate accepted --export skeleton (its frames are not skinned by a skeleton)"; exit 1
 fi
@@ -82,7 +98,7 @@ fi
 if "$BIN" pose --mesh "$WORK/c.obj" --motion "$WORK/t.json" --compress -o "$WORK/z.pc2" 2>/dev/null; then
   echo "FAIL: --compress accepted a .pc2 output"; exit 1
 fi
-for f in every keys textured textured_anim skin skel z_skel baked baked_pc2 pca z_keys z_skin z_pca z_baked colors z_colors; do
+for f in every keys textured textured_anim skin skel z_skel ground_skel z_ground_skel baked baked_pc2 pca z_keys z_skin z_pca z_baked colors z_colors; do
   # the textured mesh's outputs have a normal map and no TANGENT, as intended (validate.mjs)
   allow=()
   case $f in every | keys | baked | z_baked | colors | z_colors) ;; *) allow=(--allow MESH_PRIMITIVE_GENERATED_TANGENT_SPACE) ;; esac
@@ -115,4 +131,4 @@ if (m.length !== 2 || p.length !== 2 || p[0].material !== 0 || p[1].material !==
 done
 "$BIN" info --json "$WORK/every.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames"; exit 1; }
 "$BIN" info --json "$WORK/skin.glb" | grep -Eq '"frames":[[:space:]]*12,' || { echo "FAIL: info does not report 12 frames for the skin"; exit 1; }
-echo "gltf_validator: 16 passed, 0 failed"
+echo "gltf_validator: 18 passed, 0 failed"
