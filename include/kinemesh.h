@@ -2747,6 +2747,9 @@ typedef struct km_recon_report {
   /* ---- two-sided error */
   bool visibility_known;          /* cameras were given: surface -> points over the vertices
                                    * facing one; else over all vertices */
+  size_t still_vertices;          /* template vertices with no skin influence (a ground plane
+                                   * km_autorig left out of the skin): kept where the template
+                                   * has them in every frame and left out of surface -> points */
   double unsupported_distance_mm; /* the thresholds used */
   double unsupported_fraction;
   size_t unsupported_frames;    /* frames flagged "unsupported_surface" */
@@ -2770,7 +2773,8 @@ const char *km_recon_frame_status(const km_recon_frame_stats *s);
  * "surface_vertices", "unsupported_vertices", "unsupported_joints":[names],
  * "unsupported_ids":[vertex ids] (when report->unsupported has them); a flagged frame has
  * "status":"unsupported_surface"}...], "surface_to_points": "all vertices (visibility
- * unknown)"|"vertices facing a camera", "unsupported_distance_mm", "unsupported_fraction",
+ * unknown)"|"vertices facing a camera", "still_vertices" (km_recon_report.still_vertices),
+ * "unsupported_distance_mm", "unsupported_fraction",
  * "unsupported_frames", "jerk_before":.., "jerk_after":.., "first_frame": {"correspondences": N,
  * "initialisation": "...", and without correspondences "yaw_candidates", "yaw_deg", "rotation_deg",
  * "rigid_residual_mm", "residual_mm", "feet_residual_mm", "scale", "landmarks"; and "limbs_turned",

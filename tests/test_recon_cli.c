@@ -149,6 +149,55 @@ int main(void) {
   CHECK_MSG(out && strstr(out, "--strict"), "%s", out);
   free(out);
 
+  /* a template with a ground quad under its feet (as a character comes out of a scene): rig
+   * leaves the quad out of the skin, reconstruct keeps it where it lies in every frame and
+   * leaves it out of surface -> points (its corners, a metre from any point, measured 1335 mm
+   * before and held the report's surface error there) */
+  CHECK(km_test_run("awk '$1==\"v\"{n++; if(min==\"\"||$3<min)min=$3} {print} END{y=min-0.002; "
+                    "printf \"v -1 %g -1\\nv 1 %g -1\\nv 1 %g 1\\nv -1 %g 1\\nf %d %d %d\\nf %d "
+                    "%d %d\\n\", y,y,y,y,n+1,n+3,n+2,n+1,n+4,n+3}' " DIR "/template.obj > " DIR
+                    "/ground.obj",
+                    NULL) == 0);
+  CHECK(km_test_run(KM_CLI " rig " DIR "/ground.obj", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/ground.obj --clouds '" DIR
+                           "/frames/frame_*.ply' -o " DIR "/ground.pc2 --report " DIR
+                           "/ground.json",
+                    &out) == 0);
+  CHECK_MSG(out && strstr(out, "but those the skin leaves still"), "%s", out ? out : "");
+  free(out);
+  km_mesh gm = {0};
+  double *gf = NULL;
+  km_anim_info gi;
+  CHECK_OK(km_mesh_read(DIR "/ground.obj", &gm, KM_E));
+  CHECK_OK(km_pc2_read(DIR "/ground.pc2", &gf, &gi, KM_E));
+  if (gf && gm.n_vertices == gi.vertices && gi.frames == 5) {
+    double moved = 0;
+    for (size_t t = 0; t < gi.frames; ++t)
+      for (size_t v = gm.n_vertices - 4; v < gm.n_vertices; ++v)
+        for (int a = 0; a < 3; ++a)
+          moved = fmax(moved,
+                       fabs(gf[(t * gm.n_vertices + v) * 3 + (size_t)a] - gm.V[3 * v + (size_t)a]));
+    CHECK_MSG(moved < 1e-6, "the ground quad moved %g m", moved);
+  } else
+    CHECK_MSG(false, "ground.pc2: %zu frames of %zu vertices", gi.frames, gi.vertices);
+  free(gf);
+  km_mesh_free(&gm);
+  rep = km_test_read_json(DIR "/ground.json");
+  const cJSON *sv = rep ? cJSON_GetObjectItemCaseSensitive(rep, "still_vertices") : NULL;
+  CHECK(cJSON_IsNumber(sv) && sv->valuedouble == 4);
+  frames = rep ? cJSON_GetObjectItemCaseSensitive(rep, "frames") : NULL;
+  for (int i = 0; i < cJSON_GetArraySize(frames); ++i) {
+    const cJSON *fr = cJSON_GetArrayItem(frames, i);
+    const cJSON *smax = cJSON_GetObjectItemCaseSensitive(fr, "surface_max_mm");
+    const cJSON *mean = cJSON_GetObjectItemCaseSensitive(fr, "mean_mm");
+    CHECK_MSG(cJSON_IsNumber(smax) && smax->valuedouble < 300 && cJSON_IsNumber(mean) &&
+                  mean->valuedouble < 6,
+              "frame %d: surface -> points max %.0f mm, points -> surface mean %.2f mm", i,
+              cJSON_IsNumber(smax) ? smax->valuedouble : -1,
+              cJSON_IsNumber(mean) ? mean->valuedouble : -1);
+  }
+  cJSON_Delete(rep);
+
   /* bad inputs */
   CHECK(km_test_run(KM_CLI " reconstruct --template " DIR "/template.obj --clouds '" DIR
                            "/nothing_*.ply' -o " DIR "/x.pc2",

@@ -285,9 +285,10 @@ int km_cli_reconstruct(int argc, char **argv) {
     fprintf(stderr,
             "kinemesh reconstruct: %zu frames (%zu carried by the skeleton, %zu with unsupported "
             "surface), mean point error %.2f mm, surface to points mean %.2f mm max %.0f mm "
-            "(%s), %.2f s/frame, jerk %.2f -> %.2f mm -> %s\n",
+            "(%s%s), %.2f s/frame, jerk %.2f -> %.2f mm -> %s\n",
             rep.n_frames, rep.failed_frames, rep.unsupported_frames, mean, smean, smax,
             rep.visibility_known ? "vertices facing a camera" : "all vertices",
+            rep.still_vertices ? " but those the skin leaves still, lying on the floor" : "",
             (km_cli_now() - t0) / (double)rep.n_frames, rep.jerk_before * 1e3, rep.jerk_after * 1e3,
             out);
     if (strict && (rep.unsupported_frames || rep.failed_frames) && rc == KM_EXIT_OK && !s) {

@@ -91,6 +91,7 @@ struct km__surface {
   const double *V;
   const int32_t *F;
   size_t nv, nf;
+  const bool *skip; /* nf or NULL: faces no closest point lands on (km__surface_skip) */
 };
 
 typedef struct closest_query {
@@ -105,6 +106,7 @@ static bool closest_cb(struct RTCPointQueryFunctionArguments *args) {
   closest_query *q = args->userPtr;
   const km__surface *s = q->s;
   unsigned f = args->primID;
+  if (s->skip && s->skip[f]) return false;
   const int32_t *t = s->F + 3 * (size_t)f;
   double w[3];
   double d2 = km__closest_on_triangle(q->p, s->V + 3 * (size_t)t[0], s->V + 3 * (size_t)t[1],
@@ -166,6 +168,8 @@ km_status km__surface_create(const double *V, size_t nv, const int32_t *F, size_
   *out = s;
   return KM_OK;
 }
+
+void km__surface_skip(km__surface *s, const bool *skip) { s->skip = skip; }
 
 void km__surface_update(km__surface *s, const double *V) {
   s->V = V;

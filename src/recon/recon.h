@@ -20,6 +20,10 @@ km_status km__surface_create(const double *V, size_t nv, const int32_t *F, size_
                              km__surface **out, km_error *err);
 /* New positions (same count), BVH refit. V must stay alive until the next update. */
 void km__surface_update(km__surface *s, const double *V);
+/* Faces km__surface_closest never returns (skip #F, kept by s, not copied; NULL: none): a
+ * template's ground plane, which no point of the subject measures. Occlusion still sees
+ * them. */
+void km__surface_skip(km__surface *s, const bool *skip);
 /* For each query point: closest triangle, barycentrics (3 per point) and distance. Points
  * farther than max_dist (<= 0: unlimited) get tri = -1. Parallel (OpenMP). */
 void km__surface_closest(const km__surface *s, const double *Q, size_t n, double max_dist,

@@ -122,6 +122,7 @@ km_status km_recon_report_write_json(const char *path, const km_recon_report *r,
   cJSON_AddStringToObject(root, "surface_to_points",
                           r->visibility_known ? "vertices facing a camera"
                                               : "all vertices (visibility unknown)");
+  cJSON_AddNumberToObject(root, "still_vertices", (double)r->still_vertices);
   cJSON_AddNumberToObject(root, "unsupported_distance_mm", r->unsupported_distance_mm);
   cJSON_AddNumberToObject(root, "unsupported_fraction", r->unsupported_fraction);
   cJSON_AddNumberToObject(root, "unsupported_frames", (double)r->unsupported_frames);
@@ -210,6 +211,13 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
   rep->correspondences = n_feat;
   rep->rig_joints = o.rig_joints;
   rep->visibility_known = o.cameras && o.n_cameras;
+  for (size_t i = 0; tmpl->skin.joints && tmpl->skin.weights && i < tmpl->skin.n_vertices; ++i) {
+    double w = 0;
+    for (int k = 0; k < KM_SKIN_INFLUENCES; ++k)
+      if (tmpl->skin.joints[KM_SKIN_INFLUENCES * i + k] >= 0)
+        w += tmpl->skin.weights[KM_SKIN_INFLUENCES * i + k];
+    rep->still_vertices += !(w > 0); /* as km_recon_create finds them */
+  }
   rep->unsupported_distance_mm = 1e3 * (o.unsupported_distance > 0 ? o.unsupported_distance : 0.03);
   rep->unsupported_fraction = o.unsupported_fraction > 0 ? o.unsupported_fraction : 0.02;
   size_t done_frames = 0;

@@ -115,6 +115,11 @@ struct km_recon {
   double *sup_dist;
   int32_t *sup_idx, *sup_list;
   size_t n_sup;
+  /* Vertices with no skin influence (km_autorig's ground plane): no body part, so no point
+   * of the body explains them; each frame keeps them where the template has them and the
+   * surface -> points error leaves them out. NULL when there are none. */
+  bool *still;
+  bool *still_face; /* nf: faces of still vertices only, which no point lands on */
   double *sup_N;
 };
 
@@ -321,6 +326,8 @@ void km_recon_free(km_recon **rp) {
   free(r->sup_dist);
   free(r->sup_idx);
   free(r->sup_list);
+  free(r->still);
+  free(r->still_face);
   free(r->sup_N);
   free(r);
   *rp = NULL;
@@ -445,6 +452,18 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   memcpy(r->tmpl_joints, c->skeleton.rest, nj * 3 * sizeof(double));
   memcpy(r->skin.joints, c->skin.joints, nv * 4 * sizeof(int32_t));
   memcpy(r->skin.weights, c->skin.weights, nv * 4 * sizeof(double));
+  for (size_t i = 0; i < nv; ++i) {
+    if (km__skin_dominant(r->skin.joints + 4 * i, r->skin.weights + 4 * i) >= 0 &&
+        r->skin.weights[4 * i] + r->skin.weights[4 * i + 1] + r->skin.weights[4 * i + 2] +
+                r->skin.weights[4 * i + 3] >
+            0)
+      continue;
+    if (!r->still && !(r->still = km__calloc(nv, sizeof *r->still))) {
+      km_recon_free(&r);
+      return km__fail(err, KM_ERR_NOMEM, "km_recon_create: out of memory");
+    }
+    r->still[i] = true;
+  }
   if ((s = seams_find(r, err)) != KM_OK) {
     km_recon_free(&r);
     return s;
@@ -461,6 +480,14 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   memcpy(r->joints, r->tmpl_joints, nj * 3 * sizeof(double));
   s = build_system(r, err);
   if (!s) s = km__surface_create(r->surface, nv, r->tmpl.F, r->nf, &r->query, err);
+  if (!s && r->still) {
+    if (!(r->still_face = km__malloc(r->nf ? r->nf : 1, sizeof *r->still_face)))
+      s = km__fail(err, KM_ERR_NOMEM, "km_recon_create: out of memory");
+    for (size_t f = 0; !s && f < r->nf; ++f)
+      r->still_face[f] =
+          r->still[m->F[3 * f]] && r->still[m->F[3 * f + 1]] && r->still[m->F[3 * f + 2]];
+    if (!s) km__surface_skip(r->query, r->still_face);
+  }
   if (s) {
     km_recon_free(&r);
     return s;
@@ -719,6 +746,13 @@ static void forward_kinematics(const km_recon *r, const double *Lrot, const doub
 /* km_lbs runs serially below 20000 vertices: called once per L-BFGS evaluation on a few
  * thousand vertices, an OpenMP fork/join would cost more than the work. The skin was checked
  * by km_recon_create. */
+/* The vertices with no skin influence (a ground plane) matched to no point: near[i] = -1 for
+ * them, after a nearest-point query over the template's vertices. */
+static void unhook_still(const km_recon *r, int32_t *near) {
+  for (size_t i = 0; r->still && i < r->nv; ++i)
+    if (r->still[i]) near[i] = -1;
+}
+
 static void lbs_apply(const km_recon *r, const double *G, const double *Vb, double *X) {
   km_lbs(Vb, r->nv, &r->skin, G, r->nj, X, NULL);
 }
@@ -933,6 +967,7 @@ static int skeleton_fit(km_recon *r, const double *Q, const double *NQ, size_t n
       km_mesh cur = {.V = r->work, .F = r->tmpl.F, .n_vertices = nv, .n_faces = r->nf};
       if (km_vertex_normals(&cur, KM_NORMALS_AREA, r->vn, NULL) == KM_OK) {
         km__point_index_nearest(ix, r->work, nv, 0.3, r->vnear, r->vdist);
+        unhook_still(r, r->vnear);
         size_t m = 0;
         for (size_t v = 0; v < nv; ++v)
           if (r->vnear[v] >= 0) r->vw[m++] = r->vdist[v];
@@ -1117,7 +1152,7 @@ static void surface_support(km_recon *r, const frame_data *fd, const double *X,
   double sum = 0, mx = 0;
   size_t *per_joint = calloc(r->nj, sizeof *per_joint);
   for (size_t i = 0; i < nv; ++i) {
-    if (seen && !seen[i]) continue;
+    if ((seen && !seen[i]) || (r->still && r->still[i])) continue;
     double di = r->sup_dist[i];
     sum += di;
     mx = di > mx ? di : mx;
@@ -1151,9 +1186,17 @@ static void surface_support(km_recon *r, const frame_data *fd, const double *X,
   free(seen);
 }
 
-/* Points -> surface (mean, p95, max in mm over all points) and surface -> points. */
-static void frame_error(km_recon *r, const frame_data *fd, const double *X,
-                        km_recon_frame_stats *st) {
+/* The vertices with no skin influence of a frame's surface X put back where the template has
+ * them. */
+static void hold_still(const km_recon *r, double *X) {
+  for (size_t i = 0; r->still && i < r->nv; ++i)
+    if (r->still[i]) memcpy(X + 3 * i, r->tmpl.V + 3 * i, 3 * sizeof(double));
+}
+
+/* Points -> surface (mean, p95, max in mm over all points) and surface -> points, of a frame's
+ * result X (its vertices with no skin influence first held: hold_still). */
+static void frame_error(km_recon *r, const frame_data *fd, double *X, km_recon_frame_stats *st) {
+  hold_still(r, X);
   km__surface_update(r->query, X);
   km__surface_closest(r->query, fd->P, fd->n, 0, r->ptri, NULL, r->pdist);
   double sum = 0, mx = 0;
@@ -1192,6 +1235,7 @@ static bool surface_targets(km_recon *r, const frame_data *fd, const double *X, 
   km_mesh cur = {.V = (double *)X, .F = r->tmpl.F, .n_vertices = nv, .n_faces = r->nf};
   if (km_vertex_normals(&cur, KM_NORMALS_AREA, r->vn, NULL) != KM_OK) return false;
   km__point_index_nearest(fd->ix, X, nv, KM__S2P_FAR, r->vnear, r->vdist);
+  unhook_still(r, r->vnear);
   double wv = KM__S2P_WEIGHT * r->o.w_data / (double)nv;
   size_t m = 0;
   for (size_t v = 0; v < nv; ++v) {
@@ -1274,9 +1318,13 @@ static double two_sided_residual(km_recon *r, const frame_data *fd, const double
   double a = capped_residual(r, X, fd->C, fd->nc), b = 0;
   if (!fd->ix) return a;
   km__point_index_nearest(fd->ix, X, r->nv, KM__RESIDUAL_CAP, r->vnear, r->vdist);
-  for (size_t i = 0; i < r->nv; ++i)
+  size_t m = 0; /* the still vertices (a ground plane) are no surface of the subject */
+  for (size_t i = 0; i < r->nv; ++i) {
+    if (r->still && r->still[i]) continue;
     b += r->vnear[i] >= 0 ? fmin(r->vdist[i], KM__RESIDUAL_CAP) : KM__RESIDUAL_CAP;
-  return a + b / (double)(r->nv ? r->nv : 1);
+    ++m;
+  }
+  return a + b / (double)(m ? m : 1);
 }
 
 /* Solves the 6x6 SPD system M x = b in place (Gaussian elimination, partial pivoting). */
@@ -1406,9 +1454,13 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
       cp[a] += fd->P[3 * i + a] / (double)fd->n;
     plo = fmin(plo, fd->P[3 * i + 1]), phi = fmax(phi, fd->P[3 * i + 1]);
   }
+  size_t nb = 0; /* the body's vertices: the still ones (a ground plane) are no part of it */
+  for (size_t i = 0; i < nv; ++i)
+    nb += !(r->still && r->still[i]);
   for (size_t i = 0; i < nv; ++i) {
+    if (r->still && r->still[i]) continue;
     for (int a = 0; a < 3; ++a)
-      ct[a] += r->tmpl.V[3 * i + a] / (double)nv;
+      ct[a] += r->tmpl.V[3 * i + a] / (double)nb;
     tlo = fmin(tlo, r->tmpl.V[3 * i + 1]), thi = fmax(thi, r->tmpl.V[3 * i + 1]);
   }
   double sc = (thi > tlo && phi > plo) ? (phi - plo) / (thi - tlo) : 1;
@@ -2186,6 +2238,7 @@ km_status km_recon_first_frame(km_recon *r, const double *P, size_t n, const km_
       for (int a = 0; a < 3; ++a)
         r->joints[3 * j + a] = acc[a] / wsum;
   }
+  hold_still(r, r->surface);
   memcpy(r->base, r->surface, nv * 3 * sizeof(double));
   memcpy(r->base_joints, r->joints, nj * 3 * sizeof(double));
   memcpy(r->global, r->surface, nv * 3 * sizeof(double));
