@@ -3069,7 +3069,7 @@ typedef struct km_skin_mapping {
   char source[KM_KINECT1_JOINTS][64];
   size_t n_merged; /* the file's joints whose weights went to a mapped ancestor's joint */
   size_t n_still;  /* vertices weighted only to joints above the hips (the armature's root: a
-                      ground plane): left with no influence, they stay */
+                      ground plane) or to none: left with no influence, they stay */
 } km_skin_mapping;
 
 /* A rigged template from a mesh's own skin (a skinned glTF, km_mesh_read_skinned): the 20
@@ -3087,8 +3087,9 @@ typedef struct km_skin_mapping {
  * ends) gives its weights to its nearest mapped ancestor's joint (none: HipCenter); each vertex
  * keeps its 4 largest sums, normalised. A joint above the hips (the armature's root) gives
  * none: a vertex weighted only to such joints (a ground plane bound to the root, as
- * km_anim_writer's skeleton export binds a vertex with no influence) gets no influence and
- * stays (map->n_still counts them); a vertex with some weight below the hips keeps only that.
+ * km_anim_writer's skeleton export binds a vertex with no influence), or to no joint at all,
+ * gets no influence and stays (map->n_still counts them); a vertex with some weight below the
+ * hips keeps only that.
  *   m    in: the mesh as read with the skin (#V vertices)
  *   s    in: its skin (s->n_vertices == #V)
  *   out  out: mesh (a copy of m), skeleton (20 Kinect v1 joints), skin, landmarks, as

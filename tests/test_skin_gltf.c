@@ -377,7 +377,17 @@ int main(void) {
   CHECK_MSG(dw < 1e-6, "weights differ by %g", dw);
   for (int l = 0; l < KM_CHARACTER_LANDMARKS; ++l)
     CHECK(g.landmarks[l].vertex >= 0 && (size_t)g.landmarks[l].vertex < m.n_vertices);
+  CHECK(map.n_still == 0);
   km_character_free(&g);
+  /* a vertex the file weights to no joint (an unskinned primitive with no joint above it: a
+   * ground plane beside the armature) gets no influence, as Blender leaves it, not the hips */
+  if (sk.joints && m.n_vertices > 1) {
+    for (int q = 0; q < 4; ++q)
+      sk.joints[4 + q] = -1, sk.weights[4 + q] = 0;
+    CHECK_OK(km_character_from_skin(&m, &sk, &g, &map, KM_E));
+    CHECK(map.n_still == 1 && g.skin.joints && g.skin.joints[4] == -1 && g.skin.weights[4] == 0);
+    km_character_free(&g);
+  }
   km_mesh_skin_free(&sk);
   km_mesh_free(&m);
   /* the other conventions map the same way */

@@ -142,8 +142,8 @@ int km_cli_rig(int argc, char **argv) {
            "ancestor's weights):\n",
            pos[0], m.n_vertices, sk.n_joints, map.n_merged);
     if (map.n_still)
-      printf("  %zu vertices weighted only to the armature's root, above the hips (a ground "
-             "plane?): no influence, they stay where they are\n",
+      printf("  %zu vertices weighted only to joints above the hips (the armature's root) or to "
+             "none (a ground plane?): no influence, they stay where they are\n",
              map.n_still);
     for (size_t j = 0; j < c.skeleton.n_joints; ++j)
       printf("  %-14s <- %-28s (%8.4f %8.4f %8.4f)\n", c.skeleton.names[j],

@@ -247,21 +247,17 @@ km_status km_character_from_skin(const km_mesh *m, const km_mesh_skin *s, km_cha
   memcpy(sk->rest, J, sizeof J);
   size_t still = 0;
   for (size_t v = 0; v < nv; ++v) {
-    double w[KM_KINECT1_JOINTS] = {0}, sum = 0, above = 0;
+    double w[KM_KINECT1_JOINTS] = {0}, sum = 0;
     for (int q = 0; q < 4; ++q) {
       int32_t j = s->joints[4 * v + q];
       double x = s->weights[4 * v + q];
       if (!(j >= 0 && (size_t)j < nj && x > 0 && isfinite(x))) continue;
-      if (target[j] >= 0)
-        w[target[j]] += x, sum += x;
-      else
-        above += x;
+      if (target[j] >= 0) w[target[j]] += x, sum += x; /* target -1: above the hips */
     }
-    /* wholly on the root above the hips: no influence (km__skin_keep_largest of all zeros) */
-    if (!(sum > 0) && above > 0)
-      ++still;
-    else if (!(sum > 0))
-      w[J_HIP_C] = 1;
+    /* wholly on the root above the hips, or on no joint at all (an unskinned primitive with no
+     * joint above its node: a ground plane beside the armature): no influence, so it stays, as
+     * Blender's armature leaves an unweighted vertex (km__skin_keep_largest of all zeros) */
+    still += !(sum > 0);
     km__skin_keep_largest(w, KM_KINECT1_JOINTS, out->skin.joints + 4 * v,
                           out->skin.weights + 4 * v);
     dom[v] = out->skin.joints[4 * v];
