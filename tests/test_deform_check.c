@@ -279,6 +279,61 @@ static void test_stretch_bound(void) {
   free(text);
   km_test_run("rm -rf dcheck_forced", NULL);
   km_deform_check_free(&dc);
+  /* the pairs cached in a file (options.cache_path): written on the first create, read on the
+   * next (a doctored rest length there shows it was read, not recomputed), recomputed when the
+   * sets change or the file is damaged */
+  km_test_run("rm -rf dcheck_bound", NULL);
+  km_stretch_bound_options oc = o;
+  oc.cache_path = "dcheck_bound/x.bound";
+  km_stretch_bound *c1 = NULL, *c2 = NULL, *c3 = NULL, *c4 = NULL;
+  CHECK_OK(km_stretch_bound_create(&m, 2, off, sets, &oc, &c1, KM_E));
+  for (size_t i = 0; i < n; ++i) /* targets: x doubled */
+    memcpy(T + 3 * i, V0 + 3 * (size_t)sets[i], 3 * sizeof(double)), T[3 * i] *= 2;
+  double x2 = km_stretch_bound_eval(b, T, NULL);
+  CHECK_MSG(c1 && km_stretch_bound_pairs(c1) == km_stretch_bound_pairs(b) &&
+                km_stretch_bound_eval(c1, T, NULL) == x2,
+            "written: %zu pairs", km_stretch_bound_pairs(c1));
+  size_t fn = 0;
+  char *bytes = km_test_read_file("dcheck_bound/x.bound", &fn);
+  size_t np = km_stretch_bound_pairs(b);
+  CHECK(bytes && fn == 28 + 24 * np);
+  if (bytes && fn == 28 + 24 * np) { /* every rest length halved: the bound read doubles */
+    for (size_t p = 0; p < np; ++p) {
+      double d;
+      memcpy(&d, bytes + 28 + 16 * np + 8 * p, sizeof d);
+      d /= 2;
+      memcpy(bytes + 28 + 16 * np + 8 * p, &d, sizeof d);
+    }
+    FILE *bf = fopen("dcheck_bound/x.bound", "wb");
+    CHECK(bf && fwrite(bytes, 1, fn, bf) == fn);
+    if (bf) fclose(bf);
+    CHECK_OK(km_stretch_bound_create(&m, 2, off, sets, &oc, &c2, KM_E));
+    CHECK_MSG(c2 && fabs(km_stretch_bound_eval(c2, T, NULL) - 2 * x2) < 1e-9,
+              "read back: %g, computed %g", km_stretch_bound_eval(c2, T, NULL), x2);
+    FILE *tf = fopen("dcheck_bound/x.bound", "wb"); /* damaged: cut short */
+    CHECK(tf && fwrite(bytes, 1, fn / 2, tf) == fn / 2);
+    if (tf) fclose(tf);
+    CHECK_OK(km_stretch_bound_create(&m, 2, off, sets, &oc, &c3, KM_E));
+    CHECK_MSG(c3 && km_stretch_bound_eval(c3, T, NULL) == x2, "after damage: %g",
+              km_stretch_bound_eval(c3, T, NULL));
+    int32_t off1[3] = {off[0], off[1] - 1, off[2]}; /* other sets: another key */
+    int32_t *sets1 = malloc(sizeof(int32_t) * (size_t)off[2]);
+    if (sets1) {
+      memcpy(sets1, sets, sizeof(int32_t) * (size_t)off[1] - sizeof(int32_t));
+      memcpy(sets1 + off1[1], sets + off[1], sizeof(int32_t) * (size_t)(off[2] - off[1]));
+      off1[2] = off1[1] + (off[2] - off[1]);
+      CHECK_OK(km_stretch_bound_create(&m, 2, off1, sets1, &oc, &c4, KM_E));
+      km_stretch_bound *c5 = NULL;
+      CHECK_OK(km_stretch_bound_create(&m, 2, off1, sets1, &o, &c5, KM_E));
+      CHECK(c4 && c5 && km_stretch_bound_pairs(c4) == km_stretch_bound_pairs(c5));
+      km_stretch_bound_free(&c5);
+      free(sets1);
+    }
+  }
+  free(bytes);
+  km_stretch_bound_free(&c1), km_stretch_bound_free(&c2), km_stretch_bound_free(&c3);
+  km_stretch_bound_free(&c4);
+  km_test_run("rm -rf dcheck_bound", NULL);
   km_stretch_bound_free(&b);
   CHECK(b == NULL);
   sets[0] = NX * NZ; /* out of range */

@@ -123,7 +123,7 @@ int km_cli_animate(int argc, char **argv) {
   km_deform_check *dc = NULL;
   km_stretch_bound *sb = NULL;
   char *rig_default = rig_path ? NULL : km_cli_rig_path(mesh_path);
-  char *cache_default = NULL, *skin_json = NULL;
+  char *cache_default = NULL, *skin_json = NULL, *sb_cache = NULL;
   size_t skin_json_n = 0;
   int rc = KM_EXIT_FAIL;
 
@@ -226,8 +226,14 @@ int km_cli_animate(int argc, char **argv) {
   const int32_t *offsets = NULL, *hverts = NULL;
   km_puppetry_handles(pl, NULL, &offsets, &hverts);
   size_t n_hv = (size_t)offsets[rig.n_handles];
-  /* what the handle targets force: when the mesh stretches, whether the rig asked for it */
-  if (km_stretch_bound_create(&m, rig.n_handles, offsets, hverts, NULL, &sb, &err) != KM_OK)
+  /* what the handle targets force: when the mesh stretches, whether the rig asked for it; its
+   * pairs cached beside the reduced model (their Dijkstra runs were half a warm start) */
+  km_stretch_bound_options sbo = {0};
+  size_t cpl = strlen(cpath) + 8;
+  if (!(sb_cache = malloc(cpl))) goto nomem;
+  snprintf(sb_cache, cpl, "%s.bound", cpath);
+  sbo.cache_path = sb_cache;
+  if (km_stretch_bound_create(&m, rig.n_handles, offsets, hverts, &sbo, &sb, &err) != KM_OK)
     goto fail;
   V = malloc(sizeof(double) * 3 * m.n_vertices);
   t23 = malloc(sizeof(double) * take.n_frames);
@@ -308,6 +314,7 @@ done:
   free(rig_default);
   free(skin_json);
   free(cache_default);
+  free(sb_cache);
   km_puppetry_free(&pl);
   km_rig_free(&rig);
   km_take_free(&take);

@@ -6,6 +6,8 @@
 #include "mesh/mesh.h"
 
 #include <math.h>
+#include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -44,6 +46,78 @@ static size_t sample_boundary(const int32_t *verts, int32_t lo, int32_t hi,
   return taken;
 }
 
+/* ---- the pairs cached in a file: "KMSBOUND", u32 version, u64 key, u64 n_pairs, then pairs
+ * (2n int32), ids (2n int32) and len0 (n float64), little-endian as this machine writes them
+ * (a file from a machine of the other order fails the key and is rebuilt). */
+#define SB_MAGIC "KMSBOUND"
+#define SB_VERSION 1u
+
+static uint64_t cache_key(const km_mesh *rest, size_t n_sets, const int32_t *offsets,
+                          const int32_t *vertices, const km_stretch_bound_options *o) {
+  uint64_t h = km_mesh_hash(rest), ns = n_sets, nt = n_sets ? (uint64_t)offsets[n_sets] : 0;
+  uint32_t v = SB_VERSION;
+  h = km__fnv1a(h, &v, sizeof v);
+  h = km__fnv1a(h, &ns, sizeof ns);
+  if (n_sets) {
+    h = km__fnv1a(h, offsets, (n_sets + 1) * sizeof *offsets);
+    h = km__fnv1a(h, vertices, nt * sizeof *vertices);
+  }
+  h = km__fnv1a(h, &o->radius, sizeof o->radius);
+  return km__fnv1a(h, &o->samples, sizeof o->samples);
+}
+
+/* The pairs from path when it holds them for key, each index checked against nt targets and n
+ * vertices; NULL otherwise (no file, another key, short or damaged). */
+static km_stretch_bound *cache_read(const char *path, uint64_t key, size_t nt, size_t n) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return NULL;
+  char magic[8];
+  uint32_t ver = 0;
+  uint64_t k = 0, np = 0;
+  km_stretch_bound *b = NULL;
+  long size = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+  rewind(f);
+  bool ok = size >= 28 && fread(magic, 1, 8, f) == 8 && !memcmp(magic, SB_MAGIC, 8) &&
+            fread(&ver, sizeof ver, 1, f) == 1 && ver == SB_VERSION &&
+            fread(&k, sizeof k, 1, f) == 1 && k == key && fread(&np, sizeof np, 1, f) == 1 &&
+            np <= (uint64_t)nt * nt && (uint64_t)size == 28 + 24 * np &&
+            (b = calloc(1, sizeof *b)) != NULL;
+  if (ok) {
+    b->n_pairs = (size_t)np;
+    b->pairs = km__malloc(np ? 2 * np : 2, sizeof *b->pairs);
+    b->ids = km__malloc(np ? 2 * np : 2, sizeof *b->ids);
+    b->len0 = km__malloc(np ? np : 1, sizeof *b->len0);
+    ok = b->pairs && b->ids && b->len0 && fread(b->pairs, sizeof *b->pairs, 2 * np, f) == 2 * np &&
+         fread(b->ids, sizeof *b->ids, 2 * np, f) == 2 * np &&
+         fread(b->len0, sizeof *b->len0, np, f) == np && fgetc(f) == EOF;
+    for (size_t i = 0; ok && i < 2 * np; ++i)
+      ok = b->pairs[i] >= 0 && (size_t)b->pairs[i] < nt && b->ids[i] >= 0 && (size_t)b->ids[i] < n;
+    for (size_t i = 0; ok && i < np; ++i)
+      ok = b->len0[i] > 0 && isfinite(b->len0[i]);
+  }
+  fclose(f);
+  if (!ok) km_stretch_bound_free(&b);
+  return b;
+}
+
+static void cache_write(const char *path, uint64_t key, const km_stretch_bound *b) {
+  km__atomic_file af;
+  km_error e = {0};
+  uint32_t ver = SB_VERSION;
+  uint64_t np = b->n_pairs;
+  if (km__atomic_open(&af, path, &e) == KM_OK) {
+    fwrite(SB_MAGIC, 1, 8, af.f);
+    fwrite(&ver, sizeof ver, 1, af.f);
+    fwrite(&key, sizeof key, 1, af.f);
+    fwrite(&np, sizeof np, 1, af.f);
+    fwrite(b->pairs, sizeof *b->pairs, 2 * np, af.f);
+    fwrite(b->ids, sizeof *b->ids, 2 * np, af.f);
+    fwrite(b->len0, sizeof *b->len0, np, af.f);
+    km__atomic_commit(&af, &e);
+  }
+  if (e.message[0]) km__log(KM_LOG_WARN, "stretch bound: cache not written: %s", e.message);
+}
+
 km_status km_stretch_bound_create(const km_mesh *rest, size_t n_sets, const int32_t *offsets,
                                   const int32_t *vertices, const km_stretch_bound_options *opt,
                                   km_stretch_bound **out, km_error *err) {
@@ -61,6 +135,8 @@ km_status km_stretch_bound_create(const km_mesh *rest, size_t n_sets, const int3
       return km__fail(err, KM_ERR_INVALID,
                       "km_stretch_bound_create: set vertex %d out of range (%zu vertices)",
                       (int)vertices[i], n);
+  uint64_t key = o.cache_path ? cache_key(rest, n_sets, offsets, vertices, &o) : 0;
+  if (o.cache_path && (*out = cache_read(o.cache_path, key, nt, n)) != NULL) return KM_OK;
   km_stretch_bound *b = calloc(1, sizeof *b);
   int32_t *set_of = malloc((n ? n : 1) * sizeof *set_of); /* vertex -> set, -1 none */
   int32_t *idx_of = malloc((n ? n : 1) * sizeof *idx_of); /* vertex -> index in vertices */
@@ -188,6 +264,7 @@ done:
     km_stretch_bound_free(&b);
     return st;
   }
+  if (o.cache_path) cache_write(o.cache_path, key, b);
   *out = b;
   return KM_OK;
 }
