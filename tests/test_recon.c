@@ -470,6 +470,19 @@ static void test_registration(void) {
   CHECK_STATUS(km_recon_next_frame(NULL, P, n, &st, KM_E), KM_ERR_INVALID);
   free(P);
   km_recon_free(&r);
+  /* a skin that moves no vertex (every row without influence) is refused, not divided by */
+  km_skin keep = c.skin, none = {.n_vertices = nv};
+  none.joints = malloc(4 * nv * sizeof *none.joints);
+  none.weights = calloc(4 * nv, sizeof *none.weights);
+  if (none.joints && none.weights) {
+    for (size_t i = 0; i < 4 * nv; ++i)
+      none.joints[i] = -1;
+    c.skin = none;
+    CHECK_STATUS(km_recon_create(&c, NULL, &r, KM_E), KM_ERR_INVALID);
+    CHECK(r == NULL && strstr(km_test_err.message, "no vertex an influence"));
+    c.skin = keep;
+  }
+  free(none.joints), free(none.weights);
   free(base), free(V1), free(V0);
   km_character_free(&c);
 }

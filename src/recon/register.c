@@ -464,6 +464,15 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
     }
     r->still[i] = true;
   }
+  size_t n_still = 0;
+  for (size_t i = 0; r->still && i < nv; ++i)
+    n_still += r->still[i];
+  if (nv && n_still == nv) {
+    km_recon_free(&r);
+    return km__fail(err, KM_ERR_INVALID,
+                    "km_recon_create: the template's skin gives no vertex an influence (every "
+                    "joint -1): nothing of it can follow the points");
+  }
   if ((s = seams_find(r, err)) != KM_OK) {
     km_recon_free(&r);
     return s;
