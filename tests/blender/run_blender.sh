@@ -57,9 +57,7 @@ check "$WORK/skin.glb" "$WORK/exact.pc2" "$WORK/c.obj" auto
 check "$WORK/skel.glb" "$WORK/pose_exact.pc2" "$WORK/c.obj" auto
 # with a ground quad under its feet: rig leaves the quad out of the skin, the export binds it to
 # the armature's root (a joint no channel moves), and Blender keeps it where pose does
-awk '$1=="v"{n++; if(min==""||$3<min)min=$3} {print}
-     END{y=min-0.002; printf "v -1 %g -1\nv 1 %g -1\nv 1 %g 1\nv -1 %g 1\nf %d %d %d\nf %d %d %d\n",
-         y,y,y,y,n+1,n+3,n+2,n+1,n+4,n+3}' "$WORK/c.obj" >"$WORK/cg.obj"
+awk -f "$HERE/../data/ground_quad.awk" "$WORK/c.obj" >"$WORK/cg.obj"
 "$BIN" rig "$WORK/cg.obj" -o "$WORK/cg.rig.json" >/dev/null 2>&1
 "$BIN" pose --mesh "$WORK/cg.obj" --motion "$WORK/t.json" -o "$WORK/ground_exact.pc2" >/dev/null 2>&1
 "$BIN" pose --mesh "$WORK/cg.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/ground_skel.glb" >/dev/null 2>&1

@@ -35,9 +35,7 @@ for k in morphs:all skin:16 morphs:6 skeleton; do
 done
 # a ground quad under the feet, which rig leaves out of the skin: bound to the armature's root,
 # it stays in three.js as in pose's frames (plain and compressed)
-awk '$1=="v"{n++; if(min==""||$3<min)min=$3} {print}
-     END{y=min-0.002; printf "v -1 %g -1\nv 1 %g -1\nv 1 %g 1\nv -1 %g 1\nf %d %d %d\nf %d %d %d\n",
-         y,y,y,y,n+1,n+3,n+2,n+1,n+4,n+3}' "$WORK/c.obj" >"$WORK/cg.obj"
+awk -f "$HERE/../data/ground_quad.awk" "$WORK/c.obj" >"$WORK/cg.obj"
 "$BIN" rig "$WORK/cg.obj" -o "$WORK/cg.rig.json" >/dev/null 2>&1
 "$BIN" pose --mesh "$WORK/cg.obj" --motion "$WORK/t.json" -o "$WORK/ground.pc2" 2>/dev/null
 "$BIN" pose --mesh "$WORK/cg.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/ground.glb" 2>/dev/null

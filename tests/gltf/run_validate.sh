@@ -67,9 +67,7 @@ if (s < 0 || e < 0 || !(j.nodes[s].children || []).includes(e) || j.skins[0].joi
 }' "$WORK/skel.glb"
 # a ground quad under the character's feet: rig leaves it out of the skin, and the skeleton
 # export binds it to the armature's root, one more joint (21), which no channel moves
-awk '$1=="v"{n++; if(min==""||$3<min)min=$3} {print}
-     END{y=min-0.002; printf "v -1 %g -1\nv 1 %g -1\nv 1 %g 1\nv -1 %g 1\nf %d %d %d\nf %d %d %d\n",
-         y,y,y,y,n+1,n+3,n+2,n+1,n+4,n+3}' "$WORK/c.obj" > "$WORK/cg.obj"
+awk -f "$HERE/../data/ground_quad.awk" "$WORK/c.obj" > "$WORK/cg.obj"
 "$BIN" rig "$WORK/cg.obj" -o "$WORK/cg.rig.json" >/dev/null
 "$BIN" pose --mesh "$WORK/cg.obj" --motion "$WORK/t.json" --export skeleton -o "$WORK/ground_skel.glb"
 "$BIN" pose --mesh "$WORK/cg.obj" --motion "$WORK/t.json" --export skeleton --compress -o "$WORK/z_ground_skel.glb"
