@@ -227,11 +227,14 @@ int km_cli_animate(int argc, char **argv) {
   km_puppetry_handles(pl, NULL, &offsets, &hverts);
   size_t n_hv = (size_t)offsets[rig.n_handles];
   /* what the handle targets force: when the mesh stretches, whether the rig asked for it; its
-   * pairs cached beside the reduced model (their Dijkstra runs were half a warm start) */
+   * pairs cached in the user's cache folder (their Dijkstra runs were half a warm start), also
+   * under --cache, whose file may be a shared, read-only model */
   km_stretch_bound_options sbo = {0};
-  size_t cpl = strlen(cpath) + 8;
-  if (!(sb_cache = malloc(cpl))) goto nomem;
-  snprintf(sb_cache, cpl, "%s.bound", cpath);
+  char *sb_dir = km_cli_cache_path(&m);
+  size_t cpl = sb_dir ? strlen(sb_dir) + 8 : 0;
+  if (sb_dir && (sb_cache = malloc(cpl))) snprintf(sb_cache, cpl, "%s.bound", sb_dir);
+  free(sb_dir);
+  if (!sb_cache) goto nomem;
   sbo.cache_path = sb_cache;
   if (km_stretch_bound_create(&m, rig.n_handles, offsets, hverts, &sbo, &sb, &err) != KM_OK)
     goto fail;
