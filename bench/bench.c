@@ -52,6 +52,7 @@ int km_bench(int argc, char **argv) {
   if (argc >= 2 && !strcmp(argv[1], "motion")) return km_bench_motion(argc - 1, argv + 1);
   if (argc >= 2 && !strcmp(argv[1], "batch")) return km_bench_batch(argc - 1, argv + 1);
   if (argc >= 2 && !strcmp(argv[1], "export")) return km_bench_export(argc - 1, argv + 1);
+  if (argc >= 2 && !strcmp(argv[1], "start")) return km_bench_start(argc - 1, argv + 1);
   if (argc >= 2 && !strcmp(argv[1], "reconstruct")) return km_bench_reconstruct(argc - 1, argv + 1);
   FILE *f = (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) ? stdout : stderr;
   fprintf(f, "usage: kinemesh bench deform --mesh MESH [--handles N] [--frames F] [--json]\n"
@@ -62,6 +63,7 @@ int km_bench(int argc, char **argv) {
              "       kinemesh bench motion [--takes T,..] [--meshes M,..] [--json]\n"
              "       kinemesh bench batch [--jobs 4] [--frames 4] [--json]\n"
              "       kinemesh bench export [ANIM ...] [--mesh REST] [--kinds K,..] [--json]\n"
+             "       kinemesh bench start [MESH ...] [--repeat 3] [--frames 30] [--json]\n"
              "(kinemesh bench <what> --help for options)\n");
   return f == stdout ? KM_EXIT_OK : KM_EXIT_USAGE;
 }

@@ -42,5 +42,8 @@ int km_bench_batch(int argc, char **argv);
 /* bench/bench_export.c (issue 16): size, error and time of each glTF export kind (per-frame
  * morphs, skinned by SSDR) of a mesh animation. */
 int km_bench_export(int argc, char **argv);
+/* bench/bench_start.c: `kinemesh animate`'s wall time on a short take, cold (empty cache
+ * folder) and warm (its reduced model and stretch bound read back). */
+int km_bench_start(int argc, char **argv);
 
 #endif
