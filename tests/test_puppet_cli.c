@@ -892,6 +892,27 @@ static void test_bench_deform_json(void) {
   free(out);
 }
 
+/* bench start: a row per mesh with its cold and warm times (values, not speed), its runs'
+ * caches in a temporary folder: the cache folder this test points XDG_CACHE_HOME at gets no
+ * model of the bench's mesh. */
+static void test_bench_start_json(void) {
+  char *out = NULL;
+  CHECK(km_test_run("rm -rf puppet_cache_bench", NULL) == 0);
+  CHECK(km_test_run("XDG_CACHE_HOME=\"$PWD/puppet_cache_bench\" " KM_CLI
+                    " bench start character:2000 --repeat 1 --frames 4 --json 2>/dev/null",
+                    &out) == 0);
+  cJSON *o = out ? cJSON_Parse(out) : NULL;
+  const cJSON *nv = cJSON_GetObjectItem(o, "n_ver"), *cs = cJSON_GetObjectItem(o, "cold_s"),
+              *ws = cJSON_GetObjectItem(o, "warm_s");
+  CHECK_MSG(cJSON_IsNumber(nv) && nv->valuedouble > 1500 && nv->valuedouble < 2500 &&
+                cJSON_IsNumber(cs) && cs->valuedouble > 0 && cJSON_IsNumber(ws) &&
+                ws->valuedouble > 0,
+            "%s", out ? out : "(no output)");
+  CHECK(km_test_run("test ! -e puppet_cache_bench", NULL) == 0);
+  cJSON_Delete(o);
+  free(out);
+}
+
 int main(void) {
   char a[1024], c[1024], cwd[900], xdg[1024];
   /* The CLI's default cache folder: here, not the user's ~/.cache. */
@@ -905,6 +926,7 @@ int main(void) {
   test_forced_line();
   test_no_rig();
   test_bench_deform_json();
+  test_bench_start_json();
   test_demo();
   if (km_test_shared("meshes/armadillo_1k.off", a, sizeof a) &&
       km_test_shared("skeleton/precog_Seq1_1.csv", c, sizeof c))
