@@ -3,6 +3,8 @@
 #include "bench.h"
 #include "cli.h"
 
+#include <cjson/cJSON.h>
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -27,6 +29,21 @@ void km_bench_machine(char *out, size_t n) {
     fclose(f);
   }
   snprintf(out, n, "%s, %ld cores", model, sysconf(_SC_NPROCESSORS_ONLN));
+}
+
+cJSON *km_bench_row(const char *spec, const char *machine, size_t n_ver) {
+  cJSON *o = cJSON_CreateObject();
+  cJSON_AddStringToObject(o, "mesh", spec);
+  cJSON_AddStringToObject(o, "machine", machine);
+  cJSON_AddNumberToObject(o, "n_ver", (double)n_ver);
+  return o;
+}
+
+void km_bench_row_print(cJSON *row) {
+  char *s = row ? cJSON_PrintUnformatted(row) : NULL;
+  cJSON_Delete(row);
+  if (s) puts(s);
+  free(s);
 }
 
 km_status km_bench_mesh(const char *spec, km_mesh *m, bool *procedural, km_error *err) {

@@ -17,6 +17,11 @@
 int km_bench(int argc, char **argv);
 /* "<CPU model>, <n> cores" for the table headers (bench/bench.c). */
 void km_bench_machine(char *out, size_t n);
+/* A --json row of a bench over meshes (bench/bench.c): {"mesh": spec, "machine": machine,
+ * "n_ver": n_ver}, for the bench to add its columns to; km_bench_row_print prints it on one
+ * line and deletes it. NULL when out of memory (km_bench_row_print(NULL) prints nothing). */
+struct cJSON *km_bench_row(const char *spec, const char *machine, size_t n_ver);
+void km_bench_row_print(struct cJSON *row);
 /* A bench's mesh (bench/bench.c): SPEC is a mesh file (read as it is), or "character:N" for
  * the procedural character of about N vertices (*procedural true: in kinemesh's frame). */
 km_status km_bench_mesh(const char *spec, km_mesh *m, bool *procedural, km_error *err);

@@ -58,10 +58,7 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
   char machine[320];
   km_bench_machine(machine, sizeof machine);
   if (json) {
-    cJSON *o = cJSON_CreateObject();
-    cJSON_AddStringToObject(o, "mesh", spec);
-    cJSON_AddStringToObject(o, "machine", machine);
-    cJSON_AddNumberToObject(o, "n_ver", (double)m.n_vertices);
+    cJSON *o = km_bench_row(spec, machine, m.n_vertices);
     cJSON_AddStringToObject(o, "kind", kind);
     cJSON_AddStringToObject(o, "weights",
                             rep.skin == KM_AUTORIG_SKIN_REACH      ? "reach"
@@ -71,10 +68,7 @@ static int bench_rig_one(const char *spec, size_t repeat, bool json, bool header
     cJSON_AddNumberToObject(o, "repeat", (double)repeat);
     cJSON_AddNumberToObject(o, "rig_s", mt);
     cJSON_AddNumberToObject(o, "write_s", mw);
-    char *s = cJSON_PrintUnformatted(o);
-    cJSON_Delete(o);
-    if (s) puts(s);
-    free(s);
+    km_bench_row_print(o);
   } else {
     if (header) {
       printf("kinemesh bench rig — %s; medians of %zu runs; rig = km_autorig (extremities, "

@@ -78,18 +78,12 @@ static int bench_start_one(const char *self, const char *spec, size_t frames, si
   char machine[320];
   km_bench_machine(machine, sizeof machine);
   if (json) {
-    cJSON *o = cJSON_CreateObject();
-    cJSON_AddStringToObject(o, "mesh", spec);
-    cJSON_AddStringToObject(o, "machine", machine);
-    cJSON_AddNumberToObject(o, "n_ver", (double)m.n_vertices);
+    cJSON *o = km_bench_row(spec, machine, m.n_vertices);
     cJSON_AddNumberToObject(o, "frames", (double)frames);
     cJSON_AddNumberToObject(o, "repeat", (double)repeat);
     cJSON_AddNumberToObject(o, "cold_s", mc);
     cJSON_AddNumberToObject(o, "warm_s", mw);
-    char *s = cJSON_PrintUnformatted(o);
-    cJSON_Delete(o);
-    if (s) puts(s);
-    free(s);
+    km_bench_row_print(o);
   } else {
     if (header) {
       printf("kinemesh bench start — %s; medians of %zu runs of `kinemesh animate` on a "
