@@ -31,6 +31,20 @@ void km_bench_machine(char *out, size_t n) {
   snprintf(out, n, "%s, %ld cores", model, sysconf(_SC_NPROCESSORS_ONLN));
 }
 
+bool km_bench_self(const char *verb, char *out, size_t n) {
+  ssize_t len = readlink("/proc/self/exe", out, n - 1);
+  if (len <= 0) {
+    km_cli_error(verb, "cannot find this program (/proc/self/exe)");
+    return false;
+  }
+  out[len] = '\0';
+  if (strchr(out, '\'')) {
+    km_cli_error(verb, "%s: a quote in the path", out);
+    return false;
+  }
+  return true;
+}
+
 cJSON *km_bench_row(const char *spec, const char *machine, size_t n_ver) {
   cJSON *o = cJSON_CreateObject();
   cJSON_AddStringToObject(o, "mesh", spec);

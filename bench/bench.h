@@ -17,6 +17,10 @@
 int km_bench(int argc, char **argv);
 /* "<CPU model>, <n> cores" for the table headers (bench/bench.c). */
 void km_bench_machine(char *out, size_t n);
+/* This program's own path (/proc/self/exe), for a bench that runs its verbs in child
+ * processes, as a user runs them: false, having printed why (prefixed by verb), when it cannot
+ * be found or holds a quote (the shell lines quote it with '). */
+bool km_bench_self(const char *verb, char *out, size_t n);
 /* A --json row of a bench over meshes (bench/bench.c): {"mesh": spec, "machine": machine,
  * "n_ver": n_ver}, for the bench to add its columns to; km_bench_row_print prints it on one
  * line and deletes it. NULL when out of memory (km_bench_row_print(NULL) prints nothing). */

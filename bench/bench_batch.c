@@ -164,9 +164,8 @@ int km_bench_batch(int argc, char **argv) {
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (jobs < 2 || frames < 2) return km_cli_error("bench batch", "--jobs and --frames >= 2");
   char self[4096], dir[] = "/tmp/km_bench_batch_XXXXXX", cmd[32768];
-  ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
-  if (len <= 0 || !mkdtemp(dir)) return km_cli_error("bench batch", "cannot set up");
-  self[len] = '\0';
+  if (!km_bench_self("bench batch", self, sizeof self)) return KM_EXIT_FAIL;
+  if (!mkdtemp(dir)) return km_cli_error("bench batch", "cannot create a temporary folder");
   setenv("OMP_NUM_THREADS", "1", 1); /* ranks x threads = cores */
   setenv("XDG_CACHE_HOME", dir, 1);
   snprintf(cmd, sizeof cmd,

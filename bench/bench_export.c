@@ -138,9 +138,7 @@ static void stem(const char *path, char *out, size_t cap) {
 static int make_take_animation(const char *mesh_path, const char *rig, const char *take,
                                const char *dir) {
   char self[4096], cmd[16384], rig_path[4200];
-  ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
-  if (len <= 0) return km_cli_error("bench export", "cannot find this program (/proc/self/exe)");
-  self[len] = '\0';
+  if (!km_bench_self("bench export", self, sizeof self)) return KM_EXIT_FAIL;
   for (const char *p = mesh_path; *p; ++p)
     if (*p == '\'') return km_cli_error("bench export", "%s: a quote in the path", mesh_path);
   for (const char *p = take; *p; ++p)

@@ -10,7 +10,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 /* Runs cmd (a shell line) and returns its wall time in seconds, or -1 when it fails. */
 static double timed(const char *cmd) {
@@ -62,10 +61,12 @@ static int bench_start_one(const char *self, const char *spec, size_t frames, si
   }
   for (size_t i = 0; i < 2 * repeat; ++i) {
     bool is_cold = i < repeat; /* cold: a fresh cache folder each run; warm: the last one's */
+    char fresh[4200] = "";
+    if (is_cold) snprintf(fresh, sizeof fresh, "rm -rf '%s/cache' && ", dir);
     snprintf(cmd, sizeof cmd,
-             "rm -rf '%s/cache%s' && XDG_CACHE_HOME='%s/cache' '%s' animate --mesh '%s' --rig "
-             "'%s/rig.json' --motion '%s/take.json' -o '%s/out.pc2' >/dev/null 2>&1",
-             dir, is_cold ? "" : "/none", dir, self, mesh, dir, dir, dir);
+             "%sXDG_CACHE_HOME='%s/cache' '%s' animate --mesh '%s' --rig '%s/rig.json' --motion "
+             "'%s/take.json' -o '%s/out.pc2' >/dev/null 2>&1",
+             fresh, dir, self, mesh, dir, dir, dir);
     double t = timed(cmd);
     if (t < 0) {
       rc = km_cli_error("bench start", "kinemesh animate --mesh %s failed (run it to see why)",
@@ -127,10 +128,7 @@ int km_bench_start(int argc, char **argv) {
   if (repeat < 1 || frames < 2)
     return km_cli_error("bench start", "--repeat must be at least 1 and --frames at least 2");
   char self[4096];
-  ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
-  if (len <= 0) return km_cli_error("bench start", "cannot find this program (/proc/self/exe)");
-  self[len] = '\0';
-  if (strchr(self, '\'')) return km_cli_error("bench start", "%s: a quote in the path", self);
+  if (!km_bench_self("bench start", self, sizeof self)) return KM_EXIT_FAIL;
   static const char *const defaults[] = {"character:10000", "character:100000"};
   if (!n_pos) {
     for (int i = 0; i < 2; ++i)

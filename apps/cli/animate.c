@@ -230,9 +230,10 @@ int km_cli_animate(int argc, char **argv) {
    * pairs cached in the user's cache folder (their Dijkstra runs were half a warm start), also
    * under --cache, whose file may be a shared, read-only model */
   km_stretch_bound_options sbo = {0};
-  char *sb_dir = km_cli_cache_path(&m);
-  size_t cpl = sb_dir ? strlen(sb_dir) + 8 : 0;
-  if (sb_dir && (sb_cache = malloc(cpl))) snprintf(sb_cache, cpl, "%s.bound", sb_dir);
+  char *sb_dir = cache_default ? NULL : km_cli_cache_path(&m); /* the mesh hash once */
+  const char *sb_base = cache_default ? cache_default : sb_dir;
+  size_t cpl = sb_base ? strlen(sb_base) + 8 : 0;
+  if (sb_base && (sb_cache = malloc(cpl))) snprintf(sb_cache, cpl, "%s.bound", sb_base);
   free(sb_dir);
   if (!sb_cache) goto nomem;
   sbo.cache_path = sb_cache;

@@ -11,6 +11,7 @@
  * anything. A mesh without attributes is written as before (positions only; viewers then
  * shade flat from the morphed positions). */
 #include "anim/anim.h"
+#include "math/math.h"
 #include "mesh/mesh.h"
 
 #include <cjson/cJSON.h>
@@ -1114,12 +1115,10 @@ static void add_grid_extras(cJSON *ex, const qgrid *g) {
   cJSON_AddNumberToObject(q, "position_bits", POS_BITS);
 }
 
-/* Whether vertex i of sk has no influence (every slot unused or weighing 0: km_skin). */
+/* Whether vertex i of sk has no influence (km__skin_row_empty). */
 static bool still_row(const km_skin *sk, size_t i) {
-  for (int k = 0; k < KM_SKIN_INFLUENCES; ++k)
-    if (sk->joints[KM_SKIN_INFLUENCES * i + k] >= 0 && sk->weights[KM_SKIN_INFLUENCES * i + k] > 0)
-      return false;
-  return true;
+  return km__skin_row_empty(sk->joints + KM_SKIN_INFLUENCES * i,
+                            sk->weights + KM_SKIN_INFLUENCES * i);
 }
 
 km_status km__glb_write_skin(km_anim_writer *w, const km_ssdr *fit, const double *frames,

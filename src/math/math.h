@@ -37,6 +37,11 @@ void km__joint_transforms(size_t n, const double *W, const double *P, const doub
  * 1; unused slots are joint -1, weight 0. Returns how many it kept (0: no joint had weight). */
 int km__skin_keep_largest(const double *w, int n, int32_t *joints, double *weights);
 
+/* Whether one vertex's KM_SKIN_INFLUENCES slots give it no influence (no slot with a joint >= 0
+ * and a weight > 0): a km_skin row that stays where it is (km_lbs keeps it at rest; a ground
+ * plane km_autorig left out of the skin). */
+bool km__skin_row_empty(const int32_t *joints, const double *weights);
+
 /* The joint of one vertex's largest skin weight (its body part): joints, weights its
  * KM_SKIN_INFLUENCES slots; slot 0's joint when no used slot (joint >= 0) weighs more. */
 int32_t km__skin_dominant(const int32_t *joints, const double *weights);

@@ -200,6 +200,12 @@ int km__skin_keep_largest(const double *w, int n, int32_t *joints, double *weigh
   return cnt;
 }
 
+bool km__skin_row_empty(const int32_t *joints, const double *weights) {
+  for (int k = 0; k < KM_SKIN_INFLUENCES; ++k)
+    if (joints[k] >= 0 && weights[k] > 0) return false;
+  return true;
+}
+
 int32_t km__skin_dominant(const int32_t *joints, const double *weights) {
   int best = 0;
   for (int k = 1; k < KM_SKIN_INFLUENCES; ++k)

@@ -64,6 +64,10 @@ km_status km__point_normals_indexed(const double *P, size_t n, const km__point_i
 km_status km__cluster_points(const double *P, size_t n, size_t target, int32_t **reps,
                              size_t *n_reps, km_error *err);
 
+/* The template's vertices with no skin influence (km__skin_row_empty: a ground plane), which
+ * every frame keeps where the template has them and surface -> points leaves out. */
+size_t km__recon_still_vertices(const km_recon *r);
+
 /* The affine registration step alone, as the first frame runs it after the global alignment
  * and the pose: `iterations` rounds of closest points (robust weights) on the current
  * surface, each followed by one Gauss-Newton solve (CHOLMOD) for the per-vertex affine maps

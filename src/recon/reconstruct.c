@@ -211,13 +211,6 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
   rep->correspondences = n_feat;
   rep->rig_joints = o.rig_joints;
   rep->visibility_known = o.cameras && o.n_cameras;
-  for (size_t i = 0; tmpl->skin.joints && tmpl->skin.weights && i < tmpl->skin.n_vertices; ++i) {
-    double w = 0;
-    for (int k = 0; k < KM_SKIN_INFLUENCES; ++k)
-      if (tmpl->skin.joints[KM_SKIN_INFLUENCES * i + k] >= 0)
-        w += tmpl->skin.weights[KM_SKIN_INFLUENCES * i + k];
-    rep->still_vertices += !(w > 0); /* as km_recon_create finds them */
-  }
   rep->unsupported_distance_mm = 1e3 * (o.unsupported_distance > 0 ? o.unsupported_distance : 0.03);
   rep->unsupported_fraction = o.unsupported_fraction > 0 ? o.unsupported_fraction : 0.02;
   size_t done_frames = 0;
@@ -230,6 +223,7 @@ km_status km_reconstruct(const char *const *paths, size_t n_frames, const km_cha
   size_t jerk_nb = 0, jerk_na = 0, written = 0;
   km_status s = km_recon_create(tmpl, &o, &r, err);
   if (s) return s;
+  rep->still_vertices = km__recon_still_vertices(r);
   rep->n_joints = nj;
   rep->frames = calloc(n_frames, sizeof *rep->frames);
   rep->joints = km__malloc(n_frames, nj * 3 * sizeof(double));

@@ -119,6 +119,7 @@ struct km_recon {
    * of the body explains them; each frame keeps them where the template has them and the
    * surface -> points error leaves them out. NULL when there are none. */
   bool *still;
+  size_t n_still;
   bool *still_face; /* nf: faces of still vertices only, which no point lands on */
   double *sup_N;
 };
@@ -453,21 +454,15 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
   memcpy(r->skin.joints, c->skin.joints, nv * 4 * sizeof(int32_t));
   memcpy(r->skin.weights, c->skin.weights, nv * 4 * sizeof(double));
   for (size_t i = 0; i < nv; ++i) {
-    if (km__skin_dominant(r->skin.joints + 4 * i, r->skin.weights + 4 * i) >= 0 &&
-        r->skin.weights[4 * i] + r->skin.weights[4 * i + 1] + r->skin.weights[4 * i + 2] +
-                r->skin.weights[4 * i + 3] >
-            0)
-      continue;
+    if (!km__skin_row_empty(r->skin.joints + 4 * i, r->skin.weights + 4 * i)) continue;
     if (!r->still && !(r->still = km__calloc(nv, sizeof *r->still))) {
       km_recon_free(&r);
       return km__fail(err, KM_ERR_NOMEM, "km_recon_create: out of memory");
     }
     r->still[i] = true;
+    ++r->n_still;
   }
-  size_t n_still = 0;
-  for (size_t i = 0; r->still && i < nv; ++i)
-    n_still += r->still[i];
-  if (nv && n_still == nv) {
+  if (nv && r->n_still == nv) {
     km_recon_free(&r);
     return km__fail(err, KM_ERR_INVALID,
                     "km_recon_create: the template's skin gives no vertex an influence (every "
@@ -506,6 +501,8 @@ km_status km_recon_create(const km_character *c, const km_recon_options *opt, km
 }
 
 const double *km_recon_surface(const km_recon *r) { return r ? r->surface : NULL; }
+
+size_t km__recon_still_vertices(const km_recon *r) { return r ? r->n_still : 0; }
 const double *km_recon_global(const km_recon *r) { return r ? r->global : NULL; }
 const double *km_recon_joints(const km_recon *r) { return r ? r->joints : NULL; }
 const km_mesh *km_recon_template(const km_recon *r) { return r ? &r->tmpl : NULL; }
@@ -752,9 +749,6 @@ static void forward_kinematics(const km_recon *r, const double *Lrot, const doub
   km__joint_transforms(r->nj, W, cj, J, G);
 }
 
-/* km_lbs runs serially below 20000 vertices: called once per L-BFGS evaluation on a few
- * thousand vertices, an OpenMP fork/join would cost more than the work. The skin was checked
- * by km_recon_create. */
 /* The vertices with no skin influence (a ground plane) matched to no point: near[i] = -1 for
  * them, after a nearest-point query over the template's vertices. */
 static void unhook_still(const km_recon *r, int32_t *near) {
@@ -762,6 +756,9 @@ static void unhook_still(const km_recon *r, int32_t *near) {
     if (r->still[i]) near[i] = -1;
 }
 
+/* km_lbs runs serially below 20000 vertices: called once per L-BFGS evaluation on a few
+ * thousand vertices, an OpenMP fork/join would cost more than the work. The skin was checked
+ * by km_recon_create. */
 static void lbs_apply(const km_recon *r, const double *G, const double *Vb, double *X) {
   km_lbs(Vb, r->nv, &r->skin, G, r->nj, X, NULL);
 }
@@ -1463,9 +1460,7 @@ static km_status global_alignment(km_recon *r, const frame_data *fd, double *Rbe
       cp[a] += fd->P[3 * i + a] / (double)fd->n;
     plo = fmin(plo, fd->P[3 * i + 1]), phi = fmax(phi, fd->P[3 * i + 1]);
   }
-  size_t nb = 0; /* the body's vertices: the still ones (a ground plane) are no part of it */
-  for (size_t i = 0; i < nv; ++i)
-    nb += !(r->still && r->still[i]);
+  size_t nb = nv - r->n_still; /* the body's vertices: a ground plane is no part of it */
   for (size_t i = 0; i < nv; ++i) {
     if (r->still && r->still[i]) continue;
     for (int a = 0; a < 3; ++a)
