@@ -156,6 +156,7 @@ struct km_live {
   bool in_started, def_started;
   atomic_int stop;
   atomic_int replay_req;
+  atomic_bool replaying; /* the replay thread is playing the take (for /status) */
   int osc_fd, udp_fd, vmc_fd;
   struct lws_context *ctx;
   struct lws_protocols protocols[3];
@@ -468,7 +469,10 @@ static void *input_main(void *arg) {
   size_t next = 0;
   double t0 = 0, fps = l->take && l->take->fps > 0 ? l->take->fps : 30;
   while (buf && !atomic_load(&l->stop)) {
-    if (atomic_exchange(&l->replay_req, 0) && l->take && l->take->n_frames) {
+    if (atomic_load(&l->replay_req) && l->take && l->take->n_frames) {
+      /* replaying before the request is cleared: /status never sees neither */
+      atomic_store(&l->replaying, true);
+      atomic_store(&l->replay_req, 0);
       playing = true;
       next = 0;
       t0 = km_seconds();
@@ -488,7 +492,10 @@ static void *input_main(void *arg) {
         }
         push_frame(l, l->take->positions + 3 * NJ * due, now, next == 0);
         next = due + 1;
-        if (next >= l->take->n_frames && !l->opt.loop) playing = false;
+        if (next >= l->take->n_frames && !l->opt.loop) {
+          playing = false;
+          atomic_store(&l->replaying, false);
+        }
       }
       if (playing) {
         double tn = t0 + (double)next / fps - now;
@@ -753,6 +760,10 @@ char *km_live_status_json(km_live *l) {
   cJSON_AddNumberToObject(o, "vertices", (double)l->mesh->n_vertices);
   cJSON_AddBoolToObject(o, "quantize", l->opt.quantize);
   cJSON_AddBoolToObject(o, "replay_available", l->take != NULL);
+  /* true from a /replay request until its last frame is pushed, so a script can wait for the
+     take's end instead of guessing from counters that stand still while the machine is busy */
+  cJSON_AddBoolToObject(o, "replaying",
+                        atomic_load(&l->replaying) || atomic_load(&l->replay_req) != 0);
   cJSON *t = cJSON_AddObjectToObject(o, "times_ms");
   add_num(t, "retarget", s.t_retarget_ms);
   add_num(t, "deform", s.t_deform_ms);

@@ -35,7 +35,10 @@ export async function replayDone(http, s0, ms = 8000) {
     const a = await status(http);
     await sleep(300);
     const b = await status(http);
-    const settled = b.frames_in > s0.frames_in && b.frames_in === a.frames_in && b.frames_out === a.frames_out;
+    // The server says when the take's last frame is pushed; counters that stand still for
+    // 300 ms are not enough on a busy machine (the replay thread can be starved that long).
+    const settled = b.frames_in > s0.frames_in && !a.replaying && !b.replaying &&
+      b.frames_in === a.frames_in && b.frames_out === a.frames_out;
     return settled && accounted(s0, b) ? b : null;
   }, ms);
 }
