@@ -638,6 +638,11 @@ typedef struct km_mesh_info {
    * of the body's height above the body's lowest point, a ground plane or a plinth exported
    * with the character, which animate and live leave where they lie. */
   size_t pieces, loose_vertices, rigid_pieces, ground_pieces;
+  /* Where the mesh is not a manifold, to find it in a modeller: the non-manifold edge with
+   * the lowest (smaller id, larger id) pair, as its two vertex ids, and the non-manifold vertex
+   * with the lowest id; -1 where there is none. */
+  int32_t nonmanifold_edge[2];
+  int32_t nonmanifold_vertex;
 } km_mesh_info;
 /* Topology and extent of a mesh.
  *   m    in: mesh (a point cloud is fine)

@@ -543,8 +543,9 @@ static void test_refused(void) {
   memcpy(nm.F, F, 12 * sizeof(int32_t));
   nm.F[12] = 0, nm.F[13] = 1, nm.F[14] = 4;
   CHECK_STATUS(km_autorig(&nm, NULL, &c, NULL, KM_E), KM_ERR_DEGENERATE_MESH);
-  CHECK_MSG(strstr(km_test_err.message, "non-manifold") != NULL, "message: %s",
-            km_test_err.message);
+  CHECK_MSG(strstr(km_test_err.message, "non-manifold") != NULL &&
+                strstr(km_test_err.message, "the first between vertices 0 and 1") != NULL,
+            "message: %s", km_test_err.message);
   /* No faces. */
   nm.n_faces = 0;
   CHECK_STATUS(km_autorig(&nm, NULL, &c, NULL, KM_E), KM_ERR_DEGENERATE_MESH);

@@ -29,6 +29,7 @@ static void test_tetrahedron(void) {
   CHECK(i.vertices == 4 && i.faces == 4);
   CHECK(i.edges == 6);
   CHECK(i.boundary_edges == 0 && i.nonmanifold_edges == 0 && i.nonmanifold_vertices == 0);
+  CHECK(i.nonmanifold_edge[0] == -1 && i.nonmanifold_edge[1] == -1 && i.nonmanifold_vertex == -1);
   CHECK(i.components == 1 && i.isolated_vertices == 0 && i.degenerate_faces == 0);
   CHECK(i.euler_characteristic == 2);
   CHECK(i.bbox_min[0] == 0 && i.bbox_min[1] == 0 && i.bbox_min[2] == 0);
@@ -118,7 +119,7 @@ static void test_nonmanifold(void) {
   const int32_t bow[] = {0, 1, 2, 0, 3, 4};
   km_mesh m = make(5, V, 2, bow);
   km_mesh_info i = info_of(&m);
-  CHECK(i.nonmanifold_vertices == 1);
+  CHECK(i.nonmanifold_vertices == 1 && i.nonmanifold_vertex == 0);
   CHECK(i.nonmanifold_edges == 0 && i.boundary_edges == 6 && i.components == 1);
   km_mesh_free(&m);
 
@@ -127,7 +128,7 @@ static void test_nonmanifold(void) {
   const int32_t fin[] = {0, 1, 2, 1, 0, 3, 0, 1, 5};
   m = make(6, V, 3, fin);
   i = info_of(&m);
-  CHECK(i.nonmanifold_edges == 1);
+  CHECK(i.nonmanifold_edges == 1 && i.nonmanifold_edge[0] == 0 && i.nonmanifold_edge[1] == 1);
   CHECK(i.edges == 7 && i.boundary_edges == 6);
   CHECK(i.nonmanifold_vertices == 0);
   CHECK(i.isolated_vertices == 1 && i.components == 1);
@@ -193,6 +194,7 @@ static void test_random_against_brute_force(void) {
     /* Edges: distinct unordered pairs (a != b) over the sides of the faces that are not
      * collapsed (a repeated index: no surface, left out). */
     size_t edges = 0, boundary = 0, nonman = 0;
+    int32_t first_a = -1, first_b = -1, first_v = -1;
     for (size_t a = 0; a < nv; ++a)
       for (size_t b = a + 1; b < nv; ++b) {
         size_t uses = 0;
@@ -205,9 +207,12 @@ static void test_random_against_brute_force(void) {
         }
         if (uses) ++edges;
         if (uses == 1) ++boundary;
-        if (uses >= 3) ++nonman;
+        if (uses >= 3 && nonman++ == 0) first_a = (int32_t)a, first_b = (int32_t)b;
       }
     CHECK(i.edges == edges && i.boundary_edges == boundary && i.nonmanifold_edges == nonman);
+    CHECK_MSG(i.nonmanifold_edge[0] == first_a && i.nonmanifold_edge[1] == first_b,
+              "trial %d: first non-manifold edge %d-%d vs brute force %d-%d", trial,
+              (int)i.nonmanifold_edge[0], (int)i.nonmanifold_edge[1], (int)first_a, (int)first_b);
 
     /* Non-manifold vertices: flood fill over proper faces around v, joined by shared (v,w). */
     size_t nmv = 0;
@@ -240,10 +245,11 @@ static void test_random_against_brute_force(void) {
         }
         ++fans;
       }
-      nmv += fans > 1;
+      if (fans > 1 && nmv++ == 0) first_v = (int32_t)v;
     }
     CHECK_MSG(i.nonmanifold_vertices == nmv, "trial %d: %zu vs brute force %zu", trial,
               i.nonmanifold_vertices, nmv);
+    CHECK(i.nonmanifold_vertex == first_v);
 
     int32_t *off = NULL, *adj = NULL;
     CHECK_OK(km_adjacency_list(&m, &off, &adj, KM_E));

@@ -157,6 +157,13 @@ int km_cli_info(int argc, char **argv) {
     cJSON_AddNumberToObject(o, "boundary_edges", (double)info.boundary_edges);
     cJSON_AddNumberToObject(o, "nonmanifold_edges", (double)info.nonmanifold_edges);
     cJSON_AddNumberToObject(o, "nonmanifold_vertices", (double)info.nonmanifold_vertices);
+    if (info.nonmanifold_edges) {
+      cJSON *e = cJSON_AddArrayToObject(o, "first_nonmanifold_edge");
+      for (int k = 0; k < 2; ++k)
+        cJSON_AddItemToArray(e, cJSON_CreateNumber(info.nonmanifold_edge[k]));
+    }
+    if (info.nonmanifold_vertices)
+      cJSON_AddNumberToObject(o, "first_nonmanifold_vertex", info.nonmanifold_vertex);
     cJSON_AddNumberToObject(o, "components", (double)info.components);
     cJSON_AddNumberToObject(o, "isolated_vertices", (double)info.isolated_vertices);
     cJSON_AddNumberToObject(o, "degenerate_faces", (double)info.degenerate_faces);
@@ -188,8 +195,14 @@ int km_cli_info(int argc, char **argv) {
   printf("file                  %s\n", path);
   printf("vertices              %zu\nfaces                 %zu\nedges                 %zu\n",
          info.vertices, info.faces, info.edges);
-  printf("boundary edges        %zu\nnon-manifold edges    %zu\nnon-manifold vertices %zu\n",
-         info.boundary_edges, info.nonmanifold_edges, info.nonmanifold_vertices);
+  printf("boundary edges        %zu\nnon-manifold edges    %zu", info.boundary_edges,
+         info.nonmanifold_edges);
+  if (info.nonmanifold_edges)
+    printf(" (the first between vertices %d and %d)", (int)info.nonmanifold_edge[0],
+           (int)info.nonmanifold_edge[1]);
+  printf("\nnon-manifold vertices %zu", info.nonmanifold_vertices);
+  if (info.nonmanifold_vertices) printf(" (the first: vertex %d)", (int)info.nonmanifold_vertex);
+  printf("\n");
   printf("components            %zu\nisolated vertices     %zu\ndegenerate faces      %zu\n",
          info.components, info.isolated_vertices, info.degenerate_faces);
   printf("euler characteristic  %lld\n", (long long)info.euler_characteristic);

@@ -82,11 +82,14 @@ static km_status check_mesh(const km_mesh *m, km_error *err) {
   if (info.components != 1) /* autorig_pieces took or refused several pieces */
     return km__fail(err, KM_ERR_DEGENERATE_MESH, "rig: the mesh has %zu components",
                     info.components);
+  /* the file's vertex ids (its order is kept), so that the user can find the edge */
   if (info.nonmanifold_edges)
     return km__fail(err, KM_ERR_DEGENERATE_MESH,
-                    "rig: the mesh has %zu non-manifold edges (shared by three or more faces); "
-                    "repair it first",
-                    info.nonmanifold_edges);
+                    "rig: the mesh has %zu non-manifold edge%s (shared by three or more faces), "
+                    "the first between vertices %d and %d; repair it first (Blender: Select > "
+                    "Select All by Trait > Non Manifold)",
+                    info.nonmanifold_edges, info.nonmanifold_edges > 1 ? "s" : "",
+                    (int)info.nonmanifold_edge[0], (int)info.nonmanifold_edge[1]);
   if (!(info.bbox_max[1] - info.bbox_min[1] > 0))
     return km__fail(err, KM_ERR_DEGENERATE_MESH, "rig: the mesh has zero height (y extent)");
   for (size_t i = 0; i < 3 * m->n_vertices; ++i)

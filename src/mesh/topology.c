@@ -543,6 +543,7 @@ static km_status mesh_info(const km_mesh *m, bool seams, km_mesh_info *out, km_e
   km_status s = check_faces(m, "km_mesh_info_compute", err);
   if (s) return s;
   memset(out, 0, sizeof *out);
+  out->nonmanifold_edge[0] = out->nonmanifold_edge[1] = out->nonmanifold_vertex = -1;
   size_t nv = m->n_vertices, nf = m->n_faces;
   out->vertices = nv;
   out->faces = nf;
@@ -584,8 +585,11 @@ static km_status mesh_info(const km_mesh *m, bool seams, km_mesh_info *out, km_e
     out->edges++;
     if (j - i == 1)
       out->boundary_edges++;
-    else if (j - i >= 3)
-      out->nonmanifold_edges++;
+    else if (j - i >= 3 && out->nonmanifold_edges++ == 0) {
+      /* the keys are sorted: the first is the lowest pair */
+      out->nonmanifold_edge[0] = (int32_t)(keys[i] >> 32);
+      out->nonmanifold_edge[1] = (int32_t)(keys[i] & 0xffffffffu);
+    }
     i = j;
   }
 
@@ -671,7 +675,7 @@ static km_status mesh_info(const km_mesh *m, bool seams, km_mesh_info *out, km_e
       if (km__uf_find(lparent, i) == i) ++fans;
       local[touched[i]] = -1;
     }
-    if (fans > 1) out->nonmanifold_vertices++;
+    if (fans > 1 && out->nonmanifold_vertices++ == 0) out->nonmanifold_vertex = (int32_t)v;
   }
 
 done:
