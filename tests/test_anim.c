@@ -5,6 +5,7 @@
 
 #include <cjson/cJSON.h>
 #include <dirent.h>
+#include <sys/stat.h>
 #include <stdint.h>
 #include <unistd.h>
 
@@ -420,6 +421,26 @@ static void test_dirs(const km_mesh *rest, const double *frames) {
   rm_dir("test_anim_slash");
   CHECK(!dir_has_prefix("test_anim_slash"));
   CHECK(!dir_has_prefix("test_anim_obj"));
+  /* Another extension is refused, creating nothing: -o take.fbx made a folder "take.fbx" of OBJ
+   * frames. A folder that exists keeps its name, dot or not; --frame-format (an explicit
+   * format) names a folder whatever the path. */
+  const char *other[] = {"test_anim_x.fbx", "test_anim_x.gltf", "test_anim_x.obj"};
+  const char *hint[] = {"not .fbx", "glTF 2.0 in one binary file", "--frame-format obj"};
+  for (int k = 0; k < 3; ++k) {
+    CHECK_STATUS(km_anim_writer_open(other[k], rest, &o, &w, KM_E), KM_ERR_INVALID);
+    CHECK_MSG(strstr(km_test_err.message, hint[k]) != NULL, "%s", km_test_err.message);
+    CHECK(w == NULL && access(other[k], F_OK) != 0 && !dir_has_prefix("test_anim_x"));
+  }
+  CHECK(mkdir("test_anim_v1.2", 0777) == 0);
+  CHECK_OK(write_anim("test_anim_v1.2", rest, &o, frames));
+  CHECK_OK(km_anim_info_read("test_anim_v1.2", &info, KM_E));
+  CHECK(info.format == KM_ANIM_OBJ_DIR && info.frames == FRAMES);
+  rm_dir("test_anim_v1.2");
+  o.format = KM_ANIM_PLY_DIR;
+  CHECK_OK(write_anim("test_anim_x.obj", rest, &o, frames));
+  CHECK_OK(km_anim_info_read("test_anim_x.obj", &info, KM_E));
+  CHECK(info.format == KM_ANIM_PLY_DIR && info.frames == FRAMES);
+  rm_dir("test_anim_x.obj");
 }
 
 static void test_failures(const km_mesh *rest, const double *frames) {

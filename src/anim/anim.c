@@ -133,12 +133,16 @@ void km_anim_writer_free(km_anim_writer **w) {
   *w = NULL;
 }
 
-static km_anim_format format_from_path(const char *path) {
-  char ext[8];
-  km__extension(path, ext, sizeof ext);
+/* The format a path names: .glb, .pc2, or a folder of frames (a path with no extension, or a
+ * folder that exists); KM_ANIM_AUTO for any other extension. `-o take.fbx` or `-o anim.gltf`
+ * made a folder of that name holding hundreds of OBJ frames, where the user asked for a file. */
+static km_anim_format format_from_path(const char *path, char ext[16]) {
+  km__extension(path, ext, 16);
   if (strcmp(ext, "glb") == 0) return KM_ANIM_GLB;
   if (strcmp(ext, "pc2") == 0) return KM_ANIM_PC2;
-  return KM_ANIM_OBJ_DIR;
+  struct stat st;
+  if (!ext[0] || (stat(path, &st) == 0 && S_ISDIR(st.st_mode))) return KM_ANIM_OBJ_DIR;
+  return KM_ANIM_AUTO;
 }
 
 static void minmax_init(float mm[6]) {
@@ -226,7 +230,22 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
   if (!(o.fps > 0) || !isfinite(o.fps))
     return km__fail(err, KM_ERR_INVALID, "%s: fps must be positive, got %g", path, o.fps);
   if (o.key_every == 0) o.key_every = 1;
-  if (o.format == KM_ANIM_AUTO) o.format = format_from_path(path);
+  if (o.format == KM_ANIM_AUTO) {
+    char ext[16];
+    o.format = format_from_path(path, ext);
+    if (o.format == KM_ANIM_AUTO) {
+      bool frames = !strcmp(ext, "obj") || !strcmp(ext, "ply");
+      return km__fail(err, KM_ERR_INVALID,
+                      "%s: an animation is written as .glb, .pc2 or a folder of frames (a path "
+                      "with no extension), not .%s%s%s%s",
+                      path, ext,
+                      !strcmp(ext, "gltf") ? " (.glb is the same glTF 2.0 in one binary file)"
+                      : frames             ? " (one file per frame: name the folder, e.g. -o "
+                                             "frames/, and --frame-format "
+                                           : "",
+                      frames ? ext : "", frames ? ")" : "");
+    }
+  }
   if (o.format < KM_ANIM_GLB || o.format > KM_ANIM_PLY_DIR)
     return km__fail(err, KM_ERR_INVALID, "%s: unknown animation format %d", path, (int)o.format);
 
