@@ -760,17 +760,18 @@ void km_deform_check_free(km_deform_check **c);
  * let the mesh stay under 1.5x at all. */
 typedef struct km_stretch_bound km_stretch_bound;
 typedef struct km_stretch_bound_options {
-  double radius;          /* pairs joined by a rest path at most this long, a fraction of the rest
-                             bounding-box diagonal (the bound holds for any pair; far ones are loose and
-                             cost time); 0: 0.1 */
-  int samples;            /* a set's boundary vertices (a face neighbour outside it) sampled, spread
-                             over its list; 0: 48 */
-  const char *cache_path; /* NULL: none. Else the pairs are read from this file when it holds
-                             them for this mesh, these sets and these options (a 64-bit key over
-                             all three), else computed and written there (atomically; a file
-                             that cannot be read or written is not an error: computed, and a
-                             KM_LOG_WARN when it cannot be written). The Dijkstra runs are most
-                             of a warm `animate`'s start-up (0.8 of 1.7 s at 100k vertices). */
+  /* pairs joined by a rest path at most this long, a fraction of the rest bounding-box
+   * diagonal (the bound holds for any pair; far ones are loose and cost time); 0: 0.1 */
+  double radius;
+  /* a set's boundary vertices (a face neighbour outside it) sampled, spread over its list;
+   * 0: 48 */
+  int samples;
+  /* NULL: none. Else the pairs are read from this file when it holds them for this mesh, these
+   * sets and these options (a 64-bit key over all three), else computed and written there
+   * (atomically; a file that cannot be read or written is not an error: computed, and a
+   * KM_LOG_WARN when it cannot be written). The Dijkstra runs are most of a warm `animate`'s
+   * start-up (0.8 of 1.7 s at 100k vertices). */
+  const char *cache_path;
 } km_stretch_bound_options;
 /* Precompute the pairs (one bounded Dijkstra per sampled vertex).
  *   rest      in: triangle mesh, #V vertices

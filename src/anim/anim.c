@@ -234,16 +234,17 @@ km_status km_anim_writer_open(const char *path, const km_mesh *rest, const km_an
     char ext[16];
     o.format = format_from_path(path, ext);
     if (o.format == KM_ANIM_AUTO) {
-      bool frames = !strcmp(ext, "obj") || !strcmp(ext, "ply");
+      char hint[96] = "";
+      if (!strcmp(ext, "gltf"))
+        snprintf(hint, sizeof hint, " (.glb is the same glTF 2.0 in one binary file)");
+      else if (!strcmp(ext, "obj") || !strcmp(ext, "ply"))
+        snprintf(hint, sizeof hint,
+                 " (one file per frame: name the folder, e.g. -o frames/, and --frame-format %s)",
+                 ext);
       return km__fail(err, KM_ERR_INVALID,
                       "%s: an animation is written as .glb, .pc2 or a folder of frames (a path "
-                      "with no extension), not .%s%s%s%s",
-                      path, ext,
-                      !strcmp(ext, "gltf") ? " (.glb is the same glTF 2.0 in one binary file)"
-                      : frames             ? " (one file per frame: name the folder, e.g. -o "
-                                             "frames/, and --frame-format "
-                                           : "",
-                      frames ? ext : "", frames ? ")" : "");
+                      "with no extension), not .%s%s",
+                      path, ext, hint);
     }
   }
   if (o.format < KM_ANIM_GLB || o.format > KM_ANIM_PLY_DIR)

@@ -56,7 +56,7 @@ run_block() { # $1: first line in the file; $2: the block's text
     return
   fi
   # Logical commands (a line ending in a backslash continues), each kept or dropped whole.
-  local out="" cmd="" line ln=$first start=$first
+  local cmd="" line ln=$first start=$first
   {
     echo "set -eo pipefail"
     while IFS= read -r line || [ -n "$line" ]; do
