@@ -1,5 +1,5 @@
 /* Modules: mesh.
- * libFuzzer target for the mesh readers: each input is parsed as OBJ, PLY and OFF through
+ * libFuzzer target for the mesh readers: each input is parsed as OBJ, PLY, OFF and STL through
  * km_mesh_parse; a mesh that parses must have in-range indices and a mesh info.
  * Built and run by fuzz/run.sh (ctest `fuzz`, when clang is present): the "Modules:" line
  * above names the library modules it needs, compiled from src/ with clang
@@ -11,8 +11,8 @@
 #include <stdlib.h>
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
-  static const km_mesh_format fmts[] = {KM_FORMAT_OBJ, KM_FORMAT_PLY, KM_FORMAT_OFF};
-  for (int i = 0; i < 3; ++i) {
+  static const km_mesh_format fmts[] = {KM_FORMAT_OBJ, KM_FORMAT_PLY, KM_FORMAT_OFF, KM_FORMAT_STL};
+  for (size_t i = 0; i < sizeof fmts / sizeof fmts[0]; ++i) {
     km_mesh m;
     km_error err;
     if (km_mesh_parse(data, size, fmts[i], "fuzz", &m, &err) == KM_OK) {

@@ -419,6 +419,7 @@ typedef enum km_mesh_format {
   KM_FORMAT_PLY,
   KM_FORMAT_OFF,
   KM_FORMAT_GLTF, /* .glb / .gltf: read only (issue 11) */
+  KM_FORMAT_STL,  /* .stl, binary or ASCII: read only */
 } km_mesh_format;
 
 typedef enum km_ply_encoding {
@@ -432,7 +433,8 @@ typedef struct km_mesh_write_options {
   km_ply_encoding ply;   /* 0: binary little endian */
 } km_mesh_write_options;
 
-/* Reads OBJ / PLY (ascii, binary LE/BE) / OFF / glTF 2.0 (.glb, .gltf), format by extension.
+/* Reads OBJ / PLY (ascii, binary LE/BE) / OFF / STL (binary, ASCII) / glTF 2.0 (.glb, .gltf),
+ * format by extension.
  * glTF: the triangles, POSITION, NORMAL and TEXCOORD_0 of the scene's meshes, merged in
  * order (nodes depth-first as listed, each node's mesh's primitives in order; vertex order =
  * accessor order, primitive after primitive) with the nodes' world transforms applied (a
@@ -445,6 +447,10 @@ typedef struct km_mesh_write_options {
  * KM_ERR_PARSE naming the bufferView; KHR_draco_mesh_compression is KM_ERR_UNSUPPORTED.
  * Vertex order and count are exactly those of the file; polygons are fan-triangulated
  * (0,i,i+1). A PLY without faces reads as a point cloud (n_faces == 0).
+ * STL has no vertex list: corners with bit-equal coordinates are welded into one vertex,
+ * vertex i being the i-th distinct position in facet order, and face i is facet i (one
+ * whose corners weld together is kept, degenerate); facet normals are ignored. Binary when
+ * the count at byte 80 accounts for the file's size, whatever its header says.
  * Attributes: OBJ `vt`/`vn` are attached to vertices through the faces' v/vt/vn references
  * (the vertex count stays that of the `v` lines: where a vertex is referenced with several
  * UVs or normals, at a texture seam, the first reference in file order wins and the others

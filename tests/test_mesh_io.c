@@ -369,15 +369,117 @@ static void test_bad_off(void) {
   EXPECT_FAIL("v 1 2 3\n", KM_FORMAT_AUTO, "noext", KM_ERR_UNSUPPORTED, "", "extension");
 }
 
+/* ---------------------------------------------------------------- STL */
+
+/* The tetrahedron of tetra.obj as STL: welded back to its 4 vertices in first-appearance
+ * order (which is tetra.obj's: facet 1 is 1 3 2, so vertex 2 of the STL is its (0,1,0)). */
+static void check_stl_tetra(const km_mesh *m, const char *what) {
+  CHECK_MSG(m->n_vertices == 4 && m->n_faces == 4, "%s: %zu vertices, %zu faces", what,
+            m->n_vertices, m->n_faces);
+  CHECK_MSG(vertex_is(m, 0, 0, 0, 0) && vertex_is(m, 1, 0, 1, 0) && vertex_is(m, 2, 1, 0, 0) &&
+                vertex_is(m, 3, 0, 0, 1),
+            "%s: vertices not in first-appearance order", what);
+  CHECK_MSG(face_is(m, 0, 0, 1, 2) && face_is(m, 1, 0, 2, 3) && face_is(m, 2, 0, 3, 1) &&
+                face_is(m, 3, 2, 1, 3),
+            "%s: faces not facet for facet", what);
+}
+
+static void test_stl(void) {
+  size_t n;
+  km_mesh m = {0};
+  char *d = load("tetra_ascii.stl", &n); /* CRLF, a name on solid and endsolid */
+  CHECK_OK(km_mesh_parse(d, n, KM_FORMAT_AUTO, "tetra_ascii.stl", &m, KM_E));
+  check_stl_tetra(&m, "ascii");
+  km_mesh_free(&m);
+  free(d);
+  d = load("tetra_bin.stl", &n); /* binary, its header starting with "solid" */
+  CHECK_OK(km_mesh_parse(d, n, KM_FORMAT_STL, "tetra_bin.stl", &m, KM_E));
+  check_stl_tetra(&m, "binary");
+  km_mesh_free(&m);
+  /* the same file read from disk by extension */
+  char path[1024];
+  snprintf(path, sizeof path, "%s/tetra_bin.stl", KM_TEST_DATA);
+  CHECK_OK(km_mesh_read(path, &m, KM_E));
+  check_stl_tetra(&m, "binary from disk");
+  km_mesh_free(&m);
+  /* a binary file whose 4th triangle has a NaN corner: named by byte */
+  float nan = NAN;
+  char *bad = malloc(n);
+  memcpy(bad, d, n);
+  memcpy(bad + 84 + 3 * 50 + 12 + 12 + 4, &nan, 4);
+  CHECK_STATUS(km_mesh_parse(bad, n, KM_FORMAT_STL, "nan.stl", &m, KM_E), KM_ERR_PARSE);
+  CHECK(strstr(km_test_err.message, "nan.stl: byte 258: corner 2 of triangle 4") != NULL);
+  CHECK(m.V == NULL && m.F == NULL);
+  /* truncated in triangle 3; one byte too many */
+  CHECK_STATUS(km_mesh_parse(bad, 84 + 2 * 50 + 20, KM_FORMAT_STL, "cut.stl", &m, KM_E),
+               KM_ERR_PARSE);
+  CHECK(strstr(km_test_err.message, "cut.stl: byte 204:") != NULL &&
+        strstr(km_test_err.message, "triangle 3 of 4") != NULL);
+  free(bad);
+  bad = malloc(n + 1);
+  memcpy(bad, d, n);
+  bad[n] = 0;
+  CHECK_STATUS(km_mesh_parse(bad, n + 1, KM_FORMAT_STL, "long.stl", &m, KM_E), KM_ERR_PARSE);
+  CHECK(strstr(km_test_err.message, "long.stl: byte 284:") != NULL &&
+        strstr(km_test_err.message, "1 bytes after its 4 triangles") != NULL);
+  free(bad);
+  free(d);
+
+  /* welding: -0 and +0 are one vertex, "1" and "1.0" too; a facet whose corners weld is
+   * kept (degenerate); two solids merge in order; keywords in any case; all on one line */
+  static const char weld[] =
+      "SOLID a FACET NORMAL nan nan nan OUTER LOOP VERTEX 0 0 0 VERTEX 1 0 0 VERTEX 0 1 0 "
+      "ENDLOOP ENDFACET ENDSOLID a solid b facet normal 0 0 1 outer loop vertex -0 1.0 0 "
+      "vertex 1.0 0 -0.0 vertex 1 1 0 endloop endfacet facet normal 0 0 0 outer loop vertex 1 1 "
+      "0 vertex 1 1 0 vertex 1 1 0e0 endloop endfacet endsolid";
+  CHECK_OK(km_mesh_parse(weld, sizeof weld - 1, KM_FORMAT_STL, "weld.stl", &m, KM_E));
+  CHECK_MSG(m.n_vertices == 4 && m.n_faces == 3, "weld: %zu vertices, %zu faces", m.n_vertices,
+            m.n_faces);
+  CHECK(face_is(&m, 0, 0, 1, 2) && face_is(&m, 1, 2, 1, 3) && face_is(&m, 2, 3, 3, 3));
+  CHECK(vertex_is(&m, 3, 1, 1, 0) && !signbit(m.V[0]) && !signbit(m.V[6]));
+  km_mesh_free(&m);
+  /* a missing endsolid keeps the facets read (as Blender's reader does), with a warning */
+  static const char open_end[] = "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 "
+                                 "0 0\nvertex 0 1 0\nendloop\nendfacet\n";
+  CHECK_OK(km_mesh_parse(open_end, sizeof open_end - 1, KM_FORMAT_STL, "o.stl", &m, KM_E));
+  CHECK(m.n_vertices == 3 && m.n_faces == 1);
+  km_mesh_free(&m);
+  /* no facets at all: an empty mesh, not an error (the caller checks what it needs) */
+  CHECK_OK(km_mesh_parse("solid e\nendsolid e\n", 19, KM_FORMAT_STL, "e.stl", &m, KM_E));
+  CHECK(m.n_vertices == 0 && m.n_faces == 0);
+  km_mesh_free(&m);
+}
+
+static void test_bad_stl(void) {
+  EXPECT_FAIL("solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 oops 0\n",
+              KM_FORMAT_STL, "s.stl", KM_ERR_PARSE, ":5:", "coordinate y of corner 2 of facet 1");
+  EXPECT_FAIL("solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 nan 0\n",
+              KM_FORMAT_STL, "s.stl", KM_ERR_PARSE, ":5:", "'nan'");
+  EXPECT_FAIL("solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 "
+              "0\nvertex 1 1 0\nendloop\nendfacet\nendsolid\n",
+              KM_FORMAT_STL, "s.stl", KM_ERR_PARSE, ":7:", "exactly 3 corners");
+  EXPECT_FAIL("solid x\nfacet normal 0 0\nouter loop\n", KM_FORMAT_STL, "s.stl", KM_ERR_PARSE,
+              ":2:", "3 numbers of facet 1's normal");
+  EXPECT_FAIL("solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 "
+              "0\nendloop\nendfacet\nfacets\n",
+              KM_FORMAT_STL, "s.stl", KM_ERR_PARSE, ":9:", "expected 'facet' or 'endsolid'");
+  EXPECT_FAIL("solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 "
+              "0\nendloop\n",
+              KM_FORMAT_STL, "s.stl", KM_ERR_PARSE, ":8:", "expected 'endfacet'");
+  EXPECT_FAIL("v 0 0 0\n", KM_FORMAT_STL, "o.stl", KM_ERR_PARSE, ":1:", "expected 'solid'");
+  EXPECT_FAIL("", KM_FORMAT_STL, "z.stl", KM_ERR_PARSE, ":1:", "found end of file");
+  EXPECT_FAIL("\0\0\0\0tiny", KM_FORMAT_STL, "t.stl", KM_ERR_PARSE, ": not an STL file", "8 bytes");
+}
+
 /* Every prefix of every sample file, and deterministic byte corruptions, must give either an
  * error or a mesh whose indices are all in range: never a crash or an out-of-bounds read. */
 static void test_truncation_and_corruption(void) {
-  const char *files[] = {"mixed.obj",   "ascii.ply", "tet_le.ply",
-                         "quad_be.ply", "poly.off",  "coff_sameline.off"};
-  const km_mesh_format fmts[] = {KM_FORMAT_OBJ, KM_FORMAT_PLY, KM_FORMAT_PLY,
-                                 KM_FORMAT_PLY, KM_FORMAT_OFF, KM_FORMAT_OFF};
+  const char *files[] = {"mixed.obj", "ascii.ply",         "tet_le.ply",      "quad_be.ply",
+                         "poly.off",  "coff_sameline.off", "tetra_ascii.stl", "tetra_bin.stl"};
+  const km_mesh_format fmts[] = {KM_FORMAT_OBJ, KM_FORMAT_PLY, KM_FORMAT_PLY, KM_FORMAT_PLY,
+                                 KM_FORMAT_OFF, KM_FORMAT_OFF, KM_FORMAT_STL, KM_FORMAT_STL};
   uint64_t rng = 0x9e3779b97f4a7c15ULL;
-  for (int fi = 0; fi < 6; ++fi) {
+  for (size_t fi = 0; fi < sizeof files / sizeof files[0]; ++fi) {
     size_t n;
     char *d = load(files[fi], &n);
     if (!d) continue;
@@ -517,6 +619,8 @@ int main(void) {
   test_bad_obj();
   test_bad_ply();
   test_bad_off();
+  test_stl();
+  test_bad_stl();
   test_truncation_and_corruption();
   int found = test_shared();
   int rc = km_test_finish("test_mesh_io");

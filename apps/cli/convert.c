@@ -1,4 +1,5 @@
-/* kinemesh convert: a mesh between OBJ, PLY and OFF, chosen by extension; with --up /
+/* kinemesh convert: a mesh between OBJ, PLY and OFF (and from STL or glTF), chosen by extension;
+ * with --up /
  * --forward / --units / --scale, rewritten into kinemesh's frame (y up, facing +z, metres). */
 #include "cli.h"
 
@@ -21,11 +22,13 @@ int km_cli_convert(int argc, char **argv) {
   int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 2, &n_pos,
                        "kinemesh convert IN OUT|-o OUT [--ply ascii] [--up +z --forward -y] "
                        "[--units cm] [--scale X]",
-                       "Converts between OBJ, PLY and OFF by file extension. Vertex order and\n"
-                       "coordinates are kept exactly; polygons are fan-triangulated; texture\n"
-                       "coordinates and normals are kept (OBJ, PLY). With --up, --forward,\n"
-                       "--units or --scale the mesh is rotated and scaled into kinemesh's frame\n"
-                       "(y up, facing +z, metres; a missing axis is guessed and printed).");
+                       "Converts between OBJ, PLY and OFF by file extension (STL and glTF are\n"
+                       "read too). Vertex order and coordinates are kept exactly (an STL's\n"
+                       "equal corners are welded into one vertex, in facet order); polygons\n"
+                       "are fan-triangulated; texture coordinates and normals are kept (OBJ,\n"
+                       "PLY). With --up, --forward, --units or --scale the mesh is rotated and\n"
+                       "scaled into kinemesh's frame (y up, facing +z, metres; a missing axis\n"
+                       "is guessed and printed).");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   /* OUT as every other verb takes it (-o) or as the second argument, as cp does */
   if (n_pos == 2 && out && strcmp(out, pos[1]))

@@ -38,7 +38,7 @@ int km_cli_info(int argc, char **argv) {
   int n_pos;
   int r = km_cli_parse(
       argc, argv, opts, 1, pos, 1, &n_pos, "kinemesh info FILE [--json]",
-      "Mesh (OBJ/PLY/OFF/glTF): vertex/face counts, topology counts and bounding box.\n"
+      "Mesh (OBJ/PLY/OFF/STL/glTF): vertex/face counts, topology counts and bounding box.\n"
       "Animation (.glb, .pc2, frame directory): frames, vertices, frame rate.");
   if (r <= 0) return r < 0 ? KM_EXIT_USAGE : KM_EXIT_OK;
   if (n_pos != 1) return km_cli_error("info", "expected one FILE (see kinemesh info --help)");

@@ -114,7 +114,7 @@ int km_cli_live(int argc, char **argv) {
   const km_cli_opt opts[] = {
       KM_CLI_FRAME_OPTIONS(fo),
       KM_CLI_MOTION_FRAME_OPTIONS(fo),
-      {"mesh", 0, KM_OPT_STRING, &mesh_path, "mesh to animate (OBJ/PLY/OFF/glTF)"},
+      {"mesh", 0, KM_OPT_STRING, &mesh_path, "mesh to animate (OBJ/PLY/OFF/STL/glTF)"},
       {"rig", 0, KM_OPT_STRING, &rig_path,
        "rig: handles, joint map, filter (default <mesh stem>.rig.json; when the file does not "
        "exist: a glTF's own skin or an automatic rig, written there by the page's save); "

@@ -115,12 +115,14 @@ static km_status format_from_name(const char *name, km_mesh_format *fmt, km_erro
     *fmt = KM_FORMAT_PLY;
   else if (!strcmp(ext, "off"))
     *fmt = KM_FORMAT_OFF;
+  else if (!strcmp(ext, "stl"))
+    *fmt = KM_FORMAT_STL;
   else if (!strcmp(ext, "glb") || !strcmp(ext, "gltf") || !strcmp(ext, "vrm")) /* VRM: a .glb */
     *fmt = KM_FORMAT_GLTF;
   else
     return km__fail(err, KM_ERR_UNSUPPORTED,
-                    "%s: unknown mesh extension '%s' (expected .obj, .ply, .off, .glb, .gltf or "
-                    ".vrm)",
+                    "%s: unknown mesh extension '%s' (expected .obj, .ply, .off, .stl, .glb, "
+                    ".gltf or .vrm)",
                     name ? name : "(unnamed)", ext);
   return KM_OK;
 }
@@ -141,6 +143,7 @@ km_status km_mesh_parse(const void *data, size_t size, km_mesh_format format, co
   case KM_FORMAT_PLY: return km__ply_parse(d, size, name, out, err);
   case KM_FORMAT_OFF: return km__off_parse(d, size, name, out, err);
   case KM_FORMAT_GLTF: return km__gltf_parse(d, size, name, NULL, out, NULL, err);
+  case KM_FORMAT_STL: return km__stl_parse(d, size, name, out, err);
   default: return km__fail(err, KM_ERR_INVALID, "%s: unknown mesh format %d", name, (int)format);
   }
 }
@@ -252,6 +255,11 @@ km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_
     return km__fail(err, KM_ERR_UNSUPPORTED,
                     "%s: glTF is read, not written, as a mesh (write .obj or .ply; animations "
                     "are written as .glb by the animation writer)",
+                    path);
+  if (fmt == KM_FORMAT_STL) /* no UVs, no shared vertices: it would lose what a mesh carries */
+    return km__fail(err, KM_ERR_UNSUPPORTED,
+                    "%s: STL is read, not written (write .obj, .ply or .off: they keep the vertex "
+                    "order, UVs and normals)",
                     path);
   if (fmt != KM_FORMAT_OBJ && fmt != KM_FORMAT_PLY && fmt != KM_FORMAT_OFF)
     return km__fail(err, KM_ERR_INVALID, "%s: unknown mesh format %d", path, (int)fmt);

@@ -24,6 +24,9 @@ km_status km__ply_parse_ex(const char *data, size_t size, const char *name, unsi
  * km_mesh_read_skinned describes (zeroed when the file has none). */
 km_status km__gltf_parse(const char *data, size_t size, const char *name, const char *base_path,
                          km_mesh *out, km_mesh_skin *skin, km_error *err);
+/* STL, binary or ASCII (io_stl.c); corners welded as km_mesh_read describes. */
+km_status km__stl_parse(const char *data, size_t size, const char *name, km_mesh *out,
+                        km_error *err);
 km_status km__off_parse(const char *data, size_t size, const char *name, km_mesh *out,
                         km_error *err);
 

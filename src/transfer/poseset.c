@@ -87,14 +87,15 @@ km_status km_pose_set_from_labels(const char *meshes, const char *labels_csv,
   if (!meshes || !labels_csv || !out)
     return km__fail(err, KM_ERR_INVALID, "km_pose_set: NULL argument");
   memset(out, 0, sizeof *out);
-  static const char *const exts[] = {"obj", "ply", "off", NULL};
+  static const char *const exts[] = {"obj", "ply", "off", "stl", NULL};
   char **paths = NULL;
   size_t np = 0;
   km_status s = km__list_files(meshes, exts, true, &paths, &np, err);
   if (s != KM_OK) return s;
   if (!np) {
     km_paths_free(&paths, np);
-    return km__fail(err, KM_ERR_IO, "--meshes '%s' matched no mesh files (.obj .ply .off)", meshes);
+    return km__fail(err, KM_ERR_IO, "--meshes '%s' matched no mesh files (.obj .ply .off .stl)",
+                    meshes);
   }
   char *data = NULL;
   size_t size = 0;

@@ -8,7 +8,8 @@
 # the exact frames (.pc2 of the same run) within the file's reported error (skin, morphs:K; plus
 # 0.1 mm for float32) or 0.1 mm (morphs:all). See blender_check.py. And `animate --keep-frame`'s
 # point cache on a z-up copy, played by Blender's Mesh Cache modifier on that file imported as
-# stored, lines up with it (blender_pc2_frame.py).
+# stored, lines up with it (blender_pc2_frame.py). And Blender's own STL files (ASCII and
+# binary) of the character, read back by kinemesh (blender_stl.py).
 # Skipped (77) with a message when blender (or its numpy) is missing, except in CI (CI=true),
 # where scripts/deps.sh --test installs it and a missing blender fails.
 set -euo pipefail
@@ -87,5 +88,26 @@ frame_check() { # CACHE WANT(0: lines up, 1: off)
 }
 frame_check "$WORK/keep.pc2" 0
 frame_check "$WORK/plain.pc2" 1
-[ $rc -eq 0 ] && echo "blender: 5 exports and the z-up point cache passed" || echo "blender: FAILED"
+# STL (issue 11, any triangle mesh): Blender's own STL exporter writes the character as ASCII and
+# binary STL; kinemesh converts each to OBJ and must weld it back to the original's vertex count
+# with every face's corners where the original has them (blender_stl.py)
+stl() { # ARGS...: one blender_stl.py run, its verdict kept
+  local out brc=0
+  out=$("$BLENDER" -b --factory-startup --python-exit-code 2 --python "$HERE/blender_stl.py" \
+    -- "$@" 2>&1) || brc=$?
+  echo "$out" | grep -E '^(ok|FAIL)' || true
+  if [ $brc -ne 0 ]; then
+    [ $brc -eq 1 ] || echo "$out" | tail -20
+    rc=1
+  fi
+}
+stl export "$WORK/c.obj" "$WORK/c_ascii.stl" "$WORK/c_bin.stl"
+for k in ascii bin; do
+  if "$BIN" convert "$WORK/c_$k.stl" "$WORK/c_$k.obj" >/dev/null; then
+    stl check "$WORK/c.obj" "$WORK/c_$k.obj"
+  else
+    echo "FAIL: kinemesh convert could not read Blender's $k STL" && rc=1
+  fi
+done
+[ $rc -eq 0 ] && echo "blender: 5 exports, the z-up point cache and Blender's STL passed" || echo "blender: FAILED"
 exit $rc

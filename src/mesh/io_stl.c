@@ -1,0 +1,351 @@
+/* STL (binary and ASCII), read only: 3D-printing files and many scanners' output.
+ *
+ * An STL stores each triangle with its own three corner positions and no vertex list, so the
+ * reader welds corners with exactly equal coordinates (bit for bit after -0 -> +0; ASCII
+ * values compared after parsing, so "1" and "1.0" are one vertex) into one vertex. The
+ * order is fixed by the file alone: vertex i is the i-th distinct position in facet order,
+ * corners in the order written; face i is facet i (a facet whose corners weld together is
+ * kept as a degenerate face, so facet and face numbers stay one to one). Facet normals and
+ * the binary attribute bytes are ignored (normals are recomputed from the faces).
+ *
+ * Binary or ASCII: binary when the triangle count at byte 80 accounts for the file's size
+ * (84 + 50 bytes per triangle), whatever the 80-byte header says (several CAD exporters start
+ * a binary header with "solid"); otherwise ASCII when it starts with "solid" and holds no NUL
+ * byte. Keywords are read case-insensitively; several solids in one file are merged in order.
+ *
+ * admesh (Debian libadmesh-dev) was considered: it opens files by path only (we parse from
+ * memory for fuzzing and the readers' shared error handling), reports errors with perror and
+ * no position, takes a binary file for ASCII when bytes 84-211 are all below 128, and counts
+ * ASCII facets as lines / 7; so the reader is written out, as the PLY reader is. */
+#include "mesh/mesh.h"
+#include "mesh/mesh_io.h"
+
+#include <ctype.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* -------------------------------------------------------------------- welding */
+
+/* Open-addressing table from a position to its vertex id; positions live in V. */
+typedef struct weld {
+  int32_t *slot; /* -1: empty */
+  size_t mask;
+  double *V;
+  size_t n, cap; /* vertices, in positions */
+} weld;
+
+static bool weld_init(weld *w, size_t max_corners) {
+  size_t cap = 16;
+  while (cap < 2 * max_corners)
+    cap <<= 1;
+  w->slot = km__malloc(cap, sizeof(int32_t));
+  w->cap = max_corners ? max_corners : 1;
+  w->V = km__malloc(w->cap * 3, sizeof(double));
+  w->mask = cap - 1;
+  w->n = 0;
+  if (!w->slot || !w->V) return false;
+  memset(w->slot, 0xff, cap * sizeof(int32_t));
+  return true;
+}
+
+static uint64_t hash_position(const double p[3]) {
+  uint64_t h = km__fnv1a(KM__FNV_SEED, p, 3 * sizeof(double));
+  return h ^ (h >> 29);
+}
+
+/* The vertex id of position p (x, y, z finite), adding it when new; -1 when the table is full
+ * (cannot happen: it holds at most max_corners positions). */
+static int32_t weld_add(weld *w, double x, double y, double z) {
+  const double p[3] = {x + 0.0, y + 0.0, z + 0.0}; /* -0 + 0 = +0: one vertex for both zeros */
+  for (size_t i = hash_position(p) & w->mask;; i = (i + 1) & w->mask) {
+    int32_t v = w->slot[i];
+    if (v < 0) {
+      if (w->n >= w->cap || w->n >= INT32_MAX) return -1;
+      memcpy(w->V + 3 * w->n, p, sizeof p);
+      w->slot[i] = (int32_t)w->n;
+      return (int32_t)w->n++;
+    }
+    if (!memcmp(w->V + 3 * (size_t)v, p, sizeof p)) return v;
+  }
+}
+
+static void weld_free(weld *w) {
+  free(w->slot);
+  free(w->V);
+}
+
+/* Hands the welded mesh to out (trimming V to the vertices found). */
+static void weld_finish(weld *w, int32_t *F, size_t n_faces, km_mesh *out) {
+  double *V = realloc(w->V, (w->n ? w->n : 1) * 3 * sizeof(double));
+  out->V = V ? V : w->V;
+  out->F = F;
+  out->n_vertices = w->n;
+  out->n_faces = n_faces;
+  free(w->slot);
+  w->V = NULL;
+  w->slot = NULL;
+}
+
+/* -------------------------------------------------------------------- binary */
+
+static uint32_t load_u32le(const unsigned char *p) {
+  return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static double load_f32le(const unsigned char *p) {
+  uint32_t u = load_u32le(p);
+  float f;
+  memcpy(&f, &u, 4);
+  return (double)f;
+}
+
+static km_status parse_binary(const unsigned char *d, size_t size, const char *name, km_mesh *out,
+                              km_error *err) {
+  size_t n = load_u32le(d + 80);
+  if (n > INT32_MAX / 3)
+    return km__fail(err, KM_ERR_UNSUPPORTED,
+                    "%s: binary STL with %zu triangles exceeds the int32 index range", name, n);
+  weld w = {0};
+  int32_t *F = km__malloc(n ? 3 * n : 1, sizeof(int32_t));
+  if (!F || !weld_init(&w, 3 * n)) {
+    free(F);
+    weld_free(&w);
+    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu triangles", name, n);
+  }
+  for (size_t t = 0; t < n; ++t) {
+    const unsigned char *f = d + 84 + 50 * t + 12; /* past the facet normal */
+    for (int c = 0; c < 3; ++c) {
+      double x = load_f32le(f + 12 * c), y = load_f32le(f + 12 * c + 4),
+             z = load_f32le(f + 12 * c + 8);
+      if (!isfinite(x) || !isfinite(y) || !isfinite(z)) {
+        free(F);
+        weld_free(&w);
+        return km__fail(err, KM_ERR_PARSE,
+                        "%s: byte %zu: corner %d of triangle %zu is not a finite position "
+                        "(%g %g %g)",
+                        name, (size_t)(f + 12 * c - d), c + 1, t + 1, x, y, z);
+      }
+      F[3 * t + (size_t)c] = weld_add(&w, x, y, z);
+    }
+  }
+  weld_finish(&w, F, n, out);
+  return KM_OK;
+}
+
+/* -------------------------------------------------------------------- ASCII */
+
+typedef struct stl_text {
+  const char *p, *end;
+  size_t line; /* 1-based line of p */
+  const char *name;
+  km_error *err;
+} stl_text;
+
+/* Next whitespace-separated token (newlines counted); false at the end. */
+static bool next_token(stl_text *r, const char **tok, size_t *len) {
+  while (r->p < r->end && (km__is_space(*r->p) || *r->p == '\n')) {
+    if (*r->p == '\n') ++r->line;
+    ++r->p;
+  }
+  if (r->p >= r->end) return false;
+  *tok = r->p;
+  while (r->p < r->end && !km__is_space(*r->p) && *r->p != '\n')
+    ++r->p;
+  *len = (size_t)(r->p - *tok);
+  return true;
+}
+
+static bool is_word(const char *tok, size_t len, const char *word);
+
+/* Skips a solid's name: the tokens after "solid" or "endsolid" on its line, up to a keyword
+ * that starts the next statement (a file written on one line: "solid a facet normal ..."). */
+static void skip_name(stl_text *r) {
+  size_t line = r->line;
+  for (;;) {
+    const char *p = r->p, *tok;
+    size_t len;
+    if (!next_token(r, &tok, &len)) return;
+    if (r->line != line || is_word(tok, len, "facet") || is_word(tok, len, "endsolid") ||
+        is_word(tok, len, "solid")) {
+      r->p = p; /* not part of the name: read it again */
+      r->line = line;
+      return;
+    }
+  }
+}
+
+static bool is_word(const char *tok, size_t len, const char *word) {
+  size_t n = strlen(word);
+  if (len != n) return false;
+  for (size_t i = 0; i < n; ++i)
+    if (tolower((unsigned char)tok[i]) != word[i]) return false;
+  return true;
+}
+
+/* Reads the next token, which must be `word`; fails naming the line and what was found. */
+static km_status expect(stl_text *r, const char *word, const char *context) {
+  const char *tok;
+  size_t len;
+  if (!next_token(r, &tok, &len))
+    return km__fail(r->err, KM_ERR_PARSE, "%s:%zu: expected '%s' %s, found end of file", r->name,
+                    r->line, word, context);
+  if (!is_word(tok, len, word)) {
+    char q[64];
+    km__quote_token(tok, len, q, sizeof q);
+    return km__fail(r->err, KM_ERR_PARSE, "%s:%zu: expected '%s' %s, found %s", r->name, r->line,
+                    word, context, q);
+  }
+  return KM_OK;
+}
+
+static km_status number(stl_text *r, double *x, char axis, const char *what) {
+  const char *tok;
+  size_t len;
+  if (!next_token(r, &tok, &len))
+    return km__fail(r->err, KM_ERR_PARSE, "%s:%zu: expected coordinate %c of %s, found end of file",
+                    r->name, r->line, axis, what);
+  if (!km__parse_double(tok, len, x)) {
+    char q[64];
+    km__quote_token(tok, len, q, sizeof q);
+    return km__fail(r->err, KM_ERR_PARSE,
+                    "%s:%zu: expected a finite number for coordinate %c of %s, found %s", r->name,
+                    r->line, axis, what, q);
+  }
+  return KM_OK;
+}
+
+static km_status parse_ascii(const char *data, size_t size, const char *name, km_mesh *out,
+                             km_error *err) {
+  stl_text r = {data, data + size, 1, name, err};
+  /* Every facet takes at least "facet normal 0 0 0 outer loop vertex 0 0 0 vertex 0 0 0 vertex
+   * 0 0 0 endloop endfacet" (> 64 bytes): bound the corners by the size before allocating. */
+  size_t max_facets = size / 64 + 1;
+  weld w = {0};
+  km__tris tris = {0};
+  km_status s = KM_OK;
+  if (!weld_init(&w, 3 * max_facets) || !km__tris_reserve(&tris, max_facets)) {
+    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu bytes of STL", name, size);
+    goto done;
+  }
+  const char *tok;
+  size_t len;
+  size_t solids = 0;
+  bool in_solid = false;
+  while (!s) {
+    if (!next_token(&r, &tok, &len)) {
+      if (!solids)
+        s = km__fail(err, KM_ERR_PARSE, "%s:%zu: expected 'solid', found end of file", name,
+                     r.line);
+      else if (in_solid) /* as Blender and most readers: the facets read are kept */
+        km__log(KM_LOG_WARN, "%s:%zu: the file ends without 'endsolid' (truncated?)", name, r.line);
+      break;
+    }
+    if (!in_solid) {
+      if (!is_word(tok, len, "solid")) {
+        char q[64];
+        km__quote_token(tok, len, q, sizeof q);
+        s = km__fail(err, KM_ERR_PARSE, "%s:%zu: expected 'solid'%s, found %s", name, r.line,
+                     solids ? " or the end of the file" : " (an ASCII STL starts with it)", q);
+        break;
+      }
+      skip_name(&r);
+      in_solid = true;
+      ++solids;
+      continue;
+    }
+    if (is_word(tok, len, "endsolid")) {
+      skip_name(&r);
+      in_solid = false;
+      continue;
+    }
+    if (!is_word(tok, len, "facet")) {
+      char q[64];
+      km__quote_token(tok, len, q, sizeof q);
+      s = km__fail(err, KM_ERR_PARSE, "%s:%zu: expected 'facet' or 'endsolid', found %s", name,
+                   r.line, q);
+      break;
+    }
+    size_t facet = tris.n + 1;
+    char what[64];
+    if ((s = expect(&r, "normal", "after 'facet'"))) break;
+    /* The normal is ignored, and may be anything an exporter writes for a degenerate facet
+     * ("nan"): three tokens on the facet's line. */
+    size_t line = r.line;
+    for (int k = 0; k < 3 && !s; ++k)
+      if (!next_token(&r, &tok, &len) || r.line != line)
+        s = km__fail(err, KM_ERR_PARSE, "%s:%zu: expected the 3 numbers of facet %zu's normal",
+                     name, line, facet);
+    if (s) break;
+    if ((s = expect(&r, "outer", "(a facet's 'outer loop')")) ||
+        (s = expect(&r, "loop", "after 'outer'")))
+      break;
+    int32_t c[3];
+    for (int k = 0; k < 3 && !s; ++k) {
+      snprintf(what, sizeof what, "corner %d of facet %zu", k + 1, facet);
+      double x, y, z;
+      if ((s = expect(&r, "vertex", k ? "(a facet has 3 corners)" : "after 'outer loop'")) ||
+          (s = number(&r, &x, 'x', what)) || (s = number(&r, &y, 'y', what)) ||
+          (s = number(&r, &z, 'z', what)))
+        break;
+      if ((c[k] = weld_add(&w, x, y, z)) < 0)
+        s = km__fail(err, KM_ERR_PARSE, "%s:%zu: more corners than the file's size allows", name,
+                     r.line);
+    }
+    if (s) break;
+    if ((s = expect(&r, "endloop", "(an STL facet has exactly 3 corners)")) ||
+        (s = expect(&r, "endfacet", "after 'endloop'")))
+      break;
+    if (!km__tris_reserve(&tris, tris.n + 1)) {
+      s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
+      break;
+    }
+    memcpy(tris.F + 3 * tris.n++, c, sizeof c);
+  }
+done:
+  if (s) {
+    weld_free(&w);
+    free(tris.F);
+    return s;
+  }
+  weld_finish(&w, tris.F, tris.n, out);
+  return KM_OK;
+}
+
+/* -------------------------------------------------------------------- dispatch */
+
+km_status km__stl_parse(const char *data, size_t size, const char *name, km_mesh *out,
+                        km_error *err) {
+  const unsigned char *d = (const unsigned char *)data;
+  if (size >= 84) {
+    uint64_t n = load_u32le(d + 80);
+    if (84 + 50 * n == size) return parse_binary(d, size, name, out, err);
+  }
+  /* Not a consistent binary file: ASCII when its start holds no NUL byte (a binary header is
+   * NUL-padded and a small count's high bytes are 0); the ASCII parser then says which line
+   * is wrong, from "solid" on. */
+  if (!memchr(d, 0, size < 512 ? size : 512)) {
+    size_t i = size >= 3 && !memcmp(d, "\xef\xbb\xbf", 3) ? 3 : 0; /* a UTF-8 byte-order mark */
+    return parse_ascii(data + i, size - i, name, out, err);
+  }
+  if (size < 84)
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: not an STL file: %zu bytes, neither an ASCII STL (starting with "
+                    "'solid') nor a binary one (an 80-byte header, a triangle count, 50 bytes "
+                    "per triangle)",
+                    name, size);
+  uint64_t n = load_u32le(d + 80);
+  uint64_t want = 84 + 50 * n;
+  if (size < want)
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: byte %zu: binary STL ends inside triangle %llu of %llu (the count at byte "
+                    "80 needs %llu bytes, the file has %zu: truncated?)",
+                    name, size, (unsigned long long)((size - 84) / 50 + 1), (unsigned long long)n,
+                    (unsigned long long)want, size);
+  return km__fail(err, KM_ERR_PARSE,
+                  "%s: byte %llu: binary STL has %llu bytes after its %llu triangles (the count "
+                  "at byte 80 says %llu, the size %zu bytes fits %zu): the count or the file is "
+                  "wrong",
+                  name, (unsigned long long)want, (unsigned long long)(size - want),
+                  (unsigned long long)n, (unsigned long long)n, size, (size - 84) / 50);
+}
