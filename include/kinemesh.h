@@ -419,7 +419,7 @@ typedef enum km_mesh_format {
   KM_FORMAT_PLY,
   KM_FORMAT_OFF,
   KM_FORMAT_GLTF, /* .glb / .gltf: read only (issue 11) */
-  KM_FORMAT_STL,  /* .stl, binary or ASCII: read only */
+  KM_FORMAT_STL,  /* .stl: read binary or ASCII, written binary */
 } km_mesh_format;
 
 typedef enum km_ply_encoding {
@@ -503,10 +503,14 @@ km_status km_mesh_parse_skinned(const void *data, size_t size, const char *name,
  * Coordinates are written exactly (%.17g in text formats, raw doubles in binary PLY), so
  * reading back is bit for bit. UV and N, when present, are written too (OBJ vt/vn with
  * v/t/n face references, one per vertex; PLY u v, nx ny nz); OFF has no place for them.
+ * STL (binary): the faces' corners as float32 with unit facet normals, and nothing else (no
+ * vertex list, so reading back welds the corners in facet order; a warning when UVs, normals
+ * or materials are dropped); a mesh without faces is KM_ERR_UNSUPPORTED.
  *   path  in: file; its extension gives the format unless opt says otherwise
  *   m     in: mesh
  *   opt   in: may be NULL (format from extension, binary little-endian PLY)
- * Errors: KM_ERR_IO. */
+ * Errors: KM_ERR_IO; KM_ERR_UNSUPPORTED for glTF (read only) and an STL of a mesh without
+ * faces. */
 km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_options *opt,
                         km_error *err);
 

@@ -119,6 +119,19 @@ static void test_convert_roundtrip(void) {
     CHECK(memcmp(a.V, c.V, sizeof(double) * 3 * a.n_vertices) == 0);
     CHECK(memcmp(a.F, c.F, sizeof(int32_t) * 3 * a.n_faces) == 0);
   }
+  /* through STL and back: welded to the same 4 vertices, each face's corners where the
+   * original has them (the order is the STL's first appearance: the faces' corner positions
+   * are compared) */
+  km_mesh t = {0};
+  CHECK(km_test_run(KM_CLI " convert " KM_TEST_DATA "/tetra.obj cli_t.stl", NULL) == 0);
+  CHECK(km_test_run(KM_CLI " convert cli_t.stl cli_t.obj", NULL) == 0);
+  CHECK_OK(km_mesh_read("cli_t.obj", &t, KM_E));
+  CHECK(t.n_vertices == a.n_vertices && t.n_faces == a.n_faces);
+  for (size_t i = 0; t.n_faces == a.n_faces && i < 3 * a.n_faces; ++i)
+    CHECK(memcmp(a.V + 3 * (size_t)a.F[i], t.V + 3 * (size_t)t.F[i], 3 * sizeof(double)) == 0);
+  km_mesh_free(&t);
+  remove("cli_t.stl");
+  remove("cli_t.obj");
   km_mesh_free(&a);
   km_mesh_free(&c);
   remove("cli_a.ply");

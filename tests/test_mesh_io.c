@@ -233,7 +233,8 @@ static void test_round_trip(void) {
   /* Missing folders are created (issue 11); one that cannot be (under a file) fails. */
   CHECK_STATUS(km_mesh_write("/dev/null/such/dir/x.ply", &bad, NULL, KM_E), KM_ERR_IO);
   CHECK(strstr(km_test_err.message, "/dev/null/such/dir/x.ply") != NULL);
-  CHECK_STATUS(km_mesh_write("x.stl", &bad, NULL, KM_E), KM_ERR_UNSUPPORTED);
+  CHECK_STATUS(km_mesh_write("x.fbx", &bad, NULL, KM_E), KM_ERR_UNSUPPORTED);
+  CHECK(strstr(km_test_err.message, "unknown mesh extension 'fbx'") != NULL);
 }
 
 /* The call must fail with `st` and a message naming `name` followed by `where` (":3" or
@@ -444,6 +445,34 @@ static void test_stl(void) {
   CHECK_OK(km_mesh_parse(open_end, sizeof open_end - 1, KM_FORMAT_STL, "o.stl", &m, KM_E));
   CHECK(m.n_vertices == 3 && m.n_faces == 1);
   km_mesh_free(&m);
+  /* written (binary): read back, the faces are the same corners (float32), the vertices in
+   * first-appearance order; the header does not start with "solid"; facet normals are unit */
+  {
+    const double V[15] = {0.1, 0, 0, 0, 0, 0, 0, 1.3, 0, 0, 0, 1, 5, 5, 5}; /* 4: no face */
+    const int32_t F[12] = {1, 2, 0, 1, 0, 3, 1, 3, 2, 0, 2, 3};
+    km_mesh w = {.V = (double *)V, .F = (int32_t *)F, .n_vertices = 5, .n_faces = 4};
+    CHECK_OK(km_mesh_write("stl_write.stl", &w, NULL, KM_E));
+    CHECK_OK(km__read_file("stl_write.stl", &d, &n, KM_E));
+    CHECK(n == 84 + 4 * 50 && strncmp(d, "solid", 5) != 0);
+    float nrm[3];
+    memcpy(nrm, d + 84, sizeof nrm); /* facet 1: (0,0,0) (0,1.3,0) (0.1,0,0): normal -z */
+    CHECK(nrm[0] == 0 && nrm[1] == 0 && nrm[2] == -1);
+    free(d);
+    CHECK_OK(km_mesh_read("stl_write.stl", &m, KM_E));
+    CHECK(m.n_vertices == 4 && m.n_faces == 4);
+    CHECK(face_is(&m, 0, 0, 1, 2) && face_is(&m, 1, 0, 2, 3) && face_is(&m, 2, 0, 3, 1) &&
+          face_is(&m, 3, 2, 1, 3));
+    CHECK(vertex_is(&m, 0, 0, 0, 0) && vertex_is(&m, 1, 0, (float)1.3, 0) &&
+          vertex_is(&m, 2, (float)0.1, 0, 0) && vertex_is(&m, 3, 0, 0, 1));
+    km_mesh_free(&m);
+    remove("stl_write.stl");
+    w.n_faces = 0; /* a point cloud has no STL */
+    CHECK_STATUS(km_mesh_write("stl_points.stl", &w, NULL, KM_E), KM_ERR_UNSUPPORTED);
+    CHECK(strstr(km_test_err.message, "no faces") != NULL);
+    FILE *f = fopen("stl_points.stl", "rb");
+    CHECK(f == NULL);
+    if (f) fclose(f);
+  }
   /* no facets at all: an empty mesh, not an error (the caller checks what it needs) */
   CHECK_OK(km_mesh_parse("solid e\nendsolid e\n", 19, KM_FORMAT_STL, "e.stl", &m, KM_E));
   CHECK(m.n_vertices == 0 && m.n_faces == 0);

@@ -1,4 +1,4 @@
-/* kinemesh convert: a mesh between OBJ, PLY and OFF (and from STL or glTF), chosen by extension;
+/* kinemesh convert: a mesh between OBJ, PLY, OFF and STL (and from glTF), chosen by extension;
  * with --up /
  * --forward / --units / --scale, rewritten into kinemesh's frame (y up, facing +z, metres). */
 #include "cli.h"
@@ -12,7 +12,7 @@ int km_cli_convert(int argc, char **argv) {
   double scale = 0;
   km_cli_frame_opts fo = {0};
   const km_cli_opt opts[] = {
-      {"output", 'o', KM_OPT_STRING, &out, "output mesh (.obj, .ply, .off), or OUT"},
+      {"output", 'o', KM_OPT_STRING, &out, "output mesh (.obj, .ply, .off, .stl), or OUT"},
       {"ply", 0, KM_OPT_STRING, &ply, "PLY encoding: binary (default), binary-be, ascii"},
       KM_CLI_FRAME_OPTIONS(fo),
       {"scale", 0, KM_OPT_DOUBLE, &scale, "multiply coordinates by X (after --units)"},
@@ -22,9 +22,10 @@ int km_cli_convert(int argc, char **argv) {
   int r = km_cli_parse(argc, argv, opts, sizeof opts / sizeof opts[0], pos, 2, &n_pos,
                        "kinemesh convert IN OUT|-o OUT [--ply ascii] [--up +z --forward -y] "
                        "[--units cm] [--scale X]",
-                       "Converts between OBJ, PLY and OFF by file extension (STL and glTF are\n"
-                       "read too). Vertex order and coordinates are kept exactly (an STL's\n"
-                       "equal corners are welded into one vertex, in facet order); polygons\n"
+                       "Converts between OBJ, PLY, OFF and STL by file extension (glTF is read\n"
+                       "too). Vertex order and coordinates are kept exactly (an STL has no\n"
+                       "vertex list: its equal corners are welded into one vertex, in facet\n"
+                       "order, and it is written binary, float32, positions only); polygons\n"
                        "are fan-triangulated; texture coordinates and normals are kept (OBJ,\n"
                        "PLY). With --up, --forward, --units or --scale the mesh is rotated and\n"
                        "scaled into kinemesh's frame (y up, facing +z, metres; a missing axis\n"

@@ -9,7 +9,8 @@
 
 static const km_cli_verb VERBS[] = {
     {"info", "print topology counts and extent of a mesh, or describe a .glb/.pc2", km_cli_info},
-    {"convert", "convert a mesh between OBJ, PLY and OFF (by extension)", km_cli_convert},
+    {"convert", "convert a mesh between OBJ, PLY, OFF and STL, or from glTF (by extension)",
+     km_cli_convert},
     {"eigen", "smallest eigenvalues of the cotangent Laplacian (ARPACK shift-invert)",
      km_cli_eigen},
     {"gen", "generate a procedural character (gen character) or a motion take (gen motion)",

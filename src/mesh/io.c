@@ -256,12 +256,17 @@ km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_
                     "%s: glTF is read, not written, as a mesh (write .obj or .ply; animations "
                     "are written as .glb by the animation writer)",
                     path);
-  if (fmt == KM_FORMAT_STL) /* no UVs, no shared vertices: it would lose what a mesh carries */
+  if (fmt == KM_FORMAT_STL && !m->n_faces)
     return km__fail(err, KM_ERR_UNSUPPORTED,
-                    "%s: STL is read, not written (write .obj, .ply or .off: they keep the vertex "
-                    "order, UVs and normals)",
+                    "%s: the mesh has no faces and an STL holds triangles only (write a point "
+                    "cloud as .ply)",
                     path);
-  if (fmt != KM_FORMAT_OBJ && fmt != KM_FORMAT_PLY && fmt != KM_FORMAT_OFF)
+  if (fmt == KM_FORMAT_STL && (m->UV || m->N || m->n_materials))
+    km__log(KM_LOG_WARN,
+            "%s: STL keeps the triangles' positions only: the texture coordinates, normals and "
+            "materials are not written (.obj, .ply or .glb keep them)",
+            path);
+  if (fmt != KM_FORMAT_OBJ && fmt != KM_FORMAT_PLY && fmt != KM_FORMAT_OFF && fmt != KM_FORMAT_STL)
     return km__fail(err, KM_ERR_INVALID, "%s: unknown mesh format %d", path, (int)fmt);
   if (enc != KM_PLY_BINARY_LE && enc != KM_PLY_BINARY_BE && enc != KM_PLY_ASCII)
     return km__fail(err, KM_ERR_INVALID, "%s: unknown PLY encoding %d", path, (int)enc);
@@ -287,6 +292,8 @@ km_status km_mesh_write(const char *path, const km_mesh *m, const km_mesh_write_
     free(mtl);
   } else if (fmt == KM_FORMAT_PLY)
     km__ply_write(af.f, m, enc, NULL);
+  else if (fmt == KM_FORMAT_STL)
+    km__stl_write(af.f, m);
   else
     km__off_write(af.f, m);
   return km__atomic_commit(&af, err);

@@ -1,4 +1,5 @@
-/* STL (binary and ASCII), read only: 3D-printing files and many scanners' output.
+/* STL: 3D-printing files and many scanners' output. Read binary and ASCII; written binary
+ * (km__stl_write: a posed frame to print).
  *
  * An STL stores each triangle with its own three corner positions and no vertex list, so the
  * reader welds corners with exactly equal coordinates (bit for bit after -0 -> +0; ASCII
@@ -17,6 +18,7 @@
  * memory for fuzzing and the readers' shared error handling), reports errors with perror and
  * no position, takes a binary file for ASCII when bytes 84-211 are all below 128, and counts
  * ASCII facets as lines / 7; so the reader is written out, as the PLY reader is. */
+#include "math/math.h"
 #include "mesh/mesh.h"
 #include "mesh/mesh_io.h"
 
@@ -348,4 +350,46 @@ km_status km__stl_parse(const char *data, size_t size, const char *name, km_mesh
                   "wrong",
                   name, (unsigned long long)want, (unsigned long long)(size - want),
                   (unsigned long long)n, (unsigned long long)n, size, (size - 84) / 50);
+}
+
+/* -------------------------------------------------------------------- writer */
+
+static void store_u32le(unsigned char *p, uint32_t u) {
+  p[0] = (unsigned char)u, p[1] = (unsigned char)(u >> 8), p[2] = (unsigned char)(u >> 16),
+  p[3] = (unsigned char)(u >> 24);
+}
+
+static void store_f32le(unsigned char *p, double x) {
+  float f = (float)x; /* STL's own type */
+  uint32_t u;
+  memcpy(&u, &f, 4);
+  store_u32le(p, u);
+}
+
+km_status km__stl_write(FILE *f, const km_mesh *m) {
+  /* The header must not start with "solid": readers that go by the header alone would take
+   * the file for ASCII. */
+  unsigned char head[84] = {0};
+  static const char title[] = "binary STL written by kinemesh";
+  memcpy(head, title, sizeof title - 1);
+  store_u32le(head + 80, (uint32_t)m->n_faces);
+  fwrite(head, 1, sizeof head, f);
+  for (size_t t = 0; t < m->n_faces; ++t) {
+    const double *c[3];
+    for (int k = 0; k < 3; ++k)
+      c[k] = m->V + 3 * (size_t)m->F[3 * t + (size_t)k];
+    double e1[3], e2[3], n[3];
+    km__sub3(c[1], c[0], e1);
+    km__sub3(c[2], c[0], e2);
+    km__cross3(e1, e2, n);
+    double len = sqrt(km__dot3(n, n));
+    unsigned char rec[50] = {0}; /* a degenerate facet's normal stays 0 0 0 */
+    for (int k = 0; k < 3; ++k) {
+      store_f32le(rec + 4 * k, len > 0 ? n[k] / len : 0);
+      for (int a = 0; a < 3; ++a)
+        store_f32le(rec + 12 + 12 * k + 4 * a, c[k][a]);
+    }
+    fwrite(rec, 1, sizeof rec, f);
+  }
+  return ferror(f) ? KM_ERR_IO : KM_OK;
 }

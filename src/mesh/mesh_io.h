@@ -36,6 +36,9 @@ km_status km__off_parse(const char *data, size_t size, const char *name, km_mesh
 void km__obj_read_material(const char *data, size_t size, const char *path, km_mesh *out);
 
 km_status km__off_write(FILE *f, const km_mesh *m);
+/* Binary STL: one record per face (float32 corners, unit facet normal, 0 0 0 for a degenerate
+ * face); vertices no face uses are not written. */
+km_status km__stl_write(FILE *f, const km_mesh *m);
 
 /* The MIME type of an encoded image by its signature: "image/png", "image/jpeg", or NULL for
  * anything else (what a glTF viewer decodes, so what the readers keep as a texture). */

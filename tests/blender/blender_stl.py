@@ -3,11 +3,14 @@
 # converted each STL back to OBJ, the same script checks kinemesh's reading of them: the
 # welded vertex count is the original's (every vertex of a closed triangle mesh is one
 # position), the face count is the same, and each face's corner positions are those of the
-# original's face with the same number, within float32 rounding (STL stores float32).
+# original's face with the same number, within float32 rounding (STL stores float32). And the
+# other way: kinemesh's binary STL of the mesh imported by Blender's own STL importer, checked
+# the same way against the original.
 #
 # Run headless:
 #   blender -b --factory-startup --python tests/blender/blender_stl.py -- export MESH.obj ASCII.stl BINARY.stl
 #   blender -b --factory-startup --python tests/blender/blender_stl.py -- check MESH.obj KM.obj
+#   blender -b --factory-startup --python tests/blender/blender_stl.py -- import MESH.obj KM.stl
 # Exits 1 when the check fails, 2 on usage / import / export errors.
 import sys
 
@@ -50,11 +53,22 @@ if len(argv) == 4 and argv[0] == "export":
     print(f"ok: exported {len(objs[0].data.vertices)} vertices, {len(objs[0].data.polygons)} "
           "faces as ASCII and binary STL")
     sys.exit(0)
-if len(argv) != 3 or argv[0] != "check":
+if len(argv) != 3 or argv[0] not in ("check", "import"):
     fail("usage: blender -b --factory-startup --python blender_stl.py -- "
-         "export MESH.obj ASCII.stl BINARY.stl | check MESH.obj KM.obj")
+         "export MESH.obj ASCII.stl BINARY.stl | check MESH.obj KM.obj | import MESH.obj KM.stl")
 V0, F0 = read_obj(argv[1])
-V1, F1 = read_obj(argv[2])
+if argv[0] == "check":
+    V1, F1 = read_obj(argv[2])
+else:
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o, do_unlink=True)
+    r = bpy.ops.import_mesh.stl(filepath=argv[2], axis_forward="Y", axis_up="Z")
+    objs = [o for o in bpy.context.scene.objects if o.type == "MESH"]
+    if r != {"FINISHED"} or len(objs) != 1:
+        fail(f"{argv[2]}: Blender's STL import returned {r}, {len(objs)} mesh objects")
+    me = objs[0].data
+    V1 = [tuple(v.co) for v in me.vertices]
+    F1 = [tuple(p.vertices) for p in me.polygons]
 if len(V1) != len(V0) or len(F1) != len(F0):
     fail(f"{argv[2]}: {len(V1)} vertices and {len(F1)} faces, the original {len(V0)} and "
          f"{len(F0)}", 1)

@@ -9,7 +9,8 @@
 # 0.1 mm for float32) or 0.1 mm (morphs:all). See blender_check.py. And `animate --keep-frame`'s
 # point cache on a z-up copy, played by Blender's Mesh Cache modifier on that file imported as
 # stored, lines up with it (blender_pc2_frame.py). And Blender's own STL files (ASCII and
-# binary) of the character, read back by kinemesh (blender_stl.py).
+# binary) of the character, read back by kinemesh, and kinemesh's STL imported by Blender
+# (blender_stl.py).
 # Skipped (77) with a message when blender (or its numpy) is missing, except in CI (CI=true),
 # where scripts/deps.sh --test installs it and a missing blender fails.
 set -euo pipefail
@@ -90,7 +91,8 @@ frame_check "$WORK/keep.pc2" 0
 frame_check "$WORK/plain.pc2" 1
 # STL (issue 11, any triangle mesh): Blender's own STL exporter writes the character as ASCII and
 # binary STL; kinemesh converts each to OBJ and must weld it back to the original's vertex count
-# with every face's corners where the original has them (blender_stl.py)
+# with every face's corners where the original has them; and Blender's STL importer reads
+# kinemesh's own STL of it back the same way (blender_stl.py)
 stl() { # ARGS...: one blender_stl.py run, its verdict kept
   local out brc=0
   out=$("$BLENDER" -b --factory-startup --python-exit-code 2 --python "$HERE/blender_stl.py" \
@@ -109,5 +111,11 @@ for k in ascii bin; do
     echo "FAIL: kinemesh convert could not read Blender's $k STL" && rc=1
   fi
 done
-[ $rc -eq 0 ] && echo "blender: 5 exports, the z-up point cache and Blender's STL passed" || echo "blender: FAILED"
+# and kinemesh's own (binary) STL imported by Blender's STL importer
+if "$BIN" convert "$WORK/c.obj" "$WORK/c_km.stl" >/dev/null; then
+  stl import "$WORK/c.obj" "$WORK/c_km.stl"
+else
+  echo "FAIL: kinemesh convert could not write an STL" && rc=1
+fi
+[ $rc -eq 0 ] && echo "blender: 5 exports, the z-up point cache and STL both ways passed" || echo "blender: FAILED"
 exit $rc
