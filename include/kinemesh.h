@@ -450,7 +450,8 @@ typedef struct km_mesh_write_options {
  * STL has no vertex list: corners with bit-equal coordinates are welded into one vertex,
  * vertex i being the i-th distinct position in facet order, and face i is facet i (one
  * whose corners weld together is kept, degenerate); facet normals are ignored. Binary when
- * the count at byte 80 accounts for the file's size, whatever its header says.
+ * the count at byte 80 accounts for the file's size (padding of less than a triangle
+ * ignored), whatever its header says.
  * Attributes: OBJ `vt`/`vn` are attached to vertices through the faces' v/vt/vn references
  * (the vertex count stays that of the `v` lines: where a vertex is referenced with several
  * UVs or normals, at a texture seam, the first reference in file order wins and the others

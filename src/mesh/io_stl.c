@@ -10,9 +10,11 @@
  * the binary attribute bytes are ignored (normals are recomputed from the faces).
  *
  * Binary or ASCII: binary when the triangle count at byte 80 accounts for the file's size
- * (84 + 50 bytes per triangle), whatever the 80-byte header says (several CAD exporters start
- * a binary header with "solid"); otherwise ASCII when it starts with "solid" and holds no NUL
- * byte. Keywords are read case-insensitively; several solids in one file are merged in order.
+ * (84 + 50 bytes per triangle, or up to 49 bytes more: padding, ignored with a warning),
+ * whatever the 80-byte header says (several CAD exporters start a binary header with
+ * "solid"); otherwise ASCII when its first 512 bytes hold no NUL (then it must start with
+ * "solid", after an optional UTF-8 byte-order mark). Keywords are read case-insensitively; several
+ * solids in one file are merged in order.
  *
  * admesh (Debian libadmesh-dev) was considered: it opens files by path only (we parse from
  * memory for fuzzing and the readers' shared error handling), reports errors with perror and
@@ -322,6 +324,14 @@ km_status km__stl_parse(const char *data, size_t size, const char *name, km_mesh
   if (size >= 84) {
     uint64_t n = load_u32le(d + 80);
     if (84 + 50 * n == size) return parse_binary(d, size, name, out, err);
+    /* A few bytes past the last triangle (less than one: a writer's padding or a newline
+     * appended in transfer) are ignored, as Blender's reader does, when the header is not
+     * text: the count still accounts for the file. */
+    if (n && size > 84 + 50 * n && size - (84 + 50 * n) < 50 && memchr(d, 0, 84)) {
+      km__log(KM_LOG_WARN, "%s: %llu bytes after the last of its %llu triangles are ignored", name,
+              (unsigned long long)(size - (84 + 50 * n)), (unsigned long long)n);
+      return parse_binary(d, (size_t)(84 + 50 * n), name, out, err);
+    }
   }
   /* Not a consistent binary file: ASCII when its start holds no NUL byte (a binary header is
    * NUL-padded and a small count's high bytes are 0); the ASCII parser then says which line
