@@ -167,6 +167,27 @@ static void test_pose_units(void) {
   CHECK_MSG(d < 1e-4, "animate --units cm: the x100 copy is %g m off the original", d);
 }
 
+/* A mesh in millimetres (a 3D-print STL) read with no --units is a body ~1750 m tall: the
+ * guess line is followed by a note saying so and naming --units mm; with --units mm, none. */
+static void test_units_note(void) {
+  km_mesh m = {0};
+  CHECK_OK(km_mesh_read(DIR "/c.obj", &m, KM_E));
+  for (size_t i = 0; i < 3 * m.n_vertices; ++i)
+    m.V[i] *= 1000;
+  CHECK_OK(km_mesh_write(DIR "/cmm.stl", &m, NULL, KM_E));
+  km_mesh_free(&m);
+  char *out = NULL;
+  CHECK(km_test_run(KM_CLI " rig " DIR "/cmm.stl -o " DIR "/cmm.rig.json", &out) == 0);
+  CHECK_MSG(out && strstr(out, "note: " DIR "/cmm.stl is 17") && strstr(out, "--units mm"),
+            "rig on a millimetre mesh: %s", out ? out : "");
+  free(out);
+  out = NULL;
+  CHECK(km_test_run(KM_CLI " rig " DIR "/cmm.stl --units mm -o " DIR "/cmm2.rig.json", &out) == 0);
+  CHECK_MSG(out && strstr(out, "height 1.7") && !strstr(out, "note:"), "rig --units mm: %s",
+            out ? out : "");
+  free(out);
+}
+
 static void test_reconstruct(void) {
   run_ok(KM_CLI " gen capture --character " DIR "/c.obj --motion " DIR "/w3.json --cameras 6 "
                 "--points 6000 --noise-mm 1 -o " DIR "/frames");
@@ -326,6 +347,7 @@ int main(void) {
   zup_sidecar(DIR "/b.rig.json", DIR "/bz.rig.json");
   test_pose();
   test_pose_units();
+  test_units_note();
   test_reconstruct();
   test_transfer_avatar();
   if (!km_test_failed) km_test_run("rm -rf " DIR, NULL);

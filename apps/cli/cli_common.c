@@ -751,6 +751,19 @@ int km_cli_mesh_frame(const char *verb, const char *path, const km_cli_frame_opt
             : !fo->forward && !g.sure_forward                            ? ", unsure of forward"
                                                                          : "",
             g.height, fo->units ? fo->units : "units", g.why);
+  /* Read as metres (the default), a 3D-print STL in millimetres is a body 1000 m tall, and
+   * every output (.glb, .pc2, frames) is written that big: an engine or Blender shows a
+   * giant. The motion is scaled to the body, so nothing else tells the user. Heights of
+   * 20-300 units read as a 0.2-3 m body in centimetres, 300-30000 as one in millimetres. */
+  if (!quiet && !fo->units && !(g.height >= 0.05 && g.height <= 20)) {
+    const char *hint = g.height > 20 && g.height <= 300    ? "centimetres, give --units cm"
+                       : g.height > 300 && g.height <= 3e4 ? "millimetres, give --units mm"
+                                                           : "not metres, give --units";
+    fprintf(stderr,
+            "kinemesh %s: note: %s is %.4g units tall and is read in metres, so its outputs are "
+            "%.4g m tall: if its units are %s\n",
+            verb, path, g.height, g.height, hint);
+  }
   return 0;
 }
 
