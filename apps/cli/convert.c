@@ -1,6 +1,6 @@
 /* kinemesh convert: a mesh between OBJ, PLY, OFF and STL (and from glTF), chosen by extension;
- * with --up /
- * --forward / --units / --scale, rewritten into kinemesh's frame (y up, facing +z, metres). */
+ * with --up / --forward / --units / --scale, rewritten into kinemesh's frame (y up, facing +z,
+ * metres). */
 #include "cli.h"
 
 #include <math.h>

@@ -5,30 +5,6 @@
 
 #include "core/core.h"
 
-#include <string.h>
-
-/* Little-endian encoding independent of the host byte order. */
-static inline void km__put_u32le(unsigned char *p, uint32_t v) {
-  p[0] = (unsigned char)v;
-  p[1] = (unsigned char)(v >> 8);
-  p[2] = (unsigned char)(v >> 16);
-  p[3] = (unsigned char)(v >> 24);
-}
-static inline uint32_t km__get_u32le(const unsigned char *p) {
-  return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-static inline void km__put_f32le(unsigned char *p, float f) {
-  uint32_t u;
-  memcpy(&u, &f, 4);
-  km__put_u32le(p, u);
-}
-static inline float km__get_f32le(const unsigned char *p) {
-  uint32_t u = km__get_u32le(p);
-  float f;
-  memcpy(&f, &u, 4);
-  return f;
-}
-
 /* Writer state shared by the back-ends. */
 struct km_anim_writer {
   km_anim_format format;

@@ -7,6 +7,7 @@
 
 #include <stdarg.h>
 #include <stdio.h>
+#include <string.h>
 
 #if defined(__GNUC__)
 #define KM__PRINTF(a, b) __attribute__((format(printf, a, b)))
@@ -101,6 +102,29 @@ static inline void km__uf_union(int32_t *parent, int32_t a, int32_t b) {
   a = km__uf_find(parent, a);
   b = km__uf_find(parent, b);
   if (a != b) parent[a < b ? b : a] = a < b ? a : b;
+}
+
+/* Little-endian encoding independent of the host byte order: the binary formats' fields
+ * (PLY aside, which has its own for both orders), read and written: STL, glTF, .pc2. */
+static inline void km__put_u32le(unsigned char *p, uint32_t v) {
+  p[0] = (unsigned char)v;
+  p[1] = (unsigned char)(v >> 8);
+  p[2] = (unsigned char)(v >> 16);
+  p[3] = (unsigned char)(v >> 24);
+}
+static inline uint32_t km__get_u32le(const unsigned char *p) {
+  return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+static inline void km__put_f32le(unsigned char *p, float f) {
+  uint32_t u;
+  memcpy(&u, &f, 4);
+  km__put_u32le(p, u);
+}
+static inline float km__get_f32le(const unsigned char *p) {
+  uint32_t u = km__get_u32le(p);
+  float f;
+  memcpy(&f, &u, 4);
+  return f;
 }
 
 /* FNV-1a 64-bit over bytes, chained from `h` (start with KM__FNV_SEED). */

@@ -70,10 +70,6 @@ typedef struct gltf_doc {
   size_t cap_base;
 } gltf_doc;
 
-static uint32_t rd32(const unsigned char *p) {
-  return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-
 static int b64v(unsigned char c) {
   if (c >= 'A' && c <= 'Z') return c - 'A';
   if (c >= 'a' && c <= 'z') return c - 'a' + 26;
@@ -389,12 +385,12 @@ static double comp(const acc_view *v, size_t i, int c) {
   const unsigned char *p = v->p + i * v->stride + (size_t)c * v->csize;
   switch (v->ct) {
   case 5126: {
-    uint32_t u = rd32(p);
+    uint32_t u = km__get_u32le(p);
     float f;
     memcpy(&f, &u, 4);
     return f;
   }
-  case 5125: return (double)rd32(p);
+  case 5125: return (double)km__get_u32le(p);
   case 5123: {
     double x = (double)(uint16_t)(p[0] | p[1] << 8);
     return v->normalized ? x / 65535.0 : x;
@@ -1261,18 +1257,18 @@ static km_status doc_open(gltf_doc *d, const char *data, size_t size, const char
   d->base_path = base_path;
   const unsigned char *u = (const unsigned char *)data;
   if (size >= 4 && !memcmp(data, "glTF", 4)) {
-    if (size < 20 || rd32(u + 4) != 2)
+    if (size < 20 || km__get_u32le(u + 4) != 2)
       return km__fail(err, KM_ERR_PARSE, "%s: expected a glTF 2.0 binary header", name);
-    size_t total = rd32(u + 8), jl = rd32(u + 12);
-    if (total > size || total < 20 || rd32(u + 16) != 0x4E4F534Au || jl > total - 20)
+    size_t total = km__get_u32le(u + 8), jl = km__get_u32le(u + 12);
+    if (total > size || total < 20 || km__get_u32le(u + 16) != 0x4E4F534Au || jl > total - 20)
       return km__fail(err, KM_ERR_PARSE,
                       "%s: byte 12: the JSON chunk (%zu bytes) does not fit the %zu-byte file",
                       name, jl, size);
     km_status s = parse_json(data + 20, jl, name, 20, &d->json, err);
     if (s) return s;
     size_t bo = 20 + jl;
-    if (bo + 8 <= total && rd32(u + bo + 4) == 0x004E4942u) {
-      size_t bl = rd32(u + bo);
+    if (bo + 8 <= total && km__get_u32le(u + bo + 4) == 0x004E4942u) {
+      size_t bl = km__get_u32le(u + bo);
       if (bl > total - bo - 8) {
         cJSON_Delete(d->json);
         d->json = NULL;

@@ -31,110 +31,64 @@
 
 /* -------------------------------------------------------------------- welding */
 
-/* Open-addressing table from a position to its vertex id; positions live in V. */
-typedef struct weld {
-  int32_t *slot; /* -1: empty */
-  size_t mask;
-  double *V;
-  size_t n, cap; /* vertices, in positions */
-} weld;
-
-static bool weld_init(weld *w, size_t max_corners) {
-  size_t cap = 16;
-  while (cap < 2 * max_corners)
-    cap <<= 1;
-  w->slot = km__malloc(cap, sizeof(int32_t));
-  w->cap = max_corners ? max_corners : 1;
-  w->V = km__malloc(w->cap * 3, sizeof(double));
-  w->mask = cap - 1;
-  w->n = 0;
-  if (!w->slot || !w->V) return false;
-  memset(w->slot, 0xff, cap * sizeof(int32_t));
-  return true;
-}
-
-static uint64_t hash_position(const double p[3]) {
-  uint64_t h = km__fnv1a(KM__FNV_SEED, p, 3 * sizeof(double));
-  return h ^ (h >> 29);
-}
-
-/* The vertex id of position p (x, y, z finite), adding it when new; -1 when the table is full
- * (cannot happen: it holds at most max_corners positions). */
-static int32_t weld_add(weld *w, double x, double y, double z) {
-  const double p[3] = {x + 0.0, y + 0.0, z + 0.0}; /* -0 + 0 = +0: one vertex for both zeros */
-  for (size_t i = hash_position(p) & w->mask;; i = (i + 1) & w->mask) {
-    int32_t v = w->slot[i];
-    if (v < 0) {
-      if (w->n >= w->cap || w->n >= INT32_MAX) return -1;
-      memcpy(w->V + 3 * w->n, p, sizeof p);
-      w->slot[i] = (int32_t)w->n;
-      return (int32_t)w->n++;
-    }
-    if (!memcmp(w->V + 3 * (size_t)v, p, sizeof p)) return v;
+/* Welds nc corners (3 per facet, in facet order; P #nc x 3, taken over) into out: each
+ * distinct position (km__coincident_lowest, after -0 -> +0 when stored) becomes a vertex, in
+ * order of first appearance, and the corners' vertex ids are the faces. */
+static km_status weld_corners(double *P, size_t nc, const char *name, km_mesh *out, km_error *err) {
+  int32_t *F = km__malloc(nc ? nc : 1, sizeof *F);
+  km_status s = F ? km__coincident_lowest(P, nc, NULL, F, err)
+                  : km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu corners", name, nc);
+  if (s) {
+    free(F);
+    free(P);
+    return s;
   }
-}
-
-static void weld_free(weld *w) {
-  free(w->slot);
-  free(w->V);
-}
-
-/* Hands the welded mesh to out (trimming V to the vertices found). */
-static void weld_finish(weld *w, int32_t *F, size_t n_faces, km_mesh *out) {
-  double *V = realloc(w->V, (w->n ? w->n : 1) * 3 * sizeof(double));
-  out->V = V ? V : w->V;
+  /* F[c] is the first corner at c's position, so c >= F[c]; in one pass, a first corner's
+   * position moves down to its vertex's slot (nv <= c) and every corner takes that id */
+  size_t nv = 0;
+  for (size_t c = 0; c < nc; ++c)
+    if (F[c] == (int32_t)c) {
+      memmove(P + 3 * nv, P + 3 * c, 3 * sizeof *P);
+      F[c] = (int32_t)nv++;
+    } else
+      F[c] = F[F[c]];
+  double *V = realloc(P, (nv ? nv : 1) * 3 * sizeof *P);
+  out->V = V ? V : P;
   out->F = F;
-  out->n_vertices = w->n;
-  out->n_faces = n_faces;
-  free(w->slot);
-  w->V = NULL;
-  w->slot = NULL;
+  out->n_vertices = nv;
+  out->n_faces = nc / 3;
+  return KM_OK;
 }
 
 /* -------------------------------------------------------------------- binary */
 
-static uint32_t load_u32le(const unsigned char *p) {
-  return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-
-static double load_f32le(const unsigned char *p) {
-  uint32_t u = load_u32le(p);
-  float f;
-  memcpy(&f, &u, 4);
-  return (double)f;
-}
-
-static km_status parse_binary(const unsigned char *d, size_t size, const char *name, km_mesh *out,
+/* d: a file of 84 + 50 n bytes at least, n the count at byte 80. */
+static km_status parse_binary(const unsigned char *d, const char *name, km_mesh *out,
                               km_error *err) {
-  size_t n = load_u32le(d + 80);
+  size_t n = km__get_u32le(d + 80);
   if (n > INT32_MAX / 3)
     return km__fail(err, KM_ERR_UNSUPPORTED,
                     "%s: binary STL with %zu triangles exceeds the int32 index range", name, n);
-  weld w = {0};
-  int32_t *F = km__malloc(n ? 3 * n : 1, sizeof(int32_t));
-  if (!F || !weld_init(&w, 3 * n)) {
-    free(F);
-    weld_free(&w);
-    return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu triangles", name, n);
-  }
+  double *P = km__malloc(n ? 9 * n : 1, sizeof *P);
+  if (!P) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu triangles", name, n);
   for (size_t t = 0; t < n; ++t) {
     const unsigned char *f = d + 84 + 50 * t + 12; /* past the facet normal */
-    for (int c = 0; c < 3; ++c) {
-      double x = load_f32le(f + 12 * c), y = load_f32le(f + 12 * c + 4),
-             z = load_f32le(f + 12 * c + 8);
-      if (!isfinite(x) || !isfinite(y) || !isfinite(z)) {
-        free(F);
-        weld_free(&w);
-        return km__fail(err, KM_ERR_PARSE,
-                        "%s: byte %zu: corner %d of triangle %zu is not a finite position "
-                        "(%g %g %g)",
-                        name, (size_t)(f + 12 * c - d), c + 1, t + 1, x, y, z);
+    for (int k = 0; k < 9; ++k) {
+      double x = km__get_f32le(f + 4 * k);
+      if (!isfinite(x)) {
+        int c = k / 3;
+        km_status s =
+            km__fail(err, KM_ERR_PARSE,
+                     "%s: byte %zu: corner %d of triangle %zu is not a finite position (%g %g %g)",
+                     name, (size_t)(f + 12 * c - d), c + 1, t + 1, km__get_f32le(f + 12 * c),
+                     km__get_f32le(f + 12 * c + 4), km__get_f32le(f + 12 * c + 8));
+        free(P);
+        return s;
       }
-      F[3 * t + (size_t)c] = weld_add(&w, x, y, z);
+      P[9 * t + (size_t)k] = x + 0.0; /* -0 + 0 = +0: one vertex for both zeros */
     }
   }
-  weld_finish(&w, F, n, out);
-  return KM_OK;
+  return weld_corners(P, 3 * n, name, out, err);
 }
 
 /* -------------------------------------------------------------------- ASCII */
@@ -224,14 +178,10 @@ static km_status parse_ascii(const char *data, size_t size, const char *name, km
   stl_text r = {data, data + size, 1, name, err};
   /* Every facet takes at least "facet normal 0 0 0 outer loop vertex 0 0 0 vertex 0 0 0 vertex
    * 0 0 0 endloop endfacet" (> 64 bytes): bound the corners by the size before allocating. */
-  size_t max_facets = size / 64 + 1;
-  weld w = {0};
-  km__tris tris = {0};
+  size_t max_facets = size / 64 + 1, nc = 0; /* corners read, 3 per facet */
+  double *P = km__malloc(9 * max_facets, sizeof *P);
+  if (!P) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu bytes of STL", name, size);
   km_status s = KM_OK;
-  if (!weld_init(&w, 3 * max_facets) || !km__tris_reserve(&tris, max_facets)) {
-    s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory for %zu bytes of STL", name, size);
-    goto done;
-  }
   const char *tok;
   size_t len;
   size_t solids = 0;
@@ -270,7 +220,12 @@ static km_status parse_ascii(const char *data, size_t size, const char *name, km
                    r.line, q);
       break;
     }
-    size_t facet = tris.n + 1;
+    size_t facet = nc / 3 + 1;
+    if (facet > max_facets) { /* cannot happen: the bound above */
+      s = km__fail(err, KM_ERR_PARSE, "%s:%zu: more facets than the file's size allows", name,
+                   r.line);
+      break;
+    }
     char what[64];
     if ((s = expect(&r, "normal", "after 'facet'"))) break;
     /* The normal is ignored, and may be anything an exporter writes for a degenerate facet
@@ -284,36 +239,27 @@ static km_status parse_ascii(const char *data, size_t size, const char *name, km
     if ((s = expect(&r, "outer", "(a facet's 'outer loop')")) ||
         (s = expect(&r, "loop", "after 'outer'")))
       break;
-    int32_t c[3];
     for (int k = 0; k < 3 && !s; ++k) {
       snprintf(what, sizeof what, "corner %d of facet %zu", k + 1, facet);
-      double x, y, z;
+      double *x = P + 3 * (nc + (size_t)k);
       if ((s = expect(&r, "vertex", k ? "(a facet has 3 corners)" : "after 'outer loop'")) ||
-          (s = number(&r, &x, 'x', what)) || (s = number(&r, &y, 'y', what)) ||
-          (s = number(&r, &z, 'z', what)))
+          (s = number(&r, x, 'x', what)) || (s = number(&r, x + 1, 'y', what)) ||
+          (s = number(&r, x + 2, 'z', what)))
         break;
-      if ((c[k] = weld_add(&w, x, y, z)) < 0)
-        s = km__fail(err, KM_ERR_PARSE, "%s:%zu: more corners than the file's size allows", name,
-                     r.line);
+      for (int a = 0; a < 3; ++a)
+        x[a] += 0.0; /* -0 + 0 = +0: one vertex for both zeros */
     }
     if (s) break;
     if ((s = expect(&r, "endloop", "(an STL facet has exactly 3 corners)")) ||
         (s = expect(&r, "endfacet", "after 'endloop'")))
       break;
-    if (!km__tris_reserve(&tris, tris.n + 1)) {
-      s = km__fail(err, KM_ERR_NOMEM, "%s: out of memory", name);
-      break;
-    }
-    memcpy(tris.F + 3 * tris.n++, c, sizeof c);
+    nc += 3;
   }
-done:
   if (s) {
-    weld_free(&w);
-    free(tris.F);
+    free(P);
     return s;
   }
-  weld_finish(&w, tris.F, tris.n, out);
-  return KM_OK;
+  return weld_corners(P, nc, name, out, err);
 }
 
 /* -------------------------------------------------------------------- dispatch */
@@ -322,15 +268,15 @@ km_status km__stl_parse(const char *data, size_t size, const char *name, km_mesh
                         km_error *err) {
   const unsigned char *d = (const unsigned char *)data;
   if (size >= 84) {
-    uint64_t n = load_u32le(d + 80);
-    if (84 + 50 * n == size) return parse_binary(d, size, name, out, err);
+    uint64_t n = km__get_u32le(d + 80);
+    if (84 + 50 * n == size) return parse_binary(d, name, out, err);
     /* A few bytes past the last triangle (less than one: a writer's padding or a newline
      * appended in transfer) are ignored, as Blender's reader does, when the header is not
      * text: the count still accounts for the file. */
     if (n && size > 84 + 50 * n && size - (84 + 50 * n) < 50 && memchr(d, 0, 84)) {
       km__log(KM_LOG_WARN, "%s: %llu bytes after the last of its %llu triangles are ignored", name,
               (unsigned long long)(size - (84 + 50 * n)), (unsigned long long)n);
-      return parse_binary(d, (size_t)(84 + 50 * n), name, out, err);
+      return parse_binary(d, name, out, err);
     }
   }
   /* Not a consistent binary file: ASCII when its start holds no NUL byte (a binary header is
@@ -346,7 +292,7 @@ km_status km__stl_parse(const char *data, size_t size, const char *name, km_mesh
                     "'solid') nor a binary one (an 80-byte header, a triangle count, 50 bytes "
                     "per triangle)",
                     name, size);
-  uint64_t n = load_u32le(d + 80);
+  uint64_t n = km__get_u32le(d + 80);
   uint64_t want = 84 + 50 * n;
   if (size < want)
     return km__fail(err, KM_ERR_PARSE,
@@ -364,25 +310,13 @@ km_status km__stl_parse(const char *data, size_t size, const char *name, km_mesh
 
 /* -------------------------------------------------------------------- writer */
 
-static void store_u32le(unsigned char *p, uint32_t u) {
-  p[0] = (unsigned char)u, p[1] = (unsigned char)(u >> 8), p[2] = (unsigned char)(u >> 16),
-  p[3] = (unsigned char)(u >> 24);
-}
-
-static void store_f32le(unsigned char *p, double x) {
-  float f = (float)x; /* STL's own type */
-  uint32_t u;
-  memcpy(&u, &f, 4);
-  store_u32le(p, u);
-}
-
 km_status km__stl_write(FILE *f, const km_mesh *m) {
   /* The header must not start with "solid": readers that go by the header alone would take
    * the file for ASCII. */
   unsigned char head[84] = {0};
   static const char title[] = "binary STL written by kinemesh";
   memcpy(head, title, sizeof title - 1);
-  store_u32le(head + 80, (uint32_t)m->n_faces);
+  km__put_u32le(head + 80, (uint32_t)m->n_faces);
   fwrite(head, 1, sizeof head, f);
   for (size_t t = 0; t < m->n_faces; ++t) {
     const double *c[3];
@@ -395,9 +329,9 @@ km_status km__stl_write(FILE *f, const km_mesh *m) {
     double len = sqrt(km__dot3(n, n));
     unsigned char rec[50] = {0}; /* a degenerate facet's normal stays 0 0 0 */
     for (int k = 0; k < 3; ++k) {
-      store_f32le(rec + 4 * k, len > 0 ? n[k] / len : 0);
+      km__put_f32le(rec + 4 * k, (float)(len > 0 ? n[k] / len : 0)); /* STL's own type */
       for (int a = 0; a < 3; ++a)
-        store_f32le(rec + 12 + 12 * k + 4 * a, c[k][a]);
+        km__put_f32le(rec + 12 + 12 * k + 4 * a, (float)c[k][a]);
     }
     fwrite(rec, 1, sizeof rec, f);
   }

@@ -9,6 +9,17 @@
 #include "core/core.h"
 #include <math.h>
 
+/* Coincident vertices: for each vertex v with keep[v] (keep NULL: every vertex), lo[v] = the
+ * lowest kept vertex whose position has the same bit pattern (v itself when none is lower);
+ * lo[v] = v for the others. Equal bits, not equal values: -0 and 0 stay apart and a NaN is
+ * equal to its own bits, a consistent relation whatever the values. The one table of exact
+ * positions: km__mesh_weld, the seam count of km_mesh_info and the STL reader's corners.
+ *   V    #n x 3 positions
+ *   keep #n, or NULL
+ *   lo   out: #n */
+km_status km__coincident_lowest(const double *V, size_t n, const bool *keep, int32_t *lo,
+                                km_error *err);
+
 /* The mesh with its coincident vertices (the same position, bit for bit) merged into one: the
  * surface a glTF exporter split at its texture seams, joined again. Only where that joins
  * something: two used vertices coincide and the mesh is in pieces or open (coincident vertices

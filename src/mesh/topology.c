@@ -91,14 +91,11 @@ static uint64_t mix64(uint64_t x) { /* splitmix64's finaliser */
   return x ^ (x >> 31);
 }
 
-/* Coincident vertices: for each vertex v with keep[v] (keep NULL: every vertex), lo[v] = the
- * lowest kept vertex whose position has the same bit pattern (v itself when none is lower);
- * lo[v] = v for the others. Equal bits, not equal values: -0 and 0 stay apart and a NaN is
- * equal to its own bits, a consistent relation whatever the values. One pass over an
- * open-addressing table of the positions (a sort before: with the weld run 8 times at start-up
- * it was 8 % of a warm 100k-vertex `animate`). */
-static km_status coincident_lowest(const double *V, size_t n, const bool *keep, int32_t *lo,
-                                   km_error *err) {
+/* km__coincident_lowest (mesh.h): one pass over an open-addressing table of the positions
+ * (a sort before: with the weld run 8 times at start-up it was 8 % of a warm 100k-vertex
+ * `animate`). */
+km_status km__coincident_lowest(const double *V, size_t n, const bool *keep, int32_t *lo,
+                                km_error *err) {
   size_t cap = 16;
   while (cap < 2 * n)
     cap *= 2;
@@ -140,7 +137,7 @@ static km_status count_seam_vertices(const km_mesh *m, const int32_t *degree_off
     s = km__fail(err, KM_ERR_NOMEM, "km_mesh_info_compute: cannot allocate for %zu vertices", nv);
   for (size_t v = 0; s == KM_OK && v < nv; ++v)
     used[v] = degree_off[v + 1] > 0;
-  if (s == KM_OK) s = coincident_lowest(m->V, nv, used, lo, err);
+  if (s == KM_OK) s = km__coincident_lowest(m->V, nv, used, lo, err);
   *out = 0;
   for (size_t v = 0; s == KM_OK && v < nv; ++v)
     size[lo[v]] += used[v];
@@ -477,7 +474,7 @@ km_status km__mesh_weld(const km_mesh *m, km__weld *out, km_error *err) {
   for (size_t i = 0; i < 3 * nf; ++i)
     if (m->F[i] >= 0 && (size_t)m->F[i] < n) used[m->F[i]] = true;
   /* each class's representative: its lowest vertex id; joins: a class with two used members */
-  if ((s = coincident_lowest(m->V, n, NULL, first, err)) != KM_OK) goto fail;
+  if ((s = km__coincident_lowest(m->V, n, NULL, first, err)) != KM_OK) goto fail;
   bool joins = false;
   for (size_t v = 0; v < n; ++v)
     joins |= (n_used[first[v]] += used[v]) > 1;
