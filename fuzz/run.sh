@@ -22,8 +22,9 @@ WORK=${2:?usage: fuzz/run.sh SRC WORK [SECONDS] [targets]}
 SECONDS_EACH=${3:-5}
 shift $(($# < 3 ? $# : 3))
 CC=${KM_FUZZ_CC:-clang}
+CXX=${KM_FUZZ_CXX:-clang++} # src/mesh/draco.cc, the one C++ source (Draco's API is C++)
 CFLAGS_EXT=${KM_FUZZ_CFLAGS:--I/usr/include/suitesparse -I/usr/include/arpack}
-LIBS=${KM_FUZZ_LIBS:--lcholmod -lsuitesparseconfig -larpack -llapacke -llapack -lopenblas -lembree3 -lcjson -lsvm -llbfgs -lmeshoptimizer -llo}
+LIBS=${KM_FUZZ_LIBS:--lcholmod -lsuitesparseconfig -larpack -llapacke -llapack -lopenblas -lembree3 -lcjson -lsvm -llbfgs -lmeshoptimizer -ldraco -llo}
 
 if ! command -v "$CC" >/dev/null 2>&1; then
   echo "fuzz: $CC not found: fuzz targets not built (scripts/deps.sh installs clang)"
@@ -92,11 +93,15 @@ t0=$(date +%s)
 srcs=()
 for m in $(printf '%s\n' "${need[@]}" | sort -u); do
   mkdir -p "$WORK/obj/$m"
-  for c in "$SRC"/src/"$m"/*.c; do srcs+=("$m/$(basename "$c" .c)"); done
+  for c in "$SRC"/src/"$m"/*.c "$SRC"/src/"$m"/*.cc; do
+    [ -f "$c" ] && srcs+=("$m/$(basename "$c")")
+  done
 done
-export CC SAN COMMON SRC WORK
+# C sources with clang -std=c11, C++ ones with clang++ -std=c++17 (the same other flags)
+export CC CXX SAN COMMON SRC WORK
 printf '%s\n' "${srcs[@]}" | xargs -P 2 -I{} sh -c \
-  '$CC $COMMON $SAN -fsanitize=fuzzer-no-link -c "$SRC/src/{}.c" -o "$WORK/obj/{}.o" 2>>"$WORK/obj/errors.log" || echo "{}" >>"$WORK/obj/failed"'
+  'case "{}" in *.cc) cc="$CXX -std=c++17 ${COMMON#-std=c11}";; *) cc="$CC $COMMON";; esac
+   $cc $SAN -fsanitize=fuzzer-no-link -c "$SRC/src/{}" -o "$WORK/obj/{}.o" 2>>"$WORK/obj/errors.log" || echo "{}" >>"$WORK/obj/failed"'
 if [ -s "$WORK/obj/failed" ]; then
   cat "$WORK/obj/errors.log"
   echo "FAIL: clang could not compile: $(tr '\n' ' ' <"$WORK/obj/failed")"
@@ -132,8 +137,10 @@ for t in "${TARGETS[@]}"; do
   mkdir -p "$d/corpus"
   objs=()
   for m in ${MODS[$t]}; do objs+=("$WORK"/obj/"$m"/*.o); done
-  if ! "$CC" $COMMON $SAN -fsanitize=fuzzer -I"$SRC/fuzz" "$SRC/fuzz/$t.c" "${objs[@]}" $LIBS -lm \
-    -o "$d/$t" 2>"$d/build.log"; then
+  # linked by clang++: the C++ runtime for draco.cc (and libdraco)
+  "$CC" $COMMON $SAN -fsanitize=fuzzer -I"$SRC/fuzz" -c "$SRC/fuzz/$t.c" -o "$d/$t.o" 2>"$d/build.log" &&
+    "$CXX" $SAN -fsanitize=fuzzer "$d/$t.o" "${objs[@]}" $LIBS -lm -o "$d/$t" 2>>"$d/build.log"
+  if [ $? -ne 0 ]; then
     cat "$d/build.log"
     echo "FAIL: $t does not build"
     fails=$((fails + 1))

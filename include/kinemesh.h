@@ -444,7 +444,10 @@ typedef struct km_mesh_write_options {
  * KHR_mesh_quantization (byte / short POSITION, NORMAL, TEXCOORD_0, normalized or not,
  * dequantised by the node transforms or inverse bind matrices; TEXCOORD_0 through the base
  * colour texture's KHR_texture_transform when there is one); a malformed compressed view is
- * KM_ERR_PARSE naming the bufferView; KHR_draco_mesh_compression is KM_ERR_UNSUPPORTED.
+ * KM_ERR_PARSE naming the bufferView. KHR_draco_mesh_compression primitives are decoded
+ * (libdraco) and read the same way; their vertex order is the decoded one (Draco's encoder
+ * reorders vertices); a bitstream that does not decode or an accessor that disagrees with it
+ * is KM_ERR_PARSE naming the primitive and the attribute.
  * Vertex order and count are exactly those of the file; polygons are fan-triangulated
  * (0,i,i+1). A PLY without faces reads as a point cloud (n_faces == 0).
  * STL has no vertex list: corners with bit-equal coordinates are welded into one vertex,

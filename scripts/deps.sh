@@ -5,12 +5,13 @@
 # `scripts/deps.sh --test` (what `make test` runs) also installs TEST_PKGS: packages only a test
 # needs and `make demo` does not (Blender, ~720 MB, for the ctest blender_import; its glTF
 # importer needs numpy, which Debian's blender package does not pull in; gltfpack packs a mesh
-# for test_gltf_meshopt, which skips without it).
+# for test_gltf_meshopt, which skips without it; draco's draco_transcoder compresses glTF files
+# with Draco for test_gltf_draco, which skips without it).
 set -euo pipefail
-TEST_PKGS=(blender python3-numpy gltfpack)
+TEST_PKGS=(blender python3-numpy gltfpack draco)
 PKGS=(build-essential cmake pkg-config
       libsuitesparse-dev libarpack2-dev liblapacke-dev libopenblas-dev
-      libembree-dev libcjson-dev libsvm-dev liblbfgs-dev libmeshoptimizer-dev gltfpack
+      libembree-dev libcjson-dev libsvm-dev liblbfgs-dev libmeshoptimizer-dev gltfpack libdraco-dev
       liblo-dev liblo-tools libwebsockets-dev gnuplot-nox
       nodejs npm chromium
       libopenmpi-dev openmpi-bin

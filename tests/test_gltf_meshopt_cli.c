@@ -2,8 +2,8 @@
  * KHR_mesh_quantization + EXT_meshopt_compression; `info` and `convert` read its mesh (the
  * template's 3012 vertices in their order, each within the 14-bit grid's half step of the
  * template), and `bake` takes it as the rest mesh (--mesh) of the plain animation and bakes
- * the compressed animation itself. A file
- * whose extensionsRequired lists Draco is refused naming the extension. */
+ * the compressed animation itself. A Draco file (tests/data/quad_draco.glb) converts to OBJ;
+ * one whose Draco buffer view is missing is refused naming the extension. */
 #include "km_test.h"
 
 #define DIR "gltf_meshopt_cli"
@@ -66,18 +66,27 @@ int main(void) {
   free(out);
   out = NULL;
 
-  /* Draco stays refused, by name */
+  /* Draco: read (draco_transcoder's quad), and a primitive whose Draco view is missing is
+   * refused naming the extension and the file */
+  rc = km_test_run(KM_CLI " convert " KM_TEST_DATA "/quad_draco.glb " DIR "/quad.obj", &out);
+  CHECK_MSG(rc == 0 && out && strstr(out, "4 vertices, 2 triangles"), "draco convert: %s",
+            out ? out : "");
+  free(out);
+  out = NULL;
   FILE *f = fopen(DIR "/draco.gltf", "w");
   CHECK(f != NULL);
   if (f) {
-    fputs("{\"asset\":{\"version\":\"2.0\"},\"extensionsUsed\":[\"KHR_draco_mesh_compression\"],"
-          "\"extensionsRequired\":[\"KHR_draco_mesh_compression\"],"
-          "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}]}",
-          f);
+    fputs(
+        "{\"asset\":{\"version\":\"2.0\"},\"extensionsUsed\":[\"KHR_draco_mesh_compression\"],"
+        "\"extensionsRequired\":[\"KHR_draco_mesh_compression\"],"
+        "\"accessors\":[{\"componentType\":5126,\"count\":3,\"type\":\"VEC3\"}],"
+        "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"extensions\":"
+        "{\"KHR_draco_mesh_compression\":{\"bufferView\":0,\"attributes\":{\"POSITION\":0}}}}]}]}",
+        f);
     fclose(f);
   }
   rc = km_test_run(KM_CLI " info " DIR "/draco.gltf", &out);
-  CHECK_MSG(rc != 0 && out && strstr(out, "KHR_draco_mesh_compression") &&
+  CHECK_MSG(rc != 0 && out && strstr(out, "KHR_draco_mesh_compression: bufferView 0") &&
                 strstr(out, "draco.gltf"),
             "draco: rc %d: %s", rc, out ? out : "");
   free(out);

@@ -21,7 +21,11 @@
  * fallback buffer having no data; KHR_mesh_quantization's byte / short attributes are read
  * through comp() (normalized or not) and dequantised by the node transforms / inverse bind
  * matrices that carry the grid, texture coordinates also by the base colour texture's
- * KHR_texture_transform (gltfpack's 12-bit UV range). Draco is refused.
+ * KHR_texture_transform (gltfpack's 12-bit UV range). A KHR_draco_mesh_compression primitive
+ * (prim_accessor) is decoded by libdraco (draco.cc), once per bufferView, and each attribute the
+ * extension lists is laid out as its accessor declares (componentType, normalized) and read
+ * through comp() like a plain one; its indices are the decoded triangles. The vertex order is
+ * the decoded one, which is what the file's accessors describe.
  *
  * Skins: a node with a `skin` whose primitive has JOINTS_0 / WEIGHTS_0 is placed as a viewer
  * shows it, by linear blend skinning with the scene's joint transforms (world matrix of each
@@ -33,6 +37,7 @@
  * JOINTS_0 / WEIGHTS_0 influences (weights normalised; with JOINTS_1 / WEIGHTS_1 too, the
  * position is placed by all 8 and the skin keeps the 4 largest, renormalised) and an unskinned
  * primitive is bound whole to the nearest joint above its node (none: no influence). */
+#include "mesh/draco_decode.h"
 #include "mesh/mesh.h"
 #include "mesh/mesh_io.h"
 
@@ -54,6 +59,10 @@ typedef struct gltf_doc {
   unsigned char **views; /* n_views: EXT_meshopt_compression views decoded (owned), or NULL */
   size_t *view_len;
   int n_views;
+  km__draco **draco; /* n_draco (bufferViews): KHR_draco_mesh_compression meshes (owned) */
+  int n_draco;
+  unsigned char **dacc; /* n_dacc (accessors): their values decoded from Draco (owned) */
+  int n_dacc;
   int n_nodes;
   int *node_parent;   /* n_nodes: parent node, -1 for a root */
   double *node_world; /* n_nodes*16: world matrices (column-major) */
@@ -326,7 +335,13 @@ typedef struct acc_view {
   bool normalized;
 } acc_view;
 
-static km_status accessor(gltf_doc *d, int a, const char *what, acc_view *v, km_error *err) {
+/* Accessor a's element layout (type, componentType, count, normalized; not its bytes). */
+typedef struct acc_head {
+  int ncomp, ct, count, bvi, aoff;
+  bool normalized;
+} acc_head;
+
+static km_status accessor_head(gltf_doc *d, int a, const char *what, acc_head *h, km_error *err) {
   cJSON *acc = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "accessors"), a);
   if (a < 0 || !acc)
     return km__fail(err, KM_ERR_PARSE, "%s: %s: accessor %d does not exist", d->name, what, a);
@@ -334,25 +349,32 @@ static km_status accessor(gltf_doc *d, int a, const char *what, acc_view *v, km_
     return km__fail(err, KM_ERR_UNSUPPORTED, "%s: %s: sparse accessors are not supported", d->name,
                     what);
   const char *type = cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(acc, "type"));
-  int ct = jint(acc, "componentType", -1), count = jint(acc, "count", -1);
-  int bvi = jint(acc, "bufferView", -1), aoff = jint(acc, "byteOffset", 0);
-  int ncomp = !type                     ? 0
-              : !strcmp(type, "SCALAR") ? 1
-              : !strcmp(type, "VEC2")   ? 2
-              : !strcmp(type, "VEC3")   ? 3
-              : !strcmp(type, "VEC4")   ? 4
-              : !strcmp(type, "MAT4")   ? 16
-                                        : 0;
-  size_t cs = comp_size(ct);
-  if (!ncomp || !cs || count < 0 || bvi < 0 || aoff < 0)
+  h->ct = jint(acc, "componentType", -1), h->count = jint(acc, "count", -1);
+  h->bvi = jint(acc, "bufferView", -1), h->aoff = jint(acc, "byteOffset", 0);
+  h->ncomp = !type                     ? 0
+             : !strcmp(type, "SCALAR") ? 1
+             : !strcmp(type, "VEC2")   ? 2
+             : !strcmp(type, "VEC3")   ? 3
+             : !strcmp(type, "VEC4")   ? 4
+             : !strcmp(type, "MAT4")   ? 16
+                                       : 0;
+  h->normalized = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(acc, "normalized"));
+  if (!h->ncomp || !comp_size(h->ct) || h->count < 0 || h->aoff < 0)
     return km__fail(err, KM_ERR_PARSE,
                     "%s: %s: accessor %d: expected type, componentType, count and bufferView",
                     d->name, what, a);
+  return KM_OK;
+}
+
+/* bufferView bvi's bytes (*p, *len) and byteStride (0: tightly packed), checked to lie inside
+ * their buffer (an EXT_meshopt_compression view: its decoded bytes). */
+static km_status view_bytes(gltf_doc *d, int bvi, const char *what, const unsigned char **p,
+                            size_t *len, int *stride, km_error *err) {
   cJSON *bv = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d->json, "bufferViews"), bvi);
   int bi = jint(bv, "buffer", -1), boff = jint(bv, "byteOffset", 0),
       blen = jint(bv, "byteLength", -1);
-  int stride = jint(bv, "byteStride", 0);
-  if (!bv || bi < 0 || bi >= d->n_bufs || boff < 0 || blen < 0 || stride < 0)
+  *stride = jint(bv, "byteStride", 0);
+  if (bvi < 0 || !bv || bi < 0 || bi >= d->n_bufs || boff < 0 || blen < 0 || *stride < 0)
     return km__fail(err, KM_ERR_PARSE, "%s: %s: bufferView %d is missing or invalid", d->name, what,
                     bvi);
   const unsigned char *buf = d->bufs[bi] ? d->bufs[bi] : d->bin;
@@ -364,20 +386,175 @@ static km_status accessor(gltf_doc *d, int a, const char *what, acc_view *v, km_
     if (s) return s;
     boff = 0;
   }
-  size_t elem = cs * (size_t)ncomp, st = stride ? (size_t)stride : elem;
-  if ((uint64_t)boff + (uint64_t)blen > buf_len || st < elem ||
-      (count && (uint64_t)aoff + (uint64_t)st * (uint64_t)(count - 1) + elem > (uint64_t)blen))
+  if ((uint64_t)boff + (uint64_t)blen > buf_len)
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: %s: bufferView %d (%d bytes at %d) does not fit its buffer (%zu bytes)",
+                    d->name, what, bvi, blen, boff, buf_len);
+  *p = buf + boff;
+  *len = (size_t)blen;
+  return KM_OK;
+}
+
+static km_status accessor(gltf_doc *d, int a, const char *what, acc_view *v, km_error *err) {
+  acc_head h;
+  km_status s = accessor_head(d, a, what, &h, err);
+  if (s) return s;
+  if (h.bvi < 0)
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: %s: accessor %d: expected type, componentType, count and bufferView",
+                    d->name, what, a);
+  const unsigned char *p;
+  size_t blen;
+  int stride;
+  if ((s = view_bytes(d, h.bvi, what, &p, &blen, &stride, err))) return s;
+  size_t cs = comp_size(h.ct), elem = cs * (size_t)h.ncomp, st = stride ? (size_t)stride : elem;
+  if (st < elem || (h.count && (uint64_t)h.aoff + (uint64_t)st * (uint64_t)(h.count - 1) + elem >
+                                   (uint64_t)blen))
     return km__fail(err, KM_ERR_PARSE,
                     "%s: %s: accessor %d (%d elements) does not fit its bufferView / buffer",
-                    d->name, what, a, count);
-  v->p = buf + boff + aoff;
-  v->count = (size_t)count;
+                    d->name, what, a, h.count);
+  v->p = p + h.aoff;
+  v->count = (size_t)h.count;
   v->stride = st;
   v->csize = cs;
-  v->ncomp = ncomp;
+  v->ncomp = h.ncomp;
+  v->ct = h.ct;
+  v->normalized = h.normalized;
+  return KM_OK;
+}
+
+/* KHR_draco_mesh_compression: bufferView bvi's bytes decoded as a Draco triangle mesh
+ * (draco.cc), once per view. */
+static km_status draco_view(gltf_doc *d, int bvi, const char *what, km__draco **out,
+                            km_error *err) {
+  if (!d->draco) {
+    d->n_draco = cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(d->json, "bufferViews"));
+    d->draco = km__calloc(d->n_draco ? (size_t)d->n_draco : 1, sizeof *d->draco);
+    if (!d->draco) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+  }
+  if (bvi < 0 || bvi >= d->n_draco)
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: %s: KHR_draco_mesh_compression: bufferView %d does not exist", d->name,
+                    what, bvi);
+  if (!d->draco[bvi]) {
+    const unsigned char *p;
+    size_t len;
+    int stride;
+    km_status s = view_bytes(d, bvi, what, &p, &len, &stride, err);
+    if (s) return s;
+    char why[160];
+    if (!(d->draco[bvi] = km__draco_decode(p, len, why, sizeof why)))
+      return km__fail(err, strcmp(why, "out of memory") ? KM_ERR_PARSE : KM_ERR_NOMEM,
+                      "%s: %s: KHR_draco_mesh_compression: bufferView %d: %s", d->name, what, bvi,
+                      why);
+  }
+  *out = d->draco[bvi];
+  return KM_OK;
+}
+
+/* The accessor of primitive pr's attribute `sem` (NULL: its indices) as a view comp() reads:
+ * from the primitive's KHR_draco_mesh_compression mesh when the extension lists the attribute
+ * (indices: whenever the primitive has the extension), else as stored. Decoded values are laid
+ * out as the accessor declares them (componentType, normalized: applied by comp(), as in a file
+ * without Draco), indices as uint32, once per accessor; the accessor's count must be the
+ * decoded one (indices: 3 per triangle) and its type the attribute's component count. */
+static km_status prim_accessor(gltf_doc *d, const cJSON *pr, const char *sem, const char *what,
+                               acc_view *v, km_error *err) {
+  const cJSON *at = cJSON_GetObjectItemCaseSensitive(pr, "attributes");
+  int a = sem ? jint(at, sem, -1) : jint(pr, "indices", -1);
+  const cJSON *dr = cJSON_GetObjectItemCaseSensitive(
+      cJSON_GetObjectItemCaseSensitive(pr, "extensions"), "KHR_draco_mesh_compression");
+  const cJSON *uid = sem ? cJSON_GetObjectItemCaseSensitive(
+                               cJSON_GetObjectItemCaseSensitive(dr, "attributes"), sem)
+                         : NULL;
+  if (!dr || (sem && !uid)) return accessor(d, a, what, v, err);
+  const char *name = sem ? sem : "indices";
+  if (!sem && a < 0)
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: %s: KHR_draco_mesh_compression: expected the primitive's indices accessor",
+                    d->name, what);
+  acc_head h;
+  km__draco *m = NULL;
+  km_status s = accessor_head(d, a, what, &h, err);
+  if (s || (s = draco_view(d, jint(dr, "bufferView", -1), what, &m, err))) return s;
+  if (!d->dacc) {
+    d->n_dacc = cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(d->json, "accessors"));
+    d->dacc = km__calloc(d->n_dacc ? (size_t)d->n_dacc : 1, sizeof *d->dacc);
+    if (!d->dacc) return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+  }
+  size_t np = km__draco_points(m), nf = km__draco_faces(m);
+  int ct = sem ? h.ct : 5125, nc = sem ? h.ncomp : 1;
+  size_t n = sem ? np : 3 * nf, cs = comp_size(ct);
+  if ((size_t)h.count != n)
+    return km__fail(err, KM_ERR_PARSE,
+                    "%s: %s: KHR_draco_mesh_compression: %s: accessor %d counts %d, the Draco mesh "
+                    "has %zu",
+                    d->name, what, name, a, h.count, n);
+  if (!d->dacc[a]) {
+    unsigned char *b = km__malloc(n ? n : 1, (size_t)nc * cs);
+    void *tmp = km__malloc(n ? n : 1, (size_t)nc * 4);
+    const char *why = NULL;
+    if (!b || !tmp) {
+      free(b);
+      free(tmp);
+      return km__fail(err, KM_ERR_NOMEM, "%s: out of memory", d->name);
+    }
+    if (!sem) {
+      km__draco_face_indices(m, tmp);
+      for (size_t i = 0; i < n; ++i)
+        km__put_u32le(b + 4 * i, ((uint32_t *)tmp)[i]);
+    } else {
+      int64_t id;
+      bool isf = false;
+      int dnc = cJSON_IsNumber(uid) && km__whole_number(uid->valuedouble, 0, 4294967295.0, &id)
+                    ? km__draco_components(m, (uint32_t)id, &isf)
+                    : 0;
+      if (!dnc)
+        why = "the Draco mesh has no attribute with that id";
+      else if (dnc != nc)
+        why = "the Draco attribute's component count differs from the accessor's type";
+      else if (isf && ct != 5126)
+        why = "the Draco attribute is floating point, the accessor's componentType an integer";
+      else if (!km__draco_values(m, (uint32_t)id, ct == 5126, tmp))
+        why = "a decoded value does not fit a 32-bit integer";
+      /* integers must fit the accessor's componentType */
+      const int64_t lo = ct == 5120 ? -128 : ct == 5122 ? -32768 : 0;
+      const int64_t hi = ct == 5120   ? 127
+                         : ct == 5121 ? 255
+                         : ct == 5122 ? 32767
+                         : ct == 5123 ? 65535
+                                      : INT32_MAX;
+      for (size_t i = 0; !why && i < n * (size_t)nc; ++i) {
+        unsigned char *q = b + i * cs;
+        if (ct == 5126) {
+          km__put_f32le(q, ((float *)tmp)[i]);
+          continue;
+        }
+        int64_t x = ((int32_t *)tmp)[i];
+        if (x < lo || x > hi) {
+          why = "a decoded value is outside the accessor's componentType";
+          break;
+        }
+        if (cs == 1) q[0] = (unsigned char)(x & 0xff);
+        if (cs == 2) q[0] = (unsigned char)(x & 0xff), q[1] = (unsigned char)(x >> 8 & 0xff);
+        if (cs == 4) km__put_u32le(q, (uint32_t)x);
+      }
+    }
+    free(tmp);
+    if (why) {
+      free(b);
+      return km__fail(err, KM_ERR_PARSE, "%s: %s: KHR_draco_mesh_compression: %s (accessor %d): %s",
+                      d->name, what, name, a, why);
+    }
+    d->dacc[a] = b;
+  }
+  v->p = d->dacc[a];
+  v->count = n;
+  v->csize = cs;
+  v->ncomp = nc;
+  v->stride = cs * (size_t)nc;
   v->ct = ct;
-  cJSON *nz = cJSON_GetObjectItemCaseSensitive(acc, "normalized");
-  v->normalized = cJSON_IsTrue(nz);
+  v->normalized = sem ? h.normalized : false;
   return KM_OK;
 }
 
@@ -927,17 +1104,6 @@ static km_status parse_doc(gltf_doc *d, km_mesh *out, km_error *err) {
   cJSON *meshes = cJSON_GetObjectItemCaseSensitive(d->json, "meshes");
   if (!cJSON_GetArraySize(meshes))
     return km__fail(err, KM_ERR_PARSE, "%s: expected a non-empty 'meshes' array", d->name);
-  /* EXT_meshopt_compression and KHR_mesh_quantization are read (decode_view; comp()); Draco
-   * has no decoder here. */
-  const cJSON *req;
-  cJSON_ArrayForEach(req, cJSON_GetObjectItemCaseSensitive(d->json, "extensionsRequired")) {
-    if (cJSON_IsString(req) && !strcmp(req->valuestring, "KHR_draco_mesh_compression"))
-      return km__fail(err, KM_ERR_UNSUPPORTED,
-                      "%s: JSON: extensionsRequired: %s is not read (no Draco decoder); repack "
-                      "the file without it (e.g. gltfpack -i in.glb -o out.glb -c, which "
-                      "kinemesh reads)",
-                      d->name, req->valuestring);
-  }
   km_status s = load_buffers(d, err);
   if (s) return s;
   instances inst = {0};
@@ -1028,8 +1194,15 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
                           "4-6, are read)",
                           d->name, what, mode);
         cJSON *at = cJSON_GetObjectItemCaseSensitive(pr, "attributes");
+        const cJSON *drc = cJSON_GetObjectItemCaseSensitive(
+            cJSON_GetObjectItemCaseSensitive(pr, "extensions"), "KHR_draco_mesh_compression");
+        if (drc && mode != 4)
+          return km__fail(err, KM_ERR_UNSUPPORTED,
+                          "%s: %s: KHR_draco_mesh_compression with mode %d (Draco primitives are "
+                          "read as triangles, mode 4)",
+                          d->name, what, mode);
         acc_view pos, nrm, tex, idx, col;
-        if ((s = accessor(d, jint(at, "POSITION", -1), what, &pos, err))) return s;
+        if ((s = prim_accessor(d, pr, "POSITION", what, &pos, err))) return s;
         /* KHR_mesh_quantization: (normalized) byte / short components too, dequantised by
          * comp() and the node transform / inverse bind matrices, like float ones. */
         if (pos.ncomp != 3 || pos.ct == 5125)
@@ -1037,15 +1210,15 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
                           d->name, what);
         bool hn = cJSON_GetObjectItemCaseSensitive(at, "NORMAL") != NULL;
         bool ht = cJSON_GetObjectItemCaseSensitive(at, "TEXCOORD_0") != NULL;
-        if (hn && (s = accessor(d, jint(at, "NORMAL", -1), what, &nrm, err))) return s;
-        if (ht && (s = accessor(d, jint(at, "TEXCOORD_0", -1), what, &tex, err))) return s;
+        if (hn && (s = prim_accessor(d, pr, "NORMAL", what, &nrm, err))) return s;
+        if (ht && (s = prim_accessor(d, pr, "TEXCOORD_0", what, &tex, err))) return s;
         if ((hn && (nrm.ncomp != 3 || nrm.count != pos.count || nrm.ct == 5125)) ||
             (ht && (tex.ncomp != 2 || tex.count != pos.count || tex.ct == 5125)))
           return km__fail(err, KM_ERR_PARSE,
                           "%s: %s: NORMAL (VEC3) / TEXCOORD_0 (VEC2) must have POSITION's count",
                           d->name, what);
         bool hc = cJSON_GetObjectItemCaseSensitive(at, "COLOR_0") != NULL;
-        if (hc && (s = accessor(d, jint(at, "COLOR_0", -1), what, &col, err))) return s;
+        if (hc && (s = prim_accessor(d, pr, "COLOR_0", what, &col, err))) return s;
         if (hc && ((col.ncomp != 3 && col.ncomp != 4) || col.count != pos.count ||
                    (col.ct != 5126 && !col.normalized)))
           return km__fail(err, KM_ERR_PARSE,
@@ -1054,8 +1227,8 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
                           d->name, what);
         double uvA[6] = {0, 0, 1, 0, 0, 1};
         bool uvt = ht && uv_transform(d, pr, uvA);
-        bool hi = cJSON_GetObjectItemCaseSensitive(pr, "indices") != NULL;
-        if (hi && (s = accessor(d, jint(pr, "indices", -1), what, &idx, err))) return s;
+        bool hi = cJSON_GetObjectItemCaseSensitive(pr, "indices") != NULL || drc;
+        if (hi && (s = prim_accessor(d, pr, NULL, what, &idx, err))) return s;
         acc_view aj[2], aw[2];
         bool hs = pass == 1 && d->S && cJSON_GetObjectItemCaseSensitive(at, "JOINTS_0") &&
                   cJSON_GetObjectItemCaseSensitive(at, "WEIGHTS_0");
@@ -1068,8 +1241,8 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
           char jn[24], wn[24]; /* room for any int: no -Wformat-truncation */
           snprintf(jn, sizeof jn, "JOINTS_%d", k);
           snprintf(wn, sizeof wn, "WEIGHTS_%d", k);
-          if ((s = accessor(d, jint(at, jn, -1), what, &aj[k], err)) ||
-              (s = accessor(d, jint(at, wn, -1), what, &aw[k], err)))
+          if ((s = prim_accessor(d, pr, jn, what, &aj[k], err)) ||
+              (s = prim_accessor(d, pr, wn, what, &aw[k], err)))
             return s;
           if (aj[k].ncomp != 4 || aw[k].ncomp != 4 || aj[k].count != pos.count ||
               aw[k].count != pos.count || (aj[k].ct != 5121 && aj[k].ct != 5123) ||
@@ -1097,11 +1270,14 @@ static km_status read_instances(gltf_doc *d, const instances *inst, km_mesh *out
           if (!b) goto nomem;
           d->prim_base = b, d->cap_base = c;
         }
-        for (int q = 0; q < pi && !shared; ++q)
-          if (cJSON_Compare(
-                  cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(prims, q), "attributes"), at,
-                  true))
+        for (int q = 0; q < pi && !shared; ++q) {
+          const cJSON *pq = cJSON_GetArrayItem(prims, q);
+          const cJSON *dq = cJSON_GetObjectItemCaseSensitive(
+              cJSON_GetObjectItemCaseSensitive(pq, "extensions"), "KHR_draco_mesh_compression");
+          if (cJSON_Compare(cJSON_GetObjectItemCaseSensitive(pq, "attributes"), at, true) &&
+              (dq ? drc && cJSON_Compare(dq, drc, true) : !drc))
             shared = true, vb = d->prim_base[q];
+        }
         d->prim_base[pi] = vb;
         if (pass == 0) {
           if (!shared) nv += pos.count;
@@ -1296,6 +1472,12 @@ static void doc_close(gltf_doc *d) {
     free(d->views[i]);
   free(d->views);
   free(d->view_len);
+  for (int i = 0; i < d->n_draco && d->draco; ++i)
+    if (d->draco[i]) km__draco_free(d->draco[i]);
+  free(d->draco);
+  for (int i = 0; i < d->n_dacc && d->dacc; ++i)
+    free(d->dacc[i]);
+  free(d->dacc);
   for (int i = 0; i < d->n_bufs && d->bufs; ++i)
     free(d->bufs[i]);
   free(d->bufs);

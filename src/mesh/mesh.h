@@ -1,4 +1,4 @@
-/* Requires: core, linalg, math. External: cJSON, meshoptimizer. */
+/* Requires: core, linalg, math. External: cJSON, meshoptimizer, Draco. */
 /* Meshes: reading and writing (OBJ, PLY, OFF, glTF in, point clouds), orientation, topology,
  * geometric operators (Laplacians, mass, normals, local frames), sampling. Nothing about characters
  * or motion. Its public API is in include/kinemesh.h; mesh_io.h and mesh_args.h are private to it.
