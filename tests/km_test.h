@@ -156,4 +156,22 @@ static inline int km_test_run(const char *cmd, char **out) {
   return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 }
 
+/* Writes a .glb of json (the JSON chunk, padded with spaces) and bin[0 .. bin_len) (the BIN
+ * chunk, padded with zeros), for tests that make or edit glTF files. false when it cannot. */
+static inline bool km_test_write_glb(const char *path, const char *json, const void *bin,
+                                     size_t bin_len) {
+  size_t jn = strlen(json), jp = (jn + 3) & ~(size_t)3, bp = (bin_len + 3) & ~(size_t)3;
+  FILE *f = fopen(path, "wb");
+  if (!f) return false;
+  uint32_t h[5] = {0x46546C67u, 2, (uint32_t)(12 + 8 + jp + 8 + bp), (uint32_t)jp, 0x4E4F534Au};
+  uint32_t c[2] = {(uint32_t)bp, 0x004E4942u};
+  bool ok = fwrite(h, 4, 5, f) == 5 && fwrite(json, 1, jn, f) == jn;
+  for (size_t i = jn; i < jp; ++i)
+    ok &= fputc(' ', f) != EOF;
+  ok &= fwrite(c, 4, 2, f) == 2 && fwrite(bin, 1, bin_len, f) == bin_len;
+  for (size_t i = bin_len; i < bp; ++i)
+    ok &= fputc(0, f) != EOF;
+  return fclose(f) == 0 && ok;
+}
+
 #endif

@@ -178,23 +178,6 @@ static void transcoded(void) {
 }
 
 /* (3) broken files, made from quad_draco.glb by editing its JSON or its BIN chunk */
-static void write_glb(const char *path, const char *json, const unsigned char *bin, size_t bn) {
-  size_t jn = strlen(json), jp = (jn + 3) & ~(size_t)3, bp = (bn + 3) & ~(size_t)3;
-  FILE *f = fopen(path, "wb");
-  if (!f) return;
-  uint32_t h[5] = {0x46546C67u, 2, (uint32_t)(12 + 8 + jp + 8 + bp), (uint32_t)jp, 0x4E4F534Au};
-  fwrite(h, 4, 5, f);
-  fwrite(json, 1, jn, f);
-  for (size_t i = jn; i < jp; ++i)
-    fputc(' ', f);
-  uint32_t c[2] = {(uint32_t)bp, 0x004E4942u};
-  fwrite(c, 4, 2, f);
-  fwrite(bin, 1, bn, f);
-  for (size_t i = bn; i < bp; ++i)
-    fputc(0, f);
-  fclose(f);
-}
-
 static void broken(void) {
   size_t n = 0;
   unsigned char *glb = read_all(KM_TEST_DATA "/quad_draco.glb", &n);
@@ -239,7 +222,7 @@ static void broken(void) {
       cJSON_SetNumberValue(cJSON_GetObjectItem(cJSON_GetArrayItem(acc, 3), "componentType"), 5123);
     if (k == STRIP) cJSON_SetNumberValue(cJSON_GetObjectItem(pr, "mode"), 5);
     char *js = cJSON_PrintUnformatted(j);
-    write_glb(path, js, b, len);
+    CHECK(km_test_write_glb(path, js, b, len));
     km_mesh m = {0};
     km_status s = km_mesh_read(path, &m, KM_E);
     CHECK_MSG(s != KM_OK && m.V == NULL && strstr(km_test_err.message, path) &&

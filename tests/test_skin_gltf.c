@@ -268,19 +268,7 @@ static void write_skinned_glb_vrm(const char *path, const km_character *c, const
   cJSON_AddNumberToObject(buf, "byteLength", (double)total);
   cJSON_AddItemToArray(cJSON_AddArrayToObject(root, "buffers"), buf);
   char *js = cJSON_PrintUnformatted(root);
-  size_t jl = strlen(js), jp = (jl + 3) & ~(size_t)3, bp = (total + 3) & ~(size_t)3;
-  uint32_t hdr[5] = {0x46546C67u, 2, (uint32_t)(12 + 8 + jp + 8 + bp), (uint32_t)jp, 0x4E4F534Au};
-  FILE *f = fopen(path, "wb");
-  fwrite(hdr, 4, 5, f);
-  fwrite(js, 1, jl, f);
-  for (size_t i = jl; i < jp; ++i)
-    fputc(' ', f);
-  uint32_t bh[2] = {(uint32_t)bp, 0x004E4942u};
-  fwrite(bh, 4, 2, f);
-  fwrite(bin, 1, total, f);
-  for (size_t i = total; i < bp; ++i)
-    fputc(0, f);
-  fclose(f);
+  CHECK(km_test_write_glb(path, js, bin, total));
   free(js);
   free(bin);
   cJSON_Delete(root);
