@@ -6,7 +6,7 @@
 # needs and `make demo` does not (Blender, ~720 MB, for the ctest blender_import; its glTF
 # importer needs numpy, which Debian's blender package does not pull in; gltfpack packs a mesh
 # for test_gltf_meshopt, which skips without it; draco's draco_transcoder compresses glTF files
-# with Draco for test_gltf_draco, which skips without it).
+# with Draco for test_gltf_draco, whose transcoder part skips without it, saying so).
 set -euo pipefail
 TEST_PKGS=(blender python3-numpy gltfpack draco)
 PKGS=(build-essential cmake pkg-config
